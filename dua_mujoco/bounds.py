@@ -1,0 +1,556 @@
+"""Motion bounds: declared or estimated per body, the discrete-time term, and violation checks.
+
+The urgency of a sphere pair uses A = A_i + A_j (acceleration bounds of the two centres) and a
+velocity uncertainty delta = delta_i + delta_j; both add over the pair because the relative
+discrete acceleration and the relative velocity discrepancy are sums of per-sphere ones.
+
+The guarantee is stated on the positions MuJoCo produces at its steps (``docs/discrete-time.md``).
+With c_k the centre read after the k-th ``mj_step``, w_k the velocity read with it,
+u_k = (c_k - c_{k-1}) / h, the hypotheses are, for every sphere on body b and every k:
+
+* discrete acceleration: |u_{k+1} - u_k| <= A_b h,
+* one-step discrepancy: |u_{k+1} - w_k| <= D_b = delta_b + A_b h / 2,
+* optional speed: |w_k| <= V_b,
+
+and then |c_{k+n} - c_k - n h w_k| <= delta_b t + A_b t^2 / 2 at every t = n h.
+:class:`BoundMonitor` checks exactly these hypotheses, step by step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.exceptions import InvalidBoundError, InvalidChoiceError, InvalidInputError
+from dua_mujoco.state import (
+    MocapVelocityTracker,
+    mocap_sphere_velocities,
+    sphere_centers,
+    sphere_velocities,
+)
+
+__all__ = [
+    "BoundMonitor",
+    "BoundSpec",
+    "BoundViolation",
+    "MotionBounds",
+    "default_spheres",
+    "discrete_velocity_uncertainty",
+    "estimate_bounds",
+    "moving_bodies",
+]
+
+BoundSpec = float | Mapping[str, float]
+"""A bound given as one scalar for every moving body, or a dict by body name (``"*"``: default)."""
+
+
+def moving_bodies(model: mujoco.MjModel) -> np.ndarray:
+    """Which bodies can move.
+
+    A body is static when it is welded to the world (``body_weldid == 0``) and its tree is not
+    rooted at a mocap body. The world body is static.
+
+    Args:
+        model: the MuJoCo model.
+
+    Returns:
+        ``(nbody,)`` bool mask, True for bodies that can move.
+    """
+    weld = np.asarray(model.body_weldid)
+    root = np.asarray(model.body_rootid)
+    mocap_root = np.asarray(model.body_mocapid)[root] >= 0
+    return (weld != 0) | mocap_root
+
+
+def _body_names(model: mujoco.MjModel) -> list[str]:
+    return [model.body(b).name for b in range(model.nbody)]
+
+
+def _resolve(model: mujoco.MjModel, spec: BoundSpec, what: str) -> np.ndarray:
+    """Turn a scalar/dict bound into ``(nbody,)``, validated; static bodies get 0."""
+    moving = moving_bodies(model)
+    names = _body_names(model)
+    out = np.zeros(model.nbody)
+    if isinstance(spec, Mapping):
+        lookup = {n: i for i, n in enumerate(names) if n}
+        for key in spec:
+            if key != "*" and key not in lookup:
+                raise InvalidChoiceError(
+                    "body name",
+                    key,
+                    [n for n in names if n] + ["*"],
+                    hint=f"Use one of these as a key of the {what} dict ('*' for a default).",
+                )
+        default = spec.get("*")
+        for b in np.flatnonzero(moving):
+            name = names[b]
+            if name in spec:
+                val = spec[name]
+            elif default is not None:
+                val = default
+            else:
+                missing = [
+                    names[i] or f"<body {i}>"
+                    for i in np.flatnonzero(moving)
+                    if names[i] not in spec
+                ]
+                raise InvalidBoundError(
+                    f"No {what} bound for moving bodies {missing}. Give every moving body a "
+                    f"value, or add a '*' key as the default."
+                )
+            out[b] = _check_value(float(val), what, name or f"<body {b}>")
+        # Values given for static bodies are checked but not used: they cannot move.
+        for key, val in spec.items():
+            if key != "*":
+                _check_value(float(val), what, key)
+        if default is not None:
+            _check_value(float(default), what, "*")
+    else:
+        val = _check_value(float(spec), what, "all bodies")
+        out[moving] = val
+    return out
+
+
+def _check_value(val: float, what: str, body: str) -> float:
+    if not np.isfinite(val) or val < 0:
+        raise InvalidBoundError(
+            f"The {what} bound of body {body!r} is {val!r}; it must be finite and >= 0 "
+            f"(use 0 for a body that does not accelerate)."
+        )
+    return val
+
+
+def discrete_velocity_uncertainty(
+    model: mujoco.MjModel,
+    accel: npt.ArrayLike,
+    *,
+    velocity_accel: npt.ArrayLike | None = None,
+) -> np.ndarray:
+    """The velocity-uncertainty term delta that makes tau valid at MuJoCo's step times.
+
+    Rule (derivation in ``docs/discrete-time.md``): delta = max(D - A h / 2, 0) where D bounds
+    the one-step discrepancy |u_{k+1} - w_k| between the next discrete velocity and the velocity
+    MjData reports.
+
+    * Euler, implicit, implicitfast (semi-implicit position update with the new velocity, and
+      kinematics in MjData from the start of the step): for a translating point w_k = u_k
+      exactly, so D = |u_{k+1} - u_k| <= A h and delta = A h / 2 (the SPEC's term). On rotating
+      bodies w_k is the tangent and u_k the chord: u_k - w_k = -(h/2) a_v + O(h^2), with a_v the
+      velocity-product acceleration of the point (centripetal/Coriolis, the acceleration it
+      would have at zero joint acceleration), so D <= A h + (h/2) |a_v| and
+      delta = (A + C) h / 2 with C >= |a_v| (``velocity_accel``). C = 0 is exact for slide-only
+      chains, and correct to first order for one hinge (tangential and centripetal parts are
+      orthogonal, |a_t + a_c/2| <= |a|); for ball/free joints and chains give C, or use
+      :func:`estimate_bounds`, which measures D.
+    * RK4: MjData holds the kinematics of the last RK stage, which lies on the integrated
+      trajectory to high order, so D <= A h / 2 + O(h^2) and delta = O(h^2). The rule returns
+      the Euler value A h / 2, conservative by about A h / 2 (measured in the tests).
+
+    Args:
+        model: the MuJoCo model (its integrator and timestep).
+        accel: ``(nbody,)`` acceleration bounds A.
+        velocity_accel: ``(nbody,)`` bounds C on the velocity-product acceleration of sphere
+            centres; None for 0.
+
+    Returns:
+        ``(nbody,)`` delta per body.
+    """
+    A = np.asarray(accel, dtype=np.float64).reshape(-1)
+    if A.shape[0] != model.nbody:
+        raise InvalidInputError(f"accel must have shape ({model.nbody},); got {A.shape}.")
+    C = (
+        np.zeros_like(A)
+        if velocity_accel is None
+        else np.broadcast_to(np.asarray(velocity_accel, dtype=np.float64), A.shape)
+    )
+    h = float(model.opt.timestep)
+    integ = int(model.opt.integrator)
+    known = {
+        int(mujoco.mjtIntegrator.mjINT_EULER),
+        int(mujoco.mjtIntegrator.mjINT_IMPLICIT),
+        int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST),
+        int(mujoco.mjtIntegrator.mjINT_RK4),
+    }
+    if integ not in known:
+        raise InvalidChoiceError("integrator", integ, sorted(known))
+    # Same expression for all four: tight for the semi-implicit ones, conservative for RK4.
+    return 0.5 * h * (A + C)
+
+
+@dataclass(frozen=True)
+class MotionBounds:
+    """Per-body motion bounds for the covering-sphere centres of each body.
+
+    Attributes:
+        accel: ``(nbody,)`` bound A on the (discrete) acceleration norm of every sphere centre
+            of the body; 0 for static bodies.
+        speed: ``(nbody,)`` bound V on the speed of every sphere centre, or None.
+        vel_uncertainty: ``(nbody,)`` delta: discrete-time term (plus any user term).
+        source: ``"declared"`` or ``"auto"`` (estimated by a pilot rollout).
+        timestep: the model timestep h these bounds were made for.
+    """
+
+    accel: np.ndarray
+    speed: np.ndarray | None
+    vel_uncertainty: np.ndarray
+    source: Literal["declared", "auto"] = "declared"
+    timestep: float = 0.0
+    body_names: tuple[str, ...] = field(default=(), compare=False)
+
+    def __post_init__(self) -> None:
+        """Validate shapes and values."""
+        n = self.accel.shape[0]
+        arrays = {"accel": self.accel, "vel_uncertainty": self.vel_uncertainty}
+        if self.speed is not None:
+            arrays["speed"] = self.speed
+        for name, arr in arrays.items():
+            if arr.shape != (n,):
+                raise InvalidInputError(f"MotionBounds.{name} must have shape ({n},).")
+            bad = ~np.isfinite(arr) | (arr < 0)
+            if bad.any():
+                b = int(np.flatnonzero(bad)[0])
+                label = self.body_names[b] if b < len(self.body_names) else str(b)
+                raise InvalidBoundError(
+                    f"MotionBounds.{name} of body {label!r} is {arr[b]!r}; must be finite, >= 0."
+                )
+
+    @property
+    def discrepancy(self) -> np.ndarray:
+        """``(nbody,)`` D = delta + A h / 2: the largest one-step discrepancy the bounds allow."""
+        return self.vel_uncertainty + 0.5 * self.timestep * self.accel
+
+    @classmethod
+    def declare(
+        cls,
+        model: mujoco.MjModel,
+        accel: BoundSpec,
+        *,
+        speed: BoundSpec | None = None,
+        vel_uncertainty: BoundSpec | None = None,
+        velocity_accel: BoundSpec | None = None,
+        integrator_term: bool = True,
+    ) -> MotionBounds:
+        """Bounds declared by the user.
+
+        Args:
+            model: the MuJoCo model.
+            accel: A, a scalar for every moving body or a dict by body name (``"*"`` default).
+            speed: V in the same forms, or None.
+            vel_uncertainty: extra velocity uncertainty (e.g. sensor noise), added to the
+                integrator term.
+            velocity_accel: C, a bound on the velocity-product (centripetal/Coriolis)
+                acceleration of sphere centres, for :func:`discrete_velocity_uncertainty`.
+            integrator_term: add the discrete-time term. Turn it off only for continuous-time
+                use (e.g. a kinematic world sampled exactly).
+
+        Returns:
+            The bounds, ``source="declared"``.
+
+        Raises:
+            InvalidChoiceError: a dict key is not a body name (the message lists them).
+            InvalidBoundError: a value is negative or NaN, or a moving body has no value.
+        """
+        A = _resolve(model, accel, "acceleration")
+        V = None if speed is None else _resolve(model, speed, "speed")
+        delta = np.zeros(model.nbody)
+        if integrator_term:
+            C = (
+                None
+                if velocity_accel is None
+                else _resolve(model, velocity_accel, "velocity_accel")
+            )
+            delta += discrete_velocity_uncertainty(model, A, velocity_accel=C)
+        if vel_uncertainty is not None:
+            delta += _resolve(model, vel_uncertainty, "velocity uncertainty")
+        return cls(
+            accel=A,
+            speed=V,
+            vel_uncertainty=delta,
+            source="declared",
+            timestep=float(model.opt.timestep),
+            body_names=tuple(_body_names(model)),
+        )
+
+
+def default_spheres(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One sphere per geom at the geom origin (the SPEC's default covering centres).
+
+    Returns:
+        ``(sphere_geom (ngeom,), sphere_body (ngeom,), sphere_offset (ngeom, 3))``.
+    """
+    g = np.arange(model.ngeom, dtype=np.int64)
+    return g, np.asarray(model.geom_bodyid, dtype=np.int64)[g], np.zeros((model.ngeom, 3))
+
+
+def _per_body_max(values: np.ndarray, sphere_body: np.ndarray, nbody: int) -> np.ndarray:
+    out = np.zeros(nbody)
+    np.maximum.at(out, sphere_body, values)
+    return out
+
+
+Controller = Callable[[mujoco.MjModel, mujoco.MjData, np.random.Generator], None]
+
+
+def estimate_bounds(
+    model: mujoco.MjModel,
+    *,
+    steps: int,
+    seed: int,
+    safety: float = 2.0,
+    controller: Controller | None = None,
+    init: Controller | None = None,
+    spheres: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike] | None = None,
+    with_speed: bool = True,
+    contact_free: bool = True,
+) -> MotionBounds:
+    """Estimate bounds from a pilot rollout (its own ``MjData``, its own seed).
+
+    Measures, per body and over its sphere centres: the discrete acceleration
+    |u_{k+1} - u_k| / h, the one-step discrepancy |u_{k+1} - w_k| and the speed |w_k|; multiplies
+    each by ``safety``. The guarantee then rests on the monitored run staying within them: use a
+    :class:`BoundMonitor`.
+
+    Args:
+        model: the MuJoCo model.
+        steps: number of pilot steps (>= 3).
+        seed: seed of the pilot's random generator (controls, initial state).
+        safety: factor (>= 1) applied to every measured maximum.
+        controller: called before every step as ``controller(model, data, rng)``; None drives
+            actuators with uniform random controls in their ``ctrlrange`` (or [-1, 1]).
+        init: called once after ``mj_resetData`` as ``init(model, data, rng)``.
+        spheres: ``(sphere_geom, sphere_body, sphere_offset)``; None for :func:`default_spheres`.
+        with_speed: also return a speed bound.
+        contact_free: measure a kinematic tree only at steps where none of its bodies was in
+            contact (in the last three steps, which the second difference spans). Contact
+            impulses are what the predictor must foresee, not part of the motion model: with
+            them the bounds become so loose that every pair alarms. Collisions then show up as
+            bound violations in the ``BoundMonitor``, as they should.
+
+    Returns:
+        The bounds, ``source="auto"``.
+    """
+    if steps < 3:
+        raise InvalidInputError(f"steps must be >= 3 to difference twice; got {steps}.")
+    if not np.isfinite(safety) or safety < 1.0:
+        raise InvalidInputError(f"safety must be >= 1; got {safety}.")
+    rng = np.random.default_rng(seed)
+    sgeom, sbody, soff = (
+        default_spheres(model) if spheres is None else (np.asarray(a) for a in spheres)
+    )
+    sgeom = np.asarray(sgeom, dtype=np.int64)
+    sbody = np.asarray(sbody, dtype=np.int64)
+    soff = np.asarray(soff, dtype=np.float64).reshape(-1, 3)
+    d = mujoco.MjData(model)
+    mujoco.mj_resetData(model, d)
+    if init is not None:
+        init(model, d, rng)
+    mujoco.mj_forward(model, d)
+    tracker = MocapVelocityTracker(model)
+
+    def default_controller(m: mujoco.MjModel, dd: mujoco.MjData, g: np.random.Generator) -> None:
+        if m.nu:
+            lo, hi = np.asarray(m.actuator_ctrlrange, dtype=np.float64).T
+            limited = np.asarray(m.actuator_ctrllimited, dtype=bool)
+            lo = np.where(limited, lo, -1.0)
+            hi = np.where(limited, hi, 1.0)
+            dd.ctrl[:] = g.uniform(lo, hi)
+
+    ctrl = controller if controller is not None else default_controller
+    h = float(model.opt.timestep)
+    nb = model.nbody
+    amax, dmax, vmax = np.zeros(nb), np.zeros(nb), np.zeros(nb)
+    prev_c: np.ndarray | None = None
+    prev_u: np.ndarray | None = None
+    prev_w: np.ndarray | None = None
+    rootid = np.asarray(model.body_rootid, dtype=np.int64)
+    sroot = rootid[sbody]
+    touched = np.zeros((3, nb), dtype=bool)  # trees in contact at the last three steps
+    for k in range(steps):
+        ctrl(model, d, rng)
+        mujoco.mj_step(model, d)
+        tracker.update(d)
+        if contact_free:
+            touched[k % 3] = False
+            nc = int(d.ncon)
+            if nc:
+                touched[k % 3, rootid[np.asarray(model.geom_bodyid)[d.contact.geom1[:nc]]]] = True
+                touched[k % 3, rootid[np.asarray(model.geom_bodyid)[d.contact.geom2[:nc]]]] = True
+            free = ~touched.any(axis=0)[sroot]
+        else:
+            free = np.ones(sbody.shape[0], dtype=bool)
+        c = sphere_centers(d.geom_xpos, d.geom_xmat, sgeom, soff)
+        w = sphere_velocities(d.cvel, d.subtree_com, model.body_rootid, sbody, c)
+        w = w + mocap_sphere_velocities(model, d, tracker, sbody, c)
+        vmax = np.maximum(vmax, _per_body_max(np.linalg.norm(w, axis=1), sbody, nb))
+        if prev_c is not None:
+            u = (c - prev_c) / h
+            assert prev_w is not None
+            if tracker.nupdates >= 3 or not tracker.mocap_bodies.size:
+                disc = np.where(free, np.linalg.norm(u - prev_w, axis=1), 0.0)
+                dmax = np.maximum(dmax, _per_body_max(disc, sbody, nb))
+            if prev_u is not None:
+                acc = np.where(free, np.linalg.norm(u - prev_u, axis=1) / h, 0.0)
+                amax = np.maximum(amax, _per_body_max(acc, sbody, nb))
+            prev_u = u
+        prev_c, prev_w = c, w
+    moving = moving_bodies(model)
+    A = np.where(moving, safety * amax, 0.0)
+    D = np.where(moving, safety * dmax, 0.0)
+    V = np.where(moving, safety * vmax, 0.0) if with_speed else None
+    if not (np.isfinite(A).all() and np.isfinite(D).all()):
+        raise InvalidBoundError("The pilot rollout diverged (NaN/inf): reduce the timestep.")
+    return MotionBounds(
+        accel=A,
+        speed=V,
+        vel_uncertainty=np.maximum(D - 0.5 * h * A, 0.0),
+        source="auto",
+        timestep=h,
+        body_names=tuple(_body_names(model)),
+    )
+
+
+@dataclass(frozen=True)
+class BoundViolation:
+    """One broken bound.
+
+    Attributes:
+        step: index of the :meth:`BoundMonitor.update` call that detected it (0-based).
+        time: ``d.time`` at that call.
+        body: body id.
+        kind: ``"accel"``, ``"discrepancy"`` or ``"speed"``.
+        value: the largest measured value over the body's spheres.
+        bound: the bound it exceeded.
+    """
+
+    step: int
+    time: float
+    body: int
+    kind: str
+    value: float
+    bound: float
+
+
+class BoundMonitor:
+    """Checks, once per physics step, whether the hypotheses of the guarantee held.
+
+    Call :meth:`update` after every ``mj_step``. Update k (k >= 2) checks, for every sphere,
+    |u_k - u_{k-1}| <= A h (discrete acceleration), |u_k - w_{k-1}| <= D = delta + A h / 2
+    (one-step discrepancy) and |w_k| <= V, with a tolerance for floating-point round-off in the
+    second differences. Vectorised over spheres.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        bounds: MotionBounds,
+        spheres: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike] | None = None,
+        *,
+        mocap: MocapVelocityTracker | None = None,
+        rtol: float = 1e-9,
+    ) -> None:
+        """Create a monitor.
+
+        Args:
+            model: the MuJoCo model.
+            bounds: the bounds to hold the run to.
+            spheres: ``(sphere_geom, sphere_body, sphere_offset)``; None for
+                :func:`default_spheres`.
+            mocap: tracker for mocap velocities (the caller updates it each step, before
+                :meth:`update`).
+            rtol: relative tolerance on every comparison.
+        """
+        if bounds.accel.shape != (model.nbody,):
+            raise InvalidInputError("bounds were made for a model with a different nbody.")
+        sgeom, sbody, soff = default_spheres(model) if spheres is None else spheres
+        self._sgeom = np.asarray(sgeom, dtype=np.int64)
+        self._sbody = np.asarray(sbody, dtype=np.int64)
+        self._soff = np.asarray(soff, dtype=np.float64).reshape(-1, 3)
+        self._bounds = bounds
+        self._mocap = mocap
+        self._rtol = rtol
+        self._nbody = model.nbody
+        self._A = bounds.accel[self._sbody]
+        self._D = bounds.discrepancy[self._sbody]
+        self._V = None if bounds.speed is None else bounds.speed[self._sbody]
+        self._prev_c: np.ndarray | None = None
+        self._prev_u: np.ndarray | None = None
+        self._prev_w: np.ndarray | None = None
+        self._prev_t = 0.0
+        self.violations: list[BoundViolation] = []
+        """Every violation so far, in order."""
+        self.held: list[bool] = []
+        """Per update: True when no bound was broken at that update."""
+
+    def _flag(self, kind: str, mask: np.ndarray, values: np.ndarray, t: float) -> np.ndarray:
+        """Record violations of ``kind`` for spheres in ``mask``; return the body ids."""
+        if not mask.any():
+            return np.zeros(0, dtype=np.int64)
+        bodies = self._sbody[mask]
+        worst = np.full(self._nbody, -np.inf)
+        np.maximum.at(worst, bodies, values[mask])
+        ub = np.unique(bodies)
+        bound = self._bounds_for(kind)
+        step = len(self.held)
+        self.violations.extend(
+            BoundViolation(step, t, int(b), kind, float(worst[b]), float(bound[b])) for b in ub
+        )
+        return ub
+
+    def _bounds_for(self, kind: str) -> np.ndarray:
+        if kind == "accel":
+            return self._bounds.accel
+        if kind == "discrepancy":
+            return self._bounds.discrepancy
+        assert self._bounds.speed is not None
+        return self._bounds.speed
+
+    def update(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+        """Check the step that produced ``data``.
+
+        Args:
+            model: the MuJoCo model.
+            data: the data right after ``mj_step``.
+
+        Returns:
+            ``(k,)`` sorted ids of bodies that broke a bound at this step (empty if none).
+        """
+        c = sphere_centers(data.geom_xpos, data.geom_xmat, self._sgeom, self._soff)
+        w = sphere_velocities(data.cvel, data.subtree_com, model.body_rootid, self._sbody, c)
+        if self._mocap is not None and self._mocap.mocap_bodies.size:
+            w = w + mocap_sphere_velocities(model, data, self._mocap, self._sbody, c)
+        t = float(data.time)
+        found: list[np.ndarray] = []
+        if self._V is not None:
+            speed = np.linalg.norm(w, axis=1)
+            found.append(self._flag("speed", speed > self._V * (1 + self._rtol), speed, t))
+        u = None
+        if self._prev_c is not None:
+            h = t - self._prev_t
+            if h <= 0:
+                h = float(model.opt.timestep)
+            u = (c - self._prev_c) / h
+            # Round-off of a second difference of positions of size |c|: ~ 4 eps |c| / h^2.
+            scale = np.max(np.abs(c), axis=1) + np.max(np.abs(self._prev_c), axis=1)
+            tol_a = 8 * np.finfo(float).eps * scale / h**2
+            assert self._prev_w is not None
+            disc = np.linalg.norm(u - self._prev_w, axis=1)
+            tol_d = tol_a * h + 8 * np.finfo(float).eps * np.linalg.norm(self._prev_w, axis=1)
+            found.append(
+                self._flag("discrepancy", disc > self._D * (1 + self._rtol) + tol_d, disc, t)
+            )
+            if self._prev_u is not None:
+                acc = np.linalg.norm(u - self._prev_u, axis=1) / h
+                found.append(self._flag("accel", acc > self._A * (1 + self._rtol) + tol_a, acc, t))
+        self._prev_c, self._prev_u, self._prev_w, self._prev_t = c, u, w, t
+        out = np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=np.int64)
+        self.held.append(out.size == 0)
+        return out.astype(np.int64)
+
+    def bounds_held(self, start: int = 0, stop: int | None = None) -> bool:
+        """Whether no bound was broken at updates ``start`` .. ``stop - 1``."""
+        return all(self.held[start:stop])

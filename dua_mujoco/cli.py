@@ -1,0 +1,206 @@
+"""Command line: ``dua-mujoco run [SCENE] ...`` and ``dua-mujoco paper ...``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import mujoco
+
+from dua_mujoco.exceptions import DuaError
+
+__all__ = ["build_parser", "main"]
+
+
+def _accel(value: str) -> str | float:
+    if value == "auto":
+        return value
+    try:
+        a = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--accel {value!r} is invalid: pass 'auto' or a number in m/s^2"
+        ) from None
+    if not a >= 0:
+        raise argparse.ArgumentTypeError(f"--accel {value!r} is invalid: it must be >= 0")
+    return a
+
+
+def _positive(kind: type) -> object:
+    def parse(value: str) -> object:
+        try:
+            v = kind(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{value!r} is not a {kind.__name__}") from None
+        if not v > 0:
+            raise argparse.ArgumentTypeError(f"{value!r} must be > 0")
+        return v
+
+    return parse
+
+
+def _add_run(sub: argparse._SubParsersAction) -> None:
+    from dua_mujoco.scenes import DEFAULT_SCENE, scene_names
+
+    p = sub.add_parser(
+        "run",
+        help="predict collisions on a scene and check them against MuJoCo's contacts",
+        description="Roll out a scene with the DUA predictor and MuJoCo's contacts as the exact "
+        "stage; print a summary table and optionally write a JSON report and a video.",
+    )
+    p.add_argument(
+        "scene",
+        nargs="?",
+        default=DEFAULT_SCENE,
+        help=f"bundled scene ({', '.join(scene_names())}, paper_world:N) or an MJCF path "
+        f"(default {DEFAULT_SCENE})",
+    )
+    p.add_argument("--steps", type=_positive(int), default=None, help="physics steps")
+    p.add_argument("--seed", type=int, default=0, help="seed of the controls (default 0)")
+    p.add_argument("--ctrl", choices=["zero", "random"], default="random", help="controls")
+    p.add_argument("--keyframe", default=None, help="start keyframe (id or name; default first)")
+    p.add_argument(
+        "--accel",
+        type=_accel,
+        default="auto",
+        help="acceleration bound in m/s^2 for every moving body, or 'auto' (pilot rollout)",
+    )
+    p.add_argument("--speed", type=_positive(float), default=None, help="speed bound in m/s")
+    p.add_argument("--covering", choices=["bounding", "multi"], default="bounding")
+    p.add_argument("--max-spheres", type=_positive(int), default=8, help="multi covering budget")
+    p.add_argument("--period", type=_positive(int), default=1, help="physics steps per predictor step")
+    p.add_argument("--latency", type=int, default=0, help="verdict latency in periods (0 or 1)")
+    p.add_argument("--budget", type=_positive(int), default=1, help="slots per bucket per step")
+    p.add_argument("--pilot-steps", type=_positive(int), default=2000, help="pilot rollout length")
+    p.add_argument("--hfield", choices=["error", "box"], default="error")
+    p.add_argument("--realtime", action="store_true", help="count predictor deadline overruns")
+    p.add_argument("--json", type=Path, default=None, help="write the report as JSON here")
+    p.add_argument("--series", action="store_true", help="add per-step series to the JSON")
+    p.add_argument("--video", type=Path, default=None, help="render a video (.mp4 or .gif)")
+    p.add_argument("--fps", type=_positive(int), default=30)
+    p.add_argument("--width", type=_positive(int), default=480)
+    p.add_argument("--height", type=_positive(int), default=360)
+    p.add_argument("--camera", default=None, help="camera name or id (default free camera)")
+    p.add_argument("--every", type=_positive(int), default=5, help="render every k-th step")
+    p.add_argument("--show-spheres", action="store_true", help="draw the covering spheres")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=_cmd_run)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from dua_mujoco.monitor import run
+    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.scenes import SCENES, load_scene, make_controller
+
+    keyframe: int | str | None = args.keyframe
+    if isinstance(keyframe, str) and keyframe.isdigit():
+        keyframe = int(keyframe)
+    model, data = load_scene(args.scene, keyframe=keyframe)
+    steps = args.steps
+    if steps is None:
+        base = args.scene.split(":")[0]
+        steps = SCENES[base].default_steps if base in SCENES else 1000
+    controller = make_controller(model, args.ctrl, seed=args.seed)
+    pilot = make_controller(model, args.ctrl, seed=args.seed + 1_000_003)
+    predictor = Predictor(
+        model,
+        accel=args.accel,
+        speed=args.speed,
+        covering=args.covering,
+        max_spheres_per_geom=args.max_spheres,
+        hfield=args.hfield,
+        period=args.period,
+        latency=args.latency,
+        slots_per_bucket=args.budget,
+        pilot_steps=args.pilot_steps,
+        pilot_seed=args.seed + 1_000_003,
+        pilot_controller=pilot,
+    )
+    on_step = None
+    renderer = None
+    frames: list = []
+    if args.video is not None:
+        from dua_mujoco.render import OverlayOptions, OverlayRenderer
+
+        renderer = OverlayRenderer(
+            predictor,
+            width=args.width,
+            height=args.height,
+            options=OverlayOptions(show_spheres=args.show_spheres),
+        )
+        camera = int(args.camera) if args.camera and args.camera.isdigit() else args.camera
+
+        def on_step(k: int, d: mujoco.MjData, alarms: object, monitor: object) -> None:
+            if k % args.every == 0 and alarms is not None:
+                frames.append(
+                    renderer.render(d, alarms, camera=camera, misses=len(monitor.misses))  # type: ignore[attr-defined]
+                )
+
+    try:
+        report = run(
+            model,
+            data,
+            predictor,
+            steps=steps,
+            controller=controller,
+            scene=args.scene,
+            realtime=args.realtime,
+            progress=not args.no_progress,
+            on_step=on_step,
+        )
+    finally:
+        if renderer is not None:
+            renderer.close()
+    print(report.table())
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(report.to_dict(series=args.series), indent=2))
+        print(f"report written to {args.json}")
+    if args.video is not None:
+        from dua_mujoco.render import write_video
+
+        write_video(frames, args.video, fps=args.fps)
+        print(f"video written to {args.video} ({len(frames)} frames)")
+    return 0
+
+
+def _add_paper(sub: argparse._SubParsersAction) -> None:
+    from dua_mujoco.experiments import paper
+
+    p = sub.add_parser(
+        "paper",
+        help="reproduce the paper's experiments (sec. 8) and write tables, plots and JSON",
+    )
+    paper.add_arguments(p)
+    p.set_defaults(func=paper.main)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``dua-mujoco`` argument parser with its subcommands."""
+    parser = argparse.ArgumentParser(
+        prog="dua-mujoco",
+        description="Collision prediction for MuJoCo with the Dynamic Urgency Algorithm.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_run(sub)
+    try:
+        _add_paper(sub)
+    except ImportError:  # the paper reproduction is optional at import time
+        pass
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit code (2 on bad input, with a one-line reason)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (DuaError, ValueError, FileNotFoundError) as exc:
+        # mujoco raises ValueError for MJCF it cannot load: also bad input.
+        reason = " ".join(str(exc).split())
+        print(f"dua-mujoco: error: {reason}", file=sys.stderr)
+        return 2

@@ -1,0 +1,583 @@
+"""Geoms -> spheres and half-spaces.
+
+Every collidable geom of a MuJoCo model is replaced by a set of spheres whose union contains the
+geom's solid (for meshes: its convex hull, which is what MuJoCo collides with). Planes are kept as
+half-spaces (outward normal = the plane's local z axis, through ``geom_xpos``). A collision between
+two geoms therefore implies an intersection between one sphere of each (or between a sphere and a
+half-space), which is what the urgency layer predicts.
+
+Two coverings exist:
+
+* ``BOUNDING``: one sphere per geom, centred at the geom origin with radius ``m.geom_rbound``
+  (MuJoCo's own bounding sphere; for meshes and height fields it bounds the corners of the geom's
+  local bounding box, so it contains every vertex).
+* ``MULTI``: a tighter set of at most ``max_spheres_per_geom`` spheres per geom: spheres are
+  exact, capsules get spheres along their segment, and boxes, cylinders, ellipsoids, meshes (and
+  height fields with ``hfield="box"``) get one sphere per cell of a grid over the geom's local
+  bounding box, keeping only cells that can intersect the solid. When the single bounding sphere
+  has a smaller volume than the union of the multi-sphere set (e.g. a near-spherical ellipsoid),
+  the bounding sphere is kept instead.
+
+See ``docs/covering-and-pairs.md`` for the containment argument per geom type.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.exceptions import (
+    InvalidChoiceError,
+    InvalidInputError,
+    ShapeError,
+    UnsupportedGeomError,
+)
+
+__all__ = [
+    "Covering",
+    "CoveringMode",
+    "cover_model",
+    "sphere_world_centers",
+]
+
+_PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
+_HFIELD = int(mujoco.mjtGeom.mjGEOM_HFIELD)
+_SPHERE = int(mujoco.mjtGeom.mjGEOM_SPHERE)
+_CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
+_ELLIPSOID = int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)
+_CYLINDER = int(mujoco.mjtGeom.mjGEOM_CYLINDER)
+_BOX = int(mujoco.mjtGeom.mjGEOM_BOX)
+_MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
+_SDF = int(mujoco.mjtGeom.mjGEOM_SDF)
+
+_HFIELD_CHOICES = ("error", "box")
+
+# keep(lo (k, 3), hi (k, 3)) -> (k,) bool: False only for cells provably disjoint from the shape.
+_CellTest = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+# Grids whose cell count exceeds the budget by this factor are still tried for shapes that drop
+# cells (cylinder, ellipsoid, mesh): after dropping, they may fit the budget with smaller cells.
+_GRID_OVERSHOOT = 2
+
+
+class CoveringMode(enum.Enum):
+    """How geoms are covered by spheres."""
+
+    BOUNDING = "bounding"
+    """One sphere per geom: centre at the geom origin, radius ``m.geom_rbound``."""
+
+    MULTI = "multi"
+    """Up to ``max_spheres_per_geom`` spheres per geom, over the segment or a grid of cells."""
+
+
+@dataclass(frozen=True)
+class Covering:
+    """Spheres (and half-spaces) that together contain every covered geom of a model.
+
+    Sphere ids index the ``sphere_*`` arrays; the spheres of geom ``g`` are the contiguous range
+    ``geom_sphere_start[g]:geom_sphere_start[g + 1]`` (CSR layout). Planes and uncovered geoms
+    (geoms that can never collide) have no spheres; planes are listed in ``plane_geom``.
+
+    Attributes:
+        sphere_geom: ``(nsphere,)`` int32, the geom each sphere covers.
+        sphere_body: ``(nsphere,)`` int32, the body of that geom.
+        sphere_offset: ``(nsphere, 3)`` float64, sphere centre in the geom frame.
+        sphere_radius: ``(nsphere,)`` float64, sphere radius.
+        geom_sphere_start: ``(ngeom + 1,)`` int32, CSR start of each geom's spheres.
+        plane_geom: ``(nplane,)`` int32, geom ids of plane geoms (half-spaces).
+        geom_plane: ``(ngeom,)`` int32, plane index of each geom, or -1.
+        mode: the covering mode used.
+        plane_static: ``(nplane,)`` bool, the plane's body is welded to the world (only static
+            planes are fixed half-spaces).
+    """
+
+    sphere_geom: np.ndarray
+    sphere_body: np.ndarray
+    sphere_offset: np.ndarray
+    sphere_radius: np.ndarray
+    geom_sphere_start: np.ndarray
+    plane_geom: np.ndarray
+    geom_plane: np.ndarray
+    mode: CoveringMode = field(default=CoveringMode.BOUNDING)
+    plane_static: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+    def __post_init__(self) -> None:
+        # Coverings built by hand may omit plane_static: planes are then taken as static.
+        if self.plane_static.shape != self.plane_geom.shape:
+            object.__setattr__(self, "plane_static", np.ones(self.plane_geom.shape, dtype=bool))
+
+    @property
+    def nsphere(self) -> int:
+        """Number of spheres."""
+        return int(self.sphere_radius.shape[0])
+
+    @property
+    def nplane(self) -> int:
+        """Number of plane geoms (half-spaces)."""
+        return int(self.plane_geom.shape[0])
+
+    @property
+    def ngeom(self) -> int:
+        """Number of geoms of the model the covering was built from."""
+        return int(self.geom_plane.shape[0])
+
+    def spheres_of(self, geom_id: int) -> np.ndarray:
+        """Sphere ids covering one geom.
+
+        Args:
+            geom_id: a geom id of the model.
+
+        Returns:
+            ``(k,)`` int64 sphere ids (empty for planes and uncovered geoms).
+
+        Raises:
+            InvalidInputError: if ``geom_id`` is not a geom id of the model.
+        """
+        g = int(geom_id)
+        if not 0 <= g < self.ngeom:
+            raise InvalidInputError(
+                f"geom id {geom_id!r} is out of range: the model has {self.ngeom} geoms "
+                f"(valid ids 0..{self.ngeom - 1})."
+            )
+        return np.arange(self.geom_sphere_start[g], self.geom_sphere_start[g + 1], dtype=np.int64)
+
+
+# ------------------------------------------------------------------------------------------------
+# per-type coverings, all in the geom frame: (centres (k, 3), radii (k,))
+
+
+def _grid_cells(half: np.ndarray, shape: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Cells of a regular grid over the box ``[-half, half]``.
+
+    Returns:
+        ``(lo (k, 3), hi (k, 3))`` corners of the cells, relative to the box centre.
+    """
+    axes_lo = []
+    axes_hi = []
+    for a in range(3):
+        edges = np.linspace(-half[a], half[a], shape[a] + 1)
+        axes_lo.append(edges[:-1])
+        axes_hi.append(edges[1:])
+    lo = np.stack(np.meshgrid(*axes_lo, indexing="ij"), axis=-1).reshape(-1, 3)
+    hi = np.stack(np.meshgrid(*axes_hi, indexing="ij"), axis=-1).reshape(-1, 3)
+    return lo, hi
+
+
+def _candidate_grids(half: np.ndarray, max_cells: int) -> list[tuple[int, int, int]]:
+    """Grid shapes with at most ``max_cells`` cells, smallest cell radius first.
+
+    The cell radius (half the cell diagonal) is what the covering sticks out by, so minimising it
+    yields roughly cubic cells; ties go to fewer cells.
+    """
+    full = 2.0 * np.asarray(half, dtype=np.float64)
+    grids: list[tuple[float, int, tuple[int, int, int]]] = []
+    for nx in range(1, max_cells + 1):
+        for ny in range(1, max_cells // nx + 1):
+            nz_max = max_cells // (nx * ny)
+            for nz in range(1, nz_max + 1):
+                cell = full / np.array([nx, ny, nz])
+                grids.append((float(np.dot(cell, cell)), nx * ny * nz, (nx, ny, nz)))
+    grids.sort()
+    return [g for _, _, g in grids]
+
+
+def _grid_cover(
+    centre: np.ndarray,
+    half: np.ndarray,
+    budget: int,
+    keep: _CellTest | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cover the box ``centre ± half`` by one sphere per grid cell that ``keep`` accepts.
+
+    Every point of the shape lies in some grid cell (the grid tiles the box that contains the
+    shape); that cell intersects the shape, so ``keep`` (which may only reject cells disjoint from
+    the shape) keeps it; and the cell lies in its circumscribed sphere. Hence containment.
+
+    Args:
+        centre: ``(3,)`` box centre in the geom frame.
+        half: ``(3,)`` box half-sizes.
+        budget: maximum number of spheres.
+        keep: ``keep(lo, hi) -> (k,) bool`` with cell corners in the geom frame, or None to keep
+            every cell.
+
+    Returns:
+        ``(centres (k, 3), radii (k,))`` with ``k <= budget``.
+    """
+    half = np.maximum(np.asarray(half, dtype=np.float64), 0.0)
+    max_cells = budget if keep is None else budget * _GRID_OVERSHOOT
+    for shape in _candidate_grids(half, max_cells):
+        lo, hi = _grid_cells(half, shape)
+        lo = lo + centre
+        hi = hi + centre
+        mask = np.ones(lo.shape[0], dtype=bool) if keep is None else keep(lo, hi)
+        if 0 < int(mask.sum()) <= budget:
+            lo, hi = lo[mask], hi[mask]
+            centres = 0.5 * (lo + hi)
+            radii = 0.5 * np.linalg.norm(hi - lo, axis=1)
+            return centres, radii
+    # One cell always fits (budget >= 1) and intersects the shape; reached only if `keep`
+    # rejected every cell, which means the shape is empty: fall back to the whole box.
+    return centre[None, :].copy(), np.array([float(np.linalg.norm(half))])
+
+
+def _capsule_cover(radius: float, halflen: float, budget: int) -> tuple[np.ndarray, np.ndarray]:
+    """Spheres along a capsule's segment (local z axis).
+
+    Two constructions, the smaller sum of cubed radii wins:
+
+    * ``budget`` pieces: the segment cut into ``budget`` equal sub-segments of half-length
+      ``l = halflen / budget``; the capsule is the union of (sub-segment ⊕ ball(radius)), each of
+      which lies in the ball of radius ``radius + l`` about the sub-segment's midpoint.
+    * slabs + caps (``budget >= 3``): the two hemispherical caps are the exact balls of radius
+      ``radius`` at the segment ends; the cylindrical part is cut into ``budget - 2`` slabs, each
+      inside the sphere of radius ``sqrt(radius² + l²)`` about its centre.
+    """
+    options: list[tuple[np.ndarray, np.ndarray]] = []
+    n = budget
+    step = 2.0 * halflen / n
+    z = -halflen + step * (np.arange(n) + 0.5)
+    options.append((z, np.full(n, radius + 0.5 * step)))
+    if budget >= 3 and halflen > 0:
+        k = budget - 2
+        step = 2.0 * halflen / k
+        zs = -halflen + step * (np.arange(k) + 0.5)
+        zc = np.concatenate([zs, [-halflen, halflen]])
+        rc = np.concatenate([np.full(k, np.hypot(radius, 0.5 * step)), [radius, radius]])
+        options.append((zc, rc))
+    z, r = min(options, key=lambda o: float(np.sum(o[1] ** 3)))
+    centres = np.zeros((z.shape[0], 3))
+    centres[:, 2] = z
+    return centres, r
+
+
+def _keep_cylinder(radius: float) -> _CellTest:
+    def keep(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        # Nearest point of the cell's xy rectangle to the axis: the cell meets the cylinder iff it
+        # is within the radius (z always overlaps, the grid spans the height).
+        near = np.clip(0.0, lo[:, :2], hi[:, :2])
+        return np.einsum("ij,ij->i", near, near) <= radius * radius
+
+    return keep
+
+
+def _keep_ellipsoid(radii: np.ndarray) -> _CellTest:
+    def keep(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        # sum (x_i / a_i)^2 is separable and convex with its minimum at 0 on each axis, so its
+        # minimum over a cell is at the origin clamped into the cell: exact intersection test.
+        near = np.clip(0.0, lo, hi) / radii
+        return np.einsum("ij,ij->i", near, near) <= 1.0
+
+    return keep
+
+
+def _keep_convex(normals: np.ndarray, offsets: np.ndarray) -> _CellTest:
+    """Reject cells lying entirely outside one face plane of a convex polytope.
+
+    A face plane with the whole cell strictly on its outer side separates the cell from the hull, so
+    only cells disjoint from the hull are rejected. (Cells separated only by an edge-edge axis are
+    kept: conservative.)
+    """
+
+    def keep(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        centre = 0.5 * (lo + hi)
+        half = 0.5 * (hi - lo)
+        # Lowest value of n.x over the cell: n.c - sum |n_i| h_i.
+        low = centre @ normals.T - half @ np.abs(normals).T
+        tol = 1e-9 * (1.0 + np.abs(offsets))
+        return ~np.any(low > offsets + tol, axis=1)
+
+    return keep
+
+
+def _mesh_vertices(model: mujoco.MjModel, mesh_id: int) -> np.ndarray:
+    adr = int(model.mesh_vertadr[mesh_id])
+    num = int(model.mesh_vertnum[mesh_id])
+    return np.asarray(model.mesh_vert[adr : adr + num], dtype=np.float64)
+
+
+def _mesh_hull_planes(
+    model: mujoco.MjModel, mesh_id: int, verts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Face planes ``n.x <= d`` of the convex hull MuJoCo computed for a mesh.
+
+    Reads ``mesh_graph`` (layout: numvert, numface, vert_edgeadr[numvert], vert_globalid[numvert],
+    edge_localid[numvert + 3 numface], face_globalid[3 numface]). Returns None when MuJoCo stored no
+    hull; callers then keep every cell.
+    """
+    adr = int(model.mesh_graphadr[mesh_id])
+    if adr < 0:
+        return None
+    graph = model.mesh_graph
+    numvert = int(graph[adr])
+    numface = int(graph[adr + 1])
+    if numface < 4:
+        return None
+    start = adr + 2 + 2 * numvert + numvert + 3 * numface
+    faces = np.asarray(graph[start : start + 3 * numface], dtype=np.int64).reshape(numface, 3)
+    a, b, c = verts[faces[:, 0]], verts[faces[:, 1]], verts[faces[:, 2]]
+    normals = np.cross(b - a, c - a)
+    norm = np.linalg.norm(normals, axis=1)
+    ok = norm > 1e-12 * max(1.0, float(np.max(np.abs(verts))) ** 2)
+    normals = normals[ok] / norm[ok, None]
+    a = a[ok]
+    hull_ids = np.unique(faces)
+    inside = verts[hull_ids].mean(axis=0)
+    # Orient outwards whatever the winding, using a point inside the hull.
+    flip = np.einsum("ij,ij->i", normals, inside - a) > 0
+    normals[flip] *= -1.0
+    offsets = np.einsum("ij,ij->i", normals, a)
+    # Vertices may sit slightly outside their own face planes (float32 storage): widen the planes.
+    slack = np.max(verts @ normals.T - offsets, axis=0)
+    offsets = offsets + np.maximum(slack, 0.0)
+    return normals, offsets
+
+
+def _geom_name(model: mujoco.MjModel, g: int) -> str:
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
+    return f"geom {g} ({name!r})" if name else f"geom {g} (unnamed)"
+
+
+def _type_name(t: int) -> str:
+    try:
+        return mujoco.mjtGeom(t).name
+    except ValueError:
+        return f"type {t}"
+
+
+def _collidable_geoms(model: mujoco.MjModel) -> np.ndarray:
+    """Geoms that can appear in some contact: nonzero contype or conaffinity, or in a <pair>."""
+    mask = (np.asarray(model.geom_contype) != 0) | (np.asarray(model.geom_conaffinity) != 0)
+    if model.npair:
+        mask[np.asarray(model.pair_geom1)] = True
+        mask[np.asarray(model.pair_geom2)] = True
+    return mask
+
+
+def _cover_geom(
+    model: mujoco.MjModel, g: int, mode: CoveringMode, budget: int, hfield: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Spheres covering one non-plane geom, in its frame: ``(centres (k, 3), radii (k,))``."""
+    gtype = int(model.geom_type[g])
+    size = np.asarray(model.geom_size[g], dtype=np.float64)
+    rbound = float(model.geom_rbound[g])
+    aabb = np.asarray(model.geom_aabb[g], dtype=np.float64)
+
+    if gtype == _SDF:
+        raise UnsupportedGeomError(
+            f"{_geom_name(model, g)} is an SDF geom: SDF geoms cannot be covered by spheres. "
+            "Set its contype and conaffinity to 0 (and remove it from <pair> elements) to leave "
+            "it out of collision prediction."
+        )
+    if gtype not in (_HFIELD, _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH):
+        raise UnsupportedGeomError(
+            f"{_geom_name(model, g)} has geom type {_type_name(gtype)}, which dua_mujoco cannot "
+            "cover by spheres."
+        )
+    if gtype == _HFIELD:
+        if hfield == "error":
+            raise UnsupportedGeomError(
+                f"{_geom_name(model, g)} is a height field, which has no exact sphere covering. "
+                'Pass hfield="box" to cover it conservatively by its bounding box (base included).'
+            )
+        # The height field spans x, y in [-size_x, size_x] x [-size_y, size_y] and z from -base
+        # to the top elevation; geom_aabb is exactly that box in the geom frame.
+        hsize = np.asarray(model.hfield_size[int(model.geom_dataid[g])], dtype=np.float64)
+        centre = np.array([0.0, 0.0, 0.5 * (hsize[2] - hsize[3])])
+        half = np.array([hsize[0], hsize[1], 0.5 * (hsize[2] + hsize[3])])
+        if mode is CoveringMode.BOUNDING:
+            return centre[None, :], np.array([float(np.linalg.norm(half))])
+        return _grid_cover(centre, half, budget)
+
+    one = (np.zeros((1, 3)), np.array([rbound]))
+    if mode is CoveringMode.BOUNDING:
+        return one
+    if gtype == _SPHERE:
+        return np.zeros((1, 3)), np.array([size[0]])
+
+    if gtype == _CAPSULE:
+        multi = _capsule_cover(size[0], size[1], budget)
+    elif gtype == _BOX:
+        multi = _grid_cover(np.zeros(3), size[:3], budget)
+    elif gtype == _CYLINDER:
+        half = np.array([size[0], size[0], size[1]])
+        multi = _grid_cover(np.zeros(3), half, budget, _keep_cylinder(size[0]))
+    elif gtype == _ELLIPSOID:
+        multi = _grid_cover(np.zeros(3), size[:3], budget, _keep_ellipsoid(size[:3]))
+    else:  # mesh: cover the convex hull MuJoCo collides with
+        mesh_id = int(model.geom_dataid[g])
+        verts = _mesh_vertices(model, mesh_id)
+        lo, hi = verts.min(axis=0), verts.max(axis=0)
+        # Also enclose geom_aabb: it is MuJoCo's own box for this geom and costs nothing extra.
+        lo = np.minimum(lo, aabb[:3] - aabb[3:])
+        hi = np.maximum(hi, aabb[:3] + aabb[3:])
+        planes = _mesh_hull_planes(model, mesh_id, verts)
+        keep = None if planes is None else _keep_convex(*planes)
+        multi = _grid_cover(0.5 * (lo + hi), 0.5 * (hi - lo), budget, keep)
+
+    # A single bounding sphere can beat a grid (near-spherical shapes, budget 1): keep whichever
+    # union is smaller, i.e. sticks out of the shape less.
+    if _union_volume(*multi) >= _union_volume(*one):
+        return one
+    return multi
+
+
+def _union_volume(centres: np.ndarray, radii: np.ndarray, n: int = 24) -> float:
+    """Volume of a union of spheres, estimated on an ``n³`` grid of points over its bounding box.
+
+    Only used to choose between two valid coverings, so a few percent of error is harmless; the
+    fixed grid keeps the choice deterministic.
+    """
+    lo = np.min(centres - radii[:, None], axis=0)
+    hi = np.max(centres + radii[:, None], axis=0)
+    step = (hi - lo) / n
+    axes = [lo[a] + step[a] * (np.arange(n) + 0.5) for a in range(3)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    inside = np.zeros(pts.shape[0], dtype=bool)
+    for c, r in zip(centres, radii, strict=True):
+        d = pts - c
+        inside |= np.einsum("ij,ij->i", d, d) <= r * r
+    return float(inside.sum()) * float(np.prod(step))
+
+
+def _as_mode(mode: CoveringMode | str) -> CoveringMode:
+    if isinstance(mode, CoveringMode):
+        return mode
+    try:
+        return CoveringMode(str(mode).lower())
+    except ValueError:
+        raise InvalidChoiceError("covering mode", mode, [m.value for m in CoveringMode]) from None
+
+
+def cover_model(
+    model: mujoco.MjModel,
+    *,
+    mode: CoveringMode | str = CoveringMode.BOUNDING,
+    max_spheres_per_geom: int = 8,
+    hfield: str = "error",
+    only_collidable: bool = True,
+) -> Covering:
+    """Cover every geom of a model by spheres (planes become half-spaces).
+
+    Args:
+        model: the compiled MuJoCo model.
+        mode: ``"bounding"`` (one sphere per geom, radius ``geom_rbound``) or ``"multi"`` (up to
+            ``max_spheres_per_geom`` tighter spheres per geom), or a :class:`CoveringMode`.
+        max_spheres_per_geom: sphere budget per geom in ``"multi"`` mode (int >= 1).
+        hfield: ``"error"`` to refuse height fields, ``"box"`` to cover a height field by its full
+            bounding box (base included): conservative, never tight.
+        only_collidable: leave out geoms that can never be in a contact (contype and conaffinity
+            both 0, and in no ``<pair>``); they get zero spheres. Visual geoms then cost nothing.
+
+    Returns:
+        The :class:`Covering`.
+
+    Raises:
+        InvalidChoiceError: unknown ``mode`` or ``hfield``.
+        InvalidInputError: ``max_spheres_per_geom`` is not an int >= 1.
+        UnsupportedGeomError: a height field with ``hfield="error"``, an SDF geom, or an unknown
+            geom type, among the geoms to cover.
+    """
+    cmode = _as_mode(mode)
+    if hfield not in _HFIELD_CHOICES:
+        raise InvalidChoiceError(
+            "hfield option", hfield, _HFIELD_CHOICES, 'Use "box" to cover height fields.'
+        )
+    if (
+        isinstance(max_spheres_per_geom, bool)
+        or not isinstance(max_spheres_per_geom, int | np.integer)
+        or int(max_spheres_per_geom) < 1
+    ):
+        raise InvalidInputError(
+            f"max_spheres_per_geom must be an int >= 1, got {max_spheres_per_geom!r}."
+        )
+    budget = int(max_spheres_per_geom)
+
+    ngeom = int(model.ngeom)
+    gtypes = np.asarray(model.geom_type, dtype=np.int64)
+    collidable = _collidable_geoms(model) if only_collidable else np.ones(ngeom, dtype=bool)
+    counts = np.zeros(ngeom, dtype=np.int64)
+    centres: list[np.ndarray] = []
+    radii: list[np.ndarray] = []
+    plane_geom: list[int] = []
+    geom_plane = np.full(ngeom, -1, dtype=np.int32)
+    for g in range(ngeom):
+        if gtypes[g] == _PLANE:
+            geom_plane[g] = len(plane_geom)
+            plane_geom.append(g)
+            continue
+        if not collidable[g]:
+            continue
+        c, r = _cover_geom(model, g, cmode, budget, hfield)
+        centres.append(np.asarray(c, dtype=np.float64).reshape(-1, 3))
+        radii.append(np.asarray(r, dtype=np.float64).reshape(-1))
+        counts[g] = radii[-1].shape[0]
+
+    start = np.zeros(ngeom + 1, dtype=np.int32)
+    np.cumsum(counts, out=start[1:])
+    sphere_geom = np.repeat(np.arange(ngeom, dtype=np.int32), counts)
+    body = np.asarray(model.geom_bodyid, dtype=np.int32)
+    return Covering(
+        sphere_geom=sphere_geom,
+        sphere_body=body[sphere_geom] if ngeom else np.zeros(0, dtype=np.int32),
+        sphere_offset=np.concatenate(centres) if centres else np.zeros((0, 3)),
+        sphere_radius=np.concatenate(radii) if radii else np.zeros(0),
+        geom_sphere_start=start,
+        plane_geom=np.asarray(plane_geom, dtype=np.int32),
+        geom_plane=geom_plane,
+        mode=cmode,
+        plane_static=np.asarray(model.body_weldid)[body[plane_geom]] == 0
+        if plane_geom
+        else np.zeros(0, dtype=bool),
+    )
+
+
+def sphere_world_centers(
+    covering: Covering,
+    geom_xpos: npt.ArrayLike,
+    geom_xmat: npt.ArrayLike,
+    ids: npt.ArrayLike | None = None,
+) -> np.ndarray:
+    """World centres of spheres: ``geom_xpos[g] + geom_xmat[g] @ offset``.
+
+    Args:
+        covering: the covering.
+        geom_xpos: ``(ngeom, 3)`` geom positions (``d.geom_xpos``).
+        geom_xmat: ``(ngeom, 9)`` or ``(ngeom, 3, 3)`` geom orientations (``d.geom_xmat``).
+        ids: ``(n,)`` sphere ids, or None for all spheres.
+
+    Returns:
+        ``(n, 3)`` float64 world centres.
+
+    Raises:
+        ShapeError: if the arrays do not have the documented shapes.
+        InvalidInputError: if a sphere id is out of range.
+    """
+    xpos = np.asarray(geom_xpos, dtype=np.float64)
+    xmat = np.asarray(geom_xmat, dtype=np.float64)
+    ngeom = covering.ngeom
+    if xpos.shape != (ngeom, 3):
+        raise ShapeError(f"geom_xpos must have shape ({ngeom}, 3), got {xpos.shape}.")
+    if xmat.shape == (ngeom, 9):
+        xmat = xmat.reshape(ngeom, 3, 3)
+    if xmat.shape != (ngeom, 3, 3):
+        raise ShapeError(
+            f"geom_xmat must have shape ({ngeom}, 9) or ({ngeom}, 3, 3), got {xmat.shape}."
+        )
+    if ids is None:
+        sel = np.arange(covering.nsphere)
+    else:
+        sel = np.asarray(ids)
+        if sel.ndim != 1 or not np.issubdtype(sel.dtype, np.integer):
+            raise ShapeError(f"ids must be a 1-D integer array, got {sel.dtype} {sel.shape}.")
+        if sel.size and (sel.min() < 0 or sel.max() >= covering.nsphere):
+            raise InvalidInputError(
+                f"sphere ids must lie in 0..{covering.nsphere - 1}; got min {sel.min()}, "
+                f"max {sel.max()}."
+            )
+    g = covering.sphere_geom[sel]
+    return xpos[g] + np.einsum("nij,nj->ni", xmat[g], covering.sphere_offset[sel])

@@ -1,0 +1,1 @@
+"""Paper reproduction and peer comparisons."""

@@ -1,0 +1,423 @@
+"""The exact stage: alarms held against MuJoCo's own contacts, and the run's metrics.
+
+``Monitor`` is fed every physics step (``observe_physics``: contacts in ``d.contact`` and the
+bound check) and every predictor step (``observe_alarms``). A *contact onset* is a geom pair of
+the active set that is in ``d.contact`` now and was not at the previous physics step. It is
+*predicted* when, at that instant, some sphere pair of that geom pair stands alarmed, i.e. its
+latest evaluation (at or before the onset) raised an alarm: exactly the completeness theorem's
+claim (docs/theory.md). A miss is *valid-bounds* when neither body broke its declared bounds
+between that latest evaluation and the onset, so the theorem's hypotheses held and the miss
+would be a bug.
+
+``run`` drives a rollout (controller, ``mj_step``, predictor every ``period`` steps, monitor) and
+returns a ``RunReport``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from dua_mujoco.bounds import BoundMonitor
+from dua_mujoco.exceptions import DeadlineOverrunWarning, SchedulerError
+from dua_mujoco.predictor import Alarms, Predictor
+from dua_mujoco.progress import Progress
+
+__all__ = ["Miss", "Monitor", "RunReport", "run"]
+
+Controller = Callable[[mujoco.MjModel, mujoco.MjData], None]
+
+
+@dataclasses.dataclass(frozen=True)
+class Miss:
+    """A contact onset that no standing alarm covered."""
+
+    physics_step: int
+    time: float
+    geom1: str
+    geom2: str
+    bounds_held: bool
+    last_evaluation_step: int
+    last_tau: float
+
+
+@dataclasses.dataclass(frozen=True)
+class RunReport:
+    """Metrics of a monitored run (``to_dict`` gives the CLI's JSON report)."""
+
+    scene: str
+    physics_steps: int
+    predictor_steps: int
+    period: int
+    spheres: int
+    pairs: int
+    geom_pairs: int
+    evals_per_step: float
+    contact_onsets: int
+    predicted_onsets: int
+    missed_onsets: int
+    missed_onsets_valid_bounds: int
+    inactive_pair_contacts: int
+    unfiltered_contacts: int
+    alarm_episodes: int
+    false_alarm_episodes: int
+    lead_time_mean_s: float | None
+    bound_violations: int
+    deadline_overruns: int
+    predictor_us_per_step: float
+    mj_step_us_per_step: float
+    misses: tuple[Miss, ...] = ()
+    alarms_per_step: tuple[int, ...] = ()
+    min_tau_per_step: tuple[float, ...] = ()
+
+    @property
+    def evals_fraction(self) -> float:
+        """tau evaluations per step as a fraction of all pairs (SA's cost)."""
+        return self.evals_per_step / max(self.pairs, 1)
+
+    def to_dict(self, *, series: bool = False) -> dict[str, Any]:
+        """JSON-ready dict; ``series=True`` adds the per-step alarm and tau series."""
+        out = dataclasses.asdict(self)
+        out["misses"] = [dataclasses.asdict(m) for m in self.misses]
+        if not series:
+            out.pop("alarms_per_step")
+            out.pop("min_tau_per_step")
+        else:
+            out["min_tau_per_step"] = [
+                None if not np.isfinite(t) else t for t in self.min_tau_per_step
+            ]
+        return out
+
+    def summary_rows(self) -> list[tuple[str, str]]:
+        """(label, value) rows for a readable table."""
+        lead = "n/a" if self.lead_time_mean_s is None else f"{self.lead_time_mean_s * 1e3:.1f} ms"
+        return [
+            ("scene", self.scene),
+            ("physics steps (predictor period)", f"{self.physics_steps} ({self.period})"),
+            ("spheres / sphere pairs / geom pairs", f"{self.spheres} / {self.pairs} / {self.geom_pairs}"),
+            (
+                "tau evaluations per step",
+                f"{self.evals_per_step:.1f} ({100 * self.evals_fraction:.2f} % of SA)",
+            ),
+            ("contact onsets", str(self.contact_onsets)),
+            ("predicted onsets", str(self.predicted_onsets)),
+            ("missed onsets (while bounds held)", f"{self.missed_onsets} ({self.missed_onsets_valid_bounds})"),
+            ("contacts in switched-off pairs", str(self.inactive_pair_contacts)),
+            ("alarm episodes (false)", f"{self.alarm_episodes} ({self.false_alarm_episodes})"),
+            ("mean lead time", lead),
+            ("bound violations (body-steps)", str(self.bound_violations)),
+            ("predictor us/step vs mj_step us/step", f"{self.predictor_us_per_step:.1f} vs {self.mj_step_us_per_step:.1f}"),
+        ]
+
+    def table(self) -> str:
+        """The summary as an aligned two-column text table."""
+        rows = self.summary_rows()
+        w = max(len(k) for k, _ in rows)
+        return "\n".join(f"{k.ljust(w)}  {v}" for k, v in rows)
+
+
+class Monitor:
+    """Exact stage and metrics for one predictor on one ``MjData``.
+
+    Args:
+        predictor: A predictor (``reset`` is called by ``start``).
+        check_bounds: Run a ``BoundMonitor`` each physics step (needed to tell valid-bound
+            misses from misses after a broken bound).
+        realtime: Treat the predictor period as a deadline: a predictor step slower than
+            ``predictor.dt`` counts as an overrun and warns once (the "cannot keep up" signal).
+    """
+
+    def __init__(
+        self, predictor: Predictor, *, check_bounds: bool = True, realtime: bool = False
+    ) -> None:
+        self.predictor = predictor
+        self.model = predictor.model
+        self.realtime = realtime
+        cov = predictor.covering
+        self.bounds = (
+            BoundMonitor(
+                self.model,
+                predictor.bounds,
+                (cov.sphere_geom, cov.sphere_body, cov.sphere_offset),
+                mocap=predictor._mocap,
+            )
+            if check_bounds
+            else None
+        )
+        gp = predictor.sphere_pairs.geom_pair
+        self._ngp = predictor.geom_pairs.npair
+        order = np.argsort(gp, kind="stable")
+        self._gp_order = order
+        self._gp_start = np.searchsorted(gp[order], np.arange(self._ngp + 1))
+        self._gp_body = np.stack(
+            [
+                np.asarray(self.model.geom_bodyid)[predictor.geom_pairs.geom1],
+                np.asarray(self.model.geom_bodyid)[predictor.geom_pairs.geom2],
+            ],
+            axis=1,
+        )
+        self._names = predictor._tables.geom_names
+
+    # ------------------------------------------------------------------- lifecycle
+
+    def start(self, data: mujoco.MjData) -> Alarms:
+        """Reset the predictor on ``data`` and start counting."""
+        alarms = self.predictor.reset(data)
+        self.physics_step = 0
+        self._eval_physics_step = np.zeros(1, dtype=np.int64)  # predictor step -> physics step
+        self._pred_steps = [0]
+        self._in_contact = self._contacts(data)[0]
+        self._last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
+        self._standing = np.zeros(self._ngp, dtype=np.int64)
+        self._pair_alarm = np.zeros(len(self.predictor.pairs), dtype=bool)
+        self._episode_start = np.full(self._ngp, np.nan)
+        self._episode_horizon = np.zeros(self._ngp)
+        self._episode_touch = np.zeros(self._ngp, dtype=bool)
+        self._pending: list[tuple[int, float]] = []  # (geom pair, deadline) of ended episodes
+        self.onsets = 0
+        self.predicted = 0
+        self.lead_times: list[float] = []
+        self.misses: list[Miss] = []
+        self.inactive_contacts = 0
+        self.unfiltered_contacts = 0
+        self.episodes = 0
+        self.false_episodes = 0
+        self.violations = 0
+        self.overruns = 0
+        self.evaluations: list[int] = []
+        self.alarms_per_step: list[int] = [len(alarms)]
+        self.min_tau: list[float] = [float(np.min(self.predictor.scheduler.last_tau, initial=np.inf))]  # type: ignore[union-attr]
+        if self.bounds is not None:
+            self.bounds.update(self.model, data)
+        self._apply_alarms(alarms, np.arange(len(self.predictor.pairs)), data.time)
+        return alarms
+
+    def _contacts(self, data: mujoco.MjData) -> tuple[np.ndarray, int]:
+        """Active geom pairs in contact (bool mask) and the count of contacts outside them."""
+        mask = np.zeros(self._ngp, dtype=bool)
+        nc = int(data.ncon)
+        if nc == 0:
+            return mask, 0
+        gp = self.predictor.geom_pairs.indices_of(data.contact.geom1[:nc], data.contact.geom2[:nc])
+        mask[gp[gp >= 0]] = True
+        return mask, int((gp < 0).sum())
+
+    # ------------------------------------------------------------------- alarms
+
+    def _apply_alarms(self, alarms: Alarms, evaluated: np.ndarray, t: float) -> None:
+        sched = self.predictor.scheduler
+        assert sched is not None
+        gp = self.predictor.sphere_pairs.geom_pair
+        ids = np.union1d(evaluated, alarms.pairs)
+        new = sched.alarm_state(ids) & sched.active[ids]
+        old = self._pair_alarm[ids]
+        before = self._standing.copy() if ids.size else self._standing
+        np.add.at(self._standing, gp[ids], new.astype(np.int64) - old.astype(np.int64))
+        self._pair_alarm[ids] = new
+        touched = np.unique(gp[ids])
+        started = touched[(before[touched] == 0) & (self._standing[touched] > 0)]
+        ended = touched[(before[touched] > 0) & (self._standing[touched] == 0)]
+        if started.size:
+            self.episodes += int(started.size)
+            self._episode_start[started] = t
+            self._episode_touch[started] = False
+            horizon = sched.horizon[sched.bucket(alarms.pairs)] if len(alarms) else np.zeros(0)
+            h = np.zeros(self._ngp)
+            np.maximum.at(h, gp[alarms.pairs], horizon)
+            self._episode_horizon[started] = h[started]
+        for g in ended.tolist():
+            self._pending.append((g, t + float(self._episode_horizon[g])))
+
+    def observe_alarms(self, data: mujoco.MjData, alarms: Alarms) -> None:
+        """Record a predictor step's alarms (call right after ``predictor.step``)."""
+        sched = self.predictor.scheduler
+        assert sched is not None
+        self._pred_steps.append(self.physics_step)
+        evaluated = sched.last_selected
+        self.evaluations.append(int(evaluated.size))
+        self._apply_alarms(alarms, evaluated, float(data.time))
+        self.alarms_per_step.append(len(alarms))
+        self.min_tau.append(float(alarms.tau.min()) if len(alarms) else np.inf)
+
+    # ------------------------------------------------------------------- physics
+
+    def observe_physics(self, data: mujoco.MjData) -> None:
+        """Check one physics step (call after every ``mj_step``, before the predictor step)."""
+        self.physics_step += 1
+        if self.bounds is not None:
+            broke = self.bounds.update(self.model, data)
+            if broke.size:
+                self._last_violation[broke] = self.physics_step
+                self.violations += int(broke.size)
+        now, unfiltered = self._contacts(data)
+        self.unfiltered_contacts += unfiltered
+        t = float(data.time)
+        self._episode_touch |= now & (self._standing > 0)
+        if self._pending:
+            still = []
+            for g, deadline in self._pending:
+                if self._standing[g] > 0:
+                    continue  # a new episode took over
+                if now[g]:
+                    self._episode_touch[g] = True
+                if t >= deadline:
+                    if not self._episode_touch[g]:
+                        self.false_episodes += 1
+                else:
+                    still.append((g, deadline))
+            self._pending = still
+        onset = np.flatnonzero(now & ~self._in_contact)
+        self._in_contact = now
+        if onset.size:
+            self._onsets(onset, t)
+
+    def _onsets(self, onset: np.ndarray, t: float) -> None:
+        sched = self.predictor.scheduler
+        assert sched is not None
+        for g in onset.tolist():
+            members = self._gp_order[self._gp_start[g] : self._gp_start[g + 1]]
+            if not sched.active[members].any():
+                self.inactive_contacts += 1
+                continue
+            self.onsets += 1
+            if self._standing[g] > 0:
+                self.predicted += 1
+                self.lead_times.append(t - float(self._episode_start[g]))
+                self._episode_touch[g] = True
+                continue
+            live = members[sched.active[members]]
+            last = int(sched.last_step[live].min())
+            window_start = self._pred_steps[last]
+            bodies = self._gp_body[g]
+            held = bool((self._last_violation[bodies] <= window_start).all()) if self.bounds else False
+            g1 = int(self.predictor.geom_pairs.geom1[g])
+            g2 = int(self.predictor.geom_pairs.geom2[g])
+            self.misses.append(
+                Miss(
+                    physics_step=self.physics_step,
+                    time=t,
+                    geom1=str(self._names[g1]),
+                    geom2=str(self._names[g2]),
+                    bounds_held=held,
+                    last_evaluation_step=last,
+                    last_tau=float(sched.last_tau[live].min()),
+                )
+            )
+
+    # ------------------------------------------------------------------- report
+
+    def finish(self) -> None:
+        """Classify the alarm episodes still open or pending at the end of the run."""
+        for g, _ in self._pending:
+            if not self._episode_touch[g]:
+                self.false_episodes += 1
+        self._pending = []
+        still_open = np.flatnonzero(self._standing > 0)
+        self.false_episodes += int((~self._episode_touch[still_open]).sum())
+
+
+def run(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    predictor: Predictor,
+    *,
+    steps: int,
+    controller: Controller | None = None,
+    scene: str = "",
+    realtime: bool = False,
+    progress: bool = True,
+    on_step: Callable[[int, mujoco.MjData, Alarms | None, Monitor], None] | None = None,
+) -> RunReport:
+    """Roll out ``steps`` physics steps with prediction and the exact stage.
+
+    The first ``mj_step`` brings ``data`` to a consistent state (kinematics and contacts of one
+    instant); the predictor is reset there and stepped every ``predictor.period`` steps after.
+
+    Args:
+        model: The model.
+        data: The data, at the start state (e.g. after ``load_scene``).
+        predictor: The predictor (built for ``model``).
+        steps: Physics steps after the reset.
+        controller: ``controller(model, data)`` called before each ``mj_step``.
+        scene: Name recorded in the report.
+        realtime: Count deadline overruns (see ``Monitor``).
+        progress: Draw a progress bar on stderr.
+        on_step: Called after each physics step with ``(k, data, alarms or None, monitor)``.
+    """
+    if steps < 1:
+        raise SchedulerError(f"steps = {steps} is invalid: run at least one physics step.")
+    monitor = Monitor(predictor, realtime=realtime)
+    if controller is not None:
+        controller(model, data)
+    mujoco.mj_step(model, data)
+    monitor.start(data)
+    period = predictor.period
+    t_mj: list[float] = []
+    t_pred: list[float] = []
+    warned = False
+    with Progress(steps, scene or "run", enabled=progress) as bar:
+        for k in range(1, steps + 1):
+            if controller is not None:
+                controller(model, data)
+            t0 = time.perf_counter()
+            mujoco.mj_step(model, data)
+            t1 = time.perf_counter()
+            t_mj.append(t1 - t0)
+            alarms = None
+            if k % period == 0:
+                t2 = time.perf_counter()
+                alarms = predictor.step(data)
+                dt = time.perf_counter() - t2
+                t_pred.append(dt)
+                if realtime and dt > predictor.dt:
+                    monitor.overruns += 1
+                    if not warned:
+                        warnings.warn(
+                            f"predictor step took {dt * 1e6:.0f} us > period {predictor.dt * 1e6:.0f} "
+                            "us: the predictor cannot keep up, completeness is not guaranteed.",
+                            DeadlineOverrunWarning,
+                            stacklevel=2,
+                        )
+                        warned = True
+            monitor.observe_physics(data)
+            if alarms is not None:
+                monitor.observe_alarms(data, alarms)
+            if on_step is not None:
+                on_step(k, data, alarms, monitor)
+            bar.update(note=f"alarms {len(alarms) if alarms is not None else 0} missed {len(monitor.misses)}")
+    monitor.finish()
+    sched = predictor.scheduler
+    assert sched is not None
+    evals = float(np.mean(monitor.evaluations)) if monitor.evaluations else 0.0
+    return RunReport(
+        scene=scene,
+        physics_steps=steps,
+        predictor_steps=len(t_pred),
+        period=period,
+        spheres=predictor.nsphere,
+        pairs=predictor.npairs,
+        geom_pairs=predictor.geom_pairs.npair,
+        evals_per_step=evals,
+        contact_onsets=monitor.onsets,
+        predicted_onsets=monitor.predicted,
+        missed_onsets=len(monitor.misses),
+        missed_onsets_valid_bounds=sum(m.bounds_held for m in monitor.misses),
+        inactive_pair_contacts=monitor.inactive_contacts,
+        unfiltered_contacts=monitor.unfiltered_contacts,
+        alarm_episodes=monitor.episodes,
+        false_alarm_episodes=monitor.false_episodes,
+        lead_time_mean_s=float(np.mean(monitor.lead_times)) if monitor.lead_times else None,
+        bound_violations=monitor.violations,
+        deadline_overruns=monitor.overruns,
+        predictor_us_per_step=float(np.median(t_pred) * 1e6) if t_pred else 0.0,
+        mj_step_us_per_step=float(np.median(t_mj) * 1e6),
+        misses=tuple(monitor.misses),
+        alarms_per_step=tuple(monitor.alarms_per_step),
+        min_tau_per_step=tuple(monitor.min_tau),
+    )

@@ -1,0 +1,483 @@
+"""MuJoCo's collision filter -> active geom pairs -> sphere pairs.
+
+``active_geom_pairs`` reproduces, for a compiled model, the set of geom pairs that MuJoCo 4.0's
+``mj_collision`` (``src/engine/engine_collision_driver.c``) can ever pass to a narrow-phase
+collision function, with the margin and gap MuJoCo uses for each. Geometry-dependent pruning
+(sweep-and-prune, BVH mid-phase, bounding spheres) is left out on purpose: it is exactly what
+collision prediction replaces. Runtime-only filters (sleeping islands, a user
+``mjcb_contactfilter`` callback) can only remove pairs, so the set computed here is a superset of
+what those produce.
+
+The rules, with their place in the C source (see ``docs/covering-and-pairs.md``):
+
+* nothing at all if ``mjDSBL_CONTACT`` or ``mjDSBL_CONSTRAINT`` is set (``mj_collision``);
+* explicit ``<pair>`` elements always (``mj_collision`` merges them in; only the bounding-sphere
+  test and the collision-function table apply), with the pair's own margin and gap;
+* dynamic pairs (body pairs from ``mj_broadphase``), for geoms g1, g2 on bodies b1 != b2 with weld
+  groups w1 = body_weldid[b1], w2 = body_weldid[b2] and weld parents p = body_weldid[parent(w)]:
+  - skipped if w1 == w2 (same body, or welded together; static-static when both are 0);
+  - skipped if neither weld group has degrees of freedom (MuJoCo 4.0: world, mocap groups);
+  - skipped if the parent filter is on (no ``mjDSBL_FILTERPARENT``), w1 != 0, w2 != 0 and
+    (w1 == p2 or w2 == p1) (``filterBodyPair``): never against the world weld group;
+  - skipped if the body pair is in ``<exclude>`` (``exclude_signature``);
+  - skipped unless (contype1 & conaffinity2) or (contype2 & conaffinity1) (``filterBitmask``);
+  - skipped if an explicit pair with the same body-pair signature covers the same geoms
+    (``filterCollisionPair``, ``merged``): the explicit pair replaces it;
+* either way, skipped if the collision-function table has no entry for the two types
+  (plane-plane, plane-hfield, hfield-hfield).
+
+Margin and gap (``getMargin``/``getGap``): dynamic pairs use ``geom_margin[g1] + geom_margin[g2]``
+and ``geom_gap[g1] + geom_gap[g2]`` (summed since 3.5); explicit pairs use ``pair_margin`` and
+``pair_gap``; ``mjENBL_OVERRIDE`` replaces the margin (not the gap) by ``opt.o_margin``
+(``mj_assignMargin``). Collision functions receive ``margin + gap`` and report every contact with
+``dist <= margin + gap`` in ``d.contact``; contacts with ``dist >= margin`` are marked
+``exclude = 1`` (no force). So the contact distance of a pair is ``margin + gap``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.covering import Covering
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
+
+__all__ = [
+    "GeomPairs",
+    "SpherePairs",
+    "active_geom_pairs",
+    "pairs_between_bodies",
+    "sphere_pair_mask",
+    "sphere_pairs",
+]
+
+_PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
+_HFIELD = int(mujoco.mjtGeom.mjGEOM_HFIELD)
+
+
+@dataclass(frozen=True)
+class GeomPairs:
+    """The geom pairs MuJoCo can collide, sorted by ``(geom1, geom2)``.
+
+    Attributes:
+        geom1: ``(npair,)`` int32, first geom (``geom1 < geom2``).
+        geom2: ``(npair,)`` int32, second geom.
+        explicit: ``(npair,)`` bool, the pair comes from a ``<pair>`` element.
+        margin: ``(npair,)`` float64, the margin MuJoCo uses for the pair (force threshold).
+        gap: ``(npair,)`` float64, the gap MuJoCo uses for the pair.
+        contact_distance: ``(npair,)`` float64, ``margin + gap``: MuJoCo reports a contact in
+            ``d.contact`` when the signed distance of the two geoms is at most this.
+    """
+
+    geom1: np.ndarray
+    geom2: np.ndarray
+    explicit: np.ndarray
+    margin: np.ndarray
+    gap: np.ndarray
+    contact_distance: np.ndarray
+    _keys: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        keys = _pair_keys(self.geom1, self.geom2)
+        if keys.size > 1 and not np.all(keys[1:] > keys[:-1]):
+            raise InvalidInputError(
+                "GeomPairs must be sorted by (geom1, geom2) without duplicates; build it with "
+                "active_geom_pairs(model)."
+            )
+        object.__setattr__(self, "_keys", keys)
+
+    @property
+    def npair(self) -> int:
+        """Number of active geom pairs."""
+        return int(self.geom1.shape[0])
+
+    def __len__(self) -> int:
+        return self.npair
+
+    def index_of(self, g1: int, g2: int) -> int:
+        """Index of the geom pair ``{g1, g2}`` (either order), or -1 if it is not active."""
+        a, b = (int(g1), int(g2)) if int(g1) <= int(g2) else (int(g2), int(g1))
+        key = (a << 32) | b
+        i = int(np.searchsorted(self._keys, key))
+        if i < self._keys.shape[0] and int(self._keys[i]) == key:
+            return i
+        return -1
+
+    def indices_of(self, g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
+        """Vectorised :meth:`index_of`: ``(n,)`` int64 indices, -1 where not active."""
+        a = np.asarray(g1, dtype=np.int64)
+        b = np.asarray(g2, dtype=np.int64)
+        keys = _pair_keys(np.minimum(a, b), np.maximum(a, b))
+        i = np.searchsorted(self._keys, keys)
+        i_clip = np.minimum(i, max(self._keys.shape[0] - 1, 0))
+        found = (i < self._keys.shape[0]) & (self._keys[i_clip] == keys) if self.npair else i < 0
+        return np.where(found, i, -1).astype(np.int64)
+
+
+def _pair_keys(g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
+    return (np.asarray(g1, dtype=np.int64) << 32) | np.asarray(g2, dtype=np.int64)
+
+
+def _disabled(model: mujoco.MjModel, flag: mujoco.mjtDisableBit) -> bool:
+    return bool(int(model.opt.disableflags) & int(flag))
+
+
+def _enabled(model: mujoco.MjModel, flag: mujoco.mjtEnableBit) -> bool:
+    return bool(int(model.opt.enableflags) & int(flag))
+
+
+def _has_collision_function(t1: np.ndarray, t2: np.ndarray) -> np.ndarray:
+    """Where ``mjCOLLISIONFUNC`` has an entry: not plane-plane, plane-hfield, hfield-hfield."""
+    return ~(np.isin(t1, (_PLANE, _HFIELD)) & np.isin(t2, (_PLANE, _HFIELD)))
+
+
+def _weld_tables(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per body: weld group, weld group of the weld root's parent, and whether the group moves."""
+    weld = np.asarray(model.body_weldid, dtype=np.int64)
+    parent = np.asarray(model.body_parentid, dtype=np.int64)
+    parent_weld = weld[parent[weld]]
+    # Weld roots are the world, mocap bodies and bodies with joints; only the latter have dofs.
+    movable = np.asarray(model.body_dofnum, dtype=np.int64)[weld] > 0
+    return weld, parent_weld, movable
+
+
+def active_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
+    """The geom pairs MuJoCo 4.0 can ever collide, with their margin, gap and contact distance.
+
+    Vectorised over the upper triangle of geom pairs (about 2M pairs for 2000 geoms).
+
+    Args:
+        model: the compiled MuJoCo model.
+
+    Returns:
+        The :class:`GeomPairs`, sorted by ``(geom1, geom2)``.
+    """
+    ngeom = int(model.ngeom)
+    empty = GeomPairs(
+        geom1=np.zeros(0, np.int32),
+        geom2=np.zeros(0, np.int32),
+        explicit=np.zeros(0, bool),
+        margin=np.zeros(0),
+        gap=np.zeros(0),
+        contact_distance=np.zeros(0),
+    )
+    if (
+        _disabled(model, mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        or _disabled(model, mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+        or int(model.nbody) + int(model.nflex) < 2
+        or ngeom < 1
+    ):
+        return empty
+    override = _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE)
+    types = np.asarray(model.geom_type, dtype=np.int64)
+    gbody = np.asarray(model.geom_bodyid, dtype=np.int64)
+    gmargin = np.asarray(model.geom_margin, dtype=np.float64)
+    ggap = np.asarray(model.geom_gap, dtype=np.float64)
+
+    # --- dynamic pairs (mj_broadphase + filterCollisionPair), upper triangle g1 < g2
+    g1, g2 = np.triu_indices(ngeom, 1)
+    b1, b2 = gbody[g1], gbody[g2]
+    weld, parent_weld, movable = _weld_tables(model)
+    w1, w2 = weld[b1], weld[b2]
+    keep = (b1 != b2) & (w1 != w2)
+    keep &= movable[b1] | movable[b2]
+    if not _disabled(model, mujoco.mjtDisableBit.mjDSBL_FILTERPARENT):
+        is_parent = (w1 == parent_weld[b2]) | (w2 == parent_weld[b1])
+        keep &= ~((w1 != 0) & (w2 != 0) & is_parent)
+    contype = np.asarray(model.geom_contype, dtype=np.int64)
+    conaff = np.asarray(model.geom_conaffinity, dtype=np.int64)
+    keep &= ((contype[g1] & conaff[g2]) != 0) | ((contype[g2] & conaff[g1]) != 0)
+    keep &= _has_collision_function(types[g1], types[g2])
+    g1, g2 = g1[keep], g2[keep]
+    b1, b2 = gbody[g1], gbody[g2]
+    signature = (np.minimum(b1, b2) << 16) + np.maximum(b1, b2)
+    if int(model.nexclude):
+        keep = ~np.isin(signature, np.asarray(model.exclude_signature, dtype=np.int64))
+        g1, g2, signature = g1[keep], g2[keep], signature[keep]
+
+    # --- explicit pairs: merged in, replacing the dynamic pair with the same signature and geoms
+    npair = int(model.npair)
+    if npair:
+        p1 = np.asarray(model.pair_geom1, dtype=np.int64)
+        p2 = np.asarray(model.pair_geom2, dtype=np.int64)
+        psig = np.asarray(model.pair_signature, dtype=np.int64)
+        lo, hi = np.minimum(p1, p2), np.maximum(p1, p2)
+        # A dynamic pair is replaced only when the explicit pair has the same geoms and the same
+        # body-pair signature (filterCollisionPair's `merged` scan over pair_signature).
+        dyn_keys = _pair_keys(g1, g2)
+        candidates = np.flatnonzero(np.isin(dyn_keys, _pair_keys(lo, hi)))
+        merged = np.zeros(g1.shape[0], dtype=bool)
+        explicit_sigs: dict[int, set[int]] = {}
+        for k in range(npair):
+            explicit_sigs.setdefault((int(lo[k]) << 32) | int(hi[k]), set()).add(int(psig[k]))
+        for i in candidates:
+            merged[i] = int(signature[i]) in explicit_sigs[int(dyn_keys[i])]
+        g1, g2 = g1[~merged], g2[~merged]
+        pmargin = np.asarray(model.pair_margin, dtype=np.float64)
+        pgap = np.asarray(model.pair_gap, dtype=np.float64)
+        valid = _has_collision_function(types[lo], types[hi])
+        lo, hi, pmargin, pgap = lo[valid], hi[valid], pmargin[valid], pgap[valid]
+    else:
+        lo = hi = np.zeros(0, np.int64)
+        pmargin = pgap = np.zeros(0)
+
+    dyn_margin = gmargin[g1] + gmargin[g2]
+    dyn_gap = ggap[g1] + ggap[g2]
+    all1 = np.concatenate([g1, lo])
+    all2 = np.concatenate([g2, hi])
+    explicit = np.concatenate([np.zeros(g1.shape[0], bool), np.ones(lo.shape[0], bool)])
+    margin = np.concatenate([dyn_margin, pmargin])
+    gap = np.concatenate([dyn_gap, pgap])
+    if override:
+        margin = np.full_like(margin, float(model.opt.o_margin))
+    dist = margin + gap
+
+    # Sort by key; where one geom pair appears twice (a <pair> whose signature does not match the
+    # dynamic pair, or repeated <pair> elements) MuJoCo collides it twice: keep the larger
+    # contact distance, which is the one that reports contacts first.
+    keys = _pair_keys(all1, all2)
+    order = np.lexsort((-dist, keys))
+    keys = keys[order]
+    first = np.ones(keys.shape[0], dtype=bool)
+    first[1:] = keys[1:] != keys[:-1]
+    sel = order[first]
+    return GeomPairs(
+        geom1=all1[sel].astype(np.int32),
+        geom2=all2[sel].astype(np.int32),
+        explicit=explicit[sel],
+        margin=margin[sel],
+        gap=gap[sel],
+        contact_distance=dist[sel],
+    )
+
+
+def _can_collide_reference(model: mujoco.MjModel, g1: int, g2: int) -> bool:
+    """Slow, literal transcription of MuJoCo's filter for one geom pair (tests only).
+
+    Follows ``mj_collision``/``mj_broadphase``/``filterBodyPair``/``filterCollisionPair`` in
+    ``engine_collision_driver.c`` statement by statement, with the MuJoCo 4.0 rule that pairs where
+    neither weld group has dofs are skipped. Geometry (bounding volumes) is ignored.
+    """
+    g1, g2 = int(g1), int(g2)
+    if g1 == g2:
+        return False
+    opt_dis = int(model.opt.disableflags)
+    if opt_dis & int(mujoco.mjtDisableBit.mjDSBL_CONTACT):
+        return False
+    if opt_dis & int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
+        return False
+    t1, t2 = int(model.geom_type[g1]), int(model.geom_type[g2])
+    if t1 in (_PLANE, _HFIELD) and t2 in (_PLANE, _HFIELD):
+        return False  # mjCOLLISIONFUNC[t1][t2] == NULL
+
+    # predefined pairs are always tested
+    for k in range(int(model.npair)):
+        if {int(model.pair_geom1[k]), int(model.pair_geom2[k])} == {g1, g2}:
+            return True
+
+    b1, b2 = int(model.geom_bodyid[g1]), int(model.geom_bodyid[g2])
+    if b1 == b2:
+        return False  # broadphase never pairs a body with itself
+    w1, w2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
+    pw1 = int(model.body_weldid[int(model.body_parentid[w1])])
+    pw2 = int(model.body_weldid[int(model.body_parentid[w2])])
+    if w1 == w2:
+        return False
+    if int(model.body_dofnum[w1]) == 0 and int(model.body_dofnum[w2]) == 0:
+        return False
+    filterparent = not (opt_dis & int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT))
+    if filterparent and w1 != 0 and w2 != 0 and (w1 == pw2 or w2 == pw1):
+        return False
+    signature = (min(b1, b2) << 16) + max(b1, b2)
+    for k in range(int(model.nexclude)):
+        if int(model.exclude_signature[k]) == signature:
+            return False
+    c1, a1 = int(model.geom_contype[g1]), int(model.geom_conaffinity[g1])
+    c2, a2 = int(model.geom_contype[g2]), int(model.geom_conaffinity[g2])
+    return bool((c1 & a2) or (c2 & a1))
+
+
+@dataclass(frozen=True)
+class SpherePairs:
+    """Sphere-sphere and sphere-half-space pairs of the active geom pairs.
+
+    Attributes:
+        first: ``(n,)`` int32 sphere id.
+        second: ``(n,)`` int32 sphere id, or plane index (into ``Covering.plane_geom``) where
+            ``is_halfspace``.
+        is_halfspace: ``(n,)`` bool.
+        geom_pair: ``(n,)`` int32 index into the :class:`GeomPairs` it came from.
+        eps: ``(n,)`` float64 contact distance of the sphere pair: ``r1 + r2 + d`` for two spheres,
+            ``r + d`` for a sphere and a half-space, ``d`` the geom pair's contact distance.
+    """
+
+    first: np.ndarray
+    second: np.ndarray
+    is_halfspace: np.ndarray
+    geom_pair: np.ndarray
+    eps: np.ndarray
+
+    @property
+    def npair(self) -> int:
+        """Number of sphere pairs."""
+        return int(self.first.shape[0])
+
+    def __len__(self) -> int:
+        return self.npair
+
+
+def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
+    """Expand active geom pairs into sphere pairs (every sphere of one geom x every of the other).
+
+    Pairs of two planes are dropped (MuJoCo has no plane-plane collider). A plane geom must be
+    static (welded to the world): only then is it a fixed half-space.
+
+    Args:
+        covering: the covering of the model.
+        geom_pairs: the active geom pairs of the same model.
+
+    Returns:
+        The :class:`SpherePairs`, grouped by geom pair in ``geom_pairs`` order.
+
+    Raises:
+        UnsupportedGeomError: a plane in an active pair is not static, or a geom in an active
+            pair has no spheres.
+    """
+    gp1 = np.asarray(geom_pairs.geom1, dtype=np.int64)
+    gp2 = np.asarray(geom_pairs.geom2, dtype=np.int64)
+    if gp1.size and max(int(gp1.max()), int(gp2.max())) >= covering.ngeom:
+        raise InvalidInputError(
+            "geom_pairs refers to geoms the covering does not have: build both from the same model."
+        )
+    plane1 = covering.geom_plane[gp1] >= 0
+    plane2 = covering.geom_plane[gp2] >= 0
+    moving = ~covering.plane_static
+    for gp, is_plane in ((gp1, plane1), (gp2, plane2)):
+        bad = gp[is_plane][moving[covering.geom_plane[gp[is_plane]]]]
+        if bad.size:
+            g = int(bad[0])
+            raise UnsupportedGeomError(
+                f"plane geom {g} is in an active pair but its body is not welded to the world "
+                "(e.g. a mocap body): only static planes are supported as half-spaces. Attach "
+                "the plane to the world body, or replace it by a large thin box."
+            )
+    keep = ~(plane1 & plane2)
+    idx = np.flatnonzero(keep)
+    gp1, gp2, plane1, plane2 = gp1[idx], gp2[idx], plane1[idx], plane2[idx]
+    halfspace = plane1 | plane2
+    # Put the sphere-covered geom first for half-space pairs.
+    ga = np.where(plane1, gp2, gp1)
+    gb = np.where(plane1, gp1, gp2)
+    start = covering.geom_sphere_start.astype(np.int64)
+    na = start[ga + 1] - start[ga]
+    nb = np.where(halfspace, 1, start[gb + 1] - start[gb])
+    missing = np.flatnonzero(na == 0)
+    if missing.size == 0:
+        missing = np.flatnonzero(~halfspace & (nb == 0))
+        bad_geom = gb[missing]
+    else:
+        bad_geom = ga[missing]
+    if missing.size:
+        g = int(bad_geom[0])
+        raise UnsupportedGeomError(
+            f"geom {g} is in an active pair but has no covering spheres; build the covering with "
+            "cover_model(model, only_collidable=True) from the same model as the pairs."
+        )
+    counts = na * nb
+    total = int(counts.sum())
+    pair_of = np.repeat(np.arange(idx.shape[0]), counts)
+    offsets = np.cumsum(counts) - counts
+    local = np.arange(total, dtype=np.int64) - offsets[pair_of]
+    nb_rep = nb[pair_of]
+    first = start[ga][pair_of] + local // nb_rep
+    hs = halfspace[pair_of]
+    second = np.where(
+        hs,
+        covering.geom_plane[gb][pair_of],
+        start[gb][pair_of] + local % nb_rep,
+    )
+    dist = np.asarray(geom_pairs.contact_distance, dtype=np.float64)[idx][pair_of]
+    r1 = covering.sphere_radius[first]
+    r2 = np.zeros(total)
+    r2[~hs] = covering.sphere_radius[second[~hs]]
+    return SpherePairs(
+        first=first.astype(np.int32),
+        second=second.astype(np.int32),
+        is_halfspace=hs,
+        geom_pair=idx[pair_of].astype(np.int32),
+        eps=r1 + r2 + dist,
+    )
+
+
+def _body_id(model: mujoco.MjModel, body: int | str) -> int:
+    names = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)
+    ]
+    if isinstance(body, str):
+        bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+        if bid < 0:
+            raise InvalidChoiceError("body", body, [n for n in names if n])
+        return int(bid)
+    if isinstance(body, bool) or not isinstance(body, int | np.integer):
+        raise InvalidInputError(f"a body is given by name or id, got {body!r}.")
+    if not 0 <= int(body) < model.nbody:
+        raise InvalidInputError(
+            f"body id {body!r} is out of range: the model has {model.nbody} bodies."
+        )
+    return int(body)
+
+
+def pairs_between_bodies(
+    model: mujoco.MjModel,
+    geom_pairs: GeomPairs,
+    body_a: int | str,
+    body_b: int | str | None = None,
+) -> np.ndarray:
+    """Indices of active geom pairs with one geom on ``body_a`` and the other on ``body_b``.
+
+    Args:
+        model: the compiled model.
+        geom_pairs: its active geom pairs.
+        body_a: body name or id.
+        body_b: body name or id, or None for every pair involving ``body_a``.
+
+    Returns:
+        ``(k,)`` int64 indices into ``geom_pairs``, increasing.
+
+    Raises:
+        InvalidChoiceError: unknown body name (the message lists the body names).
+        InvalidInputError: body id out of range.
+    """
+    a = _body_id(model, body_a)
+    gbody = np.asarray(model.geom_bodyid, dtype=np.int64)
+    ba = gbody[np.asarray(geom_pairs.geom1, dtype=np.int64)]
+    bb = gbody[np.asarray(geom_pairs.geom2, dtype=np.int64)]
+    if body_b is None:
+        mask = (ba == a) | (bb == a)
+    else:
+        b = _body_id(model, body_b)
+        mask = ((ba == a) & (bb == b)) | ((ba == b) & (bb == a))
+    return np.flatnonzero(mask).astype(np.int64)
+
+
+def sphere_pair_mask(
+    sphere_pairs: SpherePairs, geom_pair_indices: npt.ArrayLike | Iterable[int]
+) -> np.ndarray:
+    """Which sphere pairs belong to the given geom pairs.
+
+    Args:
+        sphere_pairs: the sphere pairs.
+        geom_pair_indices: ``(k,)`` indices into the :class:`GeomPairs` they were built from.
+
+    Returns:
+        ``(n,)`` bool mask over ``sphere_pairs``.
+    """
+    if isinstance(geom_pair_indices, Iterable) and not isinstance(geom_pair_indices, np.ndarray):
+        idx = np.asarray(list(geom_pair_indices), dtype=np.int64).reshape(-1)
+    else:
+        idx = np.asarray(geom_pair_indices, dtype=np.int64).reshape(-1)
+    return np.isin(sphere_pairs.geom_pair, idx)

@@ -1,0 +1,83 @@
+"""A dependency-free progress bar for long runs (stderr, one line, rate-limited)."""
+
+from __future__ import annotations
+
+import sys
+import time
+from types import TracebackType
+from typing import TextIO
+
+__all__ = ["Progress"]
+
+
+class Progress:
+    """``with Progress(total, "label") as bar: bar.update()`` draws ``label [####    ] 40/100``.
+
+    Args:
+        total: Number of units of work.
+        label: Text before the bar.
+        enabled: False makes every call a no-op (``--no-progress``, tests).
+        stream: Where to draw (default ``sys.stderr``).
+        min_interval: Seconds between redraws, so drawing never costs more than the work.
+    """
+
+    def __init__(
+        self,
+        total: int,
+        label: str = "",
+        *,
+        enabled: bool = True,
+        stream: TextIO | None = None,
+        min_interval: float = 0.1,
+    ) -> None:
+        self.total = max(int(total), 1)
+        self.label = label
+        self.enabled = enabled
+        self.stream = stream if stream is not None else sys.stderr
+        self.min_interval = min_interval
+        self.count = 0
+        self._start = time.perf_counter()
+        self._last = 0.0
+
+    def update(self, n: int = 1, *, note: str = "") -> None:
+        """Advance by ``n`` units; redraw at most every ``min_interval`` seconds."""
+        self.count += n
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if now - self._last >= self.min_interval or self.count >= self.total:
+            self._last = now
+            self._draw(now, note)
+
+    def _draw(self, now: float, note: str) -> None:
+        frac = min(self.count / self.total, 1.0)
+        width = 30
+        filled = int(round(frac * width))
+        elapsed = now - self._start
+        eta = elapsed / frac - elapsed if frac > 0 else float("nan")
+        bar = "#" * filled + " " * (width - filled)
+        extra = f" {note}" if note else ""
+        self.stream.write(
+            f"\r{self.label} [{bar}] {self.count}/{self.total} "
+            f"{elapsed:5.1f}s eta {eta:5.1f}s{extra}\x1b[K"
+        )
+        self.stream.flush()
+
+    def close(self) -> None:
+        """Finish the line."""
+        if self.enabled:
+            self._draw(time.perf_counter(), "")
+            self.stream.write("\n")
+            self.stream.flush()
+            self.enabled = False
+
+    def __enter__(self) -> Progress:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()

@@ -1,0 +1,633 @@
+"""Bundled scenes, the paper's sphere world as an ``MjSpec``, and scene drivers.
+
+Bundled scenes live in the top-level ``models/`` folder, shipped as the package
+``dua_mujoco.models``:
+
+========================  ==================================================================
+``two_arms``              two 5-DoF arms over a table with obstacles (the default scene)
+``traffic``               a four-way intersection, 12 cars on slide joints (the paper's
+                          traffic-controller example)
+``clutter``               a walled bin with every collidable primitive type, a pushing paddle
+                          and a mocap stirrer
+``paper_world``           the paper's world (sec. 8) with 40 spheres, saved from
+                          :func:`paper_world_spec`
+``paper_world:N``         the same world generated with ``N`` spheres
+========================  ==================================================================
+
+:func:`load_scene` also accepts a path to any MJCF file. :func:`make_controller` drives a scene
+with zero or random (held, hence piecewise-constant) controls and moves mocap bodies on circles,
+so that every scene keeps moving and colliding.
+
+Motion bounds. The paper world and the traffic scene declare an exact acceleration bound in a
+``<numeric name="dua_accel_bound">`` custom field (read it with :func:`declared_accel_bound`):
+it holds whenever the bodies are not in contact (and, for traffic, not at a joint limit). For the
+arm and clutter scenes :attr:`Scene.accel_hint` is an empirical value measured on random
+rollouts, not a proof.
+"""
+
+from __future__ import annotations
+
+import enum
+import importlib.resources
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+
+__all__ = [
+    "ACCEL_BOUND_NUMERIC",
+    "DEFAULT_SCENE",
+    "SCENES",
+    "CtrlMode",
+    "MocapCircle",
+    "Scene",
+    "SceneController",
+    "declared_accel_bound",
+    "load_scene",
+    "make_controller",
+    "models_dir",
+    "paper_world_accel_bound",
+    "paper_world_model",
+    "paper_world_spec",
+    "reset_to_keyframe",
+    "scene_names",
+]
+
+DEFAULT_SCENE = "two_arms"
+
+#: Custom ``<numeric>`` holding a scene's exact per-body acceleration-norm bound (m/s^2).
+ACCEL_BOUND_NUMERIC = "dua_accel_bound"
+
+_PAPER_PREFIX = "paper_world:"
+
+
+# --------------------------------------------------------------------------------------------------
+# The paper's sphere world.
+# --------------------------------------------------------------------------------------------------
+
+
+def paper_world_accel_bound(accel_max: float) -> float:
+    """Acceleration-norm bound of one sphere of :func:`paper_world_spec` under its actuators.
+
+    Each sphere has three orthogonal slide joints and no rotation, so its mass matrix is ``m I3``
+    and a motor of force ``|f| <= m accel_max`` on each axis gives ``|a_axis| <= accel_max``; the
+    norm is then at most ``sqrt(3) accel_max``. Contacts (sphere-sphere and walls) are the only
+    other forces: gravity is off and the joints have no damping, stiffness, friction or armature.
+
+    Args:
+        accel_max: Per-axis acceleration bound (m/s^2), as passed to :func:`paper_world_spec`.
+
+    Returns:
+        The bound on ``|d^2 c / dt^2|`` of every sphere centre while it is out of contact.
+    """
+    return math.sqrt(3.0) * accel_max
+
+
+def _quat_z_to(normal: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) rotating the z axis onto the unit vector ``normal``."""
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(np.dot(z, normal))
+    if c < -1.0 + 1e-12:
+        # Antiparallel: any axis orthogonal to z works; pick x.
+        return np.array([0.0, 1.0, 0.0, 0.0])
+    axis = np.cross(z, normal)
+    q = np.array([1.0 + c, *axis])
+    return q / np.linalg.norm(q)
+
+
+def _place_spheres(
+    n: int, rng: np.random.Generator, *, half: float, radius: float, clearance: float
+) -> np.ndarray:
+    """Rejection-sample ``n`` non-overlapping centres inside the cube ``[-half, half]^3``.
+
+    Returns:
+        Centres, shape ``(n, 3)``; pairwise distances ``>= 2 radius + clearance`` and every centre
+        at least ``radius + clearance`` from every wall.
+
+    Raises:
+        InvalidInputError: If the cube is too crowded to place ``n`` spheres.
+    """
+    lo, hi = -half + radius + clearance, half - radius - clearance
+    if hi <= lo:
+        raise InvalidInputError(
+            f"box_size {2 * half} is too small for spheres of radius {radius}; "
+            "increase box_size or decrease radius."
+        )
+    min_dist = 2.0 * radius + clearance
+    centres = np.empty((n, 3))
+    placed = 0
+    # Give up after this many rejections in a row: the free volume is then too fragmented.
+    max_misses = 20_000
+    misses = 0
+    while placed < n:
+        # Batches of candidates amortise the generator call; checks stay vectorised per candidate.
+        for c in rng.uniform(lo, hi, size=(64, 3)):
+            if placed and np.min(np.linalg.norm(centres[:placed] - c, axis=1)) < min_dist:
+                misses += 1
+                if misses > max_misses:
+                    raise InvalidInputError(
+                        f"Could not place {n} spheres of radius {radius} without overlap in a "
+                        f"cube of side {2 * half} (placed {placed}); use fewer spheres, a smaller "
+                        "radius or a larger box_size."
+                    )
+                continue
+            centres[placed] = c
+            placed += 1
+            misses = 0
+            if placed == n:
+                break
+    return centres
+
+
+def paper_world_spec(
+    n: int,
+    *,
+    seed: int = 0,
+    box_size: float = 1.0,
+    radius: float = 0.03,
+    mass: float = 0.1,
+    accel_max: float = 1.0,
+    speed_max: float = 0.5,
+    timestep: float = 0.002,
+    integrator: mujoco.mjtIntegrator = mujoco.mjtIntegrator.mjINT_EULER,
+) -> mujoco.MjSpec:
+    """The paper's experimental world (sec. 8): ``n`` spheres with bounded accelerations in a cube.
+
+    The cube ``[-box_size/2, box_size/2]^3`` is closed by six static planes facing inwards. Each
+    sphere is a body with three slide joints (world x, y, z) driven by three motors
+    ``a{i}x, a{i}y, a{i}z`` with ``ctrlrange = [-mass accel_max, mass accel_max]`` (N). Gravity is
+    off and contacts between spheres (and with the walls) are on. Sphere ``i`` is body
+    ``sphere{i}``, geom ``sphere{i}`` and starts at its body position (``qpos = 0``); the first
+    keyframe ``init`` holds random initial velocities of norm ``<= speed_max``.
+
+    Acceleration bound: out of contact, each centre satisfies ``|a_axis| <= accel_max`` on every
+    axis, hence ``|a| <= sqrt(3) accel_max`` (:func:`paper_world_accel_bound`). The bound is stored
+    in the model as the custom numeric ``dua_accel_bound`` (:func:`declared_accel_bound`). Random
+    controls held for several steps (:func:`make_controller`) reproduce the paper's
+    piecewise-constant bounded accelerations.
+
+    Args:
+        n: Number of spheres (>= 1).
+        seed: Seed of the placement and initial velocities.
+        box_size: Side of the cube (m).
+        radius: Sphere radius (m).
+        mass: Sphere mass (kg).
+        accel_max: Per-axis acceleration bound (m/s^2) enforced by the motors' ``ctrlrange``.
+        speed_max: Bound on the initial speed (m/s); the speed is not bounded afterwards.
+        timestep: Physics timestep (s).
+        integrator: MuJoCo integrator; semi-implicit Euler by default (see SPEC sec. 3).
+
+    Returns:
+        An uncompiled ``MjSpec``; ``spec.compile()`` gives the model.
+
+    Raises:
+        InvalidInputError: If an argument is out of range or the spheres do not fit.
+    """
+    if n < 1:
+        raise InvalidInputError(f"n must be >= 1, got {n}.")
+    for label, value in (
+        ("box_size", box_size),
+        ("radius", radius),
+        ("mass", mass),
+        ("timestep", timestep),
+    ):
+        if not (math.isfinite(value) and value > 0):
+            raise InvalidInputError(f"{label} must be finite and > 0, got {value}.")
+    for label, value in (("accel_max", accel_max), ("speed_max", speed_max)):
+        if not (math.isfinite(value) and value >= 0):
+            raise InvalidInputError(f"{label} must be finite and >= 0, got {value}.")
+
+    rng = np.random.default_rng(seed)
+    half = 0.5 * box_size
+    centres = _place_spheres(n, rng, half=half, radius=radius, clearance=0.25 * radius)
+    direction = rng.normal(size=(n, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    speed = rng.uniform(0.0, speed_max, size=(n, 1))
+    velocity = direction * speed
+
+    spec = mujoco.MjSpec()
+    spec.modelname = f"paper_world_{n}"
+    spec.option.gravity = [0.0, 0.0, 0.0]
+    spec.option.timestep = timestep
+    spec.option.integrator = int(integrator)
+    spec.visual.global_.offwidth = 1280
+    spec.visual.global_.offheight = 960
+    spec.stat.center = [0.0, 0.0, 0.0]
+    spec.stat.extent = box_size
+
+    world = spec.worldbody
+    world.add_light(pos=[0.0, 0.0, 2.0 * box_size], dir=[0.0, 0.0, -1.0])
+    wall_names = ("floor", "ceiling", "wall_xneg", "wall_xpos", "wall_yneg", "wall_ypos")
+    normals = np.array(
+        [[0, 0, 1], [0, 0, -1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]], dtype=float
+    )
+    for name, normal in zip(wall_names, normals, strict=True):
+        world.add_geom(
+            name=name,
+            type=mujoco.mjtGeom.mjGEOM_PLANE,
+            pos=-half * normal,
+            quat=_quat_z_to(normal),
+            size=[half, half, 0.05 * box_size],
+            rgba=[0.6, 0.6, 0.7, 1.0 if name == "floor" else 0.08],
+        )
+
+    ctrl = mass * accel_max
+    palette = rng.uniform(0.2, 0.9, size=(n, 3))
+    for i in range(n):
+        body = world.add_body(name=f"sphere{i}", pos=centres[i])
+        for axis_name, axis in zip("xyz", np.eye(3), strict=True):
+            body.add_joint(
+                name=f"sphere{i}_{axis_name}",
+                type=mujoco.mjtJoint.mjJNT_SLIDE,
+                axis=axis,
+            )
+            spec.add_actuator(
+                name=f"a{i}{axis_name}",
+                target=f"sphere{i}_{axis_name}",
+                trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                ctrlrange=[-ctrl, ctrl],
+                ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE,
+            )
+        body.add_geom(
+            name=f"sphere{i}",
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=[radius, 0.0, 0.0],
+            mass=mass,
+            rgba=[*palette[i], 1.0],
+        )
+
+    spec.add_key(name="init", qpos=np.zeros(3 * n), qvel=velocity.reshape(-1))
+    spec.add_numeric(name=ACCEL_BOUND_NUMERIC, size=1, data=[paper_world_accel_bound(accel_max)])
+    return spec
+
+
+def paper_world_model(n: int, *, seed: int = 0, **kw: Any) -> mujoco.MjModel:
+    """Compile :func:`paper_world_spec` (``kw`` are its keyword options).
+
+    Returns:
+        The compiled model with ``n`` spheres.
+    """
+    return paper_world_spec(n, seed=seed, **kw).compile()
+
+
+def declared_accel_bound(model: mujoco.MjModel) -> float | None:
+    """The exact acceleration-norm bound a scene declares in ``<numeric name="dua_accel_bound">``.
+
+    Returns:
+        The bound (m/s^2) on every movable body's acceleration while out of contact, or None
+        if the model declares none.
+    """
+    nid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, ACCEL_BOUND_NUMERIC)
+    if nid < 0:
+        return None
+    return float(model.numeric_data[model.numeric_adr[nid]])
+
+
+# --------------------------------------------------------------------------------------------------
+# Registry of bundled scenes.
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A bundled scene.
+
+    Attributes:
+        name: Registry key.
+        source: XML file name inside ``models/``, or a builder returning an ``MjSpec``.
+        description: One line for ``--help`` and reports.
+        default_steps: A rollout length that shows the scene's collisions.
+        accel_hint: A suggested acceleration-norm bound (m/s^2) for the predictor. Exact (out of
+            contact) for the paper world and traffic; measured on random rollouts otherwise.
+    """
+
+    name: str
+    source: str | Callable[[], mujoco.MjSpec]
+    description: str
+    default_steps: int
+    accel_hint: float
+
+    def model(self) -> mujoco.MjModel:
+        """Compile the scene.
+
+        Returns:
+            The compiled model.
+        """
+        if callable(self.source):
+            return self.source().compile()
+        with importlib.resources.as_file(_model_file(self.source)) as path:
+            return mujoco.MjModel.from_xml_path(str(path))
+
+
+def models_dir() -> Path:
+    """The folder holding the bundled XMLs.
+
+    Installed, it is the package ``dua_mujoco.models``; in a source tree without install it is the
+    top-level ``models/`` folder next to the package.
+
+    Returns:
+        The folder's path.
+    """
+    try:
+        root = importlib.resources.files("dua_mujoco.models")
+        if root.joinpath("two_arms.xml").is_file():
+            return Path(str(root))
+    except (ModuleNotFoundError, TypeError):
+        pass
+    return Path(__file__).resolve().parent.parent / "models"
+
+
+def _model_file(filename: str) -> Path:
+    return models_dir() / filename
+
+
+SCENES: dict[str, Scene] = {
+    s.name: s
+    for s in (
+        Scene(
+            name="two_arms",
+            source="two_arms.xml",
+            description="Two 5-DoF arms sharing a table with fixed and loose obstacles.",
+            default_steps=2000,
+            # Geom centres out of contact, random controls: 99.9th percentile 59, max 74 m/s^2.
+            accel_hint=80.0,
+        ),
+        Scene(
+            name="traffic",
+            source="traffic.xml",
+            description="Four-way intersection, 12 cars driven along their lanes (paper sec. 1).",
+            default_steps=1000,
+            # Exact out of contact and off the joint limits (motor gear = mass * 4).
+            accel_hint=4.0,
+        ),
+        Scene(
+            name="clutter",
+            source="clutter.xml",
+            description="Walled bin of free primitives and meshes, a paddle and a mocap stirrer.",
+            default_steps=2000,
+            # Geom centres out of contact, random controls: 99.9th percentile 42, max 48 m/s^2.
+            accel_hint=50.0,
+        ),
+        Scene(
+            name="paper_world",
+            source="paper_world.xml",
+            description="The paper's world: 40 spheres, bounded accelerations, in a unit cube.",
+            default_steps=1000,
+            accel_hint=paper_world_accel_bound(1.0),
+        ),
+    )
+}
+
+
+def scene_names() -> tuple[str, ...]:
+    """Every name :func:`load_scene` accepts (``paper_world:N`` stands for any N >= 1)."""
+    return (*SCENES, f"{_PAPER_PREFIX}N")
+
+
+def _looks_like_path(name: str) -> bool:
+    return name.endswith((".xml", ".mjcf")) or "/" in name or "\\" in name
+
+
+def load_scene(
+    name_or_path: str, *, keyframe: int | str | None = None
+) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """Load a bundled scene or an MJCF file, reset to a keyframe and run ``mj_forward``.
+
+    Args:
+        name_or_path: A bundled name (``two_arms``, ``traffic``, ``clutter``, ``paper_world``),
+            ``paper_world:N`` for the generated world with ``N`` spheres (seed 0), or a path to an
+            MJCF file.
+        keyframe: See :func:`reset_to_keyframe`; None means the first keyframe, if any.
+
+    Returns:
+        ``(model, data)``, with ``data`` at the keyframe and its derived quantities computed.
+
+    Raises:
+        InvalidChoiceError: If the name is neither a bundled scene nor an existing file.
+        InvalidInputError: If ``N`` in ``paper_world:N`` is not a positive integer.
+    """
+    if name_or_path in SCENES:
+        model = SCENES[name_or_path].model()
+    elif name_or_path.startswith(_PAPER_PREFIX):
+        count = name_or_path[len(_PAPER_PREFIX) :]
+        if not count.isdigit() or int(count) < 1:
+            raise InvalidInputError(
+                f"In {name_or_path!r}, N must be a positive integer, e.g. 'paper_world:20'."
+            )
+        model = paper_world_model(int(count))
+    elif Path(name_or_path).is_file():
+        model = mujoco.MjModel.from_xml_path(str(Path(name_or_path)))
+    else:
+        hint = "Or pass the path of an existing MJCF file."
+        if _looks_like_path(name_or_path):
+            hint = f"No file at {str(Path(name_or_path).resolve())!r}. " + hint
+        raise InvalidChoiceError("scene", name_or_path, scene_names(), hint)
+    data = mujoco.MjData(model)
+    reset_to_keyframe(model, data, keyframe)
+    return model, data
+
+
+def reset_to_keyframe(
+    model: mujoco.MjModel, data: mujoco.MjData, keyframe: int | str | None = None
+) -> None:
+    """Reset ``data`` to a keyframe (or to the model's defaults) and run ``mj_forward``.
+
+    Args:
+        model: The model.
+        data: Its data, modified in place.
+        keyframe: Index or name of the keyframe; None means the first keyframe if the model has
+            one, else the model defaults (``qpos0``, zero velocity).
+
+    Raises:
+        InvalidChoiceError: If the keyframe index or name does not exist (lists the valid ones).
+    """
+    if keyframe is None:
+        key = 0 if model.nkey > 0 else -1
+    elif isinstance(keyframe, str):
+        key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+    else:
+        key = int(keyframe) if 0 <= int(keyframe) < model.nkey else -1
+    if keyframe is not None and key < 0:
+        names = [model.key(k).name or str(k) for k in range(model.nkey)]
+        raise InvalidChoiceError("keyframe", keyframe, names or ["<none: the model has none>"])
+    if key >= 0:
+        mujoco.mj_resetDataKeyframe(model, data, key)
+    else:
+        mujoco.mj_resetData(model, data)
+    mujoco.mj_forward(model, data)
+
+
+# --------------------------------------------------------------------------------------------------
+# Scene drivers.
+# --------------------------------------------------------------------------------------------------
+
+
+class CtrlMode(enum.Enum):
+    """How :func:`make_controller` drives a scene."""
+
+    ZERO = "zero"
+    """``ctrl = 0`` and mocap bodies stay where they are."""
+    RANDOM = "random"
+    """Uniform controls held for ``hold_steps`` steps; mocap bodies move on circles."""
+
+
+@dataclass(frozen=True)
+class MocapCircle:
+    """A horizontal circle along which :class:`SceneController` moves each mocap body.
+
+    A mocap body starting at ``p0`` with phase ``phi`` is at
+    ``p0 + radius (cos(w t + phi) - cos(phi), sin(w t + phi) - sin(phi), 0)`` at time ``t``,
+    ``w = 2 pi / period``, with a fixed orientation: every point of the body has speed
+    ``radius w`` and acceleration ``radius w^2``. Sampling at the timestep ``h`` the discrete second
+    difference is ``2 radius (1 - cos(w h)) / h^2 <= radius w^2``, so the bound also holds for the
+    positions MuJoCo sees.
+
+    Attributes:
+        radius: Circle radius (m).
+        period: Time of one turn (s).
+    """
+
+    radius: float = 0.1
+    period: float = 3.0
+
+    @property
+    def omega(self) -> float:
+        """Angular rate (rad/s)."""
+        return 2.0 * math.pi / self.period
+
+    @property
+    def speed_bound(self) -> float:
+        """Speed of every mocap point (m/s)."""
+        return self.radius * self.omega
+
+    @property
+    def accel_bound(self) -> float:
+        """Acceleration norm of every mocap point (m/s^2)."""
+        return self.radius * self.omega**2
+
+
+@dataclass
+class SceneController:
+    """A stateful scene driver; call it with ``(model, data)`` before every ``mj_step``.
+
+    Not frozen: it counts steps to know when to draw the next held control.
+
+    Attributes:
+        mode: Zero or random controls.
+        hold_steps: Physics steps each random control is held (piecewise-constant controls).
+        ctrl_low: Lower control bounds, shape ``(nu,)``: ``ctrlrange`` or -1 for unlimited.
+        ctrl_high: Upper control bounds, shape ``(nu,)``: ``ctrlrange`` or +1 for unlimited.
+        mocap: The circle mocap bodies follow in random mode.
+        mocap_start: Start positions of the mocap bodies, shape ``(nmocap, 3)``.
+        mocap_phase: Phases of the mocap circles, shape ``(nmocap,)``.
+        rng: Source of the random controls (seeded by :func:`make_controller`).
+    """
+
+    mode: CtrlMode
+    hold_steps: int
+    ctrl_low: np.ndarray
+    ctrl_high: np.ndarray
+    mocap: MocapCircle
+    mocap_start: np.ndarray
+    mocap_phase: np.ndarray
+    rng: np.random.Generator
+    _step: int = field(default=0, init=False)
+    _ctrl: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self._ctrl = np.zeros_like(self.ctrl_low)
+
+    @property
+    def mocap_accel_bound(self) -> float:
+        """Acceleration bound of mocap points (m/s^2); 0 in zero mode."""
+        return self.mocap.accel_bound if self.mode is CtrlMode.RANDOM else 0.0
+
+    @property
+    def mocap_speed_bound(self) -> float:
+        """Speed bound of mocap points (m/s); 0 in zero mode."""
+        return self.mocap.speed_bound if self.mode is CtrlMode.RANDOM else 0.0
+
+    def mocap_pos(self, time: float) -> np.ndarray:
+        """Mocap positions at ``time`` (s) in random mode, shape ``(nmocap, 3)``."""
+        angle = self.mocap.omega * time + self.mocap_phase
+        offset = np.zeros_like(self.mocap_start)
+        offset[:, 0] = np.cos(angle) - np.cos(self.mocap_phase)
+        offset[:, 1] = np.sin(angle) - np.sin(self.mocap_phase)
+        return self.mocap_start + self.mocap.radius * offset
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Write ``data.ctrl`` (and ``data.mocap_pos``) for the coming step."""
+        if self.mode is CtrlMode.ZERO:
+            data.ctrl[:] = 0.0
+            return
+        if self._step % self.hold_steps == 0:
+            self._ctrl = self.rng.uniform(self.ctrl_low, self.ctrl_high)
+        self._step += 1
+        data.ctrl[:] = self._ctrl
+        if self.mocap_start.shape[0]:
+            # Driven by data.time so that resets and keyframes give the same path.
+            data.mocap_pos[:] = self.mocap_pos(float(data.time))
+
+
+def make_controller(
+    model: mujoco.MjModel,
+    mode: CtrlMode | str,
+    *,
+    seed: int = 0,
+    hold_steps: int = 50,
+    mocap: MocapCircle | None = None,
+) -> SceneController:
+    """A driver writing ``data.ctrl`` (and moving mocap bodies) before each physics step.
+
+    Random mode draws each control uniformly in its ``ctrlrange`` ([-1, 1] if unlimited) and holds
+    it for ``hold_steps`` steps, so motions are smooth rather than white noise; with motor
+    actuators that is the paper's piecewise-constant bounded acceleration. Mocap bodies start where
+    the model puts them and follow :class:`MocapCircle` paths (random phases), whose speed and
+    acceleration bounds are :attr:`SceneController.mocap_speed_bound` and
+    :attr:`SceneController.mocap_accel_bound`.
+
+    Args:
+        model: The model to drive.
+        mode: ``CtrlMode`` or its value (``"zero"``, ``"random"``).
+        seed: Seed of the random controls and mocap phases.
+        hold_steps: Physics steps each random control is held (>= 1).
+        mocap: The mocap circle; ``MocapCircle()`` if None.
+
+    Returns:
+        A callable ``controller(model, data)`` to call before every ``mj_step``.
+
+    Raises:
+        InvalidChoiceError: If ``mode`` is not a ``CtrlMode`` value.
+        InvalidInputError: If ``hold_steps < 1``.
+    """
+    if not isinstance(mode, CtrlMode):
+        try:
+            mode = CtrlMode(mode)
+        except ValueError:
+            raise InvalidChoiceError("control mode", mode, [m.value for m in CtrlMode]) from None
+    if hold_steps < 1:
+        raise InvalidInputError(f"hold_steps must be >= 1, got {hold_steps}.")
+    limited = model.actuator_ctrllimited.astype(bool)
+    low = np.where(limited, model.actuator_ctrlrange[:, 0], -1.0)
+    high = np.where(limited, model.actuator_ctrlrange[:, 1], 1.0)
+    mocap_bodies = [b for b in range(model.nbody) if int(model.body_mocapid[b]) >= 0]
+    mocap_bodies.sort(key=lambda b: int(model.body_mocapid[b]))
+    rng = np.random.default_rng(seed)
+    start = np.array([model.body_pos[b] for b in mocap_bodies], dtype=float).reshape(-1, 3)
+    phase = rng.uniform(0.0, 2.0 * math.pi, size=len(mocap_bodies))
+    return SceneController(
+        mode=mode,
+        hold_steps=int(hold_steps),
+        ctrl_low=low.astype(float),
+        ctrl_high=high.astype(float),
+        mocap=mocap if mocap is not None else MocapCircle(),
+        mocap_start=start,
+        mocap_phase=phase,
+        rng=rng,
+    )

@@ -1,0 +1,952 @@
+"""The Dynamic Urgency Algorithm scheduler and the select-all baselines (SPEC section 4).
+
+Layout. ``M`` pairs, ``L = ceil(log2(M + 1))`` buckets; bucket ``k`` has ``2**k`` slots and starts
+at slot ``2**k - 1`` of one flat array of ``2**L - 1`` slots (the last bucket partly empty, ``-1``).
+
+Protocol. ``DUAScheduler(tau0, dt=...)`` is the initial classification (evaluation number 0, at
+time 0). Step ``n = 1, 2, ...`` calls ``select()`` then ``update(ids, tau)`` with tau evaluated at
+time ``n * dt``. With ``q`` slots per bucket per step (the budget knob, a power of two), bucket
+``k`` hands out the ``min(q, 2**k)`` slots ``(n q + j) mod 2**k``, so every slot of bucket ``k`` is
+visited exactly every ``I_k = max(1, 2**k / q)`` steps. The ``i``-th most urgent of the evaluated
+pairs goes back into the ``i``-th of the withdrawn slots in bucket order, and it raises an alarm if
+``tau < (I_k + latency) * dt`` for the bucket ``k`` it lands in. Completeness is proved in
+docs/theory.md.
+
+The jitted pieces (``_select``, ``_reinsert``) are shared by the Python protocol and the fused step
+``DUAScheduler.step_points``, which evaluates tau inside the same compiled call.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+
+import numba as nb
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, SchedulerError, ShapeError
+from dua_mujoco.urgency import _per_pair, _vectors, tau_halfspace, tau_speed
+
+__all__ = [
+    "DUAScheduler",
+    "PairSet",
+    "SelectAllScheduler",
+    "Urgency",
+    "bucket_layout",
+]
+
+
+class Urgency(enum.Enum):
+    """What a select-all baseline ranks pairs by."""
+
+    TAU = "tau"
+    """Time to collision (SPEC section 2): the paper's SA(tau)."""
+    DISTANCE = "distance"
+    """Clearance ``|x| - eps``: the paper's SA(d)."""
+
+
+def bucket_layout(npairs: int) -> tuple[int, int]:
+    """Number of buckets ``L`` and of slots ``2**L - 1`` for ``npairs`` pairs."""
+    nbuckets = max(1, math.ceil(math.log2(npairs + 1)))
+    return nbuckets, (1 << nbuckets) - 1
+
+
+# --------------------------------------------------------------------------- jitted core
+
+
+@nb.njit(cache=True)
+def _select(slots, active, nbuckets, q, n, out_slots, out_ids):  # pragma: no cover - jitted
+    """Withdrawn slots and their pair ids for step ``n``, in bucket order; returns their count."""
+    count = 0
+    for k in range(nbuckets):
+        size = 1 << k
+        base = size - 1
+        take = min(q, size)
+        first = (n * q) % size
+        for j in range(take):
+            slot = base + (first + j) % size
+            pid = slots[slot]
+            if pid >= 0 and active[pid]:
+                out_slots[count] = slot
+                out_ids[count] = pid
+                count += 1
+    return count
+
+
+@nb.njit(cache=True, inline="always")
+def _bucket_of(slot):  # pragma: no cover - jitted
+    k = 0
+    while (2 << k) - 1 <= slot:
+        k += 1
+    return k
+
+
+@nb.njit(cache=True)
+def _reinsert(
+    slots, where, last_tau, last_step, horizon, n, w_slots, w_ids, w_tau, count, alarms
+):  # pragma: no cover - jitted
+    """Sort the evaluated pairs by tau into the withdrawn slots (bucket order); returns #alarms.
+
+    ``w_slots`` is in bucket order, so the i-th smallest tau lands in the i-th smallest bucket
+    among those the pairs came from. ``w_tau`` is indexed like ``w_ids``.
+    """
+    order = np.argsort(w_tau[:count], kind="mergesort")
+    nalarm = 0
+    for i in range(count):
+        src = order[i]
+        pid = w_ids[src]
+        slot = w_slots[i]
+        tau = w_tau[src]
+        slots[slot] = pid
+        where[pid] = slot
+        last_tau[pid] = tau
+        last_step[pid] = n
+        if tau < horizon[_bucket_of(slot)]:
+            alarms[nalarm] = pid
+            nalarm += 1
+    return nalarm
+
+
+@nb.njit(cache=True, inline="always")
+def _sphere_sphere_tau(ci, vi, cj, vj, p, eps, accel, delta, speed):  # pragma: no cover - jitted
+    return tau_speed(
+        cj[0] - ci[0],
+        cj[1] - ci[1],
+        cj[2] - ci[2],
+        vj[0] - vi[0],
+        vj[1] - vi[1],
+        vj[2] - vi[2],
+        eps[p],
+        accel[p],
+        delta[p],
+        speed[p],
+    )
+
+
+@nb.njit(cache=True, inline="always")
+def _sphere_halfspace_tau(c, v, normal, offset, p, eps, accel, delta):  # pragma: no cover - jitted
+    gap = normal[0] * c[0] + normal[1] * c[1] + normal[2] * c[2] - offset - eps[p]
+    vn = normal[0] * v[0] + normal[1] * v[1] + normal[2] * v[2]
+    return tau_halfspace(gap, vn, accel[p], delta[p])
+
+
+@nb.njit(cache=True, inline="always")
+def _pair_tau(
+    p, centers, velocities, normals, offsets, first, second, halfspace, eps, accel, delta, speed
+):  # pragma: no cover - jitted
+    i = first[p]
+    j = second[p]
+    if halfspace[p]:
+        return _sphere_halfspace_tau(
+            centers[i], velocities[i], normals[j], offsets[j], p, eps, accel, delta
+        )
+    return _sphere_sphere_tau(
+        centers[i], velocities[i], centers[j], velocities[j], p, eps, accel, delta, speed
+    )
+
+
+@nb.njit(cache=True, parallel=True)
+def _tau_pairs(
+    ids, centers, velocities, normals, offsets, first, second, halfspace, eps, accel, delta, speed
+):  # pragma: no cover - jitted
+    out = np.empty(ids.shape[0])
+    for k in nb.prange(ids.shape[0]):
+        out[k] = _pair_tau(
+            ids[k],
+            centers,
+            velocities,
+            normals,
+            offsets,
+            first,
+            second,
+            halfspace,
+            eps,
+            accel,
+            delta,
+            speed,
+        )
+    return out
+
+
+@nb.njit(cache=True)
+def _step_points(
+    slots,
+    where,
+    last_tau,
+    last_step,
+    horizon,
+    active,
+    nbuckets,
+    q,
+    n,
+    w_slots,
+    w_ids,
+    w_tau,
+    alarms,
+    centers,
+    velocities,
+    normals,
+    offsets,
+    first,
+    second,
+    halfspace,
+    eps,
+    accel,
+    delta,
+    speed,
+):  # pragma: no cover - jitted
+    count = _select(slots, active, nbuckets, q, n, w_slots, w_ids)
+    for k in range(count):
+        w_tau[k] = _pair_tau(
+            w_ids[k],
+            centers,
+            velocities,
+            normals,
+            offsets,
+            first,
+            second,
+            halfspace,
+            eps,
+            accel,
+            delta,
+            speed,
+        )
+    nalarm = _reinsert(
+        slots, where, last_tau, last_step, horizon, n, w_slots, w_ids, w_tau, count, alarms
+    )
+    return count, nalarm
+
+
+@nb.njit(cache=True, inline="always")
+def _rigid_point(
+    i, sphere_frame, sphere_body, sphere_offset, frame_pos, frame_mat, twist, twist_ref, rootid,
+    root_twist, root_origin,
+):  # pragma: no cover - jitted
+    """Centre and velocity of sphere ``i`` attached to a rigid frame (MuJoCo's conventions).
+
+    Centre: ``frame_pos[g] + frame_mat[g] @ offset``. Velocity: the body twist
+    ``[omega; v_ref]`` about the point ``twist_ref[rootid[b]]`` (MuJoCo's ``cvel`` about
+    ``subtree_com`` of the root), plus the twist of the tree's root about ``root_origin`` for
+    trees MuJoCo treats as static (mocap roots), which is zero elsewhere.
+    """
+    g = sphere_frame[i]
+    b = sphere_body[i]
+    o = sphere_offset[i]
+    m = frame_mat[g]
+    c = np.empty(3)
+    for k in range(3):
+        c[k] = frame_pos[g, k] + m[3 * k] * o[0] + m[3 * k + 1] * o[1] + m[3 * k + 2] * o[2]
+    r = rootid[b]
+    dx = c[0] - twist_ref[r, 0]
+    dy = c[1] - twist_ref[r, 1]
+    dz = c[2] - twist_ref[r, 2]
+    w = twist[b]
+    v = np.empty(3)
+    v[0] = w[3] + w[1] * dz - w[2] * dy
+    v[1] = w[4] + w[2] * dx - w[0] * dz
+    v[2] = w[5] + w[0] * dy - w[1] * dx
+    mt = root_twist[r]
+    if mt[0] != 0.0 or mt[1] != 0.0 or mt[2] != 0.0 or mt[3] != 0.0 or mt[4] != 0.0 or mt[5] != 0.0:
+        ex = c[0] - root_origin[r, 0]
+        ey = c[1] - root_origin[r, 1]
+        ez = c[2] - root_origin[r, 2]
+        v[0] += mt[3] + mt[1] * ez - mt[2] * ey
+        v[1] += mt[4] + mt[2] * ex - mt[0] * ez
+        v[2] += mt[5] + mt[0] * ey - mt[1] * ex
+    return c, v
+
+
+@nb.njit(cache=True)
+def _step_rigid(
+    slots,
+    where,
+    last_tau,
+    last_step,
+    horizon,
+    active,
+    nbuckets,
+    q,
+    n,
+    w_slots,
+    w_ids,
+    w_tau,
+    alarms,
+    first,
+    second,
+    halfspace,
+    eps,
+    accel,
+    delta,
+    speed,
+    sphere_frame,
+    sphere_body,
+    sphere_offset,
+    plane_frame,
+    frame_pos,
+    frame_mat,
+    twist,
+    twist_ref,
+    rootid,
+    root_twist,
+    root_origin,
+):  # pragma: no cover - jitted
+    """The fused step on spheres attached to rigid frames; reads only the selected spheres.
+
+    Returns ``(count, nalarm, bad)``: ``bad`` is the first pair whose state is not finite
+    (-1 if none); the step is then abandoned before re-bucketing.
+    """
+    count = _select(slots, active, nbuckets, q, n, w_slots, w_ids)
+    for k in range(count):
+        p = w_ids[k]
+        ci, vi = _rigid_point(
+            first[p], sphere_frame, sphere_body, sphere_offset, frame_pos, frame_mat, twist,
+            twist_ref, rootid, root_twist, root_origin,
+        )
+        if halfspace[p]:
+            g = plane_frame[second[p]]
+            m = frame_mat[g]
+            normal = np.empty(3)
+            normal[0] = m[2]
+            normal[1] = m[5]
+            normal[2] = m[8]
+            offset = normal[0] * frame_pos[g, 0] + normal[1] * frame_pos[g, 1] + normal[2] * frame_pos[g, 2]
+            tau = _sphere_halfspace_tau(ci, vi, normal, offset, p, eps, accel, delta)
+            state = ci[0] + ci[1] + ci[2] + vi[0] + vi[1] + vi[2]
+        else:
+            cj, vj = _rigid_point(
+                second[p], sphere_frame, sphere_body, sphere_offset, frame_pos, frame_mat, twist,
+                twist_ref, rootid, root_twist, root_origin,
+            )
+            tau = _sphere_sphere_tau(ci, vi, cj, vj, p, eps, accel, delta, speed)
+            state = ci[0] + ci[1] + ci[2] + vi[0] + vi[1] + vi[2]
+            state += cj[0] + cj[1] + cj[2] + vj[0] + vj[1] + vj[2]
+        if not math.isfinite(state):
+            return count, 0, p
+        w_tau[k] = tau
+    nalarm = _reinsert(
+        slots, where, last_tau, last_step, horizon, n, w_slots, w_ids, w_tau, count, alarms
+    )
+    return count, nalarm, -1
+
+
+# --------------------------------------------------------------------------- pair geometry
+
+
+class PairSet:
+    """Sphere-sphere and sphere-half-space pairs with their contact distances and bounds.
+
+    Args:
+        first: ``(M,)`` sphere index of each pair.
+        second: ``(M,)`` sphere index, or half-space index where ``halfspace`` is set.
+        eps: ``(M,)`` or scalar contact distance (radii plus margin; for a half-space pair the
+            sphere radius plus margin).
+        accel: ``(M,)`` or scalar bound on the relative acceleration norm (``A_i + A_j``).
+        halfspace: ``(M,)`` bool, pairs whose ``second`` is a half-space (default none).
+        vel_uncertainty: ``(M,)`` or scalar velocity uncertainty ``delta`` (default 0).
+        speed: ``(M,)`` or scalar relative speed bound (default ``inf``, none).
+    """
+
+    def __init__(
+        self,
+        first: npt.ArrayLike,
+        second: npt.ArrayLike,
+        eps: npt.ArrayLike,
+        accel: npt.ArrayLike,
+        *,
+        halfspace: npt.ArrayLike | None = None,
+        vel_uncertainty: npt.ArrayLike = 0.0,
+        speed: npt.ArrayLike = np.inf,
+    ) -> None:
+        self.first = _ids("first", first)
+        m = self.first.shape[0]
+        self.second = _ids("second", second, m)
+        self.halfspace = (
+            np.zeros(m, dtype=np.bool_)
+            if halfspace is None
+            else np.ascontiguousarray(np.broadcast_to(np.asarray(halfspace, dtype=np.bool_), (m,)))
+        )
+        self.eps = np.broadcast_to(_per_pair("eps", eps, m), (m,)).copy()
+        self.accel = np.broadcast_to(_per_pair("accel", accel, m), (m,)).copy()
+        self.vel_uncertainty = np.broadcast_to(
+            _per_pair("vel_uncertainty", vel_uncertainty, m), (m,)
+        ).copy()
+        self.speed = np.broadcast_to(_per_pair("speed", speed, m, allow_inf=True), (m,)).copy()
+        if (self.speed == 0.0).any():
+            raise InvalidInputError("speed bounds must be positive; use inf for none.")
+
+    def __len__(self) -> int:
+        return int(self.first.shape[0])
+
+    @classmethod
+    def all_pairs(
+        cls,
+        radius: npt.ArrayLike,
+        accel: npt.ArrayLike,
+        *,
+        margin: float = 0.0,
+        vel_uncertainty: npt.ArrayLike = 0.0,
+        speed: npt.ArrayLike | None = None,
+    ) -> PairSet:
+        """Every pair ``i < j`` of ``N`` spheres, with per-sphere radii and bounds summed per pair.
+
+        Args:
+            radius: ``(N,)`` sphere radii.
+            accel: ``(N,)`` or scalar per-sphere acceleration bound.
+            margin: Extra contact distance added to every pair.
+            vel_uncertainty: ``(N,)`` or scalar per-sphere velocity uncertainty.
+            speed: ``(N,)`` or scalar per-sphere speed bound, or None.
+        """
+        r = np.asarray(radius, dtype=np.float64)
+        if r.ndim != 1:
+            raise ShapeError(f"radius has shape {r.shape}; expected (N,).")
+        n = r.shape[0]
+        i, j = np.triu_indices(n, k=1)
+
+        def per_sphere(name: str, value: npt.ArrayLike) -> np.ndarray:
+            return np.broadcast_to(_per_pair(name, value, n, allow_inf=True), (n,))
+
+        a = per_sphere("accel", accel)
+        d = per_sphere("vel_uncertainty", vel_uncertainty)
+        s = np.inf if speed is None else per_sphere("speed", speed)[i] + per_sphere("speed", speed)[j]
+        return cls(
+            i,
+            j,
+            r[i] + r[j] + margin,
+            a[i] + a[j],
+            vel_uncertainty=d[i] + d[j],
+            speed=s,
+        )
+
+    def tau(
+        self,
+        ids: npt.ArrayLike,
+        centers: npt.ArrayLike,
+        velocities: npt.ArrayLike,
+        halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    ) -> np.ndarray:
+        """tau of the pairs ``ids`` from sphere states (the vectorised front of the fused step).
+
+        Args:
+            ids: ``(n,)`` pair ids.
+            centers: ``(nsphere, 3)`` sphere centres.
+            velocities: ``(nsphere, 3)`` sphere centre velocities.
+            halfspaces: ``(normals (nh, 3), offsets (nh,))``: half-space ``j`` is
+                ``{p : normals[j] . p <= offsets[j]}`` seen from outside, i.e. a sphere centre ``c``
+                has clearance ``normals[j] . c - offsets[j] - eps``.
+
+        Returns:
+            ``(n,)`` tau of each pair.
+        """
+        idx = _ids("ids", ids)
+        if idx.size and (idx.min() < 0 or idx.max() >= len(self)):
+            raise InvalidInputError(f"pair ids must be in [0, {len(self)}); got {idx.tolist()}.")
+        c, v, nrm, off = self._states(centers, velocities, halfspaces)
+        return np.asarray(
+            _tau_pairs(
+                idx,
+                c,
+                v,
+                nrm,
+                off,
+                self.first,
+                self.second,
+                self.halfspace,
+                self.eps,
+                self.accel,
+                self.vel_uncertainty,
+                self.speed,
+            )
+        )
+
+    def _states(
+        self,
+        centers: npt.ArrayLike,
+        velocities: npt.ArrayLike,
+        halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        c = _vectors("centers", centers)
+        v = _vectors("velocities", velocities, c.shape[0])
+        if halfspaces is None:
+            nrm = np.zeros((1, 3))
+            off = np.zeros(1)
+            if self.halfspace.any():
+                raise InvalidInputError("these pairs include half-spaces: pass halfspaces=(n, o).")
+        else:
+            nrm = _vectors("halfspace normals", halfspaces[0])
+            off = np.ascontiguousarray(np.asarray(halfspaces[1], dtype=np.float64).reshape(-1))
+            if off.shape[0] != nrm.shape[0]:
+                raise ShapeError(f"halfspace offsets have {off.shape[0]} rows, normals {nrm.shape[0]}.")
+        nsphere = c.shape[0]
+        spheres = np.concatenate([self.first, self.second[~self.halfspace]])
+        if spheres.size and spheres.max() >= nsphere:
+            raise ShapeError(
+                f"pairs reference sphere {int(spheres.max())} but centers has {nsphere} rows."
+            )
+        return c, v, nrm, off
+
+    def distance(self, ids: npt.ArrayLike, centers: npt.ArrayLike) -> np.ndarray:
+        """Distance urgency ``|c_j - c_i| - eps`` of the sphere-sphere pairs ``ids``, ``(n,)``."""
+        idx = _ids("ids", ids)
+        c = _vectors("centers", centers)
+        return np.asarray(
+            np.linalg.norm(c[self.second[idx]] - c[self.first[idx]], axis=1) - self.eps[idx]
+        )
+
+
+def _ids(name: str, value: npt.ArrayLike, m: int | None = None) -> np.ndarray:
+    arr = np.asarray(value)
+    if arr.ndim != 1 or (m is not None and arr.shape[0] != m):
+        want = f"({m},)" if m is not None else "(n,)"
+        raise ShapeError(f"{name} has shape {arr.shape}; expected {want}.")
+    if arr.size and not np.issubdtype(arr.dtype, np.integer):
+        raise InvalidInputError(f"{name} must hold integers; got dtype {arr.dtype}.")
+    return np.ascontiguousarray(arr, dtype=np.int64)
+
+
+def _check_dt(dt: float, latency: int) -> tuple[float, int]:
+    if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
+        raise InvalidInputError(f"dt = {dt!r} is invalid: the predictor period must be > 0.")
+    if not isinstance(latency, int | np.integer) or latency < 0:
+        raise InvalidInputError(
+            f"latency = {latency!r} is invalid: it must be an int >= 0 (1 when a verdict takes "
+            "one period to compute, 0 when the predictor runs synchronously after each step)."
+        )
+    return float(dt), int(latency)
+
+
+def _check_tau(name: str, tau: npt.ArrayLike, m: int | None = None) -> np.ndarray:
+    arr = np.asarray(tau, dtype=np.float64)
+    if arr.ndim != 1 or (m is not None and arr.shape[0] != m):
+        want = f"({m},)" if m is not None else "(M,)"
+        raise ShapeError(f"{name} has shape {arr.shape}; expected {want}.")
+    bad = np.isnan(arr) | (arr < 0)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InvalidInputError(
+            f"{name}[{i}] = {arr[i]} is invalid: urgencies must be >= 0 (inf allowed), not NaN."
+        )
+    return np.ascontiguousarray(arr)
+
+
+# --------------------------------------------------------------------------- DUA
+
+
+class DUAScheduler:
+    """The Dynamic Urgency Algorithm (Hayward et al. 1995, sec. 7), with SPEC section 4's rules.
+
+    Args:
+        tau0: ``(M,)`` tau of every pair at time 0 (the initial classification).
+        dt: Predictor period ``> 0`` (seconds between steps).
+        latency: Periods a verdict takes to be delivered (1: the paper's eq. 26; 0: the predictor
+            runs synchronously after each physics step).
+        slots_per_bucket: Budget knob ``q`` (a power of two): slots evaluated per bucket per step.
+            Revisit intervals shrink ``q``-fold; work grows ``q``-fold.
+        active: Optional ``(M,)`` bool mask of pairs initially switched on (default all).
+
+    Attributes:
+        initial_alarms: ``(k,)`` ids of the pairs the initial classification alarms.
+        step_count: Number of completed steps (0 after the initial classification).
+    """
+
+    def __init__(
+        self,
+        tau0: npt.ArrayLike,
+        *,
+        dt: float,
+        latency: int = 1,
+        slots_per_bucket: int = 1,
+        active: npt.ArrayLike | None = None,
+    ) -> None:
+        tau = _check_tau("tau0", tau0)
+        self.dt, self.latency = _check_dt(dt, latency)
+        q = slots_per_bucket
+        if not isinstance(q, int | np.integer) or q < 1 or (q & (q - 1)) != 0:
+            raise InvalidChoiceError(
+                "slots_per_bucket",
+                q,
+                [1, 2, 4, 8, 16, 32],
+                hint="It must be a power of two so that every revisit interval is exact.",
+            )
+        self.slots_per_bucket = int(q)
+        m = tau.shape[0]
+        self.npairs = m
+        self.nbuckets, nslots = bucket_layout(m)
+        sizes = 1 << np.arange(self.nbuckets)
+        self.interval = np.maximum(1, sizes // self.slots_per_bucket).astype(np.int64)
+        self.horizon = (self.interval + self.latency) * self.dt
+        self.active = (
+            np.ones(m, dtype=np.bool_)
+            if active is None
+            else np.ascontiguousarray(np.asarray(active, dtype=np.bool_))
+        )
+        if self.active.shape != (m,):
+            raise ShapeError(f"active has shape {self.active.shape}; expected ({m},).")
+
+        # Initial classification: a partial sort at the bucket boundaries (paper eq. 23).
+        bounds = (1 << np.arange(1, self.nbuckets)) - 1
+        bounds = bounds[bounds < m]
+        order = np.argpartition(tau, bounds) if bounds.size else np.arange(m)
+        self.slots = np.full(nslots, -1, dtype=np.int64)
+        self.slots[:m] = order
+        self.where = np.empty(m, dtype=np.int64)
+        self.where[order] = np.arange(m)
+        self.last_tau = tau.copy()
+        self.last_step = np.zeros(m, dtype=np.int64)
+        self.step_count = 0
+        alarmed = (tau < self.horizon[self.bucket_of_slot(self.where)]) & self.active
+        self.initial_alarms = np.flatnonzero(alarmed).astype(np.int64)
+
+        width = int(np.minimum(sizes, self.slots_per_bucket).sum())
+        self._w_slots = np.empty(width, dtype=np.int64)
+        self._w_ids = np.empty(width, dtype=np.int64)
+        self._w_tau = np.empty(width)
+        self._alarms = np.empty(width, dtype=np.int64)
+        self._pending: np.ndarray | None = None
+        self._pending_count = 0
+        self._last_count = 0
+        self._reactivated: list[int] = []
+
+    # ----------------------------------------------------------------------- introspection
+
+    @staticmethod
+    def bucket_of_slot(slot: npt.ArrayLike) -> np.ndarray:
+        """Bucket index ``floor(log2(slot + 1))`` of slot indices."""
+        s = np.asarray(slot, dtype=np.int64)
+        return np.asarray(np.floor(np.log2(s + 1.0)).astype(np.int64))
+
+    def bucket(self, pair: npt.ArrayLike) -> np.ndarray:
+        """Bucket index of each pair, shape like ``pair``."""
+        return self.bucket_of_slot(self.where[np.asarray(pair)])
+
+    def tau(self, pair: npt.ArrayLike) -> np.ndarray:
+        """tau of each pair at its latest evaluation."""
+        return np.asarray(self.last_tau[np.asarray(pair)])
+
+    def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
+        """Step at which each pair is next evaluated (if it stays switched on)."""
+        slot = self.where[np.asarray(pair)]
+        k = self.bucket_of_slot(slot)
+        offset = slot - ((1 << k) - 1)
+        interval = self.interval[k]
+        q = self.slots_per_bucket
+        size = 1 << k
+        # Slot o of bucket k is handed out at the steps n with (n q) mod size == o - o mod q.
+        phase = np.where(size <= q, 0, (offset - offset % q) // np.maximum(q, 1))
+        n = self.step_count + 1
+        return np.asarray(n + (phase - n) % interval)
+
+    def most_urgent(self) -> int:
+        """The pair DUA believes most urgent: the occupant of bucket 0 (-1 if none active)."""
+        for slot in self.slots:
+            if slot >= 0 and self.active[slot]:
+                return int(slot)
+        return -1
+
+    @property
+    def evaluations_per_step(self) -> int:
+        """Slots handed out per step: ``sum_k min(q, 2**k)`` (empty or inactive ones skipped)."""
+        return int(self._w_slots.shape[0])
+
+    # ----------------------------------------------------------------------- switching
+
+    def set_active(self, pairs: npt.ArrayLike, on: bool) -> None:
+        """Switch pairs off (intended contact, paper sec. 6.3) or back on.
+
+        A pair switched back on is evaluated at the next ``select()`` in addition to the regular
+        slots (its stored tau is stale) and alarms against its bucket's horizon; it keeps its slot.
+        """
+        ids = np.atleast_1d(_ids("pairs", np.atleast_1d(np.asarray(pairs, dtype=np.int64))))
+        if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
+            raise InvalidInputError(f"pair ids must be in [0, {self.npairs}); got {ids.tolist()}.")
+        if on:
+            self._reactivated.extend(int(i) for i in ids[~self.active[ids]])
+        else:
+            drop = set(ids.tolist())
+            self._reactivated = [i for i in self._reactivated if i not in drop]
+        self.active[ids] = on
+
+    # ----------------------------------------------------------------------- protocol
+
+    def select(self) -> np.ndarray:
+        """Pair ids to evaluate this step (one ``update`` must follow), ``(n,)`` int64."""
+        if self._pending is not None:
+            raise SchedulerError(
+                "select() called twice without update(): evaluate the selected pairs and pass "
+                "their tau to update() first."
+            )
+        n = self.step_count + 1
+        count = _select(
+            self.slots,
+            self.active,
+            self.nbuckets,
+            self.slots_per_bucket,
+            n,
+            self._w_slots,
+            self._w_ids,
+        )
+        self._pending_count = count
+        self._last_count = count
+        extra = np.asarray(self._reactivated, dtype=np.int64)
+        self._reactivated = []
+        self._pending = np.concatenate([self._w_ids[:count], extra])
+        return self._pending.copy()
+
+    def update(self, ids: npt.ArrayLike, tau: npt.ArrayLike) -> np.ndarray:
+        """Re-bucket the pairs selected this step with their new tau; return the alarmed ids.
+
+        Args:
+            ids: ``(n,)`` the ids ``select()`` returned, in any order.
+            tau: ``(n,)`` their tau at this step's state.
+
+        Returns:
+            ``(k,)`` int64 ids of the pairs that raise an alarm.
+        """
+        if self._pending is None:
+            raise SchedulerError("update() without select(): call select() first.")
+        idx = _ids("ids", ids)
+        t = _check_tau("tau", tau, idx.shape[0])
+        expected = self._pending
+        if idx.shape != expected.shape or not np.array_equal(np.sort(idx), np.sort(expected)):
+            raise SchedulerError(
+                f"update() got ids {idx.tolist()[:16]} but this step selected "
+                f"{expected.tolist()[:16]}: pass exactly the ids select() returned."
+            )
+        n = self.step_count + 1
+        count = self._pending_count
+        # Reorder the caller's tau to the selection order (ids are distinct).
+        tau_sel = np.empty(expected.shape[0])
+        tau_sel[np.argsort(expected)] = t[np.argsort(idx)]
+        self._w_tau[:count] = tau_sel[:count]
+        nalarm = _reinsert(
+            self.slots,
+            self.where,
+            self.last_tau,
+            self.last_step,
+            self.horizon,
+            n,
+            self._w_slots,
+            self._w_ids,
+            self._w_tau,
+            count,
+            self._alarms,
+        )
+        alarms = [self._alarms[:nalarm]]
+        extra = expected[count:]
+        if extra.size:
+            tau_extra = tau_sel[count:]
+            self.last_tau[extra] = tau_extra
+            self.last_step[extra] = n
+            alarms.append(extra[tau_extra < self.horizon[self.bucket(extra)]])
+        self.step_count = n
+        self._pending = None
+        return np.concatenate(alarms)
+
+    def step_points(
+        self,
+        pairs: PairSet,
+        centers: npt.ArrayLike,
+        velocities: npt.ArrayLike,
+        halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    ) -> np.ndarray:
+        """One fused step: select, evaluate tau from sphere states, sort, reinsert, alarm.
+
+        Same result as ``update(ids, pairs.tau(ids, ...))`` after ``ids = select()``, in one
+        compiled call.
+
+        Args:
+            pairs: The pair geometry (``len(pairs) == npairs``).
+            centers: ``(nsphere, 3)`` sphere centres at this step.
+            velocities: ``(nsphere, 3)`` sphere centre velocities at this step.
+            halfspaces: ``(normals (nh, 3), offsets (nh,))`` if any pair is a half-space pair.
+
+        Returns:
+            ``(k,)`` int64 ids of the alarmed pairs.
+        """
+        if len(pairs) != self.npairs:
+            raise ShapeError(f"pairs has {len(pairs)} pairs; the scheduler has {self.npairs}.")
+        if self._pending is not None:
+            raise SchedulerError("step_points() between select() and update(): finish the step.")
+        if self._reactivated:
+            ids = self.select()
+            return self.update(ids, pairs.tau(ids, centers, velocities, halfspaces))
+        c, v, nrm, off = pairs._states(centers, velocities, halfspaces)
+        n = self.step_count + 1
+        count, nalarm = _step_points(
+            self.slots,
+            self.where,
+            self.last_tau,
+            self.last_step,
+            self.horizon,
+            self.active,
+            self.nbuckets,
+            self.slots_per_bucket,
+            n,
+            self._w_slots,
+            self._w_ids,
+            self._w_tau,
+            self._alarms,
+            c,
+            v,
+            nrm,
+            off,
+            pairs.first,
+            pairs.second,
+            pairs.halfspace,
+            pairs.eps,
+            pairs.accel,
+            pairs.vel_uncertainty,
+            pairs.speed,
+        )
+        self._last_count = count
+        self.step_count = n
+        return self._alarms[:nalarm].copy()
+
+
+    def step_rigid(self, pair_args: tuple, frame_args: tuple) -> tuple[np.ndarray, int]:
+        """The fused step for spheres attached to rigid frames (used by ``Predictor``).
+
+        Args:
+            pair_args: ``(first, second, halfspace, eps, accel, delta, speed, sphere_frame,
+                sphere_body, sphere_offset, plane_frame)``, fixed for a model.
+            frame_args: ``(frame_pos (nframe, 3), frame_mat (nframe, 9), twist (nbody, 6),
+                twist_ref (nbody, 3), rootid (nbody,), root_twist (nbody, 6),
+                root_origin (nbody, 3))`` at this step.
+
+        Returns:
+            ``(alarmed ids, bad)`` where ``bad`` is a pair whose state is not finite (the step
+            was then not taken) or -1.
+        """
+        if self._pending is not None:
+            raise SchedulerError("step_rigid() between select() and update(): finish the step.")
+        if self._reactivated:
+            raise SchedulerError("re-activated pairs need select()/update() for one step.")
+        n = self.step_count + 1
+        count, nalarm, bad = _step_rigid(
+            self.slots,
+            self.where,
+            self.last_tau,
+            self.last_step,
+            self.horizon,
+            self.active,
+            self.nbuckets,
+            self.slots_per_bucket,
+            n,
+            self._w_slots,
+            self._w_ids,
+            self._w_tau,
+            self._alarms,
+            *pair_args,
+            *frame_args,
+        )
+        if bad >= 0:
+            return self._alarms[:0].copy(), int(bad)
+        self._last_count = count
+        self.step_count = n
+        return self._alarms[:nalarm].copy(), -1
+
+    def alarm_state(self, pair: npt.ArrayLike | None = None) -> np.ndarray:
+        """Whether each pair's latest evaluation raised an alarm (the alarm rule on its last tau)."""
+        idx = np.arange(self.npairs) if pair is None else np.asarray(pair, dtype=np.int64)
+        k = self.bucket_of_slot(self.where[idx])
+        return np.asarray(self.last_tau[idx] < self.horizon[k])
+
+    @property
+    def last_selected(self) -> np.ndarray:
+        """Ids evaluated by the latest fused step, in selection order (a copy)."""
+        return self._w_ids[: self._last_count].copy()
+
+
+# --------------------------------------------------------------------------- baselines
+
+
+class SelectAllScheduler:
+    """The select-all baselines: every active pair every step (paper sec. 8: SA(tau), SA(d)).
+
+    Args:
+        urgency0: ``(M,)`` initial urgency (tau, or clearance for ``Urgency.DISTANCE``).
+        dt: Predictor period ``> 0``.
+        urgency: ``Urgency.TAU`` (alarm if ``tau < (1 + latency) dt``) or ``Urgency.DISTANCE``
+            (alarm if the clearance is below ``alarm_distance``).
+        latency: As for ``DUAScheduler``.
+        alarm_distance: Clearance below which SA(d) alarms (default 0: only overlaps).
+        active: Optional ``(M,)`` bool mask.
+    """
+
+    def __init__(
+        self,
+        urgency0: npt.ArrayLike,
+        *,
+        dt: float,
+        urgency: Urgency | str = Urgency.TAU,
+        latency: int = 1,
+        alarm_distance: float = 0.0,
+        active: npt.ArrayLike | None = None,
+    ) -> None:
+        try:
+            self.urgency = Urgency(urgency)
+        except ValueError:
+            raise InvalidChoiceError("urgency", urgency, [u.value for u in Urgency]) from None
+        self.dt, self.latency = _check_dt(dt, latency)
+        values = np.asarray(urgency0, dtype=np.float64)
+        if self.urgency is Urgency.TAU:
+            values = _check_tau("urgency0", values)
+        elif values.ndim != 1 or np.isnan(values).any():
+            raise ShapeError(f"urgency0 must be a (M,) array without NaN; got shape {values.shape}.")
+        self.npairs = values.shape[0]
+        self.alarm_distance = float(alarm_distance)
+        self.active = (
+            np.ones(self.npairs, dtype=np.bool_)
+            if active is None
+            else np.asarray(active, dtype=np.bool_).copy()
+        )
+        self.last = values.copy()
+        self.step_count = 0
+        self.initial_alarms = np.flatnonzero(self._alarmed(values) & self.active)
+        self._pending: np.ndarray | None = None
+
+    @property
+    def threshold(self) -> float:
+        """The alarm threshold on the urgency value."""
+        if self.urgency is Urgency.TAU:
+            return (1 + self.latency) * self.dt
+        return self.alarm_distance
+
+    def _alarmed(self, values: np.ndarray) -> np.ndarray:
+        return np.asarray(values < self.threshold)
+
+    @property
+    def evaluations_per_step(self) -> int:
+        """Active pairs (all evaluated every step)."""
+        return int(self.active.sum())
+
+    def set_active(self, pairs: npt.ArrayLike, on: bool) -> None:
+        """Switch pairs off or on."""
+        self.active[np.asarray(pairs, dtype=np.int64)] = on
+
+    def select(self) -> np.ndarray:
+        """All active pair ids."""
+        if self._pending is not None:
+            raise SchedulerError("select() called twice without update().")
+        self._pending = np.flatnonzero(self.active).astype(np.int64)
+        return self._pending.copy()
+
+    def update(self, ids: npt.ArrayLike, values: npt.ArrayLike) -> np.ndarray:
+        """Store the new urgencies of the selected ids; return the alarmed ids."""
+        if self._pending is None:
+            raise SchedulerError("update() without select(): call select() first.")
+        idx = _ids("ids", ids)
+        vals = np.asarray(values, dtype=np.float64)
+        if vals.shape != idx.shape or not np.array_equal(np.sort(idx), self._pending):
+            raise SchedulerError(
+                "update() must get exactly the ids select() returned, with one value each."
+            )
+        self.last[idx] = vals
+        self.step_count += 1
+        self._pending = None
+        return np.asarray(idx[self._alarmed(vals)])
+
+    def most_urgent(self) -> int:
+        """The active pair with the smallest urgency (-1 if none)."""
+        masked = np.where(self.active, self.last, np.inf)
+        return int(np.argmin(masked)) if self.active.any() else -1

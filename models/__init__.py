@@ -1,0 +1,1 @@
+"""Bundled MJCF scenes (shipped as ``dua_mujoco.models``)."""

@@ -1,0 +1,476 @@
+"""Tests of dua_mujoco.bounds: declared bounds, the discrete-time term on rollouts, the monitor."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco.bounds import (
+    BoundMonitor,
+    MotionBounds,
+    discrete_velocity_uncertainty,
+    estimate_bounds,
+    moving_bodies,
+)
+from dua_mujoco.exceptions import InvalidBoundError, InvalidChoiceError, InvalidInputError
+from dua_mujoco.state import sphere_centers, sphere_velocities
+
+H = 0.002
+KMAX = 200
+
+TWO_BODIES = """<mujoco><option timestep="0.002"/><worldbody>
+<geom name="floor" type="plane" size="2 2 .1"/>
+<body name="static_shelf" pos="0 0 .5"><geom type="box" size=".2 .2 .01"/></body>
+<body name="ball" pos="0 0 1"><freejoint/><geom type="sphere" size=".1"/></body>
+<body name="link" pos="1 0 1"><joint type="hinge" axis="0 1 0"/>
+  <geom type="capsule" fromto="0 0 0 .5 0 0" size=".02"/></body>
+</worldbody></mujoco>"""
+
+FREE_FORCE = """<mujoco><option integrator="{I}" gravity="0 0 0" timestep="0.002"/><worldbody>
+<body name="ball"><freejoint/><geom type="sphere" size=".1" mass="{M}"/></body>
+</worldbody></mujoco>"""
+
+PENDULUM = """<mujoco><option integrator="{I}" timestep="0.002"/><worldbody>
+<body name="link" pos="0 0 1"><joint type="hinge" axis="0 1 0"/>
+  <geom type="capsule" fromto="0 0 0 .5 0 0" size=".02"/>
+  <geom name="tip" type="sphere" pos=".5 0 0" size=".05"/></body></worldbody></mujoco>"""
+
+CHAIN = """<mujoco><option integrator="{I}" timestep="0.002"/><worldbody>
+<body name="a" pos="0 0 1"><joint type="ball"/>
+  <geom type="capsule" fromto="0 0 0 .4 0 0" size=".02"/>
+<body name="b" pos=".4 0 0"><joint type="hinge" axis="0 1 .3"/>
+  <geom type="capsule" fromto="0 0 0 .4 .1 0" size=".02"/>
+  <geom type="sphere" size=".03" pos=".4 .1 0"/></body></body></worldbody></mujoco>"""
+
+# Free body spinning torque-free about its COM = frame origin (isotropic inertia: omega constant).
+SPIN = """<mujoco><option integrator="{I}" gravity="0 0 0" timestep="0.002"/><worldbody>
+<body name="top"><freejoint/><inertial pos="0 0 0" mass="1" diaginertia=".01 .01 .01"/>
+  <geom type="sphere" size=".05" pos=".3 .1 .05" contype="0" conaffinity="0"/></body>
+</worldbody></mujoco>"""
+
+# Same, but the COM sits 0.3 m from the frame origin and the sphere sits at the COM.
+SPIN_COM_OFFSET = """<mujoco><option integrator="{I}" gravity="0 0 0" timestep="0.002"/><worldbody>
+<body name="top"><freejoint/><inertial pos=".3 0 0" mass="1" diaginertia=".01 .01 .01"/>
+  <geom type="sphere" size=".05" pos=".3 0 0" contype="0" conaffinity="0"/></body>
+</worldbody></mujoco>"""
+
+
+def _model(xml: str, integrator: str = "Euler", mass: float = 2.0) -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(xml.replace("{I}", integrator).replace("{M}", str(mass)))
+
+
+Driver = Callable[[mujoco.MjModel, mujoco.MjData, int], None]
+
+
+def _rollout(
+    m: mujoco.MjModel, steps: int, drive: Driver | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Centres c_k and velocities w_k of one sphere per geom, read after every mj_step.
+
+    Returns:
+        ``(steps, ngeom, 3)`` centres and velocities.
+    """
+    d = mujoco.MjData(m)
+    if drive is not None:
+        drive(m, d, -1)
+    mujoco.mj_forward(m, d)
+    sg = np.arange(m.ngeom)
+    C, W = [], []
+    for k in range(steps):
+        if drive is not None:
+            drive(m, d, k)
+        mujoco.mj_step(m, d)
+        c = sphere_centers(d.geom_xpos, d.geom_xmat, sg, np.zeros((m.ngeom, 3)))
+        C.append(c)
+        W.append(sphere_velocities(d.cvel, d.subtree_com, m.body_rootid, m.geom_bodyid, c))
+    return np.array(C), np.array(W)
+
+
+def _excess(C: np.ndarray, W: np.ndarray, A: np.ndarray, delta: np.ndarray, h: float) -> np.ndarray:
+    """max over start steps s and k in 1..KMAX of |c_{s+k} - c_s - k h w_s| - bound, per sphere.
+
+    Positive means the ball B(c_s + w_s t, delta t + A t^2/2) missed c_{s+k} somewhere.
+    """
+    n = C.shape[0]
+    starts = np.arange(0, n - KMAX, 5)
+    k = np.arange(1, KMAX + 1)
+    t = k * h
+    idx = starts[:, None] + k[None, :]
+    dev = C[idx] - C[starts][:, None] - t[None, :, None, None] * W[starts][:, None]
+    err = np.linalg.norm(dev, axis=-1)  # (starts, k, nsphere)
+    bound = delta[None, None, :] * t[None, :, None] + 0.5 * A[None, None, :] * t[None, :, None] ** 2
+    # 1e-12 relative slack for round-off, plus an absolute 1e-13 for positions of size ~1.
+    return (err - bound * (1 + 1e-12) - 1e-13).max(axis=(0, 1))
+
+
+def _measured(C: np.ndarray, W: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Discrete acceleration bound A and one-step discrepancy D of a rollout, per sphere."""
+    U = np.diff(C, axis=0) / h
+    A = np.linalg.norm(np.diff(U, axis=0), axis=-1).max(axis=0) / h
+    D = np.linalg.norm(U - W[:-1], axis=-1).max(axis=0)
+    return A, D
+
+
+def _random_force(fmax: float, seed: int, hold: int = 40) -> Driver:
+    rng = np.random.default_rng(seed)
+    f = np.zeros(3)
+
+    def drive(m: mujoco.MjModel, d: mujoco.MjData, k: int) -> None:
+        nonlocal f
+        if k >= 0 and k % hold == 0:
+            f = rng.normal(size=3)
+            f *= fmax * rng.uniform(0.2, 1.0) / np.linalg.norm(f)
+        d.xfrc_applied[1, :3] = f
+        if k == -1:
+            d.qvel[:3] = rng.normal(size=3)
+
+    return drive
+
+
+def _kick(seed: int, scale: float = 3.0) -> Driver:
+    rng = np.random.default_rng(seed)
+
+    def drive(m: mujoco.MjModel, d: mujoco.MjData, k: int) -> None:
+        if k == -1:
+            d.qvel[:] = rng.normal(size=m.nv) * scale
+
+    return drive
+
+
+# ---------------------------------------------------------------------------- declared bounds
+
+
+def test_declare_scalar_static_bodies_zero() -> None:
+    m = _model(TWO_BODIES)
+    b = MotionBounds.declare(m, 5.0, speed=2.0)
+    moving = moving_bodies(m)
+    assert moving.tolist() == [False, False, True, True]
+    np.testing.assert_array_equal(b.accel, np.where(moving, 5.0, 0.0))
+    assert b.speed is not None
+    np.testing.assert_array_equal(b.speed, np.where(moving, 2.0, 0.0))
+    np.testing.assert_allclose(b.vel_uncertainty, b.accel * H / 2)
+    np.testing.assert_allclose(b.discrepancy, b.accel * H)
+    assert b.source == "declared"
+
+
+def test_declare_dict_and_default() -> None:
+    m = _model(TWO_BODIES)
+    b = MotionBounds.declare(m, {"ball": 9.81, "link": 3.0})
+    assert b.accel.tolist() == [0.0, 0.0, 9.81, 3.0]
+    b = MotionBounds.declare(m, {"ball": 1.0, "*": 7.0}, vel_uncertainty={"*": 0.1})
+    assert b.accel.tolist() == [0.0, 0.0, 1.0, 7.0]
+    np.testing.assert_allclose(b.vel_uncertainty[2:], [H / 2 + 0.1, 7 * H / 2 + 0.1])
+    b = MotionBounds.declare(m, 2.0, integrator_term=False, velocity_accel=5.0)
+    np.testing.assert_array_equal(b.vel_uncertainty, 0.0)
+    b = MotionBounds.declare(m, 2.0, velocity_accel=5.0)
+    np.testing.assert_allclose(b.vel_uncertainty[2:], 7.0 * H / 2)
+
+
+def test_declare_unknown_body_lists_names() -> None:
+    m = _model(TWO_BODIES)
+    with pytest.raises(InvalidChoiceError) as exc:
+        MotionBounds.declare(m, {"bal": 1.0, "*": 1.0})
+    msg = str(exc.value)
+    assert "'bal'" in msg
+    for name in ("world", "ball", "link", "static_shelf"):
+        assert repr(name) in msg
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf")])
+def test_declare_bad_values_name_body_and_value(bad: float) -> None:
+    m = _model(TWO_BODIES)
+    with pytest.raises(InvalidBoundError, match="'link'") as exc:
+        MotionBounds.declare(m, {"ball": 1.0, "link": bad})
+    assert repr(bad) in str(exc.value)
+    with pytest.raises(InvalidBoundError, match=repr(bad)):
+        MotionBounds.declare(m, bad)
+    with pytest.raises(InvalidBoundError, match="'ball'"):
+        MotionBounds.declare(m, 1.0, speed={"ball": bad, "link": 1.0})
+
+
+def test_declare_missing_bodies() -> None:
+    m = _model(TWO_BODIES)
+    with pytest.raises(InvalidBoundError, match="link"):
+        MotionBounds.declare(m, {"ball": 1.0})
+    # Static bodies need no value.
+    MotionBounds.declare(m, {"ball": 1.0, "link": 1.0})
+
+
+def test_motionbounds_validates_arrays() -> None:
+    with pytest.raises(InvalidInputError):
+        MotionBounds(accel=np.zeros(3), speed=None, vel_uncertainty=np.zeros(2))
+    with pytest.raises(InvalidBoundError):
+        MotionBounds(accel=np.array([0.0, -1.0]), speed=None, vel_uncertainty=np.zeros(2))
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "implicit", "implicitfast", "RK4"])
+def test_discrete_term_per_integrator(integrator: str) -> None:
+    m = _model(PENDULUM, integrator)
+    A = np.array([0.0, 4.0])
+    np.testing.assert_allclose(discrete_velocity_uncertainty(m, A), A * H / 2)
+    np.testing.assert_allclose(
+        discrete_velocity_uncertainty(m, A, velocity_accel=[0.0, 2.0]), [0.0, 6.0 * H / 2]
+    )
+    with pytest.raises(InvalidInputError):
+        discrete_velocity_uncertainty(m, [1.0])
+
+
+# ------------------------------------------------------------------ the derivation on rollouts
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_euler_free_sphere_bounded_force(seed: int) -> None:
+    """A = Fmax / m, delta = A h / 2 (the declared rule): valid at every step, k <= 200."""
+    fmax, mass = 10.0, 2.0
+    m = _model(FREE_FORCE, "Euler", mass)
+    C, W = _rollout(m, 800, _random_force(fmax, seed))
+    bounds = MotionBounds.declare(m, fmax / mass)
+    A, delta = bounds.accel[m.geom_bodyid], bounds.vel_uncertainty[m.geom_bodyid]
+    assert (_excess(C, W, A, delta, H) <= 0).all()
+    # Translation under Euler: the velocity in MjData is the backward discrete velocity, D = A h.
+    A_meas, D_meas = _measured(C, W, H)
+    assert A_meas[0] <= fmax / mass * (1 + 1e-9)
+    assert D_meas[0] <= fmax / mass * H * (1 + 1e-9)
+
+
+def test_without_delta_the_bound_fails() -> None:
+    """Constant force: |c_k - c_0 - k h w_0| = A t^2/2 + A h t/2 > A t^2/2 at every step."""
+    m = _model(FREE_FORCE, "Euler", 1.0)
+
+    def drive(m: mujoco.MjModel, d: mujoco.MjData, k: int) -> None:
+        d.xfrc_applied[1, :3] = [3.0, 0.0, 4.0]  # |F| = 5 N on 1 kg
+
+    C, W = _rollout(m, 600, drive)
+    A = np.array([5.0])
+    assert (_excess(C, W, A, np.zeros(1), H) > 0).all()
+    assert (_excess(C, W, A, A * H / 2, H) <= 0).all()
+    # And it is tight: the deviation equals A h^2 k(k+1)/2.
+    k = np.arange(1, KMAX + 1)
+    dev = np.linalg.norm(C[100 + k, 0] - C[100, 0] - (k * H)[:, None] * W[100, 0], axis=1)
+    np.testing.assert_allclose(dev, 5.0 * H**2 * k * (k + 1) / 2, rtol=1e-6)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_euler_hinge_pendulum(seed: int) -> None:
+    """A single hinge: the rule delta = A h / 2 (C = 0) holds with A the measured acceleration."""
+    m = _model(PENDULUM, "Euler")
+    C, W = _rollout(m, 800, _kick(seed))
+    A, D = _measured(C, W, H)
+    assert (D <= A * H * (1 + 1e-6)).all()  # first-order claim for one hinge
+    delta = discrete_velocity_uncertainty(m, np.zeros(m.nbody) + A.max())[m.geom_bodyid]
+    assert (_excess(C, W, np.full(m.ngeom, A.max()), delta, H) <= 0).all()
+    # Per sphere with its own measured A and D as well.
+    assert (_excess(C, W, A, np.maximum(D - A * H / 2, 0), H) <= 0).all()
+
+
+def test_euler_spinning_free_body() -> None:
+    """Torque-free spin about the frame origin: A = |omega|^2 r_perp, delta = A h / 2."""
+    m = _model(SPIN, "Euler")
+    omega = np.array([3.0, -5.0, 20.0])
+
+    def drive(m: mujoco.MjModel, d: mujoco.MjData, k: int) -> None:
+        if k == -1:
+            d.qvel[3:] = omega  # body frame = world frame at qpos0
+
+    C, W = _rollout(m, 800, drive)
+    r = m.geom_pos[0]
+    w = omega / np.linalg.norm(omega)
+    r_perp = np.linalg.norm(r - (r @ w) * w)
+    A_true = float(omega @ omega) * r_perp
+    A, D = _measured(C, W, H)
+    assert A[0] <= A_true * (1 + 1e-9)
+    assert D[0] <= A_true * H
+    assert (_excess(C, W, np.array([A_true]), np.array([A_true * H / 2]), H) <= 0).all()
+
+
+def test_euler_spin_with_com_offset_needs_velocity_term() -> None:
+    """COM away from the frame origin: tangent vs chord costs (h/2)|omega|^2 r, not A h.
+
+    The sphere at the COM barely accelerates, yet Euler's positions drift from the reported
+    velocity. C = 0 fails; velocity_accel = |omega|^2 r restores the bound; the monitor flags C=0.
+    """
+    m = _model(SPIN_COM_OFFSET, "Euler")
+    omega = np.array([0.0, 2.0, 20.0])
+
+    def drive(m: mujoco.MjModel, d: mujoco.MjData, k: int) -> None:
+        if k == -1:
+            d.qvel[3:] = omega
+
+    C, W = _rollout(m, 800, drive)
+    A, D = _measured(C, W, H)
+    C_va = float(omega @ omega) * 0.3
+    assert D[0] > 100 * A[0] * H  # the rotation term dominates
+    A_decl = np.array([max(A[0], 0.05)])
+    assert (_excess(C, W, A_decl, A_decl * H / 2, H) > 0).all()
+    delta_c = discrete_velocity_uncertainty(m, [0.0, A_decl[0]], velocity_accel=[0.0, C_va])
+    assert (_excess(C, W, A_decl, delta_c[1:], H) <= 0).all()
+    # The monitor catches the broken discrepancy hypothesis with C = 0.
+    mon = BoundMonitor(m, MotionBounds.declare(m, float(A_decl[0])))
+    d = mujoco.MjData(m)
+    drive(m, d, -1)
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+        mon.update(m, d)
+    assert any(v.kind == "discrepancy" for v in mon.violations)
+    mon = BoundMonitor(m, MotionBounds.declare(m, float(A_decl[0]), velocity_accel=C_va))
+    d = mujoco.MjData(m)
+    drive(m, d, -1)
+    for _ in range(50):
+        mujoco.mj_step(m, d)
+        mon.update(m, d)
+    assert mon.bounds_held()
+
+
+def _velocity_product_accel(m: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+    """|a_v| per geom centre: second derivative of p(q (+) s qvel) at s = 0 (central difference).
+
+    This is the acceleration at zero joint acceleration along MuJoCo's own position update (the
+    quantity C of docs/discrete-time.md).
+    """
+    d = mujoco.MjData(m)
+    s = 1e-4
+    out = []
+    for sign in (-1.0, 0.0, 1.0):
+        q = qpos.copy()
+        mujoco.mj_integratePos(m, q, qvel, sign * s)
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        out.append(d.geom_xpos.copy())
+    return np.linalg.norm(out[0] - 2 * out[1] + out[2], axis=1) / s**2
+
+
+@pytest.mark.parametrize("integrator", ["RK4", "implicitfast", "implicit", "Euler"])
+@pytest.mark.parametrize("scene", ["pendulum", "chain", "force"])
+def test_other_integrators_measured_term(integrator: str, scene: str) -> None:
+    """With the measured A and D (delta = max(D - A h/2, 0)) the bound holds at every step.
+
+    And the declared rule delta = (A + C) h / 2 covers the measured term, with C = 0 for the
+    pendulum and the pushed sphere, and C = max |a_v| for the ball-hinge chain (where C = 0 is
+    not enough under the semi-implicit integrators).
+    """
+    if scene == "force":
+        m = _model(FREE_FORCE, integrator, 2.0)
+        C, W = _rollout(m, 700, _random_force(10.0, 3))
+    else:
+        m = _model(PENDULUM if scene == "pendulum" else CHAIN, integrator)
+        C, W = _rollout(m, 700, _kick(7))
+    A, D = _measured(C, W, H)
+    delta_meas = np.maximum(D - A * H / 2, 0)
+    assert (_excess(C, W, A, delta_meas, H) <= 0).all()
+    Cva = np.zeros(m.ngeom)
+    if scene == "chain":
+        d = mujoco.MjData(m)
+        _kick(7)(m, d, -1)
+        for _ in range(700):
+            Cva = np.maximum(Cva, _velocity_product_accel(m, d.qpos, d.qvel))
+            mujoco.mj_step(m, d)
+    rule = 0.5 * H * (A + Cva)
+    assert (delta_meas <= rule * 1.01).all()
+    if integrator == "RK4":
+        # RK4: D ~ A h / 2 (measured 0.50-0.52), so the needed term is ~0 (second order).
+        assert (D <= A * H * 0.6).all()
+    elif scene == "chain":
+        # Semi-implicit family on a ball joint chain: the rotation term is needed (C = 0 fails).
+        assert (D > A * H * 1.2).any()
+
+
+# ------------------------------------------------------------------------------- estimation
+
+
+def test_estimate_bounds_then_monitor_holds() -> None:
+    m = _model(CHAIN, "Euler")
+
+    def init(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator) -> None:
+        d.qvel[:] = rng.normal(size=m.nv) * 2
+
+    b = estimate_bounds(m, steps=600, seed=0, safety=2.0, init=init)
+    assert b.source == "auto"
+    assert b.accel[0] == 0 and (b.accel[1:] > 0).all()
+    assert b.speed is not None and (b.speed[1:] > 0).all()
+    # Same motion family, another seed: the monitor sees no violation.
+    mon = BoundMonitor(m, b)
+    d = mujoco.MjData(m)
+    d.qvel[:] = np.random.default_rng(11).normal(size=m.nv) * 2
+    for _ in range(300):
+        mujoco.mj_step(m, d)
+        assert mon.update(m, d).size == 0
+    assert mon.bounds_held() and len(mon.held) == 300
+    # safety 1 vs 2 scales everything.
+    b1 = estimate_bounds(m, steps=600, seed=0, safety=1.0, init=init)
+    np.testing.assert_allclose(b.accel, 2 * b1.accel)
+
+
+def test_estimate_bounds_errors_and_controller() -> None:
+    m = _model(PENDULUM)
+    with pytest.raises(InvalidInputError):
+        estimate_bounds(m, steps=2, seed=0)
+    with pytest.raises(InvalidInputError):
+        estimate_bounds(m, steps=10, seed=0, safety=0.5)
+    calls = []
+
+    def controller(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator) -> None:
+        calls.append(d.time)
+
+    b = estimate_bounds(m, steps=20, seed=0, controller=controller, with_speed=False)
+    assert len(calls) == 20 and b.speed is None
+
+
+# ---------------------------------------------------------------------------------- monitor
+
+
+def test_monitor_quiet_when_bounds_hold_and_flags_impulse() -> None:
+    fmax, mass = 10.0, 2.0
+    m = _model(FREE_FORCE, "Euler", mass)
+    bounds = MotionBounds.declare(m, fmax / mass, speed=50.0)
+    mon = BoundMonitor(m, bounds)
+    d = mujoco.MjData(m)
+    drive = _random_force(fmax, 5)
+    drive(m, d, -1)
+    for k in range(300):
+        drive(m, d, k)
+        if k == 200:
+            d.xfrc_applied[1, :3] = [0.0, 0.0, 500.0]  # an impulse far above Fmax
+        mujoco.mj_step(m, d)
+        bad = mon.update(m, d)
+        if k < 200:
+            assert bad.size == 0, k
+    assert not mon.bounds_held()
+    assert mon.bounds_held(0, 200)
+    kinds = {(v.body, v.kind) for v in mon.violations}
+    assert (1, "accel") in kinds
+    first = min(v.step for v in mon.violations)
+    # The impulse at step 200 shows in the positions read after step 202 (kinematics lag 1).
+    assert 200 <= first <= 203
+    v = next(v for v in mon.violations if v.kind == "accel")
+    assert v.value > 100 and v.bound == fmax / mass
+
+
+def test_monitor_flags_contact() -> None:
+    m = _model(TWO_BODIES, "Euler")
+    g = float(np.linalg.norm(m.opt.gravity))
+    bounds = MotionBounds.declare(m, {"ball": g * 1.001, "link": 100.0}, speed=100.0)
+    mon = BoundMonitor(m, bounds)
+    d = mujoco.MjData(m)
+    d.qpos[:3] = [0.5, 0.5, 0.3]  # above the floor, clear of the shelf
+    flagged = []
+    for _ in range(400):
+        mujoco.mj_step(m, d)
+        flagged.extend(mon.update(m, d).tolist())
+    ball = mujoco.mj_name2id(m, int(mujoco.mjtObj.mjOBJ_BODY), "ball")
+    assert ball in flagged  # the floor contact decelerates far beyond g
+    first = min(v.step for v in mon.violations)
+    assert first > 50  # free fall from 0.2 m: no false violations before the contact
+
+
+def test_monitor_speed_bound() -> None:
+    m = _model(FREE_FORCE, "Euler", 1.0)
+    mon = BoundMonitor(m, MotionBounds.declare(m, 0.0, speed=1.0))
+    d = mujoco.MjData(m)
+    d.qvel[:3] = [2.0, 0.0, 0.0]
+    mujoco.mj_step(m, d)
+    assert mon.update(m, d).tolist() == [1]
+    assert mon.violations[0].kind == "speed"
+    assert mon.violations[0].value == pytest.approx(2.0)

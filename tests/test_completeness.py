@@ -1,0 +1,138 @@
+"""The completeness theorem (docs/theory.md) exercised in ghost-sphere worlds.
+
+In a ``SphereWorld`` the declared bounds hold exactly, so the theorem applies: every collision onset
+of a pair must be flagged by that pair's latest evaluation at or before the onset. Onsets are found
+on a fine grid of sub-step times from the closed-form trajectories (any grid onset is a real
+collision, so the check can only under-count onsets, never invent them). The same check fails
+when the alarm rule is weakened, which shows it has teeth.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from dua_mujoco import DUAScheduler, SelectAllScheduler, SphereWorld
+from dua_mujoco.worlds import AccelProfile
+
+
+@dataclasses.dataclass
+class Outcome:
+    onsets: int
+    missed: list[tuple[int, float]]
+    late: list[tuple[int, float]]
+    evaluations: int
+
+
+def run_world(
+    world: SphereWorld,
+    *,
+    steps: int,
+    latency: int,
+    substeps: int = 8,
+    slots_per_bucket: int = 1,
+    weaken=None,
+    select_all: bool = False,
+) -> Outcome:
+    """Drive a scheduler on ``world`` and check every onset against the theorem."""
+    pairs = world.pairs()
+    ids = np.arange(len(pairs))
+    tau0 = pairs.tau(ids, world.positions, world.velocities)
+    if select_all:
+        sched = SelectAllScheduler(tau0, dt=world.dt, latency=latency)
+    else:
+        sched = DUAScheduler(tau0, dt=world.dt, latency=latency, slots_per_bucket=slots_per_bucket)
+        if weaken is not None:
+            sched.horizon = weaken(sched)
+    # Latest evaluation of every pair: its time, whether it alarmed, and whether the one before did.
+    eval_time = np.zeros(len(pairs))
+    alarmed = np.zeros(len(pairs), dtype=bool)
+    alarmed[sched.initial_alarms] = True
+    prev_alarmed = np.ones(len(pairs), dtype=bool)  # nothing is known before time 0
+    i, j = pairs.first, pairs.second
+    eps = pairs.eps
+
+    def touching(pos: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(pos[j] - pos[i], axis=1) <= eps
+
+    in_contact = touching(world.positions)
+    onsets, missed, late, evaluations = 0, [], [], 0
+
+    def check(new: np.ndarray, t: float) -> None:
+        nonlocal onsets
+        for p in np.flatnonzero(new):
+            onsets += 1
+            if not alarmed[p]:
+                missed.append((int(p), t))
+            elif not prev_alarmed[p] and t < eval_time[p] + latency * world.dt - 1e-12:
+                late.append((int(p), t))
+
+    for _ in range(steps):
+        for k in range(1, substeps):
+            now = touching(world.positions_at(world.dt * k / substeps))
+            check(now & ~in_contact, world.time + world.dt * k / substeps)
+            in_contact = now
+        world.step()
+        sel = sched.select()
+        tau = pairs.tau(sel, world.positions, world.velocities)
+        out = sched.update(sel, tau)
+        evaluations += sel.size
+        prev_alarmed[sel] = alarmed[sel]
+        alarmed[sel] = False
+        alarmed[out] = True
+        eval_time[sel] = world.time
+        now = touching(world.positions)
+        check(now & ~in_contact, world.time)
+        in_contact = now
+    return Outcome(onsets, missed, late, evaluations)
+
+
+def dense_world(seed: int, profile: AccelProfile = AccelProfile.UNIFORM) -> SphereWorld:
+    return SphereWorld(
+        24, seed=seed, box=1.0, radius=0.07, accel=2.0, speed=0.5, dt=0.01, profile=profile
+    )
+
+
+@pytest.mark.parametrize("latency", [0, 1])
+@pytest.mark.parametrize("profile", list(AccelProfile))
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_every_onset_is_flagged(latency: int, profile: AccelProfile, seed: int) -> None:
+    out = run_world(dense_world(seed, profile), steps=300, latency=latency)
+    assert out.onsets >= 5, "the world must be dense enough for collisions to happen"
+    assert out.missed == []
+    assert out.late == []
+
+
+@pytest.mark.parametrize("q", [2, 4])
+def test_budget_knob_keeps_completeness(q: int) -> None:
+    out = run_world(dense_world(3), steps=200, latency=1, slots_per_bucket=q)
+    assert out.onsets >= 5
+    assert out.missed == []
+
+
+def test_select_all_is_complete() -> None:
+    out = run_world(dense_world(4), steps=200, latency=1, select_all=True)
+    assert out.onsets >= 5
+    assert out.missed == []
+
+
+def test_weakened_alarm_rule_misses_collisions() -> None:
+    """The paper's off-by-one (bucket i revisited after 2^(i-1) steps) and a dropped latency miss."""
+
+    def half_interval(s: DUAScheduler) -> np.ndarray:
+        return (s.interval / 2 + s.latency) * s.dt
+
+    def no_latency(s: DUAScheduler) -> np.ndarray:
+        return s.interval * s.dt
+
+    def failures(weaken) -> int:
+        outcomes = [
+            run_world(dense_world(seed, AccelProfile.BANG_BANG), steps=300, latency=1, weaken=weaken)
+            for seed in range(4)
+        ]
+        return sum(len(o.missed) + len(o.late) for o in outcomes)
+
+    assert failures(half_interval) > 0
+    assert failures(no_latency) > 0

@@ -1,0 +1,332 @@
+"""MuJoCo's collision filter (dua_mujoco.pairs) against a literal reference and MuJoCo itself."""
+
+from __future__ import annotations
+
+import importlib.resources
+import pathlib
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco.covering import cover_model
+from dua_mujoco.exceptions import InvalidChoiceError, UnsupportedGeomError
+from dua_mujoco.pairs import (
+    GeomPairs,
+    _can_collide_reference,
+    active_geom_pairs,
+    pairs_between_bodies,
+    sphere_pair_mask,
+    sphere_pairs,
+)
+
+# Parent-child, welded children, static bodies, mocap weld groups, explicit pairs (static-static,
+# mocap-mocap, parent-child), excludes, contype/conaffinity, a height field and planes.
+FILTER_XML = """
+<mujoco>
+  <asset><hfield name="hf" nrow="2" ncol="2" size="1 1 .1 .1"/></asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 .1"/>
+    <geom name="wbox" type="box" size=".2 .2 .2" pos="0 0 .1"/>
+    <geom name="terrain" type="hfield" hfield="hf"/>
+    <body name="static1" pos="0 0 .1"><geom name="s1" type="sphere" size=".3"/>
+      <geom name="s1plane" type="plane" size="1 1 .1"/>
+      <body name="dynchild"><joint type="hinge"/><geom name="dc" type="sphere" size=".3"/></body>
+    </body>
+    <body name="static2" pos="0 0 .1"><geom name="s2" type="sphere" size=".3"/></body>
+    <body name="mocap" mocap="true" pos="0 0 .1"><geom name="mc" type="sphere" size=".3"/>
+      <body name="mocapchild"><geom name="mcc" type="sphere" size=".3"/></body>
+      <body name="mocapdyn"><joint type="slide"/><geom name="mcd" type="sphere" size=".3"/></body>
+    </body>
+    <body name="mocap2" mocap="true" pos="0 0 .1"><geom name="mc2" type="sphere" size=".3"/></body>
+    <body name="free" pos="0 0 .1"><freejoint/>
+      <geom name="f" type="sphere" size=".3"/>
+      <geom name="f_b" type="box" size=".1 .1 .1" contype="2" conaffinity="2"/>
+      <body name="fchild"><joint type="hinge"/><geom name="fc" type="capsule" size=".1 .3"/>
+        <body name="fgrand"><geom name="fg" type="sphere" size=".3" contype="2" conaffinity="1"/>
+          <body name="fgreat"><joint type="hinge"/><geom name="fgg" type="sphere" size=".2"/></body>
+        </body>
+      </body>
+    </body>
+    <body name="free2" pos="0 0 .1"><freejoint/>
+      <geom name="g" type="ellipsoid" size=".1 .2 .3" contype="4" conaffinity="0"/>
+      <geom name="g_b" type="cylinder" size=".1 .2"/>
+    </body>
+  </worldbody>
+  <contact>
+    <pair geom1="s2" geom2="s1"/>
+    <pair geom1="mc" geom2="mc2" margin=".1" gap=".2"/>
+    <pair geom1="fc" geom2="f" margin=".05" gap=".01"/>
+    <pair geom1="floor" geom2="g" margin=".02"/>
+    <exclude body1="free" body2="free2"/>
+    <exclude body1="fgrand" body2="free2"/>
+  </contact>
+</mujoco>"""
+
+
+def _with_flags(xml: str, flags: str) -> str:
+    return xml.replace("<mujoco>", f"<mujoco><option><flag {flags}/></option>", 1)
+
+
+FILTER_MODELS = {
+    "default": FILTER_XML,
+    "no_filterparent": _with_flags(FILTER_XML, 'filterparent="disable"'),
+    "no_contact": _with_flags(FILTER_XML, 'contact="disable"'),
+    "override": FILTER_XML.replace(
+        "<mujoco>", '<mujoco><option o_margin=".07"><flag override="enable"/></option>', 1
+    ),
+    "margins": FILTER_XML.replace('size=".3"/>', 'size=".3" margin=".01" gap=".03"/>'),
+}
+
+
+def _pairset(gp: GeomPairs) -> set[tuple[int, int]]:
+    return set(zip(gp.geom1.tolist(), gp.geom2.tolist(), strict=True))
+
+
+def _reference_set(m: mujoco.MjModel) -> set[tuple[int, int]]:
+    return {
+        (a, b)
+        for a in range(m.ngeom)
+        for b in range(a + 1, m.ngeom)
+        if _can_collide_reference(m, a, b)
+    }
+
+
+def _mujoco_oracle_set(m: mujoco.MjModel) -> set[tuple[int, int]]:
+    """Pairs MuJoCo itself reports once every margin is huge: geometry then prunes nothing."""
+    saved = (m.geom_margin.copy(), m.pair_margin.copy(), m.opt.o_margin)
+    try:
+        m.geom_margin[:] = 100.0
+        m.pair_margin[:] = 200.0
+        m.opt.o_margin = 200.0
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        return {
+            (min(int(c.geom1), int(c.geom2)), max(int(c.geom1), int(c.geom2)))
+            for c in d.contact[: d.ncon]
+        }
+    finally:
+        m.geom_margin[:], m.pair_margin[:] = saved[0], saved[1]
+        m.opt.o_margin = saved[2]
+
+
+@pytest.mark.parametrize("name", list(FILTER_MODELS))
+def test_filter_matches_reference_and_mujoco(name: str) -> None:
+    m = mujoco.MjModel.from_xml_string(FILTER_MODELS[name])
+    gp = active_geom_pairs(m)
+    assert _pairset(gp) == _reference_set(m)
+    assert _pairset(gp) == _mujoco_oracle_set(m)
+    assert np.all(gp.geom1 < gp.geom2)
+    assert gp.geom1.dtype == np.int32 and gp.margin.dtype == np.float64
+    if name == "no_contact":
+        assert gp.npair == 0
+
+
+def _gid(m: mujoco.MjModel, name: str) -> int:
+    return int(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name))
+
+
+def test_filter_rules_spelled_out() -> None:
+    m = mujoco.MjModel.from_xml_string(FILTER_XML)
+    gp = active_geom_pairs(m)
+
+    def active(a: str, b: str) -> bool:
+        return gp.index_of(_gid(m, a), _gid(m, b)) >= 0
+
+    assert not active("wbox", "s1")  # static-static
+    assert active("s1", "s2")  # ... unless an explicit pair says so
+    assert active("s1", "dc")  # no parent filter against a static parent
+    # parent-child, but an explicit <pair> overrides every body filter (index_of: either order)
+    assert active("fc", "f") and gp.explicit[gp.index_of(_gid(m, "f"), _gid(m, "fc"))]
+    assert not active("fc", "fg")  # welded child: same weld group
+    assert not active("fc", "fgg")  # parent-child through the weld group
+    assert not active("mc", "mcd")  # mocap bodies filter their children (MuJoCo 4.0)
+    assert not active("mc", "mcc")  # same weld group
+    assert not active("mc", "wbox")  # neither can move (MuJoCo 4.0)
+    assert not active("mcc", "mc2")
+    assert active("mc", "mc2")  # explicit
+    assert active("mcd", "mc2") and active("mc", "f")
+    assert not active("f", "g_b")  # <exclude>
+    assert not active("f_b", "dc")  # contype 2 vs conaffinity 1
+    assert active("fg", "dc")  # fg.contype & dc.conaffinity = 0, but dc.contype & fg.conaffinity
+    assert not active("floor", "terrain")  # no plane-hfield collider
+    assert not active("floor", "s1plane")  # no plane-plane collider
+    assert active("floor", "g")
+    i = gp.index_of(_gid(m, "mc"), _gid(m, "mc2"))
+    assert gp.explicit[i] and gp.margin[i] == pytest.approx(0.1)
+    assert gp.contact_distance[i] == pytest.approx(0.3)
+    assert gp.index_of(0, 0) == -1
+
+
+def test_margin_and_gap_semantics() -> None:
+    """Dynamic pairs sum geom margins and gaps; contacts appear at dist <= margin + gap."""
+    xml = """<mujoco><worldbody>
+      <body pos="0 0 1"><freejoint/><geom name="a" size=".5" margin=".1" gap=".05"/></body>
+      <body pos="{x} 0 1"><freejoint/><geom name="b" size=".5" margin=".1" gap=".05"/></body>
+      <body pos="0 3 1"><freejoint/><geom name="c" size=".5" margin=".1"/></body>
+      <body pos="{y} 3 1"><freejoint/><geom name="e" size=".5"/></body>
+    </worldbody><contact><pair geom1="c" geom2="e" margin="0" gap=".4"/></contact></mujoco>"""
+    for sep, expect in [(0.19, 0), (0.21, 1), (0.29, 1), (0.31, None)]:
+        m = mujoco.MjModel.from_xml_string(xml.format(x=1 + sep, y=1 + sep + 0.1))
+        gp = active_geom_pairs(m)
+        i = gp.index_of(0, 1)
+        assert gp.margin[i] == pytest.approx(0.2) and gp.gap[i] == pytest.approx(0.1)
+        assert gp.contact_distance[i] == pytest.approx(0.3)
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        con = [c for c in d.contact[: d.ncon] if {c.geom1, c.geom2} == {0, 1}]
+        if expect is None:
+            assert not con
+        else:
+            assert len(con) == 1 and con[0].exclude == expect
+            assert con[0].includemargin == pytest.approx(gp.margin[i])
+        j = gp.index_of(2, 3)
+        assert gp.explicit[j] and gp.contact_distance[j] == pytest.approx(0.4)
+        pair_con = [c for c in d.contact[: d.ncon] if {c.geom1, c.geom2} == {2, 3}]
+        assert len(pair_con) == (1 if sep + 0.1 <= 0.4 else 0)
+
+
+def _asset_paths() -> list[pathlib.Path]:
+    paths: list[pathlib.Path] = []
+    for package, sub in (("gymnasium", "envs/mujoco/assets"), ("dm_control", "suite")):
+        try:
+            root = pathlib.Path(str(importlib.resources.files(package) / sub))
+        except ModuleNotFoundError:
+            continue
+        paths += sorted(root.glob("*.xml"))
+    return paths
+
+
+ASSETS = _asset_paths()
+# Rollout length per asset; the dog is large (300 geoms), keep it short to stay within budget.
+STEPS = {"dog.xml": 60}
+
+
+def _load(path: pathlib.Path) -> mujoco.MjModel:
+    try:
+        return mujoco.MjModel.from_xml_path(str(path))
+    except Exception as exc:  # MuJoCo cannot load it: not ours to test
+        print(f"skipping {path.parent.name}/{path.name}: {exc}")
+        pytest.skip(f"MuJoCo cannot load {path.name}: {exc}")
+
+
+@pytest.mark.skipif(not ASSETS, reason="neither gymnasium nor dm_control is installed")
+@pytest.mark.parametrize("path", ASSETS, ids=[f"{p.parent.name}/{p.name}" for p in ASSETS])
+def test_asset_rollout_contacts_are_active_pairs(path: pathlib.Path) -> None:
+    m = _load(path)
+    gp = active_geom_pairs(m)
+    # (c) the active set is exactly the reference filter
+    assert _pairset(gp) == _reference_set(m)
+    # every active pair of a real scene expands to sphere pairs (height fields as boxes)
+    sp = sphere_pairs(cover_model(m, mode="multi", hfield="box"), gp)
+    assert set(np.unique(sp.geom_pair).tolist()) == set(range(gp.npair))
+    # (b) every contact MuJoCo reports along a random rollout is an active pair at its distance
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(0)
+    lo, hi = m.actuator_ctrlrange.T if m.nu else (np.zeros(0), np.zeros(0))
+    limited = np.asarray(m.actuator_ctrllimited, dtype=bool) if m.nu else np.zeros(0, bool)
+    lo = np.where(limited, lo, -1.0)
+    hi = np.where(limited, hi, 1.0)
+    speculative = bool(int(m.opt.enableflags) & int(mujoco.mjtEnableBit.mjENBL_SPECULATIVE))
+    ncontacts = 0
+    for step in range(STEPS.get(path.name, 300)):
+        if step % 10 == 0 and m.nu:
+            d.ctrl[:] = rng.uniform(lo, hi)
+        mujoco.mj_step(m, d)
+        con = d.contact[: d.ncon]
+        if d.ncon == 0:
+            continue
+        g1 = np.asarray(con.geom1)
+        g2 = np.asarray(con.geom2)
+        geom_contact = (g1 >= 0) & (g2 >= 0)
+        idx = gp.indices_of(g1[geom_contact], g2[geom_contact])
+        bad = np.flatnonzero(idx < 0)
+        assert bad.size == 0, f"contact between geoms {g1[bad[0]]}, {g2[bad[0]]} not active"
+        if not speculative:
+            dist = np.asarray(con.dist)[geom_contact]
+            assert np.all(dist <= gp.contact_distance[idx] + 1e-9)
+        np.testing.assert_allclose(np.asarray(con.includemargin)[geom_contact], gp.margin[idx])
+        ncontacts += int(geom_contact.sum())
+    print(f"{path.name}: {gp.npair} active pairs, {ncontacts} contacts checked")
+
+
+def test_large_model_is_vectorised() -> None:
+    bodies = "".join(
+        f'<body pos="{i % 40} {i // 40} 1"><freejoint/>'
+        f'<geom size=".1"/><geom type="box" size=".1 .1 .1" pos=".2 0 0"/></body>'
+        for i in range(1000)
+    )
+    m = mujoco.MjModel.from_xml_string(f"<mujoco><worldbody>{bodies}</worldbody></mujoco>")
+    gp = active_geom_pairs(m)
+    assert gp.npair == 2000 * 1999 // 2 - 1000
+    rng = np.random.default_rng(0)
+    for a, b in rng.integers(0, m.ngeom, size=(50, 2)):
+        assert (gp.index_of(a, b) >= 0) == _can_collide_reference(m, a, b)
+
+
+SPHERE_PAIR_XML = """
+<mujoco><worldbody>
+  <geom name="floor" type="plane" size="5 5 .1" margin=".01"/>
+  <geom name="wall" type="plane" size="5 5 .1" pos="3 0 0" euler="0 90 0"/>
+  <body name="arm" pos="0 0 1"><freejoint/>
+    <geom name="upper" type="capsule" size=".05 .3" margin=".02" gap=".01"/>
+    <body name="fore" pos="0 0 .6"><joint type="hinge"/>
+      <geom name="lower" type="box" size=".05 .05 .3"/>
+    </body>
+  </body>
+  <body name="ball" pos="1 0 1"><freejoint/><geom name="ball" size=".1" margin=".03"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("mode", ["bounding", "multi"])
+def test_sphere_pairs_expand_geom_pairs(mode: str) -> None:
+    m = mujoco.MjModel.from_xml_string(SPHERE_PAIR_XML)
+    cov = cover_model(m, mode=mode, max_spheres_per_geom=4)
+    gp = active_geom_pairs(m)
+    sp = sphere_pairs(cov, gp)
+    assert len(sp) == sp.first.shape[0]
+    for p in range(gp.npair):
+        g1, g2 = int(gp.geom1[p]), int(gp.geom2[p])
+        rows = np.flatnonzero(sp.geom_pair == p)
+        if cov.geom_plane[g1] >= 0 and cov.geom_plane[g2] >= 0:
+            assert rows.size == 0
+            continue
+        if cov.geom_plane[g1] >= 0 or cov.geom_plane[g2] >= 0:
+            plane, other = (g1, g2) if cov.geom_plane[g1] >= 0 else (g2, g1)
+            assert np.all(sp.is_halfspace[rows])
+            assert set(sp.first[rows]) == set(cov.spheres_of(other))
+            assert np.all(sp.second[rows] == cov.geom_plane[plane])
+            want = cov.sphere_radius[sp.first[rows]] + gp.contact_distance[p]
+        else:
+            assert not np.any(sp.is_halfspace[rows])
+            got = set(zip(sp.first[rows].tolist(), sp.second[rows].tolist(), strict=True))
+            assert got == {(a, b) for a in cov.spheres_of(g1) for b in cov.spheres_of(g2)}
+            want = (
+                cov.sphere_radius[sp.first[rows]]
+                + cov.sphere_radius[sp.second[rows]]
+                + gp.contact_distance[p]
+            )
+        np.testing.assert_allclose(sp.eps[rows], want)
+    sel = pairs_between_bodies(m, gp, "ball", "arm")
+    assert {(int(gp.geom1[i]), int(gp.geom2[i])) for i in sel} == {
+        (_gid(m, "upper"), _gid(m, "ball"))
+    }
+    mask = sphere_pair_mask(sp, sel)
+    assert np.array_equal(mask, np.isin(sp.geom_pair, sel))
+    assert np.array_equal(sphere_pair_mask(sp, iter(sel.tolist())), mask)
+    everything = pairs_between_bodies(m, gp, 0)
+    assert everything.size == np.count_nonzero(m.geom_bodyid[gp.geom1] == 0)
+    with pytest.raises(InvalidChoiceError, match="ball"):
+        pairs_between_bodies(m, gp, "nosuchbody")
+
+
+def test_moving_plane_is_rejected() -> None:
+    # The compiler only allows planes on bodies without dofs; a mocap body can still move.
+    m = mujoco.MjModel.from_xml_string(
+        """<mujoco><worldbody>
+        <body name="tray" mocap="true"><geom name="tray" type="plane" size="1 1 .1"/></body>
+        <body><freejoint/><geom size=".1"/></body>
+        </worldbody></mujoco>"""
+    )
+    with pytest.raises(UnsupportedGeomError, match="plane geom 0"):
+        sphere_pairs(cover_model(m), active_geom_pairs(m))

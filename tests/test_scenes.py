@@ -1,0 +1,264 @@
+"""Bundled scenes, the paper world as an MjSpec, and the scene drivers."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.scenes import (
+    DEFAULT_SCENE,
+    SCENES,
+    CtrlMode,
+    MocapCircle,
+    declared_accel_bound,
+    load_scene,
+    make_controller,
+    models_dir,
+    paper_world_accel_bound,
+    paper_world_model,
+    paper_world_spec,
+    reset_to_keyframe,
+)
+
+ROLLOUT_SCENES = ("two_arms", "traffic", "clutter", "paper_world:20")
+
+
+def _contact_pairs(m: mujoco.MjModel, d: mujoco.MjData) -> set[tuple[int, int]]:
+    """Weld-group pairs in contact where the two sides differ and one of them moves.
+
+    Weld groups (``body_weldid``) rather than bodies, so that a link touching its own base or a
+    geom touching another geom of the same rigid assembly does not count; group 0 is the world
+    (tables, walls, floors, static obstacles).
+    """
+    pairs = set()
+    for k in range(d.ncon):
+        g1, g2 = (int(g) for g in d.contact.geom[k])
+        w1 = int(m.body_weldid[m.geom_bodyid[g1]])
+        w2 = int(m.body_weldid[m.geom_bodyid[g2]])
+        if w1 != w2:
+            pairs.add((min(w1, w2), max(w1, w2)))
+    return pairs
+
+
+@pytest.mark.parametrize("name", [*SCENES, "paper_world:5"])
+def test_every_bundled_scene_loads(name: str) -> None:
+    m, d = load_scene(name)
+    assert m.ngeom > 0 and m.nu > 0
+    assert np.all(np.isfinite(d.qpos))
+    limited = m.actuator_ctrllimited.astype(bool)
+    assert limited.all(), "random controls need a ctrlrange on every actuator"
+    source = SCENES[name].source if name in SCENES else None
+    if isinstance(source, str):
+        path = models_dir() / source
+        assert path.is_file()
+        # Self-contained: loads from the raw path too, with no external assets.
+        mujoco.MjModel.from_xml_path(str(path))
+        assert "file=" not in path.read_text()
+
+
+def test_default_scene_is_registered() -> None:
+    assert DEFAULT_SCENE == "two_arms"
+    assert DEFAULT_SCENE in SCENES
+
+
+def test_scene_sizes() -> None:
+    assert load_scene("two_arms")[0].ngeom >= 30
+    m = load_scene("traffic")[0]
+    assert 8 <= m.nu <= 16
+    assert load_scene("clutter")[0].ngeom >= 50
+    assert load_scene("clutter")[0].nmocap == 1
+    assert load_scene("paper_world")[0].nbody == 41
+
+
+@pytest.mark.parametrize("name", ROLLOUT_SCENES)
+def test_random_rollout_is_finite_and_collides(name: str) -> None:
+    m, d = load_scene(name)
+    resting = _contact_pairs(m, d)
+    controller = make_controller(m, CtrlMode.RANDOM, seed=0)
+    new_pairs: set[tuple[int, int]] = set()
+    for _ in range(500):
+        controller(m, d)
+        mujoco.mj_step(m, d)
+        new_pairs |= _contact_pairs(m, d) - resting
+    assert np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))
+    assert new_pairs, f"{name}: no new contact between distinct bodies in 500 random steps"
+    if name in ("traffic", "clutter"):
+        # Vehicle-vehicle / object-object, not only against the static world.
+        assert any(w1 != 0 for w1, _ in new_pairs)
+
+
+def test_clutter_has_every_collidable_geom_type() -> None:
+    m, _ = load_scene("clutter")
+    types = {int(t) for t in m.geom_type}
+    wanted = {
+        mujoco.mjtGeom.mjGEOM_PLANE,
+        mujoco.mjtGeom.mjGEOM_SPHERE,
+        mujoco.mjtGeom.mjGEOM_CAPSULE,
+        mujoco.mjtGeom.mjGEOM_ELLIPSOID,
+        mujoco.mjtGeom.mjGEOM_CYLINDER,
+        mujoco.mjtGeom.mjGEOM_BOX,
+        mujoco.mjtGeom.mjGEOM_MESH,
+    }
+    assert {int(t) for t in wanted} <= types
+    free = sum(int(t) == int(mujoco.mjtJoint.mjJNT_FREE) for t in m.jnt_type)
+    assert free >= 40
+
+
+def test_unknown_scene_lists_the_names() -> None:
+    with pytest.raises(InvalidChoiceError) as info:
+        load_scene("no_such_scene")
+    message = str(info.value)
+    for name in SCENES:
+        assert repr(name) in message
+    assert "paper_world:N" in message
+    with pytest.raises(InvalidChoiceError, match="No file at"):
+        load_scene("missing/scene.xml")
+    with pytest.raises(InvalidInputError):
+        load_scene("paper_world:zero")
+
+
+def test_load_scene_accepts_a_path(tmp_path: Path) -> None:
+    xml = tmp_path / "ball.xml"
+    xml.write_text(
+        '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    m, d = load_scene(str(xml))
+    assert m.ngeom == 1 and d.qpos.shape == (7,)
+
+
+def test_reset_to_keyframe() -> None:
+    m, d = load_scene("traffic")
+    assert np.allclose(d.qvel, m.key_qvel[0])  # first keyframe by default
+    d.qvel[:] = 0.0
+    reset_to_keyframe(m, d, "rush")
+    assert np.allclose(d.qvel, m.key_qvel[0])
+    with pytest.raises(InvalidChoiceError, match="rush"):
+        reset_to_keyframe(m, d, "nope")
+    with pytest.raises(InvalidChoiceError):
+        reset_to_keyframe(m, d, 3)
+    mc, dc = load_scene("clutter")  # no keyframe: model defaults
+    assert mc.nkey == 0 and np.allclose(dc.qpos, mc.qpos0)
+
+
+def test_paper_world_has_no_initial_overlap() -> None:
+    radius, box = 0.05, 0.6
+    spec = paper_world_spec(60, seed=3, radius=radius, box_size=box)
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    reset_to_keyframe(m, d, None)
+    centres = np.array([d.xpos[m.body(f"sphere{i}").id] for i in range(60)])
+    for i, j in itertools.combinations(range(60), 2):
+        assert np.linalg.norm(centres[i] - centres[j]) >= 2 * radius
+    assert np.all(np.abs(centres) <= box / 2 - radius)
+    assert d.ncon == 0
+    assert int(m.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER)
+    assert m.opt.timestep == pytest.approx(0.002)
+    assert np.allclose(m.opt.gravity, 0.0)
+    speeds = np.linalg.norm(d.qvel.reshape(-1, 3), axis=1)
+    assert np.all(speeds <= 0.5 + 1e-12) and np.any(speeds > 0.0)
+    with pytest.raises(InvalidInputError, match="Could not place"):
+        paper_world_spec(500, radius=0.1, box_size=0.5)
+
+
+def test_paper_world_is_seeded() -> None:
+    a, b = paper_world_model(8, seed=1), paper_world_model(8, seed=1)
+    c = paper_world_model(8, seed=2)
+    assert np.array_equal(a.body_pos, b.body_pos)
+    assert not np.array_equal(a.body_pos, c.body_pos)
+
+
+def _measured_accel_when_unconstrained(
+    m: mujoco.MjModel, d: mujoco.MjData, steps: int, seed: int
+) -> np.ndarray:
+    """Finite-difference accelerations ``(qvel' - qvel) / h`` of the steps without constraints.
+
+    ``d.nefc`` after ``mj_step`` counts the constraints (contacts, limits) that acted during
+    that step, so ``nefc == 0`` selects exactly the steps where only the actuators pushed.
+    """
+    controller = make_controller(m, CtrlMode.RANDOM, seed=seed, hold_steps=20)
+    accels = []
+    for _ in range(steps):
+        controller(m, d)
+        before = d.qvel.copy()
+        mujoco.mj_step(m, d)
+        if d.nefc == 0:
+            accels.append((d.qvel - before) / m.opt.timestep)
+    return np.array(accels)
+
+
+def test_paper_world_acceleration_bound_holds() -> None:
+    accel_max = 2.0
+    m = paper_world_spec(12, seed=5, accel_max=accel_max, box_size=2.0).compile()
+    d = mujoco.MjData(m)
+    reset_to_keyframe(m, d, None)
+    bound = declared_accel_bound(m)
+    assert bound is not None
+    assert bound == pytest.approx(paper_world_accel_bound(accel_max))
+    acc = _measured_accel_when_unconstrained(m, d, 400, seed=0)
+    assert len(acc) > 100, "the stretch should be mostly contact-free"
+    per_sphere = np.linalg.norm(acc.reshape(len(acc), -1, 3), axis=2)
+    assert per_sphere.max() <= bound * (1 + 1e-9)
+    assert np.abs(acc).max() <= accel_max * (1 + 1e-9)
+    # Random uniform controls come close to the bound: the bound is tight, not vacuous.
+    assert per_sphere.max() > 0.7 * bound
+
+
+def test_traffic_acceleration_bound_holds() -> None:
+    m, d = load_scene("traffic")
+    bound = declared_accel_bound(m)
+    assert bound is not None
+    assert bound == pytest.approx(SCENES["traffic"].accel_hint)
+    acc = _measured_accel_when_unconstrained(m, d, 150, seed=1)
+    assert len(acc) > 50
+    assert np.abs(acc).max() <= bound * (1 + 1e-9)
+
+
+def test_controller_modes() -> None:
+    m, d = load_scene("clutter")
+    zero = make_controller(m, "zero")
+    zero(m, d)
+    assert np.all(d.ctrl == 0.0) and zero.mocap_accel_bound == 0.0
+    with pytest.raises(InvalidChoiceError, match="random"):
+        make_controller(m, "chaos")
+    with pytest.raises(InvalidInputError):
+        make_controller(m, CtrlMode.RANDOM, hold_steps=0)
+
+    m, d = load_scene("two_arms")
+    ctrl = make_controller(m, CtrlMode.RANDOM, seed=4, hold_steps=5)
+    seen = []
+    for _ in range(20):
+        ctrl(m, d)
+        seen.append(d.ctrl.copy())
+        mujoco.mj_step(m, d)
+    seen_arr = np.array(seen)
+    lo, hi = m.actuator_ctrlrange.T
+    assert np.all(seen_arr >= lo) and np.all(seen_arr <= hi)
+    assert len({tuple(row) for row in seen_arr}) == 4  # held for 5 steps each
+    again = make_controller(m, CtrlMode.RANDOM, seed=4, hold_steps=5)
+    reset_to_keyframe(m, d, None)
+    again(m, d)
+    assert np.array_equal(d.ctrl, seen_arr[0])
+
+
+def test_mocap_path_respects_its_bounds() -> None:
+    m, d = load_scene("clutter")
+    circle = MocapCircle(radius=0.08, period=2.0)
+    ctrl = make_controller(m, CtrlMode.RANDOM, seed=0, mocap=circle)
+    h = m.opt.timestep
+    positions = []
+    for _ in range(300):
+        ctrl(m, d)
+        positions.append(d.mocap_pos.copy())
+        mujoco.mj_step(m, d)
+    p = np.array(positions)
+    assert np.allclose(p[0], m.body_pos[m.body("stirrer").id])  # no jump at t = 0
+    speed = np.linalg.norm(np.diff(p, axis=0), axis=2) / h
+    accel = np.linalg.norm(p[2:] - 2 * p[1:-1] + p[:-2], axis=2) / h**2
+    assert speed.max() <= ctrl.mocap_speed_bound * (1 + 1e-9)
+    assert accel.max() <= ctrl.mocap_accel_bound * (1 + 1e-6)
+    assert accel.max() > 0.9 * ctrl.mocap_accel_bound

@@ -1,0 +1,239 @@
+"""DUAScheduler and the select-all baselines: layout, revisit intervals, alarms, protocol."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from dua_mujoco import (
+    DUAScheduler,
+    InvalidChoiceError,
+    InvalidInputError,
+    PairSet,
+    SchedulerError,
+    SelectAllScheduler,
+    ShapeError,
+    SphereWorld,
+    Urgency,
+)
+from dua_mujoco.scheduler import bucket_layout
+
+
+def reference_step(slots: np.ndarray, n: int, q: int, tau: dict[int, float]) -> tuple[np.ndarray, list[int]]:
+    """Obviously-correct Python version of one step: withdraw, sort, reinsert in bucket order."""
+    nb = int(math.log2(len(slots) + 1))
+    withdrawn = []
+    for k in range(nb):
+        size = 1 << k
+        for j in range(min(q, size)):
+            slot = size - 1 + (n * q + j) % size
+            if slots[slot] >= 0:
+                withdrawn.append(slot)
+    ids = [int(slots[s]) for s in withdrawn]
+    ranked = sorted(ids, key=lambda p: tau[p])
+    new = slots.copy()
+    for slot, pid in zip(withdrawn, ranked, strict=True):
+        new[slot] = pid
+    return new, ids
+
+
+@pytest.mark.parametrize("m", [1, 2, 3, 7, 8, 100, 1000, 4097])
+def test_layout_and_initial_partial_order(m: int) -> None:
+    rng = np.random.default_rng(m)
+    tau = rng.exponential(1.0, m)
+    s = DUAScheduler(tau, dt=0.01)
+    L, nslots = bucket_layout(m)
+    assert L == math.ceil(math.log2(m + 1)) and nslots == 2**L - 1
+    assert s.slots.shape == (nslots,)
+    assert sorted(s.slots[s.slots >= 0].tolist()) == list(range(m))
+    assert (s.slots[:m] >= 0).all() and (s.slots[m:] == -1).all()
+    # Paper eq. 23: every pair in bucket k has tau <= every pair in bucket k + 1.
+    for k in range(L - 1):
+        here = s.slots[(1 << k) - 1 : (2 << k) - 1]
+        later = s.slots[(2 << k) - 1 :]
+        later = later[later >= 0]
+        if later.size:
+            assert tau[here].max() <= tau[later].min()
+
+
+@pytest.mark.parametrize("q", [1, 2, 4])
+@pytest.mark.parametrize("m", [5, 64, 300])
+def test_matches_reference_and_revisits_exactly(q: int, m: int) -> None:
+    rng = np.random.default_rng(7)
+    s = DUAScheduler(rng.exponential(1.0, m), dt=0.01, slots_per_bucket=q)
+    slots = s.slots.copy()
+    last_seen: dict[int, int] = {}
+    counts = []
+    for n in range(1, 200):
+        sel = s.select()
+        tau = rng.exponential(1.0, sel.size)
+        ref_slots, ref_ids = reference_step(slots, n, q, dict(zip(sel.tolist(), tau, strict=True)))
+        assert sorted(ref_ids) == sorted(sel.tolist())
+        # Each selected pair was placed at its previous visit exactly `interval` steps ago.
+        for p in sel.tolist():
+            if p in last_seen:
+                placed_bucket, step = last_seen[p]
+                assert n - step == s.interval[placed_bucket]
+        s.update(sel, tau)
+        np.testing.assert_array_equal(s.slots, ref_slots)
+        slots = ref_slots
+        for p in sel.tolist():
+            last_seen[p] = (int(s.bucket(p)), n)
+            assert s.next_due(np.array([p]))[0] == n + s.interval[s.bucket(p)]
+        counts.append(sel.size)
+    # Constant work: the same number of slots every step once the last bucket is full or skipped.
+    L = s.nbuckets
+    full = sum(min(q, 1 << k) for k in range(L - 1))
+    assert min(counts) >= full and max(counts) <= s.evaluations_per_step
+
+
+def test_every_pair_evaluated_within_its_interval() -> None:
+    m = 1000
+    rng = np.random.default_rng(1)
+    s = DUAScheduler(rng.exponential(1.0, m), dt=0.01)
+    last = np.zeros(m, dtype=int)
+    for n in range(1, 3 * (1 << s.nbuckets)):
+        sel = s.select()
+        assert (n - last[sel] <= s.interval[-1]).all()
+        last[sel] = n
+        s.update(sel, rng.exponential(1.0, sel.size))
+    assert (last > 0).all()
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    m=st.integers(1, 200),
+    latency=st.integers(0, 2),
+    dt=st.floats(1e-4, 1.0),
+    seed=st.integers(0, 2**31),
+)
+def test_alarm_rule(m: int, latency: int, dt: float, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    tau0 = rng.exponential(dt * 20, m)
+    s = DUAScheduler(tau0, dt=dt, latency=latency)
+    buckets = s.bucket(np.arange(m))
+    expect = np.flatnonzero(tau0 < ((1 << buckets) + latency) * dt)
+    np.testing.assert_array_equal(np.sort(s.initial_alarms), expect)
+    for _ in range(5):
+        sel = s.select()
+        tau = rng.exponential(dt * 20, sel.size)
+        alarms = s.update(sel, tau)
+        size = 1 << s.bucket(sel)
+        np.testing.assert_array_equal(
+            np.sort(alarms), np.sort(sel[tau < (size + latency) * dt])
+        )
+        # The i-th most urgent went to the i-th smallest bucket.
+        assert (np.diff(size[np.argsort(tau, kind="stable")]) >= 0).all()
+
+
+def test_fused_step_equals_select_update() -> None:
+    world_a = SphereWorld(30, seed=5, radius=0.05)
+    world_b = SphereWorld(30, seed=5, radius=0.05)
+    pairs = world_a.pairs()
+    ids = np.arange(len(pairs))
+    tau0 = pairs.tau(ids, world_a.positions, world_a.velocities)
+    a = DUAScheduler(tau0, dt=world_a.dt)
+    b = DUAScheduler(tau0, dt=world_b.dt)
+    for _ in range(100):
+        world_a.step()
+        world_b.step()
+        sel = a.select()
+        alarms_a = a.update(sel, pairs.tau(sel, world_a.positions, world_a.velocities))
+        alarms_b = b.step_points(pairs, world_b.positions, world_b.velocities)
+        np.testing.assert_array_equal(np.sort(alarms_a), np.sort(alarms_b))
+        np.testing.assert_array_equal(a.slots, b.slots)
+        np.testing.assert_array_equal(a.last_tau, b.last_tau)
+
+
+def test_halfspace_pairs_in_fused_step() -> None:
+    # One sphere falling onto the plane z = 0 (normal +z), one far away.
+    pairs = PairSet([0, 0, 1], [1, 0, 0], [0.2, 0.1, 0.1], 1.0, halfspace=[False, True, True])
+    centers = np.array([[0.0, 0.0, 0.5], [5.0, 0.0, 3.0]])
+    vel = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 0.0]])
+    normals, offsets = np.array([[0.0, 0.0, 1.0]]), np.array([0.0])
+    tau = pairs.tau([0, 1, 2], centers, vel, (normals, offsets))
+    # Sphere 0 reaches the plane when 0.5 - t - t^2/2 = 0.1.
+    assert tau[1] == pytest.approx(-1 + math.sqrt(1 + 0.8), rel=1e-9)
+    assert tau[1] <= -1 + math.sqrt(1 + 0.8)
+    assert tau[2] == pytest.approx(math.sqrt(2 * 2.9), rel=1e-9)
+    s = DUAScheduler(tau, dt=0.2)  # pair 1 lands in bucket 0: horizon (1 + 1) * 0.2 > 0.34
+    np.testing.assert_array_equal(s.initial_alarms, [1])
+    alarms = s.step_points(pairs, centers, vel, (normals, offsets))
+    assert set(alarms.tolist()) <= {0, 1, 2}
+
+
+def test_switching_pairs_off_and_on() -> None:
+    m = 50
+    rng = np.random.default_rng(3)
+    s = DUAScheduler(rng.exponential(1.0, m), dt=0.01)
+    s.set_active([0, 1, 2], False)
+    for _ in range(64):
+        sel = s.select()
+        assert not set(sel.tolist()) & {0, 1, 2}
+        s.update(sel, rng.exponential(1.0, sel.size))
+    s.set_active([1], True)
+    sel = s.select()
+    assert 1 in sel.tolist()  # re-activated pairs are evaluated at once
+    tau = np.where(sel == 1, 0.0, 1.0)
+    assert 1 in s.update(sel, tau).tolist()
+    assert s.tau(1) == 0.0
+
+
+def test_protocol_errors() -> None:
+    s = DUAScheduler(np.ones(10), dt=0.01)
+    with pytest.raises(SchedulerError, match="select"):
+        s.update(np.array([0]), np.array([1.0]))
+    sel = s.select()
+    with pytest.raises(SchedulerError, match="twice"):
+        s.select()
+    with pytest.raises(SchedulerError, match="exactly the ids"):
+        s.update((sel + 1) % 10, np.ones(sel.size))
+    with pytest.raises(InvalidInputError, match="nan"):
+        s.update(sel, np.full(sel.size, np.nan))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"dt": 0.0}, InvalidInputError, "dt = 0.0"),
+        ({"dt": -1.0}, InvalidInputError, "must be > 0"),
+        ({"dt": float("nan")}, InvalidInputError, "dt = nan"),
+        ({"dt": 0.1, "latency": -1}, InvalidInputError, "latency = -1"),
+        ({"dt": 0.1, "slots_per_bucket": 3}, InvalidChoiceError, "Valid choices: 1, 2, 4"),
+    ],
+)
+def test_bad_construction(kwargs: dict, error: type[Exception], match: str) -> None:
+    with pytest.raises(error, match=match):
+        DUAScheduler(np.ones(4), **kwargs)
+
+
+def test_bad_tau0() -> None:
+    with pytest.raises(ShapeError, match=r"\(2, 2\)"):
+        DUAScheduler(np.ones((2, 2)), dt=0.1)
+    with pytest.raises(InvalidInputError, match=r"tau0\[1\] = -1"):
+        DUAScheduler(np.array([1.0, -1.0]), dt=0.1)
+
+
+def test_select_all_baselines() -> None:
+    tau = np.array([0.005, 0.5, 0.015, np.inf])
+    sa = SelectAllScheduler(tau, dt=0.01, latency=1)
+    np.testing.assert_array_equal(sa.initial_alarms, [0, 2])
+    sel = sa.select()
+    np.testing.assert_array_equal(sel, [0, 1, 2, 3])
+    np.testing.assert_array_equal(sa.update(sel, [1.0, 0.001, 1.0, 1.0]), [1])
+    assert sa.most_urgent() == 1
+    sad = SelectAllScheduler([0.3, -0.1, 0.2], dt=0.01, urgency="distance")
+    assert sad.urgency is Urgency.DISTANCE
+    np.testing.assert_array_equal(sad.initial_alarms, [1])
+    with pytest.raises(InvalidChoiceError, match="'tau', 'distance'"):
+        SelectAllScheduler(tau, dt=0.01, urgency="speed")
+
+
+def test_most_urgent_is_bucket_zero() -> None:
+    tau = np.array([3.0, 1.0, 2.0, 0.5, 9.0])
+    s = DUAScheduler(tau, dt=0.01)
+    assert s.most_urgent() == 3

@@ -1,0 +1,295 @@
+"""Tests of dua_mujoco.state: sphere centres and velocities against MuJoCo's own functions."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from dua_mujoco.exceptions import InvalidChoiceError, NonFiniteStateError, ShapeError
+from dua_mujoco.state import (
+    MocapVelocityTracker,
+    SphereState,
+    mocap_sphere_velocities,
+    point_velocities,
+    sphere_centers,
+    sphere_velocities,
+)
+
+# One body per joint type; geoms deliberately off the body frame and rotated, so that geom frame,
+# body frame, COM and subtree COM all differ.
+JOINTS = {
+    "free": "<freejoint/>",
+    "ball": '<joint type="ball" pos=".05 0 .02"/>',
+    "hinge": '<joint type="hinge" axis="0.3 1 0.2" pos="-.1 0 0"/>',
+    "slide": '<joint type="slide" axis="1 0.5 -0.2"/>',
+}
+
+OFFSETS = np.array([[0.0, 0.0, 0.0], [0.07, -0.03, 0.05], [-0.1, 0.02, 0.0]])
+
+
+def _geoms(prefix: str) -> str:
+    return (
+        f'<geom name="{prefix}box" type="box" size=".1 .05 .08" pos=".1 .02 0" euler="10 20 30"/>'
+        f'<geom name="{prefix}cap" type="capsule" size=".03" fromto="0 0 0 .2 .1 0"/>'
+    )
+
+
+def _xml(joint: str, nested: bool, sites: str = "", sites2: str = "") -> str:
+    inner = ""
+    if nested:
+        inner = (
+            f'<body name="c" pos=".3 .1 -.05" euler="0 30 0">{JOINTS["hinge"]}'
+            f'{_geoms("c")}{sites2}<body name="g" pos=".2 0 0">{JOINTS["ball"]}{_geoms("g")}'
+            "</body></body>"
+        )
+    return (
+        '<mujoco><option gravity="0 0 -9.81"/><worldbody>'
+        '<geom name="floor" type="plane" size="2 2 .1"/>'
+        f'<body name="b" pos=".1 .2 1" euler="5 -10 15">'
+        f'<inertial pos=".04 .01 -.02" mass="1.3" diaginertia=".01 .02 .03"/>'
+        f"{JOINTS[joint]}{_geoms('b')}{sites}{inner}</body></worldbody></mujoco>"
+    )
+
+
+def _model_with_sites(joint: str, nested: bool) -> mujoco.MjModel:
+    """Model whose site s{g}_{i} sits exactly at sphere centre (geom g, OFFSETS[i])."""
+    m0 = mujoco.MjModel.from_xml_string(_xml(joint, nested))
+    per_body: dict[int, str] = {}
+    for g in range(m0.ngeom):
+        b = int(m0.geom_bodyid[g])
+        if b == 0:
+            continue
+        R = np.zeros(9)
+        mujoco.mju_quat2Mat(R, m0.geom_quat[g])
+        for i, off in enumerate(OFFSETS):
+            p = m0.geom_pos[g] + R.reshape(3, 3) @ off
+            per_body[b] = per_body.get(b, "") + (
+                f'<site name="s{g}_{i}" pos="{p[0]:.17g} {p[1]:.17g} {p[2]:.17g}"/>'
+            )
+    xml = _xml(joint, nested, per_body.get(1, ""), per_body.get(2, ""))
+    if nested:
+        # The grandchild's sites go into its body tag.
+        xml = xml.replace(
+            f'<body name="g" pos=".2 0 0">{JOINTS["ball"]}',
+            f'<body name="g" pos=".2 0 0">{JOINTS["ball"]}{per_body.get(3, "")}',
+        )
+    return mujoco.MjModel.from_xml_string(xml)
+
+
+def _random_state(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator) -> None:
+    mujoco.mj_resetData(m, d)
+    d.qpos[:] = m.qpos0
+    for j in range(m.njnt):
+        adr, t = m.jnt_qposadr[j], int(m.jnt_type[j])
+        if t == int(mujoco.mjtJoint.mjJNT_FREE):
+            d.qpos[adr : adr + 3] = rng.normal(size=3)
+            q = rng.normal(size=4)
+            d.qpos[adr + 3 : adr + 7] = q / np.linalg.norm(q)
+        elif t == int(mujoco.mjtJoint.mjJNT_BALL):
+            q = rng.normal(size=4)
+            d.qpos[adr : adr + 4] = q / np.linalg.norm(q)
+        else:
+            d.qpos[adr] = rng.uniform(-2, 2)
+    d.qvel[:] = rng.normal(size=m.nv) * 3
+    mujoco.mj_forward(m, d)
+
+
+def _spheres(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] != 0]
+    sg = np.repeat(geoms, len(OFFSETS))
+    so = np.tile(OFFSETS, (len(geoms), 1))
+    return sg, np.asarray(m.geom_bodyid)[sg], so
+
+
+def test_centers_zero_offset_match_geom_xpos() -> None:
+    m = _model_with_sites("free", nested=True)
+    d = mujoco.MjData(m)
+    _random_state(m, d, np.random.default_rng(1))
+    g = np.arange(m.ngeom)
+    c = sphere_centers(d.geom_xpos, d.geom_xmat, g, np.zeros((m.ngeom, 3)))
+    np.testing.assert_array_equal(c, d.geom_xpos)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    n=st.integers(1, 20),
+)
+def test_centers_match_slow_loop(seed: int, n: int) -> None:
+    rng = np.random.default_rng(seed)
+    ngeom = 7
+    xpos = rng.normal(size=(ngeom, 3))
+    xmat = np.array([np.linalg.qr(rng.normal(size=(3, 3)))[0].ravel() for _ in range(ngeom)])
+    sg = rng.integers(0, ngeom, size=n)
+    so = rng.normal(size=(n, 3))
+    ids = rng.permutation(n)[: max(1, n // 2)]
+    c = sphere_centers(xpos, xmat, sg, so, ids)
+    ref = np.array([xpos[sg[i]] + xmat[sg[i]].reshape(3, 3) @ so[i] for i in ids])
+    np.testing.assert_allclose(c, ref, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("nested", [False, True], ids=["single", "chain"])
+@pytest.mark.parametrize("joint", list(JOINTS))
+def test_centers_and_velocities_match_mujoco(joint: str, nested: bool) -> None:
+    m = _model_with_sites(joint, nested)
+    d = mujoco.MjData(m)
+    sg, sb, so = _spheres(m)
+    rng = np.random.default_rng(hash((joint, nested)) % 2**32)
+    res = np.zeros(6)
+    for _ in range(5):
+        _random_state(m, d, rng)
+        c = sphere_centers(d.geom_xpos, d.geom_xmat, sg, so)
+        v = sphere_velocities(d.cvel, d.subtree_com, m.body_rootid, sb, c)
+        for i in range(sg.size):
+            g, k = int(sg[i]), i % len(OFFSETS)
+            sid = mujoco.mj_name2id(m, int(mujoco.mjtObj.mjOBJ_SITE), f"s{g}_{k}")
+            np.testing.assert_allclose(c[i], d.site_xpos[sid], atol=1e-12)
+            mujoco.mj_objectVelocity(m, d, int(mujoco.mjtObj.mjOBJ_SITE), sid, res, 0)
+            np.testing.assert_allclose(v[i], res[3:], atol=1e-10)
+            if k == 0:  # zero offset: the geom frame itself
+                mujoco.mj_objectVelocity(m, d, int(mujoco.mjtObj.mjOBJ_GEOM), g, res, 0)
+                np.testing.assert_allclose(v[i], res[3:], atol=1e-10)
+
+
+def test_ids_subset_and_order() -> None:
+    m = _model_with_sites("hinge", nested=True)
+    d = mujoco.MjData(m)
+    _random_state(m, d, np.random.default_rng(3))
+    sg, sb, so = _spheres(m)
+    full = SphereState.from_data(m, d, sg, sb, so)
+    ids = np.array([5, 0, 9, 2])
+    sub = SphereState.from_data(m, d, sg, None, so, ids)
+    np.testing.assert_array_equal(sub.centers, full.centers[ids])
+    np.testing.assert_array_equal(sub.velocities, full.velocities[ids])
+    np.testing.assert_array_equal(sub.ids, ids)
+
+
+def test_shape_and_id_errors() -> None:
+    with pytest.raises(ShapeError):
+        sphere_centers(np.zeros((2, 3)), np.zeros((2, 9)), [0, 1], np.zeros((3, 3)))
+    with pytest.raises(ShapeError):
+        sphere_centers(np.zeros((2, 3)), np.zeros((2, 9)), [0, 1], np.zeros((2, 3)), [2])
+    with pytest.raises(ShapeError):
+        point_velocities(np.zeros((2, 6)), np.zeros((2, 3)), [0, 1], [1], np.zeros((2, 3)))
+
+
+def test_nonfinite_state_raises() -> None:
+    m = _model_with_sites("free", nested=False)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    d.geom_xpos[1, 0] = np.nan
+    sg, sb, so = _spheres(m)
+    with pytest.raises(NonFiniteStateError):
+        SphereState.from_data(m, d, sg, sb, so)
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "implicitfast", "implicit"])
+def test_after_step_kinematics_describe_start_of_step(integrator: str) -> None:
+    """geom_xpos and cvel after mj_step are those of the pre-step qpos/qvel (SPEC sec. 6)."""
+    m = _model_with_sites("free", nested=True)
+    m.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
+    d = mujoco.MjData(m)
+    _random_state(m, d, np.random.default_rng(4))
+    ref = mujoco.MjData(m)
+    ref.qpos[:], ref.qvel[:] = d.qpos, d.qvel
+    mujoco.mj_step(m, d)
+    mujoco.mj_forward(m, ref)
+    np.testing.assert_array_equal(d.geom_xpos, ref.geom_xpos)
+    np.testing.assert_array_equal(d.cvel, ref.cvel)
+    assert not np.array_equal(d.qpos, ref.qpos)
+
+
+def test_after_step_rk4_kinematics_are_last_stage() -> None:
+    """With RK4, MjData keeps the last stage's kinematics: near the end of the step, not start."""
+    m = _model_with_sites("hinge", nested=True)
+    m.opt.integrator = int(mujoco.mjtIntegrator.mjINT_RK4)
+    d = mujoco.MjData(m)
+    _random_state(m, d, np.random.default_rng(5))
+    start = d.geom_xpos.copy()
+    mujoco.mj_step(m, d)
+    end = mujoco.MjData(m)
+    end.qpos[:], end.qvel[:] = d.qpos, d.qvel
+    mujoco.mj_forward(m, end)
+    assert np.abs(d.geom_xpos - end.geom_xpos).max() < 1e-6
+    assert np.abs(d.geom_xpos - start).max() > 1e-4
+
+
+MOCAP_XML = """<mujoco><option gravity="0 0 0" timestep="0.002"/><worldbody>
+<body name="m" mocap="true" pos="0 0 1"><geom name="mg" type="box" size=".1 .1 .1" pos=".1 0 0"/>
+  <body name="arm" pos=".2 0 0"><joint type="hinge" axis="0 0 1"/>
+    <geom name="ag" type="capsule" fromto="0 0 0 .3 0 0" size=".02"/></body></body>
+<body name="n" mocap="true"><geom name="ng" type="sphere" size=".05"/></body>
+</worldbody></mujoco>"""
+
+
+def _script(t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Pose and true velocity of the scripted mocap body 'm' at time t."""
+    pos = np.array([0.3 * np.sin(2 * t), 0.2 * np.cos(3 * t), 1 + 0.1 * t**2])
+    vel = np.array([0.6 * np.cos(2 * t), -0.6 * np.sin(3 * t), 0.2 * t])
+    ang = 1.5 * t + 0.4 * np.sin(t)  # rotation about a fixed axis
+    rate = 1.5 + 0.4 * np.cos(t)
+    axis = np.array([0.2, -0.3, 1.0]) / np.linalg.norm([0.2, -0.3, 1.0])
+    quat = np.concatenate([[np.cos(ang / 2)], np.sin(ang / 2) * axis])
+    return pos, vel, quat, rate * axis
+
+
+def test_mocap_tracker_matches_scripted_velocity() -> None:
+    m = mujoco.MjModel.from_xml_string(MOCAP_XML)
+    d = mujoco.MjData(m)
+    d.qvel[0] = 1.3
+    tracker = MocapVelocityTracker(m)
+    sg = np.arange(m.ngeom)
+    sb = np.asarray(m.geom_bodyid)
+    so = np.zeros((m.ngeom, 3))
+    so[1] = [0.15, 0, 0]  # a point along the arm, not at its frame origin
+    h = m.opt.timestep
+    prev_c = None
+    for k in range(400):
+        pos, _, quat, _ = _script(d.time)
+        d.mocap_pos[0], d.mocap_quat[0] = pos, quat
+        mujoco.mj_step(m, d)
+        tracker.update(d)
+        # After the step the kinematics are those of time d.time - h.
+        t_kin = d.time - h
+        if k < 2:
+            continue
+        _, vel, _, omega = _script(t_kin)
+        st_ = SphereState.from_data(m, d, sg, sb, so, mocap=tracker)
+        # Backward difference vs the true velocity: error <= |accel| h / 2 (+ rotation terms).
+        np.testing.assert_allclose(tracker.linear[0], vel, atol=2e-3)
+        np.testing.assert_allclose(tracker.angular[0], omega, atol=2e-3)
+        # The mocap-driven sphere velocity is exactly the backward discrete velocity of the
+        # centre up to the chord/tangent difference of the rotation (O(h |omega|^2 r)).
+        if prev_c is not None:
+            u = (st_.centers - prev_c) / h
+            for i in (0, 1):
+                np.testing.assert_allclose(st_.velocities[i], u[i], atol=2e-2)
+        prev_c = st_.centers
+    # The unmoved mocap body 'n' reads zero.
+    np.testing.assert_array_equal(tracker.linear[1], 0.0)
+
+
+def test_mocap_user_velocity_and_errors() -> None:
+    m = mujoco.MjModel.from_xml_string(MOCAP_XML)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    tracker = MocapVelocityTracker(m)
+    tracker.set_velocity("n", [1.0, 2.0, 3.0])
+    tracker.update(d)
+    d.mocap_pos[1] = [5, 5, 5]
+    mujoco.mj_step(m, d)
+    tracker.update(d)
+    np.testing.assert_array_equal(tracker.linear[1], [1.0, 2.0, 3.0])
+    ng = mujoco.mj_name2id(m, int(mujoco.mjtObj.mjOBJ_GEOM), "ng")
+    v = mocap_sphere_velocities(m, d, tracker, m.geom_bodyid, d.geom_xpos[[ng]], [ng])
+    np.testing.assert_array_equal(v[0], [1.0, 2.0, 3.0])
+    tracker.clear_velocity("n")
+    d.mocap_pos[1] = [5, 5, 5.01]
+    mujoco.mj_step(m, d)
+    tracker.update(d)
+    np.testing.assert_allclose(tracker.linear[1], [0, 0, 0.01 / m.opt.timestep])
+    with pytest.raises(InvalidChoiceError, match="'m'"):
+        tracker.set_velocity("arm", [0, 0, 0])
