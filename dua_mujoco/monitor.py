@@ -1,7 +1,7 @@
 """The exact stage: alarms held against MuJoCo's own contacts, and the run's metrics.
 
-``Monitor`` is fed every physics step (``observe_physics``: contacts in ``d.contact`` and the
-bound check) and every predictor step (``observe_alarms``). A *contact onset* is a geom pair of
+``Monitor.observe`` is fed every physics step with the predictor's alarms when it stepped (the
+bound check, the alarms, then the contacts in ``d.contact``). A *contact onset* is a geom pair of
 the active set that is in ``d.contact`` now and was not at the previous physics step. It is
 *predicted* when, at that instant, some sphere pair of that geom pair stands alarmed, i.e. its
 latest evaluation (at or before the onset) raised an alarm: exactly the completeness theorem's
@@ -234,8 +234,7 @@ class Monitor:
         for g in ended.tolist():
             self._pending.append((g, t + float(self._episode_horizon[g])))
 
-    def observe_alarms(self, data: mujoco.MjData, alarms: Alarms) -> None:
-        """Record a predictor step's alarms (call right after ``predictor.step``)."""
+    def _observe_alarms(self, data: mujoco.MjData, alarms: Alarms) -> None:
         sched = self.predictor.scheduler
         assert sched is not None
         self._pred_steps.append(self.physics_step)
@@ -247,14 +246,23 @@ class Monitor:
 
     # ------------------------------------------------------------------- physics
 
-    def observe_physics(self, data: mujoco.MjData) -> None:
-        """Check one physics step (call after every ``mj_step``, before the predictor step)."""
+    def observe(self, data: mujoco.MjData, alarms: Alarms | None = None) -> None:
+        """Check one physics step: call after every ``mj_step`` (and ``predictor.step``).
+
+        Args:
+            data: The data after ``mj_step``.
+            alarms: The predictor's alarms if it stepped on this physics step. They are applied
+                before the contacts are checked: an evaluation of this instant is "at or before"
+                a contact of this instant (Theorem 2).
+        """
         self.physics_step += 1
         if self.bounds is not None:
             broke = self.bounds.update(self.model, data)
             if broke.size:
                 self._last_violation[broke] = self.physics_step
                 self.violations += int(broke.size)
+        if alarms is not None:
+            self._observe_alarms(data, alarms)
         now, unfiltered = self._contacts(data)
         self.unfiltered_contacts += unfiltered
         t = float(data.time)
@@ -385,9 +393,7 @@ def run(
                             stacklevel=2,
                         )
                         warned = True
-            monitor.observe_physics(data)
-            if alarms is not None:
-                monitor.observe_alarms(data, alarms)
+            monitor.observe(data, alarms)
             if on_step is not None:
                 on_step(k, data, alarms, monitor)
             bar.update(note=f"alarms {len(alarms) if alarms is not None else 0} missed {len(monitor.misses)}")

@@ -25,7 +25,13 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, SchedulerError, ShapeError
+from dua_mujoco.exceptions import (
+    InvalidChoiceError,
+    InvalidInputError,
+    NonFiniteStateError,
+    SchedulerError,
+    ShapeError,
+)
 from dua_mujoco.urgency import _per_pair, _vectors, tau_halfspace, tau_speed
 
 __all__ = [
@@ -198,8 +204,19 @@ def _step_points(
 ):  # pragma: no cover - jitted
     count = _select(slots, active, nbuckets, q, n, w_slots, w_ids)
     for k in range(count):
+        p = w_ids[k]
+        i = first[p]
+        state = 0.0
+        for a in range(3):
+            state += centers[i, a] + velocities[i, a]
+        if not halfspace[p]:
+            j = second[p]
+            for a in range(3):
+                state += centers[j, a] + velocities[j, a]
+        if not math.isfinite(state):
+            return count, 0, p
         w_tau[k] = _pair_tau(
-            w_ids[k],
+            p,
             centers,
             velocities,
             normals,
@@ -215,7 +232,7 @@ def _step_points(
     nalarm = _reinsert(
         slots, where, last_tau, last_step, horizon, n, w_slots, w_ids, w_tau, count, alarms
     )
-    return count, nalarm
+    return count, nalarm, -1
 
 
 @nb.njit(cache=True, inline="always")
@@ -332,6 +349,12 @@ def _step_rigid(
 
 # --------------------------------------------------------------------------- pair geometry
 
+# Placeholders for pair sets without half-spaces (never read: no pair indexes them).
+_NO_NORMALS = np.zeros((1, 3))
+_NO_NORMALS.flags.writeable = False
+_NO_OFFSETS = np.zeros(1)
+_NO_OFFSETS.flags.writeable = False
+
 
 class PairSet:
     """Sphere-sphere and sphere-half-space pairs with their contact distances and bounds.
@@ -374,6 +397,13 @@ class PairSet:
         self.speed = np.broadcast_to(_per_pair("speed", speed, m, allow_inf=True), (m,)).copy()
         if (self.speed == 0.0).any():
             raise InvalidInputError("speed bounds must be positive; use inf for none.")
+        if (self.first < 0).any() or (self.second < 0).any():
+            raise InvalidInputError("sphere and half-space indices must be >= 0.")
+        # Checked once here so that the per-step state check is O(1).
+        spheres = np.concatenate([self.first, self.second[~self.halfspace]])
+        self.max_sphere = int(spheres.max(initial=-1))
+        self.max_halfspace = int(self.second[self.halfspace].max(initial=-1))
+        self.has_halfspace = bool(self.halfspace.any())
 
     def __len__(self) -> int:
         return int(self.first.shape[0])
@@ -464,24 +494,27 @@ class PairSet:
         centers: npt.ArrayLike,
         velocities: npt.ArrayLike,
         halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None,
+        *,
+        check_finite: bool = True,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        c = _vectors("centers", centers)
-        v = _vectors("velocities", velocities, c.shape[0])
+        c = _vectors("centers", centers, check_finite=check_finite)
+        v = _vectors("velocities", velocities, c.shape[0], check_finite=check_finite)
         if halfspaces is None:
-            nrm = np.zeros((1, 3))
-            off = np.zeros(1)
-            if self.halfspace.any():
+            nrm, off = _NO_NORMALS, _NO_OFFSETS
+            if self.has_halfspace:
                 raise InvalidInputError("these pairs include half-spaces: pass halfspaces=(n, o).")
         else:
             nrm = _vectors("halfspace normals", halfspaces[0])
             off = np.ascontiguousarray(np.asarray(halfspaces[1], dtype=np.float64).reshape(-1))
             if off.shape[0] != nrm.shape[0]:
                 raise ShapeError(f"halfspace offsets have {off.shape[0]} rows, normals {nrm.shape[0]}.")
-        nsphere = c.shape[0]
-        spheres = np.concatenate([self.first, self.second[~self.halfspace]])
-        if spheres.size and spheres.max() >= nsphere:
+        if self.max_sphere >= c.shape[0]:
             raise ShapeError(
-                f"pairs reference sphere {int(spheres.max())} but centers has {nsphere} rows."
+                f"pairs reference sphere {self.max_sphere} but centers has {c.shape[0]} rows."
+            )
+        if self.max_halfspace >= nrm.shape[0] and self.has_halfspace:
+            raise ShapeError(
+                f"pairs reference half-space {self.max_halfspace} but {nrm.shape[0]} were given."
             )
         return c, v, nrm, off
 
@@ -770,9 +803,9 @@ class DUAScheduler:
         if self._reactivated:
             ids = self.select()
             return self.update(ids, pairs.tau(ids, centers, velocities, halfspaces))
-        c, v, nrm, off = pairs._states(centers, velocities, halfspaces)
+        c, v, nrm, off = pairs._states(centers, velocities, halfspaces, check_finite=False)
         n = self.step_count + 1
-        count, nalarm = _step_points(
+        count, nalarm, bad = _step_points(
             self.slots,
             self.where,
             self.last_tau,
@@ -798,6 +831,12 @@ class DUAScheduler:
             pairs.vel_uncertainty,
             pairs.speed,
         )
+        if bad >= 0:
+            i, j = int(pairs.first[bad]), int(pairs.second[bad])
+            raise NonFiniteStateError(
+                f"the state of pair {bad} (spheres {i}, {j}) is not finite: centers or "
+                "velocities hold NaN or inf; check that the simulation has not diverged."
+            )
         self._last_count = count
         self.step_count = n
         return self._alarms[:nalarm].copy()

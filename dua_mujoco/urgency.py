@@ -66,44 +66,66 @@ def _predicate(x0, x1, x2, v0, v1, v2, e, d, h, t):  # pragma: no cover - jitted
 
 
 @nb.njit(cache=True, inline="always")
-def _predicate_and_slope(x0, x1, x2, v0, v1, v2, e, d, h, t):  # pragma: no cover - jitted
-    """The predicate (same expression as ``_predicate``, so the same sign) and its derivative."""
+def _predicate_and_slopes(x0, x1, x2, v0, v1, v2, a, e, d, h, t):  # pragma: no cover - jitted
+    """The predicate (same expression as ``_predicate``, so the same sign), f' and f''.
+
+    ``a = |v|^2``. With ``p = (y . v) / |y|``: ``|y|' = p`` and ``|y|'' = (|v|^2 - p^2) / |y|``.
+    """
     y0 = x0 + v0 * t
     y1 = x1 + v1 * t
     y2 = x2 + v2 * t
     ny = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
     f = ny - (e + t * (d + h * t))
-    df = -(d + 2.0 * h * t)
     if ny > 0.0:
-        df += (y0 * v0 + y1 * v1 + y2 * v2) / ny
-    return f, df
+        p = (y0 * v0 + y1 * v1 + y2 * v2) / ny
+        f2 = (a - p * p) / ny - 2.0 * h
+    else:
+        p = 0.0
+        f2 = -2.0 * h
+    return f, p - (d + 2.0 * h * t), f2
 
 
 @nb.njit(cache=True)
 def _refine(x0, x1, x2, v0, v1, v2, e, d, h, lo, hi):  # pragma: no cover - jitted
     """Lower end of a tight bracket of the single root of the predicate in ``[lo, hi]``.
 
-    Requires: predicate(lo) > 0, predicate(hi) <= 0 and g monotone (decreasing) on [lo, hi].
-    Safeguarded Newton on the predicate; every iterate tightens the bracket, so stopping early
-    still returns a lower bound.
+    Requires: predicate(lo) > 0, predicate(hi) <= 0 and exactly one root in ``[lo, hi]`` (g
+    monotone or unimodal there). Halley's method (cubic convergence; f'' is nearly free) from
+    ``hi``, safeguarded by bisection; every iterate tightens the bracket, so stopping early still
+    returns a lower bound.
     """
+    a = v0 * v0 + v1 * v1 + v2 * v2
     t = hi
-    f, df = _predicate_and_slope(x0, x1, x2, v0, v1, v2, e, d, h, t)
+    f, df, d2 = _predicate_and_slopes(x0, x1, x2, v0, v1, v2, a, e, d, h, t)
+    probe = False  # the previous iterate was a probe past a converged point
     for _ in range(_MAX_ITER):
         tol = _RTOL * hi
         if hi - lo <= tol:
             break
-        tn = t - f / df if df < 0.0 else -1.0
+        den = 2.0 * df * df - f * d2
+        tn = t - 2.0 * f * df / den if (df < 0.0 and den > 0.0) else -1.0
+        side = f > 0.0
         if abs(tn - t) <= tol:
-            # Newton has converged from one side; step just past it to close the bracket.
-            tn = t + tol if f > 0.0 else t - tol
+            if probe:
+                # A probe did not close the bracket: Halley is creeping towards a minimum of
+                # the predicate (near a tangency), not a root. Bisect instead.
+                tn = 0.5 * (lo + hi)
+                probe = False
+            else:
+                # Converged from one side; step just past it to close the bracket.
+                tn = t + tol if side else t - tol
+                probe = True
+        else:
+            probe = False
         if not (lo < tn < hi):
             tn = 0.5 * (lo + hi)
-        f, df = _predicate_and_slope(x0, x1, x2, v0, v1, v2, e, d, h, tn)
+        f, df, d2 = _predicate_and_slopes(x0, x1, x2, v0, v1, v2, a, e, d, h, tn)
         if f > 0.0:
             lo = tn
         else:
             hi = tn
+        if probe and (f > 0.0) != side:
+            probe = False
         t = tn
     return lo
 
@@ -288,14 +310,16 @@ def _halfspace_batch(gap, vn, accel, delta, out):  # pragma: no cover - jitted
         out[i] = tau_halfspace(_at(gap, i), _at(vn, i), _at(accel, i), _at(delta, i))
 
 
-def _vectors(name: str, value: npt.ArrayLike, m: int | None = None) -> np.ndarray:
+def _vectors(
+    name: str, value: npt.ArrayLike, m: int | None = None, *, check_finite: bool = True
+) -> np.ndarray:
     arr = np.asarray(value, dtype=np.float64)
     if arr.ndim == 1 and arr.shape[0] == 3:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != 3 or (m is not None and arr.shape[0] != m):
         want = f"({m}, 3)" if m is not None else "(M, 3) or (3,)"
         raise ShapeError(f"{name} has shape {np.shape(value)}; expected {want}.")
-    if not np.isfinite(arr).all():
+    if check_finite and not np.isfinite(arr).all():
         bad = ~np.isfinite(arr).all(axis=1)
         i = int(np.flatnonzero(bad)[0])
         raise NonFiniteStateError(

@@ -473,7 +473,15 @@ def _min_norm_on_piece(p0, u, a, L, eps):
     coeffs = np.trim_zeros(np.array([c3, c2, c1, c0]), "f")
     cands = [mpf(0), mpf(L)] + [mpf(L) * j / 24 for j in range(1, 24)]
     if len(coeffs) > 1 and np.isfinite(coeffs).all():
-        for r in np.roots(coeffs):
+        # Normalise first: coefficients spanning 1e-310 .. 1e155 overflow np.roots' companion
+        # matrix; the samples above still bound the minimum when roots cannot be had.
+        coeffs = np.trim_zeros(coeffs / np.max(np.abs(coeffs)), "f")
+        try:
+            with np.errstate(all="ignore"):
+                roots = np.roots(coeffs)
+        except np.linalg.LinAlgError:
+            roots = np.zeros(0)
+        for r in roots:
             if abs(r.imag) <= 1e-6 * (1 + abs(r)) and 0 <= r.real <= float(L):
                 cands.append(mpf(r.real))
     return min(f(s) for s in cands)

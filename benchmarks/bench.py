@@ -1,0 +1,172 @@
+"""Benchmarks of dua_mujoco (never run as tests): prints markdown tables for docs/benchmarks.md.
+
+    python benchmarks/bench.py            # everything (a few minutes)
+    python benchmarks/bench.py core       # tau and scheduler only
+    python benchmarks/bench.py scenes     # predictor on the bundled scenes
+
+Every timing is the median of repeated runs (machines are noisy); ratios are computed from
+medians measured in the same process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+
+def median_time(fn: Callable[[], object], repeat: int, warmup: int = 1) -> float:
+    for _ in range(warmup):
+        fn()
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t0)
+    return float(np.median(ts))
+
+
+def table(header: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def bench_compile() -> str:
+    """Cold (empty cache) and cached import + first call, in fresh processes."""
+    code = (
+        "import time; t0 = time.perf_counter(); import numpy as np; "
+        "from dua_mujoco import time_to_collision, DUAScheduler, SphereWorld; "
+        "time_to_collision(np.ones((4, 3)), np.zeros((4, 3)), 0.1, 1.0); "
+        "w = SphereWorld(10); p = w.pairs(); import numpy as np; "
+        "s = DUAScheduler(p.tau(np.arange(len(p)), w.positions, w.velocities), dt=0.01); "
+        "s.step_points(p, w.positions, w.velocities); "
+        "print(time.perf_counter() - t0)"
+    )
+    rows = []
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        for label in ("cold (empty numba cache)", "cached (second process)"):
+            out = subprocess.run(
+                [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+            )
+            rows.append([label, f"{float(out.stdout.strip()):.2f} s"])
+    return table(["import + first tau + first DUA step", "time"], rows)
+
+
+def bench_core() -> str:
+    from dua_mujoco import DUAScheduler, SelectAllScheduler, SphereWorld, time_to_collision
+    from dua_mujoco.scheduler import _tau_pairs
+
+    rng = np.random.default_rng(0)
+    out = []
+    # tau, batch.
+    m = 2_000_000
+    x = rng.uniform(-1, 1, (m, 3))
+    v = rng.normal(0, 0.5, (m, 3))
+    time_to_collision(x[:10], v[:10], 0.06, 2.0, vel_uncertainty=0.002)
+    t = median_time(lambda: time_to_collision(x, v, 0.06, 2.0, vel_uncertainty=0.002), 7)
+    rows = [["`time_to_collision`, 2e6 random pairs, 2 threads", f"{m / t:.3g} /s"]]
+    t_a0 = median_time(lambda: time_to_collision(x, v, 0.06, 0.0), 7)
+    rows.append(["same, A = 0 (ray-sphere)", f"{m / t_a0:.3g} /s"])
+    out.append(table(["tau throughput", "evaluations per second"], rows))
+
+    # Scheduler at M ~ 1e6 pairs (N = 1415 spheres) and SA at 5e5 (N = 1000).
+    rows = []
+    for n in (1415,):
+        w = SphereWorld(n, seed=1, radius=0.005)
+        pairs = w.pairs()
+        ids = np.arange(len(pairs))
+        t_tau = median_time(lambda: pairs.tau(ids, w.positions, w.velocities), 5)
+        tau0 = pairs.tau(ids, w.positions, w.velocities)
+        t_cls = median_time(lambda: DUAScheduler(tau0, dt=0.01), 5)
+        rows.append([f"initial classification, M = {len(pairs):.3g}: tau of all pairs", f"{t_tau * 1e3:.0f} ms"])
+        rows.append([f"initial classification, M = {len(pairs):.3g}: bucketing (argpartition)", f"{t_cls * 1e3:.0f} ms"])
+        s = DUAScheduler(tau0, dt=0.01)
+
+        def fused() -> None:
+            s.step_points(pairs, w.positions, w.velocities)
+
+        def protocol() -> None:
+            sel = s.select()
+            s.update(sel, pairs.tau(sel, w.positions, w.velocities))
+
+        rows.append([f"fused DUA step (`step_points`), M = {len(pairs):.3g}", f"{median_time(fused, 2000, 50) * 1e6:.1f} us"])
+        rows.append([f"DUA step through `select`/`update`, M = {len(pairs):.3g}", f"{median_time(protocol, 2000, 50) * 1e6:.1f} us"])
+        rows.append(["evaluations per DUA step", str(s.evaluations_per_step)])
+    w = SphereWorld(1000, seed=2, radius=0.005)
+    pairs = w.pairs()
+    ids = np.arange(len(pairs))
+    sa = SelectAllScheduler(pairs.tau(ids, w.positions, w.velocities), dt=0.01)
+
+    def sa_step() -> None:
+        sel = sa.select()
+        sa.update(sel, _tau_pairs(sel, w.positions, w.velocities, np.zeros((1, 3)), np.zeros(1), pairs.first, pairs.second, pairs.halfspace, pairs.eps, pairs.accel, pairs.vel_uncertainty, pairs.speed))
+
+    rows.append([f"SA(tau) step, M = {len(pairs):.3g}", f"{median_time(sa_step, 15) * 1e3:.1f} ms"])
+    out.append(table(["scheduler", "median"], rows))
+    return "\n\n".join(out)
+
+
+def bench_scenes(steps: int = 2000) -> str:
+    from dua_mujoco.monitor import run
+    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.scenes import load_scene, make_controller
+
+    rows = []
+    for name in ("two_arms", "traffic", "clutter", "paper_world", "paper_world:200", "paper_world:1000"):
+        m, d = load_scene(name)
+        n_steps = steps if ":" not in name else 500
+        p = Predictor(
+            m, accel="auto", pilot_steps=1000, pilot_controller=make_controller(m, "random", seed=99)
+        )
+        r = run(m, d, p, steps=n_steps, controller=make_controller(m, "random", seed=0), scene=name, progress=False)
+        ratio = r.predictor_us_per_step / r.mj_step_us_per_step
+        rows.append(
+            [
+                name,
+                str(m.ngeom),
+                str(r.spheres),
+                str(r.pairs),
+                f"{r.evals_per_step:.1f}",
+                f"{r.pairs / r.evals_per_step:.0f}x",
+                f"{r.predictor_us_per_step:.1f}",
+                f"{r.mj_step_us_per_step:.1f}",
+                f"{100 * ratio:.0f} %",
+                f"{r.missed_onsets_valid_bounds}",
+            ]
+        )
+    header = [
+        "scene",
+        "geoms",
+        "spheres",
+        "pairs",
+        "tau evals/step",
+        "fewer than SA",
+        "predictor us/step",
+        "mj_step us/step",
+        "predictor / mj_step",
+        "valid-bound misses",
+    ]
+    return table(header, rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("what", nargs="*", default=["compile", "core", "scenes"])
+    args = parser.parse_args(argv)
+    for what in args.what:
+        print(f"## {what}\n")
+        print({"compile": bench_compile, "core": bench_core, "scenes": bench_scenes}[what]())
+        print()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,389 @@
+"""Regression helpers and a pytest plugin for users' own scenes.
+
+:func:`assert_no_missed_collisions` rolls a scene out with a :class:`~dua_mujoco.Predictor` and
+MuJoCo's contacts as the exact stage (:func:`dua_mujoco.monitor.run`) and fails, with the geoms and
+times, if a contact onset was not preceded by an alarm while the declared bounds held: that is a
+broken completeness guarantee, a bug. Optionally it holds the alarm counts to a stored baseline so
+that a change that floods the exact stage with false alarms fails too.
+
+The pytest plugin adds the function-scoped fixture ``dua_predict`` (the same callable, with
+relative baseline paths resolved against the test file's folder) and the option
+``--dua-update-baselines`` (write baselines instead of comparing). Enable it with
+``pytest -p dua_mujoco.testing``, ``pytest_plugins = ["dua_mujoco.testing"]`` in a top-level
+``conftest.py``, or through the package's ``pytest11`` entry point. See ``docs/testing.md``.
+
+The module imports MuJoCo and the compiled core lazily, so that loading the plugin costs nothing
+for test sessions that never use it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import warnings
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+import pytest
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from dua_mujoco.monitor import RunReport
+    from dua_mujoco.predictor import Predictor
+
+__all__ = [
+    "BASELINE_KEYS",
+    "DuaPredict",
+    "assert_no_missed_collisions",
+    "check_baseline",
+    "dua_predict",
+    "load_baseline",
+    "pytest_addoption",
+    "write_baseline",
+]
+
+BASELINE_KEYS = ("alarm_episodes", "false_alarm_episodes")
+"""The counts a baseline holds a run to (upper bounds, with a relative tolerance)."""
+
+UPDATE_OPTION = "--dua-update-baselines"
+
+# At most this many misses are spelled out in a failure message; the count is always given.
+_MAX_LISTED = 20
+
+Controller = Callable[["mujoco.MjModel", "mujoco.MjData"], None]
+BaselineLike = Mapping[str, Any] | str | os.PathLike[str]
+
+
+# --------------------------------------------------------------------------------------------------
+# Baselines.
+# --------------------------------------------------------------------------------------------------
+
+
+def load_baseline(baseline: BaselineLike) -> dict[str, Any]:
+    """Read a baseline from a dict or a JSON file.
+
+    Args:
+        baseline: A mapping, or the path of a JSON file written by :func:`write_baseline`.
+
+    Returns:
+        The baseline as a dict; it holds at least :data:`BASELINE_KEYS`.
+
+    Raises:
+        AssertionError: The file does not exist (the message says how to create it).
+        ValueError: The file is not valid JSON or a key is missing or not a count.
+    """
+    if isinstance(baseline, Mapping):
+        data = dict(baseline)
+        where = "the baseline dict"
+    else:
+        path = Path(baseline)
+        if not path.is_file():
+            # An AssertionError, not FileNotFoundError: in a test suite a missing baseline is a
+            # failing check with a fix, not a crash.
+            raise AssertionError(
+                f"no baseline at {str(path)!r}: run the test once with "
+                f"`pytest {UPDATE_OPTION}` (or call write_baseline(report, path)) to record it."
+            )
+        try:
+            data = json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"baseline {str(path)!r} is not valid JSON: {exc}") from None
+        where = repr(str(path))
+    for key in BASELINE_KEYS:
+        value = data.get(key)
+        if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
+            raise ValueError(
+                f"{where} needs a count {key!r} >= 0, got {value!r}; expected the keys "
+                f"{', '.join(BASELINE_KEYS)} (write it with write_baseline)."
+            )
+    return data
+
+
+def write_baseline(report: RunReport, path: str | os.PathLike[str]) -> Path:
+    """Store a run's alarm counts as a baseline (JSON), creating parent folders.
+
+    Besides :data:`BASELINE_KEYS` the file records the context of the run (scene, steps, pairs,
+    contact onsets) so that a reviewer can tell what changed when the file changes.
+
+    Args:
+        report: The run to record.
+        path: Where to write.
+
+    Returns:
+        The path written.
+    """
+    from dua_mujoco import __version__
+
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    content = {
+        "alarm_episodes": report.alarm_episodes,
+        "false_alarm_episodes": report.false_alarm_episodes,
+        "scene": report.scene,
+        "physics_steps": report.physics_steps,
+        "period": report.period,
+        "spheres": report.spheres,
+        "pairs": report.pairs,
+        "contact_onsets": report.contact_onsets,
+        "predicted_onsets": report.predicted_onsets,
+        "dua_mujoco_version": __version__,
+    }
+    out.write_text(json.dumps(content, indent=2) + "\n")
+    return out
+
+
+def check_baseline(
+    report: RunReport, baseline: BaselineLike, *, tolerance: float = 0.25
+) -> None:
+    """Assert a run's alarm counts are within ``(1 + tolerance)`` of a baseline.
+
+    A count above ``baseline * (1 + tolerance)`` fails: the predictor now sends more pairs to the
+    exact stage than before. A count below ``baseline / (1 + tolerance)`` only warns (the run got
+    better; update the baseline to lock the improvement in).
+
+    Args:
+        report: The run.
+        baseline: A dict or a JSON file with :data:`BASELINE_KEYS`.
+        tolerance: Relative slack (``>= 0``).
+
+    Raises:
+        AssertionError: A count exceeds its allowance, or the baseline file is missing.
+        ValueError: ``tolerance`` is negative or the baseline is malformed.
+    """
+    if not (math.isfinite(tolerance) and tolerance >= 0):
+        raise ValueError(f"tolerance = {tolerance!r} is invalid: it must be finite and >= 0.")
+    base = load_baseline(baseline)
+    where = "the baseline dict" if isinstance(baseline, Mapping) else repr(str(baseline))
+    worse, better = [], []
+    for key in BASELINE_KEYS:
+        got, ref = getattr(report, key), float(base[key])
+        if got > ref * (1.0 + tolerance):
+            worse.append(f"{key} = {got} > {ref:g} x {1.0 + tolerance:g} (baseline {ref:g})")
+        elif got < ref / (1.0 + tolerance):
+            better.append(f"{key} = {got} < baseline {ref:g} / {1.0 + tolerance:g}")
+    how = (
+        f"If the change is intended, update {where} with `pytest {UPDATE_OPTION}` "
+        "(dua_predict fixture) or write_baseline(report, path)."
+    )
+    if worse:
+        raise AssertionError(
+            f"{report.scene or 'scene'}: more alarms than the baseline allows: "
+            + "; ".join(worse)
+            + f". {how}"
+        )
+    if better:
+        warnings.warn(
+            f"{report.scene or 'scene'}: fewer alarms than the baseline: {'; '.join(better)}. "
+            + how,
+            UserWarning,
+            stacklevel=2,
+        )
+
+
+# --------------------------------------------------------------------------------------------------
+# The assertion.
+# --------------------------------------------------------------------------------------------------
+
+
+def _miss_message(report: RunReport) -> str:
+    valid = [m for m in report.misses if m.bounds_held]
+    lines = [
+        f"{report.scene or 'scene'}: {len(valid)} contact onset(s) were not preceded by an alarm "
+        f"although the declared bounds held ({report.contact_onsets} onsets, "
+        f"{report.predicted_onsets} predicted, {report.missed_onsets - len(valid)} missed after a "
+        "bound was broken):"
+    ]
+    for m in valid[:_MAX_LISTED]:
+        tau = "inf" if not math.isfinite(m.last_tau) else f"{m.last_tau:.4g} s"
+        lines.append(
+            f"  {m.geom1!r} / {m.geom2!r} at t = {m.time:.4f} s (physics step "
+            f"{m.physics_step}; last evaluated at predictor step {m.last_evaluation_step}, "
+            f"tau = {tau})"
+        )
+    if len(valid) > _MAX_LISTED:
+        lines.append(f"  ... and {len(valid) - _MAX_LISTED} more")
+    lines.append(
+        "This breaks the completeness guarantee: check the bounds passed to Predictor (accel, "
+        "speed, velocity_accel) and report a bug if they are right."
+    )
+    return "\n".join(lines)
+
+
+def _make_predictor(
+    model: mujoco.MjModel, predictor: Predictor | Mapping[str, Any] | None
+) -> Predictor:
+    from dua_mujoco.predictor import Predictor
+
+    if predictor is None:
+        return Predictor(model)
+    if isinstance(predictor, Mapping):
+        return Predictor(model, **dict(predictor))
+    if predictor.model is not model:
+        raise ValueError(
+            "the predictor was built for another MjModel: pass Predictor(model, ...) for this "
+            "model, or a dict of Predictor keyword arguments."
+        )
+    return predictor
+
+
+def assert_no_missed_collisions(
+    model: mujoco.MjModel,
+    data: mujoco.MjData | None = None,
+    *,
+    steps: int,
+    controller: Controller | None = None,
+    predictor: Predictor | Mapping[str, Any] | None = None,
+    baseline: BaselineLike | None = None,
+    tolerance: float = 0.25,
+    scene: str = "",
+) -> RunReport:
+    """Roll a scene out with the predictor and assert no collision was missed.
+
+    Runs :func:`dua_mujoco.monitor.run` for ``steps`` physics steps and fails if
+
+    * a contact onset was not preceded by a standing alarm while the bounds held
+      (``missed_onsets_valid_bounds > 0``): the message lists the geom pairs and times;
+    * MuJoCo reported a contact outside the predictor's active pairs
+      (``unfiltered_contacts > 0``): the pair filter disagrees with MuJoCo, so no alarm could
+      ever cover that contact;
+    * ``baseline`` is given and an alarm count exceeds it by more than ``tolerance``
+      (:func:`check_baseline`).
+
+    Misses after a bound was broken are reported in the message but do not fail: the guarantee
+    does not apply there (declare larger bounds if they matter).
+
+    Args:
+        model: The model.
+        data: Its data at the start state; None for a fresh ``MjData`` at the first keyframe (or
+            the model defaults), after ``mj_forward``. It is advanced in place.
+        steps: Physics steps to roll out.
+        controller: ``controller(model, data)`` called before every ``mj_step``; None for
+            :func:`dua_mujoco.scenes.make_controller` random held controls with seed 0 (a
+            regression needs motion; pass ``make_controller(model, "zero")`` for none).
+        predictor: A ``Predictor`` for ``model``, a dict of ``Predictor`` keyword arguments, or
+            None for ``Predictor(model)`` (bounds from a pilot rollout).
+        baseline: A dict or JSON file path with :data:`BASELINE_KEYS` to compare the alarm counts
+            with; None to skip the comparison.
+        tolerance: Relative slack of the baseline comparison.
+        scene: Name used in messages and the report (default ``model``'s name).
+
+    Returns:
+        The run's :class:`~dua_mujoco.monitor.RunReport`.
+
+    Raises:
+        AssertionError: A missed collision, an unfiltered contact, or a baseline regression.
+    """
+    import mujoco
+
+    from dua_mujoco.monitor import run
+    from dua_mujoco.scenes import make_controller, reset_to_keyframe
+
+    if data is None:
+        data = mujoco.MjData(model)
+        reset_to_keyframe(model, data)
+    if controller is None:
+        controller = make_controller(model, "random", seed=0)
+    pred = _make_predictor(model, predictor)
+    name = scene or (model.names[: model.names.find(b"\0")].decode() if model.names else "")
+    report = run(
+        model, data, pred, steps=steps, controller=controller, scene=name, progress=False
+    )
+    if report.missed_onsets_valid_bounds:
+        raise AssertionError(_miss_message(report))
+    if report.unfiltered_contacts:
+        raise AssertionError(
+            f"{report.scene or 'scene'}: {report.unfiltered_contacts} MuJoCo contact(s) lie "
+            "outside the predictor's active pairs, so no alarm could cover them: the pair filter "
+            "disagrees with MuJoCo's (report a bug with the model)."
+        )
+    if baseline is not None:
+        check_baseline(report, baseline, tolerance=tolerance)
+    return report
+
+
+# --------------------------------------------------------------------------------------------------
+# pytest plugin.
+# --------------------------------------------------------------------------------------------------
+
+
+class DuaPredict(Protocol):
+    """The callable the ``dua_predict`` fixture returns (see :func:`assert_no_missed_collisions`)."""
+
+    def __call__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData | None = None,
+        *,
+        steps: int,
+        controller: Controller | None = None,
+        predictor: Predictor | Mapping[str, Any] | None = None,
+        baseline: BaselineLike | None = None,
+        tolerance: float = 0.25,
+        scene: str = "",
+    ) -> RunReport: ...
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    """Register ``--dua-update-baselines``."""
+    group = parser.getgroup("dua_mujoco", "dua_mujoco collision-prediction regressions")
+    group.addoption(
+        UPDATE_OPTION,
+        action="store_true",
+        default=False,
+        help="dua_predict: write the alarm-count baselines (JSON files) instead of comparing",
+    )
+
+
+@pytest.fixture
+def dua_predict(request: pytest.FixtureRequest) -> DuaPredict:
+    """Assert that a scene's rollout misses no collision (and matches its alarm baseline).
+
+    Returns a callable with the signature of :func:`assert_no_missed_collisions`. A relative
+    ``baseline`` path is resolved against the folder of the test file. With
+    ``--dua-update-baselines``, path baselines are written from the run instead of compared (the
+    no-missed-collision check still applies). Each call records the run's counts in the test's
+    ``user_properties`` (shown in JUnit XML reports).
+    """
+    # getoption's default covers a plugin registered after the command line was parsed (e.g.
+    # through pytest_plugins in a test module), where the option itself does not exist.
+    update = bool(request.config.getoption(UPDATE_OPTION, default=False))
+    folder = Path(str(request.path)).parent
+
+    def predict(
+        model: mujoco.MjModel,
+        data: mujoco.MjData | None = None,
+        *,
+        steps: int,
+        controller: Controller | None = None,
+        predictor: Predictor | Mapping[str, Any] | None = None,
+        baseline: BaselineLike | None = None,
+        tolerance: float = 0.25,
+        scene: str = "",
+    ) -> RunReport:
+        target: Path | None = None
+        if baseline is not None and not isinstance(baseline, Mapping):
+            target = Path(baseline)
+            if not target.is_absolute():
+                target = folder / target
+            baseline = target
+        compare = None if (update and target is not None) else baseline
+        report = assert_no_missed_collisions(
+            model,
+            data,
+            steps=steps,
+            controller=controller,
+            predictor=predictor,
+            baseline=compare,
+            tolerance=tolerance,
+            scene=scene,
+        )
+        if update and target is not None:
+            write_baseline(report, target)
+        for key in ("contact_onsets", "predicted_onsets", *BASELINE_KEYS):
+            request.node.user_properties.append((f"dua_{key}", getattr(report, key)))
+        return report
+
+    return predict

@@ -1,0 +1,846 @@
+"""Tests of ``Predictor``: kernel velocities, protocol errors, O(log pairs) work, regressions.
+
+The regressions roll out the bundled scenes and scenes written by others (gymnasium's and
+dm-control's MJCF) with random controls, and check the completeness claim against MuJoCo's own
+contacts: no contact onset may go unpredicted while the bounds held, and every MuJoCo contact must
+lie in an active pair (otherwise the pair filter disagrees with MuJoCo and nothing could predict
+it).
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import json
+import math
+import os
+import subprocess
+import sys
+import textwrap
+from collections.abc import Callable
+from pathlib import Path
+
+import mujoco
+import numba
+import numpy as np
+import pytest
+
+from dua_mujoco.cli import main
+from dua_mujoco.exceptions import (
+    InvalidBoundError,
+    InvalidChoiceError,
+    InvalidInputError,
+    NonFiniteStateError,
+    SchedulerError,
+    UnsupportedGeomError,
+)
+from dua_mujoco.monitor import Monitor, RunReport, run
+from dua_mujoco.predictor import Predictor
+from dua_mujoco.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.scheduler import _rigid_point
+
+REPO = Path(__file__).resolve().parent.parent
+
+# --------------------------------------------------------------------------------------------------
+# Velocity correctness of the fused kernel.
+# --------------------------------------------------------------------------------------------------
+
+# Every joint type, a nested chain (free -> hinge -> ball -> slide), a hinge/slide chain rooted at
+# the world, static geoms, and a mocap body carrying a hinged child. Geoms are off their body
+# frames and rotated, inertials are off-centre, so that geom frame, body frame, COM and subtree
+# COM all differ and a wrong reference point shows up as a wrong velocity.
+KINEMATIC_XML = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="3 3 .1"/>
+    <geom name="post" type="box" size=".1 .1 .3" pos="1 1 .3" euler="0 0 20"/>
+    <body name="free" pos="0 0 1" euler="10 20 30">
+      <freejoint/>
+      <inertial pos=".03 .01 -.02" mass="1" diaginertia=".01 .02 .03"/>
+      <geom name="free_cap" type="capsule" fromto="-.1 0 0 .15 .05 .02" size=".04"/>
+      <geom name="free_box" type="box" size=".08 .04 .06" pos=".05 .1 0" euler="15 -20 40"/>
+      <body name="hinge" pos=".2 .05 0" euler="0 30 0">
+        <joint name="j_hinge" type="hinge" axis=".3 1 .2" pos="-.05 0 0"/>
+        <geom name="hinge_cap" type="capsule" fromto="0 0 0 .2 .05 -.03" size=".03"/>
+        <body name="ball" pos=".22 .05 -.03">
+          <joint name="j_ball" type="ball" pos=".01 0 .02"/>
+          <geom name="ball_box" type="box" size=".06 .03 .05" pos=".06 0 0" euler="5 10 15"/>
+          <body name="slide" pos=".1 0 0">
+            <joint name="j_slide" type="slide" axis="1 .4 -.2"/>
+            <geom name="slide_cap" type="capsule" fromto="0 0 0 .1 0 .05" size=".02"/>
+          </body>
+        </body>
+      </body>
+    </body>
+    <body name="arm" pos="-1 0 .5" euler="0 10 0">
+      <joint name="j_arm" type="hinge" axis="0 .2 1" pos=".02 0 0"/>
+      <geom name="arm_cap" type="capsule" fromto="0 0 0 .3 0 0" size=".03"/>
+      <body name="arm_tip" pos=".3 0 0">
+        <joint name="j_tip" type="slide" axis="1 0 .3"/>
+        <geom name="tip_box" type="box" size=".05 .03 .04" pos=".02 0 0" euler="0 0 30"/>
+      </body>
+    </body>
+    <body name="mocap" mocap="true" pos="1 -1 .5" euler="0 0 15">
+      <geom name="mocap_box" type="box" size=".1 .05 .05" pos=".05 0 .02" euler="10 0 0"/>
+      <body name="mchild" pos=".2 0 0">
+        <joint name="j_mchild" type="hinge" axis="0 1 .3"/>
+        <geom name="mchild_cap" type="capsule" fromto="0 0 0 .15 0 .02" size=".02"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@numba.njit(cache=False)
+def _kernel_points(
+    sphere_geom, sphere_body, sphere_offset, geom_xpos, geom_xmat, cvel, subtree_com, rootid,
+    root_twist, xpos,
+):  # pragma: no cover - jitted
+    """Centre and velocity of every sphere through the fused step's own ``_rigid_point``."""
+    n = sphere_geom.shape[0]
+    c = np.empty((n, 3))
+    v = np.empty((n, 3))
+    for i in range(n):
+        ci, vi = _rigid_point(
+            i, sphere_geom, sphere_body, sphere_offset, geom_xpos, geom_xmat, cvel, subtree_com,
+            rootid, root_twist, xpos,
+        )
+        c[i] = ci
+        v[i] = vi
+    return c, v
+
+
+def kernel_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    """Call the jitted kernel exactly as ``Predictor.step`` feeds it (without advancing)."""
+    cov = p.covering
+    twist = (
+        p._mocap.body_velocity(p.model.nbody) if p._mocap is not None else np.zeros((p.model.nbody, 6))
+    )
+    return _kernel_points(
+        np.ascontiguousarray(cov.sphere_geom, dtype=np.int64),
+        np.ascontiguousarray(cov.sphere_body, dtype=np.int64),
+        np.ascontiguousarray(cov.sphere_offset, dtype=np.float64),
+        d.geom_xpos,
+        d.geom_xmat,
+        d.cvel,
+        d.subtree_com,
+        np.ascontiguousarray(p.model.body_rootid, dtype=np.int64),
+        np.ascontiguousarray(twist),
+        d.xpos,
+    )
+
+
+def _rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
+    out = np.zeros(3)
+    mujoco.mju_rotVecQuat(out, np.asarray(vec, dtype=np.float64), np.asarray(quat, dtype=np.float64))
+    return out
+
+
+@pytest.fixture(scope="module")
+def site_model() -> mujoco.MjModel:
+    """The kinematic model with a site at every sphere centre of its multi-sphere covering.
+
+    Sites are added in the body frame at ``geom_pos + R(geom_quat) offset``; adding sites does not
+    change the geoms, so the covering of the site model is the same (checked).
+    """
+    m0 = mujoco.MjModel.from_xml_string(KINEMATIC_XML)
+    p0 = Predictor(m0, accel=1.0, covering="multi")
+    cov = p0.covering
+    spec = mujoco.MjSpec.from_string(KINEMATIC_XML)
+    for i in range(cov.nsphere):
+        g = int(cov.sphere_geom[i])
+        body = spec.body(m0.body(int(m0.geom_bodyid[g])).name)
+        pos = m0.geom_pos[g] + _rotate(m0.geom_quat[g], cov.sphere_offset[i])
+        body.add_site(name=f"s{i}", pos=pos, size=[0.005, 0, 0])
+    m = spec.compile()
+    p = Predictor(m, accel=1.0, covering="multi")
+    np.testing.assert_array_equal(p.covering.sphere_geom, cov.sphere_geom)
+    np.testing.assert_allclose(p.covering.sphere_offset, cov.sphere_offset)
+    # The point of "multi": offsets are non-zero, so the rotation part of the velocity matters.
+    assert (np.linalg.norm(cov.sphere_offset, axis=1) > 1e-3).sum() >= cov.nsphere // 2
+    assert cov.nsphere > m.ngeom
+    return m
+
+
+@pytest.fixture
+def site_predictor(site_model) -> tuple[mujoco.MjModel, Predictor]:
+    """A fresh predictor per test: it holds state (scheduler, mocap tracker)."""
+    return site_model, Predictor(site_model, accel=1.0, covering="multi")
+
+
+def _random_state(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator) -> None:
+    """Random positions (unit quaternions for free and ball joints) and velocities."""
+    for j in range(m.njnt):
+        adr = int(m.jnt_qposadr[j])
+        kind = int(m.jnt_type[j])
+        if kind == int(mujoco.mjtJoint.mjJNT_FREE):
+            d.qpos[adr : adr + 3] = rng.uniform(-1, 1, 3)
+            q = rng.normal(size=4)
+            d.qpos[adr + 3 : adr + 7] = q / np.linalg.norm(q)
+        elif kind == int(mujoco.mjtJoint.mjJNT_BALL):
+            q = rng.normal(size=4)
+            d.qpos[adr : adr + 4] = q / np.linalg.norm(q)
+        else:
+            d.qpos[adr] = rng.uniform(-2, 2)
+    d.qvel[:] = rng.normal(scale=2.0, size=m.nv)
+
+
+def _site_reference(m: mujoco.MjModel, d: mujoco.MjData, nsphere: int) -> tuple[np.ndarray, np.ndarray]:
+    """Site positions and ``mj_objectVelocity`` (world frame, flg_local=0) linear velocities."""
+    c = np.empty((nsphere, 3))
+    v = np.empty((nsphere, 3))
+    res = np.zeros(6)
+    for i in range(nsphere):
+        sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"s{i}")
+        c[i] = d.site_xpos[sid]
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, sid, res, 0)
+        v[i] = res[3:]
+    return c, v
+
+
+def test_kernel_matches_mj_object_velocity_at_random_states(site_predictor) -> None:
+    m, p = site_predictor
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(7)
+    for _ in range(25):
+        _random_state(m, d, rng)
+        mujoco.mj_forward(m, d)
+        c_ref, v_ref = _site_reference(m, d, p.nsphere)
+        c_k, v_k = kernel_states(p, d)
+        c_s, v_s = p.sphere_states(d)
+        scale = 1.0 + np.abs(v_ref).max()
+        for c, v in ((c_k, v_k), (c_s, v_s)):
+            np.testing.assert_allclose(c, c_ref, atol=1e-12)
+            np.testing.assert_allclose(v, v_ref, atol=1e-10 * scale)
+        # The chain really moves (a zero-velocity comparison would prove nothing).
+        assert np.linalg.norm(v_ref, axis=1).max() > 0.5
+
+
+def test_fused_step_tau_matches_vectorised_tau(site_predictor) -> None:
+    """The fused ``step`` computes the same tau as ``pairs.tau`` on ``sphere_states``."""
+    m, p = site_predictor
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(3)
+    _random_state(m, d, rng)
+    mujoco.mj_forward(m, d)
+    p.reset(d)
+    sched = p.scheduler
+    assert sched is not None
+    for _ in range(20):
+        _random_state(m, d, rng)
+        d.time += p.dt
+        mujoco.mj_forward(m, d)
+        p.step(d)
+        ids = sched.last_selected
+        assert ids.size > 0
+        c, v = p.sphere_states(d)
+        expected = p.pairs.tau(ids, c, v, p.halfspaces(d))
+        np.testing.assert_allclose(sched.last_tau[ids], expected, rtol=1e-12, atol=1e-15)
+
+
+def _quat_exp(omega_t: np.ndarray) -> np.ndarray:
+    q = np.zeros(4)
+    mujoco.mju_axisAngle2Quat(q, omega_t / max(np.linalg.norm(omega_t), 1e-300), np.linalg.norm(omega_t))
+    return q
+
+
+@pytest.mark.parametrize("path", ["screw", "circle"])
+def test_mocap_velocity_from_differenced_path(site_predictor, path: str) -> None:
+    """Mocap body moved along a scripted path; ``step`` each step so the tracker differences.
+
+    ``screw``: constant linear and angular velocity, so backward differences are exact.
+    ``circle``: a horizontal circle, where the difference is the mean velocity over the last step;
+    the predictor's discrete-time term assumes it is within ``A h / 2`` of the velocity at the
+    instant, with ``A = r w^2``: checked here.
+    """
+    m, p = site_predictor
+    d = mujoco.MjData(m)
+    scratch = mujoco.MjData(m)
+    h = m.opt.timestep
+    mocap_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "mocap")
+    in_mocap_tree = np.asarray(m.body_rootid)[p.covering.sphere_body] == mocap_body
+    hinge_adr = int(m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "j_mchild")])
+    hinge_dof = int(m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "j_mchild")])
+    p0 = np.array(m.body_pos[mocap_body])
+    q0 = np.array(m.body_quat[mocap_body])
+    v_lin, omega, theta_dot = np.array([0.7, -0.4, 0.3]), np.array([0.5, 1.5, -2.0]), 1.3
+    radius, w = 0.2, 2.0 * math.pi / 1.5
+
+    def pose(t: float) -> tuple[np.ndarray, np.ndarray]:
+        if path == "screw":
+            q = np.zeros(4)
+            mujoco.mju_mulQuat(q, _quat_exp(omega * t), q0)
+            return p0 + v_lin * t, q
+        return p0 + radius * np.array([math.cos(w * t) - 1, math.sin(w * t), 0.0]), q0
+
+    def place(dd: mujoco.MjData, t: float) -> None:
+        pos, quat = pose(t)
+        dd.mocap_pos[0], dd.mocap_quat[0] = pos, quat
+        dd.qpos[hinge_adr] = 0.3 + theta_dot * t
+        dd.qvel[hinge_dof] = theta_dot
+        dd.time = t
+        mujoco.mj_forward(m, dd)
+
+    rng = np.random.default_rng(11)
+    _random_state(m, d, rng)
+    tol = 1e-7 if path == "screw" else radius * w**2 * h / 2 + 1e-9
+    errors = []
+    for k in range(40):
+        place(d, k * h)
+        if k == 0:
+            p.reset(d)
+            continue
+        p.step(d)
+        # Independent reference: central differences of the site positions along the script.
+        scratch.qpos[:] = d.qpos
+        e = 1e-6
+        place(scratch, k * h + e)
+        c_plus, _ = _site_reference(m, scratch, p.nsphere)
+        scratch.qpos[:] = d.qpos
+        place(scratch, k * h - e)
+        c_minus, _ = _site_reference(m, scratch, p.nsphere)
+        v_ref = (c_plus - c_minus) / (2 * e)
+        c_ref, v_obj = _site_reference(m, d, p.nsphere)
+        c_k, v_k = kernel_states(p, d)
+        c_s, v_s = p.sphere_states(d)
+        np.testing.assert_allclose(c_k, c_ref, atol=1e-12)
+        np.testing.assert_allclose(c_s, c_ref, atol=1e-12)
+        # Spheres outside the mocap tree: mj_objectVelocity is the truth there.
+        np.testing.assert_allclose(v_k[~in_mocap_tree], v_obj[~in_mocap_tree], atol=1e-9)
+        errors.append(np.abs(v_k[in_mocap_tree] - v_ref[in_mocap_tree]).max())
+        np.testing.assert_allclose(v_s[in_mocap_tree], v_k[in_mocap_tree], atol=1e-12)
+    assert in_mocap_tree.sum() >= 2
+    assert max(errors) <= tol, f"mocap velocity error {max(errors):.3g} > {tol:.3g}"
+
+
+MOCAP_XML = """
+<mujoco>
+  <worldbody>
+    <body name="m" mocap="true"><geom name="gm" size=".1"/></body>
+    <body name="b" pos="1 0 0"><freejoint/><geom name="gb" size=".1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_reset_restarts_mocap_differencing() -> None:
+    """A predictor reused for a second episode (time back to 0) must not keep stale mocap state.
+
+    ``reset`` is the start of a new trajectory: the mocap velocity must be differenced within the
+    new episode only, never against a pose of the previous one.
+    """
+    m = mujoco.MjModel.from_xml_string(MOCAP_XML)
+    h = m.opt.timestep
+    p = Predictor(m, accel=1.0)
+    seen = []
+    for speed, n in ((0.5, 5), (-0.3, 8)):
+        d = mujoco.MjData(m)
+        for k in range(n):
+            d.mocap_pos[0] = [speed * k * h, 0.0, 0.0]
+            d.time = k * h
+            mujoco.mj_forward(m, d)
+            if k == 0:
+                p.reset(d)
+                continue
+            p.step(d)
+            seen.append((speed, k, float(p.sphere_states(d)[1][0, 0])))
+    wrong = [(s, k, v) for s, k, v in seen if abs(v - s) > 1e-9]
+    assert not wrong, f"(episode speed, step, predictor's mocap velocity): {wrong}"
+
+
+# --------------------------------------------------------------------------------------------------
+# Predictor protocol and input errors.
+# --------------------------------------------------------------------------------------------------
+
+TWO_BODIES_XML = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 .1"/>
+    <body name="a" pos="0 0 1"><freejoint/><geom name="ga" type="capsule" size=".05 .1"/></body>
+    <body name="b" pos=".5 0 1"><freejoint/><geom name="gb" type="box" size=".1 .1 .1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.fixture
+def two_bodies() -> tuple[mujoco.MjModel, mujoco.MjData]:
+    m = mujoco.MjModel.from_xml_string(TWO_BODIES_XML)
+    d = mujoco.MjData(m)
+    mujoco.mj_step(m, d)
+    return m, d
+
+
+def test_step_before_reset(two_bodies) -> None:
+    m, d = two_bodies
+    p = Predictor(m, accel=10.0)
+    with pytest.raises(SchedulerError, match="reset"):
+        p.step(d)
+
+
+@pytest.mark.parametrize("steps", [1, 3])
+def test_step_after_wrong_number_of_physics_steps(two_bodies, steps: int) -> None:
+    m, d = two_bodies
+    p = Predictor(m, accel=10.0, period=2)
+    p.reset(d)
+    for _ in range(steps):
+        mujoco.mj_step(m, d)
+    with pytest.raises(SchedulerError, match=r"period") as info:
+        p.step(d)
+    assert "period=2" in str(info.value)
+
+
+def test_step_at_the_right_period_is_accepted(two_bodies) -> None:
+    m, d = two_bodies
+    p = Predictor(m, accel=10.0, period=3)
+    p.reset(d)
+    for _ in range(4):
+        for _ in range(3):
+            mujoco.mj_step(m, d)
+        p.step(d)
+    assert p.scheduler is not None and p.scheduler.step_count == 4
+
+
+def test_nan_state_on_reset_names_the_geom(two_bodies) -> None:
+    m, d = two_bodies
+    p = Predictor(m, accel=10.0)
+    d.qpos[0] = np.nan
+    mujoco.mj_forward(m, d)
+    with pytest.raises(NonFiniteStateError, match="'ga'"):
+        p.reset(d)
+
+
+def test_nan_state_on_step_names_a_geom(two_bodies) -> None:
+    m, d = two_bodies
+    p = Predictor(m, accel=10.0)
+    p.reset(d)
+    d.qpos[0] = np.nan
+    d.time += p.dt
+    mujoco.mj_forward(m, d)
+    # Every pair of this model involves 'ga' or 'gb', so the scheduled pairs see the NaN.
+    with pytest.raises(NonFiniteStateError, match="'ga'"):
+        p.step(d)
+
+
+def test_wrong_mjdata_on_reset(two_bodies) -> None:
+    m, _ = two_bodies
+    p = Predictor(m, accel=10.0)
+    other = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>"
+    )
+    od = mujoco.MjData(other)
+    mujoco.mj_forward(other, od)
+    with pytest.raises(InvalidInputError, match="MjData of this predictor's model"):
+        p.reset(od)
+
+
+def test_wrong_mjdata_on_step() -> None:
+    """``step`` with the MjData of another (smaller) model must refuse it.
+
+    Run in a subprocess: without the check the jitted kernel reads past the end of MjData's
+    arrays (numba does no bounds checks), which could crash the interpreter.
+    """
+    code = textwrap.dedent(
+        """
+        import mujoco
+        from dua_mujoco.exceptions import InvalidInputError
+        from dua_mujoco.predictor import Predictor
+        from dua_mujoco.scenes import load_scene
+        m, d = load_scene("paper_world:30")
+        other = mujoco.MjModel.from_xml_string(
+            "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>")
+        od = mujoco.MjData(other)
+        p = Predictor(m, accel=2.0)
+        mujoco.mj_step(m, d)
+        p.reset(d)
+        od.time = d.time + m.opt.timestep
+        mujoco.mj_forward(other, od)
+        try:
+            p.step(od)
+        except InvalidInputError as exc:
+            print("REFUSED", exc)
+        else:
+            print("ACCEPTED")
+        """
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=_env(), timeout=120
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "REFUSED" in out.stdout, (
+        "Predictor.step accepted the MjData of another model and returned alarms computed from "
+        "out-of-bounds memory; it should raise InvalidInputError like reset() does. "
+        f"stdout: {out.stdout.strip()}"
+    )
+
+
+def test_bad_accel_key_lists_body_names(two_bodies) -> None:
+    m, _ = two_bodies
+    with pytest.raises(InvalidChoiceError) as info:
+        Predictor(m, accel={"nope": 1.0, "*": 2.0})
+    msg = str(info.value)
+    assert "'nope'" in msg
+    for name in ("'a'", "'b'", "'*'"):
+        assert name in msg
+
+
+@pytest.mark.parametrize("accel", [-1.0, {"a": -1.0, "*": 1.0}, float("nan")])
+def test_negative_accel(two_bodies, accel) -> None:
+    m, _ = two_bodies
+    with pytest.raises(InvalidBoundError):
+        Predictor(m, accel=accel)
+
+
+HFIELD_XML = """
+<mujoco>
+  <asset><hfield name="terrain" nrow="10" ncol="10" size="1 1 .2 .1"/></asset>
+  <worldbody>
+    <geom name="ground" type="hfield" hfield="terrain"/>
+    <body name="a" pos="0 0 1"><freejoint/><geom name="ga" type="sphere" size=".05"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_hfield_needs_the_box_fallback() -> None:
+    m = mujoco.MjModel.from_xml_string(HFIELD_XML)
+    with pytest.raises(UnsupportedGeomError) as info:
+        Predictor(m, accel=1.0)
+    msg = str(info.value)
+    assert "'ground'" in msg
+    assert 'hfield="box"' in msg
+    assert Predictor(m, accel=1.0, hfield="box").npairs == 1
+
+
+# --------------------------------------------------------------------------------------------------
+# O(log pairs) work per step.
+# --------------------------------------------------------------------------------------------------
+
+
+def test_log_pairs_evaluations_on_paper_world_200() -> None:
+    m, d = load_scene("paper_world:200")
+    bound = declared_accel_bound(m)
+    assert bound is not None
+    p = Predictor(m, accel=bound)
+    ctrl = make_controller(m, "random", seed=5)
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    limit = math.ceil(math.log2(p.npairs + 1))
+    assert p.npairs > 20_000
+    assert p.evaluations_per_step <= limit
+    sched = p.scheduler
+    assert sched is not None
+    counts = []
+    for _ in range(300):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        p.step(d)
+        counts.append(sched.last_selected.size)
+    assert max(counts) <= limit
+    assert min(counts) >= limit - 1  # only the partly empty last bucket may skip a slot
+
+
+# --------------------------------------------------------------------------------------------------
+# Regression: bundled scenes.
+# --------------------------------------------------------------------------------------------------
+
+
+def _summary(name: str, r: RunReport) -> str:
+    return (
+        f"{name}: onsets {r.contact_onsets} predicted {r.predicted_onsets} missed "
+        f"{r.missed_onsets} (valid bounds {r.missed_onsets_valid_bounds}) unfiltered "
+        f"{r.unfiltered_contacts} alarm episodes {r.alarm_episodes} false {r.false_alarm_episodes} "
+        f"pairs {r.pairs} evals/step {r.evals_per_step:.1f} bound violations {r.bound_violations}"
+    )
+
+
+def _assert_complete(name: str, r: RunReport) -> None:
+    print(_summary(name, r))
+    misses = [m for m in r.misses if m.bounds_held]
+    assert r.missed_onsets_valid_bounds == 0, f"{name}: valid-bounds misses {misses[:5]}"
+    assert r.unfiltered_contacts == 0, f"{name}: MuJoCo contacts outside the active pairs"
+    assert r.predicted_onsets + r.missed_onsets == r.contact_onsets
+
+
+BUNDLED = [
+    *((s, "bounding", 1) for s in ("two_arms", "traffic", "clutter", "paper_world:40")),
+    *((s, "bounding", 4) for s in ("two_arms", "traffic", "clutter", "paper_world:40")),
+    # The multi covering multiplies the pairs (12k on two_arms, 29k on traffic): two scenes.
+    *((s, "multi", p) for s in ("two_arms", "traffic") for p in (1, 4)),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("scene", "covering", "period"), BUNDLED)
+def test_bundled_scene_regression(scene: str, covering: str, period: int) -> None:
+    m, d = load_scene(scene)
+    p = Predictor(
+        m,
+        accel="auto",
+        covering=covering,
+        period=period,
+        pilot_controller=make_controller(m, "random", seed=99),
+    )
+    r = run(m, d, p, steps=2000, controller=make_controller(m, "random", seed=0), progress=False)
+    _assert_complete(f"{scene}/{covering}/{period}", r)
+    assert r.contact_onsets > 0
+    assert r.predictor_steps == 2000 // period
+    assert r.evals_per_step <= math.ceil(math.log2(r.pairs + 1))
+
+
+# --------------------------------------------------------------------------------------------------
+# Regression: scenes written by others.
+# --------------------------------------------------------------------------------------------------
+
+
+def _external_scenes() -> list[tuple[str, str]]:
+    gym = importlib.resources.files("gymnasium") / "envs/mujoco/assets"
+    out = [
+        (f"gym/{name[:-4]}", str(gym / name))
+        for name in sorted(os.listdir(str(gym)))
+        if name.endswith(".xml")
+    ]
+    import dm_control
+
+    suite = Path(dm_control.__file__).parent / "suite"
+    out += [(f"dmc/{f.stem}", str(f)) for f in sorted(suite.glob("*.xml"))]
+    return out
+
+
+EXTERNAL = _external_scenes()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "path"), EXTERNAL, ids=[n for n, _ in EXTERNAL])
+def test_external_scene_regression(name: str, path: str) -> None:
+    try:
+        m = mujoco.MjModel.from_xml_path(path)
+    except ValueError as exc:
+        # Only a model MuJoCo itself cannot load is skipped, and the reason is printed.
+        print(f"{name}: MuJoCo cannot load it: {exc}")
+        pytest.skip(f"MuJoCo cannot load {path}: {exc}")
+    d = mujoco.MjData(m)
+    if m.nkey:
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+    mujoco.mj_forward(m, d)
+    p = Predictor(
+        m,
+        accel="auto",
+        hfield="box",  # dm-control's quadruped has a height field
+        pilot_steps=1000,
+        pilot_controller=make_controller(m, "random", seed=99, hold_steps=20),
+    )
+    ctrl = make_controller(m, "random", seed=0, hold_steps=20)
+    r = run(m, d, p, steps=1000, controller=ctrl, progress=False, scene=name)
+    _assert_complete(name, r)
+
+
+# --------------------------------------------------------------------------------------------------
+# Intended contact (paper sec. 6.3).
+# --------------------------------------------------------------------------------------------------
+
+HEAD_ON_XML = """
+<mujoco>
+  <option gravity="0 0 0"/>
+  <worldbody>
+    <body name="a" pos="-.5 0 0"><freejoint/><geom name="ga" size=".1"/></body>
+    <body name="b" pos=".5 0 0"><freejoint/><geom name="gb" size=".1"/></body>
+    <body name="c" pos="0 2 0"><freejoint/><geom name="gc" size=".1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _head_on(
+    on_step: Callable[[int, mujoco.MjData, object, Monitor], None] | None,
+) -> tuple[Predictor, RunReport]:
+    """Spheres a and b close at 2 m/s and touch at t = 0.4 s; c stays away."""
+    m = mujoco.MjModel.from_xml_string(HEAD_ON_XML)
+    d = mujoco.MjData(m)
+    d.qvel[0], d.qvel[6] = 1.0, -1.0
+    mujoco.mj_forward(m, d)
+    # Out of contact nothing accelerates; 1 m/s^2 is a valid bound.
+    p = Predictor(m, accel=1.0)
+    return p, run(m, d, p, steps=400, progress=False, on_step=on_step)
+
+
+def test_contact_between_switched_off_bodies_is_not_a_miss() -> None:
+    def switch_off(k: int, d: mujoco.MjData, alarms: object, mon: Monitor) -> None:
+        if k == 1:
+            assert mon.predictor.set_active_bodies("a", "b", on=False) == 1
+
+    _, r = _head_on(switch_off)
+    assert r.inactive_pair_contacts >= 1
+    assert r.contact_onsets == 0
+    assert r.missed_onsets == 0
+
+
+def test_contact_in_active_pair_is_predicted() -> None:
+    _, r = _head_on(None)
+    assert r.contact_onsets >= 1
+    assert r.predicted_onsets == r.contact_onsets
+    assert r.inactive_pair_contacts == 0
+
+
+def test_switched_back_on_pair_is_predicted() -> None:
+    def toggle(k: int, d: mujoco.MjData, alarms: object, mon: Monitor) -> None:
+        if k == 1:
+            mon.predictor.set_active_bodies("a", "b", on=False)
+        elif k == 100:  # 0.2 s before the contact
+            mon.predictor.set_active_bodies("a", "b", on=True)
+
+    _, r = _head_on(toggle)
+    assert r.contact_onsets >= 1
+    assert r.predicted_onsets == r.contact_onsets
+    assert r.inactive_pair_contacts == 0
+
+
+RESTING_XML = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 .1"/>
+    <body name="box" pos="0 0 .1"><freejoint/><geom name="gbox" type="box" size=".1 .1 .1"/></body>
+    <body name="ball" pos="1 0 1.5"><freejoint/><geom name="gball" size=".05"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_deactivate_contacts_switches_off_resting_contact() -> None:
+    m = mujoco.MjModel.from_xml_string(RESTING_XML)
+    d = mujoco.MjData(m)
+    for _ in range(50):  # let the box settle; the ball is still falling
+        mujoco.mj_step(m, d)
+    assert d.ncon > 0
+    p = Predictor(m, accel=12.0)  # gravity, out of contact
+    mon = Monitor(p)
+    mon.start(d)
+    assert p.deactivate_contacts(d) == 1
+    box_floor = p.set_active_bodies("box", "world", on=False)  # same pairs: already off
+    sched = p.scheduler
+    assert sched is not None
+    gp_box = p.geom_pairs.indices_of(
+        np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")]),
+        np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "gbox")]),
+    )
+    off = np.flatnonzero(p.sphere_pairs.geom_pair == gp_box[0])
+    assert off.size == box_floor and not sched.active[off].any()
+    assert sched.active.sum() == p.npairs - off.size
+    for _ in range(600):  # the ball lands at about t = 0.55 s
+        mujoco.mj_step(m, d)
+        mon.observe(d, p.step(d))
+    assert mon.onsets >= 1  # the ball on the floor
+    assert mon.predicted == mon.onsets
+    assert not mon.misses
+    assert not sched.active[off].any()
+
+
+def test_deactivate_contacts_without_contacts(two_bodies) -> None:
+    m, d = two_bodies
+    p = Predictor(m, accel=10.0)
+    p.reset(d)
+    assert d.ncon == 0
+    assert p.deactivate_contacts(d) == 0
+
+
+# --------------------------------------------------------------------------------------------------
+# CLI end to end.
+# --------------------------------------------------------------------------------------------------
+
+REPORT_KEYS = {
+    "spheres",
+    "pairs",
+    "evals_per_step",
+    "contact_onsets",
+    "predicted_onsets",
+    "missed_onsets",
+    "missed_onsets_valid_bounds",
+    "inactive_pair_contacts",
+    "alarm_episodes",
+    "false_alarm_episodes",
+    "lead_time_mean_s",
+    "bound_violations",
+    "predictor_us_per_step",
+    "mj_step_us_per_step",
+}
+
+
+def test_cli_run_writes_json(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "sub" / "out.json"
+    assert main(["run", "--steps", "300", "--json", str(out), "--no-progress"]) == 0
+    report = json.loads(out.read_text())
+    assert REPORT_KEYS <= report.keys()
+    assert report["physics_steps"] == 300
+    assert report["missed_onsets_valid_bounds"] == 0
+    assert "contact onsets" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "flags",
+    [
+        ["--ctrl", "zero"],
+        ["--keyframe", "0"],
+        ["--accel", "30"],
+        ["--speed", "5"],
+        ["--accel", "30", "--speed", "5"],
+        ["--covering", "multi"],
+        ["--period", "2"],
+    ],
+    ids=lambda f: " ".join(f),
+)
+def test_cli_run_accepts_options(tmp_path: Path, flags: list[str]) -> None:
+    out = tmp_path / "out.json"
+    argv = ["run", "--steps", "200", "--pilot-steps", "500", "--json", str(out), "--no-progress"]
+    assert main([*argv, *flags]) == 0
+    report = json.loads(out.read_text())
+    if "--period" in flags:
+        assert report["period"] == 2 and report["predictor_steps"] == 100
+
+
+def _one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("dua-mujoco: error:")
+    return err
+
+
+def test_cli_unknown_scene(capsys) -> None:
+    assert main(["run", "no_such_scene", "--steps", "10", "--no-progress"]) != 0
+    err = _one_line_error(capsys)
+    assert "no_such_scene" in err and "two_arms" in err
+
+
+def test_cli_broken_xml(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "broken.xml"
+    path.write_text("<mujoco><worldbody><body><geom type='sphere' size='.1'></body></mujoco>")
+    assert main(["run", str(path), "--steps", "10", "--no-progress"]) != 0
+    _one_line_error(capsys)
+
+
+def test_cli_negative_accel(capsys) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["run", "--accel", "-1", "--steps", "10", "--no-progress"])
+    assert info.value.code != 0
+    # argparse prints its usage, then the one-line reason.
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "--accel" in last and ">= 0" in last
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
+    return env
+
+
+def test_python_dash_m(tmp_path: Path) -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "dua_mujoco", "run", "--steps", "50", "--no-progress"],
+        capture_output=True,
+        text=True,
+        env=_env(),
+        cwd=tmp_path,
+        timeout=300,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "contact onsets" in out.stdout

@@ -1,0 +1,313 @@
+"""Tests of ``dua_mujoco.testing``: the regression assertion, baselines and the pytest plugin."""
+
+from __future__ import annotations
+
+import json
+import re
+import textwrap
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco.monitor import RunReport
+from dua_mujoco.predictor import Alarms, Predictor
+from dua_mujoco.scenes import load_scene, make_controller
+from dua_mujoco.testing import (
+    BASELINE_KEYS,
+    assert_no_missed_collisions,
+    check_baseline,
+    load_baseline,
+    write_baseline,
+)
+
+pytest_plugins = ["pytester", "dua_mujoco.testing"]
+
+# The paper world with 20 spheres collides often; out of contact each sphere's acceleration norm
+# is at most sqrt(3) * 1 m/s^2 (its motors), so 2 m/s^2 is a bound that holds.
+SCENE = "paper_world:20"
+ACCEL = 2.0
+STEPS = 1000
+
+
+def _scene() -> tuple[mujoco.MjModel, mujoco.MjData]:
+    return load_scene(SCENE)
+
+
+@pytest.fixture(scope="module")
+def clean_report() -> RunReport:
+    m, d = _scene()
+    return assert_no_missed_collisions(
+        m, d, steps=STEPS, predictor={"accel": ACCEL}, scene=SCENE
+    )
+
+
+# --------------------------------------------------------------------------------------------------
+# The assertion.
+# --------------------------------------------------------------------------------------------------
+
+
+def test_clean_scene_passes_through_the_fixture(dua_predict) -> None:
+    m, d = _scene()
+    report = dua_predict(m, d, steps=STEPS, predictor={"accel": ACCEL})
+    assert report.contact_onsets > 0
+    assert report.predicted_onsets == report.contact_onsets
+    assert report.missed_onsets == 0
+    assert report.scene == "paper_world_20"  # the model's name when none is given
+
+
+def test_defaults_build_data_controller_and_predictor() -> None:
+    m, _ = _scene()
+    # data=None, controller=None, predictor=None: first keyframe, random controls, "auto" bounds.
+    report = assert_no_missed_collisions(m, steps=300, scene="defaults")
+    assert report.physics_steps == 300 and report.scene == "defaults"
+
+
+def test_never_alarming_predictor_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A predictor whose alarm horizons are all 0 never alarms: every onset is a valid miss."""
+    m, d = _scene()
+    broken = Predictor(m, accel=ACCEL)
+    reset = broken.reset
+
+    def reset_without_horizon(data: mujoco.MjData) -> Alarms:
+        alarms = reset(data)
+        assert broken.scheduler is not None
+        broken.scheduler.horizon[:] = 0.0  # tau < 0 never holds: no alarm, ever
+        return alarms
+
+    monkeypatch.setattr(broken, "reset", reset_without_horizon)
+    with pytest.raises(AssertionError) as info:
+        assert_no_missed_collisions(m, d, steps=STEPS, predictor=broken, scene=SCENE)
+    msg = str(info.value)
+    assert "not preceded by an alarm although the declared bounds held" in msg
+    # Geom pairs are named: sphere-sphere or sphere-wall.
+    named = re.findall(r"'(sphere\d+)' / '(sphere\d+|floor|ceiling|wall_[xy](?:neg|pos))' at t = ", msg)
+    assert named, msg
+    assert msg.splitlines()[0].startswith(f"{SCENE}: ")
+
+
+def test_misses_after_broken_bounds_do_not_fail() -> None:
+    """Declared bounds far too small: misses happen, but the guarantee did not apply."""
+    m, d = _scene()
+    report = assert_no_missed_collisions(m, d, steps=STEPS, predictor={"accel": 0.0})
+    assert report.bound_violations > 0
+    assert report.missed_onsets_valid_bounds == 0
+
+
+def test_predictor_of_another_model_is_refused() -> None:
+    m, d = _scene()
+    other, _ = load_scene("paper_world:3")
+    with pytest.raises(ValueError, match="another MjModel"):
+        assert_no_missed_collisions(m, d, steps=10, predictor=Predictor(other, accel=ACCEL))
+
+
+def test_custom_controller_is_used() -> None:
+    m, d = _scene()
+    calls = []
+    inner = make_controller(m, "zero")
+
+    def controller(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        calls.append(data.time)
+        inner(model, data)
+
+    assert_no_missed_collisions(m, d, steps=50, controller=controller, predictor={"accel": ACCEL})
+    assert len(calls) == 51  # one before the reset step, then one per step
+
+
+# --------------------------------------------------------------------------------------------------
+# Baselines.
+# --------------------------------------------------------------------------------------------------
+
+
+def _counts(report: RunReport, scale: float = 1.0) -> dict[str, float]:
+    return {k: getattr(report, k) * scale for k in BASELINE_KEYS}
+
+
+def test_baseline_equal_and_within_tolerance_pass(clean_report: RunReport) -> None:
+    assert clean_report.alarm_episodes > 10
+    check_baseline(clean_report, _counts(clean_report))
+    check_baseline(clean_report, _counts(clean_report, 1 / 1.2), tolerance=0.25)
+
+
+def test_baseline_exceeded_fails_and_says_how_to_update(clean_report: RunReport) -> None:
+    with pytest.raises(AssertionError) as info:
+        check_baseline(clean_report, _counts(clean_report, 0.5), tolerance=0.25)
+    msg = str(info.value)
+    assert "alarm_episodes" in msg and "false_alarm_episodes" in msg
+    assert "--dua-update-baselines" in msg and "write_baseline" in msg
+
+
+def test_baseline_much_better_warns(clean_report: RunReport) -> None:
+    with pytest.warns(UserWarning, match="fewer alarms than the baseline"):
+        check_baseline(clean_report, _counts(clean_report, 2.0))
+
+
+def test_baseline_file_round_trip(clean_report: RunReport, tmp_path: Path) -> None:
+    path = write_baseline(clean_report, tmp_path / "nested" / "pw20.json")
+    stored = json.loads(path.read_text())
+    assert stored["alarm_episodes"] == clean_report.alarm_episodes
+    assert stored["false_alarm_episodes"] == clean_report.false_alarm_episodes
+    assert stored["scene"] == SCENE and stored["physics_steps"] == STEPS
+    check_baseline(clean_report, path)
+    check_baseline(clean_report, str(path))
+    assert load_baseline(path) == stored
+
+
+def test_missing_or_malformed_baseline(clean_report: RunReport, tmp_path: Path) -> None:
+    with pytest.raises(AssertionError, match="no baseline at .*--dua-update-baselines"):
+        check_baseline(clean_report, tmp_path / "absent.json")
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    with pytest.raises(ValueError, match="not valid JSON"):
+        check_baseline(clean_report, bad)
+    with pytest.raises(ValueError, match="false_alarm_episodes"):
+        check_baseline(clean_report, {"alarm_episodes": 3})
+    with pytest.raises(ValueError, match="tolerance"):
+        check_baseline(clean_report, _counts(clean_report), tolerance=-0.1)
+
+
+def test_assert_no_missed_collisions_compares_the_baseline() -> None:
+    m, d = _scene()
+    with pytest.raises(AssertionError, match="more alarms than the baseline allows"):
+        assert_no_missed_collisions(
+            m,
+            d,
+            steps=STEPS,
+            predictor={"accel": ACCEL},
+            baseline={"alarm_episodes": 1, "false_alarm_episodes": 0},
+        )
+
+
+# --------------------------------------------------------------------------------------------------
+# The plugin, end to end in a child pytest session.
+# --------------------------------------------------------------------------------------------------
+
+USER_TEST = textwrap.dedent(
+    f"""
+    from dua_mujoco.scenes import load_scene
+
+
+    def test_my_scene(dua_predict):
+        model, data = load_scene("{SCENE}")
+        report = dua_predict(
+            model, data, steps=500, predictor={{"accel": {ACCEL}}}, baseline="baselines/pw.json"
+        )
+        assert report.contact_onsets > 0
+    """
+)
+
+
+def test_plugin_baseline_update_and_compare(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_user=USER_TEST)
+    baseline = pytester.path / "baselines" / "pw.json"
+
+    # No baseline yet: the test fails and says how to record it.
+    result = pytester.runpytest("-p", "dua_mujoco.testing")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*no baseline at*--dua-update-baselines*"])
+    assert not baseline.exists()
+
+    # Record it (relative to the test file's folder).
+    result = pytester.runpytest("-p", "dua_mujoco.testing", "--dua-update-baselines")
+    result.assert_outcomes(passed=1)
+    stored = json.loads(baseline.read_text())
+    assert set(BASELINE_KEYS) <= stored.keys()
+
+    # Same run: within the baseline.
+    pytester.runpytest("-p", "dua_mujoco.testing").assert_outcomes(passed=1)
+
+    # A baseline the run exceeds: fails with the update hint.
+    baseline.write_text(json.dumps({"alarm_episodes": 1, "false_alarm_episodes": 0}))
+    result = pytester.runpytest("-p", "dua_mujoco.testing")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*more alarms than the baseline allows*"])
+    result.stdout.fnmatch_lines(["*--dua-update-baselines*"])
+
+    # Updating overwrites it with the run's counts.
+    pytester.runpytest("-p", "dua_mujoco.testing", "--dua-update-baselines").assert_outcomes(
+        passed=1
+    )
+    assert json.loads(baseline.read_text())["alarm_episodes"] == stored["alarm_episodes"]
+
+
+def test_plugin_option_is_documented(pytester: pytest.Pytester) -> None:
+    result = pytester.runpytest("-p", "dua_mujoco.testing", "--help")
+    result.stdout.fnmatch_lines(["*--dua-update-baselines*"])
+
+
+def test_plugin_records_counts_in_user_properties(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(
+        test_props=textwrap.dedent(
+            f"""
+            from dua_mujoco.scenes import load_scene
+
+
+            def test_props(dua_predict, request):
+                model, data = load_scene("{SCENE}")
+                report = dua_predict(model, data, steps=200, predictor={{"accel": {ACCEL}}})
+                props = dict(request.node.user_properties)
+                assert props["dua_alarm_episodes"] == report.alarm_episodes
+                assert props["dua_contact_onsets"] == report.contact_onsets
+            """
+        )
+    )
+    pytester.runpytest("-p", "dua_mujoco.testing").assert_outcomes(passed=1)
+
+
+def test_plugin_fixture_fails_on_missed_collision(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(
+        test_broken=textwrap.dedent(
+            f"""
+            from dua_mujoco.predictor import Predictor
+            from dua_mujoco.scenes import load_scene
+
+
+            def test_broken(dua_predict):
+                model, data = load_scene("{SCENE}")
+                p = Predictor(model, accel={ACCEL})
+                reset = p.reset
+
+                def never_alarm(d):
+                    out = reset(d)
+                    p.scheduler.horizon[:] = 0.0
+                    return out
+
+                p.reset = never_alarm
+                dua_predict(model, data, steps={STEPS}, predictor=p)
+            """
+        )
+    )
+    result = pytester.runpytest("-p", "dua_mujoco.testing")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*'sphere*' / '*' at t = *"])
+
+
+def test_module_import_does_not_load_mujoco_layers() -> None:
+    """The plugin is loaded in every pytest session of an environment with dua_mujoco installed:
+    it must not import MuJoCo or the predictor until a test uses it."""
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, dua_mujoco.testing; "
+        "print([m for m in ('mujoco', 'dua_mujoco.predictor', 'dua_mujoco.monitor') "
+        "if m in sys.modules])"
+    )
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(
+        filter(None, [str(Path(__file__).resolve().parent.parent), env.get("PYTHONPATH")])
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
+    )
+    assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_zero_baseline_allows_no_false_alarm(clean_report: RunReport) -> None:
+    assert clean_report.false_alarm_episodes > 0
+    with pytest.raises(AssertionError):
+        check_baseline(
+            clean_report, {"alarm_episodes": np.inf, "false_alarm_episodes": 0}, tolerance=10.0
+        )
