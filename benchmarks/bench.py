@@ -79,15 +79,25 @@ def bench_core() -> str:
 
     # Scheduler at M ~ 1e6 pairs (N = 1415 spheres) and SA at 5e5 (N = 1000).
     rows = []
-    for n in (1415,):
-        w = SphereWorld(n, seed=1, radius=0.005)
+    if True:  # M ~ 1e6 pairs
+        w = SphereWorld(1415, seed=1, radius=0.005)
         pairs = w.pairs()
         ids = np.arange(len(pairs))
         t_tau = median_time(lambda: pairs.tau(ids, w.positions, w.velocities), 5)
         tau0 = pairs.tau(ids, w.positions, w.velocities)
         t_cls = median_time(lambda: DUAScheduler(tau0, dt=0.01), 5)
-        rows.append([f"initial classification, M = {len(pairs):.3g}: tau of all pairs", f"{t_tau * 1e3:.0f} ms"])
-        rows.append([f"initial classification, M = {len(pairs):.3g}: bucketing (argpartition)", f"{t_cls * 1e3:.0f} ms"])
+        rows.append(
+            [
+                f"initial classification, M = {len(pairs):.3g}: tau of all pairs",
+                f"{t_tau * 1e3:.0f} ms",
+            ]
+        )
+        rows.append(
+            [
+                f"initial classification, M = {len(pairs):.3g}: bucketing (argpartition)",
+                f"{t_cls * 1e3:.0f} ms",
+            ]
+        )
         s = DUAScheduler(tau0, dt=0.01)
 
         def fused() -> None:
@@ -97,8 +107,18 @@ def bench_core() -> str:
             sel = s.select()
             s.update(sel, pairs.tau(sel, w.positions, w.velocities))
 
-        rows.append([f"fused DUA step (`step_points`), M = {len(pairs):.3g}", f"{median_time(fused, 2000, 50) * 1e6:.1f} us"])
-        rows.append([f"DUA step through `select`/`update`, M = {len(pairs):.3g}", f"{median_time(protocol, 2000, 50) * 1e6:.1f} us"])
+        rows.append(
+            [
+                f"fused DUA step (`step_points`), M = {len(pairs):.3g}",
+                f"{median_time(fused, 2000, 50) * 1e6:.1f} us",
+            ]
+        )
+        rows.append(
+            [
+                f"DUA step through `select`/`update`, M = {len(pairs):.3g}",
+                f"{median_time(protocol, 2000, 50) * 1e6:.1f} us",
+            ]
+        )
         rows.append(["evaluations per DUA step", str(s.evaluations_per_step)])
     w = SphereWorld(1000, seed=2, radius=0.005)
     pairs = w.pairs()
@@ -107,7 +127,23 @@ def bench_core() -> str:
 
     def sa_step() -> None:
         sel = sa.select()
-        sa.update(sel, _tau_pairs(sel, w.positions, w.velocities, np.zeros((1, 3)), np.zeros(1), pairs.first, pairs.second, pairs.halfspace, pairs.eps, pairs.accel, pairs.vel_uncertainty, pairs.speed))
+        sa.update(
+            sel,
+            _tau_pairs(
+                sel,
+                w.positions,
+                w.velocities,
+                np.zeros((1, 3)),
+                np.zeros(1),
+                pairs.first,
+                pairs.second,
+                pairs.halfspace,
+                pairs.eps,
+                pairs.accel,
+                pairs.vel_uncertainty,
+                pairs.speed,
+            ),
+        )
 
     rows.append([f"SA(tau) step, M = {len(pairs):.3g}", f"{median_time(sa_step, 15) * 1e3:.1f} ms"])
     out.append(table(["scheduler", "median"], rows))
@@ -120,13 +156,31 @@ def bench_scenes(steps: int = 2000) -> str:
     from dua_mujoco.scenes import load_scene, make_controller
 
     rows = []
-    for name in ("two_arms", "traffic", "clutter", "paper_world", "paper_world:200", "paper_world:1000"):
+    for name in (
+        "two_arms",
+        "traffic",
+        "clutter",
+        "paper_world",
+        "paper_world:200",
+        "paper_world:1000",
+    ):
         m, d = load_scene(name)
         n_steps = steps if ":" not in name else 500
         p = Predictor(
-            m, accel="auto", pilot_steps=1000, pilot_controller=make_controller(m, "random", seed=99)
+            m,
+            accel="auto",
+            pilot_steps=1000,
+            pilot_controller=make_controller(m, "random", seed=99),
         )
-        r = run(m, d, p, steps=n_steps, controller=make_controller(m, "random", seed=0), scene=name, progress=False)
+        r = run(
+            m,
+            d,
+            p,
+            steps=n_steps,
+            controller=make_controller(m, "random", seed=0),
+            scene=name,
+            progress=False,
+        )
         ratio = r.predictor_us_per_step / r.mj_step_us_per_step
         rows.append(
             [

@@ -380,7 +380,7 @@ def estimate_bounds(
             if nc:
                 touched[k % 3, rootid[np.asarray(model.geom_bodyid)[d.contact.geom1[:nc]]]] = True
                 touched[k % 3, rootid[np.asarray(model.geom_bodyid)[d.contact.geom2[:nc]]]] = True
-            free = ~touched.any(axis=0)[sroot]
+            free = np.asarray(~touched.any(axis=0))[sroot]
         else:
             free = np.ones(sbody.shape[0], dtype=bool)
         c = sphere_centers(d.geom_xpos, d.geom_xmat, sgeom, soff)

@@ -71,7 +71,9 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", type=_positive(float), default=None, help="speed bound in m/s")
     p.add_argument("--covering", choices=["bounding", "multi"], default="bounding")
     p.add_argument("--max-spheres", type=_positive(int), default=8, help="multi covering budget")
-    p.add_argument("--period", type=_positive(int), default=1, help="physics steps per predictor step")
+    p.add_argument(
+        "--period", type=_positive(int), default=1, help="physics steps per predictor step"
+    )
     p.add_argument("--latency", type=int, default=0, help="verdict latency in periods (0 or 1)")
     p.add_argument("--budget", type=_positive(int), default=1, help="slots per bucket per step")
     p.add_argument("--pilot-steps", type=_positive(int), default=2000, help="pilot rollout length")
@@ -91,8 +93,8 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from dua_mujoco.monitor import run
-    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.monitor import Monitor, run
+    from dua_mujoco.predictor import Alarms, Predictor
     from dua_mujoco.scenes import SCENES, load_scene, make_controller
 
     keyframe: int | str | None = args.keyframe
@@ -130,14 +132,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
             width=args.width,
             height=args.height,
             options=OverlayOptions(show_spheres=args.show_spheres),
+            grow_buffer=True,
         )
         camera = int(args.camera) if args.camera and args.camera.isdigit() else args.camera
 
-        def on_step(k: int, d: mujoco.MjData, alarms: object, monitor: object) -> None:
+        def on_step(k: int, d: mujoco.MjData, alarms: Alarms | None, monitor: Monitor) -> None:
             if k % args.every == 0 and alarms is not None:
-                frames.append(
-                    renderer.render(d, alarms, camera=camera, misses=len(monitor.misses))  # type: ignore[attr-defined]
-                )
+                frames.append(renderer.render(d, alarms, camera=camera, misses=len(monitor.misses)))
 
     try:
         report = run(
@@ -186,10 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     _add_run(sub)
-    try:
-        _add_paper(sub)
-    except ImportError:  # the paper reproduction is optional at import time
-        pass
+    _add_paper(sub)
     return parser
 
 

@@ -30,7 +30,7 @@ class InvalidBoundError(InvalidInputError):
 
 
 class SchedulerError(DuaError):
-    """The scheduler was driven out of protocol (e.g. ``update`` with ids not selected this step)."""
+    """The scheduler was driven out of protocol (e.g. ``update`` with ids not selected)."""
 
 
 class UnsupportedGeomError(DuaError, ValueError):

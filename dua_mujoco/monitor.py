@@ -100,19 +100,28 @@ class RunReport:
         return [
             ("scene", self.scene),
             ("physics steps (predictor period)", f"{self.physics_steps} ({self.period})"),
-            ("spheres / sphere pairs / geom pairs", f"{self.spheres} / {self.pairs} / {self.geom_pairs}"),
+            (
+                "spheres / sphere pairs / geom pairs",
+                f"{self.spheres} / {self.pairs} / {self.geom_pairs}",
+            ),
             (
                 "tau evaluations per step",
                 f"{self.evals_per_step:.1f} ({100 * self.evals_fraction:.2f} % of SA)",
             ),
             ("contact onsets", str(self.contact_onsets)),
             ("predicted onsets", str(self.predicted_onsets)),
-            ("missed onsets (while bounds held)", f"{self.missed_onsets} ({self.missed_onsets_valid_bounds})"),
+            (
+                "missed onsets (while bounds held)",
+                f"{self.missed_onsets} ({self.missed_onsets_valid_bounds})",
+            ),
             ("contacts in switched-off pairs", str(self.inactive_pair_contacts)),
             ("alarm episodes (false)", f"{self.alarm_episodes} ({self.false_alarm_episodes})"),
             ("mean lead time", lead),
             ("bound violations (body-steps)", str(self.bound_violations)),
-            ("predictor us/step vs mj_step us/step", f"{self.predictor_us_per_step:.1f} vs {self.mj_step_us_per_step:.1f}"),
+            (
+                "predictor us/step vs mj_step us/step",
+                f"{self.predictor_us_per_step:.1f} vs {self.mj_step_us_per_step:.1f}",
+            ),
         ]
 
     def table(self) -> str:
@@ -192,7 +201,7 @@ class Monitor:
         self.overruns = 0
         self.evaluations: list[int] = []
         self.alarms_per_step: list[int] = [len(alarms)]
-        self.min_tau: list[float] = [float(np.min(self.predictor.scheduler.last_tau, initial=np.inf))]  # type: ignore[union-attr]
+        self.min_tau: list[float] = [float(np.min(alarms.tau, initial=np.inf))]
         if self.bounds is not None:
             self.bounds.update(self.model, data)
         self._apply_alarms(alarms, np.arange(len(self.predictor.pairs)), data.time)
@@ -303,7 +312,9 @@ class Monitor:
             last = int(sched.last_step[live].min())
             window_start = self._pred_steps[last]
             bodies = self._gp_body[g]
-            held = bool((self._last_violation[bodies] <= window_start).all()) if self.bounds else False
+            held = (
+                bool((self._last_violation[bodies] <= window_start).all()) if self.bounds else False
+            )
             g1 = int(self.predictor.geom_pairs.geom1[g])
             g2 = int(self.predictor.geom_pairs.geom2[g])
             self.misses.append(
@@ -387,7 +398,8 @@ def run(
                     monitor.overruns += 1
                     if not warned:
                         warnings.warn(
-                            f"predictor step took {dt * 1e6:.0f} us > period {predictor.dt * 1e6:.0f} "
+                            f"predictor step took {dt * 1e6:.0f} us > period "
+                            f"{predictor.dt * 1e6:.0f} "
                             "us: the predictor cannot keep up, completeness is not guaranteed.",
                             DeadlineOverrunWarning,
                             stacklevel=2,
@@ -396,7 +408,9 @@ def run(
             monitor.observe(data, alarms)
             if on_step is not None:
                 on_step(k, data, alarms, monitor)
-            bar.update(note=f"alarms {len(alarms) if alarms is not None else 0} missed {len(monitor.misses)}")
+            bar.update(
+                note=f"alarms {0 if alarms is None else len(alarms)} missed {len(monitor.misses)}"
+            )
     monitor.finish()
     sched = predictor.scheduler
     assert sched is not None

@@ -242,8 +242,11 @@ class Predictor:
         )
         self._rootid = np.ascontiguousarray(model.body_rootid, dtype=np.int64)
         self._no_twist = np.zeros((model.nbody, 6))
+        self._twist = np.zeros((model.nbody, 6))  # mocap roots' twists, rewritten each step
         self.scheduler: DUAScheduler | None = None
         self._time = 0.0
+        self._frame_data: mujoco.MjData | None = None
+        self._frame_cache: tuple = ()
 
     # ----------------------------------------------------------------------- setup
 
@@ -251,7 +254,9 @@ class Predictor:
         sp, cov, b = self.sphere_pairs, self.covering, self.bounds
         body1 = cov.sphere_body[sp.first]
         # Half-space pairs: planes are static (covering/pairs reject moving planes).
-        body2 = np.where(sp.is_halfspace, 0, cov.sphere_body[np.where(sp.is_halfspace, 0, sp.second)])
+        body2 = np.where(
+            sp.is_halfspace, 0, cov.sphere_body[np.where(sp.is_halfspace, 0, sp.second)]
+        )
         accel = b.accel[body1] + b.accel[body2]
         delta = b.vel_uncertainty[body1] + b.vel_uncertainty[body2]
         if self._mocap is not None and self.period > 1:
@@ -285,11 +290,24 @@ class Predictor:
                 "predictor's model."
             )
 
-    def _root_twist(self, data: mujoco.MjData) -> np.ndarray:
-        if self._mocap is None:
-            return self._no_twist
-        self._mocap.update(data)
-        return np.ascontiguousarray(self._mocap.body_velocity(self.model.nbody))
+    def _frame_args(self, data: mujoco.MjData) -> tuple:
+        """The ``MjData`` arrays the fused step reads, cached per ``MjData``.
+
+        MjData's buffers live as long as the MjData, and every attribute access builds a new
+        numpy view (about a microsecond in all), so the views are built once.
+        """
+        if self._frame_data is not data:
+            self._frame_data = data
+            self._frame_cache = (
+                data.geom_xpos,
+                data.geom_xmat,
+                data.cvel,
+                data.subtree_com,
+                self._rootid,
+                self._twist if self._mocap is not None else self._no_twist,
+                data.xpos,
+            )
+        return self._frame_cache
 
     def sphere_states(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """Centres and velocities of every covering sphere, ``(nsphere, 3)`` each.
@@ -298,10 +316,16 @@ class Predictor:
         """
         cov = self.covering
         c = sphere_centers(data.geom_xpos, data.geom_xmat, cov.sphere_geom, cov.sphere_offset)
-        v = sphere_velocities(data.cvel, data.subtree_com, self.model.body_rootid, cov.sphere_body, c)
+        v = sphere_velocities(
+            data.cvel, data.subtree_com, self.model.body_rootid, cov.sphere_body, c
+        )
         if self._mocap is not None:
             twist = self._mocap.body_velocity(self.model.nbody)[self._rootid[cov.sphere_body]]
-            v = v + twist[:, 3:] + np.cross(twist[:, :3], c - data.xpos[self._rootid[cov.sphere_body]])
+            v = (
+                v
+                + twist[:, 3:]
+                + np.cross(twist[:, :3], c - data.xpos[self._rootid[cov.sphere_body]])
+            )
         return c, v
 
     def halfspaces(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
@@ -369,15 +393,10 @@ class Predictor:
                 f"{self.model.opt.timestep:g}): call step() every {self.period} physics step(s), "
                 "or reset() after changing the state."
             )
-        frame_args = (
-            data.geom_xpos,
-            data.geom_xmat,
-            data.cvel,
-            data.subtree_com,
-            self._rootid,
-            self._root_twist(data),
-            data.xpos,
-        )
+        if self._mocap is not None:
+            self._mocap.update(data)
+            self._mocap.write_body_velocity(self._twist)
+        frame_args = self._frame_args(data)
         if sched._reactivated:
             ids = sched.select()
             c, v = self.sphere_states(data)
@@ -440,6 +459,12 @@ class Predictor:
     def evaluations_per_step(self) -> int:
         """tau evaluations per step (at most; empty and inactive slots are skipped)."""
         return self._require_scheduler().evaluations_per_step
+
+    @property
+    def pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(geom1, geom2)``, each ``(npairs,)``: the geoms of every sphere pair (``geom2`` is
+        the plane geom for half-space pairs)."""
+        return self._tables.geom1, self._tables.geom2
 
     def geom_pair_of(self, pairs: npt.ArrayLike) -> np.ndarray:
         """Index into ``geom_pairs`` of sphere pairs."""

@@ -52,7 +52,7 @@ class Progress:
     def _draw(self, now: float, note: str) -> None:
         frac = min(self.count / self.total, 1.0)
         width = 30
-        filled = int(round(frac * width))
+        filled = round(frac * width)
         elapsed = now - self._start
         eta = elapsed / frac - elapsed if frac > 0 else float("nan")
         bar = "#" * filled + " " * (width - filled)

@@ -62,6 +62,7 @@ __all__ = [
     "OverlayRenderer",
     "SceneFullWarning",
     "render_rollout",
+    "status_line",
     "write_video",
 ]
 
@@ -512,10 +513,6 @@ class OverlayRenderer:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
-        self.close()
-
-    def __del__(self) -> None:
-        # mujoco.Renderer frees itself too; closing here keeps the order (overlay, then GL).
         self.close()
 
 

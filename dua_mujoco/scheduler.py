@@ -32,7 +32,7 @@ from dua_mujoco.exceptions import (
     SchedulerError,
     ShapeError,
 )
-from dua_mujoco.urgency import _per_pair, _vectors, tau_halfspace, tau_speed
+from dua_mujoco.urgency import _PARALLEL_MIN, _per_pair, _vectors, tau_halfspace, tau_speed
 
 __all__ = [
     "DUAScheduler",
@@ -152,8 +152,63 @@ def _pair_tau(
     )
 
 
-@nb.njit(cache=True, parallel=True)
 def _tau_pairs(
+    ids: np.ndarray,
+    centers: np.ndarray,
+    velocities: np.ndarray,
+    normals: np.ndarray,
+    offsets: np.ndarray,
+    first: np.ndarray,
+    second: np.ndarray,
+    halfspace: np.ndarray,
+    eps: np.ndarray,
+    accel: np.ndarray,
+    delta: np.ndarray,
+    speed: np.ndarray,
+) -> np.ndarray:
+    """tau of the pairs ``ids``: threads for large batches, serial for small ones."""
+    kernel = _tau_pairs_parallel if ids.shape[0] >= _PARALLEL_MIN else _tau_pairs_serial
+    return kernel(
+        ids,
+        centers,
+        velocities,
+        normals,
+        offsets,
+        first,
+        second,
+        halfspace,
+        eps,
+        accel,
+        delta,
+        speed,
+    )
+
+
+@nb.njit(cache=True)
+def _tau_pairs_serial(
+    ids, centers, velocities, normals, offsets, first, second, halfspace, eps, accel, delta, speed
+):  # pragma: no cover - jitted
+    out = np.empty(ids.shape[0])
+    for k in range(ids.shape[0]):
+        out[k] = _pair_tau(
+            ids[k],
+            centers,
+            velocities,
+            normals,
+            offsets,
+            first,
+            second,
+            halfspace,
+            eps,
+            accel,
+            delta,
+            speed,
+        )
+    return out
+
+
+@nb.njit(cache=True, parallel=True)
+def _tau_pairs_parallel(
     ids, centers, velocities, normals, offsets, first, second, halfspace, eps, accel, delta, speed
 ):  # pragma: no cover - jitted
     out = np.empty(ids.shape[0])
@@ -237,8 +292,17 @@ def _step_points(
 
 @nb.njit(cache=True, inline="always")
 def _rigid_point(
-    i, sphere_frame, sphere_body, sphere_offset, frame_pos, frame_mat, twist, twist_ref, rootid,
-    root_twist, root_origin,
+    i,
+    sphere_frame,
+    sphere_body,
+    sphere_offset,
+    frame_pos,
+    frame_mat,
+    twist,
+    twist_ref,
+    rootid,
+    root_twist,
+    root_origin,
 ):  # pragma: no cover - jitted
     """Centre and velocity of sphere ``i`` attached to a rigid frame (MuJoCo's conventions).
 
@@ -317,8 +381,17 @@ def _step_rigid(
     for k in range(count):
         p = w_ids[k]
         ci, vi = _rigid_point(
-            first[p], sphere_frame, sphere_body, sphere_offset, frame_pos, frame_mat, twist,
-            twist_ref, rootid, root_twist, root_origin,
+            first[p],
+            sphere_frame,
+            sphere_body,
+            sphere_offset,
+            frame_pos,
+            frame_mat,
+            twist,
+            twist_ref,
+            rootid,
+            root_twist,
+            root_origin,
         )
         if halfspace[p]:
             g = plane_frame[second[p]]
@@ -327,13 +400,26 @@ def _step_rigid(
             normal[0] = m[2]
             normal[1] = m[5]
             normal[2] = m[8]
-            offset = normal[0] * frame_pos[g, 0] + normal[1] * frame_pos[g, 1] + normal[2] * frame_pos[g, 2]
+            offset = (
+                normal[0] * frame_pos[g, 0]
+                + normal[1] * frame_pos[g, 1]
+                + normal[2] * frame_pos[g, 2]
+            )
             tau = _sphere_halfspace_tau(ci, vi, normal, offset, p, eps, accel, delta)
             state = ci[0] + ci[1] + ci[2] + vi[0] + vi[1] + vi[2]
         else:
             cj, vj = _rigid_point(
-                second[p], sphere_frame, sphere_body, sphere_offset, frame_pos, frame_mat, twist,
-                twist_ref, rootid, root_twist, root_origin,
+                second[p],
+                sphere_frame,
+                sphere_body,
+                sphere_offset,
+                frame_pos,
+                frame_mat,
+                twist,
+                twist_ref,
+                rootid,
+                root_twist,
+                root_origin,
             )
             tau = _sphere_sphere_tau(ci, vi, cj, vj, p, eps, accel, delta, speed)
             state = ci[0] + ci[1] + ci[2] + vi[0] + vi[1] + vi[2]
@@ -438,7 +524,11 @@ class PairSet:
 
         a = per_sphere("accel", accel)
         d = per_sphere("vel_uncertainty", vel_uncertainty)
-        s = np.inf if speed is None else per_sphere("speed", speed)[i] + per_sphere("speed", speed)[j]
+        s = (
+            np.inf
+            if speed is None
+            else per_sphere("speed", speed)[i] + per_sphere("speed", speed)[j]
+        )
         return cls(
             i,
             j,
@@ -507,7 +597,9 @@ class PairSet:
             nrm = _vectors("halfspace normals", halfspaces[0])
             off = np.ascontiguousarray(np.asarray(halfspaces[1], dtype=np.float64).reshape(-1))
             if off.shape[0] != nrm.shape[0]:
-                raise ShapeError(f"halfspace offsets have {off.shape[0]} rows, normals {nrm.shape[0]}.")
+                raise ShapeError(
+                    f"halfspace offsets have {off.shape[0]} rows, normals {nrm.shape[0]}."
+                )
         if self.max_sphere >= c.shape[0]:
             raise ShapeError(
                 f"pairs reference sphere {self.max_sphere} but centers has {c.shape[0]} rows."
@@ -841,7 +933,6 @@ class DUAScheduler:
         self.step_count = n
         return self._alarms[:nalarm].copy()
 
-
     def step_rigid(self, pair_args: tuple, frame_args: tuple) -> tuple[np.ndarray, int]:
         """The fused step for spheres attached to rigid frames (used by ``Predictor``).
 
@@ -885,7 +976,7 @@ class DUAScheduler:
         return self._alarms[:nalarm].copy(), -1
 
     def alarm_state(self, pair: npt.ArrayLike | None = None) -> np.ndarray:
-        """Whether each pair's latest evaluation raised an alarm (the alarm rule on its last tau)."""
+        """Whether each pair's latest evaluation raised an alarm (alarm rule on its last tau)."""
         idx = np.arange(self.npairs) if pair is None else np.asarray(pair, dtype=np.int64)
         k = self.bucket_of_slot(self.where[idx])
         return np.asarray(self.last_tau[idx] < self.horizon[k])
@@ -931,7 +1022,9 @@ class SelectAllScheduler:
         if self.urgency is Urgency.TAU:
             values = _check_tau("urgency0", values)
         elif values.ndim != 1 or np.isnan(values).any():
-            raise ShapeError(f"urgency0 must be a (M,) array without NaN; got shape {values.shape}.")
+            raise ShapeError(
+                f"urgency0 must be a (M,) array without NaN; got shape {values.shape}."
+            )
         self.npairs = values.shape[0]
         self.alarm_distance = float(alarm_distance)
         self.active = (

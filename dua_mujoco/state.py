@@ -18,10 +18,12 @@ instant for positions and velocities (see ``docs/discrete-time.md``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 import mujoco
+import numba as nb
 import numpy as np
 import numpy.typing as npt
 
@@ -142,31 +144,37 @@ def sphere_velocities(
     return point_velocities(cvel, subtree_com, body_rootid, sbody[sel], centers)
 
 
-def _quat_to_rotvec(q: np.ndarray) -> np.ndarray:
-    """Rotation vectors (axis * angle in [0, pi]) of unit quaternions ``(n, 4)`` [w,x,y,z]."""
-    # Choose the hemisphere w >= 0 so the angle is the short way round.
-    q = np.where(q[:, :1] < 0, -q, q)
-    vec = q[:, 1:]
-    s = np.linalg.norm(vec, axis=1)
-    angle = 2.0 * np.arctan2(s, q[:, 0])
-    # angle / s -> 2 as s -> 0 (small-angle limit of 2 atan2(s, w) / s with w -> 1).
-    scale = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0)
-    return vec * scale[:, None]
+@nb.njit(cache=True)
+def _difference_poses(
+    xpos, xquat, bodies, prev_pos, prev_quat, dt, user, linear, angular
+):  # pragma: no cover - jitted
+    """Backward-difference velocities of ``bodies``; updates the previous poses in place.
 
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products of quaternion arrays ``(n, 4)``."""
-    aw, ax, ay, az = a.T
-    bw, bx, by, bz = b.T
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        axis=1,
-    )
+    Angular velocity: rotation vector of ``q_now * conj(q_prev)`` (world frame), taken the short
+    way round, divided by ``dt``.
+    """
+    for i in range(bodies.shape[0]):
+        b = bodies[i]
+        aw, ax, ay, az = xquat[b, 0], xquat[b, 1], xquat[b, 2], xquat[b, 3]
+        bw, bx, by, bz = prev_quat[i, 0], -prev_quat[i, 1], -prev_quat[i, 2], -prev_quat[i, 3]
+        w = aw * bw - ax * bx - ay * by - az * bz
+        x = aw * bx + ax * bw + ay * bz - az * by
+        y = aw * by - ax * bz + ay * bw + az * bx
+        z = aw * bz + ax * by - ay * bx + az * bw
+        if w < 0.0:
+            w, x, y, z = -w, -x, -y, -z
+        s = math.sqrt(x * x + y * y + z * z)
+        scale = 2.0 * math.atan2(s, w) / s if s > 1e-12 else 2.0
+        if not user[i]:
+            for k in range(3):
+                linear[i, k] = (xpos[b, k] - prev_pos[i, k]) / dt
+            angular[i, 0] = x * scale / dt
+            angular[i, 1] = y * scale / dt
+            angular[i, 2] = z * scale / dt
+        for k in range(3):
+            prev_pos[i, k] = xpos[b, k]
+        for k in range(4):
+            prev_quat[i, k] = xquat[b, k]
 
 
 class MocapVelocityTracker:
@@ -252,21 +260,27 @@ class MocapVelocityTracker:
         Args:
             data: the MuJoCo data, after ``mj_step`` (or ``mj_forward``/``mj_kinematics``).
         """
-        pos = np.array(data.xpos[self.mocap_bodies])
-        quat = np.array(data.xquat[self.mocap_bodies])
         t = float(data.time)
-        if self._prev_pos is not None and self._prev_quat is not None:
+        if self._prev_pos is None or self._prev_quat is None:
+            self._prev_pos = np.array(data.xpos[self.mocap_bodies])
+            self._prev_quat = np.array(data.xquat[self.mocap_bodies])
+        else:
             dt = t - self._prev_time
             if dt <= 0.0:
                 return
-            diff = ~self._user
-            lin = (pos - self._prev_pos) / dt
-            # World-frame increment: q_now = q_rel * q_prev.
-            conj = self._prev_quat * np.array([1.0, -1.0, -1.0, -1.0])
-            ang = _quat_to_rotvec(_quat_mul(quat, conj)) / dt
-            self.linear[diff] = lin[diff]
-            self.angular[diff] = ang[diff]
-        self._prev_pos, self._prev_quat, self._prev_time = pos, quat, t
+            # Called every predictor step: jitted, in place, no temporaries.
+            _difference_poses(
+                data.xpos,
+                data.xquat,
+                self.mocap_bodies,
+                self._prev_pos,
+                self._prev_quat,
+                dt,
+                self._user,
+                self.linear,
+                self.angular,
+            )
+        self._prev_time = t
         self.nupdates += 1
 
     def body_velocity(self, nbody: int) -> np.ndarray:
@@ -277,9 +291,13 @@ class MocapVelocityTracker:
             linear velocity of its frame origin ``d.xpos[b]``.
         """
         out = np.zeros((nbody, 6))
+        self.write_body_velocity(out)
+        return out
+
+    def write_body_velocity(self, out: np.ndarray) -> None:
+        """Write the mocap rows of a ``(nbody, 6)`` spatial-velocity array in place."""
         out[self.mocap_bodies, :3] = self.angular
         out[self.mocap_bodies, 3:] = self.linear
-        return out
 
 
 def mocap_sphere_velocities(

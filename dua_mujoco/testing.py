@@ -135,9 +135,7 @@ def write_baseline(report: RunReport, path: str | os.PathLike[str]) -> Path:
     return out
 
 
-def check_baseline(
-    report: RunReport, baseline: BaselineLike, *, tolerance: float = 0.25
-) -> None:
+def check_baseline(report: RunReport, baseline: BaselineLike, *, tolerance: float = 0.25) -> None:
     """Assert a run's alarm counts are within ``(1 + tolerance)`` of a baseline.
 
     A count above ``baseline * (1 + tolerance)`` fails: the predictor now sends more pairs to the
@@ -288,9 +286,7 @@ def assert_no_missed_collisions(
         controller = make_controller(model, "random", seed=0)
     pred = _make_predictor(model, predictor)
     name = scene or (model.names[: model.names.find(b"\0")].decode() if model.names else "")
-    report = run(
-        model, data, pred, steps=steps, controller=controller, scene=name, progress=False
-    )
+    report = run(model, data, pred, steps=steps, controller=controller, scene=name, progress=False)
     if report.missed_onsets_valid_bounds:
         raise AssertionError(_miss_message(report))
     if report.unfiltered_contacts:

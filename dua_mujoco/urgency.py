@@ -132,7 +132,7 @@ def _refine(x0, x1, x2, v0, v1, v2, e, d, h, lo, hi):  # pragma: no cover - jitt
 
 @nb.njit(cache=True)
 def _g1_root(p3, p2, p1, p0, lo, hi, increasing):  # pragma: no cover - jitted
-    """Root of the cubic G1(t) = p3 t^3 + p2 t^2 + p1 t + p0, monotone on [lo, hi] with a sign change."""
+    """Root of the cubic G1(t) = p3 t^3 + p2 t^2 + p1 t + p0, monotone on [lo, hi] (sign change)."""
     t = 0.5 * (lo + hi)
     for _ in range(_MAX_ITER):
         val = ((p3 * t + p2) * t + p1) * t + p0
@@ -287,26 +287,49 @@ def _at(arr, i):  # pragma: no cover - jitted
     return arr[i] if arr.shape[0] > 1 else arr[0]
 
 
+# Below this many pairs the batch kernels run serially: waking the thread pool costs more than
+# the work (and can cost milliseconds on a loaded machine).
+_PARALLEL_MIN = 4096
+
+
+@nb.njit(cache=True)
+def _tau_row(x, v, eps, accel, delta, speed, out, i):  # pragma: no cover - jitted
+    out[i] = tau_speed(
+        x[i, 0],
+        x[i, 1],
+        x[i, 2],
+        v[i, 0],
+        v[i, 1],
+        v[i, 2],
+        _at(eps, i),
+        _at(accel, i),
+        _at(delta, i),
+        _at(speed, i),
+    )
+
+
+@nb.njit(cache=True)
+def _tau_serial(x, v, eps, accel, delta, speed, out):  # pragma: no cover - jitted
+    for i in range(x.shape[0]):
+        _tau_row(x, v, eps, accel, delta, speed, out, i)
+
+
 @nb.njit(cache=True, parallel=True)
-def _tau_batch(x, v, eps, accel, delta, speed, out):  # pragma: no cover - jitted
+def _tau_parallel(x, v, eps, accel, delta, speed, out):  # pragma: no cover - jitted
     for i in nb.prange(x.shape[0]):
-        out[i] = tau_speed(
-            x[i, 0],
-            x[i, 1],
-            x[i, 2],
-            v[i, 0],
-            v[i, 1],
-            v[i, 2],
-            _at(eps, i),
-            _at(accel, i),
-            _at(delta, i),
-            _at(speed, i),
-        )
+        _tau_row(x, v, eps, accel, delta, speed, out, i)
 
 
-@nb.njit(cache=True, parallel=True)
+def _tau_batch(x, v, eps, accel, delta, speed, out):
+    """tau of every row into ``out``: threads for large batches, serial for small ones."""
+    kernel = _tau_parallel if x.shape[0] >= _PARALLEL_MIN else _tau_serial
+    kernel(x, v, eps, accel, delta, speed, out)
+
+
+@nb.njit(cache=True)
 def _halfspace_batch(gap, vn, accel, delta, out):  # pragma: no cover - jitted
-    for i in nb.prange(gap.shape[0]):
+    # Serial: a closed form is cheaper than waking threads for any realistic batch.
+    for i in range(gap.shape[0]):
         out[i] = tau_halfspace(_at(gap, i), _at(vn, i), _at(accel, i), _at(delta, i))
 
 

@@ -1,4 +1,4 @@
-"""The paper's sphere world (sec. 8), kinematic: ghost spheres in a cube under bounded accelerations.
+"""The paper's sphere world (sec. 8), kinematic: ghost spheres in a cube, bounded accelerations.
 
 Spheres pass through each other (nothing reacts to a collision), so the declared bounds hold
 exactly for the whole run: every sphere's acceleration is piecewise constant with norm at most
@@ -62,7 +62,12 @@ class SphereWorld:
     ) -> None:
         if int(n) < 2:
             raise InvalidInputError(f"n = {n} is invalid: a sphere world needs at least 2 spheres.")
-        for name, value in (("box", box), ("accel", accel), ("dt", dt), ("switch_steps", switch_steps)):
+        for name, value in (
+            ("box", box),
+            ("accel", accel),
+            ("dt", dt),
+            ("switch_steps", switch_steps),
+        ):
             if not (np.isfinite(value) and value > 0):
                 raise InvalidInputError(f"{name} = {value!r} is invalid: it must be > 0.")
         try:

@@ -119,7 +119,7 @@ def test_select_all_is_complete() -> None:
 
 
 def test_weakened_alarm_rule_misses_collisions() -> None:
-    """The paper's off-by-one (bucket i revisited after 2^(i-1) steps) and a dropped latency miss."""
+    """The paper's off-by-one (bucket i revisited after 2^(i-1) steps) and dropped latency miss."""
 
     def half_interval(s: DUAScheduler) -> np.ndarray:
         return (s.interval / 2 + s.latency) * s.dt
@@ -129,7 +129,9 @@ def test_weakened_alarm_rule_misses_collisions() -> None:
 
     def failures(weaken) -> int:
         outcomes = [
-            run_world(dense_world(seed, AccelProfile.BANG_BANG), steps=300, latency=1, weaken=weaken)
+            run_world(
+                dense_world(seed, AccelProfile.BANG_BANG), steps=300, latency=1, weaken=weaken
+            )
             for seed in range(4)
         ]
         return sum(len(o.missed) + len(o.late) for o in outcomes)

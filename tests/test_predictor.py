@@ -93,8 +93,16 @@ KINEMATIC_XML = """
 
 @numba.njit(cache=False)
 def _kernel_points(
-    sphere_geom, sphere_body, sphere_offset, geom_xpos, geom_xmat, cvel, subtree_com, rootid,
-    root_twist, xpos,
+    sphere_geom,
+    sphere_body,
+    sphere_offset,
+    geom_xpos,
+    geom_xmat,
+    cvel,
+    subtree_com,
+    rootid,
+    root_twist,
+    xpos,
 ):  # pragma: no cover - jitted
     """Centre and velocity of every sphere through the fused step's own ``_rigid_point``."""
     n = sphere_geom.shape[0]
@@ -102,8 +110,17 @@ def _kernel_points(
     v = np.empty((n, 3))
     for i in range(n):
         ci, vi = _rigid_point(
-            i, sphere_geom, sphere_body, sphere_offset, geom_xpos, geom_xmat, cvel, subtree_com,
-            rootid, root_twist, xpos,
+            i,
+            sphere_geom,
+            sphere_body,
+            sphere_offset,
+            geom_xpos,
+            geom_xmat,
+            cvel,
+            subtree_com,
+            rootid,
+            root_twist,
+            xpos,
         )
         c[i] = ci
         v[i] = vi
@@ -114,7 +131,9 @@ def kernel_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarra
     """Call the jitted kernel exactly as ``Predictor.step`` feeds it (without advancing)."""
     cov = p.covering
     twist = (
-        p._mocap.body_velocity(p.model.nbody) if p._mocap is not None else np.zeros((p.model.nbody, 6))
+        p._mocap.body_velocity(p.model.nbody)
+        if p._mocap is not None
+        else np.zeros((p.model.nbody, 6))
     )
     return _kernel_points(
         np.ascontiguousarray(cov.sphere_geom, dtype=np.int64),
@@ -132,7 +151,9 @@ def kernel_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarra
 
 def _rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
     out = np.zeros(3)
-    mujoco.mju_rotVecQuat(out, np.asarray(vec, dtype=np.float64), np.asarray(quat, dtype=np.float64))
+    mujoco.mju_rotVecQuat(
+        out, np.asarray(vec, dtype=np.float64), np.asarray(quat, dtype=np.float64)
+    )
     return out
 
 
@@ -185,7 +206,9 @@ def _random_state(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator)
     d.qvel[:] = rng.normal(scale=2.0, size=m.nv)
 
 
-def _site_reference(m: mujoco.MjModel, d: mujoco.MjData, nsphere: int) -> tuple[np.ndarray, np.ndarray]:
+def _site_reference(
+    m: mujoco.MjModel, d: mujoco.MjData, nsphere: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Site positions and ``mj_objectVelocity`` (world frame, flg_local=0) linear velocities."""
     c = np.empty((nsphere, 3))
     v = np.empty((nsphere, 3))
@@ -240,7 +263,9 @@ def test_fused_step_tau_matches_vectorised_tau(site_predictor) -> None:
 
 def _quat_exp(omega_t: np.ndarray) -> np.ndarray:
     q = np.zeros(4)
-    mujoco.mju_axisAngle2Quat(q, omega_t / max(np.linalg.norm(omega_t), 1e-300), np.linalg.norm(omega_t))
+    mujoco.mju_axisAngle2Quat(
+        q, omega_t / max(np.linalg.norm(omega_t), 1e-300), np.linalg.norm(omega_t)
+    )
     return q
 
 
@@ -770,7 +795,7 @@ def test_cli_run_writes_json(tmp_path: Path, capsys) -> None:
     out = tmp_path / "sub" / "out.json"
     assert main(["run", "--steps", "300", "--json", str(out), "--no-progress"]) == 0
     report = json.loads(out.read_text())
-    assert REPORT_KEYS <= report.keys()
+    assert report.keys() >= REPORT_KEYS
     assert report["physics_steps"] == 300
     assert report["missed_onsets_valid_bounds"] == 0
     assert "contact onsets" in capsys.readouterr().out

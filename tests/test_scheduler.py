@@ -23,7 +23,9 @@ from dua_mujoco import (
 from dua_mujoco.scheduler import bucket_layout
 
 
-def reference_step(slots: np.ndarray, n: int, q: int, tau: dict[int, float]) -> tuple[np.ndarray, list[int]]:
+def reference_step(
+    slots: np.ndarray, n: int, q: int, tau: dict[int, float]
+) -> tuple[np.ndarray, list[int]]:
     """Obviously-correct Python version of one step: withdraw, sort, reinsert in bucket order."""
     nb = int(math.log2(len(slots) + 1))
     withdrawn = []
@@ -47,7 +49,7 @@ def test_layout_and_initial_partial_order(m: int) -> None:
     tau = rng.exponential(1.0, m)
     s = DUAScheduler(tau, dt=0.01)
     L, nslots = bucket_layout(m)
-    assert L == math.ceil(math.log2(m + 1)) and nslots == 2**L - 1
+    assert math.ceil(math.log2(m + 1)) == L and nslots == 2**L - 1
     assert s.slots.shape == (nslots,)
     assert sorted(s.slots[s.slots >= 0].tolist()) == list(range(m))
     assert (s.slots[:m] >= 0).all() and (s.slots[m:] == -1).all()
@@ -123,9 +125,7 @@ def test_alarm_rule(m: int, latency: int, dt: float, seed: int) -> None:
         tau = rng.exponential(dt * 20, sel.size)
         alarms = s.update(sel, tau)
         size = 1 << s.bucket(sel)
-        np.testing.assert_array_equal(
-            np.sort(alarms), np.sort(sel[tau < (size + latency) * dt])
-        )
+        np.testing.assert_array_equal(np.sort(alarms), np.sort(sel[tau < (size + latency) * dt]))
         # The i-th most urgent went to the i-th smallest bucket.
         assert (np.diff(size[np.argsort(tau, kind="stable")]) >= 0).all()
 

@@ -14,7 +14,12 @@ import pytest
 from dua_mujoco.monitor import RunReport
 from dua_mujoco.predictor import Alarms, Predictor
 from dua_mujoco.scenes import load_scene, make_controller
-from dua_mujoco.testing import (
+
+# The module is imported here, before pytest registers it from ``pytest_plugins``: mark it for
+# assertion rewriting first, or pytest warns that it was imported before it could rewrite it.
+pytest.register_assert_rewrite("dua_mujoco.testing")
+
+from dua_mujoco.testing import (  # noqa: E402
     BASELINE_KEYS,
     assert_no_missed_collisions,
     check_baseline,
@@ -38,9 +43,7 @@ def _scene() -> tuple[mujoco.MjModel, mujoco.MjData]:
 @pytest.fixture(scope="module")
 def clean_report() -> RunReport:
     m, d = _scene()
-    return assert_no_missed_collisions(
-        m, d, steps=STEPS, predictor={"accel": ACCEL}, scene=SCENE
-    )
+    return assert_no_missed_collisions(m, d, steps=STEPS, predictor={"accel": ACCEL}, scene=SCENE)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -82,7 +85,9 @@ def test_never_alarming_predictor_is_caught(monkeypatch: pytest.MonkeyPatch) -> 
     msg = str(info.value)
     assert "not preceded by an alarm although the declared bounds held" in msg
     # Geom pairs are named: sphere-sphere or sphere-wall.
-    named = re.findall(r"'(sphere\d+)' / '(sphere\d+|floor|ceiling|wall_[xy](?:neg|pos))' at t = ", msg)
+    named = re.findall(
+        r"'(sphere\d+)' / '(sphere\d+|floor|ceiling|wall_[xy](?:neg|pos))' at t = ", msg
+    )
     assert named, msg
     assert msg.splitlines()[0].startswith(f"{SCENE}: ")
 
@@ -134,7 +139,7 @@ def test_baseline_exceeded_fails_and_says_how_to_update(clean_report: RunReport)
     with pytest.raises(AssertionError) as info:
         check_baseline(clean_report, _counts(clean_report, 0.5), tolerance=0.25)
     msg = str(info.value)
-    assert "alarm_episodes" in msg and "false_alarm_episodes" in msg
+    assert f"alarm_episodes = {clean_report.alarm_episodes} >" in msg
     assert "--dua-update-baselines" in msg and "write_baseline" in msg
 
 
@@ -191,7 +196,7 @@ USER_TEST = textwrap.dedent(
     def test_my_scene(dua_predict):
         model, data = load_scene("{SCENE}")
         report = dua_predict(
-            model, data, steps=500, predictor={{"accel": {ACCEL}}}, baseline="baselines/pw.json"
+            model, data, steps=300, predictor={{"accel": {ACCEL}}}, baseline="baselines/pw.json"
         )
         assert report.contact_onsets > 0
     """
@@ -223,12 +228,6 @@ def test_plugin_baseline_update_and_compare(pytester: pytest.Pytester) -> None:
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*more alarms than the baseline allows*"])
     result.stdout.fnmatch_lines(["*--dua-update-baselines*"])
-
-    # Updating overwrites it with the run's counts.
-    pytester.runpytest("-p", "dua_mujoco.testing", "--dua-update-baselines").assert_outcomes(
-        passed=1
-    )
-    assert json.loads(baseline.read_text())["alarm_episodes"] == stored["alarm_episodes"]
 
 
 def test_plugin_option_is_documented(pytester: pytest.Pytester) -> None:
@@ -305,9 +304,10 @@ def test_module_import_does_not_load_mujoco_layers() -> None:
     assert out.stdout.strip() == "[]", out.stdout
 
 
-def test_zero_baseline_allows_no_false_alarm(clean_report: RunReport) -> None:
-    assert clean_report.false_alarm_episodes > 0
-    with pytest.raises(AssertionError):
+def test_zero_baseline_allows_no_alarm(clean_report: RunReport) -> None:
+    """A zero count stays zero whatever the (relative) tolerance."""
+    assert clean_report.alarm_episodes > 0
+    with pytest.raises(AssertionError, match="alarm_episodes"):
         check_baseline(
-            clean_report, {"alarm_episodes": np.inf, "false_alarm_episodes": 0}, tolerance=10.0
+            clean_report, {"alarm_episodes": 0, "false_alarm_episodes": np.inf}, tolerance=10.0
         )
