@@ -306,7 +306,7 @@ def assert_no_missed_collisions(
 
 
 class DuaPredict(Protocol):
-    """The callable the ``dua_predict`` fixture returns (see :func:`assert_no_missed_collisions`)."""
+    """The callable ``dua_predict`` returns: :func:`assert_no_missed_collisions`'s signature."""
 
     def __call__(
         self,

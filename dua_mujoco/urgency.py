@@ -89,6 +89,56 @@ def _predicate_and_slopes(x0, x1, x2, v0, v1, v2, a, e, d, h, t):  # pragma: no 
 def _refine(x0, x1, x2, v0, v1, v2, e, d, h, lo, hi):  # pragma: no cover - jitted
     """Lower end of a tight bracket of the single root of the predicate in ``[lo, hi]``.
 
+    Fast path: Halley's method on the expanded quartic ``g`` (no square roots), then the
+    bracket ``[t (1 - RTOL/2), t (1 + RTOL/2)]`` is *certified* with the vector-form predicate
+    (positive at its lower end, non-positive at its upper end, inside ``[lo, hi]``). The expanded
+    polynomial only steers: if cancellation made its root inaccurate, certification fails and
+    the safe iteration (``_refine_safe``) runs instead, so correctness rests on the predicate.
+    """
+    a = v0 * v0 + v1 * v1 + v2 * v2
+    b = x0 * v0 + x1 * v1 + x2 * v2
+    c = x0 * x0 + x1 * x1 + x2 * x2
+    # g(t) = a t^2 + 2 b t + c - (e + d t + h t^2)^2
+    c4 = -h * h
+    c3 = -2.0 * h * d
+    c2 = a - d * d - 2.0 * e * h
+    c1 = 2.0 * (b - e * d)
+    c0 = c - e * e
+    blo = lo
+    bhi = hi
+    t = hi
+    for _ in range(16):
+        g = (((c4 * t + c3) * t + c2) * t + c1) * t + c0
+        g1 = ((4.0 * c4 * t + 3.0 * c3) * t + 2.0 * c2) * t + c1
+        g2 = (12.0 * c4 * t + 6.0 * c3) * t + 2.0 * c2
+        if g > 0.0:
+            blo = max(blo, t)
+        else:
+            bhi = min(bhi, t)
+        den = 2.0 * g1 * g1 - g * g2
+        tn = t - 2.0 * g * g1 / den if (g1 < 0.0 and den > 0.0) else -1.0
+        if not (blo <= tn <= bhi):
+            tn = 0.5 * (blo + bhi)
+        if abs(tn - t) <= 1e-15 * t:
+            t = tn
+            break
+        t = tn
+    tl = t * (1.0 - 0.5 * _RTOL)
+    th = t * (1.0 + 0.5 * _RTOL)
+    if (
+        lo <= tl
+        and th <= hi
+        and _predicate(x0, x1, x2, v0, v1, v2, e, d, h, tl) > 0.0
+        and _predicate(x0, x1, x2, v0, v1, v2, e, d, h, th) <= 0.0
+    ):
+        return tl
+    return _refine_safe(x0, x1, x2, v0, v1, v2, e, d, h, lo, hi)
+
+
+@nb.njit(cache=True)
+def _refine_safe(x0, x1, x2, v0, v1, v2, e, d, h, lo, hi):  # pragma: no cover - jitted
+    """Lower end of a tight bracket of the single root of the predicate in ``[lo, hi]``.
+
     Requires: predicate(lo) > 0, predicate(hi) <= 0 and exactly one root in ``[lo, hi]`` (g
     monotone or unimodal there). Halley's method (cubic convergence; f'' is nearly free) from
     ``hi``, safeguarded by bisection; every iterate tightens the bracket, so stopping early still

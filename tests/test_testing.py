@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import json
+import os
 import re
+import subprocess
+import sys
 import textwrap
 from pathlib import Path
 
@@ -16,10 +19,12 @@ from dua_mujoco.predictor import Alarms, Predictor
 from dua_mujoco.scenes import load_scene, make_controller
 
 # The module is imported here, before pytest registers it from ``pytest_plugins``: mark it for
-# assertion rewriting first, or pytest warns that it was imported before it could rewrite it.
-pytest.register_assert_rewrite("dua_mujoco.testing")
+# assertion rewriting first, or pytest warns that it was imported before it could rewrite it
+# (unless the pytest11 entry point already loaded it at start-up).
+if "dua_mujoco.testing" not in sys.modules:
+    pytest.register_assert_rewrite("dua_mujoco.testing")
 
-from dua_mujoco.testing import (  # noqa: E402
+from dua_mujoco.testing import (
     BASELINE_KEYS,
     assert_no_missed_collisions,
     check_baseline,
@@ -160,7 +165,7 @@ def test_baseline_file_round_trip(clean_report: RunReport, tmp_path: Path) -> No
 
 
 def test_missing_or_malformed_baseline(clean_report: RunReport, tmp_path: Path) -> None:
-    with pytest.raises(AssertionError, match="no baseline at .*--dua-update-baselines"):
+    with pytest.raises(AssertionError, match=r"no baseline at .*--dua-update-baselines"):
         check_baseline(clean_report, tmp_path / "absent.json")
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
@@ -285,10 +290,6 @@ def test_plugin_fixture_fails_on_missed_collision(pytester: pytest.Pytester) -> 
 def test_module_import_does_not_load_mujoco_layers() -> None:
     """The plugin is loaded in every pytest session of an environment with dua_mujoco installed:
     it must not import MuJoCo or the predictor until a test uses it."""
-    import os
-    import subprocess
-    import sys
-
     code = (
         "import sys, dua_mujoco.testing; "
         "print([m for m in ('mujoco', 'dua_mujoco.predictor', 'dua_mujoco.monitor') "

@@ -546,15 +546,20 @@ def _kernel_costs(n: int, params: WorldParams, reps: int, seed: int = 0) -> tupl
         dua._alarms,
     )
     _dua_kernel_loop(1, 1, *state, *geometry)
-    t0 = time.perf_counter()
-    _dua_kernel_loop(reps, 2, *state, *geometry)
-    dua_ns = (time.perf_counter() - t0) / reps * 1e9
+    # Best of three: other processes only ever add time, so the minimum is the cleanest estimate.
+    dua_ns = math.inf
+    for rep in range(3):
+        t0 = time.perf_counter()
+        _dua_kernel_loop(reps, 2 + rep * reps, *state, *geometry)
+        dua_ns = min(dua_ns, (time.perf_counter() - t0) / reps * 1e9)
     # SA: enough repetitions for ~reps * 10 evaluations, at least one.
     sa_reps = max(1, (reps * 10) // len(pairs))
     _sa_kernel_loop(1, 2.0, *geometry)
-    t0 = time.perf_counter()
-    _sa_kernel_loop(sa_reps, 2.0, *geometry)
-    sa_ns = (time.perf_counter() - t0) / sa_reps * 1e9
+    sa_ns = math.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        _sa_kernel_loop(sa_reps, 2.0, *geometry)
+        sa_ns = min(sa_ns, (time.perf_counter() - t0) / sa_reps * 1e9)
     return dua_ns, sa_ns
 
 
