@@ -325,11 +325,13 @@ def estimate_bounds(
         init: called once after ``mj_resetData`` as ``init(model, data, rng)``.
         spheres: ``(sphere_geom, sphere_body, sphere_offset)``; None for :func:`default_spheres`.
         with_speed: also return a speed bound.
-        contact_free: measure a kinematic tree only at steps where none of its bodies was in
-            contact (in the last three steps, which the second difference spans). Contact
+        contact_free: skip a kinematic tree at steps where one of its bodies started a new
+            contact (in the last three steps, which the second difference spans). Collision
             impulses are what the predictor must foresee, not part of the motion model: with
-            them the bounds become so loose that every pair alarms. Collisions then show up as
-            bound violations in the ``BoundMonitor``, as they should.
+            them the bounds become so loose that every pair alarms. Sustained contact (resting,
+            sliding, grasping) is kept: it is ordinary motion. A body measured at no step at all
+            falls back to every step. Collisions then show up as bound violations in the
+            ``BoundMonitor``, as they should.
 
     Returns:
         The bounds, ``source="auto"``.
@@ -369,7 +371,11 @@ def estimate_bounds(
     prev_w: np.ndarray | None = None
     rootid = np.asarray(model.body_rootid, dtype=np.int64)
     sroot = rootid[sbody]
-    touched = np.zeros((3, nb), dtype=bool)  # trees in contact at the last three steps
+    geom_root = rootid[np.asarray(model.geom_bodyid, dtype=np.int64)]
+    touched = np.zeros((3, nb), dtype=bool)  # trees with a new contact in the last three steps
+    in_contact: set[tuple[int, int]] = set()
+    amax_all, dmax_all = np.zeros(nb), np.zeros(nb)
+    measured = np.zeros(nb, dtype=bool)
     for k in range(steps):
         ctrl(model, d, rng)
         mujoco.mj_step(model, d)
@@ -377,9 +383,11 @@ def estimate_bounds(
         if contact_free:
             touched[k % 3] = False
             nc = int(d.ncon)
-            if nc:
-                touched[k % 3, rootid[np.asarray(model.geom_bodyid)[d.contact.geom1[:nc]]]] = True
-                touched[k % 3, rootid[np.asarray(model.geom_bodyid)[d.contact.geom2[:nc]]]] = True
+            now = set(zip(d.contact.geom1[:nc].tolist(), d.contact.geom2[:nc].tolist(), strict=True))
+            for g1, g2 in now - in_contact:
+                touched[k % 3, geom_root[g1]] = True
+                touched[k % 3, geom_root[g2]] = True
+            in_contact = now
             free = np.asarray(~touched.any(axis=0))[sroot]
         else:
             free = np.ones(sbody.shape[0], dtype=bool)
@@ -391,13 +399,19 @@ def estimate_bounds(
             u = (c - prev_c) / h
             assert prev_w is not None
             if tracker.nupdates >= 3 or not tracker.mocap_bodies.size:
-                disc = np.where(free, np.linalg.norm(u - prev_w, axis=1), 0.0)
-                dmax = np.maximum(dmax, _per_body_max(disc, sbody, nb))
+                disc = np.linalg.norm(u - prev_w, axis=1)
+                dmax = np.maximum(dmax, _per_body_max(np.where(free, disc, 0.0), sbody, nb))
+                dmax_all = np.maximum(dmax_all, _per_body_max(disc, sbody, nb))
             if prev_u is not None:
-                acc = np.where(free, np.linalg.norm(u - prev_u, axis=1) / h, 0.0)
-                amax = np.maximum(amax, _per_body_max(acc, sbody, nb))
+                acc = np.linalg.norm(u - prev_u, axis=1) / h
+                amax = np.maximum(amax, _per_body_max(np.where(free, acc, 0.0), sbody, nb))
+                amax_all = np.maximum(amax_all, _per_body_max(acc, sbody, nb))
+                measured[np.unique(sbody[free])] = True
             prev_u = u
         prev_c, prev_w = c, w
+    # Bodies starting new contacts at every step were never measured: use every step for them.
+    amax = np.where(measured, amax, amax_all)
+    dmax = np.where(measured, dmax, dmax_all)
     moving = moving_bodies(model)
     A = np.where(moving, safety * amax, 0.0)
     D = np.where(moving, safety * dmax, 0.0)

@@ -283,7 +283,12 @@ class Predictor:
     # ----------------------------------------------------------------------- state
 
     def _check_data(self, data: mujoco.MjData) -> None:
-        if data.geom_xpos.shape[0] != self.model.ngeom or data.cvel.shape[0] != self.model.nbody:
+        m = self.model
+        if (
+            data.geom_xpos.shape[0] != m.ngeom
+            or data.cvel.shape[0] != m.nbody
+            or data.qpos.shape[0] != m.nq
+        ):
             raise InvalidInputError(
                 f"data has {data.geom_xpos.shape[0]} geoms and {data.cvel.shape[0]} bodies but the "
                 f"model has {self.model.ngeom} and {self.model.nbody}: pass the MjData of this "
@@ -297,6 +302,8 @@ class Predictor:
         numpy view (about a microsecond in all), so the views are built once.
         """
         if self._frame_data is not data:
+            # The kernel does no bounds checks: refuse an MjData of another model here.
+            self._check_data(data)
             self._frame_data = data
             self._frame_cache = (
                 data.geom_xpos,
@@ -362,6 +369,9 @@ class Predictor:
         """
         self._check_data(data)
         if self._mocap is not None:
+            # A reset starts a new trajectory: difference mocap poses within it only.
+            self._mocap = MocapVelocityTracker(self.model)
+            self._frame_data = None
             self._mocap.update(data)
         c, v = self.sphere_states(data)
         if not (np.isfinite(c).all() and np.isfinite(v).all()):
