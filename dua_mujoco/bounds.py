@@ -383,7 +383,9 @@ def estimate_bounds(
         if contact_free:
             touched[k % 3] = False
             nc = int(d.ncon)
-            now = set(zip(d.contact.geom1[:nc].tolist(), d.contact.geom2[:nc].tolist(), strict=True))
+            now = set(
+                zip(d.contact.geom1[:nc].tolist(), d.contact.geom2[:nc].tolist(), strict=True)
+            )
             for g1, g2 in now - in_contact:
                 touched[k % 3, geom_root[g1]] = True
                 touched[k % 3, geom_root[g2]] = True
