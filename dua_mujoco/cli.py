@@ -79,6 +79,11 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--pilot-steps", type=_positive(int), default=2000, help="pilot rollout length")
     p.add_argument("--hfield", choices=["error", "box"], default="error")
     p.add_argument("--realtime", action="store_true", help="count predictor deadline overruns")
+    p.add_argument(
+        "--geom-distance",
+        action="store_true",
+        help="measure alarmed geom pairs with mj_geomDistance (the exact distance)",
+    )
     p.add_argument("--json", type=Path, default=None, help="write the report as JSON here")
     p.add_argument("--series", action="store_true", help="add per-step series to the JSON")
     p.add_argument("--video", type=Path, default=None, help="render a video (.mp4 or .gif)")
@@ -149,6 +154,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             controller=controller,
             scene=args.scene,
             realtime=args.realtime,
+            geom_distance=args.geom_distance,
             progress=not args.no_progress,
             on_step=on_step,
         )

@@ -33,6 +33,9 @@ __all__ = ["Miss", "Monitor", "RunReport", "run"]
 
 Controller = Callable[[mujoco.MjModel, mujoco.MjData], None]
 
+# mj_geomDistance stops searching beyond this distance (m); alarmed pairs are far closer.
+_DISTMAX = 100.0
+
 
 @dataclasses.dataclass(frozen=True)
 class Miss:
@@ -70,6 +73,7 @@ class RunReport:
     lead_time_mean_s: float | None
     bound_violations: int
     deadline_overruns: int
+    exact_distance_median_m: float | None
     predictor_us_per_step: float
     mj_step_us_per_step: float
     misses: tuple[Miss, ...] = ()
@@ -140,14 +144,22 @@ class Monitor:
             misses from misses after a broken bound).
         realtime: Treat the predictor period as a deadline: a predictor step slower than
             ``predictor.dt`` counts as an overrun and warns once (the "cannot keep up" signal).
+        geom_distance: Also measure the exact distance (``mj_geomDistance``) of every alarmed
+            geom pair at each predictor step: how far the exact stage finds alarmed pairs.
     """
 
     def __init__(
-        self, predictor: Predictor, *, check_bounds: bool = True, realtime: bool = False
+        self,
+        predictor: Predictor,
+        *,
+        check_bounds: bool = True,
+        realtime: bool = False,
+        geom_distance: bool = False,
     ) -> None:
         self.predictor = predictor
         self.model = predictor.model
         self.realtime = realtime
+        self.geom_distance = geom_distance
         cov = predictor.covering
         self.bounds = (
             BoundMonitor(
@@ -200,6 +212,7 @@ class Monitor:
         self.violations = 0
         self.overruns = 0
         self.evaluations: list[int] = []
+        self.exact_distances: list[float] = []
         self.alarms_per_step: list[int] = [len(alarms)]
         self.min_tau: list[float] = [float(np.min(alarms.tau, initial=np.inf))]
         if self.bounds is not None:
@@ -250,6 +263,11 @@ class Monitor:
         evaluated = sched.last_selected
         self.evaluations.append(int(evaluated.size))
         self._apply_alarms(alarms, evaluated, float(data.time))
+        if self.geom_distance and len(alarms):
+            for g1, g2 in sorted(alarms.geom_pairs):
+                self.exact_distances.append(
+                    float(mujoco.mj_geomDistance(self.model, data, g1, g2, _DISTMAX, None))
+                )
         self.alarms_per_step.append(len(alarms))
         self.min_tau.append(float(alarms.tau.min()) if len(alarms) else np.inf)
 
@@ -350,6 +368,7 @@ def run(
     controller: Controller | None = None,
     scene: str = "",
     realtime: bool = False,
+    geom_distance: bool = False,
     progress: bool = True,
     on_step: Callable[[int, mujoco.MjData, Alarms | None, Monitor], None] | None = None,
 ) -> RunReport:
@@ -366,12 +385,13 @@ def run(
         controller: ``controller(model, data)`` called before each ``mj_step``.
         scene: Name recorded in the report.
         realtime: Count deadline overruns (see ``Monitor``).
+        geom_distance: Measure alarmed pairs with ``mj_geomDistance`` (see ``Monitor``).
         progress: Draw a progress bar on stderr.
         on_step: Called after each physics step with ``(k, data, alarms or None, monitor)``.
     """
     if steps < 1:
         raise SchedulerError(f"steps = {steps} is invalid: run at least one physics step.")
-    monitor = Monitor(predictor, realtime=realtime)
+    monitor = Monitor(predictor, realtime=realtime, geom_distance=geom_distance)
     if controller is not None:
         controller(model, data)
     mujoco.mj_step(model, data)
@@ -435,6 +455,9 @@ def run(
         lead_time_mean_s=float(np.mean(monitor.lead_times)) if monitor.lead_times else None,
         bound_violations=monitor.violations,
         deadline_overruns=monitor.overruns,
+        exact_distance_median_m=(
+            float(np.median(monitor.exact_distances)) if monitor.exact_distances else None
+        ),
         predictor_us_per_step=float(np.median(t_pred) * 1e6) if t_pred else 0.0,
         mj_step_us_per_step=float(np.median(t_mj) * 1e6),
         misses=tuple(monitor.misses),

@@ -206,6 +206,10 @@ class Predictor:
                 spheres=spheres,
                 with_speed=False,
             )
+            if speed is not None:
+                # A declared speed bound still applies on top of estimated accelerations.
+                declared = MotionBounds.declare(model, 0.0, speed=speed, integrator_term=False)
+                self.bounds = dataclasses.replace(self.bounds, speed=declared.speed)
         else:
             self.bounds = MotionBounds.declare(
                 model, accel, speed=speed, velocity_accel=velocity_accel
