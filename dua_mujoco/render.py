@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 import warnings
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -536,6 +537,24 @@ def _check_mp4_size(width: int, height: int) -> None:
         )
 
 
+def use_bundled_ffmpeg() -> Any:
+    """Point mediapy at imageio-ffmpeg's ffmpeg and return the ``mediapy`` module.
+
+    There may be no ffmpeg on PATH, and a newer system ffmpeg writes files mediapy cannot read
+    back (SPEC section 7), so reading and writing always use the bundled one.
+    """
+    import imageio_ffmpeg
+    import mediapy
+
+    mediapy.set_ffmpeg(imageio_ffmpeg.get_ffmpeg_exe())
+    return mediapy
+
+
+def read_video(path: str | os.PathLike[str]) -> np.ndarray:
+    """Read a video written by ``write_video`` back as ``(frames, H, W, 3)`` uint8."""
+    return np.asarray(use_bundled_ffmpeg().read_video(str(path)))
+
+
 def write_video(frames: Iterable[np.ndarray], path: str | Path, *, fps: float = 30.0) -> int:
     """Write RGB frames to an ``.mp4`` (H.264 via imageio-ffmpeg's ffmpeg) or a ``.gif``.
 
@@ -578,12 +597,7 @@ def write_video(frames: Iterable[np.ndarray], path: str | Path, *, fps: float = 
     if out.suffix.lower() == ".gif":
         return _write_gif(checked(), out, fps)
     _check_mp4_size(shape[1], shape[0])
-    import imageio_ffmpeg
-    import mediapy
-
-    # There is no ffmpeg on PATH here, and a newer system ffmpeg cannot be read back by mediapy
-    # (SPEC section 7): always use the bundled one.
-    mediapy.set_ffmpeg(imageio_ffmpeg.get_ffmpeg_exe())
+    mediapy = use_bundled_ffmpeg()
     count = 0
     with mediapy.VideoWriter(out, shape=(shape[0], shape[1]), fps=fps) as writer:
         for f in checked():

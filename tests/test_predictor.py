@@ -905,3 +905,32 @@ def test_python_dash_m(tmp_path: Path) -> None:
     )
     assert out.returncode == 0, out.stderr[-2000:]
     assert "contact onsets" in out.stdout
+
+
+def test_cli_video_gif(tmp_path) -> None:
+    """``run --video`` renders headless through EGL and writes a video that reads back."""
+    import os
+
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from dua_mujoco.cli import main
+    from dua_mujoco.render import read_video
+
+    out = tmp_path / "run.gif"
+    code = main(
+        [
+            "run",
+            "--steps",
+            "40",
+            "--every",
+            "10",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--video",
+            str(out),
+            "--no-progress",
+        ]
+    )
+    assert code == 0
+    assert read_video(out).shape[0] == 4

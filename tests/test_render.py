@@ -9,8 +9,6 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import warnings
 from pathlib import Path
 
-import imageio_ffmpeg
-import mediapy
 import mujoco
 import numpy as np
 import pytest
@@ -23,6 +21,7 @@ from dua_mujoco.render import (
     OverlayOptions,
     OverlayRenderer,
     SceneFullWarning,
+    read_video,
     render_rollout,
     write_video,
 )
@@ -212,8 +211,7 @@ def test_render_rollout_writes_a_readable_video(tmp_path: Path, suffix: str) -> 
         progress=False,
     )
     assert n == 10
-    mediapy.set_ffmpeg(imageio_ffmpeg.get_ffmpeg_exe())
-    video = mediapy.read_video(path)
+    video = read_video(path)
     assert video.shape == (10, 48, 64, 3)
 
 
