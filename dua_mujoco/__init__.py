@@ -6,8 +6,11 @@ MuJoCo layer (``covering``, ``pairs``, ``state``, ``bounds``, ``predictor``, ``m
 ``scenes``) builds on it.
 """
 
-from dua_mujoco.bounds import BoundMonitor, MotionBounds, estimate_bounds
-from dua_mujoco.covering import Covering, CoveringMode, cover_model
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
     DeadlineOverrunWarning,
@@ -20,13 +23,49 @@ from dua_mujoco.exceptions import (
     ShapeError,
     UnsupportedGeomError,
 )
-from dua_mujoco.monitor import Monitor, RunReport, run
-from dua_mujoco.pairs import GeomPairs, SpherePairs, active_geom_pairs, sphere_pairs
-from dua_mujoco.predictor import Alarms, Predictor
-from dua_mujoco.scenes import CtrlMode, load_scene, make_controller
 from dua_mujoco.scheduler import DUAScheduler, PairSet, SelectAllScheduler, Urgency
 from dua_mujoco.urgency import distance_urgency, time_to_collision, time_to_halfspace
 from dua_mujoco.worlds import AccelProfile, SphereWorld
+
+if TYPE_CHECKING:
+    from dua_mujoco.bounds import BoundMonitor, MotionBounds, estimate_bounds
+    from dua_mujoco.covering import Covering, CoveringMode, cover_model
+    from dua_mujoco.monitor import Monitor, RunReport, run
+    from dua_mujoco.pairs import GeomPairs, SpherePairs, active_geom_pairs, sphere_pairs
+    from dua_mujoco.predictor import Alarms, Predictor
+    from dua_mujoco.scenes import CtrlMode, load_scene, make_controller
+
+# The MuJoCo layer loads on first use (PEP 562), so that ``import dua_mujoco`` (and the pytest
+# plugin ``dua_mujoco.testing``, loaded in every test session) does not import MuJoCo.
+_LAZY = {
+    "Alarms": "dua_mujoco.predictor",
+    "BoundMonitor": "dua_mujoco.bounds",
+    "Covering": "dua_mujoco.covering",
+    "CoveringMode": "dua_mujoco.covering",
+    "CtrlMode": "dua_mujoco.scenes",
+    "GeomPairs": "dua_mujoco.pairs",
+    "Monitor": "dua_mujoco.monitor",
+    "MotionBounds": "dua_mujoco.bounds",
+    "Predictor": "dua_mujoco.predictor",
+    "RunReport": "dua_mujoco.monitor",
+    "SpherePairs": "dua_mujoco.pairs",
+    "active_geom_pairs": "dua_mujoco.pairs",
+    "cover_model": "dua_mujoco.covering",
+    "estimate_bounds": "dua_mujoco.bounds",
+    "load_scene": "dua_mujoco.scenes",
+    "make_controller": "dua_mujoco.scenes",
+    "run": "dua_mujoco.monitor",
+    "sphere_pairs": "dua_mujoco.pairs",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'dua_mujoco' has no attribute {name!r}")
+
 
 __version__ = "0.1.0"
 
