@@ -730,6 +730,7 @@ class DUAScheduler:
         self._pending: np.ndarray | None = None
         self._pending_count = 0
         self._last_count = 0
+        self._last_extra = np.zeros(0, dtype=np.int64)  # re-activated ids of the latest select()
         self._reactivated: list[int] = []
 
     # ----------------------------------------------------------------------- introspection
@@ -814,6 +815,7 @@ class DUAScheduler:
         self._last_count = count
         extra = np.asarray(self._reactivated, dtype=np.int64)
         self._reactivated = []
+        self._last_extra = extra
         self._pending = np.concatenate([self._w_ids[:count], extra])
         return self._pending.copy()
 
@@ -930,6 +932,7 @@ class DUAScheduler:
                 "velocities hold NaN or inf; check that the simulation has not diverged."
             )
         self._last_count = count
+        self._last_extra = self._last_extra[:0]
         self.step_count = n
         return self._alarms[:nalarm].copy()
 
@@ -972,6 +975,7 @@ class DUAScheduler:
         if bad >= 0:
             return self._alarms[:0].copy(), int(bad)
         self._last_count = count
+        self._last_extra = self._last_extra[:0]
         self.step_count = n
         return self._alarms[:nalarm].copy(), -1
 
@@ -983,8 +987,11 @@ class DUAScheduler:
 
     @property
     def last_selected(self) -> np.ndarray:
-        """Ids evaluated by the latest fused step, in selection order (a copy)."""
-        return self._w_ids[: self._last_count].copy()
+        """Ids evaluated by the latest step (slots in selection order, then re-activated ids)."""
+        regular = self._w_ids[: self._last_count]
+        return (
+            np.concatenate([regular, self._last_extra]) if self._last_extra.size else regular.copy()
+        )
 
 
 # --------------------------------------------------------------------------- baselines
