@@ -185,6 +185,17 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=paper.main)
 
 
+def _add_peers(sub: argparse._SubParsersAction) -> None:
+    from dua_mujoco.experiments import peers
+
+    p = sub.add_parser(
+        "peers",
+        help="measure DUA against SA(tau), swept-sphere broadphases, MuJoCo and FCL",
+    )
+    peers.add_arguments(p)
+    p.set_defaults(func=peers.main)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``dua-mujoco`` argument parser with its subcommands."""
     parser = argparse.ArgumentParser(
@@ -194,6 +205,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     _add_run(sub)
     _add_paper(sub)
+    _add_peers(sub)
     return parser
 
 
