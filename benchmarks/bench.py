@@ -62,7 +62,6 @@ def bench_compile() -> str:
 
 def bench_core() -> str:
     from dua_mujoco import DUAScheduler, SelectAllScheduler, SphereWorld, time_to_collision
-    from dua_mujoco.scheduler import _tau_pairs
 
     rng = np.random.default_rng(0)
     out = []
@@ -127,23 +126,7 @@ def bench_core() -> str:
 
     def sa_step() -> None:
         sel = sa.select()
-        sa.update(
-            sel,
-            _tau_pairs(
-                sel,
-                w.positions,
-                w.velocities,
-                np.zeros((1, 3)),
-                np.zeros(1),
-                pairs.first,
-                pairs.second,
-                pairs.halfspace,
-                pairs.eps,
-                pairs.accel,
-                pairs.vel_uncertainty,
-                pairs.speed,
-            ),
-        )
+        sa.update(sel, pairs.tau(sel, w.positions, w.velocities))
 
     rows.append([f"SA(tau) step, M = {len(pairs):.3g}", f"{median_time(sa_step, 15) * 1e3:.1f} ms"])
     out.append(table(["scheduler", "median"], rows))

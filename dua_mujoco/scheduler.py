@@ -1076,7 +1076,11 @@ class SelectAllScheduler:
             raise SchedulerError("update() without select(): call select() first.")
         idx = _ids("ids", ids)
         vals = np.asarray(values, dtype=np.float64)
-        if vals.shape != idx.shape or not np.array_equal(np.sort(idx), self._pending):
+        # The ids usually come back in selection order: compare directly before sorting (O(M)).
+        same = idx.shape == self._pending.shape and (
+            np.array_equal(idx, self._pending) or np.array_equal(np.sort(idx), self._pending)
+        )
+        if vals.shape != idx.shape or not same:
             raise SchedulerError(
                 "update() must get exactly the ids select() returned, with one value each."
             )

@@ -1893,9 +1893,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out",
         type=Path,
-        default=Path("peers_out"),
+        default=Path("out/peers"),
         metavar="DIR",
-        help="folder for peers.md, peers.json and plots (default peers_out)",
+        help="folder for peers.md, peers.json and plots (default out/peers)",
     )
     parser.add_argument("--no-memory", action="store_true", help="skip the large-N memory probes")
     parser.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
