@@ -54,12 +54,14 @@ class Progress:
         width = 30
         filled = round(frac * width)
         elapsed = now - self._start
-        eta = elapsed / frac - elapsed if frac > 0 else float("nan")
+        # The first units often include one-off work (JIT compilation): no ETA from them.
+        settled = self.count >= max(2, self.total // 50)
+        eta = f"{elapsed / frac - elapsed:5.1f}s" if settled and frac > 0 else "  ...."
         bar = "#" * filled + " " * (width - filled)
         extra = f" {note}" if note else ""
         self.stream.write(
             f"\r{self.label} [{bar}] {self.count}/{self.total} "
-            f"{elapsed:5.1f}s eta {eta:5.1f}s{extra}\x1b[K"
+            f"{elapsed:5.1f}s eta {eta}{extra}\x1b[K"
         )
         self.stream.flush()
 
