@@ -36,6 +36,13 @@ Controller = Callable[[mujoco.MjModel, mujoco.MjData], None]
 # mj_geomDistance stops searching beyond this distance (m); alarmed pairs are far closer.
 _DISTMAX = 100.0
 
+_NONE = np.zeros(0, dtype=np.int64)
+
+
+def _contains(sorted_ids: np.ndarray, g: int) -> bool:
+    i = int(np.searchsorted(sorted_ids, g))
+    return i < sorted_ids.size and int(sorted_ids[i]) == g
+
 
 @dataclasses.dataclass(frozen=True)
 class Miss:
@@ -221,14 +228,15 @@ class Monitor:
         return alarms
 
     def _contacts(self, data: mujoco.MjData) -> tuple[np.ndarray, int]:
-        """Active geom pairs in contact (bool mask) and the count of contacts outside them."""
-        mask = np.zeros(self._ngp, dtype=bool)
+        """Active geom pairs in contact (sorted ids) and the count of contacts outside them.
+
+        O(ncon), not O(geom pairs): the monitor runs every physics step.
+        """
         nc = int(data.ncon)
         if nc == 0:
-            return mask, 0
+            return _NONE, 0
         gp = self.predictor.geom_pairs.indices_of(data.contact.geom1[:nc], data.contact.geom2[:nc])
-        mask[gp[gp >= 0]] = True
-        return mask, int((gp < 0).sum())
+        return np.unique(gp[gp >= 0]), int((gp < 0).sum())
 
     # ------------------------------------------------------------------- alarms
 
@@ -239,20 +247,24 @@ class Monitor:
         ids = np.union1d(evaluated, alarms.pairs)
         new = sched.alarm_state(ids) & sched.active[ids]
         old = self._pair_alarm[ids]
-        before = self._standing.copy() if ids.size else self._standing
+        touched = np.unique(gp[ids])
+        before = self._standing[touched]  # a copy (fancy indexing)
         np.add.at(self._standing, gp[ids], new.astype(np.int64) - old.astype(np.int64))
         self._pair_alarm[ids] = new
-        touched = np.unique(gp[ids])
-        started = touched[(before[touched] == 0) & (self._standing[touched] > 0)]
-        ended = touched[(before[touched] > 0) & (self._standing[touched] == 0)]
+        after = self._standing[touched]
+        begins = (before == 0) & (after > 0)
+        started = touched[begins]
+        ended = touched[(before > 0) & (after == 0)]
         if started.size:
             self.episodes += int(started.size)
             self._episode_start[started] = t
             self._episode_touch[started] = False
-            horizon = sched.horizon[sched.bucket(alarms.pairs)] if len(alarms) else np.zeros(0)
-            h = np.zeros(self._ngp)
-            np.maximum.at(h, gp[alarms.pairs], horizon)
-            self._episode_horizon[started] = h[started]
+            # An episode's horizon: the longest revisit horizon among the alarms that opened it.
+            h = np.zeros(touched.size)
+            if len(alarms):
+                at = np.searchsorted(touched, gp[alarms.pairs])
+                np.maximum.at(h, at, sched.horizon[sched.bucket(alarms.pairs)])
+            self._episode_horizon[started] = h[begins]
         for g in ended.tolist():
             self._pending.append((g, t + float(self._episode_horizon[g])))
 
@@ -293,13 +305,13 @@ class Monitor:
         now, unfiltered = self._contacts(data)
         self.unfiltered_contacts += unfiltered
         t = float(data.time)
-        self._episode_touch |= now & (self._standing > 0)
+        self._episode_touch[now[self._standing[now] > 0]] = True
         if self._pending:
             still = []
             for g, deadline in self._pending:
                 if self._standing[g] > 0:
                     continue  # a new episode took over
-                if now[g]:
+                if _contains(now, g):
                     self._episode_touch[g] = True
                 if t >= deadline:
                     if not self._episode_touch[g]:
@@ -307,7 +319,7 @@ class Monitor:
                 else:
                     still.append((g, deadline))
             self._pending = still
-        onset = np.flatnonzero(now & ~self._in_contact)
+        onset = np.setdiff1d(now, self._in_contact, assume_unique=True)
         self._in_contact = now
         if onset.size:
             self._onsets(onset, t)
