@@ -168,9 +168,11 @@ class Predictor:
             raise InvalidInputError(f"period = {period!r} is invalid: it must be an int >= 1.")
         self.model = model
         self.period = int(period)
+        self.dt = self.period * float(model.opt.timestep)
+        # Validate the scheduler options now rather than at reset(): same checks, same messages.
+        DUAScheduler(np.zeros(1), dt=self.dt, latency=latency, slots_per_bucket=slots_per_bucket)
         self.latency = int(latency)
         self.slots_per_bucket = int(slots_per_bucket)
-        self.dt = self.period * float(model.opt.timestep)
         self.covering = (
             covering
             if isinstance(covering, Covering)
@@ -183,6 +185,11 @@ class Predictor:
         cov = self.covering
         spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
         if isinstance(accel, MotionBounds):
+            if accel.accel.shape != (model.nbody,):
+                raise InvalidInputError(
+                    f"the MotionBounds have {accel.accel.shape[0]} bodies but the model has "
+                    f"{model.nbody}: build them for this model (MotionBounds.declare(model, ...))."
+                )
             self.bounds = accel
         elif isinstance(accel, str):
             if accel != "auto":
