@@ -382,7 +382,8 @@ def _cover_geom(
         if hfield == "error":
             raise UnsupportedGeomError(
                 f"{_geom_name(model, g)} is a height field, which has no exact sphere covering. "
-                'Pass hfield="box" (CLI: --hfield box) to cover it conservatively by its bounding box (base included).'
+                'Pass hfield="box" (CLI: --hfield box) to cover it conservatively by its bounding '
+                "box (base included)."
             )
         # The height field spans x, y in [-size_x, size_x] x [-size_y, size_y] and z from -base
         # to the top elevation; geom_aabb is exactly that box in the geom frame.
