@@ -763,11 +763,16 @@ class DUAScheduler:
         return np.asarray(n + (phase - n) % interval)
 
     def most_urgent(self) -> int:
-        """The pair DUA believes most urgent: the occupant of bucket 0 (-1 if none active)."""
-        for slot in self.slots:
-            if slot >= 0 and self.active[slot]:
-                return int(slot)
-        return -1
+        """The pair DUA believes most urgent: the occupant of bucket 0 (paper sec. 8.1.4).
+
+        If that pair is switched off, the first active pair in slot order (-1 if none).
+        """
+        first = int(self.slots[0])
+        if first >= 0 and self.active[first]:
+            return first
+        occupants = self.slots[self.slots >= 0]
+        live = occupants[self.active[occupants]]
+        return int(live[0]) if live.size else -1
 
     @property
     def evaluations_per_step(self) -> int:
