@@ -303,39 +303,43 @@ def _rigid_point(
     rootid,
     root_twist,
     root_origin,
+    out,
 ):  # pragma: no cover - jitted
     """Centre and velocity of sphere ``i`` attached to a rigid frame (MuJoCo's conventions).
 
-    Centre: ``frame_pos[g] + frame_mat[g] @ offset``. Velocity: the body twist
-    ``[omega; v_ref]`` about the point ``twist_ref[rootid[b]]`` (MuJoCo's ``cvel`` about
-    ``subtree_com`` of the root), plus the twist of the tree's root about ``root_origin`` for
-    trees MuJoCo treats as static (mocap roots), which is zero elsewhere.
+    Writes ``out[0:3]`` (centre) and ``out[3:6]`` (velocity), without allocating. Centre:
+    ``frame_pos[g] + frame_mat[g] @ offset``. Velocity: the body twist ``[omega; v_ref]`` about
+    the point ``twist_ref[rootid[b]]`` (MuJoCo's ``cvel`` about ``subtree_com`` of the root),
+    plus the twist of the tree's root about ``root_origin`` for trees MuJoCo treats as static
+    (mocap roots), which is zero elsewhere.
     """
     g = sphere_frame[i]
     b = sphere_body[i]
-    o = sphere_offset[i]
-    m = frame_mat[g]
-    c = np.empty(3)
+    o0 = sphere_offset[i, 0]
+    o1 = sphere_offset[i, 1]
+    o2 = sphere_offset[i, 2]
     for k in range(3):
-        c[k] = frame_pos[g, k] + m[3 * k] * o[0] + m[3 * k + 1] * o[1] + m[3 * k + 2] * o[2]
+        out[k] = (
+            frame_pos[g, k]
+            + frame_mat[g, 3 * k] * o0
+            + frame_mat[g, 3 * k + 1] * o1
+            + frame_mat[g, 3 * k + 2] * o2
+        )
     r = rootid[b]
-    dx = c[0] - twist_ref[r, 0]
-    dy = c[1] - twist_ref[r, 1]
-    dz = c[2] - twist_ref[r, 2]
-    w = twist[b]
-    v = np.empty(3)
-    v[0] = w[3] + w[1] * dz - w[2] * dy
-    v[1] = w[4] + w[2] * dx - w[0] * dz
-    v[2] = w[5] + w[0] * dy - w[1] * dx
+    dx = out[0] - twist_ref[r, 0]
+    dy = out[1] - twist_ref[r, 1]
+    dz = out[2] - twist_ref[r, 2]
+    out[3] = twist[b, 3] + twist[b, 1] * dz - twist[b, 2] * dy
+    out[4] = twist[b, 4] + twist[b, 2] * dx - twist[b, 0] * dz
+    out[5] = twist[b, 5] + twist[b, 0] * dy - twist[b, 1] * dx
     mt = root_twist[r]
     if mt[0] != 0.0 or mt[1] != 0.0 or mt[2] != 0.0 or mt[3] != 0.0 or mt[4] != 0.0 or mt[5] != 0.0:
-        ex = c[0] - root_origin[r, 0]
-        ey = c[1] - root_origin[r, 1]
-        ez = c[2] - root_origin[r, 2]
-        v[0] += mt[3] + mt[1] * ez - mt[2] * ey
-        v[1] += mt[4] + mt[2] * ex - mt[0] * ez
-        v[2] += mt[5] + mt[0] * ey - mt[1] * ex
-    return c, v
+        ex = out[0] - root_origin[r, 0]
+        ey = out[1] - root_origin[r, 1]
+        ez = out[2] - root_origin[r, 2]
+        out[3] += mt[3] + mt[1] * ez - mt[2] * ey
+        out[4] += mt[4] + mt[2] * ex - mt[0] * ez
+        out[5] += mt[5] + mt[0] * ey - mt[1] * ex
 
 
 @nb.njit(cache=True)
@@ -374,13 +378,17 @@ def _step_rigid(
 ):  # pragma: no cover - jitted
     """The fused step on spheres attached to rigid frames; reads only the selected spheres.
 
+    Two passes: first every selected pair's state is gathered (independent loads, which the CPU
+    overlaps; the tables are cold after ``mj_step``), then tau is computed from that small buffer.
     Returns ``(count, nalarm, bad)``: ``bad`` is the first pair whose state is not finite
     (-1 if none); the step is then abandoned before re-bucketing.
     """
     count = _select(slots, active, nbuckets, q, n, w_slots, w_ids)
+    # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset).
+    state = np.empty((count, 12))
     for k in range(count):
         p = w_ids[k]
-        ci, vi = _rigid_point(
+        _rigid_point(
             first[p],
             sphere_frame,
             sphere_body,
@@ -392,23 +400,22 @@ def _step_rigid(
             rootid,
             root_twist,
             root_origin,
+            state[k, 0:6],
         )
         if halfspace[p]:
             g = plane_frame[second[p]]
-            m = frame_mat[g]
-            normal = np.empty(3)
-            normal[0] = m[2]
-            normal[1] = m[5]
-            normal[2] = m[8]
-            offset = (
-                normal[0] * frame_pos[g, 0]
-                + normal[1] * frame_pos[g, 1]
-                + normal[2] * frame_pos[g, 2]
+            state[k, 6] = frame_mat[g, 2]
+            state[k, 7] = frame_mat[g, 5]
+            state[k, 8] = frame_mat[g, 8]
+            state[k, 9] = (
+                state[k, 6] * frame_pos[g, 0]
+                + state[k, 7] * frame_pos[g, 1]
+                + state[k, 8] * frame_pos[g, 2]
             )
-            tau = _sphere_halfspace_tau(ci, vi, normal, offset, p, eps, accel, delta)
-            state = ci[0] + ci[1] + ci[2] + vi[0] + vi[1] + vi[2]
+            state[k, 10] = 0.0
+            state[k, 11] = 0.0
         else:
-            cj, vj = _rigid_point(
+            _rigid_point(
                 second[p],
                 sphere_frame,
                 sphere_body,
@@ -420,13 +427,24 @@ def _step_rigid(
                 rootid,
                 root_twist,
                 root_origin,
+                state[k, 6:12],
             )
-            tau = _sphere_sphere_tau(ci, vi, cj, vj, p, eps, accel, delta, speed)
-            state = ci[0] + ci[1] + ci[2] + vi[0] + vi[1] + vi[2]
-            state += cj[0] + cj[1] + cj[2] + vj[0] + vj[1] + vj[2]
-        if not math.isfinite(state):
+    for k in range(count):
+        p = w_ids[k]
+        row = state[k]
+        total = 0.0
+        for a in range(12):
+            total += row[a]
+        if not math.isfinite(total):
             return count, 0, p
-        w_tau[k] = tau
+        if halfspace[p]:
+            w_tau[k] = _sphere_halfspace_tau(
+                row[0:3], row[3:6], row[6:9], row[9], p, eps, accel, delta
+            )
+        else:
+            w_tau[k] = _sphere_sphere_tau(
+                row[0:3], row[3:6], row[6:9], row[9:12], p, eps, accel, delta, speed
+            )
     nalarm = _reinsert(
         slots, where, last_tau, last_step, horizon, n, w_slots, w_ids, w_tau, count, alarms
     )
