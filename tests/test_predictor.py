@@ -106,10 +106,9 @@ def _kernel_points(
 ):  # pragma: no cover - jitted
     """Centre and velocity of every sphere through the fused step's own ``_rigid_point``."""
     n = sphere_geom.shape[0]
-    c = np.empty((n, 3))
-    v = np.empty((n, 3))
+    out = np.empty((n, 6))
     for i in range(n):
-        ci, vi = _rigid_point(
+        _rigid_point(
             i,
             sphere_geom,
             sphere_body,
@@ -121,9 +120,10 @@ def _kernel_points(
             rootid,
             root_twist,
             xpos,
+            out[i],
         )
-        c[i] = ci
-        v[i] = vi
+    c = out[:, :3].copy()
+    v = out[:, 3:].copy()
     return c, v
 
 
