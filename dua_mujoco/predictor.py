@@ -37,7 +37,7 @@ from dua_mujoco.pairs import (
     sphere_pair_mask,
     sphere_pairs,
 )
-from dua_mujoco.scheduler import DUAScheduler, PairSet
+from dua_mujoco.scheduler import DUAScheduler, PairSet, pack_pairs, pack_spheres
 from dua_mujoco.state import MocapVelocityTracker, sphere_centers, sphere_velocities
 
 __all__ = ["Alarms", "BoundsLike", "Predictor"]
@@ -239,16 +239,8 @@ class Predictor:
             geom_names=_geom_names(model),
         )
         self._pair_args = (
-            self.pairs.first,
-            self.pairs.second,
-            self.pairs.halfspace,
-            self.pairs.eps,
-            self.pairs.accel,
-            self.pairs.vel_uncertainty,
-            self.pairs.speed,
-            np.ascontiguousarray(cov.sphere_geom, dtype=np.int64),
-            np.ascontiguousarray(cov.sphere_body, dtype=np.int64),
-            np.ascontiguousarray(cov.sphere_offset, dtype=np.float64),
+            pack_pairs(self.pairs),
+            pack_spheres(cov.sphere_geom, cov.sphere_body, cov.sphere_offset),
             np.ascontiguousarray(plane_geom if plane_geom.size else np.zeros(1, np.int64)),
         )
         self._rootid = np.ascontiguousarray(model.body_rootid, dtype=np.int64)

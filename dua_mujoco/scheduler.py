@@ -290,34 +290,58 @@ def _step_points(
     return count, nalarm, -1
 
 
+# Column layout of the packed per-pair and per-sphere records read by the rigid fused step: one
+# 64-byte row (a cache line) per pair and per sphere instead of one line in each of 7 or 3
+# separate arrays, because after mj_step those tables are cold and the step is memory-bound.
+PAIR_FIRST, PAIR_SECOND, PAIR_HALFSPACE, PAIR_EPS, PAIR_ACCEL, PAIR_DELTA, PAIR_SPEED = range(7)
+SPHERE_FRAME, SPHERE_BODY, SPHERE_OFFSET = 0, 1, 2  # offset: columns 2, 3, 4
+
+
+def pack_pairs(pairs: PairSet) -> np.ndarray:
+    """``(M, 8)`` float64 records ``[first, second, halfspace, eps, accel, delta, speed, 0]``.
+
+    Ids are stored as floats: exact below 2**53.
+    """
+    rec = np.zeros((len(pairs), 8))
+    rec[:, PAIR_FIRST] = pairs.first
+    rec[:, PAIR_SECOND] = pairs.second
+    rec[:, PAIR_HALFSPACE] = pairs.halfspace
+    rec[:, PAIR_EPS] = pairs.eps
+    rec[:, PAIR_ACCEL] = pairs.accel
+    rec[:, PAIR_DELTA] = pairs.vel_uncertainty
+    rec[:, PAIR_SPEED] = pairs.speed
+    return rec
+
+
+def pack_spheres(
+    sphere_frame: npt.ArrayLike, sphere_body: npt.ArrayLike, sphere_offset: npt.ArrayLike
+) -> np.ndarray:
+    """``(nsphere, 8)`` float64 records ``[frame, body, ox, oy, oz, 0, 0, 0]``."""
+    frame = np.asarray(sphere_frame)
+    rec = np.zeros((frame.shape[0], 8))
+    rec[:, SPHERE_FRAME] = frame
+    rec[:, SPHERE_BODY] = np.asarray(sphere_body)
+    rec[:, SPHERE_OFFSET : SPHERE_OFFSET + 3] = np.asarray(sphere_offset, dtype=np.float64)
+    return rec
+
+
 @nb.njit(cache=True, inline="always")
 def _rigid_point(
-    i,
-    sphere_frame,
-    sphere_body,
-    sphere_offset,
-    frame_pos,
-    frame_mat,
-    twist,
-    twist_ref,
-    rootid,
-    root_twist,
-    root_origin,
-    out,
+    i, spheres, frame_pos, frame_mat, twist, twist_ref, rootid, root_twist, root_origin, out
 ):  # pragma: no cover - jitted
     """Centre and velocity of sphere ``i`` attached to a rigid frame (MuJoCo's conventions).
 
-    Writes ``out[0:3]`` (centre) and ``out[3:6]`` (velocity), without allocating. Centre:
-    ``frame_pos[g] + frame_mat[g] @ offset``. Velocity: the body twist ``[omega; v_ref]`` about
-    the point ``twist_ref[rootid[b]]`` (MuJoCo's ``cvel`` about ``subtree_com`` of the root),
-    plus the twist of the tree's root about ``root_origin`` for trees MuJoCo treats as static
-    (mocap roots), which is zero elsewhere.
+    ``spheres`` holds ``pack_spheres`` records. Writes ``out[0:3]`` (centre) and ``out[3:6]``
+    (velocity), without allocating. Centre: ``frame_pos[g] + frame_mat[g] @ offset``. Velocity:
+    the body twist ``[omega; v_ref]`` about the point ``twist_ref[rootid[b]]`` (MuJoCo's
+    ``cvel`` about ``subtree_com`` of the root), plus the twist of the tree's root about
+    ``root_origin`` for trees MuJoCo treats as static (mocap roots), which is zero elsewhere.
     """
-    g = sphere_frame[i]
-    b = sphere_body[i]
-    o0 = sphere_offset[i, 0]
-    o1 = sphere_offset[i, 1]
-    o2 = sphere_offset[i, 2]
+    g = int(spheres[i, 0])
+    b = int(spheres[i, 1])
+    o0 = spheres[i, 2]
+    o1 = spheres[i, 3]
+    o2 = spheres[i, 4]
     for k in range(3):
         out[k] = (
             frame_pos[g, k]
@@ -357,16 +381,8 @@ def _step_rigid(
     w_ids,
     w_tau,
     alarms,
-    first,
-    second,
-    halfspace,
-    eps,
-    accel,
-    delta,
-    speed,
-    sphere_frame,
-    sphere_body,
-    sphere_offset,
+    pairs,
+    spheres,
     plane_frame,
     frame_pos,
     frame_mat,
@@ -378,21 +394,20 @@ def _step_rigid(
 ):  # pragma: no cover - jitted
     """The fused step on spheres attached to rigid frames; reads only the selected spheres.
 
-    Two passes: first every selected pair's state is gathered (independent loads, which the CPU
-    overlaps; the tables are cold after ``mj_step``), then tau is computed from that small buffer.
-    Returns ``(count, nalarm, bad)``: ``bad`` is the first pair whose state is not finite
-    (-1 if none); the step is then abandoned before re-bucketing.
+    ``pairs`` and ``spheres`` are ``pack_pairs`` / ``pack_spheres`` records. Two passes: first
+    every selected pair's state is gathered (independent loads, which the CPU overlaps; the tables
+    are cold after ``mj_step``), then tau is computed from that small buffer. Returns
+    ``(count, nalarm, bad)``: ``bad`` is the first pair whose state is not finite (-1 if none);
+    the step is then abandoned before re-bucketing.
     """
     count = _select(slots, active, nbuckets, q, n, w_slots, w_ids)
     # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset).
     state = np.empty((count, 12))
     for k in range(count):
-        p = w_ids[k]
+        rec = pairs[w_ids[k]]
         _rigid_point(
-            first[p],
-            sphere_frame,
-            sphere_body,
-            sphere_offset,
+            int(rec[0]),
+            spheres,
             frame_pos,
             frame_mat,
             twist,
@@ -402,8 +417,8 @@ def _step_rigid(
             root_origin,
             state[k, 0:6],
         )
-        if halfspace[p]:
-            g = plane_frame[second[p]]
+        if rec[2] != 0.0:
+            g = plane_frame[int(rec[1])]
             state[k, 6] = frame_mat[g, 2]
             state[k, 7] = frame_mat[g, 5]
             state[k, 8] = frame_mat[g, 8]
@@ -416,10 +431,8 @@ def _step_rigid(
             state[k, 11] = 0.0
         else:
             _rigid_point(
-                second[p],
-                sphere_frame,
-                sphere_body,
-                sphere_offset,
+                int(rec[1]),
+                spheres,
                 frame_pos,
                 frame_mat,
                 twist,
@@ -430,20 +443,29 @@ def _step_rigid(
                 state[k, 6:12],
             )
     for k in range(count):
-        p = w_ids[k]
-        row = state[k]
+        rec = pairs[w_ids[k]]
+        s = state[k]
         total = 0.0
         for a in range(12):
-            total += row[a]
+            total += s[a]
         if not math.isfinite(total):
-            return count, 0, p
-        if halfspace[p]:
-            w_tau[k] = _sphere_halfspace_tau(
-                row[0:3], row[3:6], row[6:9], row[9], p, eps, accel, delta
-            )
+            return count, 0, w_ids[k]
+        if rec[2] != 0.0:
+            gap = s[6] * s[0] + s[7] * s[1] + s[8] * s[2] - s[9] - rec[3]
+            vn = s[6] * s[3] + s[7] * s[4] + s[8] * s[5]
+            w_tau[k] = tau_halfspace(gap, vn, rec[4], rec[5])
         else:
-            w_tau[k] = _sphere_sphere_tau(
-                row[0:3], row[3:6], row[6:9], row[9:12], p, eps, accel, delta, speed
+            w_tau[k] = tau_speed(
+                s[6] - s[0],
+                s[7] - s[1],
+                s[8] - s[2],
+                s[9] - s[3],
+                s[10] - s[4],
+                s[11] - s[5],
+                rec[3],
+                rec[4],
+                rec[5],
+                rec[6],
             )
     nalarm = _reinsert(
         slots, where, last_tau, last_step, horizon, n, w_slots, w_ids, w_tau, count, alarms
@@ -963,8 +985,8 @@ class DUAScheduler:
         """The fused step for spheres attached to rigid frames (used by ``Predictor``).
 
         Args:
-            pair_args: ``(first, second, halfspace, eps, accel, delta, speed, sphere_frame,
-                sphere_body, sphere_offset, plane_frame)``, fixed for a model.
+            pair_args: ``(pack_pairs(pairs), pack_spheres(...), plane_frame)``, fixed for a
+                model.
             frame_args: ``(frame_pos (nframe, 3), frame_mat (nframe, 9), twist (nbody, 6),
                 twist_ref (nbody, 3), rootid (nbody,), root_twist (nbody, 6),
                 root_origin (nbody, 3))`` at this step.

@@ -36,7 +36,7 @@ from dua_mujoco.exceptions import (
 from dua_mujoco.monitor import Monitor, RunReport, run
 from dua_mujoco.predictor import Predictor
 from dua_mujoco.scenes import declared_accel_bound, load_scene, make_controller
-from dua_mujoco.scheduler import _rigid_point
+from dua_mujoco.scheduler import _rigid_point, pack_spheres
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -93,38 +93,16 @@ KINEMATIC_XML = """
 
 @numba.njit(cache=False)
 def _kernel_points(
-    sphere_geom,
-    sphere_body,
-    sphere_offset,
-    geom_xpos,
-    geom_xmat,
-    cvel,
-    subtree_com,
-    rootid,
-    root_twist,
-    xpos,
+    spheres, geom_xpos, geom_xmat, cvel, subtree_com, rootid, root_twist, xpos
 ):  # pragma: no cover - jitted
     """Centre and velocity of every sphere through the fused step's own ``_rigid_point``."""
-    n = sphere_geom.shape[0]
+    n = spheres.shape[0]
     out = np.empty((n, 6))
     for i in range(n):
         _rigid_point(
-            i,
-            sphere_geom,
-            sphere_body,
-            sphere_offset,
-            geom_xpos,
-            geom_xmat,
-            cvel,
-            subtree_com,
-            rootid,
-            root_twist,
-            xpos,
-            out[i],
+            i, spheres, geom_xpos, geom_xmat, cvel, subtree_com, rootid, root_twist, xpos, out[i]
         )
-    c = out[:, :3].copy()
-    v = out[:, 3:].copy()
-    return c, v
+    return out[:, :3].copy(), out[:, 3:].copy()
 
 
 def kernel_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
@@ -136,9 +114,7 @@ def kernel_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarra
         else np.zeros((p.model.nbody, 6))
     )
     return _kernel_points(
-        np.ascontiguousarray(cov.sphere_geom, dtype=np.int64),
-        np.ascontiguousarray(cov.sphere_body, dtype=np.int64),
-        np.ascontiguousarray(cov.sphere_offset, dtype=np.float64),
+        pack_spheres(cov.sphere_geom, cov.sphere_body, cov.sphere_offset),
         d.geom_xpos,
         d.geom_xmat,
         d.cvel,
