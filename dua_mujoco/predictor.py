@@ -372,9 +372,9 @@ class Predictor:
         """
         self._check_data(data)
         if self._mocap is not None:
-            # A reset starts a new trajectory: difference mocap poses within it only.
-            self._mocap = MocapVelocityTracker(self.model)
-            self._frame_data = None
+            # A reset starts a new trajectory: difference mocap poses within it only. Reset in
+            # place: the Monitor's BoundMonitor holds this same tracker.
+            self._mocap.reset()
             self._mocap.update(data)
         c, v = self.sphere_states(data)
         if not (np.isfinite(c).all() and np.isfinite(v).all()):

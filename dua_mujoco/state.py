@@ -247,6 +247,19 @@ class MocapVelocityTracker:
         self.angular[i] = np.asarray(angular, dtype=np.float64).reshape(3)
         self._user[i] = True
 
+    def reset(self) -> None:
+        """Forget the pose history (a new trajectory starts); user velocities are kept.
+
+        The next :meth:`update` only records the pose: differenced velocities are zero until
+        the one after.
+        """
+        self._prev_pos = None
+        self._prev_quat = None
+        self._prev_time = 0.0
+        self.nupdates = 0
+        self.linear[~self._user] = 0.0
+        self.angular[~self._user] = 0.0
+
     def clear_velocity(self, body: int | str) -> None:
         """Go back to differencing for ``body``."""
         self._user[self._mocap_index(body)] = False

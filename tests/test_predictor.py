@@ -910,3 +910,17 @@ def test_cli_video_gif(tmp_path) -> None:
     )
     assert code == 0
     assert read_video(out).shape[0] == 4
+
+
+def test_monitor_bound_check_follows_the_predictors_mocap_tracker() -> None:
+    """After reset, the BoundMonitor must still read the tracker the predictor updates."""
+    from dua_mujoco.monitor import Monitor
+
+    m = mujoco.MjModel.from_xml_string(MOCAP_XML)
+    d = mujoco.MjData(m)
+    p = Predictor(m, accel=1.0)
+    monitor = Monitor(p)
+    mujoco.mj_forward(m, d)
+    monitor.start(d)
+    assert monitor.bounds is not None
+    assert monitor.bounds._mocap is p._mocap
