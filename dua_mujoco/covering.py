@@ -37,6 +37,7 @@ from dua_mujoco.exceptions import (
     ShapeError,
     UnsupportedGeomError,
 )
+from dua_mujoco.state import sphere_centers
 
 __all__ = [
     "Covering",
@@ -580,5 +581,4 @@ def sphere_world_centers(
                 f"sphere ids must lie in 0..{covering.nsphere - 1}; got min {sel.min()}, "
                 f"max {sel.max()}."
             )
-    g = covering.sphere_geom[sel]
-    return xpos[g] + np.einsum("nij,nj->ni", xmat[g], covering.sphere_offset[sel])
+    return sphere_centers(xpos, xmat, covering.sphere_geom, covering.sphere_offset, sel)
