@@ -3,6 +3,7 @@
     python benchmarks/bench.py            # everything (a few minutes)
     python benchmarks/bench.py core       # tau and scheduler only
     python benchmarks/bench.py scenes     # predictor on the bundled scenes
+    python benchmarks/bench.py period     # traffic at predictor periods 1..8
 
 Every timing is the median of repeated runs (machines are noisy); ratios are computed from
 medians measured in the same process.
@@ -135,6 +136,11 @@ def bench_core() -> str:
 
 def bare_loop(name: str, predictor: object, steps: int) -> tuple[float, float]:
     """Median us of ``Predictor.step`` and of ``mj_step`` in a user's loop (no monitor)."""
+    return bare_loop_period(name, predictor, steps, 1)
+
+
+def bare_loop_period(name: str, predictor: object, steps: int, period: int) -> tuple[float, float]:
+    """Median us per ``Predictor.step`` call (every ``period`` steps) and per ``mj_step``."""
     import mujoco
 
     from dua_mujoco.scenes import load_scene, make_controller
@@ -145,16 +151,27 @@ def bare_loop(name: str, predictor: object, steps: int) -> tuple[float, float]:
     mujoco.mj_step(m, d)
     p.reset(d)  # type: ignore[attr-defined]
     t_pred, t_mj = [], []
-    for _ in range(steps):
+    for k in range(1, steps + 1):
         ctrl(m, d)
         t0 = time.perf_counter()
         mujoco.mj_step(m, d)
         t1 = time.perf_counter()
-        p.step(d)  # type: ignore[attr-defined]
-        t2 = time.perf_counter()
         t_mj.append(t1 - t0)
-        t_pred.append(t2 - t1)
+        if k % period == 0:
+            p.step(d)  # type: ignore[attr-defined]
+            t_pred.append(time.perf_counter() - t1)
     return float(np.median(t_pred) * 1e6), float(np.median(t_mj) * 1e6)
+
+
+def tau_ns_per_eval(predictor: object, data: object, max_pairs: int = 4096) -> float:
+    """Median ns per tau evaluation on this scene's own states (serial batch of <= 4096 pairs)."""
+    p = predictor
+    c, v = p.sphere_states(data)  # type: ignore[attr-defined]
+    hs = p.halfspaces(data)  # type: ignore[attr-defined]
+    n = len(p.pairs)  # type: ignore[attr-defined]
+    ids = np.random.default_rng(0).permutation(n)[: min(n, max_pairs)]
+    per_call = median_time(lambda: p.pairs.tau(ids, c, v, hs), 51, warmup=3)  # type: ignore[attr-defined]
+    return per_call / ids.size * 1e9
 
 
 def bench_scenes(steps: int = 2000) -> str:
@@ -188,8 +205,9 @@ def bench_scenes(steps: int = 2000) -> str:
             scene=name,
             progress=False,
         )
-        ratio = r.predictor_us_per_step / r.mj_step_us_per_step
+        ratio = r.predictor_share
         bare_pred, bare_mj = bare_loop(name, p, n_steps)
+        tau_us = r.evals_per_step * tau_ns_per_eval(p, d) / 1e3
         rows.append(
             [
                 name,
@@ -202,6 +220,7 @@ def bench_scenes(steps: int = 2000) -> str:
                 f"{r.mj_step_us_per_step:.1f}",
                 f"{100 * ratio:.0f} %",
                 f"{bare_pred:.1f} / {bare_mj:.1f} = {100 * bare_pred / bare_mj:.0f} %",
+                f"{tau_us:.1f} = {100 * tau_us / bare_mj:.0f} %",
                 f"{r.missed_onsets_valid_bounds}",
             ]
         )
@@ -216,18 +235,76 @@ def bench_scenes(steps: int = 2000) -> str:
         "mj_step us/step",
         "predictor / mj_step",
         "bare loop: predictor / mj_step (us)",
+        "tau evaluations alone (us, % of bare mj_step)",
         "valid-bound misses",
+    ]
+    return table(header, rows)
+
+
+def bench_period(steps: int = 2000, periods: tuple[int, ...] = (1, 2, 4, 8)) -> str:
+    """Traffic with its declared bound (4 m/s^2) at several predictor periods."""
+    from dua_mujoco.monitor import run
+    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.scenes import declared_accel_bound, load_scene, make_controller
+
+    rows = []
+    for k in periods:
+        m, d = load_scene("traffic")
+        accel = declared_accel_bound(m)
+        assert accel is not None, "traffic.xml declares dua_accel_bound"
+        p = Predictor(m, accel=accel, period=k)
+        r = run(
+            m,
+            d,
+            p,
+            steps=steps,
+            controller=make_controller(m, "random", seed=0),
+            scene="traffic",
+            progress=False,
+        )
+        bare_pred, bare_mj = bare_loop_period("traffic", p, steps, k)
+        rows.append(
+            [
+                str(k),
+                f"{r.evals_per_step / k:.2f}",
+                f"{r.predictor_us_per_step:.1f}",
+                f"{100 * r.predictor_share:.0f} %",
+                f"{bare_pred:.1f} / ({k} x {bare_mj:.1f}) = "
+                f"{100 * bare_pred / (k * bare_mj):.0f} %",
+                f"{r.predicted_onsets} / {r.contact_onsets}",
+                f"{r.missed_onsets_valid_bounds}",
+                f"{r.alarm_episodes} ({r.false_alarm_episodes})",
+                f"{np.mean(r.alarms_per_step):.0f} of {r.pairs}",
+            ]
+        )
+    header = [
+        "period",
+        "tau evals per physics step",
+        "predictor us/call",
+        "predictor share of physics time",
+        "bare loop: predictor / (period x mj_step)",
+        "predicted / onsets",
+        "valid-bound misses",
+        "alarm episodes (false)",
+        "pairs alarmed per step (mean)",
     ]
     return table(header, rows)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("what", nargs="*", default=["compile", "core", "scenes"])
+    parser.add_argument("what", nargs="*", default=["compile", "core", "scenes", "period"])
     args = parser.parse_args(argv)
     for what in args.what:
         print(f"## {what}\n")
-        print({"compile": bench_compile, "core": bench_core, "scenes": bench_scenes}[what]())
+        print(
+            {
+                "compile": bench_compile,
+                "core": bench_core,
+                "scenes": bench_scenes,
+                "period": bench_period,
+            }[what]()
+        )
         print()
     return 0
 

@@ -293,12 +293,26 @@ def _step_points(
 # Column layout of the packed per-pair and per-sphere records read by the rigid fused step: one
 # 64-byte row (a cache line) per pair and per sphere instead of one line in each of 7 or 3
 # separate arrays, because after mj_step those tables are cold and the step is memory-bound.
-PAIR_FIRST, PAIR_SECOND, PAIR_HALFSPACE, PAIR_EPS, PAIR_ACCEL, PAIR_DELTA, PAIR_SPEED = range(7)
-SPHERE_FRAME, SPHERE_BODY, SPHERE_OFFSET = 0, 1, 2  # offset: columns 2, 3, 4
+(
+    PAIR_FIRST,
+    PAIR_SECOND,
+    PAIR_HALFSPACE,
+    PAIR_EPS,
+    PAIR_ACCEL,
+    PAIR_DELTA,
+    PAIR_SPEED,
+    PAIR_PLANE_FRAME,
+) = range(8)
+SPHERE_FRAME, SPHERE_BODY, SPHERE_OFFSET, SPHERE_ROOT = 0, 1, 2, 5  # offset: columns 2, 3, 4
 
 
-def pack_pairs(pairs: PairSet) -> np.ndarray:
-    """``(M, 8)`` float64 records ``[first, second, halfspace, eps, accel, delta, speed, 0]``.
+def pack_pairs(pairs: PairSet, plane_frame: npt.ArrayLike | None = None) -> np.ndarray:
+    """``(M, 8)`` float64 records ``[first, second, halfspace, eps, accel, delta, speed, plane]``.
+
+    Args:
+        pairs: The pair set.
+        plane_frame: ``(nplane,)`` frame (geom) of each half-space: ``plane`` is the frame of a
+            half-space pair's plane (0 for sphere pairs, and for all pairs if not given).
 
     Ids are stored as floats: exact below 2**53.
     """
@@ -310,24 +324,40 @@ def pack_pairs(pairs: PairSet) -> np.ndarray:
     rec[:, PAIR_ACCEL] = pairs.accel
     rec[:, PAIR_DELTA] = pairs.vel_uncertainty
     rec[:, PAIR_SPEED] = pairs.speed
+    if plane_frame is not None:
+        frame = np.asarray(plane_frame, dtype=np.int64)
+        h = pairs.halfspace
+        rec[h, PAIR_PLANE_FRAME] = frame[pairs.second[h]]
     return rec
 
 
 def pack_spheres(
-    sphere_frame: npt.ArrayLike, sphere_body: npt.ArrayLike, sphere_offset: npt.ArrayLike
+    sphere_frame: npt.ArrayLike,
+    sphere_body: npt.ArrayLike,
+    sphere_offset: npt.ArrayLike,
+    body_root: npt.ArrayLike,
 ) -> np.ndarray:
-    """``(nsphere, 8)`` float64 records ``[frame, body, ox, oy, oz, 0, 0, 0]``."""
+    """``(nsphere, 8)`` float64 records ``[frame, body, ox, oy, oz, root, 0, 0]``.
+
+    Args:
+        sphere_frame: ``(nsphere,)`` frame (geom) each sphere is attached to.
+        sphere_body: ``(nsphere,)`` body of that frame.
+        sphere_offset: ``(nsphere, 3)`` centre in the frame.
+        body_root: ``(nbody,)`` root body of each body (``MjModel.body_rootid``).
+    """
     frame = np.asarray(sphere_frame)
+    body = np.asarray(sphere_body, dtype=np.int64)
     rec = np.zeros((frame.shape[0], 8))
     rec[:, SPHERE_FRAME] = frame
-    rec[:, SPHERE_BODY] = np.asarray(sphere_body)
+    rec[:, SPHERE_BODY] = body
     rec[:, SPHERE_OFFSET : SPHERE_OFFSET + 3] = np.asarray(sphere_offset, dtype=np.float64)
+    rec[:, SPHERE_ROOT] = np.asarray(body_root, dtype=np.int64)[body]
     return rec
 
 
 @nb.njit(cache=True, inline="always")
 def _rigid_point(
-    i, spheres, frame_pos, frame_mat, twist, twist_ref, rootid, root_twist, root_origin, out
+    i, spheres, frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin, out
 ):  # pragma: no cover - jitted
     """Centre and velocity of sphere ``i`` attached to a rigid frame (MuJoCo's conventions).
 
@@ -349,7 +379,7 @@ def _rigid_point(
             + frame_mat[g, 3 * k + 1] * o1
             + frame_mat[g, 3 * k + 2] * o2
         )
-    r = rootid[b]
+    r = int(spheres[i, 5])
     dx = out[0] - twist_ref[r, 0]
     dy = out[1] - twist_ref[r, 1]
     dz = out[2] - twist_ref[r, 2]
@@ -369,26 +399,21 @@ def _rigid_point(
 @nb.njit(cache=True)
 def _step_rigid(
     slots,
-    where,
+    pair_state,
     last_tau,
-    last_step,
     horizon,
     active,
     nbuckets,
     q,
     n,
-    w_slots,
-    w_ids,
+    work,
     w_tau,
-    alarms,
     pairs,
     spheres,
-    plane_frame,
     frame_pos,
     frame_mat,
     twist,
     twist_ref,
-    rootid,
     root_twist,
     root_origin,
 ):  # pragma: no cover - jitted
@@ -398,8 +423,14 @@ def _step_rigid(
     every selected pair's state is gathered (independent loads, which the CPU overlaps; the tables
     are cold after ``mj_step``), then tau is computed from that small buffer. Returns
     ``(count, nalarm, bad)``: ``bad`` is the first pair whose state is not finite (-1 if none);
-    the step is then abandoned before re-bucketing.
+    the step is then abandoned before re-bucketing. ``pair_state`` holds the rows ``where``,
+    ``last_step``; ``work`` the rows ``w_slots``, ``w_ids``, ``alarms``.
     """
+    where = pair_state[0]
+    last_step = pair_state[1]
+    w_slots = work[0]
+    w_ids = work[1]
+    alarms = work[2]
     count = _select(slots, active, nbuckets, q, n, w_slots, w_ids)
     # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset).
     state = np.empty((count, 12))
@@ -412,13 +443,12 @@ def _step_rigid(
             frame_mat,
             twist,
             twist_ref,
-            rootid,
             root_twist,
             root_origin,
             state[k, 0:6],
         )
         if rec[2] != 0.0:
-            g = plane_frame[int(rec[1])]
+            g = int(rec[7])
             state[k, 6] = frame_mat[g, 2]
             state[k, 7] = frame_mat[g, 5]
             state[k, 8] = frame_mat[g, 8]
@@ -437,7 +467,6 @@ def _step_rigid(
                 frame_mat,
                 twist,
                 twist_ref,
-                rootid,
                 root_twist,
                 root_origin,
                 state[k, 6:12],
@@ -754,19 +783,22 @@ class DUAScheduler:
         order = np.argpartition(tau, bounds) if bounds.size else np.arange(m)
         self.slots = np.full(nslots, -1, dtype=np.int64)
         self.slots[:m] = order
-        self.where = np.empty(m, dtype=np.int64)
+        # ``where`` and ``last_step`` are rows of one array and the work buffers rows of another
+        # so that the fused kernels take fewer arguments: numba's dispatch costs ~50 ns per
+        # array argument, a sizeable part of a step of a few microseconds.
+        self._pair_state = np.zeros((2, m), dtype=np.int64)
+        self.where = self._pair_state[0]
         self.where[order] = np.arange(m)
+        self.last_step = self._pair_state[1]
         self.last_tau = tau.copy()
-        self.last_step = np.zeros(m, dtype=np.int64)
         self.step_count = 0
         alarmed = (tau < self.horizon[self.bucket_of_slot(self.where)]) & self.active
         self.initial_alarms = np.flatnonzero(alarmed).astype(np.int64)
 
         width = int(np.minimum(sizes, self.slots_per_bucket).sum())
-        self._w_slots = np.empty(width, dtype=np.int64)
-        self._w_ids = np.empty(width, dtype=np.int64)
+        self._work = np.empty((3, width), dtype=np.int64)
+        self._w_slots, self._w_ids, self._alarms = self._work
         self._w_tau = np.empty(width)
-        self._alarms = np.empty(width, dtype=np.int64)
         self._pending: np.ndarray | None = None
         self._pending_count = 0
         self._last_count = 0
@@ -985,11 +1017,11 @@ class DUAScheduler:
         """The fused step for spheres attached to rigid frames (used by ``Predictor``).
 
         Args:
-            pair_args: ``(pack_pairs(pairs), pack_spheres(...), plane_frame)``, fixed for a
+            pair_args: ``(pack_pairs(pairs, plane_frame), pack_spheres(...))``, fixed for a
                 model.
             frame_args: ``(frame_pos (nframe, 3), frame_mat (nframe, 9), twist (nbody, 6),
-                twist_ref (nbody, 3), rootid (nbody,), root_twist (nbody, 6),
-                root_origin (nbody, 3))`` at this step.
+                twist_ref (nbody, 3), root_twist (nbody, 6), root_origin (nbody, 3))`` at this
+                step.
 
         Returns:
             ``(alarmed ids, bad)`` where ``bad`` is a pair whose state is not finite (the step
@@ -1002,25 +1034,23 @@ class DUAScheduler:
         n = self.step_count + 1
         count, nalarm, bad = _step_rigid(
             self.slots,
-            self.where,
+            self._pair_state,
             self.last_tau,
-            self.last_step,
             self.horizon,
             self.active,
             self.nbuckets,
             self.slots_per_bucket,
             n,
-            self._w_slots,
-            self._w_ids,
+            self._work,
             self._w_tau,
-            self._alarms,
             *pair_args,
             *frame_args,
         )
         if bad >= 0:
             return self._alarms[:0].copy(), int(bad)
         self._last_count = count
-        self._last_extra = self._last_extra[:0]
+        if self._last_extra.size:
+            self._last_extra = self._last_extra[:0]
         self.step_count = n
         return self._alarms[:nalarm].copy(), -1
 

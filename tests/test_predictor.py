@@ -93,15 +93,13 @@ KINEMATIC_XML = """
 
 @numba.njit(cache=False)
 def _kernel_points(
-    spheres, geom_xpos, geom_xmat, cvel, subtree_com, rootid, root_twist, xpos
+    spheres, geom_xpos, geom_xmat, cvel, subtree_com, root_twist, xpos
 ):  # pragma: no cover - jitted
     """Centre and velocity of every sphere through the fused step's own ``_rigid_point``."""
     n = spheres.shape[0]
     out = np.empty((n, 6))
     for i in range(n):
-        _rigid_point(
-            i, spheres, geom_xpos, geom_xmat, cvel, subtree_com, rootid, root_twist, xpos, out[i]
-        )
+        _rigid_point(i, spheres, geom_xpos, geom_xmat, cvel, subtree_com, root_twist, xpos, out[i])
     return out[:, :3].copy(), out[:, 3:].copy()
 
 
@@ -114,12 +112,11 @@ def kernel_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarra
         else np.zeros((p.model.nbody, 6))
     )
     return _kernel_points(
-        pack_spheres(cov.sphere_geom, cov.sphere_body, cov.sphere_offset),
+        pack_spheres(cov.sphere_geom, cov.sphere_body, cov.sphere_offset, p.model.body_rootid),
         d.geom_xpos,
         d.geom_xmat,
         d.cvel,
         d.subtree_com,
-        np.ascontiguousarray(p.model.body_rootid, dtype=np.int64),
         np.ascontiguousarray(twist),
         d.xpos,
     )
@@ -810,6 +807,9 @@ def test_cli_run_writes_json(tmp_path: Path, capsys) -> None:
     assert report.keys() >= REPORT_KEYS
     assert report["physics_steps"] == 300
     assert report["missed_onsets_valid_bounds"] == 0
+    assert report["predictor_share"] == pytest.approx(
+        report["predictor_us_per_step"] / (report["period"] * report["mj_step_us_per_step"])
+    )
     assert "contact onsets" in capsys.readouterr().out
 
 
