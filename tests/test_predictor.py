@@ -45,7 +45,8 @@ REPO = Path(__file__).resolve().parent.parent
 # --------------------------------------------------------------------------------------------------
 
 # Every joint type, a nested chain (free -> hinge -> ball -> slide), a hinge/slide chain rooted at
-# the world, static geoms, and a mocap body carrying a hinged child. Geoms are off their body
+# the world, static geoms (two planes: the fused step must find each half-space's own frame),
+# and a mocap body carrying a hinged child. Geoms are off their body
 # frames and rotated, inertials are off-centre, so that geom frame, body frame, COM and subtree
 # COM all differ and a wrong reference point shows up as a wrong velocity.
 KINEMATIC_XML = """
@@ -53,6 +54,7 @@ KINEMATIC_XML = """
   <worldbody>
     <geom name="floor" type="plane" size="3 3 .1"/>
     <geom name="post" type="box" size=".1 .1 .3" pos="1 1 .3" euler="0 0 20"/>
+    <geom name="wall" type="plane" size="3 3 .1" pos="3 .5 0" zaxis="-1 .2 .3"/>
     <body name="free" pos="0 0 1" euler="10 20 30">
       <freejoint/>
       <inertial pos=".03 .01 -.02" mass="1" diaginertia=".01 .02 .03"/>
@@ -222,6 +224,7 @@ def test_fused_step_tau_matches_vectorised_tau(site_predictor) -> None:
     p.reset(d)
     sched = p.scheduler
     assert sched is not None
+    halfspace_pairs_seen = 0
     for _ in range(20):
         _random_state(m, d, rng)
         d.time += p.dt
@@ -232,6 +235,8 @@ def test_fused_step_tau_matches_vectorised_tau(site_predictor) -> None:
         c, v = p.sphere_states(d)
         expected = p.pairs.tau(ids, c, v, p.halfspaces(d))
         np.testing.assert_allclose(sched.last_tau[ids], expected, rtol=1e-12, atol=1e-15)
+        halfspace_pairs_seen += int(p.pairs.halfspace[ids].sum())
+    assert halfspace_pairs_seen > 0
 
 
 def _quat_exp(omega_t: np.ndarray) -> np.ndarray:
@@ -397,6 +402,16 @@ def test_step_at_the_right_period_is_accepted(two_bodies) -> None:
             mujoco.mj_step(m, d)
         p.step(d)
     assert p.scheduler is not None and p.scheduler.step_count == 4
+
+
+def test_alarms_are_read_only(two_bodies) -> None:
+    m, d = two_bodies
+    p = Predictor(m, accel=10.0)
+    alarms = p.reset(d)
+    for name in ("step", "time", "pairs", "tau"):
+        with pytest.raises(AttributeError):
+            setattr(alarms, name, 0)
+    assert repr(alarms).startswith("Alarms(step=0, ")
 
 
 def test_nan_state_on_reset_names_the_geom(two_bodies) -> None:
