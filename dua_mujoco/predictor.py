@@ -440,8 +440,7 @@ class Predictor:
                 "or reset() after changing the state."
             )
         if self._mocap is not None:
-            self._mocap.update(data)
-            self._mocap.write_body_velocity(self._twist)
+            self._mocap.update(data, self._twist)
         frame_args = self._frame_cache if self._frame_data is data else self._frame_args(data)
         if sched._reactivated:
             ids = sched.select()

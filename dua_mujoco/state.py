@@ -144,14 +144,18 @@ def sphere_velocities(
     return point_velocities(cvel, subtree_com, body_rootid, sbody[sel], centers)
 
 
+_NO_TWIST = np.zeros((0, 6))
+
+
 @nb.njit(cache=True)
 def _difference_poses(
-    xpos, xquat, bodies, prev_pos, prev_quat, dt, user, linear, angular
+    xpos, xquat, bodies, prev_pos, prev_quat, dt, user, linear, angular, twist
 ):  # pragma: no cover - jitted
     """Backward-difference velocities of ``bodies``; updates the previous poses in place.
 
     Angular velocity: rotation vector of ``q_now * conj(q_prev)`` (world frame), taken the short
-    way round, divided by ``dt``.
+    way round, divided by ``dt``. If ``twist`` has rows, row ``bodies[i]`` receives
+    ``[angular[i]; linear[i]]`` (what ``write_body_velocity`` does, without a second call).
     """
     for i in range(bodies.shape[0]):
         b = bodies[i]
@@ -175,6 +179,10 @@ def _difference_poses(
             prev_pos[i, k] = xpos[b, k]
         for k in range(4):
             prev_quat[i, k] = xquat[b, k]
+        if twist.shape[0] > 0:
+            for k in range(3):
+                twist[b, k] = angular[i, k]
+                twist[b, 3 + k] = linear[i, k]
 
 
 class MocapVelocityTracker:
@@ -264,7 +272,7 @@ class MocapVelocityTracker:
         """Go back to differencing for ``body``."""
         self._user[self._mocap_index(body)] = False
 
-    def update(self, data: mujoco.MjData) -> None:
+    def update(self, data: mujoco.MjData, body_velocity: np.ndarray | None = None) -> None:
         """Difference the mocap poses against the previous call.
 
         A call at the same ``data.time`` as the previous one keeps the previous velocities
@@ -272,15 +280,23 @@ class MocapVelocityTracker:
 
         Args:
             data: the MuJoCo data, after ``mj_step`` (or ``mj_forward``/``mj_kinematics``).
+            body_velocity: Optional ``(nbody, 6)`` array whose mocap rows receive the new
+                velocities, as :meth:`write_body_velocity` writes them (in the same compiled
+                call: the predictor does this every step).
         """
+        if body_velocity is not None and body_velocity.shape != (self._model.nbody, 6):
+            # The compiled differencing writes rows without bounds checks.
+            raise ShapeError(
+                f"body_velocity has shape {body_velocity.shape}; expected "
+                f"({self._model.nbody}, 6), one row per body of the model."
+            )
         t = float(data.time)
-        if self._prev_pos is None or self._prev_quat is None:
+        first = self._prev_pos is None or self._prev_quat is None
+        dt = t - self._prev_time
+        if first:
             self._prev_pos = np.array(data.xpos[self.mocap_bodies])
             self._prev_quat = np.array(data.xquat[self.mocap_bodies])
-        else:
-            dt = t - self._prev_time
-            if dt <= 0.0:
-                return
+        elif dt > 0.0:
             # Called every predictor step: jitted, in place, no temporaries.
             _difference_poses(
                 data.xpos,
@@ -292,9 +308,13 @@ class MocapVelocityTracker:
                 self._user,
                 self.linear,
                 self.angular,
+                _NO_TWIST if body_velocity is None else body_velocity,
             )
-        self._prev_time = t
-        self.nupdates += 1
+        if (first or dt <= 0.0) and body_velocity is not None:
+            self.write_body_velocity(body_velocity)
+        if first or dt > 0.0:
+            self._prev_time = t
+            self.nupdates += 1
 
     def body_velocity(self, nbody: int) -> np.ndarray:
         """Spatial velocity [omega; v_origin] per body, zero for non-mocap bodies.

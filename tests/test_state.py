@@ -293,3 +293,27 @@ def test_mocap_user_velocity_and_errors() -> None:
     np.testing.assert_allclose(tracker.linear[1], [0, 0, 0.01 / m.opt.timestep])
     with pytest.raises(InvalidChoiceError, match="'m'"):
         tracker.set_velocity("arm", [0, 0, 0])
+
+
+def test_mocap_update_into_body_velocity_equals_write_body_velocity() -> None:
+    """``update(d, out)`` fills the same rows as ``update(d)`` + ``write_body_velocity(out)``,
+    on the first call, on a repeated instant and on a differenced one, user rows included."""
+    m = mujoco.MjModel.from_xml_string(MOCAP_XML)
+    d = mujoco.MjData(m)
+    a, b = MocapVelocityTracker(m), MocapVelocityTracker(m)
+    for t in (a, b):
+        t.set_velocity("n", [1.0, -2.0, 0.5], [0.1, 0.2, 0.3])
+    for k in range(6):
+        pos, _, quat, _ = _script(d.time)
+        d.mocap_pos[0], d.mocap_quat[0] = pos, quat
+        if k != 3:  # k == 3 repeats the previous instant: nothing to difference
+            mujoco.mj_step(m, d)
+        fused = np.full((m.nbody, 6), 7.0)
+        separate = fused.copy()
+        a.update(d, fused)
+        b.update(d)
+        b.write_body_velocity(separate)
+        np.testing.assert_array_equal(fused, separate)
+        assert a.nupdates == b.nupdates
+    with pytest.raises(ShapeError, match=rf"\({m.nbody}, 6\)"):
+        a.update(d, np.zeros((m.nbody - 1, 6)))
