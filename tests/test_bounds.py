@@ -11,12 +11,19 @@ import pytest
 from dua_mujoco.bounds import (
     BoundMonitor,
     MotionBounds,
+    default_spheres,
     discrete_velocity_uncertainty,
     estimate_bounds,
     moving_bodies,
 )
 from dua_mujoco.exceptions import InvalidBoundError, InvalidChoiceError, InvalidInputError
-from dua_mujoco.state import sphere_centers, sphere_velocities
+from dua_mujoco.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.state import MocapVelocityTracker, sphere_centers, sphere_velocities
+
+try:
+    from reference_bounds import ReferenceBoundMonitor
+except ImportError:  # tests/ collected as a package
+    from tests.reference_bounds import ReferenceBoundMonitor
 
 H = 0.002
 KMAX = 200
@@ -474,3 +481,94 @@ def test_monitor_speed_bound() -> None:
     assert mon.update(m, d).tolist() == [1]
     assert mon.violations[0].kind == "speed"
     assert mon.violations[0].value == pytest.approx(2.0)
+
+
+# ------------------------------------------------------------------ kernel against reference
+
+
+def _same_updates(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    bounds: MotionBounds,
+    steps: int,
+    drive: Callable[[mujoco.MjModel, mujoco.MjData, int], None],
+    spheres: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    mocap: MocapVelocityTracker | None = None,
+) -> BoundMonitor:
+    """Step, then hold ``BoundMonitor`` to the numpy reference at every update."""
+    fast = BoundMonitor(m, bounds, spheres, mocap=mocap)
+    ref = ReferenceBoundMonitor(m, bounds, spheres, mocap=mocap)
+    for k in range(steps):
+        drive(m, d, k)
+        mujoco.mj_step(m, d)
+        if mocap is not None:
+            mocap.update(d)
+        np.testing.assert_array_equal(fast.update(m, d), ref.update(m, d), err_msg=f"step {k}")
+    assert fast.held == ref.held
+    assert len(fast.violations) == len(ref.violations)
+    for a, b in zip(fast.violations, ref.violations, strict=True):
+        assert (a.step, a.body, a.kind, a.bound) == (b.step, b.body, b.kind, b.bound)
+        assert a.value == pytest.approx(b.value, rel=1e-9, abs=1e-12)
+    return fast
+
+
+@pytest.mark.parametrize("scene", ["traffic", "two_arms", "clutter"])
+def test_monitor_kernel_matches_numpy_reference_on_scenes(scene: str) -> None:
+    """Every verdict and value of the compiled checks equals the numpy reference's, on rollouts
+    that break bounds (contacts, impulses) and, for clutter, carry a mocap body."""
+    m, d = load_scene(scene)
+    ctrl = make_controller(m, "random", seed=4)
+    mocap = MocapVelocityTracker(m) if m.nmocap else None
+    accel = declared_accel_bound(m) or 5.0
+    bounds = MotionBounds.declare(m, accel, speed=8.0)
+    mon = _same_updates(m, d, bounds, 600, lambda m, d, k: ctrl(m, d), mocap=mocap)
+    assert mon.violations, "the rollout should break a bound somewhere (else the test is weak)"
+    if mocap is not None:
+        assert mocap.nupdates > 0
+
+
+def test_monitor_kernel_matches_reference_with_offsets_and_impulse() -> None:
+    fmax, mass = 10.0, 2.0
+    m = _model(FREE_FORCE, "Euler", mass)
+    d = mujoco.MjData(m)
+    drive = _random_force(fmax, 5)
+    drive(m, d, -1)
+    sg, sb, _ = default_spheres(m)
+    so = np.random.default_rng(2).normal(scale=0.2, size=(sg.size, 3))  # off-centre spheres
+
+    def kick(m: mujoco.MjModel, d: mujoco.MjData, k: int) -> None:
+        drive(m, d, k)
+        if k == 100:
+            d.xfrc_applied[1, :3] = [0.0, 0.0, 500.0]
+
+    bounds = MotionBounds.declare(m, fmax / mass, speed=3.0)
+    mon = _same_updates(m, d, bounds, 200, kick, spheres=(sg, sb, so))
+    assert {v.kind for v in mon.violations} >= {"accel"}
+
+
+def test_monitor_rejects_bad_spheres_and_foreign_data() -> None:
+    m = _model(FREE_FORCE, "Euler", 1.0)
+    b = MotionBounds.declare(m, 1.0)
+    sg, sb, so = default_spheres(m)
+    with pytest.raises(InvalidInputError, match="geom ids must lie in"):
+        BoundMonitor(m, b, (sg + m.ngeom, sb, so))
+    with pytest.raises(InvalidInputError, match=r"must have shapes"):
+        BoundMonitor(m, b, (sg, sb[:0], so))
+    other = _model(CHAIN, "Euler")
+    with pytest.raises(InvalidInputError, match="pass the MjData of its model"):
+        BoundMonitor(m, b).update(other, mujoco.MjData(other))
+
+
+def test_monitor_tolerates_round_off_of_uniform_motion() -> None:
+    """A body coasting far from the origin has zero acceleration, but second differences of its
+    positions carry round-off of ~eps |c| / h^2: the check must not call that a violation."""
+    m = _model(FREE_FORCE, "Euler", 1.0)
+    d = mujoco.MjData(m)
+    d.qpos[:3] = [1234.5, -987.6, 555.5]
+    d.qvel[:3] = [3.1, -7.3, 2.9]
+    d.qvel[3:6] = [0.7, -0.4, 1.1]
+    mon = BoundMonitor(m, MotionBounds.declare(m, 0.0, velocity_accel=2.0))
+    for _ in range(200):
+        mujoco.mj_step(m, d)
+        mon.update(m, d)
+    assert mon.bounds_held(), mon.violations[:3]
