@@ -39,11 +39,6 @@ _DISTMAX = 100.0
 _NONE = np.zeros(0, dtype=np.int64)
 
 
-def _contains(sorted_ids: np.ndarray, g: int) -> bool:
-    i = int(np.searchsorted(sorted_ids, g))
-    return i < sorted_ids.size and int(sorted_ids[i]) == g
-
-
 @dataclasses.dataclass(frozen=True)
 class Miss:
     """A contact onset that no standing alarm covered."""
@@ -165,6 +160,13 @@ class Monitor:
             ``predictor.dt`` counts as an overrun and warns once (the "cannot keep up" signal).
         geom_distance: Also measure the exact distance (``mj_geomDistance``) of every alarmed
             geom pair at each predictor step: how far the exact stage finds alarmed pairs.
+
+    An *alarm episode* of a geom pair is a maximal run of physics steps during which at least one
+    of its sphere pairs stands alarmed (repeats counted once, as the paper does). It is *false*
+    when the pair touches at none of its steps nor at any step up to ``horizon`` seconds after
+    the step that withdrew it (a later episode of the same pair does not cut that window short),
+    where ``horizon`` is the longest revisit horizon among the alarms that opened it. Episodes
+    whose window is still open when the run ends count as false if no contact was seen.
     """
 
     def __init__(
@@ -219,7 +221,11 @@ class Monitor:
         self._episode_start = np.full(self._ngp, np.nan)
         self._episode_horizon = np.zeros(self._ngp)
         self._episode_touch = np.zeros(self._ngp, dtype=bool)
-        self._pending: list[tuple[int, float]] = []  # (geom pair, deadline) of ended episodes
+        # Ended episodes whose window is still open: geom pair, deadline, contact seen. Each
+        # keeps its own window even if a new episode of the same pair starts inside it.
+        self._pending_pair = np.zeros(0, dtype=np.int64)
+        self._pending_deadline = np.zeros(0)
+        self._pending_touch = np.zeros(0, dtype=bool)
         self.onsets = 0
         self.predicted = 0
         self.lead_times: list[float] = []
@@ -277,8 +283,12 @@ class Monitor:
                 at = np.searchsorted(touched, gp[alarms.pairs])
                 np.maximum.at(h, at, sched.horizon[sched.bucket(alarms.pairs)])
             self._episode_horizon[started] = h[begins]
-        for g in ended.tolist():
-            self._pending.append((g, t + float(self._episode_horizon[g])))
+        if ended.size:
+            self._pending_pair = np.concatenate([self._pending_pair, ended])
+            self._pending_deadline = np.concatenate(
+                [self._pending_deadline, t + self._episode_horizon[ended]]
+            )
+            self._pending_touch = np.concatenate([self._pending_touch, self._episode_touch[ended]])
 
     def _observe_alarms(self, data: mujoco.MjData, alarms: Alarms) -> None:
         sched = self.predictor.scheduler
@@ -318,19 +328,16 @@ class Monitor:
         self.unfiltered_contacts += unfiltered
         t = float(data.time)
         self._episode_touch[now[self._standing[now] > 0]] = True
-        if self._pending:
-            still = []
-            for g, deadline in self._pending:
-                if self._standing[g] > 0:
-                    continue  # a new episode took over
-                if _contains(now, g):
-                    self._episode_touch[g] = True
-                if t >= deadline:
-                    if not self._episode_touch[g]:
-                        self.false_episodes += 1
-                else:
-                    still.append((g, deadline))
-            self._pending = still
+        if self._pending_pair.size:
+            if now.size:
+                self._pending_touch |= np.isin(self._pending_pair, now)
+            due = t >= self._pending_deadline
+            if due.any():
+                self.false_episodes += int(np.count_nonzero(~self._pending_touch[due]))
+                keep = ~due
+                self._pending_pair = self._pending_pair[keep]
+                self._pending_deadline = self._pending_deadline[keep]
+                self._pending_touch = self._pending_touch[keep]
         onset = np.setdiff1d(now, self._in_contact, assume_unique=True)
         self._in_contact = now
         if onset.size:
@@ -375,10 +382,10 @@ class Monitor:
 
     def finish(self) -> None:
         """Classify the alarm episodes still open or pending at the end of the run."""
-        for g, _ in self._pending:
-            if not self._episode_touch[g]:
-                self.false_episodes += 1
-        self._pending = []
+        self.false_episodes += int(np.count_nonzero(~self._pending_touch))
+        self._pending_pair = self._pending_pair[:0]
+        self._pending_deadline = self._pending_deadline[:0]
+        self._pending_touch = self._pending_touch[:0]
         still_open = np.flatnonzero(self._standing > 0)
         self.false_episodes += int((~self._episode_touch[still_open]).sum())
 

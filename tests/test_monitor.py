@@ -1,0 +1,101 @@
+"""The Monitor's episode accounting against a slow, step-by-step reference."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco.monitor import Monitor
+from dua_mujoco.predictor import Predictor
+from dua_mujoco.scenes import load_scene, make_controller
+
+
+def _reference_episodes(
+    times: list[float],
+    standing: list[np.ndarray],
+    contact: list[np.ndarray],
+    opened_horizon: list[dict[int, float]],
+) -> tuple[int, int]:
+    """Alarm episodes and false ones, pair by pair, in plain Python.
+
+    An episode of a geom pair is a maximal run of physics steps with a standing alarm; it is
+    false when the pair is in contact at none of its steps nor at any step up to ``horizon``
+    seconds after the step that withdrew the alarm, whether or not a new episode of the pair
+    starts meanwhile (``horizon``: the longest revisit horizon among the alarms that opened
+    it). Episodes still open, or whose window is still running, at the end count as false if
+    no contact was seen.
+    """
+    npair = standing[0].size
+    episodes = false = 0
+    for g in range(npair):
+        k = 0
+        n = len(times)
+        while k < n:
+            if not standing[k][g]:
+                k += 1
+                continue
+            episodes += 1
+            horizon = opened_horizon[k].get(g, 0.0)
+            touched = False
+            while k < n and standing[k][g]:
+                touched |= bool(contact[k][g])
+                k += 1
+            if k < n:  # withdrawn at step k: watch until the deadline, through later episodes
+                deadline = times[k] + horizon
+                for j in range(k, n):
+                    touched |= bool(contact[j][g])
+                    if times[j] >= deadline:
+                        break
+            false += not touched
+    return episodes, false
+
+
+@pytest.mark.parametrize(("scene", "period"), [("traffic", 1), ("two_arms", 1), ("traffic", 3)])
+def test_episode_accounting_matches_reference(scene: str, period: int) -> None:
+    m, d = load_scene(scene)
+    p = Predictor(m, accel=4.0, period=period)
+    ctrl = make_controller(m, "random", seed=1)
+    mon = Monitor(p, check_bounds=False)
+    ngp = p.geom_pairs.npair
+    gp_of = p.sphere_pairs.geom_pair
+    times: list[float] = []
+    standing: list[np.ndarray] = []
+    contact: list[np.ndarray] = []
+    opened: list[dict[int, float]] = []
+
+    def record(alarms: object | None) -> None:
+        sched = p.scheduler
+        assert sched is not None
+        alarmed = sched.alarm_state() & sched.active
+        now = np.zeros(ngp, dtype=bool)
+        np.logical_or.at(now, gp_of[alarmed], True)
+        hits = np.zeros(ngp, dtype=bool)
+        nc = int(d.ncon)
+        if nc:
+            idx = p.geom_pairs.indices_of(d.contact.geom1[:nc], d.contact.geom2[:nc])
+            hits[idx[idx >= 0]] = True
+        horizon: dict[int, float] = {}
+        if alarms is not None:
+            for pair in alarms.pairs.tolist():  # type: ignore[attr-defined]
+                g = int(gp_of[pair])
+                h = float(sched.horizon[sched.bucket(pair)])
+                horizon[g] = max(horizon.get(g, 0.0), h)
+        times.append(float(d.time))
+        standing.append(now)
+        contact.append(hits)
+        opened.append(horizon)
+
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    record(mon.start(d))
+    for k in range(1, 901):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        alarms = p.step(d) if k % period == 0 else None
+        mon.observe(d, alarms)
+        record(alarms)
+    mon.finish()
+    episodes, false = _reference_episodes(times, standing, contact, opened)
+    assert mon.episodes > 10 and 0 < mon.false_episodes < mon.episodes  # a test with teeth
+    assert (mon.episodes, mon.false_episodes) == (episodes, false)
