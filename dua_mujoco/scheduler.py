@@ -233,18 +233,15 @@ def _tau_pairs_parallel(
 @nb.njit(cache=True)
 def _step_points(
     slots,
-    where,
+    pair_state,
     last_tau,
-    last_step,
     horizon,
     active,
     nbuckets,
     q,
     n,
-    w_slots,
-    w_ids,
+    work,
     w_tau,
-    alarms,
     centers,
     velocities,
     normals,
@@ -257,6 +254,12 @@ def _step_points(
     delta,
     speed,
 ):  # pragma: no cover - jitted
+    """The fused step on free points (``SphereWorld``); arguments as ``_step_rigid``'s."""
+    where = pair_state[0]
+    last_step = pair_state[1]
+    w_slots = work[0]
+    w_ids = work[1]
+    alarms = work[2]
     count = _select(slots, active, nbuckets, q, n, w_slots, w_ids)
     for k in range(count):
         p = w_ids[k]
@@ -978,18 +981,15 @@ class DUAScheduler:
         n = self.step_count + 1
         count, nalarm, bad = _step_points(
             self.slots,
-            self.where,
+            self._pair_state,
             self.last_tau,
-            self.last_step,
             self.horizon,
             self.active,
             self.nbuckets,
             self.slots_per_bucket,
             n,
-            self._w_slots,
-            self._w_ids,
+            self._work,
             self._w_tau,
-            self._alarms,
             c,
             v,
             nrm,
@@ -1009,7 +1009,8 @@ class DUAScheduler:
                 "velocities hold NaN or inf; check that the simulation has not diverged."
             )
         self._last_count = count
-        self._last_extra = self._last_extra[:0]
+        if self._last_extra.size:
+            self._last_extra = self._last_extra[:0]
         self.step_count = n
         return self._alarms[:nalarm].copy()
 
