@@ -476,6 +476,7 @@ def _check_spheres(
     accel,
     disc_bound,
     speed_bound,
+    check_disc,
     rtol,
     values,
     broken,
@@ -487,8 +488,9 @@ def _check_spheres(
     earlier updates ``prev`` reflects (0, 1, or 2 and more): the discrepancy check needs one,
     the acceleration check two. ``values[:, _SPEED/_DISC/_ACC]`` receive |w|, |u - w_prev| and
     |u - u_prev| / h, ``broken`` the same three verdicts. ``speed_bound`` is empty when no speed
-    bound is declared. Tolerances: the round-off of a second difference of positions of size
-    |c| is ~4 eps |c| / h^2; 8 eps is used.
+    bound is declared; ``check_disc`` selects the spheres whose discrepancy is checked.
+    Tolerances: the round-off of a second difference of positions of size |c| is
+    ~4 eps |c| / h^2; 8 eps is used.
     """
     n = spheres.shape[0]
     count = 0
@@ -522,7 +524,7 @@ def _check_spheres(
         disc = math.sqrt(disc)
         values[i, _DISC] = disc
         tol_d = tol_a * h + 8.0 * _EPS * math.sqrt(wprev)
-        if disc > disc_bound[i] * (1.0 + rtol) + tol_d:
+        if check_disc[i] and disc > disc_bound[i] * (1.0 + rtol) + tol_d:
             broken[i, _DISC] = True
             count += 1
         if nprev == 1:
@@ -556,6 +558,7 @@ class BoundMonitor:
         spheres: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike] | None = None,
         *,
         mocap: MocapVelocityTracker | None = None,
+        mocap_period: int = 1,
         rtol: float = 1e-9,
     ) -> None:
         """Create a monitor.
@@ -565,8 +568,15 @@ class BoundMonitor:
             bounds: the bounds to hold the run to.
             spheres: ``(sphere_geom, sphere_body, sphere_offset)``; None for
                 :func:`default_spheres`.
-            mocap: tracker for mocap velocities (the caller updates it each step, before
-                :meth:`update`).
+            mocap: tracker for mocap velocities (the caller updates it before :meth:`update`,
+                every step or every ``mocap_period`` steps).
+            mocap_period: physics steps between the tracker's updates (a predictor's period).
+                Its velocities are then backward differences over the period, off by up to
+                ``A h (period + 1) / 2`` from the next step's discrete velocity, the allowance
+                the predictor makes (``Predictor``): for spheres of mocap trees the
+                discrepancy bound is ``D + A h (period - 1) / 2``, and it is checked only at
+                the step after a tracker update (the hypothesis at a prediction instant; in
+                between the tracker's velocities are stale by design).
             rtol: relative tolerance on every comparison.
         """
         if bounds.accel.shape != (model.nbody,):
@@ -603,6 +613,20 @@ class BoundMonitor:
             else np.ascontiguousarray(bounds.speed[self._sbody], dtype=np.float64)
         )
         self._spheres = pack_spheres(self._sgeom, self._sbody, self._soff, model.body_rootid)
+        if not isinstance(mocap_period, int | np.integer) or mocap_period < 1:
+            raise InvalidInputError(f"mocap_period = {mocap_period!r} is invalid: an int >= 1.")
+        in_tree = np.zeros(model.nbody, dtype=bool)
+        if mocap is not None:
+            in_tree[mocap.mocap_bodies] = True
+        self._mocap_sphere = in_tree[np.asarray(model.body_rootid)][self._sbody]
+        h = float(model.opt.timestep)
+        self._D = self._D + np.where(self._mocap_sphere, self._A * h * (mocap_period - 1) / 2, 0)
+        # Which spheres' discrepancy to check: all, or (after a step without a tracker update)
+        # all but the mocap trees'.
+        self._check_all = np.ones(n, dtype=np.bool_)
+        self._check_fresh = ~self._mocap_sphere
+        self._mocap_updates = -1
+        self._prev_fresh = True
         # Rows [c, w, u] of the previous and the current update, swapped after each update.
         self._prev = np.zeros((n, 9))
         self._cur = np.zeros((n, 9))
@@ -656,8 +680,13 @@ class BoundMonitor:
                 f"the monitor was made for {self._ngeom} and {self._nbody}: pass the MjData of "
                 "its model."
             )
+        # The discrepancy compares this step's discrete velocity with the velocities read at the
+        # previous update: for mocap trees those are fresh only if the tracker had just updated.
+        check = self._check_all if self._prev_fresh else self._check_fresh
         if self._mocap is not None and self._mocap.mocap_bodies.size:
             self._mocap.write_body_velocity(self._twist)
+            self._prev_fresh = self._mocap.nupdates != self._mocap_updates
+            self._mocap_updates = self._mocap.nupdates
         t = float(data.time)
         h = t - self._prev_t
         if h <= 0:
@@ -677,6 +706,7 @@ class BoundMonitor:
             self._A,
             self._D,
             self._V,
+            check,
             self._rtol,
             self._values,
             self._broken,

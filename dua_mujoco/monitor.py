@@ -188,6 +188,7 @@ class Monitor:
                 predictor.bounds,
                 (cov.sphere_geom, cov.sphere_body, cov.sphere_offset),
                 mocap=predictor._mocap,
+                mocap_period=predictor.period,
             )
             if check_bounds
             else None

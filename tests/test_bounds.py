@@ -572,3 +572,58 @@ def test_monitor_tolerates_round_off_of_uniform_motion() -> None:
         mujoco.mj_step(m, d)
         mon.update(m, d)
     assert mon.bounds_held(), mon.violations[:3]
+
+
+MOCAP_CIRCLE = """<mujoco><option timestep="0.002" gravity="0 0 0"/><worldbody>
+<body name="m" mocap="true"><geom type="sphere" size=".05"/></body>
+<body name="ball" pos="2 0 0"><freejoint/><geom type="sphere" size=".05"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("period", [2, 4, 8])
+def test_monitor_checks_mocap_discrepancy_at_prediction_instants(period: int) -> None:
+    """A mocap body on a circle (|a| = r w^2 = 8 m/s^2), its tracker updated every ``period``
+    steps as a predictor does: the tracker's velocity lags, by design, and the predictor allows
+    for it. The monitor must check the same hypothesis (at prediction instants, with the same
+    allowance), not flag the lag; checking every step against the plain D does flag it. (The
+    first updates are skipped: a tracker's first velocity is zero, a true discrepancy of a body
+    that starts in motion.)"""
+    m = mujoco.MjModel.from_xml_string(MOCAP_CIRCLE)
+    h = m.opt.timestep
+    bounds = MotionBounds.declare(m, {"m": 8.5, "*": 0.0})
+
+    def rollout(mocap_period: int) -> BoundMonitor:
+        d = mujoco.MjData(m)
+        tracker = MocapVelocityTracker(m)
+        mon = BoundMonitor(m, bounds, mocap=tracker, mocap_period=mocap_period)
+        for k in range(600):
+            t = (k + 1) * h
+            d.mocap_pos[0] = [0.5 * np.cos(4 * t), 0.5 * np.sin(4 * t), 0.0]
+            mujoco.mj_step(m, d)
+            if k % period == 0:
+                tracker.update(d)
+            mon.update(m, d)
+        return mon
+
+    warm = 2 * period + 1
+    assert rollout(period).bounds_held(warm)
+    assert any(v.kind == "discrepancy" and v.step >= warm for v in rollout(1).violations)
+
+
+def test_monitor_of_a_predictor_with_period_and_mocap_holds() -> None:
+    from dua_mujoco.monitor import Monitor
+    from dua_mujoco.predictor import Predictor
+
+    m = mujoco.MjModel.from_xml_string(MOCAP_CIRCLE)
+    d = mujoco.MjData(m)
+    h = m.opt.timestep
+    p = Predictor(m, accel={"m": 8.5, "*": 0.0}, period=4)
+    mon = Monitor(p)
+    mujoco.mj_step(m, d)
+    mon.start(d)
+    for k in range(1, 601):
+        t = (k + 1) * h
+        d.mocap_pos[0] = [0.5 * np.cos(4 * t), 0.5 * np.sin(4 * t), 0.0]
+        mujoco.mj_step(m, d)
+        mon.observe(d, p.step(d) if k % 4 == 0 else None)
+    assert mon.bounds is not None and mon.bounds.bounds_held(9)
