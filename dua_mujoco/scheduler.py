@@ -138,9 +138,11 @@ def _sphere_halfspace_tau(c, v, normal, offset, p, eps, accel, delta):  # pragma
 
 
 @nb.njit(cache=True, inline="always")
-def _pair_tau(
-    p, centers, velocities, normals, offsets, first, second, halfspace, eps, accel, delta, speed
-):  # pragma: no cover - jitted
+def _pair_tau(p, geometry):  # pragma: no cover - jitted
+    """tau of pair ``p``; ``geometry`` is ``PairSet._geometry``'s tuple."""
+    centers, velocities, normals, offsets, first, second, halfspace, eps, accel, delta, speed = (
+        geometry
+    )
     i = first[p]
     j = second[p]
     if halfspace[p]:
@@ -152,81 +154,26 @@ def _pair_tau(
     )
 
 
-def _tau_pairs(
-    ids: np.ndarray,
-    centers: np.ndarray,
-    velocities: np.ndarray,
-    normals: np.ndarray,
-    offsets: np.ndarray,
-    first: np.ndarray,
-    second: np.ndarray,
-    halfspace: np.ndarray,
-    eps: np.ndarray,
-    accel: np.ndarray,
-    delta: np.ndarray,
-    speed: np.ndarray,
-) -> np.ndarray:
+def _tau_pairs(ids: np.ndarray, geometry: tuple) -> np.ndarray:
     """tau of the pairs ``ids``: threads for large batches, serial for small ones."""
     kernel = _tau_pairs_parallel if ids.shape[0] >= _PARALLEL_MIN else _tau_pairs_serial
-    return kernel(
-        ids,
-        centers,
-        velocities,
-        normals,
-        offsets,
-        first,
-        second,
-        halfspace,
-        eps,
-        accel,
-        delta,
-        speed,
-    )
+    return kernel(ids, geometry)
 
 
+# The serial and threaded kernels differ only in range/prange: numba has no switch for it.
 @nb.njit(cache=True)
-def _tau_pairs_serial(
-    ids, centers, velocities, normals, offsets, first, second, halfspace, eps, accel, delta, speed
-):  # pragma: no cover - jitted
+def _tau_pairs_serial(ids, geometry):  # pragma: no cover - jitted
     out = np.empty(ids.shape[0])
     for k in range(ids.shape[0]):
-        out[k] = _pair_tau(
-            ids[k],
-            centers,
-            velocities,
-            normals,
-            offsets,
-            first,
-            second,
-            halfspace,
-            eps,
-            accel,
-            delta,
-            speed,
-        )
+        out[k] = _pair_tau(ids[k], geometry)
     return out
 
 
 @nb.njit(cache=True, parallel=True)
-def _tau_pairs_parallel(
-    ids, centers, velocities, normals, offsets, first, second, halfspace, eps, accel, delta, speed
-):  # pragma: no cover - jitted
+def _tau_pairs_parallel(ids, geometry):  # pragma: no cover - jitted
     out = np.empty(ids.shape[0])
     for k in nb.prange(ids.shape[0]):
-        out[k] = _pair_tau(
-            ids[k],
-            centers,
-            velocities,
-            normals,
-            offsets,
-            first,
-            second,
-            halfspace,
-            eps,
-            accel,
-            delta,
-            speed,
-        )
+        out[k] = _pair_tau(ids[k], geometry)
     return out
 
 
@@ -242,19 +189,11 @@ def _step_points(
     n,
     work,
     w_tau,
-    centers,
-    velocities,
-    normals,
-    offsets,
-    first,
-    second,
-    halfspace,
-    eps,
-    accel,
-    delta,
-    speed,
+    geometry,
 ):  # pragma: no cover - jitted
-    """The fused step on free points (``SphereWorld``); arguments as ``_step_rigid``'s."""
+    """The fused step on free points (``SphereWorld``); arguments as ``_step_rigid``'s, the
+    pairs and their states as ``PairSet._geometry``'s tuple."""
+    centers, velocities, _, _, first, second, halfspace, _, _, _, _ = geometry
     where = pair_state[0]
     last_step = pair_state[1]
     w_slots = work[0]
@@ -273,20 +212,7 @@ def _step_points(
                 state += centers[j, a] + velocities[j, a]
         if not math.isfinite(state):
             return count, 0, p
-        w_tau[k] = _pair_tau(
-            p,
-            centers,
-            velocities,
-            normals,
-            offsets,
-            first,
-            second,
-            halfspace,
-            eps,
-            accel,
-            delta,
-            speed,
-        )
+        w_tau[k] = _pair_tau(p, geometry)
     nalarm = _reinsert(
         slots, where, last_tau, last_step, horizon, n, w_slots, w_ids, w_tau, count, alarms
     )
@@ -633,32 +559,21 @@ class PairSet:
         idx = _ids("ids", ids)
         if idx.size and (idx.min() < 0 or idx.max() >= len(self)):
             raise InvalidInputError(f"pair ids must be in [0, {len(self)}); got {idx.tolist()}.")
-        c, v, nrm, off = self._states(centers, velocities, halfspaces)
-        return np.asarray(
-            _tau_pairs(
-                idx,
-                c,
-                v,
-                nrm,
-                off,
-                self.first,
-                self.second,
-                self.halfspace,
-                self.eps,
-                self.accel,
-                self.vel_uncertainty,
-                self.speed,
-            )
-        )
+        return np.asarray(_tau_pairs(idx, self._geometry(centers, velocities, halfspaces)))
 
-    def _states(
+    def _geometry(
         self,
         centers: npt.ArrayLike,
         velocities: npt.ArrayLike,
         halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None,
         *,
         check_finite: bool = True,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, ...]:
+        """The tuple the tau kernels read: validated sphere and half-space states, then the pairs.
+
+        ``(centers, velocities, normals, offsets, first, second, halfspace, eps, accel,
+        vel_uncertainty, speed)``; one argument instead of eleven through every kernel.
+        """
         c = _vectors("centers", centers, check_finite=check_finite)
         v = _vectors("velocities", velocities, c.shape[0], check_finite=check_finite)
         if halfspaces is None:
@@ -680,7 +595,19 @@ class PairSet:
             raise ShapeError(
                 f"pairs reference half-space {self.max_halfspace} but {nrm.shape[0]} were given."
             )
-        return c, v, nrm, off
+        return (
+            c,
+            v,
+            nrm,
+            off,
+            self.first,
+            self.second,
+            self.halfspace,
+            self.eps,
+            self.accel,
+            self.vel_uncertainty,
+            self.speed,
+        )
 
     def distance(self, ids: npt.ArrayLike, centers: npt.ArrayLike) -> np.ndarray:
         """Distance urgency ``|c_j - c_i| - eps`` of the sphere-sphere pairs ``ids``, ``(n,)``."""
@@ -977,7 +904,7 @@ class DUAScheduler:
         if self._reactivated:
             ids = self.select()
             return self.update(ids, pairs.tau(ids, centers, velocities, halfspaces))
-        c, v, nrm, off = pairs._states(centers, velocities, halfspaces, check_finite=False)
+        geometry = pairs._geometry(centers, velocities, halfspaces, check_finite=False)
         n = self.step_count + 1
         count, nalarm, bad = _step_points(
             self.slots,
@@ -990,17 +917,7 @@ class DUAScheduler:
             n,
             self._work,
             self._w_tau,
-            c,
-            v,
-            nrm,
-            off,
-            pairs.first,
-            pairs.second,
-            pairs.halfspace,
-            pairs.eps,
-            pairs.accel,
-            pairs.vel_uncertainty,
-            pairs.speed,
+            geometry,
         )
         if bad >= 0:
             i, j = int(pairs.first[bad]), int(pairs.second[bad])

@@ -409,94 +409,27 @@ def _plan(quick: bool, tiny: bool, seeds: int) -> _Plan:
 
 @nb.njit(cache=True)
 def _dua_kernel_loop(
-    iters,
-    n0,
-    slots,
-    pair_state,
-    last_tau,
-    horizon,
-    active,
-    nbuckets,
-    work,
-    w_tau,
-    centers,
-    velocities,
-    normals,
-    offsets,
-    first,
-    second,
-    halfspace,
-    eps,
-    accel,
-    delta,
-    speed,
+    iters, n0, slots, pair_state, last_tau, horizon, active, nbuckets, work, w_tau, geometry
 ):  # pragma: no cover - jitted
     total = 0
     for n in range(n0, n0 + iters):
         # Indexed, not unpacked: the kernel's result tuple has grown before (a non-finite flag).
         res = _step_points(
-            slots,
-            pair_state,
-            last_tau,
-            horizon,
-            active,
-            nbuckets,
-            1,
-            n,
-            work,
-            w_tau,
-            centers,
-            velocities,
-            normals,
-            offsets,
-            first,
-            second,
-            halfspace,
-            eps,
-            accel,
-            delta,
-            speed,
+            slots, pair_state, last_tau, horizon, active, nbuckets, 1, n, work, w_tau, geometry
         )
         total += res[0]
     return total
 
 
 @nb.njit(cache=True)
-def _sa_kernel_loop(
-    iters,
-    threshold,
-    centers,
-    velocities,
-    normals,
-    offsets,
-    first,
-    second,
-    halfspace,
-    eps,
-    accel,
-    delta,
-    speed,
-):  # pragma: no cover - jitted
+def _sa_kernel_loop(iters, threshold, geometry):  # pragma: no cover - jitted
     # Serial on purpose: the cost model counts evaluations, and DUA's step is serial too.
     nalarm = 0
+    first = geometry[4]  # PairSet._geometry: (centers, velocities, normals, offsets, first, ...)
     m = first.shape[0]
     for _ in range(iters):
         for p in range(m):
-            tau = _pair_tau(
-                p,
-                centers,
-                velocities,
-                normals,
-                offsets,
-                first,
-                second,
-                halfspace,
-                eps,
-                accel,
-                delta,
-                speed,
-            )
-            if tau < threshold:
+            if _pair_tau(p, geometry) < threshold:
                 nalarm += 1
     return nalarm
 
@@ -511,20 +444,7 @@ def _kernel_costs(n: int, params: WorldParams, reps: int, seed: int = 0) -> tupl
     pairs = world.pairs()
     c, v = world.positions, world.velocities
     dua = DUAScheduler(pairs.tau(np.arange(len(pairs)), c, v), dt=1.0)
-    nrm, off = np.zeros((1, 3)), np.zeros(1)
-    geometry = (
-        c,
-        v,
-        nrm,
-        off,
-        pairs.first,
-        pairs.second,
-        pairs.halfspace,
-        pairs.eps,
-        pairs.accel,
-        pairs.vel_uncertainty,
-        pairs.speed,
-    )
+    geometry = pairs._geometry(c, v, None)
     # The DUA loop mutates the scheduler's private arrays: it runs on a throwaway instance.
     state = (
         dua.slots,
@@ -536,20 +456,20 @@ def _kernel_costs(n: int, params: WorldParams, reps: int, seed: int = 0) -> tupl
         dua._work,
         dua._w_tau,
     )
-    _dua_kernel_loop(1, 1, *state, *geometry)
+    _dua_kernel_loop(1, 1, *state, geometry)
     # Best of three: other processes only ever add time, so the minimum is the cleanest estimate.
     dua_ns = math.inf
     for rep in range(3):
         t0 = time.perf_counter()
-        _dua_kernel_loop(reps, 2 + rep * reps, *state, *geometry)
+        _dua_kernel_loop(reps, 2 + rep * reps, *state, geometry)
         dua_ns = min(dua_ns, (time.perf_counter() - t0) / reps * 1e9)
     # SA: enough repetitions for ~reps * 10 evaluations, at least one.
     sa_reps = max(1, (reps * 10) // len(pairs))
-    _sa_kernel_loop(1, 2.0, *geometry)
+    _sa_kernel_loop(1, 2.0, geometry)
     sa_ns = math.inf
     for _ in range(3):
         t0 = time.perf_counter()
-        _sa_kernel_loop(sa_reps, 2.0, *geometry)
+        _sa_kernel_loop(sa_reps, 2.0, geometry)
         sa_ns = min(sa_ns, (time.perf_counter() - t0) / sa_reps * 1e9)
     return dua_ns, sa_ns
 
