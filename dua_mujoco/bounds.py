@@ -463,12 +463,7 @@ _SPEED, _DISC, _ACC = 0, 1, 2
 @nb.njit(cache=True)
 def _check_spheres(
     spheres,
-    frame_pos,
-    frame_mat,
-    twist,
-    twist_ref,
-    root_twist,
-    root_origin,
+    frame,
     prev,
     cur,
     nprev,
@@ -483,6 +478,7 @@ def _check_spheres(
 ):  # pragma: no cover - jitted
     """One monitor update over every sphere; returns the number of broken (sphere, kind) checks.
 
+    ``spheres`` and ``frame`` are as for ``_rigid_point``.
     ``prev`` and ``cur`` are ``(nsphere, 9)`` rows ``[c, w, u]`` (centre, velocity read from
     MuJoCo, discrete velocity ``(c - c_prev) / h``); ``cur`` is written. ``nprev`` is how many
     earlier updates ``prev`` reflects (0, 1, or 2 and more): the discrepancy check needs one,
@@ -495,9 +491,7 @@ def _check_spheres(
     n = spheres.shape[0]
     count = 0
     for i in range(n):
-        _rigid_point(
-            i, spheres, frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin, cur[i]
-        )
+        _rigid_point(i, spheres, frame, cur[i])
         broken[i, _SPEED] = False
         broken[i, _DISC] = False
         broken[i, _ACC] = False
@@ -693,12 +687,7 @@ class BoundMonitor:
             h = float(model.opt.timestep)
         nbroken = _check_spheres(
             self._spheres,
-            data.geom_xpos,
-            data.geom_xmat,
-            data.cvel,
-            data.subtree_com,
-            self._twist,
-            data.xpos,
+            (data.geom_xpos, data.geom_xmat, data.cvel, data.subtree_com, self._twist, data.xpos),
             self._prev,
             self._cur,
             min(self._nprev, 2),

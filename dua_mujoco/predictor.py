@@ -277,8 +277,8 @@ class Predictor:
             pack_spheres(cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid),
         )
         self._rootid = np.asarray(model.body_rootid, dtype=np.int64)
-        self._no_twist = np.zeros((model.nbody, 6))
-        self._twist = np.zeros((model.nbody, 6))  # mocap roots' twists, rewritten each step
+        # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
+        self._twist = np.zeros((model.nbody, 6))
         self.scheduler: DUAScheduler | None = None
         self._time = 0.0
         self._frame_data: mujoco.MjData | None = None
@@ -331,24 +331,24 @@ class Predictor:
                 "predictor's model."
             )
 
-    def _frame_args(self, data: mujoco.MjData) -> tuple:
-        """The ``MjData`` arrays the fused step reads, cached per ``MjData``.
+    def _bind_frame(self, data: mujoco.MjData) -> tuple:
+        """Build and cache the fused step's ``frame`` tuple (``_rigid_point``) for ``data``.
 
         MjData's buffers live as long as the MjData, and every attribute access builds a new
-        numpy view (about a microsecond in all), so the views are built once.
+        numpy view (about a microsecond in all), so ``step`` rebuilds the views only when it is
+        handed another ``MjData``.
         """
-        if self._frame_data is not data:
-            # The kernel does no bounds checks: refuse an MjData of another model here.
-            self._check_data(data)
-            self._frame_data = data
-            self._frame_cache = (
-                data.geom_xpos,
-                data.geom_xmat,
-                data.cvel,
-                data.subtree_com,
-                self._twist if self._mocap is not None else self._no_twist,
-                data.xpos,
-            )
+        # The kernel does no bounds checks: refuse an MjData of another model here.
+        self._check_data(data)
+        self._frame_data = data
+        self._frame_cache = (
+            data.geom_xpos,
+            data.geom_xmat,
+            data.cvel,
+            data.subtree_com,
+            self._twist,
+            data.xpos,
+        )
         return self._frame_cache
 
     def sphere_states(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
@@ -441,13 +441,13 @@ class Predictor:
             )
         if self._mocap is not None:
             self._mocap.update(data, self._twist)
-        frame_args = self._frame_cache if self._frame_data is data else self._frame_args(data)
+        frame = self._frame_cache if self._frame_data is data else self._bind_frame(data)
         if sched._reactivated:
             ids = sched.select()
             c, v = self.sphere_states(data)
             alarmed = sched.update(ids, self.pairs.tau(ids, c, v, self.halfspaces(data)))
         else:
-            alarmed, bad = sched.step_rigid(self._pair_args, frame_args)
+            alarmed, bad = sched.step_rigid(self._pair_args, frame)
             if bad >= 0:
                 raise self._nonfinite(data, bad)
         self._time = time

@@ -285,17 +285,19 @@ def pack_spheres(
 
 
 @nb.njit(cache=True, inline="always")
-def _rigid_point(
-    i, spheres, frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin, out
-):  # pragma: no cover - jitted
+def _rigid_point(i, spheres, frame, out):  # pragma: no cover - jitted
     """Centre and velocity of sphere ``i`` attached to a rigid frame (MuJoCo's conventions).
 
-    ``spheres`` holds ``pack_spheres`` records. Writes ``out[0:3]`` (centre) and ``out[3:6]``
+    ``spheres`` holds ``pack_spheres`` records; ``frame`` is ``(frame_pos (nframe, 3),
+    frame_mat (nframe, 9), twist (nbody, 6), twist_ref (nbody, 3), root_twist (nbody, 6),
+    root_origin (nbody, 3))``, read from ``MjData`` as ``(geom_xpos, geom_xmat, cvel,
+    subtree_com, mocap root twists, xpos)``. Writes ``out[0:3]`` (centre) and ``out[3:6]``
     (velocity), without allocating. Centre: ``frame_pos[g] + frame_mat[g] @ offset``. Velocity:
     the body twist ``[omega; v_ref]`` about the point ``twist_ref[rootid[b]]`` (MuJoCo's
     ``cvel`` about ``subtree_com`` of the root), plus the twist of the tree's root about
     ``root_origin`` for trees MuJoCo treats as static (mocap roots), which is zero elsewhere.
     """
+    frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin = frame
     g = int(spheres[i, 0])
     b = int(spheres[i, 1])
     o0 = spheres[i, 2]
@@ -339,12 +341,7 @@ def _step_rigid(
     w_tau,
     pairs,
     spheres,
-    frame_pos,
-    frame_mat,
-    twist,
-    twist_ref,
-    root_twist,
-    root_origin,
+    frame,
 ):  # pragma: no cover - jitted
     """The fused step on spheres attached to rigid frames; reads only the selected spheres.
 
@@ -360,22 +357,13 @@ def _step_rigid(
     w_slots = work[0]
     w_ids = work[1]
     alarms = work[2]
+    frame_pos, frame_mat = frame[0], frame[1]
     count = _select(slots, active, nbuckets, q, n, w_slots, w_ids)
     # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset).
     state = np.empty((count, 12))
     for k in range(count):
         rec = pairs[w_ids[k]]
-        _rigid_point(
-            int(rec[0]),
-            spheres,
-            frame_pos,
-            frame_mat,
-            twist,
-            twist_ref,
-            root_twist,
-            root_origin,
-            state[k, 0:6],
-        )
+        _rigid_point(int(rec[0]), spheres, frame, state[k, 0:6])
         if rec[2] != 0.0:
             g = int(rec[7])
             state[k, 6] = frame_mat[g, 2]
@@ -389,17 +377,7 @@ def _step_rigid(
             state[k, 10] = 0.0
             state[k, 11] = 0.0
         else:
-            _rigid_point(
-                int(rec[1]),
-                spheres,
-                frame_pos,
-                frame_mat,
-                twist,
-                twist_ref,
-                root_twist,
-                root_origin,
-                state[k, 6:12],
-            )
+            _rigid_point(int(rec[1]), spheres, frame, state[k, 6:12])
     for k in range(count):
         rec = pairs[w_ids[k]]
         s = state[k]
@@ -931,15 +909,15 @@ class DUAScheduler:
         self.step_count = n
         return self._alarms[:nalarm].copy()
 
-    def step_rigid(self, pair_args: tuple, frame_args: tuple) -> tuple[np.ndarray, int]:
+    def step_rigid(self, pair_args: tuple, frame: tuple) -> tuple[np.ndarray, int]:
         """The fused step for spheres attached to rigid frames (used by ``Predictor``).
 
         Args:
             pair_args: ``(pack_pairs(pairs, plane_frame), pack_spheres(...))``, fixed for a
                 model.
-            frame_args: ``(frame_pos (nframe, 3), frame_mat (nframe, 9), twist (nbody, 6),
+            frame: ``(frame_pos (nframe, 3), frame_mat (nframe, 9), twist (nbody, 6),
                 twist_ref (nbody, 3), root_twist (nbody, 6), root_origin (nbody, 3))`` at this
-                step.
+                step (``_rigid_point``).
 
         Returns:
             ``(alarmed ids, bad)`` where ``bad`` is a pair whose state is not finite (the step
@@ -950,6 +928,7 @@ class DUAScheduler:
         if self._reactivated:
             raise SchedulerError("re-activated pairs need select()/update() for one step.")
         n = self.step_count + 1
+        pairs, spheres = pair_args
         count, nalarm, bad = _step_rigid(
             self.slots,
             self._pair_state,
@@ -961,8 +940,9 @@ class DUAScheduler:
             n,
             self._work,
             self._w_tau,
-            *pair_args,
-            *frame_args,
+            pairs,
+            spheres,
+            frame,
         )
         if bad >= 0:
             return self._alarms[:0].copy(), int(bad)

@@ -94,14 +94,12 @@ KINEMATIC_XML = """
 
 
 @numba.njit(cache=False)
-def _kernel_points(
-    spheres, geom_xpos, geom_xmat, cvel, subtree_com, root_twist, xpos
-):  # pragma: no cover - jitted
+def _kernel_points(spheres, frame):  # pragma: no cover - jitted
     """Centre and velocity of every sphere through the fused step's own ``_rigid_point``."""
     n = spheres.shape[0]
     out = np.empty((n, 6))
     for i in range(n):
-        _rigid_point(i, spheres, geom_xpos, geom_xmat, cvel, subtree_com, root_twist, xpos, out[i])
+        _rigid_point(i, spheres, frame, out[i])
     return out[:, :3].copy(), out[:, 3:].copy()
 
 
@@ -115,12 +113,7 @@ def kernel_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarra
     )
     return _kernel_points(
         pack_spheres(cov.sphere_geom, cov.sphere_body, cov.sphere_offset, p.model.body_rootid),
-        d.geom_xpos,
-        d.geom_xmat,
-        d.cvel,
-        d.subtree_com,
-        np.ascontiguousarray(twist),
-        d.xpos,
+        (d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, np.ascontiguousarray(twist), d.xpos),
     )
 
 
