@@ -216,10 +216,10 @@ class Monitor:
         self._eval_physics_step = np.zeros(1, dtype=np.int64)  # predictor step -> physics step
         self._pred_steps = [0]
         self._in_contact = self._contacts(data)[0]
-        # Geom pairs in contact at the previous physics step, as a mask: set lookups by
-        # gathering, not by np.isin (which sorts; 47 us a call with thousands of pending windows).
-        self._was_in_contact = np.zeros(self._ngp, dtype=bool)
-        self._was_in_contact[self._in_contact] = True
+        # The same set as a mask: lookups by gathering, not by np.isin (which sorts; 47 us a
+        # call with the thousands of pending windows of paper_world:200).
+        self._contact_mask = np.zeros(self._ngp, dtype=bool)
+        self._contact_mask[self._in_contact] = True
         self._last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
         self._standing = np.zeros(self._ngp, dtype=np.int64)
         self._pair_alarm = np.zeros(len(self.predictor.pairs), dtype=bool)
@@ -333,11 +333,13 @@ class Monitor:
         self.unfiltered_contacts += unfiltered
         t = float(data.time)
         self._episode_touch[now[self._standing[now] > 0]] = True
+        onset = now[~self._contact_mask[now]]
+        self._contact_mask[self._in_contact] = False
+        self._contact_mask[now] = True
+        self._in_contact = now
         if self._pending_pair.size:
             if now.size:
-                mask = np.zeros(self._ngp, dtype=bool)
-                mask[now] = True
-                self._pending_touch |= mask[self._pending_pair]
+                self._pending_touch |= self._contact_mask[self._pending_pair]
             due = t >= self._pending_deadline
             if due.any():
                 self.false_episodes += int(np.count_nonzero(~self._pending_touch[due]))
@@ -345,10 +347,6 @@ class Monitor:
                 self._pending_pair = self._pending_pair[keep]
                 self._pending_deadline = self._pending_deadline[keep]
                 self._pending_touch = self._pending_touch[keep]
-        onset = now[~self._was_in_contact[now]]
-        self._was_in_contact[self._in_contact] = False
-        self._was_in_contact[now] = True
-        self._in_contact = now
         if onset.size:
             self._onsets(onset, t)
 
