@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import sys
@@ -180,26 +181,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_paper(sub: argparse._SubParsersAction) -> None:
-    from dua_mujoco.experiments import paper
-
-    p = sub.add_parser(
-        "paper",
-        help="reproduce the paper's experiments (sec. 8) and write tables, plots and JSON",
-    )
-    paper.add_arguments(p)
-    p.set_defaults(func=paper.main)
+# Experiment subcommands: each module has add_arguments(parser) and main(args).
+_EXPERIMENTS = {
+    "paper": "reproduce the paper's experiments (sec. 8) and write tables, plots and JSON",
+    "peers": "measure DUA against SA(tau), swept-sphere broadphases, MuJoCo and FCL",
+}
 
 
-def _add_peers(sub: argparse._SubParsersAction) -> None:
-    from dua_mujoco.experiments import peers
-
-    p = sub.add_parser(
-        "peers",
-        help="measure DUA against SA(tau), swept-sphere broadphases, MuJoCo and FCL",
-    )
-    peers.add_arguments(p)
-    p.set_defaults(func=peers.main)
+def _add_experiment(sub: argparse._SubParsersAction, name: str) -> None:
+    module = importlib.import_module(f"dua_mujoco.experiments.{name}")
+    p = sub.add_parser(name, help=_EXPERIMENTS[name])
+    module.add_arguments(p)
+    p.set_defaults(func=module.main)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -210,8 +203,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     _add_run(sub)
-    _add_paper(sub)
-    _add_peers(sub)
+    for name in _EXPERIMENTS:
+        _add_experiment(sub, name)
     return parser
 
 

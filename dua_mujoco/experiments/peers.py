@@ -1630,6 +1630,37 @@ def _lead_ms(x: float | None) -> str:
     return "n/a" if x is None else f"{x * 1e3:.0f}"
 
 
+# The columns shared by the ghost-world and scene tables (GhostRow / SceneRow fields).
+_PEER_HEADER = (
+    "peer",
+    "us/step",
+    "candidates/step",
+    "alarms/step",
+    "initial alarms",
+    "onsets",
+    "missed",
+    "false",
+    "open",
+    "lead ms",
+)
+
+
+def _peer_cells(r: dict[str, Any]) -> list[str]:
+    """The ``_PEER_HEADER`` cells of one ``GhostRow`` or ``SceneRow`` (as a JSON dict)."""
+    return [
+        r["peer"],
+        _fmt(r["time_us"]),
+        _fmt(r["candidates_per_step"]),
+        _fmt(r["alarms_per_step"], 2),
+        str(r["initial_alarms"]),
+        str(r["onsets"]),
+        str(r["missed"]),
+        str(r["false_alarms"]),
+        str(r["open_alarms"]),
+        _lead_ms(r["lead_time_mean_s"]),
+    ]
+
+
 def markdown(result: dict[str, Any]) -> str:
     """The tables of a :func:`run_peers` result as markdown."""
     meta = result["meta"]
@@ -1653,41 +1684,8 @@ def markdown(result: dict[str, Any]) -> str:
         "no collision within their horizon / horizon past the recording.",
         "",
     ]
-    body = []
-    for r in result["ghost"]:
-        body.append(
-            [
-                str(r["n"]),
-                r["peer"],
-                _fmt(r["time_us"]),
-                _fmt(r["candidates_per_step"]),
-                _fmt(r["alarms_per_step"], 2),
-                str(r["initial_alarms"]),
-                str(r["onsets"]),
-                str(r["missed"]),
-                str(r["false_alarms"]),
-                str(r["open_alarms"]),
-                _lead_ms(r["lead_time_mean_s"]),
-            ]
-        )
-    out.append(
-        _table(
-            [
-                "N",
-                "peer",
-                "us/step",
-                "candidates/step",
-                "alarms/step",
-                "initial alarms",
-                "onsets",
-                "missed",
-                "false",
-                "open",
-                "lead ms",
-            ],
-            body,
-        )
-    )
+    body = [[str(r["n"]), *_peer_cells(r)] for r in result["ghost"]]
+    out.append(_table(["N", *_PEER_HEADER], body))
     if result["scenes"]:
         out += [
             "",
@@ -1697,40 +1695,8 @@ def markdown(result: dict[str, Any]) -> str:
             "ground truth: MuJoCo's contacts. Bounds: each scene's accel hint.",
             "",
         ]
-        body = [
-            [
-                r["scene"],
-                r["peer"],
-                _fmt(r["time_us"]),
-                _fmt(r["candidates_per_step"]),
-                _fmt(r["alarms_per_step"], 2),
-                str(r["initial_alarms"]),
-                str(r["onsets"]),
-                str(r["missed"]),
-                str(r["false_alarms"]),
-                str(r["open_alarms"]),
-                _lead_ms(r["lead_time_mean_s"]),
-            ]
-            for r in result["scenes"]
-        ]
-        out.append(
-            _table(
-                [
-                    "scene",
-                    "peer",
-                    "us/step",
-                    "candidates/step",
-                    "alarms/step",
-                    "initial alarms",
-                    "onsets",
-                    "missed",
-                    "false",
-                    "open",
-                    "lead ms",
-                ],
-                body,
-            )
-        )
+        body = [[r["scene"], *_peer_cells(r)] for r in result["scenes"]]
+        out.append(_table(["scene", *_PEER_HEADER], body))
     if result["memory"]:
         n = result["memory"][0]["n"]
         out += ["", f"## Memory at N = {n}", ""]
