@@ -56,3 +56,7 @@ class BoundViolationWarning(UserWarning):
 
 class DeadlineOverrunWarning(UserWarning):
     """A predictor step took longer than its period: the predictor cannot keep up."""
+
+
+class NoActivePairsWarning(UserWarning):
+    """The model has no geom pair MuJoCo could put in contact: the predictor has nothing to do."""

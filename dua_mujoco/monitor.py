@@ -223,6 +223,8 @@ class Monitor:
         self._last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
         self._standing = np.zeros(self._ngp, dtype=np.int64)
         self._pair_alarm = np.zeros(len(self.predictor.pairs), dtype=bool)
+        self._activation_seen = self.predictor.scheduler.activation_changes  # type: ignore[union-attr]
+        self._active_seen = self.predictor.scheduler.active.copy()  # type: ignore[union-attr]
         self._episode_start = np.full(self._ngp, np.nan)
         self._episode_horizon = np.zeros(self._ngp)
         self._episode_touch = np.zeros(self._ngp, dtype=bool)
@@ -247,7 +249,7 @@ class Monitor:
         self.min_tau: list[float] = [float(np.min(alarms.tau, initial=np.inf))]
         if self.bounds is not None:
             self.bounds.update(self.model, data)
-        self._apply_alarms(alarms, np.arange(len(self.predictor.pairs)), data.time)
+        self._apply_alarms(alarms.pairs, np.arange(len(self.predictor.pairs)), data.time)
         return alarms
 
     def _contacts(self, data: mujoco.MjData) -> tuple[np.ndarray, int]:
@@ -263,11 +265,12 @@ class Monitor:
 
     # ------------------------------------------------------------------- alarms
 
-    def _apply_alarms(self, alarms: Alarms, evaluated: np.ndarray, t: float) -> None:
+    def _apply_alarms(self, alarmed: np.ndarray, evaluated: np.ndarray, t: float) -> None:
+        """Update the standing alarms from the pairs ``evaluated`` (``alarmed`` among them)."""
         sched = self.predictor.scheduler
         assert sched is not None
         gp = self.predictor.sphere_pairs.geom_pair
-        ids = np.union1d(evaluated, alarms.pairs)
+        ids = np.union1d(evaluated, alarmed)
         new = sched.alarm_state(ids) & sched.active[ids]
         old = self._pair_alarm[ids]
         touched = np.unique(gp[ids])
@@ -284,9 +287,9 @@ class Monitor:
             self._episode_touch[started] = False
             # An episode's horizon: the longest revisit horizon among the alarms that opened it.
             h = np.zeros(touched.size)
-            if len(alarms):
-                at = np.searchsorted(touched, gp[alarms.pairs])
-                np.maximum.at(h, at, sched.horizon[sched.bucket(alarms.pairs)])
+            if alarmed.size:
+                at = np.searchsorted(touched, gp[alarmed])
+                np.maximum.at(h, at, sched.horizon[sched.bucket(alarmed)])
             self._episode_horizon[started] = h[begins]
         if ended.size:
             self._pending_pair = np.concatenate([self._pending_pair, ended])
@@ -295,13 +298,30 @@ class Monitor:
             )
             self._pending_touch = np.concatenate([self._pending_touch, self._episode_touch[ended]])
 
+    def _sync_activation(self, t: float) -> None:
+        """Re-read the alarm state of pairs switched off or on since the last physics step.
+
+        A pair switched off stops counting towards its geom pair's standing alarm; one switched
+        on stands in alarm until its first evaluation (``DUAScheduler.set_active``). O(pairs),
+        only on the steps after a switch.
+        """
+        sched = self.predictor.scheduler
+        assert sched is not None
+        if sched.activation_changes == self._activation_seen:
+            return
+        self._activation_seen = sched.activation_changes
+        switched = np.flatnonzero(sched.active != self._active_seen)
+        self._active_seen = sched.active.copy()
+        if switched.size:
+            self._apply_alarms(switched[sched.active[switched]], switched, t)
+
     def _observe_alarms(self, data: mujoco.MjData, alarms: Alarms) -> None:
         sched = self.predictor.scheduler
         assert sched is not None
         self._pred_steps.append(self.physics_step)
         evaluated = sched.last_selected
         self.evaluations.append(int(evaluated.size))
-        self._apply_alarms(alarms, evaluated, float(data.time))
+        self._apply_alarms(alarms.pairs, evaluated, float(data.time))
         if self.geom_distance and len(alarms):
             for g1, g2 in sorted(alarms.geom_pairs):
                 self.exact_distances.append(
@@ -322,6 +342,7 @@ class Monitor:
                 a contact of this instant (Theorem 2).
         """
         self.physics_step += 1
+        self._sync_activation(float(data.time))
         if self.bounds is not None:
             broke = self.bounds.update(self.model, data)
             if broke.size:

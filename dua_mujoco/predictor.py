@@ -15,6 +15,7 @@ synchronous use (the verdict is ready before the next physics step).
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Callable, Mapping
 from typing import Literal
 
@@ -26,6 +27,7 @@ from dua_mujoco.bounds import MotionBounds, estimate_bounds
 from dua_mujoco.covering import Covering, CoveringMode, cover_model
 from dua_mujoco.exceptions import (
     InvalidInputError,
+    NoActivePairsWarning,
     NonFiniteStateError,
     SchedulerError,
 )
@@ -41,6 +43,13 @@ from dua_mujoco.scheduler import DUAScheduler, PairSet, pack_pairs, pack_spheres
 from dua_mujoco.state import MocapVelocityTracker, sphere_centers, sphere_velocities
 
 __all__ = ["Alarms", "BoundsLike", "Predictor"]
+
+# MuJoCo's answer to a diverged state: warn, then mj_resetData (the state jumps back).
+_DIVERGENCE_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
 
 BoundsLike = float | Mapping[str, float] | MotionBounds | Literal["auto"]
 """Acceleration bounds: a scalar (m/s^2, every moving body), a dict by body name (``"*"`` for
@@ -156,6 +165,14 @@ def _geom_names(model: mujoco.MjModel) -> np.ndarray:
     return np.asarray(names, dtype=object)
 
 
+def _same_geometry(a: mujoco.MjModel, b: mujoco.MjModel) -> bool:
+    """Whether two models have the geoms and bodies a predictor reads (one XML loaded twice)."""
+    return (a.ngeom, a.nbody, a.nq, a.nv) == (b.ngeom, b.nbody, b.nq, b.nv) and all(
+        np.array_equal(getattr(a, f), getattr(b, f))
+        for f in ("geom_type", "geom_size", "geom_pos", "geom_quat", "geom_bodyid", "body_parentid")
+    )
+
+
 class Predictor:
     """DUA collision predictor for a MuJoCo model.
 
@@ -198,6 +215,11 @@ class Predictor:
         pilot_controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None,
         safety: float = 2.0,
     ) -> None:
+        if not isinstance(model, mujoco.MjModel):
+            raise InvalidInputError(
+                f"model must be a mujoco.MjModel, got {type(model).__name__}: load it with "
+                "mujoco.MjModel.from_xml_path(path) (or dua_mujoco.load_scene(name))."
+            )
         if not isinstance(period, int | np.integer) or period < 1:
             raise InvalidInputError(f"period = {period!r} is invalid: it must be an int >= 1.")
         self.model = model
@@ -216,6 +238,14 @@ class Predictor:
         )
         self.geom_pairs: GeomPairs = active_geom_pairs(model)
         self.sphere_pairs: SpherePairs = sphere_pairs(self.covering, self.geom_pairs)
+        if len(self.geom_pairs) == 0:
+            warnings.warn(
+                "the model has no geom pair MuJoCo could ever put in contact (no collidable "
+                "geoms, one geom only, or every pair filtered out by contype/conaffinity, "
+                "parent-child or <exclude>): the predictor will never raise an alarm.",
+                NoActivePairsWarning,
+                stacklevel=2,
+            )
         cov = self.covering
         spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
         if isinstance(accel, MotionBounds):
@@ -281,6 +311,7 @@ class Predictor:
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: DUAScheduler | None = None
         self._time = 0.0
+        self._diverged_at_reset = 0
         self._frame_data: mujoco.MjData | None = None
         self._frame_cache: tuple = ()
 
@@ -320,6 +351,17 @@ class Predictor:
 
     def _check_data(self, data: mujoco.MjData) -> None:
         m = self.model
+        if not isinstance(data, mujoco.MjData):
+            raise InvalidInputError(
+                f"data must be a mujoco.MjData, got {type(data).__name__}: pass "
+                "mujoco.MjData(model) after mujoco.mj_forward(model, data)."
+            )
+        if data.model is not m and not _same_geometry(data.model, m):
+            raise InvalidInputError(
+                "data belongs to another MjModel whose geoms or bodies differ from this "
+                "predictor's: pass the MjData of this predictor's model (or build a Predictor "
+                "for that model)."
+            )
         if (
             data.geom_xpos.shape[0] != m.ngeom
             or data.cvel.shape[0] != m.nbody
@@ -382,13 +424,43 @@ class Predictor:
         if pair is not None:
             g = {int(self._tables.geom1[pair]), int(self._tables.geom2[pair])}
         else:
-            bad = ~np.isfinite(data.geom_xpos).all(axis=1)
-            g = set(np.flatnonzero(bad).tolist()[:5])
-        names = ", ".join(repr(self._tables.geom_names[i]) for i in sorted(g))
+            c, v = self.sphere_states(data)
+            bad = ~(np.isfinite(c).all(axis=1) & np.isfinite(v).all(axis=1))
+            g = set(self.covering.sphere_geom[bad].tolist()[:5])
+        if g:
+            what = f"the state of geom(s) {self._listed(g)}"
+        else:  # finite kinematics computed before a NaN was written into qpos or qvel
+            m = self.model
+            bad = [
+                mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
+                for vec, adr in ((data.qpos, m.jnt_qposadr), (data.qvel, m.jnt_dofadr))
+                for j in np.unique(
+                    np.searchsorted(adr, np.flatnonzero(~np.isfinite(vec)), "right") - 1
+                )
+            ]
+            what = f"data.qpos or data.qvel of joint(s) {sorted(set(bad))}"
         return NonFiniteStateError(
-            f"the state of geom(s) {names} is not finite at t = {data.time}: the simulation has "
-            "diverged (reduce the timestep or check the model) or MjData was not initialised "
-            "(call mujoco.mj_forward)."
+            f"{what} is not finite at t = {data.time}: the simulation has diverged (reduce the "
+            "timestep or check the model) or MjData was not initialised (call mujoco.mj_forward)."
+        )
+
+    def _listed(self, geoms: set[int]) -> str:
+        return ", ".join(repr(self._tables.geom_names[i]) for i in sorted(geoms))
+
+    @staticmethod
+    def _divergence_count(data: mujoco.MjData) -> int:
+        return sum(int(data.warning[int(w)].number) for w in _DIVERGENCE_WARNINGS)
+
+    def _divergence(self, data: mujoco.MjData) -> str:
+        """Why the state jumped, if MuJoCo reset it after diverging since ``reset`` (or "")."""
+        if self._divergence_count(data) <= self._diverged_at_reset:
+            return ""
+        names = [w.name for w in _DIVERGENCE_WARNINGS if data.warning[int(w)].number]
+        return (
+            f"MuJoCo reported a NaN, inf or huge value ({', '.join(names)}) and reset the "
+            f"simulation state itself (data.time is now {data.time:g} s): the simulation "
+            "diverged. Reduce model.opt.timestep or check the model and controls, then call "
+            "predictor.reset(data)."
         )
 
     # ----------------------------------------------------------------------- protocol
@@ -409,13 +481,16 @@ class Predictor:
             self._mocap.reset()
             self._mocap.update(data)
         c, v = self.sphere_states(data)
-        if not (np.isfinite(c).all() and np.isfinite(v).all()):
+        # qpos/qvel too: a NaN written without mj_forward leaves finite (stale) kinematics.
+        finite = np.isfinite(c).all() and np.isfinite(v).all()
+        if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
         tau0 = self.pairs.tau(np.arange(len(self.pairs)), c, v, self.halfspaces(data))
         self.scheduler = DUAScheduler(
             tau0, dt=self.dt, latency=self.latency, slots_per_bucket=self.slots_per_bucket
         )
         self._time = float(data.time)
+        self._diverged_at_reset = self._divergence_count(data)
         ids = self.scheduler.initial_alarms
         return Alarms(0, self._time, ids, tau0[ids], self._tables)
 
@@ -433,6 +508,9 @@ class Predictor:
         time = float(data.time)
         elapsed = time - self._time
         if abs(elapsed - self.dt) > 1e-6 * self.dt:
+            diverged = self._divergence(data)
+            if diverged:
+                raise NonFiniteStateError(diverged)
             raise SchedulerError(
                 f"data.time advanced by {elapsed:.9g} s since the previous predictor call, but "
                 f"the predictor period is {self.dt:.9g} s (period={self.period} x timestep "
@@ -461,7 +539,10 @@ class Predictor:
         """Switch the pairs between two bodies (or of one body) off or back on (paper sec. 6.3).
 
         Use it while contact is intended (a grasp, a box resting on a table). Returns the number
-        of sphere pairs switched.
+        of sphere pairs switched. Pairs switched back on stand in alarm until the next ``step``
+        evaluates them (``scheduler.alarm_state``): their motion while off is unknown, and with
+        ``period > 1`` that step can be a whole period away; treat the two bodies as alarmed
+        until then.
         """
         sched = self._require_scheduler()
         gp = pairs_between_bodies(self.model, self.geom_pairs, body_a, body_b)

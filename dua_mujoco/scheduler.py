@@ -712,6 +712,7 @@ class DUAScheduler:
         self._last_count = 0
         self._last_extra = np.zeros(0, dtype=np.int64)  # re-activated ids of the latest select()
         self._reactivated: list[int] = []
+        self.activation_changes = 0
 
     # ----------------------------------------------------------------------- introspection
 
@@ -764,18 +765,25 @@ class DUAScheduler:
     def set_active(self, pairs: npt.ArrayLike, on: bool) -> None:
         """Switch pairs off (intended contact, paper sec. 6.3) or back on.
 
-        A pair switched back on is evaluated at the next ``select()`` in addition to the regular
-        slots (its stored tau is stale) and alarms against its bucket's horizon; it keeps its slot.
+        A pair switched back on stands in alarm (its ``last_tau`` is set to 0) until its first
+        evaluation, at the next ``select()`` in addition to the regular slots; it then alarms
+        against its bucket's horizon and keeps its slot. Nothing is known of its motion while it
+        was off, and a predictor step, which evaluates it, can be a whole period away
+        (docs/theory.md). ``activation_changes`` counts the calls, so that observers of the
+        alarm state (``Monitor``) can tell when to re-read it.
         """
         ids = np.atleast_1d(_ids("pairs", np.atleast_1d(np.asarray(pairs, dtype=np.int64))))
         if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
             raise InvalidInputError(f"pair ids must be in [0, {self.npairs}); got {ids.tolist()}.")
         if on:
-            self._reactivated.extend(int(i) for i in ids[~self.active[ids]])
+            new = ids[~self.active[ids]]
+            self._reactivated.extend(new.tolist())
+            self.last_tau[new] = 0.0
         else:
             drop = set(ids.tolist())
             self._reactivated = [i for i in self._reactivated if i not in drop]
         self.active[ids] = on
+        self.activation_changes += 1
 
     # ----------------------------------------------------------------------- protocol
 

@@ -16,6 +16,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -29,11 +30,13 @@ from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidChoiceError,
     InvalidInputError,
+    NoActivePairsWarning,
     NonFiniteStateError,
     SchedulerError,
     UnsupportedGeomError,
 )
 from dua_mujoco.monitor import Monitor, RunReport, run
+from dua_mujoco.pairs import active_geom_pairs
 from dua_mujoco.predictor import Predictor
 from dua_mujoco.scenes import declared_accel_bound, load_scene, make_controller
 from dua_mujoco.scheduler import _rigid_point, pack_spheres
@@ -367,6 +370,50 @@ def two_bodies() -> tuple[mujoco.MjModel, mujoco.MjData]:
     return m, d
 
 
+def test_divergence_reset_by_mujoco_is_named(two_bodies) -> None:
+    """MuJoCo answers a NaN velocity by resetting the state; the error must say so."""
+    m, d = two_bodies
+    p = Predictor(m, accel=10.0)
+    p.reset(d)
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+        p.step(d)
+    d.qvel[0] = np.nan
+    mujoco.mj_step(m, d)  # warns, then mj_resetData: time goes back to one step
+    with pytest.raises(NonFiniteStateError, match=r"diverged.*timestep"):
+        p.step(d)
+
+
+def test_model_and_data_types_are_checked(two_bodies) -> None:
+    m, _ = two_bodies
+    with pytest.raises(InvalidInputError, match=r"model must be a mujoco\.MjModel, got str"):
+        Predictor("scene.xml", accel=1.0)  # type: ignore[arg-type]
+    p = Predictor(m, accel=1.0)
+    with pytest.raises(InvalidInputError, match=r"data must be a mujoco\.MjData, got NoneType"):
+        p.reset(None)  # type: ignore[arg-type]
+
+
+def test_data_of_an_edited_model_is_refused(two_bodies) -> None:
+    """Same sizes, a geom moved: the predictor's covering would be wrong for it."""
+    m, _ = two_bodies
+    p = Predictor(m, accel=1.0)
+    twin = mujoco.MjModel.from_xml_string(TWO_BODIES_XML)
+    p.reset(mujoco.MjData(twin))  # the same XML loaded twice is accepted
+    twin.geom_pos[0, 0] += 0.5
+    with pytest.raises(InvalidInputError, match="another MjModel"):
+        p.reset(mujoco.MjData(twin))
+
+
+def test_model_without_collidable_pairs_warns() -> None:
+    m = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1' contype='0' conaffinity='0'/>"
+        "</body><geom size='.1' pos='1 0 0'/></worldbody></mujoco>"
+    )
+    with pytest.warns(NoActivePairsWarning, match="never raise an alarm"):
+        p = Predictor(m, accel=1.0)
+    assert len(p.pairs) == 0
+
+
 def test_step_before_reset(two_bodies) -> None:
     m, d = two_bodies
     p = Predictor(m, accel=10.0)
@@ -630,12 +677,19 @@ def test_external_scene_regression(name: str, path: str) -> None:
     if m.nkey:
         mujoco.mj_resetDataKeyframe(m, d, 0)
     mujoco.mj_forward(m, d)
-    p = Predictor(
-        m,
-        accel="auto",
-        hfield="box",  # dm-control's quadruped has a height field
-        pilot_steps=1000,
-        pilot_controller=make_controller(m, "random", seed=99, hold_steps=20),
+    # A model whose geoms can never touch (gym's inverted_double_pendulum) is worth a warning.
+    expected = NoActivePairsWarning if len(active_geom_pairs(m)) == 0 else None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        p = Predictor(
+            m,
+            accel="auto",
+            hfield="box",  # dm-control's quadruped has a height field
+            pilot_steps=1000,
+            pilot_controller=make_controller(m, "random", seed=99, hold_steps=20),
+        )
+    assert [w.category for w in caught if w.category is NoActivePairsWarning] == (
+        [expected] if expected else []
     )
     ctrl = make_controller(m, "random", seed=0, hold_steps=20)
     r = run(m, d, p, steps=1000, controller=ctrl, progress=False, scene=name)
@@ -695,7 +749,7 @@ HEAD_ON_XML = """
 
 
 def _head_on(
-    on_step: Callable[[int, mujoco.MjData, object, Monitor], None] | None,
+    on_step: Callable[[int, mujoco.MjData, object, Monitor], None] | None, period: int = 1
 ) -> tuple[Predictor, RunReport]:
     """Spheres a and b close at 2 m/s and touch at t = 0.4 s; c stays away."""
     m = mujoco.MjModel.from_xml_string(HEAD_ON_XML)
@@ -703,8 +757,19 @@ def _head_on(
     d.qvel[0], d.qvel[6] = 1.0, -1.0
     mujoco.mj_forward(m, d)
     # Out of contact nothing accelerates; 1 m/s^2 is a valid bound.
-    p = Predictor(m, accel=1.0)
+    p = Predictor(m, accel=1.0, period=period)
     return p, run(m, d, p, steps=400, progress=False, on_step=on_step)
+
+
+def _head_on_onset_step() -> int:
+    first: list[int] = []
+
+    def watch(k: int, d: mujoco.MjData, alarms: object, mon: Monitor) -> None:
+        if d.ncon and not first:
+            first.append(k)
+
+    _head_on(watch)
+    return first[0]
 
 
 def test_contact_between_switched_off_bodies_is_not_a_miss() -> None:
@@ -736,6 +801,35 @@ def test_switched_back_on_pair_is_predicted() -> None:
     assert r.contact_onsets >= 1
     assert r.predicted_onsets == r.contact_onsets
     assert r.inactive_pair_contacts == 0
+
+
+@pytest.mark.parametrize("where", ["after_predictor_step", "just_before_onset"])
+def test_pair_switched_on_mid_period_alarms_until_evaluated(where: str) -> None:
+    """A pair switched on inside a period (7 steps) stands in alarm until it is evaluated.
+
+    No predictor step falls between the switch and the onset (checked), so only the standing
+    alarm of a switched-on pair can cover the onset; without it (the pair keeping its stale tau
+    until the next step) the onset was missed with the bounds held.
+    """
+    period = 7
+    onset = _head_on_onset_step()
+    last_step = onset - onset % period  # the last predictor step at or before the onset
+    assert last_step < onset, "the onset must fall inside a period"
+    on_at = last_step if where == "after_predictor_step" else onset - 1
+    seen: dict[str, bool] = {}
+
+    def toggle(k: int, d: mujoco.MjData, alarms: object, mon: Monitor) -> None:
+        sched = mon.predictor.scheduler
+        if k == 1:
+            mon.predictor.set_active_bodies("a", "b", on=False)
+        elif k == on_at:
+            mon.predictor.set_active_bodies("a", "b", on=True)
+            seen["alarm_state"] = bool(sched.alarm_state().any())
+
+    _, r = _head_on(toggle, period=period)
+    assert seen["alarm_state"]
+    assert r.contact_onsets == 1
+    assert r.predicted_onsets == 1 and r.missed_onsets == 0
 
 
 RESTING_XML = """

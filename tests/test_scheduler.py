@@ -175,12 +175,21 @@ def test_switching_pairs_off_and_on() -> None:
         sel = s.select()
         assert not set(sel.tolist()) & {0, 1, 2}
         s.update(sel, rng.exponential(1.0, sel.size))
+    changes = s.activation_changes
     s.set_active([1], True)
+    assert s.activation_changes == changes + 1
+    # Until its first evaluation the pair stands in alarm (its stale tau says nothing).
+    assert s.alarm_state([0, 1, 2]).tolist() == [False, True, False]
     sel = s.select()
     assert 1 in sel.tolist()  # re-activated pairs are evaluated at once
     tau = np.where(sel == 1, 0.0, 1.0)
     assert 1 in s.update(sel, tau).tolist()
     assert s.tau(1) == 0.0
+    # Evaluated far from anything, the switched-on pair leaves the alarm.
+    s.set_active([2], True)
+    sel = s.select()
+    s.update(sel, np.full(sel.size, 1e9))
+    assert not s.alarm_state([2])[0]
 
 
 def test_protocol_errors() -> None:
