@@ -10,7 +10,7 @@ u_k = (c_k - c_{k-1}) / h, the hypotheses are, for every sphere on body b and ev
 
 * discrete acceleration: |u_{k+1} - u_k| <= A_b h,
 * one-step discrepancy: |u_{k+1} - w_k| <= D_b = delta_b + A_b h / 2,
-* optional speed: |w_k| <= V_b,
+* optional speed: |u_k| <= V_b (the chord: the speed term needs only the displacement per step),
 
 and then |c_{k+n} - c_k - n h w_k| <= delta_b t + A_b t^2 / 2 at every t = n h.
 :class:`BoundMonitor` checks exactly these hypotheses, step by step.
@@ -402,6 +402,8 @@ def estimate_bounds(
         vmax = np.maximum(vmax, _per_body_max(np.linalg.norm(w, axis=1), sbody, nb))
         if prev_c is not None:
             u = (c - prev_c) / h
+            # The hypothesis is on the chord (BoundMonitor); the larger of the two is kept.
+            vmax = np.maximum(vmax, _per_body_max(np.linalg.norm(u, axis=1), sbody, nb))
             assert prev_w is not None
             if tracker.nupdates >= 3 or not tracker.mocap_bodies.size:
                 disc = np.linalg.norm(u - prev_w, axis=1)
@@ -481,10 +483,11 @@ def _check_spheres(
     ``spheres`` and ``frame`` are as for ``_rigid_point``.
     ``prev`` and ``cur`` are ``(nsphere, 9)`` rows ``[c, w, u]`` (centre, velocity read from
     MuJoCo, discrete velocity ``(c - c_prev) / h``); ``cur`` is written. ``nprev`` is how many
-    earlier updates ``prev`` reflects (0, 1, or 2 and more): the discrepancy check needs one,
-    the acceleration check two. ``values[:, _SPEED/_DISC/_ACC]`` receive |w|, |u - w_prev| and
-    |u - u_prev| / h, ``broken`` the same three verdicts. ``speed_bound`` is empty when no speed
-    bound is declared; ``check_disc`` selects the spheres whose discrepancy is checked.
+    earlier updates ``prev`` reflects (0, 1, or 2 and more): the speed and discrepancy checks
+    need one, the acceleration check two. ``values[:, _SPEED/_DISC/_ACC]`` receive |u|,
+    |u - w_prev| and |u - u_prev| / h, ``broken`` the same three verdicts. ``speed_bound`` is
+    empty when no speed bound is declared; ``check_disc`` selects the spheres whose discrepancy
+    is checked.
     Tolerances: the round-off of a second difference of positions of size |c| is
     ~4 eps |c| / h^2; 8 eps is used.
     """
@@ -495,11 +498,8 @@ def _check_spheres(
         broken[i, _SPEED] = False
         broken[i, _DISC] = False
         broken[i, _ACC] = False
-        values[i, _SPEED] = math.sqrt(cur[i, 3] ** 2 + cur[i, 4] ** 2 + cur[i, 5] ** 2)
-        if speed_bound.shape[0] > 0 and values[i, _SPEED] > speed_bound[i] * (1.0 + rtol):
-            broken[i, _SPEED] = True
-            count += 1
         if nprev == 0:
+            values[i, _SPEED] = 0.0
             values[i, _DISC] = 0.0
             values[i, _ACC] = 0.0
             continue
@@ -510,6 +510,12 @@ def _check_spheres(
             scale = max(scale, abs(cur[i, k]))
             scale_prev = max(scale_prev, abs(prev[i, k]))
         tol_a = 8.0 * _EPS * (scale + scale_prev) / (h * h)
+        values[i, _SPEED] = math.sqrt(cur[i, 6] ** 2 + cur[i, 7] ** 2 + cur[i, 8] ** 2)
+        if speed_bound.shape[0] > 0 and values[i, _SPEED] > (
+            speed_bound[i] * (1.0 + rtol) + 0.5 * tol_a * h
+        ):
+            broken[i, _SPEED] = True
+            count += 1
         disc = 0.0
         wprev = 0.0
         for k in range(3):
@@ -540,7 +546,8 @@ class BoundMonitor:
 
     Call :meth:`update` after every ``mj_step``. Update k (k >= 2) checks, for every sphere,
     |u_k - u_{k-1}| <= A h (discrete acceleration), |u_k - w_{k-1}| <= D = delta + A h / 2
-    (one-step discrepancy) and |w_k| <= V, with a tolerance for floating-point round-off in the
+    (one-step discrepancy) and |u_k| <= V (chord speed, fresh every step for mocap trees too),
+    with a tolerance for floating-point round-off in the
     second differences. One compiled pass over the spheres (the checks run every physics step of
     a monitored run; as numpy calls they took ten times as long as ``mj_step`` on traffic).
     """

@@ -478,6 +478,8 @@ def test_monitor_speed_bound() -> None:
     d = mujoco.MjData(m)
     d.qvel[:3] = [2.0, 0.0, 0.0]
     mujoco.mj_step(m, d)
+    assert mon.update(m, d).tolist() == []  # one position: no chord yet
+    mujoco.mj_step(m, d)
     assert mon.update(m, d).tolist() == [1]
     assert mon.violations[0].kind == "speed"
     assert mon.violations[0].value == pytest.approx(2.0)

@@ -27,6 +27,7 @@ import pytest
 
 from dua_mujoco.cli import main
 from dua_mujoco.exceptions import (
+    BoundViolationWarning,
     InvalidBoundError,
     InvalidChoiceError,
     InvalidInputError,
@@ -1026,3 +1027,48 @@ def test_monitor_bound_check_follows_the_predictors_mocap_tracker() -> None:
     monitor.start(d)
     assert monitor.bounds is not None
     assert monitor.bounds._mocap is p._mocap
+
+
+MOCAP_RAM_XML = """
+<mujoco>
+  <option timestep="0.002" gravity="0 0 0"/>
+  <worldbody>
+    <body name="ram" mocap="true"><geom name="gram" size=".1"/></body>
+    <body name="target" pos=".25 0 0">
+      <joint type="slide" axis="0 1 0"/><geom name="gtarget" size=".1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("go", [8, 9, 11])
+def test_broken_speed_bound_of_a_mocap_body_is_seen_when_broken(go: int) -> None:
+    """A mocap body scripted at 5 m/s against a declared 1 m/s, predictor period 8.
+
+    The tracker's velocity is refreshed only at predictor steps; the speed hypothesis is on the
+    chord, fresh every physics step, so the violation is recorded at the step the mocap body
+    starts moving, before the contact: the miss is one after broken bounds, never a valid one.
+    """
+    m = mujoco.MjModel.from_xml_string(MOCAP_RAM_XML)
+    d = mujoco.MjData(m)
+    p = Predictor(m, accel=5000.0, speed=1.0, period=8)
+
+    def ram(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        if round(data.time / model.opt.timestep) >= go:
+            data.mocap_pos[0, 0] += 5.0 * model.opt.timestep
+
+    first: dict[str, int] = {}
+
+    def watch(k: int, data: mujoco.MjData, alarms: object, mon: Monitor) -> None:
+        if data.ncon and "onset" not in first:
+            first["onset"] = k
+        if "speed" not in first and any(v.kind == "speed" for v in mon.bounds.violations):
+            first["speed"] = k
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BoundViolationWarning)
+        r = run(m, d, p, steps=40, controller=ram, on_step=watch, progress=False)
+    assert first["speed"] < first["onset"]
+    assert r.contact_onsets == 1
+    assert r.missed_onsets_valid_bounds == 0
