@@ -25,8 +25,8 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.bounds import BoundMonitor
-from dua_mujoco.exceptions import DeadlineOverrunWarning, SchedulerError
-from dua_mujoco.predictor import Alarms, Predictor
+from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
+from dua_mujoco.predictor import Alarms, Predictor, _same_geometry
 from dua_mujoco.progress import Progress
 
 __all__ = ["Miss", "Monitor", "RunReport", "run"]
@@ -448,8 +448,14 @@ def run(
         progress: Draw a progress bar on stderr.
         on_step: Called after each physics step with ``(k, data, alarms or None, monitor)``.
     """
-    if steps < 1:
-        raise SchedulerError(f"steps = {steps} is invalid: run at least one physics step.")
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise InvalidInputError(f"steps = {steps!r} is invalid: pass an int >= 1 (physics steps).")
+    if model is not predictor.model and not _same_geometry(model, predictor.model):
+        raise InvalidInputError(
+            "the predictor was built for another MjModel: pass the model it was built for "
+            "(Predictor(model, ...)), or build a Predictor for this one."
+        )
+    predictor._check_data(data)  # before the controller writes into it
     monitor = Monitor(predictor, realtime=realtime, geom_distance=geom_distance)
     if controller is not None:
         controller(model, data)

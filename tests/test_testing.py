@@ -97,12 +97,65 @@ def test_never_alarming_predictor_is_caught(monkeypatch: pytest.MonkeyPatch) -> 
     assert msg.splitlines()[0].startswith(f"{SCENE}: ")
 
 
-def test_misses_after_broken_bounds_do_not_fail() -> None:
-    """Declared bounds far too small: misses happen, but the guarantee did not apply."""
-    m, d = _scene()
-    report = assert_no_missed_collisions(m, d, steps=STEPS, predictor={"accel": 0.0})
+def test_misses_after_broken_bounds_fail_unless_allowed() -> None:
+    """Declared bounds far too small: misses happen that the guarantee does not cover.
+
+    A green test would certify nothing, so they fail by default, with the fix in the message;
+    ``allow_broken_bounds=True`` accepts them (and they are still in the report).
+    """
+    # two_arms with A = 0: 3 of 23 onsets missed in 1000 steps (the arms' motors accelerate).
+    m, d = load_scene("two_arms")
+    with pytest.raises(AssertionError, match="after the declared motion bounds were broken") as e:
+        assert_no_missed_collisions(m, d, steps=STEPS, predictor={"accel": 0.0})
+    assert "allow_broken_bounds=True" in str(e.value)
+    assert "accel='auto'" in str(e.value)
+    m, d = load_scene("two_arms")
+    report = assert_no_missed_collisions(
+        m, d, steps=STEPS, predictor={"accel": 0.0}, allow_broken_bounds=True
+    )
     assert report.bound_violations > 0
+    assert report.missed_onsets > 0
     assert report.missed_onsets_valid_bounds == 0
+
+
+def test_scene_without_collidable_pairs_fails() -> None:
+    m = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1' contype='0' conaffinity='0'/>"
+        "</body><geom size='.1' pos='1 0 0'/></worldbody></mujoco>"
+    )
+    with (
+        pytest.warns(UserWarning, match="never raise an alarm"),
+        pytest.raises(AssertionError, match="would check nothing"),
+    ):
+        assert_no_missed_collisions(m, steps=10, predictor={"accel": 1.0})
+
+
+def test_unknown_predictor_option_lists_the_valid_ones() -> None:
+    m, d = _scene()
+    with pytest.raises(ValueError, match=r"unknown Predictor option\(s\) \['acel'\]; valid: accel"):
+        assert_no_missed_collisions(m, d, steps=10, predictor={"acel": 2.0})
+
+
+def test_data_of_another_model_is_refused() -> None:
+    m, _ = _scene()
+    _, other_data = load_scene("paper_world:3")
+    with pytest.raises(ValueError, match="pass the MjData of this predictor's model"):
+        assert_no_missed_collisions(m, other_data, steps=10, predictor={"accel": ACCEL})
+
+
+def test_helpers_work_without_pytest() -> None:
+    """docs/testing.md: without pytest, call the function directly."""
+    code = (
+        "import sys; sys.modules['pytest'] = None\n"
+        "from dua_mujoco.scenes import load_scene\n"
+        "from dua_mujoco.testing import assert_no_missed_collisions\n"
+        f"m, d = load_scene({SCENE!r})\n"
+        f"r = assert_no_missed_collisions(m, d, steps=50, predictor={{'accel': {ACCEL}}})\n"
+        "print('OK', r.physics_steps)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["OK", "50"]
 
 
 def test_predictor_of_another_model_is_refused() -> None:
@@ -145,6 +198,17 @@ def test_baseline_exceeded_fails_and_says_how_to_update(clean_report: RunReport)
         check_baseline(clean_report, _counts(clean_report, 0.5), tolerance=0.25)
     msg = str(info.value)
     assert f"alarm_episodes = {clean_report.alarm_episodes} >" in msg
+    # A dict baseline is the user's own literal: the fix is the measured counts to paste.
+    assert f"'alarm_episodes': {clean_report.alarm_episodes}" in msg
+    assert "--dua-update-baselines" not in msg
+
+
+def test_file_baseline_exceeded_says_how_to_update(clean_report: RunReport, tmp_path: Path) -> None:
+    path = tmp_path / "b.json"
+    path.write_text(json.dumps(_counts(clean_report, 0.5)))
+    with pytest.raises(AssertionError) as info:
+        check_baseline(clean_report, path, tolerance=0.25)
+    msg = str(info.value)
     assert "--dua-update-baselines" in msg and "write_baseline" in msg
 
 
