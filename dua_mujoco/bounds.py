@@ -106,24 +106,38 @@ def _resolve(model: mujoco.MjModel, spec: BoundSpec, what: str) -> np.ndarray:
                     f"No {what} bound for moving bodies {missing}. Give every moving body a "
                     f"value, or add a '*' key as the default."
                 )
-            out[b] = _check_value(float(val), what, name or f"<body {b}>")
+            out[b] = _check_value(val, what, name or f"<body {b}>")
         # Values given for static bodies are checked but not used: they cannot move.
         for key, val in spec.items():
             if key != "*":
-                _check_value(float(val), what, key)
+                _check_value(val, what, key)
         if default is not None:
-            _check_value(float(default), what, "*")
+            _check_value(default, what, "*")
     else:
-        val = _check_value(float(spec), what, "all bodies")
+        val = _check_value(spec, what, "all bodies")
         out[moving] = val
     return out
 
 
-def _check_value(val: float, what: str, body: str) -> float:
-    if not np.isfinite(val) or val < 0:
+def _check_value(value: object, what: str, body: str) -> float:
+    """One bound, as a float: finite and >= 0; a speed bound > 0 and possibly inf (none)."""
+    try:
+        val = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
         raise InvalidBoundError(
-            f"The {what} bound of body {body!r} is {val!r}; it must be finite and >= 0 "
-            f"(use 0 for a body that does not accelerate)."
+            f"The {what} bound of body {body!r} is {value!r}, not a number: pass a number for "
+            "every body, or a dict by body name ('*' for the default)."
+        ) from None
+    if what == "speed":
+        if not val > 0:  # NaN too
+            raise InvalidBoundError(
+                f"The speed bound of body {body!r} is {value!r}; it must be > 0 (inf for no "
+                "speed bound on that body)."
+            )
+    elif not np.isfinite(val) or val < 0:
+        hint = " (use 0 for a body that does not accelerate)" if what == "acceleration" else ""
+        raise InvalidBoundError(
+            f"The {what} bound of body {body!r} is {value!r}; it must be finite and >= 0{hint}."
         )
     return val
 
@@ -214,12 +228,15 @@ class MotionBounds:
         for name, arr in arrays.items():
             if arr.shape != (n,):
                 raise InvalidInputError(f"MotionBounds.{name} must have shape ({n},).")
-            bad = ~np.isfinite(arr) | (arr < 0)
+            # A speed bound may be inf (none for that body); NaN never is a bound.
+            finite = ~np.isnan(arr) if name == "speed" else np.isfinite(arr)
+            bad = ~finite | (arr < 0)
             if bad.any():
                 b = int(np.flatnonzero(bad)[0])
                 label = self.body_names[b] if b < len(self.body_names) else str(b)
+                rule = ">= 0 (inf for none)" if name == "speed" else "finite, >= 0"
                 raise InvalidBoundError(
-                    f"MotionBounds.{name} of body {label!r} is {arr[b]!r}; must be finite, >= 0."
+                    f"MotionBounds.{name} of body {label!r} is {arr[b]!r}; must be {rule}."
                 )
 
     @property

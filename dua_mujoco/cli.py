@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import math
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -17,7 +19,7 @@ if not os.environ.get("DISPLAY"):
 
 import mujoco
 
-from dua_mujoco.exceptions import DuaError
+from dua_mujoco.exceptions import DuaError, InvalidInputError
 
 __all__ = ["build_parser", "main"]
 
@@ -49,6 +51,16 @@ def _positive(kind: type) -> object:
     return parse
 
 
+def _non_negative_int(value: str) -> int:
+    try:
+        v = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{value!r} is not an int") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{value!r} must be >= 0")
+    return v
+
+
 def _add_run(sub: argparse._SubParsersAction) -> None:
     from dua_mujoco.scenes import DEFAULT_SCENE, scene_names
 
@@ -62,11 +74,18 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         "scene",
         nargs="?",
         default=DEFAULT_SCENE,
-        help=f"bundled scene ({', '.join(scene_names())}, paper_world:N) or an MJCF path "
+        help=f"bundled scene ({', '.join(scene_names())}) or an MJCF path "
         f"(default {DEFAULT_SCENE})",
     )
-    p.add_argument("--steps", type=_positive(int), default=None, help="physics steps")
-    p.add_argument("--seed", type=int, default=0, help="seed of the controls (default 0)")
+    p.add_argument(
+        "--steps",
+        type=_positive(int),
+        default=None,
+        help="physics steps (default: the scene's own, 1000 for an MJCF file)",
+    )
+    p.add_argument(
+        "--seed", type=_non_negative_int, default=0, help="seed of the controls (default 0)"
+    )
     p.add_argument("--ctrl", choices=["zero", "random"], default="random", help="controls")
     p.add_argument("--keyframe", default=None, help="start keyframe (id or name; default first)")
     p.add_argument(
@@ -76,15 +95,35 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         help="acceleration bound in m/s^2 for every moving body, or 'auto' (pilot rollout)",
     )
     p.add_argument("--speed", type=_positive(float), default=None, help="speed bound in m/s")
-    p.add_argument("--covering", choices=["bounding", "multi"], default="bounding")
+    p.add_argument(
+        "--covering",
+        choices=["bounding", "multi"],
+        default="bounding",
+        help="one bounding sphere per geom, or several (budget --max-spheres)",
+    )
     p.add_argument("--max-spheres", type=_positive(int), default=8, help="multi covering budget")
     p.add_argument(
         "--period", type=_positive(int), default=1, help="physics steps per predictor step"
     )
-    p.add_argument("--latency", type=int, default=0, help="verdict latency in periods (0 or 1)")
+    p.add_argument(
+        "--latency",
+        type=_non_negative_int,
+        default=0,
+        help="periods a verdict takes to reach the user (0: synchronous, after mj_step)",
+    )
     p.add_argument("--budget", type=_positive(int), default=1, help="slots per bucket per step")
-    p.add_argument("--pilot-steps", type=_positive(int), default=2000, help="pilot rollout length")
-    p.add_argument("--hfield", choices=["error", "box"], default="error")
+    p.add_argument(
+        "--pilot-steps",
+        type=_positive(int),
+        default=2000,
+        help="pilot rollout length for --accel auto",
+    )
+    p.add_argument(
+        "--hfield",
+        choices=["error", "box"],
+        default="error",
+        help="height fields: refuse them, or cover them conservatively by their bounding box",
+    )
     p.add_argument("--realtime", action="store_true", help="count predictor deadline overruns")
     p.add_argument(
         "--geom-distance",
@@ -94,14 +133,52 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", type=Path, default=None, help="write the report as JSON here")
     p.add_argument("--series", action="store_true", help="add per-step series to the JSON")
     p.add_argument("--video", type=Path, default=None, help="render a video (.mp4 or .gif)")
-    p.add_argument("--fps", type=_positive(int), default=30)
-    p.add_argument("--width", type=_positive(int), default=480)
-    p.add_argument("--height", type=_positive(int), default=360)
+    p.add_argument("--fps", type=_positive(int), default=30, help="video frame rate")
+    p.add_argument("--width", type=_positive(int), default=480, help="video width in pixels")
+    p.add_argument("--height", type=_positive(int), default=360, help="video height in pixels")
     p.add_argument("--camera", default=None, help="camera name or id (default free camera)")
-    p.add_argument("--every", type=_positive(int), default=5, help="render every k-th step")
+    p.add_argument(
+        "--every",
+        type=_positive(int),
+        default=5,
+        help="render every k-th physics step (one at which the predictor steps: with --period, "
+        "a multiple of both)",
+    )
     p.add_argument("--show-spheres", action="store_true", help="draw the covering spheres")
-    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.set_defaults(func=_cmd_run)
+
+
+def _check_output(path: Path, what: str) -> None:
+    """Refuse an output path that cannot be written, before a long run rather than after it."""
+    if path.is_dir():
+        raise InvalidInputError(f"{what} {str(path)!r} is a folder: pass a file path.")
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InvalidInputError(
+                    f"{what} {str(path)!r}: {str(parent)!r} is a file, not a folder."
+                )
+            if not os.access(parent, os.W_OK):
+                raise InvalidInputError(f"{what} {str(path)!r}: {str(parent)!r} is not writable.")
+            break
+
+
+def _check_outputs(args: argparse.Namespace, steps: int) -> None:
+    if args.json is not None:
+        _check_output(args.json, "--json")
+    if args.video is not None:
+        from dua_mujoco.render import _check_mp4_size, _video_path
+
+        _check_output(_video_path(args.video), "--video")
+        if args.video.suffix.lower() == ".mp4":
+            _check_mp4_size(args.width, args.height)
+        every = math.lcm(args.every, args.period)  # frames need a predictor step (its alarms)
+        if steps < every:
+            raise InvalidInputError(
+                f"--steps {steps} renders no frame: frames are taken every {every} physics steps "
+                f"(--every {args.every}, --period {args.period}); run more steps or lower --every."
+            )
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -117,6 +194,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if steps is None:
         base = args.scene.split(":")[0]
         steps = SCENES[base].default_steps if base in SCENES else 1000
+    _check_outputs(args, steps)
     controller = make_controller(model, args.ctrl, seed=args.seed)
     pilot = make_controller(model, args.ctrl, seed=args.seed + 1_000_003)
     predictor = Predictor(
@@ -149,7 +227,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         camera = int(args.camera) if args.camera and args.camera.isdigit() else args.camera
 
         def on_step(k: int, d: mujoco.MjData, alarms: Alarms | None, monitor: Monitor) -> None:
-            if k % args.every == 0 and alarms is not None:
+            if k % args.every == 0 and alarms is not None:  # a predictor step: alarms to draw
                 frames.append(renderer.render(d, alarms, camera=camera, misses=len(monitor.misses)))
 
     try:
@@ -208,14 +286,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: object = None,
+    line: str | None = None,
+) -> None:
+    print(f"dua-mujoco: {category.__name__}: {' '.join(str(message).split())}", file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code (2 on bad input, with a one-line reason)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return int(args.func(args))
-    except (DuaError, ValueError, FileNotFoundError) as exc:
-        # mujoco raises ValueError for MJCF it cannot load: also bad input.
-        reason = " ".join(str(exc).split())
-        print(f"dua-mujoco: error: {reason}", file=sys.stderr)
-        return 2
+    with warnings.catch_warnings():
+        # A command line shows warnings as one line each, not as Python source locations.
+        warnings.showwarning = _one_line_warning
+        try:
+            return int(args.func(args))
+        except (DuaError, ValueError, OSError) as exc:
+            # mujoco raises ValueError for MJCF it cannot load: also bad input. OSError: a file
+            # that cannot be read or written.
+            reason = " ".join(str(exc).split())
+            print(f"dua-mujoco: error: {reason}", file=sys.stderr)
+            return 2

@@ -19,6 +19,9 @@ class Progress:
         enabled: False makes every call a no-op (``--no-progress``, tests).
         stream: Where to draw (default ``sys.stderr``).
         min_interval: Seconds between redraws, so drawing never costs more than the work.
+
+    On a terminal the bar is redrawn in place; elsewhere (a CI log, a file) it prints a plain
+    line at every tenth of the work, without carriage returns or escape codes.
     """
 
     def __init__(
@@ -38,6 +41,9 @@ class Progress:
         self.count = 0
         self._start = time.perf_counter()
         self._last = 0.0
+        isatty = getattr(self.stream, "isatty", None)
+        self._tty = bool(isatty()) if callable(isatty) else False
+        self._decile = 0  # tenths of the work reported so far (plain lines)
 
     def update(self, n: int = 1, *, note: str = "") -> None:
         """Advance by ``n`` units; redraw at most every ``min_interval`` seconds."""
@@ -45,9 +51,22 @@ class Progress:
         if not self.enabled:
             return
         now = time.perf_counter()
-        if now - self._last >= self.min_interval or self.count >= self.total:
+        if not self._tty:
+            decile = min(10 * self.count // self.total, 10)
+            if decile > self._decile:
+                self._decile = decile
+                self._line(now, note)
+        elif now - self._last >= self.min_interval or self.count >= self.total:
             self._last = now
             self._draw(now, note)
+
+    def _line(self, now: float, note: str) -> None:
+        extra = f" {note}" if note else ""
+        self.stream.write(
+            f"{self.label} {self.count}/{self.total} ({100 * self.count // self.total} %) "
+            f"{now - self._start:.1f}s{extra}\n"
+        )
+        self.stream.flush()
 
     def _draw(self, now: float, note: str) -> None:
         frac = min(self.count / self.total, 1.0)
@@ -68,9 +87,12 @@ class Progress:
     def close(self) -> None:
         """Finish the line."""
         if self.enabled:
-            self._draw(time.perf_counter(), "")
-            self.stream.write("\n")
-            self.stream.flush()
+            if self._tty:
+                self._draw(time.perf_counter(), "")
+                self.stream.write("\n")
+                self.stream.flush()
+            elif self._decile < 10:
+                self._line(time.perf_counter(), "")
             self.enabled = False
 
     def __enter__(self) -> Progress:

@@ -454,8 +454,14 @@ def reset_to_keyframe(
     else:
         key = int(keyframe) if 0 <= int(keyframe) < model.nkey else -1
     if keyframe is not None and key < 0:
-        names = [model.key(k).name or str(k) for k in range(model.nkey)]
-        raise InvalidChoiceError("keyframe", keyframe, names or ["<none: the model has none>"])
+        if model.nkey == 0:
+            raise InvalidInputError(
+                f"keyframe {keyframe!r} does not exist: the model has no keyframes (leave the "
+                "keyframe out to start from the model's defaults)."
+            )
+        names = [model.key(k).name for k in range(model.nkey)]
+        choices = [k for k in range(model.nkey)] + [n for n in names if n]
+        raise InvalidChoiceError("keyframe", keyframe, choices, "Pass an id or a name.")
     if key >= 0:
         mujoco.mj_resetDataKeyframe(model, data, key)
     else:

@@ -194,8 +194,27 @@ def test_declare_bad_values_name_body_and_value(bad: float) -> None:
     assert repr(bad) in str(exc.value)
     with pytest.raises(InvalidBoundError, match=repr(bad)):
         MotionBounds.declare(m, bad)
-    with pytest.raises(InvalidBoundError, match="'ball'"):
-        MotionBounds.declare(m, 1.0, speed={"ball": bad, "link": 1.0})
+    if bad != float("inf"):  # inf is a valid speed bound: none for that body
+        with pytest.raises(InvalidBoundError, match="'ball'"):
+            MotionBounds.declare(m, 1.0, speed={"ball": bad, "link": 1.0})
+
+
+def test_speed_bound_for_some_bodies_only() -> None:
+    m = _model(TWO_BODIES)
+    b = MotionBounds.declare(m, 1.0, speed={"ball": 2.0, "*": float("inf")})
+    assert b.speed is not None
+    assert b.speed.tolist() == [0.0, 0.0, 2.0, float("inf")]  # static bodies: 0
+    with pytest.raises(InvalidBoundError, match=r"'link' is 0\.0; it must be > 0 \(inf for no"):
+        MotionBounds.declare(m, 1.0, speed={"ball": 2.0, "link": 0.0})
+
+
+@pytest.mark.parametrize("bad", [[1.0, 2.0], None, "fast"])
+def test_declare_non_numbers_are_named(bad: object) -> None:
+    m = _model(TWO_BODIES)
+    with pytest.raises(InvalidBoundError, match="not a number"):
+        MotionBounds.declare(m, bad)  # type: ignore[arg-type]
+    with pytest.raises(InvalidBoundError, match=r"'link'.*not a number"):
+        MotionBounds.declare(m, {"ball": 1.0, "link": bad})  # type: ignore[dict-item]
 
 
 def test_declare_missing_bodies() -> None:

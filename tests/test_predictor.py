@@ -13,6 +13,7 @@ import importlib.resources
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -965,6 +966,86 @@ def test_cli_negative_accel(capsys) -> None:
     # argparse prints its usage, then the one-line reason.
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert "--accel" in last and ">= 0" in last
+
+
+@pytest.mark.parametrize(
+    ("flags", "reason"),
+    [
+        (["--json", "{file}/r.json"], "is a file, not a folder"),
+        (["--json", "{dir}"], "is a folder"),
+        (["--video", "{dir}/v.avi"], "Unknown video format '.avi'"),
+        (["--video", "{dir}/v.mp4", "--width", "321"], "needs even frame sizes"),
+        (["--video", "{dir}/v.gif", "--every", "50"], "renders no frame"),
+        (["--keyframe", "7"], "Valid choices: 0, 'ready'"),
+    ],
+    ids=["json-under-file", "json-folder", "video-format", "mp4-odd-size", "no-frames", "key"],
+)
+def test_cli_bad_outputs_fail_before_the_run(
+    tmp_path: Path, capsys, flags: list[str], reason: str
+) -> None:
+    (tmp_path / "afile").write_text("")
+    argv = [f.format(file=tmp_path / "afile", dir=tmp_path) for f in flags]
+    # A two-arm run of 20 steps would finish anyway; the point is the one-line reason.
+    assert main(["run", "two_arms", "--steps", "20", "--no-progress", *argv]) == 2
+    err = _one_line_error(capsys)
+    assert reason in err
+    assert "contact onsets" not in capsys.readouterr().out  # refused before the rollout
+
+
+def test_cli_table_separates_valid_misses_and_shows_realtime(capsys) -> None:
+    assert main(["run", "two_arms", "--steps", "50", "--realtime", "--no-progress"]) == 0
+    rows = dict(
+        re.split(r"\s{2,}", line.strip(), maxsplit=1)
+        for line in capsys.readouterr().out.splitlines()
+    )
+    assert rows["missed onsets"].isdigit()
+    assert rows["of them while the bounds held"] == "0"
+    assert rows["deadline overruns"].isdigit()
+
+
+def test_reset_loads_the_compiled_step() -> None:
+    """The first ``step()`` must not pay numba's cache load (~10 ms, a real-time overrun).
+
+    In a fresh interpreter: no specialisation of the fused step before ``reset``, the one
+    ``step`` uses after it (so ``step`` compiles or loads nothing).
+    """
+    code = textwrap.dedent(
+        """
+        import mujoco
+        from dua_mujoco.predictor import Predictor
+        from dua_mujoco.scenes import load_scene
+        from dua_mujoco.scheduler import _step_rigid
+        m, d = load_scene("two_arms")
+        p = Predictor(m, accel=30.0)
+        before = len(_step_rigid.signatures)
+        mujoco.mj_step(m, d)
+        p.reset(d)
+        after_reset = list(_step_rigid.signatures)
+        mujoco.mj_step(m, d)
+        p.step(d)
+        print(before, len(after_reset), list(_step_rigid.signatures) == after_reset)
+        """
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=_env(), timeout=300
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["0", "1", "True"]
+
+
+def test_cli_warnings_are_one_line(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "nocollide.xml"
+    path.write_text(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1' contype='0' conaffinity='0'/>"
+        "</body></worldbody></mujoco>"
+    )
+    assert main(["run", str(path), "--steps", "5", "--accel", "1", "--no-progress"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "dua-mujoco: NoActivePairsWarning: the model has no geom pair MuJoCo could ever put in "
+        "contact (no collidable geoms, one geom only, or every pair filtered out by "
+        "contype/conaffinity, parent-child or <exclude>): the predictor will never raise an alarm."
+    ]
 
 
 def _env() -> dict[str, str]:

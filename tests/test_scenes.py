@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import itertools
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.progress import Progress
 from dua_mujoco.scenes import (
     DEFAULT_SCENE,
     SCENES,
@@ -262,3 +264,40 @@ def test_mocap_path_respects_its_bounds() -> None:
     assert speed.max() <= ctrl.mocap_speed_bound * (1 + 1e-9)
     assert accel.max() <= ctrl.mocap_accel_bound * (1 + 1e-6)
     assert accel.max() > 0.9 * ctrl.mocap_accel_bound
+
+
+# --------------------------------------------------------------------------------------------------
+# Progress display.
+# --------------------------------------------------------------------------------------------------
+
+
+class _Stream(io.StringIO):
+    def __init__(self, tty: bool) -> None:
+        super().__init__()
+        self._tty = tty
+
+    def isatty(self) -> bool:
+        return self._tty
+
+
+@pytest.mark.parametrize("tty", [True, False])
+def test_progress_draws_in_place_on_a_terminal_and_lines_elsewhere(tty: bool) -> None:
+    stream = _Stream(tty)
+    with Progress(200, "job", stream=stream, min_interval=0.0) as bar:
+        for _ in range(200):
+            bar.update(note="x")
+    out = stream.getvalue()
+    if tty:
+        assert out.count("\r") >= 200 and out.endswith("\n")
+        assert out.count("\n") == 1
+    else:
+        assert "\r" not in out and "\x1b" not in out
+        lines = out.splitlines()
+        assert [line.split()[1] for line in lines] == [f"{20 * k}/200" for k in range(1, 11)]
+
+
+def test_progress_disabled_writes_nothing() -> None:
+    stream = _Stream(True)
+    with Progress(10, "job", stream=stream, enabled=False) as bar:
+        bar.update(10)
+    assert stream.getvalue() == ""
