@@ -279,6 +279,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="dua-mujoco",
         description="Collision prediction for MuJoCo with the Dynamic Urgency Algorithm.",
     )
+    from dua_mujoco import __version__
+
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     _add_run(sub)
     for name in _EXPERIMENTS:
