@@ -173,6 +173,10 @@ class Monitor:
     the step that withdrew it (a later episode of the same pair does not cut that window short),
     where ``horizon`` is the longest revisit horizon among the alarms that opened it. Episodes
     whose window is still open when the run ends count as false if no contact was seen.
+
+    Pairs switched off or on (``set_active_bodies``, ``deactivate_contacts``) and
+    ``predictor.reset`` between physics steps are followed: the standing alarms are re-read from
+    the scheduler before the next step's contacts are checked.
     """
 
     def __init__(
@@ -219,8 +223,8 @@ class Monitor:
         """Reset the predictor on ``data`` and start counting."""
         alarms = self.predictor.reset(data)
         self.physics_step = 0
-        self._eval_physics_step = np.zeros(1, dtype=np.int64)  # predictor step -> physics step
-        self._pred_steps = [0]
+        self._pred_steps = [0]  # predictor step -> physics step
+        self._time = float(data.time)
         self._in_contact = self._contacts(data)[0]
         # The same set as a mask: lookups by gathering, not by np.isin (which sorts; 47 us a
         # call with the thousands of pending windows of paper_world:200).
@@ -229,8 +233,8 @@ class Monitor:
         self._last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
         self._standing = np.zeros(self._ngp, dtype=np.int64)
         self._pair_alarm = np.zeros(len(self.predictor.pairs), dtype=bool)
+        self._scheduler = self.predictor.scheduler
         self._activation_seen = self.predictor.scheduler.activation_changes  # type: ignore[union-attr]
-        self._active_seen = self.predictor.scheduler.active.copy()  # type: ignore[union-attr]
         self._episode_start = np.full(self._ngp, np.nan)
         self._episode_horizon = np.zeros(self._ngp)
         self._episode_touch = np.zeros(self._ngp, dtype=bool)
@@ -304,22 +308,28 @@ class Monitor:
             )
             self._pending_touch = np.concatenate([self._pending_touch, self._episode_touch[ended]])
 
-    def _sync_activation(self, t: float) -> None:
-        """Re-read the alarm state of pairs switched off or on since the last physics step.
+    def _sync_scheduler(self) -> None:
+        """Catch up with what changed the alarm state between physics steps.
 
-        A pair switched off stops counting towards its geom pair's standing alarm; one switched
-        on stands in alarm until its first evaluation (``DUAScheduler.set_active``). O(pairs),
-        only on the steps after a switch.
+        Pairs switched off stop counting towards their geom pair's standing alarm, pairs switched
+        on stand in alarm until evaluated (``DUAScheduler.set_active``), and ``predictor.reset``
+        brings a new scheduler (a new initial classification, predictor steps counted from 0 at
+        the last physics step). Outside such changes ``_pair_alarm`` equals the scheduler's
+        ``alarm_state() & active`` pair for pair, so comparing the two finds every change (an off
+        and on again in between included); O(pairs), only on the steps after a change.
         """
         sched = self.predictor.scheduler
         assert sched is not None
-        if sched.activation_changes == self._activation_seen:
+        if sched is not self._scheduler:
+            self._scheduler = sched
+            self._pred_steps = [self.physics_step]
+        elif sched.activation_changes == self._activation_seen:
             return
         self._activation_seen = sched.activation_changes
-        switched = np.flatnonzero(sched.active != self._active_seen)
-        self._active_seen = sched.active.copy()
-        if switched.size:
-            self._apply_alarms(switched[sched.active[switched]], switched, t)
+        now = sched.alarm_state() & sched.active
+        changed = np.flatnonzero(now != self._pair_alarm)
+        if changed.size:
+            self._apply_alarms(changed[now[changed]], changed, self._time)
 
     def _observe_alarms(self, data: mujoco.MjData, alarms: Alarms) -> None:
         sched = self.predictor.scheduler
@@ -347,8 +357,8 @@ class Monitor:
                 before the contacts are checked: an evaluation of this instant is "at or before"
                 a contact of this instant (Theorem 2).
         """
+        self._sync_scheduler()
         self.physics_step += 1
-        self._sync_activation(float(data.time))
         if self.bounds is not None:
             broke = self.bounds.update(self.model, data)
             if broke.size:
@@ -376,6 +386,7 @@ class Monitor:
                 self._pending_touch = self._pending_touch[keep]
         if onset.size:
             self._onsets(onset, t)
+        self._time = t
 
     def _onsets(self, onset: np.ndarray, t: float) -> None:
         sched = self.predictor.scheduler

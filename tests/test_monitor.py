@@ -99,3 +99,56 @@ def test_episode_accounting_matches_reference(scene: str, period: int) -> None:
     episodes, false = _reference_episodes(times, standing, contact, opened)
     assert mon.episodes > 10 and 0 < mon.false_episodes < mon.episodes  # a test with teeth
     assert (mon.episodes, mon.false_episodes) == (episodes, false)
+
+
+def _standing_reference(predictor: Predictor) -> np.ndarray:
+    """Geom pairs with a standing alarm, straight from the scheduler (the Monitor's invariant)."""
+    sched = predictor.scheduler
+    assert sched is not None
+    out = np.zeros(predictor.geom_pairs.npair, dtype=bool)
+    np.logical_or.at(out, predictor.sphere_pairs.geom_pair, sched.alarm_state() & sched.active)
+    return out
+
+
+@pytest.mark.parametrize("period", [1, 3, 8])
+def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
+    """Random switches between physics steps (off, on, off and on again at once) and resets.
+
+    After every ``observe`` the Monitor's standing alarms must be the scheduler's, geom pair by
+    geom pair. An off-and-on-again left no trace in the active mask and was missed; a reset's
+    new initial classification was never applied, and a contact it alarmed counted as a miss
+    with the bounds held.
+    """
+    m, d = load_scene("paper_world:12")
+    p = Predictor(m, accel=2.0, period=period)
+    ctrl = make_controller(m, "random", seed=0)
+    rng = np.random.default_rng(period)
+    mon = Monitor(p)
+    mujoco.mj_step(m, d)
+    mon.start(d)
+    kinds = {"off": 0, "on": 0, "off_on": 0, "reset": 0}
+    for k in range(1, 800):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        mon.observe(d, p.step(d) if k % period == 0 else None)
+        np.testing.assert_array_equal(mon._standing > 0, _standing_reference(p), f"step {k}")
+        sched = p.scheduler
+        assert sched is not None
+        ids = rng.choice(len(p.pairs), size=3, replace=False)
+        r = rng.random()
+        if r < 0.05:
+            sched.set_active(ids, False)
+            sched.set_active(ids, True)
+            kinds["off_on"] += 1
+        elif r < 0.10:
+            sched.set_active(ids, False)
+            kinds["off"] += 1
+        elif r < 0.15:
+            sched.set_active(ids, True)
+            kinds["on"] += 1
+        elif r < 0.25 and k % period == 0:
+            p.reset(d)
+            kinds["reset"] += 1
+    mon.finish()
+    assert min(kinds.values()) > 0, kinds
+    assert not [miss for miss in mon.misses if miss.bounds_held]
