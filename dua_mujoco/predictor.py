@@ -165,11 +165,24 @@ def _geom_names(model: mujoco.MjModel) -> np.ndarray:
     return np.asarray(names, dtype=object)
 
 
+# What the covering, the pair filter and the contact distances are built from.
+_GEOMETRY_FIELDS = (
+    "geom_type",
+    "geom_size",
+    "geom_pos",
+    "geom_quat",
+    "geom_bodyid",
+    "geom_margin",
+    "geom_contype",
+    "geom_conaffinity",
+    "body_parentid",
+)
+
+
 def _same_geometry(a: mujoco.MjModel, b: mujoco.MjModel) -> bool:
     """Whether two models have the geoms and bodies a predictor reads (one XML loaded twice)."""
     return (a.ngeom, a.nbody, a.nq, a.nv) == (b.ngeom, b.nbody, b.nq, b.nv) and all(
-        np.array_equal(getattr(a, f), getattr(b, f))
-        for f in ("geom_type", "geom_size", "geom_pos", "geom_quat", "geom_bodyid", "body_parentid")
+        np.array_equal(getattr(a, f), getattr(b, f)) for f in _GEOMETRY_FIELDS
     )
 
 
