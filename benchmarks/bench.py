@@ -4,6 +4,7 @@
     python benchmarks/bench.py core       # tau and scheduler only
     python benchmarks/bench.py scenes     # predictor on the bundled scenes
     python benchmarks/bench.py period     # traffic at predictor periods 1..8
+    python benchmarks/bench.py dispatch   # the cost of calling compiled code from Python
 
 Every timing is the median of repeated runs (machines are noisy); ratios are computed from
 medians measured in the same process.
@@ -218,6 +219,87 @@ def compiled_step_us(predictor: object, repeat: int = 7, loops: int = 20_000) ->
     return median_time(lambda: run(loops), repeat) / loops * 1e6
 
 
+def bench_dispatch(calls: int = 200_000) -> str:
+    """What calling compiled code from Python costs, against the fused step's own call.
+
+    The predictor's call on traffic dispatches the real arguments of ``_step_rigid``; an empty
+    kernel with the same arguments isolates numba's dispatch, and the last rows are the least a
+    Python API must do per call.
+    """
+    import ctypes
+
+    import mujoco
+    import numba as nb
+
+    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.scenes import load_scene
+
+    m, d = load_scene("traffic")
+    p = Predictor(m, accel=4.0)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    s = p.scheduler
+    assert s is not None
+    pairs, spheres = p._pair_args
+    args = (
+        s.slots,
+        s._pair_state,
+        s.last_tau,
+        s.horizon,
+        s.active,
+        s.nbuckets,
+        s.slots_per_bucket,
+        1,
+        s._work,
+        s._w_tau,
+        pairs,
+        spheres,
+        p._frame_cache,
+    )
+
+    @nb.njit
+    def empty_like_step(a, b, c, e, f, g, h, i, j, k, ll, mm, n):  # same arguments
+        return 0, 0, -1
+
+    @nb.njit
+    def one_int(x):
+        return x + 1
+
+    @nb.cfunc("int64(int64)")
+    def c_one_int(x):
+        return x + 1
+
+    address: int = c_one_int.address  # type: ignore[assignment]
+    via_ctypes = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_int64)(address)
+
+    class Result:
+        __slots__ = ("a", "b")
+
+        def __init__(self, a: object, b: object) -> None:
+            self.a, self.b = a, b
+
+    ids = np.arange(8)
+    rows = []
+    for label, fn in (
+        (
+            "numba dispatch of the fused step's 13 arguments (15 arrays, 8 of them in 2 tuples)"
+            ", empty kernel",
+            lambda: empty_like_step(*args),
+        ),
+        ("numba dispatch of one int", lambda: one_int(3)),
+        ("ctypes call of a numba `cfunc` taking one int", lambda: via_ctypes(3)),
+        ("a slotted result object", lambda: Result(1, 2)),
+        ("copy of a few alarm ids (`ids[:3].copy()`)", lambda: ids[:3].copy()),
+    ):
+
+        def many(fn: Callable[[], object] = fn) -> None:
+            for _ in range(calls):
+                fn()
+
+        rows.append([label, f"{median_time(many, 7) / calls * 1e6:.2f} us"])
+    return table(["per call", "median"], rows)
+
+
 def bench_scenes(steps: int = 2000) -> str:
     from dua_mujoco.monitor import run
     from dua_mujoco.predictor import Predictor
@@ -340,7 +422,9 @@ def bench_period(steps: int = 2000, periods: tuple[int, ...] = (1, 2, 4, 8)) -> 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("what", nargs="*", default=["compile", "core", "scenes", "period"])
+    parser.add_argument(
+        "what", nargs="*", default=["compile", "core", "scenes", "period", "dispatch"]
+    )
     args = parser.parse_args(argv)
     for what in args.what:
         print(f"## {what}\n")
@@ -350,6 +434,7 @@ def main(argv: list[str] | None = None) -> int:
                 "core": bench_core,
                 "scenes": bench_scenes,
                 "period": bench_period,
+                "dispatch": bench_dispatch,
             }[what]()
         )
         print()

@@ -107,29 +107,35 @@ def _resolve(model: mujoco.MjModel, spec: BoundSpec, what: str) -> np.ndarray:
                     f"value, or add a '*' key as the default."
                 )
             out[b] = _check_value(val, what, name or f"<body {b}>")
-        # Values given for static bodies are checked but not used: they cannot move.
+        # Values given for static bodies are checked but not used: they cannot move (so a
+        # speed of 0 is fine there).
+        moving_names = {names[b] for b in np.flatnonzero(moving)}
         for key, val in spec.items():
             if key != "*":
-                _check_value(val, what, key)
+                _check_value(val, what, key, moving=key in moving_names)
         if default is not None:
-            _check_value(default, what, "*")
+            _check_value(default, what, "*", moving=False)
     else:
         val = _check_value(spec, what, "all bodies")
         out[moving] = val
     return out
 
 
-def _check_value(value: object, what: str, body: str) -> float:
-    """One bound, as a float: finite and >= 0; a speed bound > 0 and possibly inf (none)."""
+def _check_value(value: object, what: str, body: str, *, moving: bool = True) -> float:
+    """One bound, as a float: finite and >= 0; a speed bound may be inf (none), and must be
+    > 0 for a moving body."""
+    bad_type = isinstance(value, str | bytes | bool)  # float() would take "5" and True
     try:
         val = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
+        bad_type = True
+    if bad_type:
         raise InvalidBoundError(
             f"The {what} bound of body {body!r} is {value!r}, not a number: pass a number for "
             "every body, or a dict by body name ('*' for the default)."
-        ) from None
+        )
     if what == "speed":
-        if not val > 0:  # NaN too
+        if not (val > 0 or (val == 0 and not moving)):  # NaN too
             raise InvalidBoundError(
                 f"The speed bound of body {body!r} is {value!r}; it must be > 0 (inf for no "
                 "speed bound on that body)."
@@ -206,7 +212,8 @@ class MotionBounds:
     Attributes:
         accel: ``(nbody,)`` bound A on the (discrete) acceleration norm of every sphere centre
             of the body; 0 for static bodies.
-        speed: ``(nbody,)`` bound V on the speed of every sphere centre, or None.
+        speed: ``(nbody,)`` bound V on the chord speed |c_k - c_{k-1}| / h of every sphere
+            centre (inf: none for that body), or None.
         vel_uncertainty: ``(nbody,)`` delta: discrete-time term (plus any user term).
         source: ``"declared"`` or ``"auto"`` (estimated by a pilot rollout).
         timestep: the model timestep h these bounds were made for.
@@ -273,7 +280,8 @@ class MotionBounds:
 
         Raises:
             InvalidChoiceError: a dict key is not a body name (the message lists them).
-            InvalidBoundError: a value is negative or NaN, or a moving body has no value.
+            InvalidBoundError: a value is not a number, is negative, NaN or inf (a speed bound
+                may be inf, but not 0 for a moving body), or a moving body has no value.
         """
         A = _resolve(model, accel, "acceleration")
         V = None if speed is None else _resolve(model, speed, "speed")
@@ -314,6 +322,13 @@ def _per_body_max(values: np.ndarray, sphere_body: np.ndarray, nbody: int) -> np
 
 
 Controller = Callable[[mujoco.MjModel, mujoco.MjData, np.random.Generator], None]
+
+# MuJoCo's answer to a diverged state: warn, then mj_resetData (the state jumps back).
+_DIVERGENCE_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
 
 
 def estimate_bounds(
@@ -440,8 +455,13 @@ def estimate_bounds(
     A = np.where(moving, safety * amax, 0.0)
     D = np.where(moving, safety * dmax, 0.0)
     V = np.where(moving, safety * vmax, 0.0) if with_speed else None
-    if not (np.isfinite(A).all() and np.isfinite(D).all()):
-        raise InvalidBoundError("The pilot rollout diverged (NaN/inf): reduce the timestep.")
+    diverged = [w.name for w in _DIVERGENCE_WARNINGS if d.warning[int(w)].number]
+    if diverged or not (np.isfinite(A).all() and np.isfinite(D).all()):
+        # MuJoCo resets a diverged state itself: the jump would pass for a huge acceleration.
+        raise InvalidBoundError(
+            f"The pilot rollout diverged ({', '.join(diverged) or 'NaN/inf'}): reduce the "
+            "timestep, or check the model and the pilot's controls."
+        )
     return MotionBounds(
         accel=A,
         speed=V,
@@ -561,7 +581,8 @@ def _check_spheres(
 class BoundMonitor:
     """Checks, once per physics step, whether the hypotheses of the guarantee held.
 
-    Call :meth:`update` after every ``mj_step``. Update k (k >= 2) checks, for every sphere,
+    Call :meth:`update` after every ``mj_step``. From the second update on it checks, for every
+    sphere (the acceleration from the third),
     |u_k - u_{k-1}| <= A h (discrete acceleration), |u_k - w_{k-1}| <= D = delta + A h / 2
     (one-step discrepancy) and |u_k| <= V (chord speed, fresh every step for mocap trees too),
     with a tolerance for floating-point round-off in the

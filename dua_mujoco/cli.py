@@ -52,6 +52,7 @@ def _positive(kind: type) -> object:
 
 
 def _non_negative_int(value: str) -> int:
+    """argparse type: an int >= 0 (seeds, latency)."""
     try:
         v = int(value)
     except ValueError:
@@ -153,6 +154,8 @@ def _check_output(path: Path, what: str) -> None:
     """Refuse an output path that cannot be written, before a long run rather than after it."""
     if path.is_dir():
         raise InvalidInputError(f"{what} {str(path)!r} is a folder: pass a file path.")
+    if path.exists() and not os.access(path, os.W_OK):
+        raise InvalidInputError(f"{what} {str(path)!r} exists and is not writable.")
     for parent in path.parents:
         if parent.exists():
             if not parent.is_dir():
@@ -176,8 +179,9 @@ def _check_outputs(args: argparse.Namespace, steps: int) -> None:
         every = math.lcm(args.every, args.period)  # frames need a predictor step (its alarms)
         if steps < every:
             raise InvalidInputError(
-                f"--steps {steps} renders no frame: frames are taken every {every} physics steps "
-                f"(--every {args.every}, --period {args.period}); run more steps or lower --every."
+                f"a run of {steps} steps renders no frame: frames are taken every {every} "
+                f"physics steps (--every {args.every}, --period {args.period}); pass more "
+                "--steps or a lower --every."
             )
 
 
@@ -297,6 +301,7 @@ def _one_line_warning(
     file: object = None,
     line: str | None = None,
 ) -> None:
+    """``warnings.showwarning`` for the command line: one line, no source location."""
     print(f"dua-mujoco: {category.__name__}: {' '.join(str(message).split())}", file=sys.stderr)
 
 

@@ -308,22 +308,30 @@ class Monitor:
             )
             self._pending_touch = np.concatenate([self._pending_touch, self._episode_touch[ended]])
 
-    def _sync_scheduler(self) -> None:
-        """Catch up with what changed the alarm state between physics steps.
+    def _follow_reset(self) -> None:
+        """After ``predictor.reset`` (a new scheduler), count predictor steps from its reset.
+
+        The reset came after the last observed physics step; its initial classification is
+        applied by the next :meth:`_sync_switches`.
+        """
+        if self.predictor.scheduler is not self._scheduler:
+            self._scheduler = self.predictor.scheduler
+            self._pred_steps = [self.physics_step]
+            self._activation_seen = -1
+
+    def _sync_switches(self) -> None:
+        """Re-read the standing alarms after switches (or a reset) between physics steps.
 
         Pairs switched off stop counting towards their geom pair's standing alarm, pairs switched
-        on stand in alarm until evaluated (``DUAScheduler.set_active``), and ``predictor.reset``
-        brings a new scheduler (a new initial classification, predictor steps counted from 0 at
-        the last physics step). Outside such changes ``_pair_alarm`` equals the scheduler's
-        ``alarm_state() & active`` pair for pair, so comparing the two finds every change (an off
-        and on again in between included); O(pairs), only on the steps after a change.
+        on stand in alarm until evaluated (``DUAScheduler.set_active``). Outside such changes
+        ``_pair_alarm`` equals the scheduler's ``alarm_state() & active`` pair for pair, so
+        comparing the two finds every change (an off and on again in between included). The
+        changes date from before this step: they are stamped with the previous step's time.
+        O(pairs), only on steps after a change.
         """
         sched = self.predictor.scheduler
         assert sched is not None
-        if sched is not self._scheduler:
-            self._scheduler = sched
-            self._pred_steps = [self.physics_step]
-        elif sched.activation_changes == self._activation_seen:
+        if sched.activation_changes == self._activation_seen:
             return
         self._activation_seen = sched.activation_changes
         now = sched.alarm_state() & sched.active
@@ -357,7 +365,7 @@ class Monitor:
                 before the contacts are checked: an evaluation of this instant is "at or before"
                 a contact of this instant (Theorem 2).
         """
-        self._sync_scheduler()
+        self._follow_reset()
         self.physics_step += 1
         if self.bounds is not None:
             broke = self.bounds.update(self.model, data)
@@ -366,6 +374,8 @@ class Monitor:
                 self.violations += int(broke.size)
         if alarms is not None:
             self._observe_alarms(data, alarms)
+        # After this step's evaluations, so that what is left is what changed between steps.
+        self._sync_switches()
         now, unfiltered = self._contacts(data)
         self.unfiltered_contacts += unfiltered
         t = float(data.time)

@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.bounds import MotionBounds, estimate_bounds
+from dua_mujoco.bounds import _DIVERGENCE_WARNINGS, MotionBounds, estimate_bounds
 from dua_mujoco.covering import Covering, CoveringMode, cover_model
 from dua_mujoco.exceptions import (
     InvalidInputError,
@@ -43,13 +43,6 @@ from dua_mujoco.scheduler import DUAScheduler, PairSet, pack_pairs, pack_spheres
 from dua_mujoco.state import MocapVelocityTracker, sphere_centers, sphere_velocities
 
 __all__ = ["Alarms", "BoundsLike", "Predictor"]
-
-# MuJoCo's answer to a diverged state: warn, then mj_resetData (the state jumps back).
-_DIVERGENCE_WARNINGS = (
-    mujoco.mjtWarning.mjWARN_BADQPOS,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADQACC,
-)
 
 BoundsLike = float | Mapping[str, float] | MotionBounds | Literal["auto"]
 """Acceleration bounds: a scalar (m/s^2, every moving body), a dict by body name (``"*"`` for
@@ -165,24 +158,37 @@ def _geom_names(model: mujoco.MjModel) -> np.ndarray:
     return np.asarray(names, dtype=object)
 
 
-# What the covering, the pair filter and the contact distances are built from.
+# What the covering (geoms, meshes, height fields), the pair filter (masks, welds, <exclude>,
+# <pair>, parent filtering) and the contact distances (margins, gaps) are built from.
 _GEOMETRY_FIELDS = (
     "geom_type",
     "geom_size",
     "geom_pos",
     "geom_quat",
     "geom_bodyid",
+    "geom_dataid",
     "geom_margin",
+    "geom_gap",
     "geom_contype",
     "geom_conaffinity",
     "body_parentid",
+    "body_weldid",
+    "mesh_vert",
+    "hfield_size",
+    "pair_geom1",
+    "pair_geom2",
+    "pair_margin",
+    "pair_gap",
+    "exclude_signature",
 )
 
 
 def _same_geometry(a: mujoco.MjModel, b: mujoco.MjModel) -> bool:
-    """Whether two models have the geoms and bodies a predictor reads (one XML loaded twice)."""
-    return (a.ngeom, a.nbody, a.nq, a.nv) == (b.ngeom, b.nbody, b.nq, b.nv) and all(
-        np.array_equal(getattr(a, f), getattr(b, f)) for f in _GEOMETRY_FIELDS
+    """Whether two models have what a predictor is built from (e.g. one XML loaded twice)."""
+    return (
+        (a.ngeom, a.nbody, a.nq, a.nv) == (b.ngeom, b.nbody, b.nq, b.nv)
+        and int(a.opt.disableflags) == int(b.opt.disableflags)
+        and all(np.array_equal(getattr(a, f), getattr(b, f)) for f in _GEOMETRY_FIELDS)
     )
 
 
@@ -369,21 +375,15 @@ class Predictor:
                 f"data must be a mujoco.MjData, got {type(data).__name__}: pass "
                 "mujoco.MjData(model) after mujoco.mj_forward(model, data)."
             )
+        # The same object, or another one with the same geometry (one XML loaded twice): the
+        # compiled step reads MjData without bounds checks, and the covering and the pair
+        # filter must be this model's.
         if data.model is not m and not _same_geometry(data.model, m):
             raise InvalidInputError(
-                "data belongs to another MjModel whose geoms or bodies differ from this "
-                "predictor's: pass the MjData of this predictor's model (or build a Predictor "
-                "for that model)."
-            )
-        if (
-            data.geom_xpos.shape[0] != m.ngeom
-            or data.cvel.shape[0] != m.nbody
-            or data.qpos.shape[0] != m.nq
-        ):
-            raise InvalidInputError(
-                f"data has {data.geom_xpos.shape[0]} geoms and {data.cvel.shape[0]} bodies but the "
-                f"model has {self.model.ngeom} and {self.model.nbody}: pass the MjData of this "
-                "predictor's model."
+                f"data belongs to another MjModel ({data.model.ngeom} geoms, {data.model.nbody} "
+                f"bodies; this predictor's has {m.ngeom} and {m.nbody}) whose geoms, bodies or "
+                "collision filters differ: pass the MjData of this predictor's model, or build "
+                "a Predictor for that model."
             )
 
     def _bind_frame(self, data: mujoco.MjData) -> tuple:
@@ -465,8 +465,15 @@ class Predictor:
         return sum(int(data.warning[int(w)].number) for w in _DIVERGENCE_WARNINGS)
 
     def _divergence(self, data: mujoco.MjData) -> str:
-        """Why the state jumped, if MuJoCo reset it after diverging since ``reset`` (or "")."""
-        if self._divergence_count(data) <= self._diverged_at_reset:
+        """Why the state jumped, if MuJoCo reset it after diverging since ``reset`` (or "").
+
+        MuJoCo's reset (``mj_resetData``) clears the warning counters and then counts the
+        divergence, so each divergence leaves a count of 1: a count that changed since
+        ``reset``, or one with time gone backwards, is a divergence (a user's own
+        ``mj_resetData`` leaves 0).
+        """
+        count = self._divergence_count(data)
+        if count == 0 or (count == self._diverged_at_reset and data.time >= self._time):
             return ""
         names = [w.name for w in _DIVERGENCE_WARNINGS if data.warning[int(w)].number]
         return (
@@ -486,6 +493,10 @@ class Predictor:
 
         Returns:
             The alarms of the initial classification.
+
+        Raises:
+            InvalidInputError: ``data`` is not an MjData of this predictor's model.
+            NonFiniteStateError: a position or velocity is NaN or inf.
         """
         self._check_data(data)
         if self._mocap is not None:
@@ -502,17 +513,27 @@ class Predictor:
         self.scheduler = DUAScheduler(
             tau0, dt=self.dt, latency=self.latency, slots_per_bucket=self.slots_per_bucket
         )
-        if len(self.pairs):
-            # Load the fused step (numba's cache, ~10 ms) now rather than in the first step(),
-            # whose deadline a real-time user holds it to: one step of a one-pair scheduler on
-            # the real tables (read only).
-            DUAScheduler(np.full(1, np.inf), dt=self.dt).step_rigid(
-                self._pair_args, self._bind_frame(data)
-            )
+        self._load_compiled(data, c, v)
         self._time = float(data.time)
         self._diverged_at_reset = self._divergence_count(data)
         ids = self.scheduler.initial_alarms
         return Alarms(0, self._time, ids, tau0[ids], self._tables)
+
+    def _load_compiled(self, data: mujoco.MjData, c: np.ndarray, v: np.ndarray) -> None:
+        """Load what ``step`` runs from numba's cache (~10 ms each) now, not in ``step``.
+
+        A real-time user holds every ``step`` to its deadline, the first one included. One
+        step of a throw-away one-pair scheduler on the real tables (read only) loads the fused
+        step, and one through ``select``/``update`` the path taken after pairs are switched
+        back on; the mocap differencing runs on copies.
+        """
+        if len(self.pairs):
+            spare = DUAScheduler(np.full(1, np.inf), dt=self.dt)
+            spare.step_rigid(self._pair_args, self._bind_frame(data))
+            ids = spare.select()
+            spare.update(ids, self.pairs.tau(ids, c, v, self.halfspaces(data)))
+        if self._mocap is not None:
+            self._mocap.load_compiled(data, self._twist)
 
     def step(self, data: mujoco.MjData) -> Alarms:
         """One predictor step: evaluate the scheduled pairs, re-bucket, return the alarms.
@@ -520,7 +541,9 @@ class Predictor:
         Raises:
             SchedulerError: ``reset`` was not called, or ``data.time`` did not advance by one
                 predictor period since the previous call.
-            NonFiniteStateError: the state read for a scheduled pair is NaN or inf.
+            NonFiniteStateError: the state read for a scheduled pair is NaN or inf, or MuJoCo
+                reset the state after the simulation diverged.
+            InvalidInputError: ``data`` is not an MjData of this predictor's model.
         """
         sched = self.scheduler
         if sched is None:
@@ -573,7 +596,9 @@ class Predictor:
     def deactivate_contacts(self, data: mujoco.MjData) -> int:
         """Switch off the sphere pairs of every geom pair in contact in ``data`` (resting contact).
 
-        Returns the number of geom pairs switched off.
+        Returns the number of geom pairs switched off. They stay off, whatever happens to the
+        contact, until switched back on with :meth:`set_active_bodies` (e.g. when the object is
+        lifted or pushed away); until then their contacts are counted apart, never predicted.
         """
         sched = self._require_scheduler()
         nc = int(data.ncon)

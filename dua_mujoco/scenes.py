@@ -446,6 +446,7 @@ def reset_to_keyframe(
 
     Raises:
         InvalidChoiceError: If the keyframe index or name does not exist (lists the valid ones).
+        InvalidInputError: If a keyframe is asked of a model that has none.
     """
     if keyframe is None:
         key = 0 if model.nkey > 0 else -1

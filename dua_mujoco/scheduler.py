@@ -775,6 +775,8 @@ class DUAScheduler:
         ids = np.atleast_1d(_ids("pairs", np.atleast_1d(np.asarray(pairs, dtype=np.int64))))
         if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
             raise InvalidInputError(f"pair ids must be in [0, {self.npairs}); got {ids.tolist()}.")
+        if not (self.active[ids] != on).any():
+            return  # nothing switches: no stale state to mark, nothing for observers to re-read
         if on:
             new = ids[~self.active[ids]]
             self._reactivated.extend(new.tolist())
@@ -1041,8 +1043,12 @@ class SelectAllScheduler:
         return int(self.active.sum())
 
     def set_active(self, pairs: npt.ArrayLike, on: bool) -> None:
-        """Switch pairs off or on."""
-        self.active[np.asarray(pairs, dtype=np.int64)] = on
+        """Switch pairs off or on; as ``DUAScheduler.set_active``, pairs switched on stand in
+        alarm until evaluated (the next step here)."""
+        ids = np.asarray(pairs, dtype=np.int64)
+        if on:
+            self.last[ids[~self.active[ids]]] = 0.0
+        self.active[ids] = on
 
     def select(self) -> np.ndarray:
         """All active pair ids."""

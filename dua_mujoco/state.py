@@ -316,6 +316,22 @@ class MocapVelocityTracker:
             self._prev_time = t
             self.nupdates += 1
 
+    def load_compiled(self, data: mujoco.MjData, body_velocity: np.ndarray) -> None:
+        """Run the compiled differencing once on copies (loads it; changes no state)."""
+        n = self.mocap_bodies.size
+        _difference_poses(
+            data.xpos,
+            data.xquat,
+            self.mocap_bodies,
+            np.array(data.xpos[self.mocap_bodies]),
+            np.array(data.xquat[self.mocap_bodies]),
+            1.0,
+            self._user.copy(),
+            np.zeros((n, 3)),
+            np.zeros((n, 3)),
+            np.zeros_like(body_velocity),
+        )
+
     def body_velocity(self, nbody: int) -> np.ndarray:
         """Spatial velocity [omega; v_origin] per body, zero for non-mocap bodies.
 

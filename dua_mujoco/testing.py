@@ -36,7 +36,7 @@ except ModuleNotFoundError:  # pragma: no cover - the assertion helpers work wit
 if TYPE_CHECKING:
     import mujoco
 
-    from dua_mujoco.monitor import RunReport
+    from dua_mujoco.monitor import Monitor, RunReport
     from dua_mujoco.predictor import Predictor
 
 __all__ = [
@@ -57,6 +57,8 @@ UPDATE_OPTION = "--dua-update-baselines"
 
 # At most this many misses are spelled out in a failure message; the count is always given.
 _MAX_LISTED = 20
+# ... and at most this many bodies with broken bounds (one line per body and kind).
+_MAX_BODIES = 10
 
 Controller = Callable[["mujoco.MjModel", "mujoco.MjData"], None]
 BaselineLike = Mapping[str, Any] | str | os.PathLike[str]
@@ -235,17 +237,41 @@ def _miss_message(report: RunReport) -> str:
     return "\n".join(lines)
 
 
-def _broken_bounds_message(report: RunReport) -> str:
+def _worst_violations(monitor: Monitor | None, model: mujoco.MjModel) -> list[str]:
+    """One line per (body, kind) of broken bound: the largest value against its bound."""
+    if monitor is None or monitor.bounds is None:
+        return []
+    worst: dict[tuple[int, str], tuple[float, float, float]] = {}
+    for v in monitor.bounds.violations:
+        key = (v.body, v.kind)
+        if key not in worst or v.value > worst[key][0]:
+            worst[key] = (v.value, v.bound, v.time)
+    ranked = sorted(worst.items(), key=lambda kv: -kv[1][0] / max(kv[1][1], 1e-300))
+    lines = [
+        f"  body {model.body(b).name or b!r}: {kind} {value:.4g} > bound {bound:.4g} "
+        f"(at t = {t:.4f} s)"
+        for (b, kind), (value, bound, t) in ranked[:_MAX_BODIES]
+    ]
+    if len(ranked) > _MAX_BODIES:
+        lines.append(f"  ... and {len(ranked) - _MAX_BODIES} more")
+    return lines
+
+
+def _broken_bounds_message(
+    report: RunReport, monitor: Monitor | None, model: mujoco.MjModel
+) -> str:
     excused = [m for m in report.misses if not m.bounds_held]
     lines = [
         f"{report.scene or 'scene'}: {len(excused)} contact onset(s) were missed after the "
         f"declared motion bounds were broken ({report.bound_violations} body-steps broke a "
         f"bound; {report.contact_onsets} onsets, {report.predicted_onsets} predicted):",
         *_listed_misses(excused),
+        "Bounds broken (largest value per body and kind):",
+        *_worst_violations(monitor, model),
         "The guarantee only covers motion within the bounds, so this run certifies nothing for "
         "these contacts. Declare bounds that hold (accel='auto' measures them with a pilot "
-        "rollout; Monitor(...).bounds.violations lists the bodies), or pass "
-        "allow_broken_bounds=True to accept misses the guarantee does not cover.",
+        "rollout), or pass allow_broken_bounds=True to accept misses the guarantee does not "
+        "cover.",
     ]
     return "\n".join(lines)
 
@@ -253,6 +279,7 @@ def _broken_bounds_message(report: RunReport) -> str:
 def _make_predictor(
     model: mujoco.MjModel, predictor: Predictor | Mapping[str, Any] | None
 ) -> Predictor:
+    from dua_mujoco.exceptions import InvalidInputError
     from dua_mujoco.predictor import Predictor
 
     if predictor is None:
@@ -265,12 +292,12 @@ def _make_predictor(
         ]
         unknown = sorted(set(predictor) - set(valid))
         if unknown:
-            raise ValueError(
+            raise InvalidInputError(
                 f"predictor= has unknown Predictor option(s) {unknown}; valid: {', '.join(valid)}."
             )
         return Predictor(model, **dict(predictor))
     if predictor.model is not model:
-        raise ValueError(
+        raise InvalidInputError(
             "the predictor was built for another MjModel: pass Predictor(model, ...) for this "
             "model, or a dict of Predictor keyword arguments."
         )
@@ -327,16 +354,20 @@ def assert_no_missed_collisions(
         The run's :class:`~dua_mujoco.monitor.RunReport`.
 
     Raises:
-        AssertionError: A missed collision, an unfiltered contact, or a baseline regression.
+        AssertionError: A missed collision (after broken bounds too, unless
+            ``allow_broken_bounds``), an unfiltered contact, a model without collidable pairs,
+            or a baseline regression.
+        InvalidInputError: ``model``, ``data``, ``steps`` or a predictor option is invalid.
     """
     __tracebackhide__ = True
     import mujoco
 
+    from dua_mujoco.exceptions import InvalidInputError
     from dua_mujoco.monitor import run
     from dua_mujoco.scenes import make_controller, reset_to_keyframe
 
     if not isinstance(model, mujoco.MjModel):
-        raise TypeError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")
+        raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")
     if data is None:
         data = mujoco.MjData(model)
         reset_to_keyframe(model, data)
@@ -350,11 +381,28 @@ def assert_no_missed_collisions(
         )
     if controller is None:
         controller = make_controller(model, "random", seed=0)
-    report = run(model, data, pred, steps=steps, controller=controller, scene=name, progress=False)
+    monitors: list[Monitor] = []
+
+    def keep_monitor(k: int, d: mujoco.MjData, alarms: object, monitor: Monitor) -> None:
+        if not monitors:
+            monitors.append(monitor)
+
+    report = run(
+        model,
+        data,
+        pred,
+        steps=steps,
+        controller=controller,
+        scene=name,
+        progress=False,
+        on_step=keep_monitor,
+    )
     if report.missed_onsets_valid_bounds:
         raise AssertionError(_miss_message(report))
     if report.missed_onsets and not allow_broken_bounds:
-        raise AssertionError(_broken_bounds_message(report))
+        raise AssertionError(
+            _broken_bounds_message(report, monitors[0] if monitors else None, model)
+        )
     if report.unfiltered_contacts:
         raise AssertionError(
             f"{report.scene or 'scene'}: {report.unfiltered_contacts} MuJoCo contact(s) lie "

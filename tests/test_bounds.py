@@ -208,7 +208,29 @@ def test_speed_bound_for_some_bodies_only() -> None:
         MotionBounds.declare(m, 1.0, speed={"ball": 2.0, "link": 0.0})
 
 
-@pytest.mark.parametrize("bad", [[1.0, 2.0], None, "fast"])
+def test_speed_zero_is_fine_for_static_bodies_only() -> None:
+    m = _model(TWO_BODIES)
+    b = MotionBounds.declare(m, 1.0, speed={"ball": 2.0, "link": 2.0, "static_shelf": 0.0})
+    assert b.speed is not None and b.speed[2:].tolist() == [2.0, 2.0]
+
+
+def test_pilot_divergence_is_an_error() -> None:
+    """MuJoCo resets a diverged state itself; the pilot must not take the jump for motion."""
+    m = mujoco.MjModel.from_xml_string(
+        """<mujoco><option timestep="0.01"/><worldbody>
+        <body><joint type="hinge" axis="0 1 0" stiffness="1e9"/>
+        <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".001"/></body>
+        </worldbody><keyframe><key qpos="0.5"/></keyframe></mujoco>"""
+    )
+
+    def kick(model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator) -> None:
+        data.qpos[0] = 0.5  # far from the spring's rest: the explicit integrator blows up
+
+    with pytest.raises(InvalidBoundError, match="pilot rollout diverged"):
+        estimate_bounds(m, steps=50, seed=0, init=kick)
+
+
+@pytest.mark.parametrize("bad", [[1.0, 2.0], None, "fast", "5", True])
 def test_declare_non_numbers_are_named(bad: object) -> None:
     m = _model(TWO_BODIES)
     with pytest.raises(InvalidBoundError, match="not a number"):

@@ -127,16 +127,25 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
     mujoco.mj_step(m, d)
     mon.start(d)
     kinds = {"off": 0, "on": 0, "off_on": 0, "reset": 0}
+    steps_of = [0]  # physics step of each predictor step since the last reset
     for k in range(1, 800):
         ctrl(m, d)
         mujoco.mj_step(m, d)
-        mon.observe(d, p.step(d) if k % period == 0 else None)
+        stepped = k % period == 0
+        mon.observe(d, p.step(d) if stepped else None)
+        steps_of += [k] if stepped else []
         np.testing.assert_array_equal(mon._standing > 0, _standing_reference(p), f"step {k}")
+        assert mon._pred_steps == steps_of, f"step {k}"  # what a miss's window starts from
         sched = p.scheduler
         assert sched is not None
         ids = rng.choice(len(p.pairs), size=3, replace=False)
         r = rng.random()
-        if r < 0.05:
+        if r < 0.02:
+            # A switch that changes nothing must not look like one.
+            changes = sched.activation_changes
+            sched.set_active(ids[sched.active[ids]], True)
+            assert sched.activation_changes == changes
+        elif r < 0.05:
             sched.set_active(ids, False)
             sched.set_active(ids, True)
             kinds["off_on"] += 1
@@ -146,8 +155,9 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
         elif r < 0.15:
             sched.set_active(ids, True)
             kinds["on"] += 1
-        elif r < 0.25 and k % period == 0:
+        elif r < 0.25 and stepped:
             p.reset(d)
+            steps_of = [k]
             kinds["reset"] += 1
     mon.finish()
     assert min(kinds.values()) > 0, kinds

@@ -109,6 +109,7 @@ def test_misses_after_broken_bounds_fail_unless_allowed() -> None:
         assert_no_missed_collisions(m, d, steps=STEPS, predictor={"accel": 0.0})
     assert "allow_broken_bounds=True" in str(e.value)
     assert "accel='auto'" in str(e.value)
+    assert re.search(r"body 'a_link\d': accel [\d.]+ > bound 0 ", str(e.value)), str(e.value)
     m, d = load_scene("two_arms")
     report = assert_no_missed_collisions(
         m, d, steps=STEPS, predictor={"accel": 0.0}, allow_broken_bounds=True
