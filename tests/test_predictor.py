@@ -419,6 +419,14 @@ def test_data_of_an_edited_model_is_refused(two_bodies) -> None:
     twin.geom_pos[0, 0] += 0.5
     with pytest.raises(InvalidInputError, match="another MjModel"):
         p.reset(mujoco.MjData(twin))
+    # Same geoms, one pair excluded: the pair filter differs.
+    excluded = mujoco.MjModel.from_xml_string(
+        TWO_BODIES_XML.replace(
+            "</worldbody>", '</worldbody><contact><exclude body1="a" body2="b"/></contact>'
+        )
+    )
+    with pytest.raises(InvalidInputError, match="collision filters differ"):
+        p.reset(mujoco.MjData(excluded))
 
 
 def test_model_without_collidable_pairs_warns() -> None:
