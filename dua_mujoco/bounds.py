@@ -124,7 +124,7 @@ def _resolve(model: mujoco.MjModel, spec: BoundSpec, what: str) -> np.ndarray:
 def _check_value(value: object, what: str, body: str, *, moving: bool = True) -> float:
     """One bound, as a float: finite and >= 0; a speed bound may be inf (none), and must be
     > 0 for a moving body."""
-    bad_type = isinstance(value, str | bytes | bool)  # float() would take "5" and True
+    bad_type = isinstance(value, str | bytes | bool | np.bool_)  # float() takes "5" and True
     try:
         val = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):

@@ -319,7 +319,7 @@ class Monitor:
             self._pred_steps = [self.physics_step]
             self._activation_seen = -1
 
-    def _sync_switches(self) -> None:
+    def _sync_switches(self, exclude: np.ndarray | None = None) -> None:
         """Re-read the standing alarms after switches (or a reset) between physics steps.
 
         Pairs switched off stop counting towards their geom pair's standing alarm, pairs switched
@@ -327,6 +327,7 @@ class Monitor:
         ``_pair_alarm`` equals the scheduler's ``alarm_state() & active`` pair for pair, so
         comparing the two finds every change (an off and on again in between included). The
         changes date from before this step: they are stamped with the previous step's time.
+        ``exclude``: the pairs evaluated at this step, whose state the evaluation gives.
         O(pairs), only on steps after a change.
         """
         sched = self.predictor.scheduler
@@ -335,7 +336,10 @@ class Monitor:
             return
         self._activation_seen = sched.activation_changes
         now = sched.alarm_state() & sched.active
-        changed = np.flatnonzero(now != self._pair_alarm)
+        differs = now != self._pair_alarm
+        if exclude is not None:
+            differs[exclude] = False
+        changed = np.flatnonzero(differs)
         if changed.size:
             self._apply_alarms(changed[now[changed]], changed, self._time)
 
@@ -372,10 +376,20 @@ class Monitor:
             if broke.size:
                 self._last_violation[broke] = self.physics_step
                 self.violations += int(broke.size)
-        if alarms is not None:
+        sched = self.predictor.scheduler
+        assert sched is not None
+        if alarms is not None and alarms.step != sched.step_count:
+            # predictor.reset came between step() and here: its classification is of this
+            # instant, and these alarms belong to the scheduler it replaced.
+            self._pred_steps = [self.physics_step]
+            alarms = None
+        if alarms is None:
+            self._sync_switches()
+        else:
+            # Switches between steps first, stamped with the previous step's time; the pairs
+            # evaluated now get their current state from this step's evaluation.
+            self._sync_switches(exclude=sched.last_selected)
             self._observe_alarms(data, alarms)
-        # After this step's evaluations, so that what is left is what changed between steps.
-        self._sync_switches()
         now, unfiltered = self._contacts(data)
         self.unfiltered_contacts += unfiltered
         t = float(data.time)

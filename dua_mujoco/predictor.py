@@ -183,11 +183,25 @@ _GEOMETRY_FIELDS = (
 )
 
 
+# The option bits the pair filter and the contact distances read (others, e.g. gravity, do not
+# change what the predictor is built from).
+_FILTER_DISABLE = (
+    mujoco.mjtDisableBit.mjDSBL_CONTACT
+    | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    | mujoco.mjtDisableBit.mjDSBL_FILTERPARENT
+)
+
+
+def _contact_options(m: mujoco.MjModel) -> tuple[int, int, float]:
+    override = int(m.opt.enableflags) & int(mujoco.mjtEnableBit.mjENBL_OVERRIDE)
+    return int(m.opt.disableflags) & int(_FILTER_DISABLE), override, float(m.opt.o_margin)
+
+
 def _same_geometry(a: mujoco.MjModel, b: mujoco.MjModel) -> bool:
     """Whether two models have what a predictor is built from (e.g. one XML loaded twice)."""
     return (
         (a.ngeom, a.nbody, a.nq, a.nv) == (b.ngeom, b.nbody, b.nq, b.nv)
-        and int(a.opt.disableflags) == int(b.opt.disableflags)
+        and _contact_options(a) == _contact_options(b)
         and all(np.array_equal(getattr(a, f), getattr(b, f)) for f in _GEOMETRY_FIELDS)
     )
 
@@ -330,7 +344,7 @@ class Predictor:
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: DUAScheduler | None = None
         self._time = 0.0
-        self._diverged_at_reset = 0
+        self._steps_at_reset = 0
         self._frame_data: mujoco.MjData | None = None
         self._frame_cache: tuple = ()
 
@@ -467,13 +481,18 @@ class Predictor:
     def _divergence(self, data: mujoco.MjData) -> str:
         """Why the state jumped, if MuJoCo reset it after diverging since ``reset`` (or "").
 
-        MuJoCo's reset (``mj_resetData``) clears the warning counters and then counts the
-        divergence, so each divergence leaves a count of 1: a count that changed since
-        ``reset``, or one with time gone backwards, is a divergence (a user's own
-        ``mj_resetData`` leaves 0).
+        Called only when ``data.time`` did not advance by one period. MuJoCo answers a diverged
+        state with a warning and ``mj_resetData``, which also restarts its count of
+        ``mj_step`` calls: a divergence warning standing and a step count other than the one
+        this predictor's calls imply mean MuJoCo reset the state (a user's own ``mj_resetData``
+        clears the warnings; a rewound ``data.time`` leaves the step count as it was).
         """
-        count = self._divergence_count(data)
-        if count == 0 or (count == self._diverged_at_reset and data.time >= self._time):
+        if self._divergence_count(data) == 0:
+            return ""
+        sched = self.scheduler
+        assert sched is not None
+        steps = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
+        if steps == self._steps_at_reset + self.period * (sched.step_count + 1):
             return ""
         names = [w.name for w in _DIVERGENCE_WARNINGS if data.warning[int(w)].number]
         return (
@@ -515,7 +534,7 @@ class Predictor:
         )
         self._load_compiled(data, c, v)
         self._time = float(data.time)
-        self._diverged_at_reset = self._divergence_count(data)
+        self._steps_at_reset = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
         ids = self.scheduler.initial_alarms
         return Alarms(0, self._time, ids, tau0[ids], self._tables)
 

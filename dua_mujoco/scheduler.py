@@ -1047,7 +1047,8 @@ class SelectAllScheduler:
         alarm until evaluated (the next step here)."""
         ids = np.asarray(pairs, dtype=np.int64)
         if on:
-            self.last[ids[~self.active[ids]]] = 0.0
+            # Below any threshold, for tau (alarm below a time) and distances (below a distance).
+            self.last[ids[~self.active[ids]]] = -np.inf
         self.active[ids] = on
 
     def select(self) -> np.ndarray:

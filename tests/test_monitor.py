@@ -126,14 +126,28 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
     mon = Monitor(p)
     mujoco.mj_step(m, d)
     mon.start(d)
-    kinds = {"off": 0, "on": 0, "off_on": 0, "reset": 0}
+    kinds = {"off": 0, "on": 0, "off_on": 0, "reset": 0, "reset_mid": 0, "switch_mid": 0}
     steps_of = [0]  # physics step of each predictor step since the last reset
     for k in range(1, 800):
         ctrl(m, d)
         mujoco.mj_step(m, d)
         stepped = k % period == 0
-        mon.observe(d, p.step(d) if stepped else None)
+        alarms = p.step(d) if stepped else None
         steps_of += [k] if stepped else []
+        # Between predictor.step and observe: a reset (its alarms then belong to the old
+        # scheduler) or a switch.
+        if stepped and rng.random() < 0.03:
+            p.reset(d)
+            steps_of = [k]
+            kinds["reset_mid"] += 1
+        elif rng.random() < 0.05:
+            sched = p.scheduler
+            assert sched is not None
+            mid = rng.choice(len(p.pairs), size=3, replace=False)
+            sched.set_active(mid, False)
+            sched.set_active(mid, True)
+            kinds["switch_mid"] += 1
+        mon.observe(d, alarms)
         np.testing.assert_array_equal(mon._standing > 0, _standing_reference(p), f"step {k}")
         assert mon._pred_steps == steps_of, f"step {k}"  # what a miss's window starts from
         sched = p.scheduler

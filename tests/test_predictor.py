@@ -394,6 +394,19 @@ def test_divergence_reset_by_mujoco_is_named(two_bodies) -> None:
     mujoco.mj_step(m, d)
     with pytest.raises(NonFiniteStateError, match=r"diverged.*timestep"):
         p.step(d)
+    # Diverging again at the very first step after the reset (time back where it was).
+    p.reset(d)
+    d.qvel[0] = np.nan
+    mujoco.mj_step(m, d)
+    with pytest.raises(NonFiniteStateError, match=r"diverged.*timestep"):
+        p.step(d)
+    # After a handled divergence (its warning still counted), a rewound data.time is the
+    # user's protocol error, not a divergence.
+    p.reset(d)
+    mujoco.mj_step(m, d)
+    d.time -= 0.5
+    with pytest.raises(SchedulerError, match="advanced by"):
+        p.step(d)
     # The user's own reset of the data (counters cleared) is a protocol error, not divergence.
     mujoco.mj_resetData(m, d)
     mujoco.mj_step(m, d)
