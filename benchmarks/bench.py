@@ -175,6 +175,28 @@ def tau_ns_per_eval(predictor: object, data: object, max_pairs: int = 4096) -> f
     return per_call / ids.size * 1e9
 
 
+def _fused_step_args(predictor: object, n: int) -> tuple:
+    """What ``Predictor.step`` hands the fused step (``_step_rigid``) at predictor step ``n``."""
+    p = predictor
+    s = p.scheduler  # type: ignore[attr-defined]
+    pairs, spheres = p._pair_args  # type: ignore[attr-defined]
+    return (
+        s.slots,
+        s._pair_state,
+        s.last_tau,
+        s.horizon,
+        s.active,
+        s.nbuckets,
+        s.slots_per_bucket,
+        n,
+        s._work,
+        s._w_tau,
+        pairs,
+        spheres,
+        p._frame_cache,  # type: ignore[attr-defined]
+    )
+
+
 def compiled_step_us(predictor: object, repeat: int = 7, loops: int = 20_000) -> float:
     """Median us of the predictor's fused step called from a compiled loop on a frozen state.
 
@@ -187,33 +209,14 @@ def compiled_step_us(predictor: object, repeat: int = 7, loops: int = 20_000) ->
     from dua_mujoco.scheduler import _step_rigid  # the kernel Predictor.step dispatches
 
     @nb.njit
-    def loop(k, slots, state, tau, horizon, active, nbuckets, q, n0, work, w_tau, pairs, frame):
+    def loop(k, a, b, c, e, f, g, h, n0, j, ll, pairs, spheres, frame):
         for i in range(k):
-            _step_rigid(  # type: ignore[call-arg]
-                slots, state, tau, horizon, active, nbuckets, q, n0 + i, work, w_tau, *pairs, frame
-            )
+            _step_rigid(a, b, c, e, f, g, h, n0 + i, j, ll, pairs, spheres, frame)
 
-    p = predictor
-    s = p.scheduler  # type: ignore[attr-defined]
-    frame = p._frame_cache  # type: ignore[attr-defined]
-    pair_args = p._pair_args  # type: ignore[attr-defined]
+    s = predictor.scheduler  # type: ignore[attr-defined]
 
     def run(k: int) -> None:
-        loop(
-            k,
-            s.slots,
-            s._pair_state,
-            s.last_tau,
-            s.horizon,
-            s.active,
-            s.nbuckets,
-            s.slots_per_bucket,
-            s.step_count + 1,
-            s._work,
-            s._w_tau,
-            pair_args,
-            frame,
-        )
+        loop(k, *_fused_step_args(predictor, s.step_count + 1))
         s.step_count += k
 
     return median_time(lambda: run(loops), repeat) / loops * 1e6
@@ -238,24 +241,7 @@ def bench_dispatch(calls: int = 200_000) -> str:
     p = Predictor(m, accel=4.0)
     mujoco.mj_step(m, d)
     p.reset(d)
-    s = p.scheduler
-    assert s is not None
-    pairs, spheres = p._pair_args
-    args = (
-        s.slots,
-        s._pair_state,
-        s.last_tau,
-        s.horizon,
-        s.active,
-        s.nbuckets,
-        s.slots_per_bucket,
-        1,
-        s._work,
-        s._w_tau,
-        pairs,
-        spheres,
-        p._frame_cache,
-    )
+    args = _fused_step_args(p, 1)
 
     @nb.njit
     def empty_like_step(a, b, c, e, f, g, h, i, j, k, ll, mm, n):  # same arguments
