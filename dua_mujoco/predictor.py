@@ -517,7 +517,7 @@ class Predictor:
             InvalidInputError: ``data`` is not an MjData of this predictor's model.
             NonFiniteStateError: a position or velocity is NaN or inf.
         """
-        self._check_data(data)
+        frame = self._bind_frame(data)  # checks data
         if self._mocap is not None:
             # A reset starts a new trajectory: difference mocap poses within it only. Reset in
             # place: the Monitor's BoundMonitor holds this same tracker.
@@ -528,29 +528,36 @@ class Predictor:
         finite = np.isfinite(c).all() and np.isfinite(v).all()
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
-        tau0 = self.pairs.tau(np.arange(len(self.pairs)), c, v, self.halfspaces(data))
+        halfspaces = self.halfspaces(data)
+        tau0 = self.pairs.tau(np.arange(len(self.pairs)), c, v, halfspaces)
         self.scheduler = DUAScheduler(
             tau0, dt=self.dt, latency=self.latency, slots_per_bucket=self.slots_per_bucket
         )
-        self._load_compiled(data, c, v)
+        self._load_compiled(data, frame, (c, v, halfspaces))
         self._time = float(data.time)
         self._steps_at_reset = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
         ids = self.scheduler.initial_alarms
         return Alarms(0, self._time, ids, tau0[ids], self._tables)
 
-    def _load_compiled(self, data: mujoco.MjData, c: np.ndarray, v: np.ndarray) -> None:
+    def _load_compiled(
+        self,
+        data: mujoco.MjData,
+        frame: tuple,
+        states: tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]],
+    ) -> None:
         """Load what ``step`` runs from numba's cache (~10 ms each) now, not in ``step``.
 
         A real-time user holds every ``step`` to its deadline, the first one included. One
         step of a throw-away one-pair scheduler on the real tables (read only) loads the fused
         step, and one through ``select``/``update`` the path taken after pairs are switched
-        back on; the mocap differencing runs on copies.
+        back on; the mocap differencing runs on copies. ``states``: the sphere centres,
+        velocities and half-spaces ``reset`` read.
         """
         if len(self.pairs):
             spare = DUAScheduler(np.full(1, np.inf), dt=self.dt)
-            spare.step_rigid(self._pair_args, self._bind_frame(data))
+            spare.step_rigid(self._pair_args, frame)
             ids = spare.select()
-            spare.update(ids, self.pairs.tau(ids, c, v, self.halfspaces(data)))
+            spare.update(ids, self.pairs.tau(ids, *states))
         if self._mocap is not None:
             self._mocap.load_compiled(data, self._twist)
 

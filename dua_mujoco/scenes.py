@@ -461,7 +461,7 @@ def reset_to_keyframe(
                 "keyframe out to start from the model's defaults)."
             )
         names = [model.key(k).name for k in range(model.nkey)]
-        choices = [k for k in range(model.nkey)] + [n for n in names if n]
+        choices = [*range(model.nkey), *(n for n in names if n)]
         raise InvalidChoiceError("keyframe", keyframe, choices, "Pass an id or a name.")
     if key >= 0:
         mujoco.mj_resetDataKeyframe(model, data, key)

@@ -769,8 +769,8 @@ class DUAScheduler:
         evaluation, at the next ``select()`` in addition to the regular slots; it then alarms
         against its bucket's horizon and keeps its slot. Nothing is known of its motion while it
         was off, and a predictor step, which evaluates it, can be a whole period away
-        (docs/theory.md). ``activation_changes`` counts the calls, so that observers of the
-        alarm state (``Monitor``) can tell when to re-read it.
+        (docs/theory.md). ``activation_changes`` counts the calls that switch some pair, so
+        that observers of the alarm state (``Monitor``) can tell when to re-read it.
         """
         ids = np.atleast_1d(_ids("pairs", np.atleast_1d(np.asarray(pairs, dtype=np.int64))))
         if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
