@@ -316,7 +316,9 @@ def tau_halfspace(gap, normal_velocity, accel, delta):  # pragma: no cover - jit
     # when the velocity uncertainty cancels the approach speed; elsewhere its rounding is relative.
     w = normal_velocity - delta
     a = accel * (1.0 + _KAPPA)
-    s = math.sqrt(w * w + 2.0 * a * gap)
+    # sqrt(w^2 + 2 a gap), without squaring: w * w underflows to 0 below |w| ~ 1e-154, and then
+    # 2 gap / (s - w) below was twice the root (1 / |w| instead of 1 / (2 |w|) for a = 0).
+    s = math.hypot(w, math.sqrt(2.0 * a) * math.sqrt(gap))
     # Positive root of (a/2) t^2 - w t - gap, in the form without cancellation for either sign of w.
     if w > 0.0:
         if a == 0.0:

@@ -797,6 +797,9 @@ def test_halfspace_random_against_reference():
         (-1.0, 5.0, 0.0, 0.0, 0.0),
         (1.0, -1.0, 1e-12, 0.0, 1.0),  # cancellation
         (1e-4, -1e4, 1e-12, 0.0, 1e-8),
+        # |vn|^2 and a * gap underflow (found by hypothesis: the root came out twice too late).
+        (1.0, -3.8309705969915786e-215, 0.0, 0.0, 1.0 / 3.8309705969915786e-215),
+        (1e-200, 0.0, 1e-200, 0.0, math.sqrt(2.0)),
     ],
 )
 def test_halfspace_known(gap, vn, A, delta, expected):
