@@ -144,7 +144,7 @@ def bare_loop_period(name: str, predictor: object, steps: int, period: int) -> t
     """Median us per ``Predictor.step`` call (every ``period`` steps) and per ``mj_step``."""
     import mujoco
 
-    from dua_mujoco.scenes import load_scene, make_controller
+    from dua_mujoco.mj.scenes import load_scene, make_controller
 
     m, d = load_scene(name)
     ctrl = make_controller(m, "random", seed=0)
@@ -206,7 +206,7 @@ def compiled_step_us(predictor: object, repeat: int = 7, loops: int = 20_000) ->
     """
     import numba as nb
 
-    from dua_mujoco.scheduler import _step_rigid  # the kernel Predictor.step dispatches
+    from dua_mujoco.core.schedules import _step_rigid  # the kernel Predictor.step dispatches
 
     @nb.njit
     def loop(k, a, b, c, e, f, g, h, n0, j, ll, pairs, spheres, frame):
@@ -234,8 +234,8 @@ def bench_dispatch(calls: int = 200_000) -> str:
     import mujoco
     import numba as nb
 
-    from dua_mujoco.predictor import Predictor
-    from dua_mujoco.scenes import load_scene
+    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.mj.scenes import load_scene
 
     m, d = load_scene("traffic")
     p = Predictor(m, accel=4.0)
@@ -287,9 +287,9 @@ def bench_dispatch(calls: int = 200_000) -> str:
 
 
 def bench_scenes(steps: int = 2000) -> str:
-    from dua_mujoco.monitor import run
-    from dua_mujoco.predictor import Predictor
-    from dua_mujoco.scenes import load_scene, make_controller
+    from dua_mujoco.mj.monitor import run
+    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.mj.scenes import load_scene, make_controller
 
     rows = []
     for name in (
@@ -358,9 +358,9 @@ def bench_scenes(steps: int = 2000) -> str:
 
 def bench_period(steps: int = 2000, periods: tuple[int, ...] = (1, 2, 4, 8)) -> str:
     """Traffic with its declared bound (4 m/s^2) at several predictor periods."""
-    from dua_mujoco.monitor import run
-    from dua_mujoco.predictor import Predictor
-    from dua_mujoco.scenes import declared_accel_bound, load_scene, make_controller
+    from dua_mujoco.mj.monitor import run
+    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
 
     rows = []
     for k in periods:

@@ -63,7 +63,7 @@ def _non_negative_int(value: str) -> int:
 
 
 def _add_run(sub: argparse._SubParsersAction) -> None:
-    from dua_mujoco.scenes import DEFAULT_SCENE, scene_names
+    from dua_mujoco.mj.scenes import DEFAULT_SCENE, scene_names
 
     p = sub.add_parser(
         "run",
@@ -186,9 +186,10 @@ def _check_outputs(args: argparse.Namespace, steps: int) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from dua_mujoco.monitor import Monitor, run
-    from dua_mujoco.predictor import Alarms, Predictor
-    from dua_mujoco.scenes import SCENES, load_scene, make_controller
+    from dua_mujoco.mj.alarms import Alarms
+    from dua_mujoco.mj.monitor import Monitor, run
+    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.mj.scenes import SCENES, load_scene, make_controller
 
     keyframe: int | str | None = args.keyframe
     if isinstance(keyframe, str) and keyframe.isdigit():

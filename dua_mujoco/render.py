@@ -18,9 +18,9 @@ own scene, so connectors and spheres work there, but the model's geoms are not r
 cannot be tinted::
 
     import mujoco, mujoco.viewer
-    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.mj.predictor import Predictor
     from dua_mujoco.render import AlarmOverlay, OverlayOptions
-    from dua_mujoco.scenes import load_scene, make_controller
+    from dua_mujoco.mj.scenes import load_scene, make_controller
 
     m, d = load_scene("two_arms")
     p, ctrl = Predictor(m, accel=80.0), make_controller(m, "random")
@@ -52,9 +52,10 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
-from dua_mujoco.predictor import Alarms, Predictor
+from dua_mujoco.mj.alarms import Alarms
+from dua_mujoco.mj.kinematics import sphere_centers
+from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.progress import Progress
-from dua_mujoco.state import sphere_centers
 
 __all__ = [
     "ALARM_RGBA",

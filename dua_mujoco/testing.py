@@ -1,7 +1,7 @@
 """Regression helpers and a pytest plugin for users' own scenes.
 
 :func:`assert_no_missed_collisions` rolls a scene out with a :class:`~dua_mujoco.Predictor` and
-MuJoCo's contacts as the exact stage (:func:`dua_mujoco.monitor.run`) and fails, with the geoms and
+MuJoCo's contacts as the exact stage (:func:`dua_mujoco.mj.monitor.run`) and fails, with the geoms and
 times, if a contact onset was not preceded by an alarm while the declared bounds held: that is a
 broken completeness guarantee, a bug. Optionally it holds the alarm counts to a stored baseline so
 that a change that floods the exact stage with false alarms fails too.
@@ -36,8 +36,8 @@ except ModuleNotFoundError:  # pragma: no cover - the assertion helpers work wit
 if TYPE_CHECKING:
     import mujoco
 
-    from dua_mujoco.monitor import Monitor, RunReport
-    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.mj.monitor import Monitor, RunReport
+    from dua_mujoco.mj.predictor import Predictor
 
 __all__ = [
     "BASELINE_KEYS",
@@ -280,7 +280,7 @@ def _make_predictor(
     model: mujoco.MjModel, predictor: Predictor | Mapping[str, Any] | None
 ) -> Predictor:
     from dua_mujoco.exceptions import InvalidInputError
-    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.mj.predictor import Predictor
 
     if predictor is None:
         return Predictor(model)
@@ -318,7 +318,7 @@ def assert_no_missed_collisions(
 ) -> RunReport:
     """Roll a scene out with the predictor and assert no collision was missed.
 
-    Runs :func:`dua_mujoco.monitor.run` for ``steps`` physics steps and fails if
+    Runs :func:`dua_mujoco.mj.monitor.run` for ``steps`` physics steps and fails if
 
     * a contact onset was not preceded by a standing alarm while the bounds held
       (``missed_onsets_valid_bounds > 0``): a broken guarantee, a bug; the message lists the
@@ -339,7 +339,7 @@ def assert_no_missed_collisions(
             the model defaults), after ``mj_forward``. It is advanced in place.
         steps: Physics steps to roll out.
         controller: ``controller(model, data)`` called before every ``mj_step``; None for
-            :func:`dua_mujoco.scenes.make_controller` random held controls with seed 0 (a
+            :func:`dua_mujoco.mj.scenes.make_controller` random held controls with seed 0 (a
             regression needs motion; pass ``make_controller(model, "zero")`` for none).
         predictor: A ``Predictor`` for ``model``, a dict of ``Predictor`` keyword arguments, or
             None for ``Predictor(model)`` (bounds from a pilot rollout).
@@ -351,7 +351,7 @@ def assert_no_missed_collisions(
             in the report).
 
     Returns:
-        The run's :class:`~dua_mujoco.monitor.RunReport`.
+        The run's :class:`~dua_mujoco.mj.monitor.RunReport`.
 
     Raises:
         AssertionError: A missed collision (after broken bounds too, unless
@@ -363,8 +363,8 @@ def assert_no_missed_collisions(
     import mujoco
 
     from dua_mujoco.exceptions import InvalidInputError
-    from dua_mujoco.monitor import run
-    from dua_mujoco.scenes import make_controller, reset_to_keyframe
+    from dua_mujoco.mj.monitor import run
+    from dua_mujoco.mj.scenes import make_controller, reset_to_keyframe
 
     if not isinstance(model, mujoco.MjModel):
         raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")

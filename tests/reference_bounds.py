@@ -1,6 +1,6 @@
 """The BoundMonitor's checks in plain numpy: the slow, obviously-correct reference.
 
-This is the vectorised numpy implementation that ``dua_mujoco.bounds.BoundMonitor`` used before
+This is the vectorised numpy implementation that ``dua_mujoco.mj.bounds.BoundMonitor`` used before
 its checks moved into one compiled kernel; the tests hold the kernel to it, value by value.
 """
 
@@ -10,14 +10,15 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.bounds import BoundViolation, MotionBounds, default_spheres
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.state import (
-    MocapVelocityTracker,
-    mocap_sphere_velocities,
-    sphere_centers,
-    sphere_velocities,
-)
+from dua_mujoco.mj.bounds import MotionBounds, default_spheres
+from dua_mujoco.mj.checks import BoundViolation
+from dua_mujoco.mj.mocap import MocapVelocityTracker
+
+try:
+    from reference_kinematics import reference_states
+except ImportError:  # collected as the package ``tests``
+    from tests.reference_kinematics import reference_states
 
 
 class ReferenceBoundMonitor:
@@ -72,27 +73,23 @@ class ReferenceBoundMonitor:
         """Per update: True when no bound was broken at that update."""
 
     def _flag(self, kind: str, mask: np.ndarray, values: np.ndarray, t: float) -> np.ndarray:
-        """Record violations of ``kind`` for spheres in ``mask``; return the body ids."""
-        if not mask.any():
-            return np.zeros(0, dtype=np.int64)
-        bodies = self._sbody[mask]
-        worst = np.full(self._nbody, -np.inf)
-        np.maximum.at(worst, bodies, values[mask])
-        ub = np.unique(bodies)
-        bound = self._bounds_for(kind)
+        """Record violations of ``kind`` for spheres in ``mask`` (the worst value per body)."""
+        worst: dict[int, float] = {}
+        for i in np.flatnonzero(mask).tolist():
+            body = int(self._sbody[i])
+            worst[body] = max(worst.get(body, -np.inf), float(values[i]))
+        bound = {
+            "accel": self._bounds.accel,
+            "discrepancy": self._bounds.discrepancy,
+            "speed": self._bounds.speed,
+        }[kind]
+        assert bound is not None
         step = len(self.held)
-        self.violations.extend(
-            BoundViolation(step, t, int(b), kind, float(worst[b]), float(bound[b])) for b in ub
-        )
-        return ub
-
-    def _bounds_for(self, kind: str) -> np.ndarray:
-        if kind == "accel":
-            return self._bounds.accel
-        if kind == "discrepancy":
-            return self._bounds.discrepancy
-        assert self._bounds.speed is not None
-        return self._bounds.speed
+        for body in sorted(worst):
+            self.violations.append(
+                BoundViolation(step, t, body, kind, worst[body], float(bound[body]))
+            )
+        return np.array(sorted(worst), dtype=np.int64)
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         """Check the step that produced ``data``.
@@ -104,10 +101,7 @@ class ReferenceBoundMonitor:
         Returns:
             ``(k,)`` sorted ids of bodies that broke a bound at this step (empty if none).
         """
-        c = sphere_centers(data.geom_xpos, data.geom_xmat, self._sgeom, self._soff)
-        w = sphere_velocities(data.cvel, data.subtree_com, model.body_rootid, self._sbody, c)
-        if self._mocap is not None and self._mocap.mocap_bodies.size:
-            w = w + mocap_sphere_velocities(model, data, self._mocap, self._sbody, c)
+        c, w = reference_states(model, data, self._sgeom, self._soff, self._mocap)
         t = float(data.time)
         found: list[np.ndarray] = []
         u = None

@@ -1,6 +1,6 @@
 """Slow, exact reference for the urgency tau (SPEC.md section 2), used only by the tests.
 
-Nothing here shares code or method with ``dua_mujoco.urgency``: the fast implementation uses
+Nothing here shares code or method with ``dua_mujoco.core.urgency``: the fast implementation uses
 floating point and safeguarded Newton; this module uses exact rational arithmetic where a decision
 is made and high-precision mpmath only to print or approximate numbers.
 

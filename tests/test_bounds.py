@@ -1,4 +1,4 @@
-"""Tests of dua_mujoco.bounds: declared bounds, the discrete-time term on rollouts, the monitor."""
+"""dua_mujoco.mj.bounds: declared bounds, the discrete-time term on rollouts, the bound checks."""
 
 from __future__ import annotations
 
@@ -8,22 +8,24 @@ import mujoco
 import numpy as np
 import pytest
 
-from dua_mujoco.bounds import (
-    BoundMonitor,
+from dua_mujoco.exceptions import InvalidBoundError, InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.bounds import (
     MotionBounds,
     default_spheres,
     discrete_velocity_uncertainty,
     estimate_bounds,
     moving_bodies,
 )
-from dua_mujoco.exceptions import InvalidBoundError, InvalidChoiceError, InvalidInputError
-from dua_mujoco.scenes import declared_accel_bound, load_scene, make_controller
-from dua_mujoco.state import MocapVelocityTracker, sphere_centers, sphere_velocities
+from dua_mujoco.mj.checks import BoundMonitor
+from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
 
 try:
     from reference_bounds import ReferenceBoundMonitor
+    from reference_kinematics import reference_states
 except ImportError:  # tests/ collected as a package
     from tests.reference_bounds import ReferenceBoundMonitor
+    from tests.reference_kinematics import reference_states
 
 H = 0.002
 KMAX = 200
@@ -90,9 +92,9 @@ def _rollout(
         if drive is not None:
             drive(m, d, k)
         mujoco.mj_step(m, d)
-        c = sphere_centers(d.geom_xpos, d.geom_xmat, sg, np.zeros((m.ngeom, 3)))
+        c, w = reference_states(m, d, sg, np.zeros((m.ngeom, 3)))
         C.append(c)
-        W.append(sphere_velocities(d.cvel, d.subtree_com, m.body_rootid, m.geom_bodyid, c))
+        W.append(w)
     return np.array(C), np.array(W)
 
 
@@ -654,8 +656,8 @@ def test_monitor_checks_mocap_discrepancy_at_prediction_instants(period: int) ->
 
 
 def test_monitor_of_a_predictor_with_period_and_mocap_holds() -> None:
-    from dua_mujoco.monitor import Monitor
-    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.mj.monitor import Monitor
+    from dua_mujoco.mj.predictor import Predictor
 
     m = mujoco.MjModel.from_xml_string(MOCAP_CIRCLE)
     d = mujoco.MjData(m)

@@ -14,8 +14,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from dua_mujoco import DUAScheduler, SelectAllScheduler, SphereWorld
-from dua_mujoco.worlds import AccelProfile
+from dua_mujoco.core.schedules import DUAScheduler, SelectAllScheduler
+from dua_mujoco.core.worlds import AccelProfile, SphereWorld
 
 
 @dataclasses.dataclass
@@ -45,7 +45,7 @@ def run_world(
     else:
         sched = DUAScheduler(tau0, dt=world.dt, latency=latency, slots_per_bucket=slots_per_bucket)
         if weaken is not None:
-            sched.horizon = weaken(sched)
+            sched.horizon[:] = weaken(sched)
     # Latest evaluation of every pair: its time, whether it alarmed, and whether the one before did.
     eval_time = np.zeros(len(pairs))
     alarmed = np.zeros(len(pairs), dtype=bool)

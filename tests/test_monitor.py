@@ -6,9 +6,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from dua_mujoco.monitor import Monitor
-from dua_mujoco.predictor import Predictor
-from dua_mujoco.scenes import load_scene, make_controller
+from dua_mujoco.mj.monitor import Monitor
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import load_scene, make_controller
 
 
 def _reference_episodes(

@@ -1,4 +1,4 @@
-"""MuJoCo's collision filter (dua_mujoco.pairs) against a literal reference and MuJoCo itself."""
+"""MuJoCo's collision filter (dua_mujoco.mj.filter) against a literal reference and MuJoCo."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from dua_mujoco.covering import cover_model
 from dua_mujoco.exceptions import InvalidChoiceError, UnsupportedGeomError
-from dua_mujoco.pairs import (
+from dua_mujoco.mj.covering import cover_model
+from dua_mujoco.mj.filter import (
     GeomPairs,
     _can_collide_reference,
     active_geom_pairs,

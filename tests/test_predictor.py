@@ -22,7 +22,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
-import numba
 import numpy as np
 import pytest
 
@@ -37,11 +36,10 @@ from dua_mujoco.exceptions import (
     SchedulerError,
     UnsupportedGeomError,
 )
-from dua_mujoco.monitor import Monitor, RunReport, run
-from dua_mujoco.pairs import active_geom_pairs
-from dua_mujoco.predictor import Predictor
-from dua_mujoco.scenes import declared_accel_bound, load_scene, make_controller
-from dua_mujoco.scheduler import _rigid_point, pack_spheres
+from dua_mujoco.mj.filter import active_geom_pairs
+from dua_mujoco.mj.monitor import Monitor, RunReport, run
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -96,30 +94,6 @@ KINEMATIC_XML = """
   </worldbody>
 </mujoco>
 """
-
-
-@numba.njit(cache=False)
-def _kernel_points(spheres, frame):  # pragma: no cover - jitted
-    """Centre and velocity of every sphere through the fused step's own ``_rigid_point``."""
-    n = spheres.shape[0]
-    out = np.empty((n, 6))
-    for i in range(n):
-        _rigid_point(i, spheres, frame, out[i])
-    return out[:, :3].copy(), out[:, 3:].copy()
-
-
-def kernel_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    """Call the jitted kernel exactly as ``Predictor.step`` feeds it (without advancing)."""
-    cov = p.covering
-    twist = (
-        p._mocap.body_velocity(p.model.nbody)
-        if p._mocap is not None
-        else np.zeros((p.model.nbody, 6))
-    )
-    return _kernel_points(
-        pack_spheres(cov.sphere_geom, cov.sphere_body, cov.sphere_offset, p.model.body_rootid),
-        (d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, np.ascontiguousarray(twist), d.xpos),
-    )
 
 
 def _rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
@@ -202,7 +176,7 @@ def test_kernel_matches_mj_object_velocity_at_random_states(site_predictor) -> N
         _random_state(m, d, rng)
         mujoco.mj_forward(m, d)
         c_ref, v_ref = _site_reference(m, d, p.nsphere)
-        c_k, v_k = kernel_states(p, d)
+        c_k, v_k = p.sphere_states(d)
         c_s, v_s = p.sphere_states(d)
         scale = 1.0 + np.abs(v_ref).max()
         for c, v in ((c_k, v_k), (c_s, v_s)):
@@ -302,7 +276,7 @@ def test_mocap_velocity_from_differenced_path(site_predictor, path: str) -> None
         c_minus, _ = _site_reference(m, scratch, p.nsphere)
         v_ref = (c_plus - c_minus) / (2 * e)
         c_ref, v_obj = _site_reference(m, d, p.nsphere)
-        c_k, v_k = kernel_states(p, d)
+        c_k, v_k = p.sphere_states(d)
         c_s, v_s = p.sphere_states(d)
         np.testing.assert_allclose(c_k, c_ref, atol=1e-12)
         np.testing.assert_allclose(c_s, c_ref, atol=1e-12)
@@ -535,8 +509,8 @@ def test_wrong_mjdata_on_step() -> None:
         """
         import mujoco
         from dua_mujoco.exceptions import InvalidInputError
-        from dua_mujoco.predictor import Predictor
-        from dua_mujoco.scenes import load_scene
+        from dua_mujoco.mj.predictor import Predictor
+        from dua_mujoco.mj.scenes import load_scene
         m, d = load_scene("paper_world:30")
         other = mujoco.MjModel.from_xml_string(
             "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>")
@@ -646,6 +620,9 @@ def _summary(name: str, r: RunReport) -> str:
     )
 
 
+SCENES = ("two_arms", "traffic", "clutter", "paper_world:40")
+
+
 def _assert_complete(name: str, r: RunReport) -> None:
     print(_summary(name, r))
     misses = [m for m in r.misses if m.bounds_held]
@@ -655,29 +632,35 @@ def _assert_complete(name: str, r: RunReport) -> None:
 
 
 BUNDLED = [
-    *((s, "bounding", 1) for s in ("two_arms", "traffic", "clutter", "paper_world:40")),
-    *((s, "bounding", 4) for s in ("two_arms", "traffic", "clutter", "paper_world:40")),
+    *((s, "bounding", p, "deadline") for s in SCENES for p in (1, 4)),
+    # The paper's rank buckets, once per scene.
+    *((s, "bounding", 1, "dua") for s in SCENES),
     # The multi covering multiplies the pairs (12k on two_arms, 29k on traffic): two scenes.
-    *((s, "multi", p) for s in ("two_arms", "traffic") for p in (1, 4)),
+    *((s, "multi", p, "deadline") for s in ("two_arms", "traffic") for p in (1, 4)),
 ]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("scene", "covering", "period"), BUNDLED)
-def test_bundled_scene_regression(scene: str, covering: str, period: int) -> None:
+@pytest.mark.parametrize(("scene", "covering", "period", "schedule"), BUNDLED)
+def test_bundled_scene_regression(scene: str, covering: str, period: int, schedule: str) -> None:
     m, d = load_scene(scene)
     p = Predictor(
         m,
         accel="auto",
         covering=covering,
         period=period,
+        schedule=schedule,
         pilot_controller=make_controller(m, "random", seed=99),
     )
     r = run(m, d, p, steps=2000, controller=make_controller(m, "random", seed=0), progress=False)
-    _assert_complete(f"{scene}/{covering}/{period}", r)
+    _assert_complete(f"{scene}/{covering}/{period}/{schedule}", r)
     assert r.contact_onsets > 0
     assert r.predictor_steps == 2000 // period
-    assert r.evals_per_step <= math.ceil(math.log2(r.pairs + 1))
+    if schedule == "dua":
+        assert r.evals_per_step <= math.ceil(math.log2(r.pairs + 1))
+    else:
+        # Each pair when its own tau runs out: far fewer than every pair every step.
+        assert r.evals_per_step < 0.5 * r.pairs
 
 
 # --------------------------------------------------------------------------------------------------
@@ -1058,8 +1041,8 @@ def test_reset_loads_the_compiled_code(scene: str) -> None:
         f"""
         import mujoco
         from dua_mujoco import scheduler, state, urgency
-        from dua_mujoco.predictor import Predictor
-        from dua_mujoco.scenes import load_scene
+        from dua_mujoco.mj.predictor import Predictor
+        from dua_mujoco.mj.scenes import load_scene
         kernels = [scheduler._step_rigid, scheduler._select, scheduler._reinsert,
                    scheduler._tau_pairs_serial, state._difference_poses]
         count = lambda: [len(k.signatures) for k in kernels]
@@ -1150,7 +1133,7 @@ def test_cli_video_gif(tmp_path) -> None:
 
 def test_monitor_bound_check_follows_the_predictors_mocap_tracker() -> None:
     """After reset, the BoundMonitor must still read the tracker the predictor updates."""
-    from dua_mujoco.monitor import Monitor
+    from dua_mujoco.mj.monitor import Monitor
 
     m = mujoco.MjModel.from_xml_string(MOCAP_XML)
     d = mujoco.MjData(m)

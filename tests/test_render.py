@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
-from dua_mujoco.predictor import Predictor
+from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.render import (
     ALARM_RGBA,
     AlarmOverlay,

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.progress import Progress
-from dua_mujoco.scenes import (
+from dua_mujoco.mj.scenes import (
     DEFAULT_SCENE,
     SCENES,
     CtrlMode,
@@ -26,6 +25,7 @@ from dua_mujoco.scenes import (
     paper_world_spec,
     reset_to_keyframe,
 )
+from dua_mujoco.progress import Progress
 
 ROLLOUT_SCENES = ("two_arms", "traffic", "clutter", "paper_world:20")
 

@@ -9,18 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dua_mujoco import (
-    DUAScheduler,
-    InvalidChoiceError,
-    InvalidInputError,
-    PairSet,
-    SchedulerError,
-    SelectAllScheduler,
-    ShapeError,
-    SphereWorld,
-    Urgency,
-)
-from dua_mujoco.scheduler import bucket_layout
+from dua_mujoco.core.pairset import PairSet
+from dua_mujoco.core.schedules import DUAScheduler, SelectAllScheduler, Urgency, bucket_layout
+from dua_mujoco.core.worlds import SphereWorld
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, SchedulerError, ShapeError
 
 
 def reference_step(
@@ -209,7 +201,8 @@ def test_protocol_errors() -> None:
     ("kwargs", "error", "match"),
     [
         ({"dt": 0.0}, InvalidInputError, "dt = 0.0"),
-        ({"dt": -1.0}, InvalidInputError, "must be > 0"),
+        ({"dt": -1.0}, InvalidInputError, "seconds > 0"),
+        ({"dt": True}, InvalidInputError, "dt = True"),
         ({"dt": float("nan")}, InvalidInputError, "dt = nan"),
         ({"dt": 0.1, "latency": -1}, InvalidInputError, "latency = -1"),
         ({"dt": 0.1, "slots_per_bucket": 3}, InvalidChoiceError, "Valid choices: 1, 2, 4"),

@@ -14,9 +14,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from dua_mujoco.monitor import RunReport
-from dua_mujoco.predictor import Alarms, Predictor
-from dua_mujoco.scenes import load_scene, make_controller
+from dua_mujoco.mj.alarms import Alarms
+from dua_mujoco.mj.monitor import RunReport
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import load_scene, make_controller
 
 # The module is imported here, before pytest registers it from ``pytest_plugins``: mark it for
 # assertion rewriting first, or pytest warns that it was imported before it could rewrite it
@@ -148,7 +149,7 @@ def test_helpers_work_without_pytest() -> None:
     """docs/testing.md: without pytest, call the function directly."""
     code = (
         "import sys; sys.modules['pytest'] = None\n"
-        "from dua_mujoco.scenes import load_scene\n"
+        "from dua_mujoco.mj.scenes import load_scene\n"
         "from dua_mujoco.testing import assert_no_missed_collisions\n"
         f"m, d = load_scene({SCENE!r})\n"
         f"r = assert_no_missed_collisions(m, d, steps=50, predictor={{'accel': {ACCEL}}})\n"
@@ -260,7 +261,7 @@ def test_assert_no_missed_collisions_compares_the_baseline() -> None:
 
 USER_TEST = textwrap.dedent(
     f"""
-    from dua_mujoco.scenes import load_scene
+    from dua_mujoco.mj.scenes import load_scene
 
 
     def test_my_scene(dua_predict):
@@ -309,7 +310,7 @@ def test_plugin_records_counts_in_user_properties(pytester: pytest.Pytester) -> 
     pytester.makepyfile(
         test_props=textwrap.dedent(
             f"""
-            from dua_mujoco.scenes import load_scene
+            from dua_mujoco.mj.scenes import load_scene
 
 
             def test_props(dua_predict, request):
@@ -328,8 +329,8 @@ def test_plugin_fixture_fails_on_missed_collision(pytester: pytest.Pytester) -> 
     pytester.makepyfile(
         test_broken=textwrap.dedent(
             f"""
-            from dua_mujoco.predictor import Predictor
-            from dua_mujoco.scenes import load_scene
+            from dua_mujoco.mj.predictor import Predictor
+            from dua_mujoco.mj.scenes import load_scene
 
 
             def test_broken(dua_predict):
@@ -357,7 +358,7 @@ def test_module_import_does_not_load_mujoco_layers() -> None:
     it must not import MuJoCo or the predictor until a test uses it."""
     code = (
         "import sys, dua_mujoco.testing; "
-        "print([m for m in ('mujoco', 'dua_mujoco.predictor', 'dua_mujoco.monitor') "
+        "print([m for m in ('mujoco', 'dua_mujoco.mj.predictor', 'dua_mujoco.mj.monitor') "
         "if m in sys.modules])"
     )
     env = dict(os.environ)

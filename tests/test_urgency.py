@@ -27,7 +27,7 @@ from mpmath import mp, mpf
 try:
     from dua_mujoco import distance_urgency, time_to_collision, time_to_halfspace
 except ImportError:  # the package __init__ may not re-export yet
-    from dua_mujoco.urgency import distance_urgency, time_to_collision, time_to_halfspace
+    from dua_mujoco.core.urgency import distance_urgency, time_to_collision, time_to_halfspace
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
     InvalidBoundError,

@@ -1,7 +1,7 @@
 """Reproduction of the paper's experiments (Hayward et al. 1995, section 8; SPEC section 5).
 
 The world is the paper's: ghost spheres in a cube under random, exactly bounded, piecewise-constant
-accelerations (``dua_mujoco.worlds.SphereWorld``). Three measurements, each beside the paper's:
+accelerations (``dua_mujoco.core.worlds.SphereWorld``). Three measurements, each beside the paper's:
 
 * **Table 1, cost per iteration against N**: evaluations of tau per iteration (the
   hardware-independent analogue of the paper's CPU time), wall-clock microseconds through the
@@ -45,7 +45,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
-from dua_mujoco.scheduler import (
+from dua_mujoco.core.schedules import (
     DUAScheduler,
     PairSet,
     SelectAllScheduler,
@@ -53,7 +53,7 @@ from dua_mujoco.scheduler import (
     _step_points,
     bucket_layout,
 )
-from dua_mujoco.worlds import SphereWorld
+from dua_mujoco.core.worlds import SphereWorld
 
 __all__ = [
     "FIXED_DT",

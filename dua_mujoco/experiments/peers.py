@@ -5,10 +5,10 @@ that may collide soon ("alarms"). All of them are complete under the same hypoth
 (bounded accelerations) except MuJoCo's speculative contacts, which extrapolate the pre-step
 velocity over one step and ignore acceleration by design.
 
-* ``DUA``: :class:`~dua_mujoco.scheduler.DUAScheduler`, ``L = ceil(log2(M + 1))`` tau evaluations
-  per step (fused ``step_points`` in the ghost world, :class:`~dua_mujoco.predictor.Predictor` on
+* ``DUA``: :class:`~dua_mujoco.core.schedules.DUAScheduler`, ``L = ceil(log2(M + 1))`` tau evaluations
+  per step (fused ``step_points`` in the ghost world, :class:`~dua_mujoco.mj.predictor.Predictor` on
   MuJoCo scenes).
-* ``SA(tau)``: :class:`~dua_mujoco.scheduler.SelectAllScheduler`, every pair every step.
+* ``SA(tau)``: :class:`~dua_mujoco.core.schedules.SelectAllScheduler`, every pair every step.
 * ``sweep`` / ``grid``: a swept-sphere broadphase. Each sphere is inflated by the distance it can
   travel within the horizon ``H = (1 + latency) dt``,
   ``reach = |v| H + A H^2 / 2 + delta H``, and every pair whose inflated spheres overlap is an
@@ -36,7 +36,7 @@ any step in ``[n, n + h]``; when ``n + h`` lies past the recorded trajectory and
 seen, the alarm is *open* (not judged). Time per step is the median wall time of the peer's own
 call (for the MuJoCo peers ``mj_collision`` only: kinematics is shared with the simulation).
 
-Worlds. The ghost world is :class:`~dua_mujoco.worlds.SphereWorld` (exact kinematics, bounds hold
+Worlds. The ghost world is :class:`~dua_mujoco.core.worlds.SphereWorld` (exact kinematics, bounds hold
 exactly) with the box grown as ``(N / 40)^(1/3)`` so that the density of the paper's 40-sphere
 unit cube is kept at every N (a fixed cube at N = 2000 would be 23 % spheres by volume). The
 bundled scenes run MuJoCo with random controls; MuJoCo's contacts are the ground truth there.
@@ -64,8 +64,8 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.progress import Progress
-from dua_mujoco.scheduler import DUAScheduler, PairSet, SelectAllScheduler
-from dua_mujoco.worlds import SphereWorld
+from dua_mujoco.core.schedules import DUAScheduler, PairSet, SelectAllScheduler
+from dua_mujoco.core.worlds import SphereWorld
 
 __all__ = [
     "GHOST_PEERS",
@@ -826,7 +826,7 @@ class _SceneContext:
     """A scene's predictor (covering, active pairs, bounds), shared by all peers."""
 
     def __init__(self, model: mujoco.MjModel, accel: float) -> None:
-        from dua_mujoco.predictor import Predictor
+        from dua_mujoco.mj.predictor import Predictor
 
         self.model = model
         self.predictor = Predictor(model, accel=accel, latency=LATENCY)
@@ -1060,7 +1060,7 @@ def _make_scene_peer(name: str, ctx: _SceneContext) -> _ScenePeer:
 
 def _run_scene(scene: str, steps: int, seed: int) -> list[SceneRow]:
     """All scene peers watch one rollout; MuJoCo's contacts are the ground truth."""
-    from dua_mujoco.scenes import SCENES, load_scene, make_controller
+    from dua_mujoco.mj.scenes import SCENES, load_scene, make_controller
 
     model, data = load_scene(scene)
     ctx = _SceneContext(model, SCENES[scene].accel_hint)
@@ -1181,7 +1181,7 @@ def _tunnel_case(case: str, accel: float, speed0: float, clearance: float) -> Tu
     ``k - 1``. The sphere reaches the plate during step ``crossing`` (between instants
     ``crossing - 1`` and ``crossing``); an alarm is in time if its instant is ``< crossing``.
     """
-    from dua_mujoco.predictor import Predictor
+    from dua_mujoco.mj.predictor import Predictor
 
     far_face = _TUNNEL_RADIUS + clearance + 2 * _TUNNEL_HALF_THICKNESS
     near_face = _TUNNEL_RADIUS + clearance

@@ -13,8 +13,8 @@ import enum
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.scheduler import PairSet
 
 __all__ = ["AccelProfile", "SphereWorld"]
 

@@ -37,7 +37,7 @@ from dua_mujoco.exceptions import (
     ShapeError,
     UnsupportedGeomError,
 )
-from dua_mujoco.state import sphere_centers
+from dua_mujoco.mj.kinematics import pack_spheres, sphere_states
 
 __all__ = [
     "Covering",
@@ -581,4 +581,11 @@ def sphere_world_centers(
                 f"sphere ids must lie in 0..{covering.nsphere - 1}; got min {sel.min()}, "
                 f"max {sel.max()}."
             )
-    return sphere_centers(xpos, xmat, covering.sphere_geom, covering.sphere_offset, sel)
+    # Positions only: the kinematics kernel with a frame at rest.
+    nbody = int(covering.sphere_body.max(initial=-1)) + 1
+    records = pack_spheres(
+        covering.sphere_geom, covering.sphere_body, covering.sphere_offset, np.zeros(nbody, int)
+    )
+    rest = (np.zeros((nbody, 6)), np.zeros((nbody, 3)), np.zeros((nbody, 6)), np.zeros((nbody, 3)))
+    frame = (np.ascontiguousarray(xpos), np.ascontiguousarray(xmat.reshape(ngeom, 9)), *rest)
+    return sphere_states(records, frame, sel)[0]

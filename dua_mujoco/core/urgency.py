@@ -34,15 +34,15 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.exceptions import (
-    BoundViolationWarning,
-    InvalidBoundError,
-    NonFiniteStateError,
-    ShapeError,
-)
+from dua_mujoco.core.validate import as_vectors, per_pair
+from dua_mujoco.exceptions import BoundViolationWarning, InvalidBoundError, ShapeError
 
 __all__ = [
+    "PARALLEL_MIN",
     "distance_urgency",
+    "tau_accel",
+    "tau_halfspace",
+    "tau_speed",
     "time_to_collision",
     "time_to_halfspace",
 ]
@@ -341,7 +341,7 @@ def _at(arr, i):  # pragma: no cover - jitted
 
 # Below this many pairs the batch kernels run serially: waking the thread pool costs more than
 # the work (and can cost milliseconds on a loaded machine).
-_PARALLEL_MIN = 4096
+PARALLEL_MIN = 4096
 
 
 @nb.njit(cache=True)
@@ -374,7 +374,7 @@ def _tau_parallel(x, v, eps, accel, delta, speed, out):  # pragma: no cover - ji
 
 def _tau_batch(x, v, eps, accel, delta, speed, out):
     """tau of every row into ``out``: threads for large batches, serial for small ones."""
-    kernel = _tau_parallel if x.shape[0] >= _PARALLEL_MIN else _tau_serial
+    kernel = _tau_parallel if x.shape[0] >= PARALLEL_MIN else _tau_serial
     kernel(x, v, eps, accel, delta, speed, out)
 
 
@@ -383,50 +383,6 @@ def _halfspace_batch(gap, vn, accel, delta, out):  # pragma: no cover - jitted
     # Serial: a closed form is cheaper than waking threads for any realistic batch.
     for i in range(gap.shape[0]):
         out[i] = tau_halfspace(_at(gap, i), _at(vn, i), _at(accel, i), _at(delta, i))
-
-
-def _vectors(
-    name: str, value: npt.ArrayLike, m: int | None = None, *, check_finite: bool = True
-) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 1 and arr.shape[0] == 3:
-        arr = arr[None, :]
-    if arr.ndim != 2 or arr.shape[1] != 3 or (m is not None and arr.shape[0] != m):
-        want = f"({m}, 3)" if m is not None else "(M, 3) or (3,)"
-        raise ShapeError(f"{name} has shape {np.shape(value)}; expected {want}.")
-    if check_finite and not np.isfinite(arr).all():
-        bad = ~np.isfinite(arr).all(axis=1)
-        i = int(np.flatnonzero(bad)[0])
-        raise NonFiniteStateError(
-            f"{name}[{i}] = {arr[i].tolist()} is not finite ({int(bad.sum())} rows): "
-            "the state is NaN or inf; check that the simulation has not diverged."
-        )
-    return np.ascontiguousarray(arr)
-
-
-def _per_pair(
-    name: str, value: npt.ArrayLike, m: int, *, allow_inf: bool = False, state: bool = False
-) -> np.ndarray:
-    """A per-pair parameter as a contiguous array of length ``m``, or 1 for a scalar."""
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 0:
-        arr = arr.reshape(1)
-    elif arr.shape != (m,):
-        raise ShapeError(f"{name} has shape {arr.shape}; expected a scalar or ({m},).")
-    if state:
-        if not np.isfinite(arr).all():
-            i = int(np.flatnonzero(~np.isfinite(arr))[0])
-            raise NonFiniteStateError(f"{name}[{i}] = {arr[i]} is not finite.")
-        return np.ascontiguousarray(arr)
-    lowest = arr.min(initial=0.0)
-    if np.isnan(lowest) or lowest < 0.0 or (not allow_inf and np.isinf(arr.max(initial=0.0))):
-        ok = (arr >= 0.0) & (np.isfinite(arr) | allow_inf)
-        i = int(np.flatnonzero(~ok)[0])
-        finite = "" if allow_inf else "finite "
-        raise InvalidBoundError(
-            f"{name}[{i}] = {arr[i]} is invalid: it must be a {finite}non-negative number."
-        )
-    return np.ascontiguousarray(arr)
 
 
 def time_to_collision(
@@ -460,16 +416,16 @@ def time_to_collision(
         NonFiniteStateError: ``x`` or ``v`` holds NaN or inf.
         InvalidBoundError: A bound is negative or NaN.
     """
-    xa = _vectors("x", x)
+    xa = as_vectors("x", x)
     m = xa.shape[0]
-    va = _vectors("v", v, m)
-    eps_a = _per_pair("eps", eps, m)
-    acc_a = _per_pair("accel", accel, m)
-    del_a = _per_pair("vel_uncertainty", vel_uncertainty, m)
+    va = as_vectors("v", v, m)
+    eps_a = per_pair("eps", eps, m)
+    acc_a = per_pair("accel", accel, m)
+    del_a = per_pair("vel_uncertainty", vel_uncertainty, m)
     if speed is None:
         spd_a = np.full(1, np.inf)
     else:
-        spd_a = _per_pair("speed", speed, m, allow_inf=True)
+        spd_a = per_pair("speed", speed, m, allow_inf=True)
         if (spd_a == 0.0).any():
             i = int(np.flatnonzero(spd_a == 0.0)[0])
             raise InvalidBoundError(
@@ -515,10 +471,10 @@ def time_to_halfspace(
     if g.ndim != 1:
         raise ShapeError(f"gap has shape {g.shape}; expected a scalar or (M,).")
     m = g.shape[0]
-    g = _per_pair("gap", g, m, state=True)
-    vn = _per_pair("normal_velocity", normal_velocity, m, state=True)
-    acc = _per_pair("accel", accel, m)
-    dl = _per_pair("vel_uncertainty", vel_uncertainty, m)
+    g = per_pair("gap", g, m, state=True)
+    vn = per_pair("normal_velocity", normal_velocity, m, state=True)
+    acc = per_pair("accel", accel, m)
+    dl = per_pair("vel_uncertainty", vel_uncertainty, m)
     out = np.empty(m)
     _halfspace_batch(g, vn, acc, dl, out)
     return out
@@ -531,5 +487,5 @@ def distance_urgency(x: npt.ArrayLike, eps: npt.ArrayLike) -> np.ndarray:
         x: Relative centre positions, ``(M, 3)`` or ``(3,)``.
         eps: Contact distance, scalar or ``(M,)``, ``>= 0``.
     """
-    xa = _vectors("x", x)
-    return np.asarray(np.linalg.norm(xa, axis=1) - _per_pair("eps", eps, xa.shape[0]))
+    xa = as_vectors("x", x)
+    return np.asarray(np.linalg.norm(xa, axis=1) - per_pair("eps", eps, xa.shape[0]))

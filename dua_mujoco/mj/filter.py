@@ -43,7 +43,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.covering import Covering
+from dua_mujoco.mj.covering import Covering
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
 
 __all__ = [

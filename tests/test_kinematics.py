@@ -1,4 +1,4 @@
-"""Tests of dua_mujoco.state: sphere centres and velocities against MuJoCo's own functions."""
+"""dua_mujoco.mj.kinematics: sphere centres and velocities against MuJoCo's own functions."""
 
 from __future__ import annotations
 
@@ -8,15 +8,26 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dua_mujoco.exceptions import InvalidChoiceError, NonFiniteStateError, ShapeError
-from dua_mujoco.state import (
-    MocapVelocityTracker,
-    SphereState,
-    mocap_sphere_velocities,
-    point_velocities,
-    sphere_centers,
-    sphere_velocities,
-)
+from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
+from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.mj.mocap import MocapVelocityTracker
+
+
+def states(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    sg: np.ndarray,
+    sb: np.ndarray,
+    so: np.ndarray,
+    ids: np.ndarray | None = None,
+    tracker: MocapVelocityTracker | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sphere states through the kinematics kernel, as the predictor reads them."""
+    twist = np.zeros((m.nbody, 6))
+    if tracker is not None:
+        tracker.write_body_velocity(twist)
+    return sphere_states(pack_spheres(sg, sb, so, m.body_rootid), mjdata_frame(d, twist), ids)
+
 
 # One body per joint type; geoms deliberately off the body frame and rotated, so that geom frame,
 # body frame, COM and subtree COM all differ.
@@ -109,7 +120,7 @@ def test_centers_zero_offset_match_geom_xpos() -> None:
     d = mujoco.MjData(m)
     _random_state(m, d, np.random.default_rng(1))
     g = np.arange(m.ngeom)
-    c = sphere_centers(d.geom_xpos, d.geom_xmat, g, np.zeros((m.ngeom, 3)))
+    c, _ = states(m, d, g, np.asarray(m.geom_bodyid), np.zeros((m.ngeom, 3)))
     np.testing.assert_array_equal(c, d.geom_xpos)
 
 
@@ -126,7 +137,9 @@ def test_centers_match_slow_loop(seed: int, n: int) -> None:
     sg = rng.integers(0, ngeom, size=n)
     so = rng.normal(size=(n, 3))
     ids = rng.permutation(n)[: max(1, n // 2)]
-    c = sphere_centers(xpos, xmat, sg, so, ids)
+    at_rest = (np.zeros((1, 6)), np.zeros((1, 3)), np.zeros((1, 6)), np.zeros((1, 3)))
+    c, v = sphere_states(pack_spheres(sg, np.zeros(n, int), so, [0]), (xpos, xmat, *at_rest), ids)
+    np.testing.assert_array_equal(v, 0.0)
     ref = np.array([xpos[sg[i]] + xmat[sg[i]].reshape(3, 3) @ so[i] for i in ids])
     np.testing.assert_allclose(c, ref, rtol=0, atol=1e-14)
 
@@ -141,8 +154,7 @@ def test_centers_and_velocities_match_mujoco(joint: str, nested: bool) -> None:
     res = np.zeros(6)
     for _ in range(5):
         _random_state(m, d, rng)
-        c = sphere_centers(d.geom_xpos, d.geom_xmat, sg, so)
-        v = sphere_velocities(d.cvel, d.subtree_com, m.body_rootid, sb, c)
+        c, v = states(m, d, sg, sb, so)
         for i in range(sg.size):
             g, k = int(sg[i]), i % len(OFFSETS)
             sid = mujoco.mj_name2id(m, int(mujoco.mjtObj.mjOBJ_SITE), f"s{g}_{k}")
@@ -159,36 +171,30 @@ def test_ids_subset_and_order() -> None:
     d = mujoco.MjData(m)
     _random_state(m, d, np.random.default_rng(3))
     sg, sb, so = _spheres(m)
-    full = SphereState.from_data(m, d, sg, sb, so)
+    full = states(m, d, sg, sb, so)
     ids = np.array([5, 0, 9, 2])
-    sub = SphereState.from_data(m, d, sg, None, so, ids)
-    np.testing.assert_array_equal(sub.centers, full.centers[ids])
-    np.testing.assert_array_equal(sub.velocities, full.velocities[ids])
-    np.testing.assert_array_equal(sub.ids, ids)
+    sub = states(m, d, sg, sb, so, ids)
+    np.testing.assert_array_equal(sub[0], full[0][ids])
+    np.testing.assert_array_equal(sub[1], full[1][ids])
 
 
 def test_shape_and_id_errors() -> None:
-    with pytest.raises(ShapeError):
-        sphere_centers(np.zeros((2, 3)), np.zeros((2, 9)), [0, 1], np.zeros((3, 3)))
-    with pytest.raises(ShapeError):
-        sphere_centers(np.zeros((2, 3)), np.zeros((2, 9)), [0, 1], np.zeros((2, 3)), [2])
-    with pytest.raises(ShapeError):
-        point_velocities(np.zeros((2, 6)), np.zeros((2, 3)), [0, 1], [1], np.zeros((2, 3)))
-
-
-def test_nonfinite_state_raises() -> None:
-    m = _model_with_sites("free", nested=False)
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    d.geom_xpos[1, 0] = np.nan
-    sg, sb, so = _spheres(m)
-    with pytest.raises(NonFiniteStateError):
-        SphereState.from_data(m, d, sg, sb, so)
+    with pytest.raises(ShapeError, match=r"sphere_offset has shape \(3, 3\)"):
+        pack_spheres([0, 1], [0, 0], np.zeros((3, 3)), [0])
+    with pytest.raises(ShapeError, match=r"sphere_body has shape \(1,\)"):
+        pack_spheres([0, 1], [0], np.zeros((2, 3)), [0])
+    rest = (np.zeros((2, 3)), np.zeros((2, 9)), np.zeros((1, 6)), np.zeros((1, 3)))
+    frame = (*rest, np.zeros((1, 6)), np.zeros((1, 3)))
+    spheres = pack_spheres([0, 1], [0, 0], np.zeros((2, 3)), [0])
+    with pytest.raises(ShapeError, match=r"\[0, 2\)"):
+        sphere_states(spheres, frame, [2])
+    with pytest.raises(ShapeError, match="frame 2"):
+        sphere_states(pack_spheres([0, 2], [0, 0], np.zeros((2, 3)), [0]), frame)
 
 
 @pytest.mark.parametrize("integrator", ["Euler", "implicitfast", "implicit"])
 def test_after_step_kinematics_describe_start_of_step(integrator: str) -> None:
-    """geom_xpos and cvel after mj_step are those of the pre-step qpos/qvel (SPEC sec. 6)."""
+    """geom_xpos and cvel after mj_step are those of the pre-step qpos/qvel."""
     m = _model_with_sites("free", nested=True)
     m.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
     d = mujoco.MjData(m)
@@ -257,17 +263,17 @@ def test_mocap_tracker_matches_scripted_velocity() -> None:
         if k < 2:
             continue
         _, vel, _, omega = _script(t_kin)
-        st_ = SphereState.from_data(m, d, sg, sb, so, mocap=tracker)
+        centers, velocities = states(m, d, sg, sb, so, tracker=tracker)
         # Backward difference vs the true velocity: error <= |accel| h / 2 (+ rotation terms).
         np.testing.assert_allclose(tracker.linear[0], vel, atol=2e-3)
         np.testing.assert_allclose(tracker.angular[0], omega, atol=2e-3)
         # The mocap-driven sphere velocity is exactly the backward discrete velocity of the
         # centre up to the chord/tangent difference of the rotation (O(h |omega|^2 r)).
         if prev_c is not None:
-            u = (st_.centers - prev_c) / h
+            u = (centers - prev_c) / h
             for i in (0, 1):
-                np.testing.assert_allclose(st_.velocities[i], u[i], atol=2e-2)
-        prev_c = st_.centers
+                np.testing.assert_allclose(velocities[i], u[i], atol=2e-2)
+        prev_c = centers
     # The unmoved mocap body 'n' reads zero.
     np.testing.assert_array_equal(tracker.linear[1], 0.0)
 
@@ -284,7 +290,7 @@ def test_mocap_user_velocity_and_errors() -> None:
     tracker.update(d)
     np.testing.assert_array_equal(tracker.linear[1], [1.0, 2.0, 3.0])
     ng = mujoco.mj_name2id(m, int(mujoco.mjtObj.mjOBJ_GEOM), "ng")
-    v = mocap_sphere_velocities(m, d, tracker, m.geom_bodyid, d.geom_xpos[[ng]], [ng])
+    _, v = states(m, d, np.array([ng]), m.geom_bodyid[[ng]], np.zeros((1, 3)), tracker=tracker)
     np.testing.assert_array_equal(v[0], [1.0, 2.0, 3.0])
     tracker.clear_velocity("n")
     d.mocap_pos[1] = [5, 5, 5.01]

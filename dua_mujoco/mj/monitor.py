@@ -24,9 +24,11 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dua_mujoco.bounds import BoundMonitor
+from dua_mujoco.mj.checks import BoundMonitor
 from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
-from dua_mujoco.predictor import Alarms, Predictor, _same_geometry
+from dua_mujoco.mj.alarms import Alarms
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.tables import same_geometry
 from dua_mujoco.progress import Progress
 
 __all__ = ["Miss", "Monitor", "RunReport", "run"]
@@ -197,7 +199,7 @@ class Monitor:
                 self.model,
                 predictor.bounds,
                 (cov.sphere_geom, cov.sphere_body, cov.sphere_offset),
-                mocap=predictor._mocap,
+                mocap=predictor.mocap,
                 mocap_period=predictor.period,
             )
             if check_bounds
@@ -215,7 +217,7 @@ class Monitor:
             ],
             axis=1,
         )
-        self._names = predictor._tables.geom_names
+        self._names = predictor.tables.geom_names
 
     # ------------------------------------------------------------------- lifecycle
 
@@ -232,7 +234,7 @@ class Monitor:
         self._contact_mask[self._in_contact] = True
         self._last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
         self._standing = np.zeros(self._ngp, dtype=np.int64)
-        self._pair_alarm = np.zeros(len(self.predictor.pairs), dtype=bool)
+        self._pair_alarm = np.zeros(self.predictor.nsphere_pairs, dtype=bool)
         self._scheduler = self.predictor.scheduler
         self._activation_seen = self.predictor.scheduler.activation_changes  # type: ignore[union-attr]
         self._episode_start = np.full(self._ngp, np.nan)
@@ -259,7 +261,7 @@ class Monitor:
         self.min_tau: list[float] = [float(np.min(alarms.tau, initial=np.inf))]
         if self.bounds is not None:
             self.bounds.update(self.model, data)
-        self._apply_alarms(alarms.pairs, np.arange(len(self.predictor.pairs)), data.time)
+        self._apply_alarms(alarms.pairs, np.arange(self.predictor.nsphere_pairs), data.time)
         return alarms
 
     def _contacts(self, data: mujoco.MjData) -> tuple[np.ndarray, int]:
@@ -299,7 +301,7 @@ class Monitor:
             h = np.zeros(touched.size)
             if alarmed.size:
                 at = np.searchsorted(touched, gp[alarmed])
-                np.maximum.at(h, at, sched.horizon[sched.bucket(alarmed)])
+                np.maximum.at(h, at, sched.horizon_of(alarmed))
             self._episode_horizon[started] = h[begins]
         if ended.size:
             self._pending_pair = np.concatenate([self._pending_pair, ended])
@@ -491,12 +493,12 @@ def run(
     """
     if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
         raise InvalidInputError(f"steps = {steps!r} is invalid: pass an int >= 1 (physics steps).")
-    if model is not predictor.model and not _same_geometry(model, predictor.model):
+    if model is not predictor.model and not same_geometry(model, predictor.model):
         raise InvalidInputError(
             "the predictor was built for another MjModel: pass the model it was built for "
             "(Predictor(model, ...)), or build a Predictor for this one."
         )
-    predictor._check_data(data)  # before the controller writes into it
+    predictor.check_data(data)  # before the controller writes into it
     monitor = Monitor(predictor, realtime=realtime, geom_distance=geom_distance)
     if controller is not None:
         controller(model, data)
@@ -547,7 +549,7 @@ def run(
         predictor_steps=len(t_pred),
         period=period,
         spheres=predictor.nsphere,
-        pairs=predictor.npairs,
+        pairs=predictor.nsphere_pairs,
         geom_pairs=predictor.geom_pairs.npair,
         evals_per_step=evals,
         contact_onsets=monitor.onsets,

@@ -1,15 +1,14 @@
 """``Predictor``: MuJoCo state in, collision alarms out.
 
 The model is read once: geoms are covered by spheres (``covering``), MuJoCo's collision filter
-gives the active geom pairs (``pairs``), and those expand into sphere pairs with per-pair contact
-distance, acceleration bound and velocity uncertainty. ``reset(data)`` is the DUA initial
-classification; each ``step(data)`` evaluates the O(log pairs) scheduled pairs in one compiled
-call that reads only their spheres from ``MjData``.
+gives the active geom pairs (``filter``), and those expand into sphere pairs with per-pair contact
+distance, acceleration bound and velocity uncertainty. ``reset(data)`` is the initial
+classification; each ``step(data)`` evaluates the scheduled pairs in one compiled call that reads
+only their spheres from ``MjData`` (``kinematics.step_rigid_kernel``).
 
 Timing. Call ``step`` every ``period`` physics steps, after ``mj_step``. ``MjData`` then holds the
 kinematics (``geom_xpos``, ``cvel``) and contacts of the state at the start of that step, and the
-predictor uses that one instant throughout (SPEC section 6); ``latency=0`` is right for this
-synchronous use (the verdict is ready before the next physics step).
+predictor uses that one instant throughout (docs/discrete-time.md).
 """
 
 from __future__ import annotations
@@ -23,15 +22,28 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.bounds import _DIVERGENCE_WARNINGS, MotionBounds, estimate_bounds
-from dua_mujoco.covering import Covering, CoveringMode, cover_model
+from dua_mujoco.core.pairset import PairSet, pack_pairs
+from dua_mujoco.core.schedules import (
+    DeadlineScheduler,
+    DUAScheduler,
+    Schedule,
+    Scheduler,
+    SelectAllScheduler,
+)
+from dua_mujoco.core.schedules.deadline import check_max_evals
+from dua_mujoco.core.schedules.dua import check_slots_per_bucket
+from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
+    InvalidChoiceError,
     InvalidInputError,
     NoActivePairsWarning,
     NonFiniteStateError,
     SchedulerError,
 )
-from dua_mujoco.pairs import (
+from dua_mujoco.mj.alarms import Alarms
+from dua_mujoco.mj.bounds import DIVERGENCE_WARNINGS, MotionBounds, estimate_bounds
+from dua_mujoco.mj.covering import Covering, CoveringMode, cover_model
+from dua_mujoco.mj.filter import (
     GeomPairs,
     SpherePairs,
     active_geom_pairs,
@@ -39,171 +51,42 @@ from dua_mujoco.pairs import (
     sphere_pair_mask,
     sphere_pairs,
 )
-from dua_mujoco.scheduler import DUAScheduler, PairSet, pack_pairs, pack_spheres
-from dua_mujoco.state import MocapVelocityTracker, sphere_centers, sphere_velocities
+from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states, step_rigid_kernel
+from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.tables import PairTables, plane_halfspaces, same_geometry
 
-__all__ = ["Alarms", "BoundsLike", "Predictor"]
+__all__ = ["BoundsLike", "Predictor"]
 
 BoundsLike = float | Mapping[str, float] | MotionBounds | Literal["auto"]
 """Acceleration bounds: a scalar (m/s^2, every moving body), a dict by body name (``"*"`` for
 the rest), ready ``MotionBounds``, or ``"auto"`` (estimated by a pilot rollout)."""
 
 
-@dataclasses.dataclass(frozen=True)
-class _PairTables:
-    """Read-only lookup tables that turn sphere-pair ids into geoms and names."""
-
-    first: np.ndarray
-    second: np.ndarray
-    halfspace: np.ndarray
-    geom1: np.ndarray
-    geom2: np.ndarray
-    geom_names: np.ndarray
-
-
-class Alarms:
-    """The alarms of one predictor step (read-only).
-
-    A slotted class rather than a frozen dataclass: one is built every predictor step, and a
-    frozen dataclass's ``__init__`` (``object.__setattr__`` per field) cost 1.1 us of a step
-    budget of a few microseconds (measured; this class: 0.3 us).
-
-    Attributes:
-        step: Predictor step (0 for the initial classification).
-        time: ``data.time`` when read.
-        pairs: ``(k,)`` sphere-pair ids that raised an alarm.
-        tau: ``(k,)`` their tau (seconds).
-    """
-
-    __slots__ = ("_pairs", "_step", "_tables", "_tau", "_time")
-
-    def __init__(
-        self, step: int, time: float, pairs: np.ndarray, tau: np.ndarray, tables: _PairTables
-    ) -> None:
-        self._step = step
-        self._time = time
-        self._pairs = pairs
-        self._tau = tau
-        self._tables = tables
-
-    @property
-    def step(self) -> int:
-        """Predictor step (0 for the initial classification)."""
-        return self._step
-
-    @property
-    def time(self) -> float:
-        """``data.time`` when read."""
-        return self._time
-
-    @property
-    def pairs(self) -> np.ndarray:
-        """``(k,)`` sphere-pair ids that raised an alarm."""
-        return self._pairs
-
-    @property
-    def tau(self) -> np.ndarray:
-        """``(k,)`` their tau (seconds)."""
-        return self._tau
-
-    def __repr__(self) -> str:
-        return (
-            f"Alarms(step={self._step}, time={self._time!r}, pairs={self._pairs!r}, "
-            f"tau={self._tau!r})"
+def make_scheduler(
+    schedule: Schedule,
+    tau0: np.ndarray,
+    *,
+    dt: float,
+    latency: int,
+    slots_per_bucket: int = 1,
+    max_evals_per_step: int | None = None,
+) -> Scheduler:
+    """The scheduler of ``schedule`` over the initial tau ``tau0``."""
+    if schedule is Schedule.DUA:
+        return DUAScheduler(tau0, dt=dt, latency=latency, slots_per_bucket=slots_per_bucket)
+    if schedule is Schedule.DEADLINE:
+        return DeadlineScheduler(
+            tau0, dt=dt, latency=latency, max_evals_per_step=max_evals_per_step
         )
-
-    def __len__(self) -> int:
-        return int(self.pairs.shape[0])
-
-    @property
-    def geom1(self) -> np.ndarray:
-        """``(k,)`` first geom of each alarmed pair."""
-        return np.asarray(self._tables.geom1[self.pairs])
-
-    @property
-    def geom2(self) -> np.ndarray:
-        """``(k,)`` second geom of each alarmed pair (a plane geom for half-space pairs)."""
-        return np.asarray(self._tables.geom2[self.pairs])
-
-    @property
-    def sphere1(self) -> np.ndarray:
-        """``(k,)`` first sphere of each alarmed pair."""
-        return np.asarray(self._tables.first[self.pairs])
-
-    @property
-    def sphere2(self) -> np.ndarray:
-        """``(k,)`` second sphere, ``-1`` for half-space pairs."""
-        return np.asarray(
-            np.where(self._tables.halfspace[self.pairs], -1, self._tables.second[self.pairs])
-        )
-
-    @property
-    def names(self) -> list[tuple[str, str]]:
-        """Geom names of each alarmed pair (``geom<id>`` for unnamed geoms)."""
-        n = self._tables.geom_names
-        return list(zip(n[self.geom1].tolist(), n[self.geom2].tolist(), strict=True))
-
-    @property
-    def geom_pairs(self) -> set[tuple[int, int]]:
-        """The distinct alarmed geom pairs ``(g1, g2)``, ``g1 < g2``."""
-        a, b = self.geom1, self.geom2
-        return set(zip(np.minimum(a, b).tolist(), np.maximum(a, b).tolist(), strict=True))
+    return SelectAllScheduler(tau0, dt=dt, latency=latency)
 
 
-def _geom_names(model: mujoco.MjModel) -> np.ndarray:
-    names = [
-        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom{g}"
-        for g in range(model.ngeom)
-    ]
-    return np.asarray(names, dtype=object)
-
-
-# What the covering (geoms, meshes, height fields), the pair filter (masks, welds, <exclude>,
-# <pair>, parent filtering) and the contact distances (margins, gaps) are built from.
-_GEOMETRY_FIELDS = (
-    "geom_type",
-    "geom_size",
-    "geom_pos",
-    "geom_quat",
-    "geom_bodyid",
-    "geom_dataid",
-    "geom_margin",
-    "geom_gap",
-    "geom_contype",
-    "geom_conaffinity",
-    "body_parentid",
-    "body_weldid",
-    "mesh_vert",
-    "hfield_size",
-    "pair_geom1",
-    "pair_geom2",
-    "pair_margin",
-    "pair_gap",
-    "exclude_signature",
-)
-
-
-# The option bits the pair filter and the contact distances read (others, e.g. gravity, do not
-# change what the predictor is built from).
-_FILTER_DISABLE = (
-    mujoco.mjtDisableBit.mjDSBL_CONTACT
-    | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
-    | mujoco.mjtDisableBit.mjDSBL_FILTERPARENT
-)
-
-
-def _contact_options(m: mujoco.MjModel) -> tuple[int, int, float]:
-    override = int(m.opt.enableflags) & int(mujoco.mjtEnableBit.mjENBL_OVERRIDE)
-    return int(m.opt.disableflags) & int(_FILTER_DISABLE), override, float(m.opt.o_margin)
-
-
-def _same_geometry(a: mujoco.MjModel, b: mujoco.MjModel) -> bool:
-    """Whether two models have what a predictor is built from (e.g. one XML loaded twice)."""
-    return (
-        (a.ngeom, a.nbody, a.nq, a.nv) == (b.ngeom, b.nbody, b.nq, b.nv)
-        and _contact_options(a) == _contact_options(b)
-        and all(np.array_equal(getattr(a, f), getattr(b, f)) for f in _GEOMETRY_FIELDS)
-    )
+def as_schedule(schedule: Schedule | str) -> Schedule:
+    """``schedule`` as a ``Schedule``, or an error listing the choices."""
+    try:
+        return Schedule(schedule)
+    except ValueError:
+        raise InvalidChoiceError("schedule", schedule, [s.value for s in Schedule]) from None
 
 
 class Predictor:
@@ -220,8 +103,18 @@ class Predictor:
         hfield: ``"error"`` or ``"box"`` (conservative box covering of height fields).
         period: Physics steps between predictor steps (``>= 1``); the predictor period is
             ``period * model.opt.timestep``.
-        latency: Periods a verdict takes (0 for synchronous use after ``mj_step``).
-        slots_per_bucket: DUA's budget knob (a power of two).
+        latency: Periods a verdict takes to act. 0 (the default) is right when ``step`` runs
+            synchronously after ``mj_step``: the verdict is ready before the next physics step.
+            Use 1 when the alarms act one period late (the paper's setting).
+        schedule: Which pairs to evaluate each step (``Schedule`` or its value): ``"deadline"``
+            (default: each pair when its own tau runs out; select-all's alarms for a fraction of
+            its work), ``"dua"`` (the paper's constant work a step; alarm horizons grow with the
+            number of pairs) or ``"select-all"``. See docs/theory.md.
+        slots_per_bucket: ``dua`` only: the budget knob (a power of two): revisit intervals
+            shrink that many times, work grows as many.
+        max_evals_per_step: ``deadline`` only: optional cap on tau evaluations a step; pairs
+            due beyond it wait, standing in alarm once their verdict no longer covers the wait
+            (``Alarms.deferred`` says how many waited).
         velocity_accel: Bound ``C`` on the centripetal/Coriolis acceleration of sphere centres,
             for the discrete-time term (docs/discrete-time.md); scalar or dict by body name.
         pilot_steps: Length of the pilot rollout for ``accel="auto"``.
@@ -241,7 +134,9 @@ class Predictor:
         hfield: str = "error",
         period: int = 1,
         latency: int = 0,
+        schedule: Schedule | str = Schedule.DEADLINE,
         slots_per_bucket: int = 1,
+        max_evals_per_step: int | None = None,
         velocity_accel: float | Mapping[str, float] | None = None,
         pilot_steps: int = 2000,
         pilot_seed: int = 1_000_003,
@@ -253,15 +148,15 @@ class Predictor:
                 f"model must be a mujoco.MjModel, got {type(model).__name__}: load it with "
                 "mujoco.MjModel.from_xml_path(path) (or dua_mujoco.load_scene(name))."
             )
-        if not isinstance(period, int | np.integer) or period < 1:
+        if isinstance(period, bool) or not isinstance(period, int | np.integer) or period < 1:
             raise InvalidInputError(f"period = {period!r} is invalid: it must be an int >= 1.")
         self.model = model
         self.period = int(period)
-        self.dt = self.period * float(model.opt.timestep)
         # Validate the scheduler options now rather than at reset(): same checks, same messages.
-        DUAScheduler(np.zeros(1), dt=self.dt, latency=latency, slots_per_bucket=slots_per_bucket)
-        self.latency = int(latency)
-        self.slots_per_bucket = int(slots_per_bucket)
+        self.dt, self.latency = check_period(self.period * float(model.opt.timestep), latency)
+        self.schedule = as_schedule(schedule)
+        self.slots_per_bucket = check_slots_per_bucket(slots_per_bucket)
+        self.max_evals_per_step = check_max_evals(max_evals_per_step) or None
         self.covering = (
             covering
             if isinstance(covering, Covering)
@@ -318,31 +213,21 @@ class Predictor:
             self.bounds = MotionBounds.declare(
                 model, accel, speed=speed, velocity_accel=velocity_accel
             )
-        self._mocap = MocapVelocityTracker(model) if model.nmocap else None
-        self.pairs = self._pair_set()
-        sp = self.sphere_pairs
-        plane_geom = np.asarray(cov.plane_geom, dtype=np.int64)
-        geom2 = np.where(
-            sp.is_halfspace,
-            plane_geom[np.where(sp.is_halfspace, sp.second, 0)] if plane_geom.size else -1,
-            cov.sphere_geom[np.where(sp.is_halfspace, 0, sp.second)],
+        self.mocap: MocapVelocityTracker | None = (
+            MocapVelocityTracker(model) if model.nmocap else None
         )
-        self._tables = _PairTables(
-            first=self.pairs.first,
-            second=self.pairs.second,
-            halfspace=self.pairs.halfspace,
-            geom1=np.asarray(cov.sphere_geom[sp.first], dtype=np.int64),
-            geom2=np.asarray(geom2, dtype=np.int64),
-            geom_names=_geom_names(model),
+        """Velocities of mocap bodies (None without mocap bodies): ``set_velocity`` to give
+        them instead of differencing."""
+        self.pair_set = self._pair_set()
+        self.tables = PairTables.build(model, cov, self.sphere_pairs)
+        self._plane_geom = np.asarray(cov.plane_geom, dtype=np.int64)
+        self._spheres = pack_spheres(
+            cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
-        self._pair_args = (
-            pack_pairs(self.pairs, plane_geom),
-            pack_spheres(cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid),
-        )
-        self._rootid = np.asarray(model.body_rootid, dtype=np.int64)
+        self._pair_records = pack_pairs(self.pair_set, self._plane_geom)
         # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
         self._twist = np.zeros((model.nbody, 6))
-        self.scheduler: DUAScheduler | None = None
+        self.scheduler: Scheduler | None = None
         self._time = 0.0
         self._steps_at_reset = 0
         self._frame_data: mujoco.MjData | None = None
@@ -359,11 +244,11 @@ class Predictor:
         )
         accel = b.accel[body1] + b.accel[body2]
         delta = b.vel_uncertainty[body1] + b.vel_uncertainty[body2]
-        if self._mocap is not None and self.period > 1:
+        if self.mocap is not None and self.period > 1:
             # Mocap velocities are backward differences over one predictor period: their error
             # is A * period * h / 2, of which the discrete-time term already holds A * h / 2.
             in_mocap = np.zeros(self.model.nbody, dtype=bool)
-            in_mocap[self._mocap.mocap_bodies] = True
+            in_mocap[self.mocap.mocap_bodies] = True
             tree = in_mocap[np.asarray(self.model.body_rootid)]
             extra = np.where(tree, 0.5 * (self.period - 1) * self.model.opt.timestep, 0.0)
             delta = delta + (extra * b.accel)[body1] + (extra * b.accel)[body2]
@@ -382,7 +267,9 @@ class Predictor:
 
     # ----------------------------------------------------------------------- state
 
-    def _check_data(self, data: mujoco.MjData) -> None:
+    def check_data(self, data: mujoco.MjData) -> None:
+        """Refuse anything but an ``MjData`` of this predictor's model (or of one with the same
+        geometry, e.g. the same XML loaded twice): the compiled step reads it unchecked."""
         m = self.model
         if not isinstance(data, mujoco.MjData):
             raise InvalidInputError(
@@ -392,7 +279,7 @@ class Predictor:
         # The same object, or another one with the same geometry (one XML loaded twice): the
         # compiled step reads MjData without bounds checks, and the covering and the pair
         # filter must be this model's.
-        if data.model is not m and not _same_geometry(data.model, m):
+        if data.model is not m and not same_geometry(data.model, m):
             raise InvalidInputError(
                 f"data belongs to another MjModel ({data.model.ngeom} geoms, {data.model.nbody} "
                 f"bodies; this predictor's has {m.ngeom} and {m.nbody}) whose geoms, bodies or "
@@ -401,55 +288,35 @@ class Predictor:
             )
 
     def _bind_frame(self, data: mujoco.MjData) -> tuple:
-        """Build and cache the fused step's ``frame`` tuple (``_rigid_point``) for ``data``.
+        """Build and cache the fused step's ``frame`` tuple (``rigid_point``) for ``data``.
 
         MjData's buffers live as long as the MjData, and every attribute access builds a new
         numpy view (about a microsecond in all), so ``step`` rebuilds the views only when it is
         handed another ``MjData``.
         """
         # The kernel does no bounds checks: refuse an MjData of another model here.
-        self._check_data(data)
+        self.check_data(data)
         self._frame_data = data
-        self._frame_cache = (
-            data.geom_xpos,
-            data.geom_xmat,
-            data.cvel,
-            data.subtree_com,
-            self._twist,
-            data.xpos,
-        )
+        self._frame_cache = mjdata_frame(data, self._twist)
         return self._frame_cache
 
     def sphere_states(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """Centres and velocities of every covering sphere, ``(nsphere, 3)`` each.
 
-        Vectorised, O(nsphere): used by ``reset``, rendering and tests, not by ``step``.
+        O(nsphere), through the same kinematics kernel as ``step``: used by ``reset``,
+        rendering and tests.
         """
-        cov = self.covering
-        c = sphere_centers(data.geom_xpos, data.geom_xmat, cov.sphere_geom, cov.sphere_offset)
-        v = sphere_velocities(
-            data.cvel, data.subtree_com, self.model.body_rootid, cov.sphere_body, c
-        )
-        if self._mocap is not None:
-            twist = self._mocap.body_velocity(self.model.nbody)[self._rootid[cov.sphere_body]]
-            v = (
-                v
-                + twist[:, 3:]
-                + np.cross(twist[:, :3], c - data.xpos[self._rootid[cov.sphere_body]])
-            )
-        return c, v
+        if self.mocap is not None:
+            self.mocap.write_body_velocity(self._twist)
+        return sphere_states(self._spheres, mjdata_frame(data, self._twist))
 
     def halfspaces(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """Plane half-spaces: outward normals ``(nplane, 3)`` and offsets ``(nplane,)``."""
-        g = np.asarray(self.covering.plane_geom, dtype=np.int64)
-        if g.size == 0:
-            return np.zeros((1, 3)), np.zeros(1)
-        normals = np.asarray(data.geom_xmat)[g][:, [2, 5, 8]]
-        return normals, np.einsum("ij,ij->i", normals, np.asarray(data.geom_xpos)[g])
+        return plane_halfspaces(data, self._plane_geom)
 
     def _nonfinite(self, data: mujoco.MjData, pair: int | None = None) -> NonFiniteStateError:
         if pair is not None:
-            g = {int(self._tables.geom1[pair]), int(self._tables.geom2[pair])}
+            g = {int(self.tables.geom1[pair]), int(self.tables.geom2[pair])}
         else:
             c, v = self.sphere_states(data)
             bad = ~(np.isfinite(c).all(axis=1) & np.isfinite(v).all(axis=1))
@@ -472,11 +339,11 @@ class Predictor:
         )
 
     def _listed(self, geoms: set[int]) -> str:
-        return ", ".join(repr(self._tables.geom_names[i]) for i in sorted(geoms))
+        return ", ".join(repr(self.tables.geom_names[i]) for i in sorted(geoms))
 
     @staticmethod
     def _divergence_count(data: mujoco.MjData) -> int:
-        return sum(int(data.warning[int(w)].number) for w in _DIVERGENCE_WARNINGS)
+        return sum(int(data.warning[int(w)].number) for w in DIVERGENCE_WARNINGS)
 
     def _divergence(self, data: mujoco.MjData) -> str:
         """Why the state jumped, if MuJoCo reset it after diverging since ``reset`` (or "").
@@ -494,7 +361,7 @@ class Predictor:
         steps = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
         if steps == self._steps_at_reset + self.period * (sched.step_count + 1):
             return ""
-        names = [w.name for w in _DIVERGENCE_WARNINGS if data.warning[int(w)].number]
+        names = [w.name for w in DIVERGENCE_WARNINGS if data.warning[int(w)].number]
         return (
             f"MuJoCo reported a NaN, inf or huge value ({', '.join(names)}) and reset the "
             f"simulation state itself (data.time is now {data.time:g} s): the simulation "
@@ -505,7 +372,7 @@ class Predictor:
     # ----------------------------------------------------------------------- protocol
 
     def reset(self, data: mujoco.MjData) -> Alarms:
-        """Initial classification: tau of every active pair, bucketed (O(pairs)).
+        """Initial classification: tau of every active pair, scheduled (O(pairs)).
 
         Args:
             data: ``MjData`` with valid kinematics (after ``mj_forward`` or ``mj_step``).
@@ -514,55 +381,66 @@ class Predictor:
             The alarms of the initial classification.
 
         Raises:
-            InvalidInputError: ``data`` is not an MjData of this predictor's model.
+            InvalidInputError: ``data`` is not an MjData of this predictor's model, or its
+                kinematics were never computed.
             NonFiniteStateError: a position or velocity is NaN or inf.
         """
         frame = self._bind_frame(data)  # checks data
-        if self._mocap is not None:
+        self._check_forwarded(data)
+        if self.mocap is not None:
             # A reset starts a new trajectory: difference mocap poses within it only. Reset in
-            # place: the Monitor's BoundMonitor holds this same tracker.
-            self._mocap.reset()
-            self._mocap.update(data)
+            # place: the Monitor's bound checks hold this same tracker.
+            self.mocap.reset()
+            self.mocap.update(data, self._twist)
         c, v = self.sphere_states(data)
         # qpos/qvel too: a NaN written without mj_forward leaves finite (stale) kinematics.
         finite = np.isfinite(c).all() and np.isfinite(v).all()
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
         halfspaces = self.halfspaces(data)
-        tau0 = self.pairs.tau(np.arange(len(self.pairs)), c, v, halfspaces)
-        self.scheduler = DUAScheduler(
-            tau0, dt=self.dt, latency=self.latency, slots_per_bucket=self.slots_per_bucket
-        )
-        self._load_compiled(data, frame, (c, v, halfspaces))
+        tau0 = self.pair_set.tau(np.arange(len(self.pair_set)), c, v, halfspaces)
+        self.scheduler = self._scheduler(tau0)
+        self._load_compiled(data, frame)
         self._time = float(data.time)
         self._steps_at_reset = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
         ids = self.scheduler.initial_alarms
-        return Alarms(0, self._time, ids, tau0[ids], self._tables)
+        return Alarms(0, self._time, ids, tau0[ids], self.tables, np.ones(ids.shape, bool), 0)
 
-    def _load_compiled(
-        self,
-        data: mujoco.MjData,
-        frame: tuple,
-        states: tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]],
-    ) -> None:
+    def _scheduler(self, tau0: np.ndarray) -> Scheduler:
+        return make_scheduler(
+            self.schedule,
+            tau0,
+            dt=self.dt,
+            latency=self.latency,
+            slots_per_bucket=self.slots_per_bucket,
+            max_evals_per_step=self.max_evals_per_step,
+        )
+
+    def _check_forwarded(self, data: mujoco.MjData) -> None:
+        """An ``MjData`` fresh from ``mujoco.MjData(model)`` has all-zero rotation matrices:
+        every geom sits at the origin and every pair would alarm."""
+        if self.model.ngeom and not np.asarray(data.geom_xmat).any():
+            raise InvalidInputError(
+                "data holds no kinematics (every geom rotation is zero: mj_forward was never "
+                "called): call mujoco.mj_forward(model, data) (or mj_step) before "
+                "predictor.reset(data)."
+            )
+
+    def _load_compiled(self, data: mujoco.MjData, frame: tuple) -> None:
         """Load what ``step`` runs from numba's cache (~10 ms each) now, not in ``step``.
 
         A real-time user holds every ``step`` to its deadline, the first one included. One
-        step of a throw-away one-pair scheduler on the real tables (read only) loads the fused
-        step, and one through ``select``/``update`` the path taken after pairs are switched
-        back on; the mocap differencing runs on copies. ``states``: the sphere centres,
-        velocities and half-spaces ``reset`` read.
+        step of a throw-away one-pair scheduler of the same schedule on the real tables (read
+        only) loads the fused step; the mocap differencing runs on copies.
         """
-        if len(self.pairs):
-            spare = DUAScheduler(np.full(1, np.inf), dt=self.dt)
-            spare.step_rigid(self._pair_args, frame)
-            ids = spare.select()
-            spare.update(ids, self.pairs.tau(ids, *states))
-        if self._mocap is not None:
-            self._mocap.load_compiled(data, self._twist)
+        if len(self.pair_set):
+            spare = self._scheduler(np.full(1, np.inf))
+            spare.step_with(step_rigid_kernel, self._pair_records[:1], self._spheres, frame)
+        if self.mocap is not None:
+            self.mocap.load_compiled(data, self._twist)
 
     def step(self, data: mujoco.MjData) -> Alarms:
-        """One predictor step: evaluate the scheduled pairs, re-bucket, return the alarms.
+        """One predictor step: evaluate the scheduled pairs, reschedule them, return the alarms.
 
         Raises:
             SchedulerError: ``reset`` was not called, or ``data.time`` did not advance by one
@@ -574,6 +452,8 @@ class Predictor:
         sched = self.scheduler
         if sched is None:
             raise SchedulerError("step() before reset(): call predictor.reset(data) first.")
+        # Before the clock: another model's data has its own clock, and the error must say so.
+        frame = self._frame_cache if self._frame_data is data else self._bind_frame(data)
         time = float(data.time)
         elapsed = time - self._time
         if abs(elapsed - self.dt) > 1e-6 * self.dt:
@@ -586,19 +466,21 @@ class Predictor:
                 f"{self.model.opt.timestep:g}): call step() every {self.period} physics step(s), "
                 "or reset() after changing the state."
             )
-        if self._mocap is not None:
-            self._mocap.update(data, self._twist)
-        frame = self._frame_cache if self._frame_data is data else self._bind_frame(data)
-        if sched._reactivated:
-            ids = sched.select()
-            c, v = self.sphere_states(data)
-            alarmed = sched.update(ids, self.pairs.tau(ids, c, v, self.halfspaces(data)))
-        else:
-            alarmed, bad = sched.step_rigid(self._pair_args, frame)
-            if bad >= 0:
-                raise self._nonfinite(data, bad)
+        if self.mocap is not None:
+            self.mocap.update(data, self._twist)
+        alarmed, bad = sched.step_with(step_rigid_kernel, self._pair_records, self._spheres, frame)
+        if bad >= 0:
+            raise self._nonfinite(data, bad)
         self._time = time
-        return Alarms(sched.step_count, time, alarmed, sched.last_tau[alarmed], self._tables)
+        return Alarms(
+            sched.step_count,
+            time,
+            alarmed,
+            sched.last_tau[alarmed],
+            self.tables,
+            sched.last_new,
+            sched.deferred,
+        )
 
     # ----------------------------------------------------------------------- intended contact
 
@@ -635,7 +517,7 @@ class Predictor:
         sched.set_active(np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp)), False)
         return int(gp.size)
 
-    def _require_scheduler(self) -> DUAScheduler:
+    def _require_scheduler(self) -> Scheduler:
         if self.scheduler is None:
             raise SchedulerError("call predictor.reset(data) first.")
         return self.scheduler
@@ -648,20 +530,20 @@ class Predictor:
         return int(self.covering.nsphere)
 
     @property
-    def npairs(self) -> int:
-        """Number of active sphere pairs."""
-        return len(self.pairs)
+    def nsphere_pairs(self) -> int:
+        """Number of sphere pairs (the scheduler's pairs)."""
+        return len(self.pair_set)
 
     @property
     def evaluations_per_step(self) -> int:
-        """tau evaluations per step (at most; empty and inactive slots are skipped)."""
+        """tau evaluations of the latest step (``dua``: the slots handed out a step)."""
         return self._require_scheduler().evaluations_per_step
 
     @property
-    def pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(geom1, geom2)``, each ``(npairs,)``: the geoms of every sphere pair (``geom2`` is
-        the plane geom for half-space pairs)."""
-        return self._tables.geom1, self._tables.geom2
+    def sphere_pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(geom1, geom2)``, each ``(nsphere_pairs,)``: the geoms of every sphere pair
+        (``geom2`` is the plane geom for half-space pairs)."""
+        return self.tables.geom1, self.tables.geom2
 
     def geom_pair_of(self, pairs: npt.ArrayLike) -> np.ndarray:
         """Index into ``geom_pairs`` of sphere pairs."""

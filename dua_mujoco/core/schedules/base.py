@@ -1,0 +1,280 @@
+"""``Scheduler``: the protocol every schedule offers, over the compiled interface in ``kernels``.
+
+Two ways to drive a schedule, with the same results:
+
+- the Python protocol: ``ids = select()``, evaluate tau of ``ids`` however you like, then
+  ``update(ids, tau)`` returns the alarmed ids;
+- a fused step: ``step_with(kernel, *args)`` runs one compiled ``kernel(state, n, *args)`` that
+  selects, evaluates and reinserts (``step_points`` for free spheres; the MuJoCo layer has its
+  own for spheres on rigid bodies).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numba as nb
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.core.pairset import PairSet, pair_tau
+from dua_mujoco.core.schedules import kernels
+from dua_mujoco.core.schedules.state import (
+    LAST_STEP,
+    P_COUNT,
+    P_DEFERRED,
+    W_ALARMS,
+    W_IDS,
+    W_NEW,
+    ScheduleState,
+)
+from dua_mujoco.core.validate import as_ids, check_urgencies
+from dua_mujoco.exceptions import InvalidInputError, NonFiniteStateError, SchedulerError, ShapeError
+
+__all__ = ["FusedKernel", "Scheduler", "step_points_kernel"]
+
+FusedKernel = Callable[..., tuple[int, int, int]]
+"""A compiled ``kernel(state, n, *args) -> (count, nalarm, bad)``: ``kernels.select``, tau of the
+selected pairs into ``state.w_tau``, ``kernels.reinsert``; ``bad >= 0`` names a pair whose state
+was not finite, after ``kernels.restore`` undid the selection."""
+
+
+@nb.njit(cache=True)
+def step_points_kernel(st, n, geometry):  # pragma: no cover - jitted
+    """The fused step on free spheres: select, evaluate tau, reinsert (a ``FusedKernel``).
+
+    ``geometry`` is ``PairSet.geometry``'s tuple. A pair whose state is not finite abandons the
+    step before anything is reinserted.
+    """
+    centers, velocities, _, _, first, second, halfspace, _, _, _, _ = geometry
+    count = kernels.select(st, n)
+    w_ids = st.work[W_IDS]
+    for k in range(count):
+        p = w_ids[k]
+        i = first[p]
+        state = 0.0
+        for a in range(3):
+            state += centers[i, a] + velocities[i, a]
+        if not halfspace[p]:
+            j = second[p]
+            for a in range(3):
+                state += centers[j, a] + velocities[j, a]
+        if not math.isfinite(state):
+            kernels.restore(st, n, count)
+            return count, 0, p
+        st.w_tau[k] = pair_tau(p, geometry)
+    return count, kernels.reinsert(st, n, count), -1
+
+
+class Scheduler:
+    """What DUA, the deadline schedule and select-all have in common.
+
+    Attributes:
+        state: The ``ScheduleState`` the compiled kernels read and write.
+        initial_alarms: ``(k,)`` pairs the initial classification alarms.
+        step_count: Completed steps (0 after the initial classification).
+        activation_changes: Calls of :meth:`set_active` that switched some pair, so that an
+            observer of :meth:`alarm_state` knows when to read it again.
+    """
+
+    def __init__(self, state: ScheduleState, initial_alarms: np.ndarray) -> None:
+        self.state = state
+        self.initial_alarms = np.asarray(initial_alarms, dtype=np.int64)
+        self.step_count = 0
+        self.activation_changes = 0
+        self._pending: np.ndarray | None = None
+        self._renewed = 0
+        self._new = np.ones(self.initial_alarms.shape[0], dtype=np.int64)
+
+    # ----------------------------------------------------------------------- introspection
+
+    @property
+    def npairs(self) -> int:
+        """Number of pairs ``M``."""
+        return int(self.state.last_tau.shape[0])
+
+    @property
+    def dt(self) -> float:
+        """Predictor period (seconds)."""
+        return self.state.dt
+
+    @property
+    def latency(self) -> int:
+        """Periods a verdict takes to act."""
+        return self.state.latency
+
+    @property
+    def active(self) -> np.ndarray:
+        """``(M,)`` bool, pairs switched on (read-only view; switch with :meth:`set_active`)."""
+        view = self.state.active.view()
+        view.flags.writeable = False
+        return view
+
+    @property
+    def last_tau(self) -> np.ndarray:
+        """``(M,)`` tau at each pair's latest evaluation (``-inf``: switched on, not yet)."""
+        return self.state.last_tau
+
+    @property
+    def last_step(self) -> np.ndarray:
+        """``(M,)`` step of each pair's latest evaluation."""
+        return self.state.ints[LAST_STEP]
+
+    def tau(self, pair: npt.ArrayLike) -> np.ndarray:
+        """tau of each pair at its latest evaluation."""
+        return np.asarray(self.state.last_tau[np.asarray(pair)])
+
+    def alarm_state(self, pair: npt.ArrayLike | None = None) -> np.ndarray:
+        """Whether each pair stands in alarm: its latest verdict does not cover the time until
+        its next one (the alarm rule on its last tau)."""
+        idx = np.arange(self.npairs) if pair is None else np.asarray(pair, dtype=np.int64)
+        return np.asarray(self.state.last_tau[idx] < self.horizon_of(idx))
+
+    def horizon_of(self, pair: np.ndarray) -> np.ndarray:
+        """The alarm horizon (seconds) each pair's latest verdict must cover."""
+        return np.full(pair.shape, self.state.horizon[0])
+
+    @property
+    def last_selected(self) -> np.ndarray:
+        """Pairs whose verdict the latest step renewed: those evaluated (and, for the deadline
+        schedule, those due but left for a later step)."""
+        return self.state.work[W_IDS, : self._renewed].copy()
+
+    @property
+    def deferred(self) -> int:
+        """Pairs due at the latest step but left for a later one (a capped deadline schedule)."""
+        return int(self.state.params[P_DEFERRED])
+
+    @property
+    def evaluations_per_step(self) -> int:
+        """tau evaluations of the latest step."""
+        return int(self.state.params[P_COUNT])
+
+    def most_urgent(self) -> int:
+        """The active pair with the smallest latest tau (-1 if none)."""
+        if not self.state.active.any():
+            return -1
+        return int(np.argmin(np.where(self.state.active, self.state.last_tau, np.inf)))
+
+    # ----------------------------------------------------------------------- switching
+
+    def set_active(self, pairs: npt.ArrayLike, on: bool) -> None:
+        """Switch pairs off (intended contact, paper sec. 6.3) or back on.
+
+        A pair switched back on stands in alarm (``last_tau = -inf``) until its first
+        evaluation, at the next step: nothing is known of its motion while it was off, and that
+        step can be a whole period away (docs/theory.md, "Pairs switched back on").
+        """
+        if self._pending is not None:
+            raise SchedulerError("set_active() between select() and update(): finish the step.")
+        ids = as_ids("pairs", np.atleast_1d(np.asarray(pairs, dtype=np.int64)))
+        if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
+            raise InvalidInputError(f"pair ids must be in [0, {self.npairs}); got {ids.tolist()}.")
+        if kernels.switch(self.state, ids, bool(on), self.step_count + 1):
+            self.activation_changes += 1
+
+    # ----------------------------------------------------------------------- protocol
+
+    def select(self) -> np.ndarray:
+        """Pair ids to evaluate this step (one ``update`` must follow), ``(n,)`` int64."""
+        if self._pending is not None:
+            raise SchedulerError(
+                "select() called twice without update(): evaluate the selected pairs and pass "
+                "their tau to update() first."
+            )
+        count = kernels.select(self.state, self.step_count + 1)
+        self._pending = self.state.work[W_IDS, :count].copy()
+        return self._pending.copy()
+
+    def update(self, ids: npt.ArrayLike, tau: npt.ArrayLike) -> np.ndarray:
+        """Store the new tau of the pairs selected this step; return the alarmed ids.
+
+        Args:
+            ids: ``(n,)`` the ids ``select()`` returned, in any order.
+            tau: ``(n,)`` their tau at this step's state.
+
+        Returns:
+            ``(k,)`` int64 ids of the pairs that raise an alarm.
+        """
+        expected = self._pending
+        if expected is None:
+            raise SchedulerError("update() without select(): call select() first.")
+        idx = as_ids("ids", ids)
+        t = check_urgencies("tau", tau, idx.shape[0])
+        # Select-all hands back its own order: compare directly before sorting.
+        same = idx.shape == expected.shape and (
+            np.array_equal(idx, expected) or np.array_equal(np.sort(idx), np.sort(expected))
+        )
+        if not same:
+            raise SchedulerError(
+                f"update() got ids {idx.tolist()[:16]} but this step selected "
+                f"{expected.tolist()[:16]}: pass exactly the ids select() returned."
+            )
+        count = expected.shape[0]
+        # Back to selection order (a pair may be selected twice: then both get its tau).
+        self.state.w_tau[np.argsort(expected, kind="stable")] = t[np.argsort(idx, kind="stable")]
+        nalarm = kernels.reinsert(self.state, self.step_count + 1, count)
+        return self._finish(nalarm)
+
+    def step_with(self, kernel: FusedKernel, *args: object) -> tuple[np.ndarray, int]:
+        """Run one fused step ``kernel(state, n, *args)`` (see ``FusedKernel``).
+
+        Returns:
+            ``(alarmed ids, bad)``: ``bad`` is a pair whose state was not finite (the step was
+            then not taken and can be retried) or -1.
+        """
+        if self._pending is not None:
+            raise SchedulerError("a fused step between select() and update(): finish the step.")
+        _, nalarm, bad = kernel(self.state, self.step_count + 1, *args)
+        if bad >= 0:
+            return self.state.work[W_ALARMS, :0].copy(), int(bad)
+        return self._finish(nalarm), -1
+
+    def step_points(
+        self,
+        pairs: PairSet,
+        centers: npt.ArrayLike,
+        velocities: npt.ArrayLike,
+        halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    ) -> np.ndarray:
+        """One fused step on free spheres: select, evaluate tau, reinsert, alarm.
+
+        Same result as ``update(ids, pairs.tau(ids, ...))`` after ``ids = select()``, in one
+        compiled call.
+
+        Args:
+            pairs: The pair geometry (``len(pairs) == npairs``).
+            centers: ``(nsphere, 3)`` sphere centres at this step.
+            velocities: ``(nsphere, 3)`` sphere centre velocities at this step.
+            halfspaces: ``(normals (nh, 3), offsets (nh,))`` if any pair is a half-space pair.
+
+        Returns:
+            ``(k,)`` int64 ids of the alarmed pairs.
+        """
+        if len(pairs) != self.npairs:
+            raise ShapeError(f"pairs has {len(pairs)} pairs; the scheduler has {self.npairs}.")
+        geometry = pairs.geometry(centers, velocities, halfspaces, check_finite=False)
+        alarms, bad = self.step_with(step_points_kernel, geometry)
+        if bad >= 0:
+            i, j = int(pairs.first[bad]), int(pairs.second[bad])
+            raise NonFiniteStateError(
+                f"the state of pair {bad} (spheres {i}, {j}) is not finite: centers or "
+                "velocities hold NaN or inf; check that the simulation has not diverged."
+            )
+        return alarms
+
+    @property
+    def last_new(self) -> np.ndarray:
+        """``(k,)`` bool, which of the latest step's alarms are new (see ``W_NEW``)."""
+        return self._new.astype(bool)
+
+    def _finish(self, nalarm: int) -> np.ndarray:
+        params = self.state.params
+        self._renewed = int(params[P_COUNT] + params[P_DEFERRED])
+        self.step_count += 1
+        self._pending = None
+        # One copy of both rows: the buffers are reused by the next step.
+        block = self.state.work[W_ALARMS : W_NEW + 1, :nalarm].copy()
+        self._new = block[1]
+        return block[0]

@@ -1,0 +1,122 @@
+"""``DeadlineScheduler``: each pair revisited at the latest step its own tau allows.
+
+DUA sizes its buckets by rank, so with ``M`` pairs the last bucket is revisited every ``M / 2``
+steps and must alarm whenever tau is below that horizon. In a simulator's fixed clock (2 ms),
+where tau under physical bounds is tens of steps, that alarms most pairs. The deadline schedule
+keys the revisit on tau instead: a pair evaluated at step ``n`` is next due at ``n + s``, ``s``
+the largest interval with ``(s + latency) dt <= tau``, so it alarms only when even ``s = 1`` is
+not covered: ``tau < (1 + latency) dt``, select-all's rule, at about ``sum(dt / tau)``
+evaluations a step instead of ``M``.
+
+Due pairs wait in a timing wheel (one linked list per step, modulo the wheel size): O(1) per
+evaluation, O(M) memory. An optional cap bounds the work a step: when more pairs are due, those
+with the least time left are served and the rest wait, standing in alarm as soon as their last
+verdict no longer covers the wait. The step reports how many waited (``deferred``): the paper's
+"flag every collision or say that it cannot keep up". Completeness, with and without the cap, is
+proved in docs/theory.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.core.schedules import kernels
+from dua_mujoco.core.schedules.base import Scheduler
+from dua_mujoco.core.schedules.dua import active_mask
+from dua_mujoco.core.schedules.state import (
+    DEADLINE,
+    LAST_STEP,
+    P_CAP,
+    P_MAX_INTERVAL,
+    P_WHEEL,
+    WHERE,
+    empty_state,
+)
+from dua_mujoco.core.validate import check_period, check_urgencies
+from dua_mujoco.exceptions import InvalidInputError
+
+__all__ = ["DeadlineScheduler", "check_max_evals"]
+
+DEFAULT_MAX_INTERVAL = 1024
+"""Longest revisit interval (steps) by default: 2 s at MuJoCo's 2 ms, a few % of the work."""
+
+
+def check_max_evals(value: object) -> int:
+    """``max_evals_per_step``: None (no cap, returned as 0) or an int ``>= 1``."""
+    if value is None:
+        return 0
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise InvalidInputError(
+            f"max_evals_per_step = {value!r} is invalid: pass an int >= 1, or None for no cap."
+        )
+    return int(value)
+
+
+class DeadlineScheduler(Scheduler):
+    """Revisit each pair at the latest step that keeps the guarantee, given its own tau.
+
+    Args:
+        tau0: ``(M,)`` tau of every pair at time 0 (the initial classification).
+        dt: Predictor period ``> 0`` (seconds between steps).
+        latency: Periods a verdict takes to act (1: a verdict acts one period after its state;
+            0: the predictor runs synchronously after each physics step).
+        max_evals_per_step: Optional cap on tau evaluations a step (None: no cap). Pairs due
+            beyond it wait, least time left served first; see :attr:`deferred`.
+        max_interval: Longest revisit interval in steps (``>= 1``): a pair far from everything
+            is still looked at every ``max_interval`` steps.
+        active: Optional ``(M,)`` bool mask of pairs initially switched on (default all).
+    """
+
+    def __init__(
+        self,
+        tau0: npt.ArrayLike,
+        *,
+        dt: float,
+        latency: int = 1,
+        max_evals_per_step: int | None = None,
+        max_interval: int = DEFAULT_MAX_INTERVAL,
+        active: npt.ArrayLike | None = None,
+    ) -> None:
+        tau = check_urgencies("tau0", tau0)
+        dt, latency = check_period(dt, latency)
+        cap = check_max_evals(max_evals_per_step)
+        if isinstance(max_interval, bool) or not isinstance(max_interval, int | np.integer):
+            raise InvalidInputError(f"max_interval = {max_interval!r} is invalid: an int >= 1.")
+        if max_interval < 1:
+            raise InvalidInputError(f"max_interval = {max_interval!r} is invalid: an int >= 1.")
+        m = tau.shape[0]
+        wheel = 1 << int(max_interval).bit_length()  # a power of two > max_interval
+        state = empty_state(
+            DEADLINE,
+            dt,
+            latency,
+            tau.copy(),
+            active_mask(active, m),
+            rows=4,
+            slots=wheel,
+            horizon=np.array([(1 + latency) * dt]),
+            queue=0,
+            width=m,
+        )
+        state.ints[:] = -1
+        state.ints[LAST_STEP] = 0
+        state.params[P_WHEEL] = wheel
+        state.params[P_MAX_INTERVAL] = int(max_interval)
+        state.params[P_CAP] = cap
+        kernels.deadline_classify(state)
+        self.max_evals_per_step = cap or None
+        self.max_interval = int(max_interval)
+        super().__init__(state, np.flatnonzero((tau < state.horizon[0]) & state.active))
+
+    def horizon_of(self, pair: np.ndarray) -> np.ndarray:
+        """The time each pair's latest verdict must cover: until its due step, plus latency."""
+        ints = self.state.ints
+        due = ints[WHERE, pair]
+        waiting = (due - ints[LAST_STEP, pair] + self.latency) * self.dt
+        # Pairs switched off are in no list: their last verdict needs to cover nothing.
+        return np.where(due >= 0, waiting, -np.inf)
+
+    def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
+        """Step at which each pair is next evaluated (-1: switched off)."""
+        return np.asarray(self.state.ints[WHERE, np.asarray(pair)])

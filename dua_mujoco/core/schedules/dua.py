@@ -1,0 +1,184 @@
+"""``DUAScheduler``: the Dynamic Urgency Algorithm's rank buckets (Hayward et al. 1995, sec. 7).
+
+Layout. ``M`` pairs, ``L = ceil(log2(M + 1))`` buckets; bucket ``k`` has ``2**k`` slots and starts
+at slot ``2**k - 1`` of one flat array of ``2**L - 1`` slots (the last bucket partly empty, ``-1``).
+
+Protocol. ``DUAScheduler(tau0, dt=...)`` is the initial classification (evaluation number 0, at
+time 0). Step ``n = 1, 2, ...`` calls ``select()`` then ``update(ids, tau)`` with tau evaluated at
+time ``n * dt``. With ``q`` slots per bucket per step (the budget knob, a power of two), bucket
+``k`` hands out the ``min(q, 2**k)`` slots ``(n q + j) mod 2**k``, so every slot of bucket ``k`` is
+visited exactly every ``I_k = max(1, 2**k / q)`` steps. The ``i``-th most urgent of the evaluated
+pairs goes back into the ``i``-th of the withdrawn slots in bucket order, and it raises an alarm if
+``tau < (I_k + latency) * dt`` for the bucket ``k`` it lands in. Completeness is proved in
+docs/theory.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.core.schedules.base import Scheduler
+from dua_mujoco.core.schedules.state import RANK, WHERE, empty_state
+from dua_mujoco.core.validate import check_period, check_urgencies
+from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
+
+__all__ = ["DUAScheduler", "bucket_layout", "check_slots_per_bucket"]
+
+# Pairs switched back on evaluated per step beyond the regular slots; more wait (in alarm).
+_SPARE = 256
+
+
+def bucket_layout(npairs: int) -> tuple[int, int]:
+    """Number of buckets ``L`` and of slots ``2**L - 1`` for ``npairs`` pairs."""
+    nbuckets = max(1, math.ceil(math.log2(npairs + 1)))
+    return nbuckets, (1 << nbuckets) - 1
+
+
+def check_slots_per_bucket(q: object) -> int:
+    """The budget knob: a power of two (so that every revisit interval is exact)."""
+    if (
+        isinstance(q, bool)
+        or not isinstance(q, int | np.integer)
+        or q < 1
+        or (int(q) & (int(q) - 1)) != 0
+    ):
+        raise InvalidChoiceError(
+            "slots_per_bucket",
+            q,
+            [1, 2, 4, 8, 16, 32, 64],
+            hint="It must be a power of two so that every revisit interval is exact.",
+        )
+    return int(q)
+
+
+def active_mask(active: npt.ArrayLike | None, m: int) -> np.ndarray:
+    """``(m,)`` bool mask of pairs switched on (all when None)."""
+    if active is None:
+        return np.ones(m, dtype=np.bool_)
+    mask = np.ascontiguousarray(np.asarray(active, dtype=np.bool_))
+    if mask.shape != (m,):
+        raise ShapeError(f"active has shape {mask.shape}; expected ({m},).")
+    return mask
+
+
+class DUAScheduler(Scheduler):
+    """The Dynamic Urgency Algorithm: buckets sized by rank, constant work per step.
+
+    Args:
+        tau0: ``(M,)`` tau of every pair at time 0 (the initial classification).
+        dt: Predictor period ``> 0`` (seconds between steps).
+        latency: Periods a verdict takes to act (1: the paper's eq. 26; 0: the predictor
+            runs synchronously after each physics step).
+        slots_per_bucket: Budget knob ``q`` (a power of two): slots evaluated per bucket per step.
+            Revisit intervals shrink ``q``-fold; work grows ``q``-fold.
+        active: Optional ``(M,)`` bool mask of pairs initially switched on (default all).
+
+    Attributes:
+        initial_alarms: ``(k,)`` ids of the pairs the initial classification alarms.
+        step_count: Number of completed steps (0 after the initial classification).
+        interval: ``(L,)`` revisit interval ``I_k`` of each bucket, in steps.
+        horizon: ``(L,)`` alarm horizon ``(I_k + latency) dt`` of each bucket.
+    """
+
+    def __init__(
+        self,
+        tau0: npt.ArrayLike,
+        *,
+        dt: float,
+        latency: int = 1,
+        slots_per_bucket: int = 1,
+        active: npt.ArrayLike | None = None,
+    ) -> None:
+        tau = check_urgencies("tau0", tau0)
+        dt, latency = check_period(dt, latency)
+        q = check_slots_per_bucket(slots_per_bucket)
+        m = tau.shape[0]
+        nbuckets, nslots = bucket_layout(m)
+        sizes = 1 << np.arange(nbuckets)
+        self.interval = np.maximum(1, sizes // q).astype(np.int64)
+        self.horizon = (self.interval + latency) * dt
+        width = int(np.minimum(sizes, q).sum())
+        state = empty_state(
+            RANK,
+            dt,
+            latency,
+            tau.copy(),
+            active_mask(active, m),
+            rows=2,
+            slots=nslots,
+            horizon=self.horizon,
+            queue=m,
+            width=width + min(m, _SPARE),
+        )
+        state.params[:2] = (nbuckets, q)
+        # Initial classification: a partial sort at the bucket boundaries (paper eq. 23).
+        bounds = (1 << np.arange(1, nbuckets)) - 1
+        bounds = bounds[bounds < m]
+        order = np.argpartition(tau, bounds) if bounds.size else np.arange(m)
+        state.slots[:m] = order
+        state.ints[WHERE, order] = np.arange(m)
+        self.nbuckets = nbuckets
+        self.slots_per_bucket = q
+        self._width = width
+        alarmed = (tau < self.horizon[self.bucket_of_slot(state.ints[WHERE])]) & state.active
+        super().__init__(state, np.flatnonzero(alarmed))
+
+    # ----------------------------------------------------------------------- introspection
+
+    @property
+    def slots(self) -> np.ndarray:
+        """``(2**L - 1,)`` the pair in each slot (-1 empty)."""
+        return self.state.slots
+
+    @property
+    def where(self) -> np.ndarray:
+        """``(M,)`` the slot of each pair."""
+        return self.state.ints[WHERE]
+
+    @staticmethod
+    def bucket_of_slot(slot: npt.ArrayLike) -> np.ndarray:
+        """Bucket index ``floor(log2(slot + 1))`` of slot indices."""
+        s = np.asarray(slot, dtype=np.int64)
+        return np.asarray(np.floor(np.log2(s + 1.0)).astype(np.int64))
+
+    def bucket(self, pair: npt.ArrayLike) -> np.ndarray:
+        """Bucket index of each pair, shape like ``pair``."""
+        return self.bucket_of_slot(self.where[np.asarray(pair)])
+
+    def horizon_of(self, pair: np.ndarray) -> np.ndarray:
+        """The alarm horizon of each pair's bucket, ``(I_k + latency) dt``."""
+        return np.asarray(self.horizon[self.bucket(pair)])
+
+    def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
+        """Step at which each pair is next evaluated (if it stays switched on)."""
+        slot = self.where[np.asarray(pair)]
+        k = self.bucket_of_slot(slot)
+        offset = slot - ((1 << k) - 1)
+        interval = self.interval[k]
+        q = self.slots_per_bucket
+        size = 1 << k
+        # Slot o of bucket k is handed out at the steps n with (n q) mod size == o - o mod q.
+        phase = np.where(size <= q, 0, (offset - offset % q) // np.maximum(q, 1))
+        n = self.step_count + 1
+        return np.asarray(n + (phase - n) % interval)
+
+    def most_urgent(self) -> int:
+        """The pair DUA believes most urgent: the occupant of bucket 0 (paper sec. 8.1.4).
+
+        If that pair is switched off, the first active pair in slot order (-1 if none).
+        """
+        active = self.state.active
+        first = int(self.slots[0])
+        if first >= 0 and active[first]:
+            return first
+        occupants = self.slots[self.slots >= 0]
+        live = occupants[active[occupants]]
+        return int(live[0]) if live.size else -1
+
+    @property
+    def evaluations_per_step(self) -> int:
+        """Slots handed out per step: ``sum_k min(q, 2**k)`` (empty or inactive ones skipped)."""
+        return self._width
