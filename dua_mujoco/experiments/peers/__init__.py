@@ -5,10 +5,10 @@ that may collide soon ("alarms"). All of them are complete under the same hypoth
 (bounded accelerations) except MuJoCo's speculative contacts, which extrapolate the pre-step
 velocity over one step and ignore acceleration by design.
 
-* ``DUA``: :class:`~dua_mujoco.scheduler.DUAScheduler`, ``L = ceil(log2(M + 1))`` tau evaluations
-  per step (fused ``step_points`` in the ghost world, :class:`~dua_mujoco.predictor.Predictor` on
+* ``DUA``: :class:`~dua_mujoco.DUAScheduler`, ``L = ceil(log2(M + 1))`` tau evaluations
+  per step (fused ``step_points`` in the ghost world, :class:`~dua_mujoco.Predictor` on
   MuJoCo scenes).
-* ``SA(tau)``: :class:`~dua_mujoco.scheduler.SelectAllScheduler`, every pair every step.
+* ``SA(tau)``: :class:`~dua_mujoco.SelectAllScheduler`, every pair every step.
 * ``sweep`` / ``grid``: a swept-sphere broadphase. Each sphere is inflated by the distance it can
   travel within the horizon ``H = (1 + latency) dt``,
   ``reach = |v| H + A H^2 / 2 + delta H``, and every pair whose inflated spheres overlap is an
@@ -36,7 +36,7 @@ any step in ``[n, n + h]``; when ``n + h`` lies past the recorded trajectory and
 seen, the alarm is *open* (not judged). Time per step is the median wall time of the peer's own
 call (for the MuJoCo peers ``mj_collision`` only: kinematics is shared with the simulation).
 
-Worlds. The ghost world is :class:`~dua_mujoco.worlds.SphereWorld` (exact kinematics, bounds hold
+Worlds. The ghost world is :class:`~dua_mujoco.SphereWorld` (exact kinematics, bounds hold
 exactly) with the box grown as ``(N / 40)^(1/3)`` so that the density of the paper's 40-sphere
 unit cube is kept at every N (a fixed cube at N = 2000 would be 23 % spheres by volume). The
 bundled scenes run MuJoCo with random controls; MuJoCo's contacts are the ground truth there.
