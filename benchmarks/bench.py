@@ -169,9 +169,9 @@ def tau_ns_per_eval(predictor: object, data: object, max_pairs: int = 4096) -> f
     p = predictor
     c, v = p.sphere_states(data)  # type: ignore[attr-defined]
     hs = p.halfspaces(data)  # type: ignore[attr-defined]
-    n = len(p.pairs)  # type: ignore[attr-defined]
+    n = len(p.pair_set)  # type: ignore[attr-defined]
     ids = np.random.default_rng(0).permutation(n)[: min(n, max_pairs)]
-    per_call = median_time(lambda: p.pairs.tau(ids, c, v, hs), 51, warmup=3)  # type: ignore[attr-defined]
+    per_call = median_time(lambda: p.pair_set.tau(ids, c, v, hs), 51, warmup=3)  # type: ignore[attr-defined]
     return per_call / ids.size * 1e9
 
 

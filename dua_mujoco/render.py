@@ -146,7 +146,7 @@ class AlarmOverlay:
         self._warned = False
         model = predictor.model
         cov = predictor.covering
-        pairs = predictor.pairs
+        pairs = predictor.pair_set
         sgeom = np.asarray(cov.sphere_geom, dtype=np.int64)
         planes = np.asarray(cov.plane_geom, dtype=np.int64)
         first = np.asarray(pairs.first, dtype=np.int64)

@@ -143,7 +143,7 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
         elif rng.random() < 0.05:
             sched = p.scheduler
             assert sched is not None
-            mid = rng.choice(len(p.pairs), size=3, replace=False)
+            mid = rng.choice(len(p.pair_set), size=3, replace=False)
             sched.set_active(mid, False)
             sched.set_active(mid, True)
             kinds["switch_mid"] += 1
@@ -152,7 +152,7 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
         assert mon._pred_steps == steps_of, f"step {k}"  # what a miss's window starts from
         sched = p.scheduler
         assert sched is not None
-        ids = rng.choice(len(p.pairs), size=3, replace=False)
+        ids = rng.choice(len(p.pair_set), size=3, replace=False)
         r = rng.random()
         if r < 0.02:
             # A switch that changes nothing must not look like one.

@@ -108,3 +108,13 @@ def test_broadphases_find_every_overlap(find: object) -> None:
     d = np.linalg.norm(c[:, None] - c[None], axis=2)
     i, j = np.nonzero(np.triu(d <= r[:, None] + r[None], 1))
     assert set(zip(i.tolist(), j.tolist(), strict=True)) <= got
+
+
+def test_memory_probe_runs_in_a_subprocess() -> None:
+    """The probe is imported by module path in a fresh interpreter: a moved module fails here."""
+    from dua_mujoco.experiments.peers.memory import memory_row
+
+    row = memory_row("grid", 30)
+    assert not row.note.startswith("failed"), row.note
+    assert row.pairs == 30 * 29 // 2
+    assert row.step_us > 0 and row.build_s >= 0

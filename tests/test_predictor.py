@@ -205,9 +205,9 @@ def test_fused_step_tau_matches_vectorised_tau(site_predictor) -> None:
         ids = sched.last_selected
         assert ids.size > 0
         c, v = p.sphere_states(d)
-        expected = p.pairs.tau(ids, c, v, p.halfspaces(d))
+        expected = p.pair_set.tau(ids, c, v, p.halfspaces(d))
         np.testing.assert_allclose(sched.last_tau[ids], expected, rtol=1e-12, atol=1e-15)
-        halfspace_pairs_seen += int(p.pairs.halfspace[ids].sum())
+        halfspace_pairs_seen += int(p.pair_set.halfspace[ids].sum())
     assert halfspace_pairs_seen > 0
 
 
@@ -423,7 +423,7 @@ def test_model_without_collidable_pairs_warns() -> None:
     )
     with pytest.warns(NoActivePairsWarning, match="never raise an alarm"):
         p = Predictor(m, accel=1.0)
-    assert len(p.pairs) == 0
+    assert len(p.pair_set) == 0
 
 
 def test_step_before_reset(two_bodies) -> None:
@@ -591,8 +591,8 @@ def test_log_pairs_evaluations_on_paper_world_200() -> None:
     ctrl(m, d)
     mujoco.mj_step(m, d)
     p.reset(d)
-    limit = math.ceil(math.log2(p.npairs + 1))
-    assert p.npairs > 20_000
+    limit = math.ceil(math.log2(p.nsphere_pairs + 1))
+    assert p.nsphere_pairs > 20_000
     assert p.evaluations_per_step <= limit
     sched = p.scheduler
     assert sched is not None
@@ -886,7 +886,7 @@ def test_deactivate_contacts_switches_off_resting_contact() -> None:
     )
     off = np.flatnonzero(p.sphere_pairs.geom_pair == gp_box[0])
     assert off.size == box_floor and not sched.active[off].any()
-    assert sched.active.sum() == p.npairs - off.size
+    assert sched.active.sum() == p.nsphere_pairs - off.size
     for _ in range(600):  # the ball lands at about t = 0.55 s
         mujoco.mj_step(m, d)
         mon.observe(d, p.step(d))
@@ -1142,7 +1142,7 @@ def test_monitor_bound_check_follows_the_predictors_mocap_tracker() -> None:
     mujoco.mj_forward(m, d)
     monitor.start(d)
     assert monitor.bounds is not None
-    assert monitor.bounds._mocap is p._mocap
+    assert monitor.bounds._mocap is p.mocap
 
 
 MOCAP_RAM_XML = """
