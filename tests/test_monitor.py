@@ -79,7 +79,7 @@ def test_episode_accounting_matches_reference(scene: str, period: int) -> None:
         if alarms is not None:
             for pair in alarms.pairs.tolist():  # type: ignore[attr-defined]
                 g = int(gp_of[pair])
-                h = float(sched.horizon[sched.bucket(pair)])
+                h = float(sched.horizon_of(np.array([pair]))[0])
                 horizon[g] = max(horizon.get(g, 0.0), h)
         times.append(float(d.time))
         standing.append(now)

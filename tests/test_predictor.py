@@ -186,9 +186,11 @@ def test_kernel_matches_mj_object_velocity_at_random_states(site_predictor) -> N
         assert np.linalg.norm(v_ref, axis=1).max() > 0.5
 
 
-def test_fused_step_tau_matches_vectorised_tau(site_predictor) -> None:
-    """The fused ``step`` computes the same tau as ``pairs.tau`` on ``sphere_states``."""
-    m, p = site_predictor
+def test_fused_step_tau_matches_vectorised_tau(site_model) -> None:
+    """The fused ``step`` computes the same tau as ``pair_set.tau`` on ``sphere_states``."""
+    m = site_model
+    # Select-all: every pair is evaluated every step, whatever the random states do to tau.
+    p = Predictor(m, accel=1.0, covering="multi", schedule="select-all")
     d = mujoco.MjData(m)
     rng = np.random.default_rng(3)
     _random_state(m, d, rng)
@@ -196,18 +198,19 @@ def test_fused_step_tau_matches_vectorised_tau(site_predictor) -> None:
     p.reset(d)
     sched = p.scheduler
     assert sched is not None
-    halfspace_pairs_seen = 0
+    halfspace_pairs_seen = evaluated = 0
     for _ in range(20):
         _random_state(m, d, rng)
         d.time += p.dt
         mujoco.mj_forward(m, d)
         p.step(d)
         ids = sched.last_selected
-        assert ids.size > 0
+        evaluated += ids.size
         c, v = p.sphere_states(d)
         expected = p.pair_set.tau(ids, c, v, p.halfspaces(d))
         np.testing.assert_allclose(sched.last_tau[ids], expected, rtol=1e-12, atol=1e-15)
         halfspace_pairs_seen += int(p.pair_set.halfspace[ids].sum())
+    assert evaluated > 20
     assert halfspace_pairs_seen > 0
 
 
@@ -397,15 +400,22 @@ def test_model_and_data_types_are_checked(two_bodies) -> None:
         p.reset(None)  # type: ignore[arg-type]
 
 
+def forwarded(model: mujoco.MjModel) -> mujoco.MjData:
+    """A new ``MjData`` of ``model`` with its kinematics computed."""
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return data
+
+
 def test_data_of_an_edited_model_is_refused(two_bodies) -> None:
     """Same sizes, a geom moved: the predictor's covering would be wrong for it."""
     m, _ = two_bodies
     p = Predictor(m, accel=1.0)
     twin = mujoco.MjModel.from_xml_string(TWO_BODIES_XML)
-    p.reset(mujoco.MjData(twin))  # the same XML loaded twice is accepted
+    p.reset(forwarded(twin))  # the same XML loaded twice is accepted
     twin.geom_pos[0, 0] += 0.5
     with pytest.raises(InvalidInputError, match="another MjModel"):
-        p.reset(mujoco.MjData(twin))
+        p.reset(forwarded(twin))
     # Same geoms, one pair excluded: the pair filter differs.
     excluded = mujoco.MjModel.from_xml_string(
         TWO_BODIES_XML.replace(
@@ -413,7 +423,7 @@ def test_data_of_an_edited_model_is_refused(two_bodies) -> None:
         )
     )
     with pytest.raises(InvalidInputError, match="collision filters differ"):
-        p.reset(mujoco.MjData(excluded))
+        p.reset(forwarded(excluded))
 
 
 def test_model_without_collidable_pairs_warns() -> None:
@@ -477,7 +487,8 @@ def test_nan_state_on_reset_names_the_geom(two_bodies) -> None:
 
 def test_nan_state_on_step_names_a_geom(two_bodies) -> None:
     m, d = two_bodies
-    p = Predictor(m, accel=10.0)
+    # DUA evaluates bucket 0 every step (a deadline schedule reads a pair only when it is due).
+    p = Predictor(m, accel=10.0, schedule="dua")
     p.reset(d)
     d.qpos[0] = np.nan
     d.time += p.dt
@@ -574,7 +585,7 @@ def test_hfield_needs_the_box_fallback() -> None:
     msg = str(info.value)
     assert "'ground'" in msg
     assert 'hfield="box"' in msg
-    assert Predictor(m, accel=1.0, hfield="box").npairs == 1
+    assert Predictor(m, accel=1.0, hfield="box").nsphere_pairs == 1
 
 
 # --------------------------------------------------------------------------------------------------
@@ -586,7 +597,7 @@ def test_log_pairs_evaluations_on_paper_world_200() -> None:
     m, d = load_scene("paper_world:200")
     bound = declared_accel_bound(m)
     assert bound is not None
-    p = Predictor(m, accel=bound)
+    p = Predictor(m, accel=bound, schedule="dua")
     ctrl = make_controller(m, "random", seed=5)
     ctrl(m, d)
     mujoco.mj_step(m, d)
@@ -1040,11 +1051,14 @@ def test_reset_loads_the_compiled_code(scene: str) -> None:
     code = textwrap.dedent(
         f"""
         import mujoco
-        from dua_mujoco import scheduler, state, urgency
+        from dua_mujoco.core import pairset
+        from dua_mujoco.core.schedules import kernels as schedule
+        from dua_mujoco.mj import kinematics, mocap
         from dua_mujoco.mj.predictor import Predictor
         from dua_mujoco.mj.scenes import load_scene
-        kernels = [scheduler._step_rigid, scheduler._select, scheduler._reinsert,
-                   scheduler._tau_pairs_serial, state._difference_poses]
+        kernels = [kinematics.step_rigid_kernel, schedule.select, schedule.reinsert,
+                   schedule.switch, kinematics._states, pairset._tau_pairs_serial,
+                   mocap._difference_poses]
         count = lambda: [len(k.signatures) for k in kernels]
         m, d = load_scene({scene!r})
         p = Predictor(m, accel=30.0)

@@ -82,7 +82,7 @@ def test_never_alarming_predictor_is_caught(monkeypatch: pytest.MonkeyPatch) -> 
     def reset_without_horizon(data: mujoco.MjData) -> Alarms:
         alarms = reset(data)
         assert broken.scheduler is not None
-        broken.scheduler.horizon[:] = 0.0  # tau < 0 never holds: no alarm, ever
+        broken.scheduler.state.horizon[:] = 0.0  # tau < 0 never holds: no alarm, ever
         return alarms
 
     monkeypatch.setattr(broken, "reset", reset_without_horizon)
@@ -340,7 +340,7 @@ def test_plugin_fixture_fails_on_missed_collision(pytester: pytest.Pytester) -> 
 
                 def never_alarm(d):
                     out = reset(d)
-                    p.scheduler.horizon[:] = 0.0
+                    p.scheduler.state.horizon[:] = 0.0
                     return out
 
                 p.reset = never_alarm

@@ -431,11 +431,14 @@ class Predictor:
 
         A real-time user holds every ``step`` to its deadline, the first one included. One
         step of a throw-away one-pair scheduler of the same schedule on the real tables (read
-        only) loads the fused step; the mocap differencing runs on copies.
+        only) loads the fused step and the switching kernel; the mocap differencing runs on
+        copies.
         """
         if len(self.pair_set):
             spare = self._scheduler(np.full(1, np.inf))
             spare.step_with(step_rigid_kernel, self._pair_records[:1], self._spheres, frame)
+            spare.set_active([0], False)
+            spare.set_active([0], True)
         if self.mocap is not None:
             self.mocap.load_compiled(data, self._twist)
 
