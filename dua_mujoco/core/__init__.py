@@ -1,0 +1,1 @@
+"""Core kernels that import nothing from MuJoCo."""
