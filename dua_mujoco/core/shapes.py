@@ -430,7 +430,7 @@ def _check_kinds(name: str, kind: np.ndarray) -> None:
         i = _first_bad_row(~ok)
         valid = ", ".join(f"{k.name}={int(k)}" for k in ShapeKind)
         raise InvalidInputError(
-            f"{name}[{i}] = {kind[i]!r} is not a static shape kind. Valid kinds: {valid}. "
+            f"{name}[{i}] = {float(kind[i]):g} is not a static shape kind. Valid kinds: {valid}. "
             "Planes are half-spaces (use time_to_halfspace); height fields and SDFs are not "
             "convex (cover them with spheres instead)."
         )
