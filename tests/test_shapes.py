@@ -371,7 +371,7 @@ def test_known_values():
     assert tau_one([0, 0, 1.0], [0, 0, -1.0], box, 0.1, 0.0) == pytest.approx(0.4, rel=1e-12)
     # At rest, A = 2: 0.4 = t^2.
     assert tau_one([0, 0, 1.0], [0, 0, 0], box, 0.1, 2.0) == pytest.approx(math.sqrt(0.4), 1e-12)
-    # Off the corner (1, 1, 1) / sqrt 3 direction: clearance sqrt(3) (1 - 0.5) ... = |c - corner|.
+    # Along the diagonal at unit speed: the corner (0.5, 0.5, 0.5) is |c - corner| = sqrt 3 away.
     c = np.array([1.5, 1.5, 1.5])
     tau = tau_one(c, -c / np.linalg.norm(c), box, 0.0, 0.0)
     assert tau == pytest.approx(math.sqrt(3.0), rel=1e-12)

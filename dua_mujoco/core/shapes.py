@@ -303,8 +303,8 @@ def static_gap(c, rec):  # pragma: no cover - jitted
     Returns:
         ``(gap, nx, ny, nz)``: ``n`` is the unit direction from the closest point of the shape to
         ``c`` and ``gap = n.c - h_S(n)`` (without ``eps``). ``gap <= dist(c, S)`` for every ``c``
-        (equal outside the shape up to rounding, exactly for all but the mesh box and the
-        ellipsoid's iterated root) and ``gap <= 0`` inside.
+        and ``gap <= 0`` inside. Outside, ``gap = dist(c, S)`` up to rounding (for ``MESH_BOX``
+        the distance to the box, for the ellipsoid up to the accuracy of the iterated root).
     """
     gap, n0, n1, n2, _ = _gap(c[0], c[1], c[2], rec)
     return gap, n0, n1, n2
