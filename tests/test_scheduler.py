@@ -10,7 +10,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.core.schedules import DUAScheduler, SelectAllScheduler, Urgency, bucket_layout
+from dua_mujoco.core.schedules import (
+    DeadlineScheduler,
+    DUAScheduler,
+    SelectAllScheduler,
+    Urgency,
+    bucket_layout,
+)
 from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, SchedulerError, ShapeError
 
@@ -239,3 +245,153 @@ def test_most_urgent_is_bucket_zero() -> None:
     tau = np.array([3.0, 1.0, 2.0, 0.5, 9.0])
     s = DUAScheduler(tau, dt=0.01)
     assert s.most_urgent() == 3
+
+
+# --------------------------------------------------------------------------- deadline schedule
+
+
+def reference_interval(tau: float, dt: float, latency: int, max_interval: int) -> int:
+    """The largest s in [1, max_interval] with (s + latency) dt <= tau, by counting up."""
+    s = 1
+    while s < max_interval and (s + 1 + latency) * dt <= tau:
+        s += 1
+    return s
+
+
+class ReferenceDeadline:
+    """The deadline rule with a dict of due steps: obviously correct, O(M) a step."""
+
+    def __init__(self, tau0, dt, latency, cap, max_interval):
+        self.dt, self.latency, self.cap, self.max_interval = dt, latency, cap, max_interval
+        self.last_tau = np.array(tau0, dtype=float)
+        self.last_step = np.zeros(len(tau0), dtype=int)
+        self.due = {p: reference_interval(t, dt, latency, max_interval) for p, t in enumerate(tau0)}
+        self.n = 0
+
+    def select(self) -> tuple[list[int], list[int]]:
+        self.n += 1
+        n = self.n
+        due = sorted(p for p, d in self.due.items() if d == n)
+        deferred: list[int] = []
+        if self.cap and len(due) > self.cap:
+            slack = {p: self.last_tau[p] - (n - self.last_step[p]) * self.dt for p in due}
+            due.sort(key=lambda p: slack[p])
+            due, deferred = due[: self.cap], due[self.cap :]
+            for p in deferred:
+                self.due[p] = n + 1
+        return due, deferred
+
+    def update(self, ids, tau, deferred) -> set[int]:
+        n, dt, lat = self.n, self.dt, self.latency
+        alarms = set()
+        for p, t in zip(ids, tau, strict=True):
+            self.last_tau[p], self.last_step[p] = t, n
+            self.due[p] = n + reference_interval(t, dt, lat, self.max_interval)
+            if t < (1 + lat) * dt:
+                alarms.add(p)
+        for p in deferred:
+            if self.last_tau[p] < (self.due[p] - self.last_step[p] + lat) * dt:
+                alarms.add(p)
+        return alarms
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    m=st.integers(1, 60),
+    latency=st.integers(0, 2),
+    cap=st.sampled_from([None, 1, 3, 10]),
+    max_interval=st.sampled_from([1, 7, 64]),
+)
+def test_deadline_matches_reference(
+    seed: int, m: int, latency: int, cap: int | None, max_interval: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    dt = 0.01
+
+    def draw(k: int) -> np.ndarray:
+        # Distinct values (no ties in the slack order), some below one step, some infinite.
+        t = rng.exponential(0.05, size=k) + rng.uniform(0, 1e-9, size=k)
+        t[rng.uniform(size=k) < 0.1] = np.inf
+        return t
+
+    tau0 = draw(m)
+    s = DeadlineScheduler(
+        tau0, dt=dt, latency=latency, max_evals_per_step=cap, max_interval=max_interval
+    )
+    ref = ReferenceDeadline(tau0, dt, latency, cap, max_interval)
+    assert set(s.initial_alarms.tolist()) == {p for p in range(m) if tau0[p] < (1 + latency) * dt}
+    for _ in range(40):
+        ids = s.select()
+        want, deferred = ref.select()
+        assert sorted(ids.tolist()) == sorted(want)
+        assert s.state.params[6] == len(deferred)  # P_DEFERRED
+        tau = draw(ids.size)
+        alarms = s.update(ids, tau)
+        assert set(alarms.tolist()) == ref.update(ids.tolist(), tau.tolist(), deferred)
+        assert s.deferred == len(deferred)
+        # Every pair stands in alarm exactly when its verdict does not cover its next due step.
+        due = np.array([ref.due[p] for p in range(m)])
+        covered = ref.last_tau >= (due - ref.last_step + latency) * dt
+        np.testing.assert_array_equal(s.alarm_state(), ~covered)
+        np.testing.assert_array_equal(s.next_due(np.arange(m)), due)
+
+
+def test_deadline_interval_is_the_latest_safe_step() -> None:
+    dt = 0.002
+    s = DeadlineScheduler(np.array([0.0, 0.0039, 0.004, 0.0101, np.inf]), dt=dt, latency=1)
+    # (s + 1) dt <= tau: 0.004 allows s = 1; 0.0101 allows s = 4; inf the longest interval.
+    np.testing.assert_array_equal(s.next_due(np.arange(5)), [1, 1, 1, 4, 1024])
+    np.testing.assert_array_equal(s.initial_alarms, [0, 1])
+    # A verdict computed in floating point never allows more than its tau covers, including
+    # at the exact multiples of dt where the division rounds.
+    taus = np.concatenate([np.linspace(0.0, 0.1, 2001), np.arange(1, 50) * dt])
+    t = DeadlineScheduler(taus, dt=dt, latency=1)
+    due = t.next_due(np.arange(taus.size))
+    assert ((taus < 2 * dt) | ((due + 1) * dt <= taus)).all()
+    assert (due == [reference_interval(float(x), dt, 1, 1024) for x in taus]).all()
+
+
+def test_deadline_switching_and_errors() -> None:
+    s = DeadlineScheduler(np.full(4, np.inf), dt=0.01, latency=0)
+    assert s.select().size == 0
+    s.update(np.zeros(0, dtype=np.int64), np.zeros(0))
+    s.set_active([2], False)
+    assert not s.alarm_state([2])[0]
+    s.set_active([2], True)
+    assert s.alarm_state([2])[0]  # stands in alarm until evaluated
+    assert s.next_due(np.array([2]))[0] == 2
+    ids = s.select()
+    assert ids.tolist() == [2]
+    with pytest.raises(SchedulerError, match="between select"):
+        s.set_active([1], False)
+    assert s.update(ids, [np.inf]).size == 0
+    assert not s.alarm_state([2])[0]
+    for bad in (0, -1, True, 1.5):
+        with pytest.raises(InvalidInputError, match="max_evals_per_step"):
+            DeadlineScheduler(np.ones(2), dt=0.01, max_evals_per_step=bad)
+    with pytest.raises(InvalidInputError, match="max_interval"):
+        DeadlineScheduler(np.ones(2), dt=0.01, max_interval=0)
+
+
+def test_schedules_share_the_fused_step_on_free_spheres() -> None:
+    """``step_points`` and the Python protocol give the same alarms for every schedule."""
+    world = SphereWorld(12, seed=3, radius=0.08, accel=2.0, dt=0.01)
+    pairs = world.pairs()
+    tau0 = pairs.tau(np.arange(len(pairs)), world.positions, world.velocities)
+    makers = [
+        lambda t: DUAScheduler(t, dt=0.01),
+        lambda t: DeadlineScheduler(t, dt=0.01, max_evals_per_step=5),
+        lambda t: SelectAllScheduler(t, dt=0.01),
+    ]
+    for make in makers:
+        fused, protocol = make(tau0), make(tau0)
+        for _ in range(60):
+            world.step()
+            c, v = world.positions, world.velocities
+            a = fused.step_points(pairs, c, v)
+            ids = protocol.select()
+            b = protocol.update(ids, pairs.tau(ids, c, v))
+            assert sorted(a.tolist()) == sorted(b.tolist())
+            np.testing.assert_array_equal(fused.last_tau, protocol.last_tau)
+            np.testing.assert_array_equal(fused.last_new, protocol.last_new)

@@ -46,7 +46,7 @@ from dua_mujoco.exceptions import (
     NonFiniteStateError,
     ShapeError,
 )
-from dua_mujoco.urgency import time_to_collision
+from dua_mujoco.core.urgency import time_to_collision
 
 try:
     import reference_tau as ref

@@ -47,7 +47,7 @@ from dua_mujoco.exceptions import (
     NonFiniteStateError,
     ShapeError,
 )
-from dua_mujoco.urgency import tau_halfspace
+from dua_mujoco.core.urgency import tau_halfspace
 
 __all__ = [
     "SHAPE_KIND",

@@ -212,7 +212,9 @@ def _deadline_select(st, n):  # pragma: no cover - jitted
     cap = params[P_CAP]
     if cap > 0 and count > cap:
         # The least time left first: a pair left waiting sees its slack shrink every step, so
-        # none waits forever under a sustained overload.
+        # none waits forever under a sustained overload. Ties go to the lower pair id (the
+        # wheel's list order is an accident of history).
+        w_ids[:count] = np.sort(w_ids[:count])
         slack = np.empty(count)
         for k in range(count):
             q = w_ids[k]
