@@ -1,0 +1,1 @@
+"""MuJoCo-free numerical core of dua_mujoco (no module here imports mujoco)."""

@@ -1,0 +1,490 @@
+"""Pruned sphere pairs: the pairs whose reachable balls over a horizon can meet.
+
+Motion model of sphere ``i``: centre ``c_i``, velocity ``v_i``, radius ``r_i``, a bound ``A_i`` on
+the norm of the centre's acceleration, an optional bound ``delta_i`` on the error of the measured
+velocity and an optional speed bound ``V_i``. :func:`reach` returns ``reach_i = r_i + R_i(T)`` with
+``R_i(T) = min(|v_i| T + delta_i T + A_i T^2 / 2, V_i T)``; :func:`candidate_pairs` returns every
+pair ``i < j`` with ``|c_i - c_j| <= reach_i + reach_j + margin`` and no other.
+
+Guarantee: a pair that :func:`candidate_pairs` leaves out cannot come within ``r_i + r_j + margin``
+(centre distance) at any time in ``[0, T]``, whatever its motion within the bounds.
+Proof: the true velocity ``u_i(s)`` satisfies ``|u_i(0)| <= |v_i| + delta_i`` and
+``|u_i(s) - u_i(0)| <= A_i s``, so ``|x_i(t) - c_i| <= (|v_i| + delta_i) t + A_i t^2 / 2``; a speed
+bound gives ``|x_i(t) - c_i| <= V_i t`` as well, so ``|x_i(t) - c_i| <= R_i(t) <= R_i(T)`` since
+every term is non-decreasing in ``t``. By the triangle inequality
+``|x_i(t) - x_j(t)| >= |c_i - c_j| - R_i(T) - R_j(T) > r_i + r_j + margin`` for every left-out
+pair. Floating point: the test is evaluated as ``d2 <= s * s * ROUNDING_SLACK`` with
+``d2 = dx*dx + dy*dy + dz*dz`` and ``s = (reach_i + reach_j) + margin`` in float64 (this exact
+expression is the contract; the tests compare against it). ``ROUNDING_SLACK = 1 + 2**-44`` exceeds
+the at most ~12 ulp of relative error of ``d2`` and ``s * s``, so every pair meeting the test in
+exact arithmetic is returned; the extra pairs lie within a relative ``3e-14`` of the boundary.
+
+Algorithm: a uniform grid whose cells are hashed into ``2^b >= 2 N`` buckets, spheres counting-
+sorted by bucket (no comparison sort, no dict), each sphere compared with its own cell and the 13
+"positive" neighbour cells so each pair is tested once. The cell edge is ``2 * rcut + margin``,
+where ``rcut`` is the largest reach of the spheres in the grid; the ``k`` spheres of largest reach
+may be held out of the grid and compared with every sphere instead (``k N`` tests). ``k`` minimises
+a cost model, ``k N + 14 N (1 + occupancy)`` with the occupancy of a cell estimated from the
+bounding box: one 2 m sphere among 1 cm ones then costs ``N`` tests instead of growing every cell
+200 times (8e6 times the volume). Pairs are counted in a first pass and written in a second into
+arrays allocated at their exact size; two counting sorts (by ``j``, then stably by ``i``) order
+them, so time and memory are ``O(N + K)`` (plus ``O(N k)`` tests for held-out spheres). All the
+work arrays are numpy allocations made here (the compiled kernels allocate nothing), which keeps
+``tracemalloc`` honest.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.exceptions import (
+    InvalidBoundError,
+    InvalidInputError,
+    NonFiniteStateError,
+    ShapeError,
+)
+
+__all__ = ["ROUNDING_SLACK", "candidate_pairs", "reach"]
+
+ROUNDING_SLACK = 1.0 + 2.0**-44
+"""Relative slack of the pair test ``d2 <= s * s * ROUNDING_SLACK`` (covers float64 rounding)."""
+
+# Cells are grown by this factor so that a pair at distance <= s <= cell edge (after rounding of
+# d2, s and the slack, all < 1e-13 relative) can never land two cells apart: the rounding of
+# floor((x - lo) / h) is below 2^-21 cells as long as there are at most _MAX_CELLS cells an axis.
+_GRID_GROW = 1.0 + 2.0**-16
+_MAX_CELLS = 2.0**31
+# Squares of larger values could overflow to inf, where the test stops meaning anything.
+_MAX_MAGNITUDE = 1e150
+# Held-out (largest-reach) spheres considered by the cost model; each costs N tests.
+_MAX_HELD_OUT = 256
+# Cost of visiting one sphere's 14 cells relative to one pair test (a hash lookup each).
+_CELL_COST = 14.0
+
+# The 13 neighbour offsets lexicographically after (0, 0, 0): with the own cell, every pair of
+# adjacent cells is visited from exactly one side.
+_HALF = np.array(
+    [(1, dy, dz) for dy in (-1, 0, 1) for dz in (-1, 0, 1)]
+    + [(0, 1, -1), (0, 1, 0), (0, 1, 1)]
+    + [(0, 0, 1)],
+    dtype=np.int64,
+)
+
+
+def _as_1d(name: str, value: npt.ArrayLike, n: int | None) -> np.ndarray:
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim == 0:
+        return a
+    if a.ndim != 1 or (n is not None and a.shape[0] != n):
+        want = "a scalar or shape (N,)" if n is None else f"a scalar or shape ({n},)"
+        raise ShapeError(
+            f"{name} has shape {a.shape}; expected {want}, one entry per sphere. "
+            "Pass one value per sphere or a single scalar for all."
+        )
+    return a
+
+
+def _check_values(
+    name: str,
+    a: np.ndarray,
+    *,
+    allow_inf: bool = False,
+    error: type[InvalidInputError] = InvalidInputError,
+) -> None:
+    bad = np.isnan(a) | (a < 0) | (np.isinf(a) & (not allow_inf))
+    if not bad.any():
+        return
+    if a.ndim == 0:
+        where, value = name, float(a)
+    else:
+        idx = int(np.flatnonzero(bad)[0])
+        where, value = f"{name}[{idx}]", float(a[idx])
+    allowed = "finite or inf, and >= 0" if allow_inf else "finite and >= 0"
+    raise error(f"{where} = {value!r} is invalid: it must be {allowed}. Fix the value passed.")
+
+
+def reach(
+    radius: npt.ArrayLike,
+    speed_now: npt.ArrayLike,
+    accel: npt.ArrayLike,
+    horizon: float,
+    *,
+    vel_uncertainty: npt.ArrayLike = 0.0,
+    speed_bound: npt.ArrayLike = np.inf,
+) -> np.ndarray:
+    """Radius plus the farthest a sphere's centre can travel within ``horizon``.
+
+    ``reach_i = r_i + min(|v_i| T + delta_i T + A_i T^2 / 2, V_i T)`` (see the module docstring
+    for why the centre stays within that distance of ``c_i`` over all of ``[0, T]``).
+
+    Args:
+        radius: ``(N,)`` or scalar sphere radii ``r_i`` (m), finite, ``>= 0``.
+        speed_now: ``(N,)`` or scalar measured speeds ``|v_i|`` (m/s), finite, ``>= 0``.
+        accel: ``(N,)`` or scalar bounds ``A_i`` on the centre's acceleration norm (m/s^2),
+            finite, ``>= 0``.
+        horizon: The horizon ``T`` (s), finite, ``>= 0``.
+        vel_uncertainty: ``(N,)`` or scalar bound ``delta_i`` on ``|v_true - v_measured|``
+            (m/s), finite, ``>= 0``.
+        speed_bound: ``(N,)`` or scalar bounds ``V_i`` on the speed (m/s), ``>= 0``; ``inf``
+            (the default) for none.
+
+    Returns:
+        ``(N,)`` float64 reaches; ``N`` is the length of the array arguments (``1`` if all are
+        scalars).
+
+    Raises:
+        ShapeError: an argument is neither a scalar nor ``(N,)``, or the lengths differ.
+        NonFiniteStateError: a speed is NaN, infinite or negative.
+        InvalidBoundError: an acceleration, uncertainty or speed bound is NaN or negative
+            (or infinite, except the speed bound).
+        InvalidInputError: a radius or the horizon is NaN, infinite or negative, or the reach
+            overflows.
+    """
+    args = {
+        "radius": radius,
+        "speed_now": speed_now,
+        "accel": accel,
+        "vel_uncertainty": vel_uncertainty,
+        "speed_bound": speed_bound,
+    }
+    n: int | None = None
+    arrays: dict[str, np.ndarray] = {}
+    for name, value in args.items():
+        a = _as_1d(name, value, n)
+        if a.ndim == 1:
+            n = a.shape[0]
+        arrays[name] = a
+    T = np.asarray(horizon, dtype=np.float64)
+    if T.ndim != 0:
+        raise ShapeError(f"horizon has shape {T.shape}; expected a scalar (seconds).")
+    _check_values("horizon", T)
+    _check_values("radius", arrays["radius"])
+    _check_values("speed_now", arrays["speed_now"], error=NonFiniteStateError)
+    _check_values("accel", arrays["accel"], error=InvalidBoundError)
+    _check_values("vel_uncertainty", arrays["vel_uncertainty"], error=InvalidBoundError)
+    _check_values("speed_bound", arrays["speed_bound"], allow_inf=True, error=InvalidBoundError)
+    t = float(T)
+    r, s, A = arrays["radius"], arrays["speed_now"], arrays["accel"]
+    d, V = arrays["vel_uncertainty"], arrays["speed_bound"]
+    free = (s + d) * t + 0.5 * A * (t * t)
+    # inf * 0 is NaN: with no speed bound (or T = 0) the free-motion bound is the answer.
+    capped = np.where(np.isinf(V), free, np.minimum(free, np.where(np.isinf(V), 0.0, V) * t))
+    out = np.broadcast_to(r + capped, (1 if n is None else n,)).astype(np.float64)
+    if not np.isfinite(out).all():
+        idx = int(np.flatnonzero(~np.isfinite(out))[0])
+        raise InvalidInputError(
+            f"reach[{idx}] overflowed to {out[idx]!r}: the horizon or bounds are too large to "
+            "bound anything. Use a shorter horizon."
+        )
+    return out
+
+
+@nb.njit(cache=True, inline="always")
+def _hash(kx: np.int64, ky: np.int64, kz: np.int64, shift: int) -> np.int64:
+    # Multiply-xorshift mixing (splitmix64 finaliser); the top bits index the 2^b buckets.
+    h = (
+        np.uint64(kx) * np.uint64(0x9E3779B97F4A7C15)
+        ^ np.uint64(ky) * np.uint64(0xC2B2AE3D27D4EB4F)
+        ^ np.uint64(kz) * np.uint64(0x165667B19E3779F9)
+    )
+    h ^= h >> np.uint64(29)
+    h *= np.uint64(0xBF58476D1CE4E5B9)
+    h ^= h >> np.uint64(32)
+    return np.int64(h >> np.uint64(shift))
+
+
+@nb.njit(cache=True, inline="always")
+def _cell(
+    centers: np.ndarray, i: int, lo: np.ndarray, h: float
+) -> tuple[np.int64, np.int64, np.int64]:
+    return (
+        np.int64(math.floor((centers[i, 0] - lo[0]) / h)),
+        np.int64(math.floor((centers[i, 1] - lo[1]) / h)),
+        np.int64(math.floor((centers[i, 2] - lo[2]) / h)),
+    )
+
+
+@nb.njit(cache=True)
+def _build_grid(
+    centers: np.ndarray,
+    reach: np.ndarray,
+    ids: np.ndarray,
+    lo: np.ndarray,
+    h: float,
+    shift: int,
+    start: np.ndarray,
+    key: np.ndarray,
+    sid: np.ndarray,
+    sxyz: np.ndarray,
+    sr: np.ndarray,
+    sk: np.ndarray,
+) -> None:
+    """Counting sort of the grid spheres by bucket: bucket ``b`` is ``start[b]:start[b + 1]``."""
+    n = ids.size
+    nbucket = start.size - 1
+    start[:] = 0
+    for t in range(n):
+        kx, ky, kz = _cell(centers, ids[t], lo, h)
+        b = _hash(kx, ky, kz, shift)
+        key[t] = b
+        start[b] += 1
+    for b in range(1, nbucket):
+        start[b] += start[b - 1]
+    start[nbucket] = n
+    # start[b] is now the end of bucket b; placing backwards leaves it at the bucket's start (no
+    # cursor array needed) and keeps each bucket in id order.
+    for t in range(n - 1, -1, -1):
+        b = key[t]
+        p = start[b] - 1
+        start[b] = p
+        i = ids[t]
+        sid[p] = i
+        sxyz[p, 0] = centers[i, 0]
+        sxyz[p, 1] = centers[i, 1]
+        sxyz[p, 2] = centers[i, 2]
+        sr[p] = reach[i]
+        # Recomputed rather than stored per id: floor of the same expression is deterministic.
+        kx, ky, kz = _cell(centers, i, lo, h)
+        sk[p, 0] = kx
+        sk[p, 1] = ky
+        sk[p, 2] = kz
+
+
+@nb.njit(cache=True, inline="always")
+def _near(
+    xi: float, yi: float, zi: float, ri: float, xj: float, yj: float, zj: float, rj: float, m: float
+) -> bool:
+    # The contract of the module docstring, operation for operation.
+    dx = xi - xj
+    dy = yi - yj
+    dz = zi - zj
+    s = (ri + rj) + m
+    return dx * dx + dy * dy + dz * dz <= s * s * ROUNDING_SLACK
+
+
+@nb.njit(cache=True, inline="always")
+def _record(
+    i: int, j: int, fill: bool, cnt_a: np.ndarray, cnt_b: np.ndarray, tmp: np.ndarray
+) -> None:
+    # Count pass: pairs per smaller id (cnt_a) and per larger id (cnt_b). Fill pass: cnt_b holds
+    # each larger id's cursor and the smaller id is written there (first counting sort, by j).
+    if i > j:
+        i, j = j, i
+    if fill:
+        p = cnt_b[j]
+        tmp[p] = i
+        cnt_b[j] = p + 1
+    else:
+        cnt_a[i] += 1
+        cnt_b[j] += 1
+
+
+@nb.njit(cache=True)
+def _visit(
+    start: np.ndarray,
+    sid: np.ndarray,
+    sxyz: np.ndarray,
+    sr: np.ndarray,
+    sk: np.ndarray,
+    shift: int,
+    half: np.ndarray,
+    margin: float,
+    centers: np.ndarray,
+    reach: np.ndarray,
+    held: np.ndarray,
+    is_held: np.ndarray,
+    fill: bool,
+    cnt_a: np.ndarray,
+    cnt_b: np.ndarray,
+    tmp: np.ndarray,
+) -> None:
+    """Test every candidate pair once; count (``fill=False``) or write (``fill=True``) the hits."""
+    n = sid.size
+    for p in range(n):
+        i = sid[p]
+        xi = sxyz[p, 0]
+        yi = sxyz[p, 1]
+        zi = sxyz[p, 2]
+        ri = sr[p]
+        kx = sk[p, 0]
+        ky = sk[p, 1]
+        kz = sk[p, 2]
+        # Own cell: the later members of p's bucket that share its cell (buckets mix cells).
+        end = start[_hash(kx, ky, kz, shift) + 1]
+        for q in range(p + 1, end):
+            if (
+                sk[q, 0] == kx
+                and sk[q, 1] == ky
+                and sk[q, 2] == kz
+                and _near(xi, yi, zi, ri, sxyz[q, 0], sxyz[q, 1], sxyz[q, 2], sr[q], margin)
+            ):
+                _record(i, sid[q], fill, cnt_a, cnt_b, tmp)
+        for o in range(half.shape[0]):
+            nx = kx + half[o, 0]
+            ny = ky + half[o, 1]
+            nz = kz + half[o, 2]
+            b = _hash(nx, ny, nz, shift)
+            for q in range(start[b], start[b + 1]):
+                if (
+                    sk[q, 0] == nx
+                    and sk[q, 1] == ny
+                    and sk[q, 2] == nz
+                    and _near(xi, yi, zi, ri, sxyz[q, 0], sxyz[q, 1], sxyz[q, 2], sr[q], margin)
+                ):
+                    _record(i, sid[q], fill, cnt_a, cnt_b, tmp)
+    # Held-out spheres against everyone; a pair of two held-out spheres from the smaller id.
+    N = reach.size
+    for t in range(held.size):
+        i = held[t]
+        xi = centers[i, 0]
+        yi = centers[i, 1]
+        zi = centers[i, 2]
+        ri = reach[i]
+        for j in range(N):
+            if j == i or (is_held[j] and j < i):
+                continue
+            if _near(xi, yi, zi, ri, centers[j, 0], centers[j, 1], centers[j, 2], reach[j], margin):
+                _record(i, j, fill, cnt_a, cnt_b, tmp)
+
+
+@nb.njit(cache=True)
+def _exclusive_prefix(a: np.ndarray) -> int:
+    total = 0
+    for i in range(a.size):
+        c = a[i]
+        a[i] = total
+        total += c
+    return total
+
+
+@nb.njit(cache=True)
+def _scatter(end_b: np.ndarray, tmp: np.ndarray, cur_a: np.ndarray, out: np.ndarray) -> None:
+    # Second counting sort, stable, by the smaller id: walking j upwards leaves each i's row
+    # block sorted by j. end_b[j] is the end of j's block in tmp (the fill pass's cursor).
+    lo = 0
+    for j in range(end_b.size):
+        hi = end_b[j]
+        for q in range(lo, hi):
+            i = tmp[q]
+            p = cur_a[i]
+            out[p, 0] = i
+            out[p, 1] = j
+            cur_a[i] = p + 1
+        lo = hi
+
+
+def _cell_edge(rcut: np.ndarray | float, margin: float, extent: float) -> np.ndarray:
+    # >= extent / _MAX_CELLS keeps the cell indices small enough for the rounding argument; a
+    # zero edge (all reaches and the margin zero, all centres equal) becomes 1 m, any size works.
+    h = np.maximum((2.0 * np.asarray(rcut) + margin) * _GRID_GROW, extent / _MAX_CELLS)
+    return np.where(h > 0.0, h, 1.0)
+
+
+def _hold_out(
+    centers: np.ndarray, reach: np.ndarray, margin: float, extent: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """Ids held out of the grid and the grid's largest reach (cost model of the module docs)."""
+    n = reach.shape[0]
+    kmax = min(n - 1, _MAX_HELD_OUT)
+    if kmax <= 0:
+        return np.empty(0, dtype=np.int64), float(reach.max()) if n else 0.0
+    part = np.argpartition(reach, n - kmax - 1)[n - kmax - 1 :]
+    top = part[np.argsort(-reach[part], kind="stable")]
+    h = _cell_edge(reach[top], margin, float(extent.max()))
+    vol = np.prod(np.maximum(extent[None, :], h[:, None]), axis=1)
+    occupancy = np.minimum(float(n), n * h**3 / vol)
+    k = np.arange(kmax + 1, dtype=np.float64)
+    cost = k * n + _CELL_COST * (n - k) * (1.0 + occupancy)
+    best = int(np.argmin(cost))
+    return np.sort(top[:best]).astype(np.int64), float(reach[top[best]])
+
+
+def candidate_pairs(
+    centers: npt.ArrayLike, reach: npt.ArrayLike, *, margin: float = 0.0
+) -> np.ndarray:
+    """Every pair ``i < j`` whose reachable balls come within ``margin`` of each other.
+
+    Exactly the pairs with ``|c_i - c_j| <= reach_i + reach_j + margin``, evaluated as the module
+    docstring states (a relative ``3e-14`` of slack for rounding, never less than the exact set).
+
+    Args:
+        centers: ``(N, 3)`` sphere centres (m), finite, magnitude below ``1e150``.
+        reach: ``(N,)`` reaches (m), finite, ``>= 0``, below ``1e150``; usually :func:`reach`.
+        margin: Extra distance (m) under which two spheres count as touching, finite, ``>= 0``.
+
+    Returns:
+        ``(K, 2)`` int64 array of pairs ``(i, j)``, ``i < j``, sorted lexicographically;
+        ``(0, 2)`` when there are none.
+
+    Raises:
+        ShapeError: ``centers`` is not ``(N, 3)`` or ``reach`` not ``(N,)``.
+        NonFiniteStateError: a centre is NaN or infinite.
+        InvalidInputError: a reach or the margin is NaN, infinite or negative, or a value is
+            above ``1e150``.
+    """
+    c = np.asarray(centers, dtype=np.float64)
+    if c.ndim != 2 or c.shape[1] != 3:
+        raise ShapeError(f"centers has shape {c.shape}; expected (N, 3), one row per sphere.")
+    n = c.shape[0]
+    r = np.asarray(reach, dtype=np.float64)
+    if r.shape != (n,):
+        raise ShapeError(
+            f"reach has shape {r.shape}; expected ({n},), one entry per row of centers."
+        )
+    m = np.asarray(margin, dtype=np.float64)
+    if m.ndim != 0:
+        raise ShapeError(f"margin has shape {m.shape}; expected a scalar (m).")
+    _check_values("margin", m)
+    _check_values("reach", r)
+    finite = np.isfinite(c)
+    if not finite.all():
+        row = int(np.flatnonzero(~finite.all(axis=1))[0])
+        raise NonFiniteStateError(
+            f"centers[{row}] = {c[row].tolist()} is not finite: the state diverged or was not "
+            "computed. Pass finite centres."
+        )
+    for name, a in (("centers", c), ("reach", r), ("margin", m)):
+        big = np.abs(a) > _MAX_MAGNITUDE
+        if big.any():
+            where = name if a.ndim == 0 else f"{name}[{np.argwhere(big)[0].tolist()}]"
+            raise InvalidInputError(
+                f"{where} exceeds {_MAX_MAGNITUDE:g} in magnitude: its square would overflow. "
+                "Rescale the units."
+            )
+    if n < 2:
+        return np.empty((0, 2), dtype=np.int64)
+    c = np.ascontiguousarray(c)
+    lo = c.min(axis=0)
+    extent = c.max(axis=0) - lo
+    held, rcut = _hold_out(c, r, float(m), extent)
+    is_held = np.zeros(n, dtype=np.bool_)
+    is_held[held] = True
+    grid_ids = np.flatnonzero(~is_held).astype(np.int64)
+    ng = grid_ids.size
+    h = float(_cell_edge(rcut, float(m), float(extent.max())))
+    bits = max(1, int(ng).bit_length() + 1)
+    start = np.empty((1 << bits) + 1, dtype=np.int64)
+    key = np.empty(ng, dtype=np.int64)
+    sid = np.empty(ng, dtype=np.int64)
+    sxyz = np.empty((ng, 3), dtype=np.float64)
+    sr = np.empty(ng, dtype=np.float64)
+    sk = np.empty((ng, 3), dtype=np.int64)
+    _build_grid(c, r, grid_ids, lo, h, 64 - bits, start, key, sid, sxyz, sr, sk)
+    del key, grid_ids
+    cnt_a = np.zeros(n, dtype=np.int64)
+    cnt_b = np.zeros(n, dtype=np.int64)
+    tmp = np.empty(0, dtype=np.int32)
+    args = (start, sid, sxyz, sr, sk, 64 - bits, _HALF, float(m), c, r, held, is_held)
+    _visit(*args, False, cnt_a, cnt_b, tmp)
+    k = _exclusive_prefix(cnt_a)
+    _exclusive_prefix(cnt_b)
+    tmp = np.empty(k, dtype=np.int32)
+    _visit(*args, True, cnt_a, cnt_b, tmp)
+    del args, start, sid, sxyz, sr, sk
+    out = np.empty((k, 2), dtype=np.int64)
+    _scatter(cnt_b, tmp, cnt_a, out)
+    return out
