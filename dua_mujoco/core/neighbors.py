@@ -232,8 +232,8 @@ def _build_grid(
         b = _hash(kx, ky, kz, shift)
         key[t] = b
         start[b] += 1
-    for b in range(1, nbucket):
-        start[b] += start[b - 1]
+    for u in range(1, nbucket):
+        start[u] += start[u - 1]
     start[nbucket] = n
     # start[b] is now the end of bucket b; placing backwards leaves it at the bucket's start (no
     # cursor array needed) and keeps each bucket in id order.
