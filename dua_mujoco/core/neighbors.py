@@ -58,6 +58,11 @@ ROUNDING_SLACK = 1.0 + 2.0**-44
 # floor((x - lo) / h) is below 2^-21 cells as long as there are at most _MAX_CELLS cells an axis.
 _GRID_GROW = 1.0 + 2.0**-16
 _MAX_CELLS = 2.0**31
+# A grid that would need more buckets than the budget may use cells up to this factor larger
+# (in _GROW_STEPS geometric steps) instead of wrapping: bucket = cell is then exact and the cell
+# checks go. Growing costs at most _GROW_MAX^3 = 8 times the candidates of the same sphere.
+_GROW_MAX = 2.0
+_GROW_STEPS = 6
 # Squares of larger values could overflow to inf, where the test stops meaning anything.
 _MAX_MAGNITUDE = 1e150
 # Held-out (largest-reach) spheres considered by the cost model; each costs N tests.
@@ -273,6 +278,10 @@ def _record(
         cnt_b[j] += 1
 
 
+Sphere = tuple[int, float, float, float, float]
+"""A grid sphere while it is visited: ``(id, x, y, z, reach)``."""
+
+
 @nb.njit(cache=True, inline="always")
 def _scan(
     qa: int,
@@ -281,31 +290,31 @@ def _scan(
     xhi: np.int64,
     ny: np.int64,
     nz: np.int64,
-    i: int,
-    xi: float,
-    yi: float,
-    zi: float,
-    ri: float,
-    sid: np.ndarray,
-    sxyz: np.ndarray,
-    sr: np.ndarray,
-    sk: np.ndarray,
-    margin: float,
-    fill: bool,
-    cnt_a: np.ndarray,
-    cnt_b: np.ndarray,
-    tmp: np.ndarray,
+    check: bool,
+    me: Sphere,
+    ctx: tuple[
+        np.ndarray,
+        np.ndarray,
+        np.ndarray,
+        np.ndarray,
+        float,
+        bool,
+        np.ndarray,
+        np.ndarray,
+        np.ndarray,
+    ],
 ) -> int:
-    # Sorted entries qa:qb, kept if their cell is (xlo..xhi, ny, nz): buckets alias cells.
+    # Test sorted entries qa:qb. With check, keep only cells (xlo..xhi, ny, nz): a wrapped
+    # bucket map puts several cells in one bucket.
+    sid, sxyz, sr, sk, margin, fill, cnt_a, cnt_b, tmp = ctx
+    i, xi, yi, zi, ri = me
     hits = 0
     for q in range(qa, qb):
-        kq = sk[q, 0]
-        if (
-            sk[q, 1] == ny
-            and sk[q, 2] == nz
-            and xlo <= kq <= xhi
-            and _near(xi, yi, zi, ri, sxyz[q, 0], sxyz[q, 1], sxyz[q, 2], sr[q], margin)
-        ):
+        if check:
+            kq = sk[q, 0]
+            if sk[q, 1] != ny or sk[q, 2] != nz or kq < xlo or kq > xhi:
+                continue
+        if _near(xi, yi, zi, ri, sxyz[q, 0], sxyz[q, 1], sxyz[q, 2], sr[q], margin):
             _record(i, sid[q], fill, cnt_a, cnt_b, tmp)
             hits += 1
     return hits
@@ -319,6 +328,7 @@ def _visit(
     sr: np.ndarray,
     sk: np.ndarray,
     geo: Geometry,
+    wrapped: bool,
     margin: float,
     centers: np.ndarray,
     reach: np.ndarray,
@@ -332,150 +342,60 @@ def _visit(
 ) -> None:
     """Test every candidate pair once; count (``fill=False``) or write (``fill=True``) the hits.
 
-    The count pass stores each sphere's hits in ``found``; the fill pass skips the spheres
-    without any (most of them, at the densities the predictor is meant for).
+    A grid sphere is tested against the later members of its own cell and the 13 cells
+    ``(dx, dy, dz)`` with ``(dz, dy, dx)`` lexicographically after ``(0, 0, 0)``: every pair of
+    adjacent cells from exactly one side. dx varies fastest, as in the bucket map, so the cells
+    form five rows of adjacent buckets, each read as one range. The count pass stores each
+    sphere's hits in ``found``; the fill pass skips the spheres without any (most of them at the
+    densities the predictor is meant for).
     """
     n = sid.size
     mx = geo[0]
+    my = geo[1]
+    mz = geo[2]
+    ctx = (sid, sxyz, sr, sk, margin, fill, cnt_a, cnt_b, tmp)
     for p in range(n):
         if fill and found[p] == 0:
             continue
-        i = sid[p]
-        xi = sxyz[p, 0]
-        yi = sxyz[p, 1]
-        zi = sxyz[p, 2]
-        ri = sr[p]
+        me = (sid[p], sxyz[p, 0], sxyz[p, 1], sxyz[p, 2], sr[p])
         kx = sk[p, 0]
         ky = sk[p, 1]
         kz = sk[p, 2]
-        hits = 0
-        # Own row: the later members of the own cell, then the cell at +x. When the +x bucket
-        # follows the own one (no wrap), one range holds both.
         b = _bucket(kx, ky, kz, geo)
+        hits = 0
+        if not wrapped:
+            # Bucket = cell: the own row is the rest of the own bucket and, if it exists, the
+            # next one; the other rows are clipped to the grid (no cell outside holds a sphere).
+            hits += _scan(p + 1, start[b + 1 + (kx < mx)], kx, kx, ky, kz, False, me, ctx)
+            xa = max(kx - 1, 0)
+            xb = min(kx + 1, mx)
+            for r in range(4):
+                ny = ky + (1 if r == 0 else r - 2)
+                nz = kz + (0 if r == 0 else 1)
+                if ny < 0 or ny > my or nz > mz:
+                    continue
+                ba = _bucket(xa, ny, nz, geo)
+                hits += _scan(start[ba], start[ba + xb - xa + 1], xa, xb, ny, nz, False, me, ctx)
+            found[p] = hits
+            continue
         if (kx & mx) != mx:
-            hits += _scan(
-                p + 1,
-                start[b + 2],
-                kx,
-                kx + 1,
-                ky,
-                kz,
-                i,
-                xi,
-                yi,
-                zi,
-                ri,
-                sid,
-                sxyz,
-                sr,
-                sk,
-                margin,
-                fill,
-                cnt_a,
-                cnt_b,
-                tmp,
-            )
+            hits += _scan(p + 1, start[b + 2], kx, kx + 1, ky, kz, True, me, ctx)
         else:
-            hits += _scan(
-                p + 1,
-                start[b + 1],
-                kx,
-                kx,
-                ky,
-                kz,
-                i,
-                xi,
-                yi,
-                zi,
-                ri,
-                sid,
-                sxyz,
-                sr,
-                sk,
-                margin,
-                fill,
-                cnt_a,
-                cnt_b,
-                tmp,
-            )
+            hits += _scan(p + 1, start[b + 1], kx, kx, ky, kz, True, me, ctx)
             b = _bucket(kx + 1, ky, kz, geo)
-            hits += _scan(
-                start[b],
-                start[b + 1],
-                kx + 1,
-                kx + 1,
-                ky,
-                kz,
-                i,
-                xi,
-                yi,
-                zi,
-                ri,
-                sid,
-                sxyz,
-                sr,
-                sk,
-                margin,
-                fill,
-                cnt_a,
-                cnt_b,
-                tmp,
-            )
-        # Rows (dy, dz) = (1, 0), (-1, 1), (0, 1), (1, 1), each the three cells kx - 1 .. kx + 1:
-        # one range of three adjacent buckets unless the row wraps (or the torus is < 4 wide).
+            hits += _scan(start[b], start[b + 1], kx + 1, kx + 1, ky, kz, True, me, ctx)
+        # One range of three adjacent buckets unless the row wraps (or the torus is < 4 wide).
         contiguous = ((kx - 1) & mx) + 2 == ((kx + 1) & mx)
         for r in range(4):
             ny = ky + (1 if r == 0 else r - 2)
             nz = kz + (0 if r == 0 else 1)
             if contiguous:
                 b = _bucket(kx - 1, ny, nz, geo)
-                hits += _scan(
-                    start[b],
-                    start[b + 3],
-                    kx - 1,
-                    kx + 1,
-                    ny,
-                    nz,
-                    i,
-                    xi,
-                    yi,
-                    zi,
-                    ri,
-                    sid,
-                    sxyz,
-                    sr,
-                    sk,
-                    margin,
-                    fill,
-                    cnt_a,
-                    cnt_b,
-                    tmp,
-                )
+                hits += _scan(start[b], start[b + 3], kx - 1, kx + 1, ny, nz, True, me, ctx)
             else:
                 for nx in range(kx - 1, kx + 2):
                     b = _bucket(nx, ny, nz, geo)
-                    hits += _scan(
-                        start[b],
-                        start[b + 1],
-                        nx,
-                        nx,
-                        ny,
-                        nz,
-                        i,
-                        xi,
-                        yi,
-                        zi,
-                        ri,
-                        sid,
-                        sxyz,
-                        sr,
-                        sk,
-                        margin,
-                        fill,
-                        cnt_a,
-                        cnt_b,
-                        tmp,
-                    )
+                    hits += _scan(start[b], start[b + 1], nx, nx, ny, nz, True, me, ctx)
         found[p] = hits
     # Held-out spheres against everyone; a pair of two held-out spheres from the smaller id.
     N = reach.size
@@ -523,6 +443,22 @@ def _scatter(end_b: np.ndarray, tmp: np.ndarray, cur_a: np.ndarray, out: np.ndar
         lo = hi
 
 
+@nb.njit(cache=True)
+def _box(c: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> int:
+    """Bounding box of the rows into ``lo``, ``hi``; the first bad row (NaN, inf, huge) or -1."""
+    lo[:] = np.inf
+    hi[:] = -np.inf
+    for i in range(c.shape[0]):
+        for a in range(3):
+            x = c[i, a]
+            # Written so that NaN fails it too.
+            if not abs(x) <= _MAX_MAGNITUDE:
+                return i
+            lo[a] = min(lo[a], x)
+            hi[a] = max(hi[a], x)
+    return -1
+
+
 def _cell_edge(rcut: np.ndarray | float, margin: float, extent: float) -> np.ndarray:
     # >= extent / _MAX_CELLS keeps the cell indices small enough for the rounding argument; a
     # zero edge (all reaches and the margin zero, all centres equal) becomes 1 m, any size works.
@@ -530,17 +466,27 @@ def _cell_edge(rcut: np.ndarray | float, margin: float, extent: float) -> np.nda
     return np.where(h > 0.0, h, 1.0)
 
 
-def _geometry(extent: np.ndarray, h: float, n: int) -> tuple[Geometry, int]:
-    """Bucket geometry: the cell grid itself if it has at most ~2 n cells, else a torus of them."""
-    # Bits of the largest cell index on each axis (floor(extent / h) < 2^31 by _cell_edge).
-    bits = [math.floor(e / h).bit_length() for e in extent]
+def _geometry(extent: np.ndarray, h_min: float, n: int) -> tuple[float, Geometry, int, bool]:
+    """Cell edge and bucket map: ``(h, geometry, number of buckets, wrapped)``.
+
+    The budget is ``2^b >= 2 n`` buckets. If the grid of cells of edge up to ``_GROW_MAX h_min``
+    fits, the smallest such edge is used and bucket = cell (no aliasing, so no cell checks);
+    otherwise the edge is ``_GROW_MAX h_min`` and the grid wraps onto a torus.
+    """
     budget = max(1, int(n).bit_length() + 1)
+    for step in range(_GROW_STEPS + 1):
+        h = h_min * _GROW_MAX ** (step / _GROW_STEPS)
+        # Bits of the largest cell index on each axis (floor(extent / h) < 2^31 by _cell_edge).
+        bits = [math.floor(e / h).bit_length() for e in extent]
+        if sum(bits) <= budget:
+            break
+    wrapped = sum(bits) > budget
     while sum(bits) > budget:
         # Wrap the longest axis first, so aliased cells are as far apart as the budget allows.
         bits[bits.index(max(bits))] -= 1
     bx, by, bz = bits
     geo = ((1 << bx) - 1, (1 << by) - 1, (1 << bz) - 1, bx, bx + by)
-    return geo, 1 << (bx + by + bz)
+    return h, geo, 1 << (bx + by + bz), wrapped
 
 
 def _hold_out(
@@ -599,33 +545,38 @@ def candidate_pairs(
         raise ShapeError(f"margin has shape {m.shape}; expected a scalar (m).")
     _check_values("margin", m)
     _check_values("reach", r)
-    finite = np.isfinite(c)
-    if not finite.all():
-        row = int(np.flatnonzero(~finite.all(axis=1))[0])
-        raise NonFiniteStateError(
-            f"centers[{row}] = {c[row].tolist()} is not finite: the state diverged or was not "
-            "computed. Pass finite centres."
+    c = np.ascontiguousarray(c)
+    # One compiled pass: numpy's axis-0 reductions of an (N, 3) array took 7 ms at N = 1e5.
+    lo = np.empty(3)
+    hi = np.empty(3)
+    row = _box(c, lo, hi)
+    if row >= 0:
+        if not np.isfinite(c[row]).all():
+            raise NonFiniteStateError(
+                f"centers[{row}] = {c[row].tolist()} is not finite: the state diverged or was "
+                "not computed. Pass finite centres."
+            )
+        raise InvalidInputError(
+            f"centers[{row}] = {c[row].tolist()} exceeds {_MAX_MAGNITUDE:g} in magnitude: "
+            "squared distances would overflow. Rescale the units."
         )
-    for name, a in (("centers", c), ("reach", r), ("margin", m)):
-        big = np.abs(a) > _MAX_MAGNITUDE
+    for name, a in (("reach", r), ("margin", m)):
+        big = a > _MAX_MAGNITUDE
         if big.any():
-            where = name if a.ndim == 0 else f"{name}[{np.argwhere(big)[0].tolist()}]"
+            where = name if a.ndim == 0 else f"{name}[{int(np.flatnonzero(big)[0])}]"
             raise InvalidInputError(
-                f"{where} exceeds {_MAX_MAGNITUDE:g} in magnitude: its square would overflow. "
-                "Rescale the units."
+                f"{where} exceeds {_MAX_MAGNITUDE:g}: its square would overflow. Rescale the units."
             )
     if n < 2:
         return np.empty((0, 2), dtype=np.int64)
-    c = np.ascontiguousarray(c)
-    lo = c.min(axis=0)
-    extent = c.max(axis=0) - lo
+    extent = hi - lo
     held, rcut = _hold_out(c, r, float(m), extent)
     is_held = np.zeros(n, dtype=np.bool_)
     is_held[held] = True
     grid_ids = np.flatnonzero(~is_held).astype(np.int64)
     ng = grid_ids.size
-    h = float(_cell_edge(rcut, float(m), float(extent.max())))
-    geo, nbucket = _geometry(extent, h, ng)
+    h_min = float(_cell_edge(rcut, float(m), float(extent.max())))
+    h, geo, nbucket, wrapped = _geometry(extent, h_min, ng)
     start = np.empty(nbucket + 1, dtype=np.int64)
     key = np.empty(ng, dtype=np.int64)
     sid = np.empty(ng, dtype=np.int64)
@@ -638,7 +589,7 @@ def candidate_pairs(
     cnt_b = np.zeros(n, dtype=np.int64)
     tmp = np.empty(0, dtype=np.int32)
     found = np.empty(ng + held.size, dtype=np.int32)
-    args = (start, sid, sxyz, sr, sk, geo, float(m), c, r, held, is_held)
+    args = (start, sid, sxyz, sr, sk, geo, wrapped, float(m), c, r, held, is_held)
     _visit(*args, False, found, cnt_a, cnt_b, tmp)
     k = _exclusive_prefix(cnt_a)
     _exclusive_prefix(cnt_b)
