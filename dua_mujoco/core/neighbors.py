@@ -71,15 +71,19 @@ _MAX_HELD_OUT = 256
 _CELL_COST = 14.0
 
 
-def _as_1d(name: str, value: npt.ArrayLike, n: int | None) -> np.ndarray:
+def _as_1d(name: str, value: npt.ArrayLike, first: tuple[str, int] | None) -> np.ndarray:
     a = np.asarray(value, dtype=np.float64)
     if a.ndim == 0:
         return a
-    if a.ndim != 1 or (n is not None and a.shape[0] != n):
-        want = "a scalar or shape (N,)" if n is None else f"a scalar or shape ({n},)"
+    if a.ndim != 1:
         raise ShapeError(
-            f"{name} has shape {a.shape}; expected {want}, one entry per sphere. "
-            "Pass one value per sphere or a single scalar for all."
+            f"{name} has shape {a.shape}; expected a scalar or shape (N,), one entry per "
+            "sphere. Pass one value per sphere or a single scalar for all."
+        )
+    if first is not None and a.shape[0] != first[1]:
+        raise ShapeError(
+            f"{name} has shape {a.shape} but {first[0]} has {first[1]} entries: every array "
+            "argument has one entry per sphere. Pass arrays of the same length (or scalars)."
         )
     return a
 
@@ -147,13 +151,14 @@ def reach(
         "vel_uncertainty": vel_uncertainty,
         "speed_bound": speed_bound,
     }
-    n: int | None = None
+    first: tuple[str, int] | None = None
     arrays: dict[str, np.ndarray] = {}
     for name, value in args.items():
-        a = _as_1d(name, value, n)
-        if a.ndim == 1:
-            n = a.shape[0]
+        a = _as_1d(name, value, first)
+        if a.ndim == 1 and first is None:
+            first = (name, a.shape[0])
         arrays[name] = a
+    n = None if first is None else first[1]
     T = np.asarray(horizon, dtype=np.float64)
     if T.ndim != 0:
         raise ShapeError(f"horizon has shape {T.shape}; expected a scalar (seconds).")
@@ -179,12 +184,13 @@ def reach(
     return out
 
 
+Index = int | np.int64
 Geometry = tuple[int, int, int, int, int]
 """Bucket geometry ``(mask_x, mask_y, mask_z, shift_y, shift_z)`` of :func:`_bucket`."""
 
 
 @nb.njit(cache=True, inline="always")
-def _bucket(kx: np.int64, ky: np.int64, kz: np.int64, geo: Geometry) -> np.int64:
+def _bucket(kx: Index, ky: Index, kz: Index, geo: Geometry) -> np.int64:
     # The cell index wrapped onto a 2^bx x 2^by x 2^bz torus, x fastest. A locality-preserving
     # hash, unlike a mixing one: a row of neighbour cells is a run of adjacent buckets, and a
     # sweep through the spheres in bucket order reads start and the sorted arrays almost
@@ -286,10 +292,10 @@ Sphere = tuple[int, float, float, float, float]
 def _scan(
     qa: int,
     qb: int,
-    xlo: np.int64,
-    xhi: np.int64,
-    ny: np.int64,
-    nz: np.int64,
+    xlo: Index,
+    xhi: Index,
+    ny: Index,
+    nz: Index,
     check: bool,
     me: Sphere,
     ctx: tuple[
