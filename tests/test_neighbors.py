@@ -133,14 +133,17 @@ def test_both_bucket_maps_and_held_out_spheres_are_exercised() -> None:
     r = rng.uniform(0.0, 2.0, n)
     extent = c.max(axis=0) - c.min(axis=0)
     h_min = float(neighbors._cell_edge(r.max(), 0.0, float(extent.max())))
-    assert neighbors._geometry(extent, h_min, n)[3]
+    geo = neighbors._geometry(c.min(axis=0), extent, h_min, n)[0]
+    assert any(geo[9:])
+    # The torus is >= 4 cells wide on every wrapped axis (what lets _scan skip cell checks).
+    assert all(mask >= 3 for mask, wraps in zip(geo[4:7], geo[9:], strict=True) if wraps)
     assert_same(c, r, 0.0)
     # Dense: the grid fits, bucket = cell.
     c = rng.uniform(0.0, 10.0, (n, 3))
     r = rng.uniform(0.0, 0.2, n)
     extent = c.max(axis=0) - c.min(axis=0)
     h_min = float(neighbors._cell_edge(r.max(), 0.0, float(extent.max())))
-    assert not neighbors._geometry(extent, h_min, n)[3]
+    assert not any(neighbors._geometry(c.min(axis=0), extent, h_min, n)[0][9:])
     assert_same(c, r, 0.0)
     # Two spheres of very large reach: held out, not blowing up the cell.
     r[[5, 17]] = 4.0

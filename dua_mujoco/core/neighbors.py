@@ -185,8 +185,20 @@ def reach(
 
 
 Index = int | np.int64
-Geometry = tuple[int, int, int, int, int]
-"""Bucket geometry ``(mask_x, mask_y, mask_z, shift_y, shift_z)`` of :func:`_bucket`."""
+Geometry = tuple[float, float, float, float, int, int, int, int, int, int, int, int]
+"""``(lo_x, lo_y, lo_z, h, mask_x, mask_y, mask_z, shift_y, shift_z, wrap_x, wrap_y, wrap_z)``:
+cell ``k_a = floor((x_a - lo_a) / h)``, bucket :func:`_bucket`; an axis wraps if its largest
+cell index exceeds its mask (the torus is then at least 4 cells wide on it)."""
+
+
+@nb.njit(cache=True, inline="always")
+def _cell(x: float, y: float, z: float, geo: Geometry) -> tuple[np.int64, np.int64, np.int64]:
+    h = geo[3]
+    return (
+        np.int64(math.floor((x - geo[0]) / h)),
+        np.int64(math.floor((y - geo[1]) / h)),
+        np.int64(math.floor((z - geo[2]) / h)),
+    )
 
 
 @nb.njit(cache=True, inline="always")
@@ -195,18 +207,7 @@ def _bucket(kx: Index, ky: Index, kz: Index, geo: Geometry) -> np.int64:
     # hash, unlike a mixing one: a row of neighbour cells is a run of adjacent buckets, and a
     # sweep through the spheres in bucket order reads start and the sorted arrays almost
     # sequentially (a mixing hash made every probe a cache miss, 5x slower at N = 1e5).
-    return np.int64((kx & geo[0]) | ((ky & geo[1]) << geo[3]) | ((kz & geo[2]) << geo[4]))
-
-
-@nb.njit(cache=True, inline="always")
-def _cell(
-    centers: np.ndarray, i: int, lo: np.ndarray, h: float
-) -> tuple[np.int64, np.int64, np.int64]:
-    return (
-        np.int64(math.floor((centers[i, 0] - lo[0]) / h)),
-        np.int64(math.floor((centers[i, 1] - lo[1]) / h)),
-        np.int64(math.floor((centers[i, 2] - lo[2]) / h)),
-    )
+    return np.int64((kx & geo[4]) | ((ky & geo[5]) << geo[7]) | ((kz & geo[6]) << geo[8]))
 
 
 @nb.njit(cache=True)
@@ -214,45 +215,40 @@ def _build_grid(
     centers: np.ndarray,
     reach: np.ndarray,
     ids: np.ndarray,
-    lo: np.ndarray,
-    h: float,
     geo: Geometry,
     start: np.ndarray,
-    key: np.ndarray,
     sid: np.ndarray,
     sxyz: np.ndarray,
     sr: np.ndarray,
-    sk: np.ndarray,
 ) -> None:
     """Counting sort of the grid spheres by bucket: bucket ``b`` is ``start[b]:start[b + 1]``."""
     n = ids.size
     nbucket = start.size - 1
     start[:] = 0
     for t in range(n):
-        kx, ky, kz = _cell(centers, ids[t], lo, h)
-        b = _bucket(kx, ky, kz, geo)
-        key[t] = b
-        start[b] += 1
+        i = ids[t]
+        kx, ky, kz = _cell(centers[i, 0], centers[i, 1], centers[i, 2], geo)
+        start[_bucket(kx, ky, kz, geo)] += 1
     for u in range(1, nbucket):
         start[u] += start[u - 1]
     start[nbucket] = n
     # start[b] is now the end of bucket b; placing backwards leaves it at the bucket's start (no
-    # cursor array needed) and keeps each bucket in id order.
+    # cursor array needed) and keeps each bucket in id order. The bucket is recomputed rather
+    # than stored: the same float expression gives the same cell.
     for t in range(n - 1, -1, -1):
-        b = key[t]
+        i = ids[t]
+        x = centers[i, 0]
+        y = centers[i, 1]
+        z = centers[i, 2]
+        kx, ky, kz = _cell(x, y, z, geo)
+        b = _bucket(kx, ky, kz, geo)
         p = start[b] - 1
         start[b] = p
-        i = ids[t]
         sid[p] = i
-        sxyz[p, 0] = centers[i, 0]
-        sxyz[p, 1] = centers[i, 1]
-        sxyz[p, 2] = centers[i, 2]
+        sxyz[p, 0] = x
+        sxyz[p, 1] = y
+        sxyz[p, 2] = z
         sr[p] = reach[i]
-        # Recomputed rather than stored per id: floor of the same expression is deterministic.
-        kx, ky, kz = _cell(centers, i, lo, h)
-        sk[p, 0] = kx
-        sk[p, 1] = ky
-        sk[p, 2] = kz
 
 
 @nb.njit(cache=True, inline="always")
@@ -286,43 +282,55 @@ def _record(
 
 Sphere = tuple[int, float, float, float, float]
 """A grid sphere while it is visited: ``(id, x, y, z, reach)``."""
+Context = tuple[np.ndarray, np.ndarray, np.ndarray, float, bool, np.ndarray, np.ndarray, np.ndarray]
+"""``(sid, sxyz, sr, margin, fill, cnt_a, cnt_b, tmp)``."""
 
 
 @nb.njit(cache=True, inline="always")
-def _scan(
-    qa: int,
-    qb: int,
-    xlo: Index,
-    xhi: Index,
-    ny: Index,
-    nz: Index,
-    check: bool,
-    me: Sphere,
-    ctx: tuple[
-        np.ndarray,
-        np.ndarray,
-        np.ndarray,
-        np.ndarray,
-        float,
-        bool,
-        np.ndarray,
-        np.ndarray,
-        np.ndarray,
-    ],
-) -> int:
-    # Test sorted entries qa:qb. With check, keep only cells (xlo..xhi, ny, nz): a wrapped
-    # bucket map puts several cells in one bucket.
-    sid, sxyz, sr, sk, margin, fill, cnt_a, cnt_b, tmp = ctx
+def _scan(qa: int, qb: int, me: Sphere, ctx: Context) -> int:
+    # No cell check: an entry of an aliased cell is at least 3 cells away (the torus is >= 4
+    # wide), so its distance exceeds 2 h > s and the exact test rejects it; and the buckets of
+    # the 27 neighbour cells are distinct, so no true neighbour is scanned twice.
+    sid, sxyz, sr, margin, fill, cnt_a, cnt_b, tmp = ctx
     i, xi, yi, zi, ri = me
     hits = 0
     for q in range(qa, qb):
-        if check:
-            kq = sk[q, 0]
-            if sk[q, 1] != ny or sk[q, 2] != nz or kq < xlo or kq > xhi:
-                continue
         if _near(xi, yi, zi, ri, sxyz[q, 0], sxyz[q, 1], sxyz[q, 2], sr[q], margin):
             _record(i, sid[q], fill, cnt_a, cnt_b, tmp)
             hits += 1
+    return hits
+
+
+@nb.njit(cache=True, inline="always")
+def _scan_row(
+    kx: np.int64,
+    ny: np.int64,
+    nz: np.int64,
+    start: np.ndarray,
+    geo: Geometry,
+    me: Sphere,
+    ctx: Context,
+) -> int:
+    # Cells kx - 1 .. kx + 1 of row (ny, nz): clipped to the grid on an axis that does not wrap
+    # (no sphere lies outside, and a clipped index must not wrap onto another row); one range of
+    # adjacent buckets unless the row crosses the torus seam.
+    mx = geo[4]
+    if not geo[10] and (ny < 0 or ny > geo[5]):
+        return 0
+    if not geo[11] and nz > geo[6]:
+        return 0
+    if not geo[9]:
+        xa = max(kx - 1, 0)
+        xb = min(kx + 1, mx)
+        b = _bucket(xa, ny, nz, geo)
+        return _scan(start[b], start[b + xb - xa + 1], me, ctx)
+    if ((kx - 1) & mx) + 2 == ((kx + 1) & mx):
+        b = _bucket(kx - 1, ny, nz, geo)
+        return _scan(start[b], start[b + 3], me, ctx)
+    hits = 0
+    for nx in range(kx - 1, kx + 2):
+        b = _bucket(nx, ny, nz, geo)
+        hits += _scan(start[b], start[b + 1], me, ctx)
     return hits
 
 
@@ -332,9 +340,7 @@ def _visit(
     sid: np.ndarray,
     sxyz: np.ndarray,
     sr: np.ndarray,
-    sk: np.ndarray,
     geo: Geometry,
-    wrapped: bool,
     margin: float,
     centers: np.ndarray,
     reach: np.ndarray,
@@ -348,7 +354,7 @@ def _visit(
 ) -> None:
     """Test every candidate pair once; count (``fill=False``) or write (``fill=True``) the hits.
 
-    A grid sphere is tested against the later members of its own cell and the 13 cells
+    A grid sphere is tested against the later members of its own bucket and the 13 cells
     ``(dx, dy, dz)`` with ``(dz, dy, dx)`` lexicographically after ``(0, 0, 0)``: every pair of
     adjacent cells from exactly one side. dx varies fastest, as in the bucket map, so the cells
     form five rows of adjacent buckets, each read as one range. The count pass stores each
@@ -356,52 +362,29 @@ def _visit(
     densities the predictor is meant for).
     """
     n = sid.size
-    mx = geo[0]
-    my = geo[1]
-    mz = geo[2]
-    ctx = (sid, sxyz, sr, sk, margin, fill, cnt_a, cnt_b, tmp)
+    mx = geo[4]
+    ctx = (sid, sxyz, sr, margin, fill, cnt_a, cnt_b, tmp)
     for p in range(n):
         if fill and found[p] == 0:
             continue
-        me = (sid[p], sxyz[p, 0], sxyz[p, 1], sxyz[p, 2], sr[p])
-        kx = sk[p, 0]
-        ky = sk[p, 1]
-        kz = sk[p, 2]
+        x = sxyz[p, 0]
+        y = sxyz[p, 1]
+        z = sxyz[p, 2]
+        me = (sid[p], x, y, z, sr[p])
+        kx, ky, kz = _cell(x, y, z, geo)
         b = _bucket(kx, ky, kz, geo)
-        hits = 0
-        if not wrapped:
-            # Bucket = cell: the own row is the rest of the own bucket and, if it exists, the
-            # next one; the other rows are clipped to the grid (no cell outside holds a sphere).
-            hits += _scan(p + 1, start[b + 1 + (kx < mx)], kx, kx, ky, kz, False, me, ctx)
-            xa = max(kx - 1, 0)
-            xb = min(kx + 1, mx)
-            for r in range(4):
-                ny = ky + (1 if r == 0 else r - 2)
-                nz = kz + (0 if r == 0 else 1)
-                if ny < 0 or ny > my or nz > mz:
-                    continue
-                ba = _bucket(xa, ny, nz, geo)
-                hits += _scan(start[ba], start[ba + xb - xa + 1], xa, xb, ny, nz, False, me, ctx)
-            found[p] = hits
-            continue
+        # Own row: the rest of the own bucket, then the cell at +x (the next bucket unless the
+        # row ends there: at the grid's edge, or the torus seam).
         if (kx & mx) != mx:
-            hits += _scan(p + 1, start[b + 2], kx, kx + 1, ky, kz, True, me, ctx)
+            hits = _scan(p + 1, start[b + 2], me, ctx)
         else:
-            hits += _scan(p + 1, start[b + 1], kx, kx, ky, kz, True, me, ctx)
-            b = _bucket(kx + 1, ky, kz, geo)
-            hits += _scan(start[b], start[b + 1], kx + 1, kx + 1, ky, kz, True, me, ctx)
-        # One range of three adjacent buckets unless the row wraps (or the torus is < 4 wide).
-        contiguous = ((kx - 1) & mx) + 2 == ((kx + 1) & mx)
-        for r in range(4):
-            ny = ky + (1 if r == 0 else r - 2)
-            nz = kz + (0 if r == 0 else 1)
-            if contiguous:
-                b = _bucket(kx - 1, ny, nz, geo)
-                hits += _scan(start[b], start[b + 3], kx - 1, kx + 1, ny, nz, True, me, ctx)
-            else:
-                for nx in range(kx - 1, kx + 2):
-                    b = _bucket(nx, ny, nz, geo)
-                    hits += _scan(start[b], start[b + 1], nx, nx, ny, nz, True, me, ctx)
+            hits = _scan(p + 1, start[b + 1], me, ctx)
+            if geo[9]:
+                b = _bucket(kx + 1, ky, kz, geo)
+                hits += _scan(start[b], start[b + 1], me, ctx)
+        hits += _scan_row(kx, ky + 1, kz, start, geo, me, ctx)
+        for dy in range(-1, 2):
+            hits += _scan_row(kx, ky + dy, kz + 1, start, geo, me, ctx)
         found[p] = hits
     # Held-out spheres against everyone; a pair of two held-out spheres from the smaller id.
     N = reach.size
@@ -472,27 +455,43 @@ def _cell_edge(rcut: np.ndarray | float, margin: float, extent: float) -> np.nda
     return np.where(h > 0.0, h, 1.0)
 
 
-def _geometry(extent: np.ndarray, h_min: float, n: int) -> tuple[float, Geometry, int, bool]:
-    """Cell edge and bucket map: ``(h, geometry, number of buckets, wrapped)``.
+def _geometry(lo: np.ndarray, extent: np.ndarray, h_min: float, n: int) -> tuple[Geometry, int]:
+    """Cell edge and bucket map (:data:`Geometry`) and the number of buckets.
 
     The budget is ``2^b >= 2 n`` buckets. If the grid of cells of edge up to ``_GROW_MAX h_min``
-    fits, the smallest such edge is used and bucket = cell (no aliasing, so no cell checks);
-    otherwise the edge is ``_GROW_MAX h_min`` and the grid wraps onto a torus.
+    fits, the smallest such edge is used and bucket = cell; otherwise the edge is
+    ``_GROW_MAX h_min`` and the longest axes wrap onto a torus.
     """
-    budget = max(1, int(n).bit_length() + 1)
+    # >= 6 bits: a wrapped axis then keeps >= 2 (4 cells), which _scan's argument needs.
+    budget = max(6, int(n).bit_length() + 1)
     for step in range(_GROW_STEPS + 1):
         h = h_min * _GROW_MAX ** (step / _GROW_STEPS)
         # Bits of the largest cell index on each axis (floor(extent / h) < 2^31 by _cell_edge).
-        bits = [math.floor(e / h).bit_length() for e in extent]
-        if sum(bits) <= budget:
+        # extent = max - lo in float64 is the very expression the kernels floor for the max.
+        need = [math.floor(e / h).bit_length() for e in extent]
+        if sum(need) <= budget:
             break
-    wrapped = sum(bits) > budget
+    bits = list(need)
     while sum(bits) > budget:
         # Wrap the longest axis first, so aliased cells are as far apart as the budget allows.
         bits[bits.index(max(bits))] -= 1
     bx, by, bz = bits
-    geo = ((1 << bx) - 1, (1 << by) - 1, (1 << bz) - 1, bx, bx + by)
-    return h, geo, 1 << (bx + by + bz), wrapped
+    wraps = [int(b < w) for b, w in zip(bits, need, strict=True)]
+    geo = (
+        float(lo[0]),
+        float(lo[1]),
+        float(lo[2]),
+        h,
+        (1 << bx) - 1,
+        (1 << by) - 1,
+        (1 << bz) - 1,
+        bx,
+        bx + by,
+        wraps[0],
+        wraps[1],
+        wraps[2],
+    )
+    return geo, 1 << (bx + by + bz)
 
 
 def _hold_out(
@@ -582,26 +581,25 @@ def candidate_pairs(
     grid_ids = np.flatnonzero(~is_held).astype(np.int64)
     ng = grid_ids.size
     h_min = float(_cell_edge(rcut, float(m), float(extent.max())))
-    h, geo, nbucket, wrapped = _geometry(extent, h_min, ng)
-    start = np.empty(nbucket + 1, dtype=np.int64)
-    key = np.empty(ng, dtype=np.int64)
-    sid = np.empty(ng, dtype=np.int64)
+    geo, nbucket = _geometry(lo, extent, h_min, ng)
+    # int32 ids and bucket starts: half the cache footprint of the random accesses (N < 2^31).
+    start = np.empty(nbucket + 1, dtype=np.int32)
+    sid = np.empty(ng, dtype=np.int32)
     sxyz = np.empty((ng, 3), dtype=np.float64)
     sr = np.empty(ng, dtype=np.float64)
-    sk = np.empty((ng, 3), dtype=np.int64)
-    _build_grid(c, r, grid_ids, lo, h, geo, start, key, sid, sxyz, sr, sk)
-    del key, grid_ids
+    _build_grid(c, r, grid_ids, geo, start, sid, sxyz, sr)
+    del grid_ids
     cnt_a = np.zeros(n, dtype=np.int64)
     cnt_b = np.zeros(n, dtype=np.int64)
     tmp = np.empty(0, dtype=np.int32)
     found = np.empty(ng + held.size, dtype=np.int32)
-    args = (start, sid, sxyz, sr, sk, geo, wrapped, float(m), c, r, held, is_held)
+    args = (start, sid, sxyz, sr, geo, float(m), c, r, held, is_held)
     _visit(*args, False, found, cnt_a, cnt_b, tmp)
     k = _exclusive_prefix(cnt_a)
     _exclusive_prefix(cnt_b)
     tmp = np.empty(k, dtype=np.int32)
     _visit(*args, True, found, cnt_a, cnt_b, tmp)
-    del args, start, sid, sxyz, sr, sk
+    del args, start, sid, sxyz, sr, found
     out = np.empty((k, 2), dtype=np.int64)
     _scatter(cnt_b, tmp, cnt_a, out)
     return out
