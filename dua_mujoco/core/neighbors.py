@@ -320,17 +320,17 @@ def _scan_row(
     if not geo[11] and nz > geo[6]:
         return 0
     if not geo[9]:
-        xa = max(kx - 1, 0)
-        xb = min(kx + 1, mx)
+        xa = kx - 1 if kx > 0 else kx
+        xb = kx + 1 if kx < mx else kx
         b = _bucket(xa, ny, nz, geo)
-        return _scan(start[b], start[b + xb - xa + 1], me, ctx)
+        return _scan(int(start[b]), int(start[b + xb - xa + 1]), me, ctx)
     if ((kx - 1) & mx) + 2 == ((kx + 1) & mx):
         b = _bucket(kx - 1, ny, nz, geo)
-        return _scan(start[b], start[b + 3], me, ctx)
+        return _scan(int(start[b]), int(start[b + 3]), me, ctx)
     hits = 0
     for nx in range(kx - 1, kx + 2):
         b = _bucket(nx, ny, nz, geo)
-        hits += _scan(start[b], start[b + 1], me, ctx)
+        hits += _scan(int(start[b]), int(start[b + 1]), me, ctx)
     return hits
 
 
@@ -376,12 +376,12 @@ def _visit(
         # Own row: the rest of the own bucket, then the cell at +x (the next bucket unless the
         # row ends there: at the grid's edge, or the torus seam).
         if (kx & mx) != mx:
-            hits = _scan(p + 1, start[b + 2], me, ctx)
+            hits = _scan(p + 1, int(start[b + 2]), me, ctx)
         else:
-            hits = _scan(p + 1, start[b + 1], me, ctx)
+            hits = _scan(p + 1, int(start[b + 1]), me, ctx)
             if geo[9]:
                 b = _bucket(kx + 1, ky, kz, geo)
-                hits += _scan(start[b], start[b + 1], me, ctx)
+                hits += _scan(int(start[b]), int(start[b + 1]), me, ctx)
         hits += _scan_row(kx, ky + 1, kz, start, geo, me, ctx)
         for dy in range(-1, 2):
             hits += _scan_row(kx, ky + dy, kz + 1, start, geo, me, ctx)
