@@ -264,74 +264,31 @@ def _near(
 
 
 @nb.njit(cache=True, inline="always")
-def _record(
-    i: int, j: int, fill: bool, cnt_a: np.ndarray, cnt_b: np.ndarray, tmp: np.ndarray
-) -> None:
-    # Count pass: pairs per smaller id (cnt_a) and per larger id (cnt_b). Fill pass: cnt_b holds
-    # each larger id's cursor and the smaller id is written there (first counting sort, by j).
-    if i > j:
-        i, j = j, i
-    if fill:
-        p = cnt_b[j]
-        tmp[p] = i
-        cnt_b[j] = p + 1
-    else:
-        cnt_a[i] += 1
-        cnt_b[j] += 1
+def _row(
+    kx: np.int64, ny: np.int64, nz: np.int64, geo: Geometry
+) -> tuple[np.int64, np.int64, np.int64]:
+    """Buckets ``first:stop`` holding cells ``kx - 1 .. kx + 1`` of row ``(ny, nz)``, and a flag.
 
-
-Sphere = tuple[int, float, float, float, float]
-"""A grid sphere while it is visited: ``(id, x, y, z, reach)``."""
-Context = tuple[np.ndarray, np.ndarray, np.ndarray, float, bool, np.ndarray, np.ndarray, np.ndarray]
-"""``(sid, sxyz, sr, margin, fill, cnt_a, cnt_b, tmp)``."""
-
-
-@nb.njit(cache=True, inline="always")
-def _scan(qa: int, qb: int, me: Sphere, ctx: Context) -> int:
-    # No cell check: an entry of an aliased cell is at least 3 cells away (the torus is >= 4
-    # wide), so its distance exceeds 2 h > s and the exact test rejects it; and the buckets of
-    # the 27 neighbour cells are distinct, so no true neighbour is scanned twice.
-    sid, sxyz, sr, margin, fill, cnt_a, cnt_b, tmp = ctx
-    i, xi, yi, zi, ri = me
-    hits = 0
-    for q in range(qa, qb):
-        if _near(xi, yi, zi, ri, sxyz[q, 0], sxyz[q, 1], sxyz[q, 2], sr[q], margin):
-            _record(i, sid[q], fill, cnt_a, cnt_b, tmp)
-            hits += 1
-    return hits
-
-
-@nb.njit(cache=True, inline="always")
-def _scan_row(
-    kx: np.int64,
-    ny: np.int64,
-    nz: np.int64,
-    start: np.ndarray,
-    geo: Geometry,
-    me: Sphere,
-    ctx: Context,
-) -> int:
-    # Cells kx - 1 .. kx + 1 of row (ny, nz): clipped to the grid on an axis that does not wrap
-    # (no sphere lies outside, and a clipped index must not wrap onto another row); one range of
-    # adjacent buckets unless the row crosses the torus seam.
+    Returns ``(first, stop, 1)`` for one run of adjacent buckets: clipped to the grid on an
+    axis that does not wrap (no sphere lies outside, and a clipped index must not wrap onto
+    another row), empty if the row is outside. Returns flag ``-1`` when a wrapped x axis puts
+    the torus seam inside the row: the caller then looks up the three cells' buckets one by one.
+    """
     mx = geo[4]
+    empty = (np.int64(0), np.int64(0), np.int64(1))
     if not geo[10] and (ny < 0 or ny > geo[5]):
-        return 0
+        return empty
     if not geo[11] and nz > geo[6]:
-        return 0
+        return empty
     if not geo[9]:
         xa = kx - 1 if kx > 0 else kx
         xb = kx + 1 if kx < mx else kx
         b = _bucket(xa, ny, nz, geo)
-        return _scan(int(start[b]), int(start[b + xb - xa + 1]), me, ctx)
+        return (b, b + xb - xa + 1, np.int64(1))
+    b = _bucket(kx - 1, ny, nz, geo)
     if ((kx - 1) & mx) + 2 == ((kx + 1) & mx):
-        b = _bucket(kx - 1, ny, nz, geo)
-        return _scan(int(start[b]), int(start[b + 3]), me, ctx)
-    hits = 0
-    for nx in range(kx - 1, kx + 2):
-        b = _bucket(nx, ny, nz, geo)
-        hits += _scan(int(start[b]), int(start[b + 1]), me, ctx)
-    return hits
+        return (b, b + 3, np.int64(1))
+    return (b, b + 3, np.int64(-1))
 
 
 @nb.njit(cache=True)
@@ -351,40 +308,79 @@ def _visit(
     cnt_a: np.ndarray,
     cnt_b: np.ndarray,
     tmp: np.ndarray,
+    ranges: np.ndarray,
 ) -> None:
     """Test every candidate pair once; count (``fill=False``) or write (``fill=True``) the hits.
 
     A grid sphere is tested against the later members of its own bucket and the 13 cells
     ``(dx, dy, dz)`` with ``(dz, dy, dx)`` lexicographically after ``(0, 0, 0)``: every pair of
     adjacent cells from exactly one side. dx varies fastest, as in the bucket map, so the cells
-    form five rows of adjacent buckets, each read as one range. The count pass stores each
-    sphere's hits in ``found``; the fill pass skips the spheres without any (most of them at the
-    densities the predictor is meant for).
+    form five rows of adjacent buckets, each read as one range (``ranges``, ``(16, 2)``, holds a
+    sphere's ranges). The count pass stores each sphere's hits in ``found``; the fill pass skips
+    the spheres without any (most of them at the densities the predictor is meant for).
+
+    No cell check: an entry of an aliased cell is at least 3 cells away (the torus is >= 4
+    wide), so its distance exceeds 2 h > s and the exact test rejects it; and the buckets of the
+    27 neighbour cells are distinct, so no true neighbour is scanned twice. The scan is written
+    out here rather than in a helper taking arrays: numba's reference counting of arrays passed
+    to inlined helpers tripled the cost.
     """
     n = sid.size
     mx = geo[4]
-    ctx = (sid, sxyz, sr, margin, fill, cnt_a, cnt_b, tmp)
     for p in range(n):
         if fill and found[p] == 0:
             continue
         x = sxyz[p, 0]
         y = sxyz[p, 1]
         z = sxyz[p, 2]
-        me = (sid[p], x, y, z, sr[p])
+        ri = sr[p]
+        i = sid[p]
         kx, ky, kz = _cell(x, y, z, geo)
         b = _bucket(kx, ky, kz, geo)
         # Own row: the rest of the own bucket, then the cell at +x (the next bucket unless the
         # row ends there: at the grid's edge, or the torus seam).
+        nr = 1
+        ranges[0, 0] = p + 1
         if (kx & mx) != mx:
-            hits = _scan(p + 1, int(start[b + 2]), me, ctx)
+            ranges[0, 1] = start[b + 2]
         else:
-            hits = _scan(p + 1, int(start[b + 1]), me, ctx)
+            ranges[0, 1] = start[b + 1]
             if geo[9]:
-                b = _bucket(kx + 1, ky, kz, geo)
-                hits += _scan(int(start[b]), int(start[b + 1]), me, ctx)
-        hits += _scan_row(kx, ky + 1, kz, start, geo, me, ctx)
-        for dy in range(-1, 2):
-            hits += _scan_row(kx, ky + dy, kz + 1, start, geo, me, ctx)
+                bb = _bucket(kx + 1, ky, kz, geo)
+                ranges[1, 0] = start[bb]
+                ranges[1, 1] = start[bb + 1]
+                nr = 2
+        for r in range(4):
+            ny = ky + 1 if r == 0 else ky + r - 2
+            nz = kz if r == 0 else kz + 1
+            first, stop, step = _row(kx, ny, nz, geo)
+            if step == 1:
+                ranges[nr, 0] = start[first]
+                ranges[nr, 1] = start[stop]
+                nr += 1
+            else:
+                for nx in range(kx - 1, kx + 2):
+                    bb = _bucket(nx, ny, nz, geo)
+                    ranges[nr, 0] = start[bb]
+                    ranges[nr, 1] = start[bb + 1]
+                    nr += 1
+        hits = 0
+        for t in range(nr):
+            for q in range(ranges[t, 0], ranges[t, 1]):
+                if _near(x, y, z, ri, sxyz[q, 0], sxyz[q, 1], sxyz[q, 2], sr[q], margin):
+                    hits += 1
+                    j = sid[q]
+                    a, c = (i, j) if i < j else (j, i)
+                    # Count: pairs per smaller id (cnt_a) and per larger id (cnt_b). Fill:
+                    # cnt_b is each larger id's cursor; the smaller id goes there (first
+                    # counting sort, by the larger id).
+                    if fill:
+                        w = cnt_b[c]
+                        tmp[w] = a
+                        cnt_b[c] = w + 1
+                    else:
+                        cnt_a[a] += 1
+                        cnt_b[c] += 1
         found[p] = hits
     # Held-out spheres against everyone; a pair of two held-out spheres from the smaller id.
     N = reach.size
@@ -397,12 +393,20 @@ def _visit(
         zi = centers[i, 2]
         ri = reach[i]
         hits = 0
+        # Only j > i, or j < i not held out (that pair is not found from j's side).
         for j in range(N):
             if j == i or (is_held[j] and j < i):
                 continue
             if _near(xi, yi, zi, ri, centers[j, 0], centers[j, 1], centers[j, 2], reach[j], margin):
-                _record(i, j, fill, cnt_a, cnt_b, tmp)
                 hits += 1
+                a, c = (i, j) if i < j else (j, i)
+                if fill:
+                    w = cnt_b[c]
+                    tmp[w] = a
+                    cnt_b[c] = w + 1
+                else:
+                    cnt_a[a] += 1
+                    cnt_b[c] += 1
         found[n + t] = hits
 
 
@@ -593,12 +597,13 @@ def candidate_pairs(
     cnt_b = np.zeros(n, dtype=np.int64)
     tmp = np.empty(0, dtype=np.int32)
     found = np.empty(ng + held.size, dtype=np.int32)
+    ranges = np.empty((16, 2), dtype=np.int64)
     args = (start, sid, sxyz, sr, geo, float(m), c, r, held, is_held)
-    _visit(*args, False, found, cnt_a, cnt_b, tmp)
+    _visit(*args, False, found, cnt_a, cnt_b, tmp, ranges)
     k = _exclusive_prefix(cnt_a)
     _exclusive_prefix(cnt_b)
     tmp = np.empty(k, dtype=np.int32)
-    _visit(*args, True, found, cnt_a, cnt_b, tmp)
+    _visit(*args, True, found, cnt_a, cnt_b, tmp, ranges)
     del args, start, sid, sxyz, sr, found
     out = np.empty((k, 2), dtype=np.int64)
     _scatter(cnt_b, tmp, cnt_a, out)
