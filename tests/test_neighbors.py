@@ -154,6 +154,28 @@ def test_both_bucket_maps_and_held_out_spheres_are_exercised() -> None:
     assert ((got == 5).any(axis=1)).sum() > 100
 
 
+@pytest.mark.parametrize("seed", range(5))
+def test_rows_across_the_torus_seam(seed: int) -> None:
+    # A chain of touching spheres over ~20 cells (h = 3) of a line whose two far outliers make the
+    # x axis wrap onto a 128-cell torus: the chain crosses the seam (cells 127 | 128 = 0).
+    rng = np.random.default_rng(seed)
+    n = 60
+    x = 360.3 + np.arange(n) + rng.uniform(-0.05, 0.05, n)
+    c = np.zeros((n + 2, 3))
+    c[:n, 0] = x
+    c[:n, 1:] = rng.uniform(-0.3, 0.3, (n, 2))
+    c[n:, 0] = [0.0, 1e4]
+    r = np.full(n + 2, 0.75)
+    extent = c.max(axis=0) - c.min(axis=0)
+    h_min = float(neighbors._cell_edge(r.max(), 0.0, float(extent.max())))
+    geo = neighbors._geometry(c.min(axis=0), extent, h_min, n + 2)[0]
+    assert geo[9] == 1
+    cells = np.floor((c[:n, 0] - geo[0]) / geo[3]).astype(np.int64)
+    assert ((cells & geo[4]) == geo[4]).any(), "no sphere at the seam"
+    got = assert_same(c, r, 0.0)
+    assert got.shape[0] >= n - 1
+
+
 # ---------------------------------------------------------------------------------------------
 # reach
 
