@@ -19,18 +19,26 @@ expression is the contract; the tests compare against it). ``ROUNDING_SLACK = 1 
 the at most ~12 ulp of relative error of ``d2`` and ``s * s``, so every pair meeting the test in
 exact arithmetic is returned; the extra pairs lie within a relative ``3e-14`` of the boundary.
 
-Algorithm: a uniform grid whose cells are hashed into ``2^b >= 2 N`` buckets, spheres counting-
-sorted by bucket (no comparison sort, no dict), each sphere compared with its own cell and the 13
-"positive" neighbour cells so each pair is tested once. The cell edge is ``2 * rcut + margin``,
-where ``rcut`` is the largest reach of the spheres in the grid; the ``k`` spheres of largest reach
-may be held out of the grid and compared with every sphere instead (``k N`` tests). ``k`` minimises
-a cost model, ``k N + 14 N (1 + occupancy)`` with the occupancy of a cell estimated from the
-bounding box: one 2 m sphere among 1 cm ones then costs ``N`` tests instead of growing every cell
-200 times (8e6 times the volume). Pairs are counted in a first pass and written in a second into
-arrays allocated at their exact size; two counting sorts (by ``j``, then stably by ``i``) order
-them, so time and memory are ``O(N + K)`` (plus ``O(N k)`` tests for held-out spheres). All the
-work arrays are numpy allocations made here (the compiled kernels allocate nothing), which keeps
-``tracemalloc`` honest.
+Algorithm: a uniform grid of cubic cells of edge ``h >= 2 rcut + margin`` (``rcut``: the largest
+reach in the grid), so every pair to report lies in the same or adjacent cells. Cells map to
+``2^b >= 2 N`` buckets by wrapping the cell index onto a power-of-two torus (x fastest): a
+locality-preserving hash, so a row of three neighbour cells is a run of adjacent buckets, and
+sweeping the spheres in bucket order reads memory almost sequentially (a mixing hash made every
+probe a cache miss). If the grid has at most ``2^b`` cells with ``h`` up to twice the minimum,
+the smallest such ``h`` is used and nothing wraps. Spheres are counting-sorted by bucket (no
+comparison sort, no dict); each is tested against the rest of its bucket and the 13 cells after
+its own in (z, y, x) order, five runs of buckets, so each pair is tested once. The ``k``
+spheres of largest reach may be held out of the grid and tested against every sphere instead
+(``k N`` tests), ``k`` minimising a cost model ``k N + 14 N (1 + occupancy)`` with the
+occupancy estimated from the bounding box: one 2 m sphere among 1 cm ones then costs ``N``
+tests instead of growing every cell 200 times (8e6 times the volume). Pairs are counted in a
+first pass and written in a second into arrays allocated at their exact size; two counting sorts
+(by ``j``, then stably by ``i``) order them. Time and memory are ``O(N + K)``, plus ``N k`` tests
+for held-out spheres, and the tests in the grid are at most a constant times ``N + K`` unless
+the extent of the centres exceeds ``2^31 h`` (cells are then grown to keep indices exact: a
+cluster plus a far outlier). Every work array is a numpy allocation made here (the compiled
+kernels allocate nothing), so ``tracemalloc`` sees the whole footprint (~70 bytes per sphere
+plus 20 per pair).
 """
 
 from __future__ import annotations
