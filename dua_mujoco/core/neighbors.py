@@ -552,6 +552,10 @@ def candidate_pairs(
     if c.ndim != 2 or c.shape[1] != 3:
         raise ShapeError(f"centers has shape {c.shape}; expected (N, 3), one row per sphere.")
     n = c.shape[0]
+    if n >= 2**31:
+        raise InvalidInputError(
+            f"{n} spheres: ids are stored as int32, so at most 2^31 - 1. Split the scene."
+        )
     r = np.asarray(reach, dtype=np.float64)
     if r.shape != (n,):
         raise ShapeError(
