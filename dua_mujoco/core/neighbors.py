@@ -67,8 +67,8 @@ ROUNDING_SLACK = 1.0 + 2.0**-44
 _GRID_GROW = 1.0 + 2.0**-16
 _MAX_CELLS = 2.0**31
 # A grid that would need more buckets than the budget may use cells up to this factor larger
-# (in _GROW_STEPS geometric steps) instead of wrapping: bucket = cell is then exact and the cell
-# checks go. Growing costs at most _GROW_MAX^3 = 8 times the candidates of the same sphere.
+# (in _GROW_STEPS geometric steps) instead of wrapping: bucket = cell then, no aliased entries
+# to scan. Growing costs at most _GROW_MAX^3 = 8 times the candidates of the same sphere.
 _GROW_MAX = 2.0
 _GROW_STEPS = 6
 # Squares of larger values could overflow to inf, where the test stops meaning anything.
@@ -474,7 +474,8 @@ def _geometry(lo: np.ndarray, extent: np.ndarray, h_min: float, n: int) -> tuple
     fits, the smallest such edge is used and bucket = cell; otherwise the edge is
     ``_GROW_MAX h_min`` and the longest axes wrap onto a torus.
     """
-    # >= 6 bits: a wrapped axis then keeps >= 2 (4 cells), which _scan's argument needs.
+    # >= 6 bits: a wrapped axis then keeps >= 2 bits (4 cells), as _visit's scan without cell
+    # checks needs.
     budget = max(6, int(n).bit_length() + 1)
     for step in range(_GROW_STEPS + 1):
         h = h_min * _GROW_MAX ** (step / _GROW_STEPS)
