@@ -44,7 +44,8 @@ def bench_compile() -> str:
     """Cold (empty cache) and cached import + first call, in fresh processes."""
     code = (
         "import time; t0 = time.perf_counter(); import numpy as np; "
-        "from dua_mujoco import time_to_collision, DUAScheduler, SphereWorld; "
+        "from dua_mujoco import time_to_collision, DUAScheduler; "
+        "from dua_mujoco.core.worlds import SphereWorld; "
         "time_to_collision(np.ones((4, 3)), np.zeros((4, 3)), 0.1, 1.0); "
         "w = SphereWorld(10); p = w.pairs(); import numpy as np; "
         "s = DUAScheduler(p.tau(np.arange(len(p)), w.positions, w.velocities), dt=0.01); "
@@ -63,7 +64,9 @@ def bench_compile() -> str:
 
 
 def bench_core() -> str:
-    from dua_mujoco import DUAScheduler, SelectAllScheduler, SphereWorld, time_to_collision
+    from dua_mujoco import DUAScheduler, time_to_collision
+    from dua_mujoco.core.schedules import DeadlineScheduler, SelectAllScheduler
+    from dua_mujoco.core.worlds import SphereWorld
 
     rng = np.random.default_rng(0)
     out = []
@@ -121,6 +124,20 @@ def bench_core() -> str:
             ]
         )
         rows.append(["evaluations per DUA step", str(s.evaluations_per_step)])
+        dl = DeadlineScheduler(tau0, dt=0.01)
+        evals: list[int] = []
+
+        def deadline() -> None:
+            dl.step_points(pairs, w.positions, w.velocities)
+            evals.append(dl.evaluations_per_step)
+
+        rows.append(
+            [
+                f"fused deadline step (`step_points`), M = {len(pairs):.3g}",
+                f"{median_time(deadline, 2000, 50) * 1e6:.1f} us",
+            ]
+        )
+        rows.append(["evaluations per deadline step (median)", f"{np.median(evals):.0f}"])
     w = SphereWorld(1000, seed=2, radius=0.005)
     pairs = w.pairs()
     ids = np.arange(len(pairs))
@@ -175,48 +192,38 @@ def tau_ns_per_eval(predictor: object, data: object, max_pairs: int = 4096) -> f
     return per_call / ids.size * 1e9
 
 
-def _fused_step_args(predictor: object, n: int) -> tuple:
-    """What ``Predictor.step`` hands the fused step (``_step_rigid``) at predictor step ``n``."""
+def _fused_step_args(predictor: object, data: object) -> tuple:
+    """What ``Predictor.step`` hands the fused step after the step number."""
+    from dua_mujoco.mj.kinematics import mjdata_frame
+
     p = predictor
-    s = p.scheduler  # type: ignore[attr-defined]
-    pairs, spheres = p._pair_args  # type: ignore[attr-defined]
-    return (
-        s.slots,
-        s._pair_state,
-        s.last_tau,
-        s.horizon,
-        s.active,
-        s.nbuckets,
-        s.slots_per_bucket,
-        n,
-        s._work,
-        s._w_tau,
-        pairs,
-        spheres,
-        p._frame_cache,  # type: ignore[attr-defined]
-    )
+    pairs, spheres = p.kernel_tables  # type: ignore[attr-defined]
+    return pairs, spheres, mjdata_frame(data, np.zeros((p.model.nbody, 6)))  # type: ignore[attr-defined]
 
 
-def compiled_step_us(predictor: object, repeat: int = 7, loops: int = 20_000) -> float:
+def compiled_step_us(
+    predictor: object, data: object, repeat: int = 7, loops: int = 20_000
+) -> float:
     """Median us of the predictor's fused step called from a compiled loop on a frozen state.
 
     No Python, no numba dispatch, and the tables stay in cache between calls: a floor under what
-    any driver of the same compiled step can reach. The scheduler cycles through its buckets as
-    in a run (different pairs each step), on the state the predictor last read.
+    any driver of the same compiled step can reach. The scheduler moves on as in a run
+    (different pairs each step), on the state the predictor last read.
     """
     import numba as nb
 
-    from dua_mujoco.core.schedules import _step_rigid  # the kernel Predictor.step dispatches
+    from dua_mujoco.mj.kinematics import step_rigid_kernel  # what Predictor.step runs
 
     @nb.njit
-    def loop(k, a, b, c, e, f, g, h, n0, j, ll, pairs, spheres, frame):
+    def loop(k, state, n0, pairs, spheres, frame):
         for i in range(k):
-            _step_rigid(a, b, c, e, f, g, h, n0 + i, j, ll, pairs, spheres, frame)
+            step_rigid_kernel(state, n0 + i, pairs, spheres, frame)
 
     s = predictor.scheduler  # type: ignore[attr-defined]
+    args = _fused_step_args(predictor, data)
 
     def run(k: int) -> None:
-        loop(k, *_fused_step_args(predictor, s.step_count + 1))
+        loop(k, s.state, s.step_count + 1, *args)
         s.step_count += k
 
     return median_time(lambda: run(loops), repeat) / loops * 1e6
@@ -225,7 +232,7 @@ def compiled_step_us(predictor: object, repeat: int = 7, loops: int = 20_000) ->
 def bench_dispatch(calls: int = 200_000) -> str:
     """What calling compiled code from Python costs, against the fused step's own call.
 
-    The predictor's call on traffic dispatches the real arguments of ``_step_rigid``; an empty
+    The predictor's call on traffic dispatches the real arguments of its fused step; an empty
     kernel with the same arguments isolates numba's dispatch, and the last rows are the least a
     Python API must do per call.
     """
@@ -241,10 +248,10 @@ def bench_dispatch(calls: int = 200_000) -> str:
     p = Predictor(m, accel=4.0)
     mujoco.mj_step(m, d)
     p.reset(d)
-    args = _fused_step_args(p, 1)
+    args = (p.scheduler.state, 1, *_fused_step_args(p, d))
 
     @nb.njit
-    def empty_like_step(a, b, c, e, f, g, h, i, j, k, ll, mm, n):  # same arguments
+    def empty_like_step(state, n, pairs, spheres, frame):  # same arguments
         return 0, 0, -1
 
     @nb.njit
@@ -268,8 +275,8 @@ def bench_dispatch(calls: int = 200_000) -> str:
     rows = []
     for label, fn in (
         (
-            "numba dispatch of the fused step's 13 arguments (15 arrays, 8 of them in 2 tuples)"
-            ", empty kernel",
+            "numba dispatch of the fused step's 5 arguments (the state's 12 fields and the frame's"
+            " 6 arrays in 2 tuples), empty kernel",
             lambda: empty_like_step(*args),
         ),
         ("numba dispatch of one int", lambda: one_int(3)),
@@ -292,18 +299,23 @@ def bench_scenes(steps: int = 2000) -> str:
     from dua_mujoco.mj.scenes import load_scene, make_controller
 
     rows = []
-    for name in (
-        "two_arms",
-        "traffic",
-        "clutter",
-        "paper_world",
-        "paper_world:200",
-        "paper_world:1000",
+    for name, schedule in (
+        (scene, schedule)
+        for scene in (
+            "two_arms",
+            "traffic",
+            "clutter",
+            "paper_world",
+            "paper_world:200",
+            "paper_world:1000",
+        )
+        for schedule in ("deadline", "dua")
     ):
         m, d = load_scene(name)
         n_steps = steps if ":" not in name else 500
         p = Predictor(
             m,
+            schedule=schedule,
             accel="auto",
             pilot_steps=1000,
             pilot_controller=make_controller(m, "random", seed=99),
@@ -320,10 +332,11 @@ def bench_scenes(steps: int = 2000) -> str:
         ratio = r.predictor_share
         bare_pred, bare_mj = bare_loop(name, p, n_steps)
         tau_us = r.evals_per_step * tau_ns_per_eval(p, d) / 1e3
-        floor_us = compiled_step_us(p)
+        floor_us = compiled_step_us(p, d)
         rows.append(
             [
                 name,
+                schedule,
                 str(m.ngeom),
                 str(r.spheres),
                 str(r.pairs),
@@ -340,6 +353,7 @@ def bench_scenes(steps: int = 2000) -> str:
         )
     header = [
         "scene",
+        "schedule",
         "geoms",
         "spheres",
         "pairs",

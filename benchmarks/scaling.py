@@ -31,8 +31,8 @@ from collections.abc import Callable
 import numpy as np
 
 from dua_mujoco.core.neighbors import ROUNDING_SLACK, candidate_pairs, reach
+from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.experiments.paper import PAPER_N, WorldParams
-from dua_mujoco.worlds import SphereWorld
 
 
 def median_time(fn: Callable[[], object], repeat: int) -> float:

@@ -1,4 +1,4 @@
-"""Slow, exact reference for the urgency tau (SPEC.md section 2), used only by the tests.
+"""Slow, exact reference for the urgency tau (docs/theory.md, section 1), used only by the tests.
 
 Nothing here shares code or method with ``dua_mujoco.core.urgency``: the fast implementation uses
 floating point and safeguarded Newton; this module uses exact rational arithmetic where a decision

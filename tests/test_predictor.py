@@ -1155,8 +1155,14 @@ def test_monitor_bound_check_follows_the_predictors_mocap_tracker() -> None:
     monitor = Monitor(p)
     mujoco.mj_forward(m, d)
     monitor.start(d)
-    assert monitor.bounds is not None
-    assert monitor.bounds._mocap is p.mocap
+    assert p.mocap is not None and monitor.bounds is not None
+    # A velocity the resting mocap body does not have: only a check that reads the predictor's
+    # own tracker sees it (and must flag the discrepancy).
+    p.mocap.set_velocity("m", [10.0, 0.0, 0.0])
+    for _ in range(3):
+        mujoco.mj_step(m, d)
+        monitor.observe(d, p.step(d))
+    assert {v.kind for v in monitor.bounds.violations} >= {"discrepancy"}
 
 
 MOCAP_RAM_XML = """

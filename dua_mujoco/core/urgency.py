@@ -1,4 +1,4 @@
-"""Urgency: conservative lower bounds on the time to collision (SPEC section 2).
+"""Urgency: conservative lower bounds on the time to collision (docs/theory.md, section 1).
 
 For a pair of spheres with relative centre position ``x``, relative velocity ``v``, contact
 distance ``eps`` (radii plus margin), bound ``A`` on the norm of the relative acceleration and
@@ -9,7 +9,8 @@ velocity uncertainty ``delta``, the relative position at time ``t`` lies in the 
 
 is a lower bound on the time to collision (paper eq. 13, extended by ``delta``).
 
-The kernels below never return more than the exact first root. How (proof in docs/urgency.md):
+The kernels below never return more than the exact first root. How (proof in docs/theory.md,
+section 1):
 
 * The problem is solved for slightly inflated parameters (``eps``, ``delta`` and ``A`` grown by
   ``_KAPPA`` relative, plus ``_KAPPA (|x| + |v| t)`` on the radius). The inflation is larger than
@@ -48,7 +49,7 @@ __all__ = [
 ]
 
 # Relative inflation of the problem. It must dominate the rounding error of the predicate, which
-# is at most ~4.5 u (|x| + |v| t + R(t)) with u = 2**-53 (docs/urgency.md); 4e-15 leaves ~8x.
+# is at most ~4.5 u (|x| + |v| t + R(t)) with u = 2**-53 (docs/theory.md); 4e-15 leaves ~8x.
 _KAPPA = 4e-15
 # Relative bracket width at which refinement stops (the result is the bracket's lower end).
 _RTOL = 2e-13
@@ -394,7 +395,7 @@ def time_to_collision(
     speed: npt.ArrayLike | None = None,
     vel_uncertainty: npt.ArrayLike = 0.0,
 ) -> np.ndarray:
-    """Conservative time to collision of sphere pairs (SPEC section 2).
+    """Conservative time to collision of sphere pairs (docs/theory.md, section 1).
 
     Args:
         x: Relative centre positions ``c_j - c_i``, shape ``(M, 3)`` or ``(3,)``.

@@ -154,8 +154,8 @@ def discrete_velocity_uncertainty(
 
     * Euler, implicit, implicitfast (semi-implicit position update with the new velocity, and
       kinematics in MjData from the start of the step): for a translating point w_k = u_k
-      exactly, so D = |u_{k+1} - u_k| <= A h and delta = A h / 2 (the SPEC's term). On rotating
-      bodies w_k is the tangent and u_k the chord: u_k - w_k = -(h/2) a_v + O(h^2), with a_v the
+      exactly, so D = |u_{k+1} - u_k| <= A h and delta = A h / 2. On rotating bodies w_k is
+      the tangent and u_k the chord: u_k - w_k = -(h/2) a_v + O(h^2), with a_v the
       velocity-product acceleration of the point (centripetal/Coriolis, the acceleration it
       would have at zero joint acceleration), so D <= A h + (h/2) |a_v| and
       delta = (A + C) h / 2 with C >= |a_v| (``velocity_accel``). C = 0 is exact for slide-only
@@ -298,7 +298,7 @@ class MotionBounds:
 
 
 def default_spheres(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One sphere per geom at the geom origin (the SPEC's default covering centres).
+    """One sphere per geom at the geom origin (the bounding covering's centres).
 
     Returns:
         ``(sphere_geom (ngeom,), sphere_body (ngeom,), sphere_offset (ngeom, 3))``.

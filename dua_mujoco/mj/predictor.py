@@ -543,6 +543,13 @@ class Predictor:
         return self._require_scheduler().evaluations_per_step
 
     @property
+    def kernel_tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(pair_records, sphere_records)``: the packed tables ``step`` hands
+        ``kinematics.step_rigid_kernel`` after the scheduler's state and the step number, and
+        before the ``MjData`` frame (``kinematics.mjdata_frame``); for compiled drivers."""
+        return self._pair_records, self._spheres
+
+    @property
     def sphere_pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:
         """``(geom1, geom2)``, each ``(nsphere_pairs,)``: the geoms of every sphere pair
         (``geom2`` is the plane geom for half-space pairs)."""

@@ -181,7 +181,7 @@ def paper_world_spec(
         accel_max: Per-axis acceleration bound (m/s^2) enforced by the motors' ``ctrlrange``.
         speed_max: Bound on the initial speed (m/s); the speed is not bounded afterwards.
         timestep: Physics timestep (s).
-        integrator: MuJoCo integrator; semi-implicit Euler by default (see SPEC sec. 3).
+        integrator: MuJoCo integrator; semi-implicit Euler by default (docs/discrete-time.md).
 
     Returns:
         An uncompiled ``MjSpec``; ``spec.compile()`` gives the model.
