@@ -23,7 +23,6 @@ import numpy.typing as npt
 
 from dua_mujoco.core.schedules import kernels
 from dua_mujoco.core.schedules.base import Scheduler
-from dua_mujoco.core.schedules.dua import active_mask
 from dua_mujoco.core.schedules.state import (
     DEADLINE,
     LAST_STEP,
@@ -91,8 +90,8 @@ class DeadlineScheduler(Scheduler):
             DEADLINE,
             dt,
             latency,
-            tau.copy(),
-            active_mask(active, m),
+            tau,
+            active,
             rows=4,
             slots=wheel,
             horizon=np.array([(1 + latency) * dt]),

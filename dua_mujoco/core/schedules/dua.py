@@ -23,7 +23,7 @@ import numpy.typing as npt
 from dua_mujoco.core.schedules.base import Scheduler
 from dua_mujoco.core.schedules.state import RANK, WHERE, empty_state
 from dua_mujoco.core.validate import check_period, check_urgencies
-from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
+from dua_mujoco.exceptions import InvalidChoiceError
 
 __all__ = ["DUAScheduler", "bucket_layout", "check_slots_per_bucket"]
 
@@ -52,16 +52,6 @@ def check_slots_per_bucket(q: object) -> int:
             hint="It must be a power of two so that every revisit interval is exact.",
         )
     return int(q)
-
-
-def active_mask(active: npt.ArrayLike | None, m: int) -> np.ndarray:
-    """``(m,)`` bool mask of pairs switched on (all when None)."""
-    if active is None:
-        return np.ones(m, dtype=np.bool_)
-    mask = np.ascontiguousarray(np.asarray(active, dtype=np.bool_))
-    if mask.shape != (m,):
-        raise ShapeError(f"active has shape {mask.shape}; expected ({m},).")
-    return mask
 
 
 class DUAScheduler(Scheduler):
@@ -105,8 +95,8 @@ class DUAScheduler(Scheduler):
             RANK,
             dt,
             latency,
-            tau.copy(),
-            active_mask(active, m),
+            tau,
+            active,
             rows=2,
             slots=nslots,
             horizon=self.horizon,

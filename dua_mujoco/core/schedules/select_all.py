@@ -8,7 +8,6 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.core.schedules.base import Scheduler
-from dua_mujoco.core.schedules.dua import active_mask
 from dua_mujoco.core.schedules.state import ALL, empty_state
 from dua_mujoco.core.validate import check_period, check_urgencies, real_array
 from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
@@ -69,8 +68,8 @@ class SelectAllScheduler(Scheduler):
             ALL,
             dt,
             latency,
-            values.copy(),
-            active_mask(active, m),
+            values,
+            active,
             rows=2,
             slots=0,
             horizon=np.array([threshold]),

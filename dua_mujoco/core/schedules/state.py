@@ -11,6 +11,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.exceptions import ShapeError
 
 __all__ = [
     "ALL",
@@ -126,8 +129,8 @@ def empty_state(
     kind: int,
     dt: float,
     latency: int,
-    last_tau: np.ndarray,
-    active: np.ndarray,
+    urgency: np.ndarray,
+    active: npt.ArrayLike | None,
     *,
     rows: int,
     slots: int,
@@ -135,14 +138,21 @@ def empty_state(
     queue: int,
     width: int,
 ) -> ScheduleState:
-    """A state with the given sizes: ``ints`` zero, ``slots`` empty (-1), work buffers unset."""
-    m = last_tau.shape[0]
+    """A state with the given sizes: ``last_tau`` a copy of ``urgency``, ``active`` all pairs
+    (None) or a ``(M,)`` mask, ``ints`` zero, ``slots`` empty (-1), work buffers unset."""
+    m = urgency.shape[0]
+    if active is None:
+        mask = np.ones(m, dtype=np.bool_)
+    else:
+        mask = np.array(active, dtype=np.bool_)
+        if mask.shape != (m,):
+            raise ShapeError(f"active has shape {mask.shape}; expected ({m},).")
     return ScheduleState(
         kind=kind,
         dt=float(dt),
         latency=int(latency),
-        last_tau=np.ascontiguousarray(last_tau, dtype=np.float64),
-        active=np.ascontiguousarray(active, dtype=np.bool_),
+        last_tau=np.array(urgency, dtype=np.float64),
+        active=mask,
         ints=np.zeros((rows, m), dtype=np.int64),
         slots=np.full(slots, -1, dtype=np.int64),
         horizon=np.ascontiguousarray(horizon, dtype=np.float64),
