@@ -241,8 +241,8 @@ class RunReport:
             ("  of them while the bounds held", str(self.missed_onsets_valid_bounds)),
             ("contacts in switched-off pairs", str(self.inactive_pair_contacts)),
             ("alarm episodes (false)", f"{self.alarm_episodes} ({self.false_alarm_episodes})"),
-            ("geom pairs standing in alarm", f"{100 * self.standing_alarm_fraction:.2f} %"),
-            ("geom pairs in contact", f"{100 * self.contact_pair_fraction:.2f} %"),
+            ("active geom pairs in alarm (mean)", f"{100 * self.standing_alarm_fraction:.2f} %"),
+            ("active geom pairs in contact (mean)", f"{100 * self.contact_pair_fraction:.2f} %"),
             ("mean lead time", lead),
             ("bound violations (body-steps)", str(self.bound_violations)),
             (
