@@ -646,7 +646,7 @@ def _writes_in_place(path: Path) -> bool:
     """True for a path that is written through, never replaced: a symlink, device or FIFO."""
     try:
         mode = os.lstat(path).st_mode
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
         return False
     return not stat.S_ISREG(mode)
 
