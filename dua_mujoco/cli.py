@@ -27,7 +27,14 @@ from dua_mujoco.exceptions import DuaError, InvalidInputError
 if TYPE_CHECKING:
     from dua_mujoco.monitor import RunReport
 
-__all__ = ["EXIT_BOUNDS_BROKEN", "EXIT_INTERRUPTED", "EXIT_MISSED", "build_parser", "main"]
+__all__ = [
+    "EXIT_BOUNDS_BROKEN",
+    "EXIT_INTERRUPTED",
+    "EXIT_MISSED",
+    "EXIT_USAGE",
+    "build_parser",
+    "main",
+]
 
 EXIT_MISSED = 1
 """``run --strict``: a contact onset was missed while the declared bounds held (a bug)."""
@@ -160,7 +167,8 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         "--strict",
         action="store_true",
         help="exit 1 if a contact onset was missed while the bounds held, 3 if the declared "
-        "bounds were broken (see the exit codes below)",
+        "bounds were broken in free motion or an onset was missed after that (see the exit "
+        "codes below)",
     )
     p.add_argument(
         "--json",
@@ -215,7 +223,7 @@ def _check_output(path: Path, what: str) -> None:
     if path.is_dir():
         raise InvalidInputError(f"{what} {str(path)!r} is a folder: pass a file path.")
     if _writes_in_place(path):
-        if stat.S_ISFIFO(os.stat(path).st_mode) if path.exists() else False:
+        if path.exists() and stat.S_ISFIFO(os.stat(path).st_mode):
             return  # opening a FIFO blocks until its reader comes: nothing to probe
         try:
             with open(path, "ab"):
