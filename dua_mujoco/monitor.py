@@ -390,6 +390,7 @@ class Monitor:
         self.contact_sum = 0.0
         self._nstanding = 0  # geom pairs with a standing alarm
         self._gp_active = np.zeros(self._ngp, dtype=bool)
+        self._nactive = 0
         self._gp_active_seen: tuple[object, int] | None = None
         self._distances = np.zeros(0)
         self._ndistances = 0
@@ -551,6 +552,7 @@ class Monitor:
                 )
                 > 0
             )
+            self._nactive = int(np.count_nonzero(self._gp_active))
         return self._gp_active
 
     # ------------------------------------------------------------------- physics
@@ -592,7 +594,7 @@ class Monitor:
         self.unfiltered_contacts += unfiltered
         if alarms is not None:
             active = self._active_geom_pairs()
-            nactive = int(np.count_nonzero(active))
+            nactive = self._nactive
             if nactive:
                 self.standing_sum += self._nstanding / nactive
                 self.contact_sum += int(np.count_nonzero(active[now])) / nactive
