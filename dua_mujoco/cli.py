@@ -7,10 +7,13 @@ import importlib
 import json
 import math
 import os
+import stat
 import sys
+import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 # Videos are rendered offscreen: without a display, MuJoCo must use EGL, and it reads the choice
 # when it is first imported.
@@ -21,7 +24,35 @@ import mujoco
 
 from dua_mujoco.exceptions import DuaError, InvalidInputError
 
-__all__ = ["build_parser", "main"]
+if TYPE_CHECKING:
+    from dua_mujoco.mj.monitor import RunReport
+
+__all__ = [
+    "EXIT_BOUNDS_BROKEN",
+    "EXIT_INTERRUPTED",
+    "EXIT_MISSED",
+    "EXIT_USAGE",
+    "build_parser",
+    "main",
+]
+
+EXIT_MISSED = 1
+"""``run --strict``: a contact onset was missed while the declared bounds held (a bug)."""
+EXIT_USAGE = 2
+"""Bad input: a one-line reason on stderr."""
+EXIT_BOUNDS_BROKEN = 3
+"""``run --strict``: the declared motion bounds were broken in free motion (out of contact), or
+an onset was missed after a violation: the guarantee did not apply."""
+EXIT_INTERRUPTED = 130
+"""Ctrl-C (128 + SIGINT, the shell's convention)."""
+
+_EXIT_CODES = (
+    "exit codes: 0 done; 1 (--strict) a contact onset was missed while the declared bounds held; "
+    "2 bad input or an output that cannot be written; 3 (--strict) the declared motion bounds "
+    "were broken out of contact, or an onset was missed after they were broken (violations "
+    "within a contact's impulse alone are expected); 130 interrupted (Ctrl-C; the partial "
+    "report is still written)."
+)
 
 
 def _accel(value: str) -> str | float:
@@ -30,11 +61,11 @@ def _accel(value: str) -> str | float:
     try:
         a = float(value)
     except ValueError:
+        a = math.nan
+    if not (math.isfinite(a) and a >= 0):
         raise argparse.ArgumentTypeError(
-            f"--accel {value!r} is invalid: pass 'auto' or a number in m/s^2"
-        ) from None
-    if not a >= 0:
-        raise argparse.ArgumentTypeError(f"--accel {value!r} is invalid: it must be >= 0")
+            f"--accel {value!r} is invalid: pass 'auto' or a finite number >= 0 (m/s^2)"
+        )
     return a
 
 
@@ -44,8 +75,8 @@ def _positive(kind: type) -> object:
             v = kind(value)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{value!r} is not a {kind.__name__}") from None
-        if not v > 0:
-            raise argparse.ArgumentTypeError(f"{value!r} must be > 0")
+        if not (v > 0 and math.isfinite(v)):
+            raise argparse.ArgumentTypeError(f"{value!r} must be a finite number > 0")
         return v
 
     return parse
@@ -70,12 +101,13 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         help="predict collisions on a scene and check them against MuJoCo's contacts",
         description="Roll out a scene with the DUA predictor and MuJoCo's contacts as the exact "
         "stage; print a summary table and optionally write a JSON report and a video.",
+        epilog=_EXIT_CODES,
     )
     p.add_argument(
         "scene",
         nargs="?",
         default=DEFAULT_SCENE,
-        help=f"bundled scene ({', '.join(scene_names())}) or an MJCF path "
+        help=f"bundled scene ({', '.join(scene_names())}), an MJCF path or a binary .mjb model "
         f"(default {DEFAULT_SCENE})",
     )
     p.add_argument(
@@ -131,9 +163,31 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="measure alarmed geom pairs with mj_geomDistance (the exact distance)",
     )
-    p.add_argument("--json", type=Path, default=None, help="write the report as JSON here")
-    p.add_argument("--series", action="store_true", help="add per-step series to the JSON")
-    p.add_argument("--video", type=Path, default=None, help="render a video (.mp4 or .gif)")
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="exit 1 if a contact onset was missed while the bounds held, 3 if the declared "
+        "bounds were broken in free motion or an onset was missed after that (see the exit "
+        "codes below)",
+    )
+    p.add_argument(
+        "--json",
+        type=Path,
+        default=None,
+        help="write the report as JSON here (replaced atomically; /dev/stdout works)",
+    )
+    p.add_argument(
+        "--series",
+        action="store_true",
+        help="record per-predictor-step series (alarm count, minimum tau) into the JSON; "
+        "without it memory does not grow with --steps",
+    )
+    p.add_argument(
+        "--video",
+        type=Path,
+        default=None,
+        help="render a video (.mp4 or .gif), streamed to the file as frames are rendered",
+    )
     p.add_argument("--fps", type=_positive(int), default=30, help="video frame rate")
     p.add_argument("--width", type=_positive(int), default=480, help="video width in pixels")
     p.add_argument("--height", type=_positive(int), default=360, help="video height in pixels")
@@ -143,39 +197,102 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         type=_positive(int),
         default=5,
         help="render every k-th physics step (one at which the predictor steps: with --period, "
-        "a multiple of both)",
+        "the least common multiple of both, noted on stderr)",
     )
     p.add_argument("--show-spheres", action="store_true", help="draw the covering spheres")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.set_defaults(func=_cmd_run)
 
 
+def _writes_in_place(path: Path) -> bool:
+    """True for an output written through, never replaced: a symlink, device or FIFO."""
+    try:
+        mode = os.lstat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return False
+    return not stat.S_ISREG(mode)
+
+
 def _check_output(path: Path, what: str) -> None:
-    """Refuse an output path that cannot be written, before a long run rather than after it."""
+    """Open an output before the run, so that a path that cannot be written fails in a second.
+
+    ``os.access`` says yes to root for anything, so this tries: a temporary file beside a
+    regular target (created, then removed), or an open for appending, which truncates nothing,
+    of a device, FIFO or symlink (``/dev/stdout``). No folder is created.
+    """
     if path.is_dir():
         raise InvalidInputError(f"{what} {str(path)!r} is a folder: pass a file path.")
-    if path.exists() and not os.access(path, os.W_OK):
-        raise InvalidInputError(f"{what} {str(path)!r} exists and is not writable.")
-    for parent in path.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise InvalidInputError(
-                    f"{what} {str(path)!r}: {str(parent)!r} is a file, not a folder."
-                )
-            if not os.access(parent, os.W_OK):
-                raise InvalidInputError(f"{what} {str(path)!r}: {str(parent)!r} is not writable.")
-            break
+    if _writes_in_place(path):
+        if path.exists() and stat.S_ISFIFO(os.stat(path).st_mode):
+            return  # opening a FIFO blocks until its reader comes: nothing to probe
+        try:
+            with open(path, "ab"):
+                pass
+        except OSError as exc:
+            raise InvalidInputError(
+                f"{what} {str(path)!r} cannot be opened for writing ({exc.strerror or exc}): "
+                "pass another path."
+            ) from None
+        return
+    parent = path.parent
+    if not parent.exists():
+        raise InvalidInputError(
+            f"{what} {str(path)!r}: the folder {str(parent)!r} does not exist: create it "
+            "first, or pass a path in an existing folder."
+        )
+    if not parent.is_dir():
+        raise InvalidInputError(f"{what} {str(path)!r}: {str(parent)!r} is a file, not a folder.")
+    try:
+        fd, probe = tempfile.mkstemp(dir=parent, prefix=f".{path.name}.", suffix=".probe")
+    except OSError as exc:
+        raise InvalidInputError(
+            f"{what} {str(path)!r} cannot be written: creating a file in {str(parent)!r} "
+            f"failed ({exc.strerror or exc}): pass a path in a writable folder."
+        ) from None
+    os.close(fd)
+    os.unlink(probe)
 
 
-def _check_outputs(args: argparse.Namespace, steps: int) -> None:
+def _write_output(path: Path, text: str, what: str) -> None:
+    """Write ``text`` to ``path`` atomically (a temporary file beside it, then ``os.replace``).
+
+    A device, FIFO or symlink is written in place instead (``--json /dev/stdout``). A failed
+    write (a full disk, ``/dev/full``) leaves no temporary file and raises one line.
+    """
+    try:
+        if _writes_in_place(path):
+            with open(path, "w") as f:
+                f.write(text)
+            return
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "w") as f:
+                f.write(text)
+            # mkstemp makes the file private (0600): give it the mode a plain open would.
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as exc:
+        raise InvalidInputError(
+            f"{what} {str(path)!r} could not be written ({exc.strerror or exc}): pass another path."
+        ) from None
+
+
+def _check_outputs(args: argparse.Namespace, model: mujoco.MjModel, steps: int) -> None:
     if args.json is not None:
         _check_output(args.json, "--json")
     if args.video is not None:
-        from dua_mujoco.render import _check_mp4_size, _video_path
+        from dua_mujoco.render import check_frame_size, check_mp4_size, video_path
 
-        _check_output(_video_path(args.video), "--video")
+        video_path(args.video)
         if args.video.suffix.lower() == ".mp4":
-            _check_mp4_size(args.width, args.height)
+            check_mp4_size(args.width, args.height)
+        check_frame_size(model, args.width, args.height, grow_buffer=True)
+        _check_output(args.video, "--video")
         every = math.lcm(args.every, args.period)  # frames need a predictor step (its alarms)
         if steps < every:
             raise InvalidInputError(
@@ -183,23 +300,63 @@ def _check_outputs(args: argparse.Namespace, steps: int) -> None:
                 f"physics steps (--every {args.every}, --period {args.period}); pass more "
                 "--steps or a lower --every."
             )
+        if every != args.every:
+            print(
+                f"dua-mujoco: note: --every {args.every} is not a multiple of --period "
+                f"{args.period}: a frame is rendered every {every} physics steps (frames are "
+                "taken at predictor steps, to draw their alarms).",
+                file=sys.stderr,
+            )
+        args.every = every
+
+
+def _load(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """``load_scene``, with the file named in the error when MuJoCo cannot load it."""
+    from dua_mujoco.mj.scenes import SCENES, load_scene
+
+    try:
+        return load_scene(scene, keyframe=keyframe)
+    except ValueError as exc:
+        if scene in SCENES or not Path(scene).is_file():
+            raise
+        reason = " ".join(str(exc).split())
+        raise InvalidInputError(
+            f"cannot load the model {scene!r}: {reason} (fix the file, or pass an MJCF .xml or "
+            "binary .mjb model)."
+        ) from None
+
+
+def _bounds_warning(report: RunReport) -> str:
+    """The line that says the guarantee did not apply to (part of) the run."""
+    bodies = ", ".join(repr(b) for b in report.broken_bound_bodies[:8])
+    more = len(report.broken_bound_bodies) - 8
+    if more > 0:
+        bodies += f" and {more} more"
+    missed = report.missed_onsets - report.missed_onsets_valid_bounds
+    return (
+        f"WARNING: the declared motion bounds were broken {report.bound_violations} times "
+        f"(body-steps, {report.bound_violations_out_of_contact} out of contact; bodies "
+        f"{bodies}): misses after that are not covered by the guarantee ({missed} such "
+        "miss(es) in this run). Declare bounds that hold (--accel auto measures them) or raise "
+        "--accel/--speed."
+    )
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from dua_mujoco.mj.alarms import Alarms
-    from dua_mujoco.mj.monitor import Monitor, run
+    from dua_mujoco.mj.monitor import Monitor, RunInterrupted, run
     from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.scenes import SCENES, load_scene, make_controller
+    from dua_mujoco.mj.scenes import SCENES, make_controller
 
     keyframe: int | str | None = args.keyframe
     if isinstance(keyframe, str) and keyframe.isdigit():
         keyframe = int(keyframe)
-    model, data = load_scene(args.scene, keyframe=keyframe)
+    model, data = _load(args.scene, keyframe)
     steps = args.steps
     if steps is None:
         base = args.scene.split(":")[0]
         steps = SCENES[base].default_steps if base in SCENES else 1000
-    _check_outputs(args, steps)
+    _check_outputs(args, model, steps)
     controller = make_controller(model, args.ctrl, seed=args.seed)
     pilot = make_controller(model, args.ctrl, seed=args.seed + 1_000_003)
     predictor = Predictor(
@@ -218,49 +375,84 @@ def _cmd_run(args: argparse.Namespace) -> int:
     )
     on_step = None
     renderer = None
-    frames: list = []
-    if args.video is not None:
-        from dua_mujoco.render import OverlayOptions, OverlayRenderer
-
-        renderer = OverlayRenderer(
-            predictor,
-            width=args.width,
-            height=args.height,
-            options=OverlayOptions(show_spheres=args.show_spheres),
-            grow_buffer=True,
-        )
-        camera = int(args.camera) if args.camera and args.camera.isdigit() else args.camera
-
-        def on_step(k: int, d: mujoco.MjData, alarms: Alarms | None, monitor: Monitor) -> None:
-            if k % args.every == 0 and alarms is not None:  # a predictor step: alarms to draw
-                frames.append(renderer.render(d, alarms, camera=camera, misses=len(monitor.misses)))
-
+    writer = None
+    interrupted = False
     try:
-        report = run(
-            model,
-            data,
-            predictor,
-            steps=steps,
-            controller=controller,
-            scene=args.scene,
-            realtime=args.realtime,
-            geom_distance=args.geom_distance,
-            progress=not args.no_progress,
-            on_step=on_step,
-        )
+        if args.video is not None:
+            from dua_mujoco.render import OverlayOptions, OverlayRenderer, VideoWriter
+
+            renderer = OverlayRenderer(
+                predictor,
+                width=args.width,
+                height=args.height,
+                options=OverlayOptions(show_spheres=args.show_spheres),
+                grow_buffer=True,
+            )
+            writer = VideoWriter(args.video, fps=args.fps)
+            camera = int(args.camera) if args.camera and args.camera.isdigit() else args.camera
+            render, add = renderer.render, writer.add
+
+            def on_step(k: int, d: mujoco.MjData, alarms: Alarms | None, monitor: Monitor) -> None:
+                if k % args.every == 0 and alarms is not None:  # a predictor step: its alarms
+                    add(render(d, alarms, camera=camera, misses=len(monitor.misses)))
+
+        try:
+            report = run(
+                model,
+                data,
+                predictor,
+                steps=steps,
+                controller=controller,
+                scene=args.scene,
+                realtime=args.realtime,
+                geom_distance=args.geom_distance,
+                progress=not args.no_progress,
+                on_step=on_step,
+                series=args.series,
+            )
+        except RunInterrupted as exc:
+            report = exc.report
+            interrupted = True
     finally:
         if renderer is not None:
             renderer.close()
+        if writer is not None:
+            writer.close()  # also on Ctrl-C: the frames rendered so far make a playable video
     print(report.table())
+    sys.stdout.flush()
+    bounds_broken = bool(
+        report.bound_violations_out_of_contact
+        or report.missed_onsets > report.missed_onsets_valid_bounds
+    )
+    if bounds_broken:
+        print(_bounds_warning(report), file=sys.stderr)
+    if report.missed_onsets_valid_bounds:
+        print(
+            f"WARNING: {report.missed_onsets_valid_bounds} contact onset(s) were missed while "
+            "the declared bounds held: the completeness guarantee is broken (a bug; please "
+            "report it with the scene and command).",
+            file=sys.stderr,
+        )
     if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(report.to_dict(series=args.series), indent=2))
+        text = json.dumps(report.to_dict(series=args.series), indent=2) + "\n"
+        _write_output(args.json, text, "--json")
         print(f"report written to {args.json}")
-    if args.video is not None:
-        from dua_mujoco.render import write_video
-
-        write_video(frames, args.video, fps=args.fps)
-        print(f"video written to {args.video} ({len(frames)} frames)")
+    if writer is not None:
+        if writer.count:
+            print(f"video written to {args.video} ({writer.count} frames)")
+        else:
+            print(f"no video written: the run stopped before the first frame ({args.video})")
+    if interrupted:
+        print(
+            f"dua-mujoco: interrupted after {report.physics_steps} of {steps} physics steps: the "
+            'report covers those ("interrupted": true).',
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
+    if args.strict and report.missed_onsets_valid_bounds:
+        return EXIT_MISSED
+    if args.strict and bounds_broken:
+        return EXIT_BOUNDS_BROKEN
     return 0
 
 
@@ -307,7 +499,11 @@ def _one_line_warning(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit code (2 on bad input, with a one-line reason)."""
+    """Entry point; returns the exit code (2 on bad input, with a one-line reason).
+
+    The codes are listed by ``dua-mujoco run --help``: 1 and 3 come only with ``--strict``,
+    130 after a Ctrl-C.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     with warnings.catch_warnings():
@@ -320,4 +516,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             # that cannot be read or written.
             reason = " ".join(str(exc).split())
             print(f"dua-mujoco: error: {reason}", file=sys.stderr)
-            return 2
+            return EXIT_USAGE
+        except KeyboardInterrupt:
+            # Outside the rollout (loading, the pilot rollout, writing): no report to write.
+            print("dua-mujoco: interrupted: no report written.", file=sys.stderr)
+            return EXIT_INTERRUPTED

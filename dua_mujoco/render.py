@@ -42,11 +42,13 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+import stat
+import tempfile
 import warnings
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, BinaryIO
 
 import mujoco
 import numpy as np
@@ -59,12 +61,19 @@ from dua_mujoco.progress import Progress
 
 __all__ = [
     "ALARM_RGBA",
+    "MAX_FRAME_SIZE",
     "AlarmOverlay",
     "OverlayOptions",
     "OverlayRenderer",
     "SceneFullWarning",
+    "VideoWriter",
+    "check_frame_size",
+    "check_mp4_size",
+    "read_video",
     "render_rollout",
     "status_line",
+    "use_bundled_ffmpeg",
+    "video_path",
     "write_video",
 ]
 
@@ -81,6 +90,10 @@ SPHERE_RGB = (0.3, 0.7, 1.0)
 """Colour of covering spheres whose geom is not urgent."""
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
+
+MAX_FRAME_SIZE = 4096
+"""Largest frame side ``grow_buffer`` enlarges the offscreen buffer to (4096x4096 RGBA is 64 MB;
+a larger framebuffer may exceed the GL implementation's renderbuffer limit)."""
 
 _OBJ_GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 _OBJ_UNKNOWN = int(mujoco.mjtObj.mjOBJ_UNKNOWN)
@@ -178,7 +191,7 @@ class AlarmOverlay:
         sched = self.predictor.scheduler
         if sched is None or self._all_pairs.size == 0:
             return out
-        horizon = sched.horizon[sched.bucket(self._all_pairs)]
+        horizon = sched.horizon_of(self._all_pairs)
         ratio = np.where(sched.active, sched.last_tau / horizon, np.inf)
         np.minimum.at(out, self._pair_geom1, ratio)
         valid = self._pair_geom2 >= 0
@@ -340,7 +353,25 @@ class AlarmOverlay:
 # ----------------------------------------------------------------------------- offscreen
 
 
-def _check_size(model: mujoco.MjModel, width: int, height: int, grow_buffer: bool) -> None:
+def check_frame_size(model: mujoco.MjModel, width: int, height: int, *, grow_buffer: bool) -> None:
+    """Refuse a frame size the offscreen framebuffer cannot hold, before anything is rendered.
+
+    ``mujoco.Renderer`` needs ``width <= model.vis.global_.offwidth`` and ``height <=
+    offheight``, and the GL implementation caps the framebuffer (beyond its limit MuJoCo fails
+    with "Offscreen framebuffer is not complete").
+
+    Args:
+        model: The model to render (with ``grow_buffer`` its ``vis.global_`` is enlarged in place:
+            only the offscreen buffer size changes, nothing physical).
+        width: Frame width in pixels.
+        height: Frame height in pixels.
+        grow_buffer: Enlarge ``offwidth``/``offheight`` to fit, up to :data:`MAX_FRAME_SIZE`,
+            instead of refusing a frame larger than they are.
+
+    Raises:
+        InvalidInputError: If a side is not an int >= 1, exceeds the buffer (and not
+            ``grow_buffer``), or exceeds :data:`MAX_FRAME_SIZE` beyond the model's own buffer.
+    """
     for name, value in (("width", width), ("height", height)):
         if not isinstance(value, int | np.integer) or value < 1:
             raise InvalidInputError(f"{name} = {value!r} is invalid: it must be an int >= 1.")
@@ -348,7 +379,15 @@ def _check_size(model: mujoco.MjModel, width: int, height: int, grow_buffer: boo
     if width <= vis.offwidth and height <= vis.offheight:
         return
     if grow_buffer:
-        # Only the offscreen framebuffer size changes: nothing physical.
+        if max(width, height) > MAX_FRAME_SIZE:
+            raise InvalidInputError(
+                f"a {width}x{height} frame is larger than this package renders "
+                f"({MAX_FRAME_SIZE} pixels a side, the model's offscreen buffer is "
+                f"{vis.offwidth}x{vis.offheight}): pass a width and height of at most "
+                f"{MAX_FRAME_SIZE}, or raise the model's buffer with <visual><global "
+                f'offwidth="{max(width, vis.offwidth)}" offheight="{max(height, vis.offheight)}"'
+                "/></visual> if your GL allows it."
+            )
         vis.offwidth = max(int(vis.offwidth), int(width))
         vis.offheight = max(int(vis.offheight), int(height))
         return
@@ -398,12 +437,12 @@ class OverlayRenderer:
         options: What the overlay draws.
         shadows: Render shadows (about 3x slower in software rendering).
         max_geom: Capacity of the scene, model geoms and overlay geoms together.
-        grow_buffer: Enlarge ``model.vis.global_.offwidth/offheight`` when the frame does not fit,
-            instead of raising.
+        grow_buffer: Enlarge ``model.vis.global_.offwidth/offheight`` when the frame does not fit
+            (up to :data:`MAX_FRAME_SIZE`), instead of raising.
 
     Raises:
-        InvalidInputError: If the frame does not fit the offscreen buffer (and not
-            ``grow_buffer``), or a size is not a positive int.
+        InvalidInputError: If the frame does not fit the offscreen buffer (see
+            :func:`check_frame_size`) or the GL context, or a size is not a positive int.
     """
 
     def __init__(
@@ -419,10 +458,18 @@ class OverlayRenderer:
     ) -> None:
         self._renderer: mujoco.Renderer | None = None
         model = predictor.model
-        _check_size(model, width, height, grow_buffer)
+        check_frame_size(model, width, height, grow_buffer=grow_buffer)
         self.model = model
         self.overlay = AlarmOverlay(predictor, options=options)
-        self._renderer = mujoco.Renderer(model, height=height, width=width, max_geom=max_geom)
+        try:
+            self._renderer = mujoco.Renderer(model, height=height, width=width, max_geom=max_geom)
+        except mujoco.FatalError as exc:
+            # A buffer the model allows but the GL implementation does not (its renderbuffer
+            # limit): MuJoCo's message names neither the size nor the fix.
+            raise InvalidInputError(
+                f"the GL context cannot hold a {width}x{height} offscreen framebuffer "
+                f"({' '.join(str(exc).split())}): render a smaller frame."
+            ) from None
         self._renderer.scene.flags[_RND_SHADOW] = int(shadows)
 
     @property
@@ -521,7 +568,18 @@ class OverlayRenderer:
 # ----------------------------------------------------------------------------- video
 
 
-def _video_path(path: str | Path) -> Path:
+def video_path(path: str | os.PathLike[str]) -> Path:
+    """Check that a video path names a format :class:`VideoWriter` writes.
+
+    Args:
+        path: The output file; its suffix (``.mp4`` or ``.gif``, any case) picks the format.
+
+    Returns:
+        ``path`` as a ``Path``.
+
+    Raises:
+        InvalidChoiceError: If the suffix is not ``.mp4`` or ``.gif``.
+    """
     p = Path(path)
     if p.suffix.lower() not in VIDEO_SUFFIXES:
         raise InvalidChoiceError(
@@ -530,7 +588,17 @@ def _video_path(path: str | Path) -> Path:
     return p
 
 
-def _check_mp4_size(width: int, height: int) -> None:
+def check_mp4_size(width: int, height: int) -> None:
+    """Refuse a frame size an ``.mp4`` cannot hold (H.264 in yuv420p needs even sides).
+
+    Args:
+        width: Frame width in pixels.
+        height: Frame height in pixels.
+
+    Raises:
+        InvalidInputError: If ``width`` or ``height`` is odd (the message gives the nearest even
+            size).
+    """
     if width % 2 or height % 2:
         raise InvalidInputError(
             f"an .mp4 (H.264, yuv420p) needs even frame sizes; got {width}x{height}: use e.g. "
@@ -542,7 +610,7 @@ def use_bundled_ffmpeg() -> Any:
     """Point mediapy at imageio-ffmpeg's ffmpeg and return the ``mediapy`` module.
 
     There may be no ffmpeg on PATH, and a newer system ffmpeg writes files mediapy cannot read
-    back (SPEC section 7), so reading and writing always use the bundled one.
+    back, so this package reads and writes with the bundled one.
     """
     import imageio_ffmpeg
     import mediapy
@@ -551,16 +619,222 @@ def use_bundled_ffmpeg() -> Any:
     return mediapy
 
 
+def _configure_mediapy() -> None:
+    """Give mediapy the bundled ffmpeg unless the user already chose one.
+
+    Without it ``mediapy.read_video`` fails on a machine without ffmpeg on PATH, so the
+    package's own videos could not be read back with plain mediapy. mediapy has no public
+    getter: its config keeps the default ``'ffmpeg'`` until ``mediapy.set_ffmpeg`` is called.
+    """
+    try:
+        import mediapy
+    except ImportError:  # pragma: no cover - a dependency; nothing to configure without it
+        return
+    config = getattr(mediapy, "_config", None)
+    if getattr(config, "ffmpeg_name_or_path", "ffmpeg") == "ffmpeg":
+        use_bundled_ffmpeg()
+
+
+_configure_mediapy()
+
+
 def read_video(path: str | os.PathLike[str]) -> np.ndarray:
     """Read a video written by ``write_video`` back as ``(frames, H, W, 3)`` uint8."""
     return np.asarray(use_bundled_ffmpeg().read_video(str(path)))
 
 
-def write_video(frames: Iterable[np.ndarray], path: str | Path, *, fps: float = 30.0) -> int:
+def _writes_in_place(path: Path) -> bool:
+    """True for a path that is written through, never replaced: a symlink, device or FIFO."""
+    try:
+        mode = os.lstat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return False
+    return not stat.S_ISREG(mode)
+
+
+class VideoWriter:
+    """Streams RGB frames into an ``.mp4`` or a ``.gif`` as they come (use ``with``).
+
+    Each frame goes to the encoder when it is added, so memory stays flat however long the
+    video: an ``.mp4`` is piped to imageio-ffmpeg's bundled ffmpeg (H.264, yuv420p), a ``.gif``
+    is encoded frame by frame with Pillow (a 256-colour palette per frame, and only the rectangle
+    that changed since the previous frame). The video goes to a temporary file beside ``path``
+    that replaces ``path`` when the writer closes, also when it closes on an exception: a Ctrl-C
+    leaves a playable video of the frames added so far, and never half a file. A symlink, device
+    or FIFO at ``path`` is written in place, not replaced.
+
+    Args:
+        path: Output file; the suffix picks the format. Parent folders are created.
+        fps: Frames per second (GIF delays are whole centiseconds: at most 100, browsers slow
+            anything above 50).
+
+    Attributes:
+        path: The output file.
+        count: Frames written so far.
+
+    Raises:
+        InvalidChoiceError: If the suffix is not ``.mp4`` or ``.gif``.
+        InvalidInputError: If ``fps <= 0``.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], *, fps: float = 30.0) -> None:
+        self.path = video_path(path)
+        if not fps > 0:
+            raise InvalidInputError(f"fps = {fps!r} is invalid: it must be > 0.")
+        self.fps = float(fps)
+        self.count = 0
+        self._gif = self.path.suffix.lower() == ".gif"
+        self._shape: tuple[int, ...] | None = None
+        self._tmp: Path | None = None
+        self._file: BinaryIO | None = None
+        self._ffmpeg: Generator[None, Any, None] | None = None
+        self._prev: np.ndarray | None = None
+        self._closed = False
+
+    def add(self, frame: np.ndarray) -> None:
+        """Encode one ``(H, W, 3)`` uint8 RGB frame (the first fixes the size).
+
+        Raises:
+            InvalidInputError: If the frame is not ``(H, W, 3)``, differs in shape from the first,
+                or an ``.mp4`` frame has an odd side.
+            DuaError: If the writer is closed.
+        """
+        if self._closed:
+            raise DuaError(f"the VideoWriter of {str(self.path)!r} is closed: open a new one.")
+        f = np.asarray(frame)
+        if self._shape is None:
+            if f.ndim != 3 or f.shape[2] != 3:
+                raise InvalidInputError(
+                    f"frames must be (H, W, 3) RGB arrays; got shape {f.shape}."
+                )
+            if not self._gif:
+                check_mp4_size(f.shape[1], f.shape[0])
+            self._open(f.shape)
+        elif f.shape != self._shape:
+            raise InvalidInputError(
+                f"frame {self.count} has shape {f.shape}; frame 0 has {self._shape}."
+            )
+        f = np.ascontiguousarray(f, dtype=np.uint8)
+        if self._gif:
+            self._add_gif(f)
+        else:
+            assert self._ffmpeg is not None
+            self._ffmpeg.send(f)
+        self.count += 1
+
+    def _open(self, shape: tuple[int, ...]) -> None:
+        self._shape = shape
+        target = self.path
+        if not _writes_in_place(self.path):
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            fd, name = tempfile.mkstemp(
+                dir=self.path.parent, prefix=f".{self.path.stem}.", suffix=self.path.suffix
+            )
+            os.close(fd)
+            self._tmp = target = Path(name)
+        if self._gif:
+            self._file = open(target, "wb")  # noqa: SIM115 - closed by close()
+            return
+        import imageio_ffmpeg
+
+        # Not mediapy.VideoWriter: imageio-ffmpeg starts ffmpeg in its own process group, so a
+        # Ctrl-C in the terminal reaches only Python, and closing the pipe still finishes the file.
+        self._ffmpeg = imageio_ffmpeg.write_frames(
+            str(target),
+            (shape[1], shape[0]),
+            fps=self.fps,
+            codec="libx264",
+            pix_fmt_out="yuv420p",
+            quality=None,
+            macro_block_size=1,
+            ffmpeg_log_level="error",
+            output_params=["-qp", "20" if shape[0] * shape[1] <= 640 * 480 else "28", "-f", "mp4"],
+        )
+        self._ffmpeg.send(None)
+
+    def _add_gif(self, f: np.ndarray) -> None:
+        from PIL import GifImagePlugin, Image
+
+        assert self._file is not None
+        prev = self._prev
+        x0, y0, x1, y1 = 0, 0, f.shape[1], f.shape[0]
+        if prev is not None:
+            changed = np.any(f != prev, axis=2)
+            rows = np.flatnonzero(changed.any(axis=1))
+            cols = np.flatnonzero(changed.any(axis=0))
+            # An unchanged frame still needs an image block to carry its delay: one pixel.
+            x0, y0, x1, y1 = (
+                (int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1)
+                if rows.size
+                else (0, 0, 1, 1)
+            )
+        # Fast octree without dithering: the fastest palette, and pure red stays pure red.
+        img = Image.fromarray(f[y0:y1, x0:x1]).quantize(
+            colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE
+        )
+        if prev is None:
+            header, _ = GifImagePlugin.getheader(img, None, {"loop": 0})
+            self._file.writelines(header)
+        self._file.writelines(
+            GifImagePlugin.getdata(
+                img,
+                offset=(x0, y0),
+                duration=max(10, round(1000.0 / self.fps)),
+                disposal=1,  # keep the previous frame under the changed rectangle
+                include_color_table=True,
+            )
+        )
+        self._file.flush()  # each frame on disk as it comes, as the .mp4 pipe does
+        self._prev = f.copy()
+
+    def close(self) -> None:
+        """Finish the file and move it into place (idempotent).
+
+        With no frame added nothing is written and ``path`` is left as it was.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            if self._file is not None:
+                if self.count:
+                    self._file.write(b";")  # the GIF trailer
+                self._file.close()
+            if self._ffmpeg is not None:
+                self._ffmpeg.close()
+        except BaseException:
+            self._discard()
+            raise
+        if self._tmp is not None:
+            if self.count:
+                os.replace(self._tmp, self.path)
+            else:
+                self._discard()
+
+    def _discard(self) -> None:
+        if self._tmp is not None:
+            self._tmp.unlink(missing_ok=True)
+            self._tmp = None
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def write_video(
+    frames: Iterable[np.ndarray], path: str | os.PathLike[str], *, fps: float = 30.0
+) -> int:
     """Write RGB frames to an ``.mp4`` (H.264 via imageio-ffmpeg's ffmpeg) or a ``.gif``.
 
-    Frames are consumed one at a time, so a generator keeps memory flat for ``.mp4``; a ``.gif``
-    keeps its palette frames (one byte per pixel) until the end.
+    Frames are consumed and encoded one at a time (:class:`VideoWriter`), so a generator keeps
+    memory flat for both formats.
 
     Args:
         frames: ``(H, W, 3)`` uint8 frames, all the same size.
@@ -576,58 +850,12 @@ def write_video(frames: Iterable[np.ndarray], path: str | Path, *, fps: float = 
         InvalidInputError: If there are no frames, ``fps <= 0``, frames differ in shape, or an
             ``.mp4`` frame size is odd.
     """
-    out = _video_path(path)
-    if not fps > 0:
-        raise InvalidInputError(f"fps = {fps!r} is invalid: it must be > 0.")
-    it = iter(frames)
-    first = next(it, None)
-    if first is None:
-        raise InvalidInputError(f"no frames to write to {str(out)!r}.")
-    shape = np.shape(first)
-    if len(shape) != 3 or shape[2] != 3:
-        raise InvalidInputError(f"frames must be (H, W, 3) RGB arrays; got shape {shape}.")
-    out.parent.mkdir(parents=True, exist_ok=True)
-
-    def checked() -> Iterator[np.ndarray]:
-        yield first
-        for i, f in enumerate(it, start=1):
-            if np.shape(f) != shape:
-                raise InvalidInputError(f"frame {i} has shape {np.shape(f)}; frame 0 has {shape}.")
-            yield f
-
-    if out.suffix.lower() == ".gif":
-        return _write_gif(checked(), out, fps)
-    _check_mp4_size(shape[1], shape[0])
-    mediapy = use_bundled_ffmpeg()
-    count = 0
-    with mediapy.VideoWriter(out, shape=(shape[0], shape[1]), fps=fps) as writer:
-        for f in checked():
-            writer.add_image(np.asarray(f, dtype=np.uint8))
-            count += 1
-    return count
-
-
-def _write_gif(frames: Iterator[np.ndarray], path: Path, fps: float) -> int:
-    from PIL import Image
-
-    # Quantise as we go: a palette frame is a third of an RGB one. Fast octree + optimize (which
-    # stores only the changed rectangle of each frame) measured 0.9 MB where median cut without
-    # optimize gave 2.6 MB (two_arms, 80 frames of 320x240).
-    images = [
-        Image.fromarray(np.asarray(f, dtype=np.uint8)).quantize(
-            colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE
-        )
-        for f in frames
-    ]
-    images[0].save(
-        path,
-        save_all=True,
-        append_images=images[1:],
-        duration=max(10, round(1000.0 / fps)),
-        loop=0,
-        optimize=True,
-    )
-    return len(images)
+    with VideoWriter(path, fps=fps) as writer:
+        for f in frames:
+            writer.add(f)
+        if not writer.count:
+            raise InvalidInputError(f"no frames to write to {str(writer.path)!r}.")
+        return writer.count
 
 
 def render_rollout(
@@ -677,7 +905,7 @@ def render_rollout(
         InvalidInputError: If ``steps`` or ``every`` is < 1, or an ``.mp4`` size is odd.
         InvalidChoiceError: If the suffix of ``path`` or the camera is unknown.
     """
-    out = _video_path(path)
+    out = video_path(path)
     for name, value in (("steps", steps), ("every", every)):
         if not isinstance(value, int | np.integer) or value < 1:
             raise InvalidInputError(f"{name} = {value!r} is invalid: it must be an int >= 1.")
@@ -686,7 +914,7 @@ def render_rollout(
             f"steps = {steps} < every = {every}: no frame would be rendered; lower every."
         )
     if out.suffix.lower() == ".mp4":
-        _check_mp4_size(width, height)
+        check_mp4_size(width, height)
     period = predictor.period
 
     def frames() -> Iterator[np.ndarray]:

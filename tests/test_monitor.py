@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import tracemalloc
+
 import mujoco
 import numpy as np
 import pytest
 
-from dua_mujoco.mj.monitor import Monitor
+from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.mj.monitor import Monitor, RunReport, run
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_scene, make_controller
 
@@ -149,7 +152,7 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
             kinds["switch_mid"] += 1
         mon.observe(d, alarms)
         np.testing.assert_array_equal(mon._standing > 0, _standing_reference(p), f"step {k}")
-        assert mon._pred_steps == steps_of, f"step {k}"  # what a miss's window starts from
+        assert mon._pred_steps.tolist() == steps_of, f"step {k}"  # what a miss's window starts from
         sched = p.scheduler
         assert sched is not None
         ids = rng.choice(len(p.pair_set), size=3, replace=False)
@@ -176,3 +179,100 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
     mon.finish()
     assert min(kinds.values()) > 0, kinds
     assert not [miss for miss in mon.misses if miss.bounds_held]
+
+
+@pytest.mark.parametrize("period", [1, 3])
+def test_alarm_and_contact_fractions_match_a_per_step_reference(period: int) -> None:
+    """``standing_alarm_fraction`` and ``contact_pair_fraction`` against plain per-step sums.
+
+    Pairs are switched off and on between steps, so the count of active geom pairs changes.
+    """
+    m, d = load_scene("paper_world:12")
+    p = Predictor(m, accel=2.0, period=period)
+    ctrl = make_controller(m, "random", seed=3)
+    rng = np.random.default_rng(period)
+    mon = Monitor(p)
+    gp_of = p.sphere_pairs.geom_pair
+    alarm_fractions: list[float] = []
+    contact_fractions: list[float] = []
+    mujoco.mj_step(m, d)
+    mon.start(d)
+    for k in range(1, 600):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        alarms = p.step(d) if k % period == 0 else None
+        mon.observe(d, alarms)
+        sched = p.scheduler
+        assert sched is not None
+        if alarms is not None:
+            active = {int(g) for g in gp_of[sched.active]}
+            alarmed = {int(g) for g in gp_of[sched.alarm_state() & sched.active]}
+            touching = set()
+            for i in range(int(d.ncon)):
+                g = int(
+                    p.geom_pairs.indices_of(d.contact.geom1[i : i + 1], d.contact.geom2[i : i + 1])[
+                        0
+                    ]
+                )
+                if g in active:
+                    touching.add(g)
+            if active:
+                alarm_fractions.append(len(alarmed) / len(active))
+                contact_fractions.append(len(touching) / len(active))
+            else:
+                alarm_fractions.append(0.0)
+                contact_fractions.append(0.0)
+        if rng.random() < 0.1:
+            sched.set_active(rng.choice(len(p.pair_set), size=5, replace=False), rng.random() < 0.5)
+    mon.finish()
+    assert mon.predictor_steps == len(alarm_fractions)
+    assert 0.0 < np.mean(contact_fractions) < np.mean(alarm_fractions) < 1.0  # a test with teeth
+    assert mon.standing_alarm_fraction == pytest.approx(np.mean(alarm_fractions), rel=1e-12)
+    assert mon.contact_pair_fraction == pytest.approx(np.mean(contact_fractions), rel=1e-12)
+
+
+def _run_memory(steps: int, series: bool) -> tuple[int, RunReport]:
+    """Bytes held at the last step of a run, and its report (``bounds.py`` excluded)."""
+    m, d = load_scene("two_arms")
+    p = Predictor(m, accel=200.0)
+    ctrl = make_controller(m, "random", seed=0)
+    held: list[int] = []
+    # BoundMonitor keeps a flag per step and a record per violation (bounds.py, not the run's
+    # own accounting): left out of the measurement.
+    skip = [tracemalloc.Filter(False, "*bounds.py")]
+
+    def measure(k: int, d: mujoco.MjData, alarms: object, monitor: Monitor) -> None:
+        if k == steps:
+            snap = tracemalloc.take_snapshot().filter_traces(skip)
+            held.append(sum(stat.size for stat in snap.statistics("filename")))
+
+    tracemalloc.start()
+    try:
+        report = run(
+            m, d, p, steps=steps, controller=ctrl, progress=False, series=series, on_step=measure
+        )
+    finally:
+        tracemalloc.stop()
+    return held[0], report
+
+
+def test_run_memory_does_not_grow_with_steps_without_series() -> None:
+    """Without series the report holds no per-step data and a 4x longer run holds no more.
+
+    The old run kept six per-step Python lists (about 240 bytes a step: +700 kB here).
+    """
+    _run_memory(100, False)  # load the compiled code outside the measurement
+    short, _ = _run_memory(1000, False)
+    long, report = _run_memory(4000, False)
+    assert report.alarms_per_step is None and report.min_tau_per_step is None
+    assert "alarms_per_step" not in report.to_dict()
+    assert long - short < 40_000, (short, long)
+    with pytest.raises(InvalidInputError, match="series=True"):
+        report.to_dict(series=True)
+    _, with_series = _run_memory(500, True)
+    assert with_series.alarms_per_step is not None and with_series.min_tau_per_step is not None
+    assert with_series.alarms_per_step.dtype == np.int32
+    assert with_series.alarms_per_step.shape == (with_series.predictor_steps + 1,)
+    out = with_series.to_dict(series=True)
+    assert len(out["min_tau_per_step"]) == 501
+    assert all(t is None or isinstance(t, float) for t in out["min_tau_per_step"])

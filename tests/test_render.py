@@ -6,6 +6,9 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+import itertools
+import subprocess
+import sys
 import warnings
 from pathlib import Path
 
@@ -21,6 +24,8 @@ from dua_mujoco.render import (
     OverlayOptions,
     OverlayRenderer,
     SceneFullWarning,
+    VideoWriter,
+    check_frame_size,
     read_video,
     render_rollout,
     write_video,
@@ -225,3 +230,96 @@ def test_write_video_rejects_bad_input(tmp_path: Path) -> None:
         write_video([], tmp_path / "x.gif", fps=10)
     with pytest.raises(InvalidInputError, match="frame 1"):
         write_video([frames[0], np.zeros((48, 66, 3), np.uint8)], tmp_path / "x.gif", fps=10)
+
+
+def _frames(n: int, h: int = 48, w: int = 64) -> list[np.ndarray]:
+    """Distinct frames: a bright square moving over a dark gradient."""
+    base = np.zeros((h, w, 3), np.uint8)
+    base[..., 2] = np.linspace(0, 120, w, dtype=np.uint8)
+    out = []
+    for i in range(n):
+        f = base.copy()
+        x = (4 * i) % (w - 8)
+        f[10:18, x : x + 8] = (240, 240, 40)
+        out.append(f)
+    return out
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".gif"])
+def test_video_writer_streams_and_an_interrupt_leaves_a_playable_video(
+    tmp_path: Path, suffix: str
+) -> None:
+    """Frames reach the file as they are added; an exception mid-video keeps what was written."""
+    path = tmp_path / f"v{suffix}"
+    path.write_bytes(b"an older video")
+    frames = _frames(12)
+    sizes = []
+    with pytest.raises(KeyboardInterrupt), VideoWriter(path, fps=10) as writer:
+        for i, f in enumerate(frames):
+            if i == 7:
+                raise KeyboardInterrupt
+            writer.add(f)
+            tmp = [p for p in tmp_path.iterdir() if p.name != path.name]
+            sizes.append(sum(p.stat().st_size for p in tmp))
+    assert writer.count == 7
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # no temporary left
+    video = read_video(path)
+    assert video.shape == (7, 48, 64, 3)
+    assert np.abs(video.astype(int) - np.asarray(frames[:7], dtype=int)).mean() < 8
+    if suffix == ".gif":  # encoded frame by frame: the file grows with every frame
+        assert all(b > a for a, b in itertools.pairwise(sizes)), sizes
+
+
+def test_gif_frames_are_exact_where_colours_fit_the_palette(tmp_path: Path) -> None:
+    """Changed rectangles over kept pixels rebuild every frame; pure red stays pure red."""
+    frames = _frames(6)
+    for f in frames:
+        f[30:32, 5:40] = (255, 0, 0)
+    write_video(frames, tmp_path / "x.gif", fps=10)
+    video = read_video(tmp_path / "x.gif")
+    assert video.shape == (6, 48, 64, 3)
+    for got, want in zip(video, frames, strict=True):
+        assert _pure_red(got)[30:32, 5:40].all()
+        assert np.abs(got.astype(int) - want.astype(int)).max() <= 16
+
+
+def test_video_writer_writes_through_a_symlink(tmp_path: Path) -> None:
+    target = tmp_path / "real.gif"
+    target.write_bytes(b"")
+    link = tmp_path / "link.gif"
+    link.symlink_to(target)
+    assert write_video(_frames(3), link, fps=10) == 3
+    assert link.is_symlink() and read_video(target).shape[0] == 3
+
+
+def test_plain_mediapy_reads_the_videos_back(tmp_path: Path) -> None:
+    """Importing the render module gives mediapy the bundled ffmpeg unless one was set."""
+    path = tmp_path / "x.mp4"
+    write_video(_frames(4), path, fps=10)
+    code = (
+        "import sys, mediapy, dua_mujoco.render\n"
+        "print(mediapy.read_video(sys.argv[1]).shape)\n"
+        "mediapy.set_ffmpeg('/my/ffmpeg')\n"
+        "import importlib; importlib.reload(dua_mujoco.render)\n"
+        "print(mediapy._config.ffmpeg_name_or_path)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "PATH"} | {"PATH": "/nonexistent"}
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parent.parent)
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(path)], capture_output=True, text=True, env=env
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split("\n")[:2] == ["(4, 48, 64, 3)", "/my/ffmpeg"]
+
+
+def test_frame_size_beyond_the_maximum_is_refused_up_front() -> None:
+    model, _, predictor, _ = _start(TWO_SPHERES, 1.0)
+    with pytest.raises(InvalidInputError, match=r"100000x240 .* at most 4096.*offwidth"):
+        check_frame_size(model, 100_000, H, grow_buffer=True)
+    assert model.vis.global_.offwidth == W  # nothing grown on refusal
+    with pytest.raises(InvalidInputError, match=r"at most 4096"):
+        OverlayRenderer(predictor, width=100_000, height=H, grow_buffer=True)
+    # A buffer the model allows but the GL context cannot hold: one clear error, no FatalError.
+    model.vis.global_.offwidth = 40_000
+    with pytest.raises(InvalidInputError, match=r"GL context cannot hold a 40000x240"):
+        OverlayRenderer(predictor, width=40_000, height=H)

@@ -40,13 +40,13 @@ from dua_mujoco.core.shapes import (
     tau_static,
     time_to_static,
 )
+from dua_mujoco.core.urgency import time_to_collision
 from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidInputError,
     NonFiniteStateError,
     ShapeError,
 )
-from dua_mujoco.core.urgency import time_to_collision
 
 try:
     import reference_tau as ref

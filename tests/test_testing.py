@@ -120,6 +120,33 @@ def test_misses_after_broken_bounds_fail_unless_allowed() -> None:
     assert report.missed_onsets_valid_bounds == 0
 
 
+def test_broken_bounds_fail_even_without_a_miss() -> None:
+    """Violations alone fail: the guarantee did not apply, however lucky the run was.
+
+    paper_world:12 with A = v = 0.01 breaks its bounds thousands of times in 400 steps and
+    misses nothing; the helper passed it.
+    """
+    m, d = load_scene("paper_world:12")
+    bounds = {"accel": 0.01, "speed": 0.01}
+    with pytest.raises(AssertionError, match="bounds were broken") as e:
+        assert_no_missed_collisions(m, d, steps=400, predictor=bounds)
+    msg = str(e.value)
+    assert "none missed" in msg and "allow_broken_bounds=True" in msg
+    assert re.search(r"body 'sphere\d+': (accel|speed) [\d.]+ > bound 0.01 ", msg), msg
+    m, d = load_scene("paper_world:12")
+    report = assert_no_missed_collisions(
+        m, d, steps=400, predictor=bounds, allow_broken_bounds=True
+    )
+    assert report.bound_violations > 1000 and report.missed_onsets == 0
+    assert report.contact_onsets > 0 and report.alarms_per_step is None
+
+
+def test_contact_impulses_alone_do_not_fail(clean_report: RunReport) -> None:
+    """Contacts break the bounds of the bodies they hit; that alone is expected and passes."""
+    assert clean_report.bound_violations > 0
+    assert clean_report.bound_violations_out_of_contact == 0
+
+
 def test_scene_without_collidable_pairs_fails() -> None:
     m = mujoco.MjModel.from_xml_string(
         "<mujoco><worldbody><body><freejoint/><geom size='.1' contype='0' conaffinity='0'/>"

@@ -43,8 +43,8 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.mj.covering import Covering
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
+from dua_mujoco.mj.covering import Covering
 
 __all__ = [
     "GeomPairs",

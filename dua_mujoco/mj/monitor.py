@@ -15,7 +15,9 @@ returns a ``RunReport``.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
+import math
 import time
 import warnings
 from collections.abc import Callable
@@ -24,14 +26,14 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.checks import BoundMonitor
 from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
 from dua_mujoco.mj.alarms import Alarms
+from dua_mujoco.mj.checks import BoundMonitor
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.tables import same_geometry
 from dua_mujoco.progress import Progress
 
-__all__ = ["Miss", "Monitor", "RunReport", "run"]
+__all__ = ["Miss", "Monitor", "RunInterrupted", "RunReport", "run"]
 
 Controller = Callable[[mujoco.MjModel, mujoco.MjData], None]
 
@@ -39,6 +41,88 @@ Controller = Callable[[mujoco.MjModel, mujoco.MjData], None]
 _DISTMAX = 100.0
 
 _NONE = np.zeros(0, dtype=np.int64)
+
+# A contact's impulse shows in the bound check's finite differences for this many physics steps
+# (the current one and the two before it): a violation then is the contact's, not free motion's.
+_CONTACT_LAG = 3
+
+# Step timings are kept as a histogram of log-durations, not one float per step: bins 0.5 %
+# wide from 1 ns to 1000 s put the median within 0.25 % in 41 kB, however long the run.
+_LOG_T0 = math.log(1e-9)
+_LOG_BIN = 0.005
+_NBINS = math.ceil((math.log(1e3) - _LOG_T0) / _LOG_BIN) + 1
+
+
+class _Durations:
+    """Median of many durations in constant memory (a log-spaced histogram)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._hist = np.zeros(_NBINS, dtype=np.int64)
+
+    def add(self, seconds: float) -> None:
+        b = int((math.log(max(seconds, 1e-9)) - _LOG_T0) / _LOG_BIN)
+        self._hist[min(b, _NBINS - 1)] += 1
+        self.count += 1
+
+    def median(self) -> float:
+        """The median duration in seconds (the centre of its bin); 0 without durations."""
+        if not self.count:
+            return 0.0
+        b = int(np.searchsorted(np.cumsum(self._hist), (self.count + 1) // 2))
+        return math.exp(_LOG_T0 + (b + 0.5) * _LOG_BIN)
+
+
+class _Series:
+    """Per-predictor-step alarm counts and minimum tau in arrays that double as they fill."""
+
+    def __init__(self) -> None:
+        self.size = 0
+        self._alarms = np.zeros(1024, dtype=np.int32)
+        self._tau = np.zeros(1024, dtype=np.float64)
+
+    def append(self, nalarms: int, min_tau: float) -> None:
+        if self.size == self._alarms.size:
+            self._alarms = np.concatenate([self._alarms, np.zeros_like(self._alarms)])
+            self._tau = np.concatenate([self._tau, np.zeros_like(self._tau)])
+        self._alarms[self.size] = nalarms
+        self._tau[self.size] = min_tau
+        self.size += 1
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Copies trimmed to the steps recorded: ``(alarms int32, min_tau float64)``."""
+        return self._alarms[: self.size].copy(), self._tau[: self.size].copy()
+
+
+class _StepMap:
+    """Predictor step index -> physics step, stored as runs ``period`` physics steps apart.
+
+    The predictor steps every ``period`` physics steps, so a run needs one entry per reset, not
+    one per step; an irregular step (observed by hand, off the period) starts a new run.
+    """
+
+    def __init__(self, physics_step: int, period: int) -> None:
+        self.period = period
+        self._first = [0]
+        self._physics = [physics_step]
+        self.count = 1
+
+    def append(self, physics_step: int) -> None:
+        if physics_step != self[self.count]:
+            self._first.append(self.count)
+            self._physics.append(physics_step)
+        self.count += 1
+
+    def __getitem__(self, j: int) -> int:
+        i = bisect.bisect_right(self._first, j) - 1
+        return self._physics[i] + (j - self._first[i]) * self.period
+
+    def __len__(self) -> int:
+        return self.count
+
+    def tolist(self) -> list[int]:
+        """Every predictor step's physics step (for tests: O(steps))."""
+        return [self[j] for j in range(self.count)]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,7 +140,19 @@ class Miss:
 
 @dataclasses.dataclass(frozen=True)
 class RunReport:
-    """Metrics of a monitored run (``to_dict`` gives the CLI's JSON report)."""
+    """Metrics of a monitored run (``to_dict`` gives the CLI's JSON report).
+
+    ``alarms_per_step`` (int32) and ``min_tau_per_step`` (float64, ``inf`` without alarms) hold
+    one entry per predictor step, entry 0 the initial classification, when the run recorded
+    series (``run(..., series=True)``), else None. ``standing_alarm_fraction`` is the mean over
+    predictor steps of the fraction of active geom pairs standing in alarm after the step's
+    verdicts; ``contact_pair_fraction`` the same mean for active geom pairs in MuJoCo's contacts
+    at that step (alarms no predictor can avoid). ``broken_bound_bodies`` names the bodies that
+    broke their declared bounds; ``bound_violations_out_of_contact`` counts the violations (body
+    steps) of bodies whose kinematic tree was in no contact at that step nor the two before:
+    free motion beyond the declared bounds, not a contact's impulse. ``interrupted`` marks a run
+    stopped early (Ctrl-C), whose ``physics_steps`` are those observed.
+    """
 
     scene: str
     physics_steps: int
@@ -81,9 +177,14 @@ class RunReport:
     predictor_us_per_step: float
     mj_step_us_per_step: float
     misses: tuple[Miss, ...] = ()
-    alarms_per_step: tuple[int, ...] = ()
-    min_tau_per_step: tuple[float, ...] = ()
+    alarms_per_step: np.ndarray | None = None
+    min_tau_per_step: np.ndarray | None = None
     realtime: bool = False
+    standing_alarm_fraction: float = 0.0
+    contact_pair_fraction: float = 0.0
+    broken_bound_bodies: tuple[str, ...] = ()
+    bound_violations_out_of_contact: int = 0
+    interrupted: bool = False
 
     @property
     def evals_fraction(self) -> float:
@@ -101,25 +202,40 @@ class RunReport:
         return self.predictor_us_per_step / (self.period * self.mj_step_us_per_step)
 
     def to_dict(self, *, series: bool = False) -> dict[str, Any]:
-        """JSON-ready dict; ``series=True`` adds the per-step alarm and tau series."""
+        """JSON-ready dict; ``series=True`` adds the per-step alarm and tau series.
+
+        Raises:
+            InvalidInputError: ``series=True`` for a run that recorded none.
+        """
         out = dataclasses.asdict(self)
         out["misses"] = [dataclasses.asdict(m) for m in self.misses]
+        out["broken_bound_bodies"] = list(self.broken_bound_bodies)
         out["predictor_share"] = self.predictor_share
-        if not series:
-            out.pop("alarms_per_step")
-            out.pop("min_tau_per_step")
-        else:
-            out["min_tau_per_step"] = [
-                None if not np.isfinite(t) else t for t in self.min_tau_per_step
-            ]
+        out.pop("alarms_per_step")
+        out.pop("min_tau_per_step")
+        if series:
+            if self.alarms_per_step is None or self.min_tau_per_step is None:
+                raise InvalidInputError(
+                    "this report holds no per-step series: run it with run(..., series=True) "
+                    "(dua-mujoco run --series)."
+                )
+            out["alarms_per_step"] = self.alarms_per_step.tolist()
+            # JSON has no infinity: a step without alarms has null.
+            tau = self.min_tau_per_step.astype(object)
+            tau[~np.isfinite(self.min_tau_per_step)] = None
+            out["min_tau_per_step"] = tau.tolist()
         return out
 
     def summary_rows(self) -> list[tuple[str, str]]:
         """(label, value) rows for a readable table."""
         lead = "n/a" if self.lead_time_mean_s is None else f"{self.lead_time_mean_s * 1e3:.1f} ms"
+        steps = f"{self.physics_steps} ({self.period})"
         rows = [
             ("scene", self.scene),
-            ("physics steps (predictor period)", f"{self.physics_steps} ({self.period})"),
+            (
+                "physics steps (predictor period)",
+                f"{steps}, interrupted" if self.interrupted else steps,
+            ),
             (
                 "spheres / sphere pairs / geom pairs",
                 f"{self.spheres} / {self.pairs} / {self.geom_pairs}",
@@ -134,8 +250,11 @@ class RunReport:
             ("  of them while the bounds held", str(self.missed_onsets_valid_bounds)),
             ("contacts in switched-off pairs", str(self.inactive_pair_contacts)),
             ("alarm episodes (false)", f"{self.alarm_episodes} ({self.false_alarm_episodes})"),
+            ("active geom pairs in alarm (mean)", f"{100 * self.standing_alarm_fraction:.2f} %"),
+            ("active geom pairs in contact (mean)", f"{100 * self.contact_pair_fraction:.2f} %"),
             ("mean lead time", lead),
             ("bound violations (body-steps)", str(self.bound_violations)),
+            ("  of them out of contact", str(self.bound_violations_out_of_contact)),
             (
                 "predictor us/call vs mj_step us/step",
                 f"{self.predictor_us_per_step:.1f} vs {self.mj_step_us_per_step:.1f} "
@@ -167,7 +286,10 @@ class Monitor:
         realtime: Treat the predictor period as a deadline: a predictor step slower than
             ``predictor.dt`` counts as an overrun and warns once (the "cannot keep up" signal).
         geom_distance: Also measure the exact distance (``mj_geomDistance``) of every alarmed
-            geom pair at each predictor step: how far the exact stage finds alarmed pairs.
+            geom pair at each predictor step: how far the exact stage finds alarmed pairs (one
+            float64 per alarmed pair and step is kept for the median).
+        series: Record the alarm count and minimum tau of every predictor step (``series``);
+            otherwise memory does not grow with the run's length.
 
     An *alarm episode* of a geom pair is a maximal run of physics steps during which at least one
     of its sphere pairs stands alarmed (repeats counted once, as the paper does). It is *false*
@@ -188,8 +310,10 @@ class Monitor:
         check_bounds: bool = True,
         realtime: bool = False,
         geom_distance: bool = False,
+        series: bool = False,
     ) -> None:
         self.predictor = predictor
+        self.record_series = series
         self.model = predictor.model
         self.realtime = realtime
         self.geom_distance = geom_distance
@@ -218,6 +342,8 @@ class Monitor:
             axis=1,
         )
         self._names = predictor.tables.geom_names
+        self._geom_root = np.asarray(self.model.body_rootid)[np.asarray(self.model.geom_bodyid)]
+        self._body_root = np.asarray(self.model.body_rootid)
 
     # ------------------------------------------------------------------- lifecycle
 
@@ -225,7 +351,7 @@ class Monitor:
         """Reset the predictor on ``data`` and start counting."""
         alarms = self.predictor.reset(data)
         self.physics_step = 0
-        self._pred_steps = [0]  # predictor step -> physics step
+        self._pred_steps = _StepMap(0, self.predictor.period)
         self._time = float(data.time)
         self._in_contact = self._contacts(data)[0]
         # The same set as a mask: lookups by gathering, not by np.isin (which sorts; 47 us a
@@ -233,6 +359,10 @@ class Monitor:
         self._contact_mask = np.zeros(self._ngp, dtype=bool)
         self._contact_mask[self._in_contact] = True
         self._last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
+        # Per kinematic tree (root body): the last physics step it was in a contact.
+        self._root_contact = np.full(self.model.nbody, -_CONTACT_LAG, dtype=np.int64)
+        self._mark_contacts(data)
+        self.free_violations = 0
         self._standing = np.zeros(self._ngp, dtype=np.int64)
         self._pair_alarm = np.zeros(self.predictor.nsphere_pairs, dtype=bool)
         self._scheduler = self.predictor.scheduler
@@ -247,7 +377,7 @@ class Monitor:
         self._pending_touch = np.zeros(0, dtype=bool)
         self.onsets = 0
         self.predicted = 0
-        self.lead_times: list[float] = []
+        self.lead_time_sum = 0.0
         self.misses: list[Miss] = []
         self.inactive_contacts = 0
         self.unfiltered_contacts = 0
@@ -255,14 +385,31 @@ class Monitor:
         self.false_episodes = 0
         self.violations = 0
         self.overruns = 0
-        self.evaluations: list[int] = []
-        self.exact_distances: list[float] = []
-        self.alarms_per_step: list[int] = [len(alarms)]
-        self.min_tau: list[float] = [float(np.min(alarms.tau, initial=np.inf))]
+        # Running sums over predictor steps, not per-step lists: memory stays flat.
+        self.predictor_steps = 0
+        self.evaluation_sum = 0
+        self.standing_sum = 0.0
+        self.contact_sum = 0.0
+        self._nstanding = 0  # geom pairs with a standing alarm
+        self._gp_active = np.zeros(self._ngp, dtype=bool)
+        self._nactive = 0
+        self._gp_active_seen: tuple[object, int] | None = None
+        self._distances = np.zeros(0)
+        self._ndistances = 0
+        self.series = _Series() if self.record_series else None
+        if self.series is not None:
+            self.series.append(len(alarms), float(np.min(alarms.tau, initial=np.inf)))
         if self.bounds is not None:
             self.bounds.update(self.model, data)
         self._apply_alarms(alarms.pairs, np.arange(self.predictor.nsphere_pairs), data.time)
         return alarms
+
+    def _mark_contacts(self, data: mujoco.MjData) -> None:
+        """Stamp the kinematic trees of every contact (any geom pair, static ones too)."""
+        nc = int(data.ncon)
+        if nc:
+            self._root_contact[self._geom_root[data.contact.geom1[:nc]]] = self.physics_step
+            self._root_contact[self._geom_root[data.contact.geom2[:nc]]] = self.physics_step
 
     def _contacts(self, data: mujoco.MjData) -> tuple[np.ndarray, int]:
         """Active geom pairs in contact (sorted ids) and the count of contacts outside them.
@@ -293,6 +440,7 @@ class Monitor:
         begins = (before == 0) & (after > 0)
         started = touched[begins]
         ended = touched[(before > 0) & (after == 0)]
+        self._nstanding += int(started.size) - int(ended.size)
         if started.size:
             self.episodes += int(started.size)
             self._episode_start[started] = t
@@ -318,7 +466,7 @@ class Monitor:
         """
         if self.predictor.scheduler is not self._scheduler:
             self._scheduler = self.predictor.scheduler
-            self._pred_steps = [self.physics_step]
+            self._pred_steps = _StepMap(self.physics_step, self.predictor.period)
             self._activation_seen = -1
 
     def _sync_switches(self, exclude: np.ndarray | None = None) -> None:
@@ -350,15 +498,64 @@ class Monitor:
         assert sched is not None
         self._pred_steps.append(self.physics_step)
         evaluated = sched.last_selected
-        self.evaluations.append(int(evaluated.size))
+        self.predictor_steps += 1
+        self.evaluation_sum += int(evaluated.size)
         self._apply_alarms(alarms.pairs, evaluated, float(data.time))
         if self.geom_distance and len(alarms):
             for g1, g2 in sorted(alarms.geom_pairs):
-                self.exact_distances.append(
+                self._add_distance(
                     float(mujoco.mj_geomDistance(self.model, data, g1, g2, _DISTMAX, None))
                 )
-        self.alarms_per_step.append(len(alarms))
-        self.min_tau.append(float(alarms.tau.min()) if len(alarms) else np.inf)
+        if self.series is not None:
+            self.series.append(len(alarms), float(alarms.tau.min()) if len(alarms) else np.inf)
+
+    def _add_distance(self, distance: float) -> None:
+        if self._ndistances == self._distances.size:
+            self._distances = np.concatenate(
+                [self._distances, np.zeros(max(1024, self._ndistances))]
+            )
+        self._distances[self._ndistances] = distance
+        self._ndistances += 1
+
+    @property
+    def exact_distances(self) -> np.ndarray:
+        """The ``mj_geomDistance`` of every alarmed geom pair so far (``geom_distance``)."""
+        return self._distances[: self._ndistances]
+
+    @property
+    def lead_time_mean(self) -> float | None:
+        """Mean lead time of the predicted onsets so far (s), None before the first."""
+        return self.lead_time_sum / self.predicted if self.predicted else None
+
+    @property
+    def standing_alarm_fraction(self) -> float:
+        """Mean over predictor steps of (geom pairs in alarm) / (active geom pairs)."""
+        return self.standing_sum / self.predictor_steps if self.predictor_steps else 0.0
+
+    @property
+    def contact_pair_fraction(self) -> float:
+        """Mean over predictor steps of (active geom pairs in contact) / (active geom pairs)."""
+        return self.contact_sum / self.predictor_steps if self.predictor_steps else 0.0
+
+    def _active_geom_pairs(self) -> np.ndarray:
+        """Mask of geom pairs with an active sphere pair; O(pairs) only after a switch."""
+        sched = self.predictor.scheduler
+        assert sched is not None
+        seen = (sched, sched.activation_changes)
+        if (
+            self._gp_active_seen is None
+            or seen[0] is not self._gp_active_seen[0]
+            or (seen[1] != self._gp_active_seen[1])
+        ):
+            self._gp_active_seen = seen
+            self._gp_active = (
+                np.bincount(
+                    self.predictor.sphere_pairs.geom_pair[sched.active], minlength=self._ngp
+                )
+                > 0
+            )
+            self._nactive = int(np.count_nonzero(self._gp_active))
+        return self._gp_active
 
     # ------------------------------------------------------------------- physics
 
@@ -373,17 +570,20 @@ class Monitor:
         """
         self._follow_reset()
         self.physics_step += 1
+        self._mark_contacts(data)
         if self.bounds is not None:
             broke = self.bounds.update(self.model, data)
             if broke.size:
                 self._last_violation[broke] = self.physics_step
                 self.violations += int(broke.size)
+                since = self.physics_step - self._root_contact[self._body_root[broke]]
+                self.free_violations += int(np.count_nonzero(since >= _CONTACT_LAG))
         sched = self.predictor.scheduler
         assert sched is not None
         if alarms is not None and alarms.step != sched.step_count:
             # predictor.reset came between step() and here: its classification is of this
             # instant, and these alarms belong to the scheduler it replaced.
-            self._pred_steps = [self.physics_step]
+            self._pred_steps = _StepMap(self.physics_step, self.predictor.period)
             alarms = None
         if alarms is None:
             self._sync_switches()
@@ -394,6 +594,12 @@ class Monitor:
             self._observe_alarms(data, alarms)
         now, unfiltered = self._contacts(data)
         self.unfiltered_contacts += unfiltered
+        if alarms is not None:
+            active = self._active_geom_pairs()
+            nactive = self._nactive
+            if nactive:
+                self.standing_sum += self._nstanding / nactive
+                self.contact_sum += int(np.count_nonzero(active[now])) / nactive
         t = float(data.time)
         self._episode_touch[now[self._standing[now] > 0]] = True
         onset = now[~self._contact_mask[now]]
@@ -425,7 +631,7 @@ class Monitor:
             self.onsets += 1
             if self._standing[g] > 0:
                 self.predicted += 1
-                self.lead_times.append(t - float(self._episode_start[g]))
+                self.lead_time_sum += t - float(self._episode_start[g])
                 self._episode_touch[g] = True
                 continue
             live = members[sched.active[members]]
@@ -461,6 +667,21 @@ class Monitor:
         self.false_episodes += int((~self._episode_touch[still_open]).sum())
 
 
+class RunInterrupted(KeyboardInterrupt):
+    """A Ctrl-C stopped :func:`run`: a ``KeyboardInterrupt`` that carries the partial report.
+
+    Attributes:
+        report: The :class:`RunReport` of the physics steps observed before the interrupt
+            (``interrupted=True``).
+    """
+
+    def __init__(self, report: RunReport) -> None:
+        super().__init__(
+            f"interrupted after {report.physics_steps} physics steps (the report covers them)"
+        )
+        self.report = report
+
+
 def run(
     model: mujoco.MjModel,
     data: mujoco.MjData,
@@ -473,11 +694,14 @@ def run(
     geom_distance: bool = False,
     progress: bool = True,
     on_step: Callable[[int, mujoco.MjData, Alarms | None, Monitor], None] | None = None,
+    series: bool = True,
 ) -> RunReport:
     """Roll out ``steps`` physics steps with prediction and the exact stage.
 
     The first ``mj_step`` brings ``data`` to a consistent state (kinematics and contacts of one
     instant); the predictor is reset there and stepped every ``predictor.period`` steps after.
+    Memory does not grow with ``steps`` except for the per-step series (``series``, 12 bytes a
+    predictor step) and the misses.
 
     Args:
         model: The model.
@@ -490,6 +714,12 @@ def run(
         geom_distance: Measure alarmed pairs with ``mj_geomDistance`` (see ``Monitor``).
         progress: Draw a progress bar on stderr.
         on_step: Called after each physics step with ``(k, data, alarms or None, monitor)``.
+        series: Record the alarm count and minimum tau of every predictor step in the report
+            (``alarms_per_step``, ``min_tau_per_step``); False keeps memory flat.
+
+    Raises:
+        RunInterrupted: On a ``KeyboardInterrupt`` during the rollout (Ctrl-C, or raised by the
+            controller or ``on_step``), with the report of the steps observed until then.
     """
     if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
         raise InvalidInputError(f"steps = {steps!r} is invalid: pass an int >= 1 (physics steps).")
@@ -499,59 +729,79 @@ def run(
             "(Predictor(model, ...)), or build a Predictor for this one."
         )
     predictor.check_data(data)  # before the controller writes into it
-    monitor = Monitor(predictor, realtime=realtime, geom_distance=geom_distance)
+    monitor = Monitor(predictor, realtime=realtime, geom_distance=geom_distance, series=series)
     if controller is not None:
         controller(model, data)
     mujoco.mj_step(model, data)
     monitor.start(data)
     period = predictor.period
-    t_mj: list[float] = []
-    t_pred: list[float] = []
+    t_mj = _Durations()
+    t_pred = _Durations()
     warned = False
-    with Progress(steps, scene or "run", enabled=progress) as bar:
-        for k in range(1, steps + 1):
-            if controller is not None:
-                controller(model, data)
-            t0 = time.perf_counter()
-            mujoco.mj_step(model, data)
-            t1 = time.perf_counter()
-            t_mj.append(t1 - t0)
-            alarms = None
-            if k % period == 0:
-                t2 = time.perf_counter()
-                alarms = predictor.step(data)
-                dt = time.perf_counter() - t2
-                t_pred.append(dt)
-                if realtime and dt > predictor.dt:
-                    monitor.overruns += 1
-                    if not warned:
-                        warnings.warn(
-                            f"predictor step took {dt * 1e6:.0f} us > period "
-                            f"{predictor.dt * 1e6:.0f} "
-                            "us: the predictor cannot keep up, completeness is not guaranteed.",
-                            DeadlineOverrunWarning,
-                            stacklevel=2,
-                        )
-                        warned = True
-            monitor.observe(data, alarms)
-            if on_step is not None:
-                on_step(k, data, alarms, monitor)
-            bar.update(
-                note=f"alarms {0 if alarms is None else len(alarms)} missed {len(monitor.misses)}"
-            )
+    try:
+        with Progress(steps, scene or "run", enabled=progress) as bar:
+            for k in range(1, steps + 1):
+                if controller is not None:
+                    controller(model, data)
+                t0 = time.perf_counter()
+                mujoco.mj_step(model, data)
+                t1 = time.perf_counter()
+                t_mj.add(t1 - t0)
+                alarms = None
+                if k % period == 0:
+                    t2 = time.perf_counter()
+                    alarms = predictor.step(data)
+                    dt = time.perf_counter() - t2
+                    t_pred.add(dt)
+                    if realtime and dt > predictor.dt:
+                        monitor.overruns += 1
+                        if not warned:
+                            warnings.warn(
+                                f"predictor step took {dt * 1e6:.0f} us > period "
+                                f"{predictor.dt * 1e6:.0f} "
+                                "us: the predictor cannot keep up, completeness is not "
+                                "guaranteed.",
+                                DeadlineOverrunWarning,
+                                stacklevel=2,
+                            )
+                            warned = True
+                monitor.observe(data, alarms)
+                if on_step is not None:
+                    on_step(k, data, alarms, monitor)
+                bar.update(
+                    note=f"alarms {0 if alarms is None else len(alarms)} "
+                    f"missed {len(monitor.misses)}"
+                )
+    except KeyboardInterrupt as exc:
+        monitor.finish()
+        report = _report(monitor, scene, realtime, t_mj, t_pred, interrupted=True)
+        raise RunInterrupted(report) from exc
     monitor.finish()
-    sched = predictor.scheduler
-    assert sched is not None
-    evals = float(np.mean(monitor.evaluations)) if monitor.evaluations else 0.0
+    return _report(monitor, scene, realtime, t_mj, t_pred, interrupted=False)
+
+
+def _report(
+    monitor: Monitor,
+    scene: str,
+    realtime: bool,
+    t_mj: _Durations,
+    t_pred: _Durations,
+    *,
+    interrupted: bool,
+) -> RunReport:
+    predictor = monitor.predictor
+    alarms_series, tau_series = (None, None) if monitor.series is None else monitor.series.arrays()
+    broken = np.flatnonzero(monitor._last_violation >= 0)
+    distances = monitor.exact_distances
     return RunReport(
         scene=scene,
-        physics_steps=steps,
-        predictor_steps=len(t_pred),
-        period=period,
+        physics_steps=monitor.physics_step,
+        predictor_steps=t_pred.count,
+        period=predictor.period,
         spheres=predictor.nsphere,
         pairs=predictor.nsphere_pairs,
         geom_pairs=predictor.geom_pairs.npair,
-        evals_per_step=evals,
+        evals_per_step=monitor.evaluation_sum / max(monitor.predictor_steps, 1),
         contact_onsets=monitor.onsets,
         predicted_onsets=monitor.predicted,
         missed_onsets=len(monitor.misses),
@@ -560,16 +810,21 @@ def run(
         unfiltered_contacts=monitor.unfiltered_contacts,
         alarm_episodes=monitor.episodes,
         false_alarm_episodes=monitor.false_episodes,
-        lead_time_mean_s=float(np.mean(monitor.lead_times)) if monitor.lead_times else None,
+        lead_time_mean_s=monitor.lead_time_mean,
         bound_violations=monitor.violations,
+        bound_violations_out_of_contact=monitor.free_violations,
         deadline_overruns=monitor.overruns,
-        exact_distance_median_m=(
-            float(np.median(monitor.exact_distances)) if monitor.exact_distances else None
-        ),
-        predictor_us_per_step=float(np.median(t_pred) * 1e6) if t_pred else 0.0,
-        mj_step_us_per_step=float(np.median(t_mj) * 1e6),
+        exact_distance_median_m=float(np.median(distances)) if distances.size else None,
+        predictor_us_per_step=t_pred.median() * 1e6,
+        mj_step_us_per_step=t_mj.median() * 1e6,
         misses=tuple(monitor.misses),
-        alarms_per_step=tuple(monitor.alarms_per_step),
-        min_tau_per_step=tuple(monitor.min_tau),
+        alarms_per_step=alarms_series,
+        min_tau_per_step=tau_series,
         realtime=realtime,
+        standing_alarm_fraction=monitor.standing_alarm_fraction,
+        contact_pair_fraction=monitor.contact_pair_fraction,
+        broken_bound_bodies=tuple(
+            monitor.model.body(int(b)).name or str(int(b)) for b in broken.tolist()
+        ),
+        interrupted=interrupted,
     )

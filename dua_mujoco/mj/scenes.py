@@ -402,7 +402,7 @@ def load_scene(
     Args:
         name_or_path: A bundled name (``two_arms``, ``traffic``, ``clutter``, ``paper_world``),
             ``paper_world:N`` for the generated world with ``N`` spheres (seed 0), or a path to an
-            MJCF file.
+            MJCF file or a binary ``.mjb`` model.
         keyframe: See :func:`reset_to_keyframe`; None means the first keyframe, if any.
 
     Returns:
@@ -422,7 +422,12 @@ def load_scene(
             )
         model = paper_world_model(int(count))
     elif Path(name_or_path).is_file():
-        model = mujoco.MjModel.from_xml_path(str(Path(name_or_path)))
+        path = Path(name_or_path)
+        # A compiled model (mj_saveModel) is binary: the XML parser would call it malformed XML.
+        if path.suffix.lower() == ".mjb":
+            model = mujoco.MjModel.from_binary_path(str(path))
+        else:
+            model = mujoco.MjModel.from_xml_path(str(path))
     else:
         hint = "Or pass the path of an existing MJCF file."
         if _looks_like_path(name_or_path):
