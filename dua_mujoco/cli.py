@@ -25,7 +25,7 @@ import mujoco
 from dua_mujoco.exceptions import DuaError, InvalidInputError
 
 if TYPE_CHECKING:
-    from dua_mujoco.mj.monitor import RunReport
+    from dua_mujoco.mj.report import RunReport
 
 __all__ = [
     "EXIT_BOUNDS_BROKEN",
@@ -344,8 +344,9 @@ def _bounds_warning(report: RunReport) -> str:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from dua_mujoco.mj.alarms import Alarms
-    from dua_mujoco.mj.monitor import Monitor, RunInterrupted, run
+    from dua_mujoco.mj.monitor import Monitor, run
     from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.mj.report import RunInterrupted
     from dua_mujoco.mj.scenes import SCENES, make_controller
 
     keyframe: int | str | None = args.keyframe

@@ -1,9 +1,9 @@
 """Regression helpers and a pytest plugin for users' own scenes.
 
 :func:`assert_no_missed_collisions` rolls a scene out with a :class:`~dua_mujoco.Predictor` and
-MuJoCo's contacts as the exact stage (:func:`dua_mujoco.mj.monitor.run`) and fails, with the geoms and
-times, if a contact onset was not preceded by an alarm while the declared bounds held: that is a
-broken completeness guarantee, a bug. Optionally it holds the alarm counts to a stored baseline so
+MuJoCo's contacts as the exact stage (:func:`dua_mujoco.mj.monitor.run`) and fails, with the
+geoms and times, if a contact onset was not preceded by an alarm while the declared bounds held:
+that is a broken completeness guarantee, a bug. Optionally it holds the alarm counts to a stored baseline so
 that a change that floods the exact stage with false alarms fails too.
 
 The pytest plugin adds the function-scoped fixture ``dua_predict`` (the same callable, with
@@ -36,8 +36,9 @@ except ModuleNotFoundError:  # pragma: no cover - the assertion helpers work wit
 if TYPE_CHECKING:
     import mujoco
 
-    from dua_mujoco.mj.monitor import Monitor, RunReport
+    from dua_mujoco.mj.monitor import Monitor
     from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.mj.report import RunReport
 
 __all__ = [
     "BASELINE_KEYS",
@@ -239,10 +240,10 @@ def _miss_message(report: RunReport) -> str:
 
 def _worst_violations(monitor: Monitor | None, model: mujoco.MjModel) -> list[str]:
     """One line per (body, kind) of broken bound: the largest value against its bound."""
-    if monitor is None or monitor.bounds is None:
+    if monitor is None or monitor.bound_checks is None:
         return []
     worst: dict[tuple[int, str], tuple[float, float, float]] = {}
-    for v in monitor.bounds.violations:
+    for v in monitor.bound_checks.violations:
         key = (v.body, v.kind)
         if key not in worst or v.value > worst[key][0]:
             worst[key] = (v.value, v.bound, v.time)

@@ -1,6 +1,6 @@
 """The BoundMonitor's checks in plain numpy: the slow, obviously-correct reference.
 
-This is the vectorised numpy implementation that ``dua_mujoco.mj.bounds.BoundMonitor`` used before
+This is the vectorised numpy implementation that ``dua_mujoco.mj.checks.BoundMonitor`` used before
 its checks moved into one compiled kernel; the tests hold the kernel to it, value by value.
 """
 

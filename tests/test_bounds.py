@@ -671,4 +671,4 @@ def test_monitor_of_a_predictor_with_period_and_mocap_holds() -> None:
         d.mocap_pos[0] = [0.5 * np.cos(4 * t), 0.5 * np.sin(4 * t), 0.0]
         mujoco.mj_step(m, d)
         mon.observe(d, p.step(d) if k % 4 == 0 else None)
-    assert mon.bounds is not None and mon.bounds.bounds_held(9)
+    assert mon.bound_checks is not None and mon.bound_checks.bounds_held(9)

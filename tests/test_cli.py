@@ -16,8 +16,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco
 import pytest
 
-from dua_mujoco import monitor
 from dua_mujoco.cli import main
+from dua_mujoco.mj import monitor
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -309,7 +309,7 @@ def test_cli_dev_full_is_one_line_exit_2(capsys) -> None:
 
 def _interrupting_controller(monkeypatch: pytest.MonkeyPatch, after: int) -> None:
     """Controllers from make_controller raise KeyboardInterrupt at their ``after``-th call."""
-    from dua_mujoco import scenes
+    from dua_mujoco.mj import scenes
 
     make = scenes.make_controller
 
@@ -356,7 +356,7 @@ def test_cli_interrupt_writes_the_partial_report_and_video(
 def test_cli_interrupt_before_the_rollout_is_one_line(
     capsys, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from dua_mujoco import predictor
+    from dua_mujoco.mj import predictor
 
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt

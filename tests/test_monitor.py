@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.monitor import Monitor, RunReport, run
+from dua_mujoco.mj.monitor import Monitor, run
 from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.report import RunReport
 from dua_mujoco.mj.scenes import load_scene, make_controller
 
 

@@ -34,8 +34,9 @@ from dua_mujoco.exceptions import (
     UnsupportedGeomError,
 )
 from dua_mujoco.mj.filter import active_geom_pairs
-from dua_mujoco.mj.monitor import Monitor, RunReport, run
+from dua_mujoco.mj.monitor import Monitor, run
 from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.report import RunReport
 from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
 
 REPO = Path(__file__).resolve().parent.parent
@@ -970,14 +971,14 @@ def test_monitor_bound_check_follows_the_predictors_mocap_tracker() -> None:
     monitor = Monitor(p)
     mujoco.mj_forward(m, d)
     monitor.start(d)
-    assert p.mocap is not None and monitor.bounds is not None
+    assert p.mocap is not None and monitor.bound_checks is not None
     # A velocity the resting mocap body does not have: only a check that reads the predictor's
     # own tracker sees it (and must flag the discrepancy).
     p.mocap.set_velocity("m", [10.0, 0.0, 0.0])
     for _ in range(3):
         mujoco.mj_step(m, d)
         monitor.observe(d, p.step(d))
-    assert {v.kind for v in monitor.bounds.violations} >= {"discrepancy"}
+    assert {v.kind for v in monitor.bound_checks.violations} >= {"discrepancy"}
 
 
 MOCAP_RAM_XML = """
@@ -1014,7 +1015,7 @@ def test_broken_speed_bound_of_a_mocap_body_is_seen_when_broken(go: int) -> None
     def watch(k: int, data: mujoco.MjData, alarms: object, mon: Monitor) -> None:
         if data.ncon and "onset" not in first:
             first["onset"] = k
-        if "speed" not in first and any(v.kind == "speed" for v in mon.bounds.violations):
+        if "speed" not in first and any(v.kind == "speed" for v in mon.bound_checks.violations):
             first["speed"] = k
 
     with warnings.catch_warnings():

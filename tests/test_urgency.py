@@ -1,4 +1,4 @@
-"""Tests of the urgency tau (docs/theory.md, section 1) against the exact reference in reference_tau.py.
+"""The urgency tau (docs/theory.md, section 1) against the exact reference in reference_tau.py.
 
 Two kinds of evidence, on purpose independent of each other:
 

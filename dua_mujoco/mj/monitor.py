@@ -15,25 +15,23 @@ returns a ``RunReport``.
 
 from __future__ import annotations
 
-import bisect
-import dataclasses
-import math
 import time
 import warnings
 from collections.abc import Callable
-from typing import Any
 
 import mujoco
 import numpy as np
 
 from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
+from dua_mujoco.mj.accumulators import Durations, Series, StepMap
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.checks import BoundMonitor
 from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.report import Miss, RunInterrupted, RunReport, build_report
 from dua_mujoco.mj.tables import same_geometry
 from dua_mujoco.progress import Progress
 
-__all__ = ["Miss", "Monitor", "RunInterrupted", "RunReport", "run"]
+__all__ = ["Monitor", "run"]
 
 Controller = Callable[[mujoco.MjModel, mujoco.MjData], None]
 
@@ -45,235 +43,6 @@ _NONE = np.zeros(0, dtype=np.int64)
 # A contact's impulse shows in the bound check's finite differences for this many physics steps
 # (the current one and the two before it): a violation then is the contact's, not free motion's.
 _CONTACT_LAG = 3
-
-# Step timings are kept as a histogram of log-durations, not one float per step: bins 0.5 %
-# wide from 1 ns to 1000 s put the median within 0.25 % in 41 kB, however long the run.
-_LOG_T0 = math.log(1e-9)
-_LOG_BIN = 0.005
-_NBINS = math.ceil((math.log(1e3) - _LOG_T0) / _LOG_BIN) + 1
-
-
-class _Durations:
-    """Median of many durations in constant memory (a log-spaced histogram)."""
-
-    def __init__(self) -> None:
-        self.count = 0
-        self._hist = np.zeros(_NBINS, dtype=np.int64)
-
-    def add(self, seconds: float) -> None:
-        b = int((math.log(max(seconds, 1e-9)) - _LOG_T0) / _LOG_BIN)
-        self._hist[min(b, _NBINS - 1)] += 1
-        self.count += 1
-
-    def median(self) -> float:
-        """The median duration in seconds (the centre of its bin); 0 without durations."""
-        if not self.count:
-            return 0.0
-        b = int(np.searchsorted(np.cumsum(self._hist), (self.count + 1) // 2))
-        return math.exp(_LOG_T0 + (b + 0.5) * _LOG_BIN)
-
-
-class _Series:
-    """Per-predictor-step alarm counts and minimum tau in arrays that double as they fill."""
-
-    def __init__(self) -> None:
-        self.size = 0
-        self._alarms = np.zeros(1024, dtype=np.int32)
-        self._tau = np.zeros(1024, dtype=np.float64)
-
-    def append(self, nalarms: int, min_tau: float) -> None:
-        if self.size == self._alarms.size:
-            self._alarms = np.concatenate([self._alarms, np.zeros_like(self._alarms)])
-            self._tau = np.concatenate([self._tau, np.zeros_like(self._tau)])
-        self._alarms[self.size] = nalarms
-        self._tau[self.size] = min_tau
-        self.size += 1
-
-    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """Copies trimmed to the steps recorded: ``(alarms int32, min_tau float64)``."""
-        return self._alarms[: self.size].copy(), self._tau[: self.size].copy()
-
-
-class _StepMap:
-    """Predictor step index -> physics step, stored as runs ``period`` physics steps apart.
-
-    The predictor steps every ``period`` physics steps, so a run needs one entry per reset, not
-    one per step; an irregular step (observed by hand, off the period) starts a new run.
-    """
-
-    def __init__(self, physics_step: int, period: int) -> None:
-        self.period = period
-        self._first = [0]
-        self._physics = [physics_step]
-        self.count = 1
-
-    def append(self, physics_step: int) -> None:
-        if physics_step != self[self.count]:
-            self._first.append(self.count)
-            self._physics.append(physics_step)
-        self.count += 1
-
-    def __getitem__(self, j: int) -> int:
-        i = bisect.bisect_right(self._first, j) - 1
-        return self._physics[i] + (j - self._first[i]) * self.period
-
-    def __len__(self) -> int:
-        return self.count
-
-    def tolist(self) -> list[int]:
-        """Every predictor step's physics step (for tests: O(steps))."""
-        return [self[j] for j in range(self.count)]
-
-
-@dataclasses.dataclass(frozen=True)
-class Miss:
-    """A contact onset that no standing alarm covered."""
-
-    physics_step: int
-    time: float
-    geom1: str
-    geom2: str
-    bounds_held: bool
-    last_evaluation_step: int
-    last_tau: float
-
-
-@dataclasses.dataclass(frozen=True)
-class RunReport:
-    """Metrics of a monitored run (``to_dict`` gives the CLI's JSON report).
-
-    ``alarms_per_step`` (int32) and ``min_tau_per_step`` (float64, ``inf`` without alarms) hold
-    one entry per predictor step, entry 0 the initial classification, when the run recorded
-    series (``run(..., series=True)``), else None. ``standing_alarm_fraction`` is the mean over
-    predictor steps of the fraction of active geom pairs standing in alarm after the step's
-    verdicts; ``contact_pair_fraction`` the same mean for active geom pairs in MuJoCo's contacts
-    at that step (alarms no predictor can avoid). ``broken_bound_bodies`` names the bodies that
-    broke their declared bounds; ``bound_violations_out_of_contact`` counts the violations (body
-    steps) of bodies whose kinematic tree was in no contact at that step nor the two before:
-    free motion beyond the declared bounds, not a contact's impulse. ``interrupted`` marks a run
-    stopped early (Ctrl-C), whose ``physics_steps`` are those observed.
-    """
-
-    scene: str
-    physics_steps: int
-    predictor_steps: int
-    period: int
-    spheres: int
-    pairs: int
-    geom_pairs: int
-    evals_per_step: float
-    contact_onsets: int
-    predicted_onsets: int
-    missed_onsets: int
-    missed_onsets_valid_bounds: int
-    inactive_pair_contacts: int
-    unfiltered_contacts: int
-    alarm_episodes: int
-    false_alarm_episodes: int
-    lead_time_mean_s: float | None
-    bound_violations: int
-    deadline_overruns: int
-    exact_distance_median_m: float | None
-    predictor_us_per_step: float
-    mj_step_us_per_step: float
-    misses: tuple[Miss, ...] = ()
-    alarms_per_step: np.ndarray | None = None
-    min_tau_per_step: np.ndarray | None = None
-    realtime: bool = False
-    standing_alarm_fraction: float = 0.0
-    contact_pair_fraction: float = 0.0
-    broken_bound_bodies: tuple[str, ...] = ()
-    bound_violations_out_of_contact: int = 0
-    interrupted: bool = False
-
-    @property
-    def evals_fraction(self) -> float:
-        """tau evaluations per step as a fraction of all pairs (SA's cost)."""
-        return self.evals_per_step / max(self.pairs, 1)
-
-    @property
-    def predictor_share(self) -> float:
-        """Predictor time per physics step over ``mj_step`` time (medians).
-
-        ``predictor_us_per_step`` is per predictor call, made every ``period`` physics steps.
-        """
-        if self.mj_step_us_per_step <= 0.0:
-            return 0.0
-        return self.predictor_us_per_step / (self.period * self.mj_step_us_per_step)
-
-    def to_dict(self, *, series: bool = False) -> dict[str, Any]:
-        """JSON-ready dict; ``series=True`` adds the per-step alarm and tau series.
-
-        Raises:
-            InvalidInputError: ``series=True`` for a run that recorded none.
-        """
-        out = dataclasses.asdict(self)
-        out["misses"] = [dataclasses.asdict(m) for m in self.misses]
-        out["broken_bound_bodies"] = list(self.broken_bound_bodies)
-        out["predictor_share"] = self.predictor_share
-        out.pop("alarms_per_step")
-        out.pop("min_tau_per_step")
-        if series:
-            if self.alarms_per_step is None or self.min_tau_per_step is None:
-                raise InvalidInputError(
-                    "this report holds no per-step series: run it with run(..., series=True) "
-                    "(dua-mujoco run --series)."
-                )
-            out["alarms_per_step"] = self.alarms_per_step.tolist()
-            # JSON has no infinity: a step without alarms has null.
-            tau = self.min_tau_per_step.astype(object)
-            tau[~np.isfinite(self.min_tau_per_step)] = None
-            out["min_tau_per_step"] = tau.tolist()
-        return out
-
-    def summary_rows(self) -> list[tuple[str, str]]:
-        """(label, value) rows for a readable table."""
-        lead = "n/a" if self.lead_time_mean_s is None else f"{self.lead_time_mean_s * 1e3:.1f} ms"
-        steps = f"{self.physics_steps} ({self.period})"
-        rows = [
-            ("scene", self.scene),
-            (
-                "physics steps (predictor period)",
-                f"{steps}, interrupted" if self.interrupted else steps,
-            ),
-            (
-                "spheres / sphere pairs / geom pairs",
-                f"{self.spheres} / {self.pairs} / {self.geom_pairs}",
-            ),
-            (
-                "tau evaluations per step",
-                f"{self.evals_per_step:.1f} ({100 * self.evals_fraction:.2f} % of SA)",
-            ),
-            ("contact onsets", str(self.contact_onsets)),
-            ("predicted onsets", str(self.predicted_onsets)),
-            ("missed onsets", str(self.missed_onsets)),
-            ("  of them while the bounds held", str(self.missed_onsets_valid_bounds)),
-            ("contacts in switched-off pairs", str(self.inactive_pair_contacts)),
-            ("alarm episodes (false)", f"{self.alarm_episodes} ({self.false_alarm_episodes})"),
-            ("active geom pairs in alarm (mean)", f"{100 * self.standing_alarm_fraction:.2f} %"),
-            ("active geom pairs in contact (mean)", f"{100 * self.contact_pair_fraction:.2f} %"),
-            ("mean lead time", lead),
-            ("bound violations (body-steps)", str(self.bound_violations)),
-            ("  of them out of contact", str(self.bound_violations_out_of_contact)),
-            (
-                "predictor us/call vs mj_step us/step",
-                f"{self.predictor_us_per_step:.1f} vs {self.mj_step_us_per_step:.1f} "
-                f"({100 * self.predictor_share:.0f} % of physics time)",
-            ),
-        ]
-        if self.realtime:
-            rows.append(("deadline overruns", str(self.deadline_overruns)))
-        if self.exact_distance_median_m is not None:
-            rows.append(
-                ("median exact distance of alarmed pairs", f"{self.exact_distance_median_m:.4f} m")
-            )
-        return rows
-
-    def table(self) -> str:
-        """The summary as an aligned two-column text table."""
-        rows = self.summary_rows()
-        w = max(len(k) for k, _ in rows)
-        return "\n".join(f"{k.ljust(w)}  {v}" for k, v in rows)
 
 
 class Monitor:
@@ -318,7 +87,7 @@ class Monitor:
         self.realtime = realtime
         self.geom_distance = geom_distance
         cov = predictor.covering
-        self.bounds = (
+        self.bound_checks = (
             BoundMonitor(
                 self.model,
                 predictor.bounds,
@@ -351,14 +120,14 @@ class Monitor:
         """Reset the predictor on ``data`` and start counting."""
         alarms = self.predictor.reset(data)
         self.physics_step = 0
-        self._pred_steps = _StepMap(0, self.predictor.period)
+        self._pred_steps = StepMap(0, self.predictor.period)
         self._time = float(data.time)
         self._in_contact = self._contacts(data)[0]
         # The same set as a mask: lookups by gathering, not by np.isin (which sorts; 47 us a
         # call with the thousands of pending windows of paper_world:200).
         self._contact_mask = np.zeros(self._ngp, dtype=bool)
         self._contact_mask[self._in_contact] = True
-        self._last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
+        self.last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
         # Per kinematic tree (root body): the last physics step it was in a contact.
         self._root_contact = np.full(self.model.nbody, -_CONTACT_LAG, dtype=np.int64)
         self._mark_contacts(data)
@@ -396,11 +165,11 @@ class Monitor:
         self._gp_active_seen: tuple[object, int] | None = None
         self._distances = np.zeros(0)
         self._ndistances = 0
-        self.series = _Series() if self.record_series else None
+        self.series = Series() if self.record_series else None
         if self.series is not None:
             self.series.append(len(alarms), float(np.min(alarms.tau, initial=np.inf)))
-        if self.bounds is not None:
-            self.bounds.update(self.model, data)
+        if self.bound_checks is not None:
+            self.bound_checks.update(self.model, data)
         self._apply_alarms(alarms.pairs, np.arange(self.predictor.nsphere_pairs), data.time)
         return alarms
 
@@ -466,7 +235,7 @@ class Monitor:
         """
         if self.predictor.scheduler is not self._scheduler:
             self._scheduler = self.predictor.scheduler
-            self._pred_steps = _StepMap(self.physics_step, self.predictor.period)
+            self._pred_steps = StepMap(self.physics_step, self.predictor.period)
             self._activation_seen = -1
 
     def _sync_switches(self, exclude: np.ndarray | None = None) -> None:
@@ -571,10 +340,10 @@ class Monitor:
         self._follow_reset()
         self.physics_step += 1
         self._mark_contacts(data)
-        if self.bounds is not None:
-            broke = self.bounds.update(self.model, data)
+        if self.bound_checks is not None:
+            broke = self.bound_checks.update(self.model, data)
             if broke.size:
-                self._last_violation[broke] = self.physics_step
+                self.last_violation[broke] = self.physics_step
                 self.violations += int(broke.size)
                 since = self.physics_step - self._root_contact[self._body_root[broke]]
                 self.free_violations += int(np.count_nonzero(since >= _CONTACT_LAG))
@@ -583,7 +352,7 @@ class Monitor:
         if alarms is not None and alarms.step != sched.step_count:
             # predictor.reset came between step() and here: its classification is of this
             # instant, and these alarms belong to the scheduler it replaced.
-            self._pred_steps = _StepMap(self.physics_step, self.predictor.period)
+            self._pred_steps = StepMap(self.physics_step, self.predictor.period)
             alarms = None
         if alarms is None:
             self._sync_switches()
@@ -639,7 +408,9 @@ class Monitor:
             window_start = self._pred_steps[last]
             bodies = self._gp_body[g]
             held = (
-                bool((self._last_violation[bodies] <= window_start).all()) if self.bounds else False
+                bool((self.last_violation[bodies] <= window_start).all())
+                if self.bound_checks
+                else False
             )
             g1 = int(self.predictor.geom_pairs.geom1[g])
             g2 = int(self.predictor.geom_pairs.geom2[g])
@@ -665,21 +436,6 @@ class Monitor:
         self._pending_touch = self._pending_touch[:0]
         still_open = np.flatnonzero(self._standing > 0)
         self.false_episodes += int((~self._episode_touch[still_open]).sum())
-
-
-class RunInterrupted(KeyboardInterrupt):
-    """A Ctrl-C stopped :func:`run`: a ``KeyboardInterrupt`` that carries the partial report.
-
-    Attributes:
-        report: The :class:`RunReport` of the physics steps observed before the interrupt
-            (``interrupted=True``).
-    """
-
-    def __init__(self, report: RunReport) -> None:
-        super().__init__(
-            f"interrupted after {report.physics_steps} physics steps (the report covers them)"
-        )
-        self.report = report
 
 
 def run(
@@ -735,8 +491,8 @@ def run(
     mujoco.mj_step(model, data)
     monitor.start(data)
     period = predictor.period
-    t_mj = _Durations()
-    t_pred = _Durations()
+    t_mj = Durations()
+    t_pred = Durations()
     warned = False
     try:
         with Progress(steps, scene or "run", enabled=progress) as bar:
@@ -774,57 +530,7 @@ def run(
                 )
     except KeyboardInterrupt as exc:
         monitor.finish()
-        report = _report(monitor, scene, realtime, t_mj, t_pred, interrupted=True)
+        report = build_report(monitor, scene, realtime, t_mj, t_pred, interrupted=True)
         raise RunInterrupted(report) from exc
     monitor.finish()
-    return _report(monitor, scene, realtime, t_mj, t_pred, interrupted=False)
-
-
-def _report(
-    monitor: Monitor,
-    scene: str,
-    realtime: bool,
-    t_mj: _Durations,
-    t_pred: _Durations,
-    *,
-    interrupted: bool,
-) -> RunReport:
-    predictor = monitor.predictor
-    alarms_series, tau_series = (None, None) if monitor.series is None else monitor.series.arrays()
-    broken = np.flatnonzero(monitor._last_violation >= 0)
-    distances = monitor.exact_distances
-    return RunReport(
-        scene=scene,
-        physics_steps=monitor.physics_step,
-        predictor_steps=t_pred.count,
-        period=predictor.period,
-        spheres=predictor.nsphere,
-        pairs=predictor.nsphere_pairs,
-        geom_pairs=predictor.geom_pairs.npair,
-        evals_per_step=monitor.evaluation_sum / max(monitor.predictor_steps, 1),
-        contact_onsets=monitor.onsets,
-        predicted_onsets=monitor.predicted,
-        missed_onsets=len(monitor.misses),
-        missed_onsets_valid_bounds=sum(m.bounds_held for m in monitor.misses),
-        inactive_pair_contacts=monitor.inactive_contacts,
-        unfiltered_contacts=monitor.unfiltered_contacts,
-        alarm_episodes=monitor.episodes,
-        false_alarm_episodes=monitor.false_episodes,
-        lead_time_mean_s=monitor.lead_time_mean,
-        bound_violations=monitor.violations,
-        bound_violations_out_of_contact=monitor.free_violations,
-        deadline_overruns=monitor.overruns,
-        exact_distance_median_m=float(np.median(distances)) if distances.size else None,
-        predictor_us_per_step=t_pred.median() * 1e6,
-        mj_step_us_per_step=t_mj.median() * 1e6,
-        misses=tuple(monitor.misses),
-        alarms_per_step=alarms_series,
-        min_tau_per_step=tau_series,
-        realtime=realtime,
-        standing_alarm_fraction=monitor.standing_alarm_fraction,
-        contact_pair_fraction=monitor.contact_pair_fraction,
-        broken_bound_bodies=tuple(
-            monitor.model.body(int(b)).name or str(int(b)) for b in broken.tolist()
-        ),
-        interrupted=interrupted,
-    )
+    return build_report(monitor, scene, realtime, t_mj, t_pred, interrupted=False)

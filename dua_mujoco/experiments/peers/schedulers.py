@@ -80,7 +80,8 @@ class DuaScene:
     def _out(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         sched = self.ctx.predictor.scheduler
         assert sched is not None
-        return self.ctx.to_geom_pair[ids], np.asarray(sched.interval[sched.bucket(ids)] + LATENCY)
+        # Horizons in steps: the revisit interval plus the latency.
+        return self.ctx.to_geom_pair[ids], np.rint(sched.horizon_of(ids) / sched.dt).astype(int)
 
     def start(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray | int]:
         alarms = self.ctx.predictor.reset(data)

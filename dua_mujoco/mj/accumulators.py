@@ -1,0 +1,88 @@
+"""Accumulators of a monitored run that stay small however long it runs."""
+
+from __future__ import annotations
+
+import bisect
+import math
+
+import numpy as np
+
+__all__ = ["Durations", "Series", "StepMap"]
+
+# Step timings are kept as a histogram of log-durations, not one float per step: bins 0.5 %
+# wide from 1 ns to 1000 s put the median within 0.25 % in 41 kB, however long the run.
+_LOG_T0 = math.log(1e-9)
+_LOG_BIN = 0.005
+_NBINS = math.ceil((math.log(1e3) - _LOG_T0) / _LOG_BIN) + 1
+
+
+class Durations:
+    """Median of many durations in constant memory (a log-spaced histogram)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._hist = np.zeros(_NBINS, dtype=np.int64)
+
+    def add(self, seconds: float) -> None:
+        b = int((math.log(max(seconds, 1e-9)) - _LOG_T0) / _LOG_BIN)
+        self._hist[min(b, _NBINS - 1)] += 1
+        self.count += 1
+
+    def median(self) -> float:
+        """The median duration in seconds (the centre of its bin); 0 without durations."""
+        if not self.count:
+            return 0.0
+        b = int(np.searchsorted(np.cumsum(self._hist), (self.count + 1) // 2))
+        return math.exp(_LOG_T0 + (b + 0.5) * _LOG_BIN)
+
+
+class Series:
+    """Per-predictor-step alarm counts and minimum tau in arrays that double as they fill."""
+
+    def __init__(self) -> None:
+        self.size = 0
+        self._alarms = np.zeros(1024, dtype=np.int32)
+        self._tau = np.zeros(1024, dtype=np.float64)
+
+    def append(self, nalarms: int, min_tau: float) -> None:
+        if self.size == self._alarms.size:
+            self._alarms = np.concatenate([self._alarms, np.zeros_like(self._alarms)])
+            self._tau = np.concatenate([self._tau, np.zeros_like(self._tau)])
+        self._alarms[self.size] = nalarms
+        self._tau[self.size] = min_tau
+        self.size += 1
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Copies trimmed to the steps recorded: ``(alarms int32, min_tau float64)``."""
+        return self._alarms[: self.size].copy(), self._tau[: self.size].copy()
+
+
+class StepMap:
+    """Predictor step index -> physics step, stored as runs ``period`` physics steps apart.
+
+    The predictor steps every ``period`` physics steps, so a run needs one entry per reset, not
+    one per step; an irregular step (observed by hand, off the period) starts a new run.
+    """
+
+    def __init__(self, physics_step: int, period: int) -> None:
+        self.period = period
+        self._first = [0]
+        self._physics = [physics_step]
+        self.count = 1
+
+    def append(self, physics_step: int) -> None:
+        if physics_step != self[self.count]:
+            self._first.append(self.count)
+            self._physics.append(physics_step)
+        self.count += 1
+
+    def __getitem__(self, j: int) -> int:
+        i = bisect.bisect_right(self._first, j) - 1
+        return self._physics[i] + (j - self._first[i]) * self.period
+
+    def __len__(self) -> int:
+        return self.count
+
+    def tolist(self) -> list[int]:
+        """Every predictor step's physics step (for tests: O(steps))."""
+        return [self[j] for j in range(self.count)]

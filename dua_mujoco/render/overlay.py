@@ -1,0 +1,322 @@
+"""``AlarmOverlay``: alarms drawn into a MuJoCo scene (offscreen frames or the live viewer).
+
+Colours (docs/rendering.md):
+
+- pure red lines ``(1, 0, 0, 1)``: one per alarmed sphere pair, between the two sphere centres (to
+  the plane for a half-space pair). Pure red is reserved for them so that a pixel test finds them.
+- geom tint, only for geoms with a sphere pair standing in alarm, by that pair's tau in predictor
+  periods: brick red ``(0.9, 0.3, 0.2)`` below 2 periods, orange below 8, yellow beyond; every
+  other geom keeps the model's colour. Plane geoms (floors) are never tinted: they would flood
+  the frame.
+- translucent covering spheres (``show_spheres``): blue, or the tint of their geom.
+Live viewer (``mujoco.viewer.launch_passive``): the viewer draws ``viewer.user_scn`` on top of its
+own scene, so connectors and spheres work there, but the model's geoms are not reachable and
+cannot be tinted::
+
+    import mujoco, mujoco.viewer
+    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.render import AlarmOverlay, OverlayOptions
+    from dua_mujoco.mj.scenes import load_scene, make_controller
+
+    m, d = load_scene("two_arms")
+    p, ctrl = Predictor(m, accel=80.0), make_controller(m, "random")
+    overlay = AlarmOverlay(p, options=OverlayOptions(show_spheres=True))
+    mujoco.mj_step(m, d)
+    alarms = p.reset(d)
+    with mujoco.viewer.launch_passive(m, d) as viewer:
+        while viewer.is_running():
+            ctrl(m, d)
+            mujoco.mj_step(m, d)
+            alarms = p.step(d)
+            with viewer.lock():
+                overlay.add_to_user_scn(viewer, d, alarms)
+            viewer.sync()
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.mj.alarms import Alarms
+from dua_mujoco.mj.covering import sphere_world_centers
+from dua_mujoco.mj.predictor import Predictor
+
+__all__ = [
+    "ALARM_RGBA",
+    "SPHERE_RGB",
+    "TINTS",
+    "URGENCY_LEVELS",
+    "AlarmOverlay",
+    "OverlayOptions",
+    "SceneFullWarning",
+]
+
+ALARM_RGBA = (1.0, 0.0, 0.0, 1.0)
+"""Colour of alarm connectors, reserved: nothing else the overlay draws is pure red."""
+
+URGENCY_LEVELS = (2.0, 8.0, np.inf)
+"""Upper bounds, in predictor periods, of the tau of a geom's most urgent *alarmed* pair for the
+tints imminent, near, alarmed (geoms without an alarmed pair keep their own colour)."""
+
+TINTS = np.array([[0.9, 0.3, 0.2], [1.0, 0.55, 0.1], [0.95, 0.85, 0.25]], dtype=np.float32)
+"""``(3, 3)`` RGB of the levels imminent, near, alarmed."""
+
+SPHERE_RGB = (0.3, 0.7, 1.0)
+"""Colour of covering spheres whose geom stands in no alarm."""
+
+_OBJ_GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
+_OBJ_UNKNOWN = int(mujoco.mjtObj.mjOBJ_UNKNOWN)
+_CAT_DECOR = int(mujoco.mjtCatBit.mjCAT_DECOR)
+_GEOM_LINE = int(mujoco.mjtGeom.mjGEOM_LINE)
+_GEOM_SPHERE = int(mujoco.mjtGeom.mjGEOM_SPHERE)
+_GEOM_PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
+_EYE = np.eye(3).ravel()
+_ZERO3 = np.zeros(3)
+
+
+class SceneFullWarning(UserWarning):
+    """The ``MjvScene`` had no room left (``maxgeom``): some overlay geoms were not drawn."""
+
+
+@dataclasses.dataclass(frozen=True)
+class OverlayOptions:
+    """What :class:`AlarmOverlay` draws.
+
+    Attributes:
+        show_spheres: Draw the covering spheres (one scene geom per sphere).
+        sphere_alpha: Opacity of the covering spheres, in ``(0, 1]``.
+        tint_geoms: Recolour model geoms by urgency (offscreen only; see module docstring).
+        connectors: Draw a pure red line for each alarmed sphere pair.
+        text: Stamp a status line (time, alarms, misses) on rendered frames.
+        connector_width: Width of connector lines in pixels (``mjGEOM_LINE`` widths are pixels).
+    """
+
+    show_spheres: bool = False
+    sphere_alpha: float = 0.25
+    tint_geoms: bool = True
+    connectors: bool = True
+    text: bool = True
+    connector_width: float = 3.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.sphere_alpha <= 1.0:
+            raise InvalidInputError(
+                f"sphere_alpha = {self.sphere_alpha!r} is invalid: it must be in (0, 1]."
+            )
+        if not self.connector_width > 0.0:
+            raise InvalidInputError(
+                f"connector_width = {self.connector_width!r} is invalid: it must be > 0 pixels."
+            )
+
+
+class AlarmOverlay:
+    """Adds a predictor's alarms to an ``MjvScene`` (offscreen renderer or live viewer).
+
+    Args:
+        predictor: The predictor whose alarms and scheduler state are drawn.
+        options: What to draw.
+
+    Attributes:
+        dropped: Overlay geoms dropped so far because the scene was full.
+    """
+
+    def __init__(self, predictor: Predictor, *, options: OverlayOptions = OverlayOptions()) -> None:
+        self.predictor = predictor
+        self.options = options
+        self.dropped = 0
+        self._warned = False
+        model = predictor.model
+        cov = predictor.covering
+        pairs = predictor.pair_set
+        sgeom = np.asarray(cov.sphere_geom, dtype=np.int64)
+        planes = np.asarray(cov.plane_geom, dtype=np.int64)
+        first = np.asarray(pairs.first, dtype=np.int64)
+        second = np.asarray(pairs.second, dtype=np.int64)
+        half = np.asarray(pairs.halfspace, dtype=bool)
+        self._second = second
+        self._half = half
+        # Same geoms as Predictor's private pair tables, rebuilt from public fields.
+        self._pair_geom1 = sgeom[first]
+        self._pair_geom2 = np.where(
+            half,
+            planes[np.where(half, second, 0)] if planes.size else -1,
+            sgeom[np.where(half, 0, second)],
+        )
+        self._all_pairs = np.arange(first.shape[0], dtype=np.int64)
+        self._tintable = np.asarray(model.geom_type) != _GEOM_PLANE
+
+    # ------------------------------------------------------------------- urgency
+
+    def geom_urgency(self) -> np.ndarray:
+        """tau, in predictor periods, of each geom's most urgent pair standing in alarm.
+
+        Returns:
+            ``(ngeom,)`` float64: the minimum of ``last_tau / dt`` over the geom's active sphere
+            pairs that stand in alarm (``-inf``, a pair switched back on, counts as 0); ``inf``
+            for geoms with no alarmed pair, and for all geoms before ``predictor.reset``. Only
+            those geoms are tinted: the rest of the scene is not urgent and keeps its colours.
+        """
+        out = np.full(self.predictor.model.ngeom, np.inf)
+        sched = self.predictor.scheduler
+        if sched is None or self._all_pairs.size == 0:
+            return out
+        alarmed = sched.alarm_state(self._all_pairs) & sched.active
+        steps = np.where(alarmed, np.maximum(sched.last_tau, 0.0) / sched.dt, np.inf)
+        np.minimum.at(out, self._pair_geom1, steps)
+        valid = self._pair_geom2 >= 0
+        np.minimum.at(out, self._pair_geom2[valid], steps[valid])
+        return out
+
+    def geom_levels(self) -> np.ndarray:
+        """``(ngeom,)`` int level per geom: 0 imminent, 1 near, 2 alarmed, 3 not alarmed."""
+        urgency = self.geom_urgency()
+        levels = np.searchsorted(np.asarray(URGENCY_LEVELS), urgency, side="right")
+        return np.where(np.isinf(urgency), len(URGENCY_LEVELS), levels)
+
+    # ------------------------------------------------------------------- scene
+
+    def add_to_scene(
+        self, scene: mujoco.MjvScene, data: mujoco.MjData, alarms: Alarms | None
+    ) -> int:
+        """Tint the scene's model geoms and append connectors and spheres.
+
+        Call it after ``mjv_updateScene`` (``Renderer.update_scene``) and before rendering. Geoms
+        are appended at ``scene.ngeom`` until ``scene.maxgeom``; connectors go first, as they
+        matter most when room is short.
+
+        Args:
+            scene: The scene to modify in place.
+            data: The ``MjData`` the predictor read (sphere centres come from ``geom_xpos``).
+            alarms: The alarms to draw (None: none, e.g. before ``reset``).
+
+        Returns:
+            The number of overlay geoms dropped because the scene was full (also added to
+            :attr:`dropped`; the first drop warns with :class:`SceneFullWarning`).
+        """
+        opts = self.options
+        levels = self.geom_levels()
+        if opts.tint_geoms:
+            self._tint(scene, levels)
+        dropped = 0
+        if opts.connectors and alarms is not None and len(alarms):
+            start, end = self._connector_ends(data, alarms)
+            dropped += self._add_connectors(scene, start, end)
+        if opts.show_spheres and self.predictor.nsphere:
+            dropped += self._add_spheres(scene, data, levels)
+        if dropped:
+            self.dropped += dropped
+            if not self._warned:
+                self._warned = True
+                warnings.warn(
+                    f"the MjvScene is full (maxgeom = {scene.maxgeom}): {dropped} overlay geom(s) "
+                    "were not drawn. Pass a larger max_geom to OverlayRenderer (or "
+                    "mujoco.MjvScene(model, maxgeom=...)), or hide the covering spheres.",
+                    SceneFullWarning,
+                    stacklevel=2,
+                )
+        return dropped
+
+    def add_to_user_scn(self, viewer: Any, data: mujoco.MjData, alarms: Alarms | None) -> int:
+        """Replace the overlay in a passive viewer's ``user_scn`` (call before ``viewer.sync()``).
+
+        The user scene holds only the overlay, so tinting does nothing there.
+
+        Args:
+            viewer: The handle of ``mujoco.viewer.launch_passive``.
+            data: The ``MjData`` the predictor read.
+            alarms: The alarms to draw.
+
+        Returns:
+            The number of overlay geoms dropped (see :meth:`add_to_scene`).
+        """
+        scn = getattr(viewer, "user_scn", None)
+        if scn is None:
+            raise InvalidInputError(
+                f"{type(viewer).__name__} has no user_scn: pass the handle returned by "
+                "mujoco.viewer.launch_passive(model, data)."
+            )
+        scn.ngeom = 0
+        return self.add_to_scene(scn, data, alarms)
+
+    def _tint(self, scene: mujoco.MjvScene, levels: np.ndarray) -> None:
+        tint = (levels < len(URGENCY_LEVELS)) & self._tintable
+        if not tint.any():
+            return
+        geoms = scene.geoms
+        # The bindings expose scene geoms as structs, not arrays: one pass over the scene's
+        # geoms (about ngeom, microseconds) is the only way to find a model geom's scene slot.
+        for i in range(scene.ngeom):
+            g = geoms[i]
+            if g.objtype == _OBJ_GEOM and tint[g.objid]:
+                g.rgba[:3] = TINTS[levels[g.objid]]
+
+    def _connector_ends(self, data: mujoco.MjData, alarms: Alarms) -> tuple[np.ndarray, np.ndarray]:
+        cov = self.predictor.covering
+        pairs = np.asarray(alarms.pairs, dtype=np.int64)
+        half = self._half[pairs]
+        second = self._second[pairs]
+        start = sphere_world_centers(cov, data.geom_xpos, data.geom_xmat, alarms.sphere1)
+        end = sphere_world_centers(cov, data.geom_xpos, data.geom_xmat, np.where(half, 0, second))
+        if half.any():
+            normals, offsets = self.predictor.halfspaces(data)
+            n = normals[second[half]]
+            height = np.einsum("ij,ij->i", n, start[half]) - offsets[second[half]]
+            end[half] = start[half] - height[:, None] * n
+        return start, end
+
+    def _add_connectors(self, scene: mujoco.MjvScene, start: np.ndarray, end: np.ndarray) -> int:
+        rgba = np.asarray(ALARM_RGBA, dtype=np.float32)
+        width = float(self.options.connector_width)
+        for j in range(start.shape[0]):
+            g = self._new_geom(scene, _GEOM_LINE, _ZERO3, _ZERO3, rgba)
+            if g is None:
+                return start.shape[0] - j
+            mujoco.mjv_connector(g, _GEOM_LINE, width, start[j], end[j])
+        return 0
+
+    def _add_spheres(self, scene: mujoco.MjvScene, data: mujoco.MjData, levels: np.ndarray) -> int:
+        cov = self.predictor.covering
+        centres = sphere_world_centers(cov, data.geom_xpos, data.geom_xmat)
+        nsphere = centres.shape[0]
+        room = max(scene.maxgeom - scene.ngeom, 0)
+        lvl = levels[np.asarray(cov.sphere_geom)]
+        rgba = np.empty((nsphere, 4), dtype=np.float32)
+        rgba[:, :3] = np.where(
+            (lvl < len(URGENCY_LEVELS))[:, None],
+            TINTS[np.minimum(lvl, len(URGENCY_LEVELS) - 1)],
+            SPHERE_RGB,
+        )
+        rgba[:, 3] = self.options.sphere_alpha
+        size = np.zeros((nsphere, 3))
+        size[:, 0] = cov.sphere_radius
+        # One mjv_initGeom per drawn sphere is inherent to the MjvScene API.
+        for i in range(min(nsphere, room)):
+            self._new_geom(scene, _GEOM_SPHERE, size[i], centres[i], rgba[i])
+        return nsphere - min(nsphere, room)
+
+    @staticmethod
+    def _new_geom(
+        scene: mujoco.MjvScene, kind: int, size: np.ndarray, pos: np.ndarray, rgba: np.ndarray
+    ) -> mujoco.MjvGeom | None:
+        if scene.ngeom >= scene.maxgeom:
+            return None
+        g = scene.geoms[scene.ngeom]
+        mujoco.mjv_initGeom(g, kind, size, pos, _EYE, rgba)
+        # mjv_initGeom leaves these fields as they were; stale values would make an overlay geom
+        # pass for a model geom (tinting, segmentation) or cast shadows.
+        g.objtype = _OBJ_UNKNOWN
+        g.objid = -1
+        g.category = _CAT_DECOR
+        g.segid = -1
+        g.castshadow = False
+        scene.ngeom += 1
+        return g
+
+
+# ----------------------------------------------------------------------------- offscreen
