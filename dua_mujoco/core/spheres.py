@@ -41,7 +41,7 @@ from dua_mujoco.exceptions import (
 
 __all__ = ["AUTO_PRUNED_MIN", "DEFAULT_STRIDE", "PairMode", "SpherePredictor"]
 
-AUTO_PRUNED_MIN = 512
+AUTO_PRUNED_MIN = 256
 """``pairs="auto"`` prunes from this many spheres on. Measured by ``benchmarks/many.py``
 (docs/many-objects.md): all pairs win below it (no rebuilds, no grid), pruned pairs above."""
 
