@@ -28,7 +28,9 @@ import argparse
 import json
 import time
 import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numba as nb
 import numpy as np
@@ -62,13 +64,13 @@ def kdtree_pairs(c: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.asarray(p[np.einsum("ij,ij->i", d, d) <= s * s * ROUNDING_SLACK])
 
 
-def timed(fn, *args):  # type: ignore[no-untyped-def]
+def timed(fn: Callable[..., Any], *args: object) -> tuple[Any, float]:
     t0 = time.perf_counter()
     out = fn(*args)
     return out, time.perf_counter() - t0
 
 
-def mujoco_model(w: SphereWorld):  # type: ignore[no-untyped-def]
+def mujoco_model(w: SphereWorld) -> tuple[Any, Any]:
     import mujoco
 
     bodies = "".join(
