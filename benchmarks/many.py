@@ -255,10 +255,6 @@ def main(argv: list[str] | None = None) -> None:
     args.out.write_text(json.dumps(results, indent=1))
 
 
-if __name__ == "__main__":
-    main()
-
-
 def report(paths: list[Path], png: Path) -> str:
     """The markdown table of docs/many-objects.md and its plot, from result files of ``main``."""
     import matplotlib
@@ -344,3 +340,7 @@ def report(paths: list[Path], png: Path) -> str:
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    main()
