@@ -93,3 +93,14 @@ def test_pairs_option_validation_and_auto() -> None:
     assert Predictor(m, accel=bound, pairs="auto").stride == 0
     big, _, bound = _world(300)
     assert Predictor(big, accel=bound, pairs="auto").stride == 32
+
+
+def test_swarm_scene_keeps_the_paper_density() -> None:
+    m, _ = load_scene("swarm:320")
+    spheres = int((np.asarray(m.geom_type) == int(mujoco.mjtGeom.mjGEOM_SPHERE)).sum())
+    assert spheres == 320
+    # The cube's side is 2 for 320 = 40 * 2^3 spheres: walls at +-1.
+    planes = np.asarray(m.geom_type) == int(mujoco.mjtGeom.mjGEOM_PLANE)
+    assert np.allclose(np.sort(np.abs(m.geom_pos[planes]).max(axis=1)), 1.0)
+    with pytest.raises(InvalidInputError, match="'swarm:20'"):
+        load_scene("swarm:x")
