@@ -5,6 +5,7 @@ Needs scipy and matplotlib (``pip install dua_mujoco[bench]``); never run as a t
     python benchmarks/many.py                 # the table and plot of docs/many-objects.md
     python benchmarks/many.py --quick         # N = 1e3, 1e4, fewer steps
     python benchmarks/many.py --crossover     # all pairs against pruned, N = 32 .. 2048
+    python benchmarks/many.py --strides 8 16 32 64 128 --n 100000   # default stride
     python benchmarks/many.py --report docs/img/many-objects.json   # table + plot
 
 World: the paper's density (as ``benchmarks/scaling.py``: ``WorldParams``' 0.1 m spheres,
@@ -122,10 +123,12 @@ def memory(n: int, pairs: str) -> int:
         tracemalloc.stop()
 
 
-def run_predictor(n: int, steps: int, pairs: str, check: bool) -> dict:
+def run_predictor(
+    n: int, steps: int, pairs: str, check: bool, horizon: float | None = None
+) -> dict:
     w = world(n)
     r2 = 2.0 * WP.radius
-    pred = SpherePredictor(w.radius, WP.accel, dt=DT, latency=LATENCY, pairs=pairs)
+    pred = SpherePredictor(w.radius, WP.accel, dt=DT, latency=LATENCY, pairs=pairs, horizon=horizon)
     out, t_reset = timed(pred.reset, w.positions, w.velocities)
     history = [set((out[:, 0] * n + out[:, 1]).tolist())]
     ts, alarms, evals, held = [], [], [], []
@@ -223,6 +226,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--mujoco-max", type=int, default=10_000)
     parser.add_argument("--check-max", type=int, default=100_000, help="onset checks up to N")
     parser.add_argument("--out", type=Path, default=Path("docs/img/many-objects.json"))
+    parser.add_argument("--strides", type=int, nargs="+", help="stride sweep at --n (no checks)")
     parser.add_argument("--report", type=Path, nargs="+", help="result files: table and plot")
     args = parser.parse_args(argv)
     if args.report:
@@ -230,6 +234,19 @@ def main(argv: list[str] | None = None) -> None:
         return
     nb.set_num_threads(1)
     warm_up()
+    if args.strides:
+        sweep = []
+        for n in args.n or [100_000]:
+            for R in args.strides:
+                res = run_predictor(n, 4 * R + 2, "pruned", False, (R + LATENCY) * DT)
+                sweep.append(res)
+                print(
+                    f"N={n} stride {R}: median {res['step_median_s'] * 1e6:.0f} us, mean "
+                    f"{res['step_mean_s'] * 1e6:.0f} us, held {res['held_pairs']:.0f}",
+                    flush=True,
+                )
+        args.out.with_name("many-objects-strides.json").write_text(json.dumps(sweep, indent=1))
+        return
     if args.crossover:
         # Past the deadline schedule's longest revisit interval (1024 steps): far pairs then
         # come due too, the steady cost of all pairs.
