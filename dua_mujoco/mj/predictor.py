@@ -252,7 +252,7 @@ class Predictor:
         # switches of every active pair (carried into rebuilds) and the last rebuild's step.
         self._ids = np.arange(len(self.pair_set))
         self._records = self._pair_records
-        self._on = np.ones(len(self.pair_set), dtype=bool) if self._held else None
+        self._on = np.ones(len(self.pair_set), dtype=bool) if self._held is not None else None
         self._built_at = 0
 
     # ----------------------------------------------------------------------- setup
