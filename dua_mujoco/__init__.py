@@ -29,6 +29,7 @@ from dua_mujoco.exceptions import (
 
 if TYPE_CHECKING:
     from dua_mujoco.core.schedules import DUAScheduler, Schedule
+    from dua_mujoco.core.spheres import SpherePredictor
     from dua_mujoco.core.urgency import time_to_collision
     from dua_mujoco.mj.bounds import MotionBounds, estimate_bounds
     from dua_mujoco.mj.monitor import run
@@ -46,6 +47,7 @@ _LAZY = {
     "Predictor": "dua_mujoco.mj.predictor",
     "RunReport": "dua_mujoco.mj.report",
     "Schedule": "dua_mujoco.core.schedules",
+    "SpherePredictor": "dua_mujoco.core.spheres",
     "estimate_bounds": "dua_mujoco.mj.bounds",
     "load_scene": "dua_mujoco.mj.scenes",
     "run": "dua_mujoco.mj.monitor",
@@ -80,6 +82,7 @@ __all__ = [
     "Schedule",
     "SchedulerError",
     "ShapeError",
+    "SpherePredictor",
     "UnsupportedGeomError",
     "__version__",
     "estimate_bounds",

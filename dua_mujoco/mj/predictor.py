@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.core.pairset import PairSet, pack_pairs
+from dua_mujoco.core.pruned import rebuild_stride
 from dua_mujoco.core.schedules import (
     DeadlineScheduler,
     DUAScheduler,
@@ -32,6 +33,7 @@ from dua_mujoco.core.schedules import (
 )
 from dua_mujoco.core.schedules.deadline import check_max_evals
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
+from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, DEFAULT_STRIDE, PairMode
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
     InvalidChoiceError,
@@ -53,6 +55,7 @@ from dua_mujoco.mj.filter import (
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states, step_rigid_kernel
 from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.pruning import HeldPairs
 from dua_mujoco.mj.tables import PairTables, plane_halfspaces, same_geometry
 
 __all__ = ["BoundsLike", "Predictor"]
@@ -121,6 +124,14 @@ class Predictor:
         pilot_seed: Seed of the pilot rollout (use one different from the monitored run).
         pilot_controller: ``controller(model, data)`` for the pilot; default random controls.
         safety: Factor on the pilot's maxima.
+        pairs: ``"all"`` (default) holds every active sphere pair; ``"pruned"`` holds the
+            half-space pairs and the active sphere pairs whose reachable balls over ``horizon``
+            meet, rebuilt every ``rebuild_stride(horizon, dt, latency)`` steps (deadline
+            schedule only; docs/many-objects.md); ``"auto"`` prunes from ``AUTO_PRUNED_MIN``
+            covering spheres on. Alarms name sphere pairs by their id among all active pairs
+            either way; :attr:`held_pairs` maps the scheduler's ids to them.
+        horizon: Pruned only: the reach's horizon (s), default ``(DEFAULT_STRIDE + latency)``
+            predictor periods.
     """
 
     def __init__(
@@ -142,6 +153,8 @@ class Predictor:
         pilot_seed: int = 1_000_003,
         pilot_controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None,
         safety: float = 2.0,
+        pairs: PairMode | str = "all",
+        horizon: float | None = None,
     ) -> None:
         if not isinstance(model, mujoco.MjModel):
             raise InvalidInputError(
@@ -232,8 +245,63 @@ class Predictor:
         self._steps_at_reset = 0
         self._frame_data: mujoco.MjData | None = None
         self._frame_cache: tuple = ()
+        self.stride = 0
+        """Pruned: predictor steps between rebuilds of the held pairs (0: all pairs held)."""
+        self._held = self._held_pairs(pairs, horizon)
+        # Pruned: the scheduler's pairs (ids among all active pairs), their packed records, the
+        # switches of every active pair (carried into rebuilds) and the last rebuild's step.
+        self._ids = np.arange(len(self.pair_set))
+        self._records = self._pair_records
+        self._on = np.ones(len(self.pair_set), dtype=bool) if self._held is not None else None
+        self._built_at = 0
 
     # ----------------------------------------------------------------------- setup
+
+    def _held_pairs(self, pairs: PairMode | str, horizon: float | None) -> HeldPairs | None:
+        try:
+            mode = PairMode(pairs)
+        except ValueError:
+            raise InvalidChoiceError("pairs", pairs, [m.value for m in PairMode]) from None
+        if mode is PairMode.AUTO:
+            big = self.covering.nsphere >= AUTO_PRUNED_MIN
+            mode = PairMode.PRUNED if big and self.schedule is Schedule.DEADLINE else PairMode.ALL
+        if mode is PairMode.ALL:
+            if horizon is not None:
+                raise InvalidInputError(
+                    f"horizon = {horizon!r} is given but pairs='all': pass pairs='pruned'."
+                )
+            return None
+        if self.schedule is not Schedule.DEADLINE:
+            raise InvalidInputError(
+                f"pairs='pruned' with schedule={self.schedule.value!r}: pruned pairs are "
+                "rebuilt into the deadline schedule only; pass schedule='deadline'."
+            )
+        T = (DEFAULT_STRIDE + self.latency) * self.dt if horizon is None else horizon
+        self.stride = rebuild_stride(T, self.dt, self.latency)
+        cov, b = self.covering, self.bounds
+        body = np.asarray(cov.sphere_body, dtype=np.int64)
+        delta = b.vel_uncertainty[body]
+        if self.mocap is not None and self.period > 1:
+            # As in _pair_set: mocap velocities are differences over one predictor period.
+            in_mocap = np.zeros(self.model.nbody, dtype=bool)
+            in_mocap[self.mocap.mocap_bodies] = True
+            tree = in_mocap[np.asarray(self.model.body_rootid)]
+            extra = np.where(tree, 0.5 * (self.period - 1) * self.model.opt.timestep, 0.0)
+            delta = delta + (extra * b.accel)[body]
+        speed = np.full(body.shape, np.inf) if b.speed is None else b.speed[body]
+        return HeldPairs(
+            self.sphere_pairs, cov.sphere_radius, b.accel[body], delta, speed, float(T)
+        )
+
+    def _hold(self, ids: np.ndarray) -> None:
+        """Hold the pairs ``ids`` (sorted): the compiled step reads only their records."""
+        self._ids = ids
+        self._records = np.ascontiguousarray(self._pair_records[ids])
+
+    @property
+    def held_pairs(self) -> np.ndarray:
+        """``(K,)`` id among all active sphere pairs of each of the scheduler's pairs."""
+        return self._ids
 
     def _pair_set(self) -> PairSet:
         sp, cov, b = self.sphere_pairs, self.covering, self.bounds
@@ -398,13 +466,20 @@ class Predictor:
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
         halfspaces = self.halfspaces(data)
-        tau0 = self.pair_set.tau(np.arange(len(self.pair_set)), c, v, halfspaces)
+        if self._held is not None and self._on is not None:
+            # A new scheduler starts with every pair on, held or not.
+            self._on[:] = True
+            self._hold(self._held.select(c, v))
+            self._built_at = 0
+        tau0 = self.pair_set.tau(self._ids, c, v, halfspaces)
         self.scheduler = self._scheduler(tau0)
         self._load_compiled(data, frame)
         self._time = float(data.time)
         self._steps_at_reset = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
         ids = self.scheduler.initial_alarms
-        return Alarms(0, self._time, ids, tau0[ids], self.tables, np.ones(ids.shape, bool), 0)
+        return Alarms(
+            0, self._time, self._ids[ids], tau0[ids], self.tables, np.ones(ids.shape, bool), 0
+        )
 
     def _scheduler(self, tau0: np.ndarray) -> Scheduler:
         return make_scheduler(
@@ -471,19 +546,48 @@ class Predictor:
             )
         if self.mocap is not None:
             self.mocap.update(data, self._twist)
-        alarmed, bad = sched.step_with(step_rigid_kernel, self._pair_records, self._spheres, frame)
+        if self._held is not None and sched.step_count + 1 - self._built_at >= self.stride:
+            self._rebuild(data, sched.step_count + 1)
+        alarmed, bad = sched.step_with(step_rigid_kernel, self._records, self._spheres, frame)
         if bad >= 0:
-            raise self._nonfinite(data, bad)
+            raise self._nonfinite(data, int(self._ids[bad]))
         self._time = time
         return Alarms(
             sched.step_count,
             time,
-            alarmed,
+            self._ids[alarmed],
             sched.last_tau[alarmed],
             self.tables,
             sched.last_new,
             sched.deferred,
         )
+
+    def _rebuild(self, data: mujoco.MjData, step: int) -> None:
+        """Renew the held pairs from this state; kept ones carry their verdicts (O(N + K))."""
+        sched = self.scheduler
+        assert isinstance(sched, DeadlineScheduler) and self._held is not None
+        assert self._on is not None
+        c, v = self.sphere_states(data)
+        if not (np.isfinite(c).all() and np.isfinite(v).all()):
+            raise self._nonfinite(data)
+        ids = self._held.select(c, v)
+        pos = np.minimum(np.searchsorted(self._ids, ids), max(self._ids.size - 1, 0))
+        kept = (self._ids.size > 0) & (self._ids[pos] == ids)
+        sched.remap(np.where(kept, pos, -1), step)
+        self._hold(ids)
+        # New pairs switched off (intended contact) stay off.
+        sched.set_active(np.flatnonzero(~kept & ~self._on[ids]), False)
+        self._built_at = step
+
+    def _switch(self, ids: np.ndarray, on: bool) -> None:
+        """Switch sphere pairs ``ids`` (among all active pairs) in the scheduler."""
+        sched = self._require_scheduler()
+        if self._on is None:
+            sched.set_active(ids, on)
+            return
+        self._on[ids] = on
+        pos = np.minimum(np.searchsorted(self._ids, ids), max(self._ids.size - 1, 0))
+        sched.set_active(pos[(self._ids.size > 0) & (self._ids[pos] == ids)], on)
 
     # ----------------------------------------------------------------------- intended contact
 
@@ -498,10 +602,10 @@ class Predictor:
         ``period > 1`` that step can be a whole period away; treat the two bodies as alarmed
         until then.
         """
-        sched = self._require_scheduler()
+        self._require_scheduler()
         gp = pairs_between_bodies(self.model, self.geom_pairs, body_a, body_b)
         ids = np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp))
-        sched.set_active(ids, on)
+        self._switch(ids, on)
         return int(ids.size)
 
     def deactivate_contacts(self, data: mujoco.MjData) -> int:
@@ -511,13 +615,13 @@ class Predictor:
         contact, until switched back on with :meth:`set_active_bodies` (e.g. when the object is
         lifted or pushed away); until then their contacts are counted apart, never predicted.
         """
-        sched = self._require_scheduler()
+        self._require_scheduler()
         nc = int(data.ncon)
         if nc == 0:
             return 0
         gp = self.geom_pairs.indices_of(data.contact.geom1[:nc], data.contact.geom2[:nc])
         gp = np.unique(gp[gp >= 0])
-        sched.set_active(np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp)), False)
+        self._switch(np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp)), False)
         return int(gp.size)
 
     def _require_scheduler(self) -> Scheduler:

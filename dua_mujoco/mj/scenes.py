@@ -12,6 +12,9 @@ Bundled scenes live in the top-level ``models/`` folder, shipped as the package
 ``paper_world``           the paper's world (sec. 8) with 40 spheres, saved from
                           :func:`paper_world_spec`
 ``paper_world:N``         the same world generated with ``N`` spheres
+``swarm:N``               ``N`` spheres at the density of the paper's 40 in its unit cube (the
+                          cube's side grows as ``(N / 40)^(1/3)``): thousands of geoms, for
+                          pruned pair sets (docs/many-objects.md)
 ========================  ==================================================================
 
 :func:`load_scene` also accepts a path to any MJCF file. :func:`make_controller` drives a scene
@@ -65,6 +68,7 @@ DEFAULT_SCENE = "two_arms"
 ACCEL_BOUND_NUMERIC = "dua_accel_bound"
 
 _PAPER_PREFIX = "paper_world:"
+_SWARM_PREFIX = "swarm:"
 
 
 # --------------------------------------------------------------------------------------------------
@@ -387,7 +391,7 @@ SCENES: dict[str, Scene] = {
 
 def scene_names() -> tuple[str, ...]:
     """Every name :func:`load_scene` accepts (``paper_world:N`` stands for any N >= 1)."""
-    return (*SCENES, f"{_PAPER_PREFIX}N")
+    return (*SCENES, f"{_PAPER_PREFIX}N", f"{_SWARM_PREFIX}N")
 
 
 def _looks_like_path(name: str) -> bool:
@@ -401,8 +405,9 @@ def load_scene(
 
     Args:
         name_or_path: A bundled name (``two_arms``, ``traffic``, ``clutter``, ``paper_world``),
-            ``paper_world:N`` for the generated world with ``N`` spheres (seed 0), or a path to an
-            MJCF file or a binary ``.mjb`` model.
+            ``paper_world:N`` for the generated world with ``N`` spheres (seed 0), ``swarm:N``
+            for ``N`` spheres at the paper world's density, or a path to an MJCF file or a binary
+            ``.mjb`` model.
         keyframe: See :func:`reset_to_keyframe`; None means the first keyframe, if any.
 
     Returns:
@@ -414,13 +419,16 @@ def load_scene(
     """
     if name_or_path in SCENES:
         model = SCENES[name_or_path].model()
-    elif name_or_path.startswith(_PAPER_PREFIX):
-        count = name_or_path[len(_PAPER_PREFIX) :]
+    elif name_or_path.startswith((_PAPER_PREFIX, _SWARM_PREFIX)):
+        prefix, count = name_or_path.split(":", 1)
         if not count.isdigit() or int(count) < 1:
             raise InvalidInputError(
-                f"In {name_or_path!r}, N must be a positive integer, e.g. 'paper_world:20'."
+                f"In {name_or_path!r}, N must be a positive integer, e.g. '{prefix}:20'."
             )
-        model = paper_world_model(int(count))
+        n = int(count)
+        # The unit cube holds the paper's 40 spheres; a swarm keeps that density.
+        box = {"box_size": (n / 40) ** (1 / 3)} if prefix == _SWARM_PREFIX[:-1] else {}
+        model = paper_world_model(n, **box)
     elif Path(name_or_path).is_file():
         path = Path(name_or_path)
         # A compiled model (mj_saveModel) is binary: the XML parser would call it malformed XML.

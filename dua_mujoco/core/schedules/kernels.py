@@ -50,6 +50,7 @@ from dua_mujoco.core.schedules.state import (
 
 __all__ = [
     "bucket_of",
+    "deadline_carry",
     "deadline_classify",
     "deadline_interval",
     "reinsert",
@@ -378,3 +379,27 @@ def deadline_classify(st):  # pragma: no cover - jitted
     for p in range(st.active.shape[0]):
         if st.active[p]:
             _link(st, p, deadline_interval(st.last_tau[p], st.dt, st.latency, max_interval))
+
+
+@nb.njit(cache=True)
+def deadline_carry(old, new, src, n):  # pragma: no cover - jitted
+    """Fill the deadline state ``new`` (``ints`` and ``slots`` at -1) from ``old`` through ``src``.
+
+    New pair ``p`` is old pair ``src[p]``, whose verdict (tau, last step, due step, switch) is
+    carried unchanged, or a pair new to the set (``src[p] < 0``): it stands in alarm
+    (``last_tau = -inf``) and is due at step ``n``, as a pair switched back on is. O(len(src)).
+    """
+    for p in range(src.shape[0]):
+        q = src[p]
+        if q >= 0:
+            new.last_tau[p] = old.last_tau[q]
+            new.active[p] = old.active[q]
+            new.ints[LAST_STEP, p] = old.ints[LAST_STEP, q]
+            due = old.ints[WHERE, q]
+            if due >= 0:
+                _link(new, p, due)
+        else:
+            new.last_tau[p] = -math.inf
+            new.active[p] = True
+            new.ints[LAST_STEP, p] = n
+            _link(new, p, n)

@@ -1,0 +1,363 @@
+"""Many moving objects: ``SpherePredictor`` (pruned pairs) against broadphases, N = 1e3 .. 1e5.
+
+Needs scipy and matplotlib (``pip install dua_mujoco[bench]``); never run as a test.
+
+    python benchmarks/many.py                 # the table and plot of docs/many-objects.md
+    python benchmarks/many.py --quick         # N = 1e3, 1e4, fewer steps
+    python benchmarks/many.py --crossover     # all pairs against pruned, N = 32 .. 2048
+    python benchmarks/many.py --strides 8 16 32 64 128 --n 100000   # default stride
+    python benchmarks/many.py --report docs/img/many-objects.json   # table + plot
+
+World: the paper's density (as ``benchmarks/scaling.py``: ``WorldParams``' 0.1 m spheres,
+speeds up to 0.4 m/s, acceleration bound 0.2 m/s^2, 40 spheres in its 10 m cube, the cube's
+edge scaled by ``(N / 40)^(1/3)``), ghost spheres (``SphereWorld``, exact kinematics, the
+bounds hold exactly), ``dt = 10 ms``, latency 1. Peers, all at the horizon ``H = (1 + latency)
+dt`` a verdict must cover: the grid (``reach`` + ``candidate_pairs`` every step), the KD-tree
+(``cKDTree.query_pairs`` on the inflated spheres, then the exact test), MuJoCo's gap-inflated
+``mj_collision`` (N free spheres, ``geom_gap`` = each sphere's reach over H, only
+``mj_collision`` timed; N <= 1e4), and the deadline schedule over all pairs (N = 1e3). A
+broadphase's alarms are its candidates. Times: median and mean (the mean is the amortised cost:
+rebuilds included) over the run; one numba thread (the machine is a shared 2-core one).
+Memory: ``tracemalloc`` peak of building the predictor, ``reset`` and one full stride of steps
+on pre-computed states, per sphere. Misses: every contact onset found on a grid of 4 times a
+step (``cKDTree``) must meet an alarm of the verdict acting then (tests/test_spheres.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+import tracemalloc
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numba as nb
+import numpy as np
+from scipy.spatial import cKDTree
+
+from dua_mujoco.core.neighbors import ROUNDING_SLACK, candidate_pairs, reach
+from dua_mujoco.core.spheres import SpherePredictor
+from dua_mujoco.core.worlds import SphereWorld
+from dua_mujoco.experiments.paper import WorldParams
+
+DT, LATENCY, SUB = 0.01, 1, 4
+WP = WorldParams()
+
+
+def world(n: int, seed: int = 0) -> SphereWorld:
+    box = WP.box * (n / 40) ** (1.0 / 3.0)
+    return SphereWorld(
+        n, seed=seed, box=box, radius=WP.radius, accel=WP.accel, speed=WP.speed, dt=DT
+    )
+
+
+def inflated(w: SphereWorld) -> np.ndarray:
+    H = (1 + LATENCY) * DT
+    return reach(w.radius, np.linalg.norm(w.velocities, axis=1), WP.accel, H)
+
+
+def kdtree_pairs(c: np.ndarray, r: np.ndarray) -> np.ndarray:
+    p = cKDTree(c).query_pairs(2.0 * float(r.max()), output_type="ndarray")
+    d = c[p[:, 0]] - c[p[:, 1]]
+    s = r[p[:, 0]] + r[p[:, 1]]
+    return np.asarray(p[np.einsum("ij,ij->i", d, d) <= s * s * ROUNDING_SLACK])
+
+
+def timed(fn: Callable[..., Any], *args: object) -> tuple[Any, float]:
+    t0 = time.perf_counter()
+    out = fn(*args)
+    return out, time.perf_counter() - t0
+
+
+def mujoco_model(w: SphereWorld) -> tuple[Any, Any]:
+    import mujoco
+
+    bodies = "".join(
+        f'<body><freejoint/><geom type="sphere" size="{w.radius[i]}"/></body>' for i in range(w.n)
+    )
+    # The default arena is sized for small models: 1e4 free bodies need more.
+    size = f'<size memory="{max(64, w.n // 20)}M"/>'
+    xml = f'<mujoco>{size}<option gravity="0 0 0"/><worldbody>{bodies}</worldbody></mujoco>'
+    model = mujoco.MjModel.from_xml_string(xml)
+    return model, mujoco.MjData(model)
+
+
+def run_mujoco(w: SphereWorld, steps: int) -> tuple[list[float], list[int]]:
+    import mujoco
+
+    model, data = mujoco_model(w)
+    ts, counts = [], []
+    for _ in range(steps):
+        # Gap = reach beyond the radius over H, per geom: a pair is reported when the spheres
+        # inflated by their reach overlap (4.0 sums the gaps per pair).
+        model.geom_gap[:] = inflated(w) - w.radius
+        data.qpos.reshape(-1, 7)[:, :3] = w.positions
+        data.qpos.reshape(-1, 7)[:, 3] = 1.0
+        mujoco.mj_kinematics(model, data)
+        t0 = time.perf_counter()
+        mujoco.mj_collision(model, data)
+        ts.append(time.perf_counter() - t0)
+        counts.append(int(data.ncon))
+        w.step()
+    return ts, counts
+
+
+def memory(n: int, pairs: str) -> int:
+    w = world(n, seed=1)
+    pred = SpherePredictor(w.radius, WP.accel, dt=DT, latency=LATENCY, pairs=pairs)
+    states = [(w.positions.copy(), w.velocities.copy())]
+    for _ in range(pred.stride or 2):
+        w.step()
+        states.append((w.positions.copy(), w.velocities.copy()))
+    del pred
+    tracemalloc.start()
+    try:
+        pred = SpherePredictor(w.radius, WP.accel, dt=DT, latency=LATENCY, pairs=pairs)
+        pred.reset(*states[0])
+        for c, v in states[1:]:
+            pred.step(c, v)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def run_predictor(
+    n: int, steps: int, pairs: str, check: bool, horizon: float | None = None
+) -> dict:
+    w = world(n)
+    r2 = 2.0 * WP.radius
+    pred = SpherePredictor(w.radius, WP.accel, dt=DT, latency=LATENCY, pairs=pairs, horizon=horizon)
+    out, t_reset = timed(pred.reset, w.positions, w.velocities)
+    history = [set((out[:, 0] * n + out[:, 1]).tolist())]
+    ts, alarms, evals, held = [], [], [], []
+    t_grid, t_kd, n_grid = [], [], []
+    onsets, missed = 0, 0
+    touching = set()
+    if check:
+        touching = _contacts(w.positions, r2, n)
+    for m in range(steps):
+        if check:
+            for k in range(1, SUB):
+                now = _contacts(w.positions_at(DT * k / SUB), r2, n)
+                o, x = _judge(now - touching, m * SUB + k, history)
+                onsets, missed, touching = onsets + o, missed + x, now
+        w.step()
+        out, t = timed(pred.step, w.positions, w.velocities)
+        ts.append(t)
+        alarms.append(out.shape[0])
+        evals.append(pred.evaluations)
+        held.append(pred.npairs)
+        history.append(set((out[:, 0] * n + out[:, 1]).tolist()))
+        if pairs == "pruned" and m % 4 == 0:
+            r = inflated(w)
+            g, tg = timed(candidate_pairs, w.positions, r)
+            _, tk = timed(kdtree_pairs, w.positions, r)
+            t_grid.append(tg)
+            t_kd.append(tk)
+            n_grid.append(g.shape[0])
+        if check:
+            now = _contacts(w.positions, r2, n)
+            o, x = _judge(now - touching, (m + 1) * SUB, history)
+            onsets, missed, touching = onsets + o, missed + x, now
+    return {
+        "n": n,
+        "pairs": pairs,
+        "steps": steps,
+        "reset_s": t_reset,
+        "step_median_s": float(np.median(ts)),
+        "step_mean_s": float(np.mean(ts)),
+        "alarms_per_step": float(np.mean(alarms)),
+        "evals_per_step": float(np.mean(evals)),
+        "held_pairs": float(np.mean(held)),
+        "rebuilds": pred.rebuilds,
+        "stride": pred.stride,
+        "grid_median_s": float(np.median(t_grid)) if t_grid else None,
+        "kdtree_median_s": float(np.median(t_kd)) if t_kd else None,
+        "grid_alarms_per_step": float(np.mean(n_grid)) if n_grid else None,
+        "onsets": onsets if check else None,
+        "missed": missed if check else None,
+    }
+
+
+def _contacts(pos: np.ndarray, r2: float, n: int) -> set[int]:
+    return set(_keys(cKDTree(pos).query_pairs(r2, output_type="ndarray"), n).tolist())
+
+
+def _keys(p: np.ndarray, n: int) -> np.ndarray:
+    return np.asarray(np.minimum(p[:, 0], p[:, 1]) * n + np.maximum(p[:, 0], p[:, 1]))
+
+
+def _judge(new: set[int], u: int, history: list[set[int]]) -> tuple[int, int]:
+    """Onsets at sub-step time ``u`` and how many the verdict acting then does not alarm."""
+    acting = history[max(0, u // SUB - LATENCY)]
+    return len(new), len(new - acting)
+
+
+def warm_up() -> None:
+    """Compile (or load) every kernel once, so no timed call pays for it."""
+    for pairs in ("all", "pruned"):
+        run_predictor(200, 40, pairs, check=True)
+    run_mujoco(world(50), 2)
+    kdtree_pairs(world(50).positions, np.full(50, 0.1))
+
+
+def crossover(ns: list[int], steps: int) -> list[dict]:
+    rows = []
+    for n in ns:
+        for pairs in ("all", "pruned"):
+            res = run_predictor(n, steps, pairs, check=False)
+            rows.append(res)
+            print(
+                f"crossover N={n} {pairs}: reset {res['reset_s'] * 1e3:.2f} ms, step median "
+                f"{res['step_median_s'] * 1e6:.1f} us, mean {res['step_mean_s'] * 1e6:.1f} us",
+                flush=True,
+            )
+    return rows
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--crossover", action="store_true")
+    parser.add_argument("--n", type=int, nargs="+")
+    parser.add_argument("--steps", type=int, nargs="+", help="steps per N (default 300/300/160)")
+    parser.add_argument("--mujoco-max", type=int, default=10_000)
+    parser.add_argument("--check-max", type=int, default=100_000, help="onset checks up to N")
+    parser.add_argument("--out", type=Path, default=Path("docs/img/many-objects.json"))
+    parser.add_argument("--strides", type=int, nargs="+", help="stride sweep at --n (no checks)")
+    parser.add_argument("--report", type=Path, nargs="+", help="result files: table and plot")
+    args = parser.parse_args(argv)
+    if args.report:
+        print(report(args.report, Path("docs/img/many-objects.png")))
+        return
+    nb.set_num_threads(1)
+    warm_up()
+    if args.strides:
+        sweep = []
+        for n in args.n or [100_000]:
+            for R in args.strides:
+                res = run_predictor(n, 4 * R + 2, "pruned", False, (R + LATENCY) * DT)
+                sweep.append(res)
+                print(
+                    f"N={n} stride {R}: median {res['step_median_s'] * 1e6:.0f} us, mean "
+                    f"{res['step_mean_s'] * 1e6:.0f} us, held {res['held_pairs']:.0f}",
+                    flush=True,
+                )
+        args.out.with_name("many-objects-strides.json").write_text(json.dumps(sweep, indent=1))
+        return
+    if args.crossover:
+        # Past the deadline schedule's longest revisit interval (1024 steps): far pairs then
+        # come due too, the steady cost of all pairs.
+        rows = crossover(args.n or [32, 64, 128, 256, 512, 1024, 2048], 1200)
+        args.out.with_name("many-objects-crossover.json").write_text(json.dumps(rows, indent=1))
+        return
+    ns = args.n or ([1000, 10_000] if args.quick else [1000, 10_000, 100_000])
+    steps = args.steps or ([100] * len(ns) if args.quick else [300, 300, 160][: len(ns)])
+    results = []
+    for n, k in zip(ns, steps, strict=True):
+        res = run_predictor(n, k, "pruned", check=n <= args.check_max)
+        res["bytes_per_sphere"] = memory(n, "pruned") / n
+        if n <= args.mujoco_max:
+            ts, counts = run_mujoco(world(n), min(k, 60))
+            res["mujoco_median_s"] = float(np.median(ts))
+            res["mujoco_alarms_per_step"] = float(np.mean(counts))
+        if n <= 1000:
+            full = run_predictor(n, 1200, "all", check=False)
+            full["bytes_per_sphere"] = memory(n, "all") / n
+            res["all_pairs"] = full
+        results.append(res)
+        print(json.dumps(res), flush=True)
+    args.out.write_text(json.dumps(results, indent=1))
+
+
+def report(paths: list[Path], png: Path) -> str:
+    """The markdown table of docs/many-objects.md and its plot, from result files of ``main``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    res = sorted((r for p in paths for r in json.loads(p.read_text())), key=lambda r: r["n"])
+
+    def us(x: float | None) -> str:
+        return "-" if x is None else f"{x * 1e6:,.0f}"
+
+    head = [
+        "N",
+        "pruned: median / mean (amortised) step (us)",
+        "rebuilds",
+        "held pairs",
+        "evals / step",
+        "alarms / step",
+        "B / sphere",
+        "onsets (missed)",
+        "grid (us)",
+        "KD-tree (us)",
+        "MuJoCo gap (us)",
+        "broadphase alarms / step",
+        "all-pairs deadline: reset (s), mean step (us), B / sphere",
+    ]
+    rows = []
+    for r in res:
+        full = r.get("all_pairs")
+        rows.append(
+            [
+                f"{r['n']:.0e}",
+                f"{us(r['step_median_s'])} / {us(r['step_mean_s'])}",
+                f"{r['rebuilds']} in {r['steps']} steps",
+                f"{r['held_pairs']:.0f}",
+                f"{r['evals_per_step']:.1f}",
+                f"{r['alarms_per_step']:.1f}",
+                f"{r['bytes_per_sphere']:.0f}",
+                "-" if r["onsets"] is None else f"{r['onsets']} ({r['missed']})",
+                us(r["grid_median_s"]),
+                us(r["kdtree_median_s"]),
+                us(r.get("mujoco_median_s")),
+                f"{r['grid_alarms_per_step']:.1f}",
+                "-"
+                if full is None
+                else f"{full['reset_s']:.2f}, {us(full['step_mean_s'])}, "
+                f"{full['bytes_per_sphere']:,.0f}",
+            ]
+        )
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    n = np.array([r["n"] for r in res], dtype=float)
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    series = [
+        ("pruned DUA, amortised", "step_mean_s", "o-"),
+        ("grid broadphase", "grid_median_s", "s--"),
+        ("KD-tree broadphase", "kdtree_median_s", "^--"),
+        ("MuJoCo gap-inflated", "mujoco_median_s", "v--"),
+    ]
+    for label, key, style in series:
+        pts = [(r["n"], r[key]) for r in res if r.get(key) is not None]
+        if pts:
+            x, y = zip(*pts, strict=True)
+            ax1.loglog(x, np.array(y) * 1e6, style, label=label)
+    full_pts = [(r["n"], r["all_pairs"]) for r in res if r.get("all_pairs")]
+    for x, f in full_pts:
+        ax1.loglog([x], [f["step_mean_s"] * 1e6], "kx", label="all-pairs deadline")
+        ax2.loglog([x], [f["bytes_per_sphere"]], "kx", label="all-pairs deadline")
+    ax1.set_xlabel("spheres N")
+    ax1.set_ylabel("time per step (us)")
+    ax1.legend(fontsize=8)
+    ax1.grid(True, which="both", alpha=0.3)
+    ax2.loglog(n, [r["bytes_per_sphere"] for r in res], "o-", label="pruned DUA (tracemalloc)")
+    ax2.axhline(2048, color="grey", ls=":", label="target 2 KB / sphere")
+    ax2.set_xlabel("spheres N")
+    ax2.set_ylabel("peak bytes per sphere")
+    ax2.legend(fontsize=8)
+    ax2.grid(True, which="both", alpha=0.3)
+    fig.suptitle(
+        "Ghost world at the paper's density, dt = 10 ms, latency 1 (shared 2-core machine)"
+    )
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,77 @@
+"""Pruned sphere pairs for the MuJoCo ``Predictor``: grid candidates within MuJoCo's pair filter.
+
+The filter (``mj/filter.py``) is exact: only sphere pairs of geom pairs MuJoCo could put in
+contact are ever held. A pruned predictor holds, of those, the half-space pairs (a plane is
+infinite: no reach bounds it) and the sphere pairs among the candidates of
+``neighbors.candidate_pairs`` at a horizon ``T``, and renews that set every
+``pruned.rebuild_stride(T, dt, latency)`` steps (docs/many-objects.md, which proves this keeps
+the guarantee). The intersection is a binary search of the candidates' keys in the sorted keys
+of the active sphere pairs, O(K log M) a rebuild.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dua_mujoco.core.neighbors import candidate_pairs, reach
+from dua_mujoco.mj.filter import SpherePairs
+
+__all__ = ["HeldPairs"]
+
+
+class HeldPairs:
+    """Which active sphere pairs a pruned predictor holds, from the spheres' states.
+
+    Args:
+        sphere_pairs: The model's active sphere pairs (ids into them are what alarms report).
+        radius: ``(nsphere,)`` covering sphere radii.
+        accel: ``(nsphere,)`` bound on each sphere centre's acceleration norm.
+        vel_uncertainty: ``(nsphere,)`` bound on each sphere's velocity error.
+        speed: ``(nsphere,)`` speed bound of each sphere (``inf``: none).
+        horizon: The reach's horizon ``T`` (s).
+    """
+
+    def __init__(
+        self,
+        sphere_pairs: SpherePairs,
+        radius: np.ndarray,
+        accel: np.ndarray,
+        vel_uncertainty: np.ndarray,
+        speed: np.ndarray,
+        horizon: float,
+    ) -> None:
+        sp = sphere_pairs
+        self.nsphere = int(radius.shape[0])
+        self.radius, self.accel = radius, accel
+        self.vel_uncertainty, self.speed = vel_uncertainty, speed
+        self.horizon = float(horizon)
+        self.halfspace_ids = np.flatnonzero(sp.is_halfspace).astype(np.int64)
+        ss = np.flatnonzero(~sp.is_halfspace)
+        a = np.asarray(sp.first, dtype=np.int64)[ss]
+        b = np.asarray(sp.second, dtype=np.int64)[ss]
+        codes = np.minimum(a, b) * self.nsphere + np.maximum(a, b)
+        order = np.argsort(codes, kind="stable")
+        self.codes = codes[order]
+        self.code_ids = ss[order].astype(np.int64)
+        # A geom pair's contact distance (margin, gap) beyond the radii: the candidates' margin
+        # must cover the largest, so no active pair that could come within it is left out.
+        extra = np.asarray(sp.eps)[ss] - radius[a] - radius[b]
+        self.margin = float(max(0.0, extra.max(initial=0.0)))
+
+    def select(self, centers: np.ndarray, velocities: np.ndarray) -> np.ndarray:
+        """``(K,)`` sorted ids of the sphere pairs to hold from this state."""
+        r = reach(
+            self.radius,
+            np.sqrt(np.einsum("ij,ij->i", velocities, velocities)),
+            self.accel,
+            self.horizon,
+            vel_uncertainty=self.vel_uncertainty,
+            speed_bound=self.speed,
+        )
+        cand = candidate_pairs(centers, r, margin=self.margin)
+        key = cand[:, 0] * self.nsphere + cand[:, 1]
+        if self.codes.size == 0:
+            return self.halfspace_ids.copy()
+        pos = np.minimum(np.searchsorted(self.codes, key), self.codes.size - 1)
+        found = self.code_ids[pos[self.codes[pos] == key]]
+        return np.sort(np.concatenate([self.halfspace_ids, found]))

@@ -1,0 +1,106 @@
+"""The MuJoCo ``Predictor`` with pruned pairs: grid candidates within MuJoCo's exact pair filter."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco.core.schedules import DeadlineScheduler
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
+
+
+def _world(n: int) -> tuple[mujoco.MjModel, mujoco.MjData, float]:
+    m, d = load_scene(f"paper_world:{n}")
+    bound = declared_accel_bound(m)
+    assert bound is not None
+    return m, d, bound
+
+
+def test_pruned_alarms_cover_select_all_rule() -> None:
+    """Every active sphere pair whose tau (over all pairs) is below ``(1 + latency) dt`` stands
+    in alarm in the pruned predictor, at every step, while the bounds hold (pairs of spheres
+    that ever touched anything are left out: contact breaks the acceleration bound)."""
+    m, d, bound = _world(300)
+    latency = 1
+    pruned = Predictor(m, accel=bound, latency=latency, pairs="pruned", horizon=0.02)
+    full = Predictor(m, accel=bound, latency=latency, pairs="all")
+    assert pruned.stride == 9
+    ctrl = make_controller(m, "random", seed=3)
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    pruned.reset(d)
+    full.reset(d)
+    ids = np.arange(full.nsphere_pairs)
+    sp = full.sphere_pairs
+    geom_sphere = np.full(m.ngeom, -1)
+    cov = full.covering
+    geom_sphere[np.asarray(cov.sphere_geom)] = np.arange(cov.nsphere)
+    touched = np.zeros(cov.nsphere + 1, dtype=bool)  # the last entry: half-space pairs' "sphere"
+    checked = 0
+    for _ in range(60):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        alarms = pruned.step(d)
+        full.step(d)
+        nc = int(d.ncon)
+        g = np.concatenate([d.contact.geom1[:nc], d.contact.geom2[:nc]])
+        touched[geom_sphere[g][geom_sphere[g] >= 0]] = True
+        held = pruned.held_pairs
+        assert np.isin(alarms.pairs, held).all()
+        sched = pruned.scheduler
+        assert isinstance(sched, DeadlineScheduler)
+        standing = set(held[np.flatnonzero(sched.alarm_state() & sched.active)].tolist())
+        c, v = full.sphere_states(d)
+        tau = full.pair_set.tau(ids, c, v, full.halfspaces(d))
+        second = np.where(sp.is_halfspace, cov.nsphere, sp.second)
+        clean = ~touched[sp.first] & ~touched[second]
+        urgent = np.flatnonzero((tau < (1 + latency) * full.dt - 1e-9) & clean)
+        checked += urgent.size
+        assert set(urgent.tolist()) <= standing
+        assert held.size < full.nsphere_pairs / 10
+    assert checked > 0
+    assert pruned.nsphere_pairs == full.nsphere_pairs
+
+
+def test_switched_off_pairs_stay_off_across_rebuilds() -> None:
+    m, d, bound = _world(60)
+    p = Predictor(m, accel=bound, latency=0, pairs="pruned", horizon=0.004)
+    p.reset(d)
+    assert p.stride == 2
+    switched = p.set_active_bodies("sphere0", on=False)
+    assert switched > 0
+    for _ in range(6):
+        mujoco.mj_step(m, d)
+        p.step(d)
+        sched = p.scheduler
+        assert sched is not None
+        body = np.asarray(p.covering.sphere_body)[p.pair_set.first[p.held_pairs]]
+        b0 = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "sphere0")
+        assert not sched.active[body == b0].any()
+
+
+def test_pairs_option_validation_and_auto() -> None:
+    m, _, bound = _world(20)
+    with pytest.raises(InvalidChoiceError, match="pruned"):
+        Predictor(m, accel=bound, pairs="some")
+    with pytest.raises(InvalidInputError, match="schedule='deadline'"):
+        Predictor(m, accel=bound, pairs="pruned", schedule="dua")
+    with pytest.raises(InvalidInputError, match="horizon"):
+        Predictor(m, accel=bound, pairs="pruned", horizon=0.001)
+    assert Predictor(m, accel=bound, pairs="auto").stride == 0
+    big, _, bound = _world(300)
+    assert Predictor(big, accel=bound, pairs="auto").stride == 32
+
+
+def test_swarm_scene_keeps_the_paper_density() -> None:
+    m, _ = load_scene("swarm:320")
+    spheres = int((np.asarray(m.geom_type) == int(mujoco.mjtGeom.mjGEOM_SPHERE)).sum())
+    assert spheres == 320
+    # The cube's side is 2 for 320 = 40 * 2^3 spheres: walls at +-1.
+    planes = np.asarray(m.geom_type) == int(mujoco.mjtGeom.mjGEOM_PLANE)
+    assert np.allclose(np.sort(np.abs(m.geom_pos[planes]).max(axis=1)), 1.0)
+    with pytest.raises(InvalidInputError, match="'swarm:20'"):
+        load_scene("swarm:x")

@@ -1,0 +1,335 @@
+"""``SpherePredictor`` and pruned pair sets: completeness in ghost worlds, the slow reference,
+the rebuild's carried state, the horizon's off-by-one, validation and ``pairs="auto"``."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+
+from dua_mujoco.core.pairset import PairSet
+from dua_mujoco.core.pruned import StandingAlarms, match_pairs, rebuild_stride
+from dua_mujoco.core.schedules import DeadlineScheduler
+from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, PairMode, SpherePredictor
+from dua_mujoco.core.worlds import AccelProfile, SphereWorld
+from dua_mujoco.exceptions import (
+    BoundViolationWarning,
+    InvalidBoundError,
+    InvalidChoiceError,
+    InvalidInputError,
+    NonFiniteStateError,
+    SchedulerError,
+    ShapeError,
+)
+
+
+@dataclasses.dataclass
+class Outcome:
+    onsets: int
+    missed: list[tuple[int, int, float]]
+    reference_misses: int
+    held_max: int
+    rebuilds: int
+
+
+def _key_set(pairs: np.ndarray, n: int) -> set[int]:
+    return set((pairs[:, 0] * n + pairs[:, 1]).tolist())
+
+
+def run_predictor(
+    world: SphereWorld,
+    pred: SpherePredictor,
+    *,
+    steps: int,
+    substeps: int = 8,
+    reference: bool = False,
+) -> Outcome:
+    """Drive ``pred`` on ``world``; every onset must meet an alarm of the verdict acting then.
+
+    The verdict acting at time ``t`` is the latest one made at a step ``q`` with
+    ``(q + latency) dt <= t`` (the reset's before that). Onsets are found over all pairs on a
+    grid of ``substeps`` times a step (any grid onset is a real one). With ``reference``, each
+    step also checks the slow reference: every pair whose tau over all pairs is below
+    ``(1 + latency) dt`` stands in alarm.
+    """
+    n, lat, S = world.n, pred.latency, substeps
+    every = PairSet.all_pairs(world.radius, world.accel_bound, margin=pred.margin)
+    ids = np.arange(len(every))
+    i, j = every.first, every.second
+    history = [_key_set(pred.reset(world.positions, world.velocities), n)]
+    held_max = pred.npairs
+
+    def touching(pos: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(pos[j] - pos[i], axis=1) <= every.eps
+
+    in_contact = touching(world.positions)
+    onsets, missed, ref_misses = 0, [], 0
+    for m in range(steps):
+        pending = []
+        for k in range(1, S + 1):
+            if k == S:
+                world.step()
+                out = pred.step(world.positions, world.velocities)
+                history.append(_key_set(out, n))
+                held_max = max(held_max, pred.npairs)
+                if reference:
+                    tau = every.tau(ids, world.positions, world.velocities)
+                    urgent = np.flatnonzero(tau < (1 + lat) * pred.dt - 1e-9)
+                    ref_misses += len(
+                        _key_set(np.stack([i[urgent], j[urgent]], 1), n) - history[-1]
+                    )
+                now = touching(world.positions)
+            else:
+                now = touching(world.positions_at(world.dt * k / S))
+            pending.append((m * S + k, now & ~in_contact))
+            in_contact = now
+        for u, new in pending:
+            q = max(0, u // S - lat)
+            for p in np.flatnonzero(new):
+                onsets += 1
+                if int(i[p]) * n + int(j[p]) not in history[q]:
+                    missed.append((int(i[p]), int(j[p]), u / S * world.dt))
+    return Outcome(onsets, missed, ref_misses, held_max, pred.rebuilds)
+
+
+def dense_world(seed: int, n: int = 40) -> SphereWorld:
+    return SphereWorld(
+        n,
+        seed=seed,
+        box=1.0,
+        radius=0.05,
+        accel=2.0,
+        speed=0.5,
+        dt=0.01,
+        profile=AccelProfile.BANG_BANG,
+    )
+
+
+@pytest.mark.parametrize("latency", [0, 1])
+@pytest.mark.parametrize("mode", ["pruned", "all"])
+def test_every_onset_is_flagged(latency: int, mode: str) -> None:
+    for seed in (0, 1):
+        world = dense_world(seed)
+        # A short horizon: rebuilds every 4 (latency 1) or 5 steps, pairs come and go.
+        horizon = 0.05 if mode == "pruned" else None
+        pred = SpherePredictor(
+            world.radius, 2.0, dt=0.01, latency=latency, pairs=mode, horizon=horizon
+        )
+        out = run_predictor(world, pred, steps=150, reference=(seed == 0))
+        assert out.onsets >= 5, "the world must be dense enough for collisions to happen"
+        assert out.missed == []
+        assert out.reference_misses == 0
+        if mode == "pruned":
+            assert out.rebuilds >= 150 // (5 - latency) - 1
+            assert out.held_max < 40 * 39 // 2 / 3, "pruning must leave most pairs out"
+
+
+def test_capped_pruned_predictor_is_complete() -> None:
+    """Over the cap, new pairs of a rebuild wait standing in alarm like any deferred pair."""
+    world = dense_world(2)
+    pred = SpherePredictor(
+        world.radius, 2.0, dt=0.01, latency=1, pairs="pruned", horizon=0.05, max_evals_per_step=3
+    )
+    out = run_predictor(world, pred, steps=150)
+    assert out.onsets >= 5
+    assert out.missed == []
+    assert pred.evaluations <= 3
+
+
+def _head_on(latency: int, shorten: bool) -> Outcome:
+    """Two spheres driven head-on at the acceleration bound, placed just outside the reach of
+    the horizon shortened by one step: only that shortening can leave the pair out too long."""
+    dt, T, r, A, v = 0.01, 0.1, 0.05, 1.0, 0.5
+    Ts = T - dt
+    gap = 2 * (r + v * Ts + 0.5 * A * Ts * Ts) + 1e-6
+
+    class HeadOn(SphereWorld):
+        def step(self) -> None:
+            super().step()
+            self.accelerations[:] = [[A, 0, 0], [-A, 0, 0], [0, 0, 0], [0, 0, 0]]
+
+    world = HeadOn(4, radius=r, accel=A, dt=dt, box=4.0)
+    world.positions = np.array([[-gap / 2, 0, 0], [gap / 2, 0, 0], [1.5, 1.5, 1.5], [-1, 1, 1]])
+    world.velocities = np.array([[v, 0, 0], [-v, 0, 0], [0, 0, 0], [0, 0, 0]], dtype=float)
+    world.accelerations = np.array([[A, 0, 0], [-A, 0, 0], [0, 0, 0], [0, 0, 0]], dtype=float)
+    pred = SpherePredictor(world.radius, A, dt=dt, latency=latency, pairs="pruned", horizon=T)
+    if shorten:
+        pred._reach_horizon = Ts
+    with warnings.catch_warnings():
+        # Bang-bang motion is exactly at the bound: it must not count as escaping it.
+        warnings.simplefilter("error", BoundViolationWarning)
+        return run_predictor(world, pred, steps=14, substeps=16, reference=True)
+
+
+@pytest.mark.parametrize("latency", [0, 1])
+def test_horizon_shortened_by_one_step_misses(latency: int) -> None:
+    good = _head_on(latency, shorten=False)
+    assert good.onsets == 1
+    assert good.missed == []
+    assert good.reference_misses == 0
+    bad = _head_on(latency, shorten=True)
+    assert bad.onsets == 1
+    assert len(bad.missed) == 1
+    # The slow reference sees it too: tau over all pairs is urgent while the pair is left out.
+    assert bad.reference_misses > 0
+
+
+def test_rebuild_stride_is_the_largest_covered() -> None:
+    for dt in (0.01, 0.002, 0.1, 1 / 3):
+        for latency in (0, 1, 3):
+            for steps in range(1 + latency, 40):
+                T = steps * dt
+                R = rebuild_stride(T, dt, latency)
+                assert (R + latency) * dt <= T
+                assert (R + 1 + latency) * dt > T
+    with pytest.raises(InvalidInputError, match="horizon"):
+        rebuild_stride(0.015, 0.01, 1)
+
+
+def test_match_pairs_against_a_dict() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+
+        def keys(k: int) -> np.ndarray:
+            raw = np.unique(rng.integers(0, 30, size=(k, 2)), axis=0)
+            return raw[raw[:, 0] < raw[:, 1]]
+
+        old, new = keys(60), keys(60)
+        where = {(int(a), int(b)): q for q, (a, b) in enumerate(old)}
+        want = [where.get((int(a), int(b)), -1) for a, b in new]
+        assert match_pairs(old, new).tolist() == want
+
+
+def test_remap_carries_verdicts_and_due_steps() -> None:
+    rng = np.random.default_rng(1)
+    sched = DeadlineScheduler(rng.uniform(0.0, 0.3, 50), dt=0.01, latency=1)
+    for _ in range(5):
+        ids = sched.select()
+        sched.update(ids, rng.uniform(0.0, 0.3, ids.size))
+    src = np.concatenate([rng.permutation(50)[:30], -np.ones(7, dtype=np.int64)])
+    before = (sched.next_due(src[:30]), sched.last_step[src[:30]].copy(), sched.tau(src[:30]))
+    alarm_before = sched.alarm_state(src[:30])
+    n = sched.step_count + 1
+    sched.remap(src, n)
+    assert sched.npairs == 37
+    assert np.array_equal(sched.next_due(np.arange(30)), before[0])
+    assert np.array_equal(sched.last_step[:30], before[1])
+    assert np.array_equal(sched.tau(np.arange(30)), before[2])
+    assert np.array_equal(sched.alarm_state(np.arange(30)), alarm_before)
+    assert (sched.next_due(np.arange(30, 37)) == n).all()
+    assert sched.alarm_state(np.arange(30, 37)).all()
+    # The wheel is consistent: the next selection returns exactly the pairs due then.
+    due_now = set(np.flatnonzero(sched.next_due(np.arange(37)) == n).tolist())
+    assert set(sched.select().tolist()) == due_now
+    with pytest.raises(SchedulerError):
+        sched.remap(src, n + 1)
+
+
+def test_rebuild_keeps_state_and_output_matches_alarm_state() -> None:
+    world = dense_world(3)
+    pred = SpherePredictor(world.radius, 2.0, dt=0.01, latency=1, pairs="pruned", horizon=0.06)
+    pred.reset(world.positions, world.velocities)
+    assert pred.stride == 5
+    kept_checked = 0
+    for step in range(1, 40):
+        sched = pred.scheduler
+        assert isinstance(sched, DeadlineScheduler)
+        old_keys = pred.keys.copy()
+        old_due = sched.next_due(np.arange(pred.npairs))
+        world.step()
+        out = pred.step(world.positions, world.velocities)
+        # The incremental standing set is the scheduler's alarm state over the held pairs.
+        want = pred.keys[np.flatnonzero(sched.alarm_state())]
+        assert np.array_equal(out, want)
+        if step % 5 == 0:
+            assert pred.rebuilds == step // 5
+            src = match_pairs(old_keys, pred.keys)
+            kept = np.flatnonzero(src >= 0)
+            later = old_due[src[kept]] > step  # not due at the rebuild step itself
+            assert np.array_equal(sched.next_due(kept[later]), old_due[src[kept][later]])
+            kept_checked += int(later.sum())
+    assert kept_checked > 20
+
+
+def test_escaped_sphere_rebuilds_and_warns() -> None:
+    world = dense_world(4)
+    pred = SpherePredictor(world.radius, 2.0, dt=0.01, pairs="pruned", horizon=0.2)
+    pred.reset(world.positions, world.velocities)
+    world.step()
+    pred.step(world.positions, world.velocities)
+    assert pred.rebuilds == 0
+    c = world.positions.copy()
+    c[7] += 0.3  # a teleport: far beyond what the acceleration bound allows in one step
+    with pytest.warns(BoundViolationWarning, match="sphere 7"):
+        pred.step(c, world.velocities)
+    assert pred.rebuilds == 1
+
+
+def test_validation() -> None:
+    r = np.full(5, 0.1)
+    c = np.zeros((5, 3))
+    with pytest.raises(InvalidBoundError, match=r"accel\[2\]"):
+        SpherePredictor(r, [1, 1, -1, 1, 1], dt=0.01)
+    with pytest.raises(ShapeError):
+        SpherePredictor(r, np.ones(4), dt=0.01)
+    with pytest.raises(ShapeError, match="radii"):
+        SpherePredictor(np.ones((2, 2)), 1.0, dt=0.01)
+    with pytest.raises(InvalidInputError, match="dt"):
+        SpherePredictor(r, 1.0, dt=0.0)
+    with pytest.raises(InvalidChoiceError, match="pruned"):
+        SpherePredictor(r, 1.0, dt=0.01, pairs="some")
+    with pytest.raises(InvalidChoiceError, match="deadline"):
+        SpherePredictor(r, 1.0, dt=0.01, schedule="fast")
+    with pytest.raises(InvalidInputError, match="schedule='deadline'"):
+        SpherePredictor(r, 1.0, dt=0.01, pairs="pruned", schedule="dua")
+    with pytest.raises(InvalidInputError, match="horizon"):
+        SpherePredictor(r, 1.0, dt=0.01, pairs="pruned", horizon=0.01)
+    with pytest.raises(InvalidInputError, match="horizon"):
+        SpherePredictor(r, 1.0, dt=0.01, pairs="all", horizon=0.5)
+    with pytest.raises(InvalidInputError, match="speed"):
+        SpherePredictor(r, 1.0, dt=0.01, speed=0.0)
+    with pytest.raises(InvalidInputError, match="max_evals_per_step"):
+        SpherePredictor(r, 1.0, dt=0.01, max_evals_per_step=0)
+    for mode in ("all", "pruned"):
+        pred = SpherePredictor(r, 1.0, dt=0.01, pairs=mode)
+        with pytest.raises(SchedulerError, match="reset"):
+            pred.step(c, c)
+        bad = c.copy()
+        bad[3, 1] = np.nan
+        with pytest.raises(NonFiniteStateError, match=r"centers\[3\]"):
+            pred.reset(bad, c)
+        pred.reset(np.arange(15.0).reshape(5, 3), c)
+        with pytest.raises(NonFiniteStateError, match="velocities"):
+            pred.step(c, bad)
+        with pytest.raises(ShapeError, match="5 spheres"):
+            pred.step(np.zeros((6, 3)), np.zeros((6, 3)))
+        with pytest.raises(ShapeError, match="velocities"):
+            pred.step(c, np.zeros((5, 2)))
+
+
+def test_auto_chooses_by_size_and_schedule() -> None:
+    small = SpherePredictor(np.full(AUTO_PRUNED_MIN - 1, 0.1), 1.0, dt=0.01)
+    large = SpherePredictor(np.full(AUTO_PRUNED_MIN, 0.1), 1.0, dt=0.01)
+    dua = SpherePredictor(np.full(AUTO_PRUNED_MIN, 0.1), 1.0, dt=0.01, schedule="dua")
+    assert small.mode is PairMode.ALL and small.stride is None
+    assert large.mode is PairMode.PRUNED and large.stride == 32
+    assert dua.mode is PairMode.ALL
+
+
+def test_other_schedules_over_all_pairs_are_complete() -> None:
+    for schedule in ("dua", "select-all"):
+        world = dense_world(5)
+        pred = SpherePredictor(world.radius, 2.0, dt=0.01, pairs="all", schedule=schedule)
+        out = run_predictor(world, pred, steps=100)
+        assert out.onsets >= 3
+        assert out.missed == []
+
+
+def test_standing_alarms_swap_remove() -> None:
+    s = StandingAlarms(10, np.array([1, 4, 7]))
+    s.renew(np.array([4, 2, 9]), np.array([2]))
+    assert s.ids().tolist() == [1, 2, 7]
+    s.renew(np.array([1, 7, 2]), np.array([], dtype=np.int64))
+    assert s.ids().tolist() == []
