@@ -144,7 +144,35 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         default=0,
         help="periods a verdict takes to reach the user (0: synchronous, after mj_step)",
     )
-    p.add_argument("--budget", type=_positive(int), default=1, help="slots per bucket per step")
+    p.add_argument(
+        "--schedule",
+        choices=["deadline", "dua", "select-all"],
+        default="deadline",
+        help="which pairs to evaluate each step: each when its own tau runs out (deadline), "
+        "the paper's constant-work rank buckets (dua), or all of them (select-all)",
+    )
+    p.add_argument(
+        "--max-evals",
+        type=_positive(int),
+        default=None,
+        help="deadline: cap on tau evaluations a step; pairs due beyond it wait, in alarm once "
+        "their verdict no longer covers the wait (default: no cap)",
+    )
+    p.add_argument(
+        "--slots-per-bucket",
+        type=_positive(int),
+        default=1,
+        help="dua: slots evaluated per bucket per step, a power of two (revisit intervals "
+        "shrink that many times)",
+    )
+    p.add_argument(
+        "--pairs",
+        choices=["all", "pruned", "auto"],
+        default="all",
+        help="deadline: hold every active sphere pair, or only those whose reachable balls "
+        "meet within a horizon (rebuilt as they move; for thousands of spheres), or choose "
+        "by size",
+    )
     p.add_argument(
         "--pilot-steps",
         type=_positive(int),
@@ -369,7 +397,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         hfield=args.hfield,
         period=args.period,
         latency=args.latency,
-        slots_per_bucket=args.budget,
+        schedule=args.schedule,
+        max_evals_per_step=args.max_evals,
+        slots_per_bucket=args.slots_per_bucket,
+        pairs=args.pairs,
         pilot_steps=args.pilot_steps,
         pilot_seed=args.seed + 1_000_003,
         pilot_controller=pilot,

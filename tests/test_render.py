@@ -263,6 +263,9 @@ def test_video_writer_streams_and_an_interrupt_leaves_a_playable_video(
             sizes.append(sum(p.stat().st_size for p in tmp))
     assert writer.count == 7
     assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # no temporary left
+    umask = os.umask(0)
+    os.umask(umask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~umask  # not the temporary file's 0600
     video = read_video(path)
     assert video.shape == (7, 48, 64, 3)
     assert np.abs(video.astype(int) - np.asarray(frames[:7], dtype=int)).mean() < 8

@@ -135,7 +135,7 @@ class Monitor:
         self._standing = np.zeros(self._ngp, dtype=np.int64)
         self._pair_alarm = np.zeros(self.predictor.nsphere_pairs, dtype=bool)
         self._scheduler = self.predictor.scheduler
-        self._activation_seen = self.predictor.scheduler.activation_changes  # type: ignore[union-attr]
+        self._activation_seen = self.predictor.pair_state().activation_changes
         self._episode_start = np.full(self._ngp, np.nan)
         self._episode_horizon = np.zeros(self._ngp)
         self._episode_touch = np.zeros(self._ngp, dtype=bool)
@@ -195,8 +195,7 @@ class Monitor:
 
     def _apply_alarms(self, alarmed: np.ndarray, evaluated: np.ndarray, t: float) -> None:
         """Update the standing alarms from the pairs ``evaluated`` (``alarmed`` among them)."""
-        sched = self.predictor.scheduler
-        assert sched is not None
+        sched = self.predictor.pair_state()
         gp = self.predictor.sphere_pairs.geom_pair
         ids = np.union1d(evaluated, alarmed)
         new = sched.alarm_state(ids) & sched.active[ids]
@@ -249,8 +248,7 @@ class Monitor:
         ``exclude``: the pairs evaluated at this step, whose state the evaluation gives.
         O(pairs), only on steps after a change.
         """
-        sched = self.predictor.scheduler
-        assert sched is not None
+        sched = self.predictor.pair_state()
         if sched.activation_changes == self._activation_seen:
             return
         self._activation_seen = sched.activation_changes
@@ -263,8 +261,7 @@ class Monitor:
             self._apply_alarms(changed[now[changed]], changed, self._time)
 
     def _observe_alarms(self, data: mujoco.MjData, alarms: Alarms) -> None:
-        sched = self.predictor.scheduler
-        assert sched is not None
+        sched = self.predictor.pair_state()
         self._pred_steps.append(self.physics_step)
         evaluated = sched.last_selected
         self.predictor_steps += 1
@@ -308,9 +305,8 @@ class Monitor:
 
     def _active_geom_pairs(self) -> np.ndarray:
         """Mask of geom pairs with an active sphere pair; O(pairs) only after a switch."""
-        sched = self.predictor.scheduler
-        assert sched is not None
-        seen = (sched, sched.activation_changes)
+        sched = self.predictor.pair_state()
+        seen = (self.predictor.scheduler, sched.activation_changes)
         if (
             self._gp_active_seen is None
             or seen[0] is not self._gp_active_seen[0]
@@ -347,8 +343,7 @@ class Monitor:
                 self.violations += int(broke.size)
                 since = self.physics_step - self._root_contact[self._body_root[broke]]
                 self.free_violations += int(np.count_nonzero(since >= _CONTACT_LAG))
-        sched = self.predictor.scheduler
-        assert sched is not None
+        sched = self.predictor.pair_state()
         if alarms is not None and alarms.step != sched.step_count:
             # predictor.reset came between step() and here: its classification is of this
             # instant, and these alarms belong to the scheduler it replaced.
@@ -390,8 +385,7 @@ class Monitor:
         self._time = t
 
     def _onsets(self, onset: np.ndarray, t: float) -> None:
-        sched = self.predictor.scheduler
-        assert sched is not None
+        sched = self.predictor.pair_state()
         for g in onset.tolist():
             members = self._gp_order[self._gp_start[g] : self._gp_start[g + 1]]
             if not sched.active[members].any():
@@ -404,7 +398,7 @@ class Monitor:
                 self._episode_touch[g] = True
                 continue
             live = members[sched.active[members]]
-            last = int(sched.last_step[live].min())
+            last = int(sched.last_step_of(live).min())
             window_start = self._pred_steps[last]
             bodies = self._gp_body[g]
             held = (
@@ -422,7 +416,7 @@ class Monitor:
                     geom2=str(self._names[g2]),
                     bounds_held=held,
                     last_evaluation_step=last,
-                    last_tau=float(sched.last_tau[live].min()),
+                    last_tau=float(sched.last_tau_of(live).min()),
                 )
             )
 

@@ -55,6 +55,7 @@ from dua_mujoco.mj.filter import (
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states, step_rigid_kernel
 from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.pruning import HeldPairs
 from dua_mujoco.mj.tables import PairTables, plane_halfspaces, same_geometry
 
@@ -254,6 +255,8 @@ class Predictor:
         self._records = self._pair_records
         self._on = np.ones(len(self.pair_set), dtype=bool) if self._held is not None else None
         self._built_at = 0
+        self.rebuilds = 0
+        """Rebuilds of the held pairs so far (pruned pairs only)."""
 
     # ----------------------------------------------------------------------- setup
 
@@ -297,6 +300,15 @@ class Predictor:
         """Hold the pairs ``ids`` (sorted): the compiled step reads only their records."""
         self._ids = ids
         self._records = np.ascontiguousarray(self._pair_records[ids])
+
+    def pair_state(self) -> PairState:
+        """The scheduler's state of every sphere pair, by the model's pair ids (pruned or not)."""
+        sched = self._require_scheduler()
+        if self._held is None:
+            return PairState(sched, self.nsphere_pairs)
+        return PairState(
+            sched, self.nsphere_pairs, self._ids, self._on, self.rebuilds, self._built_at
+        )
 
     @property
     def held_pairs(self) -> np.ndarray:
@@ -578,6 +590,7 @@ class Predictor:
         # New pairs switched off (intended contact) stay off.
         sched.set_active(np.flatnonzero(~kept & ~self._on[ids]), False)
         self._built_at = step
+        self.rebuilds += 1
 
     def _switch(self, ids: np.ndarray, on: bool) -> None:
         """Switch sphere pairs ``ids`` (among all active pairs) in the scheduler."""

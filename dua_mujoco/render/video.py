@@ -190,6 +190,10 @@ class VideoWriter:
                 dir=self.path.parent, prefix=f".{self.path.stem}.", suffix=self.path.suffix
             )
             os.close(fd)
+            # mkstemp makes the file private (0600): give it the mode a plain open would.
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(name, 0o666 & ~umask)
             self._tmp = target = Path(name)
         if self._gif:
             self._file = open(target, "wb")  # noqa: SIM115 - closed by close()
