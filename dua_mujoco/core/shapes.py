@@ -41,13 +41,13 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.core.urgency import tau_halfspace
 from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidInputError,
     NonFiniteStateError,
     ShapeError,
 )
-from dua_mujoco.core.urgency import tau_halfspace
 
 __all__ = [
     "SHAPE_KIND",

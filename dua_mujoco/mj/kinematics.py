@@ -29,17 +29,20 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.core.pairset import (
+    KIND_HALFSPACE,
+    KIND_SHAPE,
     PAIR_ACCEL,
     PAIR_DELTA,
     PAIR_EPS,
     PAIR_FIRST,
-    PAIR_HALFSPACE,
-    PAIR_PLANE_FRAME,
+    PAIR_KIND,
+    PAIR_OTHER,
     PAIR_SECOND,
     PAIR_SPEED,
 )
 from dua_mujoco.core.schedules import kernels
 from dua_mujoco.core.schedules.state import W_IDS
+from dua_mujoco.core.shapes import tau_static
 from dua_mujoco.core.urgency import tau_halfspace, tau_speed
 from dua_mujoco.exceptions import ShapeError
 
@@ -190,24 +193,28 @@ def _check_frame(spheres: np.ndarray, frame: tuple[np.ndarray, ...]) -> None:
 
 
 @nb.njit(cache=True)
-def step_rigid_kernel(st, n, pairs, spheres, frame):  # pragma: no cover - jitted
+def step_rigid_kernel(st, n, pairs, spheres, frame, shapes):  # pragma: no cover - jitted
     """The fused step on spheres attached to rigid frames (a ``FusedKernel``).
 
     Reads only the selected spheres. ``pairs`` and ``spheres`` are ``pack_pairs`` /
-    ``pack_spheres`` records. Two passes: first every selected pair's state is gathered
-    (independent loads, which the CPU overlaps; the tables are cold after ``mj_step``), then tau
-    is computed from that small buffer. A pair whose state is not finite abandons the step.
+    ``pack_spheres`` records; ``shapes`` the ``(nshape, 16)`` static shape records
+    (``pack_shapes``, one placeholder row without shapes) that shape pairs' ``PAIR_OTHER``
+    indexes. Two passes: first every selected pair's state is gathered (independent loads, which
+    the CPU overlaps; the tables are cold after ``mj_step``), then tau is computed from that
+    small buffer. A pair whose state is not finite abandons the step.
     """
     frame_pos, frame_mat = frame[0], frame[1]
     count = kernels.select(st, n)
     w_ids = st.work[W_IDS]
-    # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset).
+    # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset;
+    # zeros for a static shape, whose record is constant and checked when packed).
     state = np.empty((count, 12))
     for k in range(count):
         rec = pairs[w_ids[k]]
         rigid_point(int(rec[PAIR_FIRST]), spheres, frame, state[k, 0:6])
-        if rec[PAIR_HALFSPACE] != 0.0:
-            g = int(rec[PAIR_PLANE_FRAME])
+        kind = int(rec[PAIR_KIND])
+        if kind == KIND_HALFSPACE:
+            g = int(rec[PAIR_OTHER])
             state[k, 6] = frame_mat[g, 2]
             state[k, 7] = frame_mat[g, 5]
             state[k, 8] = frame_mat[g, 8]
@@ -218,6 +225,9 @@ def step_rigid_kernel(st, n, pairs, spheres, frame):  # pragma: no cover - jitte
             )
             state[k, 10] = 0.0
             state[k, 11] = 0.0
+        elif kind == KIND_SHAPE:
+            for a in range(6, 12):
+                state[k, a] = 0.0
         else:
             rigid_point(int(rec[PAIR_SECOND]), spheres, frame, state[k, 6:12])
     for k in range(count):
@@ -230,10 +240,24 @@ def step_rigid_kernel(st, n, pairs, spheres, frame):  # pragma: no cover - jitte
             bad = w_ids[k]
             kernels.restore(st, n, count)
             return count, 0, bad
-        if rec[PAIR_HALFSPACE] != 0.0:
+        kind = int(rec[PAIR_KIND])
+        if kind == KIND_HALFSPACE:
             gap = s[6] * s[0] + s[7] * s[1] + s[8] * s[2] - s[9] - rec[PAIR_EPS]
             vn = s[6] * s[3] + s[7] * s[4] + s[8] * s[5]
             st.w_tau[k] = tau_halfspace(gap, vn, rec[PAIR_ACCEL], rec[PAIR_DELTA])
+        elif kind == KIND_SHAPE:
+            st.w_tau[k] = tau_static(
+                s[0],
+                s[1],
+                s[2],
+                s[3],
+                s[4],
+                s[5],
+                shapes[int(rec[PAIR_OTHER])],
+                rec[PAIR_EPS],
+                rec[PAIR_ACCEL],
+                rec[PAIR_DELTA],
+            )
         else:
             st.w_tau[k] = tau_speed(
                 s[6] - s[0],

@@ -32,6 +32,7 @@ from dua_mujoco.core.schedules import (
 )
 from dua_mujoco.core.schedules.deadline import check_max_evals
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
+from dua_mujoco.core.shapes import SHAPE_NCOL
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
     InvalidChoiceError,
@@ -53,7 +54,7 @@ from dua_mujoco.mj.filter import (
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states, step_rigid_kernel
 from dua_mujoco.mj.mocap import MocapVelocityTracker
-from dua_mujoco.mj.tables import PairTables, plane_halfspaces, same_geometry
+from dua_mujoco.mj.tables import PairTables, plane_halfspaces, same_geometry, static_shapes
 
 __all__ = ["BoundsLike", "Predictor"]
 
@@ -101,6 +102,9 @@ class Predictor:
         covering: ``"bounding"``, ``"multi"``, a ``CoveringMode`` or a ready ``Covering``.
         max_spheres_per_geom: Budget of the multi-sphere covering.
         hfield: ``"error"`` or ``"box"`` (conservative box covering of height fields).
+        static: ``"shape"`` (default): geoms welded to the world are held as their own convex
+            shapes (docs/static-shapes.md); ``"sphere"``: covered by spheres like moving geoms.
+            Ignored for a ready ``Covering``.
         period: Physics steps between predictor steps (``>= 1``); the predictor period is
             ``period * model.opt.timestep``.
         latency: Periods a verdict takes to act. 0 (the default) is right when ``step`` runs
@@ -132,6 +136,7 @@ class Predictor:
         covering: Covering | CoveringMode | str = "bounding",
         max_spheres_per_geom: int = 8,
         hfield: str = "error",
+        static: str = "shape",
         period: int = 1,
         latency: int = 0,
         schedule: Schedule | str = Schedule.DEADLINE,
@@ -161,7 +166,11 @@ class Predictor:
             covering
             if isinstance(covering, Covering)
             else cover_model(
-                model, mode=covering, max_spheres_per_geom=max_spheres_per_geom, hfield=hfield
+                model,
+                mode=covering,
+                max_spheres_per_geom=max_spheres_per_geom,
+                hfield=hfield,
+                static=static,
             )
         )
         self.geom_pairs: GeomPairs = active_geom_pairs(model)
@@ -225,6 +234,8 @@ class Predictor:
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
         self._pair_records = pack_pairs(self.pair_set, self._plane_geom)
+        # Static shape records, packed at each reset (static_shapes: their pose is a constant).
+        self._shapes = np.zeros((1, SHAPE_NCOL))
         # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: Scheduler | None = None
@@ -238,10 +249,9 @@ class Predictor:
     def _pair_set(self) -> PairSet:
         sp, cov, b = self.sphere_pairs, self.covering, self.bounds
         body1 = cov.sphere_body[sp.first]
-        # Half-space pairs: planes are static (covering/pairs reject moving planes).
-        body2 = np.where(
-            sp.is_halfspace, 0, cov.sphere_body[np.where(sp.is_halfspace, 0, sp.second)]
-        )
+        # Half-space and shape pairs: planes and shapes are static (the world body's bounds).
+        lone = sp.is_halfspace | sp.is_shape
+        body2 = np.where(lone, 0, cov.sphere_body[np.where(lone, 0, sp.second)])
         accel = b.accel[body1] + b.accel[body2]
         delta = b.vel_uncertainty[body1] + b.vel_uncertainty[body2]
         if self.mocap is not None and self.period > 1:
@@ -254,13 +264,13 @@ class Predictor:
             delta = delta + (extra * b.accel)[body1] + (extra * b.accel)[body2]
         speed: npt.ArrayLike = np.inf
         if b.speed is not None:
-            speed = np.where(sp.is_halfspace, b.speed[body1], b.speed[body1] + b.speed[body2])
+            speed = np.where(lone, b.speed[body1], b.speed[body1] + b.speed[body2])
         return PairSet(
             sp.first,
             sp.second,
             sp.eps,
             accel,
-            halfspace=sp.is_halfspace,
+            kind=sp.kind,
             vel_uncertainty=delta,
             speed=speed,
         )
@@ -398,7 +408,9 @@ class Predictor:
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
         halfspaces = self.halfspaces(data)
-        tau0 = self.pair_set.tau(np.arange(len(self.pair_set)), c, v, halfspaces)
+        self._shapes = static_shapes(self.model, data, self.covering.shape_geom)
+        shapes = self._shapes if self.covering.nshape else None
+        tau0 = self.pair_set.tau(np.arange(len(self.pair_set)), c, v, halfspaces, shapes=shapes)
         self.scheduler = self._scheduler(tau0)
         self._load_compiled(data, frame)
         self._time = float(data.time)
@@ -436,7 +448,9 @@ class Predictor:
         """
         if len(self.pair_set):
             spare = self._scheduler(np.full(1, np.inf))
-            spare.step_with(step_rigid_kernel, self._pair_records[:1], self._spheres, frame)
+            spare.step_with(
+                step_rigid_kernel, self._pair_records[:1], self._spheres, frame, self._shapes
+            )
             spare.set_active([0], False)
             spare.set_active([0], True)
         if self.mocap is not None:
@@ -471,7 +485,9 @@ class Predictor:
             )
         if self.mocap is not None:
             self.mocap.update(data, self._twist)
-        alarmed, bad = sched.step_with(step_rigid_kernel, self._pair_records, self._spheres, frame)
+        alarmed, bad = sched.step_with(
+            step_rigid_kernel, self._pair_records, self._spheres, frame, self._shapes
+        )
         if bad >= 0:
             raise self._nonfinite(data, bad)
         self._time = time
