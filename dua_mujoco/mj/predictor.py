@@ -54,6 +54,7 @@ from dua_mujoco.mj.filter import (
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states, step_rigid_kernel
 from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.refine import Refinement, build_refinement, no_refinement, refine_taus
 from dua_mujoco.mj.tables import PairTables, plane_halfspaces, same_geometry, static_shapes
 
 __all__ = ["BoundsLike", "Predictor"]
@@ -105,6 +106,11 @@ class Predictor:
         static: ``"shape"`` (default): geoms welded to the world are held as their own convex
             shapes (docs/static-shapes.md); ``"sphere"``: covered by spheres like moving geoms.
             Ignored for a ready ``Covering``.
+        refine: Two-level urgency (docs/static-shapes.md, section 12): with an int ``n >= 1``,
+            pairs of the bounding covering whose tau is below ``refine_below`` are refined with
+            the geoms' ``multi`` coverings of ``n`` spheres each (requires
+            ``covering="bounding"``). None (default): off.
+        refine_below: Refine pairs whose bounding tau is below this many seconds.
         period: Physics steps between predictor steps (``>= 1``); the predictor period is
             ``period * model.opt.timestep``.
         latency: Periods a verdict takes to act. 0 (the default) is right when ``step`` runs
@@ -137,6 +143,8 @@ class Predictor:
         max_spheres_per_geom: int = 8,
         hfield: str = "error",
         static: str = "shape",
+        refine: int | None = None,
+        refine_below: float = 0.1,
         period: int = 1,
         latency: int = 0,
         schedule: Schedule | str = Schedule.DEADLINE,
@@ -185,6 +193,18 @@ class Predictor:
             )
         cov = self.covering
         spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
+        fine = None
+        if refine is not None:
+            fine = cover_model(
+                model, mode="multi", max_spheres_per_geom=refine, hfield=hfield, static=static
+            )
+            # The bounds must hold for the fine sphere centres too: the pilot measures both.
+            spheres = tuple(  # type: ignore[assignment]
+                np.concatenate([a, b])
+                for a, b in zip(
+                    spheres, (fine.sphere_geom, fine.sphere_body, fine.sphere_offset), strict=True
+                )
+            )
         if isinstance(accel, MotionBounds):
             if accel.accel.shape != (model.nbody,):
                 raise InvalidInputError(
@@ -234,6 +254,15 @@ class Predictor:
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
         self._pair_records = pack_pairs(self.pair_set, self._plane_geom)
+        self.refinement: Refinement | None = (
+            None
+            if fine is None
+            else build_refinement(
+                model.body_rootid, cov, fine, self.sphere_pairs, self.geom_pairs, refine_below
+            )
+        )
+        """The two-level urgency's fine coverings (None without ``refine``)."""
+        self._refine = no_refinement() if self.refinement is None else self.refinement.args
         # Static shape records, packed at each reset (static_shapes: their pose is a constant).
         self._shapes = np.zeros((1, SHAPE_NCOL))
         # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
@@ -410,7 +439,10 @@ class Predictor:
         halfspaces = self.halfspaces(data)
         self._shapes = static_shapes(self.model, data, self.covering.shape_geom)
         shapes = self._shapes if self.covering.nshape else None
-        tau0 = self.pair_set.tau(np.arange(len(self.pair_set)), c, v, halfspaces, shapes=shapes)
+        ids = np.arange(len(self.pair_set))
+        tau0 = self.pair_set.tau(ids, c, v, halfspaces, shapes=shapes)
+        if self.refinement is not None:
+            refine_taus(tau0, ids, self._pair_records, frame, self._shapes, self._refine)
         self.scheduler = self._scheduler(tau0)
         self._load_compiled(data, frame)
         self._time = float(data.time)
@@ -449,7 +481,12 @@ class Predictor:
         if len(self.pair_set):
             spare = self._scheduler(np.full(1, np.inf))
             spare.step_with(
-                step_rigid_kernel, self._pair_records[:1], self._spheres, frame, self._shapes
+                step_rigid_kernel,
+                self._pair_records[:1],
+                self._spheres,
+                frame,
+                self._shapes,
+                self._refine,
             )
             spare.set_active([0], False)
             spare.set_active([0], True)
@@ -486,7 +523,7 @@ class Predictor:
         if self.mocap is not None:
             self.mocap.update(data, self._twist)
         alarmed, bad = sched.step_with(
-            step_rigid_kernel, self._pair_records, self._spheres, frame, self._shapes
+            step_rigid_kernel, self._pair_records, self._spheres, frame, self._shapes, self._refine
         )
         if bad >= 0:
             raise self._nonfinite(data, bad)
