@@ -27,7 +27,7 @@ def _reference(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
     assert ref is not None
     ps = p.pair_set
     c, v = p.sphere_states(d)
-    shapes = static_shapes(p.model, d, p.covering.shape_geom)
+    shapes = static_shapes(p.model, p.covering.shape_geom, d)
     shapes_arg = shapes if p.covering.nshape else None
     coarse = ps.tau(np.arange(len(ps)), c, v, p.halfspaces(d), shapes=shapes_arg)
     # One bounding pair per geom pair: the fine sub-pairs take its bounds.

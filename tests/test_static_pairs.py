@@ -66,7 +66,7 @@ def test_static_geoms_become_shapes(gtype: str) -> None:
     assert cov.spheres_of(link).size == 1 and cov.nsphere == 2
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
-    rec = static_shapes(m, d, cov.shape_geom)
+    rec = static_shapes(m, cov.shape_geom, d)
     assert rec.shape == (1, 16)
     assert int(rec[0, SHAPE_KIND]) == int(m.geom_type[static])
     if gtype == "mesh":
@@ -177,7 +177,7 @@ def test_fused_step_equals_time_to_static(scene: str) -> None:
         sched = p.scheduler
         assert sched is not None
         c, v = _predictor_states(p, d)
-        shapes = static_shapes(m, d, p.covering.shape_geom)
+        shapes = static_shapes(m, p.covering.shape_geom, d)
         # The slow reference, pair by pair, through the validated front of the shape kernel.
         i = ps.first[shape_ids]
         want = time_to_static(
@@ -212,6 +212,9 @@ def test_pairset_kinds_and_geometry() -> None:
     assert tau[2] == pytest.approx(1.4)
     with pytest.raises(InvalidInputError, match="shapes="):
         ps.tau([2], c, v, planes)
+    # Records held by the pair set serve when none are passed (static shapes do not move).
+    held = PairSet([0, 0, 0], [1, 0, 0], [0.2, 0.1, 0.1], 0.0, kind=[0, 1, 2], shapes=shapes)
+    np.testing.assert_array_equal(held.tau([0, 1, 2], c, v, planes), tau)
     with pytest.raises(InvalidInputError, match="not both"):
         PairSet([0], [1], 0.1, 0.0, kind=[0], halfspace=[False])
     with pytest.raises(InvalidInputError, match="PairKind"):

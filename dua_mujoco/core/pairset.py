@@ -191,6 +191,9 @@ class PairSet:
         vel_uncertainty: ``(M,)`` or scalar velocity uncertainty ``delta`` (default 0).
         speed: ``(M,)`` or scalar relative speed bound (default ``inf``, none); not used by
             half-space and shape pairs.
+        shapes: ``(nshape, 16)`` static shape records (``dua_mujoco.core.shapes.pack_shapes``)
+            that shape pairs index, or None; held as ``PairSet.shapes`` (static shapes do not
+            move, so ``tau`` and ``geometry`` use them unless given others).
 
     Attributes:
         kind: ``(M,)`` int8 ``PairKind`` codes.
@@ -209,6 +212,7 @@ class PairSet:
         kind: npt.ArrayLike | None = None,
         vel_uncertainty: npt.ArrayLike = 0.0,
         speed: npt.ArrayLike = np.inf,
+        shapes: npt.ArrayLike | None = None,
     ) -> None:
         self.first = as_ids("first", first)
         m = self.first.shape[0]
@@ -235,6 +239,7 @@ class PairSet:
         self.max_shape = int(self.second[self.shape].max(initial=-1))
         self.has_halfspace = bool(self.halfspace.any())
         self.has_shape = bool(self.shape.any())
+        self.shapes: np.ndarray | None = None if shapes is None else _as_shape_records(shapes)
 
     def __len__(self) -> int:
         return int(self.first.shape[0])
@@ -302,7 +307,7 @@ class PairSet:
                 ``{p : normals[j] . p <= offsets[j]}`` seen from outside, i.e. a sphere centre ``c``
                 has clearance ``normals[j] . c - offsets[j] - eps``.
             shapes: ``(nshape, 16)`` static shape records (``dua_mujoco.core.shapes.pack_shapes``)
-                if any pair is a shape pair.
+                if any pair is a shape pair; default ``PairSet.shapes``.
 
         Returns:
             ``(n,)`` tau of each pair.
@@ -345,7 +350,9 @@ class PairSet:
                 )
             planes = np.ascontiguousarray(np.column_stack([nrm, off]))
         recs = _NO_SHAPES
-        if shapes is None:
+        if shapes is None and self.shapes is not None:
+            recs = self.shapes
+        elif shapes is None:
             if self.has_shape:
                 raise InvalidInputError(
                     "these pairs include static shapes: pass shapes=records (pack_shapes)."

@@ -32,7 +32,6 @@ from dua_mujoco.core.schedules import (
 )
 from dua_mujoco.core.schedules.deadline import check_max_evals
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
-from dua_mujoco.core.shapes import SHAPE_NCOL
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
     InvalidChoiceError,
@@ -263,8 +262,11 @@ class Predictor:
         )
         """The two-level urgency's fine coverings (None without ``refine``)."""
         self._refine = no_refinement() if self.refinement is None else self.refinement.args
-        # Static shape records, packed at each reset (static_shapes: their pose is a constant).
-        self._shapes = np.zeros((1, SHAPE_NCOL))
+        # Static shape records: their poses are model constants (static_shapes), re-packed and
+        # checked against the data at each reset.
+        self._shapes = static_shapes(model, cov.shape_geom)
+        if cov.nshape:
+            self.pair_set.shapes = self._shapes
         # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: Scheduler | None = None
@@ -437,10 +439,11 @@ class Predictor:
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
         halfspaces = self.halfspaces(data)
-        self._shapes = static_shapes(self.model, data, self.covering.shape_geom)
-        shapes = self._shapes if self.covering.nshape else None
+        self._shapes = static_shapes(self.model, self.covering.shape_geom, data)
+        if self.covering.nshape:
+            self.pair_set.shapes = self._shapes
         ids = np.arange(len(self.pair_set))
-        tau0 = self.pair_set.tau(ids, c, v, halfspaces, shapes=shapes)
+        tau0 = self.pair_set.tau(ids, c, v, halfspaces)
         if self.refinement is not None:
             refine_taus(tau0, ids, self._pair_records, frame, self._shapes, self._refine)
         self.scheduler = self._scheduler(tau0)

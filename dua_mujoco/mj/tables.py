@@ -150,22 +150,24 @@ def plane_halfspaces(data: mujoco.MjData, plane_geom: np.ndarray) -> tuple[np.nd
 _STATIC_POSE_TOL = 1e-9
 
 
-def static_shapes(model: mujoco.MjModel, data: mujoco.MjData, shape_geom: np.ndarray) -> np.ndarray:
-    """Shape records of the static geoms, checked against the pose the model gives them.
+def static_shapes(
+    model: mujoco.MjModel, shape_geom: np.ndarray, data: mujoco.MjData | None = None
+) -> np.ndarray:
+    """Shape records of the static geoms, optionally checked against ``data``.
 
     A body welded to the world (``body_weldid == 0``) has no joint and no mocap body between it
     and the world, so ``mj_kinematics`` computes its geoms' poses from model constants only
     (``body_pos``, ``body_quat``, ``geom_pos``, ``geom_quat`` along the chain): they are the same
     at every step, and the records can be packed once. They are packed here from a scratch
-    ``MjData`` of ``model`` and compared with ``data``: a mismatch means ``data`` is not of this
-    model's placement of the static geoms (another model with the same geoms but moved bodies,
-    a model edited since ``data``'s last ``mj_forward``, or poses written by hand), and the
-    prediction would be wrong.
+    ``MjData`` of ``model`` and, when given, compared with ``data``: a mismatch means ``data`` is
+    not of this model's placement of the static geoms (another model with the same geoms but
+    moved bodies, a model edited since ``data``'s last ``mj_forward``, or poses written by hand),
+    and the prediction would be wrong.
 
     Args:
         model: the compiled model.
-        data: its data, kinematics computed.
         shape_geom: ``(nshape,)`` static geoms (``Covering.shape_geom``).
+        data: its data, kinematics computed, or None for no check.
 
     Returns:
         ``(nshape, 16)`` records (``dua_mujoco.core.shapes``); one placeholder row (never read)
@@ -181,6 +183,22 @@ def static_shapes(model: mujoco.MjModel, data: mujoco.MjData, shape_geom: np.nda
     mujoco.mj_kinematics(model, scratch)
     pos = np.asarray(scratch.geom_xpos)[g]
     mat = np.asarray(scratch.geom_xmat)[g]
+    if data is not None:
+        _check_static_poses(model, g, pos, mat, data)
+    types = np.asarray(model.geom_type, dtype=np.int64)[g]
+    size = np.asarray(model.geom_size, dtype=np.float64)[g].copy()
+    mesh = types == int(ShapeKind.MESH_BOX)
+    if mesh.any():
+        half, centre = mesh_box(np.asarray(model.geom_aabb)[g[mesh]], pos[mesh], mat[mesh])
+        size[mesh] = half
+        pos = pos.copy()
+        pos[mesh] = centre
+    return pack_shapes(types, size, pos, mat)
+
+
+def _check_static_poses(
+    model: mujoco.MjModel, g: np.ndarray, pos: np.ndarray, mat: np.ndarray, data: mujoco.MjData
+) -> None:
     dpos = np.asarray(data.geom_xpos)[g]
     dmat = np.asarray(data.geom_xmat)[g]
     err = np.maximum(np.abs(dpos - pos).max(axis=1), np.abs(dmat - mat).max(axis=1))
@@ -195,12 +213,3 @@ def static_shapes(model: mujoco.MjModel, data: mujoco.MjData, shape_geom: np.nda
             "mujoco.mj_forward(model, data) after editing the model (body_pos, geom_pos, ...), "
             "then predictor.reset(data); or build a Predictor for the model data belongs to."
         )
-    types = np.asarray(model.geom_type, dtype=np.int64)[g]
-    size = np.asarray(model.geom_size, dtype=np.float64)[g].copy()
-    mesh = types == int(ShapeKind.MESH_BOX)
-    if mesh.any():
-        half, centre = mesh_box(np.asarray(model.geom_aabb)[g[mesh]], pos[mesh], mat[mesh])
-        size[mesh] = half
-        pos = pos.copy()
-        pos[mesh] = centre
-    return pack_shapes(types, size, pos, mat)
