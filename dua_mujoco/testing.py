@@ -3,8 +3,8 @@
 :func:`assert_no_missed_collisions` rolls a scene out with a :class:`~dua_mujoco.Predictor` and
 MuJoCo's contacts as the exact stage (:func:`dua_mujoco.mj.monitor.run`) and fails, with the
 geoms and times, if a contact onset was not preceded by an alarm while the declared bounds held:
-that is a broken completeness guarantee, a bug. Optionally it holds the alarm counts to a stored baseline so
-that a change that floods the exact stage with false alarms fails too.
+that is a broken completeness guarantee, a bug. Optionally it holds the alarm counts to a stored
+baseline so that a change that floods the exact stage with false alarms fails too.
 
 The pytest plugin adds the function-scoped fixture ``dua_predict`` (the same callable, with
 relative baseline paths resolved against the test file's folder) and the option

@@ -152,8 +152,9 @@ def test_multi_tighter_than_bounding_for_elongated_box() -> None:
     m = mujoco.MjModel.from_xml_string(
         '<mujoco><worldbody><geom type="box" size="1 .1 .1"/></worldbody></mujoco>'
     )
-    vb = np.sum(cover_model(m, mode="bounding").sphere_radius ** 3)
-    multi = cover_model(m, mode="multi", max_spheres_per_geom=8)
+    # A world geom: covered by spheres only with static="sphere".
+    vb = np.sum(cover_model(m, mode="bounding", static="sphere").sphere_radius ** 3)
+    multi = cover_model(m, mode="multi", max_spheres_per_geom=8, static="sphere")
     assert multi.nsphere <= 8
     assert np.sum(multi.sphere_radius**3) < 0.2 * vb
 
@@ -166,7 +167,7 @@ def test_multi_exact_sphere_and_capsule_shapes() -> None:
         <geom type="ellipsoid" size=".2 .2 .2"/>
         </worldbody></mujoco>"""
     )
-    cov = cover_model(m, mode="multi", max_spheres_per_geom=6)
+    cov = cover_model(m, mode="multi", max_spheres_per_geom=6, static="sphere")
     assert cov.spheres_of(0).size == 1 and cov.sphere_radius[0] == pytest.approx(0.3)
     caps = cov.spheres_of(1)
     assert 1 < caps.size <= 6

@@ -1,35 +1,60 @@
-"""Pair geometry: which spheres (or half-spaces) form each pair, and the pair's bounds.
+"""Pair geometry: which spheres, half-spaces or static shapes form each pair, and its bounds.
 
-``PairSet`` holds the pairs of sphere ids with their contact distance ``eps``, acceleration
-bound, velocity uncertainty and speed bound; ``tau`` evaluates pairs from sphere states, and
-``pair_tau`` is the compiled evaluation the schedules' fused step on free spheres calls.
-``pack_pairs`` packs the same data into one row per pair (named ``PAIR_*`` columns) for the
-MuJoCo layer's fused step, which reads cold tables after ``mj_step``.
+``PairSet`` holds the pairs with their kind (``PairKind``: sphere-sphere, sphere-half-space,
+sphere-static-shape), contact distance ``eps``, acceleration bound, velocity uncertainty and
+speed bound; ``tau`` evaluates pairs from sphere states, and ``pair_tau`` is the compiled
+evaluation the schedules' fused step on free spheres calls. ``pack_pairs`` packs the same data
+into one row per pair (named ``PAIR_*`` columns) for the MuJoCo layer's fused step, which reads
+cold tables after ``mj_step``.
 """
 
 from __future__ import annotations
+
+import enum
 
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.core.shapes import SHAPE_NCOL, tau_static
 from dua_mujoco.core.urgency import PARALLEL_MIN, tau_halfspace, tau_speed
 from dua_mujoco.core.validate import as_ids, as_vectors, per_pair
 from dua_mujoco.exceptions import InvalidBoundError, InvalidInputError, ShapeError
 
 __all__ = [
+    "KIND_HALFSPACE",
+    "KIND_SHAPE",
+    "KIND_SPHERE",
     "PAIR_ACCEL",
     "PAIR_DELTA",
     "PAIR_EPS",
     "PAIR_FIRST",
-    "PAIR_HALFSPACE",
-    "PAIR_PLANE_FRAME",
+    "PAIR_KIND",
+    "PAIR_OTHER",
     "PAIR_SECOND",
     "PAIR_SPEED",
+    "PairKind",
     "PairSet",
     "pack_pairs",
     "pair_tau",
 ]
+
+
+class PairKind(enum.IntEnum):
+    """What the second member of a pair is; the first is always a sphere."""
+
+    SPHERE = 0
+    """Another sphere: ``second`` is a sphere id."""
+    HALFSPACE = 1
+    """A half-space (a plane): ``second`` is a half-space id."""
+    SHAPE = 2
+    """A static convex shape (``dua_mujoco.core.shapes``): ``second`` is a shape record row."""
+
+
+# Plain ints for the kernels (numba folds module-level ints into constants).
+KIND_SPHERE = 0
+KIND_HALFSPACE = 1
+KIND_SHAPE = 2
 
 
 @nb.njit(cache=True, inline="always")
@@ -49,24 +74,24 @@ def _sphere_sphere_tau(ci, vi, cj, vj, p, eps, accel, delta, speed):  # pragma: 
 
 
 @nb.njit(cache=True, inline="always")
-def _sphere_halfspace_tau(c, v, normal, offset, p, eps, accel, delta):  # pragma: no cover - jitted
-    gap = normal[0] * c[0] + normal[1] * c[1] + normal[2] * c[2] - offset - eps[p]
-    vn = normal[0] * v[0] + normal[1] * v[1] + normal[2] * v[2]
+def _sphere_halfspace_tau(c, v, plane, p, eps, accel, delta):  # pragma: no cover - jitted
+    gap = plane[0] * c[0] + plane[1] * c[1] + plane[2] * c[2] - plane[3] - eps[p]
+    vn = plane[0] * v[0] + plane[1] * v[1] + plane[2] * v[2]
     return tau_halfspace(gap, vn, accel[p], delta[p])
 
 
 @nb.njit(cache=True, inline="always")
 def pair_tau(p, geometry):  # pragma: no cover - jitted
     """tau of pair ``p``; ``geometry`` is ``PairSet.geometry``'s tuple."""
-    centers, velocities, normals, offsets, first, second, halfspace, eps, accel, delta, speed = (
-        geometry
-    )
+    centers, velocities, planes, shapes, first, second, kind, eps, accel, delta, speed = geometry
     i = first[p]
     j = second[p]
-    if halfspace[p]:
-        return _sphere_halfspace_tau(
-            centers[i], velocities[i], normals[j], offsets[j], p, eps, accel, delta
-        )
+    if kind[p] == KIND_HALFSPACE:
+        return _sphere_halfspace_tau(centers[i], velocities[i], planes[j], p, eps, accel, delta)
+    if kind[p] == KIND_SHAPE:
+        c = centers[i]
+        v = velocities[i]
+        return tau_static(c[0], c[1], c[2], v[0], v[1], v[2], shapes[j], eps[p], accel[p], delta[p])
     return _sphere_sphere_tau(
         centers[i], velocities[i], centers[j], velocities[j], p, eps, accel, delta, speed
     )
@@ -101,30 +126,32 @@ def _tau_pairs_parallel(ids, geometry):  # pragma: no cover - jitted
 (
     PAIR_FIRST,
     PAIR_SECOND,
-    PAIR_HALFSPACE,
+    PAIR_KIND,
     PAIR_EPS,
     PAIR_ACCEL,
     PAIR_DELTA,
     PAIR_SPEED,
-    PAIR_PLANE_FRAME,
+    PAIR_OTHER,
 ) = range(8)
-SPHERE_FRAME, SPHERE_BODY, SPHERE_OFFSET, SPHERE_ROOT = 0, 1, 2, 5  # offset: columns 2, 3, 4
 
 
 def pack_pairs(pairs: PairSet, plane_frame: npt.ArrayLike | None = None) -> np.ndarray:
-    """``(M, 8)`` float64 records ``[first, second, halfspace, eps, accel, delta, speed, plane]``.
+    """``(M, 8)`` float64 records ``[first, second, kind, eps, accel, delta, speed, other]``.
+
+    ``kind`` is the ``PairKind`` code; ``other`` is the frame (geom) of a half-space pair's plane
+    and the shape record row of a shape pair (0 for sphere pairs).
 
     Args:
         pairs: The pair set.
-        plane_frame: ``(nplane,)`` frame (geom) of each half-space: ``plane`` is the frame of a
-            half-space pair's plane (0 for sphere pairs, and for all pairs if not given).
+        plane_frame: ``(nplane,)`` frame (geom) of each half-space (``other`` of half-space pairs
+            is 0 if not given).
 
     Ids are stored as floats: exact below 2**53.
     """
     rec = np.zeros((len(pairs), 8))
     rec[:, PAIR_FIRST] = pairs.first
     rec[:, PAIR_SECOND] = pairs.second
-    rec[:, PAIR_HALFSPACE] = pairs.halfspace
+    rec[:, PAIR_KIND] = pairs.kind
     rec[:, PAIR_EPS] = pairs.eps
     rec[:, PAIR_ACCEL] = pairs.accel
     rec[:, PAIR_DELTA] = pairs.vel_uncertainty
@@ -132,29 +159,46 @@ def pack_pairs(pairs: PairSet, plane_frame: npt.ArrayLike | None = None) -> np.n
     if plane_frame is not None:
         frame = np.asarray(plane_frame, dtype=np.int64)
         h = pairs.halfspace
-        rec[h, PAIR_PLANE_FRAME] = frame[pairs.second[h]]
+        rec[h, PAIR_OTHER] = frame[pairs.second[h]]
+    s = pairs.shape
+    rec[s, PAIR_OTHER] = pairs.second[s]
     return rec
 
 
-# Placeholders for pair sets without half-spaces (never read: no pair indexes them).
-_NO_NORMALS = np.zeros((1, 3))
-_NO_NORMALS.flags.writeable = False
-_NO_OFFSETS = np.zeros(1)
-_NO_OFFSETS.flags.writeable = False
+def _placeholder(shape: tuple[int, ...]) -> np.ndarray:
+    out = np.zeros(shape)
+    out.flags.writeable = False
+    return out
+
+
+# Placeholders for pair sets without half-spaces or shapes (never read: no pair indexes them).
+_NO_PLANES = _placeholder((1, 4))
+_NO_SHAPES = _placeholder((1, SHAPE_NCOL))
 
 
 class PairSet:
-    """Sphere-sphere and sphere-half-space pairs with their contact distances and bounds.
+    """Pairs of a sphere and a sphere, a half-space or a static shape, with their bounds.
 
     Args:
         first: ``(M,)`` sphere index of each pair.
-        second: ``(M,)`` sphere index, or half-space index where ``halfspace`` is set.
-        eps: ``(M,)`` or scalar contact distance (radii plus margin; for a half-space pair the
-            sphere radius plus margin).
+        second: ``(M,)`` sphere index, half-space index or shape record row, by ``kind``.
+        eps: ``(M,)`` or scalar contact distance (radii plus margin; for a half-space or shape
+            pair the sphere radius plus margin).
         accel: ``(M,)`` or scalar bound on the relative acceleration norm (``A_i + A_j``).
-        halfspace: ``(M,)`` bool, pairs whose ``second`` is a half-space (default none).
+        halfspace: ``(M,)`` bool, pairs whose ``second`` is a half-space (default none). Kept
+            for pair sets without shapes; give ``kind`` instead to have both.
+        kind: ``(M,)`` ``PairKind`` codes (default: from ``halfspace``, else all spheres).
         vel_uncertainty: ``(M,)`` or scalar velocity uncertainty ``delta`` (default 0).
-        speed: ``(M,)`` or scalar relative speed bound (default ``inf``, none).
+        speed: ``(M,)`` or scalar relative speed bound (default ``inf``, none); not used by
+            half-space and shape pairs.
+        shapes: ``(nshape, 16)`` static shape records (``dua_mujoco.core.shapes.pack_shapes``)
+            that shape pairs index, or None; held as ``PairSet.shapes`` (static shapes do not
+            move, so ``tau`` and ``geometry`` use them unless given others).
+
+    Attributes:
+        kind: ``(M,)`` int8 ``PairKind`` codes.
+        halfspace: ``(M,)`` bool, ``kind == HALFSPACE``.
+        shape: ``(M,)`` bool, ``kind == SHAPE``.
     """
 
     def __init__(
@@ -165,17 +209,17 @@ class PairSet:
         accel: npt.ArrayLike,
         *,
         halfspace: npt.ArrayLike | None = None,
+        kind: npt.ArrayLike | None = None,
         vel_uncertainty: npt.ArrayLike = 0.0,
         speed: npt.ArrayLike = np.inf,
+        shapes: npt.ArrayLike | None = None,
     ) -> None:
         self.first = as_ids("first", first)
         m = self.first.shape[0]
         self.second = as_ids("second", second, m)
-        self.halfspace = (
-            np.zeros(m, dtype=np.bool_)
-            if halfspace is None
-            else np.ascontiguousarray(np.broadcast_to(np.asarray(halfspace, dtype=np.bool_), (m,)))
-        )
+        self.kind = _as_kind(halfspace, kind, m)
+        self.halfspace = self.kind == KIND_HALFSPACE
+        self.shape = self.kind == KIND_SHAPE
         self.eps = np.broadcast_to(per_pair("eps", eps, m), (m,)).copy()
         self.accel = np.broadcast_to(per_pair("accel", accel, m), (m,)).copy()
         self.vel_uncertainty = np.broadcast_to(
@@ -187,12 +231,15 @@ class PairSet:
                 "speed bounds must be positive: a zero speed bound is invalid; use inf for none."
             )
         if (self.first < 0).any() or (self.second < 0).any():
-            raise InvalidInputError("sphere and half-space indices must be >= 0.")
+            raise InvalidInputError("sphere, half-space and shape indices must be >= 0.")
         # Checked once here so that the per-step state check is O(1).
-        spheres = np.concatenate([self.first, self.second[~self.halfspace]])
+        spheres = np.concatenate([self.first, self.second[self.kind == KIND_SPHERE]])
         self.max_sphere = int(spheres.max(initial=-1))
         self.max_halfspace = int(self.second[self.halfspace].max(initial=-1))
+        self.max_shape = int(self.second[self.shape].max(initial=-1))
         self.has_halfspace = bool(self.halfspace.any())
+        self.has_shape = bool(self.shape.any())
+        self.shapes: np.ndarray | None = None if shapes is None else _as_shape_records(shapes)
 
     def __len__(self) -> int:
         return int(self.first.shape[0])
@@ -247,6 +294,8 @@ class PairSet:
         centers: npt.ArrayLike,
         velocities: npt.ArrayLike,
         halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+        *,
+        shapes: npt.ArrayLike | None = None,
     ) -> np.ndarray:
         """tau of the pairs ``ids`` from sphere states (the vectorised front of the fused step).
 
@@ -257,6 +306,8 @@ class PairSet:
             halfspaces: ``(normals (nh, 3), offsets (nh,))``: half-space ``j`` is
                 ``{p : normals[j] . p <= offsets[j]}`` seen from outside, i.e. a sphere centre ``c``
                 has clearance ``normals[j] . c - offsets[j] - eps``.
+            shapes: ``(nshape, 16)`` static shape records (``dua_mujoco.core.shapes.pack_shapes``)
+                if any pair is a shape pair; default ``PairSet.shapes``.
 
         Returns:
             ``(n,)`` tau of each pair.
@@ -264,7 +315,8 @@ class PairSet:
         idx = as_ids("ids", ids)
         if idx.size and (idx.min() < 0 or idx.max() >= len(self)):
             raise InvalidInputError(f"pair ids must be in [0, {len(self)}); got {idx.tolist()}.")
-        return np.asarray(_tau_pairs(idx, self.geometry(centers, velocities, halfspaces)))
+        geometry = self.geometry(centers, velocities, halfspaces, shapes=shapes)
+        return np.asarray(_tau_pairs(idx, geometry))
 
     def geometry(
         self,
@@ -272,42 +324,61 @@ class PairSet:
         velocities: npt.ArrayLike,
         halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None,
         *,
+        shapes: npt.ArrayLike | None = None,
         check_finite: bool = True,
     ) -> tuple[np.ndarray, ...]:
-        """The tuple the tau kernels read: validated sphere and half-space states, then the pairs.
+        """The tuple the tau kernels read: validated sphere, half-space and shape data, then pairs.
 
-        ``(centers, velocities, normals, offsets, first, second, halfspace, eps, accel,
-        vel_uncertainty, speed)``; one argument instead of eleven through every kernel.
+        ``(centers, velocities, planes, shapes, first, second, kind, eps, accel,
+        vel_uncertainty, speed)`` with ``planes`` ``(nh, 4)`` rows ``[normal, offset]`` and
+        ``shapes`` ``(nshape, 16)`` records; one argument instead of eleven through every kernel.
+        Slots 4 to 10 hold the pair arrays, and ``kind`` is nonzero exactly where ``second`` is
+        not a sphere, which is what a kernel that gathers sphere states has to know.
         """
         c = as_vectors("centers", centers, check_finite=check_finite)
         v = as_vectors("velocities", velocities, c.shape[0], check_finite=check_finite)
+        planes = _NO_PLANES
         if halfspaces is None:
-            nrm, off = _NO_NORMALS, _NO_OFFSETS
             if self.has_halfspace:
                 raise InvalidInputError("these pairs include half-spaces: pass halfspaces=(n, o).")
         else:
             nrm = as_vectors("halfspace normals", halfspaces[0])
-            off = np.ascontiguousarray(np.asarray(halfspaces[1], dtype=np.float64).reshape(-1))
+            off = np.asarray(halfspaces[1], dtype=np.float64).reshape(-1)
             if off.shape[0] != nrm.shape[0]:
                 raise ShapeError(
                     f"halfspace offsets have {off.shape[0]} rows, normals {nrm.shape[0]}."
                 )
+            planes = np.ascontiguousarray(np.column_stack([nrm, off]))
+        recs = _NO_SHAPES
+        if shapes is None and self.shapes is not None:
+            recs = self.shapes
+        elif shapes is None:
+            if self.has_shape:
+                raise InvalidInputError(
+                    "these pairs include static shapes: pass shapes=records (pack_shapes)."
+                )
+        else:
+            recs = _as_shape_records(shapes)
         if self.max_sphere >= c.shape[0]:
             raise ShapeError(
                 f"pairs reference sphere {self.max_sphere} but centers has {c.shape[0]} rows."
             )
-        if self.max_halfspace >= nrm.shape[0] and self.has_halfspace:
+        if self.has_halfspace and self.max_halfspace >= planes.shape[0]:
             raise ShapeError(
-                f"pairs reference half-space {self.max_halfspace} but {nrm.shape[0]} were given."
+                f"pairs reference half-space {self.max_halfspace} but {planes.shape[0]} were given."
+            )
+        if self.has_shape and self.max_shape >= recs.shape[0]:
+            raise ShapeError(
+                f"pairs reference shape {self.max_shape} but shapes has {recs.shape[0]} rows."
             )
         return (
             c,
             v,
-            nrm,
-            off,
+            planes,
+            recs,
             self.first,
             self.second,
-            self.halfspace,
+            self.kind,
             self.eps,
             self.accel,
             self.vel_uncertainty,
@@ -321,3 +392,44 @@ class PairSet:
         return np.asarray(
             np.linalg.norm(c[self.second[idx]] - c[self.first[idx]], axis=1) - self.eps[idx]
         )
+
+
+def _as_kind(halfspace: npt.ArrayLike | None, kind: npt.ArrayLike | None, m: int) -> np.ndarray:
+    """``(m,)`` int8 ``PairKind`` codes from either ``kind`` or the ``halfspace`` mask."""
+    if kind is not None and halfspace is not None:
+        raise InvalidInputError(
+            "pass either kind= (PairKind codes) or halfspace= (a mask), not both: kind holds the "
+            "half-spaces too (PairKind.HALFSPACE)."
+        )
+    if kind is None:
+        if halfspace is None:
+            return np.zeros(m, dtype=np.int8)
+        h = np.broadcast_to(np.asarray(halfspace, dtype=np.bool_), (m,))
+        return np.where(h, KIND_HALFSPACE, KIND_SPHERE).astype(np.int8)
+    k = np.asarray(kind)
+    if k.size and not np.issubdtype(k.dtype, np.integer):
+        raise InvalidInputError(f"kind must hold integer PairKind codes; got dtype {k.dtype}.")
+    k = np.broadcast_to(k, (m,))
+    valid = [int(x) for x in PairKind]
+    bad = ~np.isin(k, valid)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InvalidInputError(
+            f"kind[{i}] = {int(k[i])} is not a PairKind code; valid: "
+            + ", ".join(f"{x.name}={int(x)}" for x in PairKind)
+            + "."
+        )
+    return np.ascontiguousarray(k, dtype=np.int8)
+
+
+def _as_shape_records(shapes: npt.ArrayLike) -> np.ndarray:
+    recs = np.asarray(shapes, dtype=np.float64)
+    if recs.ndim != 2 or recs.shape[1] != SHAPE_NCOL or recs.shape[0] == 0:
+        raise ShapeError(
+            f"shapes has shape {recs.shape}; expected (nshape, {SHAPE_NCOL}) records from "
+            "dua_mujoco.core.shapes.pack_shapes."
+        )
+    if not np.isfinite(recs).all():
+        i = int(np.flatnonzero(~np.isfinite(recs).all(axis=1))[0])
+        raise InvalidInputError(f"shapes[{i}] is not finite; rebuild it with pack_shapes.")
+    return np.ascontiguousarray(recs)

@@ -103,9 +103,9 @@ class Alarms:
 
     @property
     def sphere2(self) -> np.ndarray:
-        """``(k,)`` second sphere, ``-1`` for half-space pairs."""
+        """``(k,)`` second sphere, ``-1`` for half-space and static shape pairs."""
         return np.asarray(
-            np.where(self._tables.halfspace[self.pairs], -1, self._tables.second[self.pairs])
+            np.where(self._tables.kind[self.pairs] != 0, -1, self._tables.second[self.pairs])
         )
 
     @property

@@ -2,9 +2,11 @@
 
 Every collidable geom of a MuJoCo model is replaced by a set of spheres whose union contains the
 geom's solid (for meshes: its convex hull, which is what MuJoCo collides with). Planes are kept as
-half-spaces (outward normal = the plane's local z axis, through ``geom_xpos``). A collision between
-two geoms therefore implies an intersection between one sphere of each (or between a sphere and a
-half-space), which is what the urgency layer predicts.
+half-spaces (outward normal = the plane's local z axis, through ``geom_xpos``), and static geoms
+(bodies welded to the world) are kept as their own convex shapes (``static="shape"``, the
+default; ``docs/static-shapes.md``). A collision between two geoms therefore implies an
+intersection between one sphere of each, or between a sphere and a half-space or static shape,
+which is what the urgency layer predicts.
 
 Two coverings exist:
 
@@ -40,10 +42,12 @@ from dua_mujoco.exceptions import (
 from dua_mujoco.mj.kinematics import pack_spheres, sphere_states
 
 __all__ = [
+    "STATIC_CHOICES",
     "Covering",
     "CoveringMode",
     "cover_model",
     "sphere_world_centers",
+    "static_shape_geoms",
 ]
 
 _PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
@@ -57,6 +61,10 @@ _MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
 _SDF = int(mujoco.mjtGeom.mjGEOM_SDF)
 
 _HFIELD_CHOICES = ("error", "box")
+STATIC_CHOICES = ("shape", "sphere")
+"""``cover_model``'s ``static`` option: static geoms as their own shapes, or as spheres."""
+# Geom types tau_static holds exactly (meshes by the box around their hull).
+_SHAPE_TYPES = (_SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH)
 
 # keep(lo (k, 3), hi (k, 3)) -> (k,) bool: False only for cells provably disjoint from the shape.
 _CellTest = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -81,8 +89,9 @@ class Covering:
     """Spheres (and half-spaces) that together contain every covered geom of a model.
 
     Sphere ids index the ``sphere_*`` arrays; the spheres of geom ``g`` are the contiguous range
-    ``geom_sphere_start[g]:geom_sphere_start[g + 1]`` (CSR layout). Planes and uncovered geoms
-    (geoms that can never collide) have no spheres; planes are listed in ``plane_geom``.
+    ``geom_sphere_start[g]:geom_sphere_start[g + 1]`` (CSR layout). Planes, static shapes and
+    uncovered geoms (geoms that can never collide) have no spheres; planes are listed in
+    ``plane_geom``, static shapes in ``shape_geom``.
 
     Attributes:
         sphere_geom: ``(nsphere,)`` int32, the geom each sphere covers.
@@ -95,6 +104,10 @@ class Covering:
         mode: the covering mode used.
         plane_static: ``(nplane,)`` bool, the plane's body is welded to the world (only static
             planes are fixed half-spaces).
+        shape_geom: ``(nshape,)`` int32, geom ids of static geoms held as their own convex shape
+            (records packed from ``MjData`` by ``dua_mujoco.mj.tables.static_shapes``).
+        geom_shape: ``(ngeom,)`` int32, shape index of each geom, or -1.
+        static: ``"shape"`` or ``"sphere"``, the ``cover_model`` option used.
     """
 
     sphere_geom: np.ndarray
@@ -106,11 +119,19 @@ class Covering:
     geom_plane: np.ndarray
     mode: CoveringMode = field(default=CoveringMode.BOUNDING)
     plane_static: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    shape_geom: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))
+    geom_shape: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))
+    static: str = "sphere"
 
     def __post_init__(self) -> None:
         # Coverings built by hand may omit plane_static: planes are then taken as static.
         if self.plane_static.shape != self.plane_geom.shape:
             object.__setattr__(self, "plane_static", np.ones(self.plane_geom.shape, dtype=bool))
+        # ... and the shapes: then there are none.
+        if self.geom_shape.shape != self.geom_plane.shape:
+            lookup = np.full(self.geom_plane.shape, -1, dtype=np.int32)
+            lookup[self.shape_geom] = np.arange(self.shape_geom.shape[0], dtype=np.int32)
+            object.__setattr__(self, "geom_shape", lookup)
 
     @property
     def nsphere(self) -> int:
@@ -121,6 +142,11 @@ class Covering:
     def nplane(self) -> int:
         """Number of plane geoms (half-spaces)."""
         return int(self.plane_geom.shape[0])
+
+    @property
+    def nshape(self) -> int:
+        """Number of static geoms held as shapes."""
+        return int(self.shape_geom.shape[0])
 
     @property
     def ngeom(self) -> int:
@@ -359,6 +385,36 @@ def _collidable_geoms(model: mujoco.MjModel) -> np.ndarray:
     return mask
 
 
+def static_shape_geoms(model: mujoco.MjModel) -> np.ndarray:
+    """Which geoms ``cover_model(static="shape")`` holds as their own convex shape.
+
+    A geom qualifies when its body is welded to the world (``body_weldid == 0``: no joint and no
+    mocap body between it and the world, so its pose is a constant of the model), its type is a
+    sphere, capsule, ellipsoid, cylinder, box or mesh, and it is in no ``<pair>`` with another
+    static geom. Dynamic pairs of two static geoms are never active (same weld group), but an
+    explicit pair is; a shape pairs with spheres only, so such a geom keeps its spheres.
+
+    Args:
+        model: the compiled MuJoCo model.
+
+    Returns:
+        ``(ngeom,)`` bool.
+    """
+    gbody = np.asarray(model.geom_bodyid, dtype=np.int64)
+    static = np.asarray(model.body_weldid, dtype=np.int64)[gbody] == 0
+    # Since MuJoCo 4.0 mocap bodies are weld roots (body_weldid = own id); say it anyway.
+    static &= np.asarray(model.body_mocapid, dtype=np.int64)[gbody] < 0
+    if model.npair:
+        p1 = np.asarray(model.pair_geom1, dtype=np.int64)
+        p2 = np.asarray(model.pair_geom2, dtype=np.int64)
+        both = static[p1] & static[p2]
+        keep_static = static.copy()
+        keep_static[p1[both]] = False
+        keep_static[p2[both]] = False
+        static = keep_static
+    return static & np.isin(np.asarray(model.geom_type, dtype=np.int64), _SHAPE_TYPES)
+
+
 def _cover_geom(
     model: mujoco.MjModel, g: int, mode: CoveringMode, budget: int, hfield: str
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -462,8 +518,9 @@ def cover_model(
     max_spheres_per_geom: int = 8,
     hfield: str = "error",
     only_collidable: bool = True,
+    static: str = "shape",
 ) -> Covering:
-    """Cover every geom of a model by spheres (planes become half-spaces).
+    """Cover every geom of a model by spheres (planes become half-spaces, static geoms shapes).
 
     Args:
         model: the compiled MuJoCo model.
@@ -474,12 +531,15 @@ def cover_model(
             bounding box (base included): conservative, never tight.
         only_collidable: leave out geoms that can never be in a contact (contype and conaffinity
             both 0, and in no ``<pair>``); they get zero spheres. Visual geoms then cost nothing.
+        static: ``"shape"`` (default) holds each static geom (``static_shape_geoms``) as its
+            own convex shape, with no spheres; ``"sphere"`` covers it by spheres like any
+            other geom (the behaviour before static shapes, for comparisons).
 
     Returns:
         The :class:`Covering`.
 
     Raises:
-        InvalidChoiceError: unknown ``mode`` or ``hfield``.
+        InvalidChoiceError: unknown ``mode``, ``hfield`` or ``static``.
         InvalidInputError: ``max_spheres_per_geom`` is not an int >= 1.
         UnsupportedGeomError: a height field with ``hfield="error"``, an SDF geom, or an unknown
             geom type, among the geoms to cover.
@@ -488,6 +548,13 @@ def cover_model(
     if hfield not in _HFIELD_CHOICES:
         raise InvalidChoiceError(
             "hfield option", hfield, _HFIELD_CHOICES, 'Use "box" to cover height fields.'
+        )
+    if static not in STATIC_CHOICES:
+        raise InvalidChoiceError(
+            "static option",
+            static,
+            STATIC_CHOICES,
+            'Use "shape" for static geoms as their own shapes, "sphere" for bounding spheres.',
         )
     if (
         isinstance(max_spheres_per_geom, bool)
@@ -502,6 +569,9 @@ def cover_model(
     ngeom = int(model.ngeom)
     gtypes = np.asarray(model.geom_type, dtype=np.int64)
     collidable = _collidable_geoms(model) if only_collidable else np.ones(ngeom, dtype=bool)
+    as_shape = (
+        static_shape_geoms(model) & collidable if static == "shape" else np.zeros(ngeom, dtype=bool)
+    )
     counts = np.zeros(ngeom, dtype=np.int64)
     centres: list[np.ndarray] = []
     radii: list[np.ndarray] = []
@@ -512,7 +582,7 @@ def cover_model(
             geom_plane[g] = len(plane_geom)
             plane_geom.append(g)
             continue
-        if not collidable[g]:
+        if not collidable[g] or as_shape[g]:
             continue
         c, r = _cover_geom(model, g, cmode, budget, hfield)
         centres.append(np.asarray(c, dtype=np.float64).reshape(-1, 3))
@@ -523,6 +593,7 @@ def cover_model(
     np.cumsum(counts, out=start[1:])
     sphere_geom = np.repeat(np.arange(ngeom, dtype=np.int32), counts)
     body = np.asarray(model.geom_bodyid, dtype=np.int32)
+    shape_geom = np.flatnonzero(as_shape).astype(np.int32)
     return Covering(
         sphere_geom=sphere_geom,
         sphere_body=body[sphere_geom] if ngeom else np.zeros(0, dtype=np.int32),
@@ -535,6 +606,8 @@ def cover_model(
         plane_static=np.asarray(model.body_weldid)[body[plane_geom]] == 0
         if plane_geom
         else np.zeros(0, dtype=bool),
+        shape_geom=shape_geom,
+        static=static,
     )
 
 

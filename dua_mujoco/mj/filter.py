@@ -43,6 +43,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
 from dua_mujoco.mj.covering import Covering
 
@@ -303,16 +304,18 @@ def _can_collide_reference(model: mujoco.MjModel, g1: int, g2: int) -> bool:
 
 @dataclass(frozen=True)
 class SpherePairs:
-    """Sphere-sphere and sphere-half-space pairs of the active geom pairs.
+    """Sphere-sphere, sphere-half-space and sphere-static-shape pairs of the active geom pairs.
 
     Attributes:
         first: ``(n,)`` int32 sphere id.
         second: ``(n,)`` int32 sphere id, or plane index (into ``Covering.plane_geom``) where
-            ``is_halfspace``.
+            ``is_halfspace``, or shape index (into ``Covering.shape_geom``) where ``is_shape``.
         is_halfspace: ``(n,)`` bool.
         geom_pair: ``(n,)`` int32 index into the :class:`GeomPairs` it came from.
         eps: ``(n,)`` float64 contact distance of the sphere pair: ``r1 + r2 + d`` for two spheres,
-            ``r + d`` for a sphere and a half-space, ``d`` the geom pair's contact distance.
+            ``r + d`` for a sphere and a half-space or a static shape, ``d`` the geom pair's
+            contact distance.
+        is_shape: ``(n,)`` bool (all False when omitted).
     """
 
     first: np.ndarray
@@ -320,6 +323,19 @@ class SpherePairs:
     is_halfspace: np.ndarray
     geom_pair: np.ndarray
     eps: np.ndarray
+    is_shape: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+    def __post_init__(self) -> None:
+        if self.is_shape.shape != self.first.shape:
+            object.__setattr__(self, "is_shape", np.zeros(self.first.shape, dtype=bool))
+
+    @property
+    def kind(self) -> np.ndarray:
+        """``(n,)`` int8 ``dua_mujoco.core.pairset.PairKind`` codes."""
+        out = np.zeros(self.first.shape, dtype=np.int8)
+        out[self.is_halfspace] = int(PairKind.HALFSPACE)
+        out[self.is_shape] = int(PairKind.SHAPE)
+        return out
 
     @property
     def npair(self) -> int:
@@ -333,8 +349,10 @@ class SpherePairs:
 def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
     """Expand active geom pairs into sphere pairs (every sphere of one geom x every of the other).
 
-    Pairs of two planes are dropped (MuJoCo has no plane-plane collider). A plane geom must be
-    static (welded to the world): only then is it a fixed half-space.
+    A geom held as a half-space (plane) or a static shape pairs as that one object with every
+    sphere of the other geom. Pairs of two planes are dropped (MuJoCo has no plane-plane
+    collider). A plane geom must be static (welded to the world): only then is it a fixed
+    half-space.
 
     Args:
         covering: the covering of the model.
@@ -344,8 +362,9 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
         The :class:`SpherePairs`, grouped by geom pair in ``geom_pairs`` order.
 
     Raises:
-        UnsupportedGeomError: a plane in an active pair is not static, or a geom in an active
-            pair has no spheres.
+        UnsupportedGeomError: a plane in an active pair is not static, a geom in an active pair
+            has no spheres, or an active pair has no sphere at all (a static shape with a plane
+            or another shape).
     """
     gp1 = np.asarray(geom_pairs.geom1, dtype=np.int64)
     gp2 = np.asarray(geom_pairs.geom2, dtype=np.int64)
@@ -368,16 +387,30 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
     keep = ~(plane1 & plane2)
     idx = np.flatnonzero(keep)
     gp1, gp2, plane1, plane2 = gp1[idx], gp2[idx], plane1[idx], plane2[idx]
+    shape1 = covering.geom_shape[gp1] >= 0
+    shape2 = covering.geom_shape[gp2] >= 0
+    lone1 = plane1 | shape1  # held as one object, not spheres
+    lone2 = plane2 | shape2
+    both = np.flatnonzero(lone1 & lone2)
+    if both.size:
+        g, h = int(gp1[both[0]]), int(gp2[both[0]])
+        raise UnsupportedGeomError(
+            f"geoms {g} and {h} form an active pair but neither has spheres (a static shape "
+            "with a plane or another static shape): build the covering with cover_model, which "
+            "keeps spheres for static geoms in such <pair> elements."
+        )
     halfspace = plane1 | plane2
-    # Put the sphere-covered geom first for half-space pairs.
-    ga = np.where(plane1, gp2, gp1)
-    gb = np.where(plane1, gp1, gp2)
+    shape = shape1 | shape2
+    # Put the sphere-covered geom first for half-space and shape pairs.
+    ga = np.where(lone1, gp2, gp1)
+    gb = np.where(lone1, gp1, gp2)
     start = covering.geom_sphere_start.astype(np.int64)
     na = start[ga + 1] - start[ga]
-    nb = np.where(halfspace, 1, start[gb + 1] - start[gb])
+    single = halfspace | shape
+    nb = np.where(single, 1, start[gb + 1] - start[gb])
     missing = np.flatnonzero(na == 0)
     if missing.size == 0:
-        missing = np.flatnonzero(~halfspace & (nb == 0))
+        missing = np.flatnonzero(~single & (nb == 0))
         bad_geom = gb[missing]
     else:
         bad_geom = ga[missing]
@@ -395,21 +428,24 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
     nb_rep = nb[pair_of]
     first = start[ga][pair_of] + local // nb_rep
     hs = halfspace[pair_of]
+    sh = shape[pair_of]
     second = np.where(
         hs,
         covering.geom_plane[gb][pair_of],
-        start[gb][pair_of] + local % nb_rep,
+        np.where(sh, covering.geom_shape[gb][pair_of], start[gb][pair_of] + local % nb_rep),
     )
     dist = np.asarray(geom_pairs.contact_distance, dtype=np.float64)[idx][pair_of]
     r1 = covering.sphere_radius[first]
     r2 = np.zeros(total)
-    r2[~hs] = covering.sphere_radius[second[~hs]]
+    two = ~(hs | sh)
+    r2[two] = covering.sphere_radius[second[two]]
     return SpherePairs(
         first=first.astype(np.int32),
         second=second.astype(np.int32),
         is_halfspace=hs,
         geom_pair=idx[pair_of].astype(np.int32),
         eps=r1 + r2 + dist,
+        is_shape=sh,
     )
 
 

@@ -29,17 +29,20 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.core.pairset import (
+    KIND_HALFSPACE,
+    KIND_SHAPE,
     PAIR_ACCEL,
     PAIR_DELTA,
     PAIR_EPS,
     PAIR_FIRST,
-    PAIR_HALFSPACE,
-    PAIR_PLANE_FRAME,
+    PAIR_KIND,
+    PAIR_OTHER,
     PAIR_SECOND,
     PAIR_SPEED,
 )
 from dua_mujoco.core.schedules import kernels
 from dua_mujoco.core.schedules.state import W_IDS
+from dua_mujoco.core.shapes import tau_static
 from dua_mujoco.core.urgency import tau_halfspace, tau_speed
 from dua_mujoco.exceptions import ShapeError
 
@@ -48,6 +51,7 @@ __all__ = [
     "SPHERE_FRAME",
     "SPHERE_OFFSET",
     "SPHERE_ROOT",
+    "fine_tau",
     "mjdata_frame",
     "pack_spheres",
     "rigid_point",
@@ -57,6 +61,11 @@ __all__ = [
 
 # Columns of the packed per-sphere records: one 64-byte row (a cache line) per sphere.
 SPHERE_FRAME, SPHERE_BODY, SPHERE_OFFSET, SPHERE_ROOT = 0, 1, 2, 5  # offset: columns 2, 3, 4
+# Columns of the per-pair refinement records (dua_mujoco.mj.refine): the fine sphere ranges
+# [a0, a1) of the first geom and [b0, b1) of the second (empty for half-space and shape pairs),
+# and the geom pair's contact distance.
+REFINE_A0, REFINE_A1, REFINE_B0, REFINE_B1, REFINE_DIST = range(5)
+REFINE_NCOL = 8
 
 
 def pack_spheres(
@@ -190,24 +199,102 @@ def _check_frame(spheres: np.ndarray, frame: tuple[np.ndarray, ...]) -> None:
 
 
 @nb.njit(cache=True)
-def step_rigid_kernel(st, n, pairs, spheres, frame):  # pragma: no cover - jitted
+def fine_tau(p, rec, coarse, frame, shapes, refine, buf):  # pragma: no cover - jitted
+    """The refined tau of pair ``p``: ``max(coarse, min over its fine sub-pairs)``.
+
+    ``rec`` is the pair's ``pack_pairs`` row, ``coarse`` its bounding tau, ``refine`` the tuple of
+    :attr:`Refinement.args`, ``buf`` a ``(max_fine, 6)`` scratch buffer. The scan stops as soon
+    as a sub-pair's tau is at most ``coarse``: the maximum is then ``coarse``.
+    """
+    fine_spheres, radius, records, _, _ = refine
+    r = records[p]
+    a0 = int(r[REFINE_A0])
+    a1 = int(r[REFINE_A1])
+    d = r[REFINE_DIST]
+    accel = rec[PAIR_ACCEL]
+    delta = rec[PAIR_DELTA]
+    kind = int(rec[PAIR_KIND])
+    best = math.inf
+    if kind == KIND_SHAPE:
+        shape = shapes[int(rec[PAIR_OTHER])]
+        for a in range(a0, a1):
+            rigid_point(a, fine_spheres, frame, buf[0])
+            s = buf[0]
+            t = tau_static(s[0], s[1], s[2], s[3], s[4], s[5], shape, radius[a] + d, accel, delta)
+            best = min(best, t if t >= 0.0 else 0.0)
+            if best <= coarse:
+                return coarse
+    elif kind == KIND_HALFSPACE:
+        frame_pos, frame_mat = frame[0], frame[1]
+        g = int(rec[PAIR_OTHER])
+        n0 = frame_mat[g, 2]
+        n1 = frame_mat[g, 5]
+        n2 = frame_mat[g, 8]
+        off = n0 * frame_pos[g, 0] + n1 * frame_pos[g, 1] + n2 * frame_pos[g, 2]
+        for a in range(a0, a1):
+            rigid_point(a, fine_spheres, frame, buf[0])
+            s = buf[0]
+            gap = n0 * s[0] + n1 * s[1] + n2 * s[2] - off - (radius[a] + d)
+            t = tau_halfspace(gap, n0 * s[3] + n1 * s[4] + n2 * s[5], accel, delta)
+            best = min(best, t if t >= 0.0 else 0.0)
+            if best <= coarse:
+                return coarse
+    else:
+        b0 = int(r[REFINE_B0])
+        nb_ = int(r[REFINE_B1]) - b0
+        for b in range(nb_):
+            rigid_point(b0 + b, fine_spheres, frame, buf[b])
+        sa = np.empty(6)
+        speed = rec[PAIR_SPEED]
+        for a in range(a0, a1):
+            rigid_point(a, fine_spheres, frame, sa)
+            for b in range(nb_):
+                s = buf[b]
+                t = tau_speed(
+                    s[0] - sa[0],
+                    s[1] - sa[1],
+                    s[2] - sa[2],
+                    s[3] - sa[3],
+                    s[4] - sa[4],
+                    s[5] - sa[5],
+                    radius[a] + radius[b0 + b] + d,
+                    accel,
+                    delta,
+                    speed,
+                )
+                best = min(best, t if t >= 0.0 else 0.0)
+                if best <= coarse:
+                    return coarse
+    return max(coarse, best)
+
+
+@nb.njit(cache=True)
+def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, refine):  # pragma: no cover - jitted
     """The fused step on spheres attached to rigid frames (a ``FusedKernel``).
 
     Reads only the selected spheres. ``pairs`` and ``spheres`` are ``pack_pairs`` /
-    ``pack_spheres`` records. Two passes: first every selected pair's state is gathered
-    (independent loads, which the CPU overlaps; the tables are cold after ``mj_step``), then tau
-    is computed from that small buffer. A pair whose state is not finite abandons the step.
+    ``pack_spheres`` records; ``shapes`` the ``(nshape, 16)`` static shape records
+    (``pack_shapes``, one placeholder row without shapes) that shape pairs' ``PAIR_OTHER``
+    indexes; ``refine`` the two-level urgency's tuple (``dua_mujoco.mj.refine``: a pair whose
+    tau is below its threshold is refined by :func:`fine_tau`). Two passes: first every selected
+    pair's state is gathered (independent loads, which the CPU overlaps; the tables are cold
+    after ``mj_step``), then tau is computed from that small buffer. A pair whose state is not
+    finite abandons the step.
     """
     frame_pos, frame_mat = frame[0], frame[1]
+    below = refine[3]
+    buf = np.empty((refine[4], 6))
     count = kernels.select(st, n)
     w_ids = st.work[W_IDS]
-    # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset).
+    # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset;
+    # zeros for a static shape, whose record is constant and checked when packed).
     state = np.empty((count, 12))
     for k in range(count):
         rec = pairs[w_ids[k]]
         rigid_point(int(rec[PAIR_FIRST]), spheres, frame, state[k, 0:6])
-        if rec[PAIR_HALFSPACE] != 0.0:
-            g = int(rec[PAIR_PLANE_FRAME])
+        kind = int(rec[PAIR_KIND])
+        if kind == KIND_HALFSPACE:
+            g = int(rec[PAIR_OTHER])
             state[k, 6] = frame_mat[g, 2]
             state[k, 7] = frame_mat[g, 5]
             state[k, 8] = frame_mat[g, 8]
@@ -218,6 +305,9 @@ def step_rigid_kernel(st, n, pairs, spheres, frame):  # pragma: no cover - jitte
             )
             state[k, 10] = 0.0
             state[k, 11] = 0.0
+        elif kind == KIND_SHAPE:
+            for a in range(6, 12):
+                state[k, a] = 0.0
         else:
             rigid_point(int(rec[PAIR_SECOND]), spheres, frame, state[k, 6:12])
     for k in range(count):
@@ -230,12 +320,26 @@ def step_rigid_kernel(st, n, pairs, spheres, frame):  # pragma: no cover - jitte
             bad = w_ids[k]
             kernels.restore(st, n, count)
             return count, 0, bad
-        if rec[PAIR_HALFSPACE] != 0.0:
+        kind = int(rec[PAIR_KIND])
+        if kind == KIND_HALFSPACE:
             gap = s[6] * s[0] + s[7] * s[1] + s[8] * s[2] - s[9] - rec[PAIR_EPS]
             vn = s[6] * s[3] + s[7] * s[4] + s[8] * s[5]
-            st.w_tau[k] = tau_halfspace(gap, vn, rec[PAIR_ACCEL], rec[PAIR_DELTA])
+            t = tau_halfspace(gap, vn, rec[PAIR_ACCEL], rec[PAIR_DELTA])
+        elif kind == KIND_SHAPE:
+            t = tau_static(
+                s[0],
+                s[1],
+                s[2],
+                s[3],
+                s[4],
+                s[5],
+                shapes[int(rec[PAIR_OTHER])],
+                rec[PAIR_EPS],
+                rec[PAIR_ACCEL],
+                rec[PAIR_DELTA],
+            )
         else:
-            st.w_tau[k] = tau_speed(
+            t = tau_speed(
                 s[6] - s[0],
                 s[7] - s[1],
                 s[8] - s[2],
@@ -247,4 +351,7 @@ def step_rigid_kernel(st, n, pairs, spheres, frame):  # pragma: no cover - jitte
                 rec[PAIR_DELTA],
                 rec[PAIR_SPEED],
             )
+        if t < below:
+            t = fine_tau(w_ids[k], rec, t, frame, shapes, refine, buf)
+        st.w_tau[k] = t
     return count, kernels.reinsert(st, n, count), -1

@@ -57,7 +57,8 @@ from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states, 
 from dua_mujoco.mj.mocap import MocapVelocityTracker
 from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.pruning import HeldPairs
-from dua_mujoco.mj.tables import PairTables, plane_halfspaces, same_geometry
+from dua_mujoco.mj.refine import Refinement, build_refinement, no_refinement, refine_taus
+from dua_mujoco.mj.tables import PairTables, plane_halfspaces, same_geometry, static_shapes
 
 __all__ = ["BoundsLike", "Predictor"]
 
@@ -105,6 +106,14 @@ class Predictor:
         covering: ``"bounding"``, ``"multi"``, a ``CoveringMode`` or a ready ``Covering``.
         max_spheres_per_geom: Budget of the multi-sphere covering.
         hfield: ``"error"`` or ``"box"`` (conservative box covering of height fields).
+        static: ``"shape"`` (default): geoms welded to the world are held as their own convex
+            shapes (docs/static-shapes.md); ``"sphere"``: covered by spheres like moving geoms.
+            Ignored for a ready ``Covering``.
+        refine: Two-level urgency (docs/static-shapes.md, section 12): with an int ``n >= 1``,
+            pairs of the bounding covering whose tau is below ``refine_below`` are refined with
+            the geoms' ``multi`` coverings of ``n`` spheres each (requires
+            ``covering="bounding"``). None (default): off.
+        refine_below: Refine pairs whose bounding tau is below this many seconds.
         period: Physics steps between predictor steps (``>= 1``); the predictor period is
             ``period * model.opt.timestep``.
         latency: Periods a verdict takes to act. 0 (the default) is right when ``step`` runs
@@ -144,6 +153,9 @@ class Predictor:
         covering: Covering | CoveringMode | str = "bounding",
         max_spheres_per_geom: int = 8,
         hfield: str = "error",
+        static: str = "shape",
+        refine: int | None = None,
+        refine_below: float = 0.1,
         period: int = 1,
         latency: int = 0,
         schedule: Schedule | str = Schedule.DEADLINE,
@@ -175,7 +187,11 @@ class Predictor:
             covering
             if isinstance(covering, Covering)
             else cover_model(
-                model, mode=covering, max_spheres_per_geom=max_spheres_per_geom, hfield=hfield
+                model,
+                mode=covering,
+                max_spheres_per_geom=max_spheres_per_geom,
+                hfield=hfield,
+                static=static,
             )
         )
         self.geom_pairs: GeomPairs = active_geom_pairs(model)
@@ -190,6 +206,18 @@ class Predictor:
             )
         cov = self.covering
         spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
+        fine = None
+        if refine is not None:
+            fine = cover_model(
+                model, mode="multi", max_spheres_per_geom=refine, hfield=hfield, static=static
+            )
+            # The bounds must hold for the fine sphere centres too: the pilot measures both.
+            spheres = tuple(  # type: ignore[assignment]
+                np.concatenate([a, b])
+                for a, b in zip(
+                    spheres, (fine.sphere_geom, fine.sphere_body, fine.sphere_offset), strict=True
+                )
+            )
         if isinstance(accel, MotionBounds):
             if accel.accel.shape != (model.nbody,):
                 raise InvalidInputError(
@@ -239,6 +267,20 @@ class Predictor:
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
         self._pair_records = pack_pairs(self.pair_set, self._plane_geom)
+        self.refinement: Refinement | None = (
+            None
+            if fine is None
+            else build_refinement(
+                model.body_rootid, cov, fine, self.sphere_pairs, self.geom_pairs, refine_below
+            )
+        )
+        """The two-level urgency's fine coverings (None without ``refine``)."""
+        self._refine = no_refinement() if self.refinement is None else self.refinement.args
+        # Static shape records: their poses are model constants (static_shapes), re-packed and
+        # checked against the data at each reset.
+        self._shapes = static_shapes(model, cov.shape_geom)
+        if cov.nshape:
+            self.pair_set.shapes = self._shapes
         # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: Scheduler | None = None
@@ -300,6 +342,10 @@ class Predictor:
         """Hold the pairs ``ids`` (sorted): the compiled step reads only their records."""
         self._ids = ids
         self._records = np.ascontiguousarray(self._pair_records[ids])
+        if self.refinement is not None:
+            # The refinement records are indexed like the pair records the step reads.
+            fine, radius, records, below, most = self.refinement.args
+            self._refine = (fine, radius, np.ascontiguousarray(records[ids]), below, most)
 
     def pair_state(self) -> PairState:
         """The scheduler's state of every sphere pair, by the model's pair ids (pruned or not)."""
@@ -318,10 +364,9 @@ class Predictor:
     def _pair_set(self) -> PairSet:
         sp, cov, b = self.sphere_pairs, self.covering, self.bounds
         body1 = cov.sphere_body[sp.first]
-        # Half-space pairs: planes are static (covering/pairs reject moving planes).
-        body2 = np.where(
-            sp.is_halfspace, 0, cov.sphere_body[np.where(sp.is_halfspace, 0, sp.second)]
-        )
+        # Half-space and shape pairs: planes and shapes are static (the world body's bounds).
+        lone = sp.is_halfspace | sp.is_shape
+        body2 = np.where(lone, 0, cov.sphere_body[np.where(lone, 0, sp.second)])
         accel = b.accel[body1] + b.accel[body2]
         delta = b.vel_uncertainty[body1] + b.vel_uncertainty[body2]
         if self.mocap is not None and self.period > 1:
@@ -334,13 +379,13 @@ class Predictor:
             delta = delta + (extra * b.accel)[body1] + (extra * b.accel)[body2]
         speed: npt.ArrayLike = np.inf
         if b.speed is not None:
-            speed = np.where(sp.is_halfspace, b.speed[body1], b.speed[body1] + b.speed[body2])
+            speed = np.where(lone, b.speed[body1], b.speed[body1] + b.speed[body2])
         return PairSet(
             sp.first,
             sp.second,
             sp.eps,
             accel,
-            halfspace=sp.is_halfspace,
+            kind=sp.kind,
             vel_uncertainty=delta,
             speed=speed,
         )
@@ -478,12 +523,19 @@ class Predictor:
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
         halfspaces = self.halfspaces(data)
+        self._shapes = static_shapes(self.model, self.covering.shape_geom, data)
+        if self.covering.nshape:
+            self.pair_set.shapes = self._shapes
         if self._held is not None and self._on is not None:
             # A new scheduler starts with every pair on, held or not.
             self._on[:] = True
             self._hold(self._held.select(c, v))
             self._built_at = 0
         tau0 = self.pair_set.tau(self._ids, c, v, halfspaces)
+        if self.refinement is not None:
+            refine_taus(
+                tau0, self._ids, self._pair_records, frame, self._shapes, self.refinement.args
+            )
         self.scheduler = self._scheduler(tau0)
         self._load_compiled(data, frame)
         self._time = float(data.time)
@@ -523,7 +575,15 @@ class Predictor:
         """
         if len(self.pair_set):
             spare = self._scheduler(np.full(1, np.inf))
-            spare.step_with(step_rigid_kernel, self._pair_records[:1], self._spheres, frame)
+            spare.step_with(
+                step_rigid_kernel,
+                self._pair_records[:1],
+                self._spheres,
+                frame,
+                self._shapes,
+                # The full refinement records: row 0 exists even when no pair is held.
+                self._refine if self.refinement is None else self.refinement.args,
+            )
             spare.set_active([0], False)
             spare.set_active([0], True)
         if self.mocap is not None:
@@ -560,7 +620,9 @@ class Predictor:
             self.mocap.update(data, self._twist)
         if self._held is not None and sched.step_count + 1 - self._built_at >= self.stride:
             self._rebuild(data, sched.step_count + 1)
-        alarmed, bad = sched.step_with(step_rigid_kernel, self._records, self._spheres, frame)
+        alarmed, bad = sched.step_with(
+            step_rigid_kernel, self._records, self._spheres, frame, self._shapes, self._refine
+        )
         if bad >= 0:
             raise self._nonfinite(data, int(self._ids[bad]))
         self._time = time

@@ -1,5 +1,6 @@
 """What a predictor is built from, as tables: pair ids to geoms and names, plane half-spaces,
-and the model fingerprint that tells whether an ``MjData`` may be read with them."""
+static shape records, and the model fingerprint that tells whether an ``MjData`` may be read
+with them."""
 
 from __future__ import annotations
 
@@ -8,6 +9,9 @@ import dataclasses
 import mujoco
 import numpy as np
 
+from dua_mujoco.core.pairset import KIND_SHAPE
+from dua_mujoco.core.shapes import SHAPE_NCOL, ShapeKind, mesh_box, pack_shapes
+from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.filter import SpherePairs
 
@@ -18,12 +22,24 @@ __all__ = [
     "geom_names",
     "plane_halfspaces",
     "same_geometry",
+    "static_shapes",
 ]
 
 
 @dataclasses.dataclass(frozen=True)
 class PairTables:
-    """Read-only lookup tables that turn sphere-pair ids into geoms and names."""
+    """Read-only lookup tables that turn sphere-pair ids into geoms and names.
+
+    Attributes:
+        first: ``(n,)`` sphere of each pair.
+        second: ``(n,)`` sphere, plane index or shape index, by ``kind``.
+        halfspace: ``(n,)`` bool, half-space pairs.
+        geom1: ``(n,)`` geom of ``first``.
+        geom2: ``(n,)`` geom of ``second``: the plane geom of a half-space pair, the static
+            geom of a shape pair.
+        geom_names: ``(ngeom,)`` names.
+        kind: ``(n,)`` int8 ``PairKind`` codes.
+    """
 
     first: np.ndarray
     second: np.ndarray
@@ -31,28 +47,32 @@ class PairTables:
     geom1: np.ndarray
     geom2: np.ndarray
     geom_names: np.ndarray
+    kind: np.ndarray
 
     @classmethod
     def build(
         cls, model: mujoco.MjModel, covering: Covering, sphere_pairs: SpherePairs
     ) -> PairTables:
         """The tables of ``sphere_pairs`` over ``covering`` (``geom2`` of a half-space pair is
-        its plane geom)."""
+        its plane geom, of a shape pair its static geom)."""
         sp = sphere_pairs
-        plane_geom = np.asarray(covering.plane_geom, dtype=np.int64)
+        kind = sp.kind
+        second = np.asarray(sp.second, dtype=np.int64)
+        geom2 = np.full(second.shape, -1, dtype=np.int64)
         h = np.asarray(sp.is_halfspace, dtype=bool)
-        geom2 = np.where(
-            h,
-            plane_geom[np.where(h, sp.second, 0)] if plane_geom.size else -1,
-            covering.sphere_geom[np.where(h, 0, sp.second)],
-        )
+        s = kind == KIND_SHAPE
+        two = ~(h | s)
+        geom2[h] = np.asarray(covering.plane_geom, dtype=np.int64)[second[h]]
+        geom2[s] = np.asarray(covering.shape_geom, dtype=np.int64)[second[s]]
+        geom2[two] = covering.sphere_geom[second[two]]
         return cls(
             first=np.asarray(sp.first, dtype=np.int64),
             second=np.asarray(sp.second, dtype=np.int64),
             halfspace=h,
             geom1=np.asarray(covering.sphere_geom[sp.first], dtype=np.int64),
-            geom2=np.asarray(geom2, dtype=np.int64),
+            geom2=geom2,
             geom_names=geom_names(model),
+            kind=kind,
         )
 
 
@@ -122,3 +142,74 @@ def plane_halfspaces(data: mujoco.MjData, plane_geom: np.ndarray) -> tuple[np.nd
         return np.zeros((1, 3)), np.zeros(1)
     normals = np.asarray(data.geom_xmat)[g][:, [2, 5, 8]]
     return normals, np.einsum("ij,ij->i", normals, np.asarray(data.geom_xpos)[g])
+
+
+# How far a static geom's pose in MjData may be from the one the model gives it: both come from
+# the same mj_kinematics arithmetic on the same constants, so they agree to the last bit; the
+# tolerance only absorbs a different summation order in a future MuJoCo.
+_STATIC_POSE_TOL = 1e-9
+
+
+def static_shapes(
+    model: mujoco.MjModel, shape_geom: np.ndarray, data: mujoco.MjData | None = None
+) -> np.ndarray:
+    """Shape records of the static geoms, optionally checked against ``data``.
+
+    A body welded to the world (``body_weldid == 0``) has no joint and no mocap body between it
+    and the world, so ``mj_kinematics`` computes its geoms' poses from model constants only
+    (``body_pos``, ``body_quat``, ``geom_pos``, ``geom_quat`` along the chain): they are the same
+    at every step, and the records can be packed once. They are packed here from a scratch
+    ``MjData`` of ``model`` and, when given, compared with ``data``: a mismatch means ``data`` is
+    not of this model's placement of the static geoms (another model with the same geoms but
+    moved bodies, a model edited since ``data``'s last ``mj_forward``, or poses written by hand),
+    and the prediction would be wrong.
+
+    Args:
+        model: the compiled model.
+        shape_geom: ``(nshape,)`` static geoms (``Covering.shape_geom``).
+        data: its data, kinematics computed, or None for no check.
+
+    Returns:
+        ``(nshape, 16)`` records (``dua_mujoco.core.shapes``); one placeholder row (never read)
+        when there is no shape.
+
+    Raises:
+        InvalidInputError: a static geom's pose in ``data`` differs from the model's.
+    """
+    g = np.asarray(shape_geom, dtype=np.int64)
+    if g.size == 0:
+        return np.zeros((1, SHAPE_NCOL))
+    scratch = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, scratch)
+    pos = np.asarray(scratch.geom_xpos)[g]
+    mat = np.asarray(scratch.geom_xmat)[g]
+    if data is not None:
+        _check_static_poses(model, g, pos, mat, data)
+    types = np.asarray(model.geom_type, dtype=np.int64)[g]
+    size = np.asarray(model.geom_size, dtype=np.float64)[g].copy()
+    mesh = types == int(ShapeKind.MESH_BOX)
+    if mesh.any():
+        half, centre = mesh_box(np.asarray(model.geom_aabb)[g[mesh]], pos[mesh], mat[mesh])
+        size[mesh] = half
+        pos = pos.copy()
+        pos[mesh] = centre
+    return pack_shapes(types, size, pos, mat)
+
+
+def _check_static_poses(
+    model: mujoco.MjModel, g: np.ndarray, pos: np.ndarray, mat: np.ndarray, data: mujoco.MjData
+) -> None:
+    dpos = np.asarray(data.geom_xpos)[g]
+    dmat = np.asarray(data.geom_xmat)[g]
+    err = np.maximum(np.abs(dpos - pos).max(axis=1), np.abs(dmat - mat).max(axis=1))
+    bad = np.flatnonzero(~(err <= _STATIC_POSE_TOL))
+    if bad.size:
+        k = int(bad[0])
+        name = geom_names(model)[g[k]]
+        raise InvalidInputError(
+            f"static geom {int(g[k])} ({name!r}) is at {dpos[k].tolist()} in data but the model "
+            f"places it at {pos[k].tolist()} (|difference| {float(err[k]):.3g}; {bad.size} "
+            "static geom(s) differ): a geom welded to the world must not move. Call "
+            "mujoco.mj_forward(model, data) after editing the model (body_pos, geom_pos, ...), "
+            "then predictor.reset(data); or build a Predictor for the model data belongs to."
+        )
