@@ -59,7 +59,8 @@ def test_no_private_names_across_modules() -> None:
 
 def test_modules_stay_small() -> None:
     sizes = {str(p.relative_to(ROOT)): len(p.read_text().splitlines()) for p in _modules()}
-    assert {k: v for k, v in sizes.items() if v > 560} == {}
+    # "About 500 lines": a module past 600 holds two things.
+    assert {k: v for k, v in sizes.items() if v > 600} == {}
 
 
 def test_the_pytest_plugin_imports_neither_numba_nor_mujoco() -> None:

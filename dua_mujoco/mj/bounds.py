@@ -19,7 +19,7 @@ and then |c_{k+n} - c_k - n h w_k| <= delta_b t + A_b t^2 / 2 at every t = n h.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import mujoco
@@ -38,6 +38,7 @@ __all__ = [
     "discrete_velocity_uncertainty",
     "estimate_bounds",
     "moving_bodies",
+    "resolve_bounds",
 ]
 
 BoundSpec = float | Mapping[str, float]
@@ -463,3 +464,59 @@ def estimate_bounds(
         timestep=h,
         body_names=tuple(_body_names(model)),
     )
+
+
+def resolve_bounds(
+    model: mujoco.MjModel,
+    accel: float | Mapping[str, float] | MotionBounds | str,
+    *,
+    speed: float | Mapping[str, float] | None = None,
+    velocity_accel: float | Mapping[str, float] | None = None,
+    spheres: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    pilot_steps: int = 2000,
+    pilot_seed: int = 1_000_003,
+    pilot_controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None,
+    safety: float = 2.0,
+) -> MotionBounds:
+    """The ``MotionBounds`` a ``Predictor``'s ``accel`` argument stands for.
+
+    A scalar or a dict by body name is declared (``MotionBounds.declare``, with ``speed`` and
+    ``velocity_accel``); ``"auto"`` runs a pilot rollout (``estimate_bounds``) over ``spheres``
+    and keeps a declared ``speed`` on top; ready ``MotionBounds`` must be this model's.
+    """
+    if isinstance(accel, MotionBounds):
+        if accel.accel.shape != (model.nbody,):
+            raise InvalidInputError(
+                f"the MotionBounds have {accel.accel.shape[0]} bodies but the model has "
+                f"{model.nbody}: build them for this model (MotionBounds.declare(model, ...))."
+            )
+        bounds = accel
+    elif isinstance(accel, str):
+        if accel != "auto":
+            raise InvalidInputError(
+                f"accel = {accel!r} is invalid: pass 'auto', a number, a dict by body name "
+                "or MotionBounds."
+            )
+        pilot = None
+        if pilot_controller is not None:
+            ctrl = pilot_controller
+
+            def pilot(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator) -> None:
+                ctrl(m, d)
+
+        bounds = estimate_bounds(
+            model,
+            steps=pilot_steps,
+            seed=pilot_seed,
+            safety=safety,
+            controller=pilot,
+            spheres=spheres,
+            with_speed=False,
+        )
+        if speed is not None:
+            # A declared speed bound still applies on top of estimated accelerations.
+            declared = MotionBounds.declare(model, 0.0, speed=speed, integrator_term=False)
+            bounds = replace(bounds, speed=declared.speed)
+    else:
+        bounds = MotionBounds.declare(model, accel, speed=speed, velocity_accel=velocity_accel)
+    return bounds

@@ -13,7 +13,6 @@ predictor uses that one instant throughout (docs/discrete-time.md).
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 from collections.abc import Callable, Mapping
 from typing import Literal
@@ -22,29 +21,28 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.pairset import PairSet, pack_pairs
-from dua_mujoco.core.pruned import rebuild_stride
+from dua_mujoco.core.pairset import pack_pairs
 from dua_mujoco.core.schedules import (
     DeadlineScheduler,
-    DUAScheduler,
     Schedule,
     Scheduler,
-    SelectAllScheduler,
+    as_schedule,
+    make_scheduler,
 )
 from dua_mujoco.core.schedules.deadline import check_max_evals
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
-from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, DEFAULT_STRIDE, PairMode
+from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
-    InvalidChoiceError,
     InvalidInputError,
     NoActivePairsWarning,
     NonFiniteStateError,
     SchedulerError,
 )
 from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.bounds import DIVERGENCE_WARNINGS, MotionBounds, estimate_bounds
+from dua_mujoco.mj.bounds import MotionBounds, resolve_bounds
 from dua_mujoco.mj.covering import Covering, CoveringMode, cover_model
+from dua_mujoco.mj.diagnostics import divergence_message, nonfinite_error
 from dua_mujoco.mj.filter import (
     GeomPairs,
     SpherePairs,
@@ -55,43 +53,23 @@ from dua_mujoco.mj.filter import (
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states, step_rigid_kernel
 from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.pairbounds import body_vel_uncertainty, bounded_pairs
 from dua_mujoco.mj.pairstate import PairState
-from dua_mujoco.mj.pruning import HeldPairs
+from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for
 from dua_mujoco.mj.refine import Refinement, build_refinement, no_refinement, refine_taus
-from dua_mujoco.mj.tables import PairTables, plane_halfspaces, same_geometry, static_shapes
+from dua_mujoco.mj.tables import (
+    PairTables,
+    check_data,
+    check_forwarded,
+    plane_halfspaces,
+    static_shapes,
+)
 
 __all__ = ["BoundsLike", "Predictor"]
 
 BoundsLike = float | Mapping[str, float] | MotionBounds | Literal["auto"]
 """Acceleration bounds: a scalar (m/s^2, every moving body), a dict by body name (``"*"`` for
 the rest), ready ``MotionBounds``, or ``"auto"`` (estimated by a pilot rollout)."""
-
-
-def make_scheduler(
-    schedule: Schedule,
-    tau0: np.ndarray,
-    *,
-    dt: float,
-    latency: int,
-    slots_per_bucket: int = 1,
-    max_evals_per_step: int | None = None,
-) -> Scheduler:
-    """The scheduler of ``schedule`` over the initial tau ``tau0``."""
-    if schedule is Schedule.DUA:
-        return DUAScheduler(tau0, dt=dt, latency=latency, slots_per_bucket=slots_per_bucket)
-    if schedule is Schedule.DEADLINE:
-        return DeadlineScheduler(
-            tau0, dt=dt, latency=latency, max_evals_per_step=max_evals_per_step
-        )
-    return SelectAllScheduler(tau0, dt=dt, latency=latency)
-
-
-def as_schedule(schedule: Schedule | str) -> Schedule:
-    """``schedule`` as a ``Schedule``, or an error listing the choices."""
-    try:
-        return Schedule(schedule)
-    except ValueError:
-        raise InvalidChoiceError("schedule", schedule, [s.value for s in Schedule]) from None
 
 
 class Predictor:
@@ -218,49 +196,25 @@ class Predictor:
                     spheres, (fine.sphere_geom, fine.sphere_body, fine.sphere_offset), strict=True
                 )
             )
-        if isinstance(accel, MotionBounds):
-            if accel.accel.shape != (model.nbody,):
-                raise InvalidInputError(
-                    f"the MotionBounds have {accel.accel.shape[0]} bodies but the model has "
-                    f"{model.nbody}: build them for this model (MotionBounds.declare(model, ...))."
-                )
-            self.bounds = accel
-        elif isinstance(accel, str):
-            if accel != "auto":
-                raise InvalidInputError(
-                    f"accel = {accel!r} is invalid: pass 'auto', a number, a dict by body name "
-                    "or MotionBounds."
-                )
-            pilot = None
-            if pilot_controller is not None:
-                ctrl = pilot_controller
-
-                def pilot(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator) -> None:
-                    ctrl(m, d)
-
-            self.bounds = estimate_bounds(
-                model,
-                steps=pilot_steps,
-                seed=pilot_seed,
-                safety=safety,
-                controller=pilot,
-                spheres=spheres,
-                with_speed=False,
-            )
-            if speed is not None:
-                # A declared speed bound still applies on top of estimated accelerations.
-                declared = MotionBounds.declare(model, 0.0, speed=speed, integrator_term=False)
-                self.bounds = dataclasses.replace(self.bounds, speed=declared.speed)
-        else:
-            self.bounds = MotionBounds.declare(
-                model, accel, speed=speed, velocity_accel=velocity_accel
-            )
+        self.bounds = resolve_bounds(
+            model,
+            accel,
+            speed=speed,
+            velocity_accel=velocity_accel,
+            spheres=spheres,
+            pilot_steps=pilot_steps,
+            pilot_seed=pilot_seed,
+            pilot_controller=pilot_controller,
+            safety=safety,
+        )
         self.mocap: MocapVelocityTracker | None = (
             MocapVelocityTracker(model) if model.nmocap else None
         )
         """Velocities of mocap bodies (None without mocap bodies): ``set_velocity`` to give
         them instead of differencing."""
-        self.pair_set = self._pair_set()
+        self.pair_set = bounded_pairs(
+            model, cov, self.sphere_pairs, self.bounds, period=self.period, mocap=self.mocap
+        )
         self.tables = PairTables.build(model, cov, self.sphere_pairs)
         self._plane_geom = np.asarray(cov.plane_geom, dtype=np.int64)
         self._spheres = pack_spheres(
@@ -303,40 +257,20 @@ class Predictor:
     # ----------------------------------------------------------------------- setup
 
     def _held_pairs(self, pairs: PairMode | str, horizon: float | None) -> HeldPairs | None:
-        try:
-            mode = PairMode(pairs)
-        except ValueError:
-            raise InvalidChoiceError("pairs", pairs, [m.value for m in PairMode]) from None
-        if mode is PairMode.AUTO:
-            big = self.covering.nsphere >= AUTO_PRUNED_MIN
-            mode = PairMode.PRUNED if big and self.schedule is Schedule.DEADLINE else PairMode.ALL
-        if mode is PairMode.ALL:
-            if horizon is not None:
-                raise InvalidInputError(
-                    f"horizon = {horizon!r} is given but pairs='all': pass pairs='pruned'."
-                )
-            return None
-        if self.schedule is not Schedule.DEADLINE:
-            raise InvalidInputError(
-                f"pairs='pruned' with schedule={self.schedule.value!r}: pruned pairs are "
-                "rebuilt into the deadline schedule only; pass schedule='deadline'."
-            )
-        T = (DEFAULT_STRIDE + self.latency) * self.dt if horizon is None else horizon
-        self.stride = rebuild_stride(T, self.dt, self.latency)
-        cov, b = self.covering, self.bounds
-        body = np.asarray(cov.sphere_body, dtype=np.int64)
-        delta = b.vel_uncertainty[body]
-        if self.mocap is not None and self.period > 1:
-            # As in _pair_set: mocap velocities are differences over one predictor period.
-            in_mocap = np.zeros(self.model.nbody, dtype=bool)
-            in_mocap[self.mocap.mocap_bodies] = True
-            tree = in_mocap[np.asarray(self.model.body_rootid)]
-            extra = np.where(tree, 0.5 * (self.period - 1) * self.model.opt.timestep, 0.0)
-            delta = delta + (extra * b.accel)[body]
-        speed = np.full(body.shape, np.inf) if b.speed is None else b.speed[body]
-        return HeldPairs(
-            self.sphere_pairs, cov.sphere_radius, b.accel[body], delta, speed, float(T)
+        held, self.stride = held_pairs_for(
+            pairs,
+            horizon,
+            deadline=self.schedule is Schedule.DEADLINE,
+            sphere_pairs=self.sphere_pairs,
+            covering=self.covering,
+            bounds=self.bounds,
+            delta=body_vel_uncertainty(
+                self.model, self.bounds, period=self.period, mocap=self.mocap
+            ),
+            dt=self.dt,
+            latency=self.latency,
         )
+        return held
 
     def _hold(self, ids: np.ndarray) -> None:
         """Hold the pairs ``ids`` (sorted): the compiled step reads only their records."""
@@ -361,56 +295,12 @@ class Predictor:
         """``(K,)`` id among all active sphere pairs of each of the scheduler's pairs."""
         return self._ids
 
-    def _pair_set(self) -> PairSet:
-        sp, cov, b = self.sphere_pairs, self.covering, self.bounds
-        body1 = cov.sphere_body[sp.first]
-        # Half-space and shape pairs: planes and shapes are static (the world body's bounds).
-        lone = sp.is_halfspace | sp.is_shape
-        body2 = np.where(lone, 0, cov.sphere_body[np.where(lone, 0, sp.second)])
-        accel = b.accel[body1] + b.accel[body2]
-        delta = b.vel_uncertainty[body1] + b.vel_uncertainty[body2]
-        if self.mocap is not None and self.period > 1:
-            # Mocap velocities are backward differences over one predictor period: their error
-            # is A * period * h / 2, of which the discrete-time term already holds A * h / 2.
-            in_mocap = np.zeros(self.model.nbody, dtype=bool)
-            in_mocap[self.mocap.mocap_bodies] = True
-            tree = in_mocap[np.asarray(self.model.body_rootid)]
-            extra = np.where(tree, 0.5 * (self.period - 1) * self.model.opt.timestep, 0.0)
-            delta = delta + (extra * b.accel)[body1] + (extra * b.accel)[body2]
-        speed: npt.ArrayLike = np.inf
-        if b.speed is not None:
-            speed = np.where(lone, b.speed[body1], b.speed[body1] + b.speed[body2])
-        return PairSet(
-            sp.first,
-            sp.second,
-            sp.eps,
-            accel,
-            kind=sp.kind,
-            vel_uncertainty=delta,
-            speed=speed,
-        )
-
     # ----------------------------------------------------------------------- state
 
     def check_data(self, data: mujoco.MjData) -> None:
         """Refuse anything but an ``MjData`` of this predictor's model (or of one with the same
         geometry, e.g. the same XML loaded twice): the compiled step reads it unchecked."""
-        m = self.model
-        if not isinstance(data, mujoco.MjData):
-            raise InvalidInputError(
-                f"data must be a mujoco.MjData, got {type(data).__name__}: pass "
-                "mujoco.MjData(model) after mujoco.mj_forward(model, data)."
-            )
-        # The same object, or another one with the same geometry (one XML loaded twice): the
-        # compiled step reads MjData without bounds checks, and the covering and the pair
-        # filter must be this model's.
-        if data.model is not m and not same_geometry(data.model, m):
-            raise InvalidInputError(
-                f"data belongs to another MjModel ({data.model.ngeom} geoms, {data.model.nbody} "
-                f"bodies; this predictor's has {m.ngeom} and {m.nbody}) whose geoms, bodies or "
-                "collision filters differ: pass the MjData of this predictor's model, or build "
-                "a Predictor for that model."
-            )
+        check_data(self.model, data)
 
     def _bind_frame(self, data: mujoco.MjData) -> tuple:
         """Build and cache the fused step's ``frame`` tuple (``rigid_point``) for ``data``.
@@ -441,58 +331,12 @@ class Predictor:
 
     def _nonfinite(self, data: mujoco.MjData, pair: int | None = None) -> NonFiniteStateError:
         if pair is not None:
-            g = {int(self.tables.geom1[pair]), int(self.tables.geom2[pair])}
+            geoms = {int(self.tables.geom1[pair]), int(self.tables.geom2[pair])}
         else:
             c, v = self.sphere_states(data)
             bad = ~(np.isfinite(c).all(axis=1) & np.isfinite(v).all(axis=1))
-            g = set(self.covering.sphere_geom[bad].tolist()[:5])
-        if g:
-            what = f"the state of geom(s) {self._listed(g)}"
-        else:  # finite kinematics computed before a NaN was written into qpos or qvel
-            m = self.model
-            bad = [
-                mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
-                for vec, adr in ((data.qpos, m.jnt_qposadr), (data.qvel, m.jnt_dofadr))
-                for j in np.unique(
-                    np.searchsorted(adr, np.flatnonzero(~np.isfinite(vec)), "right") - 1
-                )
-            ]
-            what = f"data.qpos or data.qvel of joint(s) {sorted(set(bad))}"
-        return NonFiniteStateError(
-            f"{what} is not finite at t = {data.time}: the simulation has diverged (reduce the "
-            "timestep or check the model) or MjData was not initialised (call mujoco.mj_forward)."
-        )
-
-    def _listed(self, geoms: set[int]) -> str:
-        return ", ".join(repr(self.tables.geom_names[i]) for i in sorted(geoms))
-
-    @staticmethod
-    def _divergence_count(data: mujoco.MjData) -> int:
-        return sum(int(data.warning[int(w)].number) for w in DIVERGENCE_WARNINGS)
-
-    def _divergence(self, data: mujoco.MjData) -> str:
-        """Why the state jumped, if MuJoCo reset it after diverging since ``reset`` (or "").
-
-        Called only when ``data.time`` did not advance by one period. MuJoCo answers a diverged
-        state with a warning and ``mj_resetData``, which also restarts its count of
-        ``mj_step`` calls: a divergence warning standing and a step count other than the one
-        this predictor's calls imply mean MuJoCo reset the state (a user's own ``mj_resetData``
-        clears the warnings; a rewound ``data.time`` leaves the step count as it was).
-        """
-        if self._divergence_count(data) == 0:
-            return ""
-        sched = self.scheduler
-        assert sched is not None
-        steps = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
-        if steps == self._steps_at_reset + self.period * (sched.step_count + 1):
-            return ""
-        names = [w.name for w in DIVERGENCE_WARNINGS if data.warning[int(w)].number]
-        return (
-            f"MuJoCo reported a NaN, inf or huge value ({', '.join(names)}) and reset the "
-            f"simulation state itself (data.time is now {data.time:g} s): the simulation "
-            "diverged. Reduce model.opt.timestep or check the model and controls, then call "
-            "predictor.reset(data)."
-        )
+            geoms = set(self.covering.sphere_geom[bad].tolist()[:5])
+        return nonfinite_error(self.model, data, self.tables.geom_names, geoms)
 
     # ----------------------------------------------------------------------- protocol
 
@@ -511,7 +355,7 @@ class Predictor:
             NonFiniteStateError: a position or velocity is NaN or inf.
         """
         frame = self._bind_frame(data)  # checks data
-        self._check_forwarded(data)
+        check_forwarded(self.model, data)
         if self.mocap is not None:
             # A reset starts a new trajectory: difference mocap poses within it only. Reset in
             # place: the Monitor's bound checks hold this same tracker.
@@ -555,16 +399,6 @@ class Predictor:
             max_evals_per_step=self.max_evals_per_step,
         )
 
-    def _check_forwarded(self, data: mujoco.MjData) -> None:
-        """An ``MjData`` fresh from ``mujoco.MjData(model)`` has all-zero rotation matrices:
-        every geom sits at the origin and every pair would alarm."""
-        if self.model.ngeom and not np.asarray(data.geom_xmat).any():
-            raise InvalidInputError(
-                "data holds no kinematics (every geom rotation is zero: mj_forward was never "
-                "called): call mujoco.mj_forward(model, data) (or mj_step) before "
-                "predictor.reset(data)."
-            )
-
     def _load_compiled(self, data: mujoco.MjData, frame: tuple) -> None:
         """Load what ``step`` runs from numba's cache (~10 ms each) now, not in ``step``.
 
@@ -607,7 +441,8 @@ class Predictor:
         time = float(data.time)
         elapsed = time - self._time
         if abs(elapsed - self.dt) > 1e-6 * self.dt:
-            diverged = self._divergence(data)
+            expected = self._steps_at_reset + self.period * (sched.step_count + 1)
+            diverged = divergence_message(data, expected)
             if diverged:
                 raise NonFiniteStateError(diverged)
             raise SchedulerError(

@@ -14,9 +14,14 @@ from __future__ import annotations
 import numpy as np
 
 from dua_mujoco.core.neighbors import candidate_pairs, reach
+from dua_mujoco.core.pruned import rebuild_stride
+from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, DEFAULT_STRIDE, PairMode
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.bounds import MotionBounds
+from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.filter import SpherePairs
 
-__all__ = ["HeldPairs"]
+__all__ = ["HeldPairs", "held_pairs_for"]
 
 
 class HeldPairs:
@@ -75,3 +80,47 @@ class HeldPairs:
         pos = np.minimum(np.searchsorted(self.codes, key), self.codes.size - 1)
         found = self.code_ids[pos[self.codes[pos] == key]]
         return np.sort(np.concatenate([self.halfspace_ids, found]))
+
+
+def held_pairs_for(
+    pairs: PairMode | str,
+    horizon: float | None,
+    *,
+    deadline: bool,
+    sphere_pairs: SpherePairs,
+    covering: Covering,
+    bounds: MotionBounds,
+    delta: np.ndarray,
+    dt: float,
+    latency: int,
+) -> tuple[HeldPairs | None, int]:
+    """What ``Predictor(pairs=..., horizon=...)`` holds: ``(HeldPairs or None, stride)``.
+
+    ``"auto"`` prunes from ``AUTO_PRUNED_MIN`` spheres with the deadline schedule; ``"all"``
+    holds every pair (``None``, stride 0). ``delta``: ``(nbody,)`` velocity uncertainties.
+    """
+    try:
+        mode = PairMode(pairs)
+    except ValueError:
+        raise InvalidChoiceError("pairs", pairs, [m.value for m in PairMode]) from None
+    if mode is PairMode.AUTO:
+        big = covering.nsphere >= AUTO_PRUNED_MIN
+        mode = PairMode.PRUNED if big and deadline else PairMode.ALL
+    if mode is PairMode.ALL:
+        if horizon is not None:
+            raise InvalidInputError(
+                f"horizon = {horizon!r} is given but pairs='all': pass pairs='pruned'."
+            )
+        return None, 0
+    if not deadline:
+        raise InvalidInputError(
+            "pairs='pruned' needs the deadline schedule: pruned pairs are rebuilt into it "
+            "only; pass schedule='deadline'."
+        )
+    T = (DEFAULT_STRIDE + latency) * dt if horizon is None else horizon
+    body = np.asarray(covering.sphere_body, dtype=np.int64)
+    speed = np.full(body.shape, np.inf) if bounds.speed is None else bounds.speed[body]
+    held = HeldPairs(
+        sphere_pairs, covering.sphere_radius, bounds.accel[body], delta[body], speed, float(T)
+    )
+    return held, rebuild_stride(T, dt, latency)

@@ -18,6 +18,8 @@ from dua_mujoco.mj.filter import SpherePairs
 __all__ = [
     "GEOMETRY_FIELDS",
     "PairTables",
+    "check_data",
+    "check_forwarded",
     "contact_options",
     "geom_names",
     "plane_halfspaces",
@@ -212,4 +214,34 @@ def _check_static_poses(
             "static geom(s) differ): a geom welded to the world must not move. Call "
             "mujoco.mj_forward(model, data) after editing the model (body_pos, geom_pos, ...), "
             "then predictor.reset(data); or build a Predictor for the model data belongs to."
+        )
+
+
+def check_data(model: mujoco.MjModel, data: object) -> None:
+    """Refuse anything but an ``MjData`` of ``model``, or of a model with the same geometry (one
+    XML loaded twice): the compiled step reads ``MjData`` without bounds checks, and the covering
+    and the pair filter must be this model's."""
+    if not isinstance(data, mujoco.MjData):
+        raise InvalidInputError(
+            f"data must be a mujoco.MjData, got {type(data).__name__}: pass "
+            "mujoco.MjData(model) after mujoco.mj_forward(model, data)."
+        )
+    if data.model is not model and not same_geometry(data.model, model):
+        raise InvalidInputError(
+            f"data belongs to another MjModel ({data.model.ngeom} geoms, {data.model.nbody} "
+            f"bodies; this predictor's has {model.ngeom} and {model.nbody}) whose geoms, bodies "
+            "or collision filters differ: pass the MjData of this predictor's model, or build "
+            "a Predictor for that model."
+        )
+
+
+def check_forwarded(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Refuse an ``MjData`` whose kinematics were never computed: fresh from
+    ``mujoco.MjData(model)`` every rotation matrix is zero, every geom sits at the origin and
+    every pair would alarm."""
+    if model.ngeom and not np.asarray(data.geom_xmat).any():
+        raise InvalidInputError(
+            "data holds no kinematics (every geom rotation is zero: mj_forward was never "
+            "called): call mujoco.mj_forward(model, data) (or mj_step) before "
+            "predictor.reset(data)."
         )

@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import enum
 
+import numpy as np
+
 from dua_mujoco.core.schedules.base import FusedKernel, Scheduler
 from dua_mujoco.core.schedules.deadline import DeadlineScheduler
 from dua_mujoco.core.schedules.dua import DUAScheduler, bucket_layout
 from dua_mujoco.core.schedules.select_all import SelectAllScheduler, Urgency
 from dua_mujoco.core.schedules.state import ScheduleState
+from dua_mujoco.exceptions import InvalidChoiceError
 
 __all__ = [
     "DUAScheduler",
@@ -24,7 +27,9 @@ __all__ = [
     "Scheduler",
     "SelectAllScheduler",
     "Urgency",
+    "as_schedule",
     "bucket_layout",
+    "make_scheduler",
 ]
 
 
@@ -37,3 +42,30 @@ class Schedule(enum.Enum):
     """Each pair at the latest step its tau allows: select-all's alarms, far less work."""
     SELECT_ALL = "select-all"
     """Every pair every step (SA(tau)): the baseline."""
+
+
+def make_scheduler(
+    schedule: Schedule,
+    tau0: np.ndarray,
+    *,
+    dt: float,
+    latency: int,
+    slots_per_bucket: int = 1,
+    max_evals_per_step: int | None = None,
+) -> Scheduler:
+    """The scheduler of ``schedule`` over the initial tau ``tau0``."""
+    if schedule is Schedule.DUA:
+        return DUAScheduler(tau0, dt=dt, latency=latency, slots_per_bucket=slots_per_bucket)
+    if schedule is Schedule.DEADLINE:
+        return DeadlineScheduler(
+            tau0, dt=dt, latency=latency, max_evals_per_step=max_evals_per_step
+        )
+    return SelectAllScheduler(tau0, dt=dt, latency=latency)
+
+
+def as_schedule(schedule: Schedule | str) -> Schedule:
+    """``schedule`` as a ``Schedule``, or an error listing the choices."""
+    try:
+        return Schedule(schedule)
+    except ValueError:
+        raise InvalidChoiceError("schedule", schedule, [s.value for s in Schedule]) from None

@@ -1,0 +1,75 @@
+"""The scheduler's pairs with their bounds: the model's sphere pairs, each with the sum of its two
+bodies' acceleration bounds, velocity uncertainties and speed bounds."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.core.pairset import PairSet
+from dua_mujoco.mj.bounds import MotionBounds
+from dua_mujoco.mj.covering import Covering
+from dua_mujoco.mj.filter import SpherePairs
+from dua_mujoco.mj.mocap import MocapVelocityTracker
+
+__all__ = ["body_vel_uncertainty", "bounded_pairs"]
+
+
+def body_vel_uncertainty(
+    model: mujoco.MjModel,
+    bounds: MotionBounds,
+    *,
+    period: int = 1,
+    mocap: MocapVelocityTracker | None = None,
+) -> np.ndarray:
+    """``(nbody,)`` velocity uncertainty of each body for a predictor of ``period``.
+
+    Mocap velocities are backward differences over one predictor period: their error is
+    ``A period h / 2``, of which the discrete-time term already holds ``A h / 2``
+    (docs/discrete-time.md); mocap trees get the rest.
+    """
+    delta = np.asarray(bounds.vel_uncertainty, dtype=np.float64)
+    if mocap is None or period <= 1:
+        return delta
+    in_mocap = np.zeros(model.nbody, dtype=bool)
+    in_mocap[mocap.mocap_bodies] = True
+    tree = in_mocap[np.asarray(model.body_rootid)]
+    extra = np.where(tree, 0.5 * (period - 1) * model.opt.timestep, 0.0)
+    return np.asarray(delta + extra * bounds.accel)
+
+
+def bounded_pairs(
+    model: mujoco.MjModel,
+    covering: Covering,
+    sphere_pairs: SpherePairs,
+    bounds: MotionBounds,
+    *,
+    period: int = 1,
+    mocap: MocapVelocityTracker | None = None,
+) -> PairSet:
+    """The ``PairSet`` of ``sphere_pairs`` under ``bounds`` for a predictor of ``period``.
+
+    Mocap trees get the extra velocity uncertainty of differencing over a period
+    (docs/discrete-time.md).
+    """
+    sp, cov, b = sphere_pairs, covering, bounds
+    body1 = cov.sphere_body[sp.first]
+    # Half-space and shape pairs: planes and shapes are static (the world body's bounds).
+    lone = sp.is_halfspace | sp.is_shape
+    body2 = np.where(lone, 0, cov.sphere_body[np.where(lone, 0, sp.second)])
+    accel = b.accel[body1] + b.accel[body2]
+    per_body = body_vel_uncertainty(model, bounds, period=period, mocap=mocap)
+    delta = per_body[body1] + per_body[body2]
+    speed: npt.ArrayLike = np.inf
+    if b.speed is not None:
+        speed = np.where(lone, b.speed[body1], b.speed[body1] + b.speed[body2])
+    return PairSet(
+        sp.first,
+        sp.second,
+        sp.eps,
+        accel,
+        kind=sp.kind,
+        vel_uncertainty=delta,
+        speed=speed,
+    )
