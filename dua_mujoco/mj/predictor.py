@@ -184,10 +184,15 @@ class Predictor:
             )
         cov = self.covering
         spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
-        fine = None
+        self.refinement: Refinement | None = None
+        """The two-level urgency's fine coverings (None without ``refine``)."""
         if refine is not None:
             fine = cover_model(
                 model, mode="multi", max_spheres_per_geom=refine, hfield=hfield, static=static
+            )
+            # Before the pilot: a refinement that cannot be built fails fast.
+            self.refinement = build_refinement(
+                model.body_rootid, cov, fine, self.sphere_pairs, self.geom_pairs, refine_below
             )
             # The bounds must hold for the fine sphere centres too: the pilot measures both.
             spheres = tuple(  # type: ignore[assignment]
@@ -221,14 +226,6 @@ class Predictor:
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
         self._pair_records = pack_pairs(self.pair_set, self._plane_geom)
-        self.refinement: Refinement | None = (
-            None
-            if fine is None
-            else build_refinement(
-                model.body_rootid, cov, fine, self.sphere_pairs, self.geom_pairs, refine_below
-            )
-        )
-        """The two-level urgency's fine coverings (None without ``refine``)."""
         self._refine = no_refinement() if self.refinement is None else self.refinement.args
         # Static shape records: their poses are model constants (static_shapes), re-packed and
         # checked against the data at each reset.
@@ -566,7 +563,7 @@ class Predictor:
     @property
     def sphere_pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:
         """``(geom1, geom2)``, each ``(nsphere_pairs,)``: the geoms of every sphere pair
-        (``geom2`` is the plane geom for half-space pairs)."""
+        (``geom2`` is the plane geom of half-space pairs, the static geom of shape pairs)."""
         return self.tables.geom1, self.tables.geom2
 
     def geom_pair_of(self, pairs: npt.ArrayLike) -> np.ndarray:
