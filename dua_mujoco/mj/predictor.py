@@ -554,6 +554,11 @@ class Predictor:
         return self._require_scheduler().evaluations_per_step
 
     @property
+    def shape_records(self) -> np.ndarray:
+        """``(nshape, 16)`` records of the static shapes (``core.shapes``), as of ``reset``."""
+        return self._shapes
+
+    @property
     def kernel_tables(self) -> tuple[np.ndarray, np.ndarray]:
         """``(pair_records, sphere_records)``: the packed tables ``step`` hands
         ``kinematics.step_rigid_kernel`` after the scheduler's state and the step number, and

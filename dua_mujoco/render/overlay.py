@@ -42,6 +42,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from dua_mujoco.core.pairset import PairKind
+from dua_mujoco.core.shapes import closest_point
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.covering import sphere_world_centers
@@ -132,22 +134,12 @@ class AlarmOverlay:
         self.dropped = 0
         self._warned = False
         model = predictor.model
-        cov = predictor.covering
-        pairs = predictor.pair_set
-        sgeom = np.asarray(cov.sphere_geom, dtype=np.int64)
-        planes = np.asarray(cov.plane_geom, dtype=np.int64)
-        first = np.asarray(pairs.first, dtype=np.int64)
-        second = np.asarray(pairs.second, dtype=np.int64)
-        half = np.asarray(pairs.halfspace, dtype=bool)
-        self._second = second
-        self._half = half
-        # Same geoms as Predictor's private pair tables, rebuilt from public fields.
-        self._pair_geom1 = sgeom[first]
-        self._pair_geom2 = np.where(
-            half,
-            planes[np.where(half, second, 0)] if planes.size else -1,
-            sgeom[np.where(half, 0, second)],
-        )
+        tables = predictor.tables
+        first = np.asarray(tables.first, dtype=np.int64)
+        self._second = np.asarray(tables.second, dtype=np.int64)
+        self._kind = np.asarray(tables.kind, dtype=np.int64)
+        self._pair_geom1 = np.asarray(tables.geom1, dtype=np.int64)
+        self._pair_geom2 = np.asarray(tables.geom2, dtype=np.int64)
         self._all_pairs = np.arange(first.shape[0], dtype=np.int64)
         self._tintable = np.asarray(model.geom_type) != _GEOM_PLANE
 
@@ -259,15 +251,25 @@ class AlarmOverlay:
     def _connector_ends(self, data: mujoco.MjData, alarms: Alarms) -> tuple[np.ndarray, np.ndarray]:
         cov = self.predictor.covering
         pairs = np.asarray(alarms.pairs, dtype=np.int64)
-        half = self._half[pairs]
+        kind = self._kind[pairs]
         second = self._second[pairs]
+        spheres = kind == int(PairKind.SPHERE)
         start = sphere_world_centers(cov, data.geom_xpos, data.geom_xmat, alarms.sphere1)
-        end = sphere_world_centers(cov, data.geom_xpos, data.geom_xmat, np.where(half, 0, second))
+        end = sphere_world_centers(
+            cov, data.geom_xpos, data.geom_xmat, np.where(spheres, second, 0)
+        )
+        half = kind == int(PairKind.HALFSPACE)
         if half.any():
             normals, offsets = self.predictor.halfspaces(data)
             n = normals[second[half]]
             height = np.einsum("ij,ij->i", n, start[half]) - offsets[second[half]]
             end[half] = start[half] - height[:, None] * n
+        shape = kind == int(PairKind.SHAPE)
+        if shape.any():
+            # To the nearest point of the static shape: the line shows what the sphere nears.
+            records = self.predictor.shape_records
+            for j in np.flatnonzero(shape).tolist():
+                end[j] = closest_point(start[j], records[second[j]])
         return start, end
 
     def _add_connectors(self, scene: mujoco.MjvScene, start: np.ndarray, end: np.ndarray) -> int:

@@ -34,7 +34,7 @@ class SceneContext:
         self.sphere_delta = p.bounds.vel_uncertainty[cov.sphere_body]
         self.radius = np.asarray(cov.sphere_radius, dtype=np.float64)
         self.nsphere = int(cov.nsphere)
-        ss = ~pairs.halfspace
+        ss = pairs.kind == 0
         a = pairs.first[ss]
         b = pairs.second[ss]
         lo = np.minimum(a, b)
@@ -47,4 +47,4 @@ class SceneContext:
         self.ss_eps = pairs.eps[self.ss_ids]
         extra = pairs.eps[ss] - self.radius[a] - self.radius[b]
         self.max_extra = float(extra.max(initial=0.0))
-        self.hs_ids = np.flatnonzero(pairs.halfspace)
+        self.hs_ids = np.flatnonzero(pairs.kind != 0)
