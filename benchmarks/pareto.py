@@ -494,7 +494,7 @@ def main() -> None:
         by_scene[scene] = rows
         print(
             f"### {scene} ({rows[0].pairs} active geom pairs, {steps} steps, "
-            f"bare-ish mj_step {np.median([r.mj_us for r in rows if r.mj_us]):.1f} us; "
+            f"monitored mj_step (median) {np.median([r.mj_us for r in rows if r.mj_us]):.1f} us; "
             f"{time.perf_counter() - t0:.0f} s)\n",
             flush=True,
         )

@@ -166,6 +166,20 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         "shrink that many times)",
     )
     p.add_argument(
+        "--static",
+        choices=["shape", "sphere"],
+        default="shape",
+        help="geoms welded to the world: held as their own convex shapes, or covered by one "
+        "bounding sphere (the previous urgency, for comparison)",
+    )
+    p.add_argument(
+        "--refine",
+        type=_positive(int),
+        default=None,
+        help="two-level urgency: refine urgent bounding pairs with up to N spheres per geom "
+        "(default: off)",
+    )
+    p.add_argument(
         "--pairs",
         choices=["all", "pruned", "auto"],
         default="all",
@@ -401,6 +415,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         max_evals_per_step=args.max_evals,
         slots_per_bucket=args.slots_per_bucket,
         pairs=args.pairs,
+        static=args.static,
+        refine=args.refine,
         pilot_steps=args.pilot_steps,
         pilot_seed=args.seed + 1_000_003,
         pilot_controller=pilot,
