@@ -272,7 +272,8 @@ class Monitor:
         self._pred_steps.append(self.physics_step)
         evaluated = sched.last_selected
         self.predictor_steps += 1
-        self.evaluation_sum += int(evaluated.size)
+        # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated.
+        self.evaluation_sum += int(evaluated.size) - sched.scheduler.deferred
         self._apply_alarms(alarms.pairs, evaluated, float(data.time))
         if self.geom_distance and len(alarms):
             for g1, g2 in sorted(alarms.geom_pairs):
