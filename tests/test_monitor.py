@@ -277,3 +277,15 @@ def test_run_memory_does_not_grow_with_steps_without_series() -> None:
     out = with_series.to_dict(series=True)
     assert len(out["min_tau_per_step"]) == 501
     assert all(t is None or isinstance(t, float) for t in out["min_tau_per_step"])
+
+
+def test_capped_runs_count_evaluations_not_deferrals() -> None:
+    """With a cap that binds, the report's evaluations per step stay within the cap: deferred
+    pairs have their verdict renewed, not evaluated."""
+    m, d = load_scene("two_arms")
+    p = Predictor(m, accel=30.0, max_evals_per_step=4)
+    report = run(
+        m, d, p, steps=200, controller=make_controller(m, "random", seed=0), progress=False
+    )
+    assert report.evals_per_step <= 4.0
+    assert report.missed_onsets_valid_bounds == 0
