@@ -6,9 +6,10 @@ Colours (docs/rendering.md):
   the plane for a half-space pair). Pure red is reserved for them so that a pixel test finds them.
 - geom tint, only for geoms with a sphere pair standing in alarm, by that pair's tau in predictor
   periods: brick red ``(0.9, 0.3, 0.2)`` below 2 periods, orange below 8, yellow beyond; every
-  other geom keeps the model's colour. Plane geoms (floors) are never tinted: they would flood
-  the frame.
+  other geom keeps the model's colour. Geoms welded to the world (floors, tables, walls) are
+  never tinted: they would flood the frame; their pairs tint the other geom.
 - translucent covering spheres (``show_spheres``): blue, or the tint of their geom.
+
 Live viewer (``mujoco.viewer.launch_passive``): the viewer draws ``viewer.user_scn`` on top of its
 own scene, so connectors and spheres work there, but the model's geoms are not reachable and
 cannot be tinted::
@@ -141,7 +142,10 @@ class AlarmOverlay:
         self._pair_geom1 = np.asarray(tables.geom1, dtype=np.int64)
         self._pair_geom2 = np.asarray(tables.geom2, dtype=np.int64)
         self._all_pairs = np.arange(first.shape[0], dtype=np.int64)
-        self._tintable = np.asarray(model.geom_type) != _GEOM_PLANE
+        # The world (floors, tables, walls) is never tinted: a red table says nothing a red link
+        # standing on it does not, and it would flood the frame. Their pairs tint the other geom.
+        welded = np.asarray(model.body_weldid)[np.asarray(model.geom_bodyid)] == 0
+        self._tintable = (np.asarray(model.geom_type) != _GEOM_PLANE) & ~welded
 
     # ------------------------------------------------------------------- urgency
 
