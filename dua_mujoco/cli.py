@@ -23,6 +23,7 @@ if not os.environ.get("DISPLAY"):
 import mujoco
 
 from dua_mujoco.exceptions import DuaError, InvalidInputError
+from dua_mujoco.outputs import publish, temporary_beside, writes_in_place
 
 if TYPE_CHECKING:
     from dua_mujoco.mj.report import RunReport
@@ -246,15 +247,6 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_run)
 
 
-def _writes_in_place(path: Path) -> bool:
-    """True for an output written through, never replaced: a symlink, device or FIFO."""
-    try:
-        mode = os.lstat(path).st_mode
-    except (FileNotFoundError, NotADirectoryError):
-        return False
-    return not stat.S_ISREG(mode)
-
-
 def _check_output(path: Path, what: str) -> None:
     """Open an output before the run, so that a path that cannot be written fails in a second.
 
@@ -264,7 +256,7 @@ def _check_output(path: Path, what: str) -> None:
     """
     if path.is_dir():
         raise InvalidInputError(f"{what} {str(path)!r} is a folder: pass a file path.")
-    if _writes_in_place(path):
+    if writes_in_place(path):
         if path.exists() and stat.S_ISFIFO(os.stat(path).st_mode):
             return  # opening a FIFO blocks until its reader comes: nothing to probe
         try:
@@ -302,21 +294,16 @@ def _write_output(path: Path, text: str, what: str) -> None:
     write (a full disk, ``/dev/full``) leaves no temporary file and raises one line.
     """
     try:
-        if _writes_in_place(path):
+        if writes_in_place(path):
             with open(path, "w") as f:
                 f.write(text)
             return
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        tmp = temporary_beside(path, ".tmp")
         try:
-            with os.fdopen(fd, "w") as f:
-                f.write(text)
-            # mkstemp makes the file private (0600): give it the mode a plain open would.
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-            os.replace(tmp, path)
+            tmp.write_text(text)
+            publish(tmp, path)
         except BaseException:
-            Path(tmp).unlink(missing_ok=True)
+            tmp.unlink(missing_ok=True)
             raise
     except OSError as exc:
         raise InvalidInputError(

@@ -287,7 +287,8 @@ def test_cli_failed_final_write_is_one_line_and_leaves_no_temporary(
     def full(src: object, dst: object) -> None:
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("dua_mujoco.cli.os.replace", full)
+    # Only the report's move fails (a global os.replace patch would also fail numba's cache).
+    monkeypatch.setattr("dua_mujoco.cli.publish", full)
     assert main([*ARGS, "--json", str(out)]) == 2
     err = [x for x in capsys.readouterr().err.splitlines() if x.startswith("dua-mujoco:")]
     assert err == [

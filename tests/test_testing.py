@@ -185,7 +185,7 @@ def test_helpers_work_without_pytest() -> None:
         "from dua_mujoco.mj.scenes import load_scene\n"
         "from dua_mujoco.testing import assert_no_missed_collisions\n"
         f"m, d = load_scene({SCENE!r})\n"
-        f"r = assert_no_missed_collisions(m, d, steps=50, predictor={{'accel': {ACCEL}, 'schedule': '{SCHEDULE}'}})\n"
+        f"r = assert_no_missed_collisions(m, d, steps=50, predictor={CLEAN!r})\n"
         "print('OK', r.physics_steps)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
@@ -302,7 +302,7 @@ USER_TEST = textwrap.dedent(
     def test_my_scene(dua_predict):
         model, data = load_scene("{SCENE}")
         report = dua_predict(
-            model, data, steps=300, predictor={{"accel": {ACCEL}, "schedule": "{SCHEDULE}"}}, baseline="baselines/pw.json"
+            model, data, steps=300, predictor={CLEAN!r}, baseline="baselines/pw.json"
         )
         assert report.contact_onsets > 0
     """
@@ -350,7 +350,7 @@ def test_plugin_records_counts_in_user_properties(pytester: pytest.Pytester) -> 
 
             def test_props(dua_predict, request):
                 model, data = load_scene("{SCENE}")
-                report = dua_predict(model, data, steps=200, predictor={{"accel": {ACCEL}, "schedule": "{SCHEDULE}"}})
+                report = dua_predict(model, data, steps=200, predictor={CLEAN!r})
                 props = dict(request.node.user_properties)
                 assert props["dua_alarm_episodes"] == report.alarm_episodes
                 assert props["dua_contact_onsets"] == report.contact_onsets

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import os
-import stat
-import tempfile
 from collections.abc import Generator, Iterable
 from pathlib import Path
 from types import TracebackType
@@ -13,6 +11,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
+from dua_mujoco.outputs import publish, temporary_beside, writes_in_place
 
 __all__ = [
     "VIDEO_SUFFIXES",
@@ -102,15 +101,6 @@ def read_video(path: str | os.PathLike[str]) -> np.ndarray:
     return np.asarray(use_bundled_ffmpeg().read_video(str(path)))
 
 
-def _writes_in_place(path: Path) -> bool:
-    """True for a path that is written through, never replaced: a symlink, device or FIFO."""
-    try:
-        mode = os.lstat(path).st_mode
-    except (FileNotFoundError, NotADirectoryError):
-        return False
-    return not stat.S_ISREG(mode)
-
-
 class VideoWriter:
     """Streams RGB frames into an ``.mp4`` or a ``.gif`` as they come (use ``with``).
 
@@ -184,17 +174,9 @@ class VideoWriter:
     def _open(self, shape: tuple[int, ...]) -> None:
         self._shape = shape
         target = self.path
-        if not _writes_in_place(self.path):
+        if not writes_in_place(self.path):
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            fd, name = tempfile.mkstemp(
-                dir=self.path.parent, prefix=f".{self.path.stem}.", suffix=self.path.suffix
-            )
-            os.close(fd)
-            # mkstemp makes the file private (0600): give it the mode a plain open would.
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(name, 0o666 & ~umask)
-            self._tmp = target = Path(name)
+            self._tmp = target = temporary_beside(self.path, self.path.suffix)
         if self._gif:
             self._file = open(target, "wb")  # noqa: SIM115 - closed by close()
             return
@@ -270,7 +252,7 @@ class VideoWriter:
             raise
         if self._tmp is not None:
             if self.count:
-                os.replace(self._tmp, self.path)
+                publish(self._tmp, self.path)
             else:
                 self._discard()
 
