@@ -313,7 +313,7 @@ def closest_point(c, rec):  # pragma: no cover - jitted
     return w0 + p0, w1 + p1, w2 + p2
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)  # not inlined: the fused steps stay small for the common pairs
 def tau_static(c0, c1, c2, v0, v1, v2, rec, eps, accel, delta):  # pragma: no cover - jitted
     """Scalar kernel: lower bound on the time before a sphere can touch a static shape.
 

@@ -41,7 +41,7 @@ from dua_mujoco.core.pairset import (
     PAIR_SPEED,
 )
 from dua_mujoco.core.schedules import kernels
-from dua_mujoco.core.schedules.state import W_IDS
+from dua_mujoco.core.schedules.state import S_W_TAU, S_WORK, W_IDS
 from dua_mujoco.core.shapes import tau_static
 from dua_mujoco.core.urgency import tau_halfspace, tau_speed
 from dua_mujoco.exceptions import ShapeError
@@ -285,7 +285,7 @@ def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, refine):  # pragma: 
     below = refine[3]
     buf = np.empty((refine[4], 6))
     count = kernels.select(st, n)
-    w_ids = st.work[W_IDS]
+    w_ids = st[S_WORK][W_IDS]
     # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset;
     # zeros for a static shape, whose record is constant and checked when packed).
     state = np.empty((count, 12))
@@ -353,5 +353,5 @@ def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, refine):  # pragma: 
             )
         if t < below:
             t = fine_tau(w_ids[k], rec, t, frame, shapes, refine, buf)
-        st.w_tau[k] = t
+        st[S_W_TAU][k] = t
     return count, kernels.reinsert(st, n, count), -1

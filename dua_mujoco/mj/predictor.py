@@ -29,8 +29,10 @@ from dua_mujoco.core.schedules import (
     as_schedule,
     make_scheduler,
 )
+from dua_mujoco.core.schedules.base import compiled_entry
 from dua_mujoco.core.schedules.deadline import check_max_evals
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
+from dua_mujoco.core.schedules.state import P_DEFERRED
 from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
@@ -235,6 +237,7 @@ class Predictor:
         # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: Scheduler | None = None
+        self._step_kernel: Callable[..., tuple[int, int, int]] = step_rigid_kernel
         self._time = 0.0
         self._steps_at_reset = 0
         self._frame_data: mujoco.MjData | None = None
@@ -379,6 +382,16 @@ class Predictor:
             )
         self.scheduler = self._scheduler(tau0)
         self._load_compiled(data, frame)
+        self._step_kernel = compiled_entry(
+            step_rigid_kernel,
+            self.scheduler.kernel_state,
+            1,
+            self._records,
+            self._spheres,
+            frame,
+            self._shapes,
+            self._refine,
+        )
         self._time = float(data.time)
         self._steps_at_reset = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
         ids = self.scheduler.initial_alarms
@@ -453,7 +466,7 @@ class Predictor:
         if self._held is not None and sched.step_count + 1 - self._built_at >= self.stride:
             self._rebuild(data, sched.step_count + 1)
         alarmed, bad = sched.step_with(
-            step_rigid_kernel, self._records, self._spheres, frame, self._shapes, self._refine
+            self._step_kernel, self._records, self._spheres, frame, self._shapes, self._refine
         )
         if bad >= 0:
             raise self._nonfinite(data, int(self._ids[bad]))
@@ -464,8 +477,8 @@ class Predictor:
             self._ids[alarmed],
             sched.last_tau[alarmed],
             self.tables,
-            sched.last_new,
-            sched.deferred,
+            sched.last_new_flags,
+            int(sched.state.params[P_DEFERRED]),
         )
 
     def _rebuild(self, data: mujoco.MjData, step: int) -> None:

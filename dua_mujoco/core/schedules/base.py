@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any, cast
 
 import numba as nb
 import numpy as np
@@ -24,6 +25,8 @@ from dua_mujoco.core.schedules.state import (
     LAST_STEP,
     P_COUNT,
     P_DEFERRED,
+    S_W_TAU,
+    S_WORK,
     W_ALARMS,
     W_IDS,
     W_NEW,
@@ -32,7 +35,7 @@ from dua_mujoco.core.schedules.state import (
 from dua_mujoco.core.validate import as_ids, check_urgencies
 from dua_mujoco.exceptions import InvalidInputError, NonFiniteStateError, SchedulerError, ShapeError
 
-__all__ = ["FusedKernel", "Scheduler", "step_points_kernel"]
+__all__ = ["FusedKernel", "Scheduler", "compiled_entry", "step_points_kernel"]
 
 FusedKernel = Callable[..., tuple[int, int, int]]
 """A compiled ``kernel(state, n, *args) -> (count, nalarm, bad)``: ``kernels.select``, tau of the
@@ -49,7 +52,7 @@ def step_points_kernel(st, n, geometry):  # pragma: no cover - jitted
     """
     centers, velocities, _, _, first, second, halfspace, _, _, _, _ = geometry
     count = kernels.select(st, n)
-    w_ids = st.work[W_IDS]
+    w_ids = st[S_WORK][W_IDS]
     for k in range(count):
         p = w_ids[k]
         i = first[p]
@@ -63,8 +66,25 @@ def step_points_kernel(st, n, geometry):  # pragma: no cover - jitted
         if not math.isfinite(state):
             kernels.restore(st, n, count)
             return count, 0, p
-        st.w_tau[k] = pair_tau(p, geometry)
+        st[S_W_TAU][k] = pair_tau(p, geometry)
     return count, kernels.reinsert(st, n, count), -1
+
+
+def compiled_entry(kernel: Any, *args: object) -> FusedKernel:
+    """The compiled entry point of ``kernel`` for arguments of the types of ``args``.
+
+    Calling it skips numba's dispatch (typing every argument, choosing an overload): about a
+    microsecond a call, a sizeable part of a step of a few. The caller must pass arguments of
+    exactly those types ever after (a ``Predictor`` does: its tables and ``MjData`` views do not
+    change type); ``kernel`` itself is returned when it is not a numba dispatcher.
+    """
+    overloads = getattr(kernel, "overloads", None)
+    if overloads is None:
+        return cast(FusedKernel, kernel)
+    signature = tuple(kernel.typeof_pyval(a) for a in args)
+    if signature not in overloads:
+        kernel.compile(signature)
+    return cast(FusedKernel, overloads[signature].entry_point)
 
 
 class Scheduler:
@@ -84,8 +104,26 @@ class Scheduler:
         self.step_count = 0
         self.activation_changes = 0
         self._pending: np.ndarray | None = None
-        self._renewed = 0
         self._new = np.ones(self.initial_alarms.shape[0], dtype=np.int64)
+
+    @property
+    def state(self) -> ScheduleState:
+        """The ``ScheduleState`` the compiled kernels read and write."""
+        return self._state
+
+    @state.setter
+    def state(self, state: ScheduleState) -> None:
+        self._state = state
+        self._kernel_state = tuple(state)
+        # Views read after every step: built once, not at each step (a step is microseconds).
+        self._params = state.params
+        self._alarm_rows = state.work[W_ALARMS : W_NEW + 1]
+
+    @property
+    def kernel_state(self) -> tuple:
+        """``tuple(state)``, the form the compiled kernels take (fields at the ``S_*``
+        positions): the arrays are shared, so the kernels' writes are the state's."""
+        return self._kernel_state
 
     # ----------------------------------------------------------------------- introspection
 
@@ -139,7 +177,10 @@ class Scheduler:
     def last_selected(self) -> np.ndarray:
         """Pairs whose verdict the latest step renewed: those evaluated (and, for the deadline
         schedule, those due but left for a later step)."""
-        return self.state.work[W_IDS, : self._renewed].copy()
+        if self._pending is not None or self.step_count == 0:
+            return self.state.work[W_IDS, :0].copy()
+        renewed = int(self._params[P_COUNT] + self._params[P_DEFERRED])
+        return self.state.work[W_IDS, :renewed].copy()
 
     @property
     def deferred(self) -> int:
@@ -171,7 +212,7 @@ class Scheduler:
         ids = as_ids("pairs", np.atleast_1d(np.asarray(pairs, dtype=np.int64)))
         if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
             raise InvalidInputError(f"pair ids must be in [0, {self.npairs}); got {ids.tolist()}.")
-        if kernels.switch(self.state, ids, bool(on), self.step_count + 1):
+        if kernels.switch(self._kernel_state, ids, bool(on), self.step_count + 1):
             self.activation_changes += 1
 
     # ----------------------------------------------------------------------- protocol
@@ -183,7 +224,7 @@ class Scheduler:
                 "select() called twice without update(): evaluate the selected pairs and pass "
                 "their tau to update() first."
             )
-        count = kernels.select(self.state, self.step_count + 1)
+        count = kernels.select(self._kernel_state, self.step_count + 1)
         self._pending = self.state.work[W_IDS, :count].copy()
         return self._pending.copy()
 
@@ -214,7 +255,7 @@ class Scheduler:
         count = expected.shape[0]
         # Back to selection order (a pair may be selected twice: then both get its tau).
         self.state.w_tau[np.argsort(expected, kind="stable")] = t[np.argsort(idx, kind="stable")]
-        nalarm = kernels.reinsert(self.state, self.step_count + 1, count)
+        nalarm = kernels.reinsert(self._kernel_state, self.step_count + 1, count)
         return self._finish(nalarm)
 
     def step_with(self, kernel: FusedKernel, *args: object) -> tuple[np.ndarray, int]:
@@ -226,7 +267,7 @@ class Scheduler:
         """
         if self._pending is not None:
             raise SchedulerError("a fused step between select() and update(): finish the step.")
-        _, nalarm, bad = kernel(self.state, self.step_count + 1, *args)
+        _, nalarm, bad = kernel(self._kernel_state, self.step_count + 1, *args)
         if bad >= 0:
             return self.state.work[W_ALARMS, :0].copy(), int(bad)
         return self._finish(nalarm), -1
@@ -269,12 +310,15 @@ class Scheduler:
         """``(k,)`` bool, which of the latest step's alarms are new (see ``W_NEW``)."""
         return self._new.astype(bool)
 
+    @property
+    def last_new_flags(self) -> np.ndarray:
+        """``(k,)`` int64 0/1, :attr:`last_new` as the kernels wrote it (no conversion)."""
+        return self._new
+
     def _finish(self, nalarm: int) -> np.ndarray:
-        params = self.state.params
-        self._renewed = int(params[P_COUNT] + params[P_DEFERRED])
         self.step_count += 1
         self._pending = None
         # One copy of both rows: the buffers are reused by the next step.
-        block = self.state.work[W_ALARMS : W_NEW + 1, :nalarm].copy()
+        block = self._alarm_rows[:, :nalarm].copy()
         self._new = block[1]
         return block[0]

@@ -105,7 +105,7 @@ class DeadlineScheduler(Scheduler):
         state.params[P_WHEEL] = wheel
         state.params[P_MAX_INTERVAL] = int(max_interval)
         state.params[P_CAP] = cap
-        kernels.deadline_classify(state)
+        kernels.deadline_classify(tuple(state))
         self.max_evals_per_step = cap or None
         self.max_interval = int(max_interval)
         super().__init__(state, np.flatnonzero((tau < state.horizon[0]) & state.active))
@@ -164,8 +164,7 @@ class DeadlineScheduler(Scheduler):
         state.params[:] = old.params
         state.params[P_COUNT] = 0
         state.params[P_DEFERRED] = 0
-        kernels.deadline_carry(old, state, ids, int(step))
+        kernels.deadline_carry(tuple(old), tuple(state), ids, int(step))
         self.state = state
-        self._renewed = 0
         # Observers of alarm_state() read it again after a change of the pairs, as after a switch.
         self.activation_changes += 1

@@ -1,9 +1,9 @@
 """The compiled schedule interface: ``select``, ``reinsert``, ``switch`` and ``restore``.
 
-A fused step is ``count = select(st, n)``, then tau of ``st.work[W_IDS, :count]`` into
-``st.w_tau[:count]`` (whatever the pairs' geometry is), then ``reinsert(st, n, count)``, which
-returns the number of alarms written to ``st.work[W_ALARMS]``. Each entry point branches on
-``st.kind``; the rules and their completeness proofs are in docs/theory.md.
+A fused step is ``count = select(st, n)``, then tau of ``st[S_WORK][W_IDS, :count]`` into
+``st[S_W_TAU][:count]`` (whatever the pairs' geometry is), then ``reinsert(st, n, count)``, which
+returns the number of alarms written to ``st[S_WORK][W_ALARMS]``. Each entry point branches on
+``st[S_KIND]``; the rules and their completeness proofs are in docs/theory.md.
 
 - Rank (DUA): bucket ``k`` of ``2**k`` slots hands out ``min(q, 2**k)`` slots a step, so each of
   its slots is visited every ``I_k = max(1, 2**k / q)`` steps; the i-th most urgent evaluated pair
@@ -41,6 +41,18 @@ from dua_mujoco.core.schedules.state import (
     P_WHEEL,
     PREV,
     RANK,
+    S_ACTIVE,
+    S_DT,
+    S_HORIZON,
+    S_INTS,
+    S_KIND,
+    S_LAST_TAU,
+    S_LATENCY,
+    S_PARAMS,
+    S_QUEUE,
+    S_SLOTS,
+    S_W_TAU,
+    S_WORK,
     W_ALARMS,
     W_IDS,
     W_NEW,
@@ -80,8 +92,8 @@ def bucket_of(slot):  # pragma: no cover - jitted
 
 @nb.njit(cache=True)
 def _rank_select(st, n):  # pragma: no cover - jitted
-    slots, active, params = st.slots, st.active, st.params
-    w_slots, w_ids = st.work[W_SLOTS], st.work[W_IDS]
+    slots, active, params = st[S_SLOTS], st[S_ACTIVE], st[S_PARAMS]
+    w_slots, w_ids = st[S_WORK][W_SLOTS], st[S_WORK][W_IDS]
     q = params[P_SLOTS_PER_BUCKET]
     count = 0
     for k in range(params[P_NBUCKETS]):
@@ -96,7 +108,7 @@ def _rank_select(st, n):  # pragma: no cover - jitted
                 w_ids[count] = pid
                 count += 1
     # Pairs switched back on, evaluated out of their slots, as many as the spare width holds.
-    queue = st.queue
+    queue = st[S_QUEUE]
     extra = min(queue[0], w_ids.shape[0] - count)
     for j in range(extra):
         w_slots[count + j] = -1
@@ -112,11 +124,16 @@ def _rank_select(st, n):  # pragma: no cover - jitted
 @nb.njit(cache=True)
 def _rank_reinsert(st, n, count):  # pragma: no cover - jitted
     """Sort the regular pairs by tau into the withdrawn slots; alarm against the bucket."""
-    slots, last_tau, horizon = st.slots, st.last_tau, st.horizon
-    where, last_step = st.ints[WHERE], st.ints[LAST_STEP]
-    w_slots, w_ids, alarms, w_tau = st.work[W_SLOTS], st.work[W_IDS], st.work[W_ALARMS], st.w_tau
-    new = st.work[W_NEW]
-    regular = count - st.params[P_EXTRA]
+    slots, last_tau, horizon = st[S_SLOTS], st[S_LAST_TAU], st[S_HORIZON]
+    where, last_step = st[S_INTS][WHERE], st[S_INTS][LAST_STEP]
+    w_slots, w_ids, alarms, w_tau = (
+        st[S_WORK][W_SLOTS],
+        st[S_WORK][W_IDS],
+        st[S_WORK][W_ALARMS],
+        st[S_W_TAU],
+    )
+    new = st[S_WORK][W_NEW]
+    regular = count - st[S_PARAMS][P_EXTRA]
     # Stable, so equal tau keep selection order (deterministic across runs).
     order = np.argsort(w_tau[:regular], kind="mergesort")
     nalarm = 0
@@ -151,33 +168,33 @@ def _rank_reinsert(st, n, count):  # pragma: no cover - jitted
 
 @nb.njit(cache=True, inline="always")
 def _link(st, p, due):  # pragma: no cover - jitted
-    slots, nxt, prv = st.slots, st.ints[NEXT], st.ints[PREV]
-    slot = due & (st.params[P_WHEEL] - 1)
+    slots, nxt, prv = st[S_SLOTS], st[S_INTS][NEXT], st[S_INTS][PREV]
+    slot = due & (st[S_PARAMS][P_WHEEL] - 1)
     head = slots[slot]
     nxt[p] = head
     prv[p] = -1 - slot
     if head >= 0:
         prv[head] = p
     slots[slot] = p
-    st.ints[WHERE, p] = due
+    st[S_INTS][WHERE, p] = due
 
 
 @nb.njit(cache=True, inline="always")
 def _unlink(st, p):  # pragma: no cover - jitted
-    nxt, prv = st.ints[NEXT], st.ints[PREV]
-    if st.ints[WHERE, p] < 0:
+    nxt, prv = st[S_INTS][NEXT], st[S_INTS][PREV]
+    if st[S_INTS][WHERE, p] < 0:
         return
     after = nxt[p]
     before = prv[p]
     if before >= 0:
         nxt[before] = after
     else:
-        st.slots[-1 - before] = after
+        st[S_SLOTS][-1 - before] = after
     if after >= 0:
         prv[after] = before
     nxt[p] = -1
     prv[p] = -1
-    st.ints[WHERE, p] = -1
+    st[S_INTS][WHERE, p] = -1
 
 
 @nb.njit(cache=True)
@@ -195,17 +212,17 @@ def deadline_interval(tau, dt, latency, max_interval):  # pragma: no cover - jit
 
 @nb.njit(cache=True)
 def _deadline_select(st, n):  # pragma: no cover - jitted
-    params, last_tau, last_step = st.params, st.last_tau, st.ints[LAST_STEP]
-    w_ids = st.work[W_IDS]
+    params, last_tau, last_step = st[S_PARAMS], st[S_LAST_TAU], st[S_INTS][LAST_STEP]
+    w_ids = st[S_WORK][W_IDS]
     slot = n & (params[P_WHEEL] - 1)
-    p = st.slots[slot]
-    st.slots[slot] = -1
+    p = st[S_SLOTS][slot]
+    st[S_SLOTS][slot] = -1
     count = 0
     while p >= 0:
-        after = st.ints[NEXT, p]
-        st.ints[NEXT, p] = -1
-        st.ints[PREV, p] = -1
-        st.ints[WHERE, p] = -1
+        after = st[S_INTS][NEXT, p]
+        st[S_INTS][NEXT, p] = -1
+        st[S_INTS][PREV, p] = -1
+        st[S_INTS][WHERE, p] = -1
         w_ids[count] = p
         count += 1
         p = after
@@ -219,7 +236,7 @@ def _deadline_select(st, n):  # pragma: no cover - jitted
         slack = np.empty(count)
         for k in range(count):
             q = w_ids[k]
-            slack[k] = last_tau[q] - (n - last_step[q]) * st.dt
+            slack[k] = last_tau[q] - (n - last_step[q]) * st[S_DT]
         order = np.argsort(slack, kind="mergesort")
         chosen = w_ids[:count][order]
         w_ids[:count] = chosen
@@ -234,9 +251,14 @@ def _deadline_select(st, n):  # pragma: no cover - jitted
 
 @nb.njit(cache=True)
 def _deadline_reinsert(st, n, count):  # pragma: no cover - jitted
-    params, last_tau, last_step = st.params, st.last_tau, st.ints[LAST_STEP]
-    w_ids, alarms, w_tau, new = st.work[W_IDS], st.work[W_ALARMS], st.w_tau, st.work[W_NEW]
-    dt, latency = st.dt, st.latency
+    params, last_tau, last_step = st[S_PARAMS], st[S_LAST_TAU], st[S_INTS][LAST_STEP]
+    w_ids, alarms, w_tau, new = (
+        st[S_WORK][W_IDS],
+        st[S_WORK][W_ALARMS],
+        st[S_W_TAU],
+        st[S_WORK][W_NEW],
+    )
+    dt, latency = st[S_DT], st[S_LATENCY]
     max_interval = params[P_MAX_INTERVAL]
     nalarm = 0
     for k in range(count):
@@ -247,13 +269,13 @@ def _deadline_reinsert(st, n, count):  # pragma: no cover - jitted
         last_tau[p] = tau
         last_step[p] = n
         _link(st, p, n + deadline_interval(tau, dt, latency, max_interval))
-        if tau < st.horizon[0]:
+        if tau < st[S_HORIZON][0]:
             alarms[nalarm] = p
             new[nalarm] = not before
             nalarm += 1
     for k in range(count, count + params[P_DEFERRED]):
         p = w_ids[k]
-        if last_tau[p] < (st.ints[WHERE, p] - last_step[p] + latency) * dt:
+        if last_tau[p] < (st[S_INTS][WHERE, p] - last_step[p] + latency) * dt:
             alarms[nalarm] = p
             new[nalarm] = not _stood(last_tau[p], (n - last_step[p] + latency) * dt)
             nalarm += 1
@@ -265,10 +287,10 @@ def _deadline_reinsert(st, n, count):  # pragma: no cover - jitted
 
 @nb.njit(cache=True)
 def _all_select(st):  # pragma: no cover - jitted
-    w_ids = st.work[W_IDS]
+    w_ids = st[S_WORK][W_IDS]
     count = 0
-    for p in range(st.active.shape[0]):
-        if st.active[p]:
+    for p in range(st[S_ACTIVE].shape[0]):
+        if st[S_ACTIVE][p]:
             w_ids[count] = p
             count += 1
     return count
@@ -276,14 +298,19 @@ def _all_select(st):  # pragma: no cover - jitted
 
 @nb.njit(cache=True)
 def _all_reinsert(st, n, count):  # pragma: no cover - jitted
-    w_ids, alarms, w_tau, new = st.work[W_IDS], st.work[W_ALARMS], st.w_tau, st.work[W_NEW]
+    w_ids, alarms, w_tau, new = (
+        st[S_WORK][W_IDS],
+        st[S_WORK][W_ALARMS],
+        st[S_W_TAU],
+        st[S_WORK][W_NEW],
+    )
     nalarm = 0
     for k in range(count):
         p = w_ids[k]
-        before = _stood(st.last_tau[p], st.horizon[0])
-        st.last_tau[p] = w_tau[k]
-        st.ints[LAST_STEP, p] = n
-        if w_tau[k] < st.horizon[0]:
+        before = _stood(st[S_LAST_TAU][p], st[S_HORIZON][0])
+        st[S_LAST_TAU][p] = w_tau[k]
+        st[S_INTS][LAST_STEP, p] = n
+        if w_tau[k] < st[S_HORIZON][0]:
             alarms[nalarm] = p
             new[nalarm] = not before
             nalarm += 1
@@ -295,23 +322,23 @@ def _all_reinsert(st, n, count):  # pragma: no cover - jitted
 
 @nb.njit(cache=True)
 def select(st, n):  # pragma: no cover - jitted
-    """Select the pairs to evaluate at step ``n`` into ``st.work[W_IDS]``; returns their count."""
-    if st.kind == RANK:
+    """Select the pairs to evaluate at step ``n`` into the ``W_IDS`` work row; their count."""
+    if st[S_KIND] == RANK:
         count = _rank_select(st, n)
-    elif st.kind == DEADLINE:
+    elif st[S_KIND] == DEADLINE:
         count = _deadline_select(st, n)
     else:
         count = _all_select(st)
-    st.params[P_COUNT] = count
+    st[S_PARAMS][P_COUNT] = count
     return count
 
 
 @nb.njit(cache=True)
 def reinsert(st, n, count):  # pragma: no cover - jitted
-    """Store the verdicts of the ``count`` evaluated pairs (tau in ``st.w_tau``); #alarms."""
-    if st.kind == RANK:
+    """Store the verdicts of the ``count`` evaluated pairs (tau in ``st[S_W_TAU]``); #alarms."""
+    if st[S_KIND] == RANK:
         return _rank_reinsert(st, n, count)
-    if st.kind == DEADLINE:
+    if st[S_KIND] == DEADLINE:
         return _deadline_reinsert(st, n, count)
     return _all_reinsert(st, n, count)
 
@@ -319,24 +346,24 @@ def reinsert(st, n, count):  # pragma: no cover - jitted
 @nb.njit(cache=True)
 def restore(st, n, count):  # pragma: no cover - jitted
     """Undo ``select`` of step ``n`` (its evaluation failed): the step can be taken again."""
-    w_ids = st.work[W_IDS]
-    if st.kind == RANK:
-        extra = st.params[P_EXTRA]
-        queue = st.queue
+    w_ids = st[S_WORK][W_IDS]
+    if st[S_KIND] == RANK:
+        extra = st[S_PARAMS][P_EXTRA]
+        queue = st[S_QUEUE]
         waiting = queue[0]
         for j in range(waiting - 1, -1, -1):
             queue[1 + extra + j] = queue[1 + j]
         for j in range(extra):
             queue[1 + j] = w_ids[count - extra + j]
         queue[0] = waiting + extra
-    elif st.kind == DEADLINE:
-        for k in range(count + st.params[P_DEFERRED]):
+    elif st[S_KIND] == DEADLINE:
+        for k in range(count + st[S_PARAMS][P_DEFERRED]):
             p = w_ids[k]
             _unlink(st, p)
             _link(st, p, n)
-    st.params[P_COUNT] = 0
-    st.params[P_DEFERRED] = 0
-    st.params[P_EXTRA] = 0
+    st[S_PARAMS][P_COUNT] = 0
+    st[S_PARAMS][P_DEFERRED] = 0
+    st[S_PARAMS][P_EXTRA] = 0
 
 
 @nb.njit(cache=True)
@@ -345,29 +372,29 @@ def switch(st, ids, on, n_next):  # pragma: no cover - jitted
     changed = 0
     for k in range(ids.shape[0]):
         p = ids[k]
-        if st.active[p] == on:
+        if st[S_ACTIVE][p] == on:
             continue
         changed += 1
-        st.active[p] = on
+        st[S_ACTIVE][p] = on
         if on:
             # Nothing is known of its motion while it was off: it stands in alarm until its
             # next evaluation, which comes at the next selection.
-            st.last_tau[p] = -math.inf
-            if st.kind == RANK:
-                st.queue[1 + st.queue[0]] = p
-                st.queue[0] += 1
-            elif st.kind == DEADLINE:
+            st[S_LAST_TAU][p] = -math.inf
+            if st[S_KIND] == RANK:
+                st[S_QUEUE][1 + st[S_QUEUE][0]] = p
+                st[S_QUEUE][0] += 1
+            elif st[S_KIND] == DEADLINE:
                 _unlink(st, p)
                 _link(st, p, n_next)
-        elif st.kind == RANK:
-            queue = st.queue
+        elif st[S_KIND] == RANK:
+            queue = st[S_QUEUE]
             kept = 0
             for j in range(queue[0]):
                 if queue[1 + j] != p:
                     queue[1 + kept] = queue[1 + j]
                     kept += 1
             queue[0] = kept
-        elif st.kind == DEADLINE:
+        elif st[S_KIND] == DEADLINE:
             _unlink(st, p)
     return changed
 
@@ -375,10 +402,12 @@ def switch(st, ids, on, n_next):  # pragma: no cover - jitted
 @nb.njit(cache=True)
 def deadline_classify(st):  # pragma: no cover - jitted
     """Deadline's initial classification: every active pair due ``s`` steps after step 0."""
-    max_interval = st.params[P_MAX_INTERVAL]
-    for p in range(st.active.shape[0]):
-        if st.active[p]:
-            _link(st, p, deadline_interval(st.last_tau[p], st.dt, st.latency, max_interval))
+    max_interval = st[S_PARAMS][P_MAX_INTERVAL]
+    for p in range(st[S_ACTIVE].shape[0]):
+        if st[S_ACTIVE][p]:
+            _link(
+                st, p, deadline_interval(st[S_LAST_TAU][p], st[S_DT], st[S_LATENCY], max_interval)
+            )
 
 
 @nb.njit(cache=True)
@@ -392,14 +421,14 @@ def deadline_carry(old, new, src, n):  # pragma: no cover - jitted
     for p in range(src.shape[0]):
         q = src[p]
         if q >= 0:
-            new.last_tau[p] = old.last_tau[q]
-            new.active[p] = old.active[q]
-            new.ints[LAST_STEP, p] = old.ints[LAST_STEP, q]
-            due = old.ints[WHERE, q]
+            new[S_LAST_TAU][p] = old[S_LAST_TAU][q]
+            new[S_ACTIVE][p] = old[S_ACTIVE][q]
+            new[S_INTS][LAST_STEP, p] = old[S_INTS][LAST_STEP, q]
+            due = old[S_INTS][WHERE, q]
             if due >= 0:
                 _link(new, p, due)
         else:
-            new.last_tau[p] = -math.inf
-            new.active[p] = True
-            new.ints[LAST_STEP, p] = n
+            new[S_LAST_TAU][p] = -math.inf
+            new[S_ACTIVE][p] = True
+            new[S_INTS][LAST_STEP, p] = n
             _link(new, p, n)

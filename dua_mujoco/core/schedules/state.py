@@ -31,6 +31,18 @@ __all__ = [
     "P_SLOTS_PER_BUCKET",
     "P_WHEEL",
     "RANK",
+    "S_ACTIVE",
+    "S_DT",
+    "S_HORIZON",
+    "S_INTS",
+    "S_KIND",
+    "S_LAST_TAU",
+    "S_LATENCY",
+    "S_PARAMS",
+    "S_QUEUE",
+    "S_SLOTS",
+    "S_WORK",
+    "S_W_TAU",
     "WHERE",
     "W_ALARMS",
     "W_IDS",
@@ -87,6 +99,22 @@ P_DEFERRED = 6
 P_EXTRA = 7
 """Rank: how many of the evaluated pairs were switched back on (evaluated out of their slot)."""
 NPARAMS = 8
+
+
+# Positions of the fields in ``tuple(state)``, the form the compiled kernels take: numba
+# dispatches a plain tuple about twice as fast as a named one (measured: 1.1 vs 2.3 us).
+S_KIND = 0
+S_DT = 1
+S_LATENCY = 2
+S_LAST_TAU = 3
+S_ACTIVE = 4
+S_INTS = 5
+S_SLOTS = 6
+S_HORIZON = 7
+S_QUEUE = 8
+S_PARAMS = 9
+S_WORK = 10
+S_W_TAU = 11
 
 
 class ScheduleState(NamedTuple):
