@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 from dua_mujoco.core.neighbors import ROUNDING_SLACK, candidate_pairs, reach
 from dua_mujoco.core.spheres import SpherePredictor
 from dua_mujoco.core.worlds import SphereWorld
-from dua_mujoco.experiments.paper import WorldParams
+from dua_mujoco.experiments.paper.world import WorldParams
 
 DT, LATENCY, SUB = 0.01, 1, 4
 WP = WorldParams()

@@ -24,25 +24,16 @@ from __future__ import annotations
 
 import argparse
 import functools
-import time
 import tracemalloc
 from collections.abc import Callable
 
 import numpy as np
+from bench import median_time  # benchmarks/bench.py: the script folder is on sys.path
 
 from dua_mujoco.core.neighbors import ROUNDING_SLACK, candidate_pairs, reach
 from dua_mujoco.core.worlds import SphereWorld
-from dua_mujoco.experiments.paper import PAPER_N, WorldParams
-
-
-def median_time(fn: Callable[[], object], repeat: int) -> float:
-    fn()
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts))
+from dua_mujoco.experiments.paper.reference import PAPER_N
+from dua_mujoco.experiments.paper.world import WorldParams
 
 
 def kdtree_pairs(centers: np.ndarray, r: np.ndarray, margin: float) -> np.ndarray:

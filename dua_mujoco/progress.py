@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import sys
 import time
-from types import TracebackType
 from typing import TextIO
+
+from dua_mujoco.closing import Closing
 
 __all__ = ["Progress"]
 
 
-class Progress:
+class Progress(Closing):
     """``with Progress(total, "label") as bar: bar.update()`` draws ``label [####    ] 40/100``.
 
     Args:
@@ -94,14 +95,3 @@ class Progress:
             elif self._decile < 10:
                 self._line(time.perf_counter(), "")
             self.enabled = False
-
-    def __enter__(self) -> Progress:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

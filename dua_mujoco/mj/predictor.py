@@ -478,7 +478,8 @@ class Predictor:
             sched.last_tau[alarmed],
             self.tables,
             sched.last_new_flags,
-            int(sched.state.params[P_DEFERRED]),
+            # Only a capped deadline schedule defers.
+            int(sched.state.params[P_DEFERRED]) if self.max_evals_per_step else 0,
         )
 
     def _rebuild(self, data: mujoco.MjData, step: int) -> None:

@@ -7,12 +7,12 @@ by default: they cost most of a software-rendered frame.
 from __future__ import annotations
 
 import functools
-from types import TracebackType
 from typing import Any
 
 import mujoco
 import numpy as np
 
+from dua_mujoco.closing import Closing
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.predictor import Predictor
@@ -101,7 +101,7 @@ def _stamp_text(frame: np.ndarray, text: str) -> np.ndarray:
     return np.asarray(img)
 
 
-class OverlayRenderer:
+class OverlayRenderer(Closing):
     """Offscreen frames with the alarm overlay (a resource: use ``with`` or call ``close()``).
 
     Args:
@@ -226,17 +226,6 @@ class OverlayRenderer:
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-
-    def __enter__(self) -> OverlayRenderer:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 # ----------------------------------------------------------------------------- video

@@ -5,11 +5,11 @@ from __future__ import annotations
 import os
 from collections.abc import Generator, Iterable
 from pathlib import Path
-from types import TracebackType
 from typing import Any, BinaryIO
 
 import numpy as np
 
+from dua_mujoco.closing import Closing
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
 from dua_mujoco.outputs import publish, temporary_beside, writes_in_place
 
@@ -101,7 +101,7 @@ def read_video(path: str | os.PathLike[str]) -> np.ndarray:
     return np.asarray(use_bundled_ffmpeg().read_video(str(path)))
 
 
-class VideoWriter:
+class VideoWriter(Closing):
     """Streams RGB frames into an ``.mp4`` or a ``.gif`` as they come (use ``with``).
 
     Each frame goes to the encoder when it is added, so memory stays flat however long the
@@ -260,17 +260,6 @@ class VideoWriter:
         if self._tmp is not None:
             self._tmp.unlink(missing_ok=True)
             self._tmp = None
-
-    def __enter__(self) -> VideoWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def write_video(
