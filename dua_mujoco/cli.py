@@ -183,10 +183,10 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--pairs",
         choices=["all", "pruned", "auto"],
-        default="all",
+        default="auto",
         help="deadline: hold every active sphere pair, or only those whose reachable balls "
         "meet within a horizon (rebuilt as they move; for thousands of spheres), or choose "
-        "by size",
+        "by size (default: pruned from 256 covering spheres)",
     )
     p.add_argument(
         "--pilot-steps",

@@ -114,12 +114,13 @@ class Predictor:
         pilot_seed: Seed of the pilot rollout (use one different from the monitored run).
         pilot_controller: ``controller(model, data)`` for the pilot; default random controls.
         safety: Factor on the pilot's maxima.
-        pairs: ``"all"`` (default) holds every active sphere pair; ``"pruned"`` holds the
+        pairs: ``"all"`` holds every active sphere pair; ``"pruned"`` holds the
             half-space pairs and the active sphere pairs whose reachable balls over ``horizon``
             meet, rebuilt every ``rebuild_stride(horizon, dt, latency)`` steps (deadline
-            schedule only; docs/many-objects.md); ``"auto"`` prunes from ``AUTO_PRUNED_MIN``
-            covering spheres on. Alarms name sphere pairs by their id among all active pairs
-            either way; :attr:`held_pairs` maps the scheduler's ids to them.
+            schedule only; docs/many-objects.md); ``"auto"`` (default) prunes from
+            ``AUTO_PRUNED_MIN`` (256) covering spheres on, where pruned pairs win (measured).
+            Alarms name sphere pairs by their id among all active pairs either way;
+            :attr:`held_pairs` maps the scheduler's ids to them.
         horizon: Pruned only: the reach's horizon (s), default ``(DEFAULT_STRIDE + latency)``
             predictor periods.
     """
@@ -146,7 +147,7 @@ class Predictor:
         pilot_seed: int = 1_000_003,
         pilot_controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None,
         safety: float = 2.0,
-        pairs: PairMode | str = "all",
+        pairs: PairMode | str = "auto",
         horizon: float | None = None,
     ) -> None:
         if not isinstance(model, mujoco.MjModel):
