@@ -914,3 +914,13 @@ def test_errors_are_invalid_input():
         time_to_halfspace([1.0, 2.0], [0.0, 1.0, 2.0], 1.0)
     with pytest.raises(ShapeError):
         distance_urgency(np.zeros((3, 2)), 1.0)
+
+
+def test_complex_input_is_refused() -> None:
+    """numpy would drop the imaginary part silently: a complex state is a caller's bug."""
+    from dua_mujoco.exceptions import InvalidInputError as Invalid
+
+    with pytest.raises(Invalid, match="complex"):
+        time_to_collision(np.array([[1.0 + 1j, 0.0, 0.0]]), np.zeros((1, 3)), 0.1, 1.0)
+    with pytest.raises(Invalid, match="complex"):
+        time_to_collision(np.ones((1, 3)), np.zeros((1, 3)), 0.1 + 0j, 1.0)
