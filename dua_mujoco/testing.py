@@ -18,6 +18,7 @@ for test sessions that never use it; the assertion helpers work without pytest i
 
 from __future__ import annotations
 
+import functools
 import inspect
 import json
 import math
@@ -480,17 +481,14 @@ def dua_predict(request: pytest.FixtureRequest) -> DuaPredict:
     update = bool(request.config.getoption(UPDATE_OPTION, default=False))
     folder = Path(str(request.path)).parent
 
+    # Same signature as assert_no_missed_collisions (inspect.signature follows __wrapped__).
+    @functools.wraps(assert_no_missed_collisions)
     def predict(
         model: mujoco.MjModel,
         data: mujoco.MjData | None = None,
         *,
-        steps: int,
-        controller: Controller | None = None,
-        predictor: Predictor | Mapping[str, Any] | None = None,
         baseline: BaselineLike | None = None,
-        tolerance: float = 0.25,
-        scene: str = "",
-        allow_broken_bounds: bool = False,
+        **options: Any,
     ) -> RunReport:
         __tracebackhide__ = True
         target: Path | None = None
@@ -500,17 +498,7 @@ def dua_predict(request: pytest.FixtureRequest) -> DuaPredict:
                 target = folder / target
             baseline = target
         compare = None if (update and target is not None) else baseline
-        report = assert_no_missed_collisions(
-            model,
-            data,
-            steps=steps,
-            controller=controller,
-            predictor=predictor,
-            baseline=compare,
-            tolerance=tolerance,
-            scene=scene,
-            allow_broken_bounds=allow_broken_bounds,
-        )
+        report = assert_no_missed_collisions(model, data, baseline=compare, **options)
         if update and target is not None:
             write_baseline(report, target)
         for key in ("contact_onsets", "predicted_onsets", *BASELINE_KEYS):

@@ -475,7 +475,8 @@ class Predictor:
         return Alarms(
             sched.step_count,
             time,
-            self._ids[alarmed],
+            # Scheduler ids are the model's pair ids unless pairs are pruned.
+            alarmed if self._held is None else self._ids[alarmed],
             sched.last_tau[alarmed],
             self.tables,
             sched.last_new_flags,
