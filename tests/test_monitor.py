@@ -304,3 +304,18 @@ def test_monitored_run_with_pruned_pairs() -> None:
     assert report.contact_onsets > 0
     assert report.missed_onsets_valid_bounds == 0
     assert report.unfiltered_contacts == 0
+
+
+@pytest.mark.parametrize("options", [{}, {"refine": 8}, {"max_evals_per_step": 16}])
+def test_pruned_pairs_keep_the_static_shapes(options: dict) -> None:
+    """Pairs against static shapes are always held: their second member is a shape, not a sphere
+    with a reach (an earlier merge read it as a sphere id and dropped table contacts)."""
+    m, d = load_scene("two_arms")
+    p = Predictor(m, accel=80.0, pairs="pruned", **options)
+    report = run(
+        m, d, p, steps=600, controller=make_controller(m, "random", seed=0), progress=False
+    )
+    assert report.contact_onsets >= 10
+    assert report.missed_onsets_valid_bounds == 0
+    kinds = p.sphere_pairs.kind
+    assert set(np.flatnonzero(kinds != 0).tolist()) <= set(p.held_pairs.tolist())

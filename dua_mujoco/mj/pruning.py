@@ -1,8 +1,8 @@
 """Pruned sphere pairs for the MuJoCo ``Predictor``: grid candidates within MuJoCo's pair filter.
 
 The filter (``mj/filter.py``) is exact: only sphere pairs of geom pairs MuJoCo could put in
-contact are ever held. A pruned predictor holds, of those, the half-space pairs (a plane is
-infinite: no reach bounds it) and the sphere pairs among the candidates of
+contact are ever held. A pruned predictor holds, of those, the half-space and static-shape
+pairs (a plane is infinite; shapes never move) and the sphere pairs among the candidates of
 ``neighbors.candidate_pairs`` at a horizon ``T``, and renews that set every
 ``pruned.rebuild_stride(T, dt, latency)`` steps (docs/many-objects.md, which proves this keeps
 the guarantee). The intersection is a binary search of the candidates' keys in the sorted keys
@@ -50,8 +50,11 @@ class HeldPairs:
         self.radius, self.accel = radius, accel
         self.vel_uncertainty, self.speed = vel_uncertainty, speed
         self.horizon = float(horizon)
-        self.halfspace_ids = np.flatnonzero(sp.is_halfspace).astype(np.int64)
-        ss = np.flatnonzero(~sp.is_halfspace)
+        # Pairs against a plane or a static shape are always held: their second member is no
+        # sphere with a reach (a plane is unbounded; shapes are few and never move).
+        kind = np.asarray(sp.kind)
+        self.always_ids = np.flatnonzero(kind != 0).astype(np.int64)
+        ss = np.flatnonzero(kind == 0)
         a = np.asarray(sp.first, dtype=np.int64)[ss]
         b = np.asarray(sp.second, dtype=np.int64)[ss]
         codes = np.minimum(a, b) * self.nsphere + np.maximum(a, b)
@@ -76,10 +79,10 @@ class HeldPairs:
         cand = candidate_pairs(centers, r, margin=self.margin)
         key = cand[:, 0] * self.nsphere + cand[:, 1]
         if self.codes.size == 0:
-            return self.halfspace_ids.copy()
+            return self.always_ids.copy()
         pos = np.minimum(np.searchsorted(self.codes, key), self.codes.size - 1)
         found = self.code_ids[pos[self.codes[pos] == key]]
-        return np.sort(np.concatenate([self.halfspace_ids, found]))
+        return np.sort(np.concatenate([self.always_ids, found]))
 
 
 def held_pairs_for(
