@@ -17,7 +17,11 @@ class SceneContext:
         from dua_mujoco import Predictor
 
         self.model = model
-        self.predictor = Predictor(model, accel=accel, latency=LATENCY, schedule="dua")
+        # Every geom one sphere, the paper's schedule, all pairs: sphere pairs then correspond
+        # one to one with geom pairs, which the peers compare on.
+        self.predictor = Predictor(
+            model, accel=accel, latency=LATENCY, schedule="dua", static="sphere", pairs="all"
+        )
         p = self.predictor
         gp = p.sphere_pairs.geom_pair
         # With the bounding covering every geom is one sphere (planes: one half-space), so
@@ -47,4 +51,4 @@ class SceneContext:
         self.ss_eps = pairs.eps[self.ss_ids]
         extra = pairs.eps[ss] - self.radius[a] - self.radius[b]
         self.max_extra = float(extra.max(initial=0.0))
-        self.hs_ids = np.flatnonzero(pairs.kind != 0)
+        self.hs_ids = np.flatnonzero(pairs.halfspace)
