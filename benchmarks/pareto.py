@@ -30,14 +30,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
-import numba as nb
 import numpy as np
 
-from dua_mujoco.core.pairset import PairKind
-from dua_mujoco.core.shape_kernels import static_gap
-from dua_mujoco.experiments.peers.candidates import BROADPHASES
-from dua_mujoco.experiments.peers.horizon import reach_distance
+from dua_mujoco.experiments.peers.broadphase import BroadphaseScene
 from dua_mujoco.experiments.peers.mujoco_collision import MujocoScene
+from dua_mujoco.experiments.peers.scene_context import SceneContext
 from dua_mujoco.mj.monitor import run
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_scene, make_controller
@@ -157,92 +154,6 @@ def measure_predictor(
 # ----------------------------------------------------------------------------- peers
 
 
-@nb.njit(cache=True)
-def _shape_gaps(c, shapes, first, second, out):  # pragma: no cover - jitted
-    for k in range(first.shape[0]):
-        out[k] = static_gap(c[first[k]], shapes[second[k]])[0]
-
-
-class _Context:
-    """``peers.SceneContext`` for a given predictor (any ``static``), plus static-shape pairs.
-
-    ``SceneContext`` builds its own predictor with the default urgency; here the peers must see
-    the old covering (static geoms as spheres) and the new one (static geoms as shapes, which
-    the broadphase tests directly, like half-spaces: there are few of them).
-    """
-
-    def __init__(self, model: mujoco.MjModel, predictor: Predictor) -> None:
-        p = predictor
-        self.model = model
-        self.predictor = p
-        gp = p.sphere_pairs.geom_pair
-        if not np.array_equal(np.sort(gp), np.arange(p.geom_pairs.npair)):
-            raise ValueError("peers need one covering sphere per geom (bounding covering)")
-        self.to_geom_pair = np.asarray(gp, dtype=np.int64)
-        self.npairs = p.geom_pairs.npair
-        self.dt = p.dt
-        # The predictors here run at latency 0 (an alarm covers the next period): the peers
-        # get the same horizon, not the peers module's latency 1, to compare like with like.
-        self.horizon = (1 + p.latency) * p.dt
-        cov = p.covering
-        pairs = p.pair_set
-        self.sphere_accel = p.bounds.accel[cov.sphere_body]
-        self.sphere_delta = p.bounds.vel_uncertainty[cov.sphere_body]
-        self.radius = np.asarray(cov.sphere_radius, dtype=np.float64)
-        self.nsphere = int(cov.nsphere)
-        ss = pairs.kind == int(PairKind.SPHERE)
-        a, b = pairs.first[ss], pairs.second[ss]
-        keys = np.minimum(a, b) * self.nsphere + np.maximum(a, b)
-        order = np.argsort(keys)
-        self.ss_keys = keys[order]
-        self.ss_ids = np.flatnonzero(ss)[order]
-        self.ss_eps = pairs.eps[self.ss_ids]
-        extra = pairs.eps[ss] - self.radius[a] - self.radius[b]
-        self.max_extra = float(extra.max(initial=0.0))
-        self.hs_ids = np.flatnonzero(pairs.halfspace)
-        self.sh_ids = np.flatnonzero(pairs.shape)
-
-
-class _SweptSpheres:
-    """``peers.BroadphaseScene`` (sort-and-sweep) with static-shape pairs tested directly."""
-
-    def __init__(self, ctx: _Context) -> None:
-        self.ctx = ctx
-        self.candidates = BROADPHASES["sweep"]
-        self._gaps = np.zeros(ctx.sh_ids.size)
-
-    def step(self, data: mujoco.MjData) -> tuple[np.ndarray, int]:
-        ctx = self.ctx
-        p = ctx.predictor
-        pairs = p.pair_set
-        c, v = p.sphere_states(data)
-        reach = reach_distance(
-            np.linalg.norm(v, axis=1), ctx.sphere_accel, ctx.sphere_delta, ctx.horizon
-        )
-        grown = ctx.radius + reach + 0.5 * ctx.max_extra
-        a, b = self.candidates(c, grown)
-        key = np.minimum(a, b) * ctx.nsphere + np.maximum(a, b)
-        pos = np.minimum(np.searchsorted(ctx.ss_keys, key), max(ctx.ss_keys.size - 1, 0))
-        active = ctx.ss_keys[pos] == key if ctx.ss_keys.size else np.zeros(key.size, bool)
-        pid = pos[active]
-        ia, ib = a[active], b[active]
-        dd = c[ia] - c[ib]
-        limit = ctx.ss_eps[pid] + reach[ia] + reach[ib]
-        alarms = [ctx.ss_ids[pid[np.einsum("ij,ij->i", dd, dd) <= limit * limit]]]
-        if ctx.hs_ids.size:
-            normals, offsets = p.halfspaces(data)
-            i = pairs.first[ctx.hs_ids]
-            j = pairs.second[ctx.hs_ids]
-            gap = np.einsum("ij,ij->i", normals[j], c[i]) - offsets[j] - pairs.eps[ctx.hs_ids]
-            alarms.append(ctx.hs_ids[gap <= reach[i]])
-        if ctx.sh_ids.size:
-            i = pairs.first[ctx.sh_ids]
-            _shape_gaps(c, pairs.shapes, i, pairs.second[ctx.sh_ids], self._gaps)
-            alarms.append(ctx.sh_ids[self._gaps - pairs.eps[ctx.sh_ids] <= reach[i]])
-        flagged = np.unique(ctx.to_geom_pair[np.concatenate(alarms)])
-        return flagged, int(a.size + ctx.hs_ids.size + ctx.sh_ids.size)
-
-
 def measure_peers(scene: str, urgency: str, steps: int, bounds: dict) -> list[Row]:
     """The broadphase and MuJoCo's gap-inflated collision watch one rollout on one covering."""
     m, d = _load(scene)
@@ -254,9 +165,11 @@ def measure_peers(scene: str, urgency: str, steps: int, bounds: dict) -> list[Ro
         **URGENCIES[urgency],
     )
     bounds.setdefault(urgency, p.bounds)
-    ctx = _Context(m, p)
-    sweep = _SweptSpheres(ctx)
-    gap = MujocoScene(ctx, "gap")  # type: ignore[arg-type]
+    # The peers get this predictor's pairs and horizon (latency 0: like with like); static
+    # geoms as shapes are tested directly by the broadphase, as planes are.
+    ctx = SceneContext(m, predictor=p)
+    sweep = BroadphaseScene(ctx, "sweep")
+    gap = MujocoScene(ctx, "gap")
     ctrl = make_controller(m, "random", seed=ROLLOUT_SEED)
     ctrl(m, d)
     mujoco.mj_step(m, d)
@@ -269,7 +182,7 @@ def measure_peers(scene: str, urgency: str, steps: int, bounds: dict) -> list[Ro
         gap.set_snapshot(d)
         mujoco.mj_step(m, d)
         t0 = time.perf_counter()
-        flagged, cand = sweep.step(d)
+        flagged, _, _, cand = sweep.step(d)
         t_sweep.append(time.perf_counter() - t0)
         cands.append(cand)
         frac["sweep"] += flagged.size / npair
@@ -283,7 +196,7 @@ def measure_peers(scene: str, urgency: str, steps: int, bounds: dict) -> list[Ro
             frac["sweep"] / steps,
             None,
             float(np.median(t_sweep) * 1e6),
-            candidates=float(np.mean(cands)),
+            candidates=float(np.mean([c or 0.0 for c in cands])),
             pairs=ctx.npairs,
         ),
         Row(

@@ -7,8 +7,10 @@ spheres overlap is an alarm. Candidates come from ``candidates.BROADPHASES``.
 from __future__ import annotations
 
 import mujoco
+import numba as nb
 import numpy as np
 
+from dua_mujoco.core.shapes import static_gap
 from dua_mujoco.experiments.peers.candidates import BROADPHASES
 from dua_mujoco.experiments.peers.ghost_world import GhostTrajectory, pair_id
 from dua_mujoco.experiments.peers.horizon import LATENCY, reach_distance
@@ -52,6 +54,12 @@ class BroadphaseGhost:
         return alarms, 1 + LATENCY, None, float(cand)
 
 
+@nb.njit(cache=True)
+def _shape_gaps(c, shapes, first, second, out):  # pragma: no cover - jitted
+    for k in range(first.shape[0]):
+        out[k] = static_gap(c[first[k]], shapes[second[k]])[0]
+
+
 class BroadphaseScene:
     """Swept covering spheres on a scene (``ScenePeer``), filtered to MuJoCo's active pairs."""
 
@@ -87,8 +95,15 @@ class BroadphaseScene:
             j = pairs.second[ctx.hs_ids]
             gap = np.einsum("ij,ij->i", normals[j], c[i]) - offsets[j] - pairs.eps[ctx.hs_ids]
             alarms.append(ctx.hs_ids[gap <= reach[i]])
+        if ctx.sh_ids.size:
+            # A handful of static shapes too: their exact gap, as for the planes.
+            pairs = p.pair_set
+            i = pairs.first[ctx.sh_ids]
+            gaps = np.empty(ctx.sh_ids.size)
+            _shape_gaps(c, pairs.shapes, i, pairs.second[ctx.sh_ids], gaps)
+            alarms.append(ctx.sh_ids[gaps - pairs.eps[ctx.sh_ids] <= reach[i]])
         ids = np.concatenate(alarms)
-        return np.unique(ctx.to_geom_pair[ids]), int(a.size + ctx.hs_ids.size)
+        return np.unique(ctx.to_geom_pair[ids]), int(a.size + ctx.hs_ids.size + ctx.sh_ids.size)
 
     def start(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray | int]:
         return self._alarms(data)[0], 1 + LATENCY

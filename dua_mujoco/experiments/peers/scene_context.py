@@ -2,24 +2,38 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import mujoco
 import numpy as np
 
 from dua_mujoco.experiments.peers.horizon import LATENCY
 
+if TYPE_CHECKING:
+    from dua_mujoco.mj.predictor import Predictor
+
 __all__ = ["SceneContext"]
 
 
 class SceneContext:
-    """A scene's predictor (covering, active pairs, bounds), shared by all peers."""
+    """A scene's predictor (covering, active pairs, bounds), shared by all peers.
 
-    def __init__(self, model: mujoco.MjModel, accel: float) -> None:
+    Args:
+        model: The scene.
+        accel: Acceleration bound of the predictor built here.
+        predictor: A ready predictor instead (bounding covering, all pairs held; static geoms
+            as shapes or spheres): the peers then get its latency's horizon and its pairs.
+    """
+
+    def __init__(
+        self, model: mujoco.MjModel, accel: float = 0.0, *, predictor: Predictor | None = None
+    ) -> None:
         from dua_mujoco import Predictor
 
         self.model = model
-        # Every geom one sphere, the paper's schedule, all pairs: sphere pairs then correspond
-        # one to one with geom pairs, which the peers compare on.
-        self.predictor = Predictor(
+        # By default every geom one sphere, the paper's schedule, all pairs: sphere pairs then
+        # correspond one to one with geom pairs, which the peers compare on.
+        self.predictor = predictor or Predictor(
             model, accel=accel, latency=LATENCY, schedule="dua", static="sphere", pairs="all"
         )
         p = self.predictor
@@ -31,7 +45,7 @@ class SceneContext:
         self.to_geom_pair = np.asarray(gp, dtype=np.int64)
         self.npairs = p.geom_pairs.npair
         self.dt = p.dt
-        self.horizon = (1 + LATENCY) * p.dt
+        self.horizon = (1 + p.latency) * p.dt
         cov = p.covering
         pairs = p.pair_set
         self.sphere_accel = p.bounds.accel[cov.sphere_body]
@@ -52,3 +66,5 @@ class SceneContext:
         extra = pairs.eps[ss] - self.radius[a] - self.radius[b]
         self.max_extra = float(extra.max(initial=0.0))
         self.hs_ids = np.flatnonzero(pairs.halfspace)
+        # Pairs against static shapes (a predictor with static="shape"): tested directly.
+        self.sh_ids = np.flatnonzero(pairs.shape)
