@@ -192,15 +192,6 @@ def tau_ns_per_eval(predictor: object, data: object, max_pairs: int = 4096) -> f
     return per_call / ids.size * 1e9
 
 
-def _fused_step_args(predictor: object, data: object) -> tuple:
-    """What ``Predictor.step`` hands the fused step after the step number."""
-    from dua_mujoco.mj.kinematics import mjdata_frame
-
-    p = predictor
-    pairs, spheres = p.kernel_tables  # type: ignore[attr-defined]
-    return pairs, spheres, mjdata_frame(data, np.zeros((p.model.nbody, 6)))  # type: ignore[attr-defined]
-
-
 def compiled_step_us(
     predictor: object, data: object, repeat: int = 7, loops: int = 20_000
 ) -> float:
@@ -215,15 +206,15 @@ def compiled_step_us(
     from dua_mujoco.mj.kinematics import step_rigid_kernel  # what Predictor.step runs
 
     @nb.njit
-    def loop(k, state, n0, pairs, spheres, frame):
+    def loop(k, state, n0, pairs, spheres, frame, shapes, refine):
         for i in range(k):
-            step_rigid_kernel(state, n0 + i, pairs, spheres, frame)
+            step_rigid_kernel(state, n0 + i, pairs, spheres, frame, shapes, refine)
 
     s = predictor.scheduler  # type: ignore[attr-defined]
-    args = _fused_step_args(predictor, data)
+    args = predictor.kernel_arguments(data)  # type: ignore[attr-defined]
 
     def run(k: int) -> None:
-        loop(k, s.state, s.step_count + 1, *args)
+        loop(k, s.kernel_state, s.step_count + 1, *args)
         s.step_count += k
 
     return median_time(lambda: run(loops), repeat) / loops * 1e6
@@ -248,10 +239,10 @@ def bench_dispatch(calls: int = 200_000) -> str:
     p = Predictor(m, accel=4.0)
     mujoco.mj_step(m, d)
     p.reset(d)
-    args = (p.scheduler.state, 1, *_fused_step_args(p, d))
+    args = (p.scheduler.kernel_state, 1, *p.kernel_arguments(d))
 
     @nb.njit
-    def empty_like_step(state, n, pairs, spheres, frame):  # same arguments
+    def empty_like_step(state, n, pairs, spheres, frame, shapes, refine):  # same arguments
         return 0, 0, -1
 
     @nb.njit
@@ -275,7 +266,7 @@ def bench_dispatch(calls: int = 200_000) -> str:
     rows = []
     for label, fn in (
         (
-            "numba dispatch of the fused step's 5 arguments (the state's 12 fields and the frame's"
+            "numba dispatch of the fused step's 7 arguments (the state's 12 fields and the frame's"
             " 6 arrays in 2 tuples), empty kernel",
             lambda: empty_like_step(*args),
         ),

@@ -576,10 +576,16 @@ class Predictor:
 
     @property
     def kernel_tables(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(pair_records, sphere_records)``: the packed tables ``step`` hands
-        ``kinematics.step_rigid_kernel`` after the scheduler's state and the step number, and
-        before the ``MjData`` frame (``kinematics.mjdata_frame``); for compiled drivers."""
-        return self._pair_records, self._spheres
+        """``(pair_records, sphere_records)`` of the pairs held now, as ``step`` hands them to
+        ``kinematics.step_rigid_kernel`` (see :meth:`kernel_arguments`)."""
+        return self._records, self._spheres
+
+    def kernel_arguments(self, data: mujoco.MjData) -> tuple:
+        """Everything ``step`` hands ``kinematics.step_rigid_kernel`` after the scheduler's
+        ``kernel_state`` and the step number, for ``data``: ``(pair_records, sphere_records,
+        frame, shape_records, refine)``; for compiled drivers (benchmarks)."""
+        frame = mjdata_frame(data, self._twist)
+        return self._records, self._spheres, frame, self._shapes, self._refine
 
     @property
     def sphere_pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:
