@@ -42,7 +42,8 @@ class PairState:
         self.npairs = npairs
         self._held = held
         self._on = on
-        self._rebuilds = rebuilds
+        self.rebuilds = rebuilds
+        """Rebuilds of the held set this view reflects."""
         self._built_at = built_at
 
     @property
@@ -53,7 +54,7 @@ class PairState:
     @property
     def activation_changes(self) -> int:
         """Changes that may alter any pair's state: switches, and rebuilds of the held set."""
-        return self.scheduler.activation_changes + self._rebuilds
+        return self.scheduler.activation_changes + self.rebuilds
 
     @property
     def active(self) -> np.ndarray:

@@ -238,6 +238,7 @@ class Predictor:
         # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: Scheduler | None = None
+        self._pair_state: PairState | None = None
         self._step_kernel: Callable[..., tuple[int, int, int]] = step_rigid_kernel
         self._time = 0.0
         self._steps_at_reset = 0
@@ -285,11 +286,15 @@ class Predictor:
     def pair_state(self) -> PairState:
         """The scheduler's state of every sphere pair, by the model's pair ids (pruned or not)."""
         sched = self._require_scheduler()
-        if self._held is None:
-            return PairState(sched, self.nsphere_pairs)
-        return PairState(
-            sched, self.nsphere_pairs, self._ids, self._on, self.rebuilds, self._built_at
-        )
+        # The exact stage asks several times a step: one view per scheduler and held set.
+        view = self._pair_state
+        if view is None or view.scheduler is not sched or view.rebuilds != self.rebuilds:
+            held = None if self._held is None else self._ids
+            view = PairState(
+                sched, self.nsphere_pairs, held, self._on, self.rebuilds, self._built_at
+            )
+            self._pair_state = view
+        return view
 
     @property
     def held_pairs(self) -> np.ndarray:
