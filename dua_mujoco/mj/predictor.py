@@ -579,12 +579,6 @@ class Predictor:
         """``(nshape, 16)`` records of the static shapes (``core.shapes``), as of ``reset``."""
         return self._shapes
 
-    @property
-    def kernel_tables(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(pair_records, sphere_records)`` of the pairs held now, as ``step`` hands them to
-        ``kinematics.step_rigid_kernel`` (see :meth:`kernel_arguments`)."""
-        return self._records, self._spheres
-
     def kernel_arguments(self, data: mujoco.MjData) -> tuple:
         """Everything ``step`` hands ``kinematics.step_rigid_kernel`` after the scheduler's
         ``kernel_state`` and the step number, for ``data``: ``(pair_records, sphere_records,
