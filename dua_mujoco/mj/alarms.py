@@ -14,7 +14,9 @@ class Alarms:
 
     A slotted class rather than a frozen dataclass: one is built every predictor step, and a
     frozen dataclass's ``__init__`` (``object.__setattr__`` per field) cost 1.1 us of a step
-    budget of a few microseconds (measured; this class: 0.3 us).
+    budget of a few microseconds (measured; this class: 0.3 us). A step's alarms are a span of
+    the predictor's alarm log (``dua_mujoco.mj.step_context``), which the compiled step appends
+    to and nobody overwrites: the arrays are read-only views of that span, made when read.
 
     Attributes:
         step: Predictor step (0 for the initial classification).
@@ -25,7 +27,17 @@ class Alarms:
             before): print these to see changes rather than the same standing pairs again.
     """
 
-    __slots__ = ("_deferred", "_new", "_pairs", "_step", "_tables", "_tau", "_time")
+    __slots__ = (
+        "_deferred",
+        "_new",
+        "_pairs",
+        "_start",
+        "_step",
+        "_stop",
+        "_tables",
+        "_tau",
+        "_time",
+    )
 
     def __init__(
         self,
@@ -42,8 +54,33 @@ class Alarms:
         self._pairs = pairs
         self._tau = tau
         self._tables = tables
-        self._new = new
+        self._new = np.asarray(new, dtype=bool)
         self._deferred = deferred
+        self._start = 0
+        self._stop = int(pairs.shape[0])
+
+    @classmethod
+    def from_log(
+        cls,
+        step: int,
+        time: float,
+        log: tuple[np.ndarray, np.ndarray, np.ndarray],
+        start: int,
+        stop: int,
+        tables: PairTables,
+        deferred: int = 0,
+    ) -> Alarms:
+        """The alarms at ``[start, stop)`` of an alarm log ``(pairs, tau, new)`` (read-only
+        arrays that nothing writes at or before ``stop`` again): no copy is made."""
+        alarms = cls.__new__(cls)
+        alarms._step = step
+        alarms._time = time
+        alarms._pairs, alarms._tau, alarms._new = log
+        alarms._tables = tables
+        alarms._deferred = deferred
+        alarms._start = start
+        alarms._stop = stop
+        return alarms
 
     @property
     def step(self) -> int:
@@ -58,17 +95,17 @@ class Alarms:
     @property
     def pairs(self) -> np.ndarray:
         """``(k,)`` sphere-pair ids that raised an alarm."""
-        return self._pairs
+        return self._pairs[self._start : self._stop]
 
     @property
     def tau(self) -> np.ndarray:
         """``(k,)`` their tau (seconds)."""
-        return self._tau
+        return self._tau[self._start : self._stop]
 
     @property
     def new(self) -> np.ndarray:
         """``(k,)`` bool: alarms this step raised, as opposed to ones standing from before."""
-        return np.asarray(self._new, dtype=bool)
+        return self._new[self._start : self._stop]
 
     @property
     def deferred(self) -> int:
@@ -79,12 +116,12 @@ class Alarms:
 
     def __repr__(self) -> str:
         return (
-            f"Alarms(step={self._step}, time={self._time!r}, pairs={self._pairs!r}, "
-            f"tau={self._tau!r}, new={self.new!r})"
+            f"Alarms(step={self._step}, time={self._time!r}, pairs={self.pairs!r}, "
+            f"tau={self.tau!r}, new={self.new!r})"
         )
 
     def __len__(self) -> int:
-        return int(self.pairs.shape[0])
+        return self._stop - self._start
 
     @property
     def geom1(self) -> np.ndarray:

@@ -29,10 +29,8 @@ from dua_mujoco.core.schedules import (
     as_schedule,
     make_scheduler,
 )
-from dua_mujoco.core.schedules.base import compiled_entry
 from dua_mujoco.core.schedules.deadline import check_max_evals
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
-from dua_mujoco.core.schedules.state import P_DEFERRED
 from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
@@ -53,12 +51,13 @@ from dua_mujoco.mj.filter import (
     sphere_pair_mask,
     sphere_pairs,
 )
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states, step_rigid_kernel
+from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.mocap import MocapVelocityTracker
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty, bounded_pairs
 from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for
 from dua_mujoco.mj.refine import Refinement, build_refinement, no_refinement, refine_taus
+from dua_mujoco.mj.step_context import StepContext, Stepper
 from dua_mujoco.mj.tables import (
     PairTables,
     check_data,
@@ -239,7 +238,9 @@ class Predictor:
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: Scheduler | None = None
         self._pair_state: PairState | None = None
-        self._step_kernel: Callable[..., tuple[int, int, int]] = step_rigid_kernel
+        # The compiled step's arguments in one object (bound when first needed, dropped when
+        # any of them changes) and the alarm log it appends to.
+        self._stepper = Stepper(1)
         self._time = 0.0
         self._steps_at_reset = 0
         self._frame_data: mujoco.MjData | None = None
@@ -278,6 +279,7 @@ class Predictor:
         """Hold the pairs ``ids`` (sorted): the compiled step reads only their records."""
         self._ids = ids
         self._records = np.ascontiguousarray(self._pair_records[ids])
+        self._stepper.context = None
         if self.refinement is not None:
             # The refinement records are indexed like the pair records the step reads.
             fine, radius, records, below, most = self.refinement.args
@@ -317,6 +319,7 @@ class Predictor:
         """
         # The kernel does no bounds checks: refuse an MjData of another model here.
         self.check_data(data)
+        self._stepper.context = None
         self._frame_data = data
         self._frame_cache = mjdata_frame(data, self._twist)
         return self._frame_cache
@@ -387,17 +390,10 @@ class Predictor:
                 tau0, self._ids, self._pair_records, frame, self._shapes, self.refinement.args
             )
         self.scheduler = self._scheduler(tau0)
+        # A step raises at most one alarm per place of the work rows.
+        self._stepper = Stepper(self.scheduler.state.work.shape[1])
         self._load_compiled(data, frame)
-        self._step_kernel = compiled_entry(
-            step_rigid_kernel,
-            self.scheduler.kernel_state,
-            1,
-            self._records,
-            self._spheres,
-            frame,
-            self._shapes,
-            self._refine,
-        )
+        self._bind_step()
         self._time = float(data.time)
         self._steps_at_reset = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
         ids = self.scheduler.initial_alarms
@@ -416,28 +412,37 @@ class Predictor:
         )
 
     def _load_compiled(self, data: mujoco.MjData, frame: tuple) -> None:
-        """Load what ``step`` runs from numba's cache (~10 ms each) now, not in ``step``.
-
-        A real-time user holds every ``step`` to its deadline, the first one included. One
-        step of a throw-away one-pair scheduler of the same schedule on the real tables (read
-        only) loads the fused step and the switching kernel; the mocap differencing runs on
-        copies.
-        """
+        """Load what ``step`` runs from numba's cache (~10 ms each) now, not in the first
+        ``step``, which a real-time user holds to its deadline too: a throw-away one-pair
+        scheduler steps on the real tables (read only) and switches a pair."""
         if len(self.pair_set):
             spare = self._scheduler(np.full(1, np.inf))
-            spare.step_with(
-                step_rigid_kernel,
+            Stepper.load_compiled(
+                spare,
                 self._pair_records[:1],
                 self._spheres,
                 frame,
                 self._shapes,
                 # The full refinement records: row 0 exists even when no pair is held.
                 self._refine if self.refinement is None else self.refinement.args,
+                self._ids[:1],
             )
             spare.set_active([0], False)
             spare.set_active([0], True)
         if self.mocap is not None:
             self.mocap.load_compiled(data, self._twist)
+
+    def _bind_step(self) -> StepContext:
+        """The compiled step's arguments as they stand now (after any of them changed)."""
+        return self._stepper.bind(
+            self._require_scheduler().kernel_state,
+            self._records,
+            self._spheres,
+            self._frame_cache,
+            self._shapes,
+            self._refine,
+            self._ids,
+        )
 
     def step(self, data: mujoco.MjData) -> Alarms:
         """One predictor step: evaluate the scheduled pairs, reschedule them, return the alarms.
@@ -453,7 +458,8 @@ class Predictor:
         if sched is None:
             raise SchedulerError("step() before reset(): call predictor.reset(data) first.")
         # Before the clock: another model's data has its own clock, and the error must say so.
-        frame = self._frame_cache if self._frame_data is data else self._bind_frame(data)
+        if self._frame_data is not data:
+            self._bind_frame(data)
         time = float(data.time)
         elapsed = time - self._time
         if abs(elapsed - self.dt) > 1e-6 * self.dt:
@@ -471,22 +477,18 @@ class Predictor:
             self.mocap.update(data, self._twist)
         if self._held is not None and sched.step_count + 1 - self._built_at >= self.stride:
             self._rebuild(data, sched.step_count + 1)
-        alarmed, bad = sched.step_with(
-            self._step_kernel, self._records, self._spheres, frame, self._shapes, self._refine
-        )
+        stepper = self._stepper
+        context = stepper.context if stepper.context is not None else self._bind_step()
+        start = stepper.used
+        if start + stepper.room > stepper.capacity:
+            start = stepper.next_log()
+        nalarm, bad, deferred = sched.step_context(stepper.entry, context, start)
         if bad >= 0:
             raise self._nonfinite(data, int(self._ids[bad]))
         self._time = time
-        return Alarms(
-            sched.step_count,
-            time,
-            # Scheduler ids are the model's pair ids unless pairs are pruned.
-            alarmed if self._held is None else self._ids[alarmed],
-            sched.last_tau[alarmed],
-            self.tables,
-            sched.last_new_flags,
-            # Only a capped deadline schedule defers.
-            int(sched.state.params[P_DEFERRED]) if self.max_evals_per_step else 0,
+        stepper.used = stop = start + nalarm
+        return Alarms.from_log(
+            sched.step_count, time, stepper.view, start, stop, self.tables, deferred
         )
 
     def _rebuild(self, data: mujoco.MjData, step: int) -> None:

@@ -35,7 +35,7 @@ from dua_mujoco.core.schedules.state import (
 from dua_mujoco.core.validate import as_ids, check_urgencies
 from dua_mujoco.exceptions import InvalidInputError, NonFiniteStateError, SchedulerError, ShapeError
 
-__all__ = ["FusedKernel", "Scheduler", "compiled_entry", "step_points_kernel"]
+__all__ = ["ContextKernel", "FusedKernel", "Scheduler", "compiled_entry", "step_points_kernel"]
 
 FusedKernel = Callable[..., tuple[int, int, int]]
 """A compiled ``kernel(state, n, *args) -> (count, nalarm, bad)``: ``kernels.select``, tau of the
@@ -68,6 +68,10 @@ def step_points_kernel(st, n, geometry):  # pragma: no cover - jitted
             return count, 0, p
         st[S_W_TAU][k] = pair_tau(p, geometry)
     return count, kernels.reinsert(st, n, count), -1
+
+
+ContextKernel = Callable[..., tuple]
+"""A compiled ``kernel(context, n, *args) -> (nalarm, bad, ...)`` (``Scheduler.step_context``)."""
 
 
 def compiled_entry(kernel: Any, *args: object) -> FusedKernel:
@@ -104,7 +108,10 @@ class Scheduler:
         self.step_count = 0
         self.activation_changes = 0
         self._pending: np.ndarray | None = None
-        self._new = np.ones(self.initial_alarms.shape[0], dtype=np.int64)
+        # The latest step's alarm rows (W_ALARMS, W_NEW) and their count: a copy, or the live
+        # work rows after a context step (valid until the next step, which resets both).
+        self._last_rows = np.ones((2, self.initial_alarms.shape[0]), dtype=np.int64)
+        self._nalarm = int(self.initial_alarms.shape[0])
 
     @property
     def state(self) -> ScheduleState:
@@ -272,6 +279,24 @@ class Scheduler:
             return self.state.work[W_ALARMS, :0].copy(), int(bad)
         return self._finish(nalarm), -1
 
+    def step_context(self, kernel: ContextKernel, context: object, *args: object) -> tuple:
+        """Run one compiled step ``kernel(context, n, *args)`` whose ``context`` holds this
+        scheduler's :attr:`kernel_state` with whatever else the step reads (a numba
+        ``StructRef``: one argument to unbox instead of dozens).
+
+        ``kernel`` returns ``(nalarm, bad, ...)``, its alarms left in the work rows as
+        ``kernels.reinsert`` wrote them; ``bad >= 0`` means the step was undone. Returns the
+        kernel's tuple; the alarms are the kernel's to hand out (nothing is copied here).
+        """
+        if self._pending is not None:
+            raise SchedulerError("a fused step between select() and update(): finish the step.")
+        result = kernel(context, self.step_count + 1, *args)
+        if result[1] < 0:
+            self.step_count += 1
+            self._last_rows = self._alarm_rows
+            self._nalarm = result[0]
+        return result
+
     def step_points(
         self,
         pairs: PairSet,
@@ -308,17 +333,13 @@ class Scheduler:
     @property
     def last_new(self) -> np.ndarray:
         """``(k,)`` bool, which of the latest step's alarms are new (see ``W_NEW``)."""
-        return self._new.astype(bool)
-
-    @property
-    def last_new_flags(self) -> np.ndarray:
-        """``(k,)`` int64 0/1, :attr:`last_new` as the kernels wrote it (no conversion)."""
-        return self._new
+        return self._last_rows[1, : self._nalarm].astype(bool)
 
     def _finish(self, nalarm: int) -> np.ndarray:
         self.step_count += 1
         self._pending = None
         # One copy of both rows: the buffers are reused by the next step.
         block = self._alarm_rows[:, :nalarm].copy()
-        self._new = block[1]
+        self._last_rows = block
+        self._nalarm = nalarm
         return block[0]

@@ -1,0 +1,214 @@
+"""``StepContext``: everything the predictor's compiled step reads, handed over as one object.
+
+A ``Predictor.step`` is a few microseconds of compiled work, and handing numba the fused step's
+arguments one by one (the schedule state's 12 fields, the pair, sphere and shape tables, the
+``MjData`` views of the frame, the refinement tables: about 25 arrays) cost 1.9 us a call after
+``mj_step`` (measured, docs/benchmarks.md). A ``StepContext`` is a numba ``StructRef`` holding
+references to those same arrays: numba unboxes it as one pointer (0.7 us a call, measured), and
+the arrays stay shared with their Python owners, so the scheduler, the tables and ``MjData``
+see every write.
+
+The context also holds the alarm log: the step appends its alarms (model pair id, tau, new)
+there instead of leaving them in work rows that the next step overwrites, so an ``Alarms`` is a
+span of the log and a step copies nothing in Python. A log is never written twice at the same
+place: when it cannot hold another step's worth of alarms, :func:`new_log` gives a fresh one
+(:func:`set_log` hands it to the context), and the old one lives as long as some ``Alarms``
+refers to it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numba as nb
+import numpy as np
+from numba.core import types
+from numba.experimental import structref
+
+from dua_mujoco.core.schedules.base import Scheduler, compiled_entry
+from dua_mujoco.core.schedules.state import (
+    P_DEFERRED,
+    S_LAST_TAU,
+    S_PARAMS,
+    S_WORK,
+    W_ALARMS,
+    W_NEW,
+)
+from dua_mujoco.mj.kinematics import step_rigid_kernel
+
+__all__ = [
+    "LOG_MIN",
+    "LOG_STEPS",
+    "AlarmLog",
+    "StepContext",
+    "Stepper",
+    "context_step",
+    "new_log",
+    "set_log",
+]
+
+AlarmLog = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""``(pairs (C,) int64, tau (C,) float64, new (C,) bool)``."""
+
+LOG_STEPS = 4
+"""A log holds at least this many steps' worth of the most alarms a step can raise..."""
+LOG_MIN = 1 << 14
+"""...and at least this many entries (17 bytes each)."""
+
+
+@structref.register
+class StepContextType(types.StructRef):
+    """numba's type of a :class:`StepContext` (its fields' types, literals widened)."""
+
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+_FIELDS = ("state", "pairs", "spheres", "frame", "shapes", "refine", "ids", "log")
+
+
+class StepContext(structref.StructRefProxy):
+    """The fused step's arguments as one object (see the module docstring).
+
+    Args:
+        state: The scheduler's ``kernel_state`` tuple.
+        pairs: ``(K, ncol)`` packed records of the held pairs (``pack_pairs``).
+        spheres: ``(nsphere, ncol)`` packed sphere records (``pack_spheres``).
+        frame: ``mjdata_frame``'s tuple of ``MjData`` views.
+        shapes: ``(nshape, 16)`` static shape records.
+        refine: The two-level urgency's tuple (``Refinement.args`` or ``no_refinement()``).
+        ids: ``(K,)`` model sphere-pair id of each held pair (the identity when none is pruned).
+        log: The writeable :data:`AlarmLog` the step appends to.
+    """
+
+    def __new__(
+        cls,
+        state: tuple,
+        pairs: np.ndarray,
+        spheres: np.ndarray,
+        frame: tuple,
+        shapes: np.ndarray,
+        refine: tuple,
+        ids: np.ndarray,
+        log: AlarmLog,
+    ) -> StepContext:
+        return structref.StructRefProxy.__new__(
+            cls, state, pairs, spheres, frame, shapes, refine, ids, log
+        )
+
+
+structref.define_proxy(StepContext, StepContextType, list(_FIELDS))
+
+
+def new_log(capacity: int) -> tuple[AlarmLog, AlarmLog]:
+    """A fresh alarm log of ``capacity`` entries: ``(writeable, read-only views of it)``."""
+    log = (
+        np.empty(capacity, dtype=np.int64),
+        np.empty(capacity, dtype=np.float64),
+        np.empty(capacity, dtype=np.bool_),
+    )
+    views = tuple(a.view() for a in log)
+    for v in views:
+        v.flags.writeable = False
+    return log, views  # type: ignore[return-value]
+
+
+@nb.njit(cache=True)
+def set_log(ctx, log):  # pragma: no cover - jitted
+    """Hand the context a new alarm log (of the same types as its current one)."""
+    ctx.log = log
+
+
+@nb.njit(cache=True)
+def context_step(ctx, n, start):  # pragma: no cover - jitted
+    """One fused step of the schedule in ``ctx`` (``step_rigid_kernel``), its alarms appended to
+    the log at ``start``: ``(nalarm, bad, deferred)``.
+
+    ``bad >= 0`` names a held pair whose state was not finite: the step was undone and nothing
+    was appended. The caller keeps ``start + nalarm + width <= capacity`` before each call.
+    """
+    st = ctx.state
+    _, nalarm, bad = step_rigid_kernel(
+        st, n, ctx.pairs, ctx.spheres, ctx.frame, ctx.shapes, ctx.refine
+    )
+    if bad >= 0:
+        return 0, bad, 0
+    alarms = st[S_WORK][W_ALARMS]
+    new = st[S_WORK][W_NEW]
+    last_tau = st[S_LAST_TAU]
+    pairs, tau, fresh = ctx.log
+    ids = ctx.ids
+    for k in range(nalarm):
+        p = alarms[k]
+        pairs[start + k] = ids[p]
+        tau[start + k] = last_tau[p]
+        fresh[start + k] = new[k] != 0
+    return nalarm, -1, st[S_PARAMS][P_DEFERRED]
+
+
+class Stepper:
+    """A predictor's compiled step: its ``StepContext``, the alarm log and the entry point.
+
+    ``context`` is None until :meth:`bind` and after the owner drops it (any argument
+    changed); ``used`` is the log's next write position, kept by the caller of ``entry``.
+
+    Args:
+        width: Most alarms a step can raise (the scheduler's work-row width).
+    """
+
+    __slots__ = ("capacity", "context", "entry", "log", "room", "used", "view")
+
+    def __init__(self, width: int) -> None:
+        self.room = int(width)
+        # Room for many steps: a full log is replaced, never overwritten.
+        self.capacity = max(LOG_STEPS * self.room, LOG_MIN)
+        self.log, self.view = new_log(self.capacity)
+        self.used = 0
+        self.context: StepContext | None = None
+        self.entry: Callable[..., tuple] = context_step
+
+    def bind(
+        self,
+        state: tuple,
+        pairs: np.ndarray,
+        spheres: np.ndarray,
+        frame: tuple,
+        shapes: np.ndarray,
+        refine: tuple,
+        ids: np.ndarray,
+    ) -> StepContext:
+        """A new context over these arguments and the log; the entry point compiled for it."""
+        self.context = StepContext(state, pairs, spheres, frame, shapes, refine, ids, self.log)
+        if self.entry is context_step:
+            self.entry = compiled_entry(context_step, self.context, 1, 0)
+        return self.context
+
+    def next_log(self) -> int:
+        """Replace a log without room for another step's alarms; the new write position (0).
+
+        The old log lives as long as some ``Alarms`` of it does.
+        """
+        self.log, self.view = new_log(self.capacity)
+        if self.context is not None:
+            set_log(self.context, self.log)
+        self.used = 0
+        return 0
+
+    @staticmethod
+    def load_compiled(
+        scheduler: Scheduler,
+        pairs: np.ndarray,
+        spheres: np.ndarray,
+        frame: tuple,
+        shapes: np.ndarray,
+        refine: tuple,
+        ids: np.ndarray,
+    ) -> None:
+        """Run one step of ``scheduler`` (a throw-away one) on :meth:`bind`'s arguments (read
+        only) so that numba loads the step and the log switch from its cache (~10 ms) now."""
+        log, _ = new_log(1)
+        context = StepContext(
+            scheduler.kernel_state, pairs, spheres, frame, shapes, refine, ids, log
+        )
+        scheduler.step_context(context_step, context, 0)
+        set_log(context, log)
