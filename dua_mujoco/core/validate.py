@@ -24,7 +24,7 @@ __all__ = ["as_ids", "as_vectors", "check_period", "check_urgencies", "per_pair"
 def real_array(name: str, value: npt.ArrayLike) -> np.ndarray:
     """``value`` as float64, refusing complex numbers (numpy would drop their imaginary part)."""
     arr = np.asarray(value)
-    if np.iscomplexobj(arr):
+    if arr.dtype.kind == "c":  # np.iscomplexobj's test, without its call overhead
         raise InvalidInputError(
             f"{name} holds complex numbers (dtype {arr.dtype}): pass real positions, velocities "
             "and bounds (take .real if the imaginary part is zero)."

@@ -338,8 +338,8 @@ class Scheduler:
     def _finish(self, nalarm: int) -> np.ndarray:
         self.step_count += 1
         self._pending = None
-        # One copy of both rows: the buffers are reused by the next step.
-        block = self._alarm_rows[:, :nalarm].copy()
-        self._last_rows = block
+        # The caller keeps the ids: a copy, as the next step reuses the row. The new flags are
+        # read (by last_new) before the next step, if at all: the live rows serve.
+        self._last_rows = self._alarm_rows
         self._nalarm = nalarm
-        return block[0]
+        return self._alarm_rows[0, :nalarm].copy()
