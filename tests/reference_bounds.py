@@ -9,16 +9,12 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import numpy.typing as npt
+from reference_kinematics import reference_states
 
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.bounds import MotionBounds, default_spheres
 from dua_mujoco.mj.checks import BoundViolation
 from dua_mujoco.mj.mocap import MocapVelocityTracker
-
-try:
-    from reference_kinematics import reference_states
-except ImportError:  # collected as the package ``tests``
-    from tests.reference_kinematics import reference_states
 
 
 class ReferenceBoundMonitor:

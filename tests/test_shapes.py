@@ -22,6 +22,7 @@ import math
 import mujoco
 import numpy as np
 import pytest
+import reference_tau as ref
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -47,11 +48,6 @@ from dua_mujoco.exceptions import (
     NonFiniteStateError,
     ShapeError,
 )
-
-try:
-    import reference_tau as ref
-except ImportError:  # tests/ collected as a package
-    from tests import reference_tau as ref
 
 PRIMITIVES = [
     ShapeKind.SPHERE,
