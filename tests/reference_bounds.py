@@ -6,71 +6,36 @@ its checks moved into one compiled kernel; the tests hold the kernel to it, valu
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
-import numpy.typing as npt
+from reference_kinematics import reference_states
 
-from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.bounds import MotionBounds, default_spheres
-from dua_mujoco.mj.checks import BoundViolation
-from dua_mujoco.mj.mocap import MocapVelocityTracker
-
-try:
-    from reference_kinematics import reference_states
-except ImportError:  # collected as the package ``tests``
-    from tests.reference_kinematics import reference_states
+from dua_mujoco.mj.checks import BoundMonitor, BoundViolation
 
 
-class ReferenceBoundMonitor:
-    """Checks, once per physics step, whether the hypotheses of the guarantee held.
+class ReferenceBoundMonitor(BoundMonitor):
+    """``BoundMonitor``'s checks in plain numpy, vectorised over spheres.
 
-    Call :meth:`update` after every ``mj_step``. Update k (k >= 2) checks, for every sphere,
+    The set-up (spheres, bounds, tolerance, the violation records) is ``BoundMonitor``'s own, so
+    that only the checks differ. Update k (k >= 2) checks, for every sphere,
     |u_k - u_{k-1}| <= A h (discrete acceleration), |u_k - w_{k-1}| <= D = delta + A h / 2
     (one-step discrepancy) and |w_k| <= V, with a tolerance for floating-point round-off in the
-    second differences. Vectorised over spheres.
+    second differences. Only ``mocap_period=1``: the discrepancy bound is then the declared one.
     """
 
-    def __init__(
-        self,
-        model: mujoco.MjModel,
-        bounds: MotionBounds,
-        spheres: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike] | None = None,
-        *,
-        mocap: MocapVelocityTracker | None = None,
-        rtol: float = 1e-9,
-    ) -> None:
-        """Create a monitor.
-
-        Args:
-            model: the MuJoCo model.
-            bounds: the bounds to hold the run to.
-            spheres: ``(sphere_geom, sphere_body, sphere_offset)``; None for
-                :func:`default_spheres`.
-            mocap: tracker for mocap velocities (the caller updates it each step, before
-                :meth:`update`).
-            rtol: relative tolerance on every comparison.
-        """
-        if bounds.accel.shape != (model.nbody,):
-            raise InvalidInputError("bounds were made for a model with a different nbody.")
-        sgeom, sbody, soff = default_spheres(model) if spheres is None else spheres
-        self._sgeom = np.asarray(sgeom, dtype=np.int64)
-        self._sbody = np.asarray(sbody, dtype=np.int64)
-        self._soff = np.asarray(soff, dtype=np.float64).reshape(-1, 3)
-        self._bounds = bounds
-        self._mocap = mocap
-        self._rtol = rtol
-        self._nbody = model.nbody
-        self._A = bounds.accel[self._sbody]
-        self._D = bounds.discrepancy[self._sbody]
-        self._V = None if bounds.speed is None else bounds.speed[self._sbody]
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        """Take ``BoundMonitor``'s arguments (``mocap_period`` 1 only)."""
+        if kwargs.get("mocap_period", 1) != 1:
+            raise ValueError("the reference checks every step against the declared bounds")
+        super().__init__(*args, **kwargs)
+        speed = self._bounds.speed
+        # None, not the kernel's empty array, when there is no speed bound.
+        self._V = None if speed is None else speed[self._sbody]
         self._prev_c: np.ndarray | None = None
         self._prev_u: np.ndarray | None = None
         self._prev_w: np.ndarray | None = None
-        self._prev_t = 0.0
-        self.violations: list[BoundViolation] = []
-        """Every violation so far, in order."""
-        self.held: list[bool] = []
-        """Per update: True when no bound was broken at that update."""
 
     def _flag(self, kind: str, mask: np.ndarray, values: np.ndarray, t: float) -> np.ndarray:
         """Record violations of ``kind`` for spheres in ``mask`` (the worst value per body)."""
@@ -92,15 +57,6 @@ class ReferenceBoundMonitor:
         return np.array(sorted(worst), dtype=np.int64)
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-        """Check the step that produced ``data``.
-
-        Args:
-            model: the MuJoCo model.
-            data: the data right after ``mj_step``.
-
-        Returns:
-            ``(k,)`` sorted ids of bodies that broke a bound at this step (empty if none).
-        """
         c, w = reference_states(model, data, self._sgeom, self._soff, self._mocap)
         t = float(data.time)
         found: list[np.ndarray] = []

@@ -7,6 +7,8 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 import pytest
+from reference_bounds import ReferenceBoundMonitor
+from reference_kinematics import reference_states
 
 from dua_mujoco.exceptions import InvalidBoundError, InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.bounds import (
@@ -19,13 +21,6 @@ from dua_mujoco.mj.bounds import (
 from dua_mujoco.mj.checks import BoundMonitor
 from dua_mujoco.mj.mocap import MocapVelocityTracker
 from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
-
-try:
-    from reference_bounds import ReferenceBoundMonitor
-    from reference_kinematics import reference_states
-except ImportError:  # tests/ collected as a package
-    from tests.reference_bounds import ReferenceBoundMonitor
-    from tests.reference_kinematics import reference_states
 
 H = 0.002
 KMAX = 200

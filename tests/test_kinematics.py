@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from random_states import random_joint_state
 
 from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
@@ -92,19 +93,7 @@ def _model_with_sites(joint: str, nested: bool) -> mujoco.MjModel:
 
 def _random_state(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator) -> None:
     mujoco.mj_resetData(m, d)
-    d.qpos[:] = m.qpos0
-    for j in range(m.njnt):
-        adr, t = m.jnt_qposadr[j], int(m.jnt_type[j])
-        if t == int(mujoco.mjtJoint.mjJNT_FREE):
-            d.qpos[adr : adr + 3] = rng.normal(size=3)
-            q = rng.normal(size=4)
-            d.qpos[adr + 3 : adr + 7] = q / np.linalg.norm(q)
-        elif t == int(mujoco.mjtJoint.mjJNT_BALL):
-            q = rng.normal(size=4)
-            d.qpos[adr : adr + 4] = q / np.linalg.norm(q)
-        else:
-            d.qpos[adr] = rng.uniform(-2, 2)
-    d.qvel[:] = rng.normal(size=m.nv) * 3
+    random_joint_state(m, d, rng, velocity_scale=3.0)
     mujoco.mj_forward(m, d)
 
 

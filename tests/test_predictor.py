@@ -22,6 +22,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from random_states import random_joint_state
 
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
@@ -134,23 +135,6 @@ def site_predictor(site_model) -> tuple[mujoco.MjModel, Predictor]:
     return site_model, Predictor(site_model, accel=1.0, covering="multi")
 
 
-def _random_state(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator) -> None:
-    """Random positions (unit quaternions for free and ball joints) and velocities."""
-    for j in range(m.njnt):
-        adr = int(m.jnt_qposadr[j])
-        kind = int(m.jnt_type[j])
-        if kind == int(mujoco.mjtJoint.mjJNT_FREE):
-            d.qpos[adr : adr + 3] = rng.uniform(-1, 1, 3)
-            q = rng.normal(size=4)
-            d.qpos[adr + 3 : adr + 7] = q / np.linalg.norm(q)
-        elif kind == int(mujoco.mjtJoint.mjJNT_BALL):
-            q = rng.normal(size=4)
-            d.qpos[adr : adr + 4] = q / np.linalg.norm(q)
-        else:
-            d.qpos[adr] = rng.uniform(-2, 2)
-    d.qvel[:] = rng.normal(scale=2.0, size=m.nv)
-
-
 def _site_reference(
     m: mujoco.MjModel, d: mujoco.MjData, nsphere: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -171,7 +155,7 @@ def test_kernel_matches_mj_object_velocity_at_random_states(site_predictor) -> N
     d = mujoco.MjData(m)
     rng = np.random.default_rng(7)
     for _ in range(25):
-        _random_state(m, d, rng)
+        random_joint_state(m, d, rng, velocity_scale=2.0)
         mujoco.mj_forward(m, d)
         c_ref, v_ref = _site_reference(m, d, p.nsphere)
         c_k, v_k = p.sphere_states(d)
@@ -191,14 +175,14 @@ def test_fused_step_tau_matches_vectorised_tau(site_model) -> None:
     p = Predictor(m, accel=1.0, covering="multi", schedule="select-all")
     d = mujoco.MjData(m)
     rng = np.random.default_rng(3)
-    _random_state(m, d, rng)
+    random_joint_state(m, d, rng, velocity_scale=2.0)
     mujoco.mj_forward(m, d)
     p.reset(d)
     sched = p.scheduler
     assert sched is not None
     halfspace_pairs_seen = evaluated = 0
     for _ in range(20):
-        _random_state(m, d, rng)
+        random_joint_state(m, d, rng, velocity_scale=2.0)
         d.time += p.dt
         mujoco.mj_forward(m, d)
         p.step(d)
@@ -258,7 +242,7 @@ def test_mocap_velocity_from_differenced_path(site_predictor, path: str) -> None
         mujoco.mj_forward(m, dd)
 
     rng = np.random.default_rng(11)
-    _random_state(m, d, rng)
+    random_joint_state(m, d, rng, velocity_scale=2.0)
     tol = 1e-7 if path == "screw" else radius * w**2 * h / 2 + 1e-9
     errors = []
     for k in range(40):

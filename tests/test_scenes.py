@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import itertools
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -16,6 +17,7 @@ from dua_mujoco.mj.scenes import (
     SCENES,
     CtrlMode,
     MocapCircle,
+    SceneController,
     declared_accel_bound,
     load_scene,
     make_controller,
@@ -220,6 +222,22 @@ def test_traffic_acceleration_bound_holds() -> None:
     assert np.abs(acc).max() <= bound * (1 + 1e-9)
 
 
+def _recorded(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    ctrl: SceneController,
+    steps: int,
+    read: Callable[[mujoco.MjData], np.ndarray],
+) -> np.ndarray:
+    """``steps`` physics steps under ``ctrl``; ``read(d)`` after each control, stacked."""
+    seen = []
+    for _ in range(steps):
+        ctrl(m, d)
+        seen.append(np.copy(read(d)))
+        mujoco.mj_step(m, d)
+    return np.array(seen)
+
+
 def test_controller_modes() -> None:
     m, d = load_scene("clutter")
     zero = make_controller(m, "zero")
@@ -232,12 +250,7 @@ def test_controller_modes() -> None:
 
     m, d = load_scene("two_arms")
     ctrl = make_controller(m, CtrlMode.RANDOM, seed=4, hold_steps=5)
-    seen = []
-    for _ in range(20):
-        ctrl(m, d)
-        seen.append(d.ctrl.copy())
-        mujoco.mj_step(m, d)
-    seen_arr = np.array(seen)
+    seen_arr = _recorded(m, d, ctrl, 20, lambda d: d.ctrl)
     lo, hi = m.actuator_ctrlrange.T
     assert np.all(seen_arr >= lo) and np.all(seen_arr <= hi)
     assert len({tuple(row) for row in seen_arr}) == 4  # held for 5 steps each
@@ -252,12 +265,7 @@ def test_mocap_path_respects_its_bounds() -> None:
     circle = MocapCircle(radius=0.08, period=2.0)
     ctrl = make_controller(m, CtrlMode.RANDOM, seed=0, mocap=circle)
     h = m.opt.timestep
-    positions = []
-    for _ in range(300):
-        ctrl(m, d)
-        positions.append(d.mocap_pos.copy())
-        mujoco.mj_step(m, d)
-    p = np.array(positions)
+    p = _recorded(m, d, ctrl, 300, lambda d: d.mocap_pos)
     assert np.allclose(p[0], m.body_pos[m.body("stirrer").id])  # no jump at t = 0
     speed = np.linalg.norm(np.diff(p, axis=0), axis=2) / h
     accel = np.linalg.norm(p[2:] - 2 * p[1:-1] + p[:-2], axis=2) / h**2

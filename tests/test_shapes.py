@@ -22,6 +22,7 @@ import math
 import mujoco
 import numpy as np
 import pytest
+import reference_tau as ref
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -48,11 +49,6 @@ from dua_mujoco.exceptions import (
     ShapeError,
 )
 
-try:
-    import reference_tau as ref
-except ImportError:  # tests/ collected as a package
-    from tests import reference_tau as ref
-
 PRIMITIVES = [
     ShapeKind.SPHERE,
     ShapeKind.CAPSULE,
@@ -61,6 +57,8 @@ PRIMITIVES = [
     ShapeKind.BOX,
 ]
 ALL_KINDS = [*PRIMITIVES, ShapeKind.MESH_BOX]
+each_primitive = pytest.mark.parametrize("kind", PRIMITIVES, ids=lambda k: k.name)
+each_kind = pytest.mark.parametrize("kind", ALL_KINDS, ids=lambda k: k.name)
 # Kinds whose chosen direction makes the gap the exact distance (closed-form closest points).
 EXACT_KINDS = {ShapeKind.SPHERE, ShapeKind.CAPSULE, ShapeKind.CYLINDER, ShapeKind.BOX}
 _MJ_TYPE = {
@@ -110,6 +108,19 @@ def random_size(kind: ShapeKind, rng: np.random.Generator, scale: float = 1.0) -
 
 def record(kind, size, pos, rot) -> np.ndarray:
     return pack_shapes([int(kind)], [size], [pos], [np.asarray(rot).ravel()])[0]
+
+
+def random_shape(
+    kind: ShapeKind, rng: np.random.Generator, spread: float = 1.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(size, pos, rot, record)``: a random shape of ``kind`` centred in ``[-spread, spread]^3``.
+
+    Draws the size, then the rotation, then the centre.
+    """
+    size = random_size(kind, rng)
+    rot = rotation(rng.normal(size=4))
+    pos = rng.uniform(-spread, spread, 3)
+    return size, pos, rot, record(kind, size, pos, rot)
 
 
 def surface_samples(kind: ShapeKind, size, rng: np.random.Generator, n: int) -> np.ndarray:
@@ -176,6 +187,17 @@ def shape_model(kind: ShapeKind, rng: np.random.Generator):
     else:
         sz, centre = m.geom_size[:1], d.geom_xpos[:1]
     return m, d, pack_shapes([k], sz, centre, d.geom_xmat[:1])[0]
+
+
+def shape_models(kind: ShapeKind, rng: np.random.Generator, count: int):
+    """``count`` random :func:`shape_model` s of ``kind``, each with its record's centre.
+
+    Yields:
+        ``(model, data, record, pos)``.
+    """
+    for _ in range(count):
+        m, d, rec = shape_model(kind, rng)
+        yield m, d, rec, rec[SHAPE_POS : SHAPE_POS + 3]
 
 
 def mj_distance(m, d, c) -> float:
@@ -265,14 +287,11 @@ def horizon(tau: float) -> float:
 # --------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("kind", PRIMITIVES, ids=lambda k: k.name)
+@each_primitive
 def test_support_against_surface_samples(kind):
     rng = np.random.default_rng(int(kind))
     for _ in range(10):
-        size = random_size(kind, rng)
-        rot = rotation(rng.normal(size=4))
-        pos = rng.uniform(-2, 2, 3)
-        rec = record(kind, size, pos, rot)
+        size, pos, rot, rec = random_shape(kind, rng, spread=2.0)
         pts = pos + surface_samples(kind, size, rng, 40000) @ rot.T
         dirs = rng.normal(size=(60, 3))
         dirs /= np.linalg.norm(dirs, axis=1)[:, None]
@@ -306,17 +325,14 @@ def test_support_of_mesh_box_holds_the_compiled_hull():
         np.testing.assert_allclose(brute[-6:], h[-6:], atol=1e-6)
 
 
-@pytest.mark.parametrize("kind", ALL_KINDS, ids=lambda k: k.name)
+@each_kind
 def test_chosen_direction_maximises_the_gap(kind):
     """n.c - h_S(n) over many unit n never beats the kernel's chosen n (outside the shape)."""
     rng = np.random.default_rng(100 + int(kind))
     dirs = rng.normal(size=(4000, 3))
     dirs /= np.linalg.norm(dirs, axis=1)[:, None]
     for _ in range(20):
-        size = random_size(kind, rng)
-        rot = rotation(rng.normal(size=4))
-        pos = rng.uniform(-1, 1, 3)
-        rec = record(kind, size, pos, rot)
+        _, pos, _, rec = random_shape(kind, rng)
         c = pos + rng.normal(size=3) * 1.5
         gap, *n = static_gap(c, rec)
         assert np.linalg.norm(n) == pytest.approx(1.0, abs=1e-15)
@@ -330,13 +346,11 @@ def test_chosen_direction_maximises_the_gap(kind):
 # --------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("kind", ALL_KINDS, ids=lambda k: k.name)
+@each_kind
 def test_gap_against_mj_geom_distance(kind):
     rng = np.random.default_rng(200 + int(kind))
     n_out = 0
-    for _ in range(4):
-        m, d, rec = shape_model(kind, rng)
-        pos = rec[SHAPE_POS : SHAPE_POS + 3]
+    for m, d, rec, pos in shape_models(kind, rng, 4):
         for _ in range(150):
             c = pos + rng.normal(size=3) * rng.uniform(0.05, 1.5)
             true = mj_distance(m, d, c)
@@ -383,14 +397,11 @@ def test_known_values():
     assert tau_one([0, -1.0, 0], [0, 2.0, 0], cap, 0.0, 0.0) == pytest.approx(0.3, rel=1e-12)
 
 
-@pytest.mark.parametrize("kind", ALL_KINDS, ids=lambda k: k.name)
+@each_kind
 def test_inside_or_touching_is_zero(kind):
     rng = np.random.default_rng(300 + int(kind))
     for _ in range(40):
-        size = random_size(kind, rng)
-        rot = rotation(rng.normal(size=4))
-        pos = rng.uniform(-1, 1, 3)
-        rec = record(kind, size, pos, rot)
+        size, pos, rot, rec = random_shape(kind, rng)
         surf = pos + surface_samples(kind, size, rng, 20) @ rot.T
         inner = pos + rng.uniform(0, 1) * (surf - pos)  # convex: the segment to the centre
         v = rng.normal(size=3) * 10
@@ -502,14 +513,12 @@ def _adversarial_programs(rng: np.random.Generator, k: int):
         yield pieces, (rng.normal(size=3), 1.0, "toward")
 
 
-@pytest.mark.parametrize("kind", ALL_KINDS, ids=lambda k: k.name)
+@each_kind
 def test_feasible_trajectories_against_mj_geom_distance(kind):
     """The trajectory check with MuJoCo measuring the distance (for meshes, to the real hull)."""
     rng = np.random.default_rng(500 + int(kind))
     checked = 0
-    for _ in range(3):
-        m, d, rec = shape_model(kind, rng)
-        pos = rec[SHAPE_POS : SHAPE_POS + 3]
+    for m, d, rec, pos in shape_models(kind, rng, 3):
         reach = float(rec[SHAPE_SIZE : SHAPE_SIZE + 3].max())
         for prog in _adversarial_programs(rng, 4):
             c = pos + _unit(rng.normal(size=3)) * reach * rng.uniform(1.2, 3.0)
@@ -541,10 +550,7 @@ def test_harness_catches_halved_box():
     rng = np.random.default_rng(600)
     caught = passed = 0
     for _ in range(40):
-        size = random_size(ShapeKind.BOX, rng)
-        rot = rotation(rng.normal(size=4))
-        pos = rng.uniform(-1, 1, 3)
-        rec = record(ShapeKind.BOX, size, pos, rot)
+        size, pos, rot, rec = random_shape(ShapeKind.BOX, rng)
         mutant = rec.copy()
         mutant[SHAPE_SIZE : SHAPE_SIZE + 3] *= 0.5
         c = pos + rot @ (_unit(rng.normal(size=3)) * size.max() * 2.5)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from rollouts import predictor_rollout
 
 from dua_mujoco.core.pairset import PairKind, PairSet, pack_pairs
 from dua_mujoco.core.shapes import SHAPE_KIND, ShapeKind, closest_point, time_to_static
@@ -163,17 +164,13 @@ def test_fused_step_equals_time_to_static(scene: str) -> None:
     p = Predictor(m, accel=15.0, schedule="select-all")
     assert p.covering.nshape > 0
     ctrl = make_controller(m, "random", seed=4, hold_steps=10)
-    ctrl(m, d)
-    mujoco.mj_step(m, d)
-    p.reset(d)
     ps = p.pair_set
     shape_ids = np.flatnonzero(ps.shape)
     assert shape_ids.size > 0
     checked = 0
-    for _ in range(60):
-        ctrl(m, d)
-        mujoco.mj_step(m, d)
-        p.step(d)
+    for k in predictor_rollout(m, d, p, ctrl, 60):
+        if k == 0:
+            continue
         sched = p.scheduler
         assert sched is not None
         c, v = _predictor_states(p, d)

@@ -28,6 +28,8 @@ try:
     from dua_mujoco import distance_urgency, time_to_collision, time_to_halfspace
 except ImportError:  # the package __init__ may not re-export yet
     from dua_mujoco.core.urgency import distance_urgency, time_to_collision, time_to_halfspace
+import reference_tau as ref
+
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
     InvalidBoundError,
@@ -35,11 +37,6 @@ from dua_mujoco.exceptions import (
     NonFiniteStateError,
     ShapeError,
 )
-
-try:
-    import reference_tau as ref
-except ImportError:  # tests/ collected as a package
-    from tests import reference_tau as ref
 
 settings.register_profile(
     "urgency",

@@ -38,6 +38,17 @@ from dua_mujoco.exceptions import (
     ShapeError,
     UnsupportedGeomError,
 )
+from dua_mujoco.mj.geom_types import (
+    GEOM_BOX,
+    GEOM_CAPSULE,
+    GEOM_CYLINDER,
+    GEOM_ELLIPSOID,
+    GEOM_HFIELD,
+    GEOM_MESH,
+    GEOM_PLANE,
+    GEOM_SDF,
+    GEOM_SPHERE,
+)
 from dua_mujoco.mj.kinematics import pack_spheres, sphere_states
 from dua_mujoco.mj.multicover import (
     capsule_cover,
@@ -59,21 +70,12 @@ __all__ = [
     "static_shape_geoms",
 ]
 
-_PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
-_HFIELD = int(mujoco.mjtGeom.mjGEOM_HFIELD)
-_SPHERE = int(mujoco.mjtGeom.mjGEOM_SPHERE)
-_CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
-_ELLIPSOID = int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)
-_CYLINDER = int(mujoco.mjtGeom.mjGEOM_CYLINDER)
-_BOX = int(mujoco.mjtGeom.mjGEOM_BOX)
-_MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
-_SDF = int(mujoco.mjtGeom.mjGEOM_SDF)
 
 _HFIELD_CHOICES = ("error", "box")
 STATIC_CHOICES = ("shape", "sphere")
 """``cover_model``'s ``static`` option: static geoms as their own shapes, or as spheres."""
 # Geom types tau_static holds exactly (meshes by the box around their hull).
-_SHAPE_TYPES = (_SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH)
+_SHAPE_TYPES = (GEOM_SPHERE, GEOM_CAPSULE, GEOM_ELLIPSOID, GEOM_CYLINDER, GEOM_BOX, GEOM_MESH)
 
 
 class CoveringMode(enum.Enum):
@@ -236,18 +238,26 @@ def _cover_geom(
     rbound = float(model.geom_rbound[g])
     aabb = np.asarray(model.geom_aabb[g], dtype=np.float64)
 
-    if gtype == _SDF:
+    if gtype == GEOM_SDF:
         raise UnsupportedGeomError(
             f"{_geom_name(model, g)} is an SDF geom: SDF geoms cannot be covered by spheres. "
             "Set its contype and conaffinity to 0 (and remove it from <pair> elements) to leave "
             "it out of collision prediction."
         )
-    if gtype not in (_HFIELD, _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH):
+    if gtype not in (
+        GEOM_HFIELD,
+        GEOM_SPHERE,
+        GEOM_CAPSULE,
+        GEOM_ELLIPSOID,
+        GEOM_CYLINDER,
+        GEOM_BOX,
+        GEOM_MESH,
+    ):
         raise UnsupportedGeomError(
             f"{_geom_name(model, g)} has geom type {_type_name(gtype)}, which dua_mujoco cannot "
             "cover by spheres."
         )
-    if gtype == _HFIELD:
+    if gtype == GEOM_HFIELD:
         if hfield == "error":
             raise UnsupportedGeomError(
                 f"{_geom_name(model, g)} is a height field, which has no exact sphere covering. "
@@ -266,17 +276,17 @@ def _cover_geom(
     one = (np.zeros((1, 3)), np.array([rbound]))
     if mode is CoveringMode.BOUNDING:
         return one
-    if gtype == _SPHERE:
+    if gtype == GEOM_SPHERE:
         return np.zeros((1, 3)), np.array([size[0]])
 
-    if gtype == _CAPSULE:
+    if gtype == GEOM_CAPSULE:
         multi = capsule_cover(size[0], size[1], budget)
-    elif gtype == _BOX:
+    elif gtype == GEOM_BOX:
         multi = grid_cover(np.zeros(3), size[:3], budget)
-    elif gtype == _CYLINDER:
+    elif gtype == GEOM_CYLINDER:
         half = np.array([size[0], size[0], size[1]])
         multi = grid_cover(np.zeros(3), half, budget, keep_cylinder(size[0]))
-    elif gtype == _ELLIPSOID:
+    elif gtype == GEOM_ELLIPSOID:
         multi = grid_cover(np.zeros(3), size[:3], budget, keep_ellipsoid(size[:3]))
     else:  # mesh: cover the convex hull MuJoCo collides with
         mesh_id = int(model.geom_dataid[g])
@@ -372,7 +382,7 @@ def cover_model(
     plane_geom: list[int] = []
     geom_plane = np.full(ngeom, -1, dtype=np.int32)
     for g in range(ngeom):
-        if gtypes[g] == _PLANE:
+        if gtypes[g] == GEOM_PLANE:
             geom_plane[g] = len(plane_geom)
             plane_geom.append(g)
             continue

@@ -46,6 +46,7 @@ import numpy.typing as npt
 from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
 from dua_mujoco.mj.covering import Covering
+from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
 
 __all__ = [
     "GeomPairs",
@@ -55,9 +56,6 @@ __all__ = [
     "sphere_pair_mask",
     "sphere_pairs",
 ]
-
-_PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
-_HFIELD = int(mujoco.mjtGeom.mjGEOM_HFIELD)
 
 
 @dataclass(frozen=True)
@@ -133,7 +131,7 @@ def _enabled(model: mujoco.MjModel, flag: mujoco.mjtEnableBit) -> bool:
 
 def _has_collision_function(t1: np.ndarray, t2: np.ndarray) -> np.ndarray:
     """Where ``mjCOLLISIONFUNC`` has an entry: not plane-plane, plane-hfield, hfield-hfield."""
-    return ~(np.isin(t1, (_PLANE, _HFIELD)) & np.isin(t2, (_PLANE, _HFIELD)))
+    return ~(np.isin(t1, (GEOM_PLANE, GEOM_HFIELD)) & np.isin(t2, (GEOM_PLANE, GEOM_HFIELD)))
 
 
 def _weld_tables(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -272,7 +270,7 @@ def _can_collide_reference(model: mujoco.MjModel, g1: int, g2: int) -> bool:
     if opt_dis & int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
         return False
     t1, t2 = int(model.geom_type[g1]), int(model.geom_type[g2])
-    if t1 in (_PLANE, _HFIELD) and t2 in (_PLANE, _HFIELD):
+    if t1 in (GEOM_PLANE, GEOM_HFIELD) and t2 in (GEOM_PLANE, GEOM_HFIELD):
         return False  # mjCOLLISIONFUNC[t1][t2] == NULL
 
     # predefined pairs are always tested

@@ -48,6 +48,7 @@ from dua_mujoco.core.shapes import closest_point
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.covering import sphere_world_centers
+from dua_mujoco.mj.geom_types import GEOM_LINE, GEOM_PLANE, GEOM_SPHERE
 from dua_mujoco.mj.predictor import Predictor
 
 __all__ = [
@@ -76,9 +77,6 @@ SPHERE_RGB = (0.3, 0.7, 1.0)
 _OBJ_GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 _OBJ_UNKNOWN = int(mujoco.mjtObj.mjOBJ_UNKNOWN)
 _CAT_DECOR = int(mujoco.mjtCatBit.mjCAT_DECOR)
-_GEOM_LINE = int(mujoco.mjtGeom.mjGEOM_LINE)
-_GEOM_SPHERE = int(mujoco.mjtGeom.mjGEOM_SPHERE)
-_GEOM_PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
 _EYE = np.eye(3).ravel()
 _ZERO3 = np.zeros(3)
 
@@ -145,7 +143,7 @@ class AlarmOverlay:
         # The world (floors, tables, walls) is never tinted: a red table says nothing a red link
         # standing on it does not, and it would flood the frame. Their pairs tint the other geom.
         welded = np.asarray(model.body_weldid)[np.asarray(model.geom_bodyid)] == 0
-        self._tintable = (np.asarray(model.geom_type) != _GEOM_PLANE) & ~welded
+        self._tintable = (np.asarray(model.geom_type) != GEOM_PLANE) & ~welded
 
     # ------------------------------------------------------------------- urgency
 
@@ -280,10 +278,10 @@ class AlarmOverlay:
         rgba = np.asarray(ALARM_RGBA, dtype=np.float32)
         width = float(self.options.connector_width)
         for j in range(start.shape[0]):
-            g = self._new_geom(scene, _GEOM_LINE, _ZERO3, _ZERO3, rgba)
+            g = self._new_geom(scene, GEOM_LINE, _ZERO3, _ZERO3, rgba)
             if g is None:
                 return start.shape[0] - j
-            mujoco.mjv_connector(g, _GEOM_LINE, width, start[j], end[j])
+            mujoco.mjv_connector(g, GEOM_LINE, width, start[j], end[j])
         return 0
 
     def _add_spheres(self, scene: mujoco.MjvScene, data: mujoco.MjData, levels: np.ndarray) -> int:
@@ -303,7 +301,7 @@ class AlarmOverlay:
         size[:, 0] = cov.sphere_radius
         # One mjv_initGeom per drawn sphere is inherent to the MjvScene API.
         for i in range(min(nsphere, room)):
-            self._new_geom(scene, _GEOM_SPHERE, size[i], centres[i], rgba[i])
+            self._new_geom(scene, GEOM_SPHERE, size[i], centres[i], rgba[i])
         return nsphere - min(nsphere, room)
 
     @staticmethod

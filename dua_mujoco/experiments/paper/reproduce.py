@@ -81,10 +81,10 @@ def run_paper(
                 dua_runs, sa_runs = [], []
                 for s in range(plan.seed_cap.get(n, plan.seeds)):
                     dua_runs.append(
-                        dua_run(n, s, dt_dua, plan.iterations[n], params, plan.prefixes, True)
+                        dua_run(params.world(n, s), dt_dua, plan.iterations[n], plan.prefixes, True)
                     )
                     sa_runs.append(
-                        sa_run(n, s, dt_sa, plan.sa_iterations[n], params, plan.prefixes)
+                        sa_run(params.world(n, s), dt_sa, plan.sa_iterations[n], plan.prefixes)
                     )
                     bar.update(note=f"N={n} {mode} seed {s}")
                 rows.append(paper_row(n, mode, plan, dt_dua, dt_sa, dua_runs, sa_runs, kernel))

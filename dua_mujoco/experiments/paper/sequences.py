@@ -14,7 +14,8 @@ import numpy as np
 
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import DUAScheduler, SelectAllScheduler
-from dua_mujoco.experiments.paper.world import Sampler, WorldParams
+from dua_mujoco.core.worlds import SphereWorld
+from dua_mujoco.experiments.paper.world import Sampler
 
 __all__ = ["Contacts", "Run", "dua_run", "sa_run"]
 
@@ -94,31 +95,89 @@ class Contacts:
         self.previous = contact
 
 
+class _AlarmLog:
+    """The alarms of a run by iteration: all of them, and the fresh ones (repetitive ones once).
+
+    An alarm is repetitive when its pair's previous evaluation alarmed too. The paper counts from
+    iteration 1, so the initial classification does not make the first in-run alarm of a pair
+    repetitive.
+
+    Args:
+        m: Pairs of the run.
+        initial: Pairs alarmed by the initial classification.
+
+    Attributes:
+        armed: ``(m,)`` bool: the pair's latest evaluation alarmed.
+    """
+
+    def __init__(self, m: int, initial: np.ndarray) -> None:
+        self.armed = np.zeros(m, dtype=np.bool_)
+        self.armed[initial] = True
+        self._repeat = np.zeros(m, dtype=np.bool_)
+        self._all_iter: list[np.ndarray] = []
+        self._new_iter: list[np.ndarray] = []
+        self._new_pair: list[np.ndarray] = []
+
+    def record(self, it: int, alarms: np.ndarray, evaluated: np.ndarray | slice) -> None:
+        """Record iteration ``it``'s ``alarms`` among the pairs it ``evaluated``."""
+        fresh = alarms[~self._repeat[alarms]]
+        for state in (self.armed, self._repeat):
+            state[evaluated] = False
+            state[alarms] = True
+        self._all_iter.append(np.full(alarms.size, it))
+        self._new_iter.append(np.full(fresh.size, it))
+        self._new_pair.append(fresh)
+
+    def finish(
+        self,
+        iterations: int,
+        evals: float,
+        us: list[float],
+        us_su: list[float],
+        contacts: Contacts,
+        prefixes: Sequence[int],
+        agree_dua: float | None = None,
+        agree_sad: float | None = None,
+    ) -> Run:
+        """The :class:`Run` of these alarms and of the run's other measurements."""
+        # An alarm is false when its pair never touches during the run (sampled contacts).
+        new_iter = np.concatenate(self._new_iter)
+        false_iter = new_iter[~contacts.ever[np.concatenate(self._new_pair)]]
+        return Run(
+            iterations=iterations,
+            evals=evals,
+            us=us,
+            us_select_update=us_su,
+            false_at=_prefix_counts(false_iter, prefixes, iterations),
+            all_at=_prefix_counts(np.concatenate(self._all_iter), prefixes, iterations),
+            collisions=contacts.onsets,
+            missed=contacts.missed,
+            agree_dua_sat=agree_dua,
+            agree_sad_sat=agree_sad,
+        )
+
+
 def dua_run(
-    n: int,
-    seed: int,
+    world: SphereWorld,
     dt: float,
     iterations: int,
-    params: WorldParams,
     prefixes: Sequence[int],
     agreement: bool,
 ) -> Run:
     """DUA on one sequence; also the SA(tau)/SA(d) references for agreement at the same states.
 
     Args:
-        n: Spheres.
-        seed: World seed (both algorithms at one seed watch the same trajectory).
+        world: A fresh world (algorithms given equal worlds watch the same trajectory).
         dt: Predictor period (s).
         iterations: Iterations after the initial classification.
-        params: World parameters.
         prefixes: Run lengths after which the alarms are also counted.
         agreement: Also compare the most urgent pair with SA(tau)'s and SA(d)'s (Table 3).
 
     Raises:
         AssertionError: The fused step and the select/update twin disagree.
     """
-    sampler = Sampler(params.world(n, seed))
-    pairs = sampler.world.pairs()
+    sampler = Sampler(world)
+    pairs = world.pairs()
     m = len(pairs)
     all_ids = np.arange(m)
     c, v = sampler.state(0.0)
@@ -127,24 +186,16 @@ def dua_run(
     # A twin driven through select/update: same inputs, so the same state at every step.
     twin = DUAScheduler(tau0, dt=dt)
     contacts = Contacts(pairs)
-    armed = np.zeros(m, dtype=np.bool_)
-    armed[fused.initial_alarms] = True
-    # Repetitive alarms: the paper counts from iteration 1, so the initial classification does
-    # not make the first in-run alarm of a pair repetitive.
-    repeat = np.zeros(m, dtype=np.bool_)
-    contacts.observe(contacts.distance(c), armed)
+    log = _AlarmLog(m, fused.initial_alarms)
+    contacts.observe(contacts.distance(c), log.armed)
     k = np.arange(fused.nbuckets)
     base = (1 << k) - 1
     us, us_su, evals = [], [], 0
-    all_iter: list[np.ndarray] = []
-    all_pair: list[np.ndarray] = []
-    new_iter: list[np.ndarray] = []
-    new_pair: list[np.ndarray] = []
     agree_dua = agree_sad = 0
     for it in range(1, iterations + 1):
         c, v = sampler.state(it * dt)
         dist = contacts.distance(c)
-        contacts.observe(dist, armed)
+        contacts.observe(dist, log.armed)
         t0 = time.perf_counter()
         alarms = fused.step_points(pairs, c, v)
         us.append((time.perf_counter() - t0) * 1e6)
@@ -153,126 +204,54 @@ def dua_run(
         twin_alarms = twin.update(ids, pairs.tau(ids, c, v))
         us_su.append((time.perf_counter() - t0) * 1e6)
         if not np.array_equal(np.sort(alarms), np.sort(twin_alarms)):
-            raise AssertionError(f"fused and select/update DUA disagree at N={n}, step {it}.")
+            raise AssertionError(f"fused and select/update DUA disagree at N={world.n}, step {it}.")
         # The evaluated pairs sit in the withdrawn slots again after reinsertion.
         withdrawn = fused.slots[base + it % (1 << k)]
         evaluated = withdrawn[withdrawn >= 0]
         evals += evaluated.size
-        armed[evaluated] = False
-        armed[alarms] = True
-        fresh = alarms[~repeat[alarms]]
-        repeat[evaluated] = False
-        repeat[alarms] = True
-        all_iter.append(np.full(alarms.size, it))
-        all_pair.append(alarms)
-        new_iter.append(np.full(fresh.size, it))
-        new_pair.append(fresh)
+        log.record(it, alarms, evaluated)
         if agreement:
             tau = pairs.tau(all_ids, c, v)
             best = tau.min()
             # Ties (e.g. two overlapping pairs at tau = 0) count as agreement.
             agree_dua += bool(tau[fused.most_urgent()] <= best)
             agree_sad += bool(tau[int(np.argmin(dist))] <= best)
-    return _finish_run(
+    return log.finish(
         iterations,
         evals / iterations,
         us,
         us_su,
         contacts,
-        (np.concatenate(all_iter), np.concatenate(all_pair)),
-        (np.concatenate(new_iter), np.concatenate(new_pair)),
         prefixes,
         100.0 * agree_dua / iterations if agreement else None,
         100.0 * agree_sad / iterations if agreement else None,
     )
 
 
-def sa_run(
-    n: int,
-    seed: int,
-    dt: float,
-    iterations: int,
-    params: WorldParams,
-    prefixes: Sequence[int],
-) -> Run:
+def sa_run(world: SphereWorld, dt: float, iterations: int, prefixes: Sequence[int]) -> Run:
     """SA(tau) on one sequence: every pair every iteration, alarm if tau < 2 dt.
 
     Args:
-        n: Spheres.
-        seed: World seed (both algorithms at one seed watch the same trajectory).
+        world: A fresh world (algorithms given equal worlds watch the same trajectory).
         dt: Predictor period (s).
         iterations: Iterations after the initial classification.
-        params: World parameters.
         prefixes: Run lengths after which the alarms are also counted.
     """
-    sampler = Sampler(params.world(n, seed))
-    pairs = sampler.world.pairs()
+    sampler = Sampler(world)
+    pairs = world.pairs()
     m = len(pairs)
     c, v = sampler.state(0.0)
     sa = SelectAllScheduler(pairs.tau(np.arange(m), c, v), dt=dt, urgency="tau")
     contacts = Contacts(pairs)
-    armed = np.zeros(m, dtype=np.bool_)
-    armed[sa.initial_alarms] = True
-    repeat = np.zeros(m, dtype=np.bool_)
-    contacts.observe(contacts.distance(c), armed)
+    log = _AlarmLog(m, sa.initial_alarms)
+    contacts.observe(contacts.distance(c), log.armed)
     us: list[float] = []
-    all_iter: list[np.ndarray] = []
-    all_pair: list[np.ndarray] = []
-    new_iter: list[np.ndarray] = []
-    new_pair: list[np.ndarray] = []
     for it in range(1, iterations + 1):
         c, v = sampler.state(it * dt)
-        contacts.observe(contacts.distance(c), armed)
+        contacts.observe(contacts.distance(c), log.armed)
         t0 = time.perf_counter()
         ids = sa.select()
         alarms = sa.update(ids, pairs.tau(ids, c, v))
         us.append((time.perf_counter() - t0) * 1e6)
-        fresh = alarms[~repeat[alarms]]
-        armed[:] = False
-        armed[alarms] = True
-        repeat[:] = armed
-        all_iter.append(np.full(alarms.size, it))
-        all_pair.append(alarms)
-        new_iter.append(np.full(fresh.size, it))
-        new_pair.append(fresh)
-    return _finish_run(
-        iterations,
-        float(m),
-        us,
-        us,
-        contacts,
-        (np.concatenate(all_iter), np.concatenate(all_pair)),
-        (np.concatenate(new_iter), np.concatenate(new_pair)),
-        prefixes,
-        None,
-        None,
-    )
-
-
-def _finish_run(
-    iterations: int,
-    evals: float,
-    us: list[float],
-    us_su: list[float],
-    contacts: Contacts,
-    all_alarms: tuple[np.ndarray, np.ndarray],
-    new_alarms: tuple[np.ndarray, np.ndarray],
-    prefixes: Sequence[int],
-    agree_dua: float | None,
-    agree_sad: float | None,
-) -> Run:
-    # An alarm is false when its pair never touches during the run (sampled contacts).
-    new_iter, new_pair = new_alarms
-    false_iter = new_iter[~contacts.ever[new_pair]]
-    return Run(
-        iterations=iterations,
-        evals=evals,
-        us=us,
-        us_select_update=us_su,
-        false_at=_prefix_counts(false_iter, prefixes, iterations),
-        all_at=_prefix_counts(all_alarms[0], prefixes, iterations),
-        collisions=contacts.onsets,
-        missed=contacts.missed,
-        agree_dua_sat=agree_dua,
-        agree_sad_sat=agree_sad,
-    )
+        log.record(it, alarms, slice(None))
+    return log.finish(iterations, float(m), us, us, contacts, prefixes)

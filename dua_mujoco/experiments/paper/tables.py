@@ -206,7 +206,7 @@ def agreement_rows(
         runs = []
         for s in range(plan.table3_sequences):
             # Distinct sequences per run length, as the paper's separate runs.
-            runs.append(dua_run(n, 10_000 + 1000 * length + s, dt, length, params, (), True))
+            runs.append(dua_run(params.world(n, 10_000 + 1000 * length + s), dt, length, (), True))
             progress.update(note=f"table 3: {length} iterations")
         a = np.asarray([r.agree_dua_sat for r in runs], dtype=np.float64)
         b = np.asarray([r.agree_sad_sat for r in runs], dtype=np.float64)

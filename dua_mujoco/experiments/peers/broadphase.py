@@ -13,45 +13,31 @@ import numpy as np
 from dua_mujoco.core.shapes import static_gap
 from dua_mujoco.experiments.peers.candidates import BROADPHASES
 from dua_mujoco.experiments.peers.ghost_world import GhostTrajectory, pair_id
-from dua_mujoco.experiments.peers.horizon import LATENCY, reach_distance
+from dua_mujoco.experiments.peers.horizon import LATENCY, InflatedGhost, reach_distance
 from dua_mujoco.experiments.peers.scene_context import SceneContext
 
 __all__ = ["BroadphaseGhost", "BroadphaseScene"]
 
 
-class BroadphaseGhost:
+class BroadphaseGhost(InflatedGhost):
     """Swept-sphere broadphase on the ghost world (``GhostPeer``): candidates, overlap test."""
 
     def __init__(self, world: GhostTrajectory, kind: str) -> None:
+        super().__init__(world)
         self.name = kind
         self.note = {
             "sweep": "sort-and-sweep on the axis of largest spread",
             "grid": "uniform grid, cell = 2 max inflated radius",
         }[kind]
         self.candidates = BROADPHASES[kind]
-        self.n = world.n
-        self.radius = world.radius
-        self.accel = np.full(world.n, world.accel)
-        self.horizon = (1 + LATENCY) * world.dt
 
     def _alarms(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, int]:
-        grown = self.radius + reach_distance(
-            np.linalg.norm(v, axis=1), self.accel, 0.0, self.horizon
-        )
+        grown = self._grown(v)
         a, b = self.candidates(c, grown)
         d = c[a] - c[b]
         reach = grown[a] + grown[b]
         hit = np.einsum("ij,ij->i", d, d) <= reach * reach
         return np.unique(pair_id(a[hit], b[hit], self.n)), int(a.size)
-
-    def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
-        return self._alarms(c, v)[0], 1 + LATENCY
-
-    def step(
-        self, c: np.ndarray, v: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray | int, np.ndarray | None, float | None]:
-        alarms, cand = self._alarms(c, v)
-        return alarms, 1 + LATENCY, None, float(cand)
 
 
 @nb.njit(cache=True)

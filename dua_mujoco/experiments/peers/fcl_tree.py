@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from dua_mujoco.experiments.peers.ghost_world import GhostTrajectory, pair_id
-from dua_mujoco.experiments.peers.horizon import LATENCY, reach_distance
+from dua_mujoco.experiments.peers.horizon import InflatedGhost
 
 __all__ = ["FclGhost", "fcl_available"]
 
@@ -21,7 +21,7 @@ def fcl_available() -> bool:
     return True
 
 
-class FclGhost:
+class FclGhost(InflatedGhost):
     """python-fcl's DynamicAABBTree on the inflated spheres (``GhostPeer``).
 
     python-fcl exposes no batch update: radii and translations are set one object at a time and
@@ -35,11 +35,8 @@ class FclGhost:
     def __init__(self, world: GhostTrajectory) -> None:
         import fcl
 
+        super().__init__(world)
         self.fcl = fcl
-        self.n = world.n
-        self.radius = world.radius
-        self.accel = np.full(world.n, world.accel)
-        self.horizon = (1 + LATENCY) * world.dt
         self.geoms = [fcl.Sphere(float(r)) for r in world.radius]
         self.objs = [fcl.CollisionObject(g, fcl.Transform(np.zeros(3))) for g in self.geoms]
         self.index = {id(g): i for i, g in enumerate(self.geoms)}
@@ -50,9 +47,7 @@ class FclGhost:
 
     def _alarms(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, int]:
         fcl = self.fcl
-        grown = self.radius + reach_distance(
-            np.linalg.norm(v, axis=1), self.accel, 0.0, self.horizon
-        )
+        grown = self._grown(v)
         for g, o, r, p in zip(self.geoms, self.objs, grown.tolist(), c, strict=True):
             g.radius = r
             g.computeLocalAABB()  # without it the tree keeps the old AABB
@@ -73,12 +68,3 @@ class FclGhost:
             [(self.index[id(ct.o1)], self.index[id(ct.o2)]) for ct in contacts], dtype=np.int64
         )
         return np.unique(pair_id(idx[:, 0], idx[:, 1], self.n)), count[0]
-
-    def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
-        return self._alarms(c, v)[0], 1 + LATENCY
-
-    def step(
-        self, c: np.ndarray, v: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray | int, np.ndarray | None, float | None]:
-        alarms, cand = self._alarms(c, v)
-        return alarms, 1 + LATENCY, None, float(cand)

@@ -12,7 +12,7 @@ from dua_mujoco.experiments.peers.candidates import BROADPHASES
 from dua_mujoco.experiments.peers.fcl_tree import FclGhost
 from dua_mujoco.experiments.peers.ghost_world import GhostTrajectory
 from dua_mujoco.experiments.peers.mujoco_collision import MujocoGhost
-from dua_mujoco.experiments.peers.rows import GhostRow
+from dua_mujoco.experiments.peers.rows import GhostRow, peer_measures
 from dua_mujoco.experiments.peers.schedulers import DuaGhost, SaGhost
 from dua_mujoco.experiments.peers.tracker import Tracker
 
@@ -124,22 +124,12 @@ def run_ghost_peer(
             cands.append(float(evaluated.size))
         n_alarms += int(alarms.size)
         tracker.apply(k, alarms, h, evaluated)
-    _, false, open_, judged = tracker.judge(truth, world.positions.shape[0] - 1)
     return GhostRow(
         peer=name,
         n=world.n,
         pairs=npairs,
-        steps=steps,
-        time_us=float(np.median(times) * 1e6),
-        time_us_p90=float(np.percentile(times, 90) * 1e6),
-        candidates_per_step=float(np.mean(cands)) if cands else None,
-        alarms_per_step=n_alarms / steps,
-        initial_alarms=tracker.initial,
-        onsets=tracker.onsets,
-        missed=tracker.missed,
-        false_alarms=false,
-        open_alarms=open_,
-        judged_alarms=judged,
-        lead_time_mean_s=tracker.lead_mean(world.dt),
         note=peer.note,
+        **peer_measures(
+            tracker, truth, world.positions.shape[0] - 1, times, cands, n_alarms, world.dt
+        ),
     )

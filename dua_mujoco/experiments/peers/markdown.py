@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from dua_mujoco.experiments.peers.tunnel import (
@@ -55,6 +56,53 @@ def _peer_cells(r: dict[str, Any]) -> list[str]:
     ]
 
 
+_Column = tuple[str, Callable[[dict[str, Any]], str]]
+"""A table column: its header and the cell of one result row (a JSON dict)."""
+
+_MEMORY_COLUMNS: tuple[_Column, ...] = (
+    ("peer", lambda r: r["peer"]),
+    ("pairs", lambda r: str(r["pairs"])),
+    ("traced MB", lambda r: _cell(r["traced_mb"])),
+    ("peak RSS growth MB", lambda r: _cell(r["rss_mb"])),
+    ("build s", lambda r: _cell(r["build_s"], 2)),
+    ("us/step", lambda r: _cell(r["step_us"])),
+    ("what", lambda r: r["note"]),
+)
+
+_TUNNEL_COLUMNS: tuple[_Column, ...] = (
+    ("case", lambda r: r["case"]),
+    ("a m/s^2", lambda r: _cell(r["accel"], 0)),
+    ("v0 m/s", lambda r: _cell(r["speed0"], 2)),
+    ("clearance mm", lambda r: _cell(r["clearance"] * 1e3, 1)),
+    ("reaches plate at step", lambda r: str(r["crossing_step"])),
+    ("plain", lambda r: r["plain"]),
+    ("speculative", lambda r: r["speculative"]),
+    ("spec. contact step", lambda r: str(r["speculative_contact_step"])),
+    ("DUA alarm step", lambda r: str(r["dua_alarm_step"])),
+    ("DUA lead ms", lambda r: _lead_ms(r["dua_lead_s"])),
+)
+
+_TUNNEL_SWEEP_COLUMNS: tuple[_Column, ...] = (
+    ("a m/s^2", lambda s: _cell(s["accel"], 0)),
+    ("starts", lambda s: str(s["starts"])),
+    (
+        "plain: tunneled / penetrated",
+        lambda s: f"{s['plain_tunneled']} / {s['plain_penetrated']}",
+    ),
+    (
+        "speculative: tunneled / penetrated",
+        lambda s: f"{s['speculative_tunneled']} / {s['speculative_penetrated']}",
+    ),
+    ("DUA alarmed before reaching the plate", lambda s: str(s["dua_alarmed_before_crossing"])),
+)
+
+
+def _columns_table(columns: Sequence[_Column], rows: Iterable[dict[str, Any]]) -> str:
+    """A markdown table of ``rows`` with one column per ``(header, cell)`` pair."""
+    body = [[cell(r) for _, cell in columns] for r in rows]
+    return table([header for header, _ in columns], body)
+
+
 def markdown(result: dict[str, Any]) -> str:
     """The tables of a :func:`run_peers` result as markdown."""
     meta = result["meta"]
@@ -94,24 +142,7 @@ def markdown(result: dict[str, Any]) -> str:
     if result["memory"]:
         n = result["memory"][0]["n"]
         out += ["", f"## Memory at N = {n}", ""]
-        body = [
-            [
-                r["peer"],
-                str(r["pairs"]),
-                _cell(r["traced_mb"]),
-                _cell(r["rss_mb"]),
-                _cell(r["build_s"], 2),
-                _cell(r["step_us"]),
-                r["note"],
-            ]
-            for r in result["memory"]
-        ]
-        out.append(
-            table(
-                ["peer", "pairs", "traced MB", "peak RSS growth MB", "build s", "us/step", "what"],
-                body,
-            )
-        )
+        out.append(_columns_table(_MEMORY_COLUMNS, result["memory"]))
     out += [
         "",
         "## Speculative contacts: a sphere driven at a 4 mm plate",
@@ -124,59 +155,7 @@ def markdown(result: dict[str, Any]) -> str:
         "the plate.",
         "",
     ]
-    body = [
-        [
-            r["case"],
-            _cell(r["accel"], 0),
-            _cell(r["speed0"], 2),
-            _cell(r["clearance"] * 1e3, 1),
-            str(r["crossing_step"]),
-            r["plain"],
-            r["speculative"],
-            str(r["speculative_contact_step"]),
-            str(r["dua_alarm_step"]),
-            _lead_ms(r["dua_lead_s"]),
-        ]
-        for r in result["tunnel"]
-    ]
-    out.append(
-        table(
-            [
-                "case",
-                "a m/s^2",
-                "v0 m/s",
-                "clearance mm",
-                "reaches plate at step",
-                "plain",
-                "speculative",
-                "spec. contact step",
-                "DUA alarm step",
-                "DUA lead ms",
-            ],
-            body,
-        )
-    )
+    out.append(_columns_table(_TUNNEL_COLUMNS, result["tunnel"]))
     out += ["", "Starts from rest over a range of clearances:", ""]
-    body = [
-        [
-            _cell(s["accel"], 0),
-            str(s["starts"]),
-            f"{s['plain_tunneled']} / {s['plain_penetrated']}",
-            f"{s['speculative_tunneled']} / {s['speculative_penetrated']}",
-            str(s["dua_alarmed_before_crossing"]),
-        ]
-        for s in result["tunnel_sweep"]
-    ]
-    out.append(
-        table(
-            [
-                "a m/s^2",
-                "starts",
-                "plain: tunneled / penetrated",
-                "speculative: tunneled / penetrated",
-                "DUA alarmed before reaching the plate",
-            ],
-            body,
-        )
-    )
+    out.append(_columns_table(_TUNNEL_SWEEP_COLUMNS, result["tunnel_sweep"]))
     return "\n".join(out) + "\n"

@@ -35,6 +35,26 @@ def _ghost_spec(n: int, radius: np.ndarray, dt: float) -> mujoco.MjSpec:
     return spec
 
 
+def _timed_collision(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[float, np.ndarray, np.ndarray]:
+    """Positions and velocities from ``d.qpos``, ``d.qvel``, then ``mj_collision``.
+
+    Only ``mj_collision`` is timed: it is the peer's own cost, the kinematics a step computes
+    anyway.
+
+    Returns:
+        ``(seconds, geom1, geom2)``: the time ``mj_collision`` took and the ``(ncon,)`` geoms of
+        its contacts.
+    """
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+    mujoco.mj_comVel(m, d)
+    t0 = time.perf_counter()
+    mujoco.mj_collision(m, d)
+    seconds = time.perf_counter() - t0
+    nc = int(d.ncon)
+    return seconds, d.contact.geom1[:nc], d.contact.geom2[:nc]
+
+
 class MujocoGhost:
     """``mj_collision`` on the ghost state (``GhostPeer``): gap-inflated, speculative, plain."""
 
@@ -69,17 +89,11 @@ class MujocoGhost:
         self.qvel[:, :3] = v
         if self.mode == "gap":
             m.geom_gap[:] = reach_distance(np.linalg.norm(v, axis=1), self.accel, 0.0, self.horizon)
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        mujoco.mj_comVel(m, d)
-        t0 = time.perf_counter()
-        mujoco.mj_collision(m, d)
-        self.collision_s = time.perf_counter() - t0
-        nc = int(d.ncon)
-        if nc == 0:
+        self.collision_s, geom1, geom2 = _timed_collision(m, d)
+        if geom1.size == 0:
             return np.zeros(0, dtype=np.int64)
         # Geom g is sphere g (the world body has no geoms).
-        return np.unique(pair_id(d.contact.geom1[:nc], d.contact.geom2[:nc], self.n))
+        return np.unique(pair_id(geom1, geom2, self.n))
 
     def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
         return self._alarms(c, v), self.h_steps
@@ -141,9 +155,6 @@ class MujocoScene:
         d.qvel[:] = qvel
         d.mocap_pos[:] = mocap_pos
         d.mocap_quat[:] = mocap_quat
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        mujoco.mj_comVel(m, d)
         if self.mode == "gap":
             # Every point of geom g moves at most |v_c| + |w| rbound (v_c: the covering
             # sphere's centre velocity, mocap twists included).
@@ -154,13 +165,10 @@ class MujocoScene:
             gap = self.base_gap.copy()
             gap[g] += reach_distance(speed, ctx.sphere_accel, ctx.sphere_delta, ctx.horizon)
             m.geom_gap[:] = gap
-        t0 = time.perf_counter()
-        mujoco.mj_collision(m, d)
-        self.collision_s = time.perf_counter() - t0
-        nc = int(d.ncon)
-        if nc == 0:
+        self.collision_s, geom1, geom2 = _timed_collision(m, d)
+        if geom1.size == 0:
             return np.zeros(0, dtype=np.int64)
-        gp = ctx.predictor.geom_pairs.indices_of(d.contact.geom1[:nc], d.contact.geom2[:nc])
+        gp = ctx.predictor.geom_pairs.indices_of(geom1, geom2)
         return np.unique(gp[gp >= 0])
 
     def start(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray | int]:

@@ -2,19 +2,25 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
-__all__ = ["GhostRow", "MemoryRow", "SceneRow", "TunnelRow"]
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.experiments.peers.tracker import Tracker
+
+__all__ = ["GhostRow", "MemoryRow", "PeerRow", "SceneRow", "TunnelRow", "peer_measures"]
 
 
 @dataclass(frozen=True)
-class GhostRow:
-    """One peer at one N in the ghost world.
+class PeerRow:
+    """What one peer measured on one recording, in the ghost world or on a scene.
 
     Attributes:
-        peer: Peer name (``GHOST_PEERS``).
-        n: Spheres.
-        pairs: Sphere pairs ``n (n - 1) / 2``.
+        peer: Peer name (``GHOST_PEERS`` or ``SCENE_PEERS``).
+        pairs: Pairs watched (sphere pairs ``n (n - 1) / 2``, or active geom pairs).
         steps: Predictor steps after the initial one.
         time_us: Median wall time of one step (microseconds).
         time_us_p90: 90th percentile of the same.
@@ -32,7 +38,6 @@ class GhostRow:
     """
 
     peer: str
-    n: int
     pairs: int
     steps: int
     time_us: float
@@ -49,30 +54,66 @@ class GhostRow:
     note: str = ""
 
 
-@dataclass(frozen=True)
-class SceneRow:
-    """One peer on one bundled MuJoCo scene (units are active geom pairs).
+# kw_only: the base ends with a defaulted field (note), which positional fields may not follow.
+@dataclass(frozen=True, kw_only=True)
+class GhostRow(PeerRow):
+    """One peer at one N in the ghost world (see :class:`PeerRow`).
 
-    Attributes mirror :class:`GhostRow`; ``scene`` is the bundled scene name, ``pairs`` the active
-    geom pairs and ``contacts_onsets`` the onsets of MuJoCo's own contacts.
+    Attributes:
+        n: Spheres.
+    """
+
+    n: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class SceneRow(PeerRow):
+    """One peer on one bundled MuJoCo scene (see :class:`PeerRow`; units are active geom pairs).
+
+    Attributes:
+        scene: The bundled scene's name.
     """
 
     scene: str
-    peer: str
-    pairs: int
-    steps: int
-    time_us: float
-    time_us_p90: float
-    candidates_per_step: float | None
-    alarms_per_step: float
-    initial_alarms: int
-    onsets: int
-    missed: int
-    false_alarms: int
-    open_alarms: int
-    judged_alarms: int
-    lead_time_mean_s: float | None
-    note: str = ""
+
+
+def peer_measures(
+    tracker: Tracker,
+    truth: np.ndarray,
+    last_step: int,
+    times: npt.ArrayLike,
+    candidates: Sequence[float],
+    alarms: int,
+    dt: float,
+) -> dict[str, Any]:
+    """The :class:`PeerRow` fields one run measured: all but ``peer``, ``pairs`` and ``note``.
+
+    Args:
+        tracker: The peer's alarm bookkeeping after the run.
+        truth: Sorted collision keys ``pair * S + step`` of the recording (``truth_keys``).
+        last_step: The recording's last step (alarms are judged up to it).
+        times: ``(steps,)`` wall time of each step after the initial one (s).
+        candidates: Candidates of the steps that reported them.
+        alarms: Alarms over the steps after the initial one.
+        dt: Predictor period (s).
+    """
+    t = np.asarray(times)
+    steps = int(t.size)
+    _, false, open_, judged = tracker.judge(truth, last_step)
+    return {
+        "steps": steps,
+        "time_us": float(np.median(t) * 1e6),
+        "time_us_p90": float(np.percentile(t, 90) * 1e6),
+        "candidates_per_step": float(np.mean(candidates)) if candidates else None,
+        "alarms_per_step": alarms / steps,
+        "initial_alarms": tracker.initial,
+        "onsets": tracker.onsets,
+        "missed": tracker.missed,
+        "false_alarms": false,
+        "open_alarms": open_,
+        "judged_alarms": judged,
+        "lead_time_mean_s": tracker.lead_mean(dt),
+    }
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ import numpy as np
 from dua_mujoco.experiments.peers.broadphase import BroadphaseScene
 from dua_mujoco.experiments.peers.candidates import BROADPHASES
 from dua_mujoco.experiments.peers.mujoco_collision import MujocoScene
-from dua_mujoco.experiments.peers.rows import SceneRow
+from dua_mujoco.experiments.peers.rows import SceneRow, peer_measures
 from dua_mujoco.experiments.peers.scene_context import SceneContext
 from dua_mujoco.experiments.peers.schedulers import DuaScene, SaScene
 from dua_mujoco.experiments.peers.tracker import Tracker, truth_keys
@@ -125,26 +125,13 @@ def run_scene(scene: str, steps: int, seed: int) -> list[SceneRow]:
     keys = truth_keys(truth)
     rows = []
     for idx, (peer, tr) in enumerate(zip(peers, trackers, strict=True)):
-        _, false, open_, judged = tr.judge(keys, steps)
-        t = np.asarray(times[idx])
         rows.append(
             SceneRow(
                 scene=scene,
                 peer=peer.name,
                 pairs=ctx.npairs,
-                steps=steps,
-                time_us=float(np.median(t) * 1e6),
-                time_us_p90=float(np.percentile(t, 90) * 1e6),
-                candidates_per_step=float(np.mean(cands[idx])) if cands[idx] else None,
-                alarms_per_step=n_alarms[idx] / steps,
-                initial_alarms=tr.initial,
-                onsets=tr.onsets,
-                missed=tr.missed,
-                false_alarms=false,
-                open_alarms=open_,
-                judged_alarms=judged,
-                lead_time_mean_s=tr.lead_mean(ctx.dt),
                 note=peer.note,
+                **peer_measures(tr, keys, steps, times[idx], cands[idx], n_alarms[idx], ctx.dt),
             )
         )
     return rows

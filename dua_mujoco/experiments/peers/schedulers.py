@@ -14,20 +14,26 @@ from dua_mujoco.experiments.peers.scene_context import SceneContext
 __all__ = ["DuaGhost", "DuaScene", "SaGhost", "SaScene"]
 
 
-class DuaGhost:
-    """DUA on the ghost world (``GhostPeer``): the fused ``step_points``."""
-
-    name = "DUA"
-    note = "fused step_points (select, tau, sort, reinsert in one compiled call)"
+class _ScheduledGhost:
+    """A scheduler over all sphere pairs of the ghost world, made at the first state."""
 
     def __init__(self, world: GhostTrajectory) -> None:
         self.pairs = PairSet.all_pairs(world.radius, world.accel)
         self.dt = world.dt
-        self.sched: DUAScheduler | None = None
+
+    def _all_tau(self, c: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self.pairs.tau(np.arange(len(self.pairs)), c, v)
+
+
+class DuaGhost(_ScheduledGhost):
+    """DUA on the ghost world (``GhostPeer``): the fused ``step_points``."""
+
+    name = "DUA"
+    note = "fused step_points (select, tau, sort, reinsert in one compiled call)"
+    sched: DUAScheduler | None = None
 
     def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
-        tau0 = self.pairs.tau(np.arange(len(self.pairs)), c, v)
-        self.sched = DUAScheduler(tau0, dt=self.dt, latency=LATENCY)
+        self.sched = DUAScheduler(self._all_tau(c, v), dt=self.dt, latency=LATENCY)
         ids = self.sched.initial_alarms
         return ids, self._horizon(ids)
 
@@ -43,20 +49,15 @@ class DuaGhost:
         return alarms, self._horizon(alarms), self.sched.last_selected, None
 
 
-class SaGhost:
+class SaGhost(_ScheduledGhost):
     """SA(tau) on the ghost world (``GhostPeer``): tau of every pair every step."""
 
     name = "SA(tau)"
     note = "tau of every pair every step (numba, threaded)"
-
-    def __init__(self, world: GhostTrajectory) -> None:
-        self.pairs = PairSet.all_pairs(world.radius, world.accel)
-        self.dt = world.dt
-        self.sched: SelectAllScheduler | None = None
+    sched: SelectAllScheduler | None = None
 
     def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
-        tau0 = self.pairs.tau(np.arange(len(self.pairs)), c, v)
-        self.sched = SelectAllScheduler(tau0, dt=self.dt, latency=LATENCY)
+        self.sched = SelectAllScheduler(self._all_tau(c, v), dt=self.dt, latency=LATENCY)
         return self.sched.initial_alarms, 1 + LATENCY
 
     def step(

@@ -1,0 +1,34 @@
+"""Physics rollouts that a predictor follows, for the tests that check it at every step."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+
+import mujoco
+
+from dua_mujoco.mj.predictor import Predictor
+
+
+def predictor_rollout(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    p: Predictor,
+    ctrl: Callable[[mujoco.MjModel, mujoco.MjData], None] | None,
+    steps: int,
+) -> Iterator[int]:
+    """Step the physics under ``ctrl`` (None: none) with ``p`` following every step.
+
+    The first physics step is followed by ``p.reset``, each of the next ``steps`` by ``p.step``.
+
+    Yields:
+        ``0`` after the reset, then ``1 .. steps`` after each predictor step.
+    """
+    for k in range(steps + 1):
+        if ctrl is not None:
+            ctrl(m, d)
+        mujoco.mj_step(m, d)
+        if k == 0:
+            p.reset(d)
+        else:
+            p.step(d)
+        yield k
