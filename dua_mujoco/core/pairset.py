@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.core.shapes import SHAPE_NCOL, tau_static
-from dua_mujoco.core.urgency import PARALLEL_MIN, tau_halfspace, tau_speed
+from dua_mujoco.core.urgency import PARALLEL_MIN, tau_between, tau_halfspace
 from dua_mujoco.core.validate import as_ids, as_vectors, per_pair
 from dua_mujoco.exceptions import InvalidBoundError, InvalidInputError, ShapeError
 
@@ -58,22 +58,6 @@ KIND_SHAPE = 2
 
 
 @nb.njit(cache=True, inline="always")
-def _sphere_sphere_tau(ci, vi, cj, vj, p, eps, accel, delta, speed):  # pragma: no cover - jitted
-    return tau_speed(
-        cj[0] - ci[0],
-        cj[1] - ci[1],
-        cj[2] - ci[2],
-        vj[0] - vi[0],
-        vj[1] - vi[1],
-        vj[2] - vi[2],
-        eps[p],
-        accel[p],
-        delta[p],
-        speed[p],
-    )
-
-
-@nb.njit(cache=True, inline="always")
 def _sphere_halfspace_tau(c, v, plane, p, eps, accel, delta):  # pragma: no cover - jitted
     gap = plane[0] * c[0] + plane[1] * c[1] + plane[2] * c[2] - plane[3] - eps[p]
     vn = plane[0] * v[0] + plane[1] * v[1] + plane[2] * v[2]
@@ -92,8 +76,8 @@ def pair_tau(p, geometry):  # pragma: no cover - jitted
         c = centers[i]
         v = velocities[i]
         return tau_static(c[0], c[1], c[2], v[0], v[1], v[2], shapes[j], eps[p], accel[p], delta[p])
-    return _sphere_sphere_tau(
-        centers[i], velocities[i], centers[j], velocities[j], p, eps, accel, delta, speed
+    return tau_between(
+        centers[i], velocities[i], centers[j], velocities[j], eps[p], accel[p], delta[p], speed[p]
     )
 
 

@@ -201,25 +201,28 @@ def _closest_local(kind, s0, s1, s2, d0, d1, d2):  # pragma: no cover - jitted
 
 
 @nb.njit(cache=True, inline="always")
-def _to_local(rec, x0, x1, x2):  # pragma: no cover - jitted
-    """R^T x with R = rec's rotation (row-major)."""
+def _rotate(rec, x0, x1, x2, row, col):  # pragma: no cover - jitted
+    """``y_i = sum_j rec[SHAPE_MAT + row i + col j] x_j``: R x with ``(row, col) = (3, 1)``,
+    R^T x with ``(1, 3)``, R = rec's rotation (row-major). Callers pass constants, which
+    numba folds once the call is inlined."""
     m = SHAPE_MAT
     return (
-        rec[m + 0] * x0 + rec[m + 3] * x1 + rec[m + 6] * x2,
-        rec[m + 1] * x0 + rec[m + 4] * x1 + rec[m + 7] * x2,
-        rec[m + 2] * x0 + rec[m + 5] * x1 + rec[m + 8] * x2,
+        rec[m] * x0 + rec[m + col] * x1 + rec[m + 2 * col] * x2,
+        rec[m + row] * x0 + rec[m + row + col] * x1 + rec[m + row + 2 * col] * x2,
+        rec[m + 2 * row] * x0 + rec[m + 2 * row + col] * x1 + rec[m + 2 * row + 2 * col] * x2,
     )
 
 
 @nb.njit(cache=True, inline="always")
+def _to_local(rec, x0, x1, x2):  # pragma: no cover - jitted
+    """R^T x with R = rec's rotation."""
+    return _rotate(rec, x0, x1, x2, 1, 3)
+
+
+@nb.njit(cache=True, inline="always")
 def _to_world(rec, x0, x1, x2):  # pragma: no cover - jitted
-    """R x with R = rec's rotation (row-major)."""
-    m = SHAPE_MAT
-    return (
-        rec[m + 0] * x0 + rec[m + 1] * x1 + rec[m + 2] * x2,
-        rec[m + 3] * x0 + rec[m + 4] * x1 + rec[m + 5] * x2,
-        rec[m + 6] * x0 + rec[m + 7] * x1 + rec[m + 8] * x2,
-    )
+    """R x with R = rec's rotation."""
+    return _rotate(rec, x0, x1, x2, 3, 1)
 
 
 @nb.njit(cache=True, inline="always")

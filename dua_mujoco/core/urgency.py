@@ -42,6 +42,7 @@ __all__ = [
     "PARALLEL_MIN",
     "distance_urgency",
     "tau_accel",
+    "tau_between",
     "tau_halfspace",
     "tau_speed",
     "time_to_collision",
@@ -306,6 +307,24 @@ def tau_speed(x0, x1, x2, v0, v1, v2, eps, accel, delta, speed):  # pragma: no c
             ts = (nx - eps * (1.0 + _KAPPA) - _KAPPA * nx) / speed * (1.0 - _KAPPA)
             tau = max(tau, ts)
     return tau
+
+
+@nb.njit(cache=True, inline="always")
+def tau_between(ci, vi, cj, vj, eps, accel, delta, speed):  # pragma: no cover - jitted
+    """:func:`tau_speed` of two spheres from their centres ``ci``, ``cj`` and velocities ``vi``,
+    ``vj`` (3-vectors each; the relative state is ``j`` minus ``i``)."""
+    return tau_speed(
+        cj[0] - ci[0],
+        cj[1] - ci[1],
+        cj[2] - ci[2],
+        vj[0] - vi[0],
+        vj[1] - vi[1],
+        vj[2] - vi[2],
+        eps,
+        accel,
+        delta,
+        speed,
+    )
 
 
 @nb.njit(cache=True)

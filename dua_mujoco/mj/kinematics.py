@@ -43,7 +43,7 @@ from dua_mujoco.core.pairset import (
 from dua_mujoco.core.schedules import kernels
 from dua_mujoco.core.schedules.state import S_W_TAU, S_WORK, W_IDS
 from dua_mujoco.core.shapes import tau_static
-from dua_mujoco.core.urgency import tau_halfspace, tau_speed
+from dua_mujoco.core.urgency import tau_between, tau_halfspace
 from dua_mujoco.exceptions import ShapeError
 
 __all__ = [
@@ -250,13 +250,11 @@ def fine_tau(p, rec, coarse, frame, shapes, refine, buf):  # pragma: no cover - 
             rigid_point(a, fine_spheres, frame, sa)
             for b in range(nb_):
                 s = buf[b]
-                t = tau_speed(
-                    s[0] - sa[0],
-                    s[1] - sa[1],
-                    s[2] - sa[2],
-                    s[3] - sa[3],
-                    s[4] - sa[4],
-                    s[5] - sa[5],
+                t = tau_between(
+                    sa[0:3],
+                    sa[3:6],
+                    s[0:3],
+                    s[3:6],
                     radius[a] + radius[b0 + b] + d,
                     accel,
                     delta,
@@ -339,13 +337,11 @@ def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, refine):  # pragma: 
                 rec[PAIR_DELTA],
             )
         else:
-            t = tau_speed(
-                s[6] - s[0],
-                s[7] - s[1],
-                s[8] - s[2],
-                s[9] - s[3],
-                s[10] - s[4],
-                s[11] - s[5],
+            t = tau_between(
+                s[0:3],
+                s[3:6],
+                s[6:9],
+                s[9:12],
                 rec[PAIR_EPS],
                 rec[PAIR_ACCEL],
                 rec[PAIR_DELTA],

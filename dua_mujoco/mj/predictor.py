@@ -57,7 +57,7 @@ from dua_mujoco.mj.pairbounds import body_vel_uncertainty, bounded_pairs
 from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for
 from dua_mujoco.mj.refine import Refinement, build_refinement, no_refinement, refine_taus
-from dua_mujoco.mj.step_context import StepContext, Stepper
+from dua_mujoco.mj.step_context import StepContext, Stepper, StepTables
 from dua_mujoco.mj.tables import (
     PairTables,
     check_data,
@@ -417,32 +417,25 @@ class Predictor:
         scheduler steps on the real tables (read only) and switches a pair."""
         if len(self.pair_set):
             spare = self._scheduler(np.full(1, np.inf))
-            Stepper.load_compiled(
-                spare,
-                self._pair_records[:1],
-                self._spheres,
-                frame,
-                self._shapes,
-                # The full refinement records: row 0 exists even when no pair is held.
-                self._refine if self.refinement is None else self.refinement.args,
-                self._ids[:1],
-            )
+            tables = self._step_tables(frame)
+            # The spare's pair 0 is the model's: its rows exist even when no pair is held.
+            full = self._refine if self.refinement is None else self.refinement.args
+            Stepper.load_compiled(spare, tables._replace(pairs=self._pair_records, refine=full))
             spare.set_active([0], False)
             spare.set_active([0], True)
         if self.mocap is not None:
             self.mocap.load_compiled(data, self._twist)
 
-    def _bind_step(self) -> StepContext:
-        """The compiled step's arguments as they stand now (after any of them changed)."""
-        return self._stepper.bind(
-            self._require_scheduler().kernel_state,
-            self._records,
-            self._spheres,
-            self._frame_cache,
-            self._shapes,
-            self._refine,
-            self._ids,
+    def _step_tables(self, frame: tuple) -> StepTables:
+        """The compiled step's tables as they stand now, on ``frame``."""
+        return StepTables(
+            self._records, self._spheres, frame, self._shapes, self._refine, self._ids
         )
+
+    def _bind_step(self) -> StepContext:
+        """The compiled step's context as it stands now (after any argument changed)."""
+        sched = self._require_scheduler()
+        return self._stepper.bind(sched.kernel_state, self._step_tables(self._frame_cache))
 
     def step(self, data: mujoco.MjData) -> Alarms:
         """One predictor step: evaluate the scheduled pairs, reschedule them, return the alarms.

@@ -19,6 +19,7 @@ refers to it.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -41,6 +42,7 @@ __all__ = [
     "LOG_STEPS",
     "AlarmLog",
     "StepContext",
+    "StepTables",
     "Stepper",
     "context_step",
     "new_log",
@@ -64,40 +66,36 @@ class StepContextType(types.StructRef):
         return tuple((name, types.unliteral(typ)) for name, typ in fields)
 
 
-_FIELDS = ("state", "pairs", "spheres", "frame", "shapes", "refine", "ids", "log")
+class StepTables(NamedTuple):
+    """What the compiled step reads besides the schedule's state and the log.
 
-
-class StepContext(structref.StructRefProxy):
-    """The fused step's arguments as one object (see the module docstring).
-
-    Args:
-        state: The scheduler's ``kernel_state`` tuple.
+    Attributes:
         pairs: ``(K, ncol)`` packed records of the held pairs (``pack_pairs``).
         spheres: ``(nsphere, ncol)`` packed sphere records (``pack_spheres``).
         frame: ``mjdata_frame``'s tuple of ``MjData`` views.
         shapes: ``(nshape, 16)`` static shape records.
         refine: The two-level urgency's tuple (``Refinement.args`` or ``no_refinement()``).
         ids: ``(K,)`` model sphere-pair id of each held pair (the identity when none is pruned).
-        log: The writeable :data:`AlarmLog` the step appends to.
     """
 
-    def __new__(
-        cls,
-        state: tuple,
-        pairs: np.ndarray,
-        spheres: np.ndarray,
-        frame: tuple,
-        shapes: np.ndarray,
-        refine: tuple,
-        ids: np.ndarray,
-        log: AlarmLog,
-    ) -> StepContext:
-        return structref.StructRefProxy.__new__(
-            cls, state, pairs, spheres, frame, shapes, refine, ids, log
-        )
+    pairs: np.ndarray
+    spheres: np.ndarray
+    frame: tuple
+    shapes: np.ndarray
+    refine: tuple
+    ids: np.ndarray
 
 
-structref.define_proxy(StepContext, StepContextType, list(_FIELDS))
+class StepContext(structref.StructRefProxy):
+    """The fused step's arguments as one object (see the module docstring): the scheduler's
+    ``kernel_state``, the :class:`StepTables` fields and the writeable :data:`AlarmLog` the
+    step appends to."""
+
+    def __new__(cls, state: tuple, tables: StepTables, log: AlarmLog) -> StepContext:
+        return structref.StructRefProxy.__new__(cls, state, *tables, log)
+
+
+structref.define_proxy(StepContext, StepContextType, ["state", *StepTables._fields, "log"])
 
 
 def new_log(capacity: int) -> tuple[AlarmLog, AlarmLog]:
@@ -167,18 +165,9 @@ class Stepper:
         self.context: StepContext | None = None
         self.entry: Callable[..., tuple] = context_step
 
-    def bind(
-        self,
-        state: tuple,
-        pairs: np.ndarray,
-        spheres: np.ndarray,
-        frame: tuple,
-        shapes: np.ndarray,
-        refine: tuple,
-        ids: np.ndarray,
-    ) -> StepContext:
-        """A new context over these arguments and the log; the entry point compiled for it."""
-        self.context = StepContext(state, pairs, spheres, frame, shapes, refine, ids, self.log)
+    def bind(self, state: tuple, tables: StepTables) -> StepContext:
+        """A new context over ``state``, ``tables`` and the log; the entry point for it."""
+        self.context = StepContext(state, tables, self.log)
         if self.entry is context_step:
             self.entry = compiled_entry(context_step, self.context, 1, 0)
         return self.context
@@ -195,20 +184,10 @@ class Stepper:
         return 0
 
     @staticmethod
-    def load_compiled(
-        scheduler: Scheduler,
-        pairs: np.ndarray,
-        spheres: np.ndarray,
-        frame: tuple,
-        shapes: np.ndarray,
-        refine: tuple,
-        ids: np.ndarray,
-    ) -> None:
-        """Run one step of ``scheduler`` (a throw-away one) on :meth:`bind`'s arguments (read
-        only) so that numba loads the step and the log switch from its cache (~10 ms) now."""
+    def load_compiled(scheduler: Scheduler, tables: StepTables) -> None:
+        """Run one step of ``scheduler`` (a throw-away one) on ``tables`` (read only) so that
+        numba loads the step and the log switch from its cache (~10 ms) now."""
         log, _ = new_log(1)
-        context = StepContext(
-            scheduler.kernel_state, pairs, spheres, frame, shapes, refine, ids, log
-        )
+        context = StepContext(scheduler.kernel_state, tables, log)
         scheduler.step_context(context_step, context, 0)
         set_log(context, log)
