@@ -160,6 +160,16 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         "their verdict no longer covers the wait (default: no cap)",
     )
     p.add_argument(
+        "--alarm-backoff",
+        type=_positive(int),
+        default=None,
+        # The default is the Predictor's (DEFAULT_ALARM_BACKOFF): not imported here, where it
+        # would pull numba into every `--help`; test_cli holds the two equal.
+        help="deadline: a pair that keeps alarming (resting contact) is evaluated again after "
+        "twice its last wait, up to this many steps, standing in alarm in between; 1 gives "
+        "exactly select-all's alarms (default: 8)",
+    )
+    p.add_argument(
         "--slots-per-bucket",
         type=_positive(int),
         default=1,
@@ -400,6 +410,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         latency=args.latency,
         schedule=args.schedule,
         max_evals_per_step=args.max_evals,
+        **({} if args.alarm_backoff is None else {"alarm_backoff": args.alarm_backoff}),
         slots_per_bucket=args.slots_per_bucket,
         pairs=args.pairs,
         static=args.static,

@@ -166,18 +166,25 @@ def test_weakened_alarm_rule_misses_collisions() -> None:
     assert failures(no_latency) > 0
 
 
-def _deadline(latency: int, cap: int | None = None, *, world_dt: float = 0.01):
+def _deadline(latency: int, cap: int | None = None, *, world_dt: float = 0.01, backoff: int = 8):
     def make(tau0: np.ndarray) -> Scheduler:
-        return DeadlineScheduler(tau0, dt=world_dt, latency=latency, max_evals_per_step=cap)
+        return DeadlineScheduler(
+            tau0, dt=world_dt, latency=latency, max_evals_per_step=cap, alarm_backoff=backoff
+        )
 
     return make
 
 
+@pytest.mark.parametrize("backoff", [1, 8])
 @pytest.mark.parametrize("latency", [0, 1])
 @pytest.mark.parametrize("profile", list(AccelProfile))
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_deadline_flags_every_onset(latency: int, profile: AccelProfile, seed: int) -> None:
-    out = run_world(dense_world(seed, profile), steps=300, latency=latency, make=_deadline(latency))
+def test_deadline_flags_every_onset(
+    latency: int, profile: AccelProfile, seed: int, backoff: int
+) -> None:
+    """With or without backing off the revisits of pairs that keep alarming."""
+    make = _deadline(latency, backoff=backoff)
+    out = run_world(dense_world(seed, profile), steps=300, latency=latency, make=make)
     assert out.onsets >= 5
     assert out.missed == []
     assert out.late == []

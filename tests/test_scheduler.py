@@ -266,8 +266,9 @@ def reference_interval(tau: float, dt: float, latency: int, max_interval: int) -
 class ReferenceDeadline:
     """The deadline rule with a dict of due steps: obviously correct, O(M) a step."""
 
-    def __init__(self, tau0, dt, latency, cap, max_interval):
+    def __init__(self, tau0, dt, latency, cap, max_interval, backoff):
         self.dt, self.latency, self.cap, self.max_interval = dt, latency, cap, max_interval
+        self.backoff = min(backoff, max_interval)
         self.last_tau = np.array(tau0, dtype=float)
         self.last_step = np.zeros(len(tau0), dtype=int)
         self.due = {p: reference_interval(t, dt, latency, max_interval) for p, t in enumerate(tau0)}
@@ -290,10 +291,15 @@ class ReferenceDeadline:
         n, dt, lat = self.n, self.dt, self.latency
         alarms = set()
         for p, t in zip(ids, tau, strict=True):
+            waited = n - self.last_step[p]
+            old = self.last_tau[p]
+            stood = old > -np.inf and old < (waited + lat) * dt
             self.last_tau[p], self.last_step[p] = t, n
             self.due[p] = n + reference_interval(t, dt, lat, self.max_interval)
             if t < (1 + lat) * dt:
                 alarms.add(p)
+                if stood:  # alarming again: back off
+                    self.due[p] = n + min(2 * waited, self.backoff)
         for p in deferred:
             if self.last_tau[p] < (self.due[p] - self.last_step[p] + lat) * dt:
                 alarms.add(p)
@@ -307,9 +313,10 @@ class ReferenceDeadline:
     latency=st.integers(0, 2),
     cap=st.sampled_from([None, 1, 3, 10]),
     max_interval=st.sampled_from([1, 7, 64]),
+    backoff=st.sampled_from([1, 2, 8, 100]),
 )
 def test_deadline_matches_reference(
-    seed: int, m: int, latency: int, cap: int | None, max_interval: int
+    seed: int, m: int, latency: int, cap: int | None, max_interval: int, backoff: int
 ) -> None:
     rng = np.random.default_rng(seed)
     dt = 0.01
@@ -322,9 +329,14 @@ def test_deadline_matches_reference(
 
     tau0 = draw(m)
     s = DeadlineScheduler(
-        tau0, dt=dt, latency=latency, max_evals_per_step=cap, max_interval=max_interval
+        tau0,
+        dt=dt,
+        latency=latency,
+        max_evals_per_step=cap,
+        max_interval=max_interval,
+        alarm_backoff=backoff,
     )
-    ref = ReferenceDeadline(tau0, dt, latency, cap, max_interval)
+    ref = ReferenceDeadline(tau0, dt, latency, cap, max_interval, backoff)
     assert set(s.initial_alarms.tolist()) == {p for p in range(m) if tau0[p] < (1 + latency) * dt}
     for _ in range(40):
         ids = s.select()
@@ -355,6 +367,35 @@ def test_deadline_interval_is_the_latest_safe_step() -> None:
     due = t.next_due(np.arange(taus.size))
     assert ((taus < 2 * dt) | ((due + 1) * dt <= taus)).all()
     assert (due == [reference_interval(float(x), dt, 1, 1024) for x in taus]).all()
+
+
+def test_deadline_backs_off_a_pair_that_keeps_alarming() -> None:
+    """A pair in contact (tau 0 at every evaluation) is looked at after 1, 2, 4, 8, 8... steps
+    and stands in alarm at every step; once clear it is revisited as its tau allows, and its
+    next alarm is evaluated again at the very next step."""
+    s = DeadlineScheduler(np.array([0.0, np.inf]), dt=0.01, latency=0, alarm_backoff=8)
+    evaluated = []
+    for n in range(1, 41):
+        ids = s.select()
+        if ids.size:
+            evaluated.append(n)
+        s.update(ids, np.zeros(ids.size))
+        assert s.alarm_state([0])[0]
+    assert evaluated == [1, 3, 7, 15, 23, 31, 39]
+    # Clear at its next evaluation (step 47): revisited when its tau runs out, without alarm.
+    while not (ids := s.select()).size:
+        s.update(ids, np.zeros(0))
+    assert s.step_count + 1 == 47
+    s.update(ids, [0.05])
+    assert not s.alarm_state([0])[0]
+    assert s.next_due([0])[0] == 47 + 5
+    with pytest.raises(InvalidInputError, match="alarm_backoff"):
+        DeadlineScheduler(np.ones(2), dt=0.01, alarm_backoff=0)
+    # Without backoff a standing alarm is evaluated every step: select-all's alarms exactly.
+    t = DeadlineScheduler(np.array([0.0]), dt=0.01, latency=0, alarm_backoff=1)
+    for _ in range(5):
+        assert t.select().tolist() == [0]
+        t.update([0], [0.0])
 
 
 def test_deadline_switching_and_errors() -> None:

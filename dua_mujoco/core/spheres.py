@@ -21,13 +21,16 @@ from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.pruned import StandingAlarms, escaped, match_pairs, rebuild_stride
 from dua_mujoco.core.schedules import (
     DeadlineScheduler,
-    DUAScheduler,
     Schedule,
     Scheduler,
-    SelectAllScheduler,
+    make_scheduler,
 )
 from dua_mujoco.core.schedules.base import step_points_kernel
-from dua_mujoco.core.schedules.deadline import check_max_evals
+from dua_mujoco.core.schedules.deadline import (
+    DEFAULT_ALARM_BACKOFF,
+    check_alarm_backoff,
+    check_max_evals,
+)
 from dua_mujoco.core.schedules.state import P_COUNT, P_DEFERRED, W_IDS
 from dua_mujoco.core.validate import as_vectors, check_period, per_pair, real_array
 from dua_mujoco.exceptions import (
@@ -80,6 +83,8 @@ class SpherePredictor:
         vel_uncertainty: Scalar or ``(N,)`` bound on the error of each measured velocity (m/s).
         schedule: ``"deadline"`` (pruned sets need it), ``"dua"`` or ``"select-all"``.
         max_evals_per_step: Deadline only: optional cap on tau evaluations a step.
+        alarm_backoff: Deadline only: longest interval (steps) between evaluations of a pair
+            that keeps alarming, which stands in alarm in between (1: every step).
         horizon: Pruned only: the horizon ``T`` (s) of the reach, ``>= (1 + latency) dt``;
             default ``(DEFAULT_STRIDE + latency) dt``. Rebuilds come every
             ``rebuild_stride(T, dt, latency)`` steps.
@@ -105,6 +110,7 @@ class SpherePredictor:
         vel_uncertainty: npt.ArrayLike = 0.0,
         schedule: Schedule | str = "deadline",
         max_evals_per_step: int | None = None,
+        alarm_backoff: int = DEFAULT_ALARM_BACKOFF,
         horizon: float | None = None,
     ) -> None:
         r = real_array("radii", radii)
@@ -131,6 +137,7 @@ class SpherePredictor:
         except ValueError:
             raise InvalidChoiceError("schedule", schedule, [s.value for s in Schedule]) from None
         self.max_evals_per_step = check_max_evals(max_evals_per_step) or None
+        self.alarm_backoff = check_alarm_backoff(alarm_backoff)
         if mode is PairMode.AUTO:
             prune = n >= AUTO_PRUNED_MIN and self.schedule is Schedule.DEADLINE
             mode = PairMode.PRUNED if prune else PairMode.ALL
@@ -251,12 +258,13 @@ class SpherePredictor:
         return self._output()
 
     def _make(self, tau0: np.ndarray) -> Scheduler:
-        if self.schedule is Schedule.DUA:
-            return DUAScheduler(tau0, dt=self.dt, latency=self.latency)
-        if self.schedule is Schedule.SELECT_ALL:
-            return SelectAllScheduler(tau0, dt=self.dt, latency=self.latency)
-        return DeadlineScheduler(
-            tau0, dt=self.dt, latency=self.latency, max_evals_per_step=self.max_evals_per_step
+        return make_scheduler(
+            self.schedule,
+            tau0,
+            dt=self.dt,
+            latency=self.latency,
+            max_evals_per_step=self.max_evals_per_step,
+            alarm_backoff=self.alarm_backoff,
         )
 
     def _rebuild(self, c: np.ndarray, v: np.ndarray, step: int) -> None:

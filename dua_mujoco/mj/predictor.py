@@ -27,9 +27,9 @@ from dua_mujoco.core.schedules import (
     Schedule,
     Scheduler,
     as_schedule,
+    deadline,
     make_scheduler,
 )
-from dua_mujoco.core.schedules.deadline import check_max_evals
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
 from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.core.validate import check_period
@@ -107,6 +107,10 @@ class Predictor:
         max_evals_per_step: ``deadline`` only: optional cap on tau evaluations a step; pairs
             due beyond it wait, standing in alarm once their verdict no longer covers the wait
             (``Alarms.deferred`` says how many waited).
+        alarm_backoff: ``deadline`` only: a pair that keeps alarming (resting contact) is
+            evaluated again after twice its last wait, up to this many steps (default 8),
+            standing in alarm in between; 1 re-evaluates alarmed pairs every step, which gives
+            exactly select-all's alarms.
         velocity_accel: Bound ``C`` on the centripetal/Coriolis acceleration of sphere centres,
             for the discrete-time term (docs/discrete-time.md); scalar or dict by body name.
         pilot_steps: Length of the pilot rollout for ``accel="auto"``.
@@ -141,6 +145,7 @@ class Predictor:
         schedule: Schedule | str = Schedule.DEADLINE,
         slots_per_bucket: int = 1,
         max_evals_per_step: int | None = None,
+        alarm_backoff: int = deadline.DEFAULT_ALARM_BACKOFF,
         velocity_accel: float | Mapping[str, float] | None = None,
         pilot_steps: int = 2000,
         pilot_seed: int = 1_000_003,
@@ -162,7 +167,8 @@ class Predictor:
         self.dt, self.latency = check_period(self.period * float(model.opt.timestep), latency)
         self.schedule = as_schedule(schedule)
         self.slots_per_bucket = check_slots_per_bucket(slots_per_bucket)
-        self.max_evals_per_step = check_max_evals(max_evals_per_step) or None
+        self.max_evals_per_step = deadline.check_max_evals(max_evals_per_step) or None
+        self.alarm_backoff = deadline.check_alarm_backoff(alarm_backoff)
         self.covering = (
             covering
             if isinstance(covering, Covering)
@@ -409,6 +415,7 @@ class Predictor:
             latency=self.latency,
             slots_per_bucket=self.slots_per_bucket,
             max_evals_per_step=self.max_evals_per_step,
+            alarm_backoff=self.alarm_backoff,
         )
 
     def _load_compiled(self, data: mujoco.MjData, frame: tuple) -> None:

@@ -12,7 +12,7 @@ import enum
 import numpy as np
 
 from dua_mujoco.core.schedules.base import FusedKernel, Scheduler
-from dua_mujoco.core.schedules.deadline import DeadlineScheduler
+from dua_mujoco.core.schedules.deadline import DEFAULT_ALARM_BACKOFF, DeadlineScheduler
 from dua_mujoco.core.schedules.dua import DUAScheduler, bucket_layout
 from dua_mujoco.core.schedules.select_all import SelectAllScheduler, Urgency
 from dua_mujoco.core.schedules.state import ScheduleState
@@ -52,13 +52,18 @@ def make_scheduler(
     latency: int,
     slots_per_bucket: int = 1,
     max_evals_per_step: int | None = None,
+    alarm_backoff: int = DEFAULT_ALARM_BACKOFF,
 ) -> Scheduler:
     """The scheduler of ``schedule`` over the initial tau ``tau0``."""
     if schedule is Schedule.DUA:
         return DUAScheduler(tau0, dt=dt, latency=latency, slots_per_bucket=slots_per_bucket)
     if schedule is Schedule.DEADLINE:
         return DeadlineScheduler(
-            tau0, dt=dt, latency=latency, max_evals_per_step=max_evals_per_step
+            tau0,
+            dt=dt,
+            latency=latency,
+            max_evals_per_step=max_evals_per_step,
+            alarm_backoff=alarm_backoff,
         )
     return SelectAllScheduler(tau0, dt=dt, latency=latency)
 

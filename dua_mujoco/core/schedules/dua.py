@@ -114,6 +114,8 @@ class DUAScheduler(Scheduler):
         self.slots_per_bucket = q
         self._width = width
         alarmed = (tau < self.horizon[self.bucket_of_slot(state.ints[WHERE])]) & state.active
+        # A pair standing in alarm is held as -2 - pair in its slot (kernels._occupant).
+        state.slots[state.ints[WHERE, alarmed]] = -2 - np.flatnonzero(alarmed)
         super().__init__(state, np.flatnonzero(alarmed))
 
     # ----------------------------------------------------------------------- introspection
@@ -121,7 +123,8 @@ class DUAScheduler(Scheduler):
     @property
     def slots(self) -> np.ndarray:
         """``(2**L - 1,)`` the pair in each slot (-1 empty)."""
-        return self.state.slots
+        raw = self.state.slots
+        return np.where(raw < -1, -2 - raw, raw)
 
     @property
     def where(self) -> np.ndarray:

@@ -22,6 +22,7 @@ __all__ = [
     "NEXT",
     "NPARAMS",
     "PREV",
+    "P_BACKOFF",
     "P_CAP",
     "P_COUNT",
     "P_DEFERRED",
@@ -98,7 +99,10 @@ P_DEFERRED = 6
 """Deadline: pairs due at the latest selection but left for a later step (over the cap)."""
 P_EXTRA = 7
 """Rank: how many of the evaluated pairs were switched back on (evaluated out of their slot)."""
-NPARAMS = 8
+P_BACKOFF = 8
+"""Deadline: longest interval (steps) between evaluations of a pair that keeps alarming (1:
+every step); it stands in alarm in between."""
+NPARAMS = 9
 
 
 # Positions of the fields in ``tuple(state)``, the form the compiled kernels take: numba
