@@ -16,6 +16,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.core.refs import Ref
 from dua_mujoco.core.shapes import SHAPE_NCOL, tau_static
 from dua_mujoco.core.urgency import PARALLEL_MIN, tau_between, tau_halfspace
 from dua_mujoco.core.validate import as_ids, as_vectors, per_pair
@@ -160,6 +161,11 @@ _NO_PLANES = _placeholder((1, 4))
 _NO_SHAPES = _placeholder((1, SHAPE_NCOL))
 
 
+_FIXED = frozenset(
+    ("first", "second", "kind", "halfspace", "shape", "eps", "accel", "vel_uncertainty", "speed")
+)
+
+
 class PairSet:
     """Pairs of a sphere and a sphere, a half-space or a static shape, with their bounds.
 
@@ -198,9 +204,11 @@ class PairSet:
         speed: npt.ArrayLike = np.inf,
         shapes: npt.ArrayLike | None = None,
     ) -> None:
-        self.first = as_ids("first", first)
+        # Owned, writeable and aligned (a copy when the caller's are not): kernel_ref's compiled
+        # type is then the same for every pair set.
+        self.first = np.require(as_ids("first", first), requirements=("C", "A", "W"))
         m = self.first.shape[0]
-        self.second = as_ids("second", second, m)
+        self.second = np.require(as_ids("second", second, m), requirements=("C", "A", "W"))
         self.kind = _as_kind(halfspace, kind, m)
         self.halfspace = self.kind == KIND_HALFSPACE
         self.shape = self.kind == KIND_SHAPE
@@ -224,6 +232,20 @@ class PairSet:
         self.has_halfspace = bool(self.halfspace.any())
         self.has_shape = bool(self.shape.any())
         self.shapes: np.ndarray | None = None if shapes is None else _as_shape_records(shapes)
+        self._ref: Ref | None = None
+
+    def __setattr__(self, name: str, value: object) -> None:
+        # The pair arrays are fixed (kernel_ref and the index checks hold them): a new array
+        # would be silently ignored by the compiled steps.
+        if name in _FIXED and name in self.__dict__:
+            raise InvalidInputError(
+                f"PairSet.{name} is fixed at construction: change its values in place "
+                f"(pairs.{name}[:] = ...) or build a new PairSet."
+            )
+        if name == "shapes" and value is not None:
+            # Validated and float64, the type the compiled steps were built for.
+            value = _as_shape_records(value)  # type: ignore[arg-type]
+        super().__setattr__(name, value)
 
     def __len__(self) -> int:
         return int(self.first.shape[0])
@@ -314,11 +336,46 @@ class PairSet:
         """The tuple the tau kernels read: validated sphere, half-space and shape data, then pairs.
 
         ``(centers, velocities, planes, shapes, first, second, kind, eps, accel,
-        vel_uncertainty, speed)`` with ``planes`` ``(nh, 4)`` rows ``[normal, offset]`` and
-        ``shapes`` ``(nshape, 16)`` records; one argument instead of eleven through every kernel.
-        Slots 4 to 10 hold the pair arrays, and ``kind`` is nonzero exactly where ``second`` is
-        not a sphere, which is what a kernel that gathers sphere states has to know.
+        vel_uncertainty, speed)``: :meth:`inputs`, then :attr:`arrays`; one argument instead
+        of eleven through every kernel. ``kind`` is nonzero exactly where ``second`` is not a
+        sphere, which is what a kernel that gathers sphere states has to know.
         """
+        return (
+            self.inputs(centers, velocities, halfspaces, shapes=shapes, check_finite=check_finite)
+            + self.arrays()
+        )
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """``(first, second, kind, eps, accel, vel_uncertainty, speed)``, fixed at construction."""
+        return (
+            self.first,
+            self.second,
+            self.kind,
+            self.eps,
+            self.accel,
+            self.vel_uncertainty,
+            self.speed,
+        )
+
+    @property
+    def kernel_ref(self) -> Ref:
+        """:meth:`arrays` as one compiled-code object (``dua_mujoco.core.refs``), built once."""
+        if self._ref is None:
+            self._ref = Ref(self.arrays())
+        return self._ref
+
+    def inputs(
+        self,
+        centers: npt.ArrayLike,
+        velocities: npt.ArrayLike,
+        halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None,
+        *,
+        shapes: npt.ArrayLike | None = None,
+        check_finite: bool = True,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(centers, velocities, planes, shapes)`` validated against the pairs: ``planes``
+        ``(nh, 4)`` rows ``[normal, offset]``, ``shapes`` ``(nshape, 16)`` records (this set's
+        own unless others are given); placeholders where the pairs have none."""
         c = as_vectors("centers", centers, check_finite=check_finite)
         v = as_vectors("velocities", velocities, c.shape[0], check_finite=check_finite)
         planes = _NO_PLANES
@@ -355,19 +412,7 @@ class PairSet:
             raise ShapeError(
                 f"pairs reference shape {self.max_shape} but shapes has {recs.shape[0]} rows."
             )
-        return (
-            c,
-            v,
-            planes,
-            recs,
-            self.first,
-            self.second,
-            self.kind,
-            self.eps,
-            self.accel,
-            self.vel_uncertainty,
-            self.speed,
-        )
+        return c, v, planes, recs
 
     def distance(self, ids: npt.ArrayLike, centers: npt.ArrayLike) -> np.ndarray:
         """Distance urgency ``|c_j - c_i| - eps`` of the sphere-sphere pairs ``ids``, ``(n,)``."""

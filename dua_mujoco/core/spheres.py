@@ -25,7 +25,6 @@ from dua_mujoco.core.schedules import (
     Scheduler,
     make_scheduler,
 )
-from dua_mujoco.core.schedules.base import step_points_kernel
 from dua_mujoco.core.schedules.deadline import (
     DEFAULT_ALARM_BACKOFF,
     check_alarm_backoff,
@@ -37,7 +36,6 @@ from dua_mujoco.exceptions import (
     BoundViolationWarning,
     InvalidChoiceError,
     InvalidInputError,
-    NonFiniteStateError,
     SchedulerError,
     ShapeError,
 )
@@ -327,10 +325,8 @@ class SpherePredictor:
                     due = True
             if due:
                 self._rebuild(c, v, n)
-        geometry = self.pairs.geometry(c, v, None, check_finite=False)
-        alarms, bad_pair = sched.step_with(step_points_kernel, geometry)
-        if bad_pair >= 0:  # pragma: no cover - the state was checked finite above
-            raise NonFiniteStateError(f"the state of pair {bad_pair} is not finite.")
+        # The state was checked finite above: the fused step cannot stop on it.
+        alarms = sched.step_points(self.pairs, c, v)
         params = sched.state.params
         count = int(params[P_COUNT])
         # Deferred pairs follow the evaluated ones in the selection: their verdicts were

@@ -52,6 +52,16 @@ def as_vectors(
     name: str, value: npt.ArrayLike, m: int | None = None, *, check_finite: bool = True
 ) -> np.ndarray:
     """``(m, 3)`` float64 vectors (a single ``(3,)`` vector becomes one row)."""
+    if (
+        not check_finite
+        and type(value) is np.ndarray
+        and value.dtype == np.float64
+        and value.ndim == 2
+        and value.shape[1] == 3
+        and value.flags.c_contiguous
+        and (m is None or value.shape[0] == m)
+    ):
+        return value  # already what the conversions below make: a fused step's common case
     arr = real_array(name, value)
     if arr.ndim == 1 and arr.shape[0] == 3:
         arr = arr[None, :]

@@ -55,6 +55,7 @@ __all__ = [
     "mjdata_frame",
     "pack_spheres",
     "rigid_point",
+    "scratch_buffers",
     "sphere_states",
     "step_rigid_kernel",
 ]
@@ -266,27 +267,34 @@ def fine_tau(p, rec, coarse, frame, shapes, refine, buf):  # pragma: no cover - 
     return max(coarse, best)
 
 
+def scratch_buffers(width: int, refine: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`step_rigid_kernel`'s ``scratch``: ``(width, 12)`` gathered pair states (``width``
+    the schedule's work width, the most pairs a step selects) and ``(most, 6)`` fine sphere
+    states (``refine[4]`` the most fine spheres of a geom)."""
+    return np.empty((max(int(width), 1), 12)), np.empty((max(int(refine[4]), 1), 6))
+
+
 @nb.njit(cache=True)
-def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, refine):  # pragma: no cover - jitted
+def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, refine, scratch):  # pragma: no cover
     """The fused step on spheres attached to rigid frames (a ``FusedKernel``).
 
     Reads only the selected spheres. ``pairs`` and ``spheres`` are ``pack_pairs`` /
     ``pack_spheres`` records; ``shapes`` the ``(nshape, 16)`` static shape records
     (``pack_shapes``, one placeholder row without shapes) that shape pairs' ``PAIR_OTHER``
     indexes; ``refine`` the two-level urgency's tuple (``dua_mujoco.mj.refine``: a pair whose
-    tau is below its threshold is refined by :func:`fine_tau`). Two passes: first every selected
-    pair's state is gathered (independent loads, which the CPU overlaps; the tables are cold
-    after ``mj_step``), then tau is computed from that small buffer. A pair whose state is not
-    finite abandons the step.
+    tau is below its threshold is refined by :func:`fine_tau`); ``scratch`` the buffers of
+    :func:`scratch_buffers` (allocating them here cost a microsecond a step, measured). Two
+    passes: first every selected pair's state is gathered (independent loads, which the CPU
+    overlaps; the tables are cold after ``mj_step``), then tau is computed from that small
+    buffer. A pair whose state is not finite abandons the step.
     """
     frame_pos, frame_mat = frame[0], frame[1]
     below = refine[3]
-    buf = np.empty((refine[4], 6))
+    state, buf = scratch
     count = kernels.select(st, n)
     w_ids = st[S_WORK][W_IDS]
     # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset;
     # zeros for a static shape, whose record is constant and checked when packed).
-    state = np.empty((count, 12))
     for k in range(count):
         rec = pairs[w_ids[k]]
         rigid_point(int(rec[PAIR_FIRST]), spheres, frame, state[k, 0:6])

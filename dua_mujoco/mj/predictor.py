@@ -51,7 +51,7 @@ from dua_mujoco.mj.filter import (
     sphere_pair_mask,
     sphere_pairs,
 )
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, scratch_buffers, sphere_states
 from dua_mujoco.mj.mocap import MocapVelocityTracker
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty, bounded_pairs
 from dua_mujoco.mj.pairstate import PairState
@@ -584,9 +584,10 @@ class Predictor:
     def kernel_arguments(self, data: mujoco.MjData) -> tuple:
         """Everything ``step`` hands ``kinematics.step_rigid_kernel`` after the scheduler's
         ``kernel_state`` and the step number, for ``data``: ``(pair_records, sphere_records,
-        frame, shape_records, refine)``; for compiled drivers (benchmarks)."""
-        frame = mjdata_frame(data, self._twist)
-        return self._records, self._spheres, frame, self._shapes, self._refine
+        frame, shape_records, refine, scratch)``; for compiled drivers (benchmarks)."""
+        t = self._step_tables(mjdata_frame(data, self._twist))
+        scratch = scratch_buffers(self._require_scheduler().state.work.shape[1], t.refine)
+        return t.pairs, t.spheres, t.frame, t.shapes, t.refine, scratch
 
     @property
     def sphere_pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:

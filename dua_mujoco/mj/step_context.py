@@ -35,7 +35,7 @@ from dua_mujoco.core.schedules.state import (
     W_ALARMS,
     W_NEW,
 )
-from dua_mujoco.mj.kinematics import step_rigid_kernel
+from dua_mujoco.mj.kinematics import scratch_buffers, step_rigid_kernel
 
 __all__ = [
     "LOG_MIN",
@@ -88,14 +88,17 @@ class StepTables(NamedTuple):
 
 class StepContext(structref.StructRefProxy):
     """The fused step's arguments as one object (see the module docstring): the scheduler's
-    ``kernel_state``, the :class:`StepTables` fields and the writeable :data:`AlarmLog` the
-    step appends to."""
+    ``kernel_state``, the :class:`StepTables` fields, the step's scratch buffers (sized for the
+    state's work width) and the writeable :data:`AlarmLog` the step appends to."""
 
     def __new__(cls, state: tuple, tables: StepTables, log: AlarmLog) -> StepContext:
-        return structref.StructRefProxy.__new__(cls, state, *tables, log)
+        scratch = scratch_buffers(state[S_WORK].shape[1], tables.refine)
+        return structref.StructRefProxy.__new__(cls, state, *tables, scratch, log)
 
 
-structref.define_proxy(StepContext, StepContextType, ["state", *StepTables._fields, "log"])
+structref.define_proxy(
+    StepContext, StepContextType, ["state", *StepTables._fields, "scratch", "log"]
+)
 
 
 def new_log(capacity: int) -> tuple[AlarmLog, AlarmLog]:
@@ -127,7 +130,7 @@ def context_step(ctx, n, start):  # pragma: no cover - jitted
     """
     st = ctx.state
     _, nalarm, bad = step_rigid_kernel(
-        st, n, ctx.pairs, ctx.spheres, ctx.frame, ctx.shapes, ctx.refine
+        st, n, ctx.pairs, ctx.spheres, ctx.frame, ctx.shapes, ctx.refine, ctx.scratch
     )
     if bad >= 0:
         return 0, bad, 0

@@ -103,9 +103,8 @@ def _rank_select(st, n):  # pragma: no cover - jitted
     w_slots, w_ids = st[S_WORK][W_SLOTS], st[S_WORK][W_IDS]
     # Whether each selected pair stood in alarm (for reinsert's new-alarm flags) comes with the
     # slot's entry (``_occupant``) rather than from last_tau: with millions of pairs that read
-    # misses the cache (measured: 1.6 us of a 10 us step at M = 1e6). The alarms row is free
-    # until reinsert, which copies this out first.
-    stood = st[S_WORK][W_ALARMS]
+    # misses the cache (measured: 1.6 us of a 10 us step at M = 1e6). It travels to reinsert
+    # in the withdrawn slot's entry, the same way.
     q = params[P_SLOTS_PER_BUCKET]
     count = 0
     for k in range(params[P_NBUCKETS]):
@@ -117,9 +116,8 @@ def _rank_select(st, n):  # pragma: no cover - jitted
             raw = slots[slot]
             pid = raw if raw >= 0 else -2 - raw
             if raw != -1 and active[pid]:
-                w_slots[count] = slot
+                w_slots[count] = _occupant(slot, raw < -1)
                 w_ids[count] = pid
-                stood[count] = raw < -1
                 count += 1
     # Pairs switched back on, evaluated out of their slots, as many as the spare width holds.
     queue = st[S_QUEUE]
@@ -148,7 +146,6 @@ def _rank_reinsert(st, n, count):  # pragma: no cover - jitted
     )
     new = st[S_WORK][W_NEW]
     regular = count - st[S_PARAMS][P_EXTRA]
-    stood = alarms[:regular].copy()  # written by _rank_select
     # Stable, so equal tau keep selection order (deterministic across runs).
     order = np.argsort(w_tau[:regular], kind="mergesort")
     nalarm = 0
@@ -156,6 +153,7 @@ def _rank_reinsert(st, n, count):  # pragma: no cover - jitted
         src = order[i]
         pid = w_ids[src]
         slot = w_slots[i]
+        slot = slot if slot >= 0 else -2 - slot  # _rank_select's entry: slot and stood flag
         tau = w_tau[src]
         alarmed = tau < horizon[bucket_of(slot)]
         slots[slot] = _occupant(pid, alarmed)
@@ -164,7 +162,7 @@ def _rank_reinsert(st, n, count):  # pragma: no cover - jitted
         last_step[pid] = n
         if alarmed:
             alarms[nalarm] = pid
-            new[nalarm] = not stood[src]
+            new[nalarm] = w_slots[src] >= 0  # it did not stand in alarm
             nalarm += 1
     for i in range(regular, count):
         pid = w_ids[i]

@@ -73,7 +73,8 @@ PREV = 3
 
 # Rows of ``ScheduleState.work``.
 W_SLOTS = 0
-"""Rank: the withdrawn slots, in bucket order (-1 for a pair switched back on)."""
+"""Rank: the withdrawn slots, in bucket order, as rank slots hold pairs: ``slot``, or
+``-2 - slot`` if its pair stood in alarm (-1 for a pair switched back on)."""
 W_IDS = 1
 """The pairs selected this step: evaluated first, then (deadline) deferred ones."""
 W_ALARMS = 2
