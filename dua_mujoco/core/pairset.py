@@ -67,7 +67,10 @@ def _sphere_halfspace_tau(c, v, plane, p, eps, accel, delta):  # pragma: no cove
 
 @nb.njit(cache=True, inline="always")
 def pair_tau(p, geometry):  # pragma: no cover - jitted
-    """tau of pair ``p``; ``geometry`` is ``PairSet.geometry``'s tuple."""
+    """tau of pair ``p``; ``geometry`` is ``PairSet.inputs(...) + PairSet.arrays()``:
+    ``(centers, velocities, planes, shapes, first, second, kind, eps, accel, vel_uncertainty,
+    speed)``, one argument instead of eleven through every kernel (``kind`` is nonzero exactly
+    where ``second`` is not a sphere, what a kernel that gathers sphere states has to know)."""
     centers, velocities, planes, shapes, first, second, kind, eps, accel, delta, speed = geometry
     i = first[p]
     j = second[p]
@@ -183,7 +186,7 @@ class PairSet:
             half-space and shape pairs.
         shapes: ``(nshape, 16)`` static shape records (``dua_mujoco.core.shapes.pack_shapes``)
             that shape pairs index, or None; held as ``PairSet.shapes`` (static shapes do not
-            move, so ``tau`` and ``geometry`` use them unless given others).
+            move, so ``tau`` and ``inputs`` use them unless given others).
 
     Attributes:
         kind: ``(M,)`` int8 ``PairKind`` codes.
@@ -321,29 +324,8 @@ class PairSet:
         idx = as_ids("ids", ids)
         if idx.size and (idx.min() < 0 or idx.max() >= len(self)):
             raise InvalidInputError(f"pair ids must be in [0, {len(self)}); got {idx.tolist()}.")
-        geometry = self.geometry(centers, velocities, halfspaces, shapes=shapes)
-        return np.asarray(_tau_pairs(idx, geometry))
-
-    def geometry(
-        self,
-        centers: npt.ArrayLike,
-        velocities: npt.ArrayLike,
-        halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None,
-        *,
-        shapes: npt.ArrayLike | None = None,
-        check_finite: bool = True,
-    ) -> tuple[np.ndarray, ...]:
-        """The tuple the tau kernels read: validated sphere, half-space and shape data, then pairs.
-
-        ``(centers, velocities, planes, shapes, first, second, kind, eps, accel,
-        vel_uncertainty, speed)``: :meth:`inputs`, then :attr:`arrays`; one argument instead
-        of eleven through every kernel. ``kind`` is nonzero exactly where ``second`` is not a
-        sphere, which is what a kernel that gathers sphere states has to know.
-        """
-        return (
-            self.inputs(centers, velocities, halfspaces, shapes=shapes, check_finite=check_finite)
-            + self.arrays()
-        )
+        inputs = self.inputs(centers, velocities, halfspaces, shapes=shapes)
+        return np.asarray(_tau_pairs(idx, inputs + self.arrays()))
 
     def arrays(self) -> tuple[np.ndarray, ...]:
         """``(first, second, kind, eps, accel, vel_uncertainty, speed)``, fixed at construction."""

@@ -48,7 +48,7 @@ was not finite, after ``kernels.restore`` undid the selection."""
 def step_points_kernel(st, n, geometry):  # pragma: no cover - jitted
     """The fused step on free spheres: select, evaluate tau, reinsert (a ``FusedKernel``).
 
-    ``geometry`` is ``PairSet.geometry``'s tuple. A pair whose state is not finite abandons the
+    ``geometry`` is ``pair_tau``'s tuple. A pair whose state is not finite abandons the
     step before anything is reinserted.
     """
     centers, velocities, _, _, first, second, halfspace, _, _, _, _ = geometry

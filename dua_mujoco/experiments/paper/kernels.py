@@ -65,7 +65,7 @@ def kernel_costs(n: int, params: WorldParams, reps: int, seed: int = 0) -> tuple
     c, v = world.positions, world.velocities
     # A throwaway scheduler: the loop drives its state without the Python protocol.
     dua = DUAScheduler(pairs.tau(np.arange(len(pairs)), c, v), dt=1.0)
-    state, geometry = dua.kernel_state, pairs.geometry(c, v, None)
+    state, geometry = dua.kernel_state, pairs.inputs(c, v, None) + pairs.arrays()
     _dua_kernel_loop(1, 1, state, geometry)
     # Best of three: other processes only ever add time, so the minimum is the cleanest estimate.
     dua_ns = math.inf
