@@ -6,7 +6,8 @@
 
 One rollout per configuration (pilot seed 99, rollout seed 0, ``accel="auto"``, period 1) on
 each scene; every configuration of a scene sees the same controls, hence the same trajectory.
-Configurations: ``dua`` (slots_per_bucket 1, 4, 16, 64), ``deadline`` (no cap, caps 16 and 64),
+Configurations: ``dua`` (slots_per_bucket 1, 4, 16, 64), ``deadline`` (the default: no cap,
+alarm backoff 8; then backoff 1, which gives select-all's alarms exactly; caps 16 and 64),
 ``select-all``, each with the old urgency (``static="sphere"``), the new (``static="shape"``,
 the default) and the two-level one (``static="shape", refine=8``); then the swept-sphere
 broadphase (sort-and-sweep) and MuJoCo's gap-inflated collision, on the old and new coverings.
@@ -60,6 +61,7 @@ SCHEDULES: dict[str, dict] = {
     "dua q=16": {"schedule": "dua", "slots_per_bucket": 16},
     "dua q=64": {"schedule": "dua", "slots_per_bucket": 64},
     "deadline": {"schedule": "deadline"},
+    "deadline backoff=1": {"schedule": "deadline", "alarm_backoff": 1},
     "deadline cap=64": {"schedule": "deadline", "max_evals_per_step": 64},
     "deadline cap=16": {"schedule": "deadline", "max_evals_per_step": 16},
     "select-all": {"schedule": "select-all"},
