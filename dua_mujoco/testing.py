@@ -243,11 +243,7 @@ def _worst_violations(monitor: Monitor | None, model: mujoco.MjModel) -> list[st
     """One line per (body, kind) of broken bound: the largest value against its bound."""
     if monitor is None or monitor.bound_checks is None:
         return []
-    worst: dict[tuple[int, str], tuple[float, float, float]] = {}
-    for v in monitor.bound_checks.violations:
-        key = (v.body, v.kind)
-        if key not in worst or v.value > worst[key][0]:
-            worst[key] = (v.value, v.bound, v.time)
+    worst = {k: (v.value, v.bound, v.time) for k, v in monitor.bound_checks.worst.items()}
     ranked = sorted(worst.items(), key=lambda kv: -kv[1][0] / max(kv[1][1], 1e-300))
     lines = [
         f"  body {model.body(b).name or b!r}: {kind} {value:.4g} > bound {bound:.4g} "

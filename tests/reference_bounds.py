@@ -36,6 +36,13 @@ class ReferenceBoundMonitor(BoundMonitor):
         self._prev_c: np.ndarray | None = None
         self._prev_u: np.ndarray | None = None
         self._prev_w: np.ndarray | None = None
+        # Its own record, a plain list (the monitor keeps runs of broken updates).
+        self._held: list[bool] = []
+
+    @property
+    def held(self) -> list[bool]:
+        """Per update: True when no bound was broken at that update."""
+        return self._held
 
     def _flag(self, kind: str, mask: np.ndarray, values: np.ndarray, t: float) -> np.ndarray:
         """Record violations of ``kind`` for spheres in ``mask`` (the worst value per body)."""
@@ -49,7 +56,7 @@ class ReferenceBoundMonitor(BoundMonitor):
             "speed": self._bounds.speed,
         }[kind]
         assert bound is not None
-        step = len(self.held)
+        step = len(self._held)
         for body in sorted(worst):
             self.violations.append(
                 BoundViolation(step, t, body, kind, worst[body], float(bound[body]))
@@ -84,5 +91,5 @@ class ReferenceBoundMonitor(BoundMonitor):
                 found.append(self._flag("accel", acc > self._A * (1 + self._rtol) + tol_a, acc, t))
         self._prev_c, self._prev_u, self._prev_w, self._prev_t = c, u, w, t
         out = np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=np.int64)
-        self.held.append(out.size == 0)
+        self._held.append(out.size == 0)
         return out.astype(np.int64)

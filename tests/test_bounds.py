@@ -536,7 +536,8 @@ def _same_updates(
     mocap: MocapVelocityTracker | None = None,
 ) -> BoundMonitor:
     """Step, then hold ``BoundMonitor`` to the numpy reference at every update."""
-    fast = BoundMonitor(m, bounds, spheres, mocap=mocap)
+    # Every violation is compared: keep them all.
+    fast = BoundMonitor(m, bounds, spheres, mocap=mocap, max_violations=10**9)
     ref = ReferenceBoundMonitor(m, bounds, spheres, mocap=mocap)
     for k in range(steps):
         drive(m, d, k)
@@ -565,6 +566,34 @@ def test_monitor_kernel_matches_numpy_reference_on_scenes(scene: str) -> None:
     assert mon.violations, "the rollout should break a bound somewhere (else the test is weak)"
     if mocap is not None:
         assert mocap.nupdates > 0
+
+
+def test_monitor_memory_stays_bounded_when_bounds_break_every_step() -> None:
+    """Clutter's stirrer breaks a bound nearly every step: the monitor keeps the first
+    ``max_violations`` violations, the worst of each body and kind, and runs of broken
+    updates, and answers ``bounds_held`` over any window as the per-update record would."""
+    m, d = load_scene("clutter")
+    ctrl = make_controller(m, "random", seed=4)
+    mocap = MocapVelocityTracker(m)
+    bounds = MotionBounds.declare(m, 5.0, speed=8.0)
+    mon = BoundMonitor(m, bounds, mocap=mocap, max_violations=7)
+    full = BoundMonitor(m, bounds, mocap=mocap, max_violations=10**9)
+    for _ in range(400):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        mocap.update(d)
+        np.testing.assert_array_equal(mon.update(m, d), full.update(m, d))
+    assert mon.nviolations == full.nviolations == len(full.violations) > 7
+    assert mon.violations == full.violations[:7]
+    for (body, kind), v in mon.worst.items():
+        assert v.value == max(w.value for w in full.violations if (w.body, w.kind) == (body, kind))
+    assert set(mon.worst) == {(v.body, v.kind) for v in full.violations}
+    held = mon.held
+    assert len(held) == mon.nupdates == 400 and not all(held) and any(held)
+    rng = np.random.default_rng(0)
+    for start, stop in rng.integers(0, 420, size=(300, 2)):
+        assert mon.bounds_held(int(start), int(stop)) == all(held[start:stop])
+    assert mon.bounds_held(0, 0) and mon.bounds_held(400)
 
 
 def test_monitor_kernel_matches_reference_with_offsets_and_impulse() -> None:

@@ -7,6 +7,7 @@ by the guarantee (docs/discrete-time.md derives each check).
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -150,6 +151,7 @@ class BoundMonitor:
         mocap: MocapVelocityTracker | None = None,
         mocap_period: int = 1,
         rtol: float = 1e-9,
+        max_violations: int = 10_000,
     ) -> None:
         """Create a monitor.
 
@@ -168,6 +170,10 @@ class BoundMonitor:
                 the step after a tracker update (the hypothesis at a prediction instant; in
                 between the tracker's velocities are stale by design).
             rtol: relative tolerance on every comparison.
+            max_violations: how many violations :attr:`violations` keeps (the first ones);
+                :attr:`nviolations` counts them all and :attr:`worst` keeps the largest of each
+                body and kind, so that a long run whose bounds break every step (a driven mocap
+                body, say) holds O(bodies) memory, not O(steps).
         """
         if bounds.accel.shape != (model.nbody,):
             raise InvalidInputError("bounds were made for a model with a different nbody.")
@@ -222,13 +228,20 @@ class BoundMonitor:
         self._cur = np.zeros((n, 9))
         self._nprev = 0
         self._values = np.zeros((n, 3))
-        self._broken = np.zeros((n, 3), dtype=np.bool_)
+        self._flags = np.zeros((n, 3), dtype=np.bool_)
         self._twist = np.zeros((model.nbody, 6))  # mocap roots' twists (zero elsewhere)
         self._prev_t = 0.0
         self.violations: list[BoundViolation] = []
-        """Every violation so far, in order."""
-        self.held: list[bool] = []
-        """Per update: True when no bound was broken at that update."""
+        """The first ``max_violations`` violations, in order."""
+        self.nviolations = 0
+        """Every violation so far (body-updates)."""
+        self.worst: dict[tuple[int, str], BoundViolation] = {}
+        """The largest violation of each ``(body, kind)`` so far."""
+        self.nupdates = 0
+        """Updates so far."""
+        self._max_violations = int(max_violations)
+        # Runs [start, stop) of consecutive updates that broke a bound: O(runs), not O(steps).
+        self._broken_runs: list[list[int]] = []
 
     def _flag(self, kind: str, mask: np.ndarray, values: np.ndarray, t: float) -> np.ndarray:
         """Record violations of ``kind`` for spheres in ``mask``; return the body ids."""
@@ -239,10 +252,14 @@ class BoundMonitor:
         np.maximum.at(worst, bodies, values[mask])
         ub = np.unique(bodies)
         bound = self._bounds_for(kind)
-        step = len(self.held)
-        self.violations.extend(
-            BoundViolation(step, t, int(b), kind, float(worst[b]), float(bound[b])) for b in ub
-        )
+        for b in ub.tolist():
+            v = BoundViolation(self.nupdates, t, b, kind, float(worst[b]), float(bound[b]))
+            if len(self.violations) < self._max_violations:
+                self.violations.append(v)
+            top = self.worst.get((b, kind))
+            if top is None or v.value > top.value:
+                self.worst[(b, kind)] = v
+        self.nviolations += int(ub.size)
         return ub
 
     def _bounds_for(self, kind: str) -> np.ndarray:
@@ -294,22 +311,40 @@ class BoundMonitor:
             check,
             self._rtol,
             self._values,
-            self._broken,
+            self._flags,
         )
         self._prev, self._cur = self._cur, self._prev
         self._nprev += 1
         self._prev_t = t
         if nbroken == 0:
-            self.held.append(True)
+            self.nupdates += 1
             return np.zeros(0, dtype=np.int64)
         found = [
-            self._flag(kind, self._broken[:, col], self._values[:, col], t)
+            self._flag(kind, self._flags[:, col], self._values[:, col], t)
             for kind, col in (("speed", _SPEED), ("discrepancy", _DISC), ("accel", _ACC))
         ]
         out = np.unique(np.concatenate(found))
-        self.held.append(False)
+        runs = self._broken_runs
+        if runs and runs[-1][1] == self.nupdates:
+            runs[-1][1] += 1
+        else:
+            runs.append([self.nupdates, self.nupdates + 1])
+        self.nupdates += 1
         return out.astype(np.int64)
 
+    @property
+    def held(self) -> list[bool]:
+        """Per update: True when no bound was broken at that update (built when read)."""
+        held = [True] * self.nupdates
+        for start, stop in self._broken_runs:
+            held[start:stop] = [False] * (stop - start)
+        return held
+
     def bounds_held(self, start: int = 0, stop: int | None = None) -> bool:
-        """Whether no bound was broken at updates ``start`` .. ``stop - 1``."""
-        return all(self.held[start:stop])
+        """Whether no bound was broken at updates ``start`` .. ``stop - 1`` (O(log runs))."""
+        stop = self.nupdates if stop is None else min(stop, self.nupdates)
+        if start >= stop:
+            return True
+        # The last run starting before ``stop`` is the only one that can reach into the window.
+        k = bisect.bisect_left(self._broken_runs, [stop]) - 1
+        return k < 0 or self._broken_runs[k][1] <= start
