@@ -128,6 +128,34 @@ def test_nothing_alarmed_draws_no_pure_red() -> None:
     assert AlarmOverlay(predictor).geom_levels().tolist() == [3, 3]
 
 
+def test_overlay_draws_every_pair_standing_in_alarm_and_pruned_sets() -> None:
+    """Tint, connectors and count follow the pairs standing in alarm (by the model's pair ids),
+    also on steps where the backoff does not evaluate them, and on a pruned predictor, whose
+    scheduler holds only some pairs."""
+    from dua_mujoco.mj.scenes import load_scene
+
+    model, data = load_scene("swarm:300")
+    predictor = Predictor(model, accel=30.0)
+    mujoco.mj_step(model, data)
+    predictor.reset(data)
+    assert predictor.held_pairs.size < predictor.nsphere_pairs  # pruned
+    overlay = AlarmOverlay(predictor)
+    quiet_steps = 0
+    for _ in range(60):
+        mujoco.mj_step(model, data)
+        alarms = predictor.step(data)
+        standing = overlay.standing_pairs()
+        state = predictor.pair_state()
+        np.testing.assert_array_equal(standing, np.flatnonzero(state.alarm_state() & state.active))
+        assert set(alarms.pairs.tolist()) <= set(standing.tolist())
+        quiet_steps += bool(standing.size > len(alarms))
+        scene = _scene(model, data, model.ngeom + standing.size + 1)
+        before = scene.ngeom
+        assert overlay.add_to_scene(scene, data, alarms) == 0
+        assert scene.ngeom - before == standing.size  # one connector per standing pair
+    assert quiet_steps > 0  # pairs stood in alarm without being evaluated (backoff)
+
+
 def _scene(model: mujoco.MjModel, data: mujoco.MjData, maxgeom: int) -> mujoco.MjvScene:
     scene = mujoco.MjvScene(model, maxgeom=maxgeom)
     cam = mujoco.MjvCamera()

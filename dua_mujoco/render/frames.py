@@ -82,7 +82,8 @@ def _font(size: int) -> Any:
 
 
 def status_line(time: float, nalarms: int, misses: int | None = None) -> str:
-    """The default text of a frame: ``"t = 1.234 s  alarms 3  missed 0"``."""
+    """The default text of a frame: ``"t = 1.234 s  alarms 3  missed 0"`` (``nalarms``: the
+    sphere pairs standing in alarm)."""
     line = f"t = {time:.3f} s  alarms {nalarms}"
     return line if misses is None else f"{line}  missed {misses}"
 
@@ -215,7 +216,7 @@ class OverlayRenderer(Closing):
         self.overlay.add_to_scene(r.scene, data, alarms)
         frame = r.render()
         if self.overlay.options.text:
-            nalarms = 0 if alarms is None else len(alarms)
+            nalarms = 0 if alarms is None else int(self.overlay.standing_pairs().size)
             frame = _stamp_text(
                 frame, status_line(data.time, nalarms, misses) if text is None else text
             )

@@ -134,7 +134,7 @@ class AlarmOverlay:
         self._warned = False
         model = predictor.model
         tables = predictor.tables
-        first = np.asarray(tables.first, dtype=np.int64)
+        first = self._first = np.asarray(tables.first, dtype=np.int64)
         self._second = np.asarray(tables.second, dtype=np.int64)
         self._kind = np.asarray(tables.kind, dtype=np.int64)
         self._pair_geom1 = np.asarray(tables.geom1, dtype=np.int64)
@@ -157,15 +157,25 @@ class AlarmOverlay:
             those geoms are tinted: the rest of the scene is not urgent and keeps its colours.
         """
         out = np.full(self.predictor.model.ngeom, np.inf)
-        sched = self.predictor.scheduler
-        if sched is None or self._all_pairs.size == 0:
+        if self.predictor.scheduler is None or self._all_pairs.size == 0:
             return out
-        alarmed = sched.alarm_state(self._all_pairs) & sched.active
-        steps = np.where(alarmed, np.maximum(sched.last_tau, 0.0) / sched.dt, np.inf)
+        # By the model's pair ids: a pruned predictor's scheduler holds only some of them.
+        state = self.predictor.pair_state()
+        alarmed = state.alarm_state() & state.active
+        tau = state.last_tau_of(self._all_pairs)
+        steps = np.where(alarmed, np.maximum(tau, 0.0) / self.predictor.dt, np.inf)
         np.minimum.at(out, self._pair_geom1, steps)
         valid = self._pair_geom2 >= 0
         np.minimum.at(out, self._pair_geom2[valid], steps[valid])
         return out
+
+    def standing_pairs(self) -> np.ndarray:
+        """``(k,)`` ids of the active sphere pairs standing in alarm now (empty before
+        ``predictor.reset``): the pairs whose geoms are tinted and whose connectors are drawn."""
+        if self.predictor.scheduler is None or self._all_pairs.size == 0:
+            return np.zeros(0, dtype=np.int64)
+        state = self.predictor.pair_state()
+        return np.flatnonzero(state.alarm_state() & state.active)
 
     def geom_levels(self) -> np.ndarray:
         """``(ngeom,)`` int level per geom: 0 imminent, 1 near, 2 alarmed, 3 not alarmed."""
@@ -187,7 +197,8 @@ class AlarmOverlay:
         Args:
             scene: The scene to modify in place.
             data: The ``MjData`` the predictor read (sphere centres come from ``geom_xpos``).
-            alarms: The alarms to draw (None: none, e.g. before ``reset``).
+            alarms: The latest step's alarms; None before ``reset`` (no connectors). The
+                connectors are those of every pair standing in alarm (:meth:`standing_pairs`).
 
         Returns:
             The number of overlay geoms dropped because the scene was full (also added to
@@ -198,9 +209,14 @@ class AlarmOverlay:
         if opts.tint_geoms:
             self._tint(scene, levels)
         dropped = 0
-        if opts.connectors and alarms is not None and len(alarms):
-            start, end = self._connector_ends(data, alarms)
-            dropped += self._add_connectors(scene, start, end)
+        if opts.connectors and alarms is not None:
+            # Every pair standing in alarm, not only those this step evaluated: with the
+            # deadline schedule's backoff a resting contact is evaluated every few steps, and
+            # its line would blink while its geoms stay tinted.
+            pairs = self.standing_pairs()
+            if pairs.size:
+                start, end = self._connector_ends(data, pairs)
+                dropped += self._add_connectors(scene, start, end)
         if opts.show_spheres and self.predictor.nsphere:
             dropped += self._add_spheres(scene, data, levels)
         if dropped:
@@ -250,13 +266,14 @@ class AlarmOverlay:
             if g.objtype == _OBJ_GEOM and tint[g.objid]:
                 g.rgba[:3] = TINTS[levels[g.objid]]
 
-    def _connector_ends(self, data: mujoco.MjData, alarms: Alarms) -> tuple[np.ndarray, np.ndarray]:
+    def _connector_ends(
+        self, data: mujoco.MjData, pairs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         cov = self.predictor.covering
-        pairs = np.asarray(alarms.pairs, dtype=np.int64)
         kind = self._kind[pairs]
         second = self._second[pairs]
         spheres = kind == int(PairKind.SPHERE)
-        start = sphere_world_centers(cov, data.geom_xpos, data.geom_xmat, alarms.sphere1)
+        start = sphere_world_centers(cov, data.geom_xpos, data.geom_xmat, self._first[pairs])
         end = sphere_world_centers(
             cov, data.geom_xpos, data.geom_xmat, np.where(spheres, second, 0)
         )
