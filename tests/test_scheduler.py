@@ -147,6 +147,33 @@ def test_fused_step_equals_select_update() -> None:
         np.testing.assert_array_equal(a.last_tau, b.last_tau)
 
 
+def test_fused_step_takes_new_converted_or_reshaped_inputs() -> None:
+    """The fused step remembers the arrays of its latest call; new arrays, lists, float32 and an
+    array reshaped in place between calls must give the protocol's alarms all the same."""
+    world = SphereWorld(20, seed=7, radius=0.08, accel=2.0, dt=0.01)
+    pairs = world.pairs()
+    tau0 = pairs.tau(np.arange(len(pairs)), world.positions, world.velocities)
+    fused, protocol = DUAScheduler(tau0, dt=world.dt), DUAScheduler(tau0, dt=world.dt)
+    flat = np.zeros(world.positions.size)
+    for k in range(60):
+        world.step()
+        c, v = world.positions, world.velocities
+        if k % 4 == 1:
+            c, v = c.copy(), v.copy()  # new arrays
+        elif k % 4 == 2:
+            c, v = c.tolist(), v.astype(np.float32)  # converted
+        elif k % 4 == 3:
+            flat.shape = (flat.size,)  # the same object, reshaped in place each time
+            flat[:] = world.positions.ravel()
+            flat.shape = world.positions.shape
+            c = flat
+        ids = protocol.select()
+        want = protocol.update(ids, pairs.tau(ids, np.asarray(c, float), np.asarray(v, float)))
+        got = fused.step_points(pairs, c, v)
+        np.testing.assert_array_equal(np.sort(got), np.sort(want))
+        np.testing.assert_array_equal(fused.last_tau, protocol.last_tau)
+
+
 def test_halfspace_pairs_in_fused_step() -> None:
     # One sphere falling onto the plane z = 0 (normal +z), one far away.
     pairs = PairSet([0, 0, 1], [1, 0, 0], [0.2, 0.1, 0.1], 1.0, halfspace=[False, True, True])

@@ -123,7 +123,7 @@ class Scheduler:
         # step_points' compiled entry for each kind of input arrays (their flags), and the
         # arrays of the latest step with theirs.
         self._points_entries: dict[tuple[int, ...], Callable[..., tuple[int, int, int]]] = {}
-        self._points_last: tuple = (None,) * 5
+        self._points_last: tuple = (None,) * 7
         # The latest step's alarm rows (W_ALARMS, W_NEW) and their count: a copy, or the live
         # work rows after a context step (valid until the next step, which resets both).
         self._last_rows = np.ones((2, self.initial_alarms.shape[0]), dtype=np.int64)
@@ -335,21 +335,26 @@ class Scheduler:
         Returns:
             ``(k,)`` int64 ids of the alarmed pairs.
         """
-        if len(pairs) != self.npairs:
-            raise ShapeError(f"pairs has {len(pairs)} pairs; the scheduler has {self.npairs}.")
         if self._pending is not None:
             raise SchedulerError("a fused step between select() and update(): finish the step.")
-        c, v, planes, shapes = pairs.inputs(centers, velocities, halfspaces, check_finite=False)
         if self._state_ref is None:
             self._state_ref = Ref(self._kernel_state)
         last = self._points_last
-        if c is last[0] and v is last[1] and planes is last[2] and shapes is last[3]:
-            entry = last[4]  # the same arrays as last step (the common case): the same types
+        if (
+            centers is last[0]
+            and velocities is last[1]
+            and halfspaces is None
+            and pairs is last[2]
+            and pairs.shapes is last[3]
+            and centers.shape == last[6]
+            and velocities.shape == last[6]
+        ):
+            # The arrays of the latest step, used as they were (checked then; their dtype
+            # cannot change, their shape is compared): the common case, 2 us of checks saved.
+            arrays, entry = last[4], last[5]
         else:
-            entry = self._points_entry(c, v, planes, shapes, pairs)
-        _, nalarm, bad = entry(
-            self._state_ref, self.step_count + 1, c, v, planes, shapes, pairs.kernel_ref
-        )
+            arrays, entry = self._points_inputs(pairs, centers, velocities, halfspaces)
+        _, nalarm, bad = entry(self._state_ref, self.step_count + 1, *arrays)
         if bad < 0:
             return self._finish(nalarm)
         i, j = int(pairs.first[bad]), int(pairs.second[bad])
@@ -358,24 +363,33 @@ class Scheduler:
             "velocities hold NaN or inf; check that the simulation has not diverged."
         )
 
-    def _points_entry(self, *inputs: Any) -> Callable[..., tuple[int, int, int]]:
-        """``step_points_ref_kernel``'s compiled entry for these ``(centers, velocities,
-        planes, shapes, pairs)``, remembered with them for the next step.
+    def _points_inputs(
+        self,
+        pairs: PairSet,
+        centers: npt.ArrayLike,
+        velocities: npt.ArrayLike,
+        halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None,
+    ) -> tuple[tuple, Callable[..., tuple[int, int, int]]]:
+        """``step_points_ref_kernel``'s arguments after the state and the step (checked) and its
+        compiled entry for them, remembered for the next step when the inputs were used as given.
 
         The entry point skips numba's dispatch (1 us of a step of a few); the arrays' flags
         (read-only, aligned, contiguous) are all that can change their compiled types, since
         ``PairSet.inputs`` fixes their dtypes and shapes.
         """
-        c, v, planes, shapes, pairs = inputs
+        if len(pairs) != self.npairs:
+            raise ShapeError(f"pairs has {len(pairs)} pairs; the scheduler has {self.npairs}.")
+        c, v, planes, shapes = pairs.inputs(centers, velocities, halfspaces, check_finite=False)
         key = (c.flags.num, v.flags.num, planes.flags.num, shapes.flags.num)
+        arrays = (c, v, planes, shapes, pairs.kernel_ref)
         entry = self._points_entries.get(key)
         if entry is None:
-            entry = compiled_entry(
-                step_points_ref_kernel, self._state_ref, 1, c, v, planes, shapes, pairs.kernel_ref
-            )
+            entry = compiled_entry(step_points_ref_kernel, self._state_ref, 1, *arrays)
             self._points_entries[key] = entry
-        self._points_last = (c, v, planes, shapes, entry)
-        return entry
+        # Converted inputs (lists, other dtypes) are new arrays each step: not remembered.
+        if c is centers and v is velocities and halfspaces is None:
+            self._points_last = (centers, velocities, pairs, pairs.shapes, arrays, entry, c.shape)
+        return arrays, entry
 
     @property
     def last_new(self) -> np.ndarray:
