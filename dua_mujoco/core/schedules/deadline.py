@@ -8,6 +8,10 @@ the largest interval with ``(s + latency) dt <= tau``, so it alarms only when ev
 not covered: ``tau < (1 + latency) dt``, select-all's rule, at about ``sum(dt / tau)``
 evaluations a step instead of ``M``.
 
+A pair that keeps alarming (a resting contact) is evaluated after 1, 2, 4, then every
+``alarm_backoff`` steps, standing in alarm in between; ``alarm_backoff=1`` keeps select-all's
+alarms exactly.
+
 Due pairs wait in a timing wheel (one linked list per step, modulo the wheel size): O(1) per
 evaluation, O(M) memory. An optional cap bounds the work a step: when more pairs are due, those
 with the least time left are served and the rest wait, standing in alarm as soon as their last
