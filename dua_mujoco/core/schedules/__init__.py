@@ -1,7 +1,7 @@
 """The schedules: which pairs to evaluate each step, and when a verdict alarms.
 
 All three implement one interface (``Scheduler``: ``select``, ``update``, ``set_active``,
-``alarm_state``, and fused steps through ``step_with``) over one typed state
+``alarm_state``, and fused steps through ``step_context``) over one typed state
 (``ScheduleState``) and one set of compiled kernels (``kernels``).
 """
 

@@ -4,9 +4,10 @@ Two ways to drive a schedule, with the same results:
 
 - the Python protocol: ``ids = select()``, evaluate tau of ``ids`` however you like, then
   ``update(ids, tau)`` returns the alarmed ids;
-- a fused step: ``step_with(kernel, *args)`` runs one compiled ``kernel(state, n, *args)`` that
-  selects, evaluates and reinserts (``step_points`` for free spheres; the MuJoCo layer has its
-  own for spheres on rigid bodies).
+- a fused step: ``step_context(kernel, context, *args)`` runs one compiled
+  ``kernel(context, n, *args)`` whose ``context`` holds the schedule's state, and that selects,
+  evaluates and reinserts (``step_points`` for free spheres; the MuJoCo layer has its own for
+  spheres on rigid bodies).
 """
 
 from __future__ import annotations
@@ -80,13 +81,15 @@ def step_points_ref_kernel(
     state_ref, n, centers, velocities, planes, shapes, pairs_ref
 ):  # pragma: no cover - jitted
     """:func:`step_points_kernel` on a ``Ref`` of the schedule state and one of the pair set's
-    arrays (``PairSet.kernel_ref``): six arrays fewer to unbox per call than the tuples."""
-    return step_points_kernel(
+    arrays (``PairSet.kernel_ref``): six arrays fewer to unbox per call than the tuples. A
+    ``ContextKernel``: returns ``(nalarm, bad, count)``."""
+    count, nalarm, bad = step_points_kernel(
         state_ref.value, n, (centers, velocities, planes, shapes, *pairs_ref.value)
     )
+    return nalarm, bad, count
 
 
-def compiled_entry(kernel: Any, *args: object) -> FusedKernel:
+def compiled_entry(kernel: Any, *args: object) -> Callable[..., tuple]:
     """The compiled entry point of ``kernel`` for arguments of the types of ``args``.
 
     Calling it skips numba's dispatch (typing every argument, choosing an overload): about a
@@ -96,11 +99,11 @@ def compiled_entry(kernel: Any, *args: object) -> FusedKernel:
     """
     overloads = getattr(kernel, "overloads", None)
     if overloads is None:
-        return cast(FusedKernel, kernel)
+        return cast(Callable[..., tuple], kernel)
     signature = tuple(kernel.typeof_pyval(a) for a in args)
     if signature not in overloads:
         kernel.compile(signature)
-    return cast(FusedKernel, overloads[signature].entry_point)
+    return cast(Callable[..., tuple], overloads[signature].entry_point)
 
 
 class Scheduler:
@@ -122,7 +125,7 @@ class Scheduler:
         self._pending: np.ndarray | None = None
         # step_points' compiled entry for each kind of input arrays (their flags), and the
         # arrays of the latest step with theirs.
-        self._points_entries: dict[tuple[int, ...], Callable[..., tuple[int, int, int]]] = {}
+        self._points_entries: dict[tuple[int, ...], ContextKernel] = {}
         self._points_last: tuple = (None,) * 7
         # The latest step's alarm rows (W_ALARMS, W_NEW) and their count: a copy, or the live
         # work rows after a context step (valid until the next step, which resets both).
@@ -280,21 +283,13 @@ class Scheduler:
         # Back to selection order (a pair may be selected twice: then both get its tau).
         self.state.w_tau[np.argsort(expected, kind="stable")] = t[np.argsort(idx, kind="stable")]
         nalarm = kernels.reinsert(self._kernel_state, self.step_count + 1, count)
-        return self._finish(nalarm)
-
-    def step_with(self, kernel: FusedKernel, *args: object) -> tuple[np.ndarray, int]:
-        """Run one fused step ``kernel(state, n, *args)`` (see ``FusedKernel``).
-
-        Returns:
-            ``(alarmed ids, bad)``: ``bad`` is a pair whose state was not finite (the step was
-            then not taken and can be retried) or -1.
-        """
-        if self._pending is not None:
-            raise SchedulerError("a fused step between select() and update(): finish the step.")
-        _, nalarm, bad = kernel(self._kernel_state, self.step_count + 1, *args)
-        if bad >= 0:
-            return self.state.work[W_ALARMS, :0].copy(), int(bad)
-        return self._finish(nalarm), -1
+        self.step_count += 1
+        self._pending = None
+        # The new flags are read (by last_new) before the next step, if at all: the live rows
+        # serve. The caller keeps the ids: a copy, as the next step reuses the row.
+        self._last_rows = self._alarm_rows
+        self._nalarm = nalarm
+        return self._alarm_rows[0, :nalarm].copy()
 
     def step_context(self, kernel: ContextKernel, context: object, *args: object) -> tuple:
         """Run one compiled step ``kernel(context, n, *args)`` whose ``context`` holds this
@@ -335,8 +330,6 @@ class Scheduler:
         Returns:
             ``(k,)`` int64 ids of the alarmed pairs.
         """
-        if self._pending is not None:
-            raise SchedulerError("a fused step between select() and update(): finish the step.")
         if self._state_ref is None:
             self._state_ref = Ref(self._kernel_state)
         last = self._points_last
@@ -354,9 +347,9 @@ class Scheduler:
             arrays, entry = last[4], last[5]
         else:
             arrays, entry = self._points_inputs(pairs, centers, velocities, halfspaces)
-        _, nalarm, bad = entry(self._state_ref, self.step_count + 1, *arrays)
+        nalarm, bad, _ = self.step_context(entry, self._state_ref, *arrays)
         if bad < 0:
-            return self._finish(nalarm)
+            return self._alarm_rows[0, :nalarm].copy()
         i, j = int(pairs.first[bad]), int(pairs.second[bad])
         raise NonFiniteStateError(
             f"the state of pair {bad} (spheres {i}, {j}) is not finite: centers or "
@@ -369,7 +362,7 @@ class Scheduler:
         centers: npt.ArrayLike,
         velocities: npt.ArrayLike,
         halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None,
-    ) -> tuple[tuple, Callable[..., tuple[int, int, int]]]:
+    ) -> tuple[tuple, ContextKernel]:
         """``step_points_ref_kernel``'s arguments after the state and the step (checked) and its
         compiled entry for them, remembered for the next step when the inputs were used as given.
 
@@ -395,12 +388,3 @@ class Scheduler:
     def last_new(self) -> np.ndarray:
         """``(k,)`` bool, which of the latest step's alarms are new (see ``W_NEW``)."""
         return self._last_rows[1, : self._nalarm].astype(bool)
-
-    def _finish(self, nalarm: int) -> np.ndarray:
-        self.step_count += 1
-        self._pending = None
-        # The caller keeps the ids: a copy, as the next step reuses the row. The new flags are
-        # read (by last_new) before the next step, if at all: the live rows serve.
-        self._last_rows = self._alarm_rows
-        self._nalarm = nalarm
-        return self._alarm_rows[0, :nalarm].copy()
