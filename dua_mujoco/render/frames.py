@@ -216,7 +216,7 @@ class OverlayRenderer(Closing):
         self.overlay.add_to_scene(r.scene, data, alarms)
         frame = r.render()
         if self.overlay.options.text:
-            nalarms = 0 if alarms is None else int(self.overlay.standing_pairs().size)
+            nalarms = 0 if alarms is None else int(self.overlay.standing.size)
             frame = _stamp_text(
                 frame, status_line(data.time, nalarms, misses) if text is None else text
             )

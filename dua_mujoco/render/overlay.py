@@ -125,21 +125,23 @@ class AlarmOverlay:
 
     Attributes:
         dropped: Overlay geoms dropped so far because the scene was full.
+        standing: ``(k,)`` the sphere pairs standing in alarm at the latest
+            :meth:`add_to_scene` (what it tinted and connected).
     """
 
     def __init__(self, predictor: Predictor, *, options: OverlayOptions = OverlayOptions()) -> None:
         self.predictor = predictor
         self.options = options
         self.dropped = 0
+        self.standing = np.zeros(0, dtype=np.int64)
         self._warned = False
         model = predictor.model
         tables = predictor.tables
-        first = self._first = np.asarray(tables.first, dtype=np.int64)
+        self._first = np.asarray(tables.first, dtype=np.int64)
         self._second = np.asarray(tables.second, dtype=np.int64)
         self._kind = np.asarray(tables.kind, dtype=np.int64)
         self._pair_geom1 = np.asarray(tables.geom1, dtype=np.int64)
         self._pair_geom2 = np.asarray(tables.geom2, dtype=np.int64)
-        self._all_pairs = np.arange(first.shape[0], dtype=np.int64)
         # The world (floors, tables, walls) is never tinted: a red table says nothing a red link
         # standing on it does not, and it would flood the frame. Their pairs tint the other geom.
         welded = np.asarray(model.body_weldid)[np.asarray(model.geom_bodyid)] == 0
@@ -147,8 +149,20 @@ class AlarmOverlay:
 
     # ------------------------------------------------------------------- urgency
 
-    def geom_urgency(self) -> np.ndarray:
+    def standing_pairs(self) -> np.ndarray:
+        """``(k,)`` ids of the active sphere pairs standing in alarm now (empty before
+        ``predictor.reset``): the pairs whose geoms are tinted and whose connectors are drawn."""
+        if self.predictor.scheduler is None or self.predictor.nsphere_pairs == 0:
+            return np.zeros(0, dtype=np.int64)
+        # By the model's pair ids: a pruned predictor's scheduler holds only some of them.
+        state = self.predictor.pair_state()
+        return np.flatnonzero(state.alarm_state() & state.active)
+
+    def geom_urgency(self, standing: np.ndarray | None = None) -> np.ndarray:
         """tau, in predictor periods, of each geom's most urgent pair standing in alarm.
+
+        Args:
+            standing: :meth:`standing_pairs`, when the caller has them (None: read them).
 
         Returns:
             ``(ngeom,)`` float64: the minimum of ``last_tau / dt`` over the geom's active sphere
@@ -157,29 +171,21 @@ class AlarmOverlay:
             those geoms are tinted: the rest of the scene is not urgent and keeps its colours.
         """
         out = np.full(self.predictor.model.ngeom, np.inf)
-        if self.predictor.scheduler is None or self._all_pairs.size == 0:
+        pairs = self.standing_pairs() if standing is None else standing
+        if pairs.size == 0:
             return out
-        # By the model's pair ids: a pruned predictor's scheduler holds only some of them.
-        state = self.predictor.pair_state()
-        alarmed = state.alarm_state() & state.active
-        tau = state.last_tau_of(self._all_pairs)
-        steps = np.where(alarmed, np.maximum(tau, 0.0) / self.predictor.dt, np.inf)
-        np.minimum.at(out, self._pair_geom1, steps)
-        valid = self._pair_geom2 >= 0
-        np.minimum.at(out, self._pair_geom2[valid], steps[valid])
+        tau = self.predictor.pair_state().last_tau_of(pairs)
+        steps = np.maximum(tau, 0.0) / self.predictor.dt
+        np.minimum.at(out, self._pair_geom1[pairs], steps)
+        geom2 = self._pair_geom2[pairs]
+        valid = geom2 >= 0
+        np.minimum.at(out, geom2[valid], steps[valid])
         return out
 
-    def standing_pairs(self) -> np.ndarray:
-        """``(k,)`` ids of the active sphere pairs standing in alarm now (empty before
-        ``predictor.reset``): the pairs whose geoms are tinted and whose connectors are drawn."""
-        if self.predictor.scheduler is None or self._all_pairs.size == 0:
-            return np.zeros(0, dtype=np.int64)
-        state = self.predictor.pair_state()
-        return np.flatnonzero(state.alarm_state() & state.active)
-
-    def geom_levels(self) -> np.ndarray:
-        """``(ngeom,)`` int level per geom: 0 imminent, 1 near, 2 alarmed, 3 not alarmed."""
-        urgency = self.geom_urgency()
+    def geom_levels(self, standing: np.ndarray | None = None) -> np.ndarray:
+        """``(ngeom,)`` int level per geom: 0 imminent, 1 near, 2 alarmed, 3 not alarmed
+        (``standing`` as for :meth:`geom_urgency`)."""
+        urgency = self.geom_urgency(standing)
         levels = np.searchsorted(np.asarray(URGENCY_LEVELS), urgency, side="right")
         return np.where(np.isinf(urgency), len(URGENCY_LEVELS), levels)
 
@@ -205,18 +211,18 @@ class AlarmOverlay:
             :attr:`dropped`; the first drop warns with :class:`SceneFullWarning`).
         """
         opts = self.options
-        levels = self.geom_levels()
+        # Read once: the tint, the connectors and the caller's count (``standing``) agree.
+        self.standing = pairs = self.standing_pairs()
+        levels = self.geom_levels(pairs)
         if opts.tint_geoms:
             self._tint(scene, levels)
         dropped = 0
-        if opts.connectors and alarms is not None:
+        if opts.connectors and alarms is not None and pairs.size:
             # Every pair standing in alarm, not only those this step evaluated: with the
             # deadline schedule's backoff a resting contact is evaluated every few steps, and
             # its line would blink while its geoms stay tinted.
-            pairs = self.standing_pairs()
-            if pairs.size:
-                start, end = self._connector_ends(data, pairs)
-                dropped += self._add_connectors(scene, start, end)
+            start, end = self._connector_ends(data, pairs)
+            dropped += self._add_connectors(scene, start, end)
         if opts.show_spheres and self.predictor.nsphere:
             dropped += self._add_spheres(scene, data, levels)
         if dropped:
