@@ -51,6 +51,7 @@ __all__ = [
     "SPHERE_FRAME",
     "SPHERE_OFFSET",
     "SPHERE_ROOT",
+    "fine_buffer",
     "fine_tau",
     "mjdata_frame",
     "pack_spheres",
@@ -200,12 +201,19 @@ def _check_frame(spheres: np.ndarray, frame: tuple[np.ndarray, ...]) -> None:
 
 
 @nb.njit(cache=True)
+def fine_buffer(refine):  # pragma: no cover - jitted
+    """:func:`fine_tau`'s scratch: ``(max_fine + 1, 6)`` fine sphere states (``refine[4]`` is
+    the most fine spheres of a geom; the last row holds the sphere the others are paired with)."""
+    return np.empty((refine[4] + 1, 6))
+
+
+@nb.njit(cache=True)
 def fine_tau(p, rec, coarse, frame, shapes, refine, buf):  # pragma: no cover - jitted
     """The refined tau of pair ``p``: ``max(coarse, min over its fine sub-pairs)``.
 
     ``rec`` is the pair's ``pack_pairs`` row, ``coarse`` its bounding tau, ``refine`` the tuple of
-    :attr:`Refinement.args`, ``buf`` a ``(max_fine, 6)`` scratch buffer. The scan stops as soon
-    as a sub-pair's tau is at most ``coarse``: the maximum is then ``coarse``.
+    :attr:`Refinement.args`, ``buf`` a :func:`fine_buffer`. The scan stops as soon as a sub-pair's
+    tau is at most ``coarse``: the maximum is then ``coarse``.
     """
     fine_spheres, radius, records, _, _ = refine
     r = records[p]
@@ -245,7 +253,7 @@ def fine_tau(p, rec, coarse, frame, shapes, refine, buf):  # pragma: no cover - 
         nb_ = int(r[REFINE_B1]) - b0
         for b in range(nb_):
             rigid_point(b0 + b, fine_spheres, frame, buf[b])
-        sa = np.empty(6)
+        sa = buf[buf.shape[0] - 1]  # not one of the nb_ <= max_fine rows above
         speed = rec[PAIR_SPEED]
         for a in range(a0, a1):
             rigid_point(a, fine_spheres, frame, sa)
@@ -269,9 +277,8 @@ def fine_tau(p, rec, coarse, frame, shapes, refine, buf):  # pragma: no cover - 
 
 def scratch_buffers(width: int, refine: tuple) -> tuple[np.ndarray, np.ndarray]:
     """:func:`step_rigid_kernel`'s ``scratch``: ``(width, 12)`` gathered pair states (``width``
-    the schedule's work width, the most pairs a step selects) and ``(most, 6)`` fine sphere
-    states (``refine[4]`` the most fine spheres of a geom)."""
-    return np.empty((max(int(width), 1), 12)), np.empty((max(int(refine[4]), 1), 6))
+    the schedule's work width, the most pairs a step selects) and :func:`fine_buffer`."""
+    return np.empty((max(int(width), 1), 12)), fine_buffer(refine)
 
 
 @nb.njit(cache=True)

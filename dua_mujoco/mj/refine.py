@@ -30,6 +30,7 @@ from dua_mujoco.mj.kinematics import (
     REFINE_B1,
     REFINE_DIST,
     REFINE_NCOL,
+    fine_buffer,
     fine_tau,
     pack_spheres,
 )
@@ -133,7 +134,7 @@ def build_refinement(
 
 @nb.njit(cache=True)
 def _refine_all(tau, ids, pairs, frame, shapes, refine):  # pragma: no cover - jitted
-    buf = np.empty((refine[4], 6))
+    buf = fine_buffer(refine)
     below = refine[3]
     for k in range(ids.shape[0]):
         p = ids[k]
