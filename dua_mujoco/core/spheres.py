@@ -256,14 +256,13 @@ class SpherePredictor:
         return self._output()
 
     def _make(self, tau0: np.ndarray) -> Scheduler:
-        cap, backoff = self.max_evals_per_step, self.alarm_backoff
         return make_scheduler(
             self.schedule,
             tau0,
             dt=self.dt,
             latency=self.latency,
-            max_evals_per_step=cap,
-            alarm_backoff=backoff,
+            max_evals_per_step=self.max_evals_per_step,
+            alarm_backoff=self.alarm_backoff,
         )
 
     def _rebuild(self, c: np.ndarray, v: np.ndarray, step: int) -> None:
