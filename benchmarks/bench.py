@@ -203,12 +203,12 @@ def compiled_step_us(
     """
     import numba as nb
 
-    from dua_mujoco.mj.kinematics import step_rigid_kernel  # what Predictor.step runs
+    from dua_mujoco.mj.rigid_step import step_rigid_kernel  # what Predictor.step runs
 
     @nb.njit
-    def loop(k, state, n0, pairs, spheres, frame, shapes, refine, scratch):
+    def loop(k, state, n0, pairs, spheres, frame, shapes, refine, exact, scratch):
         for i in range(k):
-            step_rigid_kernel(state, n0 + i, pairs, spheres, frame, shapes, refine, scratch)
+            step_rigid_kernel(state, n0 + i, pairs, spheres, frame, shapes, refine, exact, scratch)
 
     s = predictor.scheduler  # type: ignore[attr-defined]
     args = predictor.kernel_arguments(data)  # type: ignore[attr-defined]

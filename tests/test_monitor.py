@@ -58,7 +58,8 @@ def _reference_episodes(
 @pytest.mark.parametrize(("scene", "period"), [("traffic", 1), ("two_arms", 1), ("traffic", 3)])
 def test_episode_accounting_matches_reference(scene: str, period: int) -> None:
     m, d = load_scene(scene)
-    p = Predictor(m, accel=4.0, period=period)
+    # The sphere urgency alone: the exact level leaves traffic no false alarm to count.
+    p = Predictor(m, accel=4.0, period=period, exact=False)
     ctrl = make_controller(m, "random", seed=1)
     mon = Monitor(p, check_bounds=False)
     ngp = p.geom_pairs.npair

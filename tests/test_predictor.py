@@ -910,12 +910,12 @@ def test_reset_loads_the_compiled_code(scene: str) -> None:
         import mujoco
         from dua_mujoco.core import pairset
         from dua_mujoco.core.schedules import kernels as schedule
-        from dua_mujoco.mj import kinematics, mocap
+        from dua_mujoco.mj import exact, kinematics, mocap, rigid_step
         from dua_mujoco.mj.predictor import Predictor
         from dua_mujoco.mj.scenes import load_scene
-        kernels = [kinematics.step_rigid_kernel, schedule.select, schedule.reinsert,
+        kernels = [rigid_step.step_rigid_kernel, schedule.select, schedule.reinsert,
                    schedule.switch, kinematics._states, pairset._tau_pairs_serial,
-                   mocap._difference_poses]
+                   mocap._difference_poses, exact.exact_pass]
         count = lambda: [len(k.signatures) for k in kernels]
         m, d = load_scene({scene!r})
         p = Predictor(m, accel=30.0)

@@ -25,6 +25,7 @@ __all__ = [
     "static_batch",
     "static_gap",
     "support",
+    "support_local",
     "tau_static",
 ]
 
@@ -67,8 +68,12 @@ _ELLIPSOID_ITER = 60
 
 
 @nb.njit(cache=True, inline="always")
-def _support_local(kind, s0, s1, s2, m0, m1, m2):  # pragma: no cover - jitted
-    """h of the shape in its own frame, in direction m (any length: every form is homogeneous)."""
+def support_local(kind, s0, s1, s2, m0, m1, m2):  # pragma: no cover - jitted
+    """h of the shape in its own frame, in direction m (any length: every form is homogeneous).
+
+    ``kind`` is a ``ShapeKind`` code and ``s0, s1, s2`` its sizes (MuJoCo's ``geom_size``; a
+    ``MESH_BOX``'s half-sizes). Scalars in and out: no array view, so callers in hot loops pay
+    no reference counting."""
     if kind == _SPHERE:
         return s0 * math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
     if kind == _CAPSULE:
@@ -250,7 +255,7 @@ def _gap(c0, c1, c2, rec):  # pragma: no cover - jitted
     # The support is evaluated at R^T of this very n: the half-space is then exactly H(n) for
     # the n whose n.v is used, whatever the closest-point routine got wrong.
     k0, k1, k2 = _to_local(rec, n0, n1, n2)
-    h = _support_local(kind, s0, s1, s2, k0, k1, k2)
+    h = support_local(kind, s0, s1, s2, k0, k1, k2)
     gap = n0 * d0 + n1 * d1 + n2 * d2 - h
     scale = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + math.sqrt(p0 * p0 + p1 * p1 + p2 * p2) + abs(h)
     return gap, n0, n1, n2, scale
@@ -287,7 +292,7 @@ def support(n, rec):  # pragma: no cover - jitted
         ``max_{q in S} n.q`` (for ``MESH_BOX``, that of the box around the hull: an upper bound).
     """
     k0, k1, k2 = _to_local(rec, n[0], n[1], n[2])
-    h = _support_local(
+    h = support_local(
         int(rec[SHAPE_KIND]), rec[SHAPE_SIZE], rec[SHAPE_SIZE + 1], rec[SHAPE_SIZE + 2], k0, k1, k2
     )
     return n[0] * rec[SHAPE_POS] + n[1] * rec[SHAPE_POS + 1] + n[2] * rec[SHAPE_POS + 2] + h

@@ -33,15 +33,10 @@ from dua_mujoco.core.pairset import (
     KIND_SHAPE,
     PAIR_ACCEL,
     PAIR_DELTA,
-    PAIR_EPS,
-    PAIR_FIRST,
     PAIR_KIND,
     PAIR_OTHER,
-    PAIR_SECOND,
     PAIR_SPEED,
 )
-from dua_mujoco.core.schedules import kernels
-from dua_mujoco.core.schedules.state import S_W_TAU, S_WORK, W_IDS
 from dua_mujoco.core.shapes import tau_static
 from dua_mujoco.core.urgency import tau_between, tau_halfspace
 from dua_mujoco.exceptions import ShapeError
@@ -56,9 +51,7 @@ __all__ = [
     "mjdata_frame",
     "pack_spheres",
     "rigid_point",
-    "scratch_buffers",
     "sphere_states",
-    "step_rigid_kernel",
 ]
 
 # Columns of the packed per-sphere records: one 64-byte row (a cache line) per sphere.
@@ -133,14 +126,20 @@ def rigid_point(i, spheres, frame, out):  # pragma: no cover - jitted
     out[3] = twist[b, 3] + twist[b, 1] * dz - twist[b, 2] * dy
     out[4] = twist[b, 4] + twist[b, 2] * dx - twist[b, 0] * dz
     out[5] = twist[b, 5] + twist[b, 0] * dy - twist[b, 1] * dx
-    mt = root_twist[r]
-    if mt[0] != 0.0 or mt[1] != 0.0 or mt[2] != 0.0 or mt[3] != 0.0 or mt[4] != 0.0 or mt[5] != 0.0:
+    # Indexed, not a row view: a view is reference-counted, which costs more than the rest.
+    w0 = root_twist[r, 0]
+    w1 = root_twist[r, 1]
+    w2 = root_twist[r, 2]
+    u0 = root_twist[r, 3]
+    u1 = root_twist[r, 4]
+    u2 = root_twist[r, 5]
+    if w0 != 0.0 or w1 != 0.0 or w2 != 0.0 or u0 != 0.0 or u1 != 0.0 or u2 != 0.0:
         ex = out[0] - root_origin[r, 0]
         ey = out[1] - root_origin[r, 1]
         ez = out[2] - root_origin[r, 2]
-        out[3] += mt[3] + mt[1] * ez - mt[2] * ey
-        out[4] += mt[4] + mt[2] * ex - mt[0] * ez
-        out[5] += mt[5] + mt[0] * ey - mt[1] * ex
+        out[3] += u0 + w1 * ez - w2 * ey
+        out[4] += u1 + w2 * ex - w0 * ez
+        out[5] += u2 + w0 * ey - w1 * ex
 
 
 def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -273,96 +272,3 @@ def fine_tau(p, rec, coarse, frame, shapes, refine, buf):  # pragma: no cover - 
                 if best <= coarse:
                     return coarse
     return max(coarse, best)
-
-
-def scratch_buffers(width: int, refine: tuple) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`step_rigid_kernel`'s ``scratch``: ``(width, 12)`` gathered pair states (``width``
-    the schedule's work width, the most pairs a step selects) and :func:`fine_buffer`."""
-    return np.empty((max(int(width), 1), 12)), fine_buffer(refine)
-
-
-@nb.njit(cache=True)
-def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, refine, scratch):  # pragma: no cover
-    """The fused step on spheres attached to rigid frames (a ``FusedKernel``).
-
-    Reads only the selected spheres. ``pairs`` and ``spheres`` are ``pack_pairs`` /
-    ``pack_spheres`` records; ``shapes`` the ``(nshape, 16)`` static shape records
-    (``pack_shapes``, one placeholder row without shapes) that shape pairs' ``PAIR_OTHER``
-    indexes; ``refine`` the two-level urgency's tuple (``dua_mujoco.mj.refine``: a pair whose
-    tau is below its threshold is refined by :func:`fine_tau`); ``scratch`` the buffers of
-    :func:`scratch_buffers` (allocating them here cost a microsecond a step, measured). Two
-    passes: first every selected pair's state is gathered (independent loads, which the CPU
-    overlaps; the tables are cold after ``mj_step``), then tau is computed from that small
-    buffer. A pair whose state is not finite abandons the step.
-    """
-    frame_pos, frame_mat = frame[0], frame[1]
-    below = refine[3]
-    state, buf = scratch
-    count = kernels.select(st, n)
-    w_ids = st[S_WORK][W_IDS]
-    # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset;
-    # zeros for a static shape, whose record is constant and checked when packed).
-    for k in range(count):
-        rec = pairs[w_ids[k]]
-        rigid_point(int(rec[PAIR_FIRST]), spheres, frame, state[k, 0:6])
-        kind = int(rec[PAIR_KIND])
-        if kind == KIND_HALFSPACE:
-            g = int(rec[PAIR_OTHER])
-            state[k, 6] = frame_mat[g, 2]
-            state[k, 7] = frame_mat[g, 5]
-            state[k, 8] = frame_mat[g, 8]
-            state[k, 9] = (
-                state[k, 6] * frame_pos[g, 0]
-                + state[k, 7] * frame_pos[g, 1]
-                + state[k, 8] * frame_pos[g, 2]
-            )
-            state[k, 10] = 0.0
-            state[k, 11] = 0.0
-        elif kind == KIND_SHAPE:
-            for a in range(6, 12):
-                state[k, a] = 0.0
-        else:
-            rigid_point(int(rec[PAIR_SECOND]), spheres, frame, state[k, 6:12])
-    for k in range(count):
-        rec = pairs[w_ids[k]]
-        s = state[k]
-        total = 0.0
-        for a in range(12):
-            total += s[a]
-        if not math.isfinite(total):
-            bad = w_ids[k]
-            kernels.restore(st, n, count)
-            return count, 0, bad
-        kind = int(rec[PAIR_KIND])
-        if kind == KIND_HALFSPACE:
-            gap = s[6] * s[0] + s[7] * s[1] + s[8] * s[2] - s[9] - rec[PAIR_EPS]
-            vn = s[6] * s[3] + s[7] * s[4] + s[8] * s[5]
-            t = tau_halfspace(gap, vn, rec[PAIR_ACCEL], rec[PAIR_DELTA])
-        elif kind == KIND_SHAPE:
-            t = tau_static(
-                s[0],
-                s[1],
-                s[2],
-                s[3],
-                s[4],
-                s[5],
-                shapes[int(rec[PAIR_OTHER])],
-                rec[PAIR_EPS],
-                rec[PAIR_ACCEL],
-                rec[PAIR_DELTA],
-            )
-        else:
-            t = tau_between(
-                s[0:3],
-                s[3:6],
-                s[6:9],
-                s[9:12],
-                rec[PAIR_EPS],
-                rec[PAIR_ACCEL],
-                rec[PAIR_DELTA],
-                rec[PAIR_SPEED],
-            )
-        if t < below:
-            t = fine_tau(w_ids[k], rec, t, frame, shapes, refine, buf)
-        st[S_W_TAU][k] = t
-    return count, kernels.reinsert(st, n, count), -1

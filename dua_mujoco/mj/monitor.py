@@ -86,19 +86,11 @@ class Monitor:
         self.model = predictor.model
         self.realtime = realtime
         self.geom_distance = geom_distance
-        # The refined urgency reads the fine covering's centres too: their bounds are hypotheses.
-        covs = [predictor.covering]
-        if predictor.refinement is not None:
-            covs.append(predictor.refinement.fine)
-        geom, body, offset = (
-            np.concatenate([np.asarray(getattr(c, f)) for c in covs])
-            for f in ("sphere_geom", "sphere_body", "sphere_offset")
-        )
         self.bound_checks = (
             BoundMonitor(
                 self.model,
                 predictor.bounds,
-                (geom, body, offset),
+                predictor.bound_points,
                 mocap=predictor.mocap,
                 mocap_period=predictor.period,
             )

@@ -4,7 +4,7 @@ The model is read once: geoms are covered by spheres (``covering``), MuJoCo's co
 gives the active geom pairs (``filter``), and those expand into sphere pairs with per-pair contact
 distance, acceleration bound and velocity uncertainty. ``reset(data)`` is the initial
 classification; each ``step(data)`` evaluates the scheduled pairs in one compiled call that reads
-only their spheres from ``MjData`` (``kinematics.step_rigid_kernel``).
+only their spheres from ``MjData`` (``rigid_step.step_rigid_kernel``).
 
 Timing. Call ``step`` every ``period`` physics steps, after ``mj_step``. ``MjData`` then holds the
 kinematics (``geom_xpos``, ``cvel``) and contacts of the state at the start of that step, and the
@@ -43,6 +43,14 @@ from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.bounds import MotionBounds, resolve_bounds
 from dua_mujoco.mj.covering import Covering, CoveringMode, cover_model
 from dua_mujoco.mj.diagnostics import divergence_message, nonfinite_error
+from dua_mujoco.mj.exact import (
+    DEFAULT_EXACT_BELOW,
+    ExactLevel,
+    build_exact,
+    corner_points,
+    exact_taus,
+    no_exact,
+)
 from dua_mujoco.mj.filter import (
     GeomPairs,
     SpherePairs,
@@ -51,12 +59,13 @@ from dua_mujoco.mj.filter import (
     sphere_pair_mask,
     sphere_pairs,
 )
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, scratch_buffers, sphere_states
+from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.mocap import MocapVelocityTracker
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty, bounded_pairs
 from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for
 from dua_mujoco.mj.refine import Refinement, build_refinement, no_refinement, refine_taus
+from dua_mujoco.mj.rigid_step import scratch_buffers
 from dua_mujoco.mj.step_context import StepContext, Stepper, StepTables
 from dua_mujoco.mj.tables import (
     PairTables,
@@ -140,6 +149,9 @@ class Predictor:
         static: str = "shape",
         refine: int | None = None,
         refine_below: float = 0.1,
+        exact: bool = True,
+        exact_below: float = DEFAULT_EXACT_BELOW,
+        query_periods: float = 4.0,
         period: int = 1,
         latency: int = 0,
         schedule: Schedule | str = Schedule.DEADLINE,
@@ -191,6 +203,19 @@ class Predictor:
                 stacklevel=2,
             )
         cov = self.covering
+        self.tables = PairTables.build(model, cov, self.sphere_pairs)
+        self.exact: ExactLevel | None = None
+        """The exact level's tables (None when off)."""
+        if exact:
+            self.exact = build_exact(
+                model,
+                self.tables.geom1,
+                self.tables.geom2,
+                self.tables.kind,
+                np.asarray(self.geom_pairs.contact_distance)[self.sphere_pairs.geom_pair],
+                exact_below,
+                query_periods * self.dt,
+            )
         spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
         self.refinement: Refinement | None = None
         """The two-level urgency's fine coverings (None without ``refine``)."""
@@ -209,6 +234,20 @@ class Predictor:
                     spheres, (fine.sphere_geom, fine.sphere_body, fine.sphere_offset), strict=True
                 )
             )
+        if self.exact is not None:
+            # The exact level bounds every point of its geoms: the corners of their boxes hold
+            # the maxima of what the bounds limit (docs/theory.md, section 6).
+            used = self.exact.records[self.exact.records[:, 0] > 0]
+            geoms = np.unique(np.concatenate([used[:, 1], used[:, 2]]).astype(np.int64))
+            moving = self.exact.geoms[geoms, 8] >= 0  # planes are read by their normal only
+            spheres = tuple(  # type: ignore[assignment]
+                np.concatenate([a, b])
+                for a, b in zip(spheres, corner_points(model, geoms[moving]), strict=True)
+            )
+        self.bound_points: tuple[np.ndarray, np.ndarray, np.ndarray] = spheres
+        """``(geom, body, offset)`` of every point whose motion the bounds limit (the covering
+        spheres' centres, and the corners of the exact level's geoms): what the pilot measures
+        and ``BoundMonitor`` checks."""
         self.bounds = resolve_bounds(
             model,
             accel,
@@ -228,13 +267,14 @@ class Predictor:
         self.pair_set = bounded_pairs(
             model, cov, self.sphere_pairs, self.bounds, period=self.period, mocap=self.mocap
         )
-        self.tables = PairTables.build(model, cov, self.sphere_pairs)
         self._plane_geom = np.asarray(cov.plane_geom, dtype=np.int64)
         self._spheres = pack_spheres(
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
         self._pair_records = pack_pairs(self.pair_set, self._plane_geom)
         self._refine = no_refinement() if self.refinement is None else self.refinement.args
+        self._exact_records = None if self.exact is None else self.exact.records
+        self._exact = no_exact()
         # Static shape records: their poses are model constants (static_shapes), re-packed and
         # checked against the data at each reset.
         self._shapes = static_shapes(model, cov.shape_geom)
@@ -290,6 +330,10 @@ class Predictor:
             # The refinement records are indexed like the pair records the step reads.
             fine, radius, records, below, most = self.refinement.args
             self._refine = (fine, radius, np.ascontiguousarray(records[ids]), below, most)
+        if self.exact is not None:
+            self._exact_records = np.ascontiguousarray(self.exact.records[ids])
+            if self._frame_data is not None:
+                self._exact = self.exact.args(self.model, self._frame_data, self._exact_records)
 
     def pair_state(self) -> PairState:
         """The scheduler's state of every sphere pair, by the model's pair ids (pruned or not)."""
@@ -328,6 +372,8 @@ class Predictor:
         self._stepper.context = None
         self._frame_data = data
         self._frame_cache = mjdata_frame(data, self._twist)
+        if self.exact is not None:
+            self._exact = self.exact.args(self.model, data, self._exact_records)
         return self._frame_cache
 
     def sphere_states(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
@@ -395,6 +441,9 @@ class Predictor:
             refine_taus(
                 tau0, self._ids, self._pair_records, frame, self._shapes, self.refinement.args
             )
+        if self.exact is not None:
+            full = self.exact.args(self.model, data, self.exact.records)
+            exact_taus(tau0, self._ids, self._pair_records, frame, self._shapes, full)
         self.scheduler = self._scheduler(tau0)
         # A step raises at most one alarm per place of the work rows.
         self._stepper = Stepper(self.scheduler.state.work.shape[1])
@@ -427,7 +476,14 @@ class Predictor:
             tables = self._step_tables(frame)
             # The spare's pair 0 is the model's: its rows exist even when no pair is held.
             full = self._refine if self.refinement is None else self.refinement.args
-            Stepper.load_compiled(spare, tables._replace(pairs=self._pair_records, refine=full))
+            exact = (
+                self._exact
+                if self.exact is None
+                else self.exact.args(self.model, data, self.exact.records)
+            )
+            Stepper.load_compiled(
+                spare, tables._replace(pairs=self._pair_records, refine=full, exact=exact)
+            )
             spare.set_active([0], False)
             spare.set_active([0], True)
         if self.mocap is not None:
@@ -436,7 +492,7 @@ class Predictor:
     def _step_tables(self, frame: tuple) -> StepTables:
         """The compiled step's tables as they stand now, on ``frame``."""
         return StepTables(
-            self._records, self._spheres, frame, self._shapes, self._refine, self._ids
+            self._records, self._spheres, frame, self._shapes, self._refine, self._exact, self._ids
         )
 
     def _bind_step(self) -> StepContext:
@@ -582,12 +638,14 @@ class Predictor:
         return self._shapes
 
     def kernel_arguments(self, data: mujoco.MjData) -> tuple:
-        """Everything ``step`` hands ``kinematics.step_rigid_kernel`` after the scheduler's
+        """Everything ``step`` hands ``rigid_step.step_rigid_kernel`` after the scheduler's
         ``kernel_state`` and the step number, for ``data``: ``(pair_records, sphere_records,
-        frame, shape_records, refine, scratch)``; for compiled drivers (benchmarks)."""
+        frame, shape_records, refine, exact, scratch)``; for compiled drivers (benchmarks)."""
         t = self._step_tables(mjdata_frame(data, self._twist))
+        if self.exact is not None:
+            t = t._replace(exact=self.exact.args(self.model, data, self._exact_records))
         scratch = scratch_buffers(self._require_scheduler().state.work.shape[1], t.refine)
-        return t.pairs, t.spheres, t.frame, t.shapes, t.refine, scratch
+        return t.pairs, t.spheres, t.frame, t.shapes, t.refine, t.exact, scratch
 
     @property
     def sphere_pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:

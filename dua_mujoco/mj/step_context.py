@@ -35,7 +35,7 @@ from dua_mujoco.core.schedules.state import (
     W_ALARMS,
     W_NEW,
 )
-from dua_mujoco.mj.kinematics import scratch_buffers, step_rigid_kernel
+from dua_mujoco.mj.rigid_step import scratch_buffers, step_rigid_kernel
 
 __all__ = [
     "LOG_MIN",
@@ -75,6 +75,7 @@ class StepTables(NamedTuple):
         frame: ``mjdata_frame``'s tuple of ``MjData`` views.
         shapes: ``(nshape, 16)`` static shape records.
         refine: The two-level urgency's tuple (``Refinement.args`` or ``no_refinement()``).
+        exact: The exact level's tuple (``ExactLevel.args`` or ``no_exact()``).
         ids: ``(K,)`` model sphere-pair id of each held pair (the identity when none is pruned).
     """
 
@@ -83,6 +84,7 @@ class StepTables(NamedTuple):
     frame: tuple
     shapes: np.ndarray
     refine: tuple
+    exact: tuple
     ids: np.ndarray
 
 
@@ -130,7 +132,7 @@ def context_step(ctx, n, start):  # pragma: no cover - jitted
     """
     st = ctx.state
     _, nalarm, bad = step_rigid_kernel(
-        st, n, ctx.pairs, ctx.spheres, ctx.frame, ctx.shapes, ctx.refine, ctx.scratch
+        st, n, ctx.pairs, ctx.spheres, ctx.frame, ctx.shapes, ctx.refine, ctx.exact, ctx.scratch
     )
     if bad >= 0:
         return 0, bad, 0

@@ -1,0 +1,346 @@
+"""The exact level of the urgency (dua_mujoco/mj/exact.py, docs/theory.md section 6).
+
+Held to a slow reference written from the definitions (numpy supports, the quadratic's root),
+and to trajectories: two geoms of every type pair (and a plane) move rigidly with a constant
+linear acceleration and a constant angular velocity, so that every point of each geom has an
+acceleration of at most ``|a| + |w|^2 r``; the exact tau must never be later than the first
+instant MuJoCo's own distance says they are within contact distance. A test shows that the
+rotation term is what keeps it so.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from dua_mujoco.core.pairset import PAIR_ACCEL, PAIR_DELTA
+from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.mj.bounds import MotionBounds
+from dua_mujoco.mj.exact import (
+    GX_RADIUS,
+    X_DIST,
+    X_G1,
+    X_G2,
+    X_MODE,
+    X_N,
+    ExactMode,
+    build_exact,
+    corner_points,
+    exact_taus,
+)
+from dua_mujoco.mj.kinematics import mjdata_frame
+from dua_mujoco.mj.predictor import Predictor
+
+TYPES = {
+    "sphere": 'type="sphere" size=".12"',
+    "capsule": 'type="capsule" size=".05 .2"',
+    "ellipsoid": 'type="ellipsoid" size=".2 .06 .1"',
+    "cylinder": 'type="cylinder" size=".1 .15"',
+    "box": 'type="box" size=".25 .1 .04"',
+    "mesh": 'type="mesh" mesh="blob"',
+}
+BLOB = " ".join(
+    f"{x:.4f}" for x in (np.random.default_rng(7).normal(size=(24, 3)) * [0.2, 0.1, 0.07]).ravel()
+)
+
+
+def _model(a: str, b: str) -> mujoco.MjModel:
+    """Two free bodies with geoms of types ``a`` and ``b`` (``b == "plane"``: a plane, static)."""
+    second = (
+        '<geom name="B" type="plane" size="3 3 .1" euler="8 -5 0"/>'
+        if b == "plane"
+        else f'<body name="b" pos=".8 0 1"><freejoint/><geom name="B" {TYPES[b]}/></body>'
+    )
+    return mujoco.MjModel.from_xml_string(
+        f"""<mujoco>
+          <option gravity="0 0 0"/>
+          <asset><mesh name="blob" vertex="{BLOB}"/></asset>
+          <worldbody>
+            {second}
+            <body name="a" pos="0 0 1"><freejoint/><geom name="A" {TYPES[a]}/></body>
+          </worldbody>
+        </mujoco>"""
+    )
+
+
+def _pose(model, data, body, pos, quat, lin, ang) -> None:
+    j = model.body_jntadr[body]
+    qa, va = model.jnt_qposadr[j], model.jnt_dofadr[j]
+    data.qpos[qa : qa + 3] = pos
+    data.qpos[qa + 3 : qa + 7] = quat
+    # A free joint's qvel: linear velocity of the body origin (world), angular (body frame).
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, quat)
+    data.qvel[va : va + 3] = lin
+    data.qvel[va + 3 : va + 6] = rot.reshape(3, 3).T @ ang
+
+
+def _quat_at(q0: np.ndarray, w: np.ndarray, t: float) -> np.ndarray:
+    """``exp([w] t) R0`` as a quaternion (rotation about a fixed world axis)."""
+    out = np.empty(4)
+    dq = np.empty(4)
+    angle = np.linalg.norm(w) * t
+    axis = w / np.linalg.norm(w) if angle > 0 else np.array([1.0, 0.0, 0.0])
+    mujoco.mju_axisAngle2Quat(dq, axis, angle)
+    mujoco.mju_mulQuat(out, dq, q0)
+    return out
+
+
+class Motion:
+    """Rigid motions of the moving bodies: constant linear acceleration of the body origin,
+    constant world angular velocity; ``state(t)`` writes them and runs the kinematics."""
+
+    def __init__(self, model: mujoco.MjModel, draw: dict) -> None:
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.draw = draw
+
+    def bodies(self) -> list[int]:
+        return [b for b in range(1, self.model.nbody) if self.model.body_jntnum[b]]
+
+    def state(self, t: float) -> mujoco.MjData:
+        m, d = self.model, self.data
+        for b in self.bodies():
+            p0, v0, a0, q0, w = (self.draw[b][k] for k in ("p", "v", "a", "q", "w"))
+            pos = p0 + v0 * t + 0.5 * a0 * t * t
+            _pose(m, d, b, pos, _quat_at(q0, w, t), v0 + a0 * t, w)
+        mujoco.mj_forward(m, d)
+        return d
+
+    def accel_bound(self) -> dict[str, float]:
+        """``|a| + |w|^2 r`` per body: every point of its geoms accelerates at most this."""
+        out = {}
+        for b in self.bodies():
+            g = int(np.flatnonzero(self.model.geom_bodyid == b)[0])
+            box = self.model.geom_aabb[g]
+            corner = np.linalg.norm(np.abs(box[:3]) + box[3:])
+            r = max(float(self.model.geom_rbound[g]), corner)
+            w = np.linalg.norm(self.draw[b]["w"])
+            out[self.model.body(b).name] = float(np.linalg.norm(self.draw[b]["a"]) + w * w * r)
+        return out
+
+
+def _exact_only(p: Predictor, data: mujoco.MjData, *, query: bool = True) -> np.ndarray:
+    """The exact level's tau of every pair from a sphere tau of 0 (MuJoCo asked afresh)."""
+    assert p.exact is not None
+    args = p.exact.args(p.model, data, p.exact.records.copy())
+    args = (*args[:4], math.inf if query else 0.0)
+    tau = np.zeros(len(p.pair_set))
+    frame = mjdata_frame(data, np.zeros((p.model.nbody, 6)))
+    return exact_taus(tau, np.arange(tau.size), p._pair_records, frame, p.shape_records, args)
+
+
+# --------------------------------------------------------------------------- the reference
+
+
+def _support(model: mujoco.MjModel, data: mujoco.MjData, g: int, n: np.ndarray) -> float:
+    """max over geom g of n.p, from the definitions (a mesh: the corners of its box)."""
+    R = data.geom_xmat[g].reshape(3, 3)
+    c = data.geom_xpos[g]
+    m = R.T @ n
+    t = int(model.geom_type[g])
+    s = model.geom_size[g]
+    G = mujoco.mjtGeom
+    if t == int(G.mjGEOM_SPHERE):
+        h = s[0] * np.linalg.norm(m)
+    elif t == int(G.mjGEOM_CAPSULE):
+        h = max(m[2] * s[1], -m[2] * s[1]) + s[0] * np.linalg.norm(m)
+    elif t == int(G.mjGEOM_CYLINDER):
+        h = abs(m[2]) * s[1] + s[0] * np.linalg.norm(m[:2])
+    elif t == int(G.mjGEOM_ELLIPSOID):
+        h = np.linalg.norm(s * m)
+    elif t == int(G.mjGEOM_BOX):
+        h = float(np.abs(m) @ s)
+    else:  # mesh: its box in the geom frame
+        lo = model.geom_aabb[g, :3] - model.geom_aabb[g, 3:]
+        hi = model.geom_aabb[g, :3] + model.geom_aabb[g, 3:]
+        corners = np.array(
+            [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        )
+        h = float((corners @ m).max())
+    return float(n @ c + h)
+
+
+def reference_exact_tau(p: Predictor, data: mujoco.MjData, pair: int) -> float:
+    """The exact level's tau of one pair, slowly: MuJoCo's witness direction, the supports
+    from their definitions, the origins' velocities from ``mj_objectVelocity`` and the first
+    positive root of ``gap + (vn - delta) t - A t^2 / 2``."""
+    m = p.model
+    mode, g1, g2, dist = (p.exact.records[pair, k] for k in (X_MODE, X_G1, X_G2, X_DIST))
+    g1, g2 = int(g1), int(g2)
+    if int(mode) == ExactMode.NONE:
+        return 0.0
+
+    def origin(g: int) -> tuple[np.ndarray, np.ndarray]:
+        v = np.empty(6)
+        mujoco.mj_objectVelocity(m, data, mujoco.mjtObj.mjOBJ_GEOM, g, v, 0)
+        return v[3:], v[:3]  # linear, angular (world)
+
+    va, wa = origin(g1)
+    spin = np.linalg.norm(wa) * p.exact.geoms[g1, GX_RADIUS]
+    if int(mode) == ExactMode.PLANE:
+        n = -data.geom_xmat[g2].reshape(3, 3)[:, 2]
+        low_b = float(n @ data.geom_xpos[g2])
+        vb = np.zeros(3)
+    else:
+        fromto = np.zeros(6)
+        reach = np.linalg.norm(data.geom_xpos[g2] - data.geom_xpos[g1]) + dist + 1.0
+        d = mujoco.mj_geomDistance(m, data, g1, g2, reach, fromto)
+        if d <= dist:
+            return 0.0
+        n = fromto[3:] - fromto[:3]
+        n /= np.linalg.norm(n)
+        low_b = -_support(m, data, g2, -n)
+        vb, wb = origin(g2)
+        spin += np.linalg.norm(wb) * p.exact.geoms[g2, GX_RADIUS]
+    gap = low_b - _support(m, data, g1, n) - dist
+    if gap <= 0:
+        return 0.0
+    rec = p._pair_records[pair]
+    w = float(n @ (vb - va)) - spin - rec[PAIR_DELTA]
+    a = rec[PAIR_ACCEL]
+    if a == 0:
+        return math.inf if w >= 0 else gap / -w
+    return (w + math.sqrt(w * w + 2 * a * gap)) / a
+
+
+# --------------------------------------------------------------------------- strategies
+
+PAIRS = [(a, b) for a in TYPES for b in [*TYPES, "plane"]]
+
+
+def _draws(rng: np.random.Generator, model: mujoco.MjModel, speed: float) -> dict:
+    out = {}
+    for b in range(1, model.nbody):
+        if not model.body_jntnum[b]:
+            continue
+        q = rng.normal(size=4)
+        out[b] = {
+            "p": np.array([0.0, 0.0, 1.0]) if b == model.nbody - 1 else np.array([0.8, 0.0, 1.0]),
+            "v": rng.normal(size=3) * speed,
+            "a": rng.normal(size=3) * 2.0,
+            "q": q / np.linalg.norm(q),
+            "w": rng.normal(size=3) * 3.0,
+        }
+        out[b]["p"] = out[b]["p"] + rng.normal(size=3) * 0.15
+    return out
+
+
+def _predictor(model: mujoco.MjModel, motion: Motion) -> Predictor:
+    bounds = MotionBounds.declare(model, motion.accel_bound(), integrator_term=False)
+    return Predictor(model, accel=bounds, pairs="all")
+
+
+# --------------------------------------------------------------------------- tests
+
+
+@pytest.mark.parametrize(("a", "b"), PAIRS)
+def test_exact_tau_equals_the_reference(a: str, b: str) -> None:
+    rng = np.random.default_rng(hash((a, b)) % 2**32)
+    model = _model(a, b)
+    for _ in range(5):
+        motion = Motion(model, _draws(rng, model, 1.0))
+        p = _predictor(model, motion)
+        data = motion.state(0.0)
+        got = _exact_only(p, data)
+        want = np.array([reference_exact_tau(p, data, k) for k in range(got.size)])
+        assert np.allclose(got, want, rtol=1e-9, atol=1e-12), (got, want)
+
+
+@pytest.mark.parametrize(("a", "b"), PAIRS)
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), speed=st.floats(0.0, 4.0))
+def test_no_trajectory_within_the_bounds_beats_the_exact_tau(
+    a: str, b: str, seed: int, speed: float
+) -> None:
+    """MuJoCo's own distance stays above the contact distance before tau (every type pair)."""
+    model = _model(a, b)
+    motion = Motion(model, _draws(np.random.default_rng(seed), model, speed))
+    p = _predictor(model, motion)
+    horizon = min(float(_exact_only(p, motion.state(0.0)).min()), 1.0)
+    for t in np.linspace(0.0, horizon, 41)[:-1] if horizon > 0.0 else []:
+        dist = mujoco.mj_geomDistance(model, motion.state(float(t)), 1, 0, 10.0, None)
+        assert dist > 0.0, (t, horizon, dist)
+
+
+def test_the_rotation_term_is_needed() -> None:
+    """A long box spinning in place towards a sphere: without the |w| r term the bound along
+    the witness direction (no translation) is late; with it, it is not."""
+    model = _model("box", "sphere")
+    still = {"v": np.zeros(3), "a": np.zeros(3), "q": np.array([1.0, 0.0, 0.0, 0.0])}
+    draw = {
+        2: {**still, "p": np.array([0.0, 0.0, 1.0]), "w": np.array([0.0, 0.0, 6.0])},
+        1: {**still, "p": np.array([0.0, 0.38, 1.0]), "w": np.zeros(3)},
+    }
+    motion = Motion(model, draw)
+    p = _predictor(model, motion)
+    data = motion.state(0.0)
+    tau = float(_exact_only(p, data)[0])
+    # First instant the spinning box reaches the sphere (MuJoCo's distance).
+    ts = np.linspace(0.0, 0.5, 5001)
+    hit = next(
+        t for t in ts if mujoco.mj_geomDistance(model, motion.state(t), 1, 0, 10.0, None) <= 0
+    )
+    assert tau <= hit
+    # Dropping the term: the sphere tau and the translation-only bound both say "later".
+    p.exact.geoms[:, GX_RADIUS] = 0.0
+    no_spin = float(_exact_only(p, motion.state(0.0))[0])
+    assert no_spin > hit
+
+
+def test_corner_points_bound_the_acceleration_of_every_point() -> None:
+    """The acceleration of a rigid point is affine in its body coordinates: its largest norm over
+    the geom's box is at a corner (checked against points sampled inside)."""
+    model = _model("box", "mesh")
+    rng = np.random.default_rng(0)
+    g, _, off = corner_points(model, [1])
+    assert g.shape == (8,) and off.shape == (8, 3)
+    lin, ang, alpha = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
+
+    def acc(x: np.ndarray) -> np.ndarray:
+        return lin + np.cross(alpha, x) + np.cross(ang, np.cross(ang, x))
+
+    corner = max(np.linalg.norm(acc(o)) for o in off)
+    lo, hi = off.min(axis=0), off.max(axis=0)
+    inside = rng.uniform(lo, hi, size=(2000, 3))
+    assert max(np.linalg.norm(acc(x)) for x in inside) <= corner + 1e-12
+
+
+def test_height_fields_keep_their_sphere_tau() -> None:
+    model = mujoco.MjModel.from_xml_string(
+        """<mujoco><asset><hfield name="h" nrow="3" ncol="3" size="1 1 .1 .1"/></asset>
+          <worldbody><geom type="hfield" hfield="h"/>
+          <body pos="0 0 1"><freejoint/><geom type="box" size=".1 .1 .1"/></body>
+          </worldbody></mujoco>"""
+    )
+    p = Predictor(model, accel=1.0, covering="bounding", hfield="box")
+    assert p.exact is not None
+    assert (p.exact.records[:, X_MODE] == ExactMode.NONE).all()
+
+
+def test_bad_threshold_names_the_value() -> None:
+    model = _model("box", "sphere")
+    with pytest.raises(InvalidInputError, match="exact_below = -1"):
+        build_exact(model, [0], [1], [0], [0.0], exact_below=-1)
+
+
+def test_the_reset_remembers_the_direction_and_the_bounds_cover_the_corners() -> None:
+    model = _model("capsule", "box")
+    still = {"v": np.zeros(3), "a": np.ones(3), "q": np.array([1.0, 0.0, 0.0, 0.0])}
+    draw = {
+        2: {**still, "p": np.array([0.0, 0.0, 1.0]), "w": np.zeros(3)},
+        1: {**still, "p": np.array([0.0, 0.5, 1.0]), "w": np.zeros(3)},
+    }
+    motion = Motion(model, draw)
+    p = _predictor(model, motion)
+    p.reset(motion.state(0.0))
+    assert p.exact is not None
+    # The corners of both moving geoms are bound points (the pilot and the monitor read them).
+    assert {0, 1} <= set(p.bound_points[0].tolist())
+    n = p.exact.records[0, X_N : X_N + 3]
+    assert np.isclose(np.linalg.norm(n), 1.0) and abs(n[1]) > 0.99  # along y, capsule to box
