@@ -161,7 +161,7 @@ def _predictor_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.nd
 @pytest.mark.parametrize("scene", ["two_arms", "clutter"])
 def test_fused_step_equals_time_to_static(scene: str) -> None:
     m, d = load_scene(scene)
-    p = Predictor(m, accel=15.0, schedule="select-all")
+    p = Predictor(m, accel=15.0, schedule="select-all", exact=False)  # the shape level alone
     assert p.covering.nshape > 0
     ctrl = make_controller(m, "random", seed=4, hold_steps=10)
     ps = p.pair_set
