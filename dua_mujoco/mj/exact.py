@@ -47,11 +47,12 @@ from dua_mujoco.core.shapes import (
 )
 from dua_mujoco.core.urgency import tau_halfspace
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.kinematics import SPHERE_BODY, SPHERE_ROOT, pack_spheres, rigid_point
+from dua_mujoco.mj.kinematics import SPHERE_BODY, SPHERE_ROOT, pack_spheres, rigid_point_at
 
 __all__ = [
-    "DEFAULT_EXACT_BELOW",
+    "EXACT_PERIODS",
     "EXACT_TYPES",
+    "QUERY_PERIODS",
     "ExactLevel",
     "ExactMode",
     "build_exact",
@@ -63,8 +64,13 @@ __all__ = [
     "no_exact",
 ]
 
-DEFAULT_EXACT_BELOW = 0.25
-"""Seconds: pairs whose sphere tau is below this are looked at through their geoms."""
+EXACT_PERIODS = 2
+"""Pairs whose sphere tau is below this many predictor periods past the latency are looked at
+through their geoms: one period past the alarm horizon. Measured on six scenes
+(docs/benchmarks.md): 1 to 32 periods clear the same alarms, and the cost grows with it."""
+QUERY_PERIODS = 4
+"""MuJoCo is asked for a new direction when the pair's tau along its last one is below this
+many predictor periods (1 to 16 cost within the machine's noise of each other, measured)."""
 
 EXACT_TYPES = frozenset(
     int(t)
@@ -164,9 +170,8 @@ def _geom_distance(typingctx, fn, m, d, g1, g2, distmax, fromto):  # pragma: no 
 
 
 @nb.njit(cache=True, inline="always")
-def _spin(g, geoms, frame):  # pragma: no cover - jitted
+def _spin(g, geoms, twist, root_twist):  # pragma: no cover - jitted
     """``|w| r`` of geom ``g``: how fast rotation can move its points away from translation."""
-    twist, root_twist = frame[2], frame[4]
     b = int(geoms[g, SPHERE_BODY])
     r = int(geoms[g, SPHERE_ROOT])
     w0 = twist[b, 0] + root_twist[r, 0]
@@ -176,9 +181,8 @@ def _spin(g, geoms, frame):  # pragma: no cover - jitted
 
 
 @nb.njit(cache=True, inline="always")
-def _geom_support(g, geoms, frame, n0, n1, n2):  # pragma: no cover - jitted
+def _geom_support(g, geoms, frame_pos, frame_mat, n0, n1, n2):  # pragma: no cover - jitted
     """Support of geom ``g``'s support shape at its current pose along ``n``: ``max n.p``."""
-    frame_pos, frame_mat = frame[0], frame[1]
     # Local direction R^T n (row-major R).
     m0 = frame_mat[g, 0] * n0 + frame_mat[g, 3] * n1 + frame_mat[g, 6] * n2
     m1 = frame_mat[g, 1] * n0 + frame_mat[g, 4] * n1 + frame_mat[g, 7] * n2
@@ -236,19 +240,36 @@ def exact_pass(tau, ids, count, pairs, frame, shapes, exact, buf):  # pragma: no
         buf: ``(2, 6)`` scratch (:func:`exact_buffer`).
     """
     geoms, records, below, call, query_below = exact
+    # Unpacked once: an array taken out of a tuple is reference-counted each time.
+    fp, fm, tw, tr, rt, ro = frame
     sa = buf[0]
     sb = buf[1]
     for k in range(count):
         if tau[k] < below:
             p = ids[k]
             tau[k] = _exact_tau(
-                pairs, p, records, tau[k], frame, shapes, geoms, call, query_below, sa, sb
+                pairs,
+                p,
+                records,
+                tau[k],
+                fp,
+                fm,
+                tw,
+                tr,
+                rt,
+                ro,
+                shapes,
+                geoms,
+                call,
+                query_below,
+                sa,
+                sb,
             )
 
 
 @nb.njit(cache=True, inline="always")
 def _exact_tau(
-    pairs, p, records, coarse, frame, shapes, geoms, call, query_below, sa, sb
+    pairs, p, records, coarse, fp, fm, tw, tr, rt, ro, shapes, geoms, call, query_below, sa, sb
 ):  # pragma: no cover
     """One pair's ``max(coarse, exact)``.
 
@@ -262,39 +283,38 @@ def _exact_tau(
         return coarse
     g1 = int(records[p, X_G1])
     g2 = int(records[p, X_G2])
-    frame_pos, frame_mat = frame[0], frame[1]
-    rigid_point(g1, geoms, frame, sa)
-    spin = _spin(g1, geoms, frame)
+    rigid_point_at(g1, geoms, fp, fm, tw, tr, rt, ro, sa)
+    spin = _spin(g1, geoms, tw, rt)
     # Relative velocity of the origins, second minus first.
     r0 = -sa[3]
     r1 = -sa[4]
     r2 = -sa[5]
     if mode == _GEOMS:
-        rigid_point(g2, geoms, frame, sb)
-        spin += _spin(g2, geoms, frame)
+        rigid_point_at(g2, geoms, fp, fm, tw, tr, rt, ro, sb)
+        spin += _spin(g2, geoms, tw, rt)
         r0 += sb[3]
         r1 += sb[4]
         r2 += sb[5]
     if mode == _PLANE:
         # From the geom towards the plane: against the plane's outward normal (its z axis).
-        n0 = -frame_mat[g2, 2]
-        n1 = -frame_mat[g2, 5]
-        n2 = -frame_mat[g2, 8]
-        t = _axis_tau(n0, n1, n2, mode, r0, r1, r2, spin, pairs, records, p, frame, shapes, geoms)
+        n0 = -fm[g2, 2]
+        n1 = -fm[g2, 5]
+        n2 = -fm[g2, 8]
+        t = _axis_tau(n0, n1, n2, mode, r0, r1, r2, spin, pairs, records, p, fp, fm, shapes, geoms)
         return max(coarse, t)
     best = coarse
     n0 = records[p, X_N]
     n1 = records[p, X_N + 1]
     n2 = records[p, X_N + 2]
     if n0 != 0.0 or n1 != 0.0 or n2 != 0.0:
-        t = _axis_tau(n0, n1, n2, mode, r0, r1, r2, spin, pairs, records, p, frame, shapes, geoms)
+        t = _axis_tau(n0, n1, n2, mode, r0, r1, r2, spin, pairs, records, p, fp, fm, shapes, geoms)
         best = max(best, t)
         if best >= query_below:
             return best
     fromto = sb  # its state has been read
-    c0 = frame_pos[g2, 0] - frame_pos[g1, 0]
-    c1 = frame_pos[g2, 1] - frame_pos[g1, 1]
-    c2 = frame_pos[g2, 2] - frame_pos[g1, 2]
+    c0 = fp[g2, 0] - fp[g1, 0]
+    c1 = fp[g2, 1] - fp[g1, 1]
+    c2 = fp[g2, 2] - fp[g1, 2]
     # Both origins lie inside their geoms, so the distance is at most theirs: a witness.
     reach = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + records[p, X_DIST] + 1.0
     dist = _geom_distance(call[0], call[1], call[2], g1, g2, reach, fromto)
@@ -313,26 +333,25 @@ def _exact_tau(
     records[p, X_N] = n0
     records[p, X_N + 1] = n1
     records[p, X_N + 2] = n2
-    t = _axis_tau(n0, n1, n2, mode, r0, r1, r2, spin, pairs, records, p, frame, shapes, geoms)
+    t = _axis_tau(n0, n1, n2, mode, r0, r1, r2, spin, pairs, records, p, fp, fm, shapes, geoms)
     return max(best, t)
 
 
 @nb.njit(cache=True, inline="always")
 def _axis_tau(
-    n0, n1, n2, mode, r0, r1, r2, spin, pairs, records, p, frame, shapes, geoms
+    n0, n1, n2, mode, r0, r1, r2, spin, pairs, records, p, fp, fm, shapes, geoms
 ):  # pragma: no cover
     """tau of the pair's separation along the unit direction ``n`` (first geom to second):
     ``d_n + (n.r - spin) t - delta t - A t^2 / 2`` with ``d_n = min_B n.b - max_A n.a`` from the
     supports and ``r`` the relative velocity of the origins."""
     g2 = int(records[p, X_G2])
     if mode == _PLANE:
-        frame_pos = frame[0]
-        low_b = n0 * frame_pos[g2, 0] + n1 * frame_pos[g2, 1] + n2 * frame_pos[g2, 2]
+        low_b = n0 * fp[g2, 0] + n1 * fp[g2, 1] + n2 * fp[g2, 2]
     elif mode == _SHAPE:
         low_b = -_record_support(shapes, int(pairs[p, PAIR_OTHER]), -n0, -n1, -n2)
     else:
-        low_b = -_geom_support(g2, geoms, frame, -n0, -n1, -n2)
-    h_a = _geom_support(int(records[p, X_G1]), geoms, frame, n0, n1, n2)
+        low_b = -_geom_support(g2, geoms, fp, fm, -n0, -n1, -n2)
+    h_a = _geom_support(int(records[p, X_G1]), geoms, fp, fm, n0, n1, n2)
     scale = abs(h_a) + abs(low_b) + records[p, X_DIST]
     gap = low_b - h_a - records[p, X_DIST] - _GAP_SLACK * scale
     if gap <= 0.0:
@@ -429,7 +448,7 @@ def build_exact(
     geom2: npt.ArrayLike,
     kind: npt.ArrayLike,
     contact_distance: npt.ArrayLike,
-    exact_below: float = DEFAULT_EXACT_BELOW,
+    exact_below: float,
     query_below: float = 0.0,
 ) -> ExactLevel:
     """The exact level's tables for sphere pairs with geoms ``geom1``, ``geom2``.

@@ -51,6 +51,7 @@ __all__ = [
     "mjdata_frame",
     "pack_spheres",
     "rigid_point",
+    "rigid_point_at",
     "sphere_states",
 ]
 
@@ -107,6 +108,16 @@ def rigid_point(i, spheres, frame, out):  # pragma: no cover - jitted
     ``root_origin`` for trees MuJoCo treats as static (mocap roots), which is zero elsewhere.
     """
     frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin = frame
+    rigid_point_at(i, spheres, frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin, out)
+
+
+@nb.njit(cache=True, inline="always")
+def rigid_point_at(  # pragma: no cover - jitted
+    i, spheres, frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin, out
+):
+    """:func:`rigid_point` with the ``frame`` tuple's arrays passed one by one: for loops that
+    unpack the tuple once (numba reference-counts every array taken out of a tuple, and in a
+    loop with branches that is not pruned: 0.1 us a pair in the exact level, measured)."""
     g = int(spheres[i, SPHERE_FRAME])
     b = int(spheres[i, SPHERE_BODY])
     o0 = spheres[i, SPHERE_OFFSET]

@@ -44,7 +44,8 @@ from dua_mujoco.mj.bounds import MotionBounds, resolve_bounds
 from dua_mujoco.mj.covering import Covering, CoveringMode, cover_model
 from dua_mujoco.mj.diagnostics import divergence_message, nonfinite_error
 from dua_mujoco.mj.exact import (
-    DEFAULT_EXACT_BELOW,
+    EXACT_PERIODS,
+    QUERY_PERIODS,
     ExactLevel,
     build_exact,
     corner_points,
@@ -102,6 +103,13 @@ class Predictor:
             the geoms' ``multi`` coverings of ``n`` spheres each (requires
             ``covering="bounding"``). None (default): off.
         refine_below: Refine pairs whose bounding tau is below this many seconds.
+        exact: The exact level (docs/theory.md, section 5; default on): a pair whose sphere tau
+            is below ``exact_below`` is looked at through its geoms (MuJoCo's witness direction,
+            the geoms' own supports), and its tau is the larger of the two lower bounds. The
+            bounds then hold for every point of the geoms: the pilot measures, and the monitor
+            checks, the corners of their boxes.
+        exact_below: Seconds; default ``(2 + latency)`` predictor periods, one period past the
+            alarm horizon (measured: larger thresholds cost more and clear no more alarms).
         period: Physics steps between predictor steps (``>= 1``); the predictor period is
             ``period * model.opt.timestep``.
         latency: Periods a verdict takes to act. 0 (the default) is right when ``step`` runs
@@ -150,8 +158,7 @@ class Predictor:
         refine: int | None = None,
         refine_below: float = 0.1,
         exact: bool = True,
-        exact_below: float = DEFAULT_EXACT_BELOW,
-        query_periods: float = 4.0,
+        exact_below: float | None = None,
         period: int = 1,
         latency: int = 0,
         schedule: Schedule | str = Schedule.DEADLINE,
@@ -213,8 +220,8 @@ class Predictor:
                 self.tables.geom2,
                 self.tables.kind,
                 np.asarray(self.geom_pairs.contact_distance)[self.sphere_pairs.geom_pair],
-                exact_below,
-                query_periods * self.dt,
+                (EXACT_PERIODS + self.latency) * self.dt if exact_below is None else exact_below,
+                QUERY_PERIODS * self.dt,
             )
         spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
         self.refinement: Refinement | None = None
