@@ -9,7 +9,7 @@ each scene; every configuration of a scene sees the same controls, hence the sam
 Configurations: ``dua`` (slots_per_bucket 1, 4, 16, 64), ``deadline`` (the default: no cap,
 alarm backoff 8; then backoff 1, which gives select-all's alarms exactly; caps 16 and 64),
 ``select-all``, each with the old urgency (``static="sphere"``), the new (``static="shape"``,
-the default) and the two-level one (``static="shape", refine=8``); then the swept-sphere
+and the exact level on top (``exact=True``, the default now); then the swept-sphere
 broadphase (sort-and-sweep) and MuJoCo's gap-inflated collision, on the old and new coverings.
 
 The standing alarm fraction of a predictor is ``RunReport.standing_alarm_fraction``; that of a
@@ -50,9 +50,9 @@ ROLLOUT_SEED = 0
 
 # Urgency variants: label -> Predictor options.
 URGENCIES: dict[str, dict] = {
-    "old (sphere)": {"static": "sphere"},
-    "new (shape)": {"static": "shape"},
-    "shape+refine=8": {"static": "shape", "refine": 8},
+    "old (sphere)": {"static": "sphere", "exact": False},
+    "new (shape)": {"static": "shape", "exact": False},
+    "exact": {"static": "shape", "exact": True},
 }
 # Scheduler configurations: label -> Predictor options.
 SCHEDULES: dict[str, dict] = {
@@ -118,7 +118,7 @@ def measure_predictor(
     bounds.setdefault(urgency, p.bounds)
     # RunReport.evals_per_step counts the pairs whose verdict a step renewed, which for a
     # capped deadline includes the pairs it deferred without evaluating: count tau evaluations
-    # from the scheduler instead (coarse level only with refine: the fine evaluations show in
+    # from the scheduler instead (the sphere level only: the exact looks show in
     # the microseconds, not here).
     sums = {"deferred": 0, "evals": 0}
 
@@ -283,7 +283,7 @@ def plot(scene: str, rows: list[Row], out: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    colors = {"old (sphere)": "tab:red", "new (shape)": "tab:blue", "shape+refine=8": "tab:green"}
+    colors = {"old (sphere)": "tab:red", "new (shape)": "tab:blue", "exact": "tab:green"}
     markers = {"dua": "o", "deadline": "s", "select-all": "*", "sweep": "^", "MuJoCo": "v"}
     # A fraction of 0 has no place on a log axis: draw it at the floor and say so.
     floor = 1e-4
@@ -381,17 +381,14 @@ def targets(by_scene: dict[str, list[Row]], bare: dict[str, tuple[float, float]]
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--quick", action="store_true", help="200 steps, two scenes, no refine")
+    parser.add_argument("--quick", action="store_true", help="200 steps, two scenes")
     parser.add_argument("--steps", type=int, default=1000, help="physics steps per rollout")
     parser.add_argument("--scenes", nargs="*", default=None)
     parser.add_argument("--out", type=Path, default=Path("docs/img"))
-    parser.add_argument("--no-refine", action="store_true", help="skip shape+refine=8")
     args = parser.parse_args()
     steps = 200 if args.quick else args.steps
     scenes = args.scenes or list(QUICK_SCENES if args.quick else SCENES)
-    urgencies = [
-        u for u in URGENCIES if not (u == "shape+refine=8" and (args.quick or args.no_refine))
-    ]
+    urgencies = list(URGENCIES)
     # The pilot's bound estimate and the stiff scenes warn; the figures are what matter here.
     warnings.simplefilter("ignore")
     t_start = time.perf_counter()

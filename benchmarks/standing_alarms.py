@@ -38,14 +38,14 @@ SCENES = ("two_arms", "traffic", "clutter", "dmc/manipulator", "gym/pusher", "gy
 
 
 def measure(
-    scene: str, schedule: str, static: str, *, refine: int | None = None, why: bool = False
+    scene: str, schedule: str, static: str, *, exact: bool = False, why: bool = False
 ) -> dict[str, float]:
     """Mean standing alarm fraction (and the work) of one rollout."""
     m, d = load_scene(scene if "/" not in scene else _external(scene))
     p = Predictor(
         m,
         static=static,
-        refine=refine,
+        exact=exact,
         schedule=schedule,
         pilot_controller=make_controller(m, "random", seed=99),
     )
@@ -103,14 +103,14 @@ def main() -> None:
         return
     print(
         "| scene | geom pairs | schedule | static as spheres | static as shapes | cut "
-        "| shapes + refine=8 | cut |"
+        "| shapes + exact level | cut |"
     )
     print("|---|---|---|---|---|---|---|---|")
     for scene in args.scenes:
         for schedule in ("select-all", "deadline"):
             old = measure(scene, schedule, "sphere")
             new = measure(scene, schedule, "shape")
-            two = measure(scene, schedule, "shape", refine=8)
+            two = measure(scene, schedule, "shape", exact=True)
             print(
                 f"| {scene} | {int(old['geom_pairs'])} | {schedule} | {old['fraction']:.3f} | "
                 f"{new['fraction']:.3f} | {_cut(old, new)} | {two['fraction']:.3f} | "

@@ -184,11 +184,11 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         "bounding sphere (the previous urgency, for comparison)",
     )
     p.add_argument(
-        "--refine",
-        type=_positive(int),
-        default=None,
-        help="two-level urgency: refine urgent bounding pairs with up to N spheres per geom "
-        "(default: off)",
+        "--no-exact",
+        dest="exact",
+        action="store_false",
+        help="turn the exact level off: urgent pairs keep the tau of their bounding spheres "
+        "(for comparison; docs/theory.md, section 5)",
     )
     p.add_argument(
         "--pairs",
@@ -414,7 +414,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         slots_per_bucket=args.slots_per_bucket,
         pairs=args.pairs,
         static=args.static,
-        refine=args.refine,
+        exact=args.exact,
         pilot_steps=args.pilot_steps,
         pilot_seed=args.seed + 1_000_003,
         pilot_controller=pilot,

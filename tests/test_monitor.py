@@ -307,7 +307,7 @@ def test_monitored_run_with_pruned_pairs() -> None:
     assert report.unfiltered_contacts == 0
 
 
-@pytest.mark.parametrize("options", [{}, {"refine": 8}, {"max_evals_per_step": 16}])
+@pytest.mark.parametrize("options", [{}, {"exact": False}, {"max_evals_per_step": 16}])
 def test_pruned_pairs_keep_the_static_shapes(options: dict) -> None:
     """Pairs against static shapes are always held: their second member is a shape, not a sphere
     with a reach (an earlier merge read it as a sphere id and dropped table contacts)."""

@@ -387,6 +387,20 @@ class ExactLevel:
     exact_below: float
     query_below: float
 
+    def with_corners(
+        self, model: mujoco.MjModel, points: tuple[np.ndarray, np.ndarray, np.ndarray]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``points`` (``(geom, body, offset)``, the covering's centres) and the box corners of
+        every moving geom the level reads: the bounds hold for every point of those geoms
+        when they hold at the corners (:func:`corner_points`)."""
+        used = self.records[self.records[:, X_MODE] != ExactMode.NONE]
+        geoms = np.unique(np.concatenate([used[:, X_G1], used[:, X_G2]]).astype(np.int64))
+        geoms = geoms[self.geoms[geoms, GX_KIND] >= 0]  # planes are read by their normal only
+        corners = corner_points(model, geoms)
+        return tuple(  # type: ignore[return-value]
+            np.concatenate([a, b]) for a, b in zip(points, corners, strict=True)
+        )
+
     def args(self, model: mujoco.MjModel, data: mujoco.MjData, records: np.ndarray) -> tuple:
         """The ``exact`` tuple of the compiled step for ``data`` and the held pairs' ``records``.
 

@@ -21,24 +21,11 @@ at a mocap body moves with that body, which ``cvel`` treats as static: its twist
 
 from __future__ import annotations
 
-import math
-
 import mujoco
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.pairset import (
-    KIND_HALFSPACE,
-    KIND_SHAPE,
-    PAIR_ACCEL,
-    PAIR_DELTA,
-    PAIR_KIND,
-    PAIR_OTHER,
-    PAIR_SPEED,
-)
-from dua_mujoco.core.shapes import tau_static
-from dua_mujoco.core.urgency import tau_between, tau_halfspace
 from dua_mujoco.exceptions import ShapeError
 
 __all__ = [
@@ -46,8 +33,6 @@ __all__ = [
     "SPHERE_FRAME",
     "SPHERE_OFFSET",
     "SPHERE_ROOT",
-    "fine_buffer",
-    "fine_tau",
     "mjdata_frame",
     "pack_spheres",
     "rigid_point",
@@ -57,11 +42,6 @@ __all__ = [
 
 # Columns of the packed per-sphere records: one 64-byte row (a cache line) per sphere.
 SPHERE_FRAME, SPHERE_BODY, SPHERE_OFFSET, SPHERE_ROOT = 0, 1, 2, 5  # offset: columns 2, 3, 4
-# Columns of the per-pair refinement records (dua_mujoco.mj.refine): the fine sphere ranges
-# [a0, a1) of the first geom and [b0, b1) of the second (empty for half-space and shape pairs),
-# and the geom pair's contact distance.
-REFINE_A0, REFINE_A1, REFINE_B0, REFINE_B1, REFINE_DIST = range(5)
-REFINE_NCOL = 8
 
 
 def pack_spheres(
@@ -208,78 +188,3 @@ def _check_frame(spheres: np.ndarray, frame: tuple[np.ndarray, ...]) -> None:
             f"{int(spheres[:, SPHERE_BODY].max())} but the data has {nframe} frames and {nbody} "
             "bodies: pass the MjData of the model the spheres were built for."
         )
-
-
-@nb.njit(cache=True)
-def fine_buffer(refine):  # pragma: no cover - jitted
-    """:func:`fine_tau`'s scratch: ``(max_fine + 1, 6)`` fine sphere states (``refine[4]`` is
-    the most fine spheres of a geom; the last row holds the sphere the others are paired with)."""
-    return np.empty((refine[4] + 1, 6))
-
-
-@nb.njit(cache=True)
-def fine_tau(p, rec, coarse, frame, shapes, refine, buf):  # pragma: no cover - jitted
-    """The refined tau of pair ``p``: ``max(coarse, min over its fine sub-pairs)``.
-
-    ``rec`` is the pair's ``pack_pairs`` row, ``coarse`` its bounding tau, ``refine`` the tuple of
-    :attr:`Refinement.args`, ``buf`` a :func:`fine_buffer`. The scan stops as soon as a sub-pair's
-    tau is at most ``coarse``: the maximum is then ``coarse``.
-    """
-    fine_spheres, radius, records, _, _ = refine
-    r = records[p]
-    a0 = int(r[REFINE_A0])
-    a1 = int(r[REFINE_A1])
-    d = r[REFINE_DIST]
-    accel = rec[PAIR_ACCEL]
-    delta = rec[PAIR_DELTA]
-    kind = int(rec[PAIR_KIND])
-    best = math.inf
-    if kind == KIND_SHAPE:
-        shape = shapes[int(rec[PAIR_OTHER])]
-        for a in range(a0, a1):
-            rigid_point(a, fine_spheres, frame, buf[0])
-            s = buf[0]
-            t = tau_static(s[0], s[1], s[2], s[3], s[4], s[5], shape, radius[a] + d, accel, delta)
-            best = min(best, t if t >= 0.0 else 0.0)
-            if best <= coarse:
-                return coarse
-    elif kind == KIND_HALFSPACE:
-        frame_pos, frame_mat = frame[0], frame[1]
-        g = int(rec[PAIR_OTHER])
-        n0 = frame_mat[g, 2]
-        n1 = frame_mat[g, 5]
-        n2 = frame_mat[g, 8]
-        off = n0 * frame_pos[g, 0] + n1 * frame_pos[g, 1] + n2 * frame_pos[g, 2]
-        for a in range(a0, a1):
-            rigid_point(a, fine_spheres, frame, buf[0])
-            s = buf[0]
-            gap = n0 * s[0] + n1 * s[1] + n2 * s[2] - off - (radius[a] + d)
-            t = tau_halfspace(gap, n0 * s[3] + n1 * s[4] + n2 * s[5], accel, delta)
-            best = min(best, t if t >= 0.0 else 0.0)
-            if best <= coarse:
-                return coarse
-    else:
-        b0 = int(r[REFINE_B0])
-        nb_ = int(r[REFINE_B1]) - b0
-        for b in range(nb_):
-            rigid_point(b0 + b, fine_spheres, frame, buf[b])
-        sa = buf[buf.shape[0] - 1]  # not one of the nb_ <= max_fine rows above
-        speed = rec[PAIR_SPEED]
-        for a in range(a0, a1):
-            rigid_point(a, fine_spheres, frame, sa)
-            for b in range(nb_):
-                s = buf[b]
-                t = tau_between(
-                    sa[0:3],
-                    sa[3:6],
-                    s[0:3],
-                    s[3:6],
-                    radius[a] + radius[b0 + b] + d,
-                    accel,
-                    delta,
-                    speed,
-                )
-                best = min(best, t if t >= 0.0 else 0.0)
-                if best <= coarse:
-                    return coarse
-    return max(coarse, best)

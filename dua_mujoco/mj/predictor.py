@@ -48,7 +48,6 @@ from dua_mujoco.mj.exact import (
     QUERY_PERIODS,
     ExactLevel,
     build_exact,
-    corner_points,
     exact_taus,
     no_exact,
 )
@@ -65,7 +64,6 @@ from dua_mujoco.mj.mocap import MocapVelocityTracker
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty, bounded_pairs
 from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for
-from dua_mujoco.mj.refine import Refinement, build_refinement, no_refinement, refine_taus
 from dua_mujoco.mj.rigid_step import scratch_buffers
 from dua_mujoco.mj.step_context import StepContext, Stepper, StepTables
 from dua_mujoco.mj.tables import (
@@ -98,11 +96,6 @@ class Predictor:
         static: ``"shape"`` (default): geoms welded to the world are held as their own convex
             shapes (docs/static-shapes.md); ``"sphere"``: covered by spheres like moving geoms.
             Ignored for a ready ``Covering``.
-        refine: Two-level urgency (docs/static-shapes.md, section 12): with an int ``n >= 1``,
-            pairs of the bounding covering whose tau is below ``refine_below`` are refined with
-            the geoms' ``multi`` coverings of ``n`` spheres each (requires
-            ``covering="bounding"``). None (default): off.
-        refine_below: Refine pairs whose bounding tau is below this many seconds.
         exact: The exact level (docs/theory.md, section 5; default on): a pair whose sphere tau
             is below ``exact_below`` is looked at through its geoms (MuJoCo's witness direction,
             the geoms' own supports), and its tau is the larger of the two lower bounds. The
@@ -155,8 +148,6 @@ class Predictor:
         max_spheres_per_geom: int = 8,
         hfield: str = "error",
         static: str = "shape",
-        refine: int | None = None,
-        refine_below: float = 0.1,
         exact: bool = True,
         exact_below: float | None = None,
         period: int = 1,
@@ -213,6 +204,7 @@ class Predictor:
         self.tables = PairTables.build(model, cov, self.sphere_pairs)
         self.exact: ExactLevel | None = None
         """The exact level's tables (None when off)."""
+        spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
         if exact:
             self.exact = build_exact(
                 model,
@@ -223,34 +215,7 @@ class Predictor:
                 (EXACT_PERIODS + self.latency) * self.dt if exact_below is None else exact_below,
                 QUERY_PERIODS * self.dt,
             )
-        spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
-        self.refinement: Refinement | None = None
-        """The two-level urgency's fine coverings (None without ``refine``)."""
-        if refine is not None:
-            fine = cover_model(
-                model, mode="multi", max_spheres_per_geom=refine, hfield=hfield, static=static
-            )
-            # Before the pilot: a refinement that cannot be built fails fast.
-            self.refinement = build_refinement(
-                model.body_rootid, cov, fine, self.sphere_pairs, self.geom_pairs, refine_below
-            )
-            # The bounds must hold for the fine sphere centres too: the pilot measures both.
-            spheres = tuple(  # type: ignore[assignment]
-                np.concatenate([a, b])
-                for a, b in zip(
-                    spheres, (fine.sphere_geom, fine.sphere_body, fine.sphere_offset), strict=True
-                )
-            )
-        if self.exact is not None:
-            # The exact level bounds every point of its geoms: the corners of their boxes hold
-            # the maxima of what the bounds limit (docs/theory.md, section 6).
-            used = self.exact.records[self.exact.records[:, 0] > 0]
-            geoms = np.unique(np.concatenate([used[:, 1], used[:, 2]]).astype(np.int64))
-            moving = self.exact.geoms[geoms, 8] >= 0  # planes are read by their normal only
-            spheres = tuple(  # type: ignore[assignment]
-                np.concatenate([a, b])
-                for a, b in zip(spheres, corner_points(model, geoms[moving]), strict=True)
-            )
+            spheres = self.exact.with_corners(model, spheres)
         self.bound_points: tuple[np.ndarray, np.ndarray, np.ndarray] = spheres
         """``(geom, body, offset)`` of every point whose motion the bounds limit (the covering
         spheres' centres, and the corners of the exact level's geoms): what the pilot measures
@@ -279,7 +244,6 @@ class Predictor:
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
         self._pair_records = pack_pairs(self.pair_set, self._plane_geom)
-        self._refine = no_refinement() if self.refinement is None else self.refinement.args
         self._exact_records = None if self.exact is None else self.exact.records
         self._exact = no_exact()
         # Static shape records: their poses are model constants (static_shapes), re-packed and
@@ -333,10 +297,6 @@ class Predictor:
         self._ids = ids
         self._records = np.ascontiguousarray(self._pair_records[ids])
         self._stepper.context = None
-        if self.refinement is not None:
-            # The refinement records are indexed like the pair records the step reads.
-            fine, radius, records, below, most = self.refinement.args
-            self._refine = (fine, radius, np.ascontiguousarray(records[ids]), below, most)
         if self.exact is not None:
             self._exact_records = np.ascontiguousarray(self.exact.records[ids])
             if self._frame_data is not None:
@@ -444,10 +404,6 @@ class Predictor:
             self._hold(self._held.select(c, v))
             self._built_at = 0
         tau0 = self.pair_set.tau(self._ids, c, v, halfspaces)
-        if self.refinement is not None:
-            refine_taus(
-                tau0, self._ids, self._pair_records, frame, self._shapes, self.refinement.args
-            )
         if self.exact is not None:
             full = self.exact.args(self.model, data, self.exact.records)
             exact_taus(tau0, self._ids, self._pair_records, frame, self._shapes, full)
@@ -482,14 +438,13 @@ class Predictor:
             spare = self._scheduler(np.full(1, np.inf))
             tables = self._step_tables(frame)
             # The spare's pair 0 is the model's: its rows exist even when no pair is held.
-            full = self._refine if self.refinement is None else self.refinement.args
             exact = (
                 self._exact
                 if self.exact is None
                 else self.exact.args(self.model, data, self.exact.records)
             )
             Stepper.load_compiled(
-                spare, tables._replace(pairs=self._pair_records, refine=full, exact=exact)
+                spare, tables._replace(pairs=self._pair_records, exact=exact)
             )
             spare.set_active([0], False)
             spare.set_active([0], True)
@@ -499,7 +454,7 @@ class Predictor:
     def _step_tables(self, frame: tuple) -> StepTables:
         """The compiled step's tables as they stand now, on ``frame``."""
         return StepTables(
-            self._records, self._spheres, frame, self._shapes, self._refine, self._exact, self._ids
+            self._records, self._spheres, frame, self._shapes, self._exact, self._ids
         )
 
     def _bind_step(self) -> StepContext:
@@ -647,12 +602,12 @@ class Predictor:
     def kernel_arguments(self, data: mujoco.MjData) -> tuple:
         """Everything ``step`` hands ``rigid_step.step_rigid_kernel`` after the scheduler's
         ``kernel_state`` and the step number, for ``data``: ``(pair_records, sphere_records,
-        frame, shape_records, refine, exact, scratch)``; for compiled drivers (benchmarks)."""
+        frame, shape_records, exact, scratch)``; for compiled drivers (benchmarks)."""
         t = self._step_tables(mjdata_frame(data, self._twist))
         if self.exact is not None:
             t = t._replace(exact=self.exact.args(self.model, data, self._exact_records))
-        scratch = scratch_buffers(self._require_scheduler().state.work.shape[1], t.refine)
-        return t.pairs, t.spheres, t.frame, t.shapes, t.refine, t.exact, scratch
+        scratch = scratch_buffers(self._require_scheduler().state.work.shape[1])
+        return t.pairs, t.spheres, t.frame, t.shapes, t.exact, scratch
 
     @property
     def sphere_pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:

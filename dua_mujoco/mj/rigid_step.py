@@ -27,39 +27,37 @@ from dua_mujoco.core.schedules.state import S_W_TAU, S_WORK, W_IDS
 from dua_mujoco.core.shapes import tau_static
 from dua_mujoco.core.urgency import tau_between, tau_halfspace
 from dua_mujoco.mj.exact import exact_buffer, exact_pass
-from dua_mujoco.mj.kinematics import fine_buffer, fine_tau, rigid_point
+from dua_mujoco.mj.kinematics import rigid_point
 
 __all__ = ["scratch_buffers", "step_rigid_kernel"]
 
 
-def scratch_buffers(width: int, refine: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def scratch_buffers(width: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`step_rigid_kernel`'s ``scratch``: ``(width, 12)`` gathered pair states (``width``
-    the schedule's work width, the most pairs a step selects), :func:`fine_buffer` and
+    the schedule's work width, the most pairs a step selects) and
     :func:`~dua_mujoco.mj.exact.exact_buffer`."""
-    return np.empty((max(int(width), 1), 12)), fine_buffer(refine), exact_buffer()
+    return np.empty((max(int(width), 1), 12)), exact_buffer()
 
 
 @nb.njit(cache=True)
 def step_rigid_kernel(
-    st, n, pairs, spheres, frame, shapes, refine, exact, scratch
+    st, n, pairs, spheres, frame, shapes, exact, scratch
 ):  # pragma: no cover
     """The fused step on spheres attached to rigid frames (a ``FusedKernel``).
 
     Reads only the selected spheres. ``pairs`` and ``spheres`` are ``pack_pairs`` /
     ``pack_spheres`` records; ``shapes`` the ``(nshape, 16)`` static shape records
     (``pack_shapes``, one placeholder row without shapes) that shape pairs' ``PAIR_OTHER``
-    indexes; ``refine`` the two-level urgency's tuple (``dua_mujoco.mj.refine``: a pair whose
-    tau is below its threshold is refined by :func:`fine_tau`); ``exact`` the exact level's tuple
-    (``dua_mujoco.mj.exact``: a pair whose tau is still below its threshold is looked at through
-    its geoms by :func:`exact_pass`); ``scratch`` the buffers of
+    indexes; ``exact`` the exact level's tuple (``dua_mujoco.mj.exact``: a pair whose tau is
+    below its threshold is looked at through its geoms by :func:`exact_pass`); ``scratch`` the
+    buffers of
     :func:`scratch_buffers` (allocating them here cost a microsecond a step, measured). Two
     passes: first every selected pair's state is gathered (independent loads, which the CPU
     overlaps; the tables are cold after ``mj_step``), then tau is computed from that small
     buffer. A pair whose state is not finite abandons the step.
     """
     frame_pos, frame_mat = frame[0], frame[1]
-    below = refine[3]
-    state, buf, xbuf = scratch
+    state, xbuf = scratch
     count = kernels.select(st, n)
     w_ids = st[S_WORK][W_IDS]
     # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset;
@@ -124,8 +122,6 @@ def step_rigid_kernel(
                 rec[PAIR_DELTA],
                 rec[PAIR_SPEED],
             )
-        if t < below:
-            t = fine_tau(w_ids[k], rec, t, frame, shapes, refine, buf)
         st[S_W_TAU][k] = t
     exact_pass(st[S_W_TAU], w_ids, count, pairs, frame, shapes, exact, xbuf)
     return count, kernels.reinsert(st, n, count), -1

@@ -2,7 +2,7 @@
 
 A ``Predictor.step`` is a few microseconds of compiled work, and handing numba the fused step's
 arguments one by one (the schedule state's 12 fields, the pair, sphere and shape tables, the
-``MjData`` views of the frame, the refinement tables: about 25 arrays) cost 1.9 us a call after
+``MjData`` views of the frame, the exact level's tables: about 25 arrays) cost 1.9 us a call after
 ``mj_step`` (measured, docs/benchmarks.md). A ``StepContext`` is a numba ``StructRef`` holding
 references to those same arrays: numba unboxes it as one pointer (0.7 us a call, measured), and
 the arrays stay shared with their Python owners, so the scheduler, the tables and ``MjData``
@@ -74,7 +74,6 @@ class StepTables(NamedTuple):
         spheres: ``(nsphere, ncol)`` packed sphere records (``pack_spheres``).
         frame: ``mjdata_frame``'s tuple of ``MjData`` views.
         shapes: ``(nshape, 16)`` static shape records.
-        refine: The two-level urgency's tuple (``Refinement.args`` or ``no_refinement()``).
         exact: The exact level's tuple (``ExactLevel.args`` or ``no_exact()``).
         ids: ``(K,)`` model sphere-pair id of each held pair (the identity when none is pruned).
     """
@@ -83,7 +82,6 @@ class StepTables(NamedTuple):
     spheres: np.ndarray
     frame: tuple
     shapes: np.ndarray
-    refine: tuple
     exact: tuple
     ids: np.ndarray
 
@@ -94,7 +92,7 @@ class StepContext(structref.StructRefProxy):
     state's work width) and the writeable :data:`AlarmLog` the step appends to."""
 
     def __new__(cls, state: tuple, tables: StepTables, log: AlarmLog) -> StepContext:
-        scratch = scratch_buffers(state[S_WORK].shape[1], tables.refine)
+        scratch = scratch_buffers(state[S_WORK].shape[1])
         return structref.StructRefProxy.__new__(cls, state, *tables, scratch, log)
 
 
@@ -132,7 +130,7 @@ def context_step(ctx, n, start):  # pragma: no cover - jitted
     """
     st = ctx.state
     _, nalarm, bad = step_rigid_kernel(
-        st, n, ctx.pairs, ctx.spheres, ctx.frame, ctx.shapes, ctx.refine, ctx.exact, ctx.scratch
+        st, n, ctx.pairs, ctx.spheres, ctx.frame, ctx.shapes, ctx.exact, ctx.scratch
     )
     if bad >= 0:
         return 0, bad, 0
