@@ -6,10 +6,10 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from dua_mujoco.exceptions import NonFiniteStateError
+from dua_mujoco.exceptions import NonFiniteStateError, SchedulerError
 from dua_mujoco.mj.bounds import DIVERGENCE_WARNINGS
 
-__all__ = ["divergence_count", "divergence_message", "nonfinite_error"]
+__all__ = ["clock_error", "divergence_count", "divergence_message", "nonfinite_error"]
 
 
 def nonfinite_error(
@@ -34,6 +34,22 @@ def nonfinite_error(
     return NonFiniteStateError(
         f"{what} is not finite at t = {data.time}: the simulation has diverged (reduce the "
         "timestep or check the model) or MjData was not initialised (call mujoco.mj_forward)."
+    )
+
+
+def clock_error(
+    data: mujoco.MjData, expected_steps: int, elapsed: float, period: int, dt: float
+) -> NonFiniteStateError | SchedulerError:
+    """The error for a predictor step whose ``data.time`` did not advance by one period
+    (``elapsed`` seconds instead of ``dt``): MuJoCo's reset after a divergence when that is
+    what happened (:func:`divergence_message`), else a step called at the wrong rate."""
+    diverged = divergence_message(data, expected_steps)
+    if diverged:
+        return NonFiniteStateError(diverged)
+    return SchedulerError(
+        f"data.time advanced by {elapsed:.9g} s since the previous predictor call, but the "
+        f"predictor period is {dt:.9g} s (period={period} x timestep {dt / period:g}): call "
+        f"step() every {period} physics step(s), or reset() after changing the state."
     )
 
 

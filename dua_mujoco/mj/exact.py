@@ -317,7 +317,7 @@ def _exact_tau(
     c2 = fp[g2, 2] - fp[g1, 2]
     # Both origins lie inside their geoms, so the distance is at most theirs: a witness.
     reach = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + records[p, X_DIST] + 1.0
-    dist = _geom_distance(call[0], call[1], call[2], g1, g2, reach, fromto)
+    dist: float = _geom_distance(call[0], call[1], call[2], g1, g2, reach, fromto)  # type: ignore[call-arg]
     if not dist > records[p, X_DIST]:
         return best  # in contact, or no witness
     n0 = fromto[3] - fromto[0]

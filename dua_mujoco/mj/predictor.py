@@ -42,7 +42,7 @@ from dua_mujoco.exceptions import (
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.bounds import MotionBounds, resolve_bounds
 from dua_mujoco.mj.covering import Covering, CoveringMode, cover_model
-from dua_mujoco.mj.diagnostics import divergence_message, nonfinite_error
+from dua_mujoco.mj.diagnostics import clock_error, nonfinite_error
 from dua_mujoco.mj.exact import (
     EXACT_PERIODS,
     QUERY_PERIODS,
@@ -96,13 +96,10 @@ class Predictor:
         static: ``"shape"`` (default): geoms welded to the world are held as their own convex
             shapes (docs/static-shapes.md); ``"sphere"``: covered by spheres like moving geoms.
             Ignored for a ready ``Covering``.
-        exact: The exact level (docs/theory.md, section 5; default on): a pair whose sphere tau
-            is below ``exact_below`` is looked at through its geoms (MuJoCo's witness direction,
-            the geoms' own supports), and its tau is the larger of the two lower bounds. The
-            bounds then hold for every point of the geoms: the pilot measures, and the monitor
-            checks, the corners of their boxes.
-        exact_below: Seconds; default ``(2 + latency)`` predictor periods, one period past the
-            alarm horizon (measured: larger thresholds cost more and clear no more alarms).
+        exact: The exact level (docs/theory.md, section 5): a pair whose sphere tau is below
+            ``exact_below`` (default ``(2 + latency)`` periods) is looked at through its geoms,
+            and the bounds hold for every point of the geoms (checked at their box corners).
+        exact_below: Seconds (measured: larger thresholds cost more and clear no more alarms).
         period: Physics steps between predictor steps (``>= 1``); the predictor period is
             ``period * model.opt.timestep``.
         latency: Periods a verdict takes to act. 0 (the default) is right when ``step`` runs
@@ -262,9 +259,19 @@ class Predictor:
         self._steps_at_reset = 0
         self._frame_data: mujoco.MjData | None = None
         self._frame_cache: tuple = ()
-        self.stride = 0
-        """Pruned: predictor steps between rebuilds of the held pairs (0: all pairs held)."""
-        self._held = self._held_pairs(pairs, horizon)
+        # stride: predictor steps between rebuilds of the held pairs (0: all pairs held).
+        self._held: HeldPairs | None
+        self._held, self.stride = held_pairs_for(
+            pairs,
+            horizon,
+            deadline=self.schedule is Schedule.DEADLINE,
+            sphere_pairs=self.sphere_pairs,
+            covering=self.covering,
+            bounds=self.bounds,
+            delta=body_vel_uncertainty(model, self.bounds, period=self.period, mocap=self.mocap),
+            dt=self.dt,
+            latency=self.latency,
+        )
         # Pruned: the scheduler's pairs (ids among all active pairs), their packed records, the
         # switches of every active pair (carried into rebuilds) and the last rebuild's step.
         self._ids = np.arange(len(self.pair_set))
@@ -276,22 +283,6 @@ class Predictor:
 
     # ----------------------------------------------------------------------- setup
 
-    def _held_pairs(self, pairs: PairMode | str, horizon: float | None) -> HeldPairs | None:
-        held, self.stride = held_pairs_for(
-            pairs,
-            horizon,
-            deadline=self.schedule is Schedule.DEADLINE,
-            sphere_pairs=self.sphere_pairs,
-            covering=self.covering,
-            bounds=self.bounds,
-            delta=body_vel_uncertainty(
-                self.model, self.bounds, period=self.period, mocap=self.mocap
-            ),
-            dt=self.dt,
-            latency=self.latency,
-        )
-        return held
-
     def _hold(self, ids: np.ndarray) -> None:
         """Hold the pairs ``ids`` (sorted): the compiled step reads only their records."""
         self._ids = ids
@@ -300,7 +291,13 @@ class Predictor:
         if self.exact is not None:
             self._exact_records = np.ascontiguousarray(self.exact.records[ids])
             if self._frame_data is not None:
-                self._exact = self.exact.args(self.model, self._frame_data, self._exact_records)
+                self._exact = self._exact_args(self._frame_data, self._exact_records)
+
+    def _exact_args(self, data: mujoco.MjData, records: np.ndarray | None = None) -> tuple:
+        """The exact level's tuple on ``data`` for ``records`` (default: every pair's)."""
+        if self.exact is None:
+            return no_exact()
+        return self.exact.args(self.model, data, self.exact.records if records is None else records)
 
     def pair_state(self) -> PairState:
         """The scheduler's state of every sphere pair, by the model's pair ids (pruned or not)."""
@@ -339,8 +336,7 @@ class Predictor:
         self._stepper.context = None
         self._frame_data = data
         self._frame_cache = mjdata_frame(data, self._twist)
-        if self.exact is not None:
-            self._exact = self.exact.args(self.model, data, self._exact_records)
+        self._exact = self._exact_args(data, self._exact_records)
         return self._frame_cache
 
     def sphere_states(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
@@ -405,8 +401,9 @@ class Predictor:
             self._built_at = 0
         tau0 = self.pair_set.tau(self._ids, c, v, halfspaces)
         if self.exact is not None:
-            full = self.exact.args(self.model, data, self.exact.records)
-            exact_taus(tau0, self._ids, self._pair_records, frame, self._shapes, full)
+            exact_taus(
+                tau0, self._ids, self._pair_records, frame, self._shapes, self._exact_args(data)
+            )
         self.scheduler = self._scheduler(tau0)
         # A step raises at most one alarm per place of the work rows.
         self._stepper = Stepper(self.scheduler.state.work.shape[1])
@@ -438,14 +435,8 @@ class Predictor:
             spare = self._scheduler(np.full(1, np.inf))
             tables = self._step_tables(frame)
             # The spare's pair 0 is the model's: its rows exist even when no pair is held.
-            exact = (
-                self._exact
-                if self.exact is None
-                else self.exact.args(self.model, data, self.exact.records)
-            )
-            Stepper.load_compiled(
-                spare, tables._replace(pairs=self._pair_records, exact=exact)
-            )
+            full = tables._replace(pairs=self._pair_records, exact=self._exact_args(data))
+            Stepper.load_compiled(spare, full)
             spare.set_active([0], False)
             spare.set_active([0], True)
         if self.mocap is not None:
@@ -453,9 +444,7 @@ class Predictor:
 
     def _step_tables(self, frame: tuple) -> StepTables:
         """The compiled step's tables as they stand now, on ``frame``."""
-        return StepTables(
-            self._records, self._spheres, frame, self._shapes, self._exact, self._ids
-        )
+        return StepTables(self._records, self._spheres, frame, self._shapes, self._exact, self._ids)
 
     def _bind_step(self) -> StepContext:
         """The compiled step's context as it stands now (after any argument changed)."""
@@ -482,15 +471,7 @@ class Predictor:
         elapsed = time - self._time
         if abs(elapsed - self.dt) > 1e-6 * self.dt:
             expected = self._steps_at_reset + self.period * (sched.step_count + 1)
-            diverged = divergence_message(data, expected)
-            if diverged:
-                raise NonFiniteStateError(diverged)
-            raise SchedulerError(
-                f"data.time advanced by {elapsed:.9g} s since the previous predictor call, but "
-                f"the predictor period is {self.dt:.9g} s (period={self.period} x timestep "
-                f"{self.model.opt.timestep:g}): call step() every {self.period} physics step(s), "
-                "or reset() after changing the state."
-            )
+            raise clock_error(data, expected, elapsed, self.period, self.dt)
         if self.mocap is not None:
             self.mocap.update(data, self._twist)
         if self._held is not None and sched.step_count + 1 - self._built_at >= self.stride:
@@ -604,8 +585,7 @@ class Predictor:
         ``kernel_state`` and the step number, for ``data``: ``(pair_records, sphere_records,
         frame, shape_records, exact, scratch)``; for compiled drivers (benchmarks)."""
         t = self._step_tables(mjdata_frame(data, self._twist))
-        if self.exact is not None:
-            t = t._replace(exact=self.exact.args(self.model, data, self._exact_records))
+        t = t._replace(exact=self._exact_args(data, self._exact_records))
         scratch = scratch_buffers(self._require_scheduler().state.work.shape[1])
         return t.pairs, t.spheres, t.frame, t.shapes, t.exact, scratch
 

@@ -40,9 +40,7 @@ def scratch_buffers(width: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @nb.njit(cache=True)
-def step_rigid_kernel(
-    st, n, pairs, spheres, frame, shapes, exact, scratch
-):  # pragma: no cover
+def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, exact, scratch):  # pragma: no cover
     """The fused step on spheres attached to rigid frames (a ``FusedKernel``).
 
     Reads only the selected spheres. ``pairs`` and ``spheres`` are ``pack_pairs`` /
