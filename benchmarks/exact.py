@@ -32,6 +32,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from dua_mujoco.exceptions import DuaError
 from dua_mujoco.experiments.peers.mujoco_collision import MujocoScene
 from dua_mujoco.experiments.peers.scene_context import SceneContext
 from dua_mujoco.mj.monitor import run
@@ -173,12 +174,12 @@ HEADER = [
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scenes", nargs="+", default=None)
+    ap.add_argument("--scenes", nargs="*", default=None)
     ap.add_argument("--steps", type=int, default=1500)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--robots", action="store_true", help="add every installed robot model")
     args = ap.parse_args(argv)
-    scenes = list(args.scenes or (QUICK if args.quick else SCENES))
+    scenes = list(QUICK if args.quick else SCENES) if args.scenes is None else list(args.scenes)
     steps = 200 if args.quick else args.steps
     if args.robots:
         from robots import available
@@ -187,7 +188,14 @@ def main(argv: list[str] | None = None) -> None:
     rows: list[list[str]] = []
     for scene in scenes:
         print(f"{scene} ...", file=sys.stderr)
-        rows += measure(scene, steps)
+        try:
+            rows += measure(scene, steps)
+        except DuaError as exc:  # a model that diverges under random controls: say so, go on
+            rows.append(
+                [scene, f"not measured: {exc}".split(":")[0] + ": " + type(exc).__name__]
+                + [""] * (len(HEADER) - 2)
+            )
+            print(f"  {scene}: {exc}", file=sys.stderr)
     print(table(HEADER, rows))
 
 

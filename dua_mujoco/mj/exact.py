@@ -181,44 +181,52 @@ def _spin(g, geoms, twist, root_twist):  # pragma: no cover - jitted
 
 
 @nb.njit(cache=True, inline="always")
+def _support(kind, s0, s1, s2, mat, row, col, p0, p1, p2, n0, n1, n2):  # pragma: no cover
+    """``max n.x`` over a shape of ``kind`` and sizes ``s`` centred at ``p``, rotated by the
+    row-major ``mat[row, col:col + 9]`` (scalars in and out: no array view)."""
+    m0 = mat[row, col] * n0 + mat[row, col + 3] * n1 + mat[row, col + 6] * n2
+    m1 = mat[row, col + 1] * n0 + mat[row, col + 4] * n1 + mat[row, col + 7] * n2
+    m2 = mat[row, col + 2] * n0 + mat[row, col + 5] * n1 + mat[row, col + 8] * n2
+    return n0 * p0 + n1 * p1 + n2 * p2 + support_local(kind, s0, s1, s2, m0, m1, m2)
+
+
+@nb.njit(cache=True, inline="always")
 def _geom_support(g, geoms, frame_pos, frame_mat, n0, n1, n2):  # pragma: no cover - jitted
     """Support of geom ``g``'s support shape at its current pose along ``n``: ``max n.p``."""
-    # Local direction R^T n (row-major R).
-    m0 = frame_mat[g, 0] * n0 + frame_mat[g, 3] * n1 + frame_mat[g, 6] * n2
-    m1 = frame_mat[g, 1] * n0 + frame_mat[g, 4] * n1 + frame_mat[g, 7] * n2
-    m2 = frame_mat[g, 2] * n0 + frame_mat[g, 5] * n1 + frame_mat[g, 8] * n2
-    h = support_local(
-        int(geoms[g, GX_KIND]),
-        geoms[g, GX_SIZE],
-        geoms[g, GX_SIZE + 1],
-        geoms[g, GX_SIZE + 2],
-        m0,
-        m1,
-        m2,
-    )
     # The support shape's centre: the origin plus R c (c: a mesh box's centre, else 0).
-    centre = m0 * geoms[g, GX_CENTRE] + m1 * geoms[g, GX_CENTRE + 1] + m2 * geoms[g, GX_CENTRE + 2]
-    return n0 * frame_pos[g, 0] + n1 * frame_pos[g, 1] + n2 * frame_pos[g, 2] + centre + h
+    c0 = geoms[g, GX_CENTRE]
+    c1 = geoms[g, GX_CENTRE + 1]
+    c2 = geoms[g, GX_CENTRE + 2]
+    m = frame_mat
+    p0 = frame_pos[g, 0] + m[g, 0] * c0 + m[g, 1] * c1 + m[g, 2] * c2
+    p1 = frame_pos[g, 1] + m[g, 3] * c0 + m[g, 4] * c1 + m[g, 5] * c2
+    p2 = frame_pos[g, 2] + m[g, 6] * c0 + m[g, 7] * c1 + m[g, 8] * c2
+    kind = int(geoms[g, GX_KIND])
+    s0, s1, s2 = geoms[g, GX_SIZE], geoms[g, GX_SIZE + 1], geoms[g, GX_SIZE + 2]
+    return _support(kind, s0, s1, s2, m, g, 0, p0, p1, p2, n0, n1, n2)
 
 
 @nb.njit(cache=True, inline="always")
 def _record_support(shapes, row, n0, n1, n2):  # pragma: no cover - jitted
     """Support of static shape record ``row`` along ``n`` (``core.shapes.support``, scalars)."""
-    m = SHAPE_MAT
-    m0 = shapes[row, m] * n0 + shapes[row, m + 3] * n1 + shapes[row, m + 6] * n2
-    m1 = shapes[row, m + 1] * n0 + shapes[row, m + 4] * n1 + shapes[row, m + 7] * n2
-    m2 = shapes[row, m + 2] * n0 + shapes[row, m + 5] * n1 + shapes[row, m + 8] * n2
-    h = support_local(
+    sz = SHAPE_SIZE
+    ps = SHAPE_POS
+    # Indexed, not s = shapes[row]: a row view is reference-counted (exact_pass).
+    return _support(
         int(shapes[row, SHAPE_KIND]),
-        shapes[row, SHAPE_SIZE],
-        shapes[row, SHAPE_SIZE + 1],
-        shapes[row, SHAPE_SIZE + 2],
-        m0,
-        m1,
-        m2,
+        shapes[row, sz],
+        shapes[row, sz + 1],
+        shapes[row, sz + 2],
+        shapes,
+        row,
+        SHAPE_MAT,
+        shapes[row, ps],
+        shapes[row, ps + 1],
+        shapes[row, ps + 2],
+        n0,
+        n1,
+        n2,
     )
-    p = SHAPE_POS
-    return n0 * shapes[row, p] + n1 * shapes[row, p + 1] + n2 * shapes[row, p + 2] + h
 
 
 @nb.njit(cache=True)
