@@ -129,17 +129,17 @@ def _exact_only(p: Predictor, data: mujoco.MjData, *, query: bool = True) -> np.
     """The exact level's tau of every pair from a sphere tau of 0 (MuJoCo asked afresh)."""
     assert p.exact is not None
     args = p.exact.args(p.model, data, p.exact.records.copy())
-    args = (*args[:4], math.inf if query else 0.0)
+    args = (*args[:4], math.inf if query else 0.0, *args[5:])
     tau = np.zeros(len(p.pair_set))
     frame = mjdata_frame(data, np.zeros((p.model.nbody, 6)))
-    return exact_taus(tau, np.arange(tau.size), p._pair_records, frame, p.shape_records, args)
+    return exact_taus(tau, np.arange(tau.size), p._pair_records, frame, args)
 
 
 # --------------------------------------------------------------------------- the reference
 
 
 def _support(model: mujoco.MjModel, data: mujoco.MjData, g: int, n: np.ndarray) -> float:
-    """max over geom g of n.p, from the definitions (a mesh: the corners of its box)."""
+    """max over geom g of n.p, from the definitions (a mesh: over all its vertices)."""
     R = data.geom_xmat[g].reshape(3, 3)
     c = data.geom_xpos[g]
     m = R.T @ n
@@ -156,7 +156,11 @@ def _support(model: mujoco.MjModel, data: mujoco.MjData, g: int, n: np.ndarray) 
         h = np.linalg.norm(s * m)
     elif t == int(G.mjGEOM_BOX):
         h = float(np.abs(m) @ s)
-    else:  # mesh: its box in the geom frame
+    elif model.mesh_graphadr[model.geom_dataid[g]] >= 0:  # mesh: every vertex (the hull's max)
+        mesh = model.geom_dataid[g]
+        start = model.mesh_vertadr[mesh]
+        h = float((model.mesh_vert[start : start + model.mesh_vertnum[mesh]] @ m).max())
+    else:  # a mesh without a hull graph: its box in the geom frame
         lo = model.geom_aabb[g, :3] - model.geom_aabb[g, 3:]
         hi = model.geom_aabb[g, :3] + model.geom_aabb[g, 3:]
         corners = np.array(

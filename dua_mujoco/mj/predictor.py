@@ -401,9 +401,7 @@ class Predictor:
             self._built_at = 0
         tau0 = self.pair_set.tau(self._ids, c, v, halfspaces)
         if self.exact is not None:
-            exact_taus(
-                tau0, self._ids, self._pair_records, frame, self._shapes, self._exact_args(data)
-            )
+            exact_taus(tau0, self._ids, self._pair_records, frame, self._exact_args(data))
         self.scheduler = self._scheduler(tau0)
         # A step raises at most one alarm per place of the work rows.
         self._stepper = Stepper(self.scheduler.state.work.shape[1])

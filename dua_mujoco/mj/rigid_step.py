@@ -121,5 +121,5 @@ def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, exact, scratch):  # 
                 rec[PAIR_SPEED],
             )
         st[S_W_TAU][k] = t
-    exact_pass(st[S_W_TAU], w_ids, count, pairs, frame, shapes, exact, xbuf)
+    exact_pass(st[S_W_TAU], w_ids, count, pairs, frame, exact, xbuf)
     return count, kernels.reinsert(st, n, count), -1
