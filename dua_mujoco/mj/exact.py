@@ -45,6 +45,8 @@ from dua_mujoco.mj.exact_kernels import (
     X_DIST,
     X_G1,
     X_G2,
+    X_HULL1,
+    X_HULL2,
     X_MODE,
     X_N,
     X_NCOL,
@@ -106,7 +108,8 @@ class ExactLevel:
     Attributes:
         geoms: ``(ngeom, 16)`` per-geom records (``pack_spheres`` columns for the origin, then
             the support shape: kind, size, centre, radius).
-        records: ``(npair, 8)`` per sphere pair ``[mode, g1, g2, contact distance, n (3), 0]``
+        records: ``(npair, 10)`` per sphere pair ``[mode, g1, g2, contact distance, n (3),
+            hull vertex 1, hull vertex 2]``
             (``n``: the last witness direction that served the pair, zero before the first;
             written by the step).
         exact_below: Pairs whose sphere tau is below this (seconds) are looked at exactly.
@@ -281,6 +284,8 @@ def build_exact(
     rec[:, X_G1] = g1
     rec[:, X_G2] = g2
     rec[:, X_DIST] = np.asarray(contact_distance, dtype=np.float64)
+    rec[:, X_HULL1] = -1.0
+    rec[:, X_HULL2] = -1.0
     return ExactLevel(
         geoms=geoms,
         records=rec,

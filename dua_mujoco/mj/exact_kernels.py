@@ -38,6 +38,8 @@ __all__ = [
     "X_DIST",
     "X_G1",
     "X_G2",
+    "X_HULL1",
+    "X_HULL2",
     "X_MODE",
     "X_N",
     "X_NCOL",
@@ -76,8 +78,9 @@ GX_GRAPH = 17  # ... and its hull graph's address in MuJoCo's mesh_graph
 GX_SEED = 18  # 6 columns: the hull vertices (local ids) farthest along -x, +x, -y, +y, -z, +z
 GX_NCOL = 24
 # Columns of the per-pair records: the last direction that served the pair starts at X_N.
-X_MODE, X_G1, X_G2, X_DIST, X_N = 0, 1, 2, 3, 4
-X_NCOL = 8
+# Then the hull vertices (local ids) that were highest last time, per side, -1 for none.
+X_MODE, X_G1, X_G2, X_DIST, X_N, X_HULL1, X_HULL2 = 0, 1, 2, 3, 4, 7, 8
+X_NCOL = 10
 
 # The gap is a sum of dot products and supports of size ``scale``; 1e-14 is ~45 units of
 # rounding (as in core/shape_kernels.py).
@@ -155,7 +158,7 @@ def _support(kind, s0, s1, s2, mat, row, col, p0, p1, p2, n0, n1, n2):  # pragma
 
 
 @nb.njit(cache=True, inline="always")
-def _hull_support(g, geoms, verts, graph, m0, m1, m2):  # pragma: no cover - jitted
+def _hull_support(g, geoms, verts, graph, m0, m1, m2, start):  # pragma: no cover - jitted
     """``max m.v`` over the hull vertices of mesh geom ``g`` (local direction ``m``).
 
     A hill climb on MuJoCo's hull graph, as MuJoCo's own GJK does: on a convex polytope a vertex
@@ -178,6 +181,12 @@ def _hull_support(g, geoms, verts, graph, m0, m1, m2):  # pragma: no cover - jit
     imax = int(geoms[g, seed])
     v = v0 + graph[globalid + imax]
     best = m0 * verts[v, 0] + m1 * verts[v, 1] + m2 * verts[v, 2]
+    if start >= 0:  # the vertex that was highest last time, if it is higher than the seed
+        v = v0 + graph[globalid + start]
+        val = m0 * verts[v, 0] + m1 * verts[v, 1] + m2 * verts[v, 2]
+        if val > best:
+            best = val
+            imax = start
     prev = -1
     while imax != prev:
         prev = imax
@@ -190,30 +199,30 @@ def _hull_support(g, geoms, verts, graph, m0, m1, m2):  # pragma: no cover - jit
                 best = val
                 imax = sub
             i += 1
-    return best
+    return best, imax
 
 
 @nb.njit(cache=True, inline="always")
-def _geom_support(g, geoms, verts, graph, frame_pos, frame_mat, n0, n1, n2):  # pragma: no cover
+def _geom_support(g, geoms, verts, graph, fp, fm, n0, n1, n2, start):  # pragma: no cover
     """Support of geom ``g`` at its current pose along ``n``: ``max n.p`` over the geom (a mesh:
     over its hull's vertices when MuJoCo has its hull graph, else over its box)."""
-    m = frame_mat
+    m = fm  # fp, fm: the frame's positions and rotations (geom_xpos, geom_xmat)
     if geoms[g, GX_GRAPH] >= 0.0:
         l0 = m[g, 0] * n0 + m[g, 3] * n1 + m[g, 6] * n2
         l1 = m[g, 1] * n0 + m[g, 4] * n1 + m[g, 7] * n2
         l2 = m[g, 2] * n0 + m[g, 5] * n1 + m[g, 8] * n2
-        h = _hull_support(g, geoms, verts, graph, l0, l1, l2)
-        return n0 * frame_pos[g, 0] + n1 * frame_pos[g, 1] + n2 * frame_pos[g, 2] + h
+        h, top = _hull_support(g, geoms, verts, graph, l0, l1, l2, start)
+        return n0 * fp[g, 0] + n1 * fp[g, 1] + n2 * fp[g, 2] + h, top
     # The support shape's centre: the origin plus R c (c: a mesh box's centre, else 0).
     c0 = geoms[g, GX_CENTRE]
     c1 = geoms[g, GX_CENTRE + 1]
     c2 = geoms[g, GX_CENTRE + 2]
-    p0 = frame_pos[g, 0] + m[g, 0] * c0 + m[g, 1] * c1 + m[g, 2] * c2
-    p1 = frame_pos[g, 1] + m[g, 3] * c0 + m[g, 4] * c1 + m[g, 5] * c2
-    p2 = frame_pos[g, 2] + m[g, 6] * c0 + m[g, 7] * c1 + m[g, 8] * c2
+    p0 = fp[g, 0] + m[g, 0] * c0 + m[g, 1] * c1 + m[g, 2] * c2
+    p1 = fp[g, 1] + m[g, 3] * c0 + m[g, 4] * c1 + m[g, 5] * c2
+    p2 = fp[g, 2] + m[g, 6] * c0 + m[g, 7] * c1 + m[g, 8] * c2
     kind = int(geoms[g, GX_KIND])
     s0, s1, s2 = geoms[g, GX_SIZE], geoms[g, GX_SIZE + 1], geoms[g, GX_SIZE + 2]
-    return _support(kind, s0, s1, s2, m, g, 0, p0, p1, p2, n0, n1, n2)
+    return _support(kind, s0, s1, s2, m, g, 0, p0, p1, p2, n0, n1, n2), -1
 
 
 @nb.njit(cache=True)
@@ -360,8 +369,12 @@ def _axis_tau(
     if mode == _PLANE:
         low_b = n0 * fp[g2, 0] + n1 * fp[g2, 1] + n2 * fp[g2, 2]
     else:  # a moving geom, or a static one (its pose in MjData is as good as the shape's)
-        low_b = -_geom_support(g2, geoms, vx, gr, fp, fm, -n0, -n1, -n2)
-    h_a = _geom_support(int(records[p, X_G1]), geoms, vx, gr, fp, fm, n0, n1, n2)
+        h_b, top = _geom_support(g2, geoms, vx, gr, fp, fm, -n0, -n1, -n2, int(records[p, X_HULL2]))
+        low_b = -h_b
+        records[p, X_HULL2] = top
+    g1 = int(records[p, X_G1])
+    h_a, top = _geom_support(g1, geoms, vx, gr, fp, fm, n0, n1, n2, int(records[p, X_HULL1]))
+    records[p, X_HULL1] = top
     scale = abs(h_a) + abs(low_b) + records[p, X_DIST]
     gap = low_b - h_a - records[p, X_DIST] - _GAP_SLACK * scale
     if gap <= 0.0:
