@@ -39,6 +39,8 @@ else:
     from dua_mujoco.core.worlds import SphereWorld
     from dua_mujoco.mj.predictor import Predictor
     from dua_mujoco.mj.scenes import load_scene, make_controller
+if sys.argv[1] == "after":  # the Predictor's options are grouped on this side
+    from dua_mujoco.mj.options import CoveringOptions
 
 def median_us(fn, n):
     ts = []
@@ -61,7 +63,9 @@ for scene in ("two_arms", "traffic", "clutter", "paper_world:200"):
         # Like with like: the paper's schedule with the previous urgency (every geom a sphere);
         # the default (deadline, static geoms as shapes) on this side only.
         kw = {} if sys.argv[1] == "before" else (
-            {"schedule": "dua", "static": "sphere"} if schedule == "dua" else {}
+            {"schedule": "dua", "covering": CoveringOptions(static="sphere")}
+            if schedule == "dua"
+            else {}
         )
         p = Predictor(m, accel=30.0, **kw)
         ctrl = make_controller(m, "random", seed=0)

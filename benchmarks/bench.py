@@ -22,6 +22,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from dua_mujoco.mj.options import PilotOptions
+
 
 def median_time(fn: Callable[[], object], repeat: int, warmup: int = 1) -> float:
     for _ in range(warmup):
@@ -308,8 +310,7 @@ def bench_scenes(steps: int = 2000) -> str:
             m,
             schedule=schedule,
             accel="auto",
-            pilot_steps=1000,
-            pilot_controller=make_controller(m, "random", seed=99),
+            pilot=PilotOptions(steps=1000, controller=make_controller(m, "random", seed=99)),
         )
         r = run(
             m,

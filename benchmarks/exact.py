@@ -44,6 +44,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench import table
 from pareto import _load
 
+from dua_mujoco.mj.options import PilotOptions, UrgencyOptions
+
 SCENES = ("two_arms", "traffic", "clutter", "gym/ant", "gym/humanoid", "dmc/humanoid_CMU")
 QUICK = ("two_arms", "traffic")
 PILOT_SEED = 99
@@ -121,11 +123,13 @@ def gap_fraction(p: Predictor, scene: str, steps: int) -> tuple[float, float]:
 def measure(scene: str, steps: int) -> list[list[str]]:
     m, _ = _load_any(scene)
     pilot = make_controller(m, "random", seed=PILOT_SEED)
-    base = Predictor(m, pilot_controller=pilot)  # the default: bounds over the geoms' corners
+    base = Predictor(
+        m, pilot=PilotOptions(controller=pilot)
+    )  # the default: bounds over the geoms' corners
     rows = []
     for label, exact in (("spheres", False), ("exact", True)):
         m, d = _load_any(scene)
-        p = Predictor(m, accel=base.bounds, exact=exact)
+        p = Predictor(m, accel=base.bounds, urgency=UrgencyOptions(exact=exact))
         rep = run(
             m,
             d,

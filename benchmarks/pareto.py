@@ -43,6 +43,8 @@ from dua_mujoco.mj.scenes import load_scene, make_controller
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import bare_loop, table
 
+from dua_mujoco.mj.options import CoveringOptions, PilotOptions, ScheduleOptions, UrgencyOptions
+
 SCENES = ("two_arms", "traffic", "clutter", "gym/humanoid", "gym/ant", "dmc/humanoid_CMU")
 QUICK_SCENES = ("two_arms", "gym/ant")
 PILOT_SEED = 99
@@ -50,20 +52,23 @@ ROLLOUT_SEED = 0
 
 # Urgency variants: label -> Predictor options.
 URGENCIES: dict[str, dict] = {
-    "old (sphere)": {"static": "sphere", "exact": False},
-    "new (shape)": {"static": "shape", "exact": False},
-    "exact": {"static": "shape", "exact": True},
+    "old (sphere)": {
+        "covering": CoveringOptions(static="sphere"),
+        "urgency": UrgencyOptions(exact=False),
+    },
+    "new (shape)": {"urgency": UrgencyOptions(exact=False)},
+    "exact": {},
 }
 # Scheduler configurations: label -> Predictor options.
 SCHEDULES: dict[str, dict] = {
-    "dua q=1": {"schedule": "dua", "slots_per_bucket": 1},
-    "dua q=4": {"schedule": "dua", "slots_per_bucket": 4},
-    "dua q=16": {"schedule": "dua", "slots_per_bucket": 16},
-    "dua q=64": {"schedule": "dua", "slots_per_bucket": 64},
+    "dua q=1": {"schedule": ScheduleOptions(kind="dua", slots_per_bucket=1)},
+    "dua q=4": {"schedule": ScheduleOptions(kind="dua", slots_per_bucket=4)},
+    "dua q=16": {"schedule": ScheduleOptions(kind="dua", slots_per_bucket=16)},
+    "dua q=64": {"schedule": ScheduleOptions(kind="dua", slots_per_bucket=64)},
     "deadline": {"schedule": "deadline"},
-    "deadline backoff=1": {"schedule": "deadline", "alarm_backoff": 1},
-    "deadline cap=64": {"schedule": "deadline", "max_evals_per_step": 64},
-    "deadline cap=16": {"schedule": "deadline", "max_evals_per_step": 16},
+    "deadline backoff=1": {"schedule": ScheduleOptions(alarm_backoff=1)},
+    "deadline cap=64": {"schedule": ScheduleOptions(max_evals_per_step=64)},
+    "deadline cap=16": {"schedule": ScheduleOptions(max_evals_per_step=16)},
     "select-all": {"schedule": "select-all"},
 }
 DEFAULT = "deadline"  # the Predictor's default schedule
@@ -113,7 +118,10 @@ def measure_predictor(
     # centres): run it once per urgency and hand the same bounds to the other schedules.
     accel = bounds.get(urgency, "auto")
     p = Predictor(
-        m, accel=accel, pilot_controller=make_controller(m, "random", seed=PILOT_SEED), **opts
+        m,
+        accel=accel,
+        **opts,
+        pilot=PilotOptions(controller=make_controller(m, "random", seed=PILOT_SEED)),
     )
     bounds.setdefault(urgency, p.bounds)
     # RunReport.evals_per_step counts the pairs whose verdict a step renewed, which for a
@@ -163,8 +171,8 @@ def measure_peers(scene: str, urgency: str, steps: int, bounds: dict) -> list[Ro
     p = Predictor(
         m,
         accel=accel,
-        pilot_controller=make_controller(m, "random", seed=PILOT_SEED),
         **URGENCIES[urgency],
+        pilot=PilotOptions(controller=make_controller(m, "random", seed=PILOT_SEED)),
     )
     bounds.setdefault(urgency, p.bounds)
     # The peers get this predictor's pairs and horizon (latency 0: like with like); static
@@ -417,7 +425,9 @@ def main() -> None:
         if scene not in scenes:
             continue
         m, _ = _load(scene)
-        p = Predictor(m, pilot_controller=make_controller(m, "random", seed=PILOT_SEED))
+        p = Predictor(
+            m, pilot=PilotOptions(controller=make_controller(m, "random", seed=PILOT_SEED))
+        )
         bare[scene] = bare_loop(scene, p, max(steps, 1000) if not args.quick else steps)
     print("### Targets\n")
     print(targets(by_scene, bare) + "\n")

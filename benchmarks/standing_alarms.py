@@ -19,6 +19,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_scene, make_controller
 
@@ -44,10 +45,10 @@ def measure(
     m, d = load_scene(scene if "/" not in scene else _external(scene))
     p = Predictor(
         m,
-        static=static,
-        exact=exact,
         schedule=schedule,
-        pilot_controller=make_controller(m, "random", seed=99),
+        covering=CoveringOptions(static=static),
+        urgency=UrgencyOptions(exact=exact),
+        pilot=PilotOptions(controller=make_controller(m, "random", seed=99)),
     )
     ctrl = make_controller(m, "random", seed=0)
     ctrl(m, d)

@@ -33,6 +33,13 @@ if TYPE_CHECKING:
     from dua_mujoco.core.urgency import time_to_collision
     from dua_mujoco.mj.bounds import MotionBounds, estimate_bounds
     from dua_mujoco.mj.monitor import run
+    from dua_mujoco.mj.options import (
+        CoveringOptions,
+        PairOptions,
+        PilotOptions,
+        ScheduleOptions,
+        UrgencyOptions,
+    )
     from dua_mujoco.mj.predictor import Alarms, Predictor
     from dua_mujoco.mj.report import RunReport
     from dua_mujoco.mj.scenes import load_scene
@@ -42,6 +49,11 @@ if TYPE_CHECKING:
 # package, import neither numba nor MuJoCo.
 _LAZY = {
     "Alarms": "dua_mujoco.mj.predictor",
+    "CoveringOptions": "dua_mujoco.mj.options",
+    "PairOptions": "dua_mujoco.mj.options",
+    "PilotOptions": "dua_mujoco.mj.options",
+    "ScheduleOptions": "dua_mujoco.mj.options",
+    "UrgencyOptions": "dua_mujoco.mj.options",
     "DUAScheduler": "dua_mujoco.core.schedules",
     "MotionBounds": "dua_mujoco.mj.bounds",
     "Predictor": "dua_mujoco.mj.predictor",
@@ -68,6 +80,7 @@ __version__ = "0.1.0"
 __all__ = [
     "Alarms",
     "BoundViolationWarning",
+    "CoveringOptions",
     "DUAScheduler",
     "DeadlineOverrunWarning",
     "DuaError",
@@ -77,13 +90,17 @@ __all__ = [
     "MotionBounds",
     "NoActivePairsWarning",
     "NonFiniteStateError",
+    "PairOptions",
+    "PilotOptions",
     "Predictor",
     "RunReport",
     "Schedule",
+    "ScheduleOptions",
     "SchedulerError",
     "ShapeError",
     "SpherePredictor",
     "UnsupportedGeomError",
+    "UrgencyOptions",
     "__version__",
     "estimate_bounds",
     "load_scene",

@@ -23,6 +23,7 @@ if not os.environ.get("DISPLAY"):
 import mujoco
 
 from dua_mujoco.exceptions import DuaError, InvalidInputError
+from dua_mujoco.mj.options import CoveringOptions, PilotOptions, ScheduleOptions, UrgencyOptions
 from dua_mujoco.outputs import publish, temporary_beside, writes_in_place
 
 if TYPE_CHECKING:
@@ -403,21 +404,23 @@ def _cmd_run(args: argparse.Namespace) -> int:
         model,
         accel=args.accel,
         speed=args.speed,
-        covering=args.covering,
-        max_spheres_per_geom=args.max_spheres,
-        hfield=args.hfield,
         period=args.period,
         latency=args.latency,
-        schedule=args.schedule,
-        max_evals_per_step=args.max_evals,
-        **({} if args.alarm_backoff is None else {"alarm_backoff": args.alarm_backoff}),
-        slots_per_bucket=args.slots_per_bucket,
         pairs=args.pairs,
-        static=args.static,
-        exact=args.exact,
-        pilot_steps=args.pilot_steps,
-        pilot_seed=args.seed + 1_000_003,
-        pilot_controller=pilot,
+        covering=CoveringOptions(
+            mode=args.covering,
+            max_spheres_per_geom=args.max_spheres,
+            hfield=args.hfield,
+            static=args.static,
+        ),
+        schedule=ScheduleOptions(
+            kind=args.schedule,
+            max_evals_per_step=args.max_evals,
+            slots_per_bucket=args.slots_per_bucket,
+            **({} if args.alarm_backoff is None else {"alarm_backoff": args.alarm_backoff}),
+        ),
+        urgency=UrgencyOptions(exact=args.exact),
+        pilot=PilotOptions(steps=args.pilot_steps, seed=args.seed + 1_000_003, controller=pilot),
     )
     on_step = None
     renderer = None

@@ -34,6 +34,7 @@ from dua_mujoco.mj.exact import (
     exact_taus,
 )
 from dua_mujoco.mj.kinematics import mjdata_frame
+from dua_mujoco.mj.options import CoveringOptions
 from dua_mujoco.mj.predictor import Predictor
 
 TYPES = {
@@ -322,7 +323,7 @@ def test_height_fields_keep_their_sphere_tau() -> None:
           <body pos="0 0 1"><freejoint/><geom type="box" size=".1 .1 .1"/></body>
           </worldbody></mujoco>"""
     )
-    p = Predictor(model, accel=1.0, covering="bounding", hfield="box")
+    p = Predictor(model, accel=1.0, covering=CoveringOptions(mode="bounding", hfield="box"))
     assert p.exact is not None
     assert (p.exact.records[:, X_MODE] == ExactMode.NONE).all()
 

@@ -10,6 +10,7 @@ import pytest
 
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.monitor import Monitor, run
+from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.report import RunReport
 from dua_mujoco.mj.scenes import load_scene, make_controller
@@ -59,7 +60,7 @@ def _reference_episodes(
 def test_episode_accounting_matches_reference(scene: str, period: int) -> None:
     m, d = load_scene(scene)
     # The sphere urgency alone: the exact level leaves traffic no false alarm to count.
-    p = Predictor(m, accel=4.0, period=period, exact=False)
+    p = Predictor(m, accel=4.0, period=period, urgency=UrgencyOptions(exact=False))
     ctrl = make_controller(m, "random", seed=1)
     mon = Monitor(p, check_bounds=False)
     ngp = p.geom_pairs.npair
@@ -284,7 +285,7 @@ def test_capped_runs_count_evaluations_not_deferrals() -> None:
     """With a cap that binds, the report's evaluations per step stay within the cap: deferred
     pairs have their verdict renewed, not evaluated."""
     m, d = load_scene("two_arms")
-    p = Predictor(m, accel=30.0, max_evals_per_step=4)
+    p = Predictor(m, accel=30.0, schedule=ScheduleOptions(max_evals_per_step=4))
     report = run(
         m, d, p, steps=200, controller=make_controller(m, "random", seed=0), progress=False
     )
@@ -307,7 +308,14 @@ def test_monitored_run_with_pruned_pairs() -> None:
     assert report.unfiltered_contacts == 0
 
 
-@pytest.mark.parametrize("options", [{}, {"exact": False}, {"max_evals_per_step": 16}])
+@pytest.mark.parametrize(
+    "options",
+    [
+        {},
+        {"urgency": UrgencyOptions(exact=False)},
+        {"schedule": ScheduleOptions(max_evals_per_step=16)},
+    ],
+)
 def test_pruned_pairs_keep_the_static_shapes(options: dict) -> None:
     """Pairs against static shapes are always held: their second member is a shape, not a sphere
     with a reach (an earlier merge read it as a sphere id and dropped table contacts)."""

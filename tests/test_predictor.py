@@ -36,6 +36,7 @@ from dua_mujoco.exceptions import (
 )
 from dua_mujoco.mj.filter import active_geom_pairs
 from dua_mujoco.mj.monitor import Monitor, run
+from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.report import RunReport
 from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
@@ -172,7 +173,9 @@ def test_fused_step_tau_matches_vectorised_tau(site_model) -> None:
     """The fused ``step`` computes the same tau as ``pair_set.tau`` on ``sphere_states``."""
     m = site_model
     # Select-all: every pair is evaluated every step, whatever the random states do to tau.
-    p = Predictor(m, accel=1.0, covering="multi", schedule="select-all", exact=False)
+    p = Predictor(
+        m, accel=1.0, covering="multi", schedule="select-all", urgency=UrgencyOptions(exact=False)
+    )
     d = mujoco.MjData(m)
     rng = np.random.default_rng(3)
     random_joint_state(m, d, rng, velocity_scale=2.0)
@@ -567,7 +570,7 @@ def test_hfield_needs_the_box_fallback() -> None:
     msg = str(info.value)
     assert "'ground'" in msg
     assert 'hfield="box"' in msg
-    assert Predictor(m, accel=1.0, hfield="box").nsphere_pairs == 1
+    assert Predictor(m, accel=1.0, covering=CoveringOptions(hfield="box")).nsphere_pairs == 1
 
 
 # --------------------------------------------------------------------------------------------------
@@ -643,7 +646,7 @@ def test_bundled_scene_regression(scene: str, covering: str, period: int, schedu
         covering=covering,
         period=period,
         schedule=schedule,
-        pilot_controller=make_controller(m, "random", seed=99),
+        pilot=PilotOptions(controller=make_controller(m, "random", seed=99)),
     )
     r = run(m, d, p, steps=2000, controller=make_controller(m, "random", seed=0), progress=False)
     _assert_complete(f"{scene}/{covering}/{period}/{schedule}", r)
@@ -698,9 +701,10 @@ def test_external_scene_regression(name: str, path: str) -> None:
         p = Predictor(
             m,
             accel="auto",
-            hfield="box",  # dm-control's quadruped has a height field
-            pilot_steps=1000,
-            pilot_controller=make_controller(m, "random", seed=99, hold_steps=20),
+            covering=CoveringOptions(hfield="box"),
+            pilot=PilotOptions(
+                steps=1000, controller=make_controller(m, "random", seed=99, hold_steps=20)
+            ),
         )
     assert [w.category for w in caught if w.category is NoActivePairsWarning] == (
         [expected] if expected else []
@@ -738,7 +742,7 @@ def test_auto_bounds_of_a_body_always_in_contact() -> None:
     1000 steps in violation). ``accel="auto"`` must not silently produce a void guarantee.
     """
     m = mujoco.MjModel.from_xml_string(PUCK_XML)
-    p = Predictor(m, accel="auto", pilot_steps=500)
+    p = Predictor(m, accel="auto", pilot=PilotOptions(steps=500))
     puck = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "puck")
     assert p.bounds.accel[puck] > 0, (
         "estimate_bounds gave the moving body 'puck' an acceleration bound of 0 because it was "

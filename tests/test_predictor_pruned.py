@@ -8,6 +8,7 @@ import pytest
 
 from dua_mujoco.core.schedules import DeadlineScheduler
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.options import PairOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
 
@@ -25,7 +26,9 @@ def test_pruned_alarms_cover_select_all_rule() -> None:
     that ever touched anything are left out: contact breaks the acceleration bound)."""
     m, d, bound = _world(300)
     latency = 1
-    pruned = Predictor(m, accel=bound, latency=latency, pairs="pruned", horizon=0.02)
+    pruned = Predictor(
+        m, accel=bound, latency=latency, pairs=PairOptions(mode="pruned", horizon=0.02)
+    )
     full = Predictor(m, accel=bound, latency=latency, pairs="all")
     assert pruned.stride == 9
     ctrl = make_controller(m, "random", seed=3)
@@ -67,7 +70,7 @@ def test_pruned_alarms_cover_select_all_rule() -> None:
 
 def test_switched_off_pairs_stay_off_across_rebuilds() -> None:
     m, d, bound = _world(60)
-    p = Predictor(m, accel=bound, latency=0, pairs="pruned", horizon=0.004)
+    p = Predictor(m, accel=bound, latency=0, pairs=PairOptions(mode="pruned", horizon=0.004))
     p.reset(d)
     assert p.stride == 2
     switched = p.set_active_bodies("sphere0", on=False)
@@ -89,7 +92,7 @@ def test_pairs_option_validation_and_auto() -> None:
     with pytest.raises(InvalidInputError, match="schedule='deadline'"):
         Predictor(m, accel=bound, pairs="pruned", schedule="dua")
     with pytest.raises(InvalidInputError, match="horizon"):
-        Predictor(m, accel=bound, pairs="pruned", horizon=0.001)
+        Predictor(m, accel=bound, pairs=PairOptions(mode="pruned", horizon=0.001))
     assert Predictor(m, accel=bound, pairs="auto").stride == 0
     big, _, bound = _world(300)
     assert Predictor(big, accel=bound, pairs="auto").stride == 32

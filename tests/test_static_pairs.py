@@ -18,6 +18,7 @@ from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.covering import cover_model, static_shape_geoms
 from dua_mujoco.mj.filter import active_geom_pairs, sphere_pairs
 from dua_mujoco.mj.monitor import run
+from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_scene, make_controller
 from dua_mujoco.mj.tables import PairTables, static_shapes
@@ -161,7 +162,9 @@ def _predictor_states(p: Predictor, d: mujoco.MjData) -> tuple[np.ndarray, np.nd
 @pytest.mark.parametrize("scene", ["two_arms", "clutter"])
 def test_fused_step_equals_time_to_static(scene: str) -> None:
     m, d = load_scene(scene)
-    p = Predictor(m, accel=15.0, schedule="select-all", exact=False)  # the shape level alone
+    p = Predictor(
+        m, accel=15.0, schedule="select-all", urgency=UrgencyOptions(exact=False)
+    )  # the shape level alone
     assert p.covering.nshape > 0
     ctrl = make_controller(m, "random", seed=4, hold_steps=10)
     ps = p.pair_set
@@ -260,7 +263,11 @@ def test_alarms_name_static_geom() -> None:
 @pytest.mark.parametrize("scene", ["two_arms", "traffic", "clutter"])
 def test_rollout_with_static_shapes_misses_nothing(scene: str) -> None:
     m, d = load_scene(scene)
-    p = Predictor(m, static="shape", pilot_controller=make_controller(m, "random", seed=99))
+    p = Predictor(
+        m,
+        covering=CoveringOptions(static="shape"),
+        pilot=PilotOptions(controller=make_controller(m, "random", seed=99)),
+    )
     assert p.covering.nshape > 0
     r = run(m, d, p, steps=2000, controller=make_controller(m, "random", seed=0), progress=False)
     assert r.missed_onsets_valid_bounds == 0, [x for x in r.misses if x.bounds_held][:5]

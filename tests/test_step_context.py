@@ -9,6 +9,7 @@ import pytest
 from dua_mujoco.exceptions import SchedulerError
 from dua_mujoco.mj import step_context
 from dua_mujoco.mj.alarms import Alarms
+from dua_mujoco.mj.options import UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_scene, make_controller
 
@@ -17,7 +18,7 @@ def _rollout(steps: int, **options: object) -> list[tuple[Alarms, tuple[np.ndarr
     """Each step's ``Alarms`` and a copy of its arrays taken right after the step."""
     m, d = load_scene("two_arms")
     # The sphere urgency: the exact level clears too many alarms for the log to fill up.
-    p = Predictor(m, accel=30.0, exact=False, **options)  # type: ignore[arg-type]
+    p = Predictor(m, accel=30.0, **options, urgency=UrgencyOptions(exact=False))  # type: ignore[arg-type]
     ctrl = make_controller(m, "random", seed=0)
     mujoco.mj_step(m, d)
     p.reset(d)

@@ -14,7 +14,7 @@ predictor uses that one instant throughout (docs/discrete-time.md).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Literal
 
 import mujoco
@@ -27,10 +27,8 @@ from dua_mujoco.core.schedules import (
     Schedule,
     Scheduler,
     as_schedule,
-    deadline,
     make_scheduler,
 )
-from dua_mujoco.core.schedules.dua import check_slots_per_bucket
 from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
@@ -61,6 +59,15 @@ from dua_mujoco.mj.filter import (
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.options import (
+    CoveringOptions,
+    PairOptions,
+    PilotOptions,
+    ScheduleOptions,
+    UrgencyOptions,
+    removed_keywords_error,
+    resolve_options,
+)
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty, bounded_pairs
 from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for
@@ -86,53 +93,33 @@ class Predictor:
 
     Args:
         model: The MuJoCo model.
-        accel: Acceleration bounds (``BoundsLike``). ``"auto"`` runs a pilot rollout on its own
-            ``MjData`` with ``pilot_seed`` and multiplies the measured maxima by ``safety``.
+        accel: Acceleration bounds (``BoundsLike``); ``"auto"`` runs a pilot rollout
+            (``pilot``) and multiplies the measured maxima by its ``safety``. They bound every
+            point of each body's geoms (the exact level reads them so).
         speed: Optional speed bounds (scalar or dict by body name), ignored for ready
             ``MotionBounds``.
-        covering: ``"bounding"``, ``"multi"``, a ``CoveringMode`` or a ready ``Covering``.
-        max_spheres_per_geom: Budget of the multi-sphere covering.
-        hfield: ``"error"`` or ``"box"`` (conservative box covering of height fields).
-        static: ``"shape"`` (default): geoms welded to the world are held as their own convex
-            shapes (docs/static-shapes.md); ``"sphere"``: covered by spheres like moving geoms.
-            Ignored for a ready ``Covering``.
-        exact: The exact level (docs/theory.md, section 5): a pair whose sphere tau is below
-            ``exact_below`` (default ``(2 + latency)`` periods) is looked at through its geoms,
-            and the bounds hold for every point of the geoms (checked at their box corners).
-        exact_below: Seconds (measured: larger thresholds cost more and clear no more alarms).
+        velocity_accel: Bound ``C`` on the centripetal/Coriolis acceleration of sphere centres,
+            for the discrete-time term (docs/discrete-time.md); scalar or dict by body name.
         period: Physics steps between predictor steps (``>= 1``); the predictor period is
             ``period * model.opt.timestep``.
         latency: Periods a verdict takes to act. 0 (the default) is right when ``step`` runs
-            synchronously after ``mj_step``: the verdict is ready before the next physics step.
-            Use 1 when the alarms act one period late (the paper's setting).
-        schedule: Which pairs to evaluate each step (``Schedule`` or its value): ``"deadline"``
-            (default: each pair when its own tau runs out; select-all's alarms for a fraction of
-            its work), ``"dua"`` (the paper's constant work a step; alarm horizons grow with the
-            number of pairs) or ``"select-all"``. See docs/theory.md.
-        slots_per_bucket: ``dua`` only: the budget knob (a power of two): revisit intervals
-            shrink that many times, work grows as many.
-        max_evals_per_step: ``deadline`` only: optional cap on tau evaluations a step; pairs
-            due beyond it wait, standing in alarm once their verdict no longer covers the wait
-            (``Alarms.deferred`` says how many waited).
-        alarm_backoff: ``deadline`` only: a pair that keeps alarming (resting contact) is
-            evaluated again after twice its last wait, up to this many steps (default 8),
-            standing in alarm in between; 1 re-evaluates alarmed pairs every step, which gives
-            exactly select-all's alarms.
-        velocity_accel: Bound ``C`` on the centripetal/Coriolis acceleration of sphere centres,
-            for the discrete-time term (docs/discrete-time.md); scalar or dict by body name.
-        pilot_steps: Length of the pilot rollout for ``accel="auto"``.
-        pilot_seed: Seed of the pilot rollout (use one different from the monitored run).
-        pilot_controller: ``controller(model, data)`` for the pilot; default random controls.
-        safety: Factor on the pilot's maxima.
-        pairs: ``"all"`` holds every active sphere pair; ``"pruned"`` holds the
-            half-space pairs and the active sphere pairs whose reachable balls over ``horizon``
-            meet, rebuilt every ``rebuild_stride(horizon, dt, latency)`` steps (deadline
-            schedule only; docs/many-objects.md); ``"auto"`` (default) prunes from
-            ``AUTO_PRUNED_MIN`` (256) covering spheres on, where pruned pairs win (measured).
+            synchronously after ``mj_step``; 1 when the alarms act one period late (the paper's).
+        covering: ``CoveringOptions``, a mode (``"bounding"``, ``"multi"``), or a ready
+            ``Covering``.
+        schedule: ``ScheduleOptions`` or a ``Schedule`` (``"deadline"``, the default: each pair
+            when its own tau runs out; ``"dua"``, the paper's; ``"select-all"``). See
+            docs/theory.md.
+        urgency: ``UrgencyOptions``: the exact level (on by default) and its threshold.
+        pilot: ``PilotOptions`` of ``accel="auto"``'s pilot rollout.
+        pairs: ``PairOptions`` or a mode: ``"all"`` holds every active sphere pair, ``"pruned"``
+            the pairs whose reachable balls meet within a horizon (deadline schedule only;
+            docs/many-objects.md), ``"auto"`` (default) prunes from 256 covering spheres on.
             Alarms name sphere pairs by their id among all active pairs either way;
             :attr:`held_pairs` maps the scheduler's ids to them.
-        horizon: Pruned only: the reach's horizon (s), default ``(DEFAULT_STRIDE + latency)``
-            predictor periods.
+
+    Raises:
+        InvalidInputError: A keyword of the flat options of earlier releases (the message names
+            the option group it moved to), or an invalid value.
     """
 
     def __init__(
@@ -141,26 +128,18 @@ class Predictor:
         *,
         accel: BoundsLike = "auto",
         speed: float | Mapping[str, float] | None = None,
-        covering: Covering | CoveringMode | str = "bounding",
-        max_spheres_per_geom: int = 8,
-        hfield: str = "error",
-        static: str = "shape",
-        exact: bool = True,
-        exact_below: float | None = None,
+        velocity_accel: float | Mapping[str, float] | None = None,
         period: int = 1,
         latency: int = 0,
-        schedule: Schedule | str = Schedule.DEADLINE,
-        slots_per_bucket: int = 1,
-        max_evals_per_step: int | None = None,
-        alarm_backoff: int = deadline.DEFAULT_ALARM_BACKOFF,
-        velocity_accel: float | Mapping[str, float] | None = None,
-        pilot_steps: int = 2000,
-        pilot_seed: int = 1_000_003,
-        pilot_controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None,
-        safety: float = 2.0,
-        pairs: PairMode | str = "auto",
-        horizon: float | None = None,
+        covering: Covering | CoveringOptions | CoveringMode | str = "bounding",
+        schedule: ScheduleOptions | Schedule | str = Schedule.DEADLINE,
+        urgency: UrgencyOptions = UrgencyOptions(),
+        pilot: PilotOptions = PilotOptions(),
+        pairs: PairOptions | PairMode | str = "auto",
+        **removed: object,
     ) -> None:
+        if removed:
+            raise removed_keywords_error(removed)
         if not isinstance(model, mujoco.MjModel):
             raise InvalidInputError(
                 f"model must be a mujoco.MjModel, got {type(model).__name__}: load it with "
@@ -172,19 +151,23 @@ class Predictor:
         self.period = int(period)
         # Validate the scheduler options now rather than at reset(): same checks, same messages.
         self.dt, self.latency = check_period(self.period * float(model.opt.timestep), latency)
-        self.schedule = as_schedule(schedule)
-        self.slots_per_bucket = check_slots_per_bucket(slots_per_bucket)
-        self.max_evals_per_step = deadline.check_max_evals(max_evals_per_step) or None
-        self.alarm_backoff = deadline.check_alarm_backoff(alarm_backoff)
+        self.options = resolve_options(covering, schedule, urgency, pilot, pairs)
+        """The option groups in force (``PredictorOptions``)."""
+        sched = self.options.schedule
+        self.schedule = as_schedule(sched.kind)
+        self.slots_per_bucket = sched.slots_per_bucket
+        self.max_evals_per_step = sched.max_evals_per_step
+        self.alarm_backoff = sched.alarm_backoff
+        cover = self.options.covering
         self.covering = (
             covering
             if isinstance(covering, Covering)
             else cover_model(
                 model,
-                mode=covering,
-                max_spheres_per_geom=max_spheres_per_geom,
-                hfield=hfield,
-                static=static,
+                mode=cover.mode,
+                max_spheres_per_geom=cover.max_spheres_per_geom,
+                hfield=cover.hfield,
+                static=cover.static,
             )
         )
         self.geom_pairs: GeomPairs = active_geom_pairs(model)
@@ -202,14 +185,15 @@ class Predictor:
         self.exact: ExactLevel | None = None
         """The exact level's tables (None when off)."""
         spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
-        if exact:
+        if self.options.urgency.exact:
+            below = self.options.urgency.exact_below
             self.exact = build_exact(
                 model,
                 self.tables.geom1,
                 self.tables.geom2,
                 self.tables.kind,
                 np.asarray(self.geom_pairs.contact_distance)[self.sphere_pairs.geom_pair],
-                (EXACT_PERIODS + self.latency) * self.dt if exact_below is None else exact_below,
+                (EXACT_PERIODS + self.latency) * self.dt if below is None else below,
                 QUERY_PERIODS * self.dt,
             )
             spheres = self.exact.with_corners(model, spheres)
@@ -223,10 +207,10 @@ class Predictor:
             speed=speed,
             velocity_accel=velocity_accel,
             spheres=spheres,
-            pilot_steps=pilot_steps,
-            pilot_seed=pilot_seed,
-            pilot_controller=pilot_controller,
-            safety=safety,
+            pilot_steps=self.options.pilot.steps,
+            pilot_seed=self.options.pilot.seed,
+            pilot_controller=self.options.pilot.controller,
+            safety=self.options.pilot.safety,
         )
         self.mocap: MocapVelocityTracker | None = (
             MocapVelocityTracker(model) if model.nmocap else None
@@ -262,8 +246,8 @@ class Predictor:
         # stride: predictor steps between rebuilds of the held pairs (0: all pairs held).
         self._held: HeldPairs | None
         self._held, self.stride = held_pairs_for(
-            pairs,
-            horizon,
+            self.options.pairs.mode,
+            self.options.pairs.horizon,
             deadline=self.schedule is Schedule.DEADLINE,
             sphere_pairs=self.sphere_pairs,
             covering=self.covering,

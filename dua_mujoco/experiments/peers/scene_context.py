@@ -8,6 +8,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.experiments.peers.horizon import LATENCY
+from dua_mujoco.mj.options import CoveringOptions
 
 if TYPE_CHECKING:
     from dua_mujoco.mj.predictor import Predictor
@@ -34,7 +35,12 @@ class SceneContext:
         # By default every geom one sphere, the paper's schedule, all pairs: sphere pairs then
         # correspond one to one with geom pairs, which the peers compare on.
         self.predictor = predictor or Predictor(
-            model, accel=accel, latency=LATENCY, schedule="dua", static="sphere", pairs="all"
+            model,
+            accel=accel,
+            latency=LATENCY,
+            schedule="dua",
+            pairs="all",
+            covering=CoveringOptions(static="sphere"),
         )
         p = self.predictor
         gp = p.sphere_pairs.geom_pair

@@ -9,6 +9,7 @@ import mujoco
 
 from dua_mujoco.experiments.peers.horizon import LATENCY
 from dua_mujoco.experiments.peers.rows import TunnelRow
+from dua_mujoco.mj.options import CoveringOptions
 
 __all__ = [
     "TUNNEL_DT",
@@ -88,8 +89,7 @@ def _tunnel_case(case: str, accel: float, speed0: float, clearance: float) -> Tu
                 accel=accel * 1.000001 + 1e-9,
                 latency=LATENCY,
                 schedule="dua",
-                covering="multi",
-                max_spheres_per_geom=64,
+                covering=CoveringOptions(mode="multi", max_spheres_per_geom=64),
             )
             if len(predictor.reset(data)):
                 dua_instant = 0

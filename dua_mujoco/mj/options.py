@@ -1,0 +1,237 @@
+"""The Predictor's options, grouped: what covers the geoms, which pairs are held, how they are
+scheduled, how urgency is computed, and how a pilot rollout estimates the bounds.
+
+Each group is a small frozen dataclass, validated when made, so a bad value fails where it is
+written, with a message that names it. ``Predictor(covering=..., schedule=..., pairs=...)``
+also takes a plain mode (a string or enum) for the group's defaults otherwise.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+from collections.abc import Callable
+
+import mujoco
+
+from dua_mujoco.core.schedules import Schedule, as_schedule, deadline
+from dua_mujoco.core.schedules.dua import check_slots_per_bucket
+from dua_mujoco.core.spheres import PairMode
+from dua_mujoco.exceptions import InvalidInputError
+
+__all__ = [
+    "REMOVED_KEYWORDS",
+    "CoveringOptions",
+    "PairOptions",
+    "PilotOptions",
+    "PredictorOptions",
+    "ScheduleOptions",
+    "UrgencyOptions",
+    "removed_keywords_error",
+    "resolve_options",
+]
+
+
+def _set(obj: object, name: str, value: object) -> None:
+    object.__setattr__(obj, name, value)  # a frozen dataclass normalising its own field
+
+
+def _positive_int(name: str, value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InvalidInputError(f"{name} = {value!r} is invalid: pass an int >= 1.")
+    return int(value)
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class CoveringOptions:
+    """How geoms become spheres (docs/covering-and-pairs.md).
+
+    Attributes:
+        mode: ``"bounding"`` (one sphere a geom) or ``"multi"`` (a ``CoveringMode`` or its value).
+        max_spheres_per_geom: Budget of the multi-sphere covering.
+        hfield: ``"error"`` or ``"box"`` (a conservative box covering of height fields).
+        static: ``"shape"``: geoms welded to the world are held as their own convex shapes
+            (docs/static-shapes.md); ``"sphere"``: covered like moving geoms.
+    """
+
+    mode: str = "bounding"
+    max_spheres_per_geom: int = 8
+    hfield: str = "error"
+    static: str = "shape"
+
+    def __post_init__(self) -> None:
+        _set(self, "mode", getattr(self.mode, "value", self.mode))
+        _positive_int("max_spheres_per_geom", self.max_spheres_per_geom)
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class ScheduleOptions:
+    """Which pairs a step evaluates (README's schedule table; docs/theory.md).
+
+    Attributes:
+        kind: ``"deadline"`` (default), ``"dua"`` or ``"select-all"`` (a ``Schedule`` or its
+            value).
+        slots_per_bucket: ``dua`` only: the budget knob (a power of two).
+        max_evals_per_step: ``deadline`` only: optional cap on tau evaluations a step.
+        alarm_backoff: ``deadline`` only: a pair that keeps alarming is evaluated after twice its
+            last wait, up to this many steps; 1 gives select-all's alarms exactly.
+    """
+
+    kind: Schedule | str = Schedule.DEADLINE
+    slots_per_bucket: int = 1
+    max_evals_per_step: int | None = None
+    alarm_backoff: int = deadline.DEFAULT_ALARM_BACKOFF
+
+    def __post_init__(self) -> None:
+        _set(self, "kind", as_schedule(self.kind))
+        _set(self, "slots_per_bucket", check_slots_per_bucket(self.slots_per_bucket))
+        _set(self, "max_evals_per_step", deadline.check_max_evals(self.max_evals_per_step) or None)
+        _set(self, "alarm_backoff", deadline.check_alarm_backoff(self.alarm_backoff))
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class UrgencyOptions:
+    """How tau is computed beyond the bounding spheres (docs/theory.md, section 5).
+
+    Attributes:
+        exact: The exact level: a pair whose sphere tau is below ``exact_below`` is looked at
+            through its geoms, and the bounds hold for every point of the geoms (checked at the
+            corners of their boxes).
+        exact_below: Seconds; None for ``(2 + latency)`` predictor periods, one period past the
+            alarm horizon (measured: larger thresholds cost more and clear no more alarms).
+    """
+
+    exact: bool = True
+    exact_below: float | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.exact, bool):
+            raise InvalidInputError(f"exact = {self.exact!r} is invalid: pass True or False.")
+        b = self.exact_below
+        if b is not None and (
+            isinstance(b, bool) or not isinstance(b, int | float) or math.isnan(b) or b <= 0
+        ):
+            raise InvalidInputError(
+                f"exact_below = {b!r} is invalid: pass a positive number of seconds, or None "
+                "for two predictor periods past the latency."
+            )
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class PilotOptions:
+    """The pilot rollout of ``accel="auto"`` (docs/discrete-time.md, section 4).
+
+    Attributes:
+        steps: Its length in physics steps.
+        seed: Its random seed (use one different from the monitored run).
+        controller: ``controller(model, data)`` for the pilot; None for random controls.
+        safety: Factor on the measured maxima.
+    """
+
+    steps: int = 2000
+    seed: int = 1_000_003
+    controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None
+    safety: float = 2.0
+
+    def __post_init__(self) -> None:
+        _positive_int("pilot steps", self.steps)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int):
+            raise InvalidInputError(f"pilot seed = {self.seed!r} is invalid: pass an int.")
+        if self.controller is not None and not callable(self.controller):
+            raise InvalidInputError(
+                f"pilot controller = {self.controller!r} is not callable: pass "
+                "controller(model, data), or None for random controls."
+            )
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class PairOptions:
+    """Which sphere pairs are held (docs/many-objects.md).
+
+    Attributes:
+        mode: ``"all"``, ``"pruned"`` (the pairs whose reachable balls meet within ``horizon``,
+            rebuilt as they move; deadline schedule only) or ``"auto"`` (pruned from 256
+            covering spheres on).
+        horizon: Pruned only: the reach's horizon in seconds; None for the default.
+    """
+
+    mode: PairMode | str = "auto"
+    horizon: float | None = None
+
+
+REMOVED_KEYWORDS = {
+    "max_spheres_per_geom": "covering=CoveringOptions(max_spheres_per_geom=...)",
+    "hfield": "covering=CoveringOptions(hfield=...)",
+    "static": "covering=CoveringOptions(static=...)",
+    "slots_per_bucket": 'schedule=ScheduleOptions(kind="dua", slots_per_bucket=...)',
+    "max_evals_per_step": "schedule=ScheduleOptions(max_evals_per_step=...)",
+    "alarm_backoff": "schedule=ScheduleOptions(alarm_backoff=...)",
+    "exact": "urgency=UrgencyOptions(exact=...)",
+    "exact_below": "urgency=UrgencyOptions(exact_below=...)",
+    "pilot_steps": "pilot=PilotOptions(steps=...)",
+    "pilot_seed": "pilot=PilotOptions(seed=...)",
+    "pilot_controller": "pilot=PilotOptions(controller=...)",
+    "safety": "pilot=PilotOptions(safety=...)",
+    "horizon": 'pairs=PairOptions(mode="pruned", horizon=...)',
+    "refine": "nothing: the two-level urgency is gone; the exact level (the default) replaces it",
+    "refine_below": "nothing: the two-level urgency is gone",
+}
+"""Keywords the Predictor took before its options were grouped, and where each went."""
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class PredictorOptions:
+    """The option groups a Predictor was built with (``Predictor.options``)."""
+
+    covering: CoveringOptions
+    schedule: ScheduleOptions
+    urgency: UrgencyOptions
+    pilot: PilotOptions
+    pairs: PairOptions
+
+
+def resolve_options(
+    covering: object,
+    schedule: ScheduleOptions | Schedule | str,
+    urgency: UrgencyOptions,
+    pilot: PilotOptions,
+    pairs: PairOptions | PairMode | str,
+) -> PredictorOptions:
+    """The Predictor's keywords as option groups: a plain mode becomes its group's defaults
+    with that mode (a ready ``Covering`` keeps the default group: it is used as it is)."""
+    for name, value, cls in (("urgency", urgency, UrgencyOptions), ("pilot", pilot, PilotOptions)):
+        if not isinstance(value, cls):
+            raise InvalidInputError(
+                f"{name} = {value!r} is invalid: pass a dua_mujoco.{cls.__name__}(...)."
+            )
+    if isinstance(covering, CoveringOptions):
+        cover = covering
+    elif isinstance(covering, str | enum.Enum):
+        cover = CoveringOptions(mode=covering)  # type: ignore[arg-type]
+    else:
+        cover = CoveringOptions()  # a ready Covering
+    return PredictorOptions(
+        covering=cover,
+        schedule=schedule
+        if isinstance(schedule, ScheduleOptions)
+        else ScheduleOptions(kind=schedule),
+        urgency=urgency,
+        pilot=pilot,
+        pairs=pairs if isinstance(pairs, PairOptions) else PairOptions(mode=pairs),
+    )
+
+
+def removed_keywords_error(removed: dict[str, object]) -> InvalidInputError:
+    """The error for keywords the Predictor no longer takes: where each one went."""
+    moved = [f"{k} -> {REMOVED_KEYWORDS[k]}" for k in removed if k in REMOVED_KEYWORDS]
+    unknown = sorted(k for k in removed if k not in REMOVED_KEYWORDS)
+    parts = []
+    if moved:
+        parts.append("these options moved into groups: " + "; ".join(moved))
+    if unknown:
+        parts.append(
+            f"unknown keyword(s) {unknown}: the Predictor takes accel, speed, velocity_accel, "
+            "period, latency, covering, schedule, urgency, pilot and pairs"
+        )
+    return InvalidInputError("Predictor(): " + ". ".join(parts) + ".")
