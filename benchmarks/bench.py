@@ -208,9 +208,9 @@ def compiled_step_us(
     from dua_mujoco.mj.rigid_step import step_rigid_kernel  # what Predictor.step runs
 
     @nb.njit
-    def loop(k, state, n0, pairs, spheres, frame, shapes, exact, scratch):
+    def loop(k, state, n0, pairs, spheres, frame, shapes, exact, events, scratch):
         for i in range(k):
-            step_rigid_kernel(state, n0 + i, pairs, spheres, frame, shapes, exact, scratch)
+            step_rigid_kernel(state, n0 + i, pairs, spheres, frame, shapes, exact, events, scratch)
 
     s = predictor.scheduler  # type: ignore[attr-defined]
     args = predictor.kernel_arguments(data)  # type: ignore[attr-defined]
@@ -244,7 +244,9 @@ def bench_dispatch(calls: int = 200_000) -> str:
     args = (p.scheduler.kernel_state, 1, *p.kernel_arguments(d))
 
     @nb.njit
-    def empty_like_step(state, n, pairs, spheres, frame, shapes, exact, scratch):  # same args
+    def empty_like_step(
+        state, n, pairs, spheres, frame, shapes, exact, events, scratch
+    ):  # same args
         return 0, 0, -1
 
     @nb.njit

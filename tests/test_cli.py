@@ -30,6 +30,7 @@ REPORT_KEYS = {
     "predicted_onsets",
     "missed_onsets",
     "missed_onsets_valid_bounds",
+    "missed_onsets_outside_violations",
     "inactive_pair_contacts",
     "alarm_episodes",
     "false_alarm_episodes",
@@ -54,6 +55,7 @@ def test_cli_run_writes_json(tmp_path: Path, capsys) -> None:
     assert 0 < report["contact_pair_fraction"] < report["standing_alarm_fraction"] < 1
     assert report["physics_steps"] == 300
     assert report["missed_onsets_valid_bounds"] == 0
+    assert report["missed_onsets_outside_violations"] == 0
     assert report["predictor_share"] == pytest.approx(
         report["predictor_us_per_step"] / (report["period"] * report["mj_step_us_per_step"])
     )
@@ -201,7 +203,8 @@ def test_cli_table_separates_valid_misses_and_shows_realtime(capsys) -> None:
         for line in capsys.readouterr().out.splitlines()
     )
     assert rows["missed onsets"].isdigit()
-    assert rows["of them while the bounds held"] == "0"
+    assert rows["outside a violation's period"] == "0"
+    assert rows["while the bounds held"] == "0"
     assert rows["deadline overruns"].isdigit()
 
 
@@ -393,21 +396,22 @@ def test_cli_broken_bounds_warn_and_strict_exits_3(capsys) -> None:
     err = capsys.readouterr().err
     line = next(x for x in err.splitlines() if x.startswith("WARNING: the declared motion"))
     assert re.search(r"broken \d+ times \(body-steps, \d+ out of contact; bodies 'a_link\d'", line)
-    assert "misses after that are not covered by the guarantee" in line
+    assert "an onset in the period of a violation is not covered by the guarantee" in line
     assert main([*argv, "--strict"]) == 3
 
 
-def test_cli_strict_exits_1_on_a_miss_while_the_bounds_held(
+def test_cli_strict_exits_1_on_a_miss_outside_a_violations_period(
     capsys, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """A valid-bounds miss (a bug: faked here) exits 1, before the broken bounds' 3."""
+    """A miss outside a violation's period (a bug: faked here) exits 1, before the broken
+    bounds' 3."""
     real = monitor.run
     violations = []
 
     def missing(*args: object, **kwargs: object) -> monitor.RunReport:
         report = real(*args, **kwargs)  # type: ignore[arg-type]
         violations.append(report.bound_violations)
-        return dataclasses.replace(report, missed_onsets=1, missed_onsets_valid_bounds=1)
+        return dataclasses.replace(report, missed_onsets=1, missed_onsets_outside_violations=1)
 
     monkeypatch.setattr(monitor, "run", missing)
     assert main(ARGS) == 0

@@ -25,6 +25,7 @@ from dua_mujoco.mj.scenes import load_scene, make_controller
 if "dua_mujoco.testing" not in sys.modules:
     pytest.register_assert_rewrite("dua_mujoco.testing")
 
+from dua_mujoco.mj.options import ScheduleOptions
 from dua_mujoco.testing import (
     BASELINE_KEYS,
     assert_no_missed_collisions,
@@ -37,14 +38,12 @@ pytest_plugins = ["pytester", "dua_mujoco.testing"]
 
 # The paper world with 20 spheres collides often; out of contact each sphere's acceleration norm
 # is at most sqrt(3) * 1 m/s^2 (its motors), so 2 m/s^2 is a bound that holds out of contact.
-# Sphere-sphere impulses break it, and with the deadline schedule's few standing alarms one floor
-# contact right after an impulse goes unflagged in this run (a miss the guarantee does not cover,
-# which the helper rightly fails); the paper's schedule, whose long horizons keep more pairs in
-# alarm, flags it. These tests are about the helper, so they run the paper's schedule.
+# Sphere-sphere impulses break it; the step then evaluates the pairs of both spheres again, so
+# the floor contact that follows an impulse is flagged with the default schedule too (before
+# violations were events, it went unflagged and these tests ran the paper's schedule).
 SCENE = "paper_world:20"
 ACCEL = 2.0
-SCHEDULE = "dua"
-CLEAN = {"accel": ACCEL, "schedule": SCHEDULE}
+CLEAN = {"accel": ACCEL}
 STEPS = 1000
 
 
@@ -80,9 +79,13 @@ def test_defaults_build_data_controller_and_predictor() -> None:
 
 
 def test_never_alarming_predictor_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A predictor whose alarm horizons are all 0 never alarms: every onset is a valid miss."""
+    """A predictor whose alarm horizons are all 0 never alarms: every onset is a valid miss.
+
+    The paper's schedule alarms against its horizons only (the deadline schedule's standing
+    alarms follow its due steps), so zeroing them silences it.
+    """
     m, d = _scene()
-    broken = Predictor(m, accel=ACCEL, schedule=SCHEDULE)
+    broken = Predictor(m, accel=ACCEL, schedule="dua")
     reset = broken.reset
 
     def reset_without_horizon(data: mujoco.MjData) -> Alarms:
@@ -95,7 +98,7 @@ def test_never_alarming_predictor_is_caught(monkeypatch: pytest.MonkeyPatch) -> 
     with pytest.raises(AssertionError) as info:
         assert_no_missed_collisions(m, d, steps=STEPS, predictor=broken, scene=SCENE)
     msg = str(info.value)
-    assert "not preceded by an alarm although the declared bounds held" in msg
+    assert "not preceded by an alarm outside the period of a bound violation" in msg
     # Geom pairs are named: sphere-sphere or sphere-wall.
     named = re.findall(
         r"'(sphere\d+)' / '(sphere\d+|floor|ceiling|wall_[xy](?:neg|pos))' at t = ", msg
@@ -104,15 +107,17 @@ def test_never_alarming_predictor_is_caught(monkeypatch: pytest.MonkeyPatch) -> 
     assert msg.splitlines()[0].startswith(f"{SCENE}: ")
 
 
-def test_misses_after_broken_bounds_fail_unless_allowed() -> None:
-    """Declared bounds far too small: misses happen that the guarantee does not cover.
+def test_broken_bounds_fail_unless_allowed_and_events_recover_the_misses() -> None:
+    """Declared bounds far too small: the run fails (free motion beyond them), with the fix in
+    the message; ``allow_broken_bounds=True`` accepts it.
 
-    A green test would certify nothing, so they fail by default, with the fix in the message;
-    ``allow_broken_bounds=True`` accepts them (and they are still in the report).
+    two_arms with A = 0 breaks the bounds at most steps. With violations as events every pair
+    of a body that broke them is evaluated again at that step, so no onset is missed; without
+    them the same run misses onsets long after the violations, which the helper fails as bugs
+    of the guarantee.
     """
-    # two_arms with A = 0: 3 of 23 onsets missed in 1000 steps (the arms' motors accelerate).
     m, d = load_scene("two_arms")
-    with pytest.raises(AssertionError, match="after the declared motion bounds were broken") as e:
+    with pytest.raises(AssertionError, match="bounds were broken in free motion") as e:
         assert_no_missed_collisions(m, d, steps=STEPS, predictor={"accel": 0.0})
     assert "allow_broken_bounds=True" in str(e.value)
     assert "accel='auto'" in str(e.value)
@@ -121,19 +126,22 @@ def test_misses_after_broken_bounds_fail_unless_allowed() -> None:
     report = assert_no_missed_collisions(
         m, d, steps=STEPS, predictor={"accel": 0.0}, allow_broken_bounds=True
     )
-    assert report.bound_violations > 0
-    assert report.missed_onsets > 0
-    assert report.missed_onsets_valid_bounds == 0
+    assert report.bound_violations > 0 and report.contact_onsets > 0
+    assert report.missed_onsets == 0
+    m, d = load_scene("two_arms")
+    without = {"accel": 0.0, "schedule": ScheduleOptions(violation_events=False)}
+    with pytest.raises(AssertionError, match="outside the period of a bound violation"):
+        assert_no_missed_collisions(m, d, steps=STEPS, predictor=without, allow_broken_bounds=True)
 
 
 def test_broken_bounds_fail_even_without_a_miss() -> None:
     """Violations alone fail: the guarantee did not apply, however lucky the run was.
 
     paper_world:12 with A = v = 0.01 breaks its bounds thousands of times in 400 steps and,
-    with the paper's schedule, misses nothing; the helper passed it.
+    misses nothing (violations are events); the helper passed it before it judged violations.
     """
     m, d = load_scene("paper_world:12")
-    bounds = {"accel": 0.01, "speed": 0.01, "schedule": SCHEDULE}
+    bounds = {"accel": 0.01, "speed": 0.01}
     with pytest.raises(AssertionError, match="bounds were broken") as e:
         assert_no_missed_collisions(m, d, steps=400, predictor=bounds)
     msg = str(e.value)
@@ -197,9 +205,7 @@ def test_predictor_of_another_model_is_refused() -> None:
     m, d = _scene()
     other, _ = load_scene("paper_world:3")
     with pytest.raises(ValueError, match="another MjModel"):
-        assert_no_missed_collisions(
-            m, d, steps=10, predictor=Predictor(other, accel=ACCEL, schedule=SCHEDULE)
-        )
+        assert_no_missed_collisions(m, d, steps=10, predictor=Predictor(other, accel=ACCEL))
 
 
 def test_custom_controller_is_used() -> None:
@@ -370,7 +376,7 @@ def test_plugin_fixture_fails_on_missed_collision(pytester: pytest.Pytester) -> 
 
             def test_broken(dua_predict):
                 model, data = load_scene("{SCENE}")
-                p = Predictor(model, accel={ACCEL}, schedule="{SCHEDULE}")
+                p = Predictor(model, accel={ACCEL}, schedule="dua")
                 reset = p.reset
 
                 def never_alarm(d):

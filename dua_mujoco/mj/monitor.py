@@ -7,7 +7,10 @@ the active set that is in ``d.contact`` now and was not at the previous physics 
 latest evaluation (at or before the onset) raised an alarm: exactly the completeness theorem's
 claim (docs/theory.md). A miss is *valid-bounds* when neither body broke its declared bounds
 between that latest evaluation and the onset, so the theorem's hypotheses held and the miss
-would be a bug.
+would be a bug. It is *in a violation's period* when one of the two bodies broke its bounds
+after the latest predictor step at or before the onset (two steps with pruned pairs), which had
+no chance to renew the pair's verdict: the one exception of the guarantee with violations as
+events (docs/theory.md, section 6). Every other miss is a bug.
 
 ``run`` drives a rollout (controller, ``mj_step``, predictor every ``period`` steps, monitor) and
 returns a ``RunReport``.
@@ -400,12 +403,14 @@ class Monitor:
             live = members[sched.active[members]]
             last = int(sched.last_step_of(live).min())
             window_start = self._pred_steps[last]
-            bodies = self._gp_body[g]
-            held = (
-                bool((self.last_violation[bodies] <= window_start).all())
-                if self.bound_checks
-                else False
-            )
+            broke = int(self.last_violation[self._gp_body[g]].max())
+            held = broke <= window_start if self.bound_checks else False
+            # The step sees a violation at the first predictor instant at or after it, and
+            # renews the pairs of its bodies there (a pruned predictor the pairs it did not
+            # hold, one step later): an onset before that is the one exception left.
+            steps = self._pred_steps
+            seen = steps[max(steps.count - (2 if self.predictor.stride else 1), 0)]
+            in_period = bool(self.bound_checks) and broke > seen
             g1 = int(self.predictor.geom_pairs.geom1[g])
             g2 = int(self.predictor.geom_pairs.geom2[g])
             self.misses.append(
@@ -415,6 +420,7 @@ class Monitor:
                     geom1=str(self._names[g1]),
                     geom2=str(self._names[g2]),
                     bounds_held=held,
+                    in_violation_period=in_period,
                     last_evaluation_step=last,
                     last_tau=float(sched.last_tau_of(live).min()),
                 )

@@ -76,18 +76,27 @@ class ScheduleOptions:
         max_evals_per_step: ``deadline`` only: optional cap on tau evaluations a step.
         alarm_backoff: ``deadline`` only: a pair that keeps alarming is evaluated after twice its
             last wait, up to this many steps; 1 gives select-all's alarms exactly.
+        violation_events: Each step first checks every moving body's motion against its
+            bounds, and the pairs of a body that broke them are evaluated again at once (their
+            verdicts assumed the bounds): a contact's impulse then costs no later collision
+            (docs/theory.md, section 6). False keeps verdicts until their deadline, for A/B runs.
     """
 
     kind: Schedule | str = Schedule.DEADLINE
     slots_per_bucket: int = 1
     max_evals_per_step: int | None = None
     alarm_backoff: int = deadline.DEFAULT_ALARM_BACKOFF
+    violation_events: bool = True
 
     def __post_init__(self) -> None:
         _set(self, "kind", as_schedule(self.kind))
         _set(self, "slots_per_bucket", check_slots_per_bucket(self.slots_per_bucket))
         _set(self, "max_evals_per_step", deadline.check_max_evals(self.max_evals_per_step) or None)
         _set(self, "alarm_backoff", deadline.check_alarm_backoff(self.alarm_backoff))
+        if not isinstance(self.violation_events, bool):
+            raise InvalidInputError(
+                f"violation_events = {self.violation_events!r} is invalid: pass True or False."
+            )
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

@@ -19,7 +19,6 @@ from typing import Literal
 
 import mujoco
 import numpy as np
-import numpy.typing as npt
 
 from dua_mujoco.core.pairset import pack_pairs
 from dua_mujoco.core.schedules import (
@@ -41,6 +40,14 @@ from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.bounds import MotionBounds, resolve_bounds
 from dua_mujoco.mj.covering import Covering, CoveringMode, cover_model
 from dua_mujoco.mj.diagnostics import clock_error, nonfinite_error
+from dua_mujoco.mj.events import (
+    M_COUNT,
+    EventTable,
+    body_boxes,
+    build_events,
+    no_events,
+    reset_events,
+)
 from dua_mujoco.mj.exact import (
     EXACT_PERIODS,
     QUERY_PERIODS,
@@ -70,6 +77,7 @@ from dua_mujoco.mj.options import (
 )
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty, bounded_pairs
 from dua_mujoco.mj.pairstate import PairState
+from dua_mujoco.mj.predictor_views import PredictorViews
 from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for
 from dua_mujoco.mj.rigid_step import scratch_buffers
 from dua_mujoco.mj.step_context import StepContext, Stepper, StepTables
@@ -88,7 +96,7 @@ BoundsLike = float | Mapping[str, float] | MotionBounds | Literal["auto"]
 the rest), ready ``MotionBounds``, or ``"auto"`` (estimated by a pilot rollout)."""
 
 
-class Predictor:
+class Predictor(PredictorViews):
     """DUA collision predictor for a MuJoCo model.
 
     Args:
@@ -197,16 +205,18 @@ class Predictor:
                 QUERY_PERIODS * self.dt,
             )
             spheres = self.exact.with_corners(model, spheres)
-        self.bound_points: tuple[np.ndarray, np.ndarray, np.ndarray] = spheres
-        """``(geom, body, offset)`` of every point whose motion the bounds limit (the covering
-        spheres' centres, and the corners of the exact level's geoms): what the pilot measures
-        and ``BoundMonitor`` checks."""
+        boxes = body_boxes(model, spheres)
+        self.bound_points: tuple[np.ndarray, np.ndarray, np.ndarray] = boxes.corners()
+        """``(geom, body, offset)`` of the points whose motion the bounds limit: the corners of
+        one box a body around its covering spheres' centres and the exact level's geoms (the
+        bounds then hold for every point inside, docs/theory.md, section 6). What the pilot
+        measures, ``BoundMonitor`` checks, and the step checks before each selection."""
         self.bounds = resolve_bounds(
             model,
             accel,
             speed=speed,
             velocity_accel=velocity_accel,
-            spheres=spheres,
+            spheres=self.bound_points,
             pilot_steps=self.options.pilot.steps,
             pilot_seed=self.options.pilot.seed,
             pilot_controller=self.options.pilot.controller,
@@ -220,6 +230,16 @@ class Predictor:
         self.pair_set = bounded_pairs(
             model, cov, self.sphere_pairs, self.bounds, period=self.period, mocap=self.mocap
         )
+        self.events: EventTable | None = (
+            build_events(model, boxes, self.bounds, period=self.period)
+            if sched.violation_events
+            else None
+        )
+        """The violation check's tables (None when ``violation_events`` is off)."""
+        self._events = no_events()
+        if self.events is not None:
+            self.events.hold(self.tables.geom1, self.tables.geom2)
+            self._events = self.events.args()
         self._plane_geom = np.asarray(cov.plane_geom, dtype=np.int64)
         self._spheres = pack_spheres(
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
@@ -262,6 +282,7 @@ class Predictor:
         self._records = self._pair_records
         self._on = np.ones(len(self.pair_set), dtype=bool) if self._held is not None else None
         self._built_at = 0
+        self._rebuild_next = False
         self.rebuilds = 0
         """Rebuilds of the held pairs so far (pruned pairs only)."""
 
@@ -272,6 +293,9 @@ class Predictor:
         self._ids = ids
         self._records = np.ascontiguousarray(self._pair_records[ids])
         self._stepper.context = None
+        if self.events is not None:
+            self.events.hold(self.tables.geom1[ids], self.tables.geom2[ids])
+            self._events = self.events.args()
         if self.exact is not None:
             self._exact_records = np.ascontiguousarray(self.exact.records[ids])
             if self._frame_data is not None:
@@ -295,11 +319,6 @@ class Predictor:
             )
             self._pair_state = view
         return view
-
-    @property
-    def held_pairs(self) -> np.ndarray:
-        """``(K,)`` id among all active sphere pairs of each of the scheduler's pairs."""
-        return self._ids
 
     # ----------------------------------------------------------------------- state
 
@@ -383,6 +402,8 @@ class Predictor:
             self._on[:] = True
             self._hold(self._held.select(c, v))
             self._built_at = 0
+        reset_events(self._events, frame)
+        self._rebuild_next = False
         tau0 = self.pair_set.tau(self._ids, c, v, halfspaces)
         if self.exact is not None:
             exact_taus(tau0, self._ids, self._pair_records, frame, self._exact_args(data))
@@ -417,7 +438,9 @@ class Predictor:
             spare = self._scheduler(np.full(1, np.inf))
             tables = self._step_tables(frame)
             # The spare's pair 0 is the model's: its rows exist even when no pair is held.
-            full = tables._replace(pairs=self._pair_records, exact=self._exact_args(data))
+            full = tables._replace(
+                pairs=self._pair_records, exact=self._exact_args(data), events=no_events()
+            )
             Stepper.load_compiled(spare, full)
             spare.set_active([0], False)
             spare.set_active([0], True)
@@ -426,7 +449,9 @@ class Predictor:
 
     def _step_tables(self, frame: tuple) -> StepTables:
         """The compiled step's tables as they stand now, on ``frame``."""
-        return StepTables(self._records, self._spheres, frame, self._shapes, self._exact, self._ids)
+        return StepTables(
+            self._records, self._spheres, frame, self._shapes, self._exact, self._events, self._ids
+        )
 
     def _bind_step(self) -> StepContext:
         """The compiled step's context as it stands now (after any argument changed)."""
@@ -456,8 +481,11 @@ class Predictor:
             raise clock_error(data, expected, elapsed, self.period, self.dt)
         if self.mocap is not None:
             self.mocap.update(data, self._twist)
-        if self._held is not None and sched.step_count + 1 - self._built_at >= self.stride:
+        if self._held is not None and (
+            self._rebuild_next or sched.step_count + 1 - self._built_at >= self.stride
+        ):
             self._rebuild(data, sched.step_count + 1)
+            self._rebuild_next = False
         stepper = self._stepper
         context = stepper.context if stepper.context is not None else self._bind_step()
         start = stepper.used
@@ -466,6 +494,8 @@ class Predictor:
         nalarm, bad, deferred = sched.step_context(stepper.entry, context, start)
         if bad >= 0:
             raise self._nonfinite(data, int(self._ids[bad]))
+        # Pairs not held were left out under the bounds too: renewed at the next step.
+        self._rebuild_next = bool(self._events[2][M_COUNT]) and self._held is not None
         self._time = time
         stepper.used = stop = start + nalarm
         return Alarms.from_log(
@@ -535,48 +565,11 @@ class Predictor:
         self._switch(np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp)), False)
         return int(gp.size)
 
-    def _require_scheduler(self) -> Scheduler:
-        if self.scheduler is None:
-            raise SchedulerError("call predictor.reset(data) first.")
-        return self.scheduler
-
-    # ----------------------------------------------------------------------- introspection
-
-    @property
-    def nsphere(self) -> int:
-        """Number of covering spheres."""
-        return int(self.covering.nsphere)
-
-    @property
-    def nsphere_pairs(self) -> int:
-        """Number of sphere pairs (the scheduler's pairs)."""
-        return len(self.pair_set)
-
-    @property
-    def evaluations_per_step(self) -> int:
-        """tau evaluations of the latest step (``dua``: the slots handed out a step)."""
-        return self._require_scheduler().evaluations_per_step
-
-    @property
-    def shape_records(self) -> np.ndarray:
-        """``(nshape, 16)`` records of the static shapes (``core.shapes``), as of ``reset``."""
-        return self._shapes
-
     def kernel_arguments(self, data: mujoco.MjData) -> tuple:
         """Everything ``step`` hands ``rigid_step.step_rigid_kernel`` after the scheduler's
         ``kernel_state`` and the step number, for ``data``: ``(pair_records, sphere_records,
-        frame, shape_records, exact, scratch)``; for compiled drivers (benchmarks)."""
+        frame, shape_records, exact, events, scratch)``; for compiled drivers (benchmarks)."""
         t = self._step_tables(mjdata_frame(data, self._twist))
         t = t._replace(exact=self._exact_args(data, self._exact_records))
         scratch = scratch_buffers(self._require_scheduler().state.work.shape[1])
-        return t.pairs, t.spheres, t.frame, t.shapes, t.exact, scratch
-
-    @property
-    def sphere_pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(geom1, geom2)``, each ``(nsphere_pairs,)``: the geoms of every sphere pair
-        (``geom2`` is the plane geom of half-space pairs, the static geom of shape pairs)."""
-        return self.tables.geom1, self.tables.geom2
-
-    def geom_pair_of(self, pairs: npt.ArrayLike) -> np.ndarray:
-        """Index into ``geom_pairs`` of sphere pairs."""
-        return np.asarray(self.sphere_pairs.geom_pair[np.asarray(pairs, dtype=np.int64)])
+        return t.pairs, t.spheres, t.frame, t.shapes, t.exact, t.events, scratch

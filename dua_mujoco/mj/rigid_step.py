@@ -26,6 +26,7 @@ from dua_mujoco.core.schedules import kernels
 from dua_mujoco.core.schedules.state import S_W_TAU, S_WORK, W_IDS
 from dua_mujoco.core.shapes import tau_static
 from dua_mujoco.core.urgency import tau_between, tau_halfspace
+from dua_mujoco.mj.events import violation_pass
 from dua_mujoco.mj.exact import exact_buffer, exact_pass
 from dua_mujoco.mj.kinematics import rigid_point
 
@@ -40,22 +41,26 @@ def scratch_buffers(width: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @nb.njit(cache=True)
-def step_rigid_kernel(st, n, pairs, spheres, frame, shapes, exact, scratch):  # pragma: no cover
+def step_rigid_kernel(  # pragma: no cover - jitted
+    st, n, pairs, spheres, frame, shapes, exact, events, scratch
+):
     """The fused step on spheres attached to rigid frames (a ``FusedKernel``).
 
     Reads only the selected spheres. ``pairs`` and ``spheres`` are ``pack_pairs`` /
     ``pack_spheres`` records; ``shapes`` the ``(nshape, 16)`` static shape records
     (``pack_shapes``, one placeholder row without shapes) that shape pairs' ``PAIR_OTHER``
     indexes; ``exact`` the exact level's tuple (``dua_mujoco.mj.exact``: a pair whose tau is
-    below its threshold is looked at through its geoms by :func:`exact_pass`); ``scratch`` the
-    buffers of
-    :func:`scratch_buffers` (allocating them here cost a microsecond a step, measured). Two
+    below its threshold is looked at through its geoms by :func:`exact_pass`); ``events`` the
+    violation check's tuple (``dua_mujoco.mj.events``: the held pairs of a body that broke its
+    bounds since the last step are made due now, before the selection); ``scratch`` the buffers
+    of :func:`scratch_buffers` (allocating them here cost a microsecond a step, measured). Two
     passes: first every selected pair's state is gathered (independent loads, which the CPU
     overlaps; the tables are cold after ``mj_step``), then tau is computed from that small
     buffer. A pair whose state is not finite abandons the step.
     """
     frame_pos, frame_mat = frame[0], frame[1]
     state, xbuf = scratch
+    violation_pass(st, n, events, frame)
     count = kernels.select(st, n)
     w_ids = st[S_WORK][W_IDS]
     # Row k: sphere i's centre and velocity, then sphere j's (or the plane's normal, offset;

@@ -75,6 +75,7 @@ class StepTables(NamedTuple):
         frame: ``mjdata_frame``'s tuple of ``MjData`` views.
         shapes: ``(nshape, 16)`` static shape records.
         exact: The exact level's tuple (``ExactLevel.args`` or ``no_exact()``).
+        events: The violation check's tuple (``EventTable.args`` or ``no_events()``).
         ids: ``(K,)`` model sphere-pair id of each held pair (the identity when none is pruned).
     """
 
@@ -83,6 +84,7 @@ class StepTables(NamedTuple):
     frame: tuple
     shapes: np.ndarray
     exact: tuple
+    events: tuple
     ids: np.ndarray
 
 
@@ -130,7 +132,7 @@ def context_step(ctx, n, start):  # pragma: no cover - jitted
     """
     st = ctx.state
     _, nalarm, bad = step_rigid_kernel(
-        st, n, ctx.pairs, ctx.spheres, ctx.frame, ctx.shapes, ctx.exact, ctx.scratch
+        st, n, ctx.pairs, ctx.spheres, ctx.frame, ctx.shapes, ctx.exact, ctx.events, ctx.scratch
     )
     if bad >= 0:
         return 0, bad, 0

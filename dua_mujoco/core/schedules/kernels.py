@@ -15,9 +15,10 @@ returns the number of alarms written to ``st[S_WORK][W_ALARMS]``. Each entry poi
   their last verdict does not cover the longer interval.
 - Select-all: every active pair, alarm iff ``tau < horizon[0]``.
 
-A pair switched back on gets ``last_tau = -inf`` (it stands in alarm) and is evaluated at the
-next selection: rank appends it to the regular slots (at most the spare width a step, the rest
-waits in the queue, still standing in alarm); deadline makes it due at the next step.
+A pair switched back on, or made due by ``make_due`` (its bounds broke), gets
+``last_tau = -inf`` (it stands in alarm) and is evaluated at the next selection: rank appends it
+to the regular slots (at most the spare width a step, the rest waits in the queue, still
+standing in alarm); deadline makes it due at that step.
 """
 
 from __future__ import annotations
@@ -66,6 +67,7 @@ __all__ = [
     "deadline_carry",
     "deadline_classify",
     "deadline_interval",
+    "make_due",
     "reinsert",
     "restore",
     "select",
@@ -421,6 +423,28 @@ def switch(st, ids, on, n_next):  # pragma: no cover - jitted
         elif st[S_KIND] == DEADLINE:
             _unlink(st, p)
     return changed
+
+
+@nb.njit(cache=True)
+def make_due(st, p, n):  # pragma: no cover - jitted
+    """Withdraw active pair ``p``'s verdict and make it due at step ``n`` (the step about to
+    select): it stands in alarm (``last_tau = -inf``) until evaluated, as a pair switched on
+    does. Used when the motion it was judged under broke its bounds."""
+    if not st[S_ACTIVE][p]:
+        return
+    if st[S_KIND] == RANK:
+        if st[S_LAST_TAU][p] == -math.inf:
+            return  # already waiting in the queue
+        st[S_LAST_TAU][p] = -math.inf
+        st[S_SLOTS][st[S_INTS][WHERE, p]] = p
+        st[S_QUEUE][1 + st[S_QUEUE][0]] = p
+        st[S_QUEUE][0] += 1
+    elif st[S_KIND] == DEADLINE:
+        st[S_LAST_TAU][p] = -math.inf
+        _unlink(st, p)
+        _link(st, p, n)
+    else:
+        st[S_LAST_TAU][p] = -math.inf
 
 
 @nb.njit(cache=True)
