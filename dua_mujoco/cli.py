@@ -215,6 +215,14 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         help="pilot rollout length for --accel auto",
     )
     p.add_argument(
+        "--pilot-motion",
+        choices=["free", "no-impacts", "all"],
+        default=None,
+        help="steps the pilot of --accel auto measures: out of every contact and joint limit "
+        "(free motion), all but those near a new contact, or all (default: the "
+        "PilotOptions default)",
+    )
+    p.add_argument(
         "--hfield",
         choices=["error", "box"],
         default="error",
@@ -431,7 +439,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
             **({} if args.alarm_backoff is None else {"alarm_backoff": args.alarm_backoff}),
         ),
         urgency=UrgencyOptions(exact=args.exact),
-        pilot=PilotOptions(steps=args.pilot_steps, seed=args.seed + 1_000_003, controller=pilot),
+        pilot=PilotOptions(
+            steps=args.pilot_steps,
+            seed=args.seed + 1_000_003,
+            controller=pilot,
+            **({} if args.pilot_motion is None else {"motion": args.pilot_motion}),
+        ),
     )
     on_step = None
     renderer = None

@@ -18,6 +18,7 @@ and then |c_{k+n} - c_k - n h w_k| <= delta_b t + A_b t^2 / 2 at every t = n h.
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Literal
@@ -34,6 +35,7 @@ __all__ = [
     "DIVERGENCE_WARNINGS",
     "BoundSpec",
     "MotionBounds",
+    "PilotMotion",
     "default_spheres",
     "discrete_velocity_uncertainty",
     "estimate_bounds",
@@ -43,6 +45,24 @@ __all__ = [
 
 BoundSpec = float | Mapping[str, float]
 """A bound given as one scalar for every moving body, or a dict by body name (``"*"``: default)."""
+
+
+class PilotMotion(enum.StrEnum):
+    """Which steps of its rollout the pilot measures (``PilotOptions(motion=...)``).
+
+    A constraint's impulse is what the predictor must foresee, not part of the motion model:
+    with it the bounds become loose enough to alarm every pair. A step the pilot leaves out is
+    one where the tree was, or in the two steps before (the span of a second difference), in
+    a contact (``FREE``: free motion, what the actuators and gravity do; also at a joint limit)
+    or in a *new* contact (``NO_IMPACTS``: sustained contact such as resting or grasping is
+    measured as ordinary motion); ``ALL`` measures every step. A body measured at no step falls
+    back to every step. The motion the pilot leaves out breaks the bounds in a run, and the
+    step re-evaluates the pairs of the bodies involved (docs/theory.md, section 6).
+    """
+
+    FREE = "free"
+    NO_IMPACTS = "no-impacts"
+    ALL = "all"
 
 
 def moving_bodies(model: mujoco.MjModel) -> np.ndarray:
@@ -334,7 +354,7 @@ def estimate_bounds(
     init: Controller | None = None,
     spheres: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike] | None = None,
     with_speed: bool = True,
-    contact_free: bool = True,
+    motion: PilotMotion | str = PilotMotion.NO_IMPACTS,
 ) -> MotionBounds:
     """Estimate bounds from a pilot rollout (its own ``MjData``, its own seed).
 
@@ -353,13 +373,7 @@ def estimate_bounds(
         init: called once after ``mj_resetData`` as ``init(model, data, rng)``.
         spheres: ``(sphere_geom, sphere_body, sphere_offset)``; None for :func:`default_spheres`.
         with_speed: also return a speed bound.
-        contact_free: skip a kinematic tree at steps where one of its bodies started a new
-            contact (in the last three steps, which the second difference spans). Collision
-            impulses are what the predictor must foresee, not part of the motion model: with
-            them the bounds become so loose that every pair alarms. Sustained contact (resting,
-            sliding, grasping) is kept: it is ordinary motion. A body measured at no step at all
-            falls back to every step. Collisions then show up as bound violations in the
-            ``BoundMonitor``, as they should.
+        motion: which steps are measured (:class:`PilotMotion`).
 
     Returns:
         The bounds, ``source="auto"``.
@@ -368,6 +382,10 @@ def estimate_bounds(
         raise InvalidInputError(f"steps must be >= 3 to difference twice; got {steps}.")
     if not np.isfinite(safety) or safety < 1.0:
         raise InvalidInputError(f"safety must be >= 1; got {safety}.")
+    try:
+        motion = PilotMotion(motion)
+    except ValueError:
+        raise InvalidChoiceError("pilot motion", motion, [x.value for x in PilotMotion]) from None
     rng = np.random.default_rng(seed)
     sgeom, sbody, soff = (
         default_spheres(model) if spheres is None else (np.asarray(a) for a in spheres)
@@ -410,15 +428,21 @@ def estimate_bounds(
         ctrl(model, d, rng)
         mujoco.mj_step(model, d)
         tracker.update(d)
-        if contact_free:
+        if motion is not PilotMotion.ALL:
             touched[k % 3] = False
             nc = int(d.ncon)
             now = set(
                 zip(d.contact.geom1[:nc].tolist(), d.contact.geom2[:nc].tolist(), strict=True)
             )
-            for g1, g2 in now - in_contact:
+            for g1, g2 in now if motion is PilotMotion.FREE else now - in_contact:
                 touched[k % 3, geom_root[g1]] = True
                 touched[k % 3, geom_root[g2]] = True
+            if motion is PilotMotion.FREE and d.nefc:
+                limit = np.asarray(d.efc_type[: d.nefc]) == int(
+                    mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
+                )
+                joints = np.asarray(d.efc_id[: d.nefc])[limit]
+                touched[k % 3, rootid[np.asarray(model.jnt_bodyid)[joints]]] = True
             in_contact = now
             free = np.asarray(~touched.any(axis=0))[sroot]
         else:
@@ -477,6 +501,7 @@ def resolve_bounds(
     pilot_seed: int = 1_000_003,
     pilot_controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None,
     safety: float = 2.0,
+    pilot_motion: PilotMotion | str = PilotMotion.NO_IMPACTS,
 ) -> MotionBounds:
     """The ``MotionBounds`` a ``Predictor``'s ``accel`` argument stands for.
 
@@ -512,6 +537,7 @@ def resolve_bounds(
             controller=pilot,
             spheres=spheres,
             with_speed=False,
+            motion=pilot_motion,
         )
         if speed is not None:
             # A declared speed bound still applies on top of estimated accelerations.

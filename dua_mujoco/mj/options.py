@@ -18,7 +18,8 @@ import mujoco
 from dua_mujoco.core.schedules import Schedule, as_schedule, deadline
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
 from dua_mujoco.core.spheres import PairMode
-from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.bounds import PilotMotion
 
 __all__ = [
     "REMOVED_KEYWORDS",
@@ -136,17 +137,28 @@ class PilotOptions:
         seed: Its random seed (use one different from the monitored run).
         controller: ``controller(model, data)`` for the pilot; None for random controls.
         safety: Factor on the measured maxima.
+        motion: Which steps it measures (a ``PilotMotion`` or its value): ``"free"`` leaves
+            out the steps near any contact or joint limit of the body's tree, ``"no-impacts"``
+            those near a new contact, ``"all"`` none. The motion left out breaks the bounds in
+            the run, and each step re-evaluates the pairs of the bodies that broke them.
     """
 
     steps: int = 2000
     seed: int = 1_000_003
     controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None
     safety: float = 2.0
+    motion: PilotMotion | str = PilotMotion.NO_IMPACTS
 
     def __post_init__(self) -> None:
         _positive_int("pilot steps", self.steps)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise InvalidInputError(f"pilot seed = {self.seed!r} is invalid: pass an int.")
+        try:
+            _set(self, "motion", PilotMotion(self.motion))
+        except ValueError:
+            raise InvalidChoiceError(
+                "pilot motion", self.motion, [m.value for m in PilotMotion]
+            ) from None
         if self.controller is not None and not callable(self.controller):
             raise InvalidInputError(
                 f"pilot controller = {self.controller!r} is not callable: pass "

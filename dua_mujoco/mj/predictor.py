@@ -221,6 +221,7 @@ class Predictor(PredictorViews):
             pilot_seed=self.options.pilot.seed,
             pilot_controller=self.options.pilot.controller,
             safety=self.options.pilot.safety,
+            pilot_motion=self.options.pilot.motion,
         )
         self.mocap: MocapVelocityTracker | None = (
             MocapVelocityTracker(model) if model.nmocap else None

@@ -1,0 +1,164 @@
+"""Violations as events (``dua_mujoco.mj.events``; docs/theory.md, section 6).
+
+The compiled check is held to ``BoundMonitor``, the point-by-point reference, step by step; the
+pairs of a body that broke its bounds must be evaluated at that very step; and a scene where a
+collision follows an impulse at once shows that the check, and its timing, are what flag it.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from dua_mujoco.mj.checks import BoundMonitor
+from dua_mujoco.mj.events import _exceeds, body_boxes
+from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.mj.monitor import run
+from dua_mujoco.mj.options import ScheduleOptions
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import load_scene, make_controller
+
+# Three balls in a row, no gravity: the striker hits the middle ball, which rests 0.1 mm from
+# the last one. The impulse moves the middle ball into the last one within one physics step,
+# so that collision's onset is the step at which the middle ball's bounds break.
+THREE_BALLS = """
+<mujoco>
+  <option gravity="0 0 0" timestep="0.002"/>
+  <worldbody>
+    <body name="striker" pos="-0.2 0 0"><freejoint/><geom name="striker" size="0.05"/></body>
+    <body name="middle" pos="0 0 0"><freejoint/><geom name="middle" size="0.05"/></body>
+    <body name="last" pos="0.1001 0 0"><freejoint/><geom name="last" size="0.05"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _three_balls() -> tuple[mujoco.MjModel, mujoco.MjData]:
+    m = mujoco.MjModel.from_xml_string(THREE_BALLS)
+    d = mujoco.MjData(m)
+    d.qvel[0] = 2.0  # the striker, towards the middle ball
+    mujoco.mj_forward(m, d)
+    return m, d
+
+
+@settings(max_examples=300, deadline=None)
+@given(arrays(np.float64, 12, elements=st.floats(-10, 10)), st.floats(0, 40))
+def test_exceeds_is_the_largest_corner(q: np.ndarray, bound: float) -> None:
+    """``_exceeds`` screens with the triangle inequality: it must agree with the corners."""
+    corners = [
+        np.linalg.norm(q[:3] + s[0] * q[3:6] + s[1] * q[6:9] + s[2] * q[9:12])
+        for s in itertools.product((-1.0, 1.0), repeat=3)
+    ]
+    assert _exceeds(q, bound) == (max(corners) > bound)
+
+
+@pytest.mark.parametrize("scene", ["two_arms", "clutter"])
+def test_body_boxes_hold_every_bound_point(scene: str) -> None:
+    """Each point the bounds limit lies in its body's box, at every state: a bound checked at
+    the box's corners holds for it."""
+    m, d = load_scene(scene)
+    p = Predictor(m, accel=5.0)
+    # The covering's centres and the exact level's corners, as the predictor gathered them.
+    sgeom, sbody, soff = p.covering.sphere_geom, p.covering.sphere_body, p.covering.sphere_offset
+    assert p.exact is not None
+    points = p.exact.with_corners(m, (sgeom, sbody, soff))
+    boxes = body_boxes(m, points)
+    ctrl = make_controller(m, "random", seed=3)
+    twist = np.zeros((m.nbody, 6))
+    for _ in range(50):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+    frame = mjdata_frame(d, twist)
+    c, _ = sphere_states(pack_spheres(*points, m.body_rootid), frame)
+    row = {int(b): i for i, b in enumerate(boxes.body)}
+    for k, b in enumerate(np.asarray(points[1]).tolist()):
+        i = row[b]
+        g = int(boxes.frame[i])
+        local = d.geom_xmat[g].reshape(3, 3).T @ (c[k] - d.geom_xpos[g])
+        assert np.all(np.abs(local - boxes.center[i]) <= boxes.half[i] + 1e-9)
+
+
+@pytest.mark.parametrize(("scene", "accel"), [("two_arms", 20.0), ("traffic", 5.0)])
+def test_step_flags_the_bodies_the_bound_monitor_flags(scene: str, accel: float) -> None:
+    """Period 1: the step's O(bodies) check and ``BoundMonitor``'s point-by-point check of the
+    same corners flag the same bodies at every step."""
+    m, d = load_scene(scene)
+    p = Predictor(m, accel=accel)
+    bm = BoundMonitor(m, p.bounds, p.bound_points, mocap=p.mocap)
+    ctrl = make_controller(m, "random", seed=1)
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    bm.update(m, d)
+    flagged = 0
+    for _ in range(600):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        p.step(d)
+        expected = bm.update(m, d)
+        assert p.violated_bodies.tolist() == sorted(expected.tolist())
+        flagged += expected.size
+    assert flagged > 20  # the bounds broke often enough to mean something
+    assert p.violation_events == flagged
+
+
+@pytest.mark.parametrize("cap", [None, 3])
+def test_pairs_of_a_violated_body_are_renewed_at_that_step(cap: int | None) -> None:
+    """Every held pair of a body that broke its bounds is evaluated at that step, or (over a
+    cap) stands in alarm until it is."""
+    m, d = load_scene("traffic")
+    p = Predictor(m, accel=5.0, schedule=ScheduleOptions(max_evals_per_step=cap))
+    ctrl = make_controller(m, "random", seed=2)
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    body1 = m.geom_bodyid[p.tables.geom1]
+    body2 = np.where(p.tables.geom2 >= 0, m.geom_bodyid[np.maximum(p.tables.geom2, 0)], 0)
+    renewed = 0
+    for _ in range(1500):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        p.step(d)
+        sched = p.pair_state()
+        broke = p.violated_bodies
+        if broke.size == 0:
+            continue
+        pairs = np.flatnonzero(np.isin(body1, broke) | np.isin(body2, broke))
+        now = sched.last_step_of(pairs) == sched.step_count
+        assert np.all(now | sched.alarm_state(pairs))
+        renewed += int(now.sum())
+    assert renewed > 100
+
+
+def test_a_collision_right_after_an_impulse_is_flagged_only_with_events() -> None:
+    """The middle ball's bounds break at the step it touches the last ball. Evaluated again at
+    that step, the pair alarms; one step late, or never, it is missed."""
+    m, d = _three_balls()
+    on_time = run(m, d, Predictor(m, accel=1.0), steps=200, progress=False)
+    assert on_time.contact_onsets >= 2 and on_time.bound_violations > 0
+    assert on_time.missed_onsets == 0
+
+    m, d = _three_balls()
+    never = Predictor(m, accel=1.0, schedule=ScheduleOptions(violation_events=False))
+    report = run(m, d, never, steps=200, progress=False)
+    assert report.missed_onsets_outside_violations >= 1
+
+    # One step late: the pairs of the bodies that broke their bounds are made due at the next
+    # step (switched off and on again, which withdraws their verdict) instead of this one.
+    m, d = _three_balls()
+    late = Predictor(m, accel=1.0, schedule=ScheduleOptions(violation_events=False))
+    checks = BoundMonitor(m, late.bounds, late.bound_points)
+
+    def renew_next_step(k: int, data: mujoco.MjData, alarms: object, monitor: object) -> None:
+        for b in checks.update(m, data).tolist():
+            late.set_active_bodies(b, on=False)
+            late.set_active_bodies(b, on=True)
+
+    report = run(m, d, late, steps=200, progress=False, on_step=renew_next_step)
+    assert report.missed_onsets_outside_violations >= 1
