@@ -164,7 +164,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--steps", type=int, default=1500)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--robots", action="store_true", help="add every installed robot model")
-    ap.add_argument("--skip-issue", action="store_true")
+    ap.add_argument(
+        "--tables", nargs="*", default=["issue", "pilot", "overhead"], help="which to measure"
+    )
     args = ap.parse_args(argv)
     scenes = list(QUICK if args.quick else SCENES) if args.scenes is None else list(args.scenes)
     steps = 300 if args.quick else args.steps
@@ -172,7 +174,7 @@ def main(argv: list[str] | None = None) -> None:
         from robots import available
 
         scenes += [f"robot/{name}" for name in available()]
-    if not args.skip_issue:
+    if "issue" in args.tables:
         print("issue runs ...", file=sys.stderr)
         head = [
             "run",
@@ -189,8 +191,10 @@ def main(argv: list[str] | None = None) -> None:
     for scene in scenes:
         print(f"{scene} ...", file=sys.stderr)
         try:
-            prow += pilot_rows(scene, steps)
-            orow.append(overhead_row(scene, steps))
+            if "pilot" in args.tables:
+                prow += pilot_rows(scene, steps)
+            if "overhead" in args.tables:
+                orow.append(overhead_row(scene, steps))
         except DuaError as exc:  # a model that diverges under random controls: say so, go on
             prow.append([scene, f"not measured: {type(exc).__name__}"] + [""] * 6)
         sys.stdout.flush()
@@ -204,8 +208,9 @@ def main(argv: list[str] | None = None) -> None:
         "missed (outside) / onsets",
         "/ mj_step",
     ]
-    print(table(head, prow))
-    print()
+    if prow:
+        print(table(head, prow))
+        print()
     head = [
         "scene",
         "bodies checked",
@@ -214,7 +219,8 @@ def main(argv: list[str] | None = None) -> None:
         "us/step, events",
         "ratio",
     ]
-    print(table(head, orow))
+    if orow:
+        print(table(head, orow))
 
 
 if __name__ == "__main__":

@@ -60,3 +60,8 @@ class DeadlineOverrunWarning(UserWarning):
 
 class NoActivePairsWarning(UserWarning):
     """The model has no geom pair MuJoCo could put in contact: the predictor has nothing to do."""
+
+
+class PilotWarning(UserWarning):
+    """The pilot rollout could not measure part of the motion (a mocap body it never moved):
+    the bounds it gives there are zero, and the run will break them."""

@@ -296,7 +296,14 @@ def _make_predictor(
     from dua_mujoco.mj.predictor import Predictor
 
     if predictor is None:
-        return Predictor(model)
+        # The pilot moves what the run's default controller moves (mocap bodies included),
+        # with a seed of its own.
+        from dua_mujoco.mj.options import PilotOptions
+        from dua_mujoco.mj.scenes import make_controller
+
+        return Predictor(
+            model, pilot=PilotOptions(controller=make_controller(model, "random", seed=1))
+        )
     if isinstance(predictor, Mapping):
         valid = [
             name
@@ -358,7 +365,9 @@ def assert_no_missed_collisions(
             :func:`dua_mujoco.mj.scenes.make_controller` random held controls with seed 0 (a
             regression needs motion; pass ``make_controller(model, "zero")`` for none).
         predictor: A ``Predictor`` for ``model``, a dict of ``Predictor`` keyword arguments, or
-            None for ``Predictor(model)`` (bounds from a pilot rollout).
+            None for ``Predictor(model)`` with bounds from a pilot rollout driven by
+            :func:`~dua_mujoco.mj.scenes.make_controller` (random controls, mocap bodies moved
+            as the default controller moves them; its own seed).
         baseline: A dict or JSON file path with :data:`BASELINE_KEYS` to compare the alarm counts
             with; None to skip the comparison.
         tolerance: Relative slack of the baseline comparison.

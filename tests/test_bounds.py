@@ -696,3 +696,54 @@ def test_monitor_of_a_predictor_with_period_and_mocap_holds() -> None:
         mujoco.mj_step(m, d)
         mon.observe(d, p.step(d) if k % 4 == 0 else None)
     assert mon.bound_checks is not None and mon.bound_checks.bounds_held(9)
+
+
+# --------------------------------------------------------------------------------------------------
+# What the pilot measures (PilotOptions(motion=...)).
+# --------------------------------------------------------------------------------------------------
+
+
+def test_pilot_levels_are_nested() -> None:
+    """Free motion is a subset of the steps without impacts, which are a subset of all steps:
+    the bounds can only shrink from one level to the next, body by body (a body a level never
+    measures takes the next level's value)."""
+    from dua_mujoco.mj.bounds import PilotMotion
+
+    m, _ = load_scene("paper_world:20")
+
+    def measure(motion: PilotMotion) -> np.ndarray:
+        ctrl = make_controller(m, "random", seed=4)  # the same rollout at every level
+
+        def pilot(mm: mujoco.MjModel, dd: mujoco.MjData, rng: np.random.Generator) -> None:
+            ctrl(mm, dd)
+
+        return estimate_bounds(m, steps=600, seed=3, controller=pilot, motion=motion).accel
+
+    accel = {motion: measure(motion) for motion in PilotMotion}
+    assert np.all(accel[PilotMotion.FREE] <= accel[PilotMotion.NO_IMPACTS])
+    assert np.all(accel[PilotMotion.NO_IMPACTS] <= accel[PilotMotion.ALL])
+    # The spheres collide: impacts and contacts are what the lower levels leave out.
+    assert accel[PilotMotion.ALL].max() > 5 * accel[PilotMotion.FREE].max()
+    with pytest.raises(InvalidChoiceError, match="free"):
+        estimate_bounds(m, steps=10, seed=3, motion="smooth")
+
+
+def test_pilot_warns_about_a_mocap_body_it_never_moved() -> None:
+    """Random controls do not move clutter's stirrer (the scene's controller does): its bounds
+    would be 0 and every step of a run that moves it would break them. The pilot says so."""
+    from dua_mujoco.exceptions import PilotWarning
+
+    m, _ = load_scene("clutter")
+    with pytest.warns(PilotWarning, match="'stirrer'"):
+        estimate_bounds(m, steps=50, seed=3)
+    ctrl = make_controller(m, "random", seed=4)
+
+    def pilot(mm: mujoco.MjModel, dd: mujoco.MjData, rng: np.random.Generator) -> None:
+        ctrl(mm, dd)
+
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PilotWarning)
+        bounds = estimate_bounds(m, steps=50, seed=3, controller=pilot)
+    assert bounds.accel[m.body("stirrer").id] > 0

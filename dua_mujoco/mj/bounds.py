@@ -19,6 +19,7 @@ and then |c_{k+n} - c_k - n h w_k| <= delta_b t + A_b t^2 / 2 at every t = n h.
 from __future__ import annotations
 
 import enum
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Literal
@@ -27,7 +28,12 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.exceptions import InvalidBoundError, InvalidChoiceError, InvalidInputError
+from dua_mujoco.exceptions import (
+    InvalidBoundError,
+    InvalidChoiceError,
+    InvalidInputError,
+    PilotWarning,
+)
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.mocap import MocapVelocityTracker
 
@@ -55,8 +61,9 @@ class PilotMotion(enum.StrEnum):
     one where the tree was, or in the two steps before (the span of a second difference), in
     a contact (``FREE``: free motion, what the actuators and gravity do; also at a joint limit)
     or in a *new* contact (``NO_IMPACTS``: sustained contact such as resting or grasping is
-    measured as ordinary motion); ``ALL`` measures every step. A body measured at no step falls
-    back to every step. The motion the pilot leaves out breaks the bounds in a run, and the
+    measured as ordinary motion); ``ALL`` measures every step. A body the level measures at no
+    step (a foot always on the ground) takes the next level's maxima: free, then no impacts,
+    then every step. The motion the pilot leaves out breaks the bounds in a run, and the
     step re-evaluates the pairs of the bodies involved (docs/theory.md, section 6).
     """
 
@@ -413,40 +420,47 @@ def estimate_bounds(
     ctrl = controller if controller is not None else default_controller
     h = float(model.opt.timestep)
     nb = model.nbody
-    amax, dmax, vmax = np.zeros(nb), np.zeros(nb), np.zeros(nb)
+    vmax = np.zeros(nb)
     prev_c: np.ndarray | None = None
     prev_u: np.ndarray | None = None
     prev_w: np.ndarray | None = None
     rootid = np.asarray(model.body_rootid, dtype=np.int64)
     sroot = rootid[sbody]
     geom_root = rootid[np.asarray(model.geom_bodyid, dtype=np.int64)]
-    touched = np.zeros((3, nb), dtype=bool)  # trees with a new contact in the last three steps
+    # Per tree, over the last three steps: a new contact; any contact or joint limit.
+    new = np.zeros((3, nb), dtype=bool)
+    held = np.zeros((3, nb), dtype=bool)
     in_contact: set[tuple[int, int]] = set()
-    amax_all, dmax_all = np.zeros(nb), np.zeros(nb)
-    measured = np.zeros(nb, dtype=bool)
+    amax, dmax = np.zeros((3, nb)), np.zeros((3, nb))
+    measured = np.zeros((3, nb), dtype=bool)
+    mocap_start = (np.array(d.mocap_pos), np.array(d.mocap_quat))
+    mocap_moved = np.zeros(model.nmocap, dtype=bool)
     for k in range(steps):
         ctrl(model, d, rng)
         mujoco.mj_step(model, d)
         tracker.update(d)
-        if motion is not PilotMotion.ALL:
-            touched[k % 3] = False
-            nc = int(d.ncon)
-            now = set(
-                zip(d.contact.geom1[:nc].tolist(), d.contact.geom2[:nc].tolist(), strict=True)
+        if model.nmocap:
+            mocap_moved |= (d.mocap_pos != mocap_start[0]).any(axis=1)
+            mocap_moved |= (d.mocap_quat != mocap_start[1]).any(axis=1)
+        # Which trees each level measures at this step: free motion (no contact or joint
+        # limit in the last three steps), no new contact in them, every step.
+        new[k % 3] = False
+        held[k % 3] = False
+        nc = int(d.ncon)
+        now = set(zip(d.contact.geom1[:nc].tolist(), d.contact.geom2[:nc].tolist(), strict=True))
+        for g1, g2 in now:
+            held[k % 3, geom_root[g1]] = held[k % 3, geom_root[g2]] = True
+        for g1, g2 in now - in_contact:
+            new[k % 3, geom_root[g1]] = new[k % 3, geom_root[g2]] = True
+        if d.nefc:
+            limit = np.asarray(d.efc_type[: d.nefc]) == int(
+                mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
             )
-            for g1, g2 in now if motion is PilotMotion.FREE else now - in_contact:
-                touched[k % 3, geom_root[g1]] = True
-                touched[k % 3, geom_root[g2]] = True
-            if motion is PilotMotion.FREE and d.nefc:
-                limit = np.asarray(d.efc_type[: d.nefc]) == int(
-                    mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
-                )
-                joints = np.asarray(d.efc_id[: d.nefc])[limit]
-                touched[k % 3, rootid[np.asarray(model.jnt_bodyid)[joints]]] = True
-            in_contact = now
-            free = np.asarray(~touched.any(axis=0))[sroot]
-        else:
-            free = np.ones(sbody.shape[0], dtype=bool)
+            joints = np.asarray(d.efc_id[: d.nefc])[limit]
+            held[k % 3, rootid[np.asarray(model.jnt_bodyid)[joints]]] = True
+        in_contact = now
+        quiet = np.asarray(~new.any(axis=0))[sroot]
+        levels = (quiet & np.asarray(~held.any(axis=0))[sroot], quiet, np.ones_like(quiet))
         tracker.write_body_velocity(twist)
         c, w = sphere_states(spheres_rec, mjdata_frame(d, twist))
         vmax = np.maximum(vmax, _per_body_max(np.linalg.norm(w, axis=1), sbody, nb))
@@ -457,18 +471,23 @@ def estimate_bounds(
             assert prev_w is not None
             if tracker.nupdates >= 3 or not tracker.mocap_bodies.size:
                 disc = np.linalg.norm(u - prev_w, axis=1)
-                dmax = np.maximum(dmax, _per_body_max(np.where(free, disc, 0.0), sbody, nb))
-                dmax_all = np.maximum(dmax_all, _per_body_max(disc, sbody, nb))
+                for j, mask in enumerate(levels):
+                    dmax[j] = np.maximum(dmax[j], _per_body_max(disc * mask, sbody, nb))
             if prev_u is not None:
                 acc = np.linalg.norm(u - prev_u, axis=1) / h
-                amax = np.maximum(amax, _per_body_max(np.where(free, acc, 0.0), sbody, nb))
-                amax_all = np.maximum(amax_all, _per_body_max(acc, sbody, nb))
-                measured[np.unique(sbody[free])] = True
+                for j, mask in enumerate(levels):
+                    amax[j] = np.maximum(amax[j], _per_body_max(acc * mask, sbody, nb))
+                    measured[j, np.unique(sbody[mask])] = True
             prev_u = u
         prev_c, prev_w = c, w
-    # Bodies starting new contacts at every step were never measured: use every step for them.
-    amax = np.where(measured, amax, amax_all)
-    dmax = np.where(measured, dmax, dmax_all)
+    # A body the chosen level never measured (a foot always on the ground: free motion; a body
+    # starting contacts at every step) takes the next level's maxima.
+    first = {PilotMotion.FREE: 0, PilotMotion.NO_IMPACTS: 1, PilotMotion.ALL: 2}[motion]
+    amax_used, dmax_used = amax[2].copy(), dmax[2].copy()
+    for j in range(1, first - 1, -1):
+        amax_used = np.where(measured[j], amax[j], amax_used)
+        dmax_used = np.where(measured[j], dmax[j], dmax_used)
+    amax, dmax = amax_used, dmax_used
     moving = moving_bodies(model)
     A = np.where(moving, safety * amax, 0.0)
     D = np.where(moving, safety * dmax, 0.0)
@@ -479,6 +498,20 @@ def estimate_bounds(
         raise InvalidBoundError(
             f"The pilot rollout diverged ({', '.join(diverged) or 'NaN/inf'}): reduce the "
             "timestep, or check the model and the pilot's controls."
+        )
+    if not mocap_moved.all():
+        still = [
+            model.body(int(b)).name or str(int(b))
+            for b in np.flatnonzero(np.asarray(model.body_mocapid) >= 0)
+            if not mocap_moved[int(model.body_mocapid[b])]
+        ]
+        warnings.warn(
+            f"the pilot never moved mocap bod{'y' if len(still) == 1 else 'ies'} {still}, so "
+            "their bounds are 0: if the run moves them, every step breaks those bounds and "
+            "their pairs are evaluated at every step. Give the pilot a controller that moves "
+            "them as the run will (PilotOptions(controller=...)), or declare their bounds.",
+            PilotWarning,
+            stacklevel=3,
         )
     return MotionBounds(
         accel=A,

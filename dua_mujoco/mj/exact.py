@@ -14,7 +14,7 @@ about their origins, and ``A``, ``delta`` the pair's bounds, which hold for ever
 geoms (their boxes' corners are among the points the bounds are estimated and checked at). Its
 first root is :func:`~dua_mujoco.core.urgency.tau_halfspace`'s, and the pair's tau is the larger
 of the two lower bounds. Proof, and what the distance means for each geom type, in
-docs/theory.md (section 6). A plane needs no query: its normal is the direction.
+docs/theory.md (section 5). A plane needs no query: its normal is the direction.
 
 Height fields and SDF geoms are not convex and keep their sphere tau; so do pairs whose witness
 is degenerate (touching, or no witness within the query's reach).
@@ -304,7 +304,7 @@ def corner_points(
     The acceleration, the one-step discrepancy and the chord speed of a point of a rigid body
     are norms of affine functions of the point's body coordinates, so their maxima over a geom
     lie at the corners of any box around it: bounds checked there hold for every point of the
-    geom (docs/theory.md, section 6).
+    geom (docs/theory.md, section 5).
 
     Args:
         model: The model.
