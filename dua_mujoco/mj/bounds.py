@@ -361,7 +361,7 @@ def estimate_bounds(
     init: Controller | None = None,
     spheres: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike] | None = None,
     with_speed: bool = True,
-    motion: PilotMotion | str = PilotMotion.NO_IMPACTS,
+    motion: PilotMotion | str = PilotMotion.FREE,
 ) -> MotionBounds:
     """Estimate bounds from a pilot rollout (its own ``MjData``, its own seed).
 
@@ -534,7 +534,7 @@ def resolve_bounds(
     pilot_seed: int = 1_000_003,
     pilot_controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None,
     safety: float = 2.0,
-    pilot_motion: PilotMotion | str = PilotMotion.NO_IMPACTS,
+    pilot_motion: PilotMotion | str = PilotMotion.FREE,
 ) -> MotionBounds:
     """The ``MotionBounds`` a ``Predictor``'s ``accel`` argument stands for.
 
