@@ -23,8 +23,8 @@ if not os.environ.get("DISPLAY"):
 import mujoco
 
 from dua_mujoco.exceptions import DuaError, InvalidInputError
-from dua_mujoco.mj.options import CoveringOptions, PilotOptions, ScheduleOptions, UrgencyOptions
 from dua_mujoco.outputs import publish, temporary_beside, writes_in_place
+from dua_mujoco.run_options import add_run_options, positive
 
 if TYPE_CHECKING:
     from dua_mujoco.mj.report import RunReport
@@ -35,7 +35,12 @@ __all__ = [
     "EXIT_MISSED",
     "EXIT_USAGE",
     "build_parser",
+    "check_output",
+    "keyframe_arg",
+    "load_scene_arg",
     "main",
+    "print_report",
+    "write_output",
 ]
 
 EXIT_MISSED = 1
@@ -58,44 +63,6 @@ _EXIT_CODES = (
 )
 
 
-def _accel(value: str) -> str | float:
-    if value == "auto":
-        return value
-    try:
-        a = float(value)
-    except ValueError:
-        a = math.nan
-    if not (math.isfinite(a) and a >= 0):
-        raise argparse.ArgumentTypeError(
-            f"--accel {value!r} is invalid: pass 'auto' or a finite number >= 0 (m/s^2)"
-        )
-    return a
-
-
-def _positive(kind: type) -> object:
-    def parse(value: str) -> object:
-        try:
-            v = kind(value)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{value!r} is not a {kind.__name__}") from None
-        if not (v > 0 and math.isfinite(v)):
-            raise argparse.ArgumentTypeError(f"{value!r} must be a finite number > 0")
-        return v
-
-    return parse
-
-
-def _non_negative_int(value: str) -> int:
-    """argparse type: an int >= 0 (seeds, latency)."""
-    try:
-        v = int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{value!r} is not an int") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"{value!r} must be >= 0")
-    return v
-
-
 def _add_run(sub: argparse._SubParsersAction) -> None:
     from dua_mujoco.mj.scenes import DEFAULT_SCENE, scene_names
 
@@ -113,127 +80,12 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         help=f"bundled scene ({', '.join(scene_names())}), an MJCF path or a binary .mjb model "
         f"(default {DEFAULT_SCENE})",
     )
-    p.add_argument(
-        "--steps",
-        type=_positive(int),
-        default=None,
-        help="physics steps (default: the scene's own, 1000 for an MJCF file)",
-    )
-    p.add_argument(
-        "--seed", type=_non_negative_int, default=0, help="seed of the controls (default 0)"
-    )
-    p.add_argument("--ctrl", choices=["zero", "random"], default="random", help="controls")
-    p.add_argument("--keyframe", default=None, help="start keyframe (id or name; default first)")
-    p.add_argument(
-        "--accel",
-        type=_accel,
-        default="auto",
-        help="acceleration bound in m/s^2 for every moving body, or 'auto' (pilot rollout)",
-    )
-    p.add_argument("--speed", type=_positive(float), default=None, help="speed bound in m/s")
-    p.add_argument(
-        "--covering",
-        choices=["bounding", "multi"],
-        default="bounding",
-        help="one bounding sphere per geom, or several (budget --max-spheres)",
-    )
-    p.add_argument("--max-spheres", type=_positive(int), default=8, help="multi covering budget")
-    p.add_argument(
-        "--period", type=_positive(int), default=1, help="physics steps per predictor step"
-    )
-    p.add_argument(
-        "--latency",
-        type=_non_negative_int,
-        default=0,
-        help="periods a verdict takes to reach the user (0: synchronous, after mj_step)",
-    )
-    p.add_argument(
-        "--schedule",
-        choices=["deadline", "dua", "select-all"],
-        default="deadline",
-        help="which pairs to evaluate each step: each when its own tau runs out (deadline), "
-        "the paper's constant-work rank buckets (dua), or all of them (select-all)",
-    )
-    p.add_argument(
-        "--max-evals",
-        type=_positive(int),
-        default=None,
-        help="deadline: cap on tau evaluations a step; pairs due beyond it wait, in alarm once "
-        "their verdict no longer covers the wait (default: no cap)",
-    )
-    p.add_argument(
-        "--alarm-backoff",
-        type=_positive(int),
-        default=None,
-        # The default is the Predictor's (DEFAULT_ALARM_BACKOFF): not imported here, where it
-        # would pull numba into every `--help`; test_cli holds the two equal.
-        help="deadline: a pair that keeps alarming (resting contact) is evaluated again after "
-        "twice its last wait, up to this many steps, standing in alarm in between; 1 gives "
-        "exactly select-all's alarms (default: 8)",
-    )
-    p.add_argument(
-        "--slots-per-bucket",
-        type=_positive(int),
-        default=1,
-        help="dua: slots evaluated per bucket per step, a power of two (revisit intervals "
-        "shrink that many times)",
-    )
-    p.add_argument(
-        "--static",
-        choices=["shape", "sphere"],
-        default="shape",
-        help="geoms welded to the world: held as their own convex shapes, or covered by one "
-        "bounding sphere (the previous urgency, for comparison)",
-    )
-    p.add_argument(
-        "--no-exact",
-        dest="exact",
-        action="store_false",
-        help="turn the exact level off: urgent pairs keep the tau of their bounding spheres "
-        "(for comparison; docs/theory.md, section 5)",
-    )
-    p.add_argument(
-        "--no-events",
-        dest="violation_events",
-        action="store_false",
-        help="do not re-evaluate the pairs of a body whose motion broke its bounds: verdicts "
-        "made before an impact stand until their deadline (for comparison; docs/theory.md, "
-        "section 6)",
-    )
-    p.add_argument(
-        "--pairs",
-        choices=["all", "pruned", "auto"],
-        default="auto",
-        help="deadline: hold every active sphere pair, or only those whose reachable balls "
-        "meet within a horizon (rebuilt as they move; for thousands of spheres), or choose "
-        "by size (default: pruned from 256 covering spheres)",
-    )
-    p.add_argument(
-        "--pilot-steps",
-        type=_positive(int),
-        default=2000,
-        help="pilot rollout length for --accel auto",
-    )
-    p.add_argument(
-        "--pilot-motion",
-        choices=["free", "no-impacts", "all"],
-        default=None,
-        help="steps the pilot of --accel auto measures: out of every contact and joint limit "
-        "(free motion), all but those near a new contact, or all (default: the "
-        "PilotOptions default)",
-    )
-    p.add_argument(
-        "--hfield",
-        choices=["error", "box"],
-        default="error",
-        help="height fields: refuse them, or cover them conservatively by their bounding box",
-    )
-    p.add_argument("--realtime", action="store_true", help="count predictor deadline overruns")
-    p.add_argument(
-        "--geom-distance",
-        action="store_true",
-        help="measure alarmed geom pairs with mj_geomDistance (the exact distance)",
-    )
+    add_run_options(p)
+    _add_run_outputs(p)
+    p.set_defaults(func=_cmd_run)
+
+
+def _add_run_outputs(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--strict",
         action="store_true",
@@ -259,20 +111,19 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="render a video (.mp4 or .gif), streamed to the file as frames are rendered",
     )
-    p.add_argument("--fps", type=_positive(int), default=30, help="video frame rate")
-    p.add_argument("--width", type=_positive(int), default=480, help="video width in pixels")
-    p.add_argument("--height", type=_positive(int), default=360, help="video height in pixels")
+    p.add_argument("--fps", type=positive(int), default=30, help="video frame rate")
+    p.add_argument("--width", type=positive(int), default=480, help="video width in pixels")
+    p.add_argument("--height", type=positive(int), default=360, help="video height in pixels")
     p.add_argument("--camera", default=None, help="camera name or id (default free camera)")
     p.add_argument(
         "--every",
-        type=_positive(int),
+        type=positive(int),
         default=5,
         help="render every k-th physics step (one at which the predictor steps: with --period, "
         "the least common multiple of both, noted on stderr)",
     )
     p.add_argument("--show-spheres", action="store_true", help="draw the covering spheres")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    p.set_defaults(func=_cmd_run)
 
 
 def _check_output(path: Path, what: str) -> None:
@@ -400,52 +251,47 @@ def _bounds_warning(report: RunReport) -> str:
     )
 
 
-def _cmd_run(args: argparse.Namespace) -> int:
-    from dua_mujoco.mj.alarms import Alarms
-    from dua_mujoco.mj.monitor import Monitor, run
-    from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.report import RunInterrupted
-    from dua_mujoco.mj.scenes import SCENES, make_controller
+def print_report(report: RunReport) -> bool:
+    """Print the table and the warnings; return whether the guarantee did not apply."""
+    print(report.table())
+    sys.stdout.flush()
+    bounds_broken = bool(
+        report.bound_violations_out_of_contact
+        or report.missed_onsets > report.missed_onsets_outside_violations
+    )
+    if bounds_broken:
+        print(_bounds_warning(report), file=sys.stderr)
+    if report.missed_onsets_outside_violations:
+        print(
+            f"WARNING: {report.missed_onsets_outside_violations} contact onset(s) were missed "
+            f"outside the period of a bound violation ({report.missed_onsets_valid_bounds} "
+            "while the bounds held): the completeness guarantee is broken (a bug, unless "
+            "--no-events or --period > 1 hid the violation; please report it with the scene "
+            "and command).",
+            file=sys.stderr,
+        )
+    return bounds_broken
 
+
+def keyframe_arg(args: argparse.Namespace) -> int | str | None:
+    """``--keyframe`` as an id (all digits) or a name."""
     keyframe: int | str | None = args.keyframe
     if isinstance(keyframe, str) and keyframe.isdigit():
         keyframe = int(keyframe)
-    model, data = _load(args.scene, keyframe)
-    steps = args.steps
-    if steps is None:
-        base = args.scene.split(":")[0]
-        steps = SCENES[base].default_steps if base in SCENES else 1000
+    return keyframe
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from dua_mujoco.mj.alarms import Alarms
+    from dua_mujoco.mj.monitor import Monitor, run
+    from dua_mujoco.mj.report import RunInterrupted
+    from dua_mujoco.run_options import controller_for, default_steps, predictor_for
+
+    model, data = _load(args.scene, keyframe_arg(args))
+    steps = default_steps(args.scene) if args.steps is None else args.steps
     _check_outputs(args, model, steps)
-    controller = make_controller(model, args.ctrl, seed=args.seed)
-    pilot = make_controller(model, args.ctrl, seed=args.seed + 1_000_003)
-    predictor = Predictor(
-        model,
-        accel=args.accel,
-        speed=args.speed,
-        period=args.period,
-        latency=args.latency,
-        pairs=args.pairs,
-        covering=CoveringOptions(
-            mode=args.covering,
-            max_spheres_per_geom=args.max_spheres,
-            hfield=args.hfield,
-            static=args.static,
-        ),
-        schedule=ScheduleOptions(
-            kind=args.schedule,
-            max_evals_per_step=args.max_evals,
-            slots_per_bucket=args.slots_per_bucket,
-            violation_events=args.violation_events,
-            **({} if args.alarm_backoff is None else {"alarm_backoff": args.alarm_backoff}),
-        ),
-        urgency=UrgencyOptions(exact=args.exact),
-        pilot=PilotOptions(
-            steps=args.pilot_steps,
-            seed=args.seed + 1_000_003,
-            controller=pilot,
-            **({} if args.pilot_motion is None else {"motion": args.pilot_motion}),
-        ),
-    )
+    controller = controller_for(model, args)
+    predictor = predictor_for(model, args)
     on_step = None
     renderer = None
     writer = None
@@ -491,23 +337,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             renderer.close()
         if writer is not None:
             writer.close()  # also on Ctrl-C: the frames rendered so far make a playable video
-    print(report.table())
-    sys.stdout.flush()
-    bounds_broken = bool(
-        report.bound_violations_out_of_contact
-        or report.missed_onsets > report.missed_onsets_outside_violations
-    )
-    if bounds_broken:
-        print(_bounds_warning(report), file=sys.stderr)
-    if report.missed_onsets_outside_violations:
-        print(
-            f"WARNING: {report.missed_onsets_outside_violations} contact onset(s) were missed "
-            f"outside the period of a bound violation ({report.missed_onsets_valid_bounds} "
-            "while the bounds held): the completeness guarantee is broken (a bug, unless "
-            "--no-events or --period > 1 hid the violation; please report it with the scene "
-            "and command).",
-            file=sys.stderr,
-        )
+    bounds_broken = print_report(report)
     if args.json is not None:
         text = json.dumps(report.to_dict(series=args.series), indent=2) + "\n"
         _write_output(args.json, text, "--json")
@@ -529,6 +359,29 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.strict and bounds_broken:
         return EXIT_BOUNDS_BROKEN
     return 0
+
+
+# Subcommands that drive runs with `run`'s options, each in its own module: add_arguments(parser)
+# adds its own arguments (the run options follow), main(args) runs it; DESCRIPTION and EPILOG.
+_RUN_COMMANDS = {
+    "view": ("dua_mujoco.view", "watch a scene in MuJoCo's viewer with the alarm overlay live"),
+    # "sweep": ("dua_mujoco.sweep.cli", "run scenes x seeds x option sets on processes or Ray"),
+}
+
+
+def _add_run_command(sub: argparse._SubParsersAction, name: str) -> None:
+    path, help_text = _RUN_COMMANDS[name]
+    module = importlib.import_module(path)
+    p = sub.add_parser(name, help=help_text, description=module.DESCRIPTION, epilog=module.EPILOG)
+    module.add_arguments(p)
+    add_run_options(p)
+    p.set_defaults(func=module.main)
+
+
+# What those modules share with `run` (public: no module imports another's private names).
+load_scene_arg = _load
+check_output = _check_output
+write_output = _write_output
 
 
 # Experiment subcommands: each module has add_arguments(parser) and main(args).
@@ -556,6 +409,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     _add_run(sub)
+    for name in _RUN_COMMANDS:
+        _add_run_command(sub, name)
     for name in _EXPERIMENTS:
         _add_experiment(sub, name)
     return parser

@@ -11,27 +11,10 @@ Colours (docs/rendering.md):
 - translucent covering spheres (``show_spheres``): blue, or the tint of their geom.
 
 Live viewer (``mujoco.viewer.launch_passive``): the viewer draws ``viewer.user_scn`` on top of its
-own scene, so connectors and spheres work there, but the model's geoms are not reachable and
-cannot be tinted::
-
-    import mujoco, mujoco.viewer
-    from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.render import AlarmOverlay, OverlayOptions
-    from dua_mujoco.mj.scenes import load_scene, make_controller
-
-    m, d = load_scene("two_arms")
-    p, ctrl = Predictor(m, accel=80.0), make_controller(m, "random")
-    overlay = AlarmOverlay(p, options=OverlayOptions(show_spheres=True))
-    mujoco.mj_step(m, d)
-    alarms = p.reset(d)
-    with mujoco.viewer.launch_passive(m, d) as viewer:
-        while viewer.is_running():
-            ctrl(m, d)
-            mujoco.mj_step(m, d)
-            alarms = p.step(d)
-            with viewer.lock():
-                overlay.add_to_user_scn(viewer, d, alarms)
-            viewer.sync()
+own scene, where the connectors and spheres go (:meth:`AlarmOverlay.add_to_user_scn`); its scene
+of the model's geoms is not reachable, so the tint is written into the model's ``geom_rgba``
+(:meth:`AlarmOverlay.tint_rgba`), which the viewer copies at each ``sync``.
+``dua_mujoco.render.live.LiveViewer`` does both (``dua-mujoco view``).
 """
 
 from __future__ import annotations
@@ -92,7 +75,8 @@ class OverlayOptions:
     Attributes:
         show_spheres: Draw the covering spheres (one scene geom per sphere).
         sphere_alpha: Opacity of the covering spheres, in ``(0, 1]``.
-        tint_geoms: Recolour model geoms by urgency (offscreen only; see module docstring).
+        tint_geoms: Recolour model geoms by urgency (in the live viewer through the model's
+            ``geom_rgba``; see module docstring).
         connectors: Draw a pure red line for each alarmed sphere pair.
         text: Stamp a status line (time, alarms, misses) on rendered frames.
         connector_width: Width of connector lines in pixels (``mjGEOM_LINE`` widths are pixels).
@@ -241,7 +225,8 @@ class AlarmOverlay:
     def add_to_user_scn(self, viewer: Any, data: mujoco.MjData, alarms: Alarms | None) -> int:
         """Replace the overlay in a passive viewer's ``user_scn`` (call before ``viewer.sync()``).
 
-        The user scene holds only the overlay, so tinting does nothing there.
+        The user scene holds only the overlay, so tinting does nothing there: the model's geoms
+        are tinted through ``geom_rgba`` (:meth:`tint_rgba`).
 
         Args:
             viewer: The handle of ``mujoco.viewer.launch_passive``.
@@ -260,8 +245,31 @@ class AlarmOverlay:
         scn.ngeom = 0
         return self.add_to_scene(scn, data, alarms)
 
+    def tint_rgba(self, rgba: np.ndarray, base: np.ndarray) -> None:
+        """Write ``base`` into ``rgba`` with the tint of the latest :meth:`add_to_scene`.
+
+        For the live viewer, which draws the model's own ``geom_rgba``: pass it as ``rgba`` and
+        a copy of its original colours as ``base``. The same geoms get the same colours as in
+        offscreen frames (only alpha is kept from ``base``). Does nothing to ``rgba`` beyond
+        ``base`` when ``options.tint_geoms`` is off.
+
+        Args:
+            rgba: ``(ngeom, 4)`` float32, written in place (e.g. ``model.geom_rgba``).
+            base: ``(ngeom, 4)`` the colours of geoms not tinted.
+        """
+        rgba[:] = base
+        if not self.options.tint_geoms:
+            return
+        levels = self.geom_levels(self.standing)
+        tint = self._tinted(levels)
+        rgba[tint, :3] = TINTS[levels[tint]]
+
+    def _tinted(self, levels: np.ndarray) -> np.ndarray:
+        """``(ngeom,)`` bool: the geoms to tint (an alarmed level, and not welded to the world)."""
+        return (levels < len(URGENCY_LEVELS)) & self._tintable
+
     def _tint(self, scene: mujoco.MjvScene, levels: np.ndarray) -> None:
-        tint = (levels < len(URGENCY_LEVELS)) & self._tintable
+        tint = self._tinted(levels)
         if not tint.any():
             return
         geoms = scene.geoms

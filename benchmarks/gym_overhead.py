@@ -1,0 +1,102 @@
+"""Per-step overhead of ``dua_mujoco.gym.PredictCollisions`` on gymnasium's MuJoCo envs.
+
+    python benchmarks/gym_overhead.py                   # prints a markdown table (about 1 min)
+    python benchmarks/gym_overhead.py --rounds 3 --steps 100
+
+For each env a plain env and a wrapped one (default predictor options, ``cost="alarm"``) take the
+same seeded random actions from the same seeded reset. Rounds alternate plain and wrapped; each
+round times every ``env.step`` call of ``--steps`` steps and keeps their median. A number in the
+table is the median over rounds of those per-round medians; the ratio is wrapped / plain from
+those medians, the overhead their difference. Inside the wrapped steps, ``predictor.step`` and
+the wrapper's bookkeeping (``_observe``: standing alarms, ``min_tau``, names) are timed apart
+(the medians of their calls); what the two leave of the overhead is the rest of the wrapper's
+``step`` and the caches the predictor's work takes from MuJoCo's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import numpy as np
+
+from dua_mujoco.gym import PredictCollisions
+
+ENVS = ("Ant-v5", "Humanoid-v5", "Pusher-v5")
+
+
+def _make(env_id: str) -> gym.Env:
+    make = {"terminate_when_unhealthy": False} if env_id in ("Ant-v5", "Humanoid-v5") else {}
+    return gym.make(env_id, max_episode_steps=10**9, **make)
+
+
+def _round(env: gym.Env, steps: int, seed: int) -> float:
+    """Median seconds of one ``env.step`` over ``steps`` steps from a seeded reset."""
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    times = np.empty(steps)
+    for k in range(steps):
+        action = env.action_space.sample()
+        t0 = time.perf_counter()
+        env.step(action)
+        times[k] = time.perf_counter() - t0
+    return float(np.median(times))
+
+
+def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
+    plain = _make(env_id)
+    wrapped = PredictCollisions(_make(env_id))
+    predictor = wrapped.predictor
+    parts: dict[str, list[float]] = {"predictor": [], "observe": []}
+
+    def timed(fn, name):  # type: ignore[no-untyped-def]
+        def call(*args):  # type: ignore[no-untyped-def]
+            t0 = time.perf_counter()
+            out = fn(*args)
+            parts[name].append(time.perf_counter() - t0)
+            return out
+
+        return call
+
+    # Instance attributes shadow the methods: the timers wrap only this env's calls.
+    predictor.step = timed(predictor.step, "predictor")  # type: ignore[method-assign]
+    wrapped._observe = timed(wrapped._observe, "observe")  # type: ignore[method-assign]
+    _round(plain, 20, 0)  # warm-up: caches, the compiled step's first call
+    _round(wrapped, 20, 0)
+    rows: dict[str, list[float]] = {k: [] for k in ("plain", "wrapped", "predictor", "observe")}
+    for r in range(rounds):
+        for name in parts:
+            parts[name].clear()
+        rows["plain"].append(_round(plain, steps, r))
+        rows["wrapped"].append(_round(wrapped, steps, r))
+        for name, times in parts.items():
+            rows[name].append(float(np.median(times)))
+    out = {f"{k}_us": float(np.median(v)) * 1e6 for k, v in rows.items()}
+    return {**out, "pairs": predictor.nsphere_pairs, "frame_skip": predictor.period}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--envs", nargs="+", default=list(ENVS))
+    parser.add_argument("--rounds", type=int, default=9)
+    parser.add_argument("--steps", type=int, default=400)
+    args = parser.parse_args()
+    print(
+        "| env | frame_skip | sphere pairs | env.step plain (us) | wrapped (us) | ratio "
+        "| overhead (us) | of it predictor.step (us) | of it bookkeeping (us) |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for env_id in args.envs:
+        m = measure(env_id, rounds=args.rounds, steps=args.steps)
+        print(
+            f"| {env_id} | {m['frame_skip']} | {m['pairs']} | {m['plain_us']:.1f} "
+            f"| {m['wrapped_us']:.1f} | {m['wrapped_us'] / m['plain_us']:.3f} "
+            f"| {m['wrapped_us'] - m['plain_us']:.1f} | {m['predictor_us']:.1f} "
+            f"| {m['observe_us']:.1f} |",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,296 @@
+"""``PredictCollisions``: a gymnasium wrapper that predicts collisions in any MuJoCo-based env.
+
+After every ``env.step`` the wrapper steps a :class:`~dua_mujoco.Predictor` on the env's own
+``MjData`` and adds to ``info``:
+
+- ``"alarm_pairs"``: the geom pairs standing in alarm, as ``(name1, name2)`` tuples (``geom<id>``
+  for unnamed geoms), sorted; pairs the wrapper was told to ``ignore`` are left out;
+- ``"min_tau"``: the least time to collision (s) the predictor still vouches for over the
+  counted pairs: for each, its latest tau less the time since that verdict (0 for a pair in
+  alarm with tau 0, ``inf`` when no pair is counted);
+- ``"cost_predicted_collision"`` and ``"cost"``: the cost of this step (below).
+
+The cost follows safety-gymnasium's conventions where they fit: a float per step, 0 when safe;
+each constraint has its own ``info["cost_<name>"]``, and ``info["cost"]`` is their sum (what
+safety-gymnasium's ``SafetyGymnasium2Gymnasium`` puts there). When the wrapped env already
+reports ``info["cost"]``, this term is added to it. ``cost=`` chooses the term:
+
+- ``"alarm"`` (default): 1.0 when a counted geom pair stands in alarm after this step, else 0.0
+  (an indicator, as safety-gymnasium's ``constrain_indicator``);
+- ``"new"``: the number of counted geom pairs whose alarm started at this step;
+- ``"horizon"``: 1.0 when ``min_tau < cost_horizon`` seconds, else 0.0.
+
+An alarm comes before the contact, with the package's guarantee behind it (docs/theory.md): while
+the declared motion bounds hold, every contact of a counted pair is preceded by its alarm.
+Resting contact that the task wants (feet on the floor) stands in alarm for good: ``ignore`` it.
+
+Gymnasium's MuJoCo envs run ``frame_skip`` physics steps per ``env.step``: the predictor's period
+is that ``frame_skip``, read from the env, so each call sees ``data.time`` advance by one period.
+``reset`` re-classifies (``Predictor.reset``) after the env's reset.
+
+Example::
+
+    import gymnasium as gym
+    from dua_mujoco.gym import PredictCollisions
+
+    env = PredictCollisions(
+        gym.make("Humanoid-v5"),
+        ignore=[("floor", "left_foot"), ("floor", "right_foot")],
+        accel=50.0,  # any Predictor option passes through
+    )
+    obs, info = env.reset(seed=0)
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    info["cost"], info["min_tau"], info["alarm_pairs"]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any, SupportsFloat
+
+import mujoco
+import numpy as np
+
+try:
+    import gymnasium
+except ModuleNotFoundError as exc:  # an optional dependency: say which extra brings it
+    raise ModuleNotFoundError(
+        "dua_mujoco.gym needs gymnasium: pip install 'dua_mujoco[gym]'", name=exc.name
+    ) from exc
+
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.alarms import Alarms
+from dua_mujoco.mj.predictor import Predictor
+
+__all__ = ["COSTS", "COST_KEY", "PredictCollisions", "find_mujoco"]
+
+COSTS = ("alarm", "new", "horizon")
+"""The choices of ``PredictCollisions(cost=...)``."""
+
+COST_KEY = "cost_predicted_collision"
+"""The ``info`` key of this wrapper's cost term (safety-gymnasium's ``cost_<name>``)."""
+
+IgnoreSpec = str | tuple[str, str]
+
+
+def find_mujoco(env: gymnasium.Env) -> tuple[mujoco.MjModel, mujoco.MjData, int]:
+    """The ``MjModel``, ``MjData`` and ``frame_skip`` of a MuJoCo-based env.
+
+    Looks on ``env.unwrapped`` for ``model`` and ``data`` (gymnasium's ``MujocoEnv`` and the envs
+    built on it) and for ``frame_skip`` (physics steps per ``env.step``).
+
+    Raises:
+        InvalidInputError: The env holds no ``MjModel``/``MjData`` there, or no ``frame_skip``.
+    """
+    inner = env.unwrapped
+    model = getattr(inner, "model", None)
+    data = getattr(inner, "data", None)
+    if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
+        raise InvalidInputError(
+            f"{type(inner).__name__} holds no mujoco.MjModel and MjData as env.unwrapped.model "
+            "and env.unwrapped.data: wrap a MuJoCo-based env (gymnasium's MujocoEnv, e.g. "
+            "gym.make('Ant-v5')), or give such an env those two attributes."
+        )
+    frame_skip = getattr(inner, "frame_skip", None)
+    if isinstance(frame_skip, bool) or not isinstance(frame_skip, int | np.integer):
+        raise InvalidInputError(
+            f"{type(inner).__name__} has no int frame_skip (got {frame_skip!r}): the predictor "
+            "must know how many physics steps one env.step takes; set env.unwrapped.frame_skip."
+        )
+    if frame_skip < 1:
+        raise InvalidInputError(f"env.unwrapped.frame_skip = {frame_skip} is invalid: it is >= 1.")
+    return model, data, int(frame_skip)
+
+
+class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
+    """Steps a collision predictor after every ``env.step``; alarms and a cost go into ``info``.
+
+    Args:
+        env: A MuJoCo-based env (:func:`find_mujoco` finds its model, data and ``frame_skip``).
+        cost: ``"alarm"``, ``"new"`` or ``"horizon"`` (module docstring).
+        cost_horizon: Seconds; required by, and only by, ``cost="horizon"``.
+        terminate_on_alarm: End the episode (``terminated=True``) at a step whose cost is > 0.
+        ignore: Geom names or ``(name, name)`` geom pairs whose alarms count for nothing (left
+            out of ``alarm_pairs``, ``min_tau`` and the cost; still predicted). A single name
+            ignores every pair of that geom.
+        **predictor_options: Passed to :class:`~dua_mujoco.Predictor` as they are (``accel``,
+            ``schedule=ScheduleOptions(...)``, ``pilot=PilotOptions(...)``, ...), except
+            ``period``: it is the env's ``frame_skip``.
+
+    Attributes:
+        predictor: The predictor, built once for the env's model.
+
+    Raises:
+        InvalidInputError: Not a MuJoCo-based env, ``period`` passed, or a bad
+            ``cost_horizon``.
+        InvalidChoiceError: Unknown ``cost`` or geom name in ``ignore``.
+    """
+
+    def __init__(
+        self,
+        env: gymnasium.Env,
+        *,
+        cost: str = "alarm",
+        cost_horizon: float | None = None,
+        terminate_on_alarm: bool = False,
+        ignore: Iterable[IgnoreSpec] = (),
+        **predictor_options: Any,
+    ) -> None:
+        ignore = (ignore,) if isinstance(ignore, str) else tuple(ignore)
+        gymnasium.utils.RecordConstructorArgs.__init__(
+            self,
+            cost=cost,
+            cost_horizon=cost_horizon,
+            terminate_on_alarm=terminate_on_alarm,
+            ignore=ignore,
+            **predictor_options,
+        )
+        gymnasium.Wrapper.__init__(self, env)
+        if cost not in COSTS:
+            raise InvalidChoiceError("cost", cost, COSTS)
+        if (cost == "horizon") != (cost_horizon is not None):
+            raise InvalidInputError(
+                f"cost_horizon = {cost_horizon!r} with cost = {cost!r}: pass cost_horizon "
+                "(seconds) with cost='horizon', and only then."
+            )
+        if cost_horizon is not None and not (
+            isinstance(cost_horizon, int | float) and 0.0 < cost_horizon < np.inf
+        ):
+            raise InvalidInputError(
+                f"cost_horizon = {cost_horizon!r} is invalid: it must be a finite number of "
+                "seconds > 0."
+            )
+        model, self._data, frame_skip = find_mujoco(env)
+        if "period" in predictor_options:
+            raise InvalidInputError(
+                f"period = {predictor_options['period']!r}: here the predictor period is the "
+                f"env's frame_skip ({frame_skip} physics steps per env.step): drop period."
+            )
+        self.cost = cost
+        self.cost_horizon = None if cost_horizon is None else float(cost_horizon)
+        self.terminate_on_alarm = bool(terminate_on_alarm)
+        self.predictor = Predictor(model, period=frame_skip, **predictor_options)
+        p = self.predictor
+        geom_pairs = p.geom_pairs
+        self._geom1 = np.asarray(geom_pairs.geom1, dtype=np.int64)
+        self._geom2 = np.asarray(geom_pairs.geom2, dtype=np.int64)
+        self._names = [str(n) for n in p.tables.geom_names]
+        self._counted = ~self._ignored(ignore)  # (ngeom_pairs,)
+        # (ngeom_pairs,) object: each geom pair's (name1, name2), ready for info. Filled one by
+        # one: numpy would read a list of 2-tuples as a 2-D array.
+        self._geom_pair_names = np.empty(len(self._geom1), dtype=object)
+        for i, (a, b) in enumerate(zip(self._geom1.tolist(), self._geom2.tolist(), strict=True)):
+            self._geom_pair_names[i] = (self._names[a], self._names[b])
+        pair_gp = p.geom_pair_of(np.arange(p.nsphere_pairs))
+        self._pair_gp = pair_gp
+        self._pair_counted = self._counted[pair_gp]  # (nsphere_pairs,)
+        self._all_pairs = np.arange(p.nsphere_pairs)
+        self._standing = np.zeros(len(self._counted), dtype=bool)  # (ngeom_pairs,)
+        # Per sphere pair: standing in alarm (and counted), and the time, from the reset, until
+        # which its latest verdict vouches there is no contact (inf: not counted).
+        self._alarm = np.zeros(p.nsphere_pairs, dtype=bool)
+        self._expiry = np.full(p.nsphere_pairs, np.inf)
+        self._seen: tuple[object, int] = (None, -1)
+        self._alarm_pairs: tuple[tuple[str, str], ...] = ()
+
+    def _ignored(self, ignore: tuple[IgnoreSpec, ...]) -> np.ndarray:
+        """``(ngeom_pairs,)`` bool: the geom pairs ``ignore`` names."""
+        ids = {name: g for g, name in enumerate(self._names)}
+        out = np.zeros(self._geom1.shape, dtype=bool)
+
+        def geom(name: object) -> int:
+            if not isinstance(name, str) or name not in ids:
+                raise InvalidChoiceError(
+                    "geom",
+                    name,
+                    self._names,
+                    "ignore takes geom names (geom<id> for unnamed ones) or pairs of them.",
+                )
+            return ids[name]
+
+        for item in ignore:
+            if isinstance(item, str):
+                g = geom(item)
+                out |= (self._geom1 == g) | (self._geom2 == g)
+                continue
+            if not (isinstance(item, tuple | list) and len(item) == 2):
+                raise InvalidInputError(
+                    f"ignore entry {item!r} is invalid: pass a geom name or a (name, name) pair."
+                )
+            a, b = sorted((geom(item[0]), geom(item[1])))
+            match = (self._geom1 == a) & (self._geom2 == b)
+            if not match.any():
+                raise InvalidInputError(
+                    f"ignore entry {tuple(item)!r} is not a geom pair MuJoCo can put in contact "
+                    "(its collision filter leaves it out): nothing to ignore; drop it."
+                )
+            out |= match
+        return out
+
+    # ------------------------------------------------------------------- gymnasium
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset the env, then classify every pair afresh; ``info`` gets ``alarm_pairs`` and
+        ``min_tau`` of that classification (no cost: nothing happened yet)."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        _, self._data, _ = find_mujoco(self.env)  # an env may build a new MjData on reset
+        self._standing[:] = False
+        self._observe(info, self.predictor.reset(self._data))
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        """Step the env and the predictor; ``info`` gets the alarms and the cost."""
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        new = self._observe(info, self.predictor.step(self._data))
+        if self.cost == "alarm":
+            cost = float(self._standing.any())
+        elif self.cost == "new":
+            cost = float(new)
+        else:
+            assert self.cost_horizon is not None
+            cost = float(info["min_tau"] < self.cost_horizon)
+        info[COST_KEY] = cost
+        info["cost"] = float(info.get("cost", 0.0)) + cost
+        if self.terminate_on_alarm and cost > 0.0:
+            terminated = True
+        return obs, reward, terminated, truncated, info
+
+    def _observe(self, info: dict[str, Any], alarms: Alarms) -> int:
+        """Put the standing alarms and ``min_tau`` into ``info``; return the geom pairs whose
+        alarm started since the previous call."""
+        state = self.predictor.pair_state()
+        seen = (state.scheduler, state.activation_changes)
+        if seen[0] is not self._seen[0] or seen[1] != self._seen[1]:
+            # A reset, a switch or a rebuild of pruned pairs may change any pair: read them all.
+            self._seen = seen
+            ids = self._all_pairs
+            counted = self._pair_counted & state.active
+            self._alarm[:] = state.alarm_state() & counted
+            changed = True
+        else:
+            # Otherwise only the pairs whose verdict this step renewed changed (as Monitor reads
+            # them), and of those the ones that alarmed are this step's alarms: O(those), not
+            # O(pairs), a step.
+            ids = state.last_selected
+            counted = self._pair_counted[ids]
+            before = self._alarm[ids]
+            self._alarm[ids] = False
+            self._alarm[alarms.pairs] = self._pair_counted[alarms.pairs]
+            changed = not np.array_equal(before, self._alarm[ids])
+        # Seconds since the reset until which each verdict vouches for no contact.
+        expiry = state.last_tau_of(ids) + self.predictor.dt * state.last_step_of(ids)
+        self._expiry[ids] = np.where(counted, expiry, np.inf)
+        new = 0
+        if changed:
+            standing = np.zeros_like(self._standing)
+            standing[self._pair_gp[self._alarm]] = True
+            new = int(np.count_nonzero(standing & ~self._standing))
+            self._standing = standing
+            self._alarm_pairs = tuple(self._geom_pair_names[standing].tolist())
+        info["alarm_pairs"] = self._alarm_pairs
+        # Each verdict vouches for tau from its evaluation on: what is left of it now.
+        left = float(self._expiry.min(initial=np.inf)) - self.predictor.dt * state.step_count
+        info["min_tau"] = max(left, 0.0)
+        return new

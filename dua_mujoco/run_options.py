@@ -1,0 +1,260 @@
+"""``dua-mujoco run``'s options as data: the predictor and the controllers they describe.
+
+``run``, ``view`` and ``sweep`` read the same options (``cli.py`` defines them); this module turns
+parsed options (an ``argparse.Namespace``, or any object with the same attributes) into what
+drives a run, in this process or in a sweep's worker. Predictor options are handed to
+:class:`~dua_mujoco.Predictor` by keyword. The predictor and scene modules are looked up when
+called, not imported with this module (the command line's ``--help`` stays light).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.mj.scenes import SceneController
+
+__all__ = [
+    "PILOT_SEED_OFFSET",
+    "add_run_options",
+    "controller_for",
+    "default_steps",
+    "non_negative_int",
+    "parse_accel",
+    "positive",
+    "predictor_for",
+]
+
+PILOT_SEED_OFFSET = 1_000_003
+"""The pilot rollout (``--accel auto``) runs with seed ``seed + PILOT_SEED_OFFSET``: never the
+monitored rollout's own controls."""
+
+
+def default_steps(scene: str) -> int:
+    """Physics steps of a run without ``--steps``: the bundled scene's own, 1000 for a file."""
+    from dua_mujoco.mj.scenes import SCENES
+
+    base = scene.split(":")[0]
+    return SCENES[base].default_steps if base in SCENES else 1000
+
+
+def controller_for(model: mujoco.MjModel, options: Any) -> SceneController:
+    """The monitored rollout's controller (``--ctrl``, ``--seed``)."""
+    from dua_mujoco.mj import scenes
+
+    return scenes.make_controller(model, options.ctrl, seed=options.seed)
+
+
+def predictor_for(model: mujoco.MjModel, options: Any) -> Predictor:
+    """The predictor the options describe, with its pilot rollout for ``--accel auto``.
+
+    Args:
+        model: The model.
+        options: Parsed ``run`` options (``accel``, ``speed``, ``covering``, ``max_spheres``,
+            ``hfield``, ``period``, ``latency``, ``schedule``, ``max_evals``,
+            ``alarm_backoff``, ``slots_per_bucket``, ``violation_events``, ``pairs``,
+            ``static``, ``exact``, ``pilot_steps``, ``pilot_motion``, ``ctrl``, ``seed``).
+    """
+    from dua_mujoco.mj import options as opts
+    from dua_mujoco.mj import predictor, scenes
+
+    pilot_seed = options.seed + PILOT_SEED_OFFSET
+    return predictor.Predictor(
+        model,
+        accel=options.accel,
+        speed=options.speed,
+        period=options.period,
+        latency=options.latency,
+        pairs=options.pairs,
+        covering=opts.CoveringOptions(
+            mode=options.covering,
+            max_spheres_per_geom=options.max_spheres,
+            hfield=options.hfield,
+            static=options.static,
+        ),
+        schedule=opts.ScheduleOptions(
+            kind=options.schedule,
+            max_evals_per_step=options.max_evals,
+            slots_per_bucket=options.slots_per_bucket,
+            violation_events=options.violation_events,
+            # Unset options keep the dataclasses' defaults.
+            **({} if options.alarm_backoff is None else {"alarm_backoff": options.alarm_backoff}),
+        ),
+        urgency=opts.UrgencyOptions(exact=options.exact),
+        pilot=opts.PilotOptions(
+            steps=options.pilot_steps,
+            seed=pilot_seed,
+            controller=scenes.make_controller(model, options.ctrl, seed=pilot_seed),
+            **({} if options.pilot_motion is None else {"motion": options.pilot_motion}),
+        ),
+    )
+
+
+def parse_accel(value: str) -> str | float:
+    if value == "auto":
+        return value
+    try:
+        a = float(value)
+    except ValueError:
+        a = math.nan
+    if not (math.isfinite(a) and a >= 0):
+        raise argparse.ArgumentTypeError(
+            f"--accel {value!r} is invalid: pass 'auto' or a finite number >= 0 (m/s^2)"
+        )
+    return a
+
+
+def positive(kind: type) -> Callable[[str], object]:
+    def parse(value: str) -> object:
+        try:
+            v = kind(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{value!r} is not a {kind.__name__}") from None
+        if not (v > 0 and math.isfinite(v)):
+            raise argparse.ArgumentTypeError(f"{value!r} must be a finite number > 0")
+        return v
+
+    return parse
+
+
+def non_negative_int(value: str) -> int:
+    """argparse type: an int >= 0 (seeds, latency)."""
+    try:
+        v = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{value!r} is not an int") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{value!r} must be >= 0")
+    return v
+
+
+def add_run_options(p: argparse.ArgumentParser) -> None:
+    """Add the options of a run's driver, predictor and exact stage (``run``, ``view`` and
+    ``sweep`` read them)."""
+    p.add_argument(
+        "--steps",
+        type=positive(int),
+        default=None,
+        help="physics steps (default: the scene's own, 1000 for an MJCF file)",
+    )
+    p.add_argument(
+        "--seed", type=non_negative_int, default=0, help="seed of the controls (default 0)"
+    )
+    p.add_argument("--ctrl", choices=["zero", "random"], default="random", help="controls")
+    p.add_argument("--keyframe", default=None, help="start keyframe (id or name; default first)")
+    p.add_argument(
+        "--accel",
+        type=parse_accel,
+        default="auto",
+        help="acceleration bound in m/s^2 for every moving body, or 'auto' (pilot rollout)",
+    )
+    p.add_argument("--speed", type=positive(float), default=None, help="speed bound in m/s")
+    p.add_argument(
+        "--covering",
+        choices=["bounding", "multi"],
+        default="bounding",
+        help="one bounding sphere per geom, or several (budget --max-spheres)",
+    )
+    p.add_argument("--max-spheres", type=positive(int), default=8, help="multi covering budget")
+    p.add_argument(
+        "--period", type=positive(int), default=1, help="physics steps per predictor step"
+    )
+    p.add_argument(
+        "--latency",
+        type=non_negative_int,
+        default=0,
+        help="periods a verdict takes to reach the user (0: synchronous, after mj_step)",
+    )
+    p.add_argument(
+        "--schedule",
+        choices=["deadline", "dua", "select-all"],
+        default="deadline",
+        help="which pairs to evaluate each step: each when its own tau runs out (deadline), "
+        "the paper's constant-work rank buckets (dua), or all of them (select-all)",
+    )
+    p.add_argument(
+        "--max-evals",
+        type=positive(int),
+        default=None,
+        help="deadline: cap on tau evaluations a step; pairs due beyond it wait, in alarm once "
+        "their verdict no longer covers the wait (default: no cap)",
+    )
+    p.add_argument(
+        "--alarm-backoff",
+        type=positive(int),
+        default=None,
+        # The default is the Predictor's (DEFAULT_ALARM_BACKOFF): not imported here, where it
+        # would pull numba into every `--help`; test_cli holds the two equal.
+        help="deadline: a pair that keeps alarming (resting contact) is evaluated again after "
+        "twice its last wait, up to this many steps, standing in alarm in between; 1 gives "
+        "exactly select-all's alarms (default: 8)",
+    )
+    p.add_argument(
+        "--slots-per-bucket",
+        type=positive(int),
+        default=1,
+        help="dua: slots evaluated per bucket per step, a power of two (revisit intervals "
+        "shrink that many times)",
+    )
+    p.add_argument(
+        "--static",
+        choices=["shape", "sphere"],
+        default="shape",
+        help="geoms welded to the world: held as their own convex shapes, or covered by one "
+        "bounding sphere (the previous urgency, for comparison)",
+    )
+    p.add_argument(
+        "--no-exact",
+        dest="exact",
+        action="store_false",
+        help="turn the exact level off: urgent pairs keep the tau of their bounding spheres "
+        "(for comparison; docs/theory.md, section 5)",
+    )
+    p.add_argument(
+        "--no-events",
+        dest="violation_events",
+        action="store_false",
+        help="do not re-evaluate the pairs of a body whose motion broke its bounds: verdicts "
+        "made before an impact stand until their deadline (for comparison; docs/theory.md, "
+        "section 6)",
+    )
+    p.add_argument(
+        "--pairs",
+        choices=["all", "pruned", "auto"],
+        default="auto",
+        help="deadline: hold every active sphere pair, or only those whose reachable balls "
+        "meet within a horizon (rebuilt as they move; for thousands of spheres), or choose "
+        "by size (default: pruned from 256 covering spheres)",
+    )
+    p.add_argument(
+        "--pilot-steps",
+        type=positive(int),
+        default=2000,
+        help="pilot rollout length for --accel auto",
+    )
+    p.add_argument(
+        "--pilot-motion",
+        choices=["free", "no-impacts", "all"],
+        default=None,
+        help="steps the pilot of --accel auto measures: out of every contact and joint limit "
+        "(free motion), all but those near a new contact, or all (default: the "
+        "PilotOptions default)",
+    )
+    p.add_argument(
+        "--hfield",
+        choices=["error", "box"],
+        default="error",
+        help="height fields: refuse them, or cover them conservatively by their bounding box",
+    )
+    p.add_argument("--realtime", action="store_true", help="count predictor deadline overruns")
+    p.add_argument(
+        "--geom-distance",
+        action="store_true",
+        help="measure alarmed geom pairs with mj_geomDistance (the exact distance)",
+    )
