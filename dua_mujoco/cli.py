@@ -365,7 +365,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 # adds its own arguments (the run options follow), main(args) runs it; DESCRIPTION and EPILOG.
 _RUN_COMMANDS = {
     "view": ("dua_mujoco.view", "watch a scene in MuJoCo's viewer with the alarm overlay live"),
-    # "sweep": ("dua_mujoco.sweep.cli", "run scenes x seeds x option sets on processes or Ray"),
+    "sweep": ("dua_mujoco.sweep.cli", "run scenes x seeds x option sets on processes or Ray"),
 }
 
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+from dua_mujoco import PilotOptions, ScheduleOptions
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.gym import COST_KEY, PredictCollisions, find_mujoco
-from dua_mujoco import PilotOptions, ScheduleOptions
 
 # Short pilots: the bounds only need to exist, not to be tight.
 FAST = {"pilot": PilotOptions(steps=300)}

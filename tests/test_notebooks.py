@@ -59,17 +59,27 @@ def _assert_no_errors(nb: nbformat.NotebookNode) -> None:
 def test_quickstart() -> None:
     # One test, one execution: a shared fixture would run once per pytest-xdist worker.
     nb, _ = _execute(
-        "quickstart.ipynb", {"STEPS": 200, "WIDTH": 96, "HEIGHT": 72, "FRAMES": 10, "SEED": 0}
+        "quickstart.ipynb",
+        {
+            "STEPS": 200,
+            "WIDTH": 96,
+            "HEIGHT": 72,
+            "FRAMES": 10,
+            "SEED": 0,
+            "GYM_STEPS": 20,
+        },
     )
     _assert_no_errors(nb)
     data = [o.get("data", {}) for o in _outputs(nb)]
     figures = [d for d in data if "image/png" in d]
     videos = [d for d in data if "<video" in d.get("text/html", "")]
     tables = [d for d in data if "<table>" in d.get("text/html", "")]
-    assert len(figures) >= 2, "expected the tau/alarms plot and the stills"
+    assert len(figures) >= 3, "expected the tau/alarms plot, the stills and the gym cost"
     assert len(videos) == 1, "expected one inline video (mediapy.show_video)"
     assert "data:video/mp4;base64," in videos[0]["text/html"]
     assert tables and "contact onsets" in tables[0]["text/html"]
+    printed = "".join(o.get("text", "") for o in _outputs(nb) if o.get("name") == "stdout")
+    assert "20 env steps of Pusher-v5: mean cost" in printed
 
 
 def test_paper_reproduction_runs() -> None:

@@ -56,6 +56,7 @@ __all__ = [
     "MocapCircle",
     "Scene",
     "SceneController",
+    "check_scene",
     "declared_accel_bound",
     "load_scene",
     "make_controller",
@@ -211,33 +212,48 @@ def load_scene(
         InvalidChoiceError: If the name is neither a bundled scene nor an existing file.
         InvalidInputError: If ``N`` in ``paper_world:N`` is not a positive integer.
     """
+    check_scene(name_or_path)
     if name_or_path in SCENES:
         model = SCENES[name_or_path].model()
     elif name_or_path.startswith((_PAPER_PREFIX, _SWARM_PREFIX)):
         prefix, count = name_or_path.split(":", 1)
-        if not count.isdigit() or int(count) < 1:
-            raise InvalidInputError(
-                f"In {name_or_path!r}, N must be a positive integer, e.g. '{prefix}:20'."
-            )
         n = int(count)
         # The unit cube holds the paper's 40 spheres; a swarm keeps that density.
         box = {"box_size": (n / 40) ** (1 / 3)} if prefix == _SWARM_PREFIX[:-1] else {}
         model = paper_world_model(n, **box)
-    elif Path(name_or_path).is_file():
+    else:
         path = Path(name_or_path)
         # A compiled model (mj_saveModel) is binary: the XML parser would call it malformed XML.
         if path.suffix.lower() == ".mjb":
             model = mujoco.MjModel.from_binary_path(str(path))
         else:
             model = mujoco.MjModel.from_xml_path(str(path))
-    else:
+    data = mujoco.MjData(model)
+    reset_to_keyframe(model, data, keyframe)
+    return model, data
+
+
+def check_scene(name_or_path: str) -> None:
+    """Raise what :func:`load_scene` raises for a name that names no scene, without loading.
+
+    Raises:
+        InvalidChoiceError: If the name is neither a bundled scene nor an existing file.
+        InvalidInputError: If ``N`` in ``paper_world:N`` is not a positive integer.
+    """
+    if name_or_path in SCENES:
+        return
+    if name_or_path.startswith((_PAPER_PREFIX, _SWARM_PREFIX)):
+        prefix, count = name_or_path.split(":", 1)
+        if not count.isdigit() or int(count) < 1:
+            raise InvalidInputError(
+                f"In {name_or_path!r}, N must be a positive integer, e.g. '{prefix}:20'."
+            )
+        return
+    if not Path(name_or_path).is_file():
         hint = "Or pass the path of an existing MJCF file."
         if _looks_like_path(name_or_path):
             hint = f"No file at {str(Path(name_or_path).resolve())!r}. " + hint
         raise InvalidChoiceError("scene", name_or_path, scene_names(), hint)
-    data = mujoco.MjData(model)
-    reset_to_keyframe(model, data, keyframe)
-    return model, data
 
 
 def reset_to_keyframe(
