@@ -107,3 +107,19 @@ def test_swarm_scene_keeps_the_paper_density() -> None:
     assert np.allclose(np.sort(np.abs(m.geom_pos[planes]).max(axis=1)), 1.0)
     with pytest.raises(InvalidInputError, match="'swarm:20'"):
         load_scene("swarm:x")
+
+
+@pytest.mark.parametrize("pairs", ["all", "pruned"])
+def test_bin_pour_flags_every_onset_through_a_pile_of_impacts(pairs: str) -> None:
+    """Objects poured into a bin: hundreds of onsets, impacts breaking the bounds at every step
+    (events renew the pairs), pruned pairs rebuilt early at each: no onset missed, all pairs
+    or pruned."""
+    from dua_mujoco import PilotOptions
+    from dua_mujoco.testing import assert_no_missed_collisions
+
+    m, d = load_scene("bin_pour:60")
+    predictor = Predictor(m, pairs=pairs, pilot=PilotOptions(steps=400))
+    report = assert_no_missed_collisions(m, d, steps=600, predictor=predictor, scene="bin_pour")
+    assert report.contact_onsets > 300 and report.bound_violations > 1000
+    if pairs == "pruned":
+        assert predictor.rebuilds > 100

@@ -49,10 +49,10 @@ def _contact_pairs(m: mujoco.MjModel, d: mujoco.MjData) -> set[tuple[int, int]]:
     return pairs
 
 
-@pytest.mark.parametrize("name", [*SCENES, "paper_world:5"])
+@pytest.mark.parametrize("name", [*SCENES, "paper_world:5", "bin_pour:7"])
 def test_every_bundled_scene_loads(name: str) -> None:
     m, d = load_scene(name)
-    assert m.ngeom > 0 and m.nu > 0
+    assert m.ngeom > 0 and (m.nu > 0 or name.startswith("bin_pour"))  # the pour: gravity only
     assert np.all(np.isfinite(d.qpos))
     limited = m.actuator_ctrllimited.astype(bool)
     assert limited.all(), "random controls need a ctrlrange on every actuator"
@@ -111,6 +111,30 @@ def test_clutter_has_every_collidable_geom_type() -> None:
     assert {int(t) for t in wanted} <= types
     free = sum(int(t) == int(mujoco.mjtJoint.mjJNT_FREE) for t in m.jnt_type)
     assert free >= 40
+
+
+def test_bin_pour_pours_its_objects_into_the_bin_and_they_stay_there() -> None:
+    m, d = load_scene("bin_pour:60")
+    free = [j for j in range(m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
+    assert len(free) == 60 and m.nu == 0
+    walls = [g for g in range(m.ngeom) if (m.geom(g).name or "").startswith("wall")]
+    inner = min(
+        abs(float(m.geom_pos[g][a])) - float(m.geom_size[g][a])
+        for g in walls
+        for a in (0, 1)
+        if abs(float(m.geom_pos[g][a])) > 0
+    )
+    top = 2 * float(m.geom_size[walls[0]][2])
+    heights = d.xpos[1:, 2].copy()
+    assert heights.min() > top  # the hopper is above the bin's walls
+    for _ in range(1000):  # 2 s: the pile settles
+        mujoco.mj_step(m, d)
+    xy, z = d.xpos[1:, :2], d.xpos[1:, 2]
+    assert np.all(np.abs(xy) < inner) and np.all(z < top) and np.all(z > 0)
+    assert np.all(np.isfinite(d.qvel)) and np.median(np.abs(d.qvel)) < 0.05  # settled (some roll)
+    assert load_scene("bin_pour")[0].nbody == 301
+    with pytest.raises(InvalidInputError, match="bin_pour:0"):
+        load_scene("bin_pour:0")
 
 
 def test_unknown_scene_lists_the_names() -> None:

@@ -9,6 +9,9 @@ Bundled scenes live in the top-level ``models/`` folder, shipped as the package
                           traffic-controller example)
 ``clutter``               a walled bin with every collidable primitive type, a pushing paddle
                           and a mocap stirrer
+``bin_pour``              300 loose objects (boxes, spheres, capsules, cylinders, ellipsoids)
+                          poured into a bin in layers (:func:`bin_pour_spec`)
+``bin_pour:N``            the same with ``N`` objects, the bin's floor grown with ``N``
 ``paper_world``           the paper's world (sec. 8) with 40 spheres, saved from
                           :func:`paper_world_spec`
 ``paper_world:N``         the same world generated with ``N`` spheres
@@ -41,6 +44,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.bin_pour import BIN_POUR_DEFAULT, bin_pour_spec
 from dua_mujoco.mj.paper_world import (
     ACCEL_BOUND_NUMERIC,
     paper_world_accel_bound,
@@ -73,6 +77,9 @@ DEFAULT_SCENE = "two_arms"
 
 _PAPER_PREFIX = "paper_world:"
 _SWARM_PREFIX = "swarm:"
+_POUR_PREFIX = "bin_pour:"
+_COUNTED = (_PAPER_PREFIX, _SWARM_PREFIX, _POUR_PREFIX)
+"""Scene names that take a count, ``name:N``."""
 
 
 def declared_accel_bound(model: mujoco.MjModel) -> float | None:
@@ -174,6 +181,14 @@ SCENES: dict[str, Scene] = {
             accel_hint=50.0,
         ),
         Scene(
+            name="bin_pour",
+            source=lambda: bin_pour_spec(BIN_POUR_DEFAULT),
+            description=f"{BIN_POUR_DEFAULT} loose objects poured into a bin, falling in layers.",
+            default_steps=1000,
+            # Gravity out of contact; every other acceleration is an impact.
+            accel_hint=9.81,
+        ),
+        Scene(
             name="paper_world",
             source="paper_world.xml",
             description="The paper's world: 40 spheres, bounded accelerations, in a unit cube.",
@@ -186,7 +201,7 @@ SCENES: dict[str, Scene] = {
 
 def scene_names() -> tuple[str, ...]:
     """Every name :func:`load_scene` accepts (``paper_world:N`` stands for any N >= 1)."""
-    return (*SCENES, f"{_PAPER_PREFIX}N", f"{_SWARM_PREFIX}N")
+    return (*SCENES, *(f"{prefix}N" for prefix in _COUNTED))
 
 
 def _looks_like_path(name: str) -> bool:
@@ -201,8 +216,8 @@ def load_scene(
     Args:
         name_or_path: A bundled name (``two_arms``, ``traffic``, ``clutter``, ``paper_world``),
             ``paper_world:N`` for the generated world with ``N`` spheres (seed 0), ``swarm:N``
-            for ``N`` spheres at the paper world's density, or a path to an MJCF file or a binary
-            ``.mjb`` model.
+            for ``N`` spheres at the paper world's density, ``bin_pour:N`` for ``N`` objects
+            poured into a bin, or a path to an MJCF file or a binary ``.mjb`` model.
         keyframe: See :func:`reset_to_keyframe`; None means the first keyframe, if any.
 
     Returns:
@@ -210,11 +225,13 @@ def load_scene(
 
     Raises:
         InvalidChoiceError: If the name is neither a bundled scene nor an existing file.
-        InvalidInputError: If ``N`` in ``paper_world:N`` is not a positive integer.
+        InvalidInputError: If ``N`` in ``name:N`` is not a positive integer.
     """
     check_scene(name_or_path)
     if name_or_path in SCENES:
         model = SCENES[name_or_path].model()
+    elif name_or_path.startswith(_POUR_PREFIX):
+        model = bin_pour_spec(int(name_or_path.split(":", 1)[1])).compile()
     elif name_or_path.startswith((_PAPER_PREFIX, _SWARM_PREFIX)):
         prefix, count = name_or_path.split(":", 1)
         n = int(count)
@@ -242,7 +259,7 @@ def check_scene(name_or_path: str) -> None:
     """
     if name_or_path in SCENES:
         return
-    if name_or_path.startswith((_PAPER_PREFIX, _SWARM_PREFIX)):
+    if name_or_path.startswith(_COUNTED):
         prefix, count = name_or_path.split(":", 1)
         if not count.isdigit() or int(count) < 1:
             raise InvalidInputError(
