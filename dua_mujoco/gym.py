@@ -170,33 +170,29 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
         self.cost_horizon = None if cost_horizon is None else float(cost_horizon)
         self.terminate_on_alarm = bool(terminate_on_alarm)
         self.predictor = Predictor(model, period=frame_skip, **predictor_options)
-        p = self.predictor
-        geom_pairs = p.geom_pairs
-        self._geom1 = np.asarray(geom_pairs.geom1, dtype=np.int64)
-        self._geom2 = np.asarray(geom_pairs.geom2, dtype=np.int64)
-        self._names = [str(n) for n in p.tables.geom_names]
-        self._counted = ~self._ignored(ignore)  # (ngeom_pairs,)
-        # (ngeom_pairs,) object: each geom pair's (name1, name2), ready for info. Filled one by
-        # one: numpy would read a list of 2-tuples as a 2-D array.
-        self._geom_pair_names = np.empty(len(self._geom1), dtype=object)
-        for i, (a, b) in enumerate(zip(self._geom1.tolist(), self._geom2.tolist(), strict=True)):
-            self._geom_pair_names[i] = (self._names[a], self._names[b])
-        pair_gp = p.geom_pair_of(np.arange(p.nsphere_pairs))
-        self._pair_gp = pair_gp
-        self._pair_counted = self._counted[pair_gp]  # (nsphere_pairs,)
-        self._all_pairs = np.arange(p.nsphere_pairs)
-        self._standing = np.zeros(len(self._counted), dtype=bool)  # (ngeom_pairs,)
-        # Per sphere pair: standing in alarm (and counted), and the time, from the reset, until
-        # which its latest verdict vouches there is no contact (inf: not counted).
-        self._alarm = np.zeros(p.nsphere_pairs, dtype=bool)
-        self._expiry = np.full(p.nsphere_pairs, np.inf)
+        self._names = [str(n) for n in self.predictor.tables.geom_names]
+        self._ignore_geoms, self._ignore_pairs = self._ignored(ignore)
+        # Per known geom pair (a pruned predictor learns more as it runs: _fit grows these):
+        # its geoms, whether it counts, its (name1, name2) ready for info, standing in alarm.
+        self._geom1 = self._geom2 = np.zeros(0, dtype=np.int64)
+        self._counted = self._standing = np.zeros(0, dtype=bool)
+        self._geom_pair_names = np.empty(0, dtype=object)
+        # Per known sphere pair: its geom pair, whether it counts, standing in alarm (and
+        # counted), and the time, from the reset, until which its latest verdict vouches there
+        # is no contact (inf: not counted).
+        self._pair_gp = np.zeros(0, dtype=np.int64)
+        self._pair_counted = self._alarm = np.zeros(0, dtype=bool)
+        self._expiry = np.zeros(0)
+        self._fitted = -1
+        self._fit()
         self._seen: tuple[object, int] = (None, -1)
         self._alarm_pairs: tuple[tuple[str, str], ...] = ()
 
-    def _ignored(self, ignore: tuple[IgnoreSpec, ...]) -> np.ndarray:
-        """``(ngeom_pairs,)`` bool: the geom pairs ``ignore`` names."""
+    def _ignored(self, ignore: tuple[IgnoreSpec, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """The geoms and the geom-pair keys ``(g1 << 32) | g2`` that ``ignore`` names."""
         ids = {name: g for g, name in enumerate(self._names)}
-        out = np.zeros(self._geom1.shape, dtype=bool)
+        geoms: list[int] = []
+        keys: list[int] = []
 
         def geom(name: object) -> int:
             if not isinstance(name, str) or name not in ids:
@@ -210,22 +206,45 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
 
         for item in ignore:
             if isinstance(item, str):
-                g = geom(item)
-                out |= (self._geom1 == g) | (self._geom2 == g)
+                geoms.append(geom(item))
                 continue
             if not (isinstance(item, tuple | list) and len(item) == 2):
                 raise InvalidInputError(
                     f"ignore entry {item!r} is invalid: pass a geom name or a (name, name) pair."
                 )
             a, b = sorted((geom(item[0]), geom(item[1])))
-            match = (self._geom1 == a) & (self._geom2 == b)
-            if not match.any():
+            if self.predictor.geom_pair_ids([a], [b])[0] < 0:
                 raise InvalidInputError(
                     f"ignore entry {tuple(item)!r} is not a geom pair MuJoCo can put in contact "
                     "(its collision filter leaves it out): nothing to ignore; drop it."
                 )
-            out |= match
-        return out
+            keys.append((a << 32) | b)
+        return np.array(geoms, dtype=np.int64), np.array(keys, dtype=np.int64)
+
+    def _fit(self) -> None:
+        """Extend the per-pair tables to the pairs the predictor knows now."""
+        p = self.predictor
+        if self._fitted == p.universe.version:
+            return
+        self._fitted = p.universe.version
+        gp, old = p.geom_pairs, self._geom1.size
+        g1 = np.asarray(gp.geom1[old:], dtype=np.int64)
+        g2 = np.asarray(gp.geom2[old:], dtype=np.int64)
+        ignored = np.isin(g1, self._ignore_geoms) | np.isin(g2, self._ignore_geoms)
+        ignored |= np.isin((g1 << 32) | g2, self._ignore_pairs)
+        names = np.empty(g1.size, dtype=object)
+        for i, (a, b) in enumerate(zip(g1.tolist(), g2.tolist(), strict=True)):
+            names[i] = (self._names[a], self._names[b])  # numpy would make a 2-D array of them
+        self._geom1 = np.concatenate([self._geom1, g1])
+        self._geom2 = np.concatenate([self._geom2, g2])
+        self._counted = np.concatenate([self._counted, ~ignored])
+        self._standing = np.concatenate([self._standing, np.zeros(g1.size, dtype=bool)])
+        self._geom_pair_names = np.concatenate([self._geom_pair_names, names])
+        new = p.geom_pair_of(np.arange(self._pair_gp.size, p.nsphere_pairs))
+        self._pair_gp = np.concatenate([self._pair_gp, new])
+        self._pair_counted = np.concatenate([self._pair_counted, self._counted[new]])
+        self._alarm = np.concatenate([self._alarm, np.zeros(new.size, dtype=bool)])
+        self._expiry = np.concatenate([self._expiry, np.full(new.size, np.inf)])
 
     # ------------------------------------------------------------------- gymnasium
 
@@ -260,12 +279,13 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
     def _observe(self, info: dict[str, Any], alarms: Alarms) -> int:
         """Put the standing alarms and ``min_tau`` into ``info``; return the geom pairs whose
         alarm started since the previous call."""
+        self._fit()
         state = self.predictor.pair_state()
         seen = (state.scheduler, state.activation_changes)
         if seen[0] is not self._seen[0] or seen[1] != self._seen[1]:
             # A reset, a switch or a rebuild of pruned pairs may change any pair: read them all.
             self._seen = seen
-            ids = self._all_pairs
+            ids = np.arange(self._alarm.size)
             counted = self._pair_counted & state.active
             self._alarm[:] = state.alarm_state() & counted
             changed = True

@@ -301,7 +301,10 @@ def test_monitored_run_with_pruned_pairs() -> None:
     report = run(
         m, d, p, steps=300, controller=make_controller(m, "random", seed=0), progress=False
     )
-    assert p.held_pairs.size < p.nsphere_pairs // 10
+    total = p.universe.counts()[1]  # the model's active sphere pairs
+    assert report.pairs == total and report.geom_pairs == p.universe.counts()[0]
+    assert p.held_pairs.size < total // 10
+    assert p.nsphere_pairs < total // 5  # it knows only the pairs its candidates brought in
     assert p.rebuilds >= 5
     assert report.contact_onsets > 0
     assert report.missed_onsets_valid_bounds == 0

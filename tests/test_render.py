@@ -138,7 +138,7 @@ def test_overlay_draws_every_pair_standing_in_alarm_and_pruned_sets() -> None:
     predictor = Predictor(model, accel=30.0)
     mujoco.mj_step(model, data)
     predictor.reset(data)
-    assert predictor.held_pairs.size < predictor.nsphere_pairs  # pruned
+    assert predictor.held_pairs.size < predictor.universe.counts()[1]  # pruned
     overlay = AlarmOverlay(predictor)
     quiet_steps = 0
     for _ in range(60):

@@ -127,13 +127,18 @@ class ExactLevel:
     graph: np.ndarray
 
     def with_corners(
-        self, model: mujoco.MjModel, points: tuple[np.ndarray, np.ndarray, np.ndarray]
+        self,
+        model: mujoco.MjModel,
+        points: tuple[np.ndarray, np.ndarray, np.ndarray],
+        geoms: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``points`` (``(geom, body, offset)``, the covering's centres) and the box corners of
-        every moving geom the level reads: the bounds hold for every point of those geoms
-        when they hold at the corners (:func:`corner_points`)."""
-        used = self.records[self.records[:, X_MODE] != ExactMode.NONE]
-        geoms = np.unique(np.concatenate([used[:, X_G1], used[:, X_G2]]).astype(np.int64))
+        every moving geom the level reads (``geoms``, by default those of its records): the
+        bounds hold for every point of those geoms when they hold at the corners
+        (:func:`corner_points`)."""
+        if geoms is None:
+            used = self.records[self.records[:, X_MODE] != ExactMode.NONE]
+            geoms = np.unique(np.concatenate([used[:, X_G1], used[:, X_G2]]).astype(np.int64))
         geoms = geoms[self.geoms[geoms, GX_KIND] >= 0]  # planes are read by their normal only
         corners = corner_points(model, geoms)
         return tuple(  # type: ignore[return-value]

@@ -47,11 +47,17 @@ from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
+from dua_mujoco.mj.pairfilter import FilterTables, all_dynamic_pairs, dynamic_mask
 
 __all__ = [
     "GeomPairs",
     "SpherePairs",
     "active_geom_pairs",
+    "body_id",
+    "candidate_geom_pairs",
+    "contact_distance_bound",
+    "contacts_enabled",
+    "explicit_geom_pairs",
     "pairs_between_bodies",
     "sphere_pair_mask",
     "sphere_pairs",
@@ -60,7 +66,9 @@ __all__ = [
 
 @dataclass(frozen=True)
 class GeomPairs:
-    """The geom pairs MuJoCo can collide, sorted by ``(geom1, geom2)``.
+    """The geom pairs MuJoCo can collide: sorted by ``(geom1, geom2)`` as
+    :func:`active_geom_pairs` builds them; a pruned predictor appends the pairs it meets
+    (:meth:`concat`), so an index, once given, names the same pair for good.
 
     Attributes:
         geom1: ``(npair,)`` int32, first geom (``geom1 < geom2``).
@@ -79,15 +87,19 @@ class GeomPairs:
     gap: np.ndarray
     contact_distance: np.ndarray
     _keys: np.ndarray = field(init=False, repr=False, compare=False)
+    _order: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         keys = _pair_keys(self.geom1, self.geom2)
+        order = np.argsort(keys, kind="stable")
+        keys = keys[order]
         if keys.size > 1 and not np.all(keys[1:] > keys[:-1]):
             raise InvalidInputError(
-                "GeomPairs must be sorted by (geom1, geom2) without duplicates; build it with "
+                "GeomPairs must hold each (geom1, geom2) once; build it with "
                 "active_geom_pairs(model)."
             )
         object.__setattr__(self, "_keys", keys)
+        object.__setattr__(self, "_order", order)
 
     @property
     def npair(self) -> int:
@@ -97,24 +109,29 @@ class GeomPairs:
     def __len__(self) -> int:
         return self.npair
 
+    def concat(self, other: GeomPairs) -> GeomPairs:
+        """These pairs, then ``other``'s (none of them among these)."""
+        return GeomPairs(
+            *(
+                np.concatenate([getattr(self, f), getattr(other, f)])
+                for f in ("geom1", "geom2", "explicit", "margin", "gap", "contact_distance")
+            )
+        )
+
     def index_of(self, g1: int, g2: int) -> int:
         """Index of the geom pair ``{g1, g2}`` (either order), or -1 if it is not active."""
-        a, b = (int(g1), int(g2)) if int(g1) <= int(g2) else (int(g2), int(g1))
-        key = (a << 32) | b
-        i = int(np.searchsorted(self._keys, key))
-        if i < self._keys.shape[0] and int(self._keys[i]) == key:
-            return i
-        return -1
+        return int(self.indices_of([g1], [g2])[0])
 
     def indices_of(self, g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
-        """Vectorised :meth:`index_of`: ``(n,)`` int64 indices, -1 where not active."""
-        a = np.asarray(g1, dtype=np.int64)
-        b = np.asarray(g2, dtype=np.int64)
+        """Indices of the geom pairs ``{g1[k], g2[k]}`` (either order): ``(n,)`` int64, -1 where
+        not active."""
+        a = np.asarray(g1, dtype=np.int64).reshape(-1)
+        b = np.asarray(g2, dtype=np.int64).reshape(-1)
         keys = _pair_keys(np.minimum(a, b), np.maximum(a, b))
-        i = np.searchsorted(self._keys, keys)
-        i_clip = np.minimum(i, max(self._keys.shape[0] - 1, 0))
-        found = (i < self._keys.shape[0]) & (self._keys[i_clip] == keys) if self.npair else i < 0
-        return np.where(found, i, -1).astype(np.int64)
+        if self.npair == 0:
+            return np.full(keys.shape, -1, dtype=np.int64)
+        i = np.minimum(np.searchsorted(self._keys, keys), self._keys.shape[0] - 1)
+        return np.where(self._keys[i] == keys, self._order[i], -1).astype(np.int64)
 
 
 def _pair_keys(g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
@@ -134,29 +151,8 @@ def _has_collision_function(t1: np.ndarray, t2: np.ndarray) -> np.ndarray:
     return ~(np.isin(t1, (GEOM_PLANE, GEOM_HFIELD)) & np.isin(t2, (GEOM_PLANE, GEOM_HFIELD)))
 
 
-def _weld_tables(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per body: weld group, weld group of the weld root's parent, and whether the group moves."""
-    weld = np.asarray(model.body_weldid, dtype=np.int64)
-    parent = np.asarray(model.body_parentid, dtype=np.int64)
-    parent_weld = weld[parent[weld]]
-    # Weld roots are the world, mocap bodies and bodies with joints; only the latter have dofs.
-    movable = np.asarray(model.body_dofnum, dtype=np.int64)[weld] > 0
-    return weld, parent_weld, movable
-
-
-def active_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
-    """The geom pairs MuJoCo 4.0 can ever collide, with their margin, gap and contact distance.
-
-    Vectorised over the upper triangle of geom pairs (about 2M pairs for 2000 geoms).
-
-    Args:
-        model: the compiled MuJoCo model.
-
-    Returns:
-        The :class:`GeomPairs`, sorted by ``(geom1, geom2)``.
-    """
-    ngeom = int(model.ngeom)
-    empty = GeomPairs(
+def _empty() -> GeomPairs:
+    return GeomPairs(
         geom1=np.zeros(0, np.int32),
         geom2=np.zeros(0, np.int32),
         explicit=np.zeros(0, bool),
@@ -164,42 +160,80 @@ def active_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
         gap=np.zeros(0),
         contact_distance=np.zeros(0),
     )
-    if (
+
+
+def contacts_enabled(model: mujoco.MjModel) -> bool:
+    """False when no pair can ever collide (contacts or constraints disabled, one body)."""
+    return not (
         _disabled(model, mujoco.mjtDisableBit.mjDSBL_CONTACT)
         or _disabled(model, mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
         or int(model.nbody) + int(model.nflex) < 2
-        or ngeom < 1
-    ):
-        return empty
-    override = _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE)
+        or int(model.ngeom) < 1
+    )
+
+
+def active_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
+    """The geom pairs MuJoCo 4.0 can ever collide, with their margin, gap and contact distance.
+
+    Every geom pair is put to the dynamic filter in one compiled pass (``pairfilter``), then the
+    explicit ``<pair>`` elements are merged in. O(ngeom^2) time: a pruned predictor filters only
+    the candidates it meets (:func:`candidate_geom_pairs`).
+
+    Args:
+        model: the compiled MuJoCo model.
+
+    Returns:
+        The :class:`GeomPairs`, sorted by ``(geom1, geom2)``.
+    """
+    if not contacts_enabled(model):
+        return _empty()
+    g1, g2 = all_dynamic_pairs(FilterTables.of(model))
+    return _with_explicit(model, g1, g2, explicit=True)
+
+
+def explicit_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
+    """The geom pairs of the ``<pair>`` elements, as :func:`active_geom_pairs` has them (with
+    the dynamic pair of the same geoms where MuJoCo collides both: the larger distance)."""
+    if not contacts_enabled(model) or not int(model.npair):
+        return _empty()
+    p1 = np.asarray(model.pair_geom1, dtype=np.int64)
+    p2 = np.asarray(model.pair_geom2, dtype=np.int64)
+    lo, hi = np.minimum(p1, p2), np.maximum(p1, p2)
+    twin = dynamic_mask(FilterTables.of(model), lo, hi)
+    keys = np.unique(_pair_keys(lo[twin], hi[twin]))
+    return _with_explicit(model, keys >> 32, keys & 0xFFFFFFFF, explicit=True)
+
+
+def candidate_geom_pairs(
+    model: mujoco.MjModel, tables: FilterTables, g1: npt.ArrayLike, g2: npt.ArrayLike
+) -> GeomPairs:
+    """Of candidate geom pairs (no key twice, none of a ``<pair>``'s geoms: those are
+    :func:`explicit_geom_pairs`), the ones MuJoCo's dynamic filter lets through, as
+    :func:`active_geom_pairs` has them. O(candidates)."""
+    a = np.asarray(g1, dtype=np.int64)
+    b = np.asarray(g2, dtype=np.int64)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    keep = dynamic_mask(tables, lo, hi) if contacts_enabled(model) else np.zeros(a.size, bool)
+    order = np.argsort(_pair_keys(lo[keep], hi[keep]), kind="stable")
+    return _with_explicit(model, lo[keep][order], hi[keep][order], explicit=False)
+
+
+def _with_explicit(
+    model: mujoco.MjModel, g1: np.ndarray, g2: np.ndarray, *, explicit: bool
+) -> GeomPairs:
+    """Dynamic pairs ``g1 < g2`` with their margin and gap, and (``explicit``) the ``<pair>``
+    elements merged in."""
     types = np.asarray(model.geom_type, dtype=np.int64)
     gbody = np.asarray(model.geom_bodyid, dtype=np.int64)
     gmargin = np.asarray(model.geom_margin, dtype=np.float64)
     ggap = np.asarray(model.geom_gap, dtype=np.float64)
-
-    # --- dynamic pairs (mj_broadphase + filterCollisionPair), upper triangle g1 < g2
-    g1, g2 = np.triu_indices(ngeom, 1)
-    b1, b2 = gbody[g1], gbody[g2]
-    weld, parent_weld, movable = _weld_tables(model)
-    w1, w2 = weld[b1], weld[b2]
-    keep = (b1 != b2) & (w1 != w2)
-    keep &= movable[b1] | movable[b2]
-    if not _disabled(model, mujoco.mjtDisableBit.mjDSBL_FILTERPARENT):
-        is_parent = (w1 == parent_weld[b2]) | (w2 == parent_weld[b1])
-        keep &= ~((w1 != 0) & (w2 != 0) & is_parent)
-    contype = np.asarray(model.geom_contype, dtype=np.int64)
-    conaff = np.asarray(model.geom_conaffinity, dtype=np.int64)
-    keep &= ((contype[g1] & conaff[g2]) != 0) | ((contype[g2] & conaff[g1]) != 0)
-    keep &= _has_collision_function(types[g1], types[g2])
-    g1, g2 = g1[keep], g2[keep]
+    g1 = np.asarray(g1, dtype=np.int64)
+    g2 = np.asarray(g2, dtype=np.int64)
     b1, b2 = gbody[g1], gbody[g2]
     signature = (np.minimum(b1, b2) << 16) + np.maximum(b1, b2)
-    if int(model.nexclude):
-        keep = ~np.isin(signature, np.asarray(model.exclude_signature, dtype=np.int64))
-        g1, g2, signature = g1[keep], g2[keep], signature[keep]
 
     # --- explicit pairs: merged in, replacing the dynamic pair with the same signature and geoms
-    npair = int(model.npair)
+    npair = int(model.npair) if explicit else 0
     if npair:
         p1 = np.asarray(model.pair_geom1, dtype=np.int64)
         p2 = np.asarray(model.pair_geom2, dtype=np.int64)
@@ -228,10 +262,10 @@ def active_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
     dyn_gap = ggap[g1] + ggap[g2]
     all1 = np.concatenate([g1, lo])
     all2 = np.concatenate([g2, hi])
-    explicit = np.concatenate([np.zeros(g1.shape[0], bool), np.ones(lo.shape[0], bool)])
+    is_explicit = np.concatenate([np.zeros(g1.shape[0], bool), np.ones(lo.shape[0], bool)])
     margin = np.concatenate([dyn_margin, pmargin])
     gap = np.concatenate([dyn_gap, pgap])
-    if override:
+    if _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE):
         margin = np.full_like(margin, float(model.opt.o_margin))
     dist = margin + gap
 
@@ -247,11 +281,23 @@ def active_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
     return GeomPairs(
         geom1=all1[sel].astype(np.int32),
         geom2=all2[sel].astype(np.int32),
-        explicit=explicit[sel],
+        explicit=is_explicit[sel],
         margin=margin[sel],
         gap=gap[sel],
         contact_distance=dist[sel],
     )
+
+
+def contact_distance_bound(model: mujoco.MjModel) -> float:
+    """The largest contact distance (margin + gap) any geom pair of ``model`` can have."""
+    gmargin = np.asarray(model.geom_margin, dtype=np.float64)
+    ggap = np.asarray(model.geom_gap, dtype=np.float64)
+    top_margin = 2 * float(gmargin.max(initial=0.0))
+    if _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE):
+        top_margin = float(model.opt.o_margin)
+    bound = top_margin + 2 * float(ggap.max(initial=0.0))
+    explicit = explicit_geom_pairs(model).contact_distance
+    return max(0.0, bound, float(explicit.max(initial=0.0)))
 
 
 def _can_collide_reference(model: mujoco.MjModel, g1: int, g2: int) -> bool:
@@ -447,7 +493,7 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
     )
 
 
-def _body_id(model: mujoco.MjModel, body: int | str) -> int:
+def body_id(model: mujoco.MjModel, body: int | str) -> int:
     names = [
         mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)
     ]
@@ -486,14 +532,14 @@ def pairs_between_bodies(
         InvalidChoiceError: unknown body name (the message lists the body names).
         InvalidInputError: body id out of range.
     """
-    a = _body_id(model, body_a)
+    a = body_id(model, body_a)
     gbody = np.asarray(model.geom_bodyid, dtype=np.int64)
     ba = gbody[np.asarray(geom_pairs.geom1, dtype=np.int64)]
     bb = gbody[np.asarray(geom_pairs.geom2, dtype=np.int64)]
     if body_b is None:
         mask = (ba == a) | (bb == a)
     else:
-        b = _body_id(model, body_b)
+        b = body_id(model, body_b)
         mask = ((ba == a) & (bb == b)) | ((ba == b) & (bb == a))
     return np.flatnonzero(mask).astype(np.int64)
 

@@ -100,18 +100,8 @@ class Monitor:
             if check_bounds
             else None
         )
-        gp = predictor.sphere_pairs.geom_pair
-        self._ngp = predictor.geom_pairs.npair
-        order = np.argsort(gp, kind="stable")
-        self._gp_order = order
-        self._gp_start = np.searchsorted(gp[order], np.arange(self._ngp + 1))
-        self._gp_body = np.stack(
-            [
-                np.asarray(self.model.geom_bodyid)[predictor.geom_pairs.geom1],
-                np.asarray(self.model.geom_bodyid)[predictor.geom_pairs.geom2],
-            ],
-            axis=1,
-        )
+        self._ngp = 0
+        self._fitted = -1
         self._names = predictor.tables.geom_names
         self._geom_root = np.asarray(self.model.body_rootid)[np.asarray(self.model.geom_bodyid)]
         self._body_root = np.asarray(self.model.body_rootid)
@@ -125,6 +115,7 @@ class Monitor:
         self._pred_steps = StepMap(0, self.predictor.period)
         self._time = float(data.time)
         self._in_contact = self._contacts(data)[0]
+        self._index_pairs()
         # The same set as a mask: lookups by gathering, not by np.isin (which sorts; 47 us a
         # call with the thousands of pending windows of paper_world:200).
         self._contact_mask = np.zeros(self._ngp, dtype=bool)
@@ -175,6 +166,37 @@ class Monitor:
         self._apply_alarms(alarms.pairs, np.arange(self.predictor.nsphere_pairs), data.time)
         return alarms
 
+    def _index_pairs(self) -> None:
+        """Index the predictor's known pairs by geom pair (O(known pairs), after a change)."""
+        predictor = self.predictor
+        self._fitted = predictor.universe.version
+        gp = predictor.sphere_pairs.geom_pair
+        self._ngp = predictor.geom_pairs.npair
+        order = np.argsort(gp, kind="stable")
+        self._gp_order = order
+        self._gp_start = np.searchsorted(gp[order], np.arange(self._ngp + 1))
+        gbody = np.asarray(self.model.geom_bodyid)
+        self._gp_body = np.stack(
+            [gbody[predictor.geom_pairs.geom1], gbody[predictor.geom_pairs.geom2]], axis=1
+        )
+
+    def _fit(self) -> None:
+        """Grow the per-pair arrays to the pairs the predictor knows now (a pruned predictor
+        learns pairs as its candidates, or a contact, bring them in)."""
+        if self._fitted == self.predictor.universe.version:
+            return
+        before = self._ngp
+        self._index_pairs()
+        grow = self._ngp - before
+        self._contact_mask = np.concatenate([self._contact_mask, np.zeros(grow, dtype=bool)])
+        self._standing = np.concatenate([self._standing, np.zeros(grow, dtype=np.int64)])
+        self._episode_start = np.concatenate([self._episode_start, np.full(grow, np.nan)])
+        self._episode_horizon = np.concatenate([self._episode_horizon, np.zeros(grow)])
+        self._episode_touch = np.concatenate([self._episode_touch, np.zeros(grow, dtype=bool)])
+        more = self.predictor.nsphere_pairs - self._pair_alarm.size
+        self._pair_alarm = np.concatenate([self._pair_alarm, np.zeros(more, dtype=bool)])
+        self._gp_active_seen = None
+
     def _mark_contacts(self, data: mujoco.MjData) -> None:
         """Stamp the kinematic trees of every contact (any geom pair, static ones too)."""
         nc = int(data.ncon)
@@ -190,7 +212,7 @@ class Monitor:
         nc = int(data.ncon)
         if nc == 0:
             return _NONE, 0
-        gp = self.predictor.geom_pairs.indices_of(data.contact.geom1[:nc], data.contact.geom2[:nc])
+        gp = self.predictor.geom_pair_ids(data.contact.geom1[:nc], data.contact.geom2[:nc])
         return np.unique(gp[gp >= 0]), int((gp < 0).sum())
 
     # ------------------------------------------------------------------- alarms
@@ -322,7 +344,9 @@ class Monitor:
                 )
                 > 0
             )
-            self._nactive = int(np.count_nonzero(self._gp_active))
+            # A pruned predictor has not met every active pair: the rest are on.
+            unmet = self.predictor.universe.counts()[0] - self._ngp
+            self._nactive = int(np.count_nonzero(self._gp_active)) + unmet
         return self._gp_active
 
     # ------------------------------------------------------------------- physics
@@ -337,6 +361,7 @@ class Monitor:
                 a contact of this instant (Theorem 2).
         """
         self._follow_reset()
+        self._fit()
         self.physics_step += 1
         self._mark_contacts(data)
         if self.bound_checks is not None:
@@ -360,6 +385,7 @@ class Monitor:
             self._sync_switches(exclude=sched.last_selected)
             self._observe_alarms(data, alarms)
         now, unfiltered = self._contacts(data)
+        self._fit()  # a contact of an active pair the predictor had not met: now it has
         self.unfiltered_contacts += unfiltered
         if alarms is not None:
             active = self._active_geom_pairs()

@@ -19,8 +19,8 @@ from typing import Literal
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
-from dua_mujoco.core.pairset import pack_pairs
 from dua_mujoco.core.schedules import (
     DeadlineScheduler,
     Schedule,
@@ -51,18 +51,13 @@ from dua_mujoco.mj.events import (
 from dua_mujoco.mj.exact import (
     EXACT_PERIODS,
     QUERY_PERIODS,
-    ExactLevel,
-    build_exact,
     exact_taus,
     no_exact,
 )
 from dua_mujoco.mj.filter import (
-    GeomPairs,
-    SpherePairs,
-    active_geom_pairs,
+    body_id,
     pairs_between_bodies,
     sphere_pair_mask,
-    sphere_pairs,
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.mocap import MocapVelocityTracker
@@ -75,19 +70,19 @@ from dua_mujoco.mj.options import (
     removed_keywords_error,
     resolve_options,
 )
-from dua_mujoco.mj.pairbounds import body_vel_uncertainty, bounded_pairs
+from dua_mujoco.mj.pairbounds import body_vel_uncertainty
 from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.predictor_views import PredictorViews
-from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for
+from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for, resolve_pair_mode
 from dua_mujoco.mj.rigid_step import scratch_buffers
 from dua_mujoco.mj.step_context import StepContext, Stepper, StepTables
 from dua_mujoco.mj.tables import (
-    PairTables,
     check_data,
     check_forwarded,
     plane_halfspaces,
     static_shapes,
 )
+from dua_mujoco.mj.universe import PairUniverse
 
 __all__ = ["BoundsLike", "Predictor"]
 
@@ -178,9 +173,22 @@ class Predictor(PredictorViews):
                 static=cover.static,
             )
         )
-        self.geom_pairs: GeomPairs = active_geom_pairs(model)
-        self.sphere_pairs: SpherePairs = sphere_pairs(self.covering, self.geom_pairs)
-        if len(self.geom_pairs) == 0:
+        cov = self.covering
+        self._mode = resolve_pair_mode(
+            self.options.pairs.mode,
+            self.options.pairs.horizon,
+            deadline=self.schedule is Schedule.DEADLINE,
+            covering=cov,
+        )
+        exact = None
+        if self.options.urgency.exact:
+            below = self.options.urgency.exact_below
+            below = (EXACT_PERIODS + self.latency) * self.dt if below is None else below
+            exact = (below, QUERY_PERIODS * self.dt)
+        self.universe = PairUniverse(model, cov, lazy=self._mode is PairMode.PRUNED, exact=exact)
+        """The sphere pairs this predictor knows and their tables (a pruned one learns the
+        pairs its candidates bring in)."""
+        if self.universe.counts()[0] == 0:
             warnings.warn(
                 "the model has no geom pair MuJoCo could ever put in contact (no collidable "
                 "geoms, one geom only, or every pair filtered out by contype/conaffinity, "
@@ -188,23 +196,9 @@ class Predictor(PredictorViews):
                 NoActivePairsWarning,
                 stacklevel=2,
             )
-        cov = self.covering
-        self.tables = PairTables.build(model, cov, self.sphere_pairs)
-        self.exact: ExactLevel | None = None
-        """The exact level's tables (None when off)."""
         spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
-        if self.options.urgency.exact:
-            below = self.options.urgency.exact_below
-            self.exact = build_exact(
-                model,
-                self.tables.geom1,
-                self.tables.geom2,
-                self.tables.kind,
-                np.asarray(self.geom_pairs.contact_distance)[self.sphere_pairs.geom_pair],
-                (EXACT_PERIODS + self.latency) * self.dt if below is None else below,
-                QUERY_PERIODS * self.dt,
-            )
-            spheres = self.exact.with_corners(model, spheres)
+        if self.exact is not None:
+            spheres = self.exact.with_corners(model, spheres, self.universe.exact_geoms())
         boxes = body_boxes(model, spheres)
         self.bound_points: tuple[np.ndarray, np.ndarray, np.ndarray] = boxes.corners()
         """``(geom, body, offset)`` of the points whose motion the bounds limit: the corners of
@@ -228,9 +222,10 @@ class Predictor(PredictorViews):
         )
         """Velocities of mocap bodies (None without mocap bodies): ``set_velocity`` to give
         them instead of differencing."""
-        self.pair_set = bounded_pairs(
-            model, cov, self.sphere_pairs, self.bounds, period=self.period, mocap=self.mocap
-        )
+        # Static shape records: their poses are model constants (static_shapes), re-packed and
+        # checked against the data at each reset.
+        self._shapes = static_shapes(model, cov.shape_geom)
+        self.universe.bind(self.bounds, period=self.period, mocap=self.mocap, shapes=self._shapes)
         self.events: EventTable | None = (
             build_events(model, boxes, self.bounds, period=self.period)
             if sched.violation_events
@@ -245,18 +240,13 @@ class Predictor(PredictorViews):
         self._spheres = pack_spheres(
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
-        self._pair_records = pack_pairs(self.pair_set, self._plane_geom)
         self._exact_records = None if self.exact is None else self.exact.records
         self._exact = no_exact()
-        # Static shape records: their poses are model constants (static_shapes), re-packed and
-        # checked against the data at each reset.
-        self._shapes = static_shapes(model, cov.shape_geom)
-        if cov.nshape:
-            self.pair_set.shapes = self._shapes
         # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: Scheduler | None = None
         self._pair_state: PairState | None = None
+        self._pair_state_seen: tuple = ()
         # The compiled step's arguments in one object (bound when first needed, dropped when
         # any of them changes) and the alarm log it appends to.
         self._stepper = Stepper(1)
@@ -265,27 +255,36 @@ class Predictor(PredictorViews):
         self._frame_data: mujoco.MjData | None = None
         self._frame_cache: tuple = ()
         # stride: predictor steps between rebuilds of the held pairs (0: all pairs held).
-        self._held: HeldPairs | None
-        self._held, self.stride = held_pairs_for(
-            self.options.pairs.mode,
-            self.options.pairs.horizon,
-            deadline=self.schedule is Schedule.DEADLINE,
-            sphere_pairs=self.sphere_pairs,
-            covering=self.covering,
-            bounds=self.bounds,
-            delta=body_vel_uncertainty(model, self.bounds, period=self.period, mocap=self.mocap),
-            dt=self.dt,
-            latency=self.latency,
-        )
-        # Pruned: the scheduler's pairs (ids among all active pairs), their packed records, the
-        # switches of every active pair (carried into rebuilds) and the last rebuild's step.
-        self._ids = np.arange(len(self.pair_set))
+        self._held: HeldPairs | None = None
+        self.stride = 0
+        if self._mode is PairMode.PRUNED:
+            self._held, self.stride = held_pairs_for(
+                self.universe,
+                self.options.pairs.horizon,
+                bounds=self.bounds,
+                delta=body_vel_uncertainty(
+                    model, self.bounds, period=self.period, mocap=self.mocap
+                ),
+                dt=self.dt,
+                latency=self.latency,
+            )
+        # Pruned: the scheduler's pairs (ids among the known pairs), their packed records and
+        # the last rebuild's step.
+        self._ids = np.arange(self.universe.npair)
         self._records = self._pair_records
-        self._on = np.ones(len(self.pair_set), dtype=bool) if self._held is not None else None
         self._built_at = 0
         self._rebuild_next = False
         self.rebuilds = 0
         """Rebuilds of the held pairs so far (pruned pairs only)."""
+
+    def geom_pair_ids(self, g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
+        """Ids of the active geom pairs ``{g1[k], g2[k]}``, -1 where MuJoCo's filter rejects
+        the pair; a pruned predictor learns the active ones it has not met (the exact stage
+        asks for every contact)."""
+        gp = self.geom_pairs.indices_of(g1, g2)
+        if (gp < 0).any() and self.universe.learn(np.asarray(g1)[gp < 0], np.asarray(g2)[gp < 0]):
+            gp = self.geom_pairs.indices_of(g1, g2)
+        return gp
 
     # ----------------------------------------------------------------------- setup
 
@@ -313,7 +312,9 @@ class Predictor(PredictorViews):
         sched = self._require_scheduler()
         # The exact stage asks several times a step: one view per scheduler and held set.
         view = self._pair_state
-        if view is None or view.scheduler is not sched or view.rebuilds != self.rebuilds:
+        seen = (sched, self.rebuilds, self.universe.version)
+        if view is None or self._pair_state_seen != seen:
+            self._pair_state_seen = seen
             held = None if self._held is None else self._ids
             view = PairState(
                 sched, self.nsphere_pairs, held, self._on, self.rebuilds, self._built_at
@@ -545,7 +546,10 @@ class Predictor(PredictorViews):
         until then.
         """
         self._require_scheduler()
-        gp = pairs_between_bodies(self.model, self.geom_pairs, body_a, body_b)
+        a = body_id(self.model, body_a)
+        b = None if body_b is None else body_id(self.model, body_b)
+        self.universe.between(np.array([a]), None if b is None else np.array([b]))
+        gp = pairs_between_bodies(self.model, self.geom_pairs, a, b)
         ids = np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp))
         self._switch(ids, on)
         return int(ids.size)
@@ -561,7 +565,7 @@ class Predictor(PredictorViews):
         nc = int(data.ncon)
         if nc == 0:
             return 0
-        gp = self.geom_pairs.indices_of(data.contact.geom1[:nc], data.contact.geom2[:nc])
+        gp = self.geom_pair_ids(data.contact.geom1[:nc], data.contact.geom2[:nc])
         gp = np.unique(gp[gp >= 0])
         self._switch(np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp)), False)
         return int(gp.size)

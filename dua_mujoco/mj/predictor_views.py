@@ -11,8 +11,10 @@ from dua_mujoco.core.schedules import Scheduler
 from dua_mujoco.exceptions import SchedulerError
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.events import EventTable
-from dua_mujoco.mj.filter import SpherePairs
+from dua_mujoco.mj.exact import ExactLevel
+from dua_mujoco.mj.filter import GeomPairs, SpherePairs
 from dua_mujoco.mj.tables import PairTables
+from dua_mujoco.mj.universe import PairUniverse
 
 __all__ = ["PredictorViews"]
 
@@ -21,13 +23,46 @@ class PredictorViews:
     """The introspection half of :class:`~dua_mujoco.mj.predictor.Predictor`."""
 
     covering: Covering
-    pair_set: PairSet
-    tables: PairTables
-    sphere_pairs: SpherePairs
+    universe: PairUniverse
+    _held: object | None
     scheduler: Scheduler | None
     events: EventTable | None
     _ids: np.ndarray
     _shapes: np.ndarray
+
+    @property
+    def geom_pairs(self) -> GeomPairs:
+        """The known active geom pairs (all of them unless pruned: ``universe``)."""
+        return self.universe.geom_pairs
+
+    @property
+    def sphere_pairs(self) -> SpherePairs:
+        """The known sphere pairs, grouped by geom pair."""
+        return self.universe.sphere_pairs
+
+    @property
+    def tables(self) -> PairTables:
+        """Sphere pair ids to geoms and names."""
+        return self.universe.tables
+
+    @property
+    def exact(self) -> ExactLevel | None:
+        """The exact level's tables (None when off)."""
+        return self.universe.exact
+
+    @property
+    def pair_set(self) -> PairSet:
+        """The known pairs with their bounds."""
+        assert self.universe.pair_set is not None
+        return self.universe.pair_set
+
+    @property
+    def _pair_records(self) -> np.ndarray:
+        return self.universe.records
+
+    @property
+    def _on(self) -> np.ndarray | None:
+        return self.universe.on if self._held is not None else None
 
     def _require_scheduler(self) -> Scheduler:
         if self.scheduler is None:

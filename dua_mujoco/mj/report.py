@@ -213,8 +213,9 @@ def build_report(
         predictor_steps=t_pred.count,
         period=predictor.period,
         spheres=predictor.nsphere,
-        pairs=predictor.nsphere_pairs,
-        geom_pairs=predictor.geom_pairs.npair,
+        # Of the whole model: a pruned predictor knows the pairs it met, and counts the rest.
+        pairs=predictor.universe.counts()[1],
+        geom_pairs=predictor.universe.counts()[0],
         evals_per_step=monitor.evaluation_sum / max(monitor.predictor_steps, 1),
         contact_onsets=monitor.onsets,
         predicted_onsets=monitor.predicted,
