@@ -7,6 +7,13 @@ Needs scipy and matplotlib (``pip install dua_mujoco[bench]``); never run as a t
     python benchmarks/many.py --crossover     # all pairs against pruned, N = 32 .. 2048
     python benchmarks/many.py --strides 8 16 32 64 128 --n 100000   # default stride
     python benchmarks/many.py --report docs/img/many-objects.json   # table + plot
+    python benchmarks/many.py --mujoco [--before /tmp/before]       # MuJoCo scenes, A/B
+
+The MuJoCo section (``--mujoco``) runs ``dua-mujoco run``'s rollout (default predictor, random
+controls, the monitor) on bundled scenes and swarms, each in its own process: the time to load
+the model (MuJoCo's own build), to set the predictor up, and to roll out; the predictor's and
+``mj_step``'s median microseconds a step; the process's peak resident memory; onsets and misses.
+With ``--before CHECKOUT`` every scene also runs on that checkout (``PYTHONPATH``), alternating.
 
 World: the paper's density (as ``benchmarks/scaling.py``: ``WorldParams``' 0.1 m spheres,
 speeds up to 0.4 m/s, acceleration bound 0.2 m/s^2, 40 spheres in its 10 m cube, the cube's
@@ -228,7 +235,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", type=Path, default=Path("docs/img/many-objects.json"))
     parser.add_argument("--strides", type=int, nargs="+", help="stride sweep at --n (no checks)")
     parser.add_argument("--report", type=Path, nargs="+", help="result files: table and plot")
+    parser.add_argument("--mujoco", nargs="*", metavar="SCENE:STEPS:ACCEL", help="MuJoCo section")
+    parser.add_argument("--before", type=Path, help="--mujoco: A/B against this checkout")
     args = parser.parse_args(argv)
+    if args.mujoco is not None:
+        print(mujoco_section(args.mujoco or MUJOCO_SCENES, args.before))
+        return
     if args.report:
         print(report(args.report, Path("docs/img/many-objects.png")))
         return
@@ -270,6 +282,96 @@ def main(argv: list[str] | None = None) -> None:
         results.append(res)
         print(json.dumps(res), flush=True)
     args.out.write_text(json.dumps(results, indent=1))
+
+
+MUJOCO_SCENES = [
+    "two_arms:1000:auto",
+    "traffic:1000:auto",
+    "clutter:1000:auto",
+    "bin_pour:1000:auto",
+    "swarm:1000:100:2",
+    "swarm:5000:100:2",
+    "swarm:20000:100:2",
+]
+"""``scene:steps:accel`` (``swarm:N`` keeps its count); ``--accel 2`` is the issue's."""
+
+# Runs in each scene's own process, on either checkout: only APIs both have.
+_PROBE = r"""
+import json, sys, time
+import mujoco
+from dua_mujoco import Predictor
+from dua_mujoco.mj.monitor import run
+from dua_mujoco.mj.scenes import load_scene, make_controller
+scene, steps, accel = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+t = time.perf_counter(); m, d = load_scene(scene); load = time.perf_counter() - t
+t = time.perf_counter()
+p = Predictor(m, accel=accel if accel == "auto" else float(accel))
+setup = time.perf_counter() - t
+t = time.perf_counter()
+r = run(m, d, p, steps=steps, controller=make_controller(m, "random", seed=0), progress=False,
+        series=False)
+print(json.dumps(dict(
+    load_s=load, setup_s=setup, rollout_s=time.perf_counter() - t,
+    predictor_us=r.predictor_us_per_step, mj_step_us=r.mj_step_us_per_step,
+    onsets=r.contact_onsets, missed_held=r.missed_onsets_valid_bounds,
+    missed_outside=r.missed_onsets_outside_violations, unfiltered=r.unfiltered_contacts,
+    pairs=r.pairs, known=p.nsphere_pairs, held=int(p.held_pairs.size),
+)))
+"""
+
+
+def _probe(scene: str, steps: int, accel: str, checkout: Path) -> dict[str, Any]:
+    """One scene in a fresh process on ``checkout``; its peak resident memory too."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(checkout), "NUMBA_NUM_THREADS": "1"}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _PROBE, scene, str(steps), accel],
+        env=env,
+        cwd=checkout,  # "python -c" puts the working directory first on the path
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    _, status, usage = os.wait4(proc.pid, 0)
+    out, err = proc.stdout.read(), proc.stderr.read()  # type: ignore[union-attr]
+    if os.waitstatus_to_exitcode(status) != 0:
+        return {"error": err.strip().splitlines()[-1] if err.strip() else f"status {status}"}
+    row = json.loads(out.strip().splitlines()[-1])
+    row["peak_mb"] = usage.ru_maxrss / 1024  # kilobytes on Linux
+    return row
+
+
+def mujoco_section(specs: list[str], before: Path | None) -> str:
+    """The MuJoCo scenes' table (markdown); ``before``: the same on that checkout."""
+    here = Path(__file__).resolve().parents[1]
+    sides = [("after", here)] + ([("before", before)] if before is not None else [])
+    head = (
+        "| scene | side | load (s) | set-up (s) | rollout (s) | steps | predictor us | "
+        "mj_step us | share | peak MB | pairs / known / held | onsets | missed (held / outside)"
+        " | unfiltered |"
+    )
+    lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
+    for spec in specs:
+        *name, steps, accel = spec.split(":")
+        scene = ":".join(name)
+        for side, checkout in sides:
+            r = _probe(scene, int(steps), accel, checkout)
+            if "error" in r:
+                lines.append(f"| {scene} | {side} | {r['error']} |" + " |" * 11)
+            else:
+                lines.append(
+                    f"| {scene} | {side} | {r['load_s']:.1f} | {r['setup_s']:.1f} | "
+                    f"{r['rollout_s']:.1f} | {steps} | {r['predictor_us']:.0f} | "
+                    f"{r['mj_step_us']:.0f} | {r['predictor_us'] / r['mj_step_us']:.2f} | "
+                    f"{r['peak_mb']:.0f} | {r['pairs']} / {r['known']} / {r['held']} | "
+                    f"{r['onsets']} | {r['missed_held']} / {r['missed_outside']} | "
+                    f"{r['unfiltered']} |"
+                )
+            print(lines[-1], flush=True)
+    return "\n".join(lines)
 
 
 def report(paths: list[Path], png: Path) -> str:

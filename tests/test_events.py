@@ -162,3 +162,40 @@ def test_a_collision_right_after_an_impulse_is_flagged_only_with_events() -> Non
 
     report = run(m, d, late, steps=200, progress=False, on_step=renew_next_step)
     assert report.missed_onsets_outside_violations >= 1
+
+
+# The middle ball rests 15 cm from the last one: far enough that a pruned predictor with a slow
+# bound leaves that pair out, near enough that once struck it hits the last ball (about step
+# 80) before the next regular rebuild (a horizon of 0.2 s: every 100 steps).
+SPREAD_BALLS = THREE_BALLS.replace('pos="0.1001 0 0"', 'pos="0.25 0 0"')
+
+
+def test_a_pruned_predictor_renews_its_pairs_when_a_struck_body_leaves_their_reach(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """After the impulse the middle ball is faster than the reach that left out its pair with
+    the last ball assumed: the escape check rebuilds the held set at the next step and the
+    collision is flagged. Without the check (never escaped) the pair is not held until the
+    next regular rebuild, and the collision is missed outside a violation's period."""
+    from dua_mujoco.mj.options import PairOptions
+    from dua_mujoco.mj.pruning import HeldPairs
+
+    def balls() -> tuple[mujoco.MjModel, mujoco.MjData]:
+        m = mujoco.MjModel.from_xml_string(SPREAD_BALLS)
+        d = mujoco.MjData(m)
+        d.qvel[0] = 2.0
+        mujoco.mj_forward(m, d)
+        return m, d
+
+    pruned = PairOptions(mode="pruned", horizon=0.2)
+    m, d = balls()
+    p = Predictor(m, accel=0.1, pairs=pruned)
+    report = run(m, d, p, steps=100, progress=False)
+    assert report.contact_onsets >= 2 and report.bound_violations > 0
+    assert report.missed_onsets_outside_violations == 0
+    assert p.rebuilds >= 1  # at the step after the strike; the regular one is at step 100
+
+    monkeypatch.setattr(HeldPairs, "escaped", lambda *args, **kwargs: False)
+    m, d = balls()
+    blind = run(m, d, Predictor(m, accel=0.1, pairs=pruned), steps=100, progress=False)
+    assert blind.missed_onsets_outside_violations >= 1

@@ -330,3 +330,45 @@ def test_moving_plane_is_rejected() -> None:
     )
     with pytest.raises(UnsupportedGeomError, match="plane geom 0"):
         sphere_pairs(cover_model(m), active_geom_pairs(m))
+
+
+def _lazy_parity(m: mujoco.MjModel) -> None:
+    """A pruned predictor's filter on candidates gives MuJoCo's pairs: the explicit pairs and
+    the candidates' filtered geom pairs, offered every geom pair, are ``active_geom_pairs``
+    (with the same distances), and the universe's count of the model's pairs is its size."""
+    from dua_mujoco.mj.covering import cover_model
+    from dua_mujoco.mj.filter import candidate_geom_pairs, explicit_geom_pairs
+    from dua_mujoco.mj.pairfilter import FilterTables
+    from dua_mujoco.mj.universe import PairUniverse
+
+    full = active_geom_pairs(m)
+    explicit = explicit_geom_pairs(m)
+    g1, g2 = np.triu_indices(m.ngeom, 1)
+    known = explicit.indices_of(g1, g2) >= 0
+    lazy = explicit.concat(candidate_geom_pairs(m, FilterTables.of(m), g1[~known], g2[~known]))
+    assert _pairset(lazy) == _pairset(full)
+    idx = lazy.indices_of(full.geom1, full.geom2)
+    np.testing.assert_array_equal(lazy.contact_distance[idx], full.contact_distance)
+    np.testing.assert_array_equal(lazy.explicit[idx], full.explicit)
+    covering = cover_model(m, hfield="box")
+    universe = PairUniverse(m, covering, lazy=True, exact=None)
+    eager = PairUniverse(m, covering, lazy=False, exact=None)
+    assert universe.counts() == eager.counts() == (full.npair, eager.npair)
+
+
+@pytest.mark.parametrize("name", list(FILTER_MODELS))
+def test_the_filter_on_candidates_gives_mujocos_pairs(name: str) -> None:
+    _lazy_parity(mujoco.MjModel.from_xml_string(FILTER_MODELS[name]))
+
+
+@pytest.mark.parametrize("scene", ["two_arms", "traffic", "clutter", "bin_pour:40", "swarm:300"])
+def test_the_filter_on_candidates_gives_mujocos_pairs_on_scenes(scene: str) -> None:
+    from dua_mujoco.mj.scenes import load_scene
+
+    _lazy_parity(load_scene(scene)[0])
+
+
+@pytest.mark.skipif(not ASSETS, reason="neither gymnasium nor dm_control is installed")
+@pytest.mark.parametrize("path", ASSETS, ids=[f"{p.parent.name}/{p.name}" for p in ASSETS])
+def test_the_filter_on_candidates_gives_mujocos_pairs_on_assets(path: pathlib.Path) -> None:
+    _lazy_parity(_load(path))

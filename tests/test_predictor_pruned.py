@@ -120,8 +120,8 @@ def test_swarm_scene_keeps_the_paper_density() -> None:
 @pytest.mark.parametrize("pairs", ["all", "pruned"])
 def test_bin_pour_flags_every_onset_through_a_pile_of_impacts(pairs: str) -> None:
     """Objects poured into a bin: hundreds of onsets, impacts breaking the bounds at every step
-    (events renew the pairs), pruned pairs rebuilt early at each: no onset missed, all pairs
-    or pruned."""
+    (events renew the pairs; a pruned set is rebuilt early when a struck body may have left
+    its reach): no onset missed, all pairs or pruned."""
     from dua_mujoco import PilotOptions
     from dua_mujoco.testing import assert_no_missed_collisions
 
@@ -130,4 +130,5 @@ def test_bin_pour_flags_every_onset_through_a_pile_of_impacts(pairs: str) -> Non
     report = assert_no_missed_collisions(m, d, steps=600, predictor=predictor, scene="bin_pour")
     assert report.contact_onsets > 300 and report.bound_violations > 1000
     if pairs == "pruned":
-        assert predictor.rebuilds > 100
+        # More than the regular rebuilds (every 32 steps), far fewer than the violations.
+        assert 600 // 32 < predictor.rebuilds < report.bound_violations // 10

@@ -73,6 +73,7 @@ __all__ = [
     "corner_points",
     "exact_buffer",
     "exact_pass",
+    "exact_records",
     "exact_taus",
     "geom_distance_address",
     "no_exact",
@@ -275,6 +276,26 @@ def build_exact(
         )
     geoms = _geom_records(model)
     verts, graph = _hull_tables(model)
+    rec = exact_records(geoms, geom1, geom2, kind, contact_distance)
+    return ExactLevel(
+        geoms=geoms,
+        records=rec,
+        exact_below=float(exact_below),
+        query_below=float(query_below),
+        verts=verts,
+        graph=graph,
+    )
+
+
+def exact_records(
+    geoms: np.ndarray,
+    geom1: npt.ArrayLike,
+    geom2: npt.ArrayLike,
+    kind: npt.ArrayLike,
+    contact_distance: npt.ArrayLike,
+) -> np.ndarray:
+    """``(n, X_NCOL)`` records of sphere pairs (``build_exact``'s arguments) over the level's
+    per-geom records ``geoms``: a pruned predictor adds the pairs it meets with these."""
     g1 = np.asarray(geom1, dtype=np.int64)
     g2 = np.asarray(geom2, dtype=np.int64)
     k = np.asarray(kind)
@@ -291,14 +312,7 @@ def build_exact(
     rec[:, X_DIST] = np.asarray(contact_distance, dtype=np.float64)
     rec[:, X_HULL1] = -1.0
     rec[:, X_HULL2] = -1.0
-    return ExactLevel(
-        geoms=geoms,
-        records=rec,
-        exact_below=float(exact_below),
-        query_below=float(query_below),
-        verts=verts,
-        graph=graph,
-    )
+    return rec
 
 
 def corner_points(

@@ -188,7 +188,7 @@ class Predictor(PredictorViews):
         self.universe = PairUniverse(model, cov, lazy=self._mode is PairMode.PRUNED, exact=exact)
         """The sphere pairs this predictor knows and their tables (a pruned one learns the
         pairs its candidates bring in)."""
-        if self.universe.counts()[0] == 0:
+        if self.universe.empty():
             warnings.warn(
                 "the model has no geom pair MuJoCo could ever put in contact (no collidable "
                 "geoms, one geom only, or every pair filtered out by contype/conaffinity, "
@@ -496,13 +496,23 @@ class Predictor(PredictorViews):
         nalarm, bad, deferred = sched.step_context(stepper.entry, context, start)
         if bad >= 0:
             raise self._nonfinite(data, int(self._ids[bad]))
-        # Pairs not held were left out under the bounds too: renewed at the next step.
-        self._rebuild_next = bool(self._events[2][M_COUNT]) and self._held is not None
+        if self._held is not None and self._events[2][M_COUNT]:
+            # Pairs not held were left out under the bounds too: renewed at the next step if a
+            # flagged body may have left the reach that left them out.
+            self._rebuild_next = self._escaped(sched.step_count)
         self._time = time
         stepper.used = stop = start + nalarm
         return Alarms.from_log(
             sched.step_count, time, stepper.view, start, stop, self.tables, deferred
         )
+
+    def _escaped(self, step: int) -> bool:
+        """Whether a body flagged at ``step`` may have left the held set's reach (O(its
+        spheres))."""
+        assert self._held is not None and self.events is not None
+        spheres = self._held.spheres_of(self.events.violated)
+        c, v = sphere_states(self._spheres, self._frame_cache, spheres)
+        return self._held.escaped(spheres, c, v, (step - self._built_at) * self.dt)
 
     def _rebuild(self, data: mujoco.MjData, step: int) -> None:
         """Renew the held pairs from this state; kept ones carry their verdicts (O(N + K))."""

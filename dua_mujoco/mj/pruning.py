@@ -60,6 +60,12 @@ class HeldPairs:
         self.codes = np.zeros(0, dtype=np.int64)
         self.code_ids = np.zeros(0, dtype=np.int64)
         self._indexed = 0
+        # The state the latest selection assumed: each centre and measured speed.
+        self.anchor = np.zeros((self.nsphere, 3))
+        self.speed0 = np.zeros(self.nsphere)
+        body = np.asarray(universe.covering.sphere_body, dtype=np.int64)
+        self._by_body = np.argsort(body, kind="stable")
+        self._body_start = np.searchsorted(body[self._by_body], np.arange(body.max(initial=0) + 2))
 
     def _index(self) -> None:
         """Index the pairs the universe learnt since the last call (O(new + known))."""
@@ -92,9 +98,11 @@ class HeldPairs:
         """``(K,)`` sorted ids of the sphere pairs to hold from this state (learning the
         candidates' geom pairs the universe lacks)."""
         self._index()
+        self.anchor = np.array(centers, dtype=np.float64)
+        self.speed0 = np.sqrt(np.einsum("ij,ij->i", velocities, velocities))
         r = reach(
             self.radius,
-            np.sqrt(np.einsum("ij,ij->i", velocities, velocities)),
+            self.speed0,
             self.accel,
             self.horizon,
             vel_uncertainty=self.vel_uncertainty,
@@ -109,6 +117,40 @@ class HeldPairs:
                 self._index()
                 found, _ = self._lookup(key)
         return np.sort(np.concatenate([self.always_ids, found]))
+
+    def spheres_of(self, bodies: np.ndarray) -> np.ndarray:
+        """``(k,)`` the covering spheres of ``bodies``."""
+        lo = self._body_start[np.minimum(bodies, self._body_start.size - 2)]
+        hi = self._body_start[np.minimum(bodies, self._body_start.size - 2) + 1]
+        return np.concatenate([self._by_body[a:b] for a, b in zip(lo, hi, strict=True)])
+
+    def escaped(
+        self, spheres: np.ndarray, centers: np.ndarray, velocities: np.ndarray, elapsed: float
+    ) -> bool:
+        """Whether spheres ``spheres``, ``elapsed`` seconds after the latest selection, may
+        leave the reach it assumed (docs/theory.md, section 6): a centre farther from its
+        anchor than ``min((s0 + delta) t + A t^2 / 2, V t)``, or a measured speed above
+        ``min(s0 + A t, V - delta)``. Neither: whatever broke their bounds before, they stay
+        within that reach while the bounds hold from now on, and the pairs left out stay out.
+
+        Args:
+            spheres: ``(k,)`` sphere ids.
+            centers: ``(k, 3)`` their centres now.
+            velocities: ``(k, 3)`` their measured velocities now.
+            elapsed: Seconds since the selection.
+        """
+        t = float(elapsed)
+        s0, a = self.speed0[spheres], self.accel[spheres]
+        d, v_max = self.vel_uncertainty[spheres], self.speed[spheres]
+        allow = (s0 + d) * t + 0.5 * a * t * t
+        bounded = np.isfinite(v_max)
+        allow = np.where(bounded, np.minimum(allow, np.where(bounded, v_max, 0.0) * t), allow)
+        top = np.minimum(s0 + a * t, v_max - d)
+        dist = np.linalg.norm(centers - self.anchor[spheres], axis=1)
+        speed = np.linalg.norm(velocities, axis=1)
+        # Rounding: positions scale with their magnitude, speeds with the bound.
+        tol = 1e-9 * (allow + np.abs(top)) + 1e-12 * np.abs(centers).max(axis=1, initial=1.0)
+        return bool(np.any(dist > allow + tol) or np.any(speed > top + tol))
 
 
 def resolve_pair_mode(

@@ -53,10 +53,15 @@ class PairTables:
 
     @classmethod
     def build(
-        cls, model: mujoco.MjModel, covering: Covering, sphere_pairs: SpherePairs
+        cls,
+        model: mujoco.MjModel,
+        covering: Covering,
+        sphere_pairs: SpherePairs,
+        names: np.ndarray | None = None,
     ) -> PairTables:
         """The tables of ``sphere_pairs`` over ``covering`` (``geom2`` of a half-space pair is
-        its plane geom, of a shape pair its static geom)."""
+        its plane geom, of a shape pair its static geom); ``names``: ``geom_names(model)``,
+        if at hand."""
         sp = sphere_pairs
         kind = sp.kind
         second = np.asarray(sp.second, dtype=np.int64)
@@ -73,7 +78,7 @@ class PairTables:
             halfspace=h,
             geom1=np.asarray(covering.sphere_geom[sp.first], dtype=np.int64),
             geom2=geom2,
-            geom_names=geom_names(model),
+            geom_names=geom_names(model) if names is None else names,
             kind=kind,
         )
 

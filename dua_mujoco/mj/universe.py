@@ -22,18 +22,32 @@ import numpy.typing as npt
 from dua_mujoco.core.pairset import PairSet, pack_pairs
 from dua_mujoco.mj.bounds import MotionBounds
 from dua_mujoco.mj.covering import Covering
-from dua_mujoco.mj.exact import X_G1, X_G2, X_MODE, ExactLevel, ExactMode, build_exact
+from dua_mujoco.mj.exact import (
+    X_G1,
+    X_G2,
+    X_MODE,
+    ExactLevel,
+    ExactMode,
+    build_exact,
+    exact_records,
+)
 from dua_mujoco.mj.filter import (
     GeomPairs,
     SpherePairs,
     active_geom_pairs,
     candidate_geom_pairs,
+    contacts_enabled,
     explicit_geom_pairs,
     sphere_pairs,
 )
 from dua_mujoco.mj.mocap import MocapVelocityTracker
 from dua_mujoco.mj.pairbounds import bounded_pairs
-from dua_mujoco.mj.pairfilter import FilterTables, count_dynamic_pairs, dynamic_mask
+from dua_mujoco.mj.pairfilter import (
+    FilterTables,
+    any_dynamic_pair,
+    count_dynamic_pairs,
+    dynamic_mask,
+)
 from dua_mujoco.mj.tables import PairTables
 
 __all__ = ["PairUniverse"]
@@ -177,10 +191,12 @@ class PairUniverse:
         )
         self.geom_pairs = self.geom_pairs.concat(new)
         self.sphere_pairs = _concat_sphere_pairs(self.sphere_pairs, sp)
-        tables = PairTables.build(self.model, self.covering, sp)
+        tables = PairTables.build(self.model, self.covering, sp, self.tables.geom_names)
         self.tables = _concat_tables(self.tables, tables)
         if self.exact is not None:
-            records = np.concatenate([self.exact.records, self._build_exact(tables, sp).records])
+            dist = np.asarray(self.geom_pairs.contact_distance)[sp.geom_pair]
+            rec = exact_records(self.exact.geoms, tables.geom1, tables.geom2, tables.kind, dist)
+            records = np.concatenate([self.exact.records, rec])
             self.exact = _replace(self.exact, records=records)
         self.on = np.concatenate([self.on, np.ones(sp.npair, dtype=bool)])
         if self.pair_set is not None:
@@ -201,11 +217,19 @@ class PairUniverse:
         gb = np.arange(gbody.size) if bodies_b is None else np.flatnonzero(np.isin(gbody, bodies_b))
         self.learn(np.repeat(ga, gb.size), np.tile(gb, ga.size))
 
+    def empty(self) -> bool:
+        """Whether no geom pair of the model can ever collide (stops at the first that can)."""
+        if self.geom_pairs.npair or not self.lazy:
+            return self.geom_pairs.npair == 0
+        return not (contacts_enabled(self.model) and any_dynamic_pair(self._filter))
+
     def counts(self) -> tuple[int, int]:
         """``(geom pairs, sphere pairs)`` MuJoCo's filter lets through in the whole model,
         known or not (a lazy universe counts them once, O(ngeom^2) time, nothing held)."""
         if not self.lazy:
             return self.geom_pairs.npair, self.npair
+        if self._counts is None and not contacts_enabled(self.model):
+            self._counts = (0, 0)
         if self._counts is None:
             cov = self.covering
             start = np.asarray(cov.geom_sphere_start, dtype=np.int64)

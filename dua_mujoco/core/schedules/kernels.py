@@ -184,16 +184,23 @@ def _rank_reinsert(st, n, count):  # pragma: no cover - jitted
 
 
 @nb.njit(cache=True, inline="always")
-def _link(st, p, due):  # pragma: no cover - jitted
-    slots, nxt, prv = st[S_SLOTS], st[S_INTS][NEXT], st[S_INTS][PREV]
-    slot = due & (st[S_PARAMS][P_WHEEL] - 1)
+def _link_into(slots, ints, wheel, p, due):  # pragma: no cover - jitted
+    """Link pair ``p`` at the head of its due step's slot (``ints``: the NEXT, PREV and WHERE
+    rows). Loops over many pairs pass the arrays once: each view taken of the state tuple
+    costs reference counting (about 100 ns a link when taken per pair, measured)."""
+    slot = due & (wheel - 1)
     head = slots[slot]
-    nxt[p] = head
-    prv[p] = -1 - slot
+    ints[NEXT, p] = head
+    ints[PREV, p] = -1 - slot
     if head >= 0:
-        prv[head] = p
+        ints[PREV, head] = p
     slots[slot] = p
-    st[S_INTS][WHERE, p] = due
+    ints[WHERE, p] = due
+
+
+@nb.njit(cache=True, inline="always")
+def _link(st, p, due):  # pragma: no cover - jitted
+    _link_into(st[S_SLOTS], st[S_INTS], st[S_PARAMS][P_WHEEL], p, due)
 
 
 @nb.njit(cache=True, inline="always")
@@ -466,17 +473,20 @@ def deadline_carry(old, new, src, n):  # pragma: no cover - jitted
     carried unchanged, or a pair new to the set (``src[p] < 0``): it stands in alarm
     (``last_tau = -inf``) and is due at step ``n``, as a pair switched back on is. O(len(src)).
     """
+    old_tau, old_active, old_ints = old[S_LAST_TAU], old[S_ACTIVE], old[S_INTS]
+    tau, active, ints, slots = new[S_LAST_TAU], new[S_ACTIVE], new[S_INTS], new[S_SLOTS]
+    wheel = new[S_PARAMS][P_WHEEL]
     for p in range(src.shape[0]):
         q = src[p]
         if q >= 0:
-            new[S_LAST_TAU][p] = old[S_LAST_TAU][q]
-            new[S_ACTIVE][p] = old[S_ACTIVE][q]
-            new[S_INTS][LAST_STEP, p] = old[S_INTS][LAST_STEP, q]
-            due = old[S_INTS][WHERE, q]
+            tau[p] = old_tau[q]
+            active[p] = old_active[q]
+            ints[LAST_STEP, p] = old_ints[LAST_STEP, q]
+            due = old_ints[WHERE, q]
             if due >= 0:
-                _link(new, p, due)
+                _link_into(slots, ints, wheel, p, due)
         else:
-            new[S_LAST_TAU][p] = -math.inf
-            new[S_ACTIVE][p] = True
-            new[S_INTS][LAST_STEP, p] = n
-            _link(new, p, n)
+            tau[p] = -math.inf
+            active[p] = True
+            ints[LAST_STEP, p] = n
+            _link_into(slots, ints, wheel, p, n)
