@@ -397,7 +397,7 @@ def assert_no_missed_collisions(
         reset_to_keyframe(model, data)
     pred = _make_predictor(model, predictor)
     name = scene or (model.names[: model.names.find(b"\0")].decode() if model.names else "")
-    if len(pred.pair_set) == 0:
+    if pred.universe.empty():
         raise AssertionError(
             f"{name or 'scene'}: no geom pair of this model could ever collide (no collidable "
             "geoms, or all filtered by contype/conaffinity, parent-child or <exclude>): the "

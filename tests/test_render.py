@@ -136,10 +136,14 @@ def test_overlay_draws_every_pair_standing_in_alarm_and_pruned_sets() -> None:
 
     model, data = load_scene("swarm:300")
     predictor = Predictor(model, accel=30.0)
+    # Made before the reset, as a video's renderer is: the pruned predictor learns its pairs
+    # after it, and the overlay must draw the ids it learns.
+    overlay = AlarmOverlay(predictor)
+    known = predictor.nsphere_pairs
     mujoco.mj_step(model, data)
     predictor.reset(data)
     assert predictor.held_pairs.size < predictor.universe.counts()[1]  # pruned
-    overlay = AlarmOverlay(predictor)
+    learnt = False
     quiet_steps = 0
     for _ in range(60):
         mujoco.mj_step(model, data)
@@ -153,7 +157,9 @@ def test_overlay_draws_every_pair_standing_in_alarm_and_pruned_sets() -> None:
         before = scene.ngeom
         assert overlay.add_to_scene(scene, data, alarms) == 0
         assert scene.ngeom - before == standing.size  # one connector per standing pair
+        learnt |= bool(standing.size and standing.max() >= known)
     assert quiet_steps > 0  # pairs stood in alarm without being evaluated (backoff)
+    assert learnt  # pairs met after the overlay was made stood in alarm, and were drawn
 
 
 def _scene(model: mujoco.MjModel, data: mujoco.MjData, maxgeom: int) -> mujoco.MjvScene:

@@ -120,16 +120,22 @@ class AlarmOverlay:
         self.standing = np.zeros(0, dtype=np.int64)
         self._warned = False
         model = predictor.model
-        tables = predictor.tables
+        self._read_tables()
+        # The world (floors, tables, walls) is never tinted: a red table says nothing a red link
+        # standing on it does not, and it would flood the frame. Their pairs tint the other geom.
+        welded = np.asarray(model.body_weldid)[np.asarray(model.geom_bodyid)] == 0
+        self._tintable = (np.asarray(model.geom_type) != GEOM_PLANE) & ~welded
+
+    def _read_tables(self) -> None:
+        """The predictor's pair tables as they stand (a pruned predictor learns pairs as it
+        runs: read again when it has)."""
+        tables = self.predictor.tables
+        self._version = self.predictor.universe.version
         self._first = np.asarray(tables.first, dtype=np.int64)
         self._second = np.asarray(tables.second, dtype=np.int64)
         self._kind = np.asarray(tables.kind, dtype=np.int64)
         self._pair_geom1 = np.asarray(tables.geom1, dtype=np.int64)
         self._pair_geom2 = np.asarray(tables.geom2, dtype=np.int64)
-        # The world (floors, tables, walls) is never tinted: a red table says nothing a red link
-        # standing on it does not, and it would flood the frame. Their pairs tint the other geom.
-        welded = np.asarray(model.body_weldid)[np.asarray(model.geom_bodyid)] == 0
-        self._tintable = (np.asarray(model.geom_type) != GEOM_PLANE) & ~welded
 
     # ------------------------------------------------------------------- urgency
 
@@ -138,6 +144,8 @@ class AlarmOverlay:
         ``predictor.reset``): the pairs whose geoms are tinted and whose connectors are drawn."""
         if self.predictor.scheduler is None or self.predictor.nsphere_pairs == 0:
             return np.zeros(0, dtype=np.int64)
+        if self._version != self.predictor.universe.version:
+            self._read_tables()
         # By the model's pair ids: a pruned predictor's scheduler holds only some of them.
         state = self.predictor.pair_state()
         return np.flatnonzero(state.alarm_state() & state.active)
