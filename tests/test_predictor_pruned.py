@@ -132,3 +132,80 @@ def test_bin_pour_flags_every_onset_through_a_pile_of_impacts(pairs: str) -> Non
     if pairs == "pruned":
         # More than the regular rebuilds (every 32 steps), far fewer than the violations.
         assert 600 // 32 < predictor.rebuilds < report.bound_violations // 10
+
+
+def _one_ball_held():
+    """A pruned predictor's ``HeldPairs`` for one ball, its bounds to be set by the test."""
+    m = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='0.1'/></body>"
+        "<body pos='1 0 0'><freejoint/><geom size='0.1'/></body></worldbody></mujoco>"
+    )
+    p = Predictor(m, accel=1.0, pairs="pruned")
+    assert p._held is not None
+    return p._held
+
+
+from hypothesis import assume, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    s0=st.floats(0.0, 3.0),
+    accel=st.floats(0.01, 50.0),
+    delta=st.floats(0.0, 0.1),
+    tau=st.floats(1e-3, 0.1),
+    frac=st.floats(0.0, 1.0),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_a_sphere_the_escape_check_passes_stays_within_its_reach(
+    s0: float, accel: float, delta: float, tau: float, frac: float, seed: int
+) -> None:
+    """Lemma 6.4 on sampled trajectories: a state at ``tau`` that the check passes (anywhere
+    inside the reach, at any speed it allows, the true velocity within ``delta`` of the
+    measured one), followed by any motion within the acceleration bound, stays within the reach
+    ``(s0 + delta) t + A t^2 / 2`` of the anchor for the rest of the horizon."""
+    held = _one_ball_held()
+    rng = np.random.default_rng(seed)
+    held.anchor[0] = 0.0
+    held.speed0[0] = s0
+    held.accel[0] = accel
+    held.vel_uncertainty[0] = delta
+    held.speed[0] = np.inf
+
+    def reach(t: float) -> float:
+        return (s0 + delta) * t + 0.5 * accel * t * t
+
+    def unit() -> np.ndarray:
+        u = rng.normal(size=3)
+        return u / np.linalg.norm(u)
+
+    # States near the check's edges, on both sides: the ones it passes must stay in reach (a
+    # looser check, e.g. a measured speed up to s0 + 2 delta + A t, lets some out).
+    x = unit() * 1.2 * frac * reach(tau)
+    measured = unit() * (s0 + accel * tau + 2.0 * delta) * rng.uniform(0.8, 1.05)
+    assume(not held.escaped(np.array([0]), x[None], measured[None], tau))
+    v = measured + unit() * delta  # the true velocity, at the edge of the uncertainty
+    # Any motion within the bound: piecewise-constant accelerations, the worst one (straight
+    # away from the anchor) among them.
+    t, h = tau, 1e-3
+    while t < 1.0:
+        a = x / max(np.linalg.norm(x), 1e-12) if rng.uniform() < 0.5 else unit()
+        x = x + v * h + 0.5 * accel * a * h * h
+        v = v + accel * a * h
+        t += h
+        assert np.linalg.norm(x) <= reach(t) * (1 + 1e-9) + 1e-12
+
+
+def test_the_escape_check_flags_a_sphere_out_of_its_reach_or_too_fast() -> None:
+    held = _one_ball_held()
+    held.anchor[0], held.speed0[0], held.accel[0], held.vel_uncertainty[0] = 0.0, 1.0, 2.0, 0.0
+    held.speed[0] = np.inf
+    ok = held.escaped(np.array([0]), np.array([[0.05, 0, 0]]), np.array([[1.0, 0, 0]]), 0.05)
+    assert not ok  # reach at 0.05 s: 0.0525 m; speed allowed: 1.1 m/s
+    far = held.escaped(np.array([0]), np.array([[0.06, 0, 0]]), np.array([[1.0, 0, 0]]), 0.05)
+    fast = held.escaped(np.array([0]), np.array([[0.0, 0, 0]]), np.array([[0, 1.2, 0]]), 0.05)
+    assert far and fast
+    held.speed[0] = 1.05  # a speed bound: the reach is V t at most, the speed V - delta
+    assert held.escaped(np.array([0]), np.array([[0.0, 0, 0]]), np.array([[1.06, 0, 0]]), 0.05)
+    assert held.escaped(np.array([0]), np.array([[0.0526, 0, 0]]), np.array([[0, 0, 0]]), 0.05)

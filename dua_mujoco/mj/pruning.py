@@ -65,7 +65,8 @@ class HeldPairs:
         self.speed0 = np.zeros(self.nsphere)
         body = np.asarray(universe.covering.sphere_body, dtype=np.int64)
         self._by_body = np.argsort(body, kind="stable")
-        self._body_start = np.searchsorted(body[self._by_body], np.arange(body.max(initial=0) + 2))
+        nbody = int(universe.model.nbody)
+        self._body_start = np.searchsorted(body[self._by_body], np.arange(nbody + 1))
 
     def _index(self) -> None:
         """Index the pairs the universe learnt since the last call (O(new + known))."""
@@ -120,9 +121,9 @@ class HeldPairs:
 
     def spheres_of(self, bodies: np.ndarray) -> np.ndarray:
         """``(k,)`` the covering spheres of ``bodies``."""
-        lo = self._body_start[np.minimum(bodies, self._body_start.size - 2)]
-        hi = self._body_start[np.minimum(bodies, self._body_start.size - 2) + 1]
-        return np.concatenate([self._by_body[a:b] for a, b in zip(lo, hi, strict=True)])
+        lo, hi = self._body_start[bodies], self._body_start[np.asarray(bodies) + 1]
+        parts = [self._by_body[a:b] for a, b in zip(lo.tolist(), hi.tolist(), strict=True)]
+        return np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
 
     def escaped(
         self, spheres: np.ndarray, centers: np.ndarray, velocities: np.ndarray, elapsed: float
