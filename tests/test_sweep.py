@@ -98,6 +98,13 @@ def test_bad_grids_are_refused_with_the_fix(doc, error, says: str) -> None:
     assert says in str(exc.value)
 
 
+def test_a_scene_after_ray_is_not_taken_for_its_address(capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", "--ray", "two_arms"])
+    assert exc.value.code == 2
+    assert "'two_arms' is not a Ray address" in capsys.readouterr().err
+
+
 def test_a_bad_grid_file_is_exit_2_before_any_run(tmp_path: Path, capsys) -> None:
     grid = tmp_path / "grid.toml"
     grid.write_text("[grid]\naccel = [1, \n")

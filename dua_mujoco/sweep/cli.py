@@ -49,6 +49,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--ray",
         nargs="?",
+        type=_ray_address,
         const=True,
         default=False,
         metavar="ADDRESS",
@@ -67,6 +68,17 @@ def _count(value: str) -> int:
     if n < 1:
         raise argparse.ArgumentTypeError(f"{value!r} is invalid: pass an int >= 1")
     return n
+
+
+def _ray_address(value: str) -> str:
+    """A Ray address (``auto``, ``host:port``, ``ray://host:port``): a scene name after
+    ``--ray`` would otherwise be read as one."""
+    if value != "auto" and ":" not in value:
+        raise argparse.ArgumentTypeError(
+            f"{value!r} is not a Ray address (auto, host:port or ray://host:port): put --ray "
+            "after the scenes, or write --ray=ADDRESS"
+        )
+    return value
 
 
 def run_options_of(args: argparse.Namespace) -> argparse.Namespace:
