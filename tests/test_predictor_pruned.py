@@ -209,3 +209,37 @@ def test_the_escape_check_flags_a_sphere_out_of_its_reach_or_too_fast() -> None:
     held.speed[0] = 1.05  # a speed bound: the reach is V t at most, the speed V - delta
     assert held.escaped(np.array([0]), np.array([[0.0, 0, 0]]), np.array([[1.06, 0, 0]]), 0.05)
     assert held.escaped(np.array([0]), np.array([[0.0526, 0, 0]]), np.array([[0, 0, 0]]), 0.05)
+
+
+def _arrays(obj: object, depth: int = 2) -> list[np.ndarray]:
+    """The numpy arrays an object holds in its attributes (and theirs, ``depth`` levels)."""
+    found: list[np.ndarray] = []
+    for value in vars(obj).values():
+        values = value if isinstance(value, tuple | list) else (value,)
+        for v in values:
+            if isinstance(v, np.ndarray):
+                found.append(v)
+            elif depth > 0 and hasattr(v, "__dict__") and not isinstance(v, type):
+                found += _arrays(v, depth - 1)
+    return found
+
+
+def test_a_pruned_run_holds_nothing_the_size_of_all_pairs() -> None:
+    """Memory O(N + pairs met): after a monitored run of a swarm, no array of the predictor,
+    its universe and held set, the monitor or the report is as large as the model's pairs."""
+    from dua_mujoco.mj.monitor import Monitor, run
+
+    m, d = load_scene("swarm:1500")
+    p = Predictor(m, accel=2.0)
+    monitors: list[Monitor] = []
+    report = run(
+        m, d, p, steps=60, progress=False, series=False,
+        on_step=lambda k, data, alarms, monitor: monitors.append(monitor) if k == 1 else None,
+    )  # fmt: skip
+    total = p.universe.counts()[1]
+    assert report.pairs == total == 1500 * 1499 // 2 + 1500 * 6
+    bound = 20 * (p.nsphere + p.nsphere_pairs)
+    assert bound < total / 5  # the check below could fail
+    holders = [p, p.universe, p._held, monitors[0], report]
+    sizes = [a.size for h in holders for a in _arrays(h)]
+    assert sizes and max(sizes) <= bound, max(sizes)
