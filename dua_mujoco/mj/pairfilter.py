@@ -1,11 +1,12 @@
 """MuJoCo's dynamic pair filter as one compiled rule, for given candidate pairs or over all pairs.
 
 The rule is ``filter.py``'s list of dynamic-pair conditions (``filterBodyPair``,
-``filterBitmask``, ``<exclude>``, the collision-function table), written once as
-:func:`_dynamic_ok`. Three kernels apply it: to candidate geom pairs (what a pruned predictor
-meets, O(candidates), as MuJoCo's own broadphase applies it), to every geom pair of a small
-model (the all-pairs predictor), and to count the pairs of a large model without holding them
-(O(ngeom) memory, for the report's fractions). Explicit ``<pair>`` elements are ``filter.py``'s.
+``filterBitmask``, ``<exclude>``, the collision-function table), written once as ``_rule``.
+The kernels apply it to candidate geom pairs (what a pruned predictor meets, O(candidates), as
+MuJoCo's own broadphase applies it), to every geom pair of a small model (the all-pairs
+predictor), to count the pairs of a large model without holding them (O(ngeom) memory, for the
+report's fractions), and to find whether any pair passes. Explicit ``<pair>`` elements are
+``filter.py``'s.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class FilterTables:
-    """Per geom and per body, what the dynamic filter reads (``filter_tables(model)``).
+    """Per geom, what the dynamic filter reads (``FilterTables.of(model)``).
 
     Attributes:
         body: ``(ngeom,)`` geom body.
