@@ -29,6 +29,7 @@ __all__ = [
     "parse_accel",
     "positive",
     "predictor_for",
+    "run_option_actions",
 ]
 
 PILOT_SEED_OFFSET = 1_000_003
@@ -258,3 +259,11 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="measure alarmed geom pairs with mj_geomDistance (the exact distance)",
     )
+
+
+def run_option_actions() -> dict[str, argparse.Action]:
+    """The run options' argparse actions by destination (``accel``, ``violation_events``...):
+    what ``sweep`` re-reads an option set with, and picks a run's options out by."""
+    parser = argparse.ArgumentParser(add_help=False)
+    add_run_options(parser)
+    return {a.dest: a for a in parser._actions}

@@ -37,7 +37,8 @@ and ``geom_gap[g1] + geom_gap[g2]`` (summed since 3.5); explicit pairs use ``pai
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import TypeVar
 
 import mujoco
 import numpy as np
@@ -53,6 +54,7 @@ __all__ = [
     "GeomPairs",
     "SpherePairs",
     "active_geom_pairs",
+    "appended",
     "body_id",
     "candidate_geom_pairs",
     "contact_distance_bound",
@@ -111,12 +113,7 @@ class GeomPairs:
 
     def concat(self, other: GeomPairs) -> GeomPairs:
         """These pairs, then ``other``'s (none of them among these)."""
-        return GeomPairs(
-            *(
-                np.concatenate([getattr(self, f), getattr(other, f)])
-                for f in ("geom1", "geom2", "explicit", "margin", "gap", "contact_distance")
-            )
-        )
+        return appended(self, other)
 
     def index_of(self, g1: int, g2: int) -> int:
         """Index of the geom pair ``{g1, g2}`` (either order), or -1 if it is not active."""
@@ -132,6 +129,23 @@ class GeomPairs:
             return np.full(keys.shape, -1, dtype=np.int64)
         i = np.minimum(np.searchsorted(self._keys, keys), self._keys.shape[0] - 1)
         return np.where(self._keys[i] == keys, self._order[i], -1).astype(np.int64)
+
+
+PairsT = TypeVar("PairsT")
+
+
+def appended(first: PairsT, then: PairsT, *, shared: tuple[str, ...] = ()) -> PairsT:
+    """A pair dataclass (``GeomPairs``, ``SpherePairs``, ``PairTables``) with ``then``'s pairs
+    after ``first``'s: every per-pair field concatenated, the ``shared`` ones (per geom, not per
+    pair) ``first``'s."""
+    values = {
+        f.name: getattr(first, f.name)
+        if f.name in shared
+        else np.concatenate([getattr(first, f.name), getattr(then, f.name)])
+        for f in fields(first)  # type: ignore[arg-type]
+        if f.init
+    }
+    return type(first)(**values)
 
 
 def _pair_keys(g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
@@ -214,8 +228,7 @@ def candidate_geom_pairs(
     b = np.asarray(g2, dtype=np.int64)
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     keep = dynamic_mask(tables, lo, hi) if contacts_enabled(model) else np.zeros(a.size, bool)
-    order = np.argsort(_pair_keys(lo[keep], hi[keep]), kind="stable")
-    return _with_explicit(model, lo[keep][order], hi[keep][order], explicit=False)
+    return _with_explicit(model, lo[keep], hi[keep], explicit=False)  # it sorts them
 
 
 def _with_explicit(
@@ -288,16 +301,16 @@ def _with_explicit(
     )
 
 
-def contact_distance_bound(model: mujoco.MjModel) -> float:
-    """The largest contact distance (margin + gap) any geom pair of ``model`` can have."""
+def contact_distance_bound(model: mujoco.MjModel, explicit: GeomPairs) -> float:
+    """The largest contact distance (margin + gap) any geom pair of ``model`` can have
+    (``explicit``: its :func:`explicit_geom_pairs`)."""
     gmargin = np.asarray(model.geom_margin, dtype=np.float64)
     ggap = np.asarray(model.geom_gap, dtype=np.float64)
     top_margin = 2 * float(gmargin.max(initial=0.0))
     if _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE):
         top_margin = float(model.opt.o_margin)
     bound = top_margin + 2 * float(ggap.max(initial=0.0))
-    explicit = explicit_geom_pairs(model).contact_distance
-    return max(0.0, bound, float(explicit.max(initial=0.0)))
+    return max(0.0, bound, float(explicit.contact_distance.max(initial=0.0)))
 
 
 def _can_collide_reference(model: mujoco.MjModel, g1: int, g2: int) -> bool:

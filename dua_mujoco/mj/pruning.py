@@ -200,6 +200,6 @@ def held_pairs_for(
         delta[body],
         speed,
         float(T),
-        contact_distance_bound(universe.model),
+        contact_distance_bound(universe.model, universe.explicit),
     )
     return held, rebuild_stride(T, dt, latency)

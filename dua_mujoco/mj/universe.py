@@ -35,6 +35,7 @@ from dua_mujoco.mj.filter import (
     GeomPairs,
     SpherePairs,
     active_geom_pairs,
+    appended,
     candidate_geom_pairs,
     contacts_enabled,
     explicit_geom_pairs,
@@ -86,10 +87,12 @@ class PairUniverse:
         self._filter = FilterTables.of(model)
         self._counts: tuple[int, int] | None = None
         self.version = 0
+        self.explicit = explicit_geom_pairs(model)
+        """The ``<pair>`` elements' geom pairs (known from the start, lazy or not)."""
         if lazy:
             # The pairs held always: every sphere-covered geom against every plane and static
             # shape (O(N x static)), and the <pair> elements.
-            explicit = explicit_geom_pairs(model)
+            explicit = self.explicit
             moving = np.unique(np.asarray(covering.sphere_geom, dtype=np.int64))
             lone = np.concatenate([covering.plane_geom, covering.shape_geom]).astype(np.int64)
             g1 = np.repeat(moving, lone.size)
@@ -181,23 +184,16 @@ class PairUniverse:
             return 0
         base = self.geom_pairs.npair
         sp = sphere_pairs(self.covering, new)
-        sp = SpherePairs(
-            first=sp.first,
-            second=sp.second,
-            is_halfspace=sp.is_halfspace,
-            geom_pair=(sp.geom_pair + base).astype(np.int32),
-            eps=sp.eps,
-            is_shape=sp.is_shape,
-        )
+        sp = dataclasses.replace(sp, geom_pair=(sp.geom_pair + base).astype(np.int32))
         self.geom_pairs = self.geom_pairs.concat(new)
-        self.sphere_pairs = _concat_sphere_pairs(self.sphere_pairs, sp)
+        self.sphere_pairs = appended(self.sphere_pairs, sp)
         tables = PairTables.build(self.model, self.covering, sp, self.tables.geom_names)
-        self.tables = _concat_tables(self.tables, tables)
+        self.tables = appended(self.tables, tables, shared=("geom_names",))
         if self.exact is not None:
             dist = np.asarray(self.geom_pairs.contact_distance)[sp.geom_pair]
             rec = exact_records(self.exact.geoms, tables.geom1, tables.geom2, tables.kind, dist)
             records = np.concatenate([self.exact.records, rec])
-            self.exact = _replace(self.exact, records=records)
+            self.exact = dataclasses.replace(self.exact, records=records)
         self.on = np.concatenate([self.on, np.ones(sp.npair, dtype=bool)])
         if self.pair_set is not None:
             bounds, period, mocap = self._bounds
@@ -238,7 +234,7 @@ class PairUniverse:
             weight[np.asarray(cov.shape_geom, dtype=np.int64)] = 1
             pairs, spheres = count_dynamic_pairs(self._filter, weight)
             # Active = dynamic + explicit - both (a <pair> on geoms the filter lets through).
-            explicit = explicit_geom_pairs(self.model)
+            explicit = self.explicit
             w = weight[np.asarray(explicit.geom1, dtype=np.int64)]
             w = w * weight[np.asarray(explicit.geom2, dtype=np.int64)]
             both = dynamic_mask(self._filter, explicit.geom1, explicit.geom2)
@@ -246,33 +242,6 @@ class PairUniverse:
             spheres += int(w.sum()) - int(w[both].sum())
             self._counts = (pairs, spheres)
         return self._counts
-
-
-def _replace(level: ExactLevel, **changes: object) -> ExactLevel:
-    return dataclasses.replace(level, **changes)  # type: ignore[arg-type]
-
-
-def _concat_sphere_pairs(a: SpherePairs, b: SpherePairs) -> SpherePairs:
-    return SpherePairs(
-        first=np.concatenate([a.first, b.first]),
-        second=np.concatenate([a.second, b.second]),
-        is_halfspace=np.concatenate([a.is_halfspace, b.is_halfspace]),
-        geom_pair=np.concatenate([a.geom_pair, b.geom_pair]),
-        eps=np.concatenate([a.eps, b.eps]),
-        is_shape=np.concatenate([a.is_shape, b.is_shape]),
-    )
-
-
-def _concat_tables(a: PairTables, b: PairTables) -> PairTables:
-    return PairTables(
-        first=np.concatenate([a.first, b.first]),
-        second=np.concatenate([a.second, b.second]),
-        halfspace=np.concatenate([a.halfspace, b.halfspace]),
-        geom1=np.concatenate([a.geom1, b.geom1]),
-        geom2=np.concatenate([a.geom2, b.geom2]),
-        geom_names=a.geom_names,
-        kind=np.concatenate([a.kind, b.kind]),
-    )
 
 
 def _concat_pair_sets(a: PairSet, b: PairSet) -> PairSet:

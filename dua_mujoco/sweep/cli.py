@@ -83,11 +83,9 @@ def _ray_address(value: str) -> str:
 
 def run_options_of(args: argparse.Namespace) -> argparse.Namespace:
     """The ``run`` options among ``args`` (what a worker needs, nothing of the sweep's)."""
-    from dua_mujoco.run_options import add_run_options
+    from dua_mujoco.run_options import run_option_actions
 
-    parser = argparse.ArgumentParser(add_help=False)
-    add_run_options(parser)
-    dests = {a.dest for a in parser._actions}
+    dests = run_option_actions()
     return argparse.Namespace(**{k: v for k, v in vars(args).items() if k in dests})
 
 

@@ -110,13 +110,9 @@ def apply(
 ) -> argparse.Namespace:
     """``base`` with ``values`` (option name -> TOML value) set, each checked as on the command
     line. Raises InvalidChoiceError naming an unknown option and listing the valid ones."""
-    from dua_mujoco.run_options import add_run_options
+    from dua_mujoco.run_options import run_option_actions
 
-    parser = argparse.ArgumentParser(add_help=False)
-    add_run_options(parser)
-    actions = {
-        a.dest: a for a in parser._actions if a.dest not in NOT_IN_A_SET and a.dest != "help"
-    }
+    actions = {k: a for k, a in run_option_actions().items() if k not in NOT_IN_A_SET}
     options = copy.copy(base)
     for key, value in values.items():
         dest = key.replace("-", "_")
