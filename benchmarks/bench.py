@@ -197,68 +197,53 @@ def tau_ns_per_eval(predictor: object, data: object, max_pairs: int = 4096) -> f
 def compiled_step_us(
     predictor: object, data: object, repeat: int = 7, loops: int = 20_000
 ) -> float:
-    """Median us of the predictor's fused step called from a compiled loop on a frozen state.
+    """Median us of the predictor's native step called from a compiled loop on a frozen state.
 
-    No Python, no numba dispatch, and the tables stay in cache between calls: a floor under what
-    any driver of the same compiled step can reach. The scheduler moves on as in a run
-    (different pairs each step), on the state the predictor last read.
+    No Python and no ctypes between calls, and the tables stay in cache: a floor under what any
+    driver of the same native step can reach. The scheduler moves on as in a run (different
+    pairs each step), on the state the predictor last read; the alarms overwrite the log's
+    first entries.
     """
     import numba as nb
+    from numba import types
 
-    from dua_mujoco.mj.rigid_step import step_rigid_kernel  # what Predictor.step runs
+    import dua_mujoco.core.native_kernels  # noqa: F401 - loads the native core for numba
+
+    step_c = types.ExternalFunction("dua_step", types.int64(types.int64, types.int64, types.int64))
 
     @nb.njit
-    def loop(k, state, n0, pairs, spheres, frame, shapes, exact, events, scratch):
+    def loop(k, address, n0):
         for i in range(k):
-            step_rigid_kernel(state, n0 + i, pairs, spheres, frame, shapes, exact, events, scratch)
+            step_c(address, n0 + i, 0)
 
     s = predictor.scheduler  # type: ignore[attr-defined]
-    args = predictor.kernel_arguments(data)  # type: ignore[attr-defined]
+    address = predictor._native.address  # type: ignore[attr-defined]
 
     def run(k: int) -> None:
-        loop(k, s.kernel_state, s.step_count + 1, *args)
+        loop(k, address, s.step_count + 1)
         s.step_count += k
 
     return median_time(lambda: run(loops), repeat) / loops * 1e6
 
 
 def bench_dispatch(calls: int = 200_000) -> str:
-    """What calling compiled code from Python costs, against the fused step's own call.
-
-    The predictor's call on traffic dispatches the real arguments of its fused step; an empty
-    kernel with the same arguments isolates numba's dispatch, and the last rows are the least a
-    Python API must do per call.
-    """
+    """What calling native or compiled code from Python costs: the floor under any Python API's
+    per-call work (``Predictor.step`` calls the native step through ctypes)."""
     import ctypes
 
-    import mujoco
     import numba as nb
 
-    from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.native import library
 
-    m, d = load_scene("traffic")
-    p = Predictor(m, accel=4.0)
-    mujoco.mj_step(m, d)
-    p.reset(d)
-    args = (p.scheduler.kernel_state, 1, *p.kernel_arguments(d))
-
-    @nb.njit
-    def empty_like_step(
-        state, n, pairs, spheres, frame, shapes, exact, events, scratch
-    ):  # same args
-        return 0, 0, -1
+    lib = library()
+    version = lib.dua_abi_version
+    interval = lib.dua_deadline_interval
+    interval.restype = ctypes.c_int64
+    interval.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_int64, ctypes.c_int64]
 
     @nb.njit
     def one_int(x):
         return x + 1
-
-    @nb.cfunc("int64(int64)")
-    def c_one_int(x):
-        return x + 1
-
-    address: int = c_one_int.address  # type: ignore[assignment]
-    via_ctypes = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_int64)(address)
 
     class Result:
         __slots__ = ("a", "b")
@@ -269,13 +254,12 @@ def bench_dispatch(calls: int = 200_000) -> str:
     ids = np.arange(8)
     rows = []
     for label, fn in (
+        ("ctypes call of a native function of no argument (`dua_abi_version`)", version),
         (
-            "numba dispatch of the fused step's 8 arguments (the state's 12 fields and the frame's"
-            " 6 arrays in 2 tuples), empty kernel",
-            lambda: empty_like_step(*args),
+            "ctypes call of a native function of 4 arguments (`dua_deadline_interval`)",
+            lambda: interval(0.1, 0.01, 0, 64),
         ),
         ("numba dispatch of one int", lambda: one_int(3)),
-        ("ctypes call of a numba `cfunc` taking one int", lambda: via_ctypes(3)),
         ("a slotted result object", lambda: Result(1, 2)),
         ("copy of a few alarm ids (`ids[:3].copy()`)", lambda: ids[:3].copy()),
     ):

@@ -37,6 +37,10 @@ class UnsupportedGeomError(DuaError, ValueError):
     """A geom cannot be covered by spheres (e.g. a height field without the box fallback)."""
 
 
+class NativeLibraryError(DuaError, ImportError):
+    """The native core (libdua_mujoco.so) is missing, of another version, or failed to load."""
+
+
 class InvalidChoiceError(InvalidInputError):
     """A name (scene, body, geom, mode) is not among the valid choices."""
 

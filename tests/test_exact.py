@@ -31,9 +31,8 @@ from dua_mujoco.mj.exact import (
     ExactMode,
     build_exact,
     corner_points,
-    exact_taus,
 )
-from dua_mujoco.mj.kinematics import mjdata_frame
+from dua_mujoco.mj.native_step import NativeStep
 from dua_mujoco.mj.options import CoveringOptions
 from dua_mujoco.mj.predictor import Predictor
 
@@ -127,13 +126,24 @@ class Motion:
 
 
 def _exact_only(p: Predictor, data: mujoco.MjData, *, query: bool = True) -> np.ndarray:
-    """The exact level's tau of every pair from a sphere tau of 0 (MuJoCo asked afresh)."""
-    assert p.exact is not None
-    args = p.exact.args(p.model, data, p.exact.records.copy())
-    args = (*args[:4], math.inf if query else 0.0, *args[5:])
-    tau = np.zeros(len(p.pair_set))
-    frame = mjdata_frame(data, np.zeros((p.model.nbody, 6)))
-    return exact_taus(tau, np.arange(tau.size), p._pair_records, frame, args)
+    """The native exact level's tau of every pair from a sphere tau of 0 (MuJoCo asked afresh
+    when ``query``)."""
+    x = p.exact
+    assert x is not None
+    ids = np.arange(len(p.pair_set))
+    native = NativeStep(ids.size)
+    native.bind_frame(data, np.zeros((p.model.nbody, 6)))
+    native.bind_tables(p._pair_records, p._spheres, p._shapes, ids)
+    native.bind_exact(
+        p.model,
+        x.geoms,
+        x.records.copy(),
+        below=x.exact_below,
+        query_below=math.inf if query else 0.0,
+        verts=x.verts,
+        graph=x.graph,
+    )
+    return native.exact_pass(ids, np.zeros(ids.size))
 
 
 # --------------------------------------------------------------------------- the reference

@@ -1,9 +1,9 @@
 """The exact level of the urgency: a conservative tau from the geoms themselves, not their balls.
 
 A pair whose sphere tau is below ``exact_below`` is looked at again through its two geoms:
-MuJoCo's narrowphase (``mj_geomDistance``, called from compiled code through ``libmujoco``'s C
-entry point) gives a witness direction ``n`` from the first geom to the second, and the
-separation of the two geoms along ``n`` is bounded below, over time, by
+MuJoCo's narrowphase (``mj_geomDistance``, which the native step calls) gives a witness
+direction ``n`` from the first geom to the second, and the separation of the two geoms along
+``n`` is bounded below, over time, by
 
     d(t) >= d_n + (n . (v_B - v_A) - |w_A| r_A - |w_B| r_B) t - delta t - A t^2 / 2,
 
@@ -51,9 +51,6 @@ from dua_mujoco.mj.exact_kernels import (
     X_N,
     X_NCOL,
     ExactMode,
-    exact_buffer,
-    exact_pass,
-    geom_distance_address,
 )
 from dua_mujoco.mj.kinematics import pack_spheres
 
@@ -71,12 +68,7 @@ __all__ = [
     "ExactMode",
     "build_exact",
     "corner_points",
-    "exact_buffer",
-    "exact_pass",
     "exact_records",
-    "exact_taus",
-    "geom_distance_address",
-    "no_exact",
 ]
 
 EXACT_PERIODS = 2
@@ -145,43 +137,6 @@ class ExactLevel:
         return tuple(  # type: ignore[return-value]
             np.concatenate([a, b]) for a, b in zip(points, corners, strict=True)
         )
-
-    def args(self, model: mujoco.MjModel, data: mujoco.MjData, records: np.ndarray) -> tuple:
-        """The ``exact`` tuple of the compiled step for ``data`` and the held pairs' ``records``.
-
-        The addresses are ``model``'s and ``data``'s: the tuple lives no longer than they do
-        (the predictor holds both).
-        """
-        call = np.array([_ADDRESS.get(), model._address, data._address], dtype=np.int64)
-        return (
-            self.geoms,
-            records,
-            float(self.exact_below),
-            call,
-            float(self.query_below),
-            self.verts,
-            self.graph,
-        )
-
-
-class _Address:
-    """``mj_geomDistance``'s address, looked up once per process."""
-
-    value = 0
-
-    def get(self) -> int:
-        if not self.value:
-            self.value = geom_distance_address()
-        return self.value
-
-
-_ADDRESS = _Address()
-
-
-def no_exact() -> tuple:
-    """The ``exact`` tuple that never runs (placeholder rows; the threshold is below any tau)."""
-    none = np.zeros(3, dtype=np.int64)
-    return (np.zeros((1, GX_NCOL)), np.zeros((1, X_NCOL)), -1.0, none, 0.0, *_hull_tables(None))
 
 
 def _geom_records(model: mujoco.MjModel) -> np.ndarray:
@@ -339,28 +294,3 @@ def corner_points(
     offset = aabb[:, None, :3] + signs[None, :, :] * aabb[:, None, 3:]
     body = np.asarray(model.geom_bodyid, dtype=np.int64)[g]
     return np.repeat(g, 8), np.repeat(body, 8), offset.reshape(-1, 3)
-
-
-def exact_taus(
-    tau: np.ndarray,
-    ids: npt.ArrayLike,
-    pairs: np.ndarray,
-    frame: tuple,
-    exact: tuple,
-) -> np.ndarray:
-    """Raise the sphere taus ``tau`` of pairs ``ids`` to their exact level, in place (the
-    reset's path; the step runs the same :func:`exact_pass`).
-
-    Args:
-        tau: ``(n,)`` sphere tau of each pair in ``ids`` (overwritten).
-        ids: ``(n,)`` pair ids: rows of ``pairs`` and of the exact records in ``exact``.
-        pairs: ``pack_pairs`` records.
-        frame: ``mjdata_frame`` tuple.
-        exact: :meth:`ExactLevel.args`.
-
-    Returns:
-        ``tau``.
-    """
-    idx = np.ascontiguousarray(ids, dtype=np.int64)
-    exact_pass(tau, idx, idx.shape[0], pairs, frame, exact, exact_buffer())
-    return tau

@@ -1,9 +1,10 @@
 """Rigid-body kinematics of covering spheres: the one kernel that turns ``MjData`` into sphere
 centres and velocities, and the MuJoCo layer's fused step that uses it.
 
-Every reader of sphere states (the predictor's fused step and its full reads, the bound checks,
-the pilot that estimates bounds, the overlays) calls :func:`rigid_point`, through
-:func:`sphere_states` when it wants arrays.
+Every reader of sphere states (the predictor's step and its full reads, the bound checks, the
+pilot that estimates bounds, the overlays) runs one kernel, the native core's
+``dua_rigid_point``: the step directly, the others through :func:`rigid_point` (and
+:func:`sphere_states` when they want arrays).
 
 **Which instant.** After ``mj_step`` with the Euler, implicit and implicitfast integrators,
 ``d.geom_xpos``, ``d.geom_xmat``, ``d.cvel`` and ``d.subtree_com`` were computed at the *start* of
@@ -26,6 +27,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.core.native_kernels import frame_view, rigid_point_c
 from dua_mujoco.exceptions import ShapeError
 
 __all__ = [
@@ -36,7 +38,7 @@ __all__ = [
     "mjdata_frame",
     "pack_spheres",
     "rigid_point",
-    "rigid_point_at",
+    "rigid_point_in",
     "sphere_states",
 ]
 
@@ -74,63 +76,28 @@ def pack_spheres(
     return rec
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def rigid_point(i, spheres, frame, out):  # pragma: no cover - jitted
-    """Centre and velocity of sphere ``i`` attached to a rigid frame: the one kinematics kernel.
+    """Centre and velocity of sphere ``i`` attached to a rigid frame: the one kinematics kernel
+    (native: ``dua_rigid_point``).
 
     ``spheres`` holds ``pack_spheres`` records; ``frame`` is ``(frame_pos (nframe, 3),
     frame_mat (nframe, 9), twist (nbody, 6), twist_ref (nbody, 3), root_twist (nbody, 6),
     root_origin (nbody, 3))``, read from ``MjData`` as ``(geom_xpos, geom_xmat, cvel,
     subtree_com, mocap root twists, xpos)``. Writes ``out[0:3]`` (centre) and ``out[3:6]``
-    (velocity), without allocating. Centre: ``frame_pos[g] + frame_mat[g] @ offset``. Velocity:
+    (velocity), ``out`` contiguous. Centre: ``frame_pos[g] + frame_mat[g] @ offset``. Velocity:
     the body twist ``[omega; v_ref]`` about the point ``twist_ref[rootid[b]]`` (MuJoCo's
     ``cvel`` about ``subtree_com`` of the root), plus the twist of the tree's root about
     ``root_origin`` for trees MuJoCo treats as static (mocap roots), which is zero elsewhere.
+    Loops over many points take :func:`frame_view` once and call :func:`rigid_point_in`.
     """
-    frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin = frame
-    rigid_point_at(i, spheres, frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin, out)
+    rigid_point_c(i, spheres.ctypes, frame_view(frame).ctypes, out.ctypes)
 
 
 @nb.njit(cache=True, inline="always")
-def rigid_point_at(  # pragma: no cover - jitted
-    i, spheres, frame_pos, frame_mat, twist, twist_ref, root_twist, root_origin, out
-):
-    """:func:`rigid_point` with the ``frame`` tuple's arrays passed one by one: for loops that
-    unpack the tuple once (numba reference-counts every array taken out of a tuple, and in a
-    loop with branches that is not pruned: 0.1 us a pair in the exact level, measured)."""
-    g = int(spheres[i, SPHERE_FRAME])
-    b = int(spheres[i, SPHERE_BODY])
-    o0 = spheres[i, SPHERE_OFFSET]
-    o1 = spheres[i, SPHERE_OFFSET + 1]
-    o2 = spheres[i, SPHERE_OFFSET + 2]
-    for k in range(3):
-        out[k] = (
-            frame_pos[g, k]
-            + frame_mat[g, 3 * k] * o0
-            + frame_mat[g, 3 * k + 1] * o1
-            + frame_mat[g, 3 * k + 2] * o2
-        )
-    r = int(spheres[i, SPHERE_ROOT])
-    dx = out[0] - twist_ref[r, 0]
-    dy = out[1] - twist_ref[r, 1]
-    dz = out[2] - twist_ref[r, 2]
-    out[3] = twist[b, 3] + twist[b, 1] * dz - twist[b, 2] * dy
-    out[4] = twist[b, 4] + twist[b, 2] * dx - twist[b, 0] * dz
-    out[5] = twist[b, 5] + twist[b, 0] * dy - twist[b, 1] * dx
-    # Indexed, not a row view: a view is reference-counted, which costs more than the rest.
-    w0 = root_twist[r, 0]
-    w1 = root_twist[r, 1]
-    w2 = root_twist[r, 2]
-    u0 = root_twist[r, 3]
-    u1 = root_twist[r, 4]
-    u2 = root_twist[r, 5]
-    if w0 != 0.0 or w1 != 0.0 or w2 != 0.0 or u0 != 0.0 or u1 != 0.0 or u2 != 0.0:
-        ex = out[0] - root_origin[r, 0]
-        ey = out[1] - root_origin[r, 1]
-        ez = out[2] - root_origin[r, 2]
-        out[3] += u0 + w1 * ez - w2 * ey
-        out[4] += u1 + w2 * ex - w0 * ez
-        out[5] += u2 + w0 * ey - w1 * ex
+def rigid_point_in(i, spheres, view, out):  # pragma: no cover - jitted
+    """:func:`rigid_point` on a frame's :func:`frame_view`."""
+    rigid_point_c(i, spheres.ctypes, view.ctypes, out.ctypes)
 
 
 def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -146,8 +113,9 @@ def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> tuple[np.ndarra
 
 @nb.njit(cache=True)
 def _states(spheres, frame, ids, out):  # pragma: no cover - jitted
+    view = frame_view(frame)
     for k in range(ids.shape[0]):
-        rigid_point(ids[k], spheres, frame, out[k])
+        rigid_point_in(ids[k], spheres, view, out[k])
 
 
 def sphere_states(

@@ -3,8 +3,8 @@
 The model is read once: geoms are covered by spheres (``covering``), MuJoCo's collision filter
 gives the active geom pairs (``filter``), and those expand into sphere pairs with per-pair contact
 distance, acceleration bound and velocity uncertainty. ``reset(data)`` is the initial
-classification; each ``step(data)`` evaluates the scheduled pairs in one compiled call that reads
-only their spheres from ``MjData`` (``rigid_step.step_rigid_kernel``).
+classification; each ``step(data)`` evaluates the scheduled pairs in one call of the native core
+that reads only their spheres from ``MjData`` (``NativeStep``: the step the MuJoCo plugin runs).
 
 Timing. Call ``step`` every ``period`` physics steps, after ``mj_step``. ``MjData`` then holds the
 kinematics (``geom_xpos``, ``cvel``) and contacts of the state at the start of that step, and the
@@ -46,14 +46,8 @@ from dua_mujoco.mj.events import (
     body_boxes,
     build_events,
     no_events,
-    reset_events,
 )
-from dua_mujoco.mj.exact import (
-    EXACT_PERIODS,
-    QUERY_PERIODS,
-    exact_taus,
-    no_exact,
-)
+from dua_mujoco.mj.exact import EXACT_PERIODS, QUERY_PERIODS
 from dua_mujoco.mj.filter import (
     body_id,
     pairs_between_bodies,
@@ -61,6 +55,7 @@ from dua_mujoco.mj.filter import (
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.native_step import NativeStep
 from dua_mujoco.mj.options import (
     CoveringOptions,
     PairOptions,
@@ -74,8 +69,6 @@ from dua_mujoco.mj.pairbounds import body_vel_uncertainty
 from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.predictor_views import PredictorViews
 from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for, resolve_pair_mode
-from dua_mujoco.mj.rigid_step import scratch_buffers
-from dua_mujoco.mj.step_context import StepContext, Stepper, StepTables
 from dua_mujoco.mj.tables import (
     check_data,
     check_forwarded,
@@ -241,15 +234,13 @@ class Predictor(PredictorViews):
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
         self._exact_records = None if self.exact is None else self.exact.records
-        self._exact = no_exact()
         # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
         self._twist = np.zeros((model.nbody, 6))
         self.scheduler: Scheduler | None = None
         self._pair_state: PairState | None = None
         self._pair_state_seen: tuple = ()
-        # The compiled step's arguments in one object (bound when first needed, dropped when
-        # any of them changes) and the alarm log it appends to.
-        self._stepper = Stepper(1)
+        # The native step's arguments and the alarm log it appends to (made at reset).
+        self._native: NativeStep | None = None
         self._time = 0.0
         self._steps_at_reset = 0
         self._frame_data: mujoco.MjData | None = None
@@ -289,23 +280,34 @@ class Predictor(PredictorViews):
     # ----------------------------------------------------------------------- setup
 
     def _hold(self, ids: np.ndarray) -> None:
-        """Hold the pairs ``ids`` (sorted): the compiled step reads only their records."""
+        """Hold the pairs ``ids`` (sorted): the step reads only their records."""
         self._ids = ids
         self._records = np.ascontiguousarray(self._pair_records[ids])
-        self._stepper.context = None
         if self.events is not None:
             self.events.hold(self.tables.geom1[ids], self.tables.geom2[ids])
             self._events = self.events.args()
         if self.exact is not None:
             self._exact_records = np.ascontiguousarray(self.exact.records[ids])
-            if self._frame_data is not None:
-                self._exact = self._exact_args(self._frame_data, self._exact_records)
+        if self._native is not None:
+            self._bind_tables(self._native)
 
-    def _exact_args(self, data: mujoco.MjData, records: np.ndarray | None = None) -> tuple:
-        """The exact level's tuple on ``data`` for ``records`` (default: every pair's)."""
-        if self.exact is None:
-            return no_exact()
-        return self.exact.args(self.model, data, self.exact.records if records is None else records)
+    def _bind_tables(self, native: NativeStep) -> None:
+        """Point the native step at the held pairs' tables as they stand now."""
+        native.bind_tables(self._records, self._spheres, self._shapes, self._ids)
+        native.bind_events(self._events)
+        if self.exact is not None and self._exact_records is not None:
+            x = self.exact
+            native.bind_exact(
+                self.model,
+                x.geoms,
+                self._exact_records,
+                below=x.exact_below,
+                query_below=x.query_below,
+                verts=x.verts,
+                graph=x.graph,
+            )
+        if self.scheduler is not None:
+            native.bind_schedule(self.scheduler.state)
 
     def pair_state(self) -> PairState:
         """The scheduler's state of every sphere pair, by the model's pair ids (pruned or not)."""
@@ -338,10 +340,10 @@ class Predictor(PredictorViews):
         """
         # The kernel does no bounds checks: refuse an MjData of another model here.
         self.check_data(data)
-        self._stepper.context = None
         self._frame_data = data
         self._frame_cache = mjdata_frame(data, self._twist)
-        self._exact = self._exact_args(data, self._exact_records)
+        if self._native is not None:
+            self._native.bind_frame(data, self._twist)
         return self._frame_cache
 
     def sphere_states(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
@@ -383,7 +385,7 @@ class Predictor(PredictorViews):
                 kinematics were never computed.
             NonFiniteStateError: a position or velocity is NaN or inf.
         """
-        frame = self._bind_frame(data)  # checks data
+        self._bind_frame(data)  # checks data
         check_forwarded(self.model, data)
         if self.mocap is not None:
             # A reset starts a new trajectory: difference mocap poses within it only. Reset in
@@ -395,7 +397,6 @@ class Predictor(PredictorViews):
         finite = np.isfinite(c).all() and np.isfinite(v).all()
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
-        halfspaces = self.halfspaces(data)
         self._shapes = static_shapes(self.model, self.covering.shape_geom, data)
         if self.covering.nshape:
             self.pair_set.shapes = self._shapes
@@ -404,16 +405,20 @@ class Predictor(PredictorViews):
             self._on[:] = True
             self._hold(self._held.select(c, v))
             self._built_at = 0
-        reset_events(self._events, frame)
         self._rebuild_next = False
-        tau0 = self.pair_set.tau(self._ids, c, v, halfspaces)
-        if self.exact is not None:
-            exact_taus(tau0, self._ids, self._pair_records, frame, self._exact_args(data))
+        # The same native code evaluates the classification and every step after it.
+        self.scheduler = None
+        native = NativeStep(max(self._ids.size, 1))
+        native.bind_frame(data, self._twist)
+        self._bind_tables(native)
+        native.reset_events()
+        tau0, bad = native.evaluate(np.arange(self._ids.size))
+        if bad >= 0:
+            raise self._nonfinite(data, int(self._ids[bad]))
         self.scheduler = self._scheduler(tau0)
-        # A step raises at most one alarm per place of the work rows.
-        self._stepper = Stepper(self.scheduler.state.work.shape[1])
-        self._load_compiled(data, frame)
-        self._bind_step()
+        native.bind_schedule(self.scheduler.state)
+        self._native = native
+        self._load_compiled(data)
         self._time = float(data.time)
         self._steps_at_reset = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
         ids = self.scheduler.initial_alarms
@@ -432,33 +437,16 @@ class Predictor(PredictorViews):
             alarm_backoff=self.alarm_backoff,
         )
 
-    def _load_compiled(self, data: mujoco.MjData, frame: tuple) -> None:
-        """Load what ``step`` runs from numba's cache (~10 ms each) now, not in the first
+    def _load_compiled(self, data: mujoco.MjData) -> None:
+        """Load what ``step`` may run from numba's cache (~10 ms each) now, not in the first
         ``step``, which a real-time user holds to its deadline too: a throw-away one-pair
-        scheduler steps on the real tables (read only) and switches a pair."""
+        scheduler switches a pair (the step itself is native)."""
         if len(self.pair_set):
             spare = self._scheduler(np.full(1, np.inf))
-            tables = self._step_tables(frame)
-            # The spare's pair 0 is the model's: its rows exist even when no pair is held.
-            full = tables._replace(
-                pairs=self._pair_records, exact=self._exact_args(data), events=no_events()
-            )
-            Stepper.load_compiled(spare, full)
             spare.set_active([0], False)
             spare.set_active([0], True)
         if self.mocap is not None:
             self.mocap.load_compiled(data, self._twist)
-
-    def _step_tables(self, frame: tuple) -> StepTables:
-        """The compiled step's tables as they stand now, on ``frame``."""
-        return StepTables(
-            self._records, self._spheres, frame, self._shapes, self._exact, self._events, self._ids
-        )
-
-    def _bind_step(self) -> StepContext:
-        """The compiled step's context as it stands now (after any argument changed)."""
-        sched = self._require_scheduler()
-        return self._stepper.bind(sched.kernel_state, self._step_tables(self._frame_cache))
 
     def step(self, data: mujoco.MjData) -> Alarms:
         """One predictor step: evaluate the scheduled pairs, reschedule them, return the alarms.
@@ -488,12 +476,9 @@ class Predictor(PredictorViews):
         ):
             self._rebuild(data, sched.step_count + 1)
             self._rebuild_next = False
-        stepper = self._stepper
-        context = stepper.context if stepper.context is not None else self._bind_step()
-        start = stepper.used
-        if start + stepper.room > stepper.capacity:
-            start = stepper.next_log()
-        nalarm, bad, deferred = sched.step_context(stepper.entry, context, start)
+        native = self._native
+        assert native is not None
+        nalarm, bad, start, deferred = sched.step_context(NativeStep.kernel, native)
         if bad >= 0:
             raise self._nonfinite(data, int(self._ids[bad]))
         if self._held is not None and self._events[2][M_COUNT]:
@@ -501,9 +486,8 @@ class Predictor(PredictorViews):
             # flagged body may have left the reach that left them out.
             self._rebuild_next = self._escaped(sched.step_count)
         self._time = time
-        stepper.used = stop = start + nalarm
         return Alarms.from_log(
-            sched.step_count, time, stepper.view, start, stop, self.tables, deferred
+            sched.step_count, time, native.view, start, start + nalarm, self.tables, deferred
         )
 
     def _escaped(self, step: int) -> bool:
@@ -579,12 +563,3 @@ class Predictor(PredictorViews):
         gp = np.unique(gp[gp >= 0])
         self._switch(np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp)), False)
         return int(gp.size)
-
-    def kernel_arguments(self, data: mujoco.MjData) -> tuple:
-        """Everything ``step`` hands ``rigid_step.step_rigid_kernel`` after the scheduler's
-        ``kernel_state`` and the step number, for ``data``: ``(pair_records, sphere_records,
-        frame, shape_records, exact, events, scratch)``; for compiled drivers (benchmarks)."""
-        t = self._step_tables(mjdata_frame(data, self._twist))
-        t = t._replace(exact=self._exact_args(data, self._exact_records))
-        scratch = scratch_buffers(self._require_scheduler().state.work.shape[1])
-        return t.pairs, t.spheres, t.frame, t.shapes, t.exact, t.events, scratch

@@ -239,7 +239,9 @@ class Scheduler:
         ids = as_ids("pairs", np.atleast_1d(np.asarray(pairs, dtype=np.int64)))
         if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
             raise InvalidInputError(f"pair ids must be in [0, {self.npairs}); got {ids.tolist()}.")
-        if kernels.switch(self._kernel_state, ids, bool(on), self.step_count + 1):
+        if kernels.switch(
+            self._kernel_state, np.ascontiguousarray(ids), bool(on), self.step_count + 1
+        ):
             self.activation_changes += 1
 
     # ----------------------------------------------------------------------- protocol

@@ -199,7 +199,7 @@ class DeadlineScheduler(Scheduler):
         state.params[:] = old.params
         state.params[P_COUNT] = 0
         state.params[P_DEFERRED] = 0
-        kernels.deadline_carry(tuple(old), tuple(state), ids, int(step))
+        kernels.deadline_carry(tuple(old), tuple(state), np.ascontiguousarray(ids), int(step))
         self.state = state
         # Observers of alarm_state() read it again after a change of the pairs, as after a switch.
         self.activation_changes += 1

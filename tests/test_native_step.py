@@ -1,4 +1,4 @@
-"""Tests of the predictor's compiled step context: the alarm log its steps append to."""
+"""Tests of the predictor's native step: the alarm log its steps append to."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import SchedulerError
-from dua_mujoco.mj import step_context
+from dua_mujoco.mj import native_step
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.options import UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
@@ -37,8 +37,8 @@ def test_alarms_outlive_log_replacements(monkeypatch: pytest.MonkeyPatch, schedu
     still read what its step raised, and the run must raise what a run whose log never fills
     does."""
     roomy = _rollout(300, schedule=schedule)
-    monkeypatch.setattr(step_context, "LOG_STEPS", 1)
-    monkeypatch.setattr(step_context, "LOG_MIN", 0)
+    monkeypatch.setattr(native_step, "LOG_STEPS", 1)
+    monkeypatch.setattr(native_step, "LOG_MIN", 0)
     tight = _rollout(300, schedule=schedule)
     logs = {id(a.pairs.base) for a, _ in tight if len(a)}
     assert len(logs) > 50  # the log really was replaced, many times

@@ -1,0 +1,168 @@
+// dua_mujoco's native core: the predictor's per-step kernels, one implementation shared by the
+// Python package (through numba's external calls and ctypes) and the MuJoCo plugin.
+//
+// Every table is a row-major float64 or int64 array owned by the caller; the structs below only
+// point into them. Layouts (columns) are documented where the Python side packs them:
+// pairs: dua_mujoco/core/pairset.py (pack_pairs), spheres: dua_mujoco/mj/kinematics.py,
+// shapes: dua_mujoco/core/shape_kernels.py, exact: dua_mujoco/mj/exact_kernels.py,
+// events: dua_mujoco/mj/events.py, the schedule: dua_mujoco/core/schedules/state.py.
+#ifndef DUA_MUJOCO_DUA_H_
+#define DUA_MUJOCO_DUA_H_
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define DUA_API __attribute__((visibility("default")))
+
+// ABI version of the structs below: the Python side refuses a library of another one.
+#define DUA_ABI_VERSION 1
+
+// ------------------------------------------------------------------------------- urgency
+
+// min {t >= 0 : |x + v t| <= eps + delta t + accel t^2 / 2}, never above the exact root.
+DUA_API double dua_tau_accel(double x0, double x1, double x2, double v0, double v1, double v2,
+                             double eps, double accel, double delta);
+// dua_tau_accel, raised by a relative speed bound (inf for none).
+DUA_API double dua_tau_speed(double x0, double x1, double x2, double v0, double v1, double v2,
+                             double eps, double accel, double delta, double speed);
+// min {t >= 0 : gap + (n.v) t - delta t - accel t^2 / 2 <= 0}, never above the exact root.
+DUA_API double dua_tau_halfspace(double gap, double normal_velocity, double accel, double delta);
+
+// ------------------------------------------------------------------------------- static shapes
+
+// Support of a shape of `kind` and sizes `s` in its own frame, along m (any length).
+DUA_API double dua_support_local(int64_t kind, double s0, double s1, double s2, double m0,
+                                 double m1, double m2);
+// Support h_S(n) of one packed shape record (16 columns).
+DUA_API double dua_support(const double* n, const double* rec);
+// Closest point of a shape record to c (c itself inside): out[0:3].
+DUA_API void dua_closest_point(const double* c, const double* rec, double* out);
+// Clearance along the closest-point direction: out = (gap, nx, ny, nz).
+DUA_API void dua_static_gap(const double* c, const double* rec, double* out);
+// tau of a sphere (centre c, velocity v) against a static shape record.
+DUA_API double dua_tau_static(double c0, double c1, double c2, double v0, double v1, double v2,
+                              const double* rec, double eps, double accel, double delta);
+
+// ------------------------------------------------------------------------------- schedules
+
+typedef struct dua_schedule {
+  int64_t kind;     // 0 rank (DUA), 1 deadline, 2 select-all
+  double dt;        // predictor period, seconds
+  int64_t latency;  // periods a verdict takes to act
+  int64_t m;        // pairs
+  double* last_tau;  // (m,)
+  uint8_t* active;   // (m,) 0/1
+  int64_t* ints;     // (rows, m)
+  int64_t* slots;    // (nslots,)
+  int64_t nslots;
+  double* horizon;  // (nhorizon,)
+  int64_t* queue;   // (nqueue,)
+  int64_t nqueue;
+  int64_t* params;  // (9,)
+  int64_t* work;    // (4, width)
+  int64_t width;
+  double* w_tau;  // (width,)
+} dua_schedule;
+
+DUA_API int64_t dua_select(dua_schedule* st, int64_t n);
+DUA_API int64_t dua_reinsert(dua_schedule* st, int64_t n, int64_t count);
+DUA_API void dua_restore(dua_schedule* st, int64_t n, int64_t count);
+DUA_API int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t on,
+                           int64_t n_next);
+DUA_API void dua_make_due(dua_schedule* st, int64_t p, int64_t n);
+DUA_API void dua_deadline_classify(dua_schedule* st);
+DUA_API void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state,
+                                const int64_t* src, int64_t nsrc, int64_t n);
+DUA_API int64_t dua_deadline_interval(double tau, double dt, int64_t latency,
+                                      int64_t max_interval);
+
+// ------------------------------------------------------------------------------- the rigid step
+
+// The instant the step reads: MjData's geom_xpos, geom_xmat, cvel, subtree_com, xpos and the
+// twists of mocap roots (zero rows elsewhere).
+typedef struct dua_frame {
+  const double* pos;          // (ngeom, 3)
+  const double* mat;          // (ngeom, 9)
+  const double* twist;        // (nbody, 6)
+  const double* twist_ref;    // (nbody, 3)
+  const double* root_twist;   // (nbody, 6)
+  const double* root_origin;  // (nbody, 3)
+} dua_frame;
+
+typedef struct dua_exact {
+  int64_t on;                // 0: the level is off
+  const double* geoms;       // (ngeom, 24)
+  double* records;           // (npair, 10), directions written
+  double below;              // seconds
+  double query_below;        // seconds
+  const double* verts;       // (nmeshvert, 3)
+  const int32_t* graph;      // mesh_graph
+  const void* model;         // mjModel*
+  const void* data;          // mjData*
+} dua_exact;
+
+typedef struct dua_events {
+  int64_t nbody;
+  const double* rec;  // (nbody, 12)
+  double* prev;       // (nbody, 31)
+  int64_t* meta;      // (3,)
+  int64_t* flagged;   // (nbody,)
+  const int64_t* start;    // (nbody + 1,)
+  const int64_t* members;  // held pairs of each body
+  const double* params;    // (h, rtol)
+} dua_events;
+
+typedef struct dua_step_args {
+  int64_t abi;  // DUA_ABI_VERSION
+  dua_schedule schedule;
+  const double* pairs;    // (K, 8)
+  const double* spheres;  // (nsphere, 8)
+  const double* shapes;   // (nshape, 16)
+  const int64_t* ids;     // (K,) model pair id of each held pair
+  dua_frame frame;
+  dua_exact exact;
+  dua_events events;
+  double* scratch;  // (scratch_rows, 12): the gathered states of the pairs being evaluated
+  int64_t scratch_rows;
+  // The alarm log the step appends to.
+  int64_t* log_pairs;
+  double* log_tau;
+  uint8_t* log_new;
+  // Outputs of the latest step.
+  int64_t bad;       // >= 0: a held pair whose state was not finite (the step was undone)
+  int64_t deferred;  // pairs left over the cap
+  int64_t count;     // pairs evaluated
+} dua_step_args;
+
+// One step n: the violation check, the selection, the gather, tau at every level, the
+// reinsertion; alarms appended to the log at `start`. Returns the number of alarms.
+DUA_API int64_t dua_step(dua_step_args* a, int64_t n, int64_t start);
+// tau of held pairs ids[0:count] on the frame (every level, as the step computes it) into out;
+// returns -1, or a pair whose state was not finite.
+DUA_API int64_t dua_evaluate(dua_step_args* a, const int64_t* ids, int64_t count, double* out);
+// The exact level alone: tau[k] of held pairs ids[k] raised to max(tau[k], exact) where it is
+// below exact.below (dua_evaluate and dua_step run it after the sphere level).
+DUA_API void dua_exact_pass(dua_step_args* a, const int64_t* ids, int64_t count, double* tau);
+// Record the events check's state at the frame's instant, checking nothing.
+DUA_API void dua_reset_events(dua_step_args* a);
+// Check every body (the violation events) and make the held pairs of each flagged one due at
+// step n. Returns the number of flagged bodies.
+DUA_API int64_t dua_violation_pass(dua_step_args* a, int64_t n);
+// Whether max |a + s0 x + s1 y + s2 z| over the sign choices s exceeds bound (the violation
+// check's test of a box's eight corners).
+DUA_API int64_t dua_exceeds12(double a0, double a1, double a2, double x0, double x1, double x2,
+                              double y0, double y1, double y2, double z0, double z1, double z2,
+                              double bound);
+// Centre and velocity of sphere i: out[0:6].
+DUA_API void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, double* out);
+
+DUA_API int64_t dua_abi_version(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif  // DUA_MUJOCO_DUA_H_

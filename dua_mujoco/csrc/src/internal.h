@@ -1,0 +1,39 @@
+// Kernels shared between the native core's translation units (not part of the C API).
+#ifndef DUA_MUJOCO_INTERNAL_H_
+#define DUA_MUJOCO_INTERNAL_H_
+
+#include <cmath>
+
+namespace dua {
+
+double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
+                double accel, double delta);
+double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
+                double accel, double delta, double speed);
+double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
+double TauStatic(double c0, double c1, double c2, double v0, double v1, double v2,
+                 const double* rec, double eps, double accel, double delta);
+
+// Support of a shape in its own frame along m (any length: every form is homogeneous); kind is
+// MuJoCo's mjtGeom code (7: a mesh held as its box).
+inline double SupportLocal(int kind, double s0, double s1, double s2, double m0, double m1,
+                           double m2) {
+  switch (kind) {
+    case 2:  // sphere
+      return s0 * std::sqrt(m0 * m0 + m1 * m1 + m2 * m2);
+    case 3:  // capsule
+      return std::fabs(m2) * s1 + s0 * std::sqrt(m0 * m0 + m1 * m1 + m2 * m2);
+    case 5:  // cylinder: r |m_xy|, no cancellation
+      return std::fabs(m2) * s1 + s0 * std::hypot(m0, m1);
+    case 4: {  // ellipsoid
+      const double a = s0 * m0, b = s1 * m1, c = s2 * m2;
+      return std::sqrt(a * a + b * b + c * c);
+    }
+    default:  // box, and a mesh's box (which bounds its hull's support)
+      return std::fabs(m0) * s0 + std::fabs(m1) * s1 + std::fabs(m2) * s2;
+  }
+}
+
+}  // namespace dua
+
+#endif  // DUA_MUJOCO_INTERNAL_H_

@@ -1,0 +1,418 @@
+// The schedules: select, reinsert, restore, switch, make_due, and the deadline wheel's
+// classification and carry. Rules and completeness proofs: docs/theory.md.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <vector>
+
+#include "dua/dua.h"
+
+namespace {
+
+constexpr int64_t kRank = 0, kDeadline = 1;
+// Rows of ints.
+constexpr int64_t kWhere = 0, kLastStep = 1, kNext = 2, kPrev = 3;
+// Rows of work.
+constexpr int64_t kWSlots = 0, kWIds = 1, kWAlarms = 2, kWNew = 3;
+// Entries of params.
+constexpr int64_t kNBuckets = 0, kSlotsPerBucket = 1, kWheel = 2, kMaxInterval = 3, kCap = 4,
+                  kCount = 5, kDeferred = 6, kExtra = 7, kBackoff = 8;
+constexpr double kNegInf = -std::numeric_limits<double>::infinity();
+
+struct View {
+  dua_schedule* st;
+  int64_t* Int(int64_t row) const { return st->ints + row * st->m; }
+  int64_t* Work(int64_t row) const { return st->work + row * st->width; }
+};
+
+// Whether a verdict stood in alarm (a pair switched back on, -inf, was never reported).
+inline bool Stood(double last_tau, double horizon) {
+  return last_tau < horizon && last_tau > kNegInf;
+}
+
+// A rank slot's entry: the pair, or -2 - pair if it stands in alarm.
+inline int64_t Occupant(int64_t raw, bool alarmed) { return alarmed ? -2 - raw : raw; }
+
+inline int64_t BucketOf(int64_t slot) {
+  int64_t k = 0;
+  while ((int64_t{2} << k) - 1 <= slot) ++k;
+  return k;
+}
+
+int64_t RankSelect(const View& v, int64_t n) {
+  dua_schedule* st = v.st;
+  int64_t* params = st->params;
+  int64_t* w_slots = v.Work(kWSlots);
+  int64_t* w_ids = v.Work(kWIds);
+  const int64_t q = params[kSlotsPerBucket];
+  int64_t count = 0;
+  for (int64_t k = 0; k < params[kNBuckets]; ++k) {
+    const int64_t size = int64_t{1} << k, base = size - 1;
+    const int64_t first = (n * q) % size;
+    for (int64_t j = 0; j < std::min(q, size); ++j) {
+      const int64_t slot = base + (first + j) % size;
+      const int64_t raw = st->slots[slot];
+      const int64_t pid = raw >= 0 ? raw : -2 - raw;
+      if (raw != -1 && st->active[pid]) {
+        // Whether it stood in alarm travels with the slot's entry (last_tau would miss cache).
+        w_slots[count] = Occupant(slot, raw < -1);
+        w_ids[count] = pid;
+        ++count;
+      }
+    }
+  }
+  // Pairs switched back on, out of their slots, as many as the spare width holds.
+  int64_t* queue = st->queue;
+  const int64_t extra = std::min(queue[0], st->width - count);
+  for (int64_t j = 0; j < extra; ++j) {
+    w_slots[count + j] = -1;
+    w_ids[count + j] = queue[1 + j];
+  }
+  const int64_t rest = queue[0] - extra;
+  for (int64_t j = 0; j < rest; ++j) queue[1 + j] = queue[1 + extra + j];
+  queue[0] = rest;
+  params[kExtra] = extra;
+  return count + extra;
+}
+
+int64_t RankReinsert(const View& v, int64_t n, int64_t count) {
+  dua_schedule* st = v.st;
+  int64_t* where = v.Int(kWhere);
+  int64_t* last_step = v.Int(kLastStep);
+  int64_t* w_slots = v.Work(kWSlots);
+  int64_t* w_ids = v.Work(kWIds);
+  int64_t* alarms = v.Work(kWAlarms);
+  int64_t* fresh = v.Work(kWNew);
+  const double* w_tau = st->w_tau;
+  const int64_t regular = count - st->params[kExtra];
+  // Stable: equal tau keep selection order (deterministic across runs).
+  std::vector<int64_t> order(static_cast<size_t>(std::max<int64_t>(regular, 0)));
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [w_tau](int64_t a, int64_t b) { return w_tau[a] < w_tau[b]; });
+  int64_t nalarm = 0;
+  for (int64_t i = 0; i < regular; ++i) {
+    const int64_t src = order[i];
+    const int64_t pid = w_ids[src];
+    int64_t slot = w_slots[i];
+    slot = slot >= 0 ? slot : -2 - slot;
+    const double tau = w_tau[src];
+    const bool alarmed = tau < st->horizon[BucketOf(slot)];
+    st->slots[slot] = Occupant(pid, alarmed);
+    where[pid] = slot;
+    st->last_tau[pid] = tau;
+    last_step[pid] = n;
+    if (alarmed) {
+      alarms[nalarm] = pid;
+      fresh[nalarm] = w_slots[src] >= 0;  // it did not stand in alarm
+      ++nalarm;
+    }
+  }
+  for (int64_t i = regular; i < count; ++i) {
+    const int64_t pid = w_ids[i];
+    const double tau = w_tau[i];
+    st->last_tau[pid] = tau;
+    last_step[pid] = n;
+    const bool alarmed = tau < st->horizon[BucketOf(where[pid])];
+    st->slots[where[pid]] = Occupant(pid, alarmed);
+    if (alarmed) {
+      alarms[nalarm] = pid;
+      fresh[nalarm] = 1;
+      ++nalarm;
+    }
+  }
+  return nalarm;
+}
+
+// Link pair p at the head of its due step's wheel slot.
+inline void LinkInto(int64_t* slots, int64_t* ints, int64_t m, int64_t wheel, int64_t p,
+                     int64_t due) {
+  const int64_t slot = due & (wheel - 1);
+  const int64_t head = slots[slot];
+  ints[kNext * m + p] = head;
+  ints[kPrev * m + p] = -1 - slot;
+  if (head >= 0) ints[kPrev * m + head] = p;
+  slots[slot] = p;
+  ints[kWhere * m + p] = due;
+}
+
+inline void Link(const View& v, int64_t p, int64_t due) {
+  LinkInto(v.st->slots, v.st->ints, v.st->m, v.st->params[kWheel], p, due);
+}
+
+inline void Unlink(const View& v, int64_t p) {
+  int64_t* nxt = v.Int(kNext);
+  int64_t* prv = v.Int(kPrev);
+  int64_t* where = v.Int(kWhere);
+  if (where[p] < 0) return;
+  const int64_t after = nxt[p], before = prv[p];
+  if (before >= 0) {
+    nxt[before] = after;
+  } else {
+    v.st->slots[-1 - before] = after;
+  }
+  if (after >= 0) prv[after] = before;
+  nxt[p] = -1;
+  prv[p] = -1;
+  where[p] = -1;
+}
+
+int64_t DeadlineSelect(const View& v, int64_t n) {
+  dua_schedule* st = v.st;
+  int64_t* params = st->params;
+  int64_t* last_step = v.Int(kLastStep);
+  int64_t* nxt = v.Int(kNext);
+  int64_t* prv = v.Int(kPrev);
+  int64_t* where = v.Int(kWhere);
+  int64_t* w_ids = v.Work(kWIds);
+  const int64_t slot = n & (params[kWheel] - 1);
+  int64_t p = st->slots[slot];
+  st->slots[slot] = -1;
+  int64_t count = 0;
+  while (p >= 0) {
+    const int64_t after = nxt[p];
+    nxt[p] = -1;
+    prv[p] = -1;
+    where[p] = -1;
+    w_ids[count++] = p;
+    p = after;
+  }
+  int64_t deferred = 0;
+  const int64_t cap = params[kCap];
+  if (cap > 0 && count > cap) {
+    // The least time left first (ties to the lower id): none waits forever under overload.
+    std::sort(w_ids, w_ids + count);
+    std::vector<double> slack(static_cast<size_t>(count));
+    for (int64_t k = 0; k < count; ++k) {
+      const int64_t q = w_ids[k];
+      slack[k] = st->last_tau[q] - static_cast<double>(n - last_step[q]) * st->dt;
+    }
+    std::vector<int64_t> order(static_cast<size_t>(count));
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(),
+                     [&slack](int64_t a, int64_t b) { return slack[a] < slack[b]; });
+    std::vector<int64_t> chosen(static_cast<size_t>(count));
+    for (int64_t k = 0; k < count; ++k) chosen[k] = w_ids[order[k]];
+    std::copy(chosen.begin(), chosen.end(), w_ids);
+    deferred = count - cap;
+    count = cap;
+    for (int64_t k = count; k < count + deferred; ++k) Link(v, w_ids[k], n + 1);
+  }
+  params[kCount] = count;
+  params[kDeferred] = deferred;
+  return count;
+}
+
+int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
+  dua_schedule* st = v.st;
+  const int64_t* params = st->params;
+  int64_t* last_step = v.Int(kLastStep);
+  int64_t* where = v.Int(kWhere);
+  int64_t* w_ids = v.Work(kWIds);
+  int64_t* alarms = v.Work(kWAlarms);
+  int64_t* fresh = v.Work(kWNew);
+  const double dt = st->dt;
+  const int64_t latency = st->latency;
+  const int64_t max_interval = params[kMaxInterval], backoff = params[kBackoff];
+  int64_t nalarm = 0;
+  for (int64_t k = 0; k < count; ++k) {
+    const int64_t p = w_ids[k];
+    const double tau = st->w_tau[k];
+    const int64_t waited = n - last_step[p];
+    // Due now: its verdict had to cover until this step (a deferred one, longer: it stood).
+    const bool before = Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt);
+    st->last_tau[p] = tau;
+    last_step[p] = n;
+    int64_t interval = dua_deadline_interval(tau, dt, latency, max_interval);
+    if (tau < st->horizon[0]) {
+      // Keeps alarming (resting contact, mostly): back off; it stands in alarm until then.
+      if (before) interval = std::max<int64_t>(1, std::min(2 * waited, backoff));
+      alarms[nalarm] = p;
+      fresh[nalarm] = !before;
+      ++nalarm;
+    }
+    Link(v, p, n + interval);
+  }
+  for (int64_t k = count; k < count + params[kDeferred]; ++k) {
+    const int64_t p = w_ids[k];
+    if (st->last_tau[p] < static_cast<double>(where[p] - last_step[p] + latency) * dt) {
+      alarms[nalarm] = p;
+      fresh[nalarm] = !Stood(st->last_tau[p], static_cast<double>(n - last_step[p] + latency) * dt);
+      ++nalarm;
+    }
+  }
+  return nalarm;
+}
+
+int64_t AllSelect(const View& v) {
+  int64_t* w_ids = v.Work(kWIds);
+  int64_t count = 0;
+  for (int64_t p = 0; p < v.st->m; ++p) {
+    if (v.st->active[p]) w_ids[count++] = p;
+  }
+  return count;
+}
+
+int64_t AllReinsert(const View& v, int64_t n, int64_t count) {
+  dua_schedule* st = v.st;
+  int64_t* w_ids = v.Work(kWIds);
+  int64_t* alarms = v.Work(kWAlarms);
+  int64_t* fresh = v.Work(kWNew);
+  int64_t* last_step = v.Int(kLastStep);
+  int64_t nalarm = 0;
+  for (int64_t k = 0; k < count; ++k) {
+    const int64_t p = w_ids[k];
+    const bool before = Stood(st->last_tau[p], st->horizon[0]);
+    st->last_tau[p] = st->w_tau[k];
+    last_step[p] = n;
+    if (st->w_tau[k] < st->horizon[0]) {
+      alarms[nalarm] = p;
+      fresh[nalarm] = !before;
+      ++nalarm;
+    }
+  }
+  return nalarm;
+}
+
+}  // namespace
+
+extern "C" {
+
+int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t max_interval) {
+  if (!(tau < static_cast<double>(max_interval + latency + 1) * dt)) return max_interval;
+  int64_t s = static_cast<int64_t>(std::floor(tau / dt)) - latency;
+  // The division rounds: step down until the product, computed as the alarm test computes it,
+  // is covered by tau.
+  while (s >= 1 && static_cast<double>(s + latency) * dt > tau) --s;
+  return std::max<int64_t>(1, std::min(s, max_interval));
+}
+
+int64_t dua_select(dua_schedule* st, int64_t n) {
+  const View v{st};
+  int64_t count;
+  if (st->kind == kRank) {
+    count = RankSelect(v, n);
+  } else if (st->kind == kDeadline) {
+    count = DeadlineSelect(v, n);
+  } else {
+    count = AllSelect(v);
+  }
+  st->params[kCount] = count;
+  return count;
+}
+
+int64_t dua_reinsert(dua_schedule* st, int64_t n, int64_t count) {
+  const View v{st};
+  if (st->kind == kRank) return RankReinsert(v, n, count);
+  if (st->kind == kDeadline) return DeadlineReinsert(v, n, count);
+  return AllReinsert(v, n, count);
+}
+
+void dua_restore(dua_schedule* st, int64_t n, int64_t count) {
+  const View v{st};
+  int64_t* w_ids = v.Work(kWIds);
+  if (st->kind == kRank) {
+    const int64_t extra = st->params[kExtra];
+    int64_t* queue = st->queue;
+    const int64_t waiting = queue[0];
+    for (int64_t j = waiting - 1; j >= 0; --j) queue[1 + extra + j] = queue[1 + j];
+    for (int64_t j = 0; j < extra; ++j) queue[1 + j] = w_ids[count - extra + j];
+    queue[0] = waiting + extra;
+  } else if (st->kind == kDeadline) {
+    for (int64_t k = 0; k < count + st->params[kDeferred]; ++k) {
+      Unlink(v, w_ids[k]);
+      Link(v, w_ids[k], n);
+    }
+  }
+  st->params[kCount] = 0;
+  st->params[kDeferred] = 0;
+  st->params[kExtra] = 0;
+}
+
+int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t on,
+                   int64_t n_next) {
+  const View v{st};
+  const uint8_t want = on ? 1 : 0;
+  int64_t changed = 0;
+  for (int64_t k = 0; k < nids; ++k) {
+    const int64_t p = ids[k];
+    if (st->active[p] == want) continue;
+    ++changed;
+    st->active[p] = want;
+    if (want) {
+      // Its motion while off is unknown: it stands in alarm until the next selection.
+      st->last_tau[p] = kNegInf;
+      if (st->kind == kRank) {
+        st->slots[v.Int(kWhere)[p]] = p;  // not reported as standing until evaluated
+        st->queue[1 + st->queue[0]] = p;
+        st->queue[0] += 1;
+      } else if (st->kind == kDeadline) {
+        Unlink(v, p);
+        Link(v, p, n_next);
+      }
+    } else if (st->kind == kRank) {
+      int64_t* queue = st->queue;
+      int64_t kept = 0;
+      for (int64_t j = 0; j < queue[0]; ++j) {
+        if (queue[1 + j] != p) queue[1 + kept++] = queue[1 + j];
+      }
+      queue[0] = kept;
+    } else if (st->kind == kDeadline) {
+      Unlink(v, p);
+    }
+  }
+  return changed;
+}
+
+void dua_make_due(dua_schedule* st, int64_t p, int64_t n) {
+  const View v{st};
+  if (!st->active[p]) return;
+  if (st->kind == kRank) {
+    if (st->last_tau[p] == kNegInf) return;  // already waiting in the queue
+    st->last_tau[p] = kNegInf;
+    st->slots[v.Int(kWhere)[p]] = p;
+    st->queue[1 + st->queue[0]] = p;
+    st->queue[0] += 1;
+  } else if (st->kind == kDeadline) {
+    st->last_tau[p] = kNegInf;
+    Unlink(v, p);
+    Link(v, p, n);
+  } else {
+    st->last_tau[p] = kNegInf;
+  }
+}
+
+void dua_deadline_classify(dua_schedule* st) {
+  const View v{st};
+  const int64_t max_interval = st->params[kMaxInterval];
+  for (int64_t p = 0; p < st->m; ++p) {
+    if (st->active[p]) {
+      Link(v, p, dua_deadline_interval(st->last_tau[p], st->dt, st->latency, max_interval));
+    }
+  }
+}
+
+void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state,
+                        const int64_t* src, int64_t nsrc, int64_t n) {
+  const int64_t mo = old_state->m, mn = new_state->m;
+  const int64_t wheel = new_state->params[kWheel];
+  int64_t* ints = new_state->ints;
+  for (int64_t p = 0; p < nsrc; ++p) {
+    const int64_t q = src[p];
+    if (q >= 0) {
+      new_state->last_tau[p] = old_state->last_tau[q];
+      new_state->active[p] = old_state->active[q];
+      ints[kLastStep * mn + p] = old_state->ints[kLastStep * mo + q];
+      const int64_t due = old_state->ints[kWhere * mo + q];
+      if (due >= 0) LinkInto(new_state->slots, ints, mn, wheel, p, due);
+    } else {
+      new_state->last_tau[p] = kNegInf;
+      new_state->active[p] = 1;
+      ints[kLastStep * mn + p] = n;
+      LinkInto(new_state->slots, ints, mn, wheel, p, n);
+    }
+  }
+}
+
+}  // extern "C"

@@ -1,0 +1,511 @@
+// The MuJoCo layer's fused step: the violation check, the selection, the gather of the selected
+// pairs' states from MjData, tau at every level (spheres, static shapes, planes, the exact level
+// through mj_geomDistance) and the reinsertion. Proofs: docs/theory.md.
+#include <mujoco/mujoco.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "dua/dua.h"
+#include "internal.h"
+
+namespace dua {
+namespace {
+
+// Pair record columns (pack_pairs).
+constexpr int kPairFirst = 0, kPairSecond = 1, kPairKind = 2, kPairEps = 3, kPairAccel = 4,
+              kPairDelta = 5, kPairSpeed = 6, kPairOther = 7, kPairNcol = 8;
+constexpr int kKindHalfspace = 1, kKindShape = 2;
+// Sphere record columns (pack_spheres).
+constexpr int kSphereFrame = 0, kSphereBody = 1, kSphereOffset = 2, kSphereRoot = 5,
+              kSphereNcol = 8;
+constexpr int kShapeNcol = 16;
+// Exact level: per-geom records (the first eight are a sphere record of the geom origin).
+constexpr int kGxKind = 8, kGxSize = 9, kGxCentre = 12, kGxRadius = 15, kGxVert = 16,
+              kGxGraph = 17, kGxSeed = 18, kGxNcol = 24;
+// ... and per-pair records.
+constexpr int kXMode = 0, kXG1 = 1, kXG2 = 2, kXDist = 3, kXN = 4, kXHull1 = 7, kXHull2 = 8,
+              kXNcol = 10;
+constexpr int kModeNone = 0, kModeGeoms = 1, kModePlane = 2;
+constexpr double kGapSlack = 1e-14, kVelSlack = 1e-14;
+// A witness shorter than this (relative to the geoms' size) has no usable direction.
+constexpr double kMinWitness = 1e-9;
+// Events: body record and state columns, meta entries.
+constexpr int kBFrame = 0, kBBody = 1, kBRoot = 2, kBCenter = 3, kBHalf = 6, kBAccel = 9,
+              kBDisc = 10, kBSpeed = 11, kBNcol = 12;
+constexpr int kSV = 24, kSW = 27, kSScale = 30, kSNcol = 31;
+constexpr int kMNprev = 0, kMCount = 1, kMTotal = 2;
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Centre and velocity of point i of a record table (sphere records, or the exact level's geom
+// records, whose first columns are the same): out[0:3] centre, out[3:6] velocity. The velocity
+// is the body twist [w; v_ref] about cvel's reference point (subtree_com of the root), plus the
+// twist of a mocap root (zero elsewhere).
+inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_frame& f,
+                       double* out) {
+  const double* rec = recs + i * ncol;
+  const int64_t g = static_cast<int64_t>(rec[kSphereFrame]);
+  const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
+  const double o0 = rec[kSphereOffset], o1 = rec[kSphereOffset + 1], o2 = rec[kSphereOffset + 2];
+  const double* pos = f.pos + 3 * g;
+  const double* mat = f.mat + 9 * g;
+  for (int k = 0; k < 3; ++k) {
+    out[k] = pos[k] + mat[3 * k] * o0 + mat[3 * k + 1] * o1 + mat[3 * k + 2] * o2;
+  }
+  const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
+  const double* tw = f.twist + 6 * b;
+  const double* ref = f.twist_ref + 3 * r;
+  const double dx = out[0] - ref[0], dy = out[1] - ref[1], dz = out[2] - ref[2];
+  out[3] = tw[3] + tw[1] * dz - tw[2] * dy;
+  out[4] = tw[4] + tw[2] * dx - tw[0] * dz;
+  out[5] = tw[5] + tw[0] * dy - tw[1] * dx;
+  const double* rt = f.root_twist + 6 * r;
+  if (rt[0] != 0.0 || rt[1] != 0.0 || rt[2] != 0.0 || rt[3] != 0.0 || rt[4] != 0.0 ||
+      rt[5] != 0.0) {
+    const double* ro = f.root_origin + 3 * r;
+    const double ex = out[0] - ro[0], ey = out[1] - ro[1], ez = out[2] - ro[2];
+    out[3] += rt[3] + rt[1] * ez - rt[2] * ey;
+    out[4] += rt[4] + rt[2] * ex - rt[0] * ez;
+    out[5] += rt[5] + rt[0] * ey - rt[1] * ex;
+  }
+}
+
+// ------------------------------------------------------------------------------- events
+
+// Whether max |a + s0 x + s1 y + s2 z| over the eight sign choices exceeds bound; two upper
+// bounds screen first.
+inline bool Exceeds12(double a0, double a1, double a2, double x0, double x1, double x2, double y0,
+                      double y1, double y2, double z0, double z1, double z2, double bound) {
+  const double na = a0 * a0 + a1 * a1 + a2 * a2, nx = x0 * x0 + x1 * x1 + x2 * x2;
+  const double ny = y0 * y0 + y1 * y1 + y2 * y2, nz = z0 * z0 + z1 * z1 + z2 * z2;
+  if (4.0 * (na + nx + ny + nz) <= bound * bound) return false;
+  if (std::sqrt(na) + std::sqrt(nx) + std::sqrt(ny) + std::sqrt(nz) <= bound) return false;
+  double worst = 0.0;
+  for (double sx : {-1.0, 1.0}) {
+    for (double sy : {-1.0, 1.0}) {
+      for (double sz : {-1.0, 1.0}) {
+        const double u = a0 + sx * x0 + sy * y0 + sz * z0;
+        const double v = a1 + sx * x1 + sy * y1 + sz * z1;
+        const double w = a2 + sx * x2 + sy * y2 + sz * z2;
+        worst = std::max(worst, u * u + v * v + w * w);
+      }
+    }
+  }
+  return std::sqrt(worst) > bound;
+}
+
+// Record every body's box state and check the motion hypotheses over the last period; the
+// flagged bodies' rows go to ev.flagged. Returns their number.
+int64_t CheckBodies(const dua_events& ev, const dua_frame& f) {
+  const double h = ev.params[0], rtol = ev.params[1];
+  const double inv_h = 1.0 / h;  // a product per chord, not a division
+  const int64_t nprev = ev.meta[kMNprev];
+  int64_t count = 0;
+  for (int64_t i = 0; i < ev.nbody; ++i) {
+    const double* rec = ev.rec + i * kBNcol;
+    double* prev = ev.prev + i * kSNcol;
+    const int64_t g = static_cast<int64_t>(rec[kBFrame]);
+    const int64_t b = static_cast<int64_t>(rec[kBBody]);
+    const int64_t r = static_cast<int64_t>(rec[kBRoot]);
+    const double* R = f.mat + 9 * g;
+    const double* P = f.pos + 3 * g;
+    const double o0 = rec[kBCenter], o1 = rec[kBCenter + 1], o2 = rec[kBCenter + 2];
+    const double h0 = rec[kBHalf], h1 = rec[kBHalf + 1], h2 = rec[kBHalf + 2];
+    // The box's centre and its axes (columns of R diag(half)).
+    const double cx = P[0] + R[0] * o0 + R[1] * o1 + R[2] * o2;
+    const double cy = P[1] + R[3] * o0 + R[4] * o1 + R[5] * o2;
+    const double cz = P[2] + R[6] * o0 + R[7] * o1 + R[8] * o2;
+    const double xx = R[0] * h0, xy = R[3] * h0, xz = R[6] * h0;
+    const double yx = R[1] * h1, yy = R[4] * h1, yz = R[7] * h1;
+    const double zx = R[2] * h2, zy = R[5] * h2, zz = R[8] * h2;
+    // Bounds every corner's coordinates: the scale of the differences' round-off.
+    const double scale = std::max(
+        std::max(std::fabs(cx) + std::fabs(xx) + std::fabs(yx) + std::fabs(zx),
+                 std::fabs(cy) + std::fabs(xy) + std::fabs(yy) + std::fabs(zy)),
+        std::fabs(cz) + std::fabs(xz) + std::fabs(yz) + std::fabs(zz));
+    // The centre's velocity as RigidPoint reads a point's.
+    const double* tw = f.twist + 6 * b;
+    const double* ref = f.twist_ref + 3 * r;
+    const double* rt = f.root_twist + 6 * r;
+    const double* ro = f.root_origin + 3 * r;
+    const double w0 = tw[0], w1 = tw[1], w2 = tw[2];
+    const double dx = cx - ref[0], dy = cy - ref[1], dz = cz - ref[2];
+    const double m0 = rt[0], m1 = rt[1], m2 = rt[2];
+    const double ex = cx - ro[0], ey = cy - ro[1], ez = cz - ro[2];
+    const double vx = tw[3] + w1 * dz - w2 * dy + rt[3] + m1 * ez - m2 * ey;
+    const double vy = tw[4] + w2 * dx - w0 * dz + rt[4] + m2 * ex - m0 * ez;
+    const double vz = tw[5] + w0 * dy - w1 * dx + rt[5] + m0 * ey - m1 * ex;
+    bool broken = false;
+    if (nprev >= 1) {
+      const double ucx = (cx - prev[0]) * inv_h, ucy = (cy - prev[1]) * inv_h,
+                   ucz = (cz - prev[2]) * inv_h;
+      const double uxx = (xx - prev[3]) * inv_h, uxy = (xy - prev[4]) * inv_h,
+                   uxz = (xz - prev[5]) * inv_h;
+      const double uyx = (yx - prev[6]) * inv_h, uyy = (yy - prev[7]) * inv_h,
+                   uyz = (yz - prev[8]) * inv_h;
+      const double uzx = (zx - prev[9]) * inv_h, uzy = (zy - prev[10]) * inv_h,
+                   uzz = (zz - prev[11]) * inv_h;
+      const double tol_a = 8.0 * kEps * (scale + prev[kSScale]) / (h * h);
+      const double speed = rec[kBSpeed];
+      if (speed < kInf) {
+        broken |= Exceeds12(ucx, ucy, ucz, uxx, uxy, uxz, uyx, uyy, uyz, uzx, uzy, uzz,
+                            speed * (1.0 + rtol) + 0.5 * tol_a * h);
+      }
+      // The discrepancy U_k - w_{k-1} at the corners, w_{k-1} from the last state.
+      const double px = prev[kSW], py = prev[kSW + 1], pz = prev[kSW + 2];
+      const double qvx = prev[kSV], qvy = prev[kSV + 1], qvz = prev[kSV + 2];
+      const double tol_d = tol_a * h + 8.0 * kEps * (std::fabs(qvx) + std::fabs(qvy) + std::fabs(qvz));
+      broken |= Exceeds12(ucx - qvx, ucy - qvy, ucz - qvz,
+                          uxx - (py * prev[5] - pz * prev[4]), uxy - (pz * prev[3] - px * prev[5]),
+                          uxz - (px * prev[4] - py * prev[3]), uyx - (py * prev[8] - pz * prev[7]),
+                          uyy - (pz * prev[6] - px * prev[8]), uyz - (px * prev[7] - py * prev[6]),
+                          uzx - (py * prev[11] - pz * prev[10]),
+                          uzy - (pz * prev[9] - px * prev[11]),
+                          uzz - (px * prev[10] - py * prev[9]), rec[kBDisc] * (1.0 + rtol) + tol_d);
+      if (nprev >= 2) {
+        broken |= Exceeds12((ucx - prev[12]) * inv_h, (ucy - prev[13]) * inv_h,
+                            (ucz - prev[14]) * inv_h, (uxx - prev[15]) * inv_h,
+                            (uxy - prev[16]) * inv_h, (uxz - prev[17]) * inv_h,
+                            (uyx - prev[18]) * inv_h, (uyy - prev[19]) * inv_h,
+                            (uyz - prev[20]) * inv_h, (uzx - prev[21]) * inv_h,
+                            (uzy - prev[22]) * inv_h, (uzz - prev[23]) * inv_h,
+                            rec[kBAccel] * (1.0 + rtol) + tol_a);
+      }
+      prev[12] = ucx, prev[13] = ucy, prev[14] = ucz;
+      prev[15] = uxx, prev[16] = uxy, prev[17] = uxz;
+      prev[18] = uyx, prev[19] = uyy, prev[20] = uyz;
+      prev[21] = uzx, prev[22] = uzy, prev[23] = uzz;
+    }
+    prev[0] = cx, prev[1] = cy, prev[2] = cz;
+    prev[3] = xx, prev[4] = xy, prev[5] = xz;
+    prev[6] = yx, prev[7] = yy, prev[8] = yz;
+    prev[9] = zx, prev[10] = zy, prev[11] = zz;
+    prev[kSV] = vx, prev[kSV + 1] = vy, prev[kSV + 2] = vz;
+    prev[kSW] = w0 + m0, prev[kSW + 1] = w1 + m1, prev[kSW + 2] = w2 + m2;
+    prev[kSScale] = scale;
+    if (broken) ev.flagged[count++] = i;
+  }
+  ev.meta[kMNprev] = std::min<int64_t>(nprev + 1, 2);
+  ev.meta[kMCount] = count;
+  ev.meta[kMTotal] += count;
+  return count;
+}
+
+// ------------------------------------------------------------------------------- exact level
+
+// |w| r of geom g: how fast rotation can move its points away from translation.
+inline double Spin(int64_t g, const double* geoms, const dua_frame& f) {
+  const double* rec = geoms + g * kGxNcol;
+  const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
+  const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
+  const double w0 = f.twist[6 * b] + f.root_twist[6 * r];
+  const double w1 = f.twist[6 * b + 1] + f.root_twist[6 * r + 1];
+  const double w2 = f.twist[6 * b + 2] + f.root_twist[6 * r + 2];
+  return std::sqrt(w0 * w0 + w1 * w1 + w2 * w2) * rec[kGxRadius];
+}
+
+// max m.v over the hull vertices of mesh geom g (local direction m): a hill climb on MuJoCo's
+// hull graph (a linear function's local maximum over a polytope is global), from the stored
+// extreme vertex of the axis nearest m, or last time's highest if it is higher. Writes the
+// highest vertex's local id to top.
+double HullSupport(int64_t g, const dua_exact& x, double m0, double m1, double m2, int64_t start,
+                   int64_t* top) {
+  const double* rec = x.geoms + g * kGxNcol;
+  const int64_t v0 = static_cast<int64_t>(rec[kGxVert]);
+  const int64_t adr = static_cast<int64_t>(rec[kGxGraph]);
+  const int32_t* graph = x.graph;
+  const int64_t numvert = graph[adr];
+  const int64_t edgeadr = adr + 2, globalid = adr + 2 + numvert, localid = adr + 2 + 2 * numvert;
+  const double a0 = std::fabs(m0), a1 = std::fabs(m1), a2 = std::fabs(m2);
+  int seed;
+  if (a0 >= a1 && a0 >= a2) {
+    seed = kGxSeed + (m0 > 0.0 ? 1 : 0);
+  } else if (a1 >= a2) {
+    seed = kGxSeed + (m1 > 0.0 ? 3 : 2);
+  } else {
+    seed = kGxSeed + (m2 > 0.0 ? 5 : 4);
+  }
+  auto height = [&](int64_t local) {
+    const double* v = x.verts + 3 * (v0 + graph[globalid + local]);
+    return m0 * v[0] + m1 * v[1] + m2 * v[2];
+  };
+  int64_t imax = static_cast<int64_t>(rec[seed]);
+  double best = height(imax);
+  if (start >= 0) {
+    const double val = height(start);
+    if (val > best) {
+      best = val;
+      imax = start;
+    }
+  }
+  int64_t prev = -1;
+  while (imax != prev) {
+    prev = imax;
+    for (int64_t i = graph[edgeadr + imax]; graph[localid + i] >= 0; ++i) {
+      const int64_t sub = graph[localid + i];
+      const double val = height(sub);
+      if (val > best) {
+        best = val;
+        imax = sub;
+      }
+    }
+  }
+  *top = imax;
+  return best;
+}
+
+// Support of geom g at its current pose along n (a mesh over its hull's vertices when MuJoCo
+// has its hull graph, else over its box).
+double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0, double n1,
+                   double n2, int64_t start, int64_t* top) {
+  const double* rec = x.geoms + g * kGxNcol;
+  const double* m = f.mat + 9 * g;
+  const double* p = f.pos + 3 * g;
+  if (rec[kGxGraph] >= 0.0) {
+    const double l0 = m[0] * n0 + m[3] * n1 + m[6] * n2;
+    const double l1 = m[1] * n0 + m[4] * n1 + m[7] * n2;
+    const double l2 = m[2] * n0 + m[5] * n1 + m[8] * n2;
+    const double h = HullSupport(g, x, l0, l1, l2, start, top);
+    return n0 * p[0] + n1 * p[1] + n2 * p[2] + h;
+  }
+  *top = -1;
+  // The support shape's centre: the origin plus R c (c: a mesh box's centre, else 0).
+  const double c0 = rec[kGxCentre], c1 = rec[kGxCentre + 1], c2 = rec[kGxCentre + 2];
+  const double q0 = p[0] + m[0] * c0 + m[1] * c1 + m[2] * c2;
+  const double q1 = p[1] + m[3] * c0 + m[4] * c1 + m[5] * c2;
+  const double q2 = p[2] + m[6] * c0 + m[7] * c1 + m[8] * c2;
+  const double k0 = m[0] * n0 + m[3] * n1 + m[6] * n2;
+  const double k1 = m[1] * n0 + m[4] * n1 + m[7] * n2;
+  const double k2 = m[2] * n0 + m[5] * n1 + m[8] * n2;
+  return n0 * q0 + n1 * q1 + n2 * q2 +
+         SupportLocal(static_cast<int>(rec[kGxKind]), rec[kGxSize], rec[kGxSize + 1],
+                      rec[kGxSize + 2], k0, k1, k2);
+}
+
+// tau of the pair's separation along unit n (first geom to second):
+// d_n + (n.r - spin) t - delta t - A t^2 / 2, d_n from the supports, r the origins' relative
+// velocity.
+double AxisTau(double n0, double n1, double n2, int mode, double r0, double r1, double r2,
+               double spin, const double* pair, double* xrec, const dua_exact& x,
+               const dua_frame& f) {
+  const int64_t g2 = static_cast<int64_t>(xrec[kXG2]);
+  double low_b;
+  int64_t top;
+  if (mode == kModePlane) {
+    low_b = n0 * f.pos[3 * g2] + n1 * f.pos[3 * g2 + 1] + n2 * f.pos[3 * g2 + 2];
+  } else {  // a moving geom, or a static one (its pose in MjData is as good as the shape's)
+    low_b = -GeomSupport(g2, x, f, -n0, -n1, -n2, static_cast<int64_t>(xrec[kXHull2]), &top);
+    xrec[kXHull2] = static_cast<double>(top);
+  }
+  const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
+  const double h_a = GeomSupport(g1, x, f, n0, n1, n2, static_cast<int64_t>(xrec[kXHull1]), &top);
+  xrec[kXHull1] = static_cast<double>(top);
+  const double scale = std::fabs(h_a) + std::fabs(low_b) + xrec[kXDist];
+  const double gap = low_b - h_a - xrec[kXDist] - kGapSlack * scale;
+  if (gap <= 0.0) return 0.0;
+  const double vn = n0 * r0 + n1 * r1 + n2 * r2 - spin;
+  const double speed = std::sqrt(r0 * r0 + r1 * r1 + r2 * r2) + spin;
+  return TauHalfspace(gap, vn, pair[kPairAccel], pair[kPairDelta] + kVelSlack * speed);
+}
+
+// One pair's max(coarse, exact). Any unit direction gives a lower bound: the one that served
+// last time is tried first, and MuJoCo is asked for a new one only while the pair is still
+// urgent along it (below query_below).
+double ExactTau(const double* pair, double* xrec, double coarse, const dua_exact& x,
+                const dua_frame& f) {
+  const int mode = static_cast<int>(xrec[kXMode]);
+  if (mode == kModeNone) return coarse;
+  const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
+  const int64_t g2 = static_cast<int64_t>(xrec[kXG2]);
+  double sa[6], sb[6];
+  RigidPoint(g1, x.geoms, kGxNcol, f, sa);
+  double spin = Spin(g1, x.geoms, f);
+  // Relative velocity of the origins, second minus first.
+  double r0 = -sa[3], r1 = -sa[4], r2 = -sa[5];
+  if (mode == kModeGeoms) {
+    RigidPoint(g2, x.geoms, kGxNcol, f, sb);
+    spin += Spin(g2, x.geoms, f);
+    r0 += sb[3], r1 += sb[4], r2 += sb[5];
+  }
+  if (mode == kModePlane) {
+    // From the geom towards the plane: against the plane's outward normal (its z axis).
+    const double* m = f.mat + 9 * g2;
+    const double t = AxisTau(-m[2], -m[5], -m[8], mode, r0, r1, r2, spin, pair, xrec, x, f);
+    return std::max(coarse, t);
+  }
+  double best = coarse;
+  double n0 = xrec[kXN], n1 = xrec[kXN + 1], n2 = xrec[kXN + 2];
+  if (n0 != 0.0 || n1 != 0.0 || n2 != 0.0) {
+    best = std::max(best, AxisTau(n0, n1, n2, mode, r0, r1, r2, spin, pair, xrec, x, f));
+    if (best >= x.query_below) return best;
+  }
+  const double* p1 = f.pos + 3 * g1;
+  const double* p2 = f.pos + 3 * g2;
+  const double c0 = p2[0] - p1[0], c1 = p2[1] - p1[1], c2 = p2[2] - p1[2];
+  // Both origins lie inside their geoms, so the distance is at most theirs: a witness.
+  const double reach = std::sqrt(c0 * c0 + c1 * c1 + c2 * c2) + xrec[kXDist] + 1.0;
+  mjtNum fromto[6];
+  const double dist = mj_geomDistance(static_cast<const mjModel*>(x.model),
+                                      static_cast<mjData*>(const_cast<void*>(x.data)), static_cast<int>(g1),
+                                      static_cast<int>(g2), reach, fromto);
+  if (!(dist > xrec[kXDist])) return best;  // in contact, or no witness
+  n0 = fromto[3] - fromto[0], n1 = fromto[4] - fromto[1], n2 = fromto[5] - fromto[2];
+  const double length = std::sqrt(n0 * n0 + n1 * n1 + n2 * n2);
+  const double* ga = x.geoms + g1 * kGxNcol;
+  const double* gb = x.geoms + g2 * kGxNcol;
+  if (!(length > kMinWitness * (ga[kGxRadius] + gb[kGxRadius]))) return best;
+  n0 /= length, n1 /= length, n2 /= length;
+  // MuJoCo's direction is the best guess for the next look, whether or not it helps now.
+  xrec[kXN] = n0, xrec[kXN + 1] = n1, xrec[kXN + 2] = n2;
+  return std::max(best, AxisTau(n0, n1, n2, mode, r0, r1, r2, spin, pair, xrec, x, f));
+}
+
+// Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below.
+void ExactPass(const dua_step_args& a, const int64_t* ids, int64_t count, double* out) {
+  if (!a.exact.on) return;
+  for (int64_t k = 0; k < count; ++k) {
+    if (out[k] < a.exact.below) {
+      const int64_t p = ids[k];
+      out[k] = ExactTau(a.pairs + p * kPairNcol, a.exact.records + p * kXNcol, out[k], a.exact,
+                        a.frame);
+    }
+  }
+}
+
+// ------------------------------------------------------------------------------- tau of pairs
+
+// Gather the states of held pairs ids[0:count] into rows of 12 (sphere i's centre and velocity,
+// then sphere j's, or the plane's normal and offset, zeros for a static shape), then tau of
+// each into out. Two passes: the gathers are independent loads the CPU overlaps (the tables are
+// cold after mj_step). Returns -1, or the first row whose state is not finite.
+int64_t TauOf(const dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
+              double* out) {
+  const dua_frame& f = a.frame;
+  for (int64_t k = 0; k < count; ++k) {
+    const double* rec = a.pairs + ids[k] * kPairNcol;
+    double* s = rows + 12 * k;
+    RigidPoint(static_cast<int64_t>(rec[kPairFirst]), a.spheres, kSphereNcol, f, s);
+    const int kind = static_cast<int>(rec[kPairKind]);
+    if (kind == kKindHalfspace) {
+      const int64_t g = static_cast<int64_t>(rec[kPairOther]);
+      const double* m = f.mat + 9 * g;
+      const double* p = f.pos + 3 * g;
+      s[6] = m[2], s[7] = m[5], s[8] = m[8];
+      s[9] = s[6] * p[0] + s[7] * p[1] + s[8] * p[2];
+      s[10] = 0.0, s[11] = 0.0;
+    } else if (kind == kKindShape) {
+      std::fill(s + 6, s + 12, 0.0);
+    } else {
+      RigidPoint(static_cast<int64_t>(rec[kPairSecond]), a.spheres, kSphereNcol, f, s + 6);
+    }
+  }
+  for (int64_t k = 0; k < count; ++k) {
+    const double* rec = a.pairs + ids[k] * kPairNcol;
+    const double* s = rows + 12 * k;
+    double total = 0.0;
+    for (int j = 0; j < 12; ++j) total += s[j];
+    if (!std::isfinite(total)) return k;
+    const int kind = static_cast<int>(rec[kPairKind]);
+    if (kind == kKindHalfspace) {
+      const double gap = s[6] * s[0] + s[7] * s[1] + s[8] * s[2] - s[9] - rec[kPairEps];
+      const double vn = s[6] * s[3] + s[7] * s[4] + s[8] * s[5];
+      out[k] = TauHalfspace(gap, vn, rec[kPairAccel], rec[kPairDelta]);
+    } else if (kind == kKindShape) {
+      out[k] = TauStatic(s[0], s[1], s[2], s[3], s[4], s[5],
+                         a.shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol,
+                         rec[kPairEps], rec[kPairAccel], rec[kPairDelta]);
+    } else {
+      out[k] = TauSpeed(s[6] - s[0], s[7] - s[1], s[8] - s[2], s[9] - s[3], s[10] - s[4],
+                        s[11] - s[5], rec[kPairEps], rec[kPairAccel], rec[kPairDelta],
+                        rec[kPairSpeed]);
+    }
+  }
+  ExactPass(a, ids, count, out);
+  return -1;
+}
+
+}  // namespace
+}  // namespace dua
+
+extern "C" {
+
+void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, double* out) {
+  dua::RigidPoint(i, spheres, dua::kSphereNcol, *f, out);
+}
+
+int64_t dua_violation_pass(dua_step_args* a, int64_t n) {
+  const dua_events& ev = a->events;
+  if (ev.nbody == 0) return 0;
+  const int64_t count = dua::CheckBodies(ev, a->frame);
+  for (int64_t k = 0; k < count; ++k) {
+    const int64_t i = ev.flagged[k];
+    for (int64_t m = ev.start[i]; m < ev.start[i + 1]; ++m) {
+      dua_make_due(&a->schedule, ev.members[m], n);
+    }
+  }
+  return count;
+}
+
+void dua_reset_events(dua_step_args* a) {
+  const dua_events& ev = a->events;
+  ev.meta[dua::kMNprev] = 0;
+  ev.meta[dua::kMTotal] = 0;
+  if (ev.nbody) dua::CheckBodies(ev, a->frame);
+  ev.meta[dua::kMTotal] = 0;
+}
+
+void dua_exact_pass(dua_step_args* a, const int64_t* ids, int64_t count, double* tau) {
+  dua::ExactPass(*a, ids, count, tau);
+}
+
+int64_t dua_evaluate(dua_step_args* a, const int64_t* ids, int64_t count, double* out) {
+  // As many pairs at a time as the scratch holds.
+  const int64_t width = std::max<int64_t>(a->scratch_rows, 1);
+  for (int64_t start = 0; start < count; start += width) {
+    const int64_t chunk = std::min(width, count - start);
+    const int64_t bad = dua::TauOf(*a, ids + start, chunk, a->scratch, out + start);
+    if (bad >= 0) return ids[start + bad];
+  }
+  return -1;
+}
+
+int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
+  dua_schedule* st = &a->schedule;
+  dua_violation_pass(a, n);
+  const int64_t count = dua_select(st, n);
+  const int64_t* w_ids = st->work + 1 * st->width;
+  a->count = count;
+  const int64_t bad = dua::TauOf(*a, w_ids, count, a->scratch, st->w_tau);
+  if (bad >= 0) {
+    a->bad = w_ids[bad];
+    a->deferred = 0;
+    dua_restore(st, n, count);
+    return 0;
+  }
+  const int64_t nalarm = dua_reinsert(st, n, count);
+  const int64_t* alarms = st->work + 2 * st->width;
+  const int64_t* fresh = st->work + 3 * st->width;
+  for (int64_t k = 0; k < nalarm; ++k) {
+    const int64_t p = alarms[k];
+    a->log_pairs[start + k] = a->ids[p];
+    a->log_tau[start + k] = st->last_tau[p];
+    a->log_new[start + k] = fresh[k] != 0;
+  }
+  a->bad = -1;
+  a->deferred = st->params[6];
+  return nalarm;
+}
+
+}  // extern "C"
+
+extern "C" {
+
+int64_t dua_exceeds12(double a0, double a1, double a2, double x0, double x1, double x2,
+                      double y0, double y1, double y2, double z0, double z1, double z2,
+                      double bound) {
+  return dua::Exceeds12(a0, a1, a2, x0, x1, x2, y0, y1, y2, z0, z1, z2, bound) ? 1 : 0;
+}
+
+}  // extern "C"

@@ -1,0 +1,95 @@
+"""The native core: where ``libdua_mujoco.so`` is, and loading it.
+
+One shared library holds the predictor's per-step kernels (``dua_mujoco/csrc``) and the MuJoCo
+sensor plugin ``dua_mujoco.predictor``, which its load-time constructor registers with MuJoCo.
+``pip install`` builds it with CMake (scikit-build-core) against the mujoco wheel's headers and
+``libmujoco``. This module imports neither numba nor anything heavy: ``import mujoco`` runs
+:func:`load_plugin` through the ``mujoco.plugins`` entry point.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import importlib.metadata
+import importlib.util
+import os
+import sys
+from pathlib import Path
+
+from dua_mujoco.exceptions import NativeLibraryError
+
+__all__ = ["ABI_VERSION", "LIBRARY", "library", "library_path", "load_plugin"]
+
+LIBRARY = "libdua_mujoco.so"
+ABI_VERSION = 1
+"""``DUA_ABI_VERSION`` of ``dua/dua.h``: the layout of the structs the Python side fills."""
+
+
+def library_path() -> Path:
+    """Where ``libdua_mujoco.so`` is: beside this package (a wheel, or an in-place build), or
+    where an editable install put the compiled files (its record of installed files)."""
+    here = Path(__file__).resolve().parent / LIBRARY
+    if here.is_file():
+        return here
+    try:
+        files = importlib.metadata.files("dua_mujoco") or []
+    except importlib.metadata.PackageNotFoundError:
+        files = []
+    candidates = [Path(str(f.locate())) for f in files if f.name == LIBRARY]
+    # Another copy of the metadata can shadow the installed one (a stale egg-info in the
+    # working directory): the package folders on sys.path are looked at too.
+    candidates += [Path(entry or ".") / "dua_mujoco" / LIBRARY for entry in sys.path]
+    for path in candidates:
+        if path.is_file():
+            return path.resolve()
+    raise NativeLibraryError(
+        f"{LIBRARY} not found beside {here.parent} nor among the installed files of "
+        "dua_mujoco: the native core is built at install time; reinstall with "
+        "`pip install -e .` (it needs a C++ compiler and CMake)."
+    )
+
+
+def _mujoco_dir() -> Path:
+    spec = importlib.util.find_spec("mujoco")
+    if spec is None or spec.origin is None:  # pragma: no cover - mujoco is a dependency
+        raise NativeLibraryError("the mujoco package is not installed: pip install mujoco")
+    return Path(spec.origin).parent
+
+
+@functools.cache
+def library() -> ctypes.CDLL:
+    """The loaded native core (loaded once a process; MuJoCo's plugin registered by then).
+
+    ``libmujoco`` is loaded first, under the soname the native core was linked against, and
+    both globally: numba's compiled kernels call the core's functions by name.
+
+    Raises:
+        NativeLibraryError: The library is missing or of another ABI version.
+    """
+    mujoco_dir = _mujoco_dir()
+    mujoco_libs = sorted(mujoco_dir.glob("libmujoco.so*"))
+    if mujoco_libs:
+        ctypes.CDLL(str(mujoco_libs[-1]), mode=os.RTLD_NOW | os.RTLD_GLOBAL)
+    path = library_path()
+    try:
+        lib = ctypes.CDLL(str(path), mode=os.RTLD_NOW | os.RTLD_GLOBAL)
+    except OSError as err:
+        raise NativeLibraryError(
+            f"{path} failed to load ({err}): rebuild it against this mujoco "
+            f"({mujoco_dir}) with `pip install -e .`."
+        ) from err
+    lib.dua_abi_version.restype = ctypes.c_int64
+    version = int(lib.dua_abi_version())
+    if version != ABI_VERSION:
+        raise NativeLibraryError(
+            f"{path} has ABI version {version}, this package expects {ABI_VERSION}: rebuild "
+            "it with `pip install -e .`."
+        )
+    return lib
+
+
+def load_plugin() -> None:
+    """The ``mujoco.plugins`` entry point: load the native core, which registers the sensor
+    plugin ``dua_mujoco.predictor`` with MuJoCo."""
+    library()
