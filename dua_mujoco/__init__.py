@@ -20,6 +20,7 @@ from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidChoiceError,
     InvalidInputError,
+    NativeLibraryError,
     NoActivePairsWarning,
     NonFiniteStateError,
     PilotWarning,
@@ -44,6 +45,7 @@ if TYPE_CHECKING:
     from dua_mujoco.mj.predictor import Alarms, Predictor
     from dua_mujoco.mj.report import RunReport
     from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.plugin import PluginOutputs, attach, plugin_outputs, standing_pairs
 
 # Everything but the errors loads on first use (PEP 562): ``import dua_mujoco`` and the pytest
 # plugin ``dua_mujoco.testing``, loaded in every test session of anyone who installed the
@@ -63,6 +65,10 @@ _LAZY = {
     "SpherePredictor": "dua_mujoco.core.spheres",
     "estimate_bounds": "dua_mujoco.mj.bounds",
     "load_scene": "dua_mujoco.mj.scenes",
+    "PluginOutputs": "dua_mujoco.plugin",
+    "attach": "dua_mujoco.plugin",
+    "plugin_outputs": "dua_mujoco.plugin",
+    "standing_pairs": "dua_mujoco.plugin",
     "run": "dua_mujoco.mj.monitor",
     "time_to_collision": "dua_mujoco.core.urgency",
 }
@@ -89,11 +95,13 @@ __all__ = [
     "InvalidChoiceError",
     "InvalidInputError",
     "MotionBounds",
+    "NativeLibraryError",
     "NoActivePairsWarning",
     "NonFiniteStateError",
     "PairOptions",
     "PilotOptions",
     "PilotWarning",
+    "PluginOutputs",
     "Predictor",
     "RunReport",
     "Schedule",
@@ -104,8 +112,11 @@ __all__ = [
     "UnsupportedGeomError",
     "UrgencyOptions",
     "__version__",
+    "attach",
     "estimate_bounds",
     "load_scene",
+    "plugin_outputs",
     "run",
+    "standing_pairs",
     "time_to_collision",
 ]

@@ -366,6 +366,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 _RUN_COMMANDS = {
     "view": ("dua_mujoco.view", "watch a scene in MuJoCo's viewer with the alarm overlay live"),
     "sweep": ("dua_mujoco.sweep.cli", "run scenes x seeds x option sets on processes or Ray"),
+    "export": (
+        "dua_mujoco.export",
+        "write a scene with the predictor as a MuJoCo plugin, for C/C++ and simulate",
+    ),
 }
 
 

@@ -29,6 +29,7 @@ __all__ = [
     "parse_accel",
     "positive",
     "predictor_for",
+    "predictor_options",
     "run_option_actions",
 ]
 
@@ -57,29 +58,40 @@ def predictor_for(model: mujoco.MjModel, options: Any) -> Predictor:
 
     Args:
         model: The model.
+        options: Parsed ``run`` options (see :func:`predictor_options`).
+    """
+    from dua_mujoco.mj import predictor
+
+    return predictor.Predictor(model, **predictor_options(model, options))
+
+
+def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
+    """``Predictor``'s keyword options as the parsed ``run`` options describe them.
+
+    Args:
+        model: The model (the pilot's controller drives it).
         options: Parsed ``run`` options (``accel``, ``speed``, ``covering``, ``max_spheres``,
             ``hfield``, ``period``, ``latency``, ``schedule``, ``max_evals``,
             ``alarm_backoff``, ``slots_per_bucket``, ``violation_events``, ``pairs``,
             ``static``, ``exact``, ``pilot_steps``, ``pilot_motion``, ``ctrl``, ``seed``).
     """
     from dua_mujoco.mj import options as opts
-    from dua_mujoco.mj import predictor, scenes
+    from dua_mujoco.mj import scenes
 
     pilot_seed = options.seed + PILOT_SEED_OFFSET
-    return predictor.Predictor(
-        model,
-        accel=options.accel,
-        speed=options.speed,
-        period=options.period,
-        latency=options.latency,
-        pairs=options.pairs,
-        covering=opts.CoveringOptions(
+    return {
+        "accel": options.accel,
+        "speed": options.speed,
+        "period": options.period,
+        "latency": options.latency,
+        "pairs": options.pairs,
+        "covering": opts.CoveringOptions(
             mode=options.covering,
             max_spheres_per_geom=options.max_spheres,
             hfield=options.hfield,
             static=options.static,
         ),
-        schedule=opts.ScheduleOptions(
+        "schedule": opts.ScheduleOptions(
             kind=options.schedule,
             max_evals_per_step=options.max_evals,
             slots_per_bucket=options.slots_per_bucket,
@@ -87,14 +99,14 @@ def predictor_for(model: mujoco.MjModel, options: Any) -> Predictor:
             # Unset options keep the dataclasses' defaults.
             **({} if options.alarm_backoff is None else {"alarm_backoff": options.alarm_backoff}),
         ),
-        urgency=opts.UrgencyOptions(exact=options.exact),
-        pilot=opts.PilotOptions(
+        "urgency": opts.UrgencyOptions(exact=options.exact),
+        "pilot": opts.PilotOptions(
             steps=options.pilot_steps,
             seed=pilot_seed,
             controller=scenes.make_controller(model, options.ctrl, seed=pilot_seed),
             **({} if options.pilot_motion is None else {"motion": options.pilot_motion}),
         ),
-    )
+    }
 
 
 def parse_accel(value: str) -> str | float:

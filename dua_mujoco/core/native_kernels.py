@@ -27,6 +27,7 @@ __all__ = [
     "deadline_carry_c",
     "deadline_classify_c",
     "deadline_interval_c",
+    "difference_poses_c",
     "exceeds12_c",
     "frame_view",
     "make_due_c",
@@ -76,6 +77,11 @@ deadline_carry_c = _c("dua_deadline_carry", types.void(_pi8, _pi8, _pi8, _i8, _i
 deadline_interval_c = _c("dua_deadline_interval", _i8(_f8, _f8, _i8, _i8))
 rigid_point_c = _c("dua_rigid_point", types.void(_i8, _pf8, _pi8, _pf8))
 exceeds12_c = _c("dua_exceeds12", _i8(*([_f8] * 13)))
+_pb = types.CPointer(types.boolean)  # numpy's bool: one byte, as the core's uint8_t
+difference_poses_c = _c(
+    "dua_difference_poses",
+    types.void(_pf8, _pf8, _pi8, _i8, _pf8, _pf8, _f8, _pb, _pf8, _pf8, _pf8, _i8),
+)
 
 
 @nb.njit(cache=True)

@@ -7,13 +7,12 @@ body moves rigidly with it, so the kinematics kernel adds the root's twist
 
 from __future__ import annotations
 
-import math
-
 import mujoco
 import numba as nb
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.core.native_kernels import difference_poses_c
 from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
 
 __all__ = ["MocapVelocityTracker"]
@@ -26,38 +25,27 @@ _NO_TWIST = np.zeros((0, 6))
 def _difference_poses(
     xpos, xquat, bodies, prev_pos, prev_quat, dt, user, linear, angular, twist
 ):  # pragma: no cover - jitted
-    """Backward-difference velocities of ``bodies``; updates the previous poses in place.
+    """Backward-difference velocities of ``bodies``; updates the previous poses in place
+    (native: ``dua_difference_poses``, which the plugin runs too; every array C-contiguous).
 
     Angular velocity: rotation vector of ``q_now * conj(q_prev)`` (world frame), taken the short
     way round, divided by ``dt``. If ``twist`` has rows, row ``bodies[i]`` receives
     ``[angular[i]; linear[i]]`` (what ``write_body_velocity`` does, without a second call).
     """
-    for i in range(bodies.shape[0]):
-        b = bodies[i]
-        aw, ax, ay, az = xquat[b, 0], xquat[b, 1], xquat[b, 2], xquat[b, 3]
-        bw, bx, by, bz = prev_quat[i, 0], -prev_quat[i, 1], -prev_quat[i, 2], -prev_quat[i, 3]
-        w = aw * bw - ax * bx - ay * by - az * bz
-        x = aw * bx + ax * bw + ay * bz - az * by
-        y = aw * by - ax * bz + ay * bw + az * bx
-        z = aw * bz + ax * by - ay * bx + az * bw
-        if w < 0.0:
-            w, x, y, z = -w, -x, -y, -z
-        s = math.sqrt(x * x + y * y + z * z)
-        scale = 2.0 * math.atan2(s, w) / s if s > 1e-12 else 2.0
-        if not user[i]:
-            for k in range(3):
-                linear[i, k] = (xpos[b, k] - prev_pos[i, k]) / dt
-            angular[i, 0] = x * scale / dt
-            angular[i, 1] = y * scale / dt
-            angular[i, 2] = z * scale / dt
-        for k in range(3):
-            prev_pos[i, k] = xpos[b, k]
-        for k in range(4):
-            prev_quat[i, k] = xquat[b, k]
-        if twist.shape[0] > 0:
-            for k in range(3):
-                twist[b, k] = angular[i, k]
-                twist[b, 3 + k] = linear[i, k]
+    difference_poses_c(
+        xpos.ctypes,
+        xquat.ctypes,
+        bodies.ctypes,
+        bodies.shape[0],
+        prev_pos.ctypes,
+        prev_quat.ctypes,
+        dt,
+        user.ctypes,
+        linear.ctypes,
+        angular.ctypes,
+        twist.ctypes,
+        twist.shape[0],
+    )
 
 
 class MocapVelocityTracker:

@@ -415,7 +415,7 @@ class Predictor(PredictorViews):
         tau0, bad = native.evaluate(np.arange(self._ids.size))
         if bad >= 0:
             raise self._nonfinite(data, int(self._ids[bad]))
-        self.scheduler = self._scheduler(tau0)
+        self.scheduler = self.new_scheduler(tau0)
         native.bind_schedule(self.scheduler.state)
         self._native = native
         self._load_compiled(data)
@@ -426,7 +426,8 @@ class Predictor(PredictorViews):
             0, self._time, self._ids[ids], tau0[ids], self.tables, np.ones(ids.shape, bool), 0
         )
 
-    def _scheduler(self, tau0: np.ndarray) -> Scheduler:
+    def new_scheduler(self, tau0: np.ndarray) -> Scheduler:
+        """A scheduler of this predictor's schedule and options over ``tau0`` ``(K,)``."""
         return make_scheduler(
             self.schedule,
             tau0,
@@ -442,7 +443,7 @@ class Predictor(PredictorViews):
         ``step``, which a real-time user holds to its deadline too: a throw-away one-pair
         scheduler switches a pair (the step itself is native)."""
         if len(self.pair_set):
-            spare = self._scheduler(np.full(1, np.inf))
+            spare = self.new_scheduler(np.full(1, np.inf))
             spare.set_active([0], False)
             spare.set_active([0], True)
         if self.mocap is not None:

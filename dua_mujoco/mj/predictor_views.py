@@ -29,6 +29,7 @@ class PredictorViews:
     events: EventTable | None
     _ids: np.ndarray
     _shapes: np.ndarray
+    _spheres: np.ndarray
 
     @property
     def geom_pairs(self) -> GeomPairs:
@@ -59,6 +60,16 @@ class PredictorViews:
     @property
     def _pair_records(self) -> np.ndarray:
         return self.universe.records
+
+    @property
+    def pair_records(self) -> np.ndarray:
+        """``(nsphere_pairs, 8)`` packed records of the known sphere pairs (``pack_pairs``)."""
+        return self.universe.records
+
+    @property
+    def sphere_records(self) -> np.ndarray:
+        """``(nsphere, 8)`` packed records of the covering spheres (``pack_spheres``)."""
+        return self._spheres
 
     @property
     def _on(self) -> np.ndarray | None:

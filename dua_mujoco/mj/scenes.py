@@ -63,6 +63,7 @@ __all__ = [
     "check_scene",
     "declared_accel_bound",
     "load_scene",
+    "load_spec",
     "make_controller",
     "models_dir",
     "paper_world_accel_bound",
@@ -125,10 +126,14 @@ class Scene:
         Returns:
             The compiled model.
         """
+        return self.spec().compile()
+
+    def spec(self) -> mujoco.MjSpec:
+        """The scene's spec (a fresh one each call)."""
         if callable(self.source):
-            return self.source().compile()
+            return self.source()
         with importlib.resources.as_file(_model_file(self.source)) as path:
-            return mujoco.MjModel.from_xml_path(str(path))
+            return mujoco.MjSpec.from_file(str(path))
 
 
 def models_dir() -> Path:
@@ -227,27 +232,41 @@ def load_scene(
         InvalidChoiceError: If the name is neither a bundled scene nor an existing file.
         InvalidInputError: If ``N`` in ``name:N`` is not a positive integer.
     """
+    path = Path(name_or_path)
+    if name_or_path not in SCENES and path.suffix.lower() == ".mjb" and path.is_file():
+        # A compiled model (mj_saveModel) is binary: the XML parser would call it malformed XML.
+        model = mujoco.MjModel.from_binary_path(str(path))
+    else:
+        model = load_spec(name_or_path).compile()
+    data = mujoco.MjData(model)
+    reset_to_keyframe(model, data, keyframe)
+    return model, data
+
+
+def load_spec(name_or_path: str) -> mujoco.MjSpec:
+    """The ``MjSpec`` of a bundled scene (names as for :func:`load_scene`) or an MJCF file.
+
+    Raises:
+        InvalidChoiceError: If the name is neither a bundled scene nor an existing file.
+        InvalidInputError: If ``N`` in ``name:N`` is not a positive integer, or the file is a
+            compiled ``.mjb`` model, which has no spec.
+    """
     check_scene(name_or_path)
     if name_or_path in SCENES:
-        model = SCENES[name_or_path].model()
-    elif name_or_path.startswith(_POUR_PREFIX):
-        model = bin_pour_spec(int(name_or_path.split(":", 1)[1])).compile()
-    elif name_or_path.startswith((_PAPER_PREFIX, _SWARM_PREFIX)):
+        return SCENES[name_or_path].spec()
+    if name_or_path.startswith(_POUR_PREFIX):
+        return bin_pour_spec(int(name_or_path.split(":", 1)[1]))
+    if name_or_path.startswith((_PAPER_PREFIX, _SWARM_PREFIX)):
         prefix, count = name_or_path.split(":", 1)
         n = int(count)
         # The unit cube holds the paper's 40 spheres; a swarm keeps that density.
         box = {"box_size": (n / 40) ** (1 / 3)} if prefix == _SWARM_PREFIX[:-1] else {}
-        model = paper_world_model(n, **box)
-    else:
-        path = Path(name_or_path)
-        # A compiled model (mj_saveModel) is binary: the XML parser would call it malformed XML.
-        if path.suffix.lower() == ".mjb":
-            model = mujoco.MjModel.from_binary_path(str(path))
-        else:
-            model = mujoco.MjModel.from_xml_path(str(path))
-    data = mujoco.MjData(model)
-    reset_to_keyframe(model, data, keyframe)
-    return model, data
+        return paper_world_spec(n, **box)
+    if Path(name_or_path).suffix.lower() == ".mjb":
+        raise InvalidInputError(
+            f"{name_or_path!r} is a compiled model: it has no MjSpec. Pass its MJCF file."
+        )
+    return mujoco.MjSpec.from_file(name_or_path)
 
 
 def check_scene(name_or_path: str) -> None:

@@ -1,9 +1,11 @@
 // The MuJoCo sensor plugin "dua_mujoco.predictor": the predictor's step inside mj_step.
 //
-// The tables (covering spheres, held pairs, shapes, bounds, the exact level's records, the
-// violation check's boxes, the schedule's parameters) travel in the compiled model as custom
-// numeric fields "<prefix>:<table>", written by dua_mujoco.attach (dua_mujoco/plugin.py, which
-// documents each). What changes as the simulation runs (the schedule, the exact level's last
+// The tables (covering spheres, pairs, shapes, bounds, the exact level's records, the violation
+// check's boxes, the schedule's parameters) travel in the model as custom text fields
+// "<prefix>:<table>", written by dua_mujoco.attach (dua_mujoco/plugin.py documents each): the
+// entry count, then the entries as C99 hexadecimal floats, which survive an XML round trip
+// exactly (MuJoCo writes numeric fields with six digits). init parses them; every copy of the
+// mjData shares them. What changes as the simulation runs (the schedule, the exact level's last
 // directions, the violation check's last states) lives in plugin_data, one Instance per mjData:
 // init allocates it, copy duplicates it, reset clears it, destroy frees it.
 //
@@ -12,15 +14,16 @@
 // that mj_step (docs/discrete-time.md). The first compute after init or mj_resetData classifies
 // every pair (the Python predictor's reset); later ones step the schedule when the clock has
 // advanced by one predictor period, do nothing when it has not moved (an mj_forward between
-// steps), and classify again when it moved any other way (time set back, a jump).
+// steps) or has moved by whole physics steps within the period, and classify again when it
+// moved any other way (time set back, a jump).
 #include <mujoco/mjplugin.h>
 #include <mujoco/mujoco.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <cstring>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -33,6 +36,7 @@ constexpr char kPluginName[] = "dua_mujoco.predictor";
 constexpr const char* kAttributes[] = {"prefix", "overlay"};
 constexpr int kNAttribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int64_t kDeadline = 1;
 
 // Sensor outputs.
 enum Output {
@@ -47,117 +51,252 @@ enum Output {
 // Entries of "<prefix>:config".
 enum Config {
   kCfgAbi = 0,
-  kCfgKind,
-  kCfgDt,
-  kCfgLatency,
-  kCfgPeriod,
-  kCfgRows,
-  kCfgNslots,
-  kCfgNqueue,
-  kCfgExactOn,
-  kCfgExactBelow,
-  kCfgQueryBelow,
-  kCfgNparams = 11,  // the schedule's 9 params follow
-  kCfgParams = 12,
+  kCfgKind = 1,
+  kCfgDt = 2,
+  kCfgLatency = 3,
+  kCfgTimestep = 4,
+  kCfgRows = 5,
+  kCfgNslots = 6,
+  kCfgNqueue = 7,
+  kCfgExactOn = 8,
+  kCfgExactBelow = 9,
+  kCfgQueryBelow = 10,
+  kCfgParams = 11,  // the schedule's 9 params
   kCfgSize = kCfgParams + 9,
 };
 
-// A table in the model: "<prefix>:<name>", read only.
-struct Table {
-  const mjtNum* data = nullptr;
-  int size = 0;
+// The model's tables, parsed once per mjData and shared by its copies.
+struct Tables {
+  std::vector<double> config, pairs, spheres, shapes, horizon, events_rec, events_params;
+  std::vector<double> geoms, exact_records, verts;
+  std::vector<int64_t> pair_geom, geom_pairs, events_start, events_members;
+  std::vector<int32_t> graph;
+  int64_t npair = 0, ngp = 0, nbody_events = 0;
+  bool exact = false;
+  double Config(int i) const { return config[i]; }
 };
 
-Table FindTable(const mjModel* m, const std::string& prefix, const char* name) {
+// Parses "<prefix>:<name>" into out; false (after a warning naming the field) if it is missing
+// or does not parse.
+bool ReadTable(const mjModel* m, const std::string& prefix, const char* name,
+               std::vector<double>* out) {
   const std::string full = prefix + ":" + name;
-  const int id = mj_name2id(m, mjOBJ_NUMERIC, full.c_str());
-  if (id < 0) return {};
-  return {m->numeric_data + m->numeric_adr[id], m->numeric_size[id]};
+  const int id = mj_name2id(m, mjOBJ_TEXT, full.c_str());
+  if (id < 0) {
+    mju_warning(
+        "dua_mujoco.predictor: the model has no text field '%s' (plugin attribute 'prefix' = "
+        "'%s'): build the model with dua_mujoco.attach(spec), which writes the tables.",
+        full.c_str(), prefix.c_str());
+    return false;
+  }
+  const char* at = m->text_data + m->text_adr[id];
+  char* end = nullptr;
+  const double count = std::strtod(at, &end);
+  if (end == at || !(count >= 0) || count != std::floor(count)) {
+    mju_warning("dua_mujoco.predictor: text field '%s' does not start with its entry count: "
+                "attach the predictor again.",
+                full.c_str());
+    return false;
+  }
+  out->resize(static_cast<size_t>(count));
+  at = end;
+  for (double& v : *out) {
+    v = std::strtod(at, &end);
+    if (end == at) {
+      mju_warning("dua_mujoco.predictor: text field '%s' holds fewer than its %.0f entries, or "
+                  "one that does not parse: attach the predictor again.",
+                  full.c_str(), count);
+      return false;
+    }
+    at = end;
+  }
+  return true;
 }
 
-std::vector<int64_t> AsInts(const Table& t) {
-  std::vector<int64_t> out(t.size);
-  for (int i = 0; i < t.size; ++i) out[i] = static_cast<int64_t>(t.data[i]);
+std::vector<int64_t> AsInts(const std::vector<double>& v) {
+  std::vector<int64_t> out(v.size());
+  for (size_t i = 0; i < v.size(); ++i) out[i] = static_cast<int64_t>(v[i]);
   return out;
 }
 
+// The tables of plugin instance `instance`, or null (after a warning saying why).
+std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& prefix) {
+  auto t = std::make_shared<Tables>();
+  std::vector<double> pair_geom, geom_pairs, events_start, events_members;
+  if (!ReadTable(m, prefix, "config", &t->config)) return nullptr;
+  if (t->config.size() != kCfgSize ||
+      static_cast<int64_t>(t->config[kCfgAbi]) != DUA_ABI_VERSION) {
+    mju_warning("dua_mujoco.predictor: '%s:config' was written by another version of "
+                "dua_mujoco: attach the predictor again with this one.",
+                prefix.c_str());
+    return nullptr;
+  }
+  if (!ReadTable(m, prefix, "pairs", &t->pairs) || !ReadTable(m, prefix, "spheres", &t->spheres) ||
+      !ReadTable(m, prefix, "shapes", &t->shapes) ||
+      !ReadTable(m, prefix, "horizon", &t->horizon) ||
+      !ReadTable(m, prefix, "pair_geom", &pair_geom) ||
+      !ReadTable(m, prefix, "geom_pairs", &geom_pairs) ||
+      !ReadTable(m, prefix, "events_rec", &t->events_rec) ||
+      !ReadTable(m, prefix, "events_params", &t->events_params) ||
+      !ReadTable(m, prefix, "events_start", &events_start) ||
+      !ReadTable(m, prefix, "events_members", &events_members)) {
+    return nullptr;
+  }
+  t->npair = static_cast<int64_t>(t->pairs.size() / 8);
+  t->ngp = static_cast<int64_t>(geom_pairs.size() / 2);
+  t->nbody_events = static_cast<int64_t>(t->events_rec.size() / 12);
+  t->pair_geom = AsInts(pair_geom);
+  t->geom_pairs = AsInts(geom_pairs);
+  t->events_start = AsInts(events_start);
+  t->events_members = AsInts(events_members);
+  bool sizes = static_cast<int64_t>(t->pair_geom.size()) == t->npair &&
+               static_cast<int64_t>(t->events_start.size()) == t->nbody_events + 1 &&
+               !t->horizon.empty() && !t->events_params.empty();
+  for (int64_t gp : t->pair_geom) sizes = sizes && gp >= 0 && gp < t->ngp;
+  for (int64_t g : t->geom_pairs) sizes = sizes && g >= 0 && g < m->ngeom;
+  if (!sizes) {
+    mju_warning("dua_mujoco.predictor: the tables under prefix '%s' do not fit together or "
+                "this model: attach the predictor again.",
+                prefix.c_str());
+    return nullptr;
+  }
+  t->exact = static_cast<int64_t>(t->config[kCfgExactOn]) != 0;
+  if (t->exact) {
+    if (!ReadTable(m, prefix, "exact_geoms", &t->geoms) ||
+        !ReadTable(m, prefix, "exact_records", &t->exact_records) ||
+        !ReadTable(m, prefix, "exact_verts", &t->verts)) {
+      return nullptr;
+    }
+    t->graph.assign(m->mesh_graph, m->mesh_graph + m->nmeshgraph);
+    if (t->graph.empty()) t->graph.assign(1, -1);
+  }
+  return t;
+}
+
 struct Instance {
-  // Model tables (owned by the model, shared by every mjData of it).
-  const mjtNum* pairs = nullptr;
-  const mjtNum* spheres = nullptr;
-  const mjtNum* shapes = nullptr;
-  const mjtNum* geoms = nullptr;
-  const mjtNum* verts = nullptr;
-  const mjtNum* events_rec = nullptr;
-  const mjtNum* events_params = nullptr;
-  std::vector<int64_t> pair_geom;   // (npair,) geom pair of each sphere pair
-  std::vector<int64_t> geom_pairs;  // (ngp, 2)
-  std::vector<int64_t> events_start, events_members;
-  std::vector<int32_t> graph;
-  int64_t npair = 0, ngp = 0, nbody_events = 0;
+  std::shared_ptr<const Tables> tables;
   int sensor_adr = -1;
   bool overlay = true;
-  double period_time = 0.0;  // dt: one predictor period
-  const mjtNum* config = nullptr;
 
   // Per-mjData state.
-  std::vector<double> last_tau, horizon, w_tau, scratch, exact_records, events_prev, root_twist;
+  std::vector<double> last_tau, w_tau, scratch, exact_records, events_prev, root_twist;
   std::vector<uint8_t> active;
   std::vector<int64_t> ints, slots, queue, params, work, ids, events_meta, events_flagged;
   std::vector<int64_t> log_pairs;
   std::vector<double> log_tau;
   std::vector<uint8_t> log_new;
   std::vector<uint8_t> standing;  // (ngp,) geom pairs standing in alarm
+  // Mocap bodies (by mocap id) and their poses at the last step, differenced into the twists
+  // of the trees they root (root_twist), as dua_mujoco.mj.mocap does.
+  std::vector<int64_t> mocap_bodies;
+  std::vector<double> mocap_pos, mocap_quat, mocap_linear, mocap_angular;
+  std::vector<uint8_t> mocap_user;
   bool classified = false;
   double last_time = 0.0;
   int64_t step = 0;
   dua_step_args args{};
 
-  // Point the step's arguments at this instance's buffers (after any copy).
+  void Allocate(const mjModel* m) {
+    const Tables& t = *tables;
+    const int64_t npair = t.npair, width = std::max<int64_t>(npair, 1);
+    last_tau.assign(npair, kInf);
+    active.assign(npair, 1);
+    ints.assign(static_cast<size_t>(t.Config(kCfgRows)) * npair, 0);
+    slots.assign(static_cast<size_t>(t.Config(kCfgNslots)), -1);
+    queue.assign(static_cast<size_t>(t.Config(kCfgNqueue)) + 1, 0);
+    params.assign(9, 0);
+    work.assign(4 * width, 0);
+    w_tau.assign(width, 0.0);
+    scratch.assign(12 * width, 0.0);
+    ids.resize(npair);
+    for (int64_t p = 0; p < npair; ++p) ids[p] = p;
+    exact_records = t.exact_records;
+    events_prev.assign(t.nbody_events * 31, 0.0);
+    events_meta.assign(3, 0);
+    events_flagged.assign(std::max<int64_t>(t.nbody_events, 1), 0);
+    root_twist.assign(6 * m->nbody, 0.0);
+    log_pairs.assign(width, 0);
+    log_tau.assign(width, 0.0);
+    log_new.assign(width, 0);
+    standing.assign(t.ngp, 0);
+    mocap_bodies.assign(m->nmocap, -1);
+    for (int b = 0; b < m->nbody; ++b) {
+      if (m->body_mocapid[b] >= 0) mocap_bodies[m->body_mocapid[b]] = b;
+    }
+    mocap_pos.assign(3 * m->nmocap, 0.0);
+    mocap_quat.assign(4 * m->nmocap, 0.0);
+    mocap_linear.assign(3 * m->nmocap, 0.0);
+    mocap_angular.assign(3 * m->nmocap, 0.0);
+    mocap_user.assign(m->nmocap, 0);
+  }
+
+  // A new trajectory: record the mocap poses; their twists are zero until the next step.
+  void StartMocap(const mjData* d) {
+    for (size_t i = 0; i < mocap_bodies.size(); ++i) {
+      const int64_t b = mocap_bodies[i];
+      std::copy(d->xpos + 3 * b, d->xpos + 3 * b + 3, mocap_pos.begin() + 3 * i);
+      std::copy(d->xquat + 4 * b, d->xquat + 4 * b + 4, mocap_quat.begin() + 4 * i);
+    }
+    std::fill(mocap_linear.begin(), mocap_linear.end(), 0.0);
+    std::fill(mocap_angular.begin(), mocap_angular.end(), 0.0);
+    std::fill(root_twist.begin(), root_twist.end(), 0.0);
+  }
+
+  // The mocap bodies' twists over the `elapsed` seconds since the last step.
+  void DifferenceMocap(const mjModel* m, const mjData* d, double elapsed) {
+    if (mocap_bodies.empty()) return;
+    dua_difference_poses(d->xpos, d->xquat, mocap_bodies.data(),
+                         static_cast<int64_t>(mocap_bodies.size()), mocap_pos.data(),
+                         mocap_quat.data(), elapsed, mocap_user.data(), mocap_linear.data(),
+                         mocap_angular.data(), root_twist.data(), m->nbody);
+  }
+
+  // Point the step's arguments at this instance's buffers and d's (after any copy).
   void Bind(const mjModel* m, const mjData* d) {
+    const Tables& t = *tables;
     dua_step_args& a = args;
     a.abi = DUA_ABI_VERSION;
     dua_schedule& s = a.schedule;
-    s.kind = static_cast<int64_t>(config[kCfgKind]);
-    s.dt = config[kCfgDt];
-    s.latency = static_cast<int64_t>(config[kCfgLatency]);
-    s.m = npair;
+    s.kind = static_cast<int64_t>(t.Config(kCfgKind));
+    s.dt = t.Config(kCfgDt);
+    s.latency = static_cast<int64_t>(t.Config(kCfgLatency));
+    s.m = t.npair;
     s.last_tau = last_tau.data();
     s.active = active.data();
     s.ints = ints.data();
     s.slots = slots.data();
     s.nslots = static_cast<int64_t>(slots.size());
-    s.horizon = horizon.data();
+    s.horizon = const_cast<double*>(t.horizon.data());  // the step only reads it
     s.queue = queue.data();
     s.nqueue = static_cast<int64_t>(queue.size());
     s.params = params.data();
     s.work = work.data();
     s.width = static_cast<int64_t>(w_tau.size());
     s.w_tau = w_tau.data();
-    a.pairs = pairs;
-    a.spheres = spheres;
-    a.shapes = shapes;
+    a.pairs = t.pairs.data();
+    a.spheres = t.spheres.data();
+    a.shapes = t.shapes.data();
     a.ids = ids.data();
     a.frame = {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist.data(), d->xpos};
     dua_exact& x = a.exact;
-    x.on = geoms != nullptr && static_cast<int64_t>(config[kCfgExactOn]) != 0;
-    x.geoms = geoms;
+    x.on = t.exact ? 1 : 0;
+    x.geoms = t.geoms.data();
     x.records = exact_records.data();
-    x.below = config[kCfgExactBelow];
-    x.query_below = config[kCfgQueryBelow];
-    x.verts = verts;
-    x.graph = graph.data();
+    x.below = t.Config(kCfgExactBelow);
+    x.query_below = t.Config(kCfgQueryBelow);
+    x.verts = t.verts.data();
+    x.graph = t.graph.data();
     x.model = m;
     x.data = d;
     dua_events& e = a.events;
-    e.nbody = nbody_events;
-    e.rec = events_rec;
+    e.nbody = t.nbody_events;
+    e.rec = t.events_rec.data();
     e.prev = events_prev.data();
     e.meta = events_meta.data();
     e.flagged = events_flagged.data();
-    e.start = events_start.data();
-    e.members = events_members.data();
-    e.params = events_params;
+    e.start = t.events_start.data();
+    e.members = t.events_members.data();
+    e.params = t.events_params.data();
     a.scratch = scratch.data();
     a.scratch_rows = static_cast<int64_t>(scratch.size() / 12);
     a.log_pairs = log_pairs.data();
@@ -166,164 +305,86 @@ struct Instance {
   }
 };
 
-bool Fail(const std::string& message) {
-  mju_warning("%s", message.c_str());
-  return false;
-}
-
-// Read the model's tables into `in`; false (after a warning naming what is wrong) on failure.
-bool Load(const mjModel* m, int instance, Instance* in) {
+// Reads the instance's attributes and tables; null (after a warning naming what is wrong).
+Instance* Create(const mjModel* m, int instance) {
   const char* prefix_attr = mj_getPluginConfig(m, instance, "prefix");
   const std::string prefix = (prefix_attr && *prefix_attr) ? prefix_attr : "dua";
-  const char* overlay = mj_getPluginConfig(m, instance, "overlay");
-  if (overlay && *overlay) {
-    const std::string v = overlay;
-    if (v == "true" || v == "1") {
-      in->overlay = true;
-    } else if (v == "false" || v == "0") {
-      in->overlay = false;
-    } else {
-      return Fail("dua_mujoco.predictor: attribute 'overlay' = '" + v +
-                  "' does not parse: use true or false.");
+  bool overlay = true;
+  const char* overlay_attr = mj_getPluginConfig(m, instance, "overlay");
+  if (overlay_attr && *overlay_attr) {
+    const std::string v = overlay_attr;
+    if (v == "false" || v == "0") {
+      overlay = false;
+    } else if (v != "true" && v != "1") {
+      mju_warning("dua_mujoco.predictor: plugin attribute 'overlay' = '%s' does not parse: use "
+                  "true or false.",
+                  v.c_str());
+      return nullptr;
     }
   }
-  const Table config = FindTable(m, prefix, "config");
-  if (!config.data) {
-    return Fail("dua_mujoco.predictor: the model has no numeric field '" + prefix +
-                ":config' (attribute 'prefix' = '" + prefix +
-                "'): build the model with dua_mujoco.attach(spec), which writes the tables.");
-  }
-  if (config.size != kCfgSize || static_cast<int64_t>(config.data[kCfgAbi]) != DUA_ABI_VERSION) {
-    return Fail("dua_mujoco.predictor: '" + prefix +
-                ":config' was written by another version of dua_mujoco: attach again with "
-                "this one.");
-  }
-  in->config = config.data;
-  const Table pairs = FindTable(m, prefix, "pairs");
-  const Table spheres = FindTable(m, prefix, "spheres");
-  const Table shapes = FindTable(m, prefix, "shapes");
-  const Table pair_geom = FindTable(m, prefix, "pair_geom");
-  const Table geom_pairs = FindTable(m, prefix, "geom_pairs");
-  const Table horizon = FindTable(m, prefix, "horizon");
-  const Table events_rec = FindTable(m, prefix, "events_rec");
-  const Table events_params = FindTable(m, prefix, "events_params");
-  const Table events_start = FindTable(m, prefix, "events_start");
-  const Table events_members = FindTable(m, prefix, "events_members");
-  const char* missing = !pairs.data              ? "pairs"
-                        : !spheres.data          ? "spheres"
-                        : !shapes.data           ? "shapes"
-                        : !pair_geom.data        ? "pair_geom"
-                        : !geom_pairs.data       ? "geom_pairs"
-                        : !horizon.data          ? "horizon"
-                        : !events_params.data    ? "events_params"
-                        : !events_start.data     ? "events_start"
-                        : nullptr;
-  if (missing) {
-    return Fail("dua_mujoco.predictor: the model has no numeric field '" + prefix + ":" + missing +
-                "': attach the predictor again with dua_mujoco.attach(spec).");
-  }
-  in->pairs = pairs.data;
-  in->spheres = spheres.data;
-  in->shapes = shapes.data;
-  in->npair = pairs.size / 8;
-  in->pair_geom = AsInts(pair_geom);
-  in->geom_pairs = AsInts(geom_pairs);
-  in->ngp = geom_pairs.size / 2;
-  in->horizon.assign(horizon.data, horizon.data + horizon.size);
-  in->events_rec = events_rec.data;
-  in->nbody_events = events_rec.data ? events_rec.size / 12 : 0;
-  in->events_params = events_params.data;
-  in->events_start = AsInts(events_start);
-  in->events_members = events_members.data ? AsInts(events_members) : std::vector<int64_t>{};
-  in->period_time = in->config[kCfgDt];
-  if (static_cast<int64_t>(in->config[kCfgExactOn])) {
-    const Table geoms = FindTable(m, prefix, "exact_geoms");
-    const Table records = FindTable(m, prefix, "exact_records");
-    const Table verts = FindTable(m, prefix, "exact_verts");
-    if (!geoms.data || !records.data || !verts.data) {
-      return Fail("dua_mujoco.predictor: the exact level is on but the model lacks '" + prefix +
-                  ":exact_geoms', ':exact_records' or ':exact_verts': attach again.");
-    }
-    in->geoms = geoms.data;
-    in->verts = verts.data;
-    in->exact_records.assign(records.data, records.data + records.size);
-    in->graph.assign(m->mesh_graph, m->mesh_graph + m->nmeshgraph);
-    if (in->graph.empty()) in->graph.assign(1, -1);
-  }
-  in->sensor_adr = -1;
+  std::shared_ptr<const Tables> tables = LoadTables(m, prefix);
+  if (!tables) return nullptr;
+  auto* in = new Instance;
+  in->tables = std::move(tables);
+  in->overlay = overlay;
   for (int i = 0; i < m->nsensor; ++i) {
     if (m->sensor_type[i] == mjSENS_PLUGIN && m->sensor_plugin[i] == instance) {
       in->sensor_adr = m->sensor_adr[i];
       break;
     }
   }
-  const int64_t npair = in->npair;
-  const int64_t width = std::max<int64_t>(npair, 1);
-  in->last_tau.assign(npair, kInf);
-  in->active.assign(npair, 1);
-  in->ints.assign(static_cast<size_t>(in->config[kCfgRows]) * npair, 0);
-  in->slots.assign(static_cast<size_t>(in->config[kCfgNslots]), -1);
-  in->queue.assign(static_cast<size_t>(in->config[kCfgNqueue]) + 1, 0);
-  in->params.assign(9, 0);
-  in->work.assign(4 * width, 0);
-  in->w_tau.assign(width, 0.0);
-  in->scratch.assign(12 * width, 0.0);
-  in->ids.resize(npair);
-  for (int64_t p = 0; p < npair; ++p) in->ids[p] = p;
-  in->events_prev.assign(in->nbody_events * 31, 0.0);
-  in->events_meta.assign(3, 0);
-  in->events_flagged.assign(std::max<int64_t>(in->nbody_events, 1), 0);
-  in->root_twist.assign(6 * m->nbody, 0.0);
-  in->log_pairs.assign(width, 0);
-  in->log_tau.assign(width, 0.0);
-  in->log_new.assign(width, 0);
-  in->standing.assign(in->ngp, 0);
-  return true;
+  in->Allocate(m);
+  return in;
 }
 
-// The initial classification at this instant: every pair evaluated and scheduled.
+// The initial classification at this instant: every pair evaluated and scheduled, as the
+// schedules' constructors in dua_mujoco.core.schedules do it.
 void Classify(const mjModel* m, mjData* d, Instance* in) {
+  const Tables& t = *in->tables;
   in->Bind(m, d);
   dua_step_args& a = in->args;
   dua_schedule& s = a.schedule;
-  const int64_t npair = in->npair;
+  in->StartMocap(d);
   std::fill(in->active.begin(), in->active.end(), 1);
   std::fill(in->slots.begin(), in->slots.end(), -1);
   std::fill(in->queue.begin(), in->queue.end(), 0);
-  for (int i = 0; i < 9; ++i) in->params[i] = static_cast<int64_t>(in->config[kCfgParams + i]);
-  const int64_t kind = s.kind;
-  std::fill(in->ints.begin(), in->ints.end(), kind == 1 ? -1 : 0);
-  if (kind == 1) std::fill(in->ints.begin() + npair, in->ints.begin() + 2 * npair, 0);
+  for (int i = 0; i < 9; ++i) in->params[i] = static_cast<int64_t>(t.Config(kCfgParams + i));
+  std::fill(in->ints.begin(), in->ints.end(), s.kind == kDeadline ? -1 : 0);
+  if (s.kind == kDeadline) {  // LAST_STEP: 0
+    std::fill(in->ints.begin() + t.npair, in->ints.begin() + 2 * t.npair, 0);
+  }
   dua_reset_events(&a);
-  const int64_t bad = dua_evaluate(&a, in->ids.data(), npair, in->last_tau.data());
-  if (bad >= 0) {
-    // A state that is not finite: nothing can be predicted from it; stand every pair in alarm.
+  if (dua_evaluate(&a, in->ids.data(), t.npair, in->last_tau.data()) >= 0) {
+    // A state that is not finite: nothing can be predicted from it; every pair stands in alarm.
     std::fill(in->last_tau.begin(), in->last_tau.end(), -kInf);
   }
-  if (kind == 1) dua_deadline_classify(&s);
+  if (s.kind == kDeadline) dua_deadline_classify(&s);
+  a.count = t.npair;
+  a.deferred = 0;
   in->classified = true;
   in->step = 0;
   in->last_time = d->time;
 }
 
-// Standing geom pairs and the sensor outputs, from the schedule's state (the alarm rule on
-// each pair's latest tau: docs/theory.md, section 3).
-void Publish(const mjModel* m, mjData* d, Instance* in) {
-  dua_step_args& a = in->args;
+// Standing geom pairs and the sensor outputs, by the alarm rule on each pair's latest tau
+// (the schedulers' alarm_state: docs/theory.md, section 3).
+void Publish(mjData* d, Instance* in) {
+  const Tables& t = *in->tables;
+  const dua_step_args& a = in->args;
   const dua_schedule& s = a.schedule;
   std::fill(in->standing.begin(), in->standing.end(), 0);
   double min_tau = kInf;
   const int64_t* where = s.ints;
   const int64_t* last_step = s.ints + s.m;
-  for (int64_t p = 0; p < in->npair; ++p) {
+  for (int64_t p = 0; p < t.npair; ++p) {
     if (!s.active[p]) continue;
     const double tau = s.last_tau[p];
     double horizon = s.horizon[0];
-    if (s.kind == 1) {
+    if (s.kind == kDeadline) {
       horizon = where[p] >= 0 ? static_cast<double>(where[p] - last_step[p] + s.latency) * s.dt
                               : -kInf;
     }
-    if (tau < horizon) in->standing[in->pair_geom[p]] = 1;
+    if (tau < horizon) in->standing[t.pair_geom[p]] = 1;
     min_tau = std::min(min_tau, tau);
   }
   int64_t nstanding = 0;
@@ -334,60 +395,59 @@ void Publish(const mjModel* m, mjData* d, Instance* in) {
     out[kMinTau] = min_tau;
     out[kEvaluated] = static_cast<mjtNum>(a.count);
     out[kDeferred] = static_cast<mjtNum>(a.deferred);
-    out[kFlagged] = static_cast<mjtNum>(a.events.meta[1]);
+    out[kFlagged] = static_cast<mjtNum>(a.events.nbody ? a.events.meta[1] : 0);
   }
-  (void)m;
 }
 
 void Compute(const mjModel* m, mjData* d, int instance) {
   auto* in = reinterpret_cast<Instance*>(d->plugin_data[instance]);
   if (!in) return;
-  const double dt = in->period_time;
+  const Tables& t = *in->tables;
   if (!in->classified) {
-    in->args.count = 0;
-    in->args.deferred = 0;
     Classify(m, d, in);
-    Publish(m, d, in);
+    Publish(d, in);
     return;
   }
+  const double dt = t.Config(kCfgDt), h = t.Config(kCfgTimestep);
   const double elapsed = d->time - in->last_time;
-  if (std::fabs(elapsed) <= 1e-6 * dt) return;  // an mj_forward at the same instant
-  const double per_physics = m->opt.timestep;
-  if (elapsed > 0.0 && elapsed < dt - 1e-6 * dt) {
-    // Within a predictor period (period > 1): the next step comes when the period is over,
-    // if the clock advanced by whole physics steps.
-    const double k = elapsed / per_physics;
-    if (std::fabs(k - std::nearbyint(k)) <= 1e-6 * std::max(k, 1.0)) return;
-  }
-  if (std::fabs(elapsed - dt) > 1e-6 * dt) {
-    in->args.count = 0;
-    in->args.deferred = 0;
-    Classify(m, d, in);
-    Publish(m, d, in);
+  if (std::fabs(elapsed) <= 1e-6 * h) {
+    Publish(d, in);  // an mj_forward at the same instant: the outputs stand
     return;
   }
+  const bool one_period = std::fabs(elapsed - dt) <= 1e-6 * dt;
+  if (!one_period) {
+    const double k = elapsed / h;
+    if (elapsed > 0.0 && elapsed < dt && std::fabs(k - std::nearbyint(k)) <= 1e-6 * k) {
+      Publish(d, in);  // within the period: the next step comes at its end
+      return;
+    }
+    Classify(m, d, in);  // the clock moved otherwise: start over from this state
+    Publish(d, in);
+    return;
+  }
+  in->DifferenceMocap(m, d, elapsed);
   in->Bind(m, d);
-  in->step += 1;
-  dua_step(&in->args, in->step, 0);
+  dua_step(&in->args, in->step + 1, 0);
   if (in->args.bad >= 0) {
-    // Not finite: the step was undone; classify again at the next finite state.
+    // Not finite: the step was undone; classify again at the next state.
     in->classified = false;
     return;
   }
+  in->step += 1;
   in->last_time = d->time;
-  Publish(m, d, in);
+  Publish(d, in);
 }
 
 void Visualize(mjData* d, mjvScene* scn, int instance) {
   auto* in = reinterpret_cast<Instance*>(d->plugin_data[instance]);
   if (!in || !in->overlay || !in->classified) return;
+  const Tables& t = *in->tables;
   const float red[4] = {0.95f, 0.15f, 0.1f, 0.9f};
-  for (int64_t k = 0; k < in->ngp; ++k) {
+  for (int64_t k = 0; k < t.ngp; ++k) {
     if (!in->standing[k]) continue;
     if (scn->ngeom >= scn->maxgeom) return;  // mjv_updateScene warns of a full scene
-    const int64_t g1 = in->geom_pairs[2 * k], g2 = in->geom_pairs[2 * k + 1];
-    const mjtNum* a = d->geom_xpos + 3 * g1;
-    const mjtNum* b = d->geom_xpos + 3 * g2;
+    const mjtNum* a = d->geom_xpos + 3 * t.geom_pairs[2 * k];
+    const mjtNum* b = d->geom_xpos + 3 * t.geom_pairs[2 * k + 1];
     mjvGeom* geom = scn->geoms + scn->ngeom;
     mjv_initGeom(geom, mjGEOM_NONE, nullptr, nullptr, nullptr, red);
     mjv_connector(geom, mjGEOM_LINE, 3.0, a, b);
@@ -405,17 +465,14 @@ void Register() {
   plugin.capabilityflags |= mjPLUGIN_SENSOR;
   plugin.nattribute = kNAttribute;
   plugin.attributes = kAttributes;
-  // The state lives in plugin_data (copy below); nothing in plugin_state.
+  // The state lives in plugin_data (copied by `copy`); nothing in plugin_state.
   plugin.nstate = +[](const mjModel*, int) { return 0; };
   plugin.nsensordata = +[](const mjModel*, int, int) { return static_cast<int>(kNOutput); };
   // cvel and subtree_com are ready at the velocity stage.
   plugin.needstage = mjSTAGE_VEL;
   plugin.init = +[](const mjModel* m, mjData* d, int instance) {
-    auto* in = new Instance;
-    if (!Load(m, instance, in)) {
-      delete in;
-      return -1;
-    }
+    Instance* in = Create(m, instance);
+    if (!in) return -1;
     d->plugin_data[instance] = reinterpret_cast<uintptr_t>(in);
     return 0;
   };
@@ -431,7 +488,7 @@ void Register() {
       to = new Instance;
       dest->plugin_data[instance] = reinterpret_cast<uintptr_t>(to);
     }
-    *to = *from;  // every buffer deep-copied; Bind re-points the step at dest's
+    *to = *from;  // the state deep-copied, the tables shared
     to->Bind(m, dest);
   };
   plugin.reset = +[](const mjModel*, mjtNum*, void* plugin_data, int) {
@@ -453,20 +510,23 @@ mjPLUGIN_LIB_INIT(dua_mujoco) { dua::Register(); }
 
 extern "C" {
 
-// Geom pairs standing in alarm in plugin instance `instance` of d: up to `capacity` (g1, g2)
-// rows into out; returns how many there are (-1: no instance).
-DUA_API int64_t dua_plugin_standing(const mjData* d, int instance, int64_t* out,
-                                    int64_t capacity) {
-  if (instance < 0 || instance >= d->nplugin) return -1;
+// Geom pairs standing in alarm in plugin instance `instance` of d: up to `capacity` rows
+// (g1, g2) into out; returns how many there are (-1: no such instance of this plugin).
+DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int instance,
+                                    int64_t* out, int64_t capacity) {
+  if (instance < 0 || instance >= m->nplugin || instance >= d->nplugin) return -1;
+  const mjpPlugin* plugin = mjp_getPluginAtSlot(m->plugin[instance]);
+  if (!plugin || std::string(plugin->name) != dua::kPluginName) return -1;
   const auto* in = reinterpret_cast<const dua::Instance*>(d->plugin_data[instance]);
   if (!in) return -1;
   if (!in->classified) return 0;
+  const dua::Tables& t = *in->tables;
   int64_t n = 0;
-  for (int64_t k = 0; k < in->ngp; ++k) {
+  for (int64_t k = 0; k < t.ngp; ++k) {
     if (!in->standing[k]) continue;
     if (n < capacity) {
-      out[2 * n] = in->geom_pairs[2 * k];
-      out[2 * n + 1] = in->geom_pairs[2 * k + 1];
+      out[2 * n] = t.geom_pairs[2 * k];
+      out[2 * n + 1] = t.geom_pairs[2 * k + 1];
     }
     ++n;
   }

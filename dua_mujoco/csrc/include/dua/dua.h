@@ -159,6 +159,15 @@ DUA_API int64_t dua_exceeds12(double a0, double a1, double a2, double x0, double
 // Centre and velocity of sphere i: out[0:6].
 DUA_API void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, double* out);
 
+// Backward-difference velocities of mocap bodies bodies[0:n] (poses xpos (nbody, 3), xquat
+// (nbody, 4)) against prev_pos (n, 3), prev_quat (n, 4), which are updated; linear and angular
+// (n, 3) are written where user[i] is 0; twist (ntwist = nbody, 6), if ntwist > 0, receives
+// [angular; linear] in the bodies' rows.
+DUA_API void dua_difference_poses(const double* xpos, const double* xquat, const int64_t* bodies,
+                                  int64_t n, double* prev_pos, double* prev_quat, double dt,
+                                  const uint8_t* user, double* linear, double* angular,
+                                  double* twist, int64_t ntwist);
+
 DUA_API int64_t dua_abi_version(void);
 
 #ifdef __cplusplus

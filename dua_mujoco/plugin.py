@@ -1,0 +1,223 @@
+"""The predictor inside ``mj_step``: the MuJoCo sensor plugin ``dua_mujoco.predictor``.
+
+:func:`attach` adds the plugin to a ``mujoco.MjSpec``: one plugin instance, one sensor of
+:data:`OUTPUTS`, and the tables the step reads (everything a :class:`~dua_mujoco.Predictor` of the
+same options computes at construction: the covering, the pairs and their bounds, the static
+shapes, the exact level's records, the violation check's boxes, the schedule's parameters) as
+custom text fields ``<prefix>:<table>``. ``spec.compile()`` then gives a model whose every
+``mj_step`` predicts, in Python or in any C or C++ program (``simulate`` included) that loads
+``libdua_mujoco.so`` (docs/plugin.md). The step is the native core's, the same code
+``Predictor.step`` runs.
+
+Each table is written as its entry count followed by the entries as hexadecimal floats
+(``float.hex``): MuJoCo writes custom numeric fields to XML with six significant digits, which
+would round the bounds, and text fields verbatim.
+
+The plugin's state lives in each ``MjData`` (``mj_copyData`` copies it, ``mj_resetData`` starts it
+over), so copies, resets and ``mujoco.rollout`` on several threads keep their runs apart.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from typing import Any, NamedTuple
+
+import mujoco
+import numpy as np
+
+from dua_mujoco.core.schedules import Schedule
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.native import ABI_VERSION, library
+
+__all__ = ["OUTPUTS", "PLUGIN_NAME", "PluginOutputs", "attach", "plugin_outputs", "standing_pairs"]
+
+PLUGIN_NAME = "dua_mujoco.predictor"
+
+OUTPUTS = ("standing", "min_tau", "evaluated", "deferred", "flagged")
+"""The sensor's outputs, in order (:class:`PluginOutputs`)."""
+
+
+class PluginOutputs(NamedTuple):
+    """What the plugin's sensor says after a step.
+
+    Attributes:
+        standing: Geom pairs standing in alarm.
+        min_tau: Least latest tau over the active sphere pairs (seconds; ``inf`` if none).
+        evaluated: tau evaluations of the latest step (every pair at a classification).
+        deferred: Pairs due at the latest step but left for a later one (a capped schedule).
+        flagged: Bodies whose motion broke its bounds over the latest step's period.
+    """
+
+    standing: int
+    min_tau: float
+    evaluated: int
+    deferred: int
+    flagged: int
+
+
+_SCHEDULES = (Schedule.DEADLINE, Schedule.SELECT_ALL)
+
+
+def _encode(values: np.ndarray) -> str:
+    """A table as the plugin reads it: the count, then every entry as a hexadecimal float."""
+    flat = np.asarray(values, dtype=np.float64).reshape(-1)
+    return " ".join([str(flat.size), *map(float.hex, flat.tolist())])
+
+
+def _check_prefix(spec: mujoco.MjSpec, prefix: object) -> str:
+    if not isinstance(prefix, str) or not prefix or any(c.isspace() or c == ":" for c in prefix):
+        raise InvalidInputError(
+            f"prefix = {prefix!r} is invalid: a non-empty name without spaces or ':' (the "
+            "tables are the model's text fields '<prefix>:<table>')."
+        )
+    taken = [t.name for t in spec.texts if t.name.startswith(f"{prefix}:")]
+    if taken or any(s.name == prefix for s in spec.sensors):
+        what = ", ".join(taken[:2]) or f"a sensor named {prefix!r}"
+        raise InvalidInputError(
+            f"the spec already holds a predictor under prefix {prefix!r} ({what}): attach "
+            "another with a prefix='...' of its own."
+        )
+    return prefix
+
+
+def _tables(p: Predictor) -> dict[str, np.ndarray]:
+    """The plugin's tables for predictor ``p`` (every pair held), by name."""
+    sched = p.new_scheduler(np.full(p.nsphere_pairs, np.inf))
+    state = sched.state
+    geom1, geom2 = p.sphere_pair_geoms
+    rows = np.sort(np.stack([geom1, geom2], axis=1), axis=1)
+    keys, pair_geom = np.unique(rows, axis=0, return_inverse=True)
+    exact = p.exact
+    config = np.zeros(20)
+    config[:11] = [
+        ABI_VERSION,
+        int(state.kind),
+        p.dt,
+        p.latency,
+        float(p.model.opt.timestep),
+        state.ints.shape[0],
+        state.slots.shape[0],
+        state.queue.shape[0] - 1,
+        exact is not None,
+        0.0 if exact is None else exact.exact_below,
+        0.0 if exact is None else exact.query_below,
+    ]
+    config[11:] = state.params
+    tables = {
+        "config": config,
+        "pairs": p.pair_records,
+        "spheres": p.sphere_records,
+        "shapes": p.shape_records,
+        "horizon": state.horizon,
+        "pair_geom": pair_geom.reshape(-1),
+        "geom_pairs": keys,
+    }
+    events = p.events
+    if events is None:
+        tables.update(
+            events_rec=np.zeros(0), events_params=np.array([1.0, 0.0]), events_start=np.zeros(1)
+        )
+        tables["events_members"] = np.zeros(0)
+    else:
+        rec, _, _, _, start, members, params = events.args()
+        tables.update(
+            events_rec=rec, events_params=params, events_start=start, events_members=members
+        )
+    if exact is not None:
+        tables.update(exact_geoms=exact.geoms, exact_records=exact.records, exact_verts=exact.verts)
+    return tables
+
+
+def attach(
+    spec: mujoco.MjSpec, *, prefix: str = "dua", overlay: bool = True, **options: Any
+) -> Predictor:
+    """Add the predictor to ``spec`` as the sensor plugin ``dua_mujoco.predictor``.
+
+    The spec is compiled once (as it stands) to build a :class:`~dua_mujoco.Predictor` with
+    ``options``; its tables go into the spec with a plugin instance and a sensor named
+    ``prefix``. Every ``mj_step`` of ``spec.compile()``'s models then runs the predictor's step
+    (the native core's, the one ``Predictor.step`` runs) at the instant ``Predictor.step`` would
+    read after that ``mj_step``.
+
+    Args:
+        spec: The model's spec (edited in place).
+        prefix: Name of the plugin instance and its sensor, and prefix of its text fields.
+        overlay: Draw the pairs standing in alarm into every ``mjvScene`` (``visualize``).
+        **options: ``Predictor``'s keyword options (``accel``, ``period``, ``covering``,
+            ``urgency``, ``schedule``, ...). Every pair is held (``pairs="all"``).
+
+    Returns:
+        The Python predictor the tables came from (a twin: same options, same step).
+
+    Raises:
+        InvalidInputError: ``spec`` is not an ``MjSpec``, or the prefix is taken or malformed.
+        InvalidChoiceError: A schedule or pair mode the plugin does not run.
+    """
+    if not isinstance(spec, mujoco.MjSpec):
+        raise InvalidInputError(
+            f"spec must be a mujoco.MjSpec, got {type(spec).__name__}: load one with "
+            "mujoco.MjSpec.from_file(path) (or dua_mujoco.mj.scenes.load_spec(name))."
+        )
+    _check_prefix(spec, prefix)
+    pairs = options.setdefault("pairs", "all")
+    if pairs != "all":
+        raise InvalidChoiceError("pairs", pairs, ["all"])
+    library()  # registers the plugin with MuJoCo, if `import mujoco` did not
+    p = Predictor(spec.compile(), **options)
+    if p.schedule not in _SCHEDULES:
+        raise InvalidChoiceError("schedule", p.schedule.value, [s.value for s in _SCHEDULES])
+    tables = _tables(p)
+    spec.activate_plugin(PLUGIN_NAME)
+    plugin = spec.add_plugin(name=prefix, plugin_name=PLUGIN_NAME, active=True)
+    plugin.config = {"prefix": prefix, "overlay": "true" if overlay else "false"}
+    sensor = spec.add_sensor(name=prefix, type=mujoco.mjtSensor.mjSENS_PLUGIN)
+    sensor.plugin = plugin
+    sensor.plugin.name = prefix
+    sensor.plugin.active = True
+    for name, values in tables.items():
+        spec.add_text(name=f"{prefix}:{name}", data=_encode(values))
+    return p
+
+
+def _sensor(model: mujoco.MjModel, prefix: str) -> int:
+    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, prefix)
+    if sid < 0 or int(model.sensor_type[sid]) != int(mujoco.mjtSensor.mjSENS_PLUGIN):
+        raise InvalidInputError(
+            f"the model has no predictor sensor {prefix!r}: build it from a spec passed to "
+            "dua_mujoco.attach(spec) (or pass the prefix it was attached with)."
+        )
+    return sid
+
+
+def plugin_outputs(
+    model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "dua"
+) -> PluginOutputs:
+    """The plugin's sensor outputs in ``data`` (after ``mj_step`` or ``mj_forward``)."""
+    sid = _sensor(model, prefix)
+    adr = int(model.sensor_adr[sid])
+    v = data.sensordata[adr : adr + len(OUTPUTS)]
+    return PluginOutputs(int(v[0]), float(v[1]), int(v[2]), int(v[3]), int(v[4]))
+
+
+def standing_pairs(
+    model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "dua"
+) -> np.ndarray:
+    """Geom pairs standing in alarm now, ``(K, 2)`` int64 geom ids, ``geom1 < geom2`` rows in
+    increasing order (empty before the first step's compute).
+
+    Raises:
+        InvalidInputError: The model has no predictor sensor ``prefix``.
+    """
+    instance = int(model.sensor_plugin[_sensor(model, prefix)])
+    fn = library().dua_plugin_standing
+    fn.restype = ctypes.c_int64
+    fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_int64]
+    out = np.empty((64, 2), dtype=np.int64)
+    while True:
+        n = int(fn(model._address, data._address, instance, out.ctypes.data, out.shape[0]))
+        if n < 0:  # pragma: no cover - the sensor names an instance of this plugin
+            raise InvalidInputError(f"plugin instance {instance} is not a {PLUGIN_NAME!r}.")
+        if n <= out.shape[0]:
+            return out[:n].copy()
+        out = np.empty((n, 2), dtype=np.int64)

@@ -1,0 +1,250 @@
+"""The MuJoCo plugin ``dua_mujoco.predictor``: the predictor inside ``mj_step``, held to the
+Python predictor step by step, per-``MjData`` state, exported models, C++ without Python."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import gymnasium
+import mujoco
+import numpy as np
+import pytest
+from mujoco import rollout
+
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import load_spec, make_controller
+from dua_mujoco.native import library_path
+from dua_mujoco.plugin import attach, plugin_outputs, standing_pairs
+
+ANT = str(Path(gymnasium.__file__).parent / "envs/mujoco/assets/ant.xml")
+
+
+def python_standing(p: Predictor) -> np.ndarray:
+    """The Python predictor's geom pairs standing in alarm, as ``standing_pairs`` gives them."""
+    assert p.scheduler is not None
+    ids = p.held_pairs[p.scheduler.alarm_state()]
+    g1, g2 = p.sphere_pair_geoms
+    rows = np.sort(np.stack([g1[ids], g2[ids]], axis=1), axis=1)
+    return np.unique(rows, axis=0).reshape(-1, 2)
+
+
+def _attached(scene: str, **options: object) -> tuple[mujoco.MjModel, Predictor]:
+    spec = load_spec(scene)
+    if spec.option.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+        # After an RK4 mj_step, MjData holds its last stage's kinematics, which Predictor.step
+        # reads; the plugin reads the state the step starts from (docs/plugin.md). Both are
+        # valid instants but not the same one: compare them on Euler.
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    p = attach(spec, **{"accel": 30.0, **options})
+    return spec.compile(), p
+
+
+def _run_side_by_side(m: mujoco.MjModel, p: Predictor, steps: int, seed: int = 0) -> int:
+    """Step the plugin's model and the Python predictor on it together; assert equal standing
+    pairs after every predictor step. Returns the steps with some pair standing."""
+    d = mujoco.MjData(m)
+    ctrl = make_controller(m, "random", seed=seed)
+    busy = 0
+    for k in range(steps):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        if k == 0:
+            p.reset(d)
+        elif k % p.period == 0:
+            p.step(d)
+        else:
+            continue
+        want = python_standing(p)
+        np.testing.assert_array_equal(standing_pairs(m, d), want, err_msg=f"step {k}")
+        assert plugin_outputs(m, d).standing == want.shape[0]
+        busy += want.shape[0] > 0
+    return busy
+
+
+@pytest.mark.parametrize(
+    ("scene", "steps"),
+    [("two_arms", 300), ("traffic", 1500), ("clutter", 300), ("paper_world", 300),
+     ("bin_pour:30", 300), (ANT, 300)],
+    ids=["two_arms", "traffic", "clutter", "paper_world", "bin_pour", "gym-ant"],
+)  # fmt: skip
+def test_plugin_equals_the_python_predictor(scene: str, steps: int) -> None:
+    """On every bundled scene (clutter's mocap body included) and a robot: the pairs standing
+    in alarm after each mj_step are the Python predictor's after its step on the same state."""
+    m, p = _attached(scene)
+    assert _run_side_by_side(m, p, steps) > 10  # the comparison is not of empty steps
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"period": 3},
+        {"schedule": ScheduleOptions(kind="select-all")},
+        {"urgency": UrgencyOptions(exact=False)},
+        {"schedule": ScheduleOptions(max_evals_per_step=4, alarm_backoff=1)},
+        {"latency": 1},
+    ],
+    ids=["period", "select-all", "no-exact", "capped", "latency"],
+)
+def test_plugin_equals_the_python_predictor_under_options(options: dict) -> None:
+    m, p = _attached("two_arms", **options)
+    assert _run_side_by_side(m, p, 240, seed=3) > 10
+
+
+def _standing_sequence(m: mujoco.MjModel, d: mujoco.MjData, ctrl: np.ndarray) -> list[list]:
+    out = []
+    for u in ctrl:
+        d.ctrl[:] = u
+        mujoco.mj_step(m, d)
+        out.append(standing_pairs(m, d).tolist())
+    return out
+
+
+def test_copies_and_resets_keep_their_own_state() -> None:
+    """``mj_copyData`` carries the plugin's state into the copy, and the two then run apart;
+    ``mj_resetData`` starts the predictor over, as a fresh ``MjData`` does."""
+    m, _ = _attached("two_arms")
+    rng = np.random.default_rng(0)
+    ctrl = rng.uniform(-1, 1, (400, m.nu))
+    other = rng.uniform(-1, 1, (200, m.nu))
+    reference = _standing_sequence(m, mujoco.MjData(m), ctrl)
+    d = mujoco.MjData(m)
+    _standing_sequence(m, d, ctrl[:200])
+    copy = mujoco.MjData(m)
+    mujoco.mj_copyData(copy, m, d)
+    np.testing.assert_array_equal(standing_pairs(m, copy), standing_pairs(m, d))
+    # The copy goes its own way; the original must not notice.
+    _standing_sequence(m, copy, other)
+    assert _standing_sequence(m, d, ctrl[200:]) == reference[200:]
+    mujoco.mj_resetData(m, d)
+    assert standing_pairs(m, d).shape == (0, 2)  # nothing until the first compute
+    assert _standing_sequence(m, d, ctrl) == reference
+
+
+def test_rollout_on_two_threads_gives_one_threads_alarms() -> None:
+    m, _ = _attached("two_arms")
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.zeros(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, d, state, spec)
+    rng = np.random.default_rng(1)
+    initial = np.repeat(state[None], 6, axis=0)
+    ctrl = rng.uniform(-1, 1, (6, 250, m.nu))
+    _, one = rollout.rollout(m, [mujoco.MjData(m)], initial, ctrl)
+    _, two = rollout.rollout(m, [mujoco.MjData(m), mujoco.MjData(m)], initial, ctrl)
+    np.testing.assert_array_equal(one, two)
+    # Alarms stand, and the six controls gave six runs (the evaluations and tau differ).
+    assert one[:, :, 0].max() > 0 and len({one[i].tobytes() for i in range(6)}) == 6
+
+
+@pytest.mark.parametrize("suffix", [".xml", ".mjb"])
+def test_exported_model_runs_the_plugin_after_a_round_trip(tmp_path: Path, suffix: str) -> None:
+    """``dua-mujoco export`` writes what ``MjModel.from_xml_path`` (or the binary loader) reads
+    back into the predictor a Python ``Predictor`` of the same options builds for the model read
+    back: the tables were computed for the geometry the file holds, and survive exactly."""
+    from dua_mujoco.cli import main
+
+    out = tmp_path / f"clutter{suffix}"
+    assert main(["export", "clutter", str(out), "--accel", "30"]) == 0
+    loaded = (
+        mujoco.MjModel.from_xml_path(str(out))
+        if suffix == ".xml"
+        else mujoco.MjModel.from_binary_path(str(out))
+    )
+    assert _run_side_by_side(loaded, Predictor(loaded, accel=30.0, pairs="all"), 300) > 10
+
+
+@pytest.mark.skipif(shutil.which("g++") is None, reason="needs a C++ compiler (CI installs g++)")
+def test_a_cpp_program_runs_the_exported_model(tmp_path: Path) -> None:
+    """The example program (csrc/examples/run_model.cc), built against the wheel's headers and
+    libmujoco, loads the plugin library and the exported model, no Python involved, and its
+    sensor readings equal the Python side's."""
+    from dua_mujoco.cli import main
+
+    folder = Path(mujoco.__file__).parent
+    (lib,) = folder.glob("libmujoco.so.*")
+    source = Path(__file__).parents[1] / "dua_mujoco/csrc/examples/run_model.cc"
+    exe = tmp_path / "run_model"
+    subprocess.run(
+        ["g++", "-std=c++17", "-Wall", "-Werror", str(source), f"-I{folder / 'include'}",
+         str(lib), f"-Wl,-rpath,{folder}", "-o", str(exe)],
+        check=True, capture_output=True, timeout=300,
+    )  # fmt: skip
+    model = tmp_path / "two_arms.xml"
+    assert main(["export", "two_arms", str(model), "--accel", "30"]) == 0
+    out = subprocess.run(
+        [str(exe), str(library_path()), str(model), "300"],
+        check=True, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    rows = np.array([[float(v) for v in line.split()] for line in out.stdout.splitlines()])
+    m = mujoco.MjModel.from_xml_path(str(model))
+    d = mujoco.MjData(m)
+    expected = []
+    for _ in range(300):
+        mujoco.mj_step(m, d)
+        expected.append([d.time, *plugin_outputs(m, d)])
+    np.testing.assert_array_equal(rows, np.array(expected))
+    assert rows[:, 1].max() > 0
+
+
+def test_the_overlay_draws_the_standing_pairs_into_any_scene() -> None:
+    """``visualize`` adds one connector per standing geom pair to an ``mjvScene``
+    (``mujoco.Renderer``'s, the viewer's and simulate's alike); ``overlay=false`` adds none."""
+    counts = []
+    for overlay in (True, False):
+        spec = load_spec("two_arms")
+        attach(spec, accel=30.0, overlay=overlay)
+        m = spec.compile()
+        d = mujoco.MjData(m)
+        for _ in range(50):
+            mujoco.mj_step(m, d)
+        scene = mujoco.MjvScene(m, maxgeom=1000)
+        mujoco.mjv_updateScene(
+            m, d, mujoco.MjvOption(), None, mujoco.MjvCamera(), mujoco.mjtCatBit.mjCAT_ALL, scene
+        )
+        red = [g for g in scene.geoms[: scene.ngeom] if g.objid == -1 and g.rgba[0] > 0.9]
+        counts.append((len(red), len(standing_pairs(m, d))))
+    (shown, standing), (hidden, _) = counts
+    assert standing > 0 and shown == standing and hidden == 0
+
+
+def test_attach_refuses_what_the_plugin_cannot_run() -> None:
+    spec = load_spec("two_arms")
+    with pytest.raises(InvalidInputError, match="MjSpec"):
+        attach(mujoco.MjModel.from_xml_string("<mujoco/>"))  # type: ignore[arg-type]
+    with pytest.raises(InvalidChoiceError, match="pairs"):
+        attach(spec, accel=30.0, pairs="pruned")
+    with pytest.raises(InvalidChoiceError, match="deadline"):
+        attach(spec, accel=30.0, schedule="dua")
+    with pytest.raises(InvalidInputError, match="prefix"):
+        attach(spec, prefix="a b", accel=30.0)
+    attach(spec, accel=30.0)
+    with pytest.raises(InvalidInputError, match="already holds a predictor under prefix 'dua'"):
+        attach(spec, accel=30.0)
+    attach(spec, prefix="second", accel=30.0)  # two instances side by side
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    for _ in range(20):
+        mujoco.mj_step(m, d)
+    np.testing.assert_array_equal(standing_pairs(m, d), standing_pairs(m, d, prefix="second"))
+    with pytest.raises(InvalidInputError, match="no predictor sensor 'nope'"):
+        standing_pairs(m, d, prefix="nope")
+
+
+def test_a_model_with_broken_tables_names_what_is_wrong() -> None:
+    """The plugin's errors reach Python through MuJoCo's: a missing table and an attribute that
+    does not parse are named."""
+    spec = load_spec("traffic")
+    attach(spec, accel=4.0)
+    spec.delete(next(t for t in spec.texts if t.name == "dua:pairs"))
+    with pytest.raises(Exception, match="dua:pairs"):
+        mujoco.MjData(spec.compile())
+    spec = load_spec("traffic")
+    attach(spec, accel=4.0)
+    spec.plugins[0].config = {"prefix": "dua", "overlay": "maybe"}
+    with pytest.raises(Exception, match="'overlay' = 'maybe'"):
+        mujoco.MjData(spec.compile())
