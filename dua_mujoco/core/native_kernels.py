@@ -36,6 +36,7 @@ __all__ = [
     "rigid_point_c",
     "select_c",
     "static_gap_c",
+    "step_c",
     "support_c",
     "support_local_c",
     "switch_c",
@@ -76,6 +77,9 @@ deadline_classify_c = _c("dua_deadline_classify", types.void(_pi8))
 deadline_carry_c = _c("dua_deadline_carry", types.void(_pi8, _pi8, _pi8, _i8, _i8))
 deadline_interval_c = _c("dua_deadline_interval", _i8(_f8, _f8, _i8, _i8))
 rigid_point_c = _c("dua_rigid_point", types.void(_i8, _pf8, _pi8, _pf8))
+# The predictor's step on a ``dua_step_args`` struct (its address: an int, as the C ABI passes a
+# pointer).
+step_c = _c("dua_step", _i8(_i8, _i8, _i8))
 exceeds12_c = _c("dua_exceeds12", _i8(*([_f8] * 13)))
 _pb = types.CPointer(types.boolean)  # numpy's bool: one byte, as the core's uint8_t
 difference_poses_c = _c(

@@ -479,16 +479,24 @@ class Predictor(PredictorViews):
             self._rebuild_next = False
         native = self._native
         assert native is not None
-        nalarm, bad, start, deferred = sched.step_context(NativeStep.kernel, native)
-        if bad >= 0:
-            raise self._nonfinite(data, int(self._ids[bad]))
+        start, nalarm = native.step(sched.begin_step())
+        if nalarm < 0:
+            raise self._nonfinite(data, int(self._ids[-1 - nalarm]))
+        sched.end_step(nalarm)
         if self._held is not None and self._events[2][M_COUNT]:
             # Pairs not held were left out under the bounds too: renewed at the next step if a
             # flagged body may have left the reach that left them out.
             self._rebuild_next = self._escaped(sched.step_count)
         self._time = time
+        deferred = sched.deferred if self.max_evals_per_step is not None else 0
         return Alarms.from_log(
-            sched.step_count, time, native.view, start, start + nalarm, self.tables, deferred
+            sched.step_count,
+            time,
+            native.view,
+            start,
+            start + nalarm,
+            self.universe.tables,
+            deferred,
         )
 
     def _escaped(self, step: int) -> bool:

@@ -311,6 +311,20 @@ class Scheduler:
             self._nalarm = result[0]
         return result
 
+    def begin_step(self) -> int:
+        """The number of the step a driver outside this class (the native step) is about to
+        run on :attr:`state`; refused between :meth:`select` and :meth:`update`."""
+        if self._pending is not None:
+            raise SchedulerError("a fused step between select() and update(): finish the step.")
+        return self.step_count + 1
+
+    def end_step(self, nalarm: int) -> None:
+        """Record the step :meth:`begin_step` numbered, its ``nalarm`` alarms in the work rows
+        (the native step ran it to completion)."""
+        self.step_count += 1
+        self._last_rows = self._alarm_rows
+        self._nalarm = nalarm
+
     def step_points(
         self,
         pairs: PairSet,

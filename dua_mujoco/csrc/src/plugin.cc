@@ -427,8 +427,7 @@ void Compute(const mjModel* m, mjData* d, int instance) {
   }
   in->DifferenceMocap(m, d, elapsed);
   in->Bind(m, d);
-  dua_step(&in->args, in->step + 1, 0);
-  if (in->args.bad >= 0) {
+  if (dua_step(&in->args, in->step + 1, 0) < 0) {
     // Not finite: the step was undone; classify again at the next state.
     in->classified = false;
     return;

@@ -482,7 +482,7 @@ int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
     a->bad = w_ids[bad];
     a->deferred = 0;
     dua_restore(st, n, count);
-    return 0;
+    return -1 - a->bad;
   }
   const int64_t nalarm = dua_reinsert(st, n, count);
   const int64_t* alarms = st->work + 2 * st->width;

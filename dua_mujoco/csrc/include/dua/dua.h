@@ -28,6 +28,11 @@ DUA_API double dua_tau_accel(double x0, double x1, double x2, double v0, double 
 // dua_tau_accel, raised by a relative speed bound (inf for none).
 DUA_API double dua_tau_speed(double x0, double x1, double x2, double v0, double v1, double v2,
                              double eps, double accel, double delta, double speed);
+// dua_tau_speed of n relative states (x, v: (n, 3)) into out (n,); each parameter array holds one
+// value for every row (its length 1) or one a row (its length n).
+DUA_API void dua_tau_rows(const double* x, const double* v, int64_t n, const double* eps,
+                          int64_t neps, const double* accel, int64_t naccel, const double* delta,
+                          int64_t ndelta, const double* speed, int64_t nspeed, double* out);
 // min {t >= 0 : gap + (n.v) t - delta t - accel t^2 / 2 <= 0}, never above the exact root.
 DUA_API double dua_tau_halfspace(double gap, double normal_velocity, double accel, double delta);
 
@@ -138,7 +143,8 @@ typedef struct dua_step_args {
 } dua_step_args;
 
 // One step n: the violation check, the selection, the gather, tau at every level, the
-// reinsertion; alarms appended to the log at `start`. Returns the number of alarms.
+// reinsertion; alarms appended to the log at `start`. Returns the number of alarms, or -1 - p
+// for a held pair p whose state was not finite (the step undone, nothing logged; a->bad = p).
 DUA_API int64_t dua_step(dua_step_args* a, int64_t n, int64_t start);
 // tau of held pairs ids[0:count] on the frame (every level, as the step computes it) into out;
 // returns -1, or a pair whose state was not finite.
