@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from checkouts import PREAMBLE
 
 HERE = Path(__file__).resolve().parents[1]
 
@@ -86,7 +87,7 @@ print(json.dumps(out))
 def run_side(checkout: Path, side: str) -> dict[str, float]:
     env = dict(os.environ, PYTHONPATH=str(checkout))
     out = subprocess.run(
-        [sys.executable, "-c", PROBE, side],
+        [sys.executable, "-c", PREAMBLE + PROBE, side],
         env=env,
         cwd=checkout,
         capture_output=True,

@@ -326,9 +326,11 @@ def _probe(scene: str, steps: int, accel: str, checkout: Path) -> dict[str, Any]
     import subprocess
     import sys
 
+    from checkouts import PREAMBLE
+
     env = {**os.environ, "PYTHONPATH": str(checkout), "NUMBA_NUM_THREADS": "1"}
     proc = subprocess.Popen(
-        [sys.executable, "-c", _PROBE, scene, str(steps), accel],
+        [sys.executable, "-c", PREAMBLE + _PROBE, scene, str(steps), accel],
         env=env,
         cwd=checkout,  # "python -c" puts the working directory first on the path
         stdout=subprocess.PIPE,

@@ -61,6 +61,7 @@ __all__ = [
     "cap_torque",
     "load_robot",
     "pd_drive",
+    "robot_spec",
     "robosuite_composition",
     "strip_task_props",
 ]
@@ -401,13 +402,18 @@ def available() -> list[str]:
 
 
 def load_robot(name: str) -> mujoco.MjModel:
-    """Compile robot ``name`` after its :attr:`RobotSource.edits`.
+    """Compile robot ``name`` after its :attr:`RobotSource.edits` (:func:`robot_spec`)."""
+    return robot_spec(name).compile()
+
+
+def robot_spec(name: str) -> mujoco.MjSpec:
+    """The spec of robot ``name``, its :attr:`RobotSource.edits` made.
 
     Args:
         name: A key of :data:`ROBOTS`.
 
     Returns:
-        The compiled model.
+        The spec.
 
     Raises:
         KeyError: An unknown name (the message lists the known ones).
@@ -426,7 +432,7 @@ def load_robot(name: str) -> mujoco.MjModel:
     spec = mujoco.MjSpec.from_file(os.path.join(folder, src.path))
     for edit in src.edits:
         edit(spec)
-    return spec.compile()
+    return spec
 
 
 # --------------------------------------------------------------------------------------------------

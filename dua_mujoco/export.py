@@ -57,7 +57,7 @@ def export(
     file is not the one compiled here, and tables computed for the latter could be a fraction
     of a micrometre short of the former. So for ``.xml`` the spec is written and read back
     first, and the predictor is built for the geometry the file will hold (its own tables
-    survive exactly: hexadecimal floats). A ``.mjb`` holds the compiled model exactly. Relative
+    survive exactly: base64 of their bytes). A ``.mjb`` holds the compiled model exactly. Relative
     asset folders are made absolute, so that the MJCF finds its meshes from wherever it is
     written.
 

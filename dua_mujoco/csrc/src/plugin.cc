@@ -3,9 +3,9 @@
 // The tables (covering spheres, pairs, shapes, bounds, the exact level's records, the violation
 // check's boxes, the schedule's parameters) travel in the model as custom text fields
 // "<prefix>:<table>", written by dua_mujoco.attach (dua_mujoco/plugin.py documents each): the
-// entry count, then the entries as C99 hexadecimal floats, which survive an XML round trip
-// exactly (MuJoCo writes numeric fields with six digits). init parses them; every copy of the
-// mjData shares them. What changes as the simulation runs (the schedule, the exact level's last
+// entry count, then the entries' float64 bytes in base64, which survive an XML round trip
+// exactly (MuJoCo writes numeric fields with six digits) and decode fast. init decodes them;
+// every copy of the mjData shares them. What changes as the simulation runs (the schedule, the exact level's last
 // directions, the violation check's last states) lives in plugin_data, one Instance per mjData:
 // init allocates it, copy duplicates it, reset clears it, destroy frees it.
 //
@@ -20,8 +20,10 @@
 #include <mujoco/mujoco.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <string>
@@ -41,7 +43,7 @@ constexpr int64_t kDeadline = 1;
 // Sensor outputs.
 enum Output {
   kStanding = 0,   // geom pairs standing in alarm
-  kMinTau = 1,     // least latest tau over the active pairs (seconds, inf if none)
+  kMinTau = 1,     // least tau of the latest step's evaluations (seconds, inf if none)
   kEvaluated = 2,  // tau evaluations this step
   kDeferred = 3,   // pairs due this step but left for a later one (a capped schedule)
   kFlagged = 4,    // bodies whose motion broke its bounds this step
@@ -76,8 +78,9 @@ struct Tables {
   double Config(int i) const { return config[i]; }
 };
 
-// Parses "<prefix>:<name>" into out; false (after a warning naming the field) if it is missing
-// or does not parse.
+// Parses "<prefix>:<name>" (its entry count, a space, then the entries' little-endian float64
+// bytes in base64) into out; false (after a warning naming the field) if it is missing or does
+// not parse.
 bool ReadTable(const mjModel* m, const std::string& prefix, const char* name,
                std::vector<double>* out) {
   const std::string full = prefix + ":" + name;
@@ -89,27 +92,50 @@ bool ReadTable(const mjModel* m, const std::string& prefix, const char* name,
         full.c_str(), prefix.c_str());
     return false;
   }
-  const char* at = m->text_data + m->text_adr[id];
+  const char* text = m->text_data + m->text_adr[id];
   char* end = nullptr;
-  const double count = std::strtod(at, &end);
-  if (end == at || !(count >= 0) || count != std::floor(count)) {
+  const long long count = std::strtoll(text, &end, 10);
+  if (end == text || count < 0 || *end != ' ') {
     mju_warning("dua_mujoco.predictor: text field '%s' does not start with its entry count: "
                 "attach the predictor again.",
                 full.c_str());
     return false;
   }
-  out->resize(static_cast<size_t>(count));
-  at = end;
-  for (double& v : *out) {
-    v = std::strtod(at, &end);
-    if (end == at) {
-      mju_warning("dua_mujoco.predictor: text field '%s' holds fewer than its %.0f entries, or "
-                  "one that does not parse: attach the predictor again.",
-                  full.c_str(), count);
+  const char* digits = end + 1;
+  const size_t nbytes = static_cast<size_t>(count) * sizeof(double);
+  const size_t ndigits = (nbytes + 2) / 3 * 4;
+  if (std::strlen(digits) != ndigits) {
+    mju_warning("dua_mujoco.predictor: text field '%s' does not hold its %lld entries: attach "
+                "the predictor again.",
+                full.c_str(), count);
+    return false;
+  }
+  static const std::array<int8_t, 256> kDigit = [] {
+    std::array<int8_t, 256> t{};
+    t.fill(-1);
+    const char* alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    for (int i = 0; i < 64; ++i) t[static_cast<unsigned char>(alphabet[i])] = static_cast<int8_t>(i);
+    t['='] = 0;
+    return t;
+  }();
+  std::vector<unsigned char> bytes(ndigits / 4 * 3);
+  const unsigned char* in = reinterpret_cast<const unsigned char*>(digits);
+  for (size_t i = 0, o = 0; i < ndigits; i += 4, o += 3) {
+    const int a = kDigit[in[i]], b = kDigit[in[i + 1]], c = kDigit[in[i + 2]], e = kDigit[in[i + 3]];
+    if ((a | b | c | e) < 0) {
+      mju_warning("dua_mujoco.predictor: text field '%s' holds a character that is not base64: "
+                  "attach the predictor again.",
+                  full.c_str());
       return false;
     }
-    at = end;
+    const unsigned triple = (a << 18) | (b << 12) | (c << 6) | e;
+    bytes[o] = static_cast<unsigned char>(triple >> 16);
+    bytes[o + 1] = static_cast<unsigned char>(triple >> 8);
+    bytes[o + 2] = static_cast<unsigned char>(triple);
   }
+  // The padding ('=') decodes to zero bytes past the entries.
+  out->resize(static_cast<size_t>(count));
+  if (nbytes) std::memcpy(out->data(), bytes.data(), nbytes);  // little-endian, as written
   return true;
 }
 
@@ -163,10 +189,13 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
   t->exact = static_cast<int64_t>(t->config[kCfgExactOn]) != 0;
   if (t->exact) {
     if (!ReadTable(m, prefix, "exact_geoms", &t->geoms) ||
-        !ReadTable(m, prefix, "exact_records", &t->exact_records) ||
-        !ReadTable(m, prefix, "exact_verts", &t->verts)) {
+        !ReadTable(m, prefix, "exact_records", &t->exact_records)) {
       return nullptr;
     }
+    // The mesh vertices in float64, as dua_mujoco.mj.exact reads them (exactly: float32 widens
+    // without rounding).
+    t->verts.assign(m->mesh_vert, m->mesh_vert + 3 * m->nmeshvert);
+    if (t->verts.empty()) t->verts.assign(3, 0.0);
     t->graph.assign(m->mesh_graph, m->mesh_graph + m->nmeshgraph);
     if (t->graph.empty()) t->graph.assign(1, -1);
   }
@@ -185,7 +214,12 @@ struct Instance {
   std::vector<int64_t> log_pairs;
   std::vector<double> log_tau;
   std::vector<uint8_t> log_new;
-  std::vector<uint8_t> standing;  // (ngp,) geom pairs standing in alarm
+  // Which pairs stand in alarm, kept up to date from the pairs each step renews (no other
+  // pair's standing changes): the sphere pairs, their count per geom pair, the geom pairs.
+  std::vector<uint8_t> stands;
+  std::vector<int32_t> gp_count;
+  int64_t nstanding = 0;
+  double min_tau = kInf;
   // Mocap bodies (by mocap id) and their poses at the last step, differenced into the twists
   // of the trees they root (root_twist), as dua_mujoco.mj.mocap does.
   std::vector<int64_t> mocap_bodies;
@@ -218,7 +252,8 @@ struct Instance {
     log_pairs.assign(width, 0);
     log_tau.assign(width, 0.0);
     log_new.assign(width, 0);
-    standing.assign(t.ngp, 0);
+    stands.assign(npair, 0);
+    gp_count.assign(t.ngp, 0);
     mocap_bodies.assign(m->nmocap, -1);
     for (int b = 0; b < m->nbody; ++b) {
       if (m->body_mocapid[b] >= 0) mocap_bodies[m->body_mocapid[b]] = b;
@@ -366,37 +401,65 @@ void Classify(const mjModel* m, mjData* d, Instance* in) {
   in->last_time = d->time;
 }
 
-// Standing geom pairs and the sensor outputs, by the alarm rule on each pair's latest tau
-// (the schedulers' alarm_state: docs/theory.md, section 3).
-void Publish(mjData* d, Instance* in) {
+// Whether pair p stands in alarm: the alarm rule on its latest tau (the schedulers'
+// alarm_state, docs/theory.md, section 3).
+bool Stands(const dua_schedule& s, int64_t p) {
+  if (!s.active[p]) return false;
+  double horizon = s.horizon[0];
+  if (s.kind == kDeadline) {
+    const int64_t where = s.ints[p], last_step = s.ints[s.m + p];
+    horizon = where >= 0 ? static_cast<double>(where - last_step + s.latency) * s.dt : -kInf;
+  }
+  return s.last_tau[p] < horizon;
+}
+
+// Renew the standing of pairs ids[0:n].
+void Track(Instance* in, const int64_t* ids, int64_t n) {
   const Tables& t = *in->tables;
-  const dua_step_args& a = in->args;
-  const dua_schedule& s = a.schedule;
-  std::fill(in->standing.begin(), in->standing.end(), 0);
-  double min_tau = kInf;
-  const int64_t* where = s.ints;
-  const int64_t* last_step = s.ints + s.m;
-  for (int64_t p = 0; p < t.npair; ++p) {
-    if (!s.active[p]) continue;
-    const double tau = s.last_tau[p];
-    double horizon = s.horizon[0];
-    if (s.kind == kDeadline) {
-      horizon = where[p] >= 0 ? static_cast<double>(where[p] - last_step[p] + s.latency) * s.dt
-                              : -kInf;
+  const dua_schedule& s = in->args.schedule;
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t p = ids[k];
+    const uint8_t now = Stands(s, p) ? 1 : 0;
+    if (now == in->stands[p]) continue;
+    in->stands[p] = now;
+    int32_t& count = in->gp_count[t.pair_geom[p]];
+    if (now) {
+      if (count++ == 0) ++in->nstanding;
+    } else if (--count == 0) {
+      --in->nstanding;
     }
-    if (tau < horizon) in->standing[t.pair_geom[p]] = 1;
-    min_tau = std::min(min_tau, tau);
   }
-  int64_t nstanding = 0;
-  for (uint8_t v : in->standing) nstanding += v;
-  if (in->sensor_adr >= 0) {
-    mjtNum* out = d->sensordata + in->sensor_adr;
-    out[kStanding] = static_cast<mjtNum>(nstanding);
-    out[kMinTau] = min_tau;
-    out[kEvaluated] = static_cast<mjtNum>(a.count);
-    out[kDeferred] = static_cast<mjtNum>(a.deferred);
-    out[kFlagged] = static_cast<mjtNum>(a.events.nbody ? a.events.meta[1] : 0);
-  }
+}
+
+// After a classification: every pair's standing.
+void TrackAll(Instance* in) {
+  std::fill(in->stands.begin(), in->stands.end(), 0);
+  std::fill(in->gp_count.begin(), in->gp_count.end(), 0);
+  in->nstanding = 0;
+  Track(in, in->ids.data(), in->tables->npair);
+  const std::vector<double>& tau = in->last_tau;
+  in->min_tau = tau.empty() ? kInf : *std::min_element(tau.begin(), tau.end());
+}
+
+// After a step: the pairs it renewed (evaluated, and due but deferred).
+void TrackStep(Instance* in) {
+  const dua_schedule& s = in->args.schedule;
+  const int64_t* w_ids = s.work + s.width;
+  Track(in, w_ids, in->args.count + in->args.deferred);
+  in->min_tau = kInf;
+  for (int64_t k = 0; k < in->args.count; ++k) in->min_tau = std::min(in->min_tau, s.w_tau[k]);
+}
+
+// The sensor outputs (O(1)).
+void Publish(mjData* d, const Instance* in) {
+  if (in->sensor_adr < 0) return;
+  const dua_step_args& a = in->args;
+  mjtNum* out = d->sensordata + in->sensor_adr;
+  out[kStanding] = static_cast<mjtNum>(in->nstanding);
+  out[kMinTau] = in->min_tau;
+  out[kEvaluated] = static_cast<mjtNum>(a.count);
+  out[kDeferred] = static_cast<mjtNum>(a.deferred);
+  out[kFlagged] = static_cast<mjtNum>(a.events.nbody ? a.events.meta[1] : 0);
 }
 
 void Compute(const mjModel* m, mjData* d, int instance) {
@@ -405,6 +468,7 @@ void Compute(const mjModel* m, mjData* d, int instance) {
   const Tables& t = *in->tables;
   if (!in->classified) {
     Classify(m, d, in);
+    TrackAll(in);
     Publish(d, in);
     return;
   }
@@ -422,6 +486,7 @@ void Compute(const mjModel* m, mjData* d, int instance) {
       return;
     }
     Classify(m, d, in);  // the clock moved otherwise: start over from this state
+    TrackAll(in);
     Publish(d, in);
     return;
   }
@@ -434,6 +499,7 @@ void Compute(const mjModel* m, mjData* d, int instance) {
   }
   in->step += 1;
   in->last_time = d->time;
+  TrackStep(in);
   Publish(d, in);
 }
 
@@ -443,7 +509,7 @@ void Visualize(mjData* d, mjvScene* scn, int instance) {
   const Tables& t = *in->tables;
   const float red[4] = {0.95f, 0.15f, 0.1f, 0.9f};
   for (int64_t k = 0; k < t.ngp; ++k) {
-    if (!in->standing[k]) continue;
+    if (!in->gp_count[k]) continue;
     if (scn->ngeom >= scn->maxgeom) return;  // mjv_updateScene warns of a full scene
     const mjtNum* a = d->geom_xpos + 3 * t.geom_pairs[2 * k];
     const mjtNum* b = d->geom_xpos + 3 * t.geom_pairs[2 * k + 1];
@@ -522,7 +588,7 @@ DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int insta
   const dua::Tables& t = *in->tables;
   int64_t n = 0;
   for (int64_t k = 0; k < t.ngp; ++k) {
-    if (!in->standing[k]) continue;
+    if (!in->gp_count[k]) continue;
     if (n < capacity) {
       out[2 * n] = t.geom_pairs[2 * k];
       out[2 * n + 1] = t.geom_pairs[2 * k + 1];

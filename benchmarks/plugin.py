@@ -1,0 +1,208 @@
+"""The predictor inside ``mj_step`` (the plugin), and ``Predictor.step`` before and after the
+native core (issue 20), A/B in one run.
+
+    git worktree add --detach /tmp/before 1581945      # the last commit with the numba step
+    python benchmarks/plugin.py --before /tmp/before   # markdown tables (about 15 min)
+    python benchmarks/plugin.py --scenes two_arms gym/ant --steps 600
+
+Scenes: the bundled ones, gymnasium's and dm_control's, and every robot of
+``benchmarks/robots.py`` whose package is installed. Each side (this checkout, and the one given
+with ``--before``) runs every scene in a subprocess of its own, alternately, ``--rounds`` times;
+the numbers are medians over rounds of per-round medians.
+
+Per scene, on this side: bounds from the pilot (``accel="auto"``, pilot seed 99), then
+
+* ``mj_step`` of the model alone and of the model with the plugin attached (the same bounds),
+  each timed per call, in alternating blocks along the same random controls;
+* ``Predictor.step`` after each ``mj_step`` of the model alone, timed per call, and the tau
+  evaluations a step;
+
+on the ``--before`` side, the same ``Predictor.step`` (its own pilot: the same code and seeds).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+from checkouts import PREAMBLE
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+
+BUNDLED = ("two_arms", "traffic", "clutter", "paper_world", "bin_pour")
+EXTERNAL = ("gym/ant", "gym/humanoid", "gym/pusher", "dmc/humanoid_CMU", "dmc/quadruped")
+
+# Runs in each side's subprocess: only what both sides have (Predictor's accel/pilot options,
+# reset/step, load_scene), and the plugin on this side.
+PROBE = r"""
+import importlib.resources, json, sys, time
+from pathlib import Path
+import numpy as np
+import mujoco
+sys.path.insert(0, sys.argv[1])  # this checkout's benchmarks/ (robots.py)
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.options import CoveringOptions, PilotOptions
+from dua_mujoco.mj.scenes import make_controller
+
+side, steps, scenes = sys.argv[2], int(sys.argv[3]), sys.argv[4:]
+
+def spec_of(scene):
+    if scene.startswith("robot/"):
+        from robots import robot_spec
+        return robot_spec(scene.split("/", 1)[1])
+    if scene.startswith("gym/"):
+        path = importlib.resources.files("gymnasium") / "envs/mujoco/assets" / (scene[4:] + ".xml")
+        return mujoco.MjSpec.from_file(str(path))
+    if scene.startswith("dmc/"):
+        import dm_control
+        path = Path(dm_control.__file__).parent / "suite" / (scene[4:] + ".xml")
+        return mujoco.MjSpec.from_file(str(path))
+    from dua_mujoco.mj.scenes import load_spec  # this side only: bundled scenes on the other
+    return load_spec(scene)                      # load through load_scene (model_of)
+
+def model_of(scene):
+    if side == "before" and "/" not in scene:
+        # The other checkout finds its bundled files only when installed: read this one's.
+        path = Path(sys.argv[1]).parent / "models" / (scene + ".xml")
+        if path.is_file():
+            return None, mujoco.MjModel.from_xml_path(str(path))
+        from dua_mujoco.mj.scenes import load_scene
+        return None, load_scene(scene)[0]
+    spec = spec_of(scene)
+    return spec, spec.compile()
+
+def controls(m, n, seed=0):
+    rng = np.random.default_rng(seed)
+    lo, hi = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
+    limited = m.actuator_ctrllimited.astype(bool)
+    lo = np.where(limited, lo, -1.0); hi = np.where(limited, hi, 1.0)
+    return rng.uniform(lo, hi, (n, m.nu))
+
+def predictor(m):
+    # Height fields (dm_control's quadruped terrain) covered by their boxes.
+    return Predictor(m, accel="auto", covering=CoveringOptions(hfield="box"), pilot=PilotOptions(
+        steps=1000, seed=99, controller=make_controller(m, "random", seed=99)))
+
+for scene in scenes:
+    spec, m = model_of(scene)
+    p = predictor(m)
+    u = controls(m, steps + 1)
+    d = mujoco.MjData(m)
+    d.ctrl[:] = u[0]; mujoco.mj_step(m, d); p.reset(d)
+    t_pred, t_mj, evals = [], [], []
+    for k in range(1, steps + 1):
+        d.ctrl[:] = u[k]
+        t0 = time.perf_counter_ns(); mujoco.mj_step(m, d); t1 = time.perf_counter_ns()
+        p.step(d); t2 = time.perf_counter_ns()
+        t_mj.append(t1 - t0); t_pred.append(t2 - t1); evals.append(p.evaluations_per_step)
+    row = dict(scene=scene, side=side, geoms=int(m.ngeom), pairs=int(p.nsphere_pairs),
+               predictor_us=float(np.median(t_pred)) / 1e3, mj_us=float(np.median(t_mj)) / 1e3,
+               evals=float(np.mean(evals)))
+    if side == "after":
+        from dua_mujoco.plugin import attach
+        attach(spec, accel=p.bounds, covering=CoveringOptions(hfield="box"))
+        mp = spec.compile()
+        da, db = mujoco.MjData(m), mujoco.MjData(mp)
+        plain, plugged = [], []
+        block = max(steps // 10, 1)
+        for start in range(0, steps, block):
+            for data, model, out in ((da, m, plain), (db, mp, plugged)):
+                for k in range(start, min(start + block, steps)):
+                    data.ctrl[:] = u[k]
+                    t0 = time.perf_counter_ns(); mujoco.mj_step(model, data)
+                    out.append(time.perf_counter_ns() - t0)
+        row.update(plain_us=float(np.median(plain)) / 1e3, plugin_us=float(np.median(plugged)) / 1e3)
+    print(json.dumps(row), flush=True)
+"""
+
+
+def _scenes(requested: list[str] | None) -> list[str]:
+    if requested:
+        return requested
+    sys.path.insert(0, str(HERE))
+    from robots import available
+
+    return [*BUNDLED, *EXTERNAL, *(f"robot/{name}" for name in available())]
+
+
+def run_side(checkout: Path, side: str, steps: int, scenes: list[str]) -> list[dict]:
+    env = dict(os.environ, PYTHONPATH=str(checkout))
+    # This checkout is what the editable install's finder resolves to: keep it (it maps
+    # dua_mujoco.models to models/); another checkout needs it gone.
+    code = PROBE if checkout.resolve() == ROOT.resolve() else PREAMBLE + PROBE
+    proc = subprocess.run(
+        [sys.executable, "-c", code, str(HERE), side, str(steps), *scenes],
+        env=env,
+        cwd=checkout,
+        capture_output=True,
+        text=True,
+    )
+    if proc.returncode:
+        raise RuntimeError(f"the {side} side failed:\n{proc.stderr[-3000:]}")
+    return [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
+
+
+def _median(rows: list[dict], scene: str, key: str) -> float:
+    return float(np.median([r[key] for r in rows if r["scene"] == scene]))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--before", type=Path, default=None, help="the other checkout (numba step)")
+    ap.add_argument("--scenes", nargs="*", default=None)
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--rounds", type=int, default=1)
+    args = ap.parse_args(argv)
+    scenes = _scenes(args.scenes)
+    after: list[dict] = []
+    before: list[dict] = []
+    for r in range(args.rounds):
+        print(f"round {r + 1}/{args.rounds}: {len(scenes)} scenes", file=sys.stderr, flush=True)
+        after += run_side(ROOT, "after", args.steps, scenes)
+        if args.before is not None:
+            before += run_side(args.before, "before", args.steps, scenes)
+    print(
+        "| scene | geoms | pairs | tau evals/step | mj_step us | with the plugin us | plugin adds "
+        "(x mj_step) | Predictor.step us | Predictor.step / mj_step |"
+        + (" Predictor.step before us | after / before |" if before else "")
+    )
+    print("|---" * (9 + (2 if before else 0)) + "|")
+    added = []
+    for scene in scenes:
+        one = next(r for r in after if r["scene"] == scene)
+        plain, plugin = _median(after, scene, "plain_us"), _median(after, scene, "plugin_us")
+        pred, mj = _median(after, scene, "predictor_us"), _median(after, scene, "mj_us")
+        added.append((scene, (plugin - plain) / plain))
+        cells = [
+            scene,
+            str(one["geoms"]),
+            str(one["pairs"]),
+            f"{one['evals']:.1f}",
+            f"{plain:.1f}",
+            f"{plugin:.1f}",
+            f"{(plugin - plain) / plain:+.2f}",
+            f"{pred:.2f}",
+            f"{pred / mj:.2f}",
+        ]
+        if before:
+            old = _median(before, scene, "predictor_us")
+            cells += [f"{old:.2f}", f"{pred / old:.2f}"]
+        print("| " + " | ".join(cells) + " |")
+    robots = [x for s, x in added if s.startswith("robot/")]
+    if robots:
+        print(
+            f"\nplugin adds, median over {len(robots)} robots: {np.median(robots):+.3f}x mj_step; "
+            f"largest over all scenes: {max(x for _, x in added):+.3f}x "
+            f"({max(added, key=lambda a: a[1])[0]})"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
