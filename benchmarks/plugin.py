@@ -117,7 +117,8 @@ for scene in scenes:
                     data.ctrl[:] = u[k]
                     t0 = time.perf_counter_ns(); mujoco.mj_step(model, data)
                     out.append(time.perf_counter_ns() - t0)
-        row.update(plain_us=float(np.median(plain)) / 1e3, plugin_us=float(np.median(plugged)) / 1e3)
+        row.update(plain_us=float(np.median(plain)) / 1e3,
+                   plugin_us=float(np.median(plugged)) / 1e3)
     print(json.dumps(row), flush=True)
 """
 

@@ -61,8 +61,8 @@ __all__ = [
     "cap_torque",
     "load_robot",
     "pd_drive",
-    "robot_spec",
     "robosuite_composition",
+    "robot_spec",
     "strip_task_props",
 ]
 
