@@ -8,10 +8,19 @@ subprocess run in another checkout (``cwd``/``PYTHONPATH``) would still import t
 
 from __future__ import annotations
 
-__all__ = ["PREAMBLE"]
+from pathlib import Path
+
+__all__ = ["PREAMBLE", "scene_path"]
 
 PREAMBLE = (
     "import sys\n"
     "sys.meta_path[:] = [f for f in sys.meta_path\n"
     "                    if type(f).__name__ != 'ScikitBuildRedirectingFinder']\n"
 )
+
+
+def scene_path(scene: str, root: Path) -> str:
+    """A bundled XML scene as the path of its file in checkout ``root`` (another checkout finds
+    the bundled files only when installed); any other scene as it is."""
+    path = root / "models" / f"{scene}.xml"
+    return str(path) if path.is_file() else scene

@@ -326,11 +326,19 @@ def _probe(scene: str, steps: int, accel: str, checkout: Path) -> dict[str, Any]
     import subprocess
     import sys
 
-    from checkouts import PREAMBLE
+    from checkouts import PREAMBLE, scene_path
 
     env = {**os.environ, "PYTHONPATH": str(checkout), "NUMBA_NUM_THREADS": "1"}
+    # This checkout is what the editable install's finder resolves to; another one needs it
+    # gone, and reads the bundled XML scenes from this checkout's models/ (it finds its own only
+    # when installed).
+    here = Path(__file__).resolve().parents[1]
+    code = _PROBE
+    if checkout.resolve() != here:
+        code = PREAMBLE + _PROBE
+        scene = scene_path(scene, here)
     proc = subprocess.Popen(
-        [sys.executable, "-c", PREAMBLE + _PROBE, scene, str(steps), accel],
+        [sys.executable, "-c", code, scene, str(steps), accel],
         env=env,
         cwd=checkout,  # "python -c" puts the working directory first on the path
         stdout=subprocess.PIPE,
