@@ -278,8 +278,10 @@ def earliest_violation(times, points, dist, eps, tol):
 
 
 def horizon(tau: float) -> float:
-    # A finite tau is the window to check; past an infinite one, a few seconds of motion.
-    return tau if math.isfinite(tau) else 5.0
+    # A finite tau is the window to check, up to 1000 s: beyond, the sampled positions of an
+    # accelerating trajectory overflow to inf and NaN, whose clearance compares false and would
+    # test nothing. Past an infinite tau, a few seconds of motion.
+    return min(tau, 1e3) if math.isfinite(tau) else 5.0
 
 
 # --------------------------------------------------------------------------------------------
