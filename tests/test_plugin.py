@@ -192,9 +192,10 @@ def test_a_cpp_program_runs_the_exported_model(tmp_path: Path) -> None:
 
 
 def test_the_overlay_draws_the_standing_pairs_into_any_scene() -> None:
-    """``visualize`` adds one connector per standing geom pair to an ``mjvScene``
-    (``mujoco.Renderer``'s, the viewer's and simulate's alike); ``overlay=false`` adds none."""
-    counts = []
+    """``visualize`` adds to an ``mjvScene`` (``mujoco.Renderer``'s, the viewer's and
+    simulate's alike) a ball on every moving geom of a standing pair and a line for every
+    standing pair of two moving geoms; ``overlay=false`` adds nothing."""
+    added = []
     for overlay in (True, False):
         spec = load_spec("two_arms")
         attach(spec, accel=30.0, overlay=overlay)
@@ -206,10 +207,16 @@ def test_the_overlay_draws_the_standing_pairs_into_any_scene() -> None:
         mujoco.mjv_updateScene(
             m, d, mujoco.MjvOption(), None, mujoco.MjvCamera(), mujoco.mjtCatBit.mjCAT_ALL, scene
         )
-        red = [g for g in scene.geoms[: scene.ngeom] if g.objid == -1 and g.rgba[0] > 0.9]
-        counts.append((len(red), len(standing_pairs(m, d))))
-    (shown, standing), (hidden, _) = counts
-    assert standing > 0 and shown == standing and hidden == 0
+        decor = [g for g in scene.geoms[: scene.ngeom] if g.objid == -1 and g.rgba[0] > 0.9]
+        balls = sum(int(g.type) == int(mujoco.mjtGeom.mjGEOM_SPHERE) for g in decor)
+        added.append((balls, len(decor) - balls))
+        pairs = standing_pairs(m, d)
+    moving = np.asarray(m.body_weldid)[np.asarray(m.geom_bodyid)] != 0
+    both = moving[pairs[:, 0]] & moving[pairs[:, 1]]
+    hot = np.unique(pairs[moving[pairs].reshape(pairs.shape)])
+    (balls, lines), hidden = added
+    assert len(pairs) > 0 and balls == hot.size > 0 and lines == int(both.sum())
+    assert hidden == (0, 0)
 
 
 def test_attach_refuses_what_the_plugin_cannot_run() -> None:

@@ -503,23 +503,50 @@ void Compute(const mjModel* m, mjData* d, int instance) {
   Publish(d, in);
 }
 
-void Visualize(mjData* d, mjvScene* scn, int instance) {
+// Adds a decor geom to scn (false when it is full: mjv_updateScene warns of that).
+bool AddDecor(mjvScene* scn, mjvGeom** geom) {
+  if (scn->ngeom >= scn->maxgeom) return false;
+  *geom = scn->geoms + scn->ngeom++;
+  return true;
+}
+
+// Marks a geom as the overlay's: decor, of no model object (picking ignores it).
+void Decor(mjvGeom* geom) {
+  geom->category = mjCAT_DECOR;
+  geom->objtype = mjOBJ_UNKNOWN;
+  geom->objid = -1;
+}
+
+// The standing pairs: a translucent red ball (the geom's bounding sphere) on every moving geom of
+// a standing pair, and a red line between the centres of two moving geoms standing together
+// (a moving geom against a static one, a table or a wall, shows by its ball alone). visualize
+// runs before mjv_updateScene adds the model's geoms, so it can add geoms but not tint them.
+void Visualize(const mjModel* m, mjData* d, mjvScene* scn, int instance) {
   auto* in = reinterpret_cast<Instance*>(d->plugin_data[instance]);
   if (!in || !in->overlay || !in->classified) return;
   const Tables& t = *in->tables;
-  const float red[4] = {0.95f, 0.15f, 0.1f, 0.9f};
+  const float line[4] = {0.95f, 0.15f, 0.1f, 0.9f};
+  const float ball[4] = {0.95f, 0.15f, 0.1f, 0.3f};
+  auto moving = [m](int64_t g) { return m->body_weldid[m->geom_bodyid[g]] != 0; };
+  std::vector<uint8_t> hot(m->ngeom, 0);
+  mjvGeom* geom = nullptr;
   for (int64_t k = 0; k < t.ngp; ++k) {
     if (!in->gp_count[k]) continue;
-    if (scn->ngeom >= scn->maxgeom) return;  // mjv_updateScene warns of a full scene
-    const mjtNum* a = d->geom_xpos + 3 * t.geom_pairs[2 * k];
-    const mjtNum* b = d->geom_xpos + 3 * t.geom_pairs[2 * k + 1];
-    mjvGeom* geom = scn->geoms + scn->ngeom;
-    mjv_initGeom(geom, mjGEOM_NONE, nullptr, nullptr, nullptr, red);
-    mjv_connector(geom, mjGEOM_LINE, 3.0, a, b);
-    geom->category = mjCAT_DECOR;
-    geom->objtype = mjOBJ_UNKNOWN;
-    geom->objid = -1;
-    scn->ngeom++;
+    const int64_t g1 = t.geom_pairs[2 * k], g2 = t.geom_pairs[2 * k + 1];
+    hot[g1] = hot[g2] = 1;
+    if (moving(g1) && moving(g2)) {
+      if (!AddDecor(scn, &geom)) return;
+      mjv_initGeom(geom, mjGEOM_NONE, nullptr, nullptr, nullptr, line);
+      mjv_connector(geom, mjGEOM_LINE, 3.0, d->geom_xpos + 3 * g1, d->geom_xpos + 3 * g2);
+      Decor(geom);
+    }
+  }
+  for (int g = 0; g < m->ngeom; ++g) {
+    if (!hot[g] || !moving(g) || !(m->geom_rbound[g] > 0)) continue;
+    if (!AddDecor(scn, &geom)) return;
+    const mjtNum size[3] = {m->geom_rbound[g], 0, 0};
+    mjv_initGeom(geom, mjGEOM_SPHERE, size, d->geom_xpos + 3 * g, nullptr, ball);
+    Decor(geom);
   }
 }
 
@@ -563,8 +590,8 @@ void Register() {
   plugin.compute = +[](const mjModel* m, mjData* d, int instance, int) {
     Compute(m, d, instance);
   };
-  plugin.visualize = +[](const mjModel*, mjData* d, const mjvOption*, mjvScene* scn,
-                         int instance) { Visualize(d, scn, instance); };
+  plugin.visualize = +[](const mjModel* m, mjData* d, const mjvOption*, mjvScene* scn,
+                         int instance) { Visualize(m, d, scn, instance); };
   mjp_registerPlugin(&plugin);
 }
 
