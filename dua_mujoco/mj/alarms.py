@@ -15,7 +15,7 @@ class Alarms:
     A slotted class rather than a frozen dataclass: one is built every predictor step, and a
     frozen dataclass's ``__init__`` (``object.__setattr__`` per field) cost 1.1 us of a step
     budget of a few microseconds (measured; this class: 0.3 us). A step's alarms are a span of
-    the predictor's alarm log (``dua_mujoco.mj.step_context``), which the compiled step appends
+    the predictor's alarm log (``dua_mujoco.mj.native_step``), which the native step appends
     to and nobody overwrites: the arrays are read-only views of that span, made when read.
 
     Attributes:

@@ -211,7 +211,7 @@ class EventTable:
         return int(self.meta[M_TOTAL])
 
     def args(self) -> tuple:
-        """The compiled step's ``events`` tuple."""
+        """The step's ``events`` tuple (``NativeStep.bind_events``)."""
         return (
             self.records,
             self.state,

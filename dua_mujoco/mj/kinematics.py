@@ -1,5 +1,5 @@
 """Rigid-body kinematics of covering spheres: the one kernel that turns ``MjData`` into sphere
-centres and velocities, and the MuJoCo layer's fused step that uses it.
+centres and velocities (the native core's ``dua_rigid_point``), and sphere states.
 
 Every reader of sphere states (the predictor's step and its full reads, the bound checks, the
 pilot that estimates bounds, the overlays) runs one kernel, the native core's

@@ -328,11 +328,11 @@ class Predictor(PredictorViews):
 
     def check_data(self, data: mujoco.MjData) -> None:
         """Refuse anything but an ``MjData`` of this predictor's model (or of one with the same
-        geometry, e.g. the same XML loaded twice): the compiled step reads it unchecked."""
+        geometry, e.g. the same XML loaded twice): the native step reads it unchecked."""
         check_data(self.model, data)
 
     def _bind_frame(self, data: mujoco.MjData) -> tuple:
-        """Build and cache the fused step's ``frame`` tuple (``rigid_point``) for ``data``.
+        """Point the native step at ``data``'s buffers; cache the ``frame`` tuple (``rigid_point``).
 
         MjData's buffers live as long as the MjData, and every attribute access builds a new
         numpy view (about a microsecond in all), so ``step`` rebuilds the views only when it is

@@ -224,7 +224,7 @@ def _check_static_poses(
 
 def check_data(model: mujoco.MjModel, data: object) -> None:
     """Refuse anything but an ``MjData`` of ``model``, or of a model with the same geometry (one
-    XML loaded twice): the compiled step reads ``MjData`` without bounds checks, and the covering
+    XML loaded twice): the native step reads ``MjData`` without bounds checks, and the covering
     and the pair filter must be this model's."""
     if not isinstance(data, mujoco.MjData):
         raise InvalidInputError(
