@@ -32,7 +32,15 @@ from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.native import ABI_VERSION, library
 
-__all__ = ["OUTPUTS", "PLUGIN_NAME", "PluginOutputs", "attach", "plugin_outputs", "standing_pairs"]
+__all__ = [
+    "OUTPUTS",
+    "PLUGIN_NAME",
+    "PluginOutputs",
+    "attach",
+    "plugin_outputs",
+    "set_active_bodies",
+    "standing_pairs",
+]
 
 PLUGIN_NAME = "dua_mujoco.predictor"
 
@@ -202,6 +210,47 @@ def plugin_outputs(
     adr = int(model.sensor_adr[sid])
     v = data.sensordata[adr : adr + len(OUTPUTS)]
     return PluginOutputs(int(v[0]), float(v[1]), int(v[2]), int(v[3]), int(v[4]))
+
+
+def set_active_bodies(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    body_a: int | str,
+    body_b: int | str | None = None,
+    *,
+    on: bool,
+    prefix: str = "dua",
+) -> int:
+    """Switch the plugin's pairs between two bodies (or of one body) off or back on in ``data``,
+    as :meth:`Predictor.set_active_bodies <dua_mujoco.Predictor.set_active_bodies>` does: off
+    while contact is intended (a grasp), back on when it no longer is; a pair switched back on
+    stands in alarm until the next step evaluates it. ``mj_resetData`` (and any classification)
+    switches every pair back on. C and C++ programs call ``dua_plugin_set_active``.
+
+    Returns:
+        The number of sphere pairs between the bodies.
+
+    Raises:
+        InvalidInputError: The model has no predictor sensor ``prefix``, or no step has run yet
+            (call ``mj_step`` or ``mj_forward`` first).
+        InvalidChoiceError: An unknown body name.
+    """
+    from dua_mujoco.mj.filter import body_id
+
+    instance = int(model.sensor_plugin[_sensor(model, prefix)])
+    a = body_id(model, body_a)
+    b = -1 if body_b is None else body_id(model, body_b)
+    fn = library().dua_plugin_set_active
+    fn.restype = ctypes.c_int64
+    fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_int,
+                   ctypes.c_int]  # fmt: skip
+    n = int(fn(model._address, data._address, instance, a, b, int(bool(on))))
+    if n == -2:
+        raise InvalidInputError(
+            "the plugin has not classified the pairs of this data yet: call mujoco.mj_step "
+            "(or mj_forward) first."
+        )
+    return n
 
 
 def standing_pairs(

@@ -18,7 +18,7 @@ from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_spec, make_controller
 from dua_mujoco.native import library_path
-from dua_mujoco.plugin import attach, plugin_outputs, standing_pairs
+from dua_mujoco.plugin import attach, plugin_outputs, set_active_bodies, standing_pairs
 
 ANT = str(Path(gymnasium.__file__).parent / "envs/mujoco/assets/ant.xml")
 
@@ -43,9 +43,16 @@ def _attached(scene: str, **options: object) -> tuple[mujoco.MjModel, Predictor]
     return spec.compile(), p
 
 
-def _run_side_by_side(m: mujoco.MjModel, p: Predictor, steps: int, seed: int = 0) -> int:
+def _run_side_by_side(
+    m: mujoco.MjModel,
+    p: Predictor,
+    steps: int,
+    seed: int = 0,
+    switch: dict[int, tuple[int, int | None, bool]] | None = None,
+) -> int:
     """Step the plugin's model and the Python predictor on it together; assert equal standing
-    pairs after every predictor step. Returns the steps with some pair standing."""
+    pairs after every predictor step (after ``switch[k] = (body_a, body_b, on)`` at step ``k``,
+    in both). Returns the steps with some pair standing."""
     d = mujoco.MjData(m)
     ctrl = make_controller(m, "random", seed=seed)
     busy = 0
@@ -58,6 +65,9 @@ def _run_side_by_side(m: mujoco.MjModel, p: Predictor, steps: int, seed: int = 0
             p.step(d)
         else:
             continue
+        if switch and k in switch:
+            a, b, on = switch[k]
+            assert set_active_bodies(m, d, a, b, on=on) == p.set_active_bodies(a, b, on=on) > 0
         want = python_standing(p)
         np.testing.assert_array_equal(standing_pairs(m, d), want, err_msg=f"step {k}")
         assert plugin_outputs(m, d).standing == want.shape[0]
@@ -92,6 +102,24 @@ def test_plugin_equals_the_python_predictor(scene: str, steps: int) -> None:
 def test_plugin_equals_the_python_predictor_under_options(options: dict) -> None:
     m, p = _attached("two_arms", **options)
     assert _run_side_by_side(m, p, 240, seed=3) > 10
+
+
+def test_switching_bodies_equals_the_python_predictors() -> None:
+    """Intended contact: the pairs between a loose box and the table switched off, back on
+    (standing in alarm until evaluated), and every pair of an arm's link: the same standing
+    pairs as the Python predictor's after every step."""
+    m, p = _attached("two_arms")
+    box = int(m.geom_bodyid[m.geom("loose_box").id])
+    table = int(m.geom_bodyid[m.geom("table_top").id])
+    link = int(m.geom_bodyid[m.geom("a_link1").id])
+    switch: dict[int, tuple[int, int | None, bool]] = {
+        50: (box, table, False), 120: (box, table, True), 150: (link, None, False),
+        200: (link, None, True),
+    }  # fmt: skip
+    assert _run_side_by_side(m, p, 260, seed=5, switch=switch) > 10
+    d = mujoco.MjData(m)
+    with pytest.raises(InvalidInputError, match="mj_step"):
+        set_active_bodies(m, d, box, table, on=False)
 
 
 def _standing_sequence(m: mujoco.MjModel, d: mujoco.MjData, ctrl: np.ndarray) -> list[list]:

@@ -625,4 +625,36 @@ DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int insta
   return n;
 }
 
+// Switches the pairs between bodies body_a and body_b (body_b < 0: every pair of body_a) off
+// (on = 0: intended contact, a grasp) or back on, in plugin instance `instance` of d, as
+// Predictor.set_active_bodies does; a pair switched back on stands in alarm until the next step
+// evaluates it. Returns the number of sphere pairs between the bodies, -1 if the instance is
+// not this plugin's, -2 before the first compute (nothing to switch yet).
+DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance, int body_a,
+                                      int body_b, int on) {
+  if (instance < 0 || instance >= m->nplugin || instance >= d->nplugin) return -1;
+  const mjpPlugin* plugin = mjp_getPluginAtSlot(m->plugin[instance]);
+  if (!plugin || std::string(plugin->name) != dua::kPluginName) return -1;
+  auto* in = reinterpret_cast<dua::Instance*>(d->plugin_data[instance]);
+  if (!in) return -1;
+  if (!in->classified) return -2;
+  const dua::Tables& t = *in->tables;
+  std::vector<int64_t> ids;
+  for (int64_t p = 0; p < t.npair; ++p) {
+    const int64_t gp = t.pair_geom[p];
+    const int ba = m->geom_bodyid[t.geom_pairs[2 * gp]];
+    const int bb = m->geom_bodyid[t.geom_pairs[2 * gp + 1]];
+    const bool between = body_b < 0 ? (ba == body_a || bb == body_a)
+                                    : ((ba == body_a && bb == body_b) ||
+                                       (ba == body_b && bb == body_a));
+    if (between) ids.push_back(p);
+  }
+  in->Bind(m, d);
+  dua_switch(&in->args.schedule, ids.data(), static_cast<int64_t>(ids.size()), on ? 1 : 0,
+             in->step + 1);
+  dua::Track(in, ids.data(), static_cast<int64_t>(ids.size()));
+  dua::Publish(d, in);
+  return static_cast<int64_t>(ids.size());
+}
+
 }  // extern "C"
