@@ -176,6 +176,22 @@ DUA_API void dua_difference_poses(const double* xpos, const double* xquat, const
 
 DUA_API int64_t dua_abi_version(void);
 
+// ------------------------------------------------------------------------------- the plugin
+
+struct mjModel_;
+struct mjData_;
+
+// Geom pairs standing in alarm in instance `instance` of the sensor plugin
+// "dua_mujoco.predictor" in d: up to `capacity` rows (g1, g2) into out; returns how many there
+// are (-1: the instance is not this plugin's).
+DUA_API int64_t dua_plugin_standing(const struct mjModel_* m, const struct mjData_* d,
+                                    int instance, int64_t* out, int64_t capacity);
+// Switches the pairs between bodies body_a and body_b (body_b < 0: every pair of body_a) off
+// (on = 0) or back on; returns the number of sphere pairs between them, -1 if the instance is
+// not this plugin's, -2 before its first compute.
+DUA_API int64_t dua_plugin_set_active(const struct mjModel_* m, struct mjData_* d, int instance,
+                                      int body_a, int body_b, int on);
+
 #ifdef __cplusplus
 }
 #endif
