@@ -76,6 +76,21 @@ def _encode(values: np.ndarray) -> str:
     return f"{flat.size} {base64.b64encode(flat.tobytes()).decode('ascii')}"
 
 
+def structure_hash(model: mujoco.MjModel) -> int:
+    """FNV-1a (64 bits) of ``geom_type``, ``geom_bodyid`` and ``body_parentid`` as little-endian
+    int32s: what the plugin checks the model against (a spec edited after ``attach``)."""
+    data = np.concatenate(
+        [
+            np.asarray(a, dtype="<i4")
+            for a in (model.geom_type, model.geom_bodyid, model.body_parentid)
+        ]
+    ).tobytes()
+    h = 0xCBF29CE484222325
+    for byte in data:
+        h = ((h ^ byte) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
 def _check_prefix(spec: mujoco.MjSpec, prefix: object) -> str:
     if not isinstance(prefix, str) or not prefix or any(c.isspace() or c == ":" for c in prefix):
         raise InvalidInputError(
@@ -100,7 +115,7 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
     rows = np.sort(np.stack([geom1, geom2], axis=1), axis=1)
     keys, pair_geom = np.unique(rows, axis=0, return_inverse=True)
     exact = p.exact
-    config = np.zeros(20)
+    config = np.zeros(24)
     config[:11] = [
         ABI_VERSION,
         int(state.kind),
@@ -114,7 +129,10 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
         0.0 if exact is None else exact.exact_below,
         0.0 if exact is None else exact.query_below,
     ]
-    config[11:] = state.params
+    config[11:20] = state.params
+    # The model the tables are for: the plugin refuses another (a spec edited after attach).
+    shape = structure_hash(p.model)
+    config[20:] = [p.model.ngeom, p.model.nbody, shape & 0xFFFFFFFF, shape >> 32]
     tables = {
         "config": config,
         "pairs": p.pair_records,

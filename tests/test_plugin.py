@@ -283,3 +283,9 @@ def test_a_model_with_broken_tables_names_what_is_wrong() -> None:
     spec.plugins[0].config = {"prefix": "dua", "overlay": "maybe"}
     with pytest.raises(Exception, match="'overlay' = 'maybe'"):
         mujoco.MjData(spec.compile())
+    # A spec edited after attach: the tables would index the wrong geoms.
+    spec = load_spec("traffic")
+    attach(spec, accel=4.0)
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.1, 0, 0], pos=[0, 0, 5])
+    with pytest.raises(Exception, match="attach last"):
+        mujoco.MjData(spec.compile())

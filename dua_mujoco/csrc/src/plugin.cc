@@ -64,7 +64,10 @@ enum Config {
   kCfgExactBelow = 9,
   kCfgQueryBelow = 10,
   kCfgParams = 11,  // the schedule's 9 params
-  kCfgSize = kCfgParams + 9,
+  kCfgNgeom = 20,   // the model the tables were made for: geoms, bodies,
+  kCfgNbody = 21,
+  kCfgShape = 22,   // and FNV-1a of its geom_type, geom_bodyid and body_parentid (two 32-bit halves)
+  kCfgSize = 24,
 };
 
 // The model's tables, parsed once per mjData and shared by its copies.
@@ -77,6 +80,25 @@ struct Tables {
   bool exact = false;
   double Config(int i) const { return config[i]; }
 };
+
+// FNV-1a (64 bits) of the model's structure: geom_type, geom_bodyid and body_parentid as
+// little-endian int32s, in that order (dua_mujoco/plugin.py computes the same at attach).
+uint64_t StructureHash(const mjModel* m) {
+  uint64_t h = 0xcbf29ce484222325ULL;
+  auto feed = [&h](const int* values, int n) {
+    for (int i = 0; i < n; ++i) {
+      const uint32_t v = static_cast<uint32_t>(values[i]);
+      for (int b = 0; b < 4; ++b) {
+        h ^= (v >> (8 * b)) & 0xffu;
+        h *= 0x100000001b3ULL;
+      }
+    }
+  };
+  feed(m->geom_type, m->ngeom);
+  feed(m->geom_bodyid, m->ngeom);
+  feed(m->body_parentid, m->nbody);
+  return h;
+}
 
 // Parses "<prefix>:<name>" (its entry count, a space, then the entries' little-endian float64
 // bytes in base64) into out; false (after a warning naming the field) if it is missing or does
@@ -155,6 +177,19 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
     mju_warning("dua_mujoco.predictor: '%s:config' was written by another version of "
                 "dua_mujoco: attach the predictor again with this one.",
                 prefix.c_str());
+    return nullptr;
+  }
+  const uint64_t shape = StructureHash(m);
+  if (static_cast<int64_t>(t->config[kCfgNgeom]) != m->ngeom ||
+      static_cast<int64_t>(t->config[kCfgNbody]) != m->nbody ||
+      static_cast<uint64_t>(t->config[kCfgShape]) != (shape & 0xffffffffu) ||
+      static_cast<uint64_t>(t->config[kCfgShape + 1]) != (shape >> 32)) {
+    mju_warning("dua_mujoco.predictor: the tables under prefix '%s' were made for another model "
+                "(%lld geoms and %lld bodies, or another structure; this one has %lld and %lld): "
+                "the spec changed after dua_mujoco.attach; attach last, after every edit.",
+                prefix.c_str(), static_cast<long long>(t->config[kCfgNgeom]),
+                static_cast<long long>(t->config[kCfgNbody]), static_cast<long long>(m->ngeom),
+                static_cast<long long>(m->nbody));
     return nullptr;
   }
   if (!ReadTable(m, prefix, "pairs", &t->pairs) || !ReadTable(m, prefix, "spheres", &t->spheres) ||
