@@ -27,7 +27,6 @@ from typing import Any, NamedTuple
 import mujoco
 import numpy as np
 
-from dua_mujoco.core.schedules import Schedule
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.native import ABI_VERSION, library
@@ -64,9 +63,6 @@ class PluginOutputs(NamedTuple):
     evaluated: int
     deferred: int
     flagged: int
-
-
-_SCHEDULES = (Schedule.DEADLINE, Schedule.SELECT_ALL)
 
 
 def _encode(values: np.ndarray) -> str:
@@ -115,7 +111,7 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
     rows = np.sort(np.stack([geom1, geom2], axis=1), axis=1)
     keys, pair_geom = np.unique(rows, axis=0, return_inverse=True)
     exact = p.exact
-    config = np.zeros(24)
+    config = np.zeros(25)
     config[:11] = [
         ABI_VERSION,
         int(state.kind),
@@ -132,7 +128,8 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
     config[11:20] = state.params
     # The model the tables are for: the plugin refuses another (a spec edited after attach).
     shape = structure_hash(p.model)
-    config[20:] = [p.model.ngeom, p.model.nbody, shape & 0xFFFFFFFF, shape >> 32]
+    config[20:24] = [p.model.ngeom, p.model.nbody, shape & 0xFFFFFFFF, shape >> 32]
+    config[24] = state.work.shape[1]
     tables = {
         "config": config,
         "pairs": p.pair_records,
@@ -182,7 +179,7 @@ def attach(
 
     Raises:
         InvalidInputError: ``spec`` is not an ``MjSpec``, or the prefix is taken or malformed.
-        InvalidChoiceError: A schedule or pair mode the plugin does not run.
+        InvalidChoiceError: A pair mode the plugin does not run (it holds every pair).
     """
     if not isinstance(spec, mujoco.MjSpec):
         raise InvalidInputError(
@@ -195,8 +192,6 @@ def attach(
         raise InvalidChoiceError("pairs", pairs, ["all"])
     library()  # registers the plugin with MuJoCo, if `import mujoco` did not
     p = Predictor(spec.compile(), **options)
-    if p.schedule not in _SCHEDULES:
-        raise InvalidChoiceError("schedule", p.schedule.value, [s.value for s in _SCHEDULES])
     tables = _tables(p)
     spec.activate_plugin(PLUGIN_NAME)
     plugin = spec.add_plugin(name=prefix, plugin_name=PLUGIN_NAME, active=True)

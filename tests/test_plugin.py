@@ -93,11 +93,12 @@ def test_plugin_equals_the_python_predictor(scene: str, steps: int) -> None:
     [
         {"period": 3},
         {"schedule": ScheduleOptions(kind="select-all")},
+        {"schedule": ScheduleOptions(kind="dua", slots_per_bucket=2)},
         {"urgency": UrgencyOptions(exact=False)},
         {"schedule": ScheduleOptions(max_evals_per_step=4, alarm_backoff=1)},
         {"latency": 1},
     ],
-    ids=["period", "select-all", "no-exact", "capped", "latency"],
+    ids=["period", "select-all", "dua", "no-exact", "capped", "latency"],
 )
 def test_plugin_equals_the_python_predictor_under_options(options: dict) -> None:
     m, p = _attached("two_arms", **options)
@@ -253,8 +254,6 @@ def test_attach_refuses_what_the_plugin_cannot_run() -> None:
         attach(mujoco.MjModel.from_xml_string("<mujoco/>"))  # type: ignore[arg-type]
     with pytest.raises(InvalidChoiceError, match="pairs"):
         attach(spec, accel=30.0, pairs="pruned")
-    with pytest.raises(InvalidChoiceError, match="deadline"):
-        attach(spec, accel=30.0, schedule="dua")
     with pytest.raises(InvalidInputError, match="prefix"):
         attach(spec, prefix="a b", accel=30.0)
     attach(spec, accel=30.0)

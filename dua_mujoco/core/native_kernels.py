@@ -31,6 +31,7 @@ __all__ = [
     "exceeds12_c",
     "frame_view",
     "make_due_c",
+    "rank_classify_c",
     "reinsert_c",
     "restore_c",
     "rigid_point_c",
@@ -74,6 +75,7 @@ restore_c = _c("dua_restore", types.void(_pi8, _i8, _i8))
 switch_c = _c("dua_switch", _i8(_pi8, _pi8, _i8, _i8, _i8))
 make_due_c = _c("dua_make_due", types.void(_pi8, _i8, _i8))
 deadline_classify_c = _c("dua_deadline_classify", types.void(_pi8))
+rank_classify_c = _c("dua_rank_classify", types.void(_pi8))
 deadline_carry_c = _c("dua_deadline_carry", types.void(_pi8, _pi8, _pi8, _i8, _i8))
 deadline_interval_c = _c("dua_deadline_interval", _i8(_f8, _f8, _i8, _i8))
 rigid_point_c = _c("dua_rigid_point", types.void(_i8, _pf8, _pi8, _pf8))

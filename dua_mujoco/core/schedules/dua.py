@@ -20,6 +20,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.core.schedules import kernels
 from dua_mujoco.core.schedules.base import Scheduler
 from dua_mujoco.core.schedules.state import RANK, WHERE, empty_state
 from dua_mujoco.core.validate import check_period, check_urgencies
@@ -104,19 +105,14 @@ class DUAScheduler(Scheduler):
             width=width + min(m, _SPARE),
         )
         state.params[:2] = (nbuckets, q)
-        # Initial classification: a partial sort at the bucket boundaries (paper eq. 23).
-        bounds = (1 << np.arange(1, nbuckets)) - 1
-        bounds = bounds[bounds < m]
-        order = np.argpartition(tau, bounds) if bounds.size else np.arange(m)
-        state.slots[:m] = order
-        state.ints[WHERE, order] = np.arange(m)
+        # Initial classification: a partial sort at the bucket boundaries (paper eq. 23), the
+        # pairs standing in alarm marked in their slots (-2 - pair).
+        kernels.rank_classify(tuple(state))
         self.nbuckets = nbuckets
         self.slots_per_bucket = q
         self._width = width
-        alarmed = (tau < self.horizon[self.bucket_of_slot(state.ints[WHERE])]) & state.active
-        # A pair standing in alarm is held as -2 - pair in its slot (kernels._occupant).
-        state.slots[state.ints[WHERE, alarmed]] = -2 - np.flatnonzero(alarmed)
-        super().__init__(state, np.flatnonzero(alarmed))
+        raw = state.slots[:m]
+        super().__init__(state, np.sort(-2 - raw[raw < -1]))
 
     # ----------------------------------------------------------------------- introspection
 

@@ -35,6 +35,7 @@ from dua_mujoco.core.native_kernels import (
     deadline_classify_c,
     deadline_interval_c,
     make_due_c,
+    rank_classify_c,
     reinsert_c,
     restore_c,
     select_c,
@@ -61,6 +62,7 @@ __all__ = [
     "deadline_classify",
     "deadline_interval",
     "make_due",
+    "rank_classify",
     "reinsert",
     "restore",
     "schedule_view",
@@ -140,6 +142,14 @@ def make_due(st, p, n):  # pragma: no cover - jitted
 def deadline_classify(st):  # pragma: no cover - jitted
     """Deadline's initial classification: every active pair due ``s`` steps after step 0."""
     deadline_classify_c(schedule_view(st).ctypes)
+
+
+@nb.njit(cache=True)
+def rank_classify(st):  # pragma: no cover - jitted
+    """DUA's initial classification from ``last_tau`` (tau0): bucket ``k`` gets the pairs of
+    rank ``[2^k - 1, 2^(k+1) - 1)`` (ties by id), each pair's slot in ``WHERE``, and the pairs
+    that stand in alarm are marked in their slots."""
+    rank_classify_c(schedule_view(st).ctypes)
 
 
 @nb.njit(cache=True)

@@ -3,6 +3,7 @@
 #define DUA_MUJOCO_INTERNAL_H_
 
 #include <cmath>
+#include <cstdint>
 
 namespace dua {
 
@@ -13,6 +14,13 @@ double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
 double TauStatic(double c0, double c1, double c2, double v0, double v1, double v2,
                  const double* rec, double eps, double accel, double delta);
+
+// Bucket floor(log2(slot + 1)) of a rank slot.
+inline int64_t BucketOf(int64_t slot) {
+  int64_t k = 0;
+  while ((int64_t{2} << k) - 1 <= slot) ++k;
+  return k;
+}
 
 // Support of a shape in its own frame along m (any length: every form is homogeneous); kind is
 // MuJoCo's mjtGeom code (7: a mesh held as its box).

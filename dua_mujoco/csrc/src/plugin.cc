@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "dua/dua.h"
+#include "internal.h"
 
 namespace dua {
 namespace {
@@ -38,7 +39,7 @@ constexpr char kPluginName[] = "dua_mujoco.predictor";
 constexpr const char* kAttributes[] = {"prefix", "overlay"};
 constexpr int kNAttribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr int64_t kDeadline = 1;
+constexpr int64_t kRank = 0, kDeadline = 1;
 
 // Sensor outputs.
 enum Output {
@@ -67,7 +68,8 @@ enum Config {
   kCfgNgeom = 20,   // the model the tables were made for: geoms, bodies,
   kCfgNbody = 21,
   kCfgShape = 22,   // and FNV-1a of its geom_type, geom_bodyid and body_parentid (two 32-bit halves)
-  kCfgSize = 24,
+  kCfgWidth = 24,   // the schedule's work width (the most pairs a step selects)
+  kCfgSize = 25,
 };
 
 // The model's tables, parsed once per mjData and shared by its copies.
@@ -267,7 +269,8 @@ struct Instance {
 
   void Allocate(const mjModel* m) {
     const Tables& t = *tables;
-    const int64_t npair = t.npair, width = std::max<int64_t>(npair, 1);
+    const int64_t npair = t.npair;
+    const int64_t width = std::max<int64_t>(static_cast<int64_t>(t.Config(kCfgWidth)), 1);
     last_tau.assign(npair, kInf);
     active.assign(npair, 1);
     ints.assign(static_cast<size_t>(t.Config(kCfgRows)) * npair, 0);
@@ -276,7 +279,7 @@ struct Instance {
     params.assign(9, 0);
     work.assign(4 * width, 0);
     w_tau.assign(width, 0.0);
-    scratch.assign(12 * width, 0.0);
+    scratch.assign(12 * std::max(width, npair), 0.0);  // the classification's too
     ids.resize(npair);
     for (int64_t p = 0; p < npair; ++p) ids[p] = p;
     exact_records = t.exact_records;
@@ -429,6 +432,7 @@ void Classify(const mjModel* m, mjData* d, Instance* in) {
     std::fill(in->last_tau.begin(), in->last_tau.end(), -kInf);
   }
   if (s.kind == kDeadline) dua_deadline_classify(&s);
+  if (s.kind == kRank) dua_rank_classify(&s);
   a.count = t.npair;
   a.deferred = 0;
   in->classified = true;
@@ -439,8 +443,9 @@ void Classify(const mjModel* m, mjData* d, Instance* in) {
 // Whether pair p stands in alarm: the alarm rule on its latest tau (the schedulers'
 // alarm_state, docs/theory.md, section 3).
 bool Stands(const dua_schedule& s, int64_t p) {
-  if (!s.active[p]) return false;
+  if (!s.active[p]) return false;  // switched off: never reported
   double horizon = s.horizon[0];
+  if (s.kind == kRank) horizon = s.horizon[BucketOf(s.ints[p])];  // its slot's bucket
   if (s.kind == kDeadline) {
     const int64_t where = s.ints[p], last_step = s.ints[s.m + p];
     horizon = where >= 0 ? static_cast<double>(where - last_step + s.latency) * s.dt : -kInf;
@@ -476,11 +481,17 @@ void TrackAll(Instance* in) {
   in->min_tau = tau.empty() ? kInf : *std::min_element(tau.begin(), tau.end());
 }
 
-// After a step: the pairs it renewed (evaluated, and due but deferred).
+// After a step: the pairs it renewed (evaluated, and due but deferred) and those whose verdict
+// the violation check withdrew (the rank schedule may leave them waiting, standing in alarm).
 void TrackStep(Instance* in) {
   const dua_schedule& s = in->args.schedule;
+  const dua_events& e = in->args.events;
   const int64_t* w_ids = s.work + s.width;
   Track(in, w_ids, in->args.count + in->args.deferred);
+  for (int64_t k = 0; e.nbody && k < e.meta[1]; ++k) {
+    const int64_t i = e.flagged[k];
+    Track(in, e.members + e.start[i], e.start[i + 1] - e.start[i]);
+  }
   in->min_tau = kInf;
   for (int64_t k = 0; k < in->args.count; ++k) in->min_tau = std::min(in->min_tau, s.w_tau[k]);
 }

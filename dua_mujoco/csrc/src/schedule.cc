@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "dua/dua.h"
+#include "internal.h"
 
 namespace {
 
@@ -34,11 +35,7 @@ inline bool Stood(double last_tau, double horizon) {
 // A rank slot's entry: the pair, or -2 - pair if it stands in alarm.
 inline int64_t Occupant(int64_t raw, bool alarmed) { return alarmed ? -2 - raw : raw; }
 
-inline int64_t BucketOf(int64_t slot) {
-  int64_t k = 0;
-  while ((int64_t{2} << k) - 1 <= slot) ++k;
-  return k;
-}
+using dua::BucketOf;
 
 int64_t RankSelect(const View& v, int64_t n) {
   dua_schedule* st = v.st;
@@ -380,6 +377,31 @@ void dua_make_due(dua_schedule* st, int64_t p, int64_t n) {
     Link(v, p, n);
   } else {
     st->last_tau[p] = kNegInf;
+  }
+}
+
+void dua_rank_classify(dua_schedule* st) {
+  const View v{st};
+  const int64_t m = st->m;
+  int64_t* where = v.Int(kWhere);
+  // The paper's initial classification (eq. 23): bucket k holds the pairs of rank
+  // [2^k - 1, 2^(k+1) - 1) by tau, ties by id: a partition at each bucket boundary.
+  std::vector<int64_t> order(static_cast<size_t>(m));
+  std::iota(order.begin(), order.end(), 0);
+  const double* tau = st->last_tau;
+  auto less = [tau](int64_t a, int64_t b) { return tau[a] < tau[b] || (tau[a] == tau[b] && a < b); };
+  int64_t lo = 0;
+  for (int64_t k = 1; k < st->params[kNBuckets]; ++k) {
+    const int64_t bound = (int64_t{1} << k) - 1;
+    if (bound >= m) break;
+    std::nth_element(order.begin() + lo, order.begin() + bound, order.end(), less);
+    lo = bound;
+  }
+  for (int64_t i = 0; i < m; ++i) {
+    const int64_t p = order[i];
+    where[p] = i;
+    // A pair standing in alarm is held as -2 - pair in its slot (Occupant).
+    st->slots[i] = Occupant(p, st->active[p] && tau[p] < st->horizon[BucketOf(i)]);
   }
 }
 

@@ -79,6 +79,9 @@ DUA_API int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, i
                            int64_t n_next);
 DUA_API void dua_make_due(dua_schedule* st, int64_t p, int64_t n);
 DUA_API void dua_deadline_classify(dua_schedule* st);
+// The rank schedule's initial classification: slots and WHERE from last_tau (tau0), pairs
+// standing in alarm marked in their slots.
+DUA_API void dua_rank_classify(dua_schedule* st);
 DUA_API void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state,
                                 const int64_t* src, int64_t nsrc, int64_t n);
 DUA_API int64_t dua_deadline_interval(double tau, double dt, int64_t latency,
