@@ -6,10 +6,9 @@
 
 extern "C" {
 
-void dua_difference_poses(const double* xpos, const double* xquat, const int64_t* bodies,
-                          int64_t n, double* prev_pos, double* prev_quat, double dt,
-                          const uint8_t* user, double* linear, double* angular, double* twist,
-                          int64_t ntwist) {
+void dua_difference_poses(const double* xpos, const double* xquat, const int64_t* bodies, int64_t n,
+                          double* prev_pos, double* prev_quat, double dt, const uint8_t* user,
+                          double* linear, double* angular, double* twist, int64_t ntwist) {
   for (int64_t i = 0; i < n; ++i) {
     const int64_t b = bodies[i];
     const double* q = xquat + 4 * b;

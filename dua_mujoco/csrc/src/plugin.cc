@@ -5,9 +5,9 @@
 // "<prefix>:<table>", written by dua_mujoco.attach (dua_mujoco/plugin.py documents each): the
 // entry count, then the entries' float64 bytes in base64, which survive an XML round trip
 // exactly (MuJoCo writes numeric fields with six digits) and decode fast. init decodes them;
-// every copy of the mjData shares them. What changes as the simulation runs (the schedule, the exact level's last
-// directions, the violation check's last states) lives in plugin_data, one Instance per mjData:
-// init allocates it, copy duplicates it, reset clears it, destroy frees it.
+// every copy of the mjData shares them. What changes as the simulation runs (the schedule, the
+// exact level's last directions, the violation check's last states) lives in plugin_data, one
+// Instance per mjData: init allocates it, copy duplicates it, reset clears it, destroy frees it.
 //
 // Timing. compute runs at the velocity stage of each mj_forward (and so of each mj_step), on the
 // kinematics of the state the step starts from: the instant the Python predictor reads after
@@ -67,8 +67,8 @@ enum Config {
   kCfgParams = 11,  // the schedule's 9 params
   kCfgNgeom = 20,   // the model the tables were made for: geoms, bodies,
   kCfgNbody = 21,
-  kCfgShape = 22,   // and FNV-1a of its geom_type, geom_bodyid and body_parentid (two 32-bit halves)
-  kCfgWidth = 24,   // the schedule's work width (the most pairs a step selects)
+  kCfgShape = 22,  // and FNV-1a of its geom_type, geom_bodyid and body_parentid (two 32-bit halves)
+  kCfgWidth = 24,  // the schedule's work width (the most pairs a step selects)
   kCfgSize = 25,
 };
 
@@ -120,36 +120,41 @@ bool ReadTable(const mjModel* m, const std::string& prefix, const char* name,
   char* end = nullptr;
   const long long count = std::strtoll(text, &end, 10);
   if (end == text || count < 0 || *end != ' ') {
-    mju_warning("dua_mujoco.predictor: text field '%s' does not start with its entry count: "
-                "attach the predictor again.",
-                full.c_str());
+    mju_warning(
+        "dua_mujoco.predictor: text field '%s' does not start with its entry count: "
+        "attach the predictor again.",
+        full.c_str());
     return false;
   }
   const char* digits = end + 1;
   const size_t nbytes = static_cast<size_t>(count) * sizeof(double);
   const size_t ndigits = (nbytes + 2) / 3 * 4;
   if (std::strlen(digits) != ndigits) {
-    mju_warning("dua_mujoco.predictor: text field '%s' does not hold its %lld entries: attach "
-                "the predictor again.",
-                full.c_str(), count);
+    mju_warning(
+        "dua_mujoco.predictor: text field '%s' does not hold its %lld entries: attach "
+        "the predictor again.",
+        full.c_str(), count);
     return false;
   }
   static const std::array<int8_t, 256> kDigit = [] {
     std::array<int8_t, 256> t{};
     t.fill(-1);
     const char* alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    for (int i = 0; i < 64; ++i) t[static_cast<unsigned char>(alphabet[i])] = static_cast<int8_t>(i);
+    for (int i = 0; i < 64; ++i)
+      t[static_cast<unsigned char>(alphabet[i])] = static_cast<int8_t>(i);
     t['='] = 0;
     return t;
   }();
   std::vector<unsigned char> bytes(ndigits / 4 * 3);
   const unsigned char* in = reinterpret_cast<const unsigned char*>(digits);
   for (size_t i = 0, o = 0; i < ndigits; i += 4, o += 3) {
-    const int a = kDigit[in[i]], b = kDigit[in[i + 1]], c = kDigit[in[i + 2]], e = kDigit[in[i + 3]];
+    const int a = kDigit[in[i]], b = kDigit[in[i + 1]], c = kDigit[in[i + 2]],
+              e = kDigit[in[i + 3]];
     if ((a | b | c | e) < 0) {
-      mju_warning("dua_mujoco.predictor: text field '%s' holds a character that is not base64: "
-                  "attach the predictor again.",
-                  full.c_str());
+      mju_warning(
+          "dua_mujoco.predictor: text field '%s' holds a character that is not base64: "
+          "attach the predictor again.",
+          full.c_str());
       return false;
     }
     const unsigned triple = (a << 18) | (b << 12) | (c << 6) | e;
@@ -174,11 +179,11 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
   auto t = std::make_shared<Tables>();
   std::vector<double> pair_geom, geom_pairs, events_start, events_members;
   if (!ReadTable(m, prefix, "config", &t->config)) return nullptr;
-  if (t->config.size() != kCfgSize ||
-      static_cast<int64_t>(t->config[kCfgAbi]) != DUA_ABI_VERSION) {
-    mju_warning("dua_mujoco.predictor: '%s:config' was written by another version of "
-                "dua_mujoco: attach the predictor again with this one.",
-                prefix.c_str());
+  if (t->config.size() != kCfgSize || static_cast<int64_t>(t->config[kCfgAbi]) != DUA_ABI_VERSION) {
+    mju_warning(
+        "dua_mujoco.predictor: '%s:config' was written by another version of "
+        "dua_mujoco: attach the predictor again with this one.",
+        prefix.c_str());
     return nullptr;
   }
   const uint64_t shape = StructureHash(m);
@@ -186,12 +191,13 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
       static_cast<int64_t>(t->config[kCfgNbody]) != m->nbody ||
       static_cast<uint64_t>(t->config[kCfgShape]) != (shape & 0xffffffffu) ||
       static_cast<uint64_t>(t->config[kCfgShape + 1]) != (shape >> 32)) {
-    mju_warning("dua_mujoco.predictor: the tables under prefix '%s' were made for another model "
-                "(%lld geoms and %lld bodies, or another structure; this one has %lld and %lld): "
-                "the spec changed after dua_mujoco.attach; attach last, after every edit.",
-                prefix.c_str(), static_cast<long long>(t->config[kCfgNgeom]),
-                static_cast<long long>(t->config[kCfgNbody]), static_cast<long long>(m->ngeom),
-                static_cast<long long>(m->nbody));
+    mju_warning(
+        "dua_mujoco.predictor: the tables under prefix '%s' were made for another model "
+        "(%lld geoms and %lld bodies, or another structure; this one has %lld and %lld): "
+        "the spec changed after dua_mujoco.attach; attach last, after every edit.",
+        prefix.c_str(), static_cast<long long>(t->config[kCfgNgeom]),
+        static_cast<long long>(t->config[kCfgNbody]), static_cast<long long>(m->ngeom),
+        static_cast<long long>(m->nbody));
     return nullptr;
   }
   if (!ReadTable(m, prefix, "pairs", &t->pairs) || !ReadTable(m, prefix, "spheres", &t->spheres) ||
@@ -218,9 +224,10 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
   for (int64_t gp : t->pair_geom) sizes = sizes && gp >= 0 && gp < t->ngp;
   for (int64_t g : t->geom_pairs) sizes = sizes && g >= 0 && g < m->ngeom;
   if (!sizes) {
-    mju_warning("dua_mujoco.predictor: the tables under prefix '%s' do not fit together or "
-                "this model: attach the predictor again.",
-                prefix.c_str());
+    mju_warning(
+        "dua_mujoco.predictor: the tables under prefix '%s' do not fit together or "
+        "this model: attach the predictor again.",
+        prefix.c_str());
     return nullptr;
   }
   t->exact = static_cast<int64_t>(t->config[kCfgExactOn]) != 0;
@@ -389,9 +396,10 @@ Instance* Create(const mjModel* m, int instance) {
     if (v == "false" || v == "0") {
       overlay = false;
     } else if (v != "true" && v != "1") {
-      mju_warning("dua_mujoco.predictor: plugin attribute 'overlay' = '%s' does not parse: use "
-                  "true or false.",
-                  v.c_str());
+      mju_warning(
+          "dua_mujoco.predictor: plugin attribute 'overlay' = '%s' does not parse: use "
+          "true or false.",
+          v.c_str());
       return nullptr;
     }
   }
@@ -633,9 +641,7 @@ void Register() {
     auto* in = reinterpret_cast<Instance*>(plugin_data);
     if (in) in->classified = false;
   };
-  plugin.compute = +[](const mjModel* m, mjData* d, int instance, int) {
-    Compute(m, d, instance);
-  };
+  plugin.compute = +[](const mjModel* m, mjData* d, int instance, int) { Compute(m, d, instance); };
   plugin.visualize = +[](const mjModel* m, mjData* d, const mjvOption*, mjvScene* scn,
                          int instance) { Visualize(m, d, scn, instance); };
   mjp_registerPlugin(&plugin);
@@ -650,8 +656,8 @@ extern "C" {
 
 // Geom pairs standing in alarm in plugin instance `instance` of d: up to `capacity` rows
 // (g1, g2) into out; returns how many there are (-1: no such instance of this plugin).
-DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int instance,
-                                    int64_t* out, int64_t capacity) {
+DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int instance, int64_t* out,
+                                    int64_t capacity) {
   if (instance < 0 || instance >= m->nplugin || instance >= d->nplugin) return -1;
   const mjpPlugin* plugin = mjp_getPluginAtSlot(m->plugin[instance]);
   if (!plugin || std::string(plugin->name) != dua::kPluginName) return -1;
@@ -690,9 +696,9 @@ DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance,
     const int64_t gp = t.pair_geom[p];
     const int ba = m->geom_bodyid[t.geom_pairs[2 * gp]];
     const int bb = m->geom_bodyid[t.geom_pairs[2 * gp + 1]];
-    const bool between = body_b < 0 ? (ba == body_a || bb == body_a)
-                                    : ((ba == body_a && bb == body_b) ||
-                                       (ba == body_b && bb == body_a));
+    const bool between = body_b < 0
+                             ? (ba == body_a || bb == body_a)
+                             : ((ba == body_a && bb == body_b) || (ba == body_b && bb == body_a));
     if (between) ids.push_back(p);
   }
   in->Bind(m, d);

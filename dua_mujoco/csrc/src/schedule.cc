@@ -327,8 +327,7 @@ void dua_restore(dua_schedule* st, int64_t n, int64_t count) {
   st->params[kExtra] = 0;
 }
 
-int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t on,
-                   int64_t n_next) {
+int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t on, int64_t n_next) {
   const View v{st};
   const uint8_t want = on ? 1 : 0;
   int64_t changed = 0;
@@ -389,7 +388,9 @@ void dua_rank_classify(dua_schedule* st) {
   std::vector<int64_t> order(static_cast<size_t>(m));
   std::iota(order.begin(), order.end(), 0);
   const double* tau = st->last_tau;
-  auto less = [tau](int64_t a, int64_t b) { return tau[a] < tau[b] || (tau[a] == tau[b] && a < b); };
+  auto less = [tau](int64_t a, int64_t b) {
+    return tau[a] < tau[b] || (tau[a] == tau[b] && a < b);
+  };
   int64_t lo = 0;
   for (int64_t k = 1; k < st->params[kNBuckets]; ++k) {
     const int64_t bound = (int64_t{1} << k) - 1;
@@ -415,8 +416,8 @@ void dua_deadline_classify(dua_schedule* st) {
   }
 }
 
-void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state,
-                        const int64_t* src, int64_t nsrc, int64_t n) {
+void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, const int64_t* src,
+                        int64_t nsrc, int64_t n) {
   const int64_t mo = old_state->m, mn = new_state->m;
   const int64_t wheel = new_state->params[kWheel];
   int64_t* ints = new_state->ints;

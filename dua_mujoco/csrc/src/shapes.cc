@@ -176,9 +176,9 @@ double dua_support_local(int64_t kind, double s0, double s1, double s2, double m
 double dua_support(const double* n, const double* rec) {
   double k[3];
   dua::ToLocal(rec, n[0], n[1], n[2], k);
-  const double h = dua::SupportLocal(static_cast<int>(rec[dua::kShapeKind]), rec[dua::kShapeSize],
-                                     rec[dua::kShapeSize + 1], rec[dua::kShapeSize + 2], k[0],
-                                     k[1], k[2]);
+  const double h =
+      dua::SupportLocal(static_cast<int>(rec[dua::kShapeKind]), rec[dua::kShapeSize],
+                        rec[dua::kShapeSize + 1], rec[dua::kShapeSize + 2], k[0], k[1], k[2]);
   return n[0] * rec[dua::kShapePos] + n[1] * rec[dua::kShapePos + 1] +
          n[2] * rec[dua::kShapePos + 2] + h;
 }

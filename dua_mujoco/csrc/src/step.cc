@@ -22,8 +22,8 @@ constexpr int kSphereFrame = 0, kSphereBody = 1, kSphereOffset = 2, kSphereRoot 
               kSphereNcol = 8;
 constexpr int kShapeNcol = 16;
 // Exact level: per-geom records (the first eight are a sphere record of the geom origin).
-constexpr int kGxKind = 8, kGxSize = 9, kGxCentre = 12, kGxRadius = 15, kGxVert = 16,
-              kGxGraph = 17, kGxSeed = 18, kGxNcol = 24;
+constexpr int kGxKind = 8, kGxSize = 9, kGxCentre = 12, kGxRadius = 15, kGxVert = 16, kGxGraph = 17,
+              kGxSeed = 18, kGxNcol = 24;
 // ... and per-pair records.
 constexpr int kXMode = 0, kXG1 = 1, kXG2 = 2, kXDist = 3, kXN = 4, kXHull1 = 7, kXHull2 = 8,
               kXNcol = 10;
@@ -121,10 +121,10 @@ int64_t CheckBodies(const dua_events& ev, const dua_frame& f) {
     const double yx = R[1] * h1, yy = R[4] * h1, yz = R[7] * h1;
     const double zx = R[2] * h2, zy = R[5] * h2, zz = R[8] * h2;
     // Bounds every corner's coordinates: the scale of the differences' round-off.
-    const double scale = std::max(
-        std::max(std::fabs(cx) + std::fabs(xx) + std::fabs(yx) + std::fabs(zx),
-                 std::fabs(cy) + std::fabs(xy) + std::fabs(yy) + std::fabs(zy)),
-        std::fabs(cz) + std::fabs(xz) + std::fabs(yz) + std::fabs(zz));
+    const double scale =
+        std::max(std::max(std::fabs(cx) + std::fabs(xx) + std::fabs(yx) + std::fabs(zx),
+                          std::fabs(cy) + std::fabs(xy) + std::fabs(yy) + std::fabs(zy)),
+                 std::fabs(cz) + std::fabs(xz) + std::fabs(yz) + std::fabs(zz));
     // The centre's velocity as RigidPoint reads a point's.
     const double* tw = f.twist + 6 * b;
     const double* ref = f.twist_ref + 3 * r;
@@ -156,22 +156,22 @@ int64_t CheckBodies(const dua_events& ev, const dua_frame& f) {
       // The discrepancy U_k - w_{k-1} at the corners, w_{k-1} from the last state.
       const double px = prev[kSW], py = prev[kSW + 1], pz = prev[kSW + 2];
       const double qvx = prev[kSV], qvy = prev[kSV + 1], qvz = prev[kSV + 2];
-      const double tol_d = tol_a * h + 8.0 * kEps * (std::fabs(qvx) + std::fabs(qvy) + std::fabs(qvz));
-      broken |= Exceeds12(ucx - qvx, ucy - qvy, ucz - qvz,
-                          uxx - (py * prev[5] - pz * prev[4]), uxy - (pz * prev[3] - px * prev[5]),
-                          uxz - (px * prev[4] - py * prev[3]), uyx - (py * prev[8] - pz * prev[7]),
-                          uyy - (pz * prev[6] - px * prev[8]), uyz - (px * prev[7] - py * prev[6]),
-                          uzx - (py * prev[11] - pz * prev[10]),
-                          uzy - (pz * prev[9] - px * prev[11]),
-                          uzz - (px * prev[10] - py * prev[9]), rec[kBDisc] * (1.0 + rtol) + tol_d);
+      const double tol_d =
+          tol_a * h + 8.0 * kEps * (std::fabs(qvx) + std::fabs(qvy) + std::fabs(qvz));
+      broken |=
+          Exceeds12(ucx - qvx, ucy - qvy, ucz - qvz, uxx - (py * prev[5] - pz * prev[4]),
+                    uxy - (pz * prev[3] - px * prev[5]), uxz - (px * prev[4] - py * prev[3]),
+                    uyx - (py * prev[8] - pz * prev[7]), uyy - (pz * prev[6] - px * prev[8]),
+                    uyz - (px * prev[7] - py * prev[6]), uzx - (py * prev[11] - pz * prev[10]),
+                    uzy - (pz * prev[9] - px * prev[11]), uzz - (px * prev[10] - py * prev[9]),
+                    rec[kBDisc] * (1.0 + rtol) + tol_d);
       if (nprev >= 2) {
-        broken |= Exceeds12((ucx - prev[12]) * inv_h, (ucy - prev[13]) * inv_h,
-                            (ucz - prev[14]) * inv_h, (uxx - prev[15]) * inv_h,
-                            (uxy - prev[16]) * inv_h, (uxz - prev[17]) * inv_h,
-                            (uyx - prev[18]) * inv_h, (uyy - prev[19]) * inv_h,
-                            (uyz - prev[20]) * inv_h, (uzx - prev[21]) * inv_h,
-                            (uzy - prev[22]) * inv_h, (uzz - prev[23]) * inv_h,
-                            rec[kBAccel] * (1.0 + rtol) + tol_a);
+        broken |=
+            Exceeds12((ucx - prev[12]) * inv_h, (ucy - prev[13]) * inv_h, (ucz - prev[14]) * inv_h,
+                      (uxx - prev[15]) * inv_h, (uxy - prev[16]) * inv_h, (uxz - prev[17]) * inv_h,
+                      (uyx - prev[18]) * inv_h, (uyy - prev[19]) * inv_h, (uyz - prev[20]) * inv_h,
+                      (uzx - prev[21]) * inv_h, (uzy - prev[22]) * inv_h, (uzz - prev[23]) * inv_h,
+                      rec[kBAccel] * (1.0 + rtol) + tol_a);
       }
       prev[12] = ucx, prev[13] = ucy, prev[14] = ucz;
       prev[15] = uxx, prev[16] = uxy, prev[17] = uxz;
@@ -348,8 +348,8 @@ double ExactTau(const double* pair, double* xrec, double coarse, const dua_exact
   const double reach = std::sqrt(c0 * c0 + c1 * c1 + c2 * c2) + xrec[kXDist] + 1.0;
   mjtNum fromto[6];
   const double dist = mj_geomDistance(static_cast<const mjModel*>(x.model),
-                                      static_cast<mjData*>(const_cast<void*>(x.data)), static_cast<int>(g1),
-                                      static_cast<int>(g2), reach, fromto);
+                                      static_cast<mjData*>(const_cast<void*>(x.data)),
+                                      static_cast<int>(g1), static_cast<int>(g2), reach, fromto);
   if (!(dist > xrec[kXDist])) return best;  // in contact, or no witness
   n0 = fromto[3] - fromto[0], n1 = fromto[4] - fromto[1], n2 = fromto[5] - fromto[2];
   const double length = std::sqrt(n0 * n0 + n1 * n1 + n2 * n2);
@@ -368,8 +368,8 @@ void ExactPass(const dua_step_args& a, const int64_t* ids, int64_t count, double
   for (int64_t k = 0; k < count; ++k) {
     if (out[k] < a.exact.below) {
       const int64_t p = ids[k];
-      out[k] = ExactTau(a.pairs + p * kPairNcol, a.exact.records + p * kXNcol, out[k], a.exact,
-                        a.frame);
+      out[k] =
+          ExactTau(a.pairs + p * kPairNcol, a.exact.records + p * kXNcol, out[k], a.exact, a.frame);
     }
   }
 }
@@ -417,9 +417,9 @@ int64_t TauOf(const dua_step_args& a, const int64_t* ids, int64_t count, double*
                          a.shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol,
                          rec[kPairEps], rec[kPairAccel], rec[kPairDelta]);
     } else {
-      out[k] = TauSpeed(s[6] - s[0], s[7] - s[1], s[8] - s[2], s[9] - s[3], s[10] - s[4],
-                        s[11] - s[5], rec[kPairEps], rec[kPairAccel], rec[kPairDelta],
-                        rec[kPairSpeed]);
+      out[k] =
+          TauSpeed(s[6] - s[0], s[7] - s[1], s[8] - s[2], s[9] - s[3], s[10] - s[4], s[11] - s[5],
+                   rec[kPairEps], rec[kPairAccel], rec[kPairDelta], rec[kPairSpeed]);
     }
   }
   ExactPass(a, ids, count, out);
@@ -502,9 +502,8 @@ int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
 
 extern "C" {
 
-int64_t dua_exceeds12(double a0, double a1, double a2, double x0, double x1, double x2,
-                      double y0, double y1, double y2, double z0, double z1, double z2,
-                      double bound) {
+int64_t dua_exceeds12(double a0, double a1, double a2, double x0, double x1, double x2, double y0,
+                      double y1, double y2, double z0, double z1, double z2, double bound) {
   return dua::Exceeds12(a0, a1, a2, x0, x1, x2, y0, y1, y2, z0, z1, z2, bound) ? 1 : 0;
 }
 

@@ -26,8 +26,8 @@ inline double Predicate(const double x[3], const double v[3], double e, double d
 }
 
 // The predicate (same expression, so the same sign), f' and f''; a = |v|^2.
-inline void PredicateAndSlopes(const double x[3], const double v[3], double a, double e,
-                               double d, double h, double t, double* f, double* df, double* d2) {
+inline void PredicateAndSlopes(const double x[3], const double v[3], double a, double e, double d,
+                               double h, double t, double* f, double* df, double* d2) {
   const double y0 = x[0] + v[0] * t, y1 = x[1] + v[1] * t, y2 = x[2] + v[2] * t;
   const double ny = std::sqrt(y0 * y0 + y1 * y1 + y2 * y2);
   *f = ny - (e + t * (d + h * t));

@@ -54,10 +54,10 @@ DUA_API double dua_tau_static(double c0, double c1, double c2, double v0, double
 // ------------------------------------------------------------------------------- schedules
 
 typedef struct dua_schedule {
-  int64_t kind;     // 0 rank (DUA), 1 deadline, 2 select-all
-  double dt;        // predictor period, seconds
-  int64_t latency;  // periods a verdict takes to act
-  int64_t m;        // pairs
+  int64_t kind;      // 0 rank (DUA), 1 deadline, 2 select-all
+  double dt;         // predictor period, seconds
+  int64_t latency;   // periods a verdict takes to act
+  int64_t m;         // pairs
   double* last_tau;  // (m,)
   uint8_t* active;   // (m,) 0/1
   int64_t* ints;     // (rows, m)
@@ -84,8 +84,7 @@ DUA_API void dua_deadline_classify(dua_schedule* st);
 DUA_API void dua_rank_classify(dua_schedule* st);
 DUA_API void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state,
                                 const int64_t* src, int64_t nsrc, int64_t n);
-DUA_API int64_t dua_deadline_interval(double tau, double dt, int64_t latency,
-                                      int64_t max_interval);
+DUA_API int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t max_interval);
 
 // ------------------------------------------------------------------------------- the rigid step
 
@@ -101,23 +100,23 @@ typedef struct dua_frame {
 } dua_frame;
 
 typedef struct dua_exact {
-  int64_t on;                // 0: the level is off
-  const double* geoms;       // (ngeom, 24)
-  double* records;           // (npair, 10), directions written
-  double below;              // seconds
-  double query_below;        // seconds
-  const double* verts;       // (nmeshvert, 3)
-  const int32_t* graph;      // mesh_graph
-  const void* model;         // mjModel*
-  const void* data;          // mjData*
+  int64_t on;            // 0: the level is off
+  const double* geoms;   // (ngeom, 24)
+  double* records;       // (npair, 10), directions written
+  double below;          // seconds
+  double query_below;    // seconds
+  const double* verts;   // (nmeshvert, 3)
+  const int32_t* graph;  // mesh_graph
+  const void* model;     // mjModel*
+  const void* data;      // mjData*
 } dua_exact;
 
 typedef struct dua_events {
   int64_t nbody;
-  const double* rec;  // (nbody, 12)
-  double* prev;       // (nbody, 31)
-  int64_t* meta;      // (3,)
-  int64_t* flagged;   // (nbody,)
+  const double* rec;       // (nbody, 12)
+  double* prev;            // (nbody, 31)
+  int64_t* meta;           // (3,)
+  int64_t* flagged;        // (nbody,)
   const int64_t* start;    // (nbody + 1,)
   const int64_t* members;  // held pairs of each body
   const double* params;    // (h, rtol)
@@ -187,8 +186,8 @@ struct mjData_;
 // Geom pairs standing in alarm in instance `instance` of the sensor plugin
 // "dua_mujoco.predictor" in d: up to `capacity` rows (g1, g2) into out; returns how many there
 // are (-1: the instance is not this plugin's).
-DUA_API int64_t dua_plugin_standing(const struct mjModel_* m, const struct mjData_* d,
-                                    int instance, int64_t* out, int64_t capacity);
+DUA_API int64_t dua_plugin_standing(const struct mjModel_* m, const struct mjData_* d, int instance,
+                                    int64_t* out, int64_t capacity);
 // Switches the pairs between bodies body_a and body_b (body_b < 0: every pair of body_a) off
 // (on = 0) or back on; returns the number of sphere pairs between them, -1 if the instance is
 // not this plugin's, -2 before its first compute.
