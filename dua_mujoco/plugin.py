@@ -32,6 +32,7 @@ from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.native import ABI_VERSION, library
 
 __all__ = [
+    "MAX_GEOM_PAIRS",
     "OUTPUTS",
     "PLUGIN_NAME",
     "PluginOutputs",
@@ -44,6 +45,10 @@ __all__ = [
 PLUGIN_NAME = "dua_mujoco.predictor"
 
 OUTPUTS = ("standing", "min_tau", "evaluated", "deferred", "flagged")
+
+MAX_GEOM_PAIRS = 1_000_000
+"""The most active geom pairs ``attach`` takes: the plugin holds every pair, about 150 bytes of
+tables each (in the model, and per ``MjData`` for the schedule)."""
 """The sensor's outputs, in order (:class:`PluginOutputs`)."""
 
 
@@ -178,7 +183,8 @@ def attach(
         The Python predictor the tables came from (a twin: same options, same step).
 
     Raises:
-        InvalidInputError: ``spec`` is not an ``MjSpec``, or the prefix is taken or malformed.
+        InvalidInputError: ``spec`` is not an ``MjSpec``, the prefix is taken or malformed, or
+            the model has more than :data:`MAX_GEOM_PAIRS` active geom pairs.
         InvalidChoiceError: A pair mode the plugin does not run (it holds every pair).
     """
     if not isinstance(spec, mujoco.MjSpec):
@@ -191,7 +197,9 @@ def attach(
     if pairs != "all":
         raise InvalidChoiceError("pairs", pairs, ["all"])
     library()  # registers the plugin with MuJoCo, if `import mujoco` did not
-    p = Predictor(spec.compile(), **options)
+    model = spec.compile()
+    _check_size(model)
+    p = Predictor(model, **options)
     tables = _tables(p)
     spec.activate_plugin(PLUGIN_NAME)
     plugin = spec.add_plugin(name=prefix, plugin_name=PLUGIN_NAME, active=True)
@@ -203,6 +211,24 @@ def attach(
     for name, values in tables.items():
         spec.add_text(name=f"{prefix}:{name}", data=_encode(values))
     return p
+
+
+def _check_size(model: mujoco.MjModel) -> None:
+    """Refuse a model whose every pair the plugin could not hold, before building them (counted
+    as MuJoCo's filter sees them, one sphere a geom, nothing held: O(ngeom^2) time)."""
+    from dua_mujoco.mj.covering import cover_model
+    from dua_mujoco.mj.universe import PairUniverse
+
+    # A height field without options would fail the covering here; the predictor says so.
+    covering = cover_model(model, hfield="box")
+    geom_pairs, _ = PairUniverse(model, covering, lazy=True, exact=None).counts()
+    if geom_pairs > MAX_GEOM_PAIRS:
+        raise InvalidInputError(
+            f"the model has {geom_pairs:,} active geom pairs: the plugin holds every pair "
+            f"(about {geom_pairs * 150 / 1e6:,.0f} MB of tables), and takes at most "
+            f"{MAX_GEOM_PAIRS:,}. Run dua_mujoco.Predictor(model, pairs='pruned') in Python, "
+            "which holds only the pairs that can meet soon."
+        )
 
 
 def _sensor(model: mujoco.MjModel, prefix: str) -> int:

@@ -256,6 +256,8 @@ def test_attach_refuses_what_the_plugin_cannot_run() -> None:
         attach(spec, accel=30.0, pairs="pruned")
     with pytest.raises(InvalidInputError, match="prefix"):
         attach(spec, prefix="a b", accel=30.0)
+    with pytest.raises(InvalidInputError, match="pairs='pruned'"):  # 4.5 million pairs
+        attach(load_spec("swarm:3000"), accel=2.0)
     attach(spec, accel=30.0)
     with pytest.raises(InvalidInputError, match="already holds a predictor under prefix 'dua'"):
         attach(spec, accel=30.0)
