@@ -37,6 +37,7 @@ __all__ = [
     "PLUGIN_NAME",
     "PluginOutputs",
     "attach",
+    "deactivate_contacts",
     "plugin_outputs",
     "set_active_bodies",
     "standing_pairs",
@@ -283,13 +284,35 @@ def set_active_bodies(
     fn.restype = ctypes.c_int64
     fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_int,
                    ctypes.c_int]  # fmt: skip
-    n = int(fn(model._address, data._address, instance, a, b, int(bool(on))))
-    if n == -2:
+    return _checked(int(fn(model._address, data._address, instance, a, b, int(bool(on)))))
+
+
+def deactivate_contacts(model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "dua") -> int:
+    """Switch off the plugin's pairs of every geom pair in contact in ``data`` (resting contact),
+    as :meth:`Predictor.deactivate_contacts <dua_mujoco.Predictor.deactivate_contacts>` does;
+    they stay off until :func:`set_active_bodies` switches them back on. C and C++ programs call
+    ``dua_plugin_deactivate_contacts``.
+
+    Returns:
+        The number of geom pairs switched off.
+
+    Raises:
+        InvalidInputError: The model has no predictor sensor ``prefix``, or no step has run yet.
+    """
+    instance = int(model.sensor_plugin[_sensor(model, prefix)])
+    fn = library().dua_plugin_deactivate_contacts
+    fn.restype = ctypes.c_int64
+    fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
+    return _checked(int(fn(model._address, data._address, instance)))
+
+
+def _checked(result: int) -> int:
+    if result == -2:
         raise InvalidInputError(
             "the plugin has not classified the pairs of this data yet: call mujoco.mj_step "
             "(or mj_forward) first."
         )
-    return n
+    return result
 
 
 def standing_pairs(

@@ -18,7 +18,13 @@ from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_spec, make_controller
 from dua_mujoco.native import library_path
-from dua_mujoco.plugin import attach, plugin_outputs, set_active_bodies, standing_pairs
+from dua_mujoco.plugin import (
+    attach,
+    deactivate_contacts,
+    plugin_outputs,
+    set_active_bodies,
+    standing_pairs,
+)
 
 ANT = str(Path(gymnasium.__file__).parent / "envs/mujoco/assets/ant.xml")
 
@@ -49,10 +55,12 @@ def _run_side_by_side(
     steps: int,
     seed: int = 0,
     switch: dict[int, tuple[int, int | None, bool]] | None = None,
+    resting: int | None = None,
 ) -> int:
     """Step the plugin's model and the Python predictor on it together; assert equal standing
     pairs after every predictor step (after ``switch[k] = (body_a, body_b, on)`` at step ``k``,
-    in both). Returns the steps with some pair standing."""
+    in both; at step ``resting``, the pairs in contact switched off in both). Returns the steps
+    with some pair standing."""
     d = mujoco.MjData(m)
     ctrl = make_controller(m, "random", seed=seed)
     busy = 0
@@ -68,6 +76,8 @@ def _run_side_by_side(
         if switch and k in switch:
             a, b, on = switch[k]
             assert set_active_bodies(m, d, a, b, on=on) == p.set_active_bodies(a, b, on=on) > 0
+        if k == resting:
+            assert deactivate_contacts(m, d) == p.deactivate_contacts(d) > 0
         want = python_standing(p)
         np.testing.assert_array_equal(standing_pairs(m, d), want, err_msg=f"step {k}")
         assert plugin_outputs(m, d).standing == want.shape[0]
@@ -107,8 +117,8 @@ def test_plugin_equals_the_python_predictor_under_options(options: dict) -> None
 
 def test_switching_bodies_equals_the_python_predictors() -> None:
     """Intended contact: the pairs between a loose box and the table switched off, back on
-    (standing in alarm until evaluated), and every pair of an arm's link: the same standing
-    pairs as the Python predictor's after every step."""
+    (standing in alarm until evaluated), every pair of an arm's link, then every pair in
+    contact: the same standing pairs as the Python predictor's after every step."""
     m, p = _attached("two_arms")
     box = int(m.geom_bodyid[m.geom("loose_box").id])
     table = int(m.geom_bodyid[m.geom("table_top").id])
@@ -117,7 +127,7 @@ def test_switching_bodies_equals_the_python_predictors() -> None:
         50: (box, table, False), 120: (box, table, True), 150: (link, None, False),
         200: (link, None, True),
     }  # fmt: skip
-    assert _run_side_by_side(m, p, 260, seed=5, switch=switch) > 10
+    assert _run_side_by_side(m, p, 260, seed=5, switch=switch, resting=230) > 10
     d = mujoco.MjData(m)
     with pytest.raises(InvalidInputError, match="mj_step"):
         set_active_bodies(m, d, box, table, on=False)

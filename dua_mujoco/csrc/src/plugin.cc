@@ -709,4 +709,49 @@ DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance,
   return static_cast<int64_t>(ids.size());
 }
 
+// Switches off the pairs of every geom pair in contact in d (resting contact), as
+// Predictor.deactivate_contacts does; they stay off until switched back on
+// (dua_plugin_set_active). Returns the number of geom pairs switched off, -1 if the instance is
+// not this plugin's, -2 before its first compute.
+DUA_API int64_t dua_plugin_deactivate_contacts(const mjModel* m, mjData* d, int instance) {
+  if (instance < 0 || instance >= m->nplugin || instance >= d->nplugin) return -1;
+  const mjpPlugin* plugin = mjp_getPluginAtSlot(m->plugin[instance]);
+  if (!plugin || std::string(plugin->name) != dua::kPluginName) return -1;
+  auto* in = reinterpret_cast<dua::Instance*>(d->plugin_data[instance]);
+  if (!in) return -1;
+  if (!in->classified) return -2;
+  const dua::Tables& t = *in->tables;
+  // The geom pairs are rows (g1 < g2) in increasing order (attach writes them so).
+  std::vector<uint8_t> off(t.ngp, 0);
+  int64_t noff = 0;
+  for (int c = 0; c < d->ncon; ++c) {
+    const int a = d->contact[c].geom[0], b = d->contact[c].geom[1];
+    if (a < 0 || b < 0) continue;  // a flex
+    const int64_t g1 = std::min(a, b), g2 = std::max(a, b);
+    int64_t lo = 0, hi = t.ngp;
+    while (lo < hi) {
+      const int64_t mid = (lo + hi) / 2;
+      const int64_t m1 = t.geom_pairs[2 * mid], m2 = t.geom_pairs[2 * mid + 1];
+      if (m1 < g1 || (m1 == g1 && m2 < g2)) {
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
+    }
+    if (lo < t.ngp && t.geom_pairs[2 * lo] == g1 && t.geom_pairs[2 * lo + 1] == g2 && !off[lo]) {
+      off[lo] = 1;
+      ++noff;
+    }
+  }
+  std::vector<int64_t> ids;
+  for (int64_t p = 0; p < t.npair; ++p) {
+    if (off[t.pair_geom[p]]) ids.push_back(p);
+  }
+  in->Bind(m, d);
+  dua_switch(&in->args.schedule, ids.data(), static_cast<int64_t>(ids.size()), 0, in->step + 1);
+  dua::Track(in, ids.data(), static_cast<int64_t>(ids.size()));
+  dua::Publish(d, in);
+  return noff;
+}
+
 }  // extern "C"

@@ -193,6 +193,10 @@ DUA_API int64_t dua_plugin_standing(const struct mjModel_* m, const struct mjDat
 // not this plugin's, -2 before its first compute.
 DUA_API int64_t dua_plugin_set_active(const struct mjModel_* m, struct mjData_* d, int instance,
                                       int body_a, int body_b, int on);
+// Switches off the pairs of every geom pair in contact in d; returns how many geom pairs (-1:
+// not this plugin's instance, -2: before its first compute).
+DUA_API int64_t dua_plugin_deactivate_contacts(const struct mjModel_* m, struct mjData_* d,
+                                               int instance);
 
 #ifdef __cplusplus
 }
