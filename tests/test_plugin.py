@@ -354,3 +354,12 @@ def test_mujocos_own_viewer_shows_the_overlay(tmp_path: Path) -> None:
                 proc.wait(timeout=60)
     shown, hidden = halos
     assert shown > 1000 and hidden < shown / 20, halos
+
+
+def test_export_refuses_an_unknown_format(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from dua_mujoco.cli import main
+
+    assert main(["export", "traffic", str(tmp_path / "out.txt"), "--accel", "4"]) == 2
+    err = capsys.readouterr().err
+    assert "'.txt'" in err and ".xml or .mjb" in err
+    assert not (tmp_path / "out.txt").exists()
