@@ -285,19 +285,3 @@ double dua_tau_halfspace(double gap, double normal_velocity, double accel, doubl
 int64_t dua_abi_version(void) { return DUA_ABI_VERSION; }
 
 }  // extern "C"
-
-extern "C" {
-
-void dua_tau_rows(const double* x, const double* v, int64_t n, const double* eps, int64_t neps,
-                  const double* accel, int64_t naccel, const double* delta, int64_t ndelta,
-                  const double* speed, int64_t nspeed, double* out) {
-  for (int64_t i = 0; i < n; ++i) {
-    const double* xi = x + 3 * i;
-    const double* vi = v + 3 * i;
-    out[i] = dua::TauSpeed(xi[0], xi[1], xi[2], vi[0], vi[1], vi[2], eps[neps > 1 ? i : 0],
-                           accel[naccel > 1 ? i : 0], delta[ndelta > 1 ? i : 0],
-                           speed[nspeed > 1 ? i : 0]);
-  }
-}
-
-}  // extern "C"

@@ -28,11 +28,6 @@ DUA_API double dua_tau_accel(double x0, double x1, double x2, double v0, double 
 // dua_tau_accel, raised by a relative speed bound (inf for none).
 DUA_API double dua_tau_speed(double x0, double x1, double x2, double v0, double v1, double v2,
                              double eps, double accel, double delta, double speed);
-// dua_tau_speed of n relative states (x, v: (n, 3)) into out (n,); each parameter array holds one
-// value for every row (its length 1) or one a row (its length n).
-DUA_API void dua_tau_rows(const double* x, const double* v, int64_t n, const double* eps,
-                          int64_t neps, const double* accel, int64_t naccel, const double* delta,
-                          int64_t ndelta, const double* speed, int64_t nspeed, double* out);
 // min {t >= 0 : gap + (n.v) t - delta t - accel t^2 / 2 <= 0}, never above the exact root.
 DUA_API double dua_tau_halfspace(double gap, double normal_velocity, double accel, double delta);
 
