@@ -26,7 +26,6 @@ __all__ = [
     "closest_point_c",
     "deadline_carry_c",
     "deadline_classify_c",
-    "deadline_interval_c",
     "difference_poses_c",
     "exceeds12_c",
     "frame_view",
@@ -39,7 +38,6 @@ __all__ = [
     "static_gap_c",
     "step_c",
     "support_c",
-    "support_local_c",
     "switch_c",
     "tau_accel_c",
     "tau_halfspace_c",
@@ -64,7 +62,6 @@ def _c(name: str, signature: Any) -> Any:
 tau_accel_c = _c("dua_tau_accel", _f8(*([_f8] * 9)))
 tau_speed_c = _c("dua_tau_speed", _f8(*([_f8] * 10)))
 tau_halfspace_c = _c("dua_tau_halfspace", _f8(_f8, _f8, _f8, _f8))
-support_local_c = _c("dua_support_local", _f8(_i8, *([_f8] * 6)))
 support_c = _c("dua_support", _f8(_pf8, _pf8))
 closest_point_c = _c("dua_closest_point", types.void(_pf8, _pf8, _pf8))
 static_gap_c = _c("dua_static_gap", types.void(_pf8, _pf8, _pf8))
@@ -77,7 +74,6 @@ make_due_c = _c("dua_make_due", types.void(_pi8, _i8, _i8))
 deadline_classify_c = _c("dua_deadline_classify", types.void(_pi8))
 rank_classify_c = _c("dua_rank_classify", types.void(_pi8))
 deadline_carry_c = _c("dua_deadline_carry", types.void(_pi8, _pi8, _pi8, _i8, _i8))
-deadline_interval_c = _c("dua_deadline_interval", _i8(_f8, _f8, _i8, _i8))
 rigid_point_c = _c("dua_rigid_point", types.void(_i8, _pf8, _pi8, _pf8))
 # The predictor's step on a ``dua_step_args`` struct (its address: an int, as the C ABI passes a
 # pointer).

@@ -17,7 +17,6 @@ from dua_mujoco.core.native_kernels import (
     closest_point_c,
     static_gap_c,
     support_c,
-    support_local_c,
     tau_static_c,
 )
 
@@ -32,7 +31,6 @@ __all__ = [
     "static_batch",
     "static_gap",
     "support",
-    "support_local",
     "tau_static",
 ]
 
@@ -53,15 +51,6 @@ SHAPE_SIZE = 1
 SHAPE_POS = 4
 SHAPE_MAT = 7
 SHAPE_NCOL = 16
-
-
-@nb.njit(cache=True, inline="always")
-def support_local(kind, s0, s1, s2, m0, m1, m2):  # pragma: no cover - jitted
-    """h of the shape in its own frame, in direction m (any length: every form is homogeneous).
-
-    ``kind`` is a ``ShapeKind`` code and ``s0, s1, s2`` its sizes (MuJoCo's ``geom_size``; a
-    ``MESH_BOX``'s half-sizes)."""
-    return support_local_c(kind, s0, s1, s2, m0, m1, m2)
 
 
 @nb.njit(cache=True)

@@ -33,7 +33,6 @@ import numpy as np
 from dua_mujoco.core.native_kernels import (
     deadline_carry_c,
     deadline_classify_c,
-    deadline_interval_c,
     make_due_c,
     rank_classify_c,
     reinsert_c,
@@ -60,7 +59,6 @@ __all__ = [
     "SCHEDULE_FIELDS",
     "deadline_carry",
     "deadline_classify",
-    "deadline_interval",
     "make_due",
     "rank_classify",
     "reinsert",
@@ -97,12 +95,6 @@ def schedule_view(st):  # pragma: no cover - jitted
     v[14] = st[S_WORK].shape[1]
     v[15] = st[S_W_TAU].ctypes.data
     return v
-
-
-@nb.njit(cache=True)
-def deadline_interval(tau, dt, latency, max_interval):  # pragma: no cover - jitted
-    """The largest ``s`` in ``[1, max_interval]`` with ``(s + latency) dt <= tau`` (1 if none)."""
-    return deadline_interval_c(tau, dt, latency, max_interval)
 
 
 @nb.njit(cache=True)

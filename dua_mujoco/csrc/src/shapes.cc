@@ -168,11 +168,6 @@ double TauStatic(double c0, double c1, double c2, double v0, double v1, double v
 
 extern "C" {
 
-double dua_support_local(int64_t kind, double s0, double s1, double s2, double m0, double m1,
-                         double m2) {
-  return dua::SupportLocal(static_cast<int>(kind), s0, s1, s2, m0, m1, m2);
-}
-
 double dua_support(const double* n, const double* rec) {
   double k[3];
   dua::ToLocal(rec, n[0], n[1], n[2], k);

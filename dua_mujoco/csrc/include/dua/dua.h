@@ -33,9 +33,6 @@ DUA_API double dua_tau_halfspace(double gap, double normal_velocity, double acce
 
 // ------------------------------------------------------------------------------- static shapes
 
-// Support of a shape of `kind` and sizes `s` in its own frame, along m (any length).
-DUA_API double dua_support_local(int64_t kind, double s0, double s1, double s2, double m0,
-                                 double m1, double m2);
 // Support h_S(n) of one packed shape record (16 columns).
 DUA_API double dua_support(const double* n, const double* rec);
 // Closest point of a shape record to c (c itself inside): out[0:3].
