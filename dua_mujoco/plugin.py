@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import base64
 import ctypes
+import functools
 from typing import Any, NamedTuple
 
 import mujoco
@@ -242,6 +243,28 @@ def _sensor(model: mujoco.MjModel, prefix: str) -> int:
     return sid
 
 
+def _instance(model: mujoco.MjModel, prefix: str) -> int:
+    """The plugin instance behind sensor ``prefix``."""
+    return int(model.sensor_plugin[_sensor(model, prefix)])
+
+
+@functools.cache
+def _functions() -> Any:
+    """The plugin's C functions (``dua/dua.h``), their signatures declared once."""
+    lib = library()
+    p, i64, i32 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_int
+    signatures: dict[str, list[Any]] = {
+        "dua_plugin_standing": [p, p, i32, p, i64],
+        "dua_plugin_set_active": [p, p, i32, i32, i32, i32],
+        "dua_plugin_deactivate_contacts": [p, p, i32],
+    }
+    for name, args in signatures.items():
+        fn = getattr(lib, name)
+        fn.restype = i64
+        fn.argtypes = args
+    return lib
+
+
 def plugin_outputs(
     model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "dua"
 ) -> PluginOutputs:
@@ -277,13 +300,10 @@ def set_active_bodies(
     """
     from dua_mujoco.mj.filter import body_id
 
-    instance = int(model.sensor_plugin[_sensor(model, prefix)])
+    instance = _instance(model, prefix)
     a = body_id(model, body_a)
     b = -1 if body_b is None else body_id(model, body_b)
-    fn = library().dua_plugin_set_active
-    fn.restype = ctypes.c_int64
-    fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_int,
-                   ctypes.c_int]  # fmt: skip
+    fn = _functions().dua_plugin_set_active
     return _checked(int(fn(model._address, data._address, instance, a, b, int(bool(on)))))
 
 
@@ -299,11 +319,8 @@ def deactivate_contacts(model: mujoco.MjModel, data: mujoco.MjData, *, prefix: s
     Raises:
         InvalidInputError: The model has no predictor sensor ``prefix``, or no step has run yet.
     """
-    instance = int(model.sensor_plugin[_sensor(model, prefix)])
-    fn = library().dua_plugin_deactivate_contacts
-    fn.restype = ctypes.c_int64
-    fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
-    return _checked(int(fn(model._address, data._address, instance)))
+    fn = _functions().dua_plugin_deactivate_contacts
+    return _checked(int(fn(model._address, data._address, _instance(model, prefix))))
 
 
 def _checked(result: int) -> int:
@@ -324,10 +341,8 @@ def standing_pairs(
     Raises:
         InvalidInputError: The model has no predictor sensor ``prefix``.
     """
-    instance = int(model.sensor_plugin[_sensor(model, prefix)])
-    fn = library().dua_plugin_standing
-    fn.restype = ctypes.c_int64
-    fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_int64]
+    instance = _instance(model, prefix)
+    fn = _functions().dua_plugin_standing
     out = np.empty((64, 2), dtype=np.int64)
     while True:
         n = int(fn(model._address, data._address, instance, out.ctypes.data, out.shape[0]))

@@ -78,9 +78,16 @@ struct Tables {
   std::vector<double> geoms, exact_records, verts;
   std::vector<int64_t> pair_geom, geom_pairs, events_start, events_members;
   std::vector<int32_t> graph;
+  std::vector<int64_t> gp_keys;  // (ngp,) g1 << 32 | g2 of each geom pair, increasing
   int64_t npair = 0, ngp = 0, nbody_events = 0;
   bool exact = false;
   double Config(int i) const { return config[i]; }
+  // Index of geom pair (g1 < g2), or -1 if it is none of the tables'.
+  int64_t GeomPair(int64_t g1, int64_t g2) const {
+    const int64_t key = (g1 << 32) | g2;
+    const auto it = std::lower_bound(gp_keys.begin(), gp_keys.end(), key);
+    return it != gp_keys.end() && *it == key ? it - gp_keys.begin() : -1;
+  }
 };
 
 // FNV-1a (64 bits) of the model's structure: geom_type, geom_bodyid and body_parentid as
@@ -216,6 +223,10 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
   t->nbody_events = static_cast<int64_t>(t->events_rec.size() / 12);
   t->pair_geom = AsInts(pair_geom);
   t->geom_pairs = AsInts(geom_pairs);
+  t->gp_keys.resize(t->ngp);
+  for (int64_t k = 0; k < t->ngp; ++k) {
+    t->gp_keys[k] = (t->geom_pairs[2 * k] << 32) | t->geom_pairs[2 * k + 1];
+  }
   t->events_start = AsInts(events_start);
   t->events_members = AsInts(events_members);
   bool sizes = static_cast<int64_t>(t->pair_geom.size()) == t->npair &&
@@ -223,6 +234,11 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
                !t->horizon.empty() && !t->events_params.empty();
   for (int64_t gp : t->pair_geom) sizes = sizes && gp >= 0 && gp < t->ngp;
   for (int64_t g : t->geom_pairs) sizes = sizes && g >= 0 && g < m->ngeom;
+  // GeomPair's binary search needs the rows (g1 < g2) in increasing order, each once.
+  for (int64_t k = 0; k < t->ngp; ++k) {
+    sizes = sizes && t->geom_pairs[2 * k] < t->geom_pairs[2 * k + 1] &&
+            (k == 0 || t->gp_keys[k - 1] < t->gp_keys[k]);
+  }
   if (!sizes) {
     mju_warning(
         "dua_mujoco.predictor: the tables under prefix '%s' do not fit together or "
@@ -647,6 +663,23 @@ void Register() {
   mjp_registerPlugin(&plugin);
 }
 
+// Instance `instance` of d if it is one of this plugin's, else null.
+Instance* Find(const mjModel* m, const mjData* d, int instance) {
+  if (instance < 0 || instance >= m->nplugin || instance >= d->nplugin) return nullptr;
+  const mjpPlugin* plugin = mjp_getPluginAtSlot(m->plugin[instance]);
+  if (!plugin || std::string(plugin->name) != kPluginName) return nullptr;
+  return reinterpret_cast<Instance*>(d->plugin_data[instance]);
+}
+
+// Switches the sphere pairs `ids` on or off (Predictor._switch) and renews the outputs.
+void Switch(const mjModel* m, mjData* d, Instance* in, const std::vector<int64_t>& ids, bool on) {
+  in->Bind(m, d);
+  const int64_t n = static_cast<int64_t>(ids.size());
+  dua_switch(&in->args.schedule, ids.data(), n, on ? 1 : 0, in->step + 1);
+  Track(in, ids.data(), n);
+  Publish(d, in);
+}
+
 }  // namespace
 }  // namespace dua
 
@@ -658,10 +691,7 @@ extern "C" {
 // (g1, g2) into out; returns how many there are (-1: no such instance of this plugin).
 DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int instance, int64_t* out,
                                     int64_t capacity) {
-  if (instance < 0 || instance >= m->nplugin || instance >= d->nplugin) return -1;
-  const mjpPlugin* plugin = mjp_getPluginAtSlot(m->plugin[instance]);
-  if (!plugin || std::string(plugin->name) != dua::kPluginName) return -1;
-  const auto* in = reinterpret_cast<const dua::Instance*>(d->plugin_data[instance]);
+  const dua::Instance* in = dua::Find(m, d, instance);
   if (!in) return -1;
   if (!in->classified) return 0;
   const dua::Tables& t = *in->tables;
@@ -684,10 +714,7 @@ DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int insta
 // not this plugin's, -2 before the first compute (nothing to switch yet).
 DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance, int body_a,
                                       int body_b, int on) {
-  if (instance < 0 || instance >= m->nplugin || instance >= d->nplugin) return -1;
-  const mjpPlugin* plugin = mjp_getPluginAtSlot(m->plugin[instance]);
-  if (!plugin || std::string(plugin->name) != dua::kPluginName) return -1;
-  auto* in = reinterpret_cast<dua::Instance*>(d->plugin_data[instance]);
+  dua::Instance* in = dua::Find(m, d, instance);
   if (!in) return -1;
   if (!in->classified) return -2;
   const dua::Tables& t = *in->tables;
@@ -701,11 +728,7 @@ DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance,
                              : ((ba == body_a && bb == body_b) || (ba == body_b && bb == body_a));
     if (between) ids.push_back(p);
   }
-  in->Bind(m, d);
-  dua_switch(&in->args.schedule, ids.data(), static_cast<int64_t>(ids.size()), on ? 1 : 0,
-             in->step + 1);
-  dua::Track(in, ids.data(), static_cast<int64_t>(ids.size()));
-  dua::Publish(d, in);
+  dua::Switch(m, d, in, ids, on != 0);
   return static_cast<int64_t>(ids.size());
 }
 
@@ -714,32 +737,18 @@ DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance,
 // (dua_plugin_set_active). Returns the number of geom pairs switched off, -1 if the instance is
 // not this plugin's, -2 before its first compute.
 DUA_API int64_t dua_plugin_deactivate_contacts(const mjModel* m, mjData* d, int instance) {
-  if (instance < 0 || instance >= m->nplugin || instance >= d->nplugin) return -1;
-  const mjpPlugin* plugin = mjp_getPluginAtSlot(m->plugin[instance]);
-  if (!plugin || std::string(plugin->name) != dua::kPluginName) return -1;
-  auto* in = reinterpret_cast<dua::Instance*>(d->plugin_data[instance]);
+  dua::Instance* in = dua::Find(m, d, instance);
   if (!in) return -1;
   if (!in->classified) return -2;
   const dua::Tables& t = *in->tables;
-  // The geom pairs are rows (g1 < g2) in increasing order (attach writes them so).
   std::vector<uint8_t> off(t.ngp, 0);
   int64_t noff = 0;
   for (int c = 0; c < d->ncon; ++c) {
     const int a = d->contact[c].geom[0], b = d->contact[c].geom[1];
     if (a < 0 || b < 0) continue;  // a flex
-    const int64_t g1 = std::min(a, b), g2 = std::max(a, b);
-    int64_t lo = 0, hi = t.ngp;
-    while (lo < hi) {
-      const int64_t mid = (lo + hi) / 2;
-      const int64_t m1 = t.geom_pairs[2 * mid], m2 = t.geom_pairs[2 * mid + 1];
-      if (m1 < g1 || (m1 == g1 && m2 < g2)) {
-        lo = mid + 1;
-      } else {
-        hi = mid;
-      }
-    }
-    if (lo < t.ngp && t.geom_pairs[2 * lo] == g1 && t.geom_pairs[2 * lo + 1] == g2 && !off[lo]) {
-      off[lo] = 1;
+    const int64_t gp = t.GeomPair(std::min(a, b), std::max(a, b));
+    if (gp >= 0 && !off[gp]) {
+      off[gp] = 1;
       ++noff;
     }
   }
@@ -747,10 +756,7 @@ DUA_API int64_t dua_plugin_deactivate_contacts(const mjModel* m, mjData* d, int 
   for (int64_t p = 0; p < t.npair; ++p) {
     if (off[t.pair_geom[p]]) ids.push_back(p);
   }
-  in->Bind(m, d);
-  dua_switch(&in->args.schedule, ids.data(), static_cast<int64_t>(ids.size()), 0, in->step + 1);
-  dua::Track(in, ids.data(), static_cast<int64_t>(ids.size()));
-  dua::Publish(d, in);
+  dua::Switch(m, d, in, ids, false);
   return noff;
 }
 
