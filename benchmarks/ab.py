@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-from checkouts import PREAMBLE
+from checkouts import probe
 
 HERE = Path(__file__).resolve().parents[1]
 
@@ -85,9 +84,9 @@ print(json.dumps(out))
 
 
 def run_side(checkout: Path, side: str) -> dict[str, float]:
-    env = dict(os.environ, PYTHONPATH=str(checkout))
+    argv, env = probe(PROBE, checkout, side)
     out = subprocess.run(
-        [sys.executable, "-c", PREAMBLE + PROBE, side],
+        argv,
         env=env,
         cwd=checkout,
         capture_output=True,

@@ -1,4 +1,4 @@
-"""Running another checkout of the package in a subprocess, for A/B benchmarks.
+"""Running a checkout of the package in a subprocess, for A/B benchmarks (:func:`probe`).
 
 An editable install made by scikit-build-core puts an import finder ahead of ``sys.path``, so a
 subprocess run in another checkout (``cwd``/``PYTHONPATH``) would still import this one.
@@ -8,9 +8,14 @@ subprocess run in another checkout (``cwd``/``PYTHONPATH``) would still import t
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 
-__all__ = ["PREAMBLE", "scene_path"]
+__all__ = ["HERE", "PREAMBLE", "probe", "scene_path"]
+
+HERE = Path(__file__).resolve().parents[1]
+"""This checkout: the one the editable install's finder resolves to."""
 
 PREAMBLE = (
     "import sys\n"
@@ -24,3 +29,12 @@ def scene_path(scene: str, root: Path) -> str:
     the bundled files only when installed); any other scene as it is."""
     path = root / "models" / f"{scene}.xml"
     return str(path) if path.is_file() else scene
+
+
+def probe(code: str, checkout: Path, *args: str, **env: str) -> tuple[list[str], dict[str, str]]:
+    """``python -c code args`` run on ``checkout``: its argv and environment (``PYTHONPATH``
+    the checkout, ``env`` added), the :data:`PREAMBLE` first for any checkout but this one. Run
+    it with ``cwd=checkout`` ("python -c" puts the working directory first on the path)."""
+    other = checkout.resolve() != HERE
+    argv = [sys.executable, "-c", (PREAMBLE if other else "") + code, *args]
+    return argv, {**os.environ, "PYTHONPATH": str(checkout), **env}

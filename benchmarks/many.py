@@ -324,21 +324,14 @@ def _probe(scene: str, steps: int, accel: str, checkout: Path) -> dict[str, Any]
     """One scene in a fresh process on ``checkout``; its peak resident memory too."""
     import os
     import subprocess
-    import sys
 
-    from checkouts import PREAMBLE, scene_path
+    from checkouts import HERE, probe, scene_path
 
-    env = {**os.environ, "PYTHONPATH": str(checkout), "NUMBA_NUM_THREADS": "1"}
-    # This checkout is what the editable install's finder resolves to; another one needs it
-    # gone, and reads the bundled XML scenes from this checkout's models/ (it finds its own only
-    # when installed).
-    here = Path(__file__).resolve().parents[1]
-    code = _PROBE
-    if checkout.resolve() != here:
-        code = PREAMBLE + _PROBE
-        scene = scene_path(scene, here)
+    # Another checkout reads the bundled XML scenes from this one's models/.
+    scene = scene_path(scene, HERE) if checkout.resolve() != HERE else scene
+    argv, env = probe(_PROBE, checkout, scene, str(steps), accel, NUMBA_NUM_THREADS="1")
     proc = subprocess.Popen(
-        [sys.executable, "-c", code, scene, str(steps), accel],
+        argv,
         env=env,
         cwd=checkout,  # "python -c" puts the working directory first on the path
         stdout=subprocess.PIPE,

@@ -24,13 +24,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-from checkouts import PREAMBLE
+from checkouts import probe
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -133,12 +132,9 @@ def _scenes(requested: list[str] | None) -> list[str]:
 
 
 def run_side(checkout: Path, side: str, steps: int, scenes: list[str]) -> list[dict]:
-    env = dict(os.environ, PYTHONPATH=str(checkout))
-    # This checkout is what the editable install's finder resolves to: keep it (it maps
-    # dua_mujoco.models to models/); another checkout needs it gone.
-    code = PROBE if checkout.resolve() == ROOT.resolve() else PREAMBLE + PROBE
+    argv, env = probe(PROBE, checkout, str(HERE), side, str(steps), *scenes)
     proc = subprocess.run(
-        [sys.executable, "-c", code, str(HERE), side, str(steps), *scenes],
+        argv,
         env=env,
         cwd=checkout,
         capture_output=True,
