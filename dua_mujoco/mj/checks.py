@@ -19,7 +19,7 @@ import numpy.typing as npt
 from dua_mujoco.core.native_kernels import frame_view
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.bounds import MotionBounds, default_spheres
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, rigid_point_in
+from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, rigid_point
 from dua_mujoco.mj.mocap import MocapVelocityTracker
 
 __all__ = ["BoundMonitor", "BoundViolation"]
@@ -70,7 +70,8 @@ def _check_spheres(
 ):  # pragma: no cover - jitted
     """One monitor update over every sphere; returns the number of broken (sphere, kind) checks.
 
-    ``spheres`` and ``frame`` are as for ``rigid_point``; ``cur`` C-contiguous.
+    ``spheres`` are as for ``rigid_point``, whose ``frame_view`` of ``frame`` is taken once;
+    ``cur`` is C-contiguous.
     ``prev`` and ``cur`` are ``(nsphere, 9)`` rows ``[c, w, u]`` (centre, velocity read from
     MuJoCo, discrete velocity ``(c - c_prev) / h``); ``cur`` is written. ``nprev`` is how many
     earlier updates ``prev`` reflects (0, 1, or 2 and more): the speed and discrepancy checks
@@ -85,7 +86,7 @@ def _check_spheres(
     count = 0
     view = frame_view(frame)
     for i in range(n):
-        rigid_point_in(i, spheres, view, cur[i])
+        rigid_point(i, spheres, view, cur[i])
         broken[i, _SPEED] = False
         broken[i, _DISC] = False
         broken[i, _ACC] = False

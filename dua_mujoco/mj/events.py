@@ -54,22 +54,17 @@ B_HALF = 6  # 6..8: its half extents
 B_ACCEL, B_DISC, B_SPEED = 9, 10, 11
 NB_REC = 12
 
-# Columns of a body's state at the last step (and of the scratch row of this step).
-S_C = 0  # 0..2: the box's centre
-S_E = 3  # 3..11: its three axes, axis j at 3 + 3 j
-S_U = 12  # 12..14: the centre's chord over the last period
-S_UE = 15  # 15..23: the axes' chords
-S_V = 24  # 24..26: the centre's velocity read from MjData
-S_W = 27  # 27..29: the body's angular velocity (with its mocap root's)
-S_SCALE = 30  # a bound on the corners' coordinates
+# A body's state at the last step, written and read by the native check (csrc/src/step.cc):
+# columns 0..2 the box's centre, 3..11 its three axes (axis j at 3 + 3 j), 12..14 the centre's
+# chord over the last period, 15..23 the axes' chords, 24..26 the centre's velocity read from
+# MjData, 27..29 the body's angular velocity (with its mocap root's), 30 a bound on the corners'
+# coordinates.
 NB_STATE = 31
 
 # Entries of the int64 ``meta`` array.
 M_NPREV = 0  # states recorded since the reset, up to 2
 M_COUNT = 1  # bodies that broke a bound at the latest step
 M_TOTAL = 2  # body-steps that broke a bound since the reset
-
-_EPS = float(np.finfo(float).eps)
 
 
 class BodyBoxes(NamedTuple):

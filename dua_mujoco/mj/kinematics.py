@@ -38,7 +38,6 @@ __all__ = [
     "mjdata_frame",
     "pack_spheres",
     "rigid_point",
-    "rigid_point_in",
     "sphere_states",
 ]
 
@@ -76,27 +75,21 @@ def pack_spheres(
     return rec
 
 
-@nb.njit(cache=True)
-def rigid_point(i, spheres, frame, out):  # pragma: no cover - jitted
+@nb.njit(cache=True, inline="always")
+def rigid_point(i, spheres, view, out):  # pragma: no cover - jitted
     """Centre and velocity of sphere ``i`` attached to a rigid frame: the one kinematics kernel
     (native: ``dua_rigid_point``).
 
-    ``spheres`` holds ``pack_spheres`` records; ``frame`` is ``(frame_pos (nframe, 3),
-    frame_mat (nframe, 9), twist (nbody, 6), twist_ref (nbody, 3), root_twist (nbody, 6),
-    root_origin (nbody, 3))``, read from ``MjData`` as ``(geom_xpos, geom_xmat, cvel,
-    subtree_com, mocap root twists, xpos)``. Writes ``out[0:3]`` (centre) and ``out[3:6]``
-    (velocity), ``out`` contiguous. Centre: ``frame_pos[g] + frame_mat[g] @ offset``. Velocity:
-    the body twist ``[omega; v_ref]`` about the point ``twist_ref[rootid[b]]`` (MuJoCo's
-    ``cvel`` about ``subtree_com`` of the root), plus the twist of the tree's root about
-    ``root_origin`` for trees MuJoCo treats as static (mocap roots), which is zero elsewhere.
-    Loops over many points take :func:`frame_view` once and call :func:`rigid_point_in`.
+    ``spheres`` holds ``pack_spheres`` records; ``view`` is the :func:`frame_view` of a
+    ``frame`` tuple ``(frame_pos (nframe, 3), frame_mat (nframe, 9), twist (nbody, 6),
+    twist_ref (nbody, 3), root_twist (nbody, 6), root_origin (nbody, 3))``, read from ``MjData``
+    as ``(geom_xpos, geom_xmat, cvel, subtree_com, mocap root twists, xpos)`` (take it once for a
+    loop over many points). Writes ``out[0:3]`` (centre) and ``out[3:6]`` (velocity), ``out``
+    contiguous. Centre: ``frame_pos[g] + frame_mat[g] @ offset``. Velocity: the body twist
+    ``[omega; v_ref]`` about the point ``twist_ref[rootid[b]]`` (MuJoCo's ``cvel`` about
+    ``subtree_com`` of the root), plus the twist of the tree's root about ``root_origin`` for
+    trees MuJoCo treats as static (mocap roots), which is zero elsewhere.
     """
-    rigid_point_c(i, spheres.ctypes, frame_view(frame).ctypes, out.ctypes)
-
-
-@nb.njit(cache=True, inline="always")
-def rigid_point_in(i, spheres, view, out):  # pragma: no cover - jitted
-    """:func:`rigid_point` on a frame's :func:`frame_view`."""
     rigid_point_c(i, spheres.ctypes, view.ctypes, out.ctypes)
 
 
@@ -115,7 +108,7 @@ def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> tuple[np.ndarra
 def _states(spheres, frame, ids, out):  # pragma: no cover - jitted
     view = frame_view(frame)
     for k in range(ids.shape[0]):
-        rigid_point_in(ids[k], spheres, view, out[k])
+        rigid_point(ids[k], spheres, view, out[k])
 
 
 def sphere_states(
