@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Display", "virtual_display"]
+__all__ = ["Display", "reddish", "virtual_display"]
 
 
 class Display:
@@ -91,3 +91,12 @@ def virtual_display(folder: Path, size: tuple[int, int] = (1024, 768)) -> Iterat
     finally:
         xvfb.terminate()
         xvfb.wait(timeout=30)
+
+
+def reddish(shot: np.ndarray, *, dim: bool = False) -> int:
+    """Pixels of the tints' hue (brick red, orange): red well above green and blue; ``dim``
+    counts the dark ones instead (translucent covering spheres over the black background)."""
+    f = shot.astype(int)
+    r, g, b = f[..., 0], f[..., 1], f[..., 2]
+    bright = (r > 90) if not dim else (r > 20) & (r <= 90)
+    return int(np.count_nonzero(bright & (r > 1.6 * g) & (r > 1.6 * b)))

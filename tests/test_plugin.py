@@ -329,8 +329,8 @@ def test_mujocos_own_viewer_shows_the_overlay(tmp_path: Path) -> None:
     grey boxes standing in alarm get translucent red balls and a red line (red pixels, bright
     over the boxes, dim over the black background); with ``overlay=false`` the boxes stay grey
     (measured: 2,900 bright and 780 dim red pixels against none)."""
-    from screens import virtual_display
-    from test_view import BOXES, _reddish
+    from screens import reddish, virtual_display
+    from test_view import BOXES
 
     halos = []
     for overlay in (True, False):
@@ -348,7 +348,7 @@ def test_mujocos_own_viewer_shows_the_overlay(tmp_path: Path) -> None:
                 display.wait_for(lambda shot: np.count_nonzero(shot.max(axis=-1) > 30) > 1000)
                 time.sleep(1.0)
                 shot = display.screenshot()
-                halos.append(_reddish(shot) + _reddish(shot, dim=True))
+                halos.append(reddish(shot) + reddish(shot, dim=True))
             finally:
                 proc.kill()
                 proc.wait(timeout=60)

@@ -20,7 +20,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco
 import numpy as np
 import pytest
-from screens import Display, virtual_display
+from screens import Display, reddish, virtual_display
 
 from dua_mujoco.cli import main
 from dua_mujoco.mj.predictor import Predictor
@@ -50,15 +50,6 @@ BOXES = """
   </actuator>
 </mujoco>
 """
-
-
-def _reddish(shot: np.ndarray, *, dim: bool = False) -> int:
-    """Pixels of the tints' hue (brick red, orange): red well above green and blue; ``dim``
-    counts the dark ones instead (translucent covering spheres over the black background)."""
-    f = shot.astype(int)
-    r, g, b = f[..., 0], f[..., 1], f[..., 2]
-    bright = (r > 90) if not dim else (r > 20) & (r <= 90)
-    return int(np.count_nonzero(bright & (r > 1.6 * g) & (r > 1.6 * b)))
 
 
 class _Lines:
@@ -121,12 +112,12 @@ def test_viewer_shows_the_tint_live_and_its_keys_pause_step_and_toggle_spheres(
         err = _Lines(proc.stderr)
         try:
             # Live: the boxes are tinted (nothing in the scene is red-orange of its own).
-            tinted = display.wait_for(lambda shot: _reddish(shot) > 2000)
-            halo = _reddish(tinted, dim=True)  # the boxes' edges
+            tinted = display.wait_for(lambda shot: reddish(shot) > 2000)
+            halo = reddish(tinted, dim=True)  # the boxes' edges
             # Enter: the covering spheres, translucent and tinted, larger than the boxes: a dim
             # red halo around each (measured: 2e3 such pixels before, 2.3e4 after).
             display.key("Return")
-            display.wait_for(lambda shot: _reddish(shot, dim=True) > max(4 * halo, 8000))
+            display.wait_for(lambda shot: reddish(shot, dim=True) > max(4 * halo, 8000))
             # Space: paused; the frame no longer changes.
             display.key("space")
             err.wait_for("paused at t =")
