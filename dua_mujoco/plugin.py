@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.mj.events import no_events
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.native import ABI_VERSION, library
 
@@ -114,9 +115,9 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
     """The plugin's tables for predictor ``p`` (every pair held), by name."""
     sched = p.new_scheduler(np.full(p.nsphere_pairs, np.inf))
     state = sched.state
-    geom1, geom2 = p.sphere_pair_geoms
-    rows = np.sort(np.stack([geom1, geom2], axis=1), axis=1)
-    keys, pair_geom = np.unique(rows, axis=0, return_inverse=True)
+    # Every pair held: the known geom pairs are the model's, rows g1 < g2 in increasing order,
+    # which the plugin's lookups need (and check).
+    gp = p.geom_pairs
     exact = p.exact
     config = np.zeros(25)
     config[:11] = [
@@ -143,20 +144,11 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
         "spheres": p.sphere_records,
         "shapes": p.shape_records,
         "horizon": state.horizon,
-        "pair_geom": pair_geom.reshape(-1),
-        "geom_pairs": keys,
+        "pair_geom": p.geom_pair_of(np.arange(p.nsphere_pairs)),
+        "geom_pairs": np.stack([gp.geom1, gp.geom2], axis=1),
     }
-    events = p.events
-    if events is None:
-        tables.update(
-            events_rec=np.zeros(0), events_params=np.array([1.0, 0.0]), events_start=np.zeros(1)
-        )
-        tables["events_members"] = np.zeros(0)
-    else:
-        rec, _, _, _, start, members, params = events.args()
-        tables.update(
-            events_rec=rec, events_params=params, events_start=start, events_members=members
-        )
+    rec, _, _, _, start, members, params = no_events() if p.events is None else p.events.args()
+    tables.update(events_rec=rec, events_params=params, events_start=start, events_members=members)
     if exact is not None:
         # The mesh vertices are the model's (mesh_vert): the plugin reads them there.
         tables.update(exact_geoms=exact.geoms, exact_records=exact.records)

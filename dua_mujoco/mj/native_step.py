@@ -18,6 +18,7 @@ as some ``Alarms`` refers to it.
 from __future__ import annotations
 
 import ctypes
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -128,11 +129,12 @@ def _run(address, n, start):  # pragma: no cover - jitted
     return step_c(address, n, start)
 
 
+@functools.cache
 def _functions() -> Any:
+    """The C functions called through ctypes (the step itself goes through numba's entry point),
+    their signatures declared once."""
     lib = library()
     args = ctypes.POINTER(_StepArgs)
-    lib.dua_step.restype = _i
-    lib.dua_step.argtypes = [_p, _i, _i]
     lib.dua_evaluate.restype = _i
     lib.dua_evaluate.argtypes = [args, _p, _i, _p]
     lib.dua_exact_pass.restype = None
