@@ -170,15 +170,21 @@ def test_a_collision_right_after_an_impulse_is_flagged_only_with_events() -> Non
 SPREAD_BALLS = THREE_BALLS.replace('pos="0.1001 0 0"', 'pos="0.25 0 0"')
 
 
+@pytest.mark.parametrize("renew", [True, False], ids=["renewal", "rebuild"])
 def test_a_pruned_predictor_renews_its_pairs_when_a_struck_body_leaves_their_reach(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, renew: bool
 ) -> None:
     """After the impulse the middle ball is faster than the reach that left out its pair with
-    the last ball assumed: the escape check rebuilds the held set at the next step and the
-    collision is flagged. Without the check (never escaped) the pair is not held until the
-    next regular rebuild, and the collision is missed outside a violation's period."""
+    the last ball assumed: the escape check renews its pairs at the next step (alone, or by a
+    rebuild of the whole held set when too many spheres escaped) and the collision is flagged.
+    Without the check (never escaped) the pair is not held until the next regular rebuild, and
+    the collision is missed outside a violation's period."""
+    from dua_mujoco.mj import predictor
     from dua_mujoco.mj.options import PairOptions
     from dua_mujoco.mj.pruning import HeldPairs
+
+    if not renew:
+        monkeypatch.setattr(predictor, "RENEW_MAX", 0)
 
     def balls() -> tuple[mujoco.MjModel, mujoco.MjData]:
         m = mujoco.MjModel.from_xml_string(SPREAD_BALLS)
@@ -193,9 +199,10 @@ def test_a_pruned_predictor_renews_its_pairs_when_a_struck_body_leaves_their_rea
     report = run(m, d, p, steps=100, progress=False)
     assert report.contact_onsets >= 2 and report.bound_violations > 0
     assert report.missed_onsets_outside_violations == 0
-    assert p.rebuilds >= 1  # at the step after the strike; the regular one is at step 100
+    # At the step after the strike; the regular rebuild is at step 100.
+    assert (p.renewals >= 1) if renew else (p.renewals == 0 and p.rebuilds >= 1)
 
-    monkeypatch.setattr(HeldPairs, "escaped", lambda *args, **kwargs: False)
+    monkeypatch.setattr(HeldPairs, "escapes", lambda *args, **kwargs: np.zeros(0, dtype=int))
     m, d = balls()
     blind = run(m, d, Predictor(m, accel=0.1, pairs=pruned), steps=100, progress=False)
     assert blind.missed_onsets_outside_violations >= 1

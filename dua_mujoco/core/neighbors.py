@@ -43,7 +43,10 @@ plus 20 per pair).
 
 from __future__ import annotations
 
+import ctypes
+import functools
 import math
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -64,6 +67,7 @@ from dua_mujoco.exceptions import (
     NonFiniteStateError,
     ShapeError,
 )
+from dua_mujoco.native import library
 
 __all__ = ["ROUNDING_SLACK", "candidate_pairs", "reach"]
 
@@ -118,6 +122,15 @@ def _check_values(
         where, value = f"{name}[{idx}]", float(a[idx])
     allowed = "finite or inf, and >= 0" if allow_inf else "finite and >= 0"
     raise error(f"{where} = {value!r} is invalid: it must be {allowed}. Fix the value passed.")
+
+
+@functools.cache
+def _reaches() -> Any:
+    f = library().dua_reaches
+    f.restype = None
+    p = ctypes.c_void_p
+    f.argtypes = [p, p, p, p, p, ctypes.c_int64, ctypes.c_double, p]
+    return f
 
 
 def reach(
@@ -181,13 +194,14 @@ def reach(
     _check_values("accel", arrays["accel"], error=InvalidBoundError)
     _check_values("vel_uncertainty", arrays["vel_uncertainty"], error=InvalidBoundError)
     _check_values("speed_bound", arrays["speed_bound"], allow_inf=True, error=InvalidBoundError)
-    t = float(T)
-    r, s, A = arrays["radius"], arrays["speed_now"], arrays["accel"]
-    d, V = arrays["vel_uncertainty"], arrays["speed_bound"]
-    free = (s + d) * t + 0.5 * A * (t * t)
-    # inf * 0 is NaN: with no speed bound (or T = 0) the free-motion bound is the answer.
-    capped = np.where(np.isinf(V), free, np.minimum(free, np.where(np.isinf(V), 0.0, V) * t))
-    out = np.broadcast_to(r + capped, (1 if n is None else n,)).astype(np.float64)
+    shape = (1 if n is None else n,)
+    r, s, A, d, V = (
+        np.ascontiguousarray(np.broadcast_to(arrays[k], shape))
+        for k in ("radius", "speed_now", "accel", "vel_uncertainty", "speed_bound")
+    )
+    out = np.empty(shape)
+    # The native core's kernel: the MuJoCo predictor renews reaches with it inside its step.
+    _reaches()(r.ctypes, s.ctypes, A.ctypes, d.ctypes, V.ctypes, shape[0], float(T), out.ctypes)
     if not np.isfinite(out).all():
         idx = int(np.flatnonzero(~np.isfinite(out))[0])
         raise InvalidInputError(

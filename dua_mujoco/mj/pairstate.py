@@ -8,6 +8,8 @@ no alarm. The exact stage (``Monitor``) reads the state through this view in eit
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import numpy.typing as npt
 
@@ -25,8 +27,10 @@ class PairState:
         npairs: Number of the model's active sphere pairs.
         held: ``(K,)`` sorted pair ids the scheduler holds, or None for all.
         on: ``(npairs,)`` bool, pairs switched on (used when ``held`` is given).
-        rebuilds: Rebuilds of the held set so far (each may change every pair's state).
-        built_at: Step of the latest rebuild.
+        rebuilds: Rebuilds and renewals of the held set so far (each may change any pair's
+            state).
+        left_out: Given pair ids not held, the step since which each was shown unable to
+            touch (used when ``held`` is given; default 0).
     """
 
     def __init__(
@@ -36,15 +40,15 @@ class PairState:
         held: np.ndarray | None = None,
         on: np.ndarray | None = None,
         rebuilds: int = 0,
-        built_at: int = 0,
+        left_out: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> None:
         self.scheduler = scheduler
         self.npairs = npairs
         self._held = held
         self._on = on
         self.rebuilds = rebuilds
-        """Rebuilds of the held set this view reflects."""
-        self._built_at = built_at
+        """Rebuilds and renewals of the held set this view reflects."""
+        self._left_out = left_out
 
     @property
     def step_count(self) -> int:
@@ -104,10 +108,17 @@ class PairState:
         return out
 
     def last_step_of(self, pair: np.ndarray) -> np.ndarray:
-        """Step of each pair's latest evaluation (a pair not held: the latest rebuild)."""
+        """Step of each pair's latest evaluation (a pair not held: the step since which it was
+        shown unable to touch, by the latest rebuild or a renewal of one of its spheres)."""
         if self._held is None:
             return np.asarray(self.scheduler.last_step[pair])
-        return self._gather(self.scheduler.last_step, pair, self._built_at)
+        ids = np.asarray(pair, dtype=np.int64)
+        pos, found = self._positions(ids)
+        out = np.zeros(ids.shape, dtype=np.int64)
+        out[found] = self.scheduler.last_step[pos[found]]
+        if self._left_out is not None and not found.all():
+            out[~found] = self._left_out(ids[~found])
+        return out
 
     def last_tau_of(self, pair: np.ndarray) -> np.ndarray:
         """tau of each pair's latest evaluation (a pair not held: ``inf``)."""

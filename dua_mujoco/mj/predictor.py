@@ -13,6 +13,7 @@ predictor uses that one instant throughout (docs/discrete-time.md).
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Mapping
 from typing import Literal
@@ -68,7 +69,7 @@ from dua_mujoco.mj.options import (
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty
 from dua_mujoco.mj.pairstate import PairState
 from dua_mujoco.mj.predictor_views import PredictorViews
-from dua_mujoco.mj.pruning import HeldPairs, held_pairs_for, resolve_pair_mode
+from dua_mujoco.mj.pruning import RENEW_MAX, HeldPairs, held_pairs_for, resolve_pair_mode
 from dua_mujoco.mj.tables import (
     check_data,
     check_forwarded,
@@ -76,6 +77,8 @@ from dua_mujoco.mj.tables import (
     static_shapes,
 )
 from dua_mujoco.mj.universe import PairUniverse
+
+_NONE = np.zeros(0, dtype=np.int64)
 
 __all__ = ["BoundsLike", "Predictor"]
 
@@ -264,9 +267,12 @@ class Predictor(PredictorViews):
         self._ids = np.arange(self.universe.npair)
         self._records = self._pair_records
         self._built_at = 0
-        self._rebuild_next = False
+        # Spheres the latest step found outside their reach, renewed at the next step.
+        self._escapes = _NONE
         self.rebuilds = 0
         """Rebuilds of the held pairs so far (pruned pairs only)."""
+        self.renewals = 0
+        """Renewals of escaped spheres' pairs so far (pruned pairs only)."""
 
     def geom_pair_ids(self, g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
         """Ids of the active geom pairs ``{g1[k], g2[k]}``, -1 where MuJoCo's filter rejects
@@ -314,13 +320,15 @@ class Predictor(PredictorViews):
         sched = self._require_scheduler()
         # The exact stage asks several times a step: one view per scheduler and held set.
         view = self._pair_state
-        seen = (sched, self.rebuilds, self.universe.version)
+        changes = self.rebuilds + self.renewals
+        seen = (sched, changes, self.universe.version)
         if view is None or self._pair_state_seen != seen:
             self._pair_state_seen = seen
-            held = None if self._held is None else self._ids
-            view = PairState(
-                sched, self.nsphere_pairs, held, self._on, self.rebuilds, self._built_at
-            )
+            held, left_out = None, None
+            if self._held is not None:
+                held = self._ids
+                left_out = functools.partial(self._held.left_out_since, self.sphere_pairs)
+            view = PairState(sched, self.nsphere_pairs, held, self._on, changes, left_out)
             self._pair_state = view
         return view
 
@@ -403,9 +411,9 @@ class Predictor(PredictorViews):
         if self._held is not None and self._on is not None:
             # A new scheduler starts with every pair on, held or not.
             self._on[:] = True
-            self._hold(self._held.select(c, v))
+            self._hold(self._held.select(c, v, 0))
             self._built_at = 0
-        self._rebuild_next = False
+        self._escapes = _NONE
         # The same native code evaluates the classification and every step after it.
         self.scheduler = None
         native = NativeStep(max(self._ids.size, 1))
@@ -472,11 +480,13 @@ class Predictor(PredictorViews):
             raise clock_error(data, expected, elapsed, self.period, self.dt)
         if self.mocap is not None:
             self.mocap.update(data, self._twist)
-        if self._held is not None and (
-            self._rebuild_next or sched.step_count + 1 - self._built_at >= self.stride
-        ):
-            self._rebuild(data, sched.step_count + 1)
-            self._rebuild_next = False
+        if self._held is not None:
+            n = sched.step_count + 1
+            if n - self._built_at >= self.stride or self._escapes.size > RENEW_MAX:
+                self._rebuild(data, n)
+            elif self._escapes.size:
+                self._renew(data, n, self._escapes)
+            self._escapes = _NONE
         native = self._native
         assert native is not None
         start, nalarm = native.step(sched.begin_step())
@@ -484,9 +494,9 @@ class Predictor(PredictorViews):
             raise self._nonfinite(data, int(self._ids[-1 - nalarm]))
         sched.end_step(nalarm)
         if self._held is not None and self._events[2][M_COUNT]:
-            # Pairs not held were left out under the bounds too: renewed at the next step if a
-            # flagged body may have left the reach that left them out.
-            self._rebuild_next = self._escaped(sched.step_count)
+            # Pairs not held were left out under the bounds too: a flagged body's spheres that
+            # may have left the reach that left them out are renewed at the next step.
+            self._escapes = self._held.escapes(native, sched.step_count)
         self._time = time
         deferred = sched.deferred if self.max_evals_per_step is not None else 0
         return Alarms.from_log(
@@ -499,31 +509,39 @@ class Predictor(PredictorViews):
             deferred,
         )
 
-    def _escaped(self, step: int) -> bool:
-        """Whether a body flagged at ``step`` may have left the held set's reach (O(its
-        spheres))."""
-        assert self._held is not None and self.events is not None
-        spheres = self._held.spheres_of(self.events.violated)
-        c, v = sphere_states(self._spheres, self._frame_cache, spheres)
-        return self._held.escaped(spheres, c, v, (step - self._built_at) * self.dt)
-
     def _rebuild(self, data: mujoco.MjData, step: int) -> None:
         """Renew the held pairs from this state; kept ones carry their verdicts (O(N + K))."""
-        sched = self.scheduler
-        assert isinstance(sched, DeadlineScheduler) and self._held is not None
-        assert self._on is not None
+        assert self._held is not None
         c, v = self.sphere_states(data)
         if not (np.isfinite(c).all() and np.isfinite(v).all()):
             raise self._nonfinite(data)
-        ids = self._held.select(c, v)
+        self._carry(self._held.select(c, v, step), step)
+        self._built_at = step
+        self.rebuilds += 1
+
+    def _renew(self, data: mujoco.MjData, step: int, spheres: np.ndarray) -> None:
+        """Anchor escaped ``spheres`` anew and hold the pairs their reach brings in
+        (O(len(spheres) N) tests, then O(K) if any pair is new)."""
+        assert self._held is not None and self._native is not None
+        found, bad = self._held.renew(self._native, spheres, step)
+        if bad >= 0:
+            raise self._nonfinite(data)
+        pos = np.minimum(np.searchsorted(self._ids, found), max(self._ids.size - 1, 0))
+        new = found[(self._ids.size == 0) | (self._ids[pos] != found)]
+        if new.size:
+            self._carry(np.union1d(self._ids, new), step)
+        self.renewals += 1
+
+    def _carry(self, ids: np.ndarray, step: int) -> None:
+        """Hold the sorted pairs ``ids`` from step ``step``: kept ones carry their verdicts, new
+        ones stand in alarm until evaluated (due now), new ones switched off stay off."""
+        sched = self.scheduler
+        assert isinstance(sched, DeadlineScheduler) and self._on is not None
         pos = np.minimum(np.searchsorted(self._ids, ids), max(self._ids.size - 1, 0))
         kept = (self._ids.size > 0) & (self._ids[pos] == ids)
         sched.remap(np.where(kept, pos, -1), step)
         self._hold(ids)
-        # New pairs switched off (intended contact) stay off.
         sched.set_active(np.flatnonzero(~kept & ~self._on[ids]), False)
-        self._built_at = step
-        self.rebuilds += 1
 
     def _switch(self, ids: np.ndarray, on: bool) -> None:
         """Switch sphere pairs ``ids`` (among all active pairs) in the scheduler."""

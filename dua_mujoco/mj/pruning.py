@@ -11,7 +11,12 @@ filter and learnt by its ``PairUniverse``: O(candidates) a rebuild, never O(N^2)
 
 from __future__ import annotations
 
+import ctypes
+import functools
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from dua_mujoco.core.neighbors import candidate_pairs, reach
 from dua_mujoco.core.pruned import rebuild_stride
@@ -19,14 +24,65 @@ from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, DEFAULT_STRIDE, PairMode
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.bounds import MotionBounds
 from dua_mujoco.mj.covering import Covering
-from dua_mujoco.mj.filter import contact_distance_bound
+from dua_mujoco.mj.filter import SpherePairs, contact_distance_bound
+from dua_mujoco.mj.native_step import NativeStep
 from dua_mujoco.mj.universe import PairUniverse
+from dua_mujoco.native import library
 
-__all__ = ["HeldPairs", "held_pairs_for", "resolve_pair_mode"]
+__all__ = ["RENEW_MAX", "HeldPairs", "held_pairs_for", "resolve_pair_mode"]
+
+RENEW_MAX = 512
+"""Most escaped spheres a step renews alone (``HeldPairs.renew``: ``k N`` pair tests, ~1.1 ns
+each); more, and the whole held set is rebuilt (O(N + K), ~1 us a sphere on swarms), so that
+a renewal costs at most about half a rebuild at any ``N`` (measured, docs/many-objects.md)."""
+
+
+class _Reach(ctypes.Structure):
+    """``dua_reach`` (dua/dua.h)."""
+
+    _fields_ = [
+        ("nsphere", ctypes.c_int64),
+        ("radius", ctypes.c_void_p),
+        ("body_start", ctypes.c_void_p),
+        ("body_spheres", ctypes.c_void_p),
+        ("accel", ctypes.c_void_p),
+        ("delta", ctypes.c_void_p),
+        ("speed", ctypes.c_void_p),
+        ("anchor", ctypes.c_void_p),
+        ("speed0", ctypes.c_void_p),
+        ("reach", ctypes.c_void_p),
+        ("built", ctypes.c_void_p),
+        ("dt", ctypes.c_double),
+        ("horizon", ctypes.c_double),
+        ("margin", ctypes.c_double),
+    ]
+
+
+@functools.cache
+def _functions() -> Any:
+    """The reach's C functions, their signatures declared once."""
+    lib = library()
+    i8, p = ctypes.c_int64, ctypes.c_void_p
+    lib.dua_escapes.restype = i8
+    lib.dua_escapes.argtypes = [p, p, i8, p, p, p, p]
+    lib.dua_escaped_spheres.restype = i8
+    lib.dua_escaped_spheres.argtypes = [p, p, i8, p]
+    lib.dua_renew.restype = i8
+    lib.dua_renew.argtypes = [p, p, p, i8, i8, p, i8]
+    return lib
+
+
+def _contiguous(a: npt.ArrayLike, dtype: type) -> np.ndarray:
+    return np.ascontiguousarray(np.array(a, dtype=dtype))
 
 
 class HeldPairs:
     """Which sphere pairs a pruned predictor holds, from the spheres' states.
+
+    Each sphere has an *anchor*: the centre and measured speed its held pairs were chosen from,
+    at step ``built[i]`` (the latest rebuild, or a later renewal of that sphere alone), and the
+    reach ``r_i + R_i(T)`` from there. The arrays are the native core's (``dua_reach``): write
+    into them, never rebind them.
 
     Args:
         universe: The predictor's known pairs (a lazy one: candidates it lacks are learnt).
@@ -38,6 +94,7 @@ class HeldPairs:
         margin: The largest contact distance of any geom pair beyond the radii: candidates
             within it of each other are looked at, so no pair that could come within its own
             contact distance is left out.
+        dt: Seconds a predictor step.
     """
 
     def __init__(
@@ -49,24 +106,54 @@ class HeldPairs:
         speed: np.ndarray,
         horizon: float,
         margin: float,
+        dt: float,
     ) -> None:
         self.universe = universe
-        self.nsphere = int(radius.shape[0])
-        self.radius, self.accel = radius, accel
-        self.vel_uncertainty, self.speed = vel_uncertainty, speed
+        n = self.nsphere = int(radius.shape[0])
+        self.radius = _contiguous(radius, np.float64)
+        self.accel = _contiguous(accel, np.float64)
+        self.vel_uncertainty = _contiguous(vel_uncertainty, np.float64)
+        self.speed = _contiguous(speed, np.float64)
         self.horizon = float(horizon)
         self.margin = float(margin)
         self.always_ids = np.zeros(0, dtype=np.int64)
         self.codes = np.zeros(0, dtype=np.int64)
         self.code_ids = np.zeros(0, dtype=np.int64)
         self._indexed = 0
-        # The state the latest selection assumed: each centre and measured speed.
-        self.anchor = np.zeros((self.nsphere, 3))
-        self.speed0 = np.zeros(self.nsphere)
+        self.anchor = np.zeros((n, 3))
+        self.speed0 = np.zeros(n)
+        self.reach = np.zeros(n)
+        self.built = np.zeros(n, dtype=np.int64)
         body = np.asarray(universe.covering.sphere_body, dtype=np.int64)
-        self._by_body = np.argsort(body, kind="stable")
+        self._by_body = np.argsort(body, kind="stable").astype(np.int64)
         nbody = int(universe.model.nbody)
-        self._body_start = np.searchsorted(body[self._by_body], np.arange(nbody + 1))
+        self._body_start = np.searchsorted(body[self._by_body], np.arange(nbody + 1)).astype(
+            np.int64
+        )
+        self._out = np.zeros(max(n, 1), dtype=np.int64)
+        self._lib = _functions()
+        self._state = _Reach(
+            n,
+            *(
+                a.ctypes.data
+                for a in (
+                    self.radius,
+                    self._body_start,
+                    self._by_body,
+                    self.accel,
+                    self.vel_uncertainty,
+                    self.speed,
+                    self.anchor,
+                    self.speed0,
+                    self.reach,
+                    self.built,
+                )
+            ),
+            float(dt),
+            self.horizon,
+            self.margin,
+        )
+        self._ref = ctypes.byref(self._state)
 
     def _index(self) -> None:
         """Index the pairs the universe learnt since the last call (O(new + known))."""
@@ -95,21 +182,10 @@ class HeldPairs:
         hit = self.codes[pos] == key
         return self.code_ids[pos[hit]], ~hit
 
-    def select(self, centers: np.ndarray, velocities: np.ndarray) -> np.ndarray:
-        """``(K,)`` sorted ids of the sphere pairs to hold from this state (learning the
-        candidates' geom pairs the universe lacks)."""
+    def _known(self, cand: np.ndarray) -> np.ndarray:
+        """``(k,)`` ids of the active sphere pairs among candidate sphere pairs ``cand``
+        ``(k, 2)``, ``i < j``, learning the geom pairs the universe lacks."""
         self._index()
-        self.anchor = np.array(centers, dtype=np.float64)
-        self.speed0 = np.sqrt(np.einsum("ij,ij->i", velocities, velocities))
-        r = reach(
-            self.radius,
-            self.speed0,
-            self.accel,
-            self.horizon,
-            vel_uncertainty=self.vel_uncertainty,
-            speed_bound=self.speed,
-        )
-        cand = candidate_pairs(centers, r, margin=self.margin)
         key = cand[:, 0] * self.nsphere + cand[:, 1]
         found, unknown = self._lookup(key)
         if unknown.any():
@@ -117,41 +193,94 @@ class HeldPairs:
             if self.universe.learn(geom[cand[unknown, 0]], geom[cand[unknown, 1]]):
                 self._index()
                 found, _ = self._lookup(key)
-        return np.sort(np.concatenate([self.always_ids, found]))
+        return found
 
-    def spheres_of(self, bodies: np.ndarray) -> np.ndarray:
-        """``(k,)`` the covering spheres of ``bodies``."""
-        lo, hi = self._body_start[bodies], self._body_start[np.asarray(bodies) + 1]
-        parts = [self._by_body[a:b] for a, b in zip(lo.tolist(), hi.tolist(), strict=True)]
-        return np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+    def select(self, centers: np.ndarray, velocities: np.ndarray, step: int) -> np.ndarray:
+        """``(K,)`` sorted ids of the sphere pairs to hold from this state, step ``step``
+        (every sphere anchored anew; the candidates' geom pairs the universe lacks learnt)."""
+        self._index()
+        self.anchor[:] = centers
+        self.speed0[:] = np.sqrt(np.einsum("ij,ij->i", velocities, velocities))
+        self.reach[:] = reach(
+            self.radius,
+            self.speed0,
+            self.accel,
+            self.horizon,
+            vel_uncertainty=self.vel_uncertainty,
+            speed_bound=self.speed,
+        )
+        self.built[:] = step
+        cand = candidate_pairs(self.anchor, self.reach, margin=self.margin)
+        return np.sort(np.concatenate([self.always_ids, self._known(cand)]))
+
+    def renew(self, native: NativeStep, spheres: np.ndarray, step: int) -> tuple[np.ndarray, int]:
+        """Anchor ``spheres`` ``(k,)`` anew at their state on ``native``'s frame, step ``step``,
+        and find the pairs their new reach brings in with any sphere as it stands (O(k N),
+        compiled; docs/many-objects.md proves it enough).
+
+        Returns:
+            ``(ids, bad)``: the sorted ids of those pairs, and -1, or a sphere whose state is not
+            finite (nothing anchored then).
+        """
+        spheres = _contiguous(spheres, np.int64)
+        out = np.zeros((max(4 * spheres.size, 16), 2), dtype=np.int64)
+        while True:
+            count = self._lib.dua_renew(
+                native.address, self._ref, spheres.ctypes.data, spheres.size, step,
+                out.ctypes.data, out.shape[0],
+            )  # fmt: skip
+            if count < 0:
+                return np.zeros(0, dtype=np.int64), int(spheres[-1 - count])
+            if count <= out.shape[0]:
+                break
+            out = np.zeros((count, 2), dtype=np.int64)
+        return np.unique(self._known(out[:count])), -1
 
     def escaped(
-        self, spheres: np.ndarray, centers: np.ndarray, velocities: np.ndarray, elapsed: float
-    ) -> bool:
-        """Whether spheres ``spheres``, ``elapsed`` seconds after the latest selection, may
-        leave the reach it assumed (docs/theory.md, section 6): a centre farther from its
-        anchor than ``min((s0 + delta) t + A t^2 / 2, V t)``, or a measured speed above
-        ``min(s0 + A t, V - delta)``. Neither: whatever broke their bounds before, they stay
-        within that reach while the bounds hold from now on, and the pairs left out stay out.
+        self,
+        spheres: np.ndarray,
+        centers: np.ndarray,
+        velocities: np.ndarray,
+        elapsed: npt.ArrayLike,
+    ) -> np.ndarray:
+        """Of ``spheres`` ``(k,)``, ``elapsed`` seconds (scalar or ``(k,)``) after their anchors,
+        the ones that may have left the reach it assumed (docs/theory.md, Lemma 6.4): a centre
+        farther from its anchor than ``min((s0 + delta) t + A t^2 / 2, V t)``, or a measured
+        speed above ``min(s0 + A t, V - delta)``. The others, whatever broke their bounds
+        before, stay within that reach while the bounds hold from now on.
 
         Args:
             spheres: ``(k,)`` sphere ids.
             centers: ``(k, 3)`` their centres now.
             velocities: ``(k, 3)`` their measured velocities now.
-            elapsed: Seconds since the selection.
+            elapsed: Seconds since each one's anchor.
         """
-        t = float(elapsed)
-        s0, a = self.speed0[spheres], self.accel[spheres]
-        d, v_max = self.vel_uncertainty[spheres], self.speed[spheres]
-        allow = (s0 + d) * t + 0.5 * a * t * t
-        bounded = np.isfinite(v_max)
-        allow = np.where(bounded, np.minimum(allow, np.where(bounded, v_max, 0.0) * t), allow)
-        top = np.minimum(s0 + a * t, v_max - d)
-        dist = np.linalg.norm(centers - self.anchor[spheres], axis=1)
-        speed = np.linalg.norm(velocities, axis=1)
-        # Rounding: positions scale with their magnitude, speeds with the bound.
-        tol = 1e-9 * (allow + np.abs(top)) + 1e-12 * np.abs(centers).max(axis=1, initial=1.0)
-        return bool(np.any(dist > allow + tol) or np.any(speed > top + tol))
+        ids = _contiguous(spheres, np.int64)
+        c = _contiguous(centers, np.float64)
+        v = _contiguous(velocities, np.float64)
+        t = _contiguous(np.broadcast_to(np.asarray(elapsed, dtype=np.float64), ids.shape), float)
+        out = np.zeros(max(ids.size, 1), dtype=np.int64)
+        count = self._lib.dua_escapes(
+            self._ref, ids.ctypes.data, ids.size, c.ctypes.data, v.ctypes.data, t.ctypes.data,
+            out.ctypes.data,
+        )  # fmt: skip
+        return out[:count].copy()
+
+    def escapes(self, native: NativeStep, step: int) -> np.ndarray:
+        """The escaped spheres (:meth:`escaped`) of the bodies the latest violation pass of
+        ``native`` flagged, read on its frame at step ``step`` (O(their spheres), compiled)."""
+        out = self._out
+        count = self._lib.dua_escaped_spheres(native.address, self._ref, step, out.ctypes.data)
+        return self._out[:count].copy()
+
+    def left_out_since(self, pairs: SpherePairs, ids: np.ndarray) -> np.ndarray:
+        """Step since which each sphere pair ``ids`` not held was shown unable to touch: the
+        later anchor of its two spheres."""
+        first = np.asarray(pairs.first, dtype=np.int64)[ids]
+        second = np.asarray(pairs.second, dtype=np.int64)[ids]
+        sphere = np.asarray(pairs.kind)[ids] == 0
+        other = np.where(sphere, self.built[np.where(sphere, second, 0)], 0)
+        return np.maximum(self.built[first], other)
 
 
 def resolve_pair_mode(
@@ -201,5 +330,6 @@ def held_pairs_for(
         speed,
         float(T),
         contact_distance_bound(universe.model, universe.explicit),
+        dt,
     )
     return held, rebuild_stride(T, dt, latency)

@@ -7,6 +7,12 @@
 
 namespace dua {
 
+// Events (dua_mujoco/mj/events.py): body record and state columns, meta entries.
+constexpr int kBFrame = 0, kBBody = 1, kBRoot = 2, kBCenter = 3, kBHalf = 6, kBAccel = 9,
+              kBDisc = 10, kBSpeed = 11, kBNcol = 12;
+constexpr int kSV = 24, kSW = 27, kSScale = 30, kSNcol = 31;
+constexpr int kMNprev = 0, kMCount = 1, kMTotal = 2;
+
 double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
                 double accel, double delta);
 double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2, double eps,

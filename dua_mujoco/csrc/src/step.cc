@@ -31,11 +31,6 @@ constexpr int kModeNone = 0, kModeGeoms = 1, kModePlane = 2;
 constexpr double kGapSlack = 1e-14, kVelSlack = 1e-14;
 // A witness shorter than this (relative to the geoms' size) has no usable direction.
 constexpr double kMinWitness = 1e-9;
-// Events: body record and state columns, meta entries.
-constexpr int kBFrame = 0, kBBody = 1, kBRoot = 2, kBCenter = 3, kBHalf = 6, kBAccel = 9,
-              kBDisc = 10, kBSpeed = 11, kBNcol = 12;
-constexpr int kSV = 24, kSW = 27, kSScale = 30, kSNcol = 31;
-constexpr int kMNprev = 0, kMCount = 1, kMTotal = 2;
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 

@@ -170,6 +170,56 @@ DUA_API void dua_difference_poses(const double* xpos, const double* xquat, const
 
 DUA_API int64_t dua_abi_version(void);
 
+// ------------------------------------------------------------------------------- pruned pairs
+
+// A pruned predictor's reach (docs/many-objects.md): each sphere's anchor, the centre and
+// measured speed the held set assumed for it from step built[i], and its reach r_i + R_i(T)
+// from there.
+typedef struct dua_reach {
+  int64_t nsphere;
+  const double* radius;         // (nsphere,)
+  const int64_t* body_start;    // (nbody + 1,): body b's spheres are body_spheres[start[b]:]
+  const int64_t* body_spheres;  // (nsphere,)
+  const double* accel;          // (nsphere,) acceleration bound of each sphere's centre
+  const double* delta;          // (nsphere,) velocity uncertainty
+  const double* speed;          // (nsphere,) speed bound (inf: none)
+  double* anchor;               // (nsphere, 3)
+  double* speed0;               // (nsphere,)
+  double* reach;                // (nsphere,)
+  int64_t* built;               // (nsphere,) step of each anchor
+  double dt;                    // seconds a step
+  double horizon;               // T, seconds
+  double margin;                // largest contact distance beyond the radii
+} dua_reach;
+
+// Reaches out[i] = radius[i] + min((speed[i] + delta[i]) T + accel[i] T^2 / 2, vmax[i] T) of n
+// spheres over horizon T (vmax inf: no speed bound).
+DUA_API void dua_reaches(const double* radius, const double* speed, const double* accel,
+                         const double* delta, const double* vmax, int64_t n, double horizon,
+                         double* out);
+// Anchor spheres ids[0:n] anew at their state on a's frame, step `step` (their reach over the
+// horizon from there), and find their candidate pairs as dua_reach_pairs does. Returns the
+// number of pairs, or -1 - k if the state of ids[k] is not finite (nothing anchored).
+DUA_API int64_t dua_renew(const dua_step_args* a, dua_reach* r, const int64_t* ids, int64_t n,
+                          int64_t step, int64_t* out, int64_t capacity);
+
+// Of spheres ids[0:n] at centres (n, 3) and measured velocities (n, 3), elapsed[k] seconds after
+// their anchors, the ones that may have left their reach (Lemma 6.4 of docs/theory.md) into
+// out; returns how many.
+DUA_API int64_t dua_escapes(const dua_reach* r, const int64_t* ids, int64_t n,
+                            const double* centers, const double* velocities, const double* elapsed,
+                            int64_t* out);
+// The same for every sphere of the bodies the latest violation pass of a flagged, read on a's
+// frame at step `step`: out (nsphere,) receives the escaped spheres; returns how many.
+DUA_API int64_t dua_escaped_spheres(const dua_step_args* a, const dua_reach* r, int64_t step,
+                                    int64_t* out);
+// Candidate pairs of spheres ids[0:n] against every sphere by their anchors and reaches: the
+// pairs (i < j) with |c_i - c_j|^2 <= ((reach_i + reach_j) + margin)^2 (1 + 2^-44), each once,
+// written as rows of out (capacity rows of 2); returns how many there are (more than capacity:
+// call again with room for them). Time O(n nsphere).
+DUA_API int64_t dua_reach_pairs(const dua_reach* r, const int64_t* ids, int64_t n, int64_t* out,
+                                int64_t capacity);
+
 // ------------------------------------------------------------------------------- the plugin
 
 struct mjModel_;

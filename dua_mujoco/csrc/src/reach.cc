@@ -1,0 +1,138 @@
+// A pruned predictor's reach: the escape check of Lemma 6.4 (docs/theory.md, section 6) and the
+// candidate pairs of spheres whose reach is renewed (docs/many-objects.md).
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "dua/dua.h"
+#include "internal.h"
+
+namespace dua {
+namespace {
+
+// The grid's pair contract (dua_mujoco/core/grid.py, ROUNDING_SLACK): 1 + 2^-44.
+constexpr double kRoundingSlack = 1.0 + 1.0 / 17592186044416.0;
+// Relative slack of the escape test: a sphere that moved exactly as far as its bounds allow,
+// integrated in float64, must not count as escaped.
+constexpr double kEscapeSlack = 1e-9;
+
+// Whether sphere s, at centre c with measured velocity v t seconds after its anchor, may have
+// left its reach: a centre farther from the anchor than min((s0 + delta) t + A t^2 / 2, V t), or
+// a measured speed above min(s0 + A t, V - delta).
+bool Escapes(const dua_reach& r, int64_t s, const double* c, const double* v, double t) {
+  const double s0 = r.speed0[s], a = r.accel[s], d = r.delta[s], vmax = r.speed[s];
+  double allow = (s0 + d) * t + 0.5 * a * t * t;
+  if (std::isfinite(vmax)) allow = std::min(allow, vmax * t);
+  const double top = std::min(s0 + a * t, vmax - d);
+  const double* o = r.anchor + 3 * s;
+  const double dx = c[0] - o[0], dy = c[1] - o[1], dz = c[2] - o[2];
+  const double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double speed = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  // Rounding: positions scale with their magnitude, speeds with the bound.
+  const double scale = std::max({1.0, std::fabs(c[0]), std::fabs(c[1]), std::fabs(c[2])});
+  const double tol = kEscapeSlack * (allow + std::fabs(top)) + 1e-12 * scale;
+  return dist > allow + tol || speed > top + tol;
+}
+
+double Reach(double radius, double speed, double accel, double delta, double vmax, double t) {
+  const double free = (speed + delta) * t + 0.5 * accel * (t * t);
+  // inf * 0 is NaN: with no speed bound (or T = 0) the free-motion bound is the answer.
+  return radius + (std::isinf(vmax) ? free : std::min(free, vmax * t));
+}
+
+}  // namespace
+}  // namespace dua
+
+extern "C" {
+
+int64_t dua_escapes(const dua_reach* r, const int64_t* ids, int64_t n, const double* centers,
+                    const double* velocities, const double* elapsed, int64_t* out) {
+  int64_t count = 0;
+  for (int64_t k = 0; k < n; ++k) {
+    if (dua::Escapes(*r, ids[k], centers + 3 * k, velocities + 3 * k, elapsed[k])) {
+      out[count++] = ids[k];
+    }
+  }
+  return count;
+}
+
+int64_t dua_escaped_spheres(const dua_step_args* a, const dua_reach* r, int64_t step,
+                            int64_t* out) {
+  const dua_events& ev = a->events;
+  const int64_t flagged = ev.nbody ? ev.meta[dua::kMCount] : 0;
+  int64_t count = 0;
+  double state[6];
+  for (int64_t k = 0; k < flagged; ++k) {
+    const double* rec = ev.rec + ev.flagged[k] * dua::kBNcol;
+    const auto body = static_cast<int64_t>(rec[dua::kBBody]);
+    for (int64_t m = r->body_start[body]; m < r->body_start[body + 1]; ++m) {
+      const int64_t s = r->body_spheres[m];
+      dua_rigid_point(s, a->spheres, &a->frame, state);
+      const double t = static_cast<double>(step - r->built[s]) * r->dt;
+      if (dua::Escapes(*r, s, state, state + 3, t)) out[count++] = s;
+    }
+  }
+  return count;
+}
+
+void dua_reaches(const double* radius, const double* speed, const double* accel,
+                 const double* delta, const double* vmax, int64_t n, double horizon, double* out) {
+  for (int64_t i = 0; i < n; ++i) {
+    out[i] = dua::Reach(radius[i], speed[i], accel[i], delta[i], vmax[i], horizon);
+  }
+}
+
+int64_t dua_renew(const dua_step_args* a, dua_reach* r, const int64_t* ids, int64_t n, int64_t step,
+                  int64_t* out, int64_t capacity) {
+  std::vector<double> states(static_cast<size_t>(6 * n));
+  for (int64_t k = 0; k < n; ++k) {
+    double* x = states.data() + 6 * k;
+    dua_rigid_point(ids[k], a->spheres, &a->frame, x);
+    for (int c = 0; c < 6; ++c) {
+      if (!std::isfinite(x[c])) return -1 - k;
+    }
+  }
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t s = ids[k];
+    const double* x = states.data() + 6 * k;
+    for (int c = 0; c < 3; ++c) r->anchor[3 * s + c] = x[c];
+    const double s0 = std::sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5]);
+    r->speed0[s] = s0;
+    r->reach[s] = dua::Reach(r->radius[s], s0, r->accel[s], r->delta[s], r->speed[s], r->horizon);
+    r->built[s] = step;
+  }
+  return dua_reach_pairs(r, ids, n, out, capacity);
+}
+
+int64_t dua_reach_pairs(const dua_reach* r, const int64_t* ids, int64_t n, int64_t* out,
+                        int64_t capacity) {
+  // A pair of two listed spheres is reported from its smaller member only.
+  std::vector<uint8_t> listed(static_cast<size_t>(r->nsphere), 0);
+  for (int64_t k = 0; k < n; ++k) listed[static_cast<size_t>(ids[k])] = 1;
+  const double m = r->margin;
+  int64_t count = 0;
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t i = ids[k];
+    if (listed[static_cast<size_t>(i)] == 2) continue;  // listed twice
+    listed[static_cast<size_t>(i)] = 2;
+    const double* ci = r->anchor + 3 * i;
+    const double xi = ci[0], yi = ci[1], zi = ci[2], ri = r->reach[i];
+    for (int64_t j = 0; j < r->nsphere; ++j) {
+      if (j == i || (listed[static_cast<size_t>(j)] && j < i)) continue;
+      const double* cj = r->anchor + 3 * j;
+      // The grid's test, operation for operation (neighbors.candidate_pairs' contract).
+      const double dx = xi - cj[0], dy = yi - cj[1], dz = zi - cj[2];
+      const double s = (ri + r->reach[j]) + m;
+      if (dx * dx + dy * dy + dz * dz <= s * s * dua::kRoundingSlack) {
+        if (count < capacity) {
+          out[2 * count] = std::min(i, j);
+          out[2 * count + 1] = std::max(i, j);
+        }
+        ++count;
+      }
+    }
+  }
+  return count;
+}
+
+}  // extern "C"
