@@ -307,6 +307,13 @@ t = time.perf_counter(); m, d = load_scene(scene); load = time.perf_counter() - 
 t = time.perf_counter()
 p = Predictor(m, accel=accel if accel == "auto" else float(accel))
 setup = time.perf_counter() - t
+# The mean over every step (rebuilds and renewals included), beside the report's median.
+spent = []
+step = p.step
+def timed(data):
+    t0 = time.perf_counter(); out = step(data); spent.append(time.perf_counter() - t0)
+    return out
+p.step = timed
 t = time.perf_counter()
 r = run(m, d, p, steps=steps, controller=make_controller(m, "random", seed=0), progress=False,
         series=False)
@@ -316,6 +323,8 @@ print(json.dumps(dict(
     onsets=r.contact_onsets, missed_held=r.missed_onsets_valid_bounds,
     missed_outside=r.missed_onsets_outside_violations, unfiltered=r.unfiltered_contacts,
     pairs=r.pairs, known=p.nsphere_pairs, held=int(p.held_pairs.size),
+    mean_us=1e6 * sum(spent) / max(len(spent), 1), rebuilds=p.rebuilds,
+    renewals=getattr(p, "renewals", 0),
 )))
 """
 
@@ -353,8 +362,8 @@ def mujoco_section(specs: list[str], before: Path | None) -> str:
     sides = [("after", here)] + ([("before", before)] if before is not None else [])
     head = (
         "| scene | side | load (s) | set-up (s) | rollout (s) | steps | predictor us | "
-        "mj_step us | share | peak MB | pairs / known / held | onsets | missed (held / outside)"
-        " | unfiltered |"
+        "mj_step us | share | mean share | rebuilds / renewals | peak MB | pairs / known / held"
+        " | onsets | missed (held / outside) | unfiltered |"
     )
     lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
     for spec in specs:
@@ -363,12 +372,13 @@ def mujoco_section(specs: list[str], before: Path | None) -> str:
         for side, checkout in sides:
             r = _probe(scene, int(steps), accel, checkout)
             if "error" in r:
-                lines.append(f"| {scene} | {side} | {r['error']} |" + " |" * 11)
+                lines.append(f"| {scene} | {side} | {r['error']} |" + " |" * 13)
             else:
                 lines.append(
                     f"| {scene} | {side} | {r['load_s']:.1f} | {r['setup_s']:.1f} | "
                     f"{r['rollout_s']:.1f} | {steps} | {r['predictor_us']:.0f} | "
                     f"{r['mj_step_us']:.0f} | {r['predictor_us'] / r['mj_step_us']:.2f} | "
+                    f"{r['mean_us'] / r['mj_step_us']:.2f} | {r['rebuilds']} / {r['renewals']} | "
                     f"{r['peak_mb']:.0f} | {r['pairs']} / {r['known']} / {r['held']} | "
                     f"{r['onsets']} | {r['missed_held']} / {r['missed_outside']} | "
                     f"{r['unfiltered']} |"

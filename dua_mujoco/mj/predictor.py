@@ -454,6 +454,8 @@ class Predictor(PredictorViews):
             spare = self.new_scheduler(np.full(1, np.inf))
             spare.set_active([0], False)
             spare.set_active([0], True)
+            if isinstance(spare, DeadlineScheduler) and self._held is not None:
+                spare.remap(np.array([0, -1]), 1)  # a pruned predictor's rebuilds and renewals
         if self.mocap is not None:
             self.mocap.load_compiled(data, self._twist)
 
