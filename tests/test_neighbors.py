@@ -125,31 +125,34 @@ def test_exact_boundary_ties_are_in() -> None:
     np.testing.assert_array_equal(got, [[0, 1], [1, 2]])
 
 
+def _plan(c: np.ndarray, r: np.ndarray, margin: float = 0.0):  # type: ignore[no-untyped-def]
+    return neighbors._plan(r, margin, c.min(axis=0), c.max(axis=0))
+
+
 def test_both_bucket_maps_and_held_out_spheres_are_exercised() -> None:
     rng = np.random.default_rng(3)
     n = 3000
     # Spread with tiny reach: the grid is far larger than the bucket budget, so it wraps.
     c = rng.uniform(0.0, 1000.0, (n, 3))
     r = rng.uniform(0.0, 2.0, n)
-    extent = c.max(axis=0) - c.min(axis=0)
-    h_min = float(neighbors._cell_edge(r.max(), 0.0, float(extent.max())))
-    geo = neighbors._geometry(c.min(axis=0), extent, h_min, n)[0]
-    assert any(geo[9:])
-    # The torus is >= 4 cells wide on every wrapped axis (what lets _scan skip cell checks).
-    assert all(mask >= 3 for mask, wraps in zip(geo[4:7], geo[9:], strict=True) if wraps)
+    plan, held = _plan(c, r)
+    assert any(plan.wrap) and held.size == 0
+    # The torus is >= 4 cells wide on every wrapped axis (what lets the scan skip cell checks).
+    assert all(mask >= 3 for mask, wraps in zip(plan.mask, plan.wrap, strict=True) if wraps)
+    assert plan.nbucket >= 2 * n
     assert_same(c, r, 0.0)
     # Dense: the grid fits, bucket = cell.
     c = rng.uniform(0.0, 10.0, (n, 3))
     r = rng.uniform(0.0, 0.2, n)
-    extent = c.max(axis=0) - c.min(axis=0)
-    h_min = float(neighbors._cell_edge(r.max(), 0.0, float(extent.max())))
-    assert not any(neighbors._geometry(c.min(axis=0), extent, h_min, n)[0][9:])
+    plan, _ = _plan(c, r)
+    assert not any(plan.wrap)
+    assert plan.h >= 2 * r.max() * (1 + 2**-16)
     assert_same(c, r, 0.0)
     # Two spheres of very large reach: held out, not blowing up the cell.
     r[[5, 17]] = 4.0
-    held, rcut = neighbors._hold_out(c, r, 0.0, extent)
+    plan, held = _plan(c, r)
     np.testing.assert_array_equal(held, [5, 17])
-    assert rcut <= 0.2
+    assert plan.rcut <= 0.2 and plan.nheld == 2
     got = assert_same(c, r, 0.0)
     assert ((got == 5).any(axis=1)).sum() > 100
 
@@ -166,12 +169,10 @@ def test_rows_across_the_torus_seam(seed: int) -> None:
     c[:n, 1:] = rng.uniform(-0.3, 0.3, (n, 2))
     c[n:, 0] = [0.0, 1e4]
     r = np.full(n + 2, 0.75)
-    extent = c.max(axis=0) - c.min(axis=0)
-    h_min = float(neighbors._cell_edge(r.max(), 0.0, float(extent.max())))
-    geo = neighbors._geometry(c.min(axis=0), extent, h_min, n + 2)[0]
-    assert geo[9] == 1
-    cells = np.floor((c[:n, 0] - geo[0]) / geo[3]).astype(np.int64)
-    assert ((cells & geo[4]) == geo[4]).any(), "no sphere at the seam"
+    plan, _ = _plan(c, r)
+    assert plan.wrap[0] == 1
+    cells = np.floor((c[:n, 0] - plan.lo[0]) / plan.h).astype(np.int64)
+    assert ((cells & plan.mask[0]) == plan.mask[0]).any(), "no sphere at the seam"
     got = assert_same(c, r, 0.0)
     assert got.shape[0] >= n - 1
 

@@ -36,31 +36,24 @@ first pass and written in a second into arrays allocated at their exact size; tw
 (by ``j``, then stably by ``i``) order them. Time and memory are ``O(N + K)``, plus ``N k`` tests
 for held-out spheres, and the tests in the grid are at most a constant times ``N + K`` unless
 the extent of the centres exceeds ``2^31 h`` (cells are then grown to keep indices exact: a
-cluster plus a far outlier). Every work array is a numpy allocation made here (the compiled
-kernels allocate nothing), so ``tracemalloc`` sees the whole footprint (~70 bytes per sphere
-plus 20 per pair).
+cluster plus a far outlier). Cells are grown by ``1 + 2^-16`` beyond ``2 rcut + margin`` so
+that a pair at distance ``<= s <=`` the edge (after rounding, ``< 1e-13`` relative) never lands
+two cells apart: the rounding of ``floor((x - lo) / h)`` stays below ``2^-21`` cells with at
+most ``2^31`` cells an axis. The grid is the native core's (``csrc/src/grid.cc``, which the
+MuJoCo plugin runs too); every work array is a numpy allocation made here (the native kernels
+allocate nothing), so ``tracemalloc`` sees the whole footprint (~70 bytes per sphere plus 20
+per pair).
 """
 
 from __future__ import annotations
 
 import ctypes
 import functools
-import math
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.grid import (
-    MAX_MAGNITUDE,
-    ROUNDING_SLACK,
-    Geometry,
-    bounding_box,
-    build_grid,
-    exclusive_prefix,
-    scatter,
-    visit,
-)
 from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidInputError,
@@ -72,20 +65,67 @@ from dua_mujoco.native import library
 __all__ = ["ROUNDING_SLACK", "candidate_pairs", "reach"]
 
 
-# Cells are grown by this factor so that a pair at distance <= s <= cell edge (after rounding of
-# d2, s and the slack, all < 1e-13 relative) can never land two cells apart: the rounding of
-# floor((x - lo) / h) is below 2^-21 cells as long as there are at most _MAX_CELLS cells an axis.
-_GRID_GROW = 1.0 + 2.0**-16
-_MAX_CELLS = 2.0**31
-# A grid that would need more buckets than the budget may use cells up to this factor larger
-# (in _GROW_STEPS geometric steps) instead of wrapping: bucket = cell then, no aliased entries
-# to scan. Growing costs at most _GROW_MAX^3 = 8 times the candidates of the same sphere.
-_GROW_MAX = 2.0
-_GROW_STEPS = 6
-# Held-out (largest-reach) spheres considered by the cost model; each costs N tests.
-_MAX_HELD_OUT = 256
-# Cost of visiting one sphere's 14 cells relative to one pair test (a hash lookup each).
-_CELL_COST = 14.0
+ROUNDING_SLACK = 1.0 + 2.0**-44
+"""Relative slack of the pair test ``d2 <= s * s * ROUNDING_SLACK`` (covers float64 rounding)."""
+
+# Squares of larger values could overflow to inf, where the test stops meaning anything.
+MAX_MAGNITUDE = 1e150
+
+
+class _Plan(ctypes.Structure):
+    """``dua_grid_plan`` (dua/dua.h)."""
+
+    _fields_ = [
+        ("lo", ctypes.c_double * 3),
+        ("h", ctypes.c_double),
+        ("mask", ctypes.c_int64 * 3),
+        ("shift_y", ctypes.c_int64),
+        ("shift_z", ctypes.c_int64),
+        ("wrap", ctypes.c_int64 * 3),
+        ("nbucket", ctypes.c_int64),
+        ("nheld", ctypes.c_int64),
+        ("rcut", ctypes.c_double),
+    ]
+
+
+class _Work(ctypes.Structure):
+    """``dua_grid_work`` (dua/dua.h)."""
+
+    _fields_ = [
+        (name, ctypes.c_void_p)
+        for name in ("start", "sid", "sxyz", "sr", "cnt_a", "cnt_b", "found", "is_held")
+    ]
+
+
+@functools.cache
+def _grid() -> Any:
+    """The grid's C functions, their signatures declared once."""
+    lib = library()
+    p, i8, f8 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+    lib.dua_grid_bounds.restype = i8
+    lib.dua_grid_bounds.argtypes = [p, i8, p, p]
+    lib.dua_grid_plan_of.restype = None
+    lib.dua_grid_plan_of.argtypes = [p, i8, f8, p, p, p, p, p]
+    lib.dua_grid_count.restype = i8
+    lib.dua_grid_count.argtypes = [p, p, p, i8, f8, p, p]
+    lib.dua_grid_fill.restype = None
+    lib.dua_grid_fill.argtypes = [p, p, p, i8, f8, p, p, p, p]
+    return lib
+
+
+def _plan(
+    reach: np.ndarray, margin: float, lo: np.ndarray, hi: np.ndarray
+) -> tuple[_Plan, np.ndarray]:
+    """The grid of ``reach.size >= 2`` spheres within bounds ``lo``, ``hi``: its plan (cell
+    edge, bucket map, held-out count) and the sorted ids held out of it."""
+    n = reach.shape[0]
+    plan = _Plan()
+    held = np.empty(256, dtype=np.int64)
+    work = np.empty(n)
+    _grid().dua_grid_plan_of(
+        reach.ctypes, n, margin, lo.ctypes, hi.ctypes, ctypes.byref(plan), held.ctypes, work.ctypes
+    )
+    return plan, held[: plan.nheld].copy()
 
 
 def _as_1d(name: str, value: npt.ArrayLike, first: tuple[str, int] | None) -> np.ndarray:
@@ -211,72 +251,6 @@ def reach(
     return out
 
 
-def _cell_edge(rcut: np.ndarray | float, margin: float, extent: float) -> np.ndarray:
-    # >= extent / _MAX_CELLS keeps the cell indices small enough for the rounding argument; a
-    # zero edge (all reaches and the margin zero, all centres equal) becomes 1 m, any size works.
-    h = np.maximum((2.0 * np.asarray(rcut) + margin) * _GRID_GROW, extent / _MAX_CELLS)
-    return np.where(h > 0.0, h, 1.0)
-
-
-def _geometry(lo: np.ndarray, extent: np.ndarray, h_min: float, n: int) -> tuple[Geometry, int]:
-    """Cell edge and bucket map (:data:`Geometry`) and the number of buckets.
-
-    The budget is ``2^b >= 2 n`` buckets. If the grid of cells of edge up to ``_GROW_MAX h_min``
-    fits, the smallest such edge is used and bucket = cell; otherwise the edge is
-    ``_GROW_MAX h_min`` and the longest axes wrap onto a torus.
-    """
-    # >= 6 bits: a wrapped axis then keeps >= 2 bits (4 cells), as visit's scan without cell
-    # checks needs.
-    budget = max(6, int(n).bit_length() + 1)
-    for step in range(_GROW_STEPS + 1):
-        h = h_min * _GROW_MAX ** (step / _GROW_STEPS)
-        # Bits of the largest cell index on each axis (floor(extent / h) < 2^31 by _cell_edge).
-        # extent = max - lo in float64 is the very expression the kernels floor for the max.
-        need = [math.floor(e / h).bit_length() for e in extent]
-        if sum(need) <= budget:
-            break
-    bits = list(need)
-    while sum(bits) > budget:
-        # Wrap the longest axis first, so aliased cells are as far apart as the budget allows.
-        bits[bits.index(max(bits))] -= 1
-    bx, by, bz = bits
-    wraps = [int(b < w) for b, w in zip(bits, need, strict=True)]
-    geo = (
-        float(lo[0]),
-        float(lo[1]),
-        float(lo[2]),
-        h,
-        (1 << bx) - 1,
-        (1 << by) - 1,
-        (1 << bz) - 1,
-        bx,
-        bx + by,
-        wraps[0],
-        wraps[1],
-        wraps[2],
-    )
-    return geo, 1 << (bx + by + bz)
-
-
-def _hold_out(
-    centers: np.ndarray, reach: np.ndarray, margin: float, extent: np.ndarray
-) -> tuple[np.ndarray, float]:
-    """Ids held out of the grid and the grid's largest reach (cost model of the module docs)."""
-    n = reach.shape[0]
-    kmax = min(n - 1, _MAX_HELD_OUT)
-    if kmax <= 0:
-        return np.empty(0, dtype=np.int64), float(reach.max()) if n else 0.0
-    part = np.argpartition(reach, n - kmax - 1)[n - kmax - 1 :]
-    top = part[np.argsort(-reach[part], kind="stable")]
-    h = _cell_edge(reach[top], margin, float(extent.max()))
-    vol = np.prod(np.maximum(extent[None, :], h[:, None]), axis=1)
-    occupancy = np.minimum(float(n), n * h**3 / vol)
-    k = np.arange(kmax + 1, dtype=np.float64)
-    cost = k * n + _CELL_COST * (n - k) * (1.0 + occupancy)
-    best = int(np.argmin(cost))
-    return np.sort(top[:best]).astype(np.int64), float(reach[top[best]])
-
-
 def candidate_pairs(
     centers: npt.ArrayLike, reach: npt.ArrayLike, *, margin: float = 0.0
 ) -> np.ndarray:
@@ -319,10 +293,11 @@ def candidate_pairs(
     _check_values("margin", m)
     _check_values("reach", r)
     c = np.ascontiguousarray(c)
-    # One compiled pass: numpy's axis-0 reductions of an (N, 3) array took 7 ms at N = 1e5.
+    r = np.ascontiguousarray(r)
+    lib = _grid()
     lo = np.empty(3)
     hi = np.empty(3)
-    row = bounding_box(c, lo, hi)
+    row = lib.dua_grid_bounds(c.ctypes, n, lo.ctypes, hi.ctypes)
     if row >= 0:
         if not np.isfinite(c[row]).all():
             raise NonFiniteStateError(
@@ -342,33 +317,25 @@ def candidate_pairs(
             )
     if n < 2:
         return np.empty((0, 2), dtype=np.int64)
-    extent = hi - lo
-    held, rcut = _hold_out(c, r, float(m), extent)
-    is_held = np.zeros(n, dtype=np.bool_)
-    is_held[held] = True
-    grid_ids = np.flatnonzero(~is_held).astype(np.int64)
-    ng = grid_ids.size
-    h_min = float(_cell_edge(rcut, float(m), float(extent.max())))
-    geo, nbucket = _geometry(lo, extent, h_min, ng)
-    # int32 ids and bucket starts: half the cache footprint of the random accesses (N < 2^31).
-    start = np.empty(nbucket + 1, dtype=np.int32)
-    sid = np.empty(ng, dtype=np.int32)
-    sxyz = np.empty((ng, 3), dtype=np.float64)
-    sr = np.empty(ng, dtype=np.float64)
-    build_grid(c, r, grid_ids, geo, start, sid, sxyz, sr)
-    del grid_ids
-    cnt_a = np.zeros(n, dtype=np.int64)
-    cnt_b = np.zeros(n, dtype=np.int64)
-    tmp = np.empty(0, dtype=np.int32)
-    found = np.empty(ng + held.size, dtype=np.int32)
-    ranges = np.empty((16, 2), dtype=np.int64)
-    args = (start, sid, sxyz, sr, geo, float(m), c, r, held, is_held)
-    visit(*args, False, found, cnt_a, cnt_b, tmp, ranges)
-    k = exclusive_prefix(cnt_a)
-    exclusive_prefix(cnt_b)
+    margin_ = float(m)
+    plan, held = _plan(r, margin_, lo, hi)
+    ng = n - held.size
+    # Every work array is a numpy allocation (tracemalloc sees the footprint); int32 ids and
+    # bucket starts halve the cache footprint of the random accesses (N < 2^31).
+    arrays = (
+        np.empty(plan.nbucket + 1, dtype=np.int32),
+        np.empty(ng, dtype=np.int32),
+        np.empty((ng, 3)),
+        np.empty(ng),
+        np.empty(n, dtype=np.int64),
+        np.empty(n, dtype=np.int64),
+        np.empty(n, dtype=np.int32),
+        np.empty(n, dtype=np.uint8),
+    )
+    work = _Work(*(a.ctypes.data for a in arrays))
+    args = (ctypes.byref(plan), c.ctypes, r.ctypes, n, margin_, held.ctypes, ctypes.byref(work))
+    k = lib.dua_grid_count(*args)
     tmp = np.empty(k, dtype=np.int32)
-    visit(*args, True, found, cnt_a, cnt_b, tmp, ranges)
-    del args, start, sid, sxyz, sr, found
     out = np.empty((k, 2), dtype=np.int64)
-    scatter(cnt_b, tmp, cnt_a, out)
+    lib.dua_grid_fill(*args, tmp.ctypes, out.ctypes)
     return out

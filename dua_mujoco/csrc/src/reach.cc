@@ -10,7 +10,7 @@
 namespace dua {
 namespace {
 
-// The grid's pair contract (dua_mujoco/core/grid.py, ROUNDING_SLACK): 1 + 2^-44.
+// The grid's pair contract (grid.cc; ROUNDING_SLACK of dua_mujoco/core/neighbors.py): 1 + 2^-44.
 constexpr double kRoundingSlack = 1.0 + 1.0 / 17592186044416.0;
 // Relative slack of the escape test: a sphere that moved exactly as far as its bounds allow,
 // integrated in float64, must not count as escaped.

@@ -170,6 +170,52 @@ DUA_API void dua_difference_poses(const double* xpos, const double* xquat, const
 
 DUA_API int64_t dua_abi_version(void);
 
+// ------------------------------------------------------------------------------- candidate pairs
+
+// The hashed grid behind candidate pairs of reachable balls: every pair i < j of n spheres with
+// |c_i - c_j|^2 <= ((reach_i + reach_j) + margin)^2 (1 + 2^-44), sorted (contract and proof:
+// dua_mujoco/core/neighbors.py). Every buffer is the caller's: dua_grid_bounds, then
+// dua_grid_plan_of (n >= 2), then buffers of the plan's sizes, dua_grid_count (K pairs), then
+// dua_grid_fill into K more.
+typedef struct dua_grid_plan {
+  double lo[3];     // the grid's origin
+  double h;         // cell edge
+  int64_t mask[3];  // 2^bits - 1 of each axis of the bucket map
+  int64_t shift_y;  // bits of x
+  int64_t shift_z;  // bits of x and y
+  int64_t wrap[3];  // axes wrapped onto the torus
+  int64_t nbucket;  // buckets, 2^(bits of x, y, z)
+  int64_t nheld;    // spheres held out of the grid (tested against every sphere)
+  double rcut;      // the largest reach in the grid
+} dua_grid_plan;
+
+typedef struct dua_grid_work {
+  int32_t* start;    // (nbucket + 1,)
+  int32_t* sid;      // (n - nheld,)
+  double* sxyz;      // (n - nheld, 3)
+  double* sr;        // (n - nheld,)
+  int64_t* cnt_a;    // (n,)
+  int64_t* cnt_b;    // (n,)
+  int32_t* found;    // (n,)
+  uint8_t* is_held;  // (n,)
+} dua_grid_work;
+
+// Bounding box of n centres into lo[3], hi[3]; returns the first row with a coordinate that is
+// NaN, inf or beyond 1e150 in magnitude, or -1.
+DUA_API int64_t dua_grid_bounds(const double* centers, int64_t n, double* lo, double* hi);
+// The grid of n >= 2 spheres within bounds lo, hi: held (256,) receives the sorted ids held out
+// of it; work (n,) is scratch.
+DUA_API void dua_grid_plan_of(const double* reach, int64_t n, double margin, const double* lo,
+                              const double* hi, dua_grid_plan* plan, int64_t* held, double* work);
+// Sort the spheres into the grid and count the pairs: returns K.
+DUA_API int64_t dua_grid_count(const dua_grid_plan* plan, const double* centers,
+                               const double* reach, int64_t n, double margin, const int64_t* held,
+                               const dua_grid_work* work);
+// Write the K pairs counted by dua_grid_count (same arguments) as rows of out (K, 2); tmp (K,).
+DUA_API void dua_grid_fill(const dua_grid_plan* plan, const double* centers, const double* reach,
+                           int64_t n, double margin, const int64_t* held, const dua_grid_work* work,
+                           int32_t* tmp, int64_t* out);
+
 // ------------------------------------------------------------------------------- pruned pairs
 
 // A pruned predictor's reach (docs/many-objects.md): each sphere's anchor, the centre and
