@@ -1,24 +1,27 @@
-"""MuJoCo's dynamic pair filter as one compiled rule, for given candidate pairs or over all pairs.
+"""MuJoCo's dynamic pair filter as one native rule, for given candidate pairs or over all pairs.
 
 The rule is ``filter.py``'s list of dynamic-pair conditions (``filterBodyPair``,
-``filterBitmask``, ``<exclude>``, the collision-function table), written once as ``_rule``.
-The kernels apply it to candidate geom pairs (what a pruned predictor meets, O(candidates), as
-MuJoCo's own broadphase applies it), to every geom pair of a small model (the all-pairs
-predictor), to count the pairs of a large model without holding them (O(ngeom) memory, for the
-report's fractions), and to find whether any pair passes. Explicit ``<pair>`` elements are
-``filter.py``'s.
+``filterBitmask``, ``<exclude>``, the collision-function table), written once in the native core
+(``csrc/src/filter.cc``). It is applied to candidate geom pairs (what a pruned predictor meets,
+O(candidates), as MuJoCo's own broadphase applies it), to every geom pair of a small model (the
+all-pairs predictor), to count the pairs of a large model without holding them (O(ngeom)
+memory, for the report's fractions), and to find whether any pair passes. Explicit ``<pair>``
+elements are ``filter.py``'s.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import ctypes
+import functools
+from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
-import numba as nb
 import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
+from dua_mujoco.native import library
 
 __all__ = [
     "FilterTables",
@@ -27,6 +30,45 @@ __all__ = [
     "count_dynamic_pairs",
     "dynamic_mask",
 ]
+
+
+class _Filter(ctypes.Structure):
+    """``dua_filter`` (dua/dua.h)."""
+
+    _fields_ = [
+        ("ngeom", ctypes.c_int64),
+        *(
+            (name, ctypes.c_void_p)
+            for name in (
+                "body",
+                "weld",
+                "parent_weld",
+                "movable",
+                "contype",
+                "conaffinity",
+                "lone",
+                "exclude",
+            )
+        ),
+        ("nexclude", ctypes.c_int64),
+        ("filterparent", ctypes.c_int64),
+    ]
+
+
+@functools.cache
+def _lib() -> Any:
+    """The filter's C functions, their signatures declared once."""
+    lib = library()
+    p, i8 = ctypes.c_void_p, ctypes.c_int64
+    lib.dua_filter_mask.restype = i8
+    lib.dua_filter_mask.argtypes = [p, p, p, i8, p]
+    lib.dua_filter_all.restype = i8
+    lib.dua_filter_all.argtypes = [p, p, p, i8]
+    lib.dua_filter_count.restype = i8
+    lib.dua_filter_count.argtypes = [p, p, p]
+    lib.dua_filter_any.restype = i8
+    lib.dua_filter_any.argtypes = [p]
+    return lib
 
 
 @dataclass(frozen=True)
@@ -54,6 +96,35 @@ class FilterTables:
     lone: np.ndarray
     exclude: np.ndarray
     filterparent: bool
+    _native: _Filter = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # The native rule reads these arrays in place: contiguous, of its types, kept alive here.
+        for name, dtype in (
+            ("body", np.int64), ("weld", np.int64), ("parent_weld", np.int64),
+            ("movable", np.uint8), ("contype", np.int64), ("conaffinity", np.int64),
+            ("lone", np.uint8), ("exclude", np.int64),
+        ):  # fmt: skip
+            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=dtype))
+        native = _Filter(
+            self.body.shape[0],
+            *(
+                a.ctypes.data
+                for a in (
+                    self.body,
+                    self.weld,
+                    self.parent_weld,
+                    self.movable,
+                    self.contype,
+                    self.conaffinity,
+                    self.lone,
+                    self.exclude,
+                )
+            ),
+            self.exclude.shape[0],
+            int(self.filterparent),
+        )
+        object.__setattr__(self, "_native", native)
 
     @classmethod
     def of(cls, model: mujoco.MjModel) -> FilterTables:
@@ -78,153 +149,37 @@ class FilterTables:
             filterparent=not flags & int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT),
         )
 
-    def args(self) -> tuple:
-        return (
-            self.body,
-            self.weld,
-            self.parent_weld,
-            self.movable,
-            self.contype,
-            self.conaffinity,
-            self.lone,
-            self.exclude,
-            self.filterparent,
-        )
-
-
-@nb.njit(cache=True, inline="always")
-def _rule(b1, w1, p1, m1, c1, a1, l1, b2, w2, p2, m2, c2, a2, l2, exclude, filterparent):
-    """MuJoCo's dynamic filter for two geoms, given by their bodies ``b``, weld groups ``w``,
-    weld parents ``p``, mobility ``m``, contype ``c``, conaffinity ``a`` and plane/height
-    field ``l`` (scalars: the pair loops load the first geom's once per row)."""
-    if b1 == b2 or w1 == w2:  # one body, or welded together (static-static: both 0)
-        return False
-    if not (m1 or m2):
-        return False
-    if filterparent and w1 != 0 and w2 != 0 and (w1 == p2 or w2 == p1):
-        return False
-    if (c1 & a2) == 0 and (c2 & a1) == 0:
-        return False
-    if l1 and l2:
-        return False
-    if exclude.shape[0]:
-        signature = (min(b1, b2) << 16) + max(b1, b2)
-        i = np.searchsorted(exclude, signature)
-        if i < exclude.shape[0] and exclude[i] == signature:
-            return False
-    return True
-
-
-@nb.njit(cache=True, inline="always")
-def _ok(g1, g2, body, weld, parent_weld, movable, contype, conaff, lone, exclude, filterparent):
-    return _rule(
-        body[g1], weld[g1], parent_weld[g1], movable[g1], contype[g1], conaff[g1], lone[g1],
-        body[g2], weld[g2], parent_weld[g2], movable[g2], contype[g2], conaff[g2], lone[g2],
-        exclude, filterparent,
-    )  # fmt: skip
-
-
-@nb.njit(cache=True)
-def _mask(g1, g2, body, weld, parent_weld, movable, contype, conaff, lone, exclude, filterparent):
-    out = np.zeros(g1.shape[0], dtype=np.bool_)
-    for k in range(g1.shape[0]):
-        a, b = g1[k], g2[k]
-        out[k] = a != b and _ok(
-            a, b, body, weld, parent_weld, movable, contype, conaff, lone, exclude, filterparent
-        )
-    return out
-
-
-@nb.njit(cache=True)
-def _row(i, out, body, weld, parent_weld, movable, contype, conaff, lone, exclude, filterparent):
-    """Mark in ``out[j]`` (j > i) which pairs (i, j) pass; their count."""
-    b1, w1, p1, m1 = body[i], weld[i], parent_weld[i], movable[i]
-    c1, a1, l1 = contype[i], conaff[i], lone[i]
-    c = 0
-    for j in range(i + 1, body.shape[0]):
-        ok = _rule(
-            b1, w1, p1, m1, c1, a1, l1,
-            body[j], weld[j], parent_weld[j], movable[j], contype[j], conaff[j], lone[j],
-            exclude, filterparent,
-        )  # fmt: skip
-        out[j] = ok
-        c += ok
-    return c
-
-
-@nb.njit(cache=True)
-def _all_pairs(body, weld, parent_weld, movable, contype, conaff, lone, exclude, filterparent):
-    n = body.shape[0]
-    row = np.zeros(n, dtype=np.bool_)
-    count = np.zeros(n + 1, dtype=np.int64)
-    for i in range(n):  # two passes: the pairs are held once, in their final arrays
-        c = _row(i, row, body, weld, parent_weld, movable, contype, conaff, lone, exclude,
-                 filterparent)  # fmt: skip
-        count[i + 1] = count[i] + c
-    g1 = np.empty(count[n], dtype=np.int64)
-    g2 = np.empty(count[n], dtype=np.int64)
-    for i in range(n):
-        _row(i, row, body, weld, parent_weld, movable, contype, conaff, lone, exclude,
-             filterparent)  # fmt: skip
-        k = count[i]
-        for j in range(i + 1, n):
-            if row[j]:
-                g1[k] = i
-                g2[k] = j
-                k += 1
-    return g1, g2
-
-
-@nb.njit(cache=True)
-def _count(weight, body, weld, parent_weld, movable, contype, conaff, lone, exclude, filterparent):
-    n = body.shape[0]
-    row = np.zeros(n, dtype=np.bool_)
-    pairs = 0
-    weighted = 0
-    for i in range(n):
-        pairs += _row(i, row, body, weld, parent_weld, movable, contype, conaff, lone, exclude,
-                      filterparent)  # fmt: skip
-        w = 0
-        for j in range(i + 1, n):
-            if row[j]:
-                w += weight[j]
-        weighted += weight[i] * w
-    return pairs, weighted
-
-
-@nb.njit(cache=True)
-def _any(body, weld, parent_weld, movable, contype, conaff, lone, exclude, filterparent):
-    n = body.shape[0]
-    row = np.zeros(n, dtype=np.bool_)
-    for i in range(n):
-        if _row(i, row, body, weld, parent_weld, movable, contype, conaff, lone, exclude,
-                filterparent):  # fmt: skip
-            return True
-    return False
-
 
 def any_dynamic_pair(tables: FilterTables) -> bool:
     """Whether the dynamic filter lets any geom pair through (stops at the first)."""
-    return bool(_any(*tables.args()))
+    return bool(_lib().dua_filter_any(ctypes.byref(tables._native)))
 
 
 def dynamic_mask(tables: FilterTables, g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
     """``(n,)`` bool: which geom pairs ``(g1[k], g2[k])`` MuJoCo's dynamic filter lets through
     (O(n); a geom with itself never)."""
-    a = np.ascontiguousarray(g1, dtype=np.int64)
-    b = np.ascontiguousarray(g2, dtype=np.int64)
-    return _mask(a, b, *tables.args())
+    a = np.ascontiguousarray(g1, dtype=np.int64).reshape(-1)
+    b = np.ascontiguousarray(g2, dtype=np.int64).reshape(-1)
+    out = np.zeros(a.shape[0], dtype=np.uint8)
+    _lib().dua_filter_mask(ctypes.byref(tables._native), a.ctypes, b.ctypes, a.shape[0], out.ctypes)
+    return out.view(np.bool_)
 
 
 def all_dynamic_pairs(tables: FilterTables) -> tuple[np.ndarray, np.ndarray]:
     """Every geom pair ``g1 < g2`` the dynamic filter lets through, sorted (O(ngeom^2) time,
-    O(result) memory)."""
-    return _all_pairs(*tables.args())
+    O(result) memory: counted first, then written)."""
+    lib, native = _lib(), ctypes.byref(tables._native)
+    count = lib.dua_filter_all(native, None, None, 0)
+    g1 = np.empty(count, dtype=np.int64)
+    g2 = np.empty(count, dtype=np.int64)
+    lib.dua_filter_all(native, g1.ctypes, g2.ctypes, count)
+    return g1, g2
 
 
 def count_dynamic_pairs(tables: FilterTables, weight: npt.ArrayLike) -> tuple[int, int]:
     """How many geom pairs the dynamic filter lets through, and the sum over them of
     ``weight[g1] * weight[g2]`` (O(ngeom^2) time, nothing held)."""
     w = np.ascontiguousarray(weight, dtype=np.int64)
-    pairs, weighted = _count(w, *tables.args())
-    return int(pairs), int(weighted)
+    weighted = ctypes.c_int64(0)
+    pairs = _lib().dua_filter_count(ctypes.byref(tables._native), w.ctypes, ctypes.byref(weighted))
+    return int(pairs), int(weighted.value)

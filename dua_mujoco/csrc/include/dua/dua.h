@@ -170,6 +170,33 @@ DUA_API void dua_difference_poses(const double* xpos, const double* xquat, const
 
 DUA_API int64_t dua_abi_version(void);
 
+// ------------------------------------------------------------------------------- the pair filter
+
+// Per geom, what MuJoCo's dynamic pair filter reads (dua_mujoco/mj/pairfilter.py, FilterTables).
+typedef struct dua_filter {
+  int64_t ngeom;
+  const int64_t* body;         // (ngeom,) geom body
+  const int64_t* weld;         // (ngeom,) weld group of that body
+  const int64_t* parent_weld;  // (ngeom,) weld group of the parent of the weld root
+  const uint8_t* movable;      // (ngeom,) the weld group has degrees of freedom
+  const int64_t* contype;      // (ngeom,)
+  const int64_t* conaffinity;  // (ngeom,)
+  const uint8_t* lone;         // (ngeom,) plane or height field
+  const int64_t* exclude;      // (nexclude,) sorted <exclude> body-pair signatures
+  int64_t nexclude;
+  int64_t filterparent;  // the parent filter is on
+} dua_filter;
+
+// out[k] = whether geom pair (g1[k], g2[k]) passes (a geom with itself never); returns how many.
+DUA_API int64_t dua_filter_mask(const dua_filter* f, const int64_t* g1, const int64_t* g2,
+                                int64_t n, uint8_t* out);
+// Every pair g1 < g2 that passes, sorted, up to capacity into g1, g2; returns how many.
+DUA_API int64_t dua_filter_all(const dua_filter* f, int64_t* g1, int64_t* g2, int64_t capacity);
+// How many pairs pass; weighted receives the sum over them of weight[g1] weight[g2].
+DUA_API int64_t dua_filter_count(const dua_filter* f, const int64_t* weight, int64_t* weighted);
+// Whether any pair passes (stops at the first).
+DUA_API int64_t dua_filter_any(const dua_filter* f);
+
 // ------------------------------------------------------------------------------- candidate pairs
 
 // The hashed grid behind candidate pairs of reachable balls: every pair i < j of n spheres with
