@@ -105,16 +105,10 @@ def main(args: argparse.Namespace) -> int:
     from dua_mujoco.native import library_path
     from dua_mujoco.run_options import predictor_options
 
-    def options(model: mujoco.MjModel) -> dict[str, Any]:
-        chosen = predictor_options(model, args)
-        if chosen["pairs"] == "auto":  # the plugin holds every pair
-            chosen["pairs"] = "all"
-        return chosen
-
     p = export(
         load_spec(args.scene),
         args.output,
-        options,
+        lambda model: predictor_options(model, args),
         prefix=args.prefix,
         overlay=not args.no_overlay,
     )

@@ -22,7 +22,7 @@ from dua_mujoco.exceptions import NativeLibraryError
 __all__ = ["ABI_VERSION", "LIBRARY", "library", "library_path", "load_plugin"]
 
 LIBRARY = "libdua_mujoco.so"
-ABI_VERSION = 1
+ABI_VERSION = 2
 """``DUA_ABI_VERSION`` of ``dua/dua.h``: the layout of the structs the Python side fills."""
 
 

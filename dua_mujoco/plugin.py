@@ -28,9 +28,13 @@ from typing import Any, NamedTuple
 import mujoco
 import numpy as np
 
-from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.core.schedules import Schedule
+from dua_mujoco.core.spheres import PairMode
+from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.events import no_events
+from dua_mujoco.mj.options import PairOptions
 from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.pruning import RENEW_MAX, resolve_pair_mode
 from dua_mujoco.native import ABI_VERSION, library
 
 __all__ = [
@@ -111,15 +115,18 @@ def _check_prefix(spec: mujoco.MjSpec, prefix: object) -> str:
     return prefix
 
 
-def _tables(p: Predictor) -> dict[str, np.ndarray]:
-    """The plugin's tables for predictor ``p`` (every pair held), by name."""
+def _tables(p: Predictor, pruned: Predictor | None = None) -> dict[str, np.ndarray]:
+    """The plugin's tables for predictor ``p`` (every pair known), by name; ``pruned``: a
+    pruned twin whose reaches and stride the plugin's held pairs follow, or None to hold every
+    pair."""
+    held = None if pruned is None else pruned._held
     sched = p.new_scheduler(np.full(p.nsphere_pairs, np.inf))
     state = sched.state
     # Every pair held: the known geom pairs are the model's, rows g1 < g2 in increasing order,
     # which the plugin's lookups need (and check).
     gp = p.geom_pairs
     exact = p.exact
-    config = np.zeros(25)
+    config = np.zeros(30)
     config[:11] = [
         ABI_VERSION,
         int(state.kind),
@@ -138,6 +145,8 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
     shape = structure_hash(p.model)
     config[20:24] = [p.model.ngeom, p.model.nbody, shape & 0xFFFFFFFF, shape >> 32]
     config[24] = state.work.shape[1]
+    if pruned is not None and held is not None:
+        config[25:30] = [1, held.horizon, held.margin, pruned.stride, RENEW_MAX]
     tables = {
         "config": config,
         "pairs": p.pair_records,
@@ -152,6 +161,10 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
     if exact is not None:
         # The mesh vertices are the model's (mesh_vert): the plugin reads them there.
         tables.update(exact_geoms=exact.geoms, exact_records=exact.records)
+    if held is not None:
+        tables["reach"] = np.stack(
+            [held.radius, held.accel, held.vel_uncertainty, held.speed], axis=1
+        )
     return tables
 
 
@@ -171,15 +184,20 @@ def attach(
         prefix: Name of the plugin instance and its sensor, and prefix of its text fields.
         overlay: Draw the pairs standing in alarm into every ``mjvScene`` (``visualize``).
         **options: ``Predictor``'s keyword options (``accel``, ``period``, ``covering``,
-            ``urgency``, ``schedule``, ...). Every pair is held (``pairs="all"``).
+            ``urgency``, ``schedule``, ...). ``pairs``: ``"all"`` holds every pair;
+            ``"pruned"`` or ``PairOptions(mode="pruned", horizon=...)`` only the pairs whose
+            reaches meet, renewed as a pruned ``Predictor`` renews them; ``"auto"`` (the
+            default) chooses as ``Predictor`` does. Either way the plugin carries every active
+            pair's tables (:data:`MAX_GEOM_PAIRS`).
 
     Returns:
-        The Python predictor the tables came from (a twin: same options, same step).
+        The Python predictor of the same options (a twin: same pairs held, same step); for
+        pruned pairs the tables came from an all-pairs one of the same bounds.
 
     Raises:
         InvalidInputError: ``spec`` is not an ``MjSpec``, the prefix is taken or malformed, or
             the model has more than :data:`MAX_GEOM_PAIRS` active geom pairs.
-        InvalidChoiceError: A pair mode the plugin does not run (it holds every pair).
+        InvalidChoiceError: An unknown pair mode.
     """
     if not isinstance(spec, mujoco.MjSpec):
         raise InvalidInputError(
@@ -187,14 +205,22 @@ def attach(
             "mujoco.MjSpec.from_file(path) (or dua_mujoco.mj.scenes.load_spec(name))."
         )
     _check_prefix(spec, prefix)
-    pairs = options.setdefault("pairs", "all")
-    if pairs != "all":
-        raise InvalidChoiceError("pairs", pairs, ["all"])
+    pairs = options.pop("pairs", "auto")
+    if not isinstance(pairs, PairOptions):
+        pairs = PairOptions(mode=pairs)
     library()  # registers the plugin with MuJoCo, if `import mujoco` did not
     model = spec.compile()
     _check_size(model)
-    p = Predictor(model, **options)
-    tables = _tables(p)
+    p = Predictor(model, pairs="all", **options)
+    mode = resolve_pair_mode(
+        pairs.mode, pairs.horizon, deadline=p.schedule is Schedule.DEADLINE, covering=p.covering
+    )
+    twin = p
+    if mode is PairMode.PRUNED:
+        # The same bounds (no second pilot), the same pairs held by the Python predictor.
+        rest = {k: v for k, v in options.items() if k not in ("accel", "speed", "velocity_accel")}
+        twin = Predictor(model, accel=p.bounds, pairs=pairs, **rest)
+    tables = _tables(p, None if twin is p else twin)
     spec.activate_plugin(PLUGIN_NAME)
     plugin = spec.add_plugin(name=prefix, plugin_name=PLUGIN_NAME, active=True)
     plugin.config = {"prefix": prefix, "overlay": "true" if overlay else "false"}
@@ -204,7 +230,7 @@ def attach(
     sensor.plugin.active = True
     for name, values in tables.items():
         spec.add_text(name=f"{prefix}:{name}", data=_encode(values))
-    return p
+    return twin
 
 
 def _check_size(model: mujoco.MjModel) -> None:

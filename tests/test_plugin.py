@@ -82,7 +82,12 @@ def _run_side_by_side(
             assert deactivate_contacts(m, d) == p.deactivate_contacts(d) > 0
         want = python_standing(p)
         np.testing.assert_array_equal(standing_pairs(m, d), want, err_msg=f"step {k}")
-        assert plugin_outputs(m, d).standing == want.shape[0]
+        out = plugin_outputs(m, d)
+        assert out.standing == want.shape[0]
+        # The same pairs held and due: as many evaluations (a classification evaluates all).
+        assert p._native is not None
+        evaluated = p.held_pairs.size if k == 0 else p._native.args.count
+        assert out.evaluated == evaluated, f"step {k}"
         busy += want.shape[0] > 0
     return busy
 
@@ -115,6 +120,41 @@ def test_plugin_equals_the_python_predictor(scene: str, steps: int) -> None:
 def test_plugin_equals_the_python_predictor_under_options(options: dict) -> None:
     m, p = _attached("two_arms", **options)
     assert _run_side_by_side(m, p, 240, seed=3) > 10
+
+
+@pytest.mark.parametrize(
+    ("scene", "accel", "steps"),
+    [("bin_pour:60", 5.0, 300), ("clutter", 30.0, 300), ("swarm:300", 2.0, 200)],
+    ids=["bin_pour", "clutter", "swarm"],
+)
+def test_plugin_with_pruned_pairs_equals_the_pruned_python_predictor(
+    scene: str, accel: float, steps: int
+) -> None:
+    """``pairs="pruned"``: the plugin holds the pairs a pruned ``Predictor`` holds, rebuilt every
+    stride and renewed for the spheres an impact lets escape (objects poured into a bin, a
+    mocap body, a swarm): the same standing pairs after every step."""
+    m, p = _attached(scene, accel=accel, pairs="pruned")
+    assert p.stride > 0
+    busy = _run_side_by_side(m, p, steps)
+    assert p.rebuilds >= steps // p.stride - 1
+    if scene != "swarm:300":
+        assert busy > 10 and p.renewals > 5
+
+
+def test_pruned_plugin_switches_and_classifies_as_the_python_predictor() -> None:
+    """Pruned pairs with intended contact and latency: pairs switched off stay off when a
+    rebuild or a renewal holds them again; a reset classifies from scratch."""
+    from dua_mujoco.mj.options import PairOptions
+
+    m, p = _attached("two_arms", pairs=PairOptions(mode="pruned", horizon=0.02), latency=1)
+    box = int(m.geom_bodyid[m.geom("loose_box").id])
+    table = int(m.geom_bodyid[m.geom("table_top").id])
+    link = int(m.geom_bodyid[m.geom("a_link1").id])
+    switch: dict[int, tuple[int, int | None, bool]] = {
+        20: (box, table, False), 90: (box, table, True), 120: (link, None, False),
+    }  # fmt: skip
+    assert _run_side_by_side(m, p, 200, seed=5, switch=switch, resting=150) > 10
+    assert p.rebuilds > 10  # the switched-off pairs went through rebuilds
 
 
 def test_switching_bodies_equals_the_python_predictors() -> None:
@@ -165,8 +205,9 @@ def test_copies_and_resets_keep_their_own_state() -> None:
     assert _standing_sequence(m, d, ctrl) == reference
 
 
-def test_rollout_on_two_threads_gives_one_threads_alarms() -> None:
-    m, _ = _attached("two_arms")
+@pytest.mark.parametrize("pairs", ["all", "pruned"])
+def test_rollout_on_two_threads_gives_one_threads_alarms(pairs: str) -> None:
+    m, _ = _attached("two_arms", pairs=pairs)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -265,7 +306,9 @@ def test_attach_refuses_what_the_plugin_cannot_run() -> None:
     with pytest.raises(InvalidInputError, match="MjSpec"):
         attach(mujoco.MjModel.from_xml_string("<mujoco/>"))  # type: ignore[arg-type]
     with pytest.raises(InvalidChoiceError, match="pairs"):
-        attach(spec, accel=30.0, pairs="pruned")
+        attach(spec, accel=30.0, pairs="some")
+    with pytest.raises(InvalidInputError, match="schedule='deadline'"):
+        attach(spec, accel=30.0, pairs="pruned", schedule="dua")
     with pytest.raises(InvalidInputError, match="prefix"):
         attach(spec, prefix="a b", accel=30.0)
     with pytest.raises(InvalidInputError, match="pairs='pruned'"):  # 4.5 million pairs

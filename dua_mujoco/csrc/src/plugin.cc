@@ -24,6 +24,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <string>
@@ -31,6 +32,7 @@
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "pruned.h"
 
 namespace dua {
 namespace {
@@ -69,7 +71,12 @@ enum Config {
   kCfgNbody = 21,
   kCfgShape = 22,  // and FNV-1a of its geom_type, geom_bodyid and body_parentid (two 32-bit halves)
   kCfgWidth = 24,  // the schedule's work width (the most pairs a step selects)
-  kCfgSize = 25,
+  kCfgPruned = 25,    // 1: pruned pairs (the deadline schedule over the held ones)
+  kCfgHorizon = 26,   // pruned: the reach's horizon T, seconds
+  kCfgMargin = 27,    // pruned: the largest contact distance beyond the radii
+  kCfgStride = 28,    // pruned: steps between rebuilds
+  kCfgRenewMax = 29,  // pruned: most escaped spheres renewed alone
+  kCfgSize = 30,
 };
 
 // The model's tables, parsed once per mjData and shared by its copies.
@@ -81,6 +88,11 @@ struct Tables {
   std::vector<int64_t> gp_keys;  // (ngp,) g1 << 32 | g2 of each geom pair, increasing
   int64_t npair = 0, ngp = 0, nbody_events = 0;
   bool exact = false;
+  // Pruned pairs: the pairs' geoms (the first sphere's first, as PairTables has them) for the
+  // violation check's index of the held pairs, and each body's row in it.
+  bool pruned = false;
+  PrunedTables held;
+  std::vector<int64_t> geom1, geom2, geom_row;
   double Config(int i) const { return config[i]; }
   // Index of geom pair (g1 < g2), or -1 if it is none of the tables'.
   int64_t GeomPair(int64_t g1, int64_t g2) const {
@@ -181,6 +193,40 @@ std::vector<int64_t> AsInts(const std::vector<double>& v) {
   return out;
 }
 
+// The pruned pairs' tables (false after a warning saying why).
+bool LoadPruned(const mjModel* m, const std::string& prefix, Tables* t) {
+  std::vector<double> reach;
+  if (!ReadTable(m, prefix, "reach", &reach)) return false;
+  const std::string bad =
+      t->held.Build(reach, t->spheres, t->pairs, m->nbody, t->config[kCfgHorizon],
+                    t->config[kCfgMargin], static_cast<int64_t>(t->config[kCfgStride]));
+  if (!bad.empty()) {
+    mju_warning(
+        "dua_mujoco.predictor: the pruned pairs' tables under prefix '%s' do not fit (%s): "
+        "attach the predictor again.",
+        prefix.c_str(), bad.c_str());
+    return false;
+  }
+  constexpr int kFirst = 0, kSphereFrame = 0;
+  t->geom1.resize(t->npair);
+  t->geom2.resize(t->npair);
+  for (int64_t p = 0; p < t->npair; ++p) {
+    const auto first = static_cast<int64_t>(t->pairs[8 * p + kFirst]);
+    const int64_t g = static_cast<int64_t>(t->spheres[8 * first + kSphereFrame]);
+    const int64_t a = t->geom_pairs[2 * t->pair_geom[p]],
+                  b = t->geom_pairs[2 * t->pair_geom[p] + 1];
+    t->geom1[p] = g;
+    t->geom2[p] = g == a ? b : a;
+  }
+  std::vector<int64_t> body_row(m->nbody, -1);
+  for (int64_t r = 0; r < t->nbody_events; ++r) {
+    body_row[static_cast<int64_t>(t->events_rec[12 * r + kBBody])] = r;
+  }
+  t->geom_row.resize(m->ngeom);
+  for (int g = 0; g < m->ngeom; ++g) t->geom_row[g] = body_row[m->geom_bodyid[g]];
+  return true;
+}
+
 // The tables of plugin instance `instance`, or null (after a warning saying why).
 std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& prefix) {
   auto t = std::make_shared<Tables>();
@@ -259,6 +305,8 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
     t->graph.assign(m->mesh_graph, m->mesh_graph + m->nmeshgraph);
     if (t->graph.empty()) t->graph.assign(1, -1);
   }
+  t->pruned = static_cast<int64_t>(t->config[kCfgPruned]) != 0;
+  if (t->pruned && !LoadPruned(m, prefix, t.get())) return nullptr;
   return t;
 }
 
@@ -289,31 +337,27 @@ struct Instance {
   double last_time = 0.0;
   int64_t step = 0;
   dua_step_args args{};
+  // Pruned pairs: the anchors, each model pair's switch, and the held pairs' records and index
+  // by body (all pairs held: the model's tables themselves).
+  PrunedState pruned;
+  std::vector<uint8_t> on;
+  std::vector<double> held_pairs;
+  std::vector<int64_t> held_start, held_members;
+
+  int64_t npair() const { return static_cast<int64_t>(ids.size()); }
 
   void Allocate(const mjModel* m) {
     const Tables& t = *tables;
-    const int64_t npair = t.npair;
-    const int64_t width = std::max<int64_t>(static_cast<int64_t>(t.Config(kCfgWidth)), 1);
-    last_tau.assign(npair, kInf);
-    active.assign(npair, 1);
-    ints.assign(static_cast<size_t>(t.Config(kCfgRows)) * npair, 0);
-    slots.assign(static_cast<size_t>(t.Config(kCfgNslots)), -1);
-    queue.assign(static_cast<size_t>(t.Config(kCfgNqueue)) + 1, 0);
-    params.assign(9, 0);
-    work.assign(4 * width, 0);
-    w_tau.assign(width, 0.0);
-    scratch.assign(12 * std::max(width, npair), 0.0);  // the classification's too
-    ids.resize(npair);
-    for (int64_t p = 0; p < npair; ++p) ids[p] = p;
+    if (t.pruned) pruned.Allocate(t.held);
+    on.assign(t.npair, 1);
+    ids.resize(t.npair);
+    for (int64_t p = 0; p < t.npair; ++p) ids[p] = p;
+    Size(t.npair);
     exact_records = t.exact_records;
     events_prev.assign(t.nbody_events * 31, 0.0);
     events_meta.assign(3, 0);
     events_flagged.assign(std::max<int64_t>(t.nbody_events, 1), 0);
     root_twist.assign(6 * m->nbody, 0.0);
-    log_pairs.assign(width, 0);
-    log_tau.assign(width, 0.0);
-    log_new.assign(width, 0);
-    stands.assign(npair, 0);
     gp_count.assign(t.ngp, 0);
     mocap_bodies.assign(m->nmocap, -1);
     for (int b = 0; b < m->nbody; ++b) {
@@ -324,6 +368,62 @@ struct Instance {
     mocap_linear.assign(3 * m->nmocap, 0.0);
     mocap_angular.assign(3 * m->nmocap, 0.0);
     mocap_user.assign(m->nmocap, 0);
+  }
+
+  // The schedule's buffers for `npair` pairs (held ones, when pruned: the work width is theirs).
+  void Size(int64_t n) {
+    const Tables& t = *tables;
+    const int64_t width =
+        std::max<int64_t>(t.pruned ? n : static_cast<int64_t>(t.Config(kCfgWidth)), 1);
+    last_tau.assign(n, kInf);
+    active.assign(n, 1);
+    ints.assign(static_cast<size_t>(t.Config(kCfgRows)) * n, 0);
+    slots.assign(static_cast<size_t>(t.Config(kCfgNslots)), -1);
+    queue.assign(static_cast<size_t>(t.Config(kCfgNqueue)) + 1, 0);
+    params.assign(9, 0);
+    work.assign(4 * width, 0);
+    w_tau.assign(width, 0.0);
+    scratch.assign(12 * std::max(width, n), 0.0);  // the classification's too
+    log_pairs.assign(width, 0);
+    log_tau.assign(width, 0.0);
+    log_new.assign(width, 0);
+    stands.assign(n, 0);
+  }
+
+  // Hold the sorted model pairs `held`: their records gathered (the exact level's afresh, as
+  // Predictor._hold does), and indexed by the bodies the violation check reads.
+  void Hold(const std::vector<int64_t>& held) {
+    const Tables& t = *tables;
+    ids = held;
+    const auto n = static_cast<int64_t>(held.size());
+    held_pairs.resize(8 * n);
+    for (int64_t k = 0; k < n; ++k) {
+      std::copy_n(t.pairs.begin() + 8 * held[k], 8, held_pairs.begin() + 8 * k);
+    }
+    if (t.exact) {
+      exact_records.resize(10 * n);
+      for (int64_t k = 0; k < n; ++k) {
+        std::copy_n(t.exact_records.begin() + 10 * held[k], 10, exact_records.begin() + 10 * k);
+      }
+    }
+    // Counting sort by body row: the pairs of a row in the order EventTable.hold gives them
+    // (by first geom, then by second, each by position).
+    held_start.assign(t.nbody_events + 1, 0);
+    for (const auto* geoms : {&t.geom1, &t.geom2}) {
+      for (int64_t k = 0; k < n; ++k) {
+        const int64_t r = t.geom_row[(*geoms)[held[k]]];
+        if (r >= 0) ++held_start[r + 1];
+      }
+    }
+    for (int64_t r = 0; r < t.nbody_events; ++r) held_start[r + 1] += held_start[r];
+    held_members.resize(held_start[t.nbody_events]);
+    std::vector<int64_t> cursor(held_start.begin(), held_start.end() - 1);
+    for (const auto* geoms : {&t.geom1, &t.geom2}) {
+      for (int64_t k = 0; k < n; ++k) {
+        const int64_t r = t.geom_row[(*geoms)[held[k]]];
+        if (r >= 0) held_members[cursor[r]++] = k;
+      }
+    }
   }
 
   // A new trajectory: record the mocap poses; their twists are zero until the next step.
@@ -356,7 +456,7 @@ struct Instance {
     s.kind = static_cast<int64_t>(t.Config(kCfgKind));
     s.dt = t.Config(kCfgDt);
     s.latency = static_cast<int64_t>(t.Config(kCfgLatency));
-    s.m = t.npair;
+    s.m = npair();
     s.last_tau = last_tau.data();
     s.active = active.data();
     s.ints = ints.data();
@@ -369,7 +469,7 @@ struct Instance {
     s.work = work.data();
     s.width = static_cast<int64_t>(w_tau.size());
     s.w_tau = w_tau.data();
-    a.pairs = t.pairs.data();
+    a.pairs = t.pruned ? held_pairs.data() : t.pairs.data();
     a.spheres = t.spheres.data();
     a.shapes = t.shapes.data();
     a.ids = ids.data();
@@ -390,8 +490,8 @@ struct Instance {
     e.prev = events_prev.data();
     e.meta = events_meta.data();
     e.flagged = events_flagged.data();
-    e.start = t.events_start.data();
-    e.members = t.events_members.data();
+    e.start = t.pruned ? held_start.data() : t.events_start.data();
+    e.members = t.pruned ? held_members.data() : t.events_members.data();
     e.params = t.events_params.data();
     a.scratch = scratch.data();
     a.scratch_rows = static_cast<int64_t>(scratch.size() / 12);
@@ -434,30 +534,48 @@ Instance* Create(const mjModel* m, int instance) {
   return in;
 }
 
-// The initial classification at this instant: every pair evaluated and scheduled, as the
-// schedules' constructors in dua_mujoco.core.schedules do it.
+// The initial classification at this instant: every held pair evaluated and scheduled, as the
+// schedules' constructors in dua_mujoco.core.schedules do it (pruned pairs: the held ones
+// chosen first, as Predictor.reset chooses them).
 void Classify(const mjModel* m, mjData* d, Instance* in) {
   const Tables& t = *in->tables;
+  in->StartMocap(d);
   in->Bind(m, d);
+  std::fill(in->on.begin(), in->on.end(), 1);
+  if (t.pruned) {
+    std::vector<int64_t> held;
+    if (!in->pruned.Select(t.held, in->args, 0, &held)) {
+      // A state that is not finite: every pair held, each standing in alarm (below).
+      held.resize(t.npair);
+      for (int64_t p = 0; p < t.npair; ++p) held[p] = p;
+    }
+    in->pruned.built_at = 0;
+    in->pruned.escapes.clear();
+    in->Hold(held);
+    in->Size(in->npair());
+    in->Bind(m, d);
+  }
   dua_step_args& a = in->args;
   dua_schedule& s = a.schedule;
-  in->StartMocap(d);
+  const int64_t n = in->npair();
   std::fill(in->active.begin(), in->active.end(), 1);
   std::fill(in->slots.begin(), in->slots.end(), -1);
   std::fill(in->queue.begin(), in->queue.end(), 0);
   for (int i = 0; i < 9; ++i) in->params[i] = static_cast<int64_t>(t.Config(kCfgParams + i));
   std::fill(in->ints.begin(), in->ints.end(), s.kind == kDeadline ? -1 : 0);
   if (s.kind == kDeadline) {  // LAST_STEP: 0
-    std::fill(in->ints.begin() + t.npair, in->ints.begin() + 2 * t.npair, 0);
+    std::fill(in->ints.begin() + n, in->ints.begin() + 2 * n, 0);
   }
   dua_reset_events(&a);
-  if (dua_evaluate(&a, in->ids.data(), t.npair, in->last_tau.data()) >= 0) {
+  std::vector<int64_t> all(n);
+  for (int64_t p = 0; p < n; ++p) all[p] = p;
+  if (dua_evaluate(&a, all.data(), n, in->last_tau.data()) >= 0) {
     // A state that is not finite: nothing can be predicted from it; every pair stands in alarm.
     std::fill(in->last_tau.begin(), in->last_tau.end(), -kInf);
   }
   if (s.kind == kDeadline) dua_deadline_classify(&s);
   if (s.kind == kRank) dua_rank_classify(&s);
-  a.count = t.npair;
+  a.count = n;
   a.deferred = 0;
   in->classified = true;
   in->step = 0;
@@ -486,7 +604,7 @@ void Track(Instance* in, const int64_t* ids, int64_t n) {
     const uint8_t now = Stands(s, p) ? 1 : 0;
     if (now == in->stands[p]) continue;
     in->stands[p] = now;
-    int32_t& count = in->gp_count[t.pair_geom[p]];
+    int32_t& count = in->gp_count[t.pair_geom[in->ids[p]]];
     if (now) {
       if (count++ == 0) ++in->nstanding;
     } else if (--count == 0) {
@@ -500,7 +618,9 @@ void TrackAll(Instance* in) {
   std::fill(in->stands.begin(), in->stands.end(), 0);
   std::fill(in->gp_count.begin(), in->gp_count.end(), 0);
   in->nstanding = 0;
-  Track(in, in->ids.data(), in->tables->npair);
+  std::vector<int64_t> all(in->npair());
+  for (size_t p = 0; p < all.size(); ++p) all[p] = static_cast<int64_t>(p);
+  Track(in, all.data(), in->npair());
   const std::vector<double>& tau = in->last_tau;
   in->min_tau = tau.empty() ? kInf : *std::min_element(tau.begin(), tau.end());
 }
@@ -530,6 +650,69 @@ void Publish(mjData* d, const Instance* in) {
   out[kEvaluated] = static_cast<mjtNum>(a.count);
   out[kDeferred] = static_cast<mjtNum>(a.deferred);
   out[kFlagged] = static_cast<mjtNum>(a.events.nbody ? a.events.meta[1] : 0);
+}
+
+// Hold the sorted model pairs `held` from step n (Predictor._carry): kept pairs carry their
+// verdicts (dua_deadline_carry), new ones stand in alarm, due at n; new ones switched off stay
+// off; every held pair's standing renewed.
+void Carry(const mjModel* m, mjData* d, Instance* in, const std::vector<int64_t>& held, int64_t n) {
+  constexpr int kPCount = 5, kPDeferred = 6;
+  const std::vector<int64_t>& old = in->ids;
+  const auto k = static_cast<int64_t>(held.size());
+  std::vector<int64_t> src(k, -1);
+  for (int64_t p = 0, q = 0; p < k; ++p) {
+    while (q < static_cast<int64_t>(old.size()) && old[q] < held[p]) ++q;
+    if (q < static_cast<int64_t>(old.size()) && old[q] == held[p]) src[p] = q;
+  }
+  // The old schedule's buffers stay alive (moved, not copied) while the carry reads them.
+  const dua_schedule from = in->args.schedule;
+  std::vector<double> last_tau = std::move(in->last_tau), w_tau = std::move(in->w_tau);
+  std::vector<uint8_t> active = std::move(in->active);
+  std::vector<int64_t> ints = std::move(in->ints), slots = std::move(in->slots),
+                       queue = std::move(in->queue), params = std::move(in->params),
+                       work = std::move(in->work);
+  in->Hold(held);
+  in->Size(k);
+  std::fill(in->ints.begin(), in->ints.end(), -1);
+  in->params = params;
+  in->params[kPCount] = in->params[kPDeferred] = 0;
+  in->Bind(m, d);
+  dua_deadline_carry(&from, &in->args.schedule, src.data(), k, n);
+  std::vector<int64_t> off;
+  for (int64_t p = 0; p < k; ++p) {
+    if (src[p] < 0 && !in->on[held[p]]) off.push_back(p);
+  }
+  if (!off.empty()) {
+    dua_switch(&in->args.schedule, off.data(), static_cast<int64_t>(off.size()), 0, n);
+  }
+  const double min_tau = in->min_tau;
+  TrackAll(in);
+  in->min_tau = min_tau;
+}
+
+// Before step n, pruned pairs: a rebuild every stride steps (or when too many spheres escaped),
+// else the renewal of the spheres the last step found escaped (Predictor.step). False if a
+// state is not finite.
+bool Prune(const mjModel* m, mjData* d, Instance* in, int64_t n) {
+  const Tables& t = *in->tables;
+  PrunedState& ps = in->pruned;
+  const auto escaped = static_cast<int64_t>(ps.escapes.size());
+  std::vector<int64_t> held;
+  bool carry = false;
+  if (n - ps.built_at >= t.held.stride || escaped > static_cast<int64_t>(t.Config(kCfgRenewMax))) {
+    if (!ps.Select(t.held, in->args, n, &held)) return false;
+    ps.built_at = n;
+    carry = true;
+  } else if (escaped) {
+    std::vector<int64_t> found;
+    if (!ps.Renew(t.held, in->args, n, &found)) return false;
+    std::set_union(in->ids.begin(), in->ids.end(), found.begin(), found.end(),
+                   std::back_inserter(held));
+    carry = held.size() > in->ids.size();  // some pair is new
+  }
+  ps.escapes.clear();
+  if (carry) Carry(m, d, in, held, n);
+  return true;
 }
 
 void Compute(const mjModel* m, mjData* d, int instance) {
@@ -562,13 +745,15 @@ void Compute(const mjModel* m, mjData* d, int instance) {
   }
   in->DifferenceMocap(m, d, elapsed);
   in->Bind(m, d);
-  if (dua_step(&in->args, in->step + 1, 0) < 0) {
+  if ((t.pruned && !Prune(m, d, in, in->step + 1)) || dua_step(&in->args, in->step + 1, 0) < 0) {
     // Not finite: the step was undone; classify again at the next state.
     in->classified = false;
     return;
   }
   in->step += 1;
   in->last_time = d->time;
+  const dua_events& e = in->args.events;
+  if (t.pruned && e.nbody && e.meta[kMCount]) in->pruned.FindEscapes(t.held, in->args, in->step);
   TrackStep(in);
   Publish(d, in);
 }
@@ -671,12 +856,19 @@ Instance* Find(const mjModel* m, const mjData* d, int instance) {
   return reinterpret_cast<Instance*>(d->plugin_data[instance]);
 }
 
-// Switches the sphere pairs `ids` on or off (Predictor._switch) and renews the outputs.
-void Switch(const mjModel* m, mjData* d, Instance* in, const std::vector<int64_t>& ids, bool on) {
+// Switches the model's sphere pairs `pairs` on or off (Predictor._switch): the held ones in the
+// schedule, all of them for when a rebuild holds them (pruned pairs); renews the outputs.
+void Switch(const mjModel* m, mjData* d, Instance* in, const std::vector<int64_t>& pairs, bool on) {
   in->Bind(m, d);
-  const int64_t n = static_cast<int64_t>(ids.size());
-  dua_switch(&in->args.schedule, ids.data(), n, on ? 1 : 0, in->step + 1);
-  Track(in, ids.data(), n);
+  std::vector<int64_t> held;
+  for (const int64_t p : pairs) {
+    in->on[p] = on ? 1 : 0;
+    const auto it = std::lower_bound(in->ids.begin(), in->ids.end(), p);
+    if (it != in->ids.end() && *it == p) held.push_back(it - in->ids.begin());
+  }
+  const auto n = static_cast<int64_t>(held.size());
+  dua_switch(&in->args.schedule, held.data(), n, on ? 1 : 0, in->step + 1);
+  Track(in, held.data(), n);
   Publish(d, in);
 }
 

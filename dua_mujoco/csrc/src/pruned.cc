@@ -1,0 +1,181 @@
+// The plugin's pruned pairs (pruned.h): the held set chosen from the spheres' reaches, as
+// dua_mujoco/mj/pruning.py's HeldPairs chooses it, on the same native kernels.
+#include "pruned.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace dua {
+namespace {
+
+// Pair record columns (pack_pairs): first, second, kind.
+constexpr int kFirst = 0, kSecond = 1, kKind = 2, kPairNcol = 8;
+constexpr int kSphereBody = 1, kSphereNcol = 8;
+
+}  // namespace
+
+std::string PrunedTables::Build(const std::vector<double>& reach_table,
+                                const std::vector<double>& spheres,
+                                const std::vector<double>& pairs, int64_t nbody, double horizon_s,
+                                double margin_m, int64_t stride_steps) {
+  nsphere = static_cast<int64_t>(spheres.size() / kSphereNcol);
+  if (static_cast<int64_t>(reach_table.size()) != 4 * nsphere) return "the reach table";
+  if (!(horizon_s > 0.0) || !(margin_m >= 0.0) || stride_steps < 1) return "the horizon";
+  horizon = horizon_s;
+  margin = margin_m;
+  stride = stride_steps;
+  radius.resize(nsphere), accel.resize(nsphere), delta.resize(nsphere), speed.resize(nsphere);
+  for (int64_t i = 0; i < nsphere; ++i) {
+    radius[i] = reach_table[4 * i];
+    accel[i] = reach_table[4 * i + 1];
+    delta[i] = reach_table[4 * i + 2];
+    speed[i] = reach_table[4 * i + 3];
+  }
+  // Spheres by body: a counting sort, each body's in id order.
+  body_start.assign(nbody + 1, 0);
+  for (int64_t i = 0; i < nsphere; ++i) {
+    const auto b = static_cast<int64_t>(spheres[kSphereNcol * i + kSphereBody]);
+    if (b < 0 || b >= nbody) return "the sphere records";
+    ++body_start[b + 1];
+  }
+  for (int64_t b = 0; b < nbody; ++b) body_start[b + 1] += body_start[b];
+  body_spheres.resize(nsphere);
+  std::vector<int64_t> cursor(body_start.begin(), body_start.end() - 1);
+  for (int64_t i = 0; i < nsphere; ++i) {
+    body_spheres[cursor[static_cast<int64_t>(spheres[kSphereNcol * i + kSphereBody])]++] = i;
+  }
+  const auto npair = static_cast<int64_t>(pairs.size() / kPairNcol);
+  std::vector<std::pair<int64_t, int64_t>> keyed;
+  always.clear();
+  for (int64_t p = 0; p < npair; ++p) {
+    const double* rec = pairs.data() + kPairNcol * p;
+    if (rec[kKind] != 0.0) {
+      always.push_back(p);
+      continue;
+    }
+    const auto a = static_cast<int64_t>(rec[kFirst]), b = static_cast<int64_t>(rec[kSecond]);
+    if (a < 0 || b < 0 || a >= nsphere || b >= nsphere) return "the pair records";
+    keyed.emplace_back(std::min(a, b) * nsphere + std::max(a, b), p);
+  }
+  std::sort(keyed.begin(), keyed.end());
+  codes.resize(keyed.size());
+  code_ids.resize(keyed.size());
+  for (size_t k = 0; k < keyed.size(); ++k) {
+    codes[k] = keyed[k].first;
+    code_ids[k] = keyed[k].second;
+    if (k && codes[k] == codes[k - 1]) return "the pair records (a sphere pair twice)";
+  }
+  return "";
+}
+
+void PrunedTables::Lookup(const int64_t* cand, int64_t n, std::vector<int64_t>* ids) const {
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t key = cand[2 * k] * nsphere + cand[2 * k + 1];
+    const auto it = std::lower_bound(codes.begin(), codes.end(), key);
+    // Not found: MuJoCo's filter lets the pair of geoms through never (not an active pair).
+    if (it != codes.end() && *it == key) ids->push_back(code_ids[it - codes.begin()]);
+  }
+}
+
+void PrunedState::Allocate(const PrunedTables& t) {
+  anchor.assign(3 * t.nsphere, 0.0);
+  speed0.assign(t.nsphere, 0.0);
+  reach.assign(t.nsphere, 0.0);
+  built.assign(t.nsphere, 0);
+  escapes.clear();
+  built_at = 0;
+}
+
+dua_reach PrunedState::Reach(const PrunedTables& t) {
+  dua_reach r{};
+  r.nsphere = t.nsphere;
+  r.radius = t.radius.data();
+  r.body_start = t.body_start.data();
+  r.body_spheres = t.body_spheres.data();
+  r.accel = t.accel.data();
+  r.delta = t.delta.data();
+  r.speed = t.speed.data();
+  r.anchor = anchor.data();
+  r.speed0 = speed0.data();
+  r.reach = reach.data();
+  r.built = built.data();
+  r.dt = 0.0;  // set by the caller that needs it (the escape check)
+  r.horizon = t.horizon;
+  r.margin = t.margin;
+  return r;
+}
+
+bool PrunedState::Select(const PrunedTables& t, const dua_step_args& a, int64_t step,
+                         std::vector<int64_t>* ids) {
+  const int64_t n = t.nsphere;
+  state.resize(6);
+  std::vector<double> centers(3 * static_cast<size_t>(n));
+  for (int64_t i = 0; i < n; ++i) {
+    dua_rigid_point(i, a.spheres, &a.frame, state.data());
+    for (int c = 0; c < 6; ++c) {
+      if (!std::isfinite(state[c])) return false;
+    }
+    std::copy(state.begin(), state.begin() + 3, centers.begin() + 3 * i);
+    speed0[i] = std::sqrt(state[3] * state[3] + state[4] * state[4] + state[5] * state[5]);
+  }
+  anchor = centers;
+  std::fill(built.begin(), built.end(), step);
+  dua_reaches(t.radius.data(), speed0.data(), t.accel.data(), t.delta.data(), t.speed.data(), n,
+              t.horizon, reach.data());
+  ids->assign(t.always.begin(), t.always.end());
+  double lo[3], hi[3];
+  if (n < 2) return true;
+  if (dua_grid_bounds(anchor.data(), n, lo, hi) >= 0) {
+    // A centre beyond 1e150 m: no grid can hold it (its squares overflow); hold every pair.
+    ids->insert(ids->end(), t.code_ids.begin(), t.code_ids.end());
+    std::sort(ids->begin(), ids->end());
+    return true;
+  }
+  dua_grid_plan plan{};
+  held_out.resize(256);
+  work.resize(n);
+  dua_grid_plan_of(reach.data(), n, t.margin, lo, hi, &plan, held_out.data(), work.data());
+  const int64_t ng = n - plan.nheld;
+  start.resize(plan.nbucket + 1), sid.resize(ng), sxyz.resize(3 * ng), sr.resize(ng);
+  cnt_a.resize(n), cnt_b.resize(n), found.resize(n), is_held.resize(n);
+  const dua_grid_work w{start.data(), sid.data(),   sxyz.data(),  sr.data(),
+                        cnt_a.data(), cnt_b.data(), found.data(), is_held.data()};
+  const int64_t k =
+      dua_grid_count(&plan, anchor.data(), reach.data(), n, t.margin, held_out.data(), &w);
+  tmp.resize(k);
+  cand.resize(2 * k);
+  dua_grid_fill(&plan, anchor.data(), reach.data(), n, t.margin, held_out.data(), &w, tmp.data(),
+                cand.data());
+  t.Lookup(cand.data(), k, ids);
+  std::sort(ids->begin(), ids->end());
+  return true;
+}
+
+bool PrunedState::Renew(const PrunedTables& t, const dua_step_args& a, int64_t step,
+                        std::vector<int64_t>* ids) {
+  dua_reach r = Reach(t);
+  const auto n = static_cast<int64_t>(escapes.size());
+  cand.resize(2 * std::max<int64_t>(4 * n, 16));
+  int64_t count = 0;
+  while (true) {
+    const auto capacity = static_cast<int64_t>(cand.size() / 2);
+    count = dua_renew(&a, &r, escapes.data(), n, step, cand.data(), capacity);
+    if (count < 0) return false;
+    if (count <= capacity) break;
+    cand.resize(2 * count);
+  }
+  ids->clear();
+  t.Lookup(cand.data(), count, ids);
+  std::sort(ids->begin(), ids->end());
+  ids->erase(std::unique(ids->begin(), ids->end()), ids->end());
+  return true;
+}
+
+void PrunedState::FindEscapes(const PrunedTables& t, const dua_step_args& a, int64_t step) {
+  dua_reach r = Reach(t);
+  r.dt = a.schedule.dt;
+  escapes.resize(t.nsphere);
+  escapes.resize(dua_escaped_spheres(&a, &r, step, escapes.data()));
+}
+
+}  // namespace dua
