@@ -4,6 +4,7 @@ native core (issue 20), A/B in one run.
     git worktree add --detach /tmp/before 1581945      # the last commit with the numba step
     python benchmarks/plugin.py --before /tmp/before   # markdown tables (about 15 min)
     python benchmarks/plugin.py --scenes two_arms gym/ant --steps 600
+    python benchmarks/plugin.py --scenes bin_pour swarm:1000 --steps 600   # pruned pairs too
 
 Scenes: the bundled ones, gymnasium's and dm_control's, and every robot of
 ``benchmarks/robots.py`` whose package is installed. Each side (this checkout, and the one given
@@ -104,20 +105,30 @@ for scene in scenes:
                predictor_us=float(np.median(t_pred)) / 1e3, mj_us=float(np.median(t_mj)) / 1e3,
                evals=float(np.mean(evals)))
     if side == "after":
-        from dua_mujoco.plugin import attach
-        attach(spec, accel=p.bounds, covering=CoveringOptions(hfield="box"))
-        mp = spec.compile()
-        da, db = mujoco.MjData(m), mujoco.MjData(mp)
-        plain, plugged = [], []
+        from dua_mujoco.plugin import attach, plugin_outputs
+        # The plugin holding every pair, and pruned pairs (on a spec of its own).
+        runs = [(m, mujoco.MjData(m), [], [])]
+        for pairs, s in (("all", spec), ("pruned", spec_of(scene))):
+            attach(s, accel=p.bounds, covering=CoveringOptions(hfield="box"), pairs=pairs)
+            mp = s.compile()
+            runs.append((mp, mujoco.MjData(mp), [], []))
         block = max(steps // 10, 1)
         for start in range(0, steps, block):
-            for data, model, out in ((da, m, plain), (db, mp, plugged)):
+            for model, data, out, ev in runs:
                 for k in range(start, min(start + block, steps)):
                     data.ctrl[:] = u[k]
                     t0 = time.perf_counter_ns(); mujoco.mj_step(model, data)
                     out.append(time.perf_counter_ns() - t0)
-        row.update(plain_us=float(np.median(plain)) / 1e3,
-                   plugin_us=float(np.median(plugged)) / 1e3)
+                    if ev is not runs[0][3]:
+                        ev.append(plugin_outputs(model, data).evaluated)
+        row.update(plain_us=float(np.median(runs[0][2])) / 1e3,
+                   plugin_us=float(np.median(runs[1][2])) / 1e3,
+                   pruned_us=float(np.median(runs[2][2])) / 1e3,
+                   pruned_mean_us=float(np.mean(runs[2][2])) / 1e3,
+                   plugin_mean_us=float(np.mean(runs[1][2])) / 1e3,
+                   plain_mean_us=float(np.mean(runs[0][2])) / 1e3,
+                   plugin_evals=float(np.mean(runs[1][3])),
+                   pruned_evals=float(np.mean(runs[2][3])))
     print(json.dumps(row), flush=True)
 """
 
@@ -170,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
         + (" Predictor.step before us | after / before |" if before else "")
     )
     print("|---" * (9 + (2 if before else 0)) + "|")
+    pruned_rows = []
     added = []
     for scene in scenes:
         one = next(r for r in after if r["scene"] == scene)
@@ -191,6 +203,19 @@ def main(argv: list[str] | None = None) -> int:
             old = _median(before, scene, "predictor_us")
             cells += [f"{old:.2f}", f"{pred / old:.2f}"]
         print("| " + " | ".join(cells) + " |")
+        mean = _median(after, scene, "plain_mean_us")
+        pruned_rows.append(
+            f"| {scene} | {one['plugin_evals']:.1f} | {one['pruned_evals']:.1f} | "
+            f"{(plugin - plain) / plain:+.2f} | "
+            f"{(_median(after, scene, 'pruned_us') - plain) / plain:+.2f} | "
+            f"{(_median(after, scene, 'plugin_mean_us') - mean) / mean:+.2f} | "
+            f"{(_median(after, scene, 'pruned_mean_us') - mean) / mean:+.2f} |"
+        )
+    print(
+        "\n| scene | plugin evals/step, all pairs | pruned | adds (x mj_step, medians), all | "
+        "pruned | adds (means), all | pruned |\n|---|---|---|---|---|---|---|"
+    )
+    print("\n".join(pruned_rows))
     robots = [x for s, x in added if s.startswith("robot/")]
     if robots:
         print(
