@@ -206,3 +206,29 @@ def test_a_pruned_predictor_renews_its_pairs_when_a_struck_body_leaves_their_rea
     m, d = balls()
     blind = run(m, d, Predictor(m, accel=0.1, pairs=pruned), steps=100, progress=False)
     assert blind.missed_onsets_outside_violations >= 1
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_held_pairs_are_indexed_by_body_as_a_stable_sort_would(seed: int) -> None:
+    """``EventTable.hold`` (the native counting sort the plugin shares): for each checked body,
+    the held pairs with a geom on it, by first geom then second, each in increasing position,
+    as a stable argsort of the rows does it; geoms of unchecked bodies and -1 left out."""
+    from dua_mujoco.mj.events import B_BODY
+
+    m, _ = load_scene("two_arms")
+    events = Predictor(m, accel=30.0).events
+    assert events is not None
+    rng = np.random.default_rng(seed)
+    g1, g2 = rng.integers(-1, m.ngeom, (2, 500))
+    events.hold(g1, g2)
+    row_of_body = np.full(m.nbody, -1)
+    row_of_body[events.records[:, B_BODY].astype(int)] = np.arange(events.nbody)
+    rows = np.concatenate([row_of_body[m.geom_bodyid[g]] * (g >= 0) - (g < 0) for g in (g1, g2)])
+    pos = np.concatenate([np.arange(500), np.arange(500)])
+    keep = rows >= 0
+    order = np.argsort(rows[keep], kind="stable")
+    np.testing.assert_array_equal(events.members, pos[keep][order])
+    np.testing.assert_array_equal(
+        events.start, np.searchsorted(rows[keep][order], np.arange(events.nbody + 1))
+    )
+    assert 0 < events.members.size < 1000

@@ -29,7 +29,9 @@ the ends of its period is not seen (docs/theory.md, section 6).
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import ctypes
+import functools
+from typing import Any, NamedTuple
 
 import mujoco
 import numba as nb
@@ -38,6 +40,7 @@ import numpy.typing as npt
 
 from dua_mujoco.core.native_kernels import exceeds12_c
 from dua_mujoco.mj.bounds import MotionBounds
+from dua_mujoco.native import library
 
 __all__ = [
     "BodyBoxes",
@@ -131,6 +134,15 @@ def body_boxes(
     return BodyBoxes(ref, bodies, 0.5 * (lo + hi), 0.5 * (hi - lo))
 
 
+@functools.cache
+def _index_by_row() -> Any:
+    """``dua_index_by_row``, its signature declared once."""
+    f = library().dua_index_by_row
+    f.restype = ctypes.c_int64
+    f.argtypes = [ctypes.c_void_p] * 3 + [ctypes.c_int64] * 2 + [ctypes.c_void_p] * 2
+    return f
+
+
 class EventTable:
     """The violation check's tables and state for one predictor.
 
@@ -168,26 +180,25 @@ class EventTable:
         self.meta = np.zeros(3, dtype=np.int64)
         self.flagged = np.zeros(max(n, 1), dtype=np.int64)
         self.params = np.array([period * h, rtol])
-        self._row = np.full(model.nbody, -1, dtype=np.int64)
-        self._row[boxes.body] = np.arange(n)
-        self._geom_body = np.asarray(model.geom_bodyid, dtype=np.int64)
+        row = np.full(model.nbody, -1, dtype=np.int64)
+        row[boxes.body] = np.arange(n)
+        self._geom_row = np.ascontiguousarray(row[np.asarray(model.geom_bodyid, dtype=np.int64)])
         self.start = np.zeros(n + 1, dtype=np.int64)
         self.members = np.zeros(0, dtype=np.int64)
 
     def hold(self, geom1: np.ndarray, geom2: np.ndarray) -> None:
-        """Index the held pairs (``geom1``, ``geom2`` of each, ``-1`` for none) by body."""
-        k = geom1.shape[0]
-        rows = []
-        for g in (geom1, geom2):
-            b = np.where(g >= 0, self._geom_body[np.maximum(g, 0)], 0)
-            rows.append(np.where(g >= 0, self._row[b], -1))
-        row = np.concatenate(rows)
-        pos = np.concatenate([np.arange(k), np.arange(k)])
-        keep = row >= 0
-        row, pos = row[keep], pos[keep]
-        order = np.argsort(row, kind="stable")
-        self.members = np.ascontiguousarray(pos[order])
-        self.start = np.searchsorted(row[order], np.arange(self.records.shape[0] + 1))
+        """Index the held pairs (``geom1``, ``geom2`` of each, ``-1`` for none) by body: for each
+        checked body, the pairs with a geom on it (the native counting sort the plugin uses)."""
+        g1 = np.ascontiguousarray(geom1, dtype=np.int64)
+        g2 = np.ascontiguousarray(geom2, dtype=np.int64)
+        n = g1.shape[0]
+        self.start = np.zeros(self.records.shape[0] + 1, dtype=np.int64)
+        members = np.zeros(max(2 * n, 1), dtype=np.int64)
+        count = _index_by_row()(
+            self._geom_row.ctypes, g1.ctypes, g2.ctypes, n, self.records.shape[0],
+            self.start.ctypes, members.ctypes,
+        )  # fmt: skip
+        self.members = members[:count].copy()
 
     @property
     def nbody(self) -> int:

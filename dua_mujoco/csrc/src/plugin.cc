@@ -149,24 +149,13 @@ struct Instance {
         std::copy_n(t.exact_records.begin() + 10 * held[k], 10, exact_records.begin() + 10 * k);
       }
     }
-    // Counting sort by body row: the pairs of a row in the order EventTable.hold gives them
-    // (by first geom, then by second, each by position).
-    held_start.assign(t.nbody_events + 1, 0);
-    for (const auto* geoms : {&t.geom1, &t.geom2}) {
-      for (int64_t k = 0; k < n; ++k) {
-        const int64_t r = t.geom_row[(*geoms)[held[k]]];
-        if (r >= 0) ++held_start[r + 1];
-      }
-    }
-    for (int64_t r = 0; r < t.nbody_events; ++r) held_start[r + 1] += held_start[r];
-    held_members.resize(held_start[t.nbody_events]);
-    std::vector<int64_t> cursor(held_start.begin(), held_start.end() - 1);
-    for (const auto* geoms : {&t.geom1, &t.geom2}) {
-      for (int64_t k = 0; k < n; ++k) {
-        const int64_t r = t.geom_row[(*geoms)[held[k]]];
-        if (r >= 0) held_members[cursor[r]++] = k;
-      }
-    }
+    // Indexed by the violation check's rows, as EventTable.hold indexes them.
+    std::vector<int64_t> g1(n), g2(n);
+    for (int64_t k = 0; k < n; ++k) g1[k] = t.geom1[held[k]], g2[k] = t.geom2[held[k]];
+    held_start.resize(t.nbody_events + 1);
+    held_members.resize(2 * n);
+    held_members.resize(dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
+                                         held_start.data(), held_members.data()));
   }
 
   // A new trajectory: record the mocap poses; their twists are zero until the next step.

@@ -443,6 +443,28 @@ int64_t dua_violation_pass(dua_step_args* a, int64_t n) {
   return count;
 }
 
+int64_t dua_index_by_row(const int64_t* row_of_geom, const int64_t* geom1, const int64_t* geom2,
+                         int64_t n, int64_t nrow, int64_t* start, int64_t* members) {
+  std::fill(start, start + nrow + 1, int64_t{0});
+  for (const int64_t* geoms : {geom1, geom2}) {
+    for (int64_t k = 0; k < n; ++k) {
+      const int64_t r = geoms[k] >= 0 ? row_of_geom[geoms[k]] : -1;
+      if (r >= 0) ++start[r + 1];
+    }
+  }
+  for (int64_t r = 0; r < nrow; ++r) start[r + 1] += start[r];
+  for (const int64_t* geoms : {geom1, geom2}) {
+    for (int64_t k = 0; k < n; ++k) {
+      const int64_t r = geoms[k] >= 0 ? row_of_geom[geoms[k]] : -1;
+      // start[r] is the next free place of row r; shifted back below.
+      if (r >= 0) members[start[r]++] = k;
+    }
+  }
+  for (int64_t r = nrow; r > 0; --r) start[r] = start[r - 1];
+  start[0] = 0;
+  return start[nrow];
+}
+
 void dua_reset_events(dua_step_args* a) {
   const dua_events& ev = a->events;
   ev.meta[dua::kMNprev] = 0;

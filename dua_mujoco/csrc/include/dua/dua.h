@@ -146,6 +146,13 @@ DUA_API int64_t dua_evaluate(dua_step_args* a, const int64_t* ids, int64_t count
 // The exact level alone: tau[k] of held pairs ids[k] raised to max(tau[k], exact) where it is
 // below exact.below (dua_evaluate and dua_step run it after the sphere level).
 DUA_API void dua_exact_pass(dua_step_args* a, const int64_t* ids, int64_t count, double* tau);
+// Index n held pairs by the violation check's rows: pair k has geoms geom1[k], geom2[k] (-1:
+// none), geom g the row row_of_geom[g] (-1: not checked); start (nrow + 1,) and members
+// (2 n,) receive, for each row, the pairs with a geom on it, first by geom1 then by geom2, each
+// in increasing k (a counting sort). Returns the number of members.
+DUA_API int64_t dua_index_by_row(const int64_t* row_of_geom, const int64_t* geom1,
+                                 const int64_t* geom2, int64_t n, int64_t nrow, int64_t* start,
+                                 int64_t* members);
 // Record the events check's state at the frame's instant, checking nothing.
 DUA_API void dua_reset_events(dua_step_args* a);
 // Check every body (the violation events) and make the held pairs of each flagged one due at
