@@ -3,6 +3,7 @@ Python predictor step by step, per-``MjData`` state, exported models, C++ withou
 
 from __future__ import annotations
 
+import base64
 import shutil
 import subprocess
 import sys
@@ -344,6 +345,17 @@ def test_a_model_with_broken_tables_names_what_is_wrong() -> None:
     attach(spec, accel=4.0)
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.1, 0, 0], pos=[0, 0, 5])
     with pytest.raises(Exception, match="attach last"):
+        mujoco.MjData(spec.compile())
+    # Pruned pairs: a reach that is not a number (a hand-edited table) is refused, named.
+    from dua_mujoco.plugin import _encode
+
+    spec = load_spec("traffic")
+    attach(spec, accel=4.0, pairs="pruned")
+    text = next(t for t in spec.texts if t.name == "dua:reach")
+    reach = np.frombuffer(base64.b64decode(text.data.split(" ", 1)[1]), dtype="<f8").copy()
+    reach[1] = np.nan
+    text.data = _encode(reach)
+    with pytest.raises(Exception, match="the reach table's values"):
         mujoco.MjData(spec.compile())
 
 

@@ -203,7 +203,9 @@ int64_t dua_grid_bounds(const double* centers, int64_t n, double* lo, double* hi
 void dua_grid_plan_of(const double* reach, int64_t n, double margin, const double* lo,
                       const double* hi, dua_grid_plan* plan, int64_t* held, double* work) {
   dua_grid_plan& g = *plan;
-  const double extent[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+  // No sphere: an empty box (the bounds of nothing are inf, -inf).
+  const double extent[3] = {n ? hi[0] - lo[0] : 0.0, n ? hi[1] - lo[1] : 0.0,
+                            n ? hi[2] - lo[2] : 0.0};
   const double widest = std::max({extent[0], extent[1], extent[2]});
   // Held out: the k spheres of largest reach, k minimising k N + 14 N (1 + occupancy), the
   // occupancy estimated from the bounding box with the cell the rest would need.
@@ -227,23 +229,26 @@ void dua_grid_plan_of(const double* reach, int64_t n, double margin, const doubl
     auto larger = [reach](int64_t a, int64_t b) {
       return reach[a] > reach[b] || (reach[a] == reach[b] && a < b);
     };
-    std::sort(top, top + kmax + 1, larger);
-    int64_t best = 0;
-    double best_cost = INFINITY;
-    const auto nn = static_cast<double>(n);
-    for (int64_t k = 0; k <= kmax; ++k) {
-      const double h = dua::CellEdge(reach[top[k]], margin, widest);
-      double vol = 1.0;
-      for (double e : extent) vol *= std::max(e, h);
-      const double occupancy = std::min(nn, nn * h * h * h / vol);
-      const auto kk = static_cast<double>(k);
-      const double cost = kk * nn + dua::kCellCost * (nn - kk) * (1.0 + occupancy);
-      if (cost < best_cost) best_cost = cost, best = k;
+    // Fewer only with a NaN reach (the callers refuse them): then none is held out.
+    if (count == kmax + 1) {
+      std::sort(top, top + kmax + 1, larger);
+      int64_t best = 0;
+      double best_cost = INFINITY;
+      const auto nn = static_cast<double>(n);
+      for (int64_t k = 0; k <= kmax; ++k) {
+        const double h = dua::CellEdge(reach[top[k]], margin, widest);
+        double vol = 1.0;
+        for (double e : extent) vol *= std::max(e, h);
+        const double occupancy = std::min(nn, nn * h * h * h / vol);
+        const auto kk = static_cast<double>(k);
+        const double cost = kk * nn + dua::kCellCost * (nn - kk) * (1.0 + occupancy);
+        if (cost < best_cost) best_cost = cost, best = k;
+      }
+      g.nheld = best;
+      g.rcut = reach[top[best]];
+      std::copy(top, top + best, held);
+      std::sort(held, held + best);
     }
-    g.nheld = best;
-    g.rcut = reach[top[best]];
-    std::copy(top, top + best, held);
-    std::sort(held, held + best);
   }
   const int64_t ng = n - g.nheld;
   const double h_min = dua::CellEdge(g.rcut, margin, widest);

@@ -108,9 +108,19 @@ std::vector<int64_t> AsInts(const std::vector<double>& v) {
 bool LoadPruned(const mjModel* m, const std::string& prefix, Tables* t) {
   std::vector<double> reach;
   if (!ReadTable(m, prefix, "reach", &reach)) return false;
-  const std::string bad =
-      t->held.Build(reach, t->spheres, t->pairs, m->nbody, t->config[kCfgHorizon],
-                    t->config[kCfgMargin], static_cast<int64_t>(t->config[kCfgStride]));
+  const double stride = t->config[kCfgStride];
+  std::string bad;
+  if (!(stride >= 1 && stride < 1e9)) bad = "the stride";
+  // Pruned pairs are carried into the deadline schedule only (Predictor requires it too).
+  if (static_cast<int64_t>(t->config[kCfgKind]) != 1) bad = "a schedule other than deadline";
+  for (int64_t r = 0; r < t->nbody_events; ++r) {
+    const double b = t->events_rec[12 * r + kBBody];
+    if (!(b >= 0 && b < m->nbody)) bad = "the violation check's bodies";
+  }
+  if (bad.empty()) {
+    bad = t->held.Build(reach, t->spheres, t->pairs, m->nbody, t->config[kCfgHorizon],
+                        t->config[kCfgMargin], static_cast<int64_t>(stride));
+  }
   if (!bad.empty()) {
     mju_warning(
         "dua_mujoco.predictor: the pruned pairs' tables under prefix '%s' do not fit (%s): "

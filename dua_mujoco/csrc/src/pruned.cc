@@ -20,7 +20,10 @@ std::string PrunedTables::Build(const std::vector<double>& reach_table,
                                 double margin_m, int64_t stride_steps) {
   nsphere = static_cast<int64_t>(spheres.size() / kSphereNcol);
   if (static_cast<int64_t>(reach_table.size()) != 4 * nsphere) return "the reach table";
-  if (!(horizon_s > 0.0) || !(margin_m >= 0.0) || stride_steps < 1) return "the horizon";
+  if (!(horizon_s > 0.0) || !(margin_m >= 0.0) || !std::isfinite(horizon_s) ||
+      !std::isfinite(margin_m) || stride_steps < 1) {
+    return "the horizon, margin or stride";
+  }
   horizon = horizon_s;
   margin = margin_m;
   stride = stride_steps;
@@ -30,6 +33,12 @@ std::string PrunedTables::Build(const std::vector<double>& reach_table,
     accel[i] = reach_table[4 * i + 1];
     delta[i] = reach_table[4 * i + 2];
     speed[i] = reach_table[4 * i + 3];
+    // Finite and >= 0 (a speed bound may be inf: none), as neighbors.reach requires.
+    const bool finite = std::isfinite(radius[i]) && std::isfinite(accel[i]) &&
+                        std::isfinite(delta[i]) && !std::isnan(speed[i]);
+    if (!finite || radius[i] < 0 || accel[i] < 0 || delta[i] < 0 || speed[i] < 0) {
+      return "the reach table's values";
+    }
   }
   // Spheres by body: a counting sort, each body's in id order.
   body_start.assign(nbody + 1, 0);
@@ -49,6 +58,9 @@ std::string PrunedTables::Build(const std::vector<double>& reach_table,
   always.clear();
   for (int64_t p = 0; p < npair; ++p) {
     const double* rec = pairs.data() + kPairNcol * p;
+    if (!(rec[kFirst] >= 0 && rec[kFirst] < static_cast<double>(nsphere))) {
+      return "the pair records";
+    }
     if (rec[kKind] != 0.0) {
       always.push_back(p);
       continue;
@@ -109,16 +121,17 @@ bool PrunedState::Select(const PrunedTables& t, const dua_step_args& a, int64_t 
                          std::vector<int64_t>* ids) {
   const int64_t n = t.nsphere;
   state.resize(6);
-  std::vector<double> centers(3 * static_cast<size_t>(n));
+  std::vector<double> centers(3 * static_cast<size_t>(n)), speeds(n);
   for (int64_t i = 0; i < n; ++i) {
     dua_rigid_point(i, a.spheres, &a.frame, state.data());
     for (int c = 0; c < 6; ++c) {
-      if (!std::isfinite(state[c])) return false;
+      if (!std::isfinite(state[c])) return false;  // nothing anchored
     }
     std::copy(state.begin(), state.begin() + 3, centers.begin() + 3 * i);
-    speed0[i] = std::sqrt(state[3] * state[3] + state[4] * state[4] + state[5] * state[5]);
+    speeds[i] = std::sqrt(state[3] * state[3] + state[4] * state[4] + state[5] * state[5]);
   }
-  anchor = centers;
+  anchor = std::move(centers);
+  speed0 = std::move(speeds);
   std::fill(built.begin(), built.end(), step);
   dua_reaches(t.radius.data(), speed0.data(), t.accel.data(), t.delta.data(), t.speed.data(), n,
               t.horizon, reach.data());

@@ -12,8 +12,9 @@ namespace {
 
 // The grid's pair contract (grid.cc; ROUNDING_SLACK of dua_mujoco/core/neighbors.py): 1 + 2^-44.
 constexpr double kRoundingSlack = 1.0 + 1.0 / 17592186044416.0;
-// Relative slack of the escape test: a sphere that moved exactly as far as its bounds allow,
-// integrated in float64, must not count as escaped.
+// Rounding allowance of the escape test, relative: a sphere within it of its reach's edge counts
+// as escaped (in doubt, renewed: a renewal is cheap and always safe, while a sphere let through
+// that far outside would leave a pair out by that much).
 constexpr double kEscapeSlack = 1e-9;
 
 // Whether sphere s, at centre c with measured velocity v t seconds after its anchor, may have
@@ -31,7 +32,11 @@ bool Escapes(const dua_reach& r, int64_t s, const double* c, const double* v, do
   // Rounding: positions scale with their magnitude, speeds with the bound.
   const double scale = std::max({1.0, std::fabs(c[0]), std::fabs(c[1]), std::fabs(c[2])});
   const double tol = kEscapeSlack * (allow + std::fabs(top)) + 1e-12 * scale;
-  return dist > allow + tol || speed > top + tol;
+  // Written so that a state that is not finite escapes (its renewal then reports it). At the
+  // anchor's own step the state is the anchor's, exactly: no rounding to allow for. Later, it
+  // passes only with room to spare for the rounding of dist and speed.
+  if (t == 0.0) return !(dist <= allow && speed <= top);
+  return !(dist + tol <= allow && speed + tol <= top);
 }
 
 double Reach(double radius, double speed, double accel, double delta, double vmax, double t) {
