@@ -372,3 +372,75 @@ def test_the_filter_on_candidates_gives_mujocos_pairs_on_scenes(scene: str) -> N
 @pytest.mark.parametrize("path", ASSETS, ids=[f"{p.parent.name}/{p.name}" for p in ASSETS])
 def test_the_filter_on_candidates_gives_mujocos_pairs_on_assets(path: pathlib.Path) -> None:
     _lazy_parity(_load(path))
+
+
+@pytest.mark.parametrize("scene", ["two_arms", "clutter", "bin_pour:20", "traffic"])
+def test_pair_tables_equal_a_loop_over_geom_pairs(scene: str) -> None:
+    """The native expansion, bounds and exact records (one implementation, which the plugin's
+    pruned pairs use too) equal a plain loop over the geom pairs: sphere pairs in order (each
+    geom pair's, the sphere-covered geom's spheres first), eps, summed bounds, exact modes."""
+    from dua_mujoco.core.pairset import PairKind
+    from dua_mujoco.mj.bounds import MotionBounds
+    from dua_mujoco.mj.exact import build_exact
+    from dua_mujoco.mj.exact_kernels import GX_KIND, ExactMode
+    from dua_mujoco.mj.pairbounds import bounded_pairs
+    from dua_mujoco.mj.scenes import load_scene
+
+    m, _ = load_scene(scene)
+    cov = cover_model(m, mode="multi", max_spheres_per_geom=3)
+    gp = active_geom_pairs(m)
+    sp = sphere_pairs(cov, gp)
+    rows = []
+    for k in range(gp.npair):
+        g1, g2 = int(gp.geom1[k]), int(gp.geom2[k])
+        lone1 = cov.geom_plane[g1] >= 0 or cov.geom_shape[g1] >= 0
+        ga, gb = (g2, g1) if lone1 else (g1, g2)
+        if cov.geom_plane[gb] >= 0 and cov.geom_plane[ga] >= 0:
+            continue
+        d = float(gp.contact_distance[k])
+        for i in cov.spheres_of(ga).tolist():
+            if cov.geom_plane[gb] >= 0:
+                rows.append((i, int(cov.geom_plane[gb]), 1, k, cov.sphere_radius[i] + 0.0 + d))
+            elif cov.geom_shape[gb] >= 0:
+                rows.append((i, int(cov.geom_shape[gb]), 2, k, cov.sphere_radius[i] + 0.0 + d))
+            else:
+                for j in cov.spheres_of(gb).tolist():
+                    rows.append((i, j, 0, k, cov.sphere_radius[i] + cov.sphere_radius[j] + d))
+    want = np.array(rows, dtype=object).reshape(-1, 5)
+    np.testing.assert_array_equal(sp.first, want[:, 0].astype(int))
+    np.testing.assert_array_equal(sp.second, want[:, 1].astype(int))
+    np.testing.assert_array_equal(sp.kind, want[:, 2].astype(int))
+    np.testing.assert_array_equal(sp.geom_pair, want[:, 3].astype(int))
+    np.testing.assert_array_equal(sp.eps, want[:, 4].astype(float))  # the same sums, exactly
+    assert (sp.kind == int(PairKind.SPHERE)).any()
+
+    rng = np.random.default_rng(0)
+    accel, delta = rng.uniform(0, 50, m.nbody), rng.uniform(0, 0.1, m.nbody)
+    accel[0] = delta[0] = 0.0
+    bounds = MotionBounds(accel=accel, vel_uncertainty=delta, speed=rng.uniform(1, 9, m.nbody))
+    ps = bounded_pairs(m, cov, sp, bounds)
+    b1 = cov.sphere_body[sp.first]
+    b2 = np.where(sp.kind == 0, cov.sphere_body[np.where(sp.kind == 0, sp.second, 0)], 0)
+    np.testing.assert_array_equal(ps.accel, accel[b1] + accel[b2])
+    np.testing.assert_array_equal(ps.vel_uncertainty, delta[b1] + delta[b2])
+    assert bounds.speed is not None
+    v = bounds.speed
+    np.testing.assert_array_equal(ps.speed, np.where(sp.kind == 0, v[b1] + v[b2], v[b1]))
+
+    geom2 = np.where(
+        sp.kind == 1,
+        np.asarray(cov.plane_geom)[np.where(sp.kind == 1, sp.second, 0)],
+        np.where(
+            sp.kind == 2,
+            np.asarray(cov.shape_geom)[np.where(sp.kind == 2, sp.second, 0)],
+            cov.sphere_geom[np.where(sp.kind == 0, sp.second, 0)],
+        ),
+    )
+    geom1 = cov.sphere_geom[sp.first]
+    level = build_exact(m, geom1, geom2, sp.kind, sp.eps, 1.0)
+    for p in range(sp.npair):
+        kind, g1, g2 = int(sp.kind[p]), int(geom1[p]), int(geom2[p])
+        usable = level.geoms[g1, GX_KIND] >= 0 and (kind == 1 or level.geoms[g2, GX_KIND] >= 0)
+        mode = [ExactMode.GEOMS, ExactMode.PLANE, ExactMode.SHAPE][kind] if usable else 0
+        want_row = [mode, g1, g2, sp.eps[p], 0, 0, 0, -1, -1, 0]
+        np.testing.assert_array_equal(level.records[p], want_row)

@@ -22,13 +22,15 @@ is degenerate (touching, or no witness within the query's reach).
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
+import functools
+from typing import Any
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.pairset import KIND_HALFSPACE, KIND_SHAPE
 from dua_mujoco.core.shapes import (
     ShapeKind,
 )
@@ -45,14 +47,13 @@ from dua_mujoco.mj.exact_kernels import (
     X_DIST,
     X_G1,
     X_G2,
-    X_HULL1,
-    X_HULL2,
     X_MODE,
     X_N,
     X_NCOL,
     ExactMode,
 )
 from dua_mujoco.mj.kinematics import pack_spheres
+from dua_mujoco.native import library
 
 __all__ = [
     "EXACT_PERIODS",
@@ -251,23 +252,28 @@ def exact_records(
 ) -> np.ndarray:
     """``(n, X_NCOL)`` records of sphere pairs (``build_exact``'s arguments) over the level's
     per-geom records ``geoms``: a pruned predictor adds the pairs it meets with these."""
-    g1 = np.asarray(geom1, dtype=np.int64)
-    g2 = np.asarray(geom2, dtype=np.int64)
-    k = np.asarray(kind)
-    ok1 = geoms[g1, GX_KIND] >= 0
-    plane = k == KIND_HALFSPACE
-    ok2 = plane | (geoms[g2, GX_KIND] >= 0)
-    mode = np.where(
-        plane, ExactMode.PLANE, np.where(k == KIND_SHAPE, ExactMode.SHAPE, ExactMode.GEOMS)
-    )
+    g1 = np.ascontiguousarray(geom1, dtype=np.int64)
+    g2 = np.ascontiguousarray(geom2, dtype=np.int64)
+    k = np.ascontiguousarray(kind, dtype=np.int8)
+    dist = np.ascontiguousarray(np.broadcast_to(contact_distance, g1.shape), dtype=np.float64)
+    table = np.ascontiguousarray(geoms, dtype=np.float64)
     rec = np.zeros((g1.shape[0], X_NCOL))
-    rec[:, X_MODE] = np.where(ok1 & ok2, mode, ExactMode.NONE)
-    rec[:, X_G1] = g1
-    rec[:, X_G2] = g2
-    rec[:, X_DIST] = np.asarray(contact_distance, dtype=np.float64)
-    rec[:, X_HULL1] = -1.0
-    rec[:, X_HULL2] = -1.0
+    # The native core's rows (the plugin's pruned pairs make those of the pairs they meet).
+    _exact_rows_c()(
+        table.ctypes.data, g1.ctypes.data, g2.ctypes.data, k.ctypes.data, dist.ctypes.data,
+        g1.shape[0], rec.ctypes.data,
+    )  # fmt: skip
     return rec
+
+
+@functools.cache
+def _exact_rows_c() -> Any:
+    """``dua_exact_rows``, its signature declared once."""
+    f = library().dua_exact_rows
+    p = ctypes.c_void_p
+    f.restype = None
+    f.argtypes = [p, p, p, p, p, ctypes.c_int64, p]
+    return f
 
 
 def corner_points(

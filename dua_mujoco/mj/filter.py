@@ -36,9 +36,11 @@ and ``geom_gap[g1] + geom_gap[g2]`` (summed since 3.5); explicit pairs use ``pai
 
 from __future__ import annotations
 
+import ctypes
+import functools
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import mujoco
 import numpy as np
@@ -49,6 +51,7 @@ from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, Unsuppo
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
 from dua_mujoco.mj.pairfilter import FilterTables, all_dynamic_pairs, dynamic_mask
+from dua_mujoco.native import library
 
 __all__ = [
     "GeomPairs",
@@ -477,33 +480,43 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
             f"geom {g} is in an active pair but has no covering spheres; build the covering with "
             "cover_model(model, only_collidable=True) from the same model as the pairs."
         )
-    counts = na * nb
-    total = int(counts.sum())
-    pair_of = np.repeat(np.arange(idx.shape[0]), counts)
-    offsets = np.cumsum(counts) - counts
-    local = np.arange(total, dtype=np.int64) - offsets[pair_of]
-    nb_rep = nb[pair_of]
-    first = start[ga][pair_of] + local // nb_rep
-    hs = halfspace[pair_of]
-    sh = shape[pair_of]
-    second = np.where(
-        hs,
-        covering.geom_plane[gb][pair_of],
-        np.where(sh, covering.geom_shape[gb][pair_of], start[gb][pair_of] + local % nb_rep),
-    )
-    dist = np.asarray(geom_pairs.contact_distance, dtype=np.float64)[idx][pair_of]
-    r1 = covering.sphere_radius[first]
-    r2 = np.zeros(total)
-    two = ~(hs | sh)
-    r2[two] = covering.sphere_radius[second[two]]
+    # The expansion is the native core's (the plugin's pruned pairs expand the pairs they meet
+    # with it too): counted, then written.
+    dist = np.asarray(geom_pairs.contact_distance, dtype=np.float64)[idx]
+    inputs = [
+        np.ascontiguousarray(a, dtype=t)
+        for a, t in (
+            (gp1, np.int64), (gp2, np.int64), (dist, np.float64), (idx, np.int64),
+            (start, np.int64), (covering.geom_plane, np.int64), (covering.geom_shape, np.int64),
+            (covering.sphere_radius, np.float64),
+        )
+    ]  # fmt: skip
+    ptrs = [x.ctypes.data for x in inputs]
+    fn = _sphere_pairs_c()
+    total = int(fn(*ptrs[:4], idx.shape[0], *ptrs[4:], 0, None, None, None, None, None))
+    first, second, geom_pair = (np.empty(total, dtype=np.int64) for _ in range(3))
+    kind = np.empty(total, dtype=np.int8)
+    eps = np.empty(total)
+    outs = [x.ctypes.data for x in (first, second, kind, geom_pair, eps)]
+    fn(*ptrs[:4], idx.shape[0], *ptrs[4:], total, *outs)
     return SpherePairs(
         first=first.astype(np.int32),
         second=second.astype(np.int32),
-        is_halfspace=hs,
-        geom_pair=idx[pair_of].astype(np.int32),
-        eps=r1 + r2 + dist,
-        is_shape=sh,
+        is_halfspace=kind == int(PairKind.HALFSPACE),
+        geom_pair=geom_pair.astype(np.int32),
+        eps=eps,
+        is_shape=kind == int(PairKind.SHAPE),
     )
+
+
+@functools.cache
+def _sphere_pairs_c() -> Any:
+    """``dua_sphere_pairs``, its signature declared once."""
+    f = library().dua_sphere_pairs
+    p, i8 = ctypes.c_void_p, ctypes.c_int64
+    f.restype = i8
+    f.argtypes = [p, p, p, p, i8, p, p, p, p, i8, p, p, p, p, p]
+    return f
 
 
 def body_id(model: mujoco.MjModel, body: int | str) -> int:

@@ -177,6 +177,32 @@ DUA_API void dua_difference_poses(const double* xpos, const double* xquat, const
 
 DUA_API int64_t dua_abi_version(void);
 
+// ------------------------------------------------------------------------------- pair tables
+
+// The sphere pairs of geom pairs k = (g1[k], g2[k]) (index[k] their ids, dist[k] their contact
+// distances), grouped by geom pair: a geom held as a plane (plane[g] >= 0, its half-space
+// index) or a static shape (shape[g] >= 0, its record) pairs as that one object with every
+// sphere of the other geom, which comes first; otherwise every sphere of g1 with every sphere of
+// g2 (start: each geom's first sphere, ngeom + 1 entries). Up to capacity rows of first, second
+// (a sphere, plane or shape index), kind (0 sphere, 1 half-space, 2 shape), geom_pair and eps
+// (r1 + r2 + d, or r + d); returns how many pairs there are.
+DUA_API int64_t dua_sphere_pairs(const int64_t* g1, const int64_t* g2, const double* dist,
+                                 const int64_t* index, int64_t ngp, const int64_t* start,
+                                 const int64_t* plane, const int64_t* shape, const double* radius,
+                                 int64_t capacity, int64_t* first, int64_t* second, int8_t* kind,
+                                 int64_t* geom_pair, double* eps);
+// Each pair's bounds: the sums of its two bodies' acceleration bounds, velocity uncertainties
+// and (speed not null) speed bounds, a plane or static shape being the world body's (its speed
+// bound: the sphere's alone); without speed bounds, inf.
+DUA_API void dua_pair_bounds(const int64_t* first, const int64_t* second, const int8_t* kind,
+                             int64_t n, const int64_t* sphere_body, const double* accel,
+                             const double* delta, const double* speed, double* out_accel,
+                             double* out_delta, double* out_speed);
+// The exact level's records (n, 10) of pairs with geoms geom1, geom2 (a half-space pair's plane
+// geom second), over its per-geom records geoms (ngeom, 24).
+DUA_API void dua_exact_rows(const double* geoms, const int64_t* geom1, const int64_t* geom2,
+                            const int8_t* kind, const double* dist, int64_t n, double* out);
+
 // ------------------------------------------------------------------------------- the pair filter
 
 // Per geom, what MuJoCo's dynamic pair filter reads (dua_mujoco/mj/pairfilter.py, FilterTables).
