@@ -3,10 +3,13 @@
 The filter (``mj/filter.py``) is exact: only sphere pairs of geom pairs MuJoCo could put in
 contact are ever held. A pruned predictor holds the half-space and static-shape pairs (a plane
 is infinite; shapes never move), the ``<pair>`` elements' pairs among the candidates, and the
-sphere pairs among the candidates of ``neighbors.candidate_pairs`` at a horizon ``T``; it renews
-that set every ``pruned.rebuild_stride(T, dt, latency)`` steps (docs/many-objects.md, which
-proves this keeps the guarantee). Candidates the predictor has not met yet are put to MuJoCo's
-filter and learnt by its ``PairUniverse``: O(candidates) a rebuild, never O(N^2).
+sphere pairs among the candidates of ``neighbors.candidate_pairs`` at a horizon ``T``; it rebuilds
+that set every ``pruned.rebuild_stride(T, dt, latency)`` steps, and in between renews the pairs
+of the spheres an impact may have let out of their reach (:meth:`HeldPairs.renew`; the proofs:
+docs/many-objects.md and docs/theory.md, Lemmas 6.4 and 6.5). Candidates the predictor has not
+met yet are put to MuJoCo's filter and learnt by its ``PairUniverse``: O(candidates) a rebuild,
+never O(N^2). The kernels (the grid, the escape check, the renewal) are the native core's,
+which the MuJoCo plugin's pruned pairs run too.
 """
 
 from __future__ import annotations
@@ -73,6 +76,7 @@ def _functions() -> Any:
 
 
 def _contiguous(a: npt.ArrayLike, dtype: type) -> np.ndarray:
+    # An owned copy: the native struct points at it, and no caller's array is aliased.
     return np.ascontiguousarray(np.array(a, dtype=dtype))
 
 
