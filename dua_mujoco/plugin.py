@@ -28,13 +28,11 @@ from typing import Any, NamedTuple
 import mujoco
 import numpy as np
 
-from dua_mujoco.core.schedules import Schedule
-from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.events import no_events
 from dua_mujoco.mj.options import PairOptions
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.pruning import RENEW_MAX, resolve_pair_mode
+from dua_mujoco.mj.pruning import RENEW_MAX
 from dua_mujoco.native import ABI_VERSION, library
 
 __all__ = [
@@ -54,8 +52,9 @@ PLUGIN_NAME = "dua_mujoco.predictor"
 OUTPUTS = ("standing", "min_tau", "evaluated", "deferred", "flagged")
 
 MAX_GEOM_PAIRS = 1_000_000
-"""The most active geom pairs ``attach`` takes: the plugin holds every pair, about 150 bytes of
-tables each (in the model, and per ``MjData`` for the schedule)."""
+"""The most active geom pairs ``attach(spec, pairs="all")`` takes: holding every pair costs
+about 150 bytes of tables each (in the model, and per ``MjData`` for the schedule); pruned
+pairs learn the pairs they meet instead."""
 """The sensor's outputs, in order (:class:`PluginOutputs`)."""
 
 
@@ -115,18 +114,16 @@ def _check_prefix(spec: mujoco.MjSpec, prefix: object) -> str:
     return prefix
 
 
-def _tables(p: Predictor, pruned: Predictor | None = None) -> dict[str, np.ndarray]:
-    """The plugin's tables for predictor ``p`` (every pair known), by name; ``pruned``: a
-    pruned twin whose reaches and stride the plugin's held pairs follow, or None to hold every
-    pair."""
-    held = None if pruned is None else pruned._held
+def _tables(p: Predictor) -> dict[str, np.ndarray]:
+    """The plugin's tables for predictor ``p``, by name: its pairs as it knows them now (every
+    active pair; pruned: those held always, the plugin learning the rest as ``p`` does), and
+    for pruned pairs its reaches and what learning a pair reads."""
+    held = p._held
     sched = p.new_scheduler(np.full(p.nsphere_pairs, np.inf))
     state = sched.state
-    # Every pair held: the known geom pairs are the model's, rows g1 < g2 in increasing order,
-    # which the plugin's lookups need (and check).
     gp = p.geom_pairs
     exact = p.exact
-    config = np.zeros(30)
+    config = np.zeros(35)
     config[:11] = [
         ABI_VERSION,
         int(state.kind),
@@ -145,8 +142,8 @@ def _tables(p: Predictor, pruned: Predictor | None = None) -> dict[str, np.ndarr
     shape = structure_hash(p.model)
     config[20:24] = [p.model.ngeom, p.model.nbody, shape & 0xFFFFFFFF, shape >> 32]
     config[24] = state.work.shape[1]
-    if pruned is not None and held is not None:
-        config[25:30] = [1, held.horizon, held.margin, pruned.stride, RENEW_MAX]
+    if held is not None:
+        config[25:30] = [1, held.horizon, held.margin, p.stride, RENEW_MAX]
     tables = {
         "config": config,
         "pairs": p.pair_records,
@@ -165,7 +162,39 @@ def _tables(p: Predictor, pruned: Predictor | None = None) -> dict[str, np.ndarr
         tables["reach"] = np.stack(
             [held.radius, held.accel, held.vel_uncertainty, held.speed], axis=1
         )
+        config[30:35], learn = _learn_tables(p)
+        tables.update(learn)
     return tables
+
+
+def _learn_tables(p: Predictor) -> tuple[list[float], dict[str, np.ndarray]]:
+    """What the plugin's pruned pairs read to learn a pair as ``p.universe.learn`` does: config
+    entries 30-34 and tables (MuJoCo's filter per geom, margins and gaps, the covering's
+    per-geom layout, each body's bounds)."""
+    from dua_mujoco.mj.filter import contacts_enabled, margin_override
+    from dua_mujoco.mj.pairbounds import body_vel_uncertainty
+    from dua_mujoco.mj.pairfilter import FilterTables
+
+    m, cov, b = p.model, p.covering, p.bounds
+    ft = FilterTables.of(m)
+    o_margin = margin_override(m)
+    config = [
+        contacts_enabled(m), ft.filterparent, o_margin is not None,
+        0.0 if o_margin is None else o_margin, b.speed is not None,
+    ]  # fmt: skip
+    delta = body_vel_uncertainty(m, b, period=p.period, mocap=p.mocap)
+    speed = np.full(m.nbody, np.inf) if b.speed is None else b.speed
+    filt = [ft.body, ft.weld, ft.parent_weld, ft.movable, ft.contype, ft.conaffinity, ft.lone]
+    return [float(c) for c in config], {
+        "filter": np.stack([np.asarray(a, dtype=np.float64) for a in filt], axis=1),
+        "exclude": ft.exclude,
+        "contact": np.stack([m.geom_margin, m.geom_gap], axis=1),
+        "geom_start": cov.geom_sphere_start,
+        "geom_lone": np.stack([cov.geom_plane, cov.geom_shape], axis=1),
+        "plane_geom": np.asarray(cov.plane_geom),
+        "shape_geom": np.asarray(cov.shape_geom),
+        "body_bounds": np.stack([b.accel, delta, speed], axis=1),
+    }
 
 
 def attach(
@@ -186,13 +215,14 @@ def attach(
         **options: ``Predictor``'s keyword options (``accel``, ``period``, ``covering``,
             ``urgency``, ``schedule``, ...). ``pairs``: ``"all"`` holds every pair;
             ``"pruned"`` or ``PairOptions(mode="pruned", horizon=...)`` only the pairs whose
-            reaches meet, renewed as a pruned ``Predictor`` renews them; ``"auto"`` (the
-            default) chooses as ``Predictor`` does. Either way the plugin carries every active
-            pair's tables (:data:`MAX_GEOM_PAIRS`).
+            reaches meet, renewed as a pruned ``Predictor`` renews them, each ``MjData``
+            learning the pairs it meets (set-up and memory O(N + pairs met)); ``"auto"`` (the
+            default) chooses as ``Predictor`` does. Every pair held: at most
+            :data:`MAX_GEOM_PAIRS`.
 
     Returns:
-        The Python predictor of the same options (a twin: same pairs held, same step); for
-        pruned pairs the tables came from an all-pairs one of the same bounds.
+        The Python predictor the tables came from (a twin: same options, same pairs held, same
+        step).
 
     Raises:
         InvalidInputError: ``spec`` is not an ``MjSpec``, the prefix is taken or malformed, or
@@ -210,17 +240,11 @@ def attach(
         pairs = PairOptions(mode=pairs)
     library()  # registers the plugin with MuJoCo, if `import mujoco` did not
     model = spec.compile()
-    _check_size(model)
-    p = Predictor(model, pairs="all", **options)
-    mode = resolve_pair_mode(
-        pairs.mode, pairs.horizon, deadline=p.schedule is Schedule.DEADLINE, covering=p.covering
-    )
-    twin = p
-    if mode is PairMode.PRUNED:
-        # The same bounds (no second pilot), the same pairs held by the Python predictor.
-        rest = {k: v for k, v in options.items() if k not in ("accel", "speed", "velocity_accel")}
-        twin = Predictor(model, accel=p.bounds, pairs=pairs, **rest)
-    tables = _tables(p, None if twin is p else twin)
+    if str(getattr(pairs.mode, "value", pairs.mode)) == "all":
+        _check_size(model)  # before building every pair
+    p = Predictor(model, pairs=pairs, **options)
+    # "auto" resolved to all pairs: fewer than 256 spheres, not many pairs.
+    tables = _tables(p)
     spec.activate_plugin(PLUGIN_NAME)
     plugin = spec.add_plugin(name=prefix, plugin_name=PLUGIN_NAME, active=True)
     plugin.config = {"prefix": prefix, "overlay": "true" if overlay else "false"}
@@ -230,7 +254,7 @@ def attach(
     sensor.plugin.active = True
     for name, values in tables.items():
         spec.add_text(name=f"{prefix}:{name}", data=_encode(values))
-    return twin
+    return p
 
 
 def _check_size(model: mujoco.MjModel) -> None:
@@ -244,10 +268,10 @@ def _check_size(model: mujoco.MjModel) -> None:
     geom_pairs, _ = PairUniverse(model, covering, lazy=True, exact=None).counts()
     if geom_pairs > MAX_GEOM_PAIRS:
         raise InvalidInputError(
-            f"the model has {geom_pairs:,} active geom pairs: the plugin holds every pair "
-            f"(about {geom_pairs * 150 / 1e6:,.0f} MB of tables), and takes at most "
-            f"{MAX_GEOM_PAIRS:,}. Run dua_mujoco.Predictor(model, pairs='pruned') in Python, "
-            "which holds only the pairs that can meet soon."
+            f"the model has {geom_pairs:,} active geom pairs: holding every pair takes about "
+            f"{geom_pairs * 150 / 1e6:,.0f} MB of tables, and pairs='all' takes at most "
+            f"{MAX_GEOM_PAIRS:,}. Attach with pairs='pruned' (or the default 'auto'), which "
+            "holds only the pairs that can meet soon and learns them as they come."
         )
 
 

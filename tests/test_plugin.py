@@ -128,20 +128,25 @@ def test_plugin_equals_the_python_predictor_under_options(options: dict) -> None
 
 @pytest.mark.parametrize(
     ("scene", "accel", "steps"),
-    [("bin_pour:60", 5.0, 300), ("clutter", 30.0, 300), ("swarm:300", 2.0, 200)],
-    ids=["bin_pour", "clutter", "swarm"],
-)
+    [("bin_pour:60", 5.0, 300), ("clutter", 30.0, 300), ("swarm:300", 2.0, 200),
+     ("swarm:1500", 2.0, 120)],
+    ids=["bin_pour", "clutter", "swarm", "swarm-1.1M-pairs"],
+)  # fmt: skip
 def test_plugin_with_pruned_pairs_equals_the_pruned_python_predictor(
     scene: str, accel: float, steps: int
 ) -> None:
     """``pairs="pruned"``: the plugin holds the pairs a pruned ``Predictor`` holds, rebuilt every
-    stride and renewed for the spheres an impact lets escape (objects poured into a bin, a
-    mocap body, a swarm): the same standing pairs after every step."""
+    stride and renewed for the spheres an impact lets escape, learning the pairs it meets
+    (objects poured into a bin, a mocap body, swarms: one of 1.1 million active pairs, more
+    than ``pairs="all"`` takes): the same standing pairs and evaluations after every step."""
     m, p = _attached(scene, accel=accel, pairs="pruned")
     assert p.stride > 0
+    # The model carries the pairs held always, not every active pair.
+    adr = m.text_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, "dua:pairs")]
+    assert m.text_data[adr:].split(b" ", 1)[0] == str(8 * p.universe.npair).encode()
     busy = _run_side_by_side(m, p, steps)
     assert p.rebuilds >= steps // p.stride - 1
-    if scene != "swarm:300":
+    if not scene.startswith("swarm"):
         assert busy > 10 and p.renewals > 5
 
 
@@ -316,7 +321,7 @@ def test_attach_refuses_what_the_plugin_cannot_run() -> None:
     with pytest.raises(InvalidInputError, match="prefix"):
         attach(spec, prefix="a b", accel=30.0)
     with pytest.raises(InvalidInputError, match="pairs='pruned'"):  # 4.5 million pairs
-        attach(load_spec("swarm:3000"), accel=2.0)
+        attach(load_spec("swarm:3000"), accel=2.0, pairs="all")
     attach(spec, accel=30.0)
     with pytest.raises(InvalidInputError, match="already holds a predictor under prefix 'dua'"):
         attach(spec, accel=30.0)

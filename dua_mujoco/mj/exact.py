@@ -22,10 +22,7 @@ is degenerate (touching, or no witness within the query's reach).
 
 from __future__ import annotations
 
-import ctypes
 import dataclasses
-import functools
-from typing import Any
 
 import mujoco
 import numpy as np
@@ -35,6 +32,7 @@ from dua_mujoco.core.shapes import (
     ShapeKind,
 )
 from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.mj import native_pairs
 from dua_mujoco.mj.exact_kernels import (
     GX_CENTRE,
     GX_GRAPH,
@@ -49,11 +47,9 @@ from dua_mujoco.mj.exact_kernels import (
     X_G2,
     X_MODE,
     X_N,
-    X_NCOL,
     ExactMode,
 )
 from dua_mujoco.mj.kinematics import pack_spheres
-from dua_mujoco.native import library
 
 __all__ = [
     "EXACT_PERIODS",
@@ -252,28 +248,8 @@ def exact_records(
 ) -> np.ndarray:
     """``(n, X_NCOL)`` records of sphere pairs (``build_exact``'s arguments) over the level's
     per-geom records ``geoms``: a pruned predictor adds the pairs it meets with these."""
-    g1 = np.ascontiguousarray(geom1, dtype=np.int64)
-    g2 = np.ascontiguousarray(geom2, dtype=np.int64)
-    k = np.ascontiguousarray(kind, dtype=np.int8)
-    dist = np.ascontiguousarray(np.broadcast_to(contact_distance, g1.shape), dtype=np.float64)
-    table = np.ascontiguousarray(geoms, dtype=np.float64)
-    rec = np.zeros((g1.shape[0], X_NCOL))
     # The native core's rows (the plugin's pruned pairs make those of the pairs they meet).
-    _exact_rows_c()(
-        table.ctypes.data, g1.ctypes.data, g2.ctypes.data, k.ctypes.data, dist.ctypes.data,
-        g1.shape[0], rec.ctypes.data,
-    )  # fmt: skip
-    return rec
-
-
-@functools.cache
-def _exact_rows_c() -> Any:
-    """``dua_exact_rows``, its signature declared once."""
-    f = library().dua_exact_rows
-    p = ctypes.c_void_p
-    f.restype = None
-    f.argtypes = [p, p, p, p, p, ctypes.c_int64, p]
-    return f
+    return native_pairs.exact_rows(geoms, geom1, geom2, kind, contact_distance)
 
 
 def corner_points(

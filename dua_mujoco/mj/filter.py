@@ -36,11 +36,9 @@ and ``geom_gap[g1] + geom_gap[g2]`` (summed since 3.5); explicit pairs use ``pai
 
 from __future__ import annotations
 
-import ctypes
-import functools
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import mujoco
 import numpy as np
@@ -48,10 +46,10 @@ import numpy.typing as npt
 
 from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
+from dua_mujoco.mj import native_pairs
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
 from dua_mujoco.mj.pairfilter import FilterTables, all_dynamic_pairs, dynamic_mask
-from dua_mujoco.native import library
 
 __all__ = [
     "GeomPairs",
@@ -63,6 +61,7 @@ __all__ = [
     "contact_distance_bound",
     "contacts_enabled",
     "explicit_geom_pairs",
+    "margin_override",
     "pairs_between_bodies",
     "sphere_pair_mask",
     "sphere_pairs",
@@ -274,15 +273,14 @@ def _with_explicit(
         lo = hi = np.zeros(0, np.int64)
         pmargin = pgap = np.zeros(0)
 
-    dyn_margin = gmargin[g1] + gmargin[g2]
-    dyn_gap = ggap[g1] + ggap[g2]
+    o_margin = margin_override(model)
+    dyn_margin, dyn_gap = native_pairs.contact_params(gmargin, ggap, g1, g2, o_margin)
     all1 = np.concatenate([g1, lo])
     all2 = np.concatenate([g2, hi])
     is_explicit = np.concatenate([np.zeros(g1.shape[0], bool), np.ones(lo.shape[0], bool)])
-    margin = np.concatenate([dyn_margin, pmargin])
+    explicit_margin = pmargin if o_margin is None else np.full_like(pmargin, o_margin)
+    margin = np.concatenate([dyn_margin, explicit_margin])
     gap = np.concatenate([dyn_gap, pgap])
-    if _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE):
-        margin = np.full_like(margin, float(model.opt.o_margin))
     dist = margin + gap
 
     # Sort by key; where one geom pair appears twice (a <pair> whose signature does not match the
@@ -304,14 +302,20 @@ def _with_explicit(
     )
 
 
+def margin_override(model: mujoco.MjModel) -> float | None:
+    """The margin every pair takes under ``mjENBL_OVERRIDE`` (``opt.o_margin``), or None."""
+    if _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE):
+        return float(model.opt.o_margin)
+    return None
+
+
 def contact_distance_bound(model: mujoco.MjModel, explicit: GeomPairs) -> float:
     """The largest contact distance (margin + gap) any geom pair of ``model`` can have
     (``explicit``: its :func:`explicit_geom_pairs`)."""
     gmargin = np.asarray(model.geom_margin, dtype=np.float64)
     ggap = np.asarray(model.geom_gap, dtype=np.float64)
-    top_margin = 2 * float(gmargin.max(initial=0.0))
-    if _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE):
-        top_margin = float(model.opt.o_margin)
+    o_margin = margin_override(model)
+    top_margin = 2 * float(gmargin.max(initial=0.0)) if o_margin is None else o_margin
     bound = top_margin + 2 * float(ggap.max(initial=0.0))
     return max(0.0, bound, float(explicit.contact_distance.max(initial=0.0)))
 
@@ -481,24 +485,12 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
             "cover_model(model, only_collidable=True) from the same model as the pairs."
         )
     # The expansion is the native core's (the plugin's pruned pairs expand the pairs they meet
-    # with it too): counted, then written.
+    # with it too).
     dist = np.asarray(geom_pairs.contact_distance, dtype=np.float64)[idx]
-    inputs = [
-        np.ascontiguousarray(a, dtype=t)
-        for a, t in (
-            (gp1, np.int64), (gp2, np.int64), (dist, np.float64), (idx, np.int64),
-            (start, np.int64), (covering.geom_plane, np.int64), (covering.geom_shape, np.int64),
-            (covering.sphere_radius, np.float64),
-        )
-    ]  # fmt: skip
-    ptrs = [x.ctypes.data for x in inputs]
-    fn = _sphere_pairs_c()
-    total = int(fn(*ptrs[:4], idx.shape[0], *ptrs[4:], 0, None, None, None, None, None))
-    first, second, geom_pair = (np.empty(total, dtype=np.int64) for _ in range(3))
-    kind = np.empty(total, dtype=np.int8)
-    eps = np.empty(total)
-    outs = [x.ctypes.data for x in (first, second, kind, geom_pair, eps)]
-    fn(*ptrs[:4], idx.shape[0], *ptrs[4:], total, *outs)
+    first, second, kind, geom_pair, eps = native_pairs.expand(
+        gp1, gp2, dist, idx, start, covering.geom_plane, covering.geom_shape,
+        covering.sphere_radius,
+    )  # fmt: skip
     return SpherePairs(
         first=first.astype(np.int32),
         second=second.astype(np.int32),
@@ -507,16 +499,6 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
         eps=eps,
         is_shape=kind == int(PairKind.SHAPE),
     )
-
-
-@functools.cache
-def _sphere_pairs_c() -> Any:
-    """``dua_sphere_pairs``, its signature declared once."""
-    f = library().dua_sphere_pairs
-    p, i8 = ctypes.c_void_p, ctypes.c_int64
-    f.restype = i8
-    f.argtypes = [p, p, p, p, i8, p, p, p, p, i8, p, p, p, p, p]
-    return f
 
 
 def body_id(model: mujoco.MjModel, body: int | str) -> int:

@@ -3,19 +3,15 @@ bodies' acceleration bounds, velocity uncertainties and speed bounds."""
 
 from __future__ import annotations
 
-import ctypes
-import functools
-from typing import Any
-
 import mujoco
 import numpy as np
 
 from dua_mujoco.core.pairset import PairSet
+from dua_mujoco.mj import native_pairs
 from dua_mujoco.mj.bounds import MotionBounds
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.filter import SpherePairs
 from dua_mujoco.mj.mocap import MocapVelocityTracker
-from dua_mujoco.native import library
 
 __all__ = ["body_vel_uncertainty", "bounded_pairs"]
 
@@ -59,21 +55,10 @@ def bounded_pairs(
     """
     sp, b = sphere_pairs, bounds
     per_body = body_vel_uncertainty(model, bounds, period=period, mocap=mocap)
-    kind = np.ascontiguousarray(sp.kind, dtype=np.int8)
-    inputs = [
-        np.ascontiguousarray(a, dtype=np.int64) for a in (sp.first, sp.second, covering.sphere_body)
-    ]
-    per = [np.ascontiguousarray(a, dtype=np.float64) for a in (b.accel, per_body)]
-    speed_in = None if b.speed is None else np.ascontiguousarray(b.speed, dtype=np.float64)
-    n = kind.shape[0]
-    accel, delta, speed = np.empty(n), np.empty(n), np.empty(n)
     # The native core's sums (the plugin's pruned pairs bound the pairs they meet with them).
-    _pair_bounds_c()(
-        inputs[0].ctypes.data, inputs[1].ctypes.data, kind.ctypes.data, n,
-        inputs[2].ctypes.data, per[0].ctypes.data, per[1].ctypes.data,
-        None if speed_in is None else speed_in.ctypes.data,
-        accel.ctypes.data, delta.ctypes.data, speed.ctypes.data,
-    )  # fmt: skip
+    accel, delta, speed = native_pairs.pair_bounds(
+        sp.first, sp.second, sp.kind, covering.sphere_body, b.accel, per_body, b.speed
+    )
     return PairSet(
         sp.first,
         sp.second,
@@ -83,13 +68,3 @@ def bounded_pairs(
         vel_uncertainty=delta,
         speed=speed,
     )
-
-
-@functools.cache
-def _pair_bounds_c() -> Any:
-    """``dua_pair_bounds``, its signature declared once."""
-    f = library().dua_pair_bounds
-    p = ctypes.c_void_p
-    f.restype = None
-    f.argtypes = [p, p, p, ctypes.c_int64, p, p, p, p, p, p, p]
-    return f

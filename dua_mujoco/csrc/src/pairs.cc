@@ -53,6 +53,15 @@ int64_t dua_sphere_pairs(const int64_t* g1, const int64_t* g2, const double* dis
   return n;
 }
 
+void dua_contact_distance(const double* gmargin, const double* ggap, const int64_t* g1,
+                          const int64_t* g2, int64_t n, int64_t override_margin, double o_margin,
+                          double* margin, double* gap) {
+  for (int64_t k = 0; k < n; ++k) {
+    margin[k] = override_margin ? o_margin : gmargin[g1[k]] + gmargin[g2[k]];
+    gap[k] = ggap[g1[k]] + ggap[g2[k]];
+  }
+}
+
 void dua_pair_bounds(const int64_t* first, const int64_t* second, const int8_t* kind, int64_t n,
                      const int64_t* sphere_body, const double* accel, const double* delta,
                      const double* speed, double* out_accel, double* out_delta, double* out_speed) {

@@ -83,25 +83,34 @@ struct Instance {
   // Pruned pairs: the anchors, each model pair's switch, and the held pairs' records and index
   // by body (all pairs held: the model's tables themselves).
   PrunedState pruned;
+  Universe own;  // pruned pairs: the pairs known in this mjData (learnt ones too)
   std::vector<uint8_t> on;
   std::vector<double> held_pairs;
   std::vector<int64_t> held_start, held_members;
 
   int64_t npair() const { return static_cast<int64_t>(ids.size()); }
+  // The pairs known: the model's tables, or this mjData's own universe (pruned pairs).
+  const Universe& U() const { return tables->pruned ? own : tables->universe; }
+  // After learning: room for the new pairs' switches (on) and geom pairs' standing counts.
+  void Grow() {
+    on.resize(U().npair(), 1);
+    gp_count.resize(U().ngp(), 0);
+  }
 
   void Allocate(const mjModel* m) {
     const Tables& t = *tables;
-    if (t.pruned) pruned.Allocate(t.held);
-    on.assign(t.npair, 1);
-    ids.resize(t.npair);
-    for (int64_t p = 0; p < t.npair; ++p) ids[p] = p;
-    Size(t.npair);
-    exact_records = t.exact_records;
+    if (t.pruned) pruned.Allocate(t.held), own = t.universe;
+    const int64_t n = t.universe.npair();
+    on.assign(n, 1);
+    ids.resize(n);
+    for (int64_t p = 0; p < n; ++p) ids[p] = p;
+    Size(n);
+    exact_records = t.universe.exact;
     events_prev.assign(t.nbody_events * 31, 0.0);
     events_meta.assign(3, 0);
     events_flagged.assign(std::max<int64_t>(t.nbody_events, 1), 0);
     root_twist.assign(6 * m->nbody, 0.0);
-    gp_count.assign(t.ngp, 0);
+    gp_count.assign(t.universe.ngp(), 0);
     mocap_bodies.assign(m->nmocap, -1);
     for (int b = 0; b < m->nbody; ++b) {
       if (m->body_mocapid[b] >= 0) mocap_bodies[m->body_mocapid[b]] = b;
@@ -141,17 +150,17 @@ struct Instance {
     const auto n = static_cast<int64_t>(held.size());
     held_pairs.resize(8 * n);
     for (int64_t k = 0; k < n; ++k) {
-      std::copy_n(t.pairs.begin() + 8 * held[k], 8, held_pairs.begin() + 8 * k);
+      std::copy_n(U().pairs.begin() + 8 * held[k], 8, held_pairs.begin() + 8 * k);
     }
     if (t.exact) {
       exact_records.resize(10 * n);
       for (int64_t k = 0; k < n; ++k) {
-        std::copy_n(t.exact_records.begin() + 10 * held[k], 10, exact_records.begin() + 10 * k);
+        std::copy_n(U().exact.begin() + 10 * held[k], 10, exact_records.begin() + 10 * k);
       }
     }
     // Indexed by the violation check's rows, as EventTable.hold indexes them.
     std::vector<int64_t> g1(n), g2(n);
-    for (int64_t k = 0; k < n; ++k) g1[k] = t.geom1[held[k]], g2[k] = t.geom2[held[k]];
+    for (int64_t k = 0; k < n; ++k) g1[k] = U().geom1[held[k]], g2[k] = U().geom2[held[k]];
     held_start.resize(t.nbody_events + 1);
     held_members.resize(2 * n);
     held_members.resize(dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
@@ -201,7 +210,7 @@ struct Instance {
     s.work = work.data();
     s.width = static_cast<int64_t>(w_tau.size());
     s.w_tau = w_tau.data();
-    a.pairs = t.pruned ? held_pairs.data() : t.pairs.data();
+    a.pairs = t.pruned ? held_pairs.data() : t.universe.pairs.data();
     a.spheres = t.spheres.data();
     a.shapes = t.shapes.data();
     a.ids = ids.data();
@@ -276,11 +285,12 @@ void Classify(const mjModel* m, mjData* d, Instance* in) {
   std::fill(in->on.begin(), in->on.end(), 1);
   if (t.pruned) {
     std::vector<int64_t> held;
-    if (!in->pruned.Select(t.held, in->args, 0, &held)) {
-      // A state that is not finite: every pair held, each standing in alarm (below).
-      held.resize(t.npair);
-      for (int64_t p = 0; p < t.npair; ++p) held[p] = p;
+    if (!in->pruned.Select(t.held, t.learn, &in->own, in->args, 0, &held)) {
+      // A state that is not finite: every pair known held, each standing in alarm (below).
+      held.resize(in->U().npair());
+      for (int64_t p = 0; p < in->U().npair(); ++p) held[p] = p;
     }
+    in->Grow();
     in->pruned.built_at = 0;
     in->pruned.escapes.clear();
     in->Hold(held);
@@ -329,14 +339,13 @@ bool Stands(const dua_schedule& s, int64_t p) {
 
 // Renew the standing of pairs ids[0:n].
 void Track(Instance* in, const int64_t* ids, int64_t n) {
-  const Tables& t = *in->tables;
   const dua_schedule& s = in->args.schedule;
   for (int64_t k = 0; k < n; ++k) {
     const int64_t p = ids[k];
     const uint8_t now = Stands(s, p) ? 1 : 0;
     if (now == in->stands[p]) continue;
     in->stands[p] = now;
-    int32_t& count = in->gp_count[t.pair_geom[in->ids[p]]];
+    int32_t& count = in->gp_count[in->U().pair_geom[in->ids[p]]];
     if (now) {
       if (count++ == 0) ++in->nstanding;
     } else if (--count == 0) {
@@ -432,16 +441,17 @@ bool Prune(const mjModel* m, mjData* d, Instance* in, int64_t n) {
   std::vector<int64_t> held;
   bool carry = false;
   if (n - ps.built_at >= t.held.stride || escaped > static_cast<int64_t>(t.Config(kCfgRenewMax))) {
-    if (!ps.Select(t.held, in->args, n, &held)) return false;
+    if (!ps.Select(t.held, t.learn, &in->own, in->args, n, &held)) return false;
     ps.built_at = n;
     carry = true;
   } else if (escaped) {
     std::vector<int64_t> found;
-    if (!ps.Renew(t.held, in->args, n, &found)) return false;
+    if (!ps.Renew(t.held, t.learn, &in->own, in->args, n, &found)) return false;
     std::set_union(in->ids.begin(), in->ids.end(), found.begin(), found.end(),
                    std::back_inserter(held));
     carry = held.size() > in->ids.size();  // some pair is new
   }
+  in->Grow();
   ps.escapes.clear();
   if (carry) Carry(m, d, in, held, n);
   return true;
@@ -511,15 +521,15 @@ void Decor(mjvGeom* geom) {
 void Visualize(const mjModel* m, mjData* d, mjvScene* scn, int instance) {
   auto* in = reinterpret_cast<Instance*>(d->plugin_data[instance]);
   if (!in || !in->overlay || !in->classified) return;
-  const Tables& t = *in->tables;
+  const Universe& u = in->U();
   const float line[4] = {0.95f, 0.15f, 0.1f, 0.9f};
   const float ball[4] = {0.95f, 0.15f, 0.1f, 0.3f};
   auto moving = [m](int64_t g) { return m->body_weldid[m->geom_bodyid[g]] != 0; };
   std::vector<uint8_t> hot(m->ngeom, 0);
   mjvGeom* geom = nullptr;
-  for (int64_t k = 0; k < t.ngp; ++k) {
+  for (int64_t k = 0; k < u.ngp(); ++k) {
     if (!in->gp_count[k]) continue;
-    const int64_t g1 = t.geom_pairs[2 * k], g2 = t.geom_pairs[2 * k + 1];
+    const int64_t g1 = u.geom_pairs[2 * k], g2 = u.geom_pairs[2 * k + 1];
     hot[g1] = hot[g2] = 1;
     if (moving(g1) && moving(g2)) {
       if (!AddDecor(scn, &geom)) return;
@@ -618,13 +628,13 @@ DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int insta
   const dua::Instance* in = dua::Find(m, d, instance);
   if (!in) return -1;
   if (!in->classified) return 0;
-  const dua::Tables& t = *in->tables;
+  const dua::Universe& u = in->U();
   int64_t n = 0;
-  for (int64_t k = 0; k < t.ngp; ++k) {
+  for (const int64_t k : u.gp_ids) {  // in increasing (g1, g2)
     if (!in->gp_count[k]) continue;
     if (n < capacity) {
-      out[2 * n] = t.geom_pairs[2 * k];
-      out[2 * n + 1] = t.geom_pairs[2 * k + 1];
+      out[2 * n] = u.geom_pairs[2 * k];
+      out[2 * n + 1] = u.geom_pairs[2 * k + 1];
     }
     ++n;
   }
@@ -633,20 +643,32 @@ DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int insta
 
 // Switches the pairs between bodies body_a and body_b (body_b < 0: every pair of body_a) off
 // (on = 0: intended contact, a grasp) or back on, in plugin instance `instance` of d, as
-// Predictor.set_active_bodies does; a pair switched back on stands in alarm until the next step
-// evaluates it. Returns the number of sphere pairs between the bodies, -1 if the instance is
-// not this plugin's, -2 before the first compute (nothing to switch yet).
+// Predictor.set_active_bodies does (pruned pairs: those not met yet learnt first, so that they
+// stay off when met); a pair switched back on stands in alarm until the next step evaluates
+// it. Returns the number of sphere pairs between the bodies, -1 if the instance is not this
+// plugin's, -2 before the first compute (nothing to switch yet).
 DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance, int body_a,
                                       int body_b, int on) {
   dua::Instance* in = dua::Find(m, d, instance);
   if (!in) return -1;
   if (!in->classified) return -2;
-  const dua::Tables& t = *in->tables;
+  if (in->tables->pruned) {  // PairUniverse.between
+    std::vector<int64_t> g1, g2;
+    for (int a = 0; a < m->ngeom; ++a) {
+      if (m->geom_bodyid[a] != body_a) continue;
+      for (int b = 0; b < m->ngeom; ++b) {
+        if (body_b < 0 || m->geom_bodyid[b] == body_b) g1.push_back(a), g2.push_back(b);
+      }
+    }
+    in->own.Learn(in->tables->learn, g1.data(), g2.data(), static_cast<int64_t>(g1.size()));
+    in->Grow();
+  }
+  const dua::Universe& u = in->U();
   std::vector<int64_t> ids;
-  for (int64_t p = 0; p < t.npair; ++p) {
-    const int64_t gp = t.pair_geom[p];
-    const int ba = m->geom_bodyid[t.geom_pairs[2 * gp]];
-    const int bb = m->geom_bodyid[t.geom_pairs[2 * gp + 1]];
+  for (int64_t p = 0; p < u.npair(); ++p) {
+    const int64_t gp = u.pair_geom[p];
+    const int ba = m->geom_bodyid[u.geom_pairs[2 * gp]];
+    const int bb = m->geom_bodyid[u.geom_pairs[2 * gp + 1]];
     const bool between = body_b < 0
                              ? (ba == body_a || bb == body_a)
                              : ((ba == body_a && bb == body_b) || (ba == body_b && bb == body_a));
@@ -657,28 +679,36 @@ DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance,
 }
 
 // Switches off the pairs of every geom pair in contact in d (resting contact), as
-// Predictor.deactivate_contacts does; they stay off until switched back on
-// (dua_plugin_set_active). Returns the number of geom pairs switched off, -1 if the instance is
-// not this plugin's, -2 before its first compute.
+// Predictor.deactivate_contacts does (pruned pairs: a contact of a pair not met yet learns it);
+// they stay off until switched back on (dua_plugin_set_active). Returns the number of geom pairs
+// switched off, -1 if the instance is not this plugin's, -2 before its first compute.
 DUA_API int64_t dua_plugin_deactivate_contacts(const mjModel* m, mjData* d, int instance) {
   dua::Instance* in = dua::Find(m, d, instance);
   if (!in) return -1;
   if (!in->classified) return -2;
-  const dua::Tables& t = *in->tables;
-  std::vector<uint8_t> off(t.ngp, 0);
-  int64_t noff = 0;
+  std::vector<int64_t> g1, g2;
   for (int c = 0; c < d->ncon; ++c) {
     const int a = d->contact[c].geom[0], b = d->contact[c].geom[1];
     if (a < 0 || b < 0) continue;  // a flex
-    const int64_t gp = t.GeomPair(std::min(a, b), std::max(a, b));
+    g1.push_back(std::min(a, b)), g2.push_back(std::max(a, b));
+  }
+  if (in->tables->pruned) {
+    in->own.Learn(in->tables->learn, g1.data(), g2.data(), static_cast<int64_t>(g1.size()));
+    in->Grow();
+  }
+  const dua::Universe& u = in->U();
+  std::vector<uint8_t> off(u.ngp(), 0);
+  int64_t noff = 0;
+  for (size_t c = 0; c < g1.size(); ++c) {
+    const int64_t gp = u.GeomPair(g1[c], g2[c]);
     if (gp >= 0 && !off[gp]) {
       off[gp] = 1;
       ++noff;
     }
   }
   std::vector<int64_t> ids;
-  for (int64_t p = 0; p < t.npair; ++p) {
-    if (off[t.pair_geom[p]]) ids.push_back(p);
+  for (int64_t p = 0; p < u.npair(); ++p) {
+    if (off[u.pair_geom[p]]) ids.push_back(p);
   }
   dua::Switch(m, d, in, ids, false);
   return noff;

@@ -4,6 +4,7 @@
 #include "plugin_tables.h"
 
 #include <array>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 
@@ -104,6 +105,96 @@ std::vector<int64_t> AsInts(const std::vector<double>& v) {
   return out;
 }
 
+// Reads "<prefix>:<name>" as (rows, ncol) into columns: out[c][r]; false after a warning.
+bool ReadColumns(const mjModel* m, const std::string& prefix, const char* name, int64_t rows,
+                 int ncol, std::vector<std::vector<double>>* out) {
+  std::vector<double> v;
+  if (!ReadTable(m, prefix, name, &v)) return false;
+  if (static_cast<int64_t>(v.size()) != rows * ncol) {
+    mju_warning(
+        "dua_mujoco.predictor: text field '%s:%s' holds %lld entries, not %lld: attach the "
+        "predictor again.",
+        prefix.c_str(), name, static_cast<long long>(v.size()),
+        static_cast<long long>(rows * ncol));
+    return false;
+  }
+  out->assign(ncol, std::vector<double>(rows));
+  for (int64_t r = 0; r < rows; ++r) {
+    for (int c = 0; c < ncol; ++c) (*out)[c][r] = v[ncol * r + c];
+  }
+  return true;
+}
+
+// What learning a pair reads (universe.h); false after a warning saying why.
+bool LoadLearn(const mjModel* m, const std::string& prefix, Tables* t) {
+  LearnTables& l = t->learn;
+  std::vector<std::vector<double>> f, c, lone, body;
+  std::vector<double> exclude, start, planes, shapes;
+  const int64_t nsphere = static_cast<int64_t>(t->spheres.size() / 8);
+  if (!ReadColumns(m, prefix, "filter", m->ngeom, 7, &f) ||
+      !ReadColumns(m, prefix, "contact", m->ngeom, 2, &c) ||
+      !ReadColumns(m, prefix, "geom_lone", m->ngeom, 2, &lone) ||
+      !ReadColumns(m, prefix, "body_bounds", m->nbody, 3, &body) ||
+      !ReadTable(m, prefix, "exclude", &exclude) || !ReadTable(m, prefix, "geom_start", &start) ||
+      !ReadTable(m, prefix, "plane_geom", &planes) ||
+      !ReadTable(m, prefix, "shape_geom", &shapes)) {
+    return false;
+  }
+  l.body = AsInts(f[0]), l.weld = AsInts(f[1]), l.parent_weld = AsInts(f[2]);
+  l.movable.assign(f[3].begin(), f[3].end());
+  l.contype = AsInts(f[4]), l.conaffinity = AsInts(f[5]);
+  l.lone.assign(f[6].begin(), f[6].end());
+  l.exclude = AsInts(exclude);
+  l.filter.filterparent = static_cast<int64_t>(t->config[kCfgFilterParent]);
+  l.contacts = t->config[kCfgContacts] != 0.0;
+  l.margin = c[0], l.gap = c[1];
+  l.override_margin = t->config[kCfgOverride] != 0.0;
+  l.o_margin = t->config[kCfgOMargin];
+  l.geom_start = AsInts(start);
+  l.geom_plane = AsInts(lone[0]), l.geom_shape = AsInts(lone[1]);
+  l.plane_geom = AsInts(planes), l.shape_geom = AsInts(shapes);
+  l.accel = body[0], l.delta = body[1], l.speed = body[2];
+  l.has_speed = t->config[kCfgHasSpeed] != 0.0;
+  l.radius = t->held.radius;
+  l.sphere_geom.resize(nsphere), l.sphere_body.resize(nsphere);
+  for (int64_t i = 0; i < nsphere; ++i) {
+    l.sphere_geom[i] = static_cast<int64_t>(t->spheres[8 * i]);
+    l.sphere_body[i] = static_cast<int64_t>(t->spheres[8 * i + 1]);
+  }
+  l.exact_geoms = t->exact ? t->geoms.data() : nullptr;
+  // Every index the learning follows must point inside its table.
+  bool ok = static_cast<int64_t>(l.geom_start.size()) == m->ngeom + 1 &&
+            std::is_sorted(l.exclude.begin(), l.exclude.end());
+  for (int64_t g = 0; ok && g <= m->ngeom; ++g) {
+    ok = l.geom_start[g] >= 0 && l.geom_start[g] <= nsphere &&
+         (g == 0 || l.geom_start[g] >= l.geom_start[g - 1]);
+  }
+  for (int64_t g = 0; ok && g < m->ngeom; ++g) {
+    ok = l.body[g] >= 0 && l.body[g] < m->nbody && l.geom_plane[g] < (int64_t)l.plane_geom.size() &&
+         l.geom_shape[g] < static_cast<int64_t>(l.shape_geom.size());
+  }
+  for (int64_t i = 0; ok && i < nsphere; ++i) {
+    ok = l.sphere_geom[i] >= 0 && l.sphere_geom[i] < m->ngeom && l.sphere_body[i] >= 0 &&
+         l.sphere_body[i] < m->nbody;
+  }
+  for (const auto* v : {&l.plane_geom, &l.shape_geom}) {
+    for (const int64_t g : *v) ok = ok && g >= 0 && g < m->ngeom;
+  }
+  for (int64_t b = 0; ok && b < m->nbody; ++b) {
+    ok = l.accel[b] >= 0 && std::isfinite(l.accel[b]) && l.delta[b] >= 0 &&
+         std::isfinite(l.delta[b]) && l.speed[b] >= 0;
+  }
+  if (!ok) {
+    mju_warning(
+        "dua_mujoco.predictor: the tables for learning pairs under prefix '%s' do not fit "
+        "this model: attach the predictor again.",
+        prefix.c_str());
+    return false;
+  }
+  l.Point();
+  return true;
+}
+
 // The pruned pairs' tables (false after a warning saying why).
 bool LoadPruned(const mjModel* m, const std::string& prefix, Tables* t) {
   std::vector<double> reach;
@@ -118,8 +209,8 @@ bool LoadPruned(const mjModel* m, const std::string& prefix, Tables* t) {
     if (!(b >= 0 && b < m->nbody)) bad = "the violation check's bodies";
   }
   if (bad.empty()) {
-    bad = t->held.Build(reach, t->spheres, t->pairs, m->nbody, t->config[kCfgHorizon],
-                        t->config[kCfgMargin], static_cast<int64_t>(stride));
+    bad = t->held.Build(reach, t->spheres, m->nbody, t->config[kCfgHorizon], t->config[kCfgMargin],
+                        static_cast<int64_t>(stride));
   }
   if (!bad.empty()) {
     mju_warning(
@@ -128,17 +219,7 @@ bool LoadPruned(const mjModel* m, const std::string& prefix, Tables* t) {
         prefix.c_str(), bad.c_str());
     return false;
   }
-  constexpr int kFirst = 0, kSphereFrame = 0;
-  t->geom1.resize(t->npair);
-  t->geom2.resize(t->npair);
-  for (int64_t p = 0; p < t->npair; ++p) {
-    const auto first = static_cast<int64_t>(t->pairs[8 * p + kFirst]);
-    const int64_t g = static_cast<int64_t>(t->spheres[8 * first + kSphereFrame]);
-    const int64_t a = t->geom_pairs[2 * t->pair_geom[p]],
-                  b = t->geom_pairs[2 * t->pair_geom[p] + 1];
-    t->geom1[p] = g;
-    t->geom2[p] = g == a ? b : a;
-  }
+  if (!LoadLearn(m, prefix, t)) return false;
   std::vector<int64_t> body_row(m->nbody, -1);
   for (int64_t r = 0; r < t->nbody_events; ++r) {
     body_row[static_cast<int64_t>(t->events_rec[12 * r + kBBody])] = r;
@@ -175,7 +256,8 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
         static_cast<long long>(m->nbody));
     return nullptr;
   }
-  if (!ReadTable(m, prefix, "pairs", &t->pairs) || !ReadTable(m, prefix, "spheres", &t->spheres) ||
+  Universe& u = t->universe;
+  if (!ReadTable(m, prefix, "pairs", &u.pairs) || !ReadTable(m, prefix, "spheres", &t->spheres) ||
       !ReadTable(m, prefix, "shapes", &t->shapes) ||
       !ReadTable(m, prefix, "horizon", &t->horizon) ||
       !ReadTable(m, prefix, "pair_geom", &pair_geom) ||
@@ -186,38 +268,26 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
       !ReadTable(m, prefix, "events_members", &events_members)) {
     return nullptr;
   }
-  t->npair = static_cast<int64_t>(t->pairs.size() / 8);
-  t->ngp = static_cast<int64_t>(geom_pairs.size() / 2);
   t->nbody_events = static_cast<int64_t>(t->events_rec.size() / 12);
-  t->pair_geom = AsInts(pair_geom);
-  t->geom_pairs = AsInts(geom_pairs);
-  t->gp_keys.resize(t->ngp);
-  for (int64_t k = 0; k < t->ngp; ++k) {
-    t->gp_keys[k] = (t->geom_pairs[2 * k] << 32) | t->geom_pairs[2 * k + 1];
-  }
+  u.pair_geom = AsInts(pair_geom);
+  u.geom_pairs = AsInts(geom_pairs);
   t->events_start = AsInts(events_start);
   t->events_members = AsInts(events_members);
-  bool sizes = static_cast<int64_t>(t->pair_geom.size()) == t->npair &&
-               static_cast<int64_t>(t->events_start.size()) == t->nbody_events + 1 &&
-               !t->horizon.empty() && !t->events_params.empty();
-  for (int64_t gp : t->pair_geom) sizes = sizes && gp >= 0 && gp < t->ngp;
-  for (int64_t g : t->geom_pairs) sizes = sizes && g >= 0 && g < m->ngeom;
-  // GeomPair's binary search needs the rows (g1 < g2) in increasing order, each once.
-  for (int64_t k = 0; k < t->ngp; ++k) {
-    sizes = sizes && t->geom_pairs[2 * k] < t->geom_pairs[2 * k + 1] &&
-            (k == 0 || t->gp_keys[k - 1] < t->gp_keys[k]);
-  }
+  const std::string bad = u.Index(t->spheres, m->ngeom);
+  const bool sizes = bad.empty() && static_cast<int64_t>(u.pairs.size()) == 8 * u.npair() &&
+                     static_cast<int64_t>(t->events_start.size()) == t->nbody_events + 1 &&
+                     !t->horizon.empty() && !t->events_params.empty();
   if (!sizes) {
     mju_warning(
         "dua_mujoco.predictor: the tables under prefix '%s' do not fit together or "
-        "this model: attach the predictor again.",
-        prefix.c_str());
+        "this model (%s): attach the predictor again.",
+        prefix.c_str(), bad.empty() ? "sizes" : bad.c_str());
     return nullptr;
   }
   t->exact = static_cast<int64_t>(t->config[kCfgExactOn]) != 0;
   if (t->exact) {
     if (!ReadTable(m, prefix, "exact_geoms", &t->geoms) ||
-        !ReadTable(m, prefix, "exact_records", &t->exact_records)) {
+        !ReadTable(m, prefix, "exact_records", &u.exact)) {
       return nullptr;
     }
     // The mesh vertices in float64, as dua_mujoco.mj.exact reads them (exactly: float32 widens

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "pruned.h"
+#include "universe.h"
 
 namespace dua {
 
@@ -34,35 +35,37 @@ enum Config {
   kCfgNbody = 21,
   kCfgShape = 22,  // and FNV-1a of its geom_type, geom_bodyid and body_parentid (two 32-bit halves)
   kCfgWidth = 24,  // the schedule's work width (the most pairs a step selects)
-  kCfgPruned = 25,    // 1: pruned pairs (the deadline schedule over the held ones)
-  kCfgHorizon = 26,   // pruned: the reach's horizon T, seconds
-  kCfgMargin = 27,    // pruned: the largest contact distance beyond the radii
-  kCfgStride = 28,    // pruned: steps between rebuilds
-  kCfgRenewMax = 29,  // pruned: most escaped spheres renewed alone
-  kCfgSize = 30,
+  kCfgPruned = 25,        // 1: pruned pairs (the deadline schedule over the held ones)
+  kCfgHorizon = 26,       // pruned: the reach's horizon T, seconds
+  kCfgMargin = 27,        // pruned: the largest contact distance beyond the radii
+  kCfgStride = 28,        // pruned: steps between rebuilds
+  kCfgRenewMax = 29,      // pruned: most escaped spheres renewed alone
+  kCfgContacts = 30,      // pruned: contacts are on (pairs can be learnt)
+  kCfgFilterParent = 31,  // pruned: MuJoCo's parent filter is on
+  kCfgOverride = 32,      // pruned: mjENBL_OVERRIDE (the margin is o_margin)
+  kCfgOMargin = 33,       // pruned: o_margin
+  kCfgHasSpeed = 34,      // pruned: speed bounds are declared
+  kCfgSize = 35,
 };
 
 // The model's tables, parsed once per mjData and shared by its copies.
 struct Tables {
-  std::vector<double> config, pairs, spheres, shapes, horizon, events_rec, events_params;
-  std::vector<double> geoms, exact_records, verts;
-  std::vector<int64_t> pair_geom, geom_pairs, events_start, events_members;
+  std::vector<double> config, spheres, shapes, horizon, events_rec, events_params;
+  std::vector<double> geoms, verts;
+  std::vector<int64_t> events_start, events_members;
   std::vector<int32_t> graph;
-  std::vector<int64_t> gp_keys;  // (ngp,) g1 << 32 | g2 of each geom pair, increasing
-  int64_t npair = 0, ngp = 0, nbody_events = 0;
+  int64_t nbody_events = 0;
   bool exact = false;
-  // Pruned pairs: the pairs' geoms (the first sphere's first, as PairTables has them) for the
-  // violation check's index of the held pairs, and each body's row in it.
+  // The pairs known from the start: every active pair, or (pruned) those held always, which
+  // each mjData's own universe then grows from.
+  Universe universe;
+  // Pruned pairs: the reaches, what learning a pair reads, each geom's row in the violation
+  // check.
   bool pruned = false;
   PrunedTables held;
-  std::vector<int64_t> geom1, geom2, geom_row;
+  LearnTables learn;
+  std::vector<int64_t> geom_row;
   double Config(int i) const { return config[i]; }
-  // Index of geom pair (g1 < g2), or -1 if it is none of the tables'.
-  int64_t GeomPair(int64_t g1, int64_t g2) const {
-    const int64_t key = (g1 << 32) | g2;
-    const auto it = std::lower_bound(gp_keys.begin(), gp_keys.end(), key);
-    return it != gp_keys.end() && *it == key ? it - gp_keys.begin() : -1;
-  }
 };
 
 // The tables under `prefix`, checked against the model; null after a warning naming what is

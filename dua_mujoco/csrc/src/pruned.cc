@@ -8,15 +8,12 @@
 namespace dua {
 namespace {
 
-// Pair record columns (pack_pairs): first, second, kind.
-constexpr int kFirst = 0, kSecond = 1, kKind = 2, kPairNcol = 8;
 constexpr int kSphereBody = 1, kSphereNcol = 8;
 
 }  // namespace
 
 std::string PrunedTables::Build(const std::vector<double>& reach_table,
-                                const std::vector<double>& spheres,
-                                const std::vector<double>& pairs, int64_t nbody, double horizon_s,
+                                const std::vector<double>& spheres, int64_t nbody, double horizon_s,
                                 double margin_m, int64_t stride_steps) {
   nsphere = static_cast<int64_t>(spheres.size() / kSphereNcol);
   if (static_cast<int64_t>(reach_table.size()) != 4 * nsphere) return "the reach table";
@@ -53,39 +50,25 @@ std::string PrunedTables::Build(const std::vector<double>& reach_table,
   for (int64_t i = 0; i < nsphere; ++i) {
     body_spheres[cursor[static_cast<int64_t>(spheres[kSphereNcol * i + kSphereBody])]++] = i;
   }
-  const auto npair = static_cast<int64_t>(pairs.size() / kPairNcol);
-  std::vector<std::pair<int64_t, int64_t>> keyed;
-  always.clear();
-  for (int64_t p = 0; p < npair; ++p) {
-    const double* rec = pairs.data() + kPairNcol * p;
-    if (!(rec[kFirst] >= 0 && rec[kFirst] < static_cast<double>(nsphere))) {
-      return "the pair records";
-    }
-    if (rec[kKind] != 0.0) {
-      always.push_back(p);
-      continue;
-    }
-    const auto a = static_cast<int64_t>(rec[kFirst]), b = static_cast<int64_t>(rec[kSecond]);
-    if (a < 0 || b < 0 || a >= nsphere || b >= nsphere) return "the pair records";
-    keyed.emplace_back(std::min(a, b) * nsphere + std::max(a, b), p);
-  }
-  std::sort(keyed.begin(), keyed.end());
-  codes.resize(keyed.size());
-  code_ids.resize(keyed.size());
-  for (size_t k = 0; k < keyed.size(); ++k) {
-    codes[k] = keyed[k].first;
-    code_ids[k] = keyed[k].second;
-    if (k && codes[k] == codes[k - 1]) return "the pair records (a sphere pair twice)";
-  }
   return "";
 }
 
-void PrunedTables::Lookup(const int64_t* cand, int64_t n, std::vector<int64_t>* ids) const {
-  for (int64_t k = 0; k < n; ++k) {
-    const int64_t key = cand[2 * k] * nsphere + cand[2 * k + 1];
-    const auto it = std::lower_bound(codes.begin(), codes.end(), key);
-    // Not found: MuJoCo's filter lets the pair of geoms through never (not an active pair).
-    if (it != codes.end() && *it == key) ids->push_back(code_ids[it - codes.begin()]);
+void PrunedState::Known(const LearnTables& learn, Universe* u, int64_t k,
+                        std::vector<int64_t>* ids) {
+  // As HeldPairs._known: look the candidates up; learn the geom pairs of those the universe
+  // lacks (MuJoCo's filter decides), then look them up again.
+  std::vector<int64_t> unknown;
+  const size_t at = ids->size();
+  u->Lookup(cand.data(), k, ids, &unknown);
+  if (unknown.empty()) return;
+  std::vector<int64_t> g1(unknown.size()), g2(unknown.size());
+  for (size_t q = 0; q < unknown.size(); ++q) {
+    g1[q] = learn.sphere_geom[cand[2 * unknown[q]]];
+    g2[q] = learn.sphere_geom[cand[2 * unknown[q] + 1]];
+  }
+  if (u->Learn(learn, g1.data(), g2.data(), static_cast<int64_t>(g1.size())) > 0) {
+    ids->resize(at);
+    u->Lookup(cand.data(), k, ids, nullptr);
   }
 }
 
@@ -117,8 +100,8 @@ dua_reach PrunedState::Reach(const PrunedTables& t) {
   return r;
 }
 
-bool PrunedState::Select(const PrunedTables& t, const dua_step_args& a, int64_t step,
-                         std::vector<int64_t>* ids) {
+bool PrunedState::Select(const PrunedTables& t, const LearnTables& learn, Universe* u,
+                         const dua_step_args& a, int64_t step, std::vector<int64_t>* ids) {
   const int64_t n = t.nsphere;
   state.resize(6);
   std::vector<double> centers(3 * static_cast<size_t>(n)), speeds(n);
@@ -135,12 +118,13 @@ bool PrunedState::Select(const PrunedTables& t, const dua_step_args& a, int64_t 
   std::fill(built.begin(), built.end(), step);
   dua_reaches(t.radius.data(), speed0.data(), t.accel.data(), t.delta.data(), t.speed.data(), n,
               t.horizon, reach.data());
-  ids->assign(t.always.begin(), t.always.end());
+  ids->assign(u->always.begin(), u->always.end());
   double lo[3], hi[3];
   if (n < 2) return true;
   if (dua_grid_bounds(anchor.data(), n, lo, hi) >= 0) {
-    // A centre beyond 1e150 m: no grid can hold it (its squares overflow); hold every pair.
-    ids->insert(ids->end(), t.code_ids.begin(), t.code_ids.end());
+    // A centre beyond 1e150 m: no grid can hold it (its squares overflow); hold every pair
+    // known.
+    ids->insert(ids->end(), u->code_ids.begin(), u->code_ids.end());
     std::sort(ids->begin(), ids->end());
     return true;
   }
@@ -159,13 +143,13 @@ bool PrunedState::Select(const PrunedTables& t, const dua_step_args& a, int64_t 
   cand.resize(2 * k);
   dua_grid_fill(&plan, anchor.data(), reach.data(), n, t.margin, held_out.data(), &w, tmp.data(),
                 cand.data());
-  t.Lookup(cand.data(), k, ids);
+  Known(learn, u, k, ids);
   std::sort(ids->begin(), ids->end());
   return true;
 }
 
-bool PrunedState::Renew(const PrunedTables& t, const dua_step_args& a, int64_t step,
-                        std::vector<int64_t>* ids) {
+bool PrunedState::Renew(const PrunedTables& t, const LearnTables& learn, Universe* u,
+                        const dua_step_args& a, int64_t step, std::vector<int64_t>* ids) {
   dua_reach r = Reach(t);
   const auto n = static_cast<int64_t>(escapes.size());
   cand.resize(2 * std::max<int64_t>(4 * n, 16));
@@ -178,7 +162,7 @@ bool PrunedState::Renew(const PrunedTables& t, const dua_step_args& a, int64_t s
     cand.resize(2 * count);
   }
   ids->clear();
-  t.Lookup(cand.data(), count, ids);
+  Known(learn, u, count, ids);
   std::sort(ids->begin(), ids->end());
   ids->erase(std::unique(ids->begin(), ids->end()), ids->end());
   return true;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "dua/dua.h"
+#include "universe.h"
 
 namespace dua {
 
@@ -21,16 +22,11 @@ struct PrunedTables {
   double margin = 0.0;                              // the largest contact distance beyond the radii
   std::vector<double> radius, accel, delta, speed;  // (nsphere,) each
   std::vector<int64_t> body_start, body_spheres;    // the spheres of each body
-  std::vector<int64_t> codes, code_ids;  // sphere-sphere pairs: min * nsphere + max, sorted
-  std::vector<int64_t> always;           // pairs against a plane or a static shape: held always
 
-  // From the "reach" table (nsphere rows: radius, accel, delta, speed), the sphere records
-  // (nsphere, 8) and the pair records (npair, 8). Returns an empty string, or what is wrong.
+  // From the "reach" table (nsphere rows: radius, accel, delta, speed) and the sphere records
+  // (nsphere, 8). Returns an empty string, or what is wrong.
   std::string Build(const std::vector<double>& reach, const std::vector<double>& spheres,
-                    const std::vector<double>& pairs, int64_t nbody, double horizon_s,
-                    double margin_m, int64_t stride_steps);
-  // The pairs among candidate sphere pairs cand[0:2n] (rows i < j), into ids (appended).
-  void Lookup(const int64_t* cand, int64_t n, std::vector<int64_t>* ids) const;
+                    int64_t nbody, double horizon_s, double margin_m, int64_t stride_steps);
 };
 
 // Each mjData's anchors and the grid's buffers.
@@ -48,15 +44,20 @@ struct PrunedState {
   void Allocate(const PrunedTables& t);
   dua_reach Reach(const PrunedTables& t);
   // Every sphere anchored at its state on a's frame, step `step`; ids receives the pairs to
-  // hold, sorted. False if a state is not finite (nothing changed).
-  bool Select(const PrunedTables& t, const dua_step_args& a, int64_t step,
-              std::vector<int64_t>* ids);
+  // hold, sorted, the universe learning the candidates it lacks. False if a state is not
+  // finite (nothing changed).
+  bool Select(const PrunedTables& t, const LearnTables& learn, Universe* u, const dua_step_args& a,
+              int64_t step, std::vector<int64_t>* ids);
   // The escaped spheres anchored anew at step `step`; ids receives the pairs their reach brings
-  // in, sorted. False if a state is not finite.
-  bool Renew(const PrunedTables& t, const dua_step_args& a, int64_t step,
-             std::vector<int64_t>* ids);
+  // in, sorted (learnt as by Select). False if a state is not finite.
+  bool Renew(const PrunedTables& t, const LearnTables& learn, Universe* u, const dua_step_args& a,
+             int64_t step, std::vector<int64_t>* ids);
   // After a step: the spheres of the flagged bodies that may have left their reach.
   void FindEscapes(const PrunedTables& t, const dua_step_args& a, int64_t step);
+
+ private:
+  // The known pairs among candidates cand (k rows), learning the others first.
+  void Known(const LearnTables& learn, Universe* u, int64_t k, std::vector<int64_t>* ids);
 };
 
 }  // namespace dua

@@ -191,6 +191,11 @@ DUA_API int64_t dua_sphere_pairs(const int64_t* g1, const int64_t* g2, const dou
                                  const int64_t* plane, const int64_t* shape, const double* radius,
                                  int64_t capacity, int64_t* first, int64_t* second, int8_t* kind,
                                  int64_t* geom_pair, double* eps);
+// The margin and gap MuJoCo gives the dynamic geom pairs (g1[k], g2[k]): the sums of the two
+// geoms' (the margin o_margin instead under override_margin, mjENBL_OVERRIDE).
+DUA_API void dua_contact_distance(const double* gmargin, const double* ggap, const int64_t* g1,
+                                  const int64_t* g2, int64_t n, int64_t override_margin,
+                                  double o_margin, double* margin, double* gap);
 // Each pair's bounds: the sums of its two bodies' acceleration bounds, velocity uncertainties
 // and (speed not null) speed bounds, a plane or static shape being the world body's (its speed
 // bound: the sphere's alone); without speed bounds, inf.

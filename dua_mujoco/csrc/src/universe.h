@@ -1,0 +1,69 @@
+// The pairs a plugin instance knows (dua_mujoco/mj/universe.py's PairUniverse): fixed when it
+// holds every pair, growing per mjData with pruned pairs, which learn the geom pairs their
+// candidates bring in through MuJoCo's filter, with the tables the step reads of them.
+#ifndef DUA_MUJOCO_UNIVERSE_H_
+#define DUA_MUJOCO_UNIVERSE_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "dua/dua.h"
+
+namespace dua {
+
+// What learning a pair reads, per geom, sphere and body (dua_mujoco.attach writes it).
+struct LearnTables {
+  // MuJoCo's filter (FilterTables): the arrays and the struct pointing at them.
+  std::vector<int64_t> body, weld, parent_weld, contype, conaffinity, exclude;
+  std::vector<uint8_t> movable, lone;
+  dua_filter filter{};
+  bool contacts = true;  // contacts are on (no mjDSBL_CONTACT, mjDSBL_CONSTRAINT)
+  // Contact distances: each geom's margin and gap, the override's margin.
+  std::vector<double> margin, gap;
+  bool override_margin = false;
+  double o_margin = 0.0;
+  // The covering: each geom's first sphere (ngeom + 1), plane and shape index (-1: none), each
+  // plane's and shape's geom; each sphere's radius, geom and body.
+  std::vector<int64_t> geom_start, geom_plane, geom_shape, plane_geom, shape_geom;
+  std::vector<double> radius;
+  std::vector<int64_t> sphere_geom, sphere_body;
+  // Each body's bounds (the speed bound inf where none is declared).
+  std::vector<double> accel, delta, speed;
+  bool has_speed = false;
+  const double* exact_geoms = nullptr;  // (ngeom, 24), null when the exact level is off
+
+  void Point();  // the filter struct at the arrays
+};
+
+struct Universe {
+  std::vector<double> pairs;             // (npair, 8) packed records
+  std::vector<double> exact;             // (npair, 10) the exact level's records as built
+  std::vector<int64_t> pair_geom;        // (npair,) geom pair of each
+  std::vector<int64_t> geom1, geom2;     // (npair,) the first sphere's geom, then the other
+  std::vector<int64_t> geom_pairs;       // (ngp, 2) rows g1 < g2
+  std::vector<int64_t> gp_keys, gp_ids;  // g1 << 32 | g2, increasing, and their geom pairs
+  std::vector<int64_t> codes, code_ids;  // sphere-sphere pairs by min * nsphere + max, sorted
+  std::vector<int64_t> always;           // pairs against a plane or a static shape, increasing
+  int64_t nsphere = 0;
+
+  int64_t npair() const { return static_cast<int64_t>(pair_geom.size()); }
+  int64_t ngp() const { return static_cast<int64_t>(geom_pairs.size() / 2); }
+  // Index of geom pair (g1 < g2), or -1 if it is not known.
+  int64_t GeomPair(int64_t g1, int64_t g2) const;
+  // Derive the lookups from pairs, pair_geom and geom_pairs (sphere records: (nsphere, 8)).
+  // Returns an empty string, or what does not fit.
+  std::string Index(const std::vector<double>& spheres, int64_t ngeom);
+  // The known pairs among candidate sphere pairs cand[0:2n] (rows i < j) appended to ids, the
+  // rows of the others to unknown (if not null).
+  void Lookup(const int64_t* cand, int64_t n, std::vector<int64_t>* ids,
+              std::vector<int64_t>* unknown) const;
+  // Learn the geom pairs {g1[k], g2[k]} the filter lets through and the universe lacks, as
+  // PairUniverse.learn does: their sphere pairs appended with their tables. Returns how many
+  // sphere pairs were added.
+  int64_t Learn(const LearnTables& lt, const int64_t* g1, const int64_t* g2, int64_t n);
+};
+
+}  // namespace dua
+
+#endif  // DUA_MUJOCO_UNIVERSE_H_
