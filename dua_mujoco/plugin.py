@@ -243,7 +243,10 @@ def attach(
     if str(getattr(pairs.mode, "value", pairs.mode)) == "all":
         _check_size(model)  # before building every pair
     p = Predictor(model, pairs=pairs, **options)
-    # "auto" resolved to all pairs: fewer than 256 spheres, not many pairs.
+    if p._held is None:
+        # "auto" resolved to every pair (few spheres, or a schedule other than deadline): the
+        # predictor holds them already, but the model must not carry more than the limit.
+        _check_size(model)
     tables = _tables(p)
     spec.activate_plugin(PLUGIN_NAME)
     plugin = spec.add_plugin(name=prefix, plugin_name=PLUGIN_NAME, active=True)

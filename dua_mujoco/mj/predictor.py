@@ -588,7 +588,9 @@ class Predictor(PredictorViews):
         nc = int(data.ncon)
         if nc == 0:
             return 0
-        gp = self.geom_pair_ids(data.contact.geom1[:nc], data.contact.geom2[:nc])
+        g1, g2 = data.contact.geom1[:nc], data.contact.geom2[:nc]
+        geoms = (g1 >= 0) & (g2 >= 0)  # a flex's contacts have no geom
+        gp = self.geom_pair_ids(g1[geoms], g2[geoms])
         gp = np.unique(gp[gp >= 0])
         self._switch(np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp)), False)
         return int(gp.size)

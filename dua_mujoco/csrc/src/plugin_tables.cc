@@ -290,6 +290,14 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
         !ReadTable(m, prefix, "exact_records", &u.exact)) {
       return nullptr;
     }
+    if (static_cast<int64_t>(t->geoms.size()) != 24 * static_cast<int64_t>(m->ngeom) ||
+        static_cast<int64_t>(u.exact.size()) != 10 * u.npair()) {
+      mju_warning(
+          "dua_mujoco.predictor: the exact level's tables under prefix '%s' do not fit this "
+          "model: attach the predictor again.",
+          prefix.c_str());
+      return nullptr;
+    }
     // The mesh vertices in float64, as dua_mujoco.mj.exact reads them (exactly: float32 widens
     // without rounding).
     t->verts.assign(m->mesh_vert, m->mesh_vert + 3 * m->nmeshvert);

@@ -113,21 +113,17 @@ bool PrunedState::Select(const PrunedTables& t, const LearnTables& learn, Univer
     std::copy(state.begin(), state.begin() + 3, centers.begin() + 3 * i);
     speeds[i] = std::sqrt(state[3] * state[3] + state[4] * state[4] + state[5] * state[5]);
   }
+  // A centre beyond 1e150 m (its squares overflow) is a diverged state, as one not finite is
+  // (the Python predictor raises for both).
+  double lo[3], hi[3];
+  if (dua_grid_bounds(centers.data(), n, lo, hi) >= 0) return false;
   anchor = std::move(centers);
   speed0 = std::move(speeds);
   std::fill(built.begin(), built.end(), step);
   dua_reaches(t.radius.data(), speed0.data(), t.accel.data(), t.delta.data(), t.speed.data(), n,
               t.horizon, reach.data());
   ids->assign(u->always.begin(), u->always.end());
-  double lo[3], hi[3];
   if (n < 2) return true;
-  if (dua_grid_bounds(anchor.data(), n, lo, hi) >= 0) {
-    // A centre beyond 1e150 m: no grid can hold it (its squares overflow); hold every pair
-    // known.
-    ids->insert(ids->end(), u->code_ids.begin(), u->code_ids.end());
-    std::sort(ids->begin(), ids->end());
-    return true;
-  }
   dua_grid_plan plan{};
   held_out.resize(256);
   work.resize(n);

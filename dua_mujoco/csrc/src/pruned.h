@@ -45,7 +45,7 @@ struct PrunedState {
   dua_reach Reach(const PrunedTables& t);
   // Every sphere anchored at its state on a's frame, step `step`; ids receives the pairs to
   // hold, sorted, the universe learning the candidates it lacks. False if a state is not
-  // finite (nothing changed).
+  // finite or a centre is beyond 1e150 (nothing changed).
   bool Select(const PrunedTables& t, const LearnTables& learn, Universe* u, const dua_step_args& a,
               int64_t step, std::vector<int64_t>* ids);
   // The escaped spheres anchored anew at step `step`; ids receives the pairs their reach brings
