@@ -15,11 +15,13 @@ import importlib.metadata
 import importlib.util
 import os
 import sys
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from dua_mujoco.exceptions import NativeLibraryError
 
-__all__ = ["ABI_VERSION", "LIBRARY", "library", "library_path", "load_plugin"]
+__all__ = ["ABI_VERSION", "LIBRARY", "declare", "library", "library_path", "load_plugin"]
 
 LIBRARY = "libdua_mujoco.so"
 ABI_VERSION = 2
@@ -55,6 +57,17 @@ def _mujoco_dir() -> Path:
     if spec is None or spec.origin is None:  # pragma: no cover - mujoco is a dependency
         raise NativeLibraryError("the mujoco package is not installed: pip install mujoco")
     return Path(spec.origin).parent
+
+
+def declare(signatures: Mapping[str, tuple[Any, Sequence[Any]]]) -> ctypes.CDLL:
+    """The library with the C signatures ``{name: (restype, argtypes)}`` declared. Modules call
+    it once (under ``functools.cache``) for the functions they call through ctypes."""
+    lib = library()
+    for name, (restype, argtypes) in signatures.items():
+        fn = getattr(lib, name)
+        fn.restype = restype
+        fn.argtypes = list(argtypes)
+    return lib
 
 
 @functools.cache

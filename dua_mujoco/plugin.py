@@ -33,7 +33,7 @@ from dua_mujoco.mj.events import no_events
 from dua_mujoco.mj.options import PairOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.pruning import RENEW_MAX
-from dua_mujoco.native import ABI_VERSION, library
+from dua_mujoco.native import ABI_VERSION, declare, library
 
 __all__ = [
     "MAX_GEOM_PAIRS",
@@ -296,18 +296,14 @@ def _instance(model: mujoco.MjModel, prefix: str) -> int:
 @functools.cache
 def _functions() -> Any:
     """The plugin's C functions (``dua/dua.h``), their signatures declared once."""
-    lib = library()
     p, i64, i32 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_int
-    signatures: dict[str, list[Any]] = {
-        "dua_plugin_standing": [p, p, i32, p, i64],
-        "dua_plugin_set_active": [p, p, i32, i32, i32, i32],
-        "dua_plugin_deactivate_contacts": [p, p, i32],
-    }
-    for name, args in signatures.items():
-        fn = getattr(lib, name)
-        fn.restype = i64
-        fn.argtypes = args
-    return lib
+    return declare(
+        {
+            "dua_plugin_standing": (i64, [p, p, i32, p, i64]),
+            "dua_plugin_set_active": (i64, [p, p, i32, i32, i32, i32]),
+            "dua_plugin_deactivate_contacts": (i64, [p, p, i32]),
+        }
+    )
 
 
 def plugin_outputs(

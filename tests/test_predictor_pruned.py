@@ -287,6 +287,7 @@ def test_reach_pairs_equal_a_brute_force_reference(seed: int) -> None:
     import ctypes
 
     from dua_mujoco.core.neighbors import ROUNDING_SLACK
+    from dua_mujoco.native import declare
 
     m, _ = load_scene("swarm:200")
     held = Predictor(m, accel=2.0, pairs="pruned")._held
@@ -297,9 +298,8 @@ def test_reach_pairs_equal_a_brute_force_reference(seed: int) -> None:
     held.anchor[1] = held.anchor[0]  # coincident centres
     held.reach[:] = rng.uniform(0.0, 0.3, n)
     ids = np.concatenate([rng.choice(n, 12, replace=False), [0, 1, 0]]).astype(np.int64)
-    f = held._lib.dua_reach_pairs
-    f.restype = ctypes.c_int64
-    f.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64, ctypes.c_void_p, ctypes.c_int64]
+    p, i8 = ctypes.c_void_p, ctypes.c_int64
+    f = declare({"dua_reach_pairs": (i8, [p, p, i8, p, i8])}).dua_reach_pairs
     small = np.zeros((2, 2), dtype=np.int64)
     count = f(held._ref, ids.ctypes.data, ids.size, small.ctypes.data, 2)
     out = np.zeros((count, 2), dtype=np.int64)

@@ -60,7 +60,7 @@ from dua_mujoco.exceptions import (
     NonFiniteStateError,
     ShapeError,
 )
-from dua_mujoco.native import library
+from dua_mujoco.native import declare
 
 __all__ = ["ROUNDING_SLACK", "candidate_pairs", "reach"]
 
@@ -98,19 +98,18 @@ class _Work(ctypes.Structure):
 
 
 @functools.cache
-def _grid() -> Any:
-    """The grid's C functions, their signatures declared once."""
-    lib = library()
+def _lib() -> Any:
+    """The grid's and the reach's C functions, their signatures declared once."""
     p, i8, f8 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
-    lib.dua_grid_bounds.restype = i8
-    lib.dua_grid_bounds.argtypes = [p, i8, p, p]
-    lib.dua_grid_plan_of.restype = None
-    lib.dua_grid_plan_of.argtypes = [p, i8, f8, p, p, p, p, p]
-    lib.dua_grid_count.restype = i8
-    lib.dua_grid_count.argtypes = [p, p, p, i8, f8, p, p]
-    lib.dua_grid_fill.restype = None
-    lib.dua_grid_fill.argtypes = [p, p, p, i8, f8, p, p, p, p]
-    return lib
+    return declare(
+        {
+            "dua_grid_bounds": (i8, [p, i8, p, p]),
+            "dua_grid_plan_of": (None, [p, i8, f8, p, p, p, p, p]),
+            "dua_grid_count": (i8, [p, p, p, i8, f8, p, p]),
+            "dua_grid_fill": (None, [p, p, p, i8, f8, p, p, p, p]),
+            "dua_reaches": (None, [p, p, p, p, p, i8, f8, p]),
+        }
+    )
 
 
 def _plan(
@@ -122,7 +121,7 @@ def _plan(
     plan = _Plan()
     held = np.empty(256, dtype=np.int64)
     work = np.empty(n)
-    _grid().dua_grid_plan_of(
+    _lib().dua_grid_plan_of(
         reach.ctypes, n, margin, lo.ctypes, hi.ctypes, ctypes.byref(plan), held.ctypes, work.ctypes
     )
     return plan, held[: plan.nheld].copy()
@@ -162,15 +161,6 @@ def _check_values(
         where, value = f"{name}[{idx}]", float(a[idx])
     allowed = "finite or inf, and >= 0" if allow_inf else "finite and >= 0"
     raise error(f"{where} = {value!r} is invalid: it must be {allowed}. Fix the value passed.")
-
-
-@functools.cache
-def _reaches() -> Any:
-    f = library().dua_reaches
-    f.restype = None
-    p = ctypes.c_void_p
-    f.argtypes = [p, p, p, p, p, ctypes.c_int64, ctypes.c_double, p]
-    return f
 
 
 def reach(
@@ -241,7 +231,8 @@ def reach(
     )
     out = np.empty(shape)
     # The native core's kernel: the MuJoCo predictor renews reaches with it inside its step.
-    _reaches()(r.ctypes, s.ctypes, A.ctypes, d.ctypes, V.ctypes, shape[0], float(T), out.ctypes)
+    pointers = (a.ctypes for a in (r, s, A, d, V))
+    _lib().dua_reaches(*pointers, shape[0], float(T), out.ctypes)
     if not np.isfinite(out).all():
         idx = int(np.flatnonzero(~np.isfinite(out))[0])
         raise InvalidInputError(
@@ -294,7 +285,7 @@ def candidate_pairs(
     _check_values("reach", r)
     c = np.ascontiguousarray(c)
     r = np.ascontiguousarray(r)
-    lib = _grid()
+    lib = _lib()
     lo = np.empty(3)
     hi = np.empty(3)
     row = lib.dua_grid_bounds(c.ctypes, n, lo.ctypes, hi.ctypes)

@@ -40,7 +40,7 @@ import numpy.typing as npt
 
 from dua_mujoco.core.native_kernels import exceeds12_c
 from dua_mujoco.mj.bounds import MotionBounds
-from dua_mujoco.native import library
+from dua_mujoco.native import declare
 
 __all__ = [
     "BodyBoxes",
@@ -137,10 +137,8 @@ def body_boxes(
 @functools.cache
 def _index_by_row() -> Any:
     """``dua_index_by_row``, its signature declared once."""
-    f = library().dua_index_by_row
-    f.restype = ctypes.c_int64
-    f.argtypes = [ctypes.c_void_p] * 3 + [ctypes.c_int64] * 2 + [ctypes.c_void_p] * 2
-    return f
+    p, i8 = ctypes.c_void_p, ctypes.c_int64
+    return declare({"dua_index_by_row": (i8, [p, p, p, i8, i8, p, p])}).dua_index_by_row
 
 
 class EventTable:

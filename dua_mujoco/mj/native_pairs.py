@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.native import library
+from dua_mujoco.native import declare
 
 __all__ = ["contact_params", "exact_rows", "expand", "pair_bounds"]
 
@@ -25,17 +25,14 @@ _P, _I8 = ctypes.c_void_p, ctypes.c_int64
 @functools.cache
 def _lib() -> Any:
     """The kernels, their signatures declared once."""
-    lib = library()
-    for name, restype, args in (
-        ("dua_sphere_pairs", _I8, [_P, _P, _P, _P, _I8, _P, _P, _P, _P, _I8, _P, _P, _P, _P, _P]),
-        ("dua_contact_distance", None, [_P, _P, _P, _P, _I8, _I8, ctypes.c_double, _P, _P]),
-        ("dua_pair_bounds", None, [_P, _P, _P, _I8, _P, _P, _P, _P, _P, _P, _P]),
-        ("dua_exact_rows", None, [_P, _P, _P, _P, _P, _I8, _P]),
-    ):
-        fn = getattr(lib, name)
-        fn.restype = restype
-        fn.argtypes = args
-    return lib
+    return declare(
+        {
+            "dua_sphere_pairs": (_I8, [_P, _P, _P, _P, _I8, _P, _P, _P, _P, _I8, *[_P] * 5]),
+            "dua_contact_distance": (None, [_P, _P, _P, _P, _I8, _I8, ctypes.c_double, _P, _P]),
+            "dua_pair_bounds": (None, [_P, _P, _P, _I8, _P, _P, _P, _P, _P, _P, _P]),
+            "dua_exact_rows": (None, [_P, _P, _P, _P, _P, _I8, _P]),
+        }
+    )
 
 
 def _c(a: npt.ArrayLike, dtype: type) -> np.ndarray:

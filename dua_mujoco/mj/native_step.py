@@ -29,7 +29,7 @@ import numpy as np
 from dua_mujoco.core.native_kernels import step_c
 from dua_mujoco.core.schedules.base import compiled_entry
 from dua_mujoco.core.schedules.state import ScheduleState
-from dua_mujoco.native import ABI_VERSION, library
+from dua_mujoco.native import ABI_VERSION, declare
 
 __all__ = ["LOG_MIN", "LOG_STEPS", "AlarmLog", "NativeStep", "new_log"]
 
@@ -133,15 +133,14 @@ def _run(address, n, start):  # pragma: no cover - jitted
 def _functions() -> Any:
     """The C functions called through ctypes (the step itself goes through numba's entry point),
     their signatures declared once."""
-    lib = library()
     args = ctypes.POINTER(_StepArgs)
-    lib.dua_evaluate.restype = _i
-    lib.dua_evaluate.argtypes = [args, _p, _i, _p]
-    lib.dua_exact_pass.restype = None
-    lib.dua_exact_pass.argtypes = [args, _p, _i, _p]
-    lib.dua_reset_events.restype = None
-    lib.dua_reset_events.argtypes = [args]
-    return lib
+    return declare(
+        {
+            "dua_evaluate": (_i, [args, _p, _i, _p]),
+            "dua_exact_pass": (None, [args, _p, _i, _p]),
+            "dua_reset_events": (None, [args]),
+        }
+    )
 
 
 def new_log(capacity: int) -> tuple[AlarmLog, AlarmLog]:

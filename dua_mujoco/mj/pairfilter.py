@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
-from dua_mujoco.native import library
+from dua_mujoco.native import declare
 
 __all__ = [
     "FilterTables",
@@ -58,17 +58,15 @@ class _Filter(ctypes.Structure):
 @functools.cache
 def _lib() -> Any:
     """The filter's C functions, their signatures declared once."""
-    lib = library()
     p, i8 = ctypes.c_void_p, ctypes.c_int64
-    lib.dua_filter_mask.restype = i8
-    lib.dua_filter_mask.argtypes = [p, p, p, i8, p]
-    lib.dua_filter_all.restype = i8
-    lib.dua_filter_all.argtypes = [p, p, p, i8]
-    lib.dua_filter_count.restype = i8
-    lib.dua_filter_count.argtypes = [p, p, p]
-    lib.dua_filter_any.restype = i8
-    lib.dua_filter_any.argtypes = [p]
-    return lib
+    return declare(
+        {
+            "dua_filter_mask": (i8, [p, p, p, i8, p]),
+            "dua_filter_all": (i8, [p, p, p, i8]),
+            "dua_filter_count": (i8, [p, p, p]),
+            "dua_filter_any": (i8, [p]),
+        }
+    )
 
 
 @dataclass(frozen=True)

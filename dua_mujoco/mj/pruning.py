@@ -30,7 +30,7 @@ from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.filter import SpherePairs, contact_distance_bound
 from dua_mujoco.mj.native_step import NativeStep
 from dua_mujoco.mj.universe import PairUniverse
-from dua_mujoco.native import library
+from dua_mujoco.native import declare
 
 __all__ = ["RENEW_MAX", "HeldPairs", "held_pairs_for", "resolve_pair_mode"]
 
@@ -64,15 +64,14 @@ class _Reach(ctypes.Structure):
 @functools.cache
 def _functions() -> Any:
     """The reach's C functions, their signatures declared once."""
-    lib = library()
     i8, p = ctypes.c_int64, ctypes.c_void_p
-    lib.dua_escapes.restype = i8
-    lib.dua_escapes.argtypes = [p, p, i8, p, p, p, p]
-    lib.dua_escaped_spheres.restype = i8
-    lib.dua_escaped_spheres.argtypes = [p, p, i8, p]
-    lib.dua_renew.restype = i8
-    lib.dua_renew.argtypes = [p, p, p, i8, i8, p, i8]
-    return lib
+    return declare(
+        {
+            "dua_escapes": (i8, [p, p, i8, p, p, p, p]),
+            "dua_escaped_spheres": (i8, [p, p, i8, p]),
+            "dua_renew": (i8, [p, p, p, i8, i8, p, i8]),
+        }
+    )
 
 
 def _contiguous(a: npt.ArrayLike, dtype: type) -> np.ndarray:
