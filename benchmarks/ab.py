@@ -13,12 +13,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-from checkouts import probe
+from checkouts import run
 
 HERE = Path(__file__).resolve().parents[1]
 
@@ -84,17 +83,7 @@ print(json.dumps(out))
 
 
 def run_side(checkout: Path, side: str) -> dict[str, float]:
-    argv, env = probe(PROBE, checkout, side)
-    out = subprocess.run(
-        argv,
-        env=env,
-        cwd=checkout,
-        capture_output=True,
-        text=True,
-    )
-    if out.returncode:
-        raise RuntimeError(f"the {side} side failed:\n{out.stderr[-3000:]}")
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return json.loads(run(PROBE, checkout, side).strip().splitlines()[-1])
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -9,10 +9,11 @@ subprocess run in another checkout (``cwd``/``PYTHONPATH``) would still import t
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["HERE", "PREAMBLE", "probe", "scene_path"]
+__all__ = ["HERE", "PREAMBLE", "probe", "run", "scene_path"]
 
 HERE = Path(__file__).resolve().parents[1]
 """This checkout: the one the editable install's finder resolves to."""
@@ -38,3 +39,16 @@ def probe(code: str, checkout: Path, *args: str, **env: str) -> tuple[list[str],
     other = checkout.resolve() != HERE
     argv = [sys.executable, "-c", (PREAMBLE if other else "") + code, *args]
     return argv, {**os.environ, "PYTHONPATH": str(checkout), **env}
+
+
+def run(code: str, checkout: Path, *args: str, **env: str) -> str:
+    """Run :func:`probe`'s ``python -c code args`` on ``checkout`` to the end; its stdout.
+
+    Raises:
+        RuntimeError: The subprocess failed (its stderr's tail said why).
+    """
+    argv, environ = probe(code, checkout, *args, **env)
+    proc = subprocess.run(argv, env=environ, cwd=checkout, capture_output=True, text=True)
+    if proc.returncode:
+        raise RuntimeError(f"{checkout} failed:\n{proc.stderr[-3000:]}")
+    return proc.stdout

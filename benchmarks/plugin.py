@@ -25,12 +25,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-from checkouts import probe
+from checkouts import run
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -143,17 +142,8 @@ def _scenes(requested: list[str] | None) -> list[str]:
 
 
 def run_side(checkout: Path, side: str, steps: int, scenes: list[str]) -> list[dict]:
-    argv, env = probe(PROBE, checkout, str(HERE), side, str(steps), *scenes)
-    proc = subprocess.run(
-        argv,
-        env=env,
-        cwd=checkout,
-        capture_output=True,
-        text=True,
-    )
-    if proc.returncode:
-        raise RuntimeError(f"the {side} side failed:\n{proc.stderr[-3000:]}")
-    return [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
+    out = run(PROBE, checkout, str(HERE), side, str(steps), *scenes)
+    return [json.loads(line) for line in out.splitlines() if line.startswith("{")]
 
 
 def _median(rows: list[dict], scene: str, key: str) -> float:
