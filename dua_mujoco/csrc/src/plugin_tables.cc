@@ -155,7 +155,7 @@ bool LoadLearn(const mjModel* m, const std::string& prefix, Tables* t) {
   l.plane_geom = AsInts(planes), l.shape_geom = AsInts(shapes);
   l.accel = body[0], l.delta = body[1], l.speed = body[2];
   l.has_speed = t->config[kCfgHasSpeed] != 0.0;
-  l.radius = t->held.radius;
+  l.radius = t->held.radius.data();  // the Tables are never copied or moved once loaded
   l.sphere_geom.resize(nsphere), l.sphere_body.resize(nsphere);
   for (int64_t i = 0; i < nsphere; ++i) {
     l.sphere_geom[i] = static_cast<int64_t>(t->spheres[8 * i]);

@@ -103,14 +103,14 @@ dua_reach PrunedState::Reach(const PrunedTables& t) {
 bool PrunedState::Select(const PrunedTables& t, const LearnTables& learn, Universe* u,
                          const dua_step_args& a, int64_t step, std::vector<int64_t>* ids) {
   const int64_t n = t.nsphere;
-  state.resize(6);
   std::vector<double> centers(3 * static_cast<size_t>(n)), speeds(n);
+  double state[6];
   for (int64_t i = 0; i < n; ++i) {
-    dua_rigid_point(i, a.spheres, &a.frame, state.data());
+    dua_rigid_point(i, a.spheres, &a.frame, state);
     for (int c = 0; c < 6; ++c) {
       if (!std::isfinite(state[c])) return false;  // nothing anchored
     }
-    std::copy(state.begin(), state.begin() + 3, centers.begin() + 3 * i);
+    std::copy(state, state + 3, centers.begin() + 3 * i);
     speeds[i] = std::sqrt(state[3] * state[3] + state[4] * state[4] + state[5] * state[5]);
   }
   // A centre beyond 1e150 m (its squares overflow) is a diverged state, as one not finite is

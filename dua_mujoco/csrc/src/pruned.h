@@ -37,7 +37,7 @@ struct PrunedState {
   int64_t built_at = 0;          // step of the latest rebuild
   // The grid's buffers (every call sizes them).
   std::vector<int32_t> start, sid, found, tmp;
-  std::vector<double> sxyz, sr, work, state;
+  std::vector<double> sxyz, sr, work;
   std::vector<int64_t> cnt_a, cnt_b, held_out, cand;
   std::vector<uint8_t> is_held;
 

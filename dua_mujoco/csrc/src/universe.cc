@@ -145,13 +145,13 @@ int64_t Universe::Learn(const LearnTables& lt, const int64_t* g1, const int64_t*
   // exact_records make them (the same native kernels).
   const int64_t count = dua_sphere_pairs(
       a.data(), b.data(), dist.data(), id.data(), ng, lt.geom_start.data(), lt.geom_plane.data(),
-      lt.geom_shape.data(), lt.radius.data(), 0, nullptr, nullptr, nullptr, nullptr, nullptr);
+      lt.geom_shape.data(), lt.radius, 0, nullptr, nullptr, nullptr, nullptr, nullptr);
   std::vector<int64_t> first(count), second(count), gp(count);
   std::vector<int8_t> kind(count);
   std::vector<double> eps(count), accel(count), delta(count), speed(count);
   dua_sphere_pairs(a.data(), b.data(), dist.data(), id.data(), ng, lt.geom_start.data(),
-                   lt.geom_plane.data(), lt.geom_shape.data(), lt.radius.data(), count,
-                   first.data(), second.data(), kind.data(), gp.data(), eps.data());
+                   lt.geom_plane.data(), lt.geom_shape.data(), lt.radius, count, first.data(),
+                   second.data(), kind.data(), gp.data(), eps.data());
   dua_pair_bounds(first.data(), second.data(), kind.data(), count, lt.sphere_body.data(),
                   lt.accel.data(), lt.delta.data(), lt.has_speed ? lt.speed.data() : nullptr,
                   accel.data(), delta.data(), speed.data());

@@ -24,9 +24,9 @@ struct LearnTables {
   bool override_margin = false;
   double o_margin = 0.0;
   // The covering: each geom's first sphere (ngeom + 1), plane and shape index (-1: none), each
-  // plane's and shape's geom; each sphere's radius, geom and body.
+  // plane's and shape's geom; each sphere's radius (the reach table's), geom and body.
   std::vector<int64_t> geom_start, geom_plane, geom_shape, plane_geom, shape_geom;
-  std::vector<double> radius;
+  const double* radius = nullptr;
   std::vector<int64_t> sphere_geom, sphere_body;
   // Each body's bounds (the speed bound inf where none is declared).
   std::vector<double> accel, delta, speed;
