@@ -89,11 +89,15 @@ double Refine(const double x[3], const double v[3], double e, double d, double h
   const double c = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
   const double c4 = -h * h, c3 = -2.0 * h * d, c2 = a - d * d - 2.0 * e * h;
   const double c1 = 2.0 * (b - e * d), c0 = c - e * e;
+  // g, g' and g'' by Estrin's scheme: shorter dependency chains than Horner's (the loop is
+  // latency-bound; 5 % of the kernel, measured). They only steer: the predicate certifies.
+  const double k4 = 4.0 * c4, k3 = 3.0 * c3, k2 = 2.0 * c2, k12 = 12.0 * c4, k6 = 6.0 * c3;
   double blo = lo, bhi = hi, t = hi;
   for (int it = 0; it < 16; ++it) {
-    const double g = (((c4 * t + c3) * t + c2) * t + c1) * t + c0;
-    const double g1 = ((4.0 * c4 * t + 3.0 * c3) * t + 2.0 * c2) * t + c1;
-    const double g2 = (12.0 * c4 * t + 6.0 * c3) * t + 2.0 * c2;
+    const double t2 = t * t;
+    const double g = (c4 * t2 + (c3 * t + c2)) * t2 + (c1 * t + c0);
+    const double g1 = (k4 * t + k3) * t2 + (k2 * t + c1);
+    const double g2 = k12 * t2 + (k6 * t + k2);
     if (g > 0.0) {
       blo = std::max(blo, t);
     } else {
@@ -106,11 +110,12 @@ double Refine(const double x[3], const double v[3], double e, double d, double h
       tn = 0.5 * (blo + bhi);
       halley = false;
     }
-    // Halley converges cubically: after a step of 1e-7 t the error is of order 1e-21 t, far
-    // inside the certified bracket, so the step that would only confirm it is skipped (3.7
-    // iterations instead of 4.4 on random pairs, 9 % of the kernel, measured). Only a guess:
-    // the certification below decides, and falls back to the safe iteration.
-    if (std::fabs(tn - t) <= (halley ? 1e-7 : 1e-15) * t) {
+    // Halley converges cubically: after a step of 1e-5 t the error is of order 1e-15 t, inside
+    // the certified bracket (2e-13 t), so the step that would only confirm it is skipped (3.4
+    // iterations instead of 4.4 on random pairs, and as few fallbacks as at 1e-7, 1 in 10^4; at
+    // 1e-4 9 % fall back, measured). Only a guess: the certification below decides,
+    // and falls back to the safe iteration.
+    if (std::fabs(tn - t) <= (halley ? 1e-5 : 1e-15) * t) {
       t = tn;
       break;
     }
@@ -127,6 +132,7 @@ double Refine(const double x[3], const double v[3], double e, double d, double h
 // Root of the cubic G1 monotone on [lo, hi] (a sign change there).
 double G1Root(double p3, double p2, double p1, double p0, double lo, double hi, bool increasing) {
   double t = 0.5 * (lo + hi);
+  bool probe = false;  // the previous iterate was a probe across a converged point
   for (int it = 0; it < kMaxIter; ++it) {
     const double val = ((p3 * t + p2) * t + p1) * t + p0;
     if ((val > 0.0) == increasing) {
@@ -137,6 +143,17 @@ double G1Root(double p3, double p2, double p1, double p0, double lo, double hi, 
     if (hi - lo <= 1e-15 * hi) break;
     const double der = (3.0 * p3 * t + 2.0 * p2) * t + p1;
     double tn = der != 0.0 ? t - val / der : 0.5 * (lo + hi);
+    // Newton nears the root from one side, so the far end of the bracket stays put: once a step
+    // is inside the stopping width, probe just across to close the bracket (6.9 iterations a
+    // call instead of 35 by bisection, measured on random pairs). A probe that does not close
+    // it bisects next.
+    const double tol = 0.5e-15 * t;
+    if (std::fabs(tn - t) <= tol) {
+      tn = probe ? 0.5 * (lo + hi) : (t == lo ? t + tol : t - tol);
+      probe = !probe;
+    } else {
+      probe = false;
+    }
     if (!(lo < tn && tn < hi)) tn = 0.5 * (lo + hi);
     if (tn == t) break;
     t = tn;
