@@ -30,6 +30,7 @@ except ImportError:  # the package __init__ may not re-export yet
     from dua_mujoco.core.urgency import distance_urgency, time_to_collision, time_to_halfspace
 import reference_tau as ref
 
+from dua_mujoco.core.urgency import tau_speed
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
     InvalidBoundError,
@@ -247,6 +248,54 @@ def test_random_against_reference():
     for i in range(len(eps)):
         problems += check_against_ref(tau[i], x[i], v[i], eps[i], A[i], delta[i])
     assert_all_ok(problems)
+
+
+def _scalar_kernel(x, v, eps, A, delta, speed):
+    return np.array(
+        [tau_speed(*x[i], *v[i], eps[i], A[i], delta[i], speed[i]) for i in range(len(eps))]
+    )
+
+
+@pytest.mark.parametrize("n", [1, 3, 4, 5, 9, 2000, 5003])
+def test_batch_lanes_equal_the_scalar_kernel_bit_for_bit(n):
+    """time_to_collision runs the kernel four pairs at a time (their common path in lockstep,
+    the rest by the scalar kernel): every row must be the scalar kernel's value exactly, in a
+    ragged last group, with per-pair and shared bounds, on every path (A = 0, overlap, a tiny
+    |v|, the interior minimum, a speed bound, above and below it), serial and threaded."""
+    rng = np.random.default_rng(n)
+    x, v, eps, A, delta = random_cases(rng, n)
+    v[rng.random(n) < 0.05] *= 1e-130  # |v|^2 underflows
+    speed = np.where(
+        rng.random(n) < 0.5, np.inf, rng.uniform(0.5, 2.0, n) * np.linalg.norm(v, axis=1)
+    )
+    speed[speed == 0.0] = 1.0
+    want = _scalar_kernel(x, v, eps, A, delta, speed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BoundViolationWarning)
+        got = time_to_collision(x, v, eps, A, vel_uncertainty=delta, speed=speed)
+    np.testing.assert_array_equal(got, want)
+    # Shared bounds (one value for every row) take the same path.
+    shared = time_to_collision(x, v, eps[0], A[0], vel_uncertainty=delta[0])
+    ones = np.ones(n)
+    want_shared = _scalar_kernel(x, v, eps[0] * ones, A[0] * ones, delta[0] * ones, np.inf * ones)
+    np.testing.assert_array_equal(shared, want_shared)
+
+
+@URG
+@given(
+    st.lists(
+        st.tuples(*[st.floats(-10.0, 10.0)] * 6, *[st.floats(0.0, 10.0)] * 3),
+        min_size=1,
+        max_size=11,
+    )
+)
+def test_property_batch_lanes_equal_the_scalar_kernel(rows):
+    a = np.array(rows, dtype=np.float64)
+    x, v, eps, A, delta = a[:, 0:3], a[:, 3:6], a[:, 6], a[:, 7], a[:, 8]
+    got = time_to_collision(x, v, eps, A, vel_uncertainty=delta)
+    np.testing.assert_array_equal(
+        got, _scalar_kernel(x, v, eps, A, delta, np.full(len(eps), np.inf))
+    )
 
 
 def test_scalar_input_shape():

@@ -41,6 +41,7 @@ __all__ = [
     "switch_c",
     "tau_accel_c",
     "tau_halfspace_c",
+    "tau_speed_batch_c",
     "tau_speed_c",
     "tau_static_c",
 ]
@@ -61,6 +62,9 @@ def _c(name: str, signature: Any) -> Any:
 
 tau_accel_c = _c("dua_tau_accel", _f8(*([_f8] * 9)))
 tau_speed_c = _c("dua_tau_speed", _f8(*([_f8] * 10)))
+tau_speed_batch_c = _c(
+    "dua_tau_speed_batch", types.void(_i8, _pf8, _pf8, _pf8, _pf8, _pf8, _pf8, _i8, _pf8)
+)
 tau_halfspace_c = _c("dua_tau_halfspace", _f8(_f8, _f8, _f8, _f8))
 support_c = _c("dua_support", _f8(_pf8, _pf8))
 closest_point_c = _c("dua_closest_point", types.void(_pf8, _pf8, _pf8))

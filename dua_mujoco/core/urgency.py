@@ -36,7 +36,12 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.native_kernels import tau_accel_c, tau_halfspace_c, tau_speed_c
+from dua_mujoco.core.native_kernels import (
+    tau_accel_c,
+    tau_halfspace_c,
+    tau_speed_batch_c,
+    tau_speed_c,
+)
 from dua_mujoco.core.validate import as_vectors, per_pair
 from dua_mujoco.exceptions import BoundViolationWarning, InvalidBoundError, ShapeError
 
@@ -105,38 +110,44 @@ def _at(arr, i):  # pragma: no cover - jitted
 PARALLEL_MIN = 4096
 
 
+# Rows a batch call covers: the native batch runs them four at a time; threads take chunks.
+_CHUNK = 4096
+
+
 @nb.njit(cache=True)
-def _tau_row(x, v, eps, accel, delta, speed, out, i):  # pragma: no cover - jitted
-    out[i] = tau_speed(
-        x[i, 0],
-        x[i, 1],
-        x[i, 2],
-        v[i, 0],
-        v[i, 1],
-        v[i, 2],
-        _at(eps, i),
-        _at(accel, i),
-        _at(delta, i),
-        _at(speed, i),
+def _tau_rows(x, v, eps, accel, delta, speed, out, i0, i1):  # pragma: no cover - jitted
+    # Parameters of length 1 are one value for every row (bit k of per_pair clear).
+    params = (eps, accel, delta, speed)
+    per_pair = 0
+    for k in range(4):
+        if params[k].shape[0] > 1:
+            per_pair |= 1 << k
+    tau_speed_batch_c(
+        i1 - i0,
+        x[i0:i1].ctypes,
+        v[i0:i1].ctypes,
+        eps[i0:i1].ctypes if eps.shape[0] > 1 else eps.ctypes,
+        accel[i0:i1].ctypes if accel.shape[0] > 1 else accel.ctypes,
+        delta[i0:i1].ctypes if delta.shape[0] > 1 else delta.ctypes,
+        speed[i0:i1].ctypes if speed.shape[0] > 1 else speed.ctypes,
+        per_pair,
+        out[i0:i1].ctypes,
     )
-
-
-@nb.njit(cache=True)
-def _tau_serial(x, v, eps, accel, delta, speed, out):  # pragma: no cover - jitted
-    for i in range(x.shape[0]):
-        _tau_row(x, v, eps, accel, delta, speed, out, i)
 
 
 @nb.njit(cache=True, parallel=True)
 def _tau_parallel(x, v, eps, accel, delta, speed, out):  # pragma: no cover - jitted
-    for i in nb.prange(x.shape[0]):
-        _tau_row(x, v, eps, accel, delta, speed, out, i)
+    m = x.shape[0]
+    for c in nb.prange((m + _CHUNK - 1) // _CHUNK):
+        _tau_rows(x, v, eps, accel, delta, speed, out, c * _CHUNK, min(m, (c + 1) * _CHUNK))
 
 
 def _tau_batch(x, v, eps, accel, delta, speed, out):
     """tau of every row into ``out``: threads for large batches, serial for small ones."""
-    kernel = _tau_parallel if x.shape[0] >= PARALLEL_MIN else _tau_serial
-    kernel(x, v, eps, accel, delta, speed, out)
+    if x.shape[0] >= PARALLEL_MIN:
+        _tau_parallel(x, v, eps, accel, delta, speed, out)
+    else:
+        _tau_rows(x, v, eps, accel, delta, speed, out, 0, x.shape[0])
 
 
 @nb.njit(cache=True)

@@ -17,6 +17,9 @@ double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2
                 double accel, double delta);
 double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
                 double accel, double delta, double speed);
+// TauSpeed of n rows {x0, x1, x2, v0, v1, v2, eps, accel, delta, speed}, row i at rows + i *
+// stride, into out[i * out_stride]; four at a time (the same values).
+void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride);
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
 double TauStatic(double c0, double c1, double c2, double v0, double v1, double v2,
                  const double* rec, double eps, double accel, double delta);

@@ -396,6 +396,10 @@ int64_t TauOf(const dua_step_args& a, const int64_t* ids, int64_t count, double*
       RigidPoint(static_cast<int64_t>(rec[kPairSecond]), a.spheres, kSphereNcol, f, s + 6);
     }
   }
+  // Sphere pairs are packed to the front of rows as TauSpeedRows reads them (relative state and
+  // bounds, then k; row n never overtakes row k, as n <= k and row k is read first), so that
+  // they are evaluated four at a time.
+  int64_t n = 0;
   for (int64_t k = 0; k < count; ++k) {
     const double* rec = a.pairs + ids[k] * kPairNcol;
     const double* s = rows + 12 * k;
@@ -412,11 +416,15 @@ int64_t TauOf(const dua_step_args& a, const int64_t* ids, int64_t count, double*
                          a.shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol,
                          rec[kPairEps], rec[kPairAccel], rec[kPairDelta]);
     } else {
-      out[k] =
-          TauSpeed(s[6] - s[0], s[7] - s[1], s[8] - s[2], s[9] - s[3], s[10] - s[4], s[11] - s[5],
-                   rec[kPairEps], rec[kPairAccel], rec[kPairDelta], rec[kPairSpeed]);
+      double r[12];
+      for (int j = 0; j < 6; ++j) r[j] = s[6 + j] - s[j];
+      r[6] = rec[kPairEps], r[7] = rec[kPairAccel], r[8] = rec[kPairDelta];
+      r[9] = rec[kPairSpeed], r[10] = static_cast<double>(k), r[11] = 0.0;
+      std::copy(r, r + 12, rows + 12 * n++);
     }
   }
+  TauSpeedRows(n, rows, 12, rows + 11, 12);
+  for (int64_t i = 0; i < n; ++i) out[static_cast<int64_t>(rows[12 * i + 10])] = rows[12 * i + 11];
   ExactPass(a, ids, count, out);
   return -1;
 }

@@ -18,11 +18,52 @@ constexpr double kRtol = 2e-13;
 constexpr int kMaxIter = 200;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// Four pairs in lockstep (TauSpeedBatch): one chain of Halley iterations carries four roots, so
+// the branch mispredictions and latencies that bound the scalar kernel are paid once for four.
+// The pieces below that both run are templates over the number type, written once: a lane
+// computes the operations the scalar kernel computes, in the same order (IEEE operations, no
+// contraction), so it gets the same bits.
+constexpr int kLanes = 4;
+using Lanes = double __attribute__((vector_size(8 * kLanes)));
+using LaneMask = int64_t __attribute__((vector_size(8 * kLanes)));
+
+inline double Select(bool m, double a, double b) { return m ? a : b; }
+inline Lanes Select(LaneMask m, Lanes a, Lanes b) { return m ? a : b; }
+// As std::max and std::min order their operands (which one a NaN gives back).
+inline double Max(double a, double b) { return std::max(a, b); }
+inline Lanes Max(Lanes a, Lanes b) { return a < b ? b : a; }
+inline double Min(double a, double b) { return std::min(a, b); }
+inline Lanes Min(Lanes a, Lanes b) { return b < a ? b : a; }
+inline double Sqrt(double a) { return std::sqrt(a); }
+inline Lanes Sqrt(Lanes a) {
+  Lanes r;
+  for (int k = 0; k < kLanes; ++k) r[k] = std::sqrt(a[k]);
+  return r;
+}
+inline double Abs(double a) { return std::fabs(a); }
+inline Lanes Abs(Lanes a) {
+  Lanes r;
+  for (int k = 0; k < kLanes; ++k) r[k] = std::fabs(a[k]);
+  return r;
+}
+inline bool And(bool a, bool b) { return a && b; }
+inline LaneMask And(LaneMask a, LaneMask b) { return a & b; }
+inline bool AndNot(bool a, bool b) { return a && !b; }
+inline LaneMask AndNot(LaneMask a, LaneMask b) { return a & ~b; }
+inline bool Any(bool m) { return m; }
+inline bool Any(LaneMask m) {
+  int64_t any = 0;
+  for (int k = 0; k < kLanes; ++k) any |= m[k];
+  return any != 0;
+}
+template <class T>
+using MaskOf = decltype(T{} < T{});
+
 // |x + v t| - (e + d t + h t^2): positive while the reachable ball misses B(0, e).
-inline double Predicate(const double x[3], const double v[3], double e, double d, double h,
-                        double t) {
-  const double y0 = x[0] + v[0] * t, y1 = x[1] + v[1] * t, y2 = x[2] + v[2] * t;
-  return std::sqrt(y0 * y0 + y1 * y1 + y2 * y2) - (e + t * (d + h * t));
+template <class T>
+inline T Predicate(const T x[3], const T v[3], T e, T d, T h, T t) {
+  const T y0 = x[0] + v[0] * t, y1 = x[1] + v[1] * t, y2 = x[2] + v[2] * t;
+  return Sqrt(y0 * y0 + y1 * y1 + y2 * y2) - (e + t * (d + h * t));
 }
 
 // The predicate (same expression, so the same sign), f' and f''; a = |v|^2.
@@ -80,52 +121,59 @@ double RefineSafe(const double x[3], const double v[3], double e, double d, doub
   return lo;
 }
 
-// Halley on the expanded quartic steers; the bracket it proposes is certified with the vector
-// predicate, else the safe iteration runs: correctness rests on the predicate alone.
-double Refine(const double x[3], const double v[3], double e, double d, double h, double lo,
-              double hi) {
-  const double a = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-  const double b = x[0] * v[0] + x[1] * v[1] + x[2] * v[2];
-  const double c = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
-  const double c4 = -h * h, c3 = -2.0 * h * d, c2 = a - d * d - 2.0 * e * h;
-  const double c1 = 2.0 * (b - e * d), c0 = c - e * e;
+// Halley on the expanded quartic, from hi: a guess at the root in [lo, hi], cheap (no square
+// roots) and only a guess (Certify decides). Lanes that stop keep their t.
+template <class T>
+T HalleyGuess(const T x[3], const T v[3], T e, T d, T h, T lo, T hi, MaskOf<T> run) {
+  const T a = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+  const T b = x[0] * v[0] + x[1] * v[1] + x[2] * v[2];
+  const T c = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
+  const T c4 = -h * h, c3 = -2.0 * h * d, c2 = a - d * d - 2.0 * e * h;
+  const T c1 = 2.0 * (b - e * d), c0 = c - e * e;
   // g, g' and g'' by Estrin's scheme: shorter dependency chains than Horner's (the loop is
-  // latency-bound; 5 % of the kernel, measured). They only steer: the predicate certifies.
-  const double k4 = 4.0 * c4, k3 = 3.0 * c3, k2 = 2.0 * c2, k12 = 12.0 * c4, k6 = 6.0 * c3;
-  double blo = lo, bhi = hi, t = hi;
-  for (int it = 0; it < 16; ++it) {
-    const double t2 = t * t;
-    const double g = (c4 * t2 + (c3 * t + c2)) * t2 + (c1 * t + c0);
-    const double g1 = (k4 * t + k3) * t2 + (k2 * t + c1);
-    const double g2 = k12 * t2 + (k6 * t + k2);
-    if (g > 0.0) {
-      blo = std::max(blo, t);
-    } else {
-      bhi = std::min(bhi, t);
-    }
-    const double den = 2.0 * g1 * g1 - g * g2;
-    bool halley = g1 < 0.0 && den > 0.0;
-    double tn = halley ? t - 2.0 * g * g1 / den : -1.0;
-    if (!(blo <= tn && tn <= bhi)) {
-      tn = 0.5 * (blo + bhi);
-      halley = false;
-    }
+  // latency-bound; 5 % of the kernel, measured).
+  const T k4 = 4.0 * c4, k3 = 3.0 * c3, k2 = 2.0 * c2, k12 = 12.0 * c4, k6 = 6.0 * c3;
+  T blo = lo, bhi = hi, t = hi;
+  for (int it = 0; it < 16 && Any(run); ++it) {
+    const T t2 = t * t;
+    const T g = (c4 * t2 + (c3 * t + c2)) * t2 + (c1 * t + c0);
+    const T g1 = (k4 * t + k3) * t2 + (k2 * t + c1);
+    const T g2 = k12 * t2 + (k6 * t + k2);
+    const MaskOf<T> above = g > 0.0;
+    blo = Select(above, Max(blo, t), blo);
+    bhi = Select(above, bhi, Min(bhi, t));
+    const T den = 2.0 * g1 * g1 - g * g2;
+    const T step = t - 2.0 * g * g1 / den;
+    const MaskOf<T> halley = And(And(g1 < 0.0, den > 0.0), And(blo <= step, step <= bhi));
+    const T tn = Select(halley, step, 0.5 * (blo + bhi));
     // Halley converges cubically: after a step of 1e-5 t the error is of order 1e-15 t, inside
     // the certified bracket (2e-13 t), so the step that would only confirm it is skipped (3.4
     // iterations instead of 4.4 on random pairs, and as few fallbacks as at 1e-7, 1 in 10^4; at
-    // 1e-4 9 % fall back, measured). Only a guess: the certification below decides,
-    // and falls back to the safe iteration.
-    if (std::fabs(tn - t) <= (halley ? 1e-5 : 1e-15) * t) {
-      t = tn;
-      break;
-    }
-    t = tn;
+    // 1e-4 9 % fall back, measured).
+    const T tol = Select(halley, T{} + 1e-5, T{} + 1e-15) * t;
+    const MaskOf<T> stop = Abs(tn - t) <= tol;
+    t = Select(run, tn, t);
+    run = AndNot(run, stop);
   }
-  const double tl = t * (1.0 - 0.5 * kRtol), th = t * (1.0 + 0.5 * kRtol);
-  if (lo <= tl && th <= hi && Predicate(x, v, e, d, h, tl) > 0.0 &&
-      Predicate(x, v, e, d, h, th) <= 0.0) {
-    return tl;
-  }
+  return t;
+}
+
+// Whether [t (1 - r/2), t (1 + r/2)] lies in [lo, hi] with the predicate positive at its lower
+// end, *tl, and non-positive at its upper end: then the root lies in it (one root in [lo, hi]).
+template <class T>
+MaskOf<T> Certify(const T x[3], const T v[3], T e, T d, T h, T lo, T hi, T t, T* tl) {
+  *tl = t * (1.0 - 0.5 * kRtol);
+  const T th = t * (1.0 + 0.5 * kRtol);
+  return And(And(lo <= *tl, th <= hi),
+             And(Predicate(x, v, e, d, h, *tl) > 0.0, Predicate(x, v, e, d, h, th) <= 0.0));
+}
+
+// Lower end of a tight bracket of the single root in [lo, hi]: the certified guess, else the
+// safe iteration (correctness rests on the predicate alone).
+double Refine(const double x[3], const double v[3], double e, double d, double h, double lo,
+              double hi) {
+  double tl;
+  if (Certify(x, v, e, d, h, lo, hi, HalleyGuess(x, v, e, d, h, lo, hi, true), &tl)) return tl;
   return RefineSafe(x, v, e, d, h, lo, hi);
 }
 
@@ -161,18 +209,24 @@ double G1Root(double p3, double p2, double p1, double p0, double lo, double hi, 
   return t;
 }
 
+// |x + v t| <= |x| + |v| t: the predicate is <= 0 once |x| + |v| t <= e + d t + h t^2, from
+// the returned time on (h > 0), if it is at least start (and not 0, which doubling cannot grow).
+template <class T>
+T UpperGuess(T nx, T nv, T e, T d, T h, T start) {
+  const T bq = nv - d, cq = nx - e;
+  const T t = (bq + Sqrt(bq * bq + 4.0 * h * Max(cq, T{}))) / (2.0 * h);
+  return Max(Max(t, start), T{} + 1e-300);
+}
+
 // A time >= start where the predicate is <= 0, on a final piece where g decreases to -inf.
 double Upper(const double x[3], const double v[3], double e, double d, double h, double start,
              double nx, double nv) {
-  // |x + v t| <= |x| + |v| t: the predicate is <= 0 once |x| + |v| t <= e + d t + h t^2.
-  const double bq = nv - d, cq = nx - e;
   double t;
   if (h > 0.0) {
-    t = (bq + std::sqrt(bq * bq + 4.0 * h * std::max(cq, 0.0))) / (2.0 * h);
+    t = UpperGuess(nx, nv, e, d, h, start);
   } else {  // d > |v| on this branch
-    t = std::max(cq, 0.0) / (d - nv);
+    t = std::max(std::max(std::max(nx - e, 0.0) / (d - nv), start), 1e-300);
   }
-  t = std::max(std::max(t, start), 1e-300);
   for (int it = 0; it < 2100; ++it) {
     if (Predicate(x, v, e, d, h, t) <= 0.0) return t;
     t *= 2.0;
@@ -180,12 +234,97 @@ double Upper(const double x[3], const double v[3], double e, double d, double h,
   return kInf;
 }
 
+// The inflated problem: radius e + d t + h t^2. With G1 = g'/2 = -2h^2 t^3 - 3hd t^2 + q t + p0
+// and G2 = g''/2 = -6h^2 t^2 - 6hd t + q.
+template <class T>
+struct Inflated {
+  T nx, nv, e, d, h, q, p0;
+};
+
+template <class T>
+Inflated<T> Inflate(const T x[3], const T v[3], T eps, T accel, T delta) {
+  Inflated<T> p;
+  p.nx = Sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+  p.nv = Sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  p.e = eps * (1.0 + kKappa) + kKappa * p.nx;
+  p.d = delta * (1.0 + kKappa) + kKappa * p.nv;
+  p.h = 0.5 * accel * (1.0 + kKappa);
+  const T a = p.nv * p.nv;
+  const T b = x[0] * v[0] + x[1] * v[1] + x[2] * v[2];
+  p.q = a - p.d * p.d - 2.0 * p.e * p.h;
+  p.p0 = b - p.e * p.d;
+  return p;
+}
+
+// Whether g (h > 0) has an interior local minimum, the only place a first root can touch
+// without a sign change of g': G1 < 0 at 0 and > 0 at G2's positive root, *t2.
+template <class T>
+MaskOf<T> HasMinimum(const Inflated<T>& p, T* t2) {
+  const MaskOf<T> may = And(p.q > 0.0, p.p0 < 0.0);
+  if (!Any(may)) return may;
+  const T h = p.h, d = p.d;
+  // Cancellation-free.
+  *t2 = 2.0 * p.q / (6.0 * h * d + Sqrt(36.0 * h * h * d * d + 24.0 * h * h * p.q));
+  const T p3 = -2.0 * h * h, p2 = -3.0 * h * d;
+  return And(may, ((p3 * *t2 + p2) * *t2 + p.q) * *t2 + p.p0 > 0.0);
+}
+
+// TauAccel's common path, four pairs at once: h > 0, no interior minimum, the closed-form upper
+// end brackets the root, the guess is certified. The lanes it settles (the returned mask) hold
+// TauAccel's value bit for bit (the same operations in the same order); the rest are TauAccel's
+// to compute.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default"), flatten))
+#endif
+int TauAccelLanes(const double r[kLanes][10], double tau[kLanes]) {
+  Lanes x[3], v[3], eps, accel, delta;
+  for (int k = 0; k < kLanes; ++k) {
+    for (int j = 0; j < 3; ++j) x[j][k] = r[k][j], v[j][k] = r[k][3 + j];
+    eps[k] = r[k][6], accel[k] = r[k][7], delta[k] = r[k][8];
+  }
+  const Lanes vmax = Max(Max(Abs(v[0]), Abs(v[1])), Abs(v[2]));
+  const Inflated<Lanes> p = Inflate(x, v, eps, accel, delta);
+  const LaneMask inside = p.nx - p.e <= 0.0;  // tau = 0
+  LaneMask ok = AndNot(p.h > 0.0, And(0.0 < vmax, vmax < 1e-120));
+  Lanes t2;
+  ok = AndNot(ok, HasMinimum(p, &t2));
+  const Lanes hi = UpperGuess(p.nx, p.nv, p.e, p.d, p.h, Lanes{});
+  ok = AndNot(And(ok, Predicate(x, v, p.e, p.d, p.h, hi) <= 0.0), inside);
+  Lanes out = {};
+  if (Any(ok)) {
+    Lanes tl;
+    const Lanes t = HalleyGuess(x, v, p.e, p.d, p.h, Lanes{}, hi, ok);
+    ok = And(ok, Certify(x, v, p.e, p.d, p.h, Lanes{}, hi, t, &tl));
+    out = Select(ok, tl, out);
+  }
+  ok = ok | inside;
+  int settled = 0;
+  for (int k = 0; k < kLanes; ++k) {
+    tau[k] = out[k];
+    settled |= ok[k] ? 1 << k : 0;
+  }
+  return settled;
+}
+
+// TauSpeed's speed term: the relative position also stays in B(x, V t).
+double WithSpeed(double tau, double x0, double x1, double x2, double v0, double v1, double v2,
+                 double eps, double speed) {
+  if (speed < kInf && tau > 0.0) {
+    const double nv = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
+    // A measured speed above the bound means the bound is broken: the term is dropped.
+    if (nv <= speed) {
+      const double nx = std::sqrt(x0 * x0 + x1 * x1 + x2 * x2);
+      const double ts = (nx - eps * (1.0 + kKappa) - kKappa * nx) / speed * (1.0 - kKappa);
+      tau = std::max(tau, ts);
+    }
+  }
+  return tau;
+}
+
 }  // namespace
 
 double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
                 double accel, double delta) {
-  const double nx = std::sqrt(x0 * x0 + x1 * x1 + x2 * x2);
-  const double nv = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
   const double vmax = std::max(std::max(std::fabs(v0), std::fabs(v1)), std::fabs(v2));
   if (0.0 < vmax && vmax < 1e-120) {
     // |v|^2 would underflow: solve in the time unit s (a power of two, so exactly).
@@ -195,16 +334,9 @@ double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2
     }
   }
   const double x[3] = {x0, x1, x2}, v[3] = {v0, v1, v2};
-  // The inflated problem: radius e + d t + h t^2.
-  const double e = eps * (1.0 + kKappa) + kKappa * nx;
-  const double d = delta * (1.0 + kKappa) + kKappa * nv;
-  const double h = 0.5 * accel * (1.0 + kKappa);
+  const Inflated<double> p = Inflate(x, v, eps, accel, delta);
+  const double nx = p.nx, nv = p.nv, e = p.e, d = p.d, h = p.h, q = p.q, p0 = p.p0;
   if (nx - e <= 0.0) return 0.0;
-  const double a = nv * nv;
-  const double b = x0 * v0 + x1 * v1 + x2 * v2;
-  // G1 = g'/2 = -2h^2 t^3 - 3hd t^2 + q t + (b - e d),  G2 = g''/2 = -6h^2 t^2 - 6hd t + q.
-  const double q = a - d * d - 2.0 * e * h;
-  const double p0 = b - e * d;
   if (h == 0.0) {
     if (q > 0.0) {
       // g is convex: only its vertex can touch.
@@ -231,17 +363,11 @@ double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2
     return Refine(x, v, e, d, h, start, hi);
   }
   // start: before the first root, g > 0 on [0, start] and unimodal on [start, inf).
-  double start = 0.0;
-  if (q > 0.0 && p0 < 0.0) {
-    // G2's positive root, cancellation-free; the local minimum ta of g is the only place a
-    // first root can touch without a sign change of g'.
-    const double t2 = 2.0 * q / (6.0 * h * d + std::sqrt(36.0 * h * h * d * d + 24.0 * h * h * q));
-    const double p3 = -2.0 * h * h, p2 = -3.0 * h * d;
-    if (((p3 * t2 + p2) * t2 + q) * t2 + p0 > 0.0) {
-      const double ta = G1Root(p3, p2, q, p0, 0.0, t2, true);
-      if (Predicate(x, v, e, d, h, ta) <= 0.0) return Refine(x, v, e, d, h, 0.0, ta);
-      start = ta;
-    }
+  double start = 0.0, t2;
+  if (HasMinimum(p, &t2)) {
+    const double ta = G1Root(-2.0 * h * h, -3.0 * h * d, q, p0, 0.0, t2, true);
+    if (Predicate(x, v, e, d, h, ta) <= 0.0) return Refine(x, v, e, d, h, 0.0, ta);
+    start = ta;
   }
   const double hi = Upper(x, v, e, d, h, start, nx, nv);
   return Refine(x, v, e, d, h, start, hi);
@@ -249,17 +375,37 @@ double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2
 
 double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
                 double accel, double delta, double speed) {
-  double tau = TauAccel(x0, x1, x2, v0, v1, v2, eps, accel, delta);
-  if (speed < kInf && tau > 0.0) {
-    const double nv = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
-    // A measured speed above the bound means the bound is broken: the term is dropped.
-    if (nv <= speed) {
-      const double nx = std::sqrt(x0 * x0 + x1 * x1 + x2 * x2);
-      const double ts = (nx - eps * (1.0 + kKappa) - kKappa * nx) / speed * (1.0 - kKappa);
-      tau = std::max(tau, ts);
+  return WithSpeed(TauAccel(x0, x1, x2, v0, v1, v2, eps, accel, delta), x0, x1, x2, v0, v1, v2, eps,
+                   speed);
+}
+
+namespace {
+
+// TauSpeed of n rows into out[i * out_stride]; load(i, r) writes row i's
+// {x0, x1, x2, v0, v1, v2, eps, accel, delta, speed} to r.
+template <class Load>
+void TauSpeedBatch(int64_t n, const Load& load, double* out, int64_t out_stride) {
+  for (int64_t i = 0; i < n; i += kLanes) {
+    const int64_t m = std::min<int64_t>(kLanes, n - i);
+    double r[kLanes][10];
+    for (int64_t k = 0; k < kLanes; ++k) load(i + std::min(k, m - 1), r[k]);  // pad: a repeat
+    double tau[kLanes];
+    const int done = TauAccelLanes(r, tau);
+    for (int64_t k = 0; k < m; ++k) {
+      const double* q = r[k];
+      const double t =
+          (done >> k) & 1 ? tau[k] : TauAccel(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8]);
+      out[(i + k) * out_stride] = WithSpeed(t, q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[9]);
     }
   }
-  return tau;
+}
+
+}  // namespace
+
+void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride) {
+  TauSpeedBatch(
+      n, [&](int64_t i, double* r) { std::copy(rows + i * stride, rows + i * stride + 10, r); },
+      out, out_stride);
 }
 
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta) {
@@ -297,6 +443,22 @@ double dua_tau_speed(double x0, double x1, double x2, double v0, double v1, doub
 
 double dua_tau_halfspace(double gap, double normal_velocity, double accel, double delta) {
   return dua::TauHalfspace(gap, normal_velocity, accel, delta);
+}
+
+void dua_tau_speed_batch(int64_t n, const double* x, const double* v, const double* eps,
+                         const double* accel, const double* delta, const double* speed,
+                         int64_t per_pair, double* out) {
+  // Bit k of per_pair: the k-th of eps, accel, delta, speed has n entries (else one, for all).
+  const double* param[4] = {eps, accel, delta, speed};
+  int64_t step[4];
+  for (int k = 0; k < 4; ++k) step[k] = (per_pair >> k) & 1;
+  dua::TauSpeedBatch(
+      n,
+      [&](int64_t i, double* r) {
+        for (int j = 0; j < 3; ++j) r[j] = x[3 * i + j], r[3 + j] = v[3 * i + j];
+        for (int k = 0; k < 4; ++k) r[6 + k] = param[k][i * step[k]];
+      },
+      out, 1);
 }
 
 int64_t dua_abi_version(void) { return DUA_ABI_VERSION; }

@@ -29,6 +29,11 @@ DUA_API double dua_tau_accel(double x0, double x1, double x2, double v0, double 
 DUA_API double dua_tau_speed(double x0, double x1, double x2, double v0, double v1, double v2,
                              double eps, double accel, double delta, double speed);
 // min {t >= 0 : gap + (n.v) t - delta t - accel t^2 / 2 <= 0}, never above the exact root.
+// dua_tau_speed of n pairs (x, v: (n, 3) row-major) into out: the same values, four pairs at a
+// time. Bit k of per_pair says the k-th of eps, accel, delta, speed holds n entries (else one).
+DUA_API void dua_tau_speed_batch(int64_t n, const double* x, const double* v, const double* eps,
+                                 const double* accel, const double* delta, const double* speed,
+                                 int64_t per_pair, double* out);
 DUA_API double dua_tau_halfspace(double gap, double normal_velocity, double accel, double delta);
 
 // ------------------------------------------------------------------------------- static shapes
