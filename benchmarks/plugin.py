@@ -18,7 +18,8 @@ Per scene, on this side: bounds from the pilot (``accel="auto"``, pilot seed 99)
 * ``Predictor.step`` after each ``mj_step`` of the model alone, timed per call, and the tau
   evaluations a step;
 
-on the ``--before`` side, the same ``Predictor.step`` (its own pilot: the same code and seeds).
+on the ``--before`` side, the same ``Predictor.step`` (its own pilot: the same code and seeds),
+and the plugin too if that checkout has one.
 """
 
 from __future__ import annotations
@@ -62,17 +63,13 @@ def spec_of(scene):
         import dm_control
         path = Path(dm_control.__file__).parent / "suite" / (scene[4:] + ".xml")
         return mujoco.MjSpec.from_file(str(path))
-    from dua_mujoco.mj.scenes import load_spec  # this side only: bundled scenes on the other
-    return load_spec(scene)                      # load through load_scene (model_of)
+    path = Path(sys.argv[1]).parent / "models" / (scene + ".xml")
+    if path.is_file():  # the other checkout finds its bundled files only when installed
+        return mujoco.MjSpec.from_file(str(path))
+    from dua_mujoco.mj.scenes import load_spec  # generated scenes (swarm:N)
+    return load_spec(scene)
 
 def model_of(scene):
-    if side == "before" and "/" not in scene:
-        # The other checkout finds its bundled files only when installed: read this one's.
-        path = Path(sys.argv[1]).parent / "models" / (scene + ".xml")
-        if path.is_file():
-            return None, mujoco.MjModel.from_xml_path(str(path))
-        from dua_mujoco.mj.scenes import load_scene
-        return None, load_scene(scene)[0]
     spec = spec_of(scene)
     return spec, spec.compile()
 
@@ -103,8 +100,11 @@ for scene in scenes:
     row = dict(scene=scene, side=side, geoms=int(m.ngeom), pairs=int(p.nsphere_pairs),
                predictor_us=float(np.median(t_pred)) / 1e3, mj_us=float(np.median(t_mj)) / 1e3,
                evals=float(np.mean(evals)))
-    if side == "after":
+    try:
         from dua_mujoco.plugin import attach, plugin_outputs
+    except ImportError:  # a checkout from before the plugin
+        attach = None
+    if attach is not None:
         # The plugin holding every pair, and pruned pairs (on a spec of its own).
         runs = [(m, mujoco.MjData(m), [], [])]
         for pairs, s in (("all", spec), ("pruned", spec_of(scene))):
@@ -165,14 +165,17 @@ def main(argv: list[str] | None = None) -> int:
         after += run_side(ROOT, "after", args.steps, scenes)
         if args.before is not None:
             before += run_side(args.before, "before", args.steps, scenes)
+    plugin_before = any("plugin_us" in r for r in before)
     print(
         "| scene | geoms | pairs | tau evals/step | mj_step us | with the plugin us | plugin adds "
         "(x mj_step) | Predictor.step us | Predictor.step / mj_step |"
         + (" Predictor.step before us | after / before |" if before else "")
+        + (" plugin adds before |" if plugin_before else "")
     )
-    print("|---" * (9 + (2 if before else 0)) + "|")
+    print("|---" * (9 + (2 if before else 0) + (1 if plugin_before else 0)) + "|")
     pruned_rows = []
     added = []
+    added_before = []
     for scene in scenes:
         one = next(r for r in after if r["scene"] == scene)
         plain, plugin = _median(after, scene, "plain_us"), _median(after, scene, "plugin_us")
@@ -192,6 +195,11 @@ def main(argv: list[str] | None = None) -> int:
         if before:
             old = _median(before, scene, "predictor_us")
             cells += [f"{old:.2f}", f"{pred / old:.2f}"]
+        if plugin_before:
+            plain_b = _median(before, scene, "plain_us")
+            adds_b = (_median(before, scene, "plugin_us") - plain_b) / plain_b
+            added_before.append((scene, adds_b))
+            cells.append(f"{adds_b:+.2f}")
         print("| " + " | ".join(cells) + " |")
         mean = _median(after, scene, "plain_mean_us")
         pruned_rows.append(
@@ -212,6 +220,14 @@ def main(argv: list[str] | None = None) -> int:
             f"\nplugin adds, median over {len(robots)} robots: {np.median(robots):+.3f}x mj_step; "
             f"largest over all scenes: {max(x for _, x in added):+.3f}x "
             f"({max(added, key=lambda a: a[1])[0]})"
+        )
+    robots_before = [x for s, x in added_before if s.startswith("robot/")]
+    if robots_before:
+        print(
+            f"before: plugin adds, median over {len(robots_before)} robots: "
+            f"{np.median(robots_before):+.3f}x mj_step; largest over all scenes: "
+            f"{max(x for _, x in added_before):+.3f}x "
+            f"({max(added_before, key=lambda a: a[1])[0]})"
         )
     return 0
 

@@ -11,7 +11,8 @@ is a lower bound on the time to collision (paper eq. 13, extended by ``delta``).
 
 The kernels never return more than the exact first root. They are implemented once, in the
 native core (``dua_mujoco/csrc/src/urgency.cc``); the functions here are numba's entry points to
-them and the vectorised front. How (proof in docs/theory.md, section 1):
+them and the vectorised front, which evaluates four pairs at a time in the same code (the same
+values, bit for bit). How (proof in docs/theory.md, section 1):
 
 * The problem is solved for slightly inflated parameters (``eps``, ``delta`` and ``A`` grown by
   ``kappa = 4e-15`` relative, plus ``kappa (|x| + |v| t)`` on the radius). The inflation is

@@ -180,7 +180,7 @@ class Predictor(PredictorViews):
         if self.options.urgency.exact:
             below = self.options.urgency.exact_below
             below = (EXACT_PERIODS + self.latency) * self.dt if below is None else below
-            exact = (below, QUERY_PERIODS * self.dt)
+            exact = (below, (QUERY_PERIODS + self.latency) * self.dt)
         self.universe = PairUniverse(model, cov, lazy=self._mode is PairMode.PRUNED, exact=exact)
         """The sphere pairs this predictor knows and their tables (a pruned one learns the
         pairs its candidates bring in)."""
