@@ -193,6 +193,61 @@ def _standing_sequence(m: mujoco.MjModel, d: mujoco.MjData, ctrl: np.ndarray) ->
     return out
 
 
+SUBTREE_XML = """
+<mujoco>
+  <worldbody>
+    <geom type="plane" size="2 2 0.1"/>
+    <body name="arm" pos="0 0 0.5">
+      <joint name="shoulder" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.05"/>
+      <body pos="0.4 0 0">
+        <joint type="hinge" axis="0 1 0"/>
+        <geom type="box" size="0.1 0.05 0.05" pos="0.1 0 0"/>
+      </body>
+    </body>
+    <body name="ball" pos="0.3 0.02 1.2">
+      <freejoint/>
+      <geom type="sphere" size="0.08"/>
+    </body>
+  </worldbody>
+  <actuator><motor joint="shoulder" gear="5"/></actuator>
+  {sensors}
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("subtree_sensors", [True, False])
+def test_the_plugin_leaves_the_physics_and_the_subtree_velocities_as_they_were(
+    subtree_sensors: bool,
+) -> None:
+    """The plugin's passive call applies no force, and marks the subtree velocities computed
+    (sparing the mj_subtreeVel MuJoCo would run for it) only when nothing in the model reads
+    them: subtree sensors read what they read without the plugin."""
+    sensors = (
+        "<sensor><subtreelinvel body='arm'/><subtreeangmom body='ball'/></sensor>"
+        if subtree_sensors
+        else ""
+    )
+    xml = SUBTREE_XML.format(sensors=sensors)
+    plain = mujoco.MjModel.from_xml_string(xml)
+    spec = mujoco.MjSpec.from_string(xml)
+    attach(spec, accel=30.0)
+    with_plugin = spec.compile()
+    d0, d1 = mujoco.MjData(plain), mujoco.MjData(with_plugin)
+    for k in range(300):
+        d0.ctrl[:] = d1.ctrl[:] = np.sin(0.05 * k)
+        mujoco.mj_step(plain, d0)
+        mujoco.mj_step(with_plugin, d1)
+        np.testing.assert_array_equal(d1.qpos, d0.qpos, err_msg=f"step {k}")
+        np.testing.assert_array_equal(d1.qvel, d0.qvel, err_msg=f"step {k}")
+        np.testing.assert_array_equal(d1.sensordata[: plain.nsensordata], d0.sensordata)
+    # Spared only where nothing reads them (MuJoCo computes them for the sensors otherwise).
+    assert d1.flg_subtreevel == 1
+    assert d0.flg_subtreevel == int(subtree_sensors)
+    if not subtree_sensors:
+        assert not d1.subtree_linvel.any()  # never computed, as without the plugin
+
+
 def test_copies_and_resets_keep_their_own_state() -> None:
     """``mj_copyData`` carries the plugin's state into the copy, and the two then run apart;
     ``mj_resetData`` starts the predictor over, as a fresh ``MjData`` does."""

@@ -57,6 +57,7 @@ struct Instance {
   std::shared_ptr<const Tables> tables;
   int sensor_adr = -1;
   bool overlay = true;
+  bool skip_subtree_vel = false;  // see SubtreeVelUnused
 
   // Per-mjData state.
   std::vector<double> last_tau, w_tau, scratch, exact_records, events_prev, root_twist;
@@ -243,6 +244,28 @@ struct Instance {
 };
 
 // Reads the instance's attributes and tables; null (after a warning naming what is wrong).
+// MuJoCo runs mj_subtreeVel before every velocity-stage sensor plugin, whether the plugin needs
+// it or not (its TODO b/247107630): a pass over every body with mj_objectVelocity, much of what
+// this plugin adds to a small robot's mj_step (panda: 0.12x of mj_step with it, 0.07x without).
+// Nothing here reads subtree_linvel or
+// subtree_angmom, so the plugin's passive call (in mj_fwdVelocity, after mj_comVel, before the
+// sensors) marks them computed, when no one else in the model could read them: no subtree or
+// user sensor, no other plugin. They then stay as a model without this plugin leaves them
+// (computed on demand only, mj_subtreeVel).
+bool SubtreeVelUnused(const mjModel* m) {
+  for (int i = 0; i < m->nsensor; ++i) {
+    const int type = m->sensor_type[i];
+    if (type == mjSENS_SUBTREELINVEL || type == mjSENS_SUBTREEANGMOM || type == mjSENS_USER) {
+      return false;
+    }
+  }
+  for (int i = 0; i < m->nplugin; ++i) {
+    const mjpPlugin* plugin = mjp_getPluginAtSlot(m->plugin[i]);
+    if (!plugin || std::string(plugin->name) != kPluginName) return false;
+  }
+  return true;
+}
+
 Instance* Create(const mjModel* m, int instance) {
   const char* prefix_attr = mj_getPluginConfig(m, instance, "prefix");
   const std::string prefix = (prefix_attr && *prefix_attr) ? prefix_attr : "dua";
@@ -265,6 +288,7 @@ Instance* Create(const mjModel* m, int instance) {
   auto* in = new Instance;
   in->tables = std::move(tables);
   in->overlay = overlay;
+  in->skip_subtree_vel = SubtreeVelUnused(m);
   for (int i = 0; i < m->nsensor; ++i) {
     if (m->sensor_type[i] == mjSENS_PLUGIN && m->sensor_plugin[i] == instance) {
       in->sensor_adr = m->sensor_adr[i];
@@ -551,7 +575,8 @@ void Register() {
   mjpPlugin plugin;
   mjp_defaultPlugin(&plugin);
   plugin.name = kPluginName;
-  plugin.capabilityflags |= mjPLUGIN_SENSOR;
+  // Passive: only to spare the mj_subtreeVel nothing reads (SubtreeVelUnused); no forces.
+  plugin.capabilityflags |= mjPLUGIN_SENSOR | mjPLUGIN_PASSIVE;
   plugin.nattribute = kNAttribute;
   plugin.attributes = kAttributes;
   // The state lives in plugin_data (copied by `copy`); nothing in plugin_state.
@@ -584,7 +609,14 @@ void Register() {
     auto* in = reinterpret_cast<Instance*>(plugin_data);
     if (in) in->classified = false;
   };
-  plugin.compute = +[](const mjModel* m, mjData* d, int instance, int) { Compute(m, d, instance); };
+  plugin.compute = +[](const mjModel* m, mjData* d, int instance, int capability) {
+    if (capability == mjPLUGIN_PASSIVE) {
+      const auto* in = reinterpret_cast<const Instance*>(d->plugin_data[instance]);
+      if (in && in->skip_subtree_vel) d->flg_subtreevel = 1;
+      return;
+    }
+    Compute(m, d, instance);
+  };
   plugin.visualize = +[](const mjModel* m, mjData* d, const mjvOption*, mjvScene* scn,
                          int instance) { Visualize(m, d, scn, instance); };
   mjp_registerPlugin(&plugin);
