@@ -243,15 +243,13 @@ struct Instance {
   }
 };
 
-// Reads the instance's attributes and tables; null (after a warning naming what is wrong).
 // MuJoCo runs mj_subtreeVel before every velocity-stage sensor plugin, whether the plugin needs
 // it or not (its TODO b/247107630): a pass over every body with mj_objectVelocity, much of what
 // this plugin adds to a small robot's mj_step (panda: 0.12x of mj_step with it, 0.07x without).
-// Nothing here reads subtree_linvel or
-// subtree_angmom, so the plugin's passive call (in mj_fwdVelocity, after mj_comVel, before the
-// sensors) marks them computed, when no one else in the model could read them: no subtree or
-// user sensor, no other plugin. They then stay as a model without this plugin leaves them
-// (computed on demand only, mj_subtreeVel).
+// Nothing here reads subtree_linvel or subtree_angmom, so the plugin's passive call (in
+// mj_fwdVelocity, after mj_comVel, before the sensors) marks them computed, when no one else in
+// the model could read them: no subtree or user sensor, no other plugin. They then stay as a
+// model without this plugin leaves them (computed on demand only, mj_subtreeVel).
 bool SubtreeVelUnused(const mjModel* m) {
   for (int i = 0; i < m->nsensor; ++i) {
     const int type = m->sensor_type[i];
@@ -266,6 +264,7 @@ bool SubtreeVelUnused(const mjModel* m) {
   return true;
 }
 
+// Reads the instance's attributes and tables; null (after a warning naming what is wrong).
 Instance* Create(const mjModel* m, int instance) {
   const char* prefix_attr = mj_getPluginConfig(m, instance, "prefix");
   const std::string prefix = (prefix_attr && *prefix_attr) ? prefix_attr : "dua";
