@@ -7,6 +7,7 @@ collision follows an impulse at once shows that the check, and its timing, are w
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 
 import mujoco
@@ -23,6 +24,7 @@ from dua_mujoco.mj.monitor import run
 from dua_mujoco.mj.options import ScheduleOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.native import declare
 
 # Three balls in a row, no gravity: the striker hits the middle ball, which rests 0.1 mm from
 # the last one. The impulse moves the middle ball into the last one within one physics step,
@@ -106,6 +108,43 @@ def test_step_flags_the_bodies_the_bound_monitor_flags(scene: str, accel: float)
         flagged += expected.size
     assert flagged > 20  # the bounds broke often enough to mean something
     assert p.violation_events == flagged
+
+
+@pytest.mark.parametrize(
+    ("scene", "accel"),
+    [("two_arms", 20.0), ("swarm:30", 2.0), ("swarm:31", 2.0), ("traffic", 5.0)],
+)
+def test_the_checks_lanes_equal_one_body_at_a_time(scene: str, accel: float) -> None:
+    """The step checks four bodies at a time (lanes.h): at every step, from the same state, it
+    flags the bodies and writes the states that checking one body at a time does, bit for bit
+    (the scenes have 4k, 4k + 1, 4k + 2 and 4k + 3 bodies: every ragged last group)."""
+    m, d = load_scene(scene)
+    p = Predictor(m, accel=accel)
+    assert p.events is not None
+    lib = declare({"dua_check_bodies": (ctypes.c_int64, [ctypes.c_void_p, ctypes.c_int64])})
+    ev = p.events
+    ctrl = make_controller(m, "random", seed=2)
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    assert p._native is not None
+    flagged = 0
+    for k in range(300):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        p._bind_frame(d)
+        state, meta = ev.state.copy(), ev.meta.copy()
+        results = []
+        for lanes in (0, 1):
+            ev.state[:], ev.meta[:] = state, meta
+            count = lib.dua_check_bodies(ctypes.addressof(p._native.args), lanes)
+            results.append((ev.flagged[:count].tolist(), ev.state.copy()))
+        assert results[0][0] == results[1][0], f"step {k}"
+        np.testing.assert_array_equal(results[1][1], results[0][1], err_msg=f"step {k}")
+        flagged += len(results[0][0])
+        ev.state[:], ev.meta[:] = state, meta
+        p.step(d)
+    assert flagged > 0  # the bounds broke: the check's every branch ran
 
 
 @pytest.mark.parametrize("cap", [None, 3])

@@ -9,6 +9,7 @@
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "lanes.h"
 
 namespace dua {
 namespace {
@@ -71,115 +72,183 @@ inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_fr
 
 // Whether max |a + s0 x + s1 y + s2 z| over the eight sign choices exceeds bound; two upper
 // bounds screen first.
-inline bool Exceeds12(double a0, double a1, double a2, double x0, double x1, double x2, double y0,
-                      double y1, double y2, double z0, double z1, double z2, double bound) {
-  const double na = a0 * a0 + a1 * a1 + a2 * a2, nx = x0 * x0 + x1 * x1 + x2 * x2;
-  const double ny = y0 * y0 + y1 * y1 + y2 * y2, nz = z0 * z0 + z1 * z1 + z2 * z2;
-  if (4.0 * (na + nx + ny + nz) <= bound * bound) return false;
-  if (std::sqrt(na) + std::sqrt(nx) + std::sqrt(ny) + std::sqrt(nz) <= bound) return false;
-  double worst = 0.0;
+template <class T>
+MaskOf<T> Exceeds12(T a0, T a1, T a2, T x0, T x1, T x2, T y0, T y1, T y2, T z0, T z1, T z2,
+                    T bound) {
+  const T na = a0 * a0 + a1 * a1 + a2 * a2, nx = x0 * x0 + x1 * x1 + x2 * x2;
+  const T ny = y0 * y0 + y1 * y1 + y2 * y2, nz = z0 * z0 + z1 * z1 + z2 * z2;
+  const MaskOf<T> wide = Not(4.0 * (na + nx + ny + nz) <= bound * bound);
+  if (!Any(wide)) return wide;
+  const MaskOf<T> open = AndNot(wide, Sqrt(na) + Sqrt(nx) + Sqrt(ny) + Sqrt(nz) <= bound);
+  if (!Any(open)) return open;
+  T worst = T{};
   for (double sx : {-1.0, 1.0}) {
     for (double sy : {-1.0, 1.0}) {
       for (double sz : {-1.0, 1.0}) {
-        const double u = a0 + sx * x0 + sy * y0 + sz * z0;
-        const double v = a1 + sx * x1 + sy * y1 + sz * z1;
-        const double w = a2 + sx * x2 + sy * y2 + sz * z2;
-        worst = std::max(worst, u * u + v * v + w * w);
+        const T u = a0 + sx * x0 + sy * y0 + sz * z0;
+        const T v = a1 + sx * x1 + sy * y1 + sz * z1;
+        const T w = a2 + sx * x2 + sy * y2 + sz * z2;
+        worst = Max(worst, u * u + v * v + w * w);
       }
     }
   }
-  return std::sqrt(worst) > bound;
+  return And(open, Sqrt(worst) > bound);
 }
 
-// Record every body's box state and check the motion hypotheses over the last period; the
-// flagged bodies' rows go to ev.flagged. Returns their number.
-int64_t CheckBodies(const dua_events& ev, const dua_frame& f) {
+// One body's inputs to the check, gathered in one row: its geom's pose (R, P), its box (centre o
+// and half sizes in that frame), the twists RigidPoint reads (tw, ref, rt, ro), its bounds, and
+// its state row (prev), which the check updates.
+constexpr int kRowR = 0, kRowP = 9, kRowO = 12, kRowHalf = 15, kRowTw = 18, kRowRef = 24,
+              kRowRt = 27, kRowRo = 33, kRowSpeed = 36, kRowDisc = 37, kRowAccel = 38,
+              kRowPrev = 39, kRowLen = kRowPrev + kSNcol;
+template <class T>
+struct BodyRow {
+  T v[kRowLen];
+};
+
+void LoadRow(const dua_events& ev, const dua_frame& f, int64_t i, double* row) {
+  const double* rec = ev.rec + i * kBNcol;
+  const int64_t g = static_cast<int64_t>(rec[kBFrame]);
+  const int64_t b = static_cast<int64_t>(rec[kBBody]);
+  const int64_t r = static_cast<int64_t>(rec[kBRoot]);
+  std::copy(f.mat + 9 * g, f.mat + 9 * g + 9, row + kRowR);
+  std::copy(f.pos + 3 * g, f.pos + 3 * g + 3, row + kRowP);
+  std::copy(rec + kBCenter, rec + kBCenter + 3, row + kRowO);
+  std::copy(rec + kBHalf, rec + kBHalf + 3, row + kRowHalf);
+  std::copy(f.twist + 6 * b, f.twist + 6 * b + 6, row + kRowTw);
+  std::copy(f.twist_ref + 3 * r, f.twist_ref + 3 * r + 3, row + kRowRef);
+  std::copy(f.root_twist + 6 * r, f.root_twist + 6 * r + 6, row + kRowRt);
+  std::copy(f.root_origin + 3 * r, f.root_origin + 3 * r + 3, row + kRowRo);
+  row[kRowSpeed] = rec[kBSpeed];
+  row[kRowDisc] = rec[kBDisc];
+  row[kRowAccel] = rec[kBAccel];
+  std::copy(ev.prev + i * kSNcol, ev.prev + (i + 1) * kSNcol, row + kRowPrev);
+}
+
+// Record a body's box state in its row and check the motion hypotheses over the last period
+// (nprev earlier states in the row): whether the body broke them.
+template <class T>
+MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, double rtol) {
+  const T* R = row->v + kRowR;
+  const T* P = row->v + kRowP;
+  T* prev = row->v + kRowPrev;
+  const T o0 = row->v[kRowO], o1 = row->v[kRowO + 1], o2 = row->v[kRowO + 2];
+  const T h0 = row->v[kRowHalf], h1 = row->v[kRowHalf + 1], h2 = row->v[kRowHalf + 2];
+  // The box's centre and its axes (columns of R diag(half)).
+  const T cx = P[0] + R[0] * o0 + R[1] * o1 + R[2] * o2;
+  const T cy = P[1] + R[3] * o0 + R[4] * o1 + R[5] * o2;
+  const T cz = P[2] + R[6] * o0 + R[7] * o1 + R[8] * o2;
+  const T xx = R[0] * h0, xy = R[3] * h0, xz = R[6] * h0;
+  const T yx = R[1] * h1, yy = R[4] * h1, yz = R[7] * h1;
+  const T zx = R[2] * h2, zy = R[5] * h2, zz = R[8] * h2;
+  // Bounds every corner's coordinates: the scale of the differences' round-off.
+  const T scale =
+      Max(Max(Abs(cx) + Abs(xx) + Abs(yx) + Abs(zx), Abs(cy) + Abs(xy) + Abs(yy) + Abs(zy)),
+          Abs(cz) + Abs(xz) + Abs(yz) + Abs(zz));
+  // The centre's velocity as RigidPoint reads a point's.
+  const T* tw = row->v + kRowTw;
+  const T* ref = row->v + kRowRef;
+  const T* rt = row->v + kRowRt;
+  const T* ro = row->v + kRowRo;
+  const T w0 = tw[0], w1 = tw[1], w2 = tw[2];
+  const T dx = cx - ref[0], dy = cy - ref[1], dz = cz - ref[2];
+  const T m0 = rt[0], m1 = rt[1], m2 = rt[2];
+  const T ex = cx - ro[0], ey = cy - ro[1], ez = cz - ro[2];
+  const T vx = tw[3] + w1 * dz - w2 * dy + rt[3] + m1 * ez - m2 * ey;
+  const T vy = tw[4] + w2 * dx - w0 * dz + rt[4] + m2 * ex - m0 * ez;
+  const T vz = tw[5] + w0 * dy - w1 * dx + rt[5] + m0 * ey - m1 * ex;
+  MaskOf<T> broken = T{} != T{};
+  if (nprev >= 1) {
+    const T ucx = (cx - prev[0]) * inv_h, ucy = (cy - prev[1]) * inv_h,
+            ucz = (cz - prev[2]) * inv_h;
+    const T uxx = (xx - prev[3]) * inv_h, uxy = (xy - prev[4]) * inv_h,
+            uxz = (xz - prev[5]) * inv_h;
+    const T uyx = (yx - prev[6]) * inv_h, uyy = (yy - prev[7]) * inv_h,
+            uyz = (yz - prev[8]) * inv_h;
+    const T uzx = (zx - prev[9]) * inv_h, uzy = (zy - prev[10]) * inv_h,
+            uzz = (zz - prev[11]) * inv_h;
+    const T tol_a = 8.0 * kEps * (scale + prev[kSScale]) / (h * h);
+    const T speed = row->v[kRowSpeed];
+    // An infinite speed bound screens out (bound inf), as if skipped.
+    broken =
+        Or(broken, And(speed < kInf, Exceeds12(ucx, ucy, ucz, uxx, uxy, uxz, uyx, uyy, uyz, uzx,
+                                               uzy, uzz, speed * (1.0 + rtol) + 0.5 * tol_a * h)));
+    // The discrepancy U_k - w_{k-1} at the corners, w_{k-1} from the last state.
+    const T px = prev[kSW], py = prev[kSW + 1], pz = prev[kSW + 2];
+    const T qvx = prev[kSV], qvy = prev[kSV + 1], qvz = prev[kSV + 2];
+    const T tol_d = tol_a * h + 8.0 * kEps * (Abs(qvx) + Abs(qvy) + Abs(qvz));
+    broken =
+        Or(broken,
+           Exceeds12(ucx - qvx, ucy - qvy, ucz - qvz, uxx - (py * prev[5] - pz * prev[4]),
+                     uxy - (pz * prev[3] - px * prev[5]), uxz - (px * prev[4] - py * prev[3]),
+                     uyx - (py * prev[8] - pz * prev[7]), uyy - (pz * prev[6] - px * prev[8]),
+                     uyz - (px * prev[7] - py * prev[6]), uzx - (py * prev[11] - pz * prev[10]),
+                     uzy - (pz * prev[9] - px * prev[11]), uzz - (px * prev[10] - py * prev[9]),
+                     row->v[kRowDisc] * (1.0 + rtol) + tol_d));
+    if (nprev >= 2) {
+      broken =
+          Or(broken,
+             Exceeds12((ucx - prev[12]) * inv_h, (ucy - prev[13]) * inv_h, (ucz - prev[14]) * inv_h,
+                       (uxx - prev[15]) * inv_h, (uxy - prev[16]) * inv_h, (uxz - prev[17]) * inv_h,
+                       (uyx - prev[18]) * inv_h, (uyy - prev[19]) * inv_h, (uyz - prev[20]) * inv_h,
+                       (uzx - prev[21]) * inv_h, (uzy - prev[22]) * inv_h, (uzz - prev[23]) * inv_h,
+                       row->v[kRowAccel] * (1.0 + rtol) + tol_a));
+    }
+    prev[12] = ucx, prev[13] = ucy, prev[14] = ucz;
+    prev[15] = uxx, prev[16] = uxy, prev[17] = uxz;
+    prev[18] = uyx, prev[19] = uyy, prev[20] = uyz;
+    prev[21] = uzx, prev[22] = uzy, prev[23] = uzz;
+  }
+  prev[0] = cx, prev[1] = cy, prev[2] = cz;
+  prev[3] = xx, prev[4] = xy, prev[5] = xz;
+  prev[6] = yx, prev[7] = yy, prev[8] = yz;
+  prev[9] = zx, prev[10] = zy, prev[11] = zz;
+  prev[kSV] = vx, prev[kSV + 1] = vy, prev[kSV + 2] = vz;
+  prev[kSW] = w0 + m0, prev[kSW + 1] = w1 + m1, prev[kSW + 2] = w2 + m2;
+  prev[kSScale] = scale;
+  return broken;
+}
+
+// CheckBody of bodies i .. i + 3 in lanes: bit k of the result for body i + k.
+DUA_LANES_CLONES
+int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int64_t nprev, double h,
+              double inv_h, double rtol) {
+  // Rows loaded one body at a time, then read across into lanes (not written lane by lane
+  // into the vectors: narrow stores under a wide load stall the store forwarding).
+  double raw[kLanes][kRowLen];
+  for (int k = 0; k < kLanes; ++k) LoadRow(ev, f, i + k, raw[k]);
+  BodyRow<Lanes> row;
+  for (int j = 0; j < kRowLen; ++j) row.v[j] = Lanes{raw[0][j], raw[1][j], raw[2][j], raw[3][j]};
+  const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
+  int bits = 0;
+  for (int k = 0; k < kLanes; ++k) {
+    double* prev = ev.prev + (i + k) * kSNcol;
+    for (int j = 0; j < kSNcol; ++j) prev[j] = row.v[kRowPrev + j][k];
+    bits |= broken[k] ? 1 << k : 0;
+  }
+  return bits;
+}
+
+// Record every body's box state and check the motion hypotheses over the last period, four
+// bodies at a time unless !lanes (the same values as one at a time: lanes.h); the flagged
+// bodies' rows go to ev.flagged. Returns their number.
+int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool lanes = true) {
   const double h = ev.params[0], rtol = ev.params[1];
   const double inv_h = 1.0 / h;  // a product per chord, not a division
   const int64_t nprev = ev.meta[kMNprev];
   int64_t count = 0;
-  for (int64_t i = 0; i < ev.nbody; ++i) {
-    const double* rec = ev.rec + i * kBNcol;
-    double* prev = ev.prev + i * kSNcol;
-    const int64_t g = static_cast<int64_t>(rec[kBFrame]);
-    const int64_t b = static_cast<int64_t>(rec[kBBody]);
-    const int64_t r = static_cast<int64_t>(rec[kBRoot]);
-    const double* R = f.mat + 9 * g;
-    const double* P = f.pos + 3 * g;
-    const double o0 = rec[kBCenter], o1 = rec[kBCenter + 1], o2 = rec[kBCenter + 2];
-    const double h0 = rec[kBHalf], h1 = rec[kBHalf + 1], h2 = rec[kBHalf + 2];
-    // The box's centre and its axes (columns of R diag(half)).
-    const double cx = P[0] + R[0] * o0 + R[1] * o1 + R[2] * o2;
-    const double cy = P[1] + R[3] * o0 + R[4] * o1 + R[5] * o2;
-    const double cz = P[2] + R[6] * o0 + R[7] * o1 + R[8] * o2;
-    const double xx = R[0] * h0, xy = R[3] * h0, xz = R[6] * h0;
-    const double yx = R[1] * h1, yy = R[4] * h1, yz = R[7] * h1;
-    const double zx = R[2] * h2, zy = R[5] * h2, zz = R[8] * h2;
-    // Bounds every corner's coordinates: the scale of the differences' round-off.
-    const double scale =
-        std::max(std::max(std::fabs(cx) + std::fabs(xx) + std::fabs(yx) + std::fabs(zx),
-                          std::fabs(cy) + std::fabs(xy) + std::fabs(yy) + std::fabs(zy)),
-                 std::fabs(cz) + std::fabs(xz) + std::fabs(yz) + std::fabs(zz));
-    // The centre's velocity as RigidPoint reads a point's.
-    const double* tw = f.twist + 6 * b;
-    const double* ref = f.twist_ref + 3 * r;
-    const double* rt = f.root_twist + 6 * r;
-    const double* ro = f.root_origin + 3 * r;
-    const double w0 = tw[0], w1 = tw[1], w2 = tw[2];
-    const double dx = cx - ref[0], dy = cy - ref[1], dz = cz - ref[2];
-    const double m0 = rt[0], m1 = rt[1], m2 = rt[2];
-    const double ex = cx - ro[0], ey = cy - ro[1], ez = cz - ro[2];
-    const double vx = tw[3] + w1 * dz - w2 * dy + rt[3] + m1 * ez - m2 * ey;
-    const double vy = tw[4] + w2 * dx - w0 * dz + rt[4] + m2 * ex - m0 * ez;
-    const double vz = tw[5] + w0 * dy - w1 * dx + rt[5] + m0 * ey - m1 * ex;
-    bool broken = false;
-    if (nprev >= 1) {
-      const double ucx = (cx - prev[0]) * inv_h, ucy = (cy - prev[1]) * inv_h,
-                   ucz = (cz - prev[2]) * inv_h;
-      const double uxx = (xx - prev[3]) * inv_h, uxy = (xy - prev[4]) * inv_h,
-                   uxz = (xz - prev[5]) * inv_h;
-      const double uyx = (yx - prev[6]) * inv_h, uyy = (yy - prev[7]) * inv_h,
-                   uyz = (yz - prev[8]) * inv_h;
-      const double uzx = (zx - prev[9]) * inv_h, uzy = (zy - prev[10]) * inv_h,
-                   uzz = (zz - prev[11]) * inv_h;
-      const double tol_a = 8.0 * kEps * (scale + prev[kSScale]) / (h * h);
-      const double speed = rec[kBSpeed];
-      if (speed < kInf) {
-        broken |= Exceeds12(ucx, ucy, ucz, uxx, uxy, uxz, uyx, uyy, uyz, uzx, uzy, uzz,
-                            speed * (1.0 + rtol) + 0.5 * tol_a * h);
-      }
-      // The discrepancy U_k - w_{k-1} at the corners, w_{k-1} from the last state.
-      const double px = prev[kSW], py = prev[kSW + 1], pz = prev[kSW + 2];
-      const double qvx = prev[kSV], qvy = prev[kSV + 1], qvz = prev[kSV + 2];
-      const double tol_d =
-          tol_a * h + 8.0 * kEps * (std::fabs(qvx) + std::fabs(qvy) + std::fabs(qvz));
-      broken |=
-          Exceeds12(ucx - qvx, ucy - qvy, ucz - qvz, uxx - (py * prev[5] - pz * prev[4]),
-                    uxy - (pz * prev[3] - px * prev[5]), uxz - (px * prev[4] - py * prev[3]),
-                    uyx - (py * prev[8] - pz * prev[7]), uyy - (pz * prev[6] - px * prev[8]),
-                    uyz - (px * prev[7] - py * prev[6]), uzx - (py * prev[11] - pz * prev[10]),
-                    uzy - (pz * prev[9] - px * prev[11]), uzz - (px * prev[10] - py * prev[9]),
-                    rec[kBDisc] * (1.0 + rtol) + tol_d);
-      if (nprev >= 2) {
-        broken |=
-            Exceeds12((ucx - prev[12]) * inv_h, (ucy - prev[13]) * inv_h, (ucz - prev[14]) * inv_h,
-                      (uxx - prev[15]) * inv_h, (uxy - prev[16]) * inv_h, (uxz - prev[17]) * inv_h,
-                      (uyx - prev[18]) * inv_h, (uyy - prev[19]) * inv_h, (uyz - prev[20]) * inv_h,
-                      (uzx - prev[21]) * inv_h, (uzy - prev[22]) * inv_h, (uzz - prev[23]) * inv_h,
-                      rec[kBAccel] * (1.0 + rtol) + tol_a);
-      }
-      prev[12] = ucx, prev[13] = ucy, prev[14] = ucz;
-      prev[15] = uxx, prev[16] = uxy, prev[17] = uxz;
-      prev[18] = uyx, prev[19] = uyy, prev[20] = uyz;
-      prev[21] = uzx, prev[22] = uzy, prev[23] = uzz;
+  int64_t i = 0;
+  for (; lanes && i + kLanes <= ev.nbody; i += kLanes) {
+    const int bits = CheckFour(ev, f, i, nprev, h, inv_h, rtol);
+    for (int k = 0; k < kLanes; ++k) {
+      if ((bits >> k) & 1) ev.flagged[count++] = i + k;
     }
-    prev[0] = cx, prev[1] = cy, prev[2] = cz;
-    prev[3] = xx, prev[4] = xy, prev[5] = xz;
-    prev[6] = yx, prev[7] = yy, prev[8] = yz;
-    prev[9] = zx, prev[10] = zy, prev[11] = zz;
-    prev[kSV] = vx, prev[kSV + 1] = vy, prev[kSV + 2] = vz;
-    prev[kSW] = w0 + m0, prev[kSW + 1] = w1 + m1, prev[kSW + 2] = w2 + m2;
-    prev[kSScale] = scale;
+  }
+  for (; i < ev.nbody; ++i) {
+    BodyRow<double> row;
+    LoadRow(ev, f, i, row.v);
+    const bool broken = CheckBody(&row, nprev, h, inv_h, rtol);
+    std::copy(row.v + kRowPrev, row.v + kRowLen, ev.prev + i * kSNcol);
     if (broken) ev.flagged[count++] = i;
   }
   ev.meta[kMNprev] = std::min<int64_t>(nprev + 1, 2);
@@ -473,6 +542,10 @@ int64_t dua_index_by_row(const int64_t* row_of_geom, const int64_t* geom1, const
   return start[nrow];
 }
 
+int64_t dua_check_bodies(dua_step_args* a, int64_t lanes) {
+  return a->events.nbody ? dua::CheckBodies(a->events, a->frame, lanes != 0) : 0;
+}
+
 void dua_reset_events(dua_step_args* a) {
   const dua_events& ev = a->events;
   ev.meta[dua::kMNprev] = 0;
@@ -529,7 +602,7 @@ extern "C" {
 
 int64_t dua_exceeds12(double a0, double a1, double a2, double x0, double x1, double x2, double y0,
                       double y1, double y2, double z0, double z1, double z2, double bound) {
-  return dua::Exceeds12(a0, a1, a2, x0, x1, x2, y0, y1, y2, z0, z1, z2, bound) ? 1 : 0;
+  return dua::Exceeds12<double>(a0, a1, a2, x0, x1, x2, y0, y1, y2, z0, z1, z2, bound) ? 1 : 0;
 }
 
 }  // extern "C"

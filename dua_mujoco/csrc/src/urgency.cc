@@ -7,9 +7,14 @@
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "lanes.h"
 
 namespace dua {
 namespace {
+
+// Four pairs in lockstep (TauSpeedBatch): one chain of Halley iterations carries four roots, so
+// the branch mispredictions and latencies that bound the scalar kernel are paid once for four.
+// The pieces both run are templates over the number type (lanes.h).
 
 // Relative inflation of the problem: it dominates the predicate's rounding (~4.5 u), ~8x.
 constexpr double kKappa = 4e-15;
@@ -17,47 +22,6 @@ constexpr double kKappa = 4e-15;
 constexpr double kRtol = 2e-13;
 constexpr int kMaxIter = 200;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// Four pairs in lockstep (TauSpeedBatch): one chain of Halley iterations carries four roots, so
-// the branch mispredictions and latencies that bound the scalar kernel are paid once for four.
-// The pieces below that both run are templates over the number type, written once: a lane
-// computes the operations the scalar kernel computes, in the same order (IEEE operations, no
-// contraction), so it gets the same bits.
-constexpr int kLanes = 4;
-using Lanes = double __attribute__((vector_size(8 * kLanes)));
-using LaneMask = int64_t __attribute__((vector_size(8 * kLanes)));
-
-inline double Select(bool m, double a, double b) { return m ? a : b; }
-inline Lanes Select(LaneMask m, Lanes a, Lanes b) { return m ? a : b; }
-// As std::max and std::min order their operands (which one a NaN gives back).
-inline double Max(double a, double b) { return std::max(a, b); }
-inline Lanes Max(Lanes a, Lanes b) { return a < b ? b : a; }
-inline double Min(double a, double b) { return std::min(a, b); }
-inline Lanes Min(Lanes a, Lanes b) { return b < a ? b : a; }
-inline double Sqrt(double a) { return std::sqrt(a); }
-inline Lanes Sqrt(Lanes a) {
-  Lanes r;
-  for (int k = 0; k < kLanes; ++k) r[k] = std::sqrt(a[k]);
-  return r;
-}
-inline double Abs(double a) { return std::fabs(a); }
-inline Lanes Abs(Lanes a) {
-  Lanes r;
-  for (int k = 0; k < kLanes; ++k) r[k] = std::fabs(a[k]);
-  return r;
-}
-inline bool And(bool a, bool b) { return a && b; }
-inline LaneMask And(LaneMask a, LaneMask b) { return a & b; }
-inline bool AndNot(bool a, bool b) { return a && !b; }
-inline LaneMask AndNot(LaneMask a, LaneMask b) { return a & ~b; }
-inline bool Any(bool m) { return m; }
-inline bool Any(LaneMask m) {
-  int64_t any = 0;
-  for (int k = 0; k < kLanes; ++k) any |= m[k];
-  return any != 0;
-}
-template <class T>
-using MaskOf = decltype(T{} < T{});
 
 // |x + v t| - (e + d t + h t^2): positive while the reachable ball misses B(0, e).
 template <class T>
@@ -273,9 +237,7 @@ MaskOf<T> HasMinimum(const Inflated<T>& p, T* t2) {
 // end brackets the root, the guess is certified. The lanes it settles (the returned mask) hold
 // TauAccel's value bit for bit (the same operations in the same order); the rest are TauAccel's
 // to compute.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default"), flatten))
-#endif
+DUA_LANES_CLONES
 int TauAccelLanes(const double r[kLanes][10], double tau[kLanes]) {
   Lanes x[3], v[3], eps, accel, delta;
   for (int k = 0; k < kLanes; ++k) {

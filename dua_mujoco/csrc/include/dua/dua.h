@@ -163,6 +163,9 @@ DUA_API void dua_reset_events(dua_step_args* a);
 // Check every body (the violation events) and make the held pairs of each flagged one due at
 // step n. Returns the number of flagged bodies.
 DUA_API int64_t dua_violation_pass(dua_step_args* a, int64_t n);
+// The violation check alone, four bodies at a time (lanes != 0, as the step runs it) or one at a
+// time: the reference the lanes are held to (tests). Returns the number of bodies flagged.
+DUA_API int64_t dua_check_bodies(dua_step_args* a, int64_t lanes);
 // Whether max |a + s0 x + s1 y + s2 z| over the sign choices s exceeds bound (the violation
 // check's test of a box's eight corners).
 DUA_API int64_t dua_exceeds12(double a0, double a1, double a2, double x0, double x1, double x2,

@@ -1,0 +1,64 @@
+// Lanes: four doubles in lockstep, and the operations the kernels use written once for a double
+// and for four (the kernels are templates over the number type). A lane computes the IEEE
+// operations the scalar code computes, in the same order (no contraction: -ffp-contract=off), so
+// it gets the same bits; branches become masks. Functions taking lanes are meant to be inlined
+// into one caller compiled for AVX2 where the CPU has it (target_clones).
+#ifndef DUA_MUJOCO_LANES_H_
+#define DUA_MUJOCO_LANES_H_
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define DUA_LANES_CLONES __attribute__((target_clones("avx2", "default"), flatten))
+#else
+#define DUA_LANES_CLONES
+#endif
+
+namespace dua {
+
+constexpr int kLanes = 4;
+using Lanes = double __attribute__((vector_size(8 * kLanes)));
+using LaneMask = int64_t __attribute__((vector_size(8 * kLanes)));
+
+template <class T>
+using MaskOf = decltype(T{} < T{});
+
+inline double Select(bool m, double a, double b) { return m ? a : b; }
+inline Lanes Select(LaneMask m, Lanes a, Lanes b) { return m ? a : b; }
+// As std::max and std::min order their operands (which one a NaN gives back).
+inline double Max(double a, double b) { return std::max(a, b); }
+inline Lanes Max(Lanes a, Lanes b) { return a < b ? b : a; }
+inline double Min(double a, double b) { return std::min(a, b); }
+inline Lanes Min(Lanes a, Lanes b) { return b < a ? b : a; }
+inline double Sqrt(double a) { return std::sqrt(a); }
+inline Lanes Sqrt(Lanes a) {
+  Lanes r;
+  for (int k = 0; k < kLanes; ++k) r[k] = std::sqrt(a[k]);
+  return r;
+}
+inline double Abs(double a) { return std::fabs(a); }
+inline Lanes Abs(Lanes a) {
+  Lanes r;
+  for (int k = 0; k < kLanes; ++k) r[k] = std::fabs(a[k]);
+  return r;
+}
+inline bool And(bool a, bool b) { return a && b; }
+inline LaneMask And(LaneMask a, LaneMask b) { return a & b; }
+inline bool Or(bool a, bool b) { return a || b; }
+inline LaneMask Or(LaneMask a, LaneMask b) { return a | b; }
+inline bool Not(bool a) { return !a; }
+inline LaneMask Not(LaneMask a) { return ~a; }
+inline bool AndNot(bool a, bool b) { return a && !b; }
+inline LaneMask AndNot(LaneMask a, LaneMask b) { return a & ~b; }
+inline bool Any(bool m) { return m; }
+inline bool Any(LaneMask m) {
+  int64_t any = 0;
+  for (int k = 0; k < kLanes; ++k) any |= m[k];
+  return any != 0;
+}
+
+}  // namespace dua
+
+#endif  // DUA_MUJOCO_LANES_H_
