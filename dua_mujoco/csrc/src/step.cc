@@ -209,19 +209,20 @@ MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, doub
   return broken;
 }
 
-// CheckBody of bodies i .. i + 3 in lanes: bit k of the result for body i + k.
+// CheckBody of bodies i .. i + m - 1 (m <= 4) in lanes: bit k of the result for body i + k. A
+// short group repeats its last body in the spare lanes (their results are dropped).
 DUA_LANES_CLONES
-int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int64_t nprev, double h,
+int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_t nprev, double h,
               double inv_h, double rtol) {
   // Rows loaded one body at a time, then read across into lanes (not written lane by lane
   // into the vectors: narrow stores under a wide load stall the store forwarding).
   double raw[kLanes][kRowLen];
-  for (int k = 0; k < kLanes; ++k) LoadRow(ev, f, i + k, raw[k]);
+  for (int k = 0; k < kLanes; ++k) LoadRow(ev, f, i + std::min(k, m - 1), raw[k]);
   BodyRow<Lanes> row;
   for (int j = 0; j < kRowLen; ++j) row.v[j] = Lanes{raw[0][j], raw[1][j], raw[2][j], raw[3][j]};
   const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
   int bits = 0;
-  for (int k = 0; k < kLanes; ++k) {
+  for (int k = 0; k < m; ++k) {
     double* prev = ev.prev + (i + k) * kSNcol;
     for (int j = 0; j < kSNcol; ++j) prev[j] = row.v[kRowPrev + j][k];
     bits |= broken[k] ? 1 << k : 0;
@@ -230,17 +231,18 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int64_t nprev
 }
 
 // Record every body's box state and check the motion hypotheses over the last period, four
-// bodies at a time unless !lanes (the same values as one at a time: lanes.h); the flagged
-// bodies' rows go to ev.flagged. Returns their number.
+// bodies at a time unless !lanes (the same values as one at a time, lanes.h: the reference the
+// tests hold the lanes to); the flagged bodies' rows go to ev.flagged. Returns their number.
 int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool lanes = true) {
   const double h = ev.params[0], rtol = ev.params[1];
   const double inv_h = 1.0 / h;  // a product per chord, not a division
   const int64_t nprev = ev.meta[kMNprev];
   int64_t count = 0;
   int64_t i = 0;
-  for (; lanes && i + kLanes <= ev.nbody; i += kLanes) {
-    const int bits = CheckFour(ev, f, i, nprev, h, inv_h, rtol);
-    for (int k = 0; k < kLanes; ++k) {
+  for (; lanes && i < ev.nbody; i += kLanes) {
+    const int m = static_cast<int>(std::min<int64_t>(kLanes, ev.nbody - i));
+    const int bits = CheckFour(ev, f, i, m, nprev, h, inv_h, rtol);
+    for (int k = 0; k < m; ++k) {
       if ((bits >> k) & 1) ev.flagged[count++] = i + k;
     }
   }
