@@ -108,8 +108,8 @@ class UrgencyOptions:
         exact: The exact level: a pair whose sphere tau is below ``exact_below`` is looked at
             through its geoms, and the bounds hold for every point of the geoms (checked at the
             corners of their boxes).
-        exact_below: Seconds; None for ``(2 + latency)`` predictor periods, one period past the
-            alarm horizon (measured: larger thresholds cost more and clear no more alarms).
+        exact_below: Seconds; None for ``(1 + latency)`` predictor periods, the alarm horizon
+            (measured: larger thresholds cost more and clear no more alarms).
     """
 
     exact: bool = True
@@ -124,7 +124,7 @@ class UrgencyOptions:
         ):
             raise InvalidInputError(
                 f"exact_below = {b!r} is invalid: pass a positive number of seconds, or None "
-                "for two predictor periods past the latency."
+                "for the alarm horizon, one predictor period past the latency."
             )
 
 
