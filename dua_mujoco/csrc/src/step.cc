@@ -214,17 +214,43 @@ MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, doub
 DUA_LANES_CLONES
 int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_t nprev, double h,
               double inv_h, double rtol) {
-  // Rows loaded one body at a time, then read across into lanes (not written lane by lane
-  // into the vectors: narrow stores under a wide load stall the store forwarding).
-  double raw[kLanes][kRowLen];
-  for (int k = 0; k < kLanes; ++k) LoadRow(ev, f, i + std::min(k, m - 1), raw[k]);
+  // Each field read across the four bodies' rows straight into lanes (not through a copy of
+  // the rows, and not written lane by lane into the vectors: narrow stores under a wide load
+  // stall the store forwarding).
+  const double* rec[kLanes];
+  const double* prev[kLanes];
+  int64_t g[kLanes], b[kLanes], r[kLanes];
+  for (int k = 0; k < kLanes; ++k) {
+    const int64_t body = i + std::min(k, m - 1);
+    rec[k] = ev.rec + body * kBNcol;
+    prev[k] = ev.prev + body * kSNcol;
+    g[k] = static_cast<int64_t>(rec[k][kBFrame]);
+    b[k] = static_cast<int64_t>(rec[k][kBBody]);
+    r[k] = static_cast<int64_t>(rec[k][kBRoot]);
+  }
   BodyRow<Lanes> row;
-  for (int j = 0; j < kRowLen; ++j) row.v[j] = Lanes{raw[0][j], raw[1][j], raw[2][j], raw[3][j]};
+  auto across = [&row](int at, int n, auto&& field) {
+    for (int j = 0; j < n; ++j) {
+      row.v[at + j] = Lanes{field(0)[j], field(1)[j], field(2)[j], field(3)[j]};
+    }
+  };
+  across(kRowR, 9, [&](int k) { return f.mat + 9 * g[k]; });
+  across(kRowP, 3, [&](int k) { return f.pos + 3 * g[k]; });
+  across(kRowO, 3, [&](int k) { return rec[k] + kBCenter; });
+  across(kRowHalf, 3, [&](int k) { return rec[k] + kBHalf; });
+  across(kRowTw, 6, [&](int k) { return f.twist + 6 * b[k]; });
+  across(kRowRef, 3, [&](int k) { return f.twist_ref + 3 * r[k]; });
+  across(kRowRt, 6, [&](int k) { return f.root_twist + 6 * r[k]; });
+  across(kRowRo, 3, [&](int k) { return f.root_origin + 3 * r[k]; });
+  across(kRowSpeed, 1, [&](int k) { return rec[k] + kBSpeed; });
+  across(kRowDisc, 1, [&](int k) { return rec[k] + kBDisc; });
+  across(kRowAccel, 1, [&](int k) { return rec[k] + kBAccel; });
+  across(kRowPrev, kSNcol, [&](int k) { return prev[k]; });
   const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
   int bits = 0;
   for (int k = 0; k < m; ++k) {
-    double* prev = ev.prev + (i + k) * kSNcol;
-    for (int j = 0; j < kSNcol; ++j) prev[j] = row.v[kRowPrev + j][k];
+    double* out = ev.prev + (i + k) * kSNcol;
+    for (int j = 0; j < kSNcol; ++j) out[j] = row.v[kRowPrev + j][k];
     bits |= broken[k] ? 1 << k : 0;
   }
   return bits;
