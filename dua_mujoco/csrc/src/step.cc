@@ -106,23 +106,22 @@ struct BodyRow {
   T v[kRowLen];
 };
 
-void LoadRow(const dua_events& ev, const dua_frame& f, int64_t i, double* row) {
+// The row's fields in order (their first column and length), and where body i's come from.
+constexpr int kFields = 12;
+constexpr int kFieldAt[kFields] = {kRowR,  kRowP,  kRowO,     kRowHalf, kRowTw,    kRowRef,
+                                   kRowRt, kRowRo, kRowSpeed, kRowDisc, kRowAccel, kRowPrev};
+constexpr int kFieldLen[kFields] = {9, 3, 3, 3, 6, 3, 6, 3, 1, 1, 1, kSNcol};
+
+void RowSources(const dua_events& ev, const dua_frame& f, int64_t i, const double* src[kFields]) {
   const double* rec = ev.rec + i * kBNcol;
   const int64_t g = static_cast<int64_t>(rec[kBFrame]);
   const int64_t b = static_cast<int64_t>(rec[kBBody]);
   const int64_t r = static_cast<int64_t>(rec[kBRoot]);
-  std::copy(f.mat + 9 * g, f.mat + 9 * g + 9, row + kRowR);
-  std::copy(f.pos + 3 * g, f.pos + 3 * g + 3, row + kRowP);
-  std::copy(rec + kBCenter, rec + kBCenter + 3, row + kRowO);
-  std::copy(rec + kBHalf, rec + kBHalf + 3, row + kRowHalf);
-  std::copy(f.twist + 6 * b, f.twist + 6 * b + 6, row + kRowTw);
-  std::copy(f.twist_ref + 3 * r, f.twist_ref + 3 * r + 3, row + kRowRef);
-  std::copy(f.root_twist + 6 * r, f.root_twist + 6 * r + 6, row + kRowRt);
-  std::copy(f.root_origin + 3 * r, f.root_origin + 3 * r + 3, row + kRowRo);
-  row[kRowSpeed] = rec[kBSpeed];
-  row[kRowDisc] = rec[kBDisc];
-  row[kRowAccel] = rec[kBAccel];
-  std::copy(ev.prev + i * kSNcol, ev.prev + (i + 1) * kSNcol, row + kRowPrev);
+  const double* from[kFields] = {f.mat + 9 * g,        f.pos + 3 * g,         rec + kBCenter,
+                                 rec + kBHalf,         f.twist + 6 * b,       f.twist_ref + 3 * r,
+                                 f.root_twist + 6 * r, f.root_origin + 3 * r, rec + kBSpeed,
+                                 rec + kBDisc,         rec + kBAccel,         ev.prev + i * kSNcol};
+  std::copy(from, from + kFields, src);
 }
 
 // Record a body's box state in its row and check the motion hypotheses over the last period
@@ -214,38 +213,18 @@ MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, doub
 DUA_LANES_CLONES
 int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_t nprev, double h,
               double inv_h, double rtol) {
-  // Each field read across the four bodies' rows straight into lanes (not through a copy of
-  // the rows, and not written lane by lane into the vectors: narrow stores under a wide load
+  // Each field read across the four bodies' sources straight into lanes (not through a copy
+  // of the rows, and not written lane by lane into the vectors: narrow stores under a wide load
   // stall the store forwarding).
-  const double* rec[kLanes];
-  const double* prev[kLanes];
-  int64_t g[kLanes], b[kLanes], r[kLanes];
-  for (int k = 0; k < kLanes; ++k) {
-    const int64_t body = i + std::min(k, m - 1);
-    rec[k] = ev.rec + body * kBNcol;
-    prev[k] = ev.prev + body * kSNcol;
-    g[k] = static_cast<int64_t>(rec[k][kBFrame]);
-    b[k] = static_cast<int64_t>(rec[k][kBBody]);
-    r[k] = static_cast<int64_t>(rec[k][kBRoot]);
-  }
+  const double* src[kLanes][kFields];
+  for (int k = 0; k < kLanes; ++k) RowSources(ev, f, i + std::min(k, m - 1), src[k]);
   BodyRow<Lanes> row;
-  auto across = [&row](int at, int n, auto&& field) {
-    for (int j = 0; j < n; ++j) {
-      row.v[at + j] = Lanes{field(0)[j], field(1)[j], field(2)[j], field(3)[j]};
+  for (int field = 0; field < kFields; ++field) {
+    for (int j = 0; j < kFieldLen[field]; ++j) {
+      row.v[kFieldAt[field] + j] =
+          Lanes{src[0][field][j], src[1][field][j], src[2][field][j], src[3][field][j]};
     }
-  };
-  across(kRowR, 9, [&](int k) { return f.mat + 9 * g[k]; });
-  across(kRowP, 3, [&](int k) { return f.pos + 3 * g[k]; });
-  across(kRowO, 3, [&](int k) { return rec[k] + kBCenter; });
-  across(kRowHalf, 3, [&](int k) { return rec[k] + kBHalf; });
-  across(kRowTw, 6, [&](int k) { return f.twist + 6 * b[k]; });
-  across(kRowRef, 3, [&](int k) { return f.twist_ref + 3 * r[k]; });
-  across(kRowRt, 6, [&](int k) { return f.root_twist + 6 * r[k]; });
-  across(kRowRo, 3, [&](int k) { return f.root_origin + 3 * r[k]; });
-  across(kRowSpeed, 1, [&](int k) { return rec[k] + kBSpeed; });
-  across(kRowDisc, 1, [&](int k) { return rec[k] + kBDisc; });
-  across(kRowAccel, 1, [&](int k) { return rec[k] + kBAccel; });
-  across(kRowPrev, kSNcol, [&](int k) { return prev[k]; });
+  }
   const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
   int bits = 0;
   for (int k = 0; k < m; ++k) {
@@ -274,7 +253,11 @@ int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool lanes = true)
   }
   for (; i < ev.nbody; ++i) {
     BodyRow<double> row;
-    LoadRow(ev, f, i, row.v);
+    const double* src[kFields];
+    RowSources(ev, f, i, src);
+    for (int field = 0; field < kFields; ++field) {
+      std::copy(src[field], src[field] + kFieldLen[field], row.v + kFieldAt[field]);
+    }
     const bool broken = CheckBody(&row, nprev, h, inv_h, rtol);
     std::copy(row.v + kRowPrev, row.v + kRowLen, ev.prev + i * kSNcol);
     if (broken) ev.flagged[count++] = i;
