@@ -1,8 +1,11 @@
 // Lanes: four doubles in lockstep, and the operations the kernels use written once for a double
 // and for four (the kernels are templates over the number type). A lane computes the IEEE
 // operations the scalar code computes, in the same order (no contraction: -ffp-contract=off), so
-// it gets the same bits; branches become masks. Functions taking lanes are meant to be inlined
-// into one caller compiled for AVX2 where the CPU has it (target_clones).
+// it gets the same bits (a NaN's sign aside: the compiler may swap the operands of + and *);
+// branches become masks. Functions taking lanes are inlined into one caller compiled for AVX2
+// where the CPU has it (target_clones): a call between an AVX2 clone and a function compiled
+// without AVX passes the vectors differently, so the clones exist only in optimised builds,
+// where flatten inlines every call, and the helpers here are always inlined.
 #ifndef DUA_MUJOCO_LANES_H_
 #define DUA_MUJOCO_LANES_H_
 
@@ -10,11 +13,12 @@
 #include <cmath>
 #include <cstdint>
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__OPTIMIZE__)
 #define DUA_LANES_CLONES __attribute__((target_clones("avx2", "default"), flatten))
 #else
 #define DUA_LANES_CLONES
 #endif
+#define DUA_INLINE inline __attribute__((always_inline))
 
 namespace dua {
 
@@ -26,34 +30,45 @@ template <class T>
 using MaskOf = decltype(T{} < T{});
 
 inline double Select(bool m, double a, double b) { return m ? a : b; }
-inline Lanes Select(LaneMask m, Lanes a, Lanes b) { return m ? a : b; }
+DUA_INLINE Lanes Select(LaneMask m, Lanes a, Lanes b) { return m ? a : b; }
 // As std::max and std::min order their operands (which one a NaN gives back).
 inline double Max(double a, double b) { return std::max(a, b); }
-inline Lanes Max(Lanes a, Lanes b) { return a < b ? b : a; }
+DUA_INLINE Lanes Max(Lanes a, Lanes b) { return a < b ? b : a; }
 inline double Min(double a, double b) { return std::min(a, b); }
-inline Lanes Min(Lanes a, Lanes b) { return b < a ? b : a; }
+DUA_INLINE Lanes Min(Lanes a, Lanes b) { return b < a ? b : a; }
 inline double Sqrt(double a) { return std::sqrt(a); }
-inline Lanes Sqrt(Lanes a) {
+DUA_INLINE Lanes Sqrt(Lanes a) {
   Lanes r;
   for (int k = 0; k < kLanes; ++k) r[k] = std::sqrt(a[k]);
   return r;
 }
 inline double Abs(double a) { return std::fabs(a); }
-inline Lanes Abs(Lanes a) {
+DUA_INLINE Lanes Abs(Lanes a) {
   Lanes r;
   for (int k = 0; k < kLanes; ++k) r[k] = std::fabs(a[k]);
   return r;
 }
 inline bool And(bool a, bool b) { return a && b; }
-inline LaneMask And(LaneMask a, LaneMask b) { return a & b; }
+DUA_INLINE LaneMask And(LaneMask a, LaneMask b) { return a & b; }
 inline bool Or(bool a, bool b) { return a || b; }
-inline LaneMask Or(LaneMask a, LaneMask b) { return a | b; }
+DUA_INLINE LaneMask Or(LaneMask a, LaneMask b) { return a | b; }
 inline bool Not(bool a) { return !a; }
-inline LaneMask Not(LaneMask a) { return ~a; }
+DUA_INLINE LaneMask Not(LaneMask a) { return ~a; }
 inline bool AndNot(bool a, bool b) { return a && !b; }
-inline LaneMask AndNot(LaneMask a, LaneMask b) { return a & ~b; }
+DUA_INLINE LaneMask AndNot(LaneMask a, LaneMask b) { return a & ~b; }
+// One lane at a time (slow paths): a double or a bool is one lane.
+template <class T>
+constexpr int LaneCount() {
+  return sizeof(T) / sizeof(double);
+}
+inline double LaneOf(double v, int) { return v; }
+DUA_INLINE double LaneOf(Lanes v, int k) { return v[k]; }
+inline bool LaneOf(bool m, int) { return m; }
+DUA_INLINE bool LaneOf(LaneMask m, int k) { return m[k] != 0; }
+inline void SetLane(bool* m, int, bool v) { *m = v; }
+DUA_INLINE void SetLane(LaneMask* m, int k, bool v) { (*m)[k] = v ? -1 : 0; }
 inline bool Any(bool m) { return m; }
-inline bool Any(LaneMask m) {
+DUA_INLINE bool Any(LaneMask m) {
   int64_t any = 0;
   for (int k = 0; k < kLanes; ++k) any |= m[k];
   return any != 0;

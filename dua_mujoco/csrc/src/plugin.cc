@@ -249,7 +249,8 @@ struct Instance {
 // Nothing here reads subtree_linvel or subtree_angmom, so the plugin's passive call (in
 // mj_fwdVelocity, after mj_comVel, before the sensors) marks them computed, when no one else in
 // the model could read them: no subtree or user sensor, no other plugin. They then stay as a
-// model without this plugin leaves them (computed on demand only, mj_subtreeVel).
+// model without this plugin leaves them (computed on demand only, mj_subtreeVel), and the flag
+// is cleared again once the sensors have run.
 bool SubtreeVelUnused(const mjModel* m) {
   for (int i = 0; i < m->nsensor; ++i) {
     const int type = m->sensor_type[i];
@@ -609,11 +610,15 @@ void Register() {
     if (in) in->classified = false;
   };
   plugin.compute = +[](const mjModel* m, mjData* d, int instance, int capability) {
+    const auto* in = reinterpret_cast<const Instance*>(d->plugin_data[instance]);
+    const bool skip = in && in->skip_subtree_vel;
     if (capability == mjPLUGIN_PASSIVE) {
-      const auto* in = reinterpret_cast<const Instance*>(d->plugin_data[instance]);
-      if (in && in->skip_subtree_vel) d->flg_subtreevel = 1;
+      if (skip) d->flg_subtreevel = 1;
       return;
     }
+    // Past the last instance's check the flag goes back to what MuJoCo computed: code that
+    // reads it after the step ("computed yet?") must not take the stale values for fresh ones.
+    if (skip && instance == m->nplugin - 1) d->flg_subtreevel = 0;
     Compute(m, d, instance);
   };
   plugin.visualize = +[](const mjModel* m, mjData* d, const mjvOption*, mjvScene* scn,

@@ -71,10 +71,10 @@ inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_fr
 // ------------------------------------------------------------------------------- events
 
 // Whether max |a + s0 x + s1 y + s2 z| over the eight sign choices exceeds bound; two upper
-// bounds screen first.
+// bounds screen first. Exact only while the squares do not underflow (Exceeds12 below).
 template <class T>
-MaskOf<T> Exceeds12(T a0, T a1, T a2, T x0, T x1, T x2, T y0, T y1, T y2, T z0, T z1, T z2,
-                    T bound) {
+MaskOf<T> Exceeds12Squared(T a0, T a1, T a2, T x0, T x1, T x2, T y0, T y1, T y2, T z0, T z1, T z2,
+                           T bound) {
   const T na = a0 * a0 + a1 * a1 + a2 * a2, nx = x0 * x0 + x1 * x1 + x2 * x2;
   const T ny = y0 * y0 + y1 * y1 + y2 * y2, nz = z0 * z0 + z1 * z1 + z2 * z2;
   const MaskOf<T> wide = Not(4.0 * (na + nx + ny + nz) <= bound * bound);
@@ -93,6 +93,39 @@ MaskOf<T> Exceeds12(T a0, T a1, T a2, T x0, T x1, T x2, T y0, T y1, T y2, T z0, 
     }
   }
   return And(open, Sqrt(worst) > bound);
+}
+
+// Exceeds12 of q = {a, x, y, z, bound} scaled by a power of two (exact) so that the largest is
+// in [1, 2): no square underflows.
+bool Exceeds12Scaled(const double q[13]) {
+  double big = 0.0;
+  for (int j = 0; j < 13; ++j) big = std::max(big, std::fabs(q[j]));
+  if (!(big > 0.0)) return 0.0 > q[12];  // every corner is 0
+  const int e = std::ilogb(big);
+  double s[13];
+  for (int j = 0; j < 13; ++j) s[j] = std::ldexp(q[j], -e);
+  return Exceeds12Squared(s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8], s[9], s[10], s[11],
+                          s[12]);
+}
+
+// Exceeds12Squared, but squares below ~1e-308 underflow: with a bound below 1e-139, numbers that
+// small could read as 0 and pass it (a norm of 1e-162 against a bound of 0), so such lanes are
+// checked again scaled. (Above it, numbers whose squares underflow are far below the bound.)
+template <class T>
+MaskOf<T> Exceeds12(T a0, T a1, T a2, T x0, T x1, T x2, T y0, T y1, T y2, T z0, T z1, T z2,
+                    T bound) {
+  MaskOf<T> out = Exceeds12Squared(a0, a1, a2, x0, x1, x2, y0, y1, y2, z0, z1, z2, bound);
+  const MaskOf<T> small = bound < 1e-139;
+  if (!Any(small)) return out;
+  for (int k = 0; k < LaneCount<T>(); ++k) {
+    if (!LaneOf(small, k)) continue;
+    const double q[13] = {LaneOf(a0, k),   LaneOf(a1, k), LaneOf(a2, k), LaneOf(x0, k),
+                          LaneOf(x1, k),   LaneOf(x2, k), LaneOf(y0, k), LaneOf(y1, k),
+                          LaneOf(y2, k),   LaneOf(z0, k), LaneOf(z1, k), LaneOf(z2, k),
+                          LaneOf(bound, k)};
+    SetLane(&out, k, Exceeds12Scaled(q));
+  }
+  return out;
 }
 
 // One body's inputs to the check, gathered in one row: its geom's pose (R, P), its box (centre o
