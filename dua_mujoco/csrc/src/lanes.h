@@ -13,7 +13,9 @@
 #include <cmath>
 #include <cstdint>
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__OPTIMIZE__)
+// target_clones needs the loader's ifunc support: glibc's (not musl's or MinGW's).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__OPTIMIZE__) && \
+    defined(__GLIBC__)
 #define DUA_LANES_CLONES __attribute__((target_clones("avx2", "default"), flatten))
 #else
 #define DUA_LANES_CLONES
