@@ -150,6 +150,18 @@ def _median(rows: list[dict], scene: str, key: str) -> float:
     return float(np.median([r[key] for r in rows if r["scene"] == scene]))
 
 
+def _print_summary(label: str, added: list[tuple[str, float]]) -> None:
+    """What the plugin adds, ``(scene, x mj_step)`` each: the median over the robots and the
+    largest over every scene (nothing without a robot)."""
+    robots = [x for s, x in added if s.startswith("robot/")]
+    if robots:
+        worst = max(added, key=lambda a: a[1])
+        print(
+            f"{label}plugin adds, median over {len(robots)} robots: {np.median(robots):+.3f}x "
+            f"mj_step; largest over all scenes: {worst[1]:+.3f}x ({worst[0]})"
+        )
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--before", type=Path, default=None, help="the other checkout (numba step)")
@@ -214,21 +226,9 @@ def main(argv: list[str] | None = None) -> int:
         "pruned | adds (means), all | pruned |\n|---|---|---|---|---|---|---|"
     )
     print("\n".join(pruned_rows))
-    robots = [x for s, x in added if s.startswith("robot/")]
-    if robots:
-        print(
-            f"\nplugin adds, median over {len(robots)} robots: {np.median(robots):+.3f}x mj_step; "
-            f"largest over all scenes: {max(x for _, x in added):+.3f}x "
-            f"({max(added, key=lambda a: a[1])[0]})"
-        )
-    robots_before = [x for s, x in added_before if s.startswith("robot/")]
-    if robots_before:
-        print(
-            f"before: plugin adds, median over {len(robots_before)} robots: "
-            f"{np.median(robots_before):+.3f}x mj_step; largest over all scenes: "
-            f"{max(x for _, x in added_before):+.3f}x "
-            f"({max(added_before, key=lambda a: a[1])[0]})"
-        )
+    print()
+    for label, adds in (("", added), ("before: ", added_before)):
+        _print_summary(label, adds)
     return 0
 
 
