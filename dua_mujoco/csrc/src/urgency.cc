@@ -198,6 +198,17 @@ double Upper(const double x[3], const double v[3], double e, double d, double h,
   return kInf;
 }
 
+// Whether |v|^2 would underflow, from vmax = max |v_i|: the kernel then rescales time.
+template <class T>
+MaskOf<T> Underflows(T vmax) {
+  return And(0.0 < vmax, vmax < 1e-120);
+}
+
+template <class T>
+T MaxAbs(const T v[3]) {
+  return Max(Max(Abs(v[0]), Abs(v[1])), Abs(v[2]));
+}
+
 // The inflated problem: radius e + d t + h t^2. With G1 = g'/2 = -2h^2 t^3 - 3hd t^2 + q t + p0
 // and G2 = g''/2 = -6h^2 t^2 - 6hd t + q.
 template <class T>
@@ -244,10 +255,9 @@ int TauAccelLanes(const double r[kLanes][10], double tau[kLanes]) {
     for (int j = 0; j < 3; ++j) x[j][k] = r[k][j], v[j][k] = r[k][3 + j];
     eps[k] = r[k][6], accel[k] = r[k][7], delta[k] = r[k][8];
   }
-  const Lanes vmax = Max(Max(Abs(v[0]), Abs(v[1])), Abs(v[2]));
   const Inflated<Lanes> p = Inflate(x, v, eps, accel, delta);
   const LaneMask inside = p.nx - p.e <= 0.0;  // tau = 0
-  LaneMask ok = AndNot(p.h > 0.0, And(0.0 < vmax, vmax < 1e-120));
+  LaneMask ok = AndNot(p.h > 0.0, Underflows(MaxAbs(v)));
   Lanes t2;
   ok = AndNot(ok, HasMinimum(p, &t2));
   const Lanes hi = UpperGuess(p.nx, p.nv, p.e, p.d, p.h, Lanes{});
@@ -287,15 +297,16 @@ double WithSpeed(double tau, double x0, double x1, double x2, double v0, double 
 
 double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
                 double accel, double delta) {
-  const double vmax = std::max(std::max(std::fabs(v0), std::fabs(v1)), std::fabs(v2));
-  if (0.0 < vmax && vmax < 1e-120) {
-    // |v|^2 would underflow: solve in the time unit s (a power of two, so exactly).
+  const double v[3] = {v0, v1, v2};
+  const double vmax = MaxAbs(v);
+  if (Underflows(vmax)) {
+    // Solve in the time unit s (a power of two, so exactly).
     const double s = std::exp2(std::nearbyint(-std::log2(vmax)));
     if (std::isfinite(accel * s * s) && std::isfinite(delta * s)) {
       return s * TauAccel(x0, x1, x2, v0 * s, v1 * s, v2 * s, eps, accel * s * s, delta * s);
     }
   }
-  const double x[3] = {x0, x1, x2}, v[3] = {v0, v1, v2};
+  const double x[3] = {x0, x1, x2};
   const Inflated<double> p = Inflate(x, v, eps, accel, delta);
   const double nx = p.nx, nv = p.nv, e = p.e, d = p.d, h = p.h, q = p.q, p0 = p.p0;
   if (nx - e <= 0.0) return 0.0;
