@@ -193,6 +193,25 @@ def test_paper_world_has_no_initial_overlap() -> None:
         paper_world_spec(500, radius=0.1, box_size=0.5)
 
 
+def test_paper_world_built_in_chunks_is_laid_out_sphere_by_sphere() -> None:
+    # 300 spheres are built as chunks of 150 attached to the world: ids, names, the joint and
+    # motor of every axis and the keyframe must still run sphere by sphere, as one loop would.
+    n, accel_max, mass = 300, 1.5, 0.1
+    m = paper_world_spec(n, seed=4, box_size=(n / 40) ** (1 / 3), accel_max=accel_max).compile()
+    assert (m.nbody, m.njnt, m.nu, m.ngeom) == (n + 1, 3 * n, 3 * n, n + 6)
+    for i in range(n):
+        body = m.body(f"sphere{i}")
+        assert body.id == i + 1 and m.geom(f"sphere{i}").bodyid[0] == body.id
+        for k, axis in enumerate("xyz"):
+            joint = m.joint(f"sphere{i}_{axis}")
+            assert joint.id == 3 * i + k and joint.bodyid[0] == body.id
+            assert np.array_equal(joint.axis, np.eye(3)[k])
+            motor = m.actuator(f"sphere{i}_{axis}")
+            assert motor.id == 3 * i + k and motor.trnid[0] == joint.id
+            assert np.allclose(motor.ctrlrange, [-mass * accel_max, mass * accel_max])
+    assert m.key_qvel.shape == (1, 3 * n)
+
+
 def test_paper_world_is_seeded() -> None:
     a, b = paper_world_model(8, seed=1), paper_world_model(8, seed=1)
     c = paper_world_model(8, seed=2)

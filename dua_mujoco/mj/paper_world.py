@@ -129,11 +129,12 @@ def paper_world_spec(
     """The paper's experimental world (sec. 8): ``n`` spheres with bounded accelerations in a cube.
 
     The cube ``[-box_size/2, box_size/2]^3`` is closed by six static planes facing inwards. Each
-    sphere is a body with three slide joints (world x, y, z) driven by three motors
-    ``a{i}x, a{i}y, a{i}z`` with ``ctrlrange = [-mass accel_max, mass accel_max]`` (N). Gravity is
-    off and contacts between spheres (and with the walls) are on. Sphere ``i`` is body
-    ``sphere{i}``, geom ``sphere{i}`` and starts at its body position (``qpos = 0``); the first
-    keyframe ``init`` holds random initial velocities of norm ``<= speed_max``.
+    sphere is a body with three slide joints ``sphere{i}_x``, ``_y``, ``_z`` (world x, y, z),
+    each driven by a motor of the same name with ``ctrlrange = [-mass accel_max, mass
+    accel_max]`` (N). Gravity is off and contacts between spheres (and with the walls) are on.
+    Sphere ``i`` is body ``sphere{i}``, geom ``sphere{i}`` and starts at its body position
+    (``qpos = 0``); the first keyframe ``init`` holds random initial velocities of norm
+    ``<= speed_max``.
 
     Acceleration bound: out of contact, each centre satisfies ``|a_axis| <= accel_max`` on every
     axis, hence ``|a| <= sqrt(3) accel_max`` (:func:`paper_world_accel_bound`). The bound is stored
@@ -213,31 +214,61 @@ def paper_world_spec(
 
     ctrl = mass * accel_max
     palette = rng.uniform(0.2, 0.9, size=(n, 3))
-    for i in range(n):
-        body = world.add_body(name=f"sphere{i}", pos=centres[i])
+    # MuJoCo's spec re-lists the whole tree on every element it adds, so adding the spheres one
+    # by one is quadratic (7.6 s at 10,000, 37 s at 20,000). Chunks built apart and attached
+    # cost k^2 each to build and O(n) each to attach: k ~ sqrt(75 n) balances the two (2.3 s
+    # at 20,000, measured).
+    chunk = max(64, math.isqrt(75 * n))
+    for start in range(0, n, chunk):
+        part = _sphere_chunk(
+            range(start, min(n, start + chunk)),
+            centres,
+            palette,
+            radius=radius,
+            mass=mass,
+            ctrl=ctrl,
+        )
+        spec.attach(part, prefix="sphere", frame=world.add_frame())
+
+    spec.add_key(name="init", qpos=np.zeros(3 * n), qvel=velocity.reshape(-1))
+    spec.add_numeric(name=ACCEL_BOUND_NUMERIC, size=1, data=[paper_world_accel_bound(accel_max)])
+    return spec
+
+
+def _sphere_chunk(
+    ids: range,
+    centres: np.ndarray,
+    palette: np.ndarray,
+    *,
+    radius: float,
+    mass: float,
+    ctrl: float,
+) -> mujoco.MjSpec:
+    """The spheres ``ids`` of :func:`paper_world_spec` in a spec of their own.
+
+    Names lack the ``sphere`` prefix that attaching adds: body and geom ``{i}``, joint and motor
+    ``{i}_x`` (``_y``, ``_z``).
+    """
+    spec = mujoco.MjSpec()
+    for i in ids:
+        body = spec.worldbody.add_body(name=f"{i}", pos=centres[i])
         for axis_name, axis in zip("xyz", np.eye(3), strict=True):
-            body.add_joint(
-                name=f"sphere{i}_{axis_name}",
-                type=mujoco.mjtJoint.mjJNT_SLIDE,
-                axis=axis,
-            )
+            joint = f"{i}_{axis_name}"
+            body.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
             spec.add_actuator(
-                name=f"a{i}{axis_name}",
-                target=f"sphere{i}_{axis_name}",
+                name=joint,
+                target=joint,
                 trntype=mujoco.mjtTrn.mjTRN_JOINT,
                 ctrlrange=[-ctrl, ctrl],
                 ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE,
             )
         body.add_geom(
-            name=f"sphere{i}",
+            name=f"{i}",
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
             size=[radius, 0.0, 0.0],
             mass=mass,
             rgba=[*palette[i], 1.0],
         )
-
-    spec.add_key(name="init", qpos=np.zeros(3 * n), qvel=velocity.reshape(-1))
-    spec.add_numeric(name=ACCEL_BOUND_NUMERIC, size=1, data=[paper_world_accel_bound(accel_max)])
     return spec
 
 
