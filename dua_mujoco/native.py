@@ -24,7 +24,7 @@ from dua_mujoco.exceptions import NativeLibraryError
 __all__ = ["ABI_VERSION", "LIBRARY", "declare", "library", "library_path", "load_plugin"]
 
 LIBRARY = "libdua_mujoco.so"
-ABI_VERSION = 2
+ABI_VERSION = 3
 """``DUA_ABI_VERSION`` of ``dua/dua.h``: the layout of the structs the Python side fills."""
 
 

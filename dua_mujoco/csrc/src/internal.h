@@ -5,12 +5,23 @@
 #include <cmath>
 #include <cstdint>
 
+#include "lanes.h"
+
 namespace dua {
 
 // Events (dua_mujoco/mj/events.py): body record and state columns, meta entries.
 constexpr int kBFrame = 0, kBBody = 1, kBRoot = 2, kBCenter = 3, kBHalf = 6, kBAccel = 9,
               kBDisc = 10, kBSpeed = 11, kBNcol = 12;
-constexpr int kSV = 24, kSW = 27, kSScale = 30, kSNcol = 31;
+// State columns 0..30 are what the check writes each step; 31..39 the body's box and bounds
+// (kBCenter .. kBSpeed), copied from its record at the reset so that the lanes read them as
+// vectors too.
+constexpr int kSV = 24, kSW = 27, kSScale = 30, kSWritten = 31, kSCenter = 31, kSHalf = 34,
+              kSAccel = 37, kSDisc = 38, kSSpeed = 39, kSNcol = 40;
+// Length of the state of nbody bodies: (ceil(nbody / 4), kSNcol, 4), so that a column of four
+// bodies is one vector of the check's lanes.
+inline int64_t EventStateLen(int64_t nbody) {
+  return (nbody + kLanes - 1) / kLanes * kSNcol * kLanes;
+}
 constexpr int kMNprev = 0, kMCount = 1, kMTotal = 2;
 
 double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2, double eps,

@@ -107,7 +107,7 @@ struct Instance {
     for (int64_t p = 0; p < n; ++p) ids[p] = p;
     Size(n);
     exact_records = t.universe.exact;
-    events_prev.assign(t.nbody_events * 31, 0.0);
+    events_prev.assign(dua::EventStateLen(t.nbody_events), 0.0);
     events_meta.assign(3, 0);
     events_flagged.assign(std::max<int64_t>(t.nbody_events, 1), 0);
     root_twist.assign(6 * m->nbody, 0.0);

@@ -128,33 +128,36 @@ MaskOf<T> Exceeds12(T a0, T a1, T a2, T x0, T x1, T x2, T y0, T y1, T y2, T z0, 
   return out;
 }
 
-// One body's inputs to the check, gathered in one row: its geom's pose (R, P), its box (centre o
-// and half sizes in that frame), the twists RigidPoint reads (tw, ref, rt, ro), its bounds, and
-// its state row (prev), which the check updates.
-constexpr int kRowR = 0, kRowP = 9, kRowO = 12, kRowHalf = 15, kRowTw = 18, kRowRef = 24,
-              kRowRt = 27, kRowRo = 33, kRowSpeed = 36, kRowDisc = 37, kRowAccel = 38,
-              kRowPrev = 39, kRowLen = kRowPrev + kSNcol;
+// One body's inputs to the check, in one row: what it reads from MjData (its geom's pose R, P and
+// the twists RigidPoint reads: tw, ref, rt, ro), then its state (StateAt: the box's centre o and
+// half sizes in that frame, its bounds, and what the last steps left), which the check updates.
+constexpr int kRowR = 0, kRowP = 9, kRowTw = 12, kRowRef = 18, kRowRt = 21, kRowRo = 27,
+              kRowState = 30, kRowLen = kRowState + kSNcol;
 template <class T>
 struct BodyRow {
   T v[kRowLen];
 };
 
-// The row's fields in order (their first column and length), and where body i's come from.
-constexpr int kFields = 12;
-constexpr int kFieldAt[kFields] = {kRowR,  kRowP,  kRowO,     kRowHalf, kRowTw,    kRowRef,
-                                   kRowRt, kRowRo, kRowSpeed, kRowDisc, kRowAccel, kRowPrev};
-constexpr int kFieldLen[kFields] = {9, 3, 3, 3, 6, 3, 6, 3, 1, 1, 1, kSNcol};
+// The row's MjData fields in order (their first column and length), and where body i's come
+// from.
+constexpr int kFields = 6;
+constexpr int kFieldAt[kFields] = {kRowR, kRowP, kRowTw, kRowRef, kRowRt, kRowRo};
+constexpr int kFieldLen[kFields] = {9, 3, 6, 3, 6, 3};
 
 void RowSources(const dua_events& ev, const dua_frame& f, int64_t i, const double* src[kFields]) {
   const double* rec = ev.rec + i * kBNcol;
   const int64_t g = static_cast<int64_t>(rec[kBFrame]);
   const int64_t b = static_cast<int64_t>(rec[kBBody]);
   const int64_t r = static_cast<int64_t>(rec[kBRoot]);
-  const double* from[kFields] = {f.mat + 9 * g,        f.pos + 3 * g,         rec + kBCenter,
-                                 rec + kBHalf,         f.twist + 6 * b,       f.twist_ref + 3 * r,
-                                 f.root_twist + 6 * r, f.root_origin + 3 * r, rec + kBSpeed,
-                                 rec + kBDisc,         rec + kBAccel,         ev.prev + i * kSNcol};
+  const double* from[kFields] = {f.mat + 9 * g,       f.pos + 3 * g,        f.twist + 6 * b,
+                                 f.twist_ref + 3 * r, f.root_twist + 6 * r, f.root_origin + 3 * r};
   std::copy(from, from + kFields, src);
+}
+
+// Column j of body i's state: the state is (ceil(nbody / 4), kSNcol, 4), so that four bodies'
+// column is one vector.
+inline double* StateAt(const dua_events& ev, int64_t i, int j) {
+  return ev.prev + ((i / kLanes) * kSNcol + j) * kLanes + i % kLanes;
 }
 
 // Record a body's box state in its row and check the motion hypotheses over the last period
@@ -163,9 +166,9 @@ template <class T>
 MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, double rtol) {
   const T* R = row->v + kRowR;
   const T* P = row->v + kRowP;
-  T* prev = row->v + kRowPrev;
-  const T o0 = row->v[kRowO], o1 = row->v[kRowO + 1], o2 = row->v[kRowO + 2];
-  const T h0 = row->v[kRowHalf], h1 = row->v[kRowHalf + 1], h2 = row->v[kRowHalf + 2];
+  T* prev = row->v + kRowState;
+  const T o0 = prev[kSCenter], o1 = prev[kSCenter + 1], o2 = prev[kSCenter + 2];
+  const T h0 = prev[kSHalf], h1 = prev[kSHalf + 1], h2 = prev[kSHalf + 2];
   // The box's centre and its axes (columns of R diag(half)).
   const T cx = P[0] + R[0] * o0 + R[1] * o1 + R[2] * o2;
   const T cy = P[1] + R[3] * o0 + R[4] * o1 + R[5] * o2;
@@ -200,7 +203,7 @@ MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, doub
     const T uzx = (zx - prev[9]) * inv_h, uzy = (zy - prev[10]) * inv_h,
             uzz = (zz - prev[11]) * inv_h;
     const T tol_a = 8.0 * kEps * (scale + prev[kSScale]) / (h * h);
-    const T speed = row->v[kRowSpeed];
+    const T speed = prev[kSSpeed];
     // An infinite speed bound screens out (bound inf), as if skipped.
     broken =
         Or(broken, And(speed < kInf, Exceeds12(ucx, ucy, ucz, uxx, uxy, uxz, uyx, uyy, uyz, uzx,
@@ -216,7 +219,7 @@ MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, doub
                      uyx - (py * prev[8] - pz * prev[7]), uyy - (pz * prev[6] - px * prev[8]),
                      uyz - (px * prev[7] - py * prev[6]), uzx - (py * prev[11] - pz * prev[10]),
                      uzy - (pz * prev[9] - px * prev[11]), uzz - (px * prev[10] - py * prev[9]),
-                     row->v[kRowDisc] * (1.0 + rtol) + tol_d));
+                     prev[kSDisc] * (1.0 + rtol) + tol_d));
     if (nprev >= 2) {
       broken =
           Or(broken,
@@ -224,7 +227,7 @@ MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, doub
                        (uxx - prev[15]) * inv_h, (uxy - prev[16]) * inv_h, (uxz - prev[17]) * inv_h,
                        (uyx - prev[18]) * inv_h, (uyy - prev[19]) * inv_h, (uyz - prev[20]) * inv_h,
                        (uzx - prev[21]) * inv_h, (uzy - prev[22]) * inv_h, (uzz - prev[23]) * inv_h,
-                       row->v[kRowAccel] * (1.0 + rtol) + tol_a));
+                       prev[kSAccel] * (1.0 + rtol) + tol_a));
     }
     prev[12] = ucx, prev[13] = ucy, prev[14] = ucz;
     prev[15] = uxx, prev[16] = uxy, prev[17] = uxz;
@@ -258,13 +261,21 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
           Lanes{src[0][field][j], src[1][field][j], src[2][field][j], src[3][field][j]};
     }
   }
+  // The state's columns are whole vectors (a ragged last group keeps its spare lanes as they
+  // were: one body at a time writes them never).
+  for (int j = 0; j < kSNcol; ++j) {
+    __builtin_memcpy(&row.v[kRowState + j], StateAt(ev, i, j), sizeof(Lanes));
+  }
   const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
   int bits = 0;
-  for (int k = 0; k < m; ++k) {
-    double* out = ev.prev + (i + k) * kSNcol;
-    for (int j = 0; j < kSNcol; ++j) out[j] = row.v[kRowPrev + j][k];
-    bits |= broken[k] ? 1 << k : 0;
+  for (int j = 0; j < kSWritten; ++j) {
+    if (m == kLanes) {
+      __builtin_memcpy(StateAt(ev, i, j), &row.v[kRowState + j], sizeof(Lanes));
+    } else {
+      for (int k = 0; k < m; ++k) StateAt(ev, i, j)[k] = row.v[kRowState + j][k];
+    }
   }
+  for (int k = 0; k < m; ++k) bits |= broken[k] ? 1 << k : 0;
   return bits;
 }
 
@@ -291,8 +302,9 @@ int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool lanes = true)
     for (int field = 0; field < kFields; ++field) {
       std::copy(src[field], src[field] + kFieldLen[field], row.v + kFieldAt[field]);
     }
+    for (int j = 0; j < kSNcol; ++j) row.v[kRowState + j] = *StateAt(ev, i, j);
     const bool broken = CheckBody(&row, nprev, h, inv_h, rtol);
-    std::copy(row.v + kRowPrev, row.v + kRowLen, ev.prev + i * kSNcol);
+    for (int j = 0; j < kSWritten; ++j) *StateAt(ev, i, j) = row.v[kRowState + j];
     if (broken) ev.flagged[count++] = i;
   }
   ev.meta[kMNprev] = std::min<int64_t>(nprev + 1, 2);
@@ -592,6 +604,12 @@ int64_t dua_check_bodies(dua_step_args* a, int64_t lanes) {
 
 void dua_reset_events(dua_step_args* a) {
   const dua_events& ev = a->events;
+  for (int64_t i = 0; i < ev.nbody; ++i) {
+    const double* rec = ev.rec + i * dua::kBNcol;
+    for (int j = 0; j < dua::kSNcol - dua::kSWritten; ++j) {
+      *dua::StateAt(ev, i, dua::kSWritten + j) = rec[dua::kBCenter + j];
+    }
+  }
   ev.meta[dua::kMNprev] = 0;
   ev.meta[dua::kMTotal] = 0;
   if (ev.nbody) dua::CheckBodies(ev, a->frame);

@@ -18,7 +18,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 2
+#define DUA_ABI_VERSION 3
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -111,7 +111,7 @@ typedef struct dua_exact {
 typedef struct dua_events {
   int64_t nbody;
   const double* rec;       // (nbody, 12)
-  double* prev;            // (nbody, 31)
+  double* prev;            // (ceil(nbody / 4), 40, 4): four bodies' column together
   int64_t* meta;           // (3,)
   int64_t* flagged;        // (nbody,)
   const int64_t* start;    // (nbody + 1,)
