@@ -113,6 +113,9 @@ class _StepArgs(ctypes.Structure):
         ("events", _Events),
         ("scratch", _p),
         ("scratch_rows", _i),
+        ("point_state", _p),
+        ("point_epoch", _p),
+        ("epoch", _i),
         ("log_pairs", _p),
         ("log_tau", _p),
         ("log_new", _p),
@@ -269,7 +272,12 @@ class NativeStep:
         self.args.spheres = _address(spheres)
         self.args.shapes = _address(shapes)
         self.args.ids = _address(ids)
-        self._hold("tables", pairs, spheres, shapes, ids)
+        # Each sphere's state, read once per batch of pairs (dua.h).
+        state = np.zeros((max(spheres.shape[0], 1), 6))
+        epoch = np.full(max(spheres.shape[0], 1), -1, dtype=np.int64)
+        self.args.point_state = _address(state)
+        self.args.point_epoch = _address(epoch)
+        self._hold("tables", pairs, spheres, shapes, ids, state, epoch)
 
     def bind_frame(self, data: mujoco.MjData, root_twist: np.ndarray) -> None:
         """Read the instant from ``data`` (and the mocap roots' twists ``(nbody, 6)``)."""

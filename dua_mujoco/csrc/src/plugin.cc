@@ -60,10 +60,10 @@ struct Instance {
   bool skip_subtree_vel = false;  // see SubtreeVelUnused
 
   // Per-mjData state.
-  std::vector<double> last_tau, w_tau, scratch, exact_records, events_prev, root_twist;
+  std::vector<double> last_tau, w_tau, scratch, point_state, exact_records, events_prev, root_twist;
   std::vector<uint8_t> active;
   std::vector<int64_t> ints, slots, queue, params, work, ids, events_meta, events_flagged;
-  std::vector<int64_t> log_pairs;
+  std::vector<int64_t> log_pairs, point_epoch;
   std::vector<double> log_tau;
   std::vector<uint8_t> log_new;
   // Which pairs stand in alarm, kept up to date from the pairs each step renews (no other
@@ -111,6 +111,8 @@ struct Instance {
     events_meta.assign(3, 0);
     events_flagged.assign(std::max<int64_t>(t.nbody_events, 1), 0);
     root_twist.assign(6 * m->nbody, 0.0);
+    point_state.assign(6 * (t.spheres.size() / 8), 0.0);  // 8 numbers a sphere record
+    point_epoch.assign(t.spheres.size() / 8, -1);
     gp_count.assign(t.universe.ngp(), 0);
     mocap_bodies.assign(m->nmocap, -1);
     for (int b = 0; b < m->nbody; ++b) {
@@ -237,6 +239,8 @@ struct Instance {
     e.params = t.events_params.data();
     a.scratch = scratch.data();
     a.scratch_rows = static_cast<int64_t>(scratch.size() / 12);
+    a.point_state = point_state.data();
+    a.point_epoch = point_epoch.data();
     a.log_pairs = log_pairs.data();
     a.log_tau = log_tau.data();
     a.log_new = log_new.data();

@@ -500,13 +500,25 @@ void ExactPass(const dua_step_args& a, const int64_t* ids, int64_t count, double
 // then sphere j's, or the plane's normal and offset, zeros for a static shape), then tau of
 // each into out. Two passes: the gathers are independent loads the CPU overlaps (the tables are
 // cold after mj_step). Returns -1, or the first row whose state is not finite.
-int64_t TauOf(const dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
-              double* out) {
+// RigidPoint of sphere i into out, read from MjData at its first use in this epoch.
+inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
+  double* state = a.point_state + 6 * i;
+  if (a.point_epoch[i] != a.epoch) {
+    RigidPoint(i, a.spheres, kSphereNcol, a.frame, state);
+    a.point_epoch[i] = a.epoch;
+  }
+  std::copy(state, state + 6, out);
+}
+
+int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows, double* out) {
   const dua_frame& f = a.frame;
+  // A sphere is in several of the batch's pairs: its state is read from MjData once. A new
+  // epoch each batch, since MjData may have moved on between two (PointOf).
+  ++a.epoch;
   for (int64_t k = 0; k < count; ++k) {
     const double* rec = a.pairs + ids[k] * kPairNcol;
     double* s = rows + 12 * k;
-    RigidPoint(static_cast<int64_t>(rec[kPairFirst]), a.spheres, kSphereNcol, f, s);
+    PointOf(a, static_cast<int64_t>(rec[kPairFirst]), s);
     const int kind = static_cast<int>(rec[kPairKind]);
     if (kind == kKindHalfspace) {
       const int64_t g = static_cast<int64_t>(rec[kPairOther]);
@@ -518,7 +530,7 @@ int64_t TauOf(const dua_step_args& a, const int64_t* ids, int64_t count, double*
     } else if (kind == kKindShape) {
       std::fill(s + 6, s + 12, 0.0);
     } else {
-      RigidPoint(static_cast<int64_t>(rec[kPairSecond]), a.spheres, kSphereNcol, f, s + 6);
+      PointOf(a, static_cast<int64_t>(rec[kPairSecond]), s + 6);
     }
   }
   // Sphere pairs are packed to the front of rows as TauSpeedRows reads them (relative state and

@@ -131,6 +131,11 @@ typedef struct dua_step_args {
   dua_events events;
   double* scratch;  // (scratch_rows, 12): the gathered states of the pairs being evaluated
   int64_t scratch_rows;
+  // Each sphere's state (centre, velocity) read once per batch of pairs: point_state (nsphere,
+  // 6) and point_epoch (nsphere,), the batch that wrote each row; epoch counts the batches.
+  double* point_state;
+  int64_t* point_epoch;
+  int64_t epoch;
   // The alarm log the step appends to.
   int64_t* log_pairs;
   double* log_tau;

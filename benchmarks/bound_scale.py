@@ -1,0 +1,133 @@
+"""What the motion costs: the plugin on a robot driven by controls of different smoothness.
+
+The plugin's cost is its evaluations, and they follow the bounds: a pair is revisited when the
+bounds allow a collision within a few steps. ``benchmarks/plugin.py`` drives every robot with
+random controls drawn anew every step over each actuator's whole range, and its pilot's bounds
+are that motion's. A task moves more smoothly; here the controls run linearly between random
+draws ``H`` steps apart (``H = 1``: plugin.py's controls), the pilot (``accel="auto"``, 1,000
+steps, as in ``plugin.py``) measures that motion's bounds, and ``mj_step`` with the plugin is
+timed against plain ``mj_step`` in alternating blocks along the same kind of controls::
+
+    python benchmarks/bound_scale.py                          # dmc_dog yam franka_kitchen go1
+    python benchmarks/bound_scale.py --robots dmc_dog --holds 1 50 --steps 1000
+
+``flagged`` counts the bodies a step whose motion broke the pilot's bounds (events).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+from robots import robot_spec
+
+from dua_mujoco import CoveringOptions, PilotOptions
+from dua_mujoco.plugin import attach, plugin_outputs
+
+ROBOTS = ("dmc_dog", "yam", "franka_kitchen", "go1")
+HOLDS = (1, 10, 50, 250)
+
+
+def _controls(m: mujoco.MjModel, n: int, hold: int, seed: int) -> np.ndarray:
+    """Controls ``(n, nu)`` running linearly between random draws ``hold`` steps apart, each
+    in its actuator's range (``[-1, 1]`` where unlimited)."""
+    rng = np.random.default_rng(seed)
+    limited = m.actuator_ctrllimited.astype(bool)
+    lo = np.where(limited, m.actuator_ctrlrange[:, 0], -1.0)
+    hi = np.where(limited, m.actuator_ctrlrange[:, 1], 1.0)
+    knots = rng.uniform(lo, hi, (n // hold + 2, m.nu))
+    t = np.arange(n) / hold
+    i = t.astype(int)
+    w = (t - i)[:, None]
+    return (1.0 - w) * knots[i] + w * knots[i + 1]
+
+
+def _pilot_controller(m: mujoco.MjModel, hold: int) -> Callable:
+    """The pilot's controller: :func:`_controls` of seed 99, a row a step."""
+    u = _controls(m, 1008, hold, seed=99)
+    step = iter(range(10**9))
+
+    def control(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        data.ctrl[:] = u[next(step) % len(u)]
+
+    return control
+
+
+def measure(robot: str, holds: list[int], steps: int) -> list[dict]:
+    """One row a hold: medians of ``mj_step`` plain and with the plugin, evaluations and
+    flagged bodies a step (means)."""
+    m = robot_spec(robot).compile()
+    covering = CoveringOptions(hfield="box")
+    runs = [(m, mujoco.MjData(m), [], [], [], None)]
+    for hold in holds:
+        pilot = PilotOptions(steps=1000, seed=99, controller=_pilot_controller(m, hold))
+        spec = robot_spec(robot)
+        p = attach(spec, accel="auto", covering=covering, pilot=pilot)
+        mp = spec.compile()
+        runs.append((mp, mujoco.MjData(mp), [], [], [], p.bounds))
+    # Each side along its own kind of controls (plain mj_step along plugin.py's).
+    controls = [_controls(m, steps, hold, seed=0) for hold in (1, *holds)]
+    block = max(steps // 10, 1)
+    for start in range(0, steps, block):
+        for k, (model, data, times, evals, flagged, _) in enumerate(runs):
+            for i in range(start, min(start + block, steps)):
+                data.ctrl[:] = controls[k][i]
+                t0 = time.perf_counter_ns()
+                mujoco.mj_step(model, data)
+                times.append(time.perf_counter_ns() - t0)
+                if k:
+                    out = plugin_outputs(model, data)
+                    evals.append(out.evaluated)
+                    flagged.append(out.flagged)
+        print(f"  {robot}: {min(start + block, steps)}/{steps} steps", file=sys.stderr)
+    plain = float(np.median(runs[0][2])) / 1e3
+    rows = []
+    for hold, (_, _, times, evals, flagged, bounds) in zip(holds, runs[1:], strict=True):
+        with_plugin = float(np.median(times)) / 1e3
+        rows.append(
+            dict(
+                robot=robot,
+                hold=hold,
+                accel=float(np.median(bounds.accel[bounds.accel > 0])),
+                plain_us=plain,
+                plugin_us=with_plugin,
+                adds=with_plugin / plain - 1.0,
+                evals=float(np.mean(evals)),
+                flagged=float(np.mean(flagged)),
+            )
+        )
+    return rows
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--robots", nargs="+", default=list(ROBOTS))
+    ap.add_argument("--holds", nargs="+", type=int, default=list(HOLDS))
+    ap.add_argument("--steps", type=int, default=2000)
+    args = ap.parse_args(argv)
+    print(
+        "| robot | H (steps between draws) | median accel bound (m/s^2) | `mj_step` us "
+        "| with the plugin us | plugin adds (x `mj_step`) | evaluations a step "
+        "| flagged bodies a step |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for robot in args.robots:
+        for r in measure(robot, args.holds, args.steps):
+            print(
+                f"| {r['robot']} | {r['hold']} | {r['accel']:.0f} | {r['plain_us']:.1f} "
+                f"| {r['plugin_us']:.1f} | {r['adds']:+.2f} | {r['evals']:.0f} "
+                f"| {r['flagged']:.2f} |",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
