@@ -507,7 +507,9 @@ inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
     RigidPoint(i, a.spheres, kSphereNcol, a.frame, state);
     a.point_epoch[i] = a.epoch;
   }
-  std::copy(state, state + 6, out);
+  // Six stores (std::copy became a call to memmove).
+  out[0] = state[0], out[1] = state[1], out[2] = state[2];
+  out[3] = state[3], out[4] = state[4], out[5] = state[5];
 }
 
 int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows, double* out) {
@@ -553,11 +555,16 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
                          a.shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol,
                          rec[kPairEps], rec[kPairAccel], rec[kPairDelta]);
     } else {
-      double r[12];
-      for (int j = 0; j < 6; ++j) r[j] = s[6 + j] - s[j];
-      r[6] = rec[kPairEps], r[7] = rec[kPairAccel], r[8] = rec[kPairDelta];
-      r[9] = rec[kPairSpeed], r[10] = static_cast<double>(k), r[11] = 0.0;
-      std::copy(r, r + 12, rows + 12 * n++);
+      // Held in registers and stored once each: a copy through an array on the stack cost 40 %
+      // of this function (its 8-byte stores reloaded 16 bytes at a time, which stalls).
+      const double d0 = s[6] - s[0], d1 = s[7] - s[1], d2 = s[8] - s[2];
+      const double d3 = s[9] - s[3], d4 = s[10] - s[4], d5 = s[11] - s[5];
+      const double eps = rec[kPairEps], accel = rec[kPairAccel], delta = rec[kPairDelta];
+      const double speed = rec[kPairSpeed];
+      double* row = rows + 12 * n++;
+      row[0] = d0, row[1] = d1, row[2] = d2, row[3] = d3, row[4] = d4, row[5] = d5;
+      row[6] = eps, row[7] = accel, row[8] = delta, row[9] = speed;
+      row[10] = static_cast<double>(k), row[11] = 0.0;
     }
   }
   TauSpeedRows(n, rows, 12, rows + 11, 12);
