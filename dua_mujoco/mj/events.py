@@ -63,7 +63,8 @@ NB_REC = 12
 # centre, 3..11 its three axes (axis j at 3 + 3 j), 12..14 the centre's chord over the last
 # period, 15..23 the axes' chords, 24..26 the centre's velocity read from MjData, 27..29 the
 # body's angular velocity (with its mocap root's), 30 a bound on the corners' coordinates.
-# Columns 31..39 are the record's B_CENTER .. B_SPEED, copied at the reset.
+# Columns 31..39 are the record's B_CENTER .. B_SPEED, copied at the reset. The last group's
+# padding holds copies of its last body.
 NB_STATE = 40
 
 # Entries of the int64 ``meta`` array.

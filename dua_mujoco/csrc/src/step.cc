@@ -261,19 +261,16 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
           Lanes{src[0][field][j], src[1][field][j], src[2][field][j], src[3][field][j]};
     }
   }
-  // The state's columns are whole vectors (a ragged last group keeps its spare lanes as they
-  // were: one body at a time writes them never).
+  // The state's columns are whole vectors, the padding's too: a ragged last group's spare lanes
+  // hold its last body's state (its inputs, and its box and bounds from the reset), so they
+  // take the same paths through the screens.
   for (int j = 0; j < kSNcol; ++j) {
     __builtin_memcpy(&row.v[kRowState + j], StateAt(ev, i, j), sizeof(Lanes));
   }
   const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
   int bits = 0;
   for (int j = 0; j < kSWritten; ++j) {
-    if (m == kLanes) {
-      __builtin_memcpy(StateAt(ev, i, j), &row.v[kRowState + j], sizeof(Lanes));
-    } else {
-      for (int k = 0; k < m; ++k) StateAt(ev, i, j)[k] = row.v[kRowState + j][k];
-    }
+    __builtin_memcpy(StateAt(ev, i, j), &row.v[kRowState + j], sizeof(Lanes));
   }
   for (int k = 0; k < m; ++k) bits |= broken[k] ? 1 << k : 0;
   return bits;
@@ -623,8 +620,10 @@ int64_t dua_check_bodies(dua_step_args* a, int64_t lanes) {
 
 void dua_reset_events(dua_step_args* a) {
   const dua_events& ev = a->events;
-  for (int64_t i = 0; i < ev.nbody; ++i) {
-    const double* rec = ev.rec + i * dua::kBNcol;
+  // The padding of the last group of four too, as its last body (CheckFour).
+  const int64_t padded = (ev.nbody + dua::kLanes - 1) / dua::kLanes * dua::kLanes;
+  for (int64_t i = 0; i < padded; ++i) {
+    const double* rec = ev.rec + std::min(i, ev.nbody - 1) * dua::kBNcol;
     for (int j = 0; j < dua::kSNcol - dua::kSWritten; ++j) {
       *dua::StateAt(ev, i, dua::kSWritten + j) = rec[dua::kBCenter + j];
     }
