@@ -184,12 +184,14 @@ def test_switching_bodies_equals_the_python_predictors() -> None:
         set_active_bodies(m, d, box, table, on=False)
 
 
-def _standing_sequence(m: mujoco.MjModel, d: mujoco.MjData, ctrl: np.ndarray) -> list[list]:
+def _standing_sequence(m: mujoco.MjModel, d: mujoco.MjData, ctrl: np.ndarray) -> list[tuple]:
+    """After each step: the standing pairs and the sensor's outputs (the least tau among them,
+    which any stale state read for a pair would change)."""
     out = []
     for u in ctrl:
         d.ctrl[:] = u
         mujoco.mj_step(m, d)
-        out.append(standing_pairs(m, d).tolist())
+        out.append((standing_pairs(m, d).tolist(), plugin_outputs(m, d)))
     return out
 
 
@@ -268,6 +270,27 @@ def test_copies_and_resets_keep_their_own_state() -> None:
     mujoco.mj_resetData(m, d)
     assert standing_pairs(m, d).shape == (0, 2)  # nothing until the first compute
     assert _standing_sequence(m, d, ctrl) == reference
+
+
+def test_a_jump_of_the_clock_classifies_from_the_state_alone() -> None:
+    """After a jump of the clock the plugin evaluates every pair again from the current state,
+    as a fresh ``MjData`` at that state does: nothing read at an earlier step (the sphere
+    states a batch keeps, the schedule) may leak into it. The exact level is off: the
+    directions it keeps per pair carry over on purpose (they change which lower bound it
+    finds, never whether it is one: docs/theory.md, section 5)."""
+    m, _ = _attached("two_arms", urgency=UrgencyOptions(exact=False))
+    rng = np.random.default_rng(1)
+    ctrl = rng.uniform(-1, 1, (300, m.nu))
+    d = mujoco.MjData(m)
+    _standing_sequence(m, d, ctrl[:150])
+    fresh = mujoco.MjData(m)
+    spec = int(mujoco.mjtState.mjSTATE_INTEGRATION)
+    state = np.empty(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, d, state, spec)
+    mujoco.mj_setState(m, fresh, state, spec)
+    d.time += 1.0  # the jump: the plugin's next compute classifies
+    fresh.time = d.time
+    assert _standing_sequence(m, d, ctrl[150:]) == _standing_sequence(m, fresh, ctrl[150:])
 
 
 @pytest.mark.parametrize("pairs", ["all", "pruned"])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import itertools
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -210,6 +211,26 @@ def test_paper_world_built_in_chunks_is_laid_out_sphere_by_sphere() -> None:
             assert motor.id == 3 * i + k and motor.trnid[0] == joint.id
             assert np.allclose(motor.ctrlrange, [-mass * accel_max, mass * accel_max])
     assert m.key_qvel.shape == (1, 3 * n)
+
+
+@pytest.mark.parametrize("n", [1, 76, 301])
+def test_paper_world_survives_a_round_trip_through_xml(n: int) -> None:
+    # `dua-mujoco export paper_world:N out.xml` writes the spec; every chunk's attach must not
+    # leave a default class behind twice, which MuJoCo refuses to read back.
+    spec = paper_world_spec(n, box_size=max(1.0, (n / 40) ** (1 / 3)))
+    m = spec.compile()
+    back = mujoco.MjModel.from_xml_string(spec.to_xml())
+    assert (back.nbody, back.njnt, back.nu, back.ngeom) == (m.nbody, m.njnt, m.nu, m.ngeom)
+    np.testing.assert_allclose(back.body_pos, m.body_pos, atol=1e-6)  # six digits in MJCF
+    assert np.array_equal(back.actuator_trnid, m.actuator_trnid)
+
+
+def test_bundled_paper_world_is_the_generators_output() -> None:
+    # models/paper_world.xml says "generated, do not edit": it must still be what the
+    # generator writes (its header comment aside).
+    path = Path(__file__).resolve().parents[1] / "models" / "paper_world.xml"
+    bundled = re.sub(r"\n  <!--.*?-->", "", path.read_text(), flags=re.S)
+    assert bundled.strip() == paper_world_spec(40, seed=0).to_xml().strip()
 
 
 def test_paper_world_is_seeded() -> None:

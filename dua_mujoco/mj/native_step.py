@@ -179,6 +179,7 @@ class NativeStep:
         "_address",
         "_keep",
         "_lib",
+        "_points",
         "_ref",
         "_run",
         "args",
@@ -198,6 +199,7 @@ class NativeStep:
         self._address = ctypes.addressof(self.args)
         self._run: Callable[[int, int, int], int] = compiled_entry(_run, self._address, 1, 0)  # type: ignore[assignment]
         self._keep: dict[str, object] = {}
+        self._points = np.zeros((0, 6))
         self.room = max(int(width), 1)
         # Room for many steps: a full log is replaced, never overwritten.
         self.capacity = max(LOG_STEPS * self.room, LOG_MIN)
@@ -272,12 +274,16 @@ class NativeStep:
         self.args.spheres = _address(spheres)
         self.args.shapes = _address(shapes)
         self.args.ids = _address(ids)
-        # Each sphere's state, read once per batch of pairs (dua.h).
-        state = np.zeros((max(spheres.shape[0], 1), 6))
-        epoch = np.full(max(spheres.shape[0], 1), -1, dtype=np.int64)
-        self.args.point_state = _address(state)
-        self.args.point_epoch = _address(epoch)
-        self._hold("tables", pairs, spheres, shapes, ids, state, epoch)
+        self._hold("tables", pairs, spheres, shapes, ids)
+        # Each sphere's state, read once per batch of pairs (dua.h). A renewal binds tables of
+        # the same spheres: the rows stay, their epochs are all past.
+        rows = max(spheres.shape[0], 1)
+        if self._points.shape[0] != rows:
+            self._points = np.zeros((rows, 6))
+            epoch = np.full(rows, -1, dtype=np.int64)
+            self.args.point_state = _address(self._points)
+            self.args.point_epoch = _address(epoch)
+            self._hold("points", epoch)
 
     def bind_frame(self, data: mujoco.MjData, root_twist: np.ndarray) -> None:
         """Read the instant from ``data`` (and the mocap roots' twists ``(nbody, 6)``)."""

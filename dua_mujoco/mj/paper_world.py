@@ -229,6 +229,9 @@ def paper_world_spec(
             ctrl=ctrl,
         )
         spec.attach(part, prefix="sphere", frame=world.add_frame())
+        # Each attach brings the chunk's empty main default as "spheremain"; a second one would
+        # repeat the class name in to_xml(), which MuJoCo then refuses to read back.
+        spec.delete(spec.find_default("spheremain"))
 
     spec.add_key(name="init", qpos=np.zeros(3 * n), qvel=velocity.reshape(-1))
     spec.add_numeric(name=ACCEL_BOUND_NUMERIC, size=1, data=[paper_world_accel_bound(accel_max)])

@@ -111,7 +111,8 @@ typedef struct dua_exact {
 typedef struct dua_events {
   int64_t nbody;
   const double* rec;       // (nbody, 12)
-  double* prev;            // (ceil(nbody / 4), 40, 4): four bodies' column together
+  double* prev;            // (ceil(nbody / 4), 40, 4): four bodies' column together (the
+                           // padding included; dua_reset_events fills it)
   int64_t* meta;           // (3,)
   int64_t* flagged;        // (nbody,)
   const int64_t* start;    // (nbody + 1,)
@@ -132,7 +133,9 @@ typedef struct dua_step_args {
   double* scratch;  // (scratch_rows, 12): the gathered states of the pairs being evaluated
   int64_t scratch_rows;
   // Each sphere's state (centre, velocity) read once per batch of pairs: point_state (nsphere,
-  // 6) and point_epoch (nsphere,), the batch that wrote each row; epoch counts the batches.
+  // 6) and point_epoch (nsphere,), the batch that wrote each row; epoch counts the batches
+  // (each dua_step or dua_evaluate chunk adds one). Start point_epoch below epoch (-1 and 0),
+  // and never share the two arrays between two structs (two MjData).
   double* point_state;
   int64_t* point_epoch;
   int64_t epoch;
@@ -163,7 +166,10 @@ DUA_API void dua_exact_pass(dua_step_args* a, const int64_t* ids, int64_t count,
 DUA_API int64_t dua_index_by_row(const int64_t* row_of_geom, const int64_t* geom1,
                                  const int64_t* geom2, int64_t n, int64_t nrow, int64_t* start,
                                  int64_t* members);
-// Record the events check's state at the frame's instant, checking nothing.
+// Record the events check's state at the frame's instant, checking nothing. Also copies each
+// body's box and bounds from events.rec into its state (columns 31..39, the last group's padding
+// as its last body): run it before the first check, and again whenever events.rec or
+// events.prev are bound anew; a check without it reads boxes and bounds of zero.
 DUA_API void dua_reset_events(dua_step_args* a);
 // Check every body (the violation events) and make the held pairs of each flagged one due at
 // step n. Returns the number of flagged bodies.
