@@ -514,9 +514,13 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
   // A sphere is in several of the batch's pairs: its state is read from MjData once. A new
   // epoch each batch, since MjData may have moved on between two (PointOf).
   ++a.epoch;
+  // One pass: planes and static shapes get their tau here; sphere pairs are packed to the
+  // front of rows as TauSpeedRows reads them (relative state and bounds, then k), so that they
+  // are evaluated four at a time.
+  int64_t n = 0;
   for (int64_t k = 0; k < count; ++k) {
     const double* rec = a.pairs + ids[k] * kPairNcol;
-    double* s = rows + 12 * k;
+    double s[12];
     PointOf(a, static_cast<int64_t>(rec[kPairFirst]), s);
     const int kind = static_cast<int>(rec[kPairKind]);
     if (kind == kKindHalfspace) {
@@ -527,22 +531,13 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
       s[9] = s[6] * p[0] + s[7] * p[1] + s[8] * p[2];
       s[10] = 0.0, s[11] = 0.0;
     } else if (kind == kKindShape) {
-      std::fill(s + 6, s + 12, 0.0);
+      s[6] = s[7] = s[8] = s[9] = s[10] = s[11] = 0.0;
     } else {
       PointOf(a, static_cast<int64_t>(rec[kPairSecond]), s + 6);
     }
-  }
-  // Sphere pairs are packed to the front of rows as TauSpeedRows reads them (relative state and
-  // bounds, then k; row n never overtakes row k, as n <= k and row k is read first), so that
-  // they are evaluated four at a time.
-  int64_t n = 0;
-  for (int64_t k = 0; k < count; ++k) {
-    const double* rec = a.pairs + ids[k] * kPairNcol;
-    const double* s = rows + 12 * k;
     double total = 0.0;
     for (int j = 0; j < 12; ++j) total += s[j];
     if (!std::isfinite(total)) return k;
-    const int kind = static_cast<int>(rec[kPairKind]);
     if (kind == kKindHalfspace) {
       const double gap = s[6] * s[0] + s[7] * s[1] + s[8] * s[2] - s[9] - rec[kPairEps];
       const double vn = s[6] * s[3] + s[7] * s[4] + s[8] * s[5];
@@ -552,16 +547,10 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
                          a.shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol,
                          rec[kPairEps], rec[kPairAccel], rec[kPairDelta]);
     } else {
-      // Held in registers and stored once each: a copy through an array on the stack cost 40 %
-      // of this function (its 8-byte stores reloaded 16 bytes at a time, which stalls).
-      const double d0 = s[6] - s[0], d1 = s[7] - s[1], d2 = s[8] - s[2];
-      const double d3 = s[9] - s[3], d4 = s[10] - s[4], d5 = s[11] - s[5];
-      const double eps = rec[kPairEps], accel = rec[kPairAccel], delta = rec[kPairDelta];
-      const double speed = rec[kPairSpeed];
       double* row = rows + 12 * n++;
-      row[0] = d0, row[1] = d1, row[2] = d2, row[3] = d3, row[4] = d4, row[5] = d5;
-      row[6] = eps, row[7] = accel, row[8] = delta, row[9] = speed;
-      row[10] = static_cast<double>(k), row[11] = 0.0;
+      for (int j = 0; j < 6; ++j) row[j] = s[6 + j] - s[j];
+      row[6] = rec[kPairEps], row[7] = rec[kPairAccel], row[8] = rec[kPairDelta];
+      row[9] = rec[kPairSpeed], row[10] = static_cast<double>(k), row[11] = 0.0;
     }
   }
   TauSpeedRows(n, rows, 12, rows + 11, 12);
