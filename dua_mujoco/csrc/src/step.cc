@@ -493,10 +493,10 @@ void ExactPass(const dua_step_args& a, const int64_t* ids, int64_t count, double
 
 // ------------------------------------------------------------------------------- tau of pairs
 
-// Gather the states of held pairs ids[0:count] into rows of 12 (sphere i's centre and velocity,
-// then sphere j's, or the plane's normal and offset, zeros for a static shape), then tau of
-// each into out. Two passes: the gathers are independent loads the CPU overlaps (the tables are
-// cold after mj_step). Returns -1, or the first row whose state is not finite.
+// tau of held pairs ids[0:count] into out: each pair's state in 12 numbers (sphere i's centre
+// and velocity, then sphere j's, or the plane's normal and offset, zeros for a static shape),
+// then its tau, the sphere pairs packed into rows and evaluated four at a time. Returns -1, or
+// the first pair (in ids's order) whose state is not finite.
 // RigidPoint of sphere i into out, read from MjData at its first use in this epoch.
 inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
   double* state = a.point_state + 6 * i;
