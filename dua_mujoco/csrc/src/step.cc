@@ -245,7 +245,8 @@ MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, doub
 }
 
 // CheckBody of bodies i .. i + m - 1 (m <= 4) in lanes: bit k of the result for body i + k. A
-// short group repeats its last body in the spare lanes (their results are dropped).
+// short group repeats its last body in the spare lanes (their flags are dropped; their state
+// goes to the padding).
 DUA_LANES_CLONES
 int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_t nprev, double h,
               double inv_h, double rtol) {
@@ -493,10 +494,6 @@ void ExactPass(const dua_step_args& a, const int64_t* ids, int64_t count, double
 
 // ------------------------------------------------------------------------------- tau of pairs
 
-// tau of held pairs ids[0:count] into out: each pair's state in 12 numbers (sphere i's centre
-// and velocity, then sphere j's, or the plane's normal and offset, zeros for a static shape),
-// then its tau, the sphere pairs packed into rows and evaluated four at a time. Returns -1, or
-// the first pair (in ids's order) whose state is not finite.
 // RigidPoint of sphere i into out, read from MjData at its first use in this epoch.
 inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
   double* state = a.point_state + 6 * i;
@@ -509,6 +506,10 @@ inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
   out[3] = state[3], out[4] = state[4], out[5] = state[5];
 }
 
+// tau of held pairs ids[0:count] into out: each pair's state in 12 numbers (sphere i's centre
+// and velocity, then sphere j's, or the plane's normal and offset, zeros for a static shape),
+// then its tau, the sphere pairs packed into rows and evaluated four at a time. Returns -1, or
+// the first pair (in ids's order) whose state is not finite.
 int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows, double* out) {
   const dua_frame& f = a.frame;
   // A sphere is in several of the batch's pairs: its state is read from MjData once. A new
@@ -610,7 +611,7 @@ int64_t dua_check_bodies(dua_step_args* a, int64_t lanes) {
 void dua_reset_events(dua_step_args* a) {
   const dua_events& ev = a->events;
   // The padding of the last group of four too, as its last body (CheckFour).
-  const int64_t padded = (ev.nbody + dua::kLanes - 1) / dua::kLanes * dua::kLanes;
+  const int64_t padded = dua::EventStateLen(ev.nbody) / dua::kSNcol;
   for (int64_t i = 0; i < padded; ++i) {
     const double* rec = ev.rec + std::min(i, ev.nbody - 1) * dua::kBNcol;
     for (int j = 0; j < dua::kSNcol - dua::kSWritten; ++j) {
