@@ -57,15 +57,17 @@ B_HALF = 6  # 6..8: its half extents
 B_ACCEL, B_DISC, B_SPEED = 9, 10, 11
 NB_REC = 12
 
-# A body's state, read by the native check (csrc/src/step.cc), laid out by four bodies,
-# ``(ceil(n / 4), NB_STATE, 4)`` (body i at ``[i // 4, :, i % 4]``: a column of four bodies is
-# one vector of the check's lanes). Columns 0..30 are written at every step: 0..2 the box's
-# centre, 3..11 its three axes (axis j at 3 + 3 j), 12..14 the centre's chord over the last
+# A body's state, read by the native check (csrc/src/step.cc), laid out by four bodies:
+# ``(ceil(n / 4), NB_STATE, STATE_GROUP)``, body i at ``[i // 4, :, i % 4]`` (a column of four
+# bodies is one vector of the check's lanes). Columns 0..30 are written at every step: 0..2 the
+# box's centre, 3..11 its three axes (axis j at 3 + 3 j), 12..14 the centre's chord over the last
 # period, 15..23 the axes' chords, 24..26 the centre's velocity read from MjData, 27..29 the
 # body's angular velocity (with its mocap root's), 30 a bound on the corners' coordinates.
 # Columns 31..39 are the record's B_CENTER .. B_SPEED, copied at the reset. The last group's
 # padding holds copies of its last body.
 NB_STATE = 40
+STATE_GROUP = 4
+"""Bodies a group of the state holds: the native check's lanes (``kLanes``)."""
 
 # Entries of the int64 ``meta`` array.
 M_NPREV = 0  # states recorded since the reset, up to 2
@@ -177,7 +179,7 @@ class EventTable:
         rec[:, B_DISC] = bounds.discrepancy[boxes.body] + 0.5 * accel * h * (period - 1)
         rec[:, B_SPEED] = np.inf if bounds.speed is None else bounds.speed[boxes.body]
         self.records = rec
-        self.state = np.zeros((-(-n // 4), NB_STATE, 4))
+        self.state = np.zeros((-(-n // STATE_GROUP), NB_STATE, STATE_GROUP))
         self.meta = np.zeros(3, dtype=np.int64)
         self.flagged = np.zeros(max(n, 1), dtype=np.int64)
         self.params = np.array([period * h, rtol])
@@ -234,7 +236,7 @@ def no_events() -> tuple:
     """The ``events`` tuple of a predictor that checks no body."""
     return (
         np.zeros((0, NB_REC)),
-        np.zeros((0, NB_STATE, 4)),
+        np.zeros((0, NB_STATE, STATE_GROUP)),
         np.zeros(3, dtype=np.int64),
         np.zeros(1, dtype=np.int64),
         np.zeros(1, dtype=np.int64),

@@ -111,8 +111,8 @@ struct Instance {
     events_meta.assign(3, 0);
     events_flagged.assign(std::max<int64_t>(t.nbody_events, 1), 0);
     root_twist.assign(6 * m->nbody, 0.0);
-    point_state.assign(6 * (t.spheres.size() / 8), 0.0);  // 8 numbers a sphere record
-    point_epoch.assign(t.spheres.size() / 8, -1);
+    point_state.assign(6 * t.nsphere(), 0.0);
+    point_epoch.assign(t.nsphere(), -1);
     gp_count.assign(t.universe.ngp(), 0);
     mocap_bodies.assign(m->nmocap, -1);
     for (int b = 0; b < m->nbody; ++b) {

@@ -130,7 +130,7 @@ bool LoadLearn(const mjModel* m, const std::string& prefix, Tables* t) {
   LearnTables& l = t->learn;
   std::vector<std::vector<double>> f, c, lone, body;
   std::vector<double> exclude, start, planes, shapes;
-  const int64_t nsphere = static_cast<int64_t>(t->spheres.size() / 8);
+  const int64_t nsphere = t->nsphere();
   if (!ReadColumns(m, prefix, "filter", m->ngeom, 7, &f) ||
       !ReadColumns(m, prefix, "contact", m->ngeom, 2, &c) ||
       !ReadColumns(m, prefix, "geom_lone", m->ngeom, 2, &lone) ||

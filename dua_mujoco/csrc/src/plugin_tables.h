@@ -66,6 +66,7 @@ struct Tables {
   LearnTables learn;
   std::vector<int64_t> geom_row;
   double Config(int i) const { return config[i]; }
+  int64_t nsphere() const { return static_cast<int64_t>(spheres.size() / 8); }  // 8 a record
 };
 
 // The tables under `prefix`, checked against the model; null after a warning naming what is
