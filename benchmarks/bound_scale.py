@@ -5,7 +5,8 @@ bounds allow a collision within a few steps. ``benchmarks/plugin.py`` drives eve
 random controls drawn anew every step over each actuator's whole range, and its pilot's bounds
 are that motion's. A task moves more smoothly; here the controls run linearly between random
 draws ``H`` steps apart (``H = 1``: plugin.py's controls), the pilot (``accel="auto"``, 1,000
-steps, as in ``plugin.py``) measures that motion's bounds, and ``mj_step`` with the plugin is
+steps) runs the same kind of controls (seed 99; plugin.py's pilot runs ``make_controller``'s
+random controls instead) and measures that motion's bounds, and ``mj_step`` with the plugin is
 timed against plain ``mj_step`` in alternating blocks along the same kind of controls::
 
     python benchmarks/bound_scale.py                          # dmc_dog yam franka_kitchen go1
@@ -17,6 +18,7 @@ timed against plain ``mj_step`` in alternating blocks along the same kind of con
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 import time
 from collections.abc import Callable
@@ -34,6 +36,7 @@ from dua_mujoco.plugin import attach, plugin_outputs
 
 ROBOTS = ("dmc_dog", "yam", "franka_kitchen", "go1")
 HOLDS = (1, 10, 50, 250)
+PILOT_STEPS = 1000
 
 
 def _controls(m: mujoco.MjModel, n: int, hold: int, seed: int) -> np.ndarray:
@@ -51,9 +54,9 @@ def _controls(m: mujoco.MjModel, n: int, hold: int, seed: int) -> np.ndarray:
 
 
 def _pilot_controller(m: mujoco.MjModel, hold: int) -> Callable:
-    """The pilot's controller: :func:`_controls` of seed 99, a row a step."""
-    u = _controls(m, 1008, hold, seed=99)
-    step = iter(range(10**9))
+    """The pilot's controller: :func:`_controls` of seed 99, a row a step (cycling)."""
+    u = _controls(m, PILOT_STEPS, hold, seed=99)
+    step = itertools.count()
 
     def control(model: mujoco.MjModel, data: mujoco.MjData) -> None:
         data.ctrl[:] = u[next(step) % len(u)]
@@ -68,7 +71,7 @@ def measure(robot: str, holds: list[int], steps: int) -> list[dict]:
     covering = CoveringOptions(hfield="box")
     runs = [(m, mujoco.MjData(m), [], [], [], None)]
     for hold in holds:
-        pilot = PilotOptions(steps=1000, seed=99, controller=_pilot_controller(m, hold))
+        pilot = PilotOptions(steps=PILOT_STEPS, seed=99, controller=_pilot_controller(m, hold))
         spec = robot_spec(robot)
         p = attach(spec, accel="auto", covering=covering, pilot=pilot)
         mp = spec.compile()
