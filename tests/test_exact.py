@@ -1,4 +1,4 @@
-"""The exact level of the urgency (dua_mujoco/mj/exact.py, docs/theory.md section 6).
+"""The exact level of the urgency (dua_mujoco/mj/exact.py, docs/theory.md section 5).
 
 Held to a slow reference written from the definitions (numpy supports, the quadratic's root),
 and to trajectories: two geoms of every type pair (and a plane) move rigidly with a constant
@@ -359,3 +359,37 @@ def test_the_reset_remembers_the_direction_and_the_bounds_cover_the_corners() ->
     assert {0, 1} <= set(p.bound_points[0].tolist())
     n = p.exact.records[0, X_N : X_N + 3]
     assert np.isclose(np.linalg.norm(n), 1.0) and abs(n[1]) > 0.99  # along y, capsule to box
+
+
+def test_a_pair_in_mujocos_contacts_keeps_its_sphere_tau_and_no_other_pair_does() -> None:
+    """A pair MuJoCo holds in contact is touching along every direction: the level keeps the
+    sphere tau without asking MuJoCo (GJK and EPA) for a direction. Read here from a contact
+    list left over from another state, so that the skip shows: the pair is apart now."""
+    boxes = "".join(
+        f'<body name="{n}" pos="{x} 0 1"><freejoint/><geom name="{n}" type="box" size=".1 .1 .1"/>'
+        "</body>"
+        for n, x in (("A", 0.0), ("B", 0.15), ("C", -0.4))
+    )
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><option gravity="0 0 0"/><worldbody>{boxes}</worldbody></mujoco>'
+    )
+    p = Predictor(model, accel=MotionBounds.declare(model, 1.0), pairs="all")
+    g1, g2 = (np.asarray(g) for g in p.sphere_pair_geoms)
+    a, b, c = (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in "ABC")
+    ab = ((g1 == a) & (g2 == b)) | ((g1 == b) & (g2 == a))
+    ac = ((g1 == a) & (g2 == c)) | ((g1 == c) & (g2 == a))
+    stale = mujoco.MjData(model)
+    mujoco.mj_forward(model, stale)
+    assert stale.ncon >= 1 and {int(stale.contact.geom[0][0]), int(stale.contact.geom[0][1])} == {
+        a,
+        b,
+    }
+    fresh = mujoco.MjData(model)
+    for data in (stale, fresh):
+        data.qpos[7] = 0.5  # B moves 35 cm further from A; only the kinematics follow
+        mujoco.mj_kinematics(model, data)
+    assert fresh.ncon == 0
+    apart, listed = _exact_only(p, fresh), _exact_only(p, stale)
+    assert ab.any() and ac.any()
+    assert np.all(apart[ab] > 0) and np.all(listed[ab] == 0)
+    assert np.all(apart[ac] > 0) and np.array_equal(listed[ac], apart[ac])

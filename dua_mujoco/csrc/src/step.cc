@@ -428,15 +428,30 @@ double AxisTau(double n0, double n1, double n2, int mode, double r0, double r1, 
   return TauHalfspace(gap, vn, pair[kPairAccel], pair[kPairDelta] + kVelSlack * speed);
 }
 
+// Whether MuJoCo's contacts of this state hold geoms g1 and g2 within dist (the pair's contact
+// distance). Then every direction's gap is at most 0, so no look can raise tau, and a query
+// would only come back touching after a GJK (and an EPA when they overlap). A list from another
+// state costs tightness, never safety: the pair keeps its sphere tau, a lower bound by itself.
+bool InContact(const mjData* d, int64_t g1, int64_t g2, double dist) {
+  for (int i = 0; i < d->ncon; ++i) {
+    const mjContact& c = d->contact[i];
+    const bool same = (c.geom[0] == g1 && c.geom[1] == g2) || (c.geom[0] == g2 && c.geom[1] == g1);
+    if (same && c.dist <= dist) return true;
+  }
+  return false;
+}
+
 // One pair's max(coarse, exact). Any unit direction gives a lower bound: the one that served
 // last time is tried first, and MuJoCo is asked for a new one only while the pair is still
-// urgent along it (below query_below).
+// urgent along it (below query_below). A pair MuJoCo has in contact is not looked at.
 double ExactTau(const double* pair, double* xrec, double coarse, const dua_exact& x,
                 const dua_frame& f) {
   const int mode = static_cast<int>(xrec[kXMode]);
   if (mode == kModeNone) return coarse;
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
   const int64_t g2 = static_cast<int64_t>(xrec[kXG2]);
+  const mjData* d = static_cast<const mjData*>(x.data);
+  if (InContact(d, g1, g2, xrec[kXDist])) return coarse;
   double sa[6], sb[6];
   RigidPoint(g1, x.geoms, kGxNcol, f, sa);
   double spin = Spin(g1, x.geoms, f);
@@ -465,8 +480,7 @@ double ExactTau(const double* pair, double* xrec, double coarse, const dua_exact
   // Both origins lie inside their geoms, so the distance is at most theirs: a witness.
   const double reach = std::sqrt(c0 * c0 + c1 * c1 + c2 * c2) + xrec[kXDist] + 1.0;
   mjtNum fromto[6];
-  const double dist = mj_geomDistance(static_cast<const mjModel*>(x.model),
-                                      static_cast<mjData*>(const_cast<void*>(x.data)),
+  const double dist = mj_geomDistance(static_cast<const mjModel*>(x.model), const_cast<mjData*>(d),
                                       static_cast<int>(g1), static_cast<int>(g2), reach, fromto);
   if (!(dist > xrec[kXDist])) return best;  // in contact, or no witness
   n0 = fromto[3] - fromto[0], n1 = fromto[4] - fromto[1], n2 = fromto[5] - fromto[2];
