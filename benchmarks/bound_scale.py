@@ -1,13 +1,12 @@
 """What the motion costs: the plugin on a robot driven by controls of different smoothness.
 
 The plugin's cost is its evaluations, and they follow the bounds: a pair is revisited when the
-bounds allow a collision within a few steps. ``benchmarks/plugin.py`` drives every robot with
-random controls drawn anew every step over each actuator's whole range, and its pilot's bounds
-are that motion's. A task moves more smoothly; here the controls run linearly between random
-draws ``H`` steps apart (``H = 1``: plugin.py's controls), the pilot (``accel="auto"``, 1,000
-steps) runs the same kind of controls (seed 99; plugin.py's pilot runs ``make_controller``'s
-random controls instead) and measures that motion's bounds, and ``mj_step`` with the plugin is
-timed against plain ``mj_step`` in alternating blocks along the same kind of controls::
+bounds allow a collision within a few steps. ``benchmarks/plugin.py`` drives every robot, pilot
+and run, with ``make_controller``'s random controls: a draw over each actuator's whole range,
+held 50 steps. Here the controls run linearly between random draws ``H`` steps apart (``H = 1``:
+a new draw every step), the pilot (``accel="auto"``, 1,000 steps) runs the same kind of controls
+(seed 99) and measures that motion's bounds, and ``mj_step`` with the plugin is timed against
+plain ``mj_step`` in alternating blocks along the same kind of controls::
 
     python benchmarks/bound_scale.py                          # dmc_dog yam franka_kitchen go1
     python benchmarks/bound_scale.py --robots dmc_dog --holds 1 50 --steps 1000

@@ -13,8 +13,11 @@ the numbers are medians over rounds of per-round medians.
 
 Per scene, on this side: bounds from the pilot (``accel="auto"``, pilot seed 99), then
 
-* ``mj_step`` of the model alone and of the model with the plugin attached (the same bounds),
-  each timed per call, in alternating blocks along the same random controls;
+* ``mj_step`` of the model alone and of the model with the plugin attached (the same bounds;
+  every pair, pruned pairs, and every pair with the exact level off), each timed per call, in
+  alternating blocks, each run driven by the pilot's kind of controller
+  (``make_controller``'s random controls, held 50 steps) with another seed: bounds measured on
+  one motion and timed on another would price the mismatch, not the plugin;
 * ``Predictor.step`` after each ``mj_step`` of the model alone, timed per call, and the tau
   evaluations a step;
 
@@ -73,13 +76,6 @@ def model_of(scene):
     spec = spec_of(scene)
     return spec, spec.compile()
 
-def controls(m, n, seed=0):
-    rng = np.random.default_rng(seed)
-    lo, hi = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
-    limited = m.actuator_ctrllimited.astype(bool)
-    lo = np.where(limited, lo, -1.0); hi = np.where(limited, hi, 1.0)
-    return rng.uniform(lo, hi, (n, m.nu))
-
 def predictor(m):
     # Height fields (dm_control's quadruped terrain) covered by their boxes.
     return Predictor(m, accel="auto", covering=CoveringOptions(hfield="box"), pilot=PilotOptions(
@@ -88,12 +84,12 @@ def predictor(m):
 for scene in scenes:
     spec, m = model_of(scene)
     p = predictor(m)
-    u = controls(m, steps + 1)
+    drive = make_controller(m, "random", seed=0)
     d = mujoco.MjData(m)
-    d.ctrl[:] = u[0]; mujoco.mj_step(m, d); p.reset(d)
+    drive(m, d); mujoco.mj_step(m, d); p.reset(d)
     t_pred, t_mj, evals = [], [], []
     for k in range(1, steps + 1):
-        d.ctrl[:] = u[k]
+        drive(m, d)
         t0 = time.perf_counter_ns(); mujoco.mj_step(m, d); t1 = time.perf_counter_ns()
         p.step(d); t2 = time.perf_counter_ns()
         t_mj.append(t1 - t0); t_pred.append(t2 - t1); evals.append(p.evaluations_per_step)
@@ -105,17 +101,25 @@ for scene in scenes:
     except ImportError:  # a checkout from before the plugin
         attach = None
     if attach is not None:
-        # The plugin holding every pair, and pruned pairs (on a spec of its own).
-        runs = [(m, mujoco.MjData(m), [], [])]
-        for pairs, s in (("all", spec), ("pruned", spec_of(scene))):
-            attach(s, accel=p.bounds, covering=CoveringOptions(hfield="box"), pairs=pairs)
+        # The plugin holding every pair, pruned pairs, and every pair without the exact level
+        # (on specs of their own).
+        runs = [(m, mujoco.MjData(m), [], [], make_controller(m, "random", seed=0))]
+        try:
+            from dua_mujoco.mj.options import UrgencyOptions
+            exact_off = dict(urgency=UrgencyOptions(exact=False))
+        except ImportError:  # a checkout from before the exact level: it is off
+            exact_off = {}
+        variants = (("all", spec, {}), ("pruned", spec_of(scene), {}),
+                    ("all", spec_of(scene), exact_off))
+        for pairs, s, more in variants:
+            attach(s, accel=p.bounds, covering=CoveringOptions(hfield="box"), pairs=pairs, **more)
             mp = s.compile()
-            runs.append((mp, mujoco.MjData(mp), [], []))
+            runs.append((mp, mujoco.MjData(mp), [], [], make_controller(mp, "random", seed=0)))
         block = max(steps // 10, 1)
         for start in range(0, steps, block):
-            for model, data, out, ev in runs:
+            for model, data, out, ev, drive in runs:
                 for k in range(start, min(start + block, steps)):
-                    data.ctrl[:] = u[k]
+                    drive(model, data)
                     t0 = time.perf_counter_ns(); mujoco.mj_step(model, data)
                     out.append(time.perf_counter_ns() - t0)
                     if ev is not runs[0][3]:
@@ -123,6 +127,7 @@ for scene in scenes:
         row.update(plain_us=float(np.median(runs[0][2])) / 1e3,
                    plugin_us=float(np.median(runs[1][2])) / 1e3,
                    pruned_us=float(np.median(runs[2][2])) / 1e3,
+                   inexact_us=float(np.median(runs[3][2])) / 1e3,
                    pruned_mean_us=float(np.mean(runs[2][2])) / 1e3,
                    plugin_mean_us=float(np.mean(runs[1][2])) / 1e3,
                    plain_mean_us=float(np.mean(runs[0][2])) / 1e3,
@@ -187,12 +192,14 @@ def main(argv: list[str] | None = None) -> int:
     print("|---" * (9 + (2 if before else 0) + (1 if plugin_before else 0)) + "|")
     pruned_rows = []
     added = []
+    inexact = []  # every pair, the exact level off
     added_before = []
     for scene in scenes:
         one = next(r for r in after if r["scene"] == scene)
         plain, plugin = _median(after, scene, "plain_us"), _median(after, scene, "plugin_us")
         pred, mj = _median(after, scene, "predictor_us"), _median(after, scene, "mj_us")
         added.append((scene, (plugin - plain) / plain))
+        inexact.append((scene, (_median(after, scene, "inexact_us") - plain) / plain))
         cells = [
             scene,
             str(one["geoms"]),
@@ -219,15 +226,18 @@ def main(argv: list[str] | None = None) -> int:
             f"{(plugin - plain) / plain:+.2f} | "
             f"{(_median(after, scene, 'pruned_us') - plain) / plain:+.2f} | "
             f"{(_median(after, scene, 'plugin_mean_us') - mean) / mean:+.2f} | "
-            f"{(_median(after, scene, 'pruned_mean_us') - mean) / mean:+.2f} |"
+            f"{(_median(after, scene, 'pruned_mean_us') - mean) / mean:+.2f} | "
+            f"{inexact[-1][1]:+.2f} |"
         )
     print(
         "\n| scene | plugin evals/step, all pairs | pruned | adds (x mj_step, medians), all | "
-        "pruned | adds (means), all | pruned |\n|---|---|---|---|---|---|---|"
+        "pruned | adds (means), all | pruned | adds (medians), all, exact level off |\n"
+        + "|---" * 8
+        + "|"
     )
     print("\n".join(pruned_rows))
     print()
-    for label, adds in (("", added), ("before: ", added_before)):
+    for label, adds in (("", added), ("exact level off: ", inexact), ("before: ", added_before)):
         _print_summary(label, adds)
     return 0
 
