@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "lanes.h"
+#include "layout.h"
 
 namespace dua {
 
@@ -42,18 +43,23 @@ inline int64_t BucketOf(int64_t slot) {
   return k;
 }
 
+// Rounding allowances of the static-shape and exact-level gaps (docs/static-shapes.md): a gap's
+// rounding is a few units of 2^-53 times the magnitudes it is made of (1e-14 is ~45 of them),
+// and n.v's rounding is treated as extra velocity uncertainty.
+constexpr double kGapSlack = 1e-14, kVelSlack = 1e-14;
+
 // Support of a shape in its own frame along m (any length: every form is homogeneous); kind is
 // MuJoCo's mjtGeom code (7: a mesh held as its box).
 inline double SupportLocal(int kind, double s0, double s1, double s2, double m0, double m1,
                            double m2) {
   switch (kind) {
-    case 2:  // sphere
+    case kGeomSphere:
       return s0 * std::sqrt(m0 * m0 + m1 * m1 + m2 * m2);
-    case 3:  // capsule
+    case kGeomCapsule:
       return std::fabs(m2) * s1 + s0 * std::sqrt(m0 * m0 + m1 * m1 + m2 * m2);
-    case 5:  // cylinder: r |m_xy|, no cancellation
+    case kGeomCylinder:  // r |m_xy|, no cancellation
       return std::fabs(m2) * s1 + s0 * std::hypot(m0, m1);
-    case 4: {  // ellipsoid
+    case kGeomEllipsoid: {
       const double a = s0 * m0, b = s1 * m1, c = s2 * m2;
       return std::sqrt(a * a + b * b + c * c);
     }

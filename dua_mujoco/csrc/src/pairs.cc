@@ -5,19 +5,7 @@
 #include <cmath>
 
 #include "dua/dua.h"
-
-namespace dua {
-namespace {
-
-constexpr int64_t kKindSphere = 0, kKindHalfspace = 1, kKindShape = 2;
-// The exact level's per-geom column (ShapeKind, or -1) and per-pair columns and modes
-// (dua_mujoco/mj/exact_kernels.py).
-constexpr int kGxKind = 8, kGxNcol = 24;
-constexpr int kXMode = 0, kXG1 = 1, kXG2 = 2, kXDist = 3, kXHull1 = 7, kXHull2 = 8, kXNcol = 10;
-constexpr double kModeNone = 0, kModeGeoms = 1, kModePlane = 2, kModeShape = 3;
-
-}  // namespace
-}  // namespace dua
+#include "layout.h"
 
 extern "C" {
 

@@ -41,7 +41,6 @@ constexpr char kPluginName[] = "dua_mujoco.predictor";
 constexpr const char* kAttributes[] = {"prefix", "overlay"};
 constexpr int kNAttribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr int64_t kRank = 0, kDeadline = 1;
 
 // Sensor outputs.
 enum Output {

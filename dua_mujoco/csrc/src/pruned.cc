@@ -5,12 +5,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "layout.h"
+
 namespace dua {
-namespace {
-
-constexpr int kSphereBody = 1, kSphereNcol = 8;
-
-}  // namespace
 
 std::string PrunedTables::Build(const std::vector<double>& reach_table,
                                 const std::vector<double>& spheres, int64_t nbody, double horizon_s,

@@ -11,7 +11,6 @@
 
 namespace {
 
-constexpr int64_t kRank = 0, kDeadline = 1;
 // Rows of ints.
 constexpr int64_t kWhere = 0, kLastStep = 1, kNext = 2, kPrev = 3;
 // Rows of work.
@@ -36,6 +35,8 @@ inline bool Stood(double last_tau, double horizon) {
 inline int64_t Occupant(int64_t raw, bool alarmed) { return alarmed ? -2 - raw : raw; }
 
 using dua::BucketOf;
+using dua::kDeadline;
+using dua::kRank;
 
 int64_t RankSelect(const View& v, int64_t n) {
   dua_schedule* st = v.st;

@@ -5,16 +5,11 @@
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "layout.h"
 
 namespace dua {
 namespace {
 
-constexpr int kSphere = 2, kCapsule = 3, kEllipsoid = 4, kCylinder = 5;
-constexpr int kShapeKind = 0, kShapeSize = 1, kShapePos = 4, kShapeMat = 7;
-// The gap's rounding is a few units of 2^-53 times |c| + |p| + h_local + eps; 1e-14 is ~45.
-constexpr double kGapSlack = 1e-14;
-// n.v's rounding, treated as extra velocity uncertainty.
-constexpr double kVelSlack = 1e-14;
 // Newton iterations of the ellipsoid's closest-point root (monotone: any count is safe).
 constexpr int kEllipsoidIter = 60;
 
@@ -46,7 +41,7 @@ void ClosestLocal(int kind, double s0, double s1, double s2, double d0, double d
   auto set = [&](double a0, double a1, double a2, double b0, double b1, double b2) {
     q[0] = a0, q[1] = a1, q[2] = a2, m[0] = b0, m[1] = b1, m[2] = b2;
   };
-  if (kind == kSphere) {
+  if (kind == kGeomSphere) {
     const double nd = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
     if (nd > s0) {
       const double k = s0 / nd;
@@ -55,7 +50,7 @@ void ClosestLocal(int kind, double s0, double s1, double s2, double d0, double d
     if (nd > 0.0) return set(d0, d1, d2, d0, d1, d2);
     return set(d0, d1, d2, 0.0, 0.0, 1.0);
   }
-  if (kind == kCapsule) {
+  if (kind == kGeomCapsule) {
     const double zc = std::min(std::max(d2, -s1), s1);
     const double w2 = d2 - zc;
     const double nw = std::sqrt(d0 * d0 + d1 * d1 + w2 * w2);
@@ -66,7 +61,7 @@ void ClosestLocal(int kind, double s0, double s1, double s2, double d0, double d
     if (nw > 0.0) return set(d0, d1, d2, d0, d1, w2);
     return set(d0, d1, d2, 1.0, 0.0, 0.0);
   }
-  if (kind == kCylinder) {
+  if (kind == kGeomCylinder) {
     const double rho = std::hypot(d0, d1);
     const double zc = std::min(std::max(d2, -s1), s1);
     double q0 = d0, q1 = d1;
@@ -83,7 +78,7 @@ void ClosestLocal(int kind, double s0, double s1, double s2, double d0, double d
     }
     return set(d0, d1, d2, 0.0, 0.0, d2 >= 0.0 ? 1.0 : -1.0);
   }
-  if (kind == kEllipsoid) {
+  if (kind == kGeomEllipsoid) {
     const double y0 = std::fabs(d0), y1 = std::fabs(d1), y2 = std::fabs(d2);
     const double r0 = y0 / s0, r1 = y1 / s1, r2 = y2 / s2;
     if (r0 * r0 + r1 * r1 + r2 * r2 > 1.0) {

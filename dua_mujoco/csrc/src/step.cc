@@ -10,26 +10,11 @@
 #include "dua/dua.h"
 #include "internal.h"
 #include "lanes.h"
+#include "layout.h"
 
 namespace dua {
 namespace {
 
-// Pair record columns (pack_pairs).
-constexpr int kPairFirst = 0, kPairSecond = 1, kPairKind = 2, kPairEps = 3, kPairAccel = 4,
-              kPairDelta = 5, kPairSpeed = 6, kPairOther = 7, kPairNcol = 8;
-constexpr int kKindHalfspace = 1, kKindShape = 2;
-// Sphere record columns (pack_spheres).
-constexpr int kSphereFrame = 0, kSphereBody = 1, kSphereOffset = 2, kSphereRoot = 5,
-              kSphereNcol = 8;
-constexpr int kShapeNcol = 16;
-// Exact level: per-geom records (the first eight are a sphere record of the geom origin).
-constexpr int kGxKind = 8, kGxSize = 9, kGxCentre = 12, kGxRadius = 15, kGxVert = 16, kGxGraph = 17,
-              kGxSeed = 18, kGxNcol = 24;
-// ... and per-pair records.
-constexpr int kXMode = 0, kXG1 = 1, kXG2 = 2, kXDist = 3, kXN = 4, kXHull1 = 7, kXHull2 = 8,
-              kXNcol = 10;
-constexpr int kModeNone = 0, kModeGeoms = 1, kModePlane = 2;
-constexpr double kGapSlack = 1e-14, kVelSlack = 1e-14;
 // A witness shorter than this (relative to the geoms' size) has no usable direction.
 constexpr double kMinWitness = 1e-9;
 constexpr double kEps = std::numeric_limits<double>::epsilon();

@@ -5,11 +5,10 @@
 #include <cmath>
 #include <string>
 
+#include "layout.h"
+
 namespace dua {
 namespace {
-
-constexpr int kFirst = 0, kSecond = 1, kKind = 2, kPairNcol = 8, kExactNcol = 10;
-constexpr int kSphereFrame = 0, kSphereNcol = 8;
 
 // Merge the sorted (key, id) rows of `add` into the sorted `keys`, `ids`.
 void MergeSorted(std::vector<int64_t>* keys, std::vector<int64_t>* ids,
@@ -71,22 +70,22 @@ std::string Universe::Index(const std::vector<double>& spheres, int64_t ngeom) {
     const double* rec = pairs.data() + kPairNcol * p;
     const int64_t gp = pair_geom[p];
     if (gp < 0 || gp >= ng) return "the pairs' geom pairs";
-    if (!(rec[kFirst] >= 0 && rec[kFirst] < static_cast<double>(nsphere))) {
+    if (!(rec[kPairFirst] >= 0 && rec[kPairFirst] < static_cast<double>(nsphere))) {
       return "the pair records";
     }
-    const auto first = static_cast<int64_t>(rec[kFirst]);
+    const auto first = static_cast<int64_t>(rec[kPairFirst]);
     const auto g = static_cast<int64_t>(spheres[kSphereNcol * first + kSphereFrame]);
     const int64_t a = geom_pairs[2 * gp], b = geom_pairs[2 * gp + 1];
     geom1[p] = g;
     geom2[p] = g == a ? b : a;
-    if (rec[kKind] != 0.0) {
+    if (rec[kPairKind] != 0.0) {
       always.push_back(p);
       continue;
     }
-    if (!(rec[kSecond] >= 0 && rec[kSecond] < static_cast<double>(nsphere))) {
+    if (!(rec[kPairSecond] >= 0 && rec[kPairSecond] < static_cast<double>(nsphere))) {
       return "the pair records";
     }
-    const auto second = static_cast<int64_t>(rec[kSecond]);
+    const auto second = static_cast<int64_t>(rec[kPairSecond]);
     keyed.emplace_back(std::min(first, second) * nsphere + std::max(first, second), p);
   }
   codes.clear(), code_ids.clear();
@@ -188,7 +187,7 @@ int64_t Universe::Learn(const LearnTables& lt, const int64_t* g1, const int64_t*
   MergeSorted(&codes, &code_ids, keyed);
   if (lt.exact_geoms) {
     const size_t at = exact.size();
-    exact.resize(at + kExactNcol * count);
+    exact.resize(at + kXNcol * count);
     dua_exact_rows(lt.exact_geoms, ga.data(), gb.data(), kind.data(), pair_dist.data(), count,
                    exact.data() + at);
   }

@@ -196,6 +196,11 @@ DUA_API void dua_difference_poses(const double* xpos, const double* xquat, const
 
 DUA_API int64_t dua_abi_version(void);
 
+// The columns and codes of the record tables the Python side packs (src/layout.h), by the
+// Python side's names: entry i's name (NULL past the last) and value (-1 past the last).
+DUA_API const char* dua_layout_name(int64_t i);
+DUA_API int64_t dua_layout_value(int64_t i);
+
 // ------------------------------------------------------------------------------- pair tables
 
 // The sphere pairs of geom pairs k = (g1[k], g2[k]) (index[k] their ids, dist[k] their contact

@@ -1,0 +1,77 @@
+// The record layouts of layout.h by the Python side's names, for tests/test_layout.py.
+#include "layout.h"
+
+#include "dua/dua.h"
+
+namespace {
+
+struct Entry {
+  const char* name;
+  int64_t value;
+};
+
+constexpr Entry kEntries[] = {
+    {"PAIR_FIRST", dua::kPairFirst},
+    {"PAIR_SECOND", dua::kPairSecond},
+    {"PAIR_KIND", dua::kPairKind},
+    {"PAIR_EPS", dua::kPairEps},
+    {"PAIR_ACCEL", dua::kPairAccel},
+    {"PAIR_DELTA", dua::kPairDelta},
+    {"PAIR_SPEED", dua::kPairSpeed},
+    {"PAIR_OTHER", dua::kPairOther},
+    {"PAIR_NCOL", dua::kPairNcol},
+    {"PairKind.SPHERE", dua::kKindSphere},
+    {"PairKind.HALFSPACE", dua::kKindHalfspace},
+    {"PairKind.SHAPE", dua::kKindShape},
+    {"SPHERE_FRAME", dua::kSphereFrame},
+    {"SPHERE_BODY", dua::kSphereBody},
+    {"SPHERE_OFFSET", dua::kSphereOffset},
+    {"SPHERE_ROOT", dua::kSphereRoot},
+    {"SPHERE_NCOL", dua::kSphereNcol},
+    {"SHAPE_KIND", dua::kShapeKind},
+    {"SHAPE_SIZE", dua::kShapeSize},
+    {"SHAPE_POS", dua::kShapePos},
+    {"SHAPE_MAT", dua::kShapeMat},
+    {"SHAPE_NCOL", dua::kShapeNcol},
+    {"ShapeKind.SPHERE", dua::kGeomSphere},
+    {"ShapeKind.CAPSULE", dua::kGeomCapsule},
+    {"ShapeKind.ELLIPSOID", dua::kGeomEllipsoid},
+    {"ShapeKind.CYLINDER", dua::kGeomCylinder},
+    {"ShapeKind.BOX", dua::kGeomBox},
+    {"ShapeKind.MESH_BOX", dua::kGeomMeshBox},
+    {"GX_KIND", dua::kGxKind},
+    {"GX_SIZE", dua::kGxSize},
+    {"GX_CENTRE", dua::kGxCentre},
+    {"GX_RADIUS", dua::kGxRadius},
+    {"GX_VERT", dua::kGxVert},
+    {"GX_GRAPH", dua::kGxGraph},
+    {"GX_SEED", dua::kGxSeed},
+    {"GX_NCOL", dua::kGxNcol},
+    {"X_MODE", dua::kXMode},
+    {"X_G1", dua::kXG1},
+    {"X_G2", dua::kXG2},
+    {"X_DIST", dua::kXDist},
+    {"X_N", dua::kXN},
+    {"X_HULL1", dua::kXHull1},
+    {"X_HULL2", dua::kXHull2},
+    {"X_NCOL", dua::kXNcol},
+    {"ExactMode.NONE", dua::kModeNone},
+    {"ExactMode.GEOMS", dua::kModeGeoms},
+    {"ExactMode.PLANE", dua::kModePlane},
+    {"ExactMode.SHAPE", dua::kModeShape},
+    {"RANK", dua::kRank},
+    {"DEADLINE", dua::kDeadline},
+};
+constexpr int64_t kNEntries = sizeof(kEntries) / sizeof(kEntries[0]);
+
+}  // namespace
+
+extern "C" {
+
+const char* dua_layout_name(int64_t i) {
+  return i >= 0 && i < kNEntries ? kEntries[i].name : nullptr;
+}
+
+int64_t dua_layout_value(int64_t i) { return i >= 0 && i < kNEntries ? kEntries[i].value : -1; }
+
+}  // extern "C"

@@ -1,0 +1,41 @@
+// The record tables the Python side packs and the native code reads: their columns and codes,
+// stated once for C++. Python states them in dua_mujoco/core/pairset.py, core/shape_kernels.py,
+// mj/kinematics.py and mj/exact_kernels.py; dua_layout_name/dua_layout_value (layout.cc)
+// export this table, and tests/test_layout.py holds the two statements to each other.
+#ifndef DUA_MUJOCO_LAYOUT_H_
+#define DUA_MUJOCO_LAYOUT_H_
+
+#include <cstdint>
+
+namespace dua {
+
+// Pair records (pack_pairs), and what a pair's second member is (PairKind).
+constexpr int kPairFirst = 0, kPairSecond = 1, kPairKind = 2, kPairEps = 3, kPairAccel = 4,
+              kPairDelta = 5, kPairSpeed = 6, kPairOther = 7, kPairNcol = 8;
+constexpr int kKindSphere = 0, kKindHalfspace = 1, kKindShape = 2;
+
+// Sphere records (pack_spheres); the offset takes three columns.
+constexpr int kSphereFrame = 0, kSphereBody = 1, kSphereOffset = 2, kSphereRoot = 5,
+              kSphereNcol = 8;
+
+// Static shape records (pack_shapes), and their kinds (ShapeKind: MuJoCo's geom types).
+constexpr int kShapeKind = 0, kShapeSize = 1, kShapePos = 4, kShapeMat = 7, kShapeNcol = 16;
+// A mesh is held as its box (kind 7, MuJoCo's mesh code).
+constexpr int kGeomSphere = 2, kGeomCapsule = 3, kGeomEllipsoid = 4, kGeomCylinder = 5,
+              kGeomBox = 6, kGeomMeshBox = 7;
+
+// The exact level: per-geom records (the first eight are a sphere record of the geom origin),
+// per-pair records (the direction that served last, from kXN; the hull vertices highest last
+// time, per side), and what the level does for a pair (ExactMode).
+constexpr int kGxKind = 8, kGxSize = 9, kGxCentre = 12, kGxRadius = 15, kGxVert = 16, kGxGraph = 17,
+              kGxSeed = 18, kGxNcol = 24;
+constexpr int kXMode = 0, kXG1 = 1, kXG2 = 2, kXDist = 3, kXN = 4, kXHull1 = 7, kXHull2 = 8,
+              kXNcol = 10;
+constexpr int kModeNone = 0, kModeGeoms = 1, kModePlane = 2, kModeShape = 3;
+
+// Schedule kinds (ScheduleState.kind; the select-all kind has no name of its own here).
+constexpr int64_t kRank = 0, kDeadline = 1;
+
+}  // namespace dua
+
+#endif  // DUA_MUJOCO_LAYOUT_H_
