@@ -205,7 +205,7 @@ bool LoadPruned(const mjModel* m, const std::string& prefix, Tables* t) {
   // Pruned pairs are carried into the deadline schedule only (Predictor requires it too).
   if (static_cast<int64_t>(t->config[kCfgKind]) != 1) bad = "a schedule other than deadline";
   for (int64_t r = 0; r < t->nbody_events; ++r) {
-    const double b = t->events_rec[12 * r + kBBody];
+    const double b = t->events_rec[kBNcol * r + kBBody];
     if (!(b >= 0 && b < m->nbody)) bad = "the violation check's bodies";
   }
   if (bad.empty()) {
@@ -222,7 +222,7 @@ bool LoadPruned(const mjModel* m, const std::string& prefix, Tables* t) {
   if (!LoadLearn(m, prefix, t)) return false;
   std::vector<int64_t> body_row(m->nbody, -1);
   for (int64_t r = 0; r < t->nbody_events; ++r) {
-    body_row[static_cast<int64_t>(t->events_rec[12 * r + kBBody])] = r;
+    body_row[static_cast<int64_t>(t->events_rec[kBNcol * r + kBBody])] = r;
   }
   t->geom_row.resize(m->ngeom);
   for (int g = 0; g < m->ngeom; ++g) t->geom_row[g] = body_row[m->geom_bodyid[g]];
@@ -268,13 +268,13 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
       !ReadTable(m, prefix, "events_members", &events_members)) {
     return nullptr;
   }
-  t->nbody_events = static_cast<int64_t>(t->events_rec.size() / 12);
+  t->nbody_events = static_cast<int64_t>(t->events_rec.size() / kBNcol);
   u.pair_geom = AsInts(pair_geom);
   u.geom_pairs = AsInts(geom_pairs);
   t->events_start = AsInts(events_start);
   t->events_members = AsInts(events_members);
   const std::string bad = u.Index(t->spheres, m->ngeom);
-  const bool sizes = bad.empty() && static_cast<int64_t>(u.pairs.size()) == 8 * u.npair() &&
+  const bool sizes = bad.empty() && static_cast<int64_t>(u.pairs.size()) == kPairNcol * u.npair() &&
                      static_cast<int64_t>(t->events_start.size()) == t->nbody_events + 1 &&
                      !t->horizon.empty() && !t->events_params.empty();
   if (!sizes) {
@@ -290,8 +290,8 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
         !ReadTable(m, prefix, "exact_records", &u.exact)) {
       return nullptr;
     }
-    if (static_cast<int64_t>(t->geoms.size()) != 24 * static_cast<int64_t>(m->ngeom) ||
-        static_cast<int64_t>(u.exact.size()) != 10 * u.npair()) {
+    if (static_cast<int64_t>(t->geoms.size()) != kGxNcol * static_cast<int64_t>(m->ngeom) ||
+        static_cast<int64_t>(u.exact.size()) != kXNcol * u.npair()) {
       mju_warning(
           "dua_mujoco.predictor: the exact level's tables under prefix '%s' do not fit this "
           "model: attach the predictor again.",

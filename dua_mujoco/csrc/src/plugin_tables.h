@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "layout.h"
 #include "pruned.h"
 #include "universe.h"
 
@@ -66,7 +67,7 @@ struct Tables {
   LearnTables learn;
   std::vector<int64_t> geom_row;
   double Config(int i) const { return config[i]; }
-  int64_t nsphere() const { return static_cast<int64_t>(spheres.size() / 8); }  // 8 a record
+  int64_t nsphere() const { return static_cast<int64_t>(spheres.size()) / kSphereNcol; }
 };
 
 // The tables under `prefix`, checked against the model; null after a warning naming what is
