@@ -2,7 +2,7 @@
 native core (issue 20), A/B in one run.
 
     git worktree add --detach /tmp/before 1581945      # the last commit with the numba step
-    python benchmarks/plugin.py --before /tmp/before   # markdown tables (about 15 min)
+    python benchmarks/plugin.py --before /tmp/before   # markdown tables (about 20 min)
     python benchmarks/plugin.py --scenes two_arms gym/ant --steps 600
     python benchmarks/plugin.py --scenes bin_pour swarm:1000 --steps 600   # pruned pairs too
 
@@ -50,7 +50,7 @@ import numpy as np
 import mujoco
 sys.path.insert(0, sys.argv[1])  # this checkout's benchmarks/ (robots.py)
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.options import CoveringOptions, PilotOptions
+from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
 from dua_mujoco.mj.scenes import make_controller
 
 side, steps, scenes = sys.argv[2], int(sys.argv[3]), sys.argv[4:]
@@ -104,11 +104,7 @@ for scene in scenes:
         # The plugin holding every pair, pruned pairs, and every pair without the exact level
         # (on specs of their own).
         runs = [(m, mujoco.MjData(m), [], [], make_controller(m, "random", seed=0))]
-        try:
-            from dua_mujoco.mj.options import UrgencyOptions
-            exact_off = dict(urgency=UrgencyOptions(exact=False))
-        except ImportError:  # a checkout from before the exact level: it is off
-            exact_off = {}
+        exact_off = dict(urgency=UrgencyOptions(exact=False))
         variants = (("all", spec, {}), ("pruned", spec_of(scene), {}),
                     ("all", spec_of(scene), exact_off))
         for pairs, s, more in variants:
@@ -132,7 +128,8 @@ for scene in scenes:
                    plugin_mean_us=float(np.mean(runs[1][2])) / 1e3,
                    plain_mean_us=float(np.mean(runs[0][2])) / 1e3,
                    plugin_evals=float(np.mean(runs[1][3])),
-                   pruned_evals=float(np.mean(runs[2][3])))
+                   pruned_evals=float(np.mean(runs[2][3])),
+                   inexact_evals=float(np.mean(runs[3][3])))
     print(json.dumps(row), flush=True)
 """
 
@@ -227,13 +224,12 @@ def main(argv: list[str] | None = None) -> int:
             f"{(_median(after, scene, 'pruned_us') - plain) / plain:+.2f} | "
             f"{(_median(after, scene, 'plugin_mean_us') - mean) / mean:+.2f} | "
             f"{(_median(after, scene, 'pruned_mean_us') - mean) / mean:+.2f} | "
-            f"{inexact[-1][1]:+.2f} |"
+            f"{inexact[-1][1]:+.2f} | {one['inexact_evals']:.1f} |"
         )
     print(
         "\n| scene | plugin evals/step, all pairs | pruned | adds (x mj_step, medians), all | "
-        "pruned | adds (means), all | pruned | adds (medians), all, exact level off |\n"
-        + "|---" * 8
-        + "|"
+        "pruned | adds (means), all | pruned | adds (medians), all, exact level off | "
+        "evals/step, exact level off |\n" + "|---" * 9 + "|"
     )
     print("\n".join(pruned_rows))
     print()
