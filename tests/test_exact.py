@@ -125,9 +125,11 @@ class Motion:
         return out
 
 
-def _exact_only(p: Predictor, data: mujoco.MjData, *, query: bool = True) -> np.ndarray:
-    """The native exact level's tau of every pair from a sphere tau of 0 (MuJoCo asked afresh
-    when ``query``)."""
+def _exact_only(
+    p: Predictor, data: mujoco.MjData, *, query: bool = True, coarse: float = 0.0
+) -> np.ndarray:
+    """The native exact level's tau of every pair from a sphere tau of ``coarse`` (MuJoCo asked
+    afresh when ``query``)."""
     x = p.exact
     assert x is not None
     ids = np.arange(len(p.pair_set))
@@ -143,7 +145,7 @@ def _exact_only(p: Predictor, data: mujoco.MjData, *, query: bool = True) -> np.
         verts=x.verts,
         graph=x.graph,
     )
-    return native.exact_pass(ids, np.zeros(ids.size))
+    return native.exact_pass(ids, np.full(ids.size, coarse))
 
 
 # --------------------------------------------------------------------------- the reference
@@ -364,32 +366,53 @@ def test_the_reset_remembers_the_direction_and_the_bounds_cover_the_corners() ->
 def test_a_pair_in_mujocos_contacts_keeps_its_sphere_tau_and_no_other_pair_does() -> None:
     """A pair MuJoCo holds in contact is touching along every direction: the level keeps the
     sphere tau without asking MuJoCo (GJK and EPA) for a direction. Read here from a contact
-    list left over from another state, so that the skip shows: the pair is apart now."""
+    list left over from another state, so that the skip shows: the pairs are apart now. Both
+    orders are met (MuJoCo lists the plane first, the level second), and a listed contact
+    farther than the pair's contact distance is no reason to skip."""
     boxes = "".join(
-        f'<body name="{n}" pos="{x} 0 1"><freejoint/><geom name="{n}" type="box" size=".1 .1 .1"/>'
-        "</body>"
-        for n, x in (("A", 0.0), ("B", 0.15), ("C", -0.4))
+        f'<body name="{n}" pos="{x} 0 {z}"><freejoint/><geom name="{n}" type="box" '
+        'size=".1 .1 .1"/></body>'
+        for n, x, z in (("A", 0.0, 1.0), ("B", 0.15, 1.0), ("C", -0.4, 0.05))
     )
     model = mujoco.MjModel.from_xml_string(
-        f'<mujoco><option gravity="0 0 0"/><worldbody>{boxes}</worldbody></mujoco>'
+        '<mujoco><option gravity="0 0 0"/><worldbody><geom name="floor" type="plane" '
+        f'size="3 3 .1"/>{boxes}</worldbody></mujoco>'
     )
     p = Predictor(model, accel=MotionBounds.declare(model, 1.0), pairs="all")
+    assert p.exact is not None
     g1, g2 = (np.asarray(g) for g in p.sphere_pair_geoms)
-    a, b, c = (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in "ABC")
+    a, b, c, floor = (
+        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in ("A", "B", "C", "floor")
+    )
     ab = ((g1 == a) & (g2 == b)) | ((g1 == b) & (g2 == a))
-    ac = ((g1 == a) & (g2 == c)) | ((g1 == c) & (g2 == a))
+    cf = (g1 == c) & (g2 == floor)
+    assert ab.any() and cf.any()
     stale = mujoco.MjData(model)
     mujoco.mj_forward(model, stale)
-    assert stale.ncon >= 1 and {int(stale.contact.geom[0][0]), int(stale.contact.geom[0][1])} == {
-        a,
-        b,
-    }
+    listed_pairs = {frozenset(map(int, con.geom)) for con in stale.contact}
+    assert listed_pairs == {frozenset((a, b)), frozenset((c, floor))}
+    assert any(int(con.geom[0]) == floor for con in stale.contact)  # the plane first
     fresh = mujoco.MjData(model)
     for data in (stale, fresh):
-        data.qpos[7] = 0.5  # B moves 35 cm further from A; only the kinematics follow
+        data.qpos[7] = 0.5  # B 35 cm further from A
+        data.qpos[16] = 0.5  # C 45 cm above the floor; only the kinematics follow
         mujoco.mj_kinematics(model, data)
-    assert fresh.ncon == 0
-    apart, listed = _exact_only(p, fresh), _exact_only(p, stale)
-    assert ab.any() and ac.any()
-    assert np.all(apart[ab] > 0) and np.all(listed[ab] == 0)
-    assert np.all(apart[ac] > 0) and np.array_equal(listed[ac], apart[ac])
+    coarse = p.exact.exact_below / 2
+    apart = _exact_only(p, fresh, coarse=coarse)
+    listed = _exact_only(p, stale, coarse=coarse)
+    for pair in (ab, cf):
+        assert np.all(apart[pair] > coarse) and np.all(listed[pair] == coarse)
+    others = ~(ab | cf)
+    assert np.array_equal(listed[others], apart[others])
+    # Contacts within wider margins than the pairs': listed, but not touching by the pairs' own
+    # contact distance, so they are looked at.
+    wide = mujoco.MjData(model)
+    wide.qpos[:] = fresh.qpos
+    margin = model.geom_margin.copy()
+    model.geom_margin[:] = 0.5
+    try:
+        mujoco.mj_forward(model, wide)
+    finally:
+        model.geom_margin[:] = margin
+    assert any(frozenset(map(int, con.geom)) == frozenset((a, b)) for con in wide.contact)
+    assert np.array_equal(_exact_only(p, wide, coarse=coarse), apart)

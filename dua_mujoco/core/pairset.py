@@ -31,6 +31,7 @@ __all__ = [
     "PAIR_EPS",
     "PAIR_FIRST",
     "PAIR_KIND",
+    "PAIR_NCOL",
     "PAIR_OTHER",
     "PAIR_SECOND",
     "PAIR_SPEED",
@@ -121,6 +122,7 @@ def _tau_pairs_parallel(ids, geometry):  # pragma: no cover - jitted
     PAIR_SPEED,
     PAIR_OTHER,
 ) = range(8)
+PAIR_NCOL = 8
 
 
 def pack_pairs(pairs: PairSet, plane_frame: npt.ArrayLike | None = None) -> np.ndarray:
@@ -136,7 +138,7 @@ def pack_pairs(pairs: PairSet, plane_frame: npt.ArrayLike | None = None) -> np.n
 
     Ids are stored as floats: exact below 2**53.
     """
-    rec = np.zeros((len(pairs), 8))
+    rec = np.zeros((len(pairs), PAIR_NCOL))
     rec[:, PAIR_FIRST] = pairs.first
     rec[:, PAIR_SECOND] = pairs.second
     rec[:, PAIR_KIND] = pairs.kind

@@ -33,6 +33,7 @@ from dua_mujoco.exceptions import ShapeError
 __all__ = [
     "SPHERE_BODY",
     "SPHERE_FRAME",
+    "SPHERE_NCOL",
     "SPHERE_OFFSET",
     "SPHERE_ROOT",
     "mjdata_frame",
@@ -43,6 +44,7 @@ __all__ = [
 
 # Columns of the packed per-sphere records: one 64-byte row (a cache line) per sphere.
 SPHERE_FRAME, SPHERE_BODY, SPHERE_OFFSET, SPHERE_ROOT = 0, 1, 2, 5  # offset: columns 2, 3, 4
+SPHERE_NCOL = 8
 
 
 def pack_spheres(
@@ -67,7 +69,7 @@ def pack_spheres(
         raise ShapeError(f"sphere_body has shape {body.shape}; expected ({n},).")
     if offset.shape != (n, 3):
         raise ShapeError(f"sphere_offset has shape {offset.shape}; expected ({n}, 3).")
-    rec = np.zeros((n, 8))
+    rec = np.zeros((n, SPHERE_NCOL))
     rec[:, SPHERE_FRAME] = frame
     rec[:, SPHERE_BODY] = body
     rec[:, SPHERE_OFFSET : SPHERE_OFFSET + 3] = offset

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.mj.exact_kernels import X_NCOL
 from dua_mujoco.native import declare
 
 __all__ = ["contact_params", "exact_rows", "expand", "pair_bounds"]
@@ -122,12 +123,12 @@ def exact_rows(
     kind: npt.ArrayLike,
     dist: npt.ArrayLike,
 ) -> np.ndarray:
-    """``(n, 10)`` exact-level records of pairs over per-geom records ``geoms``
+    """``(n, X_NCOL)`` exact-level records of pairs over per-geom records ``geoms``
     (``dua_exact_rows``)."""
     g1, g2, k = _c(geom1, np.int64), _c(geom2, np.int64), _c(kind, np.int8)
     d = _c(np.broadcast_to(dist, g1.shape), np.float64)
     table = _c(geoms, np.float64)
-    rec = np.zeros((g1.shape[0], 10))
+    rec = np.zeros((g1.shape[0], X_NCOL))
     _lib().dua_exact_rows(
         table.ctypes.data, g1.ctypes.data, g2.ctypes.data, k.ctypes.data, d.ctypes.data,
         g1.shape[0], rec.ctypes.data,

@@ -1,7 +1,9 @@
-// The record layouts of layout.h by the Python side's names, for tests/test_layout.py.
+// The record layouts of layout.h, and the violation check's of internal.h, by the Python side's
+// names, for tests/test_layout.py.
 #include "layout.h"
 
 #include "dua/dua.h"
+#include "internal.h"
 
 namespace {
 
@@ -59,6 +61,20 @@ constexpr Entry kEntries[] = {
     {"ExactMode.GEOMS", dua::kModeGeoms},
     {"ExactMode.PLANE", dua::kModePlane},
     {"ExactMode.SHAPE", dua::kModeShape},
+    {"B_FRAME", dua::kBFrame},
+    {"B_BODY", dua::kBBody},
+    {"B_ROOT", dua::kBRoot},
+    {"B_CENTER", dua::kBCenter},
+    {"B_HALF", dua::kBHalf},
+    {"B_ACCEL", dua::kBAccel},
+    {"B_DISC", dua::kBDisc},
+    {"B_SPEED", dua::kBSpeed},
+    {"NB_REC", dua::kBNcol},
+    {"NB_STATE", dua::kSNcol},
+    {"STATE_GROUP", dua::kLanes},
+    {"M_NPREV", dua::kMNprev},
+    {"M_COUNT", dua::kMCount},
+    {"M_TOTAL", dua::kMTotal},
     {"RANK", dua::kRank},
     {"DEADLINE", dua::kDeadline},
 };

@@ -1,7 +1,10 @@
-// The record tables the Python side packs and the native code reads: their columns and codes,
-// stated once for C++. Python states them in dua_mujoco/core/pairset.py, core/shape_kernels.py,
-// mj/kinematics.py and mj/exact_kernels.py; dua_layout_name/dua_layout_value (layout.cc)
-// export this table, and tests/test_layout.py holds the two statements to each other.
+// The pair, sphere, shape and exact-level records the Python side packs and the native code
+// reads: their columns and codes, stated once for C++ (the violation check's are in
+// internal.h). Python states them in dua_mujoco/core/pairset.py, core/shape_kernels.py,
+// mj/kinematics.py, mj/exact_kernels.py and mj/events.py; dua_layout_name/dua_layout_value
+// (layout.cc) export both headers' by Python's names, and tests/test_layout.py holds the two
+// statements to each other. Not covered: the schedule's state and parameters (schedule.cc,
+// core/schedules/state.py) and the plugin's config row (plugin_tables.h, plugin.py).
 #ifndef DUA_MUJOCO_LAYOUT_H_
 #define DUA_MUJOCO_LAYOUT_H_
 

@@ -150,14 +150,16 @@ struct Instance {
     const Tables& t = *tables;
     ids = held;
     const auto n = static_cast<int64_t>(held.size());
-    held_pairs.resize(8 * n);
+    held_pairs.resize(kPairNcol * n);
     for (int64_t k = 0; k < n; ++k) {
-      std::copy_n(U().pairs.begin() + 8 * held[k], 8, held_pairs.begin() + 8 * k);
+      std::copy_n(U().pairs.begin() + kPairNcol * held[k], kPairNcol,
+                  held_pairs.begin() + kPairNcol * k);
     }
     if (t.exact) {
-      exact_records.resize(10 * n);
+      exact_records.resize(kXNcol * n);
       for (int64_t k = 0; k < n; ++k) {
-        std::copy_n(U().exact.begin() + 10 * held[k], 10, exact_records.begin() + 10 * k);
+        std::copy_n(U().exact.begin() + kXNcol * held[k], kXNcol,
+                    exact_records.begin() + kXNcol * k);
       }
     }
     // Indexed by the violation check's rows, as EventTable.hold indexes them.

@@ -158,8 +158,8 @@ bool LoadLearn(const mjModel* m, const std::string& prefix, Tables* t) {
   l.radius = t->held.radius.data();  // the Tables are never copied or moved once loaded
   l.sphere_geom.resize(nsphere), l.sphere_body.resize(nsphere);
   for (int64_t i = 0; i < nsphere; ++i) {
-    l.sphere_geom[i] = static_cast<int64_t>(t->spheres[8 * i]);
-    l.sphere_body[i] = static_cast<int64_t>(t->spheres[8 * i + 1]);
+    l.sphere_geom[i] = static_cast<int64_t>(t->spheres[kSphereNcol * i + kSphereFrame]);
+    l.sphere_body[i] = static_cast<int64_t>(t->spheres[kSphereNcol * i + kSphereBody]);
   }
   l.exact_geoms = t->exact ? t->geoms.data() : nullptr;
   // Every index the learning follows must point inside its table.
@@ -203,7 +203,8 @@ bool LoadPruned(const mjModel* m, const std::string& prefix, Tables* t) {
   std::string bad;
   if (!(stride >= 1 && stride < 1e9)) bad = "the stride";
   // Pruned pairs are carried into the deadline schedule only (Predictor requires it too).
-  if (static_cast<int64_t>(t->config[kCfgKind]) != 1) bad = "a schedule other than deadline";
+  if (static_cast<int64_t>(t->config[kCfgKind]) != kDeadline)
+    bad = "a schedule other than deadline";
   for (int64_t r = 0; r < t->nbody_events; ++r) {
     const double b = t->events_rec[kBNcol * r + kBBody];
     if (!(b >= 0 && b < m->nbody)) bad = "the violation check's bodies";

@@ -78,7 +78,7 @@ std::string Universe::Index(const std::vector<double>& spheres, int64_t ngeom) {
     const int64_t a = geom_pairs[2 * gp], b = geom_pairs[2 * gp + 1];
     geom1[p] = g;
     geom2[p] = g == a ? b : a;
-    if (rec[kPairKind] != 0.0) {
+    if (rec[kPairKind] != kKindSphere) {
       always.push_back(p);
       continue;
     }
@@ -160,25 +160,25 @@ int64_t Universe::Learn(const LearnTables& lt, const int64_t* g1, const int64_t*
   keyed.clear();
   for (int64_t p = 0; p < count; ++p) {
     const int64_t s = second[p];
-    const double other = kind[p] == 1   ? static_cast<double>(lt.plane_geom[s])
-                         : kind[p] == 2 ? static_cast<double>(s)
-                                        : 0.0;
-    const double rec[kPairNcol] = {static_cast<double>(first[p]),
-                                   static_cast<double>(s),
-                                   static_cast<double>(kind[p]),
-                                   eps[p],
-                                   accel[p],
-                                   delta[p],
-                                   speed[p],
-                                   other};
+    double rec[kPairNcol];
+    rec[kPairFirst] = static_cast<double>(first[p]);
+    rec[kPairSecond] = static_cast<double>(s);
+    rec[kPairKind] = static_cast<double>(kind[p]);
+    rec[kPairEps] = eps[p], rec[kPairAccel] = accel[p], rec[kPairDelta] = delta[p];
+    rec[kPairSpeed] = speed[p];
+    rec[kPairOther] = kind[p] == kKindHalfspace ? static_cast<double>(lt.plane_geom[s])
+                      : kind[p] == kKindShape   ? static_cast<double>(s)
+                                                : 0.0;
     pairs.insert(pairs.end(), rec, rec + kPairNcol);
     ga[p] = lt.sphere_geom[first[p]];
-    gb[p] = kind[p] == 1 ? lt.plane_geom[s] : kind[p] == 2 ? lt.shape_geom[s] : lt.sphere_geom[s];
+    gb[p] = kind[p] == kKindHalfspace ? lt.plane_geom[s]
+            : kind[p] == kKindShape   ? lt.shape_geom[s]
+                                      : lt.sphere_geom[s];
     pair_dist[p] = dist[gp[p] - id[0]];
     pair_geom.push_back(gp[p]);
     geom1.push_back(ga[p]);
     geom2.push_back(gb[p]);
-    if (kind[p] != 0) {
+    if (kind[p] != kKindSphere) {
       always.push_back(base + p);
     } else {
       keyed.emplace_back(std::min(first[p], s) * nsphere + std::max(first[p], s), base + p);
