@@ -50,12 +50,24 @@ __all__ = [
 PLUGIN_NAME = "dua_mujoco.predictor"
 
 OUTPUTS = ("standing", "min_tau", "evaluated", "deferred", "flagged")
+"""The sensor's outputs, in order (:class:`PluginOutputs`)."""
+
+# Entries of the "<prefix>:config" row (the plugin's kCfg*; tests/test_layout.py holds them
+# together). CFG_SHAPE takes two entries, the structure hash's two 32-bit halves.
+(
+    CFG_ABI, CFG_KIND, CFG_DT, CFG_LATENCY, CFG_TIMESTEP, CFG_ROWS, CFG_NSLOTS, CFG_NQUEUE,
+    CFG_EXACT_ON, CFG_EXACT_BELOW, CFG_QUERY_BELOW, CFG_PARAMS,
+) = range(12)  # fmt: skip
+CFG_NGEOM, CFG_NBODY, CFG_SHAPE, CFG_WIDTH = 20, 21, 22, 24  # CFG_PARAMS: the 9 schedule params
+(
+    CFG_PRUNED, CFG_HORIZON, CFG_MARGIN, CFG_STRIDE, CFG_RENEW_MAX, CFG_CONTACTS,
+    CFG_FILTER_PARENT, CFG_OVERRIDE, CFG_O_MARGIN, CFG_HAS_SPEED, CFG_SIZE,
+) = range(25, 36)  # fmt: skip
 
 MAX_GEOM_PAIRS = 1_000_000
 """The most active geom pairs ``attach(spec, pairs="all")`` takes: holding every pair costs
 about 150 bytes of tables each (in the model, and per ``MjData`` for the schedule); pruned
 pairs learn the pairs they meet instead."""
-"""The sensor's outputs, in order (:class:`PluginOutputs`)."""
 
 
 class PluginOutputs(NamedTuple):
@@ -123,27 +135,25 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
     state = sched.state
     gp = p.geom_pairs
     exact = p.exact
-    config = np.zeros(35)
-    config[:11] = [
-        ABI_VERSION,
-        int(state.kind),
-        p.dt,
-        p.latency,
-        float(p.model.opt.timestep),
-        state.ints.shape[0],
-        state.slots.shape[0],
-        state.queue.shape[0] - 1,
-        exact is not None,
-        0.0 if exact is None else exact.exact_below,
-        0.0 if exact is None else exact.query_below,
-    ]
-    config[11:20] = state.params
+    config = np.zeros(CFG_SIZE)
+    config[CFG_ABI] = ABI_VERSION
+    config[CFG_KIND] = int(state.kind)
+    config[CFG_DT], config[CFG_LATENCY] = p.dt, p.latency
+    config[CFG_TIMESTEP] = float(p.model.opt.timestep)
+    config[CFG_ROWS] = state.ints.shape[0]
+    config[CFG_NSLOTS] = state.slots.shape[0]
+    config[CFG_NQUEUE] = state.queue.shape[0] - 1
+    config[CFG_EXACT_ON] = exact is not None
+    config[CFG_EXACT_BELOW] = 0.0 if exact is None else exact.exact_below
+    config[CFG_QUERY_BELOW] = 0.0 if exact is None else exact.query_below
+    config[CFG_PARAMS : CFG_PARAMS + len(state.params)] = state.params
     # The model the tables are for: the plugin refuses another (a spec edited after attach).
     shape = structure_hash(p.model)
-    config[20:24] = [p.model.ngeom, p.model.nbody, shape & 0xFFFFFFFF, shape >> 32]
-    config[24] = state.work.shape[1]
+    config[CFG_NGEOM], config[CFG_NBODY] = p.model.ngeom, p.model.nbody
+    config[CFG_SHAPE], config[CFG_SHAPE + 1] = shape & 0xFFFFFFFF, shape >> 32
+    config[CFG_WIDTH] = state.work.shape[1]
     if held is not None:
-        config[25:30] = [1, held.horizon, held.margin, p.stride, RENEW_MAX]
+        config[CFG_PRUNED:CFG_CONTACTS] = [1, held.horizon, held.margin, p.stride, RENEW_MAX]
     tables = {
         "config": config,
         "pairs": p.pair_records,
@@ -162,15 +172,15 @@ def _tables(p: Predictor) -> dict[str, np.ndarray]:
         tables["reach"] = np.stack(
             [held.radius, held.accel, held.vel_uncertainty, held.speed], axis=1
         )
-        config[30:35], learn = _learn_tables(p)
+        config[CFG_CONTACTS:CFG_SIZE], learn = _learn_tables(p)
         tables.update(learn)
     return tables
 
 
 def _learn_tables(p: Predictor) -> tuple[list[float], dict[str, np.ndarray]]:
     """What the plugin's pruned pairs read to learn a pair as ``p.universe.learn`` does: config
-    entries 30-34 and tables (MuJoCo's filter per geom, margins and gaps, the covering's
-    per-geom layout, each body's bounds)."""
+    entries ``CFG_CONTACTS`` to ``CFG_HAS_SPEED`` and tables (MuJoCo's filter per geom, margins
+    and gaps, the covering's per-geom layout, each body's bounds)."""
     from dua_mujoco.mj.filter import contacts_enabled, margin_override
     from dua_mujoco.mj.pairbounds import body_vel_uncertainty
     from dua_mujoco.mj.pairfilter import FilterTables

@@ -4,8 +4,8 @@ The Python side packs pair, sphere, shape, exact-level and violation-check recor
 native code reads them by column (``dua_mujoco/csrc/src/layout.h``, ``internal.h``). A column
 moved on one side only would have each side read the other's numbers as something else, with
 no error: this test compares every column and code the native core exports by name
-(``dua_layout_name``/``dua_layout_value``). The schedule's state and the plugin's config row
-are not in the table yet.
+(``dua_layout_name``/``dua_layout_value``), the schedule's state and the plugin's config row
+included.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import itertools
 
 import numpy as np
 
+from dua_mujoco import plugin
 from dua_mujoco.core import pairset, shape_kernels
 from dua_mujoco.core.pairset import PairSet, pack_pairs
 from dua_mujoco.core.schedules import state
@@ -46,6 +47,8 @@ def _python() -> dict[str, int]:
         (shape_kernels, ("SHAPE_",)),
         (exact_kernels, ("GX_", "X_")),
         (events, ("B_", "NB_", "M_", "STATE_GROUP")),
+        (state, ("W_", "P_", "WHERE", "LAST_STEP", "NEXT", "PREV", "NPARAMS")),
+        (plugin, ("CFG_",)),
     ):
         values |= {k: v for k, v in vars(module).items() if k.startswith(prefixes)}
     for enum in (pairset.PairKind, shape_kernels.ShapeKind, exact_kernels.ExactMode):

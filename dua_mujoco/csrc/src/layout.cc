@@ -1,9 +1,10 @@
-// The record layouts of layout.h, and the violation check's of internal.h, by the Python side's
-// names, for tests/test_layout.py.
+// The record layouts of layout.h, the violation check's of internal.h and the plugin's config
+// row of plugin_tables.h, by the Python side's names, for tests/test_layout.py.
 #include "layout.h"
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "plugin_tables.h"
 
 namespace {
 
@@ -77,6 +78,51 @@ constexpr Entry kEntries[] = {
     {"M_TOTAL", dua::kMTotal},
     {"RANK", dua::kRank},
     {"DEADLINE", dua::kDeadline},
+    {"WHERE", dua::kIntWhere},
+    {"LAST_STEP", dua::kIntLastStep},
+    {"NEXT", dua::kIntNext},
+    {"PREV", dua::kIntPrev},
+    {"W_SLOTS", dua::kWorkSlots},
+    {"W_IDS", dua::kWorkIds},
+    {"W_ALARMS", dua::kWorkAlarms},
+    {"W_NEW", dua::kWorkNew},
+    {"P_NBUCKETS", dua::kParamNBuckets},
+    {"P_SLOTS_PER_BUCKET", dua::kParamSlotsPerBucket},
+    {"P_WHEEL", dua::kParamWheel},
+    {"P_MAX_INTERVAL", dua::kParamMaxInterval},
+    {"P_CAP", dua::kParamCap},
+    {"P_COUNT", dua::kParamCount},
+    {"P_DEFERRED", dua::kParamDeferred},
+    {"P_EXTRA", dua::kParamExtra},
+    {"P_BACKOFF", dua::kParamBackoff},
+    {"NPARAMS", dua::kNParams},
+    {"CFG_ABI", dua::kCfgAbi},
+    {"CFG_KIND", dua::kCfgKind},
+    {"CFG_DT", dua::kCfgDt},
+    {"CFG_LATENCY", dua::kCfgLatency},
+    {"CFG_TIMESTEP", dua::kCfgTimestep},
+    {"CFG_ROWS", dua::kCfgRows},
+    {"CFG_NSLOTS", dua::kCfgNslots},
+    {"CFG_NQUEUE", dua::kCfgNqueue},
+    {"CFG_EXACT_ON", dua::kCfgExactOn},
+    {"CFG_EXACT_BELOW", dua::kCfgExactBelow},
+    {"CFG_QUERY_BELOW", dua::kCfgQueryBelow},
+    {"CFG_PARAMS", dua::kCfgParams},
+    {"CFG_NGEOM", dua::kCfgNgeom},
+    {"CFG_NBODY", dua::kCfgNbody},
+    {"CFG_SHAPE", dua::kCfgShape},
+    {"CFG_WIDTH", dua::kCfgWidth},
+    {"CFG_PRUNED", dua::kCfgPruned},
+    {"CFG_HORIZON", dua::kCfgHorizon},
+    {"CFG_MARGIN", dua::kCfgMargin},
+    {"CFG_STRIDE", dua::kCfgStride},
+    {"CFG_RENEW_MAX", dua::kCfgRenewMax},
+    {"CFG_CONTACTS", dua::kCfgContacts},
+    {"CFG_FILTER_PARENT", dua::kCfgFilterParent},
+    {"CFG_OVERRIDE", dua::kCfgOverride},
+    {"CFG_O_MARGIN", dua::kCfgOMargin},
+    {"CFG_HAS_SPEED", dua::kCfgHasSpeed},
+    {"CFG_SIZE", dua::kCfgSize},
 };
 constexpr int64_t kNEntries = sizeof(kEntries) / sizeof(kEntries[0]);
 

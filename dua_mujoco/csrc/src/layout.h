@@ -1,10 +1,10 @@
-// The pair, sphere, shape and exact-level records the Python side packs and the native code
-// reads: their columns and codes, stated once for C++ (the violation check's are in
-// internal.h). Python states them in dua_mujoco/core/pairset.py, core/shape_kernels.py,
-// mj/kinematics.py, mj/exact_kernels.py and mj/events.py; dua_layout_name/dua_layout_value
-// (layout.cc) export both headers' by Python's names, and tests/test_layout.py holds the two
-// statements to each other. Not covered: the schedule's state and parameters (schedule.cc,
-// core/schedules/state.py) and the plugin's config row (plugin_tables.h, plugin.py).
+// The records and state the Python side packs and the native code reads by column: pairs,
+// spheres, static shapes, the exact level, the schedule's state. Stated once for C++ (the
+// violation check's are in internal.h, the plugin's config row in plugin_tables.h). Python
+// states them in dua_mujoco/core/pairset.py, core/shape_kernels.py, core/schedules/state.py,
+// mj/kinematics.py, mj/exact_kernels.py, mj/events.py and plugin.py; dua_layout_name and
+// dua_layout_value (layout.cc) export all of them by Python's names, and tests/test_layout.py
+// holds the two statements to each other.
 #ifndef DUA_MUJOCO_LAYOUT_H_
 #define DUA_MUJOCO_LAYOUT_H_
 
@@ -36,8 +36,15 @@ constexpr int kXMode = 0, kXG1 = 1, kXG2 = 2, kXDist = 3, kXN = 4, kXHull1 = 7, 
               kXNcol = 10;
 constexpr int kModeNone = 0, kModeGeoms = 1, kModePlane = 2, kModeShape = 3;
 
-// Schedule kinds (ScheduleState.kind; the select-all kind has no name of its own here).
+// The schedule's state (ScheduleState): its kinds (the select-all kind has no name of its own
+// here), its rows of ints and of work, and the entries of its params.
 constexpr int64_t kRank = 0, kDeadline = 1;
+// Prefixed, being common words: schedule.cc names them shorter.
+constexpr int64_t kIntWhere = 0, kIntLastStep = 1, kIntNext = 2, kIntPrev = 3;
+constexpr int64_t kWorkSlots = 0, kWorkIds = 1, kWorkAlarms = 2, kWorkNew = 3;
+constexpr int64_t kParamNBuckets = 0, kParamSlotsPerBucket = 1, kParamWheel = 2,
+                  kParamMaxInterval = 3, kParamCap = 4, kParamCount = 5, kParamDeferred = 6,
+                  kParamExtra = 7, kParamBackoff = 8, kNParams = 9;
 
 }  // namespace dua
 

@@ -332,7 +332,7 @@ void Classify(const mjModel* m, mjData* d, Instance* in) {
   std::fill(in->active.begin(), in->active.end(), 1);
   std::fill(in->slots.begin(), in->slots.end(), -1);
   std::fill(in->queue.begin(), in->queue.end(), 0);
-  for (int i = 0; i < 9; ++i) in->params[i] = static_cast<int64_t>(t.Config(kCfgParams + i));
+  for (int i = 0; i < kNParams; ++i) in->params[i] = static_cast<int64_t>(t.Config(kCfgParams + i));
   std::fill(in->ints.begin(), in->ints.end(), s.kind == kDeadline ? -1 : 0);
   if (s.kind == kDeadline) {  // LAST_STEP: 0
     std::fill(in->ints.begin() + n, in->ints.begin() + 2 * n, 0);
@@ -426,7 +426,6 @@ void Publish(mjData* d, const Instance* in) {
 // verdicts (dua_deadline_carry), new ones stand in alarm, due at n; new ones switched off stay
 // off; every held pair's standing renewed.
 void Carry(const mjModel* m, mjData* d, Instance* in, const std::vector<int64_t>& held, int64_t n) {
-  constexpr int kPCount = 5, kPDeferred = 6;
   const std::vector<int64_t>& old = in->ids;
   const auto k = static_cast<int64_t>(held.size());
   std::vector<int64_t> src(k, -1);
@@ -445,7 +444,7 @@ void Carry(const mjModel* m, mjData* d, Instance* in, const std::vector<int64_t>
   in->Size(k);
   std::fill(in->ints.begin(), in->ints.end(), -1);
   in->params = params;
-  in->params[kPCount] = in->params[kPDeferred] = 0;
+  in->params[kParamCount] = in->params[kParamDeferred] = 0;
   in->Bind(m, d);
   dua_deadline_carry(&from, &in->args.schedule, src.data(), k, n);
   std::vector<int64_t> off;

@@ -31,7 +31,7 @@ enum Config {
   kCfgExactOn = 8,
   kCfgExactBelow = 9,
   kCfgQueryBelow = 10,
-  kCfgParams = 11,  // the schedule's 9 params
+  kCfgParams = 11,  // the schedule's kNParams params
   kCfgNgeom = 20,   // the model the tables were made for: geoms, bodies,
   kCfgNbody = 21,
   kCfgShape = 22,  // and FNV-1a of its geom_type, geom_bodyid and body_parentid (two 32-bit halves)

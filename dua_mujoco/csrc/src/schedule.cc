@@ -8,16 +8,19 @@
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "layout.h"
 
 namespace {
 
-// Rows of ints.
-constexpr int64_t kWhere = 0, kLastStep = 1, kNext = 2, kPrev = 3;
-// Rows of work.
-constexpr int64_t kWSlots = 0, kWIds = 1, kWAlarms = 2, kWNew = 3;
-// Entries of params.
-constexpr int64_t kNBuckets = 0, kSlotsPerBucket = 1, kWheel = 2, kMaxInterval = 3, kCap = 4,
-                  kCount = 5, kDeferred = 6, kExtra = 7, kBackoff = 8;
+// Rows of ints, rows of work, entries of params (layout.h).
+constexpr int64_t kWhere = dua::kIntWhere, kLastStep = dua::kIntLastStep, kNext = dua::kIntNext,
+                  kPrev = dua::kIntPrev;
+constexpr int64_t kWSlots = dua::kWorkSlots, kWIds = dua::kWorkIds, kWAlarms = dua::kWorkAlarms,
+                  kWNew = dua::kWorkNew;
+constexpr int64_t kNBuckets = dua::kParamNBuckets, kSlotsPerBucket = dua::kParamSlotsPerBucket,
+                  kWheel = dua::kParamWheel, kMaxInterval = dua::kParamMaxInterval,
+                  kCap = dua::kParamCap, kCount = dua::kParamCount, kDeferred = dua::kParamDeferred,
+                  kExtra = dua::kParamExtra, kBackoff = dua::kParamBackoff;
 constexpr double kNegInf = -std::numeric_limits<double>::infinity();
 
 struct View {
