@@ -64,7 +64,7 @@ def measure(name: str, steps: int, every: int) -> dict[str, float]:
         if k % every:
             continue
         c, u = p.sphere_states(d)
-        tau = p.pair_set.tau(ids, c, u, p.halfspaces(d))
+        tau = pairs.tau(ids, c, u, p.halfspaces(d))
         s = np.linalg.norm(c[i] - c[j], axis=1) - eps
         w = np.linalg.norm(u[i] - u[j], axis=1) + delta
         tau_c = np.where(s > 0, 2 * s / (w + np.sqrt(w * w + 2 * accel * np.maximum(s, 0))), 0)

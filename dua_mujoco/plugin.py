@@ -28,6 +28,7 @@ from typing import Any, NamedTuple
 import mujoco
 import numpy as np
 
+from dua_mujoco.core.schedules.state import NPARAMS
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.events import no_events
 from dua_mujoco.mj.options import PairOptions
@@ -58,11 +59,12 @@ OUTPUTS = ("standing", "min_tau", "evaluated", "deferred", "flagged")
     CFG_ABI, CFG_KIND, CFG_DT, CFG_LATENCY, CFG_TIMESTEP, CFG_ROWS, CFG_NSLOTS, CFG_NQUEUE,
     CFG_EXACT_ON, CFG_EXACT_BELOW, CFG_QUERY_BELOW, CFG_PARAMS,
 ) = range(12)  # fmt: skip
-CFG_NGEOM, CFG_NBODY, CFG_SHAPE, CFG_WIDTH = 20, 21, 22, 24  # CFG_PARAMS: the 9 schedule params
+CFG_NGEOM = CFG_PARAMS + NPARAMS  # after the schedule's params
+CFG_NBODY, CFG_SHAPE, CFG_WIDTH = CFG_NGEOM + 1, CFG_NGEOM + 2, CFG_NGEOM + 4
 (
     CFG_PRUNED, CFG_HORIZON, CFG_MARGIN, CFG_STRIDE, CFG_RENEW_MAX, CFG_CONTACTS,
     CFG_FILTER_PARENT, CFG_OVERRIDE, CFG_O_MARGIN, CFG_HAS_SPEED, CFG_SIZE,
-) = range(25, 36)  # fmt: skip
+) = range(CFG_WIDTH + 1, CFG_WIDTH + 12)  # fmt: skip
 
 MAX_GEOM_PAIRS = 1_000_000
 """The most active geom pairs ``attach(spec, pairs="all")`` takes: holding every pair costs

@@ -112,6 +112,7 @@ def _tau_pairs_parallel(ids, geometry):  # pragma: no cover - jitted
 # Column layout of the packed per-pair and per-sphere records read by the rigid fused step: one
 # 64-byte row (a cache line) per pair and per sphere instead of one line in each of 7 or 3
 # separate arrays, because after mj_step those tables are cold and the step is memory-bound.
+PAIR_NCOL = 8
 (
     PAIR_FIRST,
     PAIR_SECOND,
@@ -121,8 +122,7 @@ def _tau_pairs_parallel(ids, geometry):  # pragma: no cover - jitted
     PAIR_DELTA,
     PAIR_SPEED,
     PAIR_OTHER,
-) = range(8)
-PAIR_NCOL = 8
+) = range(PAIR_NCOL)
 
 
 def pack_pairs(pairs: PairSet, plane_frame: npt.ArrayLike | None = None) -> np.ndarray:

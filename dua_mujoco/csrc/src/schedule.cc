@@ -12,6 +12,8 @@
 
 namespace {
 
+using dua::kDeadline;
+using dua::kRank;
 // Rows of ints, rows of work, entries of params (layout.h).
 constexpr int64_t kWhere = dua::kIntWhere, kLastStep = dua::kIntLastStep, kNext = dua::kIntNext,
                   kPrev = dua::kIntPrev;
@@ -38,8 +40,6 @@ inline bool Stood(double last_tau, double horizon) {
 inline int64_t Occupant(int64_t raw, bool alarmed) { return alarmed ? -2 - raw : raw; }
 
 using dua::BucketOf;
-using dua::kDeadline;
-using dua::kRank;
 
 int64_t RankSelect(const View& v, int64_t n) {
   dua_schedule* st = v.st;
