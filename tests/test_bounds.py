@@ -728,6 +728,68 @@ def test_pilot_levels_are_nested() -> None:
         estimate_bounds(m, steps=10, seed=3, motion="smooth")
 
 
+SCREENED = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 0.1"/>
+    <body name="ball" pos="0 0 0.03"><freejoint/><geom type="sphere" size="0.01"/></body>
+    <body name="far" pos="0.5 0 0.2"><freejoint/><geom type="sphere" size="0.01"/></body>
+    <body name="arm" pos="-0.5 0 0.5">
+      <joint type="hinge" axis="0 1 0" range="-20 20"/>
+      <geom type="capsule" fromto="0 0 0 0.1 0 0" size="0.01" contype="0" conaffinity="0"/>
+      <body name="hand" pos="0.1 0 0"><geom type="sphere" size="0.01" contype="0"/></body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_motion_screen_matches_the_last_three_steps_contacts_and_limits() -> None:
+    """The pilot's screen, against its definition read off the recorded history: a tree is free
+    when none of the last three steps had a contact or joint limit on it, and calm when none had
+    a contact that the step before did not. A ball lands and rests, another lands later, an arm
+    swings onto its limit and stays; each case occurs, and every step and body agrees."""
+    from dua_mujoco.mj.pilot_screen import MotionScreen
+
+    m = mujoco.MjModel.from_xml_string(SCREENED)
+    d = mujoco.MjData(m)
+    root = np.asarray(m.body_rootid)
+    geom_root = root[m.geom_bodyid]
+    screen = MotionScreen(m)
+    history: list[tuple[set[tuple[int, int]], set[int]]] = []
+    seen = set()
+    for _ in range(250):
+        mujoco.mj_step(m, d)
+        free, calm = screen.update(d)
+        contacts = {(int(c.geom1), int(c.geom2)) for c in d.contact[: d.ncon]}
+        limited = {
+            int(root[m.jnt_bodyid[d.efc_id[i]]])
+            for i in range(d.nefc)
+            if d.efc_type[i] == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)
+        }
+        history.append((contacts, limited))
+        window = range(max(0, len(history) - 3), len(history))
+        for body in range(m.nbody):
+            tree = int(root[body])
+            held = any(
+                tree in history[k][1] or any(tree in geom_root[list(c)] for c in history[k][0])
+                for k in window
+            )
+            fresh = any(
+                tree in geom_root[list(c)]
+                for k in window
+                for c in history[k][0] - (history[k - 1][0] if k else set())
+            )
+            assert calm[body] == (not fresh), (len(history), body)
+            assert free[body] == (not fresh and not held), (len(history), body)
+            seen.add((m.body(body).name, bool(free[body]), bool(calm[body])))
+    # Resting (calm, not free), landing (neither), before landing (both), on the limit; the
+    # hand is screened with its arm's tree.
+    for case in [("ball", False, True), ("ball", False, False), ("far", True, True),
+                 ("far", False, False), ("hand", False, True), ("hand", True, True)]:  # fmt: skip
+        assert case in seen, case
+
+
 def test_pilot_warns_about_a_mocap_body_it_never_moved() -> None:
     """Random controls do not move clutter's stirrer (the scene's controller does): its bounds
     would be 0 and every step of a run that moves it would break them. The pilot says so."""

@@ -36,6 +36,7 @@ from dua_mujoco.exceptions import (
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.pilot_screen import MotionScreen
 
 __all__ = [
     "DIVERGENCE_WARNINGS",
@@ -424,43 +425,20 @@ def estimate_bounds(
     prev_c: np.ndarray | None = None
     prev_u: np.ndarray | None = None
     prev_w: np.ndarray | None = None
-    rootid = np.asarray(model.body_rootid, dtype=np.int64)
-    sroot = rootid[sbody]
-    geom_root = rootid[np.asarray(model.geom_bodyid, dtype=np.int64)]
-    # Per tree, over the last three steps: a new contact; any contact or joint limit.
-    new = np.zeros((3, nb), dtype=bool)
-    held = np.zeros((3, nb), dtype=bool)
-    in_contact: set[tuple[int, int]] = set()
+    screen = MotionScreen(model)
     amax, dmax = np.zeros((3, nb)), np.zeros((3, nb))
     measured = np.zeros((3, nb), dtype=bool)
     mocap_start = (np.array(d.mocap_pos), np.array(d.mocap_quat))
     mocap_moved = np.zeros(model.nmocap, dtype=bool)
-    for k in range(steps):
+    for _ in range(steps):
         ctrl(model, d, rng)
         mujoco.mj_step(model, d)
         tracker.update(d)
         if model.nmocap:
             mocap_moved |= (d.mocap_pos != mocap_start[0]).any(axis=1)
             mocap_moved |= (d.mocap_quat != mocap_start[1]).any(axis=1)
-        # Which trees each level measures at this step: free motion (no contact or joint
-        # limit in the last three steps), no new contact in them, every step.
-        new[k % 3] = False
-        held[k % 3] = False
-        nc = int(d.ncon)
-        now = set(zip(d.contact.geom1[:nc].tolist(), d.contact.geom2[:nc].tolist(), strict=True))
-        for g1, g2 in now:
-            held[k % 3, geom_root[g1]] = held[k % 3, geom_root[g2]] = True
-        for g1, g2 in now - in_contact:
-            new[k % 3, geom_root[g1]] = new[k % 3, geom_root[g2]] = True
-        if d.nefc:
-            limit = np.asarray(d.efc_type[: d.nefc]) == int(
-                mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
-            )
-            joints = np.asarray(d.efc_id[: d.nefc])[limit]
-            held[k % 3, rootid[np.asarray(model.jnt_bodyid)[joints]]] = True
-        in_contact = now
-        quiet = np.asarray(~new.any(axis=0))[sroot]
-        levels = (quiet & np.asarray(~held.any(axis=0))[sroot], quiet, np.ones_like(quiet))
+        free, calm = screen.update(d)
+        levels = (free[sbody], calm[sbody], np.ones(len(sbody), dtype=bool))
         tracker.write_body_velocity(twist)
         c, w = sphere_states(spheres_rec, mjdata_frame(d, twist))
         vmax = np.maximum(vmax, _per_body_max(np.linalg.norm(w, axis=1), sbody, nb))
