@@ -10,6 +10,7 @@ same recorded controls (``make_controller``'s random controls, seed 0; bounds fr
 
     python benchmarks/plugin_rollout.py                       # every installed robot
     python benchmarks/plugin_rollout.py --robots ur5e dmc_dog --rounds 5
+    python benchmarks/plugin_rollout.py --robots ur5e g1 --covering multi
 
 Numbers are medians over rounds of a rollout's time a step; evaluations are means a step, read
 from the sensor's outputs that the rollout records.
@@ -38,10 +39,11 @@ VARIANTS = ("plain", "exact on", "exact off")
 EVALUATED = OUTPUTS.index("evaluated")
 
 
-def _models(name: str) -> dict[str, mujoco.MjModel]:
-    """The robot's model alone and with the plugin, its exact level on and off."""
+def _models(name: str, mode: str) -> dict[str, mujoco.MjModel]:
+    """The robot's model alone and with the plugin (covering ``mode``), its exact level on and
+    off."""
     m = robot_spec(name).compile()
-    covering = CoveringOptions(hfield="box")
+    covering = CoveringOptions(hfield="box", mode=mode)
     pilot = PilotOptions(steps=1000, seed=99, controller=make_controller(m, "random", seed=99))
     bounds = Predictor(m, accel="auto", covering=covering, pilot=pilot).bounds
     models = {"plain": m}
@@ -65,9 +67,9 @@ def _controls(m: mujoco.MjModel, steps: int) -> np.ndarray:
     return u
 
 
-def measure(name: str, steps: int, rounds: int) -> dict[str, float]:
+def measure(name: str, steps: int, rounds: int, mode: str = "bounding") -> dict[str, float]:
     """Per variant: the median time a step (us); per plugin variant, evaluations a step."""
-    models = _models(name)
+    models = _models(name, mode)
     ctrl = _controls(models["plain"], steps)
     full = mujoco.mjtState.mjSTATE_FULLPHYSICS
     times: dict[str, list[float]] = {v: [] for v in VARIANTS}
@@ -93,6 +95,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robots", nargs="+", default=None, help="default: every installed one")
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--rounds", type=int, default=7)
+    parser.add_argument(
+        "--covering", default="bounding", choices=("bounding", "multi"), help="CoveringOptions.mode"
+    )
     args = parser.parse_args(argv)
     names = args.robots or available()
     print(
@@ -102,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     added: dict[str, list[float]] = {"exact on": [], "exact off": []}
     for i, name in enumerate(names):
         print(f"[{i + 1}/{len(names)}] {name}", file=sys.stderr, flush=True)
-        r = measure(name, args.steps, args.rounds)
+        r = measure(name, args.steps, args.rounds, args.covering)
         on, off = r["exact on"] / r["plain"] - 1.0, r["exact off"] / r["plain"] - 1.0
         added["exact on"].append(on)
         added["exact off"].append(off)
