@@ -15,8 +15,8 @@ It is cheaper, and earlier: a pair is revisited sooner.
 *Bounds per pair.* A pair's ``A`` is the sum of its two bodies' bounds, each a bound on every
 point of its body. Two bodies that move together (links of one limb) could have a relative
 acceleration well below that sum. The script measures it on the pilot's motion as the pilot
-measures a body's (``MotionScreen``: the steps its level admits for both trees): twice (the
-pilot's safety factor) the largest second difference of the two centres' offset, per pair, and
+measures a body's (``MotionScreen``: the steps its level admits for both trees): the pilot's
+safety factor times the largest second difference of the two centres' offset, per pair, and
 the kernel's ``tau*`` with the smaller of the two bounds. It also counts the pairs whose offset
 breaks that bound somewhere in the run (a pair bound the violation check would have to catch),
 and those whose offset breaks the sum (then a body broke its own, and the check caught it).
@@ -48,10 +48,12 @@ from robots import robot_spec
 from dua_mujoco import CoveringOptions, PilotOptions, Predictor
 from dua_mujoco.core.urgency import time_to_collision
 from dua_mujoco.exceptions import BoundViolationWarning
+from dua_mujoco.mj.bounds import PilotMotion
 from dua_mujoco.mj.pilot_screen import MotionScreen
 from dua_mujoco.mj.scenes import make_controller
 
 ROBOTS = ("dmc_dog", "yam", "go1", "franka_kitchen")
+PILOT_SEED, RUN_SEED = 99, 0  # plugin.py's: the pilot's controls, and the run's
 
 
 def _steps(p: Predictor, m: mujoco.MjModel, i: np.ndarray, j: np.ndarray, seed: int, steps: int):
@@ -75,30 +77,36 @@ def _steps(p: Predictor, m: mujoco.MjModel, i: np.ndarray, j: np.ndarray, seed: 
         yield d, x, u[j] - u[i], a
 
 
-def _pair_accel(p: Predictor, m: mujoco.MjModel, i: np.ndarray, j: np.ndarray, steps: int):
+def _pair_accel(p: Predictor, m: mujoco.MjModel, i: np.ndarray, j: np.ndarray, pilot: PilotOptions):
     """``(M,)`` each pair's largest relative acceleration on the pilot's motion (its controller
-    and seed), measured as the pilot measures a body's: at the steps where both trees pass its
-    level's screen, free motion if the pair had any such step, else no impacts, else all."""
+    and seed), measured as the pilot measures a body's: at the steps where both trees pass the
+    screen of the pilot's level; a pair that level never measured takes the next one's."""
     body = np.asarray(p.covering.sphere_body)
     bi, bj = body[i], body[j]
     screen = MotionScreen(m)
     largest = np.zeros((3, len(i)))
     measured = np.zeros((3, len(i)), dtype=bool)
-    for k, (d, _, _, a) in enumerate(_steps(p, m, i, j, 99, steps)):
+    for k, (d, _, _, a) in enumerate(_steps(p, m, i, j, PILOT_SEED, pilot.steps)):
         free, calm = screen.update(d)
         if k < 2:
             continue
-        for level, ok in enumerate((free[bi] & free[bj], calm[bi] & calm[bj], np.ones_like(a) > 0)):
+        levels = (free[bi] & free[bj], calm[bi] & calm[bj], np.ones(len(a), dtype=bool))
+        for level, ok in enumerate(levels):
             np.maximum(largest[level], np.where(ok, a, 0.0), out=largest[level])
             measured[level] |= ok
-    return np.where(measured[0], largest[0], np.where(measured[1], largest[1], largest[2]))
+    first = list(PilotMotion).index(PilotMotion(pilot.motion))  # FREE, NO_IMPACTS, ALL
+    out = largest[2]
+    for level in range(1, first - 1, -1):
+        out = np.where(measured[level], largest[level], out)
+    return out
 
 
 def measure(name: str, steps: int, every: int) -> dict[str, float]:
     """Evaluations a step under ``tau*``, ``tau_c`` and ``tau*`` with bounds per pair; quartiles
     of ``tau_c / tau*``; the share of pairs that break their pair bound in the run."""
     m = robot_spec(name).compile()
-    pilot = PilotOptions(steps=1000, seed=99, controller=make_controller(m, "random", seed=99))
+    controller = make_controller(m, "random", seed=PILOT_SEED)
+    pilot = PilotOptions(steps=1000, seed=PILOT_SEED, controller=controller)
     p = Predictor(m, accel="auto", covering=CoveringOptions(hfield="box"), pilot=pilot)
     pairs, dt = p.pair_set, float(m.opt.timestep)
     ids = np.flatnonzero(pairs.kind == 0)
@@ -108,7 +116,7 @@ def measure(name: str, steps: int, every: int) -> dict[str, float]:
     accel = np.broadcast_to(pairs.accel, (n,))[ids]
     delta = np.broadcast_to(pairs.vel_uncertainty, (n,))[ids]
     speed = np.broadcast_to(pairs.speed, (n,))[ids]
-    own = 2.0 * _pair_accel(p, m, i, j, pilot.steps)  # twice: the pilot's safety factor
+    own = pilot.safety * _pair_accel(p, m, i, j, pilot)
     pair_accel = np.minimum(accel, own)
 
     d = mujoco.MjData(m)
@@ -122,7 +130,7 @@ def measure(name: str, steps: int, every: int) -> dict[str, float]:
     kernel, closed, per_pair, ratios = [], [], [], []
     broken = np.zeros(len(ids), dtype=bool)
     broken_sum = np.zeros(len(ids), dtype=bool)
-    for k, (_, x, v, a) in enumerate(_steps(p, m, i, j, 0, steps)):
+    for k, (_, x, v, a) in enumerate(_steps(p, m, i, j, RUN_SEED, steps)):
         broken |= a > pair_accel
         broken_sum |= a > accel
         if k % every:

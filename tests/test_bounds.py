@@ -790,6 +790,21 @@ def test_motion_screen_matches_the_last_three_steps_contacts_and_limits() -> Non
         assert case in seen, case
 
 
+def test_free_motion_bounds_of_a_landing_ball_are_its_free_fall() -> None:
+    """Free motion leaves the landing and the rest out: a ball that falls, lands and rests gets
+    its fall's bound (safety x g), though its landing's second differences are several times
+    that (the bound on every step shows them)."""
+    from dua_mujoco.mj.bounds import PilotMotion
+
+    m = mujoco.MjModel.from_xml_string(SCREENED)
+    ball = m.body("ball").id
+    g = float(np.linalg.norm(m.opt.gravity))
+    free = estimate_bounds(m, steps=200, seed=0, motion=PilotMotion.FREE).accel[ball]
+    every = estimate_bounds(m, steps=200, seed=0, motion=PilotMotion.ALL).accel[ball]
+    assert free == pytest.approx(2.0 * g, rel=1e-6)
+    assert every > 3 * free
+
+
 def test_pilot_warns_about_a_mocap_body_it_never_moved() -> None:
     """Random controls do not move clutter's stirrer (the scene's controller does): its bounds
     would be 0 and every step of a run that moves it would break them. The pilot says so."""

@@ -16,9 +16,12 @@ __all__ = ["MotionScreen"]
 class MotionScreen:
     """Which trees a pilot step measures, level by level (:class:`PilotMotion`).
 
-    Call :meth:`update` after every ``mj_step`` of a rollout. A second difference at that step
-    spans its last three states, so a tree's step is screened out when any of the three saw the
-    event.
+    Call :meth:`update` after every ``mj_step`` of a rollout. ``MjData``'s contacts and
+    constraints are then those of the state the step started from, whose forces made the step's
+    velocity. The pilot's second difference at a step differences the chords of that step and
+    the one before, so the constraints seen by this update and the last can reach it. The
+    screen spans three updates, one more than that, and a tree's step is screened out when any
+    of them saw the event.
     """
 
     def __init__(self, model: mujoco.MjModel) -> None:
