@@ -48,8 +48,7 @@ from robots import robot_spec
 from dua_mujoco import CoveringOptions, PilotOptions, Predictor
 from dua_mujoco.core.urgency import time_to_collision
 from dua_mujoco.exceptions import BoundViolationWarning
-from dua_mujoco.mj.bounds import PilotMotion
-from dua_mujoco.mj.pilot_screen import MotionScreen
+from dua_mujoco.mj.pilot_screen import MotionScreen, PilotMotion, level_maxima
 from dua_mujoco.mj.scenes import make_controller
 
 ROBOTS = ("dmc_dog", "yam", "go1", "franka_kitchen")
@@ -94,11 +93,7 @@ def _pair_accel(p: Predictor, m: mujoco.MjModel, i: np.ndarray, j: np.ndarray, p
         for level, ok in enumerate(levels):
             np.maximum(largest[level], np.where(ok, a, 0.0), out=largest[level])
             measured[level] |= ok
-    first = list(PilotMotion).index(PilotMotion(pilot.motion))  # FREE, NO_IMPACTS, ALL
-    out = largest[2]
-    for level in range(1, first - 1, -1):
-        out = np.where(measured[level], largest[level], out)
-    return out
+    return level_maxima(largest, measured, PilotMotion(pilot.motion))
 
 
 def measure(name: str, steps: int, every: int) -> dict[str, float]:

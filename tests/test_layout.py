@@ -11,7 +11,6 @@ included.
 from __future__ import annotations
 
 import ctypes
-import itertools
 
 import numpy as np
 
@@ -30,13 +29,11 @@ def _native() -> dict[str, int]:
             "dua_layout_value": (ctypes.c_int64, [ctypes.c_int64]),
         }
     )
-    out = {}
-    for i in itertools.count():
-        name = lib.dua_layout_name(i)
-        if name is None:
-            return out
+    out, i = {}, 0
+    while (name := lib.dua_layout_name(i)) is not None:
         out[name.decode()] = int(lib.dua_layout_value(i))
-    raise AssertionError("unreachable")
+        i += 1
+    return out
 
 
 def _python() -> dict[str, int]:

@@ -18,7 +18,6 @@ and then |c_{k+n} - c_k - n h w_k| <= delta_b t + A_b t^2 / 2 at every t = n h.
 
 from __future__ import annotations
 
-import enum
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -36,7 +35,7 @@ from dua_mujoco.exceptions import (
 )
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.mocap import MocapVelocityTracker
-from dua_mujoco.mj.pilot_screen import MotionScreen
+from dua_mujoco.mj.pilot_screen import MotionScreen, PilotMotion, level_maxima
 
 __all__ = [
     "DIVERGENCE_WARNINGS",
@@ -52,25 +51,6 @@ __all__ = [
 
 BoundSpec = float | Mapping[str, float]
 """A bound given as one scalar for every moving body, or a dict by body name (``"*"``: default)."""
-
-
-class PilotMotion(enum.StrEnum):
-    """Which steps of its rollout the pilot measures (``PilotOptions(motion=...)``).
-
-    A constraint's impulse is what the predictor must foresee, not part of the motion model:
-    with it the bounds become loose enough to alarm every pair. A step the pilot leaves out is
-    one where the tree was, or in the two steps before (the span of a second difference), in
-    a contact (``FREE``: free motion, what the actuators and gravity do; also at a joint limit)
-    or in a *new* contact (``NO_IMPACTS``: sustained contact such as resting or grasping is
-    measured as ordinary motion); ``ALL`` measures every step. A body the level measures at no
-    step (a foot always on the ground) takes the next level's maxima: free, then no impacts,
-    then every step. The motion the pilot leaves out breaks the bounds in a run, and the
-    step re-evaluates the pairs of the bodies involved (docs/theory.md, section 6).
-    """
-
-    FREE = "free"
-    NO_IMPACTS = "no-impacts"
-    ALL = "all"
 
 
 def moving_bodies(model: mujoco.MjModel) -> np.ndarray:
@@ -460,12 +440,7 @@ def estimate_bounds(
         prev_c, prev_w = c, w
     # A body the chosen level never measured (a foot always on the ground: free motion; a body
     # starting contacts at every step) takes the next level's maxima.
-    first = {PilotMotion.FREE: 0, PilotMotion.NO_IMPACTS: 1, PilotMotion.ALL: 2}[motion]
-    amax_used, dmax_used = amax[2].copy(), dmax[2].copy()
-    for j in range(1, first - 1, -1):
-        amax_used = np.where(measured[j], amax[j], amax_used)
-        dmax_used = np.where(measured[j], dmax[j], dmax_used)
-    amax, dmax = amax_used, dmax_used
+    amax, dmax = level_maxima(amax, measured, motion), level_maxima(dmax, measured, motion)
     moving = moving_bodies(model)
     A = np.where(moving, safety * amax, 0.0)
     D = np.where(moving, safety * dmax, 0.0)

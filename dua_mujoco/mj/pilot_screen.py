@@ -1,16 +1,37 @@
-"""Which steps of a pilot rollout measure the motion, tree by tree (``PilotMotion``'s levels).
-
-A constraint's impulse is what the predictor must foresee, not part of the motion model, so
-the pilot measures a tree's accelerations only at steps its level admits (docs/theory.md,
-section 6).
-"""
+"""Which steps of a pilot rollout measure the motion: the levels (``PilotMotion``), each tree's
+screen at every step (``MotionScreen``), and the maxima a level keeps (``level_maxima``)."""
 
 from __future__ import annotations
+
+import enum
 
 import mujoco
 import numpy as np
 
-__all__ = ["MotionScreen"]
+__all__ = ["LEVELS", "MotionScreen", "PilotMotion", "level_maxima"]
+
+
+class PilotMotion(enum.StrEnum):
+    """Which steps of its rollout the pilot measures (``PilotOptions(motion=...)``).
+
+    A constraint's impulse is what the predictor must foresee, not part of the motion model:
+    with it the bounds become loose enough to alarm every pair. A step the pilot leaves out is
+    one where the tree was, or in the two steps before (the span of a second difference), in
+    a contact (``FREE``: free motion, what the actuators and gravity do; also at a joint limit)
+    or in a *new* contact (``NO_IMPACTS``: sustained contact such as resting or grasping is
+    measured as ordinary motion); ``ALL`` measures every step. A body the level measures at no
+    step (a foot always on the ground) takes the next level's maxima: free, then no impacts,
+    then every step. The motion the pilot leaves out breaks the bounds in a run, and the
+    step re-evaluates the pairs of the bodies involved (docs/theory.md, section 6).
+    """
+
+    FREE = "free"
+    NO_IMPACTS = "no-impacts"
+    ALL = "all"
+
+
+LEVELS = (PilotMotion.FREE, PilotMotion.NO_IMPACTS, PilotMotion.ALL)
+"""The levels in the order :meth:`MotionScreen.update` screens them, each admitting more."""
 
 
 class MotionScreen:
@@ -25,9 +46,9 @@ class MotionScreen:
     """
 
     def __init__(self, model: mujoco.MjModel) -> None:
-        self._model = model
         self._rootid = np.asarray(model.body_rootid, dtype=np.int64)
         self._geom_root = self._rootid[np.asarray(model.geom_bodyid, dtype=np.int64)]
+        self._joint_root = self._rootid[np.asarray(model.jnt_bodyid, dtype=np.int64)]
         # Per tree, over the last three steps: a new contact; any contact or joint limit.
         self._new = np.zeros((3, model.nbody), dtype=bool)
         self._held = np.zeros((3, model.nbody), dtype=bool)
@@ -56,8 +77,16 @@ class MotionScreen:
             limit = np.asarray(d.efc_type[: d.nefc]) == int(
                 mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
             )
-            joints = np.asarray(d.efc_id[: d.nefc])[limit]
-            held[k, self._rootid[np.asarray(self._model.jnt_bodyid)[joints]]] = True
+            held[k, self._joint_root[np.asarray(d.efc_id[: d.nefc])[limit]]] = True
         self._in_contact = now
         calm = ~np.asarray(new.any(axis=0))[self._rootid]
         return calm & ~np.asarray(held.any(axis=0))[self._rootid], calm
+
+
+def level_maxima(maxima: np.ndarray, measured: np.ndarray, motion: PilotMotion) -> np.ndarray:
+    """``(n,)`` the maxima of ``motion``'s level, from ``(3, n)`` maxima and ``measured`` flags by
+    level (:data:`LEVELS`' order); a column the level never measured takes the next level's."""
+    out = maxima[-1].copy()
+    for level in range(len(LEVELS) - 2, LEVELS.index(motion) - 1, -1):
+        out = np.where(measured[level], maxima[level], out)
+    return out
