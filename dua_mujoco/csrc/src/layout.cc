@@ -1,10 +1,10 @@
-// The record layouts of layout.h, the violation check's of internal.h and the plugin's config
-// row of plugin_tables.h, by the Python side's names, for tests/test_layout.py.
+// The record layouts of layout.h, the violation check's of internal.h and the tables' config row
+// of tables.h, by the names the Python side reads them by (dua_mujoco._core.LAYOUT).
 #include "layout.h"
 
 #include "dua/dua.h"
 #include "internal.h"
-#include "plugin_tables.h"
+#include "tables.h"
 
 namespace {
 
@@ -96,22 +96,22 @@ constexpr Entry kEntries[] = {
     {"P_EXTRA", dua::kParamExtra},
     {"P_BACKOFF", dua::kParamBackoff},
     {"NPARAMS", dua::kNParams},
-    {"CFG_ABI", dua::kCfgAbi},
+    {"CFG_VERSION", dua::kCfgVersion},
     {"CFG_KIND", dua::kCfgKind},
     {"CFG_DT", dua::kCfgDt},
     {"CFG_LATENCY", dua::kCfgLatency},
+    {"CFG_SLOTS_PER_BUCKET", dua::kCfgSlotsPerBucket},
+    {"CFG_CAP", dua::kCfgCap},
+    {"CFG_MAX_INTERVAL", dua::kCfgMaxInterval},
+    {"CFG_BACKOFF", dua::kCfgBackoff},
+    {"CFG_THRESHOLD", dua::kCfgThreshold},
     {"CFG_TIMESTEP", dua::kCfgTimestep},
-    {"CFG_ROWS", dua::kCfgRows},
-    {"CFG_NSLOTS", dua::kCfgNslots},
-    {"CFG_NQUEUE", dua::kCfgNqueue},
     {"CFG_EXACT_ON", dua::kCfgExactOn},
     {"CFG_EXACT_BELOW", dua::kCfgExactBelow},
     {"CFG_QUERY_BELOW", dua::kCfgQueryBelow},
-    {"CFG_PARAMS", dua::kCfgParams},
     {"CFG_NGEOM", dua::kCfgNgeom},
     {"CFG_NBODY", dua::kCfgNbody},
     {"CFG_SHAPE", dua::kCfgShape},
-    {"CFG_WIDTH", dua::kCfgWidth},
     {"CFG_PRUNED", dua::kCfgPruned},
     {"CFG_HORIZON", dua::kCfgHorizon},
     {"CFG_MARGIN", dua::kCfgMargin},

@@ -15,7 +15,7 @@
 namespace dua {
 
 // What the pruned pairs read of the model's tables, derived once and shared by every mjData.
-struct PrunedTables {
+struct DUA_API PrunedTables {
   int64_t nsphere = 0;
   int64_t stride = 0;                               // steps between rebuilds
   double horizon = 0.0;                             // the reach's horizon T, seconds
@@ -30,7 +30,7 @@ struct PrunedTables {
 };
 
 // Each mjData's anchors and the grid's buffers.
-struct PrunedState {
+struct DUA_API PrunedState {
   std::vector<double> anchor, speed0, reach;
   std::vector<int64_t> built;
   std::vector<int64_t> escapes;  // found by the latest step, renewed at the next

@@ -4,7 +4,10 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <string>
 #include <vector>
+
+#include "schedule.h"
 
 #include "dua/dua.h"
 #include "internal.h"
@@ -443,3 +446,170 @@ void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, 
 }
 
 }  // extern "C"
+
+namespace dua {
+namespace {
+
+// Pairs switched back on evaluated per step beyond the rank schedule's regular slots.
+constexpr int64_t kSpare = 256;
+
+int64_t BitLength(int64_t v) {
+  int64_t bits = 0;
+  while (v > 0) ++bits, v >>= 1;
+  return bits;
+}
+
+}  // namespace
+
+std::string ScheduleSpec::Check() const {
+  if (kind != kRank && kind != kDeadline && kind != kAll) {
+    return "the schedule's kind (0 rank, 1 deadline, 2 select-all)";
+  }
+  if (!(dt > 0.0) || !std::isfinite(dt)) return "the period dt (finite, > 0)";
+  if (latency < 0 || latency > (int64_t{1} << 40)) return "the latency (an int >= 0)";
+  if (slots_per_bucket < 1 || (slots_per_bucket & (slots_per_bucket - 1)) != 0 ||
+      slots_per_bucket > (int64_t{1} << 40)) {
+    return "slots_per_bucket (a power of two >= 1)";
+  }
+  if (cap < 0) return "the evaluation cap (an int >= 0, 0: none)";
+  if (max_interval < 1 || max_interval > (int64_t{1} << 30)) {
+    return "max_interval (an int in [1, 2^30])";
+  }
+  if (backoff < 1) return "alarm_backoff (an int >= 1)";
+  if (std::isnan(threshold)) return "the select-all threshold (not NaN)";
+  return "";
+}
+
+void Schedule::Size(int64_t m) {
+  const ScheduleSpec& s = spec_;
+  int64_t rows = 2, nslots = 0, nqueue = 0, width = m;
+  params.assign(kNParams, 0);
+  if (s.kind == kRank) {
+    // L = ceil(log2(m + 1)) buckets (at least one) of 2^k slots; bucket k's slots are visited
+    // every I_k = max(1, 2^k / q) steps.
+    int64_t nbuckets = std::max<int64_t>(1, BitLength(m));
+    nslots = (int64_t{1} << nbuckets) - 1;
+    nqueue = m;
+    width = 0;
+    horizon.resize(nbuckets);
+    for (int64_t k = 0; k < nbuckets; ++k) {
+      const int64_t size = int64_t{1} << k;
+      width += std::min(s.slots_per_bucket, size);
+      const int64_t interval = std::max<int64_t>(1, size / s.slots_per_bucket);
+      horizon[k] = static_cast<double>(interval + s.latency) * s.dt;
+    }
+    width += std::min(m, kSpare);
+    params[kParamNBuckets] = nbuckets;
+    params[kParamSlotsPerBucket] = s.slots_per_bucket;
+  } else if (s.kind == kDeadline) {
+    rows = 4;
+    nslots = int64_t{1} << BitLength(s.max_interval);  // a power of two > max_interval
+    horizon.assign(1, static_cast<double>(1 + s.latency) * s.dt);
+    params[kParamWheel] = nslots;
+    params[kParamMaxInterval] = s.max_interval;
+    params[kParamCap] = s.cap;
+    params[kParamBackoff] = std::min(s.backoff, s.max_interval);
+  } else {
+    horizon.assign(1, s.threshold);
+  }
+  width = std::max<int64_t>(width, 1);
+  last_tau.assign(m, 0.0);
+  active.assign(m, 1);
+  ints.assign(static_cast<size_t>(rows * m), s.kind == kDeadline ? -1 : 0);
+  slots.assign(nslots, -1);
+  queue.assign(nqueue + 1, 0);
+  work.assign(static_cast<size_t>(4 * width), 0);
+  w_tau.assign(width, 0.0);
+  Point();
+}
+
+void Schedule::Point() {
+  dua_schedule& v = view_;
+  v.kind = spec_.kind;
+  v.dt = spec_.dt;
+  v.latency = spec_.latency;
+  v.m = m();
+  v.last_tau = last_tau.data();
+  v.active = active.data();
+  v.ints = ints.data();
+  v.slots = slots.data();
+  v.nslots = static_cast<int64_t>(slots.size());
+  v.horizon = horizon.data();
+  v.queue = queue.data();
+  v.nqueue = static_cast<int64_t>(queue.size());
+  v.params = params.data();
+  v.work = work.data();
+  v.width = width();
+  v.w_tau = w_tau.data();
+}
+
+Schedule::Schedule(const ScheduleSpec& spec, int64_t m) : spec_(spec) { Size(m); }
+
+Schedule::Schedule(const ScheduleSpec& spec, const std::vector<double>& tau0,
+                   const std::vector<uint8_t>& on)
+    : spec_(spec) {
+  const auto m = static_cast<int64_t>(tau0.size());
+  Size(m);
+  last_tau = tau0;
+  if (!on.empty()) active = on;
+  Point();
+  if (spec_.kind == kDeadline) {
+    std::fill(ints.begin() + m, ints.begin() + 2 * m, 0);  // LAST_STEP: the classification
+    dua_deadline_classify(&view_);
+  } else if (spec_.kind == kRank) {
+    dua_rank_classify(&view_);
+  }
+}
+
+Schedule::Schedule(const Schedule& other)
+    : last_tau(other.last_tau),
+      w_tau(other.w_tau),
+      horizon(other.horizon),
+      active(other.active),
+      ints(other.ints),
+      slots(other.slots),
+      queue(other.queue),
+      params(other.params),
+      work(other.work),
+      step_count(other.step_count),
+      activation_changes(other.activation_changes),
+      spec_(other.spec_) {
+  Point();
+}
+
+Schedule& Schedule::operator=(const Schedule& other) {
+  if (this != &other) *this = Schedule(other);  // the move keeps the buffers it points at
+  return *this;
+}
+
+std::vector<int64_t> Schedule::InitialAlarms() const {
+  std::vector<int64_t> out;
+  for (int64_t p = 0; p < m(); ++p) {
+    if (Stands(p)) out.push_back(p);
+  }
+  return out;
+}
+
+double Schedule::HorizonOf(int64_t p) const {
+  if (spec_.kind == kRank) return horizon[BucketOf(ints[kIntWhere * m() + p])];
+  if (spec_.kind == kDeadline) {
+    const int64_t where = ints[kIntWhere * m() + p], last = ints[kIntLastStep * m() + p];
+    if (where < 0) return -std::numeric_limits<double>::infinity();
+    return static_cast<double>(where - last + spec_.latency) * spec_.dt;
+  }
+  return horizon[0];
+}
+
+bool Schedule::Stands(int64_t p) const {
+  return active[p] && last_tau[p] < HorizonOf(p);
+}
+
+void Schedule::Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n) {
+  params = old.params;
+  params[kParamCount] = params[kParamDeferred] = 0;
+  step_count = old.step_count;
+  activation_changes = old.activation_changes + 1;
+  dua_deadline_carry(old.state(), &view_, src.data(), static_cast<int64_t>(src.size()), n);
+}
+
+}  // namespace dua

@@ -505,35 +505,59 @@ inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
   out[3] = state[3], out[4] = state[4], out[5] = state[5];
 }
 
-// tau of held pairs ids[0:count] into out: each pair's state in 12 numbers (sphere i's centre
-// and velocity, then sphere j's, or the plane's normal and offset, zeros for a static shape),
-// then its tau, the sphere pairs packed into rows and evaluated four at a time. Returns -1, or
-// the first pair (in ids's order) whose state is not finite.
-int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows, double* out) {
-  const dua_frame& f = a.frame;
-  // A sphere is in several of the batch's pairs: its state is read from MjData once. A new
-  // epoch each batch, since MjData may have moved on between two (PointOf).
-  ++a.epoch;
+// The states a batch of pairs is evaluated on: each sphere's centre and velocity, and a
+// half-space pair's plane (its unit normal and offset), read from MjData (FramePoints) or given
+// as arrays (FreePoints: spheres not on MuJoCo bodies, the paper's setting).
+struct FramePoints {
+  dua_step_args& a;
+  void Point(int64_t i, double* out) const { PointOf(a, i, out); }
+  // The plane geom of the pair (its z axis is the outward normal, through its origin).
+  void Plane(const double* rec, double* out) const {
+    const int64_t g = static_cast<int64_t>(rec[kPairOther]);
+    const double* m = a.frame.mat + 9 * g;
+    const double* p = a.frame.pos + 3 * g;
+    out[0] = m[2], out[1] = m[5], out[2] = m[8];
+    out[3] = out[0] * p[0] + out[1] * p[1] + out[2] * p[2];
+  }
+};
+
+struct FreePoints {
+  const double* centers;     // (nsphere, 3)
+  const double* velocities;  // (nsphere, 3)
+  const double* planes;      // (nplane, 4): normal, offset
+  void Point(int64_t i, double* out) const {
+    out[0] = centers[3 * i], out[1] = centers[3 * i + 1], out[2] = centers[3 * i + 2];
+    out[3] = velocities[3 * i], out[4] = velocities[3 * i + 1], out[5] = velocities[3 * i + 2];
+  }
+  void Plane(const double* rec, double* out) const {
+    const double* q = planes + 4 * static_cast<int64_t>(rec[kPairSecond]);
+    out[0] = q[0], out[1] = q[1], out[2] = q[2], out[3] = q[3];
+  }
+};
+
+// tau of pairs ids[0:count] (records `pairs`) into out: each pair's state in 12 numbers (sphere
+// i's centre and velocity, then sphere j's, or the plane's normal and offset, zeros for a static
+// shape), then its tau, the sphere pairs packed into rows and evaluated four at a time. Returns
+// -1, or the first pair (in ids's order) whose state is not finite.
+template <class Points>
+int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
+                const int64_t* ids, int64_t count, double* rows, double* out) {
   // One pass: planes and static shapes get their tau here; sphere pairs are packed to the
   // front of rows as TauSpeedRows reads them (relative state and bounds, then k), so that they
   // are evaluated four at a time.
   int64_t n = 0;
   for (int64_t k = 0; k < count; ++k) {
-    const double* rec = a.pairs + ids[k] * kPairNcol;
+    const double* rec = pairs + ids[k] * kPairNcol;
     double s[12];
-    PointOf(a, static_cast<int64_t>(rec[kPairFirst]), s);
+    points.Point(static_cast<int64_t>(rec[kPairFirst]), s);
     const int kind = static_cast<int>(rec[kPairKind]);
     if (kind == kKindHalfspace) {
-      const int64_t g = static_cast<int64_t>(rec[kPairOther]);
-      const double* m = f.mat + 9 * g;
-      const double* p = f.pos + 3 * g;
-      s[6] = m[2], s[7] = m[5], s[8] = m[8];
-      s[9] = s[6] * p[0] + s[7] * p[1] + s[8] * p[2];
+      points.Plane(rec, s + 6);
       s[10] = 0.0, s[11] = 0.0;
     } else if (kind == kKindShape) {
       s[6] = s[7] = s[8] = s[9] = s[10] = s[11] = 0.0;
     } else {
-      PointOf(a, static_cast<int64_t>(rec[kPairSecond]), s + 6);
+      points.Point(static_cast<int64_t>(rec[kPairSecond]), s + 6);
     }
     double total = 0.0;
     for (int j = 0; j < 12; ++j) total += s[j];
@@ -544,7 +568,7 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
       out[k] = TauHalfspace(gap, vn, rec[kPairAccel], rec[kPairDelta]);
     } else if (kind == kKindShape) {
       out[k] = TauStatic(s[0], s[1], s[2], s[3], s[4], s[5],
-                         a.shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol,
+                         shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol,
                          rec[kPairEps], rec[kPairAccel], rec[kPairDelta]);
     } else {
       double* row = rows + 12 * n++;
@@ -555,6 +579,16 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
   }
   TauSpeedRows(n, rows, 12, rows + 11, 12);
   for (int64_t i = 0; i < n; ++i) out[static_cast<int64_t>(rows[12 * i + 10])] = rows[12 * i + 11];
+  return -1;
+}
+
+// TauRows of held pairs on a's frame, then the exact level.
+int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows, double* out) {
+  // A sphere is in several of the batch's pairs: its state is read from MjData once. A new
+  // epoch each batch, since MjData may have moved on between two (PointOf).
+  ++a.epoch;
+  const int64_t bad = TauRows(a.pairs, a.shapes, FramePoints{a}, ids, count, rows, out);
+  if (bad >= 0) return bad;
   ExactPass(a, ids, count, out);
   return -1;
 }
@@ -566,6 +600,13 @@ extern "C" {
 
 void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, double* out) {
   dua::RigidPoint(i, spheres, dua::kSphereNcol, *f, out);
+}
+
+int64_t dua_tau_free(const double* pairs, const double* shapes, const double* centers,
+                     const double* velocities, const double* planes, const int64_t* ids,
+                     int64_t count, double* rows, double* out) {
+  return dua::TauRows(pairs, shapes, dua::FreePoints{centers, velocities, planes}, ids, count,
+                      rows, out);
 }
 
 int64_t dua_violation_pass(dua_step_args* a, int64_t n) {

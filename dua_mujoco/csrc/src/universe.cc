@@ -76,6 +76,7 @@ std::string Universe::Index(const std::vector<double>& spheres, int64_t ngeom) {
     const auto first = static_cast<int64_t>(rec[kPairFirst]);
     const auto g = static_cast<int64_t>(spheres[kSphereNcol * first + kSphereFrame]);
     const int64_t a = geom_pairs[2 * gp], b = geom_pairs[2 * gp + 1];
+    if (g != a && g != b) return "the pair records (a first sphere not on its geom pair)";
     geom1[p] = g;
     geom2[p] = g == a ? b : a;
     if (rec[kPairKind] != kKindSphere) {
@@ -86,6 +87,9 @@ std::string Universe::Index(const std::vector<double>& spheres, int64_t ngeom) {
       return "the pair records";
     }
     const auto second = static_cast<int64_t>(rec[kPairSecond]);
+    if (static_cast<int64_t>(spheres[kSphereNcol * second + kSphereFrame]) != geom2[p]) {
+      return "the pair records (a second sphere not on its geom pair)";
+    }
     keyed.emplace_back(std::min(first, second) * nsphere + std::max(first, second), p);
   }
   codes.clear(), code_ids.clear();

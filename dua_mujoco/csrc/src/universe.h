@@ -13,7 +13,7 @@
 namespace dua {
 
 // What learning a pair reads, per geom, sphere and body (dua_mujoco.attach writes it).
-struct LearnTables {
+struct DUA_API LearnTables {
   // MuJoCo's filter (FilterTables): the arrays and the struct pointing at them.
   std::vector<int64_t> body, weld, parent_weld, contype, conaffinity, exclude;
   std::vector<uint8_t> movable, lone;
@@ -36,7 +36,7 @@ struct LearnTables {
   void Point();  // the filter struct at the arrays
 };
 
-struct Universe {
+struct DUA_API Universe {
   std::vector<double> pairs;             // (npair, 8) packed records
   std::vector<double> exact;             // (npair, 10) the exact level's records as built
   std::vector<int64_t> pair_geom;        // (npair,) geom pair of each

@@ -182,8 +182,28 @@ DUA_API int64_t dua_check_bodies(dua_step_args* a, int64_t lanes);
 DUA_API int64_t dua_exceeds12(double a0, double a1, double a2, double x0, double x1, double x2,
                               double y0, double y1, double y2, double z0, double z1, double z2,
                               double bound);
+// tau of pairs ids[0:count] (pair records (K, 8)) on free spheres: centres and velocities
+// (nsphere, 3), half-spaces planes (nplane, 4) (unit normal, offset; a pair's second member is
+// its row), static shape records (nshape, 16); rows (count, 12) is scratch. The same values as
+// the step computes from MjData. Returns -1, or the first k whose state is not finite.
+DUA_API int64_t dua_tau_free(const double* pairs, const double* shapes, const double* centers,
+                             const double* velocities, const double* planes, const int64_t* ids,
+                             int64_t count, double* rows, double* out);
 // Centre and velocity of sphere i: out[0:6].
 DUA_API void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, double* out);
+
+// The run monitor's bound check over n points (sphere records (n, 8) on frame f): rows of prev
+// and cur (n, 9) are [centre, velocity read, discrete velocity (c - c_prev) / h]; cur is written.
+// nprev earlier updates (0, 1, 2+) are reflected in prev. values (n, 3) receive the chord speed,
+// the one-step discrepancy |u - w_prev| and the discrete acceleration |u - u_prev| / h; broken
+// (n, 3) which exceeded their bounds (accel, disc_bound (n,), speed_bound (n,) or null for none;
+// the discrepancy only where check_disc[i]), with a relative tolerance rtol and the round-off of
+// the differences. Returns how many (point, check) broke.
+DUA_API int64_t dua_check_points(const double* points, int64_t n, const dua_frame* f,
+                                 const double* prev, double* cur, int64_t nprev, double h,
+                                 const double* accel, const double* disc_bound,
+                                 const double* speed_bound, const uint8_t* check_disc, double rtol,
+                                 double* values, uint8_t* broken);
 
 // Backward-difference velocities of mocap bodies bodies[0:n] (poses xpos (nbody, 3), xquat
 // (nbody, 4)) against prev_pos (n, 3), prev_quat (n, 4), which are updated; linear and angular

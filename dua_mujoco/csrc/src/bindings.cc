@@ -1,0 +1,1066 @@
+// dua_mujoco._core: the native core as Python sees it (nanobind). The predictor's runtime
+// (runtime.h) behind dua_mujoco.Predictor, the schedules behind dua_mujoco.core.schedules, and
+// the kernels the Python side builds tables with or tests hold to their references. Python
+// checks the arguments it hands over (shapes, ranges, names in errors); this module checks
+// again every index it follows, so that no call can read out of bounds.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/shared_ptr.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "bindings.h"
+#include "dua/dua.h"
+#include "internal.h"
+#include "layout.h"
+#include "runtime.h"
+#include "schedule.h"
+#include "tables.h"
+
+using nb::literals::operator""_a;
+
+namespace dua {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Sphere records (n, 8) whose every index points inside m.
+void CheckSphereRecords(const mjModel* m, const In<double>& spheres) {
+  const int64_t n = Size(spheres) / kSphereNcol;
+  Require(Size(spheres) == n * kSphereNcol, "sphere records must be (n, 8)");
+  const double* s = spheres.data();
+  for (int64_t i = 0; i < n; ++i) {
+    const double* r = s + kSphereNcol * i;
+    const bool ok = r[kSphereFrame] >= 0 && r[kSphereFrame] < m->ngeom && r[kSphereBody] >= 0 &&
+                    r[kSphereBody] < m->nbody && r[kSphereRoot] >= 0 && r[kSphereRoot] < m->nbody;
+    Require(ok, "sphere record " + std::to_string(i) + " indexes outside the model (" +
+                    std::to_string(m->ngeom) + " geoms, " + std::to_string(m->nbody) +
+                    " bodies): pass the MjData of the model the spheres were built for");
+  }
+}
+
+// ------------------------------------------------------------------------------- kernels
+
+Out<double> TauSpeedBatch(const In<double>& x, const In<double>& v, const In<double>& eps,
+                          const In<double>& accel, const In<double>& delta,
+                          const In<double>& speed) {
+  const int64_t m = Size(x) / 3;
+  Require(Size(v) == 3 * m, "x and v must both be (m, 3)");
+  int64_t per_pair = 0;
+  const In<double>* params[4] = {&eps, &accel, &delta, &speed};
+  for (int k = 0; k < 4; ++k) {
+    Require(Size(*params[k]) == 1 || Size(*params[k]) == m, "a bound must hold 1 or m entries");
+    if (Size(*params[k]) != 1 || m == 1) per_pair |= Size(*params[k]) == m ? (1 << k) : 0;
+  }
+  std::vector<double> out(m);
+  // Large batches on two threads (the kernel is four pairs at a time within each).
+  const int64_t threads = m >= 1 << 16 ? 2 : 1;
+  auto run = [&](int64_t i0, int64_t i1) {
+    auto at = [&](int k) { return params[k]->data() + ((per_pair >> k) & 1 ? i0 : 0); };
+    dua_tau_speed_batch(i1 - i0, x.data() + 3 * i0, v.data() + 3 * i0, at(0), at(1), at(2), at(3),
+                        per_pair, out.data() + i0);
+  };
+  {
+    nb::gil_scoped_release release;
+    if (threads == 1) {
+      run(0, m);
+    } else {
+      const int64_t half = m / 2 / 4 * 4;
+      std::thread other(run, half, m);
+      run(0, half);
+      other.join();
+    }
+  }
+  return Owned(std::move(out), {static_cast<size_t>(m)});
+}
+
+Out<double> TauHalfspaceBatch(const In<double>& gap, const In<double>& vn, const In<double>& accel,
+                              const In<double>& delta) {
+  const int64_t m = std::max({Size(gap), Size(vn), Size(accel), Size(delta)});
+  for (const In<double>* a : {&gap, &vn, &accel, &delta}) {
+    Require(Size(*a) == 1 || Size(*a) == m, "each argument must hold 1 or m entries");
+  }
+  auto at = [m](const In<double>& a, int64_t i) { return a.data()[Size(a) == m ? i : 0]; };
+  std::vector<double> out(m);
+  for (int64_t i = 0; i < m; ++i) {
+    out[i] = dua_tau_halfspace(at(gap, i), at(vn, i), at(accel, i), at(delta, i));
+  }
+  return Owned(std::move(out), {static_cast<size_t>(m)});
+}
+
+void CheckShapes(const In<double>& shapes) {
+  const int64_t n = Size(shapes) / kShapeNcol;
+  Require(Size(shapes) == n * kShapeNcol, "shape records must be (n, 16)");
+  for (int64_t i = 0; i < n; ++i) {
+    const double k = shapes.data()[kShapeNcol * i + kShapeKind];
+    Require(k >= kGeomSphere && k <= kGeomMeshBox, "shape record " + std::to_string(i) +
+                                                      " has no known kind");
+  }
+}
+
+// tau of points (n, 3) with velocities (n, 3) against static shapes ids[k] (n,).
+Out<double> TauStaticBatch(const In<double>& c, const In<double>& v, const In<double>& shapes,
+                           const In<int64_t>& ids, const In<double>& eps, const In<double>& accel,
+                           const In<double>& delta) {
+  CheckShapes(shapes);
+  const int64_t n = Size(ids), nshape = Size(shapes) / kShapeNcol;
+  Require(Size(c) == 3 * n && Size(v) == 3 * n, "centres and velocities must be (n, 3)");
+  auto at = [n](const In<double>& a, int64_t i) { return a.data()[Size(a) == n ? i : 0]; };
+  for (const In<double>* a : {&eps, &accel, &delta}) {
+    Require(Size(*a) == 1 || Size(*a) == n, "a bound must hold 1 or n entries");
+  }
+  std::vector<double> out(n);
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t s = ids.data()[k];
+    Require(s >= 0 && s < nshape, "a shape id is out of range");
+    const double* p = c.data() + 3 * k;
+    const double* q = v.data() + 3 * k;
+    out[k] = dua_tau_static(p[0], p[1], p[2], q[0], q[1], q[2], shapes.data() + kShapeNcol * s,
+                            at(eps, k), at(accel, k), at(delta, k));
+  }
+  return Owned(std::move(out), {static_cast<size_t>(n)});
+}
+
+// One shape kernel over points: fn(point, record, out) with `width` outputs a point.
+template <class Fn>
+Out<double> OverPoints(const In<double>& points, const In<double>& shapes, const In<int64_t>& ids,
+                       int width, Fn fn) {
+  CheckShapes(shapes);
+  const int64_t n = Size(ids), nshape = Size(shapes) / kShapeNcol;
+  Require(Size(points) == 3 * n, "points must be (n, 3), one a shape id");
+  std::vector<double> out(static_cast<size_t>(width * n));
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t s = ids.data()[k];
+    Require(s >= 0 && s < nshape, "a shape id is out of range");
+    fn(points.data() + 3 * k, shapes.data() + kShapeNcol * s, out.data() + width * k);
+  }
+  if (width == 1) return Owned(std::move(out), {static_cast<size_t>(n)});
+  return Owned(std::move(out), {static_cast<size_t>(n), static_cast<size_t>(width)});
+}
+
+// tau of pairs ids (K,) of free spheres (the paper's setting): pair records (M, 8).
+std::pair<Out<double>, int64_t> TauFree(const In<double>& pairs, const In<int64_t>& ids,
+                                        const In<double>& centers, const In<double>& velocities,
+                                        const In<double>& planes, const In<double>& shapes) {
+  const int64_t m = Size(pairs) / kPairNcol, n = Size(ids);
+  const int64_t nsphere = Size(centers) / 3, nplane = Size(planes) / 4;
+  const int64_t nshape = Size(shapes) / kShapeNcol;
+  Require(Size(velocities) == 3 * nsphere, "centres and velocities must be (n, 3) alike");
+  for (int64_t p = 0; p < m; ++p) {
+    const double* r = pairs.data() + kPairNcol * p;
+    const double kind = r[kPairKind];
+    const bool ok = r[kPairFirst] >= 0 && r[kPairFirst] < nsphere &&
+                    ((kind == kKindSphere && r[kPairSecond] >= 0 && r[kPairSecond] < nsphere) ||
+                     (kind == kKindHalfspace && r[kPairSecond] >= 0 && r[kPairSecond] < nplane) ||
+                     (kind == kKindShape && r[kPairOther] >= 0 && r[kPairOther] < nshape));
+    Require(ok, "pair record " + std::to_string(p) + " indexes outside the spheres, planes or "
+                                                     "shapes given");
+  }
+  for (int64_t k = 0; k < n; ++k) {
+    Require(ids.data()[k] >= 0 && ids.data()[k] < m, "a pair id is out of range");
+  }
+  std::vector<double> out(n), rows(12 * static_cast<size_t>(std::max<int64_t>(n, 1)));
+  const int64_t bad = dua_tau_free(pairs.data(), shapes.data(), centers.data(), velocities.data(),
+                                   planes.data(), ids.data(), n, rows.data(), out.data());
+  return {Owned(std::move(out), {static_cast<size_t>(n)}), bad};
+}
+
+// ------------------------------------------------------------------------------- kinematics
+
+Out<double> SphereStates(nb::handle model, nb::handle data, const In<double>& spheres,
+                         const In<double>& root_twist, const In<int64_t>& ids) {
+  const mjModel* m = ModelOf(model);
+  const mjData* d = DataOf(data);
+  CheckSphereRecords(m, spheres);
+  Require(Size(root_twist) == 6 * m->nbody, "root_twist must be (nbody, 6)");
+  const int64_t nsphere = Size(spheres) / kSphereNcol, n = Size(ids);
+  const dua_frame f = FrameOf(d, root_twist.data());
+  std::vector<double> out(6 * static_cast<size_t>(n));
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t i = ids.data()[k];
+    Require(i >= 0 && i < nsphere, "sphere ids must lie in [0, " + std::to_string(nsphere) + ")");
+    dua_rigid_point(i, spheres.data(), &f, out.data() + 6 * k);
+  }
+  return Owned(std::move(out), {static_cast<size_t>(n), 6});
+}
+
+int64_t CheckPoints(nb::handle model, nb::handle data, const In<double>& points,
+                    const In<double>& root_twist, const In<double>& prev, InOut<double> cur,
+                    int64_t nprev, double h, const In<double>& accel, const In<double>& disc,
+                    const In<double>& speed, const In<uint8_t>& check_disc, double rtol,
+                    InOut<double> values, InOut<uint8_t> broken) {
+  const mjModel* m = ModelOf(model);
+  CheckSphereRecords(m, points);
+  const int64_t n = Size(points) / kSphereNcol;
+  Require(Size(root_twist) == 6 * m->nbody, "root_twist must be (nbody, 6)");
+  Require(Size(prev) == 9 * n && static_cast<int64_t>(cur.size()) == 9 * n &&
+              Size(accel) == n && Size(disc) == n && (Size(speed) == 0 || Size(speed) == n) &&
+              Size(check_disc) == n && static_cast<int64_t>(values.size()) == 3 * n &&
+              static_cast<int64_t>(broken.size()) == 3 * n,
+          "the check's arrays do not fit its points");
+  const dua_frame f = FrameOf(DataOf(data), root_twist.data());
+  return dua_check_points(points.data(), n, &f, prev.data(), cur.data(), nprev, h, accel.data(),
+                          disc.data(), Size(speed) ? speed.data() : nullptr, check_disc.data(),
+                          rtol, values.data(), broken.data());
+}
+
+// ------------------------------------------------------------------------------- pair filter
+
+// MuJoCo's pair filter over per-geom arrays (dua_mujoco/mj/pairfilter.py's FilterTables).
+struct Filter {
+  std::vector<int64_t> body, weld, parent_weld, contype, conaffinity, exclude;
+  std::vector<uint8_t> movable, lone;
+  dua_filter f{};
+
+  Filter(const In<int64_t>& b, const In<int64_t>& w, const In<int64_t>& pw, const In<uint8_t>& mv,
+         const In<int64_t>& ct, const In<int64_t>& ca, const In<uint8_t>& ln,
+         const In<int64_t>& ex, bool filterparent)
+      : body(b.data(), b.data() + b.size()),
+        weld(w.data(), w.data() + w.size()),
+        parent_weld(pw.data(), pw.data() + pw.size()),
+        contype(ct.data(), ct.data() + ct.size()),
+        conaffinity(ca.data(), ca.data() + ca.size()),
+        exclude(ex.data(), ex.data() + ex.size()),
+        movable(mv.data(), mv.data() + mv.size()),
+        lone(ln.data(), ln.data() + ln.size()) {
+    const size_t n = body.size();
+    Require(weld.size() == n && parent_weld.size() == n && contype.size() == n &&
+                conaffinity.size() == n && movable.size() == n && lone.size() == n,
+            "the filter's per-geom arrays must have one entry a geom");
+    Require(std::is_sorted(exclude.begin(), exclude.end()), "exclude must be sorted");
+    f.ngeom = static_cast<int64_t>(n);
+    f.body = body.data(), f.weld = weld.data(), f.parent_weld = parent_weld.data();
+    f.movable = movable.data(), f.contype = contype.data(), f.conaffinity = conaffinity.data();
+    f.lone = lone.data(), f.exclude = exclude.data();
+    f.nexclude = static_cast<int64_t>(exclude.size());
+    f.filterparent = filterparent ? 1 : 0;
+  }
+
+  Out<bool> Mask(const In<int64_t>& g1, const In<int64_t>& g2) const {
+    const int64_t n = Size(g1);
+    Require(Size(g2) == n, "g1 and g2 must have the same length");
+    for (int64_t k = 0; k < n; ++k) {
+      Require(g1.data()[k] >= 0 && g1.data()[k] < f.ngeom && g2.data()[k] >= 0 &&
+                  g2.data()[k] < f.ngeom,
+              "a geom id is out of range");
+    }
+    std::vector<uint8_t> out(n);
+    dua_filter_mask(&f, g1.data(), g2.data(), n, out.data());
+    return OwnedBools(std::move(out));
+  }
+
+  std::pair<Out<int64_t>, Out<int64_t>> All() const {
+    const int64_t n = dua_filter_all(&f, nullptr, nullptr, 0);
+    std::vector<int64_t> g1(n), g2(n);
+    dua_filter_all(&f, g1.data(), g2.data(), n);
+    return {Owned(std::move(g1), {static_cast<size_t>(n)}),
+            Owned(std::move(g2), {static_cast<size_t>(n)})};
+  }
+
+  std::pair<int64_t, int64_t> Count(const In<int64_t>& weight) const {
+    Require(Size(weight) == f.ngeom, "weight must have one entry a geom");
+    int64_t weighted = 0;
+    const int64_t pairs = dua_filter_count(&f, weight.data(), &weighted);
+    return {pairs, weighted};
+  }
+
+  bool Any() const { return dua_filter_any(&f) != 0; }
+};
+
+// ------------------------------------------------------------------------------- grid, reach
+
+Out<int64_t> CandidatePairs(const In<double>& centers, const In<double>& reach, double margin) {
+  const int64_t n = Size(reach);
+  Require(Size(centers) == 3 * n, "centres must be (n, 3), one a reach");
+  if (n < 2) return Owned(std::vector<int64_t>{}, {0, 2});
+  double lo[3], hi[3];
+  Require(dua_grid_bounds(centers.data(), n, lo, hi) < 0,
+          "a centre is NaN, inf or beyond 1e150 m");
+  dua_grid_plan plan{};
+  std::vector<int64_t> held(256);
+  std::vector<double> work(n);
+  dua_grid_plan_of(reach.data(), n, margin, lo, hi, &plan, held.data(), work.data());
+  const int64_t ng = n - plan.nheld;
+  std::vector<int32_t> start(plan.nbucket + 1), sid(ng), found(n);
+  std::vector<double> sxyz(3 * ng), sr(ng);
+  std::vector<int64_t> cnt_a(n), cnt_b(n);
+  std::vector<uint8_t> is_held(n);
+  const dua_grid_work w{start.data(), sid.data(),   sxyz.data(),  sr.data(),
+                        cnt_a.data(), cnt_b.data(), found.data(), is_held.data()};
+  const int64_t k = dua_grid_count(&plan, centers.data(), reach.data(), n, margin, held.data(), &w);
+  std::vector<int32_t> tmp(k);
+  std::vector<int64_t> out(2 * k);
+  dua_grid_fill(&plan, centers.data(), reach.data(), n, margin, held.data(), &w, tmp.data(),
+                out.data());
+  return Owned(std::move(out), {static_cast<size_t>(k), 2});
+}
+
+Out<double> Reaches(const In<double>& radius, const In<double>& speed, const In<double>& accel,
+                    const In<double>& delta, const In<double>& vmax, double horizon) {
+  const int64_t n = Size(radius);
+  for (const In<double>* a : {&speed, &accel, &delta, &vmax}) {
+    Require(Size(*a) == n, "every array must hold one entry a sphere");
+  }
+  std::vector<double> out(n);
+  dua_reaches(radius.data(), speed.data(), accel.data(), delta.data(), vmax.data(), n, horizon,
+              out.data());
+  return Owned(std::move(out), {static_cast<size_t>(n)});
+}
+
+// The spheres of ids (n,) that may have left the reach from anchors (Lemma 6.4): the step's own
+// escape test (reach.cc), for free spheres.
+Out<int64_t> Escapes(const In<double>& anchor, const In<double>& speed0, const In<double>& accel,
+                     const In<double>& delta, const In<double>& vmax, const In<int64_t>& ids,
+                     const In<double>& centers, const In<double>& velocities,
+                     const In<double>& elapsed) {
+  const int64_t nsphere = Size(speed0), n = Size(ids);
+  Require(Size(anchor) == 3 * nsphere && Size(accel) == nsphere && Size(delta) == nsphere &&
+              Size(vmax) == nsphere,
+          "the reach's arrays must hold one entry (anchor: a row) a sphere");
+  Require(Size(centers) == 3 * n && Size(velocities) == 3 * n && Size(elapsed) == n,
+          "centres, velocities and elapsed times must have one row an id");
+  for (int64_t k = 0; k < n; ++k) {
+    Require(ids.data()[k] >= 0 && ids.data()[k] < nsphere, "a sphere id is out of range");
+  }
+  std::vector<double> none(nsphere, 0.0);
+  std::vector<int64_t> built(nsphere, 0);
+  dua_reach r{};
+  r.nsphere = nsphere;
+  r.radius = none.data();
+  r.accel = accel.data(), r.delta = delta.data(), r.speed = vmax.data();
+  r.anchor = const_cast<double*>(anchor.data());  // read only
+  r.speed0 = const_cast<double*>(speed0.data());
+  r.reach = none.data();
+  r.built = built.data();
+  std::vector<int64_t> out(std::max<int64_t>(n, 1));
+  const int64_t count = dua_escapes(&r, ids.data(), n, centers.data(), velocities.data(),
+                                    elapsed.data(), out.data());
+  out.resize(count);
+  return Owned(std::move(out), {static_cast<size_t>(count)});
+}
+
+// ------------------------------------------------------------------------------- pair tables
+
+nb::tuple SpherePairs(const In<int64_t>& g1, const In<int64_t>& g2, const In<double>& dist,
+                      const In<int64_t>& index, const In<int64_t>& start, const In<int64_t>& plane,
+                      const In<int64_t>& shape, const In<double>& radius) {
+  const int64_t ngp = Size(g1), ngeom = Size(plane), nsphere = Size(radius);
+  Require(Size(g2) == ngp && Size(dist) == ngp && Size(index) == ngp,
+          "the geom pairs' arrays must have one entry a pair");
+  Require(Size(start) == ngeom + 1 && Size(shape) == ngeom, "per-geom arrays of the covering");
+  for (int64_t k = 0; k < ngp; ++k) {
+    Require(g1.data()[k] >= 0 && g1.data()[k] < ngeom && g2.data()[k] >= 0 &&
+                g2.data()[k] < ngeom,
+            "a geom id is out of range");
+  }
+  for (int64_t g = 0; g <= ngeom; ++g) {
+    Require(start.data()[g] >= 0 && start.data()[g] <= nsphere &&
+                (g == 0 || start.data()[g] >= start.data()[g - 1]),
+            "geom_sphere_start must increase within the spheres");
+  }
+  const int64_t n = dua_sphere_pairs(g1.data(), g2.data(), dist.data(), index.data(), ngp,
+                                     start.data(), plane.data(), shape.data(), radius.data(), 0,
+                                     nullptr, nullptr, nullptr, nullptr, nullptr);
+  std::vector<int64_t> first(n), second(n), gp(n);
+  std::vector<int8_t> kind(n);
+  std::vector<double> eps(n);
+  dua_sphere_pairs(g1.data(), g2.data(), dist.data(), index.data(), ngp, start.data(),
+                   plane.data(), shape.data(), radius.data(), n, first.data(), second.data(),
+                   kind.data(), gp.data(), eps.data());
+  const auto sn = static_cast<size_t>(n);
+  return nb::make_tuple(Owned(std::move(first), {sn}), Owned(std::move(second), {sn}),
+                        Owned(std::move(kind), {sn}), Owned(std::move(gp), {sn}),
+                        Owned(std::move(eps), {sn}));
+}
+
+nb::tuple PairBounds(const In<int64_t>& first, const In<int64_t>& second, const In<int8_t>& kind,
+                     const In<int64_t>& sphere_body, const In<double>& accel,
+                     const In<double>& delta, nb::object speed) {
+  const int64_t n = Size(first), nsphere = Size(sphere_body), nbody = Size(accel);
+  Require(Size(second) == n && Size(kind) == n, "first, second and kind must match");
+  Require(Size(delta) == nbody, "accel and delta must have one entry a body");
+  for (int64_t i = 0; i < nsphere; ++i) {
+    Require(sphere_body.data()[i] >= 0 && sphere_body.data()[i] < nbody, "a body is out of range");
+  }
+  for (int64_t p = 0; p < n; ++p) {
+    Require(first.data()[p] >= 0 && first.data()[p] < nsphere &&
+                (kind.data()[p] != kKindSphere ||
+                 (second.data()[p] >= 0 && second.data()[p] < nsphere)),
+            "a sphere id is out of range");
+  }
+  In<double> spd;
+  const double* speed_ptr = nullptr;
+  if (!speed.is_none()) {
+    spd = nb::cast<In<double>>(speed);
+    Require(Size(spd) == nbody, "speed must have one entry a body");
+    speed_ptr = spd.data();
+  }
+  std::vector<double> a(n), d(n), s(n);
+  dua_pair_bounds(first.data(), second.data(), kind.data(), n, sphere_body.data(), accel.data(),
+                  delta.data(), speed_ptr, a.data(), d.data(), s.data());
+  const auto sn = static_cast<size_t>(n);
+  return nb::make_tuple(Owned(std::move(a), {sn}), Owned(std::move(d), {sn}),
+                        Owned(std::move(s), {sn}));
+}
+
+std::pair<Out<double>, Out<double>> ContactDistance(const In<double>& margin,
+                                                    const In<double>& gap, const In<int64_t>& g1,
+                                                    const In<int64_t>& g2, bool override_margin,
+                                                    double o_margin) {
+  const int64_t n = Size(g1), ngeom = Size(margin);
+  Require(Size(g2) == n && Size(gap) == ngeom, "per-geom margins and gaps, per-pair geoms");
+  for (int64_t k = 0; k < n; ++k) {
+    Require(g1.data()[k] >= 0 && g1.data()[k] < ngeom && g2.data()[k] >= 0 &&
+                g2.data()[k] < ngeom,
+            "a geom id is out of range");
+  }
+  std::vector<double> m(n), g(n);
+  dua_contact_distance(margin.data(), gap.data(), g1.data(), g2.data(), n, override_margin ? 1 : 0,
+                       o_margin, m.data(), g.data());
+  const auto sn = static_cast<size_t>(n);
+  return {Owned(std::move(m), {sn}), Owned(std::move(g), {sn})};
+}
+
+Out<double> ExactRows(const In<double>& geoms, const In<int64_t>& geom1, const In<int64_t>& geom2,
+                      const In<int8_t>& kind, const In<double>& dist) {
+  const int64_t n = Size(geom1), ngeom = Size(geoms) / kGxNcol;
+  Require(Size(geoms) == ngeom * kGxNcol, "geom records must be (ngeom, 24)");
+  Require(Size(geom2) == n && Size(kind) == n && Size(dist) == n, "per-pair arrays must match");
+  for (int64_t p = 0; p < n; ++p) {
+    Require(geom1.data()[p] >= 0 && geom1.data()[p] < ngeom && geom2.data()[p] >= 0 &&
+                geom2.data()[p] < ngeom,
+            "a geom id is out of range");
+  }
+  std::vector<double> out(static_cast<size_t>(kXNcol * n));
+  dua_exact_rows(geoms.data(), geom1.data(), geom2.data(), kind.data(), dist.data(), n,
+                 out.data());
+  return Owned(std::move(out), {static_cast<size_t>(n), static_cast<size_t>(kXNcol)});
+}
+
+// ------------------------------------------------------------------------------- schedules
+
+ScheduleSpec SpecOf(int64_t kind, double dt, int64_t latency, int64_t slots_per_bucket,
+                    int64_t cap, int64_t max_interval, int64_t backoff, double threshold) {
+  ScheduleSpec s;
+  s.kind = kind, s.dt = dt, s.latency = latency, s.slots_per_bucket = slots_per_bucket;
+  s.cap = cap, s.max_interval = max_interval, s.backoff = backoff, s.threshold = threshold;
+  const std::string bad = s.Check();
+  Require(bad.empty(), "invalid schedule option: " + bad);
+  return s;
+}
+
+using SchedulePtr = std::shared_ptr<Schedule>;
+
+void CheckIds(const Schedule& s, const In<int64_t>& ids) {
+  for (int64_t k = 0; k < Size(ids); ++k) {
+    Require(ids.data()[k] >= 0 && ids.data()[k] < s.m(),
+            "pair ids must lie in [0, " + std::to_string(s.m()) + ")");
+  }
+}
+
+// The select/evaluate/reinsert step on free spheres: (alarms, bad pair or -1, evaluated).
+nb::tuple StepPoints(Schedule& s, const In<double>& pairs, const In<double>& centers,
+                     const In<double>& velocities, const In<double>& planes,
+                     const In<double>& shapes) {
+  Require(Size(pairs) == kPairNcol * s.m(), "the pair records must be (m, 8), one a pair");
+  dua_schedule* st = s.state();
+  const int64_t n = s.step_count + 1;
+  const int64_t count = dua_select(st, n);
+  In<int64_t> ids(st->work + st->width, {static_cast<size_t>(count)});
+  auto [tau, bad] = TauFree(pairs, ids, centers, velocities, planes, shapes);
+  if (bad >= 0) {
+    const int64_t p = ids.data()[bad];
+    dua_restore(st, n, count);
+    return nb::make_tuple(0, p, count);
+  }
+  std::copy(tau.data(), tau.data() + count, st->w_tau);
+  const int64_t nalarm = dua_reinsert(st, n, count);
+  s.step_count = n;
+  return nb::make_tuple(nalarm, -1, count);
+}
+
+void BindSchedule(nb::module_& m) {
+  nb::class_<Schedule>(m, "Schedule",
+                       "A schedule's state and kernels (dua_mujoco.core.schedules wraps it).")
+      .def(
+          "__init__",
+          [](Schedule* self, int64_t kind, double dt, int64_t latency, const In<double>& tau0,
+             nb::object active, int64_t slots_per_bucket, int64_t cap, int64_t max_interval,
+             int64_t backoff, double threshold) {
+            const ScheduleSpec spec = SpecOf(kind, dt, latency, slots_per_bucket, cap,
+                                             max_interval, backoff, threshold);
+            std::vector<double> tau(tau0.data(), tau0.data() + tau0.size());
+            for (const double t : tau) Require(!std::isnan(t), "tau0 holds NaN");
+            std::vector<uint8_t> on;
+            if (!active.is_none()) {
+              const auto a = nb::cast<In<uint8_t>>(active);
+              Require(a.size() == tau.size(), "active must have one entry a pair");
+              on.assign(a.data(), a.data() + a.size());
+            }
+            new (self) Schedule(spec, tau, on);
+          },
+          "kind"_a, "dt"_a, "latency"_a, "tau0"_a, "active"_a = nb::none(),
+          "slots_per_bucket"_a = 1, "cap"_a = 0, "max_interval"_a = 1024, "backoff"_a = 8,
+          "threshold"_a = 0.0)
+      .def("carried",
+           [](const Schedule& old, const In<int64_t>& src, int64_t n) {
+             const int64_t m = Size(src);
+             for (int64_t k = 0; k < m; ++k) {
+               Require(src.data()[k] >= -1 && src.data()[k] < old.m(),
+                       "src names a pair the schedule does not have");
+             }
+             Require(old.spec().kind == kDeadline, "only the deadline schedule carries pairs");
+             auto next = std::make_shared<Schedule>(old.spec(), m);
+             next->Carry(old, std::vector<int64_t>(src.data(), src.data() + m), n);
+             return next;
+           },
+           "src"_a, "n"_a, "A schedule of the pairs src (old ids, -1: new, due at step n).")
+      .def("select", [](Schedule& s, int64_t n) { return dua_select(s.state(), n); }, "n"_a)
+      .def(
+          "reinsert",
+          [](Schedule& s, int64_t n, int64_t count) {
+            Require(count >= 0 && count <= s.width(), "count exceeds the work width");
+            return dua_reinsert(s.state(), n, count);
+          },
+          "n"_a, "count"_a)
+      .def("restore", [](Schedule& s, int64_t n, int64_t count) { dua_restore(s.state(), n, count); },
+           "n"_a, "count"_a)
+      .def(
+          "switch",
+          [](Schedule& s, const In<int64_t>& ids, bool on, int64_t n_next) {
+            CheckIds(s, ids);
+            const int64_t changed = dua_switch(s.state(), ids.data(), Size(ids), on ? 1 : 0, n_next);
+            if (changed) ++s.activation_changes;
+            return changed;
+          },
+          "ids"_a, "on"_a, "n_next"_a)
+      .def(
+          "make_due",
+          [](Schedule& s, int64_t p, int64_t n) {
+            Require(p >= 0 && p < s.m(), "pair id out of range");
+            dua_make_due(s.state(), p, n);
+          },
+          "p"_a, "n"_a)
+      .def("step_points", &StepPoints, "pairs"_a, "centers"_a, "velocities"_a, "planes"_a,
+           "shapes"_a)
+      .def("alarm_state",
+           [](const Schedule& s) {
+             std::vector<uint8_t> out(s.m());
+             for (int64_t p = 0; p < s.m(); ++p) out[p] = s.Stands(p);
+                      auto* held = new std::vector<uint8_t>(std::move(out));
+             if (held->empty()) held->reserve(1);
+             nb::capsule owner(held, [](void* q) noexcept {
+               delete static_cast<std::vector<uint8_t>*>(q);
+             });
+             const size_t shape[1] = {static_cast<size_t>(s.m())};
+             return Out<bool>(reinterpret_cast<bool*>(held->data()), 1, shape, owner);
+           })
+      .def("horizon_of",
+           [](const Schedule& s, const In<int64_t>& ids) {
+             CheckIds(s, ids);
+             std::vector<double> out(Size(ids));
+             for (int64_t k = 0; k < Size(ids); ++k) out[k] = s.HorizonOf(ids.data()[k]);
+             return Owned(std::move(out), {static_cast<size_t>(Size(ids))});
+           },
+           "ids"_a)
+      .def_prop_ro("kind", [](const Schedule& s) { return s.spec().kind; })
+      .def_prop_ro("dt", [](const Schedule& s) { return s.spec().dt; })
+      .def_prop_ro("latency", [](const Schedule& s) { return s.spec().latency; })
+      .def_rw("step_count", &Schedule::step_count)
+      .def_rw("activation_changes", &Schedule::activation_changes)
+      .def_prop_ro("last_tau",
+                   [](nb::handle h) {
+                     auto& s = nb::cast<Schedule&>(h);
+                     return View<double>(s.last_tau.data(), {s.last_tau.size()}, h);
+                   })
+      .def_prop_ro("active",
+                   [](nb::handle h) {
+                     auto& s = nb::cast<Schedule&>(h);
+                     return View<bool>(reinterpret_cast<bool*>(s.active.data()),
+                                       {s.active.size()}, h);
+                   })
+      .def_prop_ro("ints",
+                   [](nb::handle h) {
+                     auto& s = nb::cast<Schedule&>(h);
+                     const size_t m = static_cast<size_t>(s.m());
+                     return View<int64_t>(s.ints.data(), {m ? s.ints.size() / m : 0, m}, h);
+                   })
+      .def_prop_ro("slots",
+                   [](nb::handle h) {
+                     auto& s = nb::cast<Schedule&>(h);
+                     return View<int64_t>(s.slots.data(), {s.slots.size()}, h);
+                   })
+      .def_prop_ro("horizon",
+                   [](nb::handle h) {
+                     auto& s = nb::cast<Schedule&>(h);
+                     return View<double>(s.horizon.data(), {s.horizon.size()}, h);
+                   })
+      .def_prop_ro("queue",
+                   [](nb::handle h) {
+                     auto& s = nb::cast<Schedule&>(h);
+                     return View<int64_t>(s.queue.data(), {s.queue.size()}, h);
+                   })
+      .def_prop_ro("params",
+                   [](nb::handle h) {
+                     auto& s = nb::cast<Schedule&>(h);
+                     return View<int64_t>(s.params.data(), {s.params.size()}, h);
+                   })
+      .def_prop_ro("work",
+                   [](nb::handle h) {
+                     auto& s = nb::cast<Schedule&>(h);
+                     return View<int64_t>(s.work.data(), {4, s.w_tau.size()}, h);
+                   })
+      .def_prop_ro("w_tau", [](nb::handle h) {
+        auto& s = nb::cast<Schedule&>(h);
+        return View<double>(s.w_tau.data(), {s.w_tau.size()}, h);
+      });
+}
+
+// ------------------------------------------------------------------------------- the runtime
+
+// What one predictor step says: a span of the runtime's alarm log (read-only, never copied).
+struct Alarms {
+  std::shared_ptr<AlarmLog> log;
+  int64_t start = 0, stop = 0, step = 0, deferred = 0;
+  double time = 0.0;
+  nb::object names;  // the model's geom names (a list), for names
+};
+
+template <class T>
+nb::ndarray<nb::numpy, const T> SpanOf(nb::handle self, std::vector<T> AlarmLog::*field) {
+  auto& a = nb::cast<Alarms&>(self);
+  const size_t n = static_cast<size_t>(a.stop - a.start);
+  return nb::ndarray<nb::numpy, const T>(((*a.log).*field).data() + a.start, {n}, self);
+}
+
+void BindAlarms(nb::module_& m) {
+  nb::class_<Alarms>(m, "Alarms",
+                     "The alarms of one predictor step (read-only views of the alarm log).")
+      .def_ro("step", &Alarms::step, "Predictor step (0 for the initial classification).")
+      .def_ro("time", &Alarms::time, "data.time when read.")
+      .def_ro("deferred", &Alarms::deferred,
+              "Pairs due this step but left for a later one (max_evals_per_step reached).")
+      .def_prop_ro("pairs", [](nb::handle h) { return SpanOf(h, &AlarmLog::pair); },
+                   "(k,) sphere-pair ids that raised an alarm.")
+      .def_prop_ro("tau", [](nb::handle h) { return SpanOf(h, &AlarmLog::tau); },
+                   "(k,) their tau (seconds).")
+      .def_prop_ro(
+          "new",
+          [](nb::handle h) {
+            auto& a = nb::cast<Alarms&>(h);
+            const size_t n = static_cast<size_t>(a.stop - a.start);
+            return nb::ndarray<nb::numpy, const bool>(
+                reinterpret_cast<const bool*>(a.log->fresh.data() + a.start), {n}, h);
+          },
+          "(k,) bool: alarms this step raised, as opposed to ones standing from before.")
+      .def_prop_ro("geom1", [](nb::handle h) { return SpanOf(h, &AlarmLog::geom1); },
+                   "(k,) first geom of each alarmed pair.")
+      .def_prop_ro("geom2", [](nb::handle h) { return SpanOf(h, &AlarmLog::geom2); },
+                   "(k,) second geom (a plane geom for half-space pairs).")
+      .def_prop_ro("sphere1", [](nb::handle h) { return SpanOf(h, &AlarmLog::sphere1); },
+                   "(k,) first sphere of each alarmed pair.")
+      .def_prop_ro("sphere2", [](nb::handle h) { return SpanOf(h, &AlarmLog::sphere2); },
+                   "(k,) second sphere, -1 for half-space and static shape pairs.")
+      .def_prop_ro(
+          "names",
+          [](const Alarms& a) {
+            nb::list out;
+            for (int64_t k = a.start; k < a.stop; ++k) {
+              out.append(nb::make_tuple(a.names[nb::int_(a.log->geom1[k])],
+                                        a.names[nb::int_(a.log->geom2[k])]));
+            }
+            return out;
+          },
+          "Geom names of each alarmed pair (geom<id> for unnamed geoms).")
+      .def_prop_ro(
+          "geom_pairs",
+          [](const Alarms& a) {
+            nb::set out;
+            for (int64_t k = a.start; k < a.stop; ++k) {
+              const int32_t g1 = a.log->geom1[k], g2 = a.log->geom2[k];
+              out.add(nb::make_tuple(std::min(g1, g2), std::max(g1, g2)));
+            }
+            return out;
+          },
+          "The distinct alarmed geom pairs (g1, g2), g1 < g2.")
+      .def("__len__", [](const Alarms& a) { return a.stop - a.start; })
+      .def("__repr__", [](nb::handle h) {
+        auto& a = nb::cast<Alarms&>(h);
+        return nb::str("Alarms(step={}, time={}, pairs={}, tau={}, new={})")
+            .format(a.step, nb::repr(nb::float_(a.time)), nb::repr(h.attr("pairs")),
+                    nb::repr(h.attr("tau")), nb::repr(h.attr("new")));
+      });
+}
+
+// The runtime as Python holds it: the model it runs on and the MjData bound to it.
+struct PyRuntime {
+  std::unique_ptr<Runtime> rt;
+  const mjModel* m = nullptr;
+  nb::object model, data, names, step_error;
+  const mjData* d = nullptr;
+
+  const mjData* Data() const {
+    if (!d) Raise("SchedulerError", "no MjData is bound: call predictor.reset(data) first.");
+    return d;
+  }
+
+  nb::object MakeAlarms(int64_t n) const {
+    Alarms a;
+    a.log = rt->log();
+    a.start = rt->log_start();
+    a.stop = a.start + n;
+    a.step = rt->step();
+    a.time = d->time;
+    a.deferred = rt->deferred();
+    a.names = names;
+    return nb::cast(std::move(a));
+  }
+
+  // The step's failure as (kind, value): Python turns it into the error it documents.
+  [[noreturn]] void Fail(const char* kind, nb::object value) const {
+    PyErr_SetObject(step_error.ptr(), nb::make_tuple(kind, value).ptr());
+    throw nb::python_error();
+  }
+};
+
+Out<int64_t> Ints(const std::vector<int64_t>& v) {
+  return Owned(std::vector<int64_t>(v), {v.size()});
+}
+
+void BindRuntime(nb::module_& m, nb::handle step_error) {
+  nb::class_<Tables>(m, "Tables", "A model's predictor tables, checked against the model.")
+      .def_static(
+          "build",
+          [](nb::handle model, nb::dict arrays) {
+            const mjModel* mm = ModelOf(model);
+            std::map<std::string, std::vector<double>> values;
+            for (auto [key, value] : arrays) {
+              const auto a = nb::cast<In<double>>(value);
+              values[nb::cast<std::string>(key)].assign(a.data(), a.data() + a.size());
+            }
+            const TableSource source = [&values](const std::string& name, std::vector<double>* out,
+                                                 std::string* why) {
+              const auto it = values.find(name);
+              if (it == values.end()) {
+                *why = "is missing";
+                return false;
+              }
+              *out = it->second;
+              return true;
+            };
+            std::string error;
+            std::shared_ptr<const Tables> t = BuildTables(mm, source, "table '", "'", &error);
+            if (!t) Raise("InvalidInputError", error);
+            return std::const_pointer_cast<Tables>(t);
+          },
+          "model"_a, "arrays"_a,
+          "The tables from a dict of float64 arrays (dua_mujoco/mj/build.py), checked.")
+      .def_static(
+          "load",
+          [](nb::handle model, const std::string& prefix) {
+            std::string error;
+            std::shared_ptr<const Tables> t = LoadTables(ModelOf(model), prefix, &error);
+            if (!t) Raise("InvalidInputError", error);
+            return std::const_pointer_cast<Tables>(t);
+          },
+          "model"_a, "prefix"_a, "The tables in a model's text fields, as the plugin reads them.")
+      .def_prop_ro("pruned", [](const Tables& t) { return t.pruned; })
+      .def_prop_ro("exact", [](const Tables& t) { return t.exact; })
+      .def_prop_ro("nsphere", [](const Tables& t) { return t.nsphere(); });
+
+  nb::class_<PyRuntime>(m, "Runtime", "The predictor at run time (runtime.h), on one MjData.")
+      .def(
+          "__init__",
+          [step_error](PyRuntime* self, std::shared_ptr<Tables> tables, nb::object model,
+                       nb::object names, int64_t log_steps, int64_t log_min) {
+            new (self) PyRuntime();
+            self->m = ModelOf(model);
+            self->model = model;
+            self->names = names;
+            self->step_error = nb::borrow(step_error);
+            self->rt = std::make_unique<Runtime>(std::move(tables), self->m, log_steps, log_min);
+          },
+          "tables"_a, "model"_a, "names"_a, "log_steps"_a = 4, "log_min"_a = 1 << 14)
+      .def(
+          "bind",
+          [](PyRuntime& self, nb::object data) {
+            self.d = DataOf(data);
+            self.data = data;
+          },
+          "data"_a, "Read the state from this MjData (of the runtime's model) from now on.")
+      .def(
+          "classify",
+          [](PyRuntime& self) {
+            const int64_t bad = self.rt->Classify(self.m, self.Data());
+            if (bad >= 0) self.Fail("pair", nb::int_(self.rt->ids()[bad]));
+            return self.MakeAlarms(self.rt->log_count());
+          },
+          "The initial classification of the bound MjData's state.")
+      .def(
+          "step",
+          [](PyRuntime& self) {
+            const mjData* d = self.Data();
+            if (!self.rt->classified()) {
+              self.Fail("unclassified", nb::none());
+            }
+            if (self.rt->ClockOf(d->time) != Runtime::Clock::kOnePeriod) {
+              self.Fail("clock", nb::float_(d->time - self.rt->last_time()));
+            }
+            const int64_t r = self.rt->Step(self.m, d);
+            if (r == Runtime::kBadState) self.Fail("state", nb::none());
+            if (r < 0) self.Fail("pair", nb::int_(self.rt->ids()[-1 - r]));
+            return self.MakeAlarms(r);
+          },
+          "One predictor step on the bound MjData, one period after the last.")
+      .def("clock_of",
+           [](const PyRuntime& self, double time) {
+             return static_cast<int>(self.rt->ClockOf(time));
+           })
+      .def(
+          "switch",
+          [](PyRuntime& self, const In<int64_t>& pairs, bool on) {
+            const int64_t n = self.rt->universe().npair();
+            std::vector<int64_t> ids(pairs.data(), pairs.data() + pairs.size());
+            for (const int64_t p : ids) Require(p >= 0 && p < n, "a sphere pair id is out of range");
+            self.rt->Switch(ids, on);
+          },
+          "pairs"_a, "on"_a)
+      .def(
+          "pairs_between_bodies",
+          [](PyRuntime& self, int body_a, int body_b) {
+            Require(body_a >= 0 && body_a < self.m->nbody && body_b < self.m->nbody,
+                    "a body id is out of range");
+            return Ints(self.rt->PairsBetweenBodies(self.m, body_a, body_b));
+          },
+          "body_a"_a, "body_b"_a)
+      .def(
+          "geom_pair_ids",
+          [](PyRuntime& self, const In<int64_t>& g1, const In<int64_t>& g2) {
+            Require(Size(g1) == Size(g2), "g1 and g2 must have the same length");
+            std::vector<int64_t> a(g1.data(), g1.data() + g1.size());
+            std::vector<int64_t> b(g2.data(), g2.data() + g2.size());
+            for (size_t k = 0; k < a.size(); ++k) {
+              Require(a[k] >= 0 && a[k] < self.m->ngeom && b[k] >= 0 && b[k] < self.m->ngeom,
+                      "a geom id is out of range");
+            }
+            return Ints(self.rt->GeomPairIds(a, b));
+          },
+          "g1"_a, "g2"_a)
+      .def("deactivate_contacts",
+           [](PyRuntime& self) { return self.rt->DeactivateContacts(self.Data()); })
+      .def(
+          "set_mocap_velocity",
+          [](PyRuntime& self, int64_t i, const In<double>& linear, const In<double>& angular) {
+            Require(i >= 0 && i < self.m->nmocap, "a mocap id is out of range");
+            Require(Size(linear) == 3 && Size(angular) == 3, "velocities are (3,)");
+            self.rt->SetMocapVelocity(i, linear.data(), angular.data());
+          },
+          "mocap"_a, "linear"_a, "angular"_a)
+      .def(
+          "clear_mocap_velocity",
+          [](PyRuntime& self, int64_t i) {
+            Require(i >= 0 && i < self.m->nmocap, "a mocap id is out of range");
+            self.rt->ClearMocapVelocity(i);
+          },
+          "mocap"_a)
+      .def(
+          "sphere_states",
+          [](const PyRuntime& self, const In<int64_t>& ids) {
+            const Tables& t = self.rt->tables();
+            const int64_t n = Size(ids), nsphere = t.nsphere();
+            const dua_frame f = FrameOf(self.Data(), self.rt->root_twist().data());
+            std::vector<double> out(6 * static_cast<size_t>(n));
+            for (int64_t k = 0; k < n; ++k) {
+              const int64_t i = ids.data()[k];
+              Require(i >= 0 && i < nsphere, "a sphere id is out of range");
+              dua_rigid_point(i, t.spheres.data(), &f, out.data() + 6 * k);
+            }
+            return Owned(std::move(out), {static_cast<size_t>(n), 6});
+          },
+          "ids"_a, "(n, 6) centres and velocities of covering spheres ids on the bound MjData.")
+      .def_prop_ro("classified", [](const PyRuntime& s) { return s.rt->classified(); })
+      .def_prop_ro("step_count", [](const PyRuntime& s) { return s.rt->step(); })
+      .def_prop_ro("last_time", [](const PyRuntime& s) { return s.rt->last_time(); })
+      .def_prop_ro("schedule", [](const PyRuntime& s) { return s.rt->schedule(); })
+      .def_prop_ro("ids", [](const PyRuntime& s) { return Ints(s.rt->ids()); })
+      .def_prop_ro("held_version", [](const PyRuntime& s) { return s.rt->held_version(); })
+      .def_prop_ro("universe_version", [](const PyRuntime& s) { return s.rt->universe_version(); })
+      .def_prop_ro("npair", [](const PyRuntime& s) { return s.rt->universe().npair(); })
+      .def(
+          "universe",
+          [](const PyRuntime& s) {
+            const Universe& u = s.rt->universe();
+            const auto n = static_cast<size_t>(u.npair());
+            nb::dict out;
+            out["pairs"] = Owned(std::vector<double>(u.pairs), {n, kPairNcol});
+            out["pair_geom"] = Ints(u.pair_geom);
+            out["geom1"] = Ints(u.geom1);
+            out["geom2"] = Ints(u.geom2);
+            out["geom_pairs"] =
+                Owned(std::vector<int64_t>(u.geom_pairs), {static_cast<size_t>(u.ngp()), 2});
+            const size_t nx = u.exact.empty() ? 0 : n;
+            out["exact"] = Owned(std::vector<double>(u.exact), {nx, static_cast<size_t>(kXNcol)});
+            return out;
+          },
+          "The pairs known now (copies): records, geom pairs and the exact level's records.")
+      .def_prop_ro("on",
+                   [](const PyRuntime& s) { return OwnedBools(s.rt->on()); })
+      .def_prop_ro("standing",
+                   [](const PyRuntime& s) {
+                     std::vector<int64_t> out;
+                     const std::vector<uint8_t>& st = s.rt->stands();
+                     for (size_t k = 0; k < st.size(); ++k) {
+                       if (st[k]) out.push_back(s.rt->ids()[k]);
+                     }
+                     return Ints(out);
+                   },
+                   "Model pair ids standing in alarm now, sorted.")
+      .def_prop_ro("nstanding", [](const PyRuntime& s) { return s.rt->nstanding(); })
+      .def_prop_ro("min_tau", [](const PyRuntime& s) { return s.rt->min_tau(); })
+      .def_prop_ro("evaluated", [](const PyRuntime& s) { return s.rt->evaluated(); })
+      .def_prop_ro("deferred", [](const PyRuntime& s) { return s.rt->deferred(); })
+      .def_prop_ro("flagged_bodies", [](const PyRuntime& s) { return Ints(s.rt->FlaggedBodies()); })
+      .def_prop_ro("flagged", [](const PyRuntime& s) { return s.rt->flagged(); })
+      .def_prop_ro("violation_events", [](const PyRuntime& s) { return s.rt->violation_events(); })
+      .def_prop_ro("rebuilds", [](const PyRuntime& s) { return s.rt->rebuilds(); })
+      .def_prop_ro("renewals", [](const PyRuntime& s) { return s.rt->renewals(); })
+      .def_prop_ro("mocap_updates", [](const PyRuntime& s) { return s.rt->mocap_updates(); })
+      .def_prop_ro("anchor_steps", [](const PyRuntime& s) { return Ints(s.rt->anchor_steps()); })
+      .def_prop_ro("mocap_velocity",
+                   [](PyRuntime& s) {
+                     const auto n = static_cast<size_t>(s.m->nmocap);
+                     return nb::make_tuple(
+                         Owned(std::vector<double>(s.rt->mocap_linear()), {n, 3}),
+                         Owned(std::vector<double>(s.rt->mocap_angular()), {n, 3}),
+                         Owned(std::vector<uint8_t>(s.rt->mocap_user()), {n}));
+                   },
+                   "(linear (nmocap, 3), angular (nmocap, 3), given (nmocap,)): copies.")
+      .def_prop_ro("root_twist", [](const PyRuntime& s) {
+        return Owned(std::vector<double>(s.rt->root_twist()), {static_cast<size_t>(s.m->nbody), 6});
+      });
+}
+
+}  // namespace
+}  // namespace dua
+
+NB_MODULE(_core, m) {
+  using namespace dua;  // NOLINT: the module's own names
+  m.doc() = "dua_mujoco's native core (libdua_mujoco) as Python calls it.";
+  nb::dict layout;
+  for (int64_t i = 0; dua_layout_name(i); ++i) layout[dua_layout_name(i)] = dua_layout_value(i);
+  m.attr("LAYOUT") = layout;
+  m.attr("TABLES_VERSION") = kTablesVersion;
+  m.def("structure_hash", [](nb::handle model) { return StructureHash(ModelOf(model)); },
+        "model"_a, "FNV-1a of geom_type, geom_bodyid, body_parentid (what the tables check).");
+
+  m.def("tau_speed_batch", &TauSpeedBatch, "x"_a, "v"_a, "eps"_a, "accel"_a, "delta"_a,
+        "speed"_a);
+  m.def("tau_halfspace_batch", &TauHalfspaceBatch, "gap"_a, "vn"_a, "accel"_a, "delta"_a);
+  m.def("tau_static_batch", &TauStaticBatch, "centers"_a, "velocities"_a, "shapes"_a, "ids"_a,
+        "eps"_a, "accel"_a, "delta"_a);
+  m.def(
+      "support",
+      [](const In<double>& n, const In<double>& shapes, const In<int64_t>& ids) {
+        return OverPoints(n, shapes, ids, 1, [](const double* p, const double* rec, double* out) {
+          *out = dua_support(p, rec);
+        });
+      },
+      "directions"_a, "shapes"_a, "ids"_a);
+  m.def(
+      "closest_point",
+      [](const In<double>& c, const In<double>& shapes, const In<int64_t>& ids) {
+        return OverPoints(c, shapes, ids, 3, [](const double* p, const double* rec, double* out) {
+          dua_closest_point(p, rec, out);
+        });
+      },
+      "points"_a, "shapes"_a, "ids"_a);
+  m.def(
+      "static_gap",
+      [](const In<double>& c, const In<double>& shapes, const In<int64_t>& ids) {
+        return OverPoints(c, shapes, ids, 4, [](const double* p, const double* rec, double* out) {
+          dua_static_gap(p, rec, out);
+        });
+      },
+      "points"_a, "shapes"_a, "ids"_a);
+  m.def("tau_free", &TauFree, "pairs"_a, "ids"_a, "centers"_a, "velocities"_a, "planes"_a,
+        "shapes"_a);
+  m.def("deadline_interval", &dua_deadline_interval, "tau"_a, "dt"_a, "latency"_a,
+        "max_interval"_a);
+  m.def(
+      "exceeds12",
+      [](const In<double>& q, double bound) {
+        Require(Size(q) == 12, "q holds twelve entries");
+        const double* a = q.data();
+        return dua_exceeds12(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10],
+                             a[11], bound) != 0;
+      },
+      "q"_a, "bound"_a);
+  m.def("sphere_states", &SphereStates, "model"_a, "data"_a, "spheres"_a, "root_twist"_a,
+        "ids"_a);
+  m.def("check_points", &CheckPoints, "model"_a, "data"_a, "points"_a, "root_twist"_a, "prev"_a,
+        "cur"_a, "nprev"_a, "h"_a, "accel"_a, "disc"_a, "speed"_a, "check_disc"_a, "rtol"_a,
+        "values"_a, "broken"_a);
+  m.def(
+      "difference_poses",
+      [](nb::handle data, const In<int64_t>& bodies, InOut<double> prev_pos,
+         InOut<double> prev_quat, double dt, const In<uint8_t>& user, InOut<double> linear,
+         InOut<double> angular, InOut<double> twist, nb::handle model) {
+        const mjModel* mm = ModelOf(model);
+        const int64_t n = Size(bodies);
+        for (int64_t i = 0; i < n; ++i) {
+          Require(bodies.data()[i] >= 0 && bodies.data()[i] < mm->nbody, "a body is out of range");
+        }
+        Require(static_cast<int64_t>(prev_pos.size()) == 3 * n &&
+                    static_cast<int64_t>(prev_quat.size()) == 4 * n && Size(user) == n &&
+                    static_cast<int64_t>(linear.size()) == 3 * n &&
+                    static_cast<int64_t>(angular.size()) == 3 * n &&
+                    (twist.size() == 0 || static_cast<int64_t>(twist.size()) == 6 * mm->nbody),
+                "the mocap arrays do not fit the bodies");
+        const mjData* d = DataOf(data);
+        dua_difference_poses(d->xpos, d->xquat, bodies.data(), n, prev_pos.data(),
+                             prev_quat.data(), dt, user.data(), linear.data(), angular.data(),
+                             twist.data(), static_cast<int64_t>(twist.size() / 6));
+      },
+      "data"_a, "bodies"_a, "prev_pos"_a, "prev_quat"_a, "dt"_a, "user"_a, "linear"_a,
+      "angular"_a, "twist"_a, "model"_a);
+  m.def("candidate_pairs", &CandidatePairs, "centers"_a, "reach"_a, "margin"_a);
+  m.def("reaches", &Reaches, "radius"_a, "speed"_a, "accel"_a, "delta"_a, "vmax"_a, "horizon"_a);
+  m.def("escapes", &Escapes, "anchor"_a, "speed0"_a, "accel"_a, "delta"_a, "vmax"_a, "ids"_a,
+        "centers"_a, "velocities"_a, "elapsed"_a);
+  m.def("sphere_pairs", &SpherePairs, "g1"_a, "g2"_a, "dist"_a, "index"_a, "start"_a, "plane"_a,
+        "shape"_a, "radius"_a);
+  m.def("pair_bounds", &PairBounds, "first"_a, "second"_a, "kind"_a, "sphere_body"_a, "accel"_a,
+        "delta"_a, "speed"_a);
+  m.def("contact_distance", &ContactDistance, "margin"_a, "gap"_a, "g1"_a, "g2"_a,
+        "override_margin"_a, "o_margin"_a);
+  m.def("exact_rows", &ExactRows, "geoms"_a, "geom1"_a, "geom2"_a, "kind"_a, "dist"_a);
+
+  nb::class_<Filter>(m, "Filter", "MuJoCo's dynamic pair filter over per-geom tables.")
+      .def(nb::init<const In<int64_t>&, const In<int64_t>&, const In<int64_t>&, const In<uint8_t>&,
+                    const In<int64_t>&, const In<int64_t>&, const In<uint8_t>&,
+                    const In<int64_t>&, bool>(),
+           "body"_a, "weld"_a, "parent_weld"_a, "movable"_a, "contype"_a, "conaffinity"_a,
+           "lone"_a, "exclude"_a, "filterparent"_a)
+      .def("mask", &Filter::Mask, "g1"_a, "g2"_a)
+      .def("all", &Filter::All)
+      .def("count", &Filter::Count, "weight"_a)
+      .def("any", &Filter::Any);
+
+  BindSchedule(m);
+  BindAlarms(m);
+  nb::object step_error = nb::steal(
+      PyErr_NewException("dua_mujoco._core.StepError", PyExc_RuntimeError, nullptr));
+  m.attr("StepError") = step_error;
+  BindRuntime(m, step_error);
+}

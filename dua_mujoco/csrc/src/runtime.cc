@@ -1,0 +1,507 @@
+// The predictor at run time (runtime.h). Proofs of what each step keeps: docs/theory.md.
+#include "runtime.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <numeric>
+#include <utility>
+
+#include "internal.h"
+#include "layout.h"
+
+namespace dua {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+std::vector<int64_t> Iota(int64_t n) {
+  std::vector<int64_t> v(static_cast<size_t>(n));
+  std::iota(v.begin(), v.end(), int64_t{0});
+  return v;
+}
+
+}  // namespace
+
+Runtime::Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t log_steps,
+                 int64_t log_min)
+    : tables_(std::move(tables)),
+      log_steps_(std::max<int64_t>(log_steps, 1)),
+      log_min_(std::max<int64_t>(log_min, 0)),
+      schedule_(std::make_shared<Schedule>(tables_->schedule, 0)) {
+  const Tables& t = *tables_;
+  const int64_t n = t.universe.npair();
+  if (t.pruned) pruned_.Allocate(t.held), own_ = t.universe;
+  on_.assign(n, 1);
+  gp_count_.assign(t.universe.ngp(), 0);
+  exact_records_ = t.universe.exact;
+  events_prev_.assign(EventStateLen(t.nbody_events), 0.0);
+  events_meta_.assign(3, 0);
+  events_flagged_.assign(std::max<int64_t>(t.nbody_events, 1), 0);
+  root_twist_.assign(6 * static_cast<size_t>(m->nbody), 0.0);
+  point_state_.assign(6 * static_cast<size_t>(t.nsphere()), 0.0);
+  point_epoch_.assign(t.nsphere(), -1);
+  mocap_bodies_.assign(m->nmocap, -1);
+  for (int b = 0; b < m->nbody; ++b) {
+    if (m->body_mocapid[b] >= 0) mocap_bodies_[m->body_mocapid[b]] = b;
+  }
+  mocap_pos_.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
+  mocap_quat_.assign(4 * static_cast<size_t>(m->nmocap), 0.0);
+  mocap_linear_.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
+  mocap_angular_.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
+  mocap_user_.assign(m->nmocap, 0);
+  Hold(Iota(n));  // every pair known, until a pruned classification chooses
+  schedule_ = std::make_shared<Schedule>(t.schedule, npair());
+  NewLog();
+}
+
+Runtime::Runtime(const Runtime& o)
+    : tables_(o.tables_),
+      log_steps_(o.log_steps_),
+      log_min_(o.log_min_),
+      schedule_(std::make_shared<Schedule>(*o.schedule_)),
+      ids_(o.ids_),
+      args_(o.args_),
+      scratch_(o.scratch_),
+      point_state_(o.point_state_),
+      exact_records_(o.exact_records_),
+      events_prev_(o.events_prev_),
+      root_twist_(o.root_twist_),
+      point_epoch_(o.point_epoch_),
+      events_meta_(o.events_meta_),
+      events_flagged_(o.events_flagged_),
+      pruned_(o.pruned_),
+      own_(o.own_),
+      held_pairs_(o.held_pairs_),
+      held_start_(o.held_start_),
+      held_members_(o.held_members_),
+      on_(o.on_),
+      stands_(o.stands_),
+      gp_count_(o.gp_count_),
+      nstanding_(o.nstanding_),
+      min_tau_(o.min_tau_),
+      mocap_bodies_(o.mocap_bodies_),
+      mocap_pos_(o.mocap_pos_),
+      mocap_quat_(o.mocap_quat_),
+      mocap_linear_(o.mocap_linear_),
+      mocap_angular_(o.mocap_angular_),
+      mocap_user_(o.mocap_user_),
+      mocap_updates_(o.mocap_updates_),
+      classified_(o.classified_),
+      last_time_(o.last_time_),
+      step_(o.step_),
+      rebuilds_(o.rebuilds_),
+      renewals_(o.renewals_),
+      universe_version_(o.universe_version_),
+      held_version_(o.held_version_) {
+  NewLog();  // never append to another run's log
+}
+
+void Runtime::NewLog() {
+  const int64_t room = std::max(schedule_->width(), npair());
+  const int64_t capacity = std::max({log_steps_ * room, log_min_, int64_t{1}});
+  log_ = std::make_shared<AlarmLog>(capacity);
+  log_used_ = log_start_ = 0;
+}
+
+void Runtime::Hold(const std::vector<int64_t>& held) {
+  const Tables& t = *tables_;
+  const Universe& u = universe();
+  ids_ = held;
+  const auto n = static_cast<int64_t>(held.size());
+  if (t.pruned) {
+    held_pairs_.resize(kPairNcol * n);
+    for (int64_t k = 0; k < n; ++k) {
+      std::copy_n(u.pairs.begin() + kPairNcol * held[k], kPairNcol,
+                  held_pairs_.begin() + kPairNcol * k);
+    }
+    if (t.exact) {
+      // The exact level's records afresh (the direction that served last is the held pair's).
+      exact_records_.resize(kXNcol * n);
+      for (int64_t k = 0; k < n; ++k) {
+        std::copy_n(u.exact.begin() + kXNcol * held[k], kXNcol,
+                    exact_records_.begin() + kXNcol * k);
+      }
+    }
+  }
+  // Indexed by the violation check's rows: each checked body's held pairs.
+  std::vector<int64_t> g1(n), g2(n);
+  for (int64_t k = 0; k < n; ++k) g1[k] = u.geom1[held[k]], g2[k] = u.geom2[held[k]];
+  held_start_.resize(t.nbody_events + 1);
+  held_members_.resize(std::max<int64_t>(2 * n, 1));
+  held_members_.resize(std::max<int64_t>(
+      dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
+                       held_start_.data(), held_members_.data()),
+      1));
+  scratch_.assign(12 * static_cast<size_t>(std::max<int64_t>(n, 1)), 0.0);
+  stands_.assign(n, 0);
+  ++held_version_;
+}
+
+void Runtime::StartMocap(const mjData* d) {
+  std::fill(root_twist_.begin(), root_twist_.end(), 0.0);
+  for (size_t i = 0; i < mocap_bodies_.size(); ++i) {
+    const int64_t b = mocap_bodies_[i];
+    std::copy(d->xpos + 3 * b, d->xpos + 3 * b + 3, mocap_pos_.begin() + 3 * i);
+    std::copy(d->xquat + 4 * b, d->xquat + 4 * b + 4, mocap_quat_.begin() + 4 * i);
+    // A new trajectory: differenced velocities are zero until the next step; given ones stand.
+    for (int k = 0; k < 3; ++k) {
+      if (!mocap_user_[i]) mocap_linear_[3 * i + k] = mocap_angular_[3 * i + k] = 0.0;
+      root_twist_[6 * b + k] = mocap_angular_[3 * i + k];
+      root_twist_[6 * b + 3 + k] = mocap_linear_[3 * i + k];
+    }
+  }
+  mocap_updates_ = 1;
+}
+
+void Runtime::DifferenceMocap(const mjData* d, double elapsed) {
+  if (mocap_bodies_.empty()) return;
+  dua_difference_poses(d->xpos, d->xquat, mocap_bodies_.data(),
+                       static_cast<int64_t>(mocap_bodies_.size()), mocap_pos_.data(),
+                       mocap_quat_.data(), elapsed, mocap_user_.data(), mocap_linear_.data(),
+                       mocap_angular_.data(), root_twist_.data(),
+                       static_cast<int64_t>(root_twist_.size() / 6));
+  ++mocap_updates_;
+}
+
+void Runtime::SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]) {
+  const int64_t b = mocap_bodies_[mocap];
+  for (int k = 0; k < 3; ++k) {
+    mocap_linear_[3 * mocap + k] = linear[k];
+    mocap_angular_[3 * mocap + k] = angular[k];
+    root_twist_[6 * b + k] = angular[k];
+    root_twist_[6 * b + 3 + k] = linear[k];
+  }
+  mocap_user_[mocap] = 1;
+}
+
+void Runtime::ClearMocapVelocity(int64_t mocap) { mocap_user_[mocap] = 0; }
+
+dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
+  const Tables& t = *tables_;
+  dua_step_args& a = args_;
+  a.abi = DUA_ABI_VERSION;
+  a.schedule = *schedule_->state();
+  a.pairs = t.pruned ? held_pairs_.data() : t.universe.pairs.data();
+  a.spheres = t.spheres.data();
+  a.shapes = t.shapes.data();
+  a.ids = ids_.data();
+  a.frame = {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist_.data(), d->xpos};
+  dua_exact& x = a.exact;
+  x.on = t.exact ? 1 : 0;
+  x.geoms = t.geoms.data();
+  x.records = exact_records_.data();
+  x.below = t.exact_below;
+  x.query_below = t.query_below;
+  x.verts = t.verts.data();
+  x.graph = t.graph.data();
+  x.model = m;
+  x.data = d;
+  dua_events& e = a.events;
+  e.nbody = t.nbody_events;
+  e.rec = t.events_rec.data();
+  e.prev = events_prev_.data();
+  e.meta = events_meta_.data();
+  e.flagged = events_flagged_.data();
+  e.start = held_start_.data();
+  e.members = held_members_.data();
+  e.params = t.events_params.data();
+  a.scratch = scratch_.data();
+  a.scratch_rows = static_cast<int64_t>(scratch_.size() / 12);
+  a.point_state = point_state_.data();
+  a.point_epoch = point_epoch_.data();
+  a.log_pairs = log_->pair.data();
+  a.log_tau = log_->tau.data();
+  a.log_new = log_->fresh.data();
+  return a;
+}
+
+void Runtime::Learnt() {
+  const Universe& u = universe();
+  if (static_cast<int64_t>(on_.size()) != u.npair()) ++universe_version_;
+  on_.resize(u.npair(), 1);
+  gp_count_.resize(u.ngp(), 0);
+}
+
+int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
+  const Tables& t = *tables_;
+  StartMocap(d);
+  std::fill(on_.begin(), on_.end(), 1);
+  Bind(m, d);
+  if (t.pruned) {
+    std::vector<int64_t> held;
+    if (!pruned_.Select(t.held, learn(), &own_, args_, 0, &held)) {
+      // A state that is not finite: every pair known held, each standing in alarm (below).
+      held = Iota(universe().npair());
+    }
+    Learnt();
+    pruned_.built_at = 0;
+    pruned_.escapes.clear();
+    Hold(held);
+    Bind(m, d);
+  }
+  dua_reset_events(&args_);
+  const int64_t n = npair();
+  std::vector<double> tau0(n);
+  const std::vector<int64_t> all = Iota(n);
+  const int64_t bad = n ? dua_evaluate(&args_, all.data(), n, tau0.data()) : -1;
+  // Nothing can be predicted from a state that is not finite: every pair stands in alarm.
+  if (bad >= 0) std::fill(tau0.begin(), tau0.end(), -kInf);
+  const int64_t changes = schedule_->activation_changes;
+  schedule_ = std::make_shared<Schedule>(t.schedule, tau0, std::vector<uint8_t>{});
+  schedule_->activation_changes = changes + 1;
+  if (log_->capacity() < std::max(schedule_->width(), n)) NewLog();
+  Bind(m, d);
+  args_.count = n;
+  args_.deferred = 0;
+  events_meta_[kMCount] = 0;
+  classified_ = true;
+  step_ = 0;
+  last_time_ = d->time;
+  TrackAll();
+  // The classification's alarms, logged as a step's are (each new).
+  const std::vector<int64_t> alarmed = schedule_->InitialAlarms();
+  if (log_used_ + static_cast<int64_t>(alarmed.size()) > log_->capacity()) NewLog();
+  log_start_ = log_used_;
+  for (size_t k = 0; k < alarmed.size(); ++k) {
+    log_->pair[log_start_ + k] = ids_[alarmed[k]];
+    log_->tau[log_start_ + k] = schedule_->last_tau[alarmed[k]];
+    log_->fresh[log_start_ + k] = 1;
+  }
+  Log(static_cast<int64_t>(alarmed.size()));
+  return bad;
+}
+
+Runtime::Clock Runtime::ClockOf(double time) const {
+  const double dt = tables_->schedule.dt, h = tables_->timestep;
+  const double elapsed = time - last_time_;
+  if (std::fabs(elapsed) <= 1e-6 * h) return Clock::kSame;
+  if (std::fabs(elapsed - dt) <= 1e-6 * dt) return Clock::kOnePeriod;
+  const double k = elapsed / h;
+  if (elapsed > 0.0 && elapsed < dt && std::fabs(k - std::nearbyint(k)) <= 1e-6 * k) {
+    return Clock::kWithinPeriod;
+  }
+  return Clock::kOther;
+}
+
+int64_t Runtime::Step(const mjModel* m, const mjData* d) {
+  const Tables& t = *tables_;
+  DifferenceMocap(d, d->time - last_time_);
+  Bind(m, d);
+  const int64_t n = step_ + 1;
+  if (t.pruned && !Prune(m, d, n)) return kBadState;
+  const int64_t room = schedule_->width();
+  if (log_used_ + room > log_->capacity()) NewLog(), Bind(m, d);
+  log_start_ = log_used_;
+  const int64_t result = dua_step(&args_, n, log_start_);
+  if (result < 0) return result;
+  step_ = n;
+  schedule_->step_count = n;
+  last_time_ = d->time;
+  Log(result);
+  if (t.pruned && args_.events.nbody && events_meta_[kMCount]) {
+    pruned_.FindEscapes(t.held, args_, step_);
+  }
+  TrackStep();
+  return result;
+}
+
+void Runtime::Log(int64_t nalarm) {
+  const Universe& u = universe();
+  const Tables& t = *tables_;
+  for (int64_t k = log_start_; k < log_start_ + nalarm; ++k) {
+    const int64_t p = log_->pair[k];
+    const double* rec = u.pairs.data() + kPairNcol * p;
+    log_->geom1[k] = static_cast<int32_t>(u.geom1[p]);
+    log_->geom2[k] = static_cast<int32_t>(u.geom2[p]);
+    log_->sphere1[k] = static_cast<int32_t>(rec[kPairFirst]);
+    log_->sphere2[k] = rec[kPairKind] == kKindSphere ? static_cast<int32_t>(rec[kPairSecond]) : -1;
+  }
+  (void)t;
+  log_used_ = log_start_ + nalarm;
+}
+
+bool Runtime::Prune(const mjModel* m, const mjData* d, int64_t n) {
+  const Tables& t = *tables_;
+  PrunedState& ps = pruned_;
+  const auto escaped = static_cast<int64_t>(ps.escapes.size());
+  std::vector<int64_t> held;
+  bool carry = false;
+  if (n - ps.built_at >= t.held.stride || escaped > t.renew_max) {
+    if (!ps.Select(t.held, learn(), &own_, args_, n, &held)) return false;
+    ps.built_at = n;
+    carry = true;
+    ++rebuilds_;
+  } else if (escaped) {
+    std::vector<int64_t> found;
+    if (!ps.Renew(t.held, learn(), &own_, args_, n, &found)) return false;
+    std::set_union(ids_.begin(), ids_.end(), found.begin(), found.end(),
+                   std::back_inserter(held));
+    carry = held.size() > ids_.size();  // some pair is new
+    ++renewals_;
+  }
+  Learnt();
+  ps.escapes.clear();
+  if (carry) Carry(m, d, held, n);
+  return true;
+}
+
+void Runtime::Carry(const mjModel* m, const mjData* d, const std::vector<int64_t>& held,
+                    int64_t n) {
+  const std::vector<int64_t>& old = ids_;
+  const auto k = static_cast<int64_t>(held.size());
+  std::vector<int64_t> src(k, -1);
+  for (int64_t p = 0, q = 0; p < k; ++p) {
+    while (q < static_cast<int64_t>(old.size()) && old[q] < held[p]) ++q;
+    if (q < static_cast<int64_t>(old.size()) && old[q] == held[p]) src[p] = q;
+  }
+  auto next = std::make_shared<Schedule>(tables_->schedule, k);
+  next->Carry(*schedule_, src, n);
+  schedule_ = std::move(next);
+  Hold(held);
+  Bind(m, d);
+  // Pairs new to the held set that were switched off stay off.
+  std::vector<int64_t> off;
+  for (int64_t p = 0; p < k; ++p) {
+    if (src[p] < 0 && !on_[held[p]]) off.push_back(p);
+  }
+  if (!off.empty() &&
+      dua_switch(schedule_->state(), off.data(), static_cast<int64_t>(off.size()), 0, n)) {
+    ++schedule_->activation_changes;
+  }
+  const double min_tau = min_tau_;
+  TrackAll();
+  min_tau_ = min_tau;
+}
+
+void Runtime::Track(const int64_t* ids, int64_t n) {
+  const Universe& u = universe();
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t p = ids[k];
+    const uint8_t now = schedule_->Stands(p) ? 1 : 0;
+    if (now == stands_[p]) continue;
+    stands_[p] = now;
+    int32_t& count = gp_count_[u.pair_geom[ids_[p]]];
+    if (now) {
+      if (count++ == 0) ++nstanding_;
+    } else if (--count == 0) {
+      --nstanding_;
+    }
+  }
+}
+
+void Runtime::TrackAll() {
+  std::fill(stands_.begin(), stands_.end(), 0);
+  std::fill(gp_count_.begin(), gp_count_.end(), 0);
+  nstanding_ = 0;
+  const std::vector<int64_t> all = Iota(npair());
+  Track(all.data(), npair());
+  const std::vector<double>& tau = schedule_->last_tau;
+  min_tau_ = tau.empty() ? kInf : *std::min_element(tau.begin(), tau.end());
+}
+
+void Runtime::TrackStep() {
+  const dua_schedule& s = *schedule_->state();
+  const dua_events& e = args_.events;
+  Track(s.work + s.width, args_.count + args_.deferred);
+  for (int64_t k = 0; e.nbody && k < events_meta_[kMCount]; ++k) {
+    const int64_t i = events_flagged_[k];
+    Track(held_members_.data() + held_start_[i], held_start_[i + 1] - held_start_[i]);
+  }
+  min_tau_ = kInf;
+  for (int64_t k = 0; k < args_.count; ++k) min_tau_ = std::min(min_tau_, s.w_tau[k]);
+}
+
+void Runtime::Switch(const std::vector<int64_t>& pairs, bool on) {
+  std::vector<int64_t> held;
+  for (const int64_t p : pairs) {
+    on_[p] = on ? 1 : 0;
+    const auto it = std::lower_bound(ids_.begin(), ids_.end(), p);
+    if (it != ids_.end() && *it == p) held.push_back(it - ids_.begin());
+  }
+  const auto n = static_cast<int64_t>(held.size());
+  if (dua_switch(schedule_->state(), held.data(), n, on ? 1 : 0, step_ + 1)) {
+    ++schedule_->activation_changes;
+  }
+  Track(held.data(), n);
+}
+
+std::vector<int64_t> Runtime::PairsBetweenBodies(const mjModel* m, int body_a, int body_b) {
+  if (tables_->pruned) {  // the pairs not met yet learnt, so that they stay switched when met
+    std::vector<int64_t> g1, g2;
+    for (int a = 0; a < m->ngeom; ++a) {
+      if (m->geom_bodyid[a] != body_a) continue;
+      for (int b = 0; b < m->ngeom; ++b) {
+        if (body_b < 0 || m->geom_bodyid[b] == body_b) g1.push_back(a), g2.push_back(b);
+      }
+    }
+    own_.Learn(learn(), g1.data(), g2.data(), static_cast<int64_t>(g1.size()));
+    Learnt();
+  }
+  const Universe& u = universe();
+  std::vector<int64_t> ids;
+  for (int64_t p = 0; p < u.npair(); ++p) {
+    const int64_t gp = u.pair_geom[p];
+    const int ba = m->geom_bodyid[u.geom_pairs[2 * gp]];
+    const int bb = m->geom_bodyid[u.geom_pairs[2 * gp + 1]];
+    const bool between = body_b < 0
+                             ? (ba == body_a || bb == body_a)
+                             : ((ba == body_a && bb == body_b) || (ba == body_b && bb == body_a));
+    if (between) ids.push_back(p);
+  }
+  return ids;
+}
+
+std::vector<int64_t> Runtime::GeomPairIds(const std::vector<int64_t>& g1,
+                                          const std::vector<int64_t>& g2) {
+  const auto n = static_cast<int64_t>(g1.size());
+  auto lookup = [&](std::vector<int64_t>* out) {
+    bool missing = false;
+    for (int64_t k = 0; k < n; ++k) {
+      const int64_t lo = std::min(g1[k], g2[k]), hi = std::max(g1[k], g2[k]);
+      (*out)[k] = lo == hi ? -1 : universe().GeomPair(lo, hi);
+      missing = missing || (*out)[k] < 0;
+    }
+    return missing;
+  };
+  std::vector<int64_t> out(n);
+  if (lookup(&out) && tables_->pruned &&
+      own_.Learn(learn(), g1.data(), g2.data(), n) > 0) {
+    Learnt();
+    lookup(&out);
+  }
+  return out;
+}
+
+int64_t Runtime::DeactivateContacts(const mjData* d) {
+  std::vector<int64_t> g1, g2;
+  for (int c = 0; c < d->ncon; ++c) {
+    const int a = d->contact[c].geom[0], b = d->contact[c].geom[1];
+    if (a < 0 || b < 0) continue;  // a flex
+    g1.push_back(a), g2.push_back(b);
+  }
+  const std::vector<int64_t> gp = GeomPairIds(g1, g2);
+  const Universe& u = universe();
+  std::vector<uint8_t> off(u.ngp(), 0);
+  int64_t noff = 0;
+  for (const int64_t k : gp) {
+    if (k >= 0 && !off[k]) off[k] = 1, ++noff;
+  }
+  std::vector<int64_t> ids;
+  for (int64_t p = 0; p < u.npair(); ++p) {
+    if (off[u.pair_geom[p]]) ids.push_back(p);
+  }
+  Switch(ids, false);
+  return noff;
+}
+
+std::vector<int64_t> Runtime::FlaggedBodies() const {
+  std::vector<int64_t> out;
+  const Tables& t = *tables_;
+  for (int64_t k = 0; k < flagged(); ++k) {
+    out.push_back(static_cast<int64_t>(t.events_rec[kBNcol * events_flagged_[k] + kBBody]));
+  }
+  return out;
+}
+
+}  // namespace dua

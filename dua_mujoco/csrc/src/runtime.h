@@ -1,0 +1,181 @@
+// The predictor at run time: one per MuJoCo mjData. It reads a model's tables (tables.h), and
+// each step it runs the violation check, the selection, tau at every level and the reinsertion
+// (step.cc, schedule.cc), renews pruned pairs (pruned.cc), keeps the standing state and logs the
+// alarms. The MuJoCo plugin (plugin.cc) and the Python Predictor (bindings.cc) both run it:
+// one implementation, two callers, which differ only in what they do when the clock jumps or a
+// state is not finite (the plugin starts over, Python raises).
+#ifndef DUA_MUJOCO_RUNTIME_H_
+#define DUA_MUJOCO_RUNTIME_H_
+
+#include <mujoco/mujoco.h>
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include "dua/dua.h"
+#include "internal.h"
+#include "pruned.h"
+#include "schedule.h"
+#include "tables.h"
+#include "universe.h"
+
+namespace dua {
+
+// The alarms the steps raise, appended and never overwritten: a step's alarms are a span of it.
+// A log without room for another step is replaced by a fresh one, and lives as long as someone
+// holds it (Python's Alarms do).
+struct DUA_API AlarmLog {
+  explicit AlarmLog(int64_t capacity)
+      : pair(capacity), geom1(capacity), geom2(capacity), sphere1(capacity), sphere2(capacity),
+        tau(capacity), fresh(capacity) {}
+  int64_t capacity() const { return static_cast<int64_t>(pair.size()); }
+  // The model pair, its geoms (the plane or static geom second), its spheres (-1: none), tau,
+  // and whether the alarm is new (the pair did not stand in alarm before the step).
+  std::vector<int64_t> pair;
+  std::vector<int32_t> geom1, geom2, sphere1, sphere2;
+  std::vector<double> tau;
+  std::vector<uint8_t> fresh;
+};
+
+class DUA_API Runtime {
+ public:
+  // A step's result when a state the step needed was not finite and no pair can be named (a
+  // rebuild or renewal of pruned pairs): the step was not taken.
+  static constexpr int64_t kBadState = std::numeric_limits<int64_t>::min();
+
+  // log_steps: steps' worth of alarms a log holds (at least log_min entries).
+  Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t log_steps = 1,
+          int64_t log_min = 0);
+  // A copy runs on its own: its state deep-copied, the tables and the current log shared (the
+  // copy appends to a log of its own).
+  Runtime(const Runtime& other);
+  Runtime& operator=(const Runtime&) = delete;
+
+  // The initial classification at d's state: every held pair evaluated and scheduled (pruned:
+  // the held ones chosen first). Returns -1, or a held pair whose state was not finite (every
+  // pair then stands in alarm).
+  int64_t Classify(const mjModel* m, const mjData* d);
+  // One predictor step on d, one period after the last classification or step: returns the
+  // number of alarms, logged at log_start(), or -1 - p for held pair p whose state was not
+  // finite, or kBadState (either way the step was not taken).
+  int64_t Step(const mjModel* m, const mjData* d);
+  // What d's clock calls for since the last classification or step.
+  enum class Clock { kSame, kWithinPeriod, kOnePeriod, kOther };
+  Clock ClockOf(double time) const;
+  // The next compute classifies again (the plugin's reset, or a state it could not step from).
+  void Invalidate() { classified_ = false; }
+
+  // Switches model pairs `pairs` off or back on (a pair switched back on stands in alarm until
+  // the next step evaluates it; pruned pairs not held now stay switched for when they are).
+  void Switch(const std::vector<int64_t>& pairs, bool on);
+  // The pairs between bodies a and b (b < 0: every pair of a), those not met yet learnt first
+  // (pruned pairs); returns their model pair ids.
+  std::vector<int64_t> PairsBetweenBodies(const mjModel* m, int body_a, int body_b);
+  // Geom pair ids of {g1[k], g2[k]} (-1 where MuJoCo's filter rejects the pair), the pairs not
+  // met yet learnt first (pruned pairs).
+  std::vector<int64_t> GeomPairIds(const std::vector<int64_t>& g1, const std::vector<int64_t>& g2);
+
+  // Switches off the pairs of every geom pair in contact in d (resting contact; pruned pairs: a
+  // contact of a pair not met yet learns it); returns how many geom pairs.
+  int64_t DeactivateContacts(const mjData* d);
+
+  // Mocap bodies: a velocity given instead of differenced (world frame), or back to differencing.
+  void SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]);
+  void ClearMocapVelocity(int64_t mocap);
+
+  // ---------------------------------------------------------------------- what it holds
+  const Tables& tables() const { return *tables_; }
+  bool classified() const { return classified_; }
+  int64_t step() const { return step_; }
+  double last_time() const { return last_time_; }
+  // The pairs known (the model's tables, or this run's own universe when pruned).
+  const Universe& universe() const { return tables_->pruned ? own_ : tables_->universe; }
+  int64_t universe_version() const { return universe_version_; }
+  // The held pairs' model ids (sorted), and the schedule over them.
+  const std::vector<int64_t>& ids() const { return ids_; }
+  int64_t held_version() const { return held_version_; }
+  // Replaced (never resized) by a classification or a carry: a holder keeps the one it has.
+  const std::shared_ptr<Schedule>& schedule() const { return schedule_; }
+  const std::vector<uint8_t>& on() const { return on_; }  // each known pair's switch
+  // The standing state: each held pair's, and how many geom pairs stand.
+  const std::vector<uint8_t>& stands() const { return stands_; }
+  const std::vector<int32_t>& geom_pair_count() const { return gp_count_; }
+  int64_t nstanding() const { return nstanding_; }
+  double min_tau() const { return min_tau_; }
+  int64_t evaluated() const { return args_.count; }
+  int64_t deferred() const { return args_.deferred; }
+  int64_t flagged() const { return args_.events.nbody ? events_meta_[kMCount] : 0; }
+  // The bodies (ids) the latest step's violation check flagged.
+  std::vector<int64_t> FlaggedBodies() const;
+  int64_t violation_events() const { return events_meta_[kMTotal]; }
+  int64_t rebuilds() const { return rebuilds_; }
+  int64_t renewals() const { return renewals_; }
+  int64_t mocap_updates() const { return mocap_updates_; }
+  // Each sphere's anchor step (pruned pairs; empty otherwise).
+  const std::vector<int64_t>& anchor_steps() const { return pruned_.built; }
+  const std::shared_ptr<AlarmLog>& log() const { return log_; }
+  int64_t log_start() const { return log_start_; }
+  // Alarms of the latest step or classification (logged from log_start()).
+  int64_t log_count() const { return log_used_ - log_start_; }
+  // The mocap state, by mocap id: velocities (n, 3), the user's flags, the roots' twists.
+  std::vector<double>& mocap_linear() { return mocap_linear_; }
+  std::vector<double>& mocap_angular() { return mocap_angular_; }
+  const std::vector<uint8_t>& mocap_user() const { return mocap_user_; }
+  const std::vector<double>& root_twist() const { return root_twist_; }
+  // The step's arguments, pointed at d (and this runtime's buffers).
+  dua_step_args& Bind(const mjModel* m, const mjData* d);
+
+ private:
+  const LearnTables& learn() const { return tables_->learn; }
+  int64_t npair() const { return static_cast<int64_t>(ids_.size()); }
+  void Hold(const std::vector<int64_t>& held);
+  void NewLog();
+  void StartMocap(const mjData* d);
+  void DifferenceMocap(const mjData* d, double elapsed);
+  bool Prune(const mjModel* m, const mjData* d, int64_t n);
+  void Carry(const mjModel* m, const mjData* d, const std::vector<int64_t>& held, int64_t n);
+  void Learnt();
+  void Track(const int64_t* ids, int64_t n);
+  void TrackAll();
+  void TrackStep();
+  void Log(int64_t nalarm);
+
+  std::shared_ptr<const Tables> tables_;
+  int64_t log_steps_, log_min_;
+  std::shared_ptr<Schedule> schedule_;
+  std::vector<int64_t> ids_;  // model pair of each held pair
+  dua_step_args args_{};
+  std::vector<double> scratch_, point_state_, exact_records_, events_prev_, root_twist_;
+  std::vector<int64_t> point_epoch_, events_meta_, events_flagged_;
+  // Pruned pairs: the anchors, this run's universe, the held pairs' records and their index by
+  // the violation check's bodies (all pairs held: the model's tables themselves).
+  PrunedState pruned_;
+  Universe own_;
+  std::vector<double> held_pairs_;
+  std::vector<int64_t> held_start_, held_members_;
+  std::vector<uint8_t> on_;
+  // Standing state (see stands()).
+  std::vector<uint8_t> stands_;
+  std::vector<int32_t> gp_count_;
+  int64_t nstanding_ = 0;
+  double min_tau_ = std::numeric_limits<double>::infinity();
+  // Mocap bodies (by mocap id) and their poses at the last step.
+  std::vector<int64_t> mocap_bodies_;
+  std::vector<double> mocap_pos_, mocap_quat_, mocap_linear_, mocap_angular_;
+  std::vector<uint8_t> mocap_user_;
+  int64_t mocap_updates_ = 0;
+  // The alarm log and where the latest step's alarms start in it.
+  std::shared_ptr<AlarmLog> log_;
+  int64_t log_used_ = 0, log_start_ = 0;
+  bool classified_ = false;
+  double last_time_ = 0.0;
+  int64_t step_ = 0;
+  int64_t rebuilds_ = 0, renewals_ = 0;
+  int64_t universe_version_ = 0, held_version_ = 0;
+};
+
+}  // namespace dua
+
+#endif  // DUA_MUJOCO_RUNTIME_H_

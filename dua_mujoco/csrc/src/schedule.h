@@ -1,0 +1,83 @@
+// A schedule and the buffers it lives in (the C kernels of schedule.cc run on its dua_schedule).
+// The rank buckets, the deadline wheel and select-all keep one state of the same shape, sized
+// here from the schedule's options: the Python schedulers and the predictor's runtime both hold
+// one (docs/theory.md, section 3).
+#ifndef DUA_MUJOCO_SCHEDULE_H_
+#define DUA_MUJOCO_SCHEDULE_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "dua/dua.h"
+#include "layout.h"
+
+namespace dua {
+
+constexpr int64_t kAll = 2;  // select-all (every active pair every step)
+
+// What a schedule is made of: its kind and options (checked by Check).
+struct DUA_API ScheduleSpec {
+  int64_t kind = kDeadline;
+  double dt = 0.0;        // predictor period, seconds
+  int64_t latency = 0;    // periods a verdict takes to act
+  int64_t slots_per_bucket = 1;  // rank: the budget knob q, a power of two
+  int64_t cap = 0;               // deadline: evaluations a step (0: no cap)
+  int64_t max_interval = 1024;   // deadline: longest revisit interval, steps
+  int64_t backoff = 8;           // deadline: longest interval of a pair that keeps alarming
+  // Select-all: the alarm threshold on the urgency (tau: (1 + latency) dt; a distance for the
+  // paper's SA(d)).
+  double threshold = 0.0;
+
+  // An empty string, or what is wrong (names the option and its valid values).
+  std::string Check() const;
+};
+
+class DUA_API Schedule {
+ public:
+  // The initial classification of tau0 (m,) with pairs `active` (m,) switched on (empty: all).
+  Schedule(const ScheduleSpec& spec, const std::vector<double>& tau0,
+           const std::vector<uint8_t>& active);
+  // A state of m pairs to be filled by Carry (ints at -1, nothing linked).
+  Schedule(const ScheduleSpec& spec, int64_t m);
+  // Copies point their C struct at their own buffers.
+  Schedule(const Schedule& other);
+  Schedule& operator=(const Schedule& other);
+  // A move keeps the buffers (and so the struct's pointers).
+  Schedule(Schedule&&) = default;
+  Schedule& operator=(Schedule&&) = default;
+
+  const ScheduleSpec& spec() const { return spec_; }
+  int64_t m() const { return static_cast<int64_t>(last_tau.size()); }
+  int64_t width() const { return static_cast<int64_t>(w_tau.size()); }
+  dua_schedule* state() { return &view_; }
+  const dua_schedule* state() const { return &view_; }
+
+  // The pairs the classification (or the latest step) put in alarm, in id order.
+  std::vector<int64_t> InitialAlarms() const;
+  // Whether pair p stands in alarm: the alarm rule on its latest tau (its horizon: HorizonOf).
+  bool Stands(int64_t p) const;
+  // The time pair p's latest verdict must cover (seconds; -inf: switched off, nothing).
+  double HorizonOf(int64_t p) const;
+  // New pair k is old pair src[k] (its verdict carried) or new (src[k] < 0: it stands in alarm,
+  // due at step n), as dua_deadline_carry does (deadline schedules only).
+  void Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n);
+
+  // The buffers (sized once; the C struct points at them).
+  std::vector<double> last_tau, w_tau, horizon;
+  std::vector<uint8_t> active;
+  std::vector<int64_t> ints, slots, queue, params, work;
+  int64_t step_count = 0;          // completed steps
+  int64_t activation_changes = 0;  // switches that changed some pair, and carries
+
+ private:
+  void Size(int64_t m);
+  void Point();
+
+  ScheduleSpec spec_;
+  dua_schedule view_{};
+};
+
+}  // namespace dua
+
+#endif  // DUA_MUJOCO_SCHEDULE_H_

@@ -1,0 +1,602 @@
+// Building and checking the predictor's tables (tables.h). Every table a step reads by index is
+// checked here against the model, so that no input, however malformed, makes the step read or
+// write out of bounds: a fuzzed model must fail at load with an error naming the table.
+#include "tables.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <utility>
+
+#include "dua/dua.h"
+#include "internal.h"
+
+namespace dua {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// Integers travel as float64: beyond 2^53 they are not exact.
+constexpr double kMaxInt = 9007199254740992.0;
+
+// A table's entries as integers in [lo, hi); false if one is not (NaN, a fraction, out of range).
+bool AsInts(const std::vector<double>& v, double lo, double hi, std::vector<int64_t>* out) {
+  out->resize(v.size());
+  for (size_t i = 0; i < v.size(); ++i) {
+    const double x = v[i];
+    if (!(x >= lo && x < hi) || x != std::floor(x)) return false;
+    (*out)[i] = static_cast<int64_t>(x);
+  }
+  return true;
+}
+
+bool IsIndex(double x, int64_t n) { return x >= 0.0 && x < static_cast<double>(n) && x == std::floor(x); }
+bool Finite(double x) { return std::isfinite(x); }
+bool Bound(double x) { return std::isfinite(x) && x >= 0.0; }  // a finite bound >= 0
+bool SpeedBound(double x) { return x >= 0.0; }                  // >= 0, inf: none (NaN fails)
+
+// Reads tables by name from `source`, their errors saying where they come from.
+class Reader {
+ public:
+  // Errors name table t as before + t + after.
+  Reader(const TableSource& source, std::string before, std::string after, std::string* error)
+      : source_(source), before_(std::move(before)), after_(std::move(after)), error_(error) {}
+
+  // Table `name` with rows x ncol entries (rows < 0: any multiple of ncol).
+  bool Get(const std::string& name, int64_t rows, int64_t ncol, std::vector<double>* out) {
+    std::string why;
+    if (!source_(name, out, &why)) return Fail(name, why);
+    const auto n = static_cast<int64_t>(out->size());
+    if (rows >= 0 && n != rows * ncol) {
+      return Fail(name, "holds " + std::to_string(n) + " entries, not " +
+                            std::to_string(rows * ncol) + " (" + std::to_string(rows) + " rows of " +
+                            std::to_string(ncol) + ")");
+    }
+    if (rows < 0 && n % ncol != 0) {
+      return Fail(name, "holds " + std::to_string(n) + " entries, not rows of " +
+                            std::to_string(ncol));
+    }
+    return true;
+  }
+
+  // Refuse table `name` for `why`.
+  bool Fail(const std::string& name, const std::string& why) {
+    *error_ = before_ + name + after_ + " " + why;
+    return false;
+  }
+
+ private:
+  const TableSource& source_;
+  std::string before_, after_;
+  std::string* error_;
+};
+
+// Row r of a table with ncol columns fails `ok`: the table is refused naming the row.
+template <class Ok>
+bool Rows(Reader* r, const std::string& name, const std::vector<double>& t, int64_t ncol,
+          const char* what, Ok ok) {
+  const int64_t rows = static_cast<int64_t>(t.size()) / ncol;
+  for (int64_t i = 0; i < rows; ++i) {
+    if (!ok(t.data() + ncol * i)) {
+      return r->Fail(name, "row " + std::to_string(i) + ": " + what);
+    }
+  }
+  return true;
+}
+
+// A sphere record (pack_spheres; the exact level's geom records start with one): frame geom,
+// its body, that body's root, a finite offset.
+bool SphereRecordOk(const mjModel* m, const double* rec) {
+  if (!IsIndex(rec[kSphereFrame], m->ngeom)) return false;
+  const auto g = static_cast<int>(rec[kSphereFrame]);
+  const int b = m->geom_bodyid[g];
+  return rec[kSphereBody] == b && rec[kSphereRoot] == m->body_rootid[b] &&
+         Finite(rec[kSphereOffset]) && Finite(rec[kSphereOffset + 1]) &&
+         Finite(rec[kSphereOffset + 2]);
+}
+
+bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) {
+  if (!r->Get("config", -1, 1, c)) return false;
+  if (c->empty() || (*c)[kCfgVersion] != static_cast<double>(kTablesVersion)) {
+    return r->Fail("config",
+                   "was written by another version of dua_mujoco (format " +
+                       (c->empty() ? std::string("none") : std::to_string((*c)[kCfgVersion])) +
+                       ", this one reads " + std::to_string(kTablesVersion) +
+                       "): attach the predictor again with this one");
+  }
+  if (static_cast<int64_t>(c->size()) != kCfgSize) {
+    return r->Fail("config", "holds " + std::to_string(c->size()) + " entries, not " +
+                                 std::to_string(kCfgSize));
+  }
+  const std::vector<double>& v = *c;
+  const uint64_t shape = StructureHash(m);
+  if (v[kCfgNgeom] != m->ngeom || v[kCfgNbody] != m->nbody ||
+      v[kCfgShape] != static_cast<double>(shape & 0xffffffffu) ||
+      v[kCfgShape + 1] != static_cast<double>(shape >> 32)) {
+    return r->Fail("config", "was made for another model (" + std::to_string(v[kCfgNgeom]) +
+                                 " geoms and " + std::to_string(v[kCfgNbody]) +
+                                 " bodies, or another structure; this one has " +
+                                 std::to_string(m->ngeom) + " and " + std::to_string(m->nbody) +
+                                 "): the spec changed after dua_mujoco.attach; attach last, after "
+                                 "every edit");
+  }
+  auto integer = [&](int i, double lo, double hi, int64_t* out) {
+    if (!(v[i] >= lo && v[i] <= hi) || v[i] != std::floor(v[i])) return false;
+    *out = static_cast<int64_t>(v[i]);
+    return true;
+  };
+  ScheduleSpec& s = t->schedule;
+  s.dt = v[kCfgDt];
+  s.threshold = v[kCfgThreshold];
+  if (!integer(kCfgKind, 0, 2, &s.kind) || !integer(kCfgLatency, 0, 1 << 30, &s.latency) ||
+      !integer(kCfgSlotsPerBucket, 1, 1 << 30, &s.slots_per_bucket) ||
+      !integer(kCfgCap, 0, kMaxInt, &s.cap) ||
+      !integer(kCfgMaxInterval, 1, 1 << 30, &s.max_interval) ||
+      !integer(kCfgBackoff, 1, kMaxInt, &s.backoff)) {
+    return r->Fail("config", "holds a schedule option that is not a valid integer");
+  }
+  const std::string bad = s.Check();
+  if (!bad.empty()) return r->Fail("config", "holds an invalid schedule option: " + bad);
+  t->timestep = v[kCfgTimestep];
+  if (!(t->timestep > 0.0) || !Finite(t->timestep) || t->timestep != m->opt.timestep) {
+    return r->Fail("config", "holds a timestep (" + std::to_string(t->timestep) +
+                                 ") other than the model's (" + std::to_string(m->opt.timestep) +
+                                 "): the timestep changed after dua_mujoco.attach");
+  }
+  // The period is a whole number of physics steps (the plugin's clock counts them).
+  const double steps = s.dt / t->timestep;
+  if (!(steps >= 1.0 - 1e-9) || std::fabs(steps - std::nearbyint(steps)) > 1e-6 * steps) {
+    return r->Fail("config", "holds a period that is not a whole number of timesteps");
+  }
+  t->exact = v[kCfgExactOn] != 0.0;
+  t->exact_below = v[kCfgExactBelow];
+  t->query_below = v[kCfgQueryBelow];
+  if (!(t->exact_below >= 0.0) || !(t->query_below >= 0.0) || std::isnan(t->exact_below) ||
+      std::isnan(t->query_below)) {
+    return r->Fail("config", "holds the exact level's thresholds not >= 0");
+  }
+  t->pruned = v[kCfgPruned] != 0.0;
+  return true;
+}
+
+// The spheres, shapes and pairs (and their index: the universe).
+bool ReadPairs(const mjModel* m, Reader* r, Tables* t) {
+  if (!r->Get("spheres", -1, kSphereNcol, &t->spheres)) return false;
+  if (!Rows(r, "spheres", t->spheres, kSphereNcol,
+            "its geom, body and root are not the model's, or its offset is not finite",
+            [m](const double* rec) { return SphereRecordOk(m, rec); })) {
+    return false;
+  }
+  const int64_t nsphere = t->nsphere();
+  if (!r->Get("shapes", -1, kShapeNcol, &t->shapes)) return false;
+  if (!Rows(r, "shapes", t->shapes, kShapeNcol, "not a shape of a known kind with finite entries",
+            [](const double* rec) {
+              const double k = rec[kShapeKind];
+              bool ok = k >= kGeomSphere && k <= kGeomMeshBox && k == std::floor(k);
+              for (int c = 1; c < kShapeNcol; ++c) ok = ok && Finite(rec[c]);
+              for (int c = 0; c < 3; ++c) ok = ok && rec[kShapeSize + c] >= 0.0;
+              return ok;
+            })) {
+    return false;
+  }
+  const auto nshape = static_cast<int64_t>(t->shapes.size()) / kShapeNcol;
+  Universe& u = t->universe;
+  std::vector<double> pair_geom, geom_pairs;
+  if (!r->Get("pairs", -1, kPairNcol, &u.pairs) || !r->Get("geom_pairs", -1, 2, &geom_pairs)) {
+    return false;
+  }
+  const auto npair = static_cast<int64_t>(u.pairs.size()) / kPairNcol;
+  const auto ngp = static_cast<int64_t>(geom_pairs.size()) / 2;
+  if (!r->Get("pair_geom", npair, 1, &pair_geom)) return false;
+  const int64_t ngeom = m->ngeom;
+  if (!Rows(r, "pairs", u.pairs, kPairNcol,
+            "its members, kind or bounds are out of range (members: a sphere, and a sphere, a "
+            "plane geom or a shape; bounds finite and >= 0)",
+            [&](const double* rec) {
+              const double kind = rec[kPairKind];
+              bool ok = IsIndex(rec[kPairFirst], nsphere);
+              if (kind == kKindSphere) {
+                ok = ok && IsIndex(rec[kPairSecond], nsphere) && rec[kPairSecond] != rec[kPairFirst];
+              } else if (kind == kKindHalfspace) {
+                ok = ok && IsIndex(rec[kPairOther], ngeom);
+              } else if (kind == kKindShape) {
+                ok = ok && IsIndex(rec[kPairOther], nshape) && IsIndex(rec[kPairSecond], nshape);
+              } else {
+                ok = false;
+              }
+              return ok && Bound(rec[kPairEps]) && Bound(rec[kPairAccel]) &&
+                     Bound(rec[kPairDelta]) && SpeedBound(rec[kPairSpeed]);
+            })) {
+    return false;
+  }
+  if (!AsInts(pair_geom, 0, static_cast<double>(ngp), &u.pair_geom)) {
+    return r->Fail("pair_geom", "holds an entry that is not a geom pair's row");
+  }
+  if (!AsInts(geom_pairs, 0, static_cast<double>(ngeom), &u.geom_pairs)) {
+    return r->Fail("geom_pairs", "holds an entry that is not a geom of the model");
+  }
+  const std::string bad = u.Index(t->spheres, ngeom);
+  if (!bad.empty()) return r->Fail("pairs", "do not fit together: " + bad);
+  // A half-space pair's plane is a plane geom; a shape pair's shape the one of its geom pair.
+  for (int64_t p = 0; p < npair; ++p) {
+    const double* rec = u.pairs.data() + kPairNcol * p;
+    if (rec[kPairKind] == kKindHalfspace &&
+        (m->geom_type[static_cast<int64_t>(rec[kPairOther])] != mjGEOM_PLANE ||
+         u.geom2[p] != static_cast<int64_t>(rec[kPairOther]))) {
+      return r->Fail("pairs", "row " + std::to_string(p) + ": a half-space pair whose plane is not "
+                                  "the plane geom of its geom pair");
+    }
+  }
+  return true;
+}
+
+bool ReadEvents(const mjModel* m, Reader* r, Tables* t) {
+  if (!r->Get("events_rec", -1, kBNcol, &t->events_rec) ||
+      !r->Get("events_params", 1, 2, &t->events_params)) {
+    return false;
+  }
+  t->nbody_events = static_cast<int64_t>(t->events_rec.size()) / kBNcol;
+  if (!Rows(r, "events_rec", t->events_rec, kBNcol,
+            "its geom, body and root are not the model's, or its box or bounds are not finite",
+            [m](const double* rec) {
+              if (!IsIndex(rec[kBFrame], m->ngeom)) return false;
+              const int b = m->geom_bodyid[static_cast<int>(rec[kBFrame])];
+              bool ok = rec[kBBody] == b && rec[kBRoot] == m->body_rootid[b];
+              for (int c = 0; c < 3; ++c) {
+                ok = ok && Finite(rec[kBCenter + c]) && Bound(rec[kBHalf + c]);
+              }
+              return ok && Bound(rec[kBAccel]) && Bound(rec[kBDisc]) && SpeedBound(rec[kBSpeed]);
+            })) {
+    return false;
+  }
+  const double h = t->events_params[0], rtol = t->events_params[1];
+  if (!(h > 0.0) || !Finite(h) || !Bound(rtol)) {
+    return r->Fail("events_params", "is not (period > 0, tolerance >= 0)");
+  }
+  // Each geom's row in the check (its body's, -1: not checked); a body checked twice would have
+  // its pairs indexed under one row only.
+  std::vector<int64_t> body_row(m->nbody, -1);
+  for (int64_t i = 0; i < t->nbody_events; ++i) {
+    int64_t& row = body_row[static_cast<int64_t>(t->events_rec[kBNcol * i + kBBody])];
+    if (row >= 0) return r->Fail("events_rec", "row " + std::to_string(i) + ": a body twice");
+    row = i;
+  }
+  t->geom_row.resize(m->ngeom);
+  for (int g = 0; g < m->ngeom; ++g) t->geom_row[g] = body_row[m->geom_bodyid[g]];
+  return true;
+}
+
+bool ReadExact(const mjModel* m, Reader* r, Tables* t) {
+  Universe& u = t->universe;
+  if (!r->Get("exact_geoms", m->ngeom, kGxNcol, &t->geoms) ||
+      !r->Get("exact_records", u.npair(), kXNcol, &u.exact)) {
+    return false;
+  }
+  t->verts.assign(m->mesh_vert, m->mesh_vert + 3 * static_cast<int64_t>(m->nmeshvert));
+  if (t->verts.empty()) t->verts.assign(3, 0.0);
+  t->graph.assign(m->mesh_graph, m->mesh_graph + m->nmeshgraph);
+  if (t->graph.empty()) t->graph.assign(1, -1);
+  // Hull vertices of geom g's mesh when the level climbs its hull graph, else 0.
+  auto numvert = [&](int64_t g) -> int64_t {
+    const double adr = t->geoms[kGxNcol * g + kGxGraph];
+    return adr >= 0.0 ? t->graph[static_cast<int64_t>(adr)] : 0;
+  };
+  int64_t g = 0;
+  if (!Rows(r, "exact_geoms", t->geoms, kGxNcol,
+            "not the record of this geom (origin, kind, size, radius, and a mesh's vertices and "
+            "hull graph as the model has them)",
+            [&](const double* rec) {
+              const int64_t id = g++;
+              if (!SphereRecordOk(m, rec) || rec[kSphereFrame] != id) return false;
+              const double kind = rec[kGxKind];
+              if (kind == -1.0) return true;  // a geom the level does not read
+              bool ok = kind >= kGeomSphere && kind <= kGeomMeshBox && kind == std::floor(kind);
+              for (int c = 0; c < 3; ++c) {
+                ok = ok && Bound(rec[kGxSize + c]) && Finite(rec[kGxCentre + c]);
+              }
+              ok = ok && Bound(rec[kGxRadius]);
+              if (!ok || rec[kGxGraph] == -1.0) return ok && rec[kGxVert] == -1.0;
+              // A mesh's hull: the model's own vertex and graph addresses, seeds among its
+              // hull's vertices.
+              const int mesh = m->geom_dataid[id];
+              if (m->geom_type[id] != mjGEOM_MESH || mesh < 0 || m->mesh_graphadr[mesh] < 0 ||
+                  rec[kGxGraph] != m->mesh_graphadr[mesh] ||
+                  rec[kGxVert] != m->mesh_vertadr[mesh]) {
+                return false;
+              }
+              const int64_t nv = t->graph[m->mesh_graphadr[mesh]];
+              for (int c = 0; c < 6; ++c) ok = ok && IsIndex(rec[kGxSeed + c], nv);
+              return ok;
+            })) {
+    return false;
+  }
+  for (int64_t p = 0; p < u.npair(); ++p) {
+    const double* rec = u.exact.data() + kXNcol * p;
+    const double mode = rec[kXMode];
+    bool ok = mode >= kModeNone && mode <= kModeShape && mode == std::floor(mode) &&
+              rec[kXG1] == u.geom1[p] && rec[kXG2] == u.geom2[p] && Bound(rec[kXDist]);
+    for (int c = 0; c < 3; ++c) ok = ok && Finite(rec[kXN + c]);
+    if (ok && mode != kModeNone) {
+      // The geoms it reads are ones the level has records of.
+      ok = t->geoms[kGxNcol * u.geom1[p] + kGxKind] >= 0 &&
+           (mode == kModePlane || t->geoms[kGxNcol * u.geom2[p] + kGxKind] >= 0);
+      ok = ok && (mode != kModePlane || m->geom_type[u.geom2[p]] == mjGEOM_PLANE);
+    }
+    ok = ok && (rec[kXHull1] == -1.0 || IsIndex(rec[kXHull1], numvert(u.geom1[p])));
+    ok = ok && (rec[kXHull2] == -1.0 || IsIndex(rec[kXHull2], numvert(u.geom2[p])));
+    if (!ok) {
+      return r->Fail("exact_records", "row " + std::to_string(p) +
+                                          ": not the exact level's record of its pair (mode, "
+                                          "geoms, contact distance, direction, hull vertices)");
+    }
+  }
+  return true;
+}
+
+// Reads table `name` as (rows, ncol) into columns: out[c][r].
+bool Columns(Reader* r, const std::string& name, int64_t rows, int ncol,
+             std::vector<std::vector<double>>* out) {
+  std::vector<double> v;
+  if (!r->Get(name, rows, ncol, &v)) return false;
+  out->assign(ncol, std::vector<double>(rows));
+  for (int64_t i = 0; i < rows; ++i) {
+    for (int c = 0; c < ncol; ++c) (*out)[c][i] = v[ncol * i + c];
+  }
+  return true;
+}
+
+// What learning a pair reads (universe.h).
+bool ReadLearn(const mjModel* m, Reader* r, const std::vector<double>& config, Tables* t) {
+  LearnTables& l = t->learn;
+  std::vector<std::vector<double>> f, c, lone, body;
+  std::vector<double> exclude, start, planes, shapes;
+  const int64_t nsphere = t->nsphere(), ngeom = m->ngeom, nbody = m->nbody;
+  if (!Columns(r, "filter", ngeom, 7, &f) || !Columns(r, "contact", ngeom, 2, &c) ||
+      !Columns(r, "geom_lone", ngeom, 2, &lone) || !Columns(r, "body_bounds", nbody, 3, &body) ||
+      !r->Get("exclude", -1, 1, &exclude) || !r->Get("geom_start", ngeom + 1, 1, &start) ||
+      !r->Get("plane_geom", -1, 1, &planes) || !r->Get("shape_geom", -1, 1, &shapes)) {
+    return false;
+  }
+  const auto nplane = static_cast<double>(planes.size());
+  const auto nshape = static_cast<double>(shapes.size());
+  std::vector<int64_t> movable, lone_flag;
+  if (!AsInts(f[0], 0, nbody, &l.body) || !AsInts(f[1], 0, nbody, &l.weld) ||
+      !AsInts(f[2], 0, nbody, &l.parent_weld) || !AsInts(f[3], 0, 2, &movable) ||
+      !AsInts(f[4], 0, 4294967296.0, &l.contype) ||
+      !AsInts(f[5], 0, 4294967296.0, &l.conaffinity) || !AsInts(f[6], 0, 2, &lone_flag)) {
+    return r->Fail("filter", "holds an entry out of range (bodies, weld groups, flags 0/1, "
+                             "contype and conaffinity as unsigned 32-bit)");
+  }
+  for (int64_t g = 0; g < ngeom; ++g) {
+    if (l.body[g] != m->geom_bodyid[g]) {
+      return r->Fail("filter", "row " + std::to_string(g) + ": not the body of that geom");
+    }
+  }
+  l.movable.assign(movable.begin(), movable.end());
+  l.lone.assign(lone_flag.begin(), lone_flag.end());
+  if (!AsInts(exclude, 0, kMaxInt, &l.exclude) ||
+      !std::is_sorted(l.exclude.begin(), l.exclude.end())) {
+    return r->Fail("exclude", "is not a sorted list of body-pair signatures");
+  }
+  if (!AsInts(start, 0, static_cast<double>(nsphere) + 1, &l.geom_start) ||
+      !std::is_sorted(l.geom_start.begin(), l.geom_start.end()) ||
+      l.geom_start.back() != nsphere) {
+    return r->Fail("geom_start", "is not each geom's first sphere (increasing, ending at the "
+                                 "number of spheres)");
+  }
+  if (!AsInts(lone[0], -1, nplane, &l.geom_plane) || !AsInts(lone[1], -1, nshape, &l.geom_shape) ||
+      !AsInts(planes, 0, ngeom, &l.plane_geom) || !AsInts(shapes, 0, ngeom, &l.shape_geom)) {
+    return r->Fail("geom_lone", "or plane_geom or shape_geom holds an index out of range");
+  }
+  for (int64_t g = 0; g < ngeom; ++g) {
+    const bool plane = l.geom_plane[g] >= 0, shape = l.geom_shape[g] >= 0;
+    const bool spheres = l.geom_start[g + 1] > l.geom_start[g];
+    if ((plane && (shape || spheres || l.plane_geom[l.geom_plane[g]] != g)) ||
+        (shape && (spheres || l.shape_geom[l.geom_shape[g]] != g))) {
+      return r->Fail("geom_lone", "row " + std::to_string(g) +
+                                      ": a geom covered twice, or not the geom of its plane or "
+                                      "shape");
+    }
+  }
+  for (int64_t i = 0; i < nsphere; ++i) {
+    const auto g = static_cast<int64_t>(t->spheres[kSphereNcol * i + kSphereFrame]);
+    if (i < l.geom_start[g] || i >= l.geom_start[g + 1]) {
+      return r->Fail("geom_start", "does not hold sphere " + std::to_string(i) +
+                                       " in its geom's range");
+    }
+  }
+  l.margin = c[0], l.gap = c[1];
+  for (int64_t g = 0; g < ngeom; ++g) {
+    if (!Finite(l.margin[g]) || !Finite(l.gap[g])) {
+      return r->Fail("contact", "row " + std::to_string(g) + ": margin and gap not finite");
+    }
+  }
+  l.accel = body[0], l.delta = body[1], l.speed = body[2];
+  for (int64_t b = 0; b < nbody; ++b) {
+    if (!Bound(l.accel[b]) || !Bound(l.delta[b]) || !SpeedBound(l.speed[b])) {
+      return r->Fail("body_bounds", "row " + std::to_string(b) + ": bounds not >= 0");
+    }
+  }
+  l.filter.filterparent = config[kCfgFilterParent] != 0.0;
+  l.contacts = config[kCfgContacts] != 0.0;
+  l.override_margin = config[kCfgOverride] != 0.0;
+  l.o_margin = config[kCfgOMargin];
+  l.has_speed = config[kCfgHasSpeed] != 0.0;
+  if (!Finite(l.o_margin)) return r->Fail("config", "holds a margin override that is not finite");
+  l.radius = t->held.radius.data();  // the Tables are never copied or moved once built
+  l.sphere_geom.resize(nsphere), l.sphere_body.resize(nsphere);
+  for (int64_t i = 0; i < nsphere; ++i) {
+    l.sphere_geom[i] = static_cast<int64_t>(t->spheres[kSphereNcol * i + kSphereFrame]);
+    l.sphere_body[i] = static_cast<int64_t>(t->spheres[kSphereNcol * i + kSphereBody]);
+  }
+  l.exact_geoms = t->exact ? t->geoms.data() : nullptr;
+  l.Point();
+  return true;
+}
+
+// The pruned pairs' tables.
+bool ReadPruned(const mjModel* m, Reader* r, const std::vector<double>& config, Tables* t) {
+  std::vector<double> reach;
+  if (!r->Get("reach", t->nsphere(), 4, &reach)) return false;
+  const double stride = config[kCfgStride], renew = config[kCfgRenewMax];
+  if (!(stride >= 1 && stride < 1e9) || stride != std::floor(stride)) {
+    return r->Fail("config", "holds a stride that is not an int in [1, 1e9)");
+  }
+  if (!(renew >= 0 && renew < 1e9) || renew != std::floor(renew)) {
+    return r->Fail("config", "holds a renewal limit that is not an int in [0, 1e9)");
+  }
+  t->renew_max = static_cast<int64_t>(renew);
+  // Pruned pairs are carried into the deadline schedule only.
+  if (t->schedule.kind != kDeadline) {
+    return r->Fail("config", "holds pruned pairs with a schedule other than the deadline one");
+  }
+  const std::string bad =
+      t->held.Build(reach, t->spheres, m->nbody, config[kCfgHorizon], config[kCfgMargin],
+                    static_cast<int64_t>(stride));
+  if (!bad.empty()) return r->Fail("reach", "does not fit: " + bad);
+  return ReadLearn(m, r, config, t);
+}
+
+// Decodes one text field: its entry count, a space, then the entries' little-endian float64
+// bytes in base64.
+bool Decode(const char* text, std::vector<double>* out, std::string* why) {
+  char* end = nullptr;
+  const long long count = std::strtoll(text, &end, 10);
+  if (end == text || count < 0 || *end != ' ' || count > (1LL << 40)) {
+    *why = "does not start with its entry count and a space";
+    return false;
+  }
+  const char* digits = end + 1;
+  const size_t nbytes = static_cast<size_t>(count) * sizeof(double);
+  const size_t ndigits = (nbytes + 2) / 3 * 4;
+  if (std::strlen(digits) != ndigits) {
+    *why = "does not hold its " + std::to_string(count) + " entries";
+    return false;
+  }
+  static const std::array<int8_t, 256> kDigit = [] {
+    std::array<int8_t, 256> t{};
+    t.fill(-1);
+    const char* alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    for (int i = 0; i < 64; ++i) t[static_cast<unsigned char>(alphabet[i])] = static_cast<int8_t>(i);
+    t['='] = 0;
+    return t;
+  }();
+  std::vector<unsigned char> bytes(ndigits / 4 * 3);
+  const auto* in = reinterpret_cast<const unsigned char*>(digits);
+  for (size_t i = 0, o = 0; i < ndigits; i += 4, o += 3) {
+    const int a = kDigit[in[i]], b = kDigit[in[i + 1]], c = kDigit[in[i + 2]],
+              e = kDigit[in[i + 3]];
+    if ((a | b | c | e) < 0) {
+      *why = "holds a character that is not base64";
+      return false;
+    }
+    const unsigned triple = (static_cast<unsigned>(a) << 18) | (static_cast<unsigned>(b) << 12) |
+                            (static_cast<unsigned>(c) << 6) | static_cast<unsigned>(e);
+    bytes[o] = static_cast<unsigned char>(triple >> 16);
+    bytes[o + 1] = static_cast<unsigned char>(triple >> 8);
+    bytes[o + 2] = static_cast<unsigned char>(triple);
+  }
+  out->resize(static_cast<size_t>(count));
+  if (nbytes) std::memcpy(out->data(), bytes.data(), nbytes);  // little-endian, as written
+  return true;
+}
+
+// A content hash of the text fields under prefix (which LoadTables parses once per content).
+uint64_t TextHash(const mjModel* m, const std::string& prefix) {
+  uint64_t h = 0xcbf29ce484222325ULL;
+  const std::string head = prefix + ":";
+  for (int i = 0; i < m->ntext; ++i) {
+    const char* name = m->names + m->name_textadr[i];
+    if (std::strncmp(name, head.c_str(), head.size()) != 0) continue;
+    for (const char* s = name; *s; ++s) h = (h ^ static_cast<unsigned char>(*s)) * 0x100000001b3ULL;
+    const char* text = m->text_data + m->text_adr[i];
+    const int n = m->text_size[i];
+    // Eight bytes at a time: the hash only tells contents apart, it need not be FNV.
+    int k = 0;
+    for (; k + 8 <= n; k += 8) {
+      uint64_t w;
+      std::memcpy(&w, text + k, 8);
+      h = (h ^ w) * 0x100000001b3ULL;
+      h ^= h >> 29;
+    }
+    for (; k < n; ++k) h = (h ^ static_cast<unsigned char>(text[k])) * 0x100000001b3ULL;
+  }
+  return h;
+}
+
+}  // namespace
+
+uint64_t StructureHash(const mjModel* m) {
+  uint64_t h = 0xcbf29ce484222325ULL;
+  auto feed = [&h](const int* values, int n) {
+    for (int i = 0; i < n; ++i) {
+      const auto v = static_cast<uint32_t>(values[i]);
+      for (int b = 0; b < 4; ++b) {
+        h ^= (v >> (8 * b)) & 0xffu;
+        h *= 0x100000001b3ULL;
+      }
+    }
+  };
+  feed(m->geom_type, m->ngeom);
+  feed(m->geom_bodyid, m->ngeom);
+  feed(m->body_parentid, m->nbody);
+  return h;
+}
+
+std::shared_ptr<const Tables> BuildTables(const mjModel* m, const TableSource& source,
+                                          const std::string& before, const std::string& after,
+                                          std::string* error) {
+  auto t = std::make_shared<Tables>();
+  Reader r(source, before, after, error);
+  std::vector<double> config;
+  if (!ReadConfig(m, &r, &config, t.get()) || !ReadPairs(m, &r, t.get()) ||
+      !ReadEvents(m, &r, t.get()) || (t->exact && !ReadExact(m, &r, t.get())) ||
+      (t->pruned && !ReadPruned(m, &r, config, t.get()))) {
+    return nullptr;
+  }
+  return t;
+}
+
+std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& prefix,
+                                         std::string* error) {
+  // Every mjData of a model shares its tables: parsed once per model content (a model freed
+  // and another made at its address with other tables is told apart by the hash).
+  static std::mutex mutex;
+  static std::map<std::pair<const mjModel*, std::string>,
+                  std::pair<uint64_t, std::weak_ptr<const Tables>>>
+      cache;
+  const uint64_t hash = TextHash(m, prefix);
+  const auto key = std::make_pair(m, prefix);
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    const auto it = cache.find(key);
+    if (it != cache.end() && it->second.first == hash) {
+      if (auto t = it->second.second.lock()) return t;
+    }
+  }
+  const TableSource source = [m, &prefix](const std::string& name, std::vector<double>* out,
+                                          std::string* why) {
+    const std::string full = prefix + ":" + name;
+    const int id = mj_name2id(m, mjOBJ_TEXT, full.c_str());
+    if (id < 0) {
+      *why = "is missing (plugin attribute 'prefix' = '" + prefix +
+             "'): build the model with dua_mujoco.attach(spec), which writes the tables";
+      return false;
+    }
+    return Decode(m->text_data + m->text_adr[id], out, why);
+  };
+  std::shared_ptr<const Tables> t = BuildTables(m, source, "text field '" + prefix + ":", "'", error);
+  if (!t) return nullptr;
+  std::lock_guard<std::mutex> lock(mutex);
+  for (auto it = cache.begin(); it != cache.end();) {  // forget tables no model holds
+    it = it->second.second.expired() ? cache.erase(it) : std::next(it);
+  }
+  cache[key] = {hash, t};
+  return t;
+}
+
+}  // namespace dua

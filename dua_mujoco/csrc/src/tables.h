@@ -1,0 +1,111 @@
+// The predictor's tables: everything a model's predictor reads that does not change as it runs
+// (the covering spheres, the pairs and their bounds, the static shapes, the exact level's
+// records, the violation check's boxes, the schedule's options, the pruned pairs' reaches and
+// what learning a pair reads). Python builds them (dua_mujoco/mj/build.py); the plugin reads
+// them from the model's text fields "<prefix>:<table>", the Python predictor hands them over
+// as arrays. Either way they are checked here, once per model, against the model they are for:
+// every index the step follows points inside its table, or the tables are refused with an error
+// that names the table.
+#ifndef DUA_MUJOCO_TABLES_H_
+#define DUA_MUJOCO_TABLES_H_
+
+#include <mujoco/mujoco.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dua/dua.h"
+#include "layout.h"
+#include "pruned.h"
+#include "schedule.h"
+#include "universe.h"
+
+namespace dua {
+
+// Version of the tables' format: a model's tables written by another version are refused.
+constexpr int64_t kTablesVersion = 4;
+
+// Entries of the "config" table.
+enum Config {
+  kCfgVersion = 0,
+  kCfgKind = 1,            // the schedule (ScheduleSpec)
+  kCfgDt = 2,
+  kCfgLatency = 3,
+  kCfgSlotsPerBucket = 4,
+  kCfgCap = 5,
+  kCfgMaxInterval = 6,
+  kCfgBackoff = 7,
+  kCfgThreshold = 8,
+  kCfgTimestep = 9,        // the model's timestep
+  kCfgExactOn = 10,        // the exact level
+  kCfgExactBelow = 11,
+  kCfgQueryBelow = 12,
+  kCfgNgeom = 13,          // the model the tables were made for: geoms, bodies,
+  kCfgNbody = 14,
+  kCfgShape = 15,          // and FNV-1a of its structure (two 32-bit halves)
+  kCfgPruned = 17,         // 1: pruned pairs (the deadline schedule over the held ones)
+  kCfgHorizon = 18,        // pruned: the reach's horizon T, seconds
+  kCfgMargin = 19,         // pruned: the largest contact distance beyond the radii
+  kCfgStride = 20,         // pruned: steps between rebuilds
+  kCfgRenewMax = 21,       // pruned: most escaped spheres renewed alone
+  kCfgContacts = 22,       // pruned: contacts are on (pairs can be learnt)
+  kCfgFilterParent = 23,   // pruned: MuJoCo's parent filter is on
+  kCfgOverride = 24,       // pruned: mjENBL_OVERRIDE (the margin is o_margin)
+  kCfgOMargin = 25,        // pruned: o_margin
+  kCfgHasSpeed = 26,       // pruned: speed bounds are declared
+  kCfgSize = 27,
+};
+
+struct Tables {
+  ScheduleSpec schedule;
+  double timestep = 0.0;
+  std::vector<double> spheres, shapes, events_rec, events_params;
+  int64_t nbody_events = 0;
+  // The exact level: its per-geom records, thresholds, and the model's mesh vertices (float64)
+  // and hull graphs it climbs.
+  bool exact = false;
+  double exact_below = 0.0, query_below = 0.0;
+  std::vector<double> geoms, verts;
+  std::vector<int32_t> graph;
+  // The pairs known from the start: every active pair, or (pruned) those held always, which
+  // each run's own universe then grows from.
+  Universe universe;
+  // Pruned pairs: the reaches, what learning a pair reads, each geom's row in the violation
+  // check.
+  bool pruned = false;
+  int64_t renew_max = 0;
+  PrunedTables held;
+  LearnTables learn;
+  std::vector<int64_t> geom_row;
+
+  int64_t nsphere() const { return static_cast<int64_t>(spheres.size()) / kSphereNcol; }
+};
+
+// Where the tables come from: get(name, out) fills out with the table's entries (row-major
+// float64) and returns true, or returns false after setting *error (the table is missing or
+// does not decode).
+using TableSource = std::function<bool(const std::string& name, std::vector<double>* out,
+                                       std::string* error)>;
+
+// The tables from `source`, checked against m; null after *error says which table is wrong and
+// why, naming table t as before + t + after (e.g. "text field '" + t + "'").
+DUA_API std::shared_ptr<const Tables> BuildTables(const mjModel* m, const TableSource& source,
+                                          const std::string& before, const std::string& after,
+                                          std::string* error);
+
+// The tables under `prefix` in m's text fields, each its entry count, a space, then its
+// little-endian float64 bytes in base64; parsed once per model content (every mjData made from
+// the same model shares them).
+DUA_API std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& prefix,
+                                         std::string* error);
+
+// FNV-1a (64 bits) of m's structure: geom_type, geom_bodyid and body_parentid as little-endian
+// int32s (dua_mujoco/mj/build.py computes the same).
+DUA_API uint64_t StructureHash(const mjModel* m);
+
+}  // namespace dua
+
+#endif  // DUA_MUJOCO_TABLES_H_
