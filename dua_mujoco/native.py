@@ -1,10 +1,11 @@
-"""The native core: where ``libdua_mujoco.so`` is, and loading it.
+"""The native core: where ``libdua_mujoco.so`` is, and loading it for MuJoCo.
 
-One shared library holds the predictor's per-step kernels (``dua_mujoco/csrc``) and the MuJoCo
+One shared library holds the predictor's runtime and kernels (``dua_mujoco/csrc``) and the MuJoCo
 sensor plugin ``dua_mujoco.predictor``, which its load-time constructor registers with MuJoCo.
 ``pip install`` builds it with CMake (scikit-build-core) against the mujoco wheel's headers and
-``libmujoco``. This module imports neither numba nor anything heavy: ``import mujoco`` runs
-:func:`load_plugin` through the ``mujoco.plugins`` entry point.
+``libmujoco``, beside ``dua_mujoco._core``, the Python module that calls it (nanobind). This
+module is the one place that loads the library without that module: ``import mujoco`` runs
+:func:`load_plugin` through the ``mujoco.plugins`` entry point, and it imports nothing heavy.
 """
 
 from __future__ import annotations
@@ -15,17 +16,13 @@ import importlib.metadata
 import importlib.util
 import os
 import sys
-from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 from dua_mujoco.exceptions import NativeLibraryError
 
-__all__ = ["ABI_VERSION", "LIBRARY", "declare", "library", "library_path", "load_plugin"]
+__all__ = ["LIBRARY", "library", "library_path", "load_plugin"]
 
 LIBRARY = "libdua_mujoco.so"
-ABI_VERSION = 3
-"""``DUA_ABI_VERSION`` of ``dua/dua.h``: the layout of the structs the Python side fills."""
 
 
 def library_path() -> Path:
@@ -59,26 +56,14 @@ def _mujoco_dir() -> Path:
     return Path(spec.origin).parent
 
 
-def declare(signatures: Mapping[str, tuple[Any, Sequence[Any]]]) -> ctypes.CDLL:
-    """The library with the C signatures ``{name: (restype, argtypes)}`` declared. Modules call
-    it once (under ``functools.cache``) for the functions they call through ctypes."""
-    lib = library()
-    for name, (restype, argtypes) in signatures.items():
-        fn = getattr(lib, name)
-        fn.restype = restype
-        fn.argtypes = list(argtypes)
-    return lib
-
-
 @functools.cache
 def library() -> ctypes.CDLL:
     """The loaded native core (loaded once a process; MuJoCo's plugin registered by then).
 
-    ``libmujoco`` is loaded first, under the soname the native core was linked against, and
-    both globally: numba's compiled kernels call the core's functions by name.
+    ``libmujoco`` is loaded first, under the soname the native core was linked against.
 
     Raises:
-        NativeLibraryError: The library is missing or of another ABI version.
+        NativeLibraryError: The library is missing or does not load.
     """
     mujoco_dir = _mujoco_dir()
     mujoco_libs = sorted(mujoco_dir.glob("libmujoco.so*"))
@@ -92,13 +77,6 @@ def library() -> ctypes.CDLL:
             f"{path} failed to load ({err}): rebuild it against this mujoco "
             f"({mujoco_dir}) with `pip install -e .`."
         ) from err
-    lib.dua_abi_version.restype = ctypes.c_int64
-    version = int(lib.dua_abi_version())
-    if version != ABI_VERSION:
-        raise NativeLibraryError(
-            f"{path} has ABI version {version}, this package expects {ABI_VERSION}: rebuild "
-            "it with `pip install -e .`."
-        )
     return lib
 
 
@@ -106,3 +84,12 @@ def load_plugin() -> None:
     """The ``mujoco.plugins`` entry point: load the native core, which registers the sensor
     plugin ``dua_mujoco.predictor`` with MuJoCo."""
     library()
+
+
+def declare(signatures):  # type: ignore[no-untyped-def]  # TEMPORARY until core/ is ported
+    lib = library()
+    for name, (restype, argtypes) in signatures.items():
+        fn = getattr(lib, name)
+        fn.restype = restype
+        fn.argtypes = list(argtypes)
+    return lib

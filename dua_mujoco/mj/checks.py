@@ -1,7 +1,8 @@
 """Checks, every physics step, that the motion bounds the guarantee assumes actually held.
 
-``BoundMonitor`` runs one compiled pass over the covering spheres through the kinematics kernel
-and records each broken bound as a ``BoundViolation``: a miss after a violation is not covered
+``BoundMonitor`` runs one native pass over the covering spheres through the kinematics kernel
+(``dua_check_points``, ``csrc/src/checks.cc``) and records each broken bound as a
+``BoundViolation``: a miss after a violation is not covered
 by the guarantee (docs/discrete-time.md derives each check).
 """
 
@@ -12,15 +13,14 @@ import math
 from dataclasses import dataclass
 
 import mujoco
-import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.native_kernels import frame_view
+from dua_mujoco._core import check_points
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.bounds import MotionBounds, default_spheres
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, rigid_point
-from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres
+from dua_mujoco.mj.mocap import MocapVelocityTracker, PredictorMocap
 
 __all__ = ["BoundMonitor", "BoundViolation"]
 
@@ -46,91 +46,8 @@ class BoundViolation:
     bound: float
 
 
-_EPS = float(np.finfo(float).eps)
-
-# Columns of the per-sphere values the check kernel writes.
+# Columns of the per-sphere values the check writes.
 _SPEED, _DISC, _ACC = 0, 1, 2
-
-
-@nb.njit(cache=True)
-def _check_spheres(
-    spheres,
-    frame,
-    prev,
-    cur,
-    nprev,
-    h,
-    accel,
-    disc_bound,
-    speed_bound,
-    check_disc,
-    rtol,
-    values,
-    broken,
-):  # pragma: no cover - jitted
-    """One monitor update over every sphere; returns the number of broken (sphere, kind) checks.
-
-    ``spheres`` are as for ``rigid_point``, whose ``frame_view`` of ``frame`` is taken once;
-    ``cur`` is C-contiguous.
-    ``prev`` and ``cur`` are ``(nsphere, 9)`` rows ``[c, w, u]`` (centre, velocity read from
-    MuJoCo, discrete velocity ``(c - c_prev) / h``); ``cur`` is written. ``nprev`` is how many
-    earlier updates ``prev`` reflects (0, 1, or 2 and more): the speed and discrepancy checks
-    need one, the acceleration check two. ``values[:, _SPEED/_DISC/_ACC]`` receive |u|,
-    |u - w_prev| and |u - u_prev| / h, ``broken`` the same three verdicts. ``speed_bound`` is
-    empty when no speed bound is declared; ``check_disc`` selects the spheres whose discrepancy
-    is checked.
-    Tolerances: the round-off of a second difference of positions of size |c| is
-    ~4 eps |c| / h^2; 8 eps is used.
-    """
-    n = spheres.shape[0]
-    count = 0
-    view = frame_view(frame)
-    for i in range(n):
-        rigid_point(i, spheres, view, cur[i])
-        broken[i, _SPEED] = False
-        broken[i, _DISC] = False
-        broken[i, _ACC] = False
-        if nprev == 0:
-            values[i, _SPEED] = 0.0
-            values[i, _DISC] = 0.0
-            values[i, _ACC] = 0.0
-            continue
-        scale = 0.0
-        scale_prev = 0.0
-        for k in range(3):
-            cur[i, 6 + k] = (cur[i, k] - prev[i, k]) / h
-            scale = max(scale, abs(cur[i, k]))
-            scale_prev = max(scale_prev, abs(prev[i, k]))
-        tol_a = 8.0 * _EPS * (scale + scale_prev) / (h * h)
-        values[i, _SPEED] = math.sqrt(cur[i, 6] ** 2 + cur[i, 7] ** 2 + cur[i, 8] ** 2)
-        if speed_bound.shape[0] > 0 and values[i, _SPEED] > (
-            speed_bound[i] * (1.0 + rtol) + 0.5 * tol_a * h
-        ):
-            broken[i, _SPEED] = True
-            count += 1
-        disc = 0.0
-        wprev = 0.0
-        for k in range(3):
-            disc += (cur[i, 6 + k] - prev[i, 3 + k]) ** 2
-            wprev += prev[i, 3 + k] ** 2
-        disc = math.sqrt(disc)
-        values[i, _DISC] = disc
-        tol_d = tol_a * h + 8.0 * _EPS * math.sqrt(wprev)
-        if check_disc[i] and disc > disc_bound[i] * (1.0 + rtol) + tol_d:
-            broken[i, _DISC] = True
-            count += 1
-        if nprev == 1:
-            values[i, _ACC] = 0.0
-            continue
-        acc = 0.0
-        for k in range(3):
-            acc += (cur[i, 6 + k] - prev[i, 6 + k]) ** 2
-        acc = math.sqrt(acc) / h
-        values[i, _ACC] = acc
-        if acc > accel[i] * (1.0 + rtol) + tol_a:
-            broken[i, _ACC] = True
-            count += 1
-    return count
 
 
 class BoundMonitor:
@@ -141,7 +58,7 @@ class BoundMonitor:
     |u_k - u_{k-1}| <= A h (discrete acceleration), |u_k - w_{k-1}| <= D = delta + A h / 2
     (one-step discrepancy) and |u_k| <= V (chord speed, fresh every step for mocap trees too),
     with a tolerance for floating-point round-off in the
-    second differences. One compiled pass over the spheres (the checks run every physics step of
+    second differences. One native pass over the spheres (the checks run every physics step of
     a monitored run; as numpy calls they took ten times as long as ``mj_step`` on traffic).
     """
 
@@ -151,7 +68,7 @@ class BoundMonitor:
         bounds: MotionBounds,
         spheres: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike] | None = None,
         *,
-        mocap: MocapVelocityTracker | None = None,
+        mocap: MocapVelocityTracker | PredictorMocap | None = None,
         mocap_period: int = 1,
         rtol: float = 1e-9,
         max_violations: int = 10_000,
@@ -284,7 +201,6 @@ class BoundMonitor:
             ``(k,)`` sorted ids of bodies that broke a bound at this step (empty if none).
         """
         if data.geom_xpos.shape[0] != self._ngeom or data.cvel.shape[0] != self._nbody:
-            # The compiled check reads without bounds checks.
             raise InvalidInputError(
                 f"data has {data.geom_xpos.shape[0]} geoms and {data.cvel.shape[0]} bodies but "
                 f"the monitor was made for {self._ngeom} and {self._nbody}: pass the MjData of "
@@ -301,9 +217,11 @@ class BoundMonitor:
         h = t - self._prev_t
         if h <= 0:
             h = float(model.opt.timestep)
-        nbroken = _check_spheres(
+        # One native pass: |u_k| <= V, |u_k - w_{k-1}| <= D and |u_k - u_{k-1}| / h <= A at every
+        # point, with the round-off of the differences (8 eps |c| / h^2) tolerated.
+        nbroken = check_points(
             self._spheres,
-            mjdata_frame(data, self._twist),
+            *mjdata_frame(data, self._twist),
             self._prev,
             self._cur,
             min(self._nprev, 2),
@@ -311,10 +229,10 @@ class BoundMonitor:
             self._A,
             self._D,
             self._V,
-            check,
+            check.view(np.uint8),
             self._rtol,
             self._values,
-            self._flags,
+            self._flags.view(np.uint8),
         )
         self._prev, self._cur = self._cur, self._prev
         self._nprev += 1

@@ -29,18 +29,14 @@ the ends of its period is not seen (docs/theory.md, section 6).
 
 from __future__ import annotations
 
-import ctypes
-import functools
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import mujoco
-import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.native_kernels import exceeds12_c
+from dua_mujoco._core import LAYOUT
 from dua_mujoco.mj.bounds import MotionBounds
-from dua_mujoco.native import declare
 
 __all__ = [
     "BodyBoxes",
@@ -50,29 +46,12 @@ __all__ = [
     "no_events",
 ]
 
-# Columns of a body record.
-B_FRAME, B_BODY, B_ROOT = 0, 1, 2
-B_CENTER = 3  # 3..5: the box's centre in the frame
-B_HALF = 6  # 6..8: its half extents
-B_ACCEL, B_DISC, B_SPEED = 9, 10, 11
-NB_REC = 12
-
-# A body's state, read by the native check (csrc/src/step.cc), laid out by four bodies:
-# ``(ceil(n / 4), NB_STATE, STATE_GROUP)``, body i at ``[i // 4, :, i % 4]`` (a column of four
-# bodies is one vector of the check's lanes). Columns 0..30 are written at every step: 0..2 the
-# box's centre, 3..11 its three axes (axis j at 3 + 3 j), 12..14 the centre's chord over the last
-# period, 15..23 the axes' chords, 24..26 the centre's velocity read from MjData, 27..29 the
-# body's angular velocity (with its mocap root's), 30 a bound on the corners' coordinates.
-# Columns 31..39 are the record's B_CENTER .. B_SPEED, copied at the reset. The last group's
-# padding holds copies of its last body.
-NB_STATE = 40
-STATE_GROUP = 4
-"""Bodies a group of the state holds: the native check's lanes (``kLanes``)."""
-
-# Entries of the int64 ``meta`` array.
-M_NPREV = 0  # states recorded since the reset, up to 2
-M_COUNT = 1  # bodies that broke a bound at the latest step
-M_TOTAL = 2  # body-steps that broke a bound since the reset
+# Columns of a body record (the check's state is the runtime's: csrc/src/step.cc).
+B_FRAME, B_BODY, B_ROOT = LAYOUT["B_FRAME"], LAYOUT["B_BODY"], LAYOUT["B_ROOT"]
+B_CENTER = LAYOUT["B_CENTER"]  # 3 columns: the box's centre in the frame
+B_HALF = LAYOUT["B_HALF"]  # 3 columns: its half extents
+B_ACCEL, B_DISC, B_SPEED = LAYOUT["B_ACCEL"], LAYOUT["B_DISC"], LAYOUT["B_SPEED"]
+NB_REC = LAYOUT["NB_REC"]
 
 
 class BodyBoxes(NamedTuple):
@@ -139,15 +118,9 @@ def body_boxes(
     return BodyBoxes(ref, bodies, 0.5 * (lo + hi), 0.5 * (hi - lo))
 
 
-@functools.cache
-def _index_by_row() -> Any:
-    """``dua_index_by_row``, its signature declared once."""
-    p, i8 = ctypes.c_void_p, ctypes.c_int64
-    return declare({"dua_index_by_row": (i8, [p, p, p, i8, i8, p, p])}).dua_index_by_row
-
-
 class EventTable:
-    """The violation check's tables and state for one predictor.
+    """The violation check's tables for one predictor: a record a checked body and the check's
+    parameters (its state, and which held pairs each body has, are the native runtime's).
 
     Args:
         model: The model.
@@ -179,70 +152,22 @@ class EventTable:
         rec[:, B_DISC] = bounds.discrepancy[boxes.body] + 0.5 * accel * h * (period - 1)
         rec[:, B_SPEED] = np.inf if bounds.speed is None else bounds.speed[boxes.body]
         self.records = rec
-        self.state = np.zeros((-(-n // STATE_GROUP), NB_STATE, STATE_GROUP))
-        self.meta = np.zeros(3, dtype=np.int64)
-        self.flagged = np.zeros(max(n, 1), dtype=np.int64)
+        """``(nbody_checked, NB_REC)`` one record a checked body."""
         self.params = np.array([period * h, rtol])
-        row = np.full(model.nbody, -1, dtype=np.int64)
-        row[boxes.body] = np.arange(n)
-        self._geom_row = np.ascontiguousarray(row[np.asarray(model.geom_bodyid, dtype=np.int64)])
-        self.start = np.zeros(n + 1, dtype=np.int64)
-        self.members = np.zeros(0, dtype=np.int64)
-
-    def hold(self, geom1: np.ndarray, geom2: np.ndarray) -> None:
-        """Index the held pairs (``geom1``, ``geom2`` of each, ``-1`` for none) by body: for each
-        checked body, the pairs with a geom on it (the native counting sort the plugin uses)."""
-        g1 = np.ascontiguousarray(geom1, dtype=np.int64)
-        g2 = np.ascontiguousarray(geom2, dtype=np.int64)
-        n = g1.shape[0]
-        self.start = np.zeros(self.records.shape[0] + 1, dtype=np.int64)
-        members = np.zeros(max(2 * n, 1), dtype=np.int64)
-        count = _index_by_row()(
-            self._geom_row.ctypes, g1.ctypes, g2.ctypes, n, self.records.shape[0],
-            self.start.ctypes, members.ctypes,
-        )  # fmt: skip
-        self.members = members[:count].copy()
+        """``(2,)`` the period (seconds) and the relative tolerance."""
 
     @property
     def nbody(self) -> int:
         """Bodies checked."""
         return int(self.records.shape[0])
 
-    @property
-    def violated(self) -> np.ndarray:
-        """``(k,)`` ids of the bodies that broke a bound at the latest step."""
-        rows = self.flagged[: int(self.meta[M_COUNT])]
-        return self.records[rows, B_BODY].astype(np.int64)
 
-    @property
-    def total(self) -> int:
-        """Body-steps that broke a bound since the reset."""
-        return int(self.meta[M_TOTAL])
-
-    def args(self) -> tuple:
-        """The step's ``events`` tuple (``NativeStep.bind_events``)."""
-        return (
-            self.records,
-            self.state,
-            self.meta,
-            self.flagged,
-            self.start,
-            self.members,
-            self.params,
-        )
-
-
-def no_events() -> tuple:
-    """The ``events`` tuple of a predictor that checks no body."""
-    return (
-        np.zeros((0, NB_REC)),
-        np.zeros((0, NB_STATE, STATE_GROUP)),
-        np.zeros(3, dtype=np.int64),
-        np.zeros(1, dtype=np.int64),
-        np.zeros(1, dtype=np.int64),
-        np.zeros(0, dtype=np.int64),
-        np.array([1.0, 0.0]),
-    )
+def no_events() -> EventTable:
+    """The tables of a predictor that checks no body."""
+    table = EventTable.__new__(EventTable)
+    table.records = np.zeros((0, NB_REC))
+    table.params = np.array([1.0, 0.0])
+    return table
 
 
 def build_events(
@@ -255,15 +180,3 @@ def build_events(
     )
     kept = BodyBoxes(*(a[moving] for a in boxes))
     return EventTable(model, kept, bounds, period=period)
-
-
-@nb.njit(cache=True)
-def _exceeds(q, bound):  # pragma: no cover - jitted
-    """Whether ``max_s |a + s_0 x + s_1 y + s_2 z|`` over ``s`` in ``{-1, 1}^3`` exceeds
-    ``bound``, for ``q = [a, x, y, z]`` (twelve entries): the native check's test of a box's
-    corners (two screens first, each an upper bound of the maximum; the corners only when both
-    fail)."""
-    return (
-        exceeds12_c(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8], q[9], q[10], q[11], bound)
-        != 0
-    )

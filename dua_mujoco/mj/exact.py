@@ -23,36 +23,29 @@ is degenerate (touching, or no witness within the query's reach).
 from __future__ import annotations
 
 import dataclasses
+import enum
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.shapes import (
-    ShapeKind,
-)
+from dua_mujoco._core import LAYOUT, exact_rows
+from dua_mujoco.core.shapes import ShapeKind
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj import native_pairs
-from dua_mujoco.mj.exact_kernels import (
-    GX_CENTRE,
-    GX_GRAPH,
-    GX_KIND,
-    GX_NCOL,
-    GX_RADIUS,
-    GX_SEED,
-    GX_SIZE,
-    GX_VERT,
-    X_DIST,
-    X_G1,
-    X_G2,
-    X_MODE,
-    X_N,
-    ExactMode,
-)
 from dua_mujoco.mj.kinematics import pack_spheres
 
 __all__ = [
     "EXACT_PERIODS",
+    "GX_CENTRE",
+    "GX_GRAPH",
+    "GX_KIND",
+    "GX_NCOL",
+    "GX_SEED",
+    "GX_SIZE",
+    "GX_VERT",
+    "X_HULL1",
+    "X_HULL2",
+    "X_NCOL",
     "EXACT_TYPES",
     "GX_RADIUS",
     "QUERY_PERIODS",
@@ -67,6 +60,35 @@ __all__ = [
     "corner_points",
     "exact_records",
 ]
+
+
+
+class ExactMode(enum.IntEnum):
+    """What the exact level does for a pair (``X_MODE``)."""
+
+    NONE = LAYOUT["ExactMode.NONE"]
+    """Keep the sphere tau (a height field, an SDF, or the level is off)."""
+    GEOMS = LAYOUT["ExactMode.GEOMS"]
+    """Two geoms that may both move: ``mj_geomDistance`` gives the direction."""
+    PLANE = LAYOUT["ExactMode.PLANE"]
+    """A geom and a plane: the plane's normal is the direction."""
+    SHAPE = LAYOUT["ExactMode.SHAPE"]
+    """A geom and a static shape (its record in the shape table): ``mj_geomDistance``."""
+
+
+# Columns of the per-geom records: the first eight are ``pack_spheres``' (a "sphere" at the geom
+# origin, whose velocity the kinematics kernel gives), then the support shape: its kind
+# (ShapeKind, -1 where the level does not apply), size (3), centre in the geom frame (3, a mesh's
+# box centre), radius (max |p - origin| over the geom's points), a mesh's first vertex and hull
+# graph address (-1: none), and six seeds of the hull climb (the hull vertices farthest along
+# -x, +x, -y, +y, -z, +z).
+GX_KIND, GX_SIZE, GX_CENTRE = LAYOUT["GX_KIND"], LAYOUT["GX_SIZE"], LAYOUT["GX_CENTRE"]
+GX_RADIUS, GX_VERT, GX_GRAPH = LAYOUT["GX_RADIUS"], LAYOUT["GX_VERT"], LAYOUT["GX_GRAPH"]
+GX_SEED, GX_NCOL = LAYOUT["GX_SEED"], LAYOUT["GX_NCOL"]
+# Columns of the per-pair records: mode, geoms, contact distance, the last direction that served
+# the pair (3), the hull vertices (local ids) highest last time per side (-1: none).
+X_MODE, X_G1, X_G2, X_DIST = LAYOUT["X_MODE"], LAYOUT["X_G1"], LAYOUT["X_G2"], LAYOUT["X_DIST"]
+X_N, X_HULL1, X_HULL2, X_NCOL = LAYOUT["X_N"], LAYOUT["X_HULL1"], LAYOUT["X_HULL2"], LAYOUT["X_NCOL"]
 
 EXACT_PERIODS = 1
 """Pairs whose sphere tau is below this many predictor periods past the latency are looked at
@@ -254,8 +276,10 @@ def exact_records(
 ) -> np.ndarray:
     """``(n, X_NCOL)`` records of sphere pairs (``build_exact``'s arguments) over the level's
     per-geom records ``geoms``: a pruned predictor adds the pairs it meets with these."""
-    # The native core's rows (the plugin's pruned pairs make those of the pairs they meet).
-    return native_pairs.exact_rows(geoms, geom1, geom2, kind, contact_distance)
+    # The native core's rows (a pruned predictor makes those of the pairs it meets with them).
+    g1 = np.asarray(geom1, dtype=np.int64)
+    dist = np.broadcast_to(np.asarray(contact_distance, dtype=np.float64), g1.shape)
+    return exact_rows(geoms, g1, np.asarray(geom2, dtype=np.int64), np.asarray(kind, np.int8), dist)
 
 
 def corner_points(

@@ -46,7 +46,7 @@ import numpy.typing as npt
 
 from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
-from dua_mujoco.mj import native_pairs
+from dua_mujoco import _core
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
 from dua_mujoco.mj.pairfilter import FilterTables, all_dynamic_pairs, dynamic_mask
@@ -274,7 +274,10 @@ def _with_explicit(
         pmargin = pgap = np.zeros(0)
 
     o_margin = margin_override(model)
-    dyn_margin, dyn_gap = native_pairs.contact_params(gmargin, ggap, g1, g2, o_margin)
+    # The native core's rule (a pruned predictor's runtime gives the pairs it meets the same).
+    dyn_margin, dyn_gap = _core.contact_distance(
+        gmargin, ggap, g1, g2, o_margin is not None, 0.0 if o_margin is None else o_margin
+    )
     all1 = np.concatenate([g1, lo])
     all2 = np.concatenate([g2, hi])
     is_explicit = np.concatenate([np.zeros(g1.shape[0], bool), np.ones(lo.shape[0], bool)])
@@ -487,9 +490,10 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
     # The expansion is the native core's (the plugin's pruned pairs expand the pairs they meet
     # with it too).
     dist = np.asarray(geom_pairs.contact_distance, dtype=np.float64)[idx]
-    first, second, kind, geom_pair, eps = native_pairs.expand(
-        gp1, gp2, dist, idx, start, covering.geom_plane, covering.geom_shape,
-        covering.sphere_radius,
+    first, second, kind, geom_pair, eps = _core.sphere_pairs(
+        np.asarray(gp1, dtype=np.int64), np.asarray(gp2, dtype=np.int64), dist,
+        np.asarray(idx, dtype=np.int64), start, np.asarray(covering.geom_plane, dtype=np.int64),
+        np.asarray(covering.geom_shape, dtype=np.int64), covering.sphere_radius,
     )  # fmt: skip
     return SpherePairs(
         first=first.astype(np.int32),

@@ -23,11 +23,10 @@ at a mocap body moves with that body, which ``cvel`` treats as static: its twist
 from __future__ import annotations
 
 import mujoco
-import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.native_kernels import frame_view, rigid_point_c
+from dua_mujoco._core import LAYOUT, rigid_points
 from dua_mujoco.exceptions import ShapeError
 
 __all__ = [
@@ -38,13 +37,14 @@ __all__ = [
     "SPHERE_ROOT",
     "mjdata_frame",
     "pack_spheres",
-    "rigid_point",
     "sphere_states",
 ]
 
-# Columns of the packed per-sphere records: one 64-byte row (a cache line) per sphere.
-SPHERE_FRAME, SPHERE_BODY, SPHERE_OFFSET, SPHERE_ROOT = 0, 1, 2, 5  # offset: columns 2, 3, 4
-SPHERE_NCOL = 8
+# Columns of the packed per-sphere records: one 64-byte row (a cache line) per sphere (the
+# offset takes three columns).
+SPHERE_FRAME, SPHERE_BODY = LAYOUT["SPHERE_FRAME"], LAYOUT["SPHERE_BODY"]
+SPHERE_OFFSET, SPHERE_ROOT = LAYOUT["SPHERE_OFFSET"], LAYOUT["SPHERE_ROOT"]
+SPHERE_NCOL = LAYOUT["SPHERE_NCOL"]
 
 
 def pack_spheres(
@@ -77,26 +77,14 @@ def pack_spheres(
     return rec
 
 
-@nb.njit(cache=True, inline="always")
-def rigid_point(i, spheres, view, out):  # pragma: no cover - jitted
-    """Centre and velocity of sphere ``i`` attached to a rigid frame: the one kinematics kernel
-    (native: ``dua_rigid_point``).
-
-    ``spheres`` holds ``pack_spheres`` records; ``view`` is the :func:`frame_view` of a
-    ``frame`` tuple ``(frame_pos (nframe, 3), frame_mat (nframe, 9), twist (nbody, 6),
-    twist_ref (nbody, 3), root_twist (nbody, 6), root_origin (nbody, 3))``, read from ``MjData``
-    as ``(geom_xpos, geom_xmat, cvel, subtree_com, mocap root twists, xpos)`` (take it once for a
-    loop over many points). Writes ``out[0:3]`` (centre) and ``out[3:6]`` (velocity), ``out``
-    contiguous. Centre: ``frame_pos[g] + frame_mat[g] @ offset``. Velocity: the body twist
-    ``[omega; v_ref]`` about the point ``twist_ref[rootid[b]]`` (MuJoCo's ``cvel`` about
-    ``subtree_com`` of the root), plus the twist of the tree's root about ``root_origin`` for
-    trees MuJoCo treats as static (mocap roots), which is zero elsewhere.
-    """
-    rigid_point_c(i, spheres.ctypes, view.ctypes, out.ctypes)
-
-
 def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The ``frame`` tuple :func:`rigid_point` reads, as views of ``data``'s buffers.
+    """The instant the kinematics kernel reads, as views of ``data``'s buffers: ``(geom_xpos
+    (ngeom, 3), geom_xmat (ngeom, 9), cvel (nbody, 6), subtree_com (nbody, 3), root_twist
+    (nbody, 6), xpos (nbody, 3))``.
+
+    A point's centre is ``geom_xpos[g] + geom_xmat[g] @ offset``; its velocity the body twist
+    ``[omega; v_ref]`` about ``subtree_com`` of its root (MuJoCo's ``cvel``), plus the twist of a
+    mocap root about its origin ``xpos`` (zero rows elsewhere).
 
     Args:
         data: The MuJoCo data (kinematics computed).
@@ -106,17 +94,11 @@ def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> tuple[np.ndarra
     return (data.geom_xpos, data.geom_xmat, data.cvel, data.subtree_com, root_twist, data.xpos)
 
 
-@nb.njit(cache=True)
-def _states(spheres, frame, ids, out):  # pragma: no cover - jitted
-    view = frame_view(frame)
-    for k in range(ids.shape[0]):
-        rigid_point(ids[k], spheres, view, out[k])
-
-
 def sphere_states(
     spheres: np.ndarray, frame: tuple[np.ndarray, ...], ids: npt.ArrayLike | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Centres and velocities of spheres ``ids`` (all when None), through :func:`rigid_point`.
+    """Centres and velocities of spheres ``ids`` (all when None) on ``frame``: the native
+    core's kinematics kernel (``dua_rigid_point``), the one every reader of sphere states runs.
 
     Args:
         spheres: ``(nsphere, 8)`` records from :func:`pack_spheres`.
@@ -125,29 +107,15 @@ def sphere_states(
 
     Returns:
         ``(centers (n, 3), velocities (n, 3))``, float64.
+
+    Raises:
+        InvalidInputError: A sphere id is out of range, or a record indexes outside ``frame``
+            (the MjData of another model).
     """
-    nsphere = spheres.shape[0]
     sel = (
-        np.arange(nsphere, dtype=np.int64)
+        np.arange(spheres.shape[0], dtype=np.int64)
         if ids is None
-        else np.ascontiguousarray(np.asarray(ids, dtype=np.int64).reshape(-1))
+        else np.asarray(ids, dtype=np.int64).reshape(-1)
     )
-    if sel.size and (sel.min() < 0 or sel.max() >= nsphere):
-        raise ShapeError(f"sphere ids must lie in [0, {nsphere}); got [{sel.min()}, {sel.max()}].")
-    _check_frame(spheres, frame)
-    out = np.empty((sel.shape[0], 6))
-    _states(spheres, frame, sel, out)
+    out = rigid_points(spheres, *frame, sel)
     return out[:, :3], out[:, 3:]
-
-
-def _check_frame(spheres: np.ndarray, frame: tuple[np.ndarray, ...]) -> None:
-    """The kernel reads without bounds checks: the records must index inside the frame."""
-    if spheres.shape[0] == 0:
-        return
-    nframe, nbody = frame[0].shape[0], frame[2].shape[0]
-    if spheres[:, SPHERE_FRAME].max() >= nframe or spheres[:, SPHERE_BODY].max() >= nbody:
-        raise ShapeError(
-            f"the sphere records reference frame {int(spheres[:, SPHERE_FRAME].max())} and body "
-            f"{int(spheres[:, SPHERE_BODY].max())} but the data has {nframe} frames and {nbody} "
-            "bodies: pass the MjData of the model the spheres were built for."
-        )

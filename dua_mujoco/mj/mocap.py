@@ -7,45 +7,20 @@ body moves rigidly with it, so the kinematics kernel adds the root's twist
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import mujoco
-import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.native_kernels import difference_poses_c
+from dua_mujoco._core import difference_poses
 from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
 
-__all__ = ["MocapVelocityTracker"]
+__all__ = ["MocapVelocityTracker", "PredictorMocap"]
 
 
 _NO_TWIST = np.zeros((0, 6))
-
-
-@nb.njit(cache=True)
-def _difference_poses(
-    xpos, xquat, bodies, prev_pos, prev_quat, dt, user, linear, angular, twist
-):  # pragma: no cover - jitted
-    """Backward-difference velocities of ``bodies``; updates the previous poses in place
-    (native: ``dua_difference_poses``, which the plugin runs too; every array C-contiguous).
-
-    Angular velocity: rotation vector of ``q_now * conj(q_prev)`` (world frame), taken the short
-    way round, divided by ``dt``. If ``twist`` has rows, row ``bodies[i]`` receives
-    ``[angular[i]; linear[i]]`` (what ``write_body_velocity`` does, without a second call).
-    """
-    difference_poses_c(
-        xpos.ctypes,
-        xquat.ctypes,
-        bodies.ctypes,
-        bodies.shape[0],
-        prev_pos.ctypes,
-        prev_quat.ctypes,
-        dt,
-        user.ctypes,
-        linear.ctypes,
-        angular.ctypes,
-        twist.ctypes,
-        twist.shape[0],
-    )
 
 
 class MocapVelocityTracker:
@@ -160,40 +135,24 @@ class MocapVelocityTracker:
             self._prev_pos = np.array(data.xpos[self.mocap_bodies])
             self._prev_quat = np.array(data.xquat[self.mocap_bodies])
         elif dt > 0.0:
-            # Called every predictor step: jitted, in place, no temporaries.
-            _difference_poses(
-                data.xpos,
-                data.xquat,
+            # The native core's differencing (the predictor's runtime runs the same), in place.
+            difference_poses(
+                data,
                 self.mocap_bodies,
                 self._prev_pos,
                 self._prev_quat,
                 dt,
-                self._user,
+                self._user.view(np.uint8),
                 self.linear,
                 self.angular,
                 _NO_TWIST if body_velocity is None else body_velocity,
+                self._model,
             )
         if (first or dt <= 0.0) and body_velocity is not None:
             self.write_body_velocity(body_velocity)
         if first or dt > 0.0:
             self._prev_time = t
             self.nupdates += 1
-
-    def load_compiled(self, data: mujoco.MjData, body_velocity: np.ndarray) -> None:
-        """Run the compiled differencing once on copies (loads it; changes no state)."""
-        n = self.mocap_bodies.size
-        _difference_poses(
-            data.xpos,
-            data.xquat,
-            self.mocap_bodies,
-            np.array(data.xpos[self.mocap_bodies]),
-            np.array(data.xquat[self.mocap_bodies]),
-            1.0,
-            self._user.copy(),
-            np.zeros((n, 3)),
-            np.zeros((n, 3)),
-            np.zeros_like(body_velocity),
-        )
 
     def body_velocity(self, nbody: int) -> np.ndarray:
         """Spatial velocity [omega; v_origin] per body, zero for non-mocap bodies.
@@ -210,3 +169,63 @@ class MocapVelocityTracker:
         """Write the mocap rows of a ``(nbody, 6)`` spatial-velocity array in place."""
         out[self.mocap_bodies, :3] = self.angular
         out[self.mocap_bodies, 3:] = self.linear
+
+
+class PredictorMocap:
+    """The mocap velocities a :class:`~dua_mujoco.Predictor` steps with.
+
+    Its native runtime differences the mocap poses at every predictor step (as
+    :class:`MocapVelocityTracker` does, with the same kernel); this object reads the runtime's
+    velocities and passes the user's on. ``BoundMonitor`` reads it as it reads a tracker.
+
+    Args:
+        model: The predictor's model.
+        runtime: ``() -> dua_mujoco._core.Runtime``, the predictor's runtime.
+    """
+
+    def __init__(self, model: mujoco.MjModel, runtime: Callable[[], Any]) -> None:
+        self._bodies = MocapVelocityTracker(model)  # the mocap bodies and their names
+        self.mocap_bodies = self._bodies.mocap_bodies
+        """``(nmocap,)`` body ids of mocap bodies, ordered by mocap id."""
+        self._runtime = runtime
+
+    def set_velocity(
+        self, body: int | str, linear: npt.ArrayLike, angular: npt.ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
+        """Use a known velocity for a mocap body instead of differencing (world frame), until
+        :meth:`clear_velocity`; a reset keeps it."""
+        i = self._bodies._mocap_index(body)
+        lin = np.asarray(linear, dtype=np.float64).reshape(3)
+        ang = np.asarray(angular, dtype=np.float64).reshape(3)
+        self._runtime().set_mocap_velocity(i, lin, ang)
+
+    def clear_velocity(self, body: int | str) -> None:
+        """Go back to differencing for ``body``."""
+        self._runtime().clear_mocap_velocity(self._bodies._mocap_index(body))
+
+    @property
+    def linear(self) -> np.ndarray:
+        """``(nmocap, 3)`` linear velocity of each mocap body's frame origin (a copy)."""
+        return np.asarray(self._runtime().mocap_velocity[0])
+
+    @property
+    def angular(self) -> np.ndarray:
+        """``(nmocap, 3)`` angular velocity of each mocap body (a copy)."""
+        return np.asarray(self._runtime().mocap_velocity[1])
+
+    @property
+    def nupdates(self) -> int:
+        """Pose records since the predictor's reset (the reset's one included)."""
+        return int(self._runtime().mocap_updates)
+
+    def body_velocity(self, nbody: int) -> np.ndarray:
+        """``(nbody, 6)`` spatial velocity [omega; v_origin] per body, zero for the others."""
+        out = np.zeros((nbody, 6))
+        self.write_body_velocity(out)
+        return out
+
+    def write_body_velocity(self, out: np.ndarray) -> None:
+        """Write the mocap rows of a ``(nbody, 6)`` spatial-velocity array in place."""
+        lin, ang, _ = self._runtime().mocap_velocity
+        out[self.mocap_bodies, :3] = ang
+        out[self.mocap_bodies, 3:] = lin

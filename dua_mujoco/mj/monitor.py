@@ -127,7 +127,7 @@ class Monitor:
         self.free_violations = 0
         self._standing = np.zeros(self._ngp, dtype=np.int64)
         self._pair_alarm = np.zeros(self.predictor.nsphere_pairs, dtype=bool)
-        self._scheduler = self.predictor.scheduler
+        self._resets = self.predictor.resets
         self._activation_seen = self.predictor.pair_state().activation_changes
         self._episode_start = np.full(self._ngp, np.nan)
         self._episode_horizon = np.zeros(self._ngp)
@@ -256,8 +256,8 @@ class Monitor:
         The reset came after the last observed physics step; its initial classification is
         applied by the next :meth:`_sync_switches`.
         """
-        if self.predictor.scheduler is not self._scheduler:
-            self._scheduler = self.predictor.scheduler
+        if self.predictor.resets != self._resets:
+            self._resets = self.predictor.resets
             self._pred_steps = StepMap(self.physics_step, self.predictor.period)
             self._activation_seen = -1
 
@@ -290,7 +290,7 @@ class Monitor:
         evaluated = sched.last_selected
         self.predictor_steps += 1
         # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated.
-        self.evaluation_sum += int(evaluated.size) - sched.scheduler.deferred
+        self.evaluation_sum += int(evaluated.size) - sched.deferred
         self._apply_alarms(alarms.pairs, evaluated, float(data.time))
         if self.geom_distance and len(alarms):
             for g1, g2 in sorted(alarms.geom_pairs):
@@ -331,10 +331,10 @@ class Monitor:
     def _active_geom_pairs(self) -> np.ndarray:
         """Mask of geom pairs with an active sphere pair; O(pairs) only after a switch."""
         sched = self.predictor.pair_state()
-        seen = (self.predictor.scheduler, sched.activation_changes)
+        seen = (self.predictor.resets, sched.activation_changes)
         if (
             self._gp_active_seen is None
-            or seen[0] is not self._gp_active_seen[0]
+            or seen[0] != self._gp_active_seen[0]
             or (seen[1] != self._gp_active_seen[1])
         ):
             self._gp_active_seen = seen

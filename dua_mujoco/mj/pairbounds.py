@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.mj import native_pairs
+from dua_mujoco import _core
 from dua_mujoco.mj.bounds import MotionBounds
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.filter import SpherePairs
@@ -56,9 +56,10 @@ def bounded_pairs(
     sp, b = sphere_pairs, bounds
     per_body = body_vel_uncertainty(model, bounds, period=period, mocap=mocap)
     # The native core's sums (the plugin's pruned pairs bound the pairs they meet with them).
-    accel, delta, speed = native_pairs.pair_bounds(
-        sp.first, sp.second, sp.kind, covering.sphere_body, b.accel, per_body, b.speed
-    )
+    accel, delta, speed = _core.pair_bounds(
+        np.asarray(sp.first, dtype=np.int64), np.asarray(sp.second, dtype=np.int64), sp.kind,
+        np.asarray(covering.sphere_body, dtype=np.int64), b.accel, per_body, b.speed,
+    )  # fmt: skip
     return PairSet(
         sp.first,
         sp.second,

@@ -11,17 +11,14 @@ elements are ``filter.py``'s.
 
 from __future__ import annotations
 
-import ctypes
-import functools
 from dataclasses import dataclass, field
-from typing import Any
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco import _core
 from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
-from dua_mujoco.native import declare
 
 __all__ = [
     "FilterTables",
@@ -30,43 +27,6 @@ __all__ = [
     "count_dynamic_pairs",
     "dynamic_mask",
 ]
-
-
-class _Filter(ctypes.Structure):
-    """``dua_filter`` (dua/dua.h)."""
-
-    _fields_ = [
-        ("ngeom", ctypes.c_int64),
-        *(
-            (name, ctypes.c_void_p)
-            for name in (
-                "body",
-                "weld",
-                "parent_weld",
-                "movable",
-                "contype",
-                "conaffinity",
-                "lone",
-                "exclude",
-            )
-        ),
-        ("nexclude", ctypes.c_int64),
-        ("filterparent", ctypes.c_int64),
-    ]
-
-
-@functools.cache
-def _lib() -> Any:
-    """The filter's C functions, their signatures declared once."""
-    p, i8 = ctypes.c_void_p, ctypes.c_int64
-    return declare(
-        {
-            "dua_filter_mask": (i8, [p, p, p, i8, p]),
-            "dua_filter_all": (i8, [p, p, p, i8]),
-            "dua_filter_count": (i8, [p, p, p]),
-            "dua_filter_any": (i8, [p]),
-        }
-    )
 
 
 @dataclass(frozen=True)
@@ -94,35 +54,22 @@ class FilterTables:
     lone: np.ndarray
     exclude: np.ndarray
     filterparent: bool
-    _native: _Filter = field(init=False, repr=False, compare=False)
+    _native: _core.Filter = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        # The native rule reads these arrays in place: contiguous, of its types, kept alive here.
-        for name, dtype in (
-            ("body", np.int64), ("weld", np.int64), ("parent_weld", np.int64),
-            ("movable", np.uint8), ("contype", np.int64), ("conaffinity", np.int64),
-            ("lone", np.uint8), ("exclude", np.int64),
-        ):  # fmt: skip
-            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=dtype))
-        native = _Filter(
-            self.body.shape[0],
-            *(
-                a.ctypes.data
-                for a in (
-                    self.body,
-                    self.weld,
-                    self.parent_weld,
-                    self.movable,
-                    self.contype,
-                    self.conaffinity,
-                    self.lone,
-                    self.exclude,
-                )
-            ),
-            self.exclude.shape[0],
-            int(self.filterparent),
+        arrays = {
+            name: np.ascontiguousarray(getattr(self, name), dtype=dtype)
+            for name, dtype in (
+                ("body", np.int64), ("weld", np.int64), ("parent_weld", np.int64),
+                ("movable", np.uint8), ("contype", np.int64), ("conaffinity", np.int64),
+                ("lone", np.uint8), ("exclude", np.int64),
+            )
+        }  # fmt: skip
+        for name, value in arrays.items():
+            object.__setattr__(self, name, value)
+        object.__setattr__(
+            self, "_native", _core.Filter(**arrays, filterparent=bool(self.filterparent))
         )
-        object.__setattr__(self, "_native", native)
 
     @classmethod
     def of(cls, model: mujoco.MjModel) -> FilterTables:
@@ -150,34 +97,26 @@ class FilterTables:
 
 def any_dynamic_pair(tables: FilterTables) -> bool:
     """Whether the dynamic filter lets any geom pair through (stops at the first)."""
-    return bool(_lib().dua_filter_any(ctypes.byref(tables._native)))
+    return bool(tables._native.any())
 
 
 def dynamic_mask(tables: FilterTables, g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
     """``(n,)`` bool: which geom pairs ``(g1[k], g2[k])`` MuJoCo's dynamic filter lets through
     (O(n); a geom with itself never)."""
-    a = np.ascontiguousarray(g1, dtype=np.int64).reshape(-1)
-    b = np.ascontiguousarray(g2, dtype=np.int64).reshape(-1)
-    out = np.zeros(a.shape[0], dtype=np.uint8)
-    _lib().dua_filter_mask(ctypes.byref(tables._native), a.ctypes, b.ctypes, a.shape[0], out.ctypes)
-    return out.view(np.bool_)
+    a = np.asarray(g1, dtype=np.int64).reshape(-1)
+    b = np.asarray(g2, dtype=np.int64).reshape(-1)
+    return np.asarray(tables._native.mask(a, b))
 
 
 def all_dynamic_pairs(tables: FilterTables) -> tuple[np.ndarray, np.ndarray]:
     """Every geom pair ``g1 < g2`` the dynamic filter lets through, sorted (O(ngeom^2) time,
     O(result) memory: counted first, then written)."""
-    lib, native = _lib(), ctypes.byref(tables._native)
-    count = lib.dua_filter_all(native, None, None, 0)
-    g1 = np.empty(count, dtype=np.int64)
-    g2 = np.empty(count, dtype=np.int64)
-    lib.dua_filter_all(native, g1.ctypes, g2.ctypes, count)
-    return g1, g2
+    g1, g2 = tables._native.all()
+    return np.asarray(g1), np.asarray(g2)
 
 
 def count_dynamic_pairs(tables: FilterTables, weight: npt.ArrayLike) -> tuple[int, int]:
     """How many geom pairs the dynamic filter lets through, and the sum over them of
     ``weight[g1] * weight[g2]`` (O(ngeom^2) time, nothing held)."""
-    w = np.ascontiguousarray(weight, dtype=np.int64)
-    weighted = ctypes.c_int64(0)
-    pairs = _lib().dua_filter_count(ctypes.byref(tables._native), w.ctypes, ctypes.byref(weighted))
-    return int(pairs), int(weighted.value)
+    pairs, weighted = tables._native.count(np.asarray(weight, dtype=np.int64))
+    return int(pairs), int(weighted)

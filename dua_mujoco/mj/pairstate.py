@@ -1,83 +1,82 @@
 """``PairState``: the schedule's per-pair state, indexed by the model's sphere-pair ids.
 
-With ``pairs="all"`` the scheduler holds every active sphere pair and its ids are the model's.
+With ``pairs="all"`` the runtime holds every active sphere pair and its ids are the model's.
 With pruned pairs it holds a subset (``Predictor.held_pairs``, sorted), rebuilt as the spheres
 move; a pair it does not hold was shown unable to touch before the next rebuild, so it stands in
-no alarm. The exact stage (``Monitor``) reads the state through this view in either case.
+no alarm. The exact stage (``Monitor``) reads the state through this view in either case; it is
+read from the runtime when asked (O(pairs) a call), never kept.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.schedules import Scheduler
+from dua_mujoco._core import LAYOUT
+from dua_mujoco.core.pairset import PairKind
+from dua_mujoco.mj.universe import PairUniverse
 
 __all__ = ["PairState"]
 
+_P_COUNT, _P_DEFERRED = LAYOUT["P_COUNT"], LAYOUT["P_DEFERRED"]
+_W_IDS, _LAST_STEP = LAYOUT["W_IDS"], LAYOUT["LAST_STEP"]
+
 
 class PairState:
-    """The state of every sphere pair of a model (``npairs``), through a scheduler over
-    ``held`` of them (``held is None``: all of them, ids equal).
+    """The state of every sphere pair of a predictor's runtime.
 
     Args:
-        scheduler: The predictor's scheduler.
-        npairs: Number of the model's active sphere pairs.
-        held: ``(K,)`` sorted pair ids the scheduler holds, or None for all.
-        on: ``(npairs,)`` bool, pairs switched on (used when ``held`` is given).
-        rebuilds: Rebuilds and renewals of the held set so far (each may change any pair's
-            state).
-        left_out: Given pair ids not held, the step since which each was shown unable to
-            touch (used when ``held`` is given; default 0).
+        runtime: The predictor's ``dua_mujoco._core.Runtime``.
+        universe: Its pairs (to name the pairs not held).
     """
 
-    def __init__(
-        self,
-        scheduler: Scheduler,
-        npairs: int,
-        held: np.ndarray | None = None,
-        on: np.ndarray | None = None,
-        rebuilds: int = 0,
-        left_out: Callable[[np.ndarray], np.ndarray] | None = None,
-    ) -> None:
-        self.scheduler = scheduler
-        self.npairs = npairs
-        self._held = held
-        self._on = on
-        self.rebuilds = rebuilds
-        """Rebuilds and renewals of the held set this view reflects."""
-        self._left_out = left_out
+    def __init__(self, runtime: Any, universe: PairUniverse) -> None:
+        self._rt = runtime
+        self._universe = universe
+        self.scheduler = runtime.schedule
+        """The runtime's ``_core.Schedule`` (its ``deferred`` and ``params``)."""
+        self.npairs = int(runtime.npair)
+        self._held = np.asarray(runtime.ids)
+        self._all = self._held.size == self.npairs
 
     @property
     def step_count(self) -> int:
-        """Completed predictor steps."""
-        return self.scheduler.step_count
+        """Completed predictor steps since the reset."""
+        return int(self._rt.step_count)
 
     @property
     def activation_changes(self) -> int:
-        """Changes that may alter any pair's state: switches, and rebuilds of the held set."""
-        return self.scheduler.activation_changes + self.rebuilds
+        """Changes that may alter any pair's state: switches, classifications and, with pruned
+        pairs, changes of the held set."""
+        return int(self.scheduler.activation_changes)
+
+    @property
+    def deferred(self) -> int:
+        """Pairs due at the latest step but left for a later one (a capped schedule)."""
+        return int(self.scheduler.params[_P_DEFERRED]) if self.step_count else 0
 
     @property
     def active(self) -> np.ndarray:
         """``(npairs,)`` bool, pairs switched on."""
-        if self._held is None:
-            return self.scheduler.active
-        assert self._on is not None
-        return self._on
+        return np.asarray(self._rt.on)
 
     @property
     def last_selected(self) -> np.ndarray:
-        """Pair ids whose verdict the latest step renewed."""
-        ids = self.scheduler.last_selected
-        return ids if self._held is None else self._held[ids]
+        """Pair ids whose verdict the latest step renewed (evaluated, and deferred ones)."""
+        s = self.scheduler
+        if self.step_count == 0:
+            return np.zeros(0, dtype=np.int64)
+        params = s.params
+        renewed = int(params[_P_COUNT] + params[_P_DEFERRED])
+        return np.asarray(self._held[s.work[_W_IDS, :renewed]])
 
     def _positions(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Scheduler positions of ``ids`` and whether each is held."""
+        """Schedule positions of model pairs ``ids`` and whether each is held."""
         held = self._held
-        assert held is not None
+        if self._all:
+            return ids, np.ones(ids.shape, dtype=bool)
         pos = np.minimum(np.searchsorted(held, ids), max(held.size - 1, 0))
         return pos, (held.size > 0) & (held[pos] == ids)
 
@@ -89,39 +88,41 @@ class PairState:
 
     def alarm_state(self, pair: npt.ArrayLike | None = None) -> np.ndarray:
         """Whether each pair stands in alarm (pairs not held never do)."""
-        if self._held is None:
-            return self.scheduler.alarm_state(pair)
-        ids = np.arange(self.npairs) if pair is None else np.asarray(pair, dtype=np.int64)
+        state = np.asarray(self.scheduler.alarm_state())
         if pair is None:
+            if self._all:
+                return state
             out = np.zeros(self.npairs, dtype=bool)
-            out[self._held] = self.scheduler.alarm_state()
+            out[self._held] = state
             return out
-        return self._gather(self.scheduler.alarm_state(), ids, False)
+        return self._gather(state, np.asarray(pair, dtype=np.int64), False)
 
-    def horizon_of(self, pair: np.ndarray) -> np.ndarray:
+    def horizon_of(self, pair: npt.ArrayLike) -> np.ndarray:
         """The alarm horizon (seconds) each pair's latest verdict must cover."""
-        if self._held is None:
-            return self.scheduler.horizon_of(pair)
         pos, found = self._positions(np.asarray(pair, dtype=np.int64))
         out = np.zeros(found.shape)
         out[found] = self.scheduler.horizon_of(pos[found])
         return out
 
-    def last_step_of(self, pair: np.ndarray) -> np.ndarray:
+    def last_step_of(self, pair: npt.ArrayLike) -> np.ndarray:
         """Step of each pair's latest evaluation (a pair not held: the step since which it was
-        shown unable to touch, by the latest rebuild or a renewal of one of its spheres)."""
-        if self._held is None:
-            return np.asarray(self.scheduler.last_step[pair])
+        shown unable to touch, the later anchor of its two spheres at the latest rebuild or
+        renewal)."""
         ids = np.asarray(pair, dtype=np.int64)
         pos, found = self._positions(ids)
         out = np.zeros(ids.shape, dtype=np.int64)
-        out[found] = self.scheduler.last_step[pos[found]]
-        if self._left_out is not None and not found.all():
-            out[~found] = self._left_out(ids[~found])
+        out[found] = self.scheduler.ints[_LAST_STEP, pos[found]]
+        if not found.all():
+            built = np.asarray(self._rt.anchor_steps)
+            sp = self._universe.sphere_pairs
+            rest = ids[~found]
+            first = np.asarray(sp.first, dtype=np.int64)[rest]
+            second = np.asarray(sp.second, dtype=np.int64)[rest]
+            sphere = np.asarray(sp.kind)[rest] == int(PairKind.SPHERE)
+            other = np.where(sphere, built[np.where(sphere, second, 0)], 0)
+            out[~found] = np.maximum(built[first], other)
         return out
 
-    def last_tau_of(self, pair: np.ndarray) -> np.ndarray:
+    def last_tau_of(self, pair: npt.ArrayLike) -> np.ndarray:
         """tau of each pair's latest evaluation (a pair not held: ``inf``)."""
-        if self._held is None:
-            return np.asarray(self.scheduler.last_tau[pair])
-        return self._gather(self.scheduler.last_tau, pair, np.inf)
+        return self._gather(np.asarray(self.scheduler.last_tau), np.asarray(pair, np.int64), np.inf)

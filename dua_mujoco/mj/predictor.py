@@ -2,9 +2,11 @@
 
 The model is read once: geoms are covered by spheres (``covering``), MuJoCo's collision filter
 gives the active geom pairs (``filter``), and those expand into sphere pairs with per-pair contact
-distance, acceleration bound and velocity uncertainty. ``reset(data)`` is the initial
-classification; each ``step(data)`` evaluates the scheduled pairs in one call of the native core
-that reads only their spheres from ``MjData`` (``NativeStep``: the step the MuJoCo plugin runs).
+distance, acceleration bound and velocity uncertainty; with the bounds (declared, or measured by
+a pilot rollout), the static shapes, the exact level and the violation check they become the
+tables of ``mj/build.py``. The native core runs the predictor on them (``dua_mujoco._core.Runtime``,
+the same runtime the MuJoCo plugin runs inside ``mj_step``): ``reset(data)`` is the initial
+classification, each ``step(data)`` one call into it.
 
 Timing. Call ``step`` every ``period`` physics steps, after ``mj_step``. ``MjData`` then holds the
 kinematics (``geom_xpos``, ``cvel``) and contacts of the state at the start of that step, and the
@@ -13,7 +15,6 @@ predictor uses that one instant throughout (docs/discrete-time.md).
 
 from __future__ import annotations
 
-import functools
 import warnings
 from collections.abc import Mapping
 from typing import Literal
@@ -22,13 +23,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.schedules import (
-    DeadlineScheduler,
-    Schedule,
-    Scheduler,
-    as_schedule,
-    make_scheduler,
-)
+from dua_mujoco import _core
+from dua_mujoco.core.pairset import PairSet
+from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule, make_scheduler
 from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
@@ -39,24 +36,14 @@ from dua_mujoco.exceptions import (
 )
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.bounds import MotionBounds, resolve_bounds
+from dua_mujoco.mj.build import predictor_tables
 from dua_mujoco.mj.covering import Covering, CoveringMode, cover_model
 from dua_mujoco.mj.diagnostics import clock_error, nonfinite_error
-from dua_mujoco.mj.events import (
-    M_COUNT,
-    EventTable,
-    body_boxes,
-    build_events,
-    no_events,
-)
-from dua_mujoco.mj.exact import EXACT_PERIODS, QUERY_PERIODS
-from dua_mujoco.mj.filter import (
-    body_id,
-    pairs_between_bodies,
-    sphere_pair_mask,
-)
+from dua_mujoco.mj.events import EventTable, body_boxes, build_events
+from dua_mujoco.mj.exact import EXACT_PERIODS, QUERY_PERIODS, ExactLevel
+from dua_mujoco.mj.filter import GeomPairs, SpherePairs, body_id
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
-from dua_mujoco.mj.mocap import MocapVelocityTracker
-from dua_mujoco.mj.native_step import NativeStep
+from dua_mujoco.mj.mocap import PredictorMocap
 from dua_mujoco.mj.options import (
     CoveringOptions,
     PairOptions,
@@ -68,9 +55,9 @@ from dua_mujoco.mj.options import (
 )
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty
 from dua_mujoco.mj.pairstate import PairState
-from dua_mujoco.mj.predictor_views import PredictorViews
-from dua_mujoco.mj.pruning import RENEW_MAX, HeldPairs, held_pairs_for, resolve_pair_mode
+from dua_mujoco.mj.pruning import Reach, reach_for, resolve_pair_mode
 from dua_mujoco.mj.tables import (
+    PairTables,
     check_data,
     check_forwarded,
     plane_halfspaces,
@@ -78,16 +65,20 @@ from dua_mujoco.mj.tables import (
 )
 from dua_mujoco.mj.universe import PairUniverse
 
-_NONE = np.zeros(0, dtype=np.int64)
-
 __all__ = ["BoundsLike", "Predictor"]
 
 BoundsLike = float | Mapping[str, float] | MotionBounds | Literal["auto"]
 """Acceleration bounds: a scalar (m/s^2, every moving body), a dict by body name (``"*"`` for
 the rest), ready ``MotionBounds``, or ``"auto"`` (estimated by a pilot rollout)."""
 
+LOG_STEPS = 4
+"""The alarm log holds at least this many steps' worth of the most alarms a step can raise..."""
+LOG_MIN = 1 << 14
+"""...and at least this many entries: ``Alarms`` are views of it, never copied; a full log is
+replaced, never overwritten, so an old ``Alarms`` keeps its values."""
 
-class Predictor(PredictorViews):
+
+class Predictor:
     """DUA collision predictor for a MuJoCo model.
 
     Args:
@@ -114,7 +105,7 @@ class Predictor(PredictorViews):
             the pairs whose reachable balls meet within a horizon (deadline schedule only;
             docs/many-objects.md), ``"auto"`` (default) prunes from 256 covering spheres on.
             Alarms name sphere pairs by their id among all active pairs either way;
-            :attr:`held_pairs` maps the scheduler's ids to them.
+            :attr:`held_pairs` maps the schedule's ids to them.
 
     Raises:
         InvalidInputError: A keyword of the flat options of earlier releases (the message names
@@ -148,7 +139,7 @@ class Predictor(PredictorViews):
             raise InvalidInputError(f"period = {period!r} is invalid: it must be an int >= 1.")
         self.model = model
         self.period = int(period)
-        # Validate the scheduler options now rather than at reset(): same checks, same messages.
+        # Validate the schedule's options now rather than at reset(): same checks, same messages.
         self.dt, self.latency = check_period(self.period * float(model.opt.timestep), latency)
         self.options = resolve_options(covering, schedule, urgency, pilot, pairs)
         """The option groups in force (``PredictorOptions``)."""
@@ -170,7 +161,7 @@ class Predictor(PredictorViews):
             )
         )
         cov = self.covering
-        self._mode = resolve_pair_mode(
+        mode = resolve_pair_mode(
             self.options.pairs.mode,
             self.options.pairs.horizon,
             deadline=self.schedule is Schedule.DEADLINE,
@@ -181,7 +172,7 @@ class Predictor(PredictorViews):
             below = self.options.urgency.exact_below
             below = (EXACT_PERIODS + self.latency) * self.dt if below is None else below
             exact = (below, (QUERY_PERIODS + self.latency) * self.dt)
-        self.universe = PairUniverse(model, cov, lazy=self._mode is PairMode.PRUNED, exact=exact)
+        self.universe = PairUniverse(model, cov, lazy=mode is PairMode.PRUNED, exact=exact)
         """The sphere pairs this predictor knows and their tables (a pruned one learns the
         pairs its candidates bring in)."""
         if self.universe.empty():
@@ -213,13 +204,13 @@ class Predictor(PredictorViews):
             safety=self.options.pilot.safety,
             pilot_motion=self.options.pilot.motion,
         )
-        self.mocap: MocapVelocityTracker | None = (
-            MocapVelocityTracker(model) if model.nmocap else None
+        self.mocap: PredictorMocap | None = (
+            PredictorMocap(model, lambda: self._rt) if model.nmocap else None
         )
         """Velocities of mocap bodies (None without mocap bodies): ``set_velocity`` to give
         them instead of differencing."""
-        # Static shape records: their poses are model constants (static_shapes), re-packed and
-        # checked against the data at each reset.
+        # Static shape records: their poses are model constants, checked against the data at
+        # each reset.
         self._shapes = static_shapes(model, cov.shape_geom)
         self.universe.bind(self.bounds, period=self.period, mocap=self.mocap, shapes=self._shapes)
         self.events: EventTable | None = (
@@ -228,31 +219,13 @@ class Predictor(PredictorViews):
             else None
         )
         """The violation check's tables (None when ``violation_events`` is off)."""
-        self._events = no_events()
-        if self.events is not None:
-            self.events.hold(self.tables.geom1, self.tables.geom2)
-            self._events = self.events.args()
-        self._plane_geom = np.asarray(cov.plane_geom, dtype=np.int64)
         self._spheres = pack_spheres(
             cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
         )
-        self._exact_records = None if self.exact is None else self.exact.records
-        # Mocap roots' twists, rewritten each step (zero throughout in a model without mocap).
-        self._twist = np.zeros((model.nbody, 6))
-        self.scheduler: Scheduler | None = None
-        self._pair_state: PairState | None = None
-        self._pair_state_seen: tuple = ()
-        # The native step's arguments and the alarm log it appends to (made at reset).
-        self._native: NativeStep | None = None
-        self._time = 0.0
-        self._steps_at_reset = 0
-        self._frame_data: mujoco.MjData | None = None
-        self._frame_cache: tuple = ()
-        # stride: predictor steps between rebuilds of the held pairs (0: all pairs held).
-        self._held: HeldPairs | None = None
-        self.stride = 0
-        if self._mode is PairMode.PRUNED:
-            self._held, self.stride = held_pairs_for(
+        self.reach: Reach | None = None
+        """Pruned pairs: what their reach is made of (None when every pair is held)."""
+        if mode is PairMode.PRUNED:
+            self.reach = reach_for(
                 self.universe,
                 self.options.pairs.horizon,
                 bounds=self.bounds,
@@ -262,120 +235,63 @@ class Predictor(PredictorViews):
                 dt=self.dt,
                 latency=self.latency,
             )
-        # Pruned: the scheduler's pairs (ids among the known pairs), their packed records and
-        # the last rebuild's step.
-        self._ids = np.arange(self.universe.npair)
-        self._records = self._pair_records
-        self._built_at = 0
-        # Spheres the latest step found outside their reach, renewed at the next step.
-        self._escapes = _NONE
-        self.rebuilds = 0
-        """Rebuilds of the held pairs so far (pruned pairs only)."""
-        self.renewals = 0
-        """Renewals of escaped spheres' pairs so far (pruned pairs only)."""
-
-    def geom_pair_ids(self, g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
-        """Ids of the active geom pairs ``{g1[k], g2[k]}``, -1 where MuJoCo's filter rejects
-        the pair; a pruned predictor learns the active ones it has not met (the exact stage
-        asks for every contact)."""
-        gp = self.geom_pairs.indices_of(g1, g2)
-        if (gp < 0).any() and self.universe.learn(np.asarray(g1)[gp < 0], np.asarray(g2)[gp < 0]):
-            gp = self.geom_pairs.indices_of(g1, g2)
-        return gp
-
-    # ----------------------------------------------------------------------- setup
-
-    def _hold(self, ids: np.ndarray) -> None:
-        """Hold the pairs ``ids`` (sorted): the step reads only their records."""
-        self._ids = ids
-        self._records = np.ascontiguousarray(self._pair_records[ids])
-        if self.events is not None:
-            self.events.hold(self.tables.geom1[ids], self.tables.geom2[ids])
-            self._events = self.events.args()
-        if self.exact is not None:
-            self._exact_records = np.ascontiguousarray(self.exact.records[ids])
-        if self._native is not None:
-            self._bind_tables(self._native)
-
-    def _bind_tables(self, native: NativeStep) -> None:
-        """Point the native step at the held pairs' tables as they stand now."""
-        native.bind_tables(self._records, self._spheres, self._shapes, self._ids)
-        native.bind_events(self._events)
-        if self.exact is not None and self._exact_records is not None:
-            x = self.exact
-            native.bind_exact(
-                self.model,
-                x.geoms,
-                self._exact_records,
-                below=x.exact_below,
-                query_below=x.query_below,
-                verts=x.verts,
-                graph=x.graph,
-            )
-        if self.scheduler is not None:
-            native.bind_schedule(self.scheduler.state)
-
-    def pair_state(self) -> PairState:
-        """The scheduler's state of every sphere pair, by the model's pair ids (pruned or not)."""
-        sched = self._require_scheduler()
-        # The exact stage asks several times a step: one view per scheduler and held set.
-        view = self._pair_state
-        changes = self.rebuilds + self.renewals
-        seen = (sched, changes, self.universe.version)
-        if view is None or self._pair_state_seen != seen:
-            self._pair_state_seen = seen
-            held, left_out = None, None
-            if self._held is not None:
-                held = self._ids
-                left_out = functools.partial(self._held.left_out_since, self.sphere_pairs)
-            view = PairState(sched, self.nsphere_pairs, held, self._on, changes, left_out)
-            self._pair_state = view
-        return view
+        self.table_arrays = predictor_tables(self)
+        """The tables the native runtime reads, by name (``mj/build.py``)."""
+        tables = _core.Tables.build(model, self.table_arrays)
+        self._rt = _core.Runtime(
+            tables, model, list(self.universe.tables.geom_names), LOG_STEPS, LOG_MIN
+        )
+        self.universe.attach(self._rt)
+        self._data: mujoco.MjData | None = None
+        self._scheduler: Scheduler | None = None
+        self._steps_at_reset = 0
+        self.resets = 0
+        """Classifications so far (each ``reset``)."""
 
     # ----------------------------------------------------------------------- state
 
     def check_data(self, data: mujoco.MjData) -> None:
         """Refuse anything but an ``MjData`` of this predictor's model (or of one with the same
-        geometry, e.g. the same XML loaded twice): the native step reads it unchecked."""
+        geometry, e.g. the same XML loaded twice)."""
         check_data(self.model, data)
 
-    def _bind_frame(self, data: mujoco.MjData) -> tuple:
-        """Point the native step at ``data``'s buffers; cache the ``frame`` tuple (``rigid_point``).
-
-        MjData's buffers live as long as the MjData, and every attribute access builds a new
-        numpy view (about a microsecond in all), so ``step`` rebuilds the views only when it is
-        handed another ``MjData``.
-        """
-        # The kernel does no bounds checks: refuse an MjData of another model here.
+    def _bind(self, data: mujoco.MjData) -> None:
+        """Read the state from ``data`` from now on (checked: the runtime reads it by index)."""
         self.check_data(data)
-        self._frame_data = data
-        self._frame_cache = mjdata_frame(data, self._twist)
-        if self._native is not None:
-            self._native.bind_frame(data, self._twist)
-        return self._frame_cache
+        self._rt.bind(data)
+        self._data = data
 
     def sphere_states(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        """Centres and velocities of every covering sphere, ``(nsphere, 3)`` each.
-
-        O(nsphere), through the same kinematics kernel as ``step``: used by ``reset``,
-        rendering and tests.
-        """
+        """Centres and velocities of every covering sphere, ``(nsphere, 3)`` each: the step's
+        kinematics kernel, with the mocap twists of the latest step."""
+        twist = np.zeros((self.model.nbody, 6))
         if self.mocap is not None:
-            self.mocap.write_body_velocity(self._twist)
-        return sphere_states(self._spheres, mjdata_frame(data, self._twist))
+            self.mocap.write_body_velocity(twist)
+        return sphere_states(self._spheres, mjdata_frame(data, twist))
 
     def halfspaces(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """Plane half-spaces: outward normals ``(nplane, 3)`` and offsets ``(nplane,)``."""
-        return plane_halfspaces(data, self._plane_geom)
+        return plane_halfspaces(data, np.asarray(self.covering.plane_geom, dtype=np.int64))
 
     def _nonfinite(self, data: mujoco.MjData, pair: int | None = None) -> NonFiniteStateError:
+        tables = self.tables
         if pair is not None:
-            geoms = {int(self.tables.geom1[pair]), int(self.tables.geom2[pair])}
+            geoms = {int(tables.geom1[pair]), int(tables.geom2[pair])}
         else:
             c, v = self.sphere_states(data)
             bad = ~(np.isfinite(c).all(axis=1) & np.isfinite(v).all(axis=1))
             geoms = set(self.covering.sphere_geom[bad].tolist()[:5])
-        return nonfinite_error(self.model, data, self.tables.geom_names, geoms)
+        return nonfinite_error(self.model, data, tables.geom_names, geoms)
+
+    def _step_error(self, data: mujoco.MjData, error: BaseException) -> Exception:
+        """The error a failed native step stands for (``_core.StepError``'s ``(kind, value)``)."""
+        kind, value = error.args[0]
+        if kind == "unclassified":
+            return SchedulerError("step() before reset(): call predictor.reset(data) first.")
+        if kind == "clock":
+            expected = self._steps_at_reset + self.period * (self._rt.step_count + 1)
+            return clock_error(data, expected, float(value), self.period, self.dt)
+        return self._nonfinite(data, None if kind == "state" else int(value))
 
     # ----------------------------------------------------------------------- protocol
 
@@ -390,49 +306,46 @@ class Predictor(PredictorViews):
 
         Raises:
             InvalidInputError: ``data`` is not an MjData of this predictor's model, or its
-                kinematics were never computed.
+                kinematics were never computed, or a static geom is not where the model puts
+                it.
             NonFiniteStateError: a position or velocity is NaN or inf.
         """
-        self._bind_frame(data)  # checks data
+        self._bind(data)
         check_forwarded(self.model, data)
-        if self.mocap is not None:
-            # A reset starts a new trajectory: difference mocap poses within it only. Reset in
-            # place: the Monitor's bound checks hold this same tracker.
-            self.mocap.reset()
-            self.mocap.update(data, self._twist)
         c, v = self.sphere_states(data)
         # qpos/qvel too: a NaN written without mj_forward leaves finite (stale) kinematics.
         finite = np.isfinite(c).all() and np.isfinite(v).all()
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
-        self._shapes = static_shapes(self.model, self.covering.shape_geom, data)
-        if self.covering.nshape:
-            self.pair_set.shapes = self._shapes
-        if self._held is not None and self._on is not None:
-            # A new scheduler starts with every pair on, held or not.
-            self._on[:] = True
-            self._hold(self._held.select(c, v, 0))
-            self._built_at = 0
-        self._escapes = _NONE
-        # The same native code evaluates the classification and every step after it.
-        self.scheduler = None
-        native = NativeStep(max(self._ids.size, 1))
-        native.bind_frame(data, self._twist)
-        self._bind_tables(native)
-        native.reset_events()
-        tau0, bad = native.evaluate(np.arange(self._ids.size))
-        if bad >= 0:
-            raise self._nonfinite(data, int(self._ids[bad]))
-        self.scheduler = self.new_scheduler(tau0)
-        native.bind_schedule(self.scheduler.state)
-        self._native = native
-        self._load_compiled(data)
-        self._time = float(data.time)
+        static_shapes(self.model, self.covering.shape_geom, data)  # where the tables put them
+        try:
+            alarms = self._rt.classify()
+        except _core.StepError as error:
+            raise self._step_error(data, error) from None
         self._steps_at_reset = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
-        ids = self.scheduler.initial_alarms
-        return Alarms(
-            0, self._time, self._ids[ids], tau0[ids], self.tables, np.ones(ids.shape, bool), 0
-        )
+        self.resets += 1
+        return alarms
+
+    def step(self, data: mujoco.MjData) -> Alarms:
+        """One predictor step: evaluate the pairs due, reschedule them, return the alarms.
+
+        One call into the native runtime, which checks the clock (``data.time`` one predictor
+        period after the last call), differences the mocap poses, renews pruned pairs, runs the
+        violation check, evaluates and reschedules.
+
+        Raises:
+            SchedulerError: ``reset`` was not called, or ``data.time`` did not advance by one
+                predictor period since the previous call.
+            NonFiniteStateError: the state read for a pair due is NaN or inf, or MuJoCo reset the
+                state after the simulation diverged.
+            InvalidInputError: ``data`` is not an MjData of this predictor's model.
+        """
+        if data is not self._data:
+            self._bind(data)
+        try:
+            return self._rt.step()  # type: ignore[no-any-return]
+        except _core.StepError as error:
+            raise self._step_error(data, error) from None
 
     def new_scheduler(self, tau0: np.ndarray) -> Scheduler:
         """A scheduler of this predictor's schedule and options over ``tau0`` ``(K,)``."""
@@ -446,115 +359,6 @@ class Predictor(PredictorViews):
             alarm_backoff=self.alarm_backoff,
         )
 
-    def _load_compiled(self, data: mujoco.MjData) -> None:
-        """Load what ``step`` may run from numba's cache (~10 ms each) now, not in the first
-        ``step``, which a real-time user holds to its deadline too: a throw-away one-pair
-        scheduler switches a pair (the step itself is native)."""
-        if len(self.pair_set):
-            spare = self.new_scheduler(np.full(1, np.inf))
-            spare.set_active([0], False)
-            spare.set_active([0], True)
-            if isinstance(spare, DeadlineScheduler) and self._held is not None:
-                spare.remap(np.array([0, -1]), 1)  # a pruned predictor's rebuilds and renewals
-        if self.mocap is not None:
-            self.mocap.load_compiled(data, self._twist)
-
-    def step(self, data: mujoco.MjData) -> Alarms:
-        """One predictor step: evaluate the scheduled pairs, reschedule them, return the alarms.
-
-        Raises:
-            SchedulerError: ``reset`` was not called, or ``data.time`` did not advance by one
-                predictor period since the previous call.
-            NonFiniteStateError: the state read for a scheduled pair is NaN or inf, or MuJoCo
-                reset the state after the simulation diverged.
-            InvalidInputError: ``data`` is not an MjData of this predictor's model.
-        """
-        sched = self.scheduler
-        if sched is None:
-            raise SchedulerError("step() before reset(): call predictor.reset(data) first.")
-        # Before the clock: another model's data has its own clock, and the error must say so.
-        if self._frame_data is not data:
-            self._bind_frame(data)
-        time = float(data.time)
-        elapsed = time - self._time
-        if abs(elapsed - self.dt) > 1e-6 * self.dt:
-            expected = self._steps_at_reset + self.period * (sched.step_count + 1)
-            raise clock_error(data, expected, elapsed, self.period, self.dt)
-        if self.mocap is not None:
-            self.mocap.update(data, self._twist)
-        if self._held is not None:
-            n = sched.step_count + 1
-            if n - self._built_at >= self.stride or self._escapes.size > RENEW_MAX:
-                self._rebuild(data, n)
-            elif self._escapes.size:
-                self._renew(data, n, self._escapes)
-            self._escapes = _NONE
-        native = self._native
-        assert native is not None
-        start, nalarm = native.step(sched.begin_step())
-        if nalarm < 0:
-            raise self._nonfinite(data, int(self._ids[-1 - nalarm]))
-        sched.end_step(nalarm)
-        if self._held is not None and self._events[2][M_COUNT]:
-            # Pairs not held were left out under the bounds too: a flagged body's spheres that
-            # may have left the reach that left them out are renewed at the next step.
-            self._escapes = self._held.escapes(native, sched.step_count)
-        self._time = time
-        deferred = sched.deferred if self.max_evals_per_step is not None else 0
-        return Alarms.from_log(
-            sched.step_count,
-            time,
-            native.view,
-            start,
-            start + nalarm,
-            self.universe.tables,
-            deferred,
-        )
-
-    def _rebuild(self, data: mujoco.MjData, step: int) -> None:
-        """Renew the held pairs from this state; kept ones carry their verdicts (O(N + K))."""
-        assert self._held is not None
-        c, v = self.sphere_states(data)
-        if not (np.isfinite(c).all() and np.isfinite(v).all()):
-            raise self._nonfinite(data)
-        self._carry(self._held.select(c, v, step), step)
-        self._built_at = step
-        self.rebuilds += 1
-
-    def _renew(self, data: mujoco.MjData, step: int, spheres: np.ndarray) -> None:
-        """Anchor escaped ``spheres`` anew and hold the pairs their reach brings in
-        (O(len(spheres) N) tests, then O(K) if any pair is new)."""
-        assert self._held is not None and self._native is not None
-        found, bad = self._held.renew(self._native, spheres, step)
-        if bad >= 0:
-            raise self._nonfinite(data)
-        pos = np.minimum(np.searchsorted(self._ids, found), max(self._ids.size - 1, 0))
-        new = found[(self._ids.size == 0) | (self._ids[pos] != found)]
-        if new.size:
-            self._carry(np.union1d(self._ids, new), step)
-        self.renewals += 1
-
-    def _carry(self, ids: np.ndarray, step: int) -> None:
-        """Hold the sorted pairs ``ids`` from step ``step``: kept ones carry their verdicts, new
-        ones stand in alarm until evaluated (due now), new ones switched off stay off."""
-        sched = self.scheduler
-        assert isinstance(sched, DeadlineScheduler) and self._on is not None
-        pos = np.minimum(np.searchsorted(self._ids, ids), max(self._ids.size - 1, 0))
-        kept = (self._ids.size > 0) & (self._ids[pos] == ids)
-        sched.remap(np.where(kept, pos, -1), step)
-        self._hold(ids)
-        sched.set_active(np.flatnonzero(~kept & ~self._on[ids]), False)
-
-    def _switch(self, ids: np.ndarray, on: bool) -> None:
-        """Switch sphere pairs ``ids`` (among all active pairs) in the scheduler."""
-        sched = self._require_scheduler()
-        if self._on is None:
-            sched.set_active(ids, on)
-            return
-        self._on[ids] = on
-        pos = np.minimum(np.searchsorted(self._ids, ids), max(self._ids.size - 1, 0))
-        sched.set_active(pos[(self._ids.size > 0) & (self._ids[pos] == ids)], on)
-
     # ----------------------------------------------------------------------- intended contact
 
     def set_active_bodies(
@@ -564,17 +368,15 @@ class Predictor(PredictorViews):
 
         Use it while contact is intended (a grasp, a box resting on a table). Returns the number
         of sphere pairs switched. Pairs switched back on stand in alarm until the next ``step``
-        evaluates them (``scheduler.alarm_state``): their motion while off is unknown, and with
-        ``period > 1`` that step can be a whole period away; treat the two bodies as alarmed
-        until then.
+        evaluates them (``pair_state().alarm_state``): their motion while off is unknown, and
+        with ``period > 1`` that step can be a whole period away; treat the two bodies as
+        alarmed until then.
         """
-        self._require_scheduler()
+        self._require_reset()
         a = body_id(self.model, body_a)
-        b = None if body_b is None else body_id(self.model, body_b)
-        self.universe.between(np.array([a]), None if b is None else np.array([b]))
-        gp = pairs_between_bodies(self.model, self.geom_pairs, a, b)
-        ids = np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp))
-        self._switch(ids, on)
+        b = -1 if body_b is None else body_id(self.model, body_b)
+        ids = self._rt.pairs_between_bodies(a, b)
+        self._rt.switch(ids, bool(on))
         return int(ids.size)
 
     def deactivate_contacts(self, data: mujoco.MjData) -> int:
@@ -584,13 +386,139 @@ class Predictor(PredictorViews):
         contact, until switched back on with :meth:`set_active_bodies` (e.g. when the object is
         lifted or pushed away); until then their contacts are counted apart, never predicted.
         """
-        self._require_scheduler()
-        nc = int(data.ncon)
-        if nc == 0:
-            return 0
-        g1, g2 = data.contact.geom1[:nc], data.contact.geom2[:nc]
-        geoms = (g1 >= 0) & (g2 >= 0)  # a flex's contacts have no geom
-        gp = self.geom_pair_ids(g1[geoms], g2[geoms])
-        gp = np.unique(gp[gp >= 0])
-        self._switch(np.flatnonzero(sphere_pair_mask(self.sphere_pairs, gp)), False)
-        return int(gp.size)
+        self._require_reset()
+        if data is not self._data:
+            self._bind(data)
+        return int(self._rt.deactivate_contacts())
+
+    def geom_pair_ids(self, g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
+        """Ids of the active geom pairs ``{g1[k], g2[k]}``, -1 where MuJoCo's filter rejects
+        the pair; a pruned predictor learns the active ones it has not met (the exact stage
+        asks for every contact)."""
+        a = np.asarray(g1, dtype=np.int64).reshape(-1)
+        b = np.asarray(g2, dtype=np.int64).reshape(-1)
+        return np.asarray(self._rt.geom_pair_ids(a, b))
+
+    # ----------------------------------------------------------------------- what it holds
+
+    def _require_reset(self) -> None:
+        if not self._rt.classified and self.resets == 0:
+            raise SchedulerError("call predictor.reset(data) first.")
+
+    @property
+    def scheduler(self) -> Scheduler | None:
+        """The schedule the runtime runs now, as a ``Scheduler`` (read it, do not step it;
+        None before ``reset``). A reset and, with pruned pairs, a rebuild replace it."""
+        if self.resets == 0:
+            return None
+        core = self._rt.schedule
+        if self._scheduler is None or self._scheduler.core is not core:
+            self._scheduler = Scheduler.of(core)
+        return self._scheduler
+
+    def pair_state(self) -> PairState:
+        """The schedule's state of every sphere pair, by the model's pair ids (pruned or not)."""
+        self._require_reset()
+        return PairState(self._rt, self.universe)
+
+    @property
+    def geom_pairs(self) -> GeomPairs:
+        """The known active geom pairs (all of them unless pruned: ``universe``)."""
+        return self.universe.geom_pairs
+
+    @property
+    def sphere_pairs(self) -> SpherePairs:
+        """The known sphere pairs, grouped by geom pair."""
+        return self.universe.sphere_pairs
+
+    @property
+    def tables(self) -> PairTables:
+        """Sphere pair ids to geoms and names."""
+        return self.universe.tables
+
+    @property
+    def exact(self) -> ExactLevel | None:
+        """The exact level's tables (None when off)."""
+        return self.universe.exact
+
+    @property
+    def pair_set(self) -> PairSet:
+        """The known pairs with their bounds."""
+        pairs = self.universe.pair_set
+        assert pairs is not None
+        return pairs
+
+    @property
+    def pair_records(self) -> np.ndarray:
+        """``(nsphere_pairs, 8)`` packed records of the known sphere pairs (``pack_pairs``)."""
+        return self.universe.records
+
+    @property
+    def sphere_records(self) -> np.ndarray:
+        """``(nsphere, 8)`` packed records of the covering spheres (``pack_spheres``)."""
+        return self._spheres
+
+    @property
+    def shape_records(self) -> np.ndarray:
+        """``(nshape, 16)`` records of the static shapes (``core.shapes``)."""
+        return self._shapes
+
+    @property
+    def held_pairs(self) -> np.ndarray:
+        """``(K,)`` id among all active sphere pairs of each of the schedule's pairs."""
+        return np.asarray(self._rt.ids)
+
+    @property
+    def stride(self) -> int:
+        """Predictor steps between rebuilds of the held pairs (0: every pair held)."""
+        return 0 if self.reach is None else self.reach.stride
+
+    @property
+    def rebuilds(self) -> int:
+        """Rebuilds of the held pairs so far (pruned pairs only)."""
+        return int(self._rt.rebuilds)
+
+    @property
+    def renewals(self) -> int:
+        """Renewals of escaped spheres' pairs so far (pruned pairs only)."""
+        return int(self._rt.renewals)
+
+    @property
+    def nsphere(self) -> int:
+        """Number of covering spheres."""
+        return int(self.covering.nsphere)
+
+    @property
+    def nsphere_pairs(self) -> int:
+        """Number of known sphere pairs."""
+        return int(self._rt.npair)
+
+    @property
+    def evaluations_per_step(self) -> int:
+        """tau evaluations of the latest step (every held pair at a classification)."""
+        self._require_reset()
+        return int(self._rt.evaluated)
+
+    @property
+    def sphere_pair_geoms(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(geom1, geom2)``, each ``(nsphere_pairs,)``: the geoms of every sphere pair
+        (``geom2`` is the plane geom of half-space pairs, the static geom of shape pairs)."""
+        return self.tables.geom1, self.tables.geom2
+
+    def geom_pair_of(self, pairs: npt.ArrayLike) -> np.ndarray:
+        """Index into ``geom_pairs`` of sphere pairs."""
+        return np.asarray(self.sphere_pairs.geom_pair[np.asarray(pairs, dtype=np.int64)])
+
+    @property
+    def violated_bodies(self) -> np.ndarray:
+        """``(k,)`` ids of the bodies whose motion broke their bounds over the latest step's
+        period: every pair of theirs was evaluated again at that step (empty when
+        ``violation_events`` is off)."""
+        self._require_reset()
+        return np.asarray(self._rt.flagged_bodies)
+
+    @property
+    def violation_events(self) -> int:
+        """Body-steps whose bounds broke since the reset, as the step saw them."""
+        self._require_reset()
+        return int(self._rt.violation_events)

@@ -3,34 +3,39 @@
 An all-pairs predictor knows every active pair from the start (``filter.active_geom_pairs``,
 O(ngeom^2), fine for the few hundred geoms it is chosen for). A pruned predictor starts from the
 pairs it must always hold (each sphere-covered geom against the planes and static shapes, and
-the ``<pair>`` elements) and learns the rest as candidates bring them in: the geom pairs of
-candidate sphere pairs it does not know yet are put to MuJoCo's filter (O(candidates),
-``pairfilter``) and the ones it lets through are appended, with their sphere pairs, bounds,
-packed records and exact-level records. Memory and set-up are then O(N + pairs met), not
-O(N^2) (docs/many-objects.md). Appending keeps every id: an alarm's pair id names the same pair
-for the predictor's life, and ``version`` counts the appends for those who size arrays by it.
+the ``<pair>`` elements); its native runtime learns the rest as candidates bring them in: the
+geom pairs of candidate sphere pairs it does not know yet are put to MuJoCo's filter, and the
+ones it lets through are appended with their sphere pairs, bounds and exact-level records
+(``csrc/src/universe.cc``). Memory and set-up are then O(N + pairs met), not O(N^2)
+(docs/many-objects.md). This object builds the first set, and shows the runtime's as it grows:
+its tables extend by the rows the runtime appended, read from the runtime, never computed again
+here. Appending keeps every id: an alarm's pair id names the same pair for the predictor's life,
+and ``version`` counts the appends for those who size arrays by it.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import mujoco
 import numpy as np
-import numpy.typing as npt
 
-from dua_mujoco.core.pairset import PairSet, pack_pairs
+from dua_mujoco.core.pairset import (
+    PAIR_ACCEL,
+    PAIR_DELTA,
+    PAIR_EPS,
+    PAIR_FIRST,
+    PAIR_KIND,
+    PAIR_SECOND,
+    PAIR_SPEED,
+    PairKind,
+    PairSet,
+    pack_pairs,
+)
 from dua_mujoco.mj.bounds import MotionBounds
 from dua_mujoco.mj.covering import Covering
-from dua_mujoco.mj.exact import (
-    X_G1,
-    X_G2,
-    X_MODE,
-    ExactLevel,
-    ExactMode,
-    build_exact,
-    exact_records,
-)
+from dua_mujoco.mj.exact import X_G1, X_G2, X_MODE, ExactLevel, ExactMode, build_exact
 from dua_mujoco.mj.filter import (
     GeomPairs,
     SpherePairs,
@@ -41,7 +46,6 @@ from dua_mujoco.mj.filter import (
     explicit_geom_pairs,
     sphere_pairs,
 )
-from dua_mujoco.mj.mocap import MocapVelocityTracker
 from dua_mujoco.mj.pairbounds import bounded_pairs
 from dua_mujoco.mj.pairfilter import (
     FilterTables,
@@ -62,14 +66,6 @@ class PairUniverse:
         covering: Its covering.
         lazy: Learn pairs from candidates (pruned predictors) instead of knowing all at once.
         exact: ``(exact_below, query_below)`` of the exact level, or None without it.
-
-    Attributes:
-        geom_pairs: The known geom pairs (ids stable; sorted only when not lazy).
-        sphere_pairs: Their sphere pairs, grouped by geom pair.
-        tables: Sphere pair ids to geoms.
-        exact: The exact level's tables (None when off).
-        on: ``(npair,)`` bool, each pair's switch (intended contact turns it off).
-        version: Appends so far.
     """
 
     def __init__(
@@ -83,147 +79,191 @@ class PairUniverse:
         self.model = model
         self.covering = covering
         self.lazy = lazy
-        self._exact_params = exact
         self._filter = FilterTables.of(model)
         self._counts: tuple[int, int] | None = None
-        self.version = 0
         self.explicit = explicit_geom_pairs(model)
         """The ``<pair>`` elements' geom pairs (known from the start, lazy or not)."""
         if lazy:
             # The pairs held always: every sphere-covered geom against every plane and static
             # shape (O(N x static)), and the <pair> elements.
-            explicit = self.explicit
             moving = np.unique(np.asarray(covering.sphere_geom, dtype=np.int64))
             lone = np.concatenate([covering.plane_geom, covering.shape_geom]).astype(np.int64)
-            g1 = np.repeat(moving, lone.size)
-            g2 = np.tile(lone, moving.size)
-            gp = explicit.concat(self._unknown(explicit, g1, g2))
+            g1, g2 = np.repeat(moving, lone.size), np.tile(lone, moving.size)
+            lo, hi = np.minimum(g1, g2), np.maximum(g1, g2)
+            keys = np.unique((lo << 32) | hi)
+            lo, hi = keys >> 32, keys & 0xFFFFFFFF
+            new = self.explicit.indices_of(lo, hi) < 0
+            gp = self.explicit.concat(
+                candidate_geom_pairs(model, self._filter, lo[new], hi[new])
+            )
         else:
             gp = active_geom_pairs(model)
-        self.geom_pairs = gp
-        self.sphere_pairs: SpherePairs = sphere_pairs(covering, gp)
-        self.tables = PairTables.build(model, covering, self.sphere_pairs)
-        self.exact: ExactLevel | None = (
-            None if exact is None else self._build_exact(self.tables, self.sphere_pairs)
-        )
-        self.on = np.ones(self.npair, dtype=bool)
-        self.pair_set: PairSet | None = None
-        self.records = np.zeros((0, 0))
+        self._geom_pairs = gp
+        self._sphere_pairs: SpherePairs = sphere_pairs(covering, gp)
+        self._tables = PairTables.build(model, covering, self._sphere_pairs)
+        self._exact: ExactLevel | None = None
+        if exact is not None:
+            dist = np.asarray(gp.contact_distance)[self._sphere_pairs.geom_pair]
+            t = self._tables
+            self._exact = build_exact(model, t.geom1, t.geom2, t.kind, dist, *exact)
+        self._pair_set: PairSet | None = None
+        self._records = np.zeros((0, 0))
+        self._runtime: Any = None  # the native runtime that grows these pairs (attach)
+        self._version = 0
 
-    @property
-    def npair(self) -> int:
-        """Known sphere pairs."""
-        return int(self.sphere_pairs.npair)
-
-    def _build_exact(self, tables: PairTables, pairs: SpherePairs) -> ExactLevel:
-        """The exact level of sphere pairs ``pairs`` (their geom pairs known) and ``tables``."""
-        assert self._exact_params is not None
-        below, query = self._exact_params
-        dist = np.asarray(self.geom_pairs.contact_distance)
-        return build_exact(
-            self.model,
-            tables.geom1,
-            tables.geom2,
-            tables.kind,
-            dist[np.asarray(pairs.geom_pair, dtype=np.int64)],
-            below,
-            query,
-        )
-
-    def exact_geoms(self) -> np.ndarray:
-        """The geoms the exact level may ever read (their corners are bound points): those of
-        the known pairs, and in a lazy universe every sphere-covered and static shape geom."""
-        assert self.exact is not None
-        rec = self.exact.records
-        used = rec[rec[:, X_MODE] != ExactMode.NONE]
-        geoms = [used[:, X_G1], used[:, X_G2]]
-        if self.lazy:
-            geoms += [self.covering.sphere_geom, self.covering.shape_geom]
-        return np.unique(np.concatenate(geoms).astype(np.int64))
+    # ------------------------------------------------------------------- the first set
 
     def bind(
         self,
         bounds: MotionBounds,
         *,
         period: int,
-        mocap: MocapVelocityTracker | None,
+        mocap: Any,
         shapes: np.ndarray | None,
     ) -> None:
         """Give the pairs their bounds (after the pilot): the pair set and packed records."""
-        self._bounds = (bounds, period, mocap)
-        self.pair_set = bounded_pairs(
-            self.model, self.covering, self.sphere_pairs, bounds, period=period, mocap=mocap
+        self._pair_set = bounded_pairs(
+            self.model, self.covering, self._sphere_pairs, bounds, period=period, mocap=mocap
         )
         if shapes is not None and self.covering.nshape:
-            self.pair_set.shapes = shapes
-        self.records = pack_pairs(self.pair_set, self._plane_geom())
+            self._pair_set.shapes = shapes
+        self._records = pack_pairs(self._pair_set, np.asarray(self.covering.plane_geom))
 
-    def _plane_geom(self) -> np.ndarray:
-        return np.asarray(self.covering.plane_geom, dtype=np.int64)
+    def attach(self, runtime: Any) -> None:
+        """Follow the pairs ``runtime`` (a ``dua_mujoco._core.Runtime`` made from these
+        tables) learns."""
+        self._runtime = runtime
 
-    # ------------------------------------------------------------------- growth
+    # ------------------------------------------------------------------- the runtime's growth
 
-    def _unknown(self, known: GeomPairs, g1: np.ndarray, g2: np.ndarray) -> GeomPairs:
-        """Of geom pairs ``(g1, g2)``, the ones MuJoCo's filter lets through and ``known``
-        lacks, once each."""
-        lo, hi = np.minimum(g1, g2), np.maximum(g1, g2)
-        keys = np.unique((lo << 32) | hi)
-        lo, hi = keys >> 32, keys & 0xFFFFFFFF
-        new = known.indices_of(lo, hi) < 0
-        return candidate_geom_pairs(self.model, self._filter, lo[new], hi[new])
-
-    def learn(self, g1: npt.ArrayLike, g2: npt.ArrayLike) -> int:
-        """Append the geom pairs ``(g1[k], g2[k])`` the filter lets through and the universe
-        lacks (a lazy universe; an eager one knows them all). Returns the sphere pairs added."""
-        if not self.lazy:
-            return 0
-        a = np.asarray(g1, dtype=np.int64).reshape(-1)
-        b = np.asarray(g2, dtype=np.int64).reshape(-1)
-        new = self._unknown(self.geom_pairs, a, b)
-        if new.npair == 0:
-            return 0
-        base = self.geom_pairs.npair
-        sp = sphere_pairs(self.covering, new)
-        sp = dataclasses.replace(sp, geom_pair=(sp.geom_pair + base).astype(np.int32))
-        self.geom_pairs = self.geom_pairs.concat(new)
-        self.sphere_pairs = appended(self.sphere_pairs, sp)
-        tables = PairTables.build(self.model, self.covering, sp, self.tables.geom_names)
-        self.tables = appended(self.tables, tables, shared=("geom_names",))
-        if self.exact is not None:
-            dist = np.asarray(self.geom_pairs.contact_distance)[sp.geom_pair]
-            rec = exact_records(self.exact.geoms, tables.geom1, tables.geom2, tables.kind, dist)
-            records = np.concatenate([self.exact.records, rec])
-            self.exact = dataclasses.replace(self.exact, records=records)
-        self.on = np.concatenate([self.on, np.ones(sp.npair, dtype=bool)])
-        if self.pair_set is not None:
-            bounds, period, mocap = self._bounds
-            added = bounded_pairs(self.model, self.covering, sp, bounds, period=period, mocap=mocap)
-            self.pair_set = _concat_pair_sets(self.pair_set, added)
-            self.records = np.concatenate([self.records, pack_pairs(added, self._plane_geom())])
-        self.version += 1
-        return int(sp.npair)
-
-    def between(self, bodies_a: np.ndarray, bodies_b: np.ndarray | None) -> None:
-        """Learn every pair with a geom on ``bodies_a`` and the other on ``bodies_b`` (any
-        body when None): a switch must reach the pairs not met yet."""
-        if not self.lazy:
+    def _sync(self) -> None:
+        """Extend the tables by the rows the runtime appended since the last look."""
+        rt = self._runtime
+        if rt is None or rt.universe_version == self._version:
             return
-        gbody = np.asarray(self.model.geom_bodyid, dtype=np.int64)
-        ga = np.flatnonzero(np.isin(gbody, bodies_a))
-        gb = np.arange(gbody.size) if bodies_b is None else np.flatnonzero(np.isin(gbody, bodies_b))
-        self.learn(np.repeat(ga, gb.size), np.tile(gb, ga.size))
+        self._version = rt.universe_version
+        u = rt.universe()
+        n0, g0 = self._sphere_pairs.npair, self._geom_pairs.npair
+        rec = u["pairs"][n0:]
+        kind = rec[:, PAIR_KIND].astype(np.int8)
+        gp, contact = u["geom_pairs"][g0:], u["geom_pair_contact"][g0:]
+        new_gp = GeomPairs(
+            geom1=gp[:, 0].astype(np.int32),
+            geom2=gp[:, 1].astype(np.int32),
+            explicit=np.zeros(gp.shape[0], dtype=bool),
+            margin=contact[:, 0],
+            gap=contact[:, 1],
+            contact_distance=contact[:, 0] + contact[:, 1],
+        )
+        self._geom_pairs = self._geom_pairs.concat(new_gp)
+        first = rec[:, PAIR_FIRST].astype(np.int64)
+        second = rec[:, PAIR_SECOND].astype(np.int64)
+        halfspace = kind == int(PairKind.HALFSPACE)
+        new_sp = SpherePairs(
+            first=first.astype(np.int32),
+            second=second.astype(np.int32),
+            is_halfspace=halfspace,
+            geom_pair=u["pair_geom"][n0:].astype(np.int32),
+            eps=rec[:, PAIR_EPS].copy(),
+            is_shape=kind == int(PairKind.SHAPE),
+        )
+        self._sphere_pairs = appended(self._sphere_pairs, new_sp)
+        new_tables = PairTables(
+            first=first,
+            second=second,
+            halfspace=halfspace,
+            geom1=u["geom1"][n0:],
+            geom2=u["geom2"][n0:],
+            geom_names=self._tables.geom_names,
+            kind=kind,
+        )
+        self._tables = appended(self._tables, new_tables, shared=("geom_names",))
+        if self._exact is not None:
+            self._exact = dataclasses.replace(self._exact, records=u["exact"])
+        self._records = u["pairs"]
+        if self._pair_set is not None:
+            added = PairSet(
+                first,
+                second,
+                rec[:, PAIR_EPS],
+                rec[:, PAIR_ACCEL],
+                kind=kind,
+                vel_uncertainty=rec[:, PAIR_DELTA],
+                speed=rec[:, PAIR_SPEED],
+            )
+            self._pair_set = _concat_pair_sets(self._pair_set, added)
+
+    @property
+    def version(self) -> int:
+        """Appends so far (the runtime's count)."""
+        return 0 if self._runtime is None else int(self._runtime.universe_version)
+
+    @property
+    def geom_pairs(self) -> GeomPairs:
+        """The known geom pairs (ids stable; sorted only when not lazy)."""
+        self._sync()
+        return self._geom_pairs
+
+    @property
+    def sphere_pairs(self) -> SpherePairs:
+        """Their sphere pairs, grouped by geom pair."""
+        self._sync()
+        return self._sphere_pairs
+
+    @property
+    def tables(self) -> PairTables:
+        """Sphere pair ids to geoms."""
+        self._sync()
+        return self._tables
+
+    @property
+    def exact(self) -> ExactLevel | None:
+        """The exact level's tables (None when off), its records as built (the runtime keeps
+        the directions it learns in its own copy)."""
+        self._sync()
+        return self._exact
+
+    @property
+    def pair_set(self) -> PairSet | None:
+        """The known pairs with their bounds (after :meth:`bind`)."""
+        self._sync()
+        return self._pair_set
+
+    @property
+    def records(self) -> np.ndarray:
+        """``(npair, 8)`` packed records of the known pairs (``pack_pairs``)."""
+        self._sync()
+        return self._records
+
+    @property
+    def npair(self) -> int:
+        """Known sphere pairs."""
+        return int(self.sphere_pairs.npair)
+
+    def exact_geoms(self) -> np.ndarray:
+        """The geoms the exact level may ever read (their corners are bound points): those of
+        the known pairs, and in a lazy universe every sphere-covered and static shape geom."""
+        assert self._exact is not None
+        rec = self._exact.records
+        used = rec[rec[:, X_MODE] != ExactMode.NONE]
+        geoms = [used[:, X_G1], used[:, X_G2]]
+        if self.lazy:
+            geoms += [self.covering.sphere_geom, self.covering.shape_geom]
+        return np.unique(np.concatenate(geoms).astype(np.int64))
+
+    # ------------------------------------------------------------------- counts
 
     def empty(self) -> bool:
         """Whether no geom pair of the model can ever collide (stops at the first that can)."""
-        if self.geom_pairs.npair or not self.lazy:
-            return self.geom_pairs.npair == 0
+        if self._geom_pairs.npair or not self.lazy:
+            return self._geom_pairs.npair == 0
         return not (contacts_enabled(self.model) and any_dynamic_pair(self._filter))
 
     def counts(self) -> tuple[int, int]:
         """``(geom pairs, sphere pairs)`` MuJoCo's filter lets through in the whole model,
         known or not (a lazy universe counts them once, O(ngeom^2) time, nothing held)."""
         if not self.lazy:
-            return self.geom_pairs.npair, self.npair
+            return self._geom_pairs.npair, self._sphere_pairs.npair
         if self._counts is None and not contacts_enabled(self.model):
             self._counts = (0, 0)
         if self._counts is None:

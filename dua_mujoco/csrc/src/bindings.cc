@@ -5,6 +5,7 @@
 // again every index it follows, so that no call can read out of bounds.
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
@@ -34,21 +35,6 @@ namespace dua {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// Sphere records (n, 8) whose every index points inside m.
-void CheckSphereRecords(const mjModel* m, const In<double>& spheres) {
-  const int64_t n = Size(spheres) / kSphereNcol;
-  Require(Size(spheres) == n * kSphereNcol, "sphere records must be (n, 8)");
-  const double* s = spheres.data();
-  for (int64_t i = 0; i < n; ++i) {
-    const double* r = s + kSphereNcol * i;
-    const bool ok = r[kSphereFrame] >= 0 && r[kSphereFrame] < m->ngeom && r[kSphereBody] >= 0 &&
-                    r[kSphereBody] < m->nbody && r[kSphereRoot] >= 0 && r[kSphereRoot] < m->nbody;
-    Require(ok, "sphere record " + std::to_string(i) + " indexes outside the model (" +
-                    std::to_string(m->ngeom) + " geoms, " + std::to_string(m->nbody) +
-                    " bodies): pass the MjData of the model the spheres were built for");
-  }
-}
 
 // ------------------------------------------------------------------------------- kernels
 
@@ -178,38 +164,61 @@ std::pair<Out<double>, int64_t> TauFree(const In<double>& pairs, const In<int64_
 
 // ------------------------------------------------------------------------------- kinematics
 
-Out<double> SphereStates(nb::handle model, nb::handle data, const In<double>& spheres,
-                         const In<double>& root_twist, const In<int64_t>& ids) {
-  const mjModel* m = ModelOf(model);
-  const mjData* d = DataOf(data);
-  CheckSphereRecords(m, spheres);
-  Require(Size(root_twist) == 6 * m->nbody, "root_twist must be (nbody, 6)");
-  const int64_t nsphere = Size(spheres) / kSphereNcol, n = Size(ids);
-  const dua_frame f = FrameOf(d, root_twist.data());
+// The instant the kinematics kernel reads, as arrays (MjData's geom_xpos (ngeom, 3), geom_xmat
+// (ngeom, 9), cvel (nbody, 6), subtree_com (nbody, 3), the mocap roots' twists (nbody, 6) and xpos
+// (nbody, 3)), and point records (n, 8) that index inside it.
+dua_frame FrameOfArrays(const In<double>& pos, const In<double>& mat, const In<double>& twist,
+                        const In<double>& twist_ref, const In<double>& root_twist,
+                        const In<double>& root_origin, const In<double>& points) {
+  const int64_t ngeom = Size(pos) / 3, nbody = Size(twist) / 6;
+  Require(Size(pos) == 3 * ngeom && Size(mat) == 9 * ngeom && Size(twist) == 6 * nbody &&
+              Size(twist_ref) == 3 * nbody && Size(root_twist) == 6 * nbody &&
+              Size(root_origin) == 3 * nbody,
+          "the frame's arrays must be (ngeom, 3), (ngeom, 9), (nbody, 6), (nbody, 3), (nbody, 6), "
+          "(nbody, 3)");
+  const int64_t n = Size(points) / kSphereNcol;
+  Require(Size(points) == n * kSphereNcol, "point records must be (n, 8)");
+  for (int64_t i = 0; i < n; ++i) {
+    const double* r = points.data() + kSphereNcol * i;
+    const bool ok = r[kSphereFrame] >= 0 && r[kSphereFrame] < ngeom && r[kSphereBody] >= 0 &&
+                    r[kSphereBody] < nbody && r[kSphereRoot] >= 0 && r[kSphereRoot] < nbody;
+    Require(ok, "the sphere records reference frame " + std::to_string(r[kSphereFrame]) +
+                    " and body " + std::to_string(r[kSphereBody]) + " but the data has " +
+                    std::to_string(ngeom) + " frames and " + std::to_string(nbody) +
+                    " bodies: pass the MjData of the model the spheres were built for");
+  }
+  return {pos.data(), mat.data(), twist.data(), twist_ref.data(), root_twist.data(),
+          root_origin.data()};
+}
+
+Out<double> RigidPoints(const In<double>& points, const In<double>& pos, const In<double>& mat,
+                        const In<double>& twist, const In<double>& twist_ref,
+                        const In<double>& root_twist, const In<double>& root_origin,
+                        const In<int64_t>& ids) {
+  const dua_frame f = FrameOfArrays(pos, mat, twist, twist_ref, root_twist, root_origin, points);
+  const int64_t npoint = Size(points) / kSphereNcol, n = Size(ids);
   std::vector<double> out(6 * static_cast<size_t>(n));
   for (int64_t k = 0; k < n; ++k) {
     const int64_t i = ids.data()[k];
-    Require(i >= 0 && i < nsphere, "sphere ids must lie in [0, " + std::to_string(nsphere) + ")");
-    dua_rigid_point(i, spheres.data(), &f, out.data() + 6 * k);
+    Require(i >= 0 && i < npoint, "sphere ids must lie in [0, " + std::to_string(npoint) + ")");
+    dua_rigid_point(i, points.data(), &f, out.data() + 6 * k);
   }
   return Owned(std::move(out), {static_cast<size_t>(n), 6});
 }
 
-int64_t CheckPoints(nb::handle model, nb::handle data, const In<double>& points,
-                    const In<double>& root_twist, const In<double>& prev, InOut<double> cur,
-                    int64_t nprev, double h, const In<double>& accel, const In<double>& disc,
-                    const In<double>& speed, const In<uint8_t>& check_disc, double rtol,
-                    InOut<double> values, InOut<uint8_t> broken) {
-  const mjModel* m = ModelOf(model);
-  CheckSphereRecords(m, points);
+int64_t CheckPoints(const In<double>& points, const In<double>& pos, const In<double>& mat,
+                    const In<double>& twist, const In<double>& twist_ref,
+                    const In<double>& root_twist, const In<double>& root_origin,
+                    const In<double>& prev, InOut<double> cur, int64_t nprev, double h,
+                    const In<double>& accel, const In<double>& disc, const In<double>& speed,
+                    const In<uint8_t>& check_disc, double rtol, InOut<double> values,
+                    InOut<uint8_t> broken) {
+  const dua_frame f = FrameOfArrays(pos, mat, twist, twist_ref, root_twist, root_origin, points);
   const int64_t n = Size(points) / kSphereNcol;
-  Require(Size(root_twist) == 6 * m->nbody, "root_twist must be (nbody, 6)");
-  Require(Size(prev) == 9 * n && static_cast<int64_t>(cur.size()) == 9 * n &&
-              Size(accel) == n && Size(disc) == n && (Size(speed) == 0 || Size(speed) == n) &&
-              Size(check_disc) == n && static_cast<int64_t>(values.size()) == 3 * n &&
-              static_cast<int64_t>(broken.size()) == 3 * n,
+  Require(Size(prev) == 9 * n && Size(cur) == 9 * n && Size(accel) == n && Size(disc) == n &&
+              (Size(speed) == 0 || Size(speed) == n) && Size(check_disc) == n &&
+              Size(values) == 3 * n && Size(broken) == 3 * n,
           "the check's arrays do not fit its points");
-  const dua_frame f = FrameOf(DataOf(data), root_twist.data());
   return dua_check_points(points.data(), n, &f, prev.data(), cur.data(), nprev, h, accel.data(),
                           disc.data(), Size(speed) ? speed.data() : nullptr, check_disc.data(),
                           rtol, values.data(), broken.data());
@@ -510,7 +519,7 @@ void BindSchedule(nb::module_& m) {
             }
             new (self) Schedule(spec, tau, on);
           },
-          "kind"_a, "dt"_a, "latency"_a, "tau0"_a, "active"_a = nb::none(),
+          "kind"_a, "dt"_a, "latency"_a, "tau0"_a, nb::arg("active").none() = nb::none(),
           "slots_per_bucket"_a = 1, "cap"_a = 0, "max_interval"_a = 1024, "backoff"_a = 8,
           "threshold"_a = 0.0)
       .def("carried",
@@ -893,7 +902,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def_prop_ro("step_count", [](const PyRuntime& s) { return s.rt->step(); })
       .def_prop_ro("last_time", [](const PyRuntime& s) { return s.rt->last_time(); })
       .def_prop_ro("schedule", [](const PyRuntime& s) { return s.rt->schedule(); })
-      .def_prop_ro("ids", [](const PyRuntime& s) { return Ints(s.rt->ids()); })
+      .def_prop_ro("ids", [](const PyRuntime& s) { return Ints(s.rt->ids()); }, nb::rv_policy::move)
       .def_prop_ro("held_version", [](const PyRuntime& s) { return s.rt->held_version(); })
       .def_prop_ro("universe_version", [](const PyRuntime& s) { return s.rt->universe_version(); })
       .def_prop_ro("npair", [](const PyRuntime& s) { return s.rt->universe().npair(); })
@@ -909,13 +918,15 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             out["geom2"] = Ints(u.geom2);
             out["geom_pairs"] =
                 Owned(std::vector<int64_t>(u.geom_pairs), {static_cast<size_t>(u.ngp()), 2});
+            out["geom_pair_contact"] =
+                Owned(std::vector<double>(u.gp_contact), {static_cast<size_t>(u.ngp()), 2});
             const size_t nx = u.exact.empty() ? 0 : n;
             out["exact"] = Owned(std::vector<double>(u.exact), {nx, static_cast<size_t>(kXNcol)});
             return out;
           },
           "The pairs known now (copies): records, geom pairs and the exact level's records.")
       .def_prop_ro("on",
-                   [](const PyRuntime& s) { return OwnedBools(s.rt->on()); })
+                   [](const PyRuntime& s) { return OwnedBools(s.rt->on()); }, nb::rv_policy::move)
       .def_prop_ro("standing",
                    [](const PyRuntime& s) {
                      std::vector<int64_t> out;
@@ -925,18 +936,18 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
                      }
                      return Ints(out);
                    },
-                   "Model pair ids standing in alarm now, sorted.")
+                   "Model pair ids standing in alarm now, sorted.", nb::rv_policy::move)
       .def_prop_ro("nstanding", [](const PyRuntime& s) { return s.rt->nstanding(); })
       .def_prop_ro("min_tau", [](const PyRuntime& s) { return s.rt->min_tau(); })
       .def_prop_ro("evaluated", [](const PyRuntime& s) { return s.rt->evaluated(); })
       .def_prop_ro("deferred", [](const PyRuntime& s) { return s.rt->deferred(); })
-      .def_prop_ro("flagged_bodies", [](const PyRuntime& s) { return Ints(s.rt->FlaggedBodies()); })
+      .def_prop_ro("flagged_bodies", [](const PyRuntime& s) { return Ints(s.rt->FlaggedBodies()); }, nb::rv_policy::move)
       .def_prop_ro("flagged", [](const PyRuntime& s) { return s.rt->flagged(); })
       .def_prop_ro("violation_events", [](const PyRuntime& s) { return s.rt->violation_events(); })
       .def_prop_ro("rebuilds", [](const PyRuntime& s) { return s.rt->rebuilds(); })
       .def_prop_ro("renewals", [](const PyRuntime& s) { return s.rt->renewals(); })
       .def_prop_ro("mocap_updates", [](const PyRuntime& s) { return s.rt->mocap_updates(); })
-      .def_prop_ro("anchor_steps", [](const PyRuntime& s) { return Ints(s.rt->anchor_steps()); })
+      .def_prop_ro("anchor_steps", [](const PyRuntime& s) { return Ints(s.rt->anchor_steps()); }, nb::rv_policy::move)
       .def_prop_ro("mocap_velocity",
                    [](PyRuntime& s) {
                      const auto n = static_cast<size_t>(s.m->nmocap);
@@ -948,7 +959,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
                    "(linear (nmocap, 3), angular (nmocap, 3), given (nmocap,)): copies.")
       .def_prop_ro("root_twist", [](const PyRuntime& s) {
         return Owned(std::vector<double>(s.rt->root_twist()), {static_cast<size_t>(s.m->nbody), 6});
-      });
+      }, nb::rv_policy::move);
 }
 
 }  // namespace
@@ -1006,11 +1017,12 @@ NB_MODULE(_core, m) {
                              a[11], bound) != 0;
       },
       "q"_a, "bound"_a);
-  m.def("sphere_states", &SphereStates, "model"_a, "data"_a, "spheres"_a, "root_twist"_a,
-        "ids"_a);
-  m.def("check_points", &CheckPoints, "model"_a, "data"_a, "points"_a, "root_twist"_a, "prev"_a,
-        "cur"_a, "nprev"_a, "h"_a, "accel"_a, "disc"_a, "speed"_a, "check_disc"_a, "rtol"_a,
-        "values"_a, "broken"_a);
+  m.def("rigid_points", &RigidPoints, "points"_a, "pos"_a, "mat"_a, "twist"_a, "twist_ref"_a,
+        "root_twist"_a, "root_origin"_a, "ids"_a,
+        "(n, 6) centres and velocities of points ids on a frame (dua_rigid_point).");
+  m.def("check_points", &CheckPoints, "points"_a, "pos"_a, "mat"_a, "twist"_a, "twist_ref"_a,
+        "root_twist"_a, "root_origin"_a, "prev"_a, "cur"_a, "nprev"_a, "h"_a, "accel"_a, "disc"_a,
+        "speed"_a, "check_disc"_a, "rtol"_a, "values"_a, "broken"_a);
   m.def(
       "difference_poses",
       [](nb::handle data, const In<int64_t>& bodies, InOut<double> prev_pos,
@@ -1041,7 +1053,7 @@ NB_MODULE(_core, m) {
   m.def("sphere_pairs", &SpherePairs, "g1"_a, "g2"_a, "dist"_a, "index"_a, "start"_a, "plane"_a,
         "shape"_a, "radius"_a);
   m.def("pair_bounds", &PairBounds, "first"_a, "second"_a, "kind"_a, "sphere_body"_a, "accel"_a,
-        "delta"_a, "speed"_a);
+        "delta"_a, nb::arg("speed").none());
   m.def("contact_distance", &ContactDistance, "margin"_a, "gap"_a, "g1"_a, "g2"_a,
         "override_margin"_a, "o_margin"_a);
   m.def("exact_rows", &ExactRows, "geoms"_a, "geom1"_a, "geom2"_a, "kind"_a, "dist"_a);
@@ -1056,6 +1068,41 @@ NB_MODULE(_core, m) {
       .def("all", &Filter::All)
       .def("count", &Filter::Count, "weight"_a)
       .def("any", &Filter::Any);
+
+  // The plugin's C API (dua/dua.h), for dua_mujoco.plugin.
+  m.def(
+      "plugin_standing",
+      [](nb::handle model, nb::handle data, int instance) -> nb::object {
+        const mjModel* mm = ModelOf(model);
+        const mjData* d = DataOf(data);
+        std::vector<int64_t> out(128);
+        while (true) {
+          const int64_t n = dua_plugin_standing(mm, d, instance, out.data(),
+                                                static_cast<int64_t>(out.size() / 2));
+          if (n < 0) return nb::none();
+          if (2 * n <= static_cast<int64_t>(out.size())) {
+            out.resize(2 * n);
+            return nb::cast(Owned(std::move(out), {static_cast<size_t>(n), 2}));
+          }
+          out.resize(2 * n);
+        }
+      },
+      "model"_a, "data"_a, "instance"_a,
+      "Geom pairs standing in alarm in plugin instance `instance` ((K, 2)), or None.");
+  m.def(
+      "plugin_set_active",
+      [](nb::handle model, nb::handle data, int instance, int body_a, int body_b, bool on) {
+        return dua_plugin_set_active(ModelOf(model), const_cast<mjData*>(DataOf(data)), instance,
+                                     body_a, body_b, on ? 1 : 0);
+      },
+      "model"_a, "data"_a, "instance"_a, "body_a"_a, "body_b"_a, "on"_a);
+  m.def(
+      "plugin_deactivate_contacts",
+      [](nb::handle model, nb::handle data, int instance) {
+        return dua_plugin_deactivate_contacts(ModelOf(model), const_cast<mjData*>(DataOf(data)),
+                                              instance);
+      },
+      "model"_a, "data"_a, "instance"_a);
 
   BindSchedule(m);
   BindAlarms(m);

@@ -63,8 +63,9 @@ int64_t Size(const A& a) {
   throw nb::python_error();
 }
 
+// A shape or index that does not fit: ShapeError (an InvalidInputError).
 inline void Require(bool ok, const std::string& message) {
-  if (!ok) Raise("InvalidInputError", message);
+  if (!ok) Raise("ShapeError", message);
 }
 
 inline const mjModel* ModelOf(nb::handle model) {

@@ -197,6 +197,14 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.graph = t.graph.data();
   x.model = m;
   x.data = d;
+  // Room to index d's contacts (the exact level's skip of pairs in contact).
+  if (t.exact && static_cast<int64_t>(contact_keys_.size()) < d->ncon) {
+    contact_keys_.resize(d->ncon), contact_dist_.resize(d->ncon);
+  }
+  x.contact_keys = contact_keys_.data();
+  x.contact_dist = contact_dist_.data();
+  x.contact_room = static_cast<int64_t>(contact_keys_.size());
+  x.contact_count = -1;
   dua_events& e = a.events;
   e.nbody = t.nbody_events;
   e.rec = t.events_rec.data();

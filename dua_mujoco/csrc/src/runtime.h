@@ -148,7 +148,8 @@ class DUA_API Runtime {
   std::vector<int64_t> ids_;  // model pair of each held pair
   dua_step_args args_{};
   std::vector<double> scratch_, point_state_, exact_records_, events_prev_, root_twist_;
-  std::vector<int64_t> point_epoch_, events_meta_, events_flagged_;
+  std::vector<int64_t> point_epoch_, events_meta_, events_flagged_, contact_keys_;
+  std::vector<double> contact_dist_;
   // Pruned pairs: the anchors, this run's universe, the held pairs' records and their index by
   // the violation check's bodies (all pairs held: the model's tables themselves).
   PrunedState pruned_;

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "dua/dua.h"
 #include "internal.h"
@@ -413,11 +414,52 @@ double AxisTau(double n0, double n1, double n2, int mode, double r0, double r1, 
   return TauHalfspace(gap, vn, pair[kPairAccel], pair[kPairDelta] + kVelSlack * speed);
 }
 
+// Contacts up to this many are scanned; more are indexed once a batch (sorted keys).
+constexpr int kContactScan = 16;
+
+// MuJoCo's contacts of x.data indexed by geom pair (their least distance each), when there are
+// many and there is room: sorted keys min << 32 | max in x.contact_keys.
+void IndexContacts(dua_exact& x) {
+  const mjData* d = static_cast<const mjData*>(x.data);
+  if (d->ncon <= kContactScan || d->ncon > x.contact_room) {
+    x.contact_count = -2;  // scan
+    return;
+  }
+  int64_t n = 0;
+  for (int i = 0; i < d->ncon; ++i) {
+    const int a = d->contact[i].geom[0], b = d->contact[i].geom[1];
+    if (a < 0 || b < 0) continue;  // a flex
+    x.contact_keys[n] = (static_cast<int64_t>(std::min(a, b)) << 32) | std::max(a, b);
+    x.contact_dist[n++] = d->contact[i].dist;
+  }
+  // Sorted by key, then distance: the first of a key's entries has its least distance.
+  std::vector<int64_t> order(static_cast<size_t>(n));
+  for (int64_t k = 0; k < n; ++k) order[k] = k;
+  std::sort(order.begin(), order.end(), [&x](int64_t p, int64_t q) {
+    return x.contact_keys[p] < x.contact_keys[q] ||
+           (x.contact_keys[p] == x.contact_keys[q] && x.contact_dist[p] < x.contact_dist[q]);
+  });
+  std::vector<int64_t> keys(static_cast<size_t>(n));
+  std::vector<double> dist(static_cast<size_t>(n));
+  for (int64_t k = 0; k < n; ++k) keys[k] = x.contact_keys[order[k]], dist[k] = x.contact_dist[order[k]];
+  std::copy(keys.begin(), keys.end(), x.contact_keys);
+  std::copy(dist.begin(), dist.end(), x.contact_dist);
+  x.contact_count = n;
+}
+
 // Whether MuJoCo's contacts of this state hold geoms g1 and g2 within dist (the pair's contact
 // distance). Then every direction's gap is at most 0, so no look can raise tau, and a query
 // would only come back touching after a GJK (and an EPA when they overlap). A list from another
 // state costs tightness, never safety: the pair keeps its sphere tau, a lower bound by itself.
-bool InContact(const mjData* d, int64_t g1, int64_t g2, double dist) {
+bool InContact(dua_exact& x, int64_t g1, int64_t g2, double dist) {
+  if (x.contact_count == -1) IndexContacts(x);
+  if (x.contact_count >= 0) {
+    const int64_t key = (std::min(g1, g2) << 32) | std::max(g1, g2);
+    int64_t* end = x.contact_keys + x.contact_count;
+    int64_t* it = std::lower_bound(x.contact_keys, end, key);
+    return it != end && *it == key && x.contact_dist[it - x.contact_keys] <= dist;
+  }
+  const mjData* d = static_cast<const mjData*>(x.data);
   for (int i = 0; i < d->ncon; ++i) {
     const mjContact& c = d->contact[i];
     const bool same = (c.geom[0] == g1 && c.geom[1] == g2) || (c.geom[0] == g2 && c.geom[1] == g1);
@@ -429,14 +471,14 @@ bool InContact(const mjData* d, int64_t g1, int64_t g2, double dist) {
 // One pair's max(coarse, exact). Any unit direction gives a lower bound: the one that served
 // last time is tried first, and MuJoCo is asked for a new one only while the pair is still
 // urgent along it (below query_below). A pair MuJoCo has in contact is not looked at.
-double ExactTau(const double* pair, double* xrec, double coarse, const dua_exact& x,
+double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x,
                 const dua_frame& f) {
   const int mode = static_cast<int>(xrec[kXMode]);
   if (mode == kModeNone) return coarse;
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
   const int64_t g2 = static_cast<int64_t>(xrec[kXG2]);
   const mjData* d = static_cast<const mjData*>(x.data);
-  if (InContact(d, g1, g2, xrec[kXDist])) return coarse;
+  if (InContact(x, g1, g2, xrec[kXDist])) return coarse;
   double sa[6], sb[6];
   RigidPoint(g1, x.geoms, kGxNcol, f, sa);
   double spin = Spin(g1, x.geoms, f);
@@ -480,8 +522,9 @@ double ExactTau(const double* pair, double* xrec, double coarse, const dua_exact
 }
 
 // Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below.
-void ExactPass(const dua_step_args& a, const int64_t* ids, int64_t count, double* out) {
+void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out) {
   if (!a.exact.on) return;
+  a.exact.contact_count = -1;  // the contacts are indexed at the first look that needs them
   for (int64_t k = 0; k < count; ++k) {
     if (out[k] < a.exact.below) {
       const int64_t p = ids[k];

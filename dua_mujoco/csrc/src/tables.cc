@@ -219,6 +219,10 @@ bool ReadPairs(const mjModel* m, Reader* r, Tables* t) {
   if (!AsInts(geom_pairs, 0, static_cast<double>(ngeom), &u.geom_pairs)) {
     return r->Fail("geom_pairs", "holds an entry that is not a geom of the model");
   }
+  if (!r->Get("geom_pair_contact", ngp, 2, &u.gp_contact)) return false;
+  for (const double x : u.gp_contact) {
+    if (!Finite(x)) return r->Fail("geom_pair_contact", "holds a margin or gap not finite");
+  }
   const std::string bad = u.Index(t->spheres, ngeom);
   if (!bad.empty()) return r->Fail("pairs", "do not fit together: " + bad);
   // A half-space pair's plane is a plane geom; a shape pair's shape the one of its geom pair.

@@ -143,7 +143,10 @@ int64_t Universe::Learn(const LearnTables& lt, const int64_t* g1, const int64_t*
   std::vector<double> margin(ng), gap(ng), dist(ng);
   dua_contact_distance(lt.margin.data(), lt.gap.data(), a.data(), b.data(), ng,
                        lt.override_margin ? 1 : 0, lt.o_margin, margin.data(), gap.data());
-  for (int64_t k = 0; k < ng; ++k) dist[k] = margin[k] + gap[k];
+  for (int64_t k = 0; k < ng; ++k) {
+    dist[k] = margin[k] + gap[k];
+    gp_contact.push_back(margin[k]), gp_contact.push_back(gap[k]);
+  }
   // Their sphere pairs and tables, as sphere_pairs, bounded_pairs, pack_pairs and
   // exact_records make them (the same native kernels).
   const int64_t count = dua_sphere_pairs(

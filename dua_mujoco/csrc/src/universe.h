@@ -42,6 +42,7 @@ struct DUA_API Universe {
   std::vector<int64_t> pair_geom;        // (npair,) geom pair of each
   std::vector<int64_t> geom1, geom2;     // (npair,) the first sphere's geom, then the other
   std::vector<int64_t> geom_pairs;       // (ngp, 2) rows g1 < g2
+  std::vector<double> gp_contact;        // (ngp, 2) MuJoCo's margin and gap of each
   std::vector<int64_t> gp_keys, gp_ids;  // g1 << 32 | g2, increasing, and their geom pairs
   std::vector<int64_t> codes, code_ids;  // sphere-sphere pairs by min * nsphere + max, sorted
   std::vector<int64_t> always;           // pairs against a plane or a static shape, increasing

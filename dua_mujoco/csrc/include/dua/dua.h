@@ -106,6 +106,13 @@ typedef struct dua_exact {
   const int32_t* graph;  // mesh_graph
   const void* model;     // mjModel*
   const void* data;      // mjData*
+  // MuJoCo's contacts of data, indexed for the pairs the level skips (sorted geom-pair keys
+  // min << 32 | max, and each key's least distance): built at the first look of a batch when
+  // data has more than a few contacts; room for contact_room entries (0: always scan).
+  int64_t* contact_keys;
+  double* contact_dist;
+  int64_t contact_room;
+  int64_t contact_count;  // -1: not built for this batch
 } dua_exact;
 
 typedef struct dua_events {
