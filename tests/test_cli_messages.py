@@ -1,4 +1,4 @@
-"""What the command line says when it is given something wrong.
+"""What the command line says when it is given something wrong, or interrupted while it sets up.
 
 Each message names the bad value and the fix in one line (``dua-mujoco: error: ...``, or
 argparse's usage and one line for an option's value).
@@ -9,6 +9,10 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -16,6 +20,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import pytest
 
 from dua_mujoco.cli import build_parser, main
+
+REPO = Path(__file__).resolve().parent.parent
 
 
 def _error(capsys: pytest.CaptureFixture[str]) -> str:
@@ -235,3 +241,38 @@ def test_a_camera_by_name_id_or_minus_one_renders(
         assert "video written to" in capsys.readouterr().out
     assert _run_camera(tmp_path, scene, "1") == 2
     assert _error(capsys).startswith("--camera 1 is not a camera of the model: pass one of")
+
+
+# --------------------------------------------------------------------------------------------------
+# Ctrl-C while the command sets up.
+# --------------------------------------------------------------------------------------------------
+
+
+def _command() -> list[str]:
+    script = Path(sys.executable).with_name("dua-mujoco")
+    return [str(script)] if script.is_file() else ["-m", "dua_mujoco"]
+
+
+# Markers of the set-up's stages (python -X importtime prints a line as each import finishes):
+# numpy is done while `import mujoco`, the command's first import, still runs; mujoco when the
+# command's module is nearly loaded; numba while the parser imports its subcommands; the monitor
+# when `run` has its own imports and loads the scene, compiles and starts a 10^6-step pilot.
+@pytest.mark.parametrize("marker", ["numpy", "mujoco", "numba", "dua_mujoco.mj.monitor"])
+def test_ctrl_c_while_setting_up_is_one_line_and_exit_130(marker: str) -> None:
+    argv = [sys.executable, "-X", "importtime", *_command(), "run", "two_arms"]
+    argv += ["--pilot-steps", "1000000", "--no-progress"]
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST")}
+    proc = subprocess.Popen(
+        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=REPO
+    )
+    assert proc.stderr is not None
+    deadline = time.monotonic() + 120
+    for line in proc.stderr:
+        if re.search(rf"\|\s+{re.escape(marker)}$", line.rstrip()) or time.monotonic() > deadline:
+            break
+    proc.send_signal(signal.SIGINT)
+    out, rest = proc.communicate(timeout=120)
+    said = [x for x in rest.splitlines() if not x.startswith("import time:")]
+    assert proc.returncode == 130, rest[-3000:]
+    assert len(said) == 1 and said[0].startswith("dua-mujoco: interrupted"), said
+    assert out == ""

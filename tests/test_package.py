@@ -54,7 +54,9 @@ def test_the_wheel_ships_the_package_the_scenes_and_the_native_core(tmp_path: Pa
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(wheel).read(entry_points).decode()
     assert "[mujoco.plugins]" in text and "dua_mujoco.native:load_plugin" in text
-    # No pytest11 entry point: pytest would warn in other projects (test_testing.py).
+    # The command starts in a light module (Ctrl-C during its imports is one line), and no
+    # pytest11 entry point makes pytest warn in other projects (tests/test_pytest_plugin.py).
+    assert "dua-mujoco = dua_mujoco.__main__:main" in text
     assert "[pytest11]" not in text
 
 
