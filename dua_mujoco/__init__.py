@@ -48,8 +48,8 @@ if TYPE_CHECKING:
     from dua_mujoco.plugin import PluginOutputs, attach, plugin_outputs, standing_pairs
 
 # Everything but the errors loads on first use (PEP 562): ``import dua_mujoco`` and the pytest
-# plugin ``dua_mujoco.testing``, loaded in every test session of anyone who installed the
-# package, import neither numba nor MuJoCo.
+# plugin ``dua_mujoco.testing``, loaded in every test session of a project that enables it,
+# import neither numba nor MuJoCo.
 _LAZY = {
     "Alarms": "dua_mujoco.mj.predictor",
     "CoveringOptions": "dua_mujoco.mj.options",

@@ -7,13 +7,14 @@ import importlib
 import json
 import math
 import os
+import re
 import stat
 import sys
 import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 # Videos are rendered offscreen: without a display, MuJoCo must use EGL, and it reads the choice
 # when it is first imported.
@@ -24,7 +25,7 @@ import mujoco
 
 from dua_mujoco.exceptions import DuaError, InvalidInputError
 from dua_mujoco.outputs import publish, temporary_beside, writes_in_place
-from dua_mujoco.run_options import add_run_options, positive
+from dua_mujoco.run_options import add_run_options, whole_number
 
 if TYPE_CHECKING:
     from dua_mujoco.mj.report import RunReport
@@ -111,13 +112,25 @@ def _add_run_outputs(p: argparse.ArgumentParser) -> None:
         default=None,
         help="render a video (.mp4 or .gif), streamed to the file as frames are rendered",
     )
-    p.add_argument("--fps", type=positive(int), default=30, help="video frame rate")
-    p.add_argument("--width", type=positive(int), default=480, help="video width in pixels")
-    p.add_argument("--height", type=positive(int), default=360, help="video height in pixels")
-    p.add_argument("--camera", default=None, help="camera name or id (default free camera)")
+    p.add_argument(
+        "--fps",
+        type=whole_number("--fps", "frames per second"),
+        default=30,
+        help="video frame rate",
+    )
+    p.add_argument(
+        "--width", type=whole_number("--width", "pixels"), default=480, help="video width in pixels"
+    )
+    p.add_argument(
+        "--height",
+        type=whole_number("--height", "pixels"),
+        default=360,
+        help="video height in pixels",
+    )
+    p.add_argument("--camera", default=None, help="camera name or id (default -1: the free camera)")
     p.add_argument(
         "--every",
-        type=positive(int),
+        type=whole_number("--every", "physics steps"),
         default=5,
         help="render every k-th physics step (one at which the predictor steps: with --period, "
         "the least common multiple of both, noted on stderr)",
@@ -190,6 +203,39 @@ def _write_output(path: Path, text: str, what: str) -> None:
         ) from None
 
 
+def _camera_arg(model: mujoco.MjModel, camera: str | None) -> int | None:
+    """``--camera`` as the model's camera id (-1: the free camera), or None when not given."""
+    if camera is None:
+        return None
+    n = int(model.ncam)
+    if re.fullmatch(r"-?\d+", camera):
+        cid = int(camera)
+        if -1 <= cid < n:
+            return cid
+    else:
+        cid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+        if cid >= 0:
+            return int(cid)
+    if n == 0:
+        raise InvalidInputError(
+            f"--camera {camera}: the model has no camera: leave --camera out (or pass -1) for "
+            "the free camera."
+        )
+    named = [f"{model.camera(i).name!r} (id {i})" for i in range(n) if model.camera(i).name]
+    ids = "id 0" if n == 1 else f"ids 0 to {n - 1}"
+    if not named:
+        raise InvalidInputError(
+            f"--camera {camera}: the model has no named camera: pass a camera's id ({ids}), or "
+            "-1 for the free camera."
+        )
+    unnamed = n - len(named)
+    more = f" ({unnamed} more without a name among {ids})" if unnamed else ""
+    raise InvalidInputError(
+        f"--camera {camera} is not a camera of the model: pass one of {', '.join(named)}{more}, "
+        "or -1 for the free camera."
+    )
+
+
 def _check_outputs(args: argparse.Namespace, model: mujoco.MjModel, steps: int) -> None:
     if args.json is not None:
         _check_output(args.json, "--json")
@@ -197,6 +243,7 @@ def _check_outputs(args: argparse.Namespace, model: mujoco.MjModel, steps: int) 
         from dua_mujoco.render import check_frame_size, check_mp4_size, video_path
 
         video_path(args.video)
+        args.camera = _camera_arg(model, args.camera)
         if args.video.suffix.lower() == ".mp4":
             check_mp4_size(args.width, args.height)
         check_frame_size(model, args.width, args.height, grow_buffer=True)
@@ -219,11 +266,14 @@ def _check_outputs(args: argparse.Namespace, model: mujoco.MjModel, steps: int) 
 
 
 def _load(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """``load_scene``, with the file named in the error when MuJoCo cannot load it."""
-    from dua_mujoco.mj.scenes import SCENES, load_scene
+    """``load_scene``, with the file named in the error when MuJoCo cannot load it, and an
+    unknown ``--keyframe`` told apart from a broken file."""
+    from dua_mujoco.mj.scenes import SCENES, load_scene, reset_to_keyframe
 
     try:
-        return load_scene(scene, keyframe=keyframe)
+        model, data = load_scene(scene)
+    except DuaError:
+        raise
     except ValueError as exc:
         if scene in SCENES or not Path(scene).is_file():
             raise
@@ -232,6 +282,34 @@ def _load(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoc
             f"cannot load the model {scene!r}: {reason} (fix the file, or pass an MJCF .xml or "
             "binary .mjb model)."
         ) from None
+    if keyframe is not None:
+        _check_keyframe(model, keyframe)
+        reset_to_keyframe(model, data, keyframe)
+    return model, data
+
+
+def _check_keyframe(model: mujoco.MjModel, keyframe: int | str) -> None:
+    """Refuse a ``--keyframe`` the model does not have, saying which it has."""
+    n = int(model.nkey)
+    if n == 0:
+        raise InvalidInputError(
+            f"--keyframe {keyframe}: the model has no keyframes: leave --keyframe out to start "
+            "from the model's defaults."
+        )
+    if isinstance(keyframe, int):
+        if 0 <= keyframe < n:
+            return
+    elif mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe) >= 0:
+        return
+    names = [repr(model.key(k).name) for k in range(n) if model.key(k).name]
+    listing = ("id 0" if n == 1 else f"ids 0 to {n - 1}") + (
+        f", named {', '.join(names)}" if names else ", none named"
+    )
+    count = f"{'only ' if isinstance(keyframe, int) else ''}{n} keyframe{'s' if n > 1 else ''}"
+    raise InvalidInputError(
+        f"--keyframe {keyframe}: the model has {count} ({listing}): pass one of those, or leave "
+        "--keyframe out to start from the first."
+    )
 
 
 def _bounds_warning(report: RunReport) -> str:
@@ -308,7 +386,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 grow_buffer=True,
             )
             writer = VideoWriter(args.video, fps=args.fps)
-            camera = int(args.camera) if args.camera and args.camera.isdigit() else args.camera
+            camera = args.camera  # an id, checked by _check_outputs
             render, add = renderer.render, writer.add
 
             def on_step(k: int, d: mujoco.MjData, alarms: Alarms | None, monitor: Monitor) -> None:
@@ -402,9 +480,20 @@ def _add_experiment(sub: argparse._SubParsersAction, name: str) -> None:
     p.set_defaults(func=module.main)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser (its subcommands' too), without the ``argument --steps:`` that argparse
+    puts before a reason that already starts with the option's name."""
+
+    def error(self, message: str) -> NoReturn:
+        named = re.fullmatch(r"argument (\S+): (.*)", message, flags=re.DOTALL)
+        if named and named[2].startswith(tuple(f"{flag} " for flag in named[1].split("/"))):
+            message = named[2]
+        super().error(message)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``dua-mujoco`` argument parser with its subcommands."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="dua-mujoco",
         description="Collision prediction for MuJoCo with the Dynamic Urgency Algorithm.",
     )

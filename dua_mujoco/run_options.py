@@ -25,12 +25,12 @@ __all__ = [
     "add_run_options",
     "controller_for",
     "default_steps",
-    "non_negative_int",
     "parse_accel",
     "positive",
     "predictor_for",
     "predictor_options",
     "run_option_actions",
+    "whole_number",
 ]
 
 PILOT_SEED_OFFSET = 1_000_003
@@ -124,11 +124,13 @@ def parse_accel(value: str) -> str | float:
 
 
 def positive(kind: type) -> Callable[[str], object]:
+    """argparse type: a finite number > 0 of ``kind`` (``float``)."""
+
     def parse(value: str) -> object:
         try:
             v = kind(value)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{value!r} is not a {kind.__name__}") from None
+            raise argparse.ArgumentTypeError(f"{value!r} is not a number") from None
         if not (v > 0 and math.isfinite(v)):
             raise argparse.ArgumentTypeError(f"{value!r} must be a finite number > 0")
         return v
@@ -136,15 +138,31 @@ def positive(kind: type) -> Callable[[str], object]:
     return parse
 
 
-def non_negative_int(value: str) -> int:
-    """argparse type: an int >= 0 (seeds, latency)."""
-    try:
-        v = int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{value!r} is not an int") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"{value!r} must be >= 0")
-    return v
+def whole_number(option: str, unit: str = "", *, minimum: int = 1) -> Callable[[str], int]:
+    """argparse type of an integer option: an int >= ``minimum``.
+
+    A value refused is named with the option and what it counts, in one sentence (``--steps must
+    be a whole number of physics steps, got '1.5'``), also when a sweep's grid gives it.
+
+    Args:
+        option: The option's flag (``--steps``).
+        unit: What it counts (``physics steps``); empty for a plain number (a seed).
+        minimum: The least value accepted.
+    """
+    what = f"a whole number of {unit}" if unit else "a whole number"
+
+    def parse(value: str) -> int:
+        try:
+            n = int(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{option} must be {what}, got {value!r}") from None
+        if n < minimum:
+            raise argparse.ArgumentTypeError(
+                f"{option} must be {what}, at least {minimum}, got {value!r}"
+            )
+        return n
+
+    return parse
 
 
 def add_run_options(p: argparse.ArgumentParser) -> None:
@@ -152,12 +170,15 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     ``sweep`` read them)."""
     p.add_argument(
         "--steps",
-        type=positive(int),
+        type=whole_number("--steps", "physics steps"),
         default=None,
         help="physics steps (default: the scene's own, 1000 for an MJCF file)",
     )
     p.add_argument(
-        "--seed", type=non_negative_int, default=0, help="seed of the controls (default 0)"
+        "--seed",
+        type=whole_number("--seed", minimum=0),
+        default=0,
+        help="seed of the controls (default 0)",
     )
     p.add_argument("--ctrl", choices=["zero", "random"], default="random", help="controls")
     p.add_argument("--keyframe", default=None, help="start keyframe (id or name; default first)")
@@ -174,13 +195,21 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         default="bounding",
         help="one bounding sphere per geom, or several (budget --max-spheres)",
     )
-    p.add_argument("--max-spheres", type=positive(int), default=8, help="multi covering budget")
     p.add_argument(
-        "--period", type=positive(int), default=1, help="physics steps per predictor step"
+        "--max-spheres",
+        type=whole_number("--max-spheres", "spheres per geom"),
+        default=8,
+        help="multi covering budget",
+    )
+    p.add_argument(
+        "--period",
+        type=whole_number("--period", "physics steps"),
+        default=1,
+        help="physics steps per predictor step",
     )
     p.add_argument(
         "--latency",
-        type=non_negative_int,
+        type=whole_number("--latency", "predictor periods", minimum=0),
         default=0,
         help="periods a verdict takes to reach the user (0: synchronous, after mj_step)",
     )
@@ -193,14 +222,14 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--max-evals",
-        type=positive(int),
+        type=whole_number("--max-evals", "tau evaluations a step"),
         default=None,
         help="deadline: cap on tau evaluations a step; pairs due beyond it wait, in alarm once "
         "their verdict no longer covers the wait (default: no cap)",
     )
     p.add_argument(
         "--alarm-backoff",
-        type=positive(int),
+        type=whole_number("--alarm-backoff", "predictor steps"),
         default=None,
         # The default is the Predictor's (DEFAULT_ALARM_BACKOFF): not imported here, where it
         # would pull numba into every `--help`; test_cli holds the two equal.
@@ -210,7 +239,7 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--slots-per-bucket",
-        type=positive(int),
+        type=whole_number("--slots-per-bucket", "slots"),
         default=1,
         help="dua: slots evaluated per bucket per step, a power of two (revisit intervals "
         "shrink that many times)",
@@ -247,7 +276,7 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--pilot-steps",
-        type=positive(int),
+        type=whole_number("--pilot-steps", "physics steps"),
         default=2000,
         help="pilot rollout length for --accel auto",
     )

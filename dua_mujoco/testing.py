@@ -9,8 +9,9 @@ baseline so that a change that floods the exact stage with false alarms fails to
 The pytest plugin adds the function-scoped fixture ``dua_predict`` (the same callable, with
 relative baseline paths resolved against the test file's folder) and the option
 ``--dua-update-baselines`` (write baselines instead of comparing). Enable it with
-``pytest -p dua_mujoco.testing``, ``pytest_plugins = ["dua_mujoco.testing"]`` in a top-level
-``conftest.py``, or through the package's ``pytest11`` entry point. See ``docs/testing.md``.
+``pytest_plugins = ["dua_mujoco.testing"]`` in a top-level ``conftest.py`` or
+``pytest -p dua_mujoco.testing``; it is not loaded by itself (no ``pytest11`` entry point: see
+``docs/testing.md``).
 
 The module imports MuJoCo and the compiled core lazily, so that loading the plugin costs nothing
 for test sessions that never use it; the assertion helpers work without pytest installed.

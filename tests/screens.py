@@ -2,7 +2,9 @@
 
 Xvfb (Debian's ``xvfb``) keeps its screen in a file under ``-fbdir`` in XWD format, so a
 screenshot is a read of that file: no screenshot tool. Keys are typed with ``xdotool`` (XTEST).
-Both are installed by ``.ci/run``.
+Both are optional system packages: a test that needs them (the ``display`` and ``xvfb`` fixtures
+of ``conftest.py``) is skipped, with the apt line, where they are not installed, and fails instead
+under ``DUA_REQUIRE_XVFB=1``, which ``.ci/run`` (it installs them) sets.
 """
 
 from __future__ import annotations
@@ -16,8 +18,17 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+import pytest
 
-__all__ = ["Display", "reddish", "virtual_display"]
+__all__ = ["APT_LINE", "REQUIRE_XVFB", "Display", "reddish", "require_xvfb", "virtual_display"]
+
+APT_LINE = "apt-get install xvfb xdotool"
+"""What installs the tools (Debian, Ubuntu)."""
+
+REQUIRE_XVFB = "DUA_REQUIRE_XVFB"
+"""Set to 1 (CI), a missing tool fails the tests that need it instead of skipping them."""
+
+_TOOLS = ("Xvfb", "xdotool")
 
 
 class Display:
@@ -68,12 +79,31 @@ def read_xwd(raw: bytes) -> np.ndarray:
     return np.ascontiguousarray(pixels[..., [2, 1, 0]] if byte_order == 0 else pixels[..., 1:])
 
 
+def require_xvfb(which: Callable[[str], str | None] = shutil.which) -> None:
+    """Skip the calling test, naming the apt line, if Xvfb or xdotool is not on the ``PATH``;
+    fail it instead if ``DUA_REQUIRE_XVFB=1`` (CI, where a skip would hide the tests).
+
+    Args:
+        which: Finds a program on the ``PATH`` (``shutil.which``; tests pass their own).
+    """
+    missing = [tool for tool in _TOOLS if which(tool) is None]
+    if not missing:
+        return
+    reason = (
+        f"{' and '.join(missing)} not installed (a virtual screen for the live viewer's tests): "
+        f"{APT_LINE}"
+    )
+    if os.environ.get(REQUIRE_XVFB) == "1":
+        pytest.fail(f"{reason} ({REQUIRE_XVFB}=1: these tests must run)", pytrace=False)
+    pytest.skip(reason)
+
+
 @contextmanager
 def virtual_display(folder: Path, size: tuple[int, int] = (1024, 768)) -> Iterator[Display]:
-    """Start an Xvfb on a free display number, its screen kept in ``folder``; stop it after."""
-    for tool in ("Xvfb", "xdotool"):
-        if shutil.which(tool) is None:
-            raise AssertionError(f"{tool} is not installed: apt-get install xvfb xdotool")
+    """Start an Xvfb on a free display number, its screen kept in ``folder``; stop it after.
+
+    Skips the test (fails it under ``DUA_REQUIRE_XVFB=1``) without Xvfb and xdotool."""
+    require_xvfb()
     read, write = os.pipe()
     screen = f"{size[0]}x{size[1]}x24"
     xvfb = subprocess.Popen(

@@ -205,6 +205,42 @@ def test_speed_bound_for_some_bodies_only() -> None:
         MotionBounds.declare(m, 1.0, speed={"ball": 2.0, "link": 0.0})
 
 
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (
+            {"accel": -1.0},
+            "accel = -1.0 is invalid: an acceleration bound must be finite and >= 0 (use 0 for a "
+            "body that does not accelerate).",
+        ),
+        (
+            {"accel": 1.0, "speed": 0.0},
+            "speed = 0.0 is invalid: a speed bound must be > 0 (inf for none).",
+        ),
+        (
+            {"accel": [1.0]},
+            "accel = [1.0] is invalid: it is not a number; pass a number, or a dict by body "
+            "name ('*' for the default).",
+        ),
+    ],
+    ids=["accel", "speed", "not-a-number"],
+)
+def test_a_scalar_bound_is_named_by_its_keyword_not_by_a_body(
+    options: dict[str, object], message: str
+) -> None:
+    """One number is every moving body's bound: the message names the keyword, no body (it
+    said "body 'all bodies'")."""
+    from dua_mujoco.mj.predictor import Predictor
+
+    m = _model(TWO_BODIES)
+    with pytest.raises(InvalidInputError) as info:
+        Predictor(m, **options)  # type: ignore[arg-type]
+    assert str(info.value) == message
+    with pytest.raises(InvalidBoundError) as info:
+        Predictor(m, accel={"ball": -1.0, "*": 1.0})
+    assert str(info.value).startswith("The acceleration bound of body 'ball' is -1.0;")
+
+
 def test_speed_zero_is_fine_for_static_bodies_only() -> None:
     m = _model(TWO_BODIES)
     b = MotionBounds.declare(m, 1.0, speed={"ball": 2.0, "link": 2.0, "static_shelf": 0.0})

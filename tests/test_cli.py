@@ -193,7 +193,10 @@ def test_cli_bad_outputs_fail_before_the_run(
 
 def test_cli_unknown_keyframe_lists_ids_and_names(capsys) -> None:
     assert main(["run", "two_arms", "--keyframe", "7", "--steps", "5", "--no-progress"]) == 2
-    assert "Valid choices: 0, 'ready'" in _one_line_error(capsys)
+    assert _one_line_error(capsys) == (
+        "dua-mujoco: error: --keyframe 7: the model has only 1 keyframe (id 0, named 'ready'): "
+        "pass one of those, or leave --keyframe out to start from the first."
+    )
 
 
 def test_cli_table_separates_valid_misses_and_shows_realtime(capsys) -> None:

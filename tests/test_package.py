@@ -54,6 +54,10 @@ def test_the_wheel_ships_the_package_the_scenes_and_the_native_core(tmp_path: Pa
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(wheel).read(entry_points).decode()
     assert "[mujoco.plugins]" in text and "dua_mujoco.native:load_plugin" in text
+    # The command starts in a light module (Ctrl-C during its imports is one line), and no
+    # pytest11 entry point makes pytest warn in other projects (tests/test_pytest_plugin.py).
+    assert "dua-mujoco = dua_mujoco.__main__:main" in text
+    assert "[pytest11]" not in text
 
 
 def test_no_private_names_across_modules() -> None:
@@ -78,8 +82,8 @@ def test_modules_stay_small() -> None:
 
 
 def test_the_pytest_plugin_imports_neither_numba_nor_mujoco() -> None:
-    """Everyone who installs the package loads the plugin in every pytest session: it must cost
-    nothing there (numba and llvmlite alone take about half a second)."""
+    """A project that enables the plugin loads it in every pytest session: it must cost nothing
+    there (numba and llvmlite alone take about half a second)."""
     code = (
         "import sys, pytest\n"
         "import dua_mujoco, dua_mujoco.testing\n"

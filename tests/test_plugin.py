@@ -466,19 +466,19 @@ with mujoco.viewer.launch_passive(m, d, show_left_ui=False, show_right_ui=False)
 """
 
 
-def test_mujocos_own_viewer_shows_the_overlay(tmp_path: Path) -> None:
+def test_mujocos_own_viewer_shows_the_overlay(tmp_path: Path, xvfb) -> None:
     """MuJoCo's passive viewer draws the plugin's overlay with no code of ours in its loop: two
     grey boxes standing in alarm get translucent red balls and a red line (red pixels, bright
     over the boxes, dim over the black background); with ``overlay=false`` the boxes stay grey
     (measured: 2,900 bright and 780 dim red pixels against none)."""
-    from screens import reddish, virtual_display
+    from screens import reddish
     from test_view import BOXES
 
     halos = []
     for overlay in (True, False):
         screen = tmp_path / f"screen{overlay}"
         screen.mkdir()
-        with virtual_display(screen) as display:
+        with xvfb(screen) as display:
             env = display.env()
             env.pop("MUJOCO_GL", None)  # the viewer opens a GLFW window
             code = _PASSIVE.format(xml=BOXES, overlay=overlay)

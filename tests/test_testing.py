@@ -21,7 +21,7 @@ from dua_mujoco.mj.scenes import load_scene, make_controller
 
 # The module is imported here, before pytest registers it from ``pytest_plugins``: mark it for
 # assertion rewriting first, or pytest warns that it was imported before it could rewrite it
-# (unless the pytest11 entry point already loaded it at start-up).
+# (unless another test module of the session imported it first).
 if "dua_mujoco.testing" not in sys.modules:
     pytest.register_assert_rewrite("dua_mujoco.testing")
 
@@ -35,6 +35,8 @@ from dua_mujoco.testing import (
 )
 
 pytest_plugins = ["pytester", "dua_mujoco.testing"]
+
+ROOT = Path(__file__).resolve().parent.parent
 
 # The paper world with 20 spheres collides often; out of contact each sphere's acceleration norm
 # is at most sqrt(3) * 1 m/s^2 (its motors), so 2 m/s^2 is a bound that holds out of contact.
@@ -395,8 +397,8 @@ def test_plugin_fixture_fails_on_missed_collision(pytester: pytest.Pytester) -> 
 
 
 def test_module_import_does_not_load_mujoco_layers() -> None:
-    """The plugin is loaded in every pytest session of an environment with dua_mujoco installed:
-    it must not import MuJoCo or the predictor until a test uses it."""
+    """The plugin is loaded in every pytest session of a project that enables it: it must not
+    import MuJoCo or the predictor until a test uses it."""
     code = (
         "import sys, dua_mujoco.testing; "
         "print([m for m in ('mujoco', 'dua_mujoco.mj.predictor', 'dua_mujoco.mj.monitor') "
@@ -419,3 +421,41 @@ def test_zero_baseline_allows_no_alarm(clean_report: RunReport) -> None:
         check_baseline(
             clean_report, {"alarm_episodes": 0, "false_alarm_episodes": np.inf}, tolerance=10.0
         )
+
+
+# --------------------------------------------------------------------------------------------------
+# Other projects in the same environment.
+# --------------------------------------------------------------------------------------------------
+
+OTHER_PROJECT_TEST = "def test_trivial():\n    assert 1 + 1 == 2\n"
+
+
+def _pytest_in(folder: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    """``python -m pytest`` in ``folder`` (outside the repository), as another project runs it."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST")}
+    env.pop("PYTHONPATH", None)
+    argv = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-W", "default", *args]
+    return subprocess.run(argv, capture_output=True, text=True, env=env, cwd=folder, timeout=300)
+
+
+def test_another_projects_pytest_session_shows_no_warning(tmp_path: Path) -> None:
+    """An editable install of the package (scikit-build-core's path finder, imported at start-up)
+    made every pytest session in the environment warn ``Module already imported so cannot be
+    rewritten; _editable_skbc_dua_mujoco`` while the package declared a pytest11 entry point."""
+    assert not (tmp_path / "pyproject.toml").exists() and ROOT not in tmp_path.parents
+    (tmp_path / "test_other.py").write_text(OTHER_PROJECT_TEST)
+    out = _pytest_in(tmp_path)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "PytestAssertRewriteWarning" not in out.stdout + out.stderr
+    assert re.fullmatch(r"=+ 1 passed in [\d.]+s =+", out.stdout.strip().splitlines()[-1])
+
+
+def test_a_project_that_enables_the_plugin_gets_it_without_warning(tmp_path: Path) -> None:
+    (tmp_path / "conftest.py").write_text('pytest_plugins = ["dua_mujoco.testing"]\n')
+    (tmp_path / "test_mine.py").write_text(
+        "def test_fixture(dua_predict):\n    assert callable(dua_predict)\n"
+    )
+    out = _pytest_in(tmp_path)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "warning" not in out.stdout.lower(), out.stdout
+    assert re.fullmatch(r"=+ 1 passed in [\d.]+s =+", out.stdout.strip().splitlines()[-1])

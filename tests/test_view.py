@@ -1,7 +1,7 @@
 """``dua-mujoco view``: MuJoCo's viewer with the live alarm overlay, headless under Xvfb.
 
-The command runs in a subprocess on a virtual display (tests/screens.py); screenshots are read
-from Xvfb's screen, keys typed with xdotool.
+The command runs in a subprocess on a virtual display (the ``display`` fixture, tests/screens.py:
+skipped without Xvfb); screenshots are read from Xvfb's screen, keys typed with xdotool.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco
 import numpy as np
 import pytest
-from screens import Display, reddish, virtual_display
+from screens import Display, reddish
 
 from dua_mujoco.cli import main
 from dua_mujoco.mj.predictor import Predictor
@@ -103,51 +103,45 @@ def boxes(tmp_path: Path) -> Path:
 
 
 def test_viewer_shows_the_tint_live_and_its_keys_pause_step_and_toggle_spheres(
-    tmp_path: Path, boxes: Path
+    display: Display, boxes: Path
 ) -> None:
-    screen = tmp_path / "screen"
-    screen.mkdir()
-    with virtual_display(screen) as display:
-        proc = _view(display, boxes)
-        err = _Lines(proc.stderr)
-        try:
-            # Live: the boxes are tinted (nothing in the scene is red-orange of its own).
-            tinted = display.wait_for(lambda shot: reddish(shot) > 2000)
-            halo = reddish(tinted, dim=True)  # the boxes' edges
-            # Enter: the covering spheres, translucent and tinted, larger than the boxes: a dim
-            # red halo around each (measured: 2e3 such pixels before, 2.3e4 after).
-            display.key("Return")
-            display.wait_for(lambda shot: reddish(shot, dim=True) > max(4 * halo, 8000))
-            # Space: paused; the frame no longer changes.
-            display.key("space")
-            err.wait_for("paused at t =")
-            time.sleep(0.5)  # let the viewer draw the paused state
-            frozen = display.screenshot()
-            time.sleep(1.0)
-            assert np.array_equal(display.screenshot(), frozen)
-            # Right: one predictor period, then paused again, the state moved.
-            display.key("Right")
-            err.wait_for("stepping one period")
-            display.wait_for(lambda shot: not np.array_equal(shot, frozen))
-            display.key("space")
-            err.wait_for("resumed at t =")
-        finally:
-            proc.send_signal(signal.SIGINT)
-            out = proc.stdout.read()
-            proc.wait(timeout=120)
-            rest = err.text()
+    proc = _view(display, boxes)
+    err = _Lines(proc.stderr)
+    try:
+        # Live: the boxes are tinted (nothing in the scene is red-orange of its own).
+        tinted = display.wait_for(lambda shot: reddish(shot) > 2000)
+        halo = reddish(tinted, dim=True)  # the boxes' edges
+        # Enter: the covering spheres, translucent and tinted, larger than the boxes: a dim
+        # red halo around each (measured: 2e3 such pixels before, 2.3e4 after).
+        display.key("Return")
+        display.wait_for(lambda shot: reddish(shot, dim=True) > max(4 * halo, 8000))
+        # Space: paused; the frame no longer changes.
+        display.key("space")
+        err.wait_for("paused at t =")
+        time.sleep(0.5)  # let the viewer draw the paused state
+        frozen = display.screenshot()
+        time.sleep(1.0)
+        assert np.array_equal(display.screenshot(), frozen)
+        # Right: one predictor period, then paused again, the state moved.
+        display.key("Right")
+        err.wait_for("stepping one period")
+        display.wait_for(lambda shot: not np.array_equal(shot, frozen))
+        display.key("space")
+        err.wait_for("resumed at t =")
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out = proc.stdout.read()
+        proc.wait(timeout=120)
+        rest = err.text()
     assert proc.returncode == 130, rest
     assert "interrupted: the table covers the steps shown" in rest
     assert "contact onsets" in out and "interrupted" in out  # the run's table
     assert "Traceback" not in rest
 
 
-def test_viewer_runs_the_steps_asked_and_prints_the_table(tmp_path: Path, boxes: Path) -> None:
-    screen = tmp_path / "screen"
-    screen.mkdir()
-    with virtual_display(screen) as display:
-        proc = _view(display, boxes, "--steps", "40", "--rate", "0")
-        out, err = proc.communicate(timeout=300)
+def test_viewer_runs_the_steps_asked_and_prints_the_table(display: Display, boxes: Path) -> None:
+    proc = _view(display, boxes, "--steps", "40", "--rate", "0")
+    out, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
     assert "physics steps (predictor period)      40 (1)" in out
 

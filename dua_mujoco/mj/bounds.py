@@ -117,14 +117,23 @@ def _resolve(model: mujoco.MjModel, spec: BoundSpec, what: str) -> np.ndarray:
         if default is not None:
             _check_value(default, what, "*", moving=False)
     else:
-        val = _check_value(spec, what, "all bodies")
+        val = _check_value(spec, what, None)
         out[moving] = val
     return out
 
 
-def _check_value(value: object, what: str, body: str, *, moving: bool = True) -> float:
+# The keyword a scalar bound is given by (Predictor(accel=...), MotionBounds.declare(...)).
+_KEYWORD = {
+    "acceleration": "accel",
+    "velocity uncertainty": "vel_uncertainty",
+}
+
+
+def _check_value(value: object, what: str, body: str | None, *, moving: bool = True) -> float:
     """One bound, as a float: finite and >= 0; a speed bound may be inf (none), and must be
-    > 0 for a moving body."""
+    > 0 for a moving body. ``body`` is None for a scalar bound (every moving body's): the
+    message names the keyword then, not a body."""
+    scalar = f"{_KEYWORD.get(what, what)} = {value!r} is invalid:" if body is None else ""
     bad_type = isinstance(value, str | bytes | bool | np.bool_)  # float() takes "5" and True
     try:
         val = float(value)  # type: ignore[arg-type]
@@ -132,19 +141,28 @@ def _check_value(value: object, what: str, body: str, *, moving: bool = True) ->
         bad_type = True
     if bad_type:
         raise InvalidBoundError(
-            f"The {what} bound of body {body!r} is {value!r}, not a number: pass a number for "
-            "every body, or a dict by body name ('*' for the default)."
+            f"{scalar} it is not a number; pass a number, or a dict by body name ('*' for the "
+            "default)."
+            if scalar
+            else f"The {what} bound of body {body!r} is {value!r}, not a number: pass a number "
+            "for every body, or a dict by body name ('*' for the default)."
         )
     if what == "speed":
         if not (val > 0 or (val == 0 and not moving)):  # NaN too
             raise InvalidBoundError(
-                f"The speed bound of body {body!r} is {value!r}; it must be > 0 (inf for no "
-                "speed bound on that body)."
+                f"{scalar} a speed bound must be > 0 (inf for none)."
+                if scalar
+                else f"The speed bound of body {body!r} is {value!r}; it must be > 0 (inf for "
+                "no speed bound on that body)."
             )
     elif not np.isfinite(val) or val < 0:
         hint = " (use 0 for a body that does not accelerate)" if what == "acceleration" else ""
         raise InvalidBoundError(
-            f"The {what} bound of body {body!r} is {value!r}; it must be finite and >= 0{hint}."
+            f"{scalar} a{'n' if what[0] in 'aeiou' else ''} {what} bound must be finite and "
+            f">= 0{hint}."
+            if scalar
+            else f"The {what} bound of body {body!r} is {value!r}; it must be finite and "
+            f">= 0{hint}."
         )
     return val
 

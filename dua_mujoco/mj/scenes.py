@@ -210,7 +210,7 @@ def scene_names() -> tuple[str, ...]:
 
 
 def _looks_like_path(name: str) -> bool:
-    return name.endswith((".xml", ".mjcf")) or "/" in name or "\\" in name
+    return name.lower().endswith((".xml", ".mjcf", ".mjb")) or "/" in name or "\\" in name
 
 
 def load_scene(
@@ -229,8 +229,9 @@ def load_scene(
         ``(model, data)``, with ``data`` at the keyframe and its derived quantities computed.
 
     Raises:
-        InvalidChoiceError: If the name is neither a bundled scene nor an existing file.
-        InvalidInputError: If ``N`` in ``name:N`` is not a positive integer.
+        InvalidChoiceError: If the name is neither a bundled scene nor a path.
+        InvalidInputError: If a path (ending in .xml, .mjcf or .mjb, or with a folder) names
+            no file, or ``N`` in ``name:N`` is not a positive integer.
     """
     path = Path(name_or_path)
     if name_or_path not in SCENES and path.suffix.lower() == ".mjb" and path.is_file():
@@ -247,9 +248,10 @@ def load_spec(name_or_path: str) -> mujoco.MjSpec:
     """The ``MjSpec`` of a bundled scene (names as for :func:`load_scene`) or an MJCF file.
 
     Raises:
-        InvalidChoiceError: If the name is neither a bundled scene nor an existing file.
-        InvalidInputError: If ``N`` in ``name:N`` is not a positive integer, or the file is a
-            compiled ``.mjb`` model, which has no spec.
+        InvalidChoiceError: If the name is neither a bundled scene nor a path.
+        InvalidInputError: If a path (ending in .xml, .mjcf or .mjb, or with a folder) names
+            no file, ``N`` in ``name:N`` is not a positive integer, or the file is a compiled
+            ``.mjb`` model, which has no spec.
     """
     check_scene(name_or_path)
     if name_or_path in SCENES:
@@ -273,8 +275,9 @@ def check_scene(name_or_path: str) -> None:
     """Raise what :func:`load_scene` raises for a name that names no scene, without loading.
 
     Raises:
-        InvalidChoiceError: If the name is neither a bundled scene nor an existing file.
-        InvalidInputError: If ``N`` in ``paper_world:N`` is not a positive integer.
+        InvalidChoiceError: If the name is neither a bundled scene nor a path.
+        InvalidInputError: If a path (ending in .xml, .mjcf or .mjb, or with a folder) names
+            no file, or ``N`` in ``paper_world:N`` is not a positive integer.
     """
     if name_or_path in SCENES:
         return
@@ -286,10 +289,18 @@ def check_scene(name_or_path: str) -> None:
             )
         return
     if not Path(name_or_path).is_file():
-        hint = "Or pass the path of an existing MJCF file."
-        if _looks_like_path(name_or_path):
-            hint = f"No file at {str(Path(name_or_path).resolve())!r}. " + hint
-        raise InvalidChoiceError("scene", name_or_path, scene_names(), hint)
+        if _looks_like_path(name_or_path):  # meant as a file: the missing file is the news
+            raise InvalidInputError(
+                f"No file at {str(Path(name_or_path).resolve())!r}: pass the path of an existing "
+                "MJCF (.xml) or binary (.mjb) model, or a bundled scene "
+                f"({', '.join(scene_names())})."
+            )
+        raise InvalidChoiceError(
+            "scene",
+            name_or_path,
+            scene_names(),
+            "Or pass the path of an existing MJCF (.xml) or binary (.mjb) model.",
+        )
 
 
 def reset_to_keyframe(

@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from dua_mujoco.run_options import whole_number
+
 __all__ = ["DESCRIPTION", "EPILOG", "EXIT_RUN_FAILED", "add_arguments", "main", "markdown"]
 
 EXIT_RUN_FAILED = 4
@@ -35,14 +37,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenes", nargs="+", metavar="SCENE", help="as for run, one or more")
     p.add_argument(
         "--seeds",
-        type=_count,
+        type=whole_number("--seeds", "seeds"),
         default=1,
         help="seeds a scene and set: --seed, --seed + 1, ... (default 1)",
     )
     p.add_argument("--grid", type=Path, default=None, help="TOML file of option sets (epilog)")
     p.add_argument(
         "--workers",
-        type=_count,
+        type=whole_number("--workers", "processes"),
         default=None,
         help="local processes, or CPUs of a local Ray instance (default: the machine's CPUs)",
     )
@@ -58,16 +60,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", type=Path, default=None, help='write {"rows": [...]} here')
     p.add_argument("--markdown", type=Path, default=None, help="write the table here too")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-
-
-def _count(value: str) -> int:
-    try:
-        n = int(value)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"{value!r} is invalid: pass an int >= 1")
-    return n
 
 
 def _ray_address(value: str) -> str:

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from dua_mujoco.experiments.paper.reproduce import run_paper
+from dua_mujoco.run_options import whole_number
 
 __all__ = ["add_arguments", "main"]
 
@@ -18,7 +19,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out", type=Path, default=Path("out/paper"), metavar="DIR", help="tables and plots"
     )
-    parser.add_argument("--seeds", type=int, default=10, metavar="N", help="sequences per setting")
+    parser.add_argument(
+        "--seeds",
+        type=whole_number("--seeds", "sequences per setting", minimum=2),
+        default=10,
+        metavar="N",
+        help="sequences per setting (at least 2: the tables give standard deviations)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
