@@ -71,7 +71,7 @@ def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
     Args:
         model: The model (the pilot's controller drives it).
         options: Parsed ``run`` options (``accel``, ``speed``, ``covering``, ``max_spheres``,
-            ``hfield``, ``period``, ``latency``, ``schedule``, ``max_evals``,
+            ``hfield``, ``period``, ``latency``, ``alarm_horizon``, ``schedule``, ``max_evals``,
             ``alarm_backoff``, ``slots_per_bucket``, ``violation_events``, ``pairs``,
             ``static``, ``exact``, ``pilot_steps``, ``pilot_motion``, ``ctrl``, ``seed``).
     """
@@ -84,6 +84,7 @@ def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
         "speed": options.speed,
         "period": options.period,
         "latency": options.latency,
+        "alarm_horizon": options.alarm_horizon,
         "pairs": options.pairs,
         "covering": opts.CoveringOptions(
             mode=options.covering,
@@ -212,6 +213,15 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         type=whole_number("--latency", "predictor periods", minimum=0),
         default=0,
         help="periods a verdict takes to reach the user (0: synchronous, after mj_step)",
+    )
+    p.add_argument(
+        "--alarm-horizon",
+        type=positive(float),
+        default=None,
+        metavar="SECONDS",
+        help="seconds of warning: a pair stands in alarm when it may collide within them, and "
+        "every collision is flagged at least this long ahead while the bounds hold (default: "
+        "one predictor period)",
     )
     p.add_argument(
         "--schedule",

@@ -58,7 +58,10 @@ def predictor_tables(p: Predictor) -> dict[str, np.ndarray]:
     c[CONFIG["cap"]] = p.max_evals_per_step or 0
     c[CONFIG["max_interval"]] = DEFAULT_MAX_INTERVAL
     c[CONFIG["backoff"]] = p.alarm_backoff
-    c[CONFIG["threshold"]] = (1 + p.latency) * p.dt  # select-all's rule on tau
+    # Select-all's rule on tau: (1 + latency) dt, and the alarm horizon beyond its one period.
+    c[CONFIG["threshold"]] = (p.alarm_periods + p.latency) * p.dt
+    # 0 is one period (the default, exactly today's rule); else the horizon in seconds.
+    c[CONFIG["alarm_horizon"]] = 0.0 if p.alarm_periods == 1 else p.alarm_horizon
     c[CONFIG["timestep"]] = float(m.opt.timestep)
     exact = p.universe.exact
     c[CONFIG["exact_on"]] = exact is not None

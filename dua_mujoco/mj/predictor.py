@@ -15,6 +15,7 @@ predictor uses that one instant throughout (docs/discrete-time.md).
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Mapping
 from typing import Literal
@@ -65,7 +66,7 @@ from dua_mujoco.mj.tables import (
 )
 from dua_mujoco.mj.universe import PairUniverse
 
-__all__ = ["BoundsLike", "Predictor"]
+__all__ = ["BoundsLike", "Predictor", "alarm_periods"]
 
 BoundsLike = float | Mapping[str, float] | MotionBounds | Literal["auto"]
 """Acceleration bounds: a scalar (m/s^2, every moving body), a dict by body name (``"*"`` for
@@ -76,6 +77,25 @@ LOG_STEPS = 4
 LOG_MIN = 1 << 14
 """...and at least this many entries: ``Alarms`` are views of it, never copied; a full log is
 replaced, never overwritten, so an old ``Alarms`` keeps its values."""
+
+
+def alarm_periods(alarm_horizon: object, dt: float) -> int:
+    """The alarm horizon in whole predictor periods of ``dt`` seconds (rounded up; None: 1).
+
+    Raises:
+        InvalidInputError: ``alarm_horizon`` is not a finite number of seconds >= ``dt``.
+    """
+    if alarm_horizon is None:
+        return 1
+    ok = isinstance(alarm_horizon, int | float | np.integer | np.floating) and not isinstance(
+        alarm_horizon, bool
+    )
+    if not ok or not math.isfinite(float(alarm_horizon)) or float(alarm_horizon) < dt * (1 - 1e-9):
+        raise InvalidInputError(
+            f"alarm_horizon = {alarm_horizon!r} is invalid: pass the seconds of warning wanted, "
+            f"at least one predictor period ({dt:g} s), or None for one period."
+        )
+    return max(1, math.ceil(float(alarm_horizon) / dt - 1e-9))
 
 
 class Predictor:
@@ -94,6 +114,10 @@ class Predictor:
             ``period * model.opt.timestep``.
         latency: Periods a verdict takes to act. 0 (the default) is right when ``step`` runs
             synchronously after ``mj_step``; 1 when the alarms act one period late (the paper's).
+        alarm_horizon: Seconds of warning (None: one predictor period). A pair stands in alarm
+            when it may collide within the alarm horizon (after the latency): while the bounds
+            hold, every collision is flagged at least this long before its first state in
+            contact (docs/theory.md, section 3). Rounded up to whole predictor periods.
         covering: ``CoveringOptions``, a mode (``"bounding"``, ``"multi"``), or a ready
             ``Covering``.
         schedule: ``ScheduleOptions`` or a ``Schedule`` (``"deadline"``, the default: each pair
@@ -121,6 +145,7 @@ class Predictor:
         velocity_accel: float | Mapping[str, float] | None = None,
         period: int = 1,
         latency: int = 0,
+        alarm_horizon: float | None = None,
         covering: Covering | CoveringOptions | CoveringMode | str = "bounding",
         schedule: ScheduleOptions | Schedule | str = Schedule.DEADLINE,
         urgency: UrgencyOptions = UrgencyOptions(),
@@ -141,6 +166,11 @@ class Predictor:
         self.period = int(period)
         # Validate the schedule's options now rather than at reset(): same checks, same messages.
         self.dt, self.latency = check_period(self.period * float(model.opt.timestep), latency)
+        self.alarm_periods = alarm_periods(alarm_horizon, self.dt)
+        """The alarm horizon in predictor periods (1 by default)."""
+        self.alarm_horizon = self.alarm_periods * self.dt
+        """The alarm horizon (seconds): every collision is flagged at least this long before its
+        first state in contact while the bounds hold."""
         self.options = resolve_options(covering, schedule, urgency, pilot, pairs)
         """The option groups in force (``PredictorOptions``)."""
         sched = self.options.schedule
@@ -170,8 +200,10 @@ class Predictor:
         exact = None
         if self.options.urgency.exact:
             below = self.options.urgency.exact_below
-            below = (EXACT_PERIODS + self.latency) * self.dt if below is None else below
-            exact = (below, (QUERY_PERIODS + self.latency) * self.dt)
+            # Looks can clear an alarm (or lengthen a wait) only below the alarm horizon.
+            ahead = self.latency + self.alarm_periods - 1
+            below = (EXACT_PERIODS + ahead) * self.dt if below is None else below
+            exact = (below, (QUERY_PERIODS + ahead) * self.dt)
         self.universe = PairUniverse(model, cov, lazy=mode is PairMode.PRUNED, exact=exact)
         """The sphere pairs this predictor knows and their tables (a pruned one learns the
         pairs its candidates bring in)."""
@@ -234,6 +266,7 @@ class Predictor:
                 ),
                 dt=self.dt,
                 latency=self.latency,
+                alarm_periods=self.alarm_periods,
             )
         self.table_arrays = predictor_tables(self)
         """The tables the native runtime reads, by name (``mj/build.py``)."""

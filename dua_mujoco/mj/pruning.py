@@ -85,12 +85,22 @@ def reach_for(
     delta: np.ndarray,
     dt: float,
     latency: int,
+    alarm_periods: int = 1,
 ) -> Reach:
     """A pruned predictor's :class:`Reach`. ``delta``: ``(nbody,)`` velocity uncertainties;
-    ``horizon`` None: ``(DEFAULT_STRIDE + latency) dt``."""
+    ``horizon`` None: ``(DEFAULT_STRIDE + latency + alarm_periods - 1) dt``.
+
+    A pair left out at the rebuild of step ``r`` is held out strictly (its reaches are farther
+    apart than the contact distance), so it has no state in contact before step
+    ``r + floor(T / dt) + 1``; the next rebuild holds it (standing in alarm until evaluated
+    there), and that alarm acts after the latency. Rebuilds every ``R`` steps with
+    ``(R + latency + alarm_periods - 1) dt <= T`` therefore flag it at least the alarm horizon
+    before it touches (docs/many-objects.md).
+    """
     covering = universe.covering
-    T = (DEFAULT_STRIDE + latency) * dt if horizon is None else horizon
-    stride = rebuild_stride(T, dt, latency)  # checks T
+    ahead = latency + alarm_periods - 1
+    T = (DEFAULT_STRIDE + ahead) * dt if horizon is None else horizon
+    stride = rebuild_stride(T, dt, ahead)  # checks T
     body = np.asarray(covering.sphere_body, dtype=np.int64)
     speed = np.full(body.shape, np.inf) if bounds.speed is None else bounds.speed[body]
     table = np.stack(

@@ -460,10 +460,12 @@ Out<double> ExactRows(const In<double>& geoms, const In<int64_t>& geom1, const I
 // ------------------------------------------------------------------------------- schedules
 
 ScheduleSpec SpecOf(int64_t kind, double dt, int64_t latency, int64_t slots_per_bucket,
-                    int64_t cap, int64_t max_interval, int64_t backoff, double threshold) {
+                    int64_t cap, int64_t max_interval, int64_t backoff, double threshold,
+                    double alarm_horizon) {
   ScheduleSpec s;
   s.kind = kind, s.dt = dt, s.latency = latency, s.slots_per_bucket = slots_per_bucket;
   s.cap = cap, s.max_interval = max_interval, s.backoff = backoff, s.threshold = threshold;
+  s.alarm_horizon = alarm_horizon;
   const std::string bad = s.Check();
   Require(bad.empty(), "invalid schedule option: " + bad);
   return s;
@@ -506,9 +508,9 @@ void BindSchedule(nb::module_& m) {
           "__init__",
           [](Schedule* self, int64_t kind, double dt, int64_t latency, const In<double>& tau0,
              nb::object active, int64_t slots_per_bucket, int64_t cap, int64_t max_interval,
-             int64_t backoff, double threshold) {
+             int64_t backoff, double threshold, double alarm_horizon) {
             const ScheduleSpec spec = SpecOf(kind, dt, latency, slots_per_bucket, cap,
-                                             max_interval, backoff, threshold);
+                                             max_interval, backoff, threshold, alarm_horizon);
             std::vector<double> tau(tau0.data(), tau0.data() + tau0.size());
             for (const double t : tau) Require(!std::isnan(t), "tau0 holds NaN");
             std::vector<uint8_t> on;
@@ -521,7 +523,7 @@ void BindSchedule(nb::module_& m) {
           },
           "kind"_a, "dt"_a, "latency"_a, "tau0"_a, nb::arg("active").none() = nb::none(),
           "slots_per_bucket"_a = 1, "cap"_a = 0, "max_interval"_a = 1024, "backoff"_a = 8,
-          "threshold"_a = 0.0)
+          "threshold"_a = 0.0, "alarm_horizon"_a = 0.0)
       .def("carried",
            [](const Schedule& old, const In<int64_t>& src, int64_t n) {
              const int64_t m = Size(src);
@@ -586,6 +588,9 @@ void BindSchedule(nb::module_& m) {
       .def_prop_ro("kind", [](const Schedule& s) { return s.spec().kind; })
       .def_prop_ro("dt", [](const Schedule& s) { return s.spec().dt; })
       .def_prop_ro("latency", [](const Schedule& s) { return s.spec().latency; })
+      .def_prop_ro("alarm_horizon",
+                   [](const Schedule& s) { return s.spec().dt + s.Extra(); },
+                   "The alarm horizon, seconds (one period by default).")
       .def_rw("step_count", &Schedule::step_count)
       .def_rw("activation_changes", &Schedule::activation_changes)
       .def_prop_ro("last_tau",
@@ -1007,7 +1012,7 @@ NB_MODULE(_core, m) {
   m.def("tau_free", &TauFree, "pairs"_a, "ids"_a, "centers"_a, "velocities"_a, "planes"_a,
         "shapes"_a);
   m.def("deadline_interval", &dua_deadline_interval, "tau"_a, "dt"_a, "latency"_a,
-        "max_interval"_a);
+        "max_interval"_a, "extra"_a = 0.0);
   m.def(
       "exceeds12",
       [](const In<double>& q, double bound) {

@@ -122,6 +122,7 @@ constexpr Entry kEntries[] = {
     {"CFG_OVERRIDE", dua::kCfgOverride},
     {"CFG_O_MARGIN", dua::kCfgOMargin},
     {"CFG_HAS_SPEED", dua::kCfgHasSpeed},
+    {"CFG_ALARM_HORIZON", dua::kCfgAlarmHorizon},
     {"CFG_SIZE", dua::kCfgSize},
 };
 constexpr int64_t kNEntries = sizeof(kEntries) / sizeof(kEntries[0]);

@@ -34,9 +34,13 @@ struct View {
   int64_t* Work(int64_t row) const { return st->work + row * st->width; }
 };
 
+// Whether a verdict covering `horizon` seconds alarms: tau at most the horizon (a contact at
+// exactly tau is possible, so a verdict that ends its cover there has to stand in alarm).
+inline bool Alarms(double tau, double horizon) { return tau <= horizon; }
+
 // Whether a verdict stood in alarm (a pair switched back on, -inf, was never reported).
 inline bool Stood(double last_tau, double horizon) {
-  return last_tau < horizon && last_tau > kNegInf;
+  return Alarms(last_tau, horizon) && last_tau > kNegInf;
 }
 
 // A rank slot's entry: the pair, or -2 - pair if it stands in alarm.
@@ -102,7 +106,7 @@ int64_t RankReinsert(const View& v, int64_t n, int64_t count) {
     int64_t slot = w_slots[i];
     slot = slot >= 0 ? slot : -2 - slot;
     const double tau = w_tau[src];
-    const bool alarmed = tau < st->horizon[BucketOf(slot)];
+    const bool alarmed = Alarms(tau, st->horizon[BucketOf(slot)]);
     st->slots[slot] = Occupant(pid, alarmed);
     where[pid] = slot;
     st->last_tau[pid] = tau;
@@ -118,7 +122,7 @@ int64_t RankReinsert(const View& v, int64_t n, int64_t count) {
     const double tau = w_tau[i];
     st->last_tau[pid] = tau;
     last_step[pid] = n;
-    const bool alarmed = tau < st->horizon[BucketOf(where[pid])];
+    const bool alarmed = Alarms(tau, st->horizon[BucketOf(where[pid])]);
     st->slots[where[pid]] = Occupant(pid, alarmed);
     if (alarmed) {
       alarms[nalarm] = pid;
@@ -225,11 +229,12 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
     const double tau = st->w_tau[k];
     const int64_t waited = n - last_step[p];
     // Due now: its verdict had to cover until this step (a deferred one, longer: it stood).
-    const bool before = Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt);
+    const bool before =
+        Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt + st->extra);
     st->last_tau[p] = tau;
     last_step[p] = n;
-    int64_t interval = dua_deadline_interval(tau, dt, latency, max_interval);
-    if (tau < st->horizon[0]) {
+    int64_t interval = dua_deadline_interval(tau, dt, latency, max_interval, st->extra);
+    if (Alarms(tau, st->horizon[0])) {
       // Keeps alarming (resting contact, mostly): back off; it stands in alarm until then.
       if (before) interval = std::max<int64_t>(1, std::min(2 * waited, backoff));
       alarms[nalarm] = p;
@@ -240,9 +245,11 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
   }
   for (int64_t k = count; k < count + params[kDeferred]; ++k) {
     const int64_t p = w_ids[k];
-    if (st->last_tau[p] < static_cast<double>(where[p] - last_step[p] + latency) * dt) {
+    if (Alarms(st->last_tau[p],
+               static_cast<double>(where[p] - last_step[p] + latency) * dt + st->extra)) {
       alarms[nalarm] = p;
-      fresh[nalarm] = !Stood(st->last_tau[p], static_cast<double>(n - last_step[p] + latency) * dt);
+      fresh[nalarm] = !Stood(st->last_tau[p],
+                             static_cast<double>(n - last_step[p] + latency) * dt + st->extra);
       ++nalarm;
     }
   }
@@ -270,7 +277,7 @@ int64_t AllReinsert(const View& v, int64_t n, int64_t count) {
     const bool before = Stood(st->last_tau[p], st->horizon[0]);
     st->last_tau[p] = st->w_tau[k];
     last_step[p] = n;
-    if (st->w_tau[k] < st->horizon[0]) {
+    if (Alarms(st->w_tau[k], st->horizon[0])) {
       alarms[nalarm] = p;
       fresh[nalarm] = !before;
       ++nalarm;
@@ -283,13 +290,20 @@ int64_t AllReinsert(const View& v, int64_t n, int64_t count) {
 
 extern "C" {
 
-int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t max_interval) {
-  if (!(tau < static_cast<double>(max_interval + latency + 1) * dt)) return max_interval;
-  int64_t s = static_cast<int64_t>(std::floor(tau / dt)) - latency;
-  // The division rounds: step down until the product, computed as the alarm test computes it,
-  // is covered by tau.
-  while (s >= 1 && static_cast<double>(s + latency) * dt > tau) --s;
-  return std::max<int64_t>(1, std::min(s, max_interval));
+int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t max_interval,
+                              double extra) {
+  // The wait is computed as the alarm test computes it, (s + latency) * dt + extra, so that a
+  // pair that waits s steps is exactly one whose verdict covers them.
+  auto covered = [=](int64_t s) { return static_cast<double>(s + latency) * dt + extra < tau; };
+  if (covered(max_interval)) return max_interval;  // inf too
+  const double guess = std::floor((tau - extra) / dt) - static_cast<double>(latency);
+  int64_t s = guess < 1.0 ? 1 : guess > static_cast<double>(max_interval)
+                                     ? max_interval
+                                     : static_cast<int64_t>(guess);
+  // The division rounds either way: settle s on the test itself.
+  while (s > 1 && !covered(s)) --s;
+  while (s < max_interval && covered(s + 1)) ++s;
+  return s;
 }
 
 int64_t dua_select(dua_schedule* st, int64_t n) {
@@ -409,7 +423,7 @@ void dua_rank_classify(dua_schedule* st) {
     const int64_t p = order[i];
     where[p] = i;
     // A pair standing in alarm is held as -2 - pair in its slot (Occupant).
-    st->slots[i] = Occupant(p, st->active[p] && tau[p] < st->horizon[BucketOf(i)]);
+    st->slots[i] = Occupant(p, st->active[p] && Alarms(tau[p], st->horizon[BucketOf(i)]));
   }
 }
 
@@ -418,7 +432,8 @@ void dua_deadline_classify(dua_schedule* st) {
   const int64_t max_interval = st->params[kMaxInterval];
   for (int64_t p = 0; p < st->m; ++p) {
     if (st->active[p]) {
-      Link(v, p, dua_deadline_interval(st->last_tau[p], st->dt, st->latency, max_interval));
+      Link(v, p,
+           dua_deadline_interval(st->last_tau[p], st->dt, st->latency, max_interval, st->extra));
     }
   }
 }
@@ -477,6 +492,9 @@ std::string ScheduleSpec::Check() const {
   }
   if (backoff < 1) return "alarm_backoff (an int >= 1)";
   if (std::isnan(threshold)) return "the select-all threshold (not NaN)";
+  if (!(alarm_horizon == 0.0 || (alarm_horizon >= dt && std::isfinite(alarm_horizon)))) {
+    return "the alarm horizon (0 for one period, or seconds >= the period)";
+  }
   return "";
 }
 
@@ -496,7 +514,7 @@ void Schedule::Size(int64_t m) {
       const int64_t size = int64_t{1} << k;
       width += std::min(s.slots_per_bucket, size);
       const int64_t interval = std::max<int64_t>(1, size / s.slots_per_bucket);
-      horizon[k] = static_cast<double>(interval + s.latency) * s.dt;
+      horizon[k] = static_cast<double>(interval + s.latency) * s.dt + Extra();
     }
     width += std::min(m, kSpare);
     params[kParamNBuckets] = nbuckets;
@@ -504,7 +522,7 @@ void Schedule::Size(int64_t m) {
   } else if (s.kind == kDeadline) {
     rows = 4;
     nslots = int64_t{1} << BitLength(s.max_interval);  // a power of two > max_interval
-    horizon.assign(1, static_cast<double>(1 + s.latency) * s.dt);
+    horizon.assign(1, static_cast<double>(1 + s.latency) * s.dt + Extra());
     params[kParamWheel] = nslots;
     params[kParamMaxInterval] = s.max_interval;
     params[kParamCap] = s.cap;
@@ -541,6 +559,7 @@ void Schedule::Point() {
   v.work = work.data();
   v.width = width();
   v.w_tau = w_tau.data();
+  v.extra = Extra();
 }
 
 Schedule::Schedule(const ScheduleSpec& spec, int64_t m) : spec_(spec) { Size(m); }
@@ -595,13 +614,15 @@ double Schedule::HorizonOf(int64_t p) const {
   if (spec_.kind == kDeadline) {
     const int64_t where = ints[kIntWhere * m() + p], last = ints[kIntLastStep * m() + p];
     if (where < 0) return -std::numeric_limits<double>::infinity();
-    return static_cast<double>(where - last + spec_.latency) * spec_.dt;
+    return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();
   }
   return horizon[0];
 }
 
-bool Schedule::Stands(int64_t p) const {
-  return active[p] && last_tau[p] < HorizonOf(p);
+bool Schedule::Stands(int64_t p) const { return active[p] && last_tau[p] <= HorizonOf(p); }
+
+double Schedule::Extra() const {
+  return spec_.alarm_horizon > 0.0 ? spec_.alarm_horizon - spec_.dt : 0.0;
 }
 
 void Schedule::Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n) {

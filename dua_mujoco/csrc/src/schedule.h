@@ -25,9 +25,12 @@ struct DUA_API ScheduleSpec {
   int64_t cap = 0;               // deadline: evaluations a step (0: no cap)
   int64_t max_interval = 1024;   // deadline: longest revisit interval, steps
   int64_t backoff = 8;           // deadline: longest interval of a pair that keeps alarming
-  // Select-all: the alarm threshold on the urgency (tau: (1 + latency) dt; a distance for the
-  // paper's SA(d)).
+  // Select-all: the alarm threshold on the urgency (tau: (1 + latency) dt + the alarm horizon
+  // beyond one period; a distance for the paper's SA(d)).
   double threshold = 0.0;
+  // The alarm horizon, seconds (0: one period): every verdict alarms that cannot cover the wait
+  // until the next one plus this less one period.
+  double alarm_horizon = 0.0;
 
   // An empty string, or what is wrong (names the option and its valid values).
   std::string Check() const;
@@ -59,6 +62,8 @@ class DUA_API Schedule {
   bool Stands(int64_t p) const;
   // The time pair p's latest verdict must cover (seconds; -inf: switched off, nothing).
   double HorizonOf(int64_t p) const;
+  // The alarm horizon beyond one period (seconds, 0 by default).
+  double Extra() const;
   // New pair k is old pair src[k] (its verdict carried) or new (src[k] < 0: it stands in alarm,
   // due at step n), as dua_deadline_carry does (deadline schedules only).
   void Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n);

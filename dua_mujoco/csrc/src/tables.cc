@@ -132,6 +132,7 @@ bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) 
   ScheduleSpec& s = t->schedule;
   s.dt = v[kCfgDt];
   s.threshold = v[kCfgThreshold];
+  s.alarm_horizon = v[kCfgAlarmHorizon];
   if (!integer(kCfgKind, 0, 2, &s.kind) || !integer(kCfgLatency, 0, 1 << 30, &s.latency) ||
       !integer(kCfgSlotsPerBucket, 1, 1 << 30, &s.slots_per_bucket) ||
       !integer(kCfgCap, 0, kMaxInt, &s.cap) ||

@@ -56,7 +56,8 @@ enum Config {
   kCfgOverride = 24,       // pruned: mjENBL_OVERRIDE (the margin is o_margin)
   kCfgOMargin = 25,        // pruned: o_margin
   kCfgHasSpeed = 26,       // pruned: speed bounds are declared
-  kCfgSize = 27,
+  kCfgAlarmHorizon = 27,  // the alarm horizon, seconds (0: one period)
+  kCfgSize = 28,
 };
 
 struct Tables {

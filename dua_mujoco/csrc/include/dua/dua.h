@@ -67,6 +67,9 @@ typedef struct dua_schedule {
   int64_t* work;    // (4, width)
   int64_t width;
   double* w_tau;  // (width,)
+  // The alarm horizon beyond one period (seconds, >= 0): a verdict alarms when it cannot cover
+  // the wait until the next one plus this (docs/theory.md, section 3).
+  double extra;
 } dua_schedule;
 
 DUA_API int64_t dua_select(dua_schedule* st, int64_t n);
@@ -81,7 +84,10 @@ DUA_API void dua_deadline_classify(dua_schedule* st);
 DUA_API void dua_rank_classify(dua_schedule* st);
 DUA_API void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state,
                                 const int64_t* src, int64_t nsrc, int64_t n);
-DUA_API int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t max_interval);
+// The deadline schedule's wait after a verdict tau: the largest s in [1, max_interval] with
+// (s + latency) dt + extra < tau (1 when there is none: the verdict alarms).
+DUA_API int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t max_interval,
+                                      double extra);
 
 // ------------------------------------------------------------------------------- the rigid step
 
