@@ -187,7 +187,7 @@ class RunReport:
                 str(self.short_lead_onsets),
             ),
             (
-                "  bounds held / after a violation / at the start",
+                "  held / after violation / at start",
                 f"{self.short_lead_bounds_held} / {self.short_lead_after_violation} / "
                 f"{self.short_lead_at_start}",
             ),

@@ -131,8 +131,10 @@ class WarningTime:
             )
 
     def reset(self, step: int) -> None:
-        """A ``predictor.reset`` whose classification is of step ``step``."""
+        """A ``predictor.reset`` whose classification is of step ``step`` (it evaluated every
+        pair there)."""
         self.reset_step = step
+        np.maximum(self._last_eval, step, out=self._last_eval)
 
     def alarms(
         self,
