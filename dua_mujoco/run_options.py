@@ -181,7 +181,14 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         default=0,
         help="seed of the controls (default 0)",
     )
-    p.add_argument("--ctrl", choices=["zero", "random"], default="random", help="controls")
+    p.add_argument(
+        "--ctrl",
+        choices=["zero", "random", "smooth"],
+        default="random",
+        help="controls: zero, random held 50 steps, or smooth (targets linear between random "
+        "points 250 steps apart; motors as 1 Hz PD torques); the pilot of --accel auto is "
+        "driven the same way",
+    )
     p.add_argument("--keyframe", default=None, help="start keyframe (id or name; default first)")
     p.add_argument(
         "--accel",

@@ -34,7 +34,15 @@ REPORT_KEYS = {
     "inactive_pair_contacts",
     "alarm_episodes",
     "false_alarm_episodes",
-    "lead_time_mean_s",
+    "lead_p10_s",
+    "lead_median_s",
+    "lead_min_s",
+    "short_lead_onsets",
+    "short_lead_bounds_held",
+    "short_lead_after_violation",
+    "short_lead_at_start",
+    "warning_horizon_s",
+    "oracle_fraction",
     "bound_violations",
     "predictor_us_per_step",
     "mj_step_us_per_step",
@@ -53,6 +61,14 @@ def test_cli_run_writes_json(tmp_path: Path, capsys) -> None:
     assert report["interrupted"] is False
     assert "alarms_per_step" not in report  # no --series
     assert 0 < report["contact_pair_fraction"] < report["standing_alarm_fraction"] < 1
+    assert report["contact_pair_fraction"] <= report["oracle_fraction"]
+    assert report["oracle_fraction"] <= report["standing_alarm_fraction"]
+    assert report["lead_min_s"] <= report["lead_p10_s"] <= report["lead_median_s"]
+    assert report["short_lead_onsets"] == (
+        report["short_lead_bounds_held"]
+        + report["short_lead_after_violation"]
+        + report["short_lead_at_start"]
+    )
     assert report["physics_steps"] == 300
     assert report["missed_onsets_valid_bounds"] == 0
     assert report["missed_onsets_outside_violations"] == 0

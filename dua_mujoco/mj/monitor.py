@@ -11,6 +11,8 @@ would be a bug. It is *in a violation's period* when one of the two bodies broke
 after the latest predictor step at or before the onset (two steps with pruned pairs), which had
 no chance to renew the pair's verdict: the one exception of the guarantee with violations as
 events (docs/theory.md, section 6). Every other miss is a bug.
+Each onset's lead (how long an alarm had stood for it) and the oracle (the pairs that do touch
+within a horizon) are counted by :class:`~dua_mujoco.mj.warning_time.WarningTime`.
 
 ``run`` drives a rollout (controller, ``mj_step``, predictor every ``period`` steps, monitor) and
 returns a ``RunReport``.
@@ -26,12 +28,13 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
-from dua_mujoco.mj.accumulators import Durations, Series, StepMap
+from dua_mujoco.mj.accumulators import Durations, Growing, Series, StepMap
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.checks import BoundMonitor
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.report import Miss, RunInterrupted, RunReport, build_report
 from dua_mujoco.mj.tables import same_geometry
+from dua_mujoco.mj.warning_time import WarningTime, alarm_horizon_of, check_warning_horizon
 from dua_mujoco.progress import Progress
 
 __all__ = ["Monitor", "run"]
@@ -62,6 +65,9 @@ class Monitor:
             float64 per alarmed pair and step is kept for the median).
         series: Record the alarm count and minimum tau of every predictor step (``series``);
             otherwise memory does not grow with the run's length.
+        warning_horizon: The horizon (s) each onset's lead and the oracle are measured against
+            (:mod:`~dua_mujoco.mj.warning_time`); None for the predictor's own alarm horizon
+            (:func:`~dua_mujoco.mj.warning_time.alarm_horizon_of`).
 
     An *alarm episode* of a geom pair is a maximal run of physics steps during which at least one
     of its sphere pairs stands alarmed (repeats counted once, as the paper does). It is *false*
@@ -83,8 +89,10 @@ class Monitor:
         realtime: bool = False,
         geom_distance: bool = False,
         series: bool = False,
+        warning_horizon: float | None = None,
     ) -> None:
         self.predictor = predictor
+        self.warning_horizon = check_warning_horizon(warning_horizon)
         self.record_series = series
         self.model = predictor.model
         self.realtime = realtime
@@ -116,6 +124,13 @@ class Monitor:
         self._time = float(data.time)
         self._in_contact = self._contacts(data)[0]
         self._index_pairs()
+        horizon = alarm_horizon_of(self.predictor)
+        self.warning = WarningTime(
+            horizon if self.warning_horizon is None else self.warning_horizon,
+            float(self.model.opt.timestep),
+            self._ngp,
+            self.predictor.nsphere_pairs,
+        )
         # The same set as a mask: lookups by gathering, not by np.isin (which sorts; 47 us a
         # call with the thousands of pending windows of paper_world:200).
         self._contact_mask = np.zeros(self._ngp, dtype=bool)
@@ -139,7 +154,6 @@ class Monitor:
         self._pending_touch = np.zeros(0, dtype=bool)
         self.onsets = 0
         self.predicted = 0
-        self.lead_time_sum = 0.0
         self.misses: list[Miss] = []
         self.inactive_contacts = 0
         self.unfiltered_contacts = 0
@@ -156,14 +170,14 @@ class Monitor:
         self._gp_active = np.zeros(self._ngp, dtype=bool)
         self._nactive = 0
         self._gp_active_seen: tuple[object, int] | None = None
-        self._distances = np.zeros(0)
-        self._ndistances = 0
+        self._distances = Growing()
         self.series = Series() if self.record_series else None
         if self.series is not None:
             self.series.append(len(alarms), float(np.min(alarms.tau, initial=np.inf)))
         if self.bound_checks is not None:
             self.bound_checks.update(self.model, data)
-        self._apply_alarms(alarms.pairs, np.arange(self.predictor.nsphere_pairs), data.time)
+        self._apply_alarms(alarms.pairs, np.arange(self.predictor.nsphere_pairs), data.time, 0)
+        self.warning.contacts(_NONE, self._in_contact, self._active_geom_pairs(), 0)
         return alarms
 
     def _index_pairs(self) -> None:
@@ -196,6 +210,7 @@ class Monitor:
         more = self.predictor.nsphere_pairs - self._pair_alarm.size
         self._pair_alarm = np.concatenate([self._pair_alarm, np.zeros(more, dtype=bool)])
         self._gp_active_seen = None
+        self.warning.grow(self._ngp, self.predictor.nsphere_pairs)
 
     def _mark_contacts(self, data: mujoco.MjData) -> None:
         """Stamp the kinematic trees of every contact (any geom pair, static ones too)."""
@@ -217,8 +232,17 @@ class Monitor:
 
     # ------------------------------------------------------------------- alarms
 
-    def _apply_alarms(self, alarmed: np.ndarray, evaluated: np.ndarray, t: float) -> None:
-        """Update the standing alarms from the pairs ``evaluated`` (``alarmed`` among them)."""
+    def _apply_alarms(
+        self,
+        alarmed: np.ndarray,
+        evaluated: np.ndarray,
+        t: float,
+        step: int,
+        *,
+        switch: bool = False,
+    ) -> None:
+        """Update the standing alarms from the pairs ``evaluated`` (``alarmed`` among them) at
+        physics step ``step`` (``switch``: a switch or reset, not an evaluation)."""
         sched = self.predictor.pair_state()
         gp = self.predictor.sphere_pairs.geom_pair
         ids = np.union1d(evaluated, alarmed)
@@ -233,6 +257,8 @@ class Monitor:
         started = touched[begins]
         ended = touched[(before > 0) & (after == 0)]
         self._nstanding += int(started.size) - int(ended.size)
+        raised = ids[new & ~old]
+        self.warning.alarms(started, raised, gp[raised], evaluated, step, switch=switch)
         if started.size:
             self.episodes += int(started.size)
             self._episode_start[started] = t
@@ -260,6 +286,7 @@ class Monitor:
             self._resets = self.predictor.resets
             self._pred_steps = StepMap(self.physics_step, self.predictor.period)
             self._activation_seen = -1
+            self.warning.reset(self.physics_step)
 
     def _sync_switches(self, exclude: np.ndarray | None = None) -> None:
         """Re-read the standing alarms after switches (or a reset) between physics steps.
@@ -282,7 +309,9 @@ class Monitor:
             differs[exclude] = False
         changed = np.flatnonzero(differs)
         if changed.size:
-            self._apply_alarms(changed[now[changed]], changed, self._time)
+            self._apply_alarms(
+                changed[now[changed]], changed, self._time, self.physics_step - 1, switch=True
+            )
 
     def _observe_alarms(self, data: mujoco.MjData, alarms: Alarms) -> None:
         sched = self.predictor.pair_state()
@@ -291,32 +320,30 @@ class Monitor:
         self.predictor_steps += 1
         # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated.
         self.evaluation_sum += int(evaluated.size) - sched.deferred
-        self._apply_alarms(alarms.pairs, evaluated, float(data.time))
+        self._apply_alarms(alarms.pairs, evaluated, float(data.time), self.physics_step)
         if self.geom_distance and len(alarms):
-            for g1, g2 in sorted(alarms.geom_pairs):
-                self._add_distance(
-                    float(mujoco.mj_geomDistance(self.model, data, g1, g2, _DISTMAX, None))
-                )
+            self._distances.extend(
+                [
+                    mujoco.mj_geomDistance(self.model, data, g1, g2, _DISTMAX, None)
+                    for g1, g2 in sorted(alarms.geom_pairs)
+                ]
+            )
         if self.series is not None:
             self.series.append(len(alarms), float(alarms.tau.min()) if len(alarms) else np.inf)
-
-    def _add_distance(self, distance: float) -> None:
-        if self._ndistances == self._distances.size:
-            self._distances = np.concatenate(
-                [self._distances, np.zeros(max(1024, self._ndistances))]
-            )
-        self._distances[self._ndistances] = distance
-        self._ndistances += 1
 
     @property
     def exact_distances(self) -> np.ndarray:
         """The ``mj_geomDistance`` of every alarmed geom pair so far (``geom_distance``)."""
-        return self._distances[: self._ndistances]
+        return self._distances.view()
 
     @property
-    def lead_time_mean(self) -> float | None:
-        """Mean lead time of the predicted onsets so far (s), None before the first."""
-        return self.lead_time_sum / self.predicted if self.predicted else None
+    def oracle_fraction(self) -> float:
+        """Mean over predictor steps of (active geom pairs that touch within the warning
+        horizon from that step) / (active geom pairs): the floor under the standing fraction
+        (:mod:`~dua_mujoco.mj.warning_time`; windows past the last step count what was seen)."""
+        if not self.predictor_steps:
+            return 0.0
+        return self.warning.oracle_sum() / self.predictor_steps
 
     @property
     def standing_alarm_fraction(self) -> float:
@@ -376,6 +403,7 @@ class Monitor:
             # predictor.reset came between step() and here: its classification is of this
             # instant, and these alarms belong to the scheduler it replaced.
             self._pred_steps = StepMap(self.physics_step, self.predictor.period)
+            self.warning.reset(self.physics_step)
             alarms = None
         if alarms is None:
             self._sync_switches()
@@ -387,12 +415,12 @@ class Monitor:
         now, unfiltered = self._contacts(data)
         self._fit()  # a contact of an active pair the predictor had not met: now it has
         self.unfiltered_contacts += unfiltered
-        if alarms is not None:
-            active = self._active_geom_pairs()
-            nactive = self._nactive
-            if nactive:
-                self.standing_sum += self._nstanding / nactive
-                self.contact_sum += int(np.count_nonzero(active[now])) / nactive
+        active = self._active_geom_pairs()
+        if alarms is not None and self._nactive:
+            self.standing_sum += self._nstanding / self._nactive
+            self.contact_sum += int(np.count_nonzero(active[now])) / self._nactive
+            self.warning.sample(self.physics_step, self._nactive)
+        self.warning.contacts(self._in_contact, now, active, self.physics_step)
         t = float(data.time)
         self._episode_touch[now[self._standing[now] > 0]] = True
         onset = now[~self._contact_mask[now]]
@@ -421,16 +449,17 @@ class Monitor:
                 self.inactive_contacts += 1
                 continue
             self.onsets += 1
+            broke = int(self.last_violation[self._gp_body[g]].max())
             if self._standing[g] > 0:
                 self.predicted += 1
-                self.lead_time_sum += t - float(self._episode_start[g])
                 self._episode_touch[g] = True
+                self.warning.onset(g, self.physics_step, broke)
                 continue
             live = members[sched.active[members]]
             last = int(sched.last_step_of(live).min())
             window_start = self._pred_steps[last]
-            broke = int(self.last_violation[self._gp_body[g]].max())
             held = broke <= window_start if self.bound_checks else False
+            self.warning.onset(g, self.physics_step, broke, miss_window=window_start)
             # The step sees a violation at the first predictor instant at or after it, and
             # renews the pairs of its bodies there (a pruned predictor the pairs it did not
             # hold, one step later): an onset before that is the one exception left.
@@ -477,6 +506,7 @@ def run(
     progress: bool = True,
     on_step: Callable[[int, mujoco.MjData, Alarms | None, Monitor], None] | None = None,
     series: bool = True,
+    warning_horizon: float | None = None,
 ) -> RunReport:
     """Roll out ``steps`` physics steps with prediction and the exact stage.
 
@@ -498,6 +528,8 @@ def run(
         on_step: Called after each physics step with ``(k, data, alarms or None, monitor)``.
         series: Record the alarm count and minimum tau of every predictor step in the report
             (``alarms_per_step``, ``min_tau_per_step``); False keeps memory flat.
+        warning_horizon: The horizon (s) the leads and the oracle are measured against; None
+            for the predictor's own alarm horizon (see ``Monitor``).
 
     Raises:
         RunInterrupted: On a ``KeyboardInterrupt`` during the rollout (Ctrl-C, or raised by the
@@ -511,7 +543,13 @@ def run(
             "(Predictor(model, ...)), or build a Predictor for this one."
         )
     predictor.check_data(data)  # before the controller writes into it
-    monitor = Monitor(predictor, realtime=realtime, geom_distance=geom_distance, series=series)
+    monitor = Monitor(
+        predictor,
+        realtime=realtime,
+        geom_distance=geom_distance,
+        series=series,
+        warning_horizon=warning_horizon,
+    )
     if controller is not None:
         controller(model, data)
     mujoco.mj_step(model, data)

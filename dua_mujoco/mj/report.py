@@ -46,13 +46,22 @@ class RunReport:
     series (``run(..., series=True)``), else None. ``standing_alarm_fraction`` is the mean over
     predictor steps of the fraction of active geom pairs standing in alarm after the step's
     verdicts; ``contact_pair_fraction`` the same mean for active geom pairs in MuJoCo's contacts
-    at that step (alarms no predictor can avoid). ``missed_onsets_outside_violations`` counts the
-    misses not in a violation's period (:class:`Miss`): the guarantee covers them, so any is a
-    bug. ``broken_bound_bodies`` names the bodies that
-    broke their declared bounds; ``bound_violations_out_of_contact`` counts the violations (body
-    steps) of bodies whose kinematic tree was in no contact at that step nor the two before:
-    free motion beyond the declared bounds, not a contact's impulse. ``interrupted`` marks a run
-    stopped early (Ctrl-C), whose ``physics_steps`` are those observed.
+    at that step (alarms no predictor can avoid), and ``oracle_fraction`` the same mean for active
+    geom pairs that touch at some step within ``warning_horizon_s`` of it (the floor under the
+    standing fraction of any predictor that warns that long ahead; steps whose window runs past
+    the end count the contacts seen until then). ``lead_*_s`` are the 10th percentile (a lead
+    some onset had: the lower one), median and minimum of the onsets' leads, how long an alarm
+    had stood for each without a break (0 for a miss; None without onsets);
+    ``short_lead_onsets`` counts the onsets with less lead than ``warning_horizon_s``, split into
+    ``short_lead_bounds_held`` (the promise does not allow them), ``short_lead_after_violation``
+    and ``short_lead_at_start`` (:mod:`~dua_mujoco.mj.warning_time`).
+    ``missed_onsets_outside_violations`` counts the misses not in a violation's period
+    (:class:`Miss`): the guarantee covers them, so any is a bug. ``broken_bound_bodies`` names
+    the bodies that broke their declared bounds; ``bound_violations_out_of_contact`` counts the
+    violations (body steps) of bodies whose kinematic tree was in no contact at that step nor
+    the two before: free motion beyond the declared bounds, not a contact's impulse.
+    ``interrupted`` marks a run stopped early (Ctrl-C), whose ``physics_steps`` are those
+    observed.
     """
 
     scene: str
@@ -72,7 +81,6 @@ class RunReport:
     unfiltered_contacts: int
     alarm_episodes: int
     false_alarm_episodes: int
-    lead_time_mean_s: float | None
     bound_violations: int
     deadline_overruns: int
     exact_distance_median_m: float | None
@@ -87,6 +95,15 @@ class RunReport:
     broken_bound_bodies: tuple[str, ...] = ()
     bound_violations_out_of_contact: int = 0
     interrupted: bool = False
+    oracle_fraction: float = 0.0
+    warning_horizon_s: float = 0.0
+    lead_p10_s: float | None = None
+    lead_median_s: float | None = None
+    lead_min_s: float | None = None
+    short_lead_onsets: int = 0
+    short_lead_bounds_held: int = 0
+    short_lead_after_violation: int = 0
+    short_lead_at_start: int = 0
 
     @property
     def evals_fraction(self) -> float:
@@ -130,7 +147,12 @@ class RunReport:
 
     def summary_rows(self) -> list[tuple[str, str]]:
         """(label, value) rows for a readable table."""
-        lead = "n/a" if self.lead_time_mean_s is None else f"{self.lead_time_mean_s * 1e3:.1f} ms"
+        leads = (self.lead_p10_s, self.lead_median_s, self.lead_min_s)
+        lead = (
+            "n/a"
+            if self.lead_min_s is None
+            else " / ".join(f"{1e3 * (v or 0.0):.1f}" for v in leads) + " ms"
+        )
         steps = f"{self.physics_steps} ({self.period})"
         rows = [
             ("scene", self.scene),
@@ -155,7 +177,20 @@ class RunReport:
             ("alarm episodes (false)", f"{self.alarm_episodes} ({self.false_alarm_episodes})"),
             ("active geom pairs in alarm (mean)", f"{100 * self.standing_alarm_fraction:.2f} %"),
             ("active geom pairs in contact (mean)", f"{100 * self.contact_pair_fraction:.2f} %"),
-            ("mean lead time", lead),
+            (
+                f"  touching within {1e3 * self.warning_horizon_s:.4g} ms (oracle)",
+                f"{100 * self.oracle_fraction:.2f} %",
+            ),
+            ("onset lead p10 / median / min", lead),
+            (
+                f"onsets with lead < {1e3 * self.warning_horizon_s:.4g} ms",
+                str(self.short_lead_onsets),
+            ),
+            (
+                "  held / after violation / at start",
+                f"{self.short_lead_bounds_held} / {self.short_lead_after_violation} / "
+                f"{self.short_lead_at_start}",
+            ),
             ("bound violations (body-steps)", str(self.bound_violations)),
             ("  of them out of contact", str(self.bound_violations_out_of_contact)),
             (
@@ -207,6 +242,8 @@ def build_report(
     alarms_series, tau_series = (None, None) if monitor.series is None else monitor.series.arrays()
     broken = np.flatnonzero(monitor.last_violation >= 0)
     distances = monitor.exact_distances
+    warning = monitor.warning
+    p10, median, least = warning.lead_quantiles()
     return RunReport(
         scene=scene,
         physics_steps=monitor.physics_step,
@@ -226,7 +263,6 @@ def build_report(
         unfiltered_contacts=monitor.unfiltered_contacts,
         alarm_episodes=monitor.episodes,
         false_alarm_episodes=monitor.false_episodes,
-        lead_time_mean_s=monitor.lead_time_mean,
         bound_violations=monitor.violations,
         bound_violations_out_of_contact=monitor.free_violations,
         deadline_overruns=monitor.overruns,
@@ -243,4 +279,13 @@ def build_report(
             monitor.model.body(int(b)).name or str(int(b)) for b in broken.tolist()
         ),
         interrupted=interrupted,
+        oracle_fraction=monitor.oracle_fraction,
+        warning_horizon_s=warning.horizon,
+        lead_p10_s=p10,
+        lead_median_s=median,
+        lead_min_s=least,
+        short_lead_onsets=warning.short_leads,
+        short_lead_bounds_held=warning.short_held,
+        short_lead_after_violation=warning.short_after_violation,
+        short_lead_at_start=warning.short_at_start,
     )

@@ -21,8 +21,9 @@ Bundled scenes live in the top-level ``models/`` folder, shipped as the package
 ========================  ==================================================================
 
 :func:`load_scene` also accepts a path to any MJCF file. :func:`make_controller` drives a scene
-with zero or random (held, hence piecewise-constant) controls and moves mocap bodies on circles,
-so that every scene keeps moving and colliding.
+with zero, random (held, hence piecewise-constant) or smooth controls (targets linear between
+random points, :mod:`~dua_mujoco.mj.smooth_drive`) and moves mocap bodies on circles, so that
+every scene keeps moving and colliding.
 
 Motion bounds. The paper world and the traffic scene declare an exact acceleration bound in a
 ``<numeric name="dua_accel_bound">`` custom field (read it with :func:`declared_accel_bound`):
@@ -51,6 +52,7 @@ from dua_mujoco.mj.paper_world import (
     paper_world_model,
     paper_world_spec,
 )
+from dua_mujoco.mj.smooth_drive import SmoothDrive, smooth_drive
 
 __all__ = [
     "ACCEL_BOUND_NUMERIC",
@@ -352,6 +354,10 @@ class CtrlMode(enum.Enum):
     """``ctrl = 0`` and mocap bodies stay where they are."""
     RANDOM = "random"
     """Uniform controls held for ``hold_steps`` steps; mocap bodies move on circles."""
+    SMOOTH = "smooth"
+    """Targets linear between random points ``hold_steps`` apart: servos take them as their
+    controls, motors a 1 Hz critically damped PD torque toward them (``SmoothDrive``); mocap
+    bodies move on circles."""
 
 
 @dataclass(frozen=True)
@@ -396,14 +402,16 @@ class SceneController:
     Not frozen: it counts steps to know when to draw the next held control.
 
     Attributes:
-        mode: Zero or random controls.
-        hold_steps: Physics steps each random control is held (piecewise-constant controls).
+        mode: Zero, random or smooth controls.
+        hold_steps: Physics steps each random control is held (piecewise-constant controls), or
+            between two random points of the smooth drive.
         ctrl_low: Lower control bounds, shape ``(nu,)``: ``ctrlrange`` or -1 for unlimited.
         ctrl_high: Upper control bounds, shape ``(nu,)``: ``ctrlrange`` or +1 for unlimited.
         mocap: The circle mocap bodies follow in random mode.
         mocap_start: Start positions of the mocap bodies, shape ``(nmocap, 3)``.
         mocap_phase: Phases of the mocap circles, shape ``(nmocap,)``.
         rng: Source of the random controls (seeded by :func:`make_controller`).
+        smooth: The smooth drive (smooth mode only).
     """
 
     mode: CtrlMode
@@ -414,6 +422,7 @@ class SceneController:
     mocap_start: np.ndarray
     mocap_phase: np.ndarray
     rng: np.random.Generator
+    smooth: SmoothDrive | None = None
     _step: int = field(default=0, init=False)
     _ctrl: np.ndarray = field(init=False)
 
@@ -423,15 +432,15 @@ class SceneController:
     @property
     def mocap_accel_bound(self) -> float:
         """Acceleration bound of mocap points (m/s^2); 0 in zero mode."""
-        return self.mocap.accel_bound if self.mode is CtrlMode.RANDOM else 0.0
+        return 0.0 if self.mode is CtrlMode.ZERO else self.mocap.accel_bound
 
     @property
     def mocap_speed_bound(self) -> float:
         """Speed bound of mocap points (m/s); 0 in zero mode."""
-        return self.mocap.speed_bound if self.mode is CtrlMode.RANDOM else 0.0
+        return 0.0 if self.mode is CtrlMode.ZERO else self.mocap.speed_bound
 
     def mocap_pos(self, time: float) -> np.ndarray:
-        """Mocap positions at ``time`` (s) in random mode, shape ``(nmocap, 3)``."""
+        """Mocap positions at ``time`` (s) in random and smooth modes, shape ``(nmocap, 3)``."""
         angle = self.mocap.omega * time + self.mocap_phase
         offset = np.zeros_like(self.mocap_start)
         offset[:, 0] = np.cos(angle) - np.cos(self.mocap_phase)
@@ -443,10 +452,13 @@ class SceneController:
         if self.mode is CtrlMode.ZERO:
             data.ctrl[:] = 0.0
             return
-        if self._step % self.hold_steps == 0:
-            self._ctrl = self.rng.uniform(self.ctrl_low, self.ctrl_high)
-        self._step += 1
-        data.ctrl[:] = self._ctrl
+        if self.smooth is not None:
+            data.ctrl[:] = self.smooth(model, data)
+        else:
+            if self._step % self.hold_steps == 0:
+                self._ctrl = self.rng.uniform(self.ctrl_low, self.ctrl_high)
+            self._step += 1
+            data.ctrl[:] = self._ctrl
         if self.mocap_start.shape[0]:
             # Driven by data.time so that resets and keyframes give the same path.
             data.mocap_pos[:] = self.mocap_pos(float(data.time))
@@ -457,7 +469,7 @@ def make_controller(
     mode: CtrlMode | str,
     *,
     seed: int = 0,
-    hold_steps: int = 50,
+    hold_steps: int | None = None,
     mocap: MocapCircle | None = None,
 ) -> SceneController:
     """A driver writing ``data.ctrl`` (and moving mocap bodies) before each physics step.
@@ -467,13 +479,17 @@ def make_controller(
     actuators that is the paper's piecewise-constant bounded acceleration. Mocap bodies start where
     the model puts them and follow :class:`MocapCircle` paths (random phases), whose speed and
     acceleration bounds are :attr:`SceneController.mocap_speed_bound` and
-    :attr:`SceneController.mocap_accel_bound`.
+    :attr:`SceneController.mocap_accel_bound`. Smooth mode moves each actuator's target linearly
+    between random points ``hold_steps`` apart: servos take it as their control, motors on a
+    hinge or slide joint a PD torque toward it, critically damped at 1 Hz
+    (:mod:`~dua_mujoco.mj.smooth_drive`).
 
     Args:
         model: The model to drive.
-        mode: ``CtrlMode`` or its value (``"zero"``, ``"random"``).
+        mode: ``CtrlMode`` or its value (``"zero"``, ``"random"``, ``"smooth"``).
         seed: Seed of the random controls and mocap phases.
-        hold_steps: Physics steps each random control is held (>= 1).
+        hold_steps: Physics steps each random control is held, or between the smooth drive's
+            random points (>= 1; None: 50 random, 250 smooth).
         mocap: The mocap circle; ``MocapCircle()`` if None.
 
     Returns:
@@ -488,6 +504,10 @@ def make_controller(
             mode = CtrlMode(mode)
         except ValueError:
             raise InvalidChoiceError("control mode", mode, [m.value for m in CtrlMode]) from None
+    if hold_steps is None:
+        hold_steps = 250 if mode is CtrlMode.SMOOTH else 50
+    if isinstance(hold_steps, bool) or not isinstance(hold_steps, int | np.integer):
+        raise InvalidInputError(f"hold_steps must be an int >= 1, got {hold_steps!r}.")
     if hold_steps < 1:
         raise InvalidInputError(f"hold_steps must be >= 1, got {hold_steps}.")
     limited = model.actuator_ctrllimited.astype(bool)
@@ -507,4 +527,9 @@ def make_controller(
         mocap_start=start,
         mocap_phase=phase,
         rng=rng,
+        smooth=(
+            smooth_drive(model, hold_steps=int(hold_steps), rng=rng)
+            if mode is CtrlMode.SMOOTH
+            else None
+        ),
     )

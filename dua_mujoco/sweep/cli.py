@@ -19,7 +19,9 @@ DESCRIPTION = (
     "Run every scene x seed x option set as `run` runs it (the same options; a TOML --grid "
     "varies them) on local worker processes, or on Ray with --ray, and print one markdown "
     "table: contact onsets, misses (all, while the bounds held, outside a violation's period), "
-    "the fraction of pairs standing in alarm, evaluations a step, predictor and mj_step "
+    "the fraction of pairs standing in alarm and the oracle's (those that touch within the "
+    "warning horizon), the onsets' lead (p10 / median) and those with less lead than the "
+    "horizon (held / after a violation / at the start), evaluations a step, predictor and mj_step "
     "microseconds a step, bound violations. A run that fails or crashes is one row with its "
     "error; Ctrl-C writes the rows done. Times are measured with the runs sharing the machine: "
     "compare them within one sweep."
@@ -134,7 +136,8 @@ def main(args: argparse.Namespace) -> int:
 
 
 _HEADER = (
-    "| scene | seed | set | steps | onsets | missed (held / outside) | in alarm | evals/step "
+    "| scene | seed | set | steps | onsets | missed (held / outside) | in alarm | oracle "
+    "| lead p10 / median ms | lead < horizon (held / violation / start) | evals/step "
     "| predictor us | mj_step us | share | violations (out of contact) | s | error |"
 )
 
@@ -144,7 +147,7 @@ def markdown(rows: list[dict[str, Any]]) -> str:
     lines = [_HEADER, "|" + "---|" * _HEADER.count(" | ") + "---|"]
     for r in rows:
         if r["error"]:
-            cells = [r["scene"], r["seed"], r["set"], *[""] * 10, _num(r["seconds"], 2), r["error"]]
+            cells = [r["scene"], r["seed"], r["set"], *[""] * 13, _num(r["seconds"], 2), r["error"]]
         else:
             cells = [
                 r["scene"],
@@ -154,6 +157,10 @@ def markdown(rows: list[dict[str, Any]]) -> str:
                 r["onsets"],
                 f"{r['missed']} ({r['missed_valid_bounds']} / {r['missed_outside_violations']})",
                 f"{100 * r['standing_fraction']:.2f} %",
+                f"{100 * r['oracle_fraction']:.2f} %",
+                _leads(r["lead_p10_s"], r["lead_median_s"]),
+                f"{r['short_lead']} ({r['short_lead_held']} / "
+                f"{r['short_lead_after_violation']} / {r['short_lead_at_start']})",
                 _num(r["evals_per_step"], 1),
                 _num(r["predictor_us"], 1),
                 _num(r["mj_step_us"], 1),
@@ -164,6 +171,12 @@ def markdown(rows: list[dict[str, Any]]) -> str:
             ]
         lines.append("| " + " | ".join(str(c).replace("|", "/") for c in cells) + " |")
     return "\n".join(lines)
+
+
+def _leads(p10: float | None, median: float | None) -> str:
+    if p10 is None or median is None:
+        return ""
+    return f"{1e3 * p10:.1f} / {1e3 * median:.1f}"
 
 
 def _num(value: float | None, digits: int) -> str:

@@ -26,6 +26,14 @@ COLUMNS = (
     "missed_valid_bounds",
     "missed_outside_violations",
     "standing_fraction",
+    "oracle_fraction",
+    "warning_horizon_s",
+    "lead_p10_s",
+    "lead_median_s",
+    "short_lead",
+    "short_lead_held",
+    "short_lead_after_violation",
+    "short_lead_at_start",
     "evals_per_step",
     "predictor_us",
     "mj_step_us",
@@ -37,7 +45,10 @@ COLUMNS = (
     "seconds",
 )
 """A row's keys, in the table's order. Counts are of contact onsets (``onsets``) and of those
-missed: all, while the bounds held, and outside a bound violation's period (a bug)."""
+missed: all, while the bounds held, and outside a bound violation's period (a bug). Beside the
+standing fraction, the oracle (the share of pairs that do touch within ``warning_horizon_s``);
+the onsets' leads (p10, median) and those with less lead than the horizon: all, while the bounds
+held, after a violation and at the start (``RunReport``)."""
 
 DETERMINISTIC = tuple(
     c for c in COLUMNS if c not in ("predictor_us", "mj_step_us", "predictor_share", "seconds")
@@ -111,6 +122,14 @@ def run_task(task: Task) -> dict[str, Any]:
         missed_valid_bounds=report.missed_onsets_valid_bounds,
         missed_outside_violations=report.missed_onsets_outside_violations,
         standing_fraction=report.standing_alarm_fraction,
+        oracle_fraction=report.oracle_fraction,
+        warning_horizon_s=report.warning_horizon_s,
+        lead_p10_s=report.lead_p10_s,
+        lead_median_s=report.lead_median_s,
+        short_lead=report.short_lead_onsets,
+        short_lead_held=report.short_lead_bounds_held,
+        short_lead_after_violation=report.short_lead_after_violation,
+        short_lead_at_start=report.short_lead_at_start,
         evals_per_step=report.evals_per_step,
         predictor_us=report.predictor_us_per_step,
         mj_step_us=report.mj_step_us_per_step,

@@ -1,0 +1,323 @@
+"""Warning time: the standing fraction against the oracle over an alarm horizon, on robot models.
+
+    python benchmarks/horizon.py                          # the section of docs/benchmarks.md
+    python benchmarks/horizon.py --robots panda go1 --horizons 0.05 0.2 --steps 1000
+    python benchmarks/horizon.py --no-random --json out.json
+
+For each robot (``benchmarks/robots.py``; install its wheels with ``--no-deps``) and each horizon
+``H`` (one predictor period, then 10 to 500 ms), one monitored rollout with the predictor set to
+alarm over ``H`` (:func:`predictor_options`) and the run report measured against ``H``
+(``warning_horizon``): the standing fraction (geom pairs in alarm), the oracle (geom pairs that
+do touch within ``H``: the floor no predictor can go below), their ratio, the contact onsets and
+those with less lead than ``H`` (while the bounds held / after a violation / at the start), the
+p10 and median lead, and the predictor's time over ``mj_step``'s (medians of the run).
+
+Two protocols, each with ``accel="auto"`` measured once per robot by a pilot driven as the run
+is (pilot seed ``1_000_003``, rollout seed 0), the same bounds and the same trajectory for every
+horizon:
+
+- ``smooth`` (the one the targets of issue 34 are about): ``make_controller(m, "smooth")``,
+  each servo's control linear between random targets 250 steps apart, each motor a 1 Hz
+  critically damped PD torque toward a joint target that moves the same way;
+- ``random`` (reported beside, not targeted): ``make_controller(m, "random")``, uniform
+  controls held 50 steps.
+
+The robots are those of the issue's table: panda, ur5e, aloha, go1, h1, fetch from
+``benchmarks/robots.py``, and iiwa: robosuite's KUKA iiwa, whose collision geoms collide with
+the world only (``contype="0"``, so ``robots.py`` leaves it out: the arm alone has no active
+pair), composed as robosuite composes it over a floor (:data:`EXTRA`): its links against the
+floor.
+
+Switching to an alarm horizon. Today the only way to alarm over ``H`` is the latency: with the
+deadline schedule a pair alarms when ``tau < (1 + latency) dt``, so :func:`predictor_options`
+returns ``{"latency": round(H / dt) - 1}``. When ``Predictor(alarm_horizon=...)`` exists, make it
+return ``{"alarm_horizon": H}`` (latency 0): nothing else here changes (the report already
+measures against ``H``, and :func:`~dua_mujoco.mj.warning_time.alarm_horizon_of` is where the
+report's default horizon is read).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from dua_mujoco.mj.monitor import run
+from dua_mujoco.mj.options import PilotOptions
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import make_controller
+
+sys.path.insert(0, str(Path(__file__).parent))
+from bench import table
+from robots import ROBOTS, RobotSource, add_floor, load_robot, robosuite_composition
+
+ROBOT_NAMES = ("panda", "ur5e", "iiwa", "aloha", "go1", "h1", "fetch")
+HORIZONS = (None, 0.010, 0.020, 0.050, 0.100, 0.200, 0.500)
+"""Alarm horizons (s); None is one predictor period (the default alarms)."""
+PROTOCOLS = ("smooth", "random")
+HOLD = {"smooth": 250, "random": 50}
+PILOT_SEED = 1_000_003
+ROLLOUT_SEED = 0
+PLOTTED = ("panda", "ur5e", "go1", "h1")
+
+EXTRA: dict[str, RobotSource] = {
+    "iiwa": RobotSource(
+        "robosuite",
+        "models/assets/robots/iiwa/robot.xml",
+        "arm",
+        (robosuite_composition, add_floor),
+    ),
+}
+"""Robots beyond ``robots.ROBOTS`` (module docstring)."""
+
+
+def load(name: str) -> mujoco.MjModel:
+    """A robot of ``robots.ROBOTS`` or :data:`EXTRA`, compiled after its edits."""
+    if name not in EXTRA:
+        return load_robot(name)
+    src = EXTRA[name]
+    spec = importlib.util.find_spec(src.package)
+    if spec is None or not spec.submodule_search_locations:
+        raise ModuleNotFoundError(f"pip install --no-deps {src.pip}", name=src.package)
+    model_spec = mujoco.MjSpec.from_file(os.path.join(spec.submodule_search_locations[0], src.path))
+    for edit in src.edits:
+        edit(model_spec)
+    return model_spec.compile()
+
+
+def predictor_options(timestep: float, horizon: float) -> dict[str, Any]:
+    """The ``Predictor`` keyword options that make it alarm over ``horizon`` seconds (period 1).
+
+    Today a latency: a pair alarms when ``tau < (1 + latency) dt``. With
+    ``Predictor(alarm_horizon=...)``, return ``{"alarm_horizon": horizon}`` instead.
+    """
+    return {"latency": max(round(horizon / timestep) - 1, 0)}
+
+
+def measure(name: str, protocol: str, horizons: tuple[float | None, ...], steps: int) -> list[dict]:
+    """One run per horizon on one robot and protocol: the report's numbers as dicts."""
+    m = load(name)
+    ts = float(m.opt.timestep)
+    pilot = make_controller(m, protocol, seed=PILOT_SEED, hold_steps=HOLD[protocol])
+    t0 = time.perf_counter()
+    bounds = Predictor(m, pilot=PilotOptions(controller=pilot, seed=PILOT_SEED)).bounds
+    pilot_s = time.perf_counter() - t0
+    rows = []
+    for h in horizons:
+        horizon = ts if h is None else h
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        p = Predictor(m, accel=bounds, **predictor_options(ts, horizon))
+        t0 = time.perf_counter()
+        rep = run(
+            m,
+            d,
+            p,
+            steps=steps,
+            controller=make_controller(m, protocol, seed=ROLLOUT_SEED, hold_steps=HOLD[protocol]),
+            scene=name,
+            progress=False,
+            series=False,
+            warning_horizon=horizon,
+        )
+        row = {
+            "robot": name,
+            "protocol": protocol,
+            "horizon_s": horizon,
+            "one_period": h is None,
+            "latency": p.latency,
+            "geom_pairs": rep.geom_pairs,
+            "standing": rep.standing_alarm_fraction,
+            "oracle": rep.oracle_fraction,
+            "onsets": rep.contact_onsets,
+            "missed": rep.missed_onsets,
+            "short": rep.short_lead_onsets,
+            "short_held": rep.short_lead_bounds_held,
+            "short_violation": rep.short_lead_after_violation,
+            "short_start": rep.short_lead_at_start,
+            "lead_p10_s": rep.lead_p10_s,
+            "lead_median_s": rep.lead_median_s,
+            "share": rep.predictor_share,
+            "evals_per_step": rep.evals_per_step,
+            "violations": rep.bound_violations,
+            "accel_median": float(np.median(bounds.accel[bounds.accel > 0])),
+            "pilot_s": pilot_s,
+            "seconds": time.perf_counter() - t0,
+        }
+        rows.append(row)
+        print(
+            f"{name:6s} {protocol:6s} H {1e3 * horizon:6.1f} ms: standing "
+            f"{100 * row['standing']:6.2f} %, oracle {100 * row['oracle']:5.2f} %, onsets "
+            f"{row['onsets']} ({row['short']} short), {row['share']:.2f}x mj_step, "
+            f"{row['seconds']:.1f} s",
+            file=sys.stderr,
+            flush=True,
+        )
+    return rows
+
+
+def _ms(value: float | None) -> str:
+    return "" if value is None else f"{1e3 * value:.0f}"
+
+
+def _ratio(row: dict) -> float:
+    return row["standing"] / row["oracle"] if row["oracle"] > 0 else float("inf")
+
+
+def _horizon_label(row: dict) -> str:
+    ms = f"{1e3 * row['horizon_s']:g} ms"
+    return f"1 step ({ms})" if row["one_period"] else ms
+
+
+def markdown(rows: list[dict], protocol: str) -> str:
+    """The table of one protocol, and the median ratio over robots per horizon."""
+    mine = [r for r in rows if r["protocol"] == protocol]
+    body = []
+    for r in mine:
+        ratio = _ratio(r)
+        body.append(
+            [
+                r["robot"],
+                _horizon_label(r),
+                f"{100 * r['standing']:.1f}",
+                f"{100 * r['oracle']:.2f}",
+                "inf" if ratio == float("inf") else f"{ratio:.0f}x",
+                str(r["onsets"]),
+                f"{r['short']} ({r['short_held']} / {r['short_violation']} / {r['short_start']})",
+                f"{_ms(r['lead_p10_s'])} / {_ms(r['lead_median_s'])}",
+                f"{r['share']:.2f}",
+            ]
+        )
+    out = table(
+        [
+            "robot",
+            "horizon",
+            "standing %",
+            "oracle %",
+            "ratio",
+            "onsets",
+            "lead < horizon (held / after violation / start)",
+            "lead p10 / median ms",
+            "predictor / mj_step",
+        ],
+        body,
+    )
+    medians = []
+    for label in dict.fromkeys(_horizon_label(r) for r in mine):
+        at = [r for r in mine if _horizon_label(r) == label]
+        ratios = [_ratio(r) for r in at if r["oracle"] > 0]
+        medians.append(
+            [
+                label,
+                f"{np.median(ratios):.0f}x" if ratios else "",
+                f"{np.median([100 * r['standing'] for r in at]):.1f}",
+                f"{np.median([100 * r['oracle'] for r in at]):.2f}",
+                f"{np.median([r['share'] for r in at]):.2f}",
+                str(sum(r["short_held"] for r in at)),
+            ]
+        )
+    out += "\n\nMedian over robots:\n\n" + table(
+        [
+            "horizon",
+            "standing / oracle",
+            "standing %",
+            "oracle %",
+            "predictor / mj_step",
+            "onsets short while held (all robots)",
+        ],
+        medians,
+    )
+    return out
+
+
+def plot(rows: list[dict], path: Path, robots: tuple[str, ...]) -> None:
+    """Standing and oracle against the horizon (log-log), one colour a robot."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.0, 4.5), dpi=120)
+    mine = [r for r in rows if r["protocol"] == "smooth"]
+    for i, name in enumerate(robots):
+        at = sorted((r for r in mine if r["robot"] == name), key=lambda r: r["horizon_s"])
+        if not at:
+            continue
+        h = [1e3 * r["horizon_s"] for r in at]
+        colour = f"C{i}"
+        ax.plot(h, [100 * r["standing"] for r in at], "-o", color=colour, label=f"{name} standing")
+        ax.plot(
+            h,
+            [max(100 * r["oracle"], 1e-3) for r in at],
+            "--s",
+            color=colour,
+            alpha=0.8,
+            label=f"{name} oracle",
+        )
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("alarm horizon (ms)")
+    ax.set_ylabel("% of active geom pairs (mean over steps)")
+    ax.set_title("Standing in alarm (solid) against touching within the horizon (dashed)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robots", nargs="+", default=list(ROBOT_NAMES))
+    ap.add_argument(
+        "--horizons",
+        nargs="+",
+        type=float,
+        default=None,
+        help="seconds (default: one period, 0.01 0.02 0.05 0.1 0.2 0.5)",
+    )
+    ap.add_argument("--steps", type=int, default=2000, help="physics steps a run")
+    ap.add_argument("--no-random", action="store_true", help="skip the random-held protocol")
+    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
+    ap.add_argument(
+        "--plot",
+        type=Path,
+        default=Path(__file__).resolve().parent.parent / "docs" / "img" / "horizon-standing.png",
+    )
+    args = ap.parse_args(argv)
+    horizons: tuple[float | None, ...] = HORIZONS if args.horizons is None else tuple(args.horizons)
+    protocols = PROTOCOLS[:1] if args.no_random else PROTOCOLS
+    missing = [n for n in args.robots if n not in ROBOTS and n not in EXTRA]
+    if missing:
+        ap.error(f"unknown robots {missing}; known: {', '.join([*ROBOTS, *EXTRA])}")
+    start = time.perf_counter()
+    rows: list[dict] = []
+    for name in args.robots:
+        for protocol in protocols:
+            try:
+                rows += measure(name, protocol, horizons, args.steps)
+            except ModuleNotFoundError as exc:
+                print(f"{name}: skipped, not installed ({exc})", file=sys.stderr)
+                break
+    took = time.perf_counter() - start
+    for protocol in protocols:
+        print(f"\n### {protocol} ({args.steps} steps a run)\n")
+        print(markdown(rows, protocol))
+    print(f"\n{len(rows)} runs in {took / 60:.1f} min", flush=True)
+    if args.json is not None:
+        args.json.write_text(json.dumps({"rows": rows, "minutes": took / 60}, indent=1) + "\n")
+    if rows:
+        plot(rows, args.plot, tuple(n for n in PLOTTED if n in args.robots) or tuple(args.robots))
+        print(f"plot written to {args.plot}")
+
+
+if __name__ == "__main__":
+    main()

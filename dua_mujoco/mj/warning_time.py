@@ -1,0 +1,290 @@
+"""Warning time of a monitored run: each contact onset's lead, and the oracle over a horizon.
+
+*Lead.* The lead of a contact onset is how long its geom pair had stood in alarm without a
+break immediately before the onset: from the physics step at which the run of standing alarms
+that covers the onset began (cut at the latest ``predictor.reset``, whose classification is of a
+new state) to the onset's step; 0 for a missed onset. A predictor that promises an alarm horizon
+``H`` (a pair that may collide within ``H`` stands in alarm) gives every onset a lead of at
+least ``H`` while the motion bounds hold. An onset with less lead is one of three kinds:
+
+- *at the start*: within ``H`` after the run's start, the latest reset or the pair's switch-on,
+  when no alarm could have stood ``H`` yet;
+- *after a violation*: one of the two bodies broke its declared bounds after the evaluation
+  that preceded the one raising the alarm (for a missed onset: after the pair's latest
+  evaluation, the miss's own rule, :class:`~dua_mujoco.mj.report.Miss`), so the verdict that
+  should have raised it earlier rested on broken bounds;
+- *while the bounds held*: neither, which the promise does not allow (without bound checks every
+  such onset counts here).
+
+*Oracle.* At each predictor step, the share of active geom pairs that do touch (are in MuJoCo's
+contacts) at some physics step from that step to ``H`` after it: the pairs no predictor with
+horizon ``H`` may leave out of alarm, so its mean over the run is a floor under the standing
+fraction. It is known once the run is over: steps whose window runs past the last observed
+step count the contacts seen until then. A contact counts while its pair was switched on when it
+began. Memory is one contact interval a contact run (as many as onsets) and one record a run of
+regularly spaced predictor steps, not one a step.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.mj.accumulators import Growing
+
+if TYPE_CHECKING:
+    from dua_mujoco.mj.predictor import Predictor
+
+__all__ = ["WarningTime", "alarm_horizon_of", "check_warning_horizon"]
+
+# Leads and horizons are sums of timesteps: compare them with this relative slack.
+_REL = 1e-9
+
+
+def alarm_horizon_of(predictor: Predictor) -> float:
+    """The lead (s) ``predictor`` promises, counted from the step that raised each alarm: its
+    alarm horizon and the ``latency`` periods a verdict takes to act (docs/theory.md, Theorem
+    3: the verdict in force the alarm horizon before the first state in contact was raised that
+    much earlier). ``(1 + latency) * dt`` by default."""
+    return (predictor.alarm_periods + predictor.latency) * predictor.dt
+
+
+def check_warning_horizon(value: object) -> float | None:
+    """``warning_horizon``: None (the predictor's own) or a finite number ``>= 0`` (s)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise InvalidInputError(
+            f"warning_horizon = {value!r} is invalid: pass seconds (a float >= 0), or None for "
+            "the predictor's own alarm horizon."
+        )
+    h = float(value)
+    if not (math.isfinite(h) and h >= 0.0):
+        raise InvalidInputError(
+            f"warning_horizon = {value!r} is invalid: pass a finite number of seconds >= 0."
+        )
+    return h
+
+
+class WarningTime:
+    """Leads of contact onsets and the oracle's contact intervals (module docstring).
+
+    Fed by :class:`~dua_mujoco.mj.monitor.Monitor`; steps are the monitor's physics steps.
+
+    Args:
+        horizon: The horizon ``H`` (s) the leads and the oracle are measured against.
+        timestep: Seconds a physics step.
+        ngp: Geom pairs known now.
+        npairs: Sphere pairs known now.
+    """
+
+    def __init__(self, horizon: float, timestep: float, ngp: int, npairs: int) -> None:
+        self.horizon = float(horizon)
+        self.timestep = float(timestep)
+        # The window of the oracle: the steps j with (j - k) * timestep <= H.
+        self.horizon_steps = math.floor(self.horizon / self.timestep * (1 + _REL) + _REL)
+        self._tol = _REL * max(self.horizon, self.timestep)
+        self.reset_step = 0
+        # Per geom pair: the step its current run of standing alarms began, the step of the
+        # evaluation before the one that began it (violations after it cut the lead honestly
+        # short), its latest switch-on, and the step its current contact began (-1: none, -2:
+        # in a contact that began while the pair was switched off).
+        self._since = np.zeros(ngp, dtype=np.int64)
+        self._prior_eval = np.zeros(ngp, dtype=np.int64)
+        self._switched_on = np.full(ngp, -1, dtype=np.int64)
+        self._open_from = np.full(ngp, -1, dtype=np.int64)
+        # Per sphere pair: the step of its latest evaluation.
+        self._last_eval = np.zeros(npairs, dtype=np.int64)
+        self._leads = Growing(np.float64)
+        self.short_held = 0
+        self.short_after_violation = 0
+        self.short_at_start = 0
+        # Closed contact intervals [lo, hi] (steps) of active geom pairs.
+        self._iv_pair = Growing(np.int64)
+        self._iv_lo = Growing(np.int64)
+        self._iv_hi = Growing(np.int64)
+        # Predictor steps sampled for the fractions, as runs: first step, spacing, count and
+        # active geom pairs (constant within a run).
+        self._runs: list[list[int]] = []
+        self.last_step = 0
+
+    # ------------------------------------------------------------------- pairs
+
+    def grow(self, ngp: int, npairs: int) -> None:
+        """Follow the pairs a pruned predictor learns (arrays only grow)."""
+        more = ngp - self._since.size
+        if more > 0:
+            self._since = np.concatenate([self._since, np.zeros(more, dtype=np.int64)])
+            self._prior_eval = np.concatenate([self._prior_eval, np.zeros(more, dtype=np.int64)])
+            self._switched_on = np.concatenate([self._switched_on, np.full(more, -1, np.int64)])
+            self._open_from = np.concatenate([self._open_from, np.full(more, -1, np.int64)])
+        more = npairs - self._last_eval.size
+        if more > 0:
+            # Never evaluated yet: their first verdict's window opens at the latest reset.
+            self._last_eval = np.concatenate(
+                [self._last_eval, np.full(more, self.reset_step, dtype=np.int64)]
+            )
+
+    def reset(self, step: int) -> None:
+        """A ``predictor.reset`` whose classification is of step ``step`` (it evaluated every
+        pair there)."""
+        self.reset_step = step
+        np.maximum(self._last_eval, step, out=self._last_eval)
+
+    def alarms(
+        self,
+        started: np.ndarray,
+        raised: np.ndarray,
+        raised_gp: np.ndarray,
+        evaluated: np.ndarray,
+        step: int,
+        *,
+        switch: bool,
+    ) -> None:
+        """Runs of standing alarms begin at ``step`` for the geom pairs ``started`` (sorted),
+        raised by the sphere pairs ``raised`` (of geom pairs ``raised_gp``), after the sphere
+        pairs ``evaluated`` were evaluated there. ``switch``: the change came from switches or
+        a reset, not an evaluation (pairs switched on stand in alarm until evaluated)."""
+        if started.size:
+            self._since[started] = step
+            prior = np.full(started.size, step, dtype=np.int64)
+            if raised.size:
+                pos = np.searchsorted(started, raised_gp)
+                pos = np.minimum(pos, started.size - 1)
+                hit = started[pos] == raised_gp
+                np.minimum.at(prior, pos[hit], self._last_eval[raised[hit]])
+            self._prior_eval[started] = prior
+        if switch:
+            if raised.size:
+                self._switched_on[raised_gp] = step
+        elif evaluated.size:
+            self._last_eval[evaluated] = step
+
+    # ------------------------------------------------------------------- onsets
+
+    def onset(self, g: int, step: int, broke: int, *, miss_window: int | None = None) -> None:
+        """Record the onset of geom pair ``g`` at ``step``.
+
+        Args:
+            g: The geom pair.
+            step: The onset's physics step.
+            broke: The latest step either body broke its bounds (-1: never, or not checked).
+            miss_window: None if an alarm stood for the onset; for a miss, the step of the
+                pair's latest evaluation (the miss's rule).
+        """
+        predicted = miss_window is None
+        since = max(int(self._since[g]), self.reset_step) if predicted else step
+        lead = (step - since) * self.timestep
+        self._leads.extend([lead])
+        if lead >= self.horizon - self._tol:
+            return
+        watched = max(self.reset_step, int(self._switched_on[g]))
+        if (step - watched) * self.timestep < self.horizon - self._tol:
+            self.short_at_start += 1
+            return
+        window = int(self._prior_eval[g]) if miss_window is None else miss_window
+        if broke > window:
+            self.short_after_violation += 1
+        else:
+            self.short_held += 1
+
+    @property
+    def leads(self) -> np.ndarray:
+        """Every onset's lead so far (s), in onset order."""
+        return self._leads.view()
+
+    @property
+    def short_leads(self) -> int:
+        """Onsets with less lead than the horizon."""
+        return self.short_held + self.short_after_violation + self.short_at_start
+
+    def lead_quantiles(self) -> tuple[float | None, float | None, float | None]:
+        """``(p10, median, minimum)`` of the leads (s), None without onsets.
+
+        The p10 is a lead some onset had (the lower of the two around the 10th percentile):
+        at least 90 % of the onsets had at least that much.
+        """
+        leads = self.leads
+        if not leads.size:
+            return None, None, None
+        p10 = float(np.percentile(leads, 10.0, method="lower"))
+        return p10, float(np.median(leads)), float(leads.min())
+
+    # ------------------------------------------------------------------- oracle
+
+    def contacts(self, before: np.ndarray, now: np.ndarray, active: np.ndarray, step: int) -> None:
+        """The geom pairs in contact moved from ``before`` to ``now`` (sorted ids) at ``step``;
+        ``active``: the geom pairs switched on (a mask)."""
+        self.last_step = step
+        if before.size:
+            ended = np.setdiff1d(before, now, assume_unique=True)
+            if ended.size:
+                lo = self._open_from[ended]
+                counted = lo >= 0
+                self._close(ended[counted], lo[counted], step - 1)
+                self._open_from[ended] = -1
+        if now.size:
+            new = now[self._open_from[now] == -1]
+            if new.size:
+                on = active[new] if active.size else np.zeros(new.size, dtype=bool)
+                self._open_from[new] = np.where(on, step, -2)
+
+    def _close(self, pair: np.ndarray, lo: np.ndarray, hi: int) -> None:
+        if pair.size:
+            self._iv_pair.extend(pair)
+            self._iv_lo.extend(lo)
+            self._iv_hi.extend(np.full(pair.size, hi, dtype=np.int64))
+
+    def sample(self, step: int, nactive: int) -> None:
+        """A predictor step at ``step`` counted in the fractions, over ``nactive`` pairs."""
+        runs = self._runs
+        if runs:
+            first, spacing, count, n = runs[-1]
+            if n == nactive:
+                if count == 1 and step > first:
+                    runs[-1][1] = step - first
+                    runs[-1][2] = 2
+                    return
+                if step == first + count * spacing:
+                    runs[-1][2] += 1
+                    return
+        runs.append([step, 1, 1, nactive])
+
+    def oracle_sum(self) -> float:
+        """Sum over the sampled steps of (active geom pairs that touch within the horizon) /
+        (active geom pairs): the oracle times the predictor steps."""
+        open_ = np.flatnonzero(self._open_from >= 0)
+        pair = np.concatenate([self._iv_pair.view(), open_])
+        lo = np.concatenate([self._iv_lo.view(), self._open_from[open_]])
+        hi = np.concatenate([self._iv_hi.view(), np.full(open_.size, self.last_step, np.int64)])
+        if not pair.size or not self._runs:
+            return 0.0
+        # A step k counts a pair touching at some j in [k, k + H]: k in [lo - H, hi]. Merge
+        # each pair's windows so that a step is counted once a pair.
+        lo = lo - self.horizon_steps
+        span = int(max(hi.max(), self.last_step) - min(lo.min(), 0)) + 2
+        base = int(min(lo.min(), 0))
+        key_lo = (lo - base) + pair * span
+        key_hi = (hi - base) + pair * span
+        order = np.argsort(key_lo, kind="stable")
+        key_lo, key_hi = key_lo[order], key_hi[order]
+        reach = np.maximum.accumulate(key_hi)
+        begins = np.ones(key_lo.size, dtype=bool)
+        begins[1:] = key_lo[1:] > reach[:-1]
+        idx = np.flatnonzero(begins)
+        m_lo = key_lo[idx]
+        m_hi = np.maximum.reduceat(key_hi, idx)
+        offset = (m_lo // span) * span - base
+        m_lo = m_lo - offset
+        m_hi = m_hi - offset
+        total = 0.0
+        for first, spacing, count, nactive in self._runs:
+            if nactive <= 0:
+                continue
+            i_lo = np.maximum(-((first - m_lo) // spacing), 0)  # ceil((lo - first) / spacing)
+            i_hi = np.minimum((m_hi - first) // spacing, count - 1)
+            total += float(np.maximum(i_hi - i_lo + 1, 0).sum()) / nactive
+        return total

@@ -1,0 +1,249 @@
+"""Each onset's lead and the oracle: scripted scenes where both are known, and a per-step
+reference on a scene with resets."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.mj.accumulators import Durations
+from dua_mujoco.mj.monitor import Monitor, run
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.report import RunReport, build_report
+from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.mj.warning_time import alarm_horizon_of
+
+# Two balls dropped on a plane, 1 m apart: ball_a lands at the 40th physics step and ball_b at
+# the 114th (counted from the start state), and both then rest in contact.
+_DROP = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 0.1"/>
+    <body name="a" pos="0 0 0.08"><freejoint/><geom name="ball_a" type="sphere" size="0.05"/></body>
+    <body name="b" pos="1 0 0.3"><freejoint/><geom name="ball_b" type="sphere" size="0.05"/></body>
+  </worldbody>
+</mujoco>
+"""
+_TS = 0.002
+
+
+def _drop(
+    predictor_kwargs: dict,
+    steps: int,
+    *,
+    warning_horizon: float | None = None,
+    reset_at: int | None = None,
+    kick_at: int | None = None,
+) -> tuple[Monitor, dict[str, int]]:
+    """Roll the drop out under a Monitor; return it and each ball's onset step (the first
+    monitored step with the ball in contact). ``kick_at``: push ball_b sideways (100 N) for
+    that one step, which breaks any bound under 190 m/s^2 but does not change its landing."""
+    m = mujoco.MjModel.from_xml_string(_DROP)
+    d = mujoco.MjData(m)
+    p = Predictor(m, **predictor_kwargs)
+    mon = Monitor(p, warning_horizon=warning_horizon)
+    mujoco.mj_step(m, d)
+    mon.start(d)
+    onset: dict[str, int] = {}
+    for k in range(1, steps + 1):
+        d.xfrc_applied[m.body("b").id, 0] = 100.0 if k == kick_at else 0.0
+        mujoco.mj_step(m, d)
+        alarms = p.step(d) if k % p.period == 0 else None
+        mon.observe(d, alarms)
+        for i in range(int(d.ncon)):
+            for g in (int(d.contact.geom1[i]), int(d.contact.geom2[i])):
+                onset.setdefault(m.geom(g).name, k)
+        if k == reset_at:
+            p.reset(d)
+    mon.finish()
+    onset.pop("floor")
+    assert onset == {"ball_a": 39, "ball_b": 113}  # the scene as built
+    return mon, onset
+
+
+def _report(mon: Monitor) -> RunReport:
+    return build_report(mon, "drop", False, Durations(), Durations(), interrupted=False)
+
+
+def test_lead_is_the_standing_run_before_the_onset_cut_at_a_reset() -> None:
+    """Bounds so large that every pair stands in alarm from the start: each lead is the time
+    since the start, or since the reset in between (the run a reset's classification opens).
+
+    Counted from the episode's start instead, ball_b's lead would be 113 steps, not 113 - 90.
+    """
+    h = 30 * _TS  # less than ball_a's lead (39 steps), more than ball_b's since the reset (23)
+    mon, _ = _drop({"accel": 1e6}, 150, warning_horizon=h, reset_at=90)
+    assert mon.onsets == mon.predicted == 2
+    np.testing.assert_allclose(np.sort(mon.warning.leads), [23 * _TS, 39 * _TS])
+    rep = _report(mon)
+    assert rep.lead_min_s == pytest.approx(23 * _TS)
+    assert rep.lead_median_s == pytest.approx((23 + 39) / 2 * _TS)
+    assert rep.lead_p10_s == pytest.approx(23 * _TS)
+    assert rep.warning_horizon_s == h
+    # ball_b came 23 steps after the reset, when no alarm could have stood 30.
+    assert (rep.short_lead_onsets, rep.short_lead_at_start) == (1, 1)
+    assert rep.short_lead_bounds_held == rep.short_lead_after_violation == 0
+    # The same run without the reset: both leads from the start, neither short.
+    mon, _ = _drop({"accel": 1e6}, 150, warning_horizon=h)
+    np.testing.assert_allclose(np.sort(mon.warning.leads), [39 * _TS, 113 * _TS])
+    assert mon.warning.short_leads == 0
+
+
+def test_short_leads_are_told_apart_by_the_bounds() -> None:
+    """A horizon longer than the predictor's: with bounds that hold (free fall, 9.81 < 15) the
+    alarms come a step or two ahead, so both onsets are short while the bounds held; with
+    bounds the fall breaks (0.5 m/s^2) they are short after a violation."""
+    h = 30 * _TS  # both onsets come later than this after the start
+    mon, _ = _drop({"accel": 15.0}, 130, warning_horizon=h)
+    contact_violations = mon.violations  # the landings' impulses, after the onsets
+    leads = mon.warning.leads
+    assert mon.misses == [] and leads.size == 2
+    assert np.all((leads > 0) & (leads < h)), leads
+    assert (mon.warning.short_held, mon.warning.short_after_violation) == (2, 0)
+    # A violation long before ball_b's landing, after which its pairs were evaluated again:
+    # the late alarm still came while the bounds held.
+    mon, _ = _drop({"accel": 15.0}, 130, warning_horizon=h, kick_at=5)
+    assert mon.violations > contact_violations
+    assert (mon.warning.short_held, mon.warning.short_after_violation) == (2, 0)
+    mon, _ = _drop({"accel": 0.5}, 130, warning_horizon=h)
+    assert mon.violations > 0
+    assert np.all(mon.warning.leads < h)
+    assert (mon.warning.short_held, mon.warning.short_after_violation) == (0, 2)
+    assert mon.warning.short_at_start == 0
+
+
+@pytest.mark.parametrize(("period", "hsteps"), [(1, 0), (1, 10), (3, 10), (2, 200)])
+def test_oracle_by_construction(period: int, hsteps: int) -> None:
+    """Three active pairs (each ball with the floor, the balls with each other); ball_a touches
+    from step 39 to the end, ball_b from 113, the balls never. A predictor step ``k`` counts a
+    ball when it touches at some step of ``[k, k + H]``: ``k >= onset - H``."""
+    steps = 180
+    mon, onset = _drop({"accel": 15.0, "period": period}, steps, warning_horizon=hsteps * _TS)
+    sampled = np.arange(period, steps + 1, period)
+    expect = sum(np.count_nonzero(sampled >= s - hsteps) for s in onset.values())
+    expect /= 3 * sampled.size
+    assert mon.predictor_steps == sampled.size
+    assert mon.oracle_fraction == pytest.approx(expect, rel=1e-12)
+    if hsteps == 0:
+        assert mon.oracle_fraction == pytest.approx(mon.contact_pair_fraction, rel=1e-12)
+
+
+def test_default_horizon_is_the_predictors() -> None:
+    m, d = load_scene("traffic")
+    p = Predictor(m, accel=4.0, period=3, latency=2)
+    assert alarm_horizon_of(p) == pytest.approx(3 * 3 * 0.005)  # (1 + latency) periods
+    rep = run(m, d, p, steps=30, progress=False)
+    assert rep.warning_horizon_s == alarm_horizon_of(p)
+    assert "touching within 45 ms (oracle)" in rep.table()
+
+
+@pytest.mark.parametrize("bad", [-0.1, math.nan, math.inf, "0.1", True])
+def test_a_bad_horizon_names_itself(bad: object) -> None:
+    m, _ = load_scene("traffic")
+    with pytest.raises(InvalidInputError, match="warning_horizon"):
+        Monitor(Predictor(m, accel=4.0), warning_horizon=bad)  # type: ignore[arg-type]
+
+
+def _reference(
+    check: list[np.ndarray],
+    state: list[np.ndarray],
+    contact: list[np.ndarray],
+    onsets: list[tuple[int, int]],
+    resets: list[float],
+    sampled: list[int],
+    nactive: int,
+    hsteps: int,
+) -> tuple[list[int], float]:
+    """Leads (steps) and the oracle, pair by pair in plain Python.
+
+    ``check[k]``: geom pairs standing in alarm when step ``k``'s contacts were checked;
+    ``state[k]``: standing after everything done at step ``k`` (a reset's classification);
+    ``onsets``: (step, geom pair); ``resets``: steps whose state a reset classified, ``k``
+    before step ``k``'s contacts were checked, ``k + 0.5`` after.
+    """
+    leads = []
+    for k, g in onsets:
+        if not check[k][g]:
+            leads.append(0)
+            continue
+        s = k
+        while s - 1 >= 0 and state[s - 1][g]:
+            s -= 1
+        cut = max([r for r in resets if r <= k], default=0)
+        leads.append(k - max(s, math.floor(cut)))
+    last = len(contact) - 1
+    total = 0.0
+    for k in sampled:
+        touching = np.zeros(nactive, dtype=bool)
+        for j in range(k, min(k + hsteps, last) + 1):
+            touching |= contact[j]
+        total += np.count_nonzero(touching) / nactive
+    return leads, total / len(sampled)
+
+
+@pytest.mark.parametrize(("period", "hsteps"), [(1, 8), (3, 20)])
+def test_leads_and_oracle_match_a_per_step_reference(period: int, hsteps: int) -> None:
+    m, d = load_scene("paper_world:12")
+    # Bounds ten times the scene's own: alarms stand from 3 to 40-odd steps before onsets.
+    p = Predictor(m, accel=20.0, period=period, latency=2)
+    ctrl = make_controller(m, "random", seed=2)
+    rng = np.random.default_rng(period)
+    mon = Monitor(p, warning_horizon=hsteps * float(m.opt.timestep))
+    ngp = p.geom_pairs.npair
+    gp_of = p.sphere_pairs.geom_pair
+
+    def standing() -> np.ndarray:
+        sched = p.scheduler
+        assert sched is not None
+        out = np.zeros(ngp, dtype=bool)
+        np.logical_or.at(out, gp_of, sched.alarm_state() & sched.active)
+        return out
+
+    def touching() -> np.ndarray:
+        nc = int(d.ncon)
+        out = np.zeros(ngp, dtype=bool)
+        gp = p.geom_pairs.indices_of(d.contact.geom1[:nc], d.contact.geom2[:nc])
+        out[gp[gp >= 0]] = True
+        return out
+
+    mujoco.mj_step(m, d)
+    mon.start(d)
+    check, state, contact = [standing()], [standing()], [touching()]
+    onsets: list[tuple[int, int]] = []
+    resets: list[float] = []
+    sampled: list[int] = []
+    for k in range(1, 900):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        alarms = p.step(d) if k % period == 0 else None
+        if alarms is not None and rng.random() < 0.02:
+            p.reset(d)  # between step and observe: its classification is of this step
+            resets.append(k)
+        before = mon.predictor_steps
+        mon.observe(d, alarms)
+        if mon.predictor_steps > before:
+            sampled.append(k)
+        now = touching()
+        onsets += [(k, int(g)) for g in np.flatnonzero(now & ~contact[-1])]
+        check.append(standing())
+        contact.append(now)
+        if alarms is not None and rng.random() < 0.02:
+            p.reset(d)  # after observe: classified at this step, applied at the next
+            resets.append(k + 0.5)
+        state.append(standing())
+    mon.finish()
+    leads, oracle = _reference(check, state, contact, onsets, resets, sampled, ngp, hsteps)
+    ts = float(m.opt.timestep)
+    assert len(resets) >= 3 and len(onsets) >= 10
+    assert len(set(leads)) > 5  # leads of many sizes
+    np.testing.assert_allclose(np.sort(mon.warning.leads), np.sort(leads) * ts, atol=1e-12)
+    assert mon.oracle_fraction == pytest.approx(oracle, rel=1e-12)
+    assert mon.contact_pair_fraction < oracle < 1.0
+    short = sum(lead < hsteps for lead in leads)
+    assert mon.warning.short_leads == short > 0
+    assert short < len(leads)
