@@ -903,6 +903,32 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             return Owned(std::move(out), {static_cast<size_t>(n), 6});
           },
           "ids"_a, "(n, 6) centres and velocities of covering spheres ids on the bound MjData.")
+      .def(
+          "watch",
+          [](PyRuntime& self, const In<uint8_t>& ignored_geoms, const In<int64_t>& ignored_pairs) {
+            Require(Size(ignored_geoms) == self.m->ngeom, "ignored_geoms holds one flag a geom");
+            self.rt->Watch(std::vector<uint8_t>(ignored_geoms.data(),
+                                                ignored_geoms.data() + ignored_geoms.size()),
+                           std::vector<int64_t>(ignored_pairs.data(),
+                                                ignored_pairs.data() + ignored_pairs.size()));
+          },
+          "ignored_geoms"_a, "ignored_pairs"_a,
+          "Count, from now on, the geom pairs with no ignored geom and not ignored themselves.")
+      .def_prop_ro("watched",
+                   [](const PyRuntime& s) {
+                     const Runtime::Watched& w = s.rt->watched();
+                     return nb::make_tuple(w.standing, w.started, w.expiry, w.version);
+                   },
+                   "(counted geom pairs standing, of them started at the latest step, least "
+                   "expiry: tau + the time of its step since the reset, version).")
+      .def(
+          "watched_standing",
+          [](const PyRuntime& s) {
+            std::vector<int64_t> v = s.rt->WatchedStanding();
+            const size_t n = v.size() / 2;
+            return Owned(std::move(v), {n, 2});
+          },
+          "(k, 2) the counted geom pairs standing in alarm, in increasing order.")
       .def_prop_ro("classified", [](const PyRuntime& s) { return s.rt->classified(); })
       .def_prop_ro("step_count", [](const PyRuntime& s) { return s.rt->step(); })
       .def_prop_ro("last_time", [](const PyRuntime& s) { return s.rt->last_time(); })

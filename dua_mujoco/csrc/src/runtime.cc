@@ -229,6 +229,71 @@ void Runtime::Learnt() {
   if (static_cast<int64_t>(on_.size()) != u.npair()) ++universe_version_;
   on_.resize(u.npair(), 1);
   gp_count_.resize(u.ngp(), 0);
+  if (watching_) {
+    for (auto k = static_cast<int64_t>(gp_counted_.size()); k < u.ngp(); ++k) {
+      gp_counted_.push_back(Counted(k) ? 1 : 0);
+    }
+  }
+}
+
+bool Runtime::Counted(int64_t gp) const {
+  const Universe& u = universe();
+  const int64_t g1 = u.geom_pairs[2 * gp], g2 = u.geom_pairs[2 * gp + 1];
+  if (ignored_geoms_[g1] || ignored_geoms_[g2]) return false;
+  return !std::binary_search(ignored_pairs_.begin(), ignored_pairs_.end(), (g1 << 32) | g2);
+}
+
+void Runtime::Watch(const std::vector<uint8_t>& ignored_geoms,
+                    const std::vector<int64_t>& ignored_pairs) {
+  watching_ = true;
+  ignored_geoms_ = ignored_geoms;
+  ignored_pairs_ = ignored_pairs;
+  std::sort(ignored_pairs_.begin(), ignored_pairs_.end());
+  gp_counted_.clear();
+  Learnt();
+  TrackAll();
+  was_.assign(gp_count_.size(), 0);
+  FinishWatch();
+}
+
+std::vector<int64_t> Runtime::WatchedStanding() const {
+  std::vector<int64_t> out;
+  const Universe& u = universe();
+  for (const int64_t k : u.gp_ids) {  // in increasing (g1, g2)
+    if (gp_count_[k] && gp_counted_[k]) {
+      out.push_back(u.geom_pairs[2 * k]), out.push_back(u.geom_pairs[2 * k + 1]);
+    }
+  }
+  return out;
+}
+
+void Runtime::FinishWatch() {
+  if (!watching_) return;
+  watched_.started = 0;
+  was_.resize(gp_count_.size(), 0);
+  bool changed = false;
+  for (const int64_t gp : touched_) {
+    const uint8_t now = gp_count_[gp] > 0 && gp_counted_[gp];
+    if (now == was_[gp]) continue;
+    watched_.started += now;
+    changed = true;
+    was_[gp] = now;
+  }
+  touched_.clear();
+  if (changed) ++watched_.version;
+}
+
+void Runtime::SetExpiry(int64_t p) {
+  const Schedule& s = *schedule_;
+  const bool counted = s.active[p] && gp_counted_[universe().pair_geom[ids_[p]]];
+  const double expiry =
+      counted ? s.last_tau[p] + static_cast<double>(s.ints[kIntLastStep * s.m() + p]) * s.spec().dt
+              : kInf;
+  int64_t i = expiry_size_ + p;
+  expiry_tree_[i] = expiry;
+  for (i /= 2; i >= 1; i /= 2) {
+    expiry_tree_[i] = std::min(expiry_tree_[2 * i], expiry_tree_[2 * i + 1]);
+  }
 }
 
 int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
@@ -267,6 +332,8 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
   step_ = 0;
   last_time_ = d->time;
   TrackAll();
+  std::fill(was_.begin(), was_.end(), 0);  // every alarm of a classification is new
+  FinishWatch();
   // The classification's alarms, logged as a step's are (each new).
   const std::vector<int64_t> alarmed = schedule_->InitialAlarms();
   if (log_used_ + static_cast<int64_t>(alarmed.size()) > log_->capacity()) NewLog();
@@ -311,6 +378,7 @@ int64_t Runtime::Step(const mjModel* m, const mjData* d) {
     pruned_.FindEscapes(t.held, args_, step_);
   }
   TrackStep();
+  FinishWatch();
   return result;
 }
 
@@ -387,14 +455,24 @@ void Runtime::Track(const int64_t* ids, int64_t n) {
   for (int64_t k = 0; k < n; ++k) {
     const int64_t p = ids[k];
     const uint8_t now = schedule_->Stands(p) ? 1 : 0;
-    if (now == stands_[p]) continue;
+    if (now == stands_[p]) continue;  // (its expiry is set below all the same)
     stands_[p] = now;
-    int32_t& count = gp_count_[u.pair_geom[ids_[p]]];
+    const int64_t gp = u.pair_geom[ids_[p]];
+    int32_t& count = gp_count_[gp];
+    const bool counted = watching_ && gp_counted_[gp];
     if (now) {
-      if (count++ == 0) ++nstanding_;
+      if (count++ == 0) {
+        ++nstanding_;
+        if (counted) ++watched_.standing, touched_.push_back(gp);
+      }
     } else if (--count == 0) {
       --nstanding_;
+      if (counted) --watched_.standing, touched_.push_back(gp);
     }
+  }
+  if (watching_) {
+    for (int64_t k = 0; k < n; ++k) SetExpiry(ids[k]);
+    watched_.expiry = expiry_tree_[1];
   }
 }
 
@@ -402,6 +480,13 @@ void Runtime::TrackAll() {
   std::fill(stands_.begin(), stands_.end(), 0);
   std::fill(gp_count_.begin(), gp_count_.end(), 0);
   nstanding_ = 0;
+  if (watching_) {
+    watched_.standing = 0;
+    for (size_t k = 0; k < gp_count_.size(); ++k) touched_.push_back(static_cast<int64_t>(k));
+    expiry_size_ = 1;
+    while (expiry_size_ < std::max<int64_t>(npair(), 1)) expiry_size_ *= 2;
+    expiry_tree_.assign(2 * expiry_size_, kInf);
+  }
   const std::vector<int64_t> all = Iota(npair());
   Track(all.data(), npair());
   const std::vector<double>& tau = schedule_->last_tau;

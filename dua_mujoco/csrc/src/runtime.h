@@ -81,6 +81,21 @@ class DUA_API Runtime {
   // contact of a pair not met yet learns it); returns how many geom pairs.
   int64_t DeactivateContacts(const mjData* d);
 
+  // A watcher (the gym wrapper) reads, after each step in O(1), how many counted geom pairs stand
+  // in alarm, how many started to at that step, and the least time the counted verdicts still
+  // vouch for. Geom pairs count unless a geom of theirs is in ignored_geoms (ngeom flags) or the
+  // pair in ignored_pairs (keys g1 << 32 | g2, g1 < g2, sorted); pairs learnt later too.
+  void Watch(const std::vector<uint8_t>& ignored_geoms, const std::vector<int64_t>& ignored_pairs);
+  struct Watched {
+    int64_t standing = 0;  // counted geom pairs standing in alarm
+    int64_t started = 0;   // of them, those whose alarm the latest step started
+    double expiry = std::numeric_limits<double>::infinity();  // min of tau + last step time
+    int64_t version = 0;  // changes whenever the set of counted standing geom pairs does
+  };
+  const Watched& watched() const { return watched_; }
+  // The counted geom pairs standing in alarm, rows (g1, g2) in increasing order.
+  std::vector<int64_t> WatchedStanding() const;
+
   // Mocap bodies: a velocity given instead of differenced (world frame), or back to differencing.
   void SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]);
   void ClearMocapVelocity(int64_t mocap);
@@ -141,6 +156,9 @@ class DUA_API Runtime {
   void TrackAll();
   void TrackStep();
   void Log(int64_t nalarm);
+  bool Counted(int64_t gp) const;
+  void FinishWatch();  // a step's or a classification's end: started and version
+  void SetExpiry(int64_t p);  // pair p's leaf of the expiry tree, and its path to the root
 
   std::shared_ptr<const Tables> tables_;
   int64_t log_steps_, log_min_;
@@ -175,6 +193,14 @@ class DUA_API Runtime {
   int64_t step_ = 0;
   int64_t rebuilds_ = 0, renewals_ = 0;
   int64_t universe_version_ = 0, held_version_ = 0;
+  // The watcher's state (Watch): the ignore lists, each geom pair's count flag, and a min-tree
+  // of the held pairs' expiries (leaves at [size, 2 size)).
+  bool watching_ = false;
+  std::vector<uint8_t> ignored_geoms_, gp_counted_, was_;
+  std::vector<int64_t> ignored_pairs_, touched_;
+  std::vector<double> expiry_tree_;
+  int64_t expiry_size_ = 0;
+  Watched watched_;
 };
 
 }  // namespace dua
