@@ -1063,4 +1063,5 @@ NB_MODULE(_core, m) {
       PyErr_NewException("dua_mujoco._core.StepError", PyExc_RuntimeError, nullptr));
   m.attr("StepError") = step_error;
   BindRuntime(m, step_error);
+  BindCore(m);
 }

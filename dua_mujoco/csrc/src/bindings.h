@@ -6,6 +6,7 @@
 #include <mujoco/mujoco.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/pair.h>  // functions return (array, count) pairs
 
 #include <cstdint>
 #include <string>
@@ -79,6 +80,9 @@ inline const mjData* DataOf(nb::handle data) {
 inline dua_frame FrameOf(const mjData* d, const double* root_twist) {
   return {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist, d->xpos};
 }
+
+// Registers what dua_mujoco.core needs beyond bindings.cc (bindings_core.cc); called last.
+void BindCore(nb::module_& m);
 
 }  // namespace dua
 
