@@ -80,6 +80,9 @@ def escapes(
     delta: np.ndarray,
     speed_bound: np.ndarray,
     t: float,
+    *,
+    ids: np.ndarray | None = None,
+    elapsed: np.ndarray | None = None,
 ) -> np.ndarray:
     """The spheres that may have left the reach their anchors assumed, ``t`` seconds on.
 
@@ -94,13 +97,16 @@ def escapes(
         anchor: ``(N, 3)`` centres at the anchor; ``speed0`` ``(N,)`` measured speeds then.
         accel, delta, speed_bound: ``(N,)`` bounds ``A``, ``delta``, ``V`` (``inf``: none).
         t: Seconds since the anchor.
+        ids, elapsed: Optional ``(N,)`` buffers for ``arange(N)`` and the elapsed times (a
+            caller that checks every step keeps them).
 
     Returns:
         ``(k,)`` int64 ids of the spheres that may have escaped, increasing.
     """
     n = centers.shape[0]
-    ids = np.arange(n, dtype=np.int64)
-    elapsed = np.full(n, float(t))
+    ids = np.arange(n, dtype=np.int64) if ids is None else ids
+    elapsed = np.empty(n) if elapsed is None else elapsed
+    elapsed.fill(t)
     return np.asarray(
         _core.escapes(anchor, speed0, accel, delta, speed_bound, ids, centers, velocities, elapsed)
     )

@@ -174,6 +174,9 @@ class SpherePredictor:
         self._standing: StandingAlarms | None = None
         self._anchor = np.empty((0, 3))
         self._speed0 = np.empty(0)
+        # The escape test's buffers: every sphere, and the time since its anchor.
+        self._ids = np.arange(n, dtype=np.int64)
+        self._elapsed = np.empty(n)
         self._built_at = 0
 
     # ----------------------------------------------------------------------- introspection
@@ -290,7 +293,7 @@ class SpherePredictor:
         """Whether a sphere may have left the reach of the last rebuild, ``t`` seconds on (the
         native step's escape test); a warning when its state proves its bounds broken."""
         bounds = (self._anchor, self._speed0, self.accel, self.vel_uncertainty, self.speed)
-        out = escapes(c, v, *bounds, t)
+        out = escapes(c, v, *bounds, t, ids=self._ids, elapsed=self._elapsed)
         if out.size == 0:
             return False
         broken = breaks_bounds(out, c, v, *bounds, t)

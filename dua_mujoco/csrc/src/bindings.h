@@ -68,6 +68,12 @@ inline void Require(bool ok, const std::string& message) {
   if (!ok) Raise("InvalidInputError", message);
 }
 
+// A literal message is made a string only when it is raised: checks run once an element, and
+// a std::string of a message past 15 characters is a heap allocation each time.
+inline void Require(bool ok, const char* message) {
+  if (!ok) Raise("InvalidInputError", message);
+}
+
 inline const mjModel* ModelOf(nb::handle model) {
   return reinterpret_cast<const mjModel*>(nb::cast<uintptr_t>(model.attr("_address")));
 }

@@ -100,35 +100,71 @@ std::pair<Out<double>, int64_t> TauPairs(const In<double>& pairs, const In<int64
   return {Owned(std::move(out), {static_cast<size_t>(n)}), bad};
 }
 
-// The fused step on free spheres: select, tau of the selected pairs, reinsert. Returns
-// (alarms, the first pair whose state is not finite or -1, evaluated); on a bad state the
-// selection is undone and the step can be taken again.
-nb::tuple StepFree(Schedule& sched, const In<double>& pairs, const In<double>& centers,
-                   const In<double>& velocities, const In<double>& planes,
-                   const In<double>& shapes) {
+// The fused step on free spheres: select, tau of the selected pairs, reinsert. Returns the
+// number of alarms, or -1 - p for the first pair p whose state is not finite (the selection
+// undone: the step can be taken again); *count receives the pairs evaluated.
+int64_t Step(Schedule& sched, const In<double>& pairs, const In<double>& centers,
+             const In<double>& velocities, const In<double>& planes, const In<double>& shapes,
+             int64_t* count) {
   const FreeSizes s = SizesOf(pairs, centers, velocities, planes, shapes);
   Require(s.npair == sched.m(), "the pair records must be (m, 8), one a pair of the schedule");
   dua_schedule* st = sched.state();
   const int64_t n = sched.step_count + 1;
-  const int64_t count = dua_select(st, n);
+  *count = dua_select(st, n);
   const int64_t* ids = st->work + st->width;  // the W_IDS row
-  for (int64_t k = 0; k < count; ++k) {
+  for (int64_t k = 0; k < *count; ++k) {
     if (!RecordOk(pairs.data(), s, ids[k])) {
       const int64_t p = ids[k];
-      dua_restore(st, n, count);
+      dua_restore(st, n, *count);
       BadRecord(s, p);
     }
   }
-  const int64_t bad = TauOfIds(pairs, ids, count, centers, velocities, planes, shapes, st->w_tau);
+  const int64_t bad = TauOfIds(pairs, ids, *count, centers, velocities, planes, shapes, st->w_tau);
   if (bad >= 0) {
     const int64_t p = ids[bad];
-    dua_restore(st, n, count);
-    return nb::make_tuple(0, p, count);
+    dua_restore(st, n, *count);
+    return -1 - p;
   }
-  const int64_t nalarm = dua_reinsert(st, n, count);
+  const int64_t nalarm = dua_reinsert(st, n, *count);
   sched.step_count = n;
-  return nb::make_tuple(nalarm, -1, count);
+  return nalarm;
 }
+
+// Step as Schedule.step_points returns it: (alarms, bad pair or -1, evaluated).
+nb::tuple StepFree(Schedule& sched, const In<double>& pairs, const In<double>& centers,
+                   const In<double>& velocities, const In<double>& planes,
+                   const In<double>& shapes) {
+  int64_t count = 0;
+  const int64_t r = Step(sched, pairs, centers, velocities, planes, shapes, &count);
+  return r >= 0 ? nb::make_tuple(r, -1, count) : nb::make_tuple(0, -1 - r, count);
+}
+
+// StepFree bound to a schedule, its pair records, planes and shapes, so that a step hands over
+// only the sphere states (each array crossing costs about as much as a small step's work).
+class FreeStep {
+ public:
+  FreeStep(nb::handle schedule, const In<double>& pairs, const In<double>& planes,
+           const In<double>& shapes)
+      : owner_(nb::borrow(schedule)),
+        sched_(&nb::cast<Schedule&>(schedule)),
+        pairs_(pairs),
+        planes_(planes),
+        shapes_(shapes) {
+    Require(Size(pairs) == kPairNcol * sched_->m(),
+            "the pair records must be (m, 8), one a pair of the schedule");
+  }
+
+  // The alarms (>= 0), or -1 - p for the first pair p whose state is not finite (undone).
+  int64_t Run(const In<double>& centers, const In<double>& velocities) {
+    int64_t count = 0;
+    return Step(*sched_, pairs_, centers, velocities, planes_, shapes_, &count);
+  }
+
+ private:
+  nb::object owner_;  // keeps the schedule alive
+  Schedule* sched_;
+  In<double> pairs_, planes_, shapes_;  // hold their arrays
+};
 
 // The pairs standing in alarm among m, kept in O(renewed pairs) a step: a list with each
 // pair's place in it (-1: not standing), renewed pairs swap-removed, alarmed ones appended.
@@ -221,6 +257,14 @@ void BindCore(nb::module_& m) {
         "-1, evaluated).");
   m.def("grid_plan", &GridPlan, "reach"_a, "margin"_a, "lo"_a, "hi"_a,
         "The candidate grid's plan (cell edge, bucket map, held-out ids) as a dict.");
+
+  nb::class_<FreeStep>(m, "FreeStep",
+                       "step_free bound to a schedule and its pairs' records, planes and shapes.")
+      .def(nb::init<nb::handle, const In<double>&, const In<double>&, const In<double>&>(),
+           "schedule"_a, "pairs"_a, "planes"_a, "shapes"_a)
+      .def("step", &FreeStep::Run, "centers"_a, "velocities"_a,
+           "One fused step: its number of alarms, or -1 - p for a pair p whose state is not "
+           "finite (the step undone).");
 
   nb::class_<StandingAlarms>(m, "StandingAlarms",
                              "Pairs standing in alarm, kept in O(renewed pairs) a step.")
