@@ -75,14 +75,14 @@ def measure() -> dict[str, float]:
         ):
             k = iter(range(10**9))
 
-            def step(s=sched, k=k) -> None:  # type: ignore[no-untyped-def]
+            def step(s=sched, k=k, states=states, pairs=pairs) -> None:  # type: ignore[no-untyped-def]
                 c, v = states[next(k) % 64]
                 s.step_points(pairs, c, v)
 
             out[f"{name} step_points, N = {n}"] = _median_us(step, 2000 if n < 1000 else 300)
         if n == 1415:
             out[f"PairSet.tau of all {len(pairs)} pairs"] = _median_us(
-                lambda: pairs.tau(ids, *states[0]), 5, warmup=1
+                lambda p=pairs, i=ids, x=states[0]: p.tau(i, *x), 5, warmup=1
             )
     for n, mode in ((24, "all"), (1000, "pruned")):
         box = wp.box * (n / 40) ** (1 / 3)
@@ -95,7 +95,7 @@ def measure() -> dict[str, float]:
         pred.reset(*states[0])
         k2 = iter(range(1, 10**9))
 
-        def pstep(p=pred, k=k2) -> None:  # type: ignore[no-untyped-def]
+        def pstep(p=pred, k=k2, states=states) -> None:  # type: ignore[no-untyped-def]
             p.step(*states[next(k) % 200])
 
         out[f"SpherePredictor.step, {mode}, N = {n}"] = _median_us(pstep, 150)
@@ -134,8 +134,7 @@ def run(checkout: str | None) -> dict[str, float]:
         raise RuntimeError(res.stderr[-3000:])
     out = json.loads(res.stdout.strip().splitlines()[-1])
     with_cache = dict(env, NUMBA_CACHE_DIR=str(Path("/tmp") / f"core_calls_cache_{os.getpid()}"))
-    first = ("" if checkout is None else f"import sys; sys.path.insert(0, {str(ROOT)!r}); "
-             f"import benchmarks.core_calls as b; b._use_checkout({checkout!r}); ") + FIRST  # fmt: skip
+    first = FIRST if checkout is None else prologue + FIRST
     for label in ("first call (fresh cache)", "first call (warm cache)"):
         res = subprocess.run([sys.executable, "-c", first], capture_output=True, text=True,
                              env=with_cache)  # fmt: skip
@@ -154,7 +153,7 @@ def main() -> None:
     sides = {"new": None} if args.before is None else {"old": args.before, "new": None}
     rounds: dict[str, list[dict[str, float]]] = {k: [] for k in sides}
     for r in range(args.rounds):
-        for side, checkout in (sides.items() if r % 2 == 0 else reversed(sides.items())):
+        for side, checkout in sides.items() if r % 2 == 0 else reversed(sides.items()):
             rounds[side].append(run(checkout))
             print(f"round {r + 1}/{args.rounds}: {side} done", file=sys.stderr)
     med = {
