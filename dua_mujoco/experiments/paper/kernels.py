@@ -82,7 +82,7 @@ def calibrate_work_clock(
     params: WorldParams | None = None,
     reps: int = 5000,
 ) -> tuple[float, float]:
-    """Fit ``ns = c E + overhead`` to compiled DUA and SA(tau) iterations (relative errors).
+    """Fit ``ns = c E + overhead`` to native DUA and SA(tau) iterations (relative errors).
 
     This produced ``MEASURED_NS_PER_EVAL`` and ``MEASURED_NS_OVERHEAD``; rerun it to recalibrate.
 

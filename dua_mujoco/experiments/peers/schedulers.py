@@ -41,7 +41,7 @@ class DuaGhost(_ScheduledGhost):
     """DUA on the ghost world (``GhostPeer``): the fused ``step_points``."""
 
     name = "DUA"
-    note = "fused step_points (select, tau, sort, reinsert in one compiled call)"
+    note = "fused step_points (select, tau, sort, reinsert in one native call)"
     sched: DUAScheduler | None = None
 
     def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
