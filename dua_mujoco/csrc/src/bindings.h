@@ -71,7 +71,7 @@ inline void Require(bool ok, const std::string& message) {
 // A literal message is made a string only when it is raised: checks run once an element, and
 // a std::string of a message past 15 characters is a heap allocation each time.
 inline void Require(bool ok, const char* message) {
-  if (!ok) Raise("InvalidInputError", message);
+  if (!ok) Require(false, std::string(message));
 }
 
 inline const mjModel* ModelOf(nb::handle model) {
