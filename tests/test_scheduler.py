@@ -486,7 +486,7 @@ def test_of_wraps_a_schedule_without_classifying_again() -> None:
         for _ in range(5):
             world.step()
             own.step_points(pairs, world.positions, world.velocities)
-        seen = Scheduler.of(own.schedule)
+        seen = Scheduler.of(own.core)
         assert type(seen) is type(own)
         assert seen.step_count == own.step_count == 5
         assert seen.last_tau is not own.last_tau and np.shares_memory(seen.last_tau, own.last_tau)

@@ -58,7 +58,7 @@ class Scheduler:
     :meth:`of` wraps one that exists already, without classifying again.
 
     Attributes:
-        schedule: The ``_core.Schedule`` whose state this scheduler drives.
+        core: The ``_core.Schedule`` whose state this scheduler drives.
         initial_alarms: ``(k,)`` pairs the initial classification alarms (for :meth:`of`, the
             pairs standing in alarm when wrapped).
     """
@@ -82,7 +82,7 @@ class Scheduler:
 
     def _adopt(self, schedule: _core.Schedule) -> None:
         """Drive ``schedule`` from now on (its views are built once: a step is microseconds)."""
-        self.schedule = schedule
+        self.core = schedule
         self._state = state_of(schedule)
         self._params = self._state.params
         self._alarm_rows = self._state.work[W_ALARMS : W_NEW + 1]
@@ -120,21 +120,21 @@ class Scheduler:
     @property
     def step_count(self) -> int:
         """Completed steps (0 after the initial classification): the schedule's own count."""
-        return int(self.schedule.step_count)
+        return int(self.core.step_count)
 
     @step_count.setter
     def step_count(self, value: int) -> None:
-        self.schedule.step_count = int(value)
+        self.core.step_count = int(value)
 
     @property
     def activation_changes(self) -> int:
         """Calls of :meth:`set_active` that switched some pair (and carries of the pair set),
         so that an observer of :meth:`alarm_state` knows when to read it again."""
-        return int(self.schedule.activation_changes)
+        return int(self.core.activation_changes)
 
     @activation_changes.setter
     def activation_changes(self, value: int) -> None:
-        self.schedule.activation_changes = int(value)
+        self.core.activation_changes = int(value)
 
     @property
     def npairs(self) -> int:
@@ -183,7 +183,7 @@ class Scheduler:
         deadline pair switched off: its verdict covers nothing), shaped like ``pair``."""
         p = np.asarray(pair, dtype=np.int64)
         flat = np.ascontiguousarray(p.reshape(-1))
-        return np.asarray(self.schedule.horizon_of(flat)).reshape(p.shape)
+        return np.asarray(self.core.horizon_of(flat)).reshape(p.shape)
 
     @property
     def last_selected(self) -> np.ndarray:
@@ -226,7 +226,7 @@ class Scheduler:
         if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
             raise InvalidInputError(f"pair ids must be in [0, {self.npairs}); got {ids.tolist()}.")
         # The schedule counts the switches that changed some pair (activation_changes).
-        self.schedule.switch(ids, bool(on), self.step_count + 1)
+        self.core.switch(ids, bool(on), self.step_count + 1)
 
     # ----------------------------------------------------------------------- protocol
 
@@ -237,7 +237,7 @@ class Scheduler:
                 "select() called twice without update(): evaluate the selected pairs and pass "
                 "their tau to update() first."
             )
-        count = self.schedule.select(self.step_count + 1)
+        count = self.core.select(self.step_count + 1)
         self._pending = self._state.work[W_IDS, :count].copy()
         return self._pending.copy()
 
@@ -268,8 +268,8 @@ class Scheduler:
         count = expected.shape[0]
         # Back to selection order (a pair may be selected twice: then both get its tau).
         self._state.w_tau[np.argsort(expected, kind="stable")] = t[np.argsort(idx, kind="stable")]
-        nalarm = self.schedule.reinsert(self.step_count + 1, count)
-        self.schedule.step_count += 1
+        nalarm = self.core.reinsert(self.step_count + 1, count)
+        self.core.step_count += 1
         self._pending = None
         # The new flags are read (by last_new) before the next step, if at all: the live rows
         # serve. The caller keeps the ids: a copy, as the next step reuses the row.
@@ -279,7 +279,7 @@ class Scheduler:
 
     def begin_step(self) -> int:
         """The number of the step a driver outside this class (a native step) is about to run
-        on :attr:`schedule`; refused between :meth:`select` and :meth:`update`."""
+        on :attr:`core`; refused between :meth:`select` and :meth:`update`."""
         if self._pending is not None:
             raise SchedulerError("a fused step between select() and update(): finish the step.")
         return self.step_count + 1
@@ -287,7 +287,7 @@ class Scheduler:
     def end_step(self, nalarm: int) -> None:
         """Record the step :meth:`begin_step` numbered, its ``nalarm`` alarms in the work rows
         (the native step ran it to completion)."""
-        self.schedule.step_count += 1
+        self.core.step_count += 1
         self._last_rows = self._alarm_rows
         self._nalarm = nalarm
 
@@ -356,7 +356,7 @@ class Scheduler:
         last = self._points
         step = last[5]
         if step is None or halfspaces is not None or pairs is not last[2] or shapes is not last[6]:
-            step = _core.FreeStep(self.schedule, pairs.records, planes, shapes)
+            step = _core.FreeStep(self.core, pairs.records, planes, shapes)
         if c is centers and v is velocities and halfspaces is None:
             self._points = (centers, velocities, pairs, pairs.shapes, c.shape, step, shapes)
         return step, c, v

@@ -157,4 +157,4 @@ class DeadlineScheduler(Scheduler, kind=DEADLINE):
                 f"step = {step} is invalid: new pairs must be due after step {self.step_count}."
             )
         # The schedule carries every kept verdict and counts the change (activation_changes).
-        self._adopt(self.schedule.carried(np.maximum(ids, -1), int(step)))
+        self._adopt(self.core.carried(np.maximum(ids, -1), int(step)))

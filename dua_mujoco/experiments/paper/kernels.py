@@ -46,7 +46,7 @@ def kernel_costs(n: int, params: WorldParams, reps: int, seed: int = 0) -> tuple
     dua = DUAScheduler(pairs.tau(ids, c, v), dt=1.0)
     inputs = (pairs.records, *pairs.inputs(c, v, None))
     step = _core.step_free
-    schedule = dua.schedule
+    schedule = dua.core
     step(schedule, *inputs)
     # Best of three: other processes only ever add time, so the minimum is the cleanest estimate.
     dua_ns = math.inf
