@@ -4,36 +4,24 @@ The Python side packs pair, sphere, shape, exact-level and violation-check recor
 native code reads them by column (``dua_mujoco/csrc/src/layout.h``, ``internal.h``). A column
 moved on one side only would have each side read the other's numbers as something else, with
 no error: this test compares every column and code the native core exports by name
-(``dua_layout_name``/``dua_layout_value``), the schedule's state and the plugin's config row
-included.
+(``dua_layout_name``/``dua_layout_value``, read as ``_core.LAYOUT``), the schedule's state and
+the plugin's config row included. The core's columns are read from ``_core.LAYOUT`` itself, so
+for them this holds the names: a column the native core drops or renames fails here.
 """
 
 from __future__ import annotations
 
-import ctypes
-
 import numpy as np
 
-from dua_mujoco import plugin
-from dua_mujoco.core import pairset, shape_kernels
+from dua_mujoco import _core, plugin
+from dua_mujoco.core import pairset, shapes
 from dua_mujoco.core.pairset import PairSet, pack_pairs
 from dua_mujoco.core.schedules import state
 from dua_mujoco.mj import events, exact_kernels, kinematics
-from dua_mujoco.native import declare
 
 
 def _native() -> dict[str, int]:
-    lib = declare(
-        {
-            "dua_layout_name": (ctypes.c_char_p, [ctypes.c_int64]),
-            "dua_layout_value": (ctypes.c_int64, [ctypes.c_int64]),
-        }
-    )
-    out, i = {}, 0
-    while (name := lib.dua_layout_name(i)) is not None:
-        out[name.decode()] = int(lib.dua_layout_value(i))
-        i += 1
-    return out
+    return {str(k): int(v) for k, v in _core.LAYOUT.items()}
 
 
 def _python() -> dict[str, int]:
@@ -41,16 +29,16 @@ def _python() -> dict[str, int]:
     for module, prefixes in (
         (pairset, ("PAIR_",)),
         (kinematics, ("SPHERE_",)),
-        (shape_kernels, ("SHAPE_",)),
+        (shapes, ("SHAPE_",)),
         (exact_kernels, ("GX_", "X_")),
         (events, ("B_", "NB_", "M_", "STATE_GROUP")),
         (state, ("W_", "P_", "WHERE", "LAST_STEP", "NEXT", "PREV", "NPARAMS")),
         (plugin, ("CFG_",)),
     ):
         values |= {k: v for k, v in vars(module).items() if k.startswith(prefixes)}
-    for enum in (pairset.PairKind, shape_kernels.ShapeKind, exact_kernels.ExactMode):
+    for enum in (pairset.PairKind, shapes.ShapeKind, exact_kernels.ExactMode):
         values |= {f"{enum.__name__}.{member.name}": int(member) for member in enum}
-    values |= {"RANK": state.RANK, "DEADLINE": state.DEADLINE}
+    values |= {"RANK": state.RANK, "DEADLINE": state.DEADLINE, "ALL": state.ALL}
     return values
 
 

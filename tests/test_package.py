@@ -104,3 +104,49 @@ def test_submodules_import() -> None:
         if parts[-1] == "__main__":
             continue
         importlib.import_module(".".join(parts))
+
+
+def test_the_core_and_the_experiments_reach_native_code_through_core_only() -> None:
+    """No numba, llvmlite or ctypes in dua_mujoco.core, the experiments or the benchmark scripts:
+    their kernels are the native core's, called through the compiled binding ``_core``."""
+    banned = {"numba", "llvmlite", "ctypes"}
+    paths = [
+        *sorted((PACKAGE / "core").rglob("*.py")),
+        *sorted((PACKAGE / "experiments").rglob("*.py")),
+        *sorted((ROOT / "benchmarks").glob("*.py")),
+    ]
+    offenders = []
+    for path in paths:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module or ""]
+            else:
+                continue
+            offenders += [
+                f"{path.relative_to(ROOT)}: {n}" for n in names if n.split(".")[0] in banned
+            ]
+    assert offenders == []
+
+
+def test_the_core_runs_without_numba() -> None:
+    """A sphere predictor's reset and step, tau and the schedules load no numba."""
+    code = (
+        "import sys\n"
+        "import numpy as np\n"
+        "from dua_mujoco import SpherePredictor, time_to_collision\n"
+        "from dua_mujoco.core.schedules import DUAScheduler\n"
+        "from dua_mujoco.core.shapes import time_to_static\n"
+        "p = SpherePredictor(np.full(3, 0.1), 1.0, dt=0.01)\n"
+        "c = np.arange(9.0).reshape(3, 3)\n"
+        "p.reset(c, np.zeros((3, 3)))\n"
+        "p.step(c, np.zeros((3, 3)))\n"
+        "DUAScheduler(time_to_collision(c, c, 0.1, 1.0), dt=0.01)\n"
+        "print(sorted(m for m in ('numba', 'llvmlite') if m in sys.modules))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"

@@ -1141,4 +1141,5 @@ NB_MODULE(_core, m) {
       PyErr_NewException("dua_mujoco._core.StepError", PyExc_RuntimeError, nullptr));
   m.attr("StepError") = step_error;
   BindRuntime(m, step_error);
+  BindCore(m);
 }
