@@ -95,7 +95,7 @@ EXACT_PERIODS = 1
 through their geoms: the alarm horizon, where the look can clear an alarm. Measured on 34
 scenes (docs/benchmarks.md) against 2 periods: the same standing alarms on every scene, 0-2 %
 more evaluations, dmc_dog 1.49x -> 1.27x of ``mj_step``, the rest within noise (the native step
-made a sphere tau cheap next to a look; with numba's, 1 to 32 periods cost about the same)."""
+makes a sphere tau cheap next to a look)."""
 QUERY_PERIODS = 1
 """MuJoCo is asked for a new direction when the pair's tau along its last one is below this
 many predictor periods past the latency: the alarm horizon, the only place a better direction

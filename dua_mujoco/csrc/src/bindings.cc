@@ -929,6 +929,38 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             return Owned(std::move(v), {n, 2});
           },
           "(k, 2) the counted geom pairs standing in alarm, in increasing order.")
+      .def(
+          "exact_only",
+          [](PyRuntime& self, const In<int64_t>& ids, const In<double>& coarse,
+             double query_below) {
+            Require(Size(ids) == Size(coarse), "ids and coarse must have the same length");
+            Require(self.rt->tables().exact, "the exact level is off");
+            std::vector<int64_t> v(ids.data(), ids.data() + ids.size());
+            for (const int64_t p : v) {
+              Require(p >= 0 && p < static_cast<int64_t>(self.rt->ids().size()),
+                      "a held pair is out of range");
+            }
+            return Owned(self.rt->ExactOnly(self.m, self.Data(), v,
+                                            std::vector<double>(coarse.data(),
+                                                                coarse.data() + coarse.size()),
+                                            query_below),
+                         {v.size()});
+          },
+          "ids"_a, "coarse"_a, "query_below"_a,
+          "For tests: the exact level alone on held pairs ids (records as built), nothing kept.")
+      .def(
+          "check_bodies_copy",
+          [](PyRuntime& self, bool lanes) {
+            auto [flagged, state] = self.rt->CheckBodiesCopy(self.m, self.Data(), lanes);
+            const size_t nf = flagged.size(), ns = state.size();
+            return nb::make_tuple(Owned(std::move(flagged), {nf}), Owned(std::move(state), {ns}));
+          },
+          "lanes"_a,
+          "For tests: the violation check of the bound MjData on a copy of its state: (flagged "
+          "rows, the state after, (ceil(nbody / 4), 40, 4) flat).")
+      .def(
+          "set_escape_check", [](PyRuntime& self, bool on) { self.rt->SetEscapeCheck(on); },
+          "on"_a, "For tests: pruned pairs without the escape check (what it guards).")
       .def_prop_ro("classified", [](const PyRuntime& s) { return s.rt->classified(); })
       .def_prop_ro("step_count", [](const PyRuntime& s) { return s.rt->step(); })
       .def_prop_ro("last_time", [](const PyRuntime& s) { return s.rt->last_time(); })
@@ -1077,6 +1109,29 @@ NB_MODULE(_core, m) {
       },
       "data"_a, "bodies"_a, "prev_pos"_a, "prev_quat"_a, "dt"_a, "user"_a, "linear"_a,
       "angular"_a, "twist"_a, "model"_a);
+  m.def(
+      "index_by_row",
+      [](const In<int64_t>& row_of_geom, const In<int64_t>& g1, const In<int64_t>& g2,
+         int64_t nrow) {
+        const int64_t n = Size(g1), ngeom = Size(row_of_geom);
+        Require(Size(g2) == n, "g1 and g2 must have the same length");
+        for (int64_t k = 0; k < n; ++k) {
+          Require(g1.data()[k] >= -1 && g1.data()[k] < ngeom && g2.data()[k] >= -1 &&
+                      g2.data()[k] < ngeom,
+                  "a geom id is out of range");
+        }
+        for (int64_t g = 0; g < ngeom; ++g) {
+          Require(row_of_geom.data()[g] >= -1 && row_of_geom.data()[g] < nrow,
+                  "a row is out of range");
+        }
+        std::vector<int64_t> start(nrow + 1), members(std::max<int64_t>(2 * n, 1));
+        members.resize(dua_index_by_row(row_of_geom.data(), g1.data(), g2.data(), n, nrow,
+                                        start.data(), members.data()));
+        const size_t ns = start.size(), nm = members.size();
+        return nb::make_tuple(Owned(std::move(start), {ns}), Owned(std::move(members), {nm}));
+      },
+      "row_of_geom"_a, "g1"_a, "g2"_a, "nrow"_a,
+      "The runtime's index of held pairs by the violation check's rows: (start, members).");
   m.def("candidate_pairs", &CandidatePairs, "centers"_a, "reach"_a, "margin"_a);
   m.def("reaches", &Reaches, "radius"_a, "speed"_a, "accel"_a, "delta"_a, "vmax"_a, "horizon"_a);
   m.def("escapes", &Escapes, "anchor"_a, "speed0"_a, "accel"_a, "delta"_a, "vmax"_a, "ids"_a,

@@ -374,7 +374,7 @@ int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   schedule_->step_count = n;
   last_time_ = d->time;
   Log(result);
-  if (t.pruned && args_.events.nbody && events_meta_[kMCount]) {
+  if (t.pruned && escape_check_ && args_.events.nbody && events_meta_[kMCount]) {
     pruned_.FindEscapes(t.held, args_, step_);
   }
   TrackStep();
@@ -586,6 +586,33 @@ int64_t Runtime::DeactivateContacts(const mjData* d) {
   }
   Switch(ids, false);
   return noff;
+}
+
+std::vector<double> Runtime::ExactOnly(const mjModel* m, const mjData* d,
+                                       const std::vector<int64_t>& ids,
+                                       const std::vector<double>& coarse, double query_below) {
+  std::vector<double> records = exact_records_;
+  const std::vector<double>& built = tables_->universe.exact;
+  if (!tables_->pruned) records = built;  // the records as built, no direction learnt
+  dua_step_args a = Bind(m, d);
+  a.exact.records = records.data();
+  a.exact.query_below = query_below;
+  std::vector<double> out = coarse;
+  dua_exact_pass(&a, ids.data(), static_cast<int64_t>(ids.size()), out.data());
+  Bind(m, d);
+  return out;
+}
+
+std::pair<std::vector<int64_t>, std::vector<double>> Runtime::CheckBodiesCopy(const mjModel* m,
+                                                                             const mjData* d,
+                                                                             bool lanes) {
+  std::vector<double> prev = events_prev_;
+  std::vector<int64_t> meta = events_meta_, flagged = events_flagged_;
+  dua_step_args a = Bind(m, d);
+  a.events.prev = prev.data(), a.events.meta = meta.data(), a.events.flagged = flagged.data();
+  const int64_t count = dua_check_bodies(&a, lanes ? 1 : 0);
+  flagged.resize(count);
+  return {flagged, prev};
 }
 
 std::vector<int64_t> Runtime::FlaggedBodies() const {

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "dua/dua.h"
@@ -99,6 +100,19 @@ class DUA_API Runtime {
   // Mocap bodies: a velocity given instead of differenced (world frame), or back to differencing.
   void SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]);
   void ClearMocapVelocity(int64_t mocap);
+
+  // ---------------------------------------------------------------------- for tests
+  // The exact level alone on held pairs ids, from sphere taus `coarse`, with the level's records
+  // as built (no direction learnt) and MuJoCo asked afresh below query_below; nothing changes.
+  std::vector<double> ExactOnly(const mjModel* m, const mjData* d, const std::vector<int64_t>& ids,
+                                const std::vector<double>& coarse, double query_below);
+  // The violation check of d's state on a copy of its state, four bodies at a time or one at a
+  // time (the reference the lanes are held to): the flagged rows and the state written after.
+  std::pair<std::vector<int64_t>, std::vector<double>> CheckBodiesCopy(const mjModel* m,
+                                                                      const mjData* d, bool lanes);
+  // Pruned pairs: whether the step looks for escaped spheres (on; off only to show what the
+  // check guards).
+  void SetEscapeCheck(bool on) { escape_check_ = on; }
 
   // ---------------------------------------------------------------------- what it holds
   const Tables& tables() const { return *tables_; }
@@ -189,6 +203,7 @@ class DUA_API Runtime {
   std::shared_ptr<AlarmLog> log_;
   int64_t log_used_ = 0, log_start_ = 0;
   bool classified_ = false;
+  bool escape_check_ = true;
   double last_time_ = 0.0;
   int64_t step_ = 0;
   int64_t rebuilds_ = 0, renewals_ = 0;
