@@ -38,7 +38,13 @@ from dua_mujoco.exceptions import (
     ShapeError,
 )
 
-__all__ = ["Scheduler", "active_mask"]
+__all__ = ["Scheduler", "active_mask", "standing"]
+
+
+def standing(schedule: _core.Schedule) -> np.ndarray:
+    """``(k,)`` the pairs standing in alarm in ``schedule`` now, increasing (its own rule)."""
+    m = int(schedule.last_tau.shape[0])
+    return np.flatnonzero(_core.stands(schedule, np.arange(m, dtype=np.int64)))
 
 
 def active_mask(active: npt.ArrayLike | None, m: int) -> np.ndarray | None:
@@ -103,7 +109,7 @@ class Scheduler:
 
         sub = Scheduler._KINDS[int(schedule.kind)]
         out = sub.__new__(sub)
-        out._wrap(schedule, np.flatnonzero(schedule.alarm_state()))
+        out._wrap(schedule, standing(schedule))
         out._derive()
         return out
 
@@ -173,10 +179,11 @@ class Scheduler:
         return np.asarray(self._state.last_tau[np.asarray(pair)])
 
     def alarm_state(self, pair: npt.ArrayLike | None = None) -> np.ndarray:
-        """Whether each pair stands in alarm: its latest verdict does not cover the time until
-        its next one (the alarm rule on its last tau)."""
+        """Whether each pair stands in alarm: switched on, and its latest verdict does not cover
+        the time until its next one (the schedule's own alarm rule, ``Schedule::Stands``)."""
         idx = np.arange(self.npairs) if pair is None else np.asarray(pair, dtype=np.int64)
-        return np.asarray(self._state.last_tau[idx] < self.horizon_of(idx))
+        flat = np.ascontiguousarray(idx.reshape(-1))
+        return np.asarray(_core.stands(self.core, flat)).reshape(idx.shape)
 
     def horizon_of(self, pair: npt.ArrayLike) -> np.ndarray:
         """The alarm horizon (seconds) each pair's latest verdict must cover (``-inf`` for a

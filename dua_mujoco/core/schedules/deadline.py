@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 import dua_mujoco._core as _core
-from dua_mujoco.core.schedules.base import Scheduler, active_mask
+from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
 from dua_mujoco.core.schedules.state import DEADLINE, P_BACKOFF, P_CAP, P_MAX_INTERVAL, WHERE
 from dua_mujoco.core.validate import as_ids, check_period, check_urgencies
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError
@@ -118,7 +118,7 @@ class DeadlineScheduler(Scheduler, kind=DEADLINE):
             max_interval=int(max_interval),
             backoff=backoff,
         )
-        self._wrap(schedule, np.flatnonzero((tau < schedule.horizon[0]) & schedule.active))
+        self._wrap(schedule, standing(schedule))
         self._derive()
 
     def _derive(self) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 import dua_mujoco._core as _core
-from dua_mujoco.core.schedules.base import Scheduler, active_mask
+from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
 from dua_mujoco.core.schedules.state import ALL
 from dua_mujoco.core.validate import check_period, check_urgencies, real_array
 from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
@@ -72,7 +72,7 @@ class SelectAllScheduler(Scheduler, kind=ALL):
             active_mask(active, values.shape[0]),
             threshold=float(threshold),
         )
-        self._wrap(schedule, np.flatnonzero((values < threshold) & schedule.active))
+        self._wrap(schedule, standing(schedule))
 
     def _derive(self) -> None:
         # A schedule made elsewhere (Scheduler.of): tau's threshold, or SA(d)'s distance.

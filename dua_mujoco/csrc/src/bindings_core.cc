@@ -166,6 +166,18 @@ class FreeStep {
   In<double> pairs_, planes_, shapes_;  // hold their arrays
 };
 
+// Whether pairs ids (n,) stand in alarm: the schedule's own rule (Schedule::Stands), O(n).
+Out<bool> Stands(const Schedule& sched, const In<int64_t>& ids) {
+  const int64_t n = Size(ids), m = sched.m();
+  std::vector<uint8_t> out(n);
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t p = ids.data()[k];
+    Require(p >= 0 && p < m, "pair ids must lie in [0, the schedule's pairs)");
+    out[k] = sched.Stands(p) ? 1 : 0;
+  }
+  return OwnedBools(std::move(out));
+}
+
 // The pairs standing in alarm among m, kept in O(renewed pairs) a step: a list with each
 // pair's place in it (-1: not standing), renewed pairs swap-removed, alarmed ones appended.
 class StandingAlarms {
@@ -255,6 +267,8 @@ void BindCore(nb::module_& m) {
         "shapes"_a,
         "Schedule.step_points checking the selected pairs' records only: (alarms, bad pair or "
         "-1, evaluated).");
+  m.def("stands", &Stands, "schedule"_a, "ids"_a,
+        "(n,) bool: whether each pair stands in alarm, by the schedule's own rule.");
   m.def("grid_plan", &GridPlan, "reach"_a, "margin"_a, "lo"_a, "hi"_a,
         "The candidate grid's plan (cell edge, bucket map, held-out ids) as a dict.");
 
