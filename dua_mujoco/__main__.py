@@ -1,8 +1,8 @@
 """``python -m dua_mujoco`` = the ``dua-mujoco`` command (its console script calls :func:`main`).
 
 This module imports nothing heavy: it takes Ctrl-C over before the command's imports (MuJoCo,
-numpy, the compiled core) begin, so that an interrupt at any point of the set-up is one line and exit 130,
-like the run loop's. An interrupt in the middle of an extension module's initialisation does not
+numpy, the compiled core) begin, so that an interrupt at any point of the set-up is one line and
+exit 130, like the run loop's. An interrupt in the middle of an extension module's initialisation does not
 always surface as ``KeyboardInterrupt`` (numpy turns it into an ``ImportError``), so the handler
 records that it fired, and whatever escapes afterwards is reported as the interrupt it is.
 """

@@ -85,5 +85,9 @@ def test_alarms_name_their_pairs() -> None:
         np.testing.assert_array_equal(a.geom2, t.geom2[a.pairs])
         np.testing.assert_array_equal(a.sphere1, t.first[a.pairs])
         halfspace_or_shape = t.kind[a.pairs] != 0
-        np.testing.assert_array_equal(a.sphere2, np.where(halfspace_or_shape, -1, t.second[a.pairs]))
-        assert a.names == [(t.geom_names[g1], t.geom_names[g2]) for g1, g2 in zip(a.geom1, a.geom2)]
+        np.testing.assert_array_equal(
+            a.sphere2, np.where(halfspace_or_shape, -1, t.second[a.pairs])
+        )
+        assert a.names == [
+            (t.geom_names[g1], t.geom_names[g2]) for g1, g2 in zip(a.geom1, a.geom2, strict=True)
+        ]

@@ -22,7 +22,9 @@ from dua_mujoco.mj.scenes import load_scene
 
 
 def test_the_python_packers_write_the_stated_widths() -> None:
-    assert pack_pairs(PairSet([0], [1], 0.1, 1.0)).shape[1] == PAIR_NCOL == _core.LAYOUT["PAIR_NCOL"]
+    assert (
+        pack_pairs(PairSet([0], [1], 0.1, 1.0)).shape[1] == PAIR_NCOL == _core.LAYOUT["PAIR_NCOL"]
+    )
     spheres = kinematics.pack_spheres([0], [1], np.zeros((1, 3)), [0, 1])
     assert spheres.shape[1] == kinematics.SPHERE_NCOL == _core.LAYOUT["SPHERE_NCOL"]
 

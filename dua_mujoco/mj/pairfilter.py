@@ -67,9 +67,12 @@ class FilterTables:
         }  # fmt: skip
         for name, value in arrays.items():
             object.__setattr__(self, name, value)
-        object.__setattr__(
-            self, "_native", _core.Filter(**arrays, filterparent=bool(self.filterparent))
-        )
+        native = _core.Filter(
+            arrays["body"], arrays["weld"], arrays["parent_weld"], arrays["movable"],
+            arrays["contype"], arrays["conaffinity"], arrays["lone"], arrays["exclude"],
+            bool(self.filterparent),
+        )  # fmt: skip
+        object.__setattr__(self, "_native", native)
 
     @classmethod
     def of(cls, model: mujoco.MjModel) -> FilterTables:

@@ -87,15 +87,18 @@ def alarm_periods(alarm_horizon: object, dt: float) -> int:
     """
     if alarm_horizon is None:
         return 1
-    ok = isinstance(alarm_horizon, int | float | np.integer | np.floating) and not isinstance(
-        alarm_horizon, bool
+    seconds = (
+        float(alarm_horizon)
+        if isinstance(alarm_horizon, int | float | np.integer | np.floating)
+        and not isinstance(alarm_horizon, bool)
+        else math.nan
     )
-    if not ok or not math.isfinite(float(alarm_horizon)) or float(alarm_horizon) < dt * (1 - 1e-9):
+    if not math.isfinite(seconds) or seconds < dt * (1 - 1e-9):
         raise InvalidInputError(
             f"alarm_horizon = {alarm_horizon!r} is invalid: pass the seconds of warning wanted, "
             f"at least one predictor period ({dt:g} s), or None for one period."
         )
-    return max(1, math.ceil(float(alarm_horizon) / dt - 1e-9))
+    return max(1, math.ceil(seconds / dt - 1e-9))
 
 
 class Predictor:
@@ -352,7 +355,7 @@ class Predictor:
             raise self._nonfinite(data)
         static_shapes(self.model, self.covering.shape_geom, data)  # where the tables put them
         try:
-            alarms = self._rt.classify()
+            alarms: Alarms = self._rt.classify()
         except _core.StepError as error:
             raise self._step_error(data, error) from None
         self._steps_at_reset = int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number)
@@ -376,9 +379,10 @@ class Predictor:
         if data is not self._data:
             self._bind(data)
         try:
-            return self._rt.step()  # type: ignore[no-any-return]
+            alarms: Alarms = self._rt.step()
         except _core.StepError as error:
             raise self._step_error(data, error) from None
+        return alarms
 
     def new_scheduler(self, tau0: np.ndarray) -> Scheduler:
         """A scheduler of this predictor's schedule and options over ``tau0`` ``(K,)``."""
@@ -446,7 +450,7 @@ class Predictor:
             return None
         core = self._rt.schedule
         if self._scheduler is None or self._scheduler.core is not core:
-            self._scheduler = Scheduler.of(core)
+            self._scheduler = Scheduler.of(core, read_only=True)
         return self._scheduler
 
     def pair_state(self) -> PairState:

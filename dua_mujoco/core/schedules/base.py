@@ -81,6 +81,7 @@ class Scheduler:
         self._adopt(schedule)
         self.initial_alarms = np.asarray(initial_alarms, dtype=np.int64)
         self._pending: np.ndarray | None = None
+        self._read_only = False
         # The latest step's alarm rows (W_ALARMS, W_NEW) and their count: the live work rows
         # (valid until the next step, which resets both), or ones for the classification.
         self._last_rows = np.ones((2, self.initial_alarms.shape[0]), dtype=np.int64)
@@ -96,11 +97,18 @@ class Scheduler:
         self._points: tuple = (None,) * 7
 
     @classmethod
-    def of(cls, schedule: _core.Schedule) -> Scheduler:
+    def of(cls, schedule: _core.Schedule, *, read_only: bool = False) -> Scheduler:
         """A scheduler over an existing ``_core.Schedule`` (the predictor's runtime's, say), of
         the subclass of its kind, without classifying again: its steps, counts and verdicts are
         the schedule's (``step_count`` reads it), its ``initial_alarms`` the pairs standing in
-        alarm now."""
+        alarm now.
+
+        Args:
+            schedule: The schedule to wrap.
+            read_only: Refuse every call that steps the schedule or switches its pairs (a view
+                of a schedule that another driver steps: a second driver would desynchronise
+                the two).
+        """
         if not isinstance(schedule, _core.Schedule):
             raise InvalidInputError(
                 f"Scheduler.of takes a dua_mujoco._core.Schedule; got {type(schedule).__name__}."
@@ -110,8 +118,17 @@ class Scheduler:
         sub = Scheduler._KINDS[int(schedule.kind)]
         out = sub.__new__(sub)
         out._wrap(schedule, standing(schedule))
+        out._read_only = bool(read_only)
         out._derive()
         return out
+
+    def _check_writable(self, call: str) -> None:
+        if self._read_only:
+            raise SchedulerError(
+                f"{call}: this scheduler is read-only, a view of a schedule that its owner "
+                "steps (Predictor.scheduler); step and switch pairs through the owner "
+                "(Predictor.step, Predictor.set_active_bodies)."
+            )
 
     def _derive(self) -> None:
         """Set the subclass's attributes from the schedule (its options)."""
@@ -130,6 +147,7 @@ class Scheduler:
 
     @step_count.setter
     def step_count(self, value: int) -> None:
+        self._check_writable("step_count")
         self.core.step_count = int(value)
 
     @property
@@ -227,6 +245,7 @@ class Scheduler:
         evaluation, at the next step: nothing is known of its motion while it was off, and that
         step can be a whole period away (docs/theory.md, "Pairs switched back on").
         """
+        self._check_writable("set_active()")
         if self._pending is not None:
             raise SchedulerError("set_active() between select() and update(): finish the step.")
         ids = as_ids("pairs", np.atleast_1d(np.asarray(pairs, dtype=np.int64)))
@@ -239,6 +258,7 @@ class Scheduler:
 
     def select(self) -> np.ndarray:
         """Pair ids to evaluate this step (one ``update`` must follow), ``(n,)`` int64."""
+        self._check_writable("select()")
         if self._pending is not None:
             raise SchedulerError(
                 "select() called twice without update(): evaluate the selected pairs and pass "
@@ -287,6 +307,7 @@ class Scheduler:
     def begin_step(self) -> int:
         """The number of the step a driver outside this class (a native step) is about to run
         on :attr:`core`; refused between :meth:`select` and :meth:`update`."""
+        self._check_writable("begin_step()")
         if self._pending is not None:
             raise SchedulerError("a fused step between select() and update(): finish the step.")
         return self.step_count + 1
@@ -319,6 +340,7 @@ class Scheduler:
         Returns:
             ``(k,)`` int64 ids of the alarmed pairs.
         """
+        self._check_writable("step_points()")
         if self._pending is not None:
             raise SchedulerError("a fused step between select() and update(): finish the step.")
         last = self._points

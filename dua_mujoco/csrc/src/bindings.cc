@@ -820,6 +820,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             if (bad >= 0) self.Fail("pair", nb::int_(self.rt->ids()[bad]));
             return self.MakeAlarms(self.rt->log_count());
           },
+          nb::sig("def classify(self) -> Alarms"),
           "The initial classification of the bound MjData's state.")
       .def(
           "step",
@@ -836,6 +837,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             if (r < 0) self.Fail("pair", nb::int_(self.rt->ids()[-1 - r]));
             return self.MakeAlarms(r);
           },
+          nb::sig("def step(self) -> Alarms"),
           "One predictor step on the bound MjData, one period after the last.")
       .def("clock_of",
            [](const PyRuntime& self, double time) {
@@ -1020,6 +1022,14 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
                          Owned(std::vector<uint8_t>(s.rt->mocap_user()), {n}));
                    },
                    "(linear (nmocap, 3), angular (nmocap, 3), given (nmocap,)): copies.")
+      .def_prop_ro(
+          "exact_records",
+          [](const PyRuntime& s) {
+            const std::vector<double>& r = s.rt->exact_records();
+            const auto ncol = static_cast<size_t>(kXNcol);
+            return Owned(std::vector<double>(r), {r.size() / ncol, ncol});
+          },
+          nb::rv_policy::move, "The exact level's records with the directions learnt: a copy.")
       .def_prop_ro("root_twist", [](const PyRuntime& s) {
         return Owned(std::vector<double>(s.rt->root_twist()), {static_cast<size_t>(s.m->nbody), 6});
       }, nb::rv_policy::move);

@@ -124,6 +124,8 @@ class DUA_API Runtime {
   int64_t universe_version() const { return universe_version_; }
   // The held pairs' model ids (sorted), and the schedule over them.
   const std::vector<int64_t>& ids() const { return ids_; }
+  // The exact level's records with the directions learnt so far (empty when the level is off).
+  const std::vector<double>& exact_records() const { return exact_records_; }
   int64_t held_version() const { return held_version_; }
   // Replaced (never resized) by a classification or a carry: a holder keeps the one it has.
   const std::shared_ptr<Schedule>& schedule() const { return schedule_; }

@@ -77,6 +77,7 @@ class BroadphaseScene:
         if ctx.sh_ids.size:
             # A handful of static shapes too: their exact gap, as for the planes.
             pairs = p.pair_set
+            assert pairs.shapes is not None  # shape pairs carry their records
             i = pairs.first[ctx.sh_ids]
             gaps = _core.static_gap(c[i], pairs.shapes, pairs.second[ctx.sh_ids])[:, 0]
             alarms.append(ctx.sh_ids[gaps - pairs.eps[ctx.sh_ids] <= reach[i]])
