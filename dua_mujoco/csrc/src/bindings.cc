@@ -327,6 +327,27 @@ Out<double> Reaches(const In<double>& radius, const In<double>& speed, const In<
   return Owned(std::move(out), {static_cast<size_t>(n)});
 }
 
+// Candidate pairs (k, 2) of spheres ids against every sphere by anchors (n, 3) and reaches (n,):
+// the pruned step's own search (dua_reach_pairs), for tests.
+Out<int64_t> ReachPairs(const In<double>& anchor, const In<double>& reach, double margin,
+                        const In<int64_t>& ids) {
+  const int64_t nsphere = Size(reach), n = Size(ids);
+  Require(Size(anchor) == 3 * nsphere, "anchor must be (n, 3) for reach (n,)");
+  for (int64_t k = 0; k < n; ++k) {
+    Require(ids.data()[k] >= 0 && ids.data()[k] < nsphere, "a sphere id is out of range");
+  }
+  dua_reach r{};
+  r.nsphere = nsphere;
+  r.anchor = const_cast<double*>(anchor.data());  // read only
+  r.reach = const_cast<double*>(reach.data());
+  r.margin = margin;
+  const int64_t count = dua_reach_pairs(&r, ids.data(), n, nullptr, 0);
+  std::vector<int64_t> out(2 * static_cast<size_t>(std::max<int64_t>(count, 1)));
+  Require(dua_reach_pairs(&r, ids.data(), n, out.data(), count) == count, "the pairs changed");
+  out.resize(2 * static_cast<size_t>(count));
+  return Owned(std::move(out), {static_cast<size_t>(count), 2});
+}
+
 // The spheres of ids (n,) that may have left the reach from anchors (Lemma 6.4): the step's own
 // escape test (reach.cc), for free spheres.
 Out<int64_t> Escapes(const In<double>& anchor, const In<double>& speed0, const In<double>& accel,
@@ -1069,6 +1090,20 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             return Owned(std::vector<double>(r), {r.size() / ncol, ncol});
           },
           nb::rv_policy::move, "The exact level's records with the directions learnt: a copy.")
+      .def(
+          "reaches",
+          [](const PyRuntime& s) {
+            const PrunedState& ps = s.rt->pruned_state();
+            const size_t n = ps.reach.size();
+            nb::dict out;
+            out["anchor"] = Owned(std::vector<double>(ps.anchor), {n, 3});
+            out["reach"] = Owned(std::vector<double>(ps.reach), {n});
+            out["built"] = Ints(ps.built);
+            out["margin"] = s.rt->tables().held.margin;
+            return out;
+          },
+          "Pruned pairs: each sphere's anchor (n, 3), reach (n,), anchor step (n,), and the "
+          "largest contact distance beyond the radii (copies).")
       .def_prop_ro("root_twist", [](const PyRuntime& s) {
         return Owned(std::vector<double>(s.rt->root_twist()), {static_cast<size_t>(s.m->nbody), 6});
       }, nb::rv_policy::move);
@@ -1183,6 +1218,7 @@ NB_MODULE(_core, m) {
       "The runtime's index of held pairs by the violation check's rows: (start, members).");
   m.def("candidate_pairs", &CandidatePairs, "centers"_a, "reach"_a, "margin"_a);
   m.def("reaches", &Reaches, "radius"_a, "speed"_a, "accel"_a, "delta"_a, "vmax"_a, "horizon"_a);
+  m.def("reach_pairs", &ReachPairs, "anchor"_a, "reach"_a, "margin"_a, "ids"_a);
   m.def("escapes", &Escapes, "anchor"_a, "speed0"_a, "accel"_a, "delta"_a, "vmax"_a, "ids"_a,
         "centers"_a, "velocities"_a, "elapsed"_a);
   m.def("sphere_pairs", &SpherePairs, "g1"_a, "g2"_a, "dist"_a, "index"_a, "start"_a, "plane"_a,

@@ -167,6 +167,8 @@ class DUA_API Runtime {
   int64_t mocap_updates() const { return mocap_updates_; }
   // Each sphere's anchor step (pruned pairs; empty otherwise).
   const std::vector<int64_t>& anchor_steps() const { return pruned_.built; }
+  // Pruned pairs: each sphere's anchor, reach, and the largest contact distance beyond radii.
+  const PrunedState& pruned_state() const { return pruned_; }
   const std::shared_ptr<AlarmLog>& log() const { return log_; }
   int64_t log_start() const { return log_start_; }
   // Alarms of the latest step or classification (logged from log_start()).
