@@ -312,3 +312,38 @@ def test_a_model_with_mocap_bodies_is_refused() -> None:
     p.reset(d)
     with pytest.raises(InvalidInputError, match="mocap"):
         p.set_plan(np.tile(d.qpos, (5, 1)), deviation=0.0)
+
+
+def test_the_monitor_judges_a_planned_body_by_its_deviation() -> None:
+    """Bounds far too small for gravity (every falling body breaks them every step) and exact
+    plans: the run monitor counts no violation while the plans hold (a pair under a plan does
+    not rest on the bounds), no onset comes with less lead than the horizon after the start,
+    and none is missed; without the plans the same run breaks the bounds throughout."""
+    from dua_mujoco.mj.monitor import Monitor
+
+    horizon, every, steps = 0.1, 25, 500
+    n = round(horizon / 0.002) + 2 * every
+
+    def report(planned: bool):
+        m, d = _scene()
+        ctrl = _controls(m, steps + n + 2, seed=6)
+        p = Predictor(m, accel=1.0, alarm_horizon=horizon)
+        monitor = Monitor(p)
+        mujoco.mj_step(m, d)
+        monitor.start(d)
+        for k in range(steps):
+            if planned and k % every == 0:
+                p.set_plan(_rollout(m, d, ctrl[k:], n), deviation=0.0)
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            monitor.observe(d, p.step(d))
+        monitor.finish()
+        return p, monitor
+
+    p, planned = report(True)
+    assert p.plan_breaks == 0
+    assert planned.onsets >= 3 and planned.misses == []
+    assert planned.violations == 0 and planned.warning.short_held == 0
+    assert planned.warning.short_leads == planned.warning.short_at_start
+    _, bounds_only = report(False)
+    assert bounds_only.violations > 100
