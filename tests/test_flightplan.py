@@ -25,7 +25,9 @@ SCENE = """
     <geom name="floor" type="plane" size="2 2 .1"/>
     <geom name="wall" type="box" size=".05 .5 .3" pos=".8 0 .3"/>
     <body name="ball" pos="0 0 .3"><freejoint/><geom name="ball" size=".05"/></body>
-    <body name="box" pos=".3 .3 .4"><freejoint/><geom name="box" type="box" size=".05 .04 .03"/></body>
+    <body name="box" pos=".3 .3 .4">
+      <freejoint/><geom name="box" type="box" size=".05 .04 .03"/>
+    </body>
     <body name="arm" pos=".4 -.3 .2">
       <joint name="swing" type="hinge" axis="0 0 1" damping=".1"/>
       <geom name="link" type="capsule" fromto="0 0 0 .35 0 0" size=".03"/>
@@ -295,7 +297,7 @@ def test_bad_plans_are_refused_by_name() -> None:
     bad[4, 2] = np.nan
     with pytest.raises(InvalidInputError, match=r"qpos\[4, 2\] = nan"):
         p.set_plan(bad, deviation=0.0)
-    with pytest.raises(InvalidInputError, match="knot 3 of body 2 \\('box'\\) is -1.0"):
+    with pytest.raises(InvalidInputError, match=r"knot 3 of body 2 \('box'\) is -1\.0"):
         dev = np.zeros((10, m.nbody))
         dev[3, 2] = -1.0
         p.set_plan(q, deviation=dev)
