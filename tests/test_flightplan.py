@@ -349,3 +349,40 @@ def test_the_monitor_judges_a_planned_body_by_its_deviation() -> None:
     assert planned.warning.short_leads == planned.warning.short_at_start
     _, bounds_only = report(False)
     assert bounds_only.violations > 100
+
+
+def test_the_plugin_follows_a_plan_as_the_predictor_does() -> None:
+    """The plugin (inside mj_step, reading the state before time advances) and the Python
+    predictor (after it) given the same plans stand the same pairs after every step: the plan's
+    knots are placed by the state each reads."""
+    from dua_mujoco.plugin import attach, clear_plan, set_plan, standing_pairs
+
+    spec = mujoco.MjSpec.from_string(SCENE)
+    p = attach(spec, accel=ACCEL, alarm_horizon=0.1)
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    d.qvel[0] = 1.5
+    steps, every, n = 300, 20, 100
+    ctrl = _controls(m, steps + n, seed=7)
+    busy = 0
+    for k in range(steps):
+        if k % every == 0 and k:
+            plan = _rollout(m, d, ctrl[k:], n)
+            set_plan(m, d, plan, deviation=0.002)
+            p.set_plan(plan, deviation=0.002)
+        if k == 250:
+            clear_plan(m, d)
+            p.clear_plan()
+        d.ctrl[:] = ctrl[k]
+        mujoco.mj_step(m, d)
+        if k == 0:
+            p.reset(d)
+            continue
+        p.step(d)
+        state = p.pair_state()
+        stand = np.flatnonzero(state.alarm_state() & state.active)
+        want = {tuple(sorted((int(p.tables.geom1[i]), int(p.tables.geom2[i])))) for i in stand}
+        got = {tuple(int(g) for g in row) for row in standing_pairs(m, d)}
+        assert got == want, f"step {k}"
+        busy += bool(want)
+    assert busy > 20 and p.plan_breaks == 0

@@ -1268,6 +1268,31 @@ NB_MODULE(_core, m) {
       },
       "model"_a, "data"_a, "instance"_a, "body_a"_a, "body_b"_a, "on"_a);
   m.def(
+      "plugin_set_plan",
+      [](nb::handle model, nb::handle data, int instance, const In<double>& qpos,
+         const In<double>& deviation, double start) {
+        const mjModel* mm = ModelOf(model);
+        Require(qpos.ndim() == 2 && static_cast<int64_t>(qpos.shape(1)) == mm->nq,
+                "qpos must be (n, nq)");
+        const auto n = static_cast<int64_t>(qpos.shape(0));
+        Require(deviation.ndim() == 2 && static_cast<int64_t>(deviation.shape(0)) == n &&
+                    static_cast<int64_t>(deviation.shape(1)) == mm->nbody,
+                "deviation must be (n, nbody)");
+        char error[512] = {0};
+        const int64_t r = dua_plugin_set_plan(mm, const_cast<mjData*>(DataOf(data)), instance,
+                                              qpos.data(), n, deviation.data(), start, error,
+                                              sizeof(error));
+        if (r == -3) Raise("InvalidInputError", std::string(error) + ".");
+        return r;
+      },
+      "model"_a, "data"_a, "instance"_a, "qpos"_a, "deviation"_a, "start"_a);
+  m.def(
+      "plugin_clear_plan",
+      [](nb::handle model, nb::handle data, int instance) {
+        return dua_plugin_clear_plan(ModelOf(model), const_cast<mjData*>(DataOf(data)), instance);
+      },
+      "model"_a, "data"_a, "instance"_a);
+  m.def(
       "plugin_deactivate_contacts",
       [](nb::handle model, nb::handle data, int instance) {
         return dua_plugin_deactivate_contacts(ModelOf(model), const_cast<mjData*>(DataOf(data)),

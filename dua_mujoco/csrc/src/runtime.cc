@@ -96,7 +96,8 @@ Runtime::Runtime(const Runtime& o)
       held_version_(o.held_version_),
       plan_(o.plan_),  // immutable: shared; the mjData it is queried on is made when needed
       plan_ok_(o.plan_ok_),
-      plan_breaks_(o.plan_breaks_) {
+      plan_breaks_(o.plan_breaks_),
+      read_lag_(o.read_lag_) {
   NewLog();  // never append to another run's log
 }
 
@@ -251,8 +252,7 @@ std::string Runtime::SetPlan(const mjModel* m, const double* qpos, int64_t n, co
   auto plan = std::make_shared<Plan>();
   std::string error = plan->Build(m, plan_data_.get(), qpos, n, dev, start, m->opt.timestep);
   if (!error.empty()) return error;
-  // The next step reads the state MuJoCo's step started from.
-  const double next = last_time_ + tables_->schedule.dt - m->opt.timestep;
+  const double next = last_time_ + tables_->schedule.dt - read_lag_ * m->opt.timestep;
   if (plan->KnotOf(next) < 0) {
     return "does not cover the state the next step reads (time " + std::to_string(next) +
            "): start it at or before that time, on a whole number of timesteps from it, with " +
@@ -280,7 +280,7 @@ void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
   if (!plan_) return;
   // A classification (n = 0) evaluates every pair anyway, on a schedule it makes afresh.
   const bool due = n > 0;
-  const int64_t k = plan_->KnotOf(d->time - m->opt.timestep);
+  const int64_t k = plan_->KnotOf(StateTime(m, d));
   if (k < 0) {
     // Past the plan (or a clock the plan does not know): the bounds alone from here on.
     plan_.reset();
@@ -308,7 +308,7 @@ void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
 
 std::vector<int64_t> Runtime::PlanBroken(const mjModel* m, const mjData* d) const {
   std::vector<int64_t> out;
-  const int64_t k = plan_ ? plan_->KnotOf(d->time - m->opt.timestep) : -1;
+  const int64_t k = plan_ ? plan_->KnotOf(StateTime(m, d)) : -1;
   if (k < 0) return {-1};
   plan_->Check(m, d, k, &out);
   return out;

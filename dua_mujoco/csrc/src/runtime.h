@@ -102,12 +102,18 @@ class DUA_API Runtime {
   // Flight plans (plan.h): qpos (n, nq), row j the state at time start + j h (h the model's
   // timestep), and dev (n, nbody), each body's deviation bound at each knot. Every held pair is
   // evaluated again at the next step, under the plan. The plan must cover the state the next
-  // step reads (the state MuJoCo's step started from: d->time - h). Returns an error message
-  // naming the bad input, or "".
+  // step reads (StateTime). Returns an error message naming the bad input, or "".
   std::string SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
                       double start);
   // Back to the motion bounds alone (every held pair evaluated again at the next step).
   void ClearPlan();
+  // How many timesteps the state a step reads lags d->time: 1 after mj_step (Python's Predictor,
+  // whose state is the one MuJoCo's step started from), 0 inside mj_step (the plugin's compute,
+  // before time advances). Plans place their knots by it.
+  void SetReadLag(int steps) { read_lag_ = steps; }
+  double StateTime(const mjModel* m, const mjData* d) const {
+    return d->time - read_lag_ * m->opt.timestep;
+  }
   bool has_plan() const { return plan_ != nullptr; }
   const Plan* plan() const { return plan_.get(); }
   // Bodies found beyond their deviation since the plan came (their pairs follow the bounds).
@@ -254,6 +260,7 @@ class DUA_API Runtime {
   std::unique_ptr<mjData, DataDeleter> plan_data_;
   std::vector<uint8_t> plan_ok_, planned_;
   int64_t plan_breaks_ = 0;
+  int read_lag_ = 1;
 };
 
 }  // namespace dua
