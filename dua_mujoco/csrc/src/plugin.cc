@@ -80,7 +80,6 @@ bool SubtreeVelUnused(const mjModel* m) {
   return true;
 }
 
-
 // Reads the instance's attributes and tables; null after a warning naming what is wrong.
 Instance* Create(const mjModel* m, int instance) {
   const char* prefix_attr = mj_getPluginConfig(m, instance, "prefix");
@@ -135,7 +134,7 @@ void Compute(const mjModel* m, mjData* d, int instance) {
   Runtime& rt = in->rt;
   if (rt.classified()) {
     switch (rt.ClockOf(d->time)) {
-      case Runtime::Clock::kSame:  // an mj_forward at the same instant: the outputs stand
+      case Runtime::Clock::kSame:          // an mj_forward at the same instant: the outputs stand
       case Runtime::Clock::kWithinPeriod:  // within the period: the next step comes at its end
         break;
       case Runtime::Clock::kOnePeriod:
@@ -199,7 +198,6 @@ void Visualize(const mjModel* m, mjData* d, mjvScene* scn, int instance) {
     Decor(geom);
   }
 }
-
 
 void Register() {
   // Another copy of this library (a second install of the package) registered it already:
@@ -304,8 +302,8 @@ DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance,
 }
 
 DUA_API int64_t dua_plugin_set_plan(const mjModel* m, mjData* d, int instance, const double* qpos,
-                                    int64_t n, const double* deviation, double start,
-                                    char* error, int64_t error_size) {
+                                    int64_t n, const double* deviation, double start, char* error,
+                                    int64_t error_size) {
   dua::Instance* in = dua::Find(m, d, instance);
   if (!in) return -1;
   if (!in->rt.classified()) return -2;

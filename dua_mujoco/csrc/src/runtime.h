@@ -31,8 +31,13 @@ namespace dua {
 // holds it (Python's Alarms do).
 struct DUA_API AlarmLog {
   explicit AlarmLog(int64_t capacity)
-      : pair(capacity), geom1(capacity), geom2(capacity), sphere1(capacity), sphere2(capacity),
-        tau(capacity), fresh(capacity) {}
+      : pair(capacity),
+        geom1(capacity),
+        geom2(capacity),
+        sphere1(capacity),
+        sphere2(capacity),
+        tau(capacity),
+        fresh(capacity) {}
   int64_t capacity() const { return static_cast<int64_t>(pair.size()); }
   // The model pair, its geoms (the plane or static geom second), its spheres (-1: none), tau,
   // and whether the alarm is new (the pair did not stand in alarm before the step).
@@ -136,7 +141,7 @@ class DUA_API Runtime {
   // The violation check of d's state on a copy of its state, four bodies at a time or one at a
   // time (the reference the lanes are held to): the flagged rows and the state written after.
   std::pair<std::vector<int64_t>, std::vector<double>> CheckBodiesCopy(const mjModel* m,
-                                                                      const mjData* d, bool lanes);
+                                                                       const mjData* d, bool lanes);
   // Pruned pairs: whether the step looks for escaped spheres (on; off only to show what the
   // check guards).
   void SetEscapeCheck(bool on) { escape_check_ = on; }
@@ -206,7 +211,7 @@ class DUA_API Runtime {
   // deviation flagged and their pairs made due; past its end, the plan dropped (every pair due).
   void FollowPlan(const mjModel* m, const mjData* d, int64_t n);
   void MakeAllDue(int64_t n);
-  void FinishWatch();  // a step's or a classification's end: started and version
+  void FinishWatch();         // a step's or a classification's end: started and version
   void SetExpiry(int64_t p);  // pair p's leaf of the expiry tree, and its path to the root
 
   std::shared_ptr<const Tables> tables_;

@@ -139,7 +139,7 @@ typedef struct dua_plan {
   const void* impl;        // the dua::Plan
   int64_t knot;            // the plan's knot at this step
   const uint8_t* body_ok;  // (nbody,) 0 for a body found beyond its deviation since the plan came
-  const int64_t* geom1;    // (npair,) the geoms of each known pair (the plane or static geom second)
+  const int64_t* geom1;  // (npair,) the geoms of each known pair (the plane or static geom second)
   const int64_t* geom2;
   const int* geom_body;  // the model's geom_bodyid
   void* data;            // an mjData of the model for MuJoCo's distance queries at knots
