@@ -27,6 +27,7 @@ import reference_terrain as ref
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from dua_mujoco import _core
 from dua_mujoco.core.shapes import (
     SHAPE_NCOL,
     ShapeKind,
@@ -49,7 +50,6 @@ from dua_mujoco.core.terrain import (
     terrain_levels,
 )
 from dua_mujoco.core.urgency import tau_halfspace
-from dua_mujoco import _core
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
 SETTINGS = settings(
@@ -295,7 +295,7 @@ def test_mujoco_collides_these_prisms_within_the_contact_distance(geom, margin, 
     tops = ref.prism_tops(m.hfield_size[0], nrow, ncol, m.hfield_data)
     pos, rot = d.geom_xpos[0].copy(), d.geom_xmat[0].reshape(3, 3).copy()
     contacts = clear = 0
-    for _ in range(1000):
+    for _ in range(400):
         local = rng.uniform([-0.6, -0.5, -0.2], [0.6, 0.5, 0.45])
         d.qpos[:3] = pos + rot @ local
         d.qpos[3:] = _quat(rng)
@@ -307,7 +307,7 @@ def test_mujoco_collides_these_prisms_within_the_contact_distance(geom, margin, 
         elif probe < -2e-3:
             clear += 1
             raise AssertionError(f"no contact at a penetration of {-probe}: {local}")
-    assert contacts > 150 and clear == 0
+    assert contacts > 60 and clear == 0
 
 
 def _quat(rng) -> np.ndarray:
@@ -418,7 +418,7 @@ def test_the_search_test_catches_a_corrupt_pyramid() -> None:
     rng = np.random.default_rng(7)
     caught = {5.0: 0, 0.5: 0}
     for accel in caught:
-        for _ in range(20):
+        for _ in range(10):
             t = Terrain([1.0, 1.0, 0.3, 0.1], 33, 33, rng.random(33 * 33))
             bad = t.table.copy()
             flat = bad[1:].reshape(-1)
@@ -431,7 +431,7 @@ def test_the_search_test_catches_a_corrupt_pyramid() -> None:
             assert _close(t.tau(c, v, eps, accel), want)
             got = tau_static(c[0], c[1], c[2], v[0], v[1], v[2], bad, eps, accel, 0.0)
             caught[accel] += not _close(got, want)
-    assert min(caught.values()) >= 8, caught
+    assert min(caught.values()) >= 4, caught
 
 
 # ------------------------------------------------------------------------------------------------

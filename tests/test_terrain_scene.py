@@ -214,3 +214,38 @@ def test_the_plugin_refuses_a_terrain_table_that_does_not_fit(entry: tuple[int, 
     text.data = _encode(table)
     with pytest.raises(Exception, match="terrain record whose block does not fit"):
         mujoco.MjData(spec.compile())
+
+
+def test_a_plan_on_rough_terrain_misses_nothing() -> None:
+    """Plans leave a terrain's pairs to the motion bounds (a plan's gaps, StaticGap and
+    mj_geomDistance, are no lower bounds on a height field): exact plans of the run, every
+    pair a limb against the terrain, bounds above the scene's measured maximum; no onset is
+    missed and no plan is broken."""
+    from dua_mujoco.mj.monitor import Monitor
+
+    m, d = load_scene("rough_terrain")
+    h, every, steps = float(m.opt.timestep), 25, 500
+    n = round(0.05 / h) + 2 * every
+    lo, hi = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
+    held = np.random.default_rng(4).uniform(lo, hi, ((steps + n) // 20 + 1, m.nu))
+    controls = np.repeat(held, 20, axis=0)  # random controls held 20 steps
+    p = Predictor(m, accel=600.0, alarm_horizon=0.05)
+    monitor = Monitor(p)
+    mujoco.mj_step(m, d)
+    monitor.start(d)
+    plan_data = mujoco.MjData(m)
+    for k in range(steps):
+        if k % every == 0:
+            mujoco.mj_copyData(plan_data, m, d)
+            qpos = [plan_data.qpos.copy()]
+            for j in range(n - 1):
+                plan_data.ctrl[:] = controls[k + j]
+                mujoco.mj_step(m, plan_data)
+                qpos.append(plan_data.qpos.copy())
+            p.set_plan(np.array(qpos), deviation=0.0)
+        d.ctrl[:] = controls[k]
+        mujoco.mj_step(m, d)
+        monitor.observe(d, p.step(d))
+    monitor.finish()
+    assert p.plan_breaks == 0 and p.has_plan
+    assert monitor.onsets >= 20 and monitor.misses == []

@@ -88,6 +88,7 @@ SHAPE_POS: int = _LAYOUT["SHAPE_POS"]
 SHAPE_MAT: int = _LAYOUT["SHAPE_MAT"]
 SHAPE_NCOL: int = _LAYOUT["SHAPE_NCOL"]
 
+
 def _one(
     point: npt.ArrayLike, rec: npt.ArrayLike, row: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -133,9 +134,7 @@ def support(n: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0) -> float:
     return float(_core.support(*_one(n, rec, row))[0])
 
 
-def closest_point(
-    c: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0
-) -> tuple[float, float, float]:
+def closest_point(c: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0) -> tuple[float, float, float]:
     """Closest point of a static shape to ``c`` (``c`` itself when inside).
 
     Args:

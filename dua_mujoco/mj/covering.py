@@ -5,7 +5,7 @@ geom's solid (for meshes: its convex hull, which is what MuJoCo collides with). 
 half-spaces (outward normal = the plane's local z axis, through ``geom_xpos``), static geoms
 (bodies welded to the world) are kept as their own convex shapes (``static="shape"``, the
 default; ``docs/static-shapes.md``), and static height fields as terrain, the prisms of their
-grid (``hfield="terrain"``, the default; ``docs/theory.md``, section 8). A collision between two
+grid (``hfield="terrain"``, the default; ``docs/theory.md``, section 9). A collision between two
 geoms therefore implies an intersection between one sphere of each, or between a sphere and a
 half-space, a static shape or a terrain, which is what the urgency layer predicts.
 

@@ -17,7 +17,7 @@ of the two lower bounds. Proof, and what the distance means for each geom type, 
 docs/theory.md (section 5). A plane needs no query: its normal is the direction.
 
 A height field held as terrain is read through its grid (``ExactMode.TERRAIN``: the geom's
-support against the prisms, docs/theory.md, section 8), never through
+support against the prisms, docs/theory.md, section 9), never through
 ``mj_geomDistance``, which is no lower bound there. SDF geoms and height fields covered by
 spheres keep their sphere tau; so do pairs whose witness is degenerate (touching, or no witness
 within the query's reach).
@@ -83,8 +83,9 @@ class ExactMode(enum.IntEnum):
 
 # Columns of the per-geom records: the first eight are ``pack_spheres``' (a "sphere" at the geom
 # origin, whose velocity the kinematics kernel gives), then the support shape: its kind
-# (ShapeKind, 1 for a height field read as terrain, -1 where the level does not apply), size (3), centre in the geom frame (3, a mesh's
-# box centre), radius (max |p - origin| over the geom's points), a mesh's first vertex and hull
+# (ShapeKind, 1 for a height field read as terrain, -1 where the level does not apply), size
+# (3), centre in the geom frame (3, a mesh's box centre), radius (max |p - origin| over the
+# geom's points), a mesh's first vertex and hull
 # graph address (-1: none), and six seeds of the hull climb (the hull vertices farthest along
 # -x, +x, -y, +y, -z, +z).
 GX_KIND, GX_SIZE, GX_CENTRE = LAYOUT["GX_KIND"], LAYOUT["GX_SIZE"], LAYOUT["GX_CENTRE"]

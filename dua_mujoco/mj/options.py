@@ -54,7 +54,7 @@ class CoveringOptions:
         mode: ``"bounding"`` (one sphere a geom) or ``"multi"`` (a ``CoveringMode`` or its value).
         max_spheres_per_geom: Budget of the multi-sphere covering.
         hfield: ``"terrain"``: static height fields are held as the prisms of their grid
-            (docs/theory.md, section 8); ``"box"``: covered by their bounding box
+            (docs/theory.md, section 9); ``"box"``: covered by their bounding box
             (conservative, loose); ``"error"``: refused.
         static: ``"shape"``: geoms welded to the world are held as their own convex shapes
             (docs/static-shapes.md); ``"sphere"``: covered like moving geoms.

@@ -5,8 +5,9 @@
 // Every table is a row-major float64 or int64 array owned by the caller; the structs below only
 // point into them. Layouts (columns) are stated once in src/layout.h and documented where the
 // Python side packs them: pairs: dua_mujoco/core/pairset.py (pack_pairs), spheres:
-// dua_mujoco/mj/kinematics.py, shapes: dua_mujoco/core/shapes.py, terrain: dua_mujoco/core/terrain.py, exact: dua_mujoco/mj/exact.py,
-// events: dua_mujoco/mj/events.py, the schedule: dua_mujoco/core/schedules/state.py.
+// dua_mujoco/mj/kinematics.py, shapes: dua_mujoco/core/shapes.py, terrain:
+// dua_mujoco/core/terrain.py, exact: dua_mujoco/mj/exact.py, events: dua_mujoco/mj/events.py, the
+// schedule: dua_mujoco/core/schedules/state.py.
 #ifndef DUA_MUJOCO_DUA_H_
 #define DUA_MUJOCO_DUA_H_
 
