@@ -94,8 +94,8 @@ def _run_side_by_side(
 @pytest.mark.parametrize(
     ("scene", "steps"),
     [("two_arms", 300), ("traffic", 1500), ("clutter", 300), ("paper_world", 300),
-     ("bin_pour:30", 300), (ANT, 300)],
-    ids=["two_arms", "traffic", "clutter", "paper_world", "bin_pour", "gym-ant"],
+     ("bin_pour:30", 300), ("rough_terrain", 300), (ANT, 300)],
+    ids=["two_arms", "traffic", "clutter", "paper_world", "bin_pour", "rough_terrain", "gym-ant"],
 )  # fmt: skip
 def test_plugin_equals_the_python_predictor(scene: str, steps: int) -> None:
     """On every bundled scene (clutter's mocap body included) and a robot: the pairs standing

@@ -241,7 +241,15 @@ void PlanPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
     const int64_t mp = a.ids[p];
     const int64_t g1 = pl.geom1[mp], g2 = pl.geom2[mp];
     const int64_t b1 = pl.geom_body[g1], b2 = pl.geom_body[g2];
-    pl.planned[k] = pl.body_ok[b1] && pl.body_ok[b2];
+    // A terrain's pair is left to the motion bounds: the plan's gaps (StaticGap,
+    // mj_geomDistance) are no lower bounds on a height field (docs/theory.md, section 9).
+    const double* rec = a.pairs + p * kPairNcol;
+    const bool terrain =
+        static_cast<int>(rec[kPairKind]) == kKindShape &&
+        static_cast<int>(
+            a.shapes[static_cast<int64_t>(rec[kPairOther]) * kShapeNcol + kShapeKind]) ==
+            kGeomHField;
+    pl.planned[k] = !terrain && pl.body_ok[b1] && pl.body_ok[b2];
     if (pl.planned[k]) out[k] = PlanTau(a, plan, p, g1, g2, b1, b2);
   }
 }

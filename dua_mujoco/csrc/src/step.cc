@@ -533,6 +533,11 @@ void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
   for (int64_t k = 0; k < count; ++k) {
     if (out[k] < a.exact.below && (skip == nullptr || !skip[k])) {
       const int64_t p = ids[k];
+      // A height field's terrain: its own kernel (terrain.cc), never mj_geomDistance.
+      if (static_cast<int>(a.exact.records[p * kXNcol + kXMode]) == kModeTerrain) {
+        out[k] = std::max(out[k], TerrainExactTau(a, p));
+        continue;
+      }
       out[k] =
           ExactTau(a.pairs + p * kPairNcol, a.exact.records + p * kXNcol, out[k], a.exact, a.frame);
     }
