@@ -19,7 +19,6 @@
 namespace dua {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 // Integers travel as float64: beyond 2^53 they are not exact.
 constexpr double kMaxInt = 9007199254740992.0;
 
@@ -466,8 +465,8 @@ bool ReadPruned(const mjModel* m, Reader* r, const std::vector<double>& config, 
   return ReadLearn(m, r, config, t);
 }
 
-// Decodes one text field: its entry count, a space, then the entries' little-endian float64
-// bytes in base64.
+}  // namespace
+
 bool Decode(const char* text, std::vector<double>* out, std::string* why) {
   char* end = nullptr;
   const long long count = std::strtoll(text, &end, 10);
@@ -509,6 +508,8 @@ bool Decode(const char* text, std::vector<double>* out, std::string* why) {
   if (nbytes) std::memcpy(out->data(), bytes.data(), nbytes);  // little-endian, as written
   return true;
 }
+
+namespace {
 
 // A content hash of the text fields under prefix (which LoadTables parses once per content).
 uint64_t TextHash(const mjModel* m, const std::string& prefix) {
