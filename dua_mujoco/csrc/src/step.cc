@@ -633,6 +633,11 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
   const int64_t bad = TauRows(a.pairs, a.shapes, FramePoints{a}, ids, count, rows, out);
   if (bad >= 0) return bad;
   ExactPass(a, ids, count, out);
+  // A tau that is not a number (from finite tables so large that the arithmetic overflows, a
+  // shape's rotation entry of 1e308) alarms now, never passes (docs/hardening.md).
+  for (int64_t k = 0; k < count; ++k) {
+    if (std::isnan(out[k])) out[k] = 0.0;
+  }
   return -1;
 }
 

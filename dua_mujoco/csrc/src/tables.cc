@@ -141,6 +141,13 @@ bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) 
   }
   const std::string bad = s.Check();
   if (!bad.empty()) return r->Fail("config", "holds an invalid schedule option: " + bad);
+  // Every MjData allocates the deadline wheel, a power of two > max_interval slots of 8 bytes:
+  // 8 MB at most (attach writes 1024).
+  if (s.max_interval > (1 << 19)) {
+    return r->Fail("config", "holds max_interval = " + std::to_string(s.max_interval) +
+                                 ", over 2^19 steps (its wheel would take 8 bytes a step in "
+                                 "every MjData)");
+  }
   t->timestep = v[kCfgTimestep];
   if (!(t->timestep > 0.0) || !Finite(t->timestep) || t->timestep != m->opt.timestep) {
     return r->Fail("config", "holds a timestep (" + std::to_string(t->timestep) +
