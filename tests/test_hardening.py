@@ -1,10 +1,12 @@
-"""What the native core must survive (docs/hardening.md): the models the tables fuzzer found
-crashing or misbehaving, each run where a crash cannot take the test session down (a child
-process) or held to what the fix promises."""
+"""What the native core must survive (docs/hardening.md): the C++ example on every export and
+without its plugin, and the models the tables fuzzer found crashing or misbehaving, each run where
+a crash cannot take the test session down (a child process) or held to what the fix promises."""
 
 from __future__ import annotations
 
 import base64
+import os
+import shutil
 import subprocess
 import sys
 from collections.abc import Callable
@@ -12,10 +14,15 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+import pytest
 
 from dua_mujoco.cli import main
 from dua_mujoco.mj.scenes import load_spec
-from dua_mujoco.plugin import _encode, attach, standing_pairs
+from dua_mujoco.native import library_path
+from dua_mujoco.plugin import _encode, attach, plugin_outputs, standing_pairs
+
+EXAMPLE = Path(__file__).parents[1] / "dua_mujoco/csrc/examples/run_model.cc"
+MUJOCO = Path(mujoco.__file__).parent
 
 # A Python process that only loads the model and steps it, as the issue's report did.
 _CHILD = """
@@ -31,6 +38,113 @@ for _ in range(int(sys.argv[2])):
     mujoco.mj_step(m, d)
 print("ran to", d.time)
 """
+
+
+def _tool_env() -> dict[str, str]:
+    """The environment without a sanitizer runtime preloaded (the compiler's own processes)."""
+    return {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}
+
+
+@pytest.fixture(scope="module")
+def run_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """csrc/examples/run_model.cc, built against the wheel's headers and libmujoco."""
+    if shutil.which("g++") is None:
+        pytest.skip("needs a C++ compiler (CI installs g++)")
+    (lib,) = MUJOCO.glob("libmujoco.so.*")
+    exe = tmp_path_factory.mktemp("example") / "run_model"
+    subprocess.run(
+        ["g++", "-std=c++17", "-Wall", "-Werror", str(EXAMPLE), f"-I{MUJOCO / 'include'}",
+         str(lib), f"-Wl,-rpath,{MUJOCO}", "-ldl", "-o", str(exe)],
+        check=True, capture_output=True, timeout=300, env=_tool_env(),
+    )  # fmt: skip
+    return exe
+
+
+def _run(exe: Path, library: Path | str, model: Path, steps: int) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [str(exe), str(library), str(model), str(steps)], capture_output=True, text=True,
+        timeout=600,
+    )  # fmt: skip
+
+
+def _one_line(proc: subprocess.CompletedProcess) -> str:
+    """The failure's line: exit status 1 (no signal), nothing on stdout, one line on stderr."""
+    assert proc.returncode == 1, (proc.returncode, proc.stderr[-3000:])
+    assert proc.stdout == ""
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("run_model: "), proc.stderr
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def exports(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    folder = tmp_path_factory.mktemp("exports")
+    out = {}
+    for suffix in (".xml", ".mjb"):
+        out[suffix] = folder / f"two_arms{suffix}"
+        assert main(["export", "two_arms", str(out[suffix]), "--accel", "30"]) == 0
+    return out
+
+
+@pytest.mark.parametrize("suffix", [".xml", ".mjb"])
+def test_the_cpp_example_runs_both_exports(
+    run_model: Path, exports: dict[str, Path], suffix: str
+) -> None:
+    """The example loads each export (the ``.mjb`` too: it registers MuJoCo's bundled plugins
+    before this one, as ``import mujoco`` does, so the plugin's slot is the one the file holds)
+    and prints the sensor of every step, equal to the Python side's."""
+    proc = _run(run_model, library_path(), exports[suffix], 300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rows = np.array([[float(v) for v in line.split()] for line in proc.stdout.splitlines()])
+    path = str(exports[suffix])
+    m = (
+        mujoco.MjModel.from_binary_path(path)
+        if suffix == ".mjb"
+        else mujoco.MjModel.from_xml_path(path)
+    )
+    d = mujoco.MjData(m)
+    expected = []
+    for _ in range(300):
+        mujoco.mj_step(m, d)
+        expected.append([d.time, *plugin_outputs(m, d)])
+    np.testing.assert_array_equal(rows, np.array(expected))
+    assert rows[:, 1].max() > 0
+
+
+@pytest.mark.parametrize("suffix", [".xml", ".mjb"])
+@pytest.mark.parametrize("library", ["missing", "another plugin"])
+def test_the_cpp_example_without_the_plugin_fails_in_one_line(
+    run_model: Path, exports: dict[str, Path], suffix: str, library: str
+) -> None:
+    """Without the plugin library (a path that does not load, or a library that registers other
+    plugins) the example stops with MuJoCo's message or its own, never a signal: an ``.mjb``
+    read without its plugin registered made MuJoCo 4.0 segfault (it does not check the slot)."""
+    path = (
+        "/nonexistent/libdua_mujoco.so" if library == "missing" else MUJOCO / "plugin/libsensor.so"
+    )
+    line = _one_line(_run(run_model, path, exports[suffix], 10))
+    if library == "missing":
+        assert "Error loading plugin library" in line and "/nonexistent/" in line
+    else:
+        assert "did not register the plugin dua_mujoco.predictor" in line
+
+
+def test_the_cpp_example_refuses_a_model_that_does_not_load_in_one_line(
+    run_model: Path, exports: dict[str, Path], tmp_path: Path
+) -> None:
+    truncated = tmp_path / "truncated.mjb"
+    truncated.write_bytes(exports[".mjb"].read_bytes()[:1000])
+    assert "Truncated model file" in _one_line(_run(run_model, library_path(), truncated, 10))
+    broken = tmp_path / "broken.xml"
+    broken.write_text("<mujoco><worldbody>")
+    assert "cannot load" in _one_line(_run(run_model, library_path(), broken, 10))
+    line = _one_line(_run(run_model, library_path(), tmp_path / "missing.xml", 10))
+    assert "missing.xml" in line
+    # Tables the plugin refuses: its warning is the line.
+    bad = tmp_path / "bad.xml"
+    bad.write_text(_with_table("two_arms", {"accel": 30.0}, "config", _huge_wheel))
+    line = _one_line(_run(run_model, library_path(), bad, 10))
+    assert "text field 'dua:config'" in line and "max_interval" in line
 
 
 # ------------------------------------------------------------------------- fuzzer findings
