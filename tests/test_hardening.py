@@ -237,3 +237,23 @@ def test_a_tau_that_is_not_a_number_alarms(tmp_path: Path) -> None:
     for _ in range(50):
         mujoco.mj_step(m, d)
         assert expected <= {tuple(g) for g in standing_pairs(m, d)}
+
+
+def test_a_selection_larger_than_the_held_pairs_fits_the_scratch(tmp_path: Path) -> None:
+    """The rank schedule takes a pair made due both from its slot and from the queue, so a step
+    can select more pairs than are held (up to the schedule's width: the held pairs and up to
+    256 spares). The step gathered them into a scratch of one row per held pair: five falling
+    spheres (ten pairs) against a 0.1 m/s^2 bound wrote past it (AddressSanitizer's heap
+    overflow). It now evaluates a selection in chunks of the scratch."""
+    from dua_mujoco.mj.options import ScheduleOptions
+
+    bodies = "".join(
+        f'<body pos="{0.12 * i} 0 {0.3 + 0.1 * i}"><freejoint/><geom type="sphere" size=".05"/>'
+        "</body>"
+        for i in range(5)
+    )
+    spec = mujoco.MjSpec.from_string(f"<mujoco><worldbody>{bodies}</worldbody></mujoco>")
+    attach(spec, accel=0.1, schedule=ScheduleOptions(kind="dua"))
+    path = tmp_path / "spheres.xml"
+    path.write_text(spec.to_xml())
+    assert _child(path, 200).startswith("ran to")
