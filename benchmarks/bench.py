@@ -4,7 +4,7 @@
     python benchmarks/bench.py core       # tau and scheduler only
     python benchmarks/bench.py scenes     # predictor on the bundled scenes
     python benchmarks/bench.py period     # traffic at predictor periods 1..8
-    python benchmarks/bench.py dispatch   # the cost of calling compiled code from Python
+    python benchmarks/bench.py dispatch   # the cost of calling the native core from Python
 
 Every timing is the median of repeated runs (machines are noisy); ratios are computed from
 medians measured in the same process.
@@ -13,10 +13,8 @@ medians measured in the same process.
 from __future__ import annotations
 
 import argparse
-import os
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 
@@ -43,7 +41,7 @@ def table(header: list[str], rows: list[list[str]]) -> str:
 
 
 def bench_compile() -> str:
-    """Cold (empty cache) and cached import + first call, in fresh processes."""
+    """Import + first call, in two fresh processes (nothing is compiled at run time)."""
     code = (
         "import time; t0 = time.perf_counter(); import numpy as np; "
         "from dua_mujoco import time_to_collision, DUAScheduler; "
@@ -55,13 +53,11 @@ def bench_compile() -> str:
         "print(time.perf_counter() - t0)"
     )
     rows = []
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        for label in ("cold (empty numba cache)", "cached (second process)"):
-            out = subprocess.run(
-                [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
-            )
-            rows.append([label, f"{float(out.stdout.strip()):.2f} s"])
+    for label in ("first process", "second process"):
+        out = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, check=True
+        )
+        rows.append([label, f"{float(out.stdout.strip()):.2f} s"])
     return table(["import + first tau + first DUA step", "time"], rows)
 
 
@@ -194,56 +190,10 @@ def tau_ns_per_eval(predictor: object, data: object, max_pairs: int = 4096) -> f
     return per_call / ids.size * 1e9
 
 
-def compiled_step_us(
-    predictor: object, data: object, repeat: int = 7, loops: int = 20_000
-) -> float:
-    """Median us of the predictor's native step called from a compiled loop on a frozen state.
-
-    No Python and no ctypes between calls, and the tables stay in cache: a floor under what any
-    driver of the same native step can reach. The scheduler moves on as in a run (different
-    pairs each step), on the state the predictor last read; the alarms overwrite the log's
-    first entries.
-    """
-    import numba as nb
-    from numba import types
-
-    import dua_mujoco.core.native_kernels  # noqa: F401 - loads the native core for numba
-
-    step_c = types.ExternalFunction("dua_step", types.int64(types.int64, types.int64, types.int64))
-
-    @nb.njit
-    def loop(k, address, n0):
-        for i in range(k):
-            step_c(address, n0 + i, 0)
-
-    s = predictor.scheduler  # type: ignore[attr-defined]
-    address = predictor._native.address  # type: ignore[attr-defined]
-
-    def run(k: int) -> None:
-        loop(k, address, s.step_count + 1)
-        s.step_count += k
-
-    return median_time(lambda: run(loops), repeat) / loops * 1e6
-
-
 def bench_dispatch(calls: int = 200_000) -> str:
-    """What calling native or compiled code from Python costs: the floor under any Python API's
-    per-call work (``Predictor.step`` calls the native step through ctypes)."""
-    import ctypes
-
-    import numba as nb
-
-    from dua_mujoco.native import library
-
-    lib = library()
-    version = lib.dua_abi_version
-    interval = lib.dua_deadline_interval
-    interval.restype = ctypes.c_int64
-    interval.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_int64, ctypes.c_int64]
-
-    @nb.njit
-    def one_int(x):
-        return x + 1
+    """What calling the native core from Python costs: the floor under any Python API's
+    per-call work (``_core``'s functions are nanobind's)."""
+    import dua_mujoco._core as _core
 
     class Result:
         __slots__ = ("a", "b")
@@ -252,14 +202,14 @@ def bench_dispatch(calls: int = 200_000) -> str:
             self.a, self.b = a, b
 
     ids = np.arange(8)
+    q = np.zeros(12)
     rows = []
     for label, fn in (
-        ("ctypes call of a native function of no argument (`dua_abi_version`)", version),
         (
-            "ctypes call of a native function of 4 arguments (`dua_deadline_interval`)",
-            lambda: interval(0.1, 0.01, 0, 64),
+            "a native function of 4 numbers (`_core.deadline_interval`)",
+            lambda: _core.deadline_interval(0.1, 0.01, 0, 64),
         ),
-        ("numba dispatch of one int", lambda: one_int(3)),
+        ("a native function of one array (`_core.exceeds12`)", lambda: _core.exceeds12(q, 1.0)),
         ("a slotted result object", lambda: Result(1, 2)),
         ("copy of a few alarm ids (`ids[:3].copy()`)", lambda: ids[:3].copy()),
     ):
@@ -310,7 +260,6 @@ def bench_scenes(steps: int = 2000) -> str:
         ratio = r.predictor_share
         bare_pred, bare_mj = bare_loop(name, p, n_steps)
         tau_us = r.evals_per_step * tau_ns_per_eval(p, d) / 1e3
-        floor_us = compiled_step_us(p, d)
         rows.append(
             [
                 name,
@@ -325,7 +274,6 @@ def bench_scenes(steps: int = 2000) -> str:
                 f"{100 * ratio:.0f} %",
                 f"{bare_pred:.1f} / {bare_mj:.1f} = {100 * bare_pred / bare_mj:.0f} %",
                 f"{tau_us:.1f} = {100 * tau_us / bare_mj:.0f} %",
-                f"{floor_us:.1f} = {100 * floor_us / bare_mj:.0f} %",
                 f"{r.missed_onsets_valid_bounds}",
             ]
         )
@@ -342,7 +290,6 @@ def bench_scenes(steps: int = 2000) -> str:
         "predictor / mj_step",
         "bare loop: predictor / mj_step (us)",
         "tau evaluations alone (us, % of bare mj_step)",
-        "compiled step alone (us, % of bare mj_step)",
         "valid-bound misses",
     ]
     return table(header, rows)

@@ -103,7 +103,12 @@ def main(argv: list[str] | None = None) -> int:
         after = side(PROBE, HERE, sys.executable, scene, args.steps, args.options)
         same = before["digest"] == after["digest"]
         first = next(
-            (k for k, (a, b) in enumerate(zip(before["steps"], after["steps"])) if a != b), None
+            (
+                k
+                for k, (a, b) in enumerate(zip(before["steps"], after["steps"], strict=True))
+                if a != b
+            ),
+            None,
         )
         same_everywhere &= same
         print(

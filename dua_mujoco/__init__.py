@@ -49,7 +49,7 @@ if TYPE_CHECKING:
 
 # Everything but the errors loads on first use (PEP 562): ``import dua_mujoco`` and the pytest
 # plugin ``dua_mujoco.testing``, loaded in every test session of a project that enables it,
-# import neither numba nor MuJoCo.
+# import neither the compiled core nor MuJoCo.
 _LAZY = {
     "Alarms": "dua_mujoco.mj.predictor",
     "CoveringOptions": "dua_mujoco.mj.options",

@@ -1,10 +1,11 @@
 """``python -m dua_mujoco`` = the ``dua-mujoco`` command (its console script calls :func:`main`).
 
 This module imports nothing heavy: it takes Ctrl-C over before the command's imports (MuJoCo,
-numpy, numba) begin, so that an interrupt at any point of the set-up is one line and exit 130,
-like the run loop's. An interrupt in the middle of an extension module's initialisation does not
-always surface as ``KeyboardInterrupt`` (numpy turns it into an ``ImportError``), so the handler
-records that it fired, and whatever escapes afterwards is reported as the interrupt it is.
+numpy, the compiled core) begin, so that an interrupt at any point of the set-up is one line and
+exit 130, like the run loop's. An interrupt in the middle of an extension module's
+initialisation does not always surface as ``KeyboardInterrupt`` (numpy turns it into an
+``ImportError``), so the handler records that it fired, and whatever escapes afterwards is
+reported as the interrupt it is.
 """
 
 from __future__ import annotations

@@ -59,7 +59,6 @@ except ModuleNotFoundError as exc:  # an optional dependency: say which extra br
     ) from exc
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.predictor import Predictor
 
 __all__ = ["COSTS", "COST_KEY", "PredictCollisions", "find_mujoco"]
@@ -171,21 +170,14 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
         self.terminate_on_alarm = bool(terminate_on_alarm)
         self.predictor = Predictor(model, period=frame_skip, **predictor_options)
         self._names = [str(n) for n in self.predictor.tables.geom_names]
-        self._ignore_geoms, self._ignore_pairs = self._ignored(ignore)
-        # Per known geom pair (a pruned predictor learns more as it runs: _fit grows these):
-        # its geoms, whether it counts, its (name1, name2) ready for info, standing in alarm.
-        self._geom1 = self._geom2 = np.zeros(0, dtype=np.int64)
-        self._counted = self._standing = np.zeros(0, dtype=bool)
-        self._geom_pair_names = np.empty(0, dtype=object)
-        # Per known sphere pair: its geom pair, whether it counts, standing in alarm (and
-        # counted), and the time, from the reset, until which its latest verdict vouches there
-        # is no contact (inf: not counted).
-        self._pair_gp = np.zeros(0, dtype=np.int64)
-        self._pair_counted = self._alarm = np.zeros(0, dtype=bool)
-        self._expiry = np.zeros(0)
-        self._fitted = -1
-        self._fit()
-        self._seen: tuple[object, int] = (None, -1)
+        geoms, keys = self._ignored(ignore)
+        ignored = np.zeros(model.ngeom, dtype=np.uint8)
+        ignored[geoms] = 1
+        # The runtime keeps what info needs up to date as it steps (counted geom pairs standing,
+        # those started, the least expiry): O(1) a step here, whatever the pairs.
+        self._runtime = self.predictor._rt
+        self._runtime.watch(ignored, keys)
+        self._version = -1
         self._alarm_pairs: tuple[tuple[str, str], ...] = ()
 
     def _ignored(self, ignore: tuple[IgnoreSpec, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -221,31 +213,6 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
             keys.append((a << 32) | b)
         return np.array(geoms, dtype=np.int64), np.array(keys, dtype=np.int64)
 
-    def _fit(self) -> None:
-        """Extend the per-pair tables to the pairs the predictor knows now."""
-        p = self.predictor
-        if self._fitted == p.universe.version:
-            return
-        self._fitted = p.universe.version
-        gp, old = p.geom_pairs, self._geom1.size
-        g1 = np.asarray(gp.geom1[old:], dtype=np.int64)
-        g2 = np.asarray(gp.geom2[old:], dtype=np.int64)
-        ignored = np.isin(g1, self._ignore_geoms) | np.isin(g2, self._ignore_geoms)
-        ignored |= np.isin((g1 << 32) | g2, self._ignore_pairs)
-        names = np.empty(g1.size, dtype=object)
-        for i, (a, b) in enumerate(zip(g1.tolist(), g2.tolist(), strict=True)):
-            names[i] = (self._names[a], self._names[b])  # numpy would make a 2-D array of them
-        self._geom1 = np.concatenate([self._geom1, g1])
-        self._geom2 = np.concatenate([self._geom2, g2])
-        self._counted = np.concatenate([self._counted, ~ignored])
-        self._standing = np.concatenate([self._standing, np.zeros(g1.size, dtype=bool)])
-        self._geom_pair_names = np.concatenate([self._geom_pair_names, names])
-        new = p.geom_pair_of(np.arange(self._pair_gp.size, p.nsphere_pairs))
-        self._pair_gp = np.concatenate([self._pair_gp, new])
-        self._pair_counted = np.concatenate([self._pair_counted, self._counted[new]])
-        self._alarm = np.concatenate([self._alarm, np.zeros(new.size, dtype=bool)])
-        self._expiry = np.concatenate([self._expiry, np.full(new.size, np.inf)])
-
     # ------------------------------------------------------------------- gymnasium
 
     def reset(
@@ -255,16 +222,17 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
         ``min_tau`` of that classification (no cost: nothing happened yet)."""
         obs, info = self.env.reset(seed=seed, options=options)
         _, self._data, _ = find_mujoco(self.env)  # an env may build a new MjData on reset
-        self._standing[:] = False
-        self._observe(info, self.predictor.reset(self._data))
+        self.predictor.reset(self._data)
+        self._observe(info)
         return obs, info
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Step the env and the predictor; ``info`` gets the alarms and the cost."""
         obs, reward, terminated, truncated, info = self.env.step(action)
-        new = self._observe(info, self.predictor.step(self._data))
+        self.predictor.step(self._data)
+        new = self._observe(info)
         if self.cost == "alarm":
-            cost = float(self._standing.any())
+            cost = float(bool(info["alarm_pairs"]))
         elif self.cost == "new":
             cost = float(new)
         else:
@@ -276,41 +244,19 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
             terminated = True
         return obs, reward, terminated, truncated, info
 
-    def _observe(self, info: dict[str, Any], alarms: Alarms) -> int:
-        """Put the standing alarms and ``min_tau`` into ``info``; return the geom pairs whose
-        alarm started since the previous call."""
-        self._fit()
-        state = self.predictor.pair_state()
-        seen = (state.scheduler, state.activation_changes)
-        if seen[0] is not self._seen[0] or seen[1] != self._seen[1]:
-            # A reset, a switch or a rebuild of pruned pairs may change any pair: read them all.
-            self._seen = seen
-            ids = np.arange(self._alarm.size)
-            counted = self._pair_counted & state.active
-            self._alarm[:] = state.alarm_state() & counted
-            changed = True
-        else:
-            # Otherwise only the pairs whose verdict this step renewed changed (as Monitor reads
-            # them), and of those the ones that alarmed are this step's alarms: O(those), not
-            # O(pairs), a step.
-            ids = state.last_selected
-            counted = self._pair_counted[ids]
-            before = self._alarm[ids]
-            self._alarm[ids] = False
-            self._alarm[alarms.pairs] = self._pair_counted[alarms.pairs]
-            changed = not np.array_equal(before, self._alarm[ids])
-        # Seconds since the reset until which each verdict vouches for no contact.
-        expiry = state.last_tau_of(ids) + self.predictor.dt * state.last_step_of(ids)
-        self._expiry[ids] = np.where(counted, expiry, np.inf)
-        new = 0
-        if changed:
-            standing = np.zeros_like(self._standing)
-            standing[self._pair_gp[self._alarm]] = True
-            new = int(np.count_nonzero(standing & ~self._standing))
-            self._standing = standing
-            self._alarm_pairs = tuple(self._geom_pair_names[standing].tolist())
+    def _observe(self, info: dict[str, Any]) -> int:
+        """Put the standing alarms and ``min_tau`` into ``info``; return the counted geom pairs
+        whose alarm started since the previous call."""
+        _, started, expiry, version = self._runtime.watched
+        if version != self._version:
+            # The set of counted geom pairs in alarm changed: name them again.
+            self._version = version
+            names = self._names
+            self._alarm_pairs = tuple(
+                (names[a], names[b]) for a, b in self._runtime.watched_standing().tolist()
+            )
         info["alarm_pairs"] = self._alarm_pairs
         # Each verdict vouches for tau from its evaluation on: what is left of it now.
-        left = float(self._expiry.min(initial=np.inf)) - self.predictor.dt * state.step_count
+        left = expiry - self.predictor.dt * self._runtime.step_count
         info["min_tau"] = max(left, 0.0)
-        return new
+        return int(started)

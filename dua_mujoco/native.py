@@ -3,24 +3,22 @@
 One shared library holds the predictor's runtime and kernels (``dua_mujoco/csrc``) and the MuJoCo
 sensor plugin ``dua_mujoco.predictor``, which its load-time constructor registers with MuJoCo.
 ``pip install`` builds it with CMake (scikit-build-core) against the mujoco wheel's headers and
-``libmujoco``, beside ``dua_mujoco._core``, the Python module that calls it (nanobind). This
-module is the one place that loads the library without that module: ``import mujoco`` runs
-:func:`load_plugin` through the ``mujoco.plugins`` entry point, and it imports nothing heavy.
+``libmujoco``, beside ``dua_mujoco._core``, the Python module that calls it (nanobind).
+``import mujoco`` runs :func:`load_plugin` through the ``mujoco.plugins`` entry point; C and C++
+programs load the library themselves (:func:`library_path`, docs/plugin.md).
 """
 
 from __future__ import annotations
 
-import ctypes
-import functools
+import importlib
 import importlib.metadata
-import importlib.util
 import os
 import sys
 from pathlib import Path
 
 from dua_mujoco.exceptions import NativeLibraryError
 
-__all__ = ["LIBRARY", "library", "library_path", "load_plugin"]
+__all__ = ["LIBRARY", "library_path", "load_plugin"]
 
 LIBRARY = "libdua_mujoco.so"
 
@@ -59,47 +57,22 @@ def library_path() -> Path:
     )
 
 
-def _mujoco_dir() -> Path:
-    spec = importlib.util.find_spec("mujoco")
-    if spec is None or spec.origin is None:  # pragma: no cover - mujoco is a dependency
-        raise NativeLibraryError("the mujoco package is not installed: pip install mujoco")
-    return Path(spec.origin).parent
+def load_plugin() -> None:
+    """The ``mujoco.plugins`` entry point: load the native core, whose load-time constructor
+    registers the sensor plugin ``dua_mujoco.predictor`` with MuJoCo.
 
-
-@functools.cache
-def library() -> ctypes.CDLL:
-    """The loaded native core (loaded once a process; MuJoCo's plugin registered by then).
-
-    ``libmujoco`` is loaded first, under the soname the native core was linked against.
+    Importing the binding ``dua_mujoco._core`` loads ``libdua_mujoco.so`` (its dependency,
+    found beside it), which finds ``libmujoco`` in the mujoco package (its run path): the one
+    way the library is loaded, so that the plugin and the binding share one copy of its state.
 
     Raises:
-        NativeLibraryError: The library is missing or does not load.
+        NativeLibraryError: The native core is missing or does not load.
     """
-    mujoco_dir = _mujoco_dir()
-    mujoco_libs = sorted(mujoco_dir.glob("libmujoco.so*"))
-    if mujoco_libs:
-        ctypes.CDLL(str(mujoco_libs[-1]), mode=os.RTLD_NOW | os.RTLD_GLOBAL)
-    path = library_path()
     try:
-        lib = ctypes.CDLL(str(path), mode=os.RTLD_NOW | os.RTLD_GLOBAL)
-    except OSError as err:
+        importlib.import_module("dua_mujoco._core")
+    except ImportError as err:
         raise NativeLibraryError(
-            f"{path} failed to load ({err}): rebuild it against this mujoco "
-            f"({mujoco_dir}) with `pip install -e .`."
+            f"the native core of dua_mujoco failed to load ({err}): it is built at install "
+            "time against the installed mujoco; reinstall with `pip install -e .` (it needs a "
+            "C++ compiler and CMake), and again after upgrading mujoco."
         ) from err
-    return lib
-
-
-def load_plugin() -> None:
-    """The ``mujoco.plugins`` entry point: load the native core, which registers the sensor
-    plugin ``dua_mujoco.predictor`` with MuJoCo."""
-    library()
-
-
-def declare(signatures):  # type: ignore[no-untyped-def]  # TEMPORARY until core/ is ported
-    lib = library()
-    for name, (restype, argtypes) in signatures.items():
-        fn = getattr(lib, name)
-        fn.restype = restype
-        fn.argtypes = list(argtypes)
-    return lib

@@ -249,7 +249,7 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         type=whole_number("--alarm-backoff", "predictor steps"),
         default=None,
         # The default is the Predictor's (DEFAULT_ALARM_BACKOFF): not imported here, where it
-        # would pull numba into every `--help`; test_cli holds the two equal.
+        # would pull MuJoCo and the core into every `--help`; test_cli holds the two equal.
         help="deadline: a pair that keeps alarming (resting contact) is evaluated again after "
         "twice its last wait, up to this many steps, standing in alarm in between; 1 gives "
         "exactly select-all's alarms (default: 8)",

@@ -7,7 +7,6 @@ collision follows an impulse at once shows that the check, and its timing, are w
 
 from __future__ import annotations
 
-import ctypes
 import itertools
 import math
 
@@ -18,14 +17,14 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from dua_mujoco import _core
 from dua_mujoco.mj.checks import BoundMonitor
-from dua_mujoco.mj.events import _exceeds, body_boxes
+from dua_mujoco.mj.events import body_boxes
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.monitor import run
 from dua_mujoco.mj.options import ScheduleOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_scene, make_controller
-from dua_mujoco.native import declare
 
 # Three balls in a row, no gravity: the striker hits the middle ball, which rests 0.1 mm from
 # the last one. The impulse moves the middle ball into the last one within one physics step,
@@ -57,13 +56,13 @@ def _three_balls() -> tuple[mujoco.MjModel, mujoco.MjData]:
 @example(np.full(12, 1e-200), 1e-190)
 @example(np.zeros(12), 0.0)
 def test_exceeds_is_the_largest_corner(q: np.ndarray, bound: float) -> None:
-    """``_exceeds`` screens with the triangle inequality: it must agree with the corners, at
-    any scale."""
+    """``exceeds12`` (the check's screen) uses the triangle inequality: it must agree with the
+    corners, at any scale."""
     corners = [  # math.hypot scales: no square underflows in the reference either
         math.hypot(*(q[:3] + s[0] * q[3:6] + s[1] * q[6:9] + s[2] * q[9:12]))
         for s in itertools.product((-1.0, 1.0), repeat=3)
     ]
-    assert _exceeds(q, bound) == (max(corners) > bound)
+    assert _core.exceeds12(q, bound) == (max(corners) > bound)
 
 
 @pytest.mark.parametrize("scene", ["two_arms", "clutter"])
@@ -128,36 +127,30 @@ def test_the_checks_lanes_equal_one_body_at_a_time(scene: str, accel: float) -> 
     m, d = load_scene(scene)
     p = Predictor(m, accel=accel)
     assert p.events is not None
-    lib = declare({"dua_check_bodies": (ctypes.c_int64, [ctypes.c_void_p, ctypes.c_int64])})
-    ev = p.events
+    nbody, group, width = p.events.nbody, 4, _core.LAYOUT["NB_STATE"]
     ctrl = make_controller(m, "random", seed=2)
     ctrl(m, d)
     mujoco.mj_step(m, d)
     p.reset(d)
-    assert p._native is not None
     flagged = 0
     for k in range(300):
         ctrl(m, d)
         mujoco.mj_step(m, d)
-        p._bind_frame(d)
-        state, meta = ev.state.copy(), ev.meta.copy()
         results = []
-        for lanes in (0, 1):
-            ev.state[:], ev.meta[:] = state, meta
-            count = lib.dua_check_bodies(ctypes.addressof(p._native.args), lanes)
+        for lanes in (False, True):
+            rows, flat = p._rt.check_bodies_copy(lanes)
+            state = flat.reshape(-1, width, group)
             # Body by body (the lanes also write the last group's padding; one at a time not).
-            by_body = ev.state.transpose(0, 2, 1).reshape(-1, ev.state.shape[1])[: ev.nbody]
-            results.append((ev.flagged[:count].tolist(), by_body.copy()))
-            group = ev.state.shape[2]
-            if lanes and ev.nbody % group:
+            by_body = state.transpose(0, 2, 1).reshape(-1, width)[:nbody]
+            results.append((rows.tolist(), by_body))
+            if lanes and nbody % group:
                 # The padding runs as the last body (so its spare lanes take that body's paths).
-                last = ev.state[-1, :, ev.nbody % group - 1]
-                for k in range(ev.nbody % group, group):
-                    np.testing.assert_array_equal(ev.state[-1, :, k], last)
+                last = state[-1, :, nbody % group - 1]
+                for j in range(nbody % group, group):
+                    np.testing.assert_array_equal(state[-1, :, j], last)
         assert results[0][0] == results[1][0], f"step {k}"
         np.testing.assert_array_equal(results[1][1], results[0][1], err_msg=f"step {k}")
         flagged += len(results[0][0])
-        ev.state[:], ev.meta[:] = state, meta
         p.step(d)
     assert flagged > 0  # the bounds broke: the check's every branch ran
 
@@ -233,12 +226,11 @@ def test_a_pruned_predictor_renews_its_pairs_when_a_struck_body_leaves_their_rea
     rebuild of the whole held set when too many spheres escaped) and the collision is flagged.
     Without the check (never escaped) the pair is not held until the next regular rebuild, and
     the collision is missed outside a violation's period."""
-    from dua_mujoco.mj import predictor
+    from dua_mujoco.mj import build
     from dua_mujoco.mj.options import PairOptions
-    from dua_mujoco.mj.pruning import HeldPairs
 
     if not renew:
-        monkeypatch.setattr(predictor, "RENEW_MAX", 0)
+        monkeypatch.setattr(build, "RENEW_MAX", 0)
 
     def balls() -> tuple[mujoco.MjModel, mujoco.MjData]:
         m = mujoco.MjModel.from_xml_string(SPREAD_BALLS)
@@ -256,17 +248,19 @@ def test_a_pruned_predictor_renews_its_pairs_when_a_struck_body_leaves_their_rea
     # At the step after the strike; the regular rebuild is at step 100.
     assert (p.renewals >= 1) if renew else (p.renewals == 0 and p.rebuilds >= 1)
 
-    monkeypatch.setattr(HeldPairs, "escapes", lambda *args, **kwargs: np.zeros(0, dtype=int))
     m, d = balls()
-    blind = run(m, d, Predictor(m, accel=0.1, pairs=pruned), steps=100, progress=False)
+    blind_predictor = Predictor(m, accel=0.1, pairs=pruned)
+    blind_predictor._rt.set_escape_check(False)
+    blind = run(m, d, blind_predictor, steps=100, progress=False)
     assert blind.missed_onsets_outside_violations >= 1
 
 
 @pytest.mark.parametrize("seed", range(3))
 def test_held_pairs_are_indexed_by_body_as_a_stable_sort_would(seed: int) -> None:
-    """``EventTable.hold`` (the native counting sort the plugin shares): for each checked body,
-    the held pairs with a geom on it, by first geom then second, each in increasing position,
-    as a stable argsort of the rows does it; geoms of unchecked bodies and -1 left out."""
+    """The runtime's index of held pairs by the violation check's rows (a counting sort): for
+    each checked body, the held pairs with a geom on it, by first geom then second, each in
+    increasing position, as a stable argsort of the rows does it; geoms of unchecked bodies and
+    -1 left out."""
     from dua_mujoco.mj.events import B_BODY
 
     m, _ = load_scene("two_arms")
@@ -274,15 +268,15 @@ def test_held_pairs_are_indexed_by_body_as_a_stable_sort_would(seed: int) -> Non
     assert events is not None
     rng = np.random.default_rng(seed)
     g1, g2 = rng.integers(-1, m.ngeom, (2, 500))
-    events.hold(g1, g2)
     row_of_body = np.full(m.nbody, -1)
     row_of_body[events.records[:, B_BODY].astype(int)] = np.arange(events.nbody)
+    start, members = _core.index_by_row(row_of_body[m.geom_bodyid], g1, g2, events.nbody)
     rows = np.concatenate([row_of_body[m.geom_bodyid[g]] * (g >= 0) - (g < 0) for g in (g1, g2)])
     pos = np.concatenate([np.arange(500), np.arange(500)])
     keep = rows >= 0
     order = np.argsort(rows[keep], kind="stable")
-    np.testing.assert_array_equal(events.members, pos[keep][order])
+    np.testing.assert_array_equal(members, pos[keep][order])
     np.testing.assert_array_equal(
-        events.start, np.searchsorted(rows[keep][order], np.arange(events.nbody + 1))
+        start, np.searchsorted(rows[keep][order], np.arange(events.nbody + 1))
     )
-    assert 0 < events.members.size < 1000
+    assert 0 < members.size < 1000

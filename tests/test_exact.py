@@ -18,6 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from dua_mujoco import _core
 from dua_mujoco.core.pairset import PAIR_ACCEL, PAIR_DELTA
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.bounds import MotionBounds
@@ -32,7 +33,6 @@ from dua_mujoco.mj.exact import (
     build_exact,
     corner_points,
 )
-from dua_mujoco.mj.native_step import NativeStep
 from dua_mujoco.mj.options import CoveringOptions
 from dua_mujoco.mj.predictor import Predictor
 
@@ -126,26 +126,26 @@ class Motion:
 
 
 def _exact_only(
-    p: Predictor, data: mujoco.MjData, *, query: bool = True, coarse: float = 0.0
+    p: Predictor,
+    data: mujoco.MjData,
+    *,
+    query: bool = True,
+    coarse: float = 0.0,
+    geoms: np.ndarray | None = None,
 ) -> np.ndarray:
     """The native exact level's tau of every pair from a sphere tau of ``coarse`` (MuJoCo asked
-    afresh when ``query``)."""
-    x = p.exact
-    assert x is not None
-    ids = np.arange(len(p.pair_set))
-    native = NativeStep(ids.size)
-    native.bind_frame(data, np.zeros((p.model.nbody, 6)))
-    native.bind_tables(p._pair_records, p._spheres, p._shapes, ids)
-    native.bind_exact(
-        p.model,
-        x.geoms,
-        x.records.copy(),
-        below=x.exact_below,
-        query_below=math.inf if query else 0.0,
-        verts=x.verts,
-        graph=x.graph,
-    )
-    return native.exact_pass(ids, np.full(ids.size, coarse))
+    afresh when ``query``), on a runtime of ``p``'s tables (with ``geoms`` for its exact-level
+    geom table, when given)."""
+    assert p.exact is not None
+    rt = p._rt
+    if geoms is not None:
+        arrays = {**p.table_arrays, "exact_geoms": geoms}
+        names = list(p.universe.tables.geom_names)
+        rt = _core.Runtime(_core.Tables.build(p.model, arrays), p.model, names)
+    p.check_data(data)
+    rt.bind(data)
+    ids = np.arange(p.nsphere_pairs)
+    return rt.exact_only(ids, np.full(ids.size, coarse), math.inf if query else 0.0)
 
 
 # --------------------------------------------------------------------------- the reference
@@ -218,7 +218,7 @@ def reference_exact_tau(p: Predictor, data: mujoco.MjData, pair: int) -> float:
     gap = low_b - _support(m, data, g1, n) - dist
     if gap <= 0:
         return 0.0
-    rec = p._pair_records[pair]
+    rec = p.pair_records[pair]
     w = float(n @ (vb - va)) - spin - rec[PAIR_DELTA]
     a = rec[PAIR_ACCEL]
     if a == 0:
@@ -305,8 +305,9 @@ def test_the_rotation_term_is_needed() -> None:
     )
     assert tau <= hit
     # Dropping the term: the sphere tau and the translation-only bound both say "later".
-    p.exact.geoms[:, GX_RADIUS] = 0.0
-    no_spin = float(_exact_only(p, motion.state(0.0))[0])
+    no_rotation = p.exact.geoms.copy()
+    no_rotation[:, GX_RADIUS] = 0.0
+    no_spin = float(_exact_only(p, motion.state(0.0), geoms=no_rotation)[0])
     assert no_spin > hit
 
 
@@ -359,7 +360,7 @@ def test_the_reset_remembers_the_direction_and_the_bounds_cover_the_corners() ->
     assert p.exact is not None
     # The corners of both moving geoms are bound points (the pilot and the monitor read them).
     assert {0, 1} <= set(p.bound_points[0].tolist())
-    n = p.exact.records[0, X_N : X_N + 3]
+    n = p._rt.exact_records[0, X_N : X_N + 3]
     assert np.isclose(np.linalg.norm(n), 1.0) and abs(n[1]) > 0.99  # along y, capsule to box
 
 

@@ -1,66 +1,60 @@
-"""The record layouts, stated once in each language, held to each other.
+"""The record layouts the Python side packs, against the native core that reads them.
 
-The Python side packs pair, sphere, shape, exact-level and violation-check records and the
-native code reads them by column (``dua_mujoco/csrc/src/layout.h``, ``internal.h``). A column
-moved on one side only would have each side read the other's numbers as something else, with
-no error: this test compares every column and code the native core exports by name
-(``dua_layout_name``/``dua_layout_value``), the schedule's state and the plugin's config row
-included.
+The columns and codes are stated once, in C++ (``dua_mujoco/csrc/src/layout.h``, ``tables.h``),
+and exported by name (``_core.LAYOUT``): Python reads its column numbers from there, so the two
+cannot disagree about a column. What can still go wrong is a packer writing a width other than
+the one stated, or a table the builder writes that the runtime does not read (or the reverse):
+these tests hold both.
 """
 
 from __future__ import annotations
 
-import ctypes
-
+import mujoco
 import numpy as np
+import pytest
 
-from dua_mujoco import plugin
-from dua_mujoco.core import pairset, shape_kernels
-from dua_mujoco.core.pairset import PairSet, pack_pairs
-from dua_mujoco.core.schedules import state
-from dua_mujoco.mj import events, exact_kernels, kinematics
-from dua_mujoco.native import declare
-
-
-def _native() -> dict[str, int]:
-    lib = declare(
-        {
-            "dua_layout_name": (ctypes.c_char_p, [ctypes.c_int64]),
-            "dua_layout_value": (ctypes.c_int64, [ctypes.c_int64]),
-        }
-    )
-    out, i = {}, 0
-    while (name := lib.dua_layout_name(i)) is not None:
-        out[name.decode()] = int(lib.dua_layout_value(i))
-        i += 1
-    return out
-
-
-def _python() -> dict[str, int]:
-    values: dict[str, int] = {}
-    for module, prefixes in (
-        (pairset, ("PAIR_",)),
-        (kinematics, ("SPHERE_",)),
-        (shape_kernels, ("SHAPE_",)),
-        (exact_kernels, ("GX_", "X_")),
-        (events, ("B_", "NB_", "M_", "STATE_GROUP")),
-        (state, ("W_", "P_", "WHERE", "LAST_STEP", "NEXT", "PREV", "NPARAMS")),
-        (plugin, ("CFG_",)),
-    ):
-        values |= {k: v for k, v in vars(module).items() if k.startswith(prefixes)}
-    for enum in (pairset.PairKind, shape_kernels.ShapeKind, exact_kernels.ExactMode):
-        values |= {f"{enum.__name__}.{member.name}": int(member) for member in enum}
-    values |= {"RANK": state.RANK, "DEADLINE": state.DEADLINE}
-    return values
+from dua_mujoco import _core
+from dua_mujoco.core.pairset import PAIR_NCOL, PairSet, pack_pairs
+from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.mj import build, kinematics
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import load_scene
 
 
 def test_the_python_packers_write_the_stated_widths() -> None:
-    assert pack_pairs(PairSet([0], [1], 0.1, 1.0)).shape[1] == pairset.PAIR_NCOL
+    assert (
+        pack_pairs(PairSet([0], [1], 0.1, 1.0)).shape[1] == PAIR_NCOL == _core.LAYOUT["PAIR_NCOL"]
+    )
     spheres = kinematics.pack_spheres([0], [1], np.zeros((1, 3)), [0, 1])
-    assert spheres.shape[1] == kinematics.SPHERE_NCOL
+    assert spheres.shape[1] == kinematics.SPHERE_NCOL == _core.LAYOUT["SPHERE_NCOL"]
 
 
-def test_every_column_and_code_is_the_same_in_python_and_in_the_native_core() -> None:
-    native, python = _native(), _python()
-    assert set(native) == set(python), set(native) ^ set(python)
-    assert native == python
+def test_the_config_names_every_entry_once() -> None:
+    entries = sorted(v for k, v in build.CONFIG.items() if k != "size")
+    # Two entries for the structure hash's halves: the one after "shape" has no name.
+    assert entries == sorted(set(entries))
+    assert max(entries) < build.CONFIG["size"]
+
+
+@pytest.mark.parametrize("pairs", ["all", "pruned"])
+def test_every_table_the_builder_writes_is_read(pairs: str) -> None:
+    """The runtime refuses tables missing one it reads; and every table written is needed:
+    dropping any one of them is refused with its name."""
+    m, _ = load_scene("two_arms")
+    p = Predictor(m, accel=10.0, pairs=pairs)
+    arrays = dict(p.table_arrays)
+    _core.Tables.build(m, arrays)  # the full set is accepted
+    for name in arrays:
+        with pytest.raises(InvalidInputError, match=f"table '{name}' is missing"):
+            _core.Tables.build(m, {k: v for k, v in arrays.items() if k != name})
+
+
+def test_tables_of_another_model_are_refused() -> None:
+    m, _ = load_scene("two_arms")
+    other = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body>"
+        "<body pos='1 0 0'><freejoint/><geom size='.1'/></body></worldbody></mujoco>"
+    )
+    arrays = Predictor(m, accel=10.0).table_arrays
+    with pytest.raises(InvalidInputError, match="table 'config' was made for another model"):
+        _core.Tables.build(other, arrays)

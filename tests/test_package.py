@@ -49,7 +49,8 @@ def test_the_wheel_ships_the_package_the_scenes_and_the_native_core(tmp_path: Pa
     scenes = {f"dua_mujoco/models/{p.name}" for p in (ROOT / "models").glob("*.xml")}
     assert packages <= names, sorted(packages - names)
     assert scenes and scenes <= names, sorted(scenes - names)
-    assert {"dua_mujoco/py.typed", "dua_mujoco/libdua_mujoco.so"} <= names
+    assert {"dua_mujoco/py.typed", "dua_mujoco/libdua_mujoco.so", "dua_mujoco/_core.pyi"} <= names
+    assert [n for n in names if n.startswith("dua_mujoco/_core.") and n.endswith(".so")]
     assert not [n for n in names if "/csrc/" in n]  # sources stay in the sdist
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(wheel).read(entry_points).decode()
@@ -60,8 +61,22 @@ def test_the_wheel_ships_the_package_the_scenes_and_the_native_core(tmp_path: Pa
     assert "[pytest11]" not in text
 
 
+def test_the_bindings_type_stub_is_current(tmp_path: Path) -> None:
+    """``dua_mujoco/_core.pyi`` (what mypy and editors read) is what nanobind's stub generator
+    writes for the compiled module: regenerate it after changing a binding with
+    ``python -m nanobind.stubgen -m dua_mujoco._core -o dua_mujoco/_core.pyi``."""
+    out = tmp_path / "_core.pyi"
+    run = subprocess.run(
+        [sys.executable, "-m", "nanobind.stubgen", "-q", "-m", "dua_mujoco._core", "-o", str(out)],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert out.read_text() == (PACKAGE / "_core.pyi").read_text()
+
+
 def test_no_private_names_across_modules() -> None:
-    """A module imports no underscore name from another module of the package."""
+    """A module imports no underscore name from another module of the package (the compiled
+    binding ``_core`` aside: the package's own, private to it as a whole)."""
     offenders = []
     for path in _modules():
         tree = ast.parse(path.read_text())
@@ -70,7 +85,7 @@ def test_no_private_names_across_modules() -> None:
                 offenders += [
                     f"{path.relative_to(ROOT)}: {node.module}.{a.name}"
                     for a in node.names
-                    if a.name.startswith("_") and a.name != "__version__"
+                    if a.name.startswith("_") and a.name not in ("__version__", "_core")
                 ]
     assert offenders == []
 
@@ -81,13 +96,13 @@ def test_modules_stay_small() -> None:
     assert {k: v for k, v in sizes.items() if v > 600} == {}
 
 
-def test_the_pytest_plugin_imports_neither_numba_nor_mujoco() -> None:
+def test_the_pytest_plugin_imports_neither_the_core_nor_mujoco() -> None:
     """A project that enables the plugin loads it in every pytest session: it must cost nothing
-    there (numba and llvmlite alone take about half a second)."""
+    there (MuJoCo alone takes about a fifth of a second)."""
     code = (
         "import sys, pytest\n"
         "import dua_mujoco, dua_mujoco.testing\n"
-        "heavy = sorted(m for m in ('numba', 'llvmlite', 'mujoco') if m in sys.modules)\n"
+        "heavy = sorted(m for m in ('dua_mujoco._core', 'mujoco') if m in sys.modules)\n"
         "print(heavy)\n"
     )
     out = subprocess.run(
@@ -104,3 +119,57 @@ def test_submodules_import() -> None:
         if parts[-1] == "__main__":
             continue
         importlib.import_module(".".join(parts))
+
+
+def test_native_code_is_reached_through_the_binding_only() -> None:
+    """No numba, llvmlite or ctypes in the package, its tests or the benchmark scripts: every
+    kernel is the native core's, called through the compiled binding ``_core`` (one
+    implementation, one bridge)."""
+    banned = {"numba", "llvmlite", "ctypes"}
+    paths = [
+        *sorted(PACKAGE.rglob("*.py")),
+        *sorted((ROOT / "tests").rglob("*.py")),
+        *sorted((ROOT / "benchmarks").glob("*.py")),
+    ]
+    offenders = []
+    for path in paths:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module or ""]
+            else:
+                continue
+            offenders += [
+                f"{path.relative_to(ROOT)}: {n}" for n in names if n.split(".")[0] in banned
+            ]
+    assert offenders == []
+
+
+def test_a_run_loads_no_jit_and_numba_is_no_dependency() -> None:
+    """A sphere predictor's and a MuJoCo predictor's reset and step, tau and the schedules load
+    neither numba nor llvmlite (nor does anything they import), and the distribution does not
+    require them."""
+    code = (
+        "import sys, importlib.metadata\n"
+        "import mujoco, numpy as np\n"
+        "from dua_mujoco import Predictor, SpherePredictor, time_to_collision\n"
+        "from dua_mujoco.core.schedules import DUAScheduler\n"
+        "from dua_mujoco.mj.scenes import load_scene\n"
+        "p = SpherePredictor(np.full(3, 0.1), 1.0, dt=0.01)\n"
+        "c = np.arange(9.0).reshape(3, 3)\n"
+        "p.reset(c, np.zeros((3, 3)))\n"
+        "p.step(c, np.zeros((3, 3)))\n"
+        "DUAScheduler(time_to_collision(c, c, 0.1, 1.0), dt=0.01)\n"
+        "m, d = load_scene('two_arms')\n"
+        "q = Predictor(m, accel=30.0)\n"
+        "mujoco.mj_step(m, d); q.reset(d); mujoco.mj_step(m, d); q.step(d)\n"
+        "req = importlib.metadata.requires('dua_mujoco') or []\n"
+        "jit = [r for r in req if r.split(';')[0].strip().startswith(('numba', 'llvmlite'))]\n"
+        "print(sorted(m for m in ('numba', 'llvmlite') if m in sys.modules), jit)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[] []"

@@ -13,10 +13,12 @@ from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import (
     DeadlineScheduler,
     DUAScheduler,
+    Scheduler,
     SelectAllScheduler,
     Urgency,
     bucket_layout,
 )
+from dua_mujoco.core.urgency import PARALLEL_MIN
 from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, SchedulerError, ShapeError
 
@@ -283,9 +285,9 @@ def test_most_urgent_is_bucket_zero() -> None:
 
 
 def reference_interval(tau: float, dt: float, latency: int, max_interval: int) -> int:
-    """The largest s in [1, max_interval] with (s + latency) dt <= tau, by counting up."""
+    """The largest s in [1, max_interval] with (s + latency) dt < tau, by counting up."""
     s = 1
-    while s < max_interval and (s + 1 + latency) * dt <= tau:
+    while s < max_interval and (s + 1 + latency) * dt < tau:
         s += 1
     return s
 
@@ -384,15 +386,16 @@ def test_deadline_matches_reference(
 def test_deadline_interval_is_the_latest_safe_step() -> None:
     dt = 0.002
     s = DeadlineScheduler(np.array([0.0, 0.0039, 0.004, 0.0101, np.inf]), dt=dt, latency=1)
-    # (s + 1) dt <= tau: 0.004 allows s = 1; 0.0101 allows s = 4; inf the longest interval.
+    # (s + 1) dt < tau: 0.004 allows no s (it alarms: a verdict must cover the wait strictly);
+    # 0.0101 allows s = 4; inf the longest interval.
     np.testing.assert_array_equal(s.next_due(np.arange(5)), [1, 1, 1, 4, 1024])
-    np.testing.assert_array_equal(s.initial_alarms, [0, 1])
+    np.testing.assert_array_equal(s.initial_alarms, [0, 1, 2])
     # A verdict computed in floating point never allows more than its tau covers, including
     # at the exact multiples of dt where the division rounds.
     taus = np.concatenate([np.linspace(0.0, 0.1, 2001), np.arange(1, 50) * dt])
     t = DeadlineScheduler(taus, dt=dt, latency=1)
     due = t.next_due(np.arange(taus.size))
-    assert ((taus < 2 * dt) | ((due + 1) * dt <= taus)).all()
+    assert ((taus <= 2 * dt) | ((due + 1) * dt < taus)).all()
     assert (due == [reference_interval(float(x), dt, 1, 1024) for x in taus]).all()
 
 
@@ -413,7 +416,7 @@ def test_deadline_backs_off_a_pair_that_keeps_alarming() -> None:
     while not (ids := s.select()).size:
         s.update(ids, np.zeros(0))
     assert s.step_count + 1 == 47
-    s.update(ids, [0.05])
+    s.update(ids, [0.051])
     assert not s.alarm_state([0])[0]
     assert s.next_due([0])[0] == 47 + 5
     with pytest.raises(InvalidInputError, match="alarm_backoff"):
@@ -468,3 +471,68 @@ def test_schedules_share_the_fused_step_on_free_spheres() -> None:
             assert sorted(a.tolist()) == sorted(b.tolist())
             np.testing.assert_array_equal(fused.last_tau, protocol.last_tau)
             np.testing.assert_array_equal(fused.last_new, protocol.last_new)
+
+
+def test_of_wraps_a_schedule_without_classifying_again() -> None:
+    """``Scheduler.of`` shows an existing ``_core.Schedule`` (the runtime's) as the scheduler of
+    its kind: the same buffers and count, options read back, nothing classified again."""
+    world = SphereWorld(12, seed=4, radius=0.08, accel=2.0, dt=0.01)
+    pairs = world.pairs()
+    tau0 = pairs.tau(np.arange(len(pairs)), world.positions, world.velocities)
+    for own in (
+        DUAScheduler(tau0, dt=0.01, slots_per_bucket=2),
+        DeadlineScheduler(tau0, dt=0.01, latency=0, max_evals_per_step=7, alarm_backoff=4),
+        SelectAllScheduler(tau0, dt=0.01),
+    ):
+        for _ in range(5):
+            world.step()
+            own.step_points(pairs, world.positions, world.velocities)
+        seen = Scheduler.of(own.core)
+        assert type(seen) is type(own)
+        assert seen.step_count == own.step_count == 5
+        assert seen.last_tau is not own.last_tau and np.shares_memory(seen.last_tau, own.last_tau)
+        np.testing.assert_array_equal(seen.alarm_state(), own.alarm_state())
+        np.testing.assert_array_equal(seen.initial_alarms, np.flatnonzero(own.alarm_state()))
+        for name in ("interval", "slots_per_bucket", "max_evals_per_step", "max_interval",
+                     "alarm_backoff", "urgency", "alarm_distance"):  # fmt: skip
+            if hasattr(own, name):
+                np.testing.assert_array_equal(getattr(seen, name), getattr(own, name))
+        # Steps taken through either are the other's: step_count reads the schedule.
+        world.step()
+        seen.step_points(pairs, world.positions, world.velocities)
+        assert own.step_count == 6
+    with pytest.raises(InvalidInputError, match=r"_core\.Schedule"):
+        Scheduler.of(tau0)  # type: ignore[arg-type]
+
+
+def test_pair_bounds_changed_in_place_are_the_ones_evaluated() -> None:
+    """A PairSet's bounds are views of the records the native core reads; its indices are
+    read-only (the records and the index checks hold them)."""
+    world = SphereWorld(8, seed=2, radius=0.05, accel=1.0, dt=0.01)
+    pairs = world.pairs()
+    ids = np.arange(len(pairs))
+    c, v = world.positions, world.velocities
+    before = pairs.tau(ids, c, v)
+    s = DUAScheduler(before, dt=0.01)
+    pairs.accel[:] = 50.0
+    after = pairs.tau(ids, c, v)
+    assert (after <= before).all() and (after < before).any()
+    np.testing.assert_array_equal(pairs.records[:, 4], 50.0)
+    s.step_points(pairs, c, v)
+    sel = s.last_selected
+    np.testing.assert_array_equal(s.last_tau[sel], after[sel])
+    with pytest.raises(ValueError, match="read-only"):
+        pairs.first[0] = 3
+    with pytest.raises(InvalidInputError, match="build a new PairSet"):
+        pairs.second = pairs.second.copy()
+
+
+def test_large_batches_split_over_threads_give_the_same_tau() -> None:
+    """From ``PARALLEL_MIN`` rows on a batch runs on two threads: the same values, bit for bit."""
+    world = SphereWorld(400, seed=9, radius=0.02, accel=1.0)
+    pairs = world.pairs()
+    ids = np.arange(len(pairs))
+    assert ids.size >= PARALLEL_MIN
+    whole = pairs.tau(ids, world.positions, world.velocities)
+    parts = [pairs.tau(b, world.positions, world.velocities) for b in np.array_split(ids, 7)]
+    np.testing.assert_array_equal(whole, np.concatenate(parts))

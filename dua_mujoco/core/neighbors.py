@@ -40,27 +40,23 @@ cluster plus a far outlier). Cells are grown by ``1 + 2^-16`` beyond ``2 rcut + 
 that a pair at distance ``<= s <=`` the edge (after rounding, ``< 1e-13`` relative) never lands
 two cells apart: the rounding of ``floor((x - lo) / h)`` stays below ``2^-21`` cells with at
 most ``2^31`` cells an axis. The grid is the native core's (``csrc/src/grid.cc``, which the
-MuJoCo plugin runs too); every work array is a numpy allocation made here (the native kernels
-allocate nothing), so ``tracemalloc`` sees the whole footprint (~70 bytes per sphere plus 20
-per pair).
+MuJoCo plugin runs too, called through ``dua_mujoco._core``; ``_core.grid_plan`` shows its
+plan); its work arrays (~70 bytes per sphere plus 20 per pair) are native allocations, which
+``tracemalloc`` does not see (the process's resident size does).
 """
 
 from __future__ import annotations
 
-import ctypes
-import functools
-from typing import Any
-
 import numpy as np
 import numpy.typing as npt
 
+import dua_mujoco._core as _core
 from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidInputError,
     NonFiniteStateError,
     ShapeError,
 )
-from dua_mujoco.native import declare
 
 __all__ = ["ROUNDING_SLACK", "candidate_pairs", "reach"]
 
@@ -70,61 +66,6 @@ ROUNDING_SLACK = 1.0 + 2.0**-44
 
 # Squares of larger values could overflow to inf, where the test stops meaning anything.
 MAX_MAGNITUDE = 1e150
-
-
-class _Plan(ctypes.Structure):
-    """``dua_grid_plan`` (dua/dua.h)."""
-
-    _fields_ = [
-        ("lo", ctypes.c_double * 3),
-        ("h", ctypes.c_double),
-        ("mask", ctypes.c_int64 * 3),
-        ("shift_y", ctypes.c_int64),
-        ("shift_z", ctypes.c_int64),
-        ("wrap", ctypes.c_int64 * 3),
-        ("nbucket", ctypes.c_int64),
-        ("nheld", ctypes.c_int64),
-        ("rcut", ctypes.c_double),
-    ]
-
-
-class _Work(ctypes.Structure):
-    """``dua_grid_work`` (dua/dua.h)."""
-
-    _fields_ = [
-        (name, ctypes.c_void_p)
-        for name in ("start", "sid", "sxyz", "sr", "cnt_a", "cnt_b", "found", "is_held")
-    ]
-
-
-@functools.cache
-def _lib() -> Any:
-    """The grid's and the reach's C functions, their signatures declared once."""
-    p, i8, f8 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
-    return declare(
-        {
-            "dua_grid_bounds": (i8, [p, i8, p, p]),
-            "dua_grid_plan_of": (None, [p, i8, f8, p, p, p, p, p]),
-            "dua_grid_count": (i8, [p, p, p, i8, f8, p, p]),
-            "dua_grid_fill": (None, [p, p, p, i8, f8, p, p, p, p]),
-            "dua_reaches": (None, [p, p, p, p, p, i8, f8, p]),
-        }
-    )
-
-
-def _plan(
-    reach: np.ndarray, margin: float, lo: np.ndarray, hi: np.ndarray
-) -> tuple[_Plan, np.ndarray]:
-    """The grid of ``reach.size >= 2`` spheres within bounds ``lo``, ``hi``: its plan (cell
-    edge, bucket map, held-out count) and the sorted ids held out of it."""
-    n = reach.shape[0]
-    plan = _Plan()
-    held = np.empty(256, dtype=np.int64)
-    work = np.empty(n)
-    _lib().dua_grid_plan_of(
-        reach.ctypes, n, margin, lo.ctypes, hi.ctypes, ctypes.byref(plan), held.ctypes, work.ctypes
-    )
-    return plan, held[: plan.nheld].copy()
 
 
 def _as_1d(name: str, value: npt.ArrayLike, first: tuple[str, int] | None) -> np.ndarray:
@@ -229,10 +170,8 @@ def reach(
         np.ascontiguousarray(np.broadcast_to(arrays[k], shape))
         for k in ("radius", "speed_now", "accel", "vel_uncertainty", "speed_bound")
     )
-    out = np.empty(shape)
     # The native core's kernel: the MuJoCo predictor renews reaches with it inside its step.
-    pointers = (a.ctypes for a in (r, s, A, d, V))
-    _lib().dua_reaches(*pointers, shape[0], float(T), out.ctypes)
+    out = np.asarray(_core.reaches(r, s, A, d, V, float(T)))
     if not np.isfinite(out).all():
         idx = int(np.flatnonzero(~np.isfinite(out))[0])
         raise InvalidInputError(
@@ -285,11 +224,9 @@ def candidate_pairs(
     _check_values("reach", r)
     c = np.ascontiguousarray(c)
     r = np.ascontiguousarray(r)
-    lib = _lib()
-    lo = np.empty(3)
-    hi = np.empty(3)
-    row = lib.dua_grid_bounds(c.ctypes, n, lo.ctypes, hi.ctypes)
-    if row >= 0:
+    bad = ~(np.abs(c) <= MAX_MAGNITUDE).all(axis=1)  # NaN fails the comparison too
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
         if not np.isfinite(c[row]).all():
             raise NonFiniteStateError(
                 f"centers[{row}] = {c[row].tolist()} is not finite: the state diverged or was "
@@ -306,27 +243,4 @@ def candidate_pairs(
             raise InvalidInputError(
                 f"{where} exceeds {MAX_MAGNITUDE:g}: its square would overflow. Rescale the units."
             )
-    if n < 2:
-        return np.empty((0, 2), dtype=np.int64)
-    margin_ = float(m)
-    plan, held = _plan(r, margin_, lo, hi)
-    ng = n - held.size
-    # Every work array is a numpy allocation (tracemalloc sees the footprint); int32 ids and
-    # bucket starts halve the cache footprint of the random accesses (N < 2^31).
-    arrays = (
-        np.empty(plan.nbucket + 1, dtype=np.int32),
-        np.empty(ng, dtype=np.int32),
-        np.empty((ng, 3)),
-        np.empty(ng),
-        np.empty(n, dtype=np.int64),
-        np.empty(n, dtype=np.int64),
-        np.empty(n, dtype=np.int32),
-        np.empty(n, dtype=np.uint8),
-    )
-    work = _Work(*(a.ctypes.data for a in arrays))
-    args = (ctypes.byref(plan), c.ctypes, r.ctypes, n, margin_, held.ctypes, ctypes.byref(work))
-    k = lib.dua_grid_count(*args)
-    tmp = np.empty(k, dtype=np.int32)
-    out = np.empty((k, 2), dtype=np.int64)
-    lib.dua_grid_fill(*args, tmp.ctypes, out.ctypes)
-    return out
+    return np.asarray(_core.candidate_pairs(c, r, float(m)))

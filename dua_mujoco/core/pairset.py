@@ -2,25 +2,28 @@
 
 ``PairSet`` holds the pairs with their kind (``PairKind``: sphere-sphere, sphere-half-space,
 sphere-static-shape), contact distance ``eps``, acceleration bound, velocity uncertainty and
-speed bound; ``tau`` evaluates pairs from sphere states, and ``pair_tau`` is the compiled
-evaluation the schedules' fused step on free spheres calls. ``pack_pairs`` packs the same data
-into one row per pair (named ``PAIR_*`` columns) for the MuJoCo layer's fused step, which reads
-cold tables after ``mj_step``.
+speed bound, packed into one record per pair (named ``PAIR_*`` columns, ``pack_pairs``, the
+layout of the native core: ``dua_mujoco._core.LAYOUT``); ``tau`` evaluates pairs from sphere
+states with the native core's evaluation, the one the schedules' fused step on free spheres
+runs and the MuJoCo layer's step runs on rigid bodies.
 """
 
 from __future__ import annotations
 
 import enum
 
-import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.refs import Ref
-from dua_mujoco.core.shapes import SHAPE_NCOL, tau_static
-from dua_mujoco.core.urgency import PARALLEL_MIN, tau_between, tau_halfspace
+import dua_mujoco._core as _core
+from dua_mujoco.core.shapes import SHAPE_NCOL
 from dua_mujoco.core.validate import as_ids, as_vectors, per_pair
-from dua_mujoco.exceptions import InvalidBoundError, InvalidInputError, ShapeError
+from dua_mujoco.exceptions import (
+    InvalidBoundError,
+    InvalidInputError,
+    NonFiniteStateError,
+    ShapeError,
+)
 
 __all__ = [
     "KIND_HALFSPACE",
@@ -38,91 +41,38 @@ __all__ = [
     "PairKind",
     "PairSet",
     "pack_pairs",
-    "pair_tau",
 ]
+
+_LAYOUT = _core.LAYOUT
 
 
 class PairKind(enum.IntEnum):
     """What the second member of a pair is; the first is always a sphere."""
 
-    SPHERE = 0
+    SPHERE = _LAYOUT["PairKind.SPHERE"]
     """Another sphere: ``second`` is a sphere id."""
-    HALFSPACE = 1
+    HALFSPACE = _LAYOUT["PairKind.HALFSPACE"]
     """A half-space (a plane): ``second`` is a half-space id."""
-    SHAPE = 2
+    SHAPE = _LAYOUT["PairKind.SHAPE"]
     """A static convex shape (``dua_mujoco.core.shapes``): ``second`` is a shape record row."""
 
 
-# Plain ints for the kernels (numba folds module-level ints into constants).
-KIND_SPHERE = 0
-KIND_HALFSPACE = 1
-KIND_SHAPE = 2
+# Plain ints, for comparisons with arrays.
+KIND_SPHERE = int(PairKind.SPHERE)
+KIND_HALFSPACE = int(PairKind.HALFSPACE)
+KIND_SHAPE = int(PairKind.SHAPE)
 
-
-@nb.njit(cache=True, inline="always")
-def _sphere_halfspace_tau(c, v, plane, p, eps, accel, delta):  # pragma: no cover - jitted
-    gap = plane[0] * c[0] + plane[1] * c[1] + plane[2] * c[2] - plane[3] - eps[p]
-    vn = plane[0] * v[0] + plane[1] * v[1] + plane[2] * v[2]
-    return tau_halfspace(gap, vn, accel[p], delta[p])
-
-
-@nb.njit(cache=True, inline="always")
-def pair_tau(p, geometry):  # pragma: no cover - jitted
-    """tau of pair ``p``; ``geometry`` is ``PairSet.inputs(...) + PairSet.arrays()``:
-    ``(centers, velocities, planes, shapes, first, second, kind, eps, accel, vel_uncertainty,
-    speed)``, one argument instead of eleven through every kernel (``kind`` is nonzero exactly
-    where ``second`` is not a sphere, what a kernel that gathers sphere states has to know)."""
-    centers, velocities, planes, shapes, first, second, kind, eps, accel, delta, speed = geometry
-    i = first[p]
-    j = second[p]
-    if kind[p] == KIND_HALFSPACE:
-        return _sphere_halfspace_tau(centers[i], velocities[i], planes[j], p, eps, accel, delta)
-    if kind[p] == KIND_SHAPE:
-        c = centers[i]
-        v = velocities[i]
-        return tau_static(c[0], c[1], c[2], v[0], v[1], v[2], shapes[j], eps[p], accel[p], delta[p])
-    return tau_between(
-        centers[i], velocities[i], centers[j], velocities[j], eps[p], accel[p], delta[p], speed[p]
-    )
-
-
-def _tau_pairs(ids: np.ndarray, geometry: tuple) -> np.ndarray:
-    """tau of the pairs ``ids``: threads for large batches, serial for small ones."""
-    kernel = _tau_pairs_parallel if ids.shape[0] >= PARALLEL_MIN else _tau_pairs_serial
-    return kernel(ids, geometry)
-
-
-# The serial and threaded kernels differ only in range/prange: numba has no switch for it.
-@nb.njit(cache=True)
-def _tau_pairs_serial(ids, geometry):  # pragma: no cover - jitted
-    out = np.empty(ids.shape[0])
-    for k in range(ids.shape[0]):
-        out[k] = pair_tau(ids[k], geometry)
-    return out
-
-
-@nb.njit(cache=True, parallel=True)
-def _tau_pairs_parallel(ids, geometry):  # pragma: no cover - jitted
-    out = np.empty(ids.shape[0])
-    for k in nb.prange(ids.shape[0]):
-        out[k] = pair_tau(ids[k], geometry)
-    return out
-
-
-# Column layout of the packed per-pair and per-sphere records read by the rigid fused step: one
-# 64-byte row (a cache line) per pair and per sphere instead of one line in each of 7 or 3
-# separate arrays, because after mj_step those tables are cold and the step is memory-bound.
-PAIR_NCOL = 8
-(
-    PAIR_FIRST,
-    PAIR_SECOND,
-    PAIR_KIND,
-    PAIR_EPS,
-    PAIR_ACCEL,
-    PAIR_DELTA,
-    PAIR_SPEED,
-    PAIR_OTHER,
-) = range(PAIR_NCOL)
+# Columns of the packed per-pair records (one 64-byte row, a cache line, per pair: the native
+# step reads cold tables after mj_step and is memory-bound).
+PAIR_FIRST: int = _LAYOUT["PAIR_FIRST"]
+PAIR_SECOND: int = _LAYOUT["PAIR_SECOND"]
+PAIR_KIND: int = _LAYOUT["PAIR_KIND"]
+PAIR_EPS: int = _LAYOUT["PAIR_EPS"]
+PAIR_ACCEL: int = _LAYOUT["PAIR_ACCEL"]
+PAIR_DELTA: int = _LAYOUT["PAIR_DELTA"]
+PAIR_SPEED: int = _LAYOUT["PAIR_SPEED"]
+PAIR_OTHER: int = _LAYOUT["PAIR_OTHER"]
+PAIR_NCOL: int = _LAYOUT["PAIR_NCOL"]
 
 
 def pack_pairs(pairs: PairSet, plane_frame: npt.ArrayLike | None = None) -> np.ndarray:
@@ -138,20 +88,11 @@ def pack_pairs(pairs: PairSet, plane_frame: npt.ArrayLike | None = None) -> np.n
 
     Ids are stored as floats: exact below 2**53.
     """
-    rec = np.zeros((len(pairs), PAIR_NCOL))
-    rec[:, PAIR_FIRST] = pairs.first
-    rec[:, PAIR_SECOND] = pairs.second
-    rec[:, PAIR_KIND] = pairs.kind
-    rec[:, PAIR_EPS] = pairs.eps
-    rec[:, PAIR_ACCEL] = pairs.accel
-    rec[:, PAIR_DELTA] = pairs.vel_uncertainty
-    rec[:, PAIR_SPEED] = pairs.speed
+    rec = pairs.records.copy()
     if plane_frame is not None:
         frame = np.asarray(plane_frame, dtype=np.int64)
         h = pairs.halfspace
         rec[h, PAIR_OTHER] = frame[pairs.second[h]]
-    s = pairs.shape
-    rec[s, PAIR_OTHER] = pairs.second[s]
     return rec
 
 
@@ -165,10 +106,15 @@ def _placeholder(shape: tuple[int, ...]) -> np.ndarray:
 _NO_PLANES = _placeholder((1, 4))
 _NO_SHAPES = _placeholder((1, SHAPE_NCOL))
 
+# Bounds: views of the records' columns, changed in place (pairs.eps[:] = ...).
+_BOUNDS = frozenset(("eps", "accel", "vel_uncertainty", "speed"))
+# Indices and what follows from them: read-only (the records and the index checks hold them).
+_INDICES = frozenset(("first", "second", "kind", "halfspace", "shape", "records"))
 
-_FIXED = frozenset(
-    ("first", "second", "kind", "halfspace", "shape", "eps", "accel", "vel_uncertainty", "speed")
-)
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
 
 
 class PairSet:
@@ -191,6 +137,10 @@ class PairSet:
             move, so ``tau`` and ``inputs`` use them unless given others).
 
     Attributes:
+        records: ``(M, 8)`` float64 records (``PAIR_*`` columns, ``other`` 0 for half-space
+            pairs): what the native core evaluates. ``eps``, ``accel``, ``vel_uncertainty`` and
+            ``speed`` are views of its columns (change them in place); ``first``, ``second``
+            and ``kind`` are read-only copies of the others.
         kind: ``(M,)`` int8 ``PairKind`` codes.
         halfspace: ``(M,)`` bool, ``kind == HALFSPACE``.
         shape: ``(M,)`` bool, ``kind == SHAPE``.
@@ -209,20 +159,30 @@ class PairSet:
         speed: npt.ArrayLike = np.inf,
         shapes: npt.ArrayLike | None = None,
     ) -> None:
-        # Owned, writeable and aligned (a copy when the caller's are not): kernel_ref's compiled
-        # type is then the same for every pair set.
-        self.first = np.require(as_ids("first", first), requirements=("C", "A", "W"))
-        m = self.first.shape[0]
-        self.second = np.require(as_ids("second", second, m), requirements=("C", "A", "W"))
-        self.kind = _as_kind(halfspace, kind, m)
-        self.halfspace = self.kind == KIND_HALFSPACE
-        self.shape = self.kind == KIND_SHAPE
-        self.eps = np.broadcast_to(per_pair("eps", eps, m), (m,)).copy()
-        self.accel = np.broadcast_to(per_pair("accel", accel, m), (m,)).copy()
-        self.vel_uncertainty = np.broadcast_to(
-            per_pair("vel_uncertainty", vel_uncertainty, m), (m,)
-        ).copy()
-        self.speed = np.broadcast_to(per_pair("speed", speed, m, allow_inf=True), (m,)).copy()
+        first_ = as_ids("first", first).copy()
+        m = first_.shape[0]
+        second_ = as_ids("second", second, m).copy()
+        kind_ = _as_kind(halfspace, kind, m).copy()
+        rec = np.zeros((m, PAIR_NCOL))
+        rec[:, PAIR_FIRST] = first_
+        rec[:, PAIR_SECOND] = second_
+        rec[:, PAIR_KIND] = kind_
+        rec[:, PAIR_EPS] = per_pair("eps", eps, m)
+        rec[:, PAIR_ACCEL] = per_pair("accel", accel, m)
+        rec[:, PAIR_DELTA] = per_pair("vel_uncertainty", vel_uncertainty, m)
+        rec[:, PAIR_SPEED] = per_pair("speed", speed, m, allow_inf=True)
+        shape = kind_ == KIND_SHAPE
+        rec[shape, PAIR_OTHER] = second_[shape]
+        self.first = _read_only(first_)
+        self.second = _read_only(second_)
+        self.kind = _read_only(kind_)
+        self.halfspace = _read_only(kind_ == KIND_HALFSPACE)
+        self.shape = _read_only(shape)
+        self.records = rec
+        self.eps = rec[:, PAIR_EPS]
+        self.accel = rec[:, PAIR_ACCEL]
+        self.vel_uncertainty = rec[:, PAIR_DELTA]
+        self.speed = rec[:, PAIR_SPEED]
         if (self.speed == 0.0).any():
             raise InvalidBoundError(
                 "speed bounds must be positive: a zero speed bound is invalid; use inf for none."
@@ -237,18 +197,20 @@ class PairSet:
         self.has_halfspace = bool(self.halfspace.any())
         self.has_shape = bool(self.shape.any())
         self.shapes: np.ndarray | None = None if shapes is None else _as_shape_records(shapes)
-        self._ref: Ref | None = None
 
     def __setattr__(self, name: str, value: object) -> None:
-        # The pair arrays are fixed (kernel_ref and the index checks hold them): a new array
-        # would be silently ignored by the compiled steps.
-        if name in _FIXED and name in self.__dict__:
+        # The arrays are fixed: the records hold them, so a new array would be ignored.
+        if name in _BOUNDS and name in self.__dict__:
             raise InvalidInputError(
                 f"PairSet.{name} is fixed at construction: change its values in place "
                 f"(pairs.{name}[:] = ...) or build a new PairSet."
             )
+        if name in _INDICES and name in self.__dict__:
+            raise InvalidInputError(
+                f"PairSet.{name} is fixed at construction (the records and the index checks "
+                "hold it): build a new PairSet."
+            )
         if name == "shapes" and value is not None:
-            # Validated and float64, the type the compiled steps were built for.
             value = _as_shape_records(value)  # type: ignore[arg-type]
         super().__setattr__(name, value)
 
@@ -326,8 +288,11 @@ class PairSet:
         idx = as_ids("ids", ids)
         if idx.size and (idx.min() < 0 or idx.max() >= len(self)):
             raise InvalidInputError(f"pair ids must be in [0, {len(self)}); got {idx.tolist()}.")
-        inputs = self.inputs(centers, velocities, halfspaces, shapes=shapes)
-        return np.asarray(_tau_pairs(idx, inputs + self.arrays()))
+        c, v, planes, recs = self.inputs(centers, velocities, halfspaces, shapes=shapes)
+        tau, bad = _core.tau_pairs(self.records, idx, c, v, planes, recs)
+        if bad >= 0:  # pragma: no cover - inputs() checked the state finite
+            raise NonFiniteStateError(f"the state of pair {int(idx[bad])} is not finite.")
+        return np.asarray(tau)
 
     def arrays(self) -> tuple[np.ndarray, ...]:
         """``(first, second, kind, eps, accel, vel_uncertainty, speed)``, fixed at construction."""
@@ -340,13 +305,6 @@ class PairSet:
             self.vel_uncertainty,
             self.speed,
         )
-
-    @property
-    def kernel_ref(self) -> Ref:
-        """:meth:`arrays` as one compiled-code object (``dua_mujoco.core.refs``), built once."""
-        if self._ref is None:
-            self._ref = Ref(self.arrays())
-        return self._ref
 
     def inputs(
         self,

@@ -1,27 +1,29 @@
-"""Pruned pair sets: the rebuild stride, the pair merge, the rebuild criterion, standing alarms.
+"""Pruned pair sets: the rebuild stride, the pair merge, the escape test, standing alarms.
 
 A pruned predictor holds only the pairs of ``neighbors.candidate_pairs`` at a horizon ``T``
-and rebuilds them every :func:`rebuild_stride` steps, or earlier when :func:`escaped` finds a
-sphere outside what the reach assumed. The completeness proof (why a pair left out at a rebuild
-needs no verdict until the next one) is in docs/many-objects.md. Everything here is O(N) or
-O(pairs) with compiled loops.
+and rebuilds them every :func:`rebuild_stride` steps, or earlier when :func:`escapes` finds a
+sphere that may have left the reach the last rebuild assumed (the native core's test, the one
+the MuJoCo step runs: docs/theory.md, Lemma 6.4). The completeness proof (why a pair left out at
+a rebuild needs no verdict until the next one) is in docs/many-objects.md. Everything here is
+O(N) or O(pairs), in the native core or vectorised.
 """
 
 from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
+import numpy.typing as npt
 
+import dua_mujoco._core as _core
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import InvalidInputError
 
-__all__ = ["StandingAlarms", "escaped", "match_pairs", "rebuild_stride"]
+__all__ = ["StandingAlarms", "breaks_bounds", "escapes", "match_pairs", "rebuild_stride"]
 
-# Relative slack of the rebuild criterion: a centre that moved exactly as far as the bounds
-# allow (a bang-bang trajectory integrated in float64) must not count as escaped.
-_ESCAPE_SLACK = 1e-9
+# Relative slack of the violation diagnosis: a centre that moved exactly as far as the bounds
+# allow (a bang-bang trajectory integrated in float64) is not reported as breaking them.
+_BREAK_SLACK = 1e-9
 
 
 def rebuild_stride(horizon: float, dt: float, latency: int) -> int:
@@ -52,25 +54,24 @@ def rebuild_stride(horizon: float, dt: float, latency: int) -> int:
     return R
 
 
-@nb.njit(cache=True)
-def match_pairs(old: np.ndarray, new: np.ndarray) -> np.ndarray:  # pragma: no cover - jitted
+def match_pairs(old: np.ndarray, new: np.ndarray) -> np.ndarray:
     """For each row of ``new``, its row in ``old`` or -1; both ``(K, 2)`` sorted lexicographically.
 
-    One merge of the two sorted key lists: O(K_old + K_new), no hashing.
+    Keys ``i (n + 1) + j`` (``n`` the largest id: one integer a pair, in the same order) found by
+    binary search: O(K_new log K_old), vectorised.
     """
-    src = np.full(new.shape[0], -1, dtype=np.int64)
-    a = 0
-    for b in range(new.shape[0]):
-        i, j = new[b, 0], new[b, 1]
-        while a < old.shape[0] and (old[a, 0] < i or (old[a, 0] == i and old[a, 1] < j)):
-            a += 1
-        if a < old.shape[0] and old[a, 0] == i and old[a, 1] == j:
-            src[b] = a
-    return src
+    old = np.asarray(old, dtype=np.int64).reshape(-1, 2)
+    new = np.asarray(new, dtype=np.int64).reshape(-1, 2)
+    if old.shape[0] == 0 or new.shape[0] == 0:
+        return np.full(new.shape[0], -1, dtype=np.int64)
+    base = max(int(old.max()), int(new.max())) + 1
+    a = old[:, 0] * base + old[:, 1]
+    b = new[:, 0] * base + new[:, 1]
+    at = np.minimum(np.searchsorted(a, b), a.shape[0] - 1)
+    return np.where(a[at] == b, at, -1).astype(np.int64)
 
 
-@nb.njit(cache=True)
-def escaped(
+def escapes(
     centers: np.ndarray,
     velocities: np.ndarray,
     anchor: np.ndarray,
@@ -79,81 +80,85 @@ def escaped(
     delta: np.ndarray,
     speed_bound: np.ndarray,
     t: float,
-) -> int:  # pragma: no cover - jitted
-    """First sphere whose state contradicts what the last rebuild's reach assumed, or -1.
+    *,
+    ids: np.ndarray | None = None,
+    elapsed: np.ndarray | None = None,
+) -> np.ndarray:
+    """The spheres that may have left the reach their anchors assumed, ``t`` seconds on.
 
-    The reach assumed ``|x_i(t) - c_i| <= min((|v_i| + delta_i) t + A_i t^2 / 2, V_i t)`` for
-    the centre and, for the measured velocity, ``|v_i(t)| <= |v_i| + 2 delta_i + A_i t``
-    (true speed at most ``|v_i| + delta_i + A_i t``, measured within ``delta_i`` of it) and
-    ``<= V_i + delta_i``. Per-sphere arrays may have length 1 (one value for all).
+    The native core's test (``csrc/src/reach.cc``, the MuJoCo step's, docs/theory.md Lemma 6.4):
+    a sphere passes only if its centre is within ``min((s0 + delta) t + A t^2 / 2, V t)`` of its
+    anchor and its measured speed at most ``min(s0 + A t, V - delta)``, each with room to spare
+    for rounding; one that passes stays inside its reach until the horizon while its bounds hold
+    from now on, whatever it did before.
+
+    Args:
+        centers, velocities: ``(N, 3)`` sphere states now.
+        anchor: ``(N, 3)`` centres at the anchor; ``speed0`` ``(N,)`` measured speeds then.
+        accel, delta, speed_bound: ``(N,)`` bounds ``A``, ``delta``, ``V`` (``inf``: none).
+        t: Seconds since the anchor.
+        ids, elapsed: Optional ``(N,)`` buffers for ``arange(N)`` and the elapsed times (a
+            caller that checks every step keeps them).
+
+    Returns:
+        ``(k,)`` int64 ids of the spheres that may have escaped, increasing.
     """
     n = centers.shape[0]
-    for i in range(n):
-        a = accel[i if accel.shape[0] > 1 else 0]
-        d = delta[i if delta.shape[0] > 1 else 0]
-        V = speed_bound[i if speed_bound.shape[0] > 1 else 0]
-        s0 = speed0[i]
-        allow = (s0 + d) * t + 0.5 * a * t * t
-        vmax = s0 + 2.0 * d + a * t
-        # With no speed bound V t is inf (or NaN at t = 0) and never replaces the allowance.
-        if V * t < allow:
-            allow = V * t
-        vmax = min(vmax, V + d)
-        d2 = 0.0
-        v2 = 0.0
-        scale = 1.0
-        for k in range(3):
-            dx = centers[i, k] - anchor[i, k]
-            d2 += dx * dx
-            v2 += velocities[i, k] * velocities[i, k]
-            scale = max(scale, abs(anchor[i, k]))
-        # Rounding of positions scales with their magnitude: tolerate ~1e4 ulp of it.
-        tol = _ESCAPE_SLACK * (allow + vmax) + 2e-12 * scale
-        if math.sqrt(d2) > allow + tol or math.sqrt(v2) > vmax + tol:
-            return i
-    return -1
+    ids = np.arange(n, dtype=np.int64) if ids is None else ids
+    elapsed = np.empty(n) if elapsed is None else elapsed
+    elapsed.fill(t)
+    return np.asarray(
+        _core.escapes(anchor, speed0, accel, delta, speed_bound, ids, centers, velocities, elapsed)
+    )
 
 
-@nb.njit(cache=True)
-def _renew(pos, lst, cnt, renewed, alarms):  # pragma: no cover - jitted
-    # Swap-remove every renewed pair, then append the alarmed ones: O(renewed).
-    c = cnt[0]
-    for k in range(renewed.shape[0]):
-        p = renewed[k]
-        at = pos[p]
-        if at >= 0:
-            last = lst[c - 1]
-            lst[at] = last
-            pos[last] = at
-            pos[p] = -1
-            c -= 1
-    for k in range(alarms.shape[0]):
-        p = alarms[k]
-        if pos[p] < 0:
-            pos[p] = c
-            lst[c] = p
-            c += 1
-    cnt[0] = c
+def breaks_bounds(
+    ids: np.ndarray,
+    centers: np.ndarray,
+    velocities: np.ndarray,
+    anchor: np.ndarray,
+    speed0: np.ndarray,
+    accel: np.ndarray,
+    delta: np.ndarray,
+    speed_bound: np.ndarray,
+    t: float,
+) -> np.ndarray:
+    """Of spheres ``ids`` (that :func:`escapes` found), those whose state proves a violation.
+
+    While the bounds hold from the anchor on, the centre stays within
+    ``min((s0 + delta) t + A t^2 / 2, V t)`` of it and the measured speed below
+    ``min(s0 + 2 delta + A t, V + delta)`` (the true speed within ``delta`` of both measurements);
+    a state beyond either (by more than rounding) broke them. An escape short of that is in
+    doubt (a feasible motion or not), and renewed all the same. Vectorised over ``ids``.
+    """
+    a, d, v_max, s0 = accel[ids], delta[ids], speed_bound[ids], speed0[ids]
+    free = (s0 + d) * t + 0.5 * a * t * t
+    # With no speed bound V t is inf and never replaces the free-motion allowance.
+    allow = np.where(v_max * t < free, v_max * t, free)
+    top = np.minimum(s0 + 2.0 * d + a * t, v_max + d)
+    dist = np.linalg.norm(centers[ids] - anchor[ids], axis=1)
+    speed = np.linalg.norm(velocities[ids], axis=1)
+    scale = np.maximum(1.0, np.abs(anchor[ids]).max(axis=1))
+    tol = _BREAK_SLACK * (allow + top) + 2e-12 * scale
+    return np.asarray(ids[~((dist <= allow + tol) & (speed <= top + tol))])
 
 
 class StandingAlarms:
-    """The pairs whose latest verdict alarms, kept up to date in O(renewed pairs) a step.
+    """The pairs whose latest verdict alarms, kept up to date in O(renewed pairs) a step
+    (the native core's swap-remove list).
 
     Args:
         npairs: Number of pairs ``M``.
         alarmed: ``(k,)`` pair ids standing in alarm now.
     """
 
-    def __init__(self, npairs: int, alarmed: np.ndarray) -> None:
-        self.pos = np.full(npairs, -1, dtype=np.int64)
-        self.lst = np.empty(max(npairs, 1), dtype=np.int64)
-        self.cnt = np.zeros(1, dtype=np.int64)
-        _renew(self.pos, self.lst, self.cnt, self.lst[:0], np.asarray(alarmed, dtype=np.int64))
+    def __init__(self, npairs: int, alarmed: npt.ArrayLike) -> None:
+        self._set = _core.StandingAlarms(int(npairs), np.asarray(alarmed, dtype=np.int64))
 
-    def renew(self, renewed: np.ndarray, alarms: np.ndarray) -> None:
+    def renew(self, renewed: npt.ArrayLike, alarms: npt.ArrayLike) -> None:
         """A step renewed the verdicts of ``renewed``; ``alarms`` (among them) alarm."""
-        _renew(self.pos, self.lst, self.cnt, renewed, alarms)
+        self._set.renew(np.asarray(renewed, dtype=np.int64), np.asarray(alarms, dtype=np.int64))
 
     def ids(self) -> np.ndarray:
         """``(k,)`` sorted pair ids standing in alarm."""
-        return np.sort(self.lst[: int(self.cnt[0])])
+        return np.asarray(self._set.ids())

@@ -34,22 +34,12 @@ fields (``1``) and SDFs (``8``) are not convex and are refused.
 
 from __future__ import annotations
 
+import enum
+
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.shape_kernels import (
-    SHAPE_KIND,
-    SHAPE_MAT,
-    SHAPE_NCOL,
-    SHAPE_POS,
-    SHAPE_SIZE,
-    ShapeKind,
-    closest_point,
-    static_batch,
-    static_gap,
-    support,
-    tau_static,
-)
+import dua_mujoco._core as _core
 from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidInputError,
@@ -72,6 +62,106 @@ __all__ = [
     "tau_static",
     "time_to_static",
 ]
+
+_LAYOUT = _core.LAYOUT
+
+
+class ShapeKind(enum.IntEnum):
+    """Static shape types; the values are MuJoCo's ``mjtGeom`` codes."""
+
+    SPHERE = _LAYOUT["ShapeKind.SPHERE"]
+    CAPSULE = _LAYOUT["ShapeKind.CAPSULE"]
+    ELLIPSOID = _LAYOUT["ShapeKind.ELLIPSOID"]
+    CYLINDER = _LAYOUT["ShapeKind.CYLINDER"]
+    BOX = _LAYOUT["ShapeKind.BOX"]
+    MESH_BOX = _LAYOUT["ShapeKind.MESH_BOX"]  # a mesh, held as the box geom_aabb around its hull
+
+
+SHAPE_KIND: int = _LAYOUT["SHAPE_KIND"]
+SHAPE_SIZE: int = _LAYOUT["SHAPE_SIZE"]
+SHAPE_POS: int = _LAYOUT["SHAPE_POS"]
+SHAPE_MAT: int = _LAYOUT["SHAPE_MAT"]
+SHAPE_NCOL: int = _LAYOUT["SHAPE_NCOL"]
+
+_ONE = np.zeros(1, dtype=np.int64)
+
+
+def _one(point: npt.ArrayLike, rec: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """A point ``(1, 3)`` and a record ``(1, 16)`` for the native kernels' batches."""
+    p = np.asarray(point, dtype=np.float64).reshape(1, 3)
+    r = np.asarray(rec, dtype=np.float64).reshape(1, SHAPE_NCOL)
+    return p, r
+
+
+def static_gap(c: npt.ArrayLike, rec: npt.ArrayLike) -> tuple[float, float, float, float]:
+    """Clearance of a point from a static shape along the chosen direction.
+
+    Args:
+        c: Point (sphere centre), shape ``(3,)``.
+        rec: One shape record, shape ``(16,)``.
+
+    Returns:
+        ``(gap, nx, ny, nz)``: ``n`` is the unit direction from the closest point of the shape to
+        ``c`` and ``gap = n.c - h_S(n)`` (without ``eps``). ``gap <= dist(c, S)`` for every ``c``
+        and ``gap <= 0`` inside. Outside, ``gap = dist(c, S)`` up to rounding (for ``MESH_BOX``
+        the distance to the box, for the ellipsoid up to the accuracy of the iterated root).
+    """
+    out = _core.static_gap(*_one(c, rec), _ONE)[0]
+    return float(out[0]), float(out[1]), float(out[2]), float(out[3])
+
+
+def support(n: npt.ArrayLike, rec: npt.ArrayLike) -> float:
+    """Support function ``h_S(n) = n.p + h_local(R^T n)`` of one shape.
+
+    Args:
+        n: Direction, shape ``(3,)``, any length (the support function is positively
+            homogeneous).
+        rec: One shape record, shape ``(16,)``.
+
+    Returns:
+        ``max_{q in S} n.q`` (for ``MESH_BOX``, that of the box around the hull: an upper bound).
+    """
+    return float(_core.support(*_one(n, rec), _ONE)[0])
+
+
+def closest_point(c: npt.ArrayLike, rec: npt.ArrayLike) -> tuple[float, float, float]:
+    """Closest point of a static shape to ``c`` (``c`` itself when inside).
+
+    Args:
+        c: Point, shape ``(3,)``.
+        rec: One shape record, shape ``(16,)``.
+
+    Returns:
+        ``(q0, q1, q2)`` in world coordinates; ``|c - q|`` is the distance to the shape (to the
+        box for ``MESH_BOX``; for the ellipsoid to the iterated root, accurate to rounding).
+    """
+    out = _core.closest_point(*_one(c, rec), _ONE)[0]
+    return float(out[0]), float(out[1]), float(out[2])
+
+
+def tau_static(
+    c0: float,
+    c1: float,
+    c2: float,
+    v0: float,
+    v1: float,
+    v2: float,
+    rec: npt.ArrayLike,
+    eps: float,
+    accel: float,
+    delta: float,
+) -> float:
+    """Scalar kernel: lower bound on the time before a sphere can touch a static shape.
+
+    The half-space tau of ``H(n)`` (module docstring) with the gap lowered by a rounding slack
+    and the velocity uncertainty raised by one, so that rounding cannot make it late. Returns 0
+    when the centre is inside the shape or within ``eps`` of it.
+    """
+    p, r = _one((c0, c1, c2), rec)
+    v = np.array([[v0, v1, v2]], dtype=np.float64)
+    bounds = (np.array([x], dtype=np.float64) for x in (eps, accel, delta))
+    return float(_core.tau_static_batch(p, v, r, _ONE, *bounds)[0])
+
 
 # How far from orthonormal a rotation may be (MuJoCo's geom_xmat is orthonormal to ~1e-15).
 _ORTHO_TOL = 1e-6
@@ -317,8 +407,5 @@ def time_to_static(
     e = _per_sphere("eps", eps, n)
     a = _per_sphere("accel", accel, n)
     dl = _per_sphere("vel_uncertainty", vel_uncertainty, n)
-    out = np.empty(n)
-    static_batch(
-        c, v, np.ascontiguousarray(recs), np.ascontiguousarray(ids, dtype=np.int64), e, a, dl, out
-    )
-    return out
+    ids64 = np.ascontiguousarray(ids, dtype=np.int64)
+    return np.asarray(_core.tau_static_batch(c, v, np.ascontiguousarray(recs), ids64, e, a, dl))

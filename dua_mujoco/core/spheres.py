@@ -18,7 +18,13 @@ import numpy.typing as npt
 
 from dua_mujoco.core.neighbors import candidate_pairs, reach
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.core.pruned import StandingAlarms, escaped, match_pairs, rebuild_stride
+from dua_mujoco.core.pruned import (
+    StandingAlarms,
+    breaks_bounds,
+    escapes,
+    match_pairs,
+    rebuild_stride,
+)
 from dua_mujoco.core.schedules import (
     DeadlineScheduler,
     Schedule,
@@ -168,6 +174,9 @@ class SpherePredictor:
         self._standing: StandingAlarms | None = None
         self._anchor = np.empty((0, 3))
         self._speed0 = np.empty(0)
+        # The escape test's buffers: every sphere, and the time since its anchor.
+        self._ids = np.arange(n, dtype=np.int64)
+        self._elapsed = np.empty(n)
         self._built_at = 0
 
     # ----------------------------------------------------------------------- introspection
@@ -280,6 +289,24 @@ class SpherePredictor:
         self._built_at = step
         self.rebuilds += 1
 
+    def _escaped(self, c: np.ndarray, v: np.ndarray, t: float) -> bool:
+        """Whether a sphere may have left the reach of the last rebuild, ``t`` seconds on (the
+        native step's escape test); a warning when its state proves its bounds broken."""
+        bounds = (self._anchor, self._speed0, self.accel, self.vel_uncertainty, self.speed)
+        out = escapes(c, v, *bounds, t, ids=self._ids, elapsed=self._elapsed)
+        if out.size == 0:
+            return False
+        broken = breaks_bounds(out, c, v, *bounds, t)
+        if broken.size:
+            warnings.warn(
+                f"sphere {int(broken[0])} moved farther or faster than its bounds allow since "
+                f"the last rebuild (step {self._built_at}): the guarantee does not hold there; "
+                "the pair set is rebuilt now. Check accel/speed/vel_uncertainty.",
+                BoundViolationWarning,
+                stacklevel=3,
+            )
+        return True
+
     def step(self, centers: npt.ArrayLike, velocities: npt.ArrayLike) -> np.ndarray:
         """One period later: evaluate the pairs due, rebuild the pruned set if due, alarm.
 
@@ -304,25 +331,7 @@ class SpherePredictor:
             assert self.stride is not None
             due = n - self._built_at >= self.stride
             if not due:
-                bad = escaped(
-                    c,
-                    v,
-                    self._anchor,
-                    self._speed0,
-                    self.accel,
-                    self.vel_uncertainty,
-                    self.speed,
-                    (n - self._built_at) * self.dt,
-                )
-                if bad >= 0:
-                    warnings.warn(
-                        f"sphere {bad} moved farther or faster than its bounds allow since the "
-                        f"last rebuild (step {self._built_at}): the guarantee does not hold "
-                        "there; the pair set is rebuilt now. Check accel/speed/vel_uncertainty.",
-                        BoundViolationWarning,
-                        stacklevel=2,
-                    )
-                    due = True
+                due = self._escaped(c, v, (n - self._built_at) * self.dt)
             if due:
                 self._rebuild(c, v, n)
         # The state was checked finite above: the fused step cannot stop on it.

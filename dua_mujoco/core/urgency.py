@@ -10,9 +10,9 @@ velocity uncertainty ``delta``, the relative position at time ``t`` lies in the 
 is a lower bound on the time to collision (paper eq. 13, extended by ``delta``).
 
 The kernels never return more than the exact first root. They are implemented once, in the
-native core (``dua_mujoco/csrc/src/urgency.cc``); the functions here are numba's entry points to
-them and the vectorised front, which evaluates four pairs at a time in the same code (the same
-values, bit for bit). How (proof in docs/theory.md, section 1):
+native core (``dua_mujoco/csrc/src/urgency.cc``, called through ``dua_mujoco._core``); the
+functions here validate and call them, the batch four pairs at a time in the same code (the same
+values, bit for bit, as the scalar functions). How (proof in docs/theory.md, section 1):
 
 * The problem is solved for slightly inflated parameters (``eps``, ``delta`` and ``A`` grown by
   ``kappa = 4e-15`` relative, plus ``kappa (|x| + |v| t)`` on the radius). The inflation is
@@ -33,16 +33,10 @@ from __future__ import annotations
 
 import warnings
 
-import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.native_kernels import (
-    tau_accel_c,
-    tau_halfspace_c,
-    tau_speed_batch_c,
-    tau_speed_c,
-)
+import dua_mujoco._core as _core
 from dua_mujoco.core.validate import as_vectors, per_pair
 from dua_mujoco.exceptions import BoundViolationWarning, InvalidBoundError, ShapeError
 
@@ -57,105 +51,72 @@ __all__ = [
     "time_to_halfspace",
 ]
 
+PARALLEL_MIN = 1 << 16
+"""Rows from which a batch (``time_to_collision``, ``PairSet.tau``) runs on two threads: below
+it, starting a thread costs more than the work (``_core``'s ``tau_speed_batch``, ``tau_pairs``)."""
 
-@nb.njit(cache=True)
-def tau_accel(x0, x1, x2, v0, v1, v2, eps, accel, delta):  # pragma: no cover - jitted
-    """Scalar kernel: min {t >= 0 : |x + v t| <= eps + delta t + accel t^2 / 2} (lower bound)."""
-    return tau_accel_c(x0, x1, x2, v0, v1, v2, eps, accel, delta)
+_INF = np.full(1, np.inf)
 
 
-@nb.njit(cache=True)
-def tau_speed(x0, x1, x2, v0, v1, v2, eps, accel, delta, speed):  # pragma: no cover - jitted
+def tau_speed(
+    x0: float,
+    x1: float,
+    x2: float,
+    v0: float,
+    v1: float,
+    v2: float,
+    eps: float,
+    accel: float,
+    delta: float,
+    speed: float,
+) -> float:
     """Scalar kernel with a relative speed bound ``speed`` (``inf`` for none).
 
     The relative position also stays in ``B(x, V t)``, so no collision before
     ``(|x| - eps) / V``; the larger of that and ``tau_accel`` is still a lower bound. A measured
     ``|v| > V`` means the declared bound is broken: the speed term is then dropped.
     """
-    return tau_speed_c(x0, x1, x2, v0, v1, v2, eps, accel, delta, speed)
+    row = np.array([[x0, x1, x2, v0, v1, v2]])
+    bounds = np.array([[eps], [accel], [delta], [speed]], dtype=np.float64)
+    return float(_core.tau_speed_batch(row[:, :3], row[:, 3:], *bounds)[0])
 
 
-@nb.njit(cache=True, inline="always")
-def tau_between(ci, vi, cj, vj, eps, accel, delta, speed):  # pragma: no cover - jitted
+def tau_accel(
+    x0: float,
+    x1: float,
+    x2: float,
+    v0: float,
+    v1: float,
+    v2: float,
+    eps: float,
+    accel: float,
+    delta: float,
+) -> float:
+    """Scalar kernel: min {t >= 0 : |x + v t| <= eps + delta t + accel t^2 / 2} (lower bound)."""
+    return tau_speed(x0, x1, x2, v0, v1, v2, eps, accel, delta, np.inf)
+
+
+def tau_between(
+    ci: npt.ArrayLike,
+    vi: npt.ArrayLike,
+    cj: npt.ArrayLike,
+    vj: npt.ArrayLike,
+    eps: float,
+    accel: float,
+    delta: float,
+    speed: float,
+) -> float:
     """:func:`tau_speed` of two spheres from their centres ``ci``, ``cj`` and velocities ``vi``,
     ``vj`` (3-vectors each; the relative state is ``j`` minus ``i``)."""
-    return tau_speed_c(
-        cj[0] - ci[0],
-        cj[1] - ci[1],
-        cj[2] - ci[2],
-        vj[0] - vi[0],
-        vj[1] - vi[1],
-        vj[2] - vi[2],
-        eps,
-        accel,
-        delta,
-        speed,
-    )
+    x = np.subtract(cj, ci, dtype=np.float64)
+    v = np.subtract(vj, vi, dtype=np.float64)
+    return tau_speed(x[0], x[1], x[2], v[0], v[1], v[2], eps, accel, delta, speed)
 
 
-@nb.njit(cache=True)
-def tau_halfspace(gap, normal_velocity, accel, delta):  # pragma: no cover - jitted
+def tau_halfspace(gap: float, normal_velocity: float, accel: float, delta: float) -> float:
     """Scalar kernel: min {t >= 0 : gap + (n.v) t - delta t - accel t^2 / 2 <= 0} (lower bound)."""
-    return tau_halfspace_c(gap, normal_velocity, accel, delta)
-
-
-# The batch kernels take per-pair parameters of length M or 1 (a broadcast scalar), so scalars
-# cost no (M,) temporaries.
-@nb.njit(cache=True, inline="always")
-def _at(arr, i):  # pragma: no cover - jitted
-    return arr[i] if arr.shape[0] > 1 else arr[0]
-
-
-# Below this many pairs the batch kernels run serially: waking the thread pool costs more than
-# the work (and can cost milliseconds on a loaded machine).
-PARALLEL_MIN = 4096
-
-
-# Rows a batch call covers: the native batch runs them four at a time; threads take chunks.
-_CHUNK = 4096
-
-
-@nb.njit(cache=True)
-def _tau_rows(x, v, eps, accel, delta, speed, out, i0, i1):  # pragma: no cover - jitted
-    # Parameters of length 1 are one value for every row (bit k of per_pair clear).
-    params = (eps, accel, delta, speed)
-    per_pair = 0
-    for k in range(4):
-        if params[k].shape[0] > 1:
-            per_pair |= 1 << k
-    tau_speed_batch_c(
-        i1 - i0,
-        x[i0:i1].ctypes,
-        v[i0:i1].ctypes,
-        eps[i0:i1].ctypes if eps.shape[0] > 1 else eps.ctypes,
-        accel[i0:i1].ctypes if accel.shape[0] > 1 else accel.ctypes,
-        delta[i0:i1].ctypes if delta.shape[0] > 1 else delta.ctypes,
-        speed[i0:i1].ctypes if speed.shape[0] > 1 else speed.ctypes,
-        per_pair,
-        out[i0:i1].ctypes,
-    )
-
-
-@nb.njit(cache=True, parallel=True)
-def _tau_parallel(x, v, eps, accel, delta, speed, out):  # pragma: no cover - jitted
-    m = x.shape[0]
-    for c in nb.prange((m + _CHUNK - 1) // _CHUNK):
-        _tau_rows(x, v, eps, accel, delta, speed, out, c * _CHUNK, min(m, (c + 1) * _CHUNK))
-
-
-def _tau_batch(x, v, eps, accel, delta, speed, out):
-    """tau of every row into ``out``: threads for large batches, serial for small ones."""
-    if x.shape[0] >= PARALLEL_MIN:
-        _tau_parallel(x, v, eps, accel, delta, speed, out)
-    else:
-        _tau_rows(x, v, eps, accel, delta, speed, out, 0, x.shape[0])
-
-
-@nb.njit(cache=True)
-def _halfspace_batch(gap, vn, accel, delta, out):  # pragma: no cover - jitted
-    # Serial: a closed form is cheaper than waking threads for any realistic batch.
-    for i in range(gap.shape[0]):
-        out[i] = tau_halfspace(_at(gap, i), _at(vn, i), _at(accel, i), _at(delta, i))
+    args = (np.array([v], dtype=np.float64) for v in (gap, normal_velocity, accel, delta))
+    return float(_core.tau_halfspace_batch(*args)[0])
 
 
 def time_to_collision(
@@ -196,7 +157,7 @@ def time_to_collision(
     acc_a = per_pair("accel", accel, m)
     del_a = per_pair("vel_uncertainty", vel_uncertainty, m)
     if speed is None:
-        spd_a = np.full(1, np.inf)
+        spd_a = _INF
     else:
         spd_a = per_pair("speed", speed, m, allow_inf=True)
         if (spd_a == 0.0).any():
@@ -215,9 +176,7 @@ def time_to_collision(
                 BoundViolationWarning,
                 stacklevel=2,
             )
-    out = np.empty(m)
-    _tau_batch(xa, va, eps_a, acc_a, del_a, spd_a, out)
-    return out
+    return np.asarray(_core.tau_speed_batch(xa, va, eps_a, acc_a, del_a, spd_a))
 
 
 def time_to_halfspace(
@@ -248,9 +207,7 @@ def time_to_halfspace(
     vn = per_pair("normal_velocity", normal_velocity, m, state=True)
     acc = per_pair("accel", accel, m)
     dl = per_pair("vel_uncertainty", vel_uncertainty, m)
-    out = np.empty(m)
-    _halfspace_batch(g, vn, acc, dl, out)
-    return out
+    return np.asarray(_core.tau_halfspace_batch(g, vn, acc, dl))
 
 
 def distance_urgency(x: npt.ArrayLike, eps: npt.ArrayLike) -> np.ndarray:

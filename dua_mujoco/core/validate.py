@@ -1,7 +1,7 @@
 """Input validation shared by the core: arrays of the right shape, kind and range, or a clear error.
 
-Every check names the bad value and the fix; the per-step compiled kernels then read their
-arrays without bounds checks.
+Every check names the bad value and the fix; the native core (``dua_mujoco._core``) checks again
+only the indices it follows, so that no call reads out of bounds.
 """
 
 from __future__ import annotations

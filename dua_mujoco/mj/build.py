@@ -43,7 +43,11 @@ __all__ = ["CONFIG", "predictor_tables"]
 CONFIG = {name[4:].lower(): value for name, value in LAYOUT.items() if name.startswith("CFG_")}
 """The ``config`` table's entries by name (``CONFIG["dt"]`` is its index of ``dt``)."""
 
-_KIND = {Schedule.DUA: LAYOUT["RANK"], Schedule.DEADLINE: LAYOUT["DEADLINE"], Schedule.SELECT_ALL: 2}
+_KIND = {
+    Schedule.DUA: LAYOUT["RANK"],
+    Schedule.DEADLINE: LAYOUT["DEADLINE"],
+    Schedule.SELECT_ALL: 2,
+}
 
 
 def predictor_tables(p: Predictor) -> dict[str, np.ndarray]:

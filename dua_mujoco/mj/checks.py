@@ -9,7 +9,6 @@ by the guarantee (docs/discrete-time.md derives each check).
 from __future__ import annotations
 
 import bisect
-import math
 from dataclasses import dataclass
 
 import mujoco
@@ -219,9 +218,15 @@ class BoundMonitor:
             h = float(model.opt.timestep)
         # One native pass: |u_k| <= V, |u_k - w_{k-1}| <= D and |u_k - u_{k-1}| / h <= A at every
         # point, with the round-off of the differences (8 eps |c| / h^2) tolerated.
+        pos, mat, twist, twist_ref, root_twist, root_origin = mjdata_frame(data, self._twist)
         nbroken = check_points(
             self._spheres,
-            *mjdata_frame(data, self._twist),
+            pos,
+            mat,
+            twist,
+            twist_ref,
+            root_twist,
+            root_origin,
             self._prev,
             self._cur,
             min(self._nprev, 2),

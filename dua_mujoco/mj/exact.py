@@ -36,31 +36,30 @@ from dua_mujoco.mj.kinematics import pack_spheres
 
 __all__ = [
     "EXACT_PERIODS",
+    "EXACT_TYPES",
     "GX_CENTRE",
     "GX_GRAPH",
     "GX_KIND",
     "GX_NCOL",
+    "GX_RADIUS",
     "GX_SEED",
     "GX_SIZE",
     "GX_VERT",
-    "X_HULL1",
-    "X_HULL2",
-    "X_NCOL",
-    "EXACT_TYPES",
-    "GX_RADIUS",
     "QUERY_PERIODS",
     "X_DIST",
     "X_G1",
     "X_G2",
+    "X_HULL1",
+    "X_HULL2",
     "X_MODE",
     "X_N",
+    "X_NCOL",
     "ExactLevel",
     "ExactMode",
     "build_exact",
     "corner_points",
     "exact_records",
 ]
-
 
 
 class ExactMode(enum.IntEnum):
@@ -88,14 +87,19 @@ GX_SEED, GX_NCOL = LAYOUT["GX_SEED"], LAYOUT["GX_NCOL"]
 # Columns of the per-pair records: mode, geoms, contact distance, the last direction that served
 # the pair (3), the hull vertices (local ids) highest last time per side (-1: none).
 X_MODE, X_G1, X_G2, X_DIST = LAYOUT["X_MODE"], LAYOUT["X_G1"], LAYOUT["X_G2"], LAYOUT["X_DIST"]
-X_N, X_HULL1, X_HULL2, X_NCOL = LAYOUT["X_N"], LAYOUT["X_HULL1"], LAYOUT["X_HULL2"], LAYOUT["X_NCOL"]
+X_N, X_HULL1, X_HULL2, X_NCOL = (
+    LAYOUT["X_N"],
+    LAYOUT["X_HULL1"],
+    LAYOUT["X_HULL2"],
+    LAYOUT["X_NCOL"],
+)
 
 EXACT_PERIODS = 1
 """Pairs whose sphere tau is below this many predictor periods past the latency are looked at
 through their geoms: the alarm horizon, where the look can clear an alarm. Measured on 34
 scenes (docs/benchmarks.md) against 2 periods: the same standing alarms on every scene, 0-2 %
 more evaluations, dmc_dog 1.49x -> 1.27x of ``mj_step``, the rest within noise (the native step
-made a sphere tau cheap next to a look; with numba's, 1 to 32 periods cost about the same)."""
+makes a sphere tau cheap next to a look)."""
 QUERY_PERIODS = 1
 """MuJoCo is asked for a new direction when the pair's tau along its last one is below this
 many predictor periods past the latency: the alarm horizon, the only place a better direction

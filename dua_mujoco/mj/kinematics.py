@@ -117,5 +117,6 @@ def sphere_states(
         if ids is None
         else np.asarray(ids, dtype=np.int64).reshape(-1)
     )
-    out = rigid_points(spheres, *frame, sel)
+    pos, mat, twist, twist_ref, root_twist, root_origin = frame
+    out = rigid_points(spheres, pos, mat, twist, twist_ref, root_twist, root_origin, sel)
     return out[:, :3], out[:, 3:]

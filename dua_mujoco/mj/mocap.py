@@ -135,6 +135,7 @@ class MocapVelocityTracker:
             self._prev_pos = np.array(data.xpos[self.mocap_bodies])
             self._prev_quat = np.array(data.xquat[self.mocap_bodies])
         elif dt > 0.0:
+            assert self._prev_pos is not None and self._prev_quat is not None
             # The native core's differencing (the predictor's runtime runs the same), in place.
             difference_poses(
                 data,

@@ -6,12 +6,12 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from dua_mujoco.core.pairset import PairSet
 from dua_mujoco import _core
+from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.mj.bounds import MotionBounds
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.filter import SpherePairs
-from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.mj.mocap import MocapVelocityTracker, PredictorMocap
 
 __all__ = ["body_vel_uncertainty", "bounded_pairs"]
 
@@ -21,7 +21,7 @@ def body_vel_uncertainty(
     bounds: MotionBounds,
     *,
     period: int = 1,
-    mocap: MocapVelocityTracker | None = None,
+    mocap: MocapVelocityTracker | PredictorMocap | None = None,
 ) -> np.ndarray:
     """``(nbody,)`` velocity uncertainty of each body for a predictor of ``period``.
 
@@ -46,7 +46,7 @@ def bounded_pairs(
     bounds: MotionBounds,
     *,
     period: int = 1,
-    mocap: MocapVelocityTracker | None = None,
+    mocap: MocapVelocityTracker | PredictorMocap | None = None,
 ) -> PairSet:
     """The ``PairSet`` of ``sphere_pairs`` under ``bounds`` for a predictor of ``period``.
 

@@ -104,7 +104,12 @@ def reach_for(
     body = np.asarray(covering.sphere_body, dtype=np.int64)
     speed = np.full(body.shape, np.inf) if bounds.speed is None else bounds.speed[body]
     table = np.stack(
-        [np.asarray(covering.sphere_radius, dtype=np.float64), bounds.accel[body], delta[body], speed],
+        [
+            np.asarray(covering.sphere_radius, dtype=np.float64),
+            bounds.accel[body],
+            delta[body],
+            speed,
+        ],
         axis=1,
     )
     margin = contact_distance_bound(universe.model, universe.explicit)

@@ -93,9 +93,7 @@ class PairUniverse:
             keys = np.unique((lo << 32) | hi)
             lo, hi = keys >> 32, keys & 0xFFFFFFFF
             new = self.explicit.indices_of(lo, hi) < 0
-            gp = self.explicit.concat(
-                candidate_geom_pairs(model, self._filter, lo[new], hi[new])
-            )
+            gp = self.explicit.concat(candidate_geom_pairs(model, self._filter, lo[new], hi[new]))
         else:
             gp = active_geom_pairs(model)
         self._geom_pairs = gp

@@ -84,7 +84,7 @@ def run_local(
     Returns:
         Rows by task index.
     """
-    context = multiprocessing.get_context("spawn")  # no forked copies of a numba or GL state
+    context = multiprocessing.get_context("spawn")  # no forked copies of a GL state
     queue = deque(range(len(tasks)))
     rows: dict[int, dict[str, Any]] = {}
     pool: list[_Worker] = []

@@ -1,8 +1,8 @@
 """The schedules: which pairs to evaluate each step, and when a verdict alarms.
 
 All three implement one interface (``Scheduler``: ``select``, ``update``, ``set_active``,
-``alarm_state``, and fused steps through ``step_context``) over one typed state
-(``ScheduleState``) and one set of compiled kernels (``kernels``).
+``alarm_state``, and the fused step ``step_points``) over one state (``ScheduleState``, views of a
+``dua_mujoco._core.Schedule``) and the native core's kernels (``csrc/src/schedule.cc``).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import enum
 
 import numpy as np
 
-from dua_mujoco.core.schedules.base import FusedKernel, Scheduler
+from dua_mujoco.core.schedules.base import Scheduler
 from dua_mujoco.core.schedules.deadline import DEFAULT_ALARM_BACKOFF, DeadlineScheduler
 from dua_mujoco.core.schedules.dua import DUAScheduler, bucket_layout
 from dua_mujoco.core.schedules.select_all import SelectAllScheduler, Urgency
@@ -21,7 +21,6 @@ from dua_mujoco.exceptions import InvalidChoiceError
 __all__ = [
     "DUAScheduler",
     "DeadlineScheduler",
-    "FusedKernel",
     "Schedule",
     "ScheduleState",
     "Scheduler",

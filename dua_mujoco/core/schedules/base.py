@@ -1,229 +1,240 @@
-"""``Scheduler``: the protocol every schedule offers, over the compiled interface in ``kernels``.
+"""``Scheduler``: the protocol every schedule offers, over a ``dua_mujoco._core.Schedule``.
 
-Two ways to drive a schedule, with the same results:
+The schedule's state and kernels are the native core's (``csrc/src/schedule.cc``): a
+``_core.Schedule`` sizes its buffers, classifies the initial tau, selects, reinserts and
+switches; a ``Scheduler`` validates what it is handed, names the errors, and shapes the
+results. Two ways to drive one, with the same results:
 
 - the Python protocol: ``ids = select()``, evaluate tau of ``ids`` however you like, then
   ``update(ids, tau)`` returns the alarmed ids;
-- a fused step: ``step_context(kernel, context, *args)`` runs one compiled
-  ``kernel(context, n, *args)`` whose ``context`` holds the schedule's state, and that selects,
-  evaluates and reinserts (``step_points`` for free spheres; the MuJoCo layer has its own for
-  spheres on rigid bodies).
+- the fused step on free spheres, ``step_points``: select, evaluate and reinsert in one native
+  call (the MuJoCo layer's runtime steps its own schedule, which :meth:`Scheduler.of` shows).
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
-from typing import Any, cast
+from typing import ClassVar
 
-import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.pairset import PairSet, pair_tau
-from dua_mujoco.core.refs import Ref
-from dua_mujoco.core.schedules import kernels
+import dua_mujoco._core as _core
+from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules.state import (
     LAST_STEP,
     P_COUNT,
     P_DEFERRED,
-    S_W_TAU,
-    S_WORK,
     W_ALARMS,
     W_IDS,
     W_NEW,
     ScheduleState,
+    state_of,
 )
 from dua_mujoco.core.validate import as_ids, check_urgencies
-from dua_mujoco.exceptions import InvalidInputError, NonFiniteStateError, SchedulerError, ShapeError
+from dua_mujoco.exceptions import (
+    InvalidInputError,
+    NonFiniteStateError,
+    SchedulerError,
+    ShapeError,
+)
 
-__all__ = ["ContextKernel", "FusedKernel", "Scheduler", "compiled_entry", "step_points_kernel"]
-
-FusedKernel = Callable[..., tuple[int, int, int]]
-"""A compiled ``kernel(state, n, *args) -> (count, nalarm, bad)``: ``kernels.select``, tau of the
-selected pairs into ``state.w_tau``, ``kernels.reinsert``; ``bad >= 0`` names a pair whose state
-was not finite, after ``kernels.restore`` undid the selection."""
-
-
-@nb.njit(cache=True)
-def step_points_kernel(st, n, geometry):  # pragma: no cover - jitted
-    """The fused step on free spheres: select, evaluate tau, reinsert (a ``FusedKernel``).
-
-    ``geometry`` is ``pair_tau``'s tuple. A pair whose state is not finite abandons the
-    step before anything is reinserted.
-    """
-    centers, velocities, _, _, first, second, halfspace, _, _, _, _ = geometry
-    count = kernels.select(st, n)
-    w_ids = st[S_WORK][W_IDS]
-    for k in range(count):
-        p = w_ids[k]
-        i = first[p]
-        state = 0.0
-        for a in range(3):
-            state += centers[i, a] + velocities[i, a]
-        if not halfspace[p]:
-            j = second[p]
-            for a in range(3):
-                state += centers[j, a] + velocities[j, a]
-        if not math.isfinite(state):
-            kernels.restore(st, n, count)
-            return count, 0, p
-        st[S_W_TAU][k] = pair_tau(p, geometry)
-    return count, kernels.reinsert(st, n, count), -1
+__all__ = ["Scheduler", "active_mask", "standing"]
 
 
-ContextKernel = Callable[..., tuple]
-"""A compiled ``kernel(context, n, *args) -> (nalarm, bad, ...)`` (``Scheduler.step_context``)."""
+def standing(schedule: _core.Schedule) -> np.ndarray:
+    """``(k,)`` the pairs standing in alarm in ``schedule`` now, increasing (its own rule)."""
+    m = int(schedule.last_tau.shape[0])
+    return np.flatnonzero(_core.stands(schedule, np.arange(m, dtype=np.int64)))
 
 
-@nb.njit(cache=True)
-def step_points_ref_kernel(
-    state_ref, n, centers, velocities, planes, shapes, pairs_ref
-):  # pragma: no cover - jitted
-    """:func:`step_points_kernel` on a ``Ref`` of the schedule state and one of the pair set's
-    arrays (``PairSet.kernel_ref``): six arrays fewer to unbox per call than the tuples. A
-    ``ContextKernel``: returns ``(nalarm, bad, count)``."""
-    count, nalarm, bad = step_points_kernel(
-        state_ref.value, n, (centers, velocities, planes, shapes, *pairs_ref.value)
-    )
-    return nalarm, bad, count
-
-
-def compiled_entry(kernel: Any, *args: object) -> Callable[..., tuple]:
-    """The compiled entry point of ``kernel`` for arguments of the types of ``args``.
-
-    Calling it skips numba's dispatch (typing every argument, choosing an overload): about a
-    microsecond a call, a sizeable part of a step of a few. The caller must pass arguments of
-    exactly those types ever after (a ``Predictor`` does: its tables and ``MjData`` views do not
-    change type); ``kernel`` itself is returned when it is not a numba dispatcher.
-    """
-    overloads = getattr(kernel, "overloads", None)
-    if overloads is None:
-        return cast(Callable[..., tuple], kernel)
-    signature = tuple(kernel.typeof_pyval(a) for a in args)
-    if signature not in overloads:
-        kernel.compile(signature)
-    return cast(Callable[..., tuple], overloads[signature].entry_point)
+def active_mask(active: npt.ArrayLike | None, m: int) -> np.ndarray | None:
+    """``(m,)`` 0/1 bytes of the pairs initially switched on (None: all), for ``_core``."""
+    if active is None:
+        return None
+    mask = np.array(active, dtype=np.bool_)
+    if mask.shape != (m,):
+        raise ShapeError(f"active has shape {mask.shape}; expected ({m},).")
+    return mask.view(np.uint8)
 
 
 class Scheduler:
     """What DUA, the deadline schedule and select-all have in common.
 
+    Subclasses build their ``_core.Schedule`` (which classifies the initial tau) and wrap it;
+    :meth:`of` wraps one that exists already, without classifying again.
+
     Attributes:
-        state: The ``ScheduleState`` the compiled kernels read and write.
-        initial_alarms: ``(k,)`` pairs the initial classification alarms.
-        step_count: Completed steps (0 after the initial classification).
-        activation_changes: Calls of :meth:`set_active` that switched some pair, so that an
-            observer of :meth:`alarm_state` knows when to read it again.
+        core: The ``_core.Schedule`` whose state this scheduler drives.
+        initial_alarms: ``(k,)`` pairs the initial classification alarms (for :meth:`of`, the
+            pairs standing in alarm when wrapped).
     """
 
-    def __init__(self, state: ScheduleState, initial_alarms: np.ndarray) -> None:
-        self.state = state
+    # The subclass of each schedule kind (``class DUAScheduler(Scheduler, kind=RANK)``).
+    _KINDS: ClassVar[dict[int, type[Scheduler]]] = {}
+
+    def __init_subclass__(cls, kind: int | None = None, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        if kind is not None:
+            Scheduler._KINDS[kind] = cls
+
+    def _wrap(self, schedule: _core.Schedule, initial_alarms: npt.ArrayLike) -> None:
+        self._adopt(schedule)
         self.initial_alarms = np.asarray(initial_alarms, dtype=np.int64)
-        self.step_count = 0
-        self.activation_changes = 0
         self._pending: np.ndarray | None = None
-        # step_points' compiled entry for each kind of input arrays (their flags), and the
-        # arrays of the latest step with theirs.
-        self._points_entries: dict[tuple[int, ...], ContextKernel] = {}
-        self._points_last: tuple = (None,) * 7
-        # The latest step's alarm rows (W_ALARMS, W_NEW) and their count: a copy, or the live
-        # work rows after a context step (valid until the next step, which resets both).
+        self._read_only = False
+        # The latest step's alarm rows (W_ALARMS, W_NEW) and their count: the live work rows
+        # (valid until the next step, which resets both), or ones for the classification.
         self._last_rows = np.ones((2, self.initial_alarms.shape[0]), dtype=np.int64)
         self._nalarm = int(self.initial_alarms.shape[0])
 
+    def _adopt(self, schedule: _core.Schedule) -> None:
+        """Drive ``schedule`` from now on (its views are built once: a step is microseconds)."""
+        self.core = schedule
+        self._state = state_of(schedule)
+        self._params = self._state.params
+        self._alarm_rows = self._state.work[W_ALARMS : W_NEW + 1]
+        # step_points' native step bound to the latest pairs and checked inputs (see there).
+        self._points: tuple = (None,) * 7
+
+    @classmethod
+    def of(cls, schedule: _core.Schedule, *, read_only: bool = False) -> Scheduler:
+        """A scheduler over an existing ``_core.Schedule`` (the predictor's runtime's, say), of
+        the subclass of its kind, without classifying again: its steps, counts and verdicts are
+        the schedule's (``step_count`` reads it), its ``initial_alarms`` the pairs standing in
+        alarm now.
+
+        Args:
+            schedule: The schedule to wrap.
+            read_only: Refuse every call that steps the schedule or switches its pairs (a view
+                of a schedule that another driver steps: a second driver would desynchronise
+                the two).
+        """
+        if not isinstance(schedule, _core.Schedule):
+            raise InvalidInputError(
+                f"Scheduler.of takes a dua_mujoco._core.Schedule; got {type(schedule).__name__}."
+            )
+        import dua_mujoco.core.schedules  # noqa: F401 - registers the subclass of every kind
+
+        sub = Scheduler._KINDS[int(schedule.kind)]
+        out = sub.__new__(sub)
+        out._wrap(schedule, standing(schedule))
+        out._read_only = bool(read_only)
+        out._derive()
+        return out
+
+    def _check_writable(self, call: str) -> None:
+        if self._read_only:
+            raise SchedulerError(
+                f"{call}: this scheduler is read-only, a view of a schedule that its owner "
+                "steps (Predictor.scheduler); step and switch pairs through the owner "
+                "(Predictor.step, Predictor.set_active_bodies)."
+            )
+
+    def _derive(self) -> None:
+        """Set the subclass's attributes from the schedule (its options)."""
+
     @property
     def state(self) -> ScheduleState:
-        """The ``ScheduleState`` the compiled kernels read and write."""
+        """The ``ScheduleState``: views of the schedule's buffers, which its kernels write."""
         return self._state
-
-    @state.setter
-    def state(self, state: ScheduleState) -> None:
-        self._state = state
-        self._kernel_state = tuple(state)
-        self._state_ref: Ref | None = None  # built by step_points when first needed
-        # Views read after every step: built once, not at each step (a step is microseconds).
-        self._params = state.params
-        self._alarm_rows = state.work[W_ALARMS : W_NEW + 1]
-
-    @property
-    def kernel_state(self) -> tuple:
-        """``tuple(state)``, the form the compiled kernels take (fields at the ``S_*``
-        positions): the arrays are shared, so the kernels' writes are the state's."""
-        return self._kernel_state
 
     # ----------------------------------------------------------------------- introspection
 
     @property
+    def step_count(self) -> int:
+        """Completed steps (0 after the initial classification): the schedule's own count."""
+        return int(self.core.step_count)
+
+    @step_count.setter
+    def step_count(self, value: int) -> None:
+        self._check_writable("step_count")
+        self.core.step_count = int(value)
+
+    @property
+    def activation_changes(self) -> int:
+        """Calls of :meth:`set_active` that switched some pair (and carries of the pair set),
+        so that an observer of :meth:`alarm_state` knows when to read it again."""
+        return int(self.core.activation_changes)
+
+    @activation_changes.setter
+    def activation_changes(self, value: int) -> None:
+        self.core.activation_changes = int(value)
+
+    @property
     def npairs(self) -> int:
         """Number of pairs ``M``."""
-        return int(self.state.last_tau.shape[0])
+        return int(self._state.last_tau.shape[0])
 
     @property
     def dt(self) -> float:
         """Predictor period (seconds)."""
-        return self.state.dt
+        return self._state.dt
 
     @property
     def latency(self) -> int:
         """Periods a verdict takes to act."""
-        return self.state.latency
+        return self._state.latency
 
     @property
     def active(self) -> np.ndarray:
         """``(M,)`` bool, pairs switched on (read-only view; switch with :meth:`set_active`)."""
-        view = self.state.active.view()
+        view = self._state.active.view()
         view.flags.writeable = False
         return view
 
     @property
     def last_tau(self) -> np.ndarray:
         """``(M,)`` tau at each pair's latest evaluation (``-inf``: switched on, not yet)."""
-        return self.state.last_tau
+        return self._state.last_tau
 
     @property
     def last_step(self) -> np.ndarray:
         """``(M,)`` step of each pair's latest evaluation."""
-        return self.state.ints[LAST_STEP]
+        return self._state.ints[LAST_STEP]
 
     def tau(self, pair: npt.ArrayLike) -> np.ndarray:
         """tau of each pair at its latest evaluation."""
-        return np.asarray(self.state.last_tau[np.asarray(pair)])
+        return np.asarray(self._state.last_tau[np.asarray(pair)])
 
     def alarm_state(self, pair: npt.ArrayLike | None = None) -> np.ndarray:
-        """Whether each pair stands in alarm: its latest verdict does not cover the time until
-        its next one (the alarm rule on its last tau)."""
+        """Whether each pair stands in alarm: switched on, and its latest verdict does not cover
+        the time until its next one (the schedule's own alarm rule, ``Schedule::Stands``)."""
         idx = np.arange(self.npairs) if pair is None else np.asarray(pair, dtype=np.int64)
-        return np.asarray(self.state.last_tau[idx] < self.horizon_of(idx))
+        flat = np.ascontiguousarray(idx.reshape(-1))
+        return np.asarray(_core.stands(self.core, flat)).reshape(idx.shape)
 
-    def horizon_of(self, pair: np.ndarray) -> np.ndarray:
-        """The alarm horizon (seconds) each pair's latest verdict must cover."""
-        return np.full(pair.shape, self.state.horizon[0])
+    def horizon_of(self, pair: npt.ArrayLike) -> np.ndarray:
+        """The alarm horizon (seconds) each pair's latest verdict must cover (``-inf`` for a
+        deadline pair switched off: its verdict covers nothing), shaped like ``pair``."""
+        p = np.asarray(pair, dtype=np.int64)
+        flat = np.ascontiguousarray(p.reshape(-1))
+        return np.asarray(self.core.horizon_of(flat)).reshape(p.shape)
 
     @property
     def last_selected(self) -> np.ndarray:
         """Pairs whose verdict the latest step renewed: those evaluated (and, for the deadline
         schedule, those due but left for a later step)."""
         if self._pending is not None or self.step_count == 0:
-            return self.state.work[W_IDS, :0].copy()
+            return self._state.work[W_IDS, :0].copy()
         renewed = int(self._params[P_COUNT] + self._params[P_DEFERRED])
-        return self.state.work[W_IDS, :renewed].copy()
+        return self._state.work[W_IDS, :renewed].copy()
 
     @property
     def deferred(self) -> int:
         """Pairs due at the latest step but left for a later one (a capped deadline schedule)."""
-        return int(self.state.params[P_DEFERRED])
+        return int(self._params[P_DEFERRED])
 
     @property
     def evaluations_per_step(self) -> int:
         """tau evaluations of the latest step."""
-        return int(self.state.params[P_COUNT])
+        return int(self._params[P_COUNT])
 
     def most_urgent(self) -> int:
         """The active pair with the smallest latest tau (-1 if none)."""
-        if not self.state.active.any():
+        active = self._state.active
+        if not active.any():
             return -1
-        return int(np.argmin(np.where(self.state.active, self.state.last_tau, np.inf)))
+        return int(np.argmin(np.where(active, self._state.last_tau, np.inf)))
 
     # ----------------------------------------------------------------------- switching
 
@@ -234,27 +245,27 @@ class Scheduler:
         evaluation, at the next step: nothing is known of its motion while it was off, and that
         step can be a whole period away (docs/theory.md, "Pairs switched back on").
         """
+        self._check_writable("set_active()")
         if self._pending is not None:
             raise SchedulerError("set_active() between select() and update(): finish the step.")
         ids = as_ids("pairs", np.atleast_1d(np.asarray(pairs, dtype=np.int64)))
         if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
             raise InvalidInputError(f"pair ids must be in [0, {self.npairs}); got {ids.tolist()}.")
-        if kernels.switch(
-            self._kernel_state, np.ascontiguousarray(ids), bool(on), self.step_count + 1
-        ):
-            self.activation_changes += 1
+        # The schedule counts the switches that changed some pair (activation_changes).
+        self.core.switch(ids, bool(on), self.step_count + 1)
 
     # ----------------------------------------------------------------------- protocol
 
     def select(self) -> np.ndarray:
         """Pair ids to evaluate this step (one ``update`` must follow), ``(n,)`` int64."""
+        self._check_writable("select()")
         if self._pending is not None:
             raise SchedulerError(
                 "select() called twice without update(): evaluate the selected pairs and pass "
                 "their tau to update() first."
             )
-        count = kernels.select(self._kernel_state, self.step_count + 1)
-        self._pending = self.state.work[W_IDS, :count].copy()
+        count = self.core.select(self.step_count + 1)
+        self._pending = self._state.work[W_IDS, :count].copy()
         return self._pending.copy()
 
     def update(self, ids: npt.ArrayLike, tau: npt.ArrayLike) -> np.ndarray:
@@ -283,9 +294,9 @@ class Scheduler:
             )
         count = expected.shape[0]
         # Back to selection order (a pair may be selected twice: then both get its tau).
-        self.state.w_tau[np.argsort(expected, kind="stable")] = t[np.argsort(idx, kind="stable")]
-        nalarm = kernels.reinsert(self._kernel_state, self.step_count + 1, count)
-        self.step_count += 1
+        self._state.w_tau[np.argsort(expected, kind="stable")] = t[np.argsort(idx, kind="stable")]
+        nalarm = self.core.reinsert(self.step_count + 1, count)
+        self.core.step_count += 1
         self._pending = None
         # The new flags are read (by last_new) before the next step, if at all: the live rows
         # serve. The caller keeps the ids: a copy, as the next step reuses the row.
@@ -293,27 +304,10 @@ class Scheduler:
         self._nalarm = nalarm
         return self._alarm_rows[0, :nalarm].copy()
 
-    def step_context(self, kernel: ContextKernel, context: object, *args: object) -> tuple:
-        """Run one compiled step ``kernel(context, n, *args)`` whose ``context`` holds this
-        scheduler's :attr:`kernel_state` with whatever else the step reads (a numba
-        ``StructRef``: one argument to unbox instead of dozens).
-
-        ``kernel`` returns ``(nalarm, bad, ...)``, its alarms left in the work rows as
-        ``kernels.reinsert`` wrote them; ``bad >= 0`` means the step was undone. Returns the
-        kernel's tuple; the alarms are the kernel's to hand out (nothing is copied here).
-        """
-        if self._pending is not None:
-            raise SchedulerError("a fused step between select() and update(): finish the step.")
-        result = kernel(context, self.step_count + 1, *args)
-        if result[1] < 0:
-            self.step_count += 1
-            self._last_rows = self._alarm_rows
-            self._nalarm = result[0]
-        return result
-
     def begin_step(self) -> int:
-        """The number of the step a driver outside this class (the native step) is about to
-        run on :attr:`state`; refused between :meth:`select` and :meth:`update`."""
+        """The number of the step a driver outside this class (a native step) is about to run
+        on :attr:`core`; refused between :meth:`select` and :meth:`update`."""
+        self._check_writable("begin_step()")
         if self._pending is not None:
             raise SchedulerError("a fused step between select() and update(): finish the step.")
         return self.step_count + 1
@@ -321,7 +315,7 @@ class Scheduler:
     def end_step(self, nalarm: int) -> None:
         """Record the step :meth:`begin_step` numbered, its ``nalarm`` alarms in the work rows
         (the native step ran it to completion)."""
-        self.step_count += 1
+        self.core.step_count += 1
         self._last_rows = self._alarm_rows
         self._nalarm = nalarm
 
@@ -335,7 +329,7 @@ class Scheduler:
         """One fused step on free spheres: select, evaluate tau, reinsert, alarm.
 
         Same result as ``update(ids, pairs.tau(ids, ...))`` after ``ids = select()``, in one
-        compiled call.
+        native call.
 
         Args:
             pairs: The pair geometry (``len(pairs) == npairs``).
@@ -346,59 +340,55 @@ class Scheduler:
         Returns:
             ``(k,)`` int64 ids of the alarmed pairs.
         """
-        if self._state_ref is None:
-            self._state_ref = Ref(self._kernel_state)
-        last = self._points_last
+        self._check_writable("step_points()")
+        if self._pending is not None:
+            raise SchedulerError("a fused step between select() and update(): finish the step.")
+        last = self._points
         if (
             centers is last[0]
             and velocities is last[1]
             and halfspaces is None
             and pairs is last[2]
             and pairs.shapes is last[3]
-            and centers.shape == last[6]
-            and velocities.shape == last[6]
+            and np.shape(centers) == last[4]
+            and np.shape(velocities) == last[4]
         ):
-            # The arrays of the latest step, used as they were (checked then; their dtype
-            # cannot change, their shape is compared): the common case, 2 us of checks saved.
-            arrays, entry = last[4], last[5]
+            # The arrays of the latest step, checked then and used as they were (shapes
+            # compared: they can change in place): the common case, a few us of checks saved.
+            step, c, v = last[5], centers, velocities
         else:
-            arrays, entry = self._points_inputs(pairs, centers, velocities, halfspaces)
-        nalarm, bad, _ = self.step_context(entry, self._state_ref, *arrays)
-        if bad < 0:
-            return self._alarm_rows[0, :nalarm].copy()
+            step, c, v = self._points_step(pairs, centers, velocities, halfspaces)
+        r = step.step(c, v)
+        if r >= 0:
+            self._last_rows = self._alarm_rows
+            self._nalarm = r
+            return self._alarm_rows[0, :r].copy()
+        bad = -1 - r
         i, j = int(pairs.first[bad]), int(pairs.second[bad])
         raise NonFiniteStateError(
             f"the state of pair {bad} (spheres {i}, {j}) is not finite: centers or "
             "velocities hold NaN or inf; check that the simulation has not diverged."
         )
 
-    def _points_inputs(
+    def _points_step(
         self,
         pairs: PairSet,
         centers: npt.ArrayLike,
         velocities: npt.ArrayLike,
         halfspaces: tuple[npt.ArrayLike, npt.ArrayLike] | None,
-    ) -> tuple[tuple, ContextKernel]:
-        """``step_points_ref_kernel``'s arguments after the state and the step (checked) and its
-        compiled entry for them, remembered for the next step when the inputs were used as given.
-
-        The entry point skips numba's dispatch (1 us of a step of a few); the arrays' flags
-        (read-only, aligned, contiguous) are all that can change their compiled types, since
-        ``PairSet.inputs`` fixes their dtypes and shapes.
-        """
+    ) -> tuple[_core.FreeStep, np.ndarray, np.ndarray]:
+        """The native step bound to ``pairs`` (made again when the pairs, their shapes or the
+        half-spaces change) and the checked states; remembered when used as given."""
         if len(pairs) != self.npairs:
             raise ShapeError(f"pairs has {len(pairs)} pairs; the scheduler has {self.npairs}.")
         c, v, planes, shapes = pairs.inputs(centers, velocities, halfspaces, check_finite=False)
-        key = (c.flags.num, v.flags.num, planes.flags.num, shapes.flags.num)
-        arrays = (c, v, planes, shapes, pairs.kernel_ref)
-        entry = self._points_entries.get(key)
-        if entry is None:
-            entry = compiled_entry(step_points_ref_kernel, self._state_ref, 1, *arrays)
-            self._points_entries[key] = entry
-        # Converted inputs (lists, other dtypes) are new arrays each step: not remembered.
+        last = self._points
+        step = last[5]
+        if step is None or halfspaces is not None or pairs is not last[2] or shapes is not last[6]:
+            step = _core.FreeStep(self.core, pairs.records, planes, shapes)
         if c is centers and v is velocities and halfspaces is None:
-            self._points_last = (centers, velocities, pairs, pairs.shapes, arrays, entry, c.shape)
-        return arrays, entry
+            self._points = (centers, velocities, pairs, pairs.shapes, c.shape, step, shapes)
+        return step, c, v
 
     @property
     def last_new(self) -> np.ndarray:

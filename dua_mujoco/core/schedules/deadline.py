@@ -25,20 +25,9 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.schedules import kernels
-from dua_mujoco.core.schedules.base import Scheduler
-from dua_mujoco.core.schedules.state import (
-    DEADLINE,
-    LAST_STEP,
-    P_BACKOFF,
-    P_CAP,
-    P_COUNT,
-    P_DEFERRED,
-    P_MAX_INTERVAL,
-    P_WHEEL,
-    WHERE,
-    empty_state,
-)
+import dua_mujoco._core as _core
+from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
+from dua_mujoco.core.schedules.state import DEADLINE, P_BACKOFF, P_CAP, P_MAX_INTERVAL, WHERE
 from dua_mujoco.core.validate import as_ids, check_period, check_urgencies
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError
 
@@ -80,7 +69,7 @@ def check_alarm_backoff(value: object) -> int:
     return int(value)
 
 
-class DeadlineScheduler(Scheduler):
+class DeadlineScheduler(Scheduler, kind=DEADLINE):
     """Revisit each pair at the latest step that keeps the guarantee, given its own tau.
 
     Args:
@@ -119,39 +108,24 @@ class DeadlineScheduler(Scheduler):
         if max_interval < 1:
             raise InvalidInputError(f"max_interval = {max_interval!r} is invalid: an int >= 1.")
         backoff = check_alarm_backoff(alarm_backoff)
-        m = tau.shape[0]
-        wheel = 1 << int(max_interval).bit_length()  # a power of two > max_interval
-        state = empty_state(
+        schedule = _core.Schedule(
             DEADLINE,
             dt,
             latency,
             tau,
-            active,
-            rows=4,
-            slots=wheel,
-            horizon=np.array([(1 + latency) * dt]),
-            queue=0,
-            width=m,
+            active_mask(active, tau.shape[0]),
+            cap=cap,
+            max_interval=int(max_interval),
+            backoff=backoff,
         )
-        state.ints[:] = -1
-        state.ints[LAST_STEP] = 0
-        state.params[P_WHEEL] = wheel
-        state.params[P_MAX_INTERVAL] = int(max_interval)
-        state.params[P_CAP] = cap
-        state.params[P_BACKOFF] = min(backoff, int(max_interval))
-        kernels.deadline_classify(tuple(state))
-        self.max_evals_per_step = cap or None
-        self.max_interval = int(max_interval)
-        self.alarm_backoff = int(state.params[P_BACKOFF])
-        super().__init__(state, np.flatnonzero((tau < state.horizon[0]) & state.active))
+        self._wrap(schedule, standing(schedule))
+        self._derive()
 
-    def horizon_of(self, pair: np.ndarray) -> np.ndarray:
-        """The time each pair's latest verdict must cover: until its due step, plus latency."""
-        ints = self.state.ints
-        due = ints[WHERE, pair]
-        waiting = (due - ints[LAST_STEP, pair] + self.latency) * self.dt
-        # Pairs switched off are in no list: their last verdict needs to cover nothing.
-        return np.where(due >= 0, waiting, -np.inf)
+    def _derive(self) -> None:
+        params = self.state.params
+        self.max_evals_per_step = int(params[P_CAP]) or None
+        self.max_interval = int(params[P_MAX_INTERVAL])
+        self.alarm_backoff = int(params[P_BACKOFF])
 
     def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
         """Step at which each pair is next evaluated (-1: switched off)."""
@@ -182,24 +156,5 @@ class DeadlineScheduler(Scheduler):
             raise InvalidInputError(
                 f"step = {step} is invalid: new pairs must be due after step {self.step_count}."
             )
-        m = ids.shape[0]
-        state = empty_state(
-            DEADLINE,
-            old.dt,
-            old.latency,
-            np.empty(m),
-            np.ones(m, dtype=np.bool_),
-            rows=4,
-            slots=old.slots.shape[0],
-            horizon=old.horizon.copy(),
-            queue=0,
-            width=m,
-        )
-        state.ints[:] = -1
-        state.params[:] = old.params
-        state.params[P_COUNT] = 0
-        state.params[P_DEFERRED] = 0
-        kernels.deadline_carry(tuple(old), tuple(state), np.ascontiguousarray(ids), int(step))
-        self.state = state
-        # Observers of alarm_state() read it again after a change of the pairs, as after a switch.
-        self.activation_changes += 1
+        # The schedule carries every kept verdict and counts the change (activation_changes).
+        self._adopt(self.core.carried(np.maximum(ids, -1), int(step)))

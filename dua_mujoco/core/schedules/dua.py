@@ -20,16 +20,13 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.schedules import kernels
-from dua_mujoco.core.schedules.base import Scheduler
-from dua_mujoco.core.schedules.state import RANK, WHERE, empty_state
+import dua_mujoco._core as _core
+from dua_mujoco.core.schedules.base import Scheduler, active_mask
+from dua_mujoco.core.schedules.state import P_NBUCKETS, P_SLOTS_PER_BUCKET, RANK, WHERE
 from dua_mujoco.core.validate import check_period, check_urgencies
 from dua_mujoco.exceptions import InvalidChoiceError
 
 __all__ = ["DUAScheduler", "bucket_layout", "check_slots_per_bucket"]
-
-# Pairs switched back on evaluated per step beyond the regular slots; more wait (in alarm).
-_SPARE = 256
 
 
 def bucket_layout(npairs: int) -> tuple[int, int]:
@@ -55,7 +52,7 @@ def check_slots_per_bucket(q: object) -> int:
     return int(q)
 
 
-class DUAScheduler(Scheduler):
+class DUAScheduler(Scheduler, kind=RANK):
     """The Dynamic Urgency Algorithm: buckets sized by rank, constant work per step.
 
     Args:
@@ -86,33 +83,23 @@ class DUAScheduler(Scheduler):
         tau = check_urgencies("tau0", tau0)
         dt, latency = check_period(dt, latency)
         q = check_slots_per_bucket(slots_per_bucket)
-        m = tau.shape[0]
-        nbuckets, nslots = bucket_layout(m)
-        sizes = 1 << np.arange(nbuckets)
-        self.interval = np.maximum(1, sizes // q).astype(np.int64)
-        self.horizon = (self.interval + latency) * dt
-        width = int(np.minimum(sizes, q).sum())
-        state = empty_state(
-            RANK,
-            dt,
-            latency,
-            tau,
-            active,
-            rows=2,
-            slots=nslots,
-            horizon=self.horizon,
-            queue=m,
-            width=width + min(m, _SPARE),
+        # The initial classification: a partial sort at the bucket boundaries (paper eq. 23),
+        # the pairs standing in alarm marked in their slots (-2 - pair).
+        schedule = _core.Schedule(
+            RANK, dt, latency, tau, active_mask(active, tau.shape[0]), slots_per_bucket=q
         )
-        state.params[:2] = (nbuckets, q)
-        # Initial classification: a partial sort at the bucket boundaries (paper eq. 23), the
-        # pairs standing in alarm marked in their slots (-2 - pair).
-        kernels.rank_classify(tuple(state))
-        self.nbuckets = nbuckets
-        self.slots_per_bucket = q
-        self._width = width
-        raw = state.slots[:m]
-        super().__init__(state, np.sort(-2 - raw[raw < -1]))
+        raw = schedule.slots[: tau.shape[0]]
+        self._wrap(schedule, np.sort(-2 - raw[raw < -1]))
+        self._derive()
+
+    def _derive(self) -> None:
+        params = self.state.params
+        self.nbuckets = int(params[P_NBUCKETS])
+        self.slots_per_bucket = q = int(params[P_SLOTS_PER_BUCKET])
+        sizes = 1 << np.arange(self.nbuckets)
+        self.interval = np.maximum(1, sizes // q).astype(np.int64)
+        self.horizon = self.state.horizon  # the live alarm rule (the kernels read it)
+        self._width = int(np.minimum(sizes, q).sum())
 
     # ----------------------------------------------------------------------- introspection
 
@@ -136,10 +123,6 @@ class DUAScheduler(Scheduler):
     def bucket(self, pair: npt.ArrayLike) -> np.ndarray:
         """Bucket index of each pair, shape like ``pair``."""
         return self.bucket_of_slot(self.where[np.asarray(pair)])
-
-    def horizon_of(self, pair: np.ndarray) -> np.ndarray:
-        """The alarm horizon of each pair's bucket, ``(I_k + latency) dt``."""
-        return np.asarray(self.horizon[self.bucket(pair)])
 
     def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
         """Step at which each pair is next evaluated (if it stays switched on)."""

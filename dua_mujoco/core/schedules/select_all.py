@@ -7,8 +7,9 @@ import enum
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.schedules.base import Scheduler
-from dua_mujoco.core.schedules.state import ALL, empty_state
+import dua_mujoco._core as _core
+from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
+from dua_mujoco.core.schedules.state import ALL
 from dua_mujoco.core.validate import check_period, check_urgencies, real_array
 from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
 
@@ -24,7 +25,7 @@ class Urgency(enum.Enum):
     """Clearance ``|x| - eps``: the paper's SA(d)."""
 
 
-class SelectAllScheduler(Scheduler):
+class SelectAllScheduler(Scheduler, kind=ALL):
     """The select-all baselines: every active pair every step.
 
     Args:
@@ -62,21 +63,23 @@ class SelectAllScheduler(Scheduler):
                     f"urgency0 must be a (M,) array without NaN; got shape {values.shape}."
                 )
             threshold = float(alarm_distance)
-        m = values.shape[0]
         self.alarm_distance = float(alarm_distance)
-        state = empty_state(
+        schedule = _core.Schedule(
             ALL,
             dt,
             latency,
             values,
-            active,
-            rows=2,
-            slots=0,
-            horizon=np.array([threshold]),
-            queue=0,
-            width=m,
+            active_mask(active, values.shape[0]),
+            threshold=float(threshold),
         )
-        super().__init__(state, np.flatnonzero((values < threshold) & state.active))
+        self._wrap(schedule, standing(schedule))
+
+    def _derive(self) -> None:
+        # A schedule made elsewhere (Scheduler.of): tau's threshold, or SA(d)'s distance.
+        threshold = float(self.state.horizon[0])
+        tau = threshold == (1 + self.latency) * self.dt
+        self.urgency = Urgency.TAU if tau else Urgency.DISTANCE
+        self.alarm_distance = 0.0 if tau else threshold
 
     @property
     def threshold(self) -> float:

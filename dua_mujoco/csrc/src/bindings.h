@@ -6,6 +6,7 @@
 #include <mujoco/mujoco.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/pair.h>  // functions return (array, count) pairs
 
 #include <cstdint>
 #include <string>
@@ -68,6 +69,12 @@ inline void Require(bool ok, const std::string& message) {
   if (!ok) Raise("ShapeError", message);
 }
 
+// A literal message is made a string only when it is raised: checks run once an element, and
+// a std::string of a message past 15 characters is a heap allocation each time.
+inline void Require(bool ok, const char* message) {
+  if (!ok) Require(false, std::string(message));
+}
+
 inline const mjModel* ModelOf(nb::handle model) {
   return reinterpret_cast<const mjModel*>(nb::cast<uintptr_t>(model.attr("_address")));
 }
@@ -80,6 +87,9 @@ inline const mjData* DataOf(nb::handle data) {
 inline dua_frame FrameOf(const mjData* d, const double* root_twist) {
   return {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist, d->xpos};
 }
+
+// Registers what dua_mujoco.core needs beyond bindings.cc (bindings_core.cc); called last.
+void BindCore(nb::module_& m);
 
 }  // namespace dua
 

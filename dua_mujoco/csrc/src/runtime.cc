@@ -93,7 +93,11 @@ Runtime::Runtime(const Runtime& o)
       rebuilds_(o.rebuilds_),
       renewals_(o.renewals_),
       universe_version_(o.universe_version_),
-      held_version_(o.held_version_) {
+      held_version_(o.held_version_),
+      plan_(o.plan_),  // immutable: shared; the mjData it is queried on is made when needed
+      plan_ok_(o.plan_ok_),
+      plan_breaks_(o.plan_breaks_),
+      read_lag_(o.read_lag_) {
   NewLog();  // never append to another run's log
 }
 
@@ -129,10 +133,10 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
   for (int64_t k = 0; k < n; ++k) g1[k] = u.geom1[held[k]], g2[k] = u.geom2[held[k]];
   held_start_.resize(t.nbody_events + 1);
   held_members_.resize(std::max<int64_t>(2 * n, 1));
-  held_members_.resize(std::max<int64_t>(
-      dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
-                       held_start_.data(), held_members_.data()),
-      1));
+  held_members_.resize(
+      std::max<int64_t>(dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
+                                         held_start_.data(), held_members_.data()),
+                        1));
   scratch_.assign(12 * static_cast<size_t>(std::max<int64_t>(n, 1)), 0.0);
   stands_.assign(n, 0);
   ++held_version_;
@@ -156,11 +160,10 @@ void Runtime::StartMocap(const mjData* d) {
 
 void Runtime::DifferenceMocap(const mjData* d, double elapsed) {
   if (mocap_bodies_.empty()) return;
-  dua_difference_poses(d->xpos, d->xquat, mocap_bodies_.data(),
-                       static_cast<int64_t>(mocap_bodies_.size()), mocap_pos_.data(),
-                       mocap_quat_.data(), elapsed, mocap_user_.data(), mocap_linear_.data(),
-                       mocap_angular_.data(), root_twist_.data(),
-                       static_cast<int64_t>(root_twist_.size() / 6));
+  dua_difference_poses(
+      d->xpos, d->xquat, mocap_bodies_.data(), static_cast<int64_t>(mocap_bodies_.size()),
+      mocap_pos_.data(), mocap_quat_.data(), elapsed, mocap_user_.data(), mocap_linear_.data(),
+      mocap_angular_.data(), root_twist_.data(), static_cast<int64_t>(root_twist_.size() / 6));
   ++mocap_updates_;
 }
 
@@ -221,7 +224,93 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   a.log_pairs = log_->pair.data();
   a.log_tau = log_->tau.data();
   a.log_new = log_->fresh.data();
+  dua_plan& pl = a.plan;
+  pl.impl = plan_.get();
+  if (plan_) {
+    if (!plan_data_) plan_data_.reset(mj_makeData(m));
+    const Universe& u = universe();
+    planned_.resize(std::max<size_t>(ids_.size(), 1));
+    pl.body_ok = plan_ok_.data();
+    pl.geom1 = u.geom1.data();
+    pl.geom2 = u.geom2.data();
+    pl.geom_body = m->geom_bodyid;
+    pl.data = plan_data_.get();
+    pl.planned = planned_.data();
+  }
   return a;
+}
+
+std::string Runtime::SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
+                             double start) {
+  if (!classified_) return "comes before the first classification: reset the predictor first";
+  if (m->nmocap > 0) {
+    return "is for a model with mocap bodies, whose planned poses a plan of qpos does not hold";
+  }
+  if (!plan_data_) plan_data_.reset(mj_makeData(m));
+  if (!plan_data_) return "needs an mjData that MuJoCo could not allocate";
+  auto plan = std::make_shared<Plan>();
+  std::string error = plan->Build(m, plan_data_.get(), qpos, n, dev, start, m->opt.timestep);
+  if (!error.empty()) return error;
+  const double next = last_time_ + tables_->schedule.dt - read_lag_ * m->opt.timestep;
+  if (plan->KnotOf(next) < 0) {
+    return "does not cover the state the next step reads (time " + std::to_string(next) +
+           "): start it at or before that time, on a whole number of timesteps from it, with " +
+           "knots past it";
+  }
+  plan_ = std::move(plan);
+  plan_ok_.assign(m->nbody, 1);
+  MakeAllDue(step_ + 1);
+  return "";
+}
+
+void Runtime::ClearPlan() {
+  if (!plan_) return;
+  plan_.reset();
+  args_.plan.impl = nullptr;
+  MakeAllDue(step_ + 1);
+}
+
+void Runtime::MakeAllDue(int64_t n) {
+  dua_schedule* st = schedule_->state();
+  for (int64_t p = 0; p < npair(); ++p) dua_make_due(st, p, n);
+}
+
+void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
+  if (!plan_) return;
+  // A classification (n = 0) evaluates every pair anyway, on a schedule it makes afresh.
+  const bool due = n > 0;
+  const int64_t k = plan_->KnotOf(StateTime(m, d));
+  if (k < 0) {
+    // Past the plan (or a clock the plan does not know): the bounds alone from here on.
+    plan_.reset();
+    args_.plan.impl = nullptr;
+    if (due) MakeAllDue(n);
+    return;
+  }
+  args_.plan.knot = k;
+  std::vector<int64_t> broken;
+  plan_->Check(m, d, k, &broken);
+  for (const int64_t b : broken) {
+    if (!plan_ok_[b]) continue;
+    plan_ok_[b] = 0;
+    ++plan_breaks_;
+    if (!due) continue;
+    const Universe& u = universe();
+    for (int64_t p = 0; p < npair(); ++p) {
+      const int64_t mp = ids_[p];
+      if (m->geom_bodyid[u.geom1[mp]] == b || m->geom_bodyid[u.geom2[mp]] == b) {
+        dua_make_due(schedule_->state(), p, n);
+      }
+    }
+  }
+}
+
+std::vector<int64_t> Runtime::PlanBroken(const mjModel* m, const mjData* d) const {
+  std::vector<int64_t> out;
+  const int64_t k = plan_ ? plan_->KnotOf(StateTime(m, d)) : -1;
+  if (k < 0) return {-1};
+  plan_->Check(m, d, k, &out);
+  return out;
 }
 
 void Runtime::Learnt() {
@@ -229,6 +318,71 @@ void Runtime::Learnt() {
   if (static_cast<int64_t>(on_.size()) != u.npair()) ++universe_version_;
   on_.resize(u.npair(), 1);
   gp_count_.resize(u.ngp(), 0);
+  if (watching_) {
+    for (auto k = static_cast<int64_t>(gp_counted_.size()); k < u.ngp(); ++k) {
+      gp_counted_.push_back(Counted(k) ? 1 : 0);
+    }
+  }
+}
+
+bool Runtime::Counted(int64_t gp) const {
+  const Universe& u = universe();
+  const int64_t g1 = u.geom_pairs[2 * gp], g2 = u.geom_pairs[2 * gp + 1];
+  if (ignored_geoms_[g1] || ignored_geoms_[g2]) return false;
+  return !std::binary_search(ignored_pairs_.begin(), ignored_pairs_.end(), (g1 << 32) | g2);
+}
+
+void Runtime::Watch(const std::vector<uint8_t>& ignored_geoms,
+                    const std::vector<int64_t>& ignored_pairs) {
+  watching_ = true;
+  ignored_geoms_ = ignored_geoms;
+  ignored_pairs_ = ignored_pairs;
+  std::sort(ignored_pairs_.begin(), ignored_pairs_.end());
+  gp_counted_.clear();
+  Learnt();
+  TrackAll();
+  was_.assign(gp_count_.size(), 0);
+  FinishWatch();
+}
+
+std::vector<int64_t> Runtime::WatchedStanding() const {
+  std::vector<int64_t> out;
+  const Universe& u = universe();
+  for (const int64_t k : u.gp_ids) {  // in increasing (g1, g2)
+    if (gp_count_[k] && gp_counted_[k]) {
+      out.push_back(u.geom_pairs[2 * k]), out.push_back(u.geom_pairs[2 * k + 1]);
+    }
+  }
+  return out;
+}
+
+void Runtime::FinishWatch() {
+  if (!watching_) return;
+  watched_.started = 0;
+  was_.resize(gp_count_.size(), 0);
+  bool changed = false;
+  for (const int64_t gp : touched_) {
+    const uint8_t now = gp_count_[gp] > 0 && gp_counted_[gp];
+    if (now == was_[gp]) continue;
+    watched_.started += now;
+    changed = true;
+    was_[gp] = now;
+  }
+  touched_.clear();
+  if (changed) ++watched_.version;
+}
+
+void Runtime::SetExpiry(int64_t p) {
+  const Schedule& s = *schedule_;
+  const bool counted = s.active[p] && gp_counted_[universe().pair_geom[ids_[p]]];
+  const double expiry =
+      counted ? s.last_tau[p] + static_cast<double>(s.ints[kIntLastStep * s.m() + p]) * s.spec().dt
+              : kInf;
+  int64_t i = expiry_size_ + p;
+  expiry_tree_[i] = expiry;
+  for (i /= 2; i >= 1; i /= 2) {
+    expiry_tree_[i] = std::min(expiry_tree_[2 * i], expiry_tree_[2 * i + 1]);
+  }
 }
 
 int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
@@ -249,6 +403,10 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
     Bind(m, d);
   }
   dua_reset_events(&args_);
+  if (plan_) {
+    Bind(m, d);  // the plan's buffers sized for the held pairs
+    FollowPlan(m, d, 0);
+  }
   const int64_t n = npair();
   std::vector<double> tau0(n);
   const std::vector<int64_t> all = Iota(n);
@@ -267,6 +425,8 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
   step_ = 0;
   last_time_ = d->time;
   TrackAll();
+  std::fill(was_.begin(), was_.end(), 0);  // every alarm of a classification is new
+  FinishWatch();
   // The classification's alarms, logged as a step's are (each new).
   const std::vector<int64_t> alarmed = schedule_->InitialAlarms();
   if (log_used_ + static_cast<int64_t>(alarmed.size()) > log_->capacity()) NewLog();
@@ -298,6 +458,7 @@ int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   Bind(m, d);
   const int64_t n = step_ + 1;
   if (t.pruned && !Prune(m, d, n)) return kBadState;
+  FollowPlan(m, d, n);
   const int64_t room = schedule_->width();
   if (log_used_ + room > log_->capacity()) NewLog(), Bind(m, d);
   log_start_ = log_used_;
@@ -307,10 +468,11 @@ int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   schedule_->step_count = n;
   last_time_ = d->time;
   Log(result);
-  if (t.pruned && args_.events.nbody && events_meta_[kMCount]) {
+  if (t.pruned && escape_check_ && args_.events.nbody && events_meta_[kMCount]) {
     pruned_.FindEscapes(t.held, args_, step_);
   }
   TrackStep();
+  FinishWatch();
   return result;
 }
 
@@ -343,8 +505,7 @@ bool Runtime::Prune(const mjModel* m, const mjData* d, int64_t n) {
   } else if (escaped) {
     std::vector<int64_t> found;
     if (!ps.Renew(t.held, learn(), &own_, args_, n, &found)) return false;
-    std::set_union(ids_.begin(), ids_.end(), found.begin(), found.end(),
-                   std::back_inserter(held));
+    std::set_union(ids_.begin(), ids_.end(), found.begin(), found.end(), std::back_inserter(held));
     carry = held.size() > ids_.size();  // some pair is new
     ++renewals_;
   }
@@ -387,14 +548,24 @@ void Runtime::Track(const int64_t* ids, int64_t n) {
   for (int64_t k = 0; k < n; ++k) {
     const int64_t p = ids[k];
     const uint8_t now = schedule_->Stands(p) ? 1 : 0;
-    if (now == stands_[p]) continue;
+    if (now == stands_[p]) continue;  // (its expiry is set below all the same)
     stands_[p] = now;
-    int32_t& count = gp_count_[u.pair_geom[ids_[p]]];
+    const int64_t gp = u.pair_geom[ids_[p]];
+    int32_t& count = gp_count_[gp];
+    const bool counted = watching_ && gp_counted_[gp];
     if (now) {
-      if (count++ == 0) ++nstanding_;
+      if (count++ == 0) {
+        ++nstanding_;
+        if (counted) ++watched_.standing, touched_.push_back(gp);
+      }
     } else if (--count == 0) {
       --nstanding_;
+      if (counted) --watched_.standing, touched_.push_back(gp);
     }
+  }
+  if (watching_) {
+    for (int64_t k = 0; k < n; ++k) SetExpiry(ids[k]);
+    watched_.expiry = expiry_tree_[1];
   }
 }
 
@@ -402,6 +573,13 @@ void Runtime::TrackAll() {
   std::fill(stands_.begin(), stands_.end(), 0);
   std::fill(gp_count_.begin(), gp_count_.end(), 0);
   nstanding_ = 0;
+  if (watching_) {
+    watched_.standing = 0;
+    for (size_t k = 0; k < gp_count_.size(); ++k) touched_.push_back(static_cast<int64_t>(k));
+    expiry_size_ = 1;
+    while (expiry_size_ < std::max<int64_t>(npair(), 1)) expiry_size_ *= 2;
+    expiry_tree_.assign(2 * expiry_size_, kInf);
+  }
   const std::vector<int64_t> all = Iota(npair());
   Track(all.data(), npair());
   const std::vector<double>& tau = schedule_->last_tau;
@@ -473,8 +651,7 @@ std::vector<int64_t> Runtime::GeomPairIds(const std::vector<int64_t>& g1,
     return missing;
   };
   std::vector<int64_t> out(n);
-  if (lookup(&out) && tables_->pruned &&
-      own_.Learn(learn(), g1.data(), g2.data(), n) > 0) {
+  if (lookup(&out) && tables_->pruned && own_.Learn(learn(), g1.data(), g2.data(), n) > 0) {
     Learnt();
     lookup(&out);
   }
@@ -501,6 +678,33 @@ int64_t Runtime::DeactivateContacts(const mjData* d) {
   }
   Switch(ids, false);
   return noff;
+}
+
+std::vector<double> Runtime::ExactOnly(const mjModel* m, const mjData* d,
+                                       const std::vector<int64_t>& ids,
+                                       const std::vector<double>& coarse, double query_below) {
+  std::vector<double> records = exact_records_;
+  const std::vector<double>& built = tables_->universe.exact;
+  if (!tables_->pruned) records = built;  // the records as built, no direction learnt
+  dua_step_args a = Bind(m, d);
+  a.exact.records = records.data();
+  a.exact.query_below = query_below;
+  std::vector<double> out = coarse;
+  dua_exact_pass(&a, ids.data(), static_cast<int64_t>(ids.size()), out.data());
+  Bind(m, d);
+  return out;
+}
+
+std::pair<std::vector<int64_t>, std::vector<double>> Runtime::CheckBodiesCopy(const mjModel* m,
+                                                                              const mjData* d,
+                                                                              bool lanes) {
+  std::vector<double> prev = events_prev_;
+  std::vector<int64_t> meta = events_meta_, flagged = events_flagged_;
+  dua_step_args a = Bind(m, d);
+  a.events.prev = prev.data(), a.events.meta = meta.data(), a.events.flagged = flagged.data();
+  const int64_t count = dua_check_bodies(&a, lanes ? 1 : 0);
+  flagged.resize(count);
+  return {flagged, prev};
 }
 
 std::vector<int64_t> Runtime::FlaggedBodies() const {

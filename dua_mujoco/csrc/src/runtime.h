@@ -12,10 +12,13 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "plan.h"
 #include "pruned.h"
 #include "schedule.h"
 #include "tables.h"
@@ -28,8 +31,13 @@ namespace dua {
 // holds it (Python's Alarms do).
 struct DUA_API AlarmLog {
   explicit AlarmLog(int64_t capacity)
-      : pair(capacity), geom1(capacity), geom2(capacity), sphere1(capacity), sphere2(capacity),
-        tau(capacity), fresh(capacity) {}
+      : pair(capacity),
+        geom1(capacity),
+        geom2(capacity),
+        sphere1(capacity),
+        sphere2(capacity),
+        tau(capacity),
+        fresh(capacity) {}
   int64_t capacity() const { return static_cast<int64_t>(pair.size()); }
   // The model pair, its geoms (the plane or static geom second), its spheres (-1: none), tau,
   // and whether the alarm is new (the pair did not stand in alarm before the step).
@@ -81,9 +89,62 @@ class DUA_API Runtime {
   // contact of a pair not met yet learns it); returns how many geom pairs.
   int64_t DeactivateContacts(const mjData* d);
 
+  // A watcher (the gym wrapper) reads, after each step in O(1), how many counted geom pairs stand
+  // in alarm, how many started to at that step, and the least time the counted verdicts still
+  // vouch for. Geom pairs count unless a geom of theirs is in ignored_geoms (ngeom flags) or the
+  // pair in ignored_pairs (keys g1 << 32 | g2, g1 < g2, sorted); pairs learnt later too.
+  void Watch(const std::vector<uint8_t>& ignored_geoms, const std::vector<int64_t>& ignored_pairs);
+  struct Watched {
+    int64_t standing = 0;  // counted geom pairs standing in alarm
+    int64_t started = 0;   // of them, those whose alarm the latest step started
+    double expiry = std::numeric_limits<double>::infinity();  // min of tau + last step time
+    int64_t version = 0;  // changes whenever the set of counted standing geom pairs does
+  };
+  const Watched& watched() const { return watched_; }
+  // The counted geom pairs standing in alarm, rows (g1, g2) in increasing order.
+  std::vector<int64_t> WatchedStanding() const;
+
+  // Flight plans (plan.h): qpos (n, nq), row j the state at time start + j h (h the model's
+  // timestep), and dev (n, nbody), each body's deviation bound at each knot. Every held pair is
+  // evaluated again at the next step, under the plan. The plan must cover the state the next
+  // step reads (StateTime). Returns an error message naming the bad input, or "".
+  std::string SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
+                      double start);
+  // Back to the motion bounds alone (every held pair evaluated again at the next step).
+  void ClearPlan();
+  // How many timesteps the state a step reads lags d->time: 1 after mj_step (Python's Predictor,
+  // whose state is the one MuJoCo's step started from), 0 inside mj_step (the plugin's compute,
+  // before time advances). Plans place their knots by it.
+  void SetReadLag(int steps) { read_lag_ = steps; }
+  double StateTime(const mjModel* m, const mjData* d) const {
+    return d->time - read_lag_ * m->opt.timestep;
+  }
+  bool has_plan() const { return plan_ != nullptr; }
+  const Plan* plan() const { return plan_.get(); }
+  // Bodies found beyond their deviation since the plan came (their pairs follow the bounds).
+  const std::vector<uint8_t>& plan_ok() const { return plan_ok_; }
+  int64_t plan_breaks() const { return plan_breaks_; }
+  int64_t plan_queries() const { return args_.plan.queries; }
+  // The bodies of d's state beyond their deviation at its knot (-1 in out[0]: no plan covers
+  // it), checking only; the monitor's every-step check.
+  std::vector<int64_t> PlanBroken(const mjModel* m, const mjData* d) const;
+
   // Mocap bodies: a velocity given instead of differenced (world frame), or back to differencing.
   void SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]);
   void ClearMocapVelocity(int64_t mocap);
+
+  // ---------------------------------------------------------------------- for tests
+  // The exact level alone on held pairs ids, from sphere taus `coarse`, with the level's records
+  // as built (no direction learnt) and MuJoCo asked afresh below query_below; nothing changes.
+  std::vector<double> ExactOnly(const mjModel* m, const mjData* d, const std::vector<int64_t>& ids,
+                                const std::vector<double>& coarse, double query_below);
+  // The violation check of d's state on a copy of its state, four bodies at a time or one at a
+  // time (the reference the lanes are held to): the flagged rows and the state written after.
+  std::pair<std::vector<int64_t>, std::vector<double>> CheckBodiesCopy(const mjModel* m,
+                                                                       const mjData* d, bool lanes);
+  // Pruned pairs: whether the step looks for escaped spheres (on; off only to show what the
+  // check guards).
+  void SetEscapeCheck(bool on) { escape_check_ = on; }
 
   // ---------------------------------------------------------------------- what it holds
   const Tables& tables() const { return *tables_; }
@@ -95,6 +156,8 @@ class DUA_API Runtime {
   int64_t universe_version() const { return universe_version_; }
   // The held pairs' model ids (sorted), and the schedule over them.
   const std::vector<int64_t>& ids() const { return ids_; }
+  // The exact level's records with the directions learnt so far (empty when the level is off).
+  const std::vector<double>& exact_records() const { return exact_records_; }
   int64_t held_version() const { return held_version_; }
   // Replaced (never resized) by a classification or a carry: a holder keeps the one it has.
   const std::shared_ptr<Schedule>& schedule() const { return schedule_; }
@@ -115,6 +178,8 @@ class DUA_API Runtime {
   int64_t mocap_updates() const { return mocap_updates_; }
   // Each sphere's anchor step (pruned pairs; empty otherwise).
   const std::vector<int64_t>& anchor_steps() const { return pruned_.built; }
+  // Pruned pairs: each sphere's anchor, reach, and the largest contact distance beyond radii.
+  const PrunedState& pruned_state() const { return pruned_; }
   const std::shared_ptr<AlarmLog>& log() const { return log_; }
   int64_t log_start() const { return log_start_; }
   // Alarms of the latest step or classification (logged from log_start()).
@@ -141,6 +206,13 @@ class DUA_API Runtime {
   void TrackAll();
   void TrackStep();
   void Log(int64_t nalarm);
+  bool Counted(int64_t gp) const;
+  // The plan's part of step n at d (0: a classification): its knot, the bodies beyond their
+  // deviation flagged and their pairs made due; past its end, the plan dropped (every pair due).
+  void FollowPlan(const mjModel* m, const mjData* d, int64_t n);
+  void MakeAllDue(int64_t n);
+  void FinishWatch();         // a step's or a classification's end: started and version
+  void SetExpiry(int64_t p);  // pair p's leaf of the expiry tree, and its path to the root
 
   std::shared_ptr<const Tables> tables_;
   int64_t log_steps_, log_min_;
@@ -171,10 +243,29 @@ class DUA_API Runtime {
   std::shared_ptr<AlarmLog> log_;
   int64_t log_used_ = 0, log_start_ = 0;
   bool classified_ = false;
+  bool escape_check_ = true;
   double last_time_ = 0.0;
   int64_t step_ = 0;
   int64_t rebuilds_ = 0, renewals_ = 0;
   int64_t universe_version_ = 0, held_version_ = 0;
+  // The watcher's state (Watch): the ignore lists, each geom pair's count flag, and a min-tree
+  // of the held pairs' expiries (leaves at [size, 2 size)).
+  bool watching_ = false;
+  std::vector<uint8_t> ignored_geoms_, gp_counted_, was_;
+  std::vector<int64_t> ignored_pairs_, touched_;
+  std::vector<double> expiry_tree_;
+  int64_t expiry_size_ = 0;
+  Watched watched_;
+  // The flight plan (none: null), the bodies still within their deviation, and the mjData the
+  // plan's kinematics and MuJoCo's distance queries at knots use.
+  struct DataDeleter {
+    void operator()(mjData* d) const { mj_deleteData(d); }
+  };
+  std::shared_ptr<const Plan> plan_;
+  std::unique_ptr<mjData, DataDeleter> plan_data_;
+  std::vector<uint8_t> plan_ok_, planned_;
+  int64_t plan_breaks_ = 0;
+  int read_lag_ = 1;
 };
 
 }  // namespace dua

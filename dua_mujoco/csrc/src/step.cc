@@ -12,6 +12,7 @@
 #include "internal.h"
 #include "lanes.h"
 #include "layout.h"
+#include "plan.h"
 
 namespace dua {
 namespace {
@@ -360,8 +361,8 @@ double HullSupport(int64_t g, const dua_exact& x, double m0, double m1, double m
   return best;
 }
 
-// Support of geom g at its current pose along n (a mesh over its hull's vertices when MuJoCo
-// has its hull graph, else over its box).
+}  // namespace
+
 double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0, double n1,
                    double n2, int64_t start, int64_t* top) {
   const double* rec = x.geoms + g * kGxNcol;
@@ -387,6 +388,8 @@ double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0,
          SupportLocal(static_cast<int>(rec[kGxKind]), rec[kGxSize], rec[kGxSize + 1],
                       rec[kGxSize + 2], k0, k1, k2);
 }
+
+namespace {
 
 // tau of the pair's separation along unit n (first geom to second):
 // d_n + (n.r - spin) t - delta t - A t^2 / 2, d_n from the supports, r the origins' relative
@@ -441,7 +444,8 @@ void IndexContacts(dua_exact& x) {
   });
   std::vector<int64_t> keys(static_cast<size_t>(n));
   std::vector<double> dist(static_cast<size_t>(n));
-  for (int64_t k = 0; k < n; ++k) keys[k] = x.contact_keys[order[k]], dist[k] = x.contact_dist[order[k]];
+  for (int64_t k = 0; k < n; ++k)
+    keys[k] = x.contact_keys[order[k]], dist[k] = x.contact_dist[order[k]];
   std::copy(keys.begin(), keys.end(), x.contact_keys);
   std::copy(dist.begin(), dist.end(), x.contact_dist);
   x.contact_count = n;
@@ -471,8 +475,7 @@ bool InContact(dua_exact& x, int64_t g1, int64_t g2, double dist) {
 // One pair's max(coarse, exact). Any unit direction gives a lower bound: the one that served
 // last time is tried first, and MuJoCo is asked for a new one only while the pair is still
 // urgent along it (below query_below). A pair MuJoCo has in contact is not looked at.
-double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x,
-                const dua_frame& f) {
+double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x, const dua_frame& f) {
   const int mode = static_cast<int>(xrec[kXMode]);
   if (mode == kModeNone) return coarse;
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
@@ -521,12 +524,14 @@ double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x,
   return std::max(best, AxisTau(n0, n1, n2, mode, r0, r1, r2, spin, pair, xrec, x, f));
 }
 
-// Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below.
-void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out) {
+// Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below,
+// except where skip[k] (a plan's verdicts; skip null: none).
+void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
+               const uint8_t* skip = nullptr) {
   if (!a.exact.on) return;
   a.exact.contact_count = -1;  // the contacts are indexed at the first look that needs them
   for (int64_t k = 0; k < count; ++k) {
-    if (out[k] < a.exact.below) {
+    if (out[k] < a.exact.below && (skip == nullptr || !skip[k])) {
       const int64_t p = ids[k];
       out[k] =
           ExactTau(a.pairs + p * kPairNcol, a.exact.records + p * kXNcol, out[k], a.exact, a.frame);
@@ -583,8 +588,8 @@ struct FreePoints {
 // shape), then its tau, the sphere pairs packed into rows and evaluated four at a time. Returns
 // -1, or the first pair (in ids's order) whose state is not finite.
 template <class Points>
-int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
-                const int64_t* ids, int64_t count, double* rows, double* out) {
+int64_t TauRows(const double* pairs, const double* shapes, const Points& points, const int64_t* ids,
+                int64_t count, double* rows, double* out) {
   // One pass: planes and static shapes get their tau here; sphere pairs are packed to the
   // front of rows as TauSpeedRows reads them (relative state and bounds, then k), so that they
   // are evaluated four at a time.
@@ -611,8 +616,8 @@ int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
       out[k] = TauHalfspace(gap, vn, rec[kPairAccel], rec[kPairDelta]);
     } else if (kind == kKindShape) {
       out[k] = TauStatic(s[0], s[1], s[2], s[3], s[4], s[5],
-                         shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol,
-                         rec[kPairEps], rec[kPairAccel], rec[kPairDelta]);
+                         shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol, rec[kPairEps],
+                         rec[kPairAccel], rec[kPairDelta]);
     } else {
       double* row = rows + 12 * n++;
       for (int j = 0; j < 6; ++j) row[j] = s[6 + j] - s[j];
@@ -632,7 +637,14 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
   ++a.epoch;
   const int64_t bad = TauRows(a.pairs, a.shapes, FramePoints{a}, ids, count, rows, out);
   if (bad >= 0) return bad;
-  ExactPass(a, ids, count, out);
+  if (a.plan.impl != nullptr) {
+    // A plan's verdict replaces the motion bounds' (its hypothesis is the deviation, not the
+    // bounds): the pairs it covers skip the exact level on the present state.
+    PlanPass(a, ids, count, out);
+    ExactPass(a, ids, count, out, a.plan.planned);
+  } else {
+    ExactPass(a, ids, count, out);
+  }
   // A tau that is not a number (from finite tables so large that the arithmetic overflows, a
   // shape's rotation entry of 1e308) alarms now, never passes (docs/hardening.md).
   for (int64_t k = 0; k < count; ++k) {
@@ -653,8 +665,8 @@ void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, doubl
 int64_t dua_tau_free(const double* pairs, const double* shapes, const double* centers,
                      const double* velocities, const double* planes, const int64_t* ids,
                      int64_t count, double* rows, double* out) {
-  return dua::TauRows(pairs, shapes, dua::FreePoints{centers, velocities, planes}, ids, count,
-                      rows, out);
+  return dua::TauRows(pairs, shapes, dua::FreePoints{centers, velocities, planes}, ids, count, rows,
+                      out);
 }
 
 int64_t dua_violation_pass(dua_step_args* a, int64_t n) {

@@ -6,8 +6,8 @@ accelerations (``world``). Three measurements, each beside the paper's (``refere
 * **Table 1, cost per iteration against N**: evaluations of tau per iteration (the
   hardware-independent analogue of the paper's CPU time), wall-clock microseconds through the
   public API (DUA's fused ``step_points``, DUA's ``select``/``update``, SA(tau)'s
-  ``select``/``update``) and compiled-kernel nanoseconds (``kernels``: no Python in the loop, the
-  closest analogue of the paper's instruction counts).
+  ``select``/``update``) and native-kernel nanoseconds (``kernels``: one native call an
+  iteration, the closest analogue of the paper's instruction counts).
 * **Table 2, false alarms** (repetitive alarms counted once) in two clocks (``clock``): the *work
   clock* ("realtime"), where an iteration lasts as long as it computes, and a *fixed* clock, one
   period for both algorithms. Real collisions are counted too, and every one must have been

@@ -33,7 +33,10 @@ The fitted overhead is -0.018 s, i.e. none."""
 
 MEASURED_NS_PER_EVAL = 160.0
 """Compiled cost of one tau evaluation (ns), fitted by ``calibrate_work_clock`` on the
-development machine (2 cores, numba 0.6x): DUA fused kernel and serial SA loop together."""
+development machine (2 cores; the compiled kernels of the time, called from a compiled loop): DUA
+fused kernel and serial SA loop together. Kept as measured, so that the tables are the same on
+every machine (``calibrate_work_clock`` now times one native call an iteration, whose fixed
+cost from Python is larger)."""
 
 MEASURED_NS_OVERHEAD = 140.0
 """Compiled fixed cost of one iteration (ns): selection, sort of the withdrawn pairs, reinsertion.

@@ -1,4 +1,4 @@
-"""Compiled cost per iteration: the scheduler's own jitted kernels in a loop without Python.
+"""Native cost per iteration: the scheduler's own native step, one call an iteration.
 
 The closest analogue of the paper's instruction counts (Table 1's kernel columns), and the
 measurement behind the work clock's constants (``calibrate_work_clock``).
@@ -10,46 +10,24 @@ import math
 import time
 from collections.abc import Sequence
 
-import numba as nb
 import numpy as np
 
-from dua_mujoco.core.pairset import pair_tau
+import dua_mujoco._core as _core
 from dua_mujoco.core.schedules import DUAScheduler
-from dua_mujoco.core.schedules.base import step_points_kernel
+from dua_mujoco.core.urgency import PARALLEL_MIN
 from dua_mujoco.experiments.paper.clock import dua_buckets
 from dua_mujoco.experiments.paper.world import WorldParams
 
 __all__ = ["calibrate_work_clock", "kernel_costs"]
 
 
-@nb.njit(cache=True)
-def _dua_kernel_loop(iters, n0, state, geometry):  # pragma: no cover - jitted
-    total = 0
-    for n in range(n0, n0 + iters):
-        # Indexed, not unpacked: the kernel's result tuple has grown before (a non-finite flag).
-        res = step_points_kernel(state, n, geometry)
-        total += res[0]
-    return total
-
-
-@nb.njit(cache=True)
-def _sa_kernel_loop(iters, threshold, geometry):  # pragma: no cover - jitted
-    # Serial on purpose: the cost model counts evaluations, and DUA's step is serial too.
-    nalarm = 0
-    first = geometry[4]  # (centers, velocities, normals, offsets, first, ...)
-    m = first.shape[0]
-    for _ in range(iters):
-        for p in range(m):
-            if pair_tau(p, geometry) < threshold:
-                nalarm += 1
-    return nalarm
-
-
 def kernel_costs(n: int, params: WorldParams, reps: int, seed: int = 0) -> tuple[float, float]:
-    """Compiled ns per iteration of DUA (fused step) and of serial SA(tau) at ``n`` spheres.
+    """Native ns per iteration of DUA (fused step) and of serial SA(tau) at ``n`` spheres.
 
-    The kernels are the scheduler's own jitted pieces, called from a compiled loop so that no
-    Python call overhead is counted: the closest analogue of the paper's instruction counts.
+    Each iteration is one call of the native core (``_core.step_free``: select, tau, reinsert;
+    ``_core.tau_pairs`` of every pair, in batches below the threaded size), so the Python
+    around it is one call's fixed cost (a fraction of a microsecond): the closest analogue of
+    the paper's instruction counts.
 
     Args:
         n: Spheres of the world (``WorldParams.world(n, seed)``).
@@ -63,23 +41,37 @@ def kernel_costs(n: int, params: WorldParams, reps: int, seed: int = 0) -> tuple
     world = params.world(n, seed)
     pairs = world.pairs()
     c, v = world.positions, world.velocities
-    # A throwaway scheduler: the loop drives its state without the Python protocol.
-    dua = DUAScheduler(pairs.tau(np.arange(len(pairs)), c, v), dt=1.0)
-    state, geometry = dua.kernel_state, pairs.inputs(c, v, None) + pairs.arrays()
-    _dua_kernel_loop(1, 1, state, geometry)
+    ids = np.arange(len(pairs))
+    # A throwaway scheduler: the loop drives its schedule without the Python protocol.
+    dua = DUAScheduler(pairs.tau(ids, c, v), dt=1.0)
+    inputs = (pairs.records, *pairs.inputs(c, v, None))
+    step = _core.step_free
+    schedule = dua.core
+    step(schedule, *inputs)
     # Best of three: other processes only ever add time, so the minimum is the cleanest estimate.
     dua_ns = math.inf
-    for rep in range(3):
+    for _ in range(3):
         t0 = time.perf_counter()
-        _dua_kernel_loop(reps, 2 + rep * reps, state, geometry)
+        for _ in range(reps):
+            step(schedule, *inputs)
         dua_ns = min(dua_ns, (time.perf_counter() - t0) / reps * 1e9)
-    # SA: enough repetitions for ~reps * 10 evaluations, at least one.
+    # SA: enough repetitions for ~reps * 10 evaluations, at least one. Serial on purpose (the
+    # cost model counts evaluations, and DUA's step is serial too): batches below the size the
+    # native batch splits over two threads.
+    batches = np.array_split(ids, max(1, -(-ids.size // (PARALLEL_MIN - 1))))
     sa_reps = max(1, (reps * 10) // len(pairs))
-    _sa_kernel_loop(1, 2.0, geometry)
+
+    def sa() -> int:
+        return sum(
+            int((_core.tau_pairs(inputs[0], b, *inputs[1:])[0] < 2.0).sum()) for b in batches
+        )
+
+    sa()
     sa_ns = math.inf
     for _ in range(3):
         t0 = time.perf_counter()
-        _sa_kernel_loop(sa_reps, 2.0, geometry)
+        for _ in range(sa_reps):
+            sa()
         sa_ns = min(sa_ns, (time.perf_counter() - t0) / sa_reps * 1e9)
     return dua_ns, sa_ns
 
@@ -90,7 +82,7 @@ def calibrate_work_clock(
     params: WorldParams | None = None,
     reps: int = 5000,
 ) -> tuple[float, float]:
-    """Fit ``ns = c E + overhead`` to compiled DUA and SA(tau) iterations (relative errors).
+    """Fit ``ns = c E + overhead`` to native DUA and SA(tau) iterations (relative errors).
 
     This produced ``MEASURED_NS_PER_EVAL`` and ``MEASURED_NS_OVERHEAD``; rerun it to recalibrate.
 

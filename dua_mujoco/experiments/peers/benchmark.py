@@ -18,7 +18,7 @@ from dua_mujoco.experiments.peers.ghost_world import ghost_truth, record_ghost
 from dua_mujoco.experiments.peers.horizon import LATENCY
 from dua_mujoco.experiments.peers.markdown import markdown
 from dua_mujoco.experiments.peers.memory import memory_row
-from dua_mujoco.experiments.peers.plan import make_plan, single_thread
+from dua_mujoco.experiments.peers.plan import make_plan
 from dua_mujoco.experiments.peers.plots import plots
 from dua_mujoco.experiments.peers.rows import GhostRow, MemoryRow, SceneRow
 from dua_mujoco.experiments.peers.scene import run_scene
@@ -64,13 +64,7 @@ def run_peers(
     """
     start = time.perf_counter()
     load_before = os.getloadavg()
-    threads = single_thread()
-    try:
-        result = _run(quick, progress, sizes, steps, scenes, scene_steps, memory, seed)
-    finally:
-        import numba
-
-        numba.set_num_threads(threads)
+    result = _run(quick, progress, sizes, steps, scenes, scene_steps, memory, seed)
     result["meta"]["load_average"] = [load_before[0], os.getloadavg()[0]]
     result["runtime_s"] = time.perf_counter() - start
     result = jsonable(result)
@@ -156,7 +150,7 @@ def _run(
             "mujoco": mujoco.__version__,
             "fcl": has_fcl,
             "cpus": os.cpu_count(),
-            "numba_threads": 1,
+            "threads": 1,
             "notes": notes,
         },
         "ghost": [asdict(r) for r in ghost_rows],

@@ -7,10 +7,9 @@ spheres overlap is an alarm. Candidates come from ``candidates.BROADPHASES``.
 from __future__ import annotations
 
 import mujoco
-import numba as nb
 import numpy as np
 
-from dua_mujoco.core.shapes import static_gap
+import dua_mujoco._core as _core
 from dua_mujoco.experiments.peers.candidates import BROADPHASES
 from dua_mujoco.experiments.peers.ghost_world import GhostTrajectory, pair_id
 from dua_mujoco.experiments.peers.horizon import LATENCY, InflatedGhost, reach_distance
@@ -38,12 +37,6 @@ class BroadphaseGhost(InflatedGhost):
         reach = grown[a] + grown[b]
         hit = np.einsum("ij,ij->i", d, d) <= reach * reach
         return np.unique(pair_id(a[hit], b[hit], self.n)), int(a.size)
-
-
-@nb.njit(cache=True)
-def _shape_gaps(c, shapes, first, second, out):  # pragma: no cover - jitted
-    for k in range(first.shape[0]):
-        out[k] = static_gap(c[first[k]], shapes[second[k]])[0]
 
 
 class BroadphaseScene:
@@ -84,9 +77,9 @@ class BroadphaseScene:
         if ctx.sh_ids.size:
             # A handful of static shapes too: their exact gap, as for the planes.
             pairs = p.pair_set
+            assert pairs.shapes is not None  # shape pairs carry their records
             i = pairs.first[ctx.sh_ids]
-            gaps = np.empty(ctx.sh_ids.size)
-            _shape_gaps(c, pairs.shapes, i, pairs.second[ctx.sh_ids], gaps)
+            gaps = _core.static_gap(c[i], pairs.shapes, pairs.second[ctx.sh_ids])[:, 0]
             alarms.append(ctx.sh_ids[gaps - pairs.eps[ctx.sh_ids] <= reach[i]])
         ids = np.concatenate(alarms)
         return np.unique(ctx.to_geom_pair[ids]), int(a.size + ctx.hs_ids.size + ctx.sh_ids.size)

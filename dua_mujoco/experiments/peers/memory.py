@@ -15,7 +15,6 @@ import numpy as np
 
 from dua_mujoco.experiments.peers.ghost import make_ghost_peer
 from dua_mujoco.experiments.peers.ghost_world import record_ghost
-from dua_mujoco.experiments.peers.plan import single_thread
 from dua_mujoco.experiments.peers.rows import MemoryRow
 
 __all__ = ["memory_probe", "memory_row"]
@@ -44,11 +43,12 @@ def memory_probe(peer: str, n: int) -> dict[str, Any]:
     """Build one peer's structures at ``n`` spheres in this process and measure them.
 
     Meant to run in a fresh subprocess (``python -c``) so that peak RSS belongs to one peer.
-    The jitted kernels are compiled first on a tiny world (LLVM's memory is not the peer's);
-    allocations are traced during the build and a few steps, then steps are timed without
-    tracing (tracemalloc slows every numpy allocation down).
+    Each peer runs once first on a tiny world (what loading its code costs is not the peer's);
+    allocations are traced during the build and a few steps (``tracemalloc`` sees numpy's, not
+    the native core's: a schedule's state and the grid's work arrays count in the resident
+    size only), then steps are timed without tracing (tracemalloc slows every numpy allocation
+    down).
     """
-    single_thread()
     world = record_ghost(n, 6, 0, seed=0)
     c, v = world.positions, world.velocities
     tiny = record_ghost(8, 2, 0, seed=0)

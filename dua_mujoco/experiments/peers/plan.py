@@ -1,4 +1,8 @@
-"""Sizes of a benchmark run (full or quick), and the one thread every peer runs on."""
+"""Sizes of a benchmark run (full or quick).
+
+Every peer runs on one thread: the native core's batches that could split over two are given
+in batches below ``PARALLEL_MIN`` rows (``schedulers.serial_tau``).
+"""
 
 from __future__ import annotations
 
@@ -6,20 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Plan", "make_plan", "single_thread"]
-
-
-def single_thread() -> int:
-    """Run numba kernels on one thread; returns the previous thread count.
-
-    Every other peer is single-threaded, and numba's thread pool collapses when the machine is
-    oversubscribed (a barrier per call), so one thread is the fair and the reproducible choice.
-    """
-    import numba
-
-    previous = int(numba.get_num_threads())
-    numba.set_num_threads(1)
-    return previous
+__all__ = ["Plan", "make_plan"]
 
 
 @dataclass(frozen=True)

@@ -2,16 +2,28 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import DUAScheduler, SelectAllScheduler
+from dua_mujoco.core.urgency import PARALLEL_MIN
 from dua_mujoco.experiments.peers.ghost_world import GhostTrajectory
 from dua_mujoco.experiments.peers.horizon import LATENCY
 from dua_mujoco.experiments.peers.scene_context import SceneContext
 
-__all__ = ["DuaGhost", "DuaScene", "SaGhost", "SaScene"]
+__all__ = ["DuaGhost", "DuaScene", "SaGhost", "SaScene", "serial_tau"]
+
+
+def serial_tau(pairs: PairSet, ids: np.ndarray, *state: Any) -> np.ndarray:
+    """``pairs.tau(ids, *state)`` on one thread: in batches below the size from which the
+    native core splits a batch over two (every peer runs on one thread)."""
+    if ids.size < PARALLEL_MIN:
+        return pairs.tau(ids, *state)
+    batches = np.array_split(ids, -(-ids.size // (PARALLEL_MIN - 1)))
+    return np.concatenate([pairs.tau(b, *state) for b in batches])
 
 
 class _ScheduledGhost:
@@ -22,14 +34,14 @@ class _ScheduledGhost:
         self.dt = world.dt
 
     def _all_tau(self, c: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return self.pairs.tau(np.arange(len(self.pairs)), c, v)
+        return serial_tau(self.pairs, np.arange(len(self.pairs)), c, v)
 
 
 class DuaGhost(_ScheduledGhost):
     """DUA on the ghost world (``GhostPeer``): the fused ``step_points``."""
 
     name = "DUA"
-    note = "fused step_points (select, tau, sort, reinsert in one compiled call)"
+    note = "fused step_points (select, tau, sort, reinsert in one native call)"
     sched: DUAScheduler | None = None
 
     def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
@@ -53,7 +65,7 @@ class SaGhost(_ScheduledGhost):
     """SA(tau) on the ghost world (``GhostPeer``): tau of every pair every step."""
 
     name = "SA(tau)"
-    note = "tau of every pair every step (numba, threaded)"
+    note = "tau of every pair every step (native batches)"
     sched: SelectAllScheduler | None = None
 
     def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
@@ -65,7 +77,7 @@ class SaGhost(_ScheduledGhost):
     ) -> tuple[np.ndarray, np.ndarray | int, np.ndarray | None, float | None]:
         assert self.sched is not None
         ids = self.sched.select()
-        alarms = self.sched.update(ids, self.pairs.tau(ids, c, v))
+        alarms = self.sched.update(ids, serial_tau(self.pairs, ids, c, v))
         return alarms, 1 + LATENCY, None, float(ids.size)
 
 
@@ -112,7 +124,7 @@ class SaScene:
     def _tau(self, data: mujoco.MjData, ids: np.ndarray) -> np.ndarray:
         p = self.ctx.predictor
         c, v = p.sphere_states(data)
-        return p.pair_set.tau(ids, c, v, p.halfspaces(data))
+        return serial_tau(p.pair_set, ids, c, v, p.halfspaces(data))
 
     def start(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray | int]:
         tau0 = self._tau(data, np.arange(len(self.ctx.predictor.pair_set)))

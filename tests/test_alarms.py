@@ -1,4 +1,4 @@
-"""Tests of the predictor's native step: the alarm log its steps append to."""
+"""The alarms a predictor's steps raise: spans of the runtime's alarm log, never copied."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import SchedulerError
-from dua_mujoco.mj import native_step
+from dua_mujoco.mj import predictor as predictor_module
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.options import UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
@@ -37,11 +37,13 @@ def test_alarms_outlive_log_replacements(monkeypatch: pytest.MonkeyPatch, schedu
     still read what its step raised, and the run must raise what a run whose log never fills
     does."""
     roomy = _rollout(300, schedule=schedule)
-    monkeypatch.setattr(native_step, "LOG_STEPS", 1)
-    monkeypatch.setattr(native_step, "LOG_MIN", 0)
+    monkeypatch.setattr(predictor_module, "LOG_STEPS", 1)
+    monkeypatch.setattr(predictor_module, "LOG_MIN", 0)
     tight = _rollout(300, schedule=schedule)
-    logs = {id(a.pairs.base) for a, _ in tight if len(a)}
-    assert len(logs) > 50  # the log really was replaced, many times
+    # Each step's alarms start a log of their own (every one still held here, so no two share
+    # an address): the log really was replaced, many times.
+    logs = {a.pairs.ctypes.data for a, _ in tight if len(a)}
+    assert len(logs) > 50
     for (a, copied), (_, expected) in zip(tight, roomy, strict=True):
         for now, then, want in zip((a.pairs, a.tau, a.new), copied, expected, strict=True):
             np.testing.assert_array_equal(now, then)
@@ -56,13 +58,36 @@ def test_alarm_arrays_are_read_only() -> None:
             array[0] = array[0]
 
 
-def test_step_between_select_and_update_is_refused() -> None:
+def test_the_predictors_schedule_is_read_only() -> None:
+    """``Predictor.scheduler`` shows the runtime's schedule; stepping it from outside would
+    desynchronise the runtime's own bookkeeping: refused."""
     m, d = load_scene("two_arms")
     p = Predictor(m, accel=30.0)
     mujoco.mj_step(m, d)
     p.reset(d)
     assert p.scheduler is not None
-    p.scheduler.select()
+    for call in (p.scheduler.select, lambda: p.scheduler.set_active([0], False)):  # type: ignore[union-attr]
+        with pytest.raises(SchedulerError, match="read-only"):
+            call()
     mujoco.mj_step(m, d)
-    with pytest.raises(SchedulerError, match="between select"):
-        p.step(d)
+    p.step(d)  # the runtime steps as before
+
+
+def test_alarms_name_their_pairs() -> None:
+    """geom1/geom2/sphere1/sphere2 and names are the tables' at the step (a pruned predictor's
+    learning appends, so they stay right for old alarms too)."""
+    steps = [a for a, _ in _rollout(100) if len(a)]
+    m, _ = load_scene("two_arms")
+    p = Predictor(m, accel=30.0, urgency=UrgencyOptions(exact=False))
+    t = p.tables
+    for a in steps[:20]:
+        np.testing.assert_array_equal(a.geom1, t.geom1[a.pairs])
+        np.testing.assert_array_equal(a.geom2, t.geom2[a.pairs])
+        np.testing.assert_array_equal(a.sphere1, t.first[a.pairs])
+        halfspace_or_shape = t.kind[a.pairs] != 0
+        np.testing.assert_array_equal(
+            a.sphere2, np.where(halfspace_or_shape, -1, t.second[a.pairs])
+        )
+        assert a.names == [
+            (t.geom_names[g1], t.geom_names[g2]) for g1, g2 in zip(a.geom1, a.geom2, strict=True)
+        ]

@@ -1,0 +1,469 @@
+"""dua_mujoco's native core (libdua_mujoco) as Python calls it."""
+
+from typing import Annotated
+
+import numpy
+from numpy.typing import NDArray
+
+
+LAYOUT: dict = ...
+
+TABLES_VERSION: int = 4
+
+def structure_hash(model: object) -> int:
+    """
+    FNV-1a of geom_type, geom_bodyid, body_parentid (what the tables check).
+    """
+
+def tau_speed_batch(x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], v: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], eps: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], speed: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
+
+def tau_halfspace_batch(gap: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], vn: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
+
+def tau_static_batch(centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], eps: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
+
+def support(directions: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
+
+def closest_point(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
+
+def static_gap(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
+
+def tau_free(pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple[NDArray[numpy.float64], int]: ...
+
+def deadline_interval(tau: float, dt: float, latency: int, max_interval: int, extra: float = 0.0) -> int: ...
+
+def exceeds12(q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], bound: float) -> bool: ...
+
+def rigid_points(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], twist_ref: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], root_twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], root_origin: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+    """
+    (n, 6) centres and velocities of points ids on a frame (dua_rigid_point).
+    """
+
+def check_points(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], twist_ref: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], root_twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], root_origin: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], prev: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], cur: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], nprev: int, h: float, accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], disc: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], speed: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], check_disc: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], rtol: float, values: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], broken: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')]) -> int: ...
+
+def difference_poses(data: object, bodies: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], prev_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], prev_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], dt: float, user: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], linear: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], angular: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], model: object) -> None: ...
+
+def index_by_row(row_of_geom: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], nrow: int) -> tuple:
+    """
+    The runtime's index of held pairs by the violation check's rows: (start, members).
+    """
+
+def candidate_pairs(centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], reach: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], margin: float) -> NDArray[numpy.int64]: ...
+
+def reaches(radius: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], speed: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], vmax: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], horizon: float) -> NDArray[numpy.float64]: ...
+
+def reach_pairs(anchor: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], reach: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], margin: float, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]: ...
+
+def escapes(anchor: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], speed0: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], vmax: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], elapsed: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]: ...
+
+def sphere_pairs(g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], dist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], index: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], start: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], plane: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], shape: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], radius: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple: ...
+
+def pair_bounds(first: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], second: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], kind: Annotated[NDArray[numpy.int8], dict(order='C', device='cpu', writable=False)], sphere_body: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], speed: object | None) -> tuple: ...
+
+def contact_distance(margin: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], gap: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], override_margin: bool, o_margin: float) -> tuple[NDArray[numpy.float64], NDArray[numpy.float64]]: ...
+
+def exact_rows(geoms: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], geom1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], geom2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], kind: Annotated[NDArray[numpy.int8], dict(order='C', device='cpu', writable=False)], dist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
+
+class Filter:
+    """MuJoCo's dynamic pair filter over per-geom tables."""
+
+    def __init__(self, body: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], weld: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], parent_weld: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], movable: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], contype: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], conaffinity: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], lone: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], exclude: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], filterparent: bool) -> None: ...
+
+    def mask(self, g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.bool_]: ...
+
+    def all(self) -> tuple[NDArray[numpy.int64], NDArray[numpy.int64]]: ...
+
+    def count(self, weight: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> tuple[int, int]: ...
+
+    def any(self) -> bool: ...
+
+def plugin_standing(model: object, data: object, instance: int) -> object:
+    """
+    Geom pairs standing in alarm in plugin instance `instance` ((K, 2)), or None.
+    """
+
+def plugin_set_active(model: object, data: object, instance: int, body_a: int, body_b: int, on: bool) -> int: ...
+
+def plugin_set_plan(model: object, data: object, instance: int, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float) -> int: ...
+
+def plugin_clear_plan(model: object, data: object, instance: int) -> int: ...
+
+def plugin_deactivate_contacts(model: object, data: object, instance: int) -> int: ...
+
+class Schedule:
+    """A schedule's state and kernels (dua_mujoco.core.schedules wraps it)."""
+
+    def __init__(self, kind: int, dt: float, latency: int, tau0: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], active: object | None = None, slots_per_bucket: int = 1, cap: int = 0, max_interval: int = 1024, backoff: int = 8, threshold: float = 0.0, alarm_horizon: float = 0.0) -> None: ...
+
+    def carried(self, src: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], n: int) -> Schedule:
+        """A schedule of the pairs src (old ids, -1: new, due at step n)."""
+
+    def select(self, n: int) -> int: ...
+
+    def reinsert(self, n: int, count: int) -> int: ...
+
+    def restore(self, n: int, count: int) -> None: ...
+
+    def switch(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], on: bool, n_next: int) -> int: ...
+
+    def make_due(self, p: int, n: int) -> None: ...
+
+    def step_points(self, pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple: ...
+
+    def alarm_state(self) -> NDArray[numpy.bool_]: ...
+
+    def horizon_of(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
+
+    @property
+    def kind(self) -> int: ...
+
+    @property
+    def dt(self) -> float: ...
+
+    @property
+    def latency(self) -> int: ...
+
+    @property
+    def alarm_horizon(self) -> float:
+        """The alarm horizon, seconds (one period by default)."""
+
+    @property
+    def step_count(self) -> int: ...
+
+    @step_count.setter
+    def step_count(self, arg: int, /) -> None: ...
+
+    @property
+    def activation_changes(self) -> int: ...
+
+    @activation_changes.setter
+    def activation_changes(self, arg: int, /) -> None: ...
+
+    @property
+    def last_tau(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def active(self) -> NDArray[numpy.bool_]: ...
+
+    @property
+    def ints(self) -> NDArray[numpy.int64]: ...
+
+    @property
+    def slots(self) -> NDArray[numpy.int64]: ...
+
+    @property
+    def horizon(self) -> NDArray[numpy.float64]: ...
+
+    @property
+    def queue(self) -> NDArray[numpy.int64]: ...
+
+    @property
+    def params(self) -> NDArray[numpy.int64]: ...
+
+    @property
+    def work(self) -> NDArray[numpy.int64]: ...
+
+    @property
+    def w_tau(self) -> NDArray[numpy.float64]: ...
+
+class Alarms:
+    """The alarms of one predictor step (read-only views of the alarm log)."""
+
+    @property
+    def step(self) -> int:
+        """Predictor step (0 for the initial classification)."""
+
+    @property
+    def time(self) -> float:
+        """data.time when read."""
+
+    @property
+    def deferred(self) -> int:
+        """
+        Pairs due this step but left for a later one (max_evals_per_step reached).
+        """
+
+    @property
+    def pairs(self) -> Annotated[NDArray[numpy.int64], dict(writable=False)]:
+        """(k,) sphere-pair ids that raised an alarm."""
+
+    @property
+    def tau(self) -> Annotated[NDArray[numpy.float64], dict(writable=False)]:
+        """(k,) their tau (seconds)."""
+
+    @property
+    def new(self) -> Annotated[NDArray[numpy.bool_], dict(writable=False)]:
+        """
+        (k,) bool: alarms this step raised, as opposed to ones standing from before.
+        """
+
+    @property
+    def geom1(self) -> Annotated[NDArray[numpy.int32], dict(writable=False)]:
+        """(k,) first geom of each alarmed pair."""
+
+    @property
+    def geom2(self) -> Annotated[NDArray[numpy.int32], dict(writable=False)]:
+        """(k,) second geom (a plane geom for half-space pairs)."""
+
+    @property
+    def sphere1(self) -> Annotated[NDArray[numpy.int32], dict(writable=False)]:
+        """(k,) first sphere of each alarmed pair."""
+
+    @property
+    def sphere2(self) -> Annotated[NDArray[numpy.int32], dict(writable=False)]:
+        """(k,) second sphere, -1 for half-space and static shape pairs."""
+
+    @property
+    def names(self) -> list:
+        """Geom names of each alarmed pair (geom<id> for unnamed geoms)."""
+
+    @property
+    def geom_pairs(self) -> set:
+        """The distinct alarmed geom pairs (g1, g2), g1 < g2."""
+
+    def __len__(self) -> int: ...
+
+    def __repr__(self) -> str: ...
+
+class StepError(RuntimeError):
+    pass
+
+class Tables:
+    """A model's predictor tables, checked against the model."""
+
+    @staticmethod
+    def build(model: object, arrays: dict) -> Tables:
+        """
+        The tables from a dict of float64 arrays (dua_mujoco/mj/build.py), checked.
+        """
+
+    @staticmethod
+    def load(model: object, prefix: str) -> Tables:
+        """The tables in a model's text fields, as the plugin reads them."""
+
+    @property
+    def pruned(self) -> bool: ...
+
+    @property
+    def exact(self) -> bool: ...
+
+    @property
+    def nsphere(self) -> int: ...
+
+class Runtime:
+    """The predictor at run time (runtime.h), on one MjData."""
+
+    def __init__(self, tables: Tables, model: object, names: object, log_steps: int = 4, log_min: int = 16384) -> None: ...
+
+    def bind(self, data: object) -> None:
+        """Read the state from this MjData (of the runtime's model) from now on."""
+
+    def classify(self) -> Alarms:
+        """The initial classification of the bound MjData's state."""
+
+    def step(self) -> Alarms:
+        """One predictor step on the bound MjData, one period after the last."""
+
+    def clock_of(self, arg: float, /) -> int: ...
+
+    def switch(self, pairs: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], on: bool) -> None: ...
+
+    def pairs_between_bodies(self, body_a: int, body_b: int) -> NDArray[numpy.int64]: ...
+
+    def geom_pair_ids(self, g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]: ...
+
+    def deactivate_contacts(self) -> int: ...
+
+    def set_mocap_velocity(self, mocap: int, linear: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], angular: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None: ...
+
+    def set_plan(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float) -> None:
+        """
+        Follow a flight plan: qpos (n, nq) at start + j timestep, deviation (n, nbody).
+        """
+
+    def clear_plan(self) -> None: ...
+
+    @property
+    def has_plan(self) -> bool: ...
+
+    @property
+    def plan_breaks(self) -> int: ...
+
+    @property
+    def plan_queries(self) -> int: ...
+
+    @property
+    def plan_ok(self) -> NDArray[numpy.bool_]:
+        """(nbody,) bodies still within their deviation (a copy)."""
+
+    @property
+    def plan_span(self) -> tuple:
+        """(start, step, knots) of the plan followed, () for none."""
+
+    def plan_broken(self) -> object:
+        """
+        The bodies of the bound MjData's state beyond their deviation at its knot (None: no plan covers it); checks only.
+        """
+
+    def clear_mocap_velocity(self, mocap: int) -> None: ...
+
+    def sphere_states(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+        """
+        (n, 6) centres and velocities of covering spheres ids on the bound MjData.
+        """
+
+    def watch(self, ignored_geoms: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], ignored_pairs: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> None:
+        """
+        Count, from now on, the geom pairs with no ignored geom and not ignored themselves.
+        """
+
+    @property
+    def watched(self) -> tuple:
+        """
+        (counted geom pairs standing, of them started at the latest step, least expiry: tau + the time of its step since the reset, version).
+        """
+
+    def watched_standing(self) -> NDArray[numpy.int64]:
+        """(k, 2) the counted geom pairs standing in alarm, in increasing order."""
+
+    def exact_only(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], coarse: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], query_below: float) -> NDArray[numpy.float64]:
+        """
+        For tests: the exact level alone on held pairs ids (records as built), nothing kept.
+        """
+
+    def check_bodies_copy(self, lanes: bool) -> tuple:
+        """
+        For tests: the violation check of the bound MjData on a copy of its state: (flagged rows, the state after, (ceil(nbody / 4), 40, 4) flat).
+        """
+
+    def set_escape_check(self, on: bool) -> None:
+        """For tests: pruned pairs without the escape check (what it guards)."""
+
+    @property
+    def classified(self) -> bool: ...
+
+    @property
+    def step_count(self) -> int: ...
+
+    @property
+    def last_time(self) -> float: ...
+
+    @property
+    def schedule(self) -> Schedule: ...
+
+    @property
+    def ids(self) -> NDArray[numpy.int64]: ...
+
+    @property
+    def held_version(self) -> int: ...
+
+    @property
+    def universe_version(self) -> int: ...
+
+    @property
+    def npair(self) -> int: ...
+
+    def universe(self) -> dict:
+        """
+        The pairs known now (copies): records, geom pairs and the exact level's records.
+        """
+
+    @property
+    def on(self) -> NDArray[numpy.bool_]: ...
+
+    @property
+    def standing(self) -> NDArray[numpy.int64]:
+        """Model pair ids standing in alarm now, sorted."""
+
+    @property
+    def nstanding(self) -> int: ...
+
+    @property
+    def min_tau(self) -> float: ...
+
+    @property
+    def evaluated(self) -> int: ...
+
+    @property
+    def deferred(self) -> int: ...
+
+    @property
+    def flagged_bodies(self) -> NDArray[numpy.int64]: ...
+
+    @property
+    def flagged(self) -> int: ...
+
+    @property
+    def violation_events(self) -> int: ...
+
+    @property
+    def rebuilds(self) -> int: ...
+
+    @property
+    def renewals(self) -> int: ...
+
+    @property
+    def mocap_updates(self) -> int: ...
+
+    @property
+    def anchor_steps(self) -> NDArray[numpy.int64]: ...
+
+    @property
+    def mocap_velocity(self) -> tuple:
+        """(linear (nmocap, 3), angular (nmocap, 3), given (nmocap,)): copies."""
+
+    @property
+    def exact_records(self) -> NDArray[numpy.float64]:
+        """The exact level's records with the directions learnt: a copy."""
+
+    def reaches(self) -> dict:
+        """
+        Pruned pairs: each sphere's anchor (n, 3), reach (n,), anchor step (n,), and the largest contact distance beyond the radii (copies).
+        """
+
+    @property
+    def root_twist(self) -> NDArray[numpy.float64]: ...
+
+def tau_pairs(pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple[NDArray[numpy.float64], int]:
+    """
+    tau of pairs ids (n,) of free spheres, checking the records of ids only: (tau (n,), the first k whose state is not finite or -1).
+    """
+
+def step_free(schedule: Schedule, pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+    """
+    Schedule.step_points checking the selected pairs' records only: (alarms, bad pair or -1, evaluated).
+    """
+
+def stands(schedule: Schedule, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.bool_]:
+    """
+    (n,) bool: whether each pair stands in alarm, by the schedule's own rule.
+    """
+
+def grid_plan(reach: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], margin: float, lo: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], hi: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> dict:
+    """
+    The candidate grid's plan (cell edge, bucket map, held-out ids) as a dict.
+    """
+
+class FreeStep:
+    """
+    step_free bound to a schedule and its pairs' records, planes and shapes.
+    """
+
+    def __init__(self, schedule: object, pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None: ...
+
+    def step(self, centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> int:
+        """
+        One fused step: its number of alarms, or -1 - p for a pair p whose state is not finite (the step undone).
+        """
+
+class StandingAlarms:
+    """Pairs standing in alarm, kept in O(renewed pairs) a step."""
+
+    def __init__(self, npairs: int, alarmed: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> None: ...
+
+    def renew(self, renewed: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], alarms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> None:
+        """A step renewed the verdicts of renewed; alarms (among them) alarm."""
+
+    def ids(self) -> NDArray[numpy.int64]:
+        """(k,) sorted pair ids standing in alarm."""
+
+    def __len__(self) -> int: ...

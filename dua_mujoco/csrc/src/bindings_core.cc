@@ -1,0 +1,297 @@
+// What dua_mujoco.core needs of _core beyond bindings.cc: tau of given pairs of free spheres and
+// the fused step on them, each checking only the records it follows (a step of a few pairs out
+// of a million stays O(its pairs)), the standing-alarms set of a SpherePredictor, and the
+// candidate grid's plan (tests hold its cells to the contract of core/neighbors.py).
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "bindings.h"
+#include "dua/dua.h"
+#include "layout.h"
+#include "schedule.h"
+
+using nb::literals::operator""_a;
+
+namespace dua {
+namespace {
+
+// Rows from which tau of pairs runs on two threads (as tau_speed_batch does).
+constexpr int64_t kThreadedRows = int64_t{1} << 16;
+
+// The sizes of the arrays a free-sphere evaluation reads.
+struct FreeSizes {
+  int64_t npair, nsphere, nplane, nshape;
+};
+
+FreeSizes SizesOf(const In<double>& pairs, const In<double>& centers, const In<double>& velocities,
+                  const In<double>& planes, const In<double>& shapes) {
+  const FreeSizes s{Size(pairs) / kPairNcol, Size(centers) / 3, Size(planes) / 4,
+                    Size(shapes) / kShapeNcol};
+  Require(Size(pairs) == s.npair * kPairNcol, "pair records must be (m, 8)");
+  Require(Size(centers) == 3 * s.nsphere && Size(velocities) == Size(centers),
+          "centres and velocities must be (n, 3) alike");
+  Require(Size(planes) == 4 * s.nplane, "planes must be (nplane, 4)");
+  Require(Size(shapes) == s.nshape * kShapeNcol, "shape records must be (nshape, 16)");
+  return s;
+}
+
+// Whether every index pair p's record leads to lies inside the arrays given.
+bool RecordOk(const double* pairs, const FreeSizes& s, int64_t p) {
+  if (p < 0 || p >= s.npair) return false;
+  const double* r = pairs + kPairNcol * p;
+  const double kind = r[kPairKind];
+  return r[kPairFirst] >= 0 && r[kPairFirst] < s.nsphere &&
+         ((kind == kKindSphere && r[kPairSecond] >= 0 && r[kPairSecond] < s.nsphere) ||
+          (kind == kKindHalfspace && r[kPairSecond] >= 0 && r[kPairSecond] < s.nplane) ||
+          (kind == kKindShape && r[kPairOther] >= 0 && r[kPairOther] < s.nshape));
+}
+
+[[noreturn]] void BadRecord(const FreeSizes& s, int64_t p) {
+  if (p < 0 || p >= s.npair) {
+    Raise("InvalidInputError",
+          "pair id " + std::to_string(p) + " is out of range [0, " + std::to_string(s.npair) + ")");
+  }
+  Raise("InvalidInputError", "pair record " + std::to_string(p) +
+                                 " indexes outside the spheres, planes or shapes given");
+}
+
+// tau of pairs ids[0:n] into out[0:n]: -1, or the first k whose state is not finite.
+int64_t TauOfIds(const In<double>& pairs, const int64_t* ids, int64_t n, const In<double>& centers,
+                 const In<double>& velocities, const In<double>& planes, const In<double>& shapes,
+                 double* out) {
+  auto run = [&](int64_t k0, int64_t k1) {
+    std::vector<double> rows(12 * static_cast<size_t>(std::max<int64_t>(k1 - k0, 1)));
+    const int64_t bad = dua_tau_free(pairs.data(), shapes.data(), centers.data(), velocities.data(),
+                                     planes.data(), ids + k0, k1 - k0, rows.data(), out + k0);
+    return bad < 0 ? bad : k0 + bad;
+  };
+  if (n < kThreadedRows) return run(0, n);
+  const int64_t half = n / 2;
+  int64_t second = -1;
+  {
+    nb::gil_scoped_release release;
+    std::thread other([&] { second = run(half, n); });
+    const int64_t first = run(0, half);
+    other.join();
+    if (first >= 0) return first;
+  }
+  return second;
+}
+
+// tau of pairs ids (n,) of free spheres: (tau (n,), the first k whose state is not finite or -1).
+std::pair<Out<double>, int64_t> TauPairs(const In<double>& pairs, const In<int64_t>& ids,
+                                         const In<double>& centers, const In<double>& velocities,
+                                         const In<double>& planes, const In<double>& shapes) {
+  const FreeSizes s = SizesOf(pairs, centers, velocities, planes, shapes);
+  const int64_t n = Size(ids);
+  for (int64_t k = 0; k < n; ++k) {
+    if (!RecordOk(pairs.data(), s, ids.data()[k])) BadRecord(s, ids.data()[k]);
+  }
+  std::vector<double> out(n);
+  const int64_t bad =
+      TauOfIds(pairs, ids.data(), n, centers, velocities, planes, shapes, out.data());
+  return {Owned(std::move(out), {static_cast<size_t>(n)}), bad};
+}
+
+// The fused step on free spheres: select, tau of the selected pairs, reinsert. Returns the
+// number of alarms, or -1 - p for the first pair p whose state is not finite (the selection
+// undone: the step can be taken again); *count receives the pairs evaluated.
+int64_t Step(Schedule& sched, const In<double>& pairs, const In<double>& centers,
+             const In<double>& velocities, const In<double>& planes, const In<double>& shapes,
+             int64_t* count) {
+  const FreeSizes s = SizesOf(pairs, centers, velocities, planes, shapes);
+  Require(s.npair == sched.m(), "the pair records must be (m, 8), one a pair of the schedule");
+  dua_schedule* st = sched.state();
+  const int64_t n = sched.step_count + 1;
+  *count = dua_select(st, n);
+  const int64_t* ids = st->work + st->width;  // the W_IDS row
+  for (int64_t k = 0; k < *count; ++k) {
+    if (!RecordOk(pairs.data(), s, ids[k])) {
+      const int64_t p = ids[k];
+      dua_restore(st, n, *count);
+      BadRecord(s, p);
+    }
+  }
+  const int64_t bad = TauOfIds(pairs, ids, *count, centers, velocities, planes, shapes, st->w_tau);
+  if (bad >= 0) {
+    const int64_t p = ids[bad];
+    dua_restore(st, n, *count);
+    return -1 - p;
+  }
+  const int64_t nalarm = dua_reinsert(st, n, *count);
+  sched.step_count = n;
+  return nalarm;
+}
+
+// Step as Schedule.step_points returns it: (alarms, bad pair or -1, evaluated).
+nb::tuple StepFree(Schedule& sched, const In<double>& pairs, const In<double>& centers,
+                   const In<double>& velocities, const In<double>& planes,
+                   const In<double>& shapes) {
+  int64_t count = 0;
+  const int64_t r = Step(sched, pairs, centers, velocities, planes, shapes, &count);
+  return r >= 0 ? nb::make_tuple(r, -1, count) : nb::make_tuple(0, -1 - r, count);
+}
+
+// StepFree bound to a schedule, its pair records, planes and shapes, so that a step hands over
+// only the sphere states (each array crossing costs about as much as a small step's work).
+class FreeStep {
+ public:
+  FreeStep(nb::handle schedule, const In<double>& pairs, const In<double>& planes,
+           const In<double>& shapes)
+      : owner_(nb::borrow(schedule)),
+        sched_(&nb::cast<Schedule&>(schedule)),
+        pairs_(pairs),
+        planes_(planes),
+        shapes_(shapes) {
+    Require(Size(pairs) == kPairNcol * sched_->m(),
+            "the pair records must be (m, 8), one a pair of the schedule");
+  }
+
+  // The alarms (>= 0), or -1 - p for the first pair p whose state is not finite (undone).
+  int64_t Run(const In<double>& centers, const In<double>& velocities) {
+    int64_t count = 0;
+    return Step(*sched_, pairs_, centers, velocities, planes_, shapes_, &count);
+  }
+
+ private:
+  nb::object owner_;  // keeps the schedule alive
+  Schedule* sched_;
+  In<double> pairs_, planes_, shapes_;  // hold their arrays
+};
+
+// Whether pairs ids (n,) stand in alarm: the schedule's own rule (Schedule::Stands), O(n).
+Out<bool> Stands(const Schedule& sched, const In<int64_t>& ids) {
+  const int64_t n = Size(ids), m = sched.m();
+  std::vector<uint8_t> out(n);
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t p = ids.data()[k];
+    Require(p >= 0 && p < m, "pair ids must lie in [0, the schedule's pairs)");
+    out[k] = sched.Stands(p) ? 1 : 0;
+  }
+  return OwnedBools(std::move(out));
+}
+
+// The pairs standing in alarm among m, kept in O(renewed pairs) a step: a list with each
+// pair's place in it (-1: not standing), renewed pairs swap-removed, alarmed ones appended.
+class StandingAlarms {
+ public:
+  StandingAlarms(int64_t m, const In<int64_t>& alarmed) {
+    Require(m >= 0, "the number of pairs must be >= 0");
+    pos_.assign(static_cast<size_t>(m), -1);
+    list_.reserve(static_cast<size_t>(m));
+    Renew(nullptr, 0, alarmed.data(), Size(alarmed));
+  }
+
+  void Renew(const int64_t* renewed, int64_t nrenewed, const int64_t* alarms, int64_t nalarm) {
+    const int64_t m = Size(pos_);
+    for (int64_t k = 0; k < nrenewed; ++k) {
+      Require(renewed[k] >= 0 && renewed[k] < m, "a renewed pair id is out of range");
+    }
+    for (int64_t k = 0; k < nalarm; ++k) {
+      Require(alarms[k] >= 0 && alarms[k] < m, "an alarmed pair id is out of range");
+    }
+    for (int64_t k = 0; k < nrenewed; ++k) {
+      const int64_t p = renewed[k], at = pos_[p];
+      if (at < 0) continue;
+      const int64_t last = list_.back();
+      list_[at] = last;
+      pos_[last] = at;
+      pos_[p] = -1;
+      list_.pop_back();
+    }
+    for (int64_t k = 0; k < nalarm; ++k) {
+      const int64_t p = alarms[k];
+      if (pos_[p] >= 0) continue;
+      pos_[p] = Size(list_);
+      list_.push_back(p);
+    }
+  }
+
+  Out<int64_t> Ids() const {
+    std::vector<int64_t> out(list_);
+    std::sort(out.begin(), out.end());
+    const size_t n = out.size();
+    return Owned(std::move(out), {n});
+  }
+
+  int64_t count() const { return Size(list_); }
+
+ private:
+  std::vector<int64_t> pos_, list_;
+};
+
+// The candidate grid's plan for spheres of reach (n,) (n >= 2) within bounds lo, hi.
+nb::dict GridPlan(const In<double>& reach, double margin, const In<double>& lo,
+                  const In<double>& hi) {
+  const int64_t n = Size(reach);
+  Require(n >= 2, "a grid plan needs at least two spheres");
+  Require(Size(lo) == 3 && Size(hi) == 3, "lo and hi are (3,)");
+  dua_grid_plan plan{};
+  std::vector<int64_t> held(256);
+  std::vector<double> work(n);
+  dua_grid_plan_of(reach.data(), n, margin, lo.data(), hi.data(), &plan, held.data(), work.data());
+  held.resize(plan.nheld);
+  nb::dict out;
+  out["lo"] = nb::make_tuple(plan.lo[0], plan.lo[1], plan.lo[2]);
+  out["h"] = plan.h;
+  out["mask"] = nb::make_tuple(plan.mask[0], plan.mask[1], plan.mask[2]);
+  out["shift_y"] = plan.shift_y;
+  out["shift_z"] = plan.shift_z;
+  out["wrap"] = nb::make_tuple(plan.wrap[0], plan.wrap[1], plan.wrap[2]);
+  out["nbucket"] = plan.nbucket;
+  out["nheld"] = plan.nheld;
+  out["rcut"] = plan.rcut;
+  out["held"] = Owned(std::move(held), {static_cast<size_t>(plan.nheld)});
+  return out;
+}
+
+}  // namespace
+
+void BindCore(nb::module_& m) {
+  // The select-all kind, beside RANK and DEADLINE (the schedule's own constant, schedule.h).
+  nb::dict layout = nb::borrow<nb::dict>(m.attr("LAYOUT"));
+  layout["ALL"] = kAll;
+
+  m.def("tau_pairs", &TauPairs, "pairs"_a, "ids"_a, "centers"_a, "velocities"_a, "planes"_a,
+        "shapes"_a,
+        "tau of pairs ids (n,) of free spheres, checking the records of ids only: (tau (n,), "
+        "the first k whose state is not finite or -1).");
+  m.def("step_free", &StepFree, "schedule"_a, "pairs"_a, "centers"_a, "velocities"_a, "planes"_a,
+        "shapes"_a,
+        "Schedule.step_points checking the selected pairs' records only: (alarms, bad pair or "
+        "-1, evaluated).");
+  m.def("stands", &Stands, "schedule"_a, "ids"_a,
+        "(n,) bool: whether each pair stands in alarm, by the schedule's own rule.");
+  m.def("grid_plan", &GridPlan, "reach"_a, "margin"_a, "lo"_a, "hi"_a,
+        "The candidate grid's plan (cell edge, bucket map, held-out ids) as a dict.");
+
+  nb::class_<FreeStep>(m, "FreeStep",
+                       "step_free bound to a schedule and its pairs' records, planes and shapes.")
+      .def(nb::init<nb::handle, const In<double>&, const In<double>&, const In<double>&>(),
+           "schedule"_a, "pairs"_a, "planes"_a, "shapes"_a)
+      .def("step", &FreeStep::Run, "centers"_a, "velocities"_a,
+           "One fused step: its number of alarms, or -1 - p for a pair p whose state is not "
+           "finite (the step undone).");
+
+  nb::class_<StandingAlarms>(m, "StandingAlarms",
+                             "Pairs standing in alarm, kept in O(renewed pairs) a step.")
+      .def(nb::init<int64_t, const In<int64_t>&>(), "npairs"_a, "alarmed"_a)
+      .def(
+          "renew",
+          [](StandingAlarms& s, const In<int64_t>& renewed, const In<int64_t>& alarms) {
+            s.Renew(renewed.data(), Size(renewed), alarms.data(), Size(alarms));
+          },
+          "renewed"_a, "alarms"_a,
+          "A step renewed the verdicts of renewed; alarms (among them) alarm.")
+      .def("ids", &StandingAlarms::Ids, "(k,) sorted pair ids standing in alarm.")
+      .def("__len__", &StandingAlarms::count);
+}
+
+}  // namespace dua
