@@ -257,3 +257,65 @@ def test_a_selection_larger_than_the_held_pairs_fits_the_scratch(tmp_path: Path)
     path = tmp_path / "spheres.xml"
     path.write_text(spec.to_xml())
     assert _child(path, 200).startswith("ran to")
+
+
+# Two slides along x, one inside the other: 1e308 each is finite, their sum is not.
+_SLIDES = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 .1"/>
+    <body name="outer" pos="0 0 .3">
+      <joint type="slide" axis="1 0 0"/><geom size=".05"/>
+      <body name="inner" pos=".2 0 0"><joint type="slide" axis="1 0 0"/><geom size=".05"/></body>
+    </body>
+    <body name="ball" pos=".5 .5 .3"><freejoint/><geom size=".05"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None:
+    """C and C++ programs hand ``dua_plugin_set_plan`` their plan without Python's checks: the
+    runtime refuses what is not finite naming the value, and a plan whose finite joint positions
+    put a geom where its position is not finite (1e308 twice along x), naming the geom. Huge
+    finite deviations (1e308) are accepted and steps run on them; a geom 1e308 from its planned
+    place is beyond any deviation, so the plugin still stands the pairs the bounds stand."""
+    from dua_mujoco import _core
+    from dua_mujoco.exceptions import InvalidInputError
+
+    spec = mujoco.MjSpec.from_string(_SLIDES)
+    attach(spec, accel=30.0, pairs="all")
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    mujoco.mj_step(m, d)
+    n = 20
+    q, dev = np.tile(d.qpos, (n, 1)), np.full((n, m.nbody), 0.01)
+
+    def refusal(q: np.ndarray, dev: np.ndarray, start: float) -> str:
+        with pytest.raises(InvalidInputError) as err:
+            _core.plugin_set_plan(m, d, 0, q, dev, start)
+        return str(err.value)
+
+    bad_q = q.copy()
+    bad_q[3, 1] = np.nan
+    assert "knot 3, qpos[1]: nan" in refusal(bad_q, dev, d.time)
+    bad_dev = dev.copy()
+    bad_dev[2, 1] = np.inf
+    assert "knot 2, body 1: inf" in refusal(q, bad_dev, d.time)
+    assert "starts at a time that is not finite (nan)" in refusal(q, dev, np.nan)
+    huge = q.copy()
+    huge[5, :2] = 1e308
+    assert "puts geom 2 where its position is not finite (knot 5)" in refusal(huge, dev, d.time)
+
+    # Accepted: huge deviations, and the outer body planned 1e308 away (finite, far off).
+    far = q.copy()
+    far[:, 0] = 1e308
+    assert _core.plugin_set_plan(m, d, 0, far, np.full((n, m.nbody), 1e308), d.time) == 0
+    reference = mujoco.MjData(m)
+    mujoco.mj_step(m, reference)
+    for _ in range(n - 2):
+        mujoco.mj_step(m, d)
+        mujoco.mj_step(m, reference)
+        assert {tuple(g) for g in standing_pairs(m, reference)} <= {
+            tuple(g) for g in standing_pairs(m, d)
+        }
