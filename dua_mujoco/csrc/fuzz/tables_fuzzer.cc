@@ -10,10 +10,14 @@
 //   2. when they are accepted, runs a Runtime on them: the classification, then steps with
 //      mj_step in between (a state perturbed, optionally NaN or huge; optionally the switches,
 //      the contact deactivation, a copy, mocap velocities);
+//      With a plan (the table "@plan"), Runtime::SetPlan at the classification and halfway,
+//      and ClearPlan: garbage knots (NaN, inf, huge positions or deviations, a start off the
+//      clock, too few knots) must be refused with a message when they are not finite, and run
+//      without a crash when accepted;
 //   3. with the plugin flag, writes the tables into the plugin model's text fields (the model
 //      optionally edited after attach), compiles it, and runs mj_makeData, mj_step, mj_copyData
 //      and mj_resetData: the plugin's own path, whose refusal (MuJoCo's warning) must name the
-//      same table.
+//      same table; the plan, if any, through dua_plugin_set_plan after the first step.
 // The custom mutator works on that structure: entries set to NaN, inf, counts and indices out of
 // range, bits flipped, tables truncated, extended, dropped, taken from another model, their text
 // corrupted, another model, another state.
@@ -40,6 +44,7 @@
 #include <string>
 #include <vector>
 
+#include "dua/dua.h"
 #include "runtime.h"
 #include "tables.h"
 
@@ -324,6 +329,56 @@ void Spoil(const mjModel* m, mjData* d, uint8_t seed) {
   if (m->nmocap) d->mocap_pos[0] = bad;
 }
 
+// A flight plan read from the input's table "@plan": its first entry the start, in timesteps
+// from the state the next step reads, then rows of nq joint positions and nbody deviations (the
+// knots: as many whole rows as it holds). Not one of the plugin's tables: the builds ignore it.
+constexpr char kPlan[] = "@plan";
+
+struct PlanInput {
+  double offset = 0.0;
+  int64_t n = 0;
+  std::vector<double> qpos, dev;
+  bool finite = true;  // every number the plan holds finite, and every deviation >= 0
+};
+
+PlanInput PlanOf(const Table& t, const mjModel* m) {
+  PlanInput p;
+  std::vector<double> v = t.values;
+  std::string why;
+  if (t.form == 1 && !dua::Decode(t.text.c_str(), &v, &why)) v.clear();
+  if (v.empty()) return p;
+  p.offset = v[0];
+  const size_t stride = static_cast<size_t>(m->nq + m->nbody);
+  p.n = static_cast<int64_t>((v.size() - 1) / stride);
+  for (int64_t j = 0; j < p.n; ++j) {
+    const double* row = v.data() + 1 + stride * j;
+    p.qpos.insert(p.qpos.end(), row, row + m->nq);
+    p.dev.insert(p.dev.end(), row + m->nq, row + stride);
+  }
+  p.finite = std::isfinite(p.offset);
+  for (const double x : p.qpos) p.finite = p.finite && std::isfinite(x);
+  for (const double x : p.dev) p.finite = p.finite && std::isfinite(x) && x >= 0.0;
+  return p;
+}
+
+// Plans set, accepted and refused (printed at exit with DUA_FUZZ_STATS=1, over a corpus run
+// once with -runs=0: what the corpus covers).
+int64_t g_plans[3] = {0, 0, 0};
+
+void PrintStats() {
+  std::fprintf(stderr, "tables_fuzzer: plans set %lld, accepted %lld, refused %lld\n",
+               static_cast<long long>(g_plans[0]), static_cast<long long>(g_plans[1]),
+               static_cast<long long>(g_plans[2]));
+}
+
+// A plan holding a value that is not finite (or a negative deviation) must be refused, with a
+// reason; `why` is the refusal ("" accepted).
+void CheckPlanVerdict(const PlanInput& p, const std::string& why) {
+  ++g_plans[0], ++g_plans[why.empty() ? 1 : 2];
+  if (!p.finite && p.n > 0 && why.empty()) Die("a plan holding a value that is not finite ran");
+  if (!why.empty() && why.size() < 8) Die("a plan refused without a reason: " + why);
+}
+
 void Run(const Model& mo, const std::shared_ptr<const dua::Tables>& tables, const Input& in) {
   const mjModel* m = mo.bare;
   mjData* d = mo.data;
@@ -333,6 +388,14 @@ void Run(const Model& mo, const std::shared_ptr<const dua::Tables>& tables, cons
   mj_forward(m, d);
   dua::Runtime rt(tables, m, 1 + in.steps % 3, 0);
   rt.Classify(m, d);
+  const Table* plan_table = Find(in, kPlan);
+  const PlanInput plan = plan_table ? PlanOf(*plan_table, m) : PlanInput{};
+  const auto set_plan = [&](dua::Runtime* r) {
+    if (!plan_table) return;
+    const double start = r->StateTime(m, d) + plan.offset * m->opt.timestep;
+    CheckPlanVerdict(plan, r->SetPlan(m, plan.qpos.data(), plan.n, plan.dev.data(), start));
+  };
+  set_plan(&rt);
   // Physics steps a period (at most 3 here: the runtime reads only d's state).
   const double ratio = tables->schedule.dt / tables->timestep;
   const int per = static_cast<int>(std::min(3.0, std::max(1.0, std::nearbyint(ratio))));
@@ -347,6 +410,11 @@ void Run(const Model& mo, const std::shared_ptr<const dua::Tables>& tables, cons
     if ((in.flags & kFlagBadState) && k == steps / 2) Spoil(m, d, in.seed), mj_forward(m, d);
     if (rt.Step(m, d) < 0) rt.Classify(m, d);  // as the plugin does
     (void)rt.nstanding(), (void)rt.FlaggedBodies();
+    if (plan_table) {
+      (void)rt.PlanBroken(m, d), (void)rt.plan_breaks(), (void)rt.plan_queries();
+      if (k == steps / 2) set_plan(&rt);
+      if (k == 10) rt.ClearPlan();
+    }
     if (!extras) continue;
     if (k == 1 && m->nbody > 1) {
       switched = rt.PairsBetweenBodies(m, 1 + in.seed % (m->nbody - 1), in.seed & 1 ? -1 : 0);
@@ -401,10 +469,22 @@ void RunPluginModel(mjModel* m, const Input& in, const std::string& refused) {
   Perturb(m, d, &rng);
   const int steps = 1 + in.steps % 8;
   mjData* other = mj_makeData(m);
+  const Table* plan_table = Find(in, kPlan);
   for (int k = 0; k < steps; ++k) {
     if (m->nmocap) d->mocap_pos[0] += 0.004;
     if ((in.flags & kFlagBadState) && k == steps / 2) Spoil(m, d, in.seed);
     mj_step(m, d);
+    if (plan_table && k == 0) {
+      // Inside mj_step the plugin reads the state at d->time (read lag 0).
+      const PlanInput plan = PlanOf(*plan_table, m);
+      char error[512] = {0};
+      const double start = d->time + plan.offset * m->opt.timestep;
+      const int64_t r = dua_plugin_set_plan(m, d, 0, plan.qpos.data(), plan.n, plan.dev.data(),
+                                            start, error, sizeof(error));
+      if (r != 0 && r != -3) Die("dua_plugin_set_plan returned " + std::to_string(r));
+      CheckPlanVerdict(plan, r == 0 ? "" : error);
+    }
+    if (plan_table && k == 4 && (in.seed & 2)) dua_plugin_clear_plan(m, d, 0);
     if (k == 1) mj_copyData(other, m, d), mj_step(m, other);
     if (k == 2) mj_resetData(m, other), mj_forward(m, other);
   }
@@ -428,7 +508,7 @@ void RunPlugin(const Model& mo, const Input& in, const std::string& refused) {
     for (mjsElement* e : texts) mjs_delete(s, e);
     std::set<std::string> names;
     for (const Table& t : in.tables) {
-      if (!names.insert(t.name).second) continue;
+      if (t.name == kPlan || !names.insert(t.name).second) continue;
       Table copy = t;
       mjsText* text = mjs_addText(s);
       mjs_setName(text->element, ("dua:" + t.name).c_str());
@@ -572,7 +652,7 @@ void MutateOnce(Input* in, std::mt19937_64* rng) {
     return;
   }
   Table& t = in->tables[pick(in->tables.size())];
-  const unsigned op = (*rng)() % 16;
+  const unsigned op = (*rng)() % 17;
   if (t.form == 1 && op < 9) {
     MutateText(&t, rng);
     return;
@@ -648,6 +728,25 @@ void MutateOnce(Input* in, std::mt19937_64* rng) {
       in->steps = static_cast<uint8_t>((*rng)());
       in->seed = static_cast<uint8_t>((*rng)());
       break;
+    case 13: {  // a flight plan added (or made afresh): the model's qpos0 nudged, deviations
+      // about a centimetre; the other mutations then break it
+      std::vector<double> v{static_cast<double>(static_cast<int>(pick(5)) - 2)};
+      const size_t n = 1 + pick(12);
+      std::uniform_real_distribution<double> u(-0.05, 0.05);
+      for (size_t j = 0; j < n; ++j) {
+        for (int i = 0; i < m->nq; ++i) v.push_back(m->qpos0[i] + u(*rng));
+        for (int b = 0; b < m->nbody; ++b) v.push_back(0.01 + std::fabs(u(*rng)));
+      }
+      Table plan{kPlan, 0, v, ""};
+      auto at = std::find_if(in->tables.begin(), in->tables.end(),
+                             [](const Table& x) { return x.name == kPlan; });
+      if (at == in->tables.end()) {
+        in->tables.push_back(plan);
+      } else {
+        *at = plan;
+      }
+      break;
+    }
     case 12: {  // libFuzzer's byte mutations on the entries
       const size_t size = 8 * v.size(), room = size + 64;
       std::vector<uint8_t> bytes(room);
@@ -673,6 +772,7 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
   mju_user_warning = OnWarning;
   mju_user_error = OnError;
   Load();
+  if (std::getenv("DUA_FUZZ_STATS")) std::atexit(PrintStats);
   return 0;
 }
 
