@@ -750,8 +750,7 @@ int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
   const int64_t rows = std::max<int64_t>(a->scratch_rows, 1);
   int64_t bad = -1;
   for (int64_t from = 0; from < count && bad < 0; from += rows) {
-    bad = dua::TauOf(*a, w_ids + from, std::min(rows, count - from), a->scratch,
-                     st->w_tau + from);
+    bad = dua::TauOf(*a, w_ids + from, std::min(rows, count - from), a->scratch, st->w_tau + from);
     if (bad >= 0) bad += from;
   }
   if (bad >= 0) {
