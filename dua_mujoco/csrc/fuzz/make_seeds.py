@@ -23,6 +23,7 @@ Run: ``python dua_mujoco/csrc/fuzz/make_seeds.py [OUT]`` (``run.sh`` does).
 
 from __future__ import annotations
 
+import base64
 import struct
 import sys
 from pathlib import Path
@@ -32,7 +33,7 @@ import numpy as np
 
 from dua_mujoco import _core
 from dua_mujoco.mj.scenes import load_spec
-from dua_mujoco.plugin import _encode, attach
+from dua_mujoco.plugin import attach
 
 # Flags of an input (tables_fuzzer.cc's kFlag*).
 PLUGIN, NAN_STATE, EXTRAS = 1, 2, 4
@@ -127,11 +128,12 @@ def _input(model: int, flags: int, steps: int, seed: int, tables: dict, text: bo
     out += struct.pack("<BBBBH", model, flags, steps, seed, len(tables))
     for name, values in tables.items():
         out += struct.pack("<B", len(name)) + name.encode()
+        flat = np.ascontiguousarray(values, dtype="<f8").reshape(-1)
         if text:
-            raw = _encode(values).encode()
+            # As attach writes a text field (its count, a space, the bytes in base64).
+            raw = f"{flat.size} {base64.b64encode(flat.tobytes()).decode('ascii')}".encode()
             out += struct.pack("<BI", 1, len(raw)) + raw
         else:
-            flat = np.ascontiguousarray(values, dtype="<f8").reshape(-1)
             out += struct.pack("<BI", 0, flat.size) + flat.tobytes()
     return bytes(out)
 
