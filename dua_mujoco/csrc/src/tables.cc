@@ -19,7 +19,6 @@
 namespace dua {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 // Integers travel as float64: beyond 2^53 they are not exact.
 constexpr double kMaxInt = 9007199254740992.0;
 
@@ -144,6 +143,13 @@ bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) 
   }
   const std::string bad = s.Check();
   if (!bad.empty()) return r->Fail("config", "holds an invalid schedule option: " + bad);
+  // Every MjData allocates the deadline wheel, a power of two > max_interval slots of 8 bytes:
+  // 8 MB at most (attach writes 1024).
+  if (s.max_interval > (1 << 19)) {
+    return r->Fail("config", "holds max_interval = " + std::to_string(s.max_interval) +
+                                 ", over 2^19 steps (its wheel would take 8 bytes a step in "
+                                 "every MjData)");
+  }
   t->timestep = v[kCfgTimestep];
   if (!(t->timestep > 0.0) || !Finite(t->timestep) || t->timestep != m->opt.timestep) {
     return r->Fail("config", "holds a timestep (" + std::to_string(t->timestep) +
@@ -490,8 +496,8 @@ bool ReadPruned(const mjModel* m, Reader* r, const std::vector<double>& config, 
   return ReadLearn(m, r, config, t);
 }
 
-// Decodes one text field: its entry count, a space, then the entries' little-endian float64
-// bytes in base64.
+}  // namespace
+
 bool Decode(const char* text, std::vector<double>* out, std::string* why) {
   char* end = nullptr;
   const long long count = std::strtoll(text, &end, 10);
@@ -534,6 +540,8 @@ bool Decode(const char* text, std::vector<double>* out, std::string* why) {
   if (nbytes) std::memcpy(out->data(), bytes.data(), nbytes);  // little-endian, as written
   return true;
 }
+
+namespace {
 
 // A content hash of the text fields under prefix (which LoadTables parses once per content).
 uint64_t TextHash(const mjModel* m, const std::string& prefix) {
