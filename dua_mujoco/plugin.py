@@ -130,7 +130,7 @@ def attach(
         forget: Pruned pairs: each ``MjData`` forgets a pair it learnt once none of its geom
             pair's sphere pairs has been held for this many rebuilds (``None``: never), so that
             its memory stays bounded over a long run; a forgotten pair is learnt again when a
-            rebuild meets it, before it can collide (docs/theory.md, section 7.4).
+            rebuild meets it, before it can collide (docs/theory.md, Lemma 7.1).
         **options: ``Predictor``'s keyword options (``accel``, ``period``, ``covering``,
             ``urgency``, ``schedule``, ...). ``pairs``: ``"all"`` holds every pair;
             ``"pruned"`` or ``PairOptions(mode="pruned", horizon=...)`` only the pairs whose

@@ -148,7 +148,7 @@ class DUA_API Runtime {
 
   // ---------------------------------------------------------------------- forgetting (issue 35)
   // Pruned pairs: a learnt geom pair none of whose sphere pairs was held at the latest `after`
-  // rebuilds is forgotten (its rows freed, later ids renumbered in order; Lemma 7.4 of
+  // rebuilds is forgotten (its rows freed, later ids renumbered in order; Lemma 7.1 of
   // docs/theory.md: the held sets are those of a run that never forgets). after < 0: never (the
   // Python Predictor's, whose mirrors of the universe assume ids that only grow).
   void SetForget(int64_t after) { forget_after_ = after; }
