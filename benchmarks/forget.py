@@ -3,9 +3,10 @@ meeting new neighbours, ``mj_step`` with the predictor inside, 10^6 steps, the p
 resident memory at checkpoints, with the plugin forgetting (``attach``'s default,
 ``forget=8`` rebuilds) and without (``forget=None``), each in a process of its own.
 
-    python benchmarks/forget.py                              # swarm:1000, 10^6 steps, both runs
-    python benchmarks/forget.py --n 300 --steps 100000       # shorter
-    python benchmarks/forget.py --forget 8 --steps 1000000   # one side
+    python benchmarks/forget.py                     # swarm:300, 10^6 steps, both runs (~1 h)
+    python benchmarks/forget.py --forget 8          # one side (docs/many-objects.md ran the
+    python benchmarks/forget.py --forget never      #   two side by side, ~27 min)
+    python benchmarks/forget.py --n 1000 --steps 100000
 
 Controls: each sphere's motors drawn uniformly in their range and held 50 steps (numpy, one
 draw a block: no Python loop over spheres). Printed every checkpoint (progress on stderr as it
@@ -61,7 +62,7 @@ print(json.dumps(dict(n=n, forget=forget, rows=rows)))
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--n", type=int, default=1000, help="spheres in the swarm")
+    ap.add_argument("--n", type=int, default=300, help="spheres in the swarm")
     ap.add_argument("--steps", type=int, default=1_000_000)
     ap.add_argument(
         "--forget", nargs="+", default=["8", "never"], help="rebuilds, or never (one run each)"
