@@ -542,6 +542,7 @@ void Runtime::ForgetStale(const mjModel* m, std::vector<int64_t>* held) {
   for (int64_t p = 0; p < u.npair(); ++p) {
     if (!on_[p]) keep[u.pair_geom[p]] = 1;
   }
+  if (watching_) was_.resize(ng, 0);  // (FinishWatch sizes it after the step)
   std::vector<int64_t> pair_map, gp_map;
   const std::string bad = u.Forget(keep, tables_->spheres, m->ngeom, &pair_map, &gp_map);
   (void)bad;  // the kept rows of a universe that indexed are indexed (no id is out of range)
