@@ -94,6 +94,11 @@ def plugin_standing(model: object, data: object, instance: int) -> object:
     Geom pairs standing in alarm in plugin instance `instance` ((K, 2)), or None.
     """
 
+def plugin_memory(model: object, data: object, instance: int) -> object:
+    """
+    Plugin instance `instance`'s pairs known, geom pairs known, pairs held, geom pairs forgotten, compactions, then its known geom pairs as (g1, g2) rows, flat; or None.
+    """
+
 def plugin_set_active(model: object, data: object, instance: int, body_a: int, body_b: int, on: bool) -> int: ...
 
 def plugin_set_plan(model: object, data: object, instance: int, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float) -> int: ...

@@ -21,6 +21,7 @@ over), so copies, resets and ``mujoco.rollout`` on several threads keep their ru
 from __future__ import annotations
 
 import base64
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import mujoco
@@ -34,13 +35,16 @@ from dua_mujoco.mj.options import PairOptions
 from dua_mujoco.mj.predictor import Predictor
 
 __all__ = [
+    "FORGET_REBUILDS",
     "MAX_GEOM_PAIRS",
     "OUTPUTS",
     "PLUGIN_NAME",
+    "KnownPairs",
     "PluginOutputs",
     "attach",
     "clear_plan",
     "deactivate_contacts",
+    "known_pairs",
     "plugin_outputs",
     "set_active_bodies",
     "set_plan",
@@ -51,6 +55,10 @@ PLUGIN_NAME = "dua_mujoco.predictor"
 
 OUTPUTS = ("standing", "min_tau", "evaluated", "deferred", "flagged")
 """The sensor's outputs, in order (:class:`PluginOutputs`)."""
+
+FORGET_REBUILDS = 8
+"""``attach``'s default ``forget``: rebuilds a learnt pair may go unheld before an ``MjData``
+forgets it (the plugin's own default when the attribute is absent)."""
 
 MAX_GEOM_PAIRS = 1_000_000
 """The most active geom pairs ``attach(spec, pairs="all")`` takes: holding every pair costs
@@ -100,7 +108,12 @@ def _check_prefix(spec: mujoco.MjSpec, prefix: object) -> str:
 
 
 def attach(
-    spec: mujoco.MjSpec, *, prefix: str = "dua", overlay: bool = True, **options: Any
+    spec: mujoco.MjSpec,
+    *,
+    prefix: str = "dua",
+    overlay: bool = True,
+    forget: int | None = FORGET_REBUILDS,
+    **options: Any,
 ) -> Predictor:
     """Add the predictor to ``spec`` as the sensor plugin ``dua_mujoco.predictor``.
 
@@ -114,6 +127,10 @@ def attach(
         spec: The model's spec (edited in place).
         prefix: Name of the plugin instance and its sensor, and prefix of its text fields.
         overlay: Draw the pairs standing in alarm into every ``mjvScene`` (``visualize``).
+        forget: Pruned pairs: each ``MjData`` forgets a pair it learnt once none of its geom
+            pair's sphere pairs has been held for this many rebuilds (``None``: never), so that
+            its memory stays bounded over a long run; a forgotten pair is learnt again when a
+            rebuild meets it, before it can collide (docs/theory.md, Lemma 7.1).
         **options: ``Predictor``'s keyword options (``accel``, ``period``, ``covering``,
             ``urgency``, ``schedule``, ...). ``pairs``: ``"all"`` holds every pair;
             ``"pruned"`` or ``PairOptions(mode="pruned", horizon=...)`` only the pairs whose
@@ -137,6 +154,11 @@ def attach(
             "mujoco.MjSpec.from_file(path) (or dua_mujoco.mj.scenes.load_spec(name))."
         )
     _check_prefix(spec, prefix)
+    bad_forget = isinstance(forget, bool) or not isinstance(forget, int) or forget < 0
+    if forget is not None and bad_forget:
+        raise InvalidInputError(
+            f"forget must be a whole number of rebuilds >= 0 or None (never), got {forget!r}."
+        )
     pairs = options.pop("pairs", "auto")
     if not isinstance(pairs, PairOptions):
         pairs = PairOptions(mode=pairs)
@@ -150,7 +172,11 @@ def attach(
         _check_size(model)
     spec.activate_plugin(PLUGIN_NAME)
     plugin = spec.add_plugin(name=prefix, plugin_name=PLUGIN_NAME, active=True)
-    plugin.config = {"prefix": prefix, "overlay": "true" if overlay else "false"}
+    plugin.config = {
+        "prefix": prefix,
+        "overlay": "true" if overlay else "false",
+        "forget": "never" if forget is None else str(forget),
+    }
     sensor = spec.add_sensor(name=prefix, type=mujoco.mjtSensor.mjSENS_PLUGIN)
     sensor.plugin = plugin
     sensor.plugin.name = prefix
@@ -287,6 +313,46 @@ def _checked(result: int) -> int:
             "(or mj_forward) first."
         )
     return result
+
+
+@dataclass(frozen=True)
+class KnownPairs:
+    """What a plugin instance knows now (:func:`known_pairs`).
+
+    Attributes:
+        npair: Sphere pairs known.
+        held: Of them, those held.
+        forgotten: Geom pairs forgotten so far.
+        compactions: Times the known pairs were compacted.
+        geom_pairs: ``(K, 2)`` int64 known geom pairs, ``geom1 < geom2`` rows in increasing order.
+    """
+
+    npair: int
+    held: int
+    forgotten: int
+    compactions: int
+    geom_pairs: np.ndarray
+
+
+def known_pairs(model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "dua") -> KnownPairs:
+    """The pairs plugin instance ``prefix`` of ``data`` knows: the memory that grows with the
+    pairs met, and shrinks as it forgets (``attach``'s ``forget``).
+
+    Raises:
+        InvalidInputError: The model has no predictor sensor ``prefix``.
+    """
+    instance = _instance(model, prefix)
+    out = _core.plugin_memory(model, data, instance)
+    if out is None:  # pragma: no cover - the sensor names an instance of this plugin
+        raise InvalidInputError(f"plugin instance {instance} is not a {PLUGIN_NAME!r}.")
+    out = np.asarray(out)
+    return KnownPairs(
+        npair=int(out[0]),
+        held=int(out[2]),
+        forgotten=int(out[3]),
+        compactions=int(out[4]),
+        geom_pairs=out[5:].reshape(-1, 2),
+    )
 
 
 def standing_pairs(

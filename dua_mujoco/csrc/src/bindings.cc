@@ -1320,6 +1320,24 @@ NB_MODULE(_core, m) {
       },
       "model"_a, "data"_a, "instance"_a,
       "Geom pairs standing in alarm in plugin instance `instance` ((K, 2)), or None.");
+  m.def(  // issue 35: what the instance knows
+      "plugin_memory",
+      [](nb::handle model, nb::handle data, int instance) -> nb::object {
+        std::vector<int64_t> out(256);
+        while (true) {
+          const int64_t n = dua_plugin_memory(ModelOf(model), DataOf(data), instance, out.data(),
+                                              static_cast<int64_t>(out.size()));
+          if (n < 0) return nb::none();
+          if (n <= static_cast<int64_t>(out.size())) {
+            out.resize(n);
+            return nb::cast(Owned(std::move(out), {static_cast<size_t>(n)}));
+          }
+          out.resize(n);
+        }
+      },
+      "model"_a, "data"_a, "instance"_a,
+      "Plugin instance `instance`'s pairs known, geom pairs known, pairs held, geom pairs "
+      "forgotten, compactions, then its known geom pairs as (g1, g2) rows, flat; or None.");
   m.def(
       "plugin_set_active",
       [](nb::handle model, nb::handle data, int instance, int body_a, int body_b, bool on) {

@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <memory>
 #include <string>
@@ -31,7 +32,10 @@ namespace dua {
 namespace {
 
 constexpr char kPluginName[] = "dua_mujoco.predictor";
-constexpr const char* kAttributes[] = {"prefix", "overlay"};
+constexpr const char* kAttributes[] = {"prefix", "overlay", "forget"};
+// Pruned pairs: rebuilds a learnt pair may go unheld before it is forgotten (Runtime::SetForget),
+// unless the attribute says otherwise; memory then stays bounded over a long run.
+constexpr int64_t kForgetDefault = 8;
 constexpr int kNAttribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
 
 // Sensor outputs.
@@ -98,6 +102,24 @@ Instance* Create(const mjModel* m, int instance) {
       return nullptr;
     }
   }
+  int64_t forget = kForgetDefault;
+  const char* forget_attr = mj_getPluginConfig(m, instance, "forget");
+  if (forget_attr && *forget_attr) {
+    const std::string v = forget_attr;
+    char* end = nullptr;
+    const long long k = std::strtoll(v.c_str(), &end, 10);
+    if (v == "never") {
+      forget = -1;
+    } else if (*end || k < 0) {
+      mju_warning(
+          "dua_mujoco.predictor: plugin attribute 'forget' = '%s' does not parse: use a whole "
+          "number of rebuilds >= 0, or never.",
+          v.c_str());
+      return nullptr;
+    } else {
+      forget = k;
+    }
+  }
   std::string error;
   std::shared_ptr<const Tables> tables = LoadTables(m, prefix, &error);
   if (!tables) {
@@ -106,6 +128,7 @@ Instance* Create(const mjModel* m, int instance) {
   }
   auto* in = new Instance(std::move(tables), m);
   in->overlay = overlay;
+  in->rt.SetForget(forget);
   in->skip_subtree_vel = SubtreeVelUnused(m);
   for (int i = 0; i < m->nsensor; ++i) {
     if (m->sensor_type[i] == mjSENS_PLUGIN && m->sensor_plugin[i] == instance) {
@@ -285,6 +308,27 @@ DUA_API int64_t dua_plugin_standing(const mjModel* m, const mjData* d, int insta
       out[2 * n + 1] = u.geom_pairs[2 * k + 1];
     }
     ++n;
+  }
+  return n;
+}
+
+DUA_API int64_t dua_plugin_memory(const mjModel* m, const mjData* d, int instance, int64_t* out,
+                                  int64_t capacity) {
+  const dua::Instance* in = dua::Find(m, d, instance);
+  if (!in) return -1;
+  const dua::Runtime& rt = in->rt;
+  const dua::Universe& u = rt.universe();
+  const int64_t count[5] = {u.npair(), u.ngp(), static_cast<int64_t>(rt.ids().size()),
+                            rt.forgotten(), rt.compactions()};
+  int64_t n = 0;
+  for (const int64_t c : count) {
+    if (n < capacity) out[n] = c;
+    ++n;
+  }
+  // Then the known geom pairs, rows (g1, g2) in increasing order.
+  for (const int64_t k : u.gp_ids) {
+    if (n + 1 < capacity) out[n] = u.geom_pairs[2 * k], out[n + 1] = u.geom_pairs[2 * k + 1];
+    n += 2;
   }
   return n;
 }

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <iterator>
 #include <numeric>
+#include <string>
+#include <type_traits>
 #include <utility>
 
 #include "internal.h"
@@ -97,7 +99,11 @@ Runtime::Runtime(const Runtime& o)
       plan_(o.plan_),  // immutable: shared; the mjData it is queried on is made when needed
       plan_ok_(o.plan_ok_),
       plan_breaks_(o.plan_breaks_),
-      read_lag_(o.read_lag_) {
+      read_lag_(o.read_lag_),
+      forget_after_(o.forget_after_),
+      gp_seen_(o.gp_seen_),
+      forgotten_(o.forgotten_),
+      compactions_(o.compactions_) {
   NewLog();  // never append to another run's log
 }
 
@@ -510,9 +516,60 @@ bool Runtime::Prune(const mjModel* m, const mjData* d, int64_t n) {
     ++renewals_;
   }
   Learnt();
+  if (ps.built_at == n) ForgetStale(m, &held);  // a rebuild: forget what it has not held
   ps.escapes.clear();
   if (carry) Carry(m, d, held, n);
   return true;
+}
+
+void Runtime::ForgetStale(const mjModel* m, std::vector<int64_t>* held) {
+  if (forget_after_ < 0) return;
+  Universe& u = own_;
+  const int64_t ng = u.ngp(), ng0 = tables_->universe.ngp();
+  gp_seen_.resize(ng, rebuilds_);  // learnt since the last look: met now
+  for (const int64_t p : *held) gp_seen_[u.pair_geom[p]] = rebuilds_;
+  for (const int64_t p : ids_) gp_seen_[u.pair_geom[p]] = rebuilds_;  // held until the carry
+  // The model's own pairs (static, <pair> elements: not learnt through the filter) stay.
+  std::vector<uint8_t> keep(ng, 1);
+  int64_t stale = 0;
+  for (int64_t k = ng0; k < ng; ++k) {
+    if (rebuilds_ - gp_seen_[k] > forget_after_) keep[k] = 0, ++stale;
+  }
+  // Compacting costs O(pairs known): only once half the learnt geom pairs are stale, so that
+  // the pairs known stay within twice those met in the last forget_after_ rebuilds.
+  if (stale == 0 || 2 * stale < ng - ng0) return;
+  // A switched-off pair stays known: a pair learnt anew would come back switched on.
+  for (int64_t p = 0; p < u.npair(); ++p) {
+    if (!on_[p]) keep[u.pair_geom[p]] = 1;
+  }
+  if (watching_) was_.resize(ng, 0);  // (FinishWatch sizes it after the step)
+  std::vector<int64_t> pair_map, gp_map;
+  const std::string bad = u.Forget(keep, tables_->spheres, m->ngeom, &pair_map, &gp_map);
+  (void)bad;  // the kept rows of a universe that indexed are indexed (no id is out of range)
+  for (int64_t& p : ids_) p = pair_map[p];
+  for (int64_t& p : *held) p = pair_map[p];
+  auto compact = [](const std::vector<int64_t>& map, auto* v) {
+    if (v->size() != map.size()) return;  // not in use (the watcher's, when not watching)
+    std::remove_reference_t<decltype(*v)> out(static_cast<size_t>(
+        std::count_if(map.begin(), map.end(), [](int64_t j) { return j >= 0; })));
+    for (size_t k = 0; k < map.size(); ++k) {
+      if (map[k] >= 0) out[map[k]] = (*v)[k];
+    }
+    v->swap(out);
+  };
+  compact(pair_map, &on_);
+  compact(gp_map, &gp_count_);
+  compact(gp_map, &gp_seen_);
+  compact(gp_map, &gp_counted_);
+  compact(gp_map, &was_);
+  std::vector<int64_t> touched;
+  for (const int64_t k : touched_) {
+    if (gp_map[k] >= 0) touched.push_back(gp_map[k]);
+  }
+  touched_.swap(touched);
+  forgotten_ += ng - u.ngp();
+  ++compactions_;
+  ++universe_version_;
 }
 
 void Runtime::Carry(const mjModel* m, const mjData* d, const std::vector<int64_t>& held,

@@ -146,6 +146,16 @@ class DUA_API Runtime {
   // check guards).
   void SetEscapeCheck(bool on) { escape_check_ = on; }
 
+  // ---------------------------------------------------------------------- forgetting (issue 35)
+  // Pruned pairs: a learnt geom pair none of whose sphere pairs was held at the latest `after`
+  // rebuilds is forgotten (its rows freed, later ids renumbered in order; Lemma 7.1 of
+  // docs/theory.md: the held sets are those of a run that never forgets). after < 0: never (the
+  // Python Predictor's, whose mirrors of the universe assume ids that only grow).
+  void SetForget(int64_t after) { forget_after_ = after; }
+  int64_t forget_after() const { return forget_after_; }
+  int64_t forgotten() const { return forgotten_; }      // geom pairs forgotten so far
+  int64_t compactions() const { return compactions_; }  // times the universe was compacted
+
   // ---------------------------------------------------------------------- what it holds
   const Tables& tables() const { return *tables_; }
   bool classified() const { return classified_; }
@@ -213,6 +223,7 @@ class DUA_API Runtime {
   void MakeAllDue(int64_t n);
   void FinishWatch();         // a step's or a classification's end: started and version
   void SetExpiry(int64_t p);  // pair p's leaf of the expiry tree, and its path to the root
+  void ForgetStale(const mjModel* m, std::vector<int64_t>* held);  // at a rebuild (issue 35)
 
   std::shared_ptr<const Tables> tables_;
   int64_t log_steps_, log_min_;
@@ -266,6 +277,10 @@ class DUA_API Runtime {
   std::vector<uint8_t> plan_ok_, planned_;
   int64_t plan_breaks_ = 0;
   int read_lag_ = 1;
+  // Forgetting (issue 35): each learnt geom pair's latest rebuild held, and the counts.
+  int64_t forget_after_ = -1;
+  std::vector<int64_t> gp_seen_;
+  int64_t forgotten_ = 0, compactions_ = 0;
 };
 
 }  // namespace dua

@@ -201,4 +201,50 @@ int64_t Universe::Learn(const LearnTables& lt, const int64_t* g1, const int64_t*
   return count;
 }
 
+std::string Universe::Forget(const std::vector<uint8_t>& keep_gp,
+                             const std::vector<double>& spheres, int64_t ngeom,
+                             std::vector<int64_t>* pair_map, std::vector<int64_t>* gp_map) {
+  // The geom pair is the unit: a geom pair known has all its sphere pairs known (Learn adds them
+  // together and Lookup learns nothing of a geom pair it knows), so none is dropped alone.
+  const int64_t n = npair(), ng = ngp();
+  gp_map->assign(ng, -1);
+  int64_t kept_gp = 0;
+  for (int64_t k = 0; k < ng; ++k) {
+    if (keep_gp[k]) (*gp_map)[k] = kept_gp++;
+  }
+  pair_map->assign(n, -1);
+  int64_t kept = 0;
+  for (int64_t p = 0; p < n; ++p) {
+    if ((*gp_map)[pair_geom[p]] >= 0) (*pair_map)[p] = kept++;
+  }
+  // Fresh vectors of the kept size: the memory of the forgotten rows goes back to the heap.
+  const bool has_exact = !exact.empty();
+  std::vector<double> new_pairs(kPairNcol * kept), new_exact(has_exact ? kXNcol * kept : 0);
+  std::vector<int64_t> new_pair_geom(kept), new_geom_pairs(2 * kept_gp);
+  std::vector<double> new_contact(2 * kept_gp);
+  for (int64_t p = 0; p < n; ++p) {
+    const int64_t q = (*pair_map)[p];
+    if (q < 0) continue;
+    std::copy_n(pairs.begin() + kPairNcol * p, kPairNcol, new_pairs.begin() + kPairNcol * q);
+    if (has_exact) std::copy_n(exact.begin() + kXNcol * p, kXNcol, new_exact.begin() + kXNcol * q);
+    new_pair_geom[q] = (*gp_map)[pair_geom[p]];
+  }
+  for (int64_t k = 0; k < ng; ++k) {
+    const int64_t j = (*gp_map)[k];
+    if (j < 0) continue;
+    std::copy_n(geom_pairs.begin() + 2 * k, 2, new_geom_pairs.begin() + 2 * j);
+    std::copy_n(gp_contact.begin() + 2 * k, 2, new_contact.begin() + 2 * j);
+  }
+  pairs.swap(new_pairs), exact.swap(new_exact), pair_geom.swap(new_pair_geom);
+  geom_pairs.swap(new_geom_pairs), gp_contact.swap(new_contact);
+  // The lookups derived anew, in vectors of their own size.
+  std::vector<int64_t>().swap(geom1), std::vector<int64_t>().swap(geom2);
+  std::vector<int64_t>().swap(gp_keys), std::vector<int64_t>().swap(gp_ids);
+  std::vector<int64_t>().swap(codes), std::vector<int64_t>().swap(code_ids);
+  std::vector<int64_t>().swap(always);
+  std::string bad = Index(spheres, ngeom);
+  always.shrink_to_fit(), geom1.shrink_to_fit(), geom2.shrink_to_fit();
+  return bad;
+}
+
 }  // namespace dua

@@ -63,6 +63,13 @@ struct DUA_API Universe {
   // PairUniverse.learn does: their sphere pairs appended with their tables. Returns how many
   // sphere pairs were added.
   int64_t Learn(const LearnTables& lt, const int64_t* g1, const int64_t* g2, int64_t n);
+  // Forgets the geom pairs k with keep_gp[k] == 0 and all their sphere pairs, renumbering the
+  // rest in order (an id's rank among those kept is its new id) with memory released; pair_map
+  // and gp_map receive each old id's new one (-1: forgotten). Lookup and Learn then act as if
+  // the forgotten pairs had never been learnt (docs/theory.md, Lemma 7.1). Returns Index's
+  // verdict.
+  std::string Forget(const std::vector<uint8_t>& keep_gp, const std::vector<double>& spheres,
+                     int64_t ngeom, std::vector<int64_t>* pair_map, std::vector<int64_t>* gp_map);
 };
 
 }  // namespace dua

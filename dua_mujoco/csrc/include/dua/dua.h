@@ -442,6 +442,12 @@ DUA_API int64_t dua_plugin_clear_plan(const struct mjModel_* m, struct mjData_* 
 // are (-1: the instance is not this plugin's).
 DUA_API int64_t dua_plugin_standing(const struct mjModel_* m, const struct mjData_* d, int instance,
                                     int64_t* out, int64_t capacity);
+// What instance `instance` of d knows (issue 35: bounded over a run): out receives, up to
+// `capacity` values, the sphere pairs known, the geom pairs known, the pairs held, the geom pairs
+// forgotten so far, the compactions, then the known geom pairs as rows (g1, g2) in increasing
+// order; returns how many values there are (-1: the instance is not this plugin's).
+DUA_API int64_t dua_plugin_memory(const struct mjModel_* m, const struct mjData_* d, int instance,
+                                  int64_t* out, int64_t capacity);
 // Switches the pairs between bodies body_a and body_b (body_b < 0: every pair of body_a) off
 // (on = 0) or back on; returns the number of sphere pairs between them, -1 if the instance is
 // not this plugin's, -2 before its first compute.

@@ -1,0 +1,137 @@
+"""Pruned pairs that forget (issue 35): a plugin ``MjData`` forgets the geom pairs it has not
+held for ``forget`` rebuilds, and holds what a predictor that never forgets holds (docs/theory.md,
+Lemma 7.1): the same standing pairs and evaluations after every step, a forgotten pair met again
+and flagged before it collides, and the pairs known bounded while the pairs met keep growing."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import load_spec, make_controller
+from dua_mujoco.plugin import attach, known_pairs, plugin_outputs, standing_pairs
+
+
+def _python_standing(p: Predictor) -> set[tuple[int, int]]:
+    assert p.scheduler is not None
+    ids = p.held_pairs[p.scheduler.alarm_state()]
+    g1, g2 = p.sphere_pair_geoms
+    return {(int(min(a, b)), int(max(a, b))) for a, b in zip(g1[ids], g2[ids], strict=True)}
+
+
+def _swarm(n: int, forget: int | None) -> tuple[mujoco.MjModel, mujoco.MjData, Predictor]:
+    spec = load_spec(f"swarm:{n}")
+    p = attach(spec, accel=2.0, pairs="pruned", forget=forget)
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, 0)  # the swarm's random initial velocities
+    return m, d, p
+
+
+def _rows(a: np.ndarray) -> set[tuple[int, int]]:
+    return {(int(g1), int(g2)) for g1, g2 in a}
+
+
+def test_a_forgotten_pair_is_met_again_and_flagged_before_it_collides() -> None:
+    """The plugin forgetting every pair the latest rebuild did not hold (``forget=0``) against
+    the pruned Python predictor, which never forgets, on the same states: the same standing
+    pairs and evaluations after every step; geom pairs are forgotten, come back, and each
+    forgotten pair that later collides stood in alarm between its return and the contact."""
+    m, d, p = _swarm(300, forget=0)
+    ctrl = make_controller(m, "random", seed=7)
+    known_before: set[tuple[int, int]] = set()
+    forgotten: set[tuple[int, int]] = set()  # forgotten at least once, not yet in contact
+    stood: set[tuple[int, int]] = set()  # of them, those in alarm since they came back
+    collided = flagged = 0
+    for k in range(3000):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        if k == 0:
+            p.reset(d)
+        else:
+            p.step(d)
+        want = _python_standing(p)
+        assert _rows(standing_pairs(m, d)) == want, f"step {k}"
+        assert plugin_outputs(m, d).evaluated == p.evaluations_per_step, f"step {k}"
+        known = _rows(known_pairs(m, d).geom_pairs)
+        forgotten |= known_before - known
+        stood |= want & forgotten
+        known_before = known
+        nc = int(d.ncon)
+        for a, b in zip(d.contact.geom1[:nc], d.contact.geom2[:nc], strict=True):
+            gp = (int(min(a, b)), int(max(a, b)))
+            if gp in forgotten and gp in known:  # came back, now collides
+                collided += 1
+                flagged += gp in stood
+                forgotten.discard(gp)
+    kp = known_pairs(m, d)
+    assert kp.compactions > 10 and kp.forgotten > 300
+    assert collided >= 5  # the run meets what it claims (12 forgotten pairs collide later)
+    assert flagged == collided
+
+
+def test_forgetting_among_geoms_of_many_spheres_holds_what_python_holds() -> None:
+    """Objects poured into a bin (geoms of many spheres, impacts that renew spheres between
+    rebuilds, a mocap body), the plugin forgetting every pair the latest rebuild did not hold:
+    the same standing pairs and evaluations as the pruned Python predictor after every step."""
+    spec = load_spec("bin_pour:60")
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER  # as test_plugin compares them
+    p = attach(spec, accel=5.0, pairs="pruned", forget=0)
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    ctrl = make_controller(m, "random", seed=0)
+    busy = 0
+    first: int | None = None
+    for k in range(600):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        if k == 0:
+            p.reset(d)
+        elif k % p.period == 0:
+            p.step(d)
+        else:
+            continue
+        want = _python_standing(p)
+        assert _rows(standing_pairs(m, d)) == want, f"step {k}"
+        assert plugin_outputs(m, d).evaluated == p.evaluations_per_step, f"step {k}"
+        busy += bool(want)
+        if first is None and known_pairs(m, d).compactions:
+            first = k
+    assert first is not None and first < 300  # compared for 300 steps after pairs were forgotten
+    assert known_pairs(m, d).forgotten > 100 and p.renewals > 5 and busy > 10
+
+
+def test_pairs_known_stay_bounded_while_the_pairs_met_grow() -> None:
+    """A swarm whose spheres keep meeting new neighbours: without forgetting the pairs known
+    grow with the run; with ``forget=2`` they stay within the bound of Lemma 7.1 (twice the
+    geom pairs held at the last ``forget + 1`` rebuilds, each at most the most ever held), and
+    both runs report the same after every step."""
+    runs = [_swarm(100, forget=None), _swarm(100, forget=2)]
+    base = runs[0][2].universe.npair  # the model's own pairs (walls), held always
+    ctrls = [make_controller(m, "random", seed=3) for m, _, _ in runs]
+    most_held = 0
+    learnt: list[list[int]] = [[], []]
+    for k in range(6000):
+        outs = []
+        for (m, d, _), ctrl, grown in zip(runs, ctrls, learnt, strict=True):
+            ctrl(m, d)
+            mujoco.mj_step(m, d)
+            outs.append((standing_pairs(m, d).tolist(), plugin_outputs(m, d)))
+            kp = known_pairs(m, d)
+            grown.append(kp.npair - base)
+        assert outs[0] == outs[1], f"step {k}"
+        most_held = max(most_held, known_pairs(*runs[1][:2]).held - base)
+    bound = 2 * (2 + 1 + 1) * most_held  # forget + 1 rebuilds, and the one learning now
+    assert max(learnt[1]) <= bound
+    assert learnt[0][-1] > 2 * bound  # what it would have grown to: the bound is not vacuous
+    assert max(learnt[1][3000:]) <= max(learnt[1][:3000]) + most_held
+
+
+def test_forget_must_be_a_count_of_rebuilds() -> None:
+    spec = load_spec("swarm:20")
+    for bad in (-1, 1.5, True):
+        with pytest.raises(InvalidInputError, match="forget must be a whole number"):
+            attach(spec, accel=2.0, pairs="pruned", forget=bad)  # type: ignore[arg-type]
