@@ -2,9 +2,10 @@
 
 This module imports nothing heavy: it takes Ctrl-C over before the command's imports (MuJoCo,
 numpy, the compiled core) begin, so that an interrupt at any point of the set-up is one line and
-exit 130, like the run loop's. An interrupt in the middle of an extension module's initialisation does not
-always surface as ``KeyboardInterrupt`` (numpy turns it into an ``ImportError``), so the handler
-records that it fired, and whatever escapes afterwards is reported as the interrupt it is.
+exit 130, like the run loop's. An interrupt in the middle of an extension module's
+initialisation does not always surface as ``KeyboardInterrupt`` (numpy turns it into an
+``ImportError``), so the handler records that it fired, and whatever escapes afterwards is
+reported as the interrupt it is.
 """
 
 from __future__ import annotations

@@ -251,10 +251,10 @@ class Runtime:
     def bind(self, data: object) -> None:
         """Read the state from this MjData (of the runtime's model) from now on."""
 
-    def classify(self) -> object:
+    def classify(self) -> Alarms:
         """The initial classification of the bound MjData's state."""
 
-    def step(self) -> object:
+    def step(self) -> Alarms:
         """One predictor step on the bound MjData, one period after the last."""
 
     def clock_of(self, arg: float, /) -> int: ...
@@ -268,6 +268,35 @@ class Runtime:
     def deactivate_contacts(self) -> int: ...
 
     def set_mocap_velocity(self, mocap: int, linear: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], angular: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None: ...
+
+    def set_plan(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float) -> None:
+        """
+        Follow a flight plan: qpos (n, nq) at start + j timestep, deviation (n, nbody).
+        """
+
+    def clear_plan(self) -> None: ...
+
+    @property
+    def has_plan(self) -> bool: ...
+
+    @property
+    def plan_breaks(self) -> int: ...
+
+    @property
+    def plan_queries(self) -> int: ...
+
+    @property
+    def plan_ok(self) -> NDArray[numpy.bool_]:
+        """(nbody,) bodies still within their deviation (a copy)."""
+
+    @property
+    def plan_span(self) -> tuple:
+        """(start, step, knots) of the plan followed, () for none."""
+
+    def plan_broken(self) -> object:
+        """
+        The bodies of the bound MjData's state beyond their deviation at its knot (None: no plan covers it); checks only.
+        """
 
     def clear_mocap_velocity(self, mocap: int) -> None: ...
 

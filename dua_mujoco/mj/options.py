@@ -14,6 +14,7 @@ import math
 from collections.abc import Callable
 
 import mujoco
+import numpy as np
 
 from dua_mujoco.core.schedules import Schedule, as_schedule, deadline
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
@@ -29,6 +30,7 @@ __all__ = [
     "PredictorOptions",
     "ScheduleOptions",
     "UrgencyOptions",
+    "alarm_periods",
     "removed_keywords_error",
     "resolve_options",
 ]
@@ -259,3 +261,25 @@ def removed_keywords_error(removed: dict[str, object]) -> InvalidInputError:
             "period, latency, covering, schedule, urgency, pilot and pairs"
         )
     return InvalidInputError("Predictor(): " + ". ".join(parts) + ".")
+
+
+def alarm_periods(alarm_horizon: object, dt: float) -> int:
+    """The alarm horizon in whole predictor periods of ``dt`` seconds (rounded up; None: 1).
+
+    Raises:
+        InvalidInputError: ``alarm_horizon`` is not a finite number of seconds >= ``dt``.
+    """
+    if alarm_horizon is None:
+        return 1
+    seconds = (
+        float(alarm_horizon)
+        if isinstance(alarm_horizon, int | float | np.integer | np.floating)
+        and not isinstance(alarm_horizon, bool)
+        else math.nan
+    )
+    if not math.isfinite(seconds) or seconds < dt * (1 - 1e-9):
+        raise InvalidInputError(
+            f"alarm_horizon = {alarm_horizon!r} is invalid: pass the seconds of warning wanted, "
+            f"at least one predictor period ({dt:g} s), or None for one period."
+        )
+    return max(1, math.ceil(seconds / dt - 1e-9))

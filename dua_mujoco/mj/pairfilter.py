@@ -57,20 +57,19 @@ class FilterTables:
     _native: _core.Filter = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        arrays = {
-            name: np.ascontiguousarray(getattr(self, name), dtype=dtype)
-            for name, dtype in (
-                ("body", np.int64), ("weld", np.int64), ("parent_weld", np.int64),
-                ("movable", np.uint8), ("contype", np.int64), ("conaffinity", np.int64),
-                ("lone", np.uint8), ("exclude", np.int64),
-            )
-        }  # fmt: skip
-        for name, value in arrays.items():
+        def ints(name: str) -> np.ndarray[tuple[int, ...], np.dtype[np.int64]]:
+            value = np.ascontiguousarray(getattr(self, name), dtype=np.int64)
             object.__setattr__(self, name, value)
+            return value
+
+        def flags(name: str) -> np.ndarray[tuple[int, ...], np.dtype[np.uint8]]:
+            value = np.ascontiguousarray(getattr(self, name), dtype=np.uint8)
+            object.__setattr__(self, name, value)
+            return value
+
         native = _core.Filter(
-            arrays["body"], arrays["weld"], arrays["parent_weld"], arrays["movable"],
-            arrays["contype"], arrays["conaffinity"], arrays["lone"], arrays["exclude"],
-            bool(self.filterparent),
+            ints("body"), ints("weld"), ints("parent_weld"), flags("movable"), ints("contype"),
+            ints("conaffinity"), flags("lone"), ints("exclude"), bool(self.filterparent),
         )  # fmt: skip
         object.__setattr__(self, "_native", native)
 

@@ -15,7 +15,6 @@ predictor uses that one instant throughout (docs/discrete-time.md).
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Mapping
 from typing import Literal
@@ -43,6 +42,7 @@ from dua_mujoco.mj.diagnostics import clock_error, nonfinite_error
 from dua_mujoco.mj.events import EventTable, body_boxes, build_events
 from dua_mujoco.mj.exact import EXACT_PERIODS, QUERY_PERIODS, ExactLevel
 from dua_mujoco.mj.filter import GeomPairs, SpherePairs, body_id
+from dua_mujoco.mj.flightplan import plan_arrays
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.mocap import PredictorMocap
 from dua_mujoco.mj.options import (
@@ -51,6 +51,7 @@ from dua_mujoco.mj.options import (
     PilotOptions,
     ScheduleOptions,
     UrgencyOptions,
+    alarm_periods,
     removed_keywords_error,
     resolve_options,
 )
@@ -66,7 +67,7 @@ from dua_mujoco.mj.tables import (
 )
 from dua_mujoco.mj.universe import PairUniverse
 
-__all__ = ["BoundsLike", "Predictor", "alarm_periods"]
+__all__ = ["BoundsLike", "Predictor"]
 
 BoundsLike = float | Mapping[str, float] | MotionBounds | Literal["auto"]
 """Acceleration bounds: a scalar (m/s^2, every moving body), a dict by body name (``"*"`` for
@@ -77,28 +78,6 @@ LOG_STEPS = 4
 LOG_MIN = 1 << 14
 """...and at least this many entries: ``Alarms`` are views of it, never copied; a full log is
 replaced, never overwritten, so an old ``Alarms`` keeps its values."""
-
-
-def alarm_periods(alarm_horizon: object, dt: float) -> int:
-    """The alarm horizon in whole predictor periods of ``dt`` seconds (rounded up; None: 1).
-
-    Raises:
-        InvalidInputError: ``alarm_horizon`` is not a finite number of seconds >= ``dt``.
-    """
-    if alarm_horizon is None:
-        return 1
-    seconds = (
-        float(alarm_horizon)
-        if isinstance(alarm_horizon, int | float | np.integer | np.floating)
-        and not isinstance(alarm_horizon, bool)
-        else math.nan
-    )
-    if not math.isfinite(seconds) or seconds < dt * (1 - 1e-9):
-        raise InvalidInputError(
-            f"alarm_horizon = {alarm_horizon!r} is invalid: pass the seconds of warning wanted, "
-            f"at least one predictor period ({dt:g} s), or None for one period."
-        )
-    return max(1, math.ceil(seconds / dt - 1e-9))
 
 
 class Predictor:
@@ -435,6 +414,61 @@ class Predictor:
         a = np.asarray(g1, dtype=np.int64).reshape(-1)
         b = np.asarray(g2, dtype=np.int64).reshape(-1)
         return np.asarray(self._rt.geom_pair_ids(a, b))
+
+    # ----------------------------------------------------------------------- flight plans
+
+    def set_plan(
+        self, qpos: npt.ArrayLike, *, deviation: npt.ArrayLike, start: float | None = None
+    ) -> None:
+        """Follow a flight plan: the motion expected over the coming physics steps.
+
+        While the plan covers a step and both bodies of a pair are within their deviation, the
+        pair's verdict is the time to the first knot at which the plan's geometry, less the two
+        deviations, may touch (no motion bound enters: the verdict is as tight at 200 ms as at
+        one step). Every pair is evaluated again at the next step. A body found farther from
+        its plan than its deviation falls back to the motion bounds (its pairs evaluated again
+        at once), and so does everything past the plan's last knot: give the next plan before
+        it runs out by the alarm horizon. docs/plans.md; the promise: docs/theory.md, section 8.
+
+        Args:
+            qpos: ``(n, nq)`` joint positions, row ``j`` the state ``j * model.opt.timestep``
+                after ``start`` (:func:`dua_mujoco.mj.plans.plan_from_controls` rolls them).
+            deviation: Metres: a bound on the distance of every point of a body's geoms from
+                where the plan puts it, one number, ``(n,)`` or ``(n, nbody)``; 0 where the plan
+                is exact (a rollout of the controls that will be applied, in simulation).
+            start: The time of ``qpos[0]``'s state (default: the bound data's ``time``, the state
+                a plan rolled from it starts at). The plan must cover the state the next step
+                reads: MuJoCo's step reads the state it started from, one timestep before its
+                ``time``.
+
+        Raises:
+            SchedulerError: ``reset`` was not called.
+            ShapeError: ``qpos`` or ``deviation`` do not fit the model.
+            InvalidInputError: A value is not finite or negative, the model has mocap bodies,
+                or the plan does not cover the next step.
+        """
+        self._require_reset()
+        q, dev = plan_arrays(self.model, qpos, deviation)
+        if start is None:
+            assert self._data is not None
+            start = float(self._data.time)
+        self._rt.set_plan(q, dev, float(start))
+
+    def clear_plan(self) -> None:
+        """Stop following the plan: every pair is evaluated again at the next step, under the
+        motion bounds."""
+        self._rt.clear_plan()
+
+    @property
+    def has_plan(self) -> bool:
+        """Whether a plan is followed (it ends past its last knot, or when cleared)."""
+        return bool(self._rt.has_plan)
+
+    @property
+    def plan_breaks(self) -> int:
+        """Bodies found farther from the plan than their deviation, over the plans so far: their
+        pairs followed the motion bounds from then until the next plan."""
+        return int(self._rt.plan_breaks)
 
     # ----------------------------------------------------------------------- what it holds
 

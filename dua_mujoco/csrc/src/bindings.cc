@@ -884,6 +884,45 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           },
           "mocap"_a, "linear"_a, "angular"_a)
       .def(
+          "set_plan",
+          [](PyRuntime& self, const In<double>& qpos, const In<double>& deviation, double start) {
+            const int64_t nq = self.m->nq, nbody = self.m->nbody;
+            Require(qpos.ndim() == 2 && static_cast<int64_t>(qpos.shape(1)) == nq,
+                    "qpos must be (n, nq)");
+            const auto n = static_cast<int64_t>(qpos.shape(0));
+            Require(deviation.ndim() == 2 && static_cast<int64_t>(deviation.shape(0)) == n &&
+                        static_cast<int64_t>(deviation.shape(1)) == nbody,
+                    "deviation must be (n, nbody)");
+            const std::string error =
+                self.rt->SetPlan(self.m, qpos.data(), n, deviation.data(), start);
+            if (!error.empty()) Raise("InvalidInputError", "the plan " + error + ".");
+          },
+          "qpos"_a, "deviation"_a, "start"_a,
+          "Follow a flight plan: qpos (n, nq) at start + j timestep, deviation (n, nbody).")
+      .def("clear_plan", [](PyRuntime& self) { self.rt->ClearPlan(); })
+      .def_prop_ro("has_plan", [](const PyRuntime& s) { return s.rt->has_plan(); })
+      .def_prop_ro("plan_breaks", [](const PyRuntime& s) { return s.rt->plan_breaks(); })
+      .def_prop_ro("plan_queries", [](const PyRuntime& s) { return s.rt->plan_queries(); })
+      .def_prop_ro(
+          "plan_ok", [](const PyRuntime& s) { return OwnedBools(s.rt->plan_ok()); },
+          nb::rv_policy::move, "(nbody,) bodies still within their deviation (a copy).")
+      .def_prop_ro(
+          "plan_span",
+          [](const PyRuntime& s) {
+            const Plan* p = s.rt->plan();
+            return p ? nb::make_tuple(p->start(), p->h(), p->nknot()) : nb::make_tuple();
+          },
+          "(start, step, knots) of the plan followed, () for none.")
+      .def(
+          "plan_broken",
+          [](const PyRuntime& self) {
+            const std::vector<int64_t> out = self.rt->PlanBroken(self.m, self.Data());
+            if (!out.empty() && out[0] < 0) return nb::object(nb::none());
+            return nb::object(nb::cast(Ints(out)));
+          },
+          "The bodies of the bound MjData's state beyond their deviation at its knot (None: no "
+          "plan covers it); checks only.")
+      .def(
           "clear_mocap_velocity",
           [](PyRuntime& self, int64_t i) {
             Require(i >= 0 && i < self.m->nmocap, "a mocap id is out of range");

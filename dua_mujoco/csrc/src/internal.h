@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "dua/dua.h"
 #include "lanes.h"
 #include "layout.h"
 
@@ -35,6 +36,15 @@ void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, in
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
 double TauStatic(double c0, double c1, double c2, double v0, double v1, double v2,
                  const double* rec, double eps, double accel, double delta);
+
+// (n.c - h_S(n), n, |c| + |p| + h_local) of a point c and a static shape record, n the unit
+// closest-point direction: a lower bound on c's distance to the shape (shapes.cc).
+double StaticGap(double c0, double c1, double c2, const double* rec, double n[3], double* scale);
+// Support of geom g of the exact level's tables at its pose in f along n (a mesh over its
+// hull's vertices when MuJoCo has its hull graph, else over its box), the hill climb starting at
+// hull vertex `start` (-1: the seed); *top receives the highest vertex (step.cc).
+double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0, double n1,
+                   double n2, int64_t start, int64_t* top);
 
 // Bucket floor(log2(slot + 1)) of a rank slot.
 inline int64_t BucketOf(int64_t slot) {

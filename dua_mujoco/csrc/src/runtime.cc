@@ -93,7 +93,10 @@ Runtime::Runtime(const Runtime& o)
       rebuilds_(o.rebuilds_),
       renewals_(o.renewals_),
       universe_version_(o.universe_version_),
-      held_version_(o.held_version_) {
+      held_version_(o.held_version_),
+      plan_(o.plan_),  // immutable: shared; the mjData it is queried on is made when needed
+      plan_ok_(o.plan_ok_),
+      plan_breaks_(o.plan_breaks_) {
   NewLog();  // never append to another run's log
 }
 
@@ -221,7 +224,94 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   a.log_pairs = log_->pair.data();
   a.log_tau = log_->tau.data();
   a.log_new = log_->fresh.data();
+  dua_plan& pl = a.plan;
+  pl.impl = plan_.get();
+  if (plan_) {
+    if (!plan_data_) plan_data_.reset(mj_makeData(m));
+    const Universe& u = universe();
+    planned_.resize(std::max<size_t>(ids_.size(), 1));
+    pl.body_ok = plan_ok_.data();
+    pl.geom1 = u.geom1.data();
+    pl.geom2 = u.geom2.data();
+    pl.geom_body = m->geom_bodyid;
+    pl.data = plan_data_.get();
+    pl.planned = planned_.data();
+  }
   return a;
+}
+
+std::string Runtime::SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
+                             double start) {
+  if (!classified_) return "comes before the first classification: reset the predictor first";
+  if (m->nmocap > 0) {
+    return "is for a model with mocap bodies, whose planned poses a plan of qpos does not hold";
+  }
+  if (!plan_data_) plan_data_.reset(mj_makeData(m));
+  if (!plan_data_) return "needs an mjData that MuJoCo could not allocate";
+  auto plan = std::make_shared<Plan>();
+  std::string error = plan->Build(m, plan_data_.get(), qpos, n, dev, start, m->opt.timestep);
+  if (!error.empty()) return error;
+  // The next step reads the state MuJoCo's step started from.
+  const double next = last_time_ + tables_->schedule.dt - m->opt.timestep;
+  if (plan->KnotOf(next) < 0) {
+    return "does not cover the state the next step reads (time " + std::to_string(next) +
+           "): start it at or before that time, on a whole number of timesteps from it, with " +
+           "knots past it";
+  }
+  plan_ = std::move(plan);
+  plan_ok_.assign(m->nbody, 1);
+  MakeAllDue(step_ + 1);
+  return "";
+}
+
+void Runtime::ClearPlan() {
+  if (!plan_) return;
+  plan_.reset();
+  args_.plan.impl = nullptr;
+  MakeAllDue(step_ + 1);
+}
+
+void Runtime::MakeAllDue(int64_t n) {
+  dua_schedule* st = schedule_->state();
+  for (int64_t p = 0; p < npair(); ++p) dua_make_due(st, p, n);
+}
+
+void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
+  if (!plan_) return;
+  // A classification (n = 0) evaluates every pair anyway, on a schedule it makes afresh.
+  const bool due = n > 0;
+  const int64_t k = plan_->KnotOf(d->time - m->opt.timestep);
+  if (k < 0) {
+    // Past the plan (or a clock the plan does not know): the bounds alone from here on.
+    plan_.reset();
+    args_.plan.impl = nullptr;
+    if (due) MakeAllDue(n);
+    return;
+  }
+  args_.plan.knot = k;
+  std::vector<int64_t> broken;
+  plan_->Check(m, d, k, &broken);
+  for (const int64_t b : broken) {
+    if (!plan_ok_[b]) continue;
+    plan_ok_[b] = 0;
+    ++plan_breaks_;
+    if (!due) continue;
+    const Universe& u = universe();
+    for (int64_t p = 0; p < npair(); ++p) {
+      const int64_t mp = ids_[p];
+      if (m->geom_bodyid[u.geom1[mp]] == b || m->geom_bodyid[u.geom2[mp]] == b) {
+        dua_make_due(schedule_->state(), p, n);
+      }
+    }
+  }
+}
+
+std::vector<int64_t> Runtime::PlanBroken(const mjModel* m, const mjData* d) const {
+  std::vector<int64_t> out;
+  const int64_t k = plan_ ? plan_->KnotOf(d->time - m->opt.timestep) : -1;
+  if (k < 0) return {-1};
+  plan_->Check(m, d, k, &out);
+  return out;
 }
 
 void Runtime::Learnt() {
@@ -314,6 +404,10 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
     Bind(m, d);
   }
   dua_reset_events(&args_);
+  if (plan_) {
+    Bind(m, d);  // the plan's buffers sized for the held pairs
+    FollowPlan(m, d, 0);
+  }
   const int64_t n = npair();
   std::vector<double> tau0(n);
   const std::vector<int64_t> all = Iota(n);
@@ -365,6 +459,7 @@ int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   Bind(m, d);
   const int64_t n = step_ + 1;
   if (t.pruned && !Prune(m, d, n)) return kBadState;
+  FollowPlan(m, d, n);
   const int64_t room = schedule_->width();
   if (log_used_ + room > log_->capacity()) NewLog(), Bind(m, d);
   log_start_ = log_used_;

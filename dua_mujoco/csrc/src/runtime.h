@@ -12,11 +12,13 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "plan.h"
 #include "pruned.h"
 #include "schedule.h"
 #include "tables.h"
@@ -97,6 +99,25 @@ class DUA_API Runtime {
   // The counted geom pairs standing in alarm, rows (g1, g2) in increasing order.
   std::vector<int64_t> WatchedStanding() const;
 
+  // Flight plans (plan.h): qpos (n, nq), row j the state at time start + j h (h the model's
+  // timestep), and dev (n, nbody), each body's deviation bound at each knot. Every held pair is
+  // evaluated again at the next step, under the plan. The plan must cover the state the next
+  // step reads (the state MuJoCo's step started from: d->time - h). Returns an error message
+  // naming the bad input, or "".
+  std::string SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
+                      double start);
+  // Back to the motion bounds alone (every held pair evaluated again at the next step).
+  void ClearPlan();
+  bool has_plan() const { return plan_ != nullptr; }
+  const Plan* plan() const { return plan_.get(); }
+  // Bodies found beyond their deviation since the plan came (their pairs follow the bounds).
+  const std::vector<uint8_t>& plan_ok() const { return plan_ok_; }
+  int64_t plan_breaks() const { return plan_breaks_; }
+  int64_t plan_queries() const { return args_.plan.queries; }
+  // The bodies of d's state beyond their deviation at its knot (-1 in out[0]: no plan covers
+  // it), checking only; the monitor's every-step check.
+  std::vector<int64_t> PlanBroken(const mjModel* m, const mjData* d) const;
+
   // Mocap bodies: a velocity given instead of differenced (world frame), or back to differencing.
   void SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]);
   void ClearMocapVelocity(int64_t mocap);
@@ -173,6 +194,10 @@ class DUA_API Runtime {
   void TrackStep();
   void Log(int64_t nalarm);
   bool Counted(int64_t gp) const;
+  // The plan's part of step n at d (0: a classification): its knot, the bodies beyond their
+  // deviation flagged and their pairs made due; past its end, the plan dropped (every pair due).
+  void FollowPlan(const mjModel* m, const mjData* d, int64_t n);
+  void MakeAllDue(int64_t n);
   void FinishWatch();  // a step's or a classification's end: started and version
   void SetExpiry(int64_t p);  // pair p's leaf of the expiry tree, and its path to the root
 
@@ -218,6 +243,15 @@ class DUA_API Runtime {
   std::vector<double> expiry_tree_;
   int64_t expiry_size_ = 0;
   Watched watched_;
+  // The flight plan (none: null), the bodies still within their deviation, and the mjData the
+  // plan's kinematics and MuJoCo's distance queries at knots use.
+  struct DataDeleter {
+    void operator()(mjData* d) const { mj_deleteData(d); }
+  };
+  std::shared_ptr<const Plan> plan_;
+  std::unique_ptr<mjData, DataDeleter> plan_data_;
+  std::vector<uint8_t> plan_ok_, planned_;
+  int64_t plan_breaks_ = 0;
 };
 
 }  // namespace dua

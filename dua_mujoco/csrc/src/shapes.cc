@@ -148,6 +148,10 @@ double Gap(double c0, double c1, double c2, const double* rec, double n[3], doub
 
 }  // namespace
 
+double StaticGap(double c0, double c1, double c2, const double* rec, double n[3], double* scale) {
+  return Gap(c0, c1, c2, rec, n, scale);
+}
+
 double TauStatic(double c0, double c1, double c2, double v0, double v1, double v2,
                  const double* rec, double eps, double accel, double delta) {
   double n[3], scale;

@@ -12,6 +12,7 @@
 #include "internal.h"
 #include "lanes.h"
 #include "layout.h"
+#include "plan.h"
 
 namespace dua {
 namespace {
@@ -360,8 +361,8 @@ double HullSupport(int64_t g, const dua_exact& x, double m0, double m1, double m
   return best;
 }
 
-// Support of geom g at its current pose along n (a mesh over its hull's vertices when MuJoCo
-// has its hull graph, else over its box).
+}  // namespace
+
 double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0, double n1,
                    double n2, int64_t start, int64_t* top) {
   const double* rec = x.geoms + g * kGxNcol;
@@ -387,6 +388,8 @@ double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0,
          SupportLocal(static_cast<int>(rec[kGxKind]), rec[kGxSize], rec[kGxSize + 1],
                       rec[kGxSize + 2], k0, k1, k2);
 }
+
+namespace {
 
 // tau of the pair's separation along unit n (first geom to second):
 // d_n + (n.r - spin) t - delta t - A t^2 / 2, d_n from the supports, r the origins' relative
@@ -521,12 +524,14 @@ double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x,
   return std::max(best, AxisTau(n0, n1, n2, mode, r0, r1, r2, spin, pair, xrec, x, f));
 }
 
-// Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below.
-void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out) {
+// Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below,
+// except where skip[k] (a plan's verdicts; skip null: none).
+void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
+               const uint8_t* skip = nullptr) {
   if (!a.exact.on) return;
   a.exact.contact_count = -1;  // the contacts are indexed at the first look that needs them
   for (int64_t k = 0; k < count; ++k) {
-    if (out[k] < a.exact.below) {
+    if (out[k] < a.exact.below && (skip == nullptr || !skip[k])) {
       const int64_t p = ids[k];
       out[k] =
           ExactTau(a.pairs + p * kPairNcol, a.exact.records + p * kXNcol, out[k], a.exact, a.frame);
@@ -632,7 +637,14 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
   ++a.epoch;
   const int64_t bad = TauRows(a.pairs, a.shapes, FramePoints{a}, ids, count, rows, out);
   if (bad >= 0) return bad;
-  ExactPass(a, ids, count, out);
+  if (a.plan.impl != nullptr) {
+    // A plan's verdict replaces the motion bounds' (its hypothesis is the deviation, not the
+    // bounds): the pairs it covers skip the exact level on the present state.
+    PlanPass(a, ids, count, out);
+    ExactPass(a, ids, count, out, a.plan.planned);
+  } else {
+    ExactPass(a, ids, count, out);
+  }
   return -1;
 }
 

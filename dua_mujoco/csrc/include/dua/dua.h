@@ -1,10 +1,11 @@
 // dua_mujoco's native core: the predictor's per-step kernels, one implementation shared by the
-// Python package (through numba's external calls and ctypes) and the MuJoCo plugin.
+// runtime (src/runtime.h), which the Python package (through the binding dua_mujoco._core) and
+// the MuJoCo plugin run, and C or C++ programs.
 //
 // Every table is a row-major float64 or int64 array owned by the caller; the structs below only
-// point into them. Layouts (columns) are documented where the Python side packs them:
-// pairs: dua_mujoco/core/pairset.py (pack_pairs), spheres: dua_mujoco/mj/kinematics.py,
-// shapes: dua_mujoco/core/shape_kernels.py, exact: dua_mujoco/mj/exact_kernels.py,
+// point into them. Layouts (columns) are stated once in src/layout.h and documented where the
+// Python side packs them: pairs: dua_mujoco/core/pairset.py (pack_pairs), spheres:
+// dua_mujoco/mj/kinematics.py, shapes: dua_mujoco/core/shapes.py, exact: dua_mujoco/mj/exact.py,
 // events: dua_mujoco/mj/events.py, the schedule: dua_mujoco/core/schedules/state.py.
 #ifndef DUA_MUJOCO_DUA_H_
 #define DUA_MUJOCO_DUA_H_
@@ -18,7 +19,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 3
+#define DUA_ABI_VERSION 4
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -133,6 +134,19 @@ typedef struct dua_events {
   const double* params;    // (h, rtol)
 } dua_events;
 
+// A flight plan the step follows (src/plan.h; docs/theory.md, section 8). impl null: none.
+typedef struct dua_plan {
+  const void* impl;        // the dua::Plan
+  int64_t knot;            // the plan's knot at this step
+  const uint8_t* body_ok;  // (nbody,) 0 for a body found beyond its deviation since the plan came
+  const int64_t* geom1;    // (npair,) the geoms of each known pair (the plane or static geom second)
+  const int64_t* geom2;
+  const int* geom_body;  // the model's geom_bodyid
+  void* data;            // an mjData of the model for MuJoCo's distance queries at knots
+  uint8_t* planned;      // (scratch_rows,) which pairs of a batch the plan covered
+  int64_t queries;       // MuJoCo's distance queries at knots so far
+} dua_plan;
+
 typedef struct dua_step_args {
   int64_t abi;  // DUA_ABI_VERSION
   dua_schedule schedule;
@@ -160,6 +174,7 @@ typedef struct dua_step_args {
   int64_t bad;       // >= 0: a held pair whose state was not finite (the step was undone)
   int64_t deferred;  // pairs left over the cap
   int64_t count;     // pairs evaluated
+  dua_plan plan;
 } dua_step_args;
 
 // One step n: the violation check, the selection, the gather, tau at every level, the

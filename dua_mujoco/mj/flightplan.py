@@ -1,0 +1,65 @@
+"""Flight plans as the native runtime reads them: checked joint positions and deviation bounds.
+
+A plan is the motion the caller expects over the coming physics steps (an MPC's or a planner's
+trajectory, or a rollout of known controls: :mod:`dua_mujoco.mj.plans` makes them) and a bound
+on how far every point of each body may stray from where the plan puts it. While it holds, a
+pair's verdict follows the plan instead of the motion bounds (docs/theory.md, section 8).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.exceptions import InvalidInputError, ShapeError
+
+__all__ = ["plan_arrays"]
+
+
+def plan_arrays(
+    model: mujoco.MjModel, qpos: npt.ArrayLike, deviation: npt.ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
+    """A plan's arrays as the runtime reads them, checked.
+
+    Args:
+        model: The model the plan is for.
+        qpos: ``(n, nq)`` planned joint positions, row ``j`` the state ``j`` timesteps after the
+            plan's start.
+        deviation: A bound in metres on the distance of every point of a body's geoms from where
+            the plan puts it: one number, ``(n,)`` (each knot, every body) or ``(n, nbody)``.
+
+    Returns:
+        ``qpos (n, nq)`` and ``deviation (n, nbody)``, float64 and contiguous.
+
+    Raises:
+        ShapeError: The arrays do not fit the model or each other.
+        InvalidInputError: A value is not finite, or a deviation is negative.
+    """
+    q = np.ascontiguousarray(qpos, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != model.nq or q.shape[0] < 1:
+        raise ShapeError(
+            f"qpos has shape {q.shape}; a plan is (n, nq) = (n, {model.nq}) with n >= 1: one "
+            "row of joint positions per physics step from the plan's start."
+        )
+    n, nbody = q.shape[0], model.nbody
+    dev = np.asarray(deviation, dtype=np.float64)
+    if dev.ndim == 0 or (dev.ndim == 1 and dev.shape[0] == n):
+        dev = np.broadcast_to(dev.reshape(-1, 1) if dev.ndim else dev, (n, nbody))
+    if dev.shape != (n, nbody):
+        raise ShapeError(
+            f"deviation has shape {np.shape(deviation)}; pass one number, ({n},) (one per "
+            f"knot) or ({n}, {nbody}) (one per knot and body)."
+        )
+    bad_q = np.argwhere(~np.isfinite(q))
+    if bad_q.size:
+        j, i = (int(v) for v in bad_q[0])
+        raise InvalidInputError(f"qpos[{j}, {i}] = {q[j, i]} is not finite.")
+    bad_d = np.argwhere(~(np.isfinite(dev) & (dev >= 0)))
+    if bad_d.size:
+        j, b = (int(v) for v in bad_d[0])
+        raise InvalidInputError(
+            f"deviation at knot {j} of body {b} ({model.body(b).name!r}) is {dev[j, b]}: pass a "
+            "finite distance >= 0 (0 where the plan is exact)."
+        )
+    return q, np.ascontiguousarray(dev)
