@@ -288,3 +288,28 @@ def test_plans_are_exported_lazily() -> None:
     assert dua_mujoco.deviation_profile is deviation_profile
     assert dua_mujoco.plan_deviation is plan_deviation
     assert dua_mujoco.PilotPlan is PilotPlan
+
+
+# ----------------------------------------------------------------------------- with the predictor
+
+
+def test_a_rolled_plan_is_followed_without_a_break(model: mujoco.MjModel) -> None:
+    # The runtime puts the plan's geoms where mj_kinematics puts them for each row of qpos: for a
+    # plan rolled under the controls the run then applies, that is where mj_step puts them, so a
+    # deviation of 0 holds at every knot. A run that leaves the plan breaks it.
+    d = _settled(model, steps=3)
+    drive = make_controller(model, "smooth", seed=4, hold_steps=40)
+    p = Predictor(model, accel=20.0, alarm_horizon=0.05)
+    p.reset(d)
+    for k in range(1, 201):
+        drive(model, d)
+        mujoco.mj_step(model, d)
+        p.step(d)
+        if k % 10 == 0:
+            p.set_plan(plan_from_controls(model, d, copy.deepcopy(drive), steps=40), deviation=0.0)
+    assert p.has_plan and p.plan_breaks == 0
+    d.ctrl[:] = 0.0  # not the plan's controls
+    for _ in range(30):
+        mujoco.mj_step(model, d)
+        p.step(d)
+    assert p.plan_breaks > 0
