@@ -51,6 +51,8 @@ def candidate_pairs(centers: Annotated[NDArray[numpy.float64], dict(order='C', d
 
 def reaches(radius: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], speed: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], vmax: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], horizon: float) -> NDArray[numpy.float64]: ...
 
+def reach_pairs(anchor: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], reach: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], margin: float, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]: ...
+
 def escapes(anchor: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], speed0: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], vmax: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], elapsed: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]: ...
 
 def sphere_pairs(g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], dist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], index: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], start: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], plane: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], shape: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], radius: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple: ...
@@ -80,6 +82,10 @@ def plugin_standing(model: object, data: object, instance: int) -> object:
     """
 
 def plugin_set_active(model: object, data: object, instance: int, body_a: int, body_b: int, on: bool) -> int: ...
+
+def plugin_set_plan(model: object, data: object, instance: int, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float) -> int: ...
+
+def plugin_clear_plan(model: object, data: object, instance: int) -> int: ...
 
 def plugin_deactivate_contacts(model: object, data: object, instance: int) -> int: ...
 
@@ -408,6 +414,11 @@ class Runtime:
     @property
     def exact_records(self) -> NDArray[numpy.float64]:
         """The exact level's records with the directions learnt: a copy."""
+
+    def reaches(self) -> dict:
+        """
+        Pruned pairs: each sphere's anchor (n, 3), reach (n,), anchor step (n,), and the largest contact distance beyond the radii (copies).
+        """
 
     @property
     def root_twist(self) -> NDArray[numpy.float64]: ...

@@ -25,9 +25,11 @@ from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.mj.flightplan import plan_arrays
 from dua_mujoco.mj.options import PairOptions
 from dua_mujoco.mj.predictor import Predictor
 
@@ -37,9 +39,11 @@ __all__ = [
     "PLUGIN_NAME",
     "PluginOutputs",
     "attach",
+    "clear_plan",
     "deactivate_contacts",
     "plugin_outputs",
     "set_active_bodies",
+    "set_plan",
     "standing_pairs",
 ]
 
@@ -243,6 +247,37 @@ def deactivate_contacts(model: mujoco.MjModel, data: mujoco.MjData, *, prefix: s
         InvalidInputError: The model has no predictor sensor ``prefix``, or no step has run yet.
     """
     return _checked(int(_core.plugin_deactivate_contacts(model, data, _instance(model, prefix))))
+
+
+def set_plan(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    qpos: npt.ArrayLike,
+    *,
+    deviation: npt.ArrayLike,
+    start: float | None = None,
+    prefix: str = "dua",
+) -> None:
+    """Have the plugin follow a flight plan in ``data``, as :meth:`Predictor.set_plan
+    <dua_mujoco.Predictor.set_plan>` does (docs/plans.md). The plugin's step reads the state it
+    runs on, before ``mj_step`` advances the time: a plan rolled from ``data`` starts at its
+    ``time`` (the default ``start``), and its first knot is what the next ``mj_step`` reads. C
+    and C++ programs call ``dua_plugin_set_plan``.
+
+    Raises:
+        InvalidInputError: The model has no predictor sensor ``prefix``, no step has run yet,
+            or the plan is refused (the message names the bad value).
+        ShapeError: ``qpos`` or ``deviation`` do not fit the model.
+    """
+    q, dev = plan_arrays(model, qpos, deviation)
+    start = float(data.time) if start is None else float(start)
+    instance = _instance(model, prefix)
+    _checked(int(_core.plugin_set_plan(model, data, instance, q, dev, start)))
+
+
+def clear_plan(model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "dua") -> None:
+    """Have the plugin stop following its plan in ``data`` (C: ``dua_plugin_clear_plan``)."""
+    _checked(int(_core.plugin_clear_plan(model, data, _instance(model, prefix))))
 
 
 def _checked(result: int) -> int:

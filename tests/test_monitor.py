@@ -71,7 +71,7 @@ def test_episode_accounting_matches_reference(scene: str, period: int) -> None:
     opened: list[dict[int, float]] = []
 
     def record(alarms: object | None) -> None:
-        sched = p.scheduler
+        sched = p.pair_state()
         assert sched is not None
         alarmed = sched.alarm_state() & sched.active
         now = np.zeros(ngp, dtype=bool)
@@ -147,7 +147,7 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
             steps_of = [k]
             kinds["reset_mid"] += 1
         elif rng.random() < 0.05:
-            sched = p.scheduler
+            sched = p.pair_state()
             assert sched is not None
             mid = rng.choice(len(p.pair_set), size=3, replace=False)
             sched.set_active(mid, False)
@@ -156,7 +156,7 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
         mon.observe(d, alarms)
         np.testing.assert_array_equal(mon._standing > 0, _standing_reference(p), f"step {k}")
         assert mon._pred_steps.tolist() == steps_of, f"step {k}"  # what a miss's window starts from
-        sched = p.scheduler
+        sched = p.pair_state()
         assert sched is not None
         ids = rng.choice(len(p.pair_set), size=3, replace=False)
         r = rng.random()
@@ -205,7 +205,7 @@ def test_alarm_and_contact_fractions_match_a_per_step_reference(period: int) -> 
         mujoco.mj_step(m, d)
         alarms = p.step(d) if k % period == 0 else None
         mon.observe(d, alarms)
-        sched = p.scheduler
+        sched = p.pair_state()
         assert sched is not None
         if alarms is not None:
             active = {int(g) for g in gp_of[sched.active]}

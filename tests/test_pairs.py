@@ -379,11 +379,9 @@ def test_pair_tables_equal_a_loop_over_geom_pairs(scene: str) -> None:
     """The native expansion, bounds and exact records (one implementation, which the plugin's
     pruned pairs use too) equal a plain loop over the geom pairs: sphere pairs in order (each
     geom pair's, the sphere-covered geom's spheres first), eps, summed bounds, exact modes."""
-    from dua_mujoco.mj.exact_kernels import GX_KIND, ExactMode
-
     from dua_mujoco.core.pairset import PairKind
     from dua_mujoco.mj.bounds import MotionBounds
-    from dua_mujoco.mj.exact import build_exact
+    from dua_mujoco.mj.exact import GX_KIND, ExactMode, build_exact
     from dua_mujoco.mj.pairbounds import bounded_pairs
     from dua_mujoco.mj.scenes import load_scene
 

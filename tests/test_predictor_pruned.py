@@ -6,6 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
+from dua_mujoco import _core
+from dua_mujoco.core.pruned import escapes
 from dua_mujoco.core.schedules import DeadlineScheduler
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.options import PairOptions
@@ -135,15 +137,24 @@ def test_bin_pour_flags_every_onset_through_a_pile_of_impacts(pairs: str) -> Non
         assert 0 < predictor.renewals < report.bound_violations // 10
 
 
-def _one_ball_held():
-    """A pruned predictor's ``HeldPairs`` for one ball, its bounds to be set by the test."""
-    m = mujoco.MjModel.from_xml_string(
-        "<mujoco><worldbody><body><freejoint/><geom size='0.1'/></body>"
-        "<body pos='1 0 0'><freejoint/><geom size='0.1'/></body></worldbody></mujoco>"
+def _escaped(
+    anchor: float,
+    s0: float,
+    accel: float,
+    delta: float,
+    speed: float,
+    t: float,
+    center: np.ndarray,
+    velocity: np.ndarray,
+) -> bool:
+    """Whether the pruned step's escape test (``csrc/src/reach.cc``) flags one sphere anchored
+    at ``(anchor, 0, 0)`` with measured speed ``s0`` then, ``t`` seconds on."""
+    one = np.ones(1)
+    c, v = (np.asarray(x, dtype=float).reshape(1, 3) for x in (center, velocity))
+    out = escapes(
+        c, v, np.array([[anchor, 0.0, 0.0]]), s0 * one, accel * one, delta * one, speed * one, t
     )
-    p = Predictor(m, accel=1.0, pairs="pruned")
-    assert p._held is not None
-    return p._held
+    return out.tolist() == [0]
 
 
 from hypothesis import assume, given, settings  # noqa: E402
@@ -166,13 +177,7 @@ def test_a_sphere_the_escape_check_passes_stays_within_its_reach(
     inside the reach, at any speed it allows, the true velocity within ``delta`` of the
     measured one), followed by any motion within the acceleration bound, stays within the reach
     ``(s0 + delta) t + A t^2 / 2`` of the anchor for the rest of the horizon."""
-    held = _one_ball_held()
     rng = np.random.default_rng(seed)
-    held.anchor[0] = 0.0
-    held.speed0[0] = s0
-    held.accel[0] = accel
-    held.vel_uncertainty[0] = delta
-    held.speed[0] = np.inf
 
     def reach(t: float) -> float:
         return (s0 + delta) * t + 0.5 * accel * t * t
@@ -185,7 +190,7 @@ def test_a_sphere_the_escape_check_passes_stays_within_its_reach(
     # looser check, e.g. a measured speed up to s0 + 2 delta + A t, lets some out).
     x = unit() * 1.2 * frac * reach(tau)
     measured = unit() * (s0 + accel * tau + 2.0 * delta) * rng.uniform(0.8, 1.05)
-    assume(not held.escaped(np.array([0]), x[None], measured[None], tau).size)
+    assume(not _escaped(0.0, s0, accel, delta, np.inf, tau, x, measured))
     v = measured + unit() * delta  # the true velocity, at the edge of the uncertainty
     # Any motion within the bound: piecewise-constant accelerations, the worst one (straight
     # away from the anchor) among them.
@@ -199,20 +204,15 @@ def test_a_sphere_the_escape_check_passes_stays_within_its_reach(
 
 
 def test_the_escape_check_flags_a_sphere_out_of_its_reach_or_too_fast() -> None:
-    held = _one_ball_held()
-    held.anchor[0], held.speed0[0], held.accel[0], held.vel_uncertainty[0] = 0.0, 1.0, 2.0, 0.0
-    held.speed[0] = np.inf
-
-    def escaped(center: list[float], velocity: list[float]) -> bool:
-        out = held.escaped(np.array([0]), np.array([center]), np.array([velocity]), 0.05)
-        return out.tolist() == [0]
+    def escaped(center: list[float], velocity: list[float], speed: float = np.inf) -> bool:
+        return _escaped(0.0, 1.0, 2.0, 0.0, speed, 0.05, np.array(center), np.array(velocity))
 
     assert not escaped([0.05, 0, 0], [1.0, 0, 0])  # reach at 0.05 s: 0.0525 m; speed: 1.1 m/s
     assert escaped([0.06, 0, 0], [1.0, 0, 0])  # too far
     assert escaped([0.0, 0, 0], [0, 1.2, 0])  # too fast
-    held.speed[0] = 1.05  # a speed bound: the reach is V t at most, the speed V - delta
-    assert escaped([0.0, 0, 0], [1.06, 0, 0])
-    assert escaped([0.0526, 0, 0], [0, 0, 0])
+    # A speed bound: the reach is V t at most, the speed V - delta.
+    assert escaped([0.0, 0, 0], [1.06, 0, 0], speed=1.05)
+    assert escaped([0.0526, 0, 0], [0, 0, 0], speed=1.05)
 
 
 def _arrays(obj: object, depth: int = 2) -> list[np.ndarray]:
@@ -244,7 +244,7 @@ def test_a_pruned_run_holds_nothing_the_size_of_all_pairs() -> None:
     assert report.pairs == total == 1500 * 1499 // 2 + 1500 * 6
     bound = 20 * (p.nsphere + p.nsphere_pairs)
     assert bound < total / 5  # the check below could fail
-    holders = [p, p.universe, p._held, monitors[0], report]
+    holders = [p, p.universe, monitors[0], report]
     sizes = [a.size for h in holders for a in _arrays(h)]
     assert sizes and max(sizes) <= bound, max(sizes)
 
@@ -255,62 +255,59 @@ def test_every_pair_whose_reaches_meet_is_held_through_renewals() -> None:
     pair whose reach balls, each from its own anchor, come within the margin (what the
     completeness proof of docs/many-objects.md rests on), and a pair not held was left out at
     the later anchor of its two spheres."""
+    from dua_mujoco.core.neighbors import ROUNDING_SLACK
+    from dua_mujoco.mj.pairfilter import FilterTables, dynamic_mask
+
     m, d = load_scene("bin_pour:60")
     p = Predictor(m, accel=5.0, pairs="pruned")
     p.reset(d)
-    carry, carried = p._carry, []
-    p._carry = lambda ids, step: carried.append(step) or carry(ids, step)  # type: ignore[method-assign]
-    held = p._held
-    assert held is not None
-    n = held.nsphere
+    rules = FilterTables.of(m)
+    geom = p.covering.sphere_geom
+    n = p.nsphere
     upper = np.triu(np.ones((n, n), dtype=bool), 1)
     for _ in range(200):
         mujoco.mj_step(m, d)
         p.step(d)
-        gap = held.anchor[:, None, :] - held.anchor[None, :, :]
-        s = held.reach[:, None] + held.reach[None, :] + held.margin
-        i, j = np.nonzero(upper & (np.einsum("ijk,ijk->ij", gap, gap) <= s * s))
-        due = held._known(np.stack([i, j], axis=1))
-        assert np.isin(due, p.held_pairs).all()
-        out = np.setdiff1d(np.arange(p.nsphere_pairs), p.held_pairs)
+        r = p._rt.reaches()
+        gap = r["anchor"][:, None, :] - r["anchor"][None, :, :]
+        s = r["reach"][:, None] + r["reach"][None, :] + r["margin"]
+        i, j = np.nonzero(upper & (np.einsum("ijk,ijk->ij", gap, gap) <= s * s * ROUNDING_SLACK))
+        # The pairs MuJoCo's filter lets through are known and held; the rest it rejects.
         sp = p.sphere_pairs
-        want = np.maximum(held.built[sp.first[out]], held.built[sp.second[out]])
+        known = {
+            (int(a), int(b)): k for k, (a, b) in enumerate(zip(sp.first, sp.second, strict=True))
+        }
+        ids = np.array(
+            [known.get((a, b), known.get((b, a), -1)) for a, b in zip(i, j, strict=True)]
+        )
+        assert not dynamic_mask(rules, geom[i[ids < 0]], geom[j[ids < 0]]).any()
+        assert np.isin(ids[ids >= 0], p.held_pairs).all()
+        out = np.setdiff1d(np.arange(p.nsphere_pairs), p.held_pairs)
+        want = np.maximum(r["built"][sp.first[out]], r["built"][sp.second[out]])
         np.testing.assert_array_equal(p.pair_state().last_step_of(out), want)
-    assert p.rebuilds == 200 // p.stride and len(carried) > p.rebuilds + 20
+    assert p.rebuilds == 200 // p.stride and p.renewals > 20
 
 
 @pytest.mark.parametrize("seed", range(4))
 def test_reach_pairs_equal_a_brute_force_reference(seed: int) -> None:
-    """``dua_reach_pairs``: every pair of a listed sphere (listed twice, or both members
-    listed, still once) whose anchored reaches meet under the grid's contract, and no other;
-    the count comes back in full when the output is too small for it."""
-    import ctypes
-
+    """``dua_reach_pairs`` (the renewal's search): every pair of a listed sphere (listed twice,
+    or both members listed, still once) whose anchored reaches meet under the grid's contract,
+    and no other."""
     from dua_mujoco.core.neighbors import ROUNDING_SLACK
-    from dua_mujoco.native import declare
 
-    m, _ = load_scene("swarm:200")
-    held = Predictor(m, accel=2.0, pairs="pruned")._held
-    assert held is not None
     rng = np.random.default_rng(seed)
-    n = held.nsphere
-    held.anchor[:] = rng.uniform(-1, 1, (n, 3))
-    held.anchor[1] = held.anchor[0]  # coincident centres
-    held.reach[:] = rng.uniform(0.0, 0.3, n)
+    n, margin = 200, 0.01
+    anchor = rng.uniform(-1, 1, (n, 3))
+    anchor[1] = anchor[0]  # coincident centres
+    reach = rng.uniform(0.0, 0.3, n)
     ids = np.concatenate([rng.choice(n, 12, replace=False), [0, 1, 0]]).astype(np.int64)
-    p, i8 = ctypes.c_void_p, ctypes.c_int64
-    f = declare({"dua_reach_pairs": (i8, [p, p, i8, p, i8])}).dua_reach_pairs
-    small = np.zeros((2, 2), dtype=np.int64)
-    count = f(held._ref, ids.ctypes.data, ids.size, small.ctypes.data, 2)
-    out = np.zeros((count, 2), dtype=np.int64)
-    assert f(held._ref, ids.ctypes.data, ids.size, out.ctypes.data, count) == count
+    out = _core.reach_pairs(anchor, reach, margin, ids)
     want = set()
     for i in set(ids.tolist()):
         for j in range(n):
-            dx = held.anchor[i] - held.anchor[j]
-            s = (held.reach[i] + held.reach[j]) + held.margin
+            dx = anchor[i] - anchor[j]
+            s = (reach[i] + reach[j]) + margin
             if j != i and dx @ dx <= s * s * ROUNDING_SLACK:
                 want.add((min(i, j), max(i, j)))
     got = [tuple(r) for r in out.tolist()]
-    assert len(got) == len(set(got)) and set(got) == want and count > 2
-    np.testing.assert_array_equal(small, out[:2])
+    assert len(got) == len(set(got)) and set(got) == want and len(got) > 2

@@ -285,9 +285,9 @@ def test_most_urgent_is_bucket_zero() -> None:
 
 
 def reference_interval(tau: float, dt: float, latency: int, max_interval: int) -> int:
-    """The largest s in [1, max_interval] with (s + latency) dt <= tau, by counting up."""
+    """The largest s in [1, max_interval] with (s + latency) dt < tau, by counting up."""
     s = 1
-    while s < max_interval and (s + 1 + latency) * dt <= tau:
+    while s < max_interval and (s + 1 + latency) * dt < tau:
         s += 1
     return s
 
@@ -386,15 +386,16 @@ def test_deadline_matches_reference(
 def test_deadline_interval_is_the_latest_safe_step() -> None:
     dt = 0.002
     s = DeadlineScheduler(np.array([0.0, 0.0039, 0.004, 0.0101, np.inf]), dt=dt, latency=1)
-    # (s + 1) dt <= tau: 0.004 allows s = 1; 0.0101 allows s = 4; inf the longest interval.
+    # (s + 1) dt < tau: 0.004 allows no s (it alarms: a verdict must cover the wait strictly);
+    # 0.0101 allows s = 4; inf the longest interval.
     np.testing.assert_array_equal(s.next_due(np.arange(5)), [1, 1, 1, 4, 1024])
-    np.testing.assert_array_equal(s.initial_alarms, [0, 1])
+    np.testing.assert_array_equal(s.initial_alarms, [0, 1, 2])
     # A verdict computed in floating point never allows more than its tau covers, including
     # at the exact multiples of dt where the division rounds.
     taus = np.concatenate([np.linspace(0.0, 0.1, 2001), np.arange(1, 50) * dt])
     t = DeadlineScheduler(taus, dt=dt, latency=1)
     due = t.next_due(np.arange(taus.size))
-    assert ((taus < 2 * dt) | ((due + 1) * dt <= taus)).all()
+    assert ((taus <= 2 * dt) | ((due + 1) * dt < taus)).all()
     assert (due == [reference_interval(float(x), dt, 1, 1024) for x in taus]).all()
 
 
@@ -415,7 +416,7 @@ def test_deadline_backs_off_a_pair_that_keeps_alarming() -> None:
     while not (ids := s.select()).size:
         s.update(ids, np.zeros(0))
     assert s.step_count + 1 == 47
-    s.update(ids, [0.05])
+    s.update(ids, [0.051])
     assert not s.alarm_state([0])[0]
     assert s.next_due([0])[0] == 47 + 5
     with pytest.raises(InvalidInputError, match="alarm_backoff"):

@@ -81,7 +81,7 @@ def test_defaults_build_data_controller_and_predictor() -> None:
 
 
 def test_never_alarming_predictor_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A predictor whose alarm horizons are all 0 never alarms: every onset is a valid miss.
+    """A predictor whose alarm horizons are all -1 never alarms: every onset is a valid miss.
 
     The paper's schedule alarms against its horizons only (the deadline schedule's standing
     alarms follow its due steps), so zeroing them silences it.
@@ -93,7 +93,7 @@ def test_never_alarming_predictor_is_caught(monkeypatch: pytest.MonkeyPatch) -> 
     def reset_without_horizon(data: mujoco.MjData) -> Alarms:
         alarms = reset(data)
         assert broken.scheduler is not None
-        broken.scheduler.state.horizon[:] = 0.0  # tau < 0 never holds: no alarm, ever
+        broken.scheduler.state.horizon[:] = -1.0  # tau <= -1 never holds: no alarm, ever
         return alarms
 
     monkeypatch.setattr(broken, "reset", reset_without_horizon)
@@ -383,7 +383,7 @@ def test_plugin_fixture_fails_on_missed_collision(pytester: pytest.Pytester) -> 
 
                 def never_alarm(d):
                     out = reset(d)
-                    p.scheduler.state.horizon[:] = 0.0
+                    p.scheduler.state.horizon[:] = -1.0
                     return out
 
                 p.reset = never_alarm

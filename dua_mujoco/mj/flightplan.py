@@ -8,13 +8,15 @@ pair's verdict follows the plan instead of the motion bounds (docs/theory.md, se
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
-__all__ = ["plan_arrays"]
+__all__ = ["governing_violations", "plan_arrays"]
 
 
 def plan_arrays(
@@ -63,3 +65,24 @@ def plan_arrays(
             "finite distance >= 0 (0 where the plan is exact)."
         )
     return q, np.ascontiguousarray(dev)
+
+
+def governing_violations(runtime: Any, broke_bounds: np.ndarray) -> np.ndarray:
+    """The bodies whose governing hypothesis broke at the state the runtime is bound to: the
+    plan's deviation for a body the plan still holds (its pairs' verdicts follow the plan, and a
+    motion bound it broke, a foreseen impact, is no violation of them), the motion bounds for
+    the rest (``broke_bounds``, the run monitor's check). A body beyond its deviation is one.
+
+    Args:
+        runtime: The predictor's ``dua_mujoco._core.Runtime``, bound to the state checked.
+        broke_bounds: ``(k,)`` bodies whose motion bounds broke at that state.
+
+    Returns:
+        ``(k',)`` int64 body ids, increasing.
+    """
+    beyond = runtime.plan_broken() if runtime.has_plan else None
+    if beyond is None:
+        return np.asarray(broke_bounds, dtype=np.int64)
+    held = np.asarray(runtime.plan_ok)
+    bounds = np.asarray(broke_bounds, dtype=np.int64)
+    return np.union1d(bounds[~held[bounds]], np.asarray(beyond, dtype=np.int64))

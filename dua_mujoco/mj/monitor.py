@@ -6,13 +6,11 @@ the active set that is in ``d.contact`` now and was not at the previous physics 
 *predicted* when, at that instant, some sphere pair of that geom pair stands alarmed, i.e. its
 latest evaluation (at or before the onset) raised an alarm: exactly the completeness theorem's
 claim (docs/theory.md). A miss is *valid-bounds* when neither body broke its declared bounds
-between that latest evaluation and the onset, so the theorem's hypotheses held and the miss
-would be a bug. It is *in a violation's period* when one of the two bodies broke its bounds
-after the latest predictor step at or before the onset (two steps with pruned pairs), which had
-no chance to renew the pair's verdict: the one exception of the guarantee with violations as
-events (docs/theory.md, section 6). Every other miss is a bug.
-Each onset's lead (how long an alarm had stood for it) and the oracle (the pairs that do touch
-within a horizon) are counted by :class:`~dua_mujoco.mj.warning_time.WarningTime`.
+(under a flight plan: its deviation) between that latest evaluation and the onset, so the
+theorem's hypotheses held and the miss would be a bug. It is *in a violation's period* when one
+of the two bodies broke them after the latest predictor step at or before the onset (two steps
+with pruned pairs): the one exception of the guarantee with violations as events (docs/theory.md,
+section 6). Each onset's lead and the oracle are counted by :class:`WarningTime`.
 
 ``run`` drives a rollout (controller, ``mj_step``, predictor every ``period`` steps, monitor) and
 returns a ``RunReport``.
@@ -31,6 +29,7 @@ from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
 from dua_mujoco.mj.accumulators import Durations, Growing, Series, StepMap
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.checks import BoundMonitor
+from dua_mujoco.mj.flightplan import governing_violations
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.report import Miss, RunInterrupted, RunReport, build_report
 from dua_mujoco.mj.tables import same_geometry
@@ -393,6 +392,7 @@ class Monitor:
         self._mark_contacts(data)
         if self.bound_checks is not None:
             broke = self.bound_checks.update(self.model, data)
+            broke = governing_violations(self.predictor._rt, broke)  # a plan's, under one
             if broke.size:
                 self.last_violation[broke] = self.physics_step
                 self.violations += int(broke.size)

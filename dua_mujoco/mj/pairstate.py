@@ -16,6 +16,7 @@ import numpy.typing as npt
 
 from dua_mujoco._core import LAYOUT
 from dua_mujoco.core.pairset import PairKind
+from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.universe import PairUniverse
 
 __all__ = ["PairState"]
@@ -61,6 +62,20 @@ class PairState:
     def active(self) -> np.ndarray:
         """``(npairs,)`` bool, pairs switched on."""
         return np.asarray(self._rt.on)
+
+    def set_active(self, pairs: npt.ArrayLike, on: bool) -> None:
+        """Switch model pairs ``pairs`` off or back on (:meth:`Predictor.set_active_bodies` does
+        it for a body's pairs). A pair switched back on stands in alarm until the next step
+        evaluates it; a pruned pair not held now stays switched for when it is.
+
+        Raises:
+            InvalidInputError: A pair id is out of range.
+        """
+        ids = np.atleast_1d(np.asarray(pairs, dtype=np.int64)).reshape(-1)
+        if ids.size and (ids.min() < 0 or ids.max() >= self.npairs):
+            bad = ids[(ids < 0) | (ids >= self.npairs)][:8].tolist()
+            raise InvalidInputError(f"pair ids must be in [0, {self.npairs}); got {bad}.")
+        self._rt.switch(ids, bool(on))
 
     @property
     def last_selected(self) -> np.ndarray:

@@ -300,7 +300,7 @@ class Predictor:
 
     def _step_error(self, data: mujoco.MjData, error: BaseException) -> Exception:
         """The error a failed native step stands for (``_core.StepError``'s ``(kind, value)``)."""
-        kind, value = error.args[0]
+        kind, value = error.args
         if kind == "unclassified":
             return SchedulerError("step() before reset(): call predictor.reset(data) first.")
         if kind == "clock":

@@ -3,6 +3,8 @@
 // the kernels the Python side builds tables with or tests hold to their references. Python
 // checks the arguments it hands over (shapes, ranges, names in errors); this module checks
 // again every index it follows, so that no call can read out of bounds.
+#include "bindings.h"
+
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/pair.h>
@@ -21,7 +23,6 @@
 #include <utility>
 #include <vector>
 
-#include "bindings.h"
 #include "dua/dua.h"
 #include "internal.h"
 #include "layout.h"
@@ -90,8 +91,8 @@ void CheckShapes(const In<double>& shapes) {
   Require(Size(shapes) == n * kShapeNcol, "shape records must be (n, 16)");
   for (int64_t i = 0; i < n; ++i) {
     const double k = shapes.data()[kShapeNcol * i + kShapeKind];
-    Require(k >= kGeomSphere && k <= kGeomMeshBox, "shape record " + std::to_string(i) +
-                                                      " has no known kind");
+    Require(k >= kGeomSphere && k <= kGeomMeshBox,
+            "shape record " + std::to_string(i) + " has no known kind");
   }
 }
 
@@ -150,8 +151,9 @@ std::pair<Out<double>, int64_t> TauFree(const In<double>& pairs, const In<int64_
                     ((kind == kKindSphere && r[kPairSecond] >= 0 && r[kPairSecond] < nsphere) ||
                      (kind == kKindHalfspace && r[kPairSecond] >= 0 && r[kPairSecond] < nplane) ||
                      (kind == kKindShape && r[kPairOther] >= 0 && r[kPairOther] < nshape));
-    Require(ok, "pair record " + std::to_string(p) + " indexes outside the spheres, planes or "
-                                                     "shapes given");
+    Require(ok, "pair record " + std::to_string(p) +
+                    " indexes outside the spheres, planes or "
+                    "shapes given");
   }
   for (int64_t k = 0; k < n; ++k) {
     Require(ids.data()[k] >= 0 && ids.data()[k] < m, "a pair id is out of range");
@@ -187,8 +189,8 @@ dua_frame FrameOfArrays(const In<double>& pos, const In<double>& mat, const In<d
                     std::to_string(ngeom) + " frames and " + std::to_string(nbody) +
                     " bodies: pass the MjData of the model the spheres were built for");
   }
-  return {pos.data(), mat.data(), twist.data(), twist_ref.data(), root_twist.data(),
-          root_origin.data()};
+  return {pos.data(),       mat.data(),        twist.data(),
+          twist_ref.data(), root_twist.data(), root_origin.data()};
 }
 
 Out<double> RigidPoints(const In<double>& points, const In<double>& pos, const In<double>& mat,
@@ -233,8 +235,8 @@ struct Filter {
   dua_filter f{};
 
   Filter(const In<int64_t>& b, const In<int64_t>& w, const In<int64_t>& pw, const In<uint8_t>& mv,
-         const In<int64_t>& ct, const In<int64_t>& ca, const In<uint8_t>& ln,
-         const In<int64_t>& ex, bool filterparent)
+         const In<int64_t>& ct, const In<int64_t>& ca, const In<uint8_t>& ln, const In<int64_t>& ex,
+         bool filterparent)
       : body(b.data(), b.data() + b.size()),
         weld(w.data(), w.data() + w.size()),
         parent_weld(pw.data(), pw.data() + pw.size()),
@@ -294,8 +296,7 @@ Out<int64_t> CandidatePairs(const In<double>& centers, const In<double>& reach, 
   Require(Size(centers) == 3 * n, "centres must be (n, 3), one a reach");
   if (n < 2) return Owned(std::vector<int64_t>{}, {0, 2});
   double lo[3], hi[3];
-  Require(dua_grid_bounds(centers.data(), n, lo, hi) < 0,
-          "a centre is NaN, inf or beyond 1e150 m");
+  Require(dua_grid_bounds(centers.data(), n, lo, hi) < 0, "a centre is NaN, inf or beyond 1e150 m");
   dua_grid_plan plan{};
   std::vector<int64_t> held(256);
   std::vector<double> work(n);
@@ -327,6 +328,27 @@ Out<double> Reaches(const In<double>& radius, const In<double>& speed, const In<
   return Owned(std::move(out), {static_cast<size_t>(n)});
 }
 
+// Candidate pairs (k, 2) of spheres ids against every sphere by anchors (n, 3) and reaches (n,):
+// the pruned step's own search (dua_reach_pairs), for tests.
+Out<int64_t> ReachPairs(const In<double>& anchor, const In<double>& reach, double margin,
+                        const In<int64_t>& ids) {
+  const int64_t nsphere = Size(reach), n = Size(ids);
+  Require(Size(anchor) == 3 * nsphere, "anchor must be (n, 3) for reach (n,)");
+  for (int64_t k = 0; k < n; ++k) {
+    Require(ids.data()[k] >= 0 && ids.data()[k] < nsphere, "a sphere id is out of range");
+  }
+  dua_reach r{};
+  r.nsphere = nsphere;
+  r.anchor = const_cast<double*>(anchor.data());  // read only
+  r.reach = const_cast<double*>(reach.data());
+  r.margin = margin;
+  const int64_t count = dua_reach_pairs(&r, ids.data(), n, nullptr, 0);
+  std::vector<int64_t> out(2 * static_cast<size_t>(std::max<int64_t>(count, 1)));
+  Require(dua_reach_pairs(&r, ids.data(), n, out.data(), count) == count, "the pairs changed");
+  out.resize(2 * static_cast<size_t>(count));
+  return Owned(std::move(out), {static_cast<size_t>(count), 2});
+}
+
 // The spheres of ids (n,) that may have left the reach from anchors (Lemma 6.4): the step's own
 // escape test (reach.cc), for free spheres.
 Out<int64_t> Escapes(const In<double>& anchor, const In<double>& speed0, const In<double>& accel,
@@ -353,8 +375,8 @@ Out<int64_t> Escapes(const In<double>& anchor, const In<double>& speed0, const I
   r.reach = none.data();
   r.built = built.data();
   std::vector<int64_t> out(std::max<int64_t>(n, 1));
-  const int64_t count = dua_escapes(&r, ids.data(), n, centers.data(), velocities.data(),
-                                    elapsed.data(), out.data());
+  const int64_t count =
+      dua_escapes(&r, ids.data(), n, centers.data(), velocities.data(), elapsed.data(), out.data());
   out.resize(count);
   return Owned(std::move(out), {static_cast<size_t>(count)});
 }
@@ -369,8 +391,7 @@ nb::tuple SpherePairs(const In<int64_t>& g1, const In<int64_t>& g2, const In<dou
           "the geom pairs' arrays must have one entry a pair");
   Require(Size(start) == ngeom + 1 && Size(shape) == ngeom, "per-geom arrays of the covering");
   for (int64_t k = 0; k < ngp; ++k) {
-    Require(g1.data()[k] >= 0 && g1.data()[k] < ngeom && g2.data()[k] >= 0 &&
-                g2.data()[k] < ngeom,
+    Require(g1.data()[k] >= 0 && g1.data()[k] < ngeom && g2.data()[k] >= 0 && g2.data()[k] < ngeom,
             "a geom id is out of range");
   }
   for (int64_t g = 0; g <= ngeom; ++g) {
@@ -384,9 +405,9 @@ nb::tuple SpherePairs(const In<int64_t>& g1, const In<int64_t>& g2, const In<dou
   std::vector<int64_t> first(n), second(n), gp(n);
   std::vector<int8_t> kind(n);
   std::vector<double> eps(n);
-  dua_sphere_pairs(g1.data(), g2.data(), dist.data(), index.data(), ngp, start.data(),
-                   plane.data(), shape.data(), radius.data(), n, first.data(), second.data(),
-                   kind.data(), gp.data(), eps.data());
+  dua_sphere_pairs(g1.data(), g2.data(), dist.data(), index.data(), ngp, start.data(), plane.data(),
+                   shape.data(), radius.data(), n, first.data(), second.data(), kind.data(),
+                   gp.data(), eps.data());
   const auto sn = static_cast<size_t>(n);
   return nb::make_tuple(Owned(std::move(first), {sn}), Owned(std::move(second), {sn}),
                         Owned(std::move(kind), {sn}), Owned(std::move(gp), {sn}),
@@ -423,15 +444,13 @@ nb::tuple PairBounds(const In<int64_t>& first, const In<int64_t>& second, const 
                         Owned(std::move(s), {sn}));
 }
 
-std::pair<Out<double>, Out<double>> ContactDistance(const In<double>& margin,
-                                                    const In<double>& gap, const In<int64_t>& g1,
-                                                    const In<int64_t>& g2, bool override_margin,
-                                                    double o_margin) {
+std::pair<Out<double>, Out<double>> ContactDistance(const In<double>& margin, const In<double>& gap,
+                                                    const In<int64_t>& g1, const In<int64_t>& g2,
+                                                    bool override_margin, double o_margin) {
   const int64_t n = Size(g1), ngeom = Size(margin);
   Require(Size(g2) == n && Size(gap) == ngeom, "per-geom margins and gaps, per-pair geoms");
   for (int64_t k = 0; k < n; ++k) {
-    Require(g1.data()[k] >= 0 && g1.data()[k] < ngeom && g2.data()[k] >= 0 &&
-                g2.data()[k] < ngeom,
+    Require(g1.data()[k] >= 0 && g1.data()[k] < ngeom && g2.data()[k] >= 0 && g2.data()[k] < ngeom,
             "a geom id is out of range");
   }
   std::vector<double> m(n), g(n);
@@ -452,16 +471,14 @@ Out<double> ExactRows(const In<double>& geoms, const In<int64_t>& geom1, const I
             "a geom id is out of range");
   }
   std::vector<double> out(static_cast<size_t>(kXNcol * n));
-  dua_exact_rows(geoms.data(), geom1.data(), geom2.data(), kind.data(), dist.data(), n,
-                 out.data());
+  dua_exact_rows(geoms.data(), geom1.data(), geom2.data(), kind.data(), dist.data(), n, out.data());
   return Owned(std::move(out), {static_cast<size_t>(n), static_cast<size_t>(kXNcol)});
 }
 
 // ------------------------------------------------------------------------------- schedules
 
-ScheduleSpec SpecOf(int64_t kind, double dt, int64_t latency, int64_t slots_per_bucket,
-                    int64_t cap, int64_t max_interval, int64_t backoff, double threshold,
-                    double alarm_horizon) {
+ScheduleSpec SpecOf(int64_t kind, double dt, int64_t latency, int64_t slots_per_bucket, int64_t cap,
+                    int64_t max_interval, int64_t backoff, double threshold, double alarm_horizon) {
   ScheduleSpec s;
   s.kind = kind, s.dt = dt, s.latency = latency, s.slots_per_bucket = slots_per_bucket;
   s.cap = cap, s.max_interval = max_interval, s.backoff = backoff, s.threshold = threshold;
@@ -509,8 +526,8 @@ void BindSchedule(nb::module_& m) {
           [](Schedule* self, int64_t kind, double dt, int64_t latency, const In<double>& tau0,
              nb::object active, int64_t slots_per_bucket, int64_t cap, int64_t max_interval,
              int64_t backoff, double threshold, double alarm_horizon) {
-            const ScheduleSpec spec = SpecOf(kind, dt, latency, slots_per_bucket, cap,
-                                             max_interval, backoff, threshold, alarm_horizon);
+            const ScheduleSpec spec = SpecOf(kind, dt, latency, slots_per_bucket, cap, max_interval,
+                                             backoff, threshold, alarm_horizon);
             std::vector<double> tau(tau0.data(), tau0.data() + tau0.size());
             for (const double t : tau) Require(!std::isnan(t), "tau0 holds NaN");
             std::vector<uint8_t> on;
@@ -524,20 +541,22 @@ void BindSchedule(nb::module_& m) {
           "kind"_a, "dt"_a, "latency"_a, "tau0"_a, nb::arg("active").none() = nb::none(),
           "slots_per_bucket"_a = 1, "cap"_a = 0, "max_interval"_a = 1024, "backoff"_a = 8,
           "threshold"_a = 0.0, "alarm_horizon"_a = 0.0)
-      .def("carried",
-           [](const Schedule& old, const In<int64_t>& src, int64_t n) {
-             const int64_t m = Size(src);
-             for (int64_t k = 0; k < m; ++k) {
-               Require(src.data()[k] >= -1 && src.data()[k] < old.m(),
-                       "src names a pair the schedule does not have");
-             }
-             Require(old.spec().kind == kDeadline, "only the deadline schedule carries pairs");
-             auto next = std::make_shared<Schedule>(old.spec(), m);
-             next->Carry(old, std::vector<int64_t>(src.data(), src.data() + m), n);
-             return next;
-           },
-           "src"_a, "n"_a, "A schedule of the pairs src (old ids, -1: new, due at step n).")
-      .def("select", [](Schedule& s, int64_t n) { return dua_select(s.state(), n); }, "n"_a)
+      .def(
+          "carried",
+          [](const Schedule& old, const In<int64_t>& src, int64_t n) {
+            const int64_t m = Size(src);
+            for (int64_t k = 0; k < m; ++k) {
+              Require(src.data()[k] >= -1 && src.data()[k] < old.m(),
+                      "src names a pair the schedule does not have");
+            }
+            Require(old.spec().kind == kDeadline, "only the deadline schedule carries pairs");
+            auto next = std::make_shared<Schedule>(old.spec(), m);
+            next->Carry(old, std::vector<int64_t>(src.data(), src.data() + m), n);
+            return next;
+          },
+          "src"_a, "n"_a, "A schedule of the pairs src (old ids, -1: new, due at step n).")
+      .def(
+          "select", [](Schedule& s, int64_t n) { return dua_select(s.state(), n); }, "n"_a)
       .def(
           "reinsert",
           [](Schedule& s, int64_t n, int64_t count) {
@@ -545,13 +564,16 @@ void BindSchedule(nb::module_& m) {
             return dua_reinsert(s.state(), n, count);
           },
           "n"_a, "count"_a)
-      .def("restore", [](Schedule& s, int64_t n, int64_t count) { dua_restore(s.state(), n, count); },
-           "n"_a, "count"_a)
+      .def(
+          "restore",
+          [](Schedule& s, int64_t n, int64_t count) { dua_restore(s.state(), n, count); }, "n"_a,
+          "count"_a)
       .def(
           "switch",
           [](Schedule& s, const In<int64_t>& ids, bool on, int64_t n_next) {
             CheckIds(s, ids);
-            const int64_t changed = dua_switch(s.state(), ids.data(), Size(ids), on ? 1 : 0, n_next);
+            const int64_t changed =
+                dua_switch(s.state(), ids.data(), Size(ids), on ? 1 : 0, n_next);
             if (changed) ++s.activation_changes;
             return changed;
           },
@@ -569,28 +591,28 @@ void BindSchedule(nb::module_& m) {
            [](const Schedule& s) {
              std::vector<uint8_t> out(s.m());
              for (int64_t p = 0; p < s.m(); ++p) out[p] = s.Stands(p);
-                      auto* held = new std::vector<uint8_t>(std::move(out));
+             auto* held = new std::vector<uint8_t>(std::move(out));
              if (held->empty()) held->reserve(1);
-             nb::capsule owner(held, [](void* q) noexcept {
-               delete static_cast<std::vector<uint8_t>*>(q);
-             });
+             nb::capsule owner(
+                 held, [](void* q) noexcept { delete static_cast<std::vector<uint8_t>*>(q); });
              const size_t shape[1] = {static_cast<size_t>(s.m())};
              return Out<bool>(reinterpret_cast<bool*>(held->data()), 1, shape, owner);
            })
-      .def("horizon_of",
-           [](const Schedule& s, const In<int64_t>& ids) {
-             CheckIds(s, ids);
-             std::vector<double> out(Size(ids));
-             for (int64_t k = 0; k < Size(ids); ++k) out[k] = s.HorizonOf(ids.data()[k]);
-             return Owned(std::move(out), {static_cast<size_t>(Size(ids))});
-           },
-           "ids"_a)
+      .def(
+          "horizon_of",
+          [](const Schedule& s, const In<int64_t>& ids) {
+            CheckIds(s, ids);
+            std::vector<double> out(Size(ids));
+            for (int64_t k = 0; k < Size(ids); ++k) out[k] = s.HorizonOf(ids.data()[k]);
+            return Owned(std::move(out), {static_cast<size_t>(Size(ids))});
+          },
+          "ids"_a)
       .def_prop_ro("kind", [](const Schedule& s) { return s.spec().kind; })
       .def_prop_ro("dt", [](const Schedule& s) { return s.spec().dt; })
       .def_prop_ro("latency", [](const Schedule& s) { return s.spec().latency; })
-      .def_prop_ro("alarm_horizon",
-                   [](const Schedule& s) { return s.spec().dt + s.Extra(); },
-                   "The alarm horizon, seconds (one period by default).")
+      .def_prop_ro(
+          "alarm_horizon", [](const Schedule& s) { return s.spec().dt + s.Extra(); },
+          "The alarm horizon, seconds (one period by default).")
       .def_rw("step_count", &Schedule::step_count)
       .def_rw("activation_changes", &Schedule::activation_changes)
       .def_prop_ro("last_tau",
@@ -601,8 +623,8 @@ void BindSchedule(nb::module_& m) {
       .def_prop_ro("active",
                    [](nb::handle h) {
                      auto& s = nb::cast<Schedule&>(h);
-                     return View<bool>(reinterpret_cast<bool*>(s.active.data()),
-                                       {s.active.size()}, h);
+                     return View<bool>(reinterpret_cast<bool*>(s.active.data()), {s.active.size()},
+                                       h);
                    })
       .def_prop_ro("ints",
                    [](nb::handle h) {
@@ -652,7 +674,7 @@ struct Alarms {
 };
 
 template <class T>
-nb::ndarray<nb::numpy, const T> SpanOf(nb::handle self, std::vector<T> AlarmLog::*field) {
+nb::ndarray<nb::numpy, const T> SpanOf(nb::handle self, std::vector<T> AlarmLog::* field) {
   auto& a = nb::cast<Alarms&>(self);
   const size_t n = static_cast<size_t>(a.stop - a.start);
   return nb::ndarray<nb::numpy, const T>(((*a.log).*field).data() + a.start, {n}, self);
@@ -665,10 +687,12 @@ void BindAlarms(nb::module_& m) {
       .def_ro("time", &Alarms::time, "data.time when read.")
       .def_ro("deferred", &Alarms::deferred,
               "Pairs due this step but left for a later one (max_evals_per_step reached).")
-      .def_prop_ro("pairs", [](nb::handle h) { return SpanOf(h, &AlarmLog::pair); },
-                   "(k,) sphere-pair ids that raised an alarm.")
-      .def_prop_ro("tau", [](nb::handle h) { return SpanOf(h, &AlarmLog::tau); },
-                   "(k,) their tau (seconds).")
+      .def_prop_ro(
+          "pairs", [](nb::handle h) { return SpanOf(h, &AlarmLog::pair); },
+          "(k,) sphere-pair ids that raised an alarm.")
+      .def_prop_ro(
+          "tau", [](nb::handle h) { return SpanOf(h, &AlarmLog::tau); },
+          "(k,) their tau (seconds).")
       .def_prop_ro(
           "new",
           [](nb::handle h) {
@@ -678,14 +702,18 @@ void BindAlarms(nb::module_& m) {
                 reinterpret_cast<const bool*>(a.log->fresh.data() + a.start), {n}, h);
           },
           "(k,) bool: alarms this step raised, as opposed to ones standing from before.")
-      .def_prop_ro("geom1", [](nb::handle h) { return SpanOf(h, &AlarmLog::geom1); },
-                   "(k,) first geom of each alarmed pair.")
-      .def_prop_ro("geom2", [](nb::handle h) { return SpanOf(h, &AlarmLog::geom2); },
-                   "(k,) second geom (a plane geom for half-space pairs).")
-      .def_prop_ro("sphere1", [](nb::handle h) { return SpanOf(h, &AlarmLog::sphere1); },
-                   "(k,) first sphere of each alarmed pair.")
-      .def_prop_ro("sphere2", [](nb::handle h) { return SpanOf(h, &AlarmLog::sphere2); },
-                   "(k,) second sphere, -1 for half-space and static shape pairs.")
+      .def_prop_ro(
+          "geom1", [](nb::handle h) { return SpanOf(h, &AlarmLog::geom1); },
+          "(k,) first geom of each alarmed pair.")
+      .def_prop_ro(
+          "geom2", [](nb::handle h) { return SpanOf(h, &AlarmLog::geom2); },
+          "(k,) second geom (a plane geom for half-space pairs).")
+      .def_prop_ro(
+          "sphere1", [](nb::handle h) { return SpanOf(h, &AlarmLog::sphere1); },
+          "(k,) first sphere of each alarmed pair.")
+      .def_prop_ro(
+          "sphere2", [](nb::handle h) { return SpanOf(h, &AlarmLog::sphere2); },
+          "(k,) second sphere, -1 for half-space and static shape pairs.")
       .def_prop_ro(
           "names",
           [](const Alarms& a) {
@@ -839,16 +867,15 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           },
           nb::sig("def step(self) -> Alarms"),
           "One predictor step on the bound MjData, one period after the last.")
-      .def("clock_of",
-           [](const PyRuntime& self, double time) {
-             return static_cast<int>(self.rt->ClockOf(time));
-           })
+      .def("clock_of", [](const PyRuntime& self,
+                          double time) { return static_cast<int>(self.rt->ClockOf(time)); })
       .def(
           "switch",
           [](PyRuntime& self, const In<int64_t>& pairs, bool on) {
             const int64_t n = self.rt->universe().npair();
             std::vector<int64_t> ids(pairs.data(), pairs.data() + pairs.size());
-            for (const int64_t p : ids) Require(p >= 0 && p < n, "a sphere pair id is out of range");
+            for (const int64_t p : ids)
+              Require(p >= 0 && p < n, "a sphere pair id is out of range");
             self.rt->Switch(ids, on);
           },
           "pairs"_a, "on"_a)
@@ -955,13 +982,14 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           },
           "ignored_geoms"_a, "ignored_pairs"_a,
           "Count, from now on, the geom pairs with no ignored geom and not ignored themselves.")
-      .def_prop_ro("watched",
-                   [](const PyRuntime& s) {
-                     const Runtime::Watched& w = s.rt->watched();
-                     return nb::make_tuple(w.standing, w.started, w.expiry, w.version);
-                   },
-                   "(counted geom pairs standing, of them started at the latest step, least "
-                   "expiry: tau + the time of its step since the reset, version).")
+      .def_prop_ro(
+          "watched",
+          [](const PyRuntime& s) {
+            const Runtime::Watched& w = s.rt->watched();
+            return nb::make_tuple(w.standing, w.started, w.expiry, w.version);
+          },
+          "(counted geom pairs standing, of them started at the latest step, least "
+          "expiry: tau + the time of its step since the reset, version).")
       .def(
           "watched_standing",
           [](const PyRuntime& s) {
@@ -981,11 +1009,11 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
               Require(p >= 0 && p < static_cast<int64_t>(self.rt->ids().size()),
                       "a held pair is out of range");
             }
-            return Owned(self.rt->ExactOnly(self.m, self.Data(), v,
-                                            std::vector<double>(coarse.data(),
-                                                                coarse.data() + coarse.size()),
-                                            query_below),
-                         {v.size()});
+            return Owned(
+                self.rt->ExactOnly(
+                    self.m, self.Data(), v,
+                    std::vector<double>(coarse.data(), coarse.data() + coarse.size()), query_below),
+                {v.size()});
           },
           "ids"_a, "coarse"_a, "query_below"_a,
           "For tests: the exact level alone on held pairs ids (records as built), nothing kept.")
@@ -1000,13 +1028,14 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "For tests: the violation check of the bound MjData on a copy of its state: (flagged "
           "rows, the state after, (ceil(nbody / 4), 40, 4) flat).")
       .def(
-          "set_escape_check", [](PyRuntime& self, bool on) { self.rt->SetEscapeCheck(on); },
-          "on"_a, "For tests: pruned pairs without the escape check (what it guards).")
+          "set_escape_check", [](PyRuntime& self, bool on) { self.rt->SetEscapeCheck(on); }, "on"_a,
+          "For tests: pruned pairs without the escape check (what it guards).")
       .def_prop_ro("classified", [](const PyRuntime& s) { return s.rt->classified(); })
       .def_prop_ro("step_count", [](const PyRuntime& s) { return s.rt->step(); })
       .def_prop_ro("last_time", [](const PyRuntime& s) { return s.rt->last_time(); })
       .def_prop_ro("schedule", [](const PyRuntime& s) { return s.rt->schedule(); })
-      .def_prop_ro("ids", [](const PyRuntime& s) { return Ints(s.rt->ids()); }, nb::rv_policy::move)
+      .def_prop_ro(
+          "ids", [](const PyRuntime& s) { return Ints(s.rt->ids()); }, nb::rv_policy::move)
       .def_prop_ro("held_version", [](const PyRuntime& s) { return s.rt->held_version(); })
       .def_prop_ro("universe_version", [](const PyRuntime& s) { return s.rt->universe_version(); })
       .def_prop_ro("npair", [](const PyRuntime& s) { return s.rt->universe().npair(); })
@@ -1029,38 +1058,43 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             return out;
           },
           "The pairs known now (copies): records, geom pairs and the exact level's records.")
-      .def_prop_ro("on",
-                   [](const PyRuntime& s) { return OwnedBools(s.rt->on()); }, nb::rv_policy::move)
-      .def_prop_ro("standing",
-                   [](const PyRuntime& s) {
-                     std::vector<int64_t> out;
-                     const std::vector<uint8_t>& st = s.rt->stands();
-                     for (size_t k = 0; k < st.size(); ++k) {
-                       if (st[k]) out.push_back(s.rt->ids()[k]);
-                     }
-                     return Ints(out);
-                   },
-                   "Model pair ids standing in alarm now, sorted.", nb::rv_policy::move)
+      .def_prop_ro(
+          "on", [](const PyRuntime& s) { return OwnedBools(s.rt->on()); }, nb::rv_policy::move)
+      .def_prop_ro(
+          "standing",
+          [](const PyRuntime& s) {
+            std::vector<int64_t> out;
+            const std::vector<uint8_t>& st = s.rt->stands();
+            for (size_t k = 0; k < st.size(); ++k) {
+              if (st[k]) out.push_back(s.rt->ids()[k]);
+            }
+            return Ints(out);
+          },
+          "Model pair ids standing in alarm now, sorted.", nb::rv_policy::move)
       .def_prop_ro("nstanding", [](const PyRuntime& s) { return s.rt->nstanding(); })
       .def_prop_ro("min_tau", [](const PyRuntime& s) { return s.rt->min_tau(); })
       .def_prop_ro("evaluated", [](const PyRuntime& s) { return s.rt->evaluated(); })
       .def_prop_ro("deferred", [](const PyRuntime& s) { return s.rt->deferred(); })
-      .def_prop_ro("flagged_bodies", [](const PyRuntime& s) { return Ints(s.rt->FlaggedBodies()); }, nb::rv_policy::move)
+      .def_prop_ro(
+          "flagged_bodies", [](const PyRuntime& s) { return Ints(s.rt->FlaggedBodies()); },
+          nb::rv_policy::move)
       .def_prop_ro("flagged", [](const PyRuntime& s) { return s.rt->flagged(); })
       .def_prop_ro("violation_events", [](const PyRuntime& s) { return s.rt->violation_events(); })
       .def_prop_ro("rebuilds", [](const PyRuntime& s) { return s.rt->rebuilds(); })
       .def_prop_ro("renewals", [](const PyRuntime& s) { return s.rt->renewals(); })
       .def_prop_ro("mocap_updates", [](const PyRuntime& s) { return s.rt->mocap_updates(); })
-      .def_prop_ro("anchor_steps", [](const PyRuntime& s) { return Ints(s.rt->anchor_steps()); }, nb::rv_policy::move)
-      .def_prop_ro("mocap_velocity",
-                   [](PyRuntime& s) {
-                     const auto n = static_cast<size_t>(s.m->nmocap);
-                     return nb::make_tuple(
-                         Owned(std::vector<double>(s.rt->mocap_linear()), {n, 3}),
-                         Owned(std::vector<double>(s.rt->mocap_angular()), {n, 3}),
-                         Owned(std::vector<uint8_t>(s.rt->mocap_user()), {n}));
-                   },
-                   "(linear (nmocap, 3), angular (nmocap, 3), given (nmocap,)): copies.")
+      .def_prop_ro(
+          "anchor_steps", [](const PyRuntime& s) { return Ints(s.rt->anchor_steps()); },
+          nb::rv_policy::move)
+      .def_prop_ro(
+          "mocap_velocity",
+          [](PyRuntime& s) {
+            const auto n = static_cast<size_t>(s.m->nmocap);
+            return nb::make_tuple(Owned(std::vector<double>(s.rt->mocap_linear()), {n, 3}),
+                                  Owned(std::vector<double>(s.rt->mocap_angular()), {n, 3}),
+                                  Owned(std::vector<uint8_t>(s.rt->mocap_user()), {n}));
+          },
+          "(linear (nmocap, 3), angular (nmocap, 3), given (nmocap,)): copies.")
       .def_prop_ro(
           "exact_records",
           [](const PyRuntime& s) {
@@ -1069,9 +1103,27 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             return Owned(std::vector<double>(r), {r.size() / ncol, ncol});
           },
           nb::rv_policy::move, "The exact level's records with the directions learnt: a copy.")
-      .def_prop_ro("root_twist", [](const PyRuntime& s) {
-        return Owned(std::vector<double>(s.rt->root_twist()), {static_cast<size_t>(s.m->nbody), 6});
-      }, nb::rv_policy::move);
+      .def(
+          "reaches",
+          [](const PyRuntime& s) {
+            const PrunedState& ps = s.rt->pruned_state();
+            const size_t n = ps.reach.size();
+            nb::dict out;
+            out["anchor"] = Owned(std::vector<double>(ps.anchor), {n, 3});
+            out["reach"] = Owned(std::vector<double>(ps.reach), {n});
+            out["built"] = Ints(ps.built);
+            out["margin"] = s.rt->tables().held.margin;
+            return out;
+          },
+          "Pruned pairs: each sphere's anchor (n, 3), reach (n,), anchor step (n,), and the "
+          "largest contact distance beyond the radii (copies).")
+      .def_prop_ro(
+          "root_twist",
+          [](const PyRuntime& s) {
+            return Owned(std::vector<double>(s.rt->root_twist()),
+                         {static_cast<size_t>(s.m->nbody), 6});
+          },
+          nb::rv_policy::move);
 }
 
 }  // namespace
@@ -1084,11 +1136,11 @@ NB_MODULE(_core, m) {
   for (int64_t i = 0; dua_layout_name(i); ++i) layout[dua_layout_name(i)] = dua_layout_value(i);
   m.attr("LAYOUT") = layout;
   m.attr("TABLES_VERSION") = kTablesVersion;
-  m.def("structure_hash", [](nb::handle model) { return StructureHash(ModelOf(model)); },
-        "model"_a, "FNV-1a of geom_type, geom_bodyid, body_parentid (what the tables check).");
+  m.def(
+      "structure_hash", [](nb::handle model) { return StructureHash(ModelOf(model)); }, "model"_a,
+      "FNV-1a of geom_type, geom_bodyid, body_parentid (what the tables check).");
 
-  m.def("tau_speed_batch", &TauSpeedBatch, "x"_a, "v"_a, "eps"_a, "accel"_a, "delta"_a,
-        "speed"_a);
+  m.def("tau_speed_batch", &TauSpeedBatch, "x"_a, "v"_a, "eps"_a, "accel"_a, "delta"_a, "speed"_a);
   m.def("tau_halfspace_batch", &TauHalfspaceBatch, "gap"_a, "vn"_a, "accel"_a, "delta"_a);
   m.def("tau_static_batch", &TauStaticBatch, "centers"_a, "velocities"_a, "shapes"_a, "ids"_a,
         "eps"_a, "accel"_a, "delta"_a);
@@ -1118,8 +1170,8 @@ NB_MODULE(_core, m) {
       "points"_a, "shapes"_a, "ids"_a);
   m.def("tau_free", &TauFree, "pairs"_a, "ids"_a, "centers"_a, "velocities"_a, "planes"_a,
         "shapes"_a);
-  m.def("deadline_interval", &dua_deadline_interval, "tau"_a, "dt"_a, "latency"_a,
-        "max_interval"_a, "extra"_a = 0.0);
+  m.def("deadline_interval", &dua_deadline_interval, "tau"_a, "dt"_a, "latency"_a, "max_interval"_a,
+        "extra"_a = 0.0);
   m.def(
       "exceeds12",
       [](const In<double>& q, double bound) {
@@ -1152,12 +1204,12 @@ NB_MODULE(_core, m) {
                     (twist.size() == 0 || static_cast<int64_t>(twist.size()) == 6 * mm->nbody),
                 "the mocap arrays do not fit the bodies");
         const mjData* d = DataOf(data);
-        dua_difference_poses(d->xpos, d->xquat, bodies.data(), n, prev_pos.data(),
-                             prev_quat.data(), dt, user.data(), linear.data(), angular.data(),
-                             twist.data(), static_cast<int64_t>(twist.size() / 6));
+        dua_difference_poses(d->xpos, d->xquat, bodies.data(), n, prev_pos.data(), prev_quat.data(),
+                             dt, user.data(), linear.data(), angular.data(), twist.data(),
+                             static_cast<int64_t>(twist.size() / 6));
       },
-      "data"_a, "bodies"_a, "prev_pos"_a, "prev_quat"_a, "dt"_a, "user"_a, "linear"_a,
-      "angular"_a, "twist"_a, "model"_a);
+      "data"_a, "bodies"_a, "prev_pos"_a, "prev_quat"_a, "dt"_a, "user"_a, "linear"_a, "angular"_a,
+      "twist"_a, "model"_a);
   m.def(
       "index_by_row",
       [](const In<int64_t>& row_of_geom, const In<int64_t>& g1, const In<int64_t>& g2,
@@ -1183,6 +1235,7 @@ NB_MODULE(_core, m) {
       "The runtime's index of held pairs by the violation check's rows: (start, members).");
   m.def("candidate_pairs", &CandidatePairs, "centers"_a, "reach"_a, "margin"_a);
   m.def("reaches", &Reaches, "radius"_a, "speed"_a, "accel"_a, "delta"_a, "vmax"_a, "horizon"_a);
+  m.def("reach_pairs", &ReachPairs, "anchor"_a, "reach"_a, "margin"_a, "ids"_a);
   m.def("escapes", &Escapes, "anchor"_a, "speed0"_a, "accel"_a, "delta"_a, "vmax"_a, "ids"_a,
         "centers"_a, "velocities"_a, "elapsed"_a);
   m.def("sphere_pairs", &SpherePairs, "g1"_a, "g2"_a, "dist"_a, "index"_a, "start"_a, "plane"_a,
@@ -1195,10 +1248,10 @@ NB_MODULE(_core, m) {
 
   nb::class_<Filter>(m, "Filter", "MuJoCo's dynamic pair filter over per-geom tables.")
       .def(nb::init<const In<int64_t>&, const In<int64_t>&, const In<int64_t>&, const In<uint8_t>&,
-                    const In<int64_t>&, const In<int64_t>&, const In<uint8_t>&,
-                    const In<int64_t>&, bool>(),
-           "body"_a, "weld"_a, "parent_weld"_a, "movable"_a, "contype"_a, "conaffinity"_a,
-           "lone"_a, "exclude"_a, "filterparent"_a)
+                    const In<int64_t>&, const In<int64_t>&, const In<uint8_t>&, const In<int64_t>&,
+                    bool>(),
+           "body"_a, "weld"_a, "parent_weld"_a, "movable"_a, "contype"_a, "conaffinity"_a, "lone"_a,
+           "exclude"_a, "filterparent"_a)
       .def("mask", &Filter::Mask, "g1"_a, "g2"_a)
       .def("all", &Filter::All)
       .def("count", &Filter::Count, "weight"_a)
@@ -1232,6 +1285,31 @@ NB_MODULE(_core, m) {
       },
       "model"_a, "data"_a, "instance"_a, "body_a"_a, "body_b"_a, "on"_a);
   m.def(
+      "plugin_set_plan",
+      [](nb::handle model, nb::handle data, int instance, const In<double>& qpos,
+         const In<double>& deviation, double start) {
+        const mjModel* mm = ModelOf(model);
+        Require(qpos.ndim() == 2 && static_cast<int64_t>(qpos.shape(1)) == mm->nq,
+                "qpos must be (n, nq)");
+        const auto n = static_cast<int64_t>(qpos.shape(0));
+        Require(deviation.ndim() == 2 && static_cast<int64_t>(deviation.shape(0)) == n &&
+                    static_cast<int64_t>(deviation.shape(1)) == mm->nbody,
+                "deviation must be (n, nbody)");
+        char error[512] = {0};
+        const int64_t r =
+            dua_plugin_set_plan(mm, const_cast<mjData*>(DataOf(data)), instance, qpos.data(), n,
+                                deviation.data(), start, error, sizeof(error));
+        if (r == -3) Raise("InvalidInputError", std::string(error) + ".");
+        return r;
+      },
+      "model"_a, "data"_a, "instance"_a, "qpos"_a, "deviation"_a, "start"_a);
+  m.def(
+      "plugin_clear_plan",
+      [](nb::handle model, nb::handle data, int instance) {
+        return dua_plugin_clear_plan(ModelOf(model), const_cast<mjData*>(DataOf(data)), instance);
+      },
+      "model"_a, "data"_a, "instance"_a);
+  m.def(
       "plugin_deactivate_contacts",
       [](nb::handle model, nb::handle data, int instance) {
         return dua_plugin_deactivate_contacts(ModelOf(model), const_cast<mjData*>(DataOf(data)),
@@ -1241,8 +1319,8 @@ NB_MODULE(_core, m) {
 
   BindSchedule(m);
   BindAlarms(m);
-  nb::object step_error = nb::steal(
-      PyErr_NewException("dua_mujoco._core.StepError", PyExc_RuntimeError, nullptr));
+  nb::object step_error =
+      nb::steal(PyErr_NewException("dua_mujoco._core.StepError", PyExc_RuntimeError, nullptr));
   m.attr("StepError") = step_error;
   BindRuntime(m, step_error);
   BindCore(m);

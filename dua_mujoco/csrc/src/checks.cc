@@ -12,8 +12,7 @@ extern "C" {
 int64_t dua_check_points(const double* points, int64_t n, const dua_frame* f, const double* prev,
                          double* cur, int64_t nprev, double h, const double* accel,
                          const double* disc_bound, const double* speed_bound,
-                         const uint8_t* check_disc, double rtol, double* values,
-                         uint8_t* broken) {
+                         const uint8_t* check_disc, double rtol, double* values, uint8_t* broken) {
   constexpr double kEps = std::numeric_limits<double>::epsilon();
   enum { kSpeed = 0, kDisc = 1, kAcc = 2 };
   int64_t count = 0;

@@ -59,9 +59,8 @@ double SphereGap(const double* rec, const double* spheres, const double* shapes,
   }
   if (kind == kKindShape) {
     double n[3], scale;
-    const double gap = StaticGap(a[0], a[1], a[2],
-                                 shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol, n,
-                                 &scale);
+    const double gap = StaticGap(
+        a[0], a[1], a[2], shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol, n, &scale);
     return gap - eps - kGapSlack * (scale + eps);
   }
   double b[3];
@@ -185,7 +184,8 @@ std::string Plan::Build(const mjModel* m, mjData* s, const double* qpos, int64_t
   for (int64_t j = 0; j < n; ++j) {
     const double* q = qpos + nq * j;
     for (int64_t i = 0; i < nq; ++i) {
-      if (!std::isfinite(q[i])) return "holds a qpos that is not finite (knot " + std::to_string(j) + ")";
+      if (!std::isfinite(q[i]))
+        return "holds a qpos that is not finite (knot " + std::to_string(j) + ")";
     }
     std::copy_n(q, nq, s->qpos);
     mj_kinematics(m, s);
@@ -223,11 +223,11 @@ void Plan::Check(const mjModel* m, const mjData* d, int64_t k, std::vector<int64
   const size_t first = broken->size();
   for (int64_t g = 0; g < ngeom_; ++g) {
     const int64_t b = m->geom_bodyid[g];
-    const double moved = Displacement(d->geom_xpos + 3 * g, d->geom_xmat + 9 * g, p + 3 * g,
-                                      r + 9 * g, m->geom_rbound[g], m->geom_type[g] == mjGEOM_PLANE);
-    if (moved > dev(k, b) &&
-        std::find(broken->begin() + static_cast<std::ptrdiff_t>(first), broken->end(), b) ==
-            broken->end()) {
+    const double moved =
+        Displacement(d->geom_xpos + 3 * g, d->geom_xmat + 9 * g, p + 3 * g, r + 9 * g,
+                     m->geom_rbound[g], m->geom_type[g] == mjGEOM_PLANE);
+    if (moved > dev(k, b) && std::find(broken->begin() + static_cast<std::ptrdiff_t>(first),
+                                       broken->end(), b) == broken->end()) {
       broken->push_back(b);
     }
   }

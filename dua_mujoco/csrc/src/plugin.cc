@@ -45,7 +45,9 @@ enum Output {
 };
 
 struct Instance {
-  Instance(std::shared_ptr<const Tables> t, const mjModel* m) : rt(std::move(t), m) {}
+  Instance(std::shared_ptr<const Tables> t, const mjModel* m) : rt(std::move(t), m) {
+    rt.SetReadLag(0);  // the compute reads the state of d->time (mj_step has not advanced it)
+  }
   Runtime rt;
   int sensor_adr = -1;
   bool overlay = true;
@@ -77,7 +79,6 @@ bool SubtreeVelUnused(const mjModel* m) {
   }
   return true;
 }
-
 
 // Reads the instance's attributes and tables; null after a warning naming what is wrong.
 Instance* Create(const mjModel* m, int instance) {
@@ -133,7 +134,7 @@ void Compute(const mjModel* m, mjData* d, int instance) {
   Runtime& rt = in->rt;
   if (rt.classified()) {
     switch (rt.ClockOf(d->time)) {
-      case Runtime::Clock::kSame:  // an mj_forward at the same instant: the outputs stand
+      case Runtime::Clock::kSame:          // an mj_forward at the same instant: the outputs stand
       case Runtime::Clock::kWithinPeriod:  // within the period: the next step comes at its end
         break;
       case Runtime::Clock::kOnePeriod:
@@ -197,7 +198,6 @@ void Visualize(const mjModel* m, mjData* d, mjvScene* scn, int instance) {
     Decor(geom);
   }
 }
-
 
 void Register() {
   // Another copy of this library (a second install of the package) registered it already:
@@ -299,6 +299,30 @@ DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance,
   in->rt.Switch(ids, on != 0);
   dua::Publish(d, in);
   return static_cast<int64_t>(ids.size());
+}
+
+DUA_API int64_t dua_plugin_set_plan(const mjModel* m, mjData* d, int instance, const double* qpos,
+                                    int64_t n, const double* deviation, double start, char* error,
+                                    int64_t error_size) {
+  dua::Instance* in = dua::Find(m, d, instance);
+  if (!in) return -1;
+  if (!in->rt.classified()) return -2;
+  const std::string why = in->rt.SetPlan(m, qpos, n, deviation, start);
+  if (why.empty()) return 0;
+  if (error != nullptr && error_size > 0) {
+    const std::string message = "the plan " + why;
+    const size_t len = std::min(message.size(), static_cast<size_t>(error_size - 1));
+    std::copy_n(message.data(), len, error);
+    error[len] = '\0';
+  }
+  return -3;
+}
+
+DUA_API int64_t dua_plugin_clear_plan(const mjModel* m, mjData* d, int instance) {
+  dua::Instance* in = dua::Find(m, d, instance);
+  if (!in) return -1;
+  in->rt.ClearPlan();
+  return 0;
 }
 
 DUA_API int64_t dua_plugin_deactivate_contacts(const mjModel* m, mjData* d, int instance) {

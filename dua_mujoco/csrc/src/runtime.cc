@@ -96,7 +96,8 @@ Runtime::Runtime(const Runtime& o)
       held_version_(o.held_version_),
       plan_(o.plan_),  // immutable: shared; the mjData it is queried on is made when needed
       plan_ok_(o.plan_ok_),
-      plan_breaks_(o.plan_breaks_) {
+      plan_breaks_(o.plan_breaks_),
+      read_lag_(o.read_lag_) {
   NewLog();  // never append to another run's log
 }
 
@@ -132,10 +133,10 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
   for (int64_t k = 0; k < n; ++k) g1[k] = u.geom1[held[k]], g2[k] = u.geom2[held[k]];
   held_start_.resize(t.nbody_events + 1);
   held_members_.resize(std::max<int64_t>(2 * n, 1));
-  held_members_.resize(std::max<int64_t>(
-      dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
-                       held_start_.data(), held_members_.data()),
-      1));
+  held_members_.resize(
+      std::max<int64_t>(dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
+                                         held_start_.data(), held_members_.data()),
+                        1));
   scratch_.assign(12 * static_cast<size_t>(std::max<int64_t>(n, 1)), 0.0);
   stands_.assign(n, 0);
   ++held_version_;
@@ -159,11 +160,10 @@ void Runtime::StartMocap(const mjData* d) {
 
 void Runtime::DifferenceMocap(const mjData* d, double elapsed) {
   if (mocap_bodies_.empty()) return;
-  dua_difference_poses(d->xpos, d->xquat, mocap_bodies_.data(),
-                       static_cast<int64_t>(mocap_bodies_.size()), mocap_pos_.data(),
-                       mocap_quat_.data(), elapsed, mocap_user_.data(), mocap_linear_.data(),
-                       mocap_angular_.data(), root_twist_.data(),
-                       static_cast<int64_t>(root_twist_.size() / 6));
+  dua_difference_poses(
+      d->xpos, d->xquat, mocap_bodies_.data(), static_cast<int64_t>(mocap_bodies_.size()),
+      mocap_pos_.data(), mocap_quat_.data(), elapsed, mocap_user_.data(), mocap_linear_.data(),
+      mocap_angular_.data(), root_twist_.data(), static_cast<int64_t>(root_twist_.size() / 6));
   ++mocap_updates_;
 }
 
@@ -251,8 +251,7 @@ std::string Runtime::SetPlan(const mjModel* m, const double* qpos, int64_t n, co
   auto plan = std::make_shared<Plan>();
   std::string error = plan->Build(m, plan_data_.get(), qpos, n, dev, start, m->opt.timestep);
   if (!error.empty()) return error;
-  // The next step reads the state MuJoCo's step started from.
-  const double next = last_time_ + tables_->schedule.dt - m->opt.timestep;
+  const double next = last_time_ + tables_->schedule.dt - read_lag_ * m->opt.timestep;
   if (plan->KnotOf(next) < 0) {
     return "does not cover the state the next step reads (time " + std::to_string(next) +
            "): start it at or before that time, on a whole number of timesteps from it, with " +
@@ -280,7 +279,7 @@ void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
   if (!plan_) return;
   // A classification (n = 0) evaluates every pair anyway, on a schedule it makes afresh.
   const bool due = n > 0;
-  const int64_t k = plan_->KnotOf(d->time - m->opt.timestep);
+  const int64_t k = plan_->KnotOf(StateTime(m, d));
   if (k < 0) {
     // Past the plan (or a clock the plan does not know): the bounds alone from here on.
     plan_.reset();
@@ -308,7 +307,7 @@ void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
 
 std::vector<int64_t> Runtime::PlanBroken(const mjModel* m, const mjData* d) const {
   std::vector<int64_t> out;
-  const int64_t k = plan_ ? plan_->KnotOf(d->time - m->opt.timestep) : -1;
+  const int64_t k = plan_ ? plan_->KnotOf(StateTime(m, d)) : -1;
   if (k < 0) return {-1};
   plan_->Check(m, d, k, &out);
   return out;
@@ -506,8 +505,7 @@ bool Runtime::Prune(const mjModel* m, const mjData* d, int64_t n) {
   } else if (escaped) {
     std::vector<int64_t> found;
     if (!ps.Renew(t.held, learn(), &own_, args_, n, &found)) return false;
-    std::set_union(ids_.begin(), ids_.end(), found.begin(), found.end(),
-                   std::back_inserter(held));
+    std::set_union(ids_.begin(), ids_.end(), found.begin(), found.end(), std::back_inserter(held));
     carry = held.size() > ids_.size();  // some pair is new
     ++renewals_;
   }
@@ -653,8 +651,7 @@ std::vector<int64_t> Runtime::GeomPairIds(const std::vector<int64_t>& g1,
     return missing;
   };
   std::vector<int64_t> out(n);
-  if (lookup(&out) && tables_->pruned &&
-      own_.Learn(learn(), g1.data(), g2.data(), n) > 0) {
+  if (lookup(&out) && tables_->pruned && own_.Learn(learn(), g1.data(), g2.data(), n) > 0) {
     Learnt();
     lookup(&out);
   }
@@ -699,8 +696,8 @@ std::vector<double> Runtime::ExactOnly(const mjModel* m, const mjData* d,
 }
 
 std::pair<std::vector<int64_t>, std::vector<double>> Runtime::CheckBodiesCopy(const mjModel* m,
-                                                                             const mjData* d,
-                                                                             bool lanes) {
+                                                                              const mjData* d,
+                                                                              bool lanes) {
   std::vector<double> prev = events_prev_;
   std::vector<int64_t> meta = events_meta_, flagged = events_flagged_;
   dua_step_args a = Bind(m, d);

@@ -31,8 +31,13 @@ namespace dua {
 // holds it (Python's Alarms do).
 struct DUA_API AlarmLog {
   explicit AlarmLog(int64_t capacity)
-      : pair(capacity), geom1(capacity), geom2(capacity), sphere1(capacity), sphere2(capacity),
-        tau(capacity), fresh(capacity) {}
+      : pair(capacity),
+        geom1(capacity),
+        geom2(capacity),
+        sphere1(capacity),
+        sphere2(capacity),
+        tau(capacity),
+        fresh(capacity) {}
   int64_t capacity() const { return static_cast<int64_t>(pair.size()); }
   // The model pair, its geoms (the plane or static geom second), its spheres (-1: none), tau,
   // and whether the alarm is new (the pair did not stand in alarm before the step).
@@ -102,12 +107,18 @@ class DUA_API Runtime {
   // Flight plans (plan.h): qpos (n, nq), row j the state at time start + j h (h the model's
   // timestep), and dev (n, nbody), each body's deviation bound at each knot. Every held pair is
   // evaluated again at the next step, under the plan. The plan must cover the state the next
-  // step reads (the state MuJoCo's step started from: d->time - h). Returns an error message
-  // naming the bad input, or "".
+  // step reads (StateTime). Returns an error message naming the bad input, or "".
   std::string SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
                       double start);
   // Back to the motion bounds alone (every held pair evaluated again at the next step).
   void ClearPlan();
+  // How many timesteps the state a step reads lags d->time: 1 after mj_step (Python's Predictor,
+  // whose state is the one MuJoCo's step started from), 0 inside mj_step (the plugin's compute,
+  // before time advances). Plans place their knots by it.
+  void SetReadLag(int steps) { read_lag_ = steps; }
+  double StateTime(const mjModel* m, const mjData* d) const {
+    return d->time - read_lag_ * m->opt.timestep;
+  }
   bool has_plan() const { return plan_ != nullptr; }
   const Plan* plan() const { return plan_.get(); }
   // Bodies found beyond their deviation since the plan came (their pairs follow the bounds).
@@ -130,7 +141,7 @@ class DUA_API Runtime {
   // The violation check of d's state on a copy of its state, four bodies at a time or one at a
   // time (the reference the lanes are held to): the flagged rows and the state written after.
   std::pair<std::vector<int64_t>, std::vector<double>> CheckBodiesCopy(const mjModel* m,
-                                                                      const mjData* d, bool lanes);
+                                                                       const mjData* d, bool lanes);
   // Pruned pairs: whether the step looks for escaped spheres (on; off only to show what the
   // check guards).
   void SetEscapeCheck(bool on) { escape_check_ = on; }
@@ -167,6 +178,8 @@ class DUA_API Runtime {
   int64_t mocap_updates() const { return mocap_updates_; }
   // Each sphere's anchor step (pruned pairs; empty otherwise).
   const std::vector<int64_t>& anchor_steps() const { return pruned_.built; }
+  // Pruned pairs: each sphere's anchor, reach, and the largest contact distance beyond radii.
+  const PrunedState& pruned_state() const { return pruned_; }
   const std::shared_ptr<AlarmLog>& log() const { return log_; }
   int64_t log_start() const { return log_start_; }
   // Alarms of the latest step or classification (logged from log_start()).
@@ -198,7 +211,7 @@ class DUA_API Runtime {
   // deviation flagged and their pairs made due; past its end, the plan dropped (every pair due).
   void FollowPlan(const mjModel* m, const mjData* d, int64_t n);
   void MakeAllDue(int64_t n);
-  void FinishWatch();  // a step's or a classification's end: started and version
+  void FinishWatch();         // a step's or a classification's end: started and version
   void SetExpiry(int64_t p);  // pair p's leaf of the expiry tree, and its path to the root
 
   std::shared_ptr<const Tables> tables_;
@@ -252,6 +265,7 @@ class DUA_API Runtime {
   std::unique_ptr<mjData, DataDeleter> plan_data_;
   std::vector<uint8_t> plan_ok_, planned_;
   int64_t plan_breaks_ = 0;
+  int read_lag_ = 1;
 };
 
 }  // namespace dua

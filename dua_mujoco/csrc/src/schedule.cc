@@ -1,13 +1,13 @@
 // The schedules: select, reinsert, restore, switch, make_due, and the deadline wheel's
 // classification and carry. Rules and completeness proofs: docs/theory.md.
+#include "schedule.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numeric>
 #include <string>
 #include <vector>
-
-#include "schedule.h"
 
 #include "dua/dua.h"
 #include "internal.h"
@@ -248,8 +248,8 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
     if (Alarms(st->last_tau[p],
                static_cast<double>(where[p] - last_step[p] + latency) * dt + st->extra)) {
       alarms[nalarm] = p;
-      fresh[nalarm] = !Stood(st->last_tau[p],
-                             static_cast<double>(n - last_step[p] + latency) * dt + st->extra);
+      fresh[nalarm] =
+          !Stood(st->last_tau[p], static_cast<double>(n - last_step[p] + latency) * dt + st->extra);
       ++nalarm;
     }
   }
@@ -297,9 +297,9 @@ int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t ma
   auto covered = [=](int64_t s) { return static_cast<double>(s + latency) * dt + extra < tau; };
   if (covered(max_interval)) return max_interval;  // inf too
   const double guess = std::floor((tau - extra) / dt) - static_cast<double>(latency);
-  int64_t s = guess < 1.0 ? 1 : guess > static_cast<double>(max_interval)
-                                     ? max_interval
-                                     : static_cast<int64_t>(guess);
+  int64_t s = guess < 1.0                                 ? 1
+              : guess > static_cast<double>(max_interval) ? max_interval
+                                                          : static_cast<int64_t>(guess);
   // The division rounds either way: settle s on the test itself.
   while (s > 1 && !covered(s)) --s;
   while (s < max_interval && covered(s + 1)) ++s;

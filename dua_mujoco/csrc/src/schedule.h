@@ -19,8 +19,8 @@ constexpr int64_t kAll = 2;  // select-all (every active pair every step)
 // What a schedule is made of: its kind and options (checked by Check).
 struct DUA_API ScheduleSpec {
   int64_t kind = kDeadline;
-  double dt = 0.0;        // predictor period, seconds
-  int64_t latency = 0;    // periods a verdict takes to act
+  double dt = 0.0;               // predictor period, seconds
+  int64_t latency = 0;           // periods a verdict takes to act
   int64_t slots_per_bucket = 1;  // rank: the budget knob q, a power of two
   int64_t cap = 0;               // deadline: evaluations a step (0: no cap)
   int64_t max_interval = 1024;   // deadline: longest revisit interval, steps

@@ -444,7 +444,8 @@ void IndexContacts(dua_exact& x) {
   });
   std::vector<int64_t> keys(static_cast<size_t>(n));
   std::vector<double> dist(static_cast<size_t>(n));
-  for (int64_t k = 0; k < n; ++k) keys[k] = x.contact_keys[order[k]], dist[k] = x.contact_dist[order[k]];
+  for (int64_t k = 0; k < n; ++k)
+    keys[k] = x.contact_keys[order[k]], dist[k] = x.contact_dist[order[k]];
   std::copy(keys.begin(), keys.end(), x.contact_keys);
   std::copy(dist.begin(), dist.end(), x.contact_dist);
   x.contact_count = n;
@@ -474,8 +475,7 @@ bool InContact(dua_exact& x, int64_t g1, int64_t g2, double dist) {
 // One pair's max(coarse, exact). Any unit direction gives a lower bound: the one that served
 // last time is tried first, and MuJoCo is asked for a new one only while the pair is still
 // urgent along it (below query_below). A pair MuJoCo has in contact is not looked at.
-double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x,
-                const dua_frame& f) {
+double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x, const dua_frame& f) {
   const int mode = static_cast<int>(xrec[kXMode]);
   if (mode == kModeNone) return coarse;
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
@@ -588,8 +588,8 @@ struct FreePoints {
 // shape), then its tau, the sphere pairs packed into rows and evaluated four at a time. Returns
 // -1, or the first pair (in ids's order) whose state is not finite.
 template <class Points>
-int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
-                const int64_t* ids, int64_t count, double* rows, double* out) {
+int64_t TauRows(const double* pairs, const double* shapes, const Points& points, const int64_t* ids,
+                int64_t count, double* rows, double* out) {
   // One pass: planes and static shapes get their tau here; sphere pairs are packed to the
   // front of rows as TauSpeedRows reads them (relative state and bounds, then k), so that they
   // are evaluated four at a time.
@@ -616,8 +616,8 @@ int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
       out[k] = TauHalfspace(gap, vn, rec[kPairAccel], rec[kPairDelta]);
     } else if (kind == kKindShape) {
       out[k] = TauStatic(s[0], s[1], s[2], s[3], s[4], s[5],
-                         shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol,
-                         rec[kPairEps], rec[kPairAccel], rec[kPairDelta]);
+                         shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol, rec[kPairEps],
+                         rec[kPairAccel], rec[kPairDelta]);
     } else {
       double* row = rows + 12 * n++;
       for (int j = 0; j < 6; ++j) row[j] = s[6 + j] - s[j];
@@ -660,8 +660,8 @@ void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, doubl
 int64_t dua_tau_free(const double* pairs, const double* shapes, const double* centers,
                      const double* velocities, const double* planes, const int64_t* ids,
                      int64_t count, double* rows, double* out) {
-  return dua::TauRows(pairs, shapes, dua::FreePoints{centers, velocities, planes}, ids, count,
-                      rows, out);
+  return dua::TauRows(pairs, shapes, dua::FreePoints{centers, velocities, planes}, ids, count, rows,
+                      out);
 }
 
 int64_t dua_violation_pass(dua_step_args* a, int64_t n) {

@@ -34,10 +34,12 @@ bool AsInts(const std::vector<double>& v, double lo, double hi, std::vector<int6
   return true;
 }
 
-bool IsIndex(double x, int64_t n) { return x >= 0.0 && x < static_cast<double>(n) && x == std::floor(x); }
+bool IsIndex(double x, int64_t n) {
+  return x >= 0.0 && x < static_cast<double>(n) && x == std::floor(x);
+}
 bool Finite(double x) { return std::isfinite(x); }
 bool Bound(double x) { return std::isfinite(x) && x >= 0.0; }  // a finite bound >= 0
-bool SpeedBound(double x) { return x >= 0.0; }                  // >= 0, inf: none (NaN fails)
+bool SpeedBound(double x) { return x >= 0.0; }                 // >= 0, inf: none (NaN fails)
 
 // Reads tables by name from `source`, their errors saying where they come from.
 class Reader {
@@ -53,12 +55,12 @@ class Reader {
     const auto n = static_cast<int64_t>(out->size());
     if (rows >= 0 && n != rows * ncol) {
       return Fail(name, "holds " + std::to_string(n) + " entries, not " +
-                            std::to_string(rows * ncol) + " (" + std::to_string(rows) + " rows of " +
-                            std::to_string(ncol) + ")");
+                            std::to_string(rows * ncol) + " (" + std::to_string(rows) +
+                            " rows of " + std::to_string(ncol) + ")");
     }
     if (rows < 0 && n % ncol != 0) {
-      return Fail(name, "holds " + std::to_string(n) + " entries, not rows of " +
-                            std::to_string(ncol));
+      return Fail(name,
+                  "holds " + std::to_string(n) + " entries, not rows of " + std::to_string(ncol));
     }
     return true;
   }
@@ -201,7 +203,8 @@ bool ReadPairs(const mjModel* m, Reader* r, Tables* t) {
               const double kind = rec[kPairKind];
               bool ok = IsIndex(rec[kPairFirst], nsphere);
               if (kind == kKindSphere) {
-                ok = ok && IsIndex(rec[kPairSecond], nsphere) && rec[kPairSecond] != rec[kPairFirst];
+                ok =
+                    ok && IsIndex(rec[kPairSecond], nsphere) && rec[kPairSecond] != rec[kPairFirst];
               } else if (kind == kKindHalfspace) {
                 ok = ok && IsIndex(rec[kPairOther], ngeom);
               } else if (kind == kKindShape) {
@@ -232,7 +235,8 @@ bool ReadPairs(const mjModel* m, Reader* r, Tables* t) {
     if (rec[kPairKind] == kKindHalfspace &&
         (m->geom_type[static_cast<int64_t>(rec[kPairOther])] != mjGEOM_PLANE ||
          u.geom2[p] != static_cast<int64_t>(rec[kPairOther]))) {
-      return r->Fail("pairs", "row " + std::to_string(p) + ": a half-space pair whose plane is not "
+      return r->Fail("pairs", "row " + std::to_string(p) +
+                                  ": a half-space pair whose plane is not "
                                   "the plane geom of its geom pair");
     }
   }
@@ -373,8 +377,9 @@ bool ReadLearn(const mjModel* m, Reader* r, const std::vector<double>& config, T
       !AsInts(f[2], 0, nbody, &l.parent_weld) || !AsInts(f[3], 0, 2, &movable) ||
       !AsInts(f[4], 0, 4294967296.0, &l.contype) ||
       !AsInts(f[5], 0, 4294967296.0, &l.conaffinity) || !AsInts(f[6], 0, 2, &lone_flag)) {
-    return r->Fail("filter", "holds an entry out of range (bodies, weld groups, flags 0/1, "
-                             "contype and conaffinity as unsigned 32-bit)");
+    return r->Fail("filter",
+                   "holds an entry out of range (bodies, weld groups, flags 0/1, "
+                   "contype and conaffinity as unsigned 32-bit)");
   }
   for (int64_t g = 0; g < ngeom; ++g) {
     if (l.body[g] != m->geom_bodyid[g]) {
@@ -388,10 +393,10 @@ bool ReadLearn(const mjModel* m, Reader* r, const std::vector<double>& config, T
     return r->Fail("exclude", "is not a sorted list of body-pair signatures");
   }
   if (!AsInts(start, 0, static_cast<double>(nsphere) + 1, &l.geom_start) ||
-      !std::is_sorted(l.geom_start.begin(), l.geom_start.end()) ||
-      l.geom_start.back() != nsphere) {
-    return r->Fail("geom_start", "is not each geom's first sphere (increasing, ending at the "
-                                 "number of spheres)");
+      !std::is_sorted(l.geom_start.begin(), l.geom_start.end()) || l.geom_start.back() != nsphere) {
+    return r->Fail("geom_start",
+                   "is not each geom's first sphere (increasing, ending at the "
+                   "number of spheres)");
   }
   if (!AsInts(lone[0], -1, nplane, &l.geom_plane) || !AsInts(lone[1], -1, nshape, &l.geom_shape) ||
       !AsInts(planes, 0, ngeom, &l.plane_geom) || !AsInts(shapes, 0, ngeom, &l.shape_geom)) {
@@ -410,8 +415,8 @@ bool ReadLearn(const mjModel* m, Reader* r, const std::vector<double>& config, T
   for (int64_t i = 0; i < nsphere; ++i) {
     const auto g = static_cast<int64_t>(t->spheres[kSphereNcol * i + kSphereFrame]);
     if (i < l.geom_start[g] || i >= l.geom_start[g + 1]) {
-      return r->Fail("geom_start", "does not hold sphere " + std::to_string(i) +
-                                       " in its geom's range");
+      return r->Fail("geom_start",
+                     "does not hold sphere " + std::to_string(i) + " in its geom's range");
     }
   }
   l.margin = c[0], l.gap = c[1];
@@ -459,9 +464,8 @@ bool ReadPruned(const mjModel* m, Reader* r, const std::vector<double>& config, 
   if (t->schedule.kind != kDeadline) {
     return r->Fail("config", "holds pruned pairs with a schedule other than the deadline one");
   }
-  const std::string bad =
-      t->held.Build(reach, t->spheres, m->nbody, config[kCfgHorizon], config[kCfgMargin],
-                    static_cast<int64_t>(stride));
+  const std::string bad = t->held.Build(reach, t->spheres, m->nbody, config[kCfgHorizon],
+                                        config[kCfgMargin], static_cast<int64_t>(stride));
   if (!bad.empty()) return r->Fail("reach", "does not fit: " + bad);
   return ReadLearn(m, r, config, t);
 }
@@ -486,7 +490,8 @@ bool Decode(const char* text, std::vector<double>* out, std::string* why) {
     std::array<int8_t, 256> t{};
     t.fill(-1);
     const char* alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    for (int i = 0; i < 64; ++i) t[static_cast<unsigned char>(alphabet[i])] = static_cast<int8_t>(i);
+    for (int i = 0; i < 64; ++i)
+      t[static_cast<unsigned char>(alphabet[i])] = static_cast<int8_t>(i);
     t['='] = 0;
     return t;
   }();
@@ -594,7 +599,8 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
     }
     return Decode(m->text_data + m->text_adr[id], out, why);
   };
-  std::shared_ptr<const Tables> t = BuildTables(m, source, "text field '" + prefix + ":", "'", error);
+  std::shared_ptr<const Tables> t =
+      BuildTables(m, source, "text field '" + prefix + ":", "'", error);
   if (!t) return nullptr;
   std::lock_guard<std::mutex> lock(mutex);
   for (auto it = cache.begin(); it != cache.end();) {  // forget tables no model holds

@@ -31,7 +31,7 @@ constexpr int64_t kTablesVersion = 4;
 // Entries of the "config" table.
 enum Config {
   kCfgVersion = 0,
-  kCfgKind = 1,            // the schedule (ScheduleSpec)
+  kCfgKind = 1,  // the schedule (ScheduleSpec)
   kCfgDt = 2,
   kCfgLatency = 3,
   kCfgSlotsPerBucket = 4,
@@ -39,23 +39,23 @@ enum Config {
   kCfgMaxInterval = 6,
   kCfgBackoff = 7,
   kCfgThreshold = 8,
-  kCfgTimestep = 9,        // the model's timestep
-  kCfgExactOn = 10,        // the exact level
+  kCfgTimestep = 9,  // the model's timestep
+  kCfgExactOn = 10,  // the exact level
   kCfgExactBelow = 11,
   kCfgQueryBelow = 12,
-  kCfgNgeom = 13,          // the model the tables were made for: geoms, bodies,
+  kCfgNgeom = 13,  // the model the tables were made for: geoms, bodies,
   kCfgNbody = 14,
-  kCfgShape = 15,          // and FNV-1a of its structure (two 32-bit halves)
-  kCfgPruned = 17,         // 1: pruned pairs (the deadline schedule over the held ones)
-  kCfgHorizon = 18,        // pruned: the reach's horizon T, seconds
-  kCfgMargin = 19,         // pruned: the largest contact distance beyond the radii
-  kCfgStride = 20,         // pruned: steps between rebuilds
-  kCfgRenewMax = 21,       // pruned: most escaped spheres renewed alone
-  kCfgContacts = 22,       // pruned: contacts are on (pairs can be learnt)
-  kCfgFilterParent = 23,   // pruned: MuJoCo's parent filter is on
-  kCfgOverride = 24,       // pruned: mjENBL_OVERRIDE (the margin is o_margin)
-  kCfgOMargin = 25,        // pruned: o_margin
-  kCfgHasSpeed = 26,       // pruned: speed bounds are declared
+  kCfgShape = 15,         // and FNV-1a of its structure (two 32-bit halves)
+  kCfgPruned = 17,        // 1: pruned pairs (the deadline schedule over the held ones)
+  kCfgHorizon = 18,       // pruned: the reach's horizon T, seconds
+  kCfgMargin = 19,        // pruned: the largest contact distance beyond the radii
+  kCfgStride = 20,        // pruned: steps between rebuilds
+  kCfgRenewMax = 21,      // pruned: most escaped spheres renewed alone
+  kCfgContacts = 22,      // pruned: contacts are on (pairs can be learnt)
+  kCfgFilterParent = 23,  // pruned: MuJoCo's parent filter is on
+  kCfgOverride = 24,      // pruned: mjENBL_OVERRIDE (the margin is o_margin)
+  kCfgOMargin = 25,       // pruned: o_margin
+  kCfgHasSpeed = 26,      // pruned: speed bounds are declared
   kCfgAlarmHorizon = 27,  // the alarm horizon, seconds (0: one period)
   kCfgSize = 28,
 };
@@ -88,20 +88,20 @@ struct Tables {
 // Where the tables come from: get(name, out) fills out with the table's entries (row-major
 // float64) and returns true, or returns false after setting *error (the table is missing or
 // does not decode).
-using TableSource = std::function<bool(const std::string& name, std::vector<double>* out,
-                                       std::string* error)>;
+using TableSource =
+    std::function<bool(const std::string& name, std::vector<double>* out, std::string* error)>;
 
 // The tables from `source`, checked against m; null after *error says which table is wrong and
 // why, naming table t as before + t + after (e.g. "text field '" + t + "'").
 DUA_API std::shared_ptr<const Tables> BuildTables(const mjModel* m, const TableSource& source,
-                                          const std::string& before, const std::string& after,
-                                          std::string* error);
+                                                  const std::string& before,
+                                                  const std::string& after, std::string* error);
 
 // The tables under `prefix` in m's text fields, each its entry count, a space, then its
 // little-endian float64 bytes in base64; parsed once per model content (every mjData made from
 // the same model shares them).
 DUA_API std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& prefix,
-                                         std::string* error);
+                                                 std::string* error);
 
 // FNV-1a (64 bits) of m's structure: geom_type, geom_bodyid and body_parentid as little-endian
 // int32s (dua_mujoco/mj/build.py computes the same).

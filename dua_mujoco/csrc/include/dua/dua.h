@@ -139,7 +139,7 @@ typedef struct dua_plan {
   const void* impl;        // the dua::Plan
   int64_t knot;            // the plan's knot at this step
   const uint8_t* body_ok;  // (nbody,) 0 for a body found beyond its deviation since the plan came
-  const int64_t* geom1;    // (npair,) the geoms of each known pair (the plane or static geom second)
+  const int64_t* geom1;  // (npair,) the geoms of each known pair (the plane or static geom second)
   const int64_t* geom2;
   const int* geom_body;  // the model's geom_bodyid
   void* data;            // an mjData of the model for MuJoCo's distance queries at knots
@@ -407,6 +407,17 @@ DUA_API int64_t dua_reach_pairs(const dua_reach* r, const int64_t* ids, int64_t 
 
 struct mjModel_;
 struct mjData_;
+
+// Follow a flight plan in instance `instance` of d (docs/plans.md): qpos (n, nq), row j the
+// state at time start + j timestep, deviation (n, nbody) the bound on how far each body may
+// stray from it at each knot. Returns 0, -1 if the instance is not this plugin's, -2 before its
+// first compute, -3 if the plan is refused (why written to error, error_size bytes with the
+// terminating 0).
+DUA_API int64_t dua_plugin_set_plan(const struct mjModel_* m, struct mjData_* d, int instance,
+                                    const double* qpos, int64_t n, const double* deviation,
+                                    double start, char* error, int64_t error_size);
+// Back to the motion bounds alone. Returns 0, or -1 if the instance is not this plugin's.
+DUA_API int64_t dua_plugin_clear_plan(const struct mjModel_* m, struct mjData_* d, int instance);
 
 // Geom pairs standing in alarm in instance `instance` of the sensor plugin
 // "dua_mujoco.predictor" in d: up to `capacity` rows (g1, g2) into out; returns how many there

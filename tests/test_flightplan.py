@@ -1,0 +1,388 @@
+"""Flight plans (``Predictor.set_plan``; docs/theory.md, section 8).
+
+A plan's verdicts are held to a slow reference (MuJoCo's distance at every knot of the plan,
+less both bodies' deviations), and rollouts hold the promise: a plan that is the simulation
+itself flags every onset the whole alarm horizon ahead, impacts included; motion that strays
+from its plan within the declared deviation is flagged as early; motion beyond it falls back to
+the motion bounds.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
+from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.mj.scenes import load_scene
+
+# A ball rolled towards a wall, a box dropped on the floor, an arm swinging through both.
+SCENE = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 .1"/>
+    <geom name="wall" type="box" size=".05 .5 .3" pos=".8 0 .3"/>
+    <body name="ball" pos="0 0 .3"><freejoint/><geom name="ball" size=".05"/></body>
+    <body name="box" pos=".3 .3 .4">
+      <freejoint/><geom name="box" type="box" size=".05 .04 .03"/>
+    </body>
+    <body name="arm" pos=".4 -.3 .2">
+      <joint name="swing" type="hinge" axis="0 0 1" damping=".1"/>
+      <geom name="link" type="capsule" fromto="0 0 0 .35 0 0" size=".03"/>
+      <body name="hand" pos=".35 0 0">
+        <joint name="bend" type="hinge" axis="0 1 0" damping=".1"/>
+        <geom name="hand" type="box" size=".04 .04 .04" pos=".05 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="swing" gear="2" ctrlrange="-1 1"/>
+    <motor joint="bend" gear="1" ctrlrange="-1 1"/>
+  </actuator>
+</mujoco>
+"""
+
+ACCEL = 60.0
+
+
+def _scene() -> tuple[mujoco.MjModel, mujoco.MjData]:
+    m = mujoco.MjModel.from_xml_string(SCENE)
+    d = mujoco.MjData(m)
+    d.qvel[0] = 1.5  # the ball, towards the wall
+    mujoco.mj_forward(m, d)
+    return m, d
+
+
+def _controls(m: mujoco.MjModel, steps: int, seed: int) -> np.ndarray:
+    """Controls linear between random targets 100 steps apart (a robot's commands)."""
+    rng = np.random.default_rng(seed)
+    knots = rng.uniform(-1, 1, (steps // 100 + 2, m.nu))
+    t = np.arange(steps) / 100.0
+    return np.stack([np.interp(t, np.arange(len(knots)), knots[:, i]) for i in range(m.nu)], 1)
+
+
+def _rollout(m: mujoco.MjModel, d: mujoco.MjData, ctrl: np.ndarray, n: int) -> np.ndarray:
+    """``(n, nq)``: d's qpos and the n - 1 states after it under ctrl[0], ctrl[1], ..."""
+    c = mujoco.MjData(m)
+    mujoco.mj_copyData(c, m, d)
+    out = [c.qpos.copy()]
+    for j in range(n - 1):
+        if m.nu:
+            c.ctrl[:] = ctrl[min(j, len(ctrl) - 1)]
+        mujoco.mj_step(m, c)
+        out.append(c.qpos.copy())
+    return np.array(out)
+
+
+def _geom_poses(m: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    d = mujoco.MjData(m)
+    pos, mat = [], []
+    for q in qpos:
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        pos.append(d.geom_xpos.copy())
+        mat.append(d.geom_xmat.copy())
+    return np.array(pos), np.array(mat)
+
+
+def _deviation(m: mujoco.MjModel, plan: np.ndarray, actual: np.ndarray) -> np.ndarray:
+    """``(n, nbody)``: a bound on how far each body's geoms are from the plan at each knot, by
+    the definition (the origin's distance plus ``|dR|_F`` times the bounding radius)."""
+    p0, r0 = _geom_poses(m, plan)
+    p1, r1 = _geom_poses(m, actual)
+    per_geom = np.linalg.norm(p1 - p0, axis=2) + np.linalg.norm(r1 - r0, axis=2) * m.geom_rbound
+    out = np.zeros((len(plan), m.nbody))
+    for g in range(m.ngeom):
+        b = int(m.geom_bodyid[g])
+        out[:, b] = np.maximum(out[:, b], per_geom[:, g])
+    return out
+
+
+def _drive(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    p: Predictor,
+    ctrl: np.ndarray,
+    steps: int,
+    *,
+    every: int,
+    plan_of,  # (k, d) -> (qpos, deviation) or None
+) -> list[tuple[tuple[int, int], int, float]]:
+    """Run, giving plans every ``every`` steps; each onset as (geom pair, step, lead in s)."""
+    h = m.opt.timestep
+    since: dict[tuple[int, int], int] = {}
+    touching: set[tuple[int, int]] = set()
+    onsets = []
+    g1, g2 = p.tables.geom1, p.tables.geom2
+    for k in range(steps):
+        if k % every == 0:
+            plan = plan_of(k, d)
+            if plan is not None:
+                p.set_plan(plan[0], deviation=plan[1])
+        if m.nu:
+            d.ctrl[:] = ctrl[k]
+        mujoco.mj_step(m, d)
+        p.step(d)
+        state = p.pair_state()
+        stand = np.flatnonzero(state.alarm_state() & state.active)
+        now = {(min(int(g1[i]), int(g2[i])), max(int(g1[i]), int(g2[i]))) for i in stand}
+        since = {g: since.get(g, k) for g in now}
+        contacts = {
+            (min(int(c.geom1), int(c.geom2)), max(int(c.geom1), int(c.geom2)))
+            for c in d.contact[: d.ncon]
+        }
+        for g in contacts - touching:
+            onsets.append((g, k, (k - since[g]) * h if g in since else -1.0))
+        touching = contacts
+    return onsets
+
+
+@pytest.mark.parametrize("horizon", [0.05, 0.2])
+def test_a_plan_that_is_the_simulation_flags_every_onset_the_horizon_ahead(horizon: float) -> None:
+    """The plan is the rollout of the controls that will be applied (bit for bit the run):
+    every onset after the first horizon stood in alarm at least the horizon, impacts and
+    all, no body ever strays, and few pairs stand (the plan knows which touch)."""
+    m, d = _scene()
+    steps, every = 600, 25
+    ctrl = _controls(m, steps + 400, seed=1)
+    p = Predictor(m, accel=ACCEL, alarm_horizon=horizon)
+    n = round(horizon / m.opt.timestep) + 2 * every
+    p.reset(d)
+    onsets = _drive(
+        m, d, p, ctrl, steps, every=every,
+        plan_of=lambda k, data: (_rollout(m, data, ctrl[k:], n), 0.0),
+    )  # fmt: skip
+    start = round(horizon / m.opt.timestep)
+    late = [(g, k, lead) for g, k, lead in onsets if k > start and lead < horizon - 1e-9]
+    assert len([o for o in onsets if o[1] > start]) >= 3  # a test with teeth
+    assert late == []
+    assert p.plan_breaks == 0 and p.has_plan
+
+
+def test_motion_within_its_deviation_is_flagged_the_horizon_ahead() -> None:
+    """Plans of the commanded controls, a run whose controls stray from them: each plan is
+    given the deviation the run will show (measured on a first pass, by the definition), and
+    the second pass, the same run, breaks no plan and flags every onset the horizon ahead."""
+    m, d0 = _scene()
+    horizon, steps, every = 0.1, 600, 20
+    n = round(horizon / m.opt.timestep) + 2 * every
+    planned = _controls(m, steps + n, seed=2)
+    applied = planned + np.random.default_rng(3).normal(0, 0.3, planned.shape)
+    # First pass: the plans and what the run did.
+    d = mujoco.MjData(m)
+    mujoco.mj_copyData(d, m, d0)
+    plans: dict[int, np.ndarray] = {}
+    qpos = [d.qpos.copy()]
+    for k in range(steps):
+        if k % every == 0:
+            plans[k] = _rollout(m, d, planned[k:], n)
+        d.ctrl[:] = applied[k]
+        mujoco.mj_step(m, d)
+        qpos.append(d.qpos.copy())
+    actual = np.array(qpos + [qpos[-1]] * n)
+    dev = {k: _deviation(m, q, actual[k : k + n]) * (1 + 1e-6) for k, q in plans.items()}
+    assert max(float(v.max()) for v in dev.values()) > 1e-3  # the run does stray
+    # Second pass: the same run, each plan with its deviation.
+    d = mujoco.MjData(m)
+    mujoco.mj_copyData(d, m, d0)
+    p = Predictor(m, accel=ACCEL, alarm_horizon=horizon)
+    p.reset(d)
+    onsets = _drive(
+        m, d, p, applied, steps, every=every, plan_of=lambda k, data: (plans[k], dev[k])
+    )
+    start = round(horizon / m.opt.timestep)
+    assert len([o for o in onsets if o[1] > start]) >= 3
+    assert [o for o in onsets if o[1] > start and o[2] < horizon - 1e-9] == []
+    assert p.plan_breaks == 0
+
+
+def _reference_tau(
+    m: mujoco.MjModel, p: Predictor, qpos: np.ndarray, dev: np.ndarray, knot: int
+) -> np.ndarray:
+    """Each pair's time from ``knot`` to the first knot at which MuJoCo's distance of its two
+    geoms, less the pair's contact distance, is not above both bodies' deviations."""
+    h = m.opt.timestep
+    d = mujoco.MjData(m)
+    gp = p.geom_pairs
+    contact = gp.contact_distance[p.sphere_pairs.geom_pair]
+    g1, g2 = p.tables.geom1, p.tables.geom2
+    b1, b2 = m.geom_bodyid[g1], m.geom_bodyid[g2]
+    out = np.full(len(g1), (len(qpos) - knot) * h)
+    for j in range(len(qpos) - 1, knot - 1, -1):  # backwards: the last hit written is the first
+        d.qpos[:] = qpos[j]
+        mujoco.mj_kinematics(m, d)
+        for i in range(len(g1)):
+            dist = mujoco.mj_geomDistance(m, d, int(g1[i]), int(g2[i]), 10.0, None)
+            if dist - contact[i] <= dev[j, b1[i]] + dev[j, b2[i]]:
+                out[i] = (j - knot) * h
+    return out
+
+
+@pytest.mark.parametrize("deviation", [0.0, 0.01, 0.05])
+def test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal(deviation: float) -> None:
+    """Right after a plan every pair is evaluated under it: its tau is never later than the
+    first knot at which MuJoCo's distance says it may touch (a tau that dropped the deviation,
+    the sweep between knots or a knot would be), and equal to it for most pairs."""
+    m, d = _scene()
+    horizon, n = 0.2, 200
+    ctrl = _controls(m, 2 * n, seed=4)
+    p = Predictor(m, accel=ACCEL, alarm_horizon=horizon)
+    p.reset(d)
+    qpos = _rollout(m, d, ctrl, n)
+    dev = np.full((n, m.nbody), deviation)
+    p.set_plan(qpos, deviation=dev)
+    d.ctrl[:] = ctrl[0]
+    mujoco.mj_step(m, d)
+    p.step(d)
+    got = p.pair_state().last_tau_of(np.arange(p.nsphere_pairs))
+    want = _reference_tau(m, p, qpos, dev, knot=0)
+    assert (got <= want + 1e-12).all(), np.flatnonzero(got > want)
+    assert np.mean(np.isclose(got, want)) >= 0.8
+    assert 0 < np.mean(want < horizon) < 1  # some pairs may touch within the horizon, some not
+
+
+def test_a_body_beyond_its_deviation_falls_back_to_the_bounds() -> None:
+    """A plan of held controls with no deviation allowed, a run that moves the arm: the arm's
+    bodies break the plan (their pairs follow the motion bounds from then on), the ball's and
+    the box's do not, and nothing is missed while the bounds hold."""
+    m, d = _scene()
+    steps = 300
+    ctrl = _controls(m, steps, seed=5)
+    p = Predictor(m, accel=ACCEL, alarm_horizon=0.05)
+    p.reset(d)
+    held = np.zeros_like(ctrl)
+    onsets = _drive(
+        m, d, p, ctrl, steps, every=steps,
+        plan_of=lambda k, data: (_rollout(m, data, held, steps + 10), 0.0),
+    )  # fmt: skip
+    ok = p._rt.plan_ok
+    assert p.plan_breaks >= 1
+    assert not ok[m.body("arm").id] and ok[m.body("ball").id]
+    assert [o for o in onsets if o[2] < 0] == []  # every onset alarmed before it
+
+
+def test_past_its_last_knot_the_plan_is_dropped() -> None:
+    """Knot j is the state j steps on, which the step after it reads (MuJoCo's step reads the
+    state it started from): 30 knots cover 30 steps, and the 31st drops the plan."""
+    m, d = _scene()
+    p = Predictor(m, accel=ACCEL, alarm_horizon=0.05)
+    p.reset(d)
+    p.set_plan(_rollout(m, d, np.zeros((1, m.nu)), 30), deviation=0.0)
+    for _ in range(30):
+        mujoco.mj_step(m, d)
+        p.step(d)
+        assert p.has_plan
+    mujoco.mj_step(m, d)
+    p.step(d)
+    assert not p.has_plan
+    p.set_plan(_rollout(m, d, np.zeros((1, m.nu)), 30), deviation=0.0)
+    p.clear_plan()
+    assert not p.has_plan
+
+
+def test_bad_plans_are_refused_by_name() -> None:
+    m, d = _scene()
+    p = Predictor(m, accel=ACCEL)
+    q = _rollout(m, d, np.zeros((1, m.nu)), 10)
+    with pytest.raises(SchedulerError, match="reset"):
+        p.set_plan(q, deviation=0.0)
+    p.reset(d)
+    with pytest.raises(ShapeError, match=r"\(n, nq\) = \(n, 16\)"):
+        p.set_plan(q[:, :-1], deviation=0.0)
+    with pytest.raises(ShapeError, match="deviation has shape"):
+        p.set_plan(q, deviation=np.zeros(3))
+    bad = q.copy()
+    bad[4, 2] = np.nan
+    with pytest.raises(InvalidInputError, match=r"qpos\[4, 2\] = nan"):
+        p.set_plan(bad, deviation=0.0)
+    with pytest.raises(InvalidInputError, match=r"knot 3 of body 2 \('box'\) is -1\.0"):
+        dev = np.zeros((10, m.nbody))
+        dev[3, 2] = -1.0
+        p.set_plan(q, deviation=dev)
+    with pytest.raises(InvalidInputError, match="does not cover the state the next step reads"):
+        p.set_plan(q, deviation=0.0, start=float(d.time) + 0.1)
+    with pytest.raises(InvalidInputError, match="does not cover"):
+        p.set_plan(q, deviation=0.0, start=float(d.time) + 0.0005)  # not on a step
+
+
+def test_a_model_with_mocap_bodies_is_refused() -> None:
+    m, d = load_scene("clutter")
+    p = Predictor(m, accel=50.0)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    with pytest.raises(InvalidInputError, match="mocap"):
+        p.set_plan(np.tile(d.qpos, (5, 1)), deviation=0.0)
+
+
+def test_the_monitor_judges_a_planned_body_by_its_deviation() -> None:
+    """Bounds far too small for gravity (every falling body breaks them every step) and exact
+    plans: the run monitor counts no violation while the plans hold (a pair under a plan does
+    not rest on the bounds), no onset comes with less lead than the horizon after the start,
+    and none is missed; without the plans the same run breaks the bounds throughout."""
+    from dua_mujoco.mj.monitor import Monitor
+
+    horizon, every, steps = 0.1, 25, 500
+    n = round(horizon / 0.002) + 2 * every
+
+    def report(planned: bool):
+        m, d = _scene()
+        ctrl = _controls(m, steps + n + 2, seed=6)
+        p = Predictor(m, accel=1.0, alarm_horizon=horizon)
+        monitor = Monitor(p)
+        mujoco.mj_step(m, d)
+        monitor.start(d)
+        for k in range(steps):
+            if planned and k % every == 0:
+                p.set_plan(_rollout(m, d, ctrl[k:], n), deviation=0.0)
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            monitor.observe(d, p.step(d))
+        monitor.finish()
+        return p, monitor
+
+    p, planned = report(True)
+    assert p.plan_breaks == 0
+    assert planned.onsets >= 3 and planned.misses == []
+    assert planned.violations == 0 and planned.warning.short_held == 0
+    assert planned.warning.short_leads == planned.warning.short_at_start
+    _, bounds_only = report(False)
+    assert bounds_only.violations > 100
+
+
+def test_the_plugin_follows_a_plan_as_the_predictor_does() -> None:
+    """The plugin (inside mj_step, reading the state before time advances) and the Python
+    predictor (after it) given the same plans stand the same pairs after every step: the plan's
+    knots are placed by the state each reads."""
+    from dua_mujoco.plugin import attach, clear_plan, set_plan, standing_pairs
+
+    spec = mujoco.MjSpec.from_string(SCENE)
+    p = attach(spec, accel=ACCEL, alarm_horizon=0.1)
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    d.qvel[0] = 1.5
+    steps, every, n = 300, 20, 100
+    ctrl = _controls(m, steps + n, seed=7)
+    busy = 0
+    for k in range(steps):
+        if k % every == 0 and k:
+            plan = _rollout(m, d, ctrl[k:], n)
+            set_plan(m, d, plan, deviation=0.002)
+            p.set_plan(plan, deviation=0.002)
+        if k == 250:
+            clear_plan(m, d)
+            p.clear_plan()
+        d.ctrl[:] = ctrl[k]
+        mujoco.mj_step(m, d)
+        if k == 0:
+            p.reset(d)
+            continue
+        p.step(d)
+        state = p.pair_state()
+        stand = np.flatnonzero(state.alarm_state() & state.active)
+        want = {tuple(sorted((int(p.tables.geom1[i]), int(p.tables.geom2[i])))) for i in stand}
+        got = {tuple(int(g) for g in row) for row in standing_pairs(m, d)}
+        assert got == want, f"step {k}"
+        busy += bool(want)
+    assert busy > 20 and p.plan_breaks == 0
