@@ -313,3 +313,52 @@ def test_a_rolled_plan_is_followed_without_a_break(model: mujoco.MjModel) -> Non
         mujoco.mj_step(model, d)
         p.step(d)
     assert p.plan_breaks > 0
+
+
+SLIDER = """
+<mujoco>
+  <option timestep="0.002" gravity="0 0 0"/>
+  <worldbody>
+    <geom name="wall" type="box" size=".05 .5 .3" pos=".8 0 .3"/>
+    <body name="ball" pos="0 0 .3">
+      <joint name="x" type="slide" axis="1 0 0"/><geom name="ball" size=".05"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize(("horizon", "first", "last"), [(0.05, 38, 90), (0.2, 168, 178)])
+def test_an_exact_plans_alarm_stands_the_whole_horizon_wherever_the_touch_falls(
+    horizon: float, first: int, last: int
+) -> None:
+    """A ball slides at a constant speed into a wall under a plan that is the run: wherever the
+    touch falls on the step grid (from ``first`` to ``last`` steps after the plan), the pair
+    stands in alarm the whole horizon before it. (A plan's taus are whole steps; before they
+    were shaved, the deadline scheduler's rounded test let a pair wait one step too long at
+    some touch steps: 43 and 84-87 at 50 ms, 172-175 at 200 ms.)"""
+    m = mujoco.MjModel.from_xml_string(SLIDER)
+    h = float(m.opt.timestep)
+    n = round(horizon / h)
+    leads = []
+    # 1 m/s: 2 mm a step; start positions 1 mm apart put the touch at every step of the range.
+    for x0 in np.arange(0.7 - last * h, 0.7 - first * h, 0.001):
+        d = mujoco.MjData(m)
+        d.qpos[0], d.qvel[0] = x0, 1.0
+        mujoco.mj_forward(m, d)
+        p = Predictor(m, accel=10.0, alarm_horizon=horizon)
+        p.reset(d)
+        p.set_plan(plan_from_controls(m, d, lambda *_: None, steps=last + n), deviation=0.0)
+        since = None
+        for k in range(last + 4):
+            mujoco.mj_step(m, d)
+            p.step(d)
+            state = p.pair_state()
+            standing = bool((state.alarm_state() & state.active).any())
+            since = (since if since is not None else k) if standing else None
+            if d.ncon:
+                leads.append((k - since) * h if since is not None else -1.0)
+                break
+        assert p.plan_breaks == 0
+    assert len(leads) >= last - first  # every touch step of the range, with teeth
+    assert min(leads) >= horizon - 1e-9
