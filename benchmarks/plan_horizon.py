@@ -104,11 +104,22 @@ class _Hold:
 
 
 def segment_plan(
-    model: mujoco.MjModel, data: mujoco.MjData, driver: SceneController, knots: int
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    driver: SceneController,
+    knots: int,
+    knows: str = "waypoint",
 ) -> tuple[np.ndarray, int]:
-    """The plan of ``knots`` knots from ``data`` knowing ``driver``'s command up to its next
-    waypoint, and the waypoint's knot (the last knot the plan is exact at)."""
+    """The plan of ``knots`` knots from ``data`` and the last knot it is exact at.
+
+    ``knows="waypoint"``: the planner knows ``driver``'s command up to its next waypoint and
+    continues the segment (or holds the control) past it. ``"trajectory"``: it knows the
+    driver's whole pre-planned trajectory (the driver's copy keeps its random source: the
+    waypoints a trajectory planner or an MPC would hand over), so the plan is the run.
+    """
     policy = copy.deepcopy(driver)
+    if knows == "trajectory":
+        return plan_from_controls(model, data, policy, steps=knots - 1), knots - 1
     if policy.smooth is not None:
         policy.smooth.rng = _Continue(policy.smooth)  # type: ignore[assignment]
         count = policy.smooth._step
@@ -128,6 +139,7 @@ def pilot_profile(
     protocol: str,
     points: tuple[np.ndarray, np.ndarray, np.ndarray],
     knots: int,
+    knows: str = "waypoint",
     steps: int = PILOT_STEPS,
 ) -> tuple[np.ndarray, float]:
     """The planner's deviation profile (by steps past a waypoint) from a pilot, and its
@@ -142,7 +154,7 @@ def pilot_profile(
     plans = []
     for k in range(1, steps + 1):
         if k % PILOT_EVERY == 0:
-            q, origin = segment_plan(model, d, driver, knots)
+            q, origin = segment_plan(model, d, driver, knots, knows)
             plans.append(PilotPlan(len(rows) - 1, q, origin))
         driver(model, d)
         mujoco.mj_step(model, d)
@@ -154,10 +166,24 @@ def pilot_profile(
 # ----------------------------------------------------------------------------- the runs
 
 
-def _knots(n: int) -> tuple[int, int]:
+EVERY = {"A": 0.25, "T": 1.0}
+"""Replanning period as a fraction of the horizon (``R = max(round(f * n), 1)`` steps) of each
+planner: the waypoint planner's deviation grows with the knots past the waypoint, so it replans
+often; the trajectory planner's plan is exact to its end, so it replans once a horizon."""
+SIDES = {"A": "waypoint", "T": "trajectory", "B": None}
+"""The predictors of one run: A's planner knows the next waypoint, T's the trajectory, B none."""
+
+
+EVERY_MIN = 0.05
+"""The shortest replanning period (s): below it a plan's fixed cost (its checks, every pair
+evaluated at the next step) outweighs what a fresher plan gains (a short horizon's window ends
+well before the waypoint's deviation grows)."""
+
+
+def _knots(n: int, every: float, timestep: float) -> tuple[int, int]:
     """``(R, knots)`` for a horizon of ``n`` steps."""
-    every = max(n // 4, 1)
-    return every, every + n + 2
+    r = max(round(every * n), round(EVERY_MIN / timestep), 1)
+    return r, r + n + 2
 
 
 class ExactReference:
@@ -212,97 +238,95 @@ def run_ab(
     protocol: str,
     horizon: float,
     steps: int,
-    profile: np.ndarray | None,
+    profiles: dict[str, np.ndarray | None],
     reference: bool = False,
+    every_frac: dict[str, float] | None = None,
 ) -> dict[str, Any]:
-    """One rollout, predictors A (plans) and B (none) interleaved (module docstring); with
+    """One rollout, predictors A, T (plans) and B (none) interleaved (module docstring); with
     ``reference``, A's plans judged with exact geometry too (:class:`ExactReference`)."""
     h = float(model.opt.timestep)
     n = max(round(horizon / h), 1)
-    every, knots = _knots(n)
+    fracs = EVERY if every_frac is None else every_frac
+    every = {t: _knots(n, f, h)[0] for t, f in fracs.items()}
+    knots = {t: _knots(n, f, h)[1] for t, f in fracs.items()}
     d = mujoco.MjData(model)
     mujoco.mj_forward(model, d)
     driver = make_controller(model, protocol, seed=ROLLOUT_SEED, hold_steps=HOLD[protocol])
-    preds = [Predictor(model, accel=bounds, alarm_horizon=horizon) for _ in range(2)]
-    mons = [Monitor(p, series=False, warning_horizon=horizon) for p in preds]
-    a = preds[0]
-    ref = ExactReference(model, a, n) if reference and profile is not None else None
+    tags = list(SIDES)
+    planned = [t for t in tags if SIDES[t] is not None and profiles.get(t) is not None]
+    preds = {t: Predictor(model, accel=bounds, alarm_horizon=horizon) for t in tags}
+    mons = {t: Monitor(preds[t], series=False, warning_horizon=horizon) for t in tags}
+    ref = ExactReference(model, preds["A"], n) if reference and "A" in planned else None
     driver(model, d)
     mujoco.mj_step(model, d)
-    for mon in mons:
+    for mon in mons.values():
         mon.start(d)
     t_mj = np.zeros(steps)
-    t_step = np.zeros((2, steps))
-    t_set = t_planner = 0.0
-    plans = 0
-    ok = np.ones(model.nbody, dtype=bool)
+    t_step = {t: np.zeros(steps) for t in tags}
+    t_set = dict.fromkeys(tags, 0.0)
+    t_planner = dict.fromkeys(tags, 0.0)
+    plans = dict.fromkeys(tags, 0)
+    ok = {t: np.ones(model.nbody, dtype=bool) for t in planned}
 
-    def replan() -> tuple[float, float]:
+    def replan(tag: str) -> None:
         t0 = time.perf_counter()
-        q, origin = segment_plan(model, d, driver, knots)
+        q, origin = segment_plan(model, d, driver, knots[tag], str(SIDES[tag]))
+        profile = profiles[tag]
         assert profile is not None
-        dev = plan_deviation(profile, knots, origin=origin)
+        dev = plan_deviation(profile, knots[tag], origin=origin)
         t1 = time.perf_counter()
-        a.set_plan(q, deviation=dev, start=float(d.time))
+        preds[tag].set_plan(q, deviation=dev, start=float(d.time))
         t2 = time.perf_counter()
-        if ref is not None:
-            ref.plan(q, dev, mons[0].physics_step)
-        return t1 - t0, t2 - t1
+        t_planner[tag] += t1 - t0
+        t_set[tag] += t2 - t1
+        plans[tag] += 1
+        if ref is not None and tag == "A":
+            ref.plan(q, dev, mons[tag].physics_step)
+        ok[tag] = np.ones(model.nbody, dtype=bool)
 
-    if profile is not None:
-        t_planner, t_set = replan()
-        plans += 1
+    for t in planned:
+        replan(t)
     for k in range(1, steps + 1):
         driver(model, d)
         t0 = time.perf_counter()
         mujoco.mj_step(model, d)
         t_mj[k - 1] = time.perf_counter() - t0
-        alarms: list[Any] = [None, None]
-        for i in (0, 1) if k % 2 else (1, 0):
+        alarms: dict[str, Any] = {}
+        for t in tags if k % 2 else tags[::-1]:
             t0 = time.perf_counter()
-            alarms[i] = preds[i].step(d)
-            t_step[i, k - 1] = time.perf_counter() - t0
-        if profile is not None:
+            alarms[t] = preds[t].step(d)
+            t_step[t][k - 1] = time.perf_counter() - t0
+        for t in planned:
             # A body beyond its deviation is a violation of its hypotheses from this step on
             # (the monitor counts the step it observes next).
-            now = np.asarray(a._rt.plan_ok, dtype=bool)
-            broke = np.flatnonzero(ok & ~now)
+            now = np.asarray(preds[t]._rt.plan_ok, dtype=bool)
+            broke = np.flatnonzero(ok[t] & ~now)
             if broke.size:
-                mons[0].last_violation[broke] = mons[0].physics_step + 1
-            ok = now
+                mons[t].last_violation[broke] = mons[t].physics_step + 1
+            ok[t] = now
         if ref is not None:
-            ref.step(mons[0].physics_step)
-        for mon, al in zip(mons, alarms, strict=True):
-            mon.observe(d, al)
-        if profile is not None and k % every == 0:
-            dp, ds = replan()
-            t_planner += dp
-            t_set += ds
-            plans += 1
-            ok = np.ones(model.nbody, dtype=bool)
+            ref.step(mons["A"].physics_step)
+        for t in tags:
+            mons[t].observe(d, alarms[t])
+        for t in planned:
+            if k % every[t] == 0:
+                replan(t)
     row: dict[str, Any] = {
         "horizon_s": horizon,
         "steps_horizon": n,
-        "plan_every": every if profile is not None else None,
-        "plan_knots": knots if profile is not None else None,
-        "plans": plans,
-        "plan_breaks": a.plan_breaks,
-        "plan_queries_per_step": int(a._rt.plan_queries) / steps,
         "mj_step_us": float(np.median(t_mj)) * 1e6,
-        "planner_mean": t_planner / float(t_mj.sum()),
-        "set_plan_us": t_set / max(plans, 1) * 1e6,
         "reference_standing": None if ref is None else ref.standing,
     }
-    for i, tag in enumerate(("A", "B")):
-        mons[i].finish()
+    for t in tags:
+        mons[t].finish()
         dur_mj, dur_p = Durations(), Durations()
         for x in t_mj:
             dur_mj.add(float(x))
-        for x in t_step[i]:
+        for x in t_step[t]:
             dur_p.add(float(x))
-        rep = build_report(mons[i], "", False, dur_mj, dur_p, interrupted=False)
-        extra = t_set if i == 0 else 0.0
-        row[tag] = {
+        rep = build_report(mons[t], "", False, dur_mj, dur_p, interrupted=False)
+        row[t] = {
+            "knows": SIDES[t] if t in planned else None,
             "standing": rep.standing_alarm_fraction,
             "oracle": rep.oracle_fraction,
             "onsets": rep.contact_onsets,
@@ -314,10 +338,18 @@ def run_ab(
             "short_start": rep.short_lead_at_start,
             "lead_p10_s": rep.lead_p10_s,
             "lead_median_s": rep.lead_median_s,
+            "lead_min_s": rep.lead_min_s,
             "violations": rep.bound_violations,
             "evals_per_step": rep.evals_per_step,
-            "median": float(np.median(t_step[i]) / np.median(t_mj)),
-            "mean": float((t_step[i].sum() + extra) / t_mj.sum()),
+            "plan_every": every[t] if t in planned else None,
+            "plan_knots": knots[t] if t in planned else None,
+            "plans": plans[t],
+            "plan_breaks": preds[t].plan_breaks,
+            "plan_queries_per_step": int(preds[t]._rt.plan_queries) / steps,
+            "set_plan_us": t_set[t] / max(plans[t], 1) * 1e6 if t in planned else None,
+            "planner_mean": t_planner[t] / float(t_mj.sum()),
+            "median": float(np.median(t_step[t]) / np.median(t_mj)),
+            "mean": float((t_step[t].sum() + t_set[t]) / t_mj.sum()),
         }
     return row
 
@@ -328,6 +360,7 @@ def measure(
     horizons: tuple[float | None, ...],
     steps: int,
     reference: bool = False,
+    every_frac: dict[str, float] | None = None,
 ) -> list[dict[str, Any]]:
     """Every horizon of one robot and protocol."""
     m = load(name)
@@ -339,33 +372,39 @@ def measure(
     pilot_s = time.perf_counter() - t0
     plannable = m.nmocap == 0
     longest = max(max(round((ts if h is None else h) / ts), 1) for h in horizons)
-    profile, profile_s = (
-        pilot_profile(m, protocol, points, _knots(longest)[1]) if plannable else (None, 0.0)
-    )
+    fracs = EVERY if every_frac is None else every_frac
+    profiles: dict[str, np.ndarray | None] = {}
+    profile_s: dict[str, float] = {}
+    for tag, knows in SIDES.items():
+        if knows is not None and plannable:
+            profiles[tag], profile_s[tag] = pilot_profile(
+                m, protocol, points, _knots(longest, fracs[tag], ts)[1], knows
+            )
     rows = []
     for h in horizons:
         horizon = ts if h is None else h
         t0 = time.perf_counter()
-        row = run_ab(m, bounds, protocol, horizon, steps, profile, reference)
+        row = run_ab(m, bounds, protocol, horizon, steps, profiles, reference, every_frac)
         row |= {
             "robot": name,
             "protocol": protocol,
             "one_period": h is None,
             "plannable": plannable,
+            "every_frac": fracs,
             "pilot_s": pilot_s,
             "profile_s": profile_s,
-            "profile_max_m": None if profile is None else float(profile.max()),
+            "profile_max_m": {t: float(v.max()) for t, v in profiles.items() if v is not None},
             "seconds": time.perf_counter() - t0,
         }
         rows.append(row)
-        a, b = row["A"], row["B"]
+        a, tr, b = row["A"], row["T"], row["B"]
         print(
-            f"{name:6s} {protocol:6s} H {1e3 * horizon:5.1f} ms: standing A "
-            f"{100 * a['standing']:6.2f} % B {100 * b['standing']:6.2f} %, oracle "
-            f"{100 * a['oracle']:5.2f} %, short held "
-            f"A {a['short_held']} B {b['short_held']}, breaks {row['plan_breaks']}, cost A "
-            f"{a['median']:.2f} B {b['median']:.2f} planner {row['planner_mean']:.2f}, "
-            f"{row['seconds']:.1f} s"
+            f"{name:6s} {protocol:6s} H {1e3 * horizon:5.1f} ms: oracle {100 * a['oracle']:5.2f} %"
+            f", standing A {100 * a['standing']:6.2f} % T {100 * tr['standing']:6.2f} % B "
+            f"{100 * b['standing']:6.2f} %, short held A {a['short_held']} T "
+            f"{tr['short_held']} B {b['short_held']}, breaks A {a['plan_breaks']} T "
+            f"{tr['plan_breaks']}, cost mean A {a['mean']:.2f} T {tr['mean']:.2f} B "
+            f"{b['mean']:.2f}, planner A {a['planner_mean']:.1f}, {row['seconds']:.1f} s"
             + (
                 ""
                 if row["reference_standing"] is None
@@ -395,32 +434,36 @@ def _label(row: dict[str, Any]) -> str:
     return f"1 step ({ms})" if row["one_period"] else ms
 
 
-def _short(side: dict[str, Any]) -> str:
-    return (
-        f"{side['short']} ({side['short_held']} / {side['short_violation']} / "
-        f"{side['short_start']})"
-    )
+def _three(r: dict[str, Any], f: Any) -> str:
+    return " / ".join(f(r[t]) for t in SIDES)
 
 
 def markdown(rows: list[dict[str, Any]], protocol: str) -> str:
-    """One protocol: the per-robot table, then the medians over robots at each horizon."""
+    """One protocol: the per-robot table, then the medians over robots at each horizon.
+
+    Each cell with three values reads: planner knows the next waypoint / knows the trajectory /
+    no plan."""
     mine = [r for r in rows if r["protocol"] == protocol]
     body = []
     for r in mine:
-        a, b = r["A"], r["B"]
         body.append(
             [
                 r["robot"] + ("" if r["plannable"] else " (no plan: mocap)"),
                 _label(r),
-                f"{100 * a['oracle']:.2f}",
-                f"{100 * a['standing']:.1f} / {100 * b['standing']:.1f}",
-                f"{_x(_ratio(a))} / {_x(_ratio(b))}",
-                str(a["onsets"]),
-                f"{_short(a)} / {_short(b)}",
-                str(r["plan_breaks"]),
-                f"{a['median']:.2f} / {b['median']:.2f}",
-                f"{a['mean']:.2f}",
-                f"{r['planner_mean']:.1f}" if r["plannable"] else "",
+                f"{100 * r['A']['oracle']:.2f}",
+                _three(r, lambda s: f"{100 * s['standing']:.1f}"),
+                _three(r, lambda s: _x(_ratio(s))),
+                str(r["A"]["onsets"]),
+                _three(r, lambda s: str(s["short_held"])),
+                _three(r, lambda s: f"{s['short_violation']}+{s['short_start']}"),
+                f"{r['A']['plan_breaks']} / {r['T']['plan_breaks']}",
+                _three(r, lambda s: f"{s['mean']:.2f}"),
+                _three(r, lambda s: f"{s['median']:.2f}"),
+                (
+                    f"{r['A']['planner_mean']:.1f} / {r['T']['planner_mean']:.1f}"
+                    if r["plannable"]
+                    else ""
+                ),
             ]
         )
     out = table(
@@ -428,13 +471,14 @@ def markdown(rows: list[dict[str, Any]], protocol: str) -> str:
             "robot",
             "horizon",
             "oracle %",
-            "standing % plan / none",
-            "standing / oracle plan / none",
+            "standing %",
+            "standing / oracle",
             "onsets",
-            "lead < horizon (held / violation / start) plan / none",
+            "lead < H, bounds held",
+            "lead < H, after violation + at start",
             "plan breaks",
-            "predictor / mj_step median plan / none",
-            "plan mean with set_plan",
+            "predictor / mj_step (mean, incl. set_plan)",
+            "predictor / mj_step (median step)",
             "planner / mj_step (planner's)",
         ],
         body,
@@ -452,31 +496,36 @@ def markdown(rows: list[dict[str, Any]], protocol: str) -> str:
         medians.append(
             [
                 label,
-                f"{_x(med(at, 'A', 'ratio'))} ({_x(med(planned, 'A', 'ratio'))})",
-                _x(med(at, "B", "ratio")),
-                f"{med(at, 'A', 'median'):.2f} ({med(planned, 'A', 'median'):.2f})",
-                f"{med(at, 'B', 'median'):.2f}",
-                f"{med(planned, 'A', 'mean'):.2f}",
-                f"{float(np.median([r['planner_mean'] for r in planned])):.1f}" if planned else "",
-                str(sum(r["A"]["short_held"] for r in at)),
-                str(sum(r["B"]["short_held"] for r in at)),
-                str(sum(r["A"]["short_violation"] for r in at)),
+                " / ".join(_x(med(at, t, "ratio")) for t in SIDES),
+                " / ".join(_x(med(planned, t, "ratio")) for t in SIDES),
+                " / ".join(f"{med(at, t, 'mean'):.2f}" for t in SIDES),
+                " / ".join(f"{med(at, t, 'median'):.2f}" for t in SIDES),
+                " / ".join(f"{med(planned, t, 'planner_mean'):.1f}" for t in ("A", "T")),
+                " / ".join(str(sum(r[t]["short_held"] for r in at)) for t in SIDES),
+                " / ".join(
+                    str(sum(r[t]["short_violation"] + r[t]["short_start"] for r in at))
+                    for t in SIDES
+                ),
+                " / ".join(str(sum(r[t]["plan_breaks"] for r in at)) for t in ("A", "T")),
             ]
         )
-    out += "\n\nMedian over robots (in brackets: the robots with a plan only):\n\n" + table(
-        [
-            "horizon",
-            "standing / oracle, plan",
-            "standing / oracle, none",
-            "predictor / mj_step, plan",
-            "predictor / mj_step, none",
-            "plan mean with set_plan",
-            "planner / mj_step (planner's)",
-            "onsets short while held, plan (all robots)",
-            "onsets short while held, none",
-            "onsets short after a violation, plan",
-        ],
-        medians,
+    out += (
+        "\n\nMedian over robots (each cell: knows the next waypoint / knows the trajectory / no "
+        "plan):\n\n"
+        + table(
+            [
+                "horizon",
+                "standing / oracle, all robots",
+                "standing / oracle, robots with a plan",
+                "predictor / mj_step (mean, incl. set_plan)",
+                "predictor / mj_step (median step)",
+                "planner / mj_step (planner's)",
+                "lead < H while held (sum)",
+                "lead < H after violation + at start (sum)",
+                "plan breaks (sum)",
+            ],
+            medians,
+        )
     )
     return out
 
@@ -496,7 +545,12 @@ def plot(rows: list[dict[str, Any]], path: Path, robots: tuple[str, ...]) -> Non
             continue
         h = [1e3 * r["horizon_s"] for r in at]
         c = f"C{i}"
-        ax.plot(h, [100 * r["A"]["standing"] for r in at], "-o", color=c, label=f"{name} plan")
+        ax.plot(
+            h, [100 * r["T"]["standing"] for r in at], "-o", color=c, label=f"{name} trajectory"
+        )
+        ax.plot(
+            h, [100 * r["A"]["standing"] for r in at], "-.x", color=c, alpha=0.8, label="waypoint"
+        )
         ax.plot(
             h, [100 * r["B"]["standing"] for r in at], ":^", color=c, alpha=0.7, label="no plan"
         )
@@ -513,7 +567,11 @@ def plot(rows: list[dict[str, Any]], path: Path, robots: tuple[str, ...]) -> Non
     ax.set_yscale("log")
     ax.set_xlabel("alarm horizon (ms)")
     ax.set_ylabel("% of active geom pairs (mean over steps)")
-    ax.set_title("Standing in alarm with a plan (solid), without (dotted), oracle (dashed)")
+    ax.set_title(
+        "Standing in alarm: plan knows the trajectory (solid), the next waypoint (dash-dot), "
+        "no plan (dotted), oracle (dashed)",
+        fontsize=8,
+    )
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=len(robots), loc="lower right")
     fig.tight_layout()
@@ -527,6 +585,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--horizons", nargs="+", type=float, default=None, help="seconds")
     ap.add_argument("--steps", type=int, default=2000, help="physics steps a run")
     ap.add_argument("--no-random", action="store_true", help="skip the random-held protocol")
+    ap.add_argument(
+        "--every",
+        type=float,
+        nargs=2,
+        default=(EVERY["A"], EVERY["T"]),
+        metavar=("WAYPOINT", "TRAJECTORY"),
+        help="each planner's replanning period, a fraction of the horizon",
+    )
     ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     ap.add_argument(
         "--reference", action="store_true", help="judge the plans with exact geometry too"
@@ -556,7 +622,14 @@ def main(argv: list[str] | None = None) -> None:
     for name in args.robots:
         for protocol in protocols:
             try:
-                rows += measure(name, protocol, horizons, args.steps, args.reference)
+                rows += measure(
+                    name,
+                    protocol,
+                    horizons,
+                    args.steps,
+                    args.reference,
+                    dict(zip("AT", args.every, strict=True)),
+                )
             except ModuleNotFoundError as exc:
                 print(f"{name}: skipped, not installed ({exc})", file=sys.stderr)
                 break
