@@ -585,6 +585,37 @@ def markdown(rows: list[dict[str, Any]], protocol: str) -> str:
     return out
 
 
+def horizon_table(rows: list[dict[str, Any]], protocol: str) -> str:
+    """Standing over the oracle by robot (rows) and horizon (columns), each cell: knows the
+    trajectory / knows the next waypoint / no plan; and the oracle (%) under each horizon."""
+    mine = [r for r in rows if r["protocol"] == protocol]
+    labels = list(dict.fromkeys(_label(r) for r in sorted(mine, key=lambda r: r["horizon_s"])))
+    body = []
+    for name in dict.fromkeys(r["robot"] for r in mine):
+        at = {_label(r): r for r in mine if r["robot"] == name}
+        body.append(
+            [name]
+            + [
+                (
+                    " / ".join(_x(_ratio(at[lb][t])) for t in ("T", "A", "B"))
+                    + f" ({100 * at[lb]['A']['oracle']:.2g} %)"
+                )
+                if lb in at
+                else ""
+                for lb in labels
+            ]
+        )
+    meds = ["median"]
+    for lb in labels:
+        rs = [r for r in mine if _label(r) == lb]
+        vals = [
+            float(np.median([v for v in (_ratio(r[t]) for r in rs) if v != float("inf")]))
+            for t in ("T", "A", "B")
+        ]
+        meds.append(" / ".join(_x(v) for v in vals))
+    return table(["robot", *labels], [*body, meds])
+
+
 def plot(rows: list[dict[str, Any]], path: Path, robots: tuple[str, ...]) -> None:
     """Standing with a plan, without, and the oracle against the horizon (log-log)."""
     import matplotlib
@@ -678,6 +709,11 @@ def main(argv: list[str] | None = None) -> None:
                 extra = f", {1e3 * floor:g} mm added to every deviation" if floor else ""
                 print(f"\n### {protocol}{extra}\n")
                 print(markdown(saved["rows"], protocol))
+                if len({r["horizon_s"] for r in saved["rows"]}) > 2:
+                    print(
+                        "\nStanding / oracle, trajectory / waypoint / none (oracle):\n\n"
+                        + horizon_table(saved["rows"], protocol)
+                    )
             if not saved["rows"][0].get("floor_m", 0.0):
                 rows += saved["rows"]
         plot(rows, args.plot, tuple(n for n in PLOTTED if any(r["robot"] == n for r in rows)))
