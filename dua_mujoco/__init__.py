@@ -42,6 +42,12 @@ if TYPE_CHECKING:
         ScheduleOptions,
         UrgencyOptions,
     )
+    from dua_mujoco.mj.plans import (
+        PilotPlan,
+        deviation_profile,
+        plan_deviation,
+        plan_from_controls,
+    )
     from dua_mujoco.mj.predictor import Alarms, Predictor
     from dua_mujoco.mj.report import RunReport
     from dua_mujoco.mj.scenes import load_scene
@@ -54,6 +60,10 @@ _LAZY = {
     "Alarms": "dua_mujoco.mj.predictor",
     "CoveringOptions": "dua_mujoco.mj.options",
     "PairOptions": "dua_mujoco.mj.options",
+    "PilotPlan": "dua_mujoco.mj.plans",
+    "deviation_profile": "dua_mujoco.mj.plans",
+    "plan_deviation": "dua_mujoco.mj.plans",
+    "plan_from_controls": "dua_mujoco.mj.plans",
     "PilotOptions": "dua_mujoco.mj.options",
     "ScheduleOptions": "dua_mujoco.mj.options",
     "UrgencyOptions": "dua_mujoco.mj.options",
@@ -100,6 +110,7 @@ __all__ = [
     "NonFiniteStateError",
     "PairOptions",
     "PilotOptions",
+    "PilotPlan",
     "PilotWarning",
     "PluginOutputs",
     "Predictor",
@@ -113,8 +124,11 @@ __all__ = [
     "UrgencyOptions",
     "__version__",
     "attach",
+    "deviation_profile",
     "estimate_bounds",
     "load_scene",
+    "plan_deviation",
+    "plan_from_controls",
     "plugin_outputs",
     "run",
     "standing_pairs",

@@ -132,12 +132,24 @@ double ExactGap(double* xrec, dua_exact& x, const dua_frame& f, dua_plan& plan, 
   return std::max(best, AxisGap(xrec, x, f, n0, n1, n2, mode));
 }
 
+// A plan's tau, s steps of h, shaved. A plan's taus fall on the step grid, where the deadline
+// scheduler's test (w + latency) dt + extra < tau compares two roundings of the same number:
+// (alarm steps + w) dt can round below s h and let a pair wait one step past the one at which
+// it must stand in alarm (an onset one step short of the horizon). 1e-9 relative is far above
+// those roundings (a few ulps) and far below a step; a smaller tau is still a lower bound.
+constexpr double kGridShave = 1e-9;
+inline double GridTau(int64_t s, double h) {
+  return static_cast<double>(s) * h * (1.0 - kGridShave);
+}
+
 // tau of held pair p under the plan from knot k: (j - k) h for the first knot j >= k at which
 // a lower bound on the pair's planned gap does not exceed both bodies' deviations there, or
 // (nknot - k) h when none does (the earliest step a contact could start past the plan). The
 // bound at a knot is the sphere level's, then the exact level's; between two knots it is
 // carried by the geoms' sweeps (a planned gap G at knot i is at least G - S1(i, j) - S2(i, j)
-// at knot j), so that most knots cost a few flops.
+// at knot j), so that most knots cost a few flops. The tau returned is a whole number of steps
+// shaved by kGridShave (GridTau): a lower bound still, and one the scheduler's rounded sums
+// cannot cover past its own step.
 double PlanTau(dua_step_args& a, const Plan& plan, int64_t p, int64_t g1, int64_t g2, int64_t b1,
                int64_t b2) {
   const double* rec = a.pairs + p * kPairNcol;
@@ -162,9 +174,9 @@ double PlanTau(dua_step_args& a, const Plan& plan, int64_t p, int64_t g1, int64_
       gap = std::max(gap, ExactGap(xrec, a.exact, f, a.plan, allowed));
     }
     base = j;
-    if (!(gap > allowed)) return static_cast<double>(j - k) * plan.h();
+    if (!(gap > allowed)) return GridTau(j - k, plan.h());
   }
-  return static_cast<double>(n - k) * plan.h();
+  return GridTau(n - k, plan.h());
 }
 
 // A bad value as a refusal names it (%g: "nan", "inf", "1e+308").

@@ -1,0 +1,420 @@
+"""Making flight plans for ``Predictor.set_plan``: the planned motion and its deviation bound.
+
+A *flight plan* (Kim, Guibas and Shin, Algorithmica 2005) is the motion the robot is expected to
+make over the coming steps: joint positions ``qpos`` at each physics step (a *knot*), and for
+every body a bound on how far any point of it may stray from where the plan puts it at each
+knot (its *deviation*). While a plan holds, the predictor asks the plan's geometry whether a pair
+may touch, not an acceleration bound, so an alarm horizon of 100-500 ms stays tight
+(docs/plans.md). This module makes both halves offline, in Python:
+
+- :func:`plan_from_controls` rolls a copy of the state under the controls the robot will be
+  given (an MPC's or a planner's open-loop controls, or a feedback policy): the plan is then
+  what MuJoCo will compute under those controls, bit for bit, and its deviation 0 for as long as
+  the controls are known;
+- :func:`deviation_profile` measures, on a pilot run, how far each body strayed from the plans
+  made along it, by how many knots past the point where the plan stopped knowing the controls
+  (its *origin*: 0 for a plan that knows nothing, the next waypoint for one that knows the
+  command up to it), made monotone and multiplied by a safety factor;
+- :func:`plan_deviation` gives a plan of ``n`` knots its ``(n, nbody)`` deviation from such a
+  profile.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from typing import Any, NamedTuple
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from dua_mujoco.exceptions import InvalidInputError, ShapeError
+
+__all__ = [
+    "PilotPlan",
+    "deviation_profile",
+    "plan_deviation",
+    "plan_from_controls",
+]
+
+Policy = Callable[[mujoco.MjModel, mujoco.MjData], npt.ArrayLike | None]
+"""``policy(model, data)``: the controls of the coming step, returned (``(nu,)``) or written to
+``data.ctrl`` (returning None), as a controller passed to ``dua_mujoco.run``."""
+
+_S = mujoco.mjtState
+# What a step reads beside the integrated state, held at the data's values during a plan.
+_HELD = int(
+    _S.mjSTATE_CTRL
+    | _S.mjSTATE_QFRC_APPLIED
+    | _S.mjSTATE_XFRC_APPLIED
+    | _S.mjSTATE_EQ_ACTIVE
+    | _S.mjSTATE_MOCAP_POS
+    | _S.mjSTATE_MOCAP_QUAT
+)
+_FULL = int(_S.mjSTATE_FULLPHYSICS)
+
+
+class PilotPlan(NamedTuple):
+    """A plan made along a pilot run, for :func:`deviation_profile`.
+
+    Attributes:
+        start: The row of the pilot's ``qpos`` at the plan's knot 0.
+        qpos: ``(n, nq)`` the plan, row ``j`` at pilot row ``start + j``.
+        origin: The knot from which the plan no longer knows the controls: the deviation at knot
+            ``j`` is filed under ``max(j - origin, 0)`` knots past it (0: by the plan's age).
+    """
+
+    start: int
+    qpos: np.ndarray
+    origin: int = 0
+
+
+# ----------------------------------------------------------------------------- plans
+
+
+def _check_model_data(model: object, data: object) -> None:
+    if not isinstance(model, mujoco.MjModel):
+        raise InvalidInputError(
+            f"model must be a mujoco.MjModel, got {type(model).__name__}: pass the model the "
+            "data was made for."
+        )
+    if not isinstance(data, mujoco.MjData):
+        raise InvalidInputError(
+            f"data must be a mujoco.MjData, got {type(data).__name__}: pass the simulation's "
+            "data (it is copied, not stepped)."
+        )
+    if data.qpos.shape != (model.nq,) or data.ctrl.shape != (model.nu,):
+        raise InvalidInputError(
+            f"data was made for another model (nq {data.qpos.shape[0]}, nu {data.ctrl.shape[0]}; "
+            f"the model has nq {model.nq}, nu {model.nu}): pass mujoco.MjData(model)."
+        )
+
+
+def _check_steps(steps: object) -> int:
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise InvalidInputError(
+            f"steps = {steps!r} is invalid: pass the number of physics steps to plan (an int >= 1)."
+        )
+    return int(steps)
+
+
+def plan_from_controls(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    controls: npt.ArrayLike | Policy,
+    *,
+    steps: int | None = None,
+) -> np.ndarray:
+    """The plan of ``data``'s state under future ``controls``: ``qpos`` at every physics step.
+
+    A copy of the state is stepped (``data`` itself is not touched). With an array the steps run
+    in MuJoCo's native ``mujoco.rollout`` from the full physics state and ``qacc_warmstart``; with
+    a policy, ``mj_copyData`` and ``mj_step`` in a loop. Either way the plan is what ``mj_step``
+    computes from ``data`` under the same controls, bit for bit. Everything else a step reads
+    (``qfrc_applied``, ``xfrc_applied``, mocap poses, active equality constraints) is held at its
+    value in ``data``.
+
+    Args:
+        model: The model.
+        data: The state to plan from (its ``time`` is the time of knot 0).
+        controls: ``(steps, nu)`` the ``ctrl`` of each coming step, or a policy
+            ``policy(model, data)`` called before each step on the copy, returning the step's
+            ``(nu,)`` controls or writing ``data.ctrl`` (a copy of a stateful controller:
+            ``copy.deepcopy(controller)``, so that the real one does not advance).
+        steps: Physics steps to plan (a policy only; an array's rows say it).
+
+    Returns:
+        ``(steps + 1, nq)`` planned joint positions, row ``j`` at ``data.time + j *
+        model.opt.timestep`` (row 0 is ``data.qpos``): the ``qpos`` of
+        ``Predictor.set_plan(plan, deviation=..., start=data.time)``.
+
+    Raises:
+        InvalidInputError: A bad model, data, step count or control (the message names it).
+        ShapeError: ``controls`` is not ``(steps, nu)``, or a policy returned another shape.
+    """
+    _check_model_data(model, data)
+    if callable(controls):
+        if steps is None:
+            raise InvalidInputError(
+                "steps is missing: a policy has no length, pass steps=<physics steps to plan>."
+            )
+        return _plan_policy(model, data, controls, _check_steps(steps))
+    u = np.asarray(controls, dtype=np.float64)
+    if u.ndim != 2 or u.shape[1] != model.nu or u.shape[0] < 1:
+        raise ShapeError(
+            f"controls has shape {u.shape}; expected (steps, nu) = (n, {model.nu}) with n >= 1: "
+            "one row of ctrl a physics step."
+        )
+    if steps is not None and _check_steps(steps) != u.shape[0]:
+        raise InvalidInputError(
+            f"steps = {steps} disagrees with the {u.shape[0]} rows of controls: leave steps out "
+            "for an array."
+        )
+    bad = np.argwhere(~np.isfinite(u))
+    if bad.size:
+        j, i = (int(x) for x in bad[0])
+        raise InvalidInputError(
+            f"controls[{j}, {i}] = {float(u[j, i])} is not finite: pass finite controls."
+        )
+    n = u.shape[0]
+    from mujoco import rollout
+
+    scratch = mujoco.MjData(model)
+    mujoco.mj_copyData(scratch, model, data)
+    state0 = np.empty(mujoco.mj_stateSize(model, _FULL))
+    mujoco.mj_getState(model, data, state0, _FULL)
+    held = np.empty(mujoco.mj_stateSize(model, _HELD))
+    mujoco.mj_getState(model, data, held, _HELD)
+    control = np.tile(held, (n, 1))
+    control[:, : model.nu] = u  # ctrl is the lowest bit of the spec: its columns come first
+    state, _ = rollout.rollout(
+        model,
+        scratch,
+        state0,
+        control[None],
+        control_spec=_HELD,
+        initial_warmstart=np.array(data.qacc_warmstart),
+    )
+    if any(int(w.number) for w in scratch.warning):
+        # rollout stops at MuJoCo's first warning and repeats that state; mj_step goes on.
+        return _plan_policy(model, data, _Rows(u), n)
+    out = np.empty((n + 1, model.nq))
+    out[0] = data.qpos
+    out[1:] = state[0, :, 1 : 1 + model.nq]  # after the time
+    return out
+
+
+class _Rows:
+    """A policy giving the rows of an array in turn."""
+
+    def __init__(self, u: np.ndarray) -> None:
+        self.u, self.j = u, 0
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+        self.j += 1
+        return self.u[self.j - 1]
+
+
+def _plan_policy(model: mujoco.MjModel, data: mujoco.MjData, policy: Policy, n: int) -> np.ndarray:
+    copy = mujoco.MjData(model)
+    mujoco.mj_copyData(copy, model, data)
+    out = np.empty((n + 1, model.nq))
+    out[0] = data.qpos
+    for j in range(1, n + 1):
+        u = policy(model, copy)
+        if u is not None:
+            ctrl = np.asarray(u, dtype=np.float64)
+            if ctrl.shape != (model.nu,):
+                raise ShapeError(
+                    f"the policy returned controls of shape {ctrl.shape} at step {j - 1}; "
+                    f"expected ({model.nu},), or None after writing data.ctrl."
+                )
+            copy.ctrl[:] = ctrl
+        mujoco.mj_step(model, copy)
+        out[j] = copy.qpos
+    return out
+
+
+# ----------------------------------------------------------------------------- deviation
+
+
+def _check_points(model: mujoco.MjModel, points: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    try:
+        geom, body, offset = points
+    except (TypeError, ValueError):
+        raise InvalidInputError(
+            f"points = {points!s:.80} is invalid: pass the predictor's bound points "
+            "(Predictor.bound_points: a tuple (geom, body, offset))."
+        ) from None
+    g = np.asarray(geom).reshape(-1)
+    b = np.asarray(body).reshape(-1)
+    o = np.asarray(offset, dtype=np.float64)
+    if not (np.issubdtype(g.dtype, np.integer) or g.size == 0):
+        raise ShapeError(f"points' geom ids have dtype {g.dtype}; expected integers.")
+    g = g.astype(np.int64)
+    if b.shape != g.shape or o.shape != (g.size, 3):
+        raise ShapeError(
+            f"points has geom {g.shape}, body {b.shape}, offset {o.shape}; expected (n,), (n,), "
+            "(n, 3): pass Predictor.bound_points."
+        )
+    if g.size and (g.min() < 0 or g.max() >= model.ngeom):
+        raise InvalidInputError(
+            f"points name geom {int(g.max() if g.max() >= model.ngeom else g.min())}, not one "
+            f"of the model's {model.ngeom}: pass the bound points of a predictor of this model."
+        )
+    body_of = np.asarray(model.geom_bodyid, dtype=np.int64)[g]
+    if not np.array_equal(body_of, b.astype(np.int64)):
+        raise InvalidInputError(
+            "points' bodies are not their geoms' bodies in this model: pass the bound points of "
+            "a predictor of this model."
+        )
+    return g, body_of, o
+
+
+def _check_qpos(model: mujoco.MjModel, name: str, value: object) -> np.ndarray:
+    q = np.asarray(value, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != model.nq or q.shape[0] < 1:
+        raise ShapeError(
+            f"{name} has shape {q.shape}; expected (n, nq) = (n, {model.nq}) with n >= 1: one "
+            "row of qpos a physics step."
+        )
+    bad = np.argwhere(~np.isfinite(q))
+    if bad.size:
+        j, i = (int(x) for x in bad[0])
+        raise InvalidInputError(f"{name}[{j}, {i}] = {float(q[j, i])} is not finite.")
+    return q
+
+
+def _int(name: str, value: object, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise InvalidInputError(f"{name} = {value!r} is invalid: pass an int.")
+    if not low <= int(value) <= high:
+        raise InvalidInputError(f"{name} = {value} is out of range: it must lie in {low}..{high}.")
+    return int(value)
+
+
+class _Points:
+    """World positions of bound points for rows of qpos (``mj_kinematics`` on a scratch data)."""
+
+    def __init__(self, model: mujoco.MjModel, geom: np.ndarray, offset: np.ndarray) -> None:
+        self.model, self.geom, self.offset = model, geom, offset
+        self.data = mujoco.MjData(model)
+
+    def __call__(self, qpos: np.ndarray) -> np.ndarray:
+        """``(rows, npts, 3)``."""
+        out = np.empty((qpos.shape[0], self.geom.size, 3))
+        d, g = self.data, self.geom
+        for j, q in enumerate(qpos):
+            d.qpos[:] = q
+            mujoco.mj_kinematics(self.model, d)
+            mat = d.geom_xmat[g].reshape(-1, 3, 3)
+            out[j] = d.geom_xpos[g] + np.einsum("pij,pj->pi", mat, self.offset)
+        return out
+
+
+def deviation_profile(
+    model: mujoco.MjModel,
+    qpos: npt.ArrayLike,
+    plans: Iterable[PilotPlan | tuple[int, npt.ArrayLike] | tuple[int, npt.ArrayLike, int]],
+    *,
+    points: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike],
+    safety: float = 2.0,
+) -> np.ndarray:
+    """Each body's deviation bound by knots past a plan's origin, from a pilot run.
+
+    For every plan and every knot ``j`` of it that the pilot reached, the distance of each bound
+    point from its planned position (both from ``mj_kinematics``), its maximum over the body's
+    points, filed under ``a = max(j - origin, 0)`` knots past the plan's origin; the maximum
+    over plans at each ``a``, made non-decreasing in ``a`` (a deviation seen after ``a`` knots
+    may be seen later too), times ``safety``.
+
+    The bound points are the corners of one box a body around every point the predictor covers
+    (``Predictor.bound_points``): the distance of a point from its planned position is the norm
+    of an affine function of its body coordinates, so its maximum over the box is at a corner,
+    and the profile bounds every point of the body's geoms on the pilot's plans.
+
+    Args:
+        model: The model.
+        qpos: ``(T, nq)`` the pilot's joint positions, one row a physics step.
+        plans: The plans made along it: :class:`PilotPlan` or ``(start, qpos[, origin])``, with
+            row ``j`` of a plan's ``qpos`` at pilot row ``start + j``.
+        points: ``(geom, body, offset)`` the bound points, ``Predictor.bound_points``.
+        safety: The factor on the measured maxima (``>= 1``; 2 as ``accel="auto"``'s).
+
+    Returns:
+        ``(L, nbody)`` metres, row ``a`` the bound ``a`` knots past the origin, ``L`` one more
+        than the largest ``a`` measured (knots past the pilot's end are not). Static bodies and
+        bodies without bound points get 0.
+
+    Raises:
+        ShapeError: ``qpos``, a plan's ``qpos`` or ``points`` has the wrong shape.
+        InvalidInputError: A non-finite position, a plan that starts outside the pilot, an
+            origin outside the plan, no plan measured, or a bad ``safety`` (the message names
+            the value).
+    """
+    if not isinstance(model, mujoco.MjModel):
+        raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")
+    actual = _check_qpos(model, "qpos", qpos)
+    if (
+        isinstance(safety, bool)
+        or not isinstance(safety, int | float | np.integer | np.floating)
+        or not math.isfinite(float(safety))
+        or float(safety) < 1.0
+    ):
+        raise InvalidInputError(
+            f"safety = {safety!r} is invalid: pass a finite factor >= 1 (a factor below 1 "
+            "would shrink the deviations measured)."
+        )
+    geom, body, offset = _check_points(model, points)
+    at = _Points(model, geom, offset)
+    T, nbody = actual.shape[0], int(model.nbody)
+    where = at(actual)  # (T, npts, 3)
+    # Each body's points as columns of an index (npts: a padded zero for bodies without points).
+    counts = np.bincount(body, minlength=nbody)
+    width = max(int(counts.max()) if counts.size else 0, 1)
+    order = np.argsort(body, kind="stable")
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    cols = np.full((nbody, width), geom.size, dtype=np.int64)
+    rank = np.arange(geom.size) - first[body[order]]
+    cols[body[order], rank] = order
+    profile = np.zeros((0, nbody))
+    measured = 0
+    for i, raw in enumerate(plans):
+        plan = raw if isinstance(raw, PilotPlan) else PilotPlan(*raw)
+        q = _check_qpos(model, f"plans[{i}].qpos", plan.qpos)
+        start = _int(f"plans[{i}].start", plan.start, 0, T - 1)
+        origin = _int(f"plans[{i}].origin", plan.origin, 0, q.shape[0])
+        n = min(q.shape[0], T - start)
+        dist = np.linalg.norm(where[start : start + n] - at(q[:n]), axis=2)  # (n, npts)
+        pad = np.concatenate([dist, np.zeros((n, 1))], axis=1)
+        per_body = pad[:, cols].max(axis=2)  # (n, nbody)
+        ages = np.maximum(np.arange(n) - origin, 0)
+        length = int(ages[-1]) + 1
+        if profile.shape[0] < length:
+            profile = np.concatenate([profile, np.zeros((length - profile.shape[0], nbody))])
+        np.maximum.at(profile, ages, per_body)
+        measured += 1
+    if measured == 0:
+        raise InvalidInputError(
+            "plans is empty: pass the plans made along the pilot run (PilotPlan(start, qpos, "
+            "origin))."
+        )
+    return float(safety) * np.maximum.accumulate(profile, axis=0)
+
+
+def plan_deviation(profile: npt.ArrayLike, knots: int, *, origin: int = 0) -> np.ndarray:
+    """The deviation of a plan of ``knots`` knots from a :func:`deviation_profile`.
+
+    Args:
+        profile: ``(L, nbody)`` the profile.
+        knots: The plan's knots (rows of its ``qpos``).
+        origin: The knot from which the plan no longer knows the controls (as the profile's
+            plans were filed: 0 by age, the next waypoint's knot for a plan that knows the
+            command up to it).
+
+    Returns:
+        ``(knots, nbody)`` metres, row ``j`` the profile's row ``max(j - origin, 0)``: the
+        ``deviation`` of ``Predictor.set_plan``.
+
+    Raises:
+        ShapeError: ``profile`` is not 2-D.
+        InvalidInputError: The plan needs more rows of the profile than it has (measure longer
+            plans in the pilot), or a bad ``knots`` or ``origin``.
+    """
+    prof = np.asarray(profile, dtype=np.float64)
+    if prof.ndim != 2 or prof.shape[0] < 1:
+        raise ShapeError(
+            f"profile has shape {prof.shape}; expected (L, nbody) with L >= 1, as "
+            "deviation_profile returns."
+        )
+    if isinstance(knots, bool) or not isinstance(knots, int | np.integer) or knots < 1:
+        raise InvalidInputError(f"knots = {knots!r} is invalid: pass the plan's rows (>= 1).")
+    o = _int("origin", origin, 0, int(knots))
+    need = max(int(knots) - 1 - o, 0)
+    if need >= prof.shape[0]:
+        raise InvalidInputError(
+            f"the plan reaches {need} knots past its origin, the profile only "
+            f"{prof.shape[0] - 1}: measure longer plans in the pilot (or shorten the plan)."
+        )
+    return prof[np.maximum(np.arange(int(knots)) - o, 0)]
