@@ -105,9 +105,10 @@ def ab(args: argparse.Namespace) -> None:
         print(f"repeat {r + 1}/{args.repeats}", file=sys.stderr, flush=True)
     print(
         "| env | env.step plain before (us) | wrapped before (us) | ratio before "
-        "| plain after (us) | wrapped after (us) | ratio after | predictor.step after (us) |"
+        "| plain after (us) | wrapped after (us) | ratio after | predictor.step after (us) "
+        "| bookkeeping after (us) |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for env_id in args.envs:
         med = {
             s: {
@@ -120,7 +121,7 @@ def ab(args: argparse.Namespace) -> None:
             f"| {env_id} | {b['plain_us']:.1f} | {b['wrapped_us']:.1f} "
             f"| {b['wrapped_us'] / b['plain_us']:.3f} | {a['plain_us']:.1f} "
             f"| {a['wrapped_us']:.1f} | {a['wrapped_us'] / a['plain_us']:.3f} "
-            f"| {a['predictor_us']:.1f} |",
+            f"| {a['predictor_us']:.1f} | {a['observe_us']:.1f} |",
             flush=True,
         )
 
