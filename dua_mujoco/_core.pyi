@@ -27,6 +27,19 @@ def closest_point(points: Annotated[NDArray[numpy.float64], dict(order='C', devi
 
 def static_gap(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
 
+def check_shapes(shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> int:
+    """The first terrain record whose block does not fit the table, or -1."""
+
+def shape_record_count(shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> int:
+    """
+    How many leading rows of a shape table are records (then terrain blocks).
+    """
+
+def tau_terrain(table: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], row: int, shape: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], v: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], spin: float, eps: float, accel: float, delta: float) -> float:
+    """
+    tau of a convex shape record moving with velocity v against terrain record `row`.
+    """
+
 def tau_free(pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple[NDArray[numpy.float64], int]: ...
 
 def deadline_interval(tau: float, dt: float, latency: int, max_interval: int, extra: float = 0.0) -> int: ...

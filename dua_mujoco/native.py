@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.metadata
+import os
 import sys
 from pathlib import Path
 
@@ -23,8 +24,18 @@ LIBRARY = "libdua_mujoco.so"
 
 
 def library_path() -> Path:
-    """Where ``libdua_mujoco.so`` is: beside this package (a wheel, or an in-place build), or
-    where an editable install put the compiled files (its record of installed files)."""
+    """Where ``libdua_mujoco.so`` is: ``$DUA_MUJOCO_LIBRARY`` if set (another build of it, a
+    ThreadSanitizer one: docs/hardening.md), beside this package (a wheel, or an in-place
+    build), or where an editable install put the compiled files (its record of installed
+    files)."""
+    override = os.environ.get("DUA_MUJOCO_LIBRARY")
+    if override:
+        if not Path(override).is_file():
+            raise NativeLibraryError(
+                f"DUA_MUJOCO_LIBRARY = {override!r} names no file: point it at a built "
+                f"{LIBRARY}, or unset it to load the installed one."
+            )
+        return Path(override).resolve()
     here = Path(__file__).resolve().parent / LIBRARY
     if here.is_file():
         return here

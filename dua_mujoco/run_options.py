@@ -307,9 +307,10 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--hfield",
-        choices=["error", "box"],
-        default="error",
-        help="height fields: refuse them, or cover them conservatively by their bounding box",
+        choices=["terrain", "box", "error"],
+        default="terrain",
+        help="height fields: hold a static one as the prisms of its grid (default), cover them "
+        "by their bounding box, or refuse them",
     )
     p.add_argument("--realtime", action="store_true", help="count predictor deadline overruns")
     p.add_argument(

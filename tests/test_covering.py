@@ -230,10 +230,12 @@ HFIELD_XML = """
 </mujoco>"""
 
 
-def test_hfield_error_names_geom_and_fix() -> None:
+def test_hfield_is_terrain_by_default_and_error_names_geom_and_fix() -> None:
     m = mujoco.MjModel.from_xml_string(HFIELD_XML)
+    cov = cover_model(m)
+    assert cov.shape_geom.tolist() == [0] and cov.spheres_of(0).size == 0
     with pytest.raises(UnsupportedGeomError, match=r"terrain.*hfield=\"box\""):
-        cover_model(m)
+        cover_model(m, hfield="error")
 
 
 @pytest.mark.parametrize("mode", ["bounding", "multi"])

@@ -13,12 +13,12 @@ from dua_mujoco.exceptions import InvalidChoiceError, UnsupportedGeomError
 from dua_mujoco.mj.covering import cover_model
 from dua_mujoco.mj.filter import (
     GeomPairs,
-    _can_collide_reference,
     active_geom_pairs,
     pairs_between_bodies,
     sphere_pair_mask,
     sphere_pairs,
 )
+from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
 
 # Parent-child, welded children, static bodies, mocap weld groups, explicit pairs (static-static,
 # mocap-mocap, parent-child), excludes, contype/conaffinity, a height field and planes.
@@ -62,6 +62,52 @@ FILTER_XML = """
     <exclude body1="fgrand" body2="free2"/>
   </contact>
 </mujoco>"""
+
+
+def _can_collide_reference(model: mujoco.MjModel, g1: int, g2: int) -> bool:
+    """Slow, literal transcription of MuJoCo's filter for one geom pair .
+
+    Follows ``mj_collision``/``mj_broadphase``/``filterBodyPair``/``filterCollisionPair`` in
+    ``engine_collision_driver.c`` statement by statement, with the MuJoCo 4.0 rule that pairs where
+    neither weld group has dofs are skipped. Geometry (bounding volumes) is ignored.
+    """
+    g1, g2 = int(g1), int(g2)
+    if g1 == g2:
+        return False
+    opt_dis = int(model.opt.disableflags)
+    if opt_dis & int(mujoco.mjtDisableBit.mjDSBL_CONTACT):
+        return False
+    if opt_dis & int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
+        return False
+    t1, t2 = int(model.geom_type[g1]), int(model.geom_type[g2])
+    if t1 in (GEOM_PLANE, GEOM_HFIELD) and t2 in (GEOM_PLANE, GEOM_HFIELD):
+        return False  # mjCOLLISIONFUNC[t1][t2] == NULL
+
+    # predefined pairs are always tested
+    for k in range(int(model.npair)):
+        if {int(model.pair_geom1[k]), int(model.pair_geom2[k])} == {g1, g2}:
+            return True
+
+    b1, b2 = int(model.geom_bodyid[g1]), int(model.geom_bodyid[g2])
+    if b1 == b2:
+        return False  # broadphase never pairs a body with itself
+    w1, w2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
+    pw1 = int(model.body_weldid[int(model.body_parentid[w1])])
+    pw2 = int(model.body_weldid[int(model.body_parentid[w2])])
+    if w1 == w2:
+        return False
+    if int(model.body_dofnum[w1]) == 0 and int(model.body_dofnum[w2]) == 0:
+        return False
+    filterparent = not (opt_dis & int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT))
+    if filterparent and w1 != 0 and w2 != 0 and (w1 == pw2 or w2 == pw1):
+        return False
+    signature = (min(b1, b2) << 16) + max(b1, b2)
+    for k in range(int(model.nexclude)):
+        if int(model.exclude_signature[k]) == signature:
+            return False
+    c1, a1 = int(model.geom_contype[g1]), int(model.geom_conaffinity[g1])
+    c2, a2 = int(model.geom_contype[g2]), int(model.geom_conaffinity[g2])
+    return bool((c1 & a2) or (c2 & a1))
 
 
 def _with_flags(xml: str, flags: str) -> str:
@@ -374,12 +420,15 @@ def test_the_filter_on_candidates_gives_mujocos_pairs_on_assets(path: pathlib.Pa
     _lazy_parity(_load(path))
 
 
-@pytest.mark.parametrize("scene", ["two_arms", "clutter", "bin_pour:20", "traffic"])
+@pytest.mark.parametrize(
+    "scene", ["two_arms", "clutter", "bin_pour:20", "traffic", "rough_terrain"]
+)
 def test_pair_tables_equal_a_loop_over_geom_pairs(scene: str) -> None:
     """The native expansion, bounds and exact records (one implementation, which the plugin's
     pruned pairs use too) equal a plain loop over the geom pairs: sphere pairs in order (each
     geom pair's, the sphere-covered geom's spheres first), eps, summed bounds, exact modes."""
     from dua_mujoco.core.pairset import PairKind
+    from dua_mujoco.core.shapes import ShapeKind
     from dua_mujoco.mj.bounds import MotionBounds
     from dua_mujoco.mj.exact import GX_KIND, ExactMode, build_exact
     from dua_mujoco.mj.pairbounds import bounded_pairs
@@ -411,7 +460,8 @@ def test_pair_tables_equal_a_loop_over_geom_pairs(scene: str) -> None:
     np.testing.assert_array_equal(sp.kind, want[:, 2].astype(int))
     np.testing.assert_array_equal(sp.geom_pair, want[:, 3].astype(int))
     np.testing.assert_array_equal(sp.eps, want[:, 4].astype(float))  # the same sums, exactly
-    assert (sp.kind == int(PairKind.SPHERE)).any()
+    # (The quadruped on terrain collides with its ground alone: shape pairs only.)
+    assert (sp.kind == int(PairKind.SPHERE)).any() or scene == "rough_terrain"
 
     rng = np.random.default_rng(0)
     accel, delta = rng.uniform(0, 50, m.nbody), rng.uniform(0, 0.1, m.nbody)
@@ -426,12 +476,14 @@ def test_pair_tables_equal_a_loop_over_geom_pairs(scene: str) -> None:
     v = bounds.speed
     np.testing.assert_array_equal(ps.speed, np.where(sp.kind == 0, v[b1] + v[b2], v[b1]))
 
+    planes = np.append(np.asarray(cov.plane_geom), -1)  # a last entry for the other kinds
+    shapes = np.append(np.asarray(cov.shape_geom), -1)
     geom2 = np.where(
         sp.kind == 1,
-        np.asarray(cov.plane_geom)[np.where(sp.kind == 1, sp.second, 0)],
+        planes[np.where(sp.kind == 1, sp.second, -1)],
         np.where(
             sp.kind == 2,
-            np.asarray(cov.shape_geom)[np.where(sp.kind == 2, sp.second, 0)],
+            shapes[np.where(sp.kind == 2, sp.second, -1)],
             cov.sphere_geom[np.where(sp.kind == 0, sp.second, 0)],
         ),
     )
@@ -439,7 +491,16 @@ def test_pair_tables_equal_a_loop_over_geom_pairs(scene: str) -> None:
     level = build_exact(m, geom1, geom2, sp.kind, sp.eps, 1.0)
     for p in range(sp.npair):
         kind, g1, g2 = int(sp.kind[p]), int(geom1[p]), int(geom2[p])
-        usable = level.geoms[g1, GX_KIND] >= 0 and (kind == 1 or level.geoms[g2, GX_KIND] >= 0)
+        # Geoms with a support of their own (kinds from SPHERE on); a height field held as
+        # terrain (a shape pair) is read through its grid.
+        k1, k2 = level.geoms[g1, GX_KIND], level.geoms[g2, GX_KIND]
+        terrain = kind == 2 and k2 == int(ShapeKind.HFIELD)
+        usable = k1 >= int(ShapeKind.SPHERE) and (
+            kind == 1 or terrain or k2 >= int(ShapeKind.SPHERE)
+        )
         mode = [ExactMode.GEOMS, ExactMode.PLANE, ExactMode.SHAPE][kind] if usable else 0
+        mode = ExactMode.TERRAIN if usable and terrain else mode
         want_row = [mode, g1, g2, sp.eps[p], 0, 0, 0, -1, -1, 0]
         np.testing.assert_array_equal(level.records[p], want_row)
+    if scene == "rough_terrain":
+        assert (level.records[:, 0] == int(ExactMode.TERRAIN)).all()

@@ -564,10 +564,12 @@ HFIELD_XML = """
 """
 
 
-def test_hfield_needs_the_box_fallback() -> None:
+def test_hfield_is_terrain_by_default_box_and_error_on_request() -> None:
     m = mujoco.MjModel.from_xml_string(HFIELD_XML)
+    p = Predictor(m, accel=1.0)
+    assert p.nsphere_pairs == 1 and p.covering.shape_geom.tolist() == [0]
     with pytest.raises(UnsupportedGeomError) as info:
-        Predictor(m, accel=1.0)
+        Predictor(m, accel=1.0, covering=CoveringOptions(hfield="error"))
     msg = str(info.value)
     assert "'ground'" in msg
     assert 'hfield="box"' in msg

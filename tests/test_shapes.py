@@ -686,8 +686,11 @@ def test_time_to_static_rejects():
     with pytest.raises(ShapeError, match=r"accel has shape \(2,\)"):
         time_to_static(c, v, recs, ids, 0.1, np.ones(2))
     broken = recs.copy()
-    broken[1, SHAPE_KIND] = 1.0
-    with pytest.raises(InvalidInputError, match=r"SHAPE_KIND\]\[1\] = 1 is not"):
+    broken[1, SHAPE_KIND] = 9.0
+    with pytest.raises(InvalidInputError, match=r"SHAPE_KIND\]\[1\] = 9 is not"):
+        time_to_static(c, v, broken, ids, 0.1, 1.0)
+    broken[1, SHAPE_KIND] = 1.0  # a height field's record, without its grid
+    with pytest.raises(InvalidInputError, match=r"shapes\[1\] is a terrain record"):
         time_to_static(c, v, broken, ids, 0.1, 1.0)
     broken = recs.copy()
     broken[1, SHAPE_SIZE] = 0.0  # a sphere of radius 0 divides by zero in the closest point

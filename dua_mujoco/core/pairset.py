@@ -356,14 +356,6 @@ class PairSet:
             )
         return c, v, planes, recs
 
-    def distance(self, ids: npt.ArrayLike, centers: npt.ArrayLike) -> np.ndarray:
-        """Distance urgency ``|c_j - c_i| - eps`` of the sphere-sphere pairs ``ids``, ``(n,)``."""
-        idx = as_ids("ids", ids)
-        c = as_vectors("centers", centers)
-        return np.asarray(
-            np.linalg.norm(c[self.second[idx]] - c[self.first[idx]], axis=1) - self.eps[idx]
-        )
-
 
 def _as_kind(halfspace: npt.ArrayLike | None, kind: npt.ArrayLike | None, m: int) -> np.ndarray:
     """``(m,)`` int8 ``PairKind`` codes from either ``kind`` or the ``halfspace`` mask."""

@@ -28,8 +28,11 @@ column  name         content
 ``ShapeKind`` codes equal MuJoCo's ``mjtGeom`` (this module does not import MuJoCo):
 ``mjGEOM_SPHERE = 2``, ``CAPSULE = 3``, ``ELLIPSOID = 4``, ``CYLINDER = 5``, ``BOX = 6``; a
 ``mjGEOM_MESH = 7`` is held as ``MESH_BOX``, the box ``geom_aabb`` of its convex hull (build the
-record with ``mesh_box``). Planes (``0``) are half-spaces already (``time_to_halfspace``); height
-fields (``1``) and SDFs (``8``) are not convex and are refused.
+record with ``mesh_box``). Planes (``0``) are half-spaces already (``time_to_halfspace``); a static
+height field (``1``, ``HFIELD``) is held as the prisms of its grid, its record pointing to a block
+of rows after the records (``dua_mujoco.core.terrain``); SDFs (``8``) are not convex and are
+refused. The one-shape kernels below take a record, or a table and the row of one of its
+records (a terrain record needs its table).
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ import numpy as np
 import numpy.typing as npt
 
 import dua_mujoco._core as _core
+from dua_mujoco.core.terrain import first_bad_row, record_count
 from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidInputError,
@@ -75,6 +79,7 @@ class ShapeKind(enum.IntEnum):
     CYLINDER = _LAYOUT["ShapeKind.CYLINDER"]
     BOX = _LAYOUT["ShapeKind.BOX"]
     MESH_BOX = _LAYOUT["ShapeKind.MESH_BOX"]  # a mesh, held as the box geom_aabb around its hull
+    HFIELD = _LAYOUT["ShapeKind.HFIELD"]  # a static height field, its grid's prisms (core/terrain)
 
 
 SHAPE_KIND: int = _LAYOUT["SHAPE_KIND"]
@@ -83,22 +88,26 @@ SHAPE_POS: int = _LAYOUT["SHAPE_POS"]
 SHAPE_MAT: int = _LAYOUT["SHAPE_MAT"]
 SHAPE_NCOL: int = _LAYOUT["SHAPE_NCOL"]
 
-_ONE = np.zeros(1, dtype=np.int64)
 
-
-def _one(point: npt.ArrayLike, rec: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """A point ``(1, 3)`` and a record ``(1, 16)`` for the native kernels' batches."""
+def _one(
+    point: npt.ArrayLike, rec: npt.ArrayLike, row: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A point ``(1, 3)``, a table ``(k, 16)`` and the id ``(1,)`` of its row ``row`` for the
+    native kernels' batches (a terrain record reads the rows after it: its table is passed)."""
     p = np.asarray(point, dtype=np.float64).reshape(1, 3)
-    r = np.asarray(rec, dtype=np.float64).reshape(1, SHAPE_NCOL)
-    return p, r
+    r = np.ascontiguousarray(np.asarray(rec, dtype=np.float64).reshape(-1, SHAPE_NCOL))
+    return p, r, np.array([row], dtype=np.int64)
 
 
-def static_gap(c: npt.ArrayLike, rec: npt.ArrayLike) -> tuple[float, float, float, float]:
+def static_gap(
+    c: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0
+) -> tuple[float, float, float, float]:
     """Clearance of a point from a static shape along the chosen direction.
 
     Args:
         c: Point (sphere centre), shape ``(3,)``.
-        rec: One shape record, shape ``(16,)``.
+        rec: One shape record, shape ``(16,)``, or a table ``(k, 16)``.
+        row: The record's row in ``rec`` when it is a table.
 
     Returns:
         ``(gap, nx, ny, nz)``: ``n`` is the unit direction from the closest point of the shape to
@@ -106,36 +115,38 @@ def static_gap(c: npt.ArrayLike, rec: npt.ArrayLike) -> tuple[float, float, floa
         and ``gap <= 0`` inside. Outside, ``gap = dist(c, S)`` up to rounding (for ``MESH_BOX``
         the distance to the box, for the ellipsoid up to the accuracy of the iterated root).
     """
-    out = _core.static_gap(*_one(c, rec), _ONE)[0]
+    out = _core.static_gap(*_one(c, rec, row))[0]
     return float(out[0]), float(out[1]), float(out[2]), float(out[3])
 
 
-def support(n: npt.ArrayLike, rec: npt.ArrayLike) -> float:
+def support(n: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0) -> float:
     """Support function ``h_S(n) = n.p + h_local(R^T n)`` of one shape.
 
     Args:
         n: Direction, shape ``(3,)``, any length (the support function is positively
             homogeneous).
-        rec: One shape record, shape ``(16,)``.
+        rec: One shape record, shape ``(16,)``, or a table ``(k, 16)``.
+        row: The record's row in ``rec`` when it is a table.
 
     Returns:
         ``max_{q in S} n.q`` (for ``MESH_BOX``, that of the box around the hull: an upper bound).
     """
-    return float(_core.support(*_one(n, rec), _ONE)[0])
+    return float(_core.support(*_one(n, rec, row))[0])
 
 
-def closest_point(c: npt.ArrayLike, rec: npt.ArrayLike) -> tuple[float, float, float]:
+def closest_point(c: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0) -> tuple[float, float, float]:
     """Closest point of a static shape to ``c`` (``c`` itself when inside).
 
     Args:
         c: Point, shape ``(3,)``.
-        rec: One shape record, shape ``(16,)``.
+        rec: One shape record, shape ``(16,)``, or a table ``(k, 16)``.
+        row: The record's row in ``rec`` when it is a table.
 
     Returns:
         ``(q0, q1, q2)`` in world coordinates; ``|c - q|`` is the distance to the shape (to the
         box for ``MESH_BOX``; for the ellipsoid to the iterated root, accurate to rounding).
     """
-    out = _core.closest_point(*_one(c, rec), _ONE)[0]
+    out = _core.closest_point(*_one(c, rec, row))[0]
     return float(out[0]), float(out[1]), float(out[2])
 
 
@@ -150,17 +161,20 @@ def tau_static(
     eps: float,
     accel: float,
     delta: float,
+    row: int = 0,
 ) -> float:
     """Scalar kernel: lower bound on the time before a sphere can touch a static shape.
+
+    ``rec`` is one record ``(16,)``, or a table ``(k, 16)`` and ``row`` the record's row.
 
     The half-space tau of ``H(n)`` (module docstring) with the gap lowered by a rounding slack
     and the velocity uncertainty raised by one, so that rounding cannot make it late. Returns 0
     when the centre is inside the shape or within ``eps`` of it.
     """
-    p, r = _one((c0, c1, c2), rec)
+    p, r, ids = _one((c0, c1, c2), rec, row)
     v = np.array([[v0, v1, v2]], dtype=np.float64)
     bounds = (np.array([x], dtype=np.float64) for x in (eps, accel, delta))
-    return float(_core.tau_static_batch(p, v, r, _ONE, *bounds)[0])
+    return float(_core.tau_static_batch(p, v, r, ids, *bounds)[0])
 
 
 # How far from orthonormal a rotation may be (MuJoCo's geom_xmat is orthonormal to ~1e-15).
@@ -174,6 +188,7 @@ _ORTHO_TOL = 1e-6
 _KIND_CODES = np.array([int(k) for k in ShapeKind], dtype=np.float64)
 # Size columns a kind uses; the others are ignored (MuJoCo leaves them 0 for spheres).
 _USED = {
+    ShapeKind.HFIELD: 0,  # its size columns locate its block (dua_mujoco.core.terrain)
     ShapeKind.SPHERE: 1,
     ShapeKind.CAPSULE: 2,
     ShapeKind.ELLIPSOID: 3,
@@ -206,8 +221,8 @@ def _check_kinds(name: str, kind: np.ndarray) -> None:
         valid = ", ".join(f"{k.name}={int(k)}" for k in ShapeKind)
         raise InvalidInputError(
             f"{name}[{i}] = {float(kind[i]):g} is not a static shape kind. Valid kinds: {valid}. "
-            "Planes are half-spaces (use time_to_halfspace); height fields and SDFs are not "
-            "convex (cover them with spheres instead)."
+            "Planes are half-spaces (use time_to_halfspace); SDFs are not convex (cover them "
+            "with spheres instead)."
         )
 
 
@@ -261,6 +276,12 @@ def pack_shapes(
     k = k.astype(np.int64)
     m = k.shape[0]
     _check_kinds("kind", k.astype(np.float64))
+    if (k == int(ShapeKind.HFIELD)).any():
+        i = _first_bad_row(k == int(ShapeKind.HFIELD))
+        raise InvalidInputError(
+            f"kind[{i}] is HFIELD: a height field's record points to its grid; build it with "
+            "dua_mujoco.core.terrain.pack_terrain and shape_table."
+        )
     sz = _rows("size", size, 3, m)
     ps = _rows("pos", pos, 3, m)
     mt = np.asarray(mat, dtype=np.float64)
@@ -386,10 +407,22 @@ def time_to_static(
     if not np.isfinite(recs).all():
         i = _first_bad_row(~np.isfinite(recs).all(axis=1))
         raise InvalidInputError(f"shapes[{i}] is not finite; rebuild it with pack_shapes.")
-    _check_kinds("shapes[:, SHAPE_KIND]", recs[:, SHAPE_KIND])
+    # Terrain records point to blocks after the records (dua_mujoco.core.terrain).
+    recs = np.ascontiguousarray(recs)
+    nrec = record_count(recs)
+    _check_kinds("shapes[:, SHAPE_KIND]", recs[:nrec, SHAPE_KIND])
     _check_sizes(
-        "shapes[:, SHAPE_SIZE:SHAPE_POS]", recs[:, SHAPE_KIND], recs[:, SHAPE_SIZE:SHAPE_POS]
+        "shapes[:, SHAPE_SIZE:SHAPE_POS]",
+        recs[:nrec, SHAPE_KIND],
+        recs[:nrec, SHAPE_SIZE:SHAPE_POS],
     )
+    bad = first_bad_row(recs)
+    if bad >= 0:
+        raise InvalidInputError(
+            f"shapes[{bad}] is a terrain record whose block does not fit the table (its offset, "
+            "length, header or grid): rebuild the table with dua_mujoco.mj.tables.static_shapes "
+            "or dua_mujoco.core.terrain.shape_table."
+        )
     ids = np.asarray(shape_ids)
     if ids.shape != (n,):
         raise ShapeError(f"shape_ids has shape {ids.shape}; expected ({n},).")
@@ -397,12 +430,12 @@ def time_to_static(
         raise InvalidInputError(
             f"shape_ids has dtype {ids.dtype}; pass integer row indices into shapes."
         )
-    out_of_range = (ids < 0) | (ids >= recs.shape[0])
+    out_of_range = (ids < 0) | (ids >= nrec)
     if out_of_range.any():
         i = _first_bad_row(out_of_range)
         raise InvalidInputError(
-            f"shape_ids[{i}] = {int(ids[i])} is out of range: shapes has {recs.shape[0]} rows "
-            f"(valid ids 0..{recs.shape[0] - 1})."
+            f"shape_ids[{i}] = {int(ids[i])} is out of range: shapes has {nrec} records "
+            f"(valid ids 0..{nrec - 1})."
         )
     e = _per_sphere("eps", eps, n)
     a = _per_sphere("accel", accel, n)

@@ -2,11 +2,12 @@
 
 Every collidable geom of a MuJoCo model is replaced by a set of spheres whose union contains the
 geom's solid (for meshes: its convex hull, which is what MuJoCo collides with). Planes are kept as
-half-spaces (outward normal = the plane's local z axis, through ``geom_xpos``), and static geoms
+half-spaces (outward normal = the plane's local z axis, through ``geom_xpos``), static geoms
 (bodies welded to the world) are kept as their own convex shapes (``static="shape"``, the
-default; ``docs/static-shapes.md``). A collision between two geoms therefore implies an
-intersection between one sphere of each, or between a sphere and a half-space or static shape,
-which is what the urgency layer predicts.
+default; ``docs/static-shapes.md``), and static height fields as terrain, the prisms of their
+grid (``hfield="terrain"``, the default; ``docs/theory.md``, section 9). A collision between two
+geoms therefore implies an intersection between one sphere of each, or between a sphere and a
+half-space, a static shape or a terrain, which is what the urgency layer predicts.
 
 Two coverings exist:
 
@@ -62,16 +63,20 @@ from dua_mujoco.mj.multicover import (
 )
 
 __all__ = [
+    "HFIELD_CHOICES",
     "STATIC_CHOICES",
     "Covering",
     "CoveringMode",
     "cover_model",
     "sphere_world_centers",
     "static_shape_geoms",
+    "terrain_geoms",
 ]
 
 
-_HFIELD_CHOICES = ("error", "box")
+HFIELD_CHOICES = ("terrain", "box", "error")
+"""``cover_model``'s ``hfield`` option: static height fields as terrain (the prisms of their
+grid), every height field covered by its bounding box, or refused."""
 STATIC_CHOICES = ("shape", "sphere")
 """``cover_model``'s ``static`` option: static geoms as their own shapes, or as spheres."""
 # Geom types tau_static holds exactly (meshes by the box around their hull).
@@ -109,7 +114,8 @@ class Covering:
         plane_static: ``(nplane,)`` bool, the plane's body is welded to the world (only static
             planes are fixed half-spaces).
         shape_geom: ``(nshape,)`` int32, geom ids of static geoms held as their own convex shape
-            (records packed from ``MjData`` by ``dua_mujoco.mj.tables.static_shapes``).
+            or, for height fields, as terrain (records packed by
+            ``dua_mujoco.mj.tables.static_shapes``).
         geom_shape: ``(ngeom,)`` int32, shape index of each geom, or -1.
         static: ``"shape"`` or ``"sphere"``, the ``cover_model`` option used.
     """
@@ -214,6 +220,11 @@ def static_shape_geoms(model: mujoco.MjModel) -> np.ndarray:
     Returns:
         ``(ngeom,)`` bool.
     """
+    return _static_geoms(model) & np.isin(np.asarray(model.geom_type, dtype=np.int64), _SHAPE_TYPES)
+
+
+def _static_geoms(model: mujoco.MjModel) -> np.ndarray:
+    """Geoms welded to the world and in no ``<pair>`` with another such geom: ``(ngeom,)``."""
     gbody = np.asarray(model.geom_bodyid, dtype=np.int64)
     static = np.asarray(model.body_weldid, dtype=np.int64)[gbody] == 0
     # Since MuJoCo 4.0 mocap bodies are weld roots (body_weldid = own id); say it anyway.
@@ -226,7 +237,23 @@ def static_shape_geoms(model: mujoco.MjModel) -> np.ndarray:
         keep_static[p1[both]] = False
         keep_static[p2[both]] = False
         static = keep_static
-    return static & np.isin(np.asarray(model.geom_type, dtype=np.int64), _SHAPE_TYPES)
+    return static
+
+
+def terrain_geoms(model: mujoco.MjModel) -> np.ndarray:
+    """Which geoms ``cover_model(hfield="terrain")`` holds as terrain, the prisms of their grid.
+
+    A height field qualifies when its body is welded to the world (its pose, and so every prism,
+    is a constant of the model) and it is in no ``<pair>`` with another static geom (a terrain
+    pairs with spheres only; such a height field keeps its box covering).
+
+    Args:
+        model: the compiled MuJoCo model.
+
+    Returns:
+        ``(ngeom,)`` bool.
+    """
+    return _static_geoms(model) & (np.asarray(model.geom_type, dtype=np.int64) == GEOM_HFIELD)
 
 
 def _cover_geom(
@@ -260,9 +287,9 @@ def _cover_geom(
     if gtype == GEOM_HFIELD:
         if hfield == "error":
             raise UnsupportedGeomError(
-                f"{_geom_name(model, g)} is a height field, which has no exact sphere covering. "
-                'Pass hfield="box" (CLI: --hfield box) to cover it conservatively by its bounding '
-                "box (base included)."
+                f'{_geom_name(model, g)} is a height field, and hfield="error" refuses them. '
+                'Pass hfield="terrain" (the default; CLI: --hfield terrain) to hold a static one '
+                'as the prisms of its grid, or hfield="box" to cover it by its bounding box.'
             )
         # The height field spans x, y in [-size_x, size_x] x [-size_y, size_y] and z from -base
         # to the top elevation; geom_aabb is exactly that box in the geom frame.
@@ -306,6 +333,26 @@ def _cover_geom(
     return multi
 
 
+def _terrain_of(model: mujoco.MjModel, collidable: np.ndarray) -> np.ndarray:
+    """The collidable height fields held as terrain; a moving one is refused."""
+    hfields = collidable & (np.asarray(model.geom_type, dtype=np.int64) == GEOM_HFIELD)
+    gbody = np.asarray(model.geom_bodyid, dtype=np.int64)
+    moving = hfields & (
+        (np.asarray(model.body_weldid, dtype=np.int64)[gbody] != 0)
+        | (np.asarray(model.body_mocapid, dtype=np.int64)[gbody] >= 0)
+    )
+    if moving.any():
+        g = int(np.flatnonzero(moving)[0])
+        body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(gbody[g])) or "unnamed"
+        raise UnsupportedGeomError(
+            f"{_geom_name(model, g)} is a height field on body {int(gbody[g])} ({body!r}), "
+            "which moves (a joint or a mocap body lies between it and the world): terrain must "
+            "be static. Weld it to the world (no joint on its body or above it), or pass "
+            'hfield="box" (CLI: --hfield box) to cover it by its bounding box.'
+        )
+    return hfields & terrain_geoms(model)
+
+
 def _as_mode(mode: CoveringMode | str) -> CoveringMode:
     if isinstance(mode, CoveringMode):
         return mode
@@ -320,7 +367,7 @@ def cover_model(
     *,
     mode: CoveringMode | str = CoveringMode.BOUNDING,
     max_spheres_per_geom: int = 8,
-    hfield: str = "error",
+    hfield: str = "terrain",
     only_collidable: bool = True,
     static: str = "shape",
 ) -> Covering:
@@ -331,8 +378,10 @@ def cover_model(
         mode: ``"bounding"`` (one sphere per geom, radius ``geom_rbound``) or ``"multi"`` (up to
             ``max_spheres_per_geom`` tighter spheres per geom), or a :class:`CoveringMode`.
         max_spheres_per_geom: sphere budget per geom in ``"multi"`` mode (int >= 1).
-        hfield: ``"error"`` to refuse height fields, ``"box"`` to cover a height field by its full
-            bounding box (base included): conservative, never tight.
+        hfield: ``"terrain"`` (default) holds each static height field (``terrain_geoms``) as
+            the prisms of its grid, with no spheres, and refuses one on a moving body;
+            ``"box"`` covers every height field by its full bounding box (base included):
+            conservative, never tight; ``"error"`` refuses height fields.
         only_collidable: leave out geoms that can never be in a contact (contype and conaffinity
             both 0, and in no ``<pair>``); they get zero spheres. Visual geoms then cost nothing.
         static: ``"shape"`` (default) holds each static geom (``static_shape_geoms``) as its
@@ -345,13 +394,17 @@ def cover_model(
     Raises:
         InvalidChoiceError: unknown ``mode``, ``hfield`` or ``static``.
         InvalidInputError: ``max_spheres_per_geom`` is not an int >= 1.
-        UnsupportedGeomError: a height field with ``hfield="error"``, an SDF geom, or an unknown
-            geom type, among the geoms to cover.
+        UnsupportedGeomError: a height field with ``hfield="error"``, one on a moving body with
+            ``hfield="terrain"``, an SDF geom, or an unknown geom type, among the geoms to cover.
     """
     cmode = _as_mode(mode)
-    if hfield not in _HFIELD_CHOICES:
+    if hfield not in HFIELD_CHOICES:
         raise InvalidChoiceError(
-            "hfield option", hfield, _HFIELD_CHOICES, 'Use "box" to cover height fields.'
+            "hfield option",
+            hfield,
+            HFIELD_CHOICES,
+            'Use "terrain" for static height fields as the prisms of their grid, "box" for '
+            "bounding boxes.",
         )
     if static not in STATIC_CHOICES:
         raise InvalidChoiceError(
@@ -376,6 +429,8 @@ def cover_model(
     as_shape = (
         static_shape_geoms(model) & collidable if static == "shape" else np.zeros(ngeom, dtype=bool)
     )
+    if hfield == "terrain":
+        as_shape |= _terrain_of(model, collidable)
     counts = np.zeros(ngeom, dtype=np.int64)
     centres: list[np.ndarray] = []
     radii: list[np.ndarray] = []

@@ -16,8 +16,11 @@ first root is :func:`~dua_mujoco.core.urgency.tau_halfspace`'s, and the pair's t
 of the two lower bounds. Proof, and what the distance means for each geom type, in
 docs/theory.md (section 5). A plane needs no query: its normal is the direction.
 
-Height fields and SDF geoms are not convex and keep their sphere tau; so do pairs whose witness
-is degenerate (touching, or no witness within the query's reach).
+A height field held as terrain is read through its grid (``ExactMode.TERRAIN``: the geom's
+support against the prisms, docs/theory.md, section 9), never through
+``mj_geomDistance``, which is no lower bound there. SDF geoms and height fields covered by
+spheres keep their sphere tau; so do pairs whose witness is degenerate (touching, or no witness
+within the query's reach).
 """
 
 from __future__ import annotations
@@ -66,19 +69,23 @@ class ExactMode(enum.IntEnum):
     """What the exact level does for a pair (``X_MODE``)."""
 
     NONE = LAYOUT["ExactMode.NONE"]
-    """Keep the sphere tau (a height field, an SDF, or the level is off)."""
+    """Keep the sphere tau (a height field covered by spheres, an SDF, or the level is off)."""
     GEOMS = LAYOUT["ExactMode.GEOMS"]
     """Two geoms that may both move: ``mj_geomDistance`` gives the direction."""
     PLANE = LAYOUT["ExactMode.PLANE"]
     """A geom and a plane: the plane's normal is the direction."""
     SHAPE = LAYOUT["ExactMode.SHAPE"]
     """A geom and a static shape (its record in the shape table): ``mj_geomDistance``."""
+    TERRAIN = LAYOUT["ExactMode.TERRAIN"]
+    """A geom and a height field held as terrain: the prisms of its grid (``terrain.cc``), never
+    ``mj_geomDistance``, which is no lower bound there."""
 
 
 # Columns of the per-geom records: the first eight are ``pack_spheres``' (a "sphere" at the geom
 # origin, whose velocity the kinematics kernel gives), then the support shape: its kind
-# (ShapeKind, -1 where the level does not apply), size (3), centre in the geom frame (3, a mesh's
-# box centre), radius (max |p - origin| over the geom's points), a mesh's first vertex and hull
+# (ShapeKind, 1 for a height field read as terrain, -1 where the level does not apply), size
+# (3), centre in the geom frame (3, a mesh's box centre), radius (max |p - origin| over the
+# geom's points), a mesh's first vertex and hull
 # graph address (-1: none), and six seeds of the hull climb (the hull vertices farthest along
 # -x, +x, -y, +y, -z, +z).
 GX_KIND, GX_SIZE, GX_CENTRE = LAYOUT["GX_KIND"], LAYOUT["GX_SIZE"], LAYOUT["GX_CENTRE"]
@@ -161,7 +168,8 @@ class ExactLevel:
         if geoms is None:
             used = self.records[self.records[:, X_MODE] != ExactMode.NONE]
             geoms = np.unique(np.concatenate([used[:, X_G1], used[:, X_G2]]).astype(np.int64))
-        geoms = geoms[self.geoms[geoms, GX_KIND] >= 0]  # planes are read by their normal only
+        # Planes are read by their normal only, height fields (static) by their grid.
+        geoms = geoms[self.geoms[geoms, GX_KIND] >= int(ShapeKind.SPHERE)]
         corners = corner_points(model, geoms)
         return tuple(  # type: ignore[return-value]
             np.concatenate([a, b]) for a, b in zip(points, corners, strict=True)
@@ -178,6 +186,8 @@ def _geom_records(model: mujoco.MjModel) -> np.ndarray:
     )
     usable = np.isin(gtype, sorted(EXACT_TYPES))
     rec[:, GX_KIND] = np.where(usable, gtype, -1)
+    # A height field: terrain pairs (ExactMode.TERRAIN) read its grid, sphere pairs nothing.
+    rec[gtype == int(mujoco.mjtGeom.mjGEOM_HFIELD), GX_KIND] = int(ShapeKind.HFIELD)
     size = np.asarray(model.geom_size, dtype=np.float64)
     aabb = np.asarray(model.geom_aabb, dtype=np.float64)
     mesh = gtype == int(mujoco.mjtGeom.mjGEOM_MESH)

@@ -323,52 +323,6 @@ def contact_distance_bound(model: mujoco.MjModel, explicit: GeomPairs) -> float:
     return max(0.0, bound, float(explicit.contact_distance.max(initial=0.0)))
 
 
-def _can_collide_reference(model: mujoco.MjModel, g1: int, g2: int) -> bool:
-    """Slow, literal transcription of MuJoCo's filter for one geom pair (tests only).
-
-    Follows ``mj_collision``/``mj_broadphase``/``filterBodyPair``/``filterCollisionPair`` in
-    ``engine_collision_driver.c`` statement by statement, with the MuJoCo 4.0 rule that pairs where
-    neither weld group has dofs are skipped. Geometry (bounding volumes) is ignored.
-    """
-    g1, g2 = int(g1), int(g2)
-    if g1 == g2:
-        return False
-    opt_dis = int(model.opt.disableflags)
-    if opt_dis & int(mujoco.mjtDisableBit.mjDSBL_CONTACT):
-        return False
-    if opt_dis & int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
-        return False
-    t1, t2 = int(model.geom_type[g1]), int(model.geom_type[g2])
-    if t1 in (GEOM_PLANE, GEOM_HFIELD) and t2 in (GEOM_PLANE, GEOM_HFIELD):
-        return False  # mjCOLLISIONFUNC[t1][t2] == NULL
-
-    # predefined pairs are always tested
-    for k in range(int(model.npair)):
-        if {int(model.pair_geom1[k]), int(model.pair_geom2[k])} == {g1, g2}:
-            return True
-
-    b1, b2 = int(model.geom_bodyid[g1]), int(model.geom_bodyid[g2])
-    if b1 == b2:
-        return False  # broadphase never pairs a body with itself
-    w1, w2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
-    pw1 = int(model.body_weldid[int(model.body_parentid[w1])])
-    pw2 = int(model.body_weldid[int(model.body_parentid[w2])])
-    if w1 == w2:
-        return False
-    if int(model.body_dofnum[w1]) == 0 and int(model.body_dofnum[w2]) == 0:
-        return False
-    filterparent = not (opt_dis & int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT))
-    if filterparent and w1 != 0 and w2 != 0 and (w1 == pw2 or w2 == pw1):
-        return False
-    signature = (min(b1, b2) << 16) + max(b1, b2)
-    for k in range(int(model.nexclude)):
-        if int(model.exclude_signature[k]) == signature:
-            return False
-    c1, a1 = int(model.geom_contype[g1]), int(model.geom_conaffinity[g1])
-    c2, a2 = int(model.geom_contype[g2]), int(model.geom_conaffinity[g2])
-    return bool((c1 & a2) or (c2 & a1))
-
-
 @dataclass(frozen=True)
 class SpherePairs:
     """Sphere-sphere, sphere-half-space and sphere-static-shape pairs of the active geom pairs.

@@ -53,14 +53,16 @@ class CoveringOptions:
     Attributes:
         mode: ``"bounding"`` (one sphere a geom) or ``"multi"`` (a ``CoveringMode`` or its value).
         max_spheres_per_geom: Budget of the multi-sphere covering.
-        hfield: ``"error"`` or ``"box"`` (a conservative box covering of height fields).
+        hfield: ``"terrain"``: static height fields are held as the prisms of their grid
+            (docs/theory.md, section 9); ``"box"``: covered by their bounding box
+            (conservative, loose); ``"error"``: refused.
         static: ``"shape"``: geoms welded to the world are held as their own convex shapes
             (docs/static-shapes.md); ``"sphere"``: covered like moving geoms.
     """
 
     mode: str = "bounding"
     max_spheres_per_geom: int = 8
-    hfield: str = "error"
+    hfield: str = "terrain"
     static: str = "shape"
 
     def __post_init__(self) -> None:

@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule, make_scheduler
+from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule
 from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
@@ -363,18 +363,6 @@ class Predictor:
             raise self._step_error(data, error) from None
         return alarms
 
-    def new_scheduler(self, tau0: np.ndarray) -> Scheduler:
-        """A scheduler of this predictor's schedule and options over ``tau0`` ``(K,)``."""
-        return make_scheduler(
-            self.schedule,
-            tau0,
-            dt=self.dt,
-            latency=self.latency,
-            slots_per_bucket=self.slots_per_bucket,
-            max_evals_per_step=self.max_evals_per_step,
-            alarm_backoff=self.alarm_backoff,
-        )
-
     # ----------------------------------------------------------------------- intended contact
 
     def set_active_bodies(
@@ -575,10 +563,6 @@ class Predictor:
         """``(geom1, geom2)``, each ``(nsphere_pairs,)``: the geoms of every sphere pair
         (``geom2`` is the plane geom of half-space pairs, the static geom of shape pairs)."""
         return self.tables.geom1, self.tables.geom2
-
-    def geom_pair_of(self, pairs: npt.ArrayLike) -> np.ndarray:
-        """Index into ``geom_pairs`` of sphere pairs."""
-        return np.asarray(self.sphere_pairs.geom_pair[np.asarray(pairs, dtype=np.int64)])
 
     @property
     def violated_bodies(self) -> np.ndarray:

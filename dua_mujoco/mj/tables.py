@@ -11,6 +11,7 @@ import numpy as np
 
 from dua_mujoco.core.pairset import KIND_SHAPE
 from dua_mujoco.core.shapes import SHAPE_NCOL, ShapeKind, mesh_box, pack_shapes
+from dua_mujoco.core.terrain import pack_terrain, shape_table
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.covering import Covering
 from dua_mujoco.mj.filter import SpherePairs
@@ -109,6 +110,9 @@ GEOMETRY_FIELDS = (
     "body_weldid",
     "mesh_vert",
     "hfield_size",
+    "hfield_nrow",
+    "hfield_ncol",
+    "hfield_data",
     "pair_geom1",
     "pair_geom2",
     "pair_margin",
@@ -177,8 +181,9 @@ def static_shapes(
         data: its data, kinematics computed, or None for no check.
 
     Returns:
-        ``(nshape, 16)`` records (``dua_mujoco.core.shapes``); one placeholder row (never read)
-        when there is no shape.
+        ``(nshape, 16)`` records (``dua_mujoco.core.shapes``), then the blocks of the height
+        fields' records (``dua_mujoco.core.terrain``); one placeholder row (never read) when
+        there is no shape.
 
     Raises:
         InvalidInputError: a static geom's pose in ``data`` differs from the model's.
@@ -200,7 +205,28 @@ def static_shapes(
         size[mesh] = half
         pos = pos.copy()
         pos[mesh] = centre
-    return pack_shapes(types, size, pos, mat)
+    terrain = types == int(ShapeKind.HFIELD)
+    records = np.zeros((g.size, SHAPE_NCOL))
+    if (~terrain).any():
+        records[~terrain] = pack_shapes(
+            types[~terrain], size[~terrain], pos[~terrain], mat[~terrain]
+        )
+    # Height fields: their grids' blocks after the records (dua_mujoco.core.terrain).
+    blocks = {}
+    for k in np.flatnonzero(terrain).tolist():
+        h = int(model.geom_dataid[g[k]])
+        adr, nrow, ncol = (
+            int(a[h]) for a in (model.hfield_adr, model.hfield_nrow, model.hfield_ncol)
+        )
+        records[k], blocks[k] = pack_terrain(
+            model.hfield_size[h],
+            nrow,
+            ncol,
+            model.hfield_data[adr : adr + nrow * ncol],
+            pos[k],
+            mat[k],
+        )
+    return shape_table(records, blocks)
 
 
 def _check_static_poses(

@@ -304,21 +304,6 @@ class Scheduler:
         self._nalarm = nalarm
         return self._alarm_rows[0, :nalarm].copy()
 
-    def begin_step(self) -> int:
-        """The number of the step a driver outside this class (a native step) is about to run
-        on :attr:`core`; refused between :meth:`select` and :meth:`update`."""
-        self._check_writable("begin_step()")
-        if self._pending is not None:
-            raise SchedulerError("a fused step between select() and update(): finish the step.")
-        return self.step_count + 1
-
-    def end_step(self, nalarm: int) -> None:
-        """Record the step :meth:`begin_step` numbered, its ``nalarm`` alarms in the work rows
-        (the native step ran it to completion)."""
-        self.core.step_count += 1
-        self._last_rows = self._alarm_rows
-        self._nalarm = nalarm
-
     def step_points(
         self,
         pairs: PairSet,

@@ -86,22 +86,29 @@ Out<double> TauHalfspaceBatch(const In<double>& gap, const In<double>& vn, const
   return Owned(std::move(out), {static_cast<size_t>(m)});
 }
 
-void CheckShapes(const In<double>& shapes) {
+// The records of a shape table (the rows before its terrain blocks), checked.
+int64_t CheckShapes(const In<double>& shapes) {
   const int64_t n = Size(shapes) / kShapeNcol;
   Require(Size(shapes) == n * kShapeNcol, "shape records must be (n, 16)");
-  for (int64_t i = 0; i < n; ++i) {
+  // Terrain (terrain.cc): a record reads its block, which must fit.
+  const int64_t bad = dua_check_shapes(shapes.data(), n);
+  Require(bad < 0, "shape record " + std::to_string(bad) +
+                       " is a terrain whose block does not fit the table: build it with "
+                       "dua_mujoco.core.terrain.shape_table");
+  const int64_t nrec = ShapeRecordCount(shapes.data(), n);
+  for (int64_t i = 0; i < nrec; ++i) {
     const double k = shapes.data()[kShapeNcol * i + kShapeKind];
-    Require(k >= kGeomSphere && k <= kGeomMeshBox,
+    Require((k >= kGeomSphere && k <= kGeomMeshBox) || k == kGeomHField,
             "shape record " + std::to_string(i) + " has no known kind");
   }
+  return nrec;
 }
 
 // tau of points (n, 3) with velocities (n, 3) against static shapes ids[k] (n,).
 Out<double> TauStaticBatch(const In<double>& c, const In<double>& v, const In<double>& shapes,
                            const In<int64_t>& ids, const In<double>& eps, const In<double>& accel,
                            const In<double>& delta) {
-  CheckShapes(shapes);
-  const int64_t n = Size(ids), nshape = Size(shapes) / kShapeNcol;
+  const int64_t nshape = CheckShapes(shapes), n = Size(ids);
   Require(Size(c) == 3 * n && Size(v) == 3 * n, "centres and velocities must be (n, 3)");
   auto at = [n](const In<double>& a, int64_t i) { return a.data()[Size(a) == n ? i : 0]; };
   for (const In<double>* a : {&eps, &accel, &delta}) {
@@ -123,8 +130,7 @@ Out<double> TauStaticBatch(const In<double>& c, const In<double>& v, const In<do
 template <class Fn>
 Out<double> OverPoints(const In<double>& points, const In<double>& shapes, const In<int64_t>& ids,
                        int width, Fn fn) {
-  CheckShapes(shapes);
-  const int64_t n = Size(ids), nshape = Size(shapes) / kShapeNcol;
+  const int64_t nshape = CheckShapes(shapes), n = Size(ids);
   Require(Size(points) == 3 * n, "points must be (n, 3), one a shape id");
   std::vector<double> out(static_cast<size_t>(width * n));
   for (int64_t k = 0; k < n; ++k) {
@@ -142,7 +148,11 @@ std::pair<Out<double>, int64_t> TauFree(const In<double>& pairs, const In<int64_
                                         const In<double>& planes, const In<double>& shapes) {
   const int64_t m = Size(pairs) / kPairNcol, n = Size(ids);
   const int64_t nsphere = Size(centers) / 3, nplane = Size(planes) / 4;
-  const int64_t nshape = Size(shapes) / kShapeNcol;
+  // A terrain record reads its block (terrain.cc): the records end where the blocks start.
+  Require(Size(shapes) % kShapeNcol == 0 &&
+              dua_check_shapes(shapes.data(), Size(shapes) / kShapeNcol) < 0,
+          "shapes must be (n, 16), every terrain's block within the table");
+  const int64_t nshape = ShapeRecordCount(shapes.data(), Size(shapes) / kShapeNcol);
   Require(Size(velocities) == 3 * nsphere, "centres and velocities must be (n, 3) alike");
   for (int64_t p = 0; p < m; ++p) {
     const double* r = pairs.data() + kPairNcol * p;
@@ -1168,6 +1178,39 @@ NB_MODULE(_core, m) {
         });
       },
       "points"_a, "shapes"_a, "ids"_a);
+  // Terrain (dua_mujoco/core/terrain.py).
+  m.def(
+      "check_shapes",
+      [](const In<double>& shapes) {
+        Require(Size(shapes) % kShapeNcol == 0, "shape records must be (n, 16)");
+        return dua_check_shapes(shapes.data(), Size(shapes) / kShapeNcol);
+      },
+      "shapes"_a, "The first terrain record whose block does not fit the table, or -1.");
+  m.def(
+      "shape_record_count",
+      [](const In<double>& shapes) {
+        Require(Size(shapes) % kShapeNcol == 0, "shape records must be (n, 16)");
+        return ShapeRecordCount(shapes.data(), Size(shapes) / kShapeNcol);
+      },
+      "shapes"_a, "How many leading rows of a shape table are records (then terrain blocks).");
+  m.def(
+      "tau_terrain",
+      [](const In<double>& table, int64_t row, const In<double>& shape, const In<double>& v,
+         double spin, double eps, double accel, double delta) {
+        const int64_t n = Size(table) / kShapeNcol;
+        Require(Size(table) == n * kShapeNcol && dua_check_shapes(table.data(), n) < 0,
+                "table must be a shape table (n, 16) whose terrain blocks fit");
+        Require(row >= 0 && row < ShapeRecordCount(table.data(), n) &&
+                    table.data()[kShapeNcol * row + kShapeKind] == kGeomHField,
+                "row must be a terrain record of the table");
+        Require(Size(shape) == kShapeNcol && Size(v) == 3, "shape must be (16,), v (3,)");
+        const double k = shape.data()[kShapeKind];
+        Require(k >= kGeomSphere && k <= kGeomMeshBox, "shape must be a convex shape record");
+        return dua_tau_terrain(table.data() + kShapeNcol * row, shape.data(), v.data(), spin, eps,
+                               accel, delta);
+      },
+      "table"_a, "row"_a, "shape"_a, "v"_a, "spin"_a, "eps"_a, "accel"_a, "delta"_a,
+      "tau of a convex shape record moving with velocity v against terrain record `row`.");
   m.def("tau_free", &TauFree, "pairs"_a, "ids"_a, "centers"_a, "velocities"_a, "planes"_a,
         "shapes"_a);
   m.def("deadline_interval", &dua_deadline_interval, "tau"_a, "dt"_a, "latency"_a, "max_interval"_a,

@@ -36,6 +36,23 @@ void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, in
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
 double TauStatic(double c0, double c1, double c2, double v0, double v1, double v2,
                  const double* rec, double eps, double accel, double delta);
+// tau of an object (a shape record at its pose, moving with velocity v, its points within spin t
+// more of the translate) against the terrain of record rec, and of a sphere's centre
+// (terrain.cc).
+double TauTerrain(const double* rec, const double* shape, const double* v, double spin, double eps,
+                  double accel, double delta);
+double TauTerrainSphere(double c0, double c1, double c2, double v0, double v1, double v2,
+                        const double* rec, double eps, double accel, double delta);
+// The support of the terrain's prisms along n (world), a point of the terrain over or under c
+// (for drawing), and a lower bound of dist(c, terrain) with the terrain's up axis in n.
+double TerrainSupport(const double* n, const double* rec);
+void TerrainClosest(const double* c, const double* rec, double* out);
+double TerrainGap(const double* c, const double* rec, double* n);
+// The exact level's tau of held pair p, a geom against a terrain (ExactMode TERRAIN).
+double TerrainExactTau(const dua_step_args& a, int64_t p);
+// How many leading rows of a shape table (nrows rows of 16) are records: the rest are the
+// blocks terrain records point to (terrain.cc).
+DUA_API int64_t ShapeRecordCount(const double* shapes, int64_t nrows);
 
 // (n.c - h_S(n), n, |c| + |p| + h_local) of a point c and a static shape record, n the unit
 // closest-point direction: a lower bound on c's distance to the shape (shapes.cc).

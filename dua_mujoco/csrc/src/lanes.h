@@ -26,7 +26,9 @@ namespace dua {
 
 constexpr int kLanes = 4;
 using Lanes = double __attribute__((vector_size(8 * kLanes)));
-using LaneMask = int64_t __attribute__((vector_size(8 * kLanes)));
+// What comparing lanes gives: 64-bit integer lanes (long for GCC, long long for clang, which
+// are different types to overloads).
+using LaneMask = decltype(Lanes{} < Lanes{});
 
 template <class T>
 using MaskOf = decltype(T{} < T{});

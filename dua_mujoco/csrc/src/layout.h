@@ -27,6 +27,16 @@ constexpr int kShapeKind = 0, kShapeSize = 1, kShapePos = 4, kShapeMat = 7, kSha
 constexpr int kGeomSphere = 2, kGeomCapsule = 3, kGeomEllipsoid = 4, kGeomCylinder = 5,
               kGeomBox = 6, kGeomMeshBox = 7;
 
+// A height field held as terrain (terrain.cc, dua_mujoco/core/terrain.py): a shape record of kind
+// kGeomHField whose size columns give the rows from the record to its block (in the same table,
+// after every record) and the block's length in rows; the block's header (kTer*: half sizes,
+// base, grid, levels, where the heights start, the largest |height|), then the cell maxima of
+// every level of its max pyramid from kTerHeader on, then the heights.
+constexpr int kGeomHField = 1;
+constexpr int kTerrainBlock = kShapeSize, kTerrainRows = kShapeSize + 1;
+constexpr int kTerRx = 0, kTerRy = 1, kTerBase = 2, kTerNrow = 3, kTerNcol = 4, kTerLevels = 5,
+              kTerHeights = 6, kTerHabs = 7, kTerHeader = 16;
+
 // The exact level: per-geom records (the first eight are a sphere record of the geom origin),
 // per-pair records (the direction that served last, from kXN; the hull vertices highest last
 // time, per side), and what the level does for a pair (ExactMode).
@@ -34,7 +44,7 @@ constexpr int kGxKind = 8, kGxSize = 9, kGxCentre = 12, kGxRadius = 15, kGxVert 
               kGxSeed = 18, kGxNcol = 24;
 constexpr int kXMode = 0, kXG1 = 1, kXG2 = 2, kXDist = 3, kXN = 4, kXHull1 = 7, kXHull2 = 8,
               kXNcol = 10;
-constexpr int kModeNone = 0, kModeGeoms = 1, kModePlane = 2, kModeShape = 3;
+constexpr int kModeNone = 0, kModeGeoms = 1, kModePlane = 2, kModeShape = 3, kModeTerrain = 4;
 
 // The schedule's state (ScheduleState): its kinds (the select-all kind has no name of its own
 // here), its rows of ints and of work, and the entries of its params.

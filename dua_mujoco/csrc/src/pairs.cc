@@ -70,9 +70,14 @@ void dua_exact_rows(const double* geoms, const int64_t* geom1, const int64_t* ge
     double* rec = out + dua::kXNcol * p;
     for (int c = 0; c < dua::kXNcol; ++c) rec[c] = 0.0;
     const bool halfspace = kind[p] == dua::kKindHalfspace;
-    const bool ok = geoms[dua::kGxNcol * geom1[p] + dua::kGxKind] >= 0 &&
-                    (halfspace || geoms[dua::kGxNcol * geom2[p] + dua::kGxKind] >= 0);
+    // Geoms with a support of their own have kinds from kGeomSphere on; a height field held as
+    // terrain (a shape pair) is read through its grid instead.
+    const double k2 = geoms[dua::kGxNcol * geom2[p] + dua::kGxKind];
+    const bool terrain = kind[p] == dua::kKindShape && k2 == dua::kGeomHField;
+    const bool ok = geoms[dua::kGxNcol * geom1[p] + dua::kGxKind] >= dua::kGeomSphere &&
+                    (halfspace || terrain || k2 >= dua::kGeomSphere);
     const double mode = halfspace                    ? dua::kModePlane
+                        : terrain                    ? dua::kModeTerrain
                         : kind[p] == dua::kKindShape ? dua::kModeShape
                                                      : dua::kModeGeoms;
     rec[dua::kXMode] = ok ? mode : dua::kModeNone;

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "internal.h"
@@ -166,26 +167,36 @@ double PlanTau(dua_step_args& a, const Plan& plan, int64_t p, int64_t g1, int64_
   return static_cast<double>(n - k) * plan.h();
 }
 
+// A bad value as a refusal names it (%g: "nan", "inf", "1e+308").
+std::string Shown(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%g", x);
+  return buf;
+}
+
 }  // namespace
 
 std::string Plan::Build(const mjModel* m, mjData* s, const double* qpos, int64_t n,
                         const double* dev, double start, double h) {
   if (n < 1) return "holds no knot: pass at least one row of qpos";
-  if (!std::isfinite(start)) return "starts at a time that is not finite";
+  if (!std::isfinite(start)) return "starts at a time that is not finite (" + Shown(start) + ")";
   if (!(h > 0.0) || !std::isfinite(h)) return "has a step that is not a positive time";
   const int64_t nq = m->nq, ngeom = m->ngeom, nbody = m->nbody;
   for (int64_t i = 0; i < n * nbody; ++i) {
     if (!(dev[i] >= 0.0) || !std::isfinite(dev[i])) {
       return "holds a deviation that is not a finite distance >= 0 (knot " +
-             std::to_string(i / nbody) + ", body " + std::to_string(i % nbody) + ")";
+             std::to_string(i / nbody) + ", body " + std::to_string(i % nbody) + ": " +
+             Shown(dev[i]) + ")";
     }
   }
   std::vector<double> pos(3 * ngeom * n), mat(9 * ngeom * n), sweep(ngeom * n, 0.0);
   for (int64_t j = 0; j < n; ++j) {
     const double* q = qpos + nq * j;
     for (int64_t i = 0; i < nq; ++i) {
-      if (!std::isfinite(q[i]))
-        return "holds a qpos that is not finite (knot " + std::to_string(j) + ")";
+      if (!std::isfinite(q[i])) {
+        return "holds a qpos that is not finite (knot " + std::to_string(j) + ", qpos[" +
+               std::to_string(i) + "]: " + Shown(q[i]) + ")";
+      }
     }
     std::copy_n(q, nq, s->qpos);
     mj_kinematics(m, s);
@@ -200,8 +211,20 @@ std::string Plan::Build(const mjModel* m, mjData* s, const double* qpos, int64_t
       sweep[ngeom * j + g] = (sweep[ngeom * (j - 1) + g] + step) * (1.0 + 4.0 * kEpsilon);
     }
   }
-  for (const double v : pos) {
-    if (!std::isfinite(v)) return "puts a geom where its pose is not finite";
+  // Finite joint positions so large that MuJoCo's kinematics overflows (a slide of 1e308).
+  for (int64_t i = 0; i < 3 * ngeom * n; ++i) {
+    if (!std::isfinite(pos[i])) {
+      return "puts geom " + std::to_string(i / 3 % ngeom) +
+             " where its position is not finite (knot " + std::to_string(i / 3 / ngeom) +
+             "): a qpos too large";
+    }
+  }
+  for (int64_t i = 0; i < 9 * ngeom * n; ++i) {
+    if (!std::isfinite(mat[i])) {
+      return "puts geom " + std::to_string(i / 9 % ngeom) +
+             " where its rotation is not finite (knot " + std::to_string(i / 9 / ngeom) +
+             "): a qpos too large";
+    }
   }
   nknot_ = n, ngeom_ = ngeom, nbody_ = nbody;
   start_ = start, h_ = h;
@@ -226,8 +249,9 @@ void Plan::Check(const mjModel* m, const mjData* d, int64_t k, std::vector<int64
     const double moved =
         Displacement(d->geom_xpos + 3 * g, d->geom_xmat + 9 * g, p + 3 * g, r + 9 * g,
                      m->geom_rbound[g], m->geom_type[g] == mjGEOM_PLANE);
-    if (moved > dev(k, b) && std::find(broken->begin() + static_cast<std::ptrdiff_t>(first),
-                                       broken->end(), b) == broken->end()) {
+    // A pose that is not a number is not within any deviation (docs/hardening.md).
+    if (!(moved <= dev(k, b)) && std::find(broken->begin() + static_cast<std::ptrdiff_t>(first),
+                                           broken->end(), b) == broken->end()) {
       broken->push_back(b);
     }
   }
@@ -241,7 +265,15 @@ void PlanPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
     const int64_t mp = a.ids[p];
     const int64_t g1 = pl.geom1[mp], g2 = pl.geom2[mp];
     const int64_t b1 = pl.geom_body[g1], b2 = pl.geom_body[g2];
-    pl.planned[k] = pl.body_ok[b1] && pl.body_ok[b2];
+    // A terrain's pair is left to the motion bounds: the plan's gaps (StaticGap,
+    // mj_geomDistance) are no lower bounds on a height field (docs/theory.md, section 9).
+    const double* rec = a.pairs + p * kPairNcol;
+    const bool terrain =
+        static_cast<int>(rec[kPairKind]) == kKindShape &&
+        static_cast<int>(
+            a.shapes[static_cast<int64_t>(rec[kPairOther]) * kShapeNcol + kShapeKind]) ==
+            kGeomHField;
+    pl.planned[k] = !terrain && pl.body_ok[b1] && pl.body_ok[b2];
     if (pl.planned[k]) out[k] = PlanTau(a, plan, p, g1, g2, b1, b2);
   }
 }

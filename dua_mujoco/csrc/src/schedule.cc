@@ -48,6 +48,27 @@ inline int64_t Occupant(int64_t raw, bool alarmed) { return alarmed ? -2 - raw :
 
 using dua::BucketOf;
 
+// Appends pair p to the rank schedule's queue of pairs due out of their slots. A pair made due
+// while queued and then evaluated in its own slot stays queued with a finite tau, so a second
+// make_due queues it again: with bodies flagged every step the queue outgrew its m + 1 entries
+// (found by the tables fuzzer). When it is full its duplicates are dropped first (each pair
+// once: at most m, so p fits, or it is waiting already).
+void Enqueue(dua_schedule* st, int64_t p) {
+  int64_t* queue = st->queue;
+  if (queue[0] >= st->nqueue - 1) {
+    std::vector<uint8_t> seen(static_cast<size_t>(st->m), 0);
+    int64_t kept = 0;
+    for (int64_t j = 0; j < queue[0]; ++j) {
+      const int64_t q = queue[1 + j];
+      if (!seen[q]) seen[q] = 1, queue[1 + kept++] = q;
+    }
+    queue[0] = kept;
+    if (seen[p]) return;
+  }
+  queue[1 + queue[0]] = p;
+  queue[0] += 1;
+}
+
 int64_t RankSelect(const View& v, int64_t n) {
   dua_schedule* st = v.st;
   int64_t* params = st->params;
@@ -296,6 +317,7 @@ int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t ma
   // pair that waits s steps is exactly one whose verdict covers them.
   auto covered = [=](int64_t s) { return static_cast<double>(s + latency) * dt + extra < tau; };
   if (covered(max_interval)) return max_interval;  // inf too
+  if (std::isnan(tau)) return 1;                   // covers nothing
   const double guess = std::floor((tau - extra) / dt) - static_cast<double>(latency);
   int64_t s = guess < 1.0                                 ? 1
               : guess > static_cast<double>(max_interval) ? max_interval
@@ -362,8 +384,7 @@ int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t o
       st->last_tau[p] = kNegInf;
       if (st->kind == kRank) {
         st->slots[v.Int(kWhere)[p]] = p;  // not reported as standing until evaluated
-        st->queue[1 + st->queue[0]] = p;
-        st->queue[0] += 1;
+        Enqueue(st, p);
       } else if (st->kind == kDeadline) {
         Unlink(v, p);
         Link(v, p, n_next);
@@ -389,8 +410,7 @@ void dua_make_due(dua_schedule* st, int64_t p, int64_t n) {
     if (st->last_tau[p] == kNegInf) return;  // already waiting in the queue
     st->last_tau[p] = kNegInf;
     st->slots[v.Int(kWhere)[p]] = p;
-    st->queue[1 + st->queue[0]] = p;
-    st->queue[0] += 1;
+    Enqueue(st, p);
   } else if (st->kind == kDeadline) {
     st->last_tau[p] = kNegInf;
     Unlink(v, p);

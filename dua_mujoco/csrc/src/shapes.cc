@@ -154,6 +154,9 @@ double StaticGap(double c0, double c1, double c2, const double* rec, double n[3]
 
 double TauStatic(double c0, double c1, double c2, double v0, double v1, double v2,
                  const double* rec, double eps, double accel, double delta) {
+  if (static_cast<int>(rec[kShapeKind]) == kGeomHField) {
+    return TauTerrainSphere(c0, c1, c2, v0, v1, v2, rec, eps, accel, delta);
+  }
   double n[3], scale;
   const double gap = Gap(c0, c1, c2, rec, n, &scale);
   const double g = gap - eps - kGapSlack * (scale + eps);
@@ -168,6 +171,9 @@ double TauStatic(double c0, double c1, double c2, double v0, double v1, double v
 extern "C" {
 
 double dua_support(const double* n, const double* rec) {
+  if (static_cast<int>(rec[dua::kShapeKind]) == dua::kGeomHField) {
+    return dua::TerrainSupport(n, rec);
+  }
   double k[3];
   dua::ToLocal(rec, n[0], n[1], n[2], k);
   const double h =
@@ -178,6 +184,9 @@ double dua_support(const double* n, const double* rec) {
 }
 
 void dua_closest_point(const double* c, const double* rec, double* out) {
+  if (static_cast<int>(rec[dua::kShapeKind]) == dua::kGeomHField) {
+    return dua::TerrainClosest(c, rec, out);
+  }
   const double p0 = rec[dua::kShapePos], p1 = rec[dua::kShapePos + 1], p2 = rec[dua::kShapePos + 2];
   double l[3], q[3], m[3];
   dua::ToLocal(rec, c[0] - p0, c[1] - p1, c[2] - p2, l);
@@ -188,6 +197,10 @@ void dua_closest_point(const double* c, const double* rec, double* out) {
 }
 
 void dua_static_gap(const double* c, const double* rec, double* out) {
+  if (static_cast<int>(rec[dua::kShapeKind]) == dua::kGeomHField) {
+    out[0] = dua::TerrainGap(c, rec, out + 1);
+    return;
+  }
   double scale;
   out[0] = dua::Gap(c[0], c[1], c[2], rec, out + 1, &scale);
 }

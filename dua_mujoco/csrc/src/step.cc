@@ -533,6 +533,11 @@ void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
   for (int64_t k = 0; k < count; ++k) {
     if (out[k] < a.exact.below && (skip == nullptr || !skip[k])) {
       const int64_t p = ids[k];
+      // A height field's terrain: its own kernel (terrain.cc), never mj_geomDistance.
+      if (static_cast<int>(a.exact.records[p * kXNcol + kXMode]) == kModeTerrain) {
+        out[k] = std::max(out[k], TerrainExactTau(a, p));
+        continue;
+      }
       out[k] =
           ExactTau(a.pairs + p * kPairNcol, a.exact.records + p * kXNcol, out[k], a.exact, a.frame);
     }
@@ -645,6 +650,11 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
   } else {
     ExactPass(a, ids, count, out);
   }
+  // A tau that is not a number (from finite tables so large that the arithmetic overflows, a
+  // shape's rotation entry of 1e308) alarms now, never passes (docs/hardening.md).
+  for (int64_t k = 0; k < count; ++k) {
+    if (std::isnan(out[k])) out[k] = 0.0;
+  }
   return -1;
 }
 
@@ -740,7 +750,14 @@ int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
   const int64_t count = dua_select(st, n);
   const int64_t* w_ids = st->work + 1 * st->width;
   a->count = count;
-  const int64_t bad = dua::TauOf(*a, w_ids, count, a->scratch, st->w_tau);
+  // As many pairs at a time as the scratch holds: a selection can outnumber the held pairs (the
+  // rank schedule takes a pair made due both from its slot and from the queue, up to its width).
+  const int64_t rows = std::max<int64_t>(a->scratch_rows, 1);
+  int64_t bad = -1;
+  for (int64_t from = 0; from < count && bad < 0; from += rows) {
+    bad = dua::TauOf(*a, w_ids + from, std::min(rows, count - from), a->scratch, st->w_tau + from);
+    if (bad >= 0) bad += from;
+  }
   if (bad >= 0) {
     a->bad = w_ids[bad];
     a->deferred = 0;

@@ -19,7 +19,6 @@
 namespace dua {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 // Integers travel as float64: beyond 2^53 they are not exact.
 constexpr double kMaxInt = 9007199254740992.0;
 
@@ -144,6 +143,13 @@ bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) 
   }
   const std::string bad = s.Check();
   if (!bad.empty()) return r->Fail("config", "holds an invalid schedule option: " + bad);
+  // Every MjData allocates the deadline wheel, a power of two > max_interval slots of 8 bytes:
+  // 8 MB at most (attach writes 1024).
+  if (s.max_interval > (1 << 19)) {
+    return r->Fail("config", "holds max_interval = " + std::to_string(s.max_interval) +
+                                 ", over 2^19 steps (its wheel would take 8 bytes a step in "
+                                 "every MjData)");
+  }
   t->timestep = v[kCfgTimestep];
   if (!(t->timestep > 0.0) || !Finite(t->timestep) || t->timestep != m->opt.timestep) {
     return r->Fail("config", "holds a timestep (" + std::to_string(t->timestep) +
@@ -176,9 +182,20 @@ bool ReadPairs(const mjModel* m, Reader* r, Tables* t) {
   }
   const int64_t nsphere = t->nsphere();
   if (!r->Get("shapes", -1, kShapeNcol, &t->shapes)) return false;
-  if (!Rows(r, "shapes", t->shapes, kShapeNcol, "not a shape of a known kind with finite entries",
+  // Terrain records point into their blocks, after every record: every block must fit
+  // (terrain.cc); the records are the rows before the first block.
+  const int64_t shape_rows = static_cast<int64_t>(t->shapes.size()) / kShapeNcol;
+  const int64_t bad_terrain = dua_check_shapes(t->shapes.data(), shape_rows);
+  if (bad_terrain >= 0) {
+    return r->Fail("shapes", "row " + std::to_string(bad_terrain) +
+                                 ": a terrain record whose block does not fit the table");
+  }
+  const int64_t nshape = ShapeRecordCount(t->shapes.data(), shape_rows);
+  const std::vector<double> records(t->shapes.begin(), t->shapes.begin() + nshape * kShapeNcol);
+  if (!Rows(r, "shapes", records, kShapeNcol, "not a shape of a known kind with finite entries",
             [](const double* rec) {
               const double k = rec[kShapeKind];
+              if (k == kGeomHField) return true;  // checked with its block above
               bool ok = k >= kGeomSphere && k <= kGeomMeshBox && k == std::floor(k);
               for (int c = 1; c < kShapeNcol; ++c) ok = ok && Finite(rec[c]);
               for (int c = 0; c < 3; ++c) ok = ok && rec[kShapeSize + c] >= 0.0;
@@ -186,7 +203,6 @@ bool ReadPairs(const mjModel* m, Reader* r, Tables* t) {
             })) {
     return false;
   }
-  const auto nshape = static_cast<int64_t>(t->shapes.size()) / kShapeNcol;
   Universe& u = t->universe;
   std::vector<double> pair_geom, geom_pairs;
   if (!r->Get("pairs", -1, kPairNcol, &u.pairs) || !r->Get("geom_pairs", -1, 2, &geom_pairs)) {
@@ -303,6 +319,8 @@ bool ReadExact(const mjModel* m, Reader* r, Tables* t) {
               if (!SphereRecordOk(m, rec) || rec[kSphereFrame] != id) return false;
               const double kind = rec[kGxKind];
               if (kind == -1.0) return true;  // a geom the level does not read
+              // A height field is read through its terrain's grid, never its own record.
+              if (kind == kGeomHField) return m->geom_type[id] == mjGEOM_HFIELD;
               bool ok = kind >= kGeomSphere && kind <= kGeomMeshBox && kind == std::floor(kind);
               for (int c = 0; c < 3; ++c) {
                 ok = ok && Bound(rec[kGxSize + c]) && Finite(rec[kGxCentre + c]);
@@ -326,13 +344,21 @@ bool ReadExact(const mjModel* m, Reader* r, Tables* t) {
   for (int64_t p = 0; p < u.npair(); ++p) {
     const double* rec = u.exact.data() + kXNcol * p;
     const double mode = rec[kXMode];
-    bool ok = mode >= kModeNone && mode <= kModeShape && mode == std::floor(mode) &&
+    bool ok = mode >= kModeNone && mode <= kModeTerrain && mode == std::floor(mode) &&
               rec[kXG1] == u.geom1[p] && rec[kXG2] == u.geom2[p] && Bound(rec[kXDist]);
     for (int c = 0; c < 3; ++c) ok = ok && Finite(rec[kXN + c]);
     if (ok && mode != kModeNone) {
       // The geoms it reads are ones the level has records of.
-      ok = t->geoms[kGxNcol * u.geom1[p] + kGxKind] >= 0 &&
-           (mode == kModePlane || t->geoms[kGxNcol * u.geom2[p] + kGxKind] >= 0);
+      const double k2 = t->geoms[kGxNcol * u.geom2[p] + kGxKind];
+      ok = t->geoms[kGxNcol * u.geom1[p] + kGxKind] >= kGeomSphere &&
+           (mode == kModePlane || (mode == kModeTerrain ? k2 == kGeomHField : k2 >= kGeomSphere));
+      // A terrain's pair reads the terrain record of its shape pair (terrain.cc).
+      if (ok && mode == kModeTerrain) {
+        const double* pair = u.pairs.data() + kPairNcol * p;
+        ok = pair[kPairKind] == kKindShape &&
+             t->shapes[kShapeNcol * static_cast<int64_t>(pair[kPairOther]) + kShapeKind] ==
+                 kGeomHField;
+      }
       ok = ok && (mode != kModePlane || m->geom_type[u.geom2[p]] == mjGEOM_PLANE);
     }
     ok = ok && (rec[kXHull1] == -1.0 || IsIndex(rec[kXHull1], numvert(u.geom1[p])));
@@ -470,8 +496,8 @@ bool ReadPruned(const mjModel* m, Reader* r, const std::vector<double>& config, 
   return ReadLearn(m, r, config, t);
 }
 
-// Decodes one text field: its entry count, a space, then the entries' little-endian float64
-// bytes in base64.
+}  // namespace
+
 bool Decode(const char* text, std::vector<double>* out, std::string* why) {
   char* end = nullptr;
   const long long count = std::strtoll(text, &end, 10);
@@ -514,6 +540,8 @@ bool Decode(const char* text, std::vector<double>* out, std::string* why) {
   if (nbytes) std::memcpy(out->data(), bytes.data(), nbytes);  // little-endian, as written
   return true;
 }
+
+namespace {
 
 // A content hash of the text fields under prefix (which LoadTables parses once per content).
 uint64_t TextHash(const mjModel* m, const std::string& prefix) {

@@ -103,6 +103,10 @@ DUA_API std::shared_ptr<const Tables> BuildTables(const mjModel* m, const TableS
 DUA_API std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& prefix,
                                                  std::string* error);
 
+// Decodes one text field: its entry count, a space, then the entries' little-endian float64
+// bytes in base64. False after *why says what is wrong (the fuzzer, fuzz/, calls it directly).
+DUA_API bool Decode(const char* text, std::vector<double>* out, std::string* why);
+
 // FNV-1a (64 bits) of m's structure: geom_type, geom_bodyid and body_parentid as little-endian
 // int32s (dua_mujoco/mj/build.py computes the same).
 DUA_API uint64_t StructureHash(const mjModel* m);

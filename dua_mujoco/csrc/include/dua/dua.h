@@ -5,8 +5,9 @@
 // Every table is a row-major float64 or int64 array owned by the caller; the structs below only
 // point into them. Layouts (columns) are stated once in src/layout.h and documented where the
 // Python side packs them: pairs: dua_mujoco/core/pairset.py (pack_pairs), spheres:
-// dua_mujoco/mj/kinematics.py, shapes: dua_mujoco/core/shapes.py, exact: dua_mujoco/mj/exact.py,
-// events: dua_mujoco/mj/events.py, the schedule: dua_mujoco/core/schedules/state.py.
+// dua_mujoco/mj/kinematics.py, shapes: dua_mujoco/core/shapes.py, terrain:
+// dua_mujoco/core/terrain.py, exact: dua_mujoco/mj/exact.py, events: dua_mujoco/mj/events.py, the
+// schedule: dua_mujoco/core/schedules/state.py.
 #ifndef DUA_MUJOCO_DUA_H_
 #define DUA_MUJOCO_DUA_H_
 
@@ -48,6 +49,23 @@ DUA_API void dua_static_gap(const double* c, const double* rec, double* out);
 // tau of a sphere (centre c, velocity v) against a static shape record.
 DUA_API double dua_tau_static(double c0, double c1, double c2, double v0, double v1, double v2,
                               const double* rec, double eps, double accel, double delta);
+
+// ------------------------------------------------------------------------------- terrain
+
+// A static height field is a shape record of kind 1 (MuJoCo's mjGEOM_HFIELD) followed, after
+// every record of the table, by its block: the grid's max pyramid and heights
+// (dua_mujoco/core/terrain.py). dua_tau_static, dua_support, dua_closest_point and
+// dua_static_gap take such a record too, through a pointer into its table.
+//
+// tau of an object against the terrain of record rec: shape is a shape record of the object at
+// its pose (world), v the velocity its points share, spin the rate their departure from that
+// translation may grow at (|w| r), eps the contact distance, accel and delta its bounds.
+DUA_API double dua_tau_terrain(const double* rec, const double* shape, const double* v, double spin,
+                               double eps, double accel, double delta);
+// The first terrain record of a shape table (nrows rows of 16) whose block does not fit the
+// table, its header or its grid (what could read out of bounds; other records read their own
+// row only); -1 when there is none.
+DUA_API int64_t dua_check_shapes(const double* shapes, int64_t nrows);
 
 // ------------------------------------------------------------------------------- schedules
 
