@@ -1,9 +1,12 @@
 """Running a checkout of the package in a subprocess, for A/B benchmarks (:func:`probe`).
 
-An editable install made by scikit-build-core puts an import finder ahead of ``sys.path``, so a
-subprocess run in another checkout (``cwd``/``PYTHONPATH``) would still import this one.
-:data:`PREAMBLE` removes that finder first, for a checkout other than the installed one only
-(the finder maps ``dua_mujoco.models`` to ``models/``, which the source tree alone does not).
+A checkout with a venv of its own (``<checkout>/.venv``, made as CONTRIBUTING.md says) runs in
+it: its compiled modules live in that venv (scikit-build-core's editable install keeps them out
+of the source tree), and so do its dependencies (numba, before issue 33). Otherwise the checkout
+runs in this interpreter from its source tree. An editable install made by scikit-build-core
+puts an import finder ahead of ``sys.path``, so such a subprocess would still import this
+checkout: :data:`PREAMBLE` removes that finder first (the finder maps ``dua_mujoco.models`` to
+``models/``, which the source tree alone does not).
 """
 
 from __future__ import annotations
@@ -33,10 +36,15 @@ def scene_path(scene: str, root: Path) -> str:
 
 
 def probe(code: str, checkout: Path, *args: str, **env: str) -> tuple[list[str], dict[str, str]]:
-    """``python -c code args`` run on ``checkout``: its argv and environment (``PYTHONPATH``
-    the checkout, ``env`` added), the :data:`PREAMBLE` first for any checkout but this one. Run
-    it with ``cwd=checkout`` ("python -c" puts the working directory first on the path)."""
+    """``python -c code args`` run on ``checkout``: its argv and environment (``env`` added).
+    Another checkout with a ``.venv`` runs in that venv's Python; otherwise in this one, with
+    ``PYTHONPATH`` the checkout and the :data:`PREAMBLE` first for any checkout but this one.
+    Run it with ``cwd=checkout`` ("python -c" puts the working directory first on the path)."""
     other = checkout.resolve() != HERE
+    own = checkout / ".venv" / "bin" / "python"
+    if other and own.exists():
+        environ = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+        return [str(own), "-c", code, *args], {**environ, **env}
     argv = [sys.executable, "-c", (PREAMBLE if other else "") + code, *args]
     return argv, {**os.environ, "PYTHONPATH": str(checkout), **env}
 

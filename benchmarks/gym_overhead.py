@@ -2,6 +2,8 @@
 
     python benchmarks/gym_overhead.py                   # prints a markdown table (about 1 min)
     python benchmarks/gym_overhead.py --rounds 3 --steps 100
+    python benchmarks/gym_overhead.py --before /tmp/before \
+        --before-python /tmp/before/.venv/bin/python     # A/B against another checkout
 
 For each env a plain env and a wrapped one (default predictor options, ``cost="alarm"``) take the
 same seeded random actions from the same seeded reset. Rounds alternate plain and wrapped; each
@@ -11,12 +13,23 @@ those medians, the overhead their difference. Inside the wrapped steps, ``predic
 the wrapper's bookkeeping (``_observe``: standing alarms, ``min_tau``, names) are timed apart
 (the medians of their calls); what the two leave of the overhead is the rest of the wrapper's
 ``step`` and the caches the predictor's work takes from MuJoCo's.
+
+With ``--before``, another checkout is measured too, in its own environment: each side runs
+this script in a subprocess (``--json``, ``--rounds`` rounds), the sides alternating
+``--repeats`` times; a figure is the median over repeats, and the table gives each side's ratio.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import sys
 import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -50,8 +63,8 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
     predictor = wrapped.predictor
     parts: dict[str, list[float]] = {"predictor": [], "observe": []}
 
-    def timed(fn, name):  # type: ignore[no-untyped-def]
-        def call(*args):  # type: ignore[no-untyped-def]
+    def timed(fn: Callable[..., Any], name: str) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
             t0 = time.perf_counter()
             out = fn(*args)
             parts[name].append(time.perf_counter() - t0)
@@ -76,12 +89,60 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
     return {**out, "pairs": predictor.nsphere_pairs, "frame_skip": predictor.period}
 
 
+def ab(args: argparse.Namespace) -> None:
+    """Both sides, alternating, each in its own environment; their ratios side by side."""
+    sides = {"before": (args.before_python, args.before), "after": (sys.executable, Path.cwd())}
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    runs: dict[str, list[dict[str, dict[str, float]]]] = {s: [] for s in sides}
+    for r in range(args.repeats):
+        for side, (python, checkout) in sides.items():
+            argv = [python, str(Path(__file__).resolve()), "--json", "--envs", *args.envs]
+            argv += ["--rounds", str(args.rounds), "--steps", str(args.steps)]
+            proc = subprocess.run(argv, env=env, cwd=checkout, capture_output=True, text=True)
+            if proc.returncode:
+                raise RuntimeError(f"{checkout} failed:\n{proc.stderr[-3000:]}")
+            runs[side].append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        print(f"repeat {r + 1}/{args.repeats}", file=sys.stderr, flush=True)
+    print(
+        "| env | env.step plain before (us) | wrapped before (us) | ratio before "
+        "| plain after (us) | wrapped after (us) | ratio after | predictor.step after (us) "
+        "| bookkeeping after (us) |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for env_id in args.envs:
+        med = {
+            s: {
+                k: float(np.median([run[env_id][k] for run in runs[s]])) for k in runs[s][0][env_id]
+            }
+            for s in sides
+        }
+        b, a = med["before"], med["after"]
+        print(
+            f"| {env_id} | {b['plain_us']:.1f} | {b['wrapped_us']:.1f} "
+            f"| {b['wrapped_us'] / b['plain_us']:.3f} | {a['plain_us']:.1f} "
+            f"| {a['wrapped_us']:.1f} | {a['wrapped_us'] / a['plain_us']:.3f} "
+            f"| {a['predictor_us']:.1f} | {a['observe_us']:.1f} |",
+            flush=True,
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--envs", nargs="+", default=list(ENVS))
     parser.add_argument("--rounds", type=int, default=9)
     parser.add_argument("--steps", type=int, default=400)
+    parser.add_argument("--before", type=Path, help="another checkout, A/B against this one")
+    parser.add_argument("--before-python", default=sys.executable, help="its Python (own venv)")
+    parser.add_argument("--repeats", type=int, default=3, help="A/B: alternations of the sides")
+    parser.add_argument("--json", action="store_true", help="one JSON line (for --before)")
     args = parser.parse_args()
+    if args.before is not None:
+        ab(args)
+        return
+    if args.json:
+        results = {e: measure(e, rounds=args.rounds, steps=args.steps) for e in args.envs}
+        print(json.dumps(results))
+        return
     print(
         "| env | frame_skip | sphere pairs | env.step plain (us) | wrapped (us) | ratio "
         "| overhead (us) | of it predictor.step (us) | of it bookkeeping (us) |"

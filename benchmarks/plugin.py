@@ -1,7 +1,7 @@
 """The predictor inside ``mj_step`` (the plugin), and ``Predictor.step`` before and after the
 native core (issue 20), A/B in one run.
 
-    git worktree add --detach /tmp/before 1581945      # the last commit with the numba step
+    git worktree add --detach /tmp/before main         # and a venv of its own, /tmp/before/.venv
     python benchmarks/plugin.py --before /tmp/before   # markdown tables (about 20 min)
     python benchmarks/plugin.py --scenes two_arms gym/ant --steps 600
     python benchmarks/plugin.py --scenes bin_pour swarm:1000 --steps 600   # pruned pairs too
