@@ -409,6 +409,39 @@ def test_a_model_with_broken_tables_names_what_is_wrong() -> None:
         mujoco.MjData(spec.compile())
 
 
+def test_tables_parsed_once_are_never_served_to_an_edited_model(
+    capfd: pytest.CaptureFixture,
+) -> None:
+    """The plugin keeps a model's tables after its last MjData goes (parsed once per model); a
+    model edited in place since then is read afresh, and refused for what the edit broke."""
+    spec = load_spec("clutter")
+    attach(spec, accel=4.0)
+    m = spec.compile()
+    standing = []
+    for _ in range(2):  # the second MjData reads the tables the first one parsed
+        d = mujoco.MjData(m)
+        for _ in range(50):
+            mujoco.mj_step(m, d)
+        standing.append(standing_pairs(m, d))
+        del d
+    np.testing.assert_array_equal(standing[0], standing[1])
+    capfd.readouterr()
+    m.opt.timestep *= 2
+    with pytest.raises(Exception, match="init failed"):
+        mujoco.MjData(m)
+    assert "timestep" in capfd.readouterr().err
+    m.opt.timestep /= 2
+    # Another body for a geom: the same tables would index the wrong bodies.
+    body = int(m.geom_bodyid[m.ngeom - 1])
+    m.geom_bodyid[m.ngeom - 1] = 0 if body else 1
+    with pytest.raises(Exception, match="init failed"):
+        mujoco.MjData(m)
+    assert "dua:" in capfd.readouterr().err
+    m.geom_bodyid[m.ngeom - 1] = body
+    mujoco.MjData(m)
+    assert "dua_mujoco" not in capfd.readouterr().err
+
+
 _PASSIVE = """
 import time
 import mujoco, mujoco.viewer

@@ -202,7 +202,9 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.records = exact_records_.data();
   x.below = t.exact_below;
   x.query_below = t.query_below;
-  x.verts = t.verts.data();
+  // The model's own vertices (the tables hold its hull graph, checked): every mjData of a model
+  // reads one copy, and making an mjData copies none.
+  x.verts = m->mesh_vert;
   x.graph = t.graph.data();
   x.model = m;
   x.data = d;

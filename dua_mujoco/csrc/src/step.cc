@@ -333,7 +333,7 @@ double HullSupport(int64_t g, const dua_exact& x, double m0, double m1, double m
     seed = kGxSeed + (m2 > 0.0 ? 5 : 4);
   }
   auto height = [&](int64_t local) {
-    const double* v = x.verts + 3 * (v0 + graph[globalid + local]);
+    const float* v = x.verts + 3 * (v0 + graph[globalid + local]);
     return m0 * v[0] + m1 * v[1] + m2 * v[2];
   };
   int64_t imax = static_cast<int64_t>(rec[seed]);

@@ -9,9 +9,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
-#include <map>
 #include <mutex>
 #include <utility>
+#include <vector>
 
 #include "dua/dua.h"
 #include "internal.h"
@@ -301,8 +301,6 @@ bool ReadExact(const mjModel* m, Reader* r, Tables* t) {
       !r->Get("exact_records", u.npair(), kXNcol, &u.exact)) {
     return false;
   }
-  t->verts.assign(m->mesh_vert, m->mesh_vert + 3 * static_cast<int64_t>(m->nmeshvert));
-  if (t->verts.empty()) t->verts.assign(3, 0.0);
   t->graph.assign(m->mesh_graph, m->mesh_graph + m->nmeshgraph);
   if (t->graph.empty()) t->graph.assign(1, -1);
   // Hull vertices of geom g's mesh when the level climbs its hull graph, else 0.
@@ -543,27 +541,55 @@ bool Decode(const char* text, std::vector<double>* out, std::string* why) {
 
 namespace {
 
-// A content hash of the text fields under prefix (which LoadTables parses once per content).
-uint64_t TextHash(const mjModel* m, const std::string& prefix) {
-  uint64_t h = 0xcbf29ce484222325ULL;
+// A digest of everything BuildTables reads from a model: the text fields under prefix and the
+// model arrays the checks and copies read (ReadConfig, ReadPairs, ReadExact, ReadPruned). Two
+// models with one digest give the same tables, so LoadTables may hand out tables it parsed for
+// another model at the same address. A check that reads another model field adds it here.
+class Digest {
+ public:
+  void Bytes(const void* p, size_t n) {
+    const auto* c = static_cast<const unsigned char*>(p);
+    size_t k = 0;
+    for (; k + 8 <= n; k += 8) {  // eight bytes at a time: it tells contents apart, not FNV
+      uint64_t w;
+      std::memcpy(&w, c + k, 8);
+      h_ = (h_ ^ w) * 0x100000001b3ULL;
+      h_ ^= h_ >> 29;
+    }
+    for (; k < n; ++k) h_ = (h_ ^ c[k]) * 0x100000001b3ULL;
+  }
+  template <typename T>
+  void Array(const T* values, int64_t n) {
+    Bytes(&n, sizeof n);
+    if (n > 0) Bytes(values, static_cast<size_t>(n) * sizeof(T));
+  }
+  uint64_t value() const { return h_; }
+
+ private:
+  uint64_t h_ = 0xcbf29ce484222325ULL;
+};
+
+uint64_t TablesDigest(const mjModel* m, const std::string& prefix) {
+  Digest d;
   const std::string head = prefix + ":";
   for (int i = 0; i < m->ntext; ++i) {
     const char* name = m->names + m->name_textadr[i];
     if (std::strncmp(name, head.c_str(), head.size()) != 0) continue;
-    for (const char* s = name; *s; ++s) h = (h ^ static_cast<unsigned char>(*s)) * 0x100000001b3ULL;
-    const char* text = m->text_data + m->text_adr[i];
-    const int n = m->text_size[i];
-    // Eight bytes at a time: the hash only tells contents apart, it need not be FNV.
-    int k = 0;
-    for (; k + 8 <= n; k += 8) {
-      uint64_t w;
-      std::memcpy(&w, text + k, 8);
-      h = (h ^ w) * 0x100000001b3ULL;
-      h ^= h >> 29;
-    }
-    for (; k < n; ++k) h = (h ^ static_cast<unsigned char>(text[k])) * 0x100000001b3ULL;
+    d.Array(name, static_cast<int64_t>(std::strlen(name)));
+    d.Array(m->text_data + m->text_adr[i], m->text_size[i]);
   }
-  return h;
+  d.Bytes(&m->opt.timestep, sizeof m->opt.timestep);
+  d.Array(m->geom_type, m->ngeom);
+  d.Array(m->geom_bodyid, m->ngeom);
+  d.Array(m->geom_dataid, m->ngeom);
+  d.Array(m->body_parentid, m->nbody);
+  d.Array(m->body_rootid, m->nbody);
+  d.Array(m->mesh_vertadr, m->nmesh);
+  d.Array(m->mesh_graphadr, m->nmesh);
+  // The vertices themselves are read from the model at each step (Runtime::Bind), not copied.
+  d.Bytes(&m->nmeshvert, sizeof m->nmeshvert);
+  d.Array(m->mesh_graph, m->nmeshgraph);
+  return d.value();
 }
 
 }  // namespace
@@ -601,19 +627,26 @@ std::shared_ptr<const Tables> BuildTables(const mjModel* m, const TableSource& s
 
 std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& prefix,
                                          std::string* error) {
-  // Every mjData of a model shares its tables: parsed once per model content (a model freed
-  // and another made at its address with other tables is told apart by the hash).
+  // Parsed once per model content: every mjData of a model shares its tables, and the last few
+  // table sets stay alive after their last mjData goes (a loop that makes and drops an mjData
+  // parses once). The digest tells apart a model freed and another made at its address.
+  constexpr size_t kKept = 8;
+  struct Entry {
+    const mjModel* model;
+    std::string prefix;
+    uint64_t digest;
+    std::shared_ptr<const Tables> tables;
+  };
   static std::mutex mutex;
-  static std::map<std::pair<const mjModel*, std::string>,
-                  std::pair<uint64_t, std::weak_ptr<const Tables>>>
-      cache;
-  const uint64_t hash = TextHash(m, prefix);
-  const auto key = std::make_pair(m, prefix);
+  static std::vector<Entry> recent;  // most recent last
+  const uint64_t digest = TablesDigest(m, prefix);
   {
     std::lock_guard<std::mutex> lock(mutex);
-    const auto it = cache.find(key);
-    if (it != cache.end() && it->second.first == hash) {
-      if (auto t = it->second.second.lock()) return t;
+    for (auto it = recent.begin(); it != recent.end(); ++it) {
+      if (it->model == m && it->prefix == prefix && it->digest == digest) {
+        std::rotate(it, it + 1, recent.end());
+        return recent.back().tables;
+      }
     }
   }
   const TableSource source = [m, &prefix](const std::string& name, std::vector<double>* out,
@@ -631,10 +664,12 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
       BuildTables(m, source, "text field '" + prefix + ":", "'", error);
   if (!t) return nullptr;
   std::lock_guard<std::mutex> lock(mutex);
-  for (auto it = cache.begin(); it != cache.end();) {  // forget tables no model holds
-    it = it->second.second.expired() ? cache.erase(it) : std::next(it);
-  }
-  cache[key] = {hash, t};
+  recent.erase(
+      std::remove_if(recent.begin(), recent.end(),
+                     [m, &prefix](const Entry& e) { return e.model == m && e.prefix == prefix; }),
+      recent.end());
+  if (recent.size() == kKept) recent.erase(recent.begin());
+  recent.push_back({m, prefix, digest, t});
   return t;
 }
 

@@ -65,11 +65,11 @@ struct Tables {
   double timestep = 0.0;
   std::vector<double> spheres, shapes, events_rec, events_params;
   int64_t nbody_events = 0;
-  // The exact level: its per-geom records, thresholds, and the model's mesh vertices (float64)
-  // and hull graphs it climbs.
+  // The exact level: its per-geom records, thresholds, and the model's hull graphs it climbs
+  // (the vertices are read from the model at each step).
   bool exact = false;
   double exact_below = 0.0, query_below = 0.0;
-  std::vector<double> geoms, verts;
+  std::vector<double> geoms;
   std::vector<int32_t> graph;
   // The pairs known from the start: every active pair, or (pruned) those held always, which
   // each run's own universe then grows from.

@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 4
+#define DUA_ABI_VERSION 5
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -127,7 +127,7 @@ typedef struct dua_exact {
   double* records;       // (npair, 10), directions written
   double below;          // seconds
   double query_below;    // seconds
-  const double* verts;   // (nmeshvert, 3)
+  const float* verts;    // (nmeshvert, 3): the model's mesh_vert
   const int32_t* graph;  // mesh_graph
   const void* model;     // mjModel*
   const void* data;      // mjData*
