@@ -64,6 +64,20 @@ double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0,
                    double n2, int64_t start, int64_t* top);
 
 // Bucket floor(log2(slot + 1)) of a rank slot.
+// The unit direction of MuJoCo's witness segment fromto (first geom to second) between the geoms
+// of an exact record, written into the record (the next look starts from it, whether or not it
+// helps now); false when the witness is too short for a direction (1e-9 of the two radii).
+inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t g1, int64_t g2,
+                             double* xrec, double n[3]) {
+  n[0] = fromto[3] - fromto[0], n[1] = fromto[4] - fromto[1], n[2] = fromto[5] - fromto[2];
+  const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  const double radii = x.geoms[g1 * kGxNcol + kGxRadius] + x.geoms[g2 * kGxNcol + kGxRadius];
+  if (!(length > 1e-9 * radii)) return false;
+  n[0] /= length, n[1] /= length, n[2] /= length;
+  xrec[kXN] = n[0], xrec[kXN + 1] = n[1], xrec[kXN + 2] = n[2];
+  return true;
+}
+
 inline int64_t BucketOf(int64_t slot) {
   int64_t k = 0;
   while ((int64_t{2} << k) - 1 <= slot) ++k;

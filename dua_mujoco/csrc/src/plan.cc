@@ -14,8 +14,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
-// A witness shorter than this (relative to the geoms' size) has no usable direction.
-constexpr double kMinWitness = 1e-9;
 
 // A bound on how far any point of a geom moves between poses (p0, r0) and (p1, r1): the
 // origin's displacement plus |R1 - R0|_F (>= the spectral norm) times the geom's bounding radius
@@ -121,15 +119,11 @@ double ExactGap(double* xrec, dua_exact& x, const dua_frame& f, dua_plan& plan, 
   ++plan.queries;
   const double dist = mj_geomDistance(static_cast<const mjModel*>(x.model), d, static_cast<int>(g1),
                                       static_cast<int>(g2), reach, fromto);
-  if (!(dist > xrec[kXDist])) return best;  // touching, or no witness
-  n0 = fromto[3] - fromto[0], n1 = fromto[4] - fromto[1], n2 = fromto[5] - fromto[2];
-  const double length = std::sqrt(n0 * n0 + n1 * n1 + n2 * n2);
-  const double* ga = x.geoms + g1 * kGxNcol;
-  const double* gb = x.geoms + g2 * kGxNcol;
-  if (!(length > kMinWitness * (ga[kGxRadius] + gb[kGxRadius]))) return best;
-  n0 /= length, n1 /= length, n2 /= length;
-  xrec[kXN] = n0, xrec[kXN + 1] = n1, xrec[kXN + 2] = n2;
-  return std::max(best, AxisGap(xrec, x, f, n0, n1, n2, mode));
+  double n[3];
+  if (!(dist > xrec[kXDist]) || !WitnessDirection(fromto, x, g1, g2, xrec, n)) {
+    return best;  // touching, or no witness
+  }
+  return std::max(best, AxisGap(xrec, x, f, n[0], n[1], n[2], mode));
 }
 
 // A plan's tau, s steps of h, shaved. A plan's taus fall on the step grid, where the deadline

@@ -17,8 +17,6 @@
 namespace dua {
 namespace {
 
-// A witness shorter than this (relative to the geoms' size) has no usable direction.
-constexpr double kMinWitness = 1e-9;
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
@@ -512,16 +510,11 @@ double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x, c
   mjtNum fromto[6];
   const double dist = mj_geomDistance(static_cast<const mjModel*>(x.model), const_cast<mjData*>(d),
                                       static_cast<int>(g1), static_cast<int>(g2), reach, fromto);
-  if (!(dist > xrec[kXDist])) return best;  // in contact, or no witness
-  n0 = fromto[3] - fromto[0], n1 = fromto[4] - fromto[1], n2 = fromto[5] - fromto[2];
-  const double length = std::sqrt(n0 * n0 + n1 * n1 + n2 * n2);
-  const double* ga = x.geoms + g1 * kGxNcol;
-  const double* gb = x.geoms + g2 * kGxNcol;
-  if (!(length > kMinWitness * (ga[kGxRadius] + gb[kGxRadius]))) return best;
-  n0 /= length, n1 /= length, n2 /= length;
-  // MuJoCo's direction is the best guess for the next look, whether or not it helps now.
-  xrec[kXN] = n0, xrec[kXN + 1] = n1, xrec[kXN + 2] = n2;
-  return std::max(best, AxisTau(n0, n1, n2, mode, r0, r1, r2, spin, pair, xrec, x, f));
+  double n[3];
+  if (!(dist > xrec[kXDist]) || !WitnessDirection(fromto, x, g1, g2, xrec, n)) {
+    return best;  // in contact, or no witness
+  }
+  return std::max(best, AxisTau(n[0], n[1], n[2], mode, r0, r1, r2, spin, pair, xrec, x, f));
 }
 
 // Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below,
