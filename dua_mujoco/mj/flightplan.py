@@ -16,7 +16,36 @@ import numpy.typing as npt
 
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
-__all__ = ["governing_violations", "plan_arrays"]
+__all__ = ["finite_rows", "governing_violations", "plan_arrays"]
+
+
+def finite_rows(name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str) -> np.ndarray:
+    """``value`` as a checked ``(n, ncol)`` float64 array, ``n >= 1``, every entry finite.
+
+    Args:
+        name: What the caller called it, for the errors (``qpos``, ``plans[2].qpos``).
+        value: The array.
+        ncol: Its columns (``model.nq``, ``model.nu``).
+        cols: What counts the columns (``nq``), for the errors.
+        rows: What a row is (``joint positions per physics step``), for the errors.
+
+    Raises:
+        ShapeError: Not ``(n, ncol)`` with ``n >= 1``.
+        InvalidInputError: An entry is not finite (the first is named).
+    """
+    a = np.ascontiguousarray(value, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != ncol or a.shape[0] < 1:
+        raise ShapeError(
+            f"{name} has shape {a.shape}; expected (n, {cols}) = (n, {ncol}) with n >= 1: one "
+            f"row of {rows}."
+        )
+    bad = np.argwhere(~np.isfinite(a))
+    if bad.size:
+        j, i = (int(x) for x in bad[0])
+        raise InvalidInputError(
+            f"{name}[{j}, {i}] = {float(a[j, i])} is not finite: pass finite values."
+        )
+    return a
 
 
 def plan_arrays(
@@ -38,12 +67,7 @@ def plan_arrays(
         ShapeError: The arrays do not fit the model or each other.
         InvalidInputError: A value is not finite, or a deviation is negative.
     """
-    q = np.ascontiguousarray(qpos, dtype=np.float64)
-    if q.ndim != 2 or q.shape[1] != model.nq or q.shape[0] < 1:
-        raise ShapeError(
-            f"qpos has shape {q.shape}; a plan is (n, nq) = (n, {model.nq}) with n >= 1: one "
-            "row of joint positions per physics step from the plan's start."
-        )
+    q = finite_rows("qpos", qpos, model.nq, "nq", "joint positions per physics step")
     n, nbody = q.shape[0], model.nbody
     dev = np.asarray(deviation, dtype=np.float64)
     if dev.ndim == 0 or (dev.ndim == 1 and dev.shape[0] == n):
@@ -53,10 +77,6 @@ def plan_arrays(
             f"deviation has shape {np.shape(deviation)}; pass one number, ({n},) (one per "
             f"knot) or ({n}, {nbody}) (one per knot and body)."
         )
-    bad_q = np.argwhere(~np.isfinite(q))
-    if bad_q.size:
-        j, i = (int(v) for v in bad_q[0])
-        raise InvalidInputError(f"qpos[{j}, {i}] = {q[j, i]} is not finite.")
     bad_d = np.argwhere(~(np.isfinite(dev) & (dev >= 0)))
     if bad_d.size:
         j, b = (int(v) for v in bad_d[0])

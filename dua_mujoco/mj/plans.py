@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
+from dua_mujoco.mj.flightplan import finite_rows
 
 __all__ = [
     "PilotPlan",
@@ -140,22 +141,11 @@ def plan_from_controls(
                 "steps is missing: a policy has no length, pass steps=<physics steps to plan>."
             )
         return _plan_policy(model, data, controls, _check_steps(steps))
-    u = np.asarray(controls, dtype=np.float64)
-    if u.ndim != 2 or u.shape[1] != model.nu or u.shape[0] < 1:
-        raise ShapeError(
-            f"controls has shape {u.shape}; expected (steps, nu) = (n, {model.nu}) with n >= 1: "
-            "one row of ctrl a physics step."
-        )
+    u = finite_rows("controls", controls, model.nu, "nu", "ctrl a physics step")
     if steps is not None and _check_steps(steps) != u.shape[0]:
         raise InvalidInputError(
             f"steps = {steps} disagrees with the {u.shape[0]} rows of controls: leave steps out "
             "for an array."
-        )
-    bad = np.argwhere(~np.isfinite(u))
-    if bad.size:
-        j, i = (int(x) for x in bad[0])
-        raise InvalidInputError(
-            f"controls[{j}, {i}] = {float(u[j, i])} is not finite: pass finite controls."
         )
     n = u.shape[0]
     from mujoco import rollout
@@ -252,20 +242,6 @@ def _check_points(model: mujoco.MjModel, points: Any) -> tuple[np.ndarray, np.nd
     return g, body_of, o
 
 
-def _check_qpos(model: mujoco.MjModel, name: str, value: object) -> np.ndarray:
-    q = np.asarray(value, dtype=np.float64)
-    if q.ndim != 2 or q.shape[1] != model.nq or q.shape[0] < 1:
-        raise ShapeError(
-            f"{name} has shape {q.shape}; expected (n, nq) = (n, {model.nq}) with n >= 1: one "
-            "row of qpos a physics step."
-        )
-    bad = np.argwhere(~np.isfinite(q))
-    if bad.size:
-        j, i = (int(x) for x in bad[0])
-        raise InvalidInputError(f"{name}[{j}, {i}] = {float(q[j, i])} is not finite.")
-    return q
-
-
 def _int(name: str, value: object, low: int, high: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
         raise InvalidInputError(f"{name} = {value!r} is invalid: pass an int.")
@@ -335,7 +311,7 @@ def deviation_profile(
     """
     if not isinstance(model, mujoco.MjModel):
         raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")
-    actual = _check_qpos(model, "qpos", qpos)
+    actual = finite_rows("qpos", qpos, model.nq, "nq", "qpos a physics step")
     if (
         isinstance(safety, bool)
         or not isinstance(safety, int | float | np.integer | np.floating)
@@ -362,7 +338,7 @@ def deviation_profile(
     measured = 0
     for i, raw in enumerate(plans):
         plan = raw if isinstance(raw, PilotPlan) else PilotPlan(*raw)
-        q = _check_qpos(model, f"plans[{i}].qpos", plan.qpos)
+        q = finite_rows(f"plans[{i}].qpos", plan.qpos, model.nq, "nq", "qpos a physics step")
         start = _int(f"plans[{i}].start", plan.start, 0, T - 1)
         origin = _int(f"plans[{i}].origin", plan.origin, 0, q.shape[0])
         n = min(q.shape[0], T - start)
