@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 
 import mujoco
+import numpy as np
 
 from dua_mujoco.mj.predictor import Predictor
 
@@ -32,3 +33,12 @@ def predictor_rollout(
         else:
             p.step(d)
         yield k
+
+
+def python_standing(p: Predictor) -> np.ndarray:
+    """The Python predictor's geom pairs standing in alarm, as ``standing_pairs`` gives them."""
+    assert p.scheduler is not None
+    ids = p.held_pairs[p.scheduler.alarm_state()]
+    g1, g2 = p.sphere_pair_geoms
+    rows = np.sort(np.stack([g1[ids], g2[ids]], axis=1), axis=1)
+    return np.unique(rows, axis=0).reshape(-1, 2)

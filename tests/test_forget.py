@@ -8,18 +8,12 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from rollouts import predictor_rollout, python_standing
 
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.scenes import load_spec, make_controller
 from dua_mujoco.plugin import attach, known_pairs, plugin_outputs, standing_pairs
-
-
-def _python_standing(p: Predictor) -> set[tuple[int, int]]:
-    assert p.scheduler is not None
-    ids = p.held_pairs[p.scheduler.alarm_state()]
-    g1, g2 = p.sphere_pair_geoms
-    return {(int(min(a, b)), int(max(a, b))) for a, b in zip(g1[ids], g2[ids], strict=True)}
 
 
 def _swarm(n: int, forget: int | None) -> tuple[mujoco.MjModel, mujoco.MjData, Predictor]:
@@ -46,14 +40,8 @@ def test_a_forgotten_pair_is_met_again_and_flagged_before_it_collides() -> None:
     forgotten: set[tuple[int, int]] = set()  # forgotten at least once, not yet in contact
     stood: set[tuple[int, int]] = set()  # of them, those in alarm since they came back
     collided = flagged = 0
-    for k in range(3000):
-        ctrl(m, d)
-        mujoco.mj_step(m, d)
-        if k == 0:
-            p.reset(d)
-        else:
-            p.step(d)
-        want = _python_standing(p)
+    for k in predictor_rollout(m, d, p, ctrl, 2999):
+        want = _rows(python_standing(p))
         assert _rows(standing_pairs(m, d)) == want, f"step {k}"
         assert plugin_outputs(m, d).evaluated == p.evaluations_per_step, f"step {k}"
         known = _rows(known_pairs(m, d).geom_pairs)
@@ -94,7 +82,7 @@ def test_forgetting_among_geoms_of_many_spheres_holds_what_python_holds() -> Non
             p.step(d)
         else:
             continue
-        want = _python_standing(p)
+        want = _rows(python_standing(p))
         assert _rows(standing_pairs(m, d)) == want, f"step {k}"
         assert plugin_outputs(m, d).evaluated == p.evaluations_per_step, f"step {k}"
         busy += bool(want)

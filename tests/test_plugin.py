@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 from mujoco import rollout
+from rollouts import python_standing
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
@@ -28,15 +29,6 @@ from dua_mujoco.plugin import (
 )
 
 ANT = str(Path(gymnasium.__file__).parent / "envs/mujoco/assets/ant.xml")
-
-
-def python_standing(p: Predictor) -> np.ndarray:
-    """The Python predictor's geom pairs standing in alarm, as ``standing_pairs`` gives them."""
-    assert p.scheduler is not None
-    ids = p.held_pairs[p.scheduler.alarm_state()]
-    g1, g2 = p.sphere_pair_geoms
-    rows = np.sort(np.stack([g1[ids], g2[ids]], axis=1), axis=1)
-    return np.unique(rows, axis=0).reshape(-1, 2)
 
 
 def _attached(scene: str, **options: object) -> tuple[mujoco.MjModel, Predictor]:
