@@ -290,16 +290,15 @@ def _load(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoc
 
 def _check_keyframe(model: mujoco.MjModel, keyframe: int | str) -> None:
     """Refuse a ``--keyframe`` the model does not have, saying which it has."""
+    from dua_mujoco.mj.scenes import keyframe_id
+
     n = int(model.nkey)
     if n == 0:
         raise InvalidInputError(
             f"--keyframe {keyframe}: the model has no keyframes: leave --keyframe out to start "
             "from the model's defaults."
         )
-    if isinstance(keyframe, int):
-        if 0 <= keyframe < n:
-            return
-    elif mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe) >= 0:
+    if keyframe_id(model, keyframe) >= 0:
         return
     names = [repr(model.key(k).name) for k in range(n) if model.key(k).name]
     listing = ("id 0" if n == 1 else f"ids 0 to {n - 1}") + (

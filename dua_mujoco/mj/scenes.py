@@ -69,6 +69,7 @@ __all__ = [
     "check_scene",
     "declared_accel_bound",
     "flat_terrain_spec",
+    "keyframe_id",
     "load_scene",
     "load_spec",
     "make_controller",
@@ -345,6 +346,13 @@ def check_scene(name_or_path: str) -> None:
         )
 
 
+def keyframe_id(model: mujoco.MjModel, keyframe: int | str) -> int:
+    """The id of a keyframe given by id or name, or -1 when the model has no such keyframe."""
+    if isinstance(keyframe, str):
+        return int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe))
+    return int(keyframe) if 0 <= int(keyframe) < model.nkey else -1
+
+
 def reset_to_keyframe(
     model: mujoco.MjModel, data: mujoco.MjData, keyframe: int | str | None = None
 ) -> None:
@@ -360,12 +368,7 @@ def reset_to_keyframe(
         InvalidChoiceError: If the keyframe index or name does not exist (lists the valid ones).
         InvalidInputError: If a keyframe is asked of a model that has none.
     """
-    if keyframe is None:
-        key = 0 if model.nkey > 0 else -1
-    elif isinstance(keyframe, str):
-        key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
-    else:
-        key = int(keyframe) if 0 <= int(keyframe) < model.nkey else -1
+    key = (0 if model.nkey > 0 else -1) if keyframe is None else keyframe_id(model, keyframe)
     if keyframe is not None and key < 0:
         if model.nkey == 0:
             raise InvalidInputError(
