@@ -64,6 +64,16 @@ double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0,
                    double n2, int64_t start, int64_t* top);
 
 // Bucket floor(log2(slot + 1)) of a rank slot.
+// Where point rec (a sphere record, or the exact level's geom record: the same first columns)
+// sits with the geoms at poses (pos, mat): its geom's origin plus its rotated offset.
+inline void PointCentre(const double* rec, const double* pos, const double* mat, double* out) {
+  const int64_t g = static_cast<int64_t>(rec[kSphereFrame]);
+  const double o0 = rec[kSphereOffset], o1 = rec[kSphereOffset + 1], o2 = rec[kSphereOffset + 2];
+  const double* p = pos + 3 * g;
+  const double* r = mat + 9 * g;
+  for (int k = 0; k < 3; ++k) out[k] = p[k] + r[3 * k] * o0 + r[3 * k + 1] * o1 + r[3 * k + 2] * o2;
+}
+
 // The unit direction of MuJoCo's witness segment fromto (first geom to second) between the geoms
 // of an exact record, written into the record (the next look starts from it, whether or not it
 // helps now); false when the witness is too short for a direction (1e-9 of the two radii).

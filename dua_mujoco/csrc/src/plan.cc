@@ -33,16 +33,7 @@ double Displacement(const double* p0, const double* r0, const double* p1, const 
 // contact distance, so a lower bound on the geoms' too.
 double SphereGap(const double* rec, const double* spheres, const double* shapes, const double* pos,
                  const double* mat) {
-  auto centre = [&](int64_t i, double* c) {
-    const double* s = spheres + i * kSphereNcol;
-    const int64_t g = static_cast<int64_t>(s[kSphereFrame]);
-    const double* p = pos + 3 * g;
-    const double* r = mat + 9 * g;
-    const double o0 = s[kSphereOffset], o1 = s[kSphereOffset + 1], o2 = s[kSphereOffset + 2];
-    c[0] = p[0] + r[0] * o0 + r[1] * o1 + r[2] * o2;
-    c[1] = p[1] + r[3] * o0 + r[4] * o1 + r[5] * o2;
-    c[2] = p[2] + r[6] * o0 + r[7] * o1 + r[8] * o2;
-  };
+  auto centre = [&](int64_t i, double* c) { PointCentre(spheres + i * kSphereNcol, pos, mat, c); };
   double a[3];
   centre(static_cast<int64_t>(rec[kPairFirst]), a);
   const int kind = static_cast<int>(rec[kPairKind]);

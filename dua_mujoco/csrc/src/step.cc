@@ -27,14 +27,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_frame& f,
                        double* out) {
   const double* rec = recs + i * ncol;
-  const int64_t g = static_cast<int64_t>(rec[kSphereFrame]);
   const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
-  const double o0 = rec[kSphereOffset], o1 = rec[kSphereOffset + 1], o2 = rec[kSphereOffset + 2];
-  const double* pos = f.pos + 3 * g;
-  const double* mat = f.mat + 9 * g;
-  for (int k = 0; k < 3; ++k) {
-    out[k] = pos[k] + mat[3 * k] * o0 + mat[3 * k + 1] * o1 + mat[3 * k + 2] * o2;
-  }
+  PointCentre(rec, f.pos, f.mat, out);
   const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
   const double* tw = f.twist + 6 * b;
   const double* ref = f.twist_ref + 3 * r;
