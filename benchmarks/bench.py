@@ -159,7 +159,7 @@ def bare_loop_period(name: str, predictor: object, steps: int, period: int) -> t
     """Median us per ``Predictor.step`` call (every ``period`` steps) and per ``mj_step``."""
     import mujoco
 
-    from dua_mujoco.mj.scenes import load_scene, make_controller
+    from dua_mujoco.models.scenes import load_scene, make_controller
 
     m, d = load_scene(name)
     ctrl = make_controller(m, "random", seed=0)
@@ -225,7 +225,7 @@ def bench_dispatch(calls: int = 200_000) -> str:
 def bench_scenes(steps: int = 2000) -> str:
     from dua_mujoco.mj.monitor import run
     from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.scenes import load_scene, make_controller
+    from dua_mujoco.models.scenes import load_scene, make_controller
 
     rows = []
     for name, schedule in (
@@ -299,7 +299,7 @@ def bench_period(steps: int = 2000, periods: tuple[int, ...] = (1, 2, 4, 8)) -> 
     """Traffic with its declared bound (4 m/s^2) at several predictor periods."""
     from dua_mujoco.mj.monitor import run
     from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
+    from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
 
     rows = []
     for k in periods:

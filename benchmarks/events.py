@@ -36,7 +36,7 @@ from dua_mujoco.exceptions import DuaError
 from dua_mujoco.mj.monitor import run
 from dua_mujoco.mj.options import PilotOptions, ScheduleOptions
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.models.scenes import make_controller
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table

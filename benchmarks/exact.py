@@ -38,7 +38,7 @@ from dua_mujoco.experiments.peers.scene_context import SceneContext
 from dua_mujoco.mj.monitor import run
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.models.scenes import make_controller
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table

@@ -65,7 +65,7 @@ from dua_mujoco.mj.options import PilotOptions
 from dua_mujoco.mj.plans import PilotPlan, deviation_profile, plan_deviation, plan_from_controls
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.report import build_report
-from dua_mujoco.mj.scenes import SceneController, make_controller
+from dua_mujoco.models.scenes import SceneController, make_controller
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table

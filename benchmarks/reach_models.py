@@ -93,7 +93,7 @@ from dua_mujoco.mj.exact import GX_RADIUS
 from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.pilot_screen import MotionScreen, PilotMotion, level_maxima
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.models.scenes import make_controller
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table

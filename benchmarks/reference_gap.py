@@ -30,7 +30,7 @@ import numpy as np
 from dua_mujoco.mj.options import PilotOptions, ScheduleOptions, UrgencyOptions
 from dua_mujoco.mj.pairbounds import body_vel_uncertainty
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.models.scenes import make_controller
 
 sys.path.insert(0, str(Path(__file__).parent))
 from robots import load_robot

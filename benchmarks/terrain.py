@@ -24,7 +24,7 @@ Robots:
   that the robot meets the terrain alone) against its floor plane (the terrain removed, as its
   Walk task does). Its start height is raised until nothing touches, as Escape does.
 
-Also ``make-terrain`` prints the elevation rows of ``models/rough_terrain.xml``
+Also ``make-terrain`` prints the elevation rows of ``dua_mujoco/models/rough_terrain.xml``
 (:func:`rough_heights`).
 """
 
@@ -42,7 +42,7 @@ import numpy as np
 from dua_mujoco.mj.monitor import run
 from dua_mujoco.mj.options import CoveringOptions, PilotOptions
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller, reset_to_keyframe
+from dua_mujoco.models.scenes import load_scene, make_controller, reset_to_keyframe
 
 PILOT_SEED = 99
 

@@ -50,7 +50,7 @@ if TYPE_CHECKING:
     )
     from dua_mujoco.mj.predictor import Alarms, Predictor
     from dua_mujoco.mj.report import RunReport
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
     from dua_mujoco.plugin import PluginOutputs, attach, plugin_outputs, standing_pairs
 
 # Everything but the errors loads on first use (PEP 562): ``import dua_mujoco`` and the pytest
@@ -74,7 +74,7 @@ _LAZY = {
     "Schedule": "dua_mujoco.core.schedules",
     "SpherePredictor": "dua_mujoco.core.spheres",
     "estimate_bounds": "dua_mujoco.mj.bounds",
-    "load_scene": "dua_mujoco.mj.scenes",
+    "load_scene": "dua_mujoco.models.scenes",
     "PluginOutputs": "dua_mujoco.plugin",
     "attach": "dua_mujoco.plugin",
     "plugin_outputs": "dua_mujoco.plugin",

@@ -65,7 +65,7 @@ _EXIT_CODES = (
 
 
 def _add_run(sub: argparse._SubParsersAction) -> None:
-    from dua_mujoco.mj.scenes import DEFAULT_SCENE, scene_names
+    from dua_mujoco.models.scenes import DEFAULT_SCENE, scene_names
 
     p = sub.add_parser(
         "run",
@@ -268,7 +268,7 @@ def _check_outputs(args: argparse.Namespace, model: mujoco.MjModel, steps: int) 
 def _load(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """``load_scene``, with the file named in the error when MuJoCo cannot load it, and an
     unknown ``--keyframe`` told apart from a broken file."""
-    from dua_mujoco.mj.scenes import SCENES, load_scene, reset_to_keyframe
+    from dua_mujoco.models.scenes import SCENES, load_scene, reset_to_keyframe
 
     try:
         model, data = load_scene(scene)
@@ -290,7 +290,7 @@ def _load(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoc
 
 def _check_keyframe(model: mujoco.MjModel, keyframe: int | str) -> None:
     """Refuse a ``--keyframe`` the model does not have, saying which it has."""
-    from dua_mujoco.mj.scenes import keyframe_id
+    from dua_mujoco.models.scenes import keyframe_id
 
     n = int(model.nkey)
     if n == 0:

@@ -151,7 +151,7 @@ def attach(
     if not isinstance(spec, mujoco.MjSpec):
         raise InvalidInputError(
             f"spec must be a mujoco.MjSpec, got {type(spec).__name__}: load one with "
-            "mujoco.MjSpec.from_file(path) (or dua_mujoco.mj.scenes.load_spec(name))."
+            "mujoco.MjSpec.from_file(path) (or dua_mujoco.models.scenes.load_spec(name))."
         )
     _check_prefix(spec, prefix)
     bad_forget = isinstance(forget, bool) or not isinstance(forget, int) or forget < 0

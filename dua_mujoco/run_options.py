@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     import mujoco
 
     from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.scenes import SceneController
+    from dua_mujoco.models.scenes import SceneController
 
 __all__ = [
     "PILOT_SEED_OFFSET",
@@ -40,7 +40,7 @@ monitored rollout's own controls."""
 
 def default_steps(scene: str) -> int:
     """Physics steps of a run without ``--steps``: the bundled scene's own, 1000 for a file."""
-    from dua_mujoco.mj.scenes import SCENES
+    from dua_mujoco.models.scenes import SCENES
 
     base = scene.split(":")[0]
     return SCENES[base].default_steps if base in SCENES else 1000
@@ -48,7 +48,7 @@ def default_steps(scene: str) -> int:
 
 def controller_for(model: mujoco.MjModel, options: Any) -> SceneController:
     """The monitored rollout's controller (``--ctrl``, ``--seed``)."""
-    from dua_mujoco.mj import scenes
+    from dua_mujoco.models import scenes
 
     return scenes.make_controller(model, options.ctrl, seed=options.seed)
 
@@ -76,7 +76,7 @@ def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
             ``static``, ``exact``, ``pilot_steps``, ``pilot_motion``, ``ctrl``, ``seed``).
     """
     from dua_mujoco.mj import options as opts
-    from dua_mujoco.mj import scenes
+    from dua_mujoco.models import scenes
 
     pilot_seed = options.seed + PILOT_SEED_OFFSET
     return {

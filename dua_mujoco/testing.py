@@ -300,7 +300,7 @@ def _make_predictor(
         # The pilot moves what the run's default controller moves (mocap bodies included),
         # with a seed of its own.
         from dua_mujoco.mj.options import PilotOptions
-        from dua_mujoco.mj.scenes import make_controller
+        from dua_mujoco.models.scenes import make_controller
 
         return Predictor(
             model, pilot=PilotOptions(controller=make_controller(model, "random", seed=1))
@@ -363,11 +363,11 @@ def assert_no_missed_collisions(
             the model defaults), after ``mj_forward``. It is advanced in place.
         steps: Physics steps to roll out.
         controller: ``controller(model, data)`` called before every ``mj_step``; None for
-            :func:`dua_mujoco.mj.scenes.make_controller` random held controls with seed 0 (a
+            :func:`dua_mujoco.models.scenes.make_controller` random held controls with seed 0 (a
             regression needs motion; pass ``make_controller(model, "zero")`` for none).
         predictor: A ``Predictor`` for ``model``, a dict of ``Predictor`` keyword arguments, or
             None for ``Predictor(model)`` with bounds from a pilot rollout driven by
-            :func:`~dua_mujoco.mj.scenes.make_controller` (random controls, mocap bodies moved
+            :func:`~dua_mujoco.models.scenes.make_controller` (random controls, mocap bodies moved
             as the default controller moves them; its own seed).
         baseline: A dict or JSON file path with :data:`BASELINE_KEYS` to compare the alarm counts
             with; None to skip the comparison.
@@ -389,7 +389,7 @@ def assert_no_missed_collisions(
 
     from dua_mujoco.exceptions import InvalidInputError
     from dua_mujoco.mj.monitor import run
-    from dua_mujoco.mj.scenes import make_controller, reset_to_keyframe
+    from dua_mujoco.models.scenes import make_controller, reset_to_keyframe
 
     if not isinstance(model, mujoco.MjModel):
         raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")

@@ -30,7 +30,7 @@ EPILOG = (
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The scene and the viewer's own options (the run options are added by ``cli``)."""
-    from dua_mujoco.mj.scenes import DEFAULT_SCENE
+    from dua_mujoco.models.scenes import DEFAULT_SCENE
 
     p.add_argument(
         "scene", nargs="?", default=DEFAULT_SCENE, help=f"as for run (default {DEFAULT_SCENE})"

@@ -11,7 +11,7 @@ from dua_mujoco.mj import predictor as predictor_module
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.options import UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.models.scenes import load_scene, make_controller
 
 
 def _rollout(steps: int, **options: object) -> list[tuple[Alarms, tuple[np.ndarray, ...]]]:

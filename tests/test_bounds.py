@@ -20,7 +20,7 @@ from dua_mujoco.mj.bounds import (
 )
 from dua_mujoco.mj.checks import BoundMonitor
 from dua_mujoco.mj.mocap import MocapVelocityTracker
-from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
 
 H = 0.002
 KMAX = 200

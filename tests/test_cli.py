@@ -140,7 +140,7 @@ def test_cli_broken_xml(tmp_path: Path, capsys) -> None:
 
 def test_cli_runs_a_binary_model(tmp_path: Path, capsys) -> None:
     """A compiled ``.mjb`` model loads as one (it failed as malformed XML)."""
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
 
     model, _ = load_scene("two_arms")
     path = tmp_path / "two_arms.mjb"
@@ -350,7 +350,7 @@ def test_cli_dev_full_is_one_line_exit_2(capsys) -> None:
 
 def _interrupting_controller(monkeypatch: pytest.MonkeyPatch, after: int) -> None:
     """Controllers from make_controller raise KeyboardInterrupt at their ``after``-th call."""
-    from dua_mujoco.mj import scenes
+    from dua_mujoco.models import scenes
 
     make = scenes.make_controller
 

@@ -24,7 +24,7 @@ from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.mj.monitor import run
 from dua_mujoco.mj.options import ScheduleOptions
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.models.scenes import load_scene, make_controller
 
 # Three balls in a row, no gravity: the striker hits the middle ball, which rests 0.1 mm from
 # the last one. The impulse moves the middle ball into the last one within one physics step,

@@ -15,7 +15,7 @@ import pytest
 
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene
+from dua_mujoco.models.scenes import load_scene
 
 # A ball rolled towards a wall, a box dropped on the floor, an arm swinging through both.
 SCENE = """

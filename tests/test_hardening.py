@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco.cli import main
-from dua_mujoco.mj.scenes import load_spec
+from dua_mujoco.models.scenes import load_spec
 from dua_mujoco.native import library_path
 from dua_mujoco.plugin import _encode, attach, plugin_outputs, standing_pairs
 

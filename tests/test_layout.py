@@ -18,7 +18,7 @@ from dua_mujoco.core.pairset import PAIR_NCOL, PairSet, pack_pairs
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.mj import build, kinematics
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene
+from dua_mujoco.models.scenes import load_scene
 
 
 def test_the_python_packers_write_the_stated_widths() -> None:

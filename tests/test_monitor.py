@@ -13,7 +13,7 @@ from dua_mujoco.mj.monitor import Monitor, run
 from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.report import RunReport
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.models.scenes import load_scene, make_controller
 
 
 def _reference_episodes(

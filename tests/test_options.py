@@ -21,7 +21,7 @@ from dua_mujoco.mj.options import (
     UrgencyOptions,
 )
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.models.scenes import load_scene, make_controller
 
 
 def test_groups_are_frozen_and_exported() -> None:

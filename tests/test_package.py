@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import os
 import subprocess
 import sys
 import zipfile
@@ -46,8 +47,11 @@ def test_the_wheel_ships_the_package_the_scenes_and_the_native_core(tmp_path: Pa
         for p in PACKAGE.rglob("__init__.py")
         if "__pycache__" not in p.parts
     }
-    scenes = {f"dua_mujoco/models/{p.name}" for p in (ROOT / "models").glob("*.xml")}
+    modules = {p.relative_to(ROOT).as_posix() for p in _modules()}
+    modules = {m for m in modules if not m.startswith("dua_mujoco/csrc/")}
+    scenes = {f"dua_mujoco/models/{p.name}" for p in (PACKAGE / "models").glob("*.xml")}
     assert packages <= names, sorted(packages - names)
+    assert "dua_mujoco/models/scenes.py" in modules and modules <= names, sorted(modules - names)
     assert scenes and scenes <= names, sorted(scenes - names)
     assert {"dua_mujoco/py.typed", "dua_mujoco/libdua_mujoco.so", "dua_mujoco/_core.pyi"} <= names
     assert [n for n in names if n.startswith("dua_mujoco/_core.") and n.endswith(".so")]
@@ -59,6 +63,29 @@ def test_the_wheel_ships_the_package_the_scenes_and_the_native_core(tmp_path: Pa
     # pytest11 entry point makes pytest warn in other projects (tests/test_pytest_plugin.py).
     assert "dua-mujoco = dua_mujoco.__main__:main" in text
     assert "[pytest11]" not in text
+    # Installed from the wheel alone (this environment's editable finder removed), the demo
+    # scenes import from dua_mujoco.models and find their XMLs.
+    site = tmp_path / "site"
+    out = subprocess.run(
+        [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(site),
+         str(wheel)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    code = (
+        "import sys\n"
+        "sys.meta_path[:] = [f for f in sys.meta_path\n"
+        "                    if type(f).__name__ != 'ScikitBuildRedirectingFinder']\n"
+        "from dua_mujoco.models.scenes import load_scene\n"
+        "import dua_mujoco\n"
+        "print(dua_mujoco.__file__, load_scene('two_arms')[0].ngeom > 0)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+        cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(site)},
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.split() == [str(site / "dua_mujoco" / "__init__.py"), "True"]
 
 
 def test_the_bindings_type_stub_is_current(tmp_path: Path) -> None:
@@ -155,7 +182,7 @@ def test_a_run_loads_no_jit_and_numba_is_no_dependency() -> None:
         "import mujoco, numpy as np\n"
         "from dua_mujoco import Predictor, SpherePredictor, time_to_collision\n"
         "from dua_mujoco.core.schedules import DUAScheduler\n"
-        "from dua_mujoco.mj.scenes import load_scene\n"
+        "from dua_mujoco.models.scenes import load_scene\n"
         "p = SpherePredictor(np.full(3, 0.1), 1.0, dt=0.01)\n"
         "c = np.arange(9.0).reshape(3, 3)\n"
         "p.reset(c, np.zeros((3, 3)))\n"

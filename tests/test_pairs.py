@@ -409,7 +409,7 @@ def test_the_filter_on_candidates_gives_mujocos_pairs(name: str) -> None:
 
 @pytest.mark.parametrize("scene", ["two_arms", "traffic", "clutter", "bin_pour:40", "swarm:300"])
 def test_the_filter_on_candidates_gives_mujocos_pairs_on_scenes(scene: str) -> None:
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
 
     _lazy_parity(load_scene(scene)[0])
 
@@ -432,7 +432,7 @@ def test_pair_tables_equal_a_loop_over_geom_pairs(scene: str) -> None:
     from dua_mujoco.mj.bounds import MotionBounds
     from dua_mujoco.mj.exact import GX_KIND, ExactMode, build_exact
     from dua_mujoco.mj.pairbounds import bounded_pairs
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
 
     m, _ = load_scene(scene)
     cov = cover_model(m, mode="multi", max_spheres_per_geom=3)

@@ -13,7 +13,7 @@ import dua_mujoco
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 from dua_mujoco.mj.plans import PilotPlan, deviation_profile, plan_deviation, plan_from_controls
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.models.scenes import make_controller
 
 # Two links on hinges (a PD motor's and a position servo's), a free box that lands on the floor
 # and rests there (contacts: the solver's warm start matters), a slider without a control range.

@@ -19,7 +19,7 @@ from rollouts import python_standing
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_spec, make_controller
+from dua_mujoco.models.scenes import load_spec, make_controller
 from dua_mujoco.plugin import (
     attach,
     deactivate_contacts,

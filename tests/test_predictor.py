@@ -40,7 +40,7 @@ from dua_mujoco.mj.monitor import Monitor, run
 from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.report import RunReport
-from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -507,7 +507,7 @@ def test_wrong_mjdata_on_step() -> None:
         import mujoco
         from dua_mujoco.exceptions import InvalidInputError
         from dua_mujoco.mj.predictor import Predictor
-        from dua_mujoco.mj.scenes import load_scene
+        from dua_mujoco.models.scenes import load_scene
         m, d = load_scene("paper_world:30")
         other = mujoco.MjModel.from_xml_string(
             "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>")

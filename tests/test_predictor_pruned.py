@@ -12,7 +12,7 @@ from dua_mujoco.core.schedules import DeadlineScheduler
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.mj.options import PairOptions
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
 
 
 def _world(n: int) -> tuple[mujoco.MjModel, mujoco.MjData, float]:

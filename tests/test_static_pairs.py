@@ -20,8 +20,8 @@ from dua_mujoco.mj.filter import active_geom_pairs, sphere_pairs
 from dua_mujoco.mj.monitor import run
 from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
 from dua_mujoco.mj.tables import PairTables, static_shapes
+from dua_mujoco.models.scenes import load_scene, make_controller
 
 SHAPE_TYPES = {
     "sphere": 'type="sphere" size=".2"',

@@ -20,8 +20,8 @@ from dua_mujoco.mj.exact import GX_RADIUS, X_DIST, X_G1, X_G2, X_MODE, ExactMode
 from dua_mujoco.mj.monitor import run
 from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
 from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
 from dua_mujoco.mj.tables import static_shapes
+from dua_mujoco.models.scenes import load_scene, make_controller
 
 WORLD = """<mujoco>
   <asset><hfield name="h" nrow="6" ncol="7" size="1 1 .3 .1"
@@ -202,7 +202,7 @@ def test_the_plugin_refuses_a_terrain_table_that_does_not_fit(entry: tuple[int, 
     import base64
 
     from dua_mujoco import attach
-    from dua_mujoco.mj.scenes import load_spec
+    from dua_mujoco.models.scenes import load_spec
     from dua_mujoco.plugin import _encode
 
     spec = load_spec("rough_terrain")

@@ -17,7 +17,7 @@ import pytest
 from dua_mujoco.mj.alarms import Alarms
 from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.mj.report import RunReport
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.models.scenes import load_scene, make_controller
 
 # The module is imported here, before pytest registers it from ``pytest_plugins``: mark it for
 # assertion rewriting first, or pytest warns that it was imported before it could rewrite it
@@ -192,7 +192,7 @@ def test_helpers_work_without_pytest() -> None:
     """docs/testing.md: without pytest, call the function directly."""
     code = (
         "import sys; sys.modules['pytest'] = None\n"
-        "from dua_mujoco.mj.scenes import load_scene\n"
+        "from dua_mujoco.models.scenes import load_scene\n"
         "from dua_mujoco.testing import assert_no_missed_collisions\n"
         f"m, d = load_scene({SCENE!r})\n"
         f"r = assert_no_missed_collisions(m, d, steps=50, predictor={CLEAN!r})\n"
@@ -304,7 +304,7 @@ def test_assert_no_missed_collisions_compares_the_baseline() -> None:
 
 USER_TEST = textwrap.dedent(
     f"""
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
 
 
     def test_my_scene(dua_predict):
@@ -353,7 +353,7 @@ def test_plugin_records_counts_in_user_properties(pytester: pytest.Pytester) -> 
     pytester.makepyfile(
         test_props=textwrap.dedent(
             f"""
-            from dua_mujoco.mj.scenes import load_scene
+            from dua_mujoco.models.scenes import load_scene
 
 
             def test_props(dua_predict, request):
@@ -373,7 +373,7 @@ def test_plugin_fixture_fails_on_missed_collision(pytester: pytest.Pytester) -> 
         test_broken=textwrap.dedent(
             f"""
             from dua_mujoco.mj.predictor import Predictor
-            from dua_mujoco.mj.scenes import load_scene
+            from dua_mujoco.models.scenes import load_scene
 
 
             def test_broken(dua_predict):

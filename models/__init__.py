@@ -1,1 +1,0 @@
-"""Bundled MJCF scenes (shipped as ``dua_mujoco.models``)."""
