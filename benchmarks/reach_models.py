@@ -88,12 +88,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.bounds import estimate_bounds, moving_bodies
-from dua_mujoco.mj.exact import GX_RADIUS
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
-from dua_mujoco.mj.pilot_screen import MotionScreen, PilotMotion, level_maxima
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.build.bounds import estimate_bounds, moving_bodies
+from dua_mujoco.build.exact import GX_RADIUS
+from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.build.pilot_screen import MotionScreen, PilotMotion, level_maxima
 from dua_mujoco.models.scenes import make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table

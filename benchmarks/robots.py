@@ -441,7 +441,7 @@ def robot_spec(name: str) -> mujoco.MjSpec:
 
 
 def _row(name: str, steps: int) -> str:
-    from dua_mujoco.mj.filter import active_geom_pairs
+    from dua_mujoco.build.filter import active_geom_pairs
     from dua_mujoco.models.scenes import make_controller
 
     src = ROBOTS[name]

@@ -28,7 +28,7 @@ from dua_mujoco.outputs import publish, temporary_beside, writes_in_place
 from dua_mujoco.run_options import add_run_options, whole_number
 
 if TYPE_CHECKING:
-    from dua_mujoco.mj.report import RunReport
+    from dua_mujoco.measure.report import RunReport
 
 __all__ = [
     "EXIT_BOUNDS_BROKEN",
@@ -359,10 +359,10 @@ def keyframe_arg(args: argparse.Namespace) -> int | str | None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from dua_mujoco.mj.alarms import Alarms
-    from dua_mujoco.mj.monitor import Monitor, run
-    from dua_mujoco.mj.report import RunInterrupted
+    from dua_mujoco.measure.monitor import Monitor, run
+    from dua_mujoco.measure.report import RunInterrupted
     from dua_mujoco.run_options import controller_for, default_steps, predictor_for
+    from dua_mujoco.runtime.alarms import Alarms
 
     model, data = _load(args.scene, keyframe_arg(args))
     steps = default_steps(args.scene) if args.steps is None else args.steps

@@ -19,7 +19,7 @@ import mujoco
 from dua_mujoco.exceptions import InvalidInputError
 
 if TYPE_CHECKING:
-    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["DESCRIPTION", "EPILOG", "add_arguments", "export", "main"]
 

@@ -29,10 +29,10 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco import _core
+from dua_mujoco.build.options import PairOptions
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.flightplan import plan_arrays
-from dua_mujoco.mj.options import PairOptions
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.runtime.flightplan import plan_arrays
+from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
     "FORGET_REBUILDS",
@@ -189,8 +189,8 @@ def attach(
 def _check_size(model: mujoco.MjModel) -> None:
     """Refuse a model whose every pair the plugin could not hold, before building them (counted
     as MuJoCo's filter sees them, one sphere a geom, nothing held: O(ngeom^2) time)."""
-    from dua_mujoco.mj.covering import cover_model
-    from dua_mujoco.mj.universe import PairUniverse
+    from dua_mujoco.build.covering import cover_model
+    from dua_mujoco.build.universe import PairUniverse
 
     # A height field without options would fail the covering here; the predictor says so.
     covering = cover_model(model, hfield="box")
@@ -252,7 +252,7 @@ def set_active_bodies(
             (call ``mj_step`` or ``mj_forward`` first).
         InvalidChoiceError: An unknown body name.
     """
-    from dua_mujoco.mj.filter import body_id
+    from dua_mujoco.build.filter import body_id
 
     instance = _instance(model, prefix)
     a = body_id(model, body_a)

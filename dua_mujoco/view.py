@@ -59,7 +59,7 @@ def _rate(value: str) -> float:
 def main(args: argparse.Namespace) -> int:
     """Run ``dua-mujoco view``; the exit code."""
     from dua_mujoco.cli import EXIT_INTERRUPTED, keyframe_arg, load_scene_arg, print_report
-    from dua_mujoco.mj.report import RunInterrupted
+    from dua_mujoco.measure.report import RunInterrupted
     from dua_mujoco.render import OverlayOptions
     from dua_mujoco.render.live import view
     from dua_mujoco.run_options import controller_for, predictor_for

@@ -17,7 +17,7 @@ import mujoco
 import pytest
 
 from dua_mujoco.cli import main
-from dua_mujoco.mj import monitor
+from dua_mujoco.measure import monitor
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -397,7 +397,7 @@ def test_cli_interrupt_writes_the_partial_report_and_video(
 def test_cli_interrupt_before_the_rollout_is_one_line(
     capsys, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from dua_mujoco.mj import predictor
+    from dua_mujoco.runtime import predictor
 
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt

@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.render import (
     ALARM_RGBA,
     AlarmOverlay,
@@ -30,6 +29,7 @@ from dua_mujoco.render import (
     render_rollout,
     write_video,
 )
+from dua_mujoco.runtime.predictor import Predictor
 
 W, H = 320, 240
 

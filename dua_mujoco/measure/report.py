@@ -8,10 +8,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.accumulators import Durations
+from dua_mujoco.measure.accumulators import Durations
 
 if TYPE_CHECKING:
-    from dua_mujoco.mj.monitor import Monitor
+    from dua_mujoco.measure.monitor import Monitor
 
 __all__ = ["Miss", "RunInterrupted", "RunReport", "build_report"]
 
@@ -54,7 +54,7 @@ class RunReport:
     had stood for each without a break (0 for a miss; None without onsets);
     ``short_lead_onsets`` counts the onsets with less lead than ``warning_horizon_s``, split into
     ``short_lead_bounds_held`` (the promise does not allow them), ``short_lead_after_violation``
-    and ``short_lead_at_start`` (:mod:`~dua_mujoco.mj.warning_time`).
+    and ``short_lead_at_start`` (:mod:`~dua_mujoco.measure.warning_time`).
     ``missed_onsets_outside_violations`` counts the misses not in a violation's period
     (:class:`Miss`): the guarantee covers them, so any is a bug. ``broken_bound_bodies`` names
     the bodies that broke their declared bounds; ``bound_violations_out_of_contact`` counts the

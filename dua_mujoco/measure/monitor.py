@@ -25,16 +25,16 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.tables import same_geometry
 from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
-from dua_mujoco.mj.accumulators import Durations, Growing, Series, StepMap
-from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.checks import BoundMonitor
-from dua_mujoco.mj.flightplan import governing_violations
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.report import Miss, RunInterrupted, RunReport, build_report
-from dua_mujoco.mj.tables import same_geometry
-from dua_mujoco.mj.warning_time import WarningTime, alarm_horizon_of, check_warning_horizon
+from dua_mujoco.measure.accumulators import Durations, Growing, Series, StepMap
+from dua_mujoco.measure.checks import BoundMonitor
+from dua_mujoco.measure.report import Miss, RunInterrupted, RunReport, build_report
+from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of, check_warning_horizon
 from dua_mujoco.progress import Progress
+from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.flightplan import governing_violations
+from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["Monitor", "run"]
 
@@ -65,8 +65,8 @@ class Monitor:
         series: Record the alarm count and minimum tau of every predictor step (``series``);
             otherwise memory does not grow with the run's length.
         warning_horizon: The horizon (s) each onset's lead and the oracle are measured against
-            (:mod:`~dua_mujoco.mj.warning_time`); None for the predictor's own alarm horizon
-            (:func:`~dua_mujoco.mj.warning_time.alarm_horizon_of`).
+            (:mod:`~dua_mujoco.measure.warning_time`); None for the predictor's own alarm horizon
+            (:func:`~dua_mujoco.measure.warning_time.alarm_horizon_of`).
 
     An *alarm episode* of a geom pair is a maximal run of physics steps during which at least one
     of its sphere pairs stands alarmed (repeats counted once, as the paper does). It is *false*
@@ -339,7 +339,7 @@ class Monitor:
     def oracle_fraction(self) -> float:
         """Mean over predictor steps of (active geom pairs that touch within the warning
         horizon from that step) / (active geom pairs): the floor under the standing fraction
-        (:mod:`~dua_mujoco.mj.warning_time`; windows past the last step count what was seen)."""
+        (:mod:`~dua_mujoco.measure.warning_time`; windows past the last step count what's seen)."""
         if not self.predictor_steps:
             return 0.0
         return self.warning.oracle_sum() / self.predictor_steps

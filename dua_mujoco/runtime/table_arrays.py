@@ -27,16 +27,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dua_mujoco._core import LAYOUT, TABLES_VERSION, structure_hash
+from dua_mujoco.build.events import no_events
+from dua_mujoco.build.filter import contacts_enabled, margin_override
+from dua_mujoco.build.pairbounds import body_vel_uncertainty
+from dua_mujoco.build.pairfilter import FilterTables
+from dua_mujoco.build.pruning import RENEW_MAX
 from dua_mujoco.core.schedules import Schedule
 from dua_mujoco.core.schedules.deadline import DEFAULT_MAX_INTERVAL
-from dua_mujoco.mj.events import no_events
-from dua_mujoco.mj.filter import contacts_enabled, margin_override
-from dua_mujoco.mj.pairbounds import body_vel_uncertainty
-from dua_mujoco.mj.pairfilter import FilterTables
-from dua_mujoco.mj.pruning import RENEW_MAX
 
 if TYPE_CHECKING:
-    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["CONFIG", "predictor_tables"]
 
