@@ -223,7 +223,7 @@ def bench_dispatch(calls: int = 200_000) -> str:
 
 
 def bench_scenes(steps: int = 2000) -> str:
-    from dua_mujoco.measure.monitor import run
+    from dua_mujoco.measure.rollout import run
     from dua_mujoco.models.scenes import load_scene, make_controller
     from dua_mujoco.runtime.predictor import Predictor
 
@@ -297,7 +297,7 @@ def bench_scenes(steps: int = 2000) -> str:
 
 def bench_period(steps: int = 2000, periods: tuple[int, ...] = (1, 2, 4, 8)) -> str:
     """Traffic with its declared bound (4 m/s^2) at several predictor periods."""
-    from dua_mujoco.measure.monitor import run
+    from dua_mujoco.measure.rollout import run
     from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
     from dua_mujoco.runtime.predictor import Predictor
 

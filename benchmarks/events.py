@@ -34,7 +34,7 @@ import numpy as np
 from dua_mujoco.build.options import PilotOptions, ScheduleOptions
 from dua_mujoco.cli import main as cli
 from dua_mujoco.exceptions import DuaError
-from dua_mujoco.measure.monitor import run
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

@@ -36,7 +36,7 @@ from dua_mujoco.build.pairbounds import body_vel_uncertainty
 from dua_mujoco.exceptions import DuaError
 from dua_mujoco.experiments.peers.mujoco_collision import MujocoScene
 from dua_mujoco.experiments.peers.scene_context import SceneContext
-from dua_mujoco.measure.monitor import run
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

@@ -51,7 +51,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.build.options import PilotOptions
-from dua_mujoco.measure.monitor import run
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

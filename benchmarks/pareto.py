@@ -36,7 +36,7 @@ import numpy as np
 from dua_mujoco.experiments.peers.broadphase import BroadphaseScene
 from dua_mujoco.experiments.peers.mujoco_collision import MujocoScene
 from dua_mujoco.experiments.peers.scene_context import SceneContext
-from dua_mujoco.measure.monitor import run
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

@@ -62,7 +62,7 @@ import numpy as np
 from dua_mujoco.build.options import PilotOptions
 from dua_mujoco.measure.accumulators import Durations
 from dua_mujoco.measure.monitor import Monitor
-from dua_mujoco.measure.report import build_report
+from dua_mujoco.measure.rollout import build_report
 from dua_mujoco.models.scenes import SceneController, make_controller
 from dua_mujoco.runtime.plans import (
     PilotPlan,

@@ -59,7 +59,7 @@ distance; over ``n`` steps, ``t = n h``, it *stands* when
 
 Every model's pair-steps are counted over the steps ``k`` whose window ``[k, k + n]`` lies in
 the rollout (steps 0 to ``K - n``, step 0 the state after the first ``mj_step``, as
-``monitor.run``). The oracle is the share of active pairs in MuJoCo's contacts at some step of
+``rollout.run``). The oracle is the share of active pairs in MuJoCo's contacts at some step of
 ``[k, k + n]``. An onset is a pair entering the contacts; its lead under a model is how many
 steps the pair had stood without a break up to it (0: missed). An onset with less lead than
 ``n`` steps is *at the start* when ``k < n``, *after a violation* when either body (the body pair

@@ -40,7 +40,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.build.options import CoveringOptions, PilotOptions
-from dua_mujoco.measure.monitor import run
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller, reset_to_keyframe
 from dua_mujoco.runtime.predictor import Predictor
 

@@ -41,8 +41,8 @@ if TYPE_CHECKING:
     from dua_mujoco.core.schedules import DUAScheduler, Schedule
     from dua_mujoco.core.spheres import SpherePredictor
     from dua_mujoco.core.urgency import time_to_collision
-    from dua_mujoco.measure.monitor import run
     from dua_mujoco.measure.report import RunReport
+    from dua_mujoco.measure.rollout import run
     from dua_mujoco.models.scenes import load_scene
     from dua_mujoco.plugin import PluginOutputs, attach, plugin_outputs, standing_pairs
     from dua_mujoco.runtime.plans import (
@@ -79,7 +79,7 @@ _LAZY = {
     "attach": "dua_mujoco.plugin",
     "plugin_outputs": "dua_mujoco.plugin",
     "standing_pairs": "dua_mujoco.plugin",
-    "run": "dua_mujoco.measure.monitor",
+    "run": "dua_mujoco.measure.rollout",
     "time_to_collision": "dua_mujoco.core.urgency",
 }
 

@@ -359,8 +359,9 @@ def keyframe_arg(args: argparse.Namespace) -> int | str | None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from dua_mujoco.measure.monitor import Monitor, run
+    from dua_mujoco.measure.monitor import Monitor
     from dua_mujoco.measure.report import RunInterrupted
+    from dua_mujoco.measure.rollout import run
     from dua_mujoco.run_options import controller_for, default_steps, predictor_for
     from dua_mujoco.runtime.alarms import Alarms
 

@@ -1,7 +1,7 @@
 """Regression helpers and a pytest plugin for users' own scenes.
 
 :func:`assert_no_missed_collisions` rolls a scene out with a :class:`~dua_mujoco.Predictor` and
-MuJoCo's contacts as the exact stage (:func:`dua_mujoco.measure.monitor.run`) and fails, with the
+MuJoCo's contacts as the exact stage (:func:`dua_mujoco.measure.rollout.run`) and fails, with the
 geoms and times, if a contact onset was not preceded by an alarm while the declared bounds held:
 that is a broken completeness guarantee, a bug. Optionally it holds the alarm counts to a stored
 baseline so that a change that floods the exact stage with false alarms fails too.
@@ -339,7 +339,7 @@ def assert_no_missed_collisions(
 ) -> RunReport:
     """Roll a scene out with the predictor and assert no collision was missed.
 
-    Runs :func:`dua_mujoco.measure.monitor.run` for ``steps`` physics steps and fails if
+    Runs :func:`dua_mujoco.measure.rollout.run` for ``steps`` physics steps and fails if
 
     * a contact onset was not preceded by a standing alarm outside the period of a bound
       violation (``missed_onsets_outside_violations > 0``): a broken guarantee, a bug; the
@@ -388,7 +388,7 @@ def assert_no_missed_collisions(
     import mujoco
 
     from dua_mujoco.exceptions import InvalidInputError
-    from dua_mujoco.measure.monitor import run
+    from dua_mujoco.measure.rollout import run
     from dua_mujoco.models.scenes import make_controller, reset_to_keyframe
 
     if not isinstance(model, mujoco.MjModel):

@@ -17,7 +17,7 @@ import mujoco
 import pytest
 
 from dua_mujoco.cli import main
-from dua_mujoco.measure import monitor
+from dua_mujoco.measure import rollout
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -424,15 +424,15 @@ def test_cli_strict_exits_1_on_a_miss_outside_a_violations_period(
 ) -> None:
     """A miss outside a violation's period (a bug: faked here) exits 1, before the broken
     bounds' 3."""
-    real = monitor.run
+    real = rollout.run
     violations = []
 
-    def missing(*args: object, **kwargs: object) -> monitor.RunReport:
+    def missing(*args: object, **kwargs: object) -> rollout.RunReport:
         report = real(*args, **kwargs)  # type: ignore[arg-type]
         violations.append(report.bound_violations)
         return dataclasses.replace(report, missed_onsets=1, missed_onsets_outside_violations=1)
 
-    monkeypatch.setattr(monitor, "run", missing)
+    monkeypatch.setattr(rollout, "run", missing)
     assert main(ARGS) == 0
     assert "the completeness guarantee is broken" in capsys.readouterr().err
     assert main([*ARGS, "--strict"]) == 1

@@ -22,7 +22,7 @@ from dua_mujoco.build.events import body_boxes
 from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.build.options import ScheduleOptions
 from dua_mujoco.measure.checks import BoundMonitor
-from dua_mujoco.measure.monitor import run
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

@@ -10,8 +10,9 @@ import pytest
 
 from dua_mujoco.build.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.measure.monitor import Monitor, run
+from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.measure.report import RunReport
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

@@ -19,7 +19,7 @@ from dua_mujoco.build.options import (
 )
 from dua_mujoco.core.schedules import Schedule
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.measure.monitor import run
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

@@ -200,3 +200,90 @@ def test_a_run_loads_no_jit_and_numba_is_no_dependency() -> None:
     )
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[] []"
+
+
+# The package's layers, lowest first: a module imports only from its own layer or below.
+# "base" is what every layer may use (errors, the compiled binding, the native loader, the
+# progress bar and output helpers); "front" is everything else (the CLI, rendering, the plugin,
+# gym, export, the sweep, the test helpers, experiments, the package's own lazy exports).
+LAYERS = ("base", "core", "build", "runtime", "measure", "models", "front")
+BASE = ("_core", "closing", "exceptions", "native", "outputs", "progress")
+
+
+def _layer(module: str) -> str:
+    head = [*module.split("."), ""][1]
+    if head in BASE:
+        return "base"
+    return head if head in LAYERS else "front"
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Every module of the package and the modules it imports (at the top, inside functions
+    and under ``TYPE_CHECKING`` alike). ``from P import X`` is an edge to ``P.X`` when that is a
+    module, to the module ``dua_mujoco``'s lazy export ``X`` comes from, else to ``P``; a module
+    importing its own parent package (``import dua_mujoco.core.schedules`` in
+    ``core/schedules/base.py``, to register the subclasses) adds no edge: Python has begun
+    loading every parent package before the module."""
+    names = {}
+    for path in _modules():
+        rel = path.relative_to(ROOT).with_suffix("")
+        parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+        names[".".join(parts)] = path
+    known = set(names) | {"dua_mujoco._core"}
+    lazy = {**dua_mujoco._LAZY, **{n: "dua_mujoco.exceptions" for n in dir(dua_mujoco.exceptions)}}
+
+    def target(module: str, name: str) -> str:
+        if f"{module}.{name}" in known:
+            return f"{module}.{name}"
+        return lazy.get(name, module) if module == "dua_mujoco" else module
+
+    graph: dict[str, set[str]] = {"dua_mujoco._core": set()}
+    for module, path in names.items():
+        package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                found |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    base = ".".join(up + ([base] if base else []))
+                found |= {target(base, a.name) for a in node.names}
+        graph[module] = {
+            m for m in found if m in known and m != module and not module.startswith(m + ".")
+        }
+    return graph
+
+
+def test_the_layers_import_down_only() -> None:
+    """core knows nothing of MuJoCo's layers; build (model and options to tables) imports
+    neither runtime nor measure; runtime (the objects over the native runtime) does not import
+    measure, which wraps a Predictor; the demo scenes (models) and the front sit on top."""
+    rank = {layer: i for i, layer in enumerate(LAYERS)}
+    upward = sorted(
+        f"{a} ({_layer(a)}) -> {b} ({_layer(b)})"
+        for a, deps in _import_graph().items()
+        for b in deps
+        if rank[_layer(b)] > rank[_layer(a)]
+    )
+    assert upward == []
+
+
+def test_no_import_cycles() -> None:
+    graph = _import_graph()
+    cycles, state = [], dict.fromkeys(graph, 0)  # 0 unseen, 1 on the path, 2 done
+
+    def visit(module: str, path: list[str]) -> None:
+        state[module] = 1
+        for dep in sorted(graph[module]):
+            if state[dep] == 1:
+                cycles.append(" -> ".join([*path[path.index(dep) :], dep]))
+            elif state[dep] == 0:
+                visit(dep, [*path, dep])
+        state[module] = 2
+
+    for module in sorted(graph):
+        if state[module] == 0:
+            visit(module, [module])
+    assert cycles == []

@@ -37,8 +37,9 @@ from dua_mujoco.exceptions import (
     SchedulerError,
     UnsupportedGeomError,
 )
-from dua_mujoco.measure.monitor import Monitor, run
+from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.measure.report import RunReport
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

@@ -231,7 +231,8 @@ def _arrays(obj: object, depth: int = 2) -> list[np.ndarray]:
 def test_a_pruned_run_holds_nothing_the_size_of_all_pairs() -> None:
     """Memory O(N + pairs met): after a monitored run of a swarm, no array of the predictor,
     its universe and held set, the monitor or the report is as large as the model's pairs."""
-    from dua_mujoco.measure.monitor import Monitor, run
+    from dua_mujoco.measure.monitor import Monitor
+    from dua_mujoco.measure.rollout import run
 
     m, d = load_scene("swarm:1500")
     p = Predictor(m, accel=2.0)

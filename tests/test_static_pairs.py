@@ -19,7 +19,7 @@ from dua_mujoco.build.tables import PairTables, static_shapes
 from dua_mujoco.core.pairset import PairKind, PairSet, pack_pairs
 from dua_mujoco.core.shapes import SHAPE_KIND, ShapeKind, closest_point, time_to_static
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.measure.monitor import run
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

@@ -19,7 +19,7 @@ from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.core.shapes import ShapeKind, pack_shapes, time_to_static
 from dua_mujoco.core.terrain import T_HEIGHTS, TERRAIN_BLOCK
 from dua_mujoco.exceptions import InvalidInputError, UnsupportedGeomError
-from dua_mujoco.measure.monitor import run
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 

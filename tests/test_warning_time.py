@@ -11,8 +11,9 @@ import pytest
 
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.measure.accumulators import Durations
-from dua_mujoco.measure.monitor import Monitor, run
-from dua_mujoco.measure.report import RunReport, build_report
+from dua_mujoco.measure.monitor import Monitor
+from dua_mujoco.measure.report import RunReport
+from dua_mujoco.measure.rollout import build_report, run
 from dua_mujoco.measure.warning_time import alarm_horizon_of
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor

@@ -99,7 +99,7 @@ def run_scene(scene: str, steps: int, seed: int) -> list[SceneRow]:
             peer.set_snapshot(data)
         mujoco.mj_step(model, data)
 
-    # One mj_step so that kinematics and contacts describe one instant (see monitor.run).
+    # One mj_step so that kinematics and contacts describe one instant (see rollout.run).
     physics_step()
     truth = [contacts()]
     for peer, tr in zip(peers, trackers, strict=True):
