@@ -5,7 +5,9 @@ it: its compiled modules live in that venv (scikit-build-core's editable install
 of the source tree), and so do its dependencies (numba, before issue 33). Otherwise the checkout
 runs in this interpreter from its source tree. An editable install made by scikit-build-core
 puts an import finder ahead of ``sys.path``, so such a subprocess would still import this
-checkout: :data:`PREAMBLE` removes that finder first.
+checkout: :data:`PREAMBLE` removes that finder first (before issue 41 it mapped
+``dua_mujoco.models`` to ``models/``, which the source tree alone did not; the link
+``dua_mujoco/models`` now does).
 """
 
 from __future__ import annotations
@@ -28,14 +30,10 @@ PREAMBLE = (
 
 
 def scene_path(scene: str, root: Path) -> str:
-    """A bundled XML scene as the path of its file in checkout ``root`` (``dua_mujoco/models/``,
-    or ``models/`` in a checkout from before the scenes moved into the package, which finds them
-    only when installed); any other scene as it is."""
-    for folder in ("dua_mujoco/models", "models"):
-        path = root / folder / f"{scene}.xml"
-        if path.is_file():
-            return str(path)
-    return scene
+    """A bundled XML scene as the path of its file in checkout ``root`` (another checkout finds
+    the bundled files only when installed); any other scene as it is."""
+    path = root / "models" / f"{scene}.xml"
+    return str(path) if path.is_file() else scene
 
 
 def probe(code: str, checkout: Path, *args: str, **env: str) -> tuple[list[str], dict[str, str]]:

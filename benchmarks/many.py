@@ -355,7 +355,7 @@ def _probe(scene: str, steps: int, accel: str, checkout: Path) -> dict[str, Any]
 
     from checkouts import HERE, probe, scene_path
 
-    # Another checkout reads the bundled XML scenes from this one's dua_mujoco/models/.
+    # Another checkout reads the bundled XML scenes from this one's models/.
     scene = scene_path(scene, HERE) if checkout.resolve() != HERE else scene
     argv, env = probe(_PROBE, checkout, scene, str(steps), accel, NUMBA_NUM_THREADS="1")
     proc = subprocess.Popen(

@@ -68,7 +68,7 @@ def spec_of(scene):
         import dm_control
         path = Path(dm_control.__file__).parent / "suite" / (scene[4:] + ".xml")
         return mujoco.MjSpec.from_file(str(path))
-    path = Path(sys.argv[1]).parent / "dua_mujoco" / "models" / (scene + ".xml")
+    path = Path(sys.argv[1]).parent / "models" / (scene + ".xml")
     if path.is_file():  # the other checkout finds its bundled files only when installed
         return mujoco.MjSpec.from_file(str(path))
     return load_spec(scene)  # generated scenes (swarm:N)

@@ -24,7 +24,7 @@ Robots:
   that the robot meets the terrain alone) against its floor plane (the terrain removed, as its
   Walk task does). Its start height is raised until nothing touches, as Escape does.
 
-Also ``make-terrain`` prints the elevation rows of ``dua_mujoco/models/rough_terrain.xml``
+Also ``make-terrain`` prints the elevation rows of ``models/rough_terrain.xml``
 (:func:`rough_heights`).
 """
 

@@ -2,10 +2,12 @@
 
 Hayward, Aubry, Foisy, Ghallab: "Efficient Collision Prediction Among Many Moving Objects",
 IJRR 1995. ``dua_mujoco.core`` knows nothing of MuJoCo (tau, the schedules, pair geometry, the
-predictor over raw sphere states); ``dua_mujoco.mj`` is the MuJoCo layer (covering, pair filter,
-kinematics, bounds, the predictor, the exact stage); rendering, the CLI and the test helpers sit
-on top. This module exports what the README's path needs; everything else is importable from
-the module that holds it.
+predictor over raw sphere states); over MuJoCo, ``dua_mujoco.build`` turns a model and options
+into tables (covering, pair filter, kinematics, bounds), ``dua_mujoco.runtime`` runs them (the
+predictor) and ``dua_mujoco.measure`` holds a run against MuJoCo's contacts (the exact stage);
+the demo scenes (``dua_mujoco.models``), rendering, the CLI and the test helpers sit on top.
+This module exports what the README's path needs; everything else is importable from the module
+that holds it.
 """
 
 from __future__ import annotations

@@ -19,7 +19,10 @@ PACKAGE = ROOT / "dua_mujoco"
 
 
 def _modules() -> list[Path]:
-    return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
+    """The package's modules, the demo scenes of the top-level ``models/`` among them (through
+    the link ``dua_mujoco/models``, which ``rglob`` does not follow)."""
+    paths = [*PACKAGE.rglob("*.py"), *(PACKAGE / "models").glob("*.py")]
+    return sorted(p for p in paths if "__pycache__" not in p.parts)
 
 
 def test_public_api_resolves() -> None:
@@ -154,7 +157,7 @@ def test_native_code_is_reached_through_the_binding_only() -> None:
     implementation, one bridge)."""
     banned = {"numba", "llvmlite", "ctypes"}
     paths = [
-        *sorted(PACKAGE.rglob("*.py")),
+        *_modules(),
         *sorted((ROOT / "tests").rglob("*.py")),
         *sorted((ROOT / "benchmarks").glob("*.py")),
     ]

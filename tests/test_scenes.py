@@ -228,7 +228,7 @@ def test_paper_world_survives_a_round_trip_through_xml(n: int) -> None:
 
 
 def test_bundled_paper_world_is_the_generators_output() -> None:
-    # dua_mujoco/models/paper_world.xml says "generated, do not edit": it must still be what the
+    # models/paper_world.xml says "generated, do not edit": it must still be what the
     # generator writes (its header comment aside).
     path = models_dir() / "paper_world.xml"
     bundled = re.sub(r"\n  <!--.*?-->", "", path.read_text(), flags=re.S)

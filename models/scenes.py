@@ -1,6 +1,7 @@
 """Bundled scenes, the paper's sphere world as an ``MjSpec``, and scene drivers.
 
-Bundled scenes live beside this module, in the package ``dua_mujoco.models``:
+Bundled scenes live beside this module in the top-level ``models/`` folder, shipped as the
+package ``dua_mujoco.models`` (in the source tree, the link ``dua_mujoco/models`` imports it):
 
 ========================  ==================================================================
 ``two_arms``              two 5-DoF arms over a table with obstacles (the default scene)
@@ -114,7 +115,7 @@ class Scene:
 
     Attributes:
         name: Registry key.
-        source: XML file name inside ``dua_mujoco/models/``, or a builder returning an ``MjSpec``.
+        source: XML file name inside ``models/``, or a builder returning an ``MjSpec``.
         description: One line for ``--help`` and reports.
         default_steps: A rollout length that shows the scene's collisions.
         accel_hint: A suggested acceleration-norm bound (m/s^2) for the predictor. Exact (out of
