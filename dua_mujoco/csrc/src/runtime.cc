@@ -656,7 +656,7 @@ void Runtime::TrackStep() {
   // The pairs of the bodies the violation check flagged were made due now: the deadline and
   // select-all schedules selected every one of them (evaluated, or deferred), so the line above
   // tracked them; the rank schedule queues them, and those left in the queue stand in alarm.
-  for (int64_t k = 0; e.nbody && k < events_meta_[kMCount]; ++k) {
+  for (int64_t k = 0; s.kind == kRank && e.nbody && k < events_meta_[kMCount]; ++k) {
     const int64_t i = events_flagged_[k];
     Track(held_members_.data() + held_start_[i], held_start_[i + 1] - held_start_[i]);
   }
