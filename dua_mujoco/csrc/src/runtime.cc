@@ -16,6 +16,7 @@ namespace dua {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::vector<int64_t> Iota(int64_t n) {
   std::vector<int64_t> v(static_cast<size_t>(n));
@@ -69,6 +70,7 @@ Runtime::Runtime(const Runtime& o)
       exact_records_(o.exact_records_),
       events_prev_(o.events_prev_),
       root_twist_(o.root_twist_),
+      witness_(o.witness_),
       point_epoch_(o.point_epoch_),
       events_meta_(o.events_meta_),
       events_flagged_(o.events_flagged_),
@@ -148,6 +150,8 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
                                          held_start_.data(), held_members_.data()),
                         1));
   scratch_.assign(12 * static_cast<size_t>(std::max<int64_t>(n, 1)), 0.0);
+  // No query made yet for the held pairs (the directions are the universe's, too).
+  if (t.exact) witness_.assign(6 * static_cast<size_t>(std::max<int64_t>(n, 1)), kNaN);
   stands_.assign(n, 0);
   ++held_version_;
 }
@@ -204,6 +208,7 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.on = t.exact ? 1 : 0;
   x.geoms = t.geoms.data();
   x.records = exact_records_.data();
+  x.witness = witness_.data();
   x.below = t.exact_below;
   x.query_below = t.query_below;
   // The model's own vertices (the tables hold its hull graph, checked): every mjData of a model
@@ -749,11 +754,15 @@ int64_t Runtime::DeactivateContacts(const mjData* d) {
 std::vector<double> Runtime::ExactOnly(const mjModel* m, const mjData* d,
                                        const std::vector<int64_t>& ids,
                                        const std::vector<double>& coarse, double query_below) {
-  std::vector<double> records = exact_records_;
+  std::vector<double> records = exact_records_, witness = witness_;
   const std::vector<double>& built = tables_->universe.exact;
-  if (!tables_->pruned) records = built;  // the records as built, no direction learnt
+  if (!tables_->pruned) {  // the records as built: no direction learnt, no query made
+    records = built;
+    std::fill(witness.begin(), witness.end(), kNaN);
+  }
   dua_step_args a = Bind(m, d);
   a.exact.records = records.data();
+  a.exact.witness = witness.data();
   a.exact.query_below = query_below;
   std::vector<double> out = coarse;
   dua_exact_pass(&a, ids.data(), static_cast<int64_t>(ids.size()), out.data());
