@@ -11,11 +11,11 @@
 
 Each scene says which actuators are the robot's (``robot``), which bodies it must not move into
 (``protect``, fnmatch patterns of body names: the person, the other arm, the obstacles and
-walls; not the table the arm works over), the declared bounds of the bodies nobody plans
-(``bounds``), its control period, and how long an episode lasts. :meth:`ShieldScene.episode`
-draws an episode from a seed: the initial state, the scripted bodies, and the task controller, a
-policy ``policy(model, data) -> ctrl`` that also counts the targets reached (the progress
-measure: targets per minute).
+walls; not the table the arm works over, not the floor under the base), the declared bounds of
+the bodies nobody plans (``bounds``), its control period, and how long an episode lasts.
+:meth:`ShieldScene.episode` draws an episode from a seed: the initial state, the scripted
+bodies, and the task controller, a policy ``policy(model, data) -> ctrl`` that also counts the
+targets reached (the progress measure: targets per minute).
 """
 
 from __future__ import annotations
@@ -306,7 +306,7 @@ class ShieldScene:
         return _actuators(model, self.robot)
 
     def protected_bodies(self, model: mujoco.MjModel) -> np.ndarray:
-        """Ids of the protected bodies (the world body when walls are protected)."""
+        """Ids of the protected bodies."""
         return body_ids(model, self.protect)
 
     def bounds(self, model: mujoco.MjModel) -> dict[str, Bound]:
@@ -379,7 +379,7 @@ SHIELD_SCENES: dict[str, ShieldScene] = {
             name="mobile_cell",
             xml="mobile_cell.xml",
             robot=("base_*",),
-            protect=("walker*", "cart*", "world"),
+            protect=("walker*", "cart*", "walls"),
             period=10,
             duration=10.0,
             task_speed=(BaseTask.VMAX, BaseTask.VMAX, 0.5),
