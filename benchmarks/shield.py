@@ -27,23 +27,12 @@ from dua_mujoco.experiments.shield.episodes import Layer, SceneSetup
 from dua_mujoco.models.cells import SHIELD_SCENES
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from reference_shield import OtherBound, ReferenceShield
+from reference_shield import shield_for
 
 
 def make_layer(setup: SceneSetup, name: str) -> Layer:
     """The peers, and ``reference``: the slow reference shield."""
-    if name != "reference":
-        return peer_layer(setup, name)
-    bounds = {b: OtherBound(v.speed, v.accel, v.delta) for b, v in setup.bounds.items()}
-    return ReferenceShield(
-        setup.model,
-        robot_actuators=setup.brake.actuators,
-        robot_bodies=setup.brake.bodies,
-        protected_bodies=setup.protected,
-        bounds=bounds,
-        period=setup.scene.period,
-        failsafe=setup.brake,
-    )
+    return shield_for(setup) if name == "reference" else peer_layer(setup, name)
 
 
 def main() -> None:

@@ -21,14 +21,13 @@ targets reached (the progress measure: targets per minute).
 from __future__ import annotations
 
 import fnmatch
-import importlib.resources
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
+from dua_mujoco.mj.scenes import models_dir
 from dua_mujoco.models.motion import Move
 from dua_mujoco.models.people import Bound, Crowd, PersonScript, ScriptedBodies, declared_bounds
 
@@ -297,9 +296,7 @@ class ShieldScene:
 
     def model(self) -> mujoco.MjModel:
         """Compile the scene."""
-        root = importlib.resources.files("dua_mujoco.models")
-        with importlib.resources.as_file(root.joinpath(self.xml)) as path:
-            return mujoco.MjModel.from_xml_path(str(Path(path)))
+        return mujoco.MjModel.from_xml_path(str(models_dir() / self.xml))
 
     def robot_actuators(self, model: mujoco.MjModel) -> np.ndarray:
         """Ids of the robot's actuators."""

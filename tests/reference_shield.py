@@ -35,6 +35,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -314,6 +315,23 @@ def verify(
         body_pos=np.array(positions),
         body_mat=np.array(mats),
         gaps=np.array(gaps),
+    )
+
+
+def shield_for(setup: Any, bounds: dict[int, OtherBound] | None = None) -> ReferenceShield:
+    """The reference shield of a shield scene's setup (``dua_mujoco.experiments.shield.episodes.
+    SceneSetup``: its brake, protected bodies, declared bounds and period); ``bounds`` replaces
+    the declared ones."""
+    if bounds is None:
+        bounds = {b: OtherBound(v.speed, v.accel, v.delta) for b, v in setup.bounds.items()}
+    return ReferenceShield(
+        setup.model,
+        robot_actuators=setup.brake.actuators,
+        robot_bodies=setup.brake.bodies,
+        protected_bodies=setup.protected,
+        bounds=bounds,
+        period=setup.scene.period,
+        failsafe=setup.brake,
     )
 
 

@@ -9,8 +9,9 @@ import pytest
 from reference_shield import (
     SLACK,
     OtherBound,
-    ReferenceShield,
+    Verdict,
     protected_pairs,
+    shield_for,
     verify,
 )
 
@@ -51,7 +52,7 @@ def _base_toward_walker(gap_x: float) -> tuple[mujoco.MjModel, mujoco.MjData, Br
     return model, data, brake, pairs
 
 
-def _check(gap_x: float, speed: float, accel: float, v0: float) -> object:
+def _check(gap_x: float, speed: float, accel: float, v0: float) -> Verdict:
     model, data, brake, pairs = _base_toward_walker(gap_x)
     walker = model.body("walker0").id
     return verify(
@@ -73,12 +74,12 @@ def test_the_gaps_are_the_distance_less_the_others_reach() -> None:
     reach ``min(V t, (|v| + a h / 2) t + a t^2 / 2)`` and the slack, at every knot."""
     model, _, brake, pairs = _base_toward_walker(1.0)
     verdict = _check(1.0, speed=1.6, accel=2.0, v0=-1.0)
-    assert verdict.safe  # type: ignore[attr-defined]
+    assert verdict.safe
     base = int(np.flatnonzero(brake.bodies == model.body("base").id)[0])
     k = next(i for i, p in enumerate(pairs) if model.geom(p.robot).name == "base")
     h = float(model.opt.timestep)
-    gaps = verdict.gaps[:, k]  # type: ignore[attr-defined]
-    x = verdict.body_pos[:, base, 0]  # type: ignore[attr-defined]
+    gaps = verdict.gaps[:, k]
+    x = verdict.body_pos[:, base, 0]
     t = np.arange(gaps.size) * h
     reach = np.minimum(1.6 * t, (1.0 + 2.0 * h / 2) * t + t * t)
     # Knots the bounding spheres already cleared carry inf; the others, MuJoCo's distance.
@@ -87,20 +88,20 @@ def test_the_gaps_are_the_distance_less_the_others_reach() -> None:
     assert np.all((1.0 - x - 0.55 - reach - SLACK)[~seen] > 0)
     assert np.allclose(gaps[seen], ((1.0 - x) - 0.55 - reach - SLACK)[seen], atol=1e-9)
     # It rolled the intended 10 steps, then braked to rest.
-    assert verdict.rest > 10  # type: ignore[attr-defined]
-    assert x[verdict.rest] - x[10] > 0.01  # type: ignore[attr-defined]
+    assert verdict.rest > 10
+    assert x[verdict.rest] - x[10] > 0.01
 
 
 def test_the_verdict_turns_with_the_others_motion() -> None:
     """The same robot motion, the walker 0.8 m away: safe while it stands (its reach over the
     stop is a few cm), unsafe when it walks in at 1.6 m/s, safe again at 1.2 m."""
-    assert _check(0.8, speed=1.6, accel=2.0, v0=0.0).safe  # type: ignore[attr-defined]
+    assert _check(0.8, speed=1.6, accel=2.0, v0=0.0).safe
     unsafe = _check(0.8, speed=1.6, accel=2.0, v0=-1.6)
-    assert not unsafe.safe  # type: ignore[attr-defined]
-    assert unsafe.unsafe_knot > 0  # type: ignore[attr-defined]
-    assert _check(1.2, speed=1.6, accel=2.0, v0=-1.6).safe  # type: ignore[attr-defined]
+    assert not unsafe.safe
+    assert unsafe.unsafe_knot > 0
+    assert _check(1.2, speed=1.6, accel=2.0, v0=-1.6).safe
     # Without a speed bound the acceleration reach alone decides: larger, unsafe at 1.2 m too.
-    assert not _check(1.2, speed=np.inf, accel=50.0, v0=-1.6).safe  # type: ignore[attr-defined]
+    assert not _check(1.2, speed=np.inf, accel=50.0, v0=-1.6).safe
 
 
 def test_a_robot_at_rest_may_be_touched() -> None:
@@ -108,43 +109,18 @@ def test_a_robot_at_rest_may_be_touched() -> None:
     data.qvel[:] = 0.0
     data.ctrl[:] = 0.0
     walker = model.body("walker0").id
-    verdict = verify(
-        model,
-        data,
-        data.ctrl.copy(),
-        period=10,
-        failsafe=brake,
-        robot_bodies=brake.bodies,
-        pairs=pairs,
-        bounds={walker: OtherBound(1.6, 2.0)},
-        velocities={walker: np.array([0.0, 0.0, 0.0, -1.6, 0.0, 0.0])},
-    )
+    check = {
+        "period": 10,
+        "failsafe": brake,
+        "robot_bodies": brake.bodies,
+        "pairs": pairs,
+        "bounds": {walker: OtherBound(1.6, 2.0)},
+    }
+    velocity = {walker: np.array([0.0, 0.0, 0.0, -1.6, 0.0, 0.0])}
+    verdict = verify(model, data, data.ctrl.copy(), velocities=velocity, **check)
     assert verdict.safe and verdict.rest == 10
     with pytest.raises(ValueError, match="needs its velocity"):
-        verify(
-            model,
-            data,
-            data.ctrl.copy(),
-            period=10,
-            failsafe=brake,
-            robot_bodies=brake.bodies,
-            pairs=pairs,
-            bounds={walker: OtherBound(1.6, 2.0)},
-        )
-
-
-def _reference(setup: SceneSetup, bounds: dict[int, OtherBound] | None = None) -> ReferenceShield:
-    if bounds is None:
-        bounds = {b: OtherBound(v.speed, v.accel, v.delta) for b, v in setup.bounds.items()}
-    return ReferenceShield(
-        setup.model,
-        robot_actuators=setup.brake.actuators,
-        robot_bodies=setup.brake.bodies,
-        protected_bodies=setup.protected,
-        bounds=bounds,
-        period=setup.scene.period,
-        failsafe=setup.brake,
-    )
+        verify(model, data, data.ctrl.copy(), **check)
 
 
 @pytest.mark.slow
@@ -162,7 +138,7 @@ def test_the_reference_shield_keeps_the_robot_from_moving_into_what_it_protects(
     setup = SceneSetup.of(scene)
     free = run_episode(setup, NoLayer(), "none", seed, duration=duration)
     assert free.moving_free >= 1
-    shield = _reference(setup)
+    shield = shield_for(setup)
     shielded = run_episode(setup, shield, "reference", seed, duration=duration)
     assert shielded.moving_free == 0
     assert shielded.interventions > 0
@@ -170,6 +146,6 @@ def test_the_reference_shield_keeps_the_robot_from_moving_into_what_it_protects(
         assert shield.max_deviation <= 1e-9  # never touched: the run is the plan
     blind = {b: OtherBound(0.0, 0.0, 0.0) for b in setup.bounds}
     assert (
-        run_episode(setup, _reference(setup, blind), "blind", seed, duration=duration).moving_free
+        run_episode(setup, shield_for(setup, blind), "blind", seed, duration=duration).moving_free
         >= 1
     )

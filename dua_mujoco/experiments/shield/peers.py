@@ -122,6 +122,20 @@ class _Peer:
         mujoco.mj_comPos(self.model, s)
         return s
 
+    def _intended(self, data: mujoco.MjData, want: np.ndarray) -> np.ndarray:
+        return intended_velocity(self.model, self._roll, data, want, self.period, self.brake.dofs)
+
+    def _override(
+        self, data: mujoco.MjData, want: np.ndarray, target: np.ndarray | None
+    ) -> np.ndarray:
+        """``want`` with the robot's controls driving it to ``target`` (None: braking)."""
+        self.interventions += 1
+        acts = self.brake.actuators
+        out = want.copy()
+        drive = self.brake(self.model, data) if target is None else self.brake.toward(data, target)
+        out[acts] = drive[acts]
+        return out
+
     def _distances(self, s: mujoco.MjData, distmax: float) -> tuple[np.ndarray, np.ndarray]:
         dist = np.empty(len(self.pairs))
         fromto = np.zeros((len(self.pairs), 6))
@@ -201,21 +215,11 @@ class TtcHalt(_Peer):
         if self.steps % self.every == 0:
             self._check(data)
         if self.steps % self.period == 0 and 0.0 < self.scale < 1.0:
-            velocity = intended_velocity(
-                self.model, self._roll, data, want, self.period, self.brake.dofs
-            )
-            self.target = self.scale * velocity
+            self.target = self.scale * self._intended(data, want)
         self.steps += 1
         if self.scale >= 1.0:
             return want.copy()
-        self.interventions += 1
-        acts = self.brake.actuators
-        out = want.copy()
-        if self.scale == 0.0 or self.target is None:
-            out[acts] = self.brake(self.model, data)[acts]
-        else:
-            out[acts] = self.brake.toward(data, self.target)[acts]
-        return out
+        return self._override(data, want, None if self.scale == 0.0 else self.target)
 
 
 class VelocityDamper(_Peer):
@@ -283,16 +287,10 @@ class VelocityDamper(_Peer):
             self.target = None
             g, h = self._rows(data)
             if h.size:
-                velocity = intended_velocity(
-                    self.model, self._roll, data, want, self.period, self.brake.dofs
-                )
+                velocity = self._intended(data, want)
                 if np.any(g @ velocity > h + 1e-12):
                     self.target = self.project(velocity, g, h)
         self.steps += 1
         if self.target is None:
             return want.copy()
-        self.interventions += 1
-        out = want.copy()
-        acts = self.brake.actuators
-        out[acts] = self.brake.toward(data, self.target)[acts]
-        return out
+        return self._override(data, want, self.target)
