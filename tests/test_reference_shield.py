@@ -15,8 +15,8 @@ from reference_shield import (
     verify,
 )
 
+from dua_mujoco.build.filter import active_geom_pairs
 from dua_mujoco.experiments.shield.episodes import NoLayer, SceneSetup, run_episode
-from dua_mujoco.mj.filter import active_geom_pairs
 from dua_mujoco.models.cells import SHIELD_SCENES
 from dua_mujoco.shield.failsafe import Brake
 

@@ -36,21 +36,21 @@ Factory = Callable[[SceneSetup, str], Layer]
 
 def peer_layer(setup: SceneSetup, name: str) -> Layer:
     """The layer ``name`` (one of :data:`PEERS`) for a scene, with its source's defaults."""
-    scene, model = setup.scene, setup.model
-    common = {"brake": setup.brake, "pairs": setup.pairs, "period": scene.period}
+    scene, model, brake, pairs = setup.scene, setup.model, setup.brake, setup.pairs
     if name == "none":
         return NoLayer()
-    if name == "ttc":
-        return TtcHalt(model, accel_limits=scene.task_accel, **common)
-    if name == "ttc-scale":
+    if name in ("ttc", "ttc-scale"):
+        mode = "stop_distance" if name == "ttc" else "threshold_distance"
         return TtcHalt(
             model,
+            brake=brake,
+            pairs=pairs,
+            period=scene.period,
             accel_limits=scene.task_accel,
-            mode="threshold_distance",
-            **common,
+            mode=mode,
         )
     if name == "damper":
-        return VelocityDamper(model, **common)
+        return VelocityDamper(model, brake=brake, pairs=pairs, period=scene.period)
     raise ValueError(f"unknown layer {name!r}; known: {', '.join(PEERS)}")
 
 

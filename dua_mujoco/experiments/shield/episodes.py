@@ -31,7 +31,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.mj.filter import active_geom_pairs
+from dua_mujoco.build.filter import active_geom_pairs
 from dua_mujoco.models.cells import SHIELD_SCENES, ShieldScene
 from dua_mujoco.models.people import Bound
 from dua_mujoco.shield.failsafe import Brake, body_reach_radius, body_speeds
