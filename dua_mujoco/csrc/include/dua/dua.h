@@ -156,6 +156,7 @@ typedef struct dua_events {
 typedef struct dua_plan {
   const void* impl;  // the dua::Plan
   int64_t knot;      // the plan's knot at this step
+  int64_t period;    // physics steps a predictor period (the plan's taus fall on its grid)
   // (nbody,) 1 for a body the plan holds and found within its deviation so far (static bodies
   // too: planned, with deviation 0); 0 for one it does not know or found beyond its deviation.
   const uint8_t* body_ok;
