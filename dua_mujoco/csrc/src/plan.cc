@@ -369,7 +369,8 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
   return BoxDeviation(box, pa, ra, pb, rb) <= limit;
 }
 
-std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, double h) {
+std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, double h,
+                        const double* spheres, int64_t nsphere) {
   const int64_t n = in.n;
   if (n < 1) return "holds no knot: pass at least one row of qpos";
   if (!std::isfinite(in.start)) {
@@ -419,6 +420,15 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
              std::to_string(i / nmocap) + ", mocap " + std::to_string(i % nmocap) + ")";
     }
   }
+  // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
+  // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
+  std::vector<double> radius(m->geom_rbound, m->geom_rbound + ngeom);
+  for (int64_t i = 0; i < nsphere; ++i) {
+    const double* rec = spheres + i * kSphereNcol;
+    const auto g = static_cast<int64_t>(rec[kSphereFrame]);
+    const double* o = rec + kSphereOffset;
+    radius[g] = std::max(radius[g], std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]));
+  }
   std::vector<double> pos(3 * ngeom * n), mat(9 * ngeom * n), sweep(ngeom * n, 0.0);
   for (int64_t j = 0; j < n; ++j) {
     const double* q = in.qpos + nq * j;
@@ -440,7 +450,7 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     for (int64_t g = 0; g < ngeom; ++g) {
       const double step = Displacement(
           pos.data() + 3 * (ngeom * (j - 1) + g), mat.data() + 9 * (ngeom * (j - 1) + g),
-          pos.data() + 3 * (ngeom * j + g), mat.data() + 9 * (ngeom * j + g), m->geom_rbound[g],
+          pos.data() + 3 * (ngeom * j + g), mat.data() + 9 * (ngeom * j + g), radius[g],
           m->geom_type[g] == mjGEOM_PLANE);
       sweep[ngeom * j + g] = (sweep[ngeom * (j - 1) + g] + step) * (1.0 + 4.0 * kEpsilon);
     }

@@ -42,9 +42,11 @@ DUA_API bool BoxWithin(const double* box, const double* pa, const double* ra, co
 class Plan {
  public:
   // The plan `in` (dua_plan_input), each geom's pose at each knot computed by mj_kinematics on
-  // scratch (an mjData of m), h the model's timestep. Returns an error message naming the bad
-  // input, or "".
-  std::string Build(const mjModel* m, mjData* scratch, const dua_plan_input& in, double h);
+  // scratch (an mjData of m), h the model's timestep; spheres (nsphere, 8) the covering's
+  // records, whose centres the sweeps bound too. Returns an error message naming the bad input,
+  // or "".
+  std::string Build(const mjModel* m, mjData* scratch, const dua_plan_input& in, double h,
+                    const double* spheres, int64_t nsphere);
 
   // The knot at `time` (-1: not one of the plan's, within a millionth of a step).
   int64_t KnotOf(double time) const;
@@ -65,8 +67,9 @@ class Plan {
   double TimeOf(int64_t k) const { return start_ + static_cast<double>(k) * h_; }
   const double* pos(int64_t k) const { return pos_.data() + 3 * ngeom_ * k; }
   const double* mat(int64_t k) const { return mat_.data() + 9 * ngeom_ * k; }
-  // How far any point of geom g may have moved along the plan from knot 0 to knot k (a prefix
-  // sum of each step's bound; +inf once a plane geom moves).
+  // How far any point of geom g, and any centre of its covering spheres, may have moved along
+  // the plan from knot 0 to knot k (a prefix sum of each step's bound; +inf once a plane geom
+  // moves).
   double sweep(int64_t k, int64_t g) const { return sweep_[ngeom_ * k + g]; }
   double dev(int64_t k, int64_t b) const { return dev_[nbody_ * k + b]; }
 

@@ -276,7 +276,8 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   if (!plan_data_) plan_data_.reset(mj_makeData(m));
   if (!plan_data_) return "needs an mjData that MuJoCo could not allocate";
   auto plan = std::make_shared<Plan>();
-  std::string error = plan->Build(m, plan_data_.get(), in, m->opt.timestep);
+  std::string error = plan->Build(m, plan_data_.get(), in, m->opt.timestep, tables_->spheres.data(),
+                                  tables_->nsphere());
   if (!error.empty()) return error;
   for (int b = 0; b < m->nbody; ++b) {
     if (plan->holds(b) && unboxed_[b]) {
@@ -488,8 +489,10 @@ std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan
                                std::vector<int64_t>* knots) const {
   if (!query_data_) query_data_.reset(mj_makeData(m));
   if (!query_data_) return "needs an mjData that MuJoCo could not allocate";
+  const Tables& t = *tables_;
   Plan plan;
-  std::string error = plan.Build(m, query_data_.get(), candidate, m->opt.timestep);
+  std::string error =
+      plan.Build(m, query_data_.get(), candidate, m->opt.timestep, t.spheres.data(), t.nsphere());
   if (!error.empty()) return error;
   for (int b = 0; b < m->nbody; ++b) {
     if (plan.holds(b) && unboxed_[b]) {
@@ -503,7 +506,6 @@ std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan
     return "does not cover the state of the data (time " + std::to_string(StateTime(m, d)) +
            "): start it there, on a whole number of timesteps from it";
   }
-  const Tables& t = *tables_;
   const Universe& u = universe();
   const auto n = static_cast<int64_t>(g1.size());
   // The sphere pairs of each geom pair asked, their records copied (the exact level writes the
