@@ -172,6 +172,56 @@ def test_a_replan_that_commits_the_old_plans_horizon_keeps_the_lead() -> None:
     assert all(np.isinf(v).all() for v in departures.values())
 
 
+def _arm_plan(m: mujoco.MjModel, d: mujoco.MjData, n: int, swing_at: int | None) -> np.ndarray:
+    """The arm's plan from d: still, then swinging from knot ``swing_at`` (None: never)."""
+    c = mujoco.MjData(m)
+    mujoco.mj_copyData(c, m, d)
+    q = [c.qpos.copy()]
+    for j in range(n - 1):
+        c.ctrl[:] = 0.0 if swing_at is None or j < swing_at else 1.0
+        mujoco.mj_step(m, c)
+        q.append(c.qpos.copy())
+    return np.array(q)
+
+
+def test_a_replaced_plan_is_checked_from_the_departure_set_plan_reports() -> None:
+    """A replan that keeps to the plan it replaces for 20 steps and then swings the arm: set_plan
+    reports the arm's departure 20 steps on, and the arm, following the new plan, breaks the old
+    one there (not before); a body that leaves both plans breaks both, the replaced one as soon
+    as the new one no longer proves it within."""
+    m = mujoco.MjModel.from_xml_string(ARM)
+    d = mujoco.MjData(m)
+    p = Predictor(m, accel=1.0, alarm_horizon=0.2)
+    for _ in range(50):
+        mujoco.mj_step(m, d)
+    p.reset(d)
+    h, arm = float(m.opt.timestep), m.body("arm").id
+    p.set_plan(_arm_plan(m, d, 200, None), deviation=0.005)
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+        p.step(d)
+    departures = p.set_plan(_arm_plan(m, d, 200, 20), deviation=0.005)
+    assert float(d.time) + 10 * h < departures[arm] < float(d.time) + 30 * h
+    breaks = []
+    for k in range(40):
+        d.ctrl[:] = 1.0 if k >= 20 else 0.0
+        mujoco.mj_step(m, d)
+        p.step(d)
+        breaks.append(p.plan_breaks)
+    assert breaks[15] == 0 and breaks[-1] == 1  # the old plan, at the departure
+    assert p._rt.plan_ok[arm]  # the new plan holds
+    # Two replans that keep to the plan they replace (no departure: their shadows wait on the new
+    # plan's check), then a push off all of them: the plan and the two plans it replaced within
+    # their spans break (the first plan's shadow lost the arm already).
+    p.set_plan(_arm_plan(m, d, 200, 0), deviation=0.005)
+    assert np.isinf(p.set_plan(_arm_plan(m, d, 200, 0), deviation=0.005)[arm])
+    d.qpos[0] += 0.2
+    mujoco.mj_forward(m, d)
+    mujoco.mj_step(m, d)
+    p.step(d)
+    assert p.plan_breaks == 1 + 3
+
+
 # ------------------------------------------------------------------------------------------------
 # 3. reset drops the plan
 # ------------------------------------------------------------------------------------------------

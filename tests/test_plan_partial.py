@@ -349,25 +349,21 @@ def test_the_shields_query_gives_the_knot_of_the_steps_own_verdict(predictor: Pr
     for _ in range(10):
         arm_q = rng.uniform([-1, -1.5], [1, 1.5])
         pos = np.array([rng.uniform(0.7, 1.3), rng.uniform(-0.6, 0.6), 0.9])
-        vel = np.array([-1.0, 0.0, 0.0])
         ctrl = _controls(m, MixedState.N + 10, int(rng.integers(1 << 16)))
-        d = mujoco.MjData(m)
-        d.qpos[:] = arm_q
-        d.mocap_pos[0] = pos
-        mujoco.mj_forward(m, d)
-        predictor.reset(d)
-        predictor.mocap.set_velocity("person", vel)  # type: ignore[union-attr]
-        plan = _rollout(_blind(m), m, d, ctrl, MixedState.N)
-        mujoco.mj_step(m, d)  # the state read is the plan's knot 0 (start at time 0)
+        # The step's verdicts under the plan; then the query, from the same state (time 0).
+        state = MixedState(predictor, arm_q, ctrl, pos, np.array([-1.0, 0.0, 0.0]), 0.0)
         pairs = [(m.geom("fore").id, m.geom(g).id) for g in ("torso", "hand", "floor")]
         pairs.append((m.geom("torso").id, m.geom("floor").id))
-        knots = predictor.plan_contact_knots(plan, pairs, deviation=0.0, start=0.0, bodies=ARM)
-        state = MixedState(predictor, arm_q, ctrl, pos, vel, 0.0)
+        knots = predictor.plan_contact_knots(
+            state.plan, pairs, deviation=0.0, start=0.0, bodies=ARM
+        )
         h = float(m.opt.timestep)
         for (a, b), knot in zip(pairs[:2], knots[:2], strict=True):
             assert knot == round(state.tau[b] / h), (a, b)
             checked += 1
         assert knots[3] == -2  # MuJoCo never collides a mocap body with the world
-        upper = predictor.plan_contact_knots(plan, pairs, deviation=0.0, start=0.0, bodies="upper")
+        upper = predictor.plan_contact_knots(
+            state.plan, pairs, deviation=0.0, start=0.0, bodies="upper"
+        )
         assert upper[0] == upper[1] == -1  # neither the forearm nor the person is planned
     assert checked == 20

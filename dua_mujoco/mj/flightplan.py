@@ -278,18 +278,22 @@ class PlanFollowing:
         geom_pairs: npt.ArrayLike,
         *,
         deviation: npt.ArrayLike,
-        start: float | None = None,
-        bodies: Bodies = None,
-        mocap_pos: npt.ArrayLike | None = None,
-        mocap_quat: npt.ArrayLike | None = None,
+        **plan: Any,
     ) -> np.ndarray:
-        """For a candidate plan (:meth:`set_plan`'s arguments; it is not followed), each of the
-        ``(k, 2)`` geom pairs' first knot at which its contact cannot be excluded, judged as the
-        step would judge it under that plan from the bound data's state: the candidate's knot
-        count when never, -1 when it plans neither body, -2 when MuJoCo's filter rejects the
-        pair. A shield's question (is the intended motion, then a brake, clear of the reach of
-        everything else?); changes nothing."""
-        args = self._plan_args(qpos, deviation, start, bodies, mocap_pos, mocap_quat)
+        """For a candidate plan (:meth:`set_plan`'s arguments, ``start``, ``bodies`` and the
+        mocap poses in ``plan``; it is not followed), each of the ``(k, 2)`` geom pairs' first
+        knot at which its contact cannot be excluded, judged as the step would judge it under
+        that plan from the bound data's state: the candidate's knot count when never, -1 when
+        it plans neither body, -2 when MuJoCo's filter rejects the pair. A shield's question (is
+        the intended motion, then a brake, clear of the reach of everything else?); changes
+        nothing."""
+        keys = ("start", "bodies", "mocap_pos", "mocap_quat")
+        if set(plan) - set(keys):
+            raise InvalidInputError(
+                f"plan_contact_knots got {sorted(set(plan) - set(keys))}: pass set_plan's "
+                f"arguments ({', '.join(keys)})."
+            )
+        args = self._plan_args(qpos, deviation, *(plan.get(k) for k in keys))
         pairs = np.asarray(geom_pairs, dtype=np.int64).reshape(-1, 2)
         return np.asarray(self._rt.plan_query(*args, pairs[:, 0], pairs[:, 1]))
 

@@ -790,6 +790,20 @@ Out<int64_t> Ints(const std::vector<int64_t>& v) {
   return Owned(std::vector<int64_t>(v), {v.size()});
 }
 
+// Geom pairs (g1[k], g2[k]) as vectors, each id checked against the model.
+std::pair<std::vector<int64_t>, std::vector<int64_t>> GeomIds(const mjModel* m,
+                                                              const In<int64_t>& g1,
+                                                              const In<int64_t>& g2) {
+  Require(Size(g1) == Size(g2), "g1 and g2 must have the same length");
+  std::vector<int64_t> a(g1.data(), g1.data() + g1.size());
+  std::vector<int64_t> b(g2.data(), g2.data() + g2.size());
+  for (size_t k = 0; k < a.size(); ++k) {
+    Require(a[k] >= 0 && a[k] < m->ngeom && b[k] >= 0 && b[k] < m->ngeom,
+            "a geom id is out of range");
+  }
+  return {std::move(a), std::move(b)};
+}
+
 // A flight plan's arrays as the runtime reads them: qpos (n, nq), deviation (n, nbody), bodies
 // (nbody,) uint8 or empty for the default, mocap poses (n, nmocap, 3) and (n, nmocap, 4) or
 // empty (dua_mujoco/mj/flightplan.py checks the values; the runtime checks them again).
@@ -927,13 +941,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def(
           "geom_pair_ids",
           [](PyRuntime& self, const In<int64_t>& g1, const In<int64_t>& g2) {
-            Require(Size(g1) == Size(g2), "g1 and g2 must have the same length");
-            std::vector<int64_t> a(g1.data(), g1.data() + g1.size());
-            std::vector<int64_t> b(g2.data(), g2.data() + g2.size());
-            for (size_t k = 0; k < a.size(); ++k) {
-              Require(a[k] >= 0 && a[k] < self.m->ngeom && b[k] >= 0 && b[k] < self.m->ngeom,
-                      "a geom id is out of range");
-            }
+            const auto [a, b] = GeomIds(self.m, g1, g2);
             return Ints(self.rt->GeomPairIds(a, b));
           },
           "g1"_a, "g2"_a)
@@ -991,13 +999,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
              const In<int64_t>& g1, const In<int64_t>& g2) {
             const dua_plan_input in =
                 PlanInput(self.m, qpos, deviation, start, bodies, mocap_pos, mocap_quat);
-            Require(Size(g1) == Size(g2), "g1 and g2 must have the same length");
-            std::vector<int64_t> a(g1.data(), g1.data() + g1.size());
-            std::vector<int64_t> b(g2.data(), g2.data() + g2.size());
-            for (size_t k = 0; k < a.size(); ++k) {
-              Require(a[k] >= 0 && a[k] < self.m->ngeom && b[k] >= 0 && b[k] < self.m->ngeom,
-                      "a geom id is out of range");
-            }
+            const auto [a, b] = GeomIds(self.m, g1, g2);
             if (self.rt->tables().pruned) self.rt->GeomPairIds(a, b);  // learn the pairs unmet
             std::vector<int64_t> knots;
             const std::string error = self.rt->PlanQuery(self.m, self.Data(), in, a, b, &knots);

@@ -294,31 +294,37 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
            "knots past it";
   }
   Retire();
-  if (departures != nullptr) {
-    // The first state time in each shadow's span at which the new plan leaves its tube.
-    std::fill(departures, departures + m->nbody, kInf);
-    const Tables& t = *tables_;
-    for (const Shadow& sh : shadows_) {
-      const Plan& old = *sh.plan;
-      for (int64_t i = 0; i < t.nbody_events; ++i) {
-        const double* box = t.events_rec.data() + kBNcol * i;
-        const auto b = static_cast<int64_t>(box[kBBody]);
-        const auto g = static_cast<int64_t>(box[kBFrame]);
-        if (!old.holds(b) || !sh.ok[b]) continue;
-        for (int64_t s = 0;; ++s) {
-          const double time = next + static_cast<double>(s) * h;
-          if (time > sh.until + 1e-6 * h || old.KnotOf(time) < 0) break;
-          const int64_t jo = old.KnotOf(time), jn = plan->KnotOf(time);
-          const bool within =
-              jn >= 0 && plan->holds(b) &&
-              BoxWithin(box, plan->pos(jn) + 3 * g, plan->mat(jn) + 9 * g, old.pos(jo) + 3 * g,
-                        old.mat(jo) + 9 * g, old.dev(jo, b) - plan->dev(jn, b));
-          if (!within) {
-            departures[b] = std::min(departures[b], time);
-            break;
-          }
+  // Each shadow's check of a body can wait for the first state in its span at which the new
+  // plan leaves its tube: until then the new plan's own check proves the body within it.
+  const Tables& t = *tables_;
+  for (Shadow& sh : shadows_) {
+    const Plan& old = *sh.plan;
+    std::fill(sh.from.begin(), sh.from.end(), kInf);
+    for (int64_t i = 0; i < t.nbody_events; ++i) {
+      const double* box = t.events_rec.data() + kBNcol * i;
+      const auto b = static_cast<int64_t>(box[kBBody]);
+      const auto g = static_cast<int64_t>(box[kBFrame]);
+      if (!old.holds(b) || !sh.ok[b]) continue;
+      for (int64_t s = 0;; ++s) {
+        const double time = next + static_cast<double>(s) * h;
+        const int64_t jo = old.KnotOf(time), jn = plan->KnotOf(time);
+        if (time > sh.until + 1e-6 * h || jo < 0) break;
+        // |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the difference's
+        // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
+        const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
+        if (jn < 0 || !plan->holds(b) ||
+            !BoxWithin(box, plan->pos(jn) + 3 * g, plan->mat(jn) + 9 * g, old.pos(jo) + 3 * g,
+                       old.mat(jo) + 9 * g, room)) {
+          sh.from[b] = time;
+          break;
         }
       }
+    }
+  }
+  if (departures != nullptr) {
+    std::fill(departures, departures + m->nbody, kInf);
+    for (const Shadow& sh : shadows_) {
+      for (int b = 0; b < m->nbody; ++b) departures[b] = std::min(departures[b], sh.from[b]);
     }
   }
   plan_ = std::move(plan);
@@ -334,8 +340,9 @@ void Runtime::Retire() {
   const ScheduleSpec& spec = tables_->schedule;
   const double horizon = spec.alarm_horizon > 0.0 ? spec.alarm_horizon : spec.dt;
   const double next = last_time_ + spec.dt - read_lag_ * tables_->timestep;
+  const size_t nbody = plan_ok_.size();
   shadows_.push_back({plan_, plan_ok_, next + horizon + static_cast<double>(spec.latency) * spec.dt,
-                      std::vector<double>(plan_ok_.size(), std::nan(""))});
+                      std::vector<double>(nbody, std::nan("")), std::vector<double>(nbody, -kInf)});
 }
 
 void Runtime::ClearPlan() {
@@ -380,26 +387,44 @@ void Runtime::MakeBodyDue(const mjModel* m, int64_t b, int64_t n) {
   }
 }
 
-void Runtime::CheckShadows(const mjModel* m, const mjData* d, double now,
-                           std::vector<int64_t>* broken) {
-  const double h = m->opt.timestep;
+int64_t Runtime::CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken) {
+  const double now = StateTime(m, d), h = m->opt.timestep;
   const Tables& t = *tables_;
+  const int64_t k = plan_ ? plan_->KnotOf(now) : -1;
+  if (k >= 0) {
+    plan_->Check(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), t.nbody_events,
+                 plan_ok_.data(), broken);
+    for (const int64_t b : *broken) plan_ok_[b] = 0;
+  }
   shadows_.erase(std::remove_if(shadows_.begin(), shadows_.end(),
                                 [&](const Shadow& sh) {
                                   const double last = sh.plan->TimeOf(sh.plan->nknot() - 1);
                                   return now > std::min(sh.until, last) + 1e-6 * h;
                                 }),
                  shadows_.end());
+  std::vector<uint8_t> open;
   for (Shadow& sh : shadows_) {
-    const int64_t k = sh.plan->KnotOf(now);
-    if (k < 0) continue;
+    const int64_t j = sh.plan->KnotOf(now);
+    if (j < 0) continue;
+    ShadowOpen(sh, now, k, h, &open);
     const size_t first = broken->size();
-    sh.plan->Check(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), t.nbody_events, sh.ok.data(),
+    sh.plan->Check(d->geom_xpos, d->geom_xmat, j, t.events_rec.data(), t.nbody_events, open.data(),
                    broken);
     for (size_t i = first; i < broken->size(); ++i) {
       sh.ok[(*broken)[i]] = 0;
       sh.broken_at[(*broken)[i]] = now;
     }
+  }
+  return k;
+}
+
+void Runtime::ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
+                         std::vector<uint8_t>* open) const {
+  open->resize(sh.ok.size());
+  for (size_t b = 0; b < sh.ok.size(); ++b) {
+    // Checked from the plan's departure on, or when the plan does not prove the body within.
+    const bool due = now >= sh.from[b] - 1e-6 * h || k < 0 || !plan_ok_[b];
+    (*open)[b] = sh.ok[b] && due;
   }
 }
 
@@ -408,24 +433,16 @@ void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
   for (const int64_t b : pending_due_) MakeBodyDue(m, b, n);
   pending_due_.clear();
   if (!plan_ && shadows_.empty()) return;
-  const double now = StateTime(m, d);
   std::vector<int64_t> broken;
-  CheckShadows(m, d, now, &broken);
-  if (plan_) {
-    const int64_t k = plan_->KnotOf(now);
-    if (k < 0) {
-      // Past the plan (or a clock the plan does not know): the bounds alone from here on. Its
-      // verdicts never covered past its last knot: nothing is left to check.
-      plan_.reset();
-      args_.plan.impl = nullptr;
-      MakeAllDue(n);
-    } else {
-      args_.plan.knot = k;
-      const size_t first = broken.size();
-      plan_->Check(d->geom_xpos, d->geom_xmat, k, tables_->events_rec.data(), tables_->nbody_events,
-                   plan_ok_.data(), &broken);
-      for (size_t i = first; i < broken.size(); ++i) plan_ok_[broken[i]] = 0;
-    }
+  const int64_t k = CheckPlans(m, d, &broken);
+  if (k >= 0) {
+    args_.plan.knot = k;
+  } else if (plan_) {
+    // Past the plan (or a clock the plan does not know): the bounds alone from here on. Its
+    // verdicts never covered past its last knot: nothing is left to check.
+    plan_.reset();
+    args_.plan.impl = nullptr;
+    MakeAllDue(n);
   }
   plan_breaks_ += static_cast<int64_t>(broken.size());
   for (const int64_t b : broken) MakeBodyDue(m, b, n);
@@ -434,15 +451,7 @@ void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
 std::vector<int64_t> Runtime::CheckPlan(const mjModel* m, const mjData* d) {
   std::vector<int64_t> broken;
   if (!classified_ || (!plan_ && shadows_.empty())) return broken;
-  const double now = StateTime(m, d);
-  CheckShadows(m, d, now, &broken);
-  const int64_t k = plan_ ? plan_->KnotOf(now) : -1;
-  if (k >= 0) {
-    const size_t first = broken.size();
-    plan_->Check(d->geom_xpos, d->geom_xmat, k, tables_->events_rec.data(), tables_->nbody_events,
-                 plan_ok_.data(), &broken);
-    for (size_t i = first; i < broken.size(); ++i) plan_ok_[broken[i]] = 0;
-  }
+  CheckPlans(m, d, &broken);
   plan_breaks_ += static_cast<int64_t>(broken.size());
   pending_due_.insert(pending_due_.end(), broken.begin(), broken.end());
   return broken;
@@ -459,14 +468,22 @@ std::vector<int64_t> Runtime::PlanBroken(const mjModel* m, const mjData* d) cons
     covered = true;
     plan_->Check(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), t.nbody_events, nullptr, &out);
   }
+  const size_t planned = out.size();
+  std::vector<uint8_t> open;
   for (const Shadow& sh : shadows_) {
     const int64_t j = sh.plan->KnotOf(now);
     if (j < 0 || now > sh.until + 1e-6 * h) continue;
     covered = true;
-    // The bodies not found beyond it yet, and those found at this very state: once a break of
-    // it was seen, the verdicts in force rest on later plans, not on this one.
-    std::vector<uint8_t> open(sh.ok);
-    for (size_t b = 0; b < open.size(); ++b) open[b] = open[b] || sh.broken_at[b] == now;
+    // As the step checks it (bodies the plan beyond its deviation now no longer proves within),
+    // and those found at this very state: once a break of it was seen, the verdicts in force
+    // rest on later plans, not on this one.
+    ShadowOpen(sh, now, k, h, &open);
+    for (size_t b = 0; b < open.size(); ++b) {
+      const bool here =
+          std::find(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(planned),
+                    static_cast<int64_t>(b)) != out.begin() + static_cast<std::ptrdiff_t>(planned);
+      open[b] = open[b] || (sh.ok[b] && here) || sh.broken_at[b] == now;
+    }
     const size_t first = out.size();
     sh.plan->Check(d->geom_xpos, d->geom_xmat, j, t.events_rec.data(), t.nbody_events, open.data(),
                    &out);

@@ -250,9 +250,15 @@ class DUA_API Runtime {
   // the plan's knot, the bodies beyond their deviation flagged and their pairs made due; past
   // its end, the plan dropped (every pair due).
   void FollowPlan(const mjModel* m, const mjData* d, int64_t n);
-  // The shadows at state time `now`: those past their span dropped, the bodies beyond their old
-  // deviation appended to broken (counted, marked in the shadow).
-  void CheckShadows(const mjModel* m, const mjData* d, double now, std::vector<int64_t>* broken);
+  // The plan's and the shadows' checks of d's state: the bodies found beyond their deviation
+  // appended to broken and marked (shadows past their span dropped); returns the plan's knot
+  // (-1: no plan covers the state).
+  int64_t CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken);
+  struct Shadow;
+  // The bodies shadow sh checks at state time now (the plan at knot k): those still within it,
+  // from the plan's departure from it on, or once the plan no longer proves them within.
+  void ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
+                  std::vector<uint8_t>* open) const;
   // The plan (if any) becomes a shadow over the span its verdicts cover, the next step's.
   void Retire();
   void MakeBodyDue(const mjModel* m, int64_t body, int64_t n);
@@ -314,12 +320,13 @@ class DUA_API Runtime {
   mutable std::unique_ptr<mjData, DataDeleter> query_data_;  // PlanQuery's scratch
   std::vector<uint8_t> plan_ok_, planned_, basis_, basis_prev_;
   // A replaced plan, checked until `until` (state time) on the bodies ok when it was replaced
-  // and not found beyond it since; the state time each was found beyond it (NaN: not).
+  // and not found beyond it since; the state time each was found beyond it (NaN: not), and
+  // the first state at which the plan that followed leaves its tube (SetPlan; -inf: unknown).
   struct Shadow {
     std::shared_ptr<const Plan> plan;
     std::vector<uint8_t> ok;
     double until;
-    std::vector<double> broken_at;
+    std::vector<double> broken_at, from;
   };
   std::vector<Shadow> shadows_;
   std::vector<int64_t> pending_due_;  // bodies broken between steps: pairs due at the next
