@@ -344,6 +344,8 @@ double BoxDeviation(const double* box, const double* pa, const double* ra, const
 
 bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
                const double* rb, double limit) {
+  // Equal poses (a replan that keeps to the plan it replaces, a plan that is the run): 0.
+  if (std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb)) return 0.0 <= limit;
   // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
   // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum
   // (PoseDeviation's allowance is at most 8 ulps of `scale` below).

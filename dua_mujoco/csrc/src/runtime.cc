@@ -305,10 +305,11 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
       const auto b = static_cast<int64_t>(box[kBBody]);
       const auto g = static_cast<int64_t>(box[kBFrame]);
       if (!old.holds(b) || !sh.ok[b]) continue;
-      for (int64_t s = 0;; ++s) {
+      const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
+      for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
         const double time = next + static_cast<double>(s) * h;
-        const int64_t jo = old.KnotOf(time), jn = plan->KnotOf(time);
-        if (time > sh.until + 1e-6 * h || jo < 0) break;
+        const int64_t jo = jo0 + s, jn = jn0 + s < plan->nknot() ? jn0 + s : -1;
+        if (time > sh.until + 1e-6 * h) break;
         // |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the difference's
         // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
         const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
