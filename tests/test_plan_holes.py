@@ -188,7 +188,8 @@ def test_a_replaced_plan_is_checked_from_the_departure_set_plan_reports() -> Non
     """A replan that keeps to the plan it replaces for 20 steps and then swings the arm: set_plan
     reports the arm's departure 20 steps on, and the arm, following the new plan, breaks the old
     one there (not before); a body that leaves both plans breaks both, the replaced one as soon
-    as the new one no longer proves it within."""
+    as the new one no longer proves it within; a replaced plan the new one is nested in is
+    dropped."""
     m = mujoco.MjModel.from_xml_string(ARM)
     d = mujoco.MjData(m)
     p = Predictor(m, accel=1.0, alarm_horizon=0.2)
@@ -210,16 +211,25 @@ def test_a_replaced_plan_is_checked_from_the_departure_set_plan_reports() -> Non
         breaks.append(p.plan_breaks)
     assert breaks[15] == 0 and breaks[-1] == 1  # the old plan, at the departure
     assert p._rt.plan_ok[arm]  # the new plan holds
-    # Two replans that keep to the plan they replace (no departure: their shadows wait on the new
-    # plan's check), then a push off all of them: the plan and the two plans it replaced within
-    # their spans break (the first plan's shadow lost the arm already).
+    # The ball, which the new plan keeps where the old one had it (no departure: the old plan's
+    # check of it waits on the new plan's), pushed off: the new plan breaks, and the old one
+    # too, now that the new one no longer proves the ball within it.
+    ball = m.jnt_qposadr[m.body("ball").jntadr[0]]
+    d.qpos[ball] += 0.2
+    mujoco.mj_forward(m, d)
+    mujoco.mj_step(m, d)
+    p.step(d)
+    assert p.plan_breaks == 1 + 2
+    # A replan that keeps to the plan it replaces leaves no shadow (it is nested in it): a push
+    # off both is one break, of the plan in force, which proves the other's tube.
+    p.reset(d)
     p.set_plan(_arm_plan(m, d, 200, 0), deviation=0.005)
-    assert np.isinf(p.set_plan(_arm_plan(m, d, 200, 0), deviation=0.005)[arm])
+    assert np.isinf(p.set_plan(_arm_plan(m, d, 200, 0), deviation=0.005)).all()
     d.qpos[0] += 0.2
     mujoco.mj_forward(m, d)
     mujoco.mj_step(m, d)
     p.step(d)
-    assert p.plan_breaks == 1 + 3
+    assert p.plan_breaks == 3 + 1
 
 
 # ------------------------------------------------------------------------------------------------

@@ -328,6 +328,18 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
       for (int b = 0; b < m->nbody; ++b) departures[b] = std::min(departures[b], sh.from[b]);
     }
   }
+  // A shadow the new plan never leaves over its span is nested: a body beyond it is beyond the
+  // new plan (and the plans after it, while they keep to this one), whose checks find it at the
+  // same state. Dropped, so that replans that keep to the plan they replace (an MPC replanning at
+  // every step) keep no shadow to check or to compare with.
+  shadows_.erase(std::remove_if(shadows_.begin(), shadows_.end(),
+                                [](const Shadow& sh) {
+                                  for (size_t b = 0; b < sh.ok.size(); ++b) {
+                                    if (sh.ok[b] && sh.from[b] < kInf) return false;
+                                  }
+                                  return true;
+                                }),
+                 shadows_.end());
   plan_ = std::move(plan);
   for (int b = 0; b < m->nbody; ++b) plan_ok_[b] = plan_->holds(b) ? 1 : 0;
   MakeAllDue(step_ + 1);
