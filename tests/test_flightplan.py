@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
-from dua_mujoco.mj.monitor import Monitor
-from dua_mujoco.mj.plans import PilotPlan, deviation_profile
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene
+from dua_mujoco.measure.monitor import Monitor
+from dua_mujoco.models.scenes import load_scene
+from dua_mujoco.runtime.plans import PilotPlan, deviation_profile
+from dua_mujoco.runtime.predictor import Predictor
 
 # A ball rolled towards a wall, a box dropped on the floor, an arm swinging through both.
 SCENE = """

@@ -11,9 +11,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from dua_mujoco.mj.monitor import Monitor
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.plugin import attach, set_plan, standing_pairs
+from dua_mujoco.runtime.predictor import Predictor
 
 
 def _rollout(m: mujoco.MjModel, d: mujoco.MjData, n: int, ctrl: float = 0.0) -> np.ndarray:

@@ -23,8 +23,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.monitor import Monitor
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.measure.monitor import Monitor
+from dua_mujoco.runtime.predictor import Predictor
 
 SCENE = """<mujoco>
   <option timestep="0.002"/>

@@ -25,7 +25,7 @@ namespace dua {
 // How far the point of frame coordinates q of a geom lies between two poses of it, (pa, ra)
 // and (pb, rb): |(pa - pb) + (ra - rb) q|, rounded up past its own rounding (0 exactly for equal
 // poses). The one measure of a deviation: the step's check, a replan's departures and
-// dua_mujoco.mj.plans.deviation_profile all take it at the corners of each body's box.
+// dua_mujoco.runtime.plans.deviation_profile all take it at the corners of each body's box.
 DUA_API double PoseDeviation(const double* q, const double* pa, const double* ra, const double* pb,
                              const double* rb);
 // The largest PoseDeviation over the eight corners of box (a violation-check record: its frame

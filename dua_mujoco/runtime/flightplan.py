@@ -1,7 +1,7 @@
 """Flight plans as the native runtime reads them: checked joint positions and deviation bounds.
 
 A plan is the motion the caller expects over the coming physics steps (an MPC's or a planner's
-trajectory, or a rollout of known controls: :mod:`dua_mujoco.mj.plans` makes them) and a bound
+trajectory, or a rollout of known controls: :mod:`dua_mujoco.runtime.plans` makes them) and a bound
 on how far every point of each body may stray from where the plan puts it. While it holds, a
 pair's verdict follows the plan instead of the motion bounds (docs/theory.md, section 8).
 """
@@ -183,7 +183,7 @@ def plan_arrays(
 
 
 class PlanFollowing:
-    """The flight plan methods of :class:`~dua_mujoco.mj.predictor.Predictor` (one runtime, the
+    """The flight plan methods of :class:`~dua_mujoco.runtime.predictor.Predictor` (one runtime, the
     native ``_core.Runtime``, follows the plan; docs/theory.md, section 8)."""
 
     model: mujoco.MjModel
@@ -216,7 +216,7 @@ class PlanFollowing:
 
         Args:
             qpos: ``(n, nq)`` joint positions, row ``j`` the state ``j * model.opt.timestep``
-                after ``start`` (:func:`dua_mujoco.mj.plans.plan_from_controls` rolls them).
+                after ``start`` (:func:`dua_mujoco.runtime.plans.plan_from_controls` rolls them).
             deviation: Metres: a bound on the distance of every point of a body's geoms from
                 where the plan puts it, one number, ``(n,)`` or ``(n, nbody)``; 0 where the plan
                 is exact (a rollout of the controls that will be applied, in simulation).
