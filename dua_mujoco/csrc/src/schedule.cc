@@ -629,22 +629,6 @@ std::vector<int64_t> Schedule::InitialAlarms() const {
   return out;
 }
 
-double Schedule::HorizonOf(int64_t p) const {
-  if (spec_.kind == kRank) return horizon[BucketOf(ints[kIntWhere * m() + p])];
-  if (spec_.kind == kDeadline) {
-    const int64_t where = ints[kIntWhere * m() + p], last = ints[kIntLastStep * m() + p];
-    if (where < 0) return -std::numeric_limits<double>::infinity();
-    return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();
-  }
-  return horizon[0];
-}
-
-bool Schedule::Stands(int64_t p) const { return active[p] && last_tau[p] <= HorizonOf(p); }
-
-double Schedule::Extra() const {
-  return spec_.alarm_horizon > 0.0 ? spec_.alarm_horizon - spec_.dt : 0.0;
-}
-
 void Schedule::Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n) {
   params = old.params;
   params[kParamCount] = params[kParamDeferred] = 0;

@@ -6,10 +6,12 @@
 #define DUA_MUJOCO_SCHEDULE_H_
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "dua/dua.h"
+#include "internal.h"
 #include "layout.h"
 
 namespace dua {
@@ -59,11 +61,20 @@ class DUA_API Schedule {
   // The pairs the classification (or the latest step) put in alarm, in id order.
   std::vector<int64_t> InitialAlarms() const;
   // Whether pair p stands in alarm: the alarm rule on its latest tau (its horizon: HorizonOf).
-  bool Stands(int64_t p) const;
+  // Inline, with the two below: the runtime asks it of every pair a step evaluates.
+  bool Stands(int64_t p) const { return active[p] && last_tau[p] <= HorizonOf(p); }
   // The time pair p's latest verdict must cover (seconds; -inf: switched off, nothing).
-  double HorizonOf(int64_t p) const;
+  double HorizonOf(int64_t p) const {
+    if (spec_.kind == kRank) return horizon[BucketOf(ints[kIntWhere * m() + p])];
+    if (spec_.kind == kDeadline) {
+      const int64_t where = ints[kIntWhere * m() + p], last = ints[kIntLastStep * m() + p];
+      if (where < 0) return -std::numeric_limits<double>::infinity();
+      return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();
+    }
+    return horizon[0];
+  }
   // The alarm horizon beyond one period (seconds, 0 by default).
-  double Extra() const;
+  double Extra() const { return spec_.alarm_horizon > 0.0 ? spec_.alarm_horizon - spec_.dt : 0.0; }
   // New pair k is old pair src[k] (its verdict carried) or new (src[k] < 0: it stands in alarm,
   // due at step n), as dua_deadline_carry does (deadline schedules only).
   void Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n);
