@@ -179,9 +179,7 @@ def callgrind_sections(dump: Path, plain: Path, steps: int) -> dict[str, float]:
     out = {"geomDistance": _sum(incl, SECTIONS[0][1])}
     out["axes"] = _sum(incl, SECTIONS[1][1])
     out["exact rest"] = _sum(incl, ("ExactPass",)) - out["geomDistance"] - out["axes"]
-    kernels = sum(
-        v for (a, b), v in edges.items() if "TauRows<" in a and _match(b, SECTIONS[3][1])
-    )
+    kernels = sum(v for (a, b), v in edges.items() if "TauRows<" in a and _match(b, SECTIONS[3][1]))
     out["sphere tau"] = kernels
     out["gather"] = _sum(incl, ("TauRows<",)) - kernels
     out["check"] = _sum(incl, ("dua_violation_pass",))
@@ -204,7 +202,9 @@ def perf_sections(data: Path, plain: Path, steps: int) -> dict[str, float]:
     def samples(path: Path) -> list[tuple[int, list[str]]]:
         text = subprocess.run(
             ["perf", "script", "-i", str(path), "-F", "period,ip,sym", "--no-inline"],
-            capture_output=True, text=True, check=True,
+            capture_output=True,
+            text=True,
+            check=True,
         ).stdout
         out = []
         for block in text.split("\n\n"):
@@ -262,7 +262,9 @@ def prepare(scene: str, bounds: str, folder: Path) -> tuple[Path, Path, dict]:
     plain = spec.compile()
     covering = CoveringOptions(hfield="box")
     if bounds == "auto":
-        pilot = PilotOptions(steps=1000, seed=99, controller=make_controller(plain, "random", seed=99))
+        pilot = PilotOptions(
+            steps=1000, seed=99, controller=make_controller(plain, "random", seed=99)
+        )
         accel = Predictor(plain, accel="auto", covering=covering, pilot=pilot).bounds
     else:
         accel = float(bounds)
@@ -280,7 +282,10 @@ def prepare(scene: str, bounds: str, folder: Path) -> tuple[Path, Path, dict]:
         drive(plain, d)
         mujoco.mj_step(plain, d)
     info = dict(
-        scene=scene, bounds=bounds, pairs=int(twin.nsphere_pairs), bodies=int(plain.nbody),
+        scene=scene,
+        bounds=bounds,
+        pairs=int(twin.nsphere_pairs),
+        bodies=int(plain.nbody),
         step_s=(time.perf_counter() - t0) / 200,
     )
     return paths[0], paths[1], info
@@ -301,12 +306,21 @@ def profile_callgrind(jobs: list, warmup: int, steps: int, folder: Path) -> list
     """One callgrind process over every model, collecting inside mj_step only."""
     paths = [str(p) for job in jobs for p in job[:2]]
     prefix = [
-        "valgrind", "--tool=callgrind", "--collect-atstart=no", "--toggle-collect=mj_step",
-        "--dump-before=mj_version", f"--callgrind-out-file={folder / 'cg.out'}",
+        "valgrind",
+        "--tool=callgrind",
+        "--collect-atstart=no",
+        "--toggle-collect=mj_step",
+        "--dump-before=mj_version",
+        f"--callgrind-out-file={folder / 'cg.out'}",
     ]
     out = _run_child(prefix, warmup, steps, "-", paths)
-    dumps = sorted(folder.glob("cg.out.*"), key=lambda p: int(p.suffix[1:]))
-    counted = {path: dump for (path, phase), dump in zip(out["phases"], dumps) if phase == "counted"}
+    # One dump before each marker call, in the phases' order (and the last at exit).
+    dumps = sorted(folder.glob("cg.out.*"), key=lambda p: int(p.suffix[1:]))[: len(out["phases"])]
+    counted = {
+        path: dump
+        for (path, phase), dump in zip(out["phases"], dumps, strict=True)
+        if phase == "counted"
+    }
     rows = []
     for plain, plugin, info in jobs:
         row = dict(info, evaluated=out[str(plugin)]["evaluated"])
@@ -332,9 +346,24 @@ def profile_perf(jobs: list, warmup: int, seconds: float, folder: Path, rounds: 
             for path in (plain, plugin):
                 data[path] = folder / f"{path.stem}.{r}.perf"
                 prefix = [
-                    "perf", "record", "-q", "-e", "cpu-clock", "-F", "10000", "-m", "4096",
-                    "--call-graph", "dwarf,8192", "-D", "-1", "--control",
-                    f"fifo:{ctl},{ack}", "-o", str(data[path]), "--",
+                    "perf",
+                    "record",
+                    "-q",
+                    "-e",
+                    "cpu-clock",
+                    "-F",
+                    "10000",
+                    "-m",
+                    "4096",
+                    "--call-graph",
+                    "dwarf,8192",
+                    "-D",
+                    "-1",
+                    "--control",
+                    f"fifo:{ctl},{ack}",
+                    "-o",
+                    str(data[path]),
+                    "--",
                 ]
                 out = _run_child(prefix, warmup, steps, f"{ctl},{ack}", [str(path)])
             parts.append(perf_sections(data[plugin], data[plain], steps))
@@ -344,21 +373,33 @@ def profile_perf(jobs: list, warmup: int, seconds: float, folder: Path, rounds: 
     return rows
 
 
+# The table's columns: the sections, select and reinsert together.
+COLUMNS = {
+    **{h: (h,) for h in HEADS if h not in ("select", "reinsert")},
+    "schedule": ("select", "reinsert"),
+}
+
+
 def table(rows: list[dict], unit: str) -> str:
     """Each section's share of what the plugin adds to mj_step."""
+    heads = [h for h in COLUMNS if h != "schedule"]
+    heads.insert(heads.index("fixed"), "schedule")
     out = [
         f"| scene | bounds | pairs | evals/step | mj_step {unit} | plugin adds | "
-        + " | ".join(HEADS) + " |",
-        "|---" * (len(HEADS) + 6) + "|",
+        + " | ".join(heads)
+        + " |",
+        "|---" * (len(heads) + 6) + "|",
     ]
     scale = 1e-3 if unit == "kIr" else 1e6
     for row in rows:
         added = sum(row[h] for h in HEADS)
-        shares = [f"{100 * row[h] / added:.0f} %" if added > 0 else "-" for h in HEADS]
+        share = {h: sum(row[k] for k in COLUMNS[h]) for h in heads}
+        shares = [f"{100 * share[h] / added:.0f} %" if added > 0 else "-" for h in heads]
         out.append(
             f"| {row['scene']} | {row['bounds']} | {row['pairs']} | {row['evaluated']:.1f} | "
             f"{row['mj_step_plain'] * scale:.1f} | {added / row['mj_step_plain']:+.2f}x | "
-            + " | ".join(shares) + " |"
+            + " | ".join(shares)
+            + " |"
         )
     return "\n".join(out)
 

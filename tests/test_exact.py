@@ -429,7 +429,9 @@ def _near(rng: np.random.Generator, model: mujoco.MjModel, speed: float) -> dict
     bodies = sorted(out)
     if len(bodies) == 2:
         a, b = bodies[1], bodies[0]  # "a" is the last body
-        radius = sum(float(model.geom_rbound[np.flatnonzero(model.geom_bodyid == k)[0]]) for k in bodies)
+        radius = sum(
+            float(model.geom_rbound[np.flatnonzero(model.geom_bodyid == k)[0]]) for k in bodies
+        )
         u = rng.normal(size=3)
         out[b]["p"] = out[a]["p"] + u / np.linalg.norm(u) * radius * rng.uniform(0.5, 1.0)
     return out
@@ -474,10 +476,20 @@ def test_a_pair_no_direction_can_clear_keeps_its_direction() -> None:
     quat = np.array([1.0, 0.0, 0.0, 0.0])
     spin = np.array([0.0, 0.0, 2.0])
     draw = {
-        2: {"p": np.array([0.0, 0.0, 1.0]), "v": np.zeros(3), "a": np.zeros(3), "q": quat,
-            "w": spin},
-        1: {"p": np.array([0.0, 0.1005, 1.0]), "v": np.array([0.3, 0.0, 0.0]), "a": np.zeros(3),
-            "q": quat, "w": spin},
+        2: {
+            "p": np.array([0.0, 0.0, 1.0]),
+            "v": np.zeros(3),
+            "a": np.zeros(3),
+            "q": quat,
+            "w": spin,
+        },
+        1: {
+            "p": np.array([0.0, 0.1005, 1.0]),
+            "v": np.array([0.3, 0.0, 0.0]),
+            "a": np.zeros(3),
+            "q": quat,
+            "w": spin,
+        },
     }
     motion = Motion(model, draw)
     p = _predictor(model, motion)
