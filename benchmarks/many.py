@@ -19,13 +19,12 @@ World: the paper's density (as ``benchmarks/scaling.py``: ``WorldParams``' 0.1 m
 speeds up to 0.4 m/s, acceleration bound 0.2 m/s^2, 40 spheres in its 10 m cube, the cube's
 edge scaled by ``(N / 40)^(1/3)``), ghost spheres (``SphereWorld``, exact kinematics, the
 bounds hold exactly), ``dt = 10 ms``, latency 1. Peers, all at the horizon ``H = (1 + latency)
-dt`` a verdict must cover: the grid (``reach`` + ``candidate_pairs`` every step), the KD-tree
-(``cKDTree.query_pairs`` on the inflated spheres, then the exact test), MuJoCo's gap-inflated
-``mj_collision`` (N free spheres, ``geom_gap`` = each sphere's reach over H, only
+dt`` a verdict must cover: the runtime's grid (reaches and candidate pairs every step), the
+KD-tree (``cKDTree.query_pairs`` on the inflated spheres, then the exact test), MuJoCo's
+gap-inflated ``mj_collision`` (N free spheres, ``geom_gap`` = each sphere's reach over H, only
 ``mj_collision`` timed; N <= 1e4), and the deadline schedule over all pairs (N = 1e3). A
 broadphase's alarms are its candidates. Times: median and mean (the mean is the amortised cost:
-rebuilds included) over the run (the native core splits a tau batch over two threads from 65,536
-pairs on, a classification at large N; nothing else runs threads). Memory: the growth of the
+rebuilds and renewals included) over the run, one thread. Memory: the growth of the
 process's peak resident size (``/proc/self/status``, the peak reset first where Linux allows it)
 over building the predictor, ``reset`` and one full stride of steps on pre-computed states, per
 sphere: the schedule's state and the grid's work arrays are native allocations, which
@@ -43,9 +42,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from bench import ROUNDING_SLACK, grid_pairs, grid_reach  # the script folder is on sys.path
 from scipy.spatial import cKDTree
 
-from dua_mujoco.core.neighbors import ROUNDING_SLACK, candidate_pairs, reach
 from dua_mujoco.core.spheres import SpherePredictor
 from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.experiments.paper.world import WorldParams
@@ -63,7 +62,7 @@ def world(n: int, seed: int = 0) -> SphereWorld:
 
 def inflated(w: SphereWorld) -> np.ndarray:
     H = (1 + LATENCY) * DT
-    return reach(w.radius, np.linalg.norm(w.velocities, axis=1), WP.accel, H)
+    return grid_reach(w.radius, np.linalg.norm(w.velocities, axis=1), WP.accel, H)
 
 
 def kdtree_pairs(c: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -177,7 +176,7 @@ def run_predictor(
         history.append(set((out[:, 0] * n + out[:, 1]).tolist()))
         if pairs == "pruned" and m % 4 == 0:
             r = inflated(w)
-            g, tg = timed(candidate_pairs, w.positions, r)
+            g, tg = timed(grid_pairs, w.positions, r)
             _, tk = timed(kdtree_pairs, w.positions, r)
             t_grid.append(tg)
             t_kd.append(tk)
