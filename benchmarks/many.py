@@ -42,15 +42,33 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from bench import ROUNDING_SLACK, grid_pairs, grid_reach  # the script folder is on sys.path
 from scipy.spatial import cKDTree
 
+from dua_mujoco import _core
 from dua_mujoco.core.spheres import SpherePredictor
 from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.experiments.paper.world import WorldParams
 
 DT, LATENCY, SUB = 0.01, 1, 4
 WP = WorldParams()
+
+ROUNDING_SLACK = 1.0 + 2.0**-44
+"""The candidate grid's rounding slack (csrc/src/grid.cc): its pair test is ``d2 <= s * s``
+times this."""
+
+
+def grid_reach(radius: np.ndarray, speed: np.ndarray, accel: float, horizon: float) -> np.ndarray:
+    """``(N,)`` reaches over ``horizon`` (the runtime's ``dua_reaches``; no speed bound)."""
+    n = speed.shape[0]
+    r, a = np.broadcast_to(radius, (n,)), np.full(n, float(accel))
+    r, s = np.ascontiguousarray(r, dtype=float), np.ascontiguousarray(speed, dtype=float)
+    return np.asarray(_core.reaches(r, s, a, np.zeros(n), np.full(n, np.inf), float(horizon)))
+
+
+def grid_pairs(c: np.ndarray, r: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    """``(K, 2)`` pairs whose reachable balls meet: the runtime's grid (csrc/src/grid.cc)."""
+    c, r = np.ascontiguousarray(c, dtype=float), np.ascontiguousarray(r, dtype=float)
+    return np.asarray(_core.candidate_pairs(c, r, float(margin)))
 
 
 def world(n: int, seed: int = 0) -> SphereWorld:

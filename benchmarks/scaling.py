@@ -28,12 +28,8 @@ import tracemalloc
 from collections.abc import Callable
 
 import numpy as np
-from bench import (  # benchmarks/bench.py: the script folder is on sys.path
-    ROUNDING_SLACK,
-    grid_pairs,
-    grid_reach,
-    median_time,
-)
+from bench import median_time  # benchmarks/bench.py: the script folder is on sys.path
+from many import ROUNDING_SLACK, grid_pairs, grid_reach
 
 from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.experiments.paper.reference import PAPER_N

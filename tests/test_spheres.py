@@ -192,6 +192,31 @@ def test_sampled_feasible_trajectories_miss_nothing(
         assert out.reference_misses == 0
 
 
+def test_pairs_met_long_ago_are_forgotten_and_nothing_is_missed() -> None:
+    """Spheres that wander meet ever new pairs; the runtime forgets those no rebuild has held
+    for a while (as the plugin does: docs/theory.md, Lemma 7.1), so the pairs it knows stay
+    bounded, and no onset is missed meanwhile."""
+    world = SphereWorld(
+        150, seed=3, box=2.0, radius=0.05, accel=2.0, speed=0.8, dt=0.01,
+        profile=AccelProfile.BANG_BANG,
+    )  # fmt: skip
+    pred = SpherePredictor(world.radius, 2.0, dt=0.01, latency=1, pairs="pruned", horizon=0.05)
+    known: list[int] = []
+    step = pred.step
+
+    def counted(c: np.ndarray, v: np.ndarray) -> np.ndarray:
+        out = step(c, v)
+        known.append(int(pred._rt.npair))
+        return out
+
+    pred.step = counted  # type: ignore[method-assign]
+    out = run_predictor(world, pred, steps=500, substeps=2, reference=True)
+    assert out.onsets > 100
+    assert out.missed == [] and out.reference_misses == 0
+    assert (np.diff(known) < 0).sum() >= 3, "no compaction"
+    assert max(known) < 4 * out.held_max
+
+
 def test_capped_pruned_predictor_is_complete() -> None:
     """Over the cap, new pairs of a rebuild wait standing in alarm like any deferred pair."""
     world = dense_world(2)

@@ -573,7 +573,8 @@ void Runtime::ForgetStale(std::vector<int64_t>* held) {
   if (watching_) was_.resize(ng, 0);  // (FinishWatch sizes it after the step)
   std::vector<int64_t> pair_map, gp_map;
   const std::string bad =
-      u.Forget(keep, tables_->spheres, learn().filter.ngeom, &pair_map, &gp_map);
+      u.Forget(keep, tables_->spheres, static_cast<int64_t>(learn().geom_start.size()) - 1,
+               &pair_map, &gp_map);
   (void)bad;  // the kept rows of a universe that indexed are indexed (no id is out of range)
   for (int64_t& p : ids_) p = pair_map[p];
   for (int64_t& p : *held) p = pair_map[p];

@@ -514,7 +514,8 @@ bool ReadPruned(const mjModel* m, Reader* r, const std::vector<double>& config, 
 }
 
 // Free spheres' covering and learning tables: sphere i the one point of geom i on body i (its own
-// root), every pair passing the filter, each pair's contact distance the config's margin.
+// root), every pair passing with the config's margin as its contact distance (LearnTables'
+// points: no filter, no per-geom margins).
 void FreeLayout(int64_t n, const std::vector<double>& config, Tables* t) {
   t->spheres.assign(kSphereNcol * n, 0.0);
   for (int64_t i = 0; i < n; ++i) {
@@ -522,16 +523,13 @@ void FreeLayout(int64_t n, const std::vector<double>& config, Tables* t) {
     rec[kSphereFrame] = rec[kSphereBody] = rec[kSphereRoot] = static_cast<double>(i);
   }
   LearnTables& l = t->learn;
+  l.points = true;
   l.geom_start.resize(n + 1);
   std::iota(l.geom_start.begin(), l.geom_start.end(), int64_t{0});
-  l.body = l.weld = l.sphere_geom = l.sphere_body =
+  l.sphere_geom = l.sphere_body =
       std::vector<int64_t>(l.geom_start.begin(), l.geom_start.end() - 1);
-  l.parent_weld.assign(n, 0), l.geom_plane.assign(n, -1), l.geom_shape.assign(n, -1);
-  l.contype.assign(n, 1), l.conaffinity.assign(n, 1);
-  l.movable.assign(n, 1), l.lone.assign(n, 0);
-  l.margin.assign(n, 0.0), l.gap.assign(n, 0.0);
-  l.override_margin = true, l.o_margin = config[kCfgMargin];
-  l.filter.filterparent = 0;
+  l.geom_plane.assign(n, -1), l.geom_shape.assign(n, -1);
+  l.o_margin = config[kCfgMargin];
   l.contacts = true;
   l.has_speed = config[kCfgHasSpeed] != 0.0;
   l.Point();
