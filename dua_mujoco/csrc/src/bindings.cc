@@ -142,38 +142,6 @@ Out<double> OverPoints(const In<double>& points, const In<double>& shapes, const
   return Owned(std::move(out), {static_cast<size_t>(n), static_cast<size_t>(width)});
 }
 
-// tau of pairs ids (K,) of free spheres (the paper's setting): pair records (M, 8).
-std::pair<Out<double>, int64_t> TauFree(const In<double>& pairs, const In<int64_t>& ids,
-                                        const In<double>& centers, const In<double>& velocities,
-                                        const In<double>& planes, const In<double>& shapes) {
-  const int64_t m = Size(pairs) / kPairNcol, n = Size(ids);
-  const int64_t nsphere = Size(centers) / 3, nplane = Size(planes) / 4;
-  // A terrain record reads its block (terrain.cc): the records end where the blocks start.
-  Require(Size(shapes) % kShapeNcol == 0 &&
-              dua_check_shapes(shapes.data(), Size(shapes) / kShapeNcol) < 0,
-          "shapes must be (n, 16), every terrain's block within the table");
-  const int64_t nshape = ShapeRecordCount(shapes.data(), Size(shapes) / kShapeNcol);
-  Require(Size(velocities) == 3 * nsphere, "centres and velocities must be (n, 3) alike");
-  for (int64_t p = 0; p < m; ++p) {
-    const double* r = pairs.data() + kPairNcol * p;
-    const double kind = r[kPairKind];
-    const bool ok = r[kPairFirst] >= 0 && r[kPairFirst] < nsphere &&
-                    ((kind == kKindSphere && r[kPairSecond] >= 0 && r[kPairSecond] < nsphere) ||
-                     (kind == kKindHalfspace && r[kPairSecond] >= 0 && r[kPairSecond] < nplane) ||
-                     (kind == kKindShape && r[kPairOther] >= 0 && r[kPairOther] < nshape));
-    Require(ok, "pair record " + std::to_string(p) +
-                    " indexes outside the spheres, planes or "
-                    "shapes given");
-  }
-  for (int64_t k = 0; k < n; ++k) {
-    Require(ids.data()[k] >= 0 && ids.data()[k] < m, "a pair id is out of range");
-  }
-  std::vector<double> out(n), rows(12 * static_cast<size_t>(std::max<int64_t>(n, 1)));
-  const int64_t bad = dua_tau_free(pairs.data(), shapes.data(), centers.data(), velocities.data(),
-                                   planes.data(), ids.data(), n, rows.data(), out.data());
-  return {Owned(std::move(out), {static_cast<size_t>(n)}), bad};
-}
-
 // ------------------------------------------------------------------------------- kinematics
 
 // The instant the kinematics kernel reads, as arrays (MjData's geom_xpos (ngeom, 3), geom_xmat
@@ -507,27 +475,6 @@ void CheckIds(const Schedule& s, const In<int64_t>& ids) {
   }
 }
 
-// The select/evaluate/reinsert step on free spheres: (alarms, bad pair or -1, evaluated).
-nb::tuple StepPoints(Schedule& s, const In<double>& pairs, const In<double>& centers,
-                     const In<double>& velocities, const In<double>& planes,
-                     const In<double>& shapes) {
-  Require(Size(pairs) == kPairNcol * s.m(), "the pair records must be (m, 8), one a pair");
-  dua_schedule* st = s.state();
-  const int64_t n = s.step_count + 1;
-  const int64_t count = dua_select(st, n);
-  In<int64_t> ids(st->work + st->width, {static_cast<size_t>(count)});
-  auto [tau, bad] = TauFree(pairs, ids, centers, velocities, planes, shapes);
-  if (bad >= 0) {
-    const int64_t p = ids.data()[bad];
-    dua_restore(st, n, count);
-    return nb::make_tuple(0, p, count);
-  }
-  std::copy(tau.data(), tau.data() + count, st->w_tau);
-  const int64_t nalarm = dua_reinsert(st, n, count);
-  s.step_count = n;
-  return nb::make_tuple(nalarm, -1, count);
-}
-
 void BindSchedule(nb::module_& m) {
   nb::class_<Schedule>(m, "Schedule",
                        "A schedule's state and kernels (dua_mujoco.core.schedules wraps it).")
@@ -581,8 +528,6 @@ void BindSchedule(nb::module_& m) {
             dua_make_due(s.state(), p, n);
           },
           "p"_a, "n"_a)
-      .def("step_points", &StepPoints, "pairs"_a, "centers"_a, "velocities"_a, "planes"_a,
-           "shapes"_a)
       .def("alarm_state",
            [](const Schedule& s) {
              std::vector<uint8_t> out(s.m());
@@ -1322,8 +1267,6 @@ NB_MODULE(_core, m) {
       },
       "table"_a, "row"_a, "shape"_a, "v"_a, "spin"_a, "eps"_a, "accel"_a, "delta"_a,
       "tau of a convex shape record moving with velocity v against terrain record `row`.");
-  m.def("tau_free", &TauFree, "pairs"_a, "ids"_a, "centers"_a, "velocities"_a, "planes"_a,
-        "shapes"_a);
   m.def("deadline_interval", &dua_deadline_interval, "tau"_a, "dt"_a, "latency"_a, "max_interval"_a,
         "extra"_a = 0.0);
   m.def(
