@@ -227,9 +227,9 @@ class SpherePredictor:
             c[_LAYOUT["CFG_STRIDE"]], c[_LAYOUT["CFG_RENEW_MAX"]] = self.stride, RENEW_MAX
         reach = np.stack([self.radii, self.accel, self.vel_uncertainty, self.speed], axis=1)
         tables = _core.Tables.free({"config": c, "reach": reach})
-        # Two steps' worth of alarm log: a step needs room for its whole selection (all pairs,
-        # at worst), and one step's worth would be replaced at every step that alarms.
-        return _core.Runtime(tables, None, None, 2, 0)
+        # One step's worth of alarm log (its whole selection, at worst), rewound at every step:
+        # nothing here holds the runtime's Alarms.
+        return _core.Runtime(tables, None, None, 1, 0)
 
     # ----------------------------------------------------------------------- introspection
 

@@ -16,8 +16,8 @@ namespace dua {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// Rows of the gather scratch (12 doubles each): 384 KB, where a row a held pair took 96 bytes a
-// pair (48 MB for the half million pairs of 1,000 free spheres).
+// Most rows of the gather scratch (12 doubles each: 384 KB). A row a held pair took 96 bytes a
+// pair, 48 MB for the half million pairs of 1,000 free spheres.
 constexpr int64_t kScratchRows = 4096;
 
 std::vector<int64_t> Iota(int64_t n) {
@@ -494,7 +494,14 @@ int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   if (t.pruned && !Prune(m, d, n)) return kBadState;
   FollowPlan(m, d, n);
   const int64_t room = schedule_->width();
-  if (log_used_ + room > log_->capacity()) NewLog(), Bind(m, d);
+  if (log_used_ + room > log_->capacity()) {
+    // Rewound when nothing else holds it (no Alarms of an earlier step), else replaced.
+    if (log_.use_count() == 1 && room <= log_->capacity()) {
+      log_used_ = 0;
+    } else {
+      NewLog(), Bind(m, d);
+    }
+  }
   log_start_ = log_used_;
   const int64_t result = dua_step(&args_, n, log_start_);
   if (result < 0) return result;

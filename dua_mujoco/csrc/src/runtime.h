@@ -30,9 +30,10 @@
 
 namespace dua {
 
-// The alarms the steps raise, appended and never overwritten: a step's alarms are a span of it.
-// A log without room for another step is replaced by a fresh one, and lives as long as someone
-// holds it (Python's Alarms do).
+// The alarms the steps raise, appended and never overwritten while someone else holds it: a
+// step's alarms are a span of it. A log without room for another step is replaced by a fresh
+// one, and lives as long as someone holds it (Python's Alarms do); held by the runtime alone, it
+// is rewound instead.
 struct DUA_API AlarmLog {
   explicit AlarmLog(int64_t capacity)
       : pair(capacity),
