@@ -83,24 +83,28 @@ int64_t dua_escapes(const dua_reach* r, const int64_t* ids, int64_t n, const dou
 int64_t dua_escaped_spheres(const dua_step_args* a, const dua_reach* r, int64_t step,
                             int64_t* out) {
   int64_t count = 0;
-  double state[6];
-  auto test = [&](int64_t s) {
-    dua_point(a, s, state);
-    const double t = static_cast<double>(step - r->built[s]) * r->dt;
-    if (dua::Escapes(*r, s, state, state + 3, t)) out[count++] = s;
-  };
-  if (a->points.centers) {
-    // Free spheres: no violation check flags them, so the escape test is theirs, every step.
-    for (int64_t s = 0; s < r->nsphere; ++s) test(s);
+  const double* c = a->points.centers;
+  if (c) {
+    // Free spheres: no violation check flags them, so the escape test is theirs, every step
+    // (their states read in place: this loop is most of a large free step).
+    const double* v = a->points.velocities;
+    for (int64_t s = 0; s < r->nsphere; ++s) {
+      const double t = static_cast<double>(step - r->built[s]) * r->dt;
+      if (dua::Escapes(*r, s, c + 3 * s, v + 3 * s, t)) out[count++] = s;
+    }
     return count;
   }
   const dua_events& ev = a->events;
   const int64_t flagged = ev.nbody ? ev.meta[dua::kMCount] : 0;
+  double state[6];
   for (int64_t k = 0; k < flagged; ++k) {
     const double* rec = ev.rec + ev.flagged[k] * dua::kBNcol;
     const auto body = static_cast<int64_t>(rec[dua::kBBody]);
     for (int64_t m = r->body_start[body]; m < r->body_start[body + 1]; ++m) {
-      test(r->body_spheres[m]);
+      const int64_t s = r->body_spheres[m];
+      dua_rigid_point(s, a->spheres, &a->frame, state);
+      const double t = static_cast<double>(step - r->built[s]) * r->dt;
+      if (dua::Escapes(*r, s, state, state + 3, t)) out[count++] = s;
     }
   }
   return count;
