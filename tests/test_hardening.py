@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco.cli import main
-from dua_mujoco.mj.scenes import load_spec
+from dua_mujoco.models.scenes import load_spec
 from dua_mujoco.native import library_path
 from dua_mujoco.plugin import _encode, attach, plugin_outputs, standing_pairs
 
@@ -182,7 +182,7 @@ def _child(path: Path, steps: int) -> str:
 
 
 def _huge_wheel(config: np.ndarray) -> None:
-    from dua_mujoco.mj.build import CONFIG
+    from dua_mujoco.runtime.table_arrays import CONFIG
 
     config[CONFIG["max_interval"]] = 1e9
 
@@ -245,7 +245,7 @@ def test_a_selection_larger_than_the_held_pairs_fits_the_scratch(tmp_path: Path)
     256 spares). The step gathered them into a scratch of one row per held pair: five falling
     spheres (ten pairs) against a 0.1 m/s^2 bound wrote past it (AddressSanitizer's heap
     overflow). It now evaluates a selection in chunks of the scratch."""
-    from dua_mujoco.mj.options import ScheduleOptions
+    from dua_mujoco.build.options import ScheduleOptions
 
     bodies = "".join(
         f'<body pos="{0.12 * i} 0 {0.3 + 0.1 * i}"><freejoint/><geom type="sphere" size=".05"/>'
@@ -284,16 +284,23 @@ def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None
     from dua_mujoco.exceptions import InvalidInputError
 
     spec = mujoco.MjSpec.from_string(_SLIDES)
-    attach(spec, accel=30.0, pairs="all")
+    # A horizon over which the bounds alone reach from one slide to the other: pairs stand.
+    attach(spec, accel=30.0, pairs="all", alarm_horizon=0.2)
     m = spec.compile()
     d = mujoco.MjData(m)
     mujoco.mj_step(m, d)
     n = 20
     q, dev = np.tile(d.qpos, (n, 1)), np.full((n, m.nbody), 0.01)
+    none = np.zeros(0)
+
+    def set_plan(q: np.ndarray, dev: np.ndarray, start: float) -> int:
+        return int(
+            _core.plugin_set_plan(m, d, 0, q, dev, start, none.astype(np.uint8), none, none)[0]
+        )
 
     def refusal(q: np.ndarray, dev: np.ndarray, start: float) -> str:
         with pytest.raises(InvalidInputError) as err:
-            _core.plugin_set_plan(m, d, 0, q, dev, start)
+            set_plan(q, dev, start)
         return str(err.value)
 
     bad_q = q.copy()
@@ -310,12 +317,14 @@ def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None
     # Accepted: huge deviations, and the outer body planned 1e308 away (finite, far off).
     far = q.copy()
     far[:, 0] = 1e308
-    assert _core.plugin_set_plan(m, d, 0, far, np.full((n, m.nbody), 1e308), d.time) == 0
+    assert set_plan(far, np.full((n, m.nbody), 1e308), d.time) == 0
     reference = mujoco.MjData(m)
     mujoco.mj_step(m, reference)
+    stood = 0
     for _ in range(n - 2):
         mujoco.mj_step(m, d)
         mujoco.mj_step(m, reference)
-        assert {tuple(g) for g in standing_pairs(m, reference)} <= {
-            tuple(g) for g in standing_pairs(m, d)
-        }
+        want = {tuple(g) for g in standing_pairs(m, reference)}
+        assert want <= {tuple(g) for g in standing_pairs(m, d)}
+        stood += len(want)
+    assert stood > 0  # the reference stands pairs: the comparison can fail

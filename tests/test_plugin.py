@@ -16,10 +16,9 @@ import pytest
 from mujoco import rollout
 from rollouts import python_standing
 
+from dua_mujoco.build.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_spec, make_controller
+from dua_mujoco.models.scenes import load_spec, make_controller
 from dua_mujoco.plugin import (
     attach,
     deactivate_contacts,
@@ -27,6 +26,7 @@ from dua_mujoco.plugin import (
     set_active_bodies,
     standing_pairs,
 )
+from dua_mujoco.runtime.predictor import Predictor
 
 ANT = str(Path(gymnasium.__file__).parent / "envs/mujoco/assets/ant.xml")
 
@@ -141,7 +141,7 @@ def test_plugin_with_pruned_pairs_equals_the_pruned_python_predictor(
 def test_pruned_plugin_switches_and_classifies_as_the_python_predictor() -> None:
     """Pruned pairs with intended contact and latency: pairs switched off stay off when a
     rebuild or a renewal holds them again; a reset classifies from scratch."""
-    from dua_mujoco.mj.options import PairOptions
+    from dua_mujoco.build.options import PairOptions
 
     m, p = _attached("two_arms", pairs=PairOptions(mode="pruned", horizon=0.02), latency=1)
     box = int(m.geom_bodyid[m.geom("loose_box").id])

@@ -5,9 +5,9 @@
 // Every table is a row-major float64 or int64 array owned by the caller; the structs below only
 // point into them. Layouts (columns) are stated once in src/layout.h and documented where the
 // Python side packs them: pairs: dua_mujoco/core/pairset.py (pack_pairs), spheres:
-// dua_mujoco/mj/kinematics.py, shapes: dua_mujoco/core/shapes.py, terrain:
-// dua_mujoco/core/terrain.py, exact: dua_mujoco/mj/exact.py, events: dua_mujoco/mj/events.py, the
-// schedule: dua_mujoco/core/schedules/state.py.
+// dua_mujoco/build/kinematics.py, shapes: dua_mujoco/core/shapes.py, terrain:
+// dua_mujoco/core/terrain.py, exact: dua_mujoco/build/exact.py, events: dua_mujoco/build/events.py,
+// the schedule: dua_mujoco/core/schedules/state.py.
 #ifndef DUA_MUJOCO_DUA_H_
 #define DUA_MUJOCO_DUA_H_
 
@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 6
+#define DUA_ABI_VERSION 7
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -154,15 +154,24 @@ typedef struct dua_events {
 
 // A flight plan the step follows (src/plan.h; docs/theory.md, section 8). impl null: none.
 typedef struct dua_plan {
-  const void* impl;        // the dua::Plan
-  int64_t knot;            // the plan's knot at this step
-  const uint8_t* body_ok;  // (nbody,) 0 for a body found beyond its deviation since the plan came
+  const void* impl;  // the dua::Plan
+  int64_t knot;      // the plan's knot at this step
+  int64_t period;    // physics steps a predictor period (the plan's taus fall on its grid)
+  // (nbody,) 1 for a body the plan holds and found within its deviation so far (static bodies
+  // too: planned, with deviation 0); 0 for one it does not know or found beyond its deviation.
+  const uint8_t* body_ok;
   const int64_t* geom1;  // (npair,) the geoms of each known pair (the plane or static geom second)
   const int64_t* geom2;
-  const int* geom_body;  // the model's geom_bodyid
-  void* data;            // an mjData of the model for MuJoCo's distance queries at knots
-  uint8_t* planned;      // (scratch_rows,) which pairs of a batch the plan covered
-  int64_t queries;       // MuJoCo's distance queries at knots so far
+  const int* geom_body;     // the model's geom_bodyid
+  const int64_t* geom_row;  // (ngeom,) each geom's body's row of the violation check (-1: none)
+  void* data;               // an mjData of the model for MuJoCo's distance queries at knots
+  uint8_t* planned;         // (scratch_rows,) which pairs of a batch the plan covered
+  int64_t queries;          // MuJoCo's distance queries at knots so far
+  // (K,) what each held pair's latest verdict rested on, and the one before it: bit 0 set when
+  // its first geom's side rested on the plan (that body's deviation), bit 1 the same for its
+  // second geom; a clear bit is the motion bounds of that body. Null: not recorded.
+  uint8_t* basis;
+  uint8_t* basis_prev;
 } dua_plan;
 
 // Free spheres (the paper's setting: points on no MuJoCo body): each sphere's centre and velocity
@@ -171,6 +180,19 @@ typedef struct dua_points {
   const double* centers;
   const double* velocities;
 } dua_points;
+// A flight plan as a caller gives it (dua_plugin_set_plan, Runtime::SetPlan).
+typedef struct dua_plan_input {
+  const double* qpos;       // (n, nq): row j the state at time start + j timestep
+  int64_t n;                // knots
+  const double* deviation;  // (n, nbody): how far any point of each body may stray at each knot
+  double start;             // the time of row 0's state
+  // (nbody,) 1 for the bodies the plan holds, null for the default: every moving body outside
+  // mocap trees, and the mocap trees too when mocap poses are given. Bodies it does not hold
+  // follow their motion bounds; static bodies are always planned (deviation 0).
+  const uint8_t* bodies;
+  const double* mocap_pos;   // (n, nmocap, 3), or null: mocap bodies unplanned
+  const double* mocap_quat;  // (n, nmocap, 4), or null (then mocap_pos must be null too)
+} dua_plan_input;
 
 typedef struct dua_step_args {
   int64_t abi;  // DUA_ABI_VERSION
@@ -311,7 +333,7 @@ DUA_API void dua_exact_rows(const double* geoms, const int64_t* geom1, const int
 
 // ------------------------------------------------------------------------------- the pair filter
 
-// Per geom, what MuJoCo's dynamic pair filter reads (dua_mujoco/mj/pairfilter.py, FilterTables).
+// Per geom, what MuJoCo's dynamic pair filter reads (dua_mujoco/build/pairfilter.py, FilterTables).
 typedef struct dua_filter {
   int64_t ngeom;
   const int64_t* body;         // (ngeom,) geom body
@@ -444,14 +466,15 @@ DUA_API int64_t dua_reach_pairs(const dua_reach* r, const int64_t* ids, int64_t 
 struct mjModel_;
 struct mjData_;
 
-// Follow a flight plan in instance `instance` of d (docs/plans.md): qpos (n, nq), row j the
-// state at time start + j timestep, deviation (n, nbody) the bound on how far each body may
-// stray from it at each knot. Returns 0, -1 if the instance is not this plugin's, -2 before its
-// first compute, -3 if the plan is refused (why written to error, error_size bytes with the
-// terminating 0).
+// Follow a flight plan in instance `instance` of d (docs/plans.md): the plan (its bodies, their
+// deviations, mocap poses if any). departures (nbody,) or null receives, for each body the
+// replaced plan held, the first state time at which the new plan leaves the old plan's
+// deviation tube within the span the old plan's verdicts cover (+inf: never; docs/theory.md,
+// section 8). Returns 0, -1 if the instance is not this plugin's, -2 before its first compute,
+// -3 if the plan is refused (why written to error, error_size bytes with the terminating 0).
 DUA_API int64_t dua_plugin_set_plan(const struct mjModel_* m, struct mjData_* d, int instance,
-                                    const double* qpos, int64_t n, const double* deviation,
-                                    double start, char* error, int64_t error_size);
+                                    const dua_plan_input* plan, double* departures, char* error,
+                                    int64_t error_size);
 // Back to the motion bounds alone. Returns 0, or -1 if the instance is not this plugin's.
 DUA_API int64_t dua_plugin_clear_plan(const struct mjModel_* m, struct mjData_* d, int instance);
 

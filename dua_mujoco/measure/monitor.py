@@ -5,40 +5,31 @@ bound check, the alarms, then the contacts in ``d.contact``). A *contact onset* 
 the active set that is in ``d.contact`` now and was not at the previous physics step. It is
 *predicted* when, at that instant, some sphere pair of that geom pair stands alarmed, i.e. its
 latest evaluation (at or before the onset) raised an alarm: exactly the completeness theorem's
-claim (docs/theory.md). A miss is *valid-bounds* when neither body broke its declared bounds
-(under a flight plan: its deviation) between that latest evaluation and the onset, so the
-theorem's hypotheses held and the miss would be a bug. It is *in a violation's period* when one
-of the two bodies broke them after the latest predictor step at or before the onset (two steps
-with pruned pairs): the one exception of the guarantee with violations as events (docs/theory.md,
-section 6). Each onset's lead and the oracle are counted by :class:`WarningTime`.
+claim (docs/theory.md). A miss is *valid-bounds* when no hypothesis its verdicts rested on (a
+body's bounds, or under a plan its deviation: :class:`~dua_mujoco.measure.warning_time.Hypotheses`)
+broke between that latest evaluation and the onset: a bug. It is *in a violation's period* when
+one broke after the latest predictor step at or before the onset (two steps with pruned pairs):
+the one exception of the guarantee with violations as events (docs/theory.md, section 6). Each
+onset's lead and the oracle are counted by :class:`WarningTime`.
 
-``run`` drives a rollout (controller, ``mj_step``, predictor every ``period`` steps, monitor) and
-returns a ``RunReport``.
+:func:`~dua_mujoco.measure.rollout.run` drives a rollout (controller, ``mj_step``, predictor every
+``period`` steps, monitor) and returns a ``RunReport``.
 """
 
 from __future__ import annotations
 
-import time
-import warnings
-from collections.abc import Callable
-
 import mujoco
 import numpy as np
 
-from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
-from dua_mujoco.mj.accumulators import Durations, Growing, Series, StepMap
-from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.checks import BoundMonitor
-from dua_mujoco.mj.flightplan import governing_violations
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.report import Miss, RunInterrupted, RunReport, build_report
-from dua_mujoco.mj.tables import same_geometry
-from dua_mujoco.mj.warning_time import WarningTime, alarm_horizon_of, check_warning_horizon
-from dua_mujoco.progress import Progress
+from dua_mujoco.measure.accumulators import Growing, Series, StepMap
+from dua_mujoco.measure.checks import BoundMonitor
+from dua_mujoco.measure.report import Miss
+from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of, check_warning_horizon
+from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.predictor import Predictor
 
-__all__ = ["Monitor", "run"]
+__all__ = ["Monitor"]
 
-Controller = Callable[[mujoco.MjModel, mujoco.MjData], None]
 
 # mj_geomDistance stops searching beyond this distance (m); alarmed pairs are far closer.
 _DISTMAX = 100.0
@@ -65,8 +56,8 @@ class Monitor:
         series: Record the alarm count and minimum tau of every predictor step (``series``);
             otherwise memory does not grow with the run's length.
         warning_horizon: The horizon (s) each onset's lead and the oracle are measured against
-            (:mod:`~dua_mujoco.mj.warning_time`); None for the predictor's own alarm horizon
-            (:func:`~dua_mujoco.mj.warning_time.alarm_horizon_of`).
+            (:mod:`~dua_mujoco.measure.warning_time`); None for the predictor's own alarm horizon
+            (:func:`~dua_mujoco.measure.warning_time.alarm_horizon_of`).
 
     An *alarm episode* of a geom pair is a maximal run of physics steps during which at least one
     of its sphere pairs stands alarmed (repeats counted once, as the paper does). It is *false*
@@ -127,14 +118,13 @@ class Monitor:
         self.warning = WarningTime(
             horizon if self.warning_horizon is None else self.warning_horizon,
             float(self.model.opt.timestep),
-            self._ngp,
-            self.predictor.nsphere_pairs,
+            self.predictor,
         )
         # The same set as a mask: lookups by gathering, not by np.isin (which sorts; 47 us a
         # call with the thousands of pending windows of paper_world:200).
         self._contact_mask = np.zeros(self._ngp, dtype=bool)
         self._contact_mask[self._in_contact] = True
-        self.last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
+        self.last_violation = self.warning.hypotheses.last_violation
         # Per kinematic tree (root body): the last physics step it was in a contact.
         self._root_contact = np.full(self.model.nbody, -_CONTACT_LAG, dtype=np.int64)
         self._mark_contacts(data)
@@ -209,7 +199,7 @@ class Monitor:
         more = self.predictor.nsphere_pairs - self._pair_alarm.size
         self._pair_alarm = np.concatenate([self._pair_alarm, np.zeros(more, dtype=bool)])
         self._gp_active_seen = None
-        self.warning.grow(self._ngp, self.predictor.nsphere_pairs)
+        self.warning.grow(self.predictor)
 
     def _mark_contacts(self, data: mujoco.MjData) -> None:
         """Stamp the kinematic trees of every contact (any geom pair, static ones too)."""
@@ -316,6 +306,7 @@ class Monitor:
         sched = self.predictor.pair_state()
         self._pred_steps.append(self.physics_step)
         evaluated = sched.last_selected
+        self.warning.hypotheses.evaluated(evaluated, self.predictor.verdict_basis(evaluated))
         self.predictor_steps += 1
         # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated.
         self.evaluation_sum += int(evaluated.size) - sched.deferred
@@ -339,7 +330,7 @@ class Monitor:
     def oracle_fraction(self) -> float:
         """Mean over predictor steps of (active geom pairs that touch within the warning
         horizon from that step) / (active geom pairs): the floor under the standing fraction
-        (:mod:`~dua_mujoco.mj.warning_time`; windows past the last step count what was seen)."""
+        (:mod:`~dua_mujoco.measure.warning_time`; windows past the last step count what's seen)."""
         if not self.predictor_steps:
             return 0.0
         return self.warning.oracle_sum() / self.predictor_steps
@@ -390,9 +381,9 @@ class Monitor:
         self._fit()
         self.physics_step += 1
         self._mark_contacts(data)
+        self.warning.hypotheses.check_plan(self.predictor, self.physics_step)
         if self.bound_checks is not None:
             broke = self.bound_checks.update(self.model, data)
-            broke = governing_violations(self.predictor._rt, broke)  # a plan's, under one
             if broke.size:
                 self.last_violation[broke] = self.physics_step
                 self.violations += int(broke.size)
@@ -449,13 +440,13 @@ class Monitor:
                 self.inactive_contacts += 1
                 continue
             self.onsets += 1
-            broke = int(self.last_violation[self._gp_body[g]].max())
+            live = members[sched.active[members]]
+            broke = self.warning.hypotheses.broke(g, None if self._standing[g] > 0 else live)
             if self._standing[g] > 0:
                 self.predicted += 1
                 self._episode_touch[g] = True
                 self.warning.onset(g, self.physics_step, broke)
                 continue
-            live = members[sched.active[members]]
             last = int(sched.last_step_of(live).min())
             window_start = self._pred_steps[last]
             held = broke <= window_start if self.bound_checks else False
@@ -491,110 +482,3 @@ class Monitor:
         self._pending_touch = self._pending_touch[:0]
         still_open = np.flatnonzero(self._standing > 0)
         self.false_episodes += int((~self._episode_touch[still_open]).sum())
-
-
-def run(
-    model: mujoco.MjModel,
-    data: mujoco.MjData,
-    predictor: Predictor,
-    *,
-    steps: int,
-    controller: Controller | None = None,
-    scene: str = "",
-    realtime: bool = False,
-    geom_distance: bool = False,
-    progress: bool = True,
-    on_step: Callable[[int, mujoco.MjData, Alarms | None, Monitor], None] | None = None,
-    series: bool = True,
-    warning_horizon: float | None = None,
-) -> RunReport:
-    """Roll out ``steps`` physics steps with prediction and the exact stage.
-
-    The first ``mj_step`` brings ``data`` to a consistent state (kinematics and contacts of one
-    instant); the predictor is reset there and stepped every ``predictor.period`` steps after.
-    Memory does not grow with ``steps`` except for the per-step series (``series``, 12 bytes a
-    predictor step) and the misses.
-
-    Args:
-        model: The model.
-        data: The data, at the start state (e.g. after ``load_scene``).
-        predictor: The predictor (built for ``model``).
-        steps: Physics steps after the reset.
-        controller: ``controller(model, data)`` called before each ``mj_step``.
-        scene: Name recorded in the report.
-        realtime: Count deadline overruns (see ``Monitor``).
-        geom_distance: Measure alarmed pairs with ``mj_geomDistance`` (see ``Monitor``).
-        progress: Draw a progress bar on stderr.
-        on_step: Called after each physics step with ``(k, data, alarms or None, monitor)``.
-        series: Record the alarm count and minimum tau of every predictor step in the report
-            (``alarms_per_step``, ``min_tau_per_step``); False keeps memory flat.
-        warning_horizon: The horizon (s) the leads and the oracle are measured against; None
-            for the predictor's own alarm horizon (see ``Monitor``).
-
-    Raises:
-        RunInterrupted: On a ``KeyboardInterrupt`` during the rollout (Ctrl-C, or raised by the
-            controller or ``on_step``), with the report of the steps observed until then.
-    """
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise InvalidInputError(f"steps = {steps!r} is invalid: pass an int >= 1 (physics steps).")
-    if model is not predictor.model and not same_geometry(model, predictor.model):
-        raise InvalidInputError(
-            "the predictor was built for another MjModel: pass the model it was built for "
-            "(Predictor(model, ...)), or build a Predictor for this one."
-        )
-    predictor.check_data(data)  # before the controller writes into it
-    monitor = Monitor(
-        predictor,
-        realtime=realtime,
-        geom_distance=geom_distance,
-        series=series,
-        warning_horizon=warning_horizon,
-    )
-    if controller is not None:
-        controller(model, data)
-    mujoco.mj_step(model, data)
-    monitor.start(data)
-    period = predictor.period
-    t_mj = Durations()
-    t_pred = Durations()
-    warned = False
-    try:
-        with Progress(steps, scene or "run", enabled=progress) as bar:
-            for k in range(1, steps + 1):
-                if controller is not None:
-                    controller(model, data)
-                t0 = time.perf_counter()
-                mujoco.mj_step(model, data)
-                t1 = time.perf_counter()
-                t_mj.add(t1 - t0)
-                alarms = None
-                if k % period == 0:
-                    t2 = time.perf_counter()
-                    alarms = predictor.step(data)
-                    dt = time.perf_counter() - t2
-                    t_pred.add(dt)
-                    if realtime and dt > predictor.dt:
-                        monitor.overruns += 1
-                        if not warned:
-                            warnings.warn(
-                                f"predictor step took {dt * 1e6:.0f} us > period "
-                                f"{predictor.dt * 1e6:.0f} "
-                                "us: the predictor cannot keep up, completeness is not "
-                                "guaranteed.",
-                                DeadlineOverrunWarning,
-                                stacklevel=2,
-                            )
-                            warned = True
-                monitor.observe(data, alarms)
-                if on_step is not None:
-                    on_step(k, data, alarms, monitor)
-                bar.update(
-                    note=f"alarms {0 if alarms is None else len(alarms)} "
-                    f"missed {len(monitor.misses)}"
-                )
-    except KeyboardInterrupt as exc:
-        monitor.finish()
-        report = build_report(monitor, scene, realtime, t_mj, t_pred, interrupted=True)
-        raise RunInterrupted(report) from exc
-    monitor.finish()
-    return build_report(monitor, scene, realtime, t_mj, t_pred, interrupted=False)
