@@ -540,3 +540,37 @@ def test_the_carried_witness_direction_clears_without_a_query() -> None:
     turned = p._rt.exact_records[0, X_N : X_N + 3]
     angle = float(np.arccos(min(1.0, abs(turned @ kept))))
     assert abs(angle - 8.0 * p.dt) < 1e-3  # the faces' turn, not the world's fixed direction
+
+
+def test_a_pair_leaving_fast_is_asked_and_cleared() -> None:
+    """Two flat boxes face to face, each turning in place about the vertical at 8 rad/s (the
+    level bounds that by |w| r, 8.7 mm over the horizon of one step), B leaving at 2 m/s: 7 mm
+    apart after one step. The kept direction (fixed in the world) sees the tilted faces overlap,
+    and the witness points' distance now is within what the turning could close in the horizon;
+    only B's leaving over the horizon (the r H of the test, 4 mm) leaves a direction that clears.
+    MuJoCo is asked, and its direction (the faces' normal) clears the alarm, as the reference's
+    does: a test that dropped the pair's motion over the horizon would not ask, and leave the
+    pair in alarm."""
+    model = _model("box", "box")
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    w = np.array([0.0, 0.0, 8.0])
+    still = {"v": np.zeros(3), "a": np.zeros(3), "q": quat, "w": w}
+    leave = np.array([0.0, 2.0, 0.0])
+    draw = {
+        2: {**still, "p": np.array([0.0, 0.0, 1.0])},
+        # Faces at y = +-0.1 of each centre: 3 mm apart at the reset, 7 mm after one step.
+        1: {**still, "p": np.array([0.0, 0.203, 1.0]), "v": leave},
+    }
+    motion = Motion(model, draw)
+    p = _predictor(model, motion)
+    assert p.exact is not None
+    p.reset(motion.state(0.0))
+    asked = p._rt.exact_queries
+    assert asked == 1
+    data = motion.state(p.dt)
+    data.time = p.dt
+    p.step(data)
+    assert p.evaluations_per_step == 1
+    assert p._rt.exact_queries == asked + 1  # asked
+    assert not p.pair_state().alarm_state()[0]
+    assert reference_exact_tau(p, data, 0) > p.exact.query_below
