@@ -14,11 +14,13 @@ only inside ``mj_step`` (``--toggle-collect``), so Python's own work between ste
 counted, and its counts do not depend on the machine's load.
 
 The table splits the plugin's instructions a step by where they go, from each function's
-inclusive count (the native functions are separate symbols in the release build):
+inclusive count (the native functions are separate symbols in the release build, once installed
+with ``-C install.strip=false``: scikit-build-core strips the library it installs):
 
 * ``check``: the violation check of every body (``CheckBodies``, and the pairs it makes due);
 * ``select``/``reinsert``: the schedule (the deadline wheel);
-* ``gather``: each due pair's state read from MjData (``TauRows`` less the kernels);
+* ``gather``: each due pair's state read from MjData (``TauOf`` less the kernels and the exact
+  level);
 * ``sphere tau``: the tau kernels (spheres four at a time, planes, static shapes);
 * ``geomDistance``: MuJoCo's ``mj_geomDistance`` calls of the exact level;
 * ``axes``: the exact level's supports along a direction (``AxisTau``);
@@ -103,13 +105,18 @@ SECTIONS = (
     ("axes", ("AxisTau",)),
     ("exact rest", ("ExactPass", "ExactTau")),
     ("sphere tau", ("TauSpeedRows", "TauStatic", "TauHalfspace", "TauTerrainSphere")),
-    ("gather", ("TauRows<",)),
+    ("gather", ("::TauOf",)),
     ("check", ("dua_violation_pass", "CheckBodies", "dua_make_due")),
     ("select", ("dua_select",)),
     ("reinsert", ("dua_reinsert",)),
     ("fixed", ("lambda(mjModel_ const*, mjData_*, int, int)",)),
 )
 COMPUTE = SECTIONS[-1][1][0]
+# scikit-build-core strips the installed library: its internal functions are addresses then.
+STRIPPED = (
+    "the plugin's functions have no names in the profile (libdua_mujoco.so installed stripped): "
+    "reinstall with `pip install -e . --no-build-isolation --no-deps -C install.strip=false`"
+)
 HEADS = [name for name, _ in SECTIONS] + ["mujoco"]
 
 
@@ -179,13 +186,15 @@ def callgrind_sections(dump: Path, plain: Path, steps: int) -> dict[str, float]:
     out = {"geomDistance": _sum(incl, SECTIONS[0][1])}
     out["axes"] = _sum(incl, SECTIONS[1][1])
     out["exact rest"] = _sum(incl, ("ExactPass",)) - out["geomDistance"] - out["axes"]
-    kernels = sum(v for (a, b), v in edges.items() if "TauRows<" in a and _match(b, SECTIONS[3][1]))
+    kernels = sum(v for (a, b), v in edges.items() if "::TauOf" in a and _match(b, SECTIONS[3][1]))
     out["sphere tau"] = kernels
-    out["gather"] = _sum(incl, ("TauRows<",)) - kernels
+    out["gather"] = _sum(incl, SECTIONS[4][1]) - kernels - _sum(incl, ("ExactPass",))
     out["check"] = _sum(incl, ("dua_violation_pass",))
     out["select"] = _sum(incl, ("dua_select",))
     out["reinsert"] = _sum(incl, ("dua_reinsert",))
     compute = _sum(incl, (COMPUTE,))
+    if not compute:
+        raise RuntimeError(STRIPPED)
     out["fixed"] = compute - sum(out.values())
     out["mujoco"] = mj_step - mj_plain - compute
     out = {k: v / steps for k, v in out.items()}
@@ -230,6 +239,8 @@ def perf_sections(data: Path, plain: Path, steps: int) -> dict[str, float]:
                 out[name] += period
                 break
     compute = sum(out.values())
+    if not out["fixed"]:
+        raise RuntimeError(STRIPPED)
     out["mujoco"] = mj_step - mj_plain - compute
     out = {k: v * 1e-9 / steps for k, v in out.items()}
     out["mj_step_plain"] = mj_plain * 1e-9 / steps
