@@ -790,6 +790,67 @@ Out<int64_t> Ints(const std::vector<int64_t>& v) {
   return Owned(std::vector<int64_t>(v), {v.size()});
 }
 
+void BindMocap(nb::module_& m) {
+  auto mocap_id = [](const Mocap& s, int64_t i) {
+    Require(i >= 0 && i < Size(s.bodies), "mocap id " + std::to_string(i) +
+                                              " is out of range: the model has " +
+                                              std::to_string(s.bodies.size()) + " mocap bodies");
+  };
+  auto rows = [](const std::vector<double>& v) {
+    return Owned(std::vector<double>(v), {v.size() / 3, 3});
+  };
+  nb::class_<Mocap>(m, "Mocap",
+                    "The velocities of a model's mocap bodies, by mocap id: backward differences "
+                    "of their poses (mocap.h), or given.")
+      .def(
+          "__init__", [](Mocap* self, nb::handle model) { new (self) Mocap(ModelOf(model)); },
+          "model"_a)
+      .def(
+          "update",
+          [](Mocap& s, nb::handle data) {
+            const auto nbody = static_cast<int64_t>(s.twist.size() / 6);
+            Require(nb::cast<int64_t>(data.attr("xpos").attr("shape")[0]) == nbody,
+                    "data is not an MjData of the tracker's model (" + std::to_string(nbody) +
+                        " bodies): pass the MjData of the model it was made for");
+            s.Update(DataOf(data));
+          },
+          "data"_a,
+          "Difference the poses of data against the latest record (the first call records).")
+      .def("reset", &Mocap::Forget, "Forget the poses; differenced velocities zero.")
+      .def(
+          "set_velocity",
+          [mocap_id](Mocap& s, int64_t i, const In<double>& linear, const In<double>& angular) {
+            mocap_id(s, i);
+            Require(Size(linear) == 3 && Size(angular) == 3, "velocities are (3,)");
+            s.Set(i, linear.data(), angular.data());
+          },
+          "mocap"_a, "linear"_a, "angular"_a)
+      .def(
+          "clear_velocity",
+          [mocap_id](Mocap& s, int64_t i) {
+            mocap_id(s, i);
+            s.Clear(i);
+          },
+          "mocap"_a)
+      .def_prop_ro(
+          "bodies", [](const Mocap& s) { return Ints(s.bodies); }, nb::rv_policy::move,
+          "(nmocap,) the body of each mocap id.")
+      .def_prop_ro(
+          "linear", [rows](const Mocap& s) { return rows(s.linear); }, nb::rv_policy::move,
+          "(nmocap, 3) linear velocities of the bodies' origins (a copy).")
+      .def_prop_ro(
+          "angular", [rows](const Mocap& s) { return rows(s.angular); }, nb::rv_policy::move,
+          "(nmocap, 3) angular velocities (a copy).")
+      .def_prop_ro(
+          "twist",
+          [](nb::handle self) {
+            const Mocap& s = nb::cast<const Mocap&>(self);
+            return View(s.twist.data(), {s.twist.size() / 6, 6}, self);
+          },
+          "(nbody, 6) [angular; linear] of each mocap body's tree, zero elsewhere (a view).")
+      .def_ro("updates", &Mocap::updates, "Records since the last start (the start's included).");
+}
+
 void BindRuntime(nb::module_& m, nb::handle step_error) {
   nb::class_<Tables>(m, "Tables", "A model's predictor tables, checked against the model.")
       .def_static(
@@ -913,14 +974,6 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def("deactivate_contacts",
            [](PyRuntime& self) { return self.rt->DeactivateContacts(self.Data()); })
       .def(
-          "set_mocap_velocity",
-          [](PyRuntime& self, int64_t i, const In<double>& linear, const In<double>& angular) {
-            Require(i >= 0 && i < self.m->nmocap, "a mocap id is out of range");
-            Require(Size(linear) == 3 && Size(angular) == 3, "velocities are (3,)");
-            self.rt->SetMocapVelocity(i, linear.data(), angular.data());
-          },
-          "mocap"_a, "linear"_a, "angular"_a)
-      .def(
           "set_plan",
           [](PyRuntime& self, const In<double>& qpos, const In<double>& deviation, double start) {
             const int64_t nq = self.m->nq, nbody = self.m->nbody;
@@ -960,18 +1013,11 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "The bodies of the bound MjData's state beyond their deviation at its knot (None: no "
           "plan covers it); checks only.")
       .def(
-          "clear_mocap_velocity",
-          [](PyRuntime& self, int64_t i) {
-            Require(i >= 0 && i < self.m->nmocap, "a mocap id is out of range");
-            self.rt->ClearMocapVelocity(i);
-          },
-          "mocap"_a)
-      .def(
           "sphere_states",
           [](const PyRuntime& self, const In<int64_t>& ids) {
             const Tables& t = self.rt->tables();
             const int64_t n = Size(ids), nsphere = t.nsphere();
-            const dua_frame f = FrameOf(self.Data(), self.rt->root_twist().data());
+            const dua_frame f = FrameOf(self.Data(), self.rt->mocap().twist.data());
             std::vector<double> out(6 * static_cast<size_t>(n));
             for (int64_t k = 0; k < n; ++k) {
               const int64_t i = ids.data()[k];
@@ -1092,19 +1138,9 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def_prop_ro("violation_events", [](const PyRuntime& s) { return s.rt->violation_events(); })
       .def_prop_ro("rebuilds", [](const PyRuntime& s) { return s.rt->rebuilds(); })
       .def_prop_ro("renewals", [](const PyRuntime& s) { return s.rt->renewals(); })
-      .def_prop_ro("mocap_updates", [](const PyRuntime& s) { return s.rt->mocap_updates(); })
       .def_prop_ro(
           "anchor_steps", [](const PyRuntime& s) { return Ints(s.rt->anchor_steps()); },
           nb::rv_policy::move)
-      .def_prop_ro(
-          "mocap_velocity",
-          [](PyRuntime& s) {
-            const auto n = static_cast<size_t>(s.m->nmocap);
-            return nb::make_tuple(Owned(std::vector<double>(s.rt->mocap_linear()), {n, 3}),
-                                  Owned(std::vector<double>(s.rt->mocap_angular()), {n, 3}),
-                                  Owned(std::vector<uint8_t>(s.rt->mocap_user()), {n}));
-          },
-          "(linear (nmocap, 3), angular (nmocap, 3), given (nmocap,)): copies.")
       .def_prop_ro(
           "exact_records",
           [](const PyRuntime& s) {
@@ -1128,12 +1164,9 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "Pruned pairs: each sphere's anchor (n, 3), reach (n,), anchor step (n,), and the "
           "largest contact distance beyond the radii (copies).")
       .def_prop_ro(
-          "root_twist",
-          [](const PyRuntime& s) {
-            return Owned(std::vector<double>(s.rt->root_twist()),
-                         {static_cast<size_t>(s.m->nbody), 6});
-          },
-          nb::rv_policy::move);
+          "mocap", [](PyRuntime& s) -> Mocap& { return s.rt->mocap(); },
+          nb::rv_policy::reference_internal,
+          "The mocap bodies' velocities, differenced at each step (or given).");
 }
 
 }  // namespace
@@ -1230,29 +1263,6 @@ NB_MODULE(_core, m) {
   m.def("check_points", &CheckPoints, "points"_a, "pos"_a, "mat"_a, "twist"_a, "twist_ref"_a,
         "root_twist"_a, "root_origin"_a, "prev"_a, "cur"_a, "nprev"_a, "h"_a, "accel"_a, "disc"_a,
         "speed"_a, "check_disc"_a, "rtol"_a, "values"_a, "broken"_a);
-  m.def(
-      "difference_poses",
-      [](nb::handle data, const In<int64_t>& bodies, InOut<double> prev_pos,
-         InOut<double> prev_quat, double dt, const In<uint8_t>& user, InOut<double> linear,
-         InOut<double> angular, InOut<double> twist, nb::handle model) {
-        const mjModel* mm = ModelOf(model);
-        const int64_t n = Size(bodies);
-        for (int64_t i = 0; i < n; ++i) {
-          Require(bodies.data()[i] >= 0 && bodies.data()[i] < mm->nbody, "a body is out of range");
-        }
-        Require(static_cast<int64_t>(prev_pos.size()) == 3 * n &&
-                    static_cast<int64_t>(prev_quat.size()) == 4 * n && Size(user) == n &&
-                    static_cast<int64_t>(linear.size()) == 3 * n &&
-                    static_cast<int64_t>(angular.size()) == 3 * n &&
-                    (twist.size() == 0 || static_cast<int64_t>(twist.size()) == 6 * mm->nbody),
-                "the mocap arrays do not fit the bodies");
-        const mjData* d = DataOf(data);
-        dua_difference_poses(d->xpos, d->xquat, bodies.data(), n, prev_pos.data(), prev_quat.data(),
-                             dt, user.data(), linear.data(), angular.data(), twist.data(),
-                             static_cast<int64_t>(twist.size() / 6));
-      },
-      "data"_a, "bodies"_a, "prev_pos"_a, "prev_quat"_a, "dt"_a, "user"_a, "linear"_a, "angular"_a,
-      "twist"_a, "model"_a);
   m.def(
       "index_by_row",
       [](const In<int64_t>& row_of_geom, const In<int64_t>& g1, const In<int64_t>& g2,
@@ -1383,6 +1393,7 @@ NB_MODULE(_core, m) {
   nb::object step_error =
       nb::steal(PyErr_NewException("dua_mujoco._core.StepError", PyExc_RuntimeError, nullptr));
   m.attr("StepError") = step_error;
+  BindMocap(m);
   BindRuntime(m, step_error);
   BindCore(m);
 }
