@@ -129,6 +129,15 @@ class Schedule:
 
     def horizon_of(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
 
+    def next_due(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:
+        """
+        The step each pair is next evaluated at (-1: a deadline pair switched off).
+        """
+
+    @property
+    def intervals(self) -> NDArray[numpy.int64]:
+        """The rank schedule's revisit interval of each bucket, steps."""
+
     @property
     def kind(self) -> int: ...
 

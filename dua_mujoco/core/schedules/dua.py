@@ -96,10 +96,9 @@ class DUAScheduler(Scheduler, kind=RANK):
         params = self.state.params
         self.nbuckets = int(params[P_NBUCKETS])
         self.slots_per_bucket = q = int(params[P_SLOTS_PER_BUCKET])
-        sizes = 1 << np.arange(self.nbuckets)
-        self.interval = np.maximum(1, sizes // q).astype(np.int64)
+        self.interval = np.asarray(self.core.intervals)
         self.horizon = self.state.horizon  # the live alarm rule (the kernels read it)
-        self._width = int(np.minimum(sizes, q).sum())
+        self._width = int(np.minimum(1 << np.arange(self.nbuckets), q).sum())
 
     # ----------------------------------------------------------------------- introspection
 
@@ -113,29 +112,6 @@ class DUAScheduler(Scheduler, kind=RANK):
     def where(self) -> np.ndarray:
         """``(M,)`` the slot of each pair."""
         return self.state.ints[WHERE]
-
-    @staticmethod
-    def bucket_of_slot(slot: npt.ArrayLike) -> np.ndarray:
-        """Bucket index ``floor(log2(slot + 1))`` of slot indices."""
-        s = np.asarray(slot, dtype=np.int64)
-        return np.asarray(np.floor(np.log2(s + 1.0)).astype(np.int64))
-
-    def bucket(self, pair: npt.ArrayLike) -> np.ndarray:
-        """Bucket index of each pair, shape like ``pair``."""
-        return self.bucket_of_slot(self.where[np.asarray(pair)])
-
-    def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
-        """Step at which each pair is next evaluated (if it stays switched on)."""
-        slot = self.where[np.asarray(pair)]
-        k = self.bucket_of_slot(slot)
-        offset = slot - ((1 << k) - 1)
-        interval = self.interval[k]
-        q = self.slots_per_bucket
-        size = 1 << k
-        # Slot o of bucket k is handed out at the steps n with (n q) mod size == o - o mod q.
-        phase = np.where(size <= q, 0, (offset - offset % q) // np.maximum(q, 1))
-        n = self.step_count + 1
-        return np.asarray(n + (phase - n) % interval)
 
     def most_urgent(self) -> int:
         """The pair DUA believes most urgent: the occupant of bucket 0 (paper sec. 8.1.4).

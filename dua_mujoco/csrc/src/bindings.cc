@@ -617,6 +617,23 @@ void BindSchedule(nb::module_& m) {
             return Owned(std::move(out), {static_cast<size_t>(Size(ids))});
           },
           "ids"_a)
+      .def(
+          "next_due",
+          [](const Schedule& s, const In<int64_t>& ids) {
+            CheckIds(s, ids);
+            std::vector<int64_t> out(Size(ids));
+            for (int64_t k = 0; k < Size(ids); ++k) out[k] = s.NextDue(ids.data()[k]);
+            return Ints(out);
+          },
+          "ids"_a, "The step each pair is next evaluated at (-1: a deadline pair switched off).")
+      .def_prop_ro(
+          "intervals",
+          [](const Schedule& s) {
+            std::vector<int64_t> out(s.spec().kind == kRank ? s.horizon.size() : 0);
+            for (size_t k = 0; k < out.size(); ++k) out[k] = s.Interval(static_cast<int64_t>(k));
+            return Ints(out);
+          },
+          nb::rv_policy::move, "The rank schedule's revisit interval of each bucket, steps.")
       .def_prop_ro("kind", [](const Schedule& s) { return s.spec().kind; })
       .def_prop_ro("dt", [](const Schedule& s) { return s.spec().dt; })
       .def_prop_ro("latency", [](const Schedule& s) { return s.spec().latency; })
@@ -785,10 +802,6 @@ struct PyRuntime {
     throw nb::python_error();
   }
 };
-
-Out<int64_t> Ints(const std::vector<int64_t>& v) {
-  return Owned(std::vector<int64_t>(v), {v.size()});
-}
 
 void BindMocap(nb::module_& m) {
   auto mocap_id = [](const Mocap& s, int64_t i) {

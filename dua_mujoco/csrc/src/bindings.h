@@ -37,6 +37,11 @@ Out<T> Owned(std::vector<T> v, std::vector<size_t> shape) {
   return Out<T>(held->data(), shape.size(), shape.data(), owner);
 }
 
+// A numpy array that owns a copy of v.
+inline Out<int64_t> Ints(const std::vector<int64_t>& v) {
+  return Owned(std::vector<int64_t>(v), {v.size()});
+}
+
 // A bool array that owns v (0/1 bytes: numpy's bool).
 inline Out<bool> OwnedBools(std::vector<uint8_t> v) {
   const size_t shape[1] = {v.size()};

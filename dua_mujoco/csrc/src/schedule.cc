@@ -533,8 +533,7 @@ void Schedule::Size(int64_t m) {
     for (int64_t k = 0; k < nbuckets; ++k) {
       const int64_t size = int64_t{1} << k;
       width += std::min(s.slots_per_bucket, size);
-      const int64_t interval = std::max<int64_t>(1, size / s.slots_per_bucket);
-      horizon[k] = static_cast<double>(interval + s.latency) * s.dt + Extra();
+      horizon[k] = static_cast<double>(Interval(k) + s.latency) * s.dt + Extra();
     }
     width += std::min(m, kSpare);
     params[kParamNBuckets] = nbuckets;
@@ -637,6 +636,17 @@ double Schedule::HorizonOf(int64_t p) const {
     return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();
   }
   return horizon[0];
+}
+
+int64_t Schedule::NextDue(int64_t p) const {
+  const int64_t n = step_count + 1, where = ints[kIntWhere * m() + p];
+  if (spec_.kind == kDeadline) return where;
+  if (spec_.kind != kRank) return n;
+  // RankSelect hands out slot o of bucket k at the steps n with (n q) mod 2^k == o - o mod q.
+  const int64_t k = BucketOf(where), size = int64_t{1} << k, q = spec_.slots_per_bucket;
+  const int64_t offset = where - (size - 1), interval = Interval(k);
+  const int64_t phase = size <= q ? 0 : (offset - offset % q) / q;
+  return n + ((phase - n) % interval + interval) % interval;
 }
 
 bool Schedule::Stands(int64_t p) const { return active[p] && last_tau[p] <= HorizonOf(p); }

@@ -5,6 +5,7 @@
 #ifndef DUA_MUJOCO_SCHEDULE_H_
 #define DUA_MUJOCO_SCHEDULE_H_
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -62,6 +63,13 @@ class DUA_API Schedule {
   bool Stands(int64_t p) const;
   // The time pair p's latest verdict must cover (seconds; -inf: switched off, nothing).
   double HorizonOf(int64_t p) const;
+  // The step pair p is next evaluated at, if it stays switched on (a deadline pair switched off:
+  // -1).
+  int64_t NextDue(int64_t p) const;
+  // The rank schedule's revisit interval of bucket k, in steps: its 2^k slots, q a step.
+  int64_t Interval(int64_t k) const {
+    return std::max<int64_t>(1, (int64_t{1} << k) / spec_.slots_per_bucket);
+  }
   // The alarm horizon beyond one period (seconds, 0 by default).
   double Extra() const;
   // New pair k is old pair src[k] (its verdict carried) or new (src[k] < 0: it stands in alarm,
