@@ -250,7 +250,7 @@ def test_protocol_errors() -> None:
         ({"dt": True}, InvalidInputError, "dt = True"),
         ({"dt": float("nan")}, InvalidInputError, "dt = nan"),
         ({"dt": 0.1, "latency": -1}, InvalidInputError, "latency = -1"),
-        ({"dt": 0.1, "slots_per_bucket": 3}, InvalidChoiceError, "Valid choices: 1, 2, 4"),
+        ({"dt": 0.1, "slots_per_bucket": 3}, InvalidInputError, r"a power of two \(1, 2, 4"),
     ],
 )
 def test_bad_construction(kwargs: dict, error: type[Exception], match: str) -> None:

@@ -55,6 +55,7 @@ from dua_mujoco.build.multicover import (
     mesh_vertices,
     union_volume,
 )
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import (
     InvalidChoiceError,
     InvalidInputError,
@@ -413,15 +414,7 @@ def cover_model(
             STATIC_CHOICES,
             'Use "shape" for static geoms as their own shapes, "sphere" for bounding spheres.',
         )
-    if (
-        isinstance(max_spheres_per_geom, bool)
-        or not isinstance(max_spheres_per_geom, int | np.integer)
-        or int(max_spheres_per_geom) < 1
-    ):
-        raise InvalidInputError(
-            f"max_spheres_per_geom must be an int >= 1, got {max_spheres_per_geom!r}."
-        )
-    budget = int(max_spheres_per_geom)
+    budget = check_int("max_spheres_per_geom", max_spheres_per_geom)
 
     ngeom = int(model.ngeom)
     gtypes = np.asarray(model.geom_type, dtype=np.int64)

@@ -23,33 +23,15 @@ import numpy.typing as npt
 import dua_mujoco._core as _core
 from dua_mujoco.core.schedules.base import Scheduler, active_mask
 from dua_mujoco.core.schedules.state import P_NBUCKETS, P_SLOTS_PER_BUCKET, RANK, WHERE
-from dua_mujoco.core.validate import check_period, check_urgencies
-from dua_mujoco.exceptions import InvalidChoiceError
+from dua_mujoco.core.validate import check_int, check_period, check_urgencies
 
-__all__ = ["DUAScheduler", "bucket_layout", "check_slots_per_bucket"]
+__all__ = ["DUAScheduler", "bucket_layout"]
 
 
 def bucket_layout(npairs: int) -> tuple[int, int]:
     """Number of buckets ``L`` and of slots ``2**L - 1`` for ``npairs`` pairs."""
     nbuckets = max(1, math.ceil(math.log2(npairs + 1)))
     return nbuckets, (1 << nbuckets) - 1
-
-
-def check_slots_per_bucket(q: object) -> int:
-    """The budget knob: a power of two (so that every revisit interval is exact)."""
-    if (
-        isinstance(q, bool)
-        or not isinstance(q, int | np.integer)
-        or q < 1
-        or (int(q) & (int(q) - 1)) != 0
-    ):
-        raise InvalidChoiceError(
-            "slots_per_bucket",
-            q,
-            [1, 2, 4, 8, 16, 32, 64],
-            hint="It must be a power of two so that every revisit interval is exact.",
-        )
-    return int(q)
 
 
 class DUAScheduler(Scheduler, kind=RANK):
@@ -82,7 +64,7 @@ class DUAScheduler(Scheduler, kind=RANK):
     ) -> None:
         tau = check_urgencies("tau0", tau0)
         dt, latency = check_period(dt, latency)
-        q = check_slots_per_bucket(slots_per_bucket)
+        q = check_int("slots_per_bucket", slots_per_bucket)  # a power of two: the native check
         # The initial classification: a partial sort at the bucket boundaries (paper eq. 23),
         # the pairs standing in alarm marked in their slots (-2 - pair).
         schedule = _core.Schedule(

@@ -494,7 +494,7 @@ ScheduleSpec SpecOf(int64_t kind, double dt, int64_t latency, int64_t slots_per_
   s.cap = cap, s.max_interval = max_interval, s.backoff = backoff, s.threshold = threshold;
   s.alarm_horizon = alarm_horizon;
   const std::string bad = s.Check();
-  Require(bad.empty(), "invalid schedule option: " + bad);
+  if (!bad.empty()) Raise("InvalidInputError", bad + ".");
   return s;
 }
 

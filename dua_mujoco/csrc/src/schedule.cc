@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -497,23 +498,40 @@ int64_t BitLength(int64_t v) {
 }  // namespace
 
 std::string ScheduleSpec::Check() const {
+  auto num = [](double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", v);
+    return std::string(text);
+  };
+  auto bad = [](const std::string& name, const std::string& value, const std::string& fix) {
+    return name + " = " + value + " is invalid: " + fix;
+  };
   if (kind != kRank && kind != kDeadline && kind != kAll) {
-    return "the schedule's kind (0 rank, 1 deadline, 2 select-all)";
+    return bad("the schedule's kind", std::to_string(kind), "0 (rank), 1 (deadline), 2 (all)");
   }
-  if (!(dt > 0.0) || !std::isfinite(dt)) return "the period dt (finite, > 0)";
-  if (latency < 0 || latency > (int64_t{1} << 40)) return "the latency (an int >= 0)";
+  if (!(dt > 0.0) || !std::isfinite(dt)) {
+    return bad("the period dt", num(dt), "a finite number of seconds > 0");
+  }
+  if (latency < 0 || latency > (int64_t{1} << 40)) {
+    return bad("latency", std::to_string(latency), "an int >= 0 (periods a verdict takes to act)");
+  }
   if (slots_per_bucket < 1 || (slots_per_bucket & (slots_per_bucket - 1)) != 0 ||
       slots_per_bucket > (int64_t{1} << 40)) {
-    return "slots_per_bucket (a power of two >= 1)";
+    return bad("slots_per_bucket", std::to_string(slots_per_bucket),
+               "a power of two (1, 2, 4, 8, ...), so that every revisit interval is exact");
   }
-  if (cap < 0) return "the evaluation cap (an int >= 0, 0: none)";
+  if (cap < 0) return bad("the evaluation cap", std::to_string(cap), "an int >= 0 (0: none)");
   if (max_interval < 1 || max_interval > (int64_t{1} << 30)) {
-    return "max_interval (an int in [1, 2^30])";
+    return bad("max_interval", std::to_string(max_interval), "an int in [1, 2^30] (steps)");
   }
-  if (backoff < 1) return "alarm_backoff (an int >= 1)";
-  if (std::isnan(threshold)) return "the select-all threshold (not NaN)";
+  if (backoff < 1) {
+    return bad("alarm_backoff", std::to_string(backoff),
+               "an int >= 1 (steps; 1 re-evaluates alarmed pairs every step)");
+  }
+  if (std::isnan(threshold)) return bad("the select-all threshold", "NaN", "a number");
   if (!(alarm_horizon == 0.0 || (alarm_horizon >= dt && std::isfinite(alarm_horizon)))) {
-    return "the alarm horizon (0 for one period, or seconds >= the period)";
+    return bad("alarm_horizon", num(alarm_horizon),
+               "seconds of warning, at least one period (" + num(dt) + " s), or 0 for one period");
   }
   return "";
 }

@@ -33,7 +33,8 @@ struct DUA_API ScheduleSpec {
   // until the next one plus this less one period.
   double alarm_horizon = 0.0;
 
-  // An empty string, or what is wrong (names the option and its valid values).
+  // An empty string, or what is wrong: the option, its value and the values it takes (the one
+  // check of a schedule's options: the plugin's tables and the binding's schedules).
   std::string Check() const;
 };
 
