@@ -161,9 +161,10 @@ std::pair<Out<double>, int64_t> TauFree(const In<double>& pairs, const In<int64_
                     ((kind == kKindSphere && r[kPairSecond] >= 0 && r[kPairSecond] < nsphere) ||
                      (kind == kKindHalfspace && r[kPairSecond] >= 0 && r[kPairSecond] < nplane) ||
                      (kind == kKindShape && r[kPairOther] >= 0 && r[kPairOther] < nshape));
-    Require(ok, "pair record " + std::to_string(p) +
-                    " indexes outside the spheres, planes or "
-                    "shapes given");
+    if (!ok) {
+      Require(false, "pair record " + std::to_string(p) +
+                         " indexes outside the spheres, planes or shapes given");
+    }
   }
   for (int64_t k = 0; k < n; ++k) {
     Require(ids.data()[k] >= 0 && ids.data()[k] < m, "a pair id is out of range");
@@ -194,10 +195,13 @@ dua_frame FrameOfArrays(const In<double>& pos, const In<double>& mat, const In<d
     const double* r = points.data() + kSphereNcol * i;
     const bool ok = r[kSphereFrame] >= 0 && r[kSphereFrame] < ngeom && r[kSphereBody] >= 0 &&
                     r[kSphereBody] < nbody && r[kSphereRoot] >= 0 && r[kSphereRoot] < nbody;
-    Require(ok, "the sphere records reference frame " + std::to_string(r[kSphereFrame]) +
-                    " and body " + std::to_string(r[kSphereBody]) + " but the data has " +
-                    std::to_string(ngeom) + " frames and " + std::to_string(nbody) +
-                    " bodies: pass the MjData of the model the spheres were built for");
+    // The message is made only for a bad record (made for each, it took 1 us a point).
+    if (!ok) {
+      Require(false, "the sphere records reference frame " + std::to_string(r[kSphereFrame]) +
+                         " and body " + std::to_string(r[kSphereBody]) + " but the data has " +
+                         std::to_string(ngeom) + " frames and " + std::to_string(nbody) +
+                         " bodies: pass the MjData of the model the spheres were built for");
+    }
   }
   return {pos.data(),       mat.data(),        twist.data(),
           twist_ref.data(), root_twist.data(), root_origin.data()};
@@ -212,7 +216,9 @@ Out<double> RigidPoints(const In<double>& points, const In<double>& pos, const I
   std::vector<double> out(6 * static_cast<size_t>(n));
   for (int64_t k = 0; k < n; ++k) {
     const int64_t i = ids.data()[k];
-    Require(i >= 0 && i < npoint, "sphere ids must lie in [0, " + std::to_string(npoint) + ")");
+    if (i < 0 || i >= npoint) {
+      Require(false, "sphere ids must lie in [0, " + std::to_string(npoint) + ")");
+    }
     dua_rigid_point(i, points.data(), &f, out.data() + 6 * k);
   }
   return Owned(std::move(out), {static_cast<size_t>(n), 6});
