@@ -34,6 +34,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.build.geom_types import (
+    CONVEX_TYPES,
     GEOM_BOX,
     GEOM_CAPSULE,
     GEOM_CYLINDER,
@@ -81,7 +82,6 @@ grid), every height field covered by its bounding box, or refused."""
 STATIC_CHOICES = ("shape", "sphere")
 """``cover_model``'s ``static`` option: static geoms as their own shapes, or as spheres."""
 # Geom types tau_static holds exactly (meshes by the box around their hull).
-_SHAPE_TYPES = (GEOM_SPHERE, GEOM_CAPSULE, GEOM_ELLIPSOID, GEOM_CYLINDER, GEOM_BOX, GEOM_MESH)
 
 
 class CoveringMode(enum.Enum):
@@ -221,7 +221,7 @@ def static_shape_geoms(model: mujoco.MjModel) -> np.ndarray:
     Returns:
         ``(ngeom,)`` bool.
     """
-    return _static_geoms(model) & np.isin(np.asarray(model.geom_type, dtype=np.int64), _SHAPE_TYPES)
+    return _static_geoms(model) & np.isin(np.asarray(model.geom_type, dtype=np.int64), CONVEX_TYPES)
 
 
 def _static_geoms(model: mujoco.MjModel) -> np.ndarray:
