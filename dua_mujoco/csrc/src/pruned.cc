@@ -1,5 +1,5 @@
-// The plugin's pruned pairs (pruned.h): the held set chosen from the spheres' reaches, as
-// dua_mujoco/build/pruning.py's HeldPairs chooses it, on the same native kernels.
+// A runtime's pruned pairs (pruned.h): the held set chosen from the spheres' reaches, for the
+// plugin and the Python Predictor alike (dua_mujoco/build/pruning.py gives the reach's tables).
 #include "pruned.h"
 
 #include <algorithm>
@@ -52,8 +52,8 @@ std::string PrunedTables::Build(const std::vector<double>& reach_table,
 
 void PrunedState::Known(const LearnTables& learn, Universe* u, int64_t k,
                         std::vector<int64_t>* ids) {
-  // As HeldPairs._known: look the candidates up; learn the geom pairs of those the universe
-  // lacks (MuJoCo's filter decides), then look them up again.
+  // Look the candidates up; learn the geom pairs of those the universe lacks (MuJoCo's filter
+  // decides), then look them up again.
   std::vector<int64_t> unknown;
   const size_t at = ids->size();
   u->Lookup(cand.data(), k, ids, &unknown);

@@ -1,7 +1,7 @@
-// The plugin's pruned pairs: which of the model's pairs are held, chosen by the candidate grid
-// (grid.cc) from every sphere's reach at a rebuild, and renewed for the spheres the escape check
-// (reach.cc) finds outside their reach, as dua_mujoco/build/pruning.py's HeldPairs does for the
-// Python predictor (docs/many-objects.md).
+// A runtime's pruned pairs (the plugin's and the Python Predictor's): which of the model's pairs
+// are held, chosen by the candidate grid (grid.cc) from every sphere's reach at a rebuild, and
+// renewed for the spheres the escape check (reach.cc) finds outside their reach
+// (docs/many-objects.md).
 #ifndef DUA_MUJOCO_PRUNED_H_
 #define DUA_MUJOCO_PRUNED_H_
 
