@@ -284,16 +284,23 @@ def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None
     from dua_mujoco.exceptions import InvalidInputError
 
     spec = mujoco.MjSpec.from_string(_SLIDES)
-    attach(spec, accel=30.0, pairs="all")
+    # A horizon over which the bounds alone reach from one slide to the other: pairs stand.
+    attach(spec, accel=30.0, pairs="all", alarm_horizon=0.2)
     m = spec.compile()
     d = mujoco.MjData(m)
     mujoco.mj_step(m, d)
     n = 20
     q, dev = np.tile(d.qpos, (n, 1)), np.full((n, m.nbody), 0.01)
+    none = np.zeros(0)
+
+    def set_plan(q: np.ndarray, dev: np.ndarray, start: float) -> int:
+        return int(
+            _core.plugin_set_plan(m, d, 0, q, dev, start, none.astype(np.uint8), none, none)[0]
+        )
 
     def refusal(q: np.ndarray, dev: np.ndarray, start: float) -> str:
         with pytest.raises(InvalidInputError) as err:
-            _core.plugin_set_plan(m, d, 0, q, dev, start)
+            set_plan(q, dev, start)
         return str(err.value)
 
     bad_q = q.copy()
@@ -310,12 +317,14 @@ def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None
     # Accepted: huge deviations, and the outer body planned 1e308 away (finite, far off).
     far = q.copy()
     far[:, 0] = 1e308
-    assert _core.plugin_set_plan(m, d, 0, far, np.full((n, m.nbody), 1e308), d.time) == 0
+    assert set_plan(far, np.full((n, m.nbody), 1e308), d.time) == 0
     reference = mujoco.MjData(m)
     mujoco.mj_step(m, reference)
+    stood = 0
     for _ in range(n - 2):
         mujoco.mj_step(m, d)
         mujoco.mj_step(m, reference)
-        assert {tuple(g) for g in standing_pairs(m, reference)} <= {
-            tuple(g) for g in standing_pairs(m, d)
-        }
+        want = {tuple(g) for g in standing_pairs(m, reference)}
+        assert want <= {tuple(g) for g in standing_pairs(m, d)}
+        stood += len(want)
+    assert stood > 0  # the reference stands pairs: the comparison can fail

@@ -88,11 +88,6 @@ inline const mjData* DataOf(nb::handle data) {
   return reinterpret_cast<const mjData*>(nb::cast<uintptr_t>(data.attr("_address")));
 }
 
-// The instant an MjData describes, as the kinematics kernel reads it.
-inline dua_frame FrameOf(const mjData* d, const double* root_twist) {
-  return {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist, d->xpos};
-}
-
 // Registers what dua_mujoco.core needs beyond bindings.cc (bindings_core.cc); called last.
 void BindCore(nb::module_& m);
 

@@ -47,14 +47,15 @@ void dua_difference_poses(const double* xpos, const double* xquat, const int64_t
 
 namespace dua {
 
-Mocap::Mocap(const mjModel* m)
-    : bodies(m->nmocap, -1),
-      pos(3 * static_cast<size_t>(m->nmocap), 0.0),
-      quat(4 * static_cast<size_t>(m->nmocap), 0.0),
-      linear(3 * static_cast<size_t>(m->nmocap), 0.0),
-      angular(3 * static_cast<size_t>(m->nmocap), 0.0),
-      twist(6 * static_cast<size_t>(m->nbody), 0.0),
-      user(m->nmocap, 0) {
+Mocap::Mocap(const mjModel* m) {
+  if (!m) return;  // free spheres: no model, no mocap bodies
+  bodies.assign(m->nmocap, -1);
+  pos.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
+  quat.assign(4 * static_cast<size_t>(m->nmocap), 0.0);
+  linear.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
+  angular.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
+  twist.assign(6 * static_cast<size_t>(m->nbody), 0.0);
+  user.assign(m->nmocap, 0);
   for (int b = 0; b < m->nbody; ++b) {
     if (m->body_mocapid[b] >= 0) bodies[m->body_mocapid[b]] = b;
   }

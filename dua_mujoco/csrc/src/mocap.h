@@ -16,7 +16,7 @@ namespace dua {
 // (backward differences, or the user's), and the twists [angular; linear] the kinematics kernel
 // adds to every point of their trees (dua_frame::root_twist, (nbody, 6), zero elsewhere).
 struct DUA_API Mocap {
-  explicit Mocap(const mjModel* m);
+  explicit Mocap(const mjModel* m);  // m null: none (free spheres)
 
   // A new trajectory starts at d: its poses recorded, differenced velocities zero until the next
   // Difference, given ones kept.
@@ -41,6 +41,11 @@ struct DUA_API Mocap {
  private:
   void WriteTwist();
 };
+
+// The instant an MjData describes, as the kinematics kernel reads it (root_twist: Mocap::twist).
+inline dua_frame FrameOf(const mjData* d, const double* root_twist) {
+  return {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist, d->xpos};
+}
 
 }  // namespace dua
 

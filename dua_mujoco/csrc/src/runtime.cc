@@ -16,6 +16,9 @@ namespace dua {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Most rows of the gather scratch (12 doubles each: 384 KB). A row a held pair took 96 bytes a
+// pair, 48 MB for the half million pairs of 1,000 free spheres.
+constexpr int64_t kScratchRows = 4096;
 
 std::vector<int64_t> Iota(int64_t n) {
   std::vector<int64_t> v(static_cast<size_t>(n));
@@ -35,14 +38,32 @@ Runtime::Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t
   const Tables& t = *tables_;
   const int64_t n = t.universe.npair();
   if (t.pruned) pruned_.Allocate(t.held), own_ = t.universe;
+  // Nothing outside mirrors a free runtime's pair ids: it forgets as the plugin does.
+  if (t.free) forget_after_ = kForgetDefault;
   on_.assign(n, 1);
   gp_count_.assign(t.universe.ngp(), 0);
   exact_records_ = t.universe.exact;
   events_prev_.assign(EventStateLen(t.nbody_events), 0.0);
   events_meta_.assign(3, 0);
   events_flagged_.assign(std::max<int64_t>(t.nbody_events, 1), 0);
-  point_state_.assign(6 * static_cast<size_t>(t.nsphere()), 0.0);
-  point_epoch_.assign(t.nsphere(), -1);
+  // Free spheres (no model): the caller's states are read as they are, nothing memoised.
+  const int nbody = m ? m->nbody : 0;
+  if (!t.free) {
+    point_state_.assign(6 * static_cast<size_t>(t.nsphere()), 0.0);
+    point_epoch_.assign(t.nsphere(), -1);
+  }
+  // Each body's row of the violation check (whose boxes the plans measure deviations at), and
+  // the bodies with covered geoms but no row (the check is off): no plan may hold those.
+  body_row_.assign(nbody, -1);
+  for (int64_t i = 0; i < t.nbody_events; ++i) {
+    body_row_[static_cast<int64_t>(t.events_rec[kBNcol * i + kBBody])] = i;
+  }
+  unboxed_.assign(nbody, 0);
+  for (int64_t i = 0; m && i < t.nsphere(); ++i) {
+    const auto g = static_cast<int64_t>(t.spheres[kSphereNcol * i + kSphereFrame]);
+    if (t.geom_row[g] < 0) unboxed_[m->geom_bodyid[g]] = 1;
+  }
+  plan_ok_.assign(nbody, 0);
   Hold(Iota(n));  // every pair known, until a pruned classification chooses
   schedule_ = std::make_shared<Schedule>(t.schedule, npair());
   NewLog();
@@ -69,6 +90,8 @@ Runtime::Runtime(const Runtime& o)
       held_members_(o.held_members_),
       on_(o.on_),
       stands_(o.stands_),
+      standing_(o.standing_),
+      standing_at_(o.standing_at_),
       gp_count_(o.gp_count_),
       nstanding_(o.nstanding_),
       min_tau_(o.min_tau_),
@@ -82,6 +105,12 @@ Runtime::Runtime(const Runtime& o)
       held_version_(o.held_version_),
       plan_(o.plan_),  // immutable: shared; the mjData it is queried on is made when needed
       plan_ok_(o.plan_ok_),
+      basis_(o.basis_),
+      basis_prev_(o.basis_prev_),
+      shadows_(o.shadows_),
+      pending_due_(o.pending_due_),
+      body_row_(o.body_row_),
+      unboxed_(o.unboxed_),
       plan_breaks_(o.plan_breaks_),
       read_lag_(o.read_lag_),
       forget_after_(o.forget_after_),
@@ -118,17 +147,25 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
       }
     }
   }
-  // Indexed by the violation check's rows: each checked body's held pairs.
-  std::vector<int64_t> g1(n), g2(n);
-  for (int64_t k = 0; k < n; ++k) g1[k] = u.geom1[held[k]], g2[k] = u.geom2[held[k]];
-  held_start_.resize(t.nbody_events + 1);
-  held_members_.resize(std::max<int64_t>(2 * n, 1));
-  held_members_.resize(
-      std::max<int64_t>(dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
-                                         held_start_.data(), held_members_.data()),
-                        1));
-  scratch_.assign(12 * static_cast<size_t>(std::max<int64_t>(n, 1)), 0.0);
+  // Indexed by the violation check's rows: each checked body's held pairs (none unchecked).
+  held_start_.assign(t.nbody_events + 1, 0);
+  held_members_.assign(1, 0);
+  if (t.nbody_events) {
+    std::vector<int64_t> g1(n), g2(n);
+    for (int64_t k = 0; k < n; ++k) g1[k] = u.geom1[held[k]], g2[k] = u.geom2[held[k]];
+    held_members_.resize(std::max<int64_t>(2 * n, 1));
+    held_members_.resize(std::max<int64_t>(
+        dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
+                         held_start_.data(), held_members_.data()),
+        1));
+  }
+  // A batch's gathered states: as many rows as pairs, up to kScratchRows (larger batches, a
+  // classification of every pair or a step of many due ones, go through in chunks).
+  scratch_.assign(12 * static_cast<size_t>(std::clamp<int64_t>(n, 1, kScratchRows)), 0.0);
   stands_.assign(n, 0);
+  standing_.clear();
+  standing_at_.assign(n, -1);
+  basis_.assign(n, 0), basis_prev_.assign(n, 0);  // a pair new to the held set: the bounds
   ++held_version_;
 }
 
@@ -141,7 +178,9 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   a.spheres = t.spheres.data();
   a.shapes = t.shapes.data();
   a.ids = ids_.data();
-  a.frame = {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, mocap_.twist.data(), d->xpos};
+  // Free spheres: the caller's states (SetPoints), no frame.
+  a.frame = d ? FrameOf(d, mocap_.twist.data()) : dua_frame{};
+  a.points = t.free ? points_ : dua_points{};
   dua_exact& x = a.exact;
   x.on = t.exact ? 1 : 0;
   x.geoms = t.geoms.data();
@@ -150,7 +189,7 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.query_below = t.query_below;
   // The model's own vertices (the tables hold its hull graph, checked): every mjData of a model
   // reads one copy, and making an mjData copies none.
-  x.verts = m->mesh_vert;
+  x.verts = m ? m->mesh_vert : nullptr;
   x.graph = t.graph.data();
   x.model = m;
   x.data = d;
@@ -180,6 +219,8 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   a.log_new = log_->fresh.data();
   dua_plan& pl = a.plan;
   pl.impl = plan_.get();
+  pl.basis = basis_.data();
+  pl.basis_prev = basis_prev_.data();
   if (plan_) {
     if (!plan_data_) plan_data_.reset(mj_makeData(m));
     const Universe& u = universe();
@@ -188,40 +229,115 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
     pl.geom1 = u.geom1.data();
     pl.geom2 = u.geom2.data();
     pl.geom_body = m->geom_bodyid;
+    pl.geom_row = t.geom_row.data();
     pl.data = plan_data_.get();
     pl.planned = planned_.data();
+    pl.period = static_cast<int64_t>(std::nearbyint(t.schedule.dt / t.timestep));
   }
   return a;
 }
 
-std::string Runtime::SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
-                             double start) {
+std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double* departures) {
   if (!classified_) return "comes before the first classification: reset the predictor first";
-  if (m->nmocap > 0) {
-    return "is for a model with mocap bodies, whose planned poses a plan of qpos does not hold";
-  }
   if (!plan_data_) plan_data_.reset(mj_makeData(m));
   if (!plan_data_) return "needs an mjData that MuJoCo could not allocate";
   auto plan = std::make_shared<Plan>();
-  std::string error = plan->Build(m, plan_data_.get(), qpos, n, dev, start, m->opt.timestep);
+  std::string error = plan->Build(m, plan_data_.get(), in, m->opt.timestep, tables_->spheres.data(),
+                                  tables_->nsphere());
   if (!error.empty()) return error;
-  const double next = last_time_ + tables_->schedule.dt - read_lag_ * m->opt.timestep;
+  for (int b = 0; b < m->nbody; ++b) {
+    if (plan->holds(b) && unboxed_[b]) {
+      return "holds body " + std::to_string(b) +
+             ", whose deviation is measured at the violation check's box, which this predictor "
+             "does not have: build it with violation_events on (the default)";
+    }
+  }
+  const double h = m->opt.timestep;
+  const double next = last_time_ + tables_->schedule.dt - read_lag_ * h;
   if (plan->KnotOf(next) < 0) {
     return "does not cover the state the next step reads (time " + std::to_string(next) +
            "): start it at or before that time, on a whole number of timesteps from it, with " +
            "knots past it";
   }
+  Retire();
+  // Each shadow's check of a body can wait for the first state in its span at which the new
+  // plan leaves its tube: until then the new plan's own check proves the body within it.
+  const Tables& t = *tables_;
+  for (Shadow& sh : shadows_) {
+    const Plan& old = *sh.plan;
+    std::fill(sh.from.begin(), sh.from.end(), kInf);
+    for (int64_t i = 0; i < t.nbody_events; ++i) {
+      const double* box = t.events_rec.data() + kBNcol * i;
+      const auto b = static_cast<int64_t>(box[kBBody]);
+      const auto g = static_cast<int64_t>(box[kBFrame]);
+      if (!old.holds(b) || !sh.ok[b]) continue;
+      const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
+      for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
+        const double time = next + static_cast<double>(s) * h;
+        const int64_t jo = jo0 + s, jn = jn0 + s < plan->nknot() ? jn0 + s : -1;
+        if (time > sh.until + 1e-6 * h) break;
+        // |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the difference's
+        // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
+        const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
+        if (jn < 0 || !plan->holds(b) ||
+            !BoxWithin(box, plan->pos(jn) + 3 * g, plan->mat(jn) + 9 * g, old.pos(jo) + 3 * g,
+                       old.mat(jo) + 9 * g, room)) {
+          sh.from[b] = time;
+          break;
+        }
+      }
+    }
+  }
+  if (departures != nullptr) {
+    std::fill(departures, departures + m->nbody, kInf);
+    for (const Shadow& sh : shadows_) {
+      for (int b = 0; b < m->nbody; ++b) departures[b] = std::min(departures[b], sh.from[b]);
+    }
+  }
+  // A shadow the new plan never leaves over its span is nested: a body beyond it is beyond the
+  // new plan (and the plans after it, while they keep to this one), whose checks find it at the
+  // same state. Dropped, so that replans that keep to the plan they replace (an MPC replanning at
+  // every step) keep no shadow to check or to compare with.
+  shadows_.erase(std::remove_if(shadows_.begin(), shadows_.end(),
+                                [](const Shadow& sh) {
+                                  for (size_t b = 0; b < sh.ok.size(); ++b) {
+                                    if (sh.ok[b] && sh.from[b] < kInf) return false;
+                                  }
+                                  return true;
+                                }),
+                 shadows_.end());
   plan_ = std::move(plan);
-  plan_ok_.assign(m->nbody, 1);
+  for (int b = 0; b < m->nbody; ++b) plan_ok_[b] = plan_->holds(b) ? 1 : 0;
   MakeAllDue(step_ + 1);
   return "";
 }
 
+void Runtime::Retire() {
+  if (!plan_) return;
+  // The next step's verdicts are all under the new plan (every pair is due then); the old ones
+  // are in force until that step's act (latency) and cover the alarm horizon past it.
+  const ScheduleSpec& spec = tables_->schedule;
+  const double horizon = spec.alarm_horizon > 0.0 ? spec.alarm_horizon : spec.dt;
+  const double next = last_time_ + spec.dt - read_lag_ * tables_->timestep;
+  const size_t nbody = plan_ok_.size();
+  shadows_.push_back({plan_, plan_ok_, next + horizon + static_cast<double>(spec.latency) * spec.dt,
+                      std::vector<double>(nbody, std::nan("")), std::vector<double>(nbody, -kInf)});
+}
+
 void Runtime::ClearPlan() {
   if (!plan_) return;
+  Retire();
   plan_.reset();
   args_.plan.impl = nullptr;
   MakeAllDue(step_ + 1);
+}
+
+void Runtime::DropPlans() {
+  plan_.reset();
+  args_.plan.impl = nullptr;
+  shadows_.clear();
+  pending_due_.clear();
+  std::fill(plan_ok_.begin(), plan_ok_.end(), 0);
 }
 
 void Runtime::MakeAllDue(int64_t n) {
@@ -229,42 +345,226 @@ void Runtime::MakeAllDue(int64_t n) {
   for (int64_t p = 0; p < npair(); ++p) dua_make_due(st, p, n);
 }
 
-void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
-  if (!plan_) return;
-  // A classification (n = 0) evaluates every pair anyway, on a schedule it makes afresh.
-  const bool due = n > 0;
-  const int64_t k = plan_->KnotOf(StateTime(m, d));
-  if (k < 0) {
-    // Past the plan (or a clock the plan does not know): the bounds alone from here on.
-    plan_.reset();
-    args_.plan.impl = nullptr;
-    if (due) MakeAllDue(n);
+void Runtime::MakeBodyDue(const mjModel* m, int64_t b, int64_t n) {
+  dua_schedule* st = schedule_->state();
+  const int64_t row = body_row_[b];
+  if (row >= 0) {
+    for (int64_t k = held_start_[row]; k < held_start_[row + 1]; ++k) {
+      dua_make_due(st, held_members_[k], n);
+      plan_due_.push_back(held_members_[k]);
+    }
     return;
   }
-  args_.plan.knot = k;
-  std::vector<int64_t> broken;
-  plan_->Check(m, d, k, &broken);
-  for (const int64_t b : broken) {
-    if (!plan_ok_[b]) continue;
-    plan_ok_[b] = 0;
-    ++plan_breaks_;
-    if (!due) continue;
-    const Universe& u = universe();
-    for (int64_t p = 0; p < npair(); ++p) {
-      const int64_t mp = ids_[p];
-      if (m->geom_bodyid[u.geom1[mp]] == b || m->geom_bodyid[u.geom2[mp]] == b) {
-        dua_make_due(schedule_->state(), p, n);
-      }
+  // A body without a row (a plane geom alone): its pairs by a scan.
+  const Universe& u = universe();
+  for (int64_t p = 0; p < npair(); ++p) {
+    const int64_t mp = ids_[p];
+    if (m->geom_bodyid[u.geom1[mp]] == b || m->geom_bodyid[u.geom2[mp]] == b) {
+      dua_make_due(st, p, n);
+      plan_due_.push_back(p);
     }
   }
 }
 
+int64_t Runtime::CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken) {
+  const double now = StateTime(m, d), h = m->opt.timestep;
+  const Tables& t = *tables_;
+  const int64_t k = plan_ ? plan_->KnotOf(now) : -1;
+  if (k >= 0) {
+    plan_->Check(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), t.nbody_events,
+                 plan_ok_.data(), broken);
+    for (const int64_t b : *broken) plan_ok_[b] = 0;
+  }
+  shadows_.erase(std::remove_if(shadows_.begin(), shadows_.end(),
+                                [&](const Shadow& sh) {
+                                  const double last = sh.plan->TimeOf(sh.plan->nknot() - 1);
+                                  return now > std::min(sh.until, last) + 1e-6 * h;
+                                }),
+                 shadows_.end());
+  std::vector<uint8_t> open;
+  for (Shadow& sh : shadows_) {
+    const int64_t j = sh.plan->KnotOf(now);
+    if (j < 0) continue;
+    ShadowOpen(sh, now, k, h, &open);
+    const size_t first = broken->size();
+    sh.plan->Check(d->geom_xpos, d->geom_xmat, j, t.events_rec.data(), t.nbody_events, open.data(),
+                   broken);
+    for (size_t i = first; i < broken->size(); ++i) {
+      sh.ok[(*broken)[i]] = 0;
+      sh.broken_at[(*broken)[i]] = now;
+    }
+  }
+  return k;
+}
+
+void Runtime::ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
+                         std::vector<uint8_t>* open) const {
+  open->resize(sh.ok.size());
+  for (size_t b = 0; b < sh.ok.size(); ++b) {
+    // Checked from the plan's departure on, or when the plan does not prove the body within.
+    const bool due = now >= sh.from[b] - 1e-6 * h || k < 0 || !plan_ok_[b];
+    (*open)[b] = sh.ok[b] && due;
+  }
+}
+
+void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
+  plan_due_.clear();
+  for (const int64_t b : pending_due_) MakeBodyDue(m, b, n);
+  pending_due_.clear();
+  if (!plan_ && shadows_.empty()) return;
+  std::vector<int64_t> broken;
+  const int64_t k = CheckPlans(m, d, &broken);
+  if (k >= 0) {
+    args_.plan.knot = k;
+  } else if (plan_) {
+    // Past the plan (or a clock the plan does not know): the bounds alone from here on. Its
+    // verdicts never covered past its last knot: nothing is left to check.
+    plan_.reset();
+    args_.plan.impl = nullptr;
+    MakeAllDue(n);
+  }
+  plan_breaks_ += static_cast<int64_t>(broken.size());
+  for (const int64_t b : broken) MakeBodyDue(m, b, n);
+}
+
+std::vector<int64_t> Runtime::CheckPlan(const mjModel* m, const mjData* d) {
+  std::vector<int64_t> broken;
+  if (!classified_ || (!plan_ && shadows_.empty())) return broken;
+  CheckPlans(m, d, &broken);
+  plan_breaks_ += static_cast<int64_t>(broken.size());
+  pending_due_.insert(pending_due_.end(), broken.begin(), broken.end());
+  return broken;
+}
+
 std::vector<int64_t> Runtime::PlanBroken(const mjModel* m, const mjData* d) const {
   std::vector<int64_t> out;
-  const int64_t k = plan_ ? plan_->KnotOf(StateTime(m, d)) : -1;
-  if (k < 0) return {-1};
-  plan_->Check(m, d, k, &out);
+  const double now = StateTime(m, d);
+  const double h = m->opt.timestep;
+  const Tables& t = *tables_;
+  bool covered = false;
+  const int64_t k = plan_ ? plan_->KnotOf(now) : -1;
+  if (k >= 0) {
+    covered = true;
+    plan_->Check(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), t.nbody_events, nullptr, &out);
+  }
+  const size_t planned = out.size();
+  std::vector<uint8_t> open;
+  for (const Shadow& sh : shadows_) {
+    const int64_t j = sh.plan->KnotOf(now);
+    if (j < 0 || now > sh.until + 1e-6 * h) continue;
+    covered = true;
+    // As the step checks it (bodies the plan beyond its deviation now no longer proves within),
+    // and those found at this very state: once a break of it was seen, the verdicts in force
+    // rest on later plans, not on this one.
+    ShadowOpen(sh, now, k, h, &open);
+    for (size_t b = 0; b < open.size(); ++b) {
+      const bool here =
+          std::find(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(planned),
+                    static_cast<int64_t>(b)) != out.begin() + static_cast<std::ptrdiff_t>(planned);
+      open[b] = open[b] || (sh.ok[b] && here) || sh.broken_at[b] == now;
+    }
+    const size_t first = out.size();
+    sh.plan->Check(d->geom_xpos, d->geom_xmat, j, t.events_rec.data(), t.nbody_events, open.data(),
+                   &out);
+    // Each body once.
+    for (size_t i = first; i < out.size();) {
+      if (std::find(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(first), out[i]) !=
+          out.begin() + static_cast<std::ptrdiff_t>(first)) {
+        out.erase(out.begin() + static_cast<std::ptrdiff_t>(i));
+      } else {
+        ++i;
+      }
+    }
+  }
+  if (!covered) return {-1};
   return out;
+}
+
+std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan_input& candidate,
+                               const std::vector<int64_t>& g1, const std::vector<int64_t>& g2,
+                               std::vector<int64_t>* knots) const {
+  if (!query_data_) query_data_.reset(mj_makeData(m));
+  if (!query_data_) return "needs an mjData that MuJoCo could not allocate";
+  const Tables& t = *tables_;
+  Plan plan;
+  std::string error =
+      plan.Build(m, query_data_.get(), candidate, m->opt.timestep, t.spheres.data(), t.nsphere());
+  if (!error.empty()) return error;
+  for (int b = 0; b < m->nbody; ++b) {
+    if (plan.holds(b) && unboxed_[b]) {
+      return "holds body " + std::to_string(b) +
+             ", which has no box in the violation check: build the predictor with "
+             "violation_events on (the default)";
+    }
+  }
+  const int64_t k = plan.KnotOf(StateTime(m, d));
+  if (k < 0) {
+    return "does not cover the state of the data (time " + std::to_string(StateTime(m, d)) +
+           "): start it there, on a whole number of timesteps from it";
+  }
+  const Universe& u = universe();
+  const auto n = static_cast<int64_t>(g1.size());
+  // The sphere pairs of each geom pair asked, their records copied (the exact level writes the
+  // directions it finds into its own), in one scan of the pairs known.
+  std::vector<int64_t> gp(n), order;
+  for (int64_t q = 0; q < n; ++q) {
+    const int64_t lo = std::min(g1[q], g2[q]), hi = std::max(g1[q], g2[q]);
+    gp[q] = lo == hi ? -1 : u.GeomPair(lo, hi);
+  }
+  std::vector<int64_t> asked(u.ngp(), -1);
+  for (int64_t q = 0; q < n; ++q) {
+    if (gp[q] >= 0) asked[gp[q]] = q;
+  }
+  std::vector<double> pairs, exact;
+  std::vector<int64_t> owner, geom_a, geom_b;
+  for (int64_t p = 0; p < u.npair(); ++p) {
+    const int64_t q = asked[u.pair_geom[p]];
+    if (q < 0) continue;
+    pairs.insert(pairs.end(), u.pairs.begin() + kPairNcol * p,
+                 u.pairs.begin() + kPairNcol * (p + 1));
+    if (t.exact) {
+      exact.insert(exact.end(), u.exact.begin() + kXNcol * p, u.exact.begin() + kXNcol * (p + 1));
+    }
+    owner.push_back(gp[q]), geom_a.push_back(u.geom1[p]), geom_b.push_back(u.geom2[p]);
+  }
+  // The step's arguments for these records on d's state (PlanPass reads the same).
+  dua_step_args a = args_;
+  a.pairs = pairs.data();
+  a.spheres = t.spheres.data();
+  a.shapes = t.shapes.data();
+  a.frame = FrameOf(d, mocap_.twist.data());
+  a.exact.on = t.exact ? 1 : 0;
+  a.exact.geoms = t.geoms.data();
+  a.exact.verts = m->mesh_vert;
+  a.exact.graph = t.graph.data();
+  a.exact.records = exact.data();
+  a.exact.model = m;
+  a.exact.data = d;
+  a.events.rec = t.events_rec.data();
+  std::vector<double> state(6 * static_cast<size_t>(t.nsphere()));
+  std::vector<int64_t> epoch(t.nsphere(), -1);
+  a.point_state = state.data();
+  a.point_epoch = epoch.data();
+  a.epoch = 0;
+  a.plan.geom_body = m->geom_bodyid;
+  a.plan.geom_row = t.geom_row.data();
+  a.plan.data = query_data_.get();
+  std::vector<uint8_t> ok(m->nbody);
+  for (int b = 0; b < m->nbody; ++b) ok[b] = plan.holds(b) ? 1 : 0;
+  std::vector<int64_t> by_gp(u.ngp(), plan.nknot());
+  std::vector<uint8_t> said(u.ngp(), 0);
+  for (size_t p = 0; p < owner.size(); ++p) {
+    const auto id = static_cast<int64_t>(p);
+    const int64_t j = PlanKnot(a, plan, ok.data(), k, id, geom_a[p], geom_b[p]);
+    if (j < 0) continue;
+    said[owner[p]] = 1;
+    by_gp[owner[p]] = std::min(by_gp[owner[p]], j);
+  }
+  knots->assign(n, -2);
+  for (int64_t q = 0; q < n; ++q) {
+    if (gp[q] >= 0) (*knots)[q] = said[gp[q]] ? by_gp[gp[q]] : -1;
+  }
+  return "";
 }
 
 void Runtime::Learnt() {
@@ -341,7 +641,7 @@ void Runtime::SetExpiry(int64_t p) {
 
 int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
-  mocap_.Start(d);
+  if (d) mocap_.Start(d);
   std::fill(on_.begin(), on_.end(), 1);
   Bind(m, d);
   if (t.pruned) {
@@ -353,14 +653,14 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
     Learnt();
     pruned_.built_at = 0;
     pruned_.escapes.clear();
+    pruned_.broken = -1;
     Hold(held);
     Bind(m, d);
   }
   dua_reset_events(&args_);
-  if (plan_) {
-    Bind(m, d);  // the plan's buffers sized for the held pairs
-    FollowPlan(m, d, 0);
-  }
+  // A classification judges from the state alone: no verdict, and no plan, carries over it (a
+  // reset, a jump of the clock, a state the last step could not read).
+  DropPlans();
   const int64_t n = npair();
   std::vector<double> tau0(n);
   const std::vector<int64_t> all = Iota(n);
@@ -377,7 +677,7 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
   events_meta_[kMCount] = 0;
   classified_ = true;
   step_ = 0;
-  last_time_ = d->time;
+  last_time_ = d ? d->time : 0.0;
   TrackAll();
   std::fill(was_.begin(), was_.end(), 0);  // every alarm of a classification is new
   FinishWatch();
@@ -408,19 +708,29 @@ Runtime::Clock Runtime::ClockOf(double time) const {
 
 int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
-  mocap_.Difference(d, d->time - last_time_);
+  if (d) mocap_.Difference(d, d->time - last_time_);
   Bind(m, d);
   const int64_t n = step_ + 1;
+  // Free spheres have no violation check to flag them: every sphere's escape test runs on this
+  // step's state, and the escaped ones are renewed from it at once (Lemmas 6.4, 6.5).
+  if (t.free && t.pruned && escape_check_) pruned_.FindEscapes(t.held, args_, n);
   if (t.pruned && !Prune(m, d, n)) return kBadState;
   FollowPlan(m, d, n);
   const int64_t room = schedule_->width();
-  if (log_used_ + room > log_->capacity()) NewLog(), Bind(m, d);
+  if (log_used_ + room > log_->capacity()) {
+    // Rewound when nothing else holds it (no Alarms of an earlier step), else replaced.
+    if (log_.use_count() == 1 && room <= log_->capacity()) {
+      log_used_ = 0;
+    } else {
+      NewLog(), Bind(m, d);
+    }
+  }
   log_start_ = log_used_;
   const int64_t result = dua_step(&args_, n, log_start_);
   if (result < 0) return result;
   step_ = n;
   schedule_->step_count = n;
-  last_time_ = d->time;
+  last_time_ = d ? d->time : static_cast<double>(n) * t.schedule.dt;
   Log(result);
   if (t.pruned && escape_check_ && args_.events.nbody && events_meta_[kMCount]) {
     pruned_.FindEscapes(t.held, args_, step_);
@@ -464,13 +774,13 @@ bool Runtime::Prune(const mjModel* m, const mjData* d, int64_t n) {
     ++renewals_;
   }
   Learnt();
-  if (ps.built_at == n) ForgetStale(m, &held);  // a rebuild: forget what it has not held
+  if (ps.built_at == n) ForgetStale(&held);  // a rebuild: forget what it has not held
   ps.escapes.clear();
   if (carry) Carry(m, d, held, n);
   return true;
 }
 
-void Runtime::ForgetStale(const mjModel* m, std::vector<int64_t>* held) {
+void Runtime::ForgetStale(std::vector<int64_t>* held) {
   if (forget_after_ < 0) return;
   Universe& u = own_;
   const int64_t ng = u.ngp(), ng0 = tables_->universe.ngp();
@@ -492,7 +802,9 @@ void Runtime::ForgetStale(const mjModel* m, std::vector<int64_t>* held) {
   }
   if (watching_) was_.resize(ng, 0);  // (FinishWatch sizes it after the step)
   std::vector<int64_t> pair_map, gp_map;
-  const std::string bad = u.Forget(keep, tables_->spheres, m->ngeom, &pair_map, &gp_map);
+  const std::string bad =
+      u.Forget(keep, tables_->spheres, static_cast<int64_t>(learn().geom_start.size()) - 1,
+               &pair_map, &gp_map);
   (void)bad;  // the kept rows of a universe that indexed are indexed (no id is out of range)
   for (int64_t& p : ids_) p = pair_map[p];
   for (int64_t& p : *held) p = pair_map[p];
@@ -532,7 +844,14 @@ void Runtime::Carry(const mjModel* m, const mjData* d, const std::vector<int64_t
   auto next = std::make_shared<Schedule>(tables_->schedule, k);
   next->Carry(*schedule_, src, n);
   schedule_ = std::move(next);
+  // What the carried verdicts rested on goes with them; a new pair's was the bounds (its
+  // exclusion rested on both bodies' reach).
+  std::vector<uint8_t> basis(k, 0), basis_prev(k, 0);
+  for (int64_t p = 0; p < k; ++p) {
+    if (src[p] >= 0) basis[p] = basis_[src[p]], basis_prev[p] = basis_prev_[src[p]];
+  }
   Hold(held);
+  basis_.swap(basis), basis_prev_.swap(basis_prev);
   Bind(m, d);
   // Pairs new to the held set that were switched off stay off.
   std::vector<int64_t> off;
@@ -555,6 +874,16 @@ void Runtime::Track(const int64_t* ids, int64_t n) {
     const uint8_t now = schedule_->Stands(p) ? 1 : 0;
     if (now == stands_[p]) continue;  // (its expiry is set below all the same)
     stands_[p] = now;
+    if (now) {
+      standing_at_[p] = static_cast<int64_t>(standing_.size());
+      standing_.push_back(p);
+    } else {  // swap-removed
+      const int64_t last = standing_.back();
+      standing_[standing_at_[p]] = last;
+      standing_at_[last] = standing_at_[p];
+      standing_at_[p] = -1;
+      standing_.pop_back();
+    }
     const int64_t gp = u.pair_geom[ids_[p]];
     int32_t& count = gp_count_[gp];
     const bool counted = watching_ && gp_counted_[gp];
@@ -576,6 +905,8 @@ void Runtime::Track(const int64_t* ids, int64_t n) {
 
 void Runtime::TrackAll() {
   std::fill(stands_.begin(), stands_.end(), 0);
+  standing_.clear();
+  std::fill(standing_at_.begin(), standing_at_.end(), -1);
   std::fill(gp_count_.begin(), gp_count_.end(), 0);
   nstanding_ = 0;
   if (watching_) {
@@ -599,6 +930,8 @@ void Runtime::TrackStep() {
     const int64_t i = events_flagged_[k];
     Track(held_members_.data() + held_start_[i], held_start_[i + 1] - held_start_[i]);
   }
+  // Pairs a plan break withdrew (the rank schedule may leave them waiting, standing in alarm).
+  Track(plan_due_.data(), static_cast<int64_t>(plan_due_.size()));
   min_tau_ = kInf;
   for (int64_t k = 0; k < args_.count; ++k) min_tau_ = std::min(min_tau_, s.w_tau[k]);
 }

@@ -1,9 +1,13 @@
-// The predictor at run time: one per MuJoCo mjData. It reads a model's tables (tables.h), and
-// each step it runs the violation check, the selection, tau at every level and the reinsertion
-// (step.cc, schedule.cc), renews pruned pairs (pruned.cc), keeps the standing state and logs the
-// alarms. The MuJoCo plugin (plugin.cc) and the Python Predictor (bindings.cc) both run it:
-// one implementation, two callers, which differ only in what they do when the clock jumps or a
-// state is not finite (the plugin starts over, Python raises).
+// The predictor at run time: one per MuJoCo mjData, or per set of free spheres. It reads a
+// model's tables (tables.h), and each step it runs the violation check, the selection, tau at
+// every level and the reinsertion (step.cc, schedule.cc), renews pruned pairs (pruned.cc), keeps
+// the standing state and logs the alarms. The MuJoCo plugin (plugin.cc) and the Python Predictor
+// (bindings.cc) both run it: one implementation, two callers, which differ only in what they do
+// when the clock jumps or a state is not finite (the plugin starts over, Python raises). Free
+// spheres (the paper's setting, SpherePredictor) run it too, on tables of N point bodies with no
+// model (FreeTables), reading the caller's centres and velocities (SetPoints) where the others
+// read an mjData: their escape test runs on every sphere before each step, since no violation
+// check flags them.
 #ifndef DUA_MUJOCO_RUNTIME_H_
 #define DUA_MUJOCO_RUNTIME_H_
 
@@ -27,9 +31,10 @@
 
 namespace dua {
 
-// The alarms the steps raise, appended and never overwritten: a step's alarms are a span of it.
-// A log without room for another step is replaced by a fresh one, and lives as long as someone
-// holds it (Python's Alarms do).
+// The alarms the steps raise, appended and never overwritten while someone else holds it: a
+// step's alarms are a span of it. A log without room for another step is replaced by a fresh
+// one, and lives as long as someone holds it (Python's Alarms do); held by the runtime alone, it
+// is rewound instead.
 struct DUA_API AlarmLog {
   explicit AlarmLog(int64_t capacity)
       : pair(capacity),
@@ -48,13 +53,20 @@ struct DUA_API AlarmLog {
   std::vector<uint8_t> fresh;
 };
 
+// Pruned pairs: rebuilds a learnt pair may go unheld before it is forgotten (Runtime::SetForget)
+// in the plugin, unless its attribute says otherwise, and for free spheres; memory then stays
+// bounded over a long run.
+constexpr int64_t kForgetDefault = 8;
+
 class DUA_API Runtime {
  public:
   // A step's result when a state the step needed was not finite and no pair can be named (a
   // rebuild or renewal of pruned pairs): the step was not taken.
   static constexpr int64_t kBadState = std::numeric_limits<int64_t>::min();
 
-  // log_steps: steps' worth of alarms a log holds (at least log_min entries).
+  // log_steps: steps' worth of alarms a log holds (at least log_min entries). Free spheres'
+  // tables (FreeTables) have no model: m null, and every call below takes m and d null, the
+  // states set by SetPoints.
   Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t log_steps = 1,
           int64_t log_min = 0);
   // A copy runs on its own: its state deep-copied, the tables and the current log shared (the
@@ -75,6 +87,11 @@ class DUA_API Runtime {
   Clock ClockOf(double time) const;
   // The next compute classifies again (the plugin's reset, or a state it could not step from).
   void Invalidate() { classified_ = false; }
+  // Free spheres: the centres and velocities (nsphere, 3) the next classification or step reads
+  // (the caller's arrays, read during that call only).
+  void SetPoints(const double* centers, const double* velocities) {
+    points_ = {centers, velocities};
+  }
 
   // Switches model pairs `pairs` off or back on (a pair switched back on stands in alarm until
   // the next step evaluates it; pruned pairs not held now stay switched for when they are).
@@ -105,13 +122,21 @@ class DUA_API Runtime {
   // The counted geom pairs standing in alarm, rows (g1, g2) in increasing order.
   std::vector<int64_t> WatchedStanding() const;
 
-  // Flight plans (plan.h): qpos (n, nq), row j the state at time start + j h (h the model's
-  // timestep), and dev (n, nbody), each body's deviation bound at each knot. Every held pair is
-  // evaluated again at the next step, under the plan. The plan must cover the state the next
-  // step reads (StateTime). Returns an error message naming the bad input, or "".
-  std::string SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
-                      double start);
-  // Back to the motion bounds alone (every held pair evaluated again at the next step).
+  // Flight plans (plan.h; docs/theory.md, section 8). SetPlan follows `plan` (its knots at
+  // start + j h, h the model's timestep, its bodies, deviations and mocap poses): every held pair
+  // is evaluated again at the next step, under it. The plan must cover the state the next step
+  // reads (StateTime), and the bodies it holds must have boxes in the violation check (the
+  // deviation is measured at their corners). The plan it replaces stays as a *shadow*, checked
+  // only, over the span its verdicts cover (until the state of the first step under the new plan
+  // plus the alarm horizon and the latency): a body found beyond its old deviation there breaks
+  // the old plan (counted, its pairs made due, reported by PlanBroken). departures (nbody) or
+  // null receives, per body, the first state time in that span at which the new plan leaves the
+  // old plan's deviation tube (|new - old| + D_new > D_old at a box corner; the first step when
+  // the new plan does not hold the body; +inf: never). Returns an error message naming the bad
+  // input, or "".
+  std::string SetPlan(const mjModel* m, const dua_plan_input& plan, double* departures);
+  // Back to the motion bounds alone (every held pair evaluated again at the next step; the plan
+  // stays as a shadow, as when replaced).
   void ClearPlan();
   // How many timesteps the state a step reads lags d->time: 1 after mj_step (Python's Predictor,
   // whose state is the one MuJoCo's step started from), 0 inside mj_step (the plugin's compute,
@@ -122,13 +147,34 @@ class DUA_API Runtime {
   }
   bool has_plan() const { return plan_ != nullptr; }
   const Plan* plan() const { return plan_.get(); }
-  // Bodies found beyond their deviation since the plan came (their pairs follow the bounds).
+  // Bodies the plan holds and found within their deviation so far (the rest follow their bounds).
   const std::vector<uint8_t>& plan_ok() const { return plan_ok_; }
+  // Bodies found beyond their deviation (of the plan, or of a shadow over its span), so far.
   int64_t plan_breaks() const { return plan_breaks_; }
   int64_t plan_queries() const { return args_.plan.queries; }
-  // The bodies of d's state beyond their deviation at its knot (-1 in out[0]: no plan covers
-  // it), checking only; the monitor's every-step check.
+  // The bodies of d's state beyond their deviation at its knot, of the plan and of the shadows
+  // within their spans (-1 in out[0]: none covers it), checking only; the monitor's
+  // every-step check.
   std::vector<int64_t> PlanBroken(const mjModel* m, const mjData* d) const;
+  // The check of a step's plan, between steps (period > 1: the plugin's compute at each physics
+  // step, Predictor.check_plan): bodies found beyond their deviation are counted as breaks and
+  // their pairs made due at the next step. Returns them.
+  std::vector<int64_t> CheckPlan(const mjModel* m, const mjData* d);
+  // What each held pair's latest verdict, and the one before it, rested on (dua_plan.basis).
+  const std::vector<uint8_t>& basis() const { return basis_; }
+  const std::vector<uint8_t>& basis_prev() const { return basis_prev_; }
+
+  // For a candidate plan (built here, never followed) and geom pairs (g1[k], g2[k]), each pair's
+  // first knot of the candidate, from the knot of d's state, at which its contact cannot be
+  // excluded (the candidate's knot count when never): the plan's tau (8) where both bodies are
+  // planned (the candidate holds them, or they are static), the mixed tau where one is and the
+  // other follows its bounds from d's state (PlanPass's code). -1: the candidate plans neither
+  // body (it says nothing of the pair); -2: not a pair this runtime knows (MuJoCo's filter
+  // rejects it, or a pruned runtime has not met it: GeomPairIds learns it). Changes nothing of
+  // the predictor's (the shield's question, issue 40). Returns an error naming bad input, or "".
+  std::string PlanQuery(const mjModel* m, const mjData* d, const dua_plan_input& candidate,
+                        const std::vector<int64_t>& g1, const std::vector<int64_t>& g2,
+                        std::vector<int64_t>* knots) const;
 
   // ---------------------------------------------------------------------- for tests
   // The exact level alone on held pairs ids, from sphere taus `coarse`, with the level's records
@@ -171,6 +217,13 @@ class DUA_API Runtime {
   const std::vector<uint8_t>& on() const { return on_; }  // each known pair's switch
   // The standing state: each held pair's, and how many geom pairs stand.
   const std::vector<uint8_t>& stands() const { return stands_; }
+  // The held pairs standing in alarm, in no order (kept in O(1) a change).
+  const std::vector<int64_t>& standing() const { return standing_; }
+  // Held pair p's record (pair records' columns).
+  const double* HeldRecord(int64_t p) const {
+    return tables_->pruned ? held_pairs_.data() + kPairNcol * p
+                           : tables_->universe.pairs.data() + kPairNcol * ids_[p];
+  }
   const std::vector<int32_t>& geom_pair_count() const { return gp_count_; }
   int64_t nstanding() const { return nstanding_; }
   double min_tau() const { return min_tau_; }
@@ -209,13 +262,27 @@ class DUA_API Runtime {
   void TrackStep();
   void Log(int64_t nalarm);
   bool Counted(int64_t gp) const;
-  // The plan's part of step n at d (0: a classification): its knot, the bodies beyond their
-  // deviation flagged and their pairs made due; past its end, the plan dropped (every pair due).
+  // The plan's part of step n at d: between-step breaks' pairs made due, the shadows checked,
+  // the plan's knot, the bodies beyond their deviation flagged and their pairs made due; past
+  // its end, the plan dropped (every pair due).
   void FollowPlan(const mjModel* m, const mjData* d, int64_t n);
+  // The plan's and the shadows' checks of d's state: the bodies found beyond their deviation
+  // appended to broken and marked (shadows past their span dropped); returns the plan's knot
+  // (-1: no plan covers the state).
+  int64_t CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken);
+  struct Shadow;
+  // The bodies shadow sh checks at state time now (the plan at knot k): those still within it,
+  // from the plan's departure from it on, or once the plan no longer proves them within.
+  void ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
+                  std::vector<uint8_t>* open) const;
+  // The plan (if any) becomes a shadow over the span its verdicts cover, the next step's.
+  void Retire();
+  void MakeBodyDue(const mjModel* m, int64_t body, int64_t n);
+  void DropPlans();
   void MakeAllDue(int64_t n);
   void FinishWatch();         // a step's or a classification's end: started and version
   void SetExpiry(int64_t p);  // pair p's leaf of the expiry tree, and its path to the root
-  void ForgetStale(const mjModel* m, std::vector<int64_t>* held);  // at a rebuild (issue 35)
+  void ForgetStale(std::vector<int64_t>* held);  // at a rebuild (issue 35)
 
   std::shared_ptr<const Tables> tables_;
   int64_t log_steps_, log_min_;
@@ -225,6 +292,7 @@ class DUA_API Runtime {
   std::vector<double> scratch_, point_state_, exact_records_, events_prev_;
   std::vector<int64_t> point_epoch_, events_meta_, events_flagged_, contact_keys_;
   std::vector<double> contact_dist_;
+  dua_points points_{};  // free spheres' states for the current call
   // Pruned pairs: the anchors, this run's universe, the held pairs' records and their index by
   // the violation check's bodies (all pairs held: the model's tables themselves).
   PrunedState pruned_;
@@ -232,8 +300,10 @@ class DUA_API Runtime {
   std::vector<double> held_pairs_;
   std::vector<int64_t> held_start_, held_members_;
   std::vector<uint8_t> on_;
-  // Standing state (see stands()).
+  // Standing state (see stands()), and the list of the held pairs standing with each one's place
+  // in it (-1: not standing).
   std::vector<uint8_t> stands_;
+  std::vector<int64_t> standing_, standing_at_;
   std::vector<int32_t> gp_count_;
   int64_t nstanding_ = 0;
   double min_tau_ = std::numeric_limits<double>::infinity();
@@ -262,7 +332,22 @@ class DUA_API Runtime {
   };
   std::shared_ptr<const Plan> plan_;
   std::unique_ptr<mjData, DataDeleter> plan_data_;
-  std::vector<uint8_t> plan_ok_, planned_;
+  mutable std::unique_ptr<mjData, DataDeleter> query_data_;  // PlanQuery's scratch
+  std::vector<uint8_t> plan_ok_, planned_, basis_, basis_prev_;
+  // A replaced plan, checked until `until` (state time) on the bodies ok when it was replaced
+  // and not found beyond it since; the state time each was found beyond it (NaN: not), and
+  // the first state at which the plan that followed leaves its tube (SetPlan; -inf: unknown).
+  struct Shadow {
+    std::shared_ptr<const Plan> plan;
+    std::vector<uint8_t> ok;
+    double until;
+    std::vector<double> broken_at, from;
+  };
+  std::vector<Shadow> shadows_;
+  std::vector<int64_t> pending_due_;  // bodies broken between steps: pairs due at the next
+  std::vector<int64_t> plan_due_;     // held pairs the plan made due at this step (tracked)
+  std::vector<int64_t> body_row_;     // each body's row of the violation check (-1: none)
+  std::vector<uint8_t> unboxed_;      // bodies with covered geoms and no row (no plan holds them)
   int64_t plan_breaks_ = 0;
   int read_lag_ = 1;
   // Forgetting (issue 35): each learnt geom pair's latest rebuild held, and the counts.

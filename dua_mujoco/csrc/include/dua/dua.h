@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 5
+#define DUA_ABI_VERSION 7
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -154,16 +154,45 @@ typedef struct dua_events {
 
 // A flight plan the step follows (src/plan.h; docs/theory.md, section 8). impl null: none.
 typedef struct dua_plan {
-  const void* impl;        // the dua::Plan
-  int64_t knot;            // the plan's knot at this step
-  const uint8_t* body_ok;  // (nbody,) 0 for a body found beyond its deviation since the plan came
+  const void* impl;  // the dua::Plan
+  int64_t knot;      // the plan's knot at this step
+  int64_t period;    // physics steps a predictor period (the plan's taus fall on its grid)
+  // (nbody,) 1 for a body the plan holds and found within its deviation so far (static bodies
+  // too: planned, with deviation 0); 0 for one it does not know or found beyond its deviation.
+  const uint8_t* body_ok;
   const int64_t* geom1;  // (npair,) the geoms of each known pair (the plane or static geom second)
   const int64_t* geom2;
-  const int* geom_body;  // the model's geom_bodyid
-  void* data;            // an mjData of the model for MuJoCo's distance queries at knots
-  uint8_t* planned;      // (scratch_rows,) which pairs of a batch the plan covered
-  int64_t queries;       // MuJoCo's distance queries at knots so far
+  const int* geom_body;     // the model's geom_bodyid
+  const int64_t* geom_row;  // (ngeom,) each geom's body's row of the violation check (-1: none)
+  void* data;               // an mjData of the model for MuJoCo's distance queries at knots
+  uint8_t* planned;         // (scratch_rows,) which pairs of a batch the plan covered
+  int64_t queries;          // MuJoCo's distance queries at knots so far
+  // (K,) what each held pair's latest verdict rested on, and the one before it: bit 0 set when
+  // its first geom's side rested on the plan (that body's deviation), bit 1 the same for its
+  // second geom; a clear bit is the motion bounds of that body. Null: not recorded.
+  uint8_t* basis;
+  uint8_t* basis_prev;
 } dua_plan;
+
+// Free spheres (the paper's setting: points on no MuJoCo body): each sphere's centre and velocity
+// (nsphere, 3), given by the caller instead of read on the frame. centers null: the frame.
+typedef struct dua_points {
+  const double* centers;
+  const double* velocities;
+} dua_points;
+// A flight plan as a caller gives it (dua_plugin_set_plan, Runtime::SetPlan).
+typedef struct dua_plan_input {
+  const double* qpos;       // (n, nq): row j the state at time start + j timestep
+  int64_t n;                // knots
+  const double* deviation;  // (n, nbody): how far any point of each body may stray at each knot
+  double start;             // the time of row 0's state
+  // (nbody,) 1 for the bodies the plan holds, null for the default: every moving body outside
+  // mocap trees, and the mocap trees too when mocap poses are given. Bodies it does not hold
+  // follow their motion bounds; static bodies are always planned (deviation 0).
+  const uint8_t* bodies;
+  const double* mocap_pos;   // (n, nmocap, 3), or null: mocap bodies unplanned
+  const double* mocap_quat;  // (n, nmocap, 4), or null (then mocap_pos must be null too)
+} dua_plan_input;
 
 typedef struct dua_step_args {
   int64_t abi;  // DUA_ABI_VERSION
@@ -173,6 +202,7 @@ typedef struct dua_step_args {
   const double* shapes;   // (nshape, 16)
   const int64_t* ids;     // (K,) model pair id of each held pair
   dua_frame frame;
+  dua_points points;  // free spheres' states (centers null: read on the frame)
   dua_exact exact;
   dua_events events;
   double* scratch;  // (scratch_rows, 12): the gathered states of the pairs being evaluated
@@ -237,6 +267,9 @@ DUA_API int64_t dua_tau_free(const double* pairs, const double* shapes, const do
                              int64_t count, double* rows, double* out);
 // Centre and velocity of sphere i: out[0:6].
 DUA_API void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, double* out);
+// The same as the step reads it: a->points' row i for free spheres, else dua_rigid_point on
+// a->frame.
+DUA_API void dua_point(const dua_step_args* a, int64_t i, double* out);
 
 // The run monitor's bound check over n points (sphere records (n, 8) on frame f): rows of prev
 // and cur (n, 9) are [centre, velocity read, discrete velocity (c - c_prev) / h]; cur is written.
@@ -329,7 +362,7 @@ DUA_API int64_t dua_filter_any(const dua_filter* f);
 
 // The hashed grid behind candidate pairs of reachable balls: every pair i < j of n spheres with
 // |c_i - c_j|^2 <= ((reach_i + reach_j) + margin)^2 (1 + 2^-44), sorted (contract and proof:
-// dua_mujoco/core/neighbors.py). Every buffer is the caller's: dua_grid_bounds, then
+// src/grid.cc). Every buffer is the caller's: dua_grid_bounds, then
 // dua_grid_plan_of (n >= 2), then buffers of the plan's sizes, dua_grid_count (K pairs), then
 // dua_grid_fill into K more.
 typedef struct dua_grid_plan {
@@ -398,7 +431,7 @@ typedef struct dua_reach {
 DUA_API void dua_reaches(const double* radius, const double* speed, const double* accel,
                          const double* delta, const double* vmax, int64_t n, double horizon,
                          double* out);
-// Anchor spheres ids[0:n] anew at their state on a's frame, step `step` (their reach over the
+// Anchor spheres ids[0:n] anew at their state (dua_point), step `step` (their reach over the
 // horizon from there), and find their candidate pairs as dua_reach_pairs does. Returns the
 // number of pairs, or -1 - k if the state of ids[k] is not finite (nothing anchored).
 DUA_API int64_t dua_renew(const dua_step_args* a, dua_reach* r, const int64_t* ids, int64_t n,
@@ -411,9 +444,16 @@ DUA_API int64_t dua_escapes(const dua_reach* r, const int64_t* ids, int64_t n,
                             const double* centers, const double* velocities, const double* elapsed,
                             int64_t* out);
 // The same for every sphere of the bodies the latest violation pass of a flagged, read on a's
-// frame at step `step`: out (nsphere,) receives the escaped spheres; returns how many.
+// frame at step `step` (free spheres, which have no violation pass: every sphere, read from
+// a->points): out (nsphere,) receives the escaped spheres; returns how many.
 DUA_API int64_t dua_escaped_spheres(const dua_step_args* a, const dua_reach* r, int64_t step,
                                     int64_t* out);
+// Of escaped spheres ids[0:n] at step `step`, the first whose state proves its bounds broken since
+// its anchor (a centre beyond its reach, or a measured speed above min(s0 + 2 delta + A t,
+// V + delta), by more than rounding), or -1: an escape short of that may be a motion within the
+// bounds (docs/theory.md, "The escape test, once").
+DUA_API int64_t dua_proven_broken(const dua_step_args* a, const dua_reach* r, const int64_t* ids,
+                                  int64_t n, int64_t step);
 // Candidate pairs of spheres ids[0:n] against every sphere by their anchors and reaches: the
 // pairs (i < j) with |c_i - c_j|^2 <= ((reach_i + reach_j) + margin)^2 (1 + 2^-44), each once,
 // written as rows of out (capacity rows of 2); returns how many there are (more than capacity:
@@ -426,14 +466,15 @@ DUA_API int64_t dua_reach_pairs(const dua_reach* r, const int64_t* ids, int64_t 
 struct mjModel_;
 struct mjData_;
 
-// Follow a flight plan in instance `instance` of d (docs/plans.md): qpos (n, nq), row j the
-// state at time start + j timestep, deviation (n, nbody) the bound on how far each body may
-// stray from it at each knot. Returns 0, -1 if the instance is not this plugin's, -2 before its
-// first compute, -3 if the plan is refused (why written to error, error_size bytes with the
-// terminating 0).
+// Follow a flight plan in instance `instance` of d (docs/plans.md): the plan (its bodies, their
+// deviations, mocap poses if any). departures (nbody,) or null receives, for each body the
+// replaced plan held, the first state time at which the new plan leaves the old plan's
+// deviation tube within the span the old plan's verdicts cover (+inf: never; docs/theory.md,
+// section 8). Returns 0, -1 if the instance is not this plugin's, -2 before its first compute,
+// -3 if the plan is refused (why written to error, error_size bytes with the terminating 0).
 DUA_API int64_t dua_plugin_set_plan(const struct mjModel_* m, struct mjData_* d, int instance,
-                                    const double* qpos, int64_t n, const double* deviation,
-                                    double start, char* error, int64_t error_size);
+                                    const dua_plan_input* plan, double* departures, char* error,
+                                    int64_t error_size);
 // Back to the motion bounds alone. Returns 0, or -1 if the instance is not this plugin's.
 DUA_API int64_t dua_plugin_clear_plan(const struct mjModel_* m, struct mjData_* d, int instance);
 
