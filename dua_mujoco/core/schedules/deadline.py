@@ -22,12 +22,11 @@ proved in docs/theory.md.
 
 from __future__ import annotations
 
-import numpy as np
 import numpy.typing as npt
 
 import dua_mujoco._core as _core
 from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
-from dua_mujoco.core.schedules.state import DEADLINE, P_BACKOFF, P_CAP, P_MAX_INTERVAL, WHERE
+from dua_mujoco.core.schedules.state import DEADLINE, P_BACKOFF, P_CAP, P_MAX_INTERVAL
 from dua_mujoco.core.validate import check_int, check_period, check_urgencies
 
 __all__ = [
@@ -111,7 +110,3 @@ class DeadlineScheduler(Scheduler, kind=DEADLINE):
         self.max_evals_per_step = int(params[P_CAP]) or None
         self.max_interval = int(params[P_MAX_INTERVAL])
         self.alarm_backoff = int(params[P_BACKOFF])
-
-    def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
-        """Step at which each pair is next evaluated (-1: switched off)."""
-        return np.asarray(self.state.ints[WHERE, np.asarray(pair)])
