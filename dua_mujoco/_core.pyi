@@ -8,7 +8,7 @@ from numpy.typing import NDArray
 
 LAYOUT: dict = ...
 
-TABLES_VERSION: int = 4
+TABLES_VERSION: int = 5
 
 def structure_hash(model: object) -> int:
     """
@@ -114,7 +114,7 @@ def plugin_deactivate_contacts(model: object, data: object, instance: int) -> in
 class Schedule:
     """A schedule's state and kernels (dua_mujoco.core.schedules wraps it)."""
 
-    def __init__(self, kind: int, dt: float, latency: int, tau0: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], active: object | None = None, slots_per_bucket: int = 1, cap: int = 0, max_interval: int = 1024, backoff: int = 8, threshold: float = 0.0, alarm_horizon: float = 0.0) -> None: ...
+    def __init__(self, kind: int, dt: float, latency: int, tau0: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], active: object | None = None, slots_per_bucket: int = 1, cap: int = 0, max_interval: int = 1024, backoff: int = 8, threshold: float = 0.0, alarm_horizon: float | None = None) -> None: ...
 
     def select(self, n: int) -> int: ...
 

@@ -455,6 +455,25 @@ def test_deadline_switching_and_errors() -> None:
         DeadlineScheduler(np.ones(2), dt=0.01, max_interval=0)
 
 
+def test_the_alarm_horizon_travels_in_seconds() -> None:
+    """The schedule takes the alarm horizon in seconds, one period when not given (no sentinel):
+    a verdict covering less than the wait plus the horizon beyond one period alarms. Below one
+    period, or not finite, the value is refused by name."""
+    from dua_mujoco import _core
+    from dua_mujoco.core.schedules.state import DEADLINE
+
+    tau = np.array([0.015, 0.025, 0.035])
+    one = _core.Schedule(DEADLINE, 0.01, 0, tau)
+    assert one.alarm_horizon == 0.01
+    assert _core.stands(one, np.arange(3)).tolist() == [False, False, False]
+    three = _core.Schedule(DEADLINE, 0.01, 0, tau, alarm_horizon=0.03)
+    assert three.alarm_horizon == 0.03
+    assert _core.stands(three, np.arange(3)).tolist() == [True, True, False]
+    for bad, shown in ((0.0, "0"), (0.005, "0.005"), (math.inf, "inf"), (math.nan, "nan")):
+        with pytest.raises(InvalidInputError, match=rf"alarm_horizon = {shown} .*one period"):
+            _core.Schedule(DEADLINE, 0.01, 0, tau, alarm_horizon=bad)
+
+
 def test_schedules_share_the_fused_step_on_free_spheres() -> None:
     """``step_points`` and the Python protocol give the same alarms for every schedule."""
     world = SphereWorld(12, seed=3, radius=0.08, accel=2.0, dt=0.01)

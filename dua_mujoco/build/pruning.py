@@ -84,21 +84,20 @@ def reach_for(
     bounds: MotionBounds,
     delta: np.ndarray,
     dt: float,
-    latency: int,
-    alarm_periods: int = 1,
+    ahead: int,
 ) -> Reach:
     """A pruned predictor's :class:`Reach`. ``delta``: ``(nbody,)`` velocity uncertainties;
-    ``horizon`` None: ``(DEFAULT_STRIDE + latency + alarm_periods - 1) dt``.
+    ``ahead``: the periods a verdict must see past the next step, ``latency + alarm_periods - 1``;
+    ``horizon`` None: ``(DEFAULT_STRIDE + ahead) dt``.
 
     A pair left out at the rebuild of step ``r`` is held out strictly (its reaches are farther
     apart than the contact distance), so it has no state in contact before step
     ``r + floor(T / dt) + 1``; the next rebuild holds it (standing in alarm until evaluated
     there), and that alarm acts after the latency. Rebuilds every ``R`` steps with
-    ``(R + latency + alarm_periods - 1) dt <= T`` therefore flag it at least the alarm horizon
-    before it touches (docs/many-objects.md).
+    ``(R + ahead) dt <= T`` therefore flag it at least the alarm horizon before it touches
+    (docs/many-objects.md).
     """
     covering = universe.covering
-    ahead = latency + alarm_periods - 1
     T = (DEFAULT_STRIDE + ahead) * dt if horizon is None else horizon
     stride = rebuild_stride(T, dt, ahead)  # checks T
     body = np.asarray(covering.sphere_body, dtype=np.int64)

@@ -219,6 +219,7 @@ class SpherePredictor:
         c[_LAYOUT["CFG_BACKOFF"]] = self.alarm_backoff
         # Select-all's rule on tau, (1 + latency) dt, as the deadline and rank ones at one period.
         c[_LAYOUT["CFG_THRESHOLD"]] = (1 + self.latency) * self.dt
+        c[_LAYOUT["CFG_ALARM_HORIZON"]] = self.dt
         c[_LAYOUT["CFG_MARGIN"]] = self.margin
         c[_LAYOUT["CFG_HAS_SPEED"]] = bool(np.isfinite(self.speed).any())
         if self.stride is not None:

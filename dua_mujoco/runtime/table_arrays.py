@@ -94,8 +94,7 @@ def predictor_tables(p: TableSource) -> dict[str, np.ndarray]:
     c[CONFIG["backoff"]] = p.alarm_backoff
     # Select-all's rule on tau: (1 + latency) dt, and the alarm horizon beyond its one period.
     c[CONFIG["threshold"]] = (p.alarm_periods + p.latency) * p.dt
-    # 0 is one period (the default, exactly today's rule); else the horizon in seconds.
-    c[CONFIG["alarm_horizon"]] = 0.0 if p.alarm_periods == 1 else p.alarm_horizon
+    c[CONFIG["alarm_horizon"]] = p.alarm_horizon  # whole periods, seconds (one by default)
     c[CONFIG["timestep"]] = float(m.opt.timestep)
     exact = p.universe.exact
     c[CONFIG["exact_on"]] = exact is not None

@@ -7,6 +7,7 @@
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
@@ -18,6 +19,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -461,11 +463,12 @@ Out<double> ExactRows(const In<double>& geoms, const In<int64_t>& geom1, const I
 // ------------------------------------------------------------------------------- schedules
 
 ScheduleSpec SpecOf(int64_t kind, double dt, int64_t latency, int64_t slots_per_bucket, int64_t cap,
-                    int64_t max_interval, int64_t backoff, double threshold, double alarm_horizon) {
+                    int64_t max_interval, int64_t backoff, double threshold,
+                    std::optional<double> alarm_horizon) {
   ScheduleSpec s;
   s.kind = kind, s.dt = dt, s.latency = latency, s.slots_per_bucket = slots_per_bucket;
   s.cap = cap, s.max_interval = max_interval, s.backoff = backoff, s.threshold = threshold;
-  s.alarm_horizon = alarm_horizon;
+  s.alarm_horizon = alarm_horizon.value_or(dt);  // None: one period
   const std::string bad = s.Check();
   if (!bad.empty()) Raise("InvalidInputError", bad + ".");
   return s;
@@ -487,7 +490,7 @@ void BindSchedule(nb::module_& m) {
           "__init__",
           [](Schedule* self, int64_t kind, double dt, int64_t latency, const In<double>& tau0,
              nb::object active, int64_t slots_per_bucket, int64_t cap, int64_t max_interval,
-             int64_t backoff, double threshold, double alarm_horizon) {
+             int64_t backoff, double threshold, std::optional<double> alarm_horizon) {
             const ScheduleSpec spec = SpecOf(kind, dt, latency, slots_per_bucket, cap, max_interval,
                                              backoff, threshold, alarm_horizon);
             std::vector<double> tau(tau0.data(), tau0.data() + tau0.size());
@@ -502,7 +505,7 @@ void BindSchedule(nb::module_& m) {
           },
           "kind"_a, "dt"_a, "latency"_a, "tau0"_a, nb::arg("active").none() = nb::none(),
           "slots_per_bucket"_a = 1, "cap"_a = 0, "max_interval"_a = 1024, "backoff"_a = 8,
-          "threshold"_a = 0.0, "alarm_horizon"_a = 0.0)
+          "threshold"_a = 0.0, nb::arg("alarm_horizon").none() = nb::none())
       .def(
           "select", [](Schedule& s, int64_t n) { return dua_select(s.state(), n); }, "n"_a)
       .def(
@@ -574,7 +577,7 @@ void BindSchedule(nb::module_& m) {
       .def_prop_ro("dt", [](const Schedule& s) { return s.spec().dt; })
       .def_prop_ro("latency", [](const Schedule& s) { return s.spec().latency; })
       .def_prop_ro(
-          "alarm_horizon", [](const Schedule& s) { return s.spec().dt + s.Extra(); },
+          "alarm_horizon", [](const Schedule& s) { return s.spec().alarm_horizon; },
           "The alarm horizon, seconds (one period by default).")
       .def_rw("step_count", &Schedule::step_count)
       .def_rw("activation_changes", &Schedule::activation_changes)

@@ -317,7 +317,7 @@ void Runtime::Retire() {
   // The next step's verdicts are all under the new plan (every pair is due then); the old ones
   // are in force until that step's act (latency) and cover the alarm horizon past it.
   const ScheduleSpec& spec = tables_->schedule;
-  const double horizon = spec.alarm_horizon > 0.0 ? spec.alarm_horizon : spec.dt;
+  const double horizon = spec.alarm_horizon;
   const double next = last_time_ + spec.dt - read_lag_ * tables_->timestep;
   const size_t nbody = plan_ok_.size();
   shadows_.push_back({plan_, plan_ok_, next + horizon + static_cast<double>(spec.latency) * spec.dt,

@@ -529,9 +529,9 @@ std::string ScheduleSpec::Check() const {
                "an int >= 1 (steps; 1 re-evaluates alarmed pairs every step)");
   }
   if (std::isnan(threshold)) return bad("the select-all threshold", "NaN", "a number");
-  if (!(alarm_horizon == 0.0 || (alarm_horizon >= dt && std::isfinite(alarm_horizon)))) {
+  if (!(alarm_horizon >= dt && std::isfinite(alarm_horizon))) {
     return bad("alarm_horizon", num(alarm_horizon),
-               "seconds of warning, at least one period (" + num(dt) + " s), or 0 for one period");
+               "seconds of warning, at least one period (" + num(dt) + " s)");
   }
   return "";
 }
@@ -670,7 +670,7 @@ int64_t Schedule::NextDue(int64_t p) const {
 bool Schedule::Stands(int64_t p) const { return active[p] && last_tau[p] <= HorizonOf(p); }
 
 double Schedule::Extra() const {
-  return spec_.alarm_horizon > 0.0 ? spec_.alarm_horizon - spec_.dt : 0.0;
+  return spec_.alarm_horizon - spec_.dt;  // 0 exactly at one period
 }
 
 void Schedule::Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n) {

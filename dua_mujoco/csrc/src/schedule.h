@@ -29,8 +29,9 @@ struct DUA_API ScheduleSpec {
   // Select-all: the alarm threshold on the urgency (tau: (1 + latency) dt + the alarm horizon
   // beyond one period; a distance for the paper's SA(d)).
   double threshold = 0.0;
-  // The alarm horizon, seconds (0: one period): every verdict alarms that cannot cover the wait
-  // until the next one plus this less one period.
+  // The alarm horizon, seconds (at least dt; dt is one period, the default): every verdict alarms
+  // that cannot cover the wait until the next one plus this less one period. Set by every
+  // builder (Python converts the user's seconds to whole periods once); 0 fails Check.
   double alarm_horizon = 0.0;
 
   // An empty string, or what is wrong: the option, its value and the values it takes (the one
