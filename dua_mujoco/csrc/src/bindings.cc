@@ -483,6 +483,16 @@ void CheckIds(const Schedule& s, const In<int64_t>& ids) {
   }
 }
 
+// f(p) of each pair id p of ids (checked), as an (n,) array.
+template <class F>
+auto PerPair(const Schedule& s, const In<int64_t>& ids, F f) {
+  CheckIds(s, ids);
+  const auto n = static_cast<size_t>(Size(ids));
+  std::vector<decltype(f(int64_t{0}))> out(n);
+  for (size_t k = 0; k < n; ++k) out[k] = f(ids.data()[k]);
+  return Owned(std::move(out), {n});
+}
+
 void BindSchedule(nb::module_& m) {
   nb::class_<Schedule>(m, "Schedule",
                        "A schedule's state and kernels (dua_mujoco.core.schedules wraps it).")
@@ -540,29 +550,18 @@ void BindSchedule(nb::module_& m) {
            [](const Schedule& s) {
              std::vector<uint8_t> out(s.m());
              for (int64_t p = 0; p < s.m(); ++p) out[p] = s.Stands(p);
-             auto* held = new std::vector<uint8_t>(std::move(out));
-             if (held->empty()) held->reserve(1);
-             nb::capsule owner(
-                 held, [](void* q) noexcept { delete static_cast<std::vector<uint8_t>*>(q); });
-             const size_t shape[1] = {static_cast<size_t>(s.m())};
-             return Out<bool>(reinterpret_cast<bool*>(held->data()), 1, shape, owner);
+             return OwnedBools(std::move(out));
            })
       .def(
           "horizon_of",
           [](const Schedule& s, const In<int64_t>& ids) {
-            CheckIds(s, ids);
-            std::vector<double> out(Size(ids));
-            for (int64_t k = 0; k < Size(ids); ++k) out[k] = s.HorizonOf(ids.data()[k]);
-            return Owned(std::move(out), {static_cast<size_t>(Size(ids))});
+            return PerPair(s, ids, [&s](int64_t p) { return s.HorizonOf(p); });
           },
           "ids"_a)
       .def(
           "next_due",
           [](const Schedule& s, const In<int64_t>& ids) {
-            CheckIds(s, ids);
-            std::vector<int64_t> out(Size(ids));
-            for (int64_t k = 0; k < Size(ids); ++k) out[k] = s.NextDue(ids.data()[k]);
-            return Ints(out);
+            return PerPair(s, ids, [&s](int64_t p) { return s.NextDue(p); });
           },
           "ids"_a, "The step each pair is next evaluated at (-1: a deadline pair switched off).")
       .def_prop_ro(
