@@ -42,7 +42,7 @@ from dua_mujoco.build.options import (
     resolve_options,
 )
 from dua_mujoco.build.pairbounds import body_vel_uncertainty
-from dua_mujoco.build.pruning import Reach, reach_for, resolve_pair_mode
+from dua_mujoco.build.pruning import Reach, reach_for
 from dua_mujoco.build.tables import (
     PairTables,
     check_data,
@@ -53,7 +53,7 @@ from dua_mujoco.build.tables import (
 from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule
-from dua_mujoco.core.spheres import PairMode
+from dua_mujoco.core.spheres import PairMode, pair_mode
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
     InvalidInputError,
@@ -175,11 +175,11 @@ class Predictor(PlanFollowing):
             )
         )
         cov = self.covering
-        mode = resolve_pair_mode(
+        mode = pair_mode(
             self.options.pairs.mode,
             self.options.pairs.horizon,
+            nsphere=cov.nsphere,
             deadline=self.schedule is Schedule.DEADLINE,
-            covering=cov,
         )
         exact = None
         if self.options.urgency.exact:
