@@ -22,10 +22,9 @@ import numpy.typing as npt
 
 import dua_mujoco._core as _core
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.core.schedules import Schedule, Scheduler
+from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule, schedule_config
 from dua_mujoco.core.schedules.deadline import (
     DEFAULT_ALARM_BACKOFF,
-    DEFAULT_MAX_INTERVAL,
     check_alarm_backoff,
     check_max_evals,
 )
@@ -62,11 +61,6 @@ whole held set is rebuilt (O(N + K), ~1 us a sphere on swarms), so that a renewa
 about half a rebuild at any ``N`` (measured, docs/many-objects.md)."""
 
 _LAYOUT = _core.LAYOUT
-_KIND = {
-    Schedule.DUA: _LAYOUT["RANK"],
-    Schedule.DEADLINE: _LAYOUT["DEADLINE"],
-    Schedule.SELECT_ALL: _LAYOUT["ALL"],
-}
 
 
 class PairMode(enum.Enum):
@@ -208,10 +202,7 @@ class SpherePredictor:
             )
         self.dt, self.latency = check_period(dt, latency)
         self.margin = float(per_pair("margin", margin, 1)[0])
-        try:
-            self.schedule = Schedule(schedule)
-        except ValueError:
-            raise InvalidChoiceError("schedule", schedule, [s.value for s in Schedule]) from None
+        self.schedule = as_schedule(schedule)
         self.max_evals_per_step = check_max_evals(max_evals_per_step) or None
         self.alarm_backoff = check_alarm_backoff(alarm_backoff)
         deadline = self.schedule is Schedule.DEADLINE
@@ -227,17 +218,13 @@ class SpherePredictor:
     def _runtime(self, reach_horizon: float | None) -> _core.Runtime:
         """The native runtime on this predictor's tables, the reach over ``reach_horizon`` (the
         horizon, which the tests shorten alone to watch the guarantee break)."""
-        c = np.zeros(_LAYOUT["CFG_SIZE"])
-        c[_LAYOUT["CFG_VERSION"]] = _core.TABLES_VERSION
-        c[_LAYOUT["CFG_KIND"]] = _KIND[self.schedule]
-        c[_LAYOUT["CFG_DT"]], c[_LAYOUT["CFG_LATENCY"]] = self.dt, self.latency
-        c[_LAYOUT["CFG_SLOTS_PER_BUCKET"]] = 1
-        c[_LAYOUT["CFG_CAP"]] = self.max_evals_per_step or 0
-        c[_LAYOUT["CFG_MAX_INTERVAL"]] = DEFAULT_MAX_INTERVAL
-        c[_LAYOUT["CFG_BACKOFF"]] = self.alarm_backoff
-        # Select-all's rule on tau, (1 + latency) dt, as the deadline and rank ones at one period.
-        c[_LAYOUT["CFG_THRESHOLD"]] = (1 + self.latency) * self.dt
-        c[_LAYOUT["CFG_ALARM_HORIZON"]] = self.dt
+        c = schedule_config(
+            self.schedule,
+            dt=self.dt,
+            latency=self.latency,
+            max_evals_per_step=self.max_evals_per_step,
+            alarm_backoff=self.alarm_backoff,
+        )
         c[_LAYOUT["CFG_MARGIN"]] = self.margin
         c[_LAYOUT["CFG_HAS_SPEED"]] = bool(np.isfinite(self.speed).any())
         if self.stride is not None:
