@@ -546,12 +546,6 @@ void BindSchedule(nb::module_& m) {
             dua_make_due(s.state(), p, n);
           },
           "p"_a, "n"_a)
-      .def("alarm_state",
-           [](const Schedule& s) {
-             std::vector<uint8_t> out(s.m());
-             for (int64_t p = 0; p < s.m(); ++p) out[p] = s.Stands(p);
-             return OwnedBools(std::move(out));
-           })
       .def(
           "horizon_of",
           [](const Schedule& s, const In<int64_t>& ids) {
