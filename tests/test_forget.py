@@ -1,7 +1,10 @@
 """Pruned pairs that forget (issue 35): a plugin ``MjData`` forgets the geom pairs it has not
 held for ``forget`` rebuilds, and holds what a predictor that never forgets holds (docs/theory.md,
 Lemma 7.1): the same standing pairs and evaluations after every step, a forgotten pair met again
-and flagged before it collides, and the pairs known bounded while the pairs met keep growing."""
+and flagged before it collides, and the pairs known bounded while the pairs met keep growing.
+
+Both sides run one runtime (docs/theory.md, section 7): the comparisons are round trips that
+check forgetting against not forgetting, not the step itself (tests/test_reference_step.py)."""
 
 from __future__ import annotations
 
@@ -69,10 +72,12 @@ def test_a_forgotten_pair_is_met_again_and_flagged_before_it_collides() -> None:
     assert flagged == collided, (flagged, collided, excused)
 
 
-def test_forgetting_among_geoms_of_many_spheres_holds_what_python_holds() -> None:
+def test_forgetting_among_geoms_of_many_spheres_round_trips_what_python_holds() -> None:
     """Objects poured into a bin (geoms of many spheres, impacts that renew spheres between
     rebuilds, a mocap body), the plugin forgetting every pair the latest rebuild did not hold:
-    the same standing pairs and evaluations as the pruned Python predictor after every step."""
+    the same standing pairs and evaluations as the pruned Python predictor after every step. A
+    round trip of one runtime through two callers that differ in forgetting alone (Lemma 7.1):
+    it catches a forgetting that loses a pair, not a bug of the step both share."""
     spec = load_spec("bin_pour:60")
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER  # as test_plugin compares them
     p = attach(spec, accel=5.0, pairs="pruned", forget=0)
