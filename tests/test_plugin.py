@@ -130,8 +130,9 @@ def test_plugin_round_trips_the_predictor_under_options(options: dict) -> None:
     ids=["bin_pour", "clutter", "swarm", "swarm-1.1M-pairs"],
 )  # fmt: skip
 def test_plugin_round_trips_the_pruned_predictor(scene: str, accel: float, steps: int) -> None:
-    """A round trip (module docstring) with ``pairs="pruned"``: the plugin holds the pairs a pruned ``Predictor`` holds, rebuilt every
-    stride and renewed for the spheres an impact lets escape, learning the pairs it meets
+    """A round trip (module docstring) with ``pairs="pruned"``: the plugin holds the pairs a
+    pruned ``Predictor`` holds, rebuilt every stride and renewed for the spheres an impact lets
+    escape, learning the pairs it meets
     (objects poured into a bin, a mocap body, swarms: one of 1.1 million active pairs, more
     than ``pairs="all"`` takes): the same standing pairs and evaluations after every step."""
     m, p = _attached(scene, accel=accel, pairs="pruned")
@@ -146,8 +147,9 @@ def test_plugin_round_trips_the_pruned_predictor(scene: str, accel: float, steps
 
 
 def test_plugin_round_trips_pruned_switches_and_classifications() -> None:
-    """A round trip (module docstring) of pruned pairs with intended contact and latency: pairs switched off stay off when a
-    rebuild or a renewal holds them again; a reset classifies from scratch."""
+    """A round trip (module docstring) of pruned pairs with intended contact and latency: pairs
+    switched off stay off when a rebuild or a renewal holds them again; a reset classifies from
+    scratch."""
     from dua_mujoco.mj.options import PairOptions
 
     m, p = _attached("two_arms", pairs=PairOptions(mode="pruned", horizon=0.02), latency=1)
@@ -162,9 +164,10 @@ def test_plugin_round_trips_pruned_switches_and_classifications() -> None:
 
 
 def test_plugin_round_trips_switched_bodies() -> None:
-    """A round trip (module docstring) of intended contact: the pairs between a loose box and the table switched off, back on
-    (standing in alarm until evaluated), every pair of an arm's link, then every pair in
-    contact: the same standing pairs as the Python predictor's after every step."""
+    """A round trip (module docstring) of intended contact: the pairs between a loose box and
+    the table switched off, back on (standing in alarm until evaluated), every pair of an arm's
+    link, then every pair in contact: the same standing pairs as the Python predictor's after
+    every step."""
     m, p = _attached("two_arms")
     box = int(m.geom_bodyid[m.geom("loose_box").id])
     table = int(m.geom_bodyid[m.geom("table_top").id])
