@@ -110,13 +110,14 @@ class Terrain:
 
 
 @st.composite
-def terrains(draw, tilted: bool = True, max_cells: int = 7) -> Terrain:
-    nrow = draw(st.integers(2, max_cells + 1))
-    ncol = draw(st.integers(2, max_cells + 1))
+def terrains(draw, tilted: bool = True, max_cells: int = 7, min_cells: int = 1) -> Terrain:
+    nrow = draw(st.integers(min_cells + 1, max_cells + 1))
+    ncol = draw(st.integers(min_cells + 1, max_cells + 1))
     scale = 10.0 ** draw(st.floats(-1.0, 1.0))
+    wide = 0.2 if min_cells < 32 else 0.5  # large grids: wide enough for their cells
     size = [
-        draw(st.floats(0.2, 2.0)) * scale,
-        draw(st.floats(0.2, 2.0)) * scale,
+        draw(st.floats(wide, 2.0)) * scale,
+        draw(st.floats(wide, 2.0)) * scale,
         draw(st.floats(0.05, 1.0)) * scale,
         draw(st.floats(0.01, 0.5)) * scale,
     ]
@@ -151,27 +152,9 @@ def motions(draw, terrain: Terrain):
 
 
 # What decided a search (``_core.tau_terrain``'s second value): the base or the first cell, the
-# cells within reach one by one (at most 256), the pyramid's branch and bound.
+# cells within reach one by one (at most 256), the pyramid's branch and bound. Grids of 32 to 64
+# cells a side (1,024 to 4,096 cells: far more than the window holds) reach the pyramid.
 FIRST, WINDOW, PYRAMID = 0, 1, 2
-
-
-@st.composite
-def large_terrains(draw) -> Terrain:
-    """Grids of 32 to 64 cells a side (1,024 to 4,096 cells: far more than the window's 256)."""
-    nrow, ncol = draw(st.integers(33, 65)), draw(st.integers(33, 65))
-    scale = 10.0 ** draw(st.floats(-1.0, 1.0))
-    size = [
-        draw(st.floats(0.5, 2.0)) * scale,
-        draw(st.floats(0.5, 2.0)) * scale,
-        draw(st.floats(0.05, 1.0)) * scale,
-        draw(st.floats(0.01, 0.5)) * scale,
-    ]
-    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
-    data = rng.random(nrow * ncol) if draw(st.booleans()) else rng.integers(0, 3, nrow * ncol) / 2
-    pos = [draw(st.floats(-1, 1)) * scale for _ in range(3)]
-    q = [draw(st.floats(-1, 1)) for _ in range(4)]
-    rot = rotation(q) if draw(st.booleans()) and np.linalg.norm(q) > 1e-3 else None
-    return Terrain(size, nrow, ncol, data, pos, rot)
 
 
 @st.composite
@@ -477,7 +460,7 @@ def test_search_equals_every_cell_through_the_pyramid_for_a_sphere(data) -> None
     """Grids of 32 to 64 cells a side, a sphere that can reach more of them than the window
     holds: the branch and bound over the pyramid runs (asserted) and finds the bound written
     over every cell."""
-    t = data.draw(large_terrains())
+    t = data.draw(terrains(min_cells=32, max_cells=64))
     c, v, eps, accel, delta = data.draw(reaching_motions(t))
     got, path = t.search(_point(c), v, 0.0, eps, accel, delta)
     assert path == PYRAMID
@@ -488,7 +471,7 @@ def test_search_equals_every_cell_through_the_pyramid_for_a_sphere(data) -> None
 @LARGE
 @given(st.data())
 def test_search_equals_every_cell_through_the_pyramid_for_a_geom(data) -> None:
-    t = data.draw(large_terrains())
+    t = data.draw(terrains(min_cells=32, max_cells=64))
     c, v, eps, accel, delta = data.draw(reaching_motions(t))
     kind = data.draw(st.sampled_from(KINDS))
     cell = 2 * float(t.size[0]) / (t.ncol - 1)
@@ -569,7 +552,8 @@ def test_a_fine_grid_reached_sideways_is_searched_not_settled_by_the_base() -> N
     is nearer than the side, so its bound is the smaller, and the first cell's value, the time
     to reach the side, is the larger; the cells within that reach are far more than the window
     holds: the pyramid's search decides (the base bound does not), and finds the bound written
-    over every cell; on a flat block, the side's time exactly."""
+    over every cell, for a sphere and a spinning capsule; on a flat block, the side's time
+    exactly."""
     flat = Terrain([1.0, 1.0, 0.4, 0.2], 201, 201, np.ones(201 * 201))  # a block, -0.2 to 0.4
     c, v = np.array([1.6, 0.0, -0.3]), np.zeros(3)
     base = math.sqrt(2 * 0.09 / 10.0)  # up 0.1 to the base, less eps
@@ -584,6 +568,12 @@ def test_a_fine_grid_reached_sideways_is_searched_not_settled_by_the_base() -> N
         got, path = rough.search(_point(c), v, 0.0, 0.01, 10.0, 0.05)
         assert path == PYRAMID
         want = _sphere_bound(rough, c, v, 0.01, 10.0, 0.05)
+        assert _close(got, want) and got > 0.0, (got, want)
+        # A spinning capsule there: its reach sideways grows with its spin too.
+        shape = _object(ShapeKind.CAPSULE, [0.03, 0.08, 0.0], c, rotation(rng.normal(size=4)))
+        got, path = rough.search(shape, v, 0.5, 0.01, 10.0, 0.05)
+        assert path == PYRAMID
+        want = _object_bound(rough, shape, v, 0.5, 0.01, 10.0, 0.05)
         assert _close(got, want) and got > 0.0, (got, want)
 
 
