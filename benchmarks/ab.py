@@ -36,10 +36,13 @@ if hasattr(dua_mujoco, "SphereWorld"):
     from dua_mujoco.scenes import load_scene, make_controller
 else:
     from dua_mujoco.core.worlds import SphereWorld
-    from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.scenes import load_scene, make_controller
+    from dua_mujoco import Predictor, load_scene
+    try:  # the scenes' module: dua_mujoco.models since issue 41, dua_mujoco.mj before
+        from dua_mujoco.models.scenes import make_controller
+    except ImportError:
+        from dua_mujoco.mj.scenes import make_controller
 if sys.argv[1] == "after":  # the Predictor's options are grouped on this side
-    from dua_mujoco.mj.options import CoveringOptions
+    from dua_mujoco import CoveringOptions
 
 def median_us(fn, n):
     ts = []

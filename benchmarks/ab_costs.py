@@ -31,7 +31,7 @@ PROBE = r"""
 import json, sys, time
 import numpy as np
 import mujoco
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco import Predictor
 
 XML = '''<mujoco><option gravity="0 0 0"/><worldbody>
 <body pos="-1.5 0 0"><freejoint/><geom size="0.1"/></body>
@@ -56,7 +56,10 @@ out = {"mj_step_us": float(np.median(plain)) * 1e6,
        "fixed_us": float(np.median(np.array(stepped) - np.array(plain))) * 1e6}
 
 from dua_mujoco import attach
-from dua_mujoco.mj.scenes import load_spec
+try:  # the scenes' module: dua_mujoco.models since issue 41, dua_mujoco.mj before
+    from dua_mujoco.models.scenes import load_spec
+except ImportError:
+    from dua_mujoco.mj.scenes import load_spec
 sys.path.insert(0, sys.argv[1])
 try:
     from robots import robot_spec

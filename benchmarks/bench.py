@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from dua_mujoco.mj.options import PilotOptions
+from dua_mujoco.build.options import PilotOptions
 
 
 def median_time(fn: Callable[[], object], repeat: int, warmup: int = 1) -> float:
@@ -159,7 +159,7 @@ def bare_loop_period(name: str, predictor: object, steps: int, period: int) -> t
     """Median us per ``Predictor.step`` call (every ``period`` steps) and per ``mj_step``."""
     import mujoco
 
-    from dua_mujoco.mj.scenes import load_scene, make_controller
+    from dua_mujoco.models.scenes import load_scene, make_controller
 
     m, d = load_scene(name)
     ctrl = make_controller(m, "random", seed=0)
@@ -223,9 +223,9 @@ def bench_dispatch(calls: int = 200_000) -> str:
 
 
 def bench_scenes(steps: int = 2000) -> str:
-    from dua_mujoco.mj.monitor import run
-    from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.scenes import load_scene, make_controller
+    from dua_mujoco.measure.rollout import run
+    from dua_mujoco.models.scenes import load_scene, make_controller
+    from dua_mujoco.runtime.predictor import Predictor
 
     rows = []
     for name, schedule in (
@@ -297,9 +297,9 @@ def bench_scenes(steps: int = 2000) -> str:
 
 def bench_period(steps: int = 2000, periods: tuple[int, ...] = (1, 2, 4, 8)) -> str:
     """Traffic with its declared bound (4 m/s^2) at several predictor periods."""
-    from dua_mujoco.mj.monitor import run
-    from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
+    from dua_mujoco.measure.rollout import run
+    from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
+    from dua_mujoco.runtime.predictor import Predictor
 
     rows = []
     for k in periods:

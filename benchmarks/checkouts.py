@@ -5,8 +5,9 @@ it: its compiled modules live in that venv (scikit-build-core's editable install
 of the source tree), and so do its dependencies (numba, before issue 33). Otherwise the checkout
 runs in this interpreter from its source tree. An editable install made by scikit-build-core
 puts an import finder ahead of ``sys.path``, so such a subprocess would still import this
-checkout: :data:`PREAMBLE` removes that finder first (the finder maps ``dua_mujoco.models`` to
-``models/``, which the source tree alone does not).
+checkout: :data:`PREAMBLE` removes that finder first (before issue 41 it mapped
+``dua_mujoco.models`` to ``models/``, which the source tree alone did not; the link
+``dua_mujoco/models`` now does).
 """
 
 from __future__ import annotations

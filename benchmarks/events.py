@@ -31,12 +31,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.options import PilotOptions, ScheduleOptions
 from dua_mujoco.cli import main as cli
 from dua_mujoco.exceptions import DuaError
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.options import PilotOptions, ScheduleOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table

@@ -32,19 +32,19 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.pairbounds import body_vel_uncertainty
 from dua_mujoco.exceptions import DuaError
 from dua_mujoco.experiments.peers.mujoco_collision import MujocoScene
 from dua_mujoco.experiments.peers.scene_context import SceneContext
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.pairbounds import body_vel_uncertainty
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table
 from pareto import _load
 
-from dua_mujoco.mj.options import PilotOptions, UrgencyOptions
+from dua_mujoco.build.options import PilotOptions, UrgencyOptions
 
 SCENES = ("two_arms", "traffic", "clutter", "gym/ant", "gym/humanoid", "dmc/humanoid_CMU")
 QUICK = ("two_arms", "traffic")

@@ -16,7 +16,7 @@ import time
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.runtime.predictor import Predictor
 
 XML = """
 <mujoco>

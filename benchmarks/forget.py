@@ -25,7 +25,7 @@ import time
 PROBE = r"""
 import json, sys, time
 import mujoco, numpy as np
-from dua_mujoco.mj.scenes import load_spec
+from dua_mujoco.models.scenes import load_spec
 from dua_mujoco.plugin import attach, known_pairs
 
 n, steps, forget = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]

@@ -32,7 +32,7 @@ Switching to an alarm horizon. Today the only way to alarm over ``H`` is the lat
 deadline schedule a pair alarms when ``tau < (1 + latency) dt``, so :func:`predictor_options`
 returns ``{"latency": round(H / dt) - 1}``. When ``Predictor(alarm_horizon=...)`` exists, make it
 return ``{"alarm_horizon": H}`` (latency 0): nothing else here changes (the report already
-measures against ``H``, and :func:`~dua_mujoco.mj.warning_time.alarm_horizon_of` is where the
+measures against ``H``, and :func:`~dua_mujoco.measure.warning_time.alarm_horizon_of` is where the
 report's default horizon is read).
 """
 
@@ -50,10 +50,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.options import PilotOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.build.options import PilotOptions
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table

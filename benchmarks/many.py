@@ -316,9 +316,11 @@ MUJOCO_SCENES = [
 _PROBE = r"""
 import json, sys, time
 import mujoco
-from dua_mujoco import Predictor
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco import Predictor, load_scene, run
+try:  # the scenes' module: dua_mujoco.models since issue 41, dua_mujoco.mj before
+    from dua_mujoco.models.scenes import make_controller
+except ImportError:
+    from dua_mujoco.mj.scenes import make_controller
 scene, steps, accel = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 t = time.perf_counter(); m, d = load_scene(scene); load = time.perf_counter() - t
 t = time.perf_counter()

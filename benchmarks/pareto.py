@@ -36,14 +36,14 @@ import numpy as np
 from dua_mujoco.experiments.peers.broadphase import BroadphaseScene
 from dua_mujoco.experiments.peers.mujoco_collision import MujocoScene
 from dua_mujoco.experiments.peers.scene_context import SceneContext
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import bare_loop, table
 
-from dua_mujoco.mj.options import CoveringOptions, PilotOptions, ScheduleOptions, UrgencyOptions
+from dua_mujoco.build.options import CoveringOptions, PilotOptions, ScheduleOptions, UrgencyOptions
 
 SCENES = ("two_arms", "traffic", "clutter", "gym/humanoid", "gym/ant", "dmc/humanoid_CMU")
 QUICK_SCENES = ("two_arms", "gym/ant")

@@ -7,13 +7,13 @@
 For each robot (``benchmarks/horizon.py``'s seven), protocol and alarm horizon ``H`` (one
 predictor period, then 10 to 500 ms), one rollout (rollout seed 0, 2,000 steps) stepped by three
 predictors built alike (``accel="auto"`` from the pilot horizon.py uses, ``alarm_horizon=H``,
-latency 0), each with its own :class:`~dua_mujoco.mj.monitor.Monitor` measuring against ``H``:
+latency 0), each with its own :class:`~dua_mujoco.measure.monitor.Monitor` measuring against ``H``:
 
 - **A** follows the plans of a planner that knows the driver's command up to its next waypoint
   and nothing after: a copy of the driver whose next random point continues the current segment
   (``smooth``) or holds the current control (``random``). Up to the waypoint the plan is the
   simulation bit for bit (deviation 0); past it, each body's deviation is the pilot's largest at
-  that many steps past a waypoint (:func:`~dua_mujoco.mj.plans.deviation_profile` at the
+  that many steps past a waypoint (:func:`~dua_mujoco.runtime.plans.deviation_profile` at the
   predictor's bound points), made monotone, times 2. It replans every ``R = max(H/4, 50 ms)``;
 - **T** follows the plans of a planner that knows the driver's whole trajectory (a copy of the
   driver with its random source: the waypoints are drawn in advance, as a trajectory planner or
@@ -21,8 +21,8 @@ latency 0), each with its own :class:`~dua_mujoco.mj.monitor.Monitor` measuring 
   the run), and it replans every ``R = max(H, 50 ms)``;
 - **B** follows the motion bounds alone (today's predictor).
 
-Plans are rolled with :func:`~dua_mujoco.mj.plans.plan_from_controls` from the current state for
-``R + n + 2`` knots (``n`` the horizon's steps: the plan covers every step until the next plan
+Plans are rolled with :func:`~dua_mujoco.runtime.plans.plan_from_controls` from the current state
+for ``R + n + 2`` knots (``n`` the horizon's steps: the plan covers every step until the next plan
 and its horizon). Each profile comes from a pilot running the same planner, one plan every
 :data:`PILOT_EVERY` steps, on the pilot's own seed (``1_000_003``; the rollout's is 0). The three
 are stepped in turn on the same ``MjData`` (order reversed every step), each timed like
@@ -59,13 +59,18 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.accumulators import Durations
-from dua_mujoco.mj.monitor import Monitor
-from dua_mujoco.mj.options import PilotOptions
-from dua_mujoco.mj.plans import PilotPlan, deviation_profile, plan_deviation, plan_from_controls
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.report import build_report
-from dua_mujoco.mj.scenes import SceneController, make_controller
+from dua_mujoco.build.options import PilotOptions
+from dua_mujoco.measure.accumulators import Durations
+from dua_mujoco.measure.monitor import Monitor
+from dua_mujoco.measure.rollout import build_report
+from dua_mujoco.models.scenes import SceneController, make_controller
+from dua_mujoco.runtime.plans import (
+    PilotPlan,
+    deviation_profile,
+    plan_deviation,
+    plan_from_controls,
+)
+from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table

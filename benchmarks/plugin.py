@@ -49,9 +49,11 @@ from pathlib import Path
 import numpy as np
 import mujoco
 sys.path.insert(0, sys.argv[1])  # this checkout's benchmarks/ (robots.py)
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco import CoveringOptions, PilotOptions, Predictor, UrgencyOptions
+try:  # the scenes' module: dua_mujoco.models since issue 41, dua_mujoco.mj before
+    from dua_mujoco.models.scenes import load_spec, make_controller
+except ImportError:
+    from dua_mujoco.mj.scenes import load_spec, make_controller
 
 side, steps, scenes = sys.argv[2], int(sys.argv[3]), sys.argv[4:]
 
@@ -69,8 +71,7 @@ def spec_of(scene):
     path = Path(sys.argv[1]).parent / "models" / (scene + ".xml")
     if path.is_file():  # the other checkout finds its bundled files only when installed
         return mujoco.MjSpec.from_file(str(path))
-    from dua_mujoco.mj.scenes import load_spec  # generated scenes (swarm:N)
-    return load_spec(scene)
+    return load_spec(scene)  # generated scenes (swarm:N)
 
 def model_of(scene):
     spec = spec_of(scene)

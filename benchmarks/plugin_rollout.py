@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from robots import available, robot_spec
 
 from dua_mujoco import CoveringOptions, PilotOptions, Predictor, UrgencyOptions
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.models.scenes import make_controller
 from dua_mujoco.plugin import OUTPUTS, attach
 
 VARIANTS = ("plain", "exact on", "exact off")

@@ -59,7 +59,7 @@ distance; over ``n`` steps, ``t = n h``, it *stands* when
 
 Every model's pair-steps are counted over the steps ``k`` whose window ``[k, k + n]`` lies in
 the rollout (steps 0 to ``K - n``, step 0 the state after the first ``mj_step``, as
-``monitor.run``). The oracle is the share of active pairs in MuJoCo's contacts at some step of
+``rollout.run``). The oracle is the share of active pairs in MuJoCo's contacts at some step of
 ``[k, k + n]``. An onset is a pair entering the contacts; its lead under a model is how many
 steps the pair had stood without a break up to it (0: missed). An onset with less lead than
 ``n`` steps is *at the start* when ``k < n``, *after a violation* when either body (the body pair
@@ -88,12 +88,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.bounds import estimate_bounds, moving_bodies
-from dua_mujoco.mj.exact import GX_RADIUS
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
-from dua_mujoco.mj.pilot_screen import MotionScreen, PilotMotion, level_maxima
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.build.bounds import estimate_bounds, moving_bodies
+from dua_mujoco.build.exact import GX_RADIUS
+from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.build.pilot_screen import MotionScreen, PilotMotion, level_maxima
+from dua_mujoco.models.scenes import make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table

@@ -27,10 +27,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.options import PilotOptions, ScheduleOptions, UrgencyOptions
-from dua_mujoco.mj.pairbounds import body_vel_uncertainty
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.build.options import PilotOptions, ScheduleOptions, UrgencyOptions
+from dua_mujoco.build.pairbounds import body_vel_uncertainty
+from dua_mujoco.models.scenes import make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from robots import load_robot

@@ -441,8 +441,8 @@ def robot_spec(name: str) -> mujoco.MjSpec:
 
 
 def _row(name: str, steps: int) -> str:
-    from dua_mujoco.mj.filter import active_geom_pairs
-    from dua_mujoco.mj.scenes import make_controller
+    from dua_mujoco.build.filter import active_geom_pairs
+    from dua_mujoco.models.scenes import make_controller
 
     src = ROBOTS[name]
     m = load_robot(name)

@@ -32,9 +32,11 @@ import hashlib, json, sys, zlib
 from pathlib import Path
 import numpy as np
 import mujoco
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
-from dua_mujoco.mj.options import PilotOptions
+from dua_mujoco import PilotOptions, Predictor, load_scene
+try:  # the scenes' module: dua_mujoco.models since issue 41, dua_mujoco.mj before
+    from dua_mujoco.models.scenes import make_controller
+except ImportError:
+    from dua_mujoco.mj.scenes import make_controller
 
 scene, steps, options = sys.argv[1], int(sys.argv[2]), json.loads(sys.argv[3])
 if scene.startswith("robot/"):

@@ -19,9 +19,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.build.options import CoveringOptions, PilotOptions, UrgencyOptions
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 STEPS = 2000
 

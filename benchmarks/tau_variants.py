@@ -46,10 +46,10 @@ sys.path.insert(0, str(Path(__file__).parent))
 from robots import robot_spec
 
 from dua_mujoco import CoveringOptions, PilotOptions, Predictor
+from dua_mujoco.build.pilot_screen import MotionScreen, PilotMotion, level_maxima
 from dua_mujoco.core.urgency import time_to_collision
 from dua_mujoco.exceptions import BoundViolationWarning
-from dua_mujoco.mj.pilot_screen import MotionScreen, PilotMotion, level_maxima
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.models.scenes import make_controller
 
 ROBOTS = ("dmc_dog", "yam", "go1", "franka_kitchen")
 PILOT_SEED, RUN_SEED = 99, 0  # plugin.py's: the pilot's controls, and the run's

@@ -39,10 +39,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.options import CoveringOptions, PilotOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller, reset_to_keyframe
+from dua_mujoco.build.options import CoveringOptions, PilotOptions
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import load_scene, make_controller, reset_to_keyframe
+from dua_mujoco.runtime.predictor import Predictor
 
 PILOT_SEED = 99
 

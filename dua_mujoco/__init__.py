@@ -2,10 +2,12 @@
 
 Hayward, Aubry, Foisy, Ghallab: "Efficient Collision Prediction Among Many Moving Objects",
 IJRR 1995. ``dua_mujoco.core`` knows nothing of MuJoCo (tau, the schedules, pair geometry, the
-predictor over raw sphere states); ``dua_mujoco.mj`` is the MuJoCo layer (covering, pair filter,
-kinematics, bounds, the predictor, the exact stage); rendering, the CLI and the test helpers sit
-on top. This module exports what the README's path needs; everything else is importable from
-the module that holds it.
+predictor over raw sphere states); over MuJoCo, ``dua_mujoco.build`` turns a model and options
+into tables (covering, pair filter, kinematics, bounds), ``dua_mujoco.runtime`` runs them (the
+predictor) and ``dua_mujoco.measure`` holds a run against MuJoCo's contacts (the exact stage);
+the demo scenes (``dua_mujoco.models``), rendering, the CLI and the test helpers sit on top.
+This module exports what the README's path needs; everything else is importable from the module
+that holds it.
 """
 
 from __future__ import annotations
@@ -30,56 +32,56 @@ from dua_mujoco.exceptions import (
 )
 
 if TYPE_CHECKING:
-    from dua_mujoco.core.schedules import DUAScheduler, Schedule
-    from dua_mujoco.core.spheres import SpherePredictor
-    from dua_mujoco.core.urgency import time_to_collision
-    from dua_mujoco.mj.bounds import MotionBounds, estimate_bounds
-    from dua_mujoco.mj.monitor import run
-    from dua_mujoco.mj.options import (
+    from dua_mujoco.build.bounds import MotionBounds, estimate_bounds
+    from dua_mujoco.build.options import (
         CoveringOptions,
         PairOptions,
         PilotOptions,
         ScheduleOptions,
         UrgencyOptions,
     )
-    from dua_mujoco.mj.plans import (
+    from dua_mujoco.core.schedules import DUAScheduler, Schedule
+    from dua_mujoco.core.spheres import SpherePredictor
+    from dua_mujoco.core.urgency import time_to_collision
+    from dua_mujoco.measure.report import RunReport
+    from dua_mujoco.measure.rollout import run
+    from dua_mujoco.models.scenes import load_scene
+    from dua_mujoco.plugin import PluginOutputs, attach, plugin_outputs, standing_pairs
+    from dua_mujoco.runtime.plans import (
         PilotPlan,
         deviation_profile,
         plan_deviation,
         plan_from_controls,
     )
-    from dua_mujoco.mj.predictor import Alarms, Predictor
-    from dua_mujoco.mj.report import RunReport
-    from dua_mujoco.mj.scenes import load_scene
-    from dua_mujoco.plugin import PluginOutputs, attach, plugin_outputs, standing_pairs
+    from dua_mujoco.runtime.predictor import Alarms, Predictor
 
 # Everything but the errors loads on first use (PEP 562): ``import dua_mujoco`` and the pytest
 # plugin ``dua_mujoco.testing``, loaded in every test session of a project that enables it,
 # import neither the compiled core nor MuJoCo.
 _LAZY = {
-    "Alarms": "dua_mujoco.mj.predictor",
-    "CoveringOptions": "dua_mujoco.mj.options",
-    "PairOptions": "dua_mujoco.mj.options",
-    "PilotPlan": "dua_mujoco.mj.plans",
-    "deviation_profile": "dua_mujoco.mj.plans",
-    "plan_deviation": "dua_mujoco.mj.plans",
-    "plan_from_controls": "dua_mujoco.mj.plans",
-    "PilotOptions": "dua_mujoco.mj.options",
-    "ScheduleOptions": "dua_mujoco.mj.options",
-    "UrgencyOptions": "dua_mujoco.mj.options",
+    "Alarms": "dua_mujoco.runtime.predictor",
+    "CoveringOptions": "dua_mujoco.build.options",
+    "PairOptions": "dua_mujoco.build.options",
+    "PilotPlan": "dua_mujoco.runtime.plans",
+    "deviation_profile": "dua_mujoco.runtime.plans",
+    "plan_deviation": "dua_mujoco.runtime.plans",
+    "plan_from_controls": "dua_mujoco.runtime.plans",
+    "PilotOptions": "dua_mujoco.build.options",
+    "ScheduleOptions": "dua_mujoco.build.options",
+    "UrgencyOptions": "dua_mujoco.build.options",
     "DUAScheduler": "dua_mujoco.core.schedules",
-    "MotionBounds": "dua_mujoco.mj.bounds",
-    "Predictor": "dua_mujoco.mj.predictor",
-    "RunReport": "dua_mujoco.mj.report",
+    "MotionBounds": "dua_mujoco.build.bounds",
+    "Predictor": "dua_mujoco.runtime.predictor",
+    "RunReport": "dua_mujoco.measure.report",
     "Schedule": "dua_mujoco.core.schedules",
     "SpherePredictor": "dua_mujoco.core.spheres",
-    "estimate_bounds": "dua_mujoco.mj.bounds",
-    "load_scene": "dua_mujoco.mj.scenes",
+    "estimate_bounds": "dua_mujoco.build.bounds",
+    "load_scene": "dua_mujoco.models.scenes",
     "PluginOutputs": "dua_mujoco.plugin",
     "attach": "dua_mujoco.plugin",
     "plugin_outputs": "dua_mujoco.plugin",
     "standing_pairs": "dua_mujoco.plugin",
-    "run": "dua_mujoco.mj.monitor",
+    "run": "dua_mujoco.measure.rollout",
     "time_to_collision": "dua_mujoco.core.urgency",
 }
 

@@ -253,7 +253,7 @@ class Tables:
     @staticmethod
     def build(model: object, arrays: dict) -> Tables:
         """
-        The tables from a dict of float64 arrays (dua_mujoco/mj/build.py), checked.
+        The tables from a dict of float64 arrays (dua_mujoco/runtime/table_arrays.py), checked.
         """
 
     @staticmethod

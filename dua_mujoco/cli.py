@@ -28,7 +28,7 @@ from dua_mujoco.outputs import publish, temporary_beside, writes_in_place
 from dua_mujoco.run_options import add_run_options, whole_number
 
 if TYPE_CHECKING:
-    from dua_mujoco.mj.report import RunReport
+    from dua_mujoco.measure.report import RunReport
 
 __all__ = [
     "EXIT_BOUNDS_BROKEN",
@@ -65,7 +65,7 @@ _EXIT_CODES = (
 
 
 def _add_run(sub: argparse._SubParsersAction) -> None:
-    from dua_mujoco.mj.scenes import DEFAULT_SCENE, scene_names
+    from dua_mujoco.models.scenes import DEFAULT_SCENE, scene_names
 
     p = sub.add_parser(
         "run",
@@ -268,7 +268,7 @@ def _check_outputs(args: argparse.Namespace, model: mujoco.MjModel, steps: int) 
 def _load(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """``load_scene``, with the file named in the error when MuJoCo cannot load it, and an
     unknown ``--keyframe`` told apart from a broken file."""
-    from dua_mujoco.mj.scenes import SCENES, load_scene, reset_to_keyframe
+    from dua_mujoco.models.scenes import SCENES, load_scene, reset_to_keyframe
 
     try:
         model, data = load_scene(scene)
@@ -290,7 +290,7 @@ def _load(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoc
 
 def _check_keyframe(model: mujoco.MjModel, keyframe: int | str) -> None:
     """Refuse a ``--keyframe`` the model does not have, saying which it has."""
-    from dua_mujoco.mj.scenes import keyframe_id
+    from dua_mujoco.models.scenes import keyframe_id
 
     n = int(model.nkey)
     if n == 0:
@@ -359,10 +359,11 @@ def keyframe_arg(args: argparse.Namespace) -> int | str | None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from dua_mujoco.mj.alarms import Alarms
-    from dua_mujoco.mj.monitor import Monitor, run
-    from dua_mujoco.mj.report import RunInterrupted
+    from dua_mujoco.measure.monitor import Monitor
+    from dua_mujoco.measure.report import RunInterrupted
+    from dua_mujoco.measure.rollout import run
     from dua_mujoco.run_options import controller_for, default_steps, predictor_for
+    from dua_mujoco.runtime.alarms import Alarms
 
     model, data = _load(args.scene, keyframe_arg(args))
     steps = default_steps(args.scene) if args.steps is None else args.steps

@@ -19,7 +19,7 @@ import mujoco
 from dua_mujoco.exceptions import InvalidInputError
 
 if TYPE_CHECKING:
-    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["DESCRIPTION", "EPILOG", "add_arguments", "export", "main"]
 
@@ -101,7 +101,7 @@ def export(
 
 def main(args: argparse.Namespace) -> int:
     """Run ``dua-mujoco export``; the exit code."""
-    from dua_mujoco.mj.scenes import load_spec
+    from dua_mujoco.models.scenes import load_spec
     from dua_mujoco.native import library_path
     from dua_mujoco.run_options import predictor_options
 

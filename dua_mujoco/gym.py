@@ -59,7 +59,7 @@ except ModuleNotFoundError as exc:  # an optional dependency: say which extra br
     ) from exc
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["COSTS", "COST_KEY", "PredictCollisions", "find_mujoco"]
 

@@ -29,10 +29,10 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco import _core
+from dua_mujoco.build.options import PairOptions
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.flightplan import plan_arrays
-from dua_mujoco.mj.options import PairOptions
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.runtime.flightplan import plan_arrays
+from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
     "FORGET_REBUILDS",
@@ -151,7 +151,7 @@ def attach(
     if not isinstance(spec, mujoco.MjSpec):
         raise InvalidInputError(
             f"spec must be a mujoco.MjSpec, got {type(spec).__name__}: load one with "
-            "mujoco.MjSpec.from_file(path) (or dua_mujoco.mj.scenes.load_spec(name))."
+            "mujoco.MjSpec.from_file(path) (or dua_mujoco.models.scenes.load_spec(name))."
         )
     _check_prefix(spec, prefix)
     bad_forget = isinstance(forget, bool) or not isinstance(forget, int) or forget < 0
@@ -189,8 +189,8 @@ def attach(
 def _check_size(model: mujoco.MjModel) -> None:
     """Refuse a model whose every pair the plugin could not hold, before building them (counted
     as MuJoCo's filter sees them, one sphere a geom, nothing held: O(ngeom^2) time)."""
-    from dua_mujoco.mj.covering import cover_model
-    from dua_mujoco.mj.universe import PairUniverse
+    from dua_mujoco.build.covering import cover_model
+    from dua_mujoco.build.universe import PairUniverse
 
     # A height field without options would fail the covering here; the predictor says so.
     covering = cover_model(model, hfield="box")
@@ -252,7 +252,7 @@ def set_active_bodies(
             (call ``mj_step`` or ``mj_forward`` first).
         InvalidChoiceError: An unknown body name.
     """
-    from dua_mujoco.mj.filter import body_id
+    from dua_mujoco.build.filter import body_id
 
     instance = _instance(model, prefix)
     a = body_id(model, body_a)

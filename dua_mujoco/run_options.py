@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     import mujoco
 
-    from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.scenes import SceneController
+    from dua_mujoco.models.scenes import SceneController
+    from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
     "PILOT_SEED_OFFSET",
@@ -40,7 +40,7 @@ monitored rollout's own controls."""
 
 def default_steps(scene: str) -> int:
     """Physics steps of a run without ``--steps``: the bundled scene's own, 1000 for a file."""
-    from dua_mujoco.mj.scenes import SCENES
+    from dua_mujoco.models.scenes import SCENES
 
     base = scene.split(":")[0]
     return SCENES[base].default_steps if base in SCENES else 1000
@@ -48,7 +48,7 @@ def default_steps(scene: str) -> int:
 
 def controller_for(model: mujoco.MjModel, options: Any) -> SceneController:
     """The monitored rollout's controller (``--ctrl``, ``--seed``)."""
-    from dua_mujoco.mj import scenes
+    from dua_mujoco.models import scenes
 
     return scenes.make_controller(model, options.ctrl, seed=options.seed)
 
@@ -60,7 +60,7 @@ def predictor_for(model: mujoco.MjModel, options: Any) -> Predictor:
         model: The model.
         options: Parsed ``run`` options (see :func:`predictor_options`).
     """
-    from dua_mujoco.mj import predictor
+    from dua_mujoco.runtime import predictor
 
     return predictor.Predictor(model, **predictor_options(model, options))
 
@@ -75,8 +75,8 @@ def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
             ``alarm_backoff``, ``slots_per_bucket``, ``violation_events``, ``pairs``,
             ``static``, ``exact``, ``pilot_steps``, ``pilot_motion``, ``ctrl``, ``seed``).
     """
-    from dua_mujoco.mj import options as opts
-    from dua_mujoco.mj import scenes
+    from dua_mujoco.build import options as opts
+    from dua_mujoco.models import scenes
 
     pilot_seed = options.seed + PILOT_SEED_OFFSET
     return {

@@ -1,7 +1,7 @@
 """Regression helpers and a pytest plugin for users' own scenes.
 
 :func:`assert_no_missed_collisions` rolls a scene out with a :class:`~dua_mujoco.Predictor` and
-MuJoCo's contacts as the exact stage (:func:`dua_mujoco.mj.monitor.run`) and fails, with the
+MuJoCo's contacts as the exact stage (:func:`dua_mujoco.measure.rollout.run`) and fails, with the
 geoms and times, if a contact onset was not preceded by an alarm while the declared bounds held:
 that is a broken completeness guarantee, a bug. Optionally it holds the alarm counts to a stored
 baseline so that a change that floods the exact stage with false alarms fails too.
@@ -38,9 +38,9 @@ except ModuleNotFoundError:  # pragma: no cover - the assertion helpers work wit
 if TYPE_CHECKING:
     import mujoco
 
-    from dua_mujoco.mj.monitor import Monitor
-    from dua_mujoco.mj.predictor import Predictor
-    from dua_mujoco.mj.report import RunReport
+    from dua_mujoco.measure.monitor import Monitor
+    from dua_mujoco.measure.report import RunReport
+    from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
     "BASELINE_KEYS",
@@ -294,13 +294,13 @@ def _make_predictor(
     model: mujoco.MjModel, predictor: Predictor | Mapping[str, Any] | None
 ) -> Predictor:
     from dua_mujoco.exceptions import InvalidInputError
-    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.runtime.predictor import Predictor
 
     if predictor is None:
         # The pilot moves what the run's default controller moves (mocap bodies included),
         # with a seed of its own.
-        from dua_mujoco.mj.options import PilotOptions
-        from dua_mujoco.mj.scenes import make_controller
+        from dua_mujoco.build.options import PilotOptions
+        from dua_mujoco.models.scenes import make_controller
 
         return Predictor(
             model, pilot=PilotOptions(controller=make_controller(model, "random", seed=1))
@@ -339,7 +339,7 @@ def assert_no_missed_collisions(
 ) -> RunReport:
     """Roll a scene out with the predictor and assert no collision was missed.
 
-    Runs :func:`dua_mujoco.mj.monitor.run` for ``steps`` physics steps and fails if
+    Runs :func:`dua_mujoco.measure.rollout.run` for ``steps`` physics steps and fails if
 
     * a contact onset was not preceded by a standing alarm outside the period of a bound
       violation (``missed_onsets_outside_violations > 0``): a broken guarantee, a bug; the
@@ -363,11 +363,11 @@ def assert_no_missed_collisions(
             the model defaults), after ``mj_forward``. It is advanced in place.
         steps: Physics steps to roll out.
         controller: ``controller(model, data)`` called before every ``mj_step``; None for
-            :func:`dua_mujoco.mj.scenes.make_controller` random held controls with seed 0 (a
+            :func:`dua_mujoco.models.scenes.make_controller` random held controls with seed 0 (a
             regression needs motion; pass ``make_controller(model, "zero")`` for none).
         predictor: A ``Predictor`` for ``model``, a dict of ``Predictor`` keyword arguments, or
             None for ``Predictor(model)`` with bounds from a pilot rollout driven by
-            :func:`~dua_mujoco.mj.scenes.make_controller` (random controls, mocap bodies moved
+            :func:`~dua_mujoco.models.scenes.make_controller` (random controls, mocap bodies moved
             as the default controller moves them; its own seed).
         baseline: A dict or JSON file path with :data:`BASELINE_KEYS` to compare the alarm counts
             with; None to skip the comparison.
@@ -377,7 +377,7 @@ def assert_no_missed_collisions(
             the misses in a violation's period (they are still in the report).
 
     Returns:
-        The run's :class:`~dua_mujoco.mj.monitor.RunReport`.
+        The run's :class:`~dua_mujoco.measure.monitor.RunReport`.
 
     Raises:
         AssertionError: A missed collision, broken bounds (unless ``allow_broken_bounds``), an
@@ -388,8 +388,8 @@ def assert_no_missed_collisions(
     import mujoco
 
     from dua_mujoco.exceptions import InvalidInputError
-    from dua_mujoco.mj.monitor import run
-    from dua_mujoco.mj.scenes import make_controller, reset_to_keyframe
+    from dua_mujoco.measure.rollout import run
+    from dua_mujoco.models.scenes import make_controller, reset_to_keyframe
 
     if not isinstance(model, mujoco.MjModel):
         raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")

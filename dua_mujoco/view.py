@@ -30,7 +30,7 @@ EPILOG = (
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The scene and the viewer's own options (the run options are added by ``cli``)."""
-    from dua_mujoco.mj.scenes import DEFAULT_SCENE
+    from dua_mujoco.models.scenes import DEFAULT_SCENE
 
     p.add_argument(
         "scene", nargs="?", default=DEFAULT_SCENE, help=f"as for run (default {DEFAULT_SCENE})"
@@ -59,7 +59,7 @@ def _rate(value: str) -> float:
 def main(args: argparse.Namespace) -> int:
     """Run ``dua-mujoco view``; the exit code."""
     from dua_mujoco.cli import EXIT_INTERRUPTED, keyframe_arg, load_scene_arg, print_report
-    from dua_mujoco.mj.report import RunInterrupted
+    from dua_mujoco.measure.report import RunInterrupted
     from dua_mujoco.render import OverlayOptions
     from dua_mujoco.render.live import view
     from dua_mujoco.run_options import controller_for, predictor_for

@@ -1,1 +1,2 @@
-"""Bundled MJCF scenes (shipped as ``dua_mujoco.models``)."""
+"""Demo content, outside the library: the bundled MJCF scenes, the generated scenes and the
+controllers that drive them (:mod:`~dua_mujoco.models.scenes`)."""

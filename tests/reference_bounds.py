@@ -1,7 +1,7 @@
 """The BoundMonitor's checks in plain numpy: the slow, obviously-correct reference.
 
-This is the vectorised numpy implementation that ``dua_mujoco.mj.checks.BoundMonitor`` used before
-its checks moved into one compiled kernel; the tests hold the kernel to it, value by value.
+This is the vectorised numpy implementation that ``dua_mujoco.measure.checks.BoundMonitor`` used
+before its checks moved into one compiled kernel; the tests hold the kernel to it, value by value.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 from reference_kinematics import reference_states
 
-from dua_mujoco.mj.checks import BoundMonitor, BoundViolation
+from dua_mujoco.measure.checks import BoundMonitor, BoundViolation
 
 
 class ReferenceBoundMonitor(BoundMonitor):

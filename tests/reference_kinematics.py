@@ -1,6 +1,6 @@
 """Sphere centres and velocities from MuJoCo's own ``mj_objectVelocity``: the independent reference.
 
-Written differently from ``dua_mujoco.mj.kinematics`` on purpose (a per-sphere Python loop over
+Written differently from ``dua_mujoco.build.kinematics`` on purpose (a per-sphere Python loop over
 MuJoCo's function, no ``cvel``/``subtree_com`` arithmetic), so that tests that hold the package's
 kernel to it can fail.
 """
@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.mj.mocap import MocapVelocityTracker
+from dua_mujoco.build.mocap import MocapVelocityTracker
 
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 

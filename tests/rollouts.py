@@ -7,7 +7,7 @@ from collections.abc import Callable, Iterator
 import mujoco
 import numpy as np
 
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.runtime.predictor import Predictor
 
 
 def predictor_rollout(

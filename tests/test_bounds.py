@@ -1,4 +1,5 @@
-"""dua_mujoco.mj.bounds: declared bounds, the discrete-time term on rollouts, the bound checks."""
+"""dua_mujoco.build.bounds: declared bounds, the discrete-time term on rollouts, the bound
+checks."""
 
 from __future__ import annotations
 
@@ -10,17 +11,17 @@ import pytest
 from reference_bounds import ReferenceBoundMonitor
 from reference_kinematics import reference_states
 
-from dua_mujoco.exceptions import InvalidBoundError, InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.bounds import (
+from dua_mujoco.build.bounds import (
     MotionBounds,
     default_spheres,
     discrete_velocity_uncertainty,
     estimate_bounds,
     moving_bodies,
 )
-from dua_mujoco.mj.checks import BoundMonitor
-from dua_mujoco.mj.mocap import MocapVelocityTracker
-from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.build.mocap import MocapVelocityTracker
+from dua_mujoco.exceptions import InvalidBoundError, InvalidChoiceError, InvalidInputError
+from dua_mujoco.measure.checks import BoundMonitor
+from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
 
 H = 0.002
 KMAX = 200
@@ -230,7 +231,7 @@ def test_a_scalar_bound_is_named_by_its_keyword_not_by_a_body(
 ) -> None:
     """One number is every moving body's bound: the message names the keyword, no body (it
     said "body 'all bodies'")."""
-    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.runtime.predictor import Predictor
 
     m = _model(TWO_BODIES)
     with pytest.raises(InvalidInputError) as info:
@@ -716,8 +717,8 @@ def test_monitor_checks_mocap_discrepancy_at_prediction_instants(period: int) ->
 
 
 def test_monitor_of_a_predictor_with_period_and_mocap_holds() -> None:
-    from dua_mujoco.mj.monitor import Monitor
-    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.measure.monitor import Monitor
+    from dua_mujoco.runtime.predictor import Predictor
 
     m = mujoco.MjModel.from_xml_string(MOCAP_CIRCLE)
     d = mujoco.MjData(m)
@@ -743,7 +744,7 @@ def test_pilot_levels_are_nested() -> None:
     """Free motion is a subset of the steps without impacts, which are a subset of all steps:
     the bounds can only shrink from one level to the next, body by body (a body a level never
     measures takes the next level's value)."""
-    from dua_mujoco.mj.bounds import PilotMotion
+    from dua_mujoco.build.bounds import PilotMotion
 
     m, _ = load_scene("paper_world:20")
 
@@ -785,7 +786,7 @@ def test_motion_screen_matches_the_last_three_steps_contacts_and_limits() -> Non
     when none of the last three steps had a contact or joint limit on it, and calm when none had
     a contact that the step before did not. A ball lands and rests, another lands later, an arm
     swings onto its limit and stays; each case occurs, and every step and body agrees."""
-    from dua_mujoco.mj.pilot_screen import MotionScreen
+    from dua_mujoco.build.pilot_screen import MotionScreen
 
     m = mujoco.MjModel.from_xml_string(SCREENED)
     d = mujoco.MjData(m)
@@ -830,7 +831,7 @@ def test_free_motion_bounds_of_a_landing_ball_are_its_free_fall() -> None:
     """Free motion leaves the landing and the rest out: a ball that falls, lands and rests gets
     its fall's bound (safety x g), though its landing's second differences are several times
     that (the bound on every step shows them)."""
-    from dua_mujoco.mj.bounds import PilotMotion
+    from dua_mujoco.build.bounds import PilotMotion
 
     m = mujoco.MjModel.from_xml_string(SCREENED)
     ball = m.body("ball").id

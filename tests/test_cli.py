@@ -17,7 +17,7 @@ import mujoco
 import pytest
 
 from dua_mujoco.cli import main
-from dua_mujoco.mj import monitor
+from dua_mujoco.measure import rollout
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -140,7 +140,7 @@ def test_cli_broken_xml(tmp_path: Path, capsys) -> None:
 
 def test_cli_runs_a_binary_model(tmp_path: Path, capsys) -> None:
     """A compiled ``.mjb`` model loads as one (it failed as malformed XML)."""
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
 
     model, _ = load_scene("two_arms")
     path = tmp_path / "two_arms.mjb"
@@ -350,7 +350,7 @@ def test_cli_dev_full_is_one_line_exit_2(capsys) -> None:
 
 def _interrupting_controller(monkeypatch: pytest.MonkeyPatch, after: int) -> None:
     """Controllers from make_controller raise KeyboardInterrupt at their ``after``-th call."""
-    from dua_mujoco.mj import scenes
+    from dua_mujoco.models import scenes
 
     make = scenes.make_controller
 
@@ -397,7 +397,7 @@ def test_cli_interrupt_writes_the_partial_report_and_video(
 def test_cli_interrupt_before_the_rollout_is_one_line(
     capsys, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from dua_mujoco.mj import predictor
+    from dua_mujoco.runtime import predictor
 
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
@@ -424,15 +424,15 @@ def test_cli_strict_exits_1_on_a_miss_outside_a_violations_period(
 ) -> None:
     """A miss outside a violation's period (a bug: faked here) exits 1, before the broken
     bounds' 3."""
-    real = monitor.run
+    real = rollout.run
     violations = []
 
-    def missing(*args: object, **kwargs: object) -> monitor.RunReport:
+    def missing(*args: object, **kwargs: object) -> rollout.RunReport:
         report = real(*args, **kwargs)  # type: ignore[arg-type]
         violations.append(report.bound_violations)
         return dataclasses.replace(report, missed_onsets=1, missed_onsets_outside_violations=1)
 
-    monkeypatch.setattr(monitor, "run", missing)
+    monkeypatch.setattr(rollout, "run", missing)
     assert main(ARGS) == 0
     assert "the completeness guarantee is broken" in capsys.readouterr().err
     assert main([*ARGS, "--strict"]) == 1

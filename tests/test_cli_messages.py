@@ -259,7 +259,7 @@ def _command() -> list[str]:
 # next); mujoco when the command's module is nearly loaded; the monitor when `run` has its own
 # imports and loads the scene, compiles and starts a 10^6-step pilot.
 @pytest.mark.parametrize(
-    "marker", ["numpy", "mujoco", "importlib.metadata", "dua_mujoco.mj.monitor"]
+    "marker", ["numpy", "mujoco", "importlib.metadata", "dua_mujoco.measure.monitor"]
 )
 def test_ctrl_c_while_setting_up_is_one_line_and_exit_130(marker: str) -> None:
     argv = [sys.executable, "-X", "importtime", *_command(), "run", "two_arms"]

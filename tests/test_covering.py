@@ -1,4 +1,4 @@
-"""Containment and budgets of the sphere coverings (dua_mujoco.mj.covering)."""
+"""Containment and budgets of the sphere coverings (dua_mujoco.build.covering)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
+from dua_mujoco.build.covering import Covering, CoveringMode, cover_model, sphere_world_centers
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
-from dua_mujoco.mj.covering import Covering, CoveringMode, cover_model, sphere_world_centers
 
 GEOM_TYPES = ["sphere", "capsule", "ellipsoid", "cylinder", "box", "mesh"]
 BUDGETS = [1, 2, 5, 8, 27]

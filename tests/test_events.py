@@ -1,4 +1,4 @@
-"""Violations as events (``dua_mujoco.mj.events``; docs/theory.md, section 6).
+"""Violations as events (``dua_mujoco.build.events``; docs/theory.md, section 6).
 
 The compiled check is held to ``BoundMonitor``, the point-by-point reference, step by step; the
 pairs of a body that broke its bounds must be evaluated at that very step; and a scene where a
@@ -18,13 +18,13 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from dua_mujoco import _core
-from dua_mujoco.mj.checks import BoundMonitor
-from dua_mujoco.mj.events import body_boxes
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.options import ScheduleOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.build.events import body_boxes
+from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.build.options import ScheduleOptions
+from dua_mujoco.measure.checks import BoundMonitor
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 # Three balls in a row, no gravity: the striker hits the middle ball, which rests 0.1 mm from
 # the last one. The impulse moves the middle ball into the last one within one physics step,
@@ -226,11 +226,11 @@ def test_a_pruned_predictor_renews_its_pairs_when_a_struck_body_leaves_their_rea
     rebuild of the whole held set when too many spheres escaped) and the collision is flagged.
     Without the check (never escaped) the pair is not held until the next regular rebuild, and
     the collision is missed outside a violation's period."""
-    from dua_mujoco.mj import build
-    from dua_mujoco.mj.options import PairOptions
+    from dua_mujoco.build.options import PairOptions
+    from dua_mujoco.runtime import table_arrays
 
     if not renew:
-        monkeypatch.setattr(build, "RENEW_MAX", 0)
+        monkeypatch.setattr(table_arrays, "RENEW_MAX", 0)
 
     def balls() -> tuple[mujoco.MjModel, mujoco.MjData]:
         m = mujoco.MjModel.from_xml_string(SPREAD_BALLS)
@@ -261,7 +261,7 @@ def test_held_pairs_are_indexed_by_body_as_a_stable_sort_would(seed: int) -> Non
     each checked body, the held pairs with a geom on it, by first geom then second, each in
     increasing position, as a stable argsort of the rows does it; geoms of unchecked bodies and
     -1 left out."""
-    from dua_mujoco.mj.events import B_BODY
+    from dua_mujoco.build.events import B_BODY
 
     m, _ = load_scene("two_arms")
     events = Predictor(m, accel=30.0).events

@@ -1,4 +1,4 @@
-"""The exact level of the urgency (dua_mujoco/mj/exact.py, docs/theory.md section 5).
+"""The exact level of the urgency (dua_mujoco/build/exact.py, docs/theory.md section 5).
 
 Held to a slow reference written from the definitions (numpy supports, the quadratic's root),
 and to trajectories: two geoms of every type pair (and a plane) move rigidly with a constant
@@ -19,10 +19,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dua_mujoco import _core
-from dua_mujoco.core.pairset import PAIR_ACCEL, PAIR_DELTA
-from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.bounds import MotionBounds
-from dua_mujoco.mj.exact import (
+from dua_mujoco.build.bounds import MotionBounds
+from dua_mujoco.build.exact import (
     GX_RADIUS,
     X_DIST,
     X_G1,
@@ -33,8 +31,10 @@ from dua_mujoco.mj.exact import (
     build_exact,
     corner_points,
 )
-from dua_mujoco.mj.options import CoveringOptions
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.build.options import CoveringOptions
+from dua_mujoco.core.pairset import PAIR_ACCEL, PAIR_DELTA
+from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.runtime.predictor import Predictor
 
 TYPES = {
     "sphere": 'type="sphere" size=".12"',

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene
+from dua_mujoco.models.scenes import load_scene
+from dua_mujoco.runtime.predictor import Predictor
 
 # A ball rolled towards a wall, a box dropped on the floor, an arm swinging through both.
 SCENE = """
@@ -321,7 +321,7 @@ def test_the_monitor_judges_a_planned_body_by_its_deviation() -> None:
     plans: the run monitor counts no violation while the plans hold (a pair under a plan does
     not rest on the bounds), no onset comes with less lead than the horizon after the start,
     and none is missed; without the plans the same run breaks the bounds throughout."""
-    from dua_mujoco.mj.monitor import Monitor
+    from dua_mujoco.measure.monitor import Monitor
 
     horizon, every, steps = 0.1, 25, 500
     n = round(horizon / 0.002) + 2 * every

@@ -14,9 +14,9 @@ import pytest
 from rollouts import predictor_rollout, python_standing
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_spec, make_controller
+from dua_mujoco.models.scenes import load_spec, make_controller
 from dua_mujoco.plugin import attach, known_pairs, plugin_outputs, standing_pairs
+from dua_mujoco.runtime.predictor import Predictor
 
 
 def _swarm(n: int, forget: int | None) -> tuple[mujoco.MjModel, mujoco.MjData, Predictor]:

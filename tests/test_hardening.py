@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco.cli import main
-from dua_mujoco.mj.scenes import load_spec
+from dua_mujoco.models.scenes import load_spec
 from dua_mujoco.native import library_path
 from dua_mujoco.plugin import _encode, attach, plugin_outputs, standing_pairs
 
@@ -182,7 +182,7 @@ def _child(path: Path, steps: int) -> str:
 
 
 def _huge_wheel(config: np.ndarray) -> None:
-    from dua_mujoco.mj.build import CONFIG
+    from dua_mujoco.runtime.table_arrays import CONFIG
 
     config[CONFIG["max_interval"]] = 1e9
 
@@ -245,7 +245,7 @@ def test_a_selection_larger_than_the_held_pairs_fits_the_scratch(tmp_path: Path)
     256 spares). The step gathered them into a scratch of one row per held pair: five falling
     spheres (ten pairs) against a 0.1 m/s^2 bound wrote past it (AddressSanitizer's heap
     overflow). It now evaluates a selection in chunks of the scratch."""
-    from dua_mujoco.mj.options import ScheduleOptions
+    from dua_mujoco.build.options import ScheduleOptions
 
     bodies = "".join(
         f'<body pos="{0.12 * i} 0 {0.3 + 0.1 * i}"><freejoint/><geom type="sphere" size=".05"/>'

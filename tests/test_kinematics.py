@@ -1,4 +1,4 @@
-"""dua_mujoco.mj.kinematics: sphere centres and velocities against MuJoCo's own functions."""
+"""dua_mujoco.build.kinematics: sphere centres and velocities against MuJoCo's own functions."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from random_states import random_joint_state
 
+from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.build.mocap import MocapVelocityTracker
 from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
-from dua_mujoco.mj.mocap import MocapVelocityTracker
 
 
 def states(

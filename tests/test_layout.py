@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 from dua_mujoco import _core
+from dua_mujoco.build import kinematics
 from dua_mujoco.core.pairset import PAIR_NCOL, PairSet, pack_pairs
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj import build, kinematics
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene
+from dua_mujoco.models.scenes import load_scene
+from dua_mujoco.runtime import table_arrays
+from dua_mujoco.runtime.predictor import Predictor
 
 
 def test_the_python_packers_write_the_stated_widths() -> None:
@@ -30,10 +31,10 @@ def test_the_python_packers_write_the_stated_widths() -> None:
 
 
 def test_the_config_names_every_entry_once() -> None:
-    entries = sorted(v for k, v in build.CONFIG.items() if k != "size")
+    entries = sorted(v for k, v in table_arrays.CONFIG.items() if k != "size")
     # Two entries for the structure hash's halves: the one after "shape" has no name.
     assert entries == sorted(set(entries))
-    assert max(entries) < build.CONFIG["size"]
+    assert max(entries) < table_arrays.CONFIG["size"]
 
 
 @pytest.mark.parametrize("pairs", ["all", "pruned"])

@@ -8,12 +8,13 @@ import mujoco
 import numpy as np
 import pytest
 
+from dua_mujoco.build.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.monitor import Monitor, run
-from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.report import RunReport
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.measure.monitor import Monitor
+from dua_mujoco.measure.report import RunReport
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 
 def _reference_episodes(

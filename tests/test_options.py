@@ -1,4 +1,4 @@
-"""The Predictor's option groups (dua_mujoco/mj/options.py): validated where they are written,
+"""The Predictor's option groups (dua_mujoco/build/options.py): validated where they are written,
 modes as plain strings, the flat keywords of earlier releases refused with their new home."""
 
 from __future__ import annotations
@@ -9,10 +9,7 @@ import numpy as np
 import pytest
 
 import dua_mujoco
-from dua_mujoco.core.schedules import Schedule
-from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.options import (
+from dua_mujoco.build.options import (
     REMOVED_KEYWORDS,
     CoveringOptions,
     PairOptions,
@@ -20,8 +17,11 @@ from dua_mujoco.mj.options import (
     ScheduleOptions,
     UrgencyOptions,
 )
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.core.schedules import Schedule
+from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 
 def test_groups_are_frozen_and_exported() -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import os
 import subprocess
 import sys
 import zipfile
@@ -18,7 +19,10 @@ PACKAGE = ROOT / "dua_mujoco"
 
 
 def _modules() -> list[Path]:
-    return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
+    """The package's modules, the demo scenes of the top-level ``models/`` among them (through
+    the link ``dua_mujoco/models``, which ``rglob`` does not follow)."""
+    paths = [*PACKAGE.rglob("*.py"), *(PACKAGE / "models").glob("*.py")]
+    return sorted(p for p in paths if "__pycache__" not in p.parts)
 
 
 def test_public_api_resolves() -> None:
@@ -46,8 +50,11 @@ def test_the_wheel_ships_the_package_the_scenes_and_the_native_core(tmp_path: Pa
         for p in PACKAGE.rglob("__init__.py")
         if "__pycache__" not in p.parts
     }
-    scenes = {f"dua_mujoco/models/{p.name}" for p in (ROOT / "models").glob("*.xml")}
+    modules = {p.relative_to(ROOT).as_posix() for p in _modules()}
+    modules = {m for m in modules if not m.startswith("dua_mujoco/csrc/")}
+    scenes = {f"dua_mujoco/models/{p.name}" for p in (PACKAGE / "models").glob("*.xml")}
     assert packages <= names, sorted(packages - names)
+    assert "dua_mujoco/models/scenes.py" in modules and modules <= names, sorted(modules - names)
     assert scenes and scenes <= names, sorted(scenes - names)
     assert {"dua_mujoco/py.typed", "dua_mujoco/libdua_mujoco.so", "dua_mujoco/_core.pyi"} <= names
     assert [n for n in names if n.startswith("dua_mujoco/_core.") and n.endswith(".so")]
@@ -59,6 +66,29 @@ def test_the_wheel_ships_the_package_the_scenes_and_the_native_core(tmp_path: Pa
     # pytest11 entry point makes pytest warn in other projects (tests/test_pytest_plugin.py).
     assert "dua-mujoco = dua_mujoco.__main__:main" in text
     assert "[pytest11]" not in text
+    # Installed from the wheel alone (this environment's editable finder removed), the demo
+    # scenes import from dua_mujoco.models and find their XMLs.
+    site = tmp_path / "site"
+    out = subprocess.run(
+        [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(site),
+         str(wheel)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    code = (
+        "import sys\n"
+        "sys.meta_path[:] = [f for f in sys.meta_path\n"
+        "                    if type(f).__name__ != 'ScikitBuildRedirectingFinder']\n"
+        "from dua_mujoco.models.scenes import load_scene\n"
+        "import dua_mujoco\n"
+        "print(dua_mujoco.__file__, load_scene('two_arms')[0].ngeom > 0)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+        cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(site)},
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.split() == [str(site / "dua_mujoco" / "__init__.py"), "True"]
 
 
 def test_the_bindings_type_stub_is_current(tmp_path: Path) -> None:
@@ -127,7 +157,7 @@ def test_native_code_is_reached_through_the_binding_only() -> None:
     implementation, one bridge)."""
     banned = {"numba", "llvmlite", "ctypes"}
     paths = [
-        *sorted(PACKAGE.rglob("*.py")),
+        *_modules(),
         *sorted((ROOT / "tests").rglob("*.py")),
         *sorted((ROOT / "benchmarks").glob("*.py")),
     ]
@@ -155,7 +185,7 @@ def test_a_run_loads_no_jit_and_numba_is_no_dependency() -> None:
         "import mujoco, numpy as np\n"
         "from dua_mujoco import Predictor, SpherePredictor, time_to_collision\n"
         "from dua_mujoco.core.schedules import DUAScheduler\n"
-        "from dua_mujoco.mj.scenes import load_scene\n"
+        "from dua_mujoco.models.scenes import load_scene\n"
         "p = SpherePredictor(np.full(3, 0.1), 1.0, dt=0.01)\n"
         "c = np.arange(9.0).reshape(3, 3)\n"
         "p.reset(c, np.zeros((3, 3)))\n"
@@ -173,3 +203,90 @@ def test_a_run_loads_no_jit_and_numba_is_no_dependency() -> None:
     )
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[] []"
+
+
+# The package's layers, lowest first: a module imports only from its own layer or below.
+# "base" is what every layer may use (errors, the compiled binding, the native loader, the
+# progress bar and output helpers); "front" is everything else (the CLI, rendering, the plugin,
+# gym, export, the sweep, the test helpers, experiments, the package's own lazy exports).
+LAYERS = ("base", "core", "build", "runtime", "measure", "models", "front")
+BASE = ("_core", "closing", "exceptions", "native", "outputs", "progress")
+
+
+def _layer(module: str) -> str:
+    head = [*module.split("."), ""][1]
+    if head in BASE:
+        return "base"
+    return head if head in LAYERS else "front"
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Every module of the package and the modules it imports (at the top, inside functions
+    and under ``TYPE_CHECKING`` alike). ``from P import X`` is an edge to ``P.X`` when that is a
+    module, to the module ``dua_mujoco``'s lazy export ``X`` comes from, else to ``P``; a module
+    importing its own parent package (``import dua_mujoco.core.schedules`` in
+    ``core/schedules/base.py``, to register the subclasses) adds no edge: Python has begun
+    loading every parent package before the module."""
+    names = {}
+    for path in _modules():
+        rel = path.relative_to(ROOT).with_suffix("")
+        parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+        names[".".join(parts)] = path
+    known = set(names) | {"dua_mujoco._core"}
+    lazy = {**dua_mujoco._LAZY, **{n: "dua_mujoco.exceptions" for n in dir(dua_mujoco.exceptions)}}
+
+    def target(module: str, name: str) -> str:
+        if f"{module}.{name}" in known:
+            return f"{module}.{name}"
+        return lazy.get(name, module) if module == "dua_mujoco" else module
+
+    graph: dict[str, set[str]] = {"dua_mujoco._core": set()}
+    for module, path in names.items():
+        package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                found |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    base = ".".join(up + ([base] if base else []))
+                found |= {target(base, a.name) for a in node.names}
+        graph[module] = {
+            m for m in found if m in known and m != module and not module.startswith(m + ".")
+        }
+    return graph
+
+
+def test_the_layers_import_down_only() -> None:
+    """core knows nothing of MuJoCo's layers; build (model and options to tables) imports
+    neither runtime nor measure; runtime (the objects over the native runtime) does not import
+    measure, which wraps a Predictor; the demo scenes (models) and the front sit on top."""
+    rank = {layer: i for i, layer in enumerate(LAYERS)}
+    upward = sorted(
+        f"{a} ({_layer(a)}) -> {b} ({_layer(b)})"
+        for a, deps in _import_graph().items()
+        for b in deps
+        if rank[_layer(b)] > rank[_layer(a)]
+    )
+    assert upward == []
+
+
+def test_no_import_cycles() -> None:
+    graph = _import_graph()
+    cycles, state = [], dict.fromkeys(graph, 0)  # 0 unseen, 1 on the path, 2 done
+
+    def visit(module: str, path: list[str]) -> None:
+        state[module] = 1
+        for dep in sorted(graph[module]):
+            if state[dep] == 1:
+                cycles.append(" -> ".join([*path[path.index(dep) :], dep]))
+            elif state[dep] == 0:
+                visit(dep, [*path, dep])
+        state[module] = 2
+
+    for module in sorted(graph):
+        if state[module] == 0:
+            visit(module, [module])
+    assert cycles == []

@@ -1,4 +1,4 @@
-"""MuJoCo's collision filter (dua_mujoco.mj.filter) against a literal reference and MuJoCo."""
+"""MuJoCo's collision filter (dua_mujoco.build.filter) against a literal reference and MuJoCo."""
 
 from __future__ import annotations
 
@@ -9,16 +9,16 @@ import mujoco
 import numpy as np
 import pytest
 
-from dua_mujoco.exceptions import InvalidChoiceError, UnsupportedGeomError
-from dua_mujoco.mj.covering import cover_model
-from dua_mujoco.mj.filter import (
+from dua_mujoco.build.covering import cover_model
+from dua_mujoco.build.filter import (
     GeomPairs,
     active_geom_pairs,
     pairs_between_bodies,
     sphere_pair_mask,
     sphere_pairs,
 )
-from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
+from dua_mujoco.build.geom_types import GEOM_HFIELD, GEOM_PLANE
+from dua_mujoco.exceptions import InvalidChoiceError, UnsupportedGeomError
 
 # Parent-child, welded children, static bodies, mocap weld groups, explicit pairs (static-static,
 # mocap-mocap, parent-child), excludes, contype/conaffinity, a height field and planes.
@@ -382,10 +382,10 @@ def _lazy_parity(m: mujoco.MjModel) -> None:
     """A pruned predictor's filter on candidates gives MuJoCo's pairs: the explicit pairs and
     the candidates' filtered geom pairs, offered every geom pair, are ``active_geom_pairs``
     (with the same distances), and the universe's count of the model's pairs is its size."""
-    from dua_mujoco.mj.covering import cover_model
-    from dua_mujoco.mj.filter import candidate_geom_pairs, explicit_geom_pairs
-    from dua_mujoco.mj.pairfilter import FilterTables
-    from dua_mujoco.mj.universe import PairUniverse
+    from dua_mujoco.build.covering import cover_model
+    from dua_mujoco.build.filter import candidate_geom_pairs, explicit_geom_pairs
+    from dua_mujoco.build.pairfilter import FilterTables
+    from dua_mujoco.build.universe import PairUniverse
 
     full = active_geom_pairs(m)
     explicit = explicit_geom_pairs(m)
@@ -409,7 +409,7 @@ def test_the_filter_on_candidates_gives_mujocos_pairs(name: str) -> None:
 
 @pytest.mark.parametrize("scene", ["two_arms", "traffic", "clutter", "bin_pour:40", "swarm:300"])
 def test_the_filter_on_candidates_gives_mujocos_pairs_on_scenes(scene: str) -> None:
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
 
     _lazy_parity(load_scene(scene)[0])
 
@@ -427,12 +427,12 @@ def test_pair_tables_equal_a_loop_over_geom_pairs(scene: str) -> None:
     """The native expansion, bounds and exact records (one implementation, which the plugin's
     pruned pairs use too) equal a plain loop over the geom pairs: sphere pairs in order (each
     geom pair's, the sphere-covered geom's spheres first), eps, summed bounds, exact modes."""
+    from dua_mujoco.build.bounds import MotionBounds
+    from dua_mujoco.build.exact import GX_KIND, ExactMode, build_exact
+    from dua_mujoco.build.pairbounds import bounded_pairs
     from dua_mujoco.core.pairset import PairKind
     from dua_mujoco.core.shapes import ShapeKind
-    from dua_mujoco.mj.bounds import MotionBounds
-    from dua_mujoco.mj.exact import GX_KIND, ExactMode, build_exact
-    from dua_mujoco.mj.pairbounds import bounded_pairs
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
 
     m, _ = load_scene(scene)
     cov = cover_model(m, mode="multi", max_spheres_per_geom=3)

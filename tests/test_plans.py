@@ -1,4 +1,4 @@
-"""Making flight plans (dua_mujoco/mj/plans.py): a plan is the simulation under the same
+"""Making flight plans (dua_mujoco/runtime/plans.py): a plan is the simulation under the same
 controls bit for bit; the deviation profile matches a slow reference; bad input is named."""
 
 from __future__ import annotations
@@ -11,9 +11,14 @@ import pytest
 
 import dua_mujoco
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
-from dua_mujoco.mj.plans import PilotPlan, deviation_profile, plan_deviation, plan_from_controls
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import make_controller
+from dua_mujoco.models.scenes import make_controller
+from dua_mujoco.runtime.plans import (
+    PilotPlan,
+    deviation_profile,
+    plan_deviation,
+    plan_from_controls,
+)
+from dua_mujoco.runtime.predictor import Predictor
 
 # Two links on hinges (a PD motor's and a position servo's), a free box that lands on the floor
 # and rests there (contacts: the solver's warm start matters), a slider without a control range.

@@ -23,10 +23,9 @@ import pytest
 from mujoco import rollout
 from rollouts import python_standing
 
+from dua_mujoco.build.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.options import ScheduleOptions, UrgencyOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_spec, make_controller
+from dua_mujoco.models.scenes import load_spec, make_controller
 from dua_mujoco.plugin import (
     attach,
     deactivate_contacts,
@@ -34,6 +33,7 @@ from dua_mujoco.plugin import (
     set_active_bodies,
     standing_pairs,
 )
+from dua_mujoco.runtime.predictor import Predictor
 
 ANT = str(Path(gymnasium.__file__).parent / "envs/mujoco/assets/ant.xml")
 
@@ -150,7 +150,7 @@ def test_plugin_round_trips_pruned_switches_and_classifications() -> None:
     """A round trip (module docstring) of pruned pairs with intended contact and latency: pairs
     switched off stay off when a rebuild or a renewal holds them again; a reset classifies from
     scratch."""
-    from dua_mujoco.mj.options import PairOptions
+    from dua_mujoco.build.options import PairOptions
 
     m, p = _attached("two_arms", pairs=PairOptions(mode="pruned", horizon=0.02), latency=1)
     box = int(m.geom_bodyid[m.geom("loose_box").id])

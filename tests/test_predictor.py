@@ -24,6 +24,8 @@ import numpy as np
 import pytest
 from random_states import random_joint_state
 
+from dua_mujoco.build.filter import active_geom_pairs
+from dua_mujoco.build.options import CoveringOptions, PilotOptions, UrgencyOptions
 from dua_mujoco.core.schedules.state import P_EXTRA
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
@@ -35,12 +37,11 @@ from dua_mujoco.exceptions import (
     SchedulerError,
     UnsupportedGeomError,
 )
-from dua_mujoco.mj.filter import active_geom_pairs
-from dua_mujoco.mj.monitor import Monitor, run
-from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.report import RunReport
-from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.measure.monitor import Monitor
+from dua_mujoco.measure.report import RunReport
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -508,8 +509,8 @@ def test_wrong_mjdata_on_step() -> None:
         """
         import mujoco
         from dua_mujoco.exceptions import InvalidInputError
-        from dua_mujoco.mj.predictor import Predictor
-        from dua_mujoco.mj.scenes import load_scene
+        from dua_mujoco.runtime.predictor import Predictor
+        from dua_mujoco.models.scenes import load_scene
         m, d = load_scene("paper_world:30")
         other = mujoco.MjModel.from_xml_string(
             "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>")
@@ -915,7 +916,7 @@ def _env() -> dict[str, str]:
 
 def test_monitor_bound_check_follows_the_predictors_mocap_tracker() -> None:
     """After reset, the BoundMonitor must still read the tracker the predictor updates."""
-    from dua_mujoco.mj.monitor import Monitor
+    from dua_mujoco.measure.monitor import Monitor
 
     m = mujoco.MjModel.from_xml_string(MOCAP_XML)
     d = mujoco.MjData(m)

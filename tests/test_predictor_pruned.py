@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from dua_mujoco import _core
+from dua_mujoco.build.options import PairOptions
 from dua_mujoco.core.pruned import escapes
 from dua_mujoco.core.schedules import DeadlineScheduler
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.options import PairOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 
 def _world(n: int) -> tuple[mujoco.MjModel, mujoco.MjData, float]:
@@ -231,7 +231,8 @@ def _arrays(obj: object, depth: int = 2) -> list[np.ndarray]:
 def test_a_pruned_run_holds_nothing_the_size_of_all_pairs() -> None:
     """Memory O(N + pairs met): after a monitored run of a swarm, no array of the predictor,
     its universe and held set, the monitor or the report is as large as the model's pairs."""
-    from dua_mujoco.mj.monitor import Monitor, run
+    from dua_mujoco.measure.monitor import Monitor
+    from dua_mujoco.measure.rollout import run
 
     m, d = load_scene("swarm:1500")
     p = Predictor(m, accel=2.0)
@@ -255,8 +256,8 @@ def test_every_pair_whose_reaches_meet_is_held_through_renewals() -> None:
     pair whose reach balls, each from its own anchor, come within the margin (what the
     completeness proof of docs/many-objects.md rests on), and a pair not held was left out at
     the later anchor of its two spheres."""
+    from dua_mujoco.build.pairfilter import FilterTables, dynamic_mask
     from dua_mujoco.core.neighbors import ROUNDING_SLACK
-    from dua_mujoco.mj.pairfilter import FilterTables, dynamic_mask
 
     m, d = load_scene("bin_pour:60")
     p = Predictor(m, accel=5.0, pairs="pruned")

@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.render import (
     ALARM_RGBA,
     AlarmOverlay,
@@ -30,6 +29,7 @@ from dua_mujoco.render import (
     render_rollout,
     write_video,
 )
+from dua_mujoco.runtime.predictor import Predictor
 
 W, H = 320, 240
 
@@ -132,7 +132,7 @@ def test_overlay_draws_every_pair_standing_in_alarm_and_pruned_sets() -> None:
     """Tint, connectors and count follow the pairs standing in alarm (by the model's pair ids),
     also on steps where the backoff does not evaluate them, and on a pruned predictor, whose
     scheduler holds only some pairs."""
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
 
     model, data = load_scene("swarm:300")
     predictor = Predictor(model, accel=30.0)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.scenes import (
+from dua_mujoco.models.scenes import (
     DEFAULT_SCENE,
     SCENES,
     CtrlMode,
@@ -230,7 +230,7 @@ def test_paper_world_survives_a_round_trip_through_xml(n: int) -> None:
 def test_bundled_paper_world_is_the_generators_output() -> None:
     # models/paper_world.xml says "generated, do not edit": it must still be what the
     # generator writes (its header comment aside).
-    path = Path(__file__).resolve().parents[1] / "models" / "paper_world.xml"
+    path = models_dir() / "paper_world.xml"
     bundled = re.sub(r"\n  <!--.*?-->", "", path.read_text(), flags=re.S)
     assert bundled.strip() == paper_world_spec(40, seed=0).to_xml().strip()
 

@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 import pytest
 
+from dua_mujoco.build.options import PilotOptions
 from dua_mujoco.cli import main
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.options import PilotOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 # One hinge driven by a motor, no gravity: its inertia about the axis is constant, so the
 # tracking error of a PD with the target's velocity fed forward obeys

@@ -12,16 +12,16 @@ import numpy as np
 import pytest
 from rollouts import predictor_rollout
 
+from dua_mujoco.build.covering import cover_model, static_shape_geoms
+from dua_mujoco.build.filter import active_geom_pairs, sphere_pairs
+from dua_mujoco.build.options import CoveringOptions, PilotOptions, UrgencyOptions
+from dua_mujoco.build.tables import PairTables, static_shapes
 from dua_mujoco.core.pairset import PairKind, PairSet, pack_pairs
 from dua_mujoco.core.shapes import SHAPE_KIND, ShapeKind, closest_point, time_to_static
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.covering import cover_model, static_shape_geoms
-from dua_mujoco.mj.filter import active_geom_pairs, sphere_pairs
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
-from dua_mujoco.mj.tables import PairTables, static_shapes
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 SHAPE_TYPES = {
     "sphere": 'type="sphere" size=".2"',

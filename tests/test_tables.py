@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from dua_mujoco import _core
+from dua_mujoco.build.options import PairOptions
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.options import PairOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene
+from dua_mujoco.models.scenes import load_scene
+from dua_mujoco.runtime.predictor import Predictor
 
 # clutter has a plane, static shapes, a mocap body and events; pruned adds the reach tables.
 SCENES = {"all": {}, "pruned": {"pairs": PairOptions(mode="pruned")}}

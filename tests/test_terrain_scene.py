@@ -11,17 +11,17 @@ import pytest
 from rollouts import predictor_rollout
 
 from dua_mujoco import _core
+from dua_mujoco.build.covering import cover_model, terrain_geoms
+from dua_mujoco.build.exact import GX_RADIUS, X_DIST, X_G1, X_G2, X_MODE, ExactMode
+from dua_mujoco.build.options import CoveringOptions, PilotOptions, UrgencyOptions
+from dua_mujoco.build.tables import static_shapes
 from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.core.shapes import ShapeKind, pack_shapes, time_to_static
 from dua_mujoco.core.terrain import T_HEIGHTS, TERRAIN_BLOCK
 from dua_mujoco.exceptions import InvalidInputError, UnsupportedGeomError
-from dua_mujoco.mj.covering import cover_model, terrain_geoms
-from dua_mujoco.mj.exact import GX_RADIUS, X_DIST, X_G1, X_G2, X_MODE, ExactMode
-from dua_mujoco.mj.monitor import run
-from dua_mujoco.mj.options import CoveringOptions, PilotOptions, UrgencyOptions
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.scenes import load_scene, make_controller
-from dua_mujoco.mj.tables import static_shapes
+from dua_mujoco.measure.rollout import run
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 WORLD = """<mujoco>
   <asset><hfield name="h" nrow="6" ncol="7" size="1 1 .3 .1"
@@ -202,7 +202,7 @@ def test_the_plugin_refuses_a_terrain_table_that_does_not_fit(entry: tuple[int, 
     import base64
 
     from dua_mujoco import attach
-    from dua_mujoco.mj.scenes import load_spec
+    from dua_mujoco.models.scenes import load_spec
     from dua_mujoco.plugin import _encode
 
     spec = load_spec("rough_terrain")
@@ -221,7 +221,7 @@ def test_a_plan_on_rough_terrain_misses_nothing() -> None:
     mj_geomDistance, are no lower bounds on a height field): exact plans of the run, every
     pair a limb against the terrain, bounds above the scene's measured maximum; no onset is
     missed and no plan is broken."""
-    from dua_mujoco.mj.monitor import Monitor
+    from dua_mujoco.measure.monitor import Monitor
 
     m, d = load_scene("rough_terrain")
     h, every, steps = float(m.opt.timestep), 25, 500

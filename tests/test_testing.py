@@ -14,10 +14,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.report import RunReport
-from dua_mujoco.mj.scenes import load_scene, make_controller
+from dua_mujoco.measure.report import RunReport
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.predictor import Predictor
 
 # The module is imported here, before pytest registers it from ``pytest_plugins``: mark it for
 # assertion rewriting first, or pytest warns that it was imported before it could rewrite it
@@ -25,7 +25,7 @@ from dua_mujoco.mj.scenes import load_scene, make_controller
 if "dua_mujoco.testing" not in sys.modules:
     pytest.register_assert_rewrite("dua_mujoco.testing")
 
-from dua_mujoco.mj.options import ScheduleOptions
+from dua_mujoco.build.options import ScheduleOptions
 from dua_mujoco.testing import (
     BASELINE_KEYS,
     assert_no_missed_collisions,
@@ -192,7 +192,7 @@ def test_helpers_work_without_pytest() -> None:
     """docs/testing.md: without pytest, call the function directly."""
     code = (
         "import sys; sys.modules['pytest'] = None\n"
-        "from dua_mujoco.mj.scenes import load_scene\n"
+        "from dua_mujoco.models.scenes import load_scene\n"
         "from dua_mujoco.testing import assert_no_missed_collisions\n"
         f"m, d = load_scene({SCENE!r})\n"
         f"r = assert_no_missed_collisions(m, d, steps=50, predictor={CLEAN!r})\n"
@@ -304,7 +304,7 @@ def test_assert_no_missed_collisions_compares_the_baseline() -> None:
 
 USER_TEST = textwrap.dedent(
     f"""
-    from dua_mujoco.mj.scenes import load_scene
+    from dua_mujoco.models.scenes import load_scene
 
 
     def test_my_scene(dua_predict):
@@ -353,7 +353,7 @@ def test_plugin_records_counts_in_user_properties(pytester: pytest.Pytester) -> 
     pytester.makepyfile(
         test_props=textwrap.dedent(
             f"""
-            from dua_mujoco.mj.scenes import load_scene
+            from dua_mujoco.models.scenes import load_scene
 
 
             def test_props(dua_predict, request):
@@ -372,8 +372,8 @@ def test_plugin_fixture_fails_on_missed_collision(pytester: pytest.Pytester) -> 
     pytester.makepyfile(
         test_broken=textwrap.dedent(
             f"""
-            from dua_mujoco.mj.predictor import Predictor
-            from dua_mujoco.mj.scenes import load_scene
+            from dua_mujoco.runtime.predictor import Predictor
+            from dua_mujoco.models.scenes import load_scene
 
 
             def test_broken(dua_predict):
@@ -401,8 +401,8 @@ def test_module_import_does_not_load_mujoco_layers() -> None:
     import MuJoCo or the predictor until a test uses it."""
     code = (
         "import sys, dua_mujoco.testing; "
-        "print([m for m in ('mujoco', 'dua_mujoco.mj.predictor', 'dua_mujoco.mj.monitor') "
-        "if m in sys.modules])"
+        "print([m for m in ('mujoco', 'dua_mujoco.runtime.predictor', "
+        "'dua_mujoco.measure.monitor') if m in sys.modules])"
     )
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(

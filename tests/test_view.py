@@ -23,9 +23,9 @@ import pytest
 from screens import Display, reddish
 
 from dua_mujoco.cli import main
-from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.render import TINTS, AlarmOverlay, OverlayOptions
 from dua_mujoco.render.live import KEY_PAUSE, KEY_SPHERES, KEY_STEP, ViewerKeys
+from dua_mujoco.runtime.predictor import Predictor
 
 # Two grey boxes 2 cm apart on springy slides, pushed about by random motors. With an
 # acceleration bound of 5e4 m/s^2 the gap closes within a period: both stand in alarm at every

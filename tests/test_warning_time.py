@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.accumulators import Durations
-from dua_mujoco.mj.monitor import Monitor, run
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.report import RunReport, build_report
-from dua_mujoco.mj.scenes import load_scene, make_controller
-from dua_mujoco.mj.warning_time import alarm_horizon_of
+from dua_mujoco.measure.accumulators import Durations
+from dua_mujoco.measure.monitor import Monitor
+from dua_mujoco.measure.report import RunReport
+from dua_mujoco.measure.rollout import build_report, run
+from dua_mujoco.measure.warning_time import alarm_horizon_of
+from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 # Two balls dropped on a plane, 1 m apart: ball_a lands at the 40th physics step and ball_b at
 # the 114th (counted from the start state), and both then rest in contact.

@@ -420,7 +420,7 @@ def time_to_static(
     if bad >= 0:
         raise InvalidInputError(
             f"shapes[{bad}] is a terrain record whose block does not fit the table (its offset, "
-            "length, header or grid): rebuild the table with dua_mujoco.mj.tables.static_shapes "
+            "length, header or grid): rebuild the table with dua_mujoco.build.tables.static_shapes "
             "or dua_mujoco.core.terrain.shape_table."
         )
     ids = np.asarray(shape_ids)

@@ -14,9 +14,9 @@ import numpy as np
 
 from dua_mujoco.closing import Closing
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.render.overlay import AlarmOverlay, OverlayOptions
+from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["MAX_FRAME_SIZE", "OverlayRenderer", "check_frame_size", "status_line"]
 

@@ -24,12 +24,13 @@ import numpy as np
 
 from dua_mujoco.closing import Closing
 from dua_mujoco.exceptions import DuaError, InvalidInputError
-from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.monitor import Monitor, run
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.report import RunInterrupted, RunReport
+from dua_mujoco.measure.monitor import Monitor
+from dua_mujoco.measure.report import RunInterrupted, RunReport
+from dua_mujoco.measure.rollout import run
 from dua_mujoco.render.frames import status_line
 from dua_mujoco.render.overlay import AlarmOverlay, OverlayOptions
+from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["KEY_PAUSE", "KEY_SPHERES", "KEY_STEP", "LiveViewer", "ViewerKeys", "view"]
 
@@ -191,7 +192,7 @@ def view(
     geom_distance: bool = False,
     log: TextIO | None = None,
 ) -> RunReport:
-    """Run a monitored rollout (:func:`~dua_mujoco.mj.monitor.run`) shown live in the viewer.
+    """Run a monitored rollout (:func:`~dua_mujoco.measure.rollout.run`) shown live in the viewer.
 
     The rollout is ``run``'s: the same controller, predictor and exact stage, and the same
     report. Frames are drawn at predictor steps, at most ``fps`` a second of wall time.

@@ -26,13 +26,13 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.covering import sphere_world_centers
+from dua_mujoco.build.geom_types import GEOM_LINE, GEOM_PLANE, GEOM_SPHERE
 from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.core.shapes import closest_point
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.covering import sphere_world_centers
-from dua_mujoco.mj.geom_types import GEOM_LINE, GEOM_PLANE, GEOM_SPHERE
-from dua_mujoco.mj.predictor import Predictor
+from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
     "ALARM_RGBA",

@@ -9,12 +9,12 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.predictor import Predictor
 from dua_mujoco.progress import Progress
 from dua_mujoco.render.frames import OverlayRenderer
 from dua_mujoco.render.overlay import OverlayOptions
 from dua_mujoco.render.video import check_mp4_size, video_path, write_video
+from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["render_rollout"]
 

@@ -86,7 +86,7 @@ def run_options_of(args: argparse.Namespace) -> argparse.Namespace:
 def main(args: argparse.Namespace) -> int:
     """Run ``dua-mujoco sweep``; the exit code."""
     from dua_mujoco.cli import EXIT_INTERRUPTED, EXIT_MISSED, check_output, write_output
-    from dua_mujoco.mj.scenes import check_scene
+    from dua_mujoco.models.scenes import check_scene
     from dua_mujoco.progress import Progress
     from dua_mujoco.sweep import OptionSet, SweepInterrupted, load_grid, sweep, tasks_of
 

@@ -85,7 +85,7 @@ def run_task(task: Task) -> dict[str, Any]:
     """
     from dua_mujoco.cli import keyframe_arg, load_scene_arg
     from dua_mujoco.exceptions import DuaError
-    from dua_mujoco.mj.monitor import run
+    from dua_mujoco.measure.rollout import run
     from dua_mujoco.run_options import controller_for, default_steps, predictor_for
 
     start = time.perf_counter()

@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco import _core
-from dua_mujoco.mj.scenes import load_spec
+from dua_mujoco.models.scenes import load_spec
 from dua_mujoco.plugin import attach
 
 # Flags of an input (tables_fuzzer.cc's kFlag*).

@@ -157,7 +157,7 @@ const std::string& TextOf(Table& t) {
   std::abort();
 }
 
-// Every table the plugin reads (dua_mujoco/mj/build.py).
+// Every table the plugin reads (dua_mujoco/runtime/table_arrays.py).
 const char* const kNames[] = {"config",
                               "spheres",
                               "shapes",

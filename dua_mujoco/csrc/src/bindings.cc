@@ -238,7 +238,7 @@ int64_t CheckPoints(const In<double>& points, const In<double>& pos, const In<do
 
 // ------------------------------------------------------------------------------- pair filter
 
-// MuJoCo's pair filter over per-geom arrays (dua_mujoco/mj/pairfilter.py's FilterTables).
+// MuJoCo's pair filter over per-geom arrays (dua_mujoco/build/pairfilter.py's FilterTables).
 struct Filter {
   std::vector<int64_t> body, weld, parent_weld, contype, conaffinity, exclude;
   std::vector<uint8_t> movable, lone;
@@ -817,7 +817,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             return std::const_pointer_cast<Tables>(t);
           },
           "model"_a, "arrays"_a,
-          "The tables from a dict of float64 arrays (dua_mujoco/mj/build.py), checked.")
+          "The tables from a dict of float64 arrays (dua_mujoco/runtime/table_arrays.py), checked.")
       .def_static(
           "load",
           [](nb::handle model, const std::string& prefix) {

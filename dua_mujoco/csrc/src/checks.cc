@@ -1,5 +1,5 @@
 // The run monitor's check that the motion bounds held, every physics step, at every point the
-// bounds are stated for (dua_mujoco/mj/checks.py's BoundMonitor; the hypotheses are derived in
+// bounds are stated for (dua_mujoco/measure/checks.py's BoundMonitor; the hypotheses are derived in
 // docs/discrete-time.md). The step's own check (step.cc, CheckBodies) tests each body's box at
 // once, four bodies at a time; this one measures every point, for the report.
 #include <cmath>

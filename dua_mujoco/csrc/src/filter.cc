@@ -1,4 +1,4 @@
-// MuJoCo's dynamic pair filter as one rule (dua_mujoco/mj/filter.py lists the conditions it
+// MuJoCo's dynamic pair filter as one rule (dua_mujoco/build/filter.py lists the conditions it
 // transcribes: filterBodyPair, filterBitmask, <exclude>, the collision-function table), applied
 // to given geom pairs, to every pair of a model, to count pairs without holding them, and to find
 // whether any pair passes.

@@ -11,7 +11,7 @@
 
 namespace dua {
 
-// Events (dua_mujoco/mj/events.py): body record and state columns, meta entries.
+// Events (dua_mujoco/build/events.py): body record and state columns, meta entries.
 constexpr int kBFrame = 0, kBBody = 1, kBRoot = 2, kBCenter = 3, kBHalf = 6, kBAccel = 9,
               kBDisc = 10, kBSpeed = 11, kBNcol = 12;
 // State columns 0..30 are what the check writes each step; 31..39 the body's box and bounds

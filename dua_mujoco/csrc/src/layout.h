@@ -1,8 +1,8 @@
 // The records and state the Python side packs and the native code reads by column: pairs,
 // spheres, static shapes, the exact level, the schedule's state. Stated once for C++ (the
 // violation check's are in internal.h, the plugin's config row in plugin_tables.h). Python
-// states them in dua_mujoco/core/pairset.py, core/shape_kernels.py, core/schedules/state.py,
-// mj/kinematics.py, mj/exact_kernels.py, mj/events.py and plugin.py; dua_layout_name and
+// states them in dua_mujoco/core/pairset.py, core/shapes.py, core/schedules/state.py,
+// build/kinematics.py, build/exact.py, build/events.py and plugin.py; dua_layout_name and
 // dua_layout_value (layout.cc) export all of them by Python's names, and tests/test_layout.py
 // holds the two statements to each other.
 #ifndef DUA_MUJOCO_LAYOUT_H_

@@ -1,5 +1,5 @@
 // Velocities of mocap bodies, which mjData does not give: backward differences of their poses
-// (dua_mujoco/mj/mocap.py documents the instant and the bound this velocity obeys).
+// (dua_mujoco/build/mocap.py documents the instant and the bound this velocity obeys).
 #include <cmath>
 
 #include "dua/dua.h"

@@ -1,5 +1,5 @@
 // The model's sphere pairs and their per-pair tables, from per-geom, per-sphere and per-body
-// ones: what dua_mujoco/mj/filter.py (sphere_pairs), pairbounds.py (bounded_pairs) and exact.py
+// ones: what dua_mujoco/build/filter.py (sphere_pairs), pairbounds.py (bounded_pairs) and exact.py
 // (exact_records) compute, for the pairs a predictor knows from the start and for those a pruned
 // one meets later (docs/many-objects.md).
 #include <cmath>

@@ -1,5 +1,5 @@
 // The plugin's pruned pairs (pruned.h): the held set chosen from the spheres' reaches, as
-// dua_mujoco/mj/pruning.py's HeldPairs chooses it, on the same native kernels.
+// dua_mujoco/build/pruning.py's HeldPairs chooses it, on the same native kernels.
 #include "pruned.h"
 
 #include <algorithm>

@@ -1,6 +1,6 @@
 // The plugin's pruned pairs: which of the model's pairs are held, chosen by the candidate grid
 // (grid.cc) from every sphere's reach at a rebuild, and renewed for the spheres the escape check
-// (reach.cc) finds outside their reach, as dua_mujoco/mj/pruning.py's HeldPairs does for the
+// (reach.cc) finds outside their reach, as dua_mujoco/build/pruning.py's HeldPairs does for the
 // Python predictor (docs/many-objects.md).
 #ifndef DUA_MUJOCO_PRUNED_H_
 #define DUA_MUJOCO_PRUNED_H_

@@ -1,8 +1,8 @@
 // The predictor's tables: everything a model's predictor reads that does not change as it runs
 // (the covering spheres, the pairs and their bounds, the static shapes, the exact level's
 // records, the violation check's boxes, the schedule's options, the pruned pairs' reaches and
-// what learning a pair reads). Python builds them (dua_mujoco/mj/build.py); the plugin reads
-// them from the model's text fields "<prefix>:<table>", the Python predictor hands them over
+// what learning a pair reads). Python builds them (dua_mujoco/runtime/table_arrays.py); the plugin
+// reads them from the model's text fields "<prefix>:<table>", the Python predictor hands them over
 // as arrays. Either way they are checked here, once per model, against the model they are for:
 // every index the step follows points inside its table, or the tables are refused with an error
 // that names the table.
@@ -108,7 +108,7 @@ DUA_API std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::st
 DUA_API bool Decode(const char* text, std::vector<double>* out, std::string* why);
 
 // FNV-1a (64 bits) of m's structure: geom_type, geom_bodyid and body_parentid as little-endian
-// int32s (dua_mujoco/mj/build.py computes the same).
+// int32s (dua_mujoco/runtime/table_arrays.py computes the same).
 DUA_API uint64_t StructureHash(const mjModel* m);
 
 }  // namespace dua

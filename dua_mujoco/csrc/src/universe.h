@@ -1,4 +1,4 @@
-// The pairs a plugin instance knows (dua_mujoco/mj/universe.py's PairUniverse): fixed when it
+// The pairs a plugin instance knows (dua_mujoco/build/universe.py's PairUniverse): fixed when it
 // holds every pair, growing per mjData with pruned pairs, which learn the geom pairs their
 // candidates bring in through MuJoCo's filter, with the tables the step reads of them.
 #ifndef DUA_MUJOCO_UNIVERSE_H_

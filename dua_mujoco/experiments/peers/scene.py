@@ -72,7 +72,7 @@ def make_scene_peer(name: str, ctx: SceneContext) -> ScenePeer:
 
 def run_scene(scene: str, steps: int, seed: int) -> list[SceneRow]:
     """All scene peers watch one rollout; MuJoCo's contacts are the ground truth."""
-    from dua_mujoco.mj.scenes import SCENES, load_scene, make_controller
+    from dua_mujoco.models.scenes import SCENES, load_scene, make_controller
 
     model, data = load_scene(scene)
     ctx = SceneContext(model, SCENES[scene].accel_hint)
@@ -99,7 +99,7 @@ def run_scene(scene: str, steps: int, seed: int) -> list[SceneRow]:
             peer.set_snapshot(data)
         mujoco.mj_step(model, data)
 
-    # One mj_step so that kinematics and contacts describe one instant (see monitor.run).
+    # One mj_step so that kinematics and contacts describe one instant (see rollout.run).
     physics_step()
     truth = [contacts()]
     for peer, tr in zip(peers, trackers, strict=True):

@@ -7,11 +7,11 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.options import CoveringOptions
 from dua_mujoco.experiments.peers.horizon import LATENCY
-from dua_mujoco.mj.options import CoveringOptions
 
 if TYPE_CHECKING:
-    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["SceneContext"]
 

@@ -7,9 +7,9 @@ from typing import Any
 
 import mujoco
 
+from dua_mujoco.build.options import CoveringOptions
 from dua_mujoco.experiments.peers.horizon import LATENCY
 from dua_mujoco.experiments.peers.rows import TunnelRow
-from dua_mujoco.mj.options import CoveringOptions
 
 __all__ = [
     "TUNNEL_DT",

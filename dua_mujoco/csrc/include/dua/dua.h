@@ -5,9 +5,9 @@
 // Every table is a row-major float64 or int64 array owned by the caller; the structs below only
 // point into them. Layouts (columns) are stated once in src/layout.h and documented where the
 // Python side packs them: pairs: dua_mujoco/core/pairset.py (pack_pairs), spheres:
-// dua_mujoco/mj/kinematics.py, shapes: dua_mujoco/core/shapes.py, terrain:
-// dua_mujoco/core/terrain.py, exact: dua_mujoco/mj/exact.py, events: dua_mujoco/mj/events.py, the
-// schedule: dua_mujoco/core/schedules/state.py.
+// dua_mujoco/build/kinematics.py, shapes: dua_mujoco/core/shapes.py, terrain:
+// dua_mujoco/core/terrain.py, exact: dua_mujoco/build/exact.py, events: dua_mujoco/build/events.py,
+// the schedule: dua_mujoco/core/schedules/state.py.
 #ifndef DUA_MUJOCO_DUA_H_
 #define DUA_MUJOCO_DUA_H_
 
@@ -300,7 +300,7 @@ DUA_API void dua_exact_rows(const double* geoms, const int64_t* geom1, const int
 
 // ------------------------------------------------------------------------------- the pair filter
 
-// Per geom, what MuJoCo's dynamic pair filter reads (dua_mujoco/mj/pairfilter.py, FilterTables).
+// Per geom, what MuJoCo's dynamic pair filter reads (dua_mujoco/build/pairfilter.py, FilterTables).
 typedef struct dua_filter {
   int64_t ngeom;
   const int64_t* body;         // (ngeom,) geom body

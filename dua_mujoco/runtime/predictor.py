@@ -4,9 +4,9 @@ The model is read once: geoms are covered by spheres (``covering``), MuJoCo's co
 gives the active geom pairs (``filter``), and those expand into sphere pairs with per-pair contact
 distance, acceleration bound and velocity uncertainty; with the bounds (declared, or measured by
 a pilot rollout), the static shapes, the exact level and the violation check they become the
-tables of ``mj/build.py``. The native core runs the predictor on them (``dua_mujoco._core.Runtime``,
-the same runtime the MuJoCo plugin runs inside ``mj_step``): ``reset(data)`` is the initial
-classification, each ``step(data)`` one call into it.
+tables of ``runtime/table_arrays.py``. The native core runs the predictor on them
+(``dua_mujoco._core.Runtime``, the same runtime the MuJoCo plugin runs inside ``mj_step``):
+``reset(data)`` is the initial classification, each ``step(data)`` one call into it.
 
 Timing. Call ``step`` every ``period`` physics steps, after ``mj_step``. ``MjData`` then holds the
 kinematics (``geom_xpos``, ``cvel``) and contacts of the state at the start of that step, and the
@@ -24,6 +24,33 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco import _core
+from dua_mujoco.build.bounds import MotionBounds, resolve_bounds
+from dua_mujoco.build.covering import Covering, CoveringMode, cover_model
+from dua_mujoco.build.events import EventTable, body_boxes, build_events
+from dua_mujoco.build.exact import EXACT_PERIODS, QUERY_PERIODS, ExactLevel
+from dua_mujoco.build.filter import GeomPairs, SpherePairs, body_id
+from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.build.mocap import PredictorMocap
+from dua_mujoco.build.options import (
+    CoveringOptions,
+    PairOptions,
+    PilotOptions,
+    ScheduleOptions,
+    UrgencyOptions,
+    alarm_periods,
+    removed_keywords_error,
+    resolve_options,
+)
+from dua_mujoco.build.pairbounds import body_vel_uncertainty
+from dua_mujoco.build.pruning import Reach, reach_for, resolve_pair_mode
+from dua_mujoco.build.tables import (
+    PairTables,
+    check_data,
+    check_forwarded,
+    plane_halfspaces,
+    static_shapes,
+)
+from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule
 from dua_mujoco.core.spheres import PairMode
@@ -34,38 +61,11 @@ from dua_mujoco.exceptions import (
     NonFiniteStateError,
     SchedulerError,
 )
-from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.bounds import MotionBounds, resolve_bounds
-from dua_mujoco.mj.build import predictor_tables
-from dua_mujoco.mj.covering import Covering, CoveringMode, cover_model
-from dua_mujoco.mj.diagnostics import clock_error, nonfinite_error
-from dua_mujoco.mj.events import EventTable, body_boxes, build_events
-from dua_mujoco.mj.exact import EXACT_PERIODS, QUERY_PERIODS, ExactLevel
-from dua_mujoco.mj.filter import GeomPairs, SpherePairs, body_id
-from dua_mujoco.mj.flightplan import plan_arrays
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
-from dua_mujoco.mj.mocap import PredictorMocap
-from dua_mujoco.mj.options import (
-    CoveringOptions,
-    PairOptions,
-    PilotOptions,
-    ScheduleOptions,
-    UrgencyOptions,
-    alarm_periods,
-    removed_keywords_error,
-    resolve_options,
-)
-from dua_mujoco.mj.pairbounds import body_vel_uncertainty
-from dua_mujoco.mj.pairstate import PairState
-from dua_mujoco.mj.pruning import Reach, reach_for, resolve_pair_mode
-from dua_mujoco.mj.tables import (
-    PairTables,
-    check_data,
-    check_forwarded,
-    plane_halfspaces,
-    static_shapes,
-)
-from dua_mujoco.mj.universe import PairUniverse
+from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.diagnostics import clock_error, nonfinite_error
+from dua_mujoco.runtime.flightplan import plan_arrays
+from dua_mujoco.runtime.pairstate import PairState
+from dua_mujoco.runtime.table_arrays import predictor_tables
 
 __all__ = ["BoundsLike", "Predictor"]
 
@@ -251,7 +251,7 @@ class Predictor:
                 alarm_periods=self.alarm_periods,
             )
         self.table_arrays = predictor_tables(self)
-        """The tables the native runtime reads, by name (``mj/build.py``)."""
+        """The tables the native runtime reads, by name (``runtime/table_arrays.py``)."""
         tables = _core.Tables.build(model, self.table_arrays)
         self._rt = _core.Runtime(
             tables, model, list(self.universe.tables.geom_names), LOG_STEPS, LOG_MIN
@@ -420,7 +420,7 @@ class Predictor:
 
         Args:
             qpos: ``(n, nq)`` joint positions, row ``j`` the state ``j * model.opt.timestep``
-                after ``start`` (:func:`dua_mujoco.mj.plans.plan_from_controls` rolls them).
+                after ``start`` (:func:`dua_mujoco.runtime.plans.plan_from_controls` rolls them).
             deviation: Metres: a bound on the distance of every point of a body's geoms from
                 where the plan puts it, one number, ``(n,)`` or ``(n, nbody)``; 0 where the plan
                 is exact (a rollout of the controls that will be applied, in simulation).

@@ -12,33 +12,25 @@ of the two bodies broke them after the latest predictor step at or before the on
 with pruned pairs): the one exception of the guarantee with violations as events (docs/theory.md,
 section 6). Each onset's lead and the oracle are counted by :class:`WarningTime`.
 
-``run`` drives a rollout (controller, ``mj_step``, predictor every ``period`` steps, monitor) and
-returns a ``RunReport``.
+:func:`~dua_mujoco.measure.rollout.run` drives a rollout (controller, ``mj_step``, predictor every
+``period`` steps, monitor) and returns a ``RunReport``.
 """
 
 from __future__ import annotations
 
-import time
-import warnings
-from collections.abc import Callable
-
 import mujoco
 import numpy as np
 
-from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
-from dua_mujoco.mj.accumulators import Durations, Growing, Series, StepMap
-from dua_mujoco.mj.alarms import Alarms
-from dua_mujoco.mj.checks import BoundMonitor
-from dua_mujoco.mj.flightplan import governing_violations
-from dua_mujoco.mj.predictor import Predictor
-from dua_mujoco.mj.report import Miss, RunInterrupted, RunReport, build_report
-from dua_mujoco.mj.tables import same_geometry
-from dua_mujoco.mj.warning_time import WarningTime, alarm_horizon_of, check_warning_horizon
-from dua_mujoco.progress import Progress
+from dua_mujoco.measure.accumulators import Growing, Series, StepMap
+from dua_mujoco.measure.checks import BoundMonitor
+from dua_mujoco.measure.report import Miss
+from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of, check_warning_horizon
+from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.flightplan import governing_violations
+from dua_mujoco.runtime.predictor import Predictor
 
-__all__ = ["Monitor", "run"]
+__all__ = ["Monitor"]
 
-Controller = Callable[[mujoco.MjModel, mujoco.MjData], None]
 
 # mj_geomDistance stops searching beyond this distance (m); alarmed pairs are far closer.
 _DISTMAX = 100.0
@@ -65,8 +57,8 @@ class Monitor:
         series: Record the alarm count and minimum tau of every predictor step (``series``);
             otherwise memory does not grow with the run's length.
         warning_horizon: The horizon (s) each onset's lead and the oracle are measured against
-            (:mod:`~dua_mujoco.mj.warning_time`); None for the predictor's own alarm horizon
-            (:func:`~dua_mujoco.mj.warning_time.alarm_horizon_of`).
+            (:mod:`~dua_mujoco.measure.warning_time`); None for the predictor's own alarm horizon
+            (:func:`~dua_mujoco.measure.warning_time.alarm_horizon_of`).
 
     An *alarm episode* of a geom pair is a maximal run of physics steps during which at least one
     of its sphere pairs stands alarmed (repeats counted once, as the paper does). It is *false*
@@ -339,7 +331,7 @@ class Monitor:
     def oracle_fraction(self) -> float:
         """Mean over predictor steps of (active geom pairs that touch within the warning
         horizon from that step) / (active geom pairs): the floor under the standing fraction
-        (:mod:`~dua_mujoco.mj.warning_time`; windows past the last step count what was seen)."""
+        (:mod:`~dua_mujoco.measure.warning_time`; windows past the last step count what's seen)."""
         if not self.predictor_steps:
             return 0.0
         return self.warning.oracle_sum() / self.predictor_steps
@@ -491,110 +483,3 @@ class Monitor:
         self._pending_touch = self._pending_touch[:0]
         still_open = np.flatnonzero(self._standing > 0)
         self.false_episodes += int((~self._episode_touch[still_open]).sum())
-
-
-def run(
-    model: mujoco.MjModel,
-    data: mujoco.MjData,
-    predictor: Predictor,
-    *,
-    steps: int,
-    controller: Controller | None = None,
-    scene: str = "",
-    realtime: bool = False,
-    geom_distance: bool = False,
-    progress: bool = True,
-    on_step: Callable[[int, mujoco.MjData, Alarms | None, Monitor], None] | None = None,
-    series: bool = True,
-    warning_horizon: float | None = None,
-) -> RunReport:
-    """Roll out ``steps`` physics steps with prediction and the exact stage.
-
-    The first ``mj_step`` brings ``data`` to a consistent state (kinematics and contacts of one
-    instant); the predictor is reset there and stepped every ``predictor.period`` steps after.
-    Memory does not grow with ``steps`` except for the per-step series (``series``, 12 bytes a
-    predictor step) and the misses.
-
-    Args:
-        model: The model.
-        data: The data, at the start state (e.g. after ``load_scene``).
-        predictor: The predictor (built for ``model``).
-        steps: Physics steps after the reset.
-        controller: ``controller(model, data)`` called before each ``mj_step``.
-        scene: Name recorded in the report.
-        realtime: Count deadline overruns (see ``Monitor``).
-        geom_distance: Measure alarmed pairs with ``mj_geomDistance`` (see ``Monitor``).
-        progress: Draw a progress bar on stderr.
-        on_step: Called after each physics step with ``(k, data, alarms or None, monitor)``.
-        series: Record the alarm count and minimum tau of every predictor step in the report
-            (``alarms_per_step``, ``min_tau_per_step``); False keeps memory flat.
-        warning_horizon: The horizon (s) the leads and the oracle are measured against; None
-            for the predictor's own alarm horizon (see ``Monitor``).
-
-    Raises:
-        RunInterrupted: On a ``KeyboardInterrupt`` during the rollout (Ctrl-C, or raised by the
-            controller or ``on_step``), with the report of the steps observed until then.
-    """
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise InvalidInputError(f"steps = {steps!r} is invalid: pass an int >= 1 (physics steps).")
-    if model is not predictor.model and not same_geometry(model, predictor.model):
-        raise InvalidInputError(
-            "the predictor was built for another MjModel: pass the model it was built for "
-            "(Predictor(model, ...)), or build a Predictor for this one."
-        )
-    predictor.check_data(data)  # before the controller writes into it
-    monitor = Monitor(
-        predictor,
-        realtime=realtime,
-        geom_distance=geom_distance,
-        series=series,
-        warning_horizon=warning_horizon,
-    )
-    if controller is not None:
-        controller(model, data)
-    mujoco.mj_step(model, data)
-    monitor.start(data)
-    period = predictor.period
-    t_mj = Durations()
-    t_pred = Durations()
-    warned = False
-    try:
-        with Progress(steps, scene or "run", enabled=progress) as bar:
-            for k in range(1, steps + 1):
-                if controller is not None:
-                    controller(model, data)
-                t0 = time.perf_counter()
-                mujoco.mj_step(model, data)
-                t1 = time.perf_counter()
-                t_mj.add(t1 - t0)
-                alarms = None
-                if k % period == 0:
-                    t2 = time.perf_counter()
-                    alarms = predictor.step(data)
-                    dt = time.perf_counter() - t2
-                    t_pred.add(dt)
-                    if realtime and dt > predictor.dt:
-                        monitor.overruns += 1
-                        if not warned:
-                            warnings.warn(
-                                f"predictor step took {dt * 1e6:.0f} us > period "
-                                f"{predictor.dt * 1e6:.0f} "
-                                "us: the predictor cannot keep up, completeness is not "
-                                "guaranteed.",
-                                DeadlineOverrunWarning,
-                                stacklevel=2,
-                            )
-                            warned = True
-                monitor.observe(data, alarms)
-                if on_step is not None:
-                    on_step(k, data, alarms, monitor)
-                bar.update(
-                    note=f"alarms {0 if alarms is None else len(alarms)} "
-                    f"missed {len(monitor.misses)}"
-                )
-    except KeyboardInterrupt as exc:
-        monitor.finish()
-        report = build_report(monitor, scene, realtime, t_mj, t_pred, interrupted=True)
-        raise RunInterrupted(report) from exc
-    monitor.finish()
-    return build_report(monitor, scene, realtime, t_mj, t_pred, interrupted=False)

@@ -1,7 +1,7 @@
 """Bundled scenes, the paper's sphere world as an ``MjSpec``, and scene drivers.
 
-Bundled scenes live in the top-level ``models/`` folder, shipped as the package
-``dua_mujoco.models``:
+Bundled scenes live beside this module in the top-level ``models/`` folder, shipped as the
+package ``dua_mujoco.models`` (in the source tree, the link ``dua_mujoco/models`` imports it):
 
 ========================  ==================================================================
 ``two_arms``              two 5-DoF arms over a table with obstacles (the default scene)
@@ -26,7 +26,7 @@ Bundled scenes live in the top-level ``models/`` folder, shipped as the package
 
 :func:`load_scene` also accepts a path to any MJCF file. :func:`make_controller` drives a scene
 with zero, random (held, hence piecewise-constant) or smooth controls (targets linear between
-random points, :mod:`~dua_mujoco.mj.smooth_drive`) and moves mocap bodies on circles, so that
+random points, :mod:`~dua_mujoco.models.smooth_drive`) and moves mocap bodies on circles, so that
 every scene keeps moving and colliding.
 
 Motion bounds. The paper world and the traffic scene declare an exact acceleration bound in a
@@ -49,14 +49,14 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.bin_pour import BIN_POUR_DEFAULT, bin_pour_spec
-from dua_mujoco.mj.paper_world import (
+from dua_mujoco.models.bin_pour import BIN_POUR_DEFAULT, bin_pour_spec
+from dua_mujoco.models.paper_world import (
     ACCEL_BOUND_NUMERIC,
     paper_world_accel_bound,
     paper_world_model,
     paper_world_spec,
 )
-from dua_mujoco.mj.smooth_drive import SmoothDrive, smooth_drive
+from dua_mujoco.models.smooth_drive import SmoothDrive, smooth_drive
 
 __all__ = [
     "ACCEL_BOUND_NUMERIC",
@@ -145,21 +145,12 @@ class Scene:
 
 
 def models_dir() -> Path:
-    """The folder holding the bundled XMLs.
-
-    Installed, it is the package ``dua_mujoco.models``; in a source tree without install it is the
-    top-level ``models/`` folder next to the package.
+    """The folder holding the bundled XMLs: this module's own.
 
     Returns:
         The folder's path.
     """
-    try:
-        root = importlib.resources.files("dua_mujoco.models")
-        if root.joinpath("two_arms.xml").is_file():
-            return Path(str(root))
-    except (ModuleNotFoundError, TypeError):
-        pass
-    return Path(__file__).resolve().parent.parent / "models"
+    return Path(__file__).resolve().parent
 
 
 def _model_file(filename: str) -> Path:
@@ -525,7 +516,7 @@ def make_controller(
     :attr:`SceneController.mocap_accel_bound`. Smooth mode moves each actuator's target linearly
     between random points ``hold_steps`` apart: servos take it as their control, motors on a
     hinge or slide joint a PD torque toward it, critically damped at 1 Hz
-    (:mod:`~dua_mujoco.mj.smooth_drive`).
+    (:mod:`~dua_mujoco.models.smooth_drive`).
 
     Args:
         model: The model to drive.

@@ -45,11 +45,11 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco import _core
+from dua_mujoco.build.covering import Covering
+from dua_mujoco.build.geom_types import GEOM_HFIELD, GEOM_PLANE
+from dua_mujoco.build.pairfilter import FilterTables, all_dynamic_pairs, dynamic_mask
 from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, UnsupportedGeomError
-from dua_mujoco.mj.covering import Covering
-from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
-from dua_mujoco.mj.pairfilter import FilterTables, all_dynamic_pairs, dynamic_mask
 
 __all__ = [
     "GeomPairs",

@@ -15,9 +15,9 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco._core import LAYOUT
+from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.universe import PairUniverse
 
 __all__ = ["PairState"]
 

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco import _core
-from dua_mujoco.mj.geom_types import GEOM_HFIELD, GEOM_PLANE
+from dua_mujoco.build.geom_types import GEOM_HFIELD, GEOM_PLANE
 
 __all__ = [
     "FilterTables",

@@ -1,7 +1,7 @@
 """Pruned sphere pairs for the MuJoCo ``Predictor``: which pairs its runtime holds, and the reach
 that chooses them.
 
-The filter (``mj/filter.py``) is exact: only sphere pairs of geom pairs MuJoCo could put in
+The filter (``build/filter.py``) is exact: only sphere pairs of geom pairs MuJoCo could put in
 contact are ever held. A pruned predictor holds the half-space and static-shape pairs (a plane
 is infinite; shapes never move), the ``<pair>`` elements' pairs among the candidates, and the
 sphere pairs whose reachable balls over a horizon ``T`` meet (the candidate grid); its runtime
@@ -17,13 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dua_mujoco.build.bounds import MotionBounds
+from dua_mujoco.build.covering import Covering
+from dua_mujoco.build.filter import contact_distance_bound
+from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.pruned import rebuild_stride
 from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, DEFAULT_STRIDE, PairMode
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.bounds import MotionBounds
-from dua_mujoco.mj.covering import Covering
-from dua_mujoco.mj.filter import contact_distance_bound
-from dua_mujoco.mj.universe import PairUniverse
 
 __all__ = ["RENEW_MAX", "Reach", "reach_for", "resolve_pair_mode"]
 

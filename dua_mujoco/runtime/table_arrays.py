@@ -22,23 +22,25 @@ The tables, by name (rows x columns; the columns are ``dua_mujoco._core.LAYOUT``
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
+import mujoco
 import numpy as np
 
 from dua_mujoco._core import LAYOUT, TABLES_VERSION, structure_hash
+from dua_mujoco.build.bounds import MotionBounds
+from dua_mujoco.build.covering import Covering
+from dua_mujoco.build.events import EventTable, no_events
+from dua_mujoco.build.filter import contacts_enabled, margin_override
+from dua_mujoco.build.mocap import PredictorMocap
+from dua_mujoco.build.pairbounds import body_vel_uncertainty
+from dua_mujoco.build.pairfilter import FilterTables
+from dua_mujoco.build.pruning import RENEW_MAX, Reach
+from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.schedules import Schedule
 from dua_mujoco.core.schedules.deadline import DEFAULT_MAX_INTERVAL
-from dua_mujoco.mj.events import no_events
-from dua_mujoco.mj.filter import contacts_enabled, margin_override
-from dua_mujoco.mj.pairbounds import body_vel_uncertainty
-from dua_mujoco.mj.pairfilter import FilterTables
-from dua_mujoco.mj.pruning import RENEW_MAX
 
-if TYPE_CHECKING:
-    from dua_mujoco.mj.predictor import Predictor
-
-__all__ = ["CONFIG", "predictor_tables"]
+__all__ = ["CONFIG", "TableSource", "predictor_tables"]
 
 CONFIG = {name[4:].lower(): value for name, value in LAYOUT.items() if name.startswith("CFG_")}
 """The ``config`` table's entries by name (``CONFIG["dt"]`` is its index of ``dt``)."""
@@ -50,7 +52,35 @@ _KIND = {
 }
 
 
-def predictor_tables(p: Predictor) -> dict[str, np.ndarray]:
+class TableSource(Protocol):
+    """What :func:`predictor_tables` reads off a :class:`~dua_mujoco.Predictor` (a protocol,
+    not the class: the predictor's module imports this one)."""
+
+    model: mujoco.MjModel
+    period: int
+    dt: float
+    latency: int
+    alarm_periods: int
+    alarm_horizon: float
+    schedule: Schedule
+    slots_per_bucket: int
+    max_evals_per_step: int | None
+    alarm_backoff: int
+    covering: Covering
+    universe: PairUniverse
+    bounds: MotionBounds
+    mocap: PredictorMocap | None
+    events: EventTable | None
+    reach: Reach | None
+
+    @property
+    def sphere_records(self) -> np.ndarray: ...
+
+    @property
+    def shape_records(self) -> np.ndarray: ...
+
+
+def predictor_tables(p: TableSource) -> dict[str, np.ndarray]:
     """The tables of predictor ``p`` (its pairs as it knows them when built: every active pair,
     or, pruned, those held always; the runtime learns the rest)."""
     m = p.model
@@ -101,7 +131,7 @@ def predictor_tables(p: Predictor) -> dict[str, np.ndarray]:
     return {name: np.ascontiguousarray(t, dtype=np.float64) for name, t in tables.items()}
 
 
-def _learn_tables(p: Predictor, config: np.ndarray) -> dict[str, np.ndarray]:
+def _learn_tables(p: TableSource, config: np.ndarray) -> dict[str, np.ndarray]:
     """What a pruned runtime reads to learn a pair as MuJoCo's filter lets it through: the
     filter per geom, margins and gaps, the covering's per-geom layout, each body's bounds (and
     their entries of ``config``)."""

@@ -33,13 +33,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.exceptions import (
-    InvalidChoiceError,
-    InvalidInputError,
-    ShapeError,
-    UnsupportedGeomError,
-)
-from dua_mujoco.mj.geom_types import (
+from dua_mujoco.build.geom_types import (
     GEOM_BOX,
     GEOM_CAPSULE,
     GEOM_CYLINDER,
@@ -50,8 +44,8 @@ from dua_mujoco.mj.geom_types import (
     GEOM_SDF,
     GEOM_SPHERE,
 )
-from dua_mujoco.mj.kinematics import pack_spheres, sphere_states
-from dua_mujoco.mj.multicover import (
+from dua_mujoco.build.kinematics import pack_spheres, sphere_states
+from dua_mujoco.build.multicover import (
     capsule_cover,
     grid_cover,
     keep_convex,
@@ -60,6 +54,12 @@ from dua_mujoco.mj.multicover import (
     mesh_hull_planes,
     mesh_vertices,
     union_volume,
+)
+from dua_mujoco.exceptions import (
+    InvalidChoiceError,
+    InvalidInputError,
+    ShapeError,
+    UnsupportedGeomError,
 )
 
 __all__ = [
@@ -115,7 +115,7 @@ class Covering:
             planes are fixed half-spaces).
         shape_geom: ``(nshape,)`` int32, geom ids of static geoms held as their own convex shape
             or, for height fields, as terrain (records packed by
-            ``dua_mujoco.mj.tables.static_shapes``).
+            ``dua_mujoco.build.tables.static_shapes``).
         geom_shape: ``(ngeom,)`` int32, shape index of each geom, or -1.
         static: ``"shape"`` or ``"sphere"``, the ``cover_model`` option used.
     """

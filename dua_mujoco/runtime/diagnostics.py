@@ -6,8 +6,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.bounds import DIVERGENCE_WARNINGS
 from dua_mujoco.exceptions import NonFiniteStateError, SchedulerError
-from dua_mujoco.mj.bounds import DIVERGENCE_WARNINGS
 
 __all__ = ["clock_error", "divergence_count", "divergence_message", "nonfinite_error"]
 

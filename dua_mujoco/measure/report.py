@@ -3,17 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.accumulators import Durations
 
-if TYPE_CHECKING:
-    from dua_mujoco.mj.monitor import Monitor
-
-__all__ = ["Miss", "RunInterrupted", "RunReport", "build_report"]
+__all__ = ["Miss", "RunInterrupted", "RunReport"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -54,7 +50,7 @@ class RunReport:
     had stood for each without a break (0 for a miss; None without onsets);
     ``short_lead_onsets`` counts the onsets with less lead than ``warning_horizon_s``, split into
     ``short_lead_bounds_held`` (the promise does not allow them), ``short_lead_after_violation``
-    and ``short_lead_at_start`` (:mod:`~dua_mujoco.mj.warning_time`).
+    and ``short_lead_at_start`` (:mod:`~dua_mujoco.measure.warning_time`).
     ``missed_onsets_outside_violations`` counts the misses not in a violation's period
     (:class:`Miss`): the guarantee covers them, so any is a bug. ``broken_bound_bodies`` names
     the bodies that broke their declared bounds; ``bound_violations_out_of_contact`` counts the
@@ -227,65 +223,3 @@ class RunInterrupted(KeyboardInterrupt):
             f"interrupted after {report.physics_steps} physics steps (the report covers them)"
         )
         self.report = report
-
-
-def build_report(
-    monitor: Monitor,
-    scene: str,
-    realtime: bool,
-    t_mj: Durations,
-    t_pred: Durations,
-    *,
-    interrupted: bool,
-) -> RunReport:
-    predictor = monitor.predictor
-    alarms_series, tau_series = (None, None) if monitor.series is None else monitor.series.arrays()
-    broken = np.flatnonzero(monitor.last_violation >= 0)
-    distances = monitor.exact_distances
-    warning = monitor.warning
-    p10, median, least = warning.lead_quantiles()
-    return RunReport(
-        scene=scene,
-        physics_steps=monitor.physics_step,
-        predictor_steps=t_pred.count,
-        period=predictor.period,
-        spheres=predictor.nsphere,
-        # Of the whole model: a pruned predictor knows the pairs it met, and counts the rest.
-        pairs=predictor.universe.counts()[1],
-        geom_pairs=predictor.universe.counts()[0],
-        evals_per_step=monitor.evaluation_sum / max(monitor.predictor_steps, 1),
-        contact_onsets=monitor.onsets,
-        predicted_onsets=monitor.predicted,
-        missed_onsets=len(monitor.misses),
-        missed_onsets_valid_bounds=sum(m.bounds_held for m in monitor.misses),
-        missed_onsets_outside_violations=sum(not m.in_violation_period for m in monitor.misses),
-        inactive_pair_contacts=monitor.inactive_contacts,
-        unfiltered_contacts=monitor.unfiltered_contacts,
-        alarm_episodes=monitor.episodes,
-        false_alarm_episodes=monitor.false_episodes,
-        bound_violations=monitor.violations,
-        bound_violations_out_of_contact=monitor.free_violations,
-        deadline_overruns=monitor.overruns,
-        exact_distance_median_m=float(np.median(distances)) if distances.size else None,
-        predictor_us_per_step=t_pred.median() * 1e6,
-        mj_step_us_per_step=t_mj.median() * 1e6,
-        misses=tuple(monitor.misses),
-        alarms_per_step=alarms_series,
-        min_tau_per_step=tau_series,
-        realtime=realtime,
-        standing_alarm_fraction=monitor.standing_alarm_fraction,
-        contact_pair_fraction=monitor.contact_pair_fraction,
-        broken_bound_bodies=tuple(
-            monitor.model.body(int(b)).name or str(int(b)) for b in broken.tolist()
-        ),
-        interrupted=interrupted,
-        oracle_fraction=monitor.oracle_fraction,
-        warning_horizon_s=warning.horizon,
-        lead_p10_s=p10,
-        lead_median_s=median,
-        lead_min_s=least,
-        short_lead_onsets=warning.short_leads,
-        short_lead_bounds_held=warning.short_held,
-        short_lead_after_violation=warning.short_after_violation,
-        short_lead_at_start=warning.short_at_start,
-    )

@@ -27,15 +27,15 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.build.mocap import MocapVelocityTracker
+from dua_mujoco.build.pilot_screen import MotionScreen, PilotMotion, level_maxima
 from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidChoiceError,
     InvalidInputError,
     PilotWarning,
 )
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres, sphere_states
-from dua_mujoco.mj.mocap import MocapVelocityTracker
-from dua_mujoco.mj.pilot_screen import MotionScreen, PilotMotion, level_maxima
 
 __all__ = [
     "DIVERGENCE_WARNINGS",

@@ -11,7 +11,7 @@ least ``H`` while the motion bounds hold. An onset with less lead is one of thre
   when no alarm could have stood ``H`` yet;
 - *after a violation*: one of the two bodies broke its declared bounds after the evaluation
   that preceded the one raising the alarm (for a missed onset: after the pair's latest
-  evaluation, the miss's own rule, :class:`~dua_mujoco.mj.report.Miss`), so the verdict that
+  evaluation, the miss's own rule, :class:`~dua_mujoco.measure.report.Miss`), so the verdict that
   should have raised it earlier rested on broken bounds;
 - *while the bounds held*: neither, which the promise does not allow (without bound checks every
   such onset counts here).
@@ -33,10 +33,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.accumulators import Growing
+from dua_mujoco.measure.accumulators import Growing
 
 if TYPE_CHECKING:
-    from dua_mujoco.mj.predictor import Predictor
+    from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["WarningTime", "alarm_horizon_of", "check_warning_horizon"]
 
@@ -72,7 +72,7 @@ def check_warning_horizon(value: object) -> float | None:
 class WarningTime:
     """Leads of contact onsets and the oracle's contact intervals (module docstring).
 
-    Fed by :class:`~dua_mujoco.mj.monitor.Monitor`; steps are the monitor's physics steps.
+    Fed by :class:`~dua_mujoco.measure.monitor.Monitor`; steps are the monitor's physics steps.
 
     Args:
         horizon: The horizon ``H`` (s) the leads and the oracle are measured against.

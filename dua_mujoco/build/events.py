@@ -36,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco._core import LAYOUT
-from dua_mujoco.mj.bounds import MotionBounds
+from dua_mujoco.build.bounds import MotionBounds
 
 __all__ = [
     "BodyBoxes",

@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
-from dua_mujoco.mj.flightplan import finite_rows
+from dua_mujoco.runtime.flightplan import finite_rows
 
 __all__ = [
     "PilotPlan",

@@ -1,7 +1,7 @@
 """Flight plans as the native runtime reads them: checked joint positions and deviation bounds.
 
 A plan is the motion the caller expects over the coming physics steps (an MPC's or a planner's
-trajectory, or a rollout of known controls: :mod:`dua_mujoco.mj.plans` makes them) and a bound
+trajectory, or a rollout of known controls: :mod:`dua_mujoco.runtime.plans` makes them) and a bound
 on how far every point of each body may stray from where the plan puts it. While it holds, a
 pair's verdict follows the plan instead of the motion bounds (docs/theory.md, section 8).
 """

@@ -7,11 +7,11 @@ import mujoco
 import numpy as np
 
 from dua_mujoco import _core
+from dua_mujoco.build.bounds import MotionBounds
+from dua_mujoco.build.covering import Covering
+from dua_mujoco.build.filter import SpherePairs
+from dua_mujoco.build.mocap import MocapVelocityTracker, PredictorMocap
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.mj.bounds import MotionBounds
-from dua_mujoco.mj.covering import Covering
-from dua_mujoco.mj.filter import SpherePairs
-from dua_mujoco.mj.mocap import MocapVelocityTracker, PredictorMocap
 
 __all__ = ["body_vel_uncertainty", "bounded_pairs"]
 

@@ -16,11 +16,11 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.bounds import PilotMotion
 from dua_mujoco.core.schedules import Schedule, as_schedule, deadline
 from dua_mujoco.core.schedules.dua import check_slots_per_bucket
 from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
-from dua_mujoco.mj.bounds import PilotMotion
 
 __all__ = [
     "REMOVED_KEYWORDS",

@@ -21,6 +21,27 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.bounds import MotionBounds
+from dua_mujoco.build.covering import Covering
+from dua_mujoco.build.exact import X_G1, X_G2, X_MODE, ExactLevel, ExactMode, build_exact
+from dua_mujoco.build.filter import (
+    GeomPairs,
+    SpherePairs,
+    active_geom_pairs,
+    appended,
+    candidate_geom_pairs,
+    contacts_enabled,
+    explicit_geom_pairs,
+    sphere_pairs,
+)
+from dua_mujoco.build.pairbounds import bounded_pairs
+from dua_mujoco.build.pairfilter import (
+    FilterTables,
+    any_dynamic_pair,
+    count_dynamic_pairs,
+    dynamic_mask,
+)
+from dua_mujoco.build.tables import PairTables
 from dua_mujoco.core.pairset import (
     PAIR_ACCEL,
     PAIR_DELTA,
@@ -33,27 +54,6 @@ from dua_mujoco.core.pairset import (
     PairSet,
     pack_pairs,
 )
-from dua_mujoco.mj.bounds import MotionBounds
-from dua_mujoco.mj.covering import Covering
-from dua_mujoco.mj.exact import X_G1, X_G2, X_MODE, ExactLevel, ExactMode, build_exact
-from dua_mujoco.mj.filter import (
-    GeomPairs,
-    SpherePairs,
-    active_geom_pairs,
-    appended,
-    candidate_geom_pairs,
-    contacts_enabled,
-    explicit_geom_pairs,
-    sphere_pairs,
-)
-from dua_mujoco.mj.pairbounds import bounded_pairs
-from dua_mujoco.mj.pairfilter import (
-    FilterTables,
-    any_dynamic_pair,
-    count_dynamic_pairs,
-    dynamic_mask,
-)
-from dua_mujoco.mj.tables import PairTables
 
 __all__ = ["PairUniverse"]
 

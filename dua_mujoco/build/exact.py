@@ -33,9 +33,9 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco._core import LAYOUT, exact_rows
+from dua_mujoco.build.kinematics import pack_spheres
 from dua_mujoco.core.shapes import ShapeKind
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.kinematics import pack_spheres
 
 __all__ = [
     "EXACT_PERIODS",

@@ -9,12 +9,12 @@ import dataclasses
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.covering import Covering
+from dua_mujoco.build.filter import SpherePairs
 from dua_mujoco.core.pairset import KIND_SHAPE
 from dua_mujoco.core.shapes import SHAPE_NCOL, ShapeKind, mesh_box, pack_shapes
 from dua_mujoco.core.terrain import pack_terrain, shape_table
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.covering import Covering
-from dua_mujoco.mj.filter import SpherePairs
 
 __all__ = [
     "GEOMETRY_FIELDS",

@@ -16,10 +16,10 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco._core import check_points
+from dua_mujoco.build.bounds import MotionBounds, default_spheres
+from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres
+from dua_mujoco.build.mocap import MocapVelocityTracker, PredictorMocap
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.mj.bounds import MotionBounds, default_spheres
-from dua_mujoco.mj.kinematics import mjdata_frame, pack_spheres
-from dua_mujoco.mj.mocap import MocapVelocityTracker, PredictorMocap
 
 __all__ = ["BoundMonitor", "BoundViolation"]
 
