@@ -156,7 +156,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "delta-dropped",
-        "dua_mujoco/mj/bounds.py",
+        "dua_mujoco/build/bounds.py",
         "            delta += discrete_velocity_uncertainty(model, A, velocity_accel=C)",
         "            delta += 0.0 * discrete_velocity_uncertainty(model, A, velocity_accel=C)",
         ("tests/test_bounds.py::test_declare_scalar_static_bodies_zero", _REF_PAPER),
@@ -164,7 +164,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "covering-radius-shrunk",
-        "dua_mujoco/mj/covering.py",
+        "dua_mujoco/build/covering.py",
         "    one = (np.zeros((1, 3)), np.array([rbound]))",
         "    one = (np.zeros((1, 3)), np.array([0.95 * rbound]))",
         ("tests/test_covering.py",),
@@ -331,7 +331,7 @@ MUTANTS: tuple[Mutant, ...] = (
     # ---------------------------------------------------------------- the monitor's labels
     Mutant(
         "monitor-every-onset-predicted",
-        "dua_mujoco/mj/monitor.py",
+        "dua_mujoco/measure/monitor.py",
         "            if self._standing[g] > 0:",
         "            if self._standing[g] >= 0:",
         ("tests/test_testing.py::test_never_alarming_predictor_is_caught",),
@@ -339,7 +339,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "monitor-miss-excused-by-any-violation",
-        "dua_mujoco/mj/monitor.py",
+        "dua_mujoco/measure/monitor.py",
         "            held = broke <= window_start if self.bound_checks else False",
         "            held = broke < 0 if self.bound_checks else False",
         (
@@ -350,7 +350,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "monitor-miss-in-any-violation-period",
-        "dua_mujoco/mj/monitor.py",
+        "dua_mujoco/measure/monitor.py",
         "            in_period = bool(self.bound_checks) and broke > seen",
         "            in_period = bool(self.bound_checks) and broke >= 0",
         (
@@ -360,7 +360,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "lead-short-blamed-on-any-violation",
-        "dua_mujoco/mj/warning_time.py",
+        "dua_mujoco/measure/warning_time.py",
         "        if broke > window:",
         "        if broke >= 0:",
         ("tests/test_warning_time.py::test_short_leads_are_told_apart_by_the_bounds",),
@@ -399,13 +399,12 @@ class Scratch:
         if self.tree.exists():
             shutil.rmtree(self.tree)
         for rel in filter(None, listed):
-            src = HERE / rel
-            if src.is_file():
-                dst = self.tree / rel
-                dst.parent.mkdir(parents=True, exist_ok=True)
+            src, dst = HERE / rel, self.tree / rel
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            if src.is_symlink():  # dua_mujoco/models -> ../models
+                dst.symlink_to(os.readlink(src))
+            elif src.is_file():
                 shutil.copy2(src, dst)
-        # The bundled scenes, where a wheel puts them (the editable install maps them there).
-        shutil.copytree(self.tree / "models", self.tree / "dua_mujoco" / "models")
         self.hook.mkdir(parents=True, exist_ok=True)
         (self.hook / "sitecustomize.py").write_text(_HOOK)
 
