@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 import reference_step as ref
 
-from dua_mujoco.runtime.predictor import Predictor
 from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.predictor import Predictor
 
 ROOT = Path(__file__).resolve().parents[1]
 ANT = str(Path(gymnasium.__file__).parent / "envs/mujoco/assets/ant.xml")
