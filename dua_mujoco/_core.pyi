@@ -103,7 +103,15 @@ def plugin_memory(model: object, data: object, instance: int) -> object:
 
 def plugin_set_active(model: object, data: object, instance: int, body_a: int, body_b: int, on: bool) -> int: ...
 
-def plugin_set_plan(model: object, data: object, instance: int, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float) -> int: ...
+def plugin_set_plan(model: object, data: object, instance: int, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+    """
+    dua_plugin_set_plan: (its result, each body's departure time from the plan replaced).
+    """
+
+def plan_deviation(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos_a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat_a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos_b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat_b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+    """
+    (r, n): each point's deviation between two poses of its geom, row by row: the plans' one measure (PoseDeviation, plan.h).
+    """
 
 def plugin_clear_plan(model: object, data: object, instance: int) -> int: ...
 
@@ -295,9 +303,24 @@ class Runtime:
 
     def set_mocap_velocity(self, mocap: int, linear: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], angular: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None: ...
 
-    def set_plan(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float) -> None:
+    def set_plan(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
         """
-        Follow a flight plan: qpos (n, nq) at start + j timestep, deviation (n, nbody).
+        Follow a flight plan (Runtime::SetPlan); returns each body's departure time from the plan it replaces (inf: none).
+        """
+
+    def check_plan(self) -> NDArray[numpy.int64]:
+        """
+        Check the plan at the bound MjData's state between steps: the bodies found beyond their deviation (counted, their pairs due at the next step).
+        """
+
+    def basis_of(self, pairs: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.uint8]:
+        """
+        (n, 2): what the latest verdict of each sphere pair, and the one before, rested on (bit 0: its first geom's side on the plan, bit 1: its second's; 0 for a pair not held).
+        """
+
+    def plan_query(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:
+        """
+        Each geom pair's first knot of a candidate plan at which its contact cannot be excluded (Runtime::PlanQuery); the plan is not followed.
         """
 
     def clear_plan(self) -> None: ...

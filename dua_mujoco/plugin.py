@@ -31,7 +31,7 @@ import numpy.typing as npt
 from dua_mujoco import _core
 from dua_mujoco.build.options import PairOptions
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.runtime.flightplan import plan_arrays
+from dua_mujoco.runtime.flightplan import Bodies, plan_arrays
 from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
@@ -282,23 +282,33 @@ def set_plan(
     *,
     deviation: npt.ArrayLike,
     start: float | None = None,
+    bodies: Bodies = None,
+    mocap_pos: npt.ArrayLike | None = None,
+    mocap_quat: npt.ArrayLike | None = None,
     prefix: str = "dua",
-) -> None:
+) -> np.ndarray:
     """Have the plugin follow a flight plan in ``data``, as :meth:`Predictor.set_plan
-    <dua_mujoco.Predictor.set_plan>` does (docs/plans.md). The plugin's step reads the state it
-    runs on, before ``mj_step`` advances the time: a plan rolled from ``data`` starts at its
-    ``time`` (the default ``start``), and its first knot is what the next ``mj_step`` reads. C
-    and C++ programs call ``dua_plugin_set_plan``.
+    <dua_mujoco.Predictor.set_plan>` does (docs/plans.md; the same arguments and result). The
+    plugin's step reads the state it runs on, before ``mj_step`` advances the time: a plan rolled
+    from ``data`` starts at its ``time`` (the default ``start``), and its first knot is what the
+    next ``mj_step`` reads. The plugin checks the plan at every physics step. C and C++ programs
+    call ``dua_plugin_set_plan``.
 
     Raises:
         InvalidInputError: The model has no predictor sensor ``prefix``, no step has run yet,
             or the plan is refused (the message names the bad value).
-        ShapeError: ``qpos`` or ``deviation`` do not fit the model.
+        ShapeError: ``qpos``, ``deviation`` or the mocap poses do not fit the model.
     """
-    q, dev = plan_arrays(model, qpos, deviation)
+    arrays = plan_arrays(
+        model, qpos, deviation, bodies=bodies, mocap_pos=mocap_pos, mocap_quat=mocap_quat
+    )
     start = float(data.time) if start is None else float(start)
     instance = _instance(model, prefix)
-    _checked(int(_core.plugin_set_plan(model, data, instance, q, dev, start)))
+    result, departures = _core.plugin_set_plan(
+        model, data, instance, arrays.qpos, arrays.deviation, start, *arrays[2:]
+    )
+    _checked(int(result))
+    return np.asarray(departures)
 
 
 def clear_plan(model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "dua") -> None:

@@ -14,7 +14,9 @@ import numpy as np
 import pytest
 
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
+from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.models.scenes import load_scene
+from dua_mujoco.runtime.plans import PilotPlan, deviation_profile
 from dua_mujoco.runtime.predictor import Predictor
 
 # A ball rolled towards a wall, a box dropped on the floor, an arm swinging through both.
@@ -139,40 +141,88 @@ def _drive(
     return onsets
 
 
-@pytest.mark.parametrize("horizon", [0.05, 0.2])
-def test_a_plan_that_is_the_simulation_flags_every_onset_the_horizon_ahead(horizon: float) -> None:
-    """The plan is the rollout of the controls that will be applied (bit for bit the run):
-    every onset after the first horizon stood in alarm at least the horizon, impacts and
-    all, no body ever strays, and few pairs stand (the plan knows which touch)."""
+def _monitored(
+    horizon: float,
+    plan_of,  # (k, data) -> (qpos, deviation) or None, every `every` steps
+    *,
+    ctrl: np.ndarray,
+    period: int = 1,
+    latency: int = 0,
+    pairs: str = "all",
+    steps: int = 600,
+    every: int = 25,
+    d0: mujoco.MjData | None = None,
+) -> tuple[Predictor, Monitor]:
+    """A run of the scene under the run monitor, accel=1 (below gravity: every falling body
+    breaks its bounds at every step, so the bounds alone give onsets less lead than the
+    horizon), a plan every ``every`` steps."""
     m, d = _scene()
-    steps, every = 600, 25
-    ctrl = _controls(m, steps + 400, seed=1)
-    p = Predictor(m, accel=ACCEL, alarm_horizon=horizon)
-    n = round(horizon / m.opt.timestep) + 2 * every
-    p.reset(d)
-    onsets = _drive(
-        m, d, p, ctrl, steps, every=every,
-        plan_of=lambda k, data: (_rollout(m, data, ctrl[k:], n), 0.0),
-    )  # fmt: skip
-    start = round(horizon / m.opt.timestep)
-    late = [(g, k, lead) for g, k, lead in onsets if k > start and lead < horizon - 1e-9]
-    assert len([o for o in onsets if o[1] > start]) >= 3  # a test with teeth
-    assert late == []
+    if d0 is not None:
+        mujoco.mj_copyData(d, m, d0)
+    p = Predictor(m, accel=1.0, alarm_horizon=horizon, period=period, latency=latency, pairs=pairs)
+    monitor = Monitor(p)
+    mujoco.mj_step(m, d)
+    monitor.start(d)
+    for k in range(steps):
+        plan = plan_of(k, d) if k % every == 0 else None
+        if plan is not None:
+            p.set_plan(plan[0], deviation=plan[1])
+        d.ctrl[:] = ctrl[k]
+        mujoco.mj_step(m, d)
+        monitor.observe(d, p.step(d) if (k + 1) % period == 0 else None)
+    monitor.finish()
+    return p, monitor
+
+
+def _late(monitor: Monitor) -> int:
+    """Onsets with less lead than the horizon past the start (held or after a violation)."""
+    return monitor.warning.short_held + monitor.warning.short_after_violation
+
+
+@pytest.mark.parametrize(
+    ("horizon", "period", "latency", "pairs"),
+    [(0.05, 1, 0, "all"), (0.2, 1, 0, "all"), (0.1, 2, 1, "all"), (0.1, 1, 0, "pruned")],
+)
+def test_a_plan_that_is_the_simulation_flags_every_onset_the_horizon_ahead(
+    horizon: float, period: int, latency: int, pairs: str
+) -> None:
+    """The plan is the rollout of the controls that will be applied (bit for bit the run):
+    every onset past the start stood in alarm at least the horizon (and the latency), impacts
+    and all, no body strays, and the pairs standing are the oracle's (the plan knows which
+    touch). Under accel=1 the same run without plans has onsets with less lead: the plans, not
+    the bounds, give the lead here (with period > 1, only because a plan's tau is rounded down
+    to the predictor's grid, docs/theory.md, section 8)."""
+    m, _ = _scene()
+    every = 25
+    ctrl = _controls(m, 1000, seed=1)
+    n = round(horizon / m.opt.timestep) + 2 * every + period * (latency + 2)
+    config = {"period": period, "latency": latency, "pairs": pairs, "ctrl": ctrl}
+    p, planned = _monitored(
+        horizon, lambda k, data: (_rollout(m, data, ctrl[k:], n), 0.0), **config
+    )
+    assert planned.onsets >= 3 and planned.misses == []
+    assert _late(planned) == 0, planned.warning.leads
     assert p.plan_breaks == 0 and p.has_plan
+    assert planned.standing_alarm_fraction <= 1.02 * planned.oracle_fraction + 1e-12
+    _, bounds = _monitored(horizon, lambda k, data: None, **config)
+    assert _late(bounds) >= 1  # the same run without plans: the test can fail
 
 
 def test_motion_within_its_deviation_is_flagged_the_horizon_ahead() -> None:
     """Plans of the commanded controls, a run whose controls stray from them: each plan is
-    given the deviation the run will show (measured on a first pass, by the definition), and
-    the second pass, the same run, breaks no plan and flags every onset the horizon ahead."""
+    given the deviation the run will show (measured on a first pass by the runtime's own
+    measure, deviation_profile at safety 1), and the second pass, the same run, breaks no plan
+    (nor the plans it replaced, checked over their spans) and flags every onset the horizon
+    ahead; without plans (accel=1) it does not."""
     m, d0 = _scene()
     horizon, steps, every = 0.1, 600, 20
     n = round(horizon / m.opt.timestep) + 2 * every
     planned = _controls(m, steps + n, seed=2)
     applied = planned + np.random.default_rng(3).normal(0, 0.3, planned.shape)
-    # First pass: the plans and what the run did.
+    # First pass: the plans and what the run did (as _monitored runs it: one step, then the run).
     d = mujoco.MjData(m)
     mujoco.mj_copyData(d, m, d0)
+    mujoco.mj_step(m, d)
     plans: dict[int, np.ndarray] = {}
     qpos = [d.qpos.copy()]
     for k in range(steps):
@@ -182,27 +232,28 @@ def test_motion_within_its_deviation_is_flagged_the_horizon_ahead() -> None:
         mujoco.mj_step(m, d)
         qpos.append(d.qpos.copy())
     actual = np.array(qpos + [qpos[-1]] * n)
-    dev = {k: _deviation(m, q, actual[k : k + n]) * (1 + 1e-6) for k, q in plans.items()}
+    points = Predictor(m, accel=1.0).bound_points
+    dev = {
+        k: deviation_profile(m, actual, [PilotPlan(k, q)], points=points, safety=1.0)
+        for k, q in plans.items()
+    }
     assert max(float(v.max()) for v in dev.values()) > 1e-3  # the run does stray
-    # Second pass: the same run, each plan with its deviation.
-    d = mujoco.MjData(m)
-    mujoco.mj_copyData(d, m, d0)
-    p = Predictor(m, accel=ACCEL, alarm_horizon=horizon)
-    p.reset(d)
-    onsets = _drive(
-        m, d, p, applied, steps, every=every, plan_of=lambda k, data: (plans[k], dev[k])
+    p, monitor = _monitored(
+        horizon, lambda k, data: (plans[k], dev[k]), ctrl=applied, every=every, d0=d0
     )
-    start = round(horizon / m.opt.timestep)
-    assert len([o for o in onsets if o[1] > start]) >= 3
-    assert [o for o in onsets if o[1] > start and o[2] < horizon - 1e-9] == []
+    assert monitor.onsets >= 3 and monitor.misses == []
+    assert _late(monitor) == 0, monitor.warning.leads
     assert p.plan_breaks == 0
+    _, bounds = _monitored(horizon, lambda k, data: None, ctrl=applied, every=every, d0=d0)
+    assert _late(bounds) >= 1
 
 
 def _reference_tau(
     m: mujoco.MjModel, p: Predictor, qpos: np.ndarray, dev: np.ndarray, knot: int
 ) -> np.ndarray:
     """Each pair's time from ``knot`` to the first knot at which MuJoCo's distance of its two
-    geoms, less the pair's contact distance, is not above both bodies' deviations."""
+    geoms, less the pair's contact distance, is not above both bodies' deviations (0 for a
+    static body, which a plan holds exactly)."""
     h = m.opt.timestep
     d = mujoco.MjData(m)
     gp = p.geom_pairs
@@ -210,6 +261,7 @@ def _reference_tau(
     g1, g2 = p.tables.geom1, p.tables.geom2
     b1, b2 = m.geom_bodyid[g1], m.geom_bodyid[g2]
     out = np.full(len(g1), (len(qpos) - knot) * h)
+    dev = np.where(m.body_weldid == 0, 0.0, dev)  # a static body never strays
     for j in range(len(qpos) - 1, knot - 1, -1):  # backwards: the last hit written is the first
         d.qpos[:] = qpos[j]
         mujoco.mj_kinematics(m, d)
@@ -307,48 +359,129 @@ def test_bad_plans_are_refused_by_name() -> None:
         p.set_plan(q, deviation=0.0, start=float(d.time) + 0.0005)  # not on a step
 
 
-def test_a_model_with_mocap_bodies_is_refused() -> None:
+def test_a_model_with_mocap_bodies_takes_a_plan_of_its_other_bodies() -> None:
+    """A plan of qpos holds every moving body outside mocap trees; the mocap bodies follow their
+    bounds, unless their poses are planned too."""
     m, d = load_scene("clutter")
     p = Predictor(m, accel=50.0)
     mujoco.mj_step(m, d)
     p.reset(d)
-    with pytest.raises(InvalidInputError, match="mocap"):
-        p.set_plan(np.tile(d.qpos, (5, 1)), deviation=0.0)
+    mocap = int(p.mocap.mocap_bodies[0])  # type: ignore[union-attr]
+    p.set_plan(np.tile(d.qpos, (5, 1)), deviation=0.0)
+    ok = np.asarray(p._rt.plan_ok)
+    assert not ok[mocap] and ok[np.asarray(m.body_weldid) != 0].sum() > 1
+    pos, quat = np.tile(d.mocap_pos, (5, 1, 1)), np.tile(d.mocap_quat, (5, 1, 1))
+    p.set_plan(np.tile(d.qpos, (5, 1)), deviation=0.0, mocap_pos=pos, mocap_quat=quat)
+    assert p._rt.plan_ok[mocap]
 
 
-def test_the_monitor_judges_a_planned_body_by_its_deviation() -> None:
-    """Bounds far too small for gravity (every falling body breaks them every step) and exact
-    plans: the run monitor counts no violation while the plans hold (a pair under a plan does
-    not rest on the bounds), no onset comes with less lead than the horizon after the start,
-    and none is missed; without the plans the same run breaks the bounds throughout."""
-    from dua_mujoco.measure.monitor import Monitor
-
-    horizon, every, steps = 0.1, 25, 500
-    n = round(horizon / 0.002) + 2 * every
-
-    def report(planned: bool):
-        m, d = _scene()
-        ctrl = _controls(m, steps + n + 2, seed=6)
-        p = Predictor(m, accel=1.0, alarm_horizon=horizon)
-        monitor = Monitor(p)
+def test_each_verdict_says_what_it_rested_on() -> None:
+    """The runtime records, per verdict and side, the plan or the bounds (what the monitor
+    labels onsets by): under a plan every pair rests on it on both sides (a static body is
+    planned with deviation 0); a pair with a body beyond its deviation rests on that body's
+    bounds, and the other's plan; without a plan, on both bodies' bounds."""
+    m, d = _scene()
+    p = Predictor(m, accel=ACCEL, alarm_horizon=0.05)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    everything = np.arange(p.nsphere_pairs)
+    assert (p.verdict_basis(everything) == 0).all()
+    dev = np.zeros((30, m.nbody))
+    p.set_plan(_rollout(m, d, np.ones((1, m.nu)), 30), deviation=dev)
+    d.ctrl[:] = 1.0  # the arm moves as planned
+    mujoco.mj_step(m, d)
+    p.step(d)
+    basis = p.verdict_basis(everything)
+    assert (basis[:, 0] == 3).all() and (basis[:, 1] == 0).all()
+    arm = {m.body("arm").id, m.body("hand").id}
+    for _ in range(3):
         mujoco.mj_step(m, d)
-        monitor.start(d)
-        for k in range(steps):
-            if planned and k % every == 0:
-                p.set_plan(_rollout(m, d, ctrl[k:], n), deviation=0.0)
-            d.ctrl[:] = ctrl[k]
-            mujoco.mj_step(m, d)
-            monitor.observe(d, p.step(d))
-        monitor.finish()
-        return p, monitor
-
-    p, planned = report(True)
+        p.step(d)
     assert p.plan_breaks == 0
+    p.set_plan(_rollout(m, d, np.zeros((1, m.nu)), 30), deviation=dev)  # held still: it breaks
+    for _ in range(5):
+        d.ctrl[:] = 1.0
+        mujoco.mj_step(m, d)
+        p.step(d)
+    assert p.plan_breaks >= 1
+    g1, g2 = p.tables.geom1, p.tables.geom2
+    b1, b2 = m.geom_bodyid[g1], m.geom_bodyid[g2]
+    basis = p.verdict_basis(everything)[:, 0]
+    ok = np.asarray(p._rt.plan_ok)
+    broken = {b for b in arm if not ok[b]}
+    assert broken
+    off1, off2 = np.isin(b1, list(broken)), np.isin(b2, list(broken))
+    static = (m.body_weldid[b1] == 0) | (m.body_weldid[b2] == 0)
+    # A planned body against a broken one: the mixed tau (the plan on one side); against a
+    # static body, or two broken ones: the bounds alone.
+    mixed = (off1 ^ off2) & ~static
+    want = np.where(mixed, np.where(off1, 2, 1), 0)
+    assert (basis[off1 | off2] == want[off1 | off2]).all()
+    assert (basis[mixed] > 0).sum() >= 2
+
+
+def _strays(shift: float, turn: float, dev: float) -> bool:
+    """Whether the box (a free body) breaks an exact plan of deviation ``dev`` when the state the
+    step reads has it shifted by ``shift`` metres along x and turned by ``turn`` radians about
+    its own z axis (its origin, the geom's centre, kept)."""
+    m, d = _scene()
+    p = Predictor(m, accel=ACCEL, alarm_horizon=0.05)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    box = m.body("box").id
+    deviation = np.zeros((20, m.nbody))
+    deviation[:, box] = dev
+    p.set_plan(_rollout(m, d, np.zeros((1, m.nu)), 20), deviation=deviation)
+    adr = m.jnt_qposadr[m.body("box").jntadr[0]]
+    d.qpos[adr] += shift
+    q = np.empty(4)
+    mujoco.mju_mulQuat(
+        q, d.qpos[adr + 3 : adr + 7].copy(), [np.cos(turn / 2), 0, 0, np.sin(turn / 2)]
+    )
+    d.qpos[adr + 3 : adr + 7] = q
+    mujoco.mj_forward(m, d)
+    mujoco.mj_step(m, d)  # reads the state set: the plan's knot 0, strayed
+    p.step(d)
+    return not p._rt.plan_ok[box]
+
+
+def test_a_body_strayed_past_its_deviation_breaks_its_plan() -> None:
+    """The check is exact at the box's corners: 1.5 times a 1 cm deviation breaks, half of it
+    does not (a check allowing twice the deviation fails the first, one scaled up the second)."""
+    assert _strays(0.015, 0.0, 0.01)
+    assert not _strays(0.005, 0.0, 0.01)
+
+
+def test_a_turn_alone_past_the_deviation_breaks_its_plan() -> None:
+    """A turn about the box's own centre moves no origin, only its corners: by 2 sin(a / 2) r,
+    r the corners' distance from the axis (0.064 m). 1.5 times the deviation there breaks, half
+    of it does not (a check without the rotation term fails the first)."""
+    r = np.hypot(0.05, 0.04)
+
+    def angle(distance: float) -> float:
+        return 2 * np.arcsin(distance / (2 * r))
+
+    assert _strays(0.0, angle(0.015), 0.01)
+    assert not _strays(0.0, angle(0.005), 0.01)
+
+
+def test_the_monitor_counts_a_planned_bodys_bound_violations_and_labels_by_the_basis() -> None:
+    """Bounds far too small for gravity (every falling body breaks them every step) and exact
+    plans: the run monitor counts every violation (a plan excuses none), yet no onset is
+    labelled by them, for no verdict in force rested on the bounds they broke: none comes short
+    of the horizon, none is missed. Without the plans the onsets come short, after violations."""
+    m, _ = _scene()
+    horizon, every = 0.1, 25
+    n = round(horizon / 0.002) + 2 * every
+    ctrl = _controls(m, 1000, seed=6)
+    p, planned = _monitored(
+        horizon, lambda k, data: (_rollout(m, data, ctrl[k:], n), 0.0), ctrl=ctrl
+    )
+    assert p.plan_breaks == 0 and planned.violations > 100
     assert planned.onsets >= 3 and planned.misses == []
-    assert planned.violations == 0 and planned.warning.short_held == 0
-    assert planned.warning.short_leads == planned.warning.short_at_start
-    _, bounds_only = report(False)
-    assert bounds_only.violations > 100
+    assert planned.warning.short_leads == planned.warning.short_at_start == 0
+    _, bounds = _monitored(horizon, lambda k, data: None, ctrl=ctrl)
+    assert bounds.warning.short_after_violation >= 1 and bounds.warning.short_held == 0
 
 
 def test_the_plugin_follows_a_plan_as_the_predictor_does() -> None:

@@ -287,16 +287,24 @@ def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None
     from dua_mujoco.exceptions import InvalidInputError
 
     spec = mujoco.MjSpec.from_string(_SLIDES)
+    # One period's horizon: a plan of 20 knots covers it, so the slides' pairs stand only if
+    # their break is seen (under a longer horizon the plan's end would stand them anyway).
     attach(spec, accel=30.0, pairs="all")
     m = spec.compile()
     d = mujoco.MjData(m)
     mujoco.mj_step(m, d)
     n = 20
     q, dev = np.tile(d.qpos, (n, 1)), np.full((n, m.nbody), 0.01)
+    none = np.zeros(0)
+
+    def set_plan(q: np.ndarray, dev: np.ndarray, start: float) -> int:
+        return int(
+            _core.plugin_set_plan(m, d, 0, q, dev, start, none.astype(np.uint8), none, none)[0]
+        )
 
     def refusal(q: np.ndarray, dev: np.ndarray, start: float) -> str:
         with pytest.raises(InvalidInputError) as err:
-            _core.plugin_set_plan(m, d, 0, q, dev, start)
+            set_plan(q, dev, start)
         return str(err.value)
 
     bad_q = q.copy()
@@ -318,7 +326,7 @@ def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None
         deviation = np.full((n, m.nbody), 1e308)  # the ball's
         deviation[:, 0] = 0.0  # the world's
         deviation[:, 1:3] = slack  # the slides'
-        assert _core.plugin_set_plan(m, d, 0, far, deviation, d.time) == 0
+        assert set_plan(far, deviation, d.time) == 0
         for _ in range(n - 2):
             mujoco.mj_step(m, d)
             mujoco.mj_step(m, reference)

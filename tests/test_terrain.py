@@ -693,6 +693,53 @@ def test_no_feasible_trajectory_touches_before_tau(data, prog) -> None:
     assert _earliest_touch(t, times, points, eps, tol) is None, (tau, c, v, eps, accel, delta)
 
 
+@SETTINGS
+@given(st.data())
+def test_at_rest_with_unit_speed_the_bound_is_a_gap(data) -> None:
+    """Lemma 9.5: Theorem 9.3's bound of an object at rest whose points may move at unit speed
+    (u = 0, sigma = 0, A = 0, delta = 1) is at most its distance to the prisms less eps, so a
+    flight plan may use it as the planned gap of a sphere's centre or of a geom at a knot
+    (plan.cc, TerrainPointGap and TerrainGeomGap): exact distances from reference_terrain, for
+    points (the sphere level) and capsules (the exact level: the segment's distance less its
+    radius). A kernel fed the grid at half its heights fails it."""
+    t = data.draw(terrains(max_cells=5))
+    c, _, eps, _, _ = data.draw(motions(t))
+    rest = np.zeros(3)
+    gap = t.tau(c, rest, eps, 0.0, 1.0)
+    assert gap <= max(t.distance(c) - eps, 0.0) * (1 + 1e-9) + 1e-12, (gap, t.distance(c), eps)
+    s = float(t.size[2])
+    r, half = data.draw(st.floats(0.05, 0.3)) * s, data.draw(st.floats(0.05, 0.6)) * s
+    rot = rotation([data.draw(st.floats(-1, 1)) for _ in range(3)] + [0.7])
+    shape = _object(ShapeKind.CAPSULE, [r, half, 0.0], c, rot)
+    ends = [t.local(c + k * half * rot[:, 2]) for k in (-1.0, 1.0)]
+    dist = ref.segment_distance(ends[0], ends[1], t.tops, t.base) - r
+    gap = t.tau_object(shape, rest, 0.0, eps, 0.0, 1.0)
+    assert gap <= max(dist - eps, 0.0) * (1 + 1e-9) + 1e-12, (gap, dist, eps)
+
+
+def test_the_gap_bound_is_the_distance_over_flat_terrain_and_catches_a_lowered_grid() -> None:
+    """Over a flat grid the rest bound is the height above it less eps (Lemma 9.5 is tight
+    there); the same bound computed on the grid at half its heights exceeds the true gap of
+    some points (the test above would fail)."""
+    rng = np.random.default_rng(5)
+    h = 0.25
+    flat = Terrain([2.0, 2.0, 0.5, 0.1], 9, 9, np.full(81, h / 0.5))
+    for _ in range(50):
+        c = np.array([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(0.3, 0.8)])
+        eps = rng.uniform(0, 0.05)
+        assert flat.tau(c, np.zeros(3), eps, 0.0, 1.0) == pytest.approx(c[2] - h - eps, rel=1e-9)
+    data = rng.random(25)
+    t, low = (
+        Terrain([0.5, 0.5, 0.4, 0.1], 5, 5, data),
+        Terrain([0.5, 0.5, 0.4, 0.1], 5, 5, data / 2),
+    )
+    late = 0
+    for _ in range(100):
+        c = t.world(rng.uniform([-0.5, -0.5, 0.0], [0.5, 0.5, 0.5]))
+        late += low.tau(c, np.zeros(3), 0.0, 0.0, 1.0) > t.distance(c) + 1e-9
+    assert late > 10
+
+
 def test_the_trajectory_test_catches_a_lowered_terrain() -> None:
     """tau against the same grid at half its heights is late: the harness finds trajectories
     that touch the real terrain before it, while the correct kernel passes every state here."""

@@ -217,10 +217,10 @@ def test_the_plugin_refuses_a_terrain_table_that_does_not_fit(entry: tuple[int, 
 
 
 def test_a_plan_on_rough_terrain_misses_nothing() -> None:
-    """Plans leave a terrain's pairs to the motion bounds (a plan's gaps, StaticGap and
-    mj_geomDistance, are no lower bounds on a height field): exact plans of the run, every
-    pair a limb against the terrain, bounds above the scene's measured maximum; no onset is
-    missed and no plan is broken."""
+    """A terrain's pairs follow the plan, their planned gaps the terrain's own bound at rest
+    (docs/theory.md, Lemma 9.5; StaticGap and mj_geomDistance are no lower bounds on a height
+    field): exact plans of the run, limbs against the terrain, bounds above the scene's measured
+    maximum; no onset is missed, none comes short of the horizon while held, no plan breaks."""
     from dua_mujoco.measure.monitor import Monitor
 
     m, d = load_scene("rough_terrain")
@@ -249,3 +249,4 @@ def test_a_plan_on_rough_terrain_misses_nothing() -> None:
     monitor.finish()
     assert p.plan_breaks == 0 and p.has_plan
     assert monitor.onsets >= 20 and monitor.misses == []
+    assert monitor.warning.short_held == 0

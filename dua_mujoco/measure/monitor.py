@@ -5,12 +5,12 @@ bound check, the alarms, then the contacts in ``d.contact``). A *contact onset* 
 the active set that is in ``d.contact`` now and was not at the previous physics step. It is
 *predicted* when, at that instant, some sphere pair of that geom pair stands alarmed, i.e. its
 latest evaluation (at or before the onset) raised an alarm: exactly the completeness theorem's
-claim (docs/theory.md). A miss is *valid-bounds* when neither body broke its declared bounds
-(under a flight plan: its deviation) between that latest evaluation and the onset, so the
-theorem's hypotheses held and the miss would be a bug. It is *in a violation's period* when one
-of the two bodies broke them after the latest predictor step at or before the onset (two steps
-with pruned pairs): the one exception of the guarantee with violations as events (docs/theory.md,
-section 6). Each onset's lead and the oracle are counted by :class:`WarningTime`.
+claim (docs/theory.md). A miss is *valid-bounds* when no hypothesis its verdicts rested on (a
+body's bounds, or under a plan its deviation: :class:`~dua_mujoco.measure.warning_time.Hypotheses`)
+broke between that latest evaluation and the onset: a bug. It is *in a violation's period* when
+one broke after the latest predictor step at or before the onset (two steps with pruned pairs):
+the one exception of the guarantee with violations as events (docs/theory.md, section 6). Each
+onset's lead and the oracle are counted by :class:`WarningTime`.
 
 :func:`~dua_mujoco.measure.rollout.run` drives a rollout (controller, ``mj_step``, predictor every
 ``period`` steps, monitor) and returns a ``RunReport``.
@@ -26,7 +26,6 @@ from dua_mujoco.measure.checks import BoundMonitor
 from dua_mujoco.measure.report import Miss
 from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of, check_warning_horizon
 from dua_mujoco.runtime.alarms import Alarms
-from dua_mujoco.runtime.flightplan import governing_violations
 from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["Monitor"]
@@ -119,14 +118,13 @@ class Monitor:
         self.warning = WarningTime(
             horizon if self.warning_horizon is None else self.warning_horizon,
             float(self.model.opt.timestep),
-            self._ngp,
-            self.predictor.nsphere_pairs,
+            self.predictor,
         )
         # The same set as a mask: lookups by gathering, not by np.isin (which sorts; 47 us a
         # call with the thousands of pending windows of paper_world:200).
         self._contact_mask = np.zeros(self._ngp, dtype=bool)
         self._contact_mask[self._in_contact] = True
-        self.last_violation = np.full(self.model.nbody, -1, dtype=np.int64)
+        self.last_violation = self.warning.hypotheses.last_violation
         # Per kinematic tree (root body): the last physics step it was in a contact.
         self._root_contact = np.full(self.model.nbody, -_CONTACT_LAG, dtype=np.int64)
         self._mark_contacts(data)
@@ -201,7 +199,7 @@ class Monitor:
         more = self.predictor.nsphere_pairs - self._pair_alarm.size
         self._pair_alarm = np.concatenate([self._pair_alarm, np.zeros(more, dtype=bool)])
         self._gp_active_seen = None
-        self.warning.grow(self._ngp, self.predictor.nsphere_pairs)
+        self.warning.grow(self.predictor)
 
     def _mark_contacts(self, data: mujoco.MjData) -> None:
         """Stamp the kinematic trees of every contact (any geom pair, static ones too)."""
@@ -308,6 +306,7 @@ class Monitor:
         sched = self.predictor.pair_state()
         self._pred_steps.append(self.physics_step)
         evaluated = sched.last_selected
+        self.warning.hypotheses.evaluated(evaluated, self.predictor.verdict_basis(evaluated))
         self.predictor_steps += 1
         # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated.
         self.evaluation_sum += int(evaluated.size) - sched.deferred
@@ -382,9 +381,9 @@ class Monitor:
         self._fit()
         self.physics_step += 1
         self._mark_contacts(data)
+        self.warning.hypotheses.check_plan(self.predictor, self.physics_step)
         if self.bound_checks is not None:
             broke = self.bound_checks.update(self.model, data)
-            broke = governing_violations(self.predictor._rt, broke)  # a plan's, under one
             if broke.size:
                 self.last_violation[broke] = self.physics_step
                 self.violations += int(broke.size)
@@ -441,13 +440,13 @@ class Monitor:
                 self.inactive_contacts += 1
                 continue
             self.onsets += 1
-            broke = int(self.last_violation[self._gp_body[g]].max())
+            live = members[sched.active[members]]
+            broke = self.warning.hypotheses.broke(g, None if self._standing[g] > 0 else live)
             if self._standing[g] > 0:
                 self.predicted += 1
                 self._episode_touch[g] = True
                 self.warning.onset(g, self.physics_step, broke)
                 continue
-            live = members[sched.active[members]]
             last = int(sched.last_step_of(live).min())
             window_start = self._pred_steps[last]
             held = broke <= window_start if self.bound_checks else False

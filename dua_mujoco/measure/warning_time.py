@@ -9,10 +9,13 @@ least ``H`` while the motion bounds hold. An onset with less lead is one of thre
 
 - *at the start*: within ``H`` after the run's start, the latest reset or the pair's switch-on,
   when no alarm could have stood ``H`` yet;
-- *after a violation*: one of the two bodies broke its declared bounds after the evaluation
-  that preceded the one raising the alarm (for a missed onset: after the pair's latest
-  evaluation, the miss's own rule, :class:`~dua_mujoco.measure.report.Miss`), so the verdict that
-  should have raised it earlier rested on broken bounds;
+- *after a violation*: a hypothesis the verdict that should have raised it earlier rested on
+  broke after that verdict (the evaluation that preceded the one raising the alarm; for a missed
+  onset: the pair's latest evaluation, the miss's own rule,
+  :class:`~dua_mujoco.measure.report.Miss`).
+  A verdict rests, for each of its two bodies, on that body's motion bounds or, under a flight
+  plan, on its deviation (:class:`Hypotheses`): a planned body's bound violations do not count
+  for the sides judged by its plan, and do for the sides judged by its bounds;
 - *while the bounds held*: neither, which the promise does not allow (without bound checks every
   such onset counts here).
 
@@ -38,7 +41,7 @@ from dua_mujoco.measure.accumulators import Growing
 if TYPE_CHECKING:
     from dua_mujoco.runtime.predictor import Predictor
 
-__all__ = ["WarningTime", "alarm_horizon_of", "check_warning_horizon"]
+__all__ = ["Hypotheses", "WarningTime", "alarm_horizon_of", "check_warning_horizon"]
 
 # Leads and horizons are sums of timesteps: compare them with this relative slack.
 _REL = 1e-9
@@ -77,11 +80,14 @@ class WarningTime:
     Args:
         horizon: The horizon ``H`` (s) the leads and the oracle are measured against.
         timestep: Seconds a physics step.
-        ngp: Geom pairs known now.
-        npairs: Sphere pairs known now.
+        predictor: The predictor observed (the pairs it knows now, its model).
     """
 
-    def __init__(self, horizon: float, timestep: float, ngp: int, npairs: int) -> None:
+    def __init__(self, horizon: float, timestep: float, predictor: Predictor) -> None:
+        ngp, npairs = predictor.geom_pairs.npair, predictor.nsphere_pairs
+        self.hypotheses = Hypotheses(predictor.model.nbody)
+        """What each verdict rested on, and when those hypotheses broke (the labels)."""
+        self.hypotheses.index(predictor)
         self.horizon = float(horizon)
         self.timestep = float(timestep)
         # The window of the oracle: the steps j with (j - k) * timestep <= H.
@@ -113,8 +119,10 @@ class WarningTime:
 
     # ------------------------------------------------------------------- pairs
 
-    def grow(self, ngp: int, npairs: int) -> None:
+    def grow(self, predictor: Predictor) -> None:
         """Follow the pairs a pruned predictor learns (arrays only grow)."""
+        self.hypotheses.index(predictor)
+        ngp, npairs = predictor.geom_pairs.npair, predictor.nsphere_pairs
         more = ngp - self._since.size
         if more > 0:
             self._since = np.concatenate([self._since, np.zeros(more, dtype=np.int64)])
@@ -149,6 +157,7 @@ class WarningTime:
         pairs ``evaluated`` were evaluated there. ``switch``: the change came from switches or
         a reset, not an evaluation (pairs switched on stand in alarm until evaluated)."""
         if started.size:
+            self.hypotheses.started(started, raised, raised_gp)
             self._since[started] = step
             prior = np.full(started.size, step, dtype=np.int64)
             if raised.size:
@@ -288,3 +297,89 @@ class WarningTime:
             i_hi = np.minimum((m_hi - first) // spacing, count - 1)
             total += float(np.maximum(i_hi - i_lo + 1, 0).sum()) / nactive
         return total
+
+
+class Hypotheses:
+    """What each verdict rested on, and when those hypotheses broke (docs/theory.md, section 8).
+
+    Per sphere pair, the basis of its latest verdict and of the one before it, as the runtime
+    records them (``Predictor.verdict_basis``: bit 0 set when its first geom's body was judged by
+    the plan, bit 1 the same for its second; a clear bit is that body's motion bounds, and a pair
+    a pruned predictor does not hold rests on both bodies' bounds). Per geom pair, the
+    hypotheses of the verdicts its current run of standing alarms replaced. Per body, the latest
+    physics step it broke its bounds (``last_violation``) or was found beyond its deviation
+    (``last_plan_break``); -1: never.
+
+    Args:
+        nbody: Bodies of the model.
+    """
+
+    def __init__(self, nbody: int) -> None:
+        self.last_violation = np.full(nbody, -1, dtype=np.int64)
+        self.last_plan_break = np.full(nbody, -1, dtype=np.int64)
+        self._basis = np.zeros(0, dtype=np.uint8)
+        self._prev = np.zeros(0, dtype=np.uint8)
+        self._window = np.zeros(0, dtype=np.uint8)
+        self._flip = np.zeros(0, dtype=bool)
+        self._gp_body = np.zeros((0, 2), dtype=np.int64)
+
+    def index(self, predictor: Predictor) -> None:
+        """Follow the pairs ``predictor`` knows now (arrays only grow)."""
+        gp, pairs = predictor.sphere_pairs.geom_pair, predictor.geom_pairs
+        # Where a sphere pair's first geom is its geom pair's second (its basis bits swapped).
+        self._flip = predictor.tables.geom1 != pairs.geom1[gp]
+        body = np.asarray(predictor.model.geom_bodyid)
+        self._gp_body = np.stack([body[pairs.geom1], body[pairs.geom2]], axis=1)
+        grow = self._flip.size - self._basis.size
+        self._basis = np.concatenate([self._basis, np.zeros(grow, dtype=np.uint8)])
+        self._prev = np.concatenate([self._prev, np.zeros(grow, dtype=np.uint8)])
+        more = self._gp_body.shape[0] - self._window.size
+        self._window = np.concatenate([self._window, np.zeros(more, dtype=np.uint8)])
+
+    def check_plan(self, predictor: Predictor, step: int) -> None:
+        """At physics step ``step``: the bodies of the predictor's data found beyond their
+        deviation (``Predictor.beyond_plan``). Their bound violations are counted apart, never
+        excused by a plan."""
+        beyond = predictor.beyond_plan()
+        if beyond is not None:
+            self.last_plan_break[beyond] = step
+
+    def evaluated(self, pairs: np.ndarray, basis: np.ndarray) -> None:
+        """Sphere ``pairs`` were evaluated: ``basis`` (n, 2) their latest verdict's and the one
+        before's."""
+        self._basis[pairs], self._prev[pairs] = basis[:, 0], basis[:, 1]
+
+    def started(self, started: np.ndarray, raised: np.ndarray, raised_gp: np.ndarray) -> None:
+        """Geom pairs ``started`` to stand in alarm, raised by sphere pairs ``raised``: what the
+        verdicts those replaced rested on is what the lead rests on."""
+        self._window[started] = 0
+        hit = np.isin(raised_gp, started)
+        np.bitwise_or.at(
+            self._window, raised_gp[hit], self._sides(raised[hit], self._prev[raised[hit]])
+        )
+
+    def broke(self, g: int, live: np.ndarray | None = None) -> int:
+        """The latest physics step at which a hypothesis of geom pair ``g``'s verdicts broke: the
+        ones its standing alarm replaced, or (a miss) the current ones of sphere pairs ``live``;
+        -1: none."""
+        mask = (
+            int(self._window[g])
+            if live is None
+            else int(np.bitwise_or.reduce(self._sides(live, self._basis[live])))
+        )
+        b1, b2 = (int(b) for b in self._gp_body[g])
+        steps = (
+            self.last_plan_break[b1],
+            self.last_plan_break[b2],
+            self.last_violation[b1],
+            self.last_violation[b2],
+        )
+        return max([-1] + [int(s) for bit, s in enumerate(steps) if mask >> bit & 1])
+
+    def _sides(self, pairs: np.ndarray, basis: np.ndarray) -> np.ndarray:
+        """Hypothesis masks in the geom pairs' orientation: bit 0 (1) the first (second) geom's
+        body's deviation, bit 2 (3) its motion bounds."""
+        flip = self._flip[pairs]
+        first = np.where(flip, (basis >> 1) & 1, basis & 1).astype(np.uint8)
+        second = np.where(flip, basis & 1, (basis >> 1) & 1).astype(np.uint8)
+        return first | (second << 1) | ((1 - first) << 2) | ((1 - second) << 3)

@@ -8,7 +8,9 @@ pair's verdict follows the plan instead of the motion bounds (docs/theory.md, se
 
 from __future__ import annotations
 
-from typing import Any
+import fnmatch
+from collections.abc import Callable, Iterable
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -16,7 +18,7 @@ import numpy.typing as npt
 
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
-__all__ = ["finite_rows", "governing_violations", "plan_arrays"]
+__all__ = ["PlanArrays", "PlanFollowing", "finite_rows", "plan_arrays"]
 
 
 def finite_rows(name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str) -> np.ndarray:
@@ -48,9 +50,90 @@ def finite_rows(name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str
     return a
 
 
+Bodies = Iterable[str | int] | str | int | None
+"""The bodies a plan holds: names, fnmatch patterns or ids (None: the default)."""
+
+
+class PlanArrays(NamedTuple):
+    """A plan's arrays as the runtime reads them (``_core.Runtime.set_plan``'s arguments).
+
+    Attributes:
+        qpos: ``(n, nq)`` planned joint positions.
+        deviation: ``(n, nbody)`` metres.
+        bodies: ``(nbody,)`` uint8, 1 for the bodies the plan holds; ``(0,)`` for the default.
+        mocap_pos: ``(n, nmocap, 3)``, or ``(0,)`` when mocap bodies are not planned.
+        mocap_quat: ``(n, nmocap, 4)``, or ``(0,)``.
+    """
+
+    qpos: np.ndarray
+    deviation: np.ndarray
+    bodies: np.ndarray
+    mocap_pos: np.ndarray
+    mocap_quat: np.ndarray
+
+
+def _bodies(
+    model: mujoco.MjModel, bodies: Iterable[str | int] | str | int, mocap: bool
+) -> np.ndarray:
+    """``(nbody,)`` uint8 mask of the bodies named (names, fnmatch patterns or ids)."""
+    names = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)
+    ]
+    out = np.zeros(model.nbody, dtype=np.uint8)
+    for item in [bodies] if isinstance(bodies, str | int | np.integer) else list(bodies):
+        if isinstance(item, str):
+            hit = [b for b, name in enumerate(names) if name and fnmatch.fnmatchcase(name, item)]
+            if not hit:
+                raise InvalidInputError(
+                    f"bodies: {item!r} names no body of the model (names or fnmatch patterns, "
+                    f"e.g. 'arm_*'; the bodies: {', '.join(n for n in names if n)})."
+                )
+            out[hit] = 1
+        elif isinstance(item, int | np.integer) and not isinstance(item, bool):
+            if not 0 <= int(item) < model.nbody:
+                raise InvalidInputError(
+                    f"bodies: id {item} is out of range: the model has {model.nbody} bodies."
+                )
+            out[int(item)] = 1
+        else:
+            raise InvalidInputError(
+                f"bodies: {item!r} is neither a body name, a pattern nor an id."
+            )
+    in_mocap = np.asarray(model.body_mocapid)[np.asarray(model.body_rootid)] >= 0
+    bad = np.flatnonzero(out.astype(bool) & in_mocap)
+    if bad.size and not mocap:
+        raise InvalidInputError(
+            f"bodies: {names[int(bad[0])]!r} is in a mocap tree, whose poses a plan of qpos does "
+            "not hold: give mocap_pos and mocap_quat to plan it, or leave it out (it then "
+            "follows its motion bounds)."
+        )
+    return out
+
+
+def _mocap(
+    model: mujoco.MjModel, name: str, value: npt.ArrayLike, n: int, width: int
+) -> np.ndarray:
+    a = np.ascontiguousarray(value, dtype=np.float64)
+    if a.shape != (n, model.nmocap, width):
+        raise ShapeError(
+            f"{name} has shape {a.shape}; expected (n, nmocap, {width}) = ({n}, {model.nmocap}, "
+            f"{width}): the mocap bodies' poses at each knot."
+        )
+    if not np.isfinite(a).all():
+        j, i, k = (int(x) for x in np.argwhere(~np.isfinite(a))[0])
+        raise InvalidInputError(f"{name}[{j}, {i}, {k}] = {a[j, i, k]} is not finite.")
+    return a
+
+
 def plan_arrays(
-    model: mujoco.MjModel, qpos: npt.ArrayLike, deviation: npt.ArrayLike
-) -> tuple[np.ndarray, np.ndarray]:
+    model: mujoco.MjModel,
+    qpos: npt.ArrayLike,
+    deviation: npt.ArrayLike,
+    *,
+    bodies: Bodies = None,
+    mocap_pos: npt.ArrayLike | None = None,
+    mocap_quat: npt.ArrayLike | None = None,
+) -> PlanArrays:
     """A plan's arrays as the runtime reads them, checked.
 
     Args:
@@ -59,13 +142,16 @@ def plan_arrays(
             plan's start.
         deviation: A bound in metres on the distance of every point of a body's geoms from where
             the plan puts it: one number, ``(n,)`` (each knot, every body) or ``(n, nbody)``.
-
-    Returns:
-        ``qpos (n, nq)`` and ``deviation (n, nbody)``, float64 and contiguous.
+        bodies: The bodies the plan holds: names, fnmatch patterns or ids (None: every moving
+            body outside mocap trees, and the mocap trees too when their poses are given). The
+            others follow their motion bounds.
+        mocap_pos: ``(n, nmocap, 3)`` the mocap bodies' planned positions (None: unplanned).
+        mocap_quat: ``(n, nmocap, 4)`` their orientations (with ``mocap_pos``).
 
     Raises:
         ShapeError: The arrays do not fit the model or each other.
-        InvalidInputError: A value is not finite, or a deviation is negative.
+        InvalidInputError: A value is not finite, a deviation is negative, a body named is not
+            the model's, or a mocap tree is held without mocap poses.
     """
     q = finite_rows("qpos", qpos, model.nq, "nq", "joint positions per physics step")
     n, nbody = q.shape[0], model.nbody
@@ -84,25 +170,157 @@ def plan_arrays(
             f"deviation at knot {j} of body {b} ({model.body(b).name!r}) is {dev[j, b]}: pass a "
             "finite distance >= 0 (0 where the plan is exact)."
         )
-    return q, np.ascontiguousarray(dev)
+    if (mocap_pos is None) != (mocap_quat is None):
+        raise InvalidInputError(
+            "mocap_pos and mocap_quat go together: pass both, (n, nmocap, 3) and (n, nmocap, 4), "
+            "or neither (mocap bodies then follow their motion bounds)."
+        )
+    none = np.zeros(0)
+    mp = none if mocap_pos is None else _mocap(model, "mocap_pos", mocap_pos, n, 3)
+    mq = none if mocap_quat is None else _mocap(model, "mocap_quat", mocap_quat, n, 4)
+    held = np.zeros(0, np.uint8) if bodies is None else _bodies(model, bodies, mp.size > 0)
+    return PlanArrays(q, np.ascontiguousarray(dev), held, mp, mq)
 
 
-def governing_violations(runtime: Any, broke_bounds: np.ndarray) -> np.ndarray:
-    """The bodies whose governing hypothesis broke at the state the runtime is bound to: the
-    plan's deviation for a body the plan still holds (its pairs' verdicts follow the plan, and a
-    motion bound it broke, a foreseen impact, is no violation of them), the motion bounds for
-    the rest (``broke_bounds``, the run monitor's check). A body beyond its deviation is one.
+class PlanFollowing:
+    """The flight plan methods of :class:`~dua_mujoco.runtime.predictor.Predictor` (one runtime, the
+    native ``_core.Runtime``, follows the plan; docs/theory.md, section 8)."""
 
-    Args:
-        runtime: The predictor's ``dua_mujoco._core.Runtime``, bound to the state checked.
-        broke_bounds: ``(k,)`` bodies whose motion bounds broke at that state.
+    model: mujoco.MjModel
+    _rt: Any
+    _data: mujoco.MjData | None
+    _require_reset: Callable[[], None]
+    _bind: Callable[[mujoco.MjData], None]
 
-    Returns:
-        ``(k',)`` int64 body ids, increasing.
-    """
-    beyond = runtime.plan_broken() if runtime.has_plan else None
-    if beyond is None:
-        return np.asarray(broke_bounds, dtype=np.int64)
-    held = np.asarray(runtime.plan_ok)
-    bounds = np.asarray(broke_bounds, dtype=np.int64)
-    return np.union1d(bounds[~held[bounds]], np.asarray(beyond, dtype=np.int64))
+    def set_plan(
+        self,
+        qpos: npt.ArrayLike,
+        *,
+        deviation: npt.ArrayLike,
+        start: float | None = None,
+        bodies: Bodies = None,
+        mocap_pos: npt.ArrayLike | None = None,
+        mocap_quat: npt.ArrayLike | None = None,
+    ) -> np.ndarray:
+        """Follow a flight plan: the motion expected over the coming physics steps.
+
+        A pair of two bodies the plan holds (static bodies count, deviation 0) is judged by the
+        plan: the time to the first knot at which the plan's geometry, less both deviations,
+        may touch. A pair of a planned body and one it does not hold (a person, a mocap body,
+        another robot) is judged by the planned geom, less its deviation, against the other's
+        reach from where it is now under its own bounds (``accel``, ``speed``). Every pair is
+        evaluated again at the next step. A body found farther from its plan than its deviation
+        follows its bounds until the next plan, and so does everything past the last knot: give
+        the next plan before this one runs out by the alarm horizon. The plan replaced is still
+        checked over the span its verdicts cover. docs/plans.md; docs/theory.md, section 8.
+
+        Args:
+            qpos: ``(n, nq)`` joint positions, row ``j`` the state ``j * model.opt.timestep``
+                after ``start`` (:func:`dua_mujoco.runtime.plans.plan_from_controls` rolls them).
+            deviation: Metres: a bound on the distance of every point of a body's geoms from
+                where the plan puts it, one number, ``(n,)`` or ``(n, nbody)``; 0 where the plan
+                is exact (a rollout of the controls that will be applied, in simulation).
+            start: The time of ``qpos[0]``'s state (default: the bound data's ``time``). The
+                plan must cover the state the next step reads (one timestep before its time).
+            bodies: The bodies the plan holds: names, fnmatch patterns (``"arm_*"``) or ids
+                (None: every moving body outside mocap trees, and those too with mocap poses).
+            mocap_pos: ``(n, nmocap, 3)`` planned mocap positions (None: mocap bodies follow
+                their bounds), with ``mocap_quat`` ``(n, nmocap, 4)``.
+            mocap_quat: The planned mocap orientations.
+
+        Returns:
+            ``(nbody,)`` for each body the replaced plan held, the first state time at which
+            this plan leaves its deviation tube within the span its verdicts cover (``inf``:
+            never): a replan that departs within the alarm horizon buys less warning.
+
+        Raises:
+            SchedulerError: ``reset`` was not called.
+            ShapeError: ``qpos``, ``deviation`` or the mocap poses do not fit the model.
+            InvalidInputError: A value is not finite or negative, a body named is not the
+                model's, or the plan does not cover the next step.
+        """
+        args = self._plan_args(qpos, deviation, start, bodies, mocap_pos, mocap_quat)
+        return np.asarray(self._rt.set_plan(*args))
+
+    def _plan_args(
+        self,
+        qpos: npt.ArrayLike,
+        deviation: npt.ArrayLike,
+        start: float | None,
+        bodies: Bodies,
+        mocap_pos: npt.ArrayLike | None,
+        mocap_quat: npt.ArrayLike | None,
+    ) -> tuple[Any, ...]:
+        """A plan's arguments to the runtime, checked."""
+        self._require_reset()
+        a = plan_arrays(
+            self.model, qpos, deviation, bodies=bodies, mocap_pos=mocap_pos, mocap_quat=mocap_quat
+        )
+        if start is None:
+            assert self._data is not None
+            start = float(self._data.time)
+        return a.qpos, a.deviation, float(start), a.bodies, a.mocap_pos, a.mocap_quat
+
+    def check_plan(self, data: mujoco.MjData) -> np.ndarray:
+        """Check the plan at ``data``'s state between two steps (``period > 1``: after each
+        ``mj_step`` the predictor does not step on). A body beyond its deviation is a plan
+        break, its pairs evaluated at the next step under its bounds; without these calls a
+        break undone before the next step is not seen (the plugin checks every physics step
+        itself). Returns the bodies found."""
+        self._require_reset()
+        if data is not self._data:
+            self._bind(data)
+        return np.asarray(self._rt.check_plan())
+
+    def plan_contact_knots(
+        self,
+        qpos: npt.ArrayLike,
+        geom_pairs: npt.ArrayLike,
+        *,
+        deviation: npt.ArrayLike,
+        **plan: Any,
+    ) -> np.ndarray:
+        """For a candidate plan (:meth:`set_plan`'s arguments, ``start``, ``bodies`` and the
+        mocap poses in ``plan``; it is not followed), each of the ``(k, 2)`` geom pairs' first
+        knot at which its contact cannot be excluded, judged as the step would judge it under
+        that plan from the bound data's state: the candidate's knot count when never, -1 when
+        it plans neither body, -2 when MuJoCo's filter rejects the pair. A shield's question (is
+        the intended motion, then a brake, clear of the reach of everything else?); changes
+        nothing."""
+        keys = ("start", "bodies", "mocap_pos", "mocap_quat")
+        if set(plan) - set(keys):
+            raise InvalidInputError(
+                f"plan_contact_knots got {sorted(set(plan) - set(keys))}: pass set_plan's "
+                f"arguments ({', '.join(keys)})."
+            )
+        args = self._plan_args(qpos, deviation, *(plan.get(k) for k in keys))
+        pairs = np.asarray(geom_pairs, dtype=np.int64).reshape(-1, 2)
+        return np.asarray(self._rt.plan_query(*args, pairs[:, 0], pairs[:, 1]))
+
+    def clear_plan(self) -> None:
+        """Stop following the plan: every pair is evaluated again at the next step, under the
+        motion bounds."""
+        self._rt.clear_plan()
+
+    @property
+    def has_plan(self) -> bool:
+        """Whether a plan is followed (it ends past its last knot, or when cleared)."""
+        return bool(self._rt.has_plan)
+
+    def beyond_plan(self) -> np.ndarray | None:
+        """The bodies of the bound data's state beyond their deviation, of the plan and of the
+        plans it replaced over their spans (None: no plan covers the state); checks only."""
+        out = self._rt.plan_broken()
+        return None if out is None else np.asarray(out)
+
+    def verdict_basis(self, pairs: npt.ArrayLike) -> np.ndarray:
+        """``(n, 2)`` uint8, what each sphere pair's latest verdict and the one before rested on:
+        bit 0 (1) set when its first (second) geom's body was judged by the plan, clear by its
+        bounds (0 for a pair not held: left out on both bodies' reach)."""
+        return np.asarray(self._rt.basis_of(np.asarray(pairs, dtype=np.int64).reshape(-1)))
+
+    @property
+    def plan_breaks(self) -> int:
+        """Bodies found farther from the plan than their deviation, over the plans so far: their
+        pairs followed the motion bounds from then until the next plan."""
+        return int(self._rt.plan_breaks)

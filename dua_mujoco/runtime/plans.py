@@ -29,6 +29,8 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco import _core
+from dua_mujoco.build.kinematics import pack_spheres
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 from dua_mujoco.runtime.flightplan import finite_rows
 
@@ -250,23 +252,23 @@ def _int(name: str, value: object, low: int, high: int) -> int:
     return int(value)
 
 
-class _Points:
-    """World positions of bound points for rows of qpos (``mj_kinematics`` on a scratch data)."""
+class _Poses:
+    """Every geom's pose for rows of qpos (``mj_kinematics`` on a scratch data)."""
 
-    def __init__(self, model: mujoco.MjModel, geom: np.ndarray, offset: np.ndarray) -> None:
-        self.model, self.geom, self.offset = model, geom, offset
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self.model = model
         self.data = mujoco.MjData(model)
 
-    def __call__(self, qpos: np.ndarray) -> np.ndarray:
-        """``(rows, npts, 3)``."""
-        out = np.empty((qpos.shape[0], self.geom.size, 3))
-        d, g = self.data, self.geom
+    def __call__(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(rows, ngeom, 3)`` positions and ``(rows, ngeom, 9)`` rotations."""
+        m, d = self.model, self.data
+        pos = np.empty((qpos.shape[0], m.ngeom, 3))
+        mat = np.empty((qpos.shape[0], m.ngeom, 9))
         for j, q in enumerate(qpos):
             d.qpos[:] = q
-            mujoco.mj_kinematics(self.model, d)
-            mat = d.geom_xmat[g].reshape(-1, 3, 3)
-            out[j] = d.geom_xpos[g] + np.einsum("pij,pj->pi", mat, self.offset)
-        return out
+            mujoco.mj_kinematics(m, d)
+            pos[j], mat[j] = d.geom_xpos, d.geom_xmat
+        return pos, mat
 
 
 def deviation_profile(
@@ -280,7 +282,8 @@ def deviation_profile(
     """Each body's deviation bound by knots past a plan's origin, from a pilot run.
 
     For every plan and every knot ``j`` of it that the pilot reached, the distance of each bound
-    point from its planned position (both from ``mj_kinematics``), its maximum over the body's
+    point from its planned position (both from ``mj_kinematics``; measured by the runtime's own
+    measure, the one its check of a plan takes at the same points), its maximum over the body's
     points, filed under ``a = max(j - origin, 0)`` knots past the plan's origin; the maximum
     over plans at each ``a``, made non-decreasing in ``a`` (a deviation seen after ``a`` knots
     may be seen later too), times ``safety``.
@@ -323,9 +326,12 @@ def deviation_profile(
             "would shrink the deviations measured)."
         )
     geom, body, offset = _check_points(model, points)
-    at = _Points(model, geom, offset)
+    # The runtime's own measure (PoseDeviation: the step's check of a plan takes it at the same
+    # points), on the points as sphere records.
+    records = pack_spheres(geom, body, offset, model.body_rootid)
+    poses = _Poses(model)
     T, nbody = actual.shape[0], int(model.nbody)
-    where = at(actual)  # (T, npts, 3)
+    where = poses(actual)
     # Each body's points as columns of an index (npts: a padded zero for bodies without points).
     counts = np.bincount(body, minlength=nbody)
     width = max(int(counts.max()) if counts.size else 0, 1)
@@ -342,7 +348,10 @@ def deviation_profile(
         start = _int(f"plans[{i}].start", plan.start, 0, T - 1)
         origin = _int(f"plans[{i}].origin", plan.origin, 0, q.shape[0])
         n = min(q.shape[0], T - start)
-        dist = np.linalg.norm(where[start : start + n] - at(q[:n]), axis=2)  # (n, npts)
+        planned = poses(q[:n])
+        dist = _core.plan_deviation(
+            records, where[0][start : start + n], where[1][start : start + n], *planned
+        )  # (n, npts)
         pad = np.concatenate([dist, np.zeros((n, 1))], axis=1)
         per_body = pad[:, cols].max(axis=2)  # (n, nbody)
         ages = np.maximum(np.arange(n) - origin, 0)

@@ -63,7 +63,7 @@ from dua_mujoco.exceptions import (
 )
 from dua_mujoco.runtime.alarms import Alarms
 from dua_mujoco.runtime.diagnostics import clock_error, nonfinite_error
-from dua_mujoco.runtime.flightplan import plan_arrays
+from dua_mujoco.runtime.flightplan import PlanFollowing
 from dua_mujoco.runtime.pairstate import PairState
 from dua_mujoco.runtime.table_arrays import predictor_tables
 
@@ -80,7 +80,7 @@ LOG_MIN = 1 << 14
 replaced, never overwritten, so an old ``Alarms`` keeps its values."""
 
 
-class Predictor:
+class Predictor(PlanFollowing):
     """DUA collision predictor for a MuJoCo model.
 
     Args:
@@ -402,61 +402,6 @@ class Predictor:
         a = np.asarray(g1, dtype=np.int64).reshape(-1)
         b = np.asarray(g2, dtype=np.int64).reshape(-1)
         return np.asarray(self._rt.geom_pair_ids(a, b))
-
-    # ----------------------------------------------------------------------- flight plans
-
-    def set_plan(
-        self, qpos: npt.ArrayLike, *, deviation: npt.ArrayLike, start: float | None = None
-    ) -> None:
-        """Follow a flight plan: the motion expected over the coming physics steps.
-
-        While the plan covers a step and both bodies of a pair are within their deviation, the
-        pair's verdict is the time to the first knot at which the plan's geometry, less the two
-        deviations, may touch (no motion bound enters: the verdict is as tight at 200 ms as at
-        one step). Every pair is evaluated again at the next step. A body found farther from
-        its plan than its deviation falls back to the motion bounds (its pairs evaluated again
-        at once), and so does everything past the plan's last knot: give the next plan before
-        it runs out by the alarm horizon. docs/plans.md; the promise: docs/theory.md, section 8.
-
-        Args:
-            qpos: ``(n, nq)`` joint positions, row ``j`` the state ``j * model.opt.timestep``
-                after ``start`` (:func:`dua_mujoco.runtime.plans.plan_from_controls` rolls them).
-            deviation: Metres: a bound on the distance of every point of a body's geoms from
-                where the plan puts it, one number, ``(n,)`` or ``(n, nbody)``; 0 where the plan
-                is exact (a rollout of the controls that will be applied, in simulation).
-            start: The time of ``qpos[0]``'s state (default: the bound data's ``time``, the state
-                a plan rolled from it starts at). The plan must cover the state the next step
-                reads: MuJoCo's step reads the state it started from, one timestep before its
-                ``time``.
-
-        Raises:
-            SchedulerError: ``reset`` was not called.
-            ShapeError: ``qpos`` or ``deviation`` do not fit the model.
-            InvalidInputError: A value is not finite or negative, the model has mocap bodies,
-                or the plan does not cover the next step.
-        """
-        self._require_reset()
-        q, dev = plan_arrays(self.model, qpos, deviation)
-        if start is None:
-            assert self._data is not None
-            start = float(self._data.time)
-        self._rt.set_plan(q, dev, float(start))
-
-    def clear_plan(self) -> None:
-        """Stop following the plan: every pair is evaluated again at the next step, under the
-        motion bounds."""
-        self._rt.clear_plan()
-
-    @property
-    def has_plan(self) -> bool:
-        """Whether a plan is followed (it ends past its last knot, or when cleared)."""
-        return bool(self._rt.has_plan)
-
-    @property
-    def plan_breaks(self) -> int:
-        """Bodies found farther from the plan than their deviation, over the plans so far: their
-        pairs followed the motion bounds from then until the next plan."""
-        return int(self._rt.plan_breaks)
 
     # ----------------------------------------------------------------------- what it holds
 

@@ -339,6 +339,12 @@ struct PlanInput {
   int64_t n = 0;
   std::vector<double> qpos, dev;
   bool finite = true;  // every number the plan holds finite, and every deviation >= 0
+  // The plan as the runtime takes it, starting `start` (every moving body outside mocap trees).
+  dua_plan_input At(double start) const {
+    dua_plan_input in{};
+    in.qpos = qpos.data(), in.n = n, in.deviation = dev.data(), in.start = start;
+    return in;
+  }
 };
 
 PlanInput PlanOf(const Table& t, const mjModel* m) {
@@ -393,7 +399,8 @@ void Run(const Model& mo, const std::shared_ptr<const dua::Tables>& tables, cons
   const auto set_plan = [&](dua::Runtime* r) {
     if (!plan_table) return;
     const double start = r->StateTime(m, d) + plan.offset * m->opt.timestep;
-    CheckPlanVerdict(plan, r->SetPlan(m, plan.qpos.data(), plan.n, plan.dev.data(), start));
+    std::vector<double> departures(m->nbody);
+    CheckPlanVerdict(plan, r->SetPlan(m, plan.At(start), departures.data()));
   };
   set_plan(&rt);
   // Physics steps a period (at most 3 here: the runtime reads only d's state).
@@ -412,7 +419,13 @@ void Run(const Model& mo, const std::shared_ptr<const dua::Tables>& tables, cons
     (void)rt.nstanding(), (void)rt.FlaggedBodies();
     if (plan_table) {
       (void)rt.PlanBroken(m, d), (void)rt.plan_breaks(), (void)rt.plan_queries();
+      (void)rt.CheckPlan(m, d);
       if (k == steps / 2) set_plan(&rt);
+      if (k == 3 && m->ngeom > 1) {  // the shield's query, on every geom against geom 0
+        std::vector<int64_t> g1, g2, knots;
+        for (int g = 1; g < m->ngeom; ++g) g1.push_back(0), g2.push_back(g);
+        (void)rt.PlanQuery(m, d, plan.At(rt.StateTime(m, d)), g1, g2, &knots);
+      }
       if (k == 10) rt.ClearPlan();
     }
     if (!extras) continue;
@@ -479,8 +492,10 @@ void RunPluginModel(mjModel* m, const Input& in, const std::string& refused) {
       const PlanInput plan = PlanOf(*plan_table, m);
       char error[512] = {0};
       const double start = d->time + plan.offset * m->opt.timestep;
-      const int64_t r = dua_plugin_set_plan(m, d, 0, plan.qpos.data(), plan.n, plan.dev.data(),
-                                            start, error, sizeof(error));
+      const dua_plan_input input = plan.At(start);
+      std::vector<double> departures(m->nbody);
+      const int64_t r =
+          dua_plugin_set_plan(m, d, 0, &input, departures.data(), error, sizeof(error));
       if (r != 0 && r != -3) Die("dua_plugin_set_plan returned " + std::to_string(r));
       CheckPlanVerdict(plan, r == 0 ? "" : error);
     }

@@ -790,6 +790,47 @@ Out<int64_t> Ints(const std::vector<int64_t>& v) {
   return Owned(std::vector<int64_t>(v), {v.size()});
 }
 
+// Geom pairs (g1[k], g2[k]) as vectors, each id checked against the model.
+std::pair<std::vector<int64_t>, std::vector<int64_t>> GeomIds(const mjModel* m,
+                                                              const In<int64_t>& g1,
+                                                              const In<int64_t>& g2) {
+  Require(Size(g1) == Size(g2), "g1 and g2 must have the same length");
+  std::vector<int64_t> a(g1.data(), g1.data() + g1.size());
+  std::vector<int64_t> b(g2.data(), g2.data() + g2.size());
+  for (size_t k = 0; k < a.size(); ++k) {
+    Require(a[k] >= 0 && a[k] < m->ngeom && b[k] >= 0 && b[k] < m->ngeom,
+            "a geom id is out of range");
+  }
+  return {std::move(a), std::move(b)};
+}
+
+// A flight plan's arrays as the runtime reads them: qpos (n, nq), deviation (n, nbody), bodies
+// (nbody,) uint8 or empty for the default, mocap poses (n, nmocap, 3) and (n, nmocap, 4) or
+// empty (dua_mujoco/mj/flightplan.py checks the values; the runtime checks them again).
+dua_plan_input PlanInput(const mjModel* m, const In<double>& qpos, const In<double>& deviation,
+                         double start, const In<uint8_t>& bodies, const In<double>& mocap_pos,
+                         const In<double>& mocap_quat) {
+  Require(qpos.ndim() == 2 && static_cast<int64_t>(qpos.shape(1)) == m->nq, "qpos must be (n, nq)");
+  const auto n = static_cast<int64_t>(qpos.shape(0));
+  Require(deviation.ndim() == 2 && static_cast<int64_t>(deviation.shape(0)) == n &&
+              static_cast<int64_t>(deviation.shape(1)) == m->nbody,
+          "deviation must be (n, nbody)");
+  Require(Size(bodies) == 0 || Size(bodies) == m->nbody, "bodies must be (nbody,) or empty");
+  Require(Size(mocap_pos) == Size(mocap_quat) / 4 * 3 &&
+              (Size(mocap_pos) == 0 || Size(mocap_pos) == 3 * n * m->nmocap) &&
+              (Size(mocap_quat) == 0 || Size(mocap_quat) == 4 * n * m->nmocap),
+          "mocap poses must be (n, nmocap, 3) and (n, nmocap, 4), or both empty");
+  dua_plan_input in{};
+  in.qpos = qpos.data();
+  in.n = n;
+  in.deviation = deviation.data();
+  in.start = start;
+  in.bodies = Size(bodies) ? bodies.data() : nullptr;
+  in.mocap_pos = Size(mocap_pos) ? mocap_pos.data() : nullptr;
+  in.mocap_quat = Size(mocap_quat) ? mocap_quat.data() : nullptr;
+  return in;
+}
+
 void BindRuntime(nb::module_& m, nb::handle step_error) {
   nb::class_<Tables>(m, "Tables", "A model's predictor tables, checked against the model.")
       .def_static(
@@ -900,13 +941,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def(
           "geom_pair_ids",
           [](PyRuntime& self, const In<int64_t>& g1, const In<int64_t>& g2) {
-            Require(Size(g1) == Size(g2), "g1 and g2 must have the same length");
-            std::vector<int64_t> a(g1.data(), g1.data() + g1.size());
-            std::vector<int64_t> b(g2.data(), g2.data() + g2.size());
-            for (size_t k = 0; k < a.size(); ++k) {
-              Require(a[k] >= 0 && a[k] < self.m->ngeom && b[k] >= 0 && b[k] < self.m->ngeom,
-                      "a geom id is out of range");
-            }
+            const auto [a, b] = GeomIds(self.m, g1, g2);
             return Ints(self.rt->GeomPairIds(a, b));
           },
           "g1"_a, "g2"_a)
@@ -922,20 +957,59 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "mocap"_a, "linear"_a, "angular"_a)
       .def(
           "set_plan",
-          [](PyRuntime& self, const In<double>& qpos, const In<double>& deviation, double start) {
-            const int64_t nq = self.m->nq, nbody = self.m->nbody;
-            Require(qpos.ndim() == 2 && static_cast<int64_t>(qpos.shape(1)) == nq,
-                    "qpos must be (n, nq)");
-            const auto n = static_cast<int64_t>(qpos.shape(0));
-            Require(deviation.ndim() == 2 && static_cast<int64_t>(deviation.shape(0)) == n &&
-                        static_cast<int64_t>(deviation.shape(1)) == nbody,
-                    "deviation must be (n, nbody)");
-            const std::string error =
-                self.rt->SetPlan(self.m, qpos.data(), n, deviation.data(), start);
+          [](PyRuntime& self, const In<double>& qpos, const In<double>& deviation, double start,
+             const In<uint8_t>& bodies, const In<double>& mocap_pos, const In<double>& mocap_quat) {
+            const dua_plan_input in =
+                PlanInput(self.m, qpos, deviation, start, bodies, mocap_pos, mocap_quat);
+            std::vector<double> departures(self.m->nbody);
+            const std::string error = self.rt->SetPlan(self.m, in, departures.data());
             if (!error.empty()) Raise("InvalidInputError", "the plan " + error + ".");
+            return Owned(std::move(departures), {static_cast<size_t>(self.m->nbody)});
           },
-          "qpos"_a, "deviation"_a, "start"_a,
-          "Follow a flight plan: qpos (n, nq) at start + j timestep, deviation (n, nbody).")
+          "qpos"_a, "deviation"_a, "start"_a, "bodies"_a, "mocap_pos"_a, "mocap_quat"_a,
+          "Follow a flight plan (Runtime::SetPlan); returns each body's departure time from the "
+          "plan it replaces (inf: none).")
+      .def(
+          "check_plan",
+          [](PyRuntime& self) { return Ints(self.rt->CheckPlan(self.m, self.Data())); },
+          "Check the plan at the bound MjData's state between steps: the bodies found beyond "
+          "their deviation (counted, their pairs due at the next step).")
+      .def(
+          "basis_of",
+          [](const PyRuntime& self, const In<int64_t>& pairs) {
+            const std::vector<int64_t>& ids = self.rt->ids();
+            const int64_t n = Size(pairs);
+            std::vector<uint8_t> out(2 * static_cast<size_t>(n), 0);
+            for (int64_t k = 0; k < n; ++k) {
+              const auto it = std::lower_bound(ids.begin(), ids.end(), pairs.data()[k]);
+              if (it == ids.end() || *it != pairs.data()[k]) continue;  // not held: the bounds
+              out[2 * k] = self.rt->basis()[it - ids.begin()];
+              out[2 * k + 1] = self.rt->basis_prev()[it - ids.begin()];
+            }
+            return Owned(std::move(out), {static_cast<size_t>(n), 2});
+          },
+          "pairs"_a,
+          "(n, 2): what the latest verdict of each sphere pair, and the one before, rested on "
+          "(bit 0: its first geom's side on the plan, bit 1: its second's; 0 for a pair not "
+          "held).")
+      .def(
+          "plan_query",
+          [](PyRuntime& self, const In<double>& qpos, const In<double>& deviation, double start,
+             const In<uint8_t>& bodies, const In<double>& mocap_pos, const In<double>& mocap_quat,
+             const In<int64_t>& g1, const In<int64_t>& g2) {
+            const dua_plan_input in =
+                PlanInput(self.m, qpos, deviation, start, bodies, mocap_pos, mocap_quat);
+            const auto [a, b] = GeomIds(self.m, g1, g2);
+            if (self.rt->tables().pruned) self.rt->GeomPairIds(a, b);  // learn the pairs unmet
+            std::vector<int64_t> knots;
+            const std::string error = self.rt->PlanQuery(self.m, self.Data(), in, a, b, &knots);
+            if (!error.empty()) Raise("InvalidInputError", "the plan " + error + ".");
+            return Ints(knots);
+          },
+          "qpos"_a, "deviation"_a, "start"_a, "bodies"_a, "mocap_pos"_a, "mocap_quat"_a, "g1"_a,
+          "g2"_a,
+          "Each geom pair's first knot of a candidate plan at which its contact cannot be "
+          "excluded (Runtime::PlanQuery); the plan is not followed.")
       .def("clear_plan", [](PyRuntime& self) { self.rt->ClearPlan(); })
       .def_prop_ro("has_plan", [](const PyRuntime& s) { return s.rt->has_plan(); })
       .def_prop_ro("plan_breaks", [](const PyRuntime& s) { return s.rt->plan_breaks(); })
@@ -1352,22 +1426,52 @@ NB_MODULE(_core, m) {
   m.def(
       "plugin_set_plan",
       [](nb::handle model, nb::handle data, int instance, const In<double>& qpos,
-         const In<double>& deviation, double start) {
+         const In<double>& deviation, double start, const In<uint8_t>& bodies,
+         const In<double>& mocap_pos, const In<double>& mocap_quat) {
         const mjModel* mm = ModelOf(model);
-        Require(qpos.ndim() == 2 && static_cast<int64_t>(qpos.shape(1)) == mm->nq,
-                "qpos must be (n, nq)");
-        const auto n = static_cast<int64_t>(qpos.shape(0));
-        Require(deviation.ndim() == 2 && static_cast<int64_t>(deviation.shape(0)) == n &&
-                    static_cast<int64_t>(deviation.shape(1)) == mm->nbody,
-                "deviation must be (n, nbody)");
+        const dua_plan_input in =
+            PlanInput(mm, qpos, deviation, start, bodies, mocap_pos, mocap_quat);
         char error[512] = {0};
-        const int64_t r =
-            dua_plugin_set_plan(mm, const_cast<mjData*>(DataOf(data)), instance, qpos.data(), n,
-                                deviation.data(), start, error, sizeof(error));
+        std::vector<double> departures(mm->nbody);
+        const int64_t r = dua_plugin_set_plan(mm, const_cast<mjData*>(DataOf(data)), instance, &in,
+                                              departures.data(), error, sizeof(error));
         if (r == -3) Raise("InvalidInputError", std::string(error) + ".");
-        return r;
+        return nb::make_tuple(r, Owned(std::move(departures), {static_cast<size_t>(mm->nbody)}));
       },
-      "model"_a, "data"_a, "instance"_a, "qpos"_a, "deviation"_a, "start"_a);
+      "model"_a, "data"_a, "instance"_a, "qpos"_a, "deviation"_a, "start"_a, "bodies"_a,
+      "mocap_pos"_a, "mocap_quat"_a,
+      "dua_plugin_set_plan: (its result, each body's departure time from the plan replaced).");
+  m.def(
+      "plan_deviation",
+      [](const In<double>& points, const In<double>& pos_a, const In<double>& mat_a,
+         const In<double>& pos_b, const In<double>& mat_b) {
+        // Sphere records of points (n, 8), and rows of two poses of every geom: (r, ngeom, 3)
+        // and (r, ngeom, 9) each.
+        Require(pos_a.ndim() == 3 && pos_a.shape(2) == 3, "pos_a must be (r, ngeom, 3)");
+        const auto r = static_cast<int64_t>(pos_a.shape(0));
+        const auto ngeom = static_cast<int64_t>(pos_a.shape(1));
+        const int64_t n = Size(points) / kSphereNcol;
+        Require(Size(points) == kSphereNcol * n, "points must be (n, 8) sphere records");
+        Require(Size(pos_b) == 3 * r * ngeom && Size(mat_a) == 9 * r * ngeom &&
+                    Size(mat_b) == 9 * r * ngeom,
+                "poses must be (r, ngeom, 3) and (r, ngeom, 9), twice");
+        std::vector<double> out(static_cast<size_t>(r * n));
+        for (int64_t i = 0; i < n; ++i) {
+          const double* rec = points.data() + kSphereNcol * i;
+          const auto g = static_cast<int64_t>(rec[kSphereFrame]);
+          Require(g >= 0 && g < ngeom, "a point's geom is out of range");
+          for (int64_t k = 0; k < r; ++k) {
+            const int64_t at = k * ngeom + g;
+            out[k * n + i] =
+                PoseDeviation(rec + kSphereOffset, pos_a.data() + 3 * at, mat_a.data() + 9 * at,
+                              pos_b.data() + 3 * at, mat_b.data() + 9 * at);
+          }
+        }
+        return Owned(std::move(out), {static_cast<size_t>(r), static_cast<size_t>(n)});
+      },
+      "points"_a, "pos_a"_a, "mat_a"_a, "pos_b"_a, "mat_b"_a,
+      "(r, n): each point's deviation between two poses of its geom, row by row: the plans' one "
+      "measure (PoseDeviation, plan.h).");
   m.def(
       "plugin_clear_plan",
       [](nb::handle model, nb::handle data, int instance) {

@@ -55,6 +55,13 @@ double TerrainExactTau(const dua_step_args& a, int64_t p);
 // blocks terrain records point to (terrain.cc).
 DUA_API int64_t ShapeRecordCount(const double* shapes, int64_t nrows);
 
+// Under a flight plan (docs/theory.md, section 9): a lower bound on dist(c, terrain) - eps for
+// a point c, and on dist(geom, terrain) - eps for the exact level's geom record gx at pose (pos,
+// mat); Theorem 9.3's bound of the object at rest with a unit velocity uncertainty (the first
+// time at unit speed), 0 when it cannot exclude a contact now.
+double TerrainPointGap(const double* c, const double* rec, double eps);
+double TerrainGeomGap(const double* gx, const double* pos, const double* mat, const double* rec,
+                      double eps);
 // (n.c - h_S(n), n, |c| + |p| + h_local) of a point c and a static shape record, n the unit
 // closest-point direction: a lower bound on c's distance to the shape (shapes.cc).
 double StaticGap(double c0, double c1, double c2, const double* rec, double n[3], double* scale);
@@ -64,7 +71,6 @@ double StaticGap(double c0, double c1, double c2, const double* rec, double n[3]
 double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0, double n1,
                    double n2, int64_t start, int64_t* top);
 
-// Bucket floor(log2(slot + 1)) of a rank slot.
 // Where point rec (a sphere record, or the exact level's geom record: the same first columns)
 // sits with the geoms at poses (pos, mat): its geom's origin plus its rotated offset.
 inline void PointCentre(const double* rec, const double* pos, const double* mat, double* out) {
@@ -73,6 +79,56 @@ inline void PointCentre(const double* rec, const double* pos, const double* mat,
   const double* p = pos + 3 * g;
   const double* r = mat + 9 * g;
   for (int k = 0; k < 3; ++k) out[k] = p[k] + r[3 * k] * o0 + r[3 * k + 1] * o1 + r[3 * k + 2] * o2;
+}
+
+// Centre and velocity of point i of a record table (sphere records, or the exact level's geom
+// records, whose first columns are the same): out[0:3] centre, out[3:6] velocity. The velocity
+// is the body twist [w; v_ref] about cvel's reference point (subtree_com of the root), plus the
+// twist of a mocap root (zero elsewhere).
+inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_frame& f,
+                       double* out) {
+  const double* rec = recs + i * ncol;
+  const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
+  PointCentre(rec, f.pos, f.mat, out);
+  const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
+  const double* tw = f.twist + 6 * b;
+  const double* ref = f.twist_ref + 3 * r;
+  const double dx = out[0] - ref[0], dy = out[1] - ref[1], dz = out[2] - ref[2];
+  out[3] = tw[3] + tw[1] * dz - tw[2] * dy;
+  out[4] = tw[4] + tw[2] * dx - tw[0] * dz;
+  out[5] = tw[5] + tw[0] * dy - tw[1] * dx;
+  const double* rt = f.root_twist + 6 * r;
+  if (rt[0] != 0.0 || rt[1] != 0.0 || rt[2] != 0.0 || rt[3] != 0.0 || rt[4] != 0.0 ||
+      rt[5] != 0.0) {
+    const double* ro = f.root_origin + 3 * r;
+    const double ex = out[0] - ro[0], ey = out[1] - ro[1], ez = out[2] - ro[2];
+    out[3] += rt[3] + rt[1] * ez - rt[2] * ey;
+    out[4] += rt[4] + rt[2] * ex - rt[0] * ez;
+    out[5] += rt[5] + rt[0] * ey - rt[1] * ex;
+  }
+}
+
+// |w| r of geom g: how fast rotation can move its points away from translation.
+inline double Spin(int64_t g, const double* geoms, const dua_frame& f) {
+  const double* rec = geoms + g * kGxNcol;
+  const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
+  const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
+  const double w0 = f.twist[6 * b] + f.root_twist[6 * r];
+  const double w1 = f.twist[6 * b + 1] + f.root_twist[6 * r + 1];
+  const double w2 = f.twist[6 * b + 2] + f.root_twist[6 * r + 2];
+  return std::sqrt(w0 * w0 + w1 * w1 + w2 * w2) * rec[kGxRadius];
+}
+
+// RigidPoint of sphere i into out, read from MjData at its first use in this epoch.
+inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
+  double* state = a.point_state + 6 * i;
+  if (a.point_epoch[i] != a.epoch) {
+    RigidPoint(i, a.spheres, kSphereNcol, a.frame, state);
+    a.point_epoch[i] = a.epoch;
+  }
+  // Six stores (std::copy became a call to memmove).
+  out[0] = state[0], out[1] = state[1], out[2] = state[2];
+  out[3] = state[3], out[4] = state[4], out[5] = state[5];
 }
 
 // The unit direction of MuJoCo's witness segment fromto (first geom to second) between the geoms
@@ -89,6 +145,7 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
   return true;
 }
 
+// Bucket floor(log2(slot + 1)) of a rank slot.
 inline int64_t BucketOf(int64_t slot) {
   int64_t k = 0;
   while ((int64_t{2} << k) - 1 <= slot) ++k;

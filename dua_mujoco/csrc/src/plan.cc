@@ -1,4 +1,4 @@
-// Flight plans (plan.h). The proofs of what the tau below keeps: docs/theory.md, section 8.
+// Flight plans (plan.h). The proofs of what the taus below keep: docs/theory.md, section 8.
 #include "plan.h"
 
 #include <algorithm>
@@ -28,8 +28,15 @@ double Displacement(const double* p0, const double* r0, const double* p1, const 
   return (std::sqrt(dp) + std::sqrt(dr) * radius) * (1.0 + 8.0 * kEpsilon);
 }
 
+// |a - b| - eps of two centres, lowered by the rounding allowance of the sphere gaps.
+double CentreGap(const double* a, const double* b, double eps) {
+  const double d0 = b[0] - a[0], d1 = b[1] - a[1], d2 = b[2] - a[2];
+  const double dist = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+  return dist - eps - kGapSlack * (dist + eps);
+}
+
 // The pair's gap at the sphere level on knot poses (pos, mat): a lower bound on the distance
-// between its two spheres (a sphere and a plane, a sphere and a static shape) less the pair's
+// between its two spheres (a sphere and a plane, a static shape or a terrain) less the pair's
 // contact distance, so a lower bound on the geoms' too.
 double SphereGap(const double* rec, const double* spheres, const double* shapes, const double* pos,
                  const double* mat) {
@@ -48,20 +55,20 @@ double SphereGap(const double* rec, const double* spheres, const double* shapes,
     return along - off - eps - kGapSlack * (std::fabs(along) + std::fabs(off) + eps);
   }
   if (kind == kKindShape) {
+    const double* shape = shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol;
+    // A height field: its prisms' own bound (Lemma 9.5), never a convex shape's.
+    if (static_cast<int>(shape[kShapeKind]) == kGeomHField) return TerrainPointGap(a, shape, eps);
     double n[3], scale;
-    const double gap = StaticGap(
-        a[0], a[1], a[2], shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol, n, &scale);
+    const double gap = StaticGap(a[0], a[1], a[2], shape, n, &scale);
     return gap - eps - kGapSlack * (scale + eps);
   }
   double b[3];
   centre(static_cast<int64_t>(rec[kPairSecond]), b);
-  const double d0 = b[0] - a[0], d1 = b[1] - a[1], d2 = b[2] - a[2];
-  const double dist = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
-  return dist - eps - kGapSlack * (dist + eps);
+  return CentreGap(a, b, eps);
 }
 
-// The geoms' gap along unit n (first to second) at knot poses f, less the contact distance:
-// a lower bound on their distance less it (a separating direction's gap).
+// The geoms' gap along unit n (first to second) on frame f, less the contact distance: a lower
+// bound on their distance less it (a separating direction's gap).
 double AxisGap(const double* xrec, const dua_exact& x, const dua_frame& f, double n0, double n1,
                double n2, int mode) {
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
@@ -78,33 +85,47 @@ double AxisGap(const double* xrec, const dua_exact& x, const dua_frame& f, doubl
   return low_b - h_a - xrec[kXDist] - kGapSlack * scale;
 }
 
-// The exact level's gap at knot poses f: the direction that served last, then MuJoCo's witness
-// direction at the knot (asked only while the gap is not above `need`). Writes the direction
-// MuJoCo gave into the record (any unit direction is valid for any pose).
-double ExactGap(double* xrec, dua_exact& x, const dua_frame& f, dua_plan& plan, double need) {
+// A geom's pose: its position (3) and rotation (9).
+struct Pose {
+  const double* pos;
+  const double* mat;
+};
+
+// The exact level's gap of pair record `pair` with geom ga at pose pa and geom gb at pose pb (the
+// record's two geoms, in either order): against a terrain its prisms' bound; else the direction
+// that served last, then MuJoCo's witness direction at these poses (asked only while the gap is
+// not above `need`), written into the record (any unit direction is valid for any pose).
+double PosedGap(const double* pair, double* xrec, dua_exact& x, dua_plan& plan, mjData* d,
+                const double* shapes, int64_t ga, Pose pa, int64_t gb, Pose pb, double need) {
   const int mode = static_cast<int>(xrec[kXMode]);
   if (mode == kModeNone) return -kInf;
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
   const int64_t g2 = static_cast<int64_t>(xrec[kXG2]);
+  const Pose p1 = g1 == ga ? pa : pb;
+  if (mode == kModeTerrain) {
+    const double* rec = shapes + static_cast<int64_t>(pair[kPairOther]) * kShapeNcol;
+    return TerrainGeomGap(x.geoms + g1 * kGxNcol, p1.pos, p1.mat, rec, xrec[kXDist]);
+  }
+  const Pose p2 = g2 == gb ? pb : pa;
+  // The two poses in d, which MuJoCo's distance reads and the frame below points at.
+  std::copy_n(p1.pos, 3, d->geom_xpos + 3 * g1);
+  std::copy_n(p1.mat, 9, d->geom_xmat + 9 * g1);
+  std::copy_n(p2.pos, 3, d->geom_xpos + 3 * g2);
+  std::copy_n(p2.mat, 9, d->geom_xmat + 9 * g2);
+  const dua_frame f{d->geom_xpos, d->geom_xmat, nullptr, nullptr, nullptr, nullptr};
   if (mode == kModePlane) {
     const double* m = f.mat + 9 * g2;
     return AxisGap(xrec, x, f, -m[2], -m[5], -m[8], mode);
   }
   double best = -kInf;
-  double n0 = xrec[kXN], n1 = xrec[kXN + 1], n2 = xrec[kXN + 2];
+  const double n0 = xrec[kXN], n1 = xrec[kXN + 1], n2 = xrec[kXN + 2];
   if (n0 != 0.0 || n1 != 0.0 || n2 != 0.0) {
     best = AxisGap(xrec, x, f, n0, n1, n2, mode);
     if (best > need) return best;
   }
-  // MuJoCo's distance at the knot: the two geoms' planned poses in the plan's own mjData.
-  mjData* d = static_cast<mjData*>(plan.data);
-  for (const int64_t g : {g1, g2}) {
-    std::copy_n(f.pos + 3 * g, 3, d->geom_xpos + 3 * g);
-    std::copy_n(f.mat + 9 * g, 9, d->geom_xmat + 9 * g);
-  }
-  const double* p1 = f.pos + 3 * g1;
-  const double* p2 = f.pos + 3 * g2;
-  const double c0 = p2[0] - p1[0], c1 = p2[1] - p1[1], c2 = p2[2] - p1[2];
+  const double* q1 = f.pos + 3 * g1;
+  const double* q2 = f.pos + 3 * g2;
+  const double c0 = q2[0] - q1[0], c1 = q2[1] - q1[1], c2 = q2[2] - q1[2];
   const double reach = std::sqrt(c0 * c0 + c1 * c1 + c2 * c2) + xrec[kXDist] + 1.0;
   mjtNum fromto[6];
   ++plan.queries;
@@ -117,29 +138,31 @@ double ExactGap(double* xrec, dua_exact& x, const dua_frame& f, dua_plan& plan, 
   return std::max(best, AxisGap(xrec, x, f, n[0], n[1], n[2], mode));
 }
 
-// A plan's tau, s steps of h, shaved. A plan's taus fall on the step grid, where the deadline
-// scheduler's test (w + latency) dt + extra < tau compares two roundings of the same number:
-// (alarm steps + w) dt can round below s h and let a pair wait one step past the one at which
-// it must stand in alarm (an onset one step short of the horizon). 1e-9 relative is far above
-// those roundings (a few ulps) and far below a step; a smaller tau is still a lower bound.
+// A plan's tau from s steps of h, on the predictor's grid (period p steps) and shaved. The
+// deadline rule (3) keeps a verdict while (w + latency) dt + extra < tau, which gives the alarm
+// horizon's lead only for a tau on the grid of dt: a contact s = q p + r steps ahead (0 < r < p)
+// could otherwise be covered until (q - N - latency + 1) periods and flagged only H + latency dt
+// - r h before it. Rounding down to q p steps keeps the lead (docs/theory.md, section 8); with
+// p = 1 it changes nothing. On that grid the test compares two roundings of the same number:
+// (alarm steps + w) dt can round below the tau and let a pair wait one step past the one at
+// which it must stand in alarm; 1e-9 relative is far above those roundings (a few ulps) and far
+// below a step. Either way a smaller tau is still a lower bound.
 constexpr double kGridShave = 1e-9;
-inline double GridTau(int64_t s, double h) {
-  return static_cast<double>(s) * h * (1.0 - kGridShave);
+inline double GridTau(int64_t s, double h, int64_t p) {
+  const int64_t grid = p > 1 ? s / p * p : s;
+  return static_cast<double>(grid) * h * (1.0 - kGridShave);
 }
 
-// tau of held pair p under the plan from knot k: (j - k) h for the first knot j >= k at which
-// a lower bound on the pair's planned gap does not exceed both bodies' deviations there, or
-// (nknot - k) h when none does (the earliest step a contact could start past the plan). The
-// bound at a knot is the sphere level's, then the exact level's; between two knots it is
-// carried by the geoms' sweeps (a planned gap G at knot i is at least G - S1(i, j) - S2(i, j)
-// at knot j), so that most knots cost a few flops. The tau returned is a whole number of steps
-// shaved by kGridShave (GridTau): a lower bound still, and one the scheduler's rounded sums
-// cannot cover past its own step.
-double PlanTau(dua_step_args& a, const Plan& plan, int64_t p, int64_t g1, int64_t g2, int64_t b1,
-               int64_t b2) {
+// (8): the first knot j >= k at which a lower bound on the pair's planned gap does not exceed
+// both bodies' deviations there, or nknot when none does (the earliest state a contact could
+// start past the plan). The bound at a knot is the sphere level's, then the exact level's;
+// between two knots it is carried by the geoms' sweeps (a planned gap G at knot i is at least
+// G - S1(i, j) - S2(i, j) at knot j), so that most knots cost a few flops.
+int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
+                 int64_t g2, int64_t b1, int64_t b2) {
   const double* rec = a.pairs + p * kPairNcol;
   double* xrec = a.exact.on ? a.exact.records + p * kXNcol : nullptr;
-  const int64_t k = a.plan.knot, n = plan.nknot();
+  const int64_t n = plan.nknot();
   double gap = -kInf;  // a lower bound on the planned gap at knot `base`
   int64_t base = -1;
   for (int64_t j = k; j < n; ++j) {
@@ -155,13 +178,120 @@ double PlanTau(dua_step_args& a, const Plan& plan, int64_t p, int64_t g1, int64_
     }
     gap = SphereGap(rec, a.spheres, a.shapes, plan.pos(j), plan.mat(j));
     if (gap <= allowed && xrec != nullptr) {
-      const dua_frame f{plan.pos(j), plan.mat(j), nullptr, nullptr, nullptr, nullptr};
-      gap = std::max(gap, ExactGap(xrec, a.exact, f, a.plan, allowed));
+      const Pose p1{plan.pos(j) + 3 * g1, plan.mat(j) + 9 * g1};
+      const Pose p2{plan.pos(j) + 3 * g2, plan.mat(j) + 9 * g2};
+      gap =
+          std::max(gap, PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, g1, p1, g2, p2, allowed));
     }
     base = j;
-    if (!(gap > allowed)) return GridTau(j - k, plan.h());
+    if (!(gap > allowed)) return j;
   }
-  return GridTau(n - k, plan.h());
+  return n;
+}
+
+// A free body's reach: how far any of its points (speed s now) can move in t while its bounds
+// hold (accel A, one-step discrepancy D >= its velocity uncertainty, speed V), rounded up.
+inline double Reach(double t, double s, double accel, double disc, double speed) {
+  const double quad = ((s + disc) * t + 0.5 * accel * t * t) * (1.0 + 8.0 * kEpsilon);
+  return std::min(quad, speed * t * (1.0 + 2.0 * kEpsilon));
+}
+
+// The mixed tau's knot (Lemma 8.3): planned geom ga (body ba, sphere sa) at each knot j >= k,
+// less its deviation, against free geom gb (body bb, sphere sb) where it is now, less its reach
+// over (j - k) h from its own bounds (its row of the violation check). The first knot at which
+// neither the sphere level nor the exact level can separate them, or nknot; -1 when gb's body
+// has no bounds to read (the pair falls back to the motion bounds).
+int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t ga,
+                  int64_t ba, int64_t sa, int64_t gb, int64_t sb) {
+  const int64_t row = a.plan.geom_row[gb];
+  if (row < 0) return -1;
+  const double* box = a.events.rec + row * kBNcol;
+  const double accel = box[kBAccel], disc = box[kBDisc], speed = box[kBSpeed];
+  const double* rec = a.pairs + p * kPairNcol;
+  const double eps = rec[kPairEps];
+  // The free side now: its sphere's centre and speed, and (exact level) its geom's pose and the
+  // speed bound of its points, |v_origin| + |w| r (section 5).
+  double sb_state[6];
+  PointOf(a, sb, sb_state);
+  const double ss =
+      std::sqrt(sb_state[3] * sb_state[3] + sb_state[4] * sb_state[4] + sb_state[5] * sb_state[5]);
+  double* xrec = nullptr;
+  double sg = 0.0;
+  if (a.exact.on && static_cast<int>(a.exact.records[p * kXNcol + kXMode]) == kModeGeoms) {
+    xrec = a.exact.records + p * kXNcol;
+    double o[6];
+    RigidPoint(gb, a.exact.geoms, kGxNcol, a.frame, o);
+    sg = std::sqrt(o[3] * o[3] + o[4] * o[4] + o[5] * o[5]) + Spin(gb, a.exact.geoms, a.frame);
+  }
+  const Pose now{a.frame.pos + 3 * gb, a.frame.mat + 9 * gb};
+  const double* sphere_a = a.spheres + sa * kSphereNcol;
+  const int64_t n = plan.nknot();
+  const double h = plan.h();
+  double gs = -kInf, gg = -kInf;  // lower bounds on the gaps at knot `base`, each level's
+  int64_t base = -1;
+  for (int64_t j = k; j < n; ++j) {
+    const double t = static_cast<double>(j - k) * h * (1.0 + 2.0 * kEpsilon);
+    const double dev = plan.dev(j, ba) * (1.0 + 4.0 * kEpsilon);
+    const double rs = Reach(t, ss, accel, disc, speed);
+    const double rg = xrec ? Reach(t, sg, accel, disc, speed) : kInf;
+    if (base >= 0) {
+      // The free geom does not move in the gap; the planned one by its sweep.
+      const double moved = (plan.sweep(j, ga) - plan.sweep(base, ga)) * (1.0 + 8.0 * kEpsilon);
+      const double ms = gs - moved - dev - rs, mg = gg - moved - dev - rg;
+      if (ms > 4.0 * kEpsilon * (std::fabs(gs) + moved + dev + rs) ||
+          mg > 4.0 * kEpsilon * (std::fabs(gg) + moved + dev + rg)) {
+        continue;
+      }
+    }
+    double ca[3];
+    PointCentre(sphere_a, plan.pos(j), plan.mat(j), ca);
+    gs = CentreGap(ca, sb_state, eps);
+    bool clear = gs > dev + rs;
+    gg = -kInf;
+    if (!clear && xrec != nullptr) {
+      const Pose planned{plan.pos(j) + 3 * ga, plan.mat(j) + 9 * ga};
+      gg = PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, ga, planned, gb, now, dev + rg);
+      clear = gg > dev + rg;
+    }
+    base = j;
+    if (!clear) return j;
+  }
+  return n;
+}
+
+// How a pair's side stands: a static body (planned, deviation 0), a planned one, or one that
+// follows its bounds.
+enum Side { kFree = 0, kPlanned = 1, kFixed = 2 };
+
+inline Side SideOf(const Plan& plan, const uint8_t* ok, int64_t b) {
+  if (plan.fixed(b)) return kFixed;
+  return ok[b] ? kPlanned : kFree;
+}
+
+// A pair's knot under the plan (-1: the plan does not cover it) and its basis bits.
+struct Judged {
+  int64_t knot;
+  uint8_t basis;
+};
+
+Judged Judge(dua_step_args& a, const Plan& plan, const uint8_t* ok, mjData* d, int64_t k, int64_t p,
+             int64_t g1, int64_t g2) {
+  const int64_t b1 = a.plan.geom_body[g1], b2 = a.plan.geom_body[g2];
+  const Side s1 = SideOf(plan, ok, b1), s2 = SideOf(plan, ok, b2);
+  const uint8_t basis = static_cast<uint8_t>((s1 != kFree ? 1 : 0) | (s2 != kFree ? 2 : 0));
+  if (s1 != kFree && s2 != kFree) return {BothKnot(a, plan, d, k, p, g1, g2, b1, b2), basis};
+  // One moving planned body against one that follows its bounds: the mixed tau (sphere pairs:
+  // both bodies move). A static body against a free one keeps the motion bounds' tau.
+  const double* rec = a.pairs + p * kPairNcol;
+  if ((s1 == kPlanned) != (s2 == kPlanned) && s1 != kFixed && s2 != kFixed &&
+      static_cast<int>(rec[kPairKind]) == kKindSphere) {
+    const auto first = static_cast<int64_t>(rec[kPairFirst]);
+    const auto second = static_cast<int64_t>(rec[kPairSecond]);
+    const int64_t j = s1 == kPlanned ? MixedKnot(a, plan, d, k, p, g1, b1, first, g2, second)
+                                     : MixedKnot(a, plan, d, k, p, g2, b2, second, g1, first);
+    if (j >= 0) return {j, basis};
+  }
+  return {-1, 0};
 }
 
 // A bad value as a refusal names it (%g: "nan", "inf", "1e+308").
@@ -173,22 +303,137 @@ std::string Shown(double x) {
 
 }  // namespace
 
-std::string Plan::Build(const mjModel* m, mjData* s, const double* qpos, int64_t n,
-                        const double* dev, double start, double h) {
+double PoseDeviation(const double* q, const double* pa, const double* ra, const double* pb,
+                     const double* rb) {
+  // Each difference of two numbers is rounded relative to itself, so the sum below is within a
+  // few ulps of the terms' magnitudes (`scale`) of its exact value: that allowance is added.
+  double v[3], scale = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    double s = pa[i] - pb[i];
+    double magnitude = std::fabs(s);
+    for (int j = 0; j < 3; ++j) {
+      const double term = (ra[3 * i + j] - rb[3 * i + j]) * q[j];
+      s += term;
+      magnitude += std::fabs(term);
+    }
+    v[i] = s;
+    scale += magnitude;
+  }
+  return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * (1.0 + 4.0 * kEpsilon) +
+         8.0 * kEpsilon * scale;
+}
+
+double BoxDeviation(const double* box, const double* pa, const double* ra, const double* pb,
+                    const double* rb) {
+  double worst = 0.0;
+  for (const double sx : {-1.0, 1.0}) {
+    for (const double sy : {-1.0, 1.0}) {
+      for (const double sz : {-1.0, 1.0}) {
+        // The corners as Python's BodyBoxes.corners computes them (centre + sign * half).
+        const double q[3] = {box[kBCenter] + sx * box[kBHalf],
+                             box[kBCenter + 1] + sy * box[kBHalf + 1],
+                             box[kBCenter + 2] + sz * box[kBHalf + 2]};
+        const double dev = PoseDeviation(q, pa, ra, pb, rb);
+        if (std::isnan(dev)) return dev;  // a pose that is not a number is within no bound
+        worst = std::max(worst, dev);
+      }
+    }
+  }
+  return worst;
+}
+
+bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
+               const double* rb, double limit) {
+  // Equal poses (a replan that keeps to the plan it replaces, a plan that is the run): 0.
+  if (std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb)) return 0.0 <= limit;
+  // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
+  // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum
+  // (PoseDeviation's allowance is at most 8 ulps of `scale` below).
+  double dp = 0.0, dr = 0.0, qq = 0.0, scale = 0.0;
+  double qmax[3];
+  for (int j = 0; j < 3; ++j) {
+    qmax[j] = std::fabs(box[kBCenter + j]) + box[kBHalf + j];
+    qq += qmax[j] * qmax[j];
+  }
+  for (int i = 0; i < 3; ++i) {
+    const double e = pa[i] - pb[i];
+    dp += e * e;
+    scale += std::fabs(e);
+    for (int j = 0; j < 3; ++j) {
+      const double f = ra[3 * i + j] - rb[3 * i + j];
+      dr += f * f;
+      scale += std::fabs(f) * qmax[j];
+    }
+  }
+  const double bound =
+      (std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9) + 16.0 * kEpsilon * scale;
+  if (bound <= limit) return true;
+  return BoxDeviation(box, pa, ra, pb, rb) <= limit;
+}
+
+std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, double h,
+                        const double* spheres, int64_t nsphere) {
+  const int64_t n = in.n;
   if (n < 1) return "holds no knot: pass at least one row of qpos";
-  if (!std::isfinite(start)) return "starts at a time that is not finite (" + Shown(start) + ")";
+  if (!std::isfinite(in.start)) {
+    return "starts at a time that is not finite (" + Shown(in.start) + ")";
+  }
   if (!(h > 0.0) || !std::isfinite(h)) return "has a step that is not a positive time";
-  const int64_t nq = m->nq, ngeom = m->ngeom, nbody = m->nbody;
+  if ((in.mocap_pos == nullptr) != (in.mocap_quat == nullptr)) {
+    return "gives mocap positions without orientations or the reverse: give both, (n, nmocap, "
+           "3) and (n, nmocap, 4)";
+  }
+  const int64_t nq = m->nq, ngeom = m->ngeom, nbody = m->nbody, nmocap = m->nmocap;
+  const bool mocap = in.mocap_pos != nullptr;
+  std::vector<uint8_t> holds(nbody, 0), fixed(nbody, 0);
+  for (int64_t b = 0; b < nbody; ++b) {
+    const bool in_mocap = m->body_mocapid[m->body_rootid[b]] >= 0;
+    fixed[b] = m->body_weldid[b] == 0 && !in_mocap;
+    if (fixed[b]) continue;
+    if (in.bodies == nullptr) {
+      holds[b] = !in_mocap || mocap;
+    } else if (in.bodies[b]) {
+      if (in_mocap && !mocap) {
+        return "holds body " + std::to_string(b) +
+               ", in a mocap tree, without mocap poses: give mocap_pos and mocap_quat, or leave "
+               "the body out";
+      }
+      holds[b] = 1;
+    }
+  }
   for (int64_t i = 0; i < n * nbody; ++i) {
-    if (!(dev[i] >= 0.0) || !std::isfinite(dev[i])) {
+    if (!(in.deviation[i] >= 0.0) || !std::isfinite(in.deviation[i])) {
       return "holds a deviation that is not a finite distance >= 0 (knot " +
              std::to_string(i / nbody) + ", body " + std::to_string(i % nbody) + ": " +
-             Shown(dev[i]) + ")";
+             Shown(in.deviation[i]) + ")";
     }
+  }
+  for (int64_t i = 0; mocap && i < n * nmocap * 3; ++i) {
+    if (!std::isfinite(in.mocap_pos[i])) {
+      return "holds a mocap position that is not finite (knot " + std::to_string(i / 3 / nmocap) +
+             ", mocap " + std::to_string(i / 3 % nmocap) + ": " + Shown(in.mocap_pos[i]) + ")";
+    }
+  }
+  for (int64_t i = 0; mocap && i < n * nmocap; ++i) {
+    const double* q = in.mocap_quat + 4 * i;
+    const double norm = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    if (!(norm > 0.0) || !std::isfinite(norm)) {
+      return "holds a mocap orientation that is not a finite non-zero quaternion (knot " +
+             std::to_string(i / nmocap) + ", mocap " + std::to_string(i % nmocap) + ")";
+    }
+  }
+  // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
+  // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
+  std::vector<double> radius(m->geom_rbound, m->geom_rbound + ngeom);
+  for (int64_t i = 0; i < nsphere; ++i) {
+    const double* rec = spheres + i * kSphereNcol;
+    const auto g = static_cast<int64_t>(rec[kSphereFrame]);
+    const double* o = rec + kSphereOffset;
+    radius[g] = std::max(radius[g], std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]));
   }
   std::vector<double> pos(3 * ngeom * n), mat(9 * ngeom * n), sweep(ngeom * n, 0.0);
   for (int64_t j = 0; j < n; ++j) {
-    const double* q = qpos + nq * j;
+    const double* q = in.qpos + nq * j;
     for (int64_t i = 0; i < nq; ++i) {
       if (!std::isfinite(q[i])) {
         return "holds a qpos that is not finite (knot " + std::to_string(j) + ", qpos[" +
@@ -196,6 +441,10 @@ std::string Plan::Build(const mjModel* m, mjData* s, const double* qpos, int64_t
       }
     }
     std::copy_n(q, nq, s->qpos);
+    if (mocap) {
+      std::copy_n(in.mocap_pos + 3 * nmocap * j, 3 * nmocap, s->mocap_pos);
+      std::copy_n(in.mocap_quat + 4 * nmocap * j, 4 * nmocap, s->mocap_quat);
+    }
     mj_kinematics(m, s);
     std::copy_n(s->geom_xpos, 3 * ngeom, pos.begin() + 3 * ngeom * j);
     std::copy_n(s->geom_xmat, 9 * ngeom, mat.begin() + 9 * ngeom * j);
@@ -203,7 +452,7 @@ std::string Plan::Build(const mjModel* m, mjData* s, const double* qpos, int64_t
     for (int64_t g = 0; g < ngeom; ++g) {
       const double step = Displacement(
           pos.data() + 3 * (ngeom * (j - 1) + g), mat.data() + 9 * (ngeom * (j - 1) + g),
-          pos.data() + 3 * (ngeom * j + g), mat.data() + 9 * (ngeom * j + g), m->geom_rbound[g],
+          pos.data() + 3 * (ngeom * j + g), mat.data() + 9 * (ngeom * j + g), radius[g],
           m->geom_type[g] == mjGEOM_PLANE);
       sweep[ngeom * j + g] = (sweep[ngeom * (j - 1) + g] + step) * (1.0 + 4.0 * kEpsilon);
     }
@@ -224,9 +473,21 @@ std::string Plan::Build(const mjModel* m, mjData* s, const double* qpos, int64_t
     }
   }
   nknot_ = n, ngeom_ = ngeom, nbody_ = nbody;
-  start_ = start, h_ = h;
+  start_ = in.start, h_ = h;
   pos_ = std::move(pos), mat_ = std::move(mat), sweep_ = std::move(sweep);
-  dev_.assign(dev, dev + n * nbody);
+  dev_.assign(in.deviation, in.deviation + n * nbody);
+  // A static body never moves: its deviation is 0 whatever was given.
+  for (int64_t j = 0; j < n; ++j) {
+    for (int64_t b = 0; b < nbody; ++b) {
+      if (fixed[b]) dev_[nbody * j + b] = 0.0;
+    }
+  }
+  holds_ = std::move(holds), fixed_ = std::move(fixed);
+  planes_.clear();
+  for (int64_t g = 0; g < ngeom; ++g) {
+    if (m->geom_type[g] == mjGEOM_PLANE && holds_[m->geom_bodyid[g]]) planes_.push_back(g);
+  }
+  geom_body_.assign(m->geom_bodyid, m->geom_bodyid + ngeom);
   return "";
 }
 
@@ -237,42 +498,52 @@ int64_t Plan::KnotOf(double time) const {
   return static_cast<int64_t>(k);
 }
 
-void Plan::Check(const mjModel* m, const mjData* d, int64_t k, std::vector<int64_t>* broken) const {
-  const double* p = pos(k);
-  const double* r = mat(k);
+void Plan::Check(const double* pos, const double* mat, int64_t k, const double* boxes, int64_t nbox,
+                 const uint8_t* ok, std::vector<int64_t>* broken) const {
+  const double* pp = this->pos(k);
+  const double* pm = this->mat(k);
   const size_t first = broken->size();
-  for (int64_t g = 0; g < ngeom_; ++g) {
-    const int64_t b = m->geom_bodyid[g];
-    const double moved =
-        Displacement(d->geom_xpos + 3 * g, d->geom_xmat + 9 * g, p + 3 * g, r + 9 * g,
-                     m->geom_rbound[g], m->geom_type[g] == mjGEOM_PLANE);
+  for (int64_t i = 0; i < nbox; ++i) {
+    const double* box = boxes + i * kBNcol;
+    const auto b = static_cast<int64_t>(box[kBBody]);
+    if (!holds_[b] || (ok != nullptr && !ok[b])) continue;
+    const auto g = static_cast<int64_t>(box[kBFrame]);
     // A pose that is not a number is not within any deviation (docs/hardening.md).
-    if (!(moved <= dev(k, b)) && std::find(broken->begin() + static_cast<std::ptrdiff_t>(first),
-                                           broken->end(), b) == broken->end()) {
+    if (!BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))) {
       broken->push_back(b);
     }
+  }
+  for (const int64_t g : planes_) {
+    const int64_t b = geom_body_[g];
+    if ((ok != nullptr && !ok[b]) || std::find(broken->begin() + static_cast<std::ptrdiff_t>(first),
+                                               broken->end(), b) != broken->end()) {
+      continue;
+    }
+    // Any change of a plane's pose moves some of its points arbitrarily far.
+    const bool same = std::equal(pos + 3 * g, pos + 3 * g + 3, pp + 3 * g) &&
+                      std::equal(mat + 9 * g, mat + 9 * g + 9, pm + 9 * g);
+    if (!same) broken->push_back(b);
   }
 }
 
 void PlanPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out) {
   dua_plan& pl = a.plan;
   const Plan& plan = *static_cast<const Plan*>(pl.impl);
+  auto* d = static_cast<mjData*>(pl.data);
   for (int64_t k = 0; k < count; ++k) {
     const int64_t p = ids[k];
     const int64_t mp = a.ids[p];
-    const int64_t g1 = pl.geom1[mp], g2 = pl.geom2[mp];
-    const int64_t b1 = pl.geom_body[g1], b2 = pl.geom_body[g2];
-    // A terrain's pair is left to the motion bounds: the plan's gaps (StaticGap,
-    // mj_geomDistance) are no lower bounds on a height field (docs/theory.md, section 9).
-    const double* rec = a.pairs + p * kPairNcol;
-    const bool terrain =
-        static_cast<int>(rec[kPairKind]) == kKindShape &&
-        static_cast<int>(
-            a.shapes[static_cast<int64_t>(rec[kPairOther]) * kShapeNcol + kShapeKind]) ==
-            kGeomHField;
-    pl.planned[k] = !terrain && pl.body_ok[b1] && pl.body_ok[b2];
-    if (pl.planned[k]) out[k] = PlanTau(a, plan, p, g1, g2, b1, b2);
+    const Judged v = Judge(a, plan, pl.body_ok, d, pl.knot, p, pl.geom1[mp], pl.geom2[mp]);
+    pl.planned[k] = v.knot >= 0;
+    if (v.knot < 0) continue;
+    out[k] = GridTau(v.knot - pl.knot, plan.h(), pl.period);
+    if (pl.basis != nullptr) pl.basis[p] = v.basis;
   }
+}
+
+int64_t PlanKnot(dua_step_args& a, const Plan& plan, const uint8_t* ok, int64_t k, int64_t p,
+                 int64_t g1, int64_t g2) {
+  return Judge(a, plan, ok, static_cast<mjData*>(a.plan.data), k, p, g1, g2).knot;
 }
 
 }  // namespace dua

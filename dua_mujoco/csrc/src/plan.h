@@ -1,11 +1,14 @@
 // Flight plans (docs/theory.md, section 8): the motion the caller expects over the coming physics
 // steps, as joint positions at each of them (an MPC's or a planner's trajectory, or a rollout of
-// known controls), and a bound on how far every point of each body may stray from where the plan
-// puts it. While a plan covers a step and a body has stayed within its deviation, a pair's tau is
-// the time to the first knot at which the plan's geometry, less both bodies' deviations, may
-// touch: no acceleration bound enters, so the verdict stays tight over any horizon the plan
-// covers. A body found farther than its deviation, and every pair past the plan's end, falls
-// back to the motion bounds.
+// known controls) and, if it plans mocap bodies, their poses; the bodies it holds; and a bound on
+// how far every point of each of them may stray from where the plan puts it. Each body is, at
+// each step, *planned* (held by the plan and found within its deviation so far; static bodies
+// always, with deviation 0), or follows its motion bounds (not held, or found beyond its
+// deviation until the next plan). A pair of two planned bodies has the plan's tau (8): the time
+// to the first knot at which the plan's geometry, less both deviations, may touch. A pair of a
+// planned body and one that follows its bounds has the mixed tau: the planned geom at each knot,
+// less its deviation, against the other's reach from where it is now, from its own bounds (speed
+// and separation monitoring). No acceleration bound of a planned body enters either.
 #ifndef DUA_MUJOCO_PLAN_H_
 #define DUA_MUJOCO_PLAN_H_
 
@@ -19,29 +22,54 @@
 
 namespace dua {
 
+// How far the point of frame coordinates q of a geom lies between two poses of it, (pa, ra)
+// and (pb, rb): |(pa - pb) + (ra - rb) q|, rounded up past its own rounding (0 exactly for equal
+// poses). The one measure of a deviation: the step's check, a replan's departures and
+// dua_mujoco.runtime.plans.deviation_profile all take it at the corners of each body's box.
+DUA_API double PoseDeviation(const double* q, const double* pa, const double* ra, const double* pb,
+                             const double* rb);
+// The largest PoseDeviation over the eight corners of box (a violation-check record: its frame
+// geom's coordinates, kBCenter +- kBHalf) between that geom's poses (pa, ra) and (pb, rb). Every
+// point the plan's gaps rely on lies in the box, and a point's deviation is convex in its
+// coordinates, so this bounds all of them (docs/theory.md, Lemma 8.1).
+DUA_API double BoxDeviation(const double* box, const double* pa, const double* ra, const double* pb,
+                            const double* rb);
+// Whether BoxDeviation(box, pa, ra, pb, rb) <= limit, screened first by a bound over the box
+// that costs no corner (equal poses pass at once): the same verdict as the comparison itself.
+DUA_API bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
+                       const double* rb, double limit);
+
 class Plan {
  public:
-  // The plan of qpos (n, nq), row j the state at time start + j h, every geom's pose computed
-  // by mj_kinematics on scratch (an mjData of m whose mocap poses are the run's), and dev (n,
-  // nbody): a bound on the distance of every point of each body's geoms from its planned
-  // position at each knot. Returns an error message naming the bad input, or "".
-  std::string Build(const mjModel* m, mjData* scratch, const double* qpos, int64_t n,
-                    const double* dev, double start, double h);
+  // The plan `in` (dua_plan_input), each geom's pose at each knot computed by mj_kinematics on
+  // scratch (an mjData of m), h the model's timestep; spheres (nsphere, 8) the covering's
+  // records, whose centres the sweeps bound too. Returns an error message naming the bad input,
+  // or "".
+  std::string Build(const mjModel* m, mjData* scratch, const dua_plan_input& in, double h,
+                    const double* spheres, int64_t nsphere);
 
   // The knot at `time` (-1: not one of the plan's, within a millionth of a step).
   int64_t KnotOf(double time) const;
-  // Appends to broken the bodies with a geom farther from its planned pose at knot k than the
-  // body's deviation (a bound on every point's distance: |dp| + |dR|_F r, r the geom's bounding
-  // radius about its origin; a plane off its planned pose is unbounded).
-  void Check(const mjModel* m, const mjData* d, int64_t k, std::vector<int64_t>* broken) const;
+  // Body b is a moving body the plan holds / a static body (planned, deviation 0).
+  bool holds(int64_t b) const { return holds_[b] != 0; }
+  bool fixed(int64_t b) const { return fixed_[b] != 0; }
+  // Appends to broken the bodies the plan holds, with ok[b] set (null: all), found beyond their
+  // deviation at knot k with the geoms at poses (pos, mat) (MjData's geom_xpos, geom_xmat): a
+  // corner of the body's box (boxes, nbox rows of the violation check) farther from its planned
+  // place than the deviation (BoxDeviation), or a plane geom of the body off its planned pose
+  // (a plane reaches arbitrarily far).
+  void Check(const double* pos, const double* mat, int64_t k, const double* boxes, int64_t nbox,
+             const uint8_t* ok, std::vector<int64_t>* broken) const;
 
   int64_t nknot() const { return nknot_; }
   double start() const { return start_; }
   double h() const { return h_; }
+  double TimeOf(int64_t k) const { return start_ + static_cast<double>(k) * h_; }
   const double* pos(int64_t k) const { return pos_.data() + 3 * ngeom_ * k; }
   const double* mat(int64_t k) const { return mat_.data() + 9 * ngeom_ * k; }
-  // How far any point of geom g may have moved along the plan from knot 0 to knot k (a prefix
-  // sum of each step's bound; +inf once a plane geom moves).
+  // How far any point of geom g, and any centre of its covering spheres, may have moved along
+  // the plan from knot 0 to knot k (a prefix sum of each step's bound; +inf once a plane geom
+  // moves).
   double sweep(int64_t k, int64_t g) const { return sweep_[ngeom_ * k + g]; }
   double dev(int64_t k, int64_t b) const { return dev_[nbody_ * k + b]; }
 
@@ -49,12 +77,23 @@ class Plan {
   int64_t nknot_ = 0, ngeom_ = 0, nbody_ = 0;
   double start_ = 0.0, h_ = 0.0;
   std::vector<double> pos_, mat_, sweep_, dev_;
+  std::vector<uint8_t> holds_, fixed_;
+  std::vector<int64_t> planes_;  // plane geoms on bodies the plan holds
+  std::vector<int> geom_body_;
 };
 
-// tau of held pairs ids[0:count] under a.plan where it covers them (both bodies within their
-// deviation): out[k] replaced and a.plan.planned[k] set; elsewhere planned[k] = 0 and out[k]
-// kept. MuJoCo's distance queries at knots are counted in a.plan.queries.
+// tau of held pairs ids[0:count] under a.plan where it covers them (a.plan.planned[k] set and
+// out[k] replaced): the plan's tau when both bodies are planned, the mixed tau when one is and
+// the other follows its bounds; elsewhere planned[k] = 0 and out[k] kept. Each pair's basis
+// (dua_plan.basis) is written. MuJoCo's distance queries at knots are counted in a.plan.queries.
 void PlanPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out);
+
+// The knot (of `plan`, from knot k) at which the contact of pair record p (a.pairs, with its
+// exact record in a.exact.records if the level is on) can first not be excluded under the plan,
+// whose bodies in ok[] are planned (plan.nknot() if none); -1 when neither geom is on a moving
+// planned body (the plan says nothing of the pair). The same code as PlanPass.
+int64_t PlanKnot(dua_step_args& a, const Plan& plan, const uint8_t* ok, int64_t k, int64_t p,
+                 int64_t g1, int64_t g2);
 
 }  // namespace dua
 

@@ -10,9 +10,9 @@
 // kinematics of the state the step starts from: the instant the Python predictor reads after
 // that mj_step (docs/discrete-time.md). The first compute after init or mj_resetData classifies
 // every pair; later ones step when the clock has advanced by one predictor period, do nothing
-// when it has not moved (an mj_forward between steps) or has moved by whole physics steps within
-// the period, and classify again when it moved any other way (time set back, a jump) or when
-// the last step met a state that is not finite.
+// when it has not moved (an mj_forward between steps), only check a flight plan when it has
+// moved by whole physics steps within the period, and classify again when it moved any other way
+// (time set back, a jump) or when the last step met a state that is not finite.
 #include <mujoco/mjplugin.h>
 #include <mujoco/mujoco.h>
 
@@ -157,8 +157,13 @@ void Compute(const mjModel* m, mjData* d, int instance) {
   Runtime& rt = in->rt;
   if (rt.classified()) {
     switch (rt.ClockOf(d->time)) {
-      case Runtime::Clock::kSame:          // an mj_forward at the same instant: the outputs stand
-      case Runtime::Clock::kWithinPeriod:  // within the period: the next step comes at its end
+      case Runtime::Clock::kSame:  // an mj_forward at the same instant: the outputs stand
+        break;
+      case Runtime::Clock::kWithinPeriod:
+        // Within the period the next step comes at its end; a flight plan is checked at every
+        // physics step, so that a body off its plan between two steps has its pairs made due
+        // at the next (docs/theory.md, section 8).
+        rt.CheckPlan(m, d);
         break;
       case Runtime::Clock::kOnePeriod:
         // Not finite: the step was undone; classify again at the next state.
@@ -345,13 +350,14 @@ DUA_API int64_t dua_plugin_set_active(const mjModel* m, mjData* d, int instance,
   return static_cast<int64_t>(ids.size());
 }
 
-DUA_API int64_t dua_plugin_set_plan(const mjModel* m, mjData* d, int instance, const double* qpos,
-                                    int64_t n, const double* deviation, double start, char* error,
+DUA_API int64_t dua_plugin_set_plan(const mjModel* m, mjData* d, int instance,
+                                    const dua_plan_input* plan, double* departures, char* error,
                                     int64_t error_size) {
   dua::Instance* in = dua::Find(m, d, instance);
   if (!in) return -1;
   if (!in->rt.classified()) return -2;
-  const std::string why = in->rt.SetPlan(m, qpos, n, deviation, start);
+  const std::string why = plan == nullptr ? std::string("is null: pass a dua_plan_input")
+                                          : in->rt.SetPlan(m, *plan, departures);
   if (why.empty()) return 0;
   if (error != nullptr && error_size > 0) {
     const std::string message = "the plan " + why;

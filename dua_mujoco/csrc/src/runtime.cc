@@ -52,6 +52,18 @@ Runtime::Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t
   mocap_linear_.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
   mocap_angular_.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
   mocap_user_.assign(m->nmocap, 0);
+  // Each body's row of the violation check (whose boxes the plans measure deviations at), and
+  // the bodies with covered geoms but no row (the check is off): no plan may hold those.
+  body_row_.assign(m->nbody, -1);
+  for (int64_t i = 0; i < t.nbody_events; ++i) {
+    body_row_[static_cast<int64_t>(t.events_rec[kBNcol * i + kBBody])] = i;
+  }
+  unboxed_.assign(m->nbody, 0);
+  for (int64_t i = 0; i < t.nsphere(); ++i) {
+    const auto g = static_cast<int64_t>(t.spheres[kSphereNcol * i + kSphereFrame]);
+    if (t.geom_row[g] < 0) unboxed_[m->geom_bodyid[g]] = 1;
+  }
+  plan_ok_.assign(m->nbody, 0);
   Hold(Iota(n));  // every pair known, until a pruned classification chooses
   schedule_ = std::make_shared<Schedule>(t.schedule, npair());
   NewLog();
@@ -98,6 +110,12 @@ Runtime::Runtime(const Runtime& o)
       held_version_(o.held_version_),
       plan_(o.plan_),  // immutable: shared; the mjData it is queried on is made when needed
       plan_ok_(o.plan_ok_),
+      basis_(o.basis_),
+      basis_prev_(o.basis_prev_),
+      shadows_(o.shadows_),
+      pending_due_(o.pending_due_),
+      body_row_(o.body_row_),
+      unboxed_(o.unboxed_),
       plan_breaks_(o.plan_breaks_),
       read_lag_(o.read_lag_),
       forget_after_(o.forget_after_),
@@ -145,6 +163,7 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
                         1));
   scratch_.assign(12 * static_cast<size_t>(std::max<int64_t>(n, 1)), 0.0);
   stands_.assign(n, 0);
+  basis_.assign(n, 0), basis_prev_.assign(n, 0);  // a pair new to the held set: the bounds
   ++held_version_;
 }
 
@@ -234,6 +253,8 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   a.log_new = log_->fresh.data();
   dua_plan& pl = a.plan;
   pl.impl = plan_.get();
+  pl.basis = basis_.data();
+  pl.basis_prev = basis_prev_.data();
   if (plan_) {
     if (!plan_data_) plan_data_.reset(mj_makeData(m));
     const Universe& u = universe();
@@ -242,40 +263,115 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
     pl.geom1 = u.geom1.data();
     pl.geom2 = u.geom2.data();
     pl.geom_body = m->geom_bodyid;
+    pl.geom_row = t.geom_row.data();
     pl.data = plan_data_.get();
     pl.planned = planned_.data();
+    pl.period = static_cast<int64_t>(std::nearbyint(t.schedule.dt / t.timestep));
   }
   return a;
 }
 
-std::string Runtime::SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
-                             double start) {
+std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double* departures) {
   if (!classified_) return "comes before the first classification: reset the predictor first";
-  if (m->nmocap > 0) {
-    return "is for a model with mocap bodies, whose planned poses a plan of qpos does not hold";
-  }
   if (!plan_data_) plan_data_.reset(mj_makeData(m));
   if (!plan_data_) return "needs an mjData that MuJoCo could not allocate";
   auto plan = std::make_shared<Plan>();
-  std::string error = plan->Build(m, plan_data_.get(), qpos, n, dev, start, m->opt.timestep);
+  std::string error = plan->Build(m, plan_data_.get(), in, m->opt.timestep, tables_->spheres.data(),
+                                  tables_->nsphere());
   if (!error.empty()) return error;
-  const double next = last_time_ + tables_->schedule.dt - read_lag_ * m->opt.timestep;
+  for (int b = 0; b < m->nbody; ++b) {
+    if (plan->holds(b) && unboxed_[b]) {
+      return "holds body " + std::to_string(b) +
+             ", whose deviation is measured at the violation check's box, which this predictor "
+             "does not have: build it with violation_events on (the default)";
+    }
+  }
+  const double h = m->opt.timestep;
+  const double next = last_time_ + tables_->schedule.dt - read_lag_ * h;
   if (plan->KnotOf(next) < 0) {
     return "does not cover the state the next step reads (time " + std::to_string(next) +
            "): start it at or before that time, on a whole number of timesteps from it, with " +
            "knots past it";
   }
+  Retire();
+  // Each shadow's check of a body can wait for the first state in its span at which the new
+  // plan leaves its tube: until then the new plan's own check proves the body within it.
+  const Tables& t = *tables_;
+  for (Shadow& sh : shadows_) {
+    const Plan& old = *sh.plan;
+    std::fill(sh.from.begin(), sh.from.end(), kInf);
+    for (int64_t i = 0; i < t.nbody_events; ++i) {
+      const double* box = t.events_rec.data() + kBNcol * i;
+      const auto b = static_cast<int64_t>(box[kBBody]);
+      const auto g = static_cast<int64_t>(box[kBFrame]);
+      if (!old.holds(b) || !sh.ok[b]) continue;
+      const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
+      for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
+        const double time = next + static_cast<double>(s) * h;
+        const int64_t jo = jo0 + s, jn = jn0 + s < plan->nknot() ? jn0 + s : -1;
+        if (time > sh.until + 1e-6 * h) break;
+        // |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the difference's
+        // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
+        const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
+        if (jn < 0 || !plan->holds(b) ||
+            !BoxWithin(box, plan->pos(jn) + 3 * g, plan->mat(jn) + 9 * g, old.pos(jo) + 3 * g,
+                       old.mat(jo) + 9 * g, room)) {
+          sh.from[b] = time;
+          break;
+        }
+      }
+    }
+  }
+  if (departures != nullptr) {
+    std::fill(departures, departures + m->nbody, kInf);
+    for (const Shadow& sh : shadows_) {
+      for (int b = 0; b < m->nbody; ++b) departures[b] = std::min(departures[b], sh.from[b]);
+    }
+  }
+  // A shadow the new plan never leaves over its span is nested: a body beyond it is beyond the
+  // new plan (and the plans after it, while they keep to this one), whose checks find it at the
+  // same state. Dropped, so that replans that keep to the plan they replace (an MPC replanning at
+  // every step) keep no shadow to check or to compare with.
+  shadows_.erase(std::remove_if(shadows_.begin(), shadows_.end(),
+                                [](const Shadow& sh) {
+                                  for (size_t b = 0; b < sh.ok.size(); ++b) {
+                                    if (sh.ok[b] && sh.from[b] < kInf) return false;
+                                  }
+                                  return true;
+                                }),
+                 shadows_.end());
   plan_ = std::move(plan);
-  plan_ok_.assign(m->nbody, 1);
+  for (int b = 0; b < m->nbody; ++b) plan_ok_[b] = plan_->holds(b) ? 1 : 0;
   MakeAllDue(step_ + 1);
   return "";
 }
 
+void Runtime::Retire() {
+  if (!plan_) return;
+  // The next step's verdicts are all under the new plan (every pair is due then); the old ones
+  // are in force until that step's act (latency) and cover the alarm horizon past it.
+  const ScheduleSpec& spec = tables_->schedule;
+  const double horizon = spec.alarm_horizon > 0.0 ? spec.alarm_horizon : spec.dt;
+  const double next = last_time_ + spec.dt - read_lag_ * tables_->timestep;
+  const size_t nbody = plan_ok_.size();
+  shadows_.push_back({plan_, plan_ok_, next + horizon + static_cast<double>(spec.latency) * spec.dt,
+                      std::vector<double>(nbody, std::nan("")), std::vector<double>(nbody, -kInf)});
+}
+
 void Runtime::ClearPlan() {
   if (!plan_) return;
+  Retire();
   plan_.reset();
   args_.plan.impl = nullptr;
   MakeAllDue(step_ + 1);
+}
+
+void Runtime::DropPlans() {
+  plan_.reset();
+  args_.plan.impl = nullptr;
+  shadows_.clear();
+  pending_due_.clear();
+  std::fill(plan_ok_.begin(), plan_ok_.end(), 0);
 }
 
 void Runtime::MakeAllDue(int64_t n) {
@@ -283,42 +379,226 @@ void Runtime::MakeAllDue(int64_t n) {
   for (int64_t p = 0; p < npair(); ++p) dua_make_due(st, p, n);
 }
 
-void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
-  if (!plan_) return;
-  // A classification (n = 0) evaluates every pair anyway, on a schedule it makes afresh.
-  const bool due = n > 0;
-  const int64_t k = plan_->KnotOf(StateTime(m, d));
-  if (k < 0) {
-    // Past the plan (or a clock the plan does not know): the bounds alone from here on.
-    plan_.reset();
-    args_.plan.impl = nullptr;
-    if (due) MakeAllDue(n);
+void Runtime::MakeBodyDue(const mjModel* m, int64_t b, int64_t n) {
+  dua_schedule* st = schedule_->state();
+  const int64_t row = body_row_[b];
+  if (row >= 0) {
+    for (int64_t k = held_start_[row]; k < held_start_[row + 1]; ++k) {
+      dua_make_due(st, held_members_[k], n);
+      plan_due_.push_back(held_members_[k]);
+    }
     return;
   }
-  args_.plan.knot = k;
-  std::vector<int64_t> broken;
-  plan_->Check(m, d, k, &broken);
-  for (const int64_t b : broken) {
-    if (!plan_ok_[b]) continue;
-    plan_ok_[b] = 0;
-    ++plan_breaks_;
-    if (!due) continue;
-    const Universe& u = universe();
-    for (int64_t p = 0; p < npair(); ++p) {
-      const int64_t mp = ids_[p];
-      if (m->geom_bodyid[u.geom1[mp]] == b || m->geom_bodyid[u.geom2[mp]] == b) {
-        dua_make_due(schedule_->state(), p, n);
-      }
+  // A body without a row (a plane geom alone): its pairs by a scan.
+  const Universe& u = universe();
+  for (int64_t p = 0; p < npair(); ++p) {
+    const int64_t mp = ids_[p];
+    if (m->geom_bodyid[u.geom1[mp]] == b || m->geom_bodyid[u.geom2[mp]] == b) {
+      dua_make_due(st, p, n);
+      plan_due_.push_back(p);
     }
   }
 }
 
+int64_t Runtime::CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken) {
+  const double now = StateTime(m, d), h = m->opt.timestep;
+  const Tables& t = *tables_;
+  const int64_t k = plan_ ? plan_->KnotOf(now) : -1;
+  if (k >= 0) {
+    plan_->Check(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), t.nbody_events,
+                 plan_ok_.data(), broken);
+    for (const int64_t b : *broken) plan_ok_[b] = 0;
+  }
+  shadows_.erase(std::remove_if(shadows_.begin(), shadows_.end(),
+                                [&](const Shadow& sh) {
+                                  const double last = sh.plan->TimeOf(sh.plan->nknot() - 1);
+                                  return now > std::min(sh.until, last) + 1e-6 * h;
+                                }),
+                 shadows_.end());
+  std::vector<uint8_t> open;
+  for (Shadow& sh : shadows_) {
+    const int64_t j = sh.plan->KnotOf(now);
+    if (j < 0) continue;
+    ShadowOpen(sh, now, k, h, &open);
+    const size_t first = broken->size();
+    sh.plan->Check(d->geom_xpos, d->geom_xmat, j, t.events_rec.data(), t.nbody_events, open.data(),
+                   broken);
+    for (size_t i = first; i < broken->size(); ++i) {
+      sh.ok[(*broken)[i]] = 0;
+      sh.broken_at[(*broken)[i]] = now;
+    }
+  }
+  return k;
+}
+
+void Runtime::ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
+                         std::vector<uint8_t>* open) const {
+  open->resize(sh.ok.size());
+  for (size_t b = 0; b < sh.ok.size(); ++b) {
+    // Checked from the plan's departure on, or when the plan does not prove the body within.
+    const bool due = now >= sh.from[b] - 1e-6 * h || k < 0 || !plan_ok_[b];
+    (*open)[b] = sh.ok[b] && due;
+  }
+}
+
+void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
+  plan_due_.clear();
+  for (const int64_t b : pending_due_) MakeBodyDue(m, b, n);
+  pending_due_.clear();
+  if (!plan_ && shadows_.empty()) return;
+  std::vector<int64_t> broken;
+  const int64_t k = CheckPlans(m, d, &broken);
+  if (k >= 0) {
+    args_.plan.knot = k;
+  } else if (plan_) {
+    // Past the plan (or a clock the plan does not know): the bounds alone from here on. Its
+    // verdicts never covered past its last knot: nothing is left to check.
+    plan_.reset();
+    args_.plan.impl = nullptr;
+    MakeAllDue(n);
+  }
+  plan_breaks_ += static_cast<int64_t>(broken.size());
+  for (const int64_t b : broken) MakeBodyDue(m, b, n);
+}
+
+std::vector<int64_t> Runtime::CheckPlan(const mjModel* m, const mjData* d) {
+  std::vector<int64_t> broken;
+  if (!classified_ || (!plan_ && shadows_.empty())) return broken;
+  CheckPlans(m, d, &broken);
+  plan_breaks_ += static_cast<int64_t>(broken.size());
+  pending_due_.insert(pending_due_.end(), broken.begin(), broken.end());
+  return broken;
+}
+
 std::vector<int64_t> Runtime::PlanBroken(const mjModel* m, const mjData* d) const {
   std::vector<int64_t> out;
-  const int64_t k = plan_ ? plan_->KnotOf(StateTime(m, d)) : -1;
-  if (k < 0) return {-1};
-  plan_->Check(m, d, k, &out);
+  const double now = StateTime(m, d);
+  const double h = m->opt.timestep;
+  const Tables& t = *tables_;
+  bool covered = false;
+  const int64_t k = plan_ ? plan_->KnotOf(now) : -1;
+  if (k >= 0) {
+    covered = true;
+    plan_->Check(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), t.nbody_events, nullptr, &out);
+  }
+  const size_t planned = out.size();
+  std::vector<uint8_t> open;
+  for (const Shadow& sh : shadows_) {
+    const int64_t j = sh.plan->KnotOf(now);
+    if (j < 0 || now > sh.until + 1e-6 * h) continue;
+    covered = true;
+    // As the step checks it (bodies the plan beyond its deviation now no longer proves within),
+    // and those found at this very state: once a break of it was seen, the verdicts in force
+    // rest on later plans, not on this one.
+    ShadowOpen(sh, now, k, h, &open);
+    for (size_t b = 0; b < open.size(); ++b) {
+      const bool here =
+          std::find(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(planned),
+                    static_cast<int64_t>(b)) != out.begin() + static_cast<std::ptrdiff_t>(planned);
+      open[b] = open[b] || (sh.ok[b] && here) || sh.broken_at[b] == now;
+    }
+    const size_t first = out.size();
+    sh.plan->Check(d->geom_xpos, d->geom_xmat, j, t.events_rec.data(), t.nbody_events, open.data(),
+                   &out);
+    // Each body once.
+    for (size_t i = first; i < out.size();) {
+      if (std::find(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(first), out[i]) !=
+          out.begin() + static_cast<std::ptrdiff_t>(first)) {
+        out.erase(out.begin() + static_cast<std::ptrdiff_t>(i));
+      } else {
+        ++i;
+      }
+    }
+  }
+  if (!covered) return {-1};
   return out;
+}
+
+std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan_input& candidate,
+                               const std::vector<int64_t>& g1, const std::vector<int64_t>& g2,
+                               std::vector<int64_t>* knots) const {
+  if (!query_data_) query_data_.reset(mj_makeData(m));
+  if (!query_data_) return "needs an mjData that MuJoCo could not allocate";
+  const Tables& t = *tables_;
+  Plan plan;
+  std::string error =
+      plan.Build(m, query_data_.get(), candidate, m->opt.timestep, t.spheres.data(), t.nsphere());
+  if (!error.empty()) return error;
+  for (int b = 0; b < m->nbody; ++b) {
+    if (plan.holds(b) && unboxed_[b]) {
+      return "holds body " + std::to_string(b) +
+             ", which has no box in the violation check: build the predictor with "
+             "violation_events on (the default)";
+    }
+  }
+  const int64_t k = plan.KnotOf(StateTime(m, d));
+  if (k < 0) {
+    return "does not cover the state of the data (time " + std::to_string(StateTime(m, d)) +
+           "): start it there, on a whole number of timesteps from it";
+  }
+  const Universe& u = universe();
+  const auto n = static_cast<int64_t>(g1.size());
+  // The sphere pairs of each geom pair asked, their records copied (the exact level writes the
+  // directions it finds into its own), in one scan of the pairs known.
+  std::vector<int64_t> gp(n), order;
+  for (int64_t q = 0; q < n; ++q) {
+    const int64_t lo = std::min(g1[q], g2[q]), hi = std::max(g1[q], g2[q]);
+    gp[q] = lo == hi ? -1 : u.GeomPair(lo, hi);
+  }
+  std::vector<int64_t> asked(u.ngp(), -1);
+  for (int64_t q = 0; q < n; ++q) {
+    if (gp[q] >= 0) asked[gp[q]] = q;
+  }
+  std::vector<double> pairs, exact;
+  std::vector<int64_t> owner, geom_a, geom_b;
+  for (int64_t p = 0; p < u.npair(); ++p) {
+    const int64_t q = asked[u.pair_geom[p]];
+    if (q < 0) continue;
+    pairs.insert(pairs.end(), u.pairs.begin() + kPairNcol * p,
+                 u.pairs.begin() + kPairNcol * (p + 1));
+    if (t.exact) {
+      exact.insert(exact.end(), u.exact.begin() + kXNcol * p, u.exact.begin() + kXNcol * (p + 1));
+    }
+    owner.push_back(gp[q]), geom_a.push_back(u.geom1[p]), geom_b.push_back(u.geom2[p]);
+  }
+  // The step's arguments for these records on d's state (PlanPass reads the same).
+  dua_step_args a = args_;
+  a.pairs = pairs.data();
+  a.spheres = t.spheres.data();
+  a.shapes = t.shapes.data();
+  a.frame = {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist_.data(), d->xpos};
+  a.exact.on = t.exact ? 1 : 0;
+  a.exact.geoms = t.geoms.data();
+  a.exact.verts = m->mesh_vert;
+  a.exact.graph = t.graph.data();
+  a.exact.records = exact.data();
+  a.exact.model = m;
+  a.exact.data = d;
+  a.events.rec = t.events_rec.data();
+  std::vector<double> state(6 * static_cast<size_t>(t.nsphere()));
+  std::vector<int64_t> epoch(t.nsphere(), -1);
+  a.point_state = state.data();
+  a.point_epoch = epoch.data();
+  a.epoch = 0;
+  a.plan.geom_body = m->geom_bodyid;
+  a.plan.geom_row = t.geom_row.data();
+  a.plan.data = query_data_.get();
+  std::vector<uint8_t> ok(m->nbody);
+  for (int b = 0; b < m->nbody; ++b) ok[b] = plan.holds(b) ? 1 : 0;
+  std::vector<int64_t> by_gp(u.ngp(), plan.nknot());
+  std::vector<uint8_t> said(u.ngp(), 0);
+  for (size_t p = 0; p < owner.size(); ++p) {
+    const auto id = static_cast<int64_t>(p);
+    const int64_t j = PlanKnot(a, plan, ok.data(), k, id, geom_a[p], geom_b[p]);
+    if (j < 0) continue;
+    said[owner[p]] = 1;
+    by_gp[owner[p]] = std::min(by_gp[owner[p]], j);
+  }
+  knots->assign(n, -2);
+  for (int64_t q = 0; q < n; ++q) {
+    if (gp[q] >= 0) (*knots)[q] = said[gp[q]] ? by_gp[gp[q]] : -1;
+  }
+  return "";
 }
 
 void Runtime::Learnt() {
@@ -411,10 +691,9 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
     Bind(m, d);
   }
   dua_reset_events(&args_);
-  if (plan_) {
-    Bind(m, d);  // the plan's buffers sized for the held pairs
-    FollowPlan(m, d, 0);
-  }
+  // A classification judges from the state alone: no verdict, and no plan, carries over it (a
+  // reset, a jump of the clock, a state the last step could not read).
+  DropPlans();
   const int64_t n = npair();
   std::vector<double> tau0(n);
   const std::vector<int64_t> all = Iota(n);
@@ -586,7 +865,14 @@ void Runtime::Carry(const mjModel* m, const mjData* d, const std::vector<int64_t
   auto next = std::make_shared<Schedule>(tables_->schedule, k);
   next->Carry(*schedule_, src, n);
   schedule_ = std::move(next);
+  // What the carried verdicts rested on goes with them; a new pair's was the bounds (its
+  // exclusion rested on both bodies' reach).
+  std::vector<uint8_t> basis(k, 0), basis_prev(k, 0);
+  for (int64_t p = 0; p < k; ++p) {
+    if (src[p] >= 0) basis[p] = basis_[src[p]], basis_prev[p] = basis_prev_[src[p]];
+  }
   Hold(held);
+  basis_.swap(basis), basis_prev_.swap(basis_prev);
   Bind(m, d);
   // Pairs new to the held set that were switched off stay off.
   std::vector<int64_t> off;
@@ -653,6 +939,8 @@ void Runtime::TrackStep() {
     const int64_t i = events_flagged_[k];
     Track(held_members_.data() + held_start_[i], held_start_[i + 1] - held_start_[i]);
   }
+  // Pairs a plan break withdrew (the rank schedule may leave them waiting, standing in alarm).
+  Track(plan_due_.data(), static_cast<int64_t>(plan_due_.size()));
   min_tau_ = kInf;
   for (int64_t k = 0; k < args_.count; ++k) min_tau_ = std::min(min_tau_, s.w_tau[k]);
 }

@@ -104,13 +104,21 @@ class DUA_API Runtime {
   // The counted geom pairs standing in alarm, rows (g1, g2) in increasing order.
   std::vector<int64_t> WatchedStanding() const;
 
-  // Flight plans (plan.h): qpos (n, nq), row j the state at time start + j h (h the model's
-  // timestep), and dev (n, nbody), each body's deviation bound at each knot. Every held pair is
-  // evaluated again at the next step, under the plan. The plan must cover the state the next
-  // step reads (StateTime). Returns an error message naming the bad input, or "".
-  std::string SetPlan(const mjModel* m, const double* qpos, int64_t n, const double* dev,
-                      double start);
-  // Back to the motion bounds alone (every held pair evaluated again at the next step).
+  // Flight plans (plan.h; docs/theory.md, section 8). SetPlan follows `plan` (its knots at
+  // start + j h, h the model's timestep, its bodies, deviations and mocap poses): every held pair
+  // is evaluated again at the next step, under it. The plan must cover the state the next step
+  // reads (StateTime), and the bodies it holds must have boxes in the violation check (the
+  // deviation is measured at their corners). The plan it replaces stays as a *shadow*, checked
+  // only, over the span its verdicts cover (until the state of the first step under the new plan
+  // plus the alarm horizon and the latency): a body found beyond its old deviation there breaks
+  // the old plan (counted, its pairs made due, reported by PlanBroken). departures (nbody) or
+  // null receives, per body, the first state time in that span at which the new plan leaves the
+  // old plan's deviation tube (|new - old| + D_new > D_old at a box corner; the first step when
+  // the new plan does not hold the body; +inf: never). Returns an error message naming the bad
+  // input, or "".
+  std::string SetPlan(const mjModel* m, const dua_plan_input& plan, double* departures);
+  // Back to the motion bounds alone (every held pair evaluated again at the next step; the plan
+  // stays as a shadow, as when replaced).
   void ClearPlan();
   // How many timesteps the state a step reads lags d->time: 1 after mj_step (Python's Predictor,
   // whose state is the one MuJoCo's step started from), 0 inside mj_step (the plugin's compute,
@@ -121,13 +129,34 @@ class DUA_API Runtime {
   }
   bool has_plan() const { return plan_ != nullptr; }
   const Plan* plan() const { return plan_.get(); }
-  // Bodies found beyond their deviation since the plan came (their pairs follow the bounds).
+  // Bodies the plan holds and found within their deviation so far (the rest follow their bounds).
   const std::vector<uint8_t>& plan_ok() const { return plan_ok_; }
+  // Bodies found beyond their deviation (of the plan, or of a shadow over its span), so far.
   int64_t plan_breaks() const { return plan_breaks_; }
   int64_t plan_queries() const { return args_.plan.queries; }
-  // The bodies of d's state beyond their deviation at its knot (-1 in out[0]: no plan covers
-  // it), checking only; the monitor's every-step check.
+  // The bodies of d's state beyond their deviation at its knot, of the plan and of the shadows
+  // within their spans (-1 in out[0]: none covers it), checking only; the monitor's
+  // every-step check.
   std::vector<int64_t> PlanBroken(const mjModel* m, const mjData* d) const;
+  // The check of a step's plan, between steps (period > 1: the plugin's compute at each physics
+  // step, Predictor.check_plan): bodies found beyond their deviation are counted as breaks and
+  // their pairs made due at the next step. Returns them.
+  std::vector<int64_t> CheckPlan(const mjModel* m, const mjData* d);
+  // What each held pair's latest verdict, and the one before it, rested on (dua_plan.basis).
+  const std::vector<uint8_t>& basis() const { return basis_; }
+  const std::vector<uint8_t>& basis_prev() const { return basis_prev_; }
+
+  // For a candidate plan (built here, never followed) and geom pairs (g1[k], g2[k]), each pair's
+  // first knot of the candidate, from the knot of d's state, at which its contact cannot be
+  // excluded (the candidate's knot count when never): the plan's tau (8) where both bodies are
+  // planned (the candidate holds them, or they are static), the mixed tau where one is and the
+  // other follows its bounds from d's state (PlanPass's code). -1: the candidate plans neither
+  // body (it says nothing of the pair); -2: not a pair this runtime knows (MuJoCo's filter
+  // rejects it, or a pruned runtime has not met it: GeomPairIds learns it). Changes nothing of
+  // the predictor's (the shield's question, issue 40). Returns an error naming bad input, or "".
+  std::string PlanQuery(const mjModel* m, const mjData* d, const dua_plan_input& candidate,
+                        const std::vector<int64_t>& g1, const std::vector<int64_t>& g2,
+                        std::vector<int64_t>* knots) const;
 
   // Mocap bodies: a velocity given instead of differenced (world frame), or back to differencing.
   void SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]);
@@ -217,9 +246,23 @@ class DUA_API Runtime {
   void TrackStep();
   void Log(int64_t nalarm);
   bool Counted(int64_t gp) const;
-  // The plan's part of step n at d (0: a classification): its knot, the bodies beyond their
-  // deviation flagged and their pairs made due; past its end, the plan dropped (every pair due).
+  // The plan's part of step n at d: between-step breaks' pairs made due, the shadows checked,
+  // the plan's knot, the bodies beyond their deviation flagged and their pairs made due; past
+  // its end, the plan dropped (every pair due).
   void FollowPlan(const mjModel* m, const mjData* d, int64_t n);
+  // The plan's and the shadows' checks of d's state: the bodies found beyond their deviation
+  // appended to broken and marked (shadows past their span dropped); returns the plan's knot
+  // (-1: no plan covers the state).
+  int64_t CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken);
+  struct Shadow;
+  // The bodies shadow sh checks at state time now (the plan at knot k): those still within it,
+  // from the plan's departure from it on, or once the plan no longer proves them within.
+  void ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
+                  std::vector<uint8_t>* open) const;
+  // The plan (if any) becomes a shadow over the span its verdicts cover, the next step's.
+  void Retire();
+  void MakeBodyDue(const mjModel* m, int64_t body, int64_t n);
+  void DropPlans();
   void MakeAllDue(int64_t n);
   void FinishWatch();         // a step's or a classification's end: started and version
   void SetExpiry(int64_t p);  // pair p's leaf of the expiry tree, and its path to the root
@@ -274,7 +317,22 @@ class DUA_API Runtime {
   };
   std::shared_ptr<const Plan> plan_;
   std::unique_ptr<mjData, DataDeleter> plan_data_;
-  std::vector<uint8_t> plan_ok_, planned_;
+  mutable std::unique_ptr<mjData, DataDeleter> query_data_;  // PlanQuery's scratch
+  std::vector<uint8_t> plan_ok_, planned_, basis_, basis_prev_;
+  // A replaced plan, checked until `until` (state time) on the bodies ok when it was replaced
+  // and not found beyond it since; the state time each was found beyond it (NaN: not), and
+  // the first state at which the plan that followed leaves its tube (SetPlan; -inf: unknown).
+  struct Shadow {
+    std::shared_ptr<const Plan> plan;
+    std::vector<uint8_t> ok;
+    double until;
+    std::vector<double> broken_at, from;
+  };
+  std::vector<Shadow> shadows_;
+  std::vector<int64_t> pending_due_;  // bodies broken between steps: pairs due at the next
+  std::vector<int64_t> plan_due_;     // held pairs the plan made due at this step (tracked)
+  std::vector<int64_t> body_row_;     // each body's row of the violation check (-1: none)
+  std::vector<uint8_t> unboxed_;      // bodies with covered geoms and no row (no plan holds them)
   int64_t plan_breaks_ = 0;
   int read_lag_ = 1;
   // Forgetting (issue 35): each learnt geom pair's latest rebuild held, and the counts.

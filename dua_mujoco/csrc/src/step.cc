@@ -20,33 +20,6 @@ namespace {
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Centre and velocity of point i of a record table (sphere records, or the exact level's geom
-// records, whose first columns are the same): out[0:3] centre, out[3:6] velocity. The velocity
-// is the body twist [w; v_ref] about cvel's reference point (subtree_com of the root), plus the
-// twist of a mocap root (zero elsewhere).
-inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_frame& f,
-                       double* out) {
-  const double* rec = recs + i * ncol;
-  const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
-  PointCentre(rec, f.pos, f.mat, out);
-  const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
-  const double* tw = f.twist + 6 * b;
-  const double* ref = f.twist_ref + 3 * r;
-  const double dx = out[0] - ref[0], dy = out[1] - ref[1], dz = out[2] - ref[2];
-  out[3] = tw[3] + tw[1] * dz - tw[2] * dy;
-  out[4] = tw[4] + tw[2] * dx - tw[0] * dz;
-  out[5] = tw[5] + tw[0] * dy - tw[1] * dx;
-  const double* rt = f.root_twist + 6 * r;
-  if (rt[0] != 0.0 || rt[1] != 0.0 || rt[2] != 0.0 || rt[3] != 0.0 || rt[4] != 0.0 ||
-      rt[5] != 0.0) {
-    const double* ro = f.root_origin + 3 * r;
-    const double ex = out[0] - ro[0], ey = out[1] - ro[1], ez = out[2] - ro[2];
-    out[3] += rt[3] + rt[1] * ez - rt[2] * ey;
-    out[4] += rt[4] + rt[2] * ex - rt[0] * ez;
-    out[5] += rt[5] + rt[0] * ey - rt[1] * ex;
-  }
-}
-
 // ------------------------------------------------------------------------------- events
 
 // Whether max |a + s0 x + s1 y + s2 z| over the eight sign choices exceeds bound; two upper
@@ -292,17 +265,6 @@ int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool lanes = true)
 
 // ------------------------------------------------------------------------------- exact level
 
-// |w| r of geom g: how fast rotation can move its points away from translation.
-inline double Spin(int64_t g, const double* geoms, const dua_frame& f) {
-  const double* rec = geoms + g * kGxNcol;
-  const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
-  const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
-  const double w0 = f.twist[6 * b] + f.root_twist[6 * r];
-  const double w1 = f.twist[6 * b + 1] + f.root_twist[6 * r + 1];
-  const double w2 = f.twist[6 * b + 2] + f.root_twist[6 * r + 2];
-  return std::sqrt(w0 * w0 + w1 * w1 + w2 * w2) * rec[kGxRadius];
-}
-
 // max m.v over the hull vertices of mesh geom g (local direction m): a hill climb on MuJoCo's
 // hull graph (a linear function's local maximum over a polytope is global), from the stored
 // extreme vertex of the axis nearest m, or last time's highest if it is higher. Writes the
@@ -533,18 +495,6 @@ void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
 
 // ------------------------------------------------------------------------------- tau of pairs
 
-// RigidPoint of sphere i into out, read from MjData at its first use in this epoch.
-inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
-  double* state = a.point_state + 6 * i;
-  if (a.point_epoch[i] != a.epoch) {
-    RigidPoint(i, a.spheres, kSphereNcol, a.frame, state);
-    a.point_epoch[i] = a.epoch;
-  }
-  // Six stores (std::copy became a call to memmove).
-  out[0] = state[0], out[1] = state[1], out[2] = state[2];
-  out[3] = state[3], out[4] = state[4], out[5] = state[5];
-}
-
 // The states a batch of pairs is evaluated on: each sphere's centre and velocity, and a
 // half-space pair's plane (its unit normal and offset), read from MjData (FramePoints) or given
 // as arrays (FreePoints: spheres not on MuJoCo bodies, the paper's setting).
@@ -629,6 +579,13 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows,
   ++a.epoch;
   const int64_t bad = TauRows(a.pairs, a.shapes, FramePoints{a}, ids, count, rows, out);
   if (bad >= 0) return bad;
+  // A new verdict for each: the bounds on both sides unless the plan covers it (PlanPass).
+  if (a.plan.basis != nullptr) {
+    for (int64_t k = 0; k < count; ++k) {
+      a.plan.basis_prev[ids[k]] = a.plan.basis[ids[k]];
+      a.plan.basis[ids[k]] = 0;
+    }
+  }
   if (a.plan.impl != nullptr) {
     // A plan's verdict replaces the motion bounds' (its hypothesis is the deviation, not the
     // bounds): the pairs it covers skip the exact level on the present state.

@@ -435,6 +435,38 @@ double TauTerrainSphere(double c0, double c1, double c2, double v0, double v1, d
   return TauTerrain(rec, point, v, 0.0, eps, accel, delta);
 }
 
+namespace {
+
+// The support shape (a shape record, world) of the exact level's geom record gx at pose (pos,
+// mat): a mesh as its box, about the box's centre.
+void GeomShape(const double* gx, const double* pos, const double* mat, double* shape) {
+  shape[kShapeKind] = gx[kGxKind];
+  for (int k = 0; k < 3; ++k) {
+    shape[kShapeSize + k] = gx[kGxSize + k];
+    shape[kShapePos + k] = pos[k] + mat[3 * k] * gx[kGxCentre] +
+                           mat[3 * k + 1] * gx[kGxCentre + 1] + mat[3 * k + 2] * gx[kGxCentre + 2];
+  }
+  for (int k = 0; k < 9; ++k) shape[kShapeMat + k] = mat[k];
+}
+
+// Theorem 9.3 for an object at rest whose points may move at unit speed (u = 0, sigma = 0, A =
+// 0, delta = 1): no contact before t iff the object is farther than eps + t from the terrain,
+// so the bound is at most dist - eps (docs/theory.md, Lemma 9.5).
+constexpr double kRest[3] = {0.0, 0.0, 0.0};
+
+}  // namespace
+
+double TerrainPointGap(const double* c, const double* rec, double eps) {
+  return TauTerrainSphere(c[0], c[1], c[2], 0.0, 0.0, 0.0, rec, eps, 0.0, 1.0);
+}
+
+double TerrainGeomGap(const double* gx, const double* pos, const double* mat, const double* rec,
+                      double eps) {
+  double shape[kShapeNcol];
+  GeomShape(gx, pos, mat, shape);
+  return TauTerrain(rec, shape, kRest, 0.0, eps, 0.0, 1.0);
+}
+
 double TerrainExactTau(const dua_step_args& a, int64_t p) {
   const double* pair = a.pairs + p * kPairNcol;
   const double* xrec = a.exact.records + p * kXNcol;
@@ -450,16 +482,8 @@ double TerrainExactTau(const dua_step_args& a, int64_t p) {
   const double w0 = tw[0] + rt[0], w1 = tw[1] + rt[1], w2 = tw[2] + rt[2];
   const double spin = std::sqrt(w0 * w0 + w1 * w1 + w2 * w2) * gx[kGxRadius];
   // The geom's support shape at its pose (a mesh as its box).
-  const double* pos = a.frame.pos + 3 * g;
-  const double* mat = a.frame.mat + 9 * g;
   double shape[kShapeNcol];
-  shape[kShapeKind] = gx[kGxKind];
-  for (int k = 0; k < 3; ++k) {
-    shape[kShapeSize + k] = gx[kGxSize + k];
-    shape[kShapePos + k] = pos[k] + mat[3 * k] * gx[kGxCentre] +
-                           mat[3 * k + 1] * gx[kGxCentre + 1] + mat[3 * k + 2] * gx[kGxCentre + 2];
-  }
-  for (int k = 0; k < 9; ++k) shape[kShapeMat + k] = mat[k];
+  GeomShape(gx, a.frame.pos + 3 * g, a.frame.mat + 9 * g, shape);
   const double* rec = a.shapes + static_cast<int64_t>(pair[kPairOther]) * kShapeNcol;
   return TauTerrain(rec, shape, s + 3, spin, xrec[kXDist], pair[kPairAccel], pair[kPairDelta]);
 }

@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 5
+#define DUA_ABI_VERSION 6
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -154,16 +154,39 @@ typedef struct dua_events {
 
 // A flight plan the step follows (src/plan.h; docs/theory.md, section 8). impl null: none.
 typedef struct dua_plan {
-  const void* impl;        // the dua::Plan
-  int64_t knot;            // the plan's knot at this step
-  const uint8_t* body_ok;  // (nbody,) 0 for a body found beyond its deviation since the plan came
+  const void* impl;  // the dua::Plan
+  int64_t knot;      // the plan's knot at this step
+  int64_t period;    // physics steps a predictor period (the plan's taus fall on its grid)
+  // (nbody,) 1 for a body the plan holds and found within its deviation so far (static bodies
+  // too: planned, with deviation 0); 0 for one it does not know or found beyond its deviation.
+  const uint8_t* body_ok;
   const int64_t* geom1;  // (npair,) the geoms of each known pair (the plane or static geom second)
   const int64_t* geom2;
-  const int* geom_body;  // the model's geom_bodyid
-  void* data;            // an mjData of the model for MuJoCo's distance queries at knots
-  uint8_t* planned;      // (scratch_rows,) which pairs of a batch the plan covered
-  int64_t queries;       // MuJoCo's distance queries at knots so far
+  const int* geom_body;     // the model's geom_bodyid
+  const int64_t* geom_row;  // (ngeom,) each geom's body's row of the violation check (-1: none)
+  void* data;               // an mjData of the model for MuJoCo's distance queries at knots
+  uint8_t* planned;         // (scratch_rows,) which pairs of a batch the plan covered
+  int64_t queries;          // MuJoCo's distance queries at knots so far
+  // (K,) what each held pair's latest verdict rested on, and the one before it: bit 0 set when
+  // its first geom's side rested on the plan (that body's deviation), bit 1 the same for its
+  // second geom; a clear bit is the motion bounds of that body. Null: not recorded.
+  uint8_t* basis;
+  uint8_t* basis_prev;
 } dua_plan;
+
+// A flight plan as a caller gives it (dua_plugin_set_plan, Runtime::SetPlan).
+typedef struct dua_plan_input {
+  const double* qpos;       // (n, nq): row j the state at time start + j timestep
+  int64_t n;                // knots
+  const double* deviation;  // (n, nbody): how far any point of each body may stray at each knot
+  double start;             // the time of row 0's state
+  // (nbody,) 1 for the bodies the plan holds, null for the default: every moving body outside
+  // mocap trees, and the mocap trees too when mocap poses are given. Bodies it does not hold
+  // follow their motion bounds; static bodies are always planned (deviation 0).
+  const uint8_t* bodies;
+  const double* mocap_pos;   // (n, nmocap, 3), or null: mocap bodies unplanned
+  const double* mocap_quat;  // (n, nmocap, 4), or null (then mocap_pos must be null too)
+} dua_plan_input;
 
 typedef struct dua_step_args {
   int64_t abi;  // DUA_ABI_VERSION
@@ -426,14 +449,15 @@ DUA_API int64_t dua_reach_pairs(const dua_reach* r, const int64_t* ids, int64_t 
 struct mjModel_;
 struct mjData_;
 
-// Follow a flight plan in instance `instance` of d (docs/plans.md): qpos (n, nq), row j the
-// state at time start + j timestep, deviation (n, nbody) the bound on how far each body may
-// stray from it at each knot. Returns 0, -1 if the instance is not this plugin's, -2 before its
-// first compute, -3 if the plan is refused (why written to error, error_size bytes with the
-// terminating 0).
+// Follow a flight plan in instance `instance` of d (docs/plans.md): the plan (its bodies, their
+// deviations, mocap poses if any). departures (nbody,) or null receives, for each body the
+// replaced plan held, the first state time at which the new plan leaves the old plan's
+// deviation tube within the span the old plan's verdicts cover (+inf: never; docs/theory.md,
+// section 8). Returns 0, -1 if the instance is not this plugin's, -2 before its first compute,
+// -3 if the plan is refused (why written to error, error_size bytes with the terminating 0).
 DUA_API int64_t dua_plugin_set_plan(const struct mjModel_* m, struct mjData_* d, int instance,
-                                    const double* qpos, int64_t n, const double* deviation,
-                                    double start, char* error, int64_t error_size);
+                                    const dua_plan_input* plan, double* departures, char* error,
+                                    int64_t error_size);
 // Back to the motion bounds alone. Returns 0, or -1 if the instance is not this plugin's.
 DUA_API int64_t dua_plugin_clear_plan(const struct mjModel_* m, struct mjData_* d, int instance);
 
