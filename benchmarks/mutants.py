@@ -121,7 +121,7 @@ MUTANTS: tuple[Mutant, ...] = (
     # ---------------------------------------------------------------- the step: state, exact level
     Mutant(
         "point-velocity-cross-sign",
-        _STEP,
+        "dua_mujoco/csrc/src/internal.h",
         "out[3] = tw[3] + tw[1] * dz - tw[2] * dy;",
         "out[3] = tw[3] - tw[1] * dz + tw[2] * dy;",
         ("tests/test_kinematics.py", _REF_ARMS),
@@ -254,19 +254,34 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-never-breaks",
         _PLAN,
-        "    if (!(moved <= dev(k, b)) && std::find(",
-        "    if (!(moved <= kInf) && std::find(",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, kInf)",
         (
             "tests/test_hardening.py::test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run",
-            "tests/test_flightplan.py::test_a_body_beyond_its_deviation_falls_back_to_the_bounds",
         ),
         "a body beyond its deviation keeps following the plan",
     ),
     Mutant(
+        "plan-check-twice-the-deviation",
+        _PLAN,
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, 2.0 * dev(k, b))",
+        ("tests/test_flightplan.py::test_a_body_strayed_past_its_deviation_breaks_its_plan",),
+        "a body strays up to twice its deviation before its plan breaks",
+    ),
+    Mutant(
+        "plan-check-rotation-dropped",
+        _PLAN,
+        "(std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9)",
+        "(std::sqrt(dp) + 0.0 * std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9)",
+        ("tests/test_flightplan.py::test_a_turn_alone_past_the_deviation_breaks_its_plan",),
+        "a body that turns away from its planned pose without moving its origin keeps the plan",
+    ),
+    Mutant(
         "plan-tau-one-knot-late",
         _PLAN,
-        "    if (!(gap > allowed)) return GridTau(j - k, plan.h());",
-        "    if (!(gap > allowed)) return GridTau(j - k + 1, plan.h());",
+        "    if (!(gap > allowed)) return j;",
+        "    if (!(gap > allowed)) return j + 1;",
         (
             "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
         ),
@@ -285,13 +300,24 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-grid-shave-dropped",
         _PLAN,
-        "return static_cast<double>(s) * h * (1.0 - kGridShave);",
-        "return static_cast<double>(s) * h;",
+        "return static_cast<double>(grid) * h * (1.0 - kGridShave);",
+        "return static_cast<double>(grid) * h;",
         (
             "tests/test_plans.py::test_an_exact_plans_alarm_stands_the_whole_horizon_wherever_the_touch_falls",
         ),
         "a plan's tau on the step grid, where the deadline test's roundings let a pair wait a "
         "step too long",
+    ),
+    Mutant(
+        "plan-tau-off-the-period-grid",
+        _PLAN,
+        "const int64_t grid = p > 1 ? s / p * p : s;",
+        "const int64_t grid = s;",
+        (
+            "tests/test_flightplan.py::test_a_plan_that_is_the_simulation_flags_every_onset_the_horizon_ahead",
+        ),
+        "with period > 1, a plan's tau between two predictor steps covers a wait past the "
+        "horizon's lead",
     ),
     # ---------------------------------------------------------------- terrain (section 9)
     Mutant(
