@@ -309,14 +309,14 @@ MUTANTS: tuple[Mutant, ...] = (
         "step too long",
     ),
     Mutant(
-        "plan-tau-off-the-period-grid",
+        "plan-tau-rounded-up-to-the-period-grid",
         _PLAN,
         "const int64_t grid = p > 1 ? s / p * p : s;",
-        "const int64_t grid = s;",
+        "const int64_t grid = p > 1 ? (s + p - 1) / p * p : s;",
         (
             "tests/test_flightplan.py::test_a_plan_that_is_the_simulation_flags_every_onset_the_horizon_ahead",
         ),
-        "with period > 1, a plan's tau between two predictor steps covers a wait past the "
+        "with period > 1, a plan's tau rounded up to the predictor's grid covers a wait past the "
         "horizon's lead",
     ),
     # ---------------------------------------------------------------- terrain (section 9)
