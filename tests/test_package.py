@@ -217,6 +217,8 @@ def _layer(module: str) -> str:
     head = [*module.split("."), ""][1]
     if head in BASE:
         return "base"
+    if head == "shield":  # the safety shield sits at the runtime's level, over the predictor
+        return "runtime"
     return head if head in LAYERS else "front"
 
 
