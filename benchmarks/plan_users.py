@@ -28,9 +28,13 @@ knows only the **nominal** model:
   when it is within the contact distance and not opening, or ``d / -d' < H``.
 
 Every predictor uses ``accel="auto"`` from a pilot of the nominal model (the user's), latency 0,
-``alarm_horizon=H``, one :class:`~dua_mujoco.measure.monitor.Monitor` each against ``H``. They and
-the peer are stepped in turn on the same ``MjData`` after each ``mj_step`` (the order reversed
-every step), each timed in this thread's CPU time: the costs are an A/B in one run.
+``alarm_horizon=H``, one :class:`~dua_mujoco.measure.monitor.Monitor` each against ``H``, and
+they and the peer are stepped on the same ``MjData`` after each ``mj_step``. The costs come from
+a replay of that rollout, state by state (:func:`costs`: the same ``MjData`` after every
+``mj_step``, the same plans at the same steps) without the monitors, whose Python would evict
+the caches ``mj_step`` and the predictors run from: the predictors of one horizon stepped in turn
+(the order reversed every step), then the peer alone, each timed in this thread's CPU time
+against the ``mj_step`` of its own replay.
 
 **Columns**: standing over the oracle (geom pairs in alarm against those that do touch within
 ``H``); contact onsets with less lead than ``H``, split into while every hypothesis held / after a
@@ -504,20 +508,45 @@ def monitored(world: Run, horizons: tuple[float, ...], steps: int) -> tuple[list
 
 def costs(world: Run, H: float, record: Record) -> dict[str, Any]:
     """The costs at horizon ``H``: the monitored rollout replayed state by state (the same
-    ``MjData`` after every ``mj_step``, the same plans at the same steps) with the predictors of
-    ``H`` and the peer stepped in turn, no monitor between them (a monitor's Python evicts the
-    caches ``mj_step`` and the predictors run from), each timed in CPU time."""
+    ``MjData`` after every ``mj_step``, the same plans at the same steps), each timed in CPU
+    time, with no monitor in the loop (a monitor's Python evicts the caches ``mj_step`` and the
+    predictors run from): the predictors of ``H`` stepped in turn (their A/B), then the peer
+    alone (its Python loop over every pair would evict them too), each against the ``mj_step``
+    of its own replay."""
     nominal, run = world.nominal, world.run
     sides = world.sides()
-    preds = {s: Predictor(nominal, accel=world.bounds, alarm_horizon=H) for s in sides}
-    peer = TimeToCollision(nominal, preds[sides[0]], (H,))
     d = mujoco.MjData(run)
     steps = record.states.shape[0] - 1
-    t_mj = np.zeros(steps)
+
+    def replay(step: Any, replan: Any) -> np.ndarray:
+        t_mj = np.zeros(steps)
+        mujoco.mj_setState(run, d, record.states[0], _STATE)
+        mujoco.mj_step(run, d)
+        step(0)
+        replan(0)
+        for k in range(1, steps + 1):
+            mujoco.mj_setState(run, d, record.states[k], _STATE)
+            t0 = CLOCK()
+            mujoco.mj_step(run, d)
+            t_mj[k - 1] = CLOCK() - t0
+            step(k)
+            if k in record.plans:
+                replan(k)
+        return t_mj
+
+    preds = {s: Predictor(nominal, accel=world.bounds, alarm_horizon=H) for s in sides}
     t_step = {s: np.zeros(steps) for s in sides}
     t_setk = {s: np.zeros(steps) for s in sides}
-    t_peer = np.zeros(steps)
-    tags = [*sides, "ttc"]
+
+    def step(k: int) -> None:
+        if k == 0:
+            for p in preds.values():
+                p.reset(d)
+            return
+        for s in sides if k % 2 else sides[::-1]:
+            t0 = CLOCK()
+            preds[s].step(d)
+            t_step[s][k - 1] = CLOCK() - t0
 
     def replan(k: int) -> None:
         start, q = record.plans[k]
@@ -529,27 +558,7 @@ def costs(world: Run, H: float, record: Record) -> dict[str, Any]:
             if k >= 1:
                 t_setk[s][k - 1] = CLOCK() - t0
 
-    mujoco.mj_setState(run, d, record.states[0], _STATE)
-    mujoco.mj_step(run, d)
-    for p in preds.values():
-        p.reset(d)
-    peer.step(d)
-    replan(0)
-    for k in range(1, steps + 1):
-        mujoco.mj_setState(run, d, record.states[k], _STATE)
-        t0 = CLOCK()
-        mujoco.mj_step(run, d)
-        t_mj[k - 1] = CLOCK() - t0
-        for tag in tags if k % 2 else tags[::-1]:
-            t0 = CLOCK()
-            if tag == "ttc":
-                peer.step(d)
-                t_peer[k - 1] = CLOCK() - t0
-            else:
-                preds[tag].step(d)
-                t_step[tag][k - 1] = CLOCK() - t0
-        if k in record.plans:
-            replan(k)
+    t_mj = replay(step, replan)
     out: dict[str, Any] = {"mj_step_us": float(np.median(t_mj)) * 1e6}
     for s in sides:
         setp = t_setk[s][t_setk[s] > 0]
@@ -560,6 +569,16 @@ def costs(world: Run, H: float, record: Record) -> dict[str, Any]:
                 t_step[s], t_setk[s], t_mj, world.every if s != "bounds" else 0
             ),
         }
+    peer = TimeToCollision(nominal, preds[sides[0]], (H,))
+    t_peer = np.zeros(steps)
+
+    def peer_step(k: int) -> None:
+        t0 = CLOCK()
+        peer.step(d)
+        if k:
+            t_peer[k - 1] = CLOCK() - t0
+
+    t_mj = replay(peer_step, lambda k: None)
     out["ttc"] = {"median": float(np.median(t_peer) / np.median(t_mj))}
     return out
 
