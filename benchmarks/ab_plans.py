@@ -45,7 +45,7 @@ for path in sys.argv[3:]:
                 every=rec["every"], arms=None)
     record = Record(rec["states"], rec["plans"])
     plan_users.CLOCK = time.thread_time if sys.argv[2] == "cpu" else time.perf_counter
-    out[rec["robot"]] = {str(H): costs(world, H, record) for H in rec["horizons"]}
+    out[rec["robot"]] = {str(H): costs(world, H, record, peer=False) for H in rec["horizons"]}
 print(json.dumps(out))
 """
 

@@ -506,13 +506,13 @@ def monitored(world: Run, horizons: tuple[float, ...], steps: int) -> tuple[list
     return out, Record(states, plans)
 
 
-def costs(world: Run, H: float, record: Record) -> dict[str, Any]:
+def costs(world: Run, H: float, record: Record, *, peer: bool = True) -> dict[str, Any]:
     """The costs at horizon ``H``: the monitored rollout replayed state by state (the same
     ``MjData`` after every ``mj_step``, the same plans at the same steps), each timed in CPU
     time, with no monitor in the loop (a monitor's Python evicts the caches ``mj_step`` and the
     predictors run from): the predictors of ``H`` stepped in turn (their A/B), then the peer
     alone (its Python loop over every pair would evict them too), each against the ``mj_step``
-    of its own replay."""
+    of its own replay (``peer=False``: the predictors only)."""
     nominal, run = world.nominal, world.run
     sides = world.sides()
     d = mujoco.MjData(run)
@@ -569,12 +569,14 @@ def costs(world: Run, H: float, record: Record) -> dict[str, Any]:
                 t_step[s], t_setk[s], t_mj, world.every if s != "bounds" else 0
             ),
         }
-    peer = TimeToCollision(nominal, preds[sides[0]], (H,))
+    if not peer:
+        return out
+    ttc = TimeToCollision(nominal, preds[sides[0]], (H,))
     t_peer = np.zeros(steps)
 
     def peer_step(k: int) -> None:
         t0 = CLOCK()
-        peer.step(d)
+        ttc.step(d)
         if k:
             t_peer[k - 1] = CLOCK() - t0
 
