@@ -348,6 +348,8 @@ class DUA_API Runtime {
   std::vector<int64_t> plan_due_;     // held pairs the plan made due at this step (tracked)
   std::vector<int64_t> body_row_;     // each body's row of the violation check (-1: none)
   std::vector<uint8_t> unboxed_;      // bodies with covered geoms and no row (no plan holds them)
+  std::vector<int64_t> plan_geoms_;   // the geoms a plan's poses are read for (Plan::Build)
+  std::shared_ptr<PlanPool> plan_pool_ = std::make_shared<PlanPool>();  // (a copy: its own)
   int64_t plan_breaks_ = 0;
   int read_lag_ = 1;
   // Forgetting (issue 35): each learnt geom pair's latest rebuild held, and the counts.
