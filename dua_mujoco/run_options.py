@@ -12,16 +12,20 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
+
+from dua_mujoco.exceptions import InvalidInputError
 
 if TYPE_CHECKING:
     import mujoco
 
-    from dua_mujoco.models.scenes import SceneController
+    from dua_mujoco.models.scenes import Driver
     from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
     "PILOT_SEED_OFFSET",
+    "add_count",
     "add_run_options",
     "controller_for",
     "default_steps",
@@ -46,11 +50,46 @@ def default_steps(scene: str) -> int:
     return SCENES[base].default_steps if base in SCENES else 1000
 
 
-def controller_for(model: mujoco.MjModel, options: Any) -> SceneController:
-    """The monitored rollout's controller (``--ctrl``, ``--seed``)."""
+def _driver(model: mujoco.MjModel, options: Any, seed: int) -> Driver:
+    """The controller ``--ctrl`` names, drawn from ``seed``: the scene's own driver (``scene``,
+    the default for a scene that has one) or :func:`make_controller`'s."""
     from dua_mujoco.models import scenes
 
-    return scenes.make_controller(model, options.ctrl, seed=options.seed)
+    name = getattr(options, "scene", "")
+    own = scenes.SCENES[name].driver if name in scenes.SCENES else None
+    ctrl = options.ctrl or ("scene" if own is not None else "random")
+    if ctrl != "scene":
+        return scenes.make_controller(model, ctrl, seed=seed)
+    if own is None:
+        have = [s.name for s in scenes.SCENES.values() if s.driver is not None]
+        raise InvalidInputError(
+            f"--ctrl scene: {name!r} has no driver of its own (scenes with one: "
+            f"{', '.join(have)}): drive it with zero, random or smooth controls."
+        )
+    return own(model, seed)
+
+
+def controller_for(
+    model: mujoco.MjModel, options: Any, predictor: Predictor | None = None
+) -> Driver:
+    """The monitored rollout's controller (``--ctrl``, ``--seed``), giving ``predictor`` a flight
+    plan every ``R`` steps under ``--plan trajectory`` (a
+    :class:`~dua_mujoco.runtime.plans.Replanner`: the plan of a driver that knows how its robot
+    is planned, ``driver.plan`` over ``driver.planned``, else a rollout of a copy of the
+    controller over every body outside mocap trees)."""
+    driver = _driver(model, options, options.seed)
+    if getattr(options, "plan", "none") == "none":
+        return driver
+    if predictor is None:
+        raise InvalidInputError("--plan trajectory needs the predictor the plans are given to.")
+    from dua_mujoco.runtime.plans import Replanner
+
+    return Replanner(
+        predictor,
+        driver,
+        planner=getattr(driver, "plan", None),
+        bodies=getattr(driver, "planned", None),
+    )
 
 
 def predictor_for(model: mujoco.MjModel, options: Any) -> Predictor:
@@ -79,8 +118,19 @@ def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
     from dua_mujoco.models import scenes
 
     pilot_seed = options.seed + PILOT_SEED_OFFSET
+    accel = options.accel
+    if accel is None:  # the scene's declared bounds, if it declares them, else a pilot's
+        scene = scenes.SCENES.get(getattr(options, "scene", ""))
+        declared = None if scene is None or scene.bounds is None else scene.bounds(model)
+        accel = "auto" if declared is None else declared
+        if declared is not None and options.speed is not None:
+            # --speed on top of the scene's bounds, as on top of a pilot's.
+            from dua_mujoco.build.bounds import MotionBounds
+
+            top = MotionBounds.declare(model, 0.0, speed=options.speed, integrator_term=False)
+            accel = replace(declared, speed=top.speed)
     return {
-        "accel": options.accel,
+        "accel": accel,
         "speed": options.speed,
         "period": options.period,
         "latency": options.latency,
@@ -104,7 +154,7 @@ def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
         "pilot": opts.PilotOptions(
             steps=options.pilot_steps,
             seed=pilot_seed,
-            controller=scenes.make_controller(model, options.ctrl, seed=pilot_seed),
+            controller=_driver(model, options, pilot_seed),
             **({} if options.pilot_motion is None else {"motion": options.pilot_motion}),
         ),
     }
@@ -166,35 +216,42 @@ def whole_number(option: str, unit: str = "", *, minimum: int = 1) -> Callable[[
     return parse
 
 
+def add_count(
+    p: argparse.ArgumentParser, flag: str, unit: str, default: int | None, help: str, **kw: int
+) -> None:
+    """Add the integer option ``flag`` counting ``unit`` (:func:`whole_number`; ``minimum=``
+    in ``kw``)."""
+    p.add_argument(flag, type=whole_number(flag, unit, **kw), default=default, help=help)
+
+
 def add_run_options(p: argparse.ArgumentParser) -> None:
     """Add the options of a run's driver, predictor and exact stage (``run``, ``view`` and
     ``sweep`` read them)."""
-    p.add_argument(
+    add_count(
+        p,
         "--steps",
-        type=whole_number("--steps", "physics steps"),
-        default=None,
-        help="physics steps (default: the scene's own, 1000 for an MJCF file)",
+        "physics steps",
+        None,
+        "physics steps (default: the scene's own, 1000 for an MJCF file)",
     )
-    p.add_argument(
-        "--seed",
-        type=whole_number("--seed", minimum=0),
-        default=0,
-        help="seed of the controls (default 0)",
-    )
+    add_count(p, "--seed", "", 0, "seed of the controls (default 0)", minimum=0)
     p.add_argument(
         "--ctrl",
-        choices=["zero", "random", "smooth"],
-        default="random",
-        help="controls: zero, random held 50 steps, or smooth (targets linear between random "
-        "points 250 steps apart; motors as 1 Hz PD torques); the pilot of --accel auto is "
-        "driven the same way",
+        choices=["scene", "zero", "random", "smooth"],
+        default=None,
+        help="controls: the scene's own driver (person_cell's person and arm task; the default "
+        "for a scene that has one), zero, random held 50 steps (the default otherwise), or "
+        "smooth (targets linear between random points 250 steps apart; motors as 1 Hz PD "
+        "torques); the pilot of --accel auto is driven the same way",
     )
     p.add_argument("--keyframe", default=None, help="start keyframe (id or name; default first)")
     p.add_argument(
         "--accel",
         type=parse_accel,
-        default="auto",
-        help="acceleration bound in m/s^2 for every moving body, or 'auto' (pilot rollout)",
+        default=None,
+        help="acceleration bound in m/s^2 for every moving body, or 'auto' (pilot rollout); "
+        "default: the bounds the scene declares (person_cell: the person's after ISO 13855, the "
+        "arm's measured), else auto",
     )
     p.add_argument("--speed", type=positive(float), default=None, help="speed bound in m/s")
     p.add_argument(
@@ -203,23 +260,15 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         default="bounding",
         help="one bounding sphere per geom, or several (budget --max-spheres)",
     )
-    p.add_argument(
-        "--max-spheres",
-        type=whole_number("--max-spheres", "spheres per geom"),
-        default=8,
-        help="multi covering budget",
-    )
-    p.add_argument(
-        "--period",
-        type=whole_number("--period", "physics steps"),
-        default=1,
-        help="physics steps per predictor step",
-    )
-    p.add_argument(
+    add_count(p, "--max-spheres", "spheres per geom", 8, "multi covering budget")
+    add_count(p, "--period", "physics steps", 1, "physics steps per predictor step")
+    add_count(
+        p,
         "--latency",
-        type=whole_number("--latency", "predictor periods", minimum=0),
-        default=0,
-        help="periods a verdict takes to reach the user (0: synchronous, after mj_step)",
+        "predictor periods",
+        0,
+        "periods a verdict takes to reach the user (0: synchronous, after mj_step)",
+        minimum=0,
     )
     p.add_argument(
         "--alarm-horizon",
@@ -237,28 +286,31 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         help="which pairs to evaluate each step: each when its own tau runs out (deadline), "
         "the paper's constant-work rank buckets (dua), or all of them (select-all)",
     )
-    p.add_argument(
+    add_count(
+        p,
         "--max-evals",
-        type=whole_number("--max-evals", "tau evaluations a step"),
-        default=None,
-        help="deadline: cap on tau evaluations a step; pairs due beyond it wait, in alarm once "
+        "tau evaluations a step",
+        None,
+        "deadline: cap on tau evaluations a step; pairs due beyond it wait, in alarm once "
         "their verdict no longer covers the wait (default: no cap)",
     )
-    p.add_argument(
+    # The default is the Predictor's (DEFAULT_ALARM_BACKOFF): not imported here, where it
+    # would pull MuJoCo and the core into every `--help`; test_cli holds the two equal.
+    add_count(
+        p,
         "--alarm-backoff",
-        type=whole_number("--alarm-backoff", "predictor steps"),
-        default=None,
-        # The default is the Predictor's (DEFAULT_ALARM_BACKOFF): not imported here, where it
-        # would pull MuJoCo and the core into every `--help`; test_cli holds the two equal.
-        help="deadline: a pair that keeps alarming (resting contact) is evaluated again after "
+        "predictor steps",
+        None,
+        "deadline: a pair that keeps alarming (resting contact) is evaluated again after "
         "twice its last wait, up to this many steps, standing in alarm in between; 1 gives "
         "exactly select-all's alarms (default: 8)",
     )
-    p.add_argument(
+    add_count(
+        p,
         "--slots-per-bucket",
-        type=whole_number("--slots-per-bucket", "slots"),
-        default=1,
-        help="dua: slots evaluated per bucket per step, a power of two (revisit intervals "
+        "slots",
+        1,
+        "dua: slots evaluated per bucket per step, a power of two (revisit intervals "
         "shrink that many times)",
     )
     p.add_argument(
@@ -291,12 +343,7 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         "meet within a horizon (rebuilt as they move; for thousands of spheres), or choose "
         "by size (default: pruned from 256 covering spheres)",
     )
-    p.add_argument(
-        "--pilot-steps",
-        type=whole_number("--pilot-steps", "physics steps"),
-        default=2000,
-        help="pilot rollout length for --accel auto",
-    )
+    add_count(p, "--pilot-steps", "physics steps", 2000, "pilot rollout length for --accel auto")
     p.add_argument(
         "--pilot-motion",
         choices=["free", "no-impacts", "all"],
@@ -311,6 +358,15 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         default="terrain",
         help="height fields: hold a static one as the prisms of its grid (default), cover them "
         "by their bounding box, or refuse them",
+    )
+    p.add_argument(
+        "--plan",
+        choices=["none", "trajectory"],
+        default="none",
+        help="trajectory: every max(horizon, 50 ms) give the predictor a flight plan rolled "
+        "from a copy of the controller (exact: deviation 0) for the bodies the scene's driver "
+        "plans (person_cell: the arm; the person keeps its bounds), else every body outside "
+        "mocap trees (docs/plans.md)",
     )
     p.add_argument("--realtime", action="store_true", help="count predictor deadline overruns")
     p.add_argument(
