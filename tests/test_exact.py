@@ -458,6 +458,24 @@ def test_a_query_not_made_could_not_have_cleared_the_alarm(
             assert want <= horizon * (1 + 1e-6), (k, pair, float(tau[pair]), want, horizon)
 
 
+def _reset_then_step(
+    model: mujoco.MjModel, draw: dict
+) -> tuple[Predictor, mujoco.MjData, np.ndarray]:
+    """A predictor of ``draw``'s motion reset at t = 0 (one query: no direction yet) and stepped
+    once (the pair evaluated), the state of that step, and the direction the reset kept (3,)."""
+    motion = Motion(model, draw)
+    p = _predictor(model, motion)
+    assert p.exact is not None
+    p.reset(motion.state(0.0))
+    assert p._rt.exact_queries == 1
+    kept = p._rt.exact_records[0, X_N : X_N + 3].copy()
+    data = motion.state(p.dt)
+    data.time = p.dt
+    p.step(data)
+    assert p.evaluations_per_step == 1
+    return p, data, kept
+
+
 def test_a_pair_no_direction_can_clear_keeps_its_direction() -> None:
     """Two parallel capsules 0.5 mm apart, spinning about their axes (which the level bounds by
     |w| r, 1 m/s together) while one slides past the other at 0.3 m/s: within the alarm horizon
@@ -483,17 +501,8 @@ def test_a_pair_no_direction_can_clear_keeps_its_direction() -> None:
             "w": spin,
         },
     }
-    motion = Motion(model, draw)
-    p = _predictor(model, motion)
-    assert p.exact is not None
-    p.reset(motion.state(0.0))
-    asked = p._rt.exact_queries
-    assert asked == 1
-    data = motion.state(p.dt)
-    data.time = p.dt
-    p.step(data)
-    assert p.evaluations_per_step == 1
-    assert p._rt.exact_queries == asked  # not asked
+    p, data, _ = _reset_then_step(model, draw)
+    assert p._rt.exact_queries == 1  # not asked again
     assert p.pair_state().alarm_state()[0]
     assert reference_exact_tau(p, data, 0) <= p.exact.query_below
 
@@ -515,19 +524,9 @@ def test_the_carried_witness_direction_clears_without_a_query() -> None:
         # B's origin on the circle about A's, to second order: velocity w x d, acceleration -w^2 d.
         1: {**still, "p": centre + offset, "v": np.cross(w, offset), "a": -(w @ w) * offset},
     }
-    motion = Motion(model, draw)
-    p = _predictor(model, motion)
-    assert p.exact is not None
-    p.reset(motion.state(0.0))
-    asked = p._rt.exact_queries
-    assert asked == 1
-    kept = p._rt.exact_records[0, X_N : X_N + 3].copy()
+    p, _, kept = _reset_then_step(model, draw)
     assert abs(kept[1]) > 0.999
-    data = motion.state(p.dt)
-    data.time = p.dt
-    p.step(data)
-    assert p.evaluations_per_step == 1
-    assert p._rt.exact_queries == asked  # not asked
+    assert p._rt.exact_queries == 1  # not asked again
     assert not p.pair_state().alarm_state()[0]
     turned = p._rt.exact_records[0, X_N : X_N + 3]
     angle = float(np.arccos(min(1.0, abs(turned @ kept))))
@@ -553,16 +552,7 @@ def test_a_pair_leaving_fast_is_asked_and_cleared() -> None:
         # Faces at y = +-0.1 of each centre: 3 mm apart at the reset, 7 mm after one step.
         1: {**still, "p": np.array([0.0, 0.203, 1.0]), "v": leave},
     }
-    motion = Motion(model, draw)
-    p = _predictor(model, motion)
-    assert p.exact is not None
-    p.reset(motion.state(0.0))
-    asked = p._rt.exact_queries
-    assert asked == 1
-    data = motion.state(p.dt)
-    data.time = p.dt
-    p.step(data)
-    assert p.evaluations_per_step == 1
-    assert p._rt.exact_queries == asked + 1  # asked
+    p, data, _ = _reset_then_step(model, draw)
+    assert p._rt.exact_queries == 2  # asked
     assert not p.pair_state().alarm_state()[0]
     assert reference_exact_tau(p, data, 0) > p.exact.query_below
