@@ -34,12 +34,47 @@ import numpy.typing as npt
 from dua_mujoco.build.filter import active_geom_pairs
 from dua_mujoco.models.cells import SHIELD_SCENES, ShieldScene
 from dua_mujoco.models.people import Bound
-from dua_mujoco.shield.failsafe import Brake, body_reach_radius, body_speeds
+from dua_mujoco.shield.failsafe import Brake
 
-__all__ = ["EpisodeResult", "Layer", "NoLayer", "SceneSetup", "run_episode"]
+__all__ = [
+    "EpisodeResult",
+    "Layer",
+    "NoLayer",
+    "SceneSetup",
+    "body_reach_radius",
+    "body_speeds",
+    "run_episode",
+]
 
 REST_SPEED = 0.01
 """m/s: a body at most this fast is at rest (ISO/TS 15066's contact with the robot stopped)."""
+
+
+def body_reach_radius(model: mujoco.MjModel) -> np.ndarray:
+    """``(nbody,)`` the largest distance from each body's frame origin to a point of its geoms
+    (0 for a body without geoms; planes, unbounded, are left out)."""
+    out = np.zeros(model.nbody)
+    plane = int(mujoco.mjtGeom.mjGEOM_PLANE)
+    for g in range(model.ngeom):
+        if int(model.geom_type[g]) == plane:
+            continue
+        b = int(model.geom_bodyid[g])
+        out[b] = max(out[b], float(np.linalg.norm(model.geom_pos[g]) + model.geom_rbound[g]))
+    return out
+
+
+def body_speeds(
+    model: mujoco.MjModel, data: mujoco.MjData, bodies: npt.ArrayLike, radius: np.ndarray
+) -> np.ndarray:
+    """``(k,)`` a bound on the speed of every point of each body's geoms, ``|v| + |w| r``, from
+    ``data.cvel`` (after ``mj_step``: the state the step started from, its contacts' state)."""
+    ids = np.asarray(bodies, dtype=np.int64)
+    out = np.empty(ids.size)
+    vel = np.empty(6)
+    for i, b in enumerate(ids):
+        mujoco.mj_objectVelocity(model, data, int(mujoco.mjtObj.mjOBJ_XBODY), int(b), vel, 0)
+        out[i] = np.linalg.norm(vel[3:]) + np.linalg.norm(vel[:3]) * radius[b]
+    return out
 
 
 class Layer(Protocol):
