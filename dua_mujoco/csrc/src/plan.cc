@@ -422,16 +422,7 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
              std::to_string(i / nmocap) + ", mocap " + std::to_string(i % nmocap) + ")";
     }
   }
-  // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
-  // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
-  std::vector<double> radius(m->geom_rbound, m->geom_rbound + ngeom);
-  for (int64_t i = 0; i < nsphere; ++i) {
-    const double* rec = spheres + i * kSphereNcol;
-    const auto g = static_cast<int64_t>(rec[kSphereFrame]);
-    const double* o = rec + kSphereOffset;
-    radius[g] = std::max(radius[g], std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]));
-  }
-  std::vector<double> pos(3 * ngeom * n), mat(9 * ngeom * n), sweep(ngeom * n, 0.0);
+  std::vector<double> pos(3 * ngeom * n), mat(9 * ngeom * n);
   for (int64_t j = 0; j < n; ++j) {
     const double* q = in.qpos + nq * j;
     for (int64_t i = 0; i < nq; ++i) {
@@ -448,7 +439,41 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     mj_kinematics(m, s);
     std::copy_n(s->geom_xpos, 3 * ngeom, pos.begin() + 3 * ngeom * j);
     std::copy_n(s->geom_xmat, 9 * ngeom, mat.begin() + 9 * ngeom * j);
-    if (j == 0) continue;
+  }
+  return Finish(m, n, std::move(pos), std::move(mat), std::move(holds), std::move(fixed),
+                in.deviation, in.start, h, spheres, nsphere);
+}
+
+std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, const double* mat,
+                            const uint8_t* bodies, const double* deviation, double start, double h,
+                            const double* spheres, int64_t nsphere) {
+  const int64_t nbody = m->nbody, ngeom = m->ngeom;
+  std::vector<uint8_t> holds(nbody, 0), fixed(nbody, 0);
+  for (int64_t b = 0; b < nbody; ++b) {
+    fixed[b] = m->body_weldid[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;
+    holds[b] = !fixed[b] && bodies[b] && m->body_mocapid[m->body_rootid[b]] < 0;
+  }
+  return Finish(m, n, std::vector<double>(pos, pos + 3 * ngeom * n),
+                std::vector<double>(mat, mat + 9 * ngeom * n), std::move(holds), std::move(fixed),
+                deviation, start, h, spheres, nsphere);
+}
+
+std::string Plan::Finish(const mjModel* m, int64_t n, std::vector<double> pos,
+                         std::vector<double> mat, std::vector<uint8_t> holds,
+                         std::vector<uint8_t> fixed, const double* deviation, double start,
+                         double h, const double* spheres, int64_t nsphere) {
+  const int64_t ngeom = m->ngeom, nbody = m->nbody;
+  // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
+  // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
+  std::vector<double> radius(m->geom_rbound, m->geom_rbound + ngeom);
+  for (int64_t i = 0; i < nsphere; ++i) {
+    const double* rec = spheres + i * kSphereNcol;
+    const auto g = static_cast<int64_t>(rec[kSphereFrame]);
+    const double* o = rec + kSphereOffset;
+    radius[g] = std::max(radius[g], std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]));
+  }
+  std::vector<double> sweep(ngeom * n, 0.0);
+  for (int64_t j = 1; j < n; ++j) {
     for (int64_t g = 0; g < ngeom; ++g) {
       const double step = Displacement(
           pos.data() + 3 * (ngeom * (j - 1) + g), mat.data() + 9 * (ngeom * (j - 1) + g),
@@ -473,9 +498,9 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     }
   }
   nknot_ = n, ngeom_ = ngeom, nbody_ = nbody;
-  start_ = in.start, h_ = h;
+  start_ = start, h_ = h;
   pos_ = std::move(pos), mat_ = std::move(mat), sweep_ = std::move(sweep);
-  dev_.assign(in.deviation, in.deviation + n * nbody);
+  dev_.assign(deviation, deviation + n * nbody);
   // A static body never moves: its deviation is 0 whatever was given.
   for (int64_t j = 0; j < n; ++j) {
     for (int64_t b = 0; b < nbody; ++b) {

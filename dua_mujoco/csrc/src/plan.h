@@ -47,6 +47,13 @@ class Plan {
   // or "".
   std::string Build(const mjModel* m, mjData* scratch, const dua_plan_input& in, double h,
                     const double* spheres, int64_t nsphere);
+  // A plan whose knots' geom poses are known already (pos (n, ngeom, 3) and mat (n, ngeom, 9):
+  // a rollout's geom_xpos and geom_xmat at each knot), holding the moving bodies of bodies
+  // (nbody flags; mocap trees are never held), deviation (n, nbody). Values are not checked
+  // beyond the poses being finite: the caller made them.
+  std::string FromPoses(const mjModel* m, int64_t n, const double* pos, const double* mat,
+                        const uint8_t* bodies, const double* deviation, double start, double h,
+                        const double* spheres, int64_t nsphere);
 
   // The knot at `time` (-1: not one of the plan's, within a millionth of a step).
   int64_t KnotOf(double time) const;
@@ -74,6 +81,12 @@ class Plan {
   double dev(int64_t k, int64_t b) const { return dev_[nbody_ * k + b]; }
 
  private:
+  // The rest of a build once the knots' poses are known: the sweeps, deviations and bodies.
+  std::string Finish(const mjModel* m, int64_t n, std::vector<double> pos, std::vector<double> mat,
+                     std::vector<uint8_t> holds, std::vector<uint8_t> fixed,
+                     const double* deviation, double start, double h, const double* spheres,
+                     int64_t nsphere);
+
   int64_t nknot_ = 0, ngeom_ = 0, nbody_ = 0;
   double start_ = 0.0, h_ = 0.0;
   std::vector<double> pos_, mat_, sweep_, dev_;

@@ -157,6 +157,21 @@ class DUA_API Runtime {
   std::string PlanQuery(const mjModel* m, const mjData* d, const dua_plan_input& candidate,
                         const std::vector<int64_t>& g1, const std::vector<int64_t>& g2,
                         std::vector<int64_t>* knots) const;
+  // PlanQuery in two parts, for a caller asking about the same geom pairs again and again (the
+  // shield): the pairs' records prepared once (their sphere pairs' rows copied; the exact level
+  // learns directions into the copy), then each plan's knots from knot k on d's state.
+  struct QueryPairs {
+    std::vector<int64_t> slot;  // each asked pair's distinct geom pair (-1: not known)
+    int64_t nslot = 0;
+    std::vector<double> pairs, exact;            // the slots' sphere pairs' records
+    std::vector<int64_t> owner, geom_a, geom_b;  // each record's slot and geoms
+    std::vector<double> state;                   // the point cache a query fills
+    std::vector<int64_t> epoch, by_slot;
+    std::vector<uint8_t> ok, said;
+  };
+  QueryPairs PrepareQuery(const std::vector<int64_t>& g1, const std::vector<int64_t>& g2) const;
+  void QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, int64_t k, QueryPairs* q,
+                  std::vector<int64_t>* knots) const;
 
   // Mocap bodies: a velocity given instead of differenced (world frame), or back to differencing.
   void SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]);
