@@ -1489,4 +1489,5 @@ NB_MODULE(_core, m) {
   m.attr("StepError") = step_error;
   BindRuntime(m, step_error);
   BindCore(m);
+  BindShield(m);
 }
