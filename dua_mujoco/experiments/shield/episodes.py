@@ -11,7 +11,8 @@ counts:
   a moving onset is *free* when no protected contact touched the robot during the preceding
   ``recovery`` seconds and every declared bound of the protected bodies held so far (the robot's
   motion was its controller's: what a layer answers for), *excused* otherwise (pushed, or after
-  a bound broke);
+  a bound broke); a layer that says whether its guarantee holds (``layer.guaranteed``, the
+  shield's) has its moving onsets without one counted apart too (*unguaranteed*);
 * **progress**: targets the robot reached, per minute;
 * **interventions**: physics steps at which the layer overrode the intended controls;
 * **cost**: the layer's time and ``mj_step``'s, both timed at every step (interleaved);
@@ -159,6 +160,7 @@ class EpisodeResult:
     minutes: float
     moving_free: int
     moving_excused: int
+    moving_unguaranteed: int
     at_rest: int
     max_onset_speed: float
     interventions: int
@@ -258,7 +260,13 @@ def run_episode(
     previous = np.zeros(0, dtype=np.int64)
     last_touch = -np.inf
     violated = False
-    counts = {"moving_free": 0, "moving_excused": 0, "at_rest": 0, "violations": 0}
+    counts = {
+        "moving_free": 0,
+        "moving_excused": 0,
+        "moving_unguaranteed": 0,
+        "at_rest": 0,
+        "violations": 0,
+    }
     max_speed = 0.0
     first_violation: float | None = None
     first_touch: float | None = None
@@ -272,6 +280,7 @@ def run_episode(
         t0 = time.perf_counter()
         ctrl = layer(data, intended)
         t1 = time.perf_counter()
+        guaranteed = bool(getattr(layer, "guaranteed", True))
         data.ctrl[:] = ctrl
         mujoco.mj_step(model, data)
         t2 = time.perf_counter()
@@ -294,7 +303,9 @@ def run_episode(
             max_speed = max(max_speed, speed)
             if speed <= REST_SPEED:
                 counts["at_rest"] += 1
-            elif violated or now - last_touch <= recovery:
+                continue
+            counts["moving_unguaranteed"] += not guaranteed
+            if violated or now - last_touch <= recovery:
                 counts["moving_excused"] += 1
             else:
                 counts["moving_free"] += 1
