@@ -19,13 +19,12 @@ World: the paper's density (as ``benchmarks/scaling.py``: ``WorldParams``' 0.1 m
 speeds up to 0.4 m/s, acceleration bound 0.2 m/s^2, 40 spheres in its 10 m cube, the cube's
 edge scaled by ``(N / 40)^(1/3)``), ghost spheres (``SphereWorld``, exact kinematics, the
 bounds hold exactly), ``dt = 10 ms``, latency 1. Peers, all at the horizon ``H = (1 + latency)
-dt`` a verdict must cover: the grid (``reach`` + ``candidate_pairs`` every step), the KD-tree
-(``cKDTree.query_pairs`` on the inflated spheres, then the exact test), MuJoCo's gap-inflated
-``mj_collision`` (N free spheres, ``geom_gap`` = each sphere's reach over H, only
+dt`` a verdict must cover: the runtime's grid (reaches and candidate pairs every step), the
+KD-tree (``cKDTree.query_pairs`` on the inflated spheres, then the exact test), MuJoCo's
+gap-inflated ``mj_collision`` (N free spheres, ``geom_gap`` = each sphere's reach over H, only
 ``mj_collision`` timed; N <= 1e4), and the deadline schedule over all pairs (N = 1e3). A
 broadphase's alarms are its candidates. Times: median and mean (the mean is the amortised cost:
-rebuilds included) over the run (the native core splits a tau batch over two threads from 65,536
-pairs on, a classification at large N; nothing else runs threads). Memory: the growth of the
+rebuilds and renewals included) over the run, one thread. Memory: the growth of the
 process's peak resident size (``/proc/self/status``, the peak reset first where Linux allows it)
 over building the predictor, ``reset`` and one full stride of steps on pre-computed states, per
 sphere: the schedule's state and the grid's work arrays are native allocations, which
@@ -45,13 +44,31 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from dua_mujoco.core.neighbors import ROUNDING_SLACK, candidate_pairs, reach
+from dua_mujoco import _core
 from dua_mujoco.core.spheres import SpherePredictor
 from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.experiments.paper.world import WorldParams
 
 DT, LATENCY, SUB = 0.01, 1, 4
 WP = WorldParams()
+
+ROUNDING_SLACK = 1.0 + 2.0**-44
+"""The candidate grid's rounding slack (csrc/src/grid.cc): its pair test is ``d2 <= s * s``
+times this."""
+
+
+def grid_reach(radius: np.ndarray, speed: np.ndarray, accel: float, horizon: float) -> np.ndarray:
+    """``(N,)`` reaches over ``horizon`` (the runtime's ``dua_reaches``; no speed bound)."""
+    n = speed.shape[0]
+    r, a = np.broadcast_to(radius, (n,)), np.full(n, float(accel))
+    r, s = np.ascontiguousarray(r, dtype=float), np.ascontiguousarray(speed, dtype=float)
+    return np.asarray(_core.reaches(r, s, a, np.zeros(n), np.full(n, np.inf), float(horizon)))
+
+
+def grid_pairs(c: np.ndarray, r: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    """``(K, 2)`` pairs whose reachable balls meet: the runtime's grid (csrc/src/grid.cc)."""
+    c, r = np.ascontiguousarray(c, dtype=float), np.ascontiguousarray(r, dtype=float)
+    return np.asarray(_core.candidate_pairs(c, r, float(margin)))
 
 
 def world(n: int, seed: int = 0) -> SphereWorld:
@@ -63,7 +80,7 @@ def world(n: int, seed: int = 0) -> SphereWorld:
 
 def inflated(w: SphereWorld) -> np.ndarray:
     H = (1 + LATENCY) * DT
-    return reach(w.radius, np.linalg.norm(w.velocities, axis=1), WP.accel, H)
+    return grid_reach(w.radius, np.linalg.norm(w.velocities, axis=1), WP.accel, H)
 
 
 def kdtree_pairs(c: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -177,7 +194,7 @@ def run_predictor(
         history.append(set((out[:, 0] * n + out[:, 1]).tolist()))
         if pairs == "pruned" and m % 4 == 0:
             r = inflated(w)
-            g, tg = timed(candidate_pairs, w.positions, r)
+            g, tg = timed(grid_pairs, w.positions, r)
             _, tk = timed(kdtree_pairs, w.positions, r)
             t_grid.append(tg)
             t_kd.append(tk)

@@ -1,4 +1,4 @@
-"""Scaling of the pruned pair set: ``candidate_pairs`` against a KD-tree broadphase.
+"""Scaling of the pruned pair set: the runtime's candidate grid against a KD-tree broadphase.
 
 Needs scipy (``pip install scipy``, or ``pip install dua_mujoco[bench]``); never run as a test.
 
@@ -11,11 +11,11 @@ density of ``ref_n`` spheres in its 10 m cube, the cube's edge scaled by ``(N / 
 ``ref_n = 40`` is the paper's largest world (Table 2); ``ref_n = 1000`` is the largest this
 repository runs in the same cube (25 times denser).
 
-For each horizon T: reach by ``reach(radius, |v|, accel, T)``; the grid is ``candidate_pairs``;
+For each horizon T: reach by ``grid_reach(radius, |v|, accel, T)``; the grid is ``grid_pairs``;
 the KD-tree is ``cKDTree(centers).query_pairs(2 max(reach) + margin)`` (tree build included, as
 the grid is built on every call too) filtered to the exact per-pair test, and both sets are
 checked equal. Times are medians over the repeats, after a warm-up call. Memory is the
-``tracemalloc`` peak of one ``candidate_pairs`` call per sphere: every array it uses is a numpy
+``tracemalloc`` peak of one ``grid_pairs`` call per sphere: every array it uses is a numpy
 allocation (the compiled kernels allocate nothing), so the figure is complete; the KD-tree's C++
 nodes are invisible to ``tracemalloc``, so no figure is given for it.
 """
@@ -29,8 +29,8 @@ from collections.abc import Callable
 
 import numpy as np
 from bench import median_time  # benchmarks/bench.py: the script folder is on sys.path
+from many import ROUNDING_SLACK, grid_pairs, grid_reach
 
-from dua_mujoco.core.neighbors import ROUNDING_SLACK, candidate_pairs, reach
 from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.experiments.paper.reference import PAPER_N
 from dua_mujoco.experiments.paper.world import WorldParams
@@ -84,13 +84,13 @@ def main(argv: list[str] | None = None) -> None:
             c = world.positions
             speed = np.linalg.norm(world.velocities, axis=1)
             for T in args.horizons:
-                r = reach(world.radius, speed, wp.accel, T)
-                grid = candidate_pairs(c, r, margin=args.margin)
+                r = grid_reach(world.radius, speed, wp.accel, T)
+                grid = grid_pairs(c, r, margin=args.margin)
                 kd = kdtree_pairs(c, r, args.margin)
                 kd = kd[np.lexsort((kd[:, 1], kd[:, 0]))]
                 if not np.array_equal(grid, kd):
                     raise SystemExit(f"pair sets differ at N = {n}, T = {T}")
-                run_grid = functools.partial(candidate_pairs, c, r, margin=args.margin)
+                run_grid = functools.partial(grid_pairs, c, r, margin=args.margin)
                 run_kd = functools.partial(kdtree_pairs, c, r, args.margin)
                 t_grid = median_time(run_grid, repeat)
                 t_kd = median_time(run_kd, repeat)

@@ -40,8 +40,6 @@ def tau_terrain(table: Annotated[NDArray[numpy.float64], dict(order='C', device=
     tau of a convex shape record moving with velocity v against terrain record `row`.
     """
 
-def tau_free(pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple[NDArray[numpy.float64], int]: ...
-
 def deadline_interval(tau: float, dt: float, latency: int, max_interval: int, extra: float = 0.0) -> int: ...
 
 def exceeds12(q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], bound: float) -> bool: ...
@@ -120,9 +118,6 @@ class Schedule:
 
     def __init__(self, kind: int, dt: float, latency: int, tau0: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], active: object | None = None, slots_per_bucket: int = 1, cap: int = 0, max_interval: int = 1024, backoff: int = 8, threshold: float = 0.0, alarm_horizon: float = 0.0) -> None: ...
 
-    def carried(self, src: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], n: int) -> Schedule:
-        """A schedule of the pairs src (old ids, -1: new, due at step n)."""
-
     def select(self, n: int) -> int: ...
 
     def reinsert(self, n: int, count: int) -> int: ...
@@ -132,8 +127,6 @@ class Schedule:
     def switch(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], on: bool, n_next: int) -> int: ...
 
     def make_due(self, p: int, n: int) -> None: ...
-
-    def step_points(self, pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple: ...
 
     def alarm_state(self) -> NDArray[numpy.bool_]: ...
 
@@ -263,6 +256,12 @@ class Tables:
         """
 
     @staticmethod
+    def free(arrays: dict) -> Tables:
+        """
+        Free spheres' tables (FreeTables: 'config' and 'reach'; core/spheres.py), checked.
+        """
+
+    @staticmethod
     def load(model: object, prefix: str) -> Tables:
         """The tables in a model's text fields, as the plugin reads them."""
 
@@ -276,9 +275,9 @@ class Tables:
     def nsphere(self) -> int: ...
 
 class Runtime:
-    """The predictor at run time (runtime.h), on one MjData."""
+    """The predictor at run time (runtime.h), on one MjData or free spheres."""
 
-    def __init__(self, tables: Tables, model: object, names: object, log_steps: int = 4, log_min: int = 16384) -> None: ...
+    def __init__(self, tables: Tables, model: object | None, names: object | None, log_steps: int = 4, log_min: int = 16384) -> None: ...
 
     def bind(self, data: object) -> None:
         """Read the state from this MjData (of the runtime's model) from now on."""
@@ -288,6 +287,20 @@ class Runtime:
 
     def step(self) -> Alarms:
         """One predictor step on the bound MjData, one period after the last."""
+
+    def classify_spheres(self, centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:
+        """
+        Free spheres: the initial classification at centres and velocities (n, 3); the pairs (i, j) standing in alarm, (k, 2) in increasing order.
+        """
+
+    def step_spheres(self, centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:
+        """
+        Free spheres: one step at centres and velocities (n, 3), one period after the last; the pairs (i, j) standing in alarm, (k, 2) in increasing order.
+        """
+
+    @property
+    def held_records(self) -> NDArray[numpy.float64]:
+        """(held pairs, 8) the held pairs' records, in held order: a copy."""
 
     def clock_of(self, arg: float, /) -> int: ...
 
@@ -495,16 +508,3 @@ class FreeStep:
         """
         One fused step: its number of alarms, or -1 - p for a pair p whose state is not finite (the step undone).
         """
-
-class StandingAlarms:
-    """Pairs standing in alarm, kept in O(renewed pairs) a step."""
-
-    def __init__(self, npairs: int, alarmed: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> None: ...
-
-    def renew(self, renewed: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], alarms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> None:
-        """A step renewed the verdicts of renewed; alarms (among them) alarm."""
-
-    def ids(self) -> NDArray[numpy.int64]:
-        """(k,) sorted pair ids standing in alarm."""
-
-    def __len__(self) -> int: ...

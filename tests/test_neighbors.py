@@ -1,4 +1,5 @@
-"""dua_mujoco.core.neighbors: the pruned pair set is exact, safe over the horizon, and O(N + K)."""
+"""The candidate grid and the reach (csrc/src/grid.cc, reach.cc), which choose a pruned
+predictor's pairs: the pair set is exact, safe over the horizon, and O(N + K)."""
 
 from __future__ import annotations
 
@@ -6,27 +7,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reference_grid import brute_pairs, candidate_pairs, reach
 
 from dua_mujoco import _core
-from dua_mujoco.core.neighbors import ROUNDING_SLACK, candidate_pairs, reach
-from dua_mujoco.exceptions import (
-    InvalidBoundError,
-    InvalidInputError,
-    NonFiniteStateError,
-    ShapeError,
-)
 
 # ---------------------------------------------------------------------------------------------
 # References
-
-
-def brute_pairs(c: np.ndarray, r: np.ndarray, margin: float) -> np.ndarray:
-    """All pairs tested, in the documented float64 expression; sorted since triu_indices is."""
-    i, j = np.triu_indices(c.shape[0], 1)
-    d = c[i] - c[j]
-    s = r[i] + r[j] + margin
-    keep = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] <= s * s * ROUNDING_SLACK
-    return np.stack([i[keep], j[keep]], axis=1).astype(np.int64)
 
 
 def assert_same(c: np.ndarray, r: np.ndarray, margin: float) -> np.ndarray:
@@ -198,94 +184,9 @@ def test_reach_formula() -> None:
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
     assert got[1] == pytest.approx(0.2 + 0.25)  # the speed bound binds
     assert got[0] == pytest.approx(0.1 + 1.25 * 0.5 + 0.25)
-    # Scalars broadcast to the array arguments' length; all scalars give one sphere.
-    assert reach(0.1, np.zeros(5), 1.0, 2.0).shape == (5,)
     np.testing.assert_allclose(reach(0.1, 1.0, 2.0, 0.5), [0.1 + 0.5 + 0.25])
     # T = 0 with no speed bound: no inf * 0 = NaN.
     np.testing.assert_array_equal(reach(radius, speed, A, 0.0), radius)
-
-
-@pytest.mark.parametrize(
-    ("kwargs", "error", "needle"),
-    [
-        ({"radius": np.array([0.1, np.nan, 0.1])}, InvalidInputError, "radius[1]"),
-        ({"radius": -0.1}, InvalidInputError, "radius = -0.1"),
-        ({"speed_now": np.array([0.0, 1.0, np.inf])}, NonFiniteStateError, "speed_now[2]"),
-        ({"accel": np.array([1.0, -1.0, 1.0])}, InvalidBoundError, "accel[1]"),
-        ({"accel": np.inf}, InvalidBoundError, "accel"),
-        ({"horizon": np.nan}, InvalidInputError, "horizon"),
-        ({"horizon": -1.0}, InvalidInputError, "horizon"),
-        (
-            {"vel_uncertainty": np.array([0.0, 0.0, np.nan])},
-            InvalidBoundError,
-            "vel_uncertainty[2]",
-        ),
-        ({"speed_bound": np.array([1.0, np.nan, 1.0])}, InvalidBoundError, "speed_bound[1]"),
-        ({"speed_bound": -2.0}, InvalidBoundError, "speed_bound"),
-        ({"radius": np.zeros(2)}, ShapeError, "speed_now has shape (3,) but radius has 2 entries"),
-        ({"accel": np.zeros((3, 1))}, ShapeError, "accel has shape (3, 1)"),
-        ({"horizon": np.ones(3)}, ShapeError, "horizon"),
-        ({"horizon": 1e200, "accel": 1.0}, InvalidInputError, "overflowed"),
-    ],
-)
-def test_reach_validation(kwargs: dict[str, object], error: type[Exception], needle: str) -> None:
-    args: dict[str, object] = {
-        "radius": 0.1,
-        "speed_now": np.zeros(3),
-        "accel": 1.0,
-        "horizon": 0.1,
-    }
-    args.update(kwargs)
-    with pytest.raises(error) as info:
-        reach(**args)  # type: ignore[arg-type]
-    assert needle in str(info.value)
-
-
-def test_speed_bound_inf_is_accepted() -> None:
-    assert np.isfinite(reach(0.1, 1.0, 1.0, 1.0, speed_bound=np.inf)).all()
-
-
-# ---------------------------------------------------------------------------------------------
-# candidate_pairs validation
-
-
-@pytest.mark.parametrize(
-    ("centers", "r", "margin", "error", "needle"),
-    [
-        (np.zeros((4, 2)), np.zeros(4), 0.0, ShapeError, "expected (N, 3)"),
-        (np.zeros(4), np.zeros(4), 0.0, ShapeError, "centers has shape (4,)"),
-        (np.zeros((4, 3)), np.zeros(3), 0.0, ShapeError, "expected (4,)"),
-        (np.zeros((4, 3)), np.zeros((4, 1)), 0.0, ShapeError, "reach has shape (4, 1)"),
-        (np.zeros((4, 3)), np.zeros(4), np.zeros(2), ShapeError, "margin"),
-        (
-            np.array([[0, 0, 0], [0, 0, 0], [0, np.nan, 0.0]]),
-            np.zeros(3),
-            0.0,
-            NonFiniteStateError,
-            "centers[2]",
-        ),
-        (
-            np.array([[0, 0, 0], [np.inf, 0, 0.0]]),
-            np.zeros(2),
-            0.0,
-            NonFiniteStateError,
-            "centers[1]",
-        ),
-        (np.array([[0, 0, 0], [1e200, 0, 0.0]]), np.zeros(2), 0.0, InvalidInputError, "centers[1]"),
-        (np.zeros((3, 3)), np.array([0.0, -1.0, 0.0]), 0.0, InvalidInputError, "reach[1]"),
-        (np.zeros((3, 3)), np.array([0.0, 0.0, np.nan]), 0.0, InvalidInputError, "reach[2]"),
-        (np.zeros((3, 3)), np.array([0.0, np.inf, 0.0]), 0.0, InvalidInputError, "reach[1]"),
-        (np.zeros((3, 3)), np.array([0.0, 1e151, 0.0]), 0.0, InvalidInputError, "reach[1]"),
-        (np.zeros((3, 3)), np.zeros(3), -0.5, InvalidInputError, "margin = -0.5"),
-        (np.zeros((3, 3)), np.zeros(3), np.nan, InvalidInputError, "margin = nan"),
-    ],
-)
-def test_candidate_pairs_validation(
-    centers: np.ndarray, r: np.ndarray, margin: float, error: type[Exception], needle: str
-) -> None:
-    with pytest.raises(error) as info:
-        candidate_pairs(centers, r, margin=margin)
-    assert needle in str(info.value)
 
 
 # ---------------------------------------------------------------------------------------------

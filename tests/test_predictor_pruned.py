@@ -8,7 +8,6 @@ import pytest
 
 from dua_mujoco import _core
 from dua_mujoco.build.options import PairOptions
-from dua_mujoco.core.pruned import escapes
 from dua_mujoco.core.schedules import DeadlineScheduler
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
@@ -151,9 +150,10 @@ def _escaped(
     at ``(anchor, 0, 0)`` with measured speed ``s0`` then, ``t`` seconds on."""
     one = np.ones(1)
     c, v = (np.asarray(x, dtype=float).reshape(1, 3) for x in (center, velocity))
-    out = escapes(
-        c, v, np.array([[anchor, 0.0, 0.0]]), s0 * one, accel * one, delta * one, speed * one, t
-    )
+    out = _core.escapes(
+        np.array([[anchor, 0.0, 0.0]]), s0 * one, accel * one, delta * one, speed * one,
+        np.zeros(1, dtype=np.int64), c, v, t * one,
+    )  # fmt: skip
     return out.tolist() == [0]
 
 
@@ -256,8 +256,9 @@ def test_every_pair_whose_reaches_meet_is_held_through_renewals() -> None:
     pair whose reach balls, each from its own anchor, come within the margin (what the
     completeness proof of docs/many-objects.md rests on), and a pair not held was left out at
     the later anchor of its two spheres."""
+    from reference_grid import ROUNDING_SLACK
+
     from dua_mujoco.build.pairfilter import FilterTables, dynamic_mask
-    from dua_mujoco.core.neighbors import ROUNDING_SLACK
 
     m, d = load_scene("bin_pour:60")
     p = Predictor(m, accel=5.0, pairs="pruned")
@@ -294,7 +295,7 @@ def test_reach_pairs_equal_a_brute_force_reference(seed: int) -> None:
     """``dua_reach_pairs`` (the renewal's search): every pair of a listed sphere (listed twice,
     or both members listed, still once) whose anchored reaches meet under the grid's contract,
     and no other."""
-    from dua_mujoco.core.neighbors import ROUNDING_SLACK
+    from reference_grid import ROUNDING_SLACK
 
     rng = np.random.default_rng(seed)
     n, margin = 200, 0.01

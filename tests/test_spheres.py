@@ -1,18 +1,22 @@
-"""``SpherePredictor`` and pruned pair sets: completeness in ghost worlds, the slow reference,
-the rebuild's carried state, the horizon's off-by-one, validation and ``pairs="auto"``."""
+"""``SpherePredictor`` (the native runtime on free spheres) and its pruned pair sets: completeness
+in ghost worlds, the slow reference, the rebuild's carried state, the horizon's off-by-one, the
+escape test and its renewals, validation and ``pairs="auto"``."""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from dua_mujoco import _core
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.core.pruned import StandingAlarms, escapes, match_pairs, rebuild_stride
 from dua_mujoco.core.schedules import DeadlineScheduler
-from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, PairMode, SpherePredictor
+from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, PairMode, SpherePredictor, rebuild_stride
 from dua_mujoco.core.worlds import AccelProfile, SphereWorld
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
@@ -32,6 +36,7 @@ class Outcome:
     reference_misses: int
     held_max: int
     rebuilds: int
+    renewals: int
 
 
 def _key_set(pairs: np.ndarray, n: int) -> set[int]:
@@ -45,6 +50,7 @@ def run_predictor(
     steps: int,
     substeps: int = 8,
     reference: bool = False,
+    noise: float = 0.0,
 ) -> Outcome:
     """Drive ``pred`` on ``world``; every onset must meet an alarm of the verdict acting then.
 
@@ -52,13 +58,20 @@ def run_predictor(
     ``(q + latency) dt <= t`` (the reset's before that). Onsets are found over all pairs on a
     grid of ``substeps`` times a step (any grid onset is a real one). With ``reference``, each
     step also checks the slow reference: every pair whose tau over all pairs is below
-    ``(1 + latency) dt`` stands in alarm.
+    ``(1 + latency) dt`` stands in alarm. ``noise``: the predictor is given velocities off by up
+    to that much (its ``vel_uncertainty`` must cover it), the reference the true ones.
     """
     n, lat, S = world.n, pred.latency, substeps
     every = PairSet.all_pairs(world.radius, world.accel_bound, margin=pred.margin)
     ids = np.arange(len(every))
     i, j = every.first, every.second
-    history = [_key_set(pred.reset(world.positions, world.velocities), n)]
+    rng = np.random.default_rng(n)
+
+    def measured(v: np.ndarray) -> np.ndarray:
+        d = rng.normal(size=v.shape)
+        return v + d * (noise * rng.uniform(0, 1, (n, 1)) / np.linalg.norm(d, axis=1)[:, None])
+
+    history = [_key_set(pred.reset(world.positions, measured(world.velocities)), n)]
     held_max = pred.npairs
 
     def touching(pos: np.ndarray) -> np.ndarray:
@@ -71,7 +84,7 @@ def run_predictor(
         for k in range(1, S + 1):
             if k == S:
                 world.step()
-                out = pred.step(world.positions, world.velocities)
+                out = pred.step(world.positions, measured(world.velocities))
                 history.append(_key_set(out, n))
                 held_max = max(held_max, pred.npairs)
                 if reference:
@@ -91,7 +104,7 @@ def run_predictor(
                 onsets += 1
                 if int(i[p]) * n + int(j[p]) not in history[q]:
                     missed.append((int(i[p]), int(j[p]), u / S * world.dt))
-    return Outcome(onsets, missed, ref_misses, held_max, pred.rebuilds)
+    return Outcome(onsets, missed, ref_misses, held_max, pred.rebuilds, pred.renewals)
 
 
 def dense_world(seed: int, n: int = 40) -> SphereWorld:
@@ -124,6 +137,84 @@ def test_every_onset_is_flagged(latency: int, mode: str) -> None:
         if mode == "pruned":
             assert out.rebuilds >= 150 // (5 - latency) - 1
             assert out.held_max < 40 * 39 // 2 / 3, "pruning must leave most pairs out"
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    seed=st.integers(0, 2**16),
+    n=st.integers(2, 50),
+    latency=st.integers(0, 2),
+    stride=st.integers(1, 8),
+    noise=st.sampled_from([0.0, 0.05, 0.3]),
+    margin=st.sampled_from([0.0, 0.02]),
+    cap=st.sampled_from([None, 2]),
+    bang_bang=st.booleans(),
+)
+def test_sampled_feasible_trajectories_miss_nothing(
+    seed: int,
+    n: int,
+    latency: int,
+    stride: int,
+    noise: float,
+    margin: float,
+    cap: int | None,
+    bang_bang: bool,
+) -> None:
+    """Ghost worlds whose bounds hold, velocities measured within ``vel_uncertainty`` of the
+    true ones (in doubt, the escape test renews such spheres): no onset missed, pruned or all
+    pairs, and every pair select-all's rule alarms stands in alarm."""
+    world = SphereWorld(
+        n,
+        seed=seed,
+        box=0.6 + 0.02 * n,
+        radius=0.05,
+        accel=2.0,
+        speed=0.5,
+        dt=0.01,
+        profile=AccelProfile.BANG_BANG if bang_bang else AccelProfile.UNIFORM,
+    )
+    for mode in ("pruned", "all"):
+        pred = SpherePredictor(
+            world.radius,
+            2.0,
+            dt=0.01,
+            latency=latency,
+            margin=margin,
+            pairs=mode,
+            vel_uncertainty=noise,
+            max_evals_per_step=cap,
+            horizon=(stride + latency) * 0.01 if mode == "pruned" else None,
+        )
+        out = run_predictor(
+            copy.deepcopy(world), pred, steps=40, reference=cap is None, noise=noise
+        )
+        assert out.missed == []
+        assert out.reference_misses == 0
+
+
+def test_pairs_met_long_ago_are_forgotten_and_nothing_is_missed() -> None:
+    """Spheres that wander meet ever new pairs; the runtime forgets those no rebuild has held
+    for a while (as the plugin does: docs/theory.md, Lemma 7.1), so the pairs it knows stay
+    bounded, and no onset is missed meanwhile."""
+    world = SphereWorld(
+        150, seed=3, box=2.0, radius=0.05, accel=2.0, speed=0.8, dt=0.01,
+        profile=AccelProfile.BANG_BANG,
+    )  # fmt: skip
+    pred = SpherePredictor(world.radius, 2.0, dt=0.01, latency=1, pairs="pruned", horizon=0.05)
+    known: list[int] = []
+    step = pred.step
+
+    def counted(c: np.ndarray, v: np.ndarray) -> np.ndarray:
+        out = step(c, v)
+        known.append(int(pred._rt.npair))
+        return out
+
+    pred.step = counted  # type: ignore[method-assign]
+    out = run_predictor(world, pred, steps=500, substeps=2, reference=True)
+    assert out.onsets > 100
+    assert out.missed == [] and out.reference_misses == 0
+    assert (np.diff(known) < 0).sum() >= 3, "no compaction"
+    assert max(known) < 4 * out.held_max
 
 
 def test_capped_pruned_predictor_is_complete() -> None:
@@ -160,13 +251,14 @@ def _head_on(latency: int, shorten: bool) -> Outcome:
     world.accelerations = np.array([[a, 0, 0], [-a, 0, 0], [0, 0, 0], [0, 0, 0]], dtype=float)
     pred = SpherePredictor(world.radius, A, dt=dt, latency=latency, pairs="pruned", horizon=T)
     if shorten:
-        pred._reach_horizon = Ts
+        pred._rt = pred._runtime(Ts)  # the reach's horizon alone, the stride kept
     with warnings.catch_warnings():
         # Motion within the bounds must not count as breaking them.
         warnings.simplefilter("error", BoundViolationWarning)
         out = run_predictor(world, pred, steps=14, substeps=16, reference=True)
-    # Nor as escaping the reach: the only rebuilds are the stride's.
+    # Nor as escaping the reach: the only rebuilds are the stride's, and nothing is renewed.
     assert out.rebuilds == 14 // pred.stride
+    assert out.renewals == 0
     return out
 
 
@@ -195,83 +287,71 @@ def test_rebuild_stride_is_the_largest_covered() -> None:
         rebuild_stride(0.015, 0.01, 1)
 
 
-def test_match_pairs_against_a_dict() -> None:
-    rng = np.random.default_rng(0)
-    for _ in range(20):
-
-        def keys(k: int) -> np.ndarray:
-            raw = np.unique(rng.integers(0, 30, size=(k, 2)), axis=0)
-            return raw[raw[:, 0] < raw[:, 1]]
-
-        old, new = keys(60), keys(60)
-        where = {(int(a), int(b)): q for q, (a, b) in enumerate(old)}
-        want = [where.get((int(a), int(b)), -1) for a, b in new]
-        assert match_pairs(old, new).tolist() == want
-
-
-def test_remap_carries_verdicts_and_due_steps() -> None:
-    rng = np.random.default_rng(1)
-    sched = DeadlineScheduler(rng.uniform(0.0, 0.3, 50), dt=0.01, latency=1)
-    for _ in range(5):
-        ids = sched.select()
-        sched.update(ids, rng.uniform(0.0, 0.3, ids.size))
-    src = np.concatenate([rng.permutation(50)[:30], -np.ones(7, dtype=np.int64)])
-    before = (sched.next_due(src[:30]), sched.last_step[src[:30]].copy(), sched.tau(src[:30]))
-    alarm_before = sched.alarm_state(src[:30])
-    n = sched.step_count + 1
-    sched.remap(src, n)
-    assert sched.npairs == 37
-    assert np.array_equal(sched.next_due(np.arange(30)), before[0])
-    assert np.array_equal(sched.last_step[:30], before[1])
-    assert np.array_equal(sched.tau(np.arange(30)), before[2])
-    assert np.array_equal(sched.alarm_state(np.arange(30)), alarm_before)
-    assert (sched.next_due(np.arange(30, 37)) == n).all()
-    assert sched.alarm_state(np.arange(30, 37)).all()
-    # The wheel is consistent: the next selection returns exactly the pairs due then.
-    due_now = set(np.flatnonzero(sched.next_due(np.arange(37)) == n).tolist())
-    assert set(sched.select().tolist()) == due_now
-    with pytest.raises(SchedulerError):
-        sched.remap(src, n + 1)
-
-
-def test_rebuild_keeps_state_and_output_matches_alarm_state() -> None:
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"pairs": "pruned", "horizon": 0.06},
+        {"pairs": "pruned", "horizon": 0.06, "max_evals_per_step": 2},
+        {"pairs": "all", "alarm_backoff": 4},
+        {"pairs": "all", "schedule": "dua"},
+    ],
+)
+def test_carry_keeps_state_and_output_matches_alarm_state(options: dict) -> None:
+    """The runtime's standing list (its output) is the schedule's alarm rule over the held pairs
+    after every step, and a rebuild carries every kept pair's verdict: tau, last step, due step."""
     world = dense_world(3)
-    pred = SpherePredictor(world.radius, 2.0, dt=0.01, latency=1, pairs="pruned", horizon=0.06)
+    pred = SpherePredictor(world.radius, 2.0, dt=0.01, latency=1, **options)
     pred.reset(world.positions, world.velocities)
-    assert pred.stride == 5
     kept_checked = 0
     for step in range(1, 40):
         sched = pred.scheduler
-        assert isinstance(sched, DeadlineScheduler)
-        old_keys = pred.keys.copy()
-        old_due = sched.next_due(np.arange(pred.npairs))
+        assert sched is not None
+        old = {(int(a), int(b)): q for q, (a, b) in enumerate(pred.keys)}
+        before = (sched.tau(np.arange(pred.npairs)), sched.last_step.copy())
+        due = (
+            sched.next_due(np.arange(pred.npairs)) if isinstance(sched, DeadlineScheduler) else None
+        )
         world.step()
         out = pred.step(world.positions, world.velocities)
-        # The incremental standing set is the scheduler's alarm state over the held pairs.
+        sched = pred.scheduler
+        assert sched is not None
         want = pred.keys[np.flatnonzero(sched.alarm_state())]
-        assert np.array_equal(out, want)
-        if step % 5 == 0:
+        np.testing.assert_array_equal(out, want[np.lexsort((want[:, 1], want[:, 0]))])
+        if options["pairs"] == "pruned" and step % 5 == 0:
             assert pred.rebuilds == step // 5
-            src = match_pairs(old_keys, pred.keys)
+            assert isinstance(sched, DeadlineScheduler) and due is not None
+            src = np.array([old.get((int(a), int(b)), -1) for a, b in pred.keys])
             kept = np.flatnonzero(src >= 0)
-            later = old_due[src[kept]] > step  # not due at the rebuild step itself
-            assert np.array_equal(sched.next_due(kept[later]), old_due[src[kept][later]])
-            kept_checked += int(later.sum())
-    assert kept_checked > 20
+            # Not due at the rebuild step itself (those were evaluated again there).
+            later = kept[due[src[kept]] > step]
+            np.testing.assert_array_equal(sched.next_due(later), due[src[later]])
+            np.testing.assert_array_equal(sched.tau(later), before[0][src[later]])
+            np.testing.assert_array_equal(sched.last_step[later], before[1][src[later]])
+            # New pairs were due at once: evaluated there, or deferred standing in alarm.
+            new = np.flatnonzero(src < 0)
+            assert ((sched.last_step[new] == step) | sched.alarm_state(new)).all()
+            kept_checked += later.size
+    assert options["pairs"] == "all" or kept_checked > 20
 
 
-def test_escaped_sphere_rebuilds_and_warns() -> None:
+def test_escaped_sphere_is_renewed_and_warns() -> None:
+    """A teleported sphere is anchored anew at once (its new neighbours held, due now), the
+    others keep theirs; the state proves a violation, so it warns."""
     world = dense_world(4)
     pred = SpherePredictor(world.radius, 2.0, dt=0.01, pairs="pruned", horizon=0.2)
     pred.reset(world.positions, world.velocities)
     world.step()
     pred.step(world.positions, world.velocities)
-    assert pred.rebuilds == 0
+    assert (pred.rebuilds, pred.renewals) == (0, 0)
     c = world.positions.copy()
-    c[7] += 0.3  # a teleport: far beyond what the acceleration bound allows in one step
+    far = np.linalg.norm(c - c[7], axis=1).argmax()
+    c[7] = c[far] + 0.01  # a teleport onto another sphere, far beyond its acceleration bound
     with pytest.warns(BoundViolationWarning, match="sphere 7"):
-        pred.step(c, world.velocities)
-    assert pred.rebuilds == 1
+        out = pred.step(c, world.velocities)
+    assert (pred.rebuilds, pred.renewals) == (0, 1)
+    pair = (min(7, far), max(7, far))
+    assert pair in set(map(tuple, pred.keys.tolist()))
+    assert pair in set(map(tuple, out.tolist()))
 
 
 def test_validation() -> None:
@@ -334,14 +414,6 @@ def test_other_schedules_over_all_pairs_are_complete() -> None:
         assert out.missed == []
 
 
-def test_standing_alarms_swap_remove() -> None:
-    s = StandingAlarms(10, np.array([1, 4, 7]))
-    s.renew(np.array([4, 2, 9]), np.array([2]))
-    assert s.ids().tolist() == [1, 2, 7]
-    s.renew(np.array([1, 7, 2]), np.array([], dtype=np.int64))
-    assert s.ids().tolist() == []
-
-
 # ---------------------------------------------------------------------------------------------
 # The escape test (docs/theory.md, "The escape test, once")
 
@@ -371,12 +443,12 @@ def _leaves_reach(d: float, w: float, s0: float, delta: float, A: float, V: floa
     return bool((d + travelled > reach * (1 + 1e-12) + 1e-15).any())
 
 
-def test_escape_after_a_hidden_violation_rebuilds_before_the_collision() -> None:
+def test_escape_after_a_hidden_violation_renews_before_the_collision() -> None:
     """Two spheres at rest at the rebuild, their pair left out; one step later, still where
     they were, they move towards each other at 3 m/s, measured as 2 m/s (delta = 1). Nothing
     tells whether a violation happened, but from there on the motion keeps its bounds and
     leaves the reach (1 m/s) before the horizon, colliding before the next rebuild. The sound
-    test rebuilds at once and the pair alarms; the old test let the state through."""
+    test renews both at once and the pair alarms; the old test let the state through."""
     dt, delta, A, r = 0.01, 1.0, 1e-3, 0.05
     pred = SpherePredictor(
         np.full(2, r), A, dt=dt, latency=0, pairs="pruned", horizon=2 * dt, vel_uncertainty=delta
@@ -390,7 +462,7 @@ def test_escape_after_a_hidden_violation_rebuilds_before_the_collision() -> None
         # The state proves nothing broken (a true speed of 1 m/s is within delta): no warning.
         warnings.simplefilter("error", BoundViolationWarning)
         out = pred.step(c, measured)
-    assert pred.rebuilds == 1
+    assert (pred.rebuilds, pred.renewals) == (0, 1)
     np.testing.assert_array_equal(out, [[0, 1]])
     # Why it matters: the old test passed this state, and the true motion (3 m/s each, within
     # its bounds from now on) touches at 1/120 s after this step, before the next one, having
@@ -417,9 +489,10 @@ def test_escape_test_keeps_passing_spheres_inside_their_reach() -> None:
         edge_w = rng.choice([min(s0 + A * t, V - delta), min(s0 + 2 * delta + A * t, V + delta)])
         w = max(0.0, edge_w * (1 + rng.choice([-1e-6, -1e-10, 0.0, 1e-10])))
         d = allow * rng.uniform(0.0, 1.0 + 1e-9)
-        esc = escapes(
-            np.array([[d, 0.0, 0.0]]), np.array([[w, 0.0, 0.0]]), np.zeros((1, 3)),
-            np.array([s0]), np.array([A]), np.array([delta]), np.array([V]), t,
+        esc = _core.escapes(
+            np.zeros((1, 3)), np.array([s0]), np.array([A]), np.array([delta]), np.array([V]),
+            np.zeros(1, dtype=np.int64), np.array([[d, 0.0, 0.0]]), np.array([[w, 0.0, 0.0]]),
+            np.array([t]),
         )  # fmt: skip
         leaves = _leaves_reach(d, w, s0, delta, A, V, t, T)
         if esc.size == 0:

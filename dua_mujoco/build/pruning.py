@@ -5,7 +5,7 @@ The filter (``build/filter.py``) is exact: only sphere pairs of geom pairs MuJoC
 contact are ever held. A pruned predictor holds the half-space and static-shape pairs (a plane
 is infinite; shapes never move), the ``<pair>`` elements' pairs among the candidates, and the
 sphere pairs whose reachable balls over a horizon ``T`` meet (the candidate grid); its runtime
-rebuilds that set every ``pruned.rebuild_stride(T, dt, latency)`` steps, and in between renews
+rebuilds that set every ``rebuild_stride(T, dt, latency)`` steps, and in between renews
 the pairs of the spheres an impact may have let out of their reach (the proofs:
 docs/many-objects.md and docs/theory.md, Lemmas 6.4 and 6.5). The runtime does all of it
 (``csrc/src/pruned.cc``, ``reach.cc``, ``grid.cc``); this module gives it the reach's tables.
@@ -21,16 +21,16 @@ from dua_mujoco.build.bounds import MotionBounds
 from dua_mujoco.build.covering import Covering
 from dua_mujoco.build.filter import contact_distance_bound
 from dua_mujoco.build.universe import PairUniverse
-from dua_mujoco.core.pruned import rebuild_stride
-from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, DEFAULT_STRIDE, PairMode
+from dua_mujoco.core.spheres import (
+    AUTO_PRUNED_MIN,
+    DEFAULT_STRIDE,
+    RENEW_MAX,
+    PairMode,
+    rebuild_stride,
+)
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 
 __all__ = ["RENEW_MAX", "Reach", "reach_for", "resolve_pair_mode"]
-
-RENEW_MAX = 512
-"""Most escaped spheres a step renews alone (``k N`` pair tests, ~1.1 ns each); more, and the
-whole held set is rebuilt (O(N + K), ~1 us a sphere on swarms), so that a renewal costs at most
-about half a rebuild at any ``N`` (measured, docs/many-objects.md)."""
 
 
 @dataclass(frozen=True)

@@ -1,52 +1,50 @@
 """``SpherePredictor``: collision alarms for free spheres given as raw states (the paper's setting).
 
 No MuJoCo: the caller passes every sphere's centre and velocity every ``dt``, with a bound on
-each centre's acceleration, and gets back the sphere pairs standing in alarm. Pairs are either
-all ``N (N - 1) / 2`` of them (a plain schedule) or, for many spheres, the pruned set of
-``neighbors.candidate_pairs`` at a horizon ``T``, rebuilt at least every
-``pruned.rebuild_stride(T, dt, latency)`` steps into the deadline schedule with the kept pairs'
-state carried over. Completeness of the pruned set: docs/many-objects.md.
+each centre's acceleration, and gets back the sphere pairs standing in alarm. The predictor is
+the native runtime that ``Predictor`` and the MuJoCo plugin run (``dua_mujoco._core.Runtime``,
+``csrc/src/runtime.cc``), on N point bodies whose states the caller gives: this class checks its
+options, builds the tables (``config`` and the per-sphere ``reach``, ``csrc/src/tables.cc:
+FreeTables``) and makes each call one native call, which checks the states. Pairs are all
+``N (N - 1) / 2`` of them (a plain schedule) or, for many spheres, the pruned set of pairs whose
+reachable balls over a horizon ``T`` meet, rebuilt every :func:`rebuild_stride` steps and renewed
+in between for the spheres that may have left their reach. Completeness: docs/many-objects.md
+and docs/theory.md, Lemmas 6.4 and 6.5.
 """
 
 from __future__ import annotations
 
 import enum
-import warnings
+import math
 
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.neighbors import candidate_pairs, reach
+import dua_mujoco._core as _core
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.core.pruned import (
-    StandingAlarms,
-    breaks_bounds,
-    escapes,
-    match_pairs,
-    rebuild_stride,
-)
-from dua_mujoco.core.schedules import (
-    DeadlineScheduler,
-    Schedule,
-    Scheduler,
-    make_scheduler,
-)
+from dua_mujoco.core.schedules import Schedule, Scheduler
 from dua_mujoco.core.schedules.deadline import (
     DEFAULT_ALARM_BACKOFF,
+    DEFAULT_MAX_INTERVAL,
     check_alarm_backoff,
     check_max_evals,
 )
-from dua_mujoco.core.schedules.state import P_COUNT, P_DEFERRED, W_IDS
-from dua_mujoco.core.validate import as_vectors, check_period, per_pair, real_array
+from dua_mujoco.core.validate import check_period, per_pair, real_array
 from dua_mujoco.exceptions import (
-    BoundViolationWarning,
     InvalidChoiceError,
     InvalidInputError,
     SchedulerError,
     ShapeError,
 )
 
-__all__ = ["AUTO_PRUNED_MIN", "DEFAULT_STRIDE", "PairMode", "SpherePredictor"]
+__all__ = [
+    "AUTO_PRUNED_MIN",
+    "DEFAULT_STRIDE",
+    "RENEW_MAX",
+    "PairMode",
+    "SpherePredictor",
+    "rebuild_stride",
+]
 
 AUTO_PRUNED_MIN = 256
 """``pairs="auto"`` prunes from this many spheres on. Measured by ``benchmarks/many.py``
@@ -55,6 +53,18 @@ AUTO_PRUNED_MIN = 256
 DEFAULT_STRIDE = 32
 """Default steps between rebuilds: ``horizon = (DEFAULT_STRIDE + latency) dt``. Longer strides
 rebuild less often but hold more pairs (the reach grows as ``T^2``); docs/many-objects.md."""
+
+RENEW_MAX = 512
+"""Most escaped spheres a step renews alone (``k N`` pair tests, ~1.1 ns each); more, and the
+whole held set is rebuilt (O(N + K), ~1 us a sphere on swarms), so that a renewal costs at most
+about half a rebuild at any ``N`` (measured, docs/many-objects.md)."""
+
+_LAYOUT = _core.LAYOUT
+_KIND = {
+    Schedule.DUA: _LAYOUT["RANK"],
+    Schedule.DEADLINE: _LAYOUT["DEADLINE"],
+    Schedule.SELECT_ALL: _LAYOUT["ALL"],
+}
 
 
 class PairMode(enum.Enum):
@@ -68,9 +78,42 @@ class PairMode(enum.Enum):
     """``PRUNED`` from ``AUTO_PRUNED_MIN`` spheres on, ``ALL`` below (deadline schedule only)."""
 
 
+def rebuild_stride(horizon: float, dt: float, latency: int) -> int:
+    """Steps ``R`` between rebuilds at horizon ``T``: the largest with ``(R + latency) dt <= T``.
+
+    A pair left out at the rebuild of step ``r`` cannot touch before ``r dt + T``; if it is
+    added at the next rebuild, step ``r + R``, it is evaluated there and its verdict acts from
+    ``(r + R + latency) dt <= r dt + T`` (docs/many-objects.md). The product is computed as
+    the deadline schedule computes it (``(s + latency) * dt``).
+
+    Raises:
+        InvalidInputError: ``T < (1 + latency) dt``: not even one step would be covered.
+    """
+    dt, latency = check_period(dt, latency)
+    T = float(horizon)
+    if not (math.isfinite(T) and (1 + latency) * dt <= T):
+        raise InvalidInputError(
+            f"horizon = {horizon!r} is invalid: a pruned pair set must cover at least one step "
+            f"and the latency, horizon >= (1 + latency) dt = {(1 + latency) * dt!r} s; pass a "
+            "longer horizon (or None for the default)."
+        )
+    R = max(1, math.floor(T / dt) - latency)
+    # The division rounds either way: settle R on the product itself.
+    while (R + latency) * dt > T:
+        R -= 1
+    while (R + 1 + latency) * dt <= T:
+        R += 1
+    return R
+
+
 def _per_sphere(name: str, value: npt.ArrayLike, n: int, *, allow_inf: bool = False) -> np.ndarray:
     """A bound, scalar or ``(n,)``, as an ``(n,)`` array (non-negative; finite unless allowed)."""
     return np.broadcast_to(per_pair(name, value, n, allow_inf=allow_inf), (n,)).copy()
+
+
+def _counter(name: str, doc: str) -> property:
+    """A read-only int property: the runtime's count ``name``."""
+    return property(lambda self: int(getattr(self._rt, name)), doc=doc)
 
 
 class SpherePredictor:
@@ -96,9 +139,6 @@ class SpherePredictor:
     Attributes:
         mode: The ``PairMode`` in use (``ALL`` or ``PRUNED``, never ``AUTO``).
         stride: Pruned: steps between rebuilds (None for all pairs).
-        evaluations: tau evaluations of the latest call.
-        rebuilds: Rebuilds of the pruned set so far (the one in ``reset`` not counted).
-        pairs: The ``PairSet`` held now (after ``reset``).
     """
 
     def __init__(
@@ -162,81 +202,83 @@ class SpherePredictor:
                 f"horizon = {horizon!r} is given but pairs are {mode.value!r}: the horizon is "
                 "the pruned set's; pass pairs='pruned' or drop horizon."
             )
-        # The reach's horizon; held apart from ``horizon`` so that the tests can shorten it
-        # alone and watch the guarantee break.
-        self._reach_horizon = self.horizon
         self.n = n
-        self.evaluations = 0
-        self.rebuilds = 0
-        self.pairs: PairSet | None = None
-        self.scheduler: Scheduler | None = None
-        self._keys = np.empty((0, 2), dtype=np.int64)
-        self._standing: StandingAlarms | None = None
-        self._anchor = np.empty((0, 3))
-        self._speed0 = np.empty(0)
-        # The escape test's buffers: every sphere, and the time since its anchor.
-        self._ids = np.arange(n, dtype=np.int64)
-        self._elapsed = np.empty(n)
-        self._built_at = 0
+        self._rt = self._runtime(self.horizon)
+        self._scheduler: Scheduler | None = None
+
+    def _runtime(self, reach_horizon: float | None) -> _core.Runtime:
+        """The native runtime on this predictor's tables, the reach over ``reach_horizon`` (the
+        horizon, which the tests shorten alone to watch the guarantee break)."""
+        c = np.zeros(_LAYOUT["CFG_SIZE"])
+        c[_LAYOUT["CFG_VERSION"]] = _core.TABLES_VERSION
+        c[_LAYOUT["CFG_KIND"]] = _KIND[self.schedule]
+        c[_LAYOUT["CFG_DT"]], c[_LAYOUT["CFG_LATENCY"]] = self.dt, self.latency
+        c[_LAYOUT["CFG_SLOTS_PER_BUCKET"]] = 1
+        c[_LAYOUT["CFG_CAP"]] = self.max_evals_per_step or 0
+        c[_LAYOUT["CFG_MAX_INTERVAL"]] = DEFAULT_MAX_INTERVAL
+        c[_LAYOUT["CFG_BACKOFF"]] = self.alarm_backoff
+        # Select-all's rule on tau, (1 + latency) dt, as the deadline and rank ones at one period.
+        c[_LAYOUT["CFG_THRESHOLD"]] = (1 + self.latency) * self.dt
+        c[_LAYOUT["CFG_MARGIN"]] = self.margin
+        c[_LAYOUT["CFG_HAS_SPEED"]] = bool(np.isfinite(self.speed).any())
+        if self.stride is not None:
+            c[_LAYOUT["CFG_PRUNED"]] = 1
+            c[_LAYOUT["CFG_HORIZON"]] = reach_horizon
+            c[_LAYOUT["CFG_STRIDE"]], c[_LAYOUT["CFG_RENEW_MAX"]] = self.stride, RENEW_MAX
+        reach = np.stack([self.radii, self.accel, self.vel_uncertainty, self.speed], axis=1)
+        tables = _core.Tables.free({"config": c, "reach": reach})
+        # One step's worth of alarm log (its whole selection, at worst), rewound at every step:
+        # nothing here holds the runtime's Alarms.
+        return _core.Runtime(tables, None, None, 1, 0)
 
     # ----------------------------------------------------------------------- introspection
 
     @property
     def npairs(self) -> int:
         """Pairs held now."""
-        return 0 if self.pairs is None else len(self.pairs)
+        return int(self._rt.schedule.last_tau.shape[0])  # (a view: O(1))
 
-    @property
-    def deferred(self) -> int:
-        """Pairs due at the latest step but left for a later one (a capped deadline schedule)."""
-        return 0 if self.scheduler is None else self.scheduler.deferred
+    evaluations = _counter("evaluated", "tau evaluations of the latest call.")
+    deferred = _counter(
+        "deferred", "Pairs due at the latest step but left for a later one (a capped schedule)."
+    )
+    rebuilds = _counter("rebuilds", "Rebuilds of the pruned set so far (not the reset's).")
+    renewals = _counter(
+        "renewals", "Renewals of the pruned set so far: steps whose escaped spheres were anchored."
+    )
 
     @property
     def keys(self) -> np.ndarray:
-        """``(npairs, 2)`` sphere ids ``(i, j)``, ``i < j``, of the pairs held, sorted."""
-        return self._keys
+        """``(npairs, 2)`` sphere ids ``(i, j)``, ``i < j``, of the pairs held, in the order of
+        :attr:`scheduler`'s pair ids (all pairs: increasing)."""
+        return self._rt.held_records[:, :2].astype(np.int64)
+
+    @property
+    def pairs(self) -> PairSet:
+        """The ``PairSet`` held now (a copy of the runtime's records)."""
+        rec = self._rt.held_records
+        return PairSet(rec[:, 0], rec[:, 1], rec[:, 3], rec[:, 4], vel_uncertainty=rec[:, 5],
+                       speed=rec[:, 6])  # fmt: skip
+
+    @property
+    def scheduler(self) -> Scheduler | None:
+        """The schedule the runtime runs now, as a read-only ``Scheduler`` over :attr:`keys`
+        (None before ``reset``). A reset and, pruned, a rebuild or renewal replace it."""
+        if not self._rt.classified:
+            return None
+        core = self._rt.schedule
+        if self._scheduler is None or self._scheduler.core is not core:
+            self._scheduler = Scheduler.of(core, read_only=True)
+        return self._scheduler
+
+    def alarm_ids(self) -> np.ndarray:
+        """``(k,)`` ids (into :attr:`keys`) of the pairs standing in alarm, increasing."""
+        sched = self.scheduler
+        if sched is None:
+            raise SchedulerError("alarm_ids() before reset(): call reset() first.")
+        return np.flatnonzero(sched.alarm_state())
 
     # ----------------------------------------------------------------------- calls
-
-    def _state(self, centers: npt.ArrayLike, velocities: npt.ArrayLike) -> tuple[np.ndarray, ...]:
-        c = as_vectors("centers", centers)
-        if c.shape[0] != self.n:
-            raise ShapeError(
-                f"centers has {c.shape[0]} rows but the predictor was built for {self.n} "
-                "spheres: pass one row per sphere, every call (build a new predictor for a "
-                "different N)."
-            )
-        v = as_vectors("velocities", velocities, self.n)
-        return c, v
-
-    def _pair_set(self, keys: np.ndarray) -> PairSet:
-        i, j = keys[:, 0], keys[:, 1]
-        return PairSet(
-            i,
-            j,
-            self.radii[i] + self.radii[j] + self.margin,
-            self.accel[i] + self.accel[j],
-            vel_uncertainty=self.vel_uncertainty[i] + self.vel_uncertainty[j],
-            speed=self.speed[i] + self.speed[j],
-        )
-
-    def _candidates(self, c: np.ndarray, v: np.ndarray) -> np.ndarray:
-        speed0 = np.sqrt(np.einsum("ij,ij->i", v, v))
-        assert self._reach_horizon is not None
-        r = reach(
-            self.radii,
-            speed0,
-            self.accel,
-            self._reach_horizon,
-            vel_uncertainty=self.vel_uncertainty,
-            speed_bound=self.speed,
-        )
-        self._anchor, self._speed0 = c.copy(), speed0
-        return candidate_pairs(c, r, margin=self.margin)
-
-    def _output(self) -> np.ndarray:
-        assert self._standing is not None
-        return self._keys[self._standing.ids()]
 
     def reset(self, centers: npt.ArrayLike, velocities: npt.ArrayLike) -> np.ndarray:
         """Initial classification at time 0: tau of every pair held.
@@ -247,68 +289,18 @@ class SpherePredictor:
 
         Returns:
             ``(k, 2)`` int64 sphere pairs ``(i, j)``, ``i < j``, sorted, standing in alarm.
+
+        Raises:
+            ShapeError, NonFiniteStateError: the state is malformed or not finite.
         """
-        c, v = self._state(centers, velocities)
-        if self.mode is PairMode.PRUNED:
-            keys = self._candidates(c, v)
-        else:
-            i, j = np.triu_indices(self.n, k=1)
-            keys = np.stack([i, j], axis=1).astype(np.int64)
-        self._keys = keys
-        self.pairs = self._pair_set(keys)
-        tau0 = self.pairs.tau(np.arange(len(self.pairs)), c, v)
-        self.scheduler = self._make(tau0)
-        self._standing = StandingAlarms(len(self.pairs), self.scheduler.initial_alarms)
-        self.evaluations = len(self.pairs)
-        self.rebuilds = 0
-        self._built_at = 0
-        return self._output()
-
-    def _make(self, tau0: np.ndarray) -> Scheduler:
-        return make_scheduler(
-            self.schedule,
-            tau0,
-            dt=self.dt,
-            latency=self.latency,
-            max_evals_per_step=self.max_evals_per_step,
-            alarm_backoff=self.alarm_backoff,
-        )
-
-    def _rebuild(self, c: np.ndarray, v: np.ndarray, step: int) -> None:
-        """New candidates at this step's state; kept pairs carry their verdicts (O(N + K))."""
-        sched = self.scheduler
-        assert isinstance(sched, DeadlineScheduler)
-        keys = self._candidates(c, v)
-        src = match_pairs(self._keys, keys)
-        sched.remap(src, step)
-        self._keys = keys
-        self.pairs = self._pair_set(keys)
-        # Kept pairs stand as their verdicts say; new ones stand (-inf) until this step's
-        # selection evaluates them.
-        self._standing = StandingAlarms(len(keys), np.flatnonzero(sched.alarm_state()))
-        self._built_at = step
-        self.rebuilds += 1
-
-    def _escaped(self, c: np.ndarray, v: np.ndarray, t: float) -> bool:
-        """Whether a sphere may have left the reach of the last rebuild, ``t`` seconds on (the
-        native step's escape test); a warning when its state proves its bounds broken."""
-        bounds = (self._anchor, self._speed0, self.accel, self.vel_uncertainty, self.speed)
-        out = escapes(c, v, *bounds, t, ids=self._ids, elapsed=self._elapsed)
-        if out.size == 0:
-            return False
-        broken = breaks_bounds(out, c, v, *bounds, t)
-        if broken.size:
-            warnings.warn(
-                f"sphere {int(broken[0])} moved farther or faster than its bounds allow since "
-                f"the last rebuild (step {self._built_at}): the guarantee does not hold there; "
-                "the pair set is rebuilt now. Check accel/speed/vel_uncertainty.",
-                BoundViolationWarning,
-                stacklevel=3,
-            )
-        return True
+        c = np.asarray(centers, dtype=np.float64)
+        return self._rt.classify_spheres(c, np.asarray(velocities, dtype=np.float64))
 
     def step(self, centers: npt.ArrayLike, velocities: npt.ArrayLike) -> np.ndarray:
-        """One period later: evaluate the pairs due, rebuild the pruned set if due, alarm.
+        """One period later: evaluate the pairs due, rebuild or renew the pruned set, alarm.
+
+        A sphere whose state proves its bounds broken since its anchor warns
+        (``BoundViolationWarning``): the guarantee does not hold for its pairs then.
 
         Args:
             centers: ``(N, 3)`` sphere centres (m) at this step, finite.
@@ -322,31 +314,5 @@ class SpherePredictor:
             SchedulerError: ``step`` before ``reset``.
             ShapeError, NonFiniteStateError: the state is malformed or not finite.
         """
-        sched = self.scheduler
-        if sched is None or self.pairs is None or self._standing is None:
-            raise SchedulerError("step() before reset(): call reset(centers, velocities) first.")
-        c, v = self._state(centers, velocities)
-        n = sched.step_count + 1
-        if self.mode is PairMode.PRUNED:
-            assert self.stride is not None
-            due = n - self._built_at >= self.stride
-            if not due:
-                due = self._escaped(c, v, (n - self._built_at) * self.dt)
-            if due:
-                self._rebuild(c, v, n)
-        # The state was checked finite above: the fused step cannot stop on it.
-        alarms = sched.step_points(self.pairs, c, v)
-        params = sched.state.params
-        count = int(params[P_COUNT])
-        # Deferred pairs follow the evaluated ones in the selection: their verdicts were
-        # renewed too (standing in alarm if they no longer cover the wait).
-        renewed = sched.state.work[W_IDS, : count + int(params[P_DEFERRED])]
-        self._standing.renew(renewed, alarms)
-        self.evaluations = count
-        return self._output()
-
-    def alarm_ids(self) -> np.ndarray:
-        """``(k,)`` ids (into :attr:`keys`) of the pairs standing in alarm."""
-        if self._standing is None:
-            raise SchedulerError("alarm_ids() before reset(): call reset() first.")
-        return self._standing.ids()
+        c = np.asarray(centers, dtype=np.float64)
+        return self._rt.step_spheres(c, np.asarray(velocities, dtype=np.float64))

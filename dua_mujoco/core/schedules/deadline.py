@@ -28,8 +28,8 @@ import numpy.typing as npt
 import dua_mujoco._core as _core
 from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
 from dua_mujoco.core.schedules.state import DEADLINE, P_BACKOFF, P_CAP, P_MAX_INTERVAL, WHERE
-from dua_mujoco.core.validate import as_ids, check_period, check_urgencies
-from dua_mujoco.exceptions import InvalidInputError, SchedulerError
+from dua_mujoco.core.validate import check_period, check_urgencies
+from dua_mujoco.exceptions import InvalidInputError
 
 __all__ = [
     "DEFAULT_ALARM_BACKOFF",
@@ -130,31 +130,3 @@ class DeadlineScheduler(Scheduler, kind=DEADLINE):
     def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
         """Step at which each pair is next evaluated (-1: switched off)."""
         return np.asarray(self.state.ints[WHERE, np.asarray(pair)])
-
-    def remap(self, src: npt.ArrayLike, step: int) -> None:
-        """Replace the pair set: new pair ``p`` is old pair ``src[p]``, or new where ``src[p] < 0``.
-
-        A kept pair keeps its last tau, last step and due step, so its verdict covers exactly
-        what it covered before; a new pair stands in alarm (``last_tau = -inf``) and is due at
-        ``step`` (normally the next step, ``step_count + 1``), so that step's selection evaluates
-        it, or (over the cap) it waits standing in alarm. O(len(src)) time and memory; the old
-        state is released. Used by pruned pair sets (docs/many-objects.md).
-
-        Args:
-            src: ``(M',)`` int64 old pair id of each new pair, -1 for new pairs.
-            step: The step new pairs are due at (``> step_count``).
-        """
-        if self._pending is not None:
-            raise SchedulerError("remap() between select() and update(): finish the step.")
-        ids = as_ids("src", src)
-        old = self.state
-        if ids.size and int(ids.max()) >= old.last_tau.shape[0]:
-            raise InvalidInputError(
-                f"src names pair {int(ids.max())} but the scheduler has {self.npairs} pairs."
-            )
-        if int(step) <= self.step_count:
-            raise InvalidInputError(
-                f"step = {step} is invalid: new pairs must be due after step {self.step_count}."
-            )
-        # The schedule carries every kept verdict and counts the change (activation_changes).
-        self._adopt(self.core.carried(np.maximum(ids, -1), int(step)))

@@ -142,38 +142,6 @@ Out<double> OverPoints(const In<double>& points, const In<double>& shapes, const
   return Owned(std::move(out), {static_cast<size_t>(n), static_cast<size_t>(width)});
 }
 
-// tau of pairs ids (K,) of free spheres (the paper's setting): pair records (M, 8).
-std::pair<Out<double>, int64_t> TauFree(const In<double>& pairs, const In<int64_t>& ids,
-                                        const In<double>& centers, const In<double>& velocities,
-                                        const In<double>& planes, const In<double>& shapes) {
-  const int64_t m = Size(pairs) / kPairNcol, n = Size(ids);
-  const int64_t nsphere = Size(centers) / 3, nplane = Size(planes) / 4;
-  // A terrain record reads its block (terrain.cc): the records end where the blocks start.
-  Require(Size(shapes) % kShapeNcol == 0 &&
-              dua_check_shapes(shapes.data(), Size(shapes) / kShapeNcol) < 0,
-          "shapes must be (n, 16), every terrain's block within the table");
-  const int64_t nshape = ShapeRecordCount(shapes.data(), Size(shapes) / kShapeNcol);
-  Require(Size(velocities) == 3 * nsphere, "centres and velocities must be (n, 3) alike");
-  for (int64_t p = 0; p < m; ++p) {
-    const double* r = pairs.data() + kPairNcol * p;
-    const double kind = r[kPairKind];
-    const bool ok = r[kPairFirst] >= 0 && r[kPairFirst] < nsphere &&
-                    ((kind == kKindSphere && r[kPairSecond] >= 0 && r[kPairSecond] < nsphere) ||
-                     (kind == kKindHalfspace && r[kPairSecond] >= 0 && r[kPairSecond] < nplane) ||
-                     (kind == kKindShape && r[kPairOther] >= 0 && r[kPairOther] < nshape));
-    Require(ok, "pair record " + std::to_string(p) +
-                    " indexes outside the spheres, planes or "
-                    "shapes given");
-  }
-  for (int64_t k = 0; k < n; ++k) {
-    Require(ids.data()[k] >= 0 && ids.data()[k] < m, "a pair id is out of range");
-  }
-  std::vector<double> out(n), rows(12 * static_cast<size_t>(std::max<int64_t>(n, 1)));
-  const int64_t bad = dua_tau_free(pairs.data(), shapes.data(), centers.data(), velocities.data(),
-                                   planes.data(), ids.data(), n, rows.data(), out.data());
-  return {Owned(std::move(out), {static_cast<size_t>(n)}), bad};
-}
-
 // ------------------------------------------------------------------------------- kinematics
 
 // The instant the kinematics kernel reads, as arrays (MjData's geom_xpos (ngeom, 3), geom_xmat
@@ -507,27 +475,6 @@ void CheckIds(const Schedule& s, const In<int64_t>& ids) {
   }
 }
 
-// The select/evaluate/reinsert step on free spheres: (alarms, bad pair or -1, evaluated).
-nb::tuple StepPoints(Schedule& s, const In<double>& pairs, const In<double>& centers,
-                     const In<double>& velocities, const In<double>& planes,
-                     const In<double>& shapes) {
-  Require(Size(pairs) == kPairNcol * s.m(), "the pair records must be (m, 8), one a pair");
-  dua_schedule* st = s.state();
-  const int64_t n = s.step_count + 1;
-  const int64_t count = dua_select(st, n);
-  In<int64_t> ids(st->work + st->width, {static_cast<size_t>(count)});
-  auto [tau, bad] = TauFree(pairs, ids, centers, velocities, planes, shapes);
-  if (bad >= 0) {
-    const int64_t p = ids.data()[bad];
-    dua_restore(st, n, count);
-    return nb::make_tuple(0, p, count);
-  }
-  std::copy(tau.data(), tau.data() + count, st->w_tau);
-  const int64_t nalarm = dua_reinsert(st, n, count);
-  s.step_count = n;
-  return nb::make_tuple(nalarm, -1, count);
-}
-
 void BindSchedule(nb::module_& m) {
   nb::class_<Schedule>(m, "Schedule",
                        "A schedule's state and kernels (dua_mujoco.core.schedules wraps it).")
@@ -551,20 +498,6 @@ void BindSchedule(nb::module_& m) {
           "kind"_a, "dt"_a, "latency"_a, "tau0"_a, nb::arg("active").none() = nb::none(),
           "slots_per_bucket"_a = 1, "cap"_a = 0, "max_interval"_a = 1024, "backoff"_a = 8,
           "threshold"_a = 0.0, "alarm_horizon"_a = 0.0)
-      .def(
-          "carried",
-          [](const Schedule& old, const In<int64_t>& src, int64_t n) {
-            const int64_t m = Size(src);
-            for (int64_t k = 0; k < m; ++k) {
-              Require(src.data()[k] >= -1 && src.data()[k] < old.m(),
-                      "src names a pair the schedule does not have");
-            }
-            Require(old.spec().kind == kDeadline, "only the deadline schedule carries pairs");
-            auto next = std::make_shared<Schedule>(old.spec(), m);
-            next->Carry(old, std::vector<int64_t>(src.data(), src.data() + m), n);
-            return next;
-          },
-          "src"_a, "n"_a, "A schedule of the pairs src (old ids, -1: new, due at step n).")
       .def(
           "select", [](Schedule& s, int64_t n) { return dua_select(s.state(), n); }, "n"_a)
       .def(
@@ -595,8 +528,6 @@ void BindSchedule(nb::module_& m) {
             dua_make_due(s.state(), p, n);
           },
           "p"_a, "n"_a)
-      .def("step_points", &StepPoints, "pairs"_a, "centers"_a, "velocities"_a, "planes"_a,
-           "shapes"_a)
       .def("alarm_state",
            [](const Schedule& s) {
              std::vector<uint8_t> out(s.m());
@@ -790,6 +721,74 @@ Out<int64_t> Ints(const std::vector<int64_t>& v) {
   return Owned(std::vector<int64_t>(v), {v.size()});
 }
 
+// Tables from a dict of float64 arrays by name, read by `build` (BuildTables or FreeTables).
+template <class Build>
+std::shared_ptr<Tables> TablesOf(nb::dict arrays, const Build& build) {
+  std::map<std::string, std::vector<double>> values;
+  for (auto [key, value] : arrays) {
+    const auto a = nb::cast<In<double>>(value);
+    values[nb::cast<std::string>(key)].assign(a.data(), a.data() + a.size());
+  }
+  const TableSource source = [&values](const std::string& name, std::vector<double>* out,
+                                       std::string* why) {
+    const auto it = values.find(name);
+    if (it == values.end()) {
+      *why = "is missing";
+      return false;
+    }
+    *out = it->second;
+    return true;
+  };
+  std::string error;
+  std::shared_ptr<const Tables> t = build(source, &error);
+  if (!t) Raise("InvalidInputError", error);
+  return std::const_pointer_cast<Tables>(t);
+}
+
+// Free spheres' centres or velocities (the caller's array `a`), checked before the runtime reads
+// them: (n, 3), every entry finite. The error names the array, and the row that is not finite.
+const double* FreeStates(const char* name, const In<double>& a, int64_t n) {
+  if (a.ndim() != 2 || static_cast<int64_t>(a.shape(0)) != n || a.shape(1) != 3) {
+    nb::list shape;
+    for (size_t k = 0; k < a.ndim(); ++k) shape.append(a.shape(k));
+    Raise("ShapeError", nb::str("{} has shape {}, but the predictor was built for {} spheres: pass "
+                                "an ({}, 3) array, a row a sphere, at every call (a new predictor "
+                                "for another number)")
+                            .format(name, nb::tuple(shape), n, n)
+                            .c_str());
+  }
+  const double* p = a.data();
+  bool finite = true;  // (vectorised: NaN and inf fail the comparison)
+  for (int64_t k = 0; k < 3 * n; ++k)
+    finite &= std::fabs(p[k]) <= std::numeric_limits<double>::max();
+  for (int64_t i = 0; !finite && i < n; ++i) {
+    const double* x = p + 3 * i;
+    if (std::isfinite(x[0]) && std::isfinite(x[1]) && std::isfinite(x[2])) continue;
+    Raise("NonFiniteStateError",
+          nb::str("{}[{}] = [{}, {}, {}] is not finite: the state diverged or was not computed; "
+                  "pass finite {}")
+              .format(name, i, x[0], x[1], x[2], name)
+              .c_str());
+  }
+  return p;
+}
+
+// The free spheres' pairs (i, j), i < j, standing in alarm: (k, 2) rows in increasing order.
+Out<int64_t> StandingSpheres(const Runtime& rt) {
+  const std::vector<int64_t>& held = rt.standing();
+  const int64_t n = rt.tables().nsphere();
+  std::vector<int64_t> codes(held.size());
+  for (size_t k = 0; k < held.size(); ++k) {
+    const double* rec = rt.HeldRecord(held[k]);
+    codes[k] = static_cast<int64_t>(rec[kPairFirst]) * n + static_cast<int64_t>(rec[kPairSecond]);
+  }
+  std::sort(codes.begin(), codes.end());
+  std::vector<int64_t> out(2 * codes.size());
+  for (size_t k = 0; k < codes.size(); ++k)
+    out[2 * k] = codes[k] / n, out[2 * k + 1] = codes[k] % n;
+  return Owned(std::move(out), {codes.size(), 2});
+}
+
 // Geom pairs (g1[k], g2[k]) as vectors, each id checked against the model.
 std::pair<std::vector<int64_t>, std::vector<int64_t>> GeomIds(const mjModel* m,
                                                               const In<int64_t>& g1,
@@ -837,28 +836,21 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "build",
           [](nb::handle model, nb::dict arrays) {
             const mjModel* mm = ModelOf(model);
-            std::map<std::string, std::vector<double>> values;
-            for (auto [key, value] : arrays) {
-              const auto a = nb::cast<In<double>>(value);
-              values[nb::cast<std::string>(key)].assign(a.data(), a.data() + a.size());
-            }
-            const TableSource source = [&values](const std::string& name, std::vector<double>* out,
-                                                 std::string* why) {
-              const auto it = values.find(name);
-              if (it == values.end()) {
-                *why = "is missing";
-                return false;
-              }
-              *out = it->second;
-              return true;
-            };
-            std::string error;
-            std::shared_ptr<const Tables> t = BuildTables(mm, source, "table '", "'", &error);
-            if (!t) Raise("InvalidInputError", error);
-            return std::const_pointer_cast<Tables>(t);
+            return TablesOf(arrays, [mm](const TableSource& source, std::string* error) {
+              return BuildTables(mm, source, "table '", "'", error);
+            });
           },
           "model"_a, "arrays"_a,
           "The tables from a dict of float64 arrays (dua_mujoco/runtime/table_arrays.py), checked.")
+      .def_static(
+          "free",
+          [](nb::dict arrays) {
+            return TablesOf(arrays, [](const TableSource& source, std::string* error) {
+              return FreeTables(source, "table '", "'", error);
+            });
+          },
+          "arrays"_a,
+          "Free spheres' tables (FreeTables: 'config' and 'reach'; core/spheres.py), checked.")
       .def_static(
           "load",
           [](nb::handle model, const std::string& prefix) {
@@ -872,19 +864,22 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def_prop_ro("exact", [](const Tables& t) { return t.exact; })
       .def_prop_ro("nsphere", [](const Tables& t) { return t.nsphere(); });
 
-  nb::class_<PyRuntime>(m, "Runtime", "The predictor at run time (runtime.h), on one MjData.")
+  nb::class_<PyRuntime>(m, "Runtime",
+                        "The predictor at run time (runtime.h), on one MjData or free spheres.")
       .def(
           "__init__",
           [step_error](PyRuntime* self, std::shared_ptr<Tables> tables, nb::object model,
                        nb::object names, int64_t log_steps, int64_t log_min) {
+            Require(tables->free == model.is_none(),
+                    "free spheres' tables run without a model, a model's with it");
             new (self) PyRuntime();
-            self->m = ModelOf(model);
+            self->m = tables->free ? nullptr : ModelOf(model);
             self->model = model;
             self->names = names;
             self->step_error = nb::borrow(step_error);
             self->rt = std::make_unique<Runtime>(std::move(tables), self->m, log_steps, log_min);
           },
-          "tables"_a, "model"_a, "names"_a, "log_steps"_a = 4, "log_min"_a = 1 << 14)
+          "tables"_a, "model"_a.none(), "names"_a.none(), "log_steps"_a = 4, "log_min"_a = 1 << 14)
       .def(
           "bind",
           [](PyRuntime& self, nb::object data) {
@@ -918,6 +913,67 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           },
           nb::sig("def step(self) -> Alarms"),
           "One predictor step on the bound MjData, one period after the last.")
+      .def(
+          "classify_spheres",
+          [](PyRuntime& self, const In<double>& centers, const In<double>& velocities) {
+            Runtime& rt = *self.rt;
+            const int64_t n = rt.tables().nsphere();
+            rt.SetPoints(FreeStates("centers", centers, n),
+                         FreeStates("velocities", velocities, n));
+            const int64_t bad = rt.Classify(nullptr, nullptr);
+            rt.SetPoints(nullptr, nullptr);
+            // (The states were checked finite: no pair's can fail.)
+            Require(bad < 0, "a free sphere's state was not finite");
+            return StandingSpheres(rt);
+          },
+          "centers"_a, "velocities"_a,
+          "Free spheres: the initial classification at centres and velocities (n, 3); the pairs "
+          "(i, j) standing in alarm, (k, 2) in increasing order.")
+      .def(
+          "step_spheres",
+          [](PyRuntime& self, const In<double>& centers, const In<double>& velocities) {
+            Runtime& rt = *self.rt;
+            if (!rt.classified()) {
+              Raise("SchedulerError",
+                    "step() before reset(): call reset(centers, velocities) first.");
+            }
+            const int64_t n = rt.tables().nsphere();
+            rt.SetPoints(FreeStates("centers", centers, n),
+                         FreeStates("velocities", velocities, n));
+            const int64_t r = rt.Step(nullptr, nullptr);
+            rt.SetPoints(nullptr, nullptr);
+            Require(r >= 0, "a free sphere's state was not finite");
+            const int64_t broken = rt.pruned_state().broken;
+            if (broken >= 0) {
+              const nb::object warning =
+                  nb::module_::import_("dua_mujoco.exceptions").attr("BoundViolationWarning");
+              const nb::str message =
+                  nb::str(
+                      "sphere {} moved farther or faster than its bounds allow since it was "
+                      "anchored (its state at step {}): the guarantee does not hold there; its "
+                      "pairs are renewed now. Check accel, speed and vel_uncertainty.")
+                      .format(broken, rt.step());
+              // Attributed to the caller of SpherePredictor.step.
+              if (PyErr_WarnEx(warning.ptr(), message.c_str(), 2) < 0) throw nb::python_error();
+            }
+            return StandingSpheres(rt);
+          },
+          "centers"_a, "velocities"_a,
+          "Free spheres: one step at centres and velocities (n, 3), one period after the last; "
+          "the pairs (i, j) standing in alarm, (k, 2) in increasing order.")
+      .def_prop_ro(
+          "held_records",
+          [](const PyRuntime& s) {
+            const Runtime& rt = *s.rt;
+            const size_t k = rt.ids().size();
+            std::vector<double> out(kPairNcol * k);
+            for (size_t p = 0; p < k; ++p) {
+              std::copy_n(rt.HeldRecord(static_cast<int64_t>(p)), kPairNcol,
+                          out.data() + kPairNcol * p);
+            }
+            return Owned(std::move(out), {k, static_cast<size_t>(kPairNcol)});
+          },
+          nb::rv_policy::move, "(held pairs, 8) the held pairs' records, in held order: a copy.")
       .def("clock_of", [](const PyRuntime& self,
                           double time) { return static_cast<int>(self.rt->ClockOf(time)); })
       .def(
@@ -1285,8 +1341,6 @@ NB_MODULE(_core, m) {
       },
       "table"_a, "row"_a, "shape"_a, "v"_a, "spin"_a, "eps"_a, "accel"_a, "delta"_a,
       "tau of a convex shape record moving with velocity v against terrain record `row`.");
-  m.def("tau_free", &TauFree, "pairs"_a, "ids"_a, "centers"_a, "velocities"_a, "planes"_a,
-        "shapes"_a);
   m.def("deadline_interval", &dua_deadline_interval, "tau"_a, "dt"_a, "latency"_a, "max_interval"_a,
         "extra"_a = 0.0);
   m.def(

@@ -1,7 +1,7 @@
 // What dua_mujoco.core needs of _core beyond bindings.cc: tau of given pairs of free spheres and
 // the fused step on them, each checking only the records it follows (a step of a few pairs out
-// of a million stays O(its pairs)), the standing-alarms set of a SpherePredictor, and the
-// candidate grid's plan (tests hold its cells to the contract of core/neighbors.py).
+// of a million stays O(its pairs)), and the candidate grid's plan (tests hold its cells to the
+// contract of csrc/src/grid.cc).
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 
@@ -178,55 +178,6 @@ Out<bool> Stands(const Schedule& sched, const In<int64_t>& ids) {
   return OwnedBools(std::move(out));
 }
 
-// The pairs standing in alarm among m, kept in O(renewed pairs) a step: a list with each
-// pair's place in it (-1: not standing), renewed pairs swap-removed, alarmed ones appended.
-class StandingAlarms {
- public:
-  StandingAlarms(int64_t m, const In<int64_t>& alarmed) {
-    Require(m >= 0, "the number of pairs must be >= 0");
-    pos_.assign(static_cast<size_t>(m), -1);
-    list_.reserve(static_cast<size_t>(m));
-    Renew(nullptr, 0, alarmed.data(), Size(alarmed));
-  }
-
-  void Renew(const int64_t* renewed, int64_t nrenewed, const int64_t* alarms, int64_t nalarm) {
-    const int64_t m = Size(pos_);
-    for (int64_t k = 0; k < nrenewed; ++k) {
-      Require(renewed[k] >= 0 && renewed[k] < m, "a renewed pair id is out of range");
-    }
-    for (int64_t k = 0; k < nalarm; ++k) {
-      Require(alarms[k] >= 0 && alarms[k] < m, "an alarmed pair id is out of range");
-    }
-    for (int64_t k = 0; k < nrenewed; ++k) {
-      const int64_t p = renewed[k], at = pos_[p];
-      if (at < 0) continue;
-      const int64_t last = list_.back();
-      list_[at] = last;
-      pos_[last] = at;
-      pos_[p] = -1;
-      list_.pop_back();
-    }
-    for (int64_t k = 0; k < nalarm; ++k) {
-      const int64_t p = alarms[k];
-      if (pos_[p] >= 0) continue;
-      pos_[p] = Size(list_);
-      list_.push_back(p);
-    }
-  }
-
-  Out<int64_t> Ids() const {
-    std::vector<int64_t> out(list_);
-    std::sort(out.begin(), out.end());
-    const size_t n = out.size();
-    return Owned(std::move(out), {n});
-  }
-
-  int64_t count() const { return Size(list_); }
-
- private:
-  std::vector<int64_t> pos_, list_;
-};
-
 // The candidate grid's plan for spheres of reach (n,) (n >= 2) within bounds lo, hi.
 nb::dict GridPlan(const In<double>& reach, double margin, const In<double>& lo,
                   const In<double>& hi) {
@@ -279,19 +230,6 @@ void BindCore(nb::module_& m) {
       .def("step", &FreeStep::Run, "centers"_a, "velocities"_a,
            "One fused step: its number of alarms, or -1 - p for a pair p whose state is not "
            "finite (the step undone).");
-
-  nb::class_<StandingAlarms>(m, "StandingAlarms",
-                             "Pairs standing in alarm, kept in O(renewed pairs) a step.")
-      .def(nb::init<int64_t, const In<int64_t>&>(), "npairs"_a, "alarmed"_a)
-      .def(
-          "renew",
-          [](StandingAlarms& s, const In<int64_t>& renewed, const In<int64_t>& alarms) {
-            s.Renew(renewed.data(), Size(renewed), alarms.data(), Size(alarms));
-          },
-          "renewed"_a, "alarms"_a,
-          "A step renewed the verdicts of renewed; alarms (among them) alarm.")
-      .def("ids", &StandingAlarms::Ids, "(k,) sorted pair ids standing in alarm.")
-      .def("__len__", &StandingAlarms::count);
 }
 
 }  // namespace dua

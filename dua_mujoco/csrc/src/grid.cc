@@ -1,9 +1,47 @@
 // The hashed uniform grid behind candidate pairs of reachable balls: every pair i < j with
-// |c_i - c_j|^2 <= ((reach_i + reach_j) + margin)^2 (1 + 2^-44), and no other. The contract, the
-// cell size, the bucket map, the held-out spheres and the proofs are stated in
-// dua_mujoco/core/neighbors.py; this is their one implementation. Spheres are counting-sorted
-// into buckets, each is tested against the rest of its bucket and the 13 cells after its own,
-// O(N + K); every buffer is the caller's.
+// |c_i - c_j|^2 <= ((reach_i + reach_j) + margin)^2 (1 + 2^-44), and no other; every buffer is the
+// caller's. The runtime chooses a pruned predictor's pairs with it (pruned.cc).
+//
+// Motion model of sphere `i`: centre `c_i`, velocity `v_i`, radius `r_i`, a bound `A_i` on the norm
+// of the centre's acceleration, an optional bound `delta_i` on the error of the measured velocity
+// and an optional speed bound `V_i`. The reach (`dua_reaches`, reach.cc) is `reach_i = r_i +
+// R_i(T)` with `R_i(T) = min(|v_i| T + delta_i T + A_i T^2 / 2, V_i T)`; the grid returns every
+// pair `i < j` with `|c_i - c_j| <= reach_i + reach_j + margin` and no other.
+//
+// Guarantee: a pair that the grid leaves out cannot come within `r_i + r_j + margin` (centre
+// distance) at any time in `[0, T]`, whatever its motion within the bounds. Proof: the true
+// velocity `u_i(s)` satisfies `|u_i(0)| <= |v_i| + delta_i` and `|u_i(s) - u_i(0)| <= A_i s`, so
+// `|x_i(t) - c_i| <= (|v_i| + delta_i) t + A_i t^2 / 2`; a speed bound gives `|x_i(t) - c_i| <= V_i
+// t` as well, so `|x_i(t) - c_i| <= R_i(t) <= R_i(T)` since every term is non-decreasing in `t`. By
+// the triangle inequality `|x_i(t) - x_j(t)| >= |c_i - c_j| - R_i(T) - R_j(T) > r_i + r_j + margin`
+// for every left-out pair. Floating point: the test is evaluated as `d2 <= s * s * ROUNDING_SLACK`
+// with `d2 = dx*dx + dy*dy + dz*dz` and `s = (reach_i + reach_j) + margin` in float64 (this exact
+// expression is the contract; tests/reference_grid.py holds the grid to it). `ROUNDING_SLACK = 1 +
+// 2**-44` exceeds the at most ~12 ulp of relative error of `d2` and `s * s`, so every pair meeting
+// the test in exact arithmetic is returned; the extra pairs lie within a relative `3e-14` of the
+// boundary.
+//
+// Algorithm: a uniform grid of cubic cells of edge `h >= 2 rcut + margin` (`rcut`: the largest
+// reach in the grid), so every pair to report lies in the same or adjacent cells. Cells map to `2^b
+// >= 2 N` buckets by wrapping the cell index onto a power-of-two torus (x fastest): a locality-
+// preserving hash, so a row of three neighbour cells is a run of adjacent buckets, and sweeping the
+// spheres in bucket order reads memory almost sequentially (a mixing hash made every probe a cache
+// miss). If the grid has at most `2^b` cells with `h` up to twice the minimum, the smallest such
+// `h` is used and nothing wraps. Spheres are counting-sorted by bucket (no comparison sort, no
+// dict); each is tested against the rest of its bucket and the 13 cells after its own in (z, y, x)
+// order, five runs of buckets, so each pair is tested once. The `k` spheres of largest reach may be
+// held out of the grid and tested against every sphere instead (`k N` tests), `k` minimising a cost
+// model `k N + 14 N (1 + occupancy)` with the occupancy estimated from the bounding box: one 2 m
+// sphere among 1 cm ones then costs `N` tests instead of growing every cell 200 times (8e6 times
+// the volume). Pairs are counted in a first pass and written in a second into arrays allocated at
+// their exact size; two counting sorts (by `j`, then stably by `i`) order them. Time and memory are
+// `O(N + K)`, plus `N k` tests for held-out spheres, and the tests in the grid are at most a
+// constant times `N + K` unless the extent of the centres exceeds `2^31 h` (cells are then grown to
+// keep indices exact: a cluster plus a far outlier). Cells are grown by `1 + 2^-16` beyond `2 rcut
+// + margin` so that a pair at distance `<= s <=` the edge (after rounding, `< 1e-13` relative)
+// never lands two cells apart: the rounding of `floor((x - lo) / h)` stays below `2^-21` cells with
+// at most `2^31` cells an axis. Its work arrays take ~70 bytes per sphere plus 20 per pair
+// (`_core.grid_plan` shows a plan).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>

@@ -33,9 +33,6 @@ namespace {
 
 constexpr char kPluginName[] = "dua_mujoco.predictor";
 constexpr const char* kAttributes[] = {"prefix", "overlay", "forget"};
-// Pruned pairs: rebuilds a learnt pair may go unheld before it is forgotten (Runtime::SetForget),
-// unless the attribute says otherwise; memory then stays bounded over a long run.
-constexpr int64_t kForgetDefault = 8;
 constexpr int kNAttribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
 
 // Sensor outputs.

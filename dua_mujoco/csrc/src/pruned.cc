@@ -1,5 +1,5 @@
-// The plugin's pruned pairs (pruned.h): the held set chosen from the spheres' reaches, as
-// dua_mujoco/build/pruning.py's HeldPairs chooses it, on the same native kernels.
+// Pruned pairs (pruned.h): the held set chosen from the spheres' reaches and renewed for the
+// spheres that may have left theirs.
 #include "pruned.h"
 
 #include <algorithm>
@@ -27,7 +27,7 @@ std::string PrunedTables::Build(const std::vector<double>& reach_table,
     accel[i] = reach_table[4 * i + 1];
     delta[i] = reach_table[4 * i + 2];
     speed[i] = reach_table[4 * i + 3];
-    // Finite and >= 0 (a speed bound may be inf: none), as neighbors.reach requires.
+    // Finite and >= 0 (a speed bound may be inf: none), as dua_reaches requires.
     const bool finite = std::isfinite(radius[i]) && std::isfinite(accel[i]) &&
                         std::isfinite(delta[i]) && !std::isnan(speed[i]);
     if (!finite || radius[i] < 0 || accel[i] < 0 || delta[i] < 0 || speed[i] < 0) {
@@ -52,7 +52,7 @@ std::string PrunedTables::Build(const std::vector<double>& reach_table,
 
 void PrunedState::Known(const LearnTables& learn, Universe* u, int64_t k,
                         std::vector<int64_t>* ids) {
-  // As HeldPairs._known: look the candidates up; learn the geom pairs of those the universe
+  // Look the candidates up; learn the geom pairs of those the universe
   // lacks (MuJoCo's filter decides), then look them up again.
   std::vector<int64_t> unknown;
   const size_t at = ids->size();
@@ -103,7 +103,7 @@ bool PrunedState::Select(const PrunedTables& t, const LearnTables& learn, Univer
   std::vector<double> centers(3 * static_cast<size_t>(n)), speeds(n);
   double state[6];
   for (int64_t i = 0; i < n; ++i) {
-    dua_rigid_point(i, a.spheres, &a.frame, state);
+    dua_point(&a, i, state);
     for (int c = 0; c < 6; ++c) {
       if (!std::isfinite(state[c])) return false;  // nothing anchored
     }
@@ -166,6 +166,10 @@ void PrunedState::FindEscapes(const PrunedTables& t, const dua_step_args& a, int
   r.dt = a.schedule.dt;
   escapes.resize(t.nsphere);
   escapes.resize(dua_escaped_spheres(&a, &r, step, escapes.data()));
+  // Free spheres have no violation check of their own: the escapes say which broke their bounds.
+  broken = a.points.centers ? dua_proven_broken(&a, &r, escapes.data(),
+                                                static_cast<int64_t>(escapes.size()), step)
+                            : -1;
 }
 
 }  // namespace dua

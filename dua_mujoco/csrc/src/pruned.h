@@ -1,7 +1,7 @@
-// The plugin's pruned pairs: which of the model's pairs are held, chosen by the candidate grid
-// (grid.cc) from every sphere's reach at a rebuild, and renewed for the spheres the escape check
-// (reach.cc) finds outside their reach, as dua_mujoco/build/pruning.py's HeldPairs does for the
-// Python predictor (docs/many-objects.md).
+// Pruned pairs, for every caller of the runtime (the plugin, Predictor, SpherePredictor): which of
+// the pairs are held, chosen by the candidate grid (grid.cc) from every sphere's reach at a
+// rebuild, and renewed for the spheres the escape check (reach.cc) finds outside their reach
+// (docs/many-objects.md; docs/theory.md, Lemmas 6.4 and 6.5).
 #ifndef DUA_MUJOCO_PRUNED_H_
 #define DUA_MUJOCO_PRUNED_H_
 
@@ -35,6 +35,7 @@ struct DUA_API PrunedState {
   std::vector<int64_t> built;
   std::vector<int64_t> escapes;  // found by the latest step, renewed at the next
   int64_t built_at = 0;          // step of the latest rebuild
+  int64_t broken = -1;           // free spheres: an escaped one whose state proves a violation
   // The grid's buffers (every call sizes them).
   std::vector<int32_t> start, sid, found, tmp;
   std::vector<double> sxyz, sr, work;
@@ -52,7 +53,8 @@ struct DUA_API PrunedState {
   // in, sorted (learnt as by Select). False if a state is not finite.
   bool Renew(const PrunedTables& t, const LearnTables& learn, Universe* u, const dua_step_args& a,
              int64_t step, std::vector<int64_t>* ids);
-  // After a step: the spheres of the flagged bodies that may have left their reach.
+  // After a step: the spheres of the flagged bodies that may have left their reach (free
+  // spheres: before a step, every sphere; and `broken`).
   void FindEscapes(const PrunedTables& t, const dua_step_args& a, int64_t step);
 
  private:

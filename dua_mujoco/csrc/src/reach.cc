@@ -10,7 +10,7 @@
 namespace dua {
 namespace {
 
-// The grid's pair contract (grid.cc; ROUNDING_SLACK of dua_mujoco/core/neighbors.py): 1 + 2^-44.
+// The grid's pair contract (grid.cc's ROUNDING_SLACK): 1 + 2^-44.
 constexpr double kRoundingSlack = 1.0 + 1.0 / 17592186044416.0;
 // Rounding allowance of the escape test, relative: a sphere within it of its reach's edge counts
 // as escaped (in doubt, renewed: a renewal is cheap and always safe, while a sphere let through
@@ -39,6 +39,25 @@ bool Escapes(const dua_reach& r, int64_t s, const double* c, const double* v, do
   return !(dist + tol <= allow && speed + tol <= top);
 }
 
+// Whether sphere s's state, t seconds after its anchor, proves its bounds broken since then: with
+// the bounds kept, its centre stays within min((s0 + delta) t + A t^2 / 2, V t) of the anchor and
+// its measured speed below min(s0 + 2 delta + A t, V + delta) (the true speed within delta of
+// both measurements); a state beyond either by more than rounding broke them.
+bool Breaks(const dua_reach& r, int64_t s, const double* c, const double* v, double t) {
+  const double s0 = r.speed0[s], a = r.accel[s], d = r.delta[s], vmax = r.speed[s];
+  const double free = (s0 + d) * t + 0.5 * a * t * t;
+  // With no speed bound V t is inf and never replaces the free-motion allowance.
+  const double allow = vmax * t < free ? vmax * t : free;
+  const double top = std::min(s0 + 2.0 * d + a * t, vmax + d);
+  const double* o = r.anchor + 3 * s;
+  const double dx = c[0] - o[0], dy = c[1] - o[1], dz = c[2] - o[2];
+  const double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double speed = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  const double scale = std::max({1.0, std::fabs(o[0]), std::fabs(o[1]), std::fabs(o[2])});
+  const double tol = kEscapeSlack * (allow + top) + 2e-12 * scale;
+  return !(dist <= allow + tol && speed <= top + tol);
+}
+
 double Reach(double radius, double speed, double accel, double delta, double vmax, double t) {
   const double free = (speed + delta) * t + 0.5 * accel * (t * t);
   // inf * 0 is NaN: with no speed bound (or T = 0) the free-motion bound is the answer.
@@ -63,9 +82,20 @@ int64_t dua_escapes(const dua_reach* r, const int64_t* ids, int64_t n, const dou
 
 int64_t dua_escaped_spheres(const dua_step_args* a, const dua_reach* r, int64_t step,
                             int64_t* out) {
+  int64_t count = 0;
+  const double* c = a->points.centers;
+  if (c) {
+    // Free spheres: no violation check flags them, so the escape test is theirs, every step
+    // (their states read in place: this loop is most of a large free step).
+    const double* v = a->points.velocities;
+    for (int64_t s = 0; s < r->nsphere; ++s) {
+      const double t = static_cast<double>(step - r->built[s]) * r->dt;
+      if (dua::Escapes(*r, s, c + 3 * s, v + 3 * s, t)) out[count++] = s;
+    }
+    return count;
+  }
   const dua_events& ev = a->events;
   const int64_t flagged = ev.nbody ? ev.meta[dua::kMCount] : 0;
-  int64_t count = 0;
   double state[6];
   for (int64_t k = 0; k < flagged; ++k) {
     const double* rec = ev.rec + ev.flagged[k] * dua::kBNcol;
@@ -80,6 +110,17 @@ int64_t dua_escaped_spheres(const dua_step_args* a, const dua_reach* r, int64_t 
   return count;
 }
 
+int64_t dua_proven_broken(const dua_step_args* a, const dua_reach* r, const int64_t* ids, int64_t n,
+                          int64_t step) {
+  double state[6];
+  for (int64_t k = 0; k < n; ++k) {
+    dua_point(a, ids[k], state);
+    const double t = static_cast<double>(step - r->built[ids[k]]) * r->dt;
+    if (dua::Breaks(*r, ids[k], state, state + 3, t)) return ids[k];
+  }
+  return -1;
+}
+
 void dua_reaches(const double* radius, const double* speed, const double* accel,
                  const double* delta, const double* vmax, int64_t n, double horizon, double* out) {
   for (int64_t i = 0; i < n; ++i) {
@@ -92,7 +133,7 @@ int64_t dua_renew(const dua_step_args* a, dua_reach* r, const int64_t* ids, int6
   std::vector<double> states(static_cast<size_t>(6 * n));
   for (int64_t k = 0; k < n; ++k) {
     double* x = states.data() + 6 * k;
-    dua_rigid_point(ids[k], a->spheres, &a->frame, x);
+    dua_point(a, ids[k], x);
     for (int c = 0; c < 6; ++c) {
       if (!std::isfinite(x[c])) return -1 - k;
     }
@@ -125,7 +166,7 @@ int64_t dua_reach_pairs(const dua_reach* r, const int64_t* ids, int64_t n, int64
     for (int64_t j = 0; j < r->nsphere; ++j) {
       if (j == i || (listed[static_cast<size_t>(j)] && j < i)) continue;
       const double* cj = r->anchor + 3 * j;
-      // The grid's test, operation for operation (neighbors.candidate_pairs' contract).
+      // The grid's test, operation for operation (grid.cc's contract).
       const double dx = xi - cj[0], dy = yi - cj[1], dz = zi - cj[2];
       const double s = (ri + r->reach[j]) + m;
       if (dx * dx + dy * dy + dz * dz <= s * s * dua::kRoundingSlack) {

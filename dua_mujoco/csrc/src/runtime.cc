@@ -16,6 +16,9 @@ namespace dua {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Most rows of the gather scratch (12 doubles each: 384 KB). A row a held pair took 96 bytes a
+// pair, 48 MB for the half million pairs of 1,000 free spheres.
+constexpr int64_t kScratchRows = 4096;
 
 std::vector<int64_t> Iota(int64_t n) {
   std::vector<int64_t> v(static_cast<size_t>(n));
@@ -34,36 +37,42 @@ Runtime::Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t
   const Tables& t = *tables_;
   const int64_t n = t.universe.npair();
   if (t.pruned) pruned_.Allocate(t.held), own_ = t.universe;
+  // Nothing outside mirrors a free runtime's pair ids: it forgets as the plugin does.
+  if (t.free) forget_after_ = kForgetDefault;
   on_.assign(n, 1);
   gp_count_.assign(t.universe.ngp(), 0);
   exact_records_ = t.universe.exact;
   events_prev_.assign(EventStateLen(t.nbody_events), 0.0);
   events_meta_.assign(3, 0);
   events_flagged_.assign(std::max<int64_t>(t.nbody_events, 1), 0);
-  root_twist_.assign(6 * static_cast<size_t>(m->nbody), 0.0);
-  point_state_.assign(6 * static_cast<size_t>(t.nsphere()), 0.0);
-  point_epoch_.assign(t.nsphere(), -1);
-  mocap_bodies_.assign(m->nmocap, -1);
-  for (int b = 0; b < m->nbody; ++b) {
+  // Free spheres (no model): the caller's states are read as they are, nothing memoised.
+  const int nbody = m ? m->nbody : 0, nmocap = m ? m->nmocap : 0;
+  root_twist_.assign(6 * static_cast<size_t>(nbody), 0.0);
+  if (!t.free) {
+    point_state_.assign(6 * static_cast<size_t>(t.nsphere()), 0.0);
+    point_epoch_.assign(t.nsphere(), -1);
+  }
+  mocap_bodies_.assign(nmocap, -1);
+  for (int b = 0; b < nbody; ++b) {
     if (m->body_mocapid[b] >= 0) mocap_bodies_[m->body_mocapid[b]] = b;
   }
-  mocap_pos_.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
-  mocap_quat_.assign(4 * static_cast<size_t>(m->nmocap), 0.0);
-  mocap_linear_.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
-  mocap_angular_.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
-  mocap_user_.assign(m->nmocap, 0);
+  mocap_pos_.assign(3 * static_cast<size_t>(nmocap), 0.0);
+  mocap_quat_.assign(4 * static_cast<size_t>(nmocap), 0.0);
+  mocap_linear_.assign(3 * static_cast<size_t>(nmocap), 0.0);
+  mocap_angular_.assign(3 * static_cast<size_t>(nmocap), 0.0);
+  mocap_user_.assign(nmocap, 0);
   // Each body's row of the violation check (whose boxes the plans measure deviations at), and
   // the bodies with covered geoms but no row (the check is off): no plan may hold those.
-  body_row_.assign(m->nbody, -1);
+  body_row_.assign(nbody, -1);
   for (int64_t i = 0; i < t.nbody_events; ++i) {
     body_row_[static_cast<int64_t>(t.events_rec[kBNcol * i + kBBody])] = i;
   }
-  unboxed_.assign(m->nbody, 0);
-  for (int64_t i = 0; i < t.nsphere(); ++i) {
+  unboxed_.assign(nbody, 0);
+  for (int64_t i = 0; m && i < t.nsphere(); ++i) {
     const auto g = static_cast<int64_t>(t.spheres[kSphereNcol * i + kSphereFrame]);
     if (t.geom_row[g] < 0) unboxed_[m->geom_bodyid[g]] = 1;
   }
-  plan_ok_.assign(m->nbody, 0);
+  plan_ok_.assign(nbody, 0);
   Hold(Iota(n));  // every pair known, until a pruned classification chooses
   schedule_ = std::make_shared<Schedule>(t.schedule, npair());
   NewLog();
@@ -91,6 +100,8 @@ Runtime::Runtime(const Runtime& o)
       held_members_(o.held_members_),
       on_(o.on_),
       stands_(o.stands_),
+      standing_(o.standing_),
+      standing_at_(o.standing_at_),
       gp_count_(o.gp_count_),
       nstanding_(o.nstanding_),
       min_tau_(o.min_tau_),
@@ -152,17 +163,24 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
       }
     }
   }
-  // Indexed by the violation check's rows: each checked body's held pairs.
-  std::vector<int64_t> g1(n), g2(n);
-  for (int64_t k = 0; k < n; ++k) g1[k] = u.geom1[held[k]], g2[k] = u.geom2[held[k]];
-  held_start_.resize(t.nbody_events + 1);
-  held_members_.resize(std::max<int64_t>(2 * n, 1));
-  held_members_.resize(
-      std::max<int64_t>(dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
-                                         held_start_.data(), held_members_.data()),
-                        1));
-  scratch_.assign(12 * static_cast<size_t>(std::max<int64_t>(n, 1)), 0.0);
+  // Indexed by the violation check's rows: each checked body's held pairs (none unchecked).
+  held_start_.assign(t.nbody_events + 1, 0);
+  held_members_.assign(1, 0);
+  if (t.nbody_events) {
+    std::vector<int64_t> g1(n), g2(n);
+    for (int64_t k = 0; k < n; ++k) g1[k] = u.geom1[held[k]], g2[k] = u.geom2[held[k]];
+    held_members_.resize(std::max<int64_t>(2 * n, 1));
+    held_members_.resize(std::max<int64_t>(
+        dua_index_by_row(t.geom_row.data(), g1.data(), g2.data(), n, t.nbody_events,
+                         held_start_.data(), held_members_.data()),
+        1));
+  }
+  // A batch's gathered states: as many rows as pairs, up to kScratchRows (larger batches, a
+  // classification of every pair or a step of many due ones, go through in chunks).
+  scratch_.assign(12 * static_cast<size_t>(std::clamp<int64_t>(n, 1, kScratchRows)), 0.0);
   stands_.assign(n, 0);
+  standing_.clear();
+  standing_at_.assign(n, -1);
   basis_.assign(n, 0), basis_prev_.assign(n, 0);  // a pair new to the held set: the bounds
   ++held_version_;
 }
@@ -214,7 +232,11 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   a.spheres = t.spheres.data();
   a.shapes = t.shapes.data();
   a.ids = ids_.data();
-  a.frame = {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist_.data(), d->xpos};
+  // Free spheres: the caller's states (SetPoints), no frame.
+  a.frame = d ? dua_frame{d->geom_xpos,   d->geom_xmat,       d->cvel,
+                          d->subtree_com, root_twist_.data(), d->xpos}
+              : dua_frame{};
+  a.points = t.free ? points_ : dua_points{};
   dua_exact& x = a.exact;
   x.on = t.exact ? 1 : 0;
   x.geoms = t.geoms.data();
@@ -223,7 +245,7 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.query_below = t.query_below;
   // The model's own vertices (the tables hold its hull graph, checked): every mjData of a model
   // reads one copy, and making an mjData copies none.
-  x.verts = m->mesh_vert;
+  x.verts = m ? m->mesh_vert : nullptr;
   x.graph = t.graph.data();
   x.model = m;
   x.data = d;
@@ -704,6 +726,7 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
     Learnt();
     pruned_.built_at = 0;
     pruned_.escapes.clear();
+    pruned_.broken = -1;
     Hold(held);
     Bind(m, d);
   }
@@ -727,7 +750,7 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
   events_meta_[kMCount] = 0;
   classified_ = true;
   step_ = 0;
-  last_time_ = d->time;
+  last_time_ = d ? d->time : 0.0;
   TrackAll();
   std::fill(was_.begin(), was_.end(), 0);  // every alarm of a classification is new
   FinishWatch();
@@ -758,19 +781,29 @@ Runtime::Clock Runtime::ClockOf(double time) const {
 
 int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
-  DifferenceMocap(d, d->time - last_time_);
+  if (d) DifferenceMocap(d, d->time - last_time_);
   Bind(m, d);
   const int64_t n = step_ + 1;
+  // Free spheres have no violation check to flag them: every sphere's escape test runs on this
+  // step's state, and the escaped ones are renewed from it at once (Lemmas 6.4, 6.5).
+  if (t.free && t.pruned && escape_check_) pruned_.FindEscapes(t.held, args_, n);
   if (t.pruned && !Prune(m, d, n)) return kBadState;
   FollowPlan(m, d, n);
   const int64_t room = schedule_->width();
-  if (log_used_ + room > log_->capacity()) NewLog(), Bind(m, d);
+  if (log_used_ + room > log_->capacity()) {
+    // Rewound when nothing else holds it (no Alarms of an earlier step), else replaced.
+    if (log_.use_count() == 1 && room <= log_->capacity()) {
+      log_used_ = 0;
+    } else {
+      NewLog(), Bind(m, d);
+    }
+  }
   log_start_ = log_used_;
   const int64_t result = dua_step(&args_, n, log_start_);
   if (result < 0) return result;
   step_ = n;
   schedule_->step_count = n;
-  last_time_ = d->time;
+  last_time_ = d ? d->time : static_cast<double>(n) * t.schedule.dt;
   Log(result);
   if (t.pruned && escape_check_ && args_.events.nbody && events_meta_[kMCount]) {
     pruned_.FindEscapes(t.held, args_, step_);
@@ -814,13 +847,13 @@ bool Runtime::Prune(const mjModel* m, const mjData* d, int64_t n) {
     ++renewals_;
   }
   Learnt();
-  if (ps.built_at == n) ForgetStale(m, &held);  // a rebuild: forget what it has not held
+  if (ps.built_at == n) ForgetStale(&held);  // a rebuild: forget what it has not held
   ps.escapes.clear();
   if (carry) Carry(m, d, held, n);
   return true;
 }
 
-void Runtime::ForgetStale(const mjModel* m, std::vector<int64_t>* held) {
+void Runtime::ForgetStale(std::vector<int64_t>* held) {
   if (forget_after_ < 0) return;
   Universe& u = own_;
   const int64_t ng = u.ngp(), ng0 = tables_->universe.ngp();
@@ -842,7 +875,9 @@ void Runtime::ForgetStale(const mjModel* m, std::vector<int64_t>* held) {
   }
   if (watching_) was_.resize(ng, 0);  // (FinishWatch sizes it after the step)
   std::vector<int64_t> pair_map, gp_map;
-  const std::string bad = u.Forget(keep, tables_->spheres, m->ngeom, &pair_map, &gp_map);
+  const std::string bad =
+      u.Forget(keep, tables_->spheres, static_cast<int64_t>(learn().geom_start.size()) - 1,
+               &pair_map, &gp_map);
   (void)bad;  // the kept rows of a universe that indexed are indexed (no id is out of range)
   for (int64_t& p : ids_) p = pair_map[p];
   for (int64_t& p : *held) p = pair_map[p];
@@ -912,6 +947,16 @@ void Runtime::Track(const int64_t* ids, int64_t n) {
     const uint8_t now = schedule_->Stands(p) ? 1 : 0;
     if (now == stands_[p]) continue;  // (its expiry is set below all the same)
     stands_[p] = now;
+    if (now) {
+      standing_at_[p] = static_cast<int64_t>(standing_.size());
+      standing_.push_back(p);
+    } else {  // swap-removed
+      const int64_t last = standing_.back();
+      standing_[standing_at_[p]] = last;
+      standing_at_[last] = standing_at_[p];
+      standing_at_[p] = -1;
+      standing_.pop_back();
+    }
     const int64_t gp = u.pair_geom[ids_[p]];
     int32_t& count = gp_count_[gp];
     const bool counted = watching_ && gp_counted_[gp];
@@ -933,6 +978,8 @@ void Runtime::Track(const int64_t* ids, int64_t n) {
 
 void Runtime::TrackAll() {
   std::fill(stands_.begin(), stands_.end(), 0);
+  standing_.clear();
+  std::fill(standing_at_.begin(), standing_at_.end(), -1);
   std::fill(gp_count_.begin(), gp_count_.end(), 0);
   nstanding_ = 0;
   if (watching_) {

@@ -1,9 +1,13 @@
-// The predictor at run time: one per MuJoCo mjData. It reads a model's tables (tables.h), and
-// each step it runs the violation check, the selection, tau at every level and the reinsertion
-// (step.cc, schedule.cc), renews pruned pairs (pruned.cc), keeps the standing state and logs the
-// alarms. The MuJoCo plugin (plugin.cc) and the Python Predictor (bindings.cc) both run it:
-// one implementation, two callers, which differ only in what they do when the clock jumps or a
-// state is not finite (the plugin starts over, Python raises).
+// The predictor at run time: one per MuJoCo mjData, or per set of free spheres. It reads a
+// model's tables (tables.h), and each step it runs the violation check, the selection, tau at
+// every level and the reinsertion (step.cc, schedule.cc), renews pruned pairs (pruned.cc), keeps
+// the standing state and logs the alarms. The MuJoCo plugin (plugin.cc) and the Python Predictor
+// (bindings.cc) both run it: one implementation, two callers, which differ only in what they do
+// when the clock jumps or a state is not finite (the plugin starts over, Python raises). Free
+// spheres (the paper's setting, SpherePredictor) run it too, on tables of N point bodies with no
+// model (FreeTables), reading the caller's centres and velocities (SetPoints) where the others
+// read an mjData: their escape test runs on every sphere before each step, since no violation
+// check flags them.
 #ifndef DUA_MUJOCO_RUNTIME_H_
 #define DUA_MUJOCO_RUNTIME_H_
 
@@ -26,9 +30,10 @@
 
 namespace dua {
 
-// The alarms the steps raise, appended and never overwritten: a step's alarms are a span of it.
-// A log without room for another step is replaced by a fresh one, and lives as long as someone
-// holds it (Python's Alarms do).
+// The alarms the steps raise, appended and never overwritten while someone else holds it: a
+// step's alarms are a span of it. A log without room for another step is replaced by a fresh
+// one, and lives as long as someone holds it (Python's Alarms do); held by the runtime alone, it
+// is rewound instead.
 struct DUA_API AlarmLog {
   explicit AlarmLog(int64_t capacity)
       : pair(capacity),
@@ -47,13 +52,20 @@ struct DUA_API AlarmLog {
   std::vector<uint8_t> fresh;
 };
 
+// Pruned pairs: rebuilds a learnt pair may go unheld before it is forgotten (Runtime::SetForget)
+// in the plugin, unless its attribute says otherwise, and for free spheres; memory then stays
+// bounded over a long run.
+constexpr int64_t kForgetDefault = 8;
+
 class DUA_API Runtime {
  public:
   // A step's result when a state the step needed was not finite and no pair can be named (a
   // rebuild or renewal of pruned pairs): the step was not taken.
   static constexpr int64_t kBadState = std::numeric_limits<int64_t>::min();
 
-  // log_steps: steps' worth of alarms a log holds (at least log_min entries).
+  // log_steps: steps' worth of alarms a log holds (at least log_min entries). Free spheres'
+  // tables (FreeTables) have no model: m null, and every call below takes m and d null, the
+  // states set by SetPoints.
   Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t log_steps = 1,
           int64_t log_min = 0);
   // A copy runs on its own: its state deep-copied, the tables and the current log shared (the
@@ -74,6 +86,11 @@ class DUA_API Runtime {
   Clock ClockOf(double time) const;
   // The next compute classifies again (the plugin's reset, or a state it could not step from).
   void Invalidate() { classified_ = false; }
+  // Free spheres: the centres and velocities (nsphere, 3) the next classification or step reads
+  // (the caller's arrays, read during that call only).
+  void SetPoints(const double* centers, const double* velocities) {
+    points_ = {centers, velocities};
+  }
 
   // Switches model pairs `pairs` off or back on (a pair switched back on stands in alarm until
   // the next step evaluates it; pruned pairs not held now stay switched for when they are).
@@ -218,6 +235,13 @@ class DUA_API Runtime {
   const std::vector<uint8_t>& on() const { return on_; }  // each known pair's switch
   // The standing state: each held pair's, and how many geom pairs stand.
   const std::vector<uint8_t>& stands() const { return stands_; }
+  // The held pairs standing in alarm, in no order (kept in O(1) a change).
+  const std::vector<int64_t>& standing() const { return standing_; }
+  // Held pair p's record (pair records' columns).
+  const double* HeldRecord(int64_t p) const {
+    return tables_->pruned ? held_pairs_.data() + kPairNcol * p
+                           : tables_->universe.pairs.data() + kPairNcol * ids_[p];
+  }
   const std::vector<int32_t>& geom_pair_count() const { return gp_count_; }
   int64_t nstanding() const { return nstanding_; }
   double min_tau() const { return min_tau_; }
@@ -281,7 +305,7 @@ class DUA_API Runtime {
   void MakeAllDue(int64_t n);
   void FinishWatch();         // a step's or a classification's end: started and version
   void SetExpiry(int64_t p);  // pair p's leaf of the expiry tree, and its path to the root
-  void ForgetStale(const mjModel* m, std::vector<int64_t>* held);  // at a rebuild (issue 35)
+  void ForgetStale(std::vector<int64_t>* held);  // at a rebuild (issue 35)
 
   std::shared_ptr<const Tables> tables_;
   int64_t log_steps_, log_min_;
@@ -291,6 +315,7 @@ class DUA_API Runtime {
   std::vector<double> scratch_, point_state_, exact_records_, events_prev_, root_twist_;
   std::vector<int64_t> point_epoch_, events_meta_, events_flagged_, contact_keys_;
   std::vector<double> contact_dist_;
+  dua_points points_{};  // free spheres' states for the current call
   // Pruned pairs: the anchors, this run's universe, the held pairs' records and their index by
   // the violation check's bodies (all pairs held: the model's tables themselves).
   PrunedState pruned_;
@@ -298,8 +323,10 @@ class DUA_API Runtime {
   std::vector<double> held_pairs_;
   std::vector<int64_t> held_start_, held_members_;
   std::vector<uint8_t> on_;
-  // Standing state (see stands()).
+  // Standing state (see stands()), and the list of the held pairs standing with each one's place
+  // in it (-1: not standing).
   std::vector<uint8_t> stands_;
+  std::vector<int64_t> standing_, standing_at_;
   std::vector<int32_t> gp_count_;
   int64_t nstanding_ = 0;
   double min_tau_ = std::numeric_limits<double>::infinity();

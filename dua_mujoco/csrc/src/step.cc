@@ -577,12 +577,17 @@ int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
   return -1;
 }
 
-// TauRows of held pairs on a's frame, then the exact level.
+// TauRows of held pairs on a's points (free spheres) or frame, then the exact level.
 int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* rows, double* out) {
   // A sphere is in several of the batch's pairs: its state is read from MjData once. A new
   // epoch each batch, since MjData may have moved on between two (PointOf).
   ++a.epoch;
-  const int64_t bad = TauRows(a.pairs, a.shapes, FramePoints{a}, ids, count, rows, out);
+  // Free spheres have no planes (nothing points at them) and no frame to read.
+  const int64_t bad =
+      a.points.centers
+          ? TauRows(a.pairs, a.shapes, FreePoints{a.points.centers, a.points.velocities, nullptr},
+                    ids, count, rows, out)
+          : TauRows(a.pairs, a.shapes, FramePoints{a}, ids, count, rows, out);
   if (bad >= 0) return bad;
   // A new verdict for each: the bounds on both sides unless the plan covers it (PlanPass).
   if (a.plan.basis != nullptr) {
@@ -614,6 +619,14 @@ extern "C" {
 
 void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, double* out) {
   dua::RigidPoint(i, spheres, dua::kSphereNcol, *f, out);
+}
+
+void dua_point(const dua_step_args* a, int64_t i, double* out) {
+  if (a->points.centers) {
+    dua::FreePoints{a->points.centers, a->points.velocities, nullptr}.Point(i, out);
+  } else {
+    dua::RigidPoint(i, a->spheres, dua::kSphereNcol, a->frame, out);
+  }
 }
 
 int64_t dua_tau_free(const double* pairs, const double* shapes, const double* centers,

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <limits>
 #include <mutex>
+#include <numeric>
 #include <utility>
 #include <vector>
 
@@ -100,7 +101,8 @@ bool SphereRecordOk(const mjModel* m, const double* rec) {
          Finite(rec[kSphereOffset + 2]);
 }
 
-bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) {
+// The config's version, size and schedule options (every predictor's, on a model or not).
+bool ReadSchedule(Reader* r, std::vector<double>* c, Tables* t) {
   if (!r->Get("config", -1, 1, c)) return false;
   if (c->empty() || (*c)[kCfgVersion] != static_cast<double>(kTablesVersion)) {
     return r->Fail("config",
@@ -114,17 +116,6 @@ bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) 
                                  std::to_string(kCfgSize));
   }
   const std::vector<double>& v = *c;
-  const uint64_t shape = StructureHash(m);
-  if (v[kCfgNgeom] != m->ngeom || v[kCfgNbody] != m->nbody ||
-      v[kCfgShape] != static_cast<double>(shape & 0xffffffffu) ||
-      v[kCfgShape + 1] != static_cast<double>(shape >> 32)) {
-    return r->Fail("config", "was made for another model (" + std::to_string(v[kCfgNgeom]) +
-                                 " geoms and " + std::to_string(v[kCfgNbody]) +
-                                 " bodies, or another structure; this one has " +
-                                 std::to_string(m->ngeom) + " and " + std::to_string(m->nbody) +
-                                 "): the spec changed after dua_mujoco.attach; attach last, after "
-                                 "every edit");
-  }
   auto integer = [&](int i, double lo, double hi, int64_t* out) {
     if (!(v[i] >= lo && v[i] <= hi) || v[i] != std::floor(v[i])) return false;
     *out = static_cast<int64_t>(v[i]);
@@ -150,6 +141,24 @@ bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) 
                                  ", over 2^19 steps (its wheel would take 8 bytes a step in "
                                  "every MjData)");
   }
+  t->pruned = v[kCfgPruned] != 0.0;
+  return true;
+}
+
+bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) {
+  if (!ReadSchedule(r, c, t)) return false;
+  const std::vector<double>& v = *c;
+  const uint64_t shape = StructureHash(m);
+  if (v[kCfgNgeom] != m->ngeom || v[kCfgNbody] != m->nbody ||
+      v[kCfgShape] != static_cast<double>(shape & 0xffffffffu) ||
+      v[kCfgShape + 1] != static_cast<double>(shape >> 32)) {
+    return r->Fail("config", "was made for another model (" + std::to_string(v[kCfgNgeom]) +
+                                 " geoms and " + std::to_string(v[kCfgNbody]) +
+                                 " bodies, or another structure; this one has " +
+                                 std::to_string(m->ngeom) + " and " + std::to_string(m->nbody) +
+                                 "): the spec changed after dua_mujoco.attach; attach last, after "
+                                 "every edit");
+  }
   t->timestep = v[kCfgTimestep];
   if (!(t->timestep > 0.0) || !Finite(t->timestep) || t->timestep != m->opt.timestep) {
     return r->Fail("config", "holds a timestep (" + std::to_string(t->timestep) +
@@ -157,7 +166,7 @@ bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) 
                                  "): the timestep changed after dua_mujoco.attach");
   }
   // The period is a whole number of physics steps (the plugin's clock counts them).
-  const double steps = s.dt / t->timestep;
+  const double steps = t->schedule.dt / t->timestep;
   if (!(steps >= 1.0 - 1e-9) || std::fabs(steps - std::nearbyint(steps)) > 1e-6 * steps) {
     return r->Fail("config", "holds a period that is not a whole number of timesteps");
   }
@@ -168,7 +177,6 @@ bool ReadConfig(const mjModel* m, Reader* r, std::vector<double>* c, Tables* t) 
       std::isnan(t->query_below)) {
     return r->Fail("config", "holds the exact level's thresholds not >= 0");
   }
-  t->pruned = v[kCfgPruned] != 0.0;
   return true;
 }
 
@@ -473,25 +481,58 @@ bool ReadLearn(const mjModel* m, Reader* r, const std::vector<double>& config, T
 }
 
 // The pruned pairs' tables.
+// The reach table (nsphere rows: radius, accel, delta, speed) and the pruned pairs' options
+// (all pairs held: the reach's rows alone, which free spheres learn their pairs with).
+bool ReadReach(Reader* r, const std::vector<double>& reach, const std::vector<double>& config,
+               int64_t nbody, Tables* t) {
+  double horizon = t->schedule.dt, stride = 1;  // all pairs held: neither is read
+  if (t->pruned) {
+    horizon = config[kCfgHorizon], stride = config[kCfgStride];
+    const double renew = config[kCfgRenewMax];
+    if (!(stride >= 1 && stride < 1e9) || stride != std::floor(stride)) {
+      return r->Fail("config", "holds a stride that is not an int in [1, 1e9)");
+    }
+    if (!(renew >= 0 && renew < 1e9) || renew != std::floor(renew)) {
+      return r->Fail("config", "holds a renewal limit that is not an int in [0, 1e9)");
+    }
+    t->renew_max = static_cast<int64_t>(renew);
+    // Pruned pairs are carried into the deadline schedule only.
+    if (t->schedule.kind != kDeadline) {
+      return r->Fail("config", "holds pruned pairs with a schedule other than the deadline one");
+    }
+  }
+  const std::string bad = t->held.Build(reach, t->spheres, nbody, horizon, config[kCfgMargin],
+                                        static_cast<int64_t>(stride));
+  if (!bad.empty()) return r->Fail("reach", "does not fit: " + bad);
+  return true;
+}
+
 bool ReadPruned(const mjModel* m, Reader* r, const std::vector<double>& config, Tables* t) {
   std::vector<double> reach;
-  if (!r->Get("reach", t->nsphere(), 4, &reach)) return false;
-  const double stride = config[kCfgStride], renew = config[kCfgRenewMax];
-  if (!(stride >= 1 && stride < 1e9) || stride != std::floor(stride)) {
-    return r->Fail("config", "holds a stride that is not an int in [1, 1e9)");
+  return r->Get("reach", t->nsphere(), 4, &reach) && ReadReach(r, reach, config, m->nbody, t) &&
+         ReadLearn(m, r, config, t);
+}
+
+// Free spheres' covering and learning tables: sphere i the one point of geom i on body i (its own
+// root), every pair passing with the config's margin as its contact distance (LearnTables'
+// points: no filter, no per-geom margins).
+void FreeLayout(int64_t n, const std::vector<double>& config, Tables* t) {
+  t->spheres.assign(kSphereNcol * n, 0.0);
+  for (int64_t i = 0; i < n; ++i) {
+    double* rec = t->spheres.data() + kSphereNcol * i;
+    rec[kSphereFrame] = rec[kSphereBody] = rec[kSphereRoot] = static_cast<double>(i);
   }
-  if (!(renew >= 0 && renew < 1e9) || renew != std::floor(renew)) {
-    return r->Fail("config", "holds a renewal limit that is not an int in [0, 1e9)");
-  }
-  t->renew_max = static_cast<int64_t>(renew);
-  // Pruned pairs are carried into the deadline schedule only.
-  if (t->schedule.kind != kDeadline) {
-    return r->Fail("config", "holds pruned pairs with a schedule other than the deadline one");
-  }
-  const std::string bad = t->held.Build(reach, t->spheres, m->nbody, config[kCfgHorizon],
-                                        config[kCfgMargin], static_cast<int64_t>(stride));
-  if (!bad.empty()) return r->Fail("reach", "does not fit: " + bad);
-  return ReadLearn(m, r, config, t);
+  LearnTables& l = t->learn;
+  l.points = true;
+  l.geom_start.resize(n + 1);
+  std::iota(l.geom_start.begin(), l.geom_start.end(), int64_t{0});
+  l.sphere_geom = l.sphere_body =
+      std::vector<int64_t>(l.geom_start.begin(), l.geom_start.end() - 1);
+  l.geom_plane.assign(n, -1), l.geom_shape.assign(n, -1);
+  l.o_margin = config[kCfgMargin];
+  l.contacts = true;
+  l.has_speed = config[kCfgHasSpeed] != 0.0;
+  l.Point();
 }
 
 }  // namespace
@@ -621,6 +662,37 @@ std::shared_ptr<const Tables> BuildTables(const mjModel* m, const TableSource& s
       !ReadEvents(m, &r, t.get()) || (t->exact && !ReadExact(m, &r, t.get())) ||
       (t->pruned && !ReadPruned(m, &r, config, t.get()))) {
     return nullptr;
+  }
+  return t;
+}
+
+std::shared_ptr<const Tables> FreeTables(const TableSource& source, const std::string& before,
+                                         const std::string& after, std::string* error) {
+  auto t = std::make_shared<Tables>();
+  Reader r(source, before, after, error);
+  std::vector<double> config, reach;
+  if (!ReadSchedule(&r, &config, t.get()) || !r.Get("reach", -1, 4, &reach)) return nullptr;
+  const auto n = static_cast<int64_t>(reach.size() / 4);
+  if (n < 1 || n >= (int64_t{1} << 31)) {
+    r.Fail("reach", "holds " + std::to_string(n) + " spheres, not 1 to 2^31 - 1");
+    return nullptr;
+  }
+  t->free = true;
+  t->timestep = t->schedule.dt;
+  FreeLayout(n, config, t.get());
+  if (!ReadReach(&r, reach, config, n, t.get())) return nullptr;
+  LearnTables& l = t->learn;
+  l.radius = t->held.radius.data();  // the Tables are never copied or moved once built
+  l.accel = t->held.accel, l.delta = t->held.delta, l.speed = t->held.speed;
+  Universe& u = t->universe;
+  u.Index(t->spheres, n);  // no pair known yet
+  if (!t->pruned) {
+    // Every pair held: learnt now, in increasing (i, j) (Learn orders them by geom pair).
+    std::vector<int64_t> g1, g2;
+    for (int64_t i = 0; i < n; ++i) {
+      for (int64_t j = i + 1; j < n; ++j) g1.push_back(i), g2.push_back(j);
+    }
+    u.Learn(l, g1.data(), g2.data(), static_cast<int64_t>(g1.size()));
   }
   return t;
 }

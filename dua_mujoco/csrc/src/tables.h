@@ -81,6 +81,8 @@ struct Tables {
   PrunedTables held;
   LearnTables learn;
   std::vector<int64_t> geom_row;
+  // Free spheres (FreeTables): no model, the caller's centres and velocities at each step.
+  bool free = false;
 
   int64_t nsphere() const { return static_cast<int64_t>(spheres.size()) / kSphereNcol; }
 };
@@ -96,6 +98,15 @@ using TableSource =
 DUA_API std::shared_ptr<const Tables> BuildTables(const mjModel* m, const TableSource& source,
                                                   const std::string& before,
                                                   const std::string& after, std::string* error);
+
+// The tables of free spheres (the paper's setting), from "config" (the schedule; pruned: the
+// horizon, stride and renewal limit; the margin: every pair's contact distance beyond the radii;
+// whether speed bounds are declared) and "reach" (nsphere rows: radius, accel, delta, speed): each
+// sphere the one point of its own geom and body, no model (the runtime reads the caller's states).
+// Null after *error names the table as BuildTables does.
+DUA_API std::shared_ptr<const Tables> FreeTables(const TableSource& source,
+                                                 const std::string& before,
+                                                 const std::string& after, std::string* error);
 
 // The tables under `prefix` in m's text fields, each its entry count, a space, then its
 // little-endian float64 bytes in base64; parsed once per model content (every mjData made from

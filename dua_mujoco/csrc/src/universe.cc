@@ -126,8 +126,8 @@ int64_t Universe::Learn(const LearnTables& lt, const int64_t* g1, const int64_t*
   const auto m = static_cast<int64_t>(keys.size());
   std::vector<int64_t> lo(m), hi(m);
   for (int64_t k = 0; k < m; ++k) lo[k] = keys[k] >> 32, hi[k] = keys[k] & 0xffffffffLL;
-  std::vector<uint8_t> pass(m);
-  dua_filter_mask(&lt.filter, lo.data(), hi.data(), m, pass.data());
+  std::vector<uint8_t> pass(m, 1);
+  if (!lt.points) dua_filter_mask(&lt.filter, lo.data(), hi.data(), m, pass.data());
   std::vector<int64_t> a, b, id;
   std::vector<std::pair<int64_t, int64_t>> keyed;
   for (int64_t k = 0; k < m; ++k) {
@@ -140,9 +140,11 @@ int64_t Universe::Learn(const LearnTables& lt, const int64_t* g1, const int64_t*
   if (a.empty()) return 0;
   MergeSorted(&gp_keys, &gp_ids, keyed);
   const auto ng = static_cast<int64_t>(a.size());
-  std::vector<double> margin(ng), gap(ng), dist(ng);
-  dua_contact_distance(lt.margin.data(), lt.gap.data(), a.data(), b.data(), ng,
-                       lt.override_margin ? 1 : 0, lt.o_margin, margin.data(), gap.data());
+  std::vector<double> margin(ng, lt.o_margin), gap(ng, 0.0), dist(ng);
+  if (!lt.points) {
+    dua_contact_distance(lt.margin.data(), lt.gap.data(), a.data(), b.data(), ng,
+                         lt.override_margin ? 1 : 0, lt.o_margin, margin.data(), gap.data());
+  }
   for (int64_t k = 0; k < ng; ++k) {
     dist[k] = margin[k] + gap[k];
     gp_contact.push_back(margin[k]), gp_contact.push_back(gap[k]);

@@ -32,6 +32,9 @@ struct DUA_API LearnTables {
   std::vector<double> accel, delta, speed;
   bool has_speed = false;
   const double* exact_geoms = nullptr;  // (ngeom, 24), null when the exact level is off
+  // Free spheres (FreeTables): no filter and no per-geom margins, every pair passes with the
+  // contact distance o_margin (the filter's arrays and margin, gap stay empty).
+  bool points = false;
 
   void Point();  // the filter struct at the arrays
 };

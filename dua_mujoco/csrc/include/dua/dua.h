@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 6
+#define DUA_ABI_VERSION 7
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -174,6 +174,12 @@ typedef struct dua_plan {
   uint8_t* basis_prev;
 } dua_plan;
 
+// Free spheres (the paper's setting: points on no MuJoCo body): each sphere's centre and velocity
+// (nsphere, 3), given by the caller instead of read on the frame. centers null: the frame.
+typedef struct dua_points {
+  const double* centers;
+  const double* velocities;
+} dua_points;
 // A flight plan as a caller gives it (dua_plugin_set_plan, Runtime::SetPlan).
 typedef struct dua_plan_input {
   const double* qpos;       // (n, nq): row j the state at time start + j timestep
@@ -196,6 +202,7 @@ typedef struct dua_step_args {
   const double* shapes;   // (nshape, 16)
   const int64_t* ids;     // (K,) model pair id of each held pair
   dua_frame frame;
+  dua_points points;  // free spheres' states (centers null: read on the frame)
   dua_exact exact;
   dua_events events;
   double* scratch;  // (scratch_rows, 12): the gathered states of the pairs being evaluated
@@ -260,6 +267,9 @@ DUA_API int64_t dua_tau_free(const double* pairs, const double* shapes, const do
                              int64_t count, double* rows, double* out);
 // Centre and velocity of sphere i: out[0:6].
 DUA_API void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, double* out);
+// The same as the step reads it: a->points' row i for free spheres, else dua_rigid_point on
+// a->frame.
+DUA_API void dua_point(const dua_step_args* a, int64_t i, double* out);
 
 // The run monitor's bound check over n points (sphere records (n, 8) on frame f): rows of prev
 // and cur (n, 9) are [centre, velocity read, discrete velocity (c - c_prev) / h]; cur is written.
@@ -352,7 +362,7 @@ DUA_API int64_t dua_filter_any(const dua_filter* f);
 
 // The hashed grid behind candidate pairs of reachable balls: every pair i < j of n spheres with
 // |c_i - c_j|^2 <= ((reach_i + reach_j) + margin)^2 (1 + 2^-44), sorted (contract and proof:
-// dua_mujoco/core/neighbors.py). Every buffer is the caller's: dua_grid_bounds, then
+// src/grid.cc). Every buffer is the caller's: dua_grid_bounds, then
 // dua_grid_plan_of (n >= 2), then buffers of the plan's sizes, dua_grid_count (K pairs), then
 // dua_grid_fill into K more.
 typedef struct dua_grid_plan {
@@ -421,7 +431,7 @@ typedef struct dua_reach {
 DUA_API void dua_reaches(const double* radius, const double* speed, const double* accel,
                          const double* delta, const double* vmax, int64_t n, double horizon,
                          double* out);
-// Anchor spheres ids[0:n] anew at their state on a's frame, step `step` (their reach over the
+// Anchor spheres ids[0:n] anew at their state (dua_point), step `step` (their reach over the
 // horizon from there), and find their candidate pairs as dua_reach_pairs does. Returns the
 // number of pairs, or -1 - k if the state of ids[k] is not finite (nothing anchored).
 DUA_API int64_t dua_renew(const dua_step_args* a, dua_reach* r, const int64_t* ids, int64_t n,
@@ -434,9 +444,16 @@ DUA_API int64_t dua_escapes(const dua_reach* r, const int64_t* ids, int64_t n,
                             const double* centers, const double* velocities, const double* elapsed,
                             int64_t* out);
 // The same for every sphere of the bodies the latest violation pass of a flagged, read on a's
-// frame at step `step`: out (nsphere,) receives the escaped spheres; returns how many.
+// frame at step `step` (free spheres, which have no violation pass: every sphere, read from
+// a->points): out (nsphere,) receives the escaped spheres; returns how many.
 DUA_API int64_t dua_escaped_spheres(const dua_step_args* a, const dua_reach* r, int64_t step,
                                     int64_t* out);
+// Of escaped spheres ids[0:n] at step `step`, the first whose state proves its bounds broken since
+// its anchor (a centre beyond its reach, or a measured speed above min(s0 + 2 delta + A t,
+// V + delta), by more than rounding), or -1: an escape short of that may be a motion within the
+// bounds (docs/theory.md, "The escape test, once").
+DUA_API int64_t dua_proven_broken(const dua_step_args* a, const dua_reach* r, const int64_t* ids,
+                                  int64_t n, int64_t step);
 // Candidate pairs of spheres ids[0:n] against every sphere by their anchors and reaches: the
 // pairs (i < j) with |c_i - c_j|^2 <= ((reach_i + reach_j) + margin)^2 (1 + 2^-44), each once,
 // written as rows of out (capacity rows of 2); returns how many there are (more than capacity:
