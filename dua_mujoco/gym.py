@@ -332,7 +332,7 @@ class SafetyShield(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
         self._keys = np.unique(pairs.min(axis=1) * ngeom + pairs.max(axis=1))
         self._touched = np.zeros(0, dtype=np.int64)
         # The env's physics step, shielded (an instance attribute shadows the method).
-        inner._step_mujoco_simulation = self._simulate
+        inner._step_mujoco_simulation = self._simulate  # type: ignore[attr-defined]
 
     def _simulate(self, ctrl: Any, n_frames: int) -> None:
         """The env's simulation step: each physics step's controls from the shield."""

@@ -81,7 +81,9 @@ def body_speeds(
 class Layer(Protocol):
     """A safety layer: ``ctrl = layer(data, intended)`` every physics step."""
 
-    interventions: int
+    @property
+    def interventions(self) -> int:
+        """Physics steps at which it overrode the intended controls."""
 
     def reset(self, data: mujoco.MjData) -> None:
         """Start an episode at ``data``."""
