@@ -299,6 +299,8 @@ class SafetyShield(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
     Args:
         env: A MuJoCo-based env whose simulation step is gymnasium's ``MujocoEnv``'s.
         protect: The bodies the robot must not move into (``Shield``'s ``protect``).
+        active: False lets every action through unshielded, the cost counted the same (the
+            baseline of an A/B).
         **shield_options: Passed to :class:`~dua_mujoco.Shield` (``accel`` is required; ``robot``,
             ``failsafe``, ``stop_time``, ...), except ``period``: it is the env's ``frame_skip``.
 
@@ -309,8 +311,12 @@ class SafetyShield(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
         InvalidInputError: Not a MuJoCo-based env, ``period`` passed, or a bad shield option.
     """
 
-    def __init__(self, env: gymnasium.Env, *, protect: Any, **shield_options: Any) -> None:
-        gymnasium.utils.RecordConstructorArgs.__init__(self, protect=protect, **shield_options)
+    def __init__(
+        self, env: gymnasium.Env, *, protect: Any, active: bool = True, **shield_options: Any
+    ) -> None:
+        gymnasium.utils.RecordConstructorArgs.__init__(
+            self, protect=protect, active=active, **shield_options
+        )
         gymnasium.Wrapper.__init__(self, env)
         model, self._data, frame_skip = find_mujoco(env)
         if "period" in shield_options:
@@ -324,7 +330,10 @@ class SafetyShield(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
                 f"{type(inner).__name__} has no _step_mujoco_simulation(ctrl, n_frames): the "
                 "shield steps the physics in its place; wrap a gymnasium MujocoEnv."
             )
+        if not isinstance(active, bool):
+            raise InvalidInputError(f"active = {active!r} is invalid: pass True or False.")
         self.shield = Shield(model, protect=protect, period=frame_skip, **shield_options)
+        self.active = active
         self._model = model
         ngeom = int(model.ngeom)
         pairs = self.shield.pairs
@@ -341,7 +350,7 @@ class SafetyShield(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
         touched = []
         ngeom = self._ngeom
         for _ in range(int(n_frames)):
-            data.ctrl[:] = self.shield(data, intended)
+            data.ctrl[:] = self.shield(data, intended) if self.active else intended
             mujoco.mj_step(model, data)
             if data.ncon:
                 g = np.asarray(data.contact.geom)[: data.ncon]

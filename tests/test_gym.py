@@ -269,33 +269,21 @@ def test_bad_input_is_refused_with_the_fix() -> None:
 PUSH_DOWN = np.array([0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 
 
-def _table_contacts(model, data, keys: np.ndarray) -> int:
-    """Protected pairs (keys ``min * ngeom + max``) in contact in ``data`` now."""
-    g = np.asarray(data.contact.geom)[: data.ncon]
-    n = int(model.ngeom)
-    return int(np.isin(np.minimum(g[:, 0], g[:, 1]) * n + np.maximum(g[:, 0], g[:, 1]), keys).sum())
-
-
 def test_the_safety_shield_keeps_pushers_arm_off_the_table() -> None:
-    """Pressed down, Pusher's arm hits the table unshielded; under ``SafetyShield`` (the table
-    protected) no step's cost is > 0, the shield intervened, and every physics step ran under
-    the guarantee. ``check_env`` passes on the wrapper."""
+    """Pressed down, Pusher's arm hits the table unshielded (``active=False``: the cost counted,
+    nothing shielded); under ``SafetyShield`` (the table protected) no step's cost is > 0, the
+    shield intervened, and every physics step ran under the guarantee. ``check_env`` passes on
+    the wrapper."""
     from dua_mujoco.gym import SHIELD_COST_KEY, SafetyShield
 
     env = SafetyShield(gym.make("Pusher-v5"), protect=["world"], accel=100.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         check_env(env, skip_render_check=True)
-    model = env.unwrapped.model  # type: ignore[attr-defined]
-    pairs = env.shield.pairs
-    keys = pairs.min(axis=1) * int(model.ngeom) + pairs.max(axis=1)
-    plain = gym.make("Pusher-v5")
+    plain = SafetyShield(gym.make("Pusher-v5"), protect=["world"], accel=100.0, active=False)
     plain.reset(seed=0)
-    touched = 0
-    for _ in range(100):
-        plain.step(PUSH_DOWN)
-        touched += _table_contacts(model, plain.unwrapped.data, keys)  # type: ignore[attr-defined]
-    assert touched > 0
+    steps = [plain.step(PUSH_DOWN)[4] for _ in range(100)]
+    assert sum(info["cost"] for info in steps) > 0 and not any(info["shield"] for info in steps)
     _, info = env.reset(seed=0)
     assert env.shield.counts["steps"] == 0
     costs, shielded = [], []
