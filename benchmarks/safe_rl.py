@@ -62,7 +62,7 @@ def reacher_with_post(folder: Path) -> Path:
     return path
 
 
-ENVS = {
+ENVS: dict[str, tuple[str, dict[str, object], list[str], float]] = {
     "pusher": ("Pusher-v5", {}, ["world"], 100.0),
     "reacher": ("Reacher-v5", {"xml_file": None}, ["post"], 100.0),
 }
