@@ -31,6 +31,7 @@ import tempfile
 import time
 import warnings
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -62,7 +63,7 @@ def reacher_with_post(folder: Path) -> Path:
     return path
 
 
-ENVS: dict[str, tuple[str, dict[str, object], list[str], float]] = {
+ENVS: dict[str, tuple[str, dict[str, Any], list[str], float]] = {
     "pusher": ("Pusher-v5", {}, ["world"], 100.0),
     "reacher": ("Reacher-v5", {"xml_file": None}, ["post"], 100.0),
 }
