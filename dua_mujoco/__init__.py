@@ -49,6 +49,7 @@ if TYPE_CHECKING:
     from dua_mujoco.plugin import PluginOutputs, attach, plugin_outputs, standing_pairs
     from dua_mujoco.runtime.plans import (
         PilotPlan,
+        Replanner,
         deviation_profile,
         plan_deviation,
         plan_from_controls,
@@ -64,6 +65,7 @@ _LAZY = {
     "CoveringOptions": "dua_mujoco.build.options",
     "PairOptions": "dua_mujoco.build.options",
     "PilotPlan": "dua_mujoco.runtime.plans",
+    "Replanner": "dua_mujoco.runtime.plans",
     "deviation_profile": "dua_mujoco.runtime.plans",
     "plan_deviation": "dua_mujoco.runtime.plans",
     "plan_from_controls": "dua_mujoco.runtime.plans",
@@ -118,6 +120,7 @@ __all__ = [
     "PilotWarning",
     "PluginOutputs",
     "Predictor",
+    "Replanner",
     "RunReport",
     "Schedule",
     "ScheduleOptions",

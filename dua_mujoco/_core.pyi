@@ -35,9 +35,11 @@ def shape_record_count(shapes: Annotated[NDArray[numpy.float64], dict(order='C',
     How many leading rows of a shape table are records (then terrain blocks).
     """
 
-def tau_terrain(table: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], row: int, shape: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], v: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], spin: float, eps: float, accel: float, delta: float) -> float:
+def tau_terrain(table: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], row: int, shape: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], v: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], spin: float, eps: float, accel: float, delta: float) -> tuple[float, int]:
     """
-    tau of a convex shape record moving with velocity v against terrain record `row`.
+    tau of a convex shape record moving with velocity v against terrain record `row`, and what
+    decided it: 0 the base or the first cell, 1 the cells within reach one by one, 2 the
+    pyramid's branch and bound (so that tests can assert the search ran).
     """
 
 def deadline_interval(tau: float, dt: float, latency: int, max_interval: int, extra: float = 0.0) -> int: ...

@@ -368,8 +368,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     model, data = _load(args.scene, keyframe_arg(args))
     steps = default_steps(args.scene) if args.steps is None else args.steps
     _check_outputs(args, model, steps)
-    controller = controller_for(model, args)
     predictor = predictor_for(model, args)
+    controller = controller_for(model, args, predictor)
     on_step = None
     renderer = None
     writer = None

@@ -12,12 +12,15 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
+
+from dua_mujoco.exceptions import InvalidInputError
 
 if TYPE_CHECKING:
     import mujoco
 
-    from dua_mujoco.models.scenes import SceneController
+    from dua_mujoco.models.scenes import Driver
     from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
@@ -46,11 +49,46 @@ def default_steps(scene: str) -> int:
     return SCENES[base].default_steps if base in SCENES else 1000
 
 
-def controller_for(model: mujoco.MjModel, options: Any) -> SceneController:
-    """The monitored rollout's controller (``--ctrl``, ``--seed``)."""
+def _driver(model: mujoco.MjModel, options: Any, seed: int) -> Driver:
+    """The controller ``--ctrl`` names, drawn from ``seed``: the scene's own driver (``scene``,
+    the default for a scene that has one) or :func:`make_controller`'s."""
     from dua_mujoco.models import scenes
 
-    return scenes.make_controller(model, options.ctrl, seed=options.seed)
+    name = getattr(options, "scene", "")
+    own = scenes.SCENES[name].driver if name in scenes.SCENES else None
+    ctrl = options.ctrl or ("scene" if own is not None else "random")
+    if ctrl != "scene":
+        return scenes.make_controller(model, ctrl, seed=seed)
+    if own is None:
+        have = [s.name for s in scenes.SCENES.values() if s.driver is not None]
+        raise InvalidInputError(
+            f"--ctrl scene: {name!r} has no driver of its own (scenes with one: "
+            f"{', '.join(have)}): drive it with zero, random or smooth controls."
+        )
+    return own(model, seed)
+
+
+def controller_for(
+    model: mujoco.MjModel, options: Any, predictor: Predictor | None = None
+) -> Driver:
+    """The monitored rollout's controller (``--ctrl``, ``--seed``), giving ``predictor`` a flight
+    plan every ``R`` steps under ``--plan trajectory`` (a
+    :class:`~dua_mujoco.runtime.plans.Replanner`: the plan of a driver that knows how its robot
+    is planned, ``driver.plan`` over ``driver.planned``, else a rollout of a copy of the
+    controller over every body outside mocap trees)."""
+    driver = _driver(model, options, options.seed)
+    if getattr(options, "plan", "none") == "none":
+        return driver
+    if predictor is None:
+        raise InvalidInputError("--plan trajectory needs the predictor the plans are given to.")
+    from dua_mujoco.runtime.plans import Replanner
+
+    return Replanner(
+        predictor,
+        driver,
+        planner=getattr(driver, "plan", None),
+        bodies=getattr(driver, "planned", None),
+    )
 
 
 def predictor_for(model: mujoco.MjModel, options: Any) -> Predictor:
@@ -79,8 +117,19 @@ def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
     from dua_mujoco.models import scenes
 
     pilot_seed = options.seed + PILOT_SEED_OFFSET
+    accel = options.accel
+    if accel is None:  # the scene's declared bounds, if it declares them, else a pilot's
+        scene = scenes.SCENES.get(getattr(options, "scene", ""))
+        declared = None if scene is None or scene.bounds is None else scene.bounds(model)
+        accel = "auto" if declared is None else declared
+        if declared is not None and options.speed is not None:
+            # --speed on top of the scene's bounds, as on top of a pilot's.
+            from dua_mujoco.build.bounds import MotionBounds
+
+            top = MotionBounds.declare(model, 0.0, speed=options.speed, integrator_term=False)
+            accel = replace(declared, speed=top.speed)
     return {
-        "accel": options.accel,
+        "accel": accel,
         "speed": options.speed,
         "period": options.period,
         "latency": options.latency,
@@ -104,7 +153,7 @@ def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
         "pilot": opts.PilotOptions(
             steps=options.pilot_steps,
             seed=pilot_seed,
-            controller=scenes.make_controller(model, options.ctrl, seed=pilot_seed),
+            controller=_driver(model, options, pilot_seed),
             **({} if options.pilot_motion is None else {"motion": options.pilot_motion}),
         ),
     }
@@ -183,18 +232,21 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--ctrl",
-        choices=["zero", "random", "smooth"],
-        default="random",
-        help="controls: zero, random held 50 steps, or smooth (targets linear between random "
-        "points 250 steps apart; motors as 1 Hz PD torques); the pilot of --accel auto is "
-        "driven the same way",
+        choices=["scene", "zero", "random", "smooth"],
+        default=None,
+        help="controls: the scene's own driver (person_cell's person and arm task; the default "
+        "for a scene that has one), zero, random held 50 steps (the default otherwise), or "
+        "smooth (targets linear between random points 250 steps apart; motors as 1 Hz PD "
+        "torques); the pilot of --accel auto is driven the same way",
     )
     p.add_argument("--keyframe", default=None, help="start keyframe (id or name; default first)")
     p.add_argument(
         "--accel",
         type=parse_accel,
-        default="auto",
-        help="acceleration bound in m/s^2 for every moving body, or 'auto' (pilot rollout)",
+        default=None,
+        help="acceleration bound in m/s^2 for every moving body, or 'auto' (pilot rollout); "
+        "default: the bounds the scene declares (person_cell: the person's after ISO 13855, the "
+        "arm's measured), else auto",
     )
     p.add_argument("--speed", type=positive(float), default=None, help="speed bound in m/s")
     p.add_argument(
@@ -311,6 +363,15 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         default="terrain",
         help="height fields: hold a static one as the prisms of its grid (default), cover them "
         "by their bounding box, or refuse them",
+    )
+    p.add_argument(
+        "--plan",
+        choices=["none", "trajectory"],
+        default="none",
+        help="trajectory: every max(horizon, 50 ms) give the predictor a flight plan rolled "
+        "from a copy of the controller (exact: deviation 0) for the bodies the scene's driver "
+        "plans (person_cell: the arm; the person keeps its bounds), else every body outside "
+        "mocap trees (docs/plans.md)",
     )
     p.add_argument("--realtime", action="store_true", help="count predictor deadline overruns")
     p.add_argument(

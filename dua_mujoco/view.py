@@ -77,7 +77,7 @@ def main(args: argparse.Namespace) -> int:
             data,
             predictor,
             steps=args.steps,
-            controller=controller_for(model, args),
+            controller=controller_for(model, args, predictor),
             rate=args.rate,
             options=OverlayOptions(show_spheres=args.show_spheres),
             show_ui=not args.hide_ui,

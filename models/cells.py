@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from dua_mujoco.models import models_dir
 from dua_mujoco.models.motion import Move
 from dua_mujoco.models.people import Bound, Crowd, PersonScript, ScriptedBodies, declared_bounds
-from dua_mujoco.models.scenes import models_dir
 
 __all__ = [
     "ARM_B_BOUNDS",

@@ -22,12 +22,15 @@ package ``dua_mujoco.models`` (in the source tree, the link ``dua_mujoco/models`
                           12 cm of relief; docs/static-shapes.md, section 13)
 ``flat_terrain``          the same quadruped on a plane at the terrain's mean height
                           (:func:`flat_terrain_spec`), for comparisons
+``person_cell``           a 6-DoF arm working a cell while a mocap person walks in and reaches
+                          (:mod:`~dua_mujoco.models.person_cell`, docs/plans.md)
 ========================  ==================================================================
 
 :func:`load_scene` also accepts a path to any MJCF file. :func:`make_controller` drives a scene
 with zero, random (held, hence piecewise-constant) or smooth controls (targets linear between
 random points, :mod:`~dua_mujoco.models.smooth_drive`) and moves mocap bodies on circles, so that
-every scene keeps moving and colliding.
+every scene keeps moving and colliding. A scene may have a driver of its own and declare every
+body's bounds (:attr:`Scene.driver`, :attr:`Scene.bounds`: ``person_cell``'s person and arm).
 
 Motion bounds. The paper world and the traffic scene declare an exact acceleration bound in a
 ``<numeric name="dua_accel_bound">`` custom field (read it with :func:`declared_accel_bound`):
@@ -44,11 +47,13 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.models import models_dir
 from dua_mujoco.models.bin_pour import BIN_POUR_DEFAULT, bin_pour_spec
 from dua_mujoco.models.paper_world import (
     ACCEL_BOUND_NUMERIC,
@@ -57,6 +62,12 @@ from dua_mujoco.models.paper_world import (
     paper_world_spec,
 )
 from dua_mujoco.models.smooth_drive import SmoothDrive, smooth_drive
+
+if TYPE_CHECKING:
+    from dua_mujoco.build.bounds import MotionBounds
+
+Driver = Callable[[mujoco.MjModel, mujoco.MjData], None]
+"""A scene's driver: ``driver(model, data)`` before each ``mj_step``."""
 
 __all__ = [
     "ACCEL_BOUND_NUMERIC",
@@ -120,6 +131,10 @@ class Scene:
         default_steps: A rollout length that shows the scene's collisions.
         accel_hint: A suggested acceleration-norm bound (m/s^2) for the predictor. Exact (out of
             contact) for the paper world and traffic; measured on random rollouts otherwise.
+        driver: The scene's own controller, ``driver(model, seed)`` (None: the scene is driven by
+            :func:`make_controller`).
+        bounds: The bounds the scene declares for every moving body, ``bounds(model)`` (None:
+            none; ``--accel auto`` measures them).
     """
 
     name: str
@@ -127,6 +142,8 @@ class Scene:
     description: str
     default_steps: int
     accel_hint: float
+    driver: Callable[[mujoco.MjModel, int], Driver] | None = None
+    bounds: Callable[[mujoco.MjModel], MotionBounds] | None = None
 
     def model(self) -> mujoco.MjModel:
         """Compile the scene.
@@ -142,15 +159,6 @@ class Scene:
             return self.source()
         with importlib.resources.as_file(_model_file(self.source)) as path:
             return mujoco.MjSpec.from_file(str(path))
-
-
-def models_dir() -> Path:
-    """The folder holding the bundled XMLs: this module's own.
-
-    Returns:
-        The folder's path.
-    """
-    return Path(__file__).resolve().parent
 
 
 def _model_file(filename: str) -> Path:
@@ -173,6 +181,18 @@ def flat_terrain_spec() -> mujoco.MjSpec:
     ground.pos = [0.0, 0.0, mean]
     spec.delete(hfield)
     return spec
+
+
+def _person_cell_driver(model: mujoco.MjModel, seed: int) -> Driver:
+    from dua_mujoco.models.person_cell import CellDriver
+
+    return CellDriver(model, seed)
+
+
+def _person_cell_bounds(model: mujoco.MjModel) -> MotionBounds:
+    from dua_mujoco.models.person_cell import declared_bounds
+
+    return declared_bounds(model)
 
 
 SCENES: dict[str, Scene] = {
@@ -233,6 +253,17 @@ SCENES: dict[str, Scene] = {
             default_steps=2000,
             # Measured as for rough_terrain: 99.9th percentile 307, max 532 m/s^2.
             accel_hint=310.0,
+        ),
+        Scene(
+            name="person_cell",
+            source="person_cell.xml",
+            description="A 6-DoF arm working a cell while a person walks in and reaches.",
+            # 7 s: the person walks in, reaches into the arm's workspace and withdraws.
+            default_steps=3500,
+            # The arm's largest declared acceleration (models/person_cell.py: ARM_BOUNDS).
+            accel_hint=65.0,
+            driver=_person_cell_driver,
+            bounds=_person_cell_bounds,
         ),
     )
 }

@@ -367,3 +367,55 @@ def test_the_shields_query_gives_the_knot_of_the_steps_own_verdict(predictor: Pr
         )
         assert upper[0] == upper[1] == -1  # neither the forearm nor the person is planned
     assert checked == 20
+
+
+def test_a_plan_keeps_the_replaced_plans_poses_only_where_its_rows_are_the_same() -> None:
+    """A plan copies the poses of the plan it replaces at the knots where both have the same
+    rows at the same time (Plan::Build: the same joint positions and mocap poses, bit for bit),
+    and computes the others: its verdicts are those of a predictor that had no plan before. The
+    plan followed keeps the person away; two candidates plan the person walking into the arm,
+    one with the plan's own arm (the same joint positions at every knot: a copy that ignored the
+    mocap poses would keep the person away), one whose arm leaves the plan's after 30 knots (a
+    copy past them would keep the plan's arm)."""
+    m = _model()
+    blind = _blind(m)
+    h = float(m.opt.timestep)
+    d = mujoco.MjData(m)
+    d.mocap_pos[0, 0] = 1.6
+    mujoco.mj_forward(m, d)
+    mujoco.mj_step(m, d)
+    bounds: dict = BOUNDS
+    followed, fresh = Predictor(m, **bounds, alarm_horizon=0.2), Predictor(m, **bounds)
+    for p in (followed, fresh):
+        p.reset(d)
+    n, skip = 160, 10
+    ctrl = _controls(m, n + 40, seed=8)
+    q = _rollout(blind, m, d, ctrl, n)
+    quat = np.tile(d.mocap_quat, (n, 1, 1))
+    away = np.tile(d.mocap_pos, (n, 1, 1))
+    followed.set_plan(q, deviation=0.0, mocap_pos=away, mocap_quat=quat)
+    for k in range(skip):  # the plan followed: the state read moves along its knots
+        d.ctrl[:] = ctrl[k]
+        mujoco.mj_step(m, d)
+        followed.step(d)
+        fresh.step(d)
+    kept = q[skip - 1 :]
+    elsewhere = np.concatenate(
+        [kept[:30], _rollout(blind, m, d, -ctrl[skip + 30 :], len(kept) - 30)]
+    )
+    walking = away[skip - 1 :].copy()
+    walking[:, 0, 0] = np.linspace(1.6, 0.2, len(kept))  # the person walks into the arm
+    pairs = np.stack([followed.geom_pairs.geom1, followed.geom_pairs.geom2], axis=1)
+    args = {"deviation": 0.0, "start": float(d.time) - h, "mocap_quat": quat[: len(kept)]}
+    got, want = {}, {}
+    for name, rows, pos in (
+        ("plan's arm", kept, walking),
+        ("arm elsewhere", elsewhere, walking),
+        ("plan", kept, away[skip - 1 :]),
+    ):
+        got[name] = followed.plan_contact_knots(rows, pairs, mocap_pos=pos, **args)
+        want[name] = fresh.plan_contact_knots(rows, pairs, mocap_pos=pos, **args)
+        assert np.array_equal(got[name], want[name]), name
+    # The copies could be wrong: the person's and the arm's motions change the verdicts.
+    assert not np.array_equal(got["plan's arm"], got["plan"])
+    assert not np.array_equal(got["plan's arm"], got["arm elsewhere"])

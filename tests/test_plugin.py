@@ -1,5 +1,12 @@
-"""The MuJoCo plugin ``dua_mujoco.predictor``: the predictor inside ``mj_step``, held to the
-Python predictor step by step, per-``MjData`` state, exported models, C++ without Python."""
+"""The MuJoCo plugin ``dua_mujoco.predictor``: the predictor inside ``mj_step``, per-``MjData``
+state, exported models, C++ without Python.
+
+The plugin and ``Predictor.step`` run one runtime (docs/theory.md, section 7), so the tests that
+compare them step by step (``test_plugin_round_trips_...``) are round-trip tests: they check
+that the tables survive the model's text fields, that the plugin reads the instant and keeps the
+state the proofs assume, and that it switches, prunes and classifies as the Python caller does;
+they cannot catch a bug of the step itself, which both would share. The step is held to
+independent references elsewhere (tests/test_reference_step.py and the tests of section 4)."""
 
 from __future__ import annotations
 
@@ -87,9 +94,10 @@ def _run_side_by_side(
      ("bin_pour:30", 300), ("rough_terrain", 300), (ANT, 300)],
     ids=["two_arms", "traffic", "clutter", "paper_world", "bin_pour", "rough_terrain", "gym-ant"],
 )  # fmt: skip
-def test_plugin_equals_the_python_predictor(scene: str, steps: int) -> None:
-    """On every bundled scene (clutter's mocap body included) and a robot: the pairs standing
-    in alarm after each mj_step are the Python predictor's after its step on the same state."""
+def test_plugin_round_trips_the_predictor_on_every_scene(scene: str, steps: int) -> None:
+    """A round trip (module docstring): on every bundled scene (clutter's mocap body included)
+    and a robot, the pairs standing in alarm after each mj_step are the Python predictor's after
+    its step on the same state."""
     m, p = _attached(scene)
     assert _run_side_by_side(m, p, steps) > 10  # the comparison is not of empty steps
 
@@ -109,7 +117,8 @@ def test_plugin_equals_the_python_predictor(scene: str, steps: int) -> None:
     ],
     ids=["period", "select-all", "dua", "no-exact", "capped", "latency", "pruned-period"],
 )  # fmt: skip
-def test_plugin_equals_the_python_predictor_under_options(options: dict) -> None:
+def test_plugin_round_trips_the_predictor_under_options(options: dict) -> None:
+    """A round trip (module docstring) under each option the tables carry."""
     m, p = _attached("two_arms", **options)
     assert _run_side_by_side(m, p, 240, seed=3) > 10
 
@@ -120,11 +129,10 @@ def test_plugin_equals_the_python_predictor_under_options(options: dict) -> None
      ("swarm:1500", 2.0, 120)],
     ids=["bin_pour", "clutter", "swarm", "swarm-1.1M-pairs"],
 )  # fmt: skip
-def test_plugin_with_pruned_pairs_equals_the_pruned_python_predictor(
-    scene: str, accel: float, steps: int
-) -> None:
-    """``pairs="pruned"``: the plugin holds the pairs a pruned ``Predictor`` holds, rebuilt every
-    stride and renewed for the spheres an impact lets escape, learning the pairs it meets
+def test_plugin_round_trips_the_pruned_predictor(scene: str, accel: float, steps: int) -> None:
+    """A round trip (module docstring) with ``pairs="pruned"``: the plugin holds the pairs a
+    pruned ``Predictor`` holds, rebuilt every stride and renewed for the spheres an impact lets
+    escape, learning the pairs it meets
     (objects poured into a bin, a mocap body, swarms: one of 1.1 million active pairs, more
     than ``pairs="all"`` takes): the same standing pairs and evaluations after every step."""
     m, p = _attached(scene, accel=accel, pairs="pruned")
@@ -138,9 +146,10 @@ def test_plugin_with_pruned_pairs_equals_the_pruned_python_predictor(
         assert busy > 10 and p.renewals > 5
 
 
-def test_pruned_plugin_switches_and_classifies_as_the_python_predictor() -> None:
-    """Pruned pairs with intended contact and latency: pairs switched off stay off when a
-    rebuild or a renewal holds them again; a reset classifies from scratch."""
+def test_plugin_round_trips_pruned_switches_and_classifications() -> None:
+    """A round trip (module docstring) of pruned pairs with intended contact and latency: pairs
+    switched off stay off when a rebuild or a renewal holds them again; a reset classifies from
+    scratch."""
     from dua_mujoco.build.options import PairOptions
 
     m, p = _attached("two_arms", pairs=PairOptions(mode="pruned", horizon=0.02), latency=1)
@@ -154,10 +163,11 @@ def test_pruned_plugin_switches_and_classifies_as_the_python_predictor() -> None
     assert p.rebuilds > 10  # the switched-off pairs went through rebuilds
 
 
-def test_switching_bodies_equals_the_python_predictors() -> None:
-    """Intended contact: the pairs between a loose box and the table switched off, back on
-    (standing in alarm until evaluated), every pair of an arm's link, then every pair in
-    contact: the same standing pairs as the Python predictor's after every step."""
+def test_plugin_round_trips_switched_bodies() -> None:
+    """A round trip (module docstring) of intended contact: the pairs between a loose box and
+    the table switched off, back on (standing in alarm until evaluated), every pair of an arm's
+    link, then every pair in contact: the same standing pairs as the Python predictor's after
+    every step."""
     m, p = _attached("two_arms")
     box = int(m.geom_bodyid[m.geom("loose_box").id])
     table = int(m.geom_bodyid[m.geom("table_top").id])

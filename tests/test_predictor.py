@@ -171,8 +171,10 @@ def test_kernel_matches_mj_object_velocity_at_random_states(site_predictor) -> N
         assert np.linalg.norm(v_ref, axis=1).max() > 0.5
 
 
-def test_fused_step_tau_matches_vectorised_tau(site_model) -> None:
-    """The fused ``step`` computes the same tau as ``pair_set.tau`` on ``sphere_states``."""
+def test_fused_step_round_trips_the_pair_sets_tau(site_model) -> None:
+    """The fused ``step`` computes the same tau as ``pair_set.tau`` on ``sphere_states``: a round
+    trip of the pair records and the gathered states through the runtime's two entries (both run
+    the same kernels, so it cannot catch a wrong tau: tests/test_reference_step.py can)."""
     m = site_model
     # Select-all: every pair is evaluated every step, whatever the random states do to tau.
     p = Predictor(

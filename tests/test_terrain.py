@@ -94,9 +94,14 @@ class Terrain:
         return tau_static(c[0], c[1], c[2], v[0], v[1], v[2], self.table, eps, accel, delta)
 
     def tau_object(self, shape, v, spin, eps, accel, delta=0.0) -> float:
+        return self.search(shape, v, spin, eps, accel, delta)[0]
+
+    def search(self, shape, v, spin, eps, accel, delta=0.0) -> tuple[float, int]:
+        """The kernel's tau of a shape record, and what decided it (``PYRAMID``: the search)."""
         s = np.ascontiguousarray(shape, dtype=np.float64)
         vv = np.ascontiguousarray(v, dtype=np.float64)
-        return float(_core.tau_terrain(self.table, 0, s, vv, spin, eps, accel, delta))
+        tau, path = _core.tau_terrain(self.table, 0, s, vv, spin, eps, accel, delta)
+        return float(tau), int(path)
 
     def bound(self, lo, hi, lowest, u, spin, eps, accel, delta) -> float:
         return ref.cell_bound(
@@ -105,13 +110,14 @@ class Terrain:
 
 
 @st.composite
-def terrains(draw, tilted: bool = True, max_cells: int = 7) -> Terrain:
-    nrow = draw(st.integers(2, max_cells + 1))
-    ncol = draw(st.integers(2, max_cells + 1))
+def terrains(draw, tilted: bool = True, max_cells: int = 7, min_cells: int = 1) -> Terrain:
+    nrow = draw(st.integers(min_cells + 1, max_cells + 1))
+    ncol = draw(st.integers(min_cells + 1, max_cells + 1))
     scale = 10.0 ** draw(st.floats(-1.0, 1.0))
+    wide = 0.2 if min_cells < 32 else 0.5  # large grids: wide enough for their cells
     size = [
-        draw(st.floats(0.2, 2.0)) * scale,
-        draw(st.floats(0.2, 2.0)) * scale,
+        draw(st.floats(wide, 2.0)) * scale,
+        draw(st.floats(wide, 2.0)) * scale,
         draw(st.floats(0.05, 1.0)) * scale,
         draw(st.floats(0.01, 0.5)) * scale,
     ]
@@ -143,6 +149,38 @@ def motions(draw, terrain: Terrain):
     accel = draw(st.sampled_from([0.0, 1.0])) * draw(st.floats(0.01, 5.0)) * length / tscale**2
     delta = draw(st.sampled_from([0.0, 1.0])) * draw(st.floats(0.0, 0.5)) * length / tscale
     return terrain.world(local), terrain.rot @ v, eps, accel, delta
+
+
+# What decided a search (``_core.tau_terrain``'s second value): the base or the first cell, the
+# cells within reach one by one (at most 256), the pyramid's branch and bound. Grids of 32 to 64
+# cells a side (1,024 to 4,096 cells: far more than the window holds) reach the pyramid.
+FIRST, WINDOW, PYRAMID = 0, 1, 2
+
+
+@st.composite
+def reaching_motions(draw, terrain: Terrain):
+    """A sphere's centre 12 to 40 cells above the terrain's highest point, anywhere over it or
+    beside it, bounds that bring it down in 0.1 to 10 time units: by the time it could come
+    down, it could reach more cells sideways than the window holds, so the search runs on the
+    pyramid."""
+    s = terrain.size
+    cell = max(2 * s[0] / (terrain.ncol - 1), 2 * s[1] / (terrain.nrow - 1))
+    gap = draw(st.floats(12, 40)) * cell
+    top = float(np.max(terrain.data)) * s[2]
+    local = np.array(
+        [draw(st.floats(-1.2, 1.2)) * s[0], draw(st.floats(-1.2, 1.2)) * s[1], top + gap]
+    )
+    fall = 10.0 ** draw(st.floats(-1, 1))
+    v = np.array([draw(st.floats(-1, 1)) for _ in range(3)]) * gap / fall
+    eps = draw(st.floats(0.0, 0.5)) * cell
+    accel = 2 * gap / fall**2
+    delta = draw(st.sampled_from([0.0, 1.0])) * draw(st.floats(0.0, 0.5)) * gap / fall
+    return terrain.world(local), terrain.rot @ v, eps, accel, delta
+
+
+def _point(c) -> np.ndarray:
+    """A sphere's centre as a shape record (a sphere of radius 0: its radius is in eps)."""
+    return np.array([int(ShapeKind.SPHERE), 0, 0, 0, *c, *np.eye(3).ravel()], dtype=np.float64)
 
 
 def _unit(x) -> np.ndarray:
@@ -411,27 +449,132 @@ def test_search_equals_every_cell_for_a_geom(data) -> None:
     assert _close(got, want), (got, want)
 
 
+LARGE = settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True
+)
+
+
+@LARGE
+@given(st.data())
+def test_search_equals_every_cell_through_the_pyramid_for_a_sphere(data) -> None:
+    """Grids of 32 to 64 cells a side, a sphere that can reach more of them than the window
+    holds: the branch and bound over the pyramid runs (asserted) and finds the bound written
+    over every cell."""
+    t = data.draw(terrains(min_cells=32, max_cells=64))
+    c, v, eps, accel, delta = data.draw(reaching_motions(t))
+    got, path = t.search(_point(c), v, 0.0, eps, accel, delta)
+    assert path == PYRAMID
+    want = _sphere_bound(t, c, v, eps, accel, delta)
+    assert _close(got, want), (got, want)
+
+
+@LARGE
+@given(st.data())
+def test_search_equals_every_cell_through_the_pyramid_for_a_geom(data) -> None:
+    t = data.draw(terrains(min_cells=32, max_cells=64))
+    c, v, eps, accel, delta = data.draw(reaching_motions(t))
+    kind = data.draw(st.sampled_from(KINDS))
+    cell = 2 * float(t.size[0]) / (t.ncol - 1)
+    size = np.array([data.draw(st.floats(0.5, 4.0)) * cell for _ in range(3)])
+    q = [data.draw(st.floats(-1, 1)) for _ in range(4)]
+    rot = rotation(q) if np.linalg.norm(q) > 1e-3 else np.eye(3)
+    spin = data.draw(st.floats(0.0, 1.0)) * float(np.linalg.norm(v))
+    shape = _object(kind, size, c + t.rot[:, 2] * float(size.max()) * 2, rot)
+    got, path = t.search(shape, v, spin, eps, accel, delta)
+    assert path == PYRAMID
+    want = _object_bound(t, shape, v, spin, eps, accel, delta)
+    assert _close(got, want), (got, want)
+
+
+def _corrupt(table: np.ndarray, amount: float, levels: slice) -> np.ndarray:
+    """The table with the maxima of pyramid ``levels`` lowered by ``amount`` (the heights, the
+    cells' own corners, left as they are)."""
+    bad = table.copy()
+    flat = bad[1:].reshape(-1)
+    at, sizes = T_HEADER, [lv.size for lv in terrain_levels(_heights(table))]
+    for k, n in enumerate(sizes):
+        if k in range(len(sizes))[levels]:
+            flat[at : at + n] -= amount
+        at += n
+    return bad
+
+
+def _heights(table: np.ndarray) -> np.ndarray:
+    flat = table[1:].reshape(-1)
+    nrow, ncol = int(flat[3]), int(flat[4])
+    start = int(flat[T_HEIGHTS])
+    return flat[start : start + nrow * ncol].reshape(nrow, ncol)
+
+
 def test_the_search_test_catches_a_corrupt_pyramid() -> None:
-    """A pyramid that under-reports the cells' heights prunes cells that matter: the exhaustive
-    bound then disagrees, on the window's path (few cells within reach) and on the pyramid's
-    (many), while the correct pyramid agrees on every state here."""
+    """A pyramid that under-reports the cells' heights prunes cells that matter, and the
+    exhaustive bound then disagrees: on the window's path (few cells within reach) with every
+    level lowered, and on the pyramid's (grids of 32 to 64 cells a side, a sphere that can reach
+    more of them than the window holds) with every level lowered, and with the levels above
+    the cells' own lowered (what only the branch and bound reads). The path of every state is
+    asserted, and the correct pyramid agrees on all of them."""
     rng = np.random.default_rng(7)
-    caught = {5.0: 0, 0.5: 0}
-    for accel in caught:
-        for _ in range(10):
-            t = Terrain([1.0, 1.0, 0.3, 0.1], 33, 33, rng.random(33 * 33))
-            bad = t.table.copy()
-            flat = bad[1:].reshape(-1)
-            flat[T_HEADER : int(flat[T_HEIGHTS])] -= 0.25  # every level's maxima
-            c = t.world([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(0.3, 0.5)])
-            # Slow and falling (few cells in reach: the window), or hard-driven (the pyramid).
-            v = rng.normal(size=3) * 0.3 if accel > 1 else [*rng.normal(size=2) * 0.05, -1.0]
-            v, eps = np.asarray(v, dtype=np.float64), 0.02
-            want = _sphere_bound(t, c, v, eps, accel, 0.0)
-            assert _close(t.tau(c, v, eps, accel), want)
-            got = tau_static(c[0], c[1], c[2], v[0], v[1], v[2], bad, eps, accel, 0.0)
-            caught[accel] += not _close(got, want)
-    assert min(caught.values()) >= 4, caught
+    caught = {"window": 0, "pyramid": 0, "upper levels": 0}
+    for k in range(12):
+        # The window: a slow sphere falling onto a 32 x 32 grid.
+        t = Terrain([1.0, 1.0, 0.3, 0.1], 33, 33, rng.random(33 * 33))
+        c = t.world([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(0.3, 0.5)])
+        v = np.asarray([*rng.normal(size=2) * 0.05, -1.0])
+        want = _sphere_bound(t, c, v, 0.02, 0.5, 0.0)
+        got, path = t.search(_point(c), v, 0.0, 0.02, 0.5)
+        assert path == WINDOW and _close(got, want), (got, want, path)
+        bad = _corrupt(t.table, 0.25, slice(None))
+        caught["window"] += not _close(_tau_of(bad, c, v, 0.02, 0.5), want)
+        # The pyramid: 32 to 64 cells a side, a sphere high above that can reach far sideways.
+        n = int(rng.integers(33, 66))
+        t = Terrain([1.0, 1.0, 0.3, 0.1], n, n, rng.random(n * n))
+        cell = 2.0 / (n - 1)
+        c = t.world([rng.uniform(-1, 1), rng.uniform(-1, 1), 0.3 + rng.uniform(12, 30) * cell])
+        v = np.asarray([*rng.normal(size=2) * 0.3, -rng.uniform(0, 1)])
+        want = _sphere_bound(t, c, v, 0.02, 5.0, 0.0)
+        got, path = t.search(_point(c), v, 0.0, 0.02, 5.0)
+        assert path == PYRAMID and _close(got, want), (got, want, path, k)
+        for name, levels in (("pyramid", slice(None)), ("upper levels", slice(1, None))):
+            bad = _corrupt(t.table, 0.25, levels)
+            caught[name] += not _close(_tau_of(bad, c, v, 0.02, 5.0), want)
+    # The window reads the cells' own maxima only to skip, and a state's cells within reach are
+    # few: a lowered level changes the result in about half of them (7 of 12 here).
+    assert caught["window"] >= 4, caught
+    assert caught["pyramid"] >= 10 and caught["upper levels"] >= 10, caught
+
+
+def _tau_of(table: np.ndarray, c, v, eps: float, accel: float) -> float:
+    return tau_static(c[0], c[1], c[2], v[0], v[1], v[2], table, eps, accel, 0.0)
+
+
+def test_a_fine_grid_reached_sideways_is_searched_not_settled_by_the_base() -> None:
+    """201 x 201 points (40,000 cells), a sphere beside the grid and below its base: the base
+    is nearer than the side, so its bound is the smaller, and the first cell's value, the time
+    to reach the side, is the larger; the cells within that reach are far more than the window
+    holds: the pyramid's search decides (the base bound does not), and finds the bound written
+    over every cell, for a sphere and a spinning capsule; on a flat block, the side's time
+    exactly."""
+    flat = Terrain([1.0, 1.0, 0.4, 0.2], 201, 201, np.ones(201 * 201))  # a block, -0.2 to 0.4
+    c, v = np.array([1.6, 0.0, -0.3]), np.zeros(3)
+    base = math.sqrt(2 * 0.09 / 10.0)  # up 0.1 to the base, less eps
+    got, path = flat.search(_point(c), v, 0.0, 0.01, 10.0)
+    assert path == PYRAMID
+    assert got == pytest.approx(math.sqrt(2 * 0.59 / 10.0), rel=1e-9) and got > 2 * base
+    rng = np.random.default_rng(5)
+    rough = Terrain([1.0, 1.0, 0.4, 0.2], 201, 201, rng.random(201 * 201), [0.1, 0.0, 0.0])
+    for _ in range(3):
+        c = np.array([rng.uniform(1.6, 1.8), rng.uniform(-0.8, 0.8), rng.uniform(-0.35, 0.3)])
+        v = rng.normal(size=3) * 0.2
+        got, path = rough.search(_point(c), v, 0.0, 0.01, 10.0, 0.05)
+        assert path == PYRAMID
+        want = _sphere_bound(rough, c, v, 0.01, 10.0, 0.05)
+        assert _close(got, want) and got > 0.0, (got, want)
+        # A spinning capsule there: its reach sideways grows with its spin too.
+        shape = _object(ShapeKind.CAPSULE, [0.03, 0.08, 0.0], c, rotation(rng.normal(size=4)))
+        got, path = rough.search(shape, v, 0.5, 0.01, 10.0, 0.05)
+        assert path == PYRAMID
+        want = _object_bound(rough, shape, v, 0.5, 0.01, 10.0, 0.05)
+        assert _close(got, want) and got > 0.0, (got, want)
 
 
 # ------------------------------------------------------------------------------------------------

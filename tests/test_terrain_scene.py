@@ -140,7 +140,7 @@ def _exact_reference(p: Predictor, d: mujoco.MjData, shapes: np.ndarray, pair: i
         _core.tau_terrain(
             np.ascontiguousarray(shapes), row, shape, linear, spin,
             p.exact.records[pair, X_DIST], rec.accel[pair], rec.vel_uncertainty[pair],
-        )
+        )[0]
     )  # fmt: skip
 
 

@@ -118,6 +118,31 @@ def test_short_leads_are_told_apart_by_the_bounds() -> None:
     assert mon.warning.short_at_start == 0
 
 
+def test_a_miss_long_after_a_violation_is_one_with_the_bounds_held() -> None:
+    """The monitor's label of a miss: a predictor that never alarms (the paper's schedule with
+    its horizons at -1) misses both landings. ball_b is kicked at step 5, long before its
+    landing, and its pairs are evaluated again after the kick: its miss came while the bounds
+    held since the pair's latest evaluation, as ball_a's did (no violation at all), so both are
+    bugs, neither excused by the violation."""
+    m = mujoco.MjModel.from_xml_string(_DROP)
+    d = mujoco.MjData(m)
+    p = Predictor(m, accel=15.0, schedule="dua")
+    mon = Monitor(p)
+    mujoco.mj_step(m, d)
+    mon.start(d)
+    assert p.scheduler is not None
+    p.scheduler.state.horizon[:] = -1.0  # tau <= -1 never holds: no alarm, ever
+    for k in range(1, 131):
+        d.xfrc_applied[m.body("b").id, 0] = 100.0 if k == 5 else 0.0
+        mujoco.mj_step(m, d)
+        mon.observe(d, p.step(d))
+    mon.finish()
+    assert mon.violations > 0 and mon.predicted == 0
+    held = {miss.geom2: miss.bounds_held for miss in mon.misses}
+    assert held == {"ball_a": True, "ball_b": True}
+    assert not any(miss.in_violation_period for miss in mon.misses)
+
+
 @pytest.mark.parametrize(("period", "hsteps"), [(1, 0), (1, 10), (3, 10), (2, 200)])
 def test_oracle_by_construction(period: int, hsteps: int) -> None:
     """Three active pairs (each ball with the floor, the balls with each other); ball_a touches

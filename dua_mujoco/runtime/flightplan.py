@@ -21,7 +21,9 @@ from dua_mujoco.exceptions import InvalidInputError, ShapeError
 __all__ = ["PlanArrays", "PlanFollowing", "body_mask", "finite_rows", "plan_arrays"]
 
 
-def finite_rows(name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str) -> np.ndarray:
+def finite_rows(
+    name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str, *, finite: bool = True
+) -> np.ndarray:
     """``value`` as a checked ``(n, ncol)`` float64 array, ``n >= 1``, every entry finite.
 
     Args:
@@ -30,6 +32,8 @@ def finite_rows(name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str
         ncol: Its columns (``model.nq``, ``model.nu``).
         cols: What counts the columns (``nq``), for the errors.
         rows: What a row is (``joint positions per physics step``), for the errors.
+        finite: Check that every entry is finite (False: the caller's callee does, as the
+            runtime checks a plan's values, naming them).
 
     Raises:
         ShapeError: Not ``(n, ncol)`` with ``n >= 1``.
@@ -41,6 +45,8 @@ def finite_rows(name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str
             f"{name} has shape {a.shape}; expected (n, {cols}) = (n, {ncol}) with n >= 1: one "
             f"row of {rows}."
         )
+    if not finite:
+        return a
     bad = np.argwhere(~np.isfinite(a))
     if bad.size:
         j, i = (int(x) for x in bad[0])
@@ -123,9 +129,6 @@ def _mocap(
             f"{name} has shape {a.shape}; expected (n, nmocap, {width}) = ({n}, {model.nmocap}, "
             f"{width}): the mocap bodies' poses at each knot."
         )
-    if not np.isfinite(a).all():
-        j, i, k = (int(x) for x in np.argwhere(~np.isfinite(a))[0])
-        raise InvalidInputError(f"{name}[{j}, {i}, {k}] = {a[j, i, k]} is not finite.")
     return a
 
 
@@ -138,7 +141,9 @@ def plan_arrays(
     mocap_pos: npt.ArrayLike | None = None,
     mocap_quat: npt.ArrayLike | None = None,
 ) -> PlanArrays:
-    """A plan's arrays as the runtime reads them, checked.
+    """A plan's arrays as the runtime reads them, their shapes checked (their values are the
+    runtime's to check: ``Plan::Build`` refuses a value that is not finite, or a negative
+    deviation, naming the knot, the entry and the body).
 
     Args:
         model: The model the plan is for.
@@ -154,10 +159,10 @@ def plan_arrays(
 
     Raises:
         ShapeError: The arrays do not fit the model or each other.
-        InvalidInputError: A value is not finite, a deviation is negative, a body named is not
-            the model's, or a mocap tree is held without mocap poses.
+        InvalidInputError: A body named is not the model's, or a mocap tree is held without
+            mocap poses.
     """
-    q = finite_rows("qpos", qpos, model.nq, "nq", "joint positions per physics step")
+    q = finite_rows("qpos", qpos, model.nq, "nq", "joint positions per physics step", finite=False)
     n, nbody = q.shape[0], model.nbody
     dev = np.asarray(deviation, dtype=np.float64)
     if dev.ndim == 0 or (dev.ndim == 1 and dev.shape[0] == n):
@@ -166,13 +171,6 @@ def plan_arrays(
         raise ShapeError(
             f"deviation has shape {np.shape(deviation)}; pass one number, ({n},) (one per "
             f"knot) or ({n}, {nbody}) (one per knot and body)."
-        )
-    bad_d = np.argwhere(~(np.isfinite(dev) & (dev >= 0)))
-    if bad_d.size:
-        j, b = (int(v) for v in bad_d[0])
-        raise InvalidInputError(
-            f"deviation at knot {j} of body {b} ({model.body(b).name!r}) is {dev[j, b]}: pass a "
-            "finite distance >= 0 (0 where the plan is exact)."
         )
     if (mocap_pos is None) != (mocap_quat is None):
         raise InvalidInputError(

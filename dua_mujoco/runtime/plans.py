@@ -16,14 +16,19 @@ may touch, not an acceleration bound, so an alarm horizon of 100-500 ms stays ti
   (its *origin*: 0 for a plan that knows nothing, the next waypoint for one that knows the
   command up to it), made monotone and multiplied by a safety factor;
 - :func:`plan_deviation` gives a plan of ``n`` knots its ``(n, nbody)`` deviation from such a
-  profile.
+  profile;
+- :class:`Replanner` wraps a controller: every ``R`` physics steps it rolls a plan from a copy of
+  it and gives it to a predictor, then runs the controller (what ``dua-mujoco run --plan
+  trajectory`` does).
 """
 
 from __future__ import annotations
 
+import copy
 import math
+import time
 from collections.abc import Callable, Iterable
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -32,10 +37,14 @@ import numpy.typing as npt
 from dua_mujoco import _core
 from dua_mujoco.build.kinematics import pack_spheres
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
-from dua_mujoco.runtime.flightplan import finite_rows
+from dua_mujoco.runtime.flightplan import Bodies, finite_rows
+
+if TYPE_CHECKING:
+    from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
     "PilotPlan",
+    "Replanner",
     "deviation_profile",
     "plan_deviation",
     "plan_from_controls",
@@ -206,6 +215,92 @@ def _plan_policy(model: mujoco.MjModel, data: mujoco.MjData, policy: Policy, n: 
         mujoco.mj_step(model, copy)
         out[j] = copy.qpos
     return out
+
+
+Planner = Callable[[mujoco.MjModel, mujoco.MjData, int], np.ndarray]
+"""``planner(model, data, steps)``: the ``(steps + 1, nq)`` plan from ``data``'s state, as
+:func:`plan_from_controls` returns it."""
+
+
+class Replanner:
+    """A controller that gives a predictor a flight plan every ``every`` physics steps.
+
+    Call it before each ``mj_step``, as the controller it wraps (``dua_mujoco.run`` does): when a
+    plan is due it rolls one from the data's state, gives it to the predictor (``set_plan``, knot 0
+    the data's time: the state the next predictor step reads), then runs the controller. A plan is
+    due once the predictor has been reset, at every reset after (a reset drops the plan), and
+    ``every`` steps after the last. By default the plan is :func:`plan_from_controls` of a copy of
+    the controller (``copy.deepcopy``: a stateful controller's copy knows its own future, random
+    draws included), so with ``deviation=0`` it is exact in simulation until something the
+    rollout did not have (a contact with a body the plan does not hold, a push) moves the bodies
+    off it: the predictor counts that as a plan break and follows their bounds until the next
+    plan (docs/plans.md).
+
+    Args:
+        predictor: The predictor to give the plans to.
+        controller: ``controller(model, data)``, called before each step.
+        every: Physics steps between two plans (None: the alarm horizon and latency, at least
+            50 ms, as docs/plans.md's trajectory planner).
+        deviation: ``set_plan``'s deviation (metres: one number, ``(knots,)`` or
+            ``(knots, nbody)``).
+        bodies: The bodies the plan holds (``set_plan``'s ``bodies``; None: every moving body
+            outside mocap trees). The others follow their bounds.
+        planner: ``planner(model, data, steps)`` returning the plan (:data:`Planner`), e.g. a
+            rollout of the robot's own controller on a model where people do not collide; None
+            for :func:`plan_from_controls` of a copy of ``controller``.
+
+    Attributes:
+        knots: Knots a plan: ``every`` plus the horizon's physics steps (alarm horizon and
+            latency) plus the predictor's period and one, so that every step until the next plan
+            is covered with its horizon.
+        plans: Plans given so far.
+        planner_seconds: CPU time spent making plans (the planner's; an MPC pays it anyway).
+        set_plan_seconds: CPU time spent in ``set_plan`` (the predictor's).
+    """
+
+    def __init__(
+        self,
+        predictor: Predictor,
+        controller: Callable[[mujoco.MjModel, mujoco.MjData], Any],
+        *,
+        every: int | None = None,
+        deviation: npt.ArrayLike = 0.0,
+        bodies: Bodies = None,
+        planner: Planner | None = None,
+    ) -> None:
+        h = float(predictor.model.opt.timestep)
+        ahead = (predictor.alarm_periods + predictor.latency) * predictor.period
+        if every is None:
+            every = max(ahead, round(0.05 / h), 1)
+        self.every = _int("every", every, 1, 2**31 - 1)
+        self.knots = self.every + ahead + predictor.period + 1
+        self.predictor = predictor
+        self.controller = controller
+        self.deviation = deviation
+        self.bodies = bodies
+        self.planner: Planner = planner or (
+            lambda m, d, steps: plan_from_controls(m, d, copy.deepcopy(controller), steps=steps)
+        )
+        self.plans = 0
+        self.planner_seconds = 0.0
+        self.set_plan_seconds = 0.0
+        self._since = 0
+        self._resets = 0
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Give a plan if one is due, then run the controller."""
+        p = self.predictor
+        if p.resets and (p.resets != self._resets or self._since >= self.every):
+            t0 = time.thread_time()
+            qpos = self.planner(model, data, self.knots - 1)
+            t1 = time.thread_time()
+            p.set_plan(qpos, deviation=self.deviation, bodies=self.bodies, start=float(data.time))
+            self.set_plan_seconds += time.thread_time() - t1
+            self.planner_seconds += t1 - t0
+            self.plans += 1
+            self._since, self._resets = 0, p.resets
+        self._since += 1
+        self.controller(model, data)
 
 
 # ----------------------------------------------------------------------------- deviation

@@ -89,18 +89,19 @@ def run_task(task: Task) -> dict[str, Any]:
     from dua_mujoco.run_options import controller_for, default_steps, predictor_for
 
     start = time.perf_counter()
-    options = argparse.Namespace(**{**vars(task.options), "seed": task.seed})
+    options = argparse.Namespace(**{**vars(task.options), "seed": task.seed, "scene": task.scene})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             model, data = load_scene_arg(task.scene, keyframe_arg(options))
             steps = default_steps(task.scene) if options.steps is None else options.steps
+            predictor = predictor_for(model, options)
             report = run(
                 model,
                 data,
-                predictor_for(model, options),
+                predictor,
                 steps=steps,
-                controller=controller_for(model, options),
+                controller=controller_for(model, options, predictor),
                 scene=task.scene,
                 realtime=options.realtime,
                 geom_distance=options.geom_distance,

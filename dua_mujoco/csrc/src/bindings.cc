@@ -1336,11 +1336,15 @@ NB_MODULE(_core, m) {
         Require(Size(shape) == kShapeNcol && Size(v) == 3, "shape must be (16,), v (3,)");
         const double k = shape.data()[kShapeKind];
         Require(k >= kGeomSphere && k <= kGeomMeshBox, "shape must be a convex shape record");
-        return dua_tau_terrain(table.data() + kShapeNcol * row, shape.data(), v.data(), spin, eps,
-                               accel, delta);
+        int path = -1;
+        const double tau = TauTerrain(table.data() + kShapeNcol * row, shape.data(), v.data(), spin,
+                                      eps, accel, delta, &path);
+        return std::make_pair(tau, path);
       },
       "table"_a, "row"_a, "shape"_a, "v"_a, "spin"_a, "eps"_a, "accel"_a, "delta"_a,
-      "tau of a convex shape record moving with velocity v against terrain record `row`.");
+      "tau of a convex shape record moving with velocity v against terrain record `row`, and what\n"
+      "decided it: 0 the base or the first cell, 1 the cells within reach one by one, 2 the\n"
+      "pyramid's branch and bound (so that tests can assert the search ran).");
   m.def("deadline_interval", &dua_deadline_interval, "tau"_a, "dt"_a, "latency"_a, "max_interval"_a,
         "extra"_a = 0.0);
   m.def(

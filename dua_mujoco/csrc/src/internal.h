@@ -46,9 +46,10 @@ double TauStatic(double c0, double c1, double c2, double v0, double v1, double v
 double WithGapSpeed(double tau, double gap, double now, double bound);
 // tau of an object (a shape record at its pose, moving with velocity v, its points within spin t
 // more of the translate) against the terrain of record rec, and of a sphere's centre
-// (terrain.cc).
-double TauTerrain(const double* rec, const double* shape, const double* v, double spin, double eps,
-                  double accel, double delta);
+// (terrain.cc). *path, if given, says what decided it (the tests assert the search ran).
+constexpr int kPathFirst = 0, kPathWindow = 1, kPathPyramid = 2;
+DUA_API double TauTerrain(const double* rec, const double* shape, const double* v, double spin,
+                          double eps, double accel, double delta, int* path = nullptr);
 double TauTerrainSphere(double c0, double c1, double c2, double v0, double v1, double v2,
                         const double* rec, double eps, double accel, double delta);
 // The support of the terrain's prisms along n (world), a point of the terrain over or under c

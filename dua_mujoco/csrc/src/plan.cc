@@ -14,6 +14,7 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // A bound on how far any point of a geom moves between poses (p0, r0) and (p1, r1): the
 // origin's displacement plus |R1 - R0|_F (>= the spectral norm) times the geom's bounding radius
@@ -35,20 +36,33 @@ double CentreGap(const double* a, const double* b, double eps) {
   return dist - eps - kGapSlack * (dist + eps);
 }
 
-// The pair's gap at the sphere level on knot poses (pos, mat): a lower bound on the distance
+// Where point rec (a sphere record) sits with its geom at pose (p, r) (PointCentre's sum).
+inline void AtPose(const double* rec, const double* p, const double* r, double* out) {
+  const double o0 = rec[kSphereOffset], o1 = rec[kSphereOffset + 1], o2 = rec[kSphereOffset + 2];
+  for (int k = 0; k < 3; ++k) out[k] = p[k] + r[3 * k] * o0 + r[3 * k + 1] * o1 + r[3 * k + 2] * o2;
+}
+
+// Sphere i's centre at knot j of the plan.
+inline void PlannedCentre(const Plan& plan, int64_t j, const double* spheres, int64_t i,
+                          double* out) {
+  const double* rec = spheres + i * kSphereNcol;
+  const auto g = static_cast<int64_t>(rec[kSphereFrame]);
+  AtPose(rec, plan.pos(j, g), plan.mat(j, g), out);
+}
+
+// The pair's gap at the sphere level at the plan's knot j: a lower bound on the distance
 // between its two spheres (a sphere and a plane, a static shape or a terrain) less the pair's
 // contact distance, so a lower bound on the geoms' too.
-double SphereGap(const double* rec, const double* spheres, const double* shapes, const double* pos,
-                 const double* mat) {
-  auto centre = [&](int64_t i, double* c) { PointCentre(spheres + i * kSphereNcol, pos, mat, c); };
+double SphereGap(const double* rec, const double* spheres, const double* shapes, const Plan& plan,
+                 int64_t j) {
   double a[3];
-  centre(static_cast<int64_t>(rec[kPairFirst]), a);
+  PlannedCentre(plan, j, spheres, static_cast<int64_t>(rec[kPairFirst]), a);
   const int kind = static_cast<int>(rec[kPairKind]);
   const double eps = rec[kPairEps];
   if (kind == kKindHalfspace) {
     const int64_t g = static_cast<int64_t>(rec[kPairOther]);
-    const double* r = mat + 9 * g;
-    const double* p = pos + 3 * g;
+    const double* r = plan.mat(j, g);
+    const double* p = plan.pos(j, g);
     const double n0 = r[2], n1 = r[5], n2 = r[8];
     const double along = n0 * a[0] + n1 * a[1] + n2 * a[2];
     const double off = n0 * p[0] + n1 * p[1] + n2 * p[2];
@@ -63,7 +77,7 @@ double SphereGap(const double* rec, const double* spheres, const double* shapes,
     return gap - eps - kGapSlack * (scale + eps);
   }
   double b[3];
-  centre(static_cast<int64_t>(rec[kPairSecond]), b);
+  PlannedCentre(plan, j, spheres, static_cast<int64_t>(rec[kPairSecond]), b);
   return CentreGap(a, b, eps);
 }
 
@@ -153,38 +167,66 @@ inline double GridTau(int64_t s, double h, int64_t p) {
   return static_cast<double>(grid) * h * (1.0 - kGridShave);
 }
 
+// The first index in (j, n) at which skip is false, or n; skip(j) is true and skip falls
+// (once false, false at every later index): galloping from j, then bisection.
+template <class Skip>
+int64_t FirstKept(int64_t j, int64_t n, const Skip& skip) {
+  int64_t lo = j, step = 1, hi = j + 1;
+  while (hi < n && skip(hi)) lo = hi, step *= 2, hi = lo + step;
+  hi = std::min(hi, n);
+  while (hi - lo > 1) {
+    const int64_t mid = lo + (hi - lo) / 2;
+    (skip(mid) ? lo : hi) = mid;
+  }
+  return hi;
+}
+
 // (8): the first knot j >= k at which a lower bound on the pair's planned gap does not exceed
 // both bodies' deviations there, or nknot when none does (the earliest state a contact could
 // start past the plan). The bound at a knot is the sphere level's, then the exact level's;
 // between two knots it is carried by the geoms' sweeps (a planned gap G at knot i is at least
-// G - S1(i, j) - S2(i, j) at knot j), so that most knots cost a few flops.
+// G - S1(i, j) - S2(i, j) at knot j), so that most knots cost a few flops. Where both
+// deviations rise with the knots, the knots the carried gap clears are a run that ends where
+// it first does not (the sweeps rise too: docs/theory.md, section 8), found by a search.
 int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
                  int64_t g2, int64_t b1, int64_t b2) {
   const double* rec = a.pairs + p * kPairNcol;
   double* xrec = a.exact.on ? a.exact.records + p * kXNcol : nullptr;
   const int64_t n = plan.nknot();
+  const bool rising = plan.dev_rises(b1) && plan.dev_rises(b2);
   double gap = -kInf;  // a lower bound on the planned gap at knot `base`
   int64_t base = -1;
+  // Each sum rounded up (a few ulps over its roundings), and the margin asked to exceed the
+  // roundings of its own difference: a skipped knot is one whose gap is surely above.
+  const auto allowed = [&](int64_t j) {
+    return (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);
+  };
+  const auto carried = [&](int64_t j) {
+    const double moved =
+        ((plan.sweep(j, g1) - plan.sweep(base, g1)) + (plan.sweep(j, g2) - plan.sweep(base, g2))) *
+        (1.0 + 8.0 * kEpsilon);
+    const double margin = gap - moved - allowed(j);
+    return margin > 4.0 * kEpsilon * (std::fabs(gap) + moved + allowed(j));
+  };
   for (int64_t j = k; j < n; ++j) {
-    // Each sum rounded up (a few ulps over its roundings), and the margin asked to exceed the
-    // roundings of its own difference: a skipped knot is one whose gap is surely above.
-    const double allowed = (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);
-    if (base >= 0) {
-      const double moved = ((plan.sweep(j, g1) - plan.sweep(base, g1)) +
-                            (plan.sweep(j, g2) - plan.sweep(base, g2))) *
-                           (1.0 + 8.0 * kEpsilon);
-      const double margin = gap - moved - allowed;
-      if (margin > 4.0 * kEpsilon * (std::fabs(gap) + moved + allowed)) continue;
+    if (base >= 0 && carried(j)) {
+      if (rising) {
+        j = FirstKept(j, n, carried);
+      } else {
+        while (++j < n && carried(j)) {
+        }
+      }
+      if (j >= n) break;
     }
-    gap = SphereGap(rec, a.spheres, a.shapes, plan.pos(j), plan.mat(j));
-    if (gap <= allowed && xrec != nullptr) {
-      const Pose p1{plan.pos(j) + 3 * g1, plan.mat(j) + 9 * g1};
-      const Pose p2{plan.pos(j) + 3 * g2, plan.mat(j) + 9 * g2};
-      gap =
-          std::max(gap, PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, g1, p1, g2, p2, allowed));
+    const double allow = allowed(j);
+    gap = SphereGap(rec, a.spheres, a.shapes, plan, j);
+    if (gap <= allow && xrec != nullptr) {
+      const Pose p1{plan.pos(j, g1), plan.mat(j, g1)};
+      const Pose p2{plan.pos(j, g2), plan.mat(j, g2)};
+      gap = std::max(gap, PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, g1, p1, g2, p2, allow));
     }
     base = j;
-    if (!(gap > allowed)) return j;
+    if (!(gap > allow)) return j;
   }
   return n;
 }
@@ -229,27 +271,42 @@ int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int6
   const double h = plan.h();
   double gs = -kInf, gg = -kInf;  // lower bounds on the gaps at knot `base`, each level's
   int64_t base = -1;
-  for (int64_t j = k; j < n; ++j) {
-    const double t = static_cast<double>(j - k) * h * (1.0 + 2.0 * kEpsilon);
-    const double dev = plan.dev(j, ba) * (1.0 + 4.0 * kEpsilon);
+  // The knot's time, deviation and the free side's reach at each level, each rounded up: all
+  // rise with the knot when the deviation does (then a search finds the end of a carried run).
+  const auto time = [&](int64_t j) {
+    return static_cast<double>(j - k) * h * (1.0 + 2.0 * kEpsilon);
+  };
+  const auto deviation = [&](int64_t j) { return plan.dev(j, ba) * (1.0 + 4.0 * kEpsilon); };
+  const auto carried = [&](int64_t j) {
+    const double t = time(j), dev = deviation(j);
     const double rs = Reach(t, ss, accel, disc, speed);
     const double rg = xrec ? Reach(t, sg, accel, disc, speed) : kInf;
-    if (base >= 0) {
-      // The free geom does not move in the gap; the planned one by its sweep.
-      const double moved = (plan.sweep(j, ga) - plan.sweep(base, ga)) * (1.0 + 8.0 * kEpsilon);
-      const double ms = gs - moved - dev - rs, mg = gg - moved - dev - rg;
-      if (ms > 4.0 * kEpsilon * (std::fabs(gs) + moved + dev + rs) ||
-          mg > 4.0 * kEpsilon * (std::fabs(gg) + moved + dev + rg)) {
-        continue;
+    // The free geom does not move in the gap; the planned one by its sweep.
+    const double moved = (plan.sweep(j, ga) - plan.sweep(base, ga)) * (1.0 + 8.0 * kEpsilon);
+    const double ms = gs - moved - dev - rs, mg = gg - moved - dev - rg;
+    return ms > 4.0 * kEpsilon * (std::fabs(gs) + moved + dev + rs) ||
+           mg > 4.0 * kEpsilon * (std::fabs(gg) + moved + dev + rg);
+  };
+  for (int64_t j = k; j < n; ++j) {
+    if (base >= 0 && carried(j)) {
+      if (plan.dev_rises(ba)) {
+        j = FirstKept(j, n, carried);
+      } else {
+        while (++j < n && carried(j)) {
+        }
       }
+      if (j >= n) break;
     }
+    const double t = time(j), dev = deviation(j);
+    const double rs = Reach(t, ss, accel, disc, speed);
+    const double rg = xrec ? Reach(t, sg, accel, disc, speed) : kInf;
     double ca[3];
-    PointCentre(sphere_a, plan.pos(j), plan.mat(j), ca);
+    AtPose(sphere_a, plan.pos(j, ga), plan.mat(j, ga), ca);
     gs = CentreGap(ca, sb_state, eps);
     bool clear = gs > dev + rs;
     gg = -kInf;
     if (!clear && xrec != nullptr) {
-      const Pose planned{plan.pos(j) + 3 * ga, plan.mat(j) + 9 * ga};
+      const Pose planned{plan.pos(j, ga), plan.mat(j, ga)};
       gg = PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, ga, planned, gb, now, dev + rg);
       clear = gg > dev + rg;
     }
@@ -292,6 +349,12 @@ Judged Judge(dua_step_args& a, const Plan& plan, const uint8_t* ok, mjData* d, i
     if (j >= 0) return {j, basis};
   }
   return {-1, 0};
+}
+
+// A body's name for a refusal ("" when it has none).
+std::string NameOf(const mjModel* m, int64_t b) {
+  const int adr = m->name_bodyadr[b];
+  return adr >= 0 ? std::string(m->names + adr) : std::string();
 }
 
 // A bad value as a refusal names it (%g: "nan", "inf", "1e+308").
@@ -372,7 +435,8 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
 }
 
 std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, double h,
-                        const double* spheres, int64_t nsphere) {
+                        const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms,
+                        const Plan* prev, std::shared_ptr<PlanPool> pool) {
   const int64_t n = in.n;
   if (n < 1) return "holds no knot: pass at least one row of qpos";
   if (!std::isfinite(in.start)) {
@@ -394,8 +458,8 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
       holds[b] = !in_mocap || mocap;
     } else if (in.bodies[b]) {
       if (in_mocap && !mocap) {
-        return "holds body " + std::to_string(b) +
-               ", in a mocap tree, without mocap poses: give mocap_pos and mocap_quat, or leave "
+        return "holds body " + std::to_string(b) + " ('" + NameOf(m, b) +
+               "'), in a mocap tree, without mocap poses: give mocap_pos and mocap_quat, or leave "
                "the body out";
       }
       holds[b] = 1;
@@ -403,9 +467,11 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
   }
   for (int64_t i = 0; i < n * nbody; ++i) {
     if (!(in.deviation[i] >= 0.0) || !std::isfinite(in.deviation[i])) {
+      const int64_t b = i % nbody;
       return "holds a deviation that is not a finite distance >= 0 (knot " +
-             std::to_string(i / nbody) + ", body " + std::to_string(i % nbody) + ": " +
-             Shown(in.deviation[i]) + ")";
+             std::to_string(i / nbody) + ", body " + std::to_string(b) + ": " +
+             Shown(in.deviation[i]) + ") for body '" + NameOf(m, b) +
+             "': pass a finite distance >= 0 (0 where the plan is exact)";
     }
   }
   for (int64_t i = 0; mocap && i < n * nmocap * 3; ++i) {
@@ -422,46 +488,84 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
              std::to_string(i / nmocap) + ", mocap " + std::to_string(i % nmocap) + ")";
     }
   }
-  std::vector<double> pos(3 * ngeom * n), mat(9 * ngeom * n);
+  for (int64_t i = 0; i < n * nq; ++i) {
+    if (!std::isfinite(in.qpos[i])) {
+      return "holds a qpos that is not finite (knot " + std::to_string(i / nq) + ", qpos[" +
+             std::to_string(i % nq) + "]: " + Shown(in.qpos[i]) + ")";
+    }
+  }
+  nknot_ = n, ngeom_ = ngeom, nbody_ = nbody, nq_ = nq, nmocap_ = mocap ? nmocap : 0;
+  qpos_.assign(in.qpos, in.qpos + n * nq);
+  mocap_pos_.clear(), mocap_quat_.clear();
+  if (mocap) {
+    mocap_pos_.assign(in.mocap_pos, in.mocap_pos + n * nmocap * 3);
+    mocap_quat_.assign(in.mocap_quat, in.mocap_quat + n * nmocap * 4);
+  }
+  Slots(n, ngeom, geoms, std::move(pool));
   for (int64_t j = 0; j < n; ++j) {
-    const double* q = in.qpos + nq * j;
-    for (int64_t i = 0; i < nq; ++i) {
-      if (!std::isfinite(q[i])) {
-        return "holds a qpos that is not finite (knot " + std::to_string(j) + ", qpos[" +
-               std::to_string(i) + "]: " + Shown(q[i]) + ")";
+    double* pj = pos_.data() + 3 * nslot_ * j;
+    double* rj = mat_.data() + 9 * nslot_ * j;
+    // The same rows at the same time in the plan replaced: its poses, bit for bit.
+    const int64_t i = prev != nullptr ? prev->KnotOf(in.start + static_cast<double>(j) * h) : -1;
+    if (i >= 0 && prev->slot_ == slot_ && SameRow(j, *prev, i)) {
+      std::copy_n(prev->pos_.data() + 3 * nslot_ * i, 3 * nslot_, pj);
+      std::copy_n(prev->mat_.data() + 9 * nslot_ * i, 9 * nslot_, rj);
+    } else {
+      std::copy_n(qpos_.data() + nq * j, nq, s->qpos);
+      if (mocap) {
+        std::copy_n(in.mocap_pos + 3 * nmocap * j, 3 * nmocap, s->mocap_pos);
+        std::copy_n(in.mocap_quat + 4 * nmocap * j, 4 * nmocap, s->mocap_quat);
+      }
+      mj_kinematics(m, s);
+      for (int64_t c = 0; c < nslot_; ++c) {
+        std::copy_n(s->geom_xpos + 3 * geoms[c], 3, pj + 3 * c);
+        std::copy_n(s->geom_xmat + 9 * geoms[c], 9, rj + 9 * c);
       }
     }
-    std::copy_n(q, nq, s->qpos);
-    if (mocap) {
-      std::copy_n(in.mocap_pos + 3 * nmocap * j, 3 * nmocap, s->mocap_pos);
-      std::copy_n(in.mocap_quat + 4 * nmocap * j, 4 * nmocap, s->mocap_quat);
-    }
-    mj_kinematics(m, s);
-    std::copy_n(s->geom_xpos, 3 * ngeom, pos.begin() + 3 * ngeom * j);
-    std::copy_n(s->geom_xmat, 9 * ngeom, mat.begin() + 9 * ngeom * j);
   }
-  return Finish(m, n, std::move(pos), std::move(mat), std::move(holds), std::move(fixed),
-                in.deviation, in.start, h, spheres, nsphere);
+  return Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
+                std::move(fixed));
+}
+
+void Plan::Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
+                 std::shared_ptr<PlanPool> pool) {
+  // Only the geoms read are kept, each in its column (slot); the others read as not numbers.
+  slot_.assign(ngeom, -1);
+  nslot_ = static_cast<int64_t>(geoms.size());
+  for (int64_t i = 0; i < nslot_; ++i) slot_[geoms[i]] = i;
+  pool_ = std::move(pool);
+  auto take = [&](size_t size) { return pool_ ? pool_->Take(size) : std::vector<double>(size); };
+  pos_ = take(3 * nslot_ * n), mat_ = take(9 * nslot_ * n), sweep_ = take(nslot_ * n);
 }
 
 std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, const double* mat,
                             const uint8_t* bodies, const double* deviation, double start, double h,
-                            const double* spheres, int64_t nsphere) {
+                            const double* spheres, int64_t nsphere,
+                            const std::vector<int64_t>& geoms) {
   const int64_t nbody = m->nbody, ngeom = m->ngeom;
   std::vector<uint8_t> holds(nbody, 0), fixed(nbody, 0);
   for (int64_t b = 0; b < nbody; ++b) {
-    fixed[b] = m->body_weldid[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;
-    holds[b] = !fixed[b] && bodies[b] && m->body_mocapid[m->body_rootid[b]] < 0;
+    const bool in_mocap = m->body_mocapid[m->body_rootid[b]] >= 0;
+    fixed[b] = m->body_weldid[b] == 0 && !in_mocap;
+    holds[b] = !fixed[b] && bodies[b] && !in_mocap;
   }
-  return Finish(m, n, std::vector<double>(pos, pos + 3 * ngeom * n),
-                std::vector<double>(mat, mat + 9 * ngeom * n), std::move(holds), std::move(fixed),
-                deviation, start, h, spheres, nsphere);
+  // No rows: a plan made from poses is never the `prev` of a Build (SameRow compares rows).
+  nknot_ = n, ngeom_ = ngeom, nbody_ = nbody, nq_ = 0, nmocap_ = 0;
+  qpos_.clear(), mocap_pos_.clear(), mocap_quat_.clear();
+  Slots(n, ngeom, geoms, nullptr);
+  for (int64_t j = 0; j < n; ++j) {
+    for (int64_t c = 0; c < nslot_; ++c) {
+      std::copy_n(pos + 3 * (ngeom * j + geoms[c]), 3, pos_.data() + 3 * (nslot_ * j + c));
+      std::copy_n(mat + 9 * (ngeom * j + geoms[c]), 9, mat_.data() + 9 * (nslot_ * j + c));
+    }
+  }
+  return Finish(m, n, geoms, deviation, start, h, spheres, nsphere, std::move(holds),
+                std::move(fixed));
 }
 
-std::string Plan::Finish(const mjModel* m, int64_t n, std::vector<double> pos,
-                         std::vector<double> mat, std::vector<uint8_t> holds,
-                         std::vector<uint8_t> fixed, const double* deviation, double start,
-                         double h, const double* spheres, int64_t nsphere) {
+std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
+                         const double* deviation, double start, double h, const double* spheres,
+                         int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed) {
   const int64_t ngeom = m->ngeom, nbody = m->nbody;
   // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
   // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
@@ -472,39 +576,45 @@ std::string Plan::Finish(const mjModel* m, int64_t n, std::vector<double> pos,
     const double* o = rec + kSphereOffset;
     radius[g] = std::max(radius[g], std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]));
   }
-  std::vector<double> sweep(ngeom * n, 0.0);
-  for (int64_t j = 1; j < n; ++j) {
-    for (int64_t g = 0; g < ngeom; ++g) {
-      const double step = Displacement(
-          pos.data() + 3 * (ngeom * (j - 1) + g), mat.data() + 9 * (ngeom * (j - 1) + g),
-          pos.data() + 3 * (ngeom * j + g), mat.data() + 9 * (ngeom * j + g), radius[g],
-          m->geom_type[g] == mjGEOM_PLANE);
-      sweep[ngeom * j + g] = (sweep[ngeom * (j - 1) + g] + step) * (1.0 + 4.0 * kEpsilon);
+  for (int64_t j = 0; j < n; ++j) {
+    const double* pj = pos_.data() + 3 * nslot_ * j;
+    const double* rj = mat_.data() + 9 * nslot_ * j;
+    for (int64_t c = 0; c < nslot_; ++c) {
+      const int64_t g = geoms[c];
+      // Finite joint positions so large that MuJoCo's kinematics overflows (a slide of 1e308).
+      double bad = 0.0;  // x - x is 0 for every finite x, not a number otherwise
+      for (int e = 0; e < 3; ++e) bad += pj[3 * c + e] - pj[3 * c + e];
+      if (bad != 0.0) {
+        return "puts geom " + std::to_string(g) + " where its position is not finite (knot " +
+               std::to_string(j) + "): a qpos too large";
+      }
+      for (int e = 0; e < 9; ++e) bad += rj[9 * c + e] - rj[9 * c + e];
+      if (bad != 0.0) {
+        return "puts geom " + std::to_string(g) + " where its rotation is not finite (knot " +
+               std::to_string(j) + "): a qpos too large";
+      }
+      double* sw = sweep_.data() + nslot_ * j + c;
+      if (j == 0) {
+        *sw = 0.0;
+        continue;
+      }
+      const double step = Displacement(pj - 3 * nslot_ + 3 * c, rj - 9 * nslot_ + 9 * c, pj + 3 * c,
+                                       rj + 9 * c, radius[g], m->geom_type[g] == mjGEOM_PLANE);
+      *sw = (*(sw - nslot_) + step) * (1.0 + 4.0 * kEpsilon);
     }
   }
-  // Finite joint positions so large that MuJoCo's kinematics overflows (a slide of 1e308).
-  for (int64_t i = 0; i < 3 * ngeom * n; ++i) {
-    if (!std::isfinite(pos[i])) {
-      return "puts geom " + std::to_string(i / 3 % ngeom) +
-             " where its position is not finite (knot " + std::to_string(i / 3 / ngeom) +
-             "): a qpos too large";
-    }
-  }
-  for (int64_t i = 0; i < 9 * ngeom * n; ++i) {
-    if (!std::isfinite(mat[i])) {
-      return "puts geom " + std::to_string(i / 9 % ngeom) +
-             " where its rotation is not finite (knot " + std::to_string(i / 9 / ngeom) +
-             "): a qpos too large";
-    }
-  }
-  nknot_ = n, ngeom_ = ngeom, nbody_ = nbody;
   start_ = start, h_ = h;
-  pos_ = std::move(pos), mat_ = std::move(mat), sweep_ = std::move(sweep);
   dev_.assign(deviation, deviation + n * nbody);
   // A static body never moves: its deviation is 0 whatever was given.
   for (int64_t j = 0; j < n; ++j) {
     for (int64_t b = 0; b < nbody; ++b) {
       if (fixed[b]) dev_[nbody * j + b] = 0.0;
+    }
+  }
+  rises_.assign(nbody, 1);
+  for (int64_t j = 1; j < n; ++j) {
+    for (int64_t b = 0; b < nbody; ++b) {
+      if (dev_[nbody * j + b] < dev_[nbody * (j - 1) + b]) rises_[b] = 0;
     }
   }
   holds_ = std::move(holds), fixed_ = std::move(fixed);
@@ -516,6 +626,57 @@ std::string Plan::Finish(const mjModel* m, int64_t n, std::vector<double> pos,
   return "";
 }
 
+const double Plan::kNoPose[9] = {kNaN, kNaN, kNaN, kNaN, kNaN, kNaN, kNaN, kNaN, kNaN};
+const double Plan::kNoSweep = kInf;
+
+std::vector<double> PlanPool::Take(size_t n) {
+  std::vector<double> v;
+  {
+    // The smallest buffer that holds n (no new pages), else the largest (the fewest).
+    std::lock_guard<std::mutex> lock(mutex);
+    size_t best = free.size();
+    for (size_t i = 0; i < free.size(); ++i) {
+      const size_t c = free[i].capacity();
+      if (best == free.size()) {
+        best = i;
+        continue;
+      }
+      const size_t b = free[best].capacity();
+      if ((c >= n && (b < n || c < b)) || (b < n && c > b)) best = i;
+    }
+    if (best < free.size()) {
+      v = std::move(free[best]);
+      free.erase(free.begin() + static_cast<std::ptrdiff_t>(best));
+    }
+  }
+  v.resize(n);
+  return v;
+}
+
+void PlanPool::Give(std::vector<double>&& v) {
+  std::lock_guard<std::mutex> lock(mutex);
+  // A few plans' worth: as many as are alive at once (the plan and its shadows).
+  if (free.size() < 32) free.push_back(std::move(v));
+}
+
+Plan::~Plan() {
+  if (!pool_) return;
+  pool_->Give(std::move(pos_));
+  pool_->Give(std::move(mat_));
+  pool_->Give(std::move(sweep_));
+}
+
+bool Plan::SameRow(int64_t j, const Plan& prev, int64_t i) const {
+  if (nq_ != prev.nq_ || nmocap_ != prev.nmocap_) return false;
+  const double* a = qpos_.data() + nq_ * j;
+  if (!std::equal(a, a + nq_, prev.qpos_.data() + nq_ * i)) return false;
+  const int64_t np = 3 * nmocap_, nr = 4 * nmocap_;
+  return std::equal(mocap_pos_.data() + np * j, mocap_pos_.data() + np * (j + 1),
+                    prev.mocap_pos_.data() + np * i) &&
+         std::equal(mocap_quat_.data() + nr * j, mocap_quat_.data() + nr * (j + 1),
+                    prev.mocap_quat_.data() + nr * i);
+}
+
 int64_t Plan::KnotOf(double time) const {
   const double k = std::nearbyint((time - start_) / h_);
   if (!(std::fabs(time - start_ - k * h_) <= 1e-6 * h_)) return -1;
@@ -525,8 +686,6 @@ int64_t Plan::KnotOf(double time) const {
 
 void Plan::Check(const double* pos, const double* mat, int64_t k, const double* boxes, int64_t nbox,
                  const uint8_t* ok, std::vector<int64_t>* broken) const {
-  const double* pp = this->pos(k);
-  const double* pm = this->mat(k);
   const size_t first = broken->size();
   for (int64_t i = 0; i < nbox; ++i) {
     const double* box = boxes + i * kBNcol;
@@ -534,7 +693,7 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
     if (!holds_[b] || (ok != nullptr && !ok[b])) continue;
     const auto g = static_cast<int64_t>(box[kBFrame]);
     // A pose that is not a number is not within any deviation (docs/hardening.md).
-    if (!BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))) {
+    if (!BoxWithin(box, pos + 3 * g, mat + 9 * g, this->pos(k, g), this->mat(k, g), dev(k, b))) {
       broken->push_back(b);
     }
   }
@@ -545,8 +704,8 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
       continue;
     }
     // Any change of a plane's pose moves some of its points arbitrarily far.
-    const bool same = std::equal(pos + 3 * g, pos + 3 * g + 3, pp + 3 * g) &&
-                      std::equal(mat + 9 * g, mat + 9 * g + 9, pm + 9 * g);
+    const bool same = std::equal(pos + 3 * g, pos + 3 * g + 3, this->pos(k, g)) &&
+                      std::equal(mat + 9 * g, mat + 9 * g + 9, this->mat(k, g));
     if (!same) broken->push_back(b);
   }
 }

@@ -15,6 +15,8 @@
 #include <mujoco/mujoco.h>
 
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -39,21 +41,41 @@ DUA_API double BoxDeviation(const double* box, const double* pa, const double* r
 DUA_API bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
                        const double* rb, double limit);
 
+// Buffers of plans gone, for the plans that follow: a plan's poses are as large as hundreds
+// of kilobytes, and fresh memory for each (a replan every few steps) costs its page faults.
+struct PlanPool {
+  std::mutex mutex;
+  std::vector<std::vector<double>> free;
+  // A buffer of n entries (their values unspecified), recycled when one is free.
+  std::vector<double> Take(size_t n);
+  void Give(std::vector<double>&& v);
+};
+
 class Plan {
  public:
-  // The plan `in` (dua_plan_input), each geom's pose at each knot computed by mj_kinematics on
-  // scratch (an mjData of m), h the model's timestep; spheres (nsphere, 8) the covering's
-  // records, whose centres the sweeps bound too. Returns an error message naming the bad input,
-  // or "".
+  Plan() = default;
+  Plan(const Plan&) = delete;
+  Plan& operator=(const Plan&) = delete;
+  ~Plan();
+
+  // The plan `in` (dua_plan_input), h the model's timestep; spheres (nsphere, 8) the covering's
+  // records, whose centres the sweeps bound too. The poses and sweeps kept are those of
+  // `geoms` (sorted ids: every geom a pair, a check or a plane may read; any other reads as not
+  // a number, its sweep +inf), each knot's computed by mj_kinematics on scratch (an mjData of
+  // m), or copied from `prev` (the plan replaced, or null) where it has a knot at the same time
+  // with the same rows (joint positions and mocap poses, bit for bit: the same poses). pool
+  // (or null) recycles the buffers. Returns an error message naming the bad input, or "".
   std::string Build(const mjModel* m, mjData* scratch, const dua_plan_input& in, double h,
-                    const double* spheres, int64_t nsphere);
+                    const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms,
+                    const Plan* prev, std::shared_ptr<PlanPool> pool);
   // A plan whose knots' geom poses are known already (pos (n, ngeom, 3) and mat (n, ngeom, 9):
   // a rollout's geom_xpos and geom_xmat at each knot), holding the moving bodies of bodies
-  // (nbody flags; mocap trees are never held), deviation (n, nbody). Values are not checked
-  // beyond the poses being finite: the caller made them.
+  // (nbody flags; mocap trees are never held), deviation (n, nbody); geoms as Build's. Values
+  // are not checked beyond the poses being finite: the caller made them. It has no rows: never
+  // pass it as Build's prev.
   std::string FromPoses(const mjModel* m, int64_t n, const double* pos, const double* mat,
                         const uint8_t* bodies, const double* deviation, double start, double h,
-                        const double* spheres, int64_t nsphere);
+                        const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms);
 
   // The knot at `time` (-1: not one of the plan's, within a millionth of a step).
   int64_t KnotOf(double time) const;
@@ -72,27 +94,50 @@ class Plan {
   double start() const { return start_; }
   double h() const { return h_; }
   double TimeOf(int64_t k) const { return start_ + static_cast<double>(k) * h_; }
-  const double* pos(int64_t k) const { return pos_.data() + 3 * ngeom_ * k; }
-  const double* mat(int64_t k) const { return mat_.data() + 9 * ngeom_ * k; }
+  // Geom g's planned position (3) and rotation (9) at knot k (not numbers for a geom not kept).
+  const double* pos(int64_t k, int64_t g) const {
+    const int64_t s = slot_[g];
+    return s < 0 ? kNoPose : pos_.data() + 3 * (nslot_ * k + s);
+  }
+  const double* mat(int64_t k, int64_t g) const {
+    const int64_t s = slot_[g];
+    return s < 0 ? kNoPose : mat_.data() + 9 * (nslot_ * k + s);
+  }
   // How far any point of geom g, and any centre of its covering spheres, may have moved along
   // the plan from knot 0 to knot k (a prefix sum of each step's bound; +inf once a plane geom
-  // moves).
-  double sweep(int64_t k, int64_t g) const { return sweep_[ngeom_ * k + g]; }
+  // moves, and for a geom not kept). Non-decreasing in k.
+  double sweep(int64_t k, int64_t g) const {
+    const int64_t s = slot_[g];
+    return s < 0 ? kNoSweep : sweep_[nslot_ * k + s];
+  }
   double dev(int64_t k, int64_t b) const { return dev_[nbody_ * k + b]; }
+  // Whether body b's deviation is non-decreasing over the knots (a knot walk may then search
+  // for the first knot its carried gap does not clear, docs/theory.md, section 8).
+  bool dev_rises(int64_t b) const { return rises_[b] != 0; }
 
  private:
-  // The rest of a build once the knots' poses are known: the sweeps, deviations and bodies.
-  std::string Finish(const mjModel* m, int64_t n, std::vector<double> pos, std::vector<double> mat,
-                     std::vector<uint8_t> holds, std::vector<uint8_t> fixed,
+  // Whether this plan's knot j and prev's knot i have the same rows (qpos, mocap poses).
+  bool SameRow(int64_t j, const Plan& prev, int64_t i) const;
+  // The columns (slots) of `geoms` and the buffers of n knots.
+  void Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
+             std::shared_ptr<PlanPool> pool);
+  // The rest of a build once the knots' poses are in place: their check, the sweeps, the
+  // deviations and bodies.
+  std::string Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
                      const double* deviation, double start, double h, const double* spheres,
-                     int64_t nsphere);
+                     int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed);
 
-  int64_t nknot_ = 0, ngeom_ = 0, nbody_ = 0;
+  static const double kNoPose[9];
+  static const double kNoSweep;
+  int64_t nknot_ = 0, ngeom_ = 0, nbody_ = 0, nq_ = 0, nmocap_ = 0, nslot_ = 0;
   double start_ = 0.0, h_ = 0.0;
-  std::vector<double> pos_, mat_, sweep_, dev_;
-  std::vector<uint8_t> holds_, fixed_;
+  std::vector<int64_t> slot_;  // (ngeom,) each geom's column of the poses (-1: not kept)
+  std::vector<double> pos_, mat_, sweep_, dev_;        // (nknot, nslot, 3 / 9 / 1), (nknot, nbody)
+  std::vector<double> qpos_, mocap_pos_, mocap_quat_;  // the rows (mocap: empty if unplanned)
+  std::vector<uint8_t> holds_, fixed_, rises_;
   std::vector<int64_t> planes_;  // plane geoms on bodies the plan holds
   std::vector<int> geom_body_;
+  std::shared_ptr<PlanPool> pool_;
 };
 
 // tau of held pairs ids[0:count] under a.plan where it covers them (a.plan.planned[k] set and

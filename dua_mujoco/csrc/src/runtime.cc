@@ -72,6 +72,24 @@ Runtime::Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t
     const auto g = static_cast<int64_t>(t.spheres[kSphereNcol * i + kSphereFrame]);
     if (t.geom_row[g] < 0) unboxed_[m->geom_bodyid[g]] = 1;
   }
+  // What a plan's knots are read for: the covered geoms (sphere centres, the exact level, the
+  // pairs a pruned predictor learns: they are covered), the geoms of the known pairs, every
+  // plane (a half-space pair's, a held body's check), and the violation check's box frames.
+  // Free spheres (no model) have no plans.
+  if (m) {
+    std::vector<uint8_t> read(m->ngeom, 0);
+    for (int64_t i = 0; i < t.nsphere(); ++i) {
+      read[static_cast<int64_t>(t.spheres[kSphereNcol * i + kSphereFrame])] = 1;
+    }
+    for (const int64_t g : t.universe.geom_pairs) read[g] = 1;
+    for (int64_t i = 0; i < t.nbody_events; ++i) {
+      read[static_cast<int64_t>(t.events_rec[kBNcol * i + kBFrame])] = 1;
+    }
+    for (int g = 0; g < m->ngeom; ++g) {
+      if (m->geom_type[g] == mjGEOM_PLANE) read[g] = 1;
+      if (read[g]) plan_geoms_.push_back(g);
+    }
+  }
   plan_ok_.assign(nbody, 0);
   Hold(Iota(n));  // every pair known, until a pruned classification chooses
   schedule_ = std::make_shared<Schedule>(t.schedule, npair());
@@ -127,6 +145,7 @@ Runtime::Runtime(const Runtime& o)
       pending_due_(o.pending_due_),
       body_row_(o.body_row_),
       unboxed_(o.unboxed_),
+      plan_geoms_(o.plan_geoms_),
       plan_breaks_(o.plan_breaks_),
       read_lag_(o.read_lag_),
       forget_after_(o.forget_after_),
@@ -299,7 +318,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   if (!plan_data_) return "needs an mjData that MuJoCo could not allocate";
   auto plan = std::make_shared<Plan>();
   std::string error = plan->Build(m, plan_data_.get(), in, m->opt.timestep, tables_->spheres.data(),
-                                  tables_->nsphere());
+                                  tables_->nsphere(), plan_geoms_, plan_.get(), plan_pool_);
   if (!error.empty()) return error;
   for (int b = 0; b < m->nbody; ++b) {
     if (plan->holds(b) && unboxed_[b]) {
@@ -336,8 +355,8 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
         // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
         const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
         if (jn < 0 || !plan->holds(b) ||
-            !BoxWithin(box, plan->pos(jn) + 3 * g, plan->mat(jn) + 9 * g, old.pos(jo) + 3 * g,
-                       old.mat(jo) + 9 * g, room)) {
+            !BoxWithin(box, plan->pos(jn, g), plan->mat(jn, g), old.pos(jo, g), old.mat(jo, g),
+                       room)) {
           sh.from[b] = time;
           break;
         }
@@ -543,8 +562,8 @@ std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan
   if (!query_data_) return "needs an mjData that MuJoCo could not allocate";
   const Tables& t = *tables_;
   Plan plan;
-  std::string error =
-      plan.Build(m, query_data_.get(), candidate, m->opt.timestep, t.spheres.data(), t.nsphere());
+  std::string error = plan.Build(m, query_data_.get(), candidate, m->opt.timestep, t.spheres.data(),
+                                 t.nsphere(), plan_geoms_, plan_.get(), nullptr);
   if (!error.empty()) return error;
   for (int b = 0; b < m->nbody; ++b) {
     if (plan.holds(b) && unboxed_[b]) {

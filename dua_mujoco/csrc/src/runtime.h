@@ -224,6 +224,8 @@ class DUA_API Runtime {
   double last_time() const { return last_time_; }
   // The pairs known (the model's tables, or this run's own universe when pruned).
   const Universe& universe() const { return tables_->pruned ? own_ : tables_->universe; }
+  // The geoms a plan's poses are kept for (Plan::Build's `geoms`).
+  const std::vector<int64_t>& plan_geoms() const { return plan_geoms_; }
   int64_t universe_version() const { return universe_version_; }
   // The held pairs' model ids (sorted), and the schedule over them.
   const std::vector<int64_t>& ids() const { return ids_; }
@@ -375,6 +377,8 @@ class DUA_API Runtime {
   std::vector<int64_t> plan_due_;     // held pairs the plan made due at this step (tracked)
   std::vector<int64_t> body_row_;     // each body's row of the violation check (-1: none)
   std::vector<uint8_t> unboxed_;      // bodies with covered geoms and no row (no plan holds them)
+  std::vector<int64_t> plan_geoms_;   // the geoms a plan's poses are read for (Plan::Build)
+  std::shared_ptr<PlanPool> plan_pool_ = std::make_shared<PlanPool>();  // (a copy: its own)
   int64_t plan_breaks_ = 0;
   int read_lag_ = 1;
   // Forgetting (issue 35): each learnt geom pair's latest rebuild held, and the counts.

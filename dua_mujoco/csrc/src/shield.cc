@@ -130,6 +130,8 @@ std::unique_ptr<Shield> Shield::Make(const mjModel* m, std::shared_ptr<const Tab
   return s;
 }
 
+Shield::~Shield() = default;
+
 void Shield::Prepare(const mjData* d) {
   if (prepared_ == counts_.steps) return;
   mj_getState(model_, d, state_.data(), kState);
@@ -220,16 +222,16 @@ bool Shield::BuildPlan(int64_t n, int64_t tail) {
     }
   }
   const Tables& t = *tables_;
-  cand_ = Plan();
+  // FromPoses rebuilds every field: the candidate's object is reused period after period.
   return cand_
-      .FromPoses(m, n, kpos_.data(), kmat_.data(), holds_.data(), dev_.data(), scratch_->time,
-                 m->opt.timestep, t.spheres.data(), t.nsphere())
+      ->FromPoses(m, n, kpos_.data(), kmat_.data(), holds_.data(), dev_.data(), scratch_->time,
+                  m->opt.timestep, t.spheres.data(), t.nsphere(), rt_->plan_geoms())
       .empty();
 }
 
 int64_t Shield::FirstContact() {
-  rt_->QueryKnots(model_, scratch_, cand_, 0, &query_, &found_);
-  int64_t first = cand_.nknot();
+  rt_->QueryKnots(model_, scratch_, *cand_, 0, &query_, &found_);
+  int64_t first = cand_->nknot();
   // -1 (the plan holds neither body) and -2 (a pair unknown) cannot happen for the pairs Make
   // accepted; either would be no verdict, taken as contact now.
   for (const int64_t k : found_) first = std::min(first, std::max(k, int64_t{0}));
@@ -257,7 +259,7 @@ void Shield::Check(const mjData* d) {
   if (!has_plan_) return;
   const int64_t k = counts_.steps - plan_step_;
   const auto nq = static_cast<int64_t>(robot_q_.size());
-  if (k < plan_.nknot()) {
+  if (k < plan_->nknot()) {
     // A run that is its plan (a rollout of the same simulation) has the same joint positions,
     // so the same poses: nothing to compute.
     const double* q = plan_q_.data() + nq * k;
@@ -267,8 +269,8 @@ void Shield::Check(const mjData* d) {
     Prepare(d);
     broken_.clear();
     const Tables& t = *tables_;
-    plan_.Check(scratch_->geom_xpos, scratch_->geom_xmat, k, t.events_rec.data(), t.nbody_events,
-                nullptr, &broken_);
+    plan_->Check(scratch_->geom_xpos, scratch_->geom_xmat, k, t.events_rec.data(), t.nbody_events,
+                 nullptr, &broken_);
     if (!broken_.empty()) Break(&counts_.plan_breaks);
   } else if (plan_rest_ >= 0) {
     Prepare(d);

@@ -92,6 +92,9 @@ class DUA_API Shield {
                                       const std::vector<int64_t>& g2, Failsafe failsafe,
                                       const ShieldOptions& options, std::string* error);
 
+  // Defined in shield.cc, where Plan's destructor (not exported) is seen.
+  ~Shield();
+
   // Starts over at d's state: the predictor classifies, the plan is dropped, and the first
   // period runs the failsafe (guaranteed when it is verified, or the robot is at rest).
   void Reset(const mjModel* m, const mjData* d);
@@ -106,7 +109,7 @@ class DUA_API Shield {
   const Runtime& runtime() const { return *rt_; }
   // The knots of the plan followed (-1: none), its rest knot (-1: none), and the knot the
   // next step starts from.
-  int64_t plan_knots() const { return has_plan_ ? plan_.nknot() : -1; }
+  int64_t plan_knots() const { return has_plan_ ? plan_->nknot() : -1; }
   int64_t plan_rest() const { return has_plan_ ? plan_rest_ : -1; }
 
  private:
@@ -152,14 +155,14 @@ class DUA_API Shield {
   std::vector<int64_t> g1_, g2_, off_;
   Runtime::QueryPairs query_;
   std::vector<int64_t> found_, broken_;
-  Plan cand_;
+  std::unique_ptr<Plan> cand_ = std::make_unique<Plan>();
   bool split_ = true;          // mj_step1/mj_step2 (not RK4)
   bool mocap_others_ = false;  // a protected body in a mocap tree
   std::vector<double> state_;  // mj_getState buffer
   // The rollout's knots: geom poses, the robot's qpos.
   std::vector<double> kpos_, kmat_, kq_, dev_;
   // The plan followed: from step plan_step_, its robot qpos per knot, its rest knot.
-  Plan plan_;
+  std::unique_ptr<Plan> plan_ = std::make_unique<Plan>();
   bool has_plan_ = false;
   std::vector<double> plan_q_;
   int64_t plan_step_ = 0, plan_rest_ = -1;

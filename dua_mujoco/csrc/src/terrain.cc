@@ -222,8 +222,10 @@ struct Cutoff {
   }
 };
 
-// tau of the object against the terrain (docs/theory.md, Theorem 9.3).
-double TauObject(const Terrain& t, const Object& o) {
+// tau of the object against the terrain (docs/theory.md, Theorem 9.3). *path (if given) says
+// what decided it, for the tests: kPathFirst (the base or the first cell: no search), kPathWindow
+// (the cells within reach, one by one) or kPathPyramid (the branch and bound).
+double TauObject(const Terrain& t, const Object& o, int* path) {
   // From below, the highest point must come up to the base.
   const double under =
       TauHalfspace(-t.base - o.eps - o.hi[2] - o.slack, -(o.u[2] + o.spin), o.accel, o.delta);
@@ -266,6 +268,7 @@ double TauObject(const Terrain& t, const Object& o) {
   // beat it are few, every one of them in turn (no pyramid), else the pyramid's search.
   const int64_t r0 = t.RowOf(o.m[1]), c0 = t.ColOf(o.m[0]);
   double best = leaf(r0, c0, kInf);
+  if (path != nullptr) *path = kPathFirst;
   if (best <= under) return under;
   cut.At(o, best);
   const double reach = std::sqrt(cut.reach2);
@@ -273,8 +276,10 @@ double TauObject(const Terrain& t, const Object& o) {
   const int64_t rlo = t.RowOf(o.lo[1] - reach) - 1, rhi = t.RowOf(o.hi[1] + reach) + 1;
   const int64_t clo = t.ColOf(o.lo[0] - reach) - 1, chi = t.ColOf(o.hi[0] + reach) + 1;
   if ((rhi - rlo + 1) * (chi - clo + 1) > kWindow) {
+    if (path != nullptr) *path = kPathPyramid;
     return std::max(under, MinOverCells(t, node, leaf, under, best));
   }
+  if (path != nullptr) *path = kPathWindow;
   // Row by row: the tests of node(0, r, c, best), with each row's part computed once.
   const double* level0 = t.block + t.off[0];
   for (int64_t r = std::max<int64_t>(rlo, 0); r <= std::min(rhi, t.nrow - 2); ++r) {
@@ -417,9 +422,9 @@ double TerrainGap(const double* c, const double* rec, double* n) {
 }
 
 double TauTerrain(const double* rec, const double* shape, const double* v, double spin, double eps,
-                  double accel, double delta) {
+                  double accel, double delta, int* path) {
   const Terrain t = ViewOf(rec);
-  return TauObject(t, ObjectOf(rec, shape, v, spin, eps, accel, delta));
+  return TauObject(t, ObjectOf(rec, shape, v, spin, eps, accel, delta), path);
 }
 
 double TauTerrainSphere(double c0, double c1, double c2, double v0, double v1, double v2,

@@ -1,0 +1,550 @@
+"""The mutation check (issue 43): small changes to the lines the promise rests on, each of which
+the tests listed with it must catch.
+
+    python benchmarks/mutants.py                   # every mutant (docs/testing.md: the time)
+    python benchmarks/mutants.py tau-accel-halved  # only these
+    python benchmarks/mutants.py --list            # the list, with the tests of each
+
+Each mutant replaces one piece of text of one file (native or Python) by another. The check
+copies the working tree (tracked and new files) to a scratch folder, builds its native core
+there with CMake (its own build folder: the developer's install is never touched), runs the
+mutant's tests once on the unmutated copy (they must pass), then, for each mutant: applies it,
+rebuilds, runs its tests, reverts it. A mutant is *killed* when its tests fail (or time out),
+*survived* when they pass, *stale* when its text no longer occurs exactly once in its file (the
+code moved on: aim it again), *broken* when it does not build. The exit status is 1 unless every
+mutant is killed.
+
+The scratch copy's package is imported instead of the installed one: a ``sitecustomize`` on
+``PYTHONPATH`` takes the editable install's import hook out of ``sys.meta_path`` in every
+process (pytest's workers too), so ``dua_mujoco`` resolves to the copy, which holds its own
+``libdua_mujoco.so`` and ``_core``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class Mutant:
+    """One small change and the tests that must catch it.
+
+    Attributes:
+        name: What it breaks, in a few words.
+        path: The file, relative to the checkout.
+        old: Text that occurs exactly once in it.
+        new: What replaces it.
+        tests: pytest node ids (files, or ``file::test``) that must fail with it.
+        why: The promise it breaks.
+    """
+
+    name: str
+    path: str
+    old: str
+    new: str
+    tests: tuple[str, ...]
+    why: str
+
+    @property
+    def native(self) -> bool:
+        """Whether it needs a rebuild."""
+        return self.path.startswith("dua_mujoco/csrc/")
+
+
+_URGENCY = "dua_mujoco/csrc/src/urgency.cc"
+_STEP = "dua_mujoco/csrc/src/step.cc"
+_SCHEDULE = "dua_mujoco/csrc/src/schedule.cc"
+_PLAN = "dua_mujoco/csrc/src/plan.cc"
+_TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
+_REF = (
+    "tests/test_reference_step.py::"
+    "test_tau_is_never_later_than_a_feasible_contact_and_those_within_the_horizon_stand"
+)
+_REF_TRAFFIC, _REF_PAPER = f"{_REF}[traffic]", f"{_REF}[paper_world]"
+_REF_CLUTTER, _REF_ARMS = f"{_REF}[clutter]", f"{_REF}[two_arms]"
+_PYRAMID = "tests/test_terrain.py::test_search_equals_every_cell_through_the_pyramid_for_a_sphere"
+
+MUTANTS: tuple[Mutant, ...] = (
+    # ---------------------------------------------------------------- tau kernels (section 1)
+    Mutant(
+        "tau-accel-halved",
+        _URGENCY,
+        "p.h = 0.5 * accel * (1.0 + kKappa);",
+        "p.h = 0.25 * accel * (1.0 + kKappa);",
+        ("tests/test_urgency.py::test_random_against_reference", _REF_PAPER),
+        "the sphere kernel's reachable ball grows half as fast: tau too late",
+    ),
+    Mutant(
+        "tau-interior-root-skipped",
+        _URGENCY,
+        "    if (Predicate(x, v, e, d, h, ta) <= 0.0) return Refine(x, v, e, d, h, 0.0, ta);\n",
+        "",
+        ("tests/test_urgency.py::test_exact_dyadic_tangency", _REF_TRAFFIC),
+        "a first root before g's interior minimum is skipped for a later one",
+    ),
+    Mutant(
+        "tau-certified-bracket-top",
+        _URGENCY,
+        "HalleyGuess(x, v, e, d, h, lo, hi, true), &tl)) return tl;",
+        "HalleyGuess(x, v, e, d, h, lo, hi, true), &tl)) return tl * (1.0 + kRtol);",
+        ("tests/test_urgency.py::test_random_against_reference",),
+        "the scalar refinement returns the top of its certified bracket, past the root by up "
+        "to 1e-13",
+    ),
+    Mutant(
+        "halfspace-accel-halved",
+        _URGENCY,
+        "const double a = accel * (1.0 + kKappa);",
+        "const double a = 0.5 * accel * (1.0 + kKappa);",
+        ("tests/test_urgency.py::test_halfspace_random_against_reference", _REF_ARMS),
+        "planes, static shapes and the exact level see half the acceleration",
+    ),
+    Mutant(
+        "speed-term-doubled",
+        _URGENCY,
+        "      tau = std::max(tau, ts);",
+        "      tau = std::max(tau, 2.0 * ts);",
+        ("tests/test_urgency.py::test_speed_between_max_formula_and_lens", _REF_PAPER),
+        "the speed bound's term claims twice the time",
+    ),
+    # ---------------------------------------------------------------- the step: state, exact level
+    Mutant(
+        "point-velocity-cross-sign",
+        "dua_mujoco/csrc/src/internal.h",
+        "out[3] = tw[3] + tw[1] * dz - tw[2] * dy;",
+        "out[3] = tw[3] - tw[1] * dz + tw[2] * dy;",
+        ("tests/test_kinematics.py", _REF_ARMS),
+        "a rotating body's point velocity read with the wrong sign (x)",
+    ),
+    Mutant(
+        "exact-rotation-term-dropped",
+        _STEP,
+        "const double vn = n0 * r0 + n1 * r1 + n2 * r2 - spin;",
+        "const double vn = n0 * r0 + n1 * r1 + n2 * r2;",
+        ("tests/test_exact.py::test_the_rotation_term_is_needed", _REF_ARMS),
+        "the exact level forgets that rotation moves a geom's points (5.3)",
+    ),
+    Mutant(
+        "exact-contact-skip-widened",
+        _STEP,
+        "    if (same && c.dist <= dist) return true;",
+        "    if (same) return true;",
+        (
+            "tests/test_exact.py::test_a_pair_in_mujocos_contacts_keeps_its_sphere_tau_and_no_other_pair_does",
+        ),
+        "a pair MuJoCo lists beyond its contact distance is not looked at (a looser skip is "
+        "safe, but the test pins the rule)",
+    ),
+    Mutant(
+        "pair-accel-one-body",
+        "dua_mujoco/csrc/src/pairs.cc",
+        "out_accel[p] = accel[b1] + accel[b2];",
+        "out_accel[p] = std::max(accel[b1], accel[b2]);",
+        (_REF_PAPER,),
+        "a pair's acceleration bound is one body's, not the sum of both",
+    ),
+    Mutant(
+        "delta-dropped",
+        "dua_mujoco/build/bounds.py",
+        "            delta += discrete_velocity_uncertainty(model, A, velocity_accel=C)",
+        "            delta += 0.0 * discrete_velocity_uncertainty(model, A, velocity_accel=C)",
+        ("tests/test_bounds.py::test_declare_scalar_static_bodies_zero", _REF_PAPER),
+        "declared bounds without the discrete-time velocity uncertainty",
+    ),
+    Mutant(
+        "covering-radius-shrunk",
+        "dua_mujoco/build/covering.py",
+        "    one = (np.zeros((1, 3)), np.array([rbound]))",
+        "    one = (np.zeros((1, 3)), np.array([0.95 * rbound]))",
+        ("tests/test_covering.py",),
+        "a bounding sphere a little smaller than its geom",
+    ),
+    # ---------------------------------------------------------------- schedules (sections 2, 3)
+    Mutant(
+        "dua-revisit-halved",
+        _SCHEDULE,
+        "const int64_t first = (n * q) % size;",
+        "const int64_t first = (n * q / 2) % size;",
+        ("tests/test_scheduler.py::test_matches_reference_and_revisits_exactly",),
+        "the rank schedule revisits each slot half as often as its alarm rule assumes",
+    ),
+    Mutant(
+        "deadline-interval-one-late",
+        _SCHEDULE,
+        "return static_cast<double>(s + latency) * dt + extra < tau; };",
+        "return static_cast<double>(s + latency - 1) * dt + extra < tau; };",
+        (
+            "tests/test_scheduler.py::test_deadline_interval_is_the_latest_safe_step",
+            "tests/test_completeness.py::test_deadline_flags_every_onset",
+        ),
+        "a pair waits one step longer than its verdict covers (3)",
+    ),
+    Mutant(
+        "alarm-test-strict",
+        _SCHEDULE,
+        "inline bool Alarms(double tau, double horizon) { return tau <= horizon; }",
+        "inline bool Alarms(double tau, double horizon) { return tau < 0.5 * horizon; }",
+        ("tests/test_scheduler.py::test_alarm_rule",),
+        "the alarm rule against half the horizon",
+    ),
+    Mutant(
+        "stands-one-period-short",
+        _SCHEDULE,
+        "    return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();",
+        "    return static_cast<double>(where - last + spec_.latency - 1) * spec_.dt + Extra();",
+        (_REF_CLUTTER,),
+        "the standing state covers one period less than the wait",
+    ),
+    Mutant(
+        "deferral-stands-short",
+        _SCHEDULE,
+        "static_cast<double>(where[p] - last_step[p] + latency) * dt + st->extra)) {",
+        "static_cast<double>(where[p] - last_step[p] + latency - 1) * dt + st->extra)) {",
+        ("tests/test_scheduler.py::test_deadline_matches_reference",),
+        "a deferred pair is reported standing one step too few",
+    ),
+    # ---------------------------------------------------------------- violations (section 6)
+    Mutant(
+        "violation-accel-doubled",
+        _STEP,
+        "prev[kSAccel] * (1.0 + rtol) + tol_a));",
+        "2.0 * prev[kSAccel] * (1.0 + rtol) + tol_a));",
+        ("tests/test_events.py::test_step_flags_the_bodies_the_bound_monitor_flags",),
+        "the step's check lets accelerations up to twice the bound pass",
+    ),
+    Mutant(
+        "violation-not-made-due",
+        _STEP,
+        "      dua_make_due(&a->schedule, ev.members[m], n);",
+        "      dua_make_due(&a->schedule, ev.members[m], n + 1);",
+        (
+            "tests/test_events.py::test_a_collision_right_after_an_impulse_is_flagged_only_with_events",
+        ),
+        "a flagged body's pairs keep the verdicts the impulse broke for one more step",
+    ),
+    Mutant(
+        "escape-speed-loose",
+        "dua_mujoco/csrc/src/reach.cc",
+        "const double top = std::min(s0 + a * t, vmax - d);",
+        "const double top = std::min(s0 + 2.0 * d + a * t, vmax - d);",
+        ("tests/test_spheres.py::test_escape_test_keeps_passing_spheres_inside_their_reach",),
+        "the escape test of the earlier release (Lemma 6.4's speed test loosened by 2 delta)",
+    ),
+    # ---------------------------------------------------------------- the filter
+    Mutant(
+        "filter-bitmask-both-ways",
+        "dua_mujoco/csrc/src/filter.cc",
+        "(f.contype[g1] & f.conaffinity[g2]) == 0 && (f.contype[g2] & f.conaffinity[g1]) == 0",
+        "(f.contype[g1] & f.conaffinity[g2]) == 0 || (f.contype[g2] & f.conaffinity[g1]) == 0",
+        ("tests/test_pairs.py::test_filter_rules_spelled_out",),
+        "a pair MuJoCo collides one way round only is filtered out",
+    ),
+    # ---------------------------------------------------------------- flight plans (section 8)
+    Mutant(
+        "plan-check-never-breaks",
+        _PLAN,
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, kInf)",
+        (
+            "tests/test_hardening.py::test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run",
+        ),
+        "a body beyond its deviation keeps following the plan",
+    ),
+    Mutant(
+        "plan-check-twice-the-deviation",
+        _PLAN,
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, 2.0 * dev(k, b))",
+        ("tests/test_flightplan.py::test_a_body_strayed_past_its_deviation_breaks_its_plan",),
+        "a body strays up to twice its deviation before its plan breaks",
+    ),
+    Mutant(
+        "plan-check-rotation-dropped",
+        _PLAN,
+        "(std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9)",
+        "(std::sqrt(dp) + 0.0 * std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9)",
+        ("tests/test_flightplan.py::test_a_turn_alone_past_the_deviation_breaks_its_plan",),
+        "a body that turns away from its planned pose without moving its origin keeps the plan",
+    ),
+    Mutant(
+        "plan-tau-one-knot-late",
+        _PLAN,
+        "    if (!(gap > allowed)) return j;",
+        "    if (!(gap > allowed)) return j + 1;",
+        (
+            "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
+        ),
+        "a plan's tau one knot after the first knot that may touch",
+    ),
+    Mutant(
+        "plan-deviation-dropped",
+        _PLAN,
+        "const double allowed = (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);",
+        "const double allowed = 0.0 * (plan.dev(j, b1) + plan.dev(j, b2));",
+        (
+            "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
+        ),
+        "a plan's verdicts without the deviations",
+    ),
+    Mutant(
+        "plan-grid-shave-dropped",
+        _PLAN,
+        "return static_cast<double>(grid) * h * (1.0 - kGridShave);",
+        "return static_cast<double>(grid) * h;",
+        (
+            "tests/test_plans.py::test_an_exact_plans_alarm_stands_the_whole_horizon_wherever_the_touch_falls",
+        ),
+        "a plan's tau on the step grid, where the deadline test's roundings let a pair wait a "
+        "step too long",
+    ),
+    Mutant(
+        "plan-tau-rounded-up-to-the-period-grid",
+        _PLAN,
+        "const int64_t grid = p > 1 ? s / p * p : s;",
+        "const int64_t grid = p > 1 ? (s + p - 1) / p * p : s;",
+        (
+            "tests/test_flightplan.py::test_a_plan_that_is_the_simulation_flags_every_onset_the_horizon_ahead",
+        ),
+        "with period > 1, a plan's tau rounded up to the predictor's grid covers a wait past the "
+        "horizon's lead",
+    ),
+    # ---------------------------------------------------------------- terrain (section 9)
+    Mutant(
+        "terrain-base-twice-as-deep",
+        _TERRAIN,
+        "TauHalfspace(-t.base - o.eps - o.hi[2] - o.slack,",
+        "TauHalfspace(-2.0 * t.base - o.eps - o.hi[2] - o.slack,",
+        ("tests/test_terrain.py::test_edges_sides_and_base",),
+        "an object under the terrain is held to a base twice as deep",
+    ),
+    Mutant(
+        "terrain-pyramid-half-the-children",
+        _TERRAIN,
+        "for (int64_t i = 2 * it.i; i < std::min(2 * it.i + 2, t.ny[l]); ++i) {",
+        "for (int64_t i = 2 * it.i; i < std::min(2 * it.i + 1, t.ny[l]); ++i) {",
+        (_PYRAMID,),
+        "the branch and bound visits only the first row of a node's children",
+    ),
+    Mutant(
+        "terrain-floor-too-high",
+        _TERRAIN,
+        "floor = std::min(g0, g0 + drift - grow) - 1e-12",
+        "floor = std::max(g0, g0 + drift - grow) - 1e-12",
+        ("tests/test_terrain.py::test_search_equals_every_cell_for_a_sphere", _PYRAMID),
+        "cells that can be reached by coming down are skipped",
+    ),
+    Mutant(
+        "terrain-reach-without-spin",
+        _TERRAIN,
+        "o.w = std::hypot(o.u[0], o.u[1]) + spin;",
+        "o.w = std::hypot(o.u[0], o.u[1]);",
+        (
+            "tests/test_terrain.py::test_a_fine_grid_reached_sideways_is_searched_not_settled_by_the_base",
+        ),
+        "a spinning geom's horizontal reach without its rotation",
+    ),
+    # ---------------------------------------------------------------- the monitor's labels
+    Mutant(
+        "monitor-every-onset-predicted",
+        "dua_mujoco/measure/monitor.py",
+        "            if self._standing[g] > 0:",
+        "            if self._standing[g] >= 0:",
+        ("tests/test_testing.py::test_never_alarming_predictor_is_caught",),
+        "an onset no alarm stood for counts as predicted",
+    ),
+    Mutant(
+        "monitor-miss-excused-by-any-violation",
+        "dua_mujoco/measure/monitor.py",
+        "            held = broke <= window_start if self.bound_checks else False",
+        "            held = broke < 0 if self.bound_checks else False",
+        (
+            "tests/test_warning_time.py::test_a_miss_long_after_a_violation_is_one_with_the_bounds_held",
+        ),
+        "a miss counts as after a violation whenever its bodies broke their bounds once, "
+        "however long before its pair's last evaluation",
+    ),
+    Mutant(
+        "monitor-miss-in-any-violation-period",
+        "dua_mujoco/measure/monitor.py",
+        "            in_period = bool(self.bound_checks) and broke > seen",
+        "            in_period = bool(self.bound_checks) and broke >= 0",
+        (
+            "tests/test_events.py::test_a_collision_right_after_an_impulse_is_flagged_only_with_events",
+        ),
+        "every miss after any violation falls in the guarantee's one exception",
+    ),
+    Mutant(
+        "lead-short-blamed-on-any-violation",
+        "dua_mujoco/measure/warning_time.py",
+        "        if broke > window:",
+        "        if broke >= 0:",
+        ("tests/test_warning_time.py::test_short_leads_are_told_apart_by_the_bounds",),
+        "a short lead counts as after a violation whenever its bodies broke their bounds once",
+    ),
+)
+
+
+# ------------------------------------------------------------------------------------------------
+# The scratch copy
+# ------------------------------------------------------------------------------------------------
+
+_HOOK = '''"""Imports dua_mujoco from the mutation check's copy, not the editable install."""
+import sys
+
+sys.meta_path[:] = [f for f in sys.meta_path if "ScikitBuild" not in type(f).__name__]
+'''
+
+
+class Scratch:
+    """A copy of the working tree with its own build of the native core."""
+
+    def __init__(self, root: Path, jobs: int) -> None:
+        self.root = root
+        self.tree = root / "tree"
+        self.build = root / "build"
+        self.hook = root / "hook"
+        self.jobs = jobs
+
+    def copy(self) -> None:
+        """The working tree's tracked and new files (not ignored ones: no build, no venv)."""
+        listed = subprocess.run(
+            ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+            cwd=HERE, check=True, capture_output=True,
+        ).stdout.decode().split("\0")  # fmt: skip
+        if self.tree.exists():
+            shutil.rmtree(self.tree)
+        for rel in filter(None, listed):
+            src, dst = HERE / rel, self.tree / rel
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            if src.is_symlink():  # dua_mujoco/models -> ../models
+                dst.symlink_to(os.readlink(src))
+            elif src.is_file():
+                shutil.copy2(src, dst)
+        self.hook.mkdir(parents=True, exist_ok=True)
+        (self.hook / "sitecustomize.py").write_text(_HOOK)
+
+    def compile(self) -> None:
+        """Configure once, then build (incremental) and put the libraries in the copy."""
+        if not (self.build / "CMakeCache.txt").exists():
+            subprocess.run(
+                ["cmake", "-S", str(self.tree / "dua_mujoco/csrc"), "-B", str(self.build),
+                 f"-DPython_EXECUTABLE={sys.executable}", "-DCMAKE_BUILD_TYPE=Release"],
+                check=True, capture_output=True,
+            )  # fmt: skip
+        subprocess.run(
+            ["cmake", "--build", str(self.build), "-j", str(self.jobs)],
+            check=True, capture_output=True,
+        )  # fmt: skip
+        for lib in [self.build / "libdua_mujoco.so", *self.build.glob("_core.*.so")]:
+            shutil.copy2(lib, self.tree / "dua_mujoco" / lib.name)
+
+    def pytest(self, tests: tuple[str, ...], timeout: float) -> tuple[bool, str]:
+        """Whether ``tests`` pass in the copy (False on a timeout), and pytest's last line."""
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([str(self.hook), str(self.tree)])
+        # The copy's _core finds libmujoco by a run path that holds only beside an installed
+        # package ($ORIGIN/../mujoco): name mujoco's folder to the loader instead.
+        spec = importlib.util.find_spec("mujoco")
+        assert spec is not None and spec.submodule_search_locations
+        mujoco_dir = spec.submodule_search_locations[0]
+        env["LD_LIBRARY_PATH"] = os.pathsep.join(
+            filter(None, [mujoco_dir, env.get("LD_LIBRARY_PATH")])
+        )
+        env.setdefault("MUJOCO_GL", "egl")
+        argv = [sys.executable, "-m", "pytest", "-x", "-q", "-n", str(self.jobs),
+                "-p", "no:cacheprovider", *tests]  # fmt: skip
+        try:
+            run = subprocess.run(
+                argv, cwd=self.tree, env=env, capture_output=True, text=True, timeout=timeout
+            )
+        except subprocess.TimeoutExpired:
+            return False, f"timed out after {timeout:.0f} s"
+        lines = [ln for ln in run.stdout.splitlines() if ln.strip()]
+        return run.returncode == 0, lines[-1] if lines else run.stderr[-200:]
+
+
+def _apply(tree: Path, mutant: Mutant) -> str | None:
+    """Apply ``mutant`` in ``tree``; returns the original text, or None if it is stale."""
+    path = tree / mutant.path
+    text = path.read_text()
+    if text.count(mutant.old) != 1:
+        return None
+    path.write_text(text.replace(mutant.old, mutant.new))
+    return text
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("names", nargs="*", help="mutants to run (default: all)")
+    parser.add_argument("--list", action="store_true", help="print the list and exit")
+    parser.add_argument("--scratch", type=Path, help="scratch folder (default: a temporary one)")
+    parser.add_argument("--jobs", type=int, default=2, help="build jobs and pytest workers")
+    parser.add_argument("--timeout", type=float, default=900.0, help="seconds per test run")
+    args = parser.parse_args(argv)
+    known = {m.name: m for m in MUTANTS}
+    unknown = [n for n in args.names if n not in known]
+    if unknown:
+        parser.error(f"unknown mutants {unknown}; known: {', '.join(known)}")
+    chosen = [known[n] for n in args.names] if args.names else list(MUTANTS)
+    if args.list:
+        for m in chosen:
+            print(f"{m.name}: {m.path} -- {m.why}\n    tests: {' '.join(m.tests)}")
+        return 0
+    root = args.scratch or Path(tempfile.mkdtemp(prefix="dua-mutants-"))
+    scratch = Scratch(root, args.jobs)
+    start = time.monotonic()
+    scratch.copy()
+    scratch.compile()
+    print(f"scratch copy and build: {root} ({time.monotonic() - start:.0f} s)", flush=True)
+    tests = tuple(dict.fromkeys(t for m in chosen for t in m.tests))
+    ok, last = scratch.pytest(tests, args.timeout)
+    if not ok:
+        print(f"the tests fail without any mutant ({last}): nothing to learn", file=sys.stderr)
+        return 2
+    print(f"unmutated: {last}", flush=True)
+    rows, bad = [], 0
+    for m in chosen:
+        t0 = time.monotonic()
+        original = _apply(scratch.tree, m)
+        if original is None:
+            result, detail = "stale", "its text does not occur exactly once"
+        else:
+            try:
+                if m.native:
+                    scratch.compile()
+                passed, detail = scratch.pytest(m.tests, args.timeout)
+                result = "survived" if passed else "killed"
+            except subprocess.CalledProcessError:
+                result, detail = "broken", "does not build: aim it again"
+            finally:
+                (scratch.tree / m.path).write_text(original)
+        bad += result != "killed"
+        rows.append((m.name, result, time.monotonic() - t0, detail))
+        print(f"{m.name}: {result} ({rows[-1][2]:.0f} s; {detail})", flush=True)
+    if any(m.native for m in chosen):
+        scratch.compile()  # leave the copy built as it is
+    print("\n| mutant | file | what it breaks | killed by | result | s |")
+    print("|---|---|---|---|---|---|")
+    for m, (_, result, secs, _) in zip(chosen, rows, strict=True):
+        killers = ", ".join(f"`{t.removeprefix('tests/')}`" for t in m.tests)
+        where = m.path.rsplit("/", 1)[-1]
+        print(f"| {m.name} | {where} | {m.why} | {killers} | {result} | {secs:.0f} |")
+    print(f"\n{len(rows) - bad} of {len(rows)} killed in {time.monotonic() - start:.0f} s")
+    if args.scratch is None:
+        shutil.rmtree(root, ignore_errors=True)
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
