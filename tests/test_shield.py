@@ -127,6 +127,10 @@ def test_bad_input_is_named_with_its_fix() -> None:
         _shield(model, failsafe=3)
     with pytest.raises(InvalidInputError, match=r"protect names no body the robot's geoms can"):
         _shield(model, protect=["arm_link1"])
+    model.opt.integrator = int(mujoco.mjtIntegrator.mjINT_RK4)
+    with pytest.raises(InvalidInputError, match=r"integrator is RK4.*use Euler, implicit"):
+        _shield(model)
+    model.opt.integrator = int(mujoco.mjtIntegrator.mjINT_EULER)
     shield = _shield(model)
     shield.reset(data)
     with pytest.raises(Exception, match=r"one control per actuator"):

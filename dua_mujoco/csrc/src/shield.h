@@ -156,7 +156,6 @@ class DUA_API Shield {
   Runtime::QueryPairs query_;
   std::vector<int64_t> found_, broken_;
   std::unique_ptr<Plan> cand_ = std::make_unique<Plan>();
-  bool split_ = true;          // mj_step1/mj_step2 (not RK4)
   bool mocap_others_ = false;  // a protected body in a mocap tree
   std::vector<double> state_;  // mj_getState buffer
   // The rollout's knots: geom poses, the robot's qpos.
