@@ -12,8 +12,8 @@ action through). Two gymnasium MuJoCo envs, each with a protected set that makes
 
 - ``pusher``: ``Pusher-v5``, the arm must not move into the table (``protect=["world"]``);
 - ``reacher``: ``Reacher-v5`` with a post in its workspace (the same arm, its links made to
-  collide with the post: ``xml_file``), the arm must not move into the post
-  (``protect=["post"]``).
+  collide with the post, and Euler instead of RK4, which the shield refuses: ``xml_file``), the
+  arm must not move into the post (``protect=["post"]``).
 
 Rows: each env with the shield off and on, the same seed: protected contacts during training
 (env steps with a protected pair touching, summed over the pairs), and the contact onsets that
@@ -43,9 +43,11 @@ REST_SPEED = 0.01
 
 
 def reacher_with_post(folder: Path) -> Path:
-    """Reacher's MJCF with a post at (0, 0.13) that the arm's links collide with."""
+    """Reacher's MJCF with a post at (0, 0.13) that the arm's links collide with, on Euler."""
     src = importlib.resources.files("gymnasium") / "envs/mujoco/assets/reacher.xml"
     xml = src.read_text()
+    # The shield refuses RK4 (Reacher's), which collides between the states it verifies.
+    xml = xml.replace('integrator="RK4"', 'integrator="Euler"')
     # The links collide (contype 1 against the post's conaffinity); the fingertip does not touch
     # the first link when the arm folds (conaffinity 0).
     xml = xml.replace('name="link0"', 'contype="1" name="link0"')
