@@ -19,25 +19,9 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from timing import median_time, table  # benchmarks/timing.py: the script folder is on sys.path
 
 from dua_mujoco.build.options import PilotOptions
-
-
-def median_time(fn: Callable[[], object], repeat: int, warmup: int = 1) -> float:
-    for _ in range(warmup):
-        fn()
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts))
-
-
-def table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines)
 
 
 def bench_compile() -> str:

@@ -24,9 +24,10 @@ import os
 import statistics
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
+
+from timing import median_time  # benchmarks/timing.py: the script folder is on sys.path
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -37,15 +38,8 @@ def _use_checkout(path: str) -> None:
     sys.path.insert(0, path)
 
 
-def _median_us(fn: Callable[[], object], repeat: int, warmup: int = 3) -> float:
-    for _ in range(warmup):
-        fn()
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts) * 1e6
+def _median_us(fn: Callable[[], object], repeat: int) -> float:
+    return median_time(fn, repeat, warmup=3) * 1e6
 
 
 def measure() -> dict[str, float]:

@@ -40,7 +40,7 @@ from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table
-from exact import _load_any
+from exact import _load_any, add_scene_options, chosen_scenes
 
 ISSUE_RUNS = (
     ("traffic", "--accel", "5"),
@@ -57,7 +57,6 @@ SCENES = (
     "gym/humanoid",
     "dmc/humanoid_CMU",
 )
-QUICK = ("two_arms", "traffic")
 PILOT_SEED = 99
 ROLLOUT_SEED = 0
 
@@ -160,20 +159,13 @@ def overhead_row(scene: str, steps: int) -> list[str]:
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scenes", nargs="*", default=None)
-    ap.add_argument("--steps", type=int, default=1500)
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--robots", action="store_true", help="add every installed robot model")
+    add_scene_options(ap)
     ap.add_argument(
         "--tables", nargs="*", default=["issue", "pilot", "overhead"], help="which to measure"
     )
     args = ap.parse_args(argv)
-    scenes = list(QUICK if args.quick else SCENES) if args.scenes is None else list(args.scenes)
+    scenes = chosen_scenes(args, SCENES)
     steps = 300 if args.quick else args.steps
-    if args.robots:
-        from robots import available
-
-        scenes += [f"robot/{name}" for name in available()]
     if "issue" in args.tables:
         print("issue runs ...", file=sys.stderr)
         head = [

@@ -47,7 +47,6 @@ from pareto import _load
 from dua_mujoco.build.options import PilotOptions, UrgencyOptions
 
 SCENES = ("two_arms", "traffic", "clutter", "gym/ant", "gym/humanoid", "dmc/humanoid_CMU")
-QUICK = ("two_arms", "traffic")
 PILOT_SEED = 99
 ROLLOUT_SEED = 0
 
@@ -176,19 +175,31 @@ HEADER = [
 ]
 
 
-def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_scene_options(ap: argparse.ArgumentParser) -> None:
+    """The scenes a table measures: ``--scenes``, ``--steps``, ``--quick``, ``--robots``."""
     ap.add_argument("--scenes", nargs="*", default=None)
     ap.add_argument("--steps", type=int, default=1500)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--robots", action="store_true", help="add every installed robot model")
-    args = ap.parse_args(argv)
-    scenes = list(QUICK if args.quick else SCENES) if args.scenes is None else list(args.scenes)
-    steps = 200 if args.quick else args.steps
+
+
+def chosen_scenes(args: argparse.Namespace, scenes: tuple[str, ...]) -> list[str]:
+    """:func:`add_scene_options`' scenes: those given, or ``scenes`` (two with ``--quick``),
+    and every installed robot model with ``--robots``."""
+    out = list(scenes[:2] if args.quick else scenes) if args.scenes is None else list(args.scenes)
     if args.robots:
         from robots import available
 
-        scenes += [f"robot/{name}" for name in available()]
+        out += [f"robot/{name}" for name in available()]
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_scene_options(ap)
+    args = ap.parse_args(argv)
+    scenes = chosen_scenes(args, SCENES)
+    steps = 200 if args.quick else args.steps
     rows: list[list[str]] = []
     for scene in scenes:
         print(f"{scene} ...", file=sys.stderr)

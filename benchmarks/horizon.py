@@ -44,6 +44,7 @@ import json
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -238,40 +239,55 @@ def markdown(rows: list[dict], protocol: str) -> str:
     return out
 
 
-def plot(rows: list[dict], path: Path, robots: tuple[str, ...]) -> None:
-    """Standing and oracle against the horizon (log-log), one colour a robot."""
+Line = tuple[Callable[[dict], float], str, Callable[[str], str], dict]
+"""One line a robot: its value of a row, its format, its label from the robot's name, and more
+``plot`` keywords."""
+
+
+def plot_against_horizon(
+    rows: list[dict],
+    path: Path,
+    robots: tuple[str, ...],
+    lines: list[Line],
+    title: str,
+    *,
+    figsize: tuple[float, float],
+    legend: dict,
+) -> None:
+    """``lines`` of the smooth protocol's rows against the horizon (log-log), one colour a robot
+    (this script's plot and ``plan_horizon.py``'s)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7.0, 4.5), dpi=120)
+    fig, ax = plt.subplots(figsize=figsize, dpi=120)
     mine = [r for r in rows if r["protocol"] == "smooth"]
     for i, name in enumerate(robots):
         at = sorted((r for r in mine if r["robot"] == name), key=lambda r: r["horizon_s"])
-        if not at:
-            continue
         h = [1e3 * r["horizon_s"] for r in at]
-        colour = f"C{i}"
-        ax.plot(h, [100 * r["standing"] for r in at], "-o", color=colour, label=f"{name} standing")
-        ax.plot(
-            h,
-            [max(100 * r["oracle"], 1e-3) for r in at],
-            "--s",
-            color=colour,
-            alpha=0.8,
-            label=f"{name} oracle",
-        )
+        for value, fmt, label, kw in lines if at else []:
+            ax.plot(h, [value(r) for r in at], fmt, color=f"C{i}", label=label(name), **kw)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("alarm horizon (ms)")
     ax.set_ylabel("% of active geom pairs (mean over steps)")
-    ax.set_title("Standing in alarm (solid) against touching within the horizon (dashed)")
+    ax.set_title(title, fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(fontsize=7, **legend)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def plot(rows: list[dict], path: Path, robots: tuple[str, ...]) -> None:
+    """Standing and oracle against the horizon (log-log), one colour a robot."""
+    lines: list[Line] = [
+        (lambda r: 100 * r["standing"], "-o", lambda n: f"{n} standing", {}),
+        (lambda r: max(100 * r["oracle"], 1e-3), "--s", lambda n: f"{n} oracle", {"alpha": 0.8}),
+    ]
+    title = "Standing in alarm (solid) against touching within the horizon (dashed)"
+    plot_against_horizon(rows, path, robots, lines, title, figsize=(7.0, 4.5), legend={"ncol": 2})
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -75,7 +75,16 @@ from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table
-from horizon import EXTRA, HOLD, PILOT_SEED, ROBOT_NAMES, ROLLOUT_SEED, load
+from horizon import (
+    EXTRA,
+    HOLD,
+    PILOT_SEED,
+    ROBOT_NAMES,
+    ROLLOUT_SEED,
+    Line,
+    load,
+    plot_against_horizon,
+)
 from robots import ROBOTS
 
 HORIZONS = (None, 0.010, 0.020, 0.050, 0.100, 0.200, 0.500)
@@ -614,51 +623,23 @@ def horizon_table(rows: list[dict[str, Any]], protocol: str) -> str:
 
 def plot(rows: list[dict[str, Any]], path: Path, robots: tuple[str, ...]) -> None:
     """Standing with a plan, without, and the oracle against the horizon (log-log)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 5.8), dpi=120)
-    mine = [r for r in rows if r["protocol"] == "smooth"]
-    for i, name in enumerate(robots):
-        at = sorted((r for r in mine if r["robot"] == name), key=lambda r: r["horizon_s"])
-        if not at:
-            continue
-        h = [1e3 * r["horizon_s"] for r in at]
-        c = f"C{i}"
-        ax.plot(
-            h, [100 * r["T"]["standing"] for r in at], "-o", color=c, label=f"{name} trajectory"
-        )
-        ax.plot(
-            h, [100 * r["A"]["standing"] for r in at], "-.x", color=c, alpha=0.8, label="waypoint"
-        )
-        ax.plot(
-            h, [100 * r["B"]["standing"] for r in at], ":^", color=c, alpha=0.7, label="no plan"
-        )
-        ax.plot(
-            h,
-            [max(100 * r["A"]["oracle"], 1e-3) for r in at],
+    lines: list[Line] = [
+        (lambda r: 100 * r["T"]["standing"], "-o", lambda n: f"{n} trajectory", {}),
+        (lambda r: 100 * r["A"]["standing"], "-.x", lambda n: "waypoint", {"alpha": 0.8}),
+        (lambda r: 100 * r["B"]["standing"], ":^", lambda n: "no plan", {"alpha": 0.7}),
+        (
+            lambda r: max(100 * r["A"]["oracle"], 1e-3),
             "--s",
-            color=c,
-            alpha=0.6,
-            markersize=3,
-            label="oracle",
-        )
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("alarm horizon (ms)")
-    ax.set_ylabel("% of active geom pairs (mean over steps)")
-    ax.set_title(
+            lambda n: "oracle",
+            {"alpha": 0.6, "markersize": 3},
+        ),
+    ]
+    title = (
         "Standing in alarm: plan knows the trajectory (solid), the next waypoint (dash-dot), "
-        "no plan (dotted), oracle (dashed)",
-        fontsize=8,
+        "no plan (dotted), oracle (dashed)"
     )
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=len(robots), loc="upper center", bbox_to_anchor=(0.5, -0.14))
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    legend = {"ncol": len(robots), "loc": "upper center", "bbox_to_anchor": (0.5, -0.14)}
+    plot_against_horizon(rows, path, robots, lines, title, figsize=(7.5, 5.8), legend=legend)
 
 
 def main(argv: list[str] | None = None) -> None:

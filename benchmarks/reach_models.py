@@ -982,24 +982,19 @@ def standing(
             np.minimum(best, gap + rate * nn * h - pair_second(nn), out=best)
         return best <= 0.0
 
-    if name == "a":
-        return gap <= F1 + second(b1, n, "a") + F2 + second(b2, n, "a")
-    if name == "b":
-        return gap <= np.minimum(F1 + second(b1, n, "a"), B.V[b1] * t) + np.minimum(
-            F2 + second(b2, n, "a"), B.V[b2] * t
+    # Each body's reach by its second-order term (a, WH, int), summed, capped by the speed
+    # bound, or along the pair's direction.
+    summed = {"a": "a", "c_WH": "WH", "c_int": "int"}
+    capped, along = {"b": "a", "bc": "int"}, {"d_a": "a", "d_c": "int"}
+    if name in summed:
+        return gap <= F1 + second(b1, n, summed[name]) + F2 + second(b2, n, summed[name])
+    if name in capped:
+        m = capped[name]
+        return gap <= np.minimum(F1 + second(b1, n, m), B.V[b1] * t) + np.minimum(
+            F2 + second(b2, n, m), B.V[b2] * t
         )
-    if name == "c_WH":
-        return gap <= F1 + second(b1, n, "WH") + F2 + second(b2, n, "WH")
-    if name == "c_int":
-        return gap <= F1 + second(b1, n, "int") + F2 + second(b2, n, "int")
-    if name == "bc":
-        return gap <= np.minimum(F1 + second(b1, n, "int"), B.V[b1] * t) + np.minimum(
-            F2 + second(b2, n, "int"), B.V[b2] * t
-        )
-    if name == "d_a":
-        return directional(lambda nn: second(b1, nn, "a") + second(b2, nn, "a"))
-    if name == "d_c":
-        return directional(lambda nn: second(b1, nn, "int") + second(b2, nn, "int"))
+    if name in along:
+        return directional(lambda nn: second(b1, nn, along[name]) + second(b2, nn, along[name]))
     first_rel = (rec.relv + rec.spin + Dsum) * t
     if name == "e_a":
         return gap <= first_rel + _aterm(Aab[bp], n, h)

@@ -28,8 +28,8 @@ import tracemalloc
 from collections.abc import Callable
 
 import numpy as np
-from bench import median_time  # benchmarks/bench.py: the script folder is on sys.path
 from many import ROUNDING_SLACK, grid_pairs, grid_reach
+from timing import median_time, table  # benchmarks/timing.py: the script folder is on sys.path
 
 from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.experiments.paper.reference import PAPER_N
@@ -53,12 +53,6 @@ def peak_bytes(fn: Callable[[], object]) -> int:
         return tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-
-
-def table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -8,7 +8,7 @@ from numpy.typing import NDArray
 
 LAYOUT: dict = ...
 
-TABLES_VERSION: int = 4
+TABLES_VERSION: int = 5
 
 def structure_hash(model: object) -> int:
     """
@@ -52,8 +52,6 @@ def rigid_points(points: Annotated[NDArray[numpy.float64], dict(order='C', devic
     """
 
 def check_points(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], twist_ref: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], root_twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], root_origin: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], prev: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], cur: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], nprev: int, h: float, accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], disc: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], speed: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], check_disc: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], rtol: float, values: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], broken: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu')]) -> int: ...
-
-def difference_poses(data: object, bodies: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], prev_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], prev_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], dt: float, user: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], linear: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], angular: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu')], model: object) -> None: ...
 
 def index_by_row(row_of_geom: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], nrow: int) -> tuple:
     """
@@ -118,7 +116,7 @@ def plugin_deactivate_contacts(model: object, data: object, instance: int) -> in
 class Schedule:
     """A schedule's state and kernels (dua_mujoco.core.schedules wraps it)."""
 
-    def __init__(self, kind: int, dt: float, latency: int, tau0: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], active: object | None = None, slots_per_bucket: int = 1, cap: int = 0, max_interval: int = 1024, backoff: int = 8, threshold: float = 0.0, alarm_horizon: float = 0.0) -> None: ...
+    def __init__(self, kind: int, dt: float, latency: int, tau0: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], active: object | None = None, slots_per_bucket: int = 1, cap: int = 0, max_interval: int = 1024, backoff: int = 8, threshold: float = 0.0, alarm_horizon: float | None = None) -> None: ...
 
     def select(self, n: int) -> int: ...
 
@@ -130,9 +128,16 @@ class Schedule:
 
     def make_due(self, p: int, n: int) -> None: ...
 
-    def alarm_state(self) -> NDArray[numpy.bool_]: ...
-
     def horizon_of(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
+
+    def next_due(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:
+        """
+        The step each pair is next evaluated at (-1: a deadline pair switched off).
+        """
+
+    @property
+    def intervals(self) -> NDArray[numpy.int64]:
+        """The rank schedule's revisit interval of each bucket, steps."""
 
     @property
     def kind(self) -> int: ...
@@ -248,6 +253,47 @@ class Alarms:
 class StepError(RuntimeError):
     pass
 
+class Mocap:
+    """
+    The velocities of a model's mocap bodies, by mocap id: backward differences of their poses (mocap.h), or given.
+    """
+
+    def __init__(self, model: object) -> None: ...
+
+    def update(self, data: object) -> None:
+        """
+        Difference the poses of data against the latest record (the first call records).
+        """
+
+    def reset(self) -> None:
+        """Forget the poses; differenced velocities zero."""
+
+    def set_velocity(self, mocap: int, linear: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], angular: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None: ...
+
+    def clear_velocity(self, mocap: int) -> None: ...
+
+    @property
+    def bodies(self) -> NDArray[numpy.int64]:
+        """(nmocap,) the body of each mocap id."""
+
+    @property
+    def linear(self) -> NDArray[numpy.float64]:
+        """(nmocap, 3) linear velocities of the bodies' origins (a copy)."""
+
+    @property
+    def angular(self) -> NDArray[numpy.float64]:
+        """(nmocap, 3) angular velocities (a copy)."""
+
+    @property
+    def twist(self) -> Annotated[NDArray[numpy.float64], dict(writable=False)]:
+        """
+        (nbody, 6) [angular; linear] of each mocap body's tree, zero elsewhere (a view).
+        """
+
+    @property
+    def updates(self) -> int:
+        """Records since the last start (the start's included)."""
+
 class Tables:
     """A model's predictor tables, checked against the model."""
 
@@ -314,8 +360,6 @@ class Runtime:
 
     def deactivate_contacts(self) -> int: ...
 
-    def set_mocap_velocity(self, mocap: int, linear: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], angular: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> None: ...
-
     def set_plan(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
         """
         Follow a flight plan (Runtime::SetPlan); returns each body's departure time from the plan it replaces (inf: none).
@@ -359,8 +403,6 @@ class Runtime:
         """
         The bodies of the bound MjData's state beyond their deviation at its knot (None: no plan covers it); checks only.
         """
-
-    def clear_mocap_velocity(self, mocap: int) -> None: ...
 
     def sphere_states(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
         """
@@ -458,14 +500,7 @@ class Runtime:
     def renewals(self) -> int: ...
 
     @property
-    def mocap_updates(self) -> int: ...
-
-    @property
     def anchor_steps(self) -> NDArray[numpy.int64]: ...
-
-    @property
-    def mocap_velocity(self) -> tuple:
-        """(linear (nmocap, 3), angular (nmocap, 3), given (nmocap,)): copies."""
 
     @property
     def exact_records(self) -> NDArray[numpy.float64]:
@@ -477,7 +512,8 @@ class Runtime:
         """
 
     @property
-    def root_twist(self) -> NDArray[numpy.float64]: ...
+    def mocap(self) -> Mocap:
+        """The mocap bodies' velocities, differenced at each step (or given)."""
 
 def tau_pairs(pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple[NDArray[numpy.float64], int]:
     """

@@ -25,7 +25,7 @@ import mujoco
 
 from dua_mujoco.exceptions import DuaError, InvalidInputError
 from dua_mujoco.outputs import publish, temporary_beside, writes_in_place
-from dua_mujoco.run_options import add_run_options, whole_number
+from dua_mujoco.run_options import add_count, add_run_options
 
 if TYPE_CHECKING:
     from dua_mujoco.measure.report import RunReport
@@ -112,27 +112,16 @@ def _add_run_outputs(p: argparse.ArgumentParser) -> None:
         default=None,
         help="render a video (.mp4 or .gif), streamed to the file as frames are rendered",
     )
-    p.add_argument(
-        "--fps",
-        type=whole_number("--fps", "frames per second"),
-        default=30,
-        help="video frame rate",
-    )
-    p.add_argument(
-        "--width", type=whole_number("--width", "pixels"), default=480, help="video width in pixels"
-    )
-    p.add_argument(
-        "--height",
-        type=whole_number("--height", "pixels"),
-        default=360,
-        help="video height in pixels",
-    )
+    add_count(p, "--fps", "frames per second", 30, "video frame rate")
+    add_count(p, "--width", "pixels", 480, "video width in pixels")
+    add_count(p, "--height", "pixels", 360, "video height in pixels")
     p.add_argument("--camera", default=None, help="camera name or id (default -1: the free camera)")
-    p.add_argument(
+    add_count(
+        p,
         "--every",
-        type=whole_number("--every", "physics steps"),
-        default=5,
-        help="render every k-th physics step (one at which the predictor steps: with --period, "
+        "physics steps",
+        5,
+        "render every k-th physics step (one at which the predictor steps: with --period, "
         "the least common multiple of both, noted on stderr)",
     )
     p.add_argument("--show-spheres", action="store_true", help="draw the covering spheres")

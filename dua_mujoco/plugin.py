@@ -21,6 +21,7 @@ over), so copies, resets and ``mujoco.rollout`` on several threads keep their ru
 from __future__ import annotations
 
 import base64
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -316,6 +317,21 @@ def clear_plan(model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "dua
     _checked(int(_core.plugin_clear_plan(model, data, _instance(model, prefix))))
 
 
+def _query(
+    fn: Callable[[mujoco.MjModel, mujoco.MjData, int], object],
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    prefix: str,
+) -> np.ndarray:
+    """What ``fn`` (a ``_core.plugin_*`` query) answers for the instance behind sensor
+    ``prefix``."""
+    instance = _instance(model, prefix)
+    out = fn(model, data, instance)
+    if out is None:  # pragma: no cover - the sensor names an instance of this plugin
+        raise InvalidInputError(f"plugin instance {instance} is not a {PLUGIN_NAME!r}.")
+    return np.asarray(out)
+
+
 def _checked(result: int) -> int:
     if result == -2:
         raise InvalidInputError(
@@ -351,11 +367,7 @@ def known_pairs(model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "du
     Raises:
         InvalidInputError: The model has no predictor sensor ``prefix``.
     """
-    instance = _instance(model, prefix)
-    out = _core.plugin_memory(model, data, instance)
-    if out is None:  # pragma: no cover - the sensor names an instance of this plugin
-        raise InvalidInputError(f"plugin instance {instance} is not a {PLUGIN_NAME!r}.")
-    out = np.asarray(out)
+    out = _query(_core.plugin_memory, model, data, prefix)
     return KnownPairs(
         npair=int(out[0]),
         held=int(out[2]),
@@ -374,8 +386,4 @@ def standing_pairs(
     Raises:
         InvalidInputError: The model has no predictor sensor ``prefix``.
     """
-    instance = _instance(model, prefix)
-    out = _core.plugin_standing(model, data, instance)
-    if out is None:  # pragma: no cover - the sensor names an instance of this plugin
-        raise InvalidInputError(f"plugin instance {instance} is not a {PLUGIN_NAME!r}.")
-    return np.asarray(out)
+    return _query(_core.plugin_standing, model, data, prefix)

@@ -25,6 +25,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "PILOT_SEED_OFFSET",
+    "add_count",
     "add_run_options",
     "controller_for",
     "default_steps",
@@ -215,21 +216,25 @@ def whole_number(option: str, unit: str = "", *, minimum: int = 1) -> Callable[[
     return parse
 
 
+def add_count(
+    p: argparse.ArgumentParser, flag: str, unit: str, default: int | None, help: str, **kw: int
+) -> None:
+    """Add the integer option ``flag`` counting ``unit`` (:func:`whole_number`; ``minimum=``
+    in ``kw``)."""
+    p.add_argument(flag, type=whole_number(flag, unit, **kw), default=default, help=help)
+
+
 def add_run_options(p: argparse.ArgumentParser) -> None:
     """Add the options of a run's driver, predictor and exact stage (``run``, ``view`` and
     ``sweep`` read them)."""
-    p.add_argument(
+    add_count(
+        p,
         "--steps",
-        type=whole_number("--steps", "physics steps"),
-        default=None,
-        help="physics steps (default: the scene's own, 1000 for an MJCF file)",
+        "physics steps",
+        None,
+        "physics steps (default: the scene's own, 1000 for an MJCF file)",
     )
-    p.add_argument(
-        "--seed",
-        type=whole_number("--seed", minimum=0),
-        default=0,
-        help="seed of the controls (default 0)",
-    )
+    add_count(p, "--seed", "", 0, "seed of the controls (default 0)", minimum=0)
     p.add_argument(
         "--ctrl",
         choices=["scene", "zero", "random", "smooth"],
@@ -255,23 +260,15 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         default="bounding",
         help="one bounding sphere per geom, or several (budget --max-spheres)",
     )
-    p.add_argument(
-        "--max-spheres",
-        type=whole_number("--max-spheres", "spheres per geom"),
-        default=8,
-        help="multi covering budget",
-    )
-    p.add_argument(
-        "--period",
-        type=whole_number("--period", "physics steps"),
-        default=1,
-        help="physics steps per predictor step",
-    )
-    p.add_argument(
+    add_count(p, "--max-spheres", "spheres per geom", 8, "multi covering budget")
+    add_count(p, "--period", "physics steps", 1, "physics steps per predictor step")
+    add_count(
+        p,
         "--latency",
-        type=whole_number("--latency", "predictor periods", minimum=0),
-        default=0,
-        help="periods a verdict takes to reach the user (0: synchronous, after mj_step)",
+        "predictor periods",
+        0,
+        "periods a verdict takes to reach the user (0: synchronous, after mj_step)",
+        minimum=0,
     )
     p.add_argument(
         "--alarm-horizon",
@@ -289,28 +286,31 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         help="which pairs to evaluate each step: each when its own tau runs out (deadline), "
         "the paper's constant-work rank buckets (dua), or all of them (select-all)",
     )
-    p.add_argument(
+    add_count(
+        p,
         "--max-evals",
-        type=whole_number("--max-evals", "tau evaluations a step"),
-        default=None,
-        help="deadline: cap on tau evaluations a step; pairs due beyond it wait, in alarm once "
+        "tau evaluations a step",
+        None,
+        "deadline: cap on tau evaluations a step; pairs due beyond it wait, in alarm once "
         "their verdict no longer covers the wait (default: no cap)",
     )
-    p.add_argument(
+    # The default is the Predictor's (DEFAULT_ALARM_BACKOFF): not imported here, where it
+    # would pull MuJoCo and the core into every `--help`; test_cli holds the two equal.
+    add_count(
+        p,
         "--alarm-backoff",
-        type=whole_number("--alarm-backoff", "predictor steps"),
-        default=None,
-        # The default is the Predictor's (DEFAULT_ALARM_BACKOFF): not imported here, where it
-        # would pull MuJoCo and the core into every `--help`; test_cli holds the two equal.
-        help="deadline: a pair that keeps alarming (resting contact) is evaluated again after "
+        "predictor steps",
+        None,
+        "deadline: a pair that keeps alarming (resting contact) is evaluated again after "
         "twice its last wait, up to this many steps, standing in alarm in between; 1 gives "
         "exactly select-all's alarms (default: 8)",
     )
-    p.add_argument(
+    add_count(
+        p,
         "--slots-per-bucket",
-        type=whole_number("--slots-per-bucket", "slots"),
-        default=1,
-        help="dua: slots evaluated per bucket per step, a power of two (revisit intervals "
+        "slots",
+        1,
+        "dua: slots evaluated per bucket per step, a power of two (revisit intervals "
         "shrink that many times)",
     )
     p.add_argument(
@@ -343,12 +343,7 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         "meet within a horizon (rebuilt as they move; for thousands of spheres), or choose "
         "by size (default: pruned from 256 covering spheres)",
     )
-    p.add_argument(
-        "--pilot-steps",
-        type=whole_number("--pilot-steps", "physics steps"),
-        default=2000,
-        help="pilot rollout length for --accel auto",
-    )
+    add_count(p, "--pilot-steps", "physics steps", 2000, "pilot rollout length for --accel auto")
     p.add_argument(
         "--pilot-motion",
         choices=["free", "no-impacts", "all"],

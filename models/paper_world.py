@@ -89,8 +89,9 @@ def _place_spheres(
     offsets = [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)]
     while placed < n:
         # Batches of candidates amortise the generator call.
-        for c in rng.uniform(lo, hi, size=(64, 3)):
-            cell = tuple(int(x) for x in np.floor(c / min_dist))
+        batch = rng.uniform(lo, hi, size=(64, 3))
+        cells_of = map(tuple, np.floor(batch / min_dist).astype(int).tolist())
+        for c, cell in zip(batch, cells_of, strict=True):
             near = [
                 i
                 for o in offsets
@@ -106,7 +107,7 @@ def _place_spheres(
                     )
                 continue
             centres[placed] = c
-            cells.setdefault(cell, []).append(placed)  # type: ignore[arg-type]
+            cells.setdefault(cell, []).append(placed)
             placed += 1
             misses = 0
             if placed == n:
@@ -214,32 +215,47 @@ def paper_world_spec(
 
     ctrl = mass * accel_max
     palette = rng.uniform(0.2, 0.9, size=(n, 3))
-    # MuJoCo's spec re-lists the whole tree on every element it adds, so adding the spheres one
-    # by one is quadratic (7.6 s at 10,000, 37 s at 20,000). Chunks built apart and attached
-    # cost k^2 each to build and O(n) each to attach: k ~ sqrt(75 n) balances the two (2.3 s
-    # at 20,000, measured).
-    chunk = max(64, math.isqrt(75 * n))
-    for start in range(0, n, chunk):
-        part = _sphere_chunk(
-            range(start, min(n, start + chunk)),
-            centres,
-            palette,
-            radius=radius,
-            mass=mass,
-            ctrl=ctrl,
-        )
-        spec.attach(part, prefix="sphere", frame=world.add_frame())
-        # Each attach brings the chunk's empty main default as "spheremain"; a second one would
-        # repeat the class name in to_xml(), which MuJoCo then refuses to read back.
-        spec.delete(spec.find_default("spheremain"))
+
+    # MuJoCo's spec lists its whole tree again on every element it adds and scans it on every
+    # attach, so adding the spheres one by one is quadratic (37 s at 20,000). Leaves of 100
+    # spheres are built apart, attached in groups of about sqrt(n / 100) leaves to a spec of
+    # their own, the groups to the world: each attach meets a small spec or one of few.
+    # Names come from the prefixes: leaf b > 0 holds its spheres' last two digits and is
+    # attached with the prefix "b", the groups and leaf 0 (names 0-99) with "sphere".
+    def sphere_specs(b: int) -> mujoco.MjSpec:
+        ids = range(_LEAF * b, min(n, _LEAF * (b + 1)))
+        names = [f"{i % _LEAF:02d}" if b else str(i) for i in ids]
+        return _sphere_leaf(ids, names, centres, palette, radius=radius, mass=mass, ctrl=ctrl)
+
+    leaves = -(-n // _LEAF)
+    group = max(1, math.isqrt(leaves))
+    _attach(spec, sphere_specs(0), "sphere")
+    for first in range(1, leaves, group):
+        part = mujoco.MjSpec()
+        for b in range(first, min(leaves, first + group)):
+            _attach(part, sphere_specs(b), str(b))
+        _attach(spec, part, "sphere")
 
     spec.add_key(name="init", qpos=np.zeros(3 * n), qvel=velocity.reshape(-1))
     spec.add_numeric(name=ACCEL_BOUND_NUMERIC, size=1, data=[paper_world_accel_bound(accel_max)])
     return spec
 
 
-def _sphere_chunk(
+_LEAF = 100
+"""Spheres a leaf spec of :func:`paper_world_spec` holds (a power of ten: see its names)."""
+
+
+def _attach(parent: mujoco.MjSpec, child: mujoco.MjSpec, prefix: str) -> None:
+    """Attach ``child`` to ``parent``'s world, its names prefixed. The child's main default
+    comes along as ``prefix + "main"``: deleted again, since a second one with the same name
+    would make ``to_xml()`` unreadable."""
+    parent.attach(child, prefix=prefix, frame=parent.worldbody.add_frame())
+    parent.delete(parent.find_default(prefix + "main"))
+
+
+def _sphere_leaf(
     ids: range,
+    names: list[str],
     centres: np.ndarray,
     palette: np.ndarray,
     *,
@@ -247,16 +263,14 @@ def _sphere_chunk(
     mass: float,
     ctrl: float,
 ) -> mujoco.MjSpec:
-    """The spheres ``ids`` of :func:`paper_world_spec` in a spec of their own.
-
-    Names lack the ``sphere`` prefix that attaching adds: body and geom ``{i}``, joint and motor
-    ``{i}_x`` (``_y``, ``_z``).
-    """
+    """The spheres ``ids`` of :func:`paper_world_spec` in a spec of their own, named ``names``
+    (the prefixes attaching adds complete them): body and geom ``{name}``, joint and motor
+    ``{name}_x`` (``_y``, ``_z``)."""
     spec = mujoco.MjSpec()
-    for i in ids:
-        body = spec.worldbody.add_body(name=f"{i}", pos=centres[i])
+    for i, name in zip(ids, names, strict=True):
+        body = spec.worldbody.add_body(name=name, pos=centres[i])
         for axis_name, axis in zip("xyz", np.eye(3), strict=True):
-            joint = f"{i}_{axis_name}"
+            joint = f"{name}_{axis_name}"
             body.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
             spec.add_actuator(
                 name=joint,
@@ -266,7 +280,7 @@ def _sphere_chunk(
                 ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE,
             )
         body.add_geom(
-            name=f"{i}",
+            name=name,
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
             size=[radius, 0.0, 0.0],
             mass=mass,

@@ -28,12 +28,10 @@ from dua_mujoco.build.exact import (
     X_MODE,
     X_N,
     ExactMode,
-    build_exact,
     corner_points,
 )
 from dua_mujoco.build.options import CoveringOptions
 from dua_mujoco.core.pairset import PAIR_ACCEL, PAIR_DELTA
-from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.runtime.predictor import Predictor
 
 TYPES = {
@@ -339,12 +337,6 @@ def test_height_fields_keep_their_sphere_tau() -> None:
     p = Predictor(model, accel=1.0, covering=CoveringOptions(mode="bounding", hfield="box"))
     assert p.exact is not None
     assert (p.exact.records[:, X_MODE] == ExactMode.NONE).all()
-
-
-def test_bad_threshold_names_the_value() -> None:
-    model = _model("box", "sphere")
-    with pytest.raises(InvalidInputError, match="exact_below = -1"):
-        build_exact(model, [0], [1], [0], [0.0], exact_below=-1)
 
 
 def test_the_reset_remembers_the_direction_and_the_bounds_cover_the_corners() -> None:

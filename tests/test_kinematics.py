@@ -24,9 +24,7 @@ def states(
     tracker: MocapVelocityTracker | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sphere states through the kinematics kernel, as the predictor reads them."""
-    twist = np.zeros((m.nbody, 6))
-    if tracker is not None:
-        tracker.write_body_velocity(twist)
+    twist = np.zeros((m.nbody, 6)) if tracker is None else tracker.twist
     return sphere_states(pack_spheres(sg, sb, so, m.body_rootid), mjdata_frame(d, twist), ids)
 
 
@@ -290,25 +288,41 @@ def test_mocap_user_velocity_and_errors() -> None:
         tracker.set_velocity("arm", [0, 0, 0])
 
 
-def test_mocap_update_into_body_velocity_equals_write_body_velocity() -> None:
-    """``update(d, out)`` fills the same rows as ``update(d)`` + ``write_body_velocity(out)``,
-    on the first call, on a repeated instant and on a differenced one, user rows included."""
+def test_the_tracker_and_the_predictors_runtime_share_one_differencing() -> None:
+    """One native state (``csrc/src/mocap.h``) serves the predictor's runtime and the trackers: a
+    tracker updated at the predictor's steps holds the same velocities and twists, bit for bit,
+    given rows included; a repeated instant keeps them; ``reset`` forgets the poses and keeps
+    the given velocities; the data of another model is refused."""
+    from dua_mujoco import Predictor
+
     m = mujoco.MjModel.from_xml_string(MOCAP_XML)
     d = mujoco.MjData(m)
-    a, b = MocapVelocityTracker(m), MocapVelocityTracker(m)
-    for t in (a, b):
-        t.set_velocity("n", [1.0, -2.0, 0.5], [0.1, 0.2, 0.3])
+    p = Predictor(m, accel=50.0, period=1)
+    tracker = MocapVelocityTracker(m)
+    assert p.mocap is not None
+    for mocap in (p.mocap, tracker):
+        mocap.set_velocity("n", [1.0, -2.0, 0.5], [0.1, 0.2, 0.3])
+    mujoco.mj_forward(m, d)
+    p.reset(d)
+    tracker.update(d)
     for k in range(6):
         pos, _, quat, _ = _script(d.time)
         d.mocap_pos[0], d.mocap_quat[0] = pos, quat
-        if k != 3:  # k == 3 repeats the previous instant: nothing to difference
-            mujoco.mj_step(m, d)
-        fused = np.full((m.nbody, 6), 7.0)
-        separate = fused.copy()
-        a.update(d, fused)
-        b.update(d)
-        b.write_body_velocity(separate)
-        np.testing.assert_array_equal(fused, separate)
-        assert a.nupdates == b.nupdates
-    with pytest.raises(ShapeError, match=rf"\({m.nbody}, 6\)"):
-        a.update(d, np.zeros((m.nbody - 1, 6)))
+        mujoco.mj_step(m, d)
+        p.step(d)
+        tracker.update(d)
+        if k == 3:
+            tracker.update(d)  # the same instant again: nothing to difference
+        np.testing.assert_array_equal(tracker.twist, p.mocap.twist)
+        np.testing.assert_array_equal(tracker.linear, p.mocap.linear)
+        assert tracker.nupdates == p.mocap.nupdates == k + 2
+    assert np.abs(tracker.linear[0]).min() > 0 and tracker.twist[1].any()
+    assert not tracker.twist[2].any()  # the arm: a hinge under the mocap body, not a root
+    tracker.reset()
+    assert tracker.nupdates == 0 and not tracker.linear[0].any()
+    np.testing.assert_array_equal(tracker.linear[1], [1.0, -2.0, 0.5])
+    other = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body mocap='true'><geom size='.1'/></body></worldbody></mujoco>"
+    )
+    with pytest.raises(ShapeError, match="not an MjData of the tracker's model"):
+        tracker.update(mujoco.MjData(other))

@@ -25,6 +25,15 @@ def _modules() -> list[Path]:
     return sorted(p for p in paths if "__pycache__" not in p.parts)
 
 
+def _python(code: str) -> str:
+    """What ``python -c code`` prints in a fresh interpreter (its stderr shown if it fails)."""
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT
+    )
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip()
+
+
 def test_public_api_resolves() -> None:
     """Every name in ``__all__`` imports, the lazy ones included."""
     for name in dua_mujoco.__all__:
@@ -135,11 +144,7 @@ def test_the_pytest_plugin_imports_neither_the_core_nor_mujoco() -> None:
         "heavy = sorted(m for m in ('dua_mujoco._core', 'mujoco') if m in sys.modules)\n"
         "print(heavy)\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT
-    )
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "[]"
+    assert _python(code) == "[]"
 
 
 def test_submodules_import() -> None:
@@ -198,11 +203,7 @@ def test_a_run_loads_no_jit_and_numba_is_no_dependency() -> None:
         "jit = [r for r in req if r.split(';')[0].strip().startswith(('numba', 'llvmlite'))]\n"
         "print(sorted(m for m in ('numba', 'llvmlite') if m in sys.modules), jit)\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT
-    )
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "[] []"
+    assert _python(code) == "[] []"
 
 
 # The package's layers, lowest first: a module imports only from its own layer or below.

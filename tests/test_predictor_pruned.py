@@ -8,6 +8,7 @@ import pytest
 
 from dua_mujoco import _core
 from dua_mujoco.build.options import PairOptions
+from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import DeadlineScheduler
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.models.scenes import declared_accel_bound, load_scene, make_controller
@@ -313,3 +314,51 @@ def test_reach_pairs_equal_a_brute_force_reference(seed: int) -> None:
                 want.add((min(i, j), max(i, j)))
     got = [tuple(r) for r in out.tolist()]
     assert len(got) == len(set(got)) and set(got) == want and len(got) > 2
+
+
+def test_the_tables_a_pruned_predictor_learns_are_the_all_pairs_ones() -> None:
+    """The tables of the pairs a pruned predictor learns as it runs are read from its runtime
+    (``PairUniverse._sync``); each row, geom pair or sphere pair, equals the all-pairs
+    predictor's row of the same pair, the ``<pair>`` element's flag and margin included."""
+    balls = "".join(
+        f'<body pos="{0.12 * (i % 4)} {0.12 * (i // 4)} {0.3 + 0.05 * i}"><freejoint/>'
+        f'<geom name="b{i}" size=".05"/></body>'
+        for i in range(12)
+    )
+    m = mujoco.MjModel.from_xml_string(
+        f'<mujoco><worldbody><geom type="plane" size="2 2 .1"/>{balls}</worldbody>'
+        '<contact><pair geom1="b0" geom2="b11" margin=".02"/></contact></mujoco>'
+    )
+    d = mujoco.MjData(m)
+    pruned = Predictor(m, accel=20.0, pairs=PairOptions(mode="pruned", horizon=0.02))
+    full = Predictor(m, accel=20.0, pairs="all")
+    mujoco.mj_forward(m, d)
+    pruned.reset(d)
+    for _ in range(300):
+        mujoco.mj_step(m, d)
+        pruned.step(d)
+    assert pruned.universe.version > 0
+    mine, theirs = pruned.geom_pairs, full.geom_pairs
+    at = theirs.indices_of(mine.geom1, mine.geom2)
+    assert (at >= 0).all() and mine.explicit.sum() == 1
+    for name in ("explicit", "margin", "gap", "contact_distance"):
+        np.testing.assert_array_equal(getattr(mine, name), getattr(theirs, name)[at], name)
+    ps, pf = pruned.pair_set, full.pair_set
+    assert ps is not None and pf is not None
+
+    def rows(p: PairSet) -> list[tuple[int, int, int]]:
+        return list(zip(p.first.tolist(), p.second.tolist(), p.kind.tolist(), strict=True))
+
+    key = {k: i for i, k in enumerate(rows(pf))}
+    at = np.array([key[k] for k in rows(ps)])
+    for name in ("eps", "accel", "vel_uncertainty", "speed"):
+        np.testing.assert_array_equal(getattr(ps, name), getattr(pf, name)[at], name)
+    for name in ("geom1", "geom2", "halfspace"):
+        np.testing.assert_array_equal(
+            getattr(pruned.tables, name), getattr(full.tables, name)[at], name
+        )
+    for g in ("geom1", "geom2"):  # each sphere pair's geom pair
+        np.testing.assert_array_equal(
+            getattr(mine, g)[pruned.sphere_pairs.geom_pair],
+            getattr(theirs, g)[full.sphere_pairs.geom_pair[at]],
+        )

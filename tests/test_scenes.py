@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from dua_mujoco.build.geom_types import CONVEX_TYPES, GEOM_PLANE
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.models.scenes import (
     DEFAULT_SCENE,
@@ -100,16 +101,7 @@ def test_random_rollout_is_finite_and_collides(name: str) -> None:
 def test_clutter_has_every_collidable_geom_type() -> None:
     m, _ = load_scene("clutter")
     types = {int(t) for t in m.geom_type}
-    wanted = {
-        mujoco.mjtGeom.mjGEOM_PLANE,
-        mujoco.mjtGeom.mjGEOM_SPHERE,
-        mujoco.mjtGeom.mjGEOM_CAPSULE,
-        mujoco.mjtGeom.mjGEOM_ELLIPSOID,
-        mujoco.mjtGeom.mjGEOM_CYLINDER,
-        mujoco.mjtGeom.mjGEOM_BOX,
-        mujoco.mjtGeom.mjGEOM_MESH,
-    }
-    assert {int(t) for t in wanted} <= types
+    assert {GEOM_PLANE, *CONVEX_TYPES} <= types
     free = sum(int(t) == int(mujoco.mjtJoint.mjJNT_FREE) for t in m.jnt_type)
     assert free >= 40
 

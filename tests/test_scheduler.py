@@ -23,6 +23,11 @@ from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, SchedulerError, ShapeError
 
 
+def bucket(s: DUAScheduler, pair: object) -> np.ndarray:
+    """The bucket each pair's slot is in: slot i in bucket floor(log2(i + 1))."""
+    return np.floor(np.log2(s.where[np.asarray(pair)] + 1.0)).astype(np.int64)
+
+
 def reference_step(
     slots: np.ndarray, n: int, q: int, tau: dict[int, float]
 ) -> tuple[np.ndarray, list[int]]:
@@ -84,8 +89,8 @@ def test_matches_reference_and_revisits_exactly(q: int, m: int) -> None:
         np.testing.assert_array_equal(s.slots, ref_slots)
         slots = ref_slots
         for p in sel.tolist():
-            last_seen[p] = (int(s.bucket(p)), n)
-            assert s.next_due(np.array([p]))[0] == n + s.interval[s.bucket(p)]
+            last_seen[p] = (int(bucket(s, p)), n)
+            assert s.next_due(np.array([p]))[0] == n + s.interval[bucket(s, p)]
         counts.append(sel.size)
     # Constant work: the same number of slots every step once the last bucket is full or skipped.
     L = s.nbuckets
@@ -117,14 +122,14 @@ def test_alarm_rule(m: int, latency: int, dt: float, seed: int) -> None:
     rng = np.random.default_rng(seed)
     tau0 = rng.exponential(dt * 20, m)
     s = DUAScheduler(tau0, dt=dt, latency=latency)
-    buckets = s.bucket(np.arange(m))
+    buckets = bucket(s, np.arange(m))
     expect = np.flatnonzero(tau0 < ((1 << buckets) + latency) * dt)
     np.testing.assert_array_equal(np.sort(s.initial_alarms), expect)
     for _ in range(5):
         sel = s.select()
         tau = rng.exponential(dt * 20, sel.size)
         alarms = s.update(sel, tau)
-        size = 1 << s.bucket(sel)
+        size = 1 << bucket(s, sel)
         np.testing.assert_array_equal(np.sort(alarms), np.sort(sel[tau < (size + latency) * dt]))
         # The i-th most urgent went to the i-th smallest bucket.
         assert (np.diff(size[np.argsort(tau, kind="stable")]) >= 0).all()
@@ -245,7 +250,7 @@ def test_protocol_errors() -> None:
         ({"dt": True}, InvalidInputError, "dt = True"),
         ({"dt": float("nan")}, InvalidInputError, "dt = nan"),
         ({"dt": 0.1, "latency": -1}, InvalidInputError, "latency = -1"),
-        ({"dt": 0.1, "slots_per_bucket": 3}, InvalidChoiceError, "Valid choices: 1, 2, 4"),
+        ({"dt": 0.1, "slots_per_bucket": 3}, InvalidInputError, r"a power of two \(1, 2, 4"),
     ],
 )
 def test_bad_construction(kwargs: dict, error: type[Exception], match: str) -> None:
@@ -448,6 +453,25 @@ def test_deadline_switching_and_errors() -> None:
             DeadlineScheduler(np.ones(2), dt=0.01, max_evals_per_step=bad)
     with pytest.raises(InvalidInputError, match="max_interval"):
         DeadlineScheduler(np.ones(2), dt=0.01, max_interval=0)
+
+
+def test_the_alarm_horizon_travels_in_seconds() -> None:
+    """The schedule takes the alarm horizon in seconds, one period when not given (no sentinel):
+    a verdict covering less than the wait plus the horizon beyond one period alarms. Below one
+    period, or not finite, the value is refused by name."""
+    from dua_mujoco import _core
+    from dua_mujoco.core.schedules.state import DEADLINE
+
+    tau = np.array([0.015, 0.025, 0.035])
+    one = _core.Schedule(DEADLINE, 0.01, 0, tau)
+    assert one.alarm_horizon == 0.01
+    assert _core.stands(one, np.arange(3)).tolist() == [False, False, False]
+    three = _core.Schedule(DEADLINE, 0.01, 0, tau, alarm_horizon=0.03)
+    assert three.alarm_horizon == 0.03
+    assert _core.stands(three, np.arange(3)).tolist() == [True, True, False]
+    for bad, shown in ((0.0, "0"), (0.005, "0.005"), (math.inf, "inf"), (math.nan, "nan")):
+        with pytest.raises(InvalidInputError, match=rf"alarm_horizon = {shown} .*one period"):
+            _core.Schedule(DEADLINE, 0.01, 0, tau, alarm_horizon=bad)
 
 
 def test_schedules_share_the_fused_step_on_free_spheres() -> None:

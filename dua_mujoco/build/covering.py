@@ -34,6 +34,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.build.geom_types import (
+    CONVEX_TYPES,
     GEOM_BOX,
     GEOM_CAPSULE,
     GEOM_CYLINDER,
@@ -55,6 +56,7 @@ from dua_mujoco.build.multicover import (
     mesh_vertices,
     union_volume,
 )
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import (
     InvalidChoiceError,
     InvalidInputError,
@@ -80,7 +82,6 @@ grid), every height field covered by its bounding box, or refused."""
 STATIC_CHOICES = ("shape", "sphere")
 """``cover_model``'s ``static`` option: static geoms as their own shapes, or as spheres."""
 # Geom types tau_static holds exactly (meshes by the box around their hull).
-_SHAPE_TYPES = (GEOM_SPHERE, GEOM_CAPSULE, GEOM_ELLIPSOID, GEOM_CYLINDER, GEOM_BOX, GEOM_MESH)
 
 
 class CoveringMode(enum.Enum):
@@ -220,7 +221,7 @@ def static_shape_geoms(model: mujoco.MjModel) -> np.ndarray:
     Returns:
         ``(ngeom,)`` bool.
     """
-    return _static_geoms(model) & np.isin(np.asarray(model.geom_type, dtype=np.int64), _SHAPE_TYPES)
+    return _static_geoms(model) & np.isin(np.asarray(model.geom_type, dtype=np.int64), CONVEX_TYPES)
 
 
 def _static_geoms(model: mujoco.MjModel) -> np.ndarray:
@@ -413,15 +414,7 @@ def cover_model(
             STATIC_CHOICES,
             'Use "shape" for static geoms as their own shapes, "sphere" for bounding spheres.',
         )
-    if (
-        isinstance(max_spheres_per_geom, bool)
-        or not isinstance(max_spheres_per_geom, int | np.integer)
-        or int(max_spheres_per_geom) < 1
-    ):
-        raise InvalidInputError(
-            f"max_spheres_per_geom must be an int >= 1, got {max_spheres_per_geom!r}."
-        )
-    budget = int(max_spheres_per_geom)
+    budget = check_int("max_spheres_per_geom", max_spheres_per_geom)
 
     ngeom = int(model.ngeom)
     gtypes = np.asarray(model.geom_type, dtype=np.int64)

@@ -33,9 +33,9 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco._core import LAYOUT, exact_rows
+from dua_mujoco.build.geom_types import CONVEX_TYPES, GEOM_HFIELD, GEOM_MESH
 from dua_mujoco.build.kinematics import pack_spheres
 from dua_mujoco.core.shapes import ShapeKind
-from dua_mujoco.exceptions import InvalidInputError
 
 __all__ = [
     "EXACT_PERIODS",
@@ -115,17 +115,7 @@ can clear an alarm (above it, it would only lengthen a revisit interval). Measur
 evaluations, and the predictor 0.32x -> 0.25x of ``mj_step`` (median over robots; aloha 1.17x ->
 0.47x: MuJoCo's distances between its gripper meshes were most of its step)."""
 
-EXACT_TYPES = frozenset(
-    int(t)
-    for t in (
-        mujoco.mjtGeom.mjGEOM_SPHERE,
-        mujoco.mjtGeom.mjGEOM_CAPSULE,
-        mujoco.mjtGeom.mjGEOM_ELLIPSOID,
-        mujoco.mjtGeom.mjGEOM_CYLINDER,
-        mujoco.mjtGeom.mjGEOM_BOX,
-        mujoco.mjtGeom.mjGEOM_MESH,
-    )
-)
+EXACT_TYPES = frozenset(CONVEX_TYPES)
 """Geom types the exact level reads (convex, with a support function here); planes too, as the
 second member of a half-space pair."""
 
@@ -187,10 +177,10 @@ def _geom_records(model: mujoco.MjModel) -> np.ndarray:
     usable = np.isin(gtype, sorted(EXACT_TYPES))
     rec[:, GX_KIND] = np.where(usable, gtype, -1)
     # A height field: terrain pairs (ExactMode.TERRAIN) read its grid, sphere pairs nothing.
-    rec[gtype == int(mujoco.mjtGeom.mjGEOM_HFIELD), GX_KIND] = int(ShapeKind.HFIELD)
+    rec[gtype == GEOM_HFIELD, GX_KIND] = int(ShapeKind.HFIELD)
     size = np.asarray(model.geom_size, dtype=np.float64)
     aabb = np.asarray(model.geom_aabb, dtype=np.float64)
-    mesh = gtype == int(mujoco.mjtGeom.mjGEOM_MESH)
+    mesh = gtype == GEOM_MESH
     # A mesh is held as the box geom_aabb around it (MuJoCo collides its convex hull, which
     # lies in the box): the support is an upper bound of the hull's.
     rec[:, GX_SIZE : GX_SIZE + 3] = np.where(mesh[:, None], aabb[:, 3:], size)
@@ -252,22 +242,11 @@ def build_exact(
         kind: ``(n,)`` ``PairKind`` codes.
         contact_distance: ``(n,)`` the geom pair's contact distance (MuJoCo reports a contact
             below it).
-        exact_below: Seconds (``> 0``; ``inf`` looks at every evaluated pair exactly).
+        exact_below: Seconds (``> 0``, checked by ``UrgencyOptions``; ``inf`` looks at every
+            evaluated pair exactly).
         query_below: Seconds: ask MuJoCo for a new direction when the last one leaves the pair
             below this (0: only for a pair without one; ``inf``: at every exact look).
-
-    Raises:
-        InvalidInputError: ``exact_below`` is not a positive number.
     """
-    if (
-        isinstance(exact_below, bool)
-        or not isinstance(exact_below, float | int)
-        or not (exact_below > 0.0)
-    ):
-        raise InvalidInputError(
-            f"exact_below = {exact_below!r} is invalid: pass a positive number of seconds "
-            "(inf to look at every evaluated pair through its geoms)."
-        )
     geoms = _geom_records(model)
     verts, graph = _hull_tables(model)
     rec = exact_records(geoms, geom1, geom2, kind, contact_distance)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import mujoco
 
 __all__ = [
+    "CONVEX_TYPES",
     "GEOM_BOX",
     "GEOM_CAPSULE",
     "GEOM_CYLINDER",
@@ -32,3 +33,7 @@ GEOM_MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
 GEOM_SDF = int(mujoco.mjtGeom.mjGEOM_SDF)
 GEOM_LINE = int(mujoco.mjtGeom.mjGEOM_LINE)
 """Decorative line (the overlay's connectors); never a model geom."""
+
+CONVEX_TYPES = (GEOM_SPHERE, GEOM_CAPSULE, GEOM_ELLIPSOID, GEOM_CYLINDER, GEOM_BOX, GEOM_MESH)
+"""The convex types with a support function here (a mesh: its hull): what a static shape and
+the exact level can be."""

@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco._core import LAYOUT, rigid_points
+from dua_mujoco._core import LAYOUT, check_points, rigid_points
 from dua_mujoco.exceptions import ShapeError
 
 __all__ = [
@@ -35,6 +35,7 @@ __all__ = [
     "SPHERE_NCOL",
     "SPHERE_OFFSET",
     "SPHERE_ROOT",
+    "PointMotion",
     "mjdata_frame",
     "pack_spheres",
     "sphere_states",
@@ -77,7 +78,10 @@ def pack_spheres(
     return rec
 
 
-def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> tuple[np.ndarray, ...]:
+Frame = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> Frame:
     """The instant the kinematics kernel reads, as views of ``data``'s buffers: ``(geom_xpos
     (ngeom, 3), geom_xmat (ngeom, 9), cvel (nbody, 6), subtree_com (nbody, 3), root_twist
     (nbody, 6), xpos (nbody, 3))``.
@@ -89,13 +93,13 @@ def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> tuple[np.ndarra
     Args:
         data: The MuJoCo data (kinematics computed).
         root_twist: ``(nbody, 6)`` twist ``[omega; v_origin]`` of each mocap root (zero rows
-            elsewhere; see ``MocapVelocityTracker.write_body_velocity``).
+            elsewhere; ``MocapVelocityTracker.twist``).
     """
     return (data.geom_xpos, data.geom_xmat, data.cvel, data.subtree_com, root_twist, data.xpos)
 
 
 def sphere_states(
-    spheres: np.ndarray, frame: tuple[np.ndarray, ...], ids: npt.ArrayLike | None = None
+    spheres: np.ndarray, frame: Frame, ids: npt.ArrayLike | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Centres and velocities of spheres ``ids`` (all when None) on ``frame``: the native
     core's kinematics kernel (``dua_rigid_point``), the one every reader of sphere states runs.
@@ -120,3 +124,91 @@ def sphere_states(
     pos, mat, twist, twist_ref, root_twist, root_origin = frame
     out = rigid_points(spheres, pos, mat, twist, twist_ref, root_twist, root_origin, sel)
     return out[:, :3], out[:, 3:]
+
+
+class PointMotion:
+    """What the bounds of ``docs/discrete-time.md`` limit, measured at points every update: the
+    chord speed |u_k|, the one-step discrepancy |u_k - w_{k-1}| and the discrete acceleration
+    |u_k - u_{k-1}| / h, u_k = (c_k - c_{k-1}) / h, in one native pass (``dua_check_points``)
+    that also flags the values above given bounds. The pilot measures with it
+    (``estimate_bounds``), ``BoundMonitor`` checks with it.
+
+    Args:
+        points: ``(n, 8)`` records from :func:`pack_spheres`.
+        accel: ``(n,)`` bound on the discrete acceleration of each point (None: 0).
+        discrepancy: ``(n,)`` bound on the one-step discrepancy (None: 0).
+        speed: ``(n,)`` bound on the chord speed; None for none.
+        rtol: relative tolerance of every comparison (the round-off of the differences is
+            tolerated besides).
+    """
+
+    SPEED, DISCREPANCY, ACCEL = 0, 1, 2
+    """Columns of :attr:`values` and :attr:`broken`."""
+
+    def __init__(
+        self,
+        points: np.ndarray,
+        accel: np.ndarray | None = None,
+        discrepancy: np.ndarray | None = None,
+        speed: np.ndarray | None = None,
+        rtol: float = 0.0,
+    ) -> None:
+        n = points.shape[0]
+        self._points = points
+        self._accel, self._disc = (
+            np.zeros(n) if b is None else np.ascontiguousarray(b, dtype=np.float64)
+            for b in (accel, discrepancy)
+        )
+        self._speed = np.zeros(0) if speed is None else np.ascontiguousarray(speed, np.float64)
+        self._rtol = rtol
+        self.rows = np.zeros((n, 9))
+        """``(n, 9)`` ``[c, w, u]`` of each point at the latest update (u zero at the first)."""
+        self._prev = np.zeros((n, 9))
+        self.updates = 0
+        """Updates so far."""
+        self.values = np.zeros((n, 3))
+        """``(n, 3)`` speed, discrepancy and acceleration of each point at the latest update
+        (zero until measured: the speed and discrepancy from the second update, the
+        acceleration from the third)."""
+        self.broken = np.zeros((n, 3), dtype=np.bool_)
+        """``(n, 3)`` which of :attr:`values` broke their bound at the latest update."""
+        self._no_check = np.zeros(n, dtype=np.bool_)
+
+    def update(
+        self,
+        data: mujoco.MjData,
+        root_twist: np.ndarray,
+        h: float,
+        check_discrepancy: np.ndarray | None = None,
+    ) -> int:
+        """Measure the state of ``data`` against the previous update's, ``h`` seconds before.
+
+        Args:
+            data: The MuJoCo data (kinematics computed).
+            root_twist: ``(nbody, 6)`` as for :func:`mjdata_frame`.
+            h: The time since the previous update.
+            check_discrepancy: ``(n,)`` bool, the points whose discrepancy is held to its bound
+                (None: none).
+
+        Returns:
+            How many (point, bound) pairs broke.
+        """
+        self.rows, self._prev = self._prev, self.rows
+        check = self._no_check if check_discrepancy is None else check_discrepancy
+        nbroken = check_points(
+            self._points,
+            *mjdata_frame(data, root_twist),
+            self._prev,
+            self.rows,
+            min(self.updates, 2),
+            h,
+            self._accel,
+            self._disc,
+            self._speed,
+            check.view(np.uint8),
+            self._rtol,
+            self.values,
+            self.broken.view(np.uint8),
+        )
+        self.updates += 1
+        return int(nbroken)

@@ -16,10 +16,12 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from dua_mujoco import _core
 from dua_mujoco.build.bounds import PilotMotion
 from dua_mujoco.core.schedules import Schedule, as_schedule, deadline
-from dua_mujoco.core.schedules.dua import check_slots_per_bucket
+from dua_mujoco.core.schedules.state import RANK
 from dua_mujoco.core.spheres import PairMode
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 
 __all__ = [
@@ -38,12 +40,6 @@ __all__ = [
 
 def _set(obj: object, name: str, value: object) -> None:
     object.__setattr__(obj, name, value)  # a frozen dataclass normalising its own field
-
-
-def _positive_int(name: str, value: object) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise InvalidInputError(f"{name} = {value!r} is invalid: pass an int >= 1.")
-    return int(value)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -67,7 +63,7 @@ class CoveringOptions:
 
     def __post_init__(self) -> None:
         _set(self, "mode", getattr(self.mode, "value", self.mode))
-        _positive_int("max_spheres_per_geom", self.max_spheres_per_geom)
+        check_int("max_spheres_per_geom", self.max_spheres_per_geom)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -95,9 +91,13 @@ class ScheduleOptions:
 
     def __post_init__(self) -> None:
         _set(self, "kind", as_schedule(self.kind))
-        _set(self, "slots_per_bucket", check_slots_per_bucket(self.slots_per_bucket))
+        _set(self, "slots_per_bucket", check_int("slots_per_bucket", self.slots_per_bucket))
         _set(self, "max_evals_per_step", deadline.check_max_evals(self.max_evals_per_step) or None)
         _set(self, "alarm_backoff", deadline.check_alarm_backoff(self.alarm_backoff))
+        # The ranges are the native schedule's (ScheduleSpec::Check, as the plugin's tables):
+        # a schedule of these options over no pairs.
+        q, backoff = self.slots_per_bucket, self.alarm_backoff
+        _core.Schedule(RANK, 1.0, 0, np.zeros(0), slots_per_bucket=q, backoff=backoff)
         if not isinstance(self.violation_events, bool):
             raise InvalidInputError(
                 f"violation_events = {self.violation_events!r} is invalid: pass True or False."
@@ -157,7 +157,7 @@ class PilotOptions:
     motion: PilotMotion | str = PilotMotion.FREE
 
     def __post_init__(self) -> None:
-        _positive_int("pilot steps", self.steps)
+        check_int("pilot steps", self.steps)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise InvalidInputError(f"pilot seed = {self.seed!r} is invalid: pass an int.")
         try:

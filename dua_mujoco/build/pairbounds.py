@@ -10,7 +10,7 @@ from dua_mujoco import _core
 from dua_mujoco.build.bounds import MotionBounds
 from dua_mujoco.build.covering import Covering
 from dua_mujoco.build.filter import SpherePairs
-from dua_mujoco.build.mocap import MocapVelocityTracker, PredictorMocap
+from dua_mujoco.build.mocap import PredictorMocap
 from dua_mujoco.core.pairset import PairSet
 
 __all__ = ["body_vel_uncertainty", "bounded_pairs"]
@@ -21,7 +21,7 @@ def body_vel_uncertainty(
     bounds: MotionBounds,
     *,
     period: int = 1,
-    mocap: MocapVelocityTracker | PredictorMocap | None = None,
+    mocap: PredictorMocap | None = None,
 ) -> np.ndarray:
     """``(nbody,)`` velocity uncertainty of each body for a predictor of ``period``.
 
@@ -46,7 +46,7 @@ def bounded_pairs(
     bounds: MotionBounds,
     *,
     period: int = 1,
-    mocap: MocapVelocityTracker | PredictorMocap | None = None,
+    mocap: PredictorMocap | None = None,
 ) -> PairSet:
     """The ``PairSet`` of ``sphere_pairs`` under ``bounds`` for a predictor of ``period``.
 

@@ -18,19 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from dua_mujoco.build.bounds import MotionBounds
-from dua_mujoco.build.covering import Covering
 from dua_mujoco.build.filter import contact_distance_bound
 from dua_mujoco.build.universe import PairUniverse
-from dua_mujoco.core.spheres import (
-    AUTO_PRUNED_MIN,
-    DEFAULT_STRIDE,
-    RENEW_MAX,
-    PairMode,
-    rebuild_stride,
-)
-from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.core.spheres import RENEW_MAX, pruned_horizon
 
-__all__ = ["RENEW_MAX", "Reach", "reach_for", "resolve_pair_mode"]
+__all__ = ["RENEW_MAX", "Reach", "reach_for"]
 
 
 @dataclass(frozen=True)
@@ -53,30 +45,6 @@ class Reach:
     stride: int
 
 
-def resolve_pair_mode(
-    pairs: PairMode | str, horizon: float | None, *, deadline: bool, covering: Covering
-) -> PairMode:
-    """``Predictor(pairs=..., horizon=...)``'s mode, ``ALL`` or ``PRUNED``: ``"auto"`` prunes
-    from ``AUTO_PRUNED_MIN`` spheres with the deadline schedule."""
-    try:
-        mode = PairMode(pairs)
-    except ValueError:
-        raise InvalidChoiceError("pairs", pairs, [m.value for m in PairMode]) from None
-    if mode is PairMode.AUTO:
-        big = covering.nsphere >= AUTO_PRUNED_MIN
-        mode = PairMode.PRUNED if big and deadline else PairMode.ALL
-    if mode is PairMode.ALL and horizon is not None:
-        raise InvalidInputError(
-            f"horizon = {horizon!r} is given but pairs='all': pass pairs='pruned'."
-        )
-    if mode is PairMode.PRUNED and not deadline:
-        raise InvalidInputError(
-            "pairs='pruned' needs the deadline schedule: pruned pairs are rebuilt into it "
-            "only; pass schedule='deadline'."
-        )
-    return mode
-
-
 def reach_for(
     universe: PairUniverse,
     horizon: float | None,
@@ -84,23 +52,21 @@ def reach_for(
     bounds: MotionBounds,
     delta: np.ndarray,
     dt: float,
-    latency: int,
-    alarm_periods: int = 1,
+    ahead: int,
 ) -> Reach:
     """A pruned predictor's :class:`Reach`. ``delta``: ``(nbody,)`` velocity uncertainties;
-    ``horizon`` None: ``(DEFAULT_STRIDE + latency + alarm_periods - 1) dt``.
+    ``ahead``: the periods a verdict must see past the next step, ``latency + alarm_periods - 1``;
+    ``horizon`` None: ``(DEFAULT_STRIDE + ahead) dt``.
 
     A pair left out at the rebuild of step ``r`` is held out strictly (its reaches are farther
     apart than the contact distance), so it has no state in contact before step
     ``r + floor(T / dt) + 1``; the next rebuild holds it (standing in alarm until evaluated
     there), and that alarm acts after the latency. Rebuilds every ``R`` steps with
-    ``(R + latency + alarm_periods - 1) dt <= T`` therefore flag it at least the alarm horizon
-    before it touches (docs/many-objects.md).
+    ``(R + ahead) dt <= T`` therefore flag it at least the alarm horizon before it touches
+    (docs/many-objects.md).
     """
     covering = universe.covering
-    ahead = latency + alarm_periods - 1
-    T = (DEFAULT_STRIDE + ahead) * dt if horizon is None else horizon
-    stride = rebuild_stride(T, dt, ahead)  # checks T
+    T, stride = pruned_horizon(horizon, dt, ahead)
     body = np.asarray(covering.sphere_body, dtype=np.int64)
     speed = np.full(body.shape, np.inf) if bounds.speed is None else bounds.speed[body]
     table = np.stack(

@@ -8,8 +8,8 @@ geom pairs of candidate sphere pairs it does not know yet are put to MuJoCo's fi
 ones it lets through are appended with their sphere pairs, bounds and exact-level records
 (``csrc/src/universe.cc``). Memory and set-up are then O(N + pairs met), not O(N^2)
 (docs/many-objects.md). This object builds the first set, and shows the runtime's as it grows:
-its tables extend by the rows the runtime appended, read from the runtime, never computed again
-here. Appending keeps every id: an alarm's pair id names the same pair for the predictor's life,
+its tables are then the runtime's arrays, read after each growth, never computed again here.
+Appending keeps every id: an alarm's pair id names the same pair for the predictor's life,
 and ``version`` counts the appends for those who size arrays by it.
 """
 
@@ -28,7 +28,6 @@ from dua_mujoco.build.filter import (
     GeomPairs,
     SpherePairs,
     active_geom_pairs,
-    appended,
     candidate_geom_pairs,
     contacts_enabled,
     explicit_geom_pairs,
@@ -135,61 +134,54 @@ class PairUniverse:
     # ------------------------------------------------------------------- the runtime's growth
 
     def _sync(self) -> None:
-        """Extend the tables by the rows the runtime appended since the last look."""
+        """The tables of the pairs the runtime knows, read from its arrays (one copy a growth)
+        when it has learnt pairs since the last look: the records' columns, never computed
+        again here. Ids only grow (this runtime never forgets), so the first geom pairs keep
+        their ``explicit`` flags."""
         rt = self._runtime
         if rt is None or rt.universe_version == self._version:
             return
         self._version = rt.universe_version
         u = rt.universe()
-        n0, g0 = self._sphere_pairs.npair, self._geom_pairs.npair
-        rec = u["pairs"][n0:]
+        rec, gp, contact = u["pairs"], u["geom_pairs"], u["geom_pair_contact"]
         kind = rec[:, PAIR_KIND].astype(np.int8)
-        gp, contact = u["geom_pairs"][g0:], u["geom_pair_contact"][g0:]
-        new_gp = GeomPairs(
-            geom1=gp[:, 0].astype(np.int32),
-            geom2=gp[:, 1].astype(np.int32),
-            explicit=np.zeros(gp.shape[0], dtype=bool),
-            margin=contact[:, 0],
-            gap=contact[:, 1],
-            contact_distance=contact[:, 0] + contact[:, 1],
+        first, second = (rec[:, c].astype(np.int64) for c in (PAIR_FIRST, PAIR_SECOND))
+        halfspace, eps = kind == int(PairKind.HALFSPACE), rec[:, PAIR_EPS]
+        explicit = np.zeros(gp.shape[0], dtype=bool)
+        explicit[: self._geom_pairs.npair] = self._geom_pairs.explicit
+        margin, gap = contact[:, 0], contact[:, 1]
+        self._geom_pairs = GeomPairs(
+            gp[:, 0].astype(np.int32),
+            gp[:, 1].astype(np.int32),
+            explicit,
+            margin,
+            gap,
+            margin + gap,
         )
-        self._geom_pairs = self._geom_pairs.concat(new_gp)
-        first = rec[:, PAIR_FIRST].astype(np.int64)
-        second = rec[:, PAIR_SECOND].astype(np.int64)
-        halfspace = kind == int(PairKind.HALFSPACE)
-        new_sp = SpherePairs(
-            first=first.astype(np.int32),
-            second=second.astype(np.int32),
-            is_halfspace=halfspace,
-            geom_pair=u["pair_geom"][n0:].astype(np.int32),
-            eps=rec[:, PAIR_EPS].copy(),
-            is_shape=kind == int(PairKind.SHAPE),
+        self._sphere_pairs = SpherePairs(
+            first.astype(np.int32),
+            second.astype(np.int32),
+            halfspace,
+            u["pair_geom"].astype(np.int32),
+            eps,
+            kind == int(PairKind.SHAPE),
         )
-        self._sphere_pairs = appended(self._sphere_pairs, new_sp)
-        new_tables = PairTables(
-            first=first,
-            second=second,
-            halfspace=halfspace,
-            geom1=u["geom1"][n0:],
-            geom2=u["geom2"][n0:],
-            geom_names=self._tables.geom_names,
-            kind=kind,
-        )
-        self._tables = appended(self._tables, new_tables, shared=("geom_names",))
+        names = self._tables.geom_names
+        self._tables = PairTables(first, second, halfspace, u["geom1"], u["geom2"], names, kind)
         if self._exact is not None:
             self._exact = dataclasses.replace(self._exact, records=u["exact"])
-        self._records = u["pairs"]
+        self._records = rec
         if self._pair_set is not None:
-            added = PairSet(
+            self._pair_set = PairSet(
                 first,
                 second,
-                rec[:, PAIR_EPS],
+                eps,
                 rec[:, PAIR_ACCEL],
                 kind=kind,
                 vel_uncertainty=rec[:, PAIR_DELTA],
                 speed=rec[:, PAIR_SPEED],
+                shapes=self._pair_set.shapes,
             )
-            self._pair_set = _concat_pair_sets(self._pair_set, added)
 
     @property
     def version(self) -> int:
@@ -280,18 +272,3 @@ class PairUniverse:
             spheres += int(w.sum()) - int(w[both].sum())
             self._counts = (pairs, spheres)
         return self._counts
-
-
-def _concat_pair_sets(a: PairSet, b: PairSet) -> PairSet:
-    out = PairSet(
-        np.concatenate([a.first, b.first]),
-        np.concatenate([a.second, b.second]),
-        np.concatenate([a.eps, b.eps]),
-        np.concatenate([a.accel, b.accel]),
-        kind=np.concatenate([a.kind, b.kind]),
-        vel_uncertainty=np.concatenate([a.vel_uncertainty, b.vel_uncertainty]),
-        speed=np.concatenate([a.speed, b.speed]),
-    )
-    if a.shapes is not None:
-        out.shapes = a.shapes
-    return out

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 import dua_mujoco._core as _core
-from dua_mujoco.core.shapes import SHAPE_NCOL
+from dua_mujoco.core.shapes import SHAPE_NCOL, shape_table
 from dua_mujoco.core.validate import as_ids, as_vectors, per_pair
 from dua_mujoco.exceptions import (
     InvalidBoundError,
@@ -196,7 +196,7 @@ class PairSet:
         self.max_shape = int(self.second[self.shape].max(initial=-1))
         self.has_halfspace = bool(self.halfspace.any())
         self.has_shape = bool(self.shape.any())
-        self.shapes: np.ndarray | None = None if shapes is None else _as_shape_records(shapes)
+        self.shapes: np.ndarray | None = None if shapes is None else shape_table(shapes)
 
     def __setattr__(self, name: str, value: object) -> None:
         # The arrays are fixed: the records hold them, so a new array would be ignored.
@@ -211,7 +211,7 @@ class PairSet:
                 "hold it): build a new PairSet."
             )
         if name == "shapes" and value is not None:
-            value = _as_shape_records(value)  # type: ignore[arg-type]
+            value = shape_table(value)  # type: ignore[arg-type]
         super().__setattr__(name, value)
 
     def __len__(self) -> int:
@@ -341,7 +341,7 @@ class PairSet:
                     "these pairs include static shapes: pass shapes=records (pack_shapes)."
                 )
         else:
-            recs = _as_shape_records(shapes)
+            recs = shape_table(shapes)
         if self.max_sphere >= c.shape[0]:
             raise ShapeError(
                 f"pairs reference sphere {self.max_sphere} but centers has {c.shape[0]} rows."
@@ -383,16 +383,3 @@ def _as_kind(halfspace: npt.ArrayLike | None, kind: npt.ArrayLike | None, m: int
             + "."
         )
     return np.ascontiguousarray(k, dtype=np.int8)
-
-
-def _as_shape_records(shapes: npt.ArrayLike) -> np.ndarray:
-    recs = np.asarray(shapes, dtype=np.float64)
-    if recs.ndim != 2 or recs.shape[1] != SHAPE_NCOL or recs.shape[0] == 0:
-        raise ShapeError(
-            f"shapes has shape {recs.shape}; expected (nshape, {SHAPE_NCOL}) records from "
-            "dua_mujoco.core.shapes.pack_shapes."
-        )
-    if not np.isfinite(recs).all():
-        i = int(np.flatnonzero(~np.isfinite(recs).all(axis=1))[0])
-        raise InvalidInputError(f"shapes[{i}] is not finite; rebuild it with pack_shapes.")
-    return np.ascontiguousarray(recs)

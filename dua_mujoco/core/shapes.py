@@ -44,10 +44,9 @@ import numpy.typing as npt
 
 import dua_mujoco._core as _core
 from dua_mujoco.core.terrain import first_bad_row, record_count
+from dua_mujoco.core.validate import as_vectors, per_pair
 from dua_mujoco.exceptions import (
-    InvalidBoundError,
     InvalidInputError,
-    NonFiniteStateError,
     ShapeError,
 )
 
@@ -61,6 +60,7 @@ __all__ = [
     "closest_point",
     "mesh_box",
     "pack_shapes",
+    "shape_table",
     "static_gap",
     "support",
     "tau_static",
@@ -337,31 +337,40 @@ def mesh_box(
     return ab[:, 3:].copy(), centre
 
 
-def _per_sphere(name: str, value: npt.ArrayLike, n: int) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 0:
-        arr = arr.reshape(1)
-    elif arr.shape != (n,):
-        raise ShapeError(f"{name} has shape {arr.shape}; expected a scalar or ({n},).")
-    ok = np.isfinite(arr) & (arr >= 0.0)
-    if not ok.all():
-        i = _first_bad_row(~ok)
-        raise InvalidBoundError(
-            f"{name}[{i}] = {arr[i]} is invalid: it must be a finite non-negative number."
-        )
-    return np.ascontiguousarray(arr)
+def shape_table(shapes: npt.ArrayLike) -> np.ndarray:
+    """``shapes`` checked as a shape table: ``(m, 16)`` finite records of known kinds and sizes
+    (``pack_shapes``), and the blocks its terrain records point to (``core/terrain``).
 
-
-def _state(name: str, value: npt.ArrayLike, n: int | None) -> np.ndarray:
-    arr = _rows(name, value, 3, n)
-    if not np.isfinite(arr).all():
-        bad = ~np.isfinite(arr).all(axis=1)
-        i = _first_bad_row(bad)
-        raise NonFiniteStateError(
-            f"{name}[{i}] = {arr[i].tolist()} is not finite ({int(bad.sum())} rows): "
-            "the state is NaN or inf; check that the simulation has not diverged."
+    Raises:
+        ShapeError: It is not ``(m, 16)`` with ``m >= 1``.
+        InvalidInputError: A value is not finite, a record's kind or size is invalid, or a
+            terrain record's block does not fit the table.
+    """
+    recs = np.asarray(shapes, dtype=np.float64)
+    if recs.ndim != 2 or recs.shape[1] != SHAPE_NCOL or recs.shape[0] == 0:
+        raise ShapeError(
+            f"shapes has shape {recs.shape}; expected (m, {SHAPE_NCOL}) records from pack_shapes."
         )
-    return np.ascontiguousarray(arr)
+    if not np.isfinite(recs).all():
+        i = _first_bad_row(~np.isfinite(recs).all(axis=1))
+        raise InvalidInputError(f"shapes[{i}] is not finite; rebuild it with pack_shapes.")
+    # Terrain records point to blocks after the records (dua_mujoco.core.terrain).
+    recs = np.ascontiguousarray(recs)
+    nrec = record_count(recs)
+    _check_kinds("shapes[:, SHAPE_KIND]", recs[:nrec, SHAPE_KIND])
+    _check_sizes(
+        "shapes[:, SHAPE_SIZE:SHAPE_POS]",
+        recs[:nrec, SHAPE_KIND],
+        recs[:nrec, SHAPE_SIZE:SHAPE_POS],
+    )
+    bad = first_bad_row(recs)
+    if bad >= 0:
+        raise InvalidInputError(
+            f"shapes[{bad}] is a terrain record whose block does not fit the table (its offset, "
+            "length, header or grid): rebuild the table with dua_mujoco.build.tables.static_shapes "
+            "or dua_mujoco.core.terrain.shape_table."
+        )
+    return recs
 
 
 def time_to_static(
@@ -396,33 +405,11 @@ def time_to_static(
             or not an integer.
         InvalidBoundError: ``eps``, ``accel`` or ``vel_uncertainty`` is negative, NaN or inf.
     """
-    c = _state("centers", centers, None)
+    c = as_vectors("centers", centers)
     n = c.shape[0]
-    v = _state("velocities", velocities, n)
-    recs = np.asarray(shapes, dtype=np.float64)
-    if recs.ndim != 2 or recs.shape[1] != SHAPE_NCOL or recs.shape[0] == 0:
-        raise ShapeError(
-            f"shapes has shape {recs.shape}; expected (m, {SHAPE_NCOL}) records from pack_shapes."
-        )
-    if not np.isfinite(recs).all():
-        i = _first_bad_row(~np.isfinite(recs).all(axis=1))
-        raise InvalidInputError(f"shapes[{i}] is not finite; rebuild it with pack_shapes.")
-    # Terrain records point to blocks after the records (dua_mujoco.core.terrain).
-    recs = np.ascontiguousarray(recs)
+    v = as_vectors("velocities", velocities, n)
+    recs = shape_table(shapes)
     nrec = record_count(recs)
-    _check_kinds("shapes[:, SHAPE_KIND]", recs[:nrec, SHAPE_KIND])
-    _check_sizes(
-        "shapes[:, SHAPE_SIZE:SHAPE_POS]",
-        recs[:nrec, SHAPE_KIND],
-        recs[:nrec, SHAPE_SIZE:SHAPE_POS],
-    )
-    bad = first_bad_row(recs)
-    if bad >= 0:
-        raise InvalidInputError(
-            f"shapes[{bad}] is a terrain record whose block does not fit the table (its offset, "
-            "length, header or grid): rebuild the table with dua_mujoco.build.tables.static_shapes "
-            "or dua_mujoco.core.terrain.shape_table."
-        )
     ids = np.asarray(shape_ids)
     if ids.shape != (n,):
         raise ShapeError(f"shape_ids has shape {ids.shape}; expected ({n},).")
@@ -437,8 +424,8 @@ def time_to_static(
             f"shape_ids[{i}] = {int(ids[i])} is out of range: shapes has {nrec} records "
             f"(valid ids 0..{nrec - 1})."
         )
-    e = _per_sphere("eps", eps, n)
-    a = _per_sphere("accel", accel, n)
-    dl = _per_sphere("vel_uncertainty", vel_uncertainty, n)
+    e = per_pair("eps", eps, n)
+    a = per_pair("accel", accel, n)
+    dl = per_pair("vel_uncertainty", vel_uncertainty, n)
     ids64 = np.ascontiguousarray(ids, dtype=np.int64)
     return np.asarray(_core.tau_static_batch(c, v, np.ascontiguousarray(recs), ids64, e, a, dl))

@@ -22,10 +22,9 @@ import numpy.typing as npt
 
 import dua_mujoco._core as _core
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.core.schedules import Schedule, Scheduler
+from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule, schedule_config
 from dua_mujoco.core.schedules.deadline import (
     DEFAULT_ALARM_BACKOFF,
-    DEFAULT_MAX_INTERVAL,
     check_alarm_backoff,
     check_max_evals,
 )
@@ -43,6 +42,8 @@ __all__ = [
     "RENEW_MAX",
     "PairMode",
     "SpherePredictor",
+    "pair_mode",
+    "pruned_horizon",
     "rebuild_stride",
 ]
 
@@ -60,11 +61,6 @@ whole held set is rebuilt (O(N + K), ~1 us a sphere on swarms), so that a renewa
 about half a rebuild at any ``N`` (measured, docs/many-objects.md)."""
 
 _LAYOUT = _core.LAYOUT
-_KIND = {
-    Schedule.DUA: _LAYOUT["RANK"],
-    Schedule.DEADLINE: _LAYOUT["DEADLINE"],
-    Schedule.SELECT_ALL: _LAYOUT["ALL"],
-}
 
 
 class PairMode(enum.Enum):
@@ -104,6 +100,40 @@ def rebuild_stride(horizon: float, dt: float, latency: int) -> int:
     while (R + 1 + latency) * dt <= T:
         R += 1
     return R
+
+
+def pair_mode(
+    pairs: PairMode | str, horizon: float | None, *, nsphere: int, deadline: bool
+) -> PairMode:
+    """The pairs a predictor holds, ``ALL`` or ``PRUNED`` (``SpherePredictor``'s and
+    ``Predictor``'s ``pairs`` and ``horizon``): ``"auto"`` prunes from ``AUTO_PRUNED_MIN`` spheres
+    with the deadline schedule, the one a pruned set is rebuilt into."""
+    try:
+        mode = PairMode(pairs)
+    except ValueError:
+        raise InvalidChoiceError("pairs", pairs, [m.value for m in PairMode]) from None
+    if mode is PairMode.AUTO:
+        mode = PairMode.PRUNED if nsphere >= AUTO_PRUNED_MIN and deadline else PairMode.ALL
+    if mode is PairMode.PRUNED and not deadline:
+        raise InvalidInputError(
+            "pairs='pruned' needs the deadline schedule: a pruned pair set is rebuilt into it "
+            "only; pass schedule='deadline' or pairs='all'."
+        )
+    if mode is PairMode.ALL and horizon is not None:
+        raise InvalidInputError(
+            f"horizon = {horizon!r} is given but pairs are 'all': the horizon is the pruned "
+            "set's; pass pairs='pruned' or drop horizon."
+        )
+    return mode
+
+
+def pruned_horizon(horizon: float | None, dt: float, ahead: int) -> tuple[float, int]:
+    """A pruned set's horizon ``T`` and rebuild stride: ``T`` None is ``(DEFAULT_STRIDE +
+    ahead) dt``; ``ahead``, the periods a verdict must see past the next step (the latency,
+    plus the alarm horizon's periods beyond one), stands for the latency of
+    :func:`rebuild_stride`, which checks ``T``."""
+    T = (DEFAULT_STRIDE + ahead) * dt if horizon is None else horizon
+    return float(T), rebuild_stride(T, dt, ahead)
 
 
 def _per_sphere(name: str, value: npt.ArrayLike, n: int, *, allow_inf: bool = False) -> np.ndarray:
@@ -172,36 +202,15 @@ class SpherePredictor:
             )
         self.dt, self.latency = check_period(dt, latency)
         self.margin = float(per_pair("margin", margin, 1)[0])
-        try:
-            mode = PairMode(pairs)
-        except ValueError:
-            raise InvalidChoiceError("pairs", pairs, [m.value for m in PairMode]) from None
-        try:
-            self.schedule = Schedule(schedule)
-        except ValueError:
-            raise InvalidChoiceError("schedule", schedule, [s.value for s in Schedule]) from None
+        self.schedule = as_schedule(schedule)
         self.max_evals_per_step = check_max_evals(max_evals_per_step) or None
         self.alarm_backoff = check_alarm_backoff(alarm_backoff)
-        if mode is PairMode.AUTO:
-            prune = n >= AUTO_PRUNED_MIN and self.schedule is Schedule.DEADLINE
-            mode = PairMode.PRUNED if prune else PairMode.ALL
-        if mode is PairMode.PRUNED and self.schedule is not Schedule.DEADLINE:
-            raise InvalidInputError(
-                f"pairs='pruned' with schedule={self.schedule.value!r}: a pruned pair set is "
-                "rebuilt into the deadline schedule only; pass schedule='deadline' or pairs='all'."
-            )
-        self.mode = mode
+        deadline = self.schedule is Schedule.DEADLINE
+        self.mode = pair_mode(pairs, horizon, nsphere=n, deadline=deadline)
         self.horizon: float | None = None
         self.stride: int | None = None
-        if mode is PairMode.PRUNED:
-            T = (DEFAULT_STRIDE + self.latency) * self.dt if horizon is None else horizon
-            self.stride = rebuild_stride(T, self.dt, self.latency)
-            self.horizon = float(T)
-        elif horizon is not None:
-            raise InvalidInputError(
-                f"horizon = {horizon!r} is given but pairs are {mode.value!r}: the horizon is "
-                "the pruned set's; pass pairs='pruned' or drop horizon."
-            )
+        if self.mode is PairMode.PRUNED:
+            self.horizon, self.stride = pruned_horizon(horizon, self.dt, self.latency)
         self.n = n
         self._rt = self._runtime(self.horizon)
         self._scheduler: Scheduler | None = None
@@ -209,16 +218,13 @@ class SpherePredictor:
     def _runtime(self, reach_horizon: float | None) -> _core.Runtime:
         """The native runtime on this predictor's tables, the reach over ``reach_horizon`` (the
         horizon, which the tests shorten alone to watch the guarantee break)."""
-        c = np.zeros(_LAYOUT["CFG_SIZE"])
-        c[_LAYOUT["CFG_VERSION"]] = _core.TABLES_VERSION
-        c[_LAYOUT["CFG_KIND"]] = _KIND[self.schedule]
-        c[_LAYOUT["CFG_DT"]], c[_LAYOUT["CFG_LATENCY"]] = self.dt, self.latency
-        c[_LAYOUT["CFG_SLOTS_PER_BUCKET"]] = 1
-        c[_LAYOUT["CFG_CAP"]] = self.max_evals_per_step or 0
-        c[_LAYOUT["CFG_MAX_INTERVAL"]] = DEFAULT_MAX_INTERVAL
-        c[_LAYOUT["CFG_BACKOFF"]] = self.alarm_backoff
-        # Select-all's rule on tau, (1 + latency) dt, as the deadline and rank ones at one period.
-        c[_LAYOUT["CFG_THRESHOLD"]] = (1 + self.latency) * self.dt
+        c = schedule_config(
+            self.schedule,
+            dt=self.dt,
+            latency=self.latency,
+            max_evals_per_step=self.max_evals_per_step,
+            alarm_backoff=self.alarm_backoff,
+        )
         c[_LAYOUT["CFG_MARGIN"]] = self.margin
         c[_LAYOUT["CFG_HAS_SPEED"]] = bool(np.isfinite(self.speed).any())
         if self.stride is not None:

@@ -68,32 +68,23 @@ def tau_speed(
     eps: float,
     accel: float,
     delta: float,
-    speed: float,
+    speed: float = np.inf,
 ) -> float:
-    """Scalar kernel with a relative speed bound ``speed`` (``inf`` for none).
+    """Scalar kernel: min {t >= 0 : |x + v t| <= eps + delta t + accel t^2 / 2} (a lower bound),
+    with a relative speed bound ``speed`` (``inf``: none).
 
     The relative position also stays in ``B(x, V t)``, so no collision before
-    ``(|x| - eps) / V``; the larger of that and ``tau_accel`` is still a lower bound. A measured
-    ``|v| > V`` means the declared bound is broken: the speed term is then dropped.
+    ``(|x| - eps) / V``; the larger of that and the acceleration bound's tau is still a lower
+    bound. A measured ``|v| > V`` means the declared bound is broken: the speed term is then
+    dropped.
     """
     row = np.array([[x0, x1, x2, v0, v1, v2]])
     bounds = np.array([[eps], [accel], [delta], [speed]], dtype=np.float64)
     return float(_core.tau_speed_batch(row[:, :3], row[:, 3:], *bounds)[0])
 
 
-def tau_accel(
-    x0: float,
-    x1: float,
-    x2: float,
-    v0: float,
-    v1: float,
-    v2: float,
-    eps: float,
-    accel: float,
-    delta: float,
-) -> float:
-    """Scalar kernel: min {t >= 0 : |x + v t| <= eps + delta t + accel t^2 / 2} (lower bound)."""
-    return tau_speed(x0, x1, x2, v0, v1, v2, eps, accel, delta, np.inf)
+tau_accel = tau_speed
+"""The scalar kernel of the acceleration bound alone (:func:`tau_speed`, ``speed`` left inf)."""
 
 
 def tau_between(

@@ -18,7 +18,15 @@ from dua_mujoco.exceptions import (
     ShapeError,
 )
 
-__all__ = ["as_ids", "as_vectors", "check_period", "check_urgencies", "per_pair", "real_array"]
+__all__ = [
+    "as_ids",
+    "as_vectors",
+    "check_int",
+    "check_period",
+    "check_urgencies",
+    "per_pair",
+    "real_array",
+]
 
 
 def real_array(name: str, value: npt.ArrayLike) -> np.ndarray:
@@ -107,6 +115,14 @@ def per_pair(
     return np.ascontiguousarray(arr)
 
 
+def check_int(name: str, value: object, low: int = 1, fix: str = "") -> int:
+    """An int option ``>= low`` (a bool is refused: Python and the binding both take True for
+    1); ``fix`` follows the bound in the message."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+        raise InvalidInputError(f"{name} = {value!r} is invalid: pass an int >= {low}{fix}.")
+    return int(value)
+
+
 def check_period(dt: object, latency: object) -> tuple[float, int]:
     """The predictor period ``dt > 0`` (seconds) and the latency, an int ``>= 0`` (periods)."""
     # bool is an int subclass: dt=True would silently be a one-second period.
@@ -116,12 +132,8 @@ def check_period(dt: object, latency: object) -> tuple[float, int]:
         raise InvalidInputError(
             f"dt = {dt!r} is invalid: the predictor period must be a finite number of seconds > 0."
         )
-    if isinstance(latency, bool) or not isinstance(latency, int | np.integer) or latency < 0:
-        raise InvalidInputError(
-            f"latency = {latency!r} is invalid: it must be an int >= 0 (1 when a verdict takes "
-            "one period to compute, 0 when the predictor runs synchronously after each step)."
-        )
-    return float(dt), int(latency)
+    fix = " (1 when a verdict takes one period to compute, 0 when it runs after each step)"
+    return float(dt), check_int("latency", latency, 0, fix)
 
 
 def check_urgencies(name: str, tau: npt.ArrayLike, m: int | None = None) -> np.ndarray:

@@ -15,10 +15,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco._core import check_points
 from dua_mujoco.build.bounds import MotionBounds, default_spheres
-from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres
-from dua_mujoco.build.mocap import MocapVelocityTracker, PredictorMocap
+from dua_mujoco.build.kinematics import PointMotion, pack_spheres
+from dua_mujoco.build.mocap import PredictorMocap
 from dua_mujoco.exceptions import InvalidInputError
 
 __all__ = ["BoundMonitor", "BoundViolation"]
@@ -45,10 +44,6 @@ class BoundViolation:
     bound: float
 
 
-# Columns of the per-sphere values the check writes.
-_SPEED, _DISC, _ACC = 0, 1, 2
-
-
 class BoundMonitor:
     """Checks, once per physics step, whether the hypotheses of the guarantee held.
 
@@ -67,7 +62,7 @@ class BoundMonitor:
         bounds: MotionBounds,
         spheres: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike] | None = None,
         *,
-        mocap: MocapVelocityTracker | PredictorMocap | None = None,
+        mocap: PredictorMocap | None = None,
         mocap_period: int = 1,
         rtol: float = 1e-9,
         max_violations: int = 10_000,
@@ -120,35 +115,30 @@ class BoundMonitor:
         self._rtol = rtol
         self._nbody = model.nbody
         self._ngeom = model.ngeom
-        self._A = np.ascontiguousarray(bounds.accel[self._sbody], dtype=np.float64)
-        self._D = np.ascontiguousarray(bounds.discrepancy[self._sbody], dtype=np.float64)
-        self._V = (
-            np.zeros(0)
-            if bounds.speed is None
-            else np.ascontiguousarray(bounds.speed[self._sbody], dtype=np.float64)
-        )
-        self._spheres = pack_spheres(self._sgeom, self._sbody, self._soff, model.body_rootid)
         if not isinstance(mocap_period, int | np.integer) or mocap_period < 1:
             raise InvalidInputError(f"mocap_period = {mocap_period!r} is invalid: an int >= 1.")
         in_tree = np.zeros(model.nbody, dtype=bool)
         if mocap is not None:
             in_tree[mocap.mocap_bodies] = True
-        self._mocap_sphere = in_tree[np.asarray(model.body_rootid)][self._sbody]
-        h = float(model.opt.timestep)
-        self._D = self._D + np.where(self._mocap_sphere, self._A * h * (mocap_period - 1) / 2, 0)
+        mocap_sphere = in_tree[np.asarray(model.body_rootid)][self._sbody]
+        # A tracker updated every period lags by up to A h (period - 1) / 2 (see above).
+        self._A = bounds.accel[self._sbody]
+        lag = self._A * float(model.opt.timestep) * (mocap_period - 1) / 2
+        self._D = bounds.discrepancy[self._sbody] + np.where(mocap_sphere, lag, 0)
+        self._points = PointMotion(
+            pack_spheres(self._sgeom, self._sbody, self._soff, model.body_rootid),
+            self._A,
+            self._D,
+            None if bounds.speed is None else bounds.speed[self._sbody],
+            rtol,
+        )
         # Which spheres' discrepancy to check: all, or (after a step without a tracker update)
         # all but the mocap trees'.
         self._check_all = np.ones(n, dtype=np.bool_)
-        self._check_fresh = ~self._mocap_sphere
+        self._check_fresh = ~mocap_sphere
         self._mocap_updates = -1
         self._prev_fresh = True
-        # Rows [c, w, u] of the previous and the current update, swapped after each update.
-        self._prev = np.zeros((n, 9))
-        self._cur = np.zeros((n, 9))
-        self._nprev = 0
-        self._values = np.zeros((n, 3))
-        self._flags = np.zeros((n, 3), dtype=np.bool_)
-        self._twist = np.zeros((model.nbody, 6))  # mocap roots' twists (zero elsewhere)
+        self._twist = np.zeros((model.nbody, 6))  # no mocap tracker: no twist
         self._prev_t = 0.0
         self.violations: list[BoundViolation] = []
         """The first ``max_violations`` violations, in order."""
@@ -208,46 +198,28 @@ class BoundMonitor:
         # The discrepancy compares this step's discrete velocity with the velocities read at the
         # previous update: for mocap trees those are fresh only if the tracker had just updated.
         check = self._check_all if self._prev_fresh else self._check_fresh
+        twist = self._twist
         if self._mocap is not None and self._mocap.mocap_bodies.size:
-            self._mocap.write_body_velocity(self._twist)
+            twist = self._mocap.twist
             self._prev_fresh = self._mocap.nupdates != self._mocap_updates
             self._mocap_updates = self._mocap.nupdates
         t = float(data.time)
         h = t - self._prev_t
         if h <= 0:
             h = float(model.opt.timestep)
-        # One native pass: |u_k| <= V, |u_k - w_{k-1}| <= D and |u_k - u_{k-1}| / h <= A at every
-        # point, with the round-off of the differences (8 eps |c| / h^2) tolerated.
-        pos, mat, twist, twist_ref, root_twist, root_origin = mjdata_frame(data, self._twist)
-        nbroken = check_points(
-            self._spheres,
-            pos,
-            mat,
-            twist,
-            twist_ref,
-            root_twist,
-            root_origin,
-            self._prev,
-            self._cur,
-            min(self._nprev, 2),
-            h,
-            self._A,
-            self._D,
-            self._V,
-            check.view(np.uint8),
-            self._rtol,
-            self._values,
-            self._flags.view(np.uint8),
-        )
-        self._prev, self._cur = self._cur, self._prev
-        self._nprev += 1
+        nbroken = self._points.update(data, twist, h, check)
         self._prev_t = t
         if nbroken == 0:
             self.nupdates += 1
             return np.zeros(0, dtype=np.int64)
+        p = self._points
         found = [
-            self._flag(kind, self._flags[:, col], self._values[:, col], t)
-            for kind, col in (("speed", _SPEED), ("discrepancy", _DISC), ("accel", _ACC))
+            self._flag(kind, p.broken[:, col], p.values[:, col], t)
+            for kind, col in (
+                ("speed", p.SPEED),
+                ("discrepancy", p.DISCREPANCY),
+                ("accel", p.ACCEL),
+            )
         ]
         out = np.unique(np.concatenate(found))
         runs = self._broken_runs

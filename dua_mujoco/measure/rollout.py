@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.build.tables import same_geometry
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
 from dua_mujoco.measure.accumulators import Durations
 from dua_mujoco.measure.monitor import Monitor
@@ -67,8 +68,7 @@ def run(
         RunInterrupted: On a ``KeyboardInterrupt`` during the rollout (Ctrl-C, or raised by the
             controller or ``on_step``), with the report of the steps observed until then.
     """
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise InvalidInputError(f"steps = {steps!r} is invalid: pass an int >= 1 (physics steps).")
+    check_int("steps", steps, 1, " (physics steps)")
     if model is not predictor.model and not same_geometry(model, predictor.model):
         raise InvalidInputError(
             "the predictor was built for another MjModel: pass the model it was built for "

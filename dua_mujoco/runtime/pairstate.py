@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco import _core
 from dua_mujoco._core import LAYOUT
 from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.pairset import PairKind
@@ -103,7 +104,8 @@ class PairState:
 
     def alarm_state(self, pair: npt.ArrayLike | None = None) -> np.ndarray:
         """Whether each pair stands in alarm (pairs not held never do)."""
-        state = np.asarray(self.scheduler.alarm_state())
+        s = self.scheduler
+        state = np.asarray(_core.stands(s, np.arange(s.last_tau.shape[0], dtype=np.int64)))
         if pair is None:
             if self._all:
                 return state

@@ -42,7 +42,7 @@ from dua_mujoco.build.options import (
     resolve_options,
 )
 from dua_mujoco.build.pairbounds import body_vel_uncertainty
-from dua_mujoco.build.pruning import Reach, reach_for, resolve_pair_mode
+from dua_mujoco.build.pruning import Reach, reach_for
 from dua_mujoco.build.tables import (
     PairTables,
     check_data,
@@ -53,7 +53,7 @@ from dua_mujoco.build.tables import (
 from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule
-from dua_mujoco.core.spheres import PairMode
+from dua_mujoco.core.spheres import PairMode, pair_mode
 from dua_mujoco.core.validate import check_period
 from dua_mujoco.exceptions import (
     InvalidInputError,
@@ -152,7 +152,9 @@ class Predictor(PlanFollowing):
         """The alarm horizon in predictor periods (1 by default)."""
         self.alarm_horizon = self.alarm_periods * self.dt
         """The alarm horizon (seconds): every collision is flagged at least this long before its
-        first state in contact while the bounds hold."""
+        first state in contact while the bounds hold. The runtime's tables carry it as is."""
+        # The periods past the next step a verdict must see (the exact level's and the reach's).
+        self._ahead = self.latency + self.alarm_periods - 1
         self.options = resolve_options(covering, schedule, urgency, pilot, pairs)
         """The option groups in force (``PredictorOptions``)."""
         sched = self.options.schedule
@@ -173,19 +175,18 @@ class Predictor(PlanFollowing):
             )
         )
         cov = self.covering
-        mode = resolve_pair_mode(
+        mode = pair_mode(
             self.options.pairs.mode,
             self.options.pairs.horizon,
+            nsphere=cov.nsphere,
             deadline=self.schedule is Schedule.DEADLINE,
-            covering=cov,
         )
         exact = None
         if self.options.urgency.exact:
             below = self.options.urgency.exact_below
             # Looks can clear an alarm (or lengthen a wait) only below the alarm horizon.
-            ahead = self.latency + self.alarm_periods - 1
-            below = (EXACT_PERIODS + ahead) * self.dt if below is None else below
-            exact = (below, (QUERY_PERIODS + ahead) * self.dt)
+            below = (EXACT_PERIODS + self._ahead) * self.dt if below is None else below
+            exact = (below, (QUERY_PERIODS + self._ahead) * self.dt)
         self.universe = PairUniverse(model, cov, lazy=mode is PairMode.PRUNED, exact=exact)
         """The sphere pairs this predictor knows and their tables (a pruned one learns the
         pairs its candidates bring in)."""
@@ -247,8 +248,7 @@ class Predictor(PlanFollowing):
                     model, self.bounds, period=self.period, mocap=self.mocap
                 ),
                 dt=self.dt,
-                latency=self.latency,
-                alarm_periods=self.alarm_periods,
+                ahead=self._ahead,
             )
         self.table_arrays = predictor_tables(self)
         """The tables the native runtime reads, by name (``runtime/table_arrays.py``)."""

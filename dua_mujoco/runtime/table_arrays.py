@@ -27,7 +27,7 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
-from dua_mujoco._core import LAYOUT, TABLES_VERSION, structure_hash
+from dua_mujoco._core import LAYOUT, structure_hash
 from dua_mujoco.build.bounds import MotionBounds
 from dua_mujoco.build.covering import Covering
 from dua_mujoco.build.events import EventTable, no_events
@@ -37,19 +37,12 @@ from dua_mujoco.build.pairbounds import body_vel_uncertainty
 from dua_mujoco.build.pairfilter import FilterTables
 from dua_mujoco.build.pruning import RENEW_MAX, Reach
 from dua_mujoco.build.universe import PairUniverse
-from dua_mujoco.core.schedules import Schedule
-from dua_mujoco.core.schedules.deadline import DEFAULT_MAX_INTERVAL
+from dua_mujoco.core.schedules import Schedule, schedule_config
 
 __all__ = ["CONFIG", "TableSource", "predictor_tables"]
 
 CONFIG = {name[4:].lower(): value for name, value in LAYOUT.items() if name.startswith("CFG_")}
 """The ``config`` table's entries by name (``CONFIG["dt"]`` is its index of ``dt``)."""
-
-_KIND = {
-    Schedule.DUA: LAYOUT["RANK"],
-    Schedule.DEADLINE: LAYOUT["DEADLINE"],
-    Schedule.SELECT_ALL: 2,
-}
 
 
 class TableSource(Protocol):
@@ -61,7 +54,6 @@ class TableSource(Protocol):
     dt: float
     latency: int
     alarm_periods: int
-    alarm_horizon: float
     schedule: Schedule
     slots_per_bucket: int
     max_evals_per_step: int | None
@@ -84,18 +76,15 @@ def predictor_tables(p: TableSource) -> dict[str, np.ndarray]:
     """The tables of predictor ``p`` (its pairs as it knows them when built: every active pair,
     or, pruned, those held always; the runtime learns the rest)."""
     m = p.model
-    c = np.zeros(CONFIG["size"])
-    c[CONFIG["version"]] = TABLES_VERSION
-    c[CONFIG["kind"]] = _KIND[p.schedule]
-    c[CONFIG["dt"]], c[CONFIG["latency"]] = p.dt, p.latency
-    c[CONFIG["slots_per_bucket"]] = p.slots_per_bucket
-    c[CONFIG["cap"]] = p.max_evals_per_step or 0
-    c[CONFIG["max_interval"]] = DEFAULT_MAX_INTERVAL
-    c[CONFIG["backoff"]] = p.alarm_backoff
-    # Select-all's rule on tau: (1 + latency) dt, and the alarm horizon beyond its one period.
-    c[CONFIG["threshold"]] = (p.alarm_periods + p.latency) * p.dt
-    # 0 is one period (the default, exactly today's rule); else the horizon in seconds.
-    c[CONFIG["alarm_horizon"]] = 0.0 if p.alarm_periods == 1 else p.alarm_horizon
+    c = schedule_config(
+        p.schedule,
+        dt=p.dt,
+        latency=p.latency,
+        alarm_periods=p.alarm_periods,
+        slots_per_bucket=p.slots_per_bucket,
+        max_evals_per_step=p.max_evals_per_step,
+        alarm_backoff=p.alarm_backoff,
+    )
     c[CONFIG["timestep"]] = float(m.opt.timestep)
     exact = p.universe.exact
     c[CONFIG["exact_on"]] = exact is not None

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dua_mujoco.run_options import whole_number
+from dua_mujoco.run_options import add_count
 
 __all__ = ["DESCRIPTION", "EPILOG", "EXIT_RUN_FAILED", "add_arguments", "main", "markdown"]
 
@@ -37,18 +37,16 @@ EPILOG = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The scenes and the sweep's own options (the run options are added by ``cli``)."""
     p.add_argument("scenes", nargs="+", metavar="SCENE", help="as for run, one or more")
-    p.add_argument(
-        "--seeds",
-        type=whole_number("--seeds", "seeds"),
-        default=1,
-        help="seeds a scene and set: --seed, --seed + 1, ... (default 1)",
+    add_count(
+        p, "--seeds", "seeds", 1, "seeds a scene and set: --seed, --seed + 1, ... (default 1)"
     )
     p.add_argument("--grid", type=Path, default=None, help="TOML file of option sets (epilog)")
-    p.add_argument(
+    add_count(
+        p,
         "--workers",
-        type=whole_number("--workers", "processes"),
-        default=None,
-        help="local processes, or CPUs of a local Ray instance (default: the machine's CPUs)",
+        "processes",
+        None,
+        "local processes, or CPUs of a local Ray instance (default: the machine's CPUs)",
     )
     p.add_argument(
         "--ray",

@@ -11,8 +11,13 @@ import enum
 
 import numpy as np
 
+from dua_mujoco._core import LAYOUT, TABLES_VERSION
 from dua_mujoco.core.schedules.base import Scheduler
-from dua_mujoco.core.schedules.deadline import DEFAULT_ALARM_BACKOFF, DeadlineScheduler
+from dua_mujoco.core.schedules.deadline import (
+    DEFAULT_ALARM_BACKOFF,
+    DEFAULT_MAX_INTERVAL,
+    DeadlineScheduler,
+)
 from dua_mujoco.core.schedules.dua import DUAScheduler, bucket_layout
 from dua_mujoco.core.schedules.select_all import SelectAllScheduler, Urgency
 from dua_mujoco.core.schedules.state import ScheduleState
@@ -29,6 +34,7 @@ __all__ = [
     "as_schedule",
     "bucket_layout",
     "make_scheduler",
+    "schedule_config",
 ]
 
 
@@ -65,6 +71,38 @@ def make_scheduler(
             alarm_backoff=alarm_backoff,
         )
     return SelectAllScheduler(tau0, dt=dt, latency=latency)
+
+
+def schedule_config(
+    schedule: Schedule,
+    *,
+    dt: float,
+    latency: int,
+    alarm_periods: int = 1,
+    slots_per_bucket: int = 1,
+    max_evals_per_step: int | None = None,
+    alarm_backoff: int = DEFAULT_ALARM_BACKOFF,
+) -> np.ndarray:
+    """A runtime's ``config`` table, ``(CFG_SIZE,)`` float64, with the schedule's entries
+    written and the rest 0 for the caller (``Predictor``'s and ``SpherePredictor``'s tables
+    alike; ``ScheduleSpec::Check`` checks them in C++).
+
+    The alarm horizon goes in seconds, ``alarm_periods * dt`` (the ``Predictor``'s own
+    ``alarm_horizon``), and select-all's threshold on tau is the horizon past the latency,
+    ``(alarm_periods + latency) dt``.
+    """
+    kind = {Schedule.DUA: "RANK", Schedule.DEADLINE: "DEADLINE", Schedule.SELECT_ALL: "ALL"}
+    c = np.zeros(LAYOUT["CFG_SIZE"])
+    c[LAYOUT["CFG_VERSION"]] = TABLES_VERSION
+    c[LAYOUT["CFG_KIND"]] = LAYOUT[kind[schedule]]
+    c[LAYOUT["CFG_DT"]], c[LAYOUT["CFG_LATENCY"]] = dt, latency
+    c[LAYOUT["CFG_SLOTS_PER_BUCKET"]] = slots_per_bucket
+    c[LAYOUT["CFG_CAP"]] = max_evals_per_step or 0
+    c[LAYOUT["CFG_MAX_INTERVAL"]] = DEFAULT_MAX_INTERVAL
+    c[LAYOUT["CFG_BACKOFF"]] = alarm_backoff
+    c[LAYOUT["CFG_THRESHOLD"]] = (alarm_periods + latency) * dt
+    c[LAYOUT["CFG_ALARM_HORIZON"]] = alarm_periods * dt
+    return c
 
 
 def as_schedule(schedule: Schedule | str) -> Schedule:

@@ -203,6 +203,12 @@ class Scheduler:
         flat = np.ascontiguousarray(idx.reshape(-1))
         return np.asarray(_core.stands(self.core, flat)).reshape(idx.shape)
 
+    def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
+        """The step each pair is next evaluated at if it stays switched on (-1: a deadline pair
+        switched off), shaped like ``pair``."""
+        p = np.asarray(pair, dtype=np.int64)
+        return np.asarray(self.core.next_due(np.ascontiguousarray(p.reshape(-1)))).reshape(p.shape)
+
     def horizon_of(self, pair: npt.ArrayLike) -> np.ndarray:
         """The alarm horizon (seconds) each pair's latest verdict must cover (``-inf`` for a
         deadline pair switched off: its verdict covers nothing), shaped like ``pair``."""

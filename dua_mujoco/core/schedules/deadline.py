@@ -22,14 +22,12 @@ proved in docs/theory.md.
 
 from __future__ import annotations
 
-import numpy as np
 import numpy.typing as npt
 
 import dua_mujoco._core as _core
 from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
-from dua_mujoco.core.schedules.state import DEADLINE, P_BACKOFF, P_CAP, P_MAX_INTERVAL, WHERE
-from dua_mujoco.core.validate import check_period, check_urgencies
-from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.core.schedules.state import DEADLINE, P_BACKOFF, P_CAP, P_MAX_INTERVAL
+from dua_mujoco.core.validate import check_int, check_period, check_urgencies
 
 __all__ = [
     "DEFAULT_ALARM_BACKOFF",
@@ -50,23 +48,12 @@ standing in alarm grows by 0.1-3 % of itself."""
 
 def check_max_evals(value: object) -> int:
     """``max_evals_per_step``: None (no cap, returned as 0) or an int ``>= 1``."""
-    if value is None:
-        return 0
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise InvalidInputError(
-            f"max_evals_per_step = {value!r} is invalid: pass an int >= 1, or None for no cap."
-        )
-    return int(value)
+    return 0 if value is None else check_int("max_evals_per_step", value, 1, ", or None for no cap")
 
 
 def check_alarm_backoff(value: object) -> int:
     """``alarm_backoff``: an int ``>= 1`` (steps)."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise InvalidInputError(
-            f"alarm_backoff = {value!r} is invalid: pass an int >= 1 (steps; 1 re-evaluates "
-            "alarmed pairs every step)."
-        )
-    return int(value)
+    return check_int("alarm_backoff", value, 1, " (steps; 1 re-evaluates alarmed pairs every step)")
 
 
 class DeadlineScheduler(Scheduler, kind=DEADLINE):
@@ -103,10 +90,7 @@ class DeadlineScheduler(Scheduler, kind=DEADLINE):
         tau = check_urgencies("tau0", tau0)
         dt, latency = check_period(dt, latency)
         cap = check_max_evals(max_evals_per_step)
-        if isinstance(max_interval, bool) or not isinstance(max_interval, int | np.integer):
-            raise InvalidInputError(f"max_interval = {max_interval!r} is invalid: an int >= 1.")
-        if max_interval < 1:
-            raise InvalidInputError(f"max_interval = {max_interval!r} is invalid: an int >= 1.")
+        max_interval = check_int("max_interval", max_interval)
         backoff = check_alarm_backoff(alarm_backoff)
         schedule = _core.Schedule(
             DEADLINE,
@@ -126,7 +110,3 @@ class DeadlineScheduler(Scheduler, kind=DEADLINE):
         self.max_evals_per_step = int(params[P_CAP]) or None
         self.max_interval = int(params[P_MAX_INTERVAL])
         self.alarm_backoff = int(params[P_BACKOFF])
-
-    def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
-        """Step at which each pair is next evaluated (-1: switched off)."""
-        return np.asarray(self.state.ints[WHERE, np.asarray(pair)])

@@ -23,33 +23,15 @@ import numpy.typing as npt
 import dua_mujoco._core as _core
 from dua_mujoco.core.schedules.base import Scheduler, active_mask
 from dua_mujoco.core.schedules.state import P_NBUCKETS, P_SLOTS_PER_BUCKET, RANK, WHERE
-from dua_mujoco.core.validate import check_period, check_urgencies
-from dua_mujoco.exceptions import InvalidChoiceError
+from dua_mujoco.core.validate import check_int, check_period, check_urgencies
 
-__all__ = ["DUAScheduler", "bucket_layout", "check_slots_per_bucket"]
+__all__ = ["DUAScheduler", "bucket_layout"]
 
 
 def bucket_layout(npairs: int) -> tuple[int, int]:
     """Number of buckets ``L`` and of slots ``2**L - 1`` for ``npairs`` pairs."""
     nbuckets = max(1, math.ceil(math.log2(npairs + 1)))
     return nbuckets, (1 << nbuckets) - 1
-
-
-def check_slots_per_bucket(q: object) -> int:
-    """The budget knob: a power of two (so that every revisit interval is exact)."""
-    if (
-        isinstance(q, bool)
-        or not isinstance(q, int | np.integer)
-        or q < 1
-        or (int(q) & (int(q) - 1)) != 0
-    ):
-        raise InvalidChoiceError(
-            "slots_per_bucket",
-            q,
-            [1, 2, 4, 8, 16, 32, 64],
-            hint="It must be a power of two so that every revisit interval is exact.",
-        )
-    return int(q)
 
 
 class DUAScheduler(Scheduler, kind=RANK):
@@ -82,7 +64,7 @@ class DUAScheduler(Scheduler, kind=RANK):
     ) -> None:
         tau = check_urgencies("tau0", tau0)
         dt, latency = check_period(dt, latency)
-        q = check_slots_per_bucket(slots_per_bucket)
+        q = check_int("slots_per_bucket", slots_per_bucket)  # a power of two: the native check
         # The initial classification: a partial sort at the bucket boundaries (paper eq. 23),
         # the pairs standing in alarm marked in their slots (-2 - pair).
         schedule = _core.Schedule(
@@ -96,10 +78,9 @@ class DUAScheduler(Scheduler, kind=RANK):
         params = self.state.params
         self.nbuckets = int(params[P_NBUCKETS])
         self.slots_per_bucket = q = int(params[P_SLOTS_PER_BUCKET])
-        sizes = 1 << np.arange(self.nbuckets)
-        self.interval = np.maximum(1, sizes // q).astype(np.int64)
+        self.interval = np.asarray(self.core.intervals)
         self.horizon = self.state.horizon  # the live alarm rule (the kernels read it)
-        self._width = int(np.minimum(sizes, q).sum())
+        self._width = int(np.minimum(1 << np.arange(self.nbuckets), q).sum())
 
     # ----------------------------------------------------------------------- introspection
 
@@ -113,29 +94,6 @@ class DUAScheduler(Scheduler, kind=RANK):
     def where(self) -> np.ndarray:
         """``(M,)`` the slot of each pair."""
         return self.state.ints[WHERE]
-
-    @staticmethod
-    def bucket_of_slot(slot: npt.ArrayLike) -> np.ndarray:
-        """Bucket index ``floor(log2(slot + 1))`` of slot indices."""
-        s = np.asarray(slot, dtype=np.int64)
-        return np.asarray(np.floor(np.log2(s + 1.0)).astype(np.int64))
-
-    def bucket(self, pair: npt.ArrayLike) -> np.ndarray:
-        """Bucket index of each pair, shape like ``pair``."""
-        return self.bucket_of_slot(self.where[np.asarray(pair)])
-
-    def next_due(self, pair: npt.ArrayLike) -> np.ndarray:
-        """Step at which each pair is next evaluated (if it stays switched on)."""
-        slot = self.where[np.asarray(pair)]
-        k = self.bucket_of_slot(slot)
-        offset = slot - ((1 << k) - 1)
-        interval = self.interval[k]
-        q = self.slots_per_bucket
-        size = 1 << k
-        # Slot o of bucket k is handed out at the steps n with (n q) mod size == o - o mod q.
-        phase = np.where(size <= q, 0, (offset - offset % q) // np.maximum(q, 1))
-        n = self.step_count + 1
-        return np.asarray(n + (phase - n) % interval)
 
     def most_urgent(self) -> int:
         """The pair DUA believes most urgent: the occupant of bucket 0 (paper sec. 8.1.4).

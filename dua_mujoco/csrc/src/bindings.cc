@@ -7,6 +7,7 @@
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
@@ -18,6 +19,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -162,10 +164,13 @@ dua_frame FrameOfArrays(const In<double>& pos, const In<double>& mat, const In<d
     const double* r = points.data() + kSphereNcol * i;
     const bool ok = r[kSphereFrame] >= 0 && r[kSphereFrame] < ngeom && r[kSphereBody] >= 0 &&
                     r[kSphereBody] < nbody && r[kSphereRoot] >= 0 && r[kSphereRoot] < nbody;
-    Require(ok, "the sphere records reference frame " + std::to_string(r[kSphereFrame]) +
-                    " and body " + std::to_string(r[kSphereBody]) + " but the data has " +
-                    std::to_string(ngeom) + " frames and " + std::to_string(nbody) +
-                    " bodies: pass the MjData of the model the spheres were built for");
+    // The message is made only for a bad record (made for each, it took 1 us a point).
+    if (!ok) {
+      Require(false, "the sphere records reference frame " + std::to_string(r[kSphereFrame]) +
+                         " and body " + std::to_string(r[kSphereBody]) + " but the data has " +
+                         std::to_string(ngeom) + " frames and " + std::to_string(nbody) +
+                         " bodies: pass the MjData of the model the spheres were built for");
+    }
   }
   return {pos.data(),       mat.data(),        twist.data(),
           twist_ref.data(), root_twist.data(), root_origin.data()};
@@ -180,7 +185,9 @@ Out<double> RigidPoints(const In<double>& points, const In<double>& pos, const I
   std::vector<double> out(6 * static_cast<size_t>(n));
   for (int64_t k = 0; k < n; ++k) {
     const int64_t i = ids.data()[k];
-    Require(i >= 0 && i < npoint, "sphere ids must lie in [0, " + std::to_string(npoint) + ")");
+    if (i < 0 || i >= npoint) {
+      Require(false, "sphere ids must lie in [0, " + std::to_string(npoint) + ")");
+    }
     dua_rigid_point(i, points.data(), &f, out.data() + 6 * k);
   }
   return Owned(std::move(out), {static_cast<size_t>(n), 6});
@@ -456,13 +463,14 @@ Out<double> ExactRows(const In<double>& geoms, const In<int64_t>& geom1, const I
 // ------------------------------------------------------------------------------- schedules
 
 ScheduleSpec SpecOf(int64_t kind, double dt, int64_t latency, int64_t slots_per_bucket, int64_t cap,
-                    int64_t max_interval, int64_t backoff, double threshold, double alarm_horizon) {
+                    int64_t max_interval, int64_t backoff, double threshold,
+                    std::optional<double> alarm_horizon) {
   ScheduleSpec s;
   s.kind = kind, s.dt = dt, s.latency = latency, s.slots_per_bucket = slots_per_bucket;
   s.cap = cap, s.max_interval = max_interval, s.backoff = backoff, s.threshold = threshold;
-  s.alarm_horizon = alarm_horizon;
+  s.alarm_horizon = alarm_horizon.value_or(dt);  // None: one period
   const std::string bad = s.Check();
-  Require(bad.empty(), "invalid schedule option: " + bad);
+  if (!bad.empty()) Raise("InvalidInputError", bad + ".");
   return s;
 }
 
@@ -475,6 +483,16 @@ void CheckIds(const Schedule& s, const In<int64_t>& ids) {
   }
 }
 
+// f(p) of each pair id p of ids (checked), as an (n,) array.
+template <class F>
+auto PerPair(const Schedule& s, const In<int64_t>& ids, F f) {
+  CheckIds(s, ids);
+  const auto n = static_cast<size_t>(Size(ids));
+  std::vector<decltype(f(int64_t{0}))> out(n);
+  for (size_t k = 0; k < n; ++k) out[k] = f(ids.data()[k]);
+  return Owned(std::move(out), {n});
+}
+
 void BindSchedule(nb::module_& m) {
   nb::class_<Schedule>(m, "Schedule",
                        "A schedule's state and kernels (dua_mujoco.core.schedules wraps it).")
@@ -482,7 +500,7 @@ void BindSchedule(nb::module_& m) {
           "__init__",
           [](Schedule* self, int64_t kind, double dt, int64_t latency, const In<double>& tau0,
              nb::object active, int64_t slots_per_bucket, int64_t cap, int64_t max_interval,
-             int64_t backoff, double threshold, double alarm_horizon) {
+             int64_t backoff, double threshold, std::optional<double> alarm_horizon) {
             const ScheduleSpec spec = SpecOf(kind, dt, latency, slots_per_bucket, cap, max_interval,
                                              backoff, threshold, alarm_horizon);
             std::vector<double> tau(tau0.data(), tau0.data() + tau0.size());
@@ -497,7 +515,7 @@ void BindSchedule(nb::module_& m) {
           },
           "kind"_a, "dt"_a, "latency"_a, "tau0"_a, nb::arg("active").none() = nb::none(),
           "slots_per_bucket"_a = 1, "cap"_a = 0, "max_interval"_a = 1024, "backoff"_a = 8,
-          "threshold"_a = 0.0, "alarm_horizon"_a = 0.0)
+          "threshold"_a = 0.0, nb::arg("alarm_horizon").none() = nb::none())
       .def(
           "select", [](Schedule& s, int64_t n) { return dua_select(s.state(), n); }, "n"_a)
       .def(
@@ -528,31 +546,31 @@ void BindSchedule(nb::module_& m) {
             dua_make_due(s.state(), p, n);
           },
           "p"_a, "n"_a)
-      .def("alarm_state",
-           [](const Schedule& s) {
-             std::vector<uint8_t> out(s.m());
-             for (int64_t p = 0; p < s.m(); ++p) out[p] = s.Stands(p);
-             auto* held = new std::vector<uint8_t>(std::move(out));
-             if (held->empty()) held->reserve(1);
-             nb::capsule owner(
-                 held, [](void* q) noexcept { delete static_cast<std::vector<uint8_t>*>(q); });
-             const size_t shape[1] = {static_cast<size_t>(s.m())};
-             return Out<bool>(reinterpret_cast<bool*>(held->data()), 1, shape, owner);
-           })
       .def(
           "horizon_of",
           [](const Schedule& s, const In<int64_t>& ids) {
-            CheckIds(s, ids);
-            std::vector<double> out(Size(ids));
-            for (int64_t k = 0; k < Size(ids); ++k) out[k] = s.HorizonOf(ids.data()[k]);
-            return Owned(std::move(out), {static_cast<size_t>(Size(ids))});
+            return PerPair(s, ids, [&s](int64_t p) { return s.HorizonOf(p); });
           },
           "ids"_a)
+      .def(
+          "next_due",
+          [](const Schedule& s, const In<int64_t>& ids) {
+            return PerPair(s, ids, [&s](int64_t p) { return s.NextDue(p); });
+          },
+          "ids"_a, "The step each pair is next evaluated at (-1: a deadline pair switched off).")
+      .def_prop_ro(
+          "intervals",
+          [](const Schedule& s) {
+            std::vector<int64_t> out(s.spec().kind == kRank ? s.horizon.size() : 0);
+            for (size_t k = 0; k < out.size(); ++k) out[k] = s.Interval(static_cast<int64_t>(k));
+            return Ints(out);
+          },
+          nb::rv_policy::move, "The rank schedule's revisit interval of each bucket, steps.")
       .def_prop_ro("kind", [](const Schedule& s) { return s.spec().kind; })
       .def_prop_ro("dt", [](const Schedule& s) { return s.spec().dt; })
       .def_prop_ro("latency", [](const Schedule& s) { return s.spec().latency; })
       .def_prop_ro(
-          "alarm_horizon", [](const Schedule& s) { return s.spec().dt + s.Extra(); },
+          "alarm_horizon", [](const Schedule& s) { return s.spec().alarm_horizon; },
           "The alarm horizon, seconds (one period by default).")
       .def_rw("step_count", &Schedule::step_count)
       .def_rw("activation_changes", &Schedule::activation_changes)
@@ -717,8 +735,65 @@ struct PyRuntime {
   }
 };
 
-Out<int64_t> Ints(const std::vector<int64_t>& v) {
-  return Owned(std::vector<int64_t>(v), {v.size()});
+void BindMocap(nb::module_& m) {
+  auto mocap_id = [](const Mocap& s, int64_t i) {
+    Require(i >= 0 && i < Size(s.bodies), "mocap id " + std::to_string(i) +
+                                              " is out of range: the model has " +
+                                              std::to_string(s.bodies.size()) + " mocap bodies");
+  };
+  auto rows = [](const std::vector<double>& v) {
+    return Owned(std::vector<double>(v), {v.size() / 3, 3});
+  };
+  nb::class_<Mocap>(m, "Mocap",
+                    "The velocities of a model's mocap bodies, by mocap id: backward differences "
+                    "of their poses (mocap.h), or given.")
+      .def(
+          "__init__", [](Mocap* self, nb::handle model) { new (self) Mocap(ModelOf(model)); },
+          "model"_a)
+      .def(
+          "update",
+          [](Mocap& s, nb::handle data) {
+            const auto nbody = static_cast<int64_t>(s.twist.size() / 6);
+            Require(nb::cast<int64_t>(data.attr("xpos").attr("shape")[0]) == nbody,
+                    "data is not an MjData of the tracker's model (" + std::to_string(nbody) +
+                        " bodies): pass the MjData of the model it was made for");
+            s.Update(DataOf(data));
+          },
+          "data"_a,
+          "Difference the poses of data against the latest record (the first call records).")
+      .def("reset", &Mocap::Forget, "Forget the poses; differenced velocities zero.")
+      .def(
+          "set_velocity",
+          [mocap_id](Mocap& s, int64_t i, const In<double>& linear, const In<double>& angular) {
+            mocap_id(s, i);
+            Require(Size(linear) == 3 && Size(angular) == 3, "velocities are (3,)");
+            s.Set(i, linear.data(), angular.data());
+          },
+          "mocap"_a, "linear"_a, "angular"_a)
+      .def(
+          "clear_velocity",
+          [mocap_id](Mocap& s, int64_t i) {
+            mocap_id(s, i);
+            s.Clear(i);
+          },
+          "mocap"_a)
+      .def_prop_ro(
+          "bodies", [](const Mocap& s) { return Ints(s.bodies); }, nb::rv_policy::move,
+          "(nmocap,) the body of each mocap id.")
+      .def_prop_ro(
+          "linear", [rows](const Mocap& s) { return rows(s.linear); }, nb::rv_policy::move,
+          "(nmocap, 3) linear velocities of the bodies' origins (a copy).")
+      .def_prop_ro(
+          "angular", [rows](const Mocap& s) { return rows(s.angular); }, nb::rv_policy::move,
+          "(nmocap, 3) angular velocities (a copy).")
+      .def_prop_ro(
+          "twist",
+          [](nb::handle self) {
+            const Mocap& s = nb::cast<const Mocap&>(self);
+            return View(s.twist.data(), {s.twist.size() / 6, 6}, self);
+          },
+          "(nbody, 6) [angular; linear] of each mocap body's tree, zero elsewhere (a view).")
+      .def_ro("updates", &Mocap::updates, "Records since the last start (the start's included).");
 }
 
 // Tables from a dict of float64 arrays by name, read by `build` (BuildTables or FreeTables).
@@ -1004,14 +1079,6 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def("deactivate_contacts",
            [](PyRuntime& self) { return self.rt->DeactivateContacts(self.Data()); })
       .def(
-          "set_mocap_velocity",
-          [](PyRuntime& self, int64_t i, const In<double>& linear, const In<double>& angular) {
-            Require(i >= 0 && i < self.m->nmocap, "a mocap id is out of range");
-            Require(Size(linear) == 3 && Size(angular) == 3, "velocities are (3,)");
-            self.rt->SetMocapVelocity(i, linear.data(), angular.data());
-          },
-          "mocap"_a, "linear"_a, "angular"_a)
-      .def(
           "set_plan",
           [](PyRuntime& self, const In<double>& qpos, const In<double>& deviation, double start,
              const In<uint8_t>& bodies, const In<double>& mocap_pos, const In<double>& mocap_quat) {
@@ -1090,18 +1157,11 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "The bodies of the bound MjData's state beyond their deviation at its knot (None: no "
           "plan covers it); checks only.")
       .def(
-          "clear_mocap_velocity",
-          [](PyRuntime& self, int64_t i) {
-            Require(i >= 0 && i < self.m->nmocap, "a mocap id is out of range");
-            self.rt->ClearMocapVelocity(i);
-          },
-          "mocap"_a)
-      .def(
           "sphere_states",
           [](const PyRuntime& self, const In<int64_t>& ids) {
             const Tables& t = self.rt->tables();
             const int64_t n = Size(ids), nsphere = t.nsphere();
-            const dua_frame f = FrameOf(self.Data(), self.rt->root_twist().data());
+            const dua_frame f = FrameOf(self.Data(), self.rt->mocap().twist.data());
             std::vector<double> out(6 * static_cast<size_t>(n));
             for (int64_t k = 0; k < n; ++k) {
               const int64_t i = ids.data()[k];
@@ -1222,19 +1282,9 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def_prop_ro("violation_events", [](const PyRuntime& s) { return s.rt->violation_events(); })
       .def_prop_ro("rebuilds", [](const PyRuntime& s) { return s.rt->rebuilds(); })
       .def_prop_ro("renewals", [](const PyRuntime& s) { return s.rt->renewals(); })
-      .def_prop_ro("mocap_updates", [](const PyRuntime& s) { return s.rt->mocap_updates(); })
       .def_prop_ro(
           "anchor_steps", [](const PyRuntime& s) { return Ints(s.rt->anchor_steps()); },
           nb::rv_policy::move)
-      .def_prop_ro(
-          "mocap_velocity",
-          [](PyRuntime& s) {
-            const auto n = static_cast<size_t>(s.m->nmocap);
-            return nb::make_tuple(Owned(std::vector<double>(s.rt->mocap_linear()), {n, 3}),
-                                  Owned(std::vector<double>(s.rt->mocap_angular()), {n, 3}),
-                                  Owned(std::vector<uint8_t>(s.rt->mocap_user()), {n}));
-          },
-          "(linear (nmocap, 3), angular (nmocap, 3), given (nmocap,)): copies.")
       .def_prop_ro(
           "exact_records",
           [](const PyRuntime& s) {
@@ -1258,12 +1308,9 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "Pruned pairs: each sphere's anchor (n, 3), reach (n,), anchor step (n,), and the "
           "largest contact distance beyond the radii (copies).")
       .def_prop_ro(
-          "root_twist",
-          [](const PyRuntime& s) {
-            return Owned(std::vector<double>(s.rt->root_twist()),
-                         {static_cast<size_t>(s.m->nbody), 6});
-          },
-          nb::rv_policy::move);
+          "mocap", [](PyRuntime& s) -> Mocap& { return s.rt->mocap(); },
+          nb::rv_policy::reference_internal,
+          "The mocap bodies' velocities, differenced at each step (or given).");
 }
 
 }  // namespace
@@ -1362,29 +1409,6 @@ NB_MODULE(_core, m) {
   m.def("check_points", &CheckPoints, "points"_a, "pos"_a, "mat"_a, "twist"_a, "twist_ref"_a,
         "root_twist"_a, "root_origin"_a, "prev"_a, "cur"_a, "nprev"_a, "h"_a, "accel"_a, "disc"_a,
         "speed"_a, "check_disc"_a, "rtol"_a, "values"_a, "broken"_a);
-  m.def(
-      "difference_poses",
-      [](nb::handle data, const In<int64_t>& bodies, InOut<double> prev_pos,
-         InOut<double> prev_quat, double dt, const In<uint8_t>& user, InOut<double> linear,
-         InOut<double> angular, InOut<double> twist, nb::handle model) {
-        const mjModel* mm = ModelOf(model);
-        const int64_t n = Size(bodies);
-        for (int64_t i = 0; i < n; ++i) {
-          Require(bodies.data()[i] >= 0 && bodies.data()[i] < mm->nbody, "a body is out of range");
-        }
-        Require(static_cast<int64_t>(prev_pos.size()) == 3 * n &&
-                    static_cast<int64_t>(prev_quat.size()) == 4 * n && Size(user) == n &&
-                    static_cast<int64_t>(linear.size()) == 3 * n &&
-                    static_cast<int64_t>(angular.size()) == 3 * n &&
-                    (twist.size() == 0 || static_cast<int64_t>(twist.size()) == 6 * mm->nbody),
-                "the mocap arrays do not fit the bodies");
-        const mjData* d = DataOf(data);
-        dua_difference_poses(d->xpos, d->xquat, bodies.data(), n, prev_pos.data(), prev_quat.data(),
-                             dt, user.data(), linear.data(), angular.data(), twist.data(),
-                             static_cast<int64_t>(twist.size() / 6));
-      },
-      "data"_a, "bodies"_a, "prev_pos"_a, "prev_quat"_a, "dt"_a, "user"_a, "linear"_a, "angular"_a,
-      "twist"_a, "model"_a);
   m.def(
       "index_by_row",
       [](const In<int64_t>& row_of_geom, const In<int64_t>& g1, const In<int64_t>& g2,
@@ -1545,6 +1569,7 @@ NB_MODULE(_core, m) {
   nb::object step_error =
       nb::steal(PyErr_NewException("dua_mujoco._core.StepError", PyExc_RuntimeError, nullptr));
   m.attr("StepError") = step_error;
+  BindMocap(m);
   BindRuntime(m, step_error);
   BindCore(m);
   BindShield(m);

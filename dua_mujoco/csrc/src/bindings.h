@@ -37,6 +37,11 @@ Out<T> Owned(std::vector<T> v, std::vector<size_t> shape) {
   return Out<T>(held->data(), shape.size(), shape.data(), owner);
 }
 
+// A numpy array that owns a copy of v.
+inline Out<int64_t> Ints(const std::vector<int64_t>& v) {
+  return Owned(std::vector<int64_t>(v), {v.size()});
+}
+
 // A bool array that owns v (0/1 bytes: numpy's bool).
 inline Out<bool> OwnedBools(std::vector<uint8_t> v) {
   const size_t shape[1] = {v.size()};
@@ -81,11 +86,6 @@ inline const mjModel* ModelOf(nb::handle model) {
 
 inline const mjData* DataOf(nb::handle data) {
   return reinterpret_cast<const mjData*>(nb::cast<uintptr_t>(data.attr("_address")));
-}
-
-// The instant an MjData describes, as the kinematics kernel reads it.
-inline dua_frame FrameOf(const mjData* d, const double* root_twist) {
-  return {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist, d->xpos};
 }
 
 // Registers what dua_mujoco.core needs beyond bindings.cc (bindings_core.cc); called last.

@@ -1,7 +1,8 @@
-// The run monitor's check that the motion bounds held, every physics step, at every point the
-// bounds are stated for (dua_mujoco/measure/checks.py's BoundMonitor; the hypotheses are derived in
-// docs/discrete-time.md). The step's own check (step.cc, CheckBodies) tests each body's box at
-// once, four bodies at a time; this one measures every point, for the report.
+// What the motion bounds limit, measured at every point they are stated for, and checked against
+// them (dua_mujoco/build/kinematics.py's PointMotion: the pilot measures with it, the run
+// monitor's BoundMonitor checks; the hypotheses are derived in docs/discrete-time.md). The step's
+// own check (step.cc, CheckBodies) tests each body's box at once, four bodies at a time; this one
+// measures every point, for the bounds and the report.
 #include <cmath>
 #include <limits>
 

@@ -1,5 +1,8 @@
 // Velocities of mocap bodies, which mjData does not give: backward differences of their poses
 // (dua_mujoco/build/mocap.py documents the instant and the bound this velocity obeys).
+#include "mocap.h"
+
+#include <algorithm>
 #include <cmath>
 
 #include "dua/dua.h"
@@ -41,3 +44,76 @@ void dua_difference_poses(const double* xpos, const double* xquat, const int64_t
 }
 
 }  // extern "C"
+
+namespace dua {
+
+Mocap::Mocap(const mjModel* m) {
+  if (!m) return;  // free spheres: no model, no mocap bodies
+  bodies.assign(m->nmocap, -1);
+  pos.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
+  quat.assign(4 * static_cast<size_t>(m->nmocap), 0.0);
+  linear.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
+  angular.assign(3 * static_cast<size_t>(m->nmocap), 0.0);
+  twist.assign(6 * static_cast<size_t>(m->nbody), 0.0);
+  user.assign(m->nmocap, 0);
+  for (int b = 0; b < m->nbody; ++b) {
+    if (m->body_mocapid[b] >= 0) bodies[m->body_mocapid[b]] = b;
+  }
+}
+
+void Mocap::WriteTwist() {
+  for (size_t i = 0; i < bodies.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      twist[6 * bodies[i] + k] = angular[3 * i + k];
+      twist[6 * bodies[i] + 3 + k] = linear[3 * i + k];
+    }
+  }
+}
+
+void Mocap::Start(const mjData* d) {
+  for (size_t i = 0; i < bodies.size(); ++i) {
+    const int64_t b = bodies[i];
+    std::copy(d->xpos + 3 * b, d->xpos + 3 * b + 3, pos.begin() + 3 * i);
+    std::copy(d->xquat + 4 * b, d->xquat + 4 * b + 4, quat.begin() + 4 * i);
+  }
+  Forget();
+  updates = 1;
+  time = d->time;
+}
+
+void Mocap::Difference(const mjData* d, double elapsed) {
+  time = d->time;
+  if (bodies.empty()) return;
+  dua_difference_poses(d->xpos, d->xquat, bodies.data(), static_cast<int64_t>(bodies.size()),
+                       pos.data(), quat.data(), elapsed, user.data(), linear.data(), angular.data(),
+                       twist.data(), static_cast<int64_t>(twist.size() / 6));
+  ++updates;
+}
+
+void Mocap::Update(const mjData* d) {
+  if (updates == 0) {
+    Start(d);
+  } else if (d->time - time > 0.0) {
+    Difference(d, d->time - time);
+  }
+}
+
+void Mocap::Forget() {
+  for (size_t i = 0; i < user.size(); ++i) {
+    if (!user[i]) {
+      std::fill_n(linear.begin() + 3 * i, 3, 0.0);
+      std::fill_n(angular.begin() + 3 * i, 3, 0.0);
+    }
+  }
+  WriteTwist();
+  updates = 0;
+}
+
+void Mocap::Set(int64_t i, const double lin[3], const double ang[3]) {
+  std::copy(lin, lin + 3, linear.begin() + 3 * i);
+  std::copy(ang, ang + 3, angular.begin() + 3 * i);
+  user[i] = 1;
+  WriteTwist();
+}
+
+}  // namespace dua

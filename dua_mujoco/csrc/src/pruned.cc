@@ -52,8 +52,8 @@ std::string PrunedTables::Build(const std::vector<double>& reach_table,
 
 void PrunedState::Known(const LearnTables& learn, Universe* u, int64_t k,
                         std::vector<int64_t>* ids) {
-  // Look the candidates up; learn the geom pairs of those the universe
-  // lacks (MuJoCo's filter decides), then look them up again.
+  // Look the candidates up; learn the geom pairs of those the universe lacks (MuJoCo's filter
+  // decides), then look them up again.
   std::vector<int64_t> unknown;
   const size_t at = ids->size();
   u->Lookup(cand.data(), k, ids, &unknown);

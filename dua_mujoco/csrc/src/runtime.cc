@@ -33,7 +33,8 @@ Runtime::Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t
     : tables_(std::move(tables)),
       log_steps_(std::max<int64_t>(log_steps, 1)),
       log_min_(std::max<int64_t>(log_min, 0)),
-      schedule_(std::make_shared<Schedule>(tables_->schedule, 0)) {
+      schedule_(std::make_shared<Schedule>(tables_->schedule, 0)),
+      mocap_(m) {
   const Tables& t = *tables_;
   const int64_t n = t.universe.npair();
   if (t.pruned) pruned_.Allocate(t.held), own_ = t.universe;
@@ -46,21 +47,11 @@ Runtime::Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t
   events_meta_.assign(3, 0);
   events_flagged_.assign(std::max<int64_t>(t.nbody_events, 1), 0);
   // Free spheres (no model): the caller's states are read as they are, nothing memoised.
-  const int nbody = m ? m->nbody : 0, nmocap = m ? m->nmocap : 0;
-  root_twist_.assign(6 * static_cast<size_t>(nbody), 0.0);
+  const int nbody = m ? m->nbody : 0;
   if (!t.free) {
     point_state_.assign(6 * static_cast<size_t>(t.nsphere()), 0.0);
     point_epoch_.assign(t.nsphere(), -1);
   }
-  mocap_bodies_.assign(nmocap, -1);
-  for (int b = 0; b < nbody; ++b) {
-    if (m->body_mocapid[b] >= 0) mocap_bodies_[m->body_mocapid[b]] = b;
-  }
-  mocap_pos_.assign(3 * static_cast<size_t>(nmocap), 0.0);
-  mocap_quat_.assign(4 * static_cast<size_t>(nmocap), 0.0);
-  mocap_linear_.assign(3 * static_cast<size_t>(nmocap), 0.0);
-  mocap_angular_.assign(3 * static_cast<size_t>(nmocap), 0.0);
-  mocap_user_.assign(nmocap, 0);
   // Each body's row of the violation check (whose boxes the plans measure deviations at), and
   // the bodies with covered geoms but no row (the check is off): no plan may hold those.
   body_row_.assign(nbody, -1);
@@ -107,7 +98,6 @@ Runtime::Runtime(const Runtime& o)
       point_state_(o.point_state_),
       exact_records_(o.exact_records_),
       events_prev_(o.events_prev_),
-      root_twist_(o.root_twist_),
       point_epoch_(o.point_epoch_),
       events_meta_(o.events_meta_),
       events_flagged_(o.events_flagged_),
@@ -123,13 +113,7 @@ Runtime::Runtime(const Runtime& o)
       gp_count_(o.gp_count_),
       nstanding_(o.nstanding_),
       min_tau_(o.min_tau_),
-      mocap_bodies_(o.mocap_bodies_),
-      mocap_pos_(o.mocap_pos_),
-      mocap_quat_(o.mocap_quat_),
-      mocap_linear_(o.mocap_linear_),
-      mocap_angular_(o.mocap_angular_),
-      mocap_user_(o.mocap_user_),
-      mocap_updates_(o.mocap_updates_),
+      mocap_(o.mocap_),
       classified_(o.classified_),
       last_time_(o.last_time_),
       step_(o.step_),
@@ -204,44 +188,6 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
   ++held_version_;
 }
 
-void Runtime::StartMocap(const mjData* d) {
-  std::fill(root_twist_.begin(), root_twist_.end(), 0.0);
-  for (size_t i = 0; i < mocap_bodies_.size(); ++i) {
-    const int64_t b = mocap_bodies_[i];
-    std::copy(d->xpos + 3 * b, d->xpos + 3 * b + 3, mocap_pos_.begin() + 3 * i);
-    std::copy(d->xquat + 4 * b, d->xquat + 4 * b + 4, mocap_quat_.begin() + 4 * i);
-    // A new trajectory: differenced velocities are zero until the next step; given ones stand.
-    for (int k = 0; k < 3; ++k) {
-      if (!mocap_user_[i]) mocap_linear_[3 * i + k] = mocap_angular_[3 * i + k] = 0.0;
-      root_twist_[6 * b + k] = mocap_angular_[3 * i + k];
-      root_twist_[6 * b + 3 + k] = mocap_linear_[3 * i + k];
-    }
-  }
-  mocap_updates_ = 1;
-}
-
-void Runtime::DifferenceMocap(const mjData* d, double elapsed) {
-  if (mocap_bodies_.empty()) return;
-  dua_difference_poses(
-      d->xpos, d->xquat, mocap_bodies_.data(), static_cast<int64_t>(mocap_bodies_.size()),
-      mocap_pos_.data(), mocap_quat_.data(), elapsed, mocap_user_.data(), mocap_linear_.data(),
-      mocap_angular_.data(), root_twist_.data(), static_cast<int64_t>(root_twist_.size() / 6));
-  ++mocap_updates_;
-}
-
-void Runtime::SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]) {
-  const int64_t b = mocap_bodies_[mocap];
-  for (int k = 0; k < 3; ++k) {
-    mocap_linear_[3 * mocap + k] = linear[k];
-    mocap_angular_[3 * mocap + k] = angular[k];
-    root_twist_[6 * b + k] = angular[k];
-    root_twist_[6 * b + 3 + k] = linear[k];
-  }
-  mocap_user_[mocap] = 1;
-}
-
-void Runtime::ClearMocapVelocity(int64_t mocap) { mocap_user_[mocap] = 0; }
-
 dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
   dua_step_args& a = args_;
@@ -252,9 +198,7 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   a.shapes = t.shapes.data();
   a.ids = ids_.data();
   // Free spheres: the caller's states (SetPoints), no frame.
-  a.frame = d ? dua_frame{d->geom_xpos,   d->geom_xmat,       d->cvel,
-                          d->subtree_com, root_twist_.data(), d->xpos}
-              : dua_frame{};
+  a.frame = d ? FrameOf(d, mocap_.twist.data()) : dua_frame{};
   a.points = t.free ? points_ : dua_points{};
   dua_exact& x = a.exact;
   x.on = t.exact ? 1 : 0;
@@ -392,7 +336,7 @@ void Runtime::Retire() {
   // The next step's verdicts are all under the new plan (every pair is due then); the old ones
   // are in force until that step's act (latency) and cover the alarm horizon past it.
   const ScheduleSpec& spec = tables_->schedule;
-  const double horizon = spec.alarm_horizon > 0.0 ? spec.alarm_horizon : spec.dt;
+  const double horizon = spec.alarm_horizon;
   const double next = last_time_ + spec.dt - read_lag_ * tables_->timestep;
   const size_t nbody = plan_ok_.size();
   shadows_.push_back({plan_, plan_ok_, next + horizon + static_cast<double>(spec.latency) * spec.dt,
@@ -624,7 +568,7 @@ void Runtime::QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, in
   a.pairs = q->pairs.data();
   a.spheres = t.spheres.data();
   a.shapes = t.shapes.data();
-  a.frame = {d->geom_xpos, d->geom_xmat, d->cvel, d->subtree_com, root_twist_.data(), d->xpos};
+  a.frame = FrameOf(d, mocap_.twist.data());
   a.exact.on = t.exact ? 1 : 0;
   a.exact.geoms = t.geoms.data();
   a.exact.verts = m->mesh_vert;
@@ -733,7 +677,7 @@ void Runtime::SetExpiry(int64_t p) {
 
 int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
-  StartMocap(d);
+  if (d) mocap_.Start(d);
   std::fill(on_.begin(), on_.end(), 1);
   Bind(m, d);
   if (t.pruned) {
@@ -800,7 +744,7 @@ Runtime::Clock Runtime::ClockOf(double time) const {
 
 int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
-  if (d) DifferenceMocap(d, d->time - last_time_);
+  if (d) mocap_.Difference(d, d->time - last_time_);
   Bind(m, d);
   const int64_t n = step_ + 1;
   // Free spheres have no violation check to flag them: every sphere's escape test runs on this

@@ -22,6 +22,7 @@
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "mocap.h"
 #include "plan.h"
 #include "pruned.h"
 #include "schedule.h"
@@ -190,10 +191,6 @@ class DUA_API Runtime {
   void QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, int64_t k, QueryPairs* q,
                   std::vector<int64_t>* knots) const;
 
-  // Mocap bodies: a velocity given instead of differenced (world frame), or back to differencing.
-  void SetMocapVelocity(int64_t mocap, const double linear[3], const double angular[3]);
-  void ClearMocapVelocity(int64_t mocap);
-
   // ---------------------------------------------------------------------- for tests
   // The exact level alone on held pairs ids, from sphere taus `coarse`, with the level's records
   // as built (no direction learnt) and MuJoCo asked afresh below query_below; nothing changes.
@@ -255,7 +252,6 @@ class DUA_API Runtime {
   int64_t violation_events() const { return events_meta_[kMTotal]; }
   int64_t rebuilds() const { return rebuilds_; }
   int64_t renewals() const { return renewals_; }
-  int64_t mocap_updates() const { return mocap_updates_; }
   // Each sphere's anchor step (pruned pairs; empty otherwise).
   const std::vector<int64_t>& anchor_steps() const { return pruned_.built; }
   // Pruned pairs: each sphere's anchor, reach, and the largest contact distance beyond radii.
@@ -264,11 +260,9 @@ class DUA_API Runtime {
   int64_t log_start() const { return log_start_; }
   // Alarms of the latest step or classification (logged from log_start()).
   int64_t log_count() const { return log_used_ - log_start_; }
-  // The mocap state, by mocap id: velocities (n, 3), the user's flags, the roots' twists.
-  std::vector<double>& mocap_linear() { return mocap_linear_; }
-  std::vector<double>& mocap_angular() { return mocap_angular_; }
-  const std::vector<uint8_t>& mocap_user() const { return mocap_user_; }
-  const std::vector<double>& root_twist() const { return root_twist_; }
+  // The mocap bodies' velocities (differenced at each step, or given) and their trees' twists.
+  Mocap& mocap() { return mocap_; }
+  const Mocap& mocap() const { return mocap_; }
   // The step's arguments, pointed at d (and this runtime's buffers).
   dua_step_args& Bind(const mjModel* m, const mjData* d);
 
@@ -277,8 +271,6 @@ class DUA_API Runtime {
   int64_t npair() const { return static_cast<int64_t>(ids_.size()); }
   void Hold(const std::vector<int64_t>& held);
   void NewLog();
-  void StartMocap(const mjData* d);
-  void DifferenceMocap(const mjData* d, double elapsed);
   bool Prune(const mjModel* m, const mjData* d, int64_t n);
   void Carry(const mjModel* m, const mjData* d, const std::vector<int64_t>& held, int64_t n);
   void Learnt();
@@ -314,7 +306,7 @@ class DUA_API Runtime {
   std::shared_ptr<Schedule> schedule_;
   std::vector<int64_t> ids_;  // model pair of each held pair
   dua_step_args args_{};
-  std::vector<double> scratch_, point_state_, exact_records_, events_prev_, root_twist_;
+  std::vector<double> scratch_, point_state_, exact_records_, events_prev_;
   std::vector<int64_t> point_epoch_, events_meta_, events_flagged_, contact_keys_;
   std::vector<double> contact_dist_;
   dua_points points_{};  // free spheres' states for the current call
@@ -332,11 +324,7 @@ class DUA_API Runtime {
   std::vector<int32_t> gp_count_;
   int64_t nstanding_ = 0;
   double min_tau_ = std::numeric_limits<double>::infinity();
-  // Mocap bodies (by mocap id) and their poses at the last step.
-  std::vector<int64_t> mocap_bodies_;
-  std::vector<double> mocap_pos_, mocap_quat_, mocap_linear_, mocap_angular_;
-  std::vector<uint8_t> mocap_user_;
-  int64_t mocap_updates_ = 0;
+  Mocap mocap_;  // the poses at the last step
   // The alarm log and where the latest step's alarms start in it.
   std::shared_ptr<AlarmLog> log_;
   int64_t log_used_ = 0, log_start_ = 0;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -497,23 +498,40 @@ int64_t BitLength(int64_t v) {
 }  // namespace
 
 std::string ScheduleSpec::Check() const {
+  auto num = [](double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", v);
+    return std::string(text);
+  };
+  auto bad = [](const std::string& name, const std::string& value, const std::string& fix) {
+    return name + " = " + value + " is invalid: " + fix;
+  };
   if (kind != kRank && kind != kDeadline && kind != kAll) {
-    return "the schedule's kind (0 rank, 1 deadline, 2 select-all)";
+    return bad("the schedule's kind", std::to_string(kind), "0 (rank), 1 (deadline), 2 (all)");
   }
-  if (!(dt > 0.0) || !std::isfinite(dt)) return "the period dt (finite, > 0)";
-  if (latency < 0 || latency > (int64_t{1} << 40)) return "the latency (an int >= 0)";
+  if (!(dt > 0.0) || !std::isfinite(dt)) {
+    return bad("the period dt", num(dt), "a finite number of seconds > 0");
+  }
+  if (latency < 0 || latency > (int64_t{1} << 40)) {
+    return bad("latency", std::to_string(latency), "an int >= 0 (periods a verdict takes to act)");
+  }
   if (slots_per_bucket < 1 || (slots_per_bucket & (slots_per_bucket - 1)) != 0 ||
       slots_per_bucket > (int64_t{1} << 40)) {
-    return "slots_per_bucket (a power of two >= 1)";
+    return bad("slots_per_bucket", std::to_string(slots_per_bucket),
+               "a power of two (1, 2, 4, 8, ...), so that every revisit interval is exact");
   }
-  if (cap < 0) return "the evaluation cap (an int >= 0, 0: none)";
+  if (cap < 0) return bad("the evaluation cap", std::to_string(cap), "an int >= 0 (0: none)");
   if (max_interval < 1 || max_interval > (int64_t{1} << 30)) {
-    return "max_interval (an int in [1, 2^30])";
+    return bad("max_interval", std::to_string(max_interval), "an int in [1, 2^30] (steps)");
   }
-  if (backoff < 1) return "alarm_backoff (an int >= 1)";
-  if (std::isnan(threshold)) return "the select-all threshold (not NaN)";
-  if (!(alarm_horizon == 0.0 || (alarm_horizon >= dt && std::isfinite(alarm_horizon)))) {
-    return "the alarm horizon (0 for one period, or seconds >= the period)";
+  if (backoff < 1) {
+    return bad("alarm_backoff", std::to_string(backoff),
+               "an int >= 1 (steps; 1 re-evaluates alarmed pairs every step)");
+  }
+  if (std::isnan(threshold)) return bad("the select-all threshold", "NaN", "a number");
+  if (!(alarm_horizon >= dt && std::isfinite(alarm_horizon))) {
+    return bad("alarm_horizon", num(alarm_horizon),
+               "seconds of warning, at least one period (" + num(dt) + " s)");
   }
   return "";
 }
@@ -533,8 +551,7 @@ void Schedule::Size(int64_t m) {
     for (int64_t k = 0; k < nbuckets; ++k) {
       const int64_t size = int64_t{1} << k;
       width += std::min(s.slots_per_bucket, size);
-      const int64_t interval = std::max<int64_t>(1, size / s.slots_per_bucket);
-      horizon[k] = static_cast<double>(interval + s.latency) * s.dt + Extra();
+      horizon[k] = static_cast<double>(Interval(k) + s.latency) * s.dt + Extra();
     }
     width += std::min(m, kSpare);
     params[kParamNBuckets] = nbuckets;
@@ -639,10 +656,21 @@ double Schedule::HorizonOf(int64_t p) const {
   return horizon[0];
 }
 
+int64_t Schedule::NextDue(int64_t p) const {
+  const int64_t n = step_count + 1, where = ints[kIntWhere * m() + p];
+  if (spec_.kind == kDeadline) return where;
+  if (spec_.kind != kRank) return n;
+  // RankSelect hands out slot o of bucket k at the steps n with (n q) mod 2^k == o - o mod q.
+  const int64_t k = BucketOf(where), size = int64_t{1} << k, q = spec_.slots_per_bucket;
+  const int64_t offset = where - (size - 1), interval = Interval(k);
+  const int64_t phase = size <= q ? 0 : (offset - offset % q) / q;
+  return n + ((phase - n) % interval + interval) % interval;
+}
+
 bool Schedule::Stands(int64_t p) const { return active[p] && last_tau[p] <= HorizonOf(p); }
 
 double Schedule::Extra() const {
-  return spec_.alarm_horizon > 0.0 ? spec_.alarm_horizon - spec_.dt : 0.0;
+  return spec_.alarm_horizon - spec_.dt;  // 0 exactly at one period
 }
 
 void Schedule::Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n) {

@@ -5,6 +5,7 @@
 #ifndef DUA_MUJOCO_SCHEDULE_H_
 #define DUA_MUJOCO_SCHEDULE_H_
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -28,11 +29,13 @@ struct DUA_API ScheduleSpec {
   // Select-all: the alarm threshold on the urgency (tau: (1 + latency) dt + the alarm horizon
   // beyond one period; a distance for the paper's SA(d)).
   double threshold = 0.0;
-  // The alarm horizon, seconds (0: one period): every verdict alarms that cannot cover the wait
-  // until the next one plus this less one period.
+  // The alarm horizon, seconds (at least dt; dt is one period, the default): every verdict alarms
+  // that cannot cover the wait until the next one plus this less one period. Set by every
+  // builder (Python converts the user's seconds to whole periods once); 0 fails Check.
   double alarm_horizon = 0.0;
 
-  // An empty string, or what is wrong (names the option and its valid values).
+  // An empty string, or what is wrong: the option, its value and the values it takes (the one
+  // check of a schedule's options: the plugin's tables and the binding's schedules).
   std::string Check() const;
 };
 
@@ -62,6 +65,13 @@ class DUA_API Schedule {
   bool Stands(int64_t p) const;
   // The time pair p's latest verdict must cover (seconds; -inf: switched off, nothing).
   double HorizonOf(int64_t p) const;
+  // The step pair p is next evaluated at, if it stays switched on (a deadline pair switched off:
+  // -1).
+  int64_t NextDue(int64_t p) const;
+  // The rank schedule's revisit interval of bucket k, in steps: its 2^k slots, q a step.
+  int64_t Interval(int64_t k) const {
+    return std::max<int64_t>(1, (int64_t{1} << k) / spec_.slots_per_bucket);
+  }
   // The alarm horizon beyond one period (seconds, 0 by default).
   double Extra() const;
   // New pair k is old pair src[k] (its verdict carried) or new (src[k] < 0: it stands in alarm,

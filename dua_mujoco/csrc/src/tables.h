@@ -26,7 +26,7 @@
 namespace dua {
 
 // Version of the tables' format: a model's tables written by another version are refused.
-constexpr int64_t kTablesVersion = 4;
+constexpr int64_t kTablesVersion = 5;
 
 // Entries of the "config" table.
 enum Config {
@@ -56,7 +56,7 @@ enum Config {
   kCfgOverride = 24,      // pruned: mjENBL_OVERRIDE (the margin is o_margin)
   kCfgOMargin = 25,       // pruned: o_margin
   kCfgHasSpeed = 26,      // pruned: speed bounds are declared
-  kCfgAlarmHorizon = 27,  // the alarm horizon, seconds (0: one period)
+  kCfgAlarmHorizon = 27,  // the alarm horizon, seconds (at least dt, one period)
   kCfgSize = 28,
 };
 

@@ -114,7 +114,7 @@ void Universe::Lookup(const int64_t* cand, int64_t n, std::vector<int64_t>* ids,
 }
 
 int64_t Universe::Learn(const LearnTables& lt, const int64_t* g1, const int64_t* g2, int64_t n) {
-  // The geom pairs, once each, that the universe lacks, in key order (PairUniverse._unknown).
+  // The geom pairs, once each, that the universe lacks, in key order.
   std::vector<int64_t> keys;
   for (int64_t k = 0; k < n; ++k) {
     const int64_t lo = std::min(g1[k], g2[k]), hi = std::max(g1[k], g2[k]);

@@ -1,6 +1,7 @@
-// The pairs a plugin instance knows (dua_mujoco/build/universe.py's PairUniverse): fixed when it
-// holds every pair, growing per mjData with pruned pairs, which learn the geom pairs their
-// candidates bring in through MuJoCo's filter, with the tables the step reads of them.
+// The pairs a runtime knows (dua_mujoco/build/universe.py's PairUniverse builds the first ones and
+// reads the rest back): fixed when it holds every pair, growing per mjData with pruned pairs,
+// which learn the geom pairs their candidates bring in through MuJoCo's filter, with the tables
+// the step reads of them.
 #ifndef DUA_MUJOCO_UNIVERSE_H_
 #define DUA_MUJOCO_UNIVERSE_H_
 
@@ -62,9 +63,8 @@ struct DUA_API Universe {
   // rows of the others to unknown (if not null).
   void Lookup(const int64_t* cand, int64_t n, std::vector<int64_t>* ids,
               std::vector<int64_t>* unknown) const;
-  // Learn the geom pairs {g1[k], g2[k]} the filter lets through and the universe lacks, as
-  // PairUniverse.learn does: their sphere pairs appended with their tables. Returns how many
-  // sphere pairs were added.
+  // Learn the geom pairs {g1[k], g2[k]} the filter lets through and the universe lacks: their
+  // sphere pairs appended with their tables. Returns how many sphere pairs were added.
   int64_t Learn(const LearnTables& lt, const int64_t* g1, const int64_t* g2, int64_t n);
   // Forgets the geom pairs k with keep_gp[k] == 0 and all their sphere pairs, renumbering the
   // rest in order (an id's rank among those kept is its new id) with memory released; pair_map

@@ -51,7 +51,7 @@ class DuaGhost(_ScheduledGhost):
 
     def _horizon(self, ids: np.ndarray) -> np.ndarray:
         assert self.sched is not None
-        return np.asarray(self.sched.interval[self.sched.bucket(ids)] + LATENCY)
+        return np.rint(self.sched.horizon_of(ids) / self.dt).astype(np.int64)  # I_k + latency
 
     def step(
         self, c: np.ndarray, v: np.ndarray
