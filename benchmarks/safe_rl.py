@@ -1,6 +1,6 @@
 """Safe RL with ``dua_mujoco.gym.SafetyShield``: a short training run with and without the shield.
 
-    python benchmarks/safe_rl.py                        # both envs, 40 iterations each, ~10 min
+    python benchmarks/safe_rl.py                        # both envs, 40 iterations each, ~1 min
     python benchmarks/safe_rl.py --envs pusher --iterations 10
 
 The algorithm is Augmented Random Search (Mania, Guy, Recht, NeurIPS 2018, ARS V2-t: a linear
