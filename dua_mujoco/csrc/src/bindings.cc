@@ -1572,4 +1572,5 @@ NB_MODULE(_core, m) {
   BindMocap(m);
   BindRuntime(m, step_error);
   BindCore(m);
+  BindShield(m);
 }
