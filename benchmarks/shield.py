@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 from dua_mujoco.experiments.report import jsonable
-from dua_mujoco.experiments.shield.bench import PEERS, peer_layer, run_many, summary
+from dua_mujoco.experiments.shield.bench import PEERS, SHIELDS, any_layer, run_many, summary
 from dua_mujoco.experiments.shield.episodes import Layer, SceneSetup
 from dua_mujoco.models.cells import SHIELD_SCENES
 
@@ -32,13 +32,13 @@ from reference_shield import shield_for
 
 def make_layer(setup: SceneSetup, name: str) -> Layer:
     """The peers, and ``reference``: the slow reference shield."""
-    return shield_for(setup) if name == "reference" else peer_layer(setup, name)
+    return shield_for(setup) if name == "reference" else any_layer(setup, name)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--scenes", nargs="+", default=list(SHIELD_SCENES))
-    parser.add_argument("--layers", nargs="+", default=list(PEERS))
+    parser.add_argument("--layers", nargs="+", default=list(PEERS) + list(SHIELDS))
     parser.add_argument("--episodes", type=int, default=20, help="episodes a scene")
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--jobs", type=int, default=2)

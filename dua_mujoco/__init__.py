@@ -55,6 +55,7 @@ if TYPE_CHECKING:
         plan_from_controls,
     )
     from dua_mujoco.runtime.predictor import Alarms, Predictor
+    from dua_mujoco.shield.shield import Shield
 
 # Everything but the errors loads on first use (PEP 562): ``import dua_mujoco`` and the pytest
 # plugin ``dua_mujoco.testing``, loaded in every test session of a project that enables it,
@@ -76,6 +77,7 @@ _LAZY = {
     "Predictor": "dua_mujoco.runtime.predictor",
     "RunReport": "dua_mujoco.measure.report",
     "Schedule": "dua_mujoco.core.schedules",
+    "Shield": "dua_mujoco.shield.shield",
     "SpherePredictor": "dua_mujoco.core.spheres",
     "estimate_bounds": "dua_mujoco.build.bounds",
     "load_scene": "dua_mujoco.models.scenes",
@@ -124,6 +126,7 @@ __all__ = [
     "ScheduleOptions",
     "SchedulerError",
     "ShapeError",
+    "Shield",
     "SpherePredictor",
     "UnsupportedGeomError",
     "UrgencyOptions",

@@ -549,3 +549,54 @@ class FreeStep:
         """
         One fused step: its number of alarms, or -1 - p for a pair p whose state is not finite (the step undone).
         """
+
+class Brake:
+    """The shield's brake (brake.h) on a scratch MjData."""
+
+    def __init__(self, model: object, actuators: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], time_constant: float) -> None: ...
+
+    def compute(self, data: object, target: object | None = None) -> NDArray[numpy.float64]:
+        """
+        (nu,) controls at data's state: data.ctrl with the robot's actuators braking (or driving toward target, joint velocities of the braked DOFs).
+        """
+
+    @property
+    def dofs(self) -> list[int]: ...
+
+    @property
+    def bodies(self) -> list[int]: ...
+
+    @property
+    def actuators(self) -> list[int]: ...
+
+    @property
+    def time_constant(self) -> float: ...
+
+class Shield:
+    """The safety shield (shield.h)."""
+
+    def __init__(self, tables: object, model: object, rolled: object, roll: object, scratch: object, actuators: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], bodies: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], period: int, deviation: float, rest_speed: float, stop_time: float, stop_distance: float, screen: bool, time_constant: float, policy: object | None) -> None: ...
+
+    def reset(self, data: object) -> None:
+        """Start over at data's state."""
+
+    def control(self, data: object, intended: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+        """(nu,) the controls for the step about to start from data."""
+
+    @property
+    def guaranteed(self) -> bool: ...
+
+    @property
+    def intervening(self) -> bool: ...
+
+    @property
+    def counts(self) -> dict: ...
+
+    @property
+    def interventions(self) -> int: ...
+
+    @property
+    def plan_knots(self) -> int: ...
+
+    @property
+    def plan_rest(self) -> int: ...

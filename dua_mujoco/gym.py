@@ -1,4 +1,7 @@
-"""``PredictCollisions``: a gymnasium wrapper that predicts collisions in any MuJoCo-based env.
+"""Gymnasium wrappers for any MuJoCo-based env: ``PredictCollisions`` predicts collisions,
+``SafetyShield`` shields the env's actions (:class:`~dua_mujoco.Shield`; at the end).
+
+``PredictCollisions``
 
 After every ``env.step`` the wrapper steps a :class:`~dua_mujoco.Predictor` on the env's own
 ``MjData`` and adds to ``info``:
@@ -60,14 +63,25 @@ except ModuleNotFoundError as exc:  # an optional dependency: say which extra br
 
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.runtime.predictor import Predictor
+from dua_mujoco.shield.shield import Shield
 
-__all__ = ["COSTS", "COST_KEY", "PredictCollisions", "find_mujoco"]
+__all__ = [
+    "COSTS",
+    "COST_KEY",
+    "SHIELD_COST_KEY",
+    "PredictCollisions",
+    "SafetyShield",
+    "find_mujoco",
+]
 
 COSTS = ("alarm", "new", "horizon")
 """The choices of ``PredictCollisions(cost=...)``."""
 
 COST_KEY = "cost_predicted_collision"
 """The ``info`` key of this wrapper's cost term (safety-gymnasium's ``cost_<name>``)."""
+
+SHIELD_COST_KEY = "cost_protected_contact"
+"""The ``info`` key of :class:`SafetyShield`'s cost term."""
 
 IgnoreSpec = str | tuple[str, str]
 
@@ -260,3 +274,107 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
         left = expiry - self.predictor.dt * self._runtime.step_count
         info["min_tau"] = max(left, 0.0)
         return int(started)
+
+
+class SafetyShield(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
+    """Shields a MuJoCo env's actions: :class:`~dua_mujoco.Shield` between the action and every
+    physics step of ``env.step``.
+
+    The env's own simulation step (gymnasium's ``MujocoEnv._step_mujoco_simulation``: the
+    action as ``data.ctrl`` for ``frame_skip`` physics steps) is replaced on the wrapped env by
+    one that asks the shield for the controls of each physics step; the shield's control period
+    is ``frame_skip``, so the action is its intended controls for the period. The reward is the
+    env's own, on the motion that happened. ``info`` gets:
+
+    - ``"shield"``: whether the shield overrode the action at some physics step of this
+      ``env.step`` (its failsafe ran);
+    - ``"cost_protected_contact"``: the protected geom pairs (``shield.pairs``) found in contact
+      at some physics step of this ``env.step``, as a float; ``"cost"`` adds it to the env's own
+      ``info["cost"]`` if it has one (safety-gymnasium's convention).
+
+    The shield's guarantee (docs/theory.md, section 10) makes every protected contact find the
+    robot at rest while the protected bodies keep their declared bounds; the cost counts every
+    contact, at rest or not (the environment may still push into the robot).
+
+    Args:
+        env: A MuJoCo-based env whose simulation step is gymnasium's ``MujocoEnv``'s.
+        protect: The bodies the robot must not move into (``Shield``'s ``protect``).
+        active: False lets every action through unshielded, the cost counted the same (the
+            baseline of an A/B).
+        **shield_options: Passed to :class:`~dua_mujoco.Shield` (``accel`` is required; ``robot``,
+            ``failsafe``, ``stop_time``, ...), except ``period``: it is the env's ``frame_skip``.
+
+    Attributes:
+        shield: The shield.
+
+    Raises:
+        InvalidInputError: Not a MuJoCo-based env, ``period`` passed, or a bad shield option.
+    """
+
+    def __init__(
+        self, env: gymnasium.Env, *, protect: Any, active: bool = True, **shield_options: Any
+    ) -> None:
+        gymnasium.utils.RecordConstructorArgs.__init__(
+            self, protect=protect, active=active, **shield_options
+        )
+        gymnasium.Wrapper.__init__(self, env)
+        model, self._data, frame_skip = find_mujoco(env)
+        if "period" in shield_options:
+            raise InvalidInputError(
+                f"period = {shield_options['period']!r}: here the shield's period is the env's "
+                f"frame_skip ({frame_skip} physics steps per env.step): drop period."
+            )
+        inner = env.unwrapped
+        if not callable(getattr(inner, "_step_mujoco_simulation", None)):
+            raise InvalidInputError(
+                f"{type(inner).__name__} has no _step_mujoco_simulation(ctrl, n_frames): the "
+                "shield steps the physics in its place; wrap a gymnasium MujocoEnv."
+            )
+        if not isinstance(active, bool):
+            raise InvalidInputError(f"active = {active!r} is invalid: pass True or False.")
+        self.shield = Shield(model, protect=protect, period=frame_skip, **shield_options)
+        self.active = active
+        self._model = model
+        ngeom = int(model.ngeom)
+        pairs = self.shield.pairs
+        self._ngeom = ngeom
+        self._keys = np.unique(pairs.min(axis=1) * ngeom + pairs.max(axis=1))
+        self._touched = np.zeros(0, dtype=np.int64)
+        # The env's physics step, shielded (an instance attribute shadows the method).
+        inner._step_mujoco_simulation = self._simulate  # type: ignore[attr-defined]
+
+    def _simulate(self, ctrl: Any, n_frames: int) -> None:
+        """The env's simulation step: each physics step's controls from the shield."""
+        model, data = self._model, self._data
+        intended = np.asarray(ctrl, dtype=np.float64)
+        touched = []
+        ngeom = self._ngeom
+        for _ in range(int(n_frames)):
+            data.ctrl[:] = self.shield(data, intended) if self.active else intended
+            mujoco.mj_step(model, data)
+            if data.ncon:
+                g = np.asarray(data.contact.geom)[: data.ncon]
+                keys = np.minimum(g[:, 0], g[:, 1]) * ngeom + np.maximum(g[:, 0], g[:, 1])
+                touched.append(keys[np.isin(keys, self._keys)])
+        self._touched = np.unique(np.concatenate(touched)) if touched else self._touched[:0]
+        mujoco.mj_rnePostConstraint(model, data)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset the env, then the shield at its state."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        _, self._data, _ = find_mujoco(self.env)  # an env may build a new MjData on reset
+        self.shield.reset(self._data)
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        """Step the env with each physics step shielded; ``info`` gets ``shield`` and the
+        cost."""
+        before = self.shield.interventions
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        cost = float(self._touched.size)
+        info["shield"] = self.shield.interventions > before
+        info[SHIELD_COST_KEY] = cost
+        info["cost"] = float(info.get("cost", 0.0)) + cost
+        return obs, reward, terminated, truncated, info

@@ -33,6 +33,7 @@ from dua_mujoco.models.people import Bound, Crowd, PersonScript, ScriptedBodies,
 
 __all__ = [
     "ARM_B_BOUNDS",
+    "ROBOT_BOUNDS",
     "SHIELD_SCENES",
     "ArmTask",
     "BaseTask",
@@ -78,6 +79,17 @@ ARM_B_BOUNDS = {
     "b_hand": Bound(1.3, 42.0, 0.085),
 }
 """Arm B's declared bounds (every point of each body), for ``arm_pair``."""
+
+ROBOT_BOUNDS = {
+    # Each robot under its task with the shield's brake cutting in at random (200 episodes,
+    # dua_mujoco.experiments.shield.bounds): the largest chord speed and discrete acceleration
+    # at the corners of any of its geoms' boxes, times 1.5 (the discrepancy stays within the
+    # integrator term A h these imply). What the shield's screen assumes of the robot.
+    "person_cell": Bound(2.2, 290.0),
+    "arm_pair": Bound(2.0, 335.0),
+    "mobile_cell": Bound(1.5, 13.0),
+}
+"""The robots' declared bounds (every point of every robot body), by scene."""
 
 
 def body_ids(model: mujoco.MjModel, patterns: tuple[str, ...] | list[str]) -> np.ndarray:
@@ -283,6 +295,8 @@ class ShieldScene:
             the robot's DOFs (for tests drawing states within the task's speeds).
         task_accel: the largest acceleration of each robot DOF its task asks for (a peer
             that wants joint acceleration limits, as MoveIt's joint_limits.yaml has, reads them).
+        stop_time: the longest stop of the shield's brake from the task's states (s): the
+            measured 38 / 30 / 386 ms (docs/shield.md) with a margin.
     """
 
     name: str
@@ -293,6 +307,7 @@ class ShieldScene:
     duration: float
     task_speed: tuple[float, ...]
     task_accel: tuple[float, ...]
+    stop_time: float
 
     def model(self) -> mujoco.MjModel:
         """Compile the scene."""
@@ -361,6 +376,7 @@ SHIELD_SCENES: dict[str, ShieldScene] = {
             duration=6.0,
             task_speed=tuple(ARM_SPEED),
             task_accel=tuple(ARM_ACCEL),
+            stop_time=0.06,
         ),
         ShieldScene(
             name="arm_pair",
@@ -371,6 +387,7 @@ SHIELD_SCENES: dict[str, ShieldScene] = {
             duration=5.0,
             task_speed=tuple(ARM_SPEED),
             task_accel=tuple(ARM_ACCEL),
+            stop_time=0.06,
         ),
         ShieldScene(
             name="mobile_cell",
@@ -381,6 +398,7 @@ SHIELD_SCENES: dict[str, ShieldScene] = {
             duration=10.0,
             task_speed=(BaseTask.VMAX, BaseTask.VMAX, 0.5),
             task_accel=(BaseTask.AMAX, BaseTask.AMAX, 2.0),
+            stop_time=0.45,
         ),
     )
 }

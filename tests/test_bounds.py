@@ -735,6 +735,34 @@ def test_monitor_of_a_predictor_with_period_and_mocap_holds() -> None:
     assert mon.bound_checks is not None and mon.bound_checks.bounds_held(9)
 
 
+@pytest.mark.parametrize("period", [2, 4, 10])
+def test_the_steps_check_takes_the_mocap_trackers_lag(period: int) -> None:
+    """The step's own check of (E2) on a mocap body within its bounds (the circle, 8 of 8.5
+    m/s^2): its tracker's velocity is the chord over the last period, which the period's chord
+    differs from by up to A h p (discrete-time.md, section 3, averaged over the period as in
+    Lemma 6.3), and the check allows for it. (Its table held D + A h (p - 1) / 2 of a body whose
+    velocity MuJoCo reports, and flagged this body at nearly every step: the shield read each as
+    a broken bound.)"""
+    from dua_mujoco.runtime.predictor import Predictor
+
+    m = mujoco.MjModel.from_xml_string(MOCAP_CIRCLE)
+    d = mujoco.MjData(m)
+    h = m.opt.timestep
+    p = Predictor(m, accel={"m": 8.5, "*": 0.0}, period=period)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    flagged = []
+    for k in range(1, 601):
+        t = (k + 1) * h
+        d.mocap_pos[0] = [0.5 * np.cos(4 * t), 0.5 * np.sin(4 * t), 0.0]
+        mujoco.mj_step(m, d)
+        if k % period == 0:
+            p.step(d)
+            if k > 2 * period:  # the tracker's first velocity is zero: a true discrepancy
+                flagged += p.violated_bodies.tolist()
+    assert flagged == []
+
+
 # --------------------------------------------------------------------------------------------------
 # What the pilot measures (PilotOptions(motion=...)).
 # --------------------------------------------------------------------------------------------------

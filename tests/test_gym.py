@@ -261,3 +261,67 @@ def test_bad_input_is_refused_with_the_fix() -> None:
         PredictCollisions(pusher, ignore=[("e1", "e2")], **FAST)
     with pytest.raises(InvalidInputError, match="name, name"):
         PredictCollisions(pusher, ignore=[("table",)], **FAST)
+
+
+# ---------------------------------------------------------------------------- SafetyShield
+
+# Pusher's arm pressed down (its shoulder lift at full control) drives the wrist into the table.
+PUSH_DOWN = np.array([0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+
+def test_the_safety_shield_keeps_pushers_arm_off_the_table() -> None:
+    """Pressed down, Pusher's arm hits the table unshielded (``active=False``: the cost counted,
+    nothing shielded); under ``SafetyShield`` (the table protected) no step's cost is > 0, the
+    shield intervened, and every physics step ran under the guarantee. ``check_env`` passes on
+    the wrapper."""
+    from dua_mujoco.gym import SHIELD_COST_KEY, SafetyShield
+
+    env = SafetyShield(gym.make("Pusher-v5"), protect=["world"], accel=100.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        check_env(env, skip_render_check=True)
+    plain = SafetyShield(gym.make("Pusher-v5"), protect=["world"], accel=100.0, active=False)
+    plain.reset(seed=0)
+    steps = [plain.step(PUSH_DOWN)[4] for _ in range(100)]
+    assert sum(info["cost"] for info in steps) > 0 and not any(info["shield"] for info in steps)
+    _, info = env.reset(seed=0)
+    assert env.shield.counts["steps"] == 0
+    costs, shielded = [], []
+    for _ in range(100):
+        _, _, _, _, info = env.step(PUSH_DOWN)
+        costs.append(info["cost"])
+        shielded.append(info["shield"])
+        assert info[SHIELD_COST_KEY] == info["cost"]
+    assert max(costs) == 0.0
+    assert any(shielded) and not all(shielded)
+    counts = env.shield.counts
+    assert counts["interventions"] > 0 and counts["unguaranteed"] == 0
+    assert counts["steps"] == 100 * env.unwrapped.frame_skip  # type: ignore[attr-defined]
+
+
+def test_the_safety_shield_cost_counts_protected_contacts() -> None:
+    """A failsafe that does not stop (it keeps pressing down): no rollout comes to rest, so the
+    shield runs that failsafe, unguaranteed, and the arm hits the table: the cost counts it."""
+    from dua_mujoco.gym import SafetyShield
+
+    env = SafetyShield(
+        gym.make("Pusher-v5"),
+        protect=["world"],
+        accel=100.0,
+        failsafe=lambda model, data: PUSH_DOWN.copy(),  # a "failsafe" that does not stop
+    )
+    env.reset(seed=0)
+    cost = sum(env.step(PUSH_DOWN)[4]["cost"] for _ in range(100))
+    assert cost > 0.0
+    assert env.shield.counts["unguaranteed"] > 0
+
+
+def test_the_safety_shield_takes_its_period_from_the_env() -> None:
+    from dua_mujoco.gym import SafetyShield
+
+    with pytest.raises(InvalidInputError, match="drop period"):
+        SafetyShield(gym.make("Pusher-v5"), protect=["world"], accel=100.0, period=3)
+    with pytest.raises(InvalidInputError, match="protect: 'tabel' names no body"):
+        SafetyShield(gym.make("Pusher-v5"), protect=["tabel"], accel=100.0)
+    env = SafetyShield(gym.make("Pusher-v5"), protect=["world"], accel=100.0)
+    assert env.shield.period == env.unwrapped.frame_skip  # type: ignore[attr-defined]

@@ -275,3 +275,54 @@ def test_rollout_with_static_shapes_misses_nothing(scene: str) -> None:
     assert r.predicted_onsets + r.missed_onsets == r.contact_onsets
     # Contacts with the static geoms happen and were predicted.
     assert r.contact_onsets > 0
+
+
+WALL = """<mujoco><option timestep="0.002" gravity="0 0 0"/><worldbody>
+<geom name="floor" type="plane" size="5 5 .1"/>
+<geom name="wall" type="box" pos="1.2 0 0.5" size="0.1 1 0.5"/>
+<body name="ball" pos="0 0 0.5"><freejoint/><geom name="ball" type="sphere" size=".05"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("exact", [False, True])
+def test_a_speed_bound_lasts_a_static_gap(exact: bool) -> None:
+    """A ball under a large acceleration bound and a speed bound V, by a static wall (a shape
+    pair) over the floor (a half-space): its points move at most V t, so a gap g lasts at least
+    g / V, and tau is raised to it (without the term, tau is the acceleration bound's, far
+    below); never above: a ball already moving at V straight in touches at exactly g / V. A
+    ball measured faster than V has broken its bound: the term is dropped."""
+    m = mujoco.MjModel.from_xml_string(WALL)
+    d = mujoco.MjData(m)
+    speed = 1.5
+    p = Predictor(m, accel=1000.0, speed=speed, urgency=UrgencyOptions(exact=exact))
+    ball = m.geom("ball").id
+    rng = np.random.default_rng(5)
+
+    def tau_of(name: str) -> float:
+        g = m.geom(name).id
+        t = p.tables
+        ids = np.flatnonzero(
+            ((t.geom1 == g) & (t.geom2 == ball)) | ((t.geom2 == g) & (t.geom1 == ball))
+        )
+        return float(p.pair_state().last_tau_of(ids).min())
+
+    for _ in range(20):
+        x, z = rng.uniform(-0.5, 0.9), rng.uniform(0.3, 0.9)
+        direction = rng.normal(size=3)
+        v = direction / np.linalg.norm(direction) * rng.uniform(0, speed)
+        for into, velocity in [("any", v), ("wall", [speed, 0, 0]), ("floor", [0, 0, -speed])]:
+            d.qpos[:3] = [x, 0.0, z]
+            d.qvel[:3] = velocity
+            mujoco.mj_forward(m, d)
+            p.reset(d)
+            gaps = {"wall": 1.1 - x - 0.05, "floor": z - 0.05}
+            for name, gap in gaps.items():
+                tau = tau_of(name)
+                assert tau >= gap / speed * (1 - 1e-9), (name, tau, gap / speed)
+                if into == name:
+                    assert tau <= gap / speed * (1 + 1e-12), (name, tau, gap / speed)
+    d.qpos[:3] = [0.5, 0.0, 0.5]
+    d.qvel[:3] = [2 * speed, 0, 0]  # faster than the bound: the acceleration term alone
+    mujoco.mj_forward(m, d)
+    p.reset(d)
+    assert tau_of("wall") < 0.55 / (2 * speed)

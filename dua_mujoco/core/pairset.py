@@ -130,8 +130,8 @@ class PairSet:
             for pair sets without shapes; give ``kind`` instead to have both.
         kind: ``(M,)`` ``PairKind`` codes (default: from ``halfspace``, else all spheres).
         vel_uncertainty: ``(M,)`` or scalar velocity uncertainty ``delta`` (default 0).
-        speed: ``(M,)`` or scalar relative speed bound (default ``inf``, none); not used by
-            half-space and shape pairs.
+        speed: ``(M,)`` or scalar relative speed bound (default ``inf``, none); for half-space
+            and shape pairs the sphere's own.
         shapes: ``(nshape, 16)`` static shape records (``dua_mujoco.core.shapes.pack_shapes``)
             that shape pairs index, or None; held as ``PairSet.shapes`` (static shapes do not
             move, so ``tau`` and ``inputs`` use them unless given others).

@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
-__all__ = ["PlanArrays", "PlanFollowing", "finite_rows", "plan_arrays"]
+__all__ = ["PlanArrays", "PlanFollowing", "body_mask", "finite_rows", "plan_arrays"]
 
 
 def finite_rows(
@@ -78,10 +78,14 @@ class PlanArrays(NamedTuple):
     mocap_quat: np.ndarray
 
 
-def _bodies(
-    model: mujoco.MjModel, bodies: Iterable[str | int] | str | int, mocap: bool
+def body_mask(
+    model: mujoco.MjModel,
+    bodies: Iterable[str | int] | str | int,
+    mocap: bool = True,
+    what: str = "bodies",
 ) -> np.ndarray:
-    """``(nbody,)`` uint8 mask of the bodies named (names, fnmatch patterns or ids)."""
+    """``(nbody,)`` uint8 mask of the bodies named (names, fnmatch patterns or ids); ``mocap``
+    False refuses bodies in mocap trees; ``what`` names the argument in the errors."""
     names = [
         mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)
     ]
@@ -91,19 +95,19 @@ def _bodies(
             hit = [b for b, name in enumerate(names) if name and fnmatch.fnmatchcase(name, item)]
             if not hit:
                 raise InvalidInputError(
-                    f"bodies: {item!r} names no body of the model (names or fnmatch patterns, "
+                    f"{what}: {item!r} names no body of the model (names or fnmatch patterns, "
                     f"e.g. 'arm_*'; the bodies: {', '.join(n for n in names if n)})."
                 )
             out[hit] = 1
         elif isinstance(item, int | np.integer) and not isinstance(item, bool):
             if not 0 <= int(item) < model.nbody:
                 raise InvalidInputError(
-                    f"bodies: id {item} is out of range: the model has {model.nbody} bodies."
+                    f"{what}: id {item} is out of range: the model has {model.nbody} bodies."
                 )
             out[int(item)] = 1
         else:
             raise InvalidInputError(
-                f"bodies: {item!r} is neither a body name, a pattern nor an id."
+                f"{what}: {item!r} is neither a body name, a pattern nor an id."
             )
     in_mocap = np.asarray(model.body_mocapid)[np.asarray(model.body_rootid)] >= 0
     bad = np.flatnonzero(out.astype(bool) & in_mocap)
@@ -176,7 +180,7 @@ def plan_arrays(
     none = np.zeros(0)
     mp = none if mocap_pos is None else _mocap(model, "mocap_pos", mocap_pos, n, 3)
     mq = none if mocap_quat is None else _mocap(model, "mocap_quat", mocap_quat, n, 4)
-    held = np.zeros(0, np.uint8) if bodies is None else _bodies(model, bodies, mp.size > 0)
+    held = np.zeros(0, np.uint8) if bodies is None else body_mask(model, bodies, mp.size > 0)
     return PlanArrays(q, np.ascontiguousarray(dev), held, mp, mq)
 
 

@@ -1573,4 +1573,5 @@ NB_MODULE(_core, m) {
   BindMocap(m);
   BindRuntime(m, step_error);
   BindCore(m);
+  BindShield(m);
 }

@@ -90,6 +90,8 @@ inline const mjData* DataOf(nb::handle data) {
 
 // Registers what dua_mujoco.core needs beyond bindings.cc (bindings_core.cc); called last.
 void BindCore(nb::module_& m);
+// Registers the shield's brake and shield (bindings_shield.cc); after the Tables class.
+void BindShield(nb::module_& m);
 
 }  // namespace dua
 

@@ -34,8 +34,16 @@ double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2
 // stride, into out[i * out_stride]; four at a time (the same values).
 void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride);
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
+// tau of a sphere (centre c, velocity v) against a static shape record; speed: the bound on the
+// sphere's speed (inf: none).
 double TauStatic(double c0, double c1, double c2, double v0, double v1, double v2,
-                 const double* rec, double eps, double accel, double delta);
+                 const double* rec, double eps, double accel, double delta, double speed);
+// tau raised by a speed bound (inf: none) on how fast a gap may close: a gap of `gap` (a lower
+// bound, its rounding allowed for) between a point set and a static one, or two point sets,
+// whose points move at most `bound` apart per second, lasts at least gap / bound. Like the
+// sphere pairs' speed term, it is dropped when the speed measured now (`now`) is above the
+// bound (the bound is broken: the acceleration term stands alone).
+double WithGapSpeed(double tau, double gap, double now, double bound);
 // tau of an object (a shape record at its pose, moving with velocity v, its points within spin t
 // more of the translate) against the terrain of record rec, and of a sphere's centre
 // (terrain.cc). *path, if given, says what decided it (the tests assert the search ran).

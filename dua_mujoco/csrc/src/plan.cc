@@ -488,15 +488,6 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
              std::to_string(i / nmocap) + ", mocap " + std::to_string(i % nmocap) + ")";
     }
   }
-  // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
-  // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
-  std::vector<double> radius(m->geom_rbound, m->geom_rbound + ngeom);
-  for (int64_t i = 0; i < nsphere; ++i) {
-    const double* rec = spheres + i * kSphereNcol;
-    const auto g = static_cast<int64_t>(rec[kSphereFrame]);
-    const double* o = rec + kSphereOffset;
-    radius[g] = std::max(radius[g], std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]));
-  }
   for (int64_t i = 0; i < n * nq; ++i) {
     if (!std::isfinite(in.qpos[i])) {
       return "holds a qpos that is not finite (knot " + std::to_string(i / nq) + ", qpos[" +
@@ -510,13 +501,7 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     mocap_pos_.assign(in.mocap_pos, in.mocap_pos + n * nmocap * 3);
     mocap_quat_.assign(in.mocap_quat, in.mocap_quat + n * nmocap * 4);
   }
-  // Only the geoms read are kept, each in its column (slot); the others read as not numbers.
-  slot_.assign(ngeom, -1);
-  nslot_ = static_cast<int64_t>(geoms.size());
-  for (int64_t i = 0; i < nslot_; ++i) slot_[geoms[i]] = i;
-  pool_ = std::move(pool);
-  auto take = [&](size_t size) { return pool_ ? pool_->Take(size) : std::vector<double>(size); };
-  pos_ = take(3 * nslot_ * n), mat_ = take(9 * nslot_ * n), sweep_ = take(nslot_ * n);
+  Slots(n, ngeom, geoms, std::move(pool));
   for (int64_t j = 0; j < n; ++j) {
     double* pj = pos_.data() + 3 * nslot_ * j;
     double* rj = mat_.data() + 9 * nslot_ * j;
@@ -537,6 +522,63 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
         std::copy_n(s->geom_xmat + 9 * geoms[c], 9, rj + 9 * c);
       }
     }
+  }
+  return Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
+                std::move(fixed));
+}
+
+void Plan::Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
+                 std::shared_ptr<PlanPool> pool) {
+  // Only the geoms read are kept, each in its column (slot); the others read as not numbers.
+  slot_.assign(ngeom, -1);
+  nslot_ = static_cast<int64_t>(geoms.size());
+  for (int64_t i = 0; i < nslot_; ++i) slot_[geoms[i]] = i;
+  pool_ = std::move(pool);
+  auto take = [&](size_t size) { return pool_ ? pool_->Take(size) : std::vector<double>(size); };
+  pos_ = take(3 * nslot_ * n), mat_ = take(9 * nslot_ * n), sweep_ = take(nslot_ * n);
+}
+
+std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, const double* mat,
+                            const uint8_t* bodies, const double* deviation, double start, double h,
+                            const double* spheres, int64_t nsphere,
+                            const std::vector<int64_t>& geoms) {
+  const int64_t nbody = m->nbody, ngeom = m->ngeom;
+  std::vector<uint8_t> holds(nbody, 0), fixed(nbody, 0);
+  for (int64_t b = 0; b < nbody; ++b) {
+    const bool in_mocap = m->body_mocapid[m->body_rootid[b]] >= 0;
+    fixed[b] = m->body_weldid[b] == 0 && !in_mocap;
+    holds[b] = !fixed[b] && bodies[b] && !in_mocap;
+  }
+  // No rows: a plan made from poses is never the `prev` of a Build (SameRow compares rows).
+  nknot_ = n, ngeom_ = ngeom, nbody_ = nbody, nq_ = 0, nmocap_ = 0;
+  qpos_.clear(), mocap_pos_.clear(), mocap_quat_.clear();
+  Slots(n, ngeom, geoms, nullptr);
+  for (int64_t j = 0; j < n; ++j) {
+    for (int64_t c = 0; c < nslot_; ++c) {
+      std::copy_n(pos + 3 * (ngeom * j + geoms[c]), 3, pos_.data() + 3 * (nslot_ * j + c));
+      std::copy_n(mat + 9 * (ngeom * j + geoms[c]), 9, mat_.data() + 9 * (nslot_ * j + c));
+    }
+  }
+  return Finish(m, n, geoms, deviation, start, h, spheres, nsphere, std::move(holds),
+                std::move(fixed));
+}
+
+std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
+                         const double* deviation, double start, double h, const double* spheres,
+                         int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed) {
+  const int64_t ngeom = m->ngeom, nbody = m->nbody;
+  // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
+  // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
+  std::vector<double> radius(m->geom_rbound, m->geom_rbound + ngeom);
+  for (int64_t i = 0; i < nsphere; ++i) {
+    const double* rec = spheres + i * kSphereNcol;
+    const auto g = static_cast<int64_t>(rec[kSphereFrame]);
+    const double* o = rec + kSphereOffset;
+    radius[g] = std::max(radius[g], std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]));
+  }
+  for (int64_t j = 0; j < n; ++j) {
+    const double* pj = pos_.data() + 3 * nslot_ * j;
+    const double* rj = mat_.data() + 9 * nslot_ * j;
     for (int64_t c = 0; c < nslot_; ++c) {
       const int64_t g = geoms[c];
       // Finite joint positions so large that MuJoCo's kinematics overflows (a slide of 1e308).
@@ -561,8 +603,8 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
       *sw = (*(sw - nslot_) + step) * (1.0 + 4.0 * kEpsilon);
     }
   }
-  start_ = in.start, h_ = h;
-  dev_.assign(in.deviation, in.deviation + n * nbody);
+  start_ = start, h_ = h;
+  dev_.assign(deviation, deviation + n * nbody);
   // A static body never moves: its deviation is 0 whatever was given.
   for (int64_t j = 0; j < n; ++j) {
     for (int64_t b = 0; b < nbody; ++b) {

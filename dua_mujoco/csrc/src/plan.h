@@ -68,6 +68,14 @@ class Plan {
   std::string Build(const mjModel* m, mjData* scratch, const dua_plan_input& in, double h,
                     const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms,
                     const Plan* prev, std::shared_ptr<PlanPool> pool);
+  // A plan whose knots' geom poses are known already (pos (n, ngeom, 3) and mat (n, ngeom, 9):
+  // a rollout's geom_xpos and geom_xmat at each knot), holding the moving bodies of bodies
+  // (nbody flags; mocap trees are never held), deviation (n, nbody); geoms as Build's. Values
+  // are not checked beyond the poses being finite: the caller made them. It has no rows: never
+  // pass it as Build's prev.
+  std::string FromPoses(const mjModel* m, int64_t n, const double* pos, const double* mat,
+                        const uint8_t* bodies, const double* deviation, double start, double h,
+                        const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms);
 
   // The knot at `time` (-1: not one of the plan's, within a millionth of a step).
   int64_t KnotOf(double time) const;
@@ -110,6 +118,14 @@ class Plan {
  private:
   // Whether this plan's knot j and prev's knot i have the same rows (qpos, mocap poses).
   bool SameRow(int64_t j, const Plan& prev, int64_t i) const;
+  // The columns (slots) of `geoms` and the buffers of n knots.
+  void Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
+             std::shared_ptr<PlanPool> pool);
+  // The rest of a build once the knots' poses are in place: their check, the sweeps, the
+  // deviations and bodies.
+  std::string Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
+                     const double* deviation, double start, double h, const double* spheres,
+                     int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed);
 
   static const double kNoPose[9];
   static const double kNoSweep;

@@ -530,34 +530,51 @@ std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan
     return "does not cover the state of the data (time " + std::to_string(StateTime(m, d)) +
            "): start it there, on a whole number of timesteps from it";
   }
+  QueryPairs q = PrepareQuery(g1, g2);
+  QueryKnots(m, d, plan, k, &q, knots);
+  return "";
+}
+
+Runtime::QueryPairs Runtime::PrepareQuery(const std::vector<int64_t>& g1,
+                                          const std::vector<int64_t>& g2) const {
   const Universe& u = universe();
   const auto n = static_cast<int64_t>(g1.size());
-  // The sphere pairs of each geom pair asked, their records copied (the exact level writes the
-  // directions it finds into its own), in one scan of the pairs known.
-  std::vector<int64_t> gp(n), order;
-  for (int64_t q = 0; q < n; ++q) {
-    const int64_t lo = std::min(g1[q], g2[q]), hi = std::max(g1[q], g2[q]);
-    gp[q] = lo == hi ? -1 : u.GeomPair(lo, hi);
+  QueryPairs q;
+  // Each asked geom pair's slot (one a distinct geom pair), and the sphere pairs of each slot,
+  // their records copied (the exact level writes the directions it finds into its own), in one
+  // scan of the pairs known.
+  std::vector<int64_t> slot_of(u.ngp(), -1);
+  q.slot.assign(n, -1);
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t lo = std::min(g1[k], g2[k]), hi = std::max(g1[k], g2[k]);
+    const int64_t gp = lo == hi ? -1 : u.GeomPair(lo, hi);
+    if (gp < 0) continue;
+    if (slot_of[gp] < 0) slot_of[gp] = q.nslot++;
+    q.slot[k] = slot_of[gp];
   }
-  std::vector<int64_t> asked(u.ngp(), -1);
-  for (int64_t q = 0; q < n; ++q) {
-    if (gp[q] >= 0) asked[gp[q]] = q;
-  }
-  std::vector<double> pairs, exact;
-  std::vector<int64_t> owner, geom_a, geom_b;
   for (int64_t p = 0; p < u.npair(); ++p) {
-    const int64_t q = asked[u.pair_geom[p]];
-    if (q < 0) continue;
-    pairs.insert(pairs.end(), u.pairs.begin() + kPairNcol * p,
-                 u.pairs.begin() + kPairNcol * (p + 1));
-    if (t.exact) {
-      exact.insert(exact.end(), u.exact.begin() + kXNcol * p, u.exact.begin() + kXNcol * (p + 1));
+    const int64_t s = slot_of[u.pair_geom[p]];
+    if (s < 0) continue;
+    q.pairs.insert(q.pairs.end(), u.pairs.begin() + kPairNcol * p,
+                   u.pairs.begin() + kPairNcol * (p + 1));
+    if (tables_->exact) {
+      q.exact.insert(q.exact.end(), u.exact.begin() + kXNcol * p,
+                     u.exact.begin() + kXNcol * (p + 1));
     }
-    owner.push_back(gp[q]), geom_a.push_back(u.geom1[p]), geom_b.push_back(u.geom2[p]);
+    q.owner.push_back(s), q.geom_a.push_back(u.geom1[p]), q.geom_b.push_back(u.geom2[p]);
   }
+  q.state.assign(6 * static_cast<size_t>(tables_->nsphere()), 0.0);
+  q.epoch.assign(tables_->nsphere(), -1);
+  return q;
+}
+
+void Runtime::QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, int64_t k,
+                         QueryPairs* q, std::vector<int64_t>* knots) const {
+  if (!query_data_) query_data_.reset(mj_makeData(m));
+  const Tables& t = *tables_;
   // The step's arguments for these records on d's state (PlanPass reads the same).
   dua_step_args a = args_;
-  a.pairs = pairs.data();
+  a.pairs = q->pairs.data();
   a.spheres = t.spheres.data();
   a.shapes = t.shapes.data();
   a.frame = FrameOf(d, mocap_.twist.data());
@@ -565,34 +582,34 @@ std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan
   a.exact.geoms = t.geoms.data();
   a.exact.verts = m->mesh_vert;
   a.exact.graph = t.graph.data();
-  a.exact.records = exact.data();
+  a.exact.records = q->exact.data();
   a.exact.model = m;
   a.exact.data = d;
   a.events.rec = t.events_rec.data();
-  std::vector<double> state(6 * static_cast<size_t>(t.nsphere()));
-  std::vector<int64_t> epoch(t.nsphere(), -1);
-  a.point_state = state.data();
-  a.point_epoch = epoch.data();
+  std::fill(q->epoch.begin(), q->epoch.end(), -1);
+  a.point_state = q->state.data();
+  a.point_epoch = q->epoch.data();
   a.epoch = 0;
   a.plan.geom_body = m->geom_bodyid;
   a.plan.geom_row = t.geom_row.data();
   a.plan.data = query_data_.get();
-  std::vector<uint8_t> ok(m->nbody);
-  for (int b = 0; b < m->nbody; ++b) ok[b] = plan.holds(b) ? 1 : 0;
-  std::vector<int64_t> by_gp(u.ngp(), plan.nknot());
-  std::vector<uint8_t> said(u.ngp(), 0);
-  for (size_t p = 0; p < owner.size(); ++p) {
-    const auto id = static_cast<int64_t>(p);
-    const int64_t j = PlanKnot(a, plan, ok.data(), k, id, geom_a[p], geom_b[p]);
+  q->ok.resize(m->nbody);
+  for (int b = 0; b < m->nbody; ++b) q->ok[b] = plan.holds(b) ? 1 : 0;
+  q->by_slot.assign(q->nslot, plan.nknot());
+  q->said.assign(q->nslot, 0);
+  for (size_t p = 0; p < q->owner.size(); ++p) {
+    const int64_t s = q->owner[p];
+    const int64_t j =
+        PlanKnot(a, plan, q->ok.data(), k, static_cast<int64_t>(p), q->geom_a[p], q->geom_b[p]);
     if (j < 0) continue;
-    said[owner[p]] = 1;
-    by_gp[owner[p]] = std::min(by_gp[owner[p]], j);
+    q->said[s] = 1;
+    q->by_slot[s] = std::min(q->by_slot[s], j);
   }
-  knots->assign(n, -2);
-  for (int64_t q = 0; q < n; ++q) {
-    if (gp[q] >= 0) (*knots)[q] = said[gp[q]] ? by_gp[gp[q]] : -1;
+  knots->assign(q->slot.size(), -2);
+  for (size_t i = 0; i < q->slot.size(); ++i) {
+    const int64_t s = q->slot[i];
+    if (s >= 0) (*knots)[i] = q->said[s] ? q->by_slot[s] : -1;
   }
-  return "";
 }
 
 void Runtime::Learnt() {

@@ -177,6 +177,21 @@ class DUA_API Runtime {
   std::string PlanQuery(const mjModel* m, const mjData* d, const dua_plan_input& candidate,
                         const std::vector<int64_t>& g1, const std::vector<int64_t>& g2,
                         std::vector<int64_t>* knots) const;
+  // PlanQuery in two parts, for a caller asking about the same geom pairs again and again (the
+  // shield): the pairs' records prepared once (their sphere pairs' rows copied; the exact level
+  // learns directions into the copy), then each plan's knots from knot k on d's state.
+  struct QueryPairs {
+    std::vector<int64_t> slot;  // each asked pair's distinct geom pair (-1: not known)
+    int64_t nslot = 0;
+    std::vector<double> pairs, exact;            // the slots' sphere pairs' records
+    std::vector<int64_t> owner, geom_a, geom_b;  // each record's slot and geoms
+    std::vector<double> state;                   // the point cache a query fills
+    std::vector<int64_t> epoch, by_slot;
+    std::vector<uint8_t> ok, said;
+  };
+  QueryPairs PrepareQuery(const std::vector<int64_t>& g1, const std::vector<int64_t>& g2) const;
+  void QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, int64_t k, QueryPairs* q,
+                  std::vector<int64_t>* knots) const;
 
   // ---------------------------------------------------------------------- for tests
   // The exact level alone on held pairs ids, from sphere taus `coarse`, with the level's records
@@ -208,6 +223,8 @@ class DUA_API Runtime {
   double last_time() const { return last_time_; }
   // The pairs known (the model's tables, or this run's own universe when pruned).
   const Universe& universe() const { return tables_->pruned ? own_ : tables_->universe; }
+  // The geoms a plan's poses are kept for (Plan::Build's `geoms`).
+  const std::vector<int64_t>& plan_geoms() const { return plan_geoms_; }
   int64_t universe_version() const { return universe_version_; }
   // The held pairs' model ids (sorted), and the schedule over them.
   const std::vector<int64_t>& ids() const { return ids_; }

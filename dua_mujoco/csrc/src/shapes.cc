@@ -2,6 +2,7 @@
 // against one packed shape record (proof in docs/static-shapes.md).
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "dua/dua.h"
 #include "internal.h"
@@ -153,7 +154,7 @@ double StaticGap(double c0, double c1, double c2, const double* rec, double n[3]
 }
 
 double TauStatic(double c0, double c1, double c2, double v0, double v1, double v2,
-                 const double* rec, double eps, double accel, double delta) {
+                 const double* rec, double eps, double accel, double delta, double speed) {
   if (static_cast<int>(rec[kShapeKind]) == kGeomHField) {
     return TauTerrainSphere(c0, c1, c2, v0, v1, v2, rec, eps, accel, delta);
   }
@@ -163,7 +164,7 @@ double TauStatic(double c0, double c1, double c2, double v0, double v1, double v
   if (g <= 0.0) return 0.0;
   const double vn = n[0] * v0 + n[1] * v1 + n[2] * v2;
   const double nv = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
-  return TauHalfspace(g, vn, accel, delta + kVelSlack * nv);
+  return WithGapSpeed(TauHalfspace(g, vn, accel, delta + kVelSlack * nv), g, nv, speed);
 }
 
 }  // namespace dua
@@ -207,7 +208,8 @@ void dua_static_gap(const double* c, const double* rec, double* out) {
 
 double dua_tau_static(double c0, double c1, double c2, double v0, double v1, double v2,
                       const double* rec, double eps, double accel, double delta) {
-  return dua::TauStatic(c0, c1, c2, v0, v1, v2, rec, eps, accel, delta);
+  return dua::TauStatic(c0, c1, c2, v0, v1, v2, rec, eps, accel, delta,
+                        std::numeric_limits<double>::infinity());
 }
 
 }  // extern "C"

@@ -368,7 +368,8 @@ double AxisTau(double n0, double n1, double n2, int mode, double r0, double r1, 
   if (gap <= 0.0) return 0.0;
   const double vn = n0 * r0 + n1 * r1 + n2 * r2 - spin;
   const double speed = std::sqrt(r0 * r0 + r1 * r1 + r2 * r2) + spin;
-  return TauHalfspace(gap, vn, pair[kPairAccel], pair[kPairDelta] + kVelSlack * speed);
+  return WithGapSpeed(TauHalfspace(gap, vn, pair[kPairAccel], pair[kPairDelta] + kVelSlack * speed),
+                      gap, speed, pair[kPairSpeed]);
 }
 
 // Contacts up to this many are scanned; more are indexed once a batch (sorted keys).
@@ -639,13 +640,17 @@ int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
     for (int j = 0; j < 12; ++j) total += s[j];
     if (!std::isfinite(total)) return k;
     if (kind == kKindHalfspace) {
-      const double gap = s[6] * s[0] + s[7] * s[1] + s[8] * s[2] - s[9] - rec[kPairEps];
+      const double along = s[6] * s[0] + s[7] * s[1] + s[8] * s[2];
+      const double gap = along - s[9] - rec[kPairEps];
       const double vn = s[6] * s[3] + s[7] * s[4] + s[8] * s[5];
-      out[k] = TauHalfspace(gap, vn, rec[kPairAccel], rec[kPairDelta]);
+      const double low = gap - kGapSlack * (std::fabs(along) + std::fabs(s[9]) + rec[kPairEps]);
+      const double nv = std::sqrt(s[3] * s[3] + s[4] * s[4] + s[5] * s[5]);
+      out[k] = WithGapSpeed(TauHalfspace(gap, vn, rec[kPairAccel], rec[kPairDelta]), low, nv,
+                            rec[kPairSpeed]);
     } else if (kind == kKindShape) {
       out[k] = TauStatic(s[0], s[1], s[2], s[3], s[4], s[5],
                          shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol, rec[kPairEps],
-                         rec[kPairAccel], rec[kPairDelta]);
+                         rec[kPairAccel], rec[kPairDelta], rec[kPairSpeed]);
     } else {
       double* row = rows + 12 * n++;
       for (int j = 0; j < 6; ++j) row[j] = s[6 + j] - s[j];

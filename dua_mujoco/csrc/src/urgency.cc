@@ -295,6 +295,13 @@ double WithSpeed(double tau, double x0, double x1, double x2, double v0, double 
 
 }  // namespace
 
+double WithGapSpeed(double tau, double gap, double now, double bound) {
+  if (bound < kInf && gap > 0.0 && now <= bound && tau > 0.0) {
+    tau = std::max(tau, gap / bound * (1.0 - kKappa));
+  }
+  return tau;
+}
+
 double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
                 double accel, double delta) {
   const double v[3] = {v0, v1, v2};

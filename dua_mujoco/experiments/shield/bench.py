@@ -4,8 +4,11 @@ Every layer runs the same seeds of every scene (A/B on the same episodes); the w
 over processes by (scene, seed), each running every layer on its episode in turn, so that all
 layers see the same machine load. The layers are made by a factory ``make(setup, name)``:
 :func:`peer_layer` makes ``none``, ``ttc`` (MoveIt Servo's stop-distance halt), ``ttc-scale``
-(its threshold-distance velocity scaling) and ``damper`` (mink's limit); a caller adds its own
-(``benchmarks/shield.py`` adds the reference shield of ``tests/``).
+(its threshold-distance velocity scaling) and ``damper`` (mink's limit); :func:`shield_layer`
+makes ``shield`` (:class:`dua_mujoco.Shield` with the scene's declared bounds, its robot's and
+its brake's stop time) and ``shield-noscreen`` (the same without the screen: a rollout every
+period); a caller adds its own (``benchmarks/shield.py`` adds the reference shield of
+``tests/``).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from dua_mujoco.build.bounds import MotionBounds
 from dua_mujoco.experiments.report import table
 from dua_mujoco.experiments.shield.episodes import (
     EpisodeResult,
@@ -24,12 +28,16 @@ from dua_mujoco.experiments.shield.episodes import (
     run_episode,
 )
 from dua_mujoco.experiments.shield.peers import TtcHalt, VelocityDamper
+from dua_mujoco.models.cells import ROBOT_BOUNDS
 from dua_mujoco.progress import Progress
+from dua_mujoco.shield.shield import Shield
 
-__all__ = ["PEERS", "peer_layer", "run_many", "summary"]
+__all__ = ["PEERS", "SHIELDS", "peer_layer", "run_many", "shield_layer", "summary"]
 
 PEERS = ("none", "ttc", "ttc-scale", "damper")
 """The layers :func:`peer_layer` makes."""
+SHIELDS = ("shield", "shield-noscreen")
+"""The layers :func:`shield_layer` makes."""
 
 Factory = Callable[[SceneSetup, str], Layer]
 
@@ -54,6 +62,35 @@ def peer_layer(setup: SceneSetup, name: str) -> Layer:
     raise ValueError(f"unknown layer {name!r}; known: {', '.join(PEERS)}")
 
 
+def shield_layer(setup: SceneSetup, name: str) -> Shield:
+    """The shield ``name`` (one of :data:`SHIELDS`) for a scene: its protected bodies, every
+    moving body's declared bounds (the others' and the robot's, ``ROBOT_BOUNDS``), its control
+    period, and its brake's stop time."""
+    if name not in SHIELDS:
+        raise ValueError(f"unknown shield {name!r}; known: {', '.join(SHIELDS)}")
+    model = setup.model
+    names = {b: model.body(b).name for b in setup.bounds}
+    robot = ROBOT_BOUNDS[setup.scene.name]
+    accel = {names[b]: v.accel for b, v in setup.bounds.items()} | {"*": robot.accel}
+    speed = {names[b]: v.speed for b, v in setup.bounds.items()} | {"*": robot.speed}
+    delta = {names[b]: v.delta or 0.0 for b, v in setup.bounds.items()} | {"*": 0.0}
+    bounds = MotionBounds.declare(model, accel, speed=speed, vel_uncertainty=delta)
+    return Shield(
+        model,
+        protect=list(setup.scene.protect),
+        robot=[model.body(int(b)).name for b in setup.brake.bodies],
+        period=setup.scene.period,
+        accel=bounds,
+        stop_time=setup.scene.stop_time,
+        screen=name == "shield",
+    )
+
+
+def any_layer(setup: SceneSetup, name: str) -> Layer:
+    """A peer (:func:`peer_layer`) or a shield (:func:`shield_layer`)."""
+    return shield_layer(setup, name) if name in SHIELDS else peer_layer(setup, name)
+
+
 _SETUPS: dict[str, SceneSetup] = {}
 _JOB: dict[str, object] = {}
 
@@ -73,7 +110,7 @@ def run_many(
     layers: Sequence[str],
     seeds: Sequence[int],
     *,
-    make: Factory = peer_layer,
+    make: Factory = any_layer,
     jobs: int = 2,
     progress: bool = True,
 ) -> list[EpisodeResult]:
@@ -117,6 +154,7 @@ def summary(results: Sequence[EpisodeResult]) -> str:
         "moving contacts (free)",
         "episodes with one",
         "moving, excused",
+        "of them unguaranteed",
         "at rest",
         "targets / min",
         "vs none",
@@ -144,6 +182,7 @@ def summary(results: Sequence[EpisodeResult]) -> str:
                 str(sum(r.moving_free for r in group)),
                 str(sum(r.moving_free > 0 for r in group)),
                 str(sum(r.moving_excused for r in group)),
+                str(sum(r.moving_unguaranteed for r in group)),
                 str(sum(r.at_rest for r in group)),
                 f"{progress:.1f}",
                 f"{progress / ref:.0%}" if ref else "-",

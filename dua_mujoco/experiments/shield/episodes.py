@@ -11,7 +11,8 @@ counts:
   a moving onset is *free* when no protected contact touched the robot during the preceding
   ``recovery`` seconds and every declared bound of the protected bodies held so far (the robot's
   motion was its controller's: what a layer answers for), *excused* otherwise (pushed, or after
-  a bound broke);
+  a bound broke); a layer that says whether its guarantee holds (``layer.guaranteed``, the
+  shield's) has its moving onsets without one counted apart too (*unguaranteed*);
 * **progress**: targets the robot reached, per minute;
 * **interventions**: physics steps at which the layer overrode the intended controls;
 * **cost**: the layer's time and ``mj_step``'s, both timed at every step (interleaved);
@@ -34,18 +35,55 @@ import numpy.typing as npt
 from dua_mujoco.build.filter import active_geom_pairs
 from dua_mujoco.models.cells import SHIELD_SCENES, ShieldScene
 from dua_mujoco.models.people import Bound
-from dua_mujoco.shield.failsafe import Brake, body_reach_radius, body_speeds
+from dua_mujoco.shield.failsafe import Brake
 
-__all__ = ["EpisodeResult", "Layer", "NoLayer", "SceneSetup", "run_episode"]
+__all__ = [
+    "EpisodeResult",
+    "Layer",
+    "NoLayer",
+    "SceneSetup",
+    "body_reach_radius",
+    "body_speeds",
+    "run_episode",
+]
 
 REST_SPEED = 0.01
 """m/s: a body at most this fast is at rest (ISO/TS 15066's contact with the robot stopped)."""
 
 
+def body_reach_radius(model: mujoco.MjModel) -> np.ndarray:
+    """``(nbody,)`` the largest distance from each body's frame origin to a point of its geoms
+    (0 for a body without geoms; planes, unbounded, are left out)."""
+    out = np.zeros(model.nbody)
+    plane = int(mujoco.mjtGeom.mjGEOM_PLANE)
+    for g in range(model.ngeom):
+        if int(model.geom_type[g]) == plane:
+            continue
+        b = int(model.geom_bodyid[g])
+        out[b] = max(out[b], float(np.linalg.norm(model.geom_pos[g]) + model.geom_rbound[g]))
+    return out
+
+
+def body_speeds(
+    model: mujoco.MjModel, data: mujoco.MjData, bodies: npt.ArrayLike, radius: np.ndarray
+) -> np.ndarray:
+    """``(k,)`` a bound on the speed of every point of each body's geoms, ``|v| + |w| r``, from
+    ``data.cvel`` (after ``mj_step``: the state the step started from, its contacts' state)."""
+    ids = np.asarray(bodies, dtype=np.int64)
+    out = np.empty(ids.size)
+    vel = np.empty(6)
+    for i, b in enumerate(ids):
+        mujoco.mj_objectVelocity(model, data, int(mujoco.mjtObj.mjOBJ_XBODY), int(b), vel, 0)
+        out[i] = np.linalg.norm(vel[3:]) + np.linalg.norm(vel[:3]) * radius[b]
+    return out
+
+
 class Layer(Protocol):
     """A safety layer: ``ctrl = layer(data, intended)`` every physics step."""
 
-    interventions: int
+    @property
+    def interventions(self) -> int:
+        """Physics steps at which it overrode the intended controls."""
 
     def reset(self, data: mujoco.MjData) -> None:
         """Start an episode at ``data``."""
@@ -124,6 +162,7 @@ class EpisodeResult:
     minutes: float
     moving_free: int
     moving_excused: int
+    moving_unguaranteed: int
     at_rest: int
     max_onset_speed: float
     interventions: int
@@ -223,7 +262,13 @@ def run_episode(
     previous = np.zeros(0, dtype=np.int64)
     last_touch = -np.inf
     violated = False
-    counts = {"moving_free": 0, "moving_excused": 0, "at_rest": 0, "violations": 0}
+    counts = {
+        "moving_free": 0,
+        "moving_excused": 0,
+        "moving_unguaranteed": 0,
+        "at_rest": 0,
+        "violations": 0,
+    }
     max_speed = 0.0
     first_violation: float | None = None
     first_touch: float | None = None
@@ -237,6 +282,7 @@ def run_episode(
         t0 = time.perf_counter()
         ctrl = layer(data, intended)
         t1 = time.perf_counter()
+        guaranteed = bool(getattr(layer, "guaranteed", True))
         data.ctrl[:] = ctrl
         mujoco.mj_step(model, data)
         t2 = time.perf_counter()
@@ -259,7 +305,9 @@ def run_episode(
             max_speed = max(max_speed, speed)
             if speed <= REST_SPEED:
                 counts["at_rest"] += 1
-            elif violated or now - last_touch <= recovery:
+                continue
+            counts["moving_unguaranteed"] += not guaranteed
+            if violated or now - last_touch <= recovery:
                 counts["moving_excused"] += 1
             else:
                 counts["moving_free"] += 1

@@ -1,0 +1,137 @@
+"""``dua_mujoco.Shield``: the guarantee on sampled episodes of the three shield scenes, what it
+counts, and its errors.
+
+The guarantee (docs/theory.md, section 10): while the protected bodies keep their declared
+bounds and the robot keeps within its deviation of what the shield rolled out, every protected
+contact finds the robot's body in the pair at rest (every point at most 1 cm/s). The episodes'
+scripted bodies move within their declared bounds (tests/test_shield_scenes.py); arm_pair's arm B
+breaks its bounds only when arm A is in its way, and a contact after that, or within a second
+after a touch (the robot pushed off its rollout), is excused (``moving_excused``), as in
+docs/shield.md. ``moving_free`` counts the others: the guarantee says there are none.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+import dua_mujoco
+from dua_mujoco import Shield
+from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.experiments.shield.bench import shield_layer
+from dua_mujoco.experiments.shield.episodes import NoLayer, SceneSetup, run_episode
+from dua_mujoco.models.cells import SHIELD_SCENES
+
+# Seeds and a shortened episode per scene: enough approaches that the unshielded robot moves
+# into a protected body several times (asserted below, so that the shield's 0 means something).
+EPISODES = {
+    "person_cell": (range(16), 6.0),
+    "arm_pair": (range(16), 3.0),
+    "mobile_cell": (range(16), 4.0),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", list(SHIELD_SCENES))
+def test_every_protected_contact_finds_the_robot_at_rest(scene: str) -> None:
+    """Over sampled episodes (the others' motion drawn within their declared bounds), the
+    shielded robot is never moving at a protected contact the guarantee covers, while the same
+    episodes unshielded have such contacts; the shield's run is its verified plans (no plan,
+    hold or stop break) and it intervened."""
+    setup = SceneSetup.of(scene)
+    seeds, duration = EPISODES[scene]
+    free = shielded = interventions = 0
+    for seed in seeds:
+        free += run_episode(setup, NoLayer(), "none", seed, duration=duration).moving_free
+        shield = shield_layer(setup, "shield")
+        result = run_episode(setup, shield, "shield", seed, duration=duration)
+        shielded += result.moving_free
+        interventions += result.interventions
+        counts = shield.counts
+        assert counts["stop_breaks"] == 0, (seed, counts)
+        if result.first_touch is None and result.violations == 0:
+            # Nothing pushed the robot and every bound held: the run kept to the verified
+            # plans and every step was guaranteed.
+            broken = [counts[k] for k in ("plan_breaks", "hold_breaks", "unguaranteed")]
+            assert broken == [0, 0, 0], (seed, counts)
+    assert free >= 5
+    assert shielded == 0
+    assert interventions > 0
+
+
+@pytest.mark.slow
+def test_without_the_screen_every_period_is_rolled_out_and_the_guarantee_holds() -> None:
+    """shield-noscreen (a rollout and a plan query every period) on person_cell's episodes."""
+    setup = SceneSetup.of("person_cell")
+    seeds, duration = EPISODES["person_cell"]
+    total = 0
+    for seed in seeds[:6]:
+        shield = shield_layer(setup, "shield-noscreen")
+        total += run_episode(setup, shield, "noscreen", seed, duration=duration).moving_free
+        assert shield.counts["screened"] == 0
+        assert shield.counts["accepted"] > 0
+    assert total == 0
+
+
+def _arm() -> tuple[mujoco.MjModel, mujoco.MjData]:
+    model = SHIELD_SCENES["person_cell"].model()
+    return model, mujoco.MjData(model)
+
+
+def _shield(model: mujoco.MjModel, **options: object) -> Shield:
+    kwargs: dict[str, object] = {"protect": ["person*"], "period": 10, "accel": 5.0}
+    kwargs.update(options)
+    return Shield(model, **kwargs)  # type: ignore[arg-type]
+
+
+def test_the_shield_is_exported_and_counts_what_it_did() -> None:
+    """``dua_mujoco.Shield`` is the shield; far from the person the intended controls pass
+    untouched, and a reset starts the counts over."""
+    assert "Shield" in dua_mujoco.__all__ and dua_mujoco.Shield is Shield
+    model, data = _arm()
+    data.mocap_pos[:] = [[20.0, 20.0, 0.0], [20.0, 25.0, 0.0]]  # the person far away
+    mujoco.mj_forward(model, data)
+    shield = _shield(model)
+    assert shield.pairs.shape[1] == 2 and len(shield.pairs) > 0
+    assert set(np.asarray(model.geom_bodyid)[shield.pairs[:, 0]].tolist()) <= set(
+        shield.robot_bodies.tolist()
+    )
+    shield.reset(data)
+    intended = data.ctrl.copy()
+    for _ in range(30):
+        ctrl = shield(data, intended)
+        data.ctrl[:] = ctrl
+        mujoco.mj_step(model, data)
+    # The first period after a reset runs the failsafe (the mocap velocities are not known yet).
+    assert shield.interventions == 10
+    assert shield.counts["steps"] == 30
+    np.testing.assert_array_equal(ctrl, intended)
+    shield.reset(data)
+    assert shield.interventions == 0 and shield.counts["steps"] == 0
+
+
+def test_bad_input_is_named_with_its_fix() -> None:
+    model, data = _arm()
+    with pytest.raises(InvalidInputError, match=r"protect: 'persn\*' names no body.*person_arm"):
+        _shield(model, protect=["persn*"])
+    with pytest.raises(InvalidInputError, match=r"robot: 'arm\?' names no body"):
+        _shield(model, robot=["arm?"])
+    with pytest.raises(InvalidInputError, match=r"period = 0 is invalid"):
+        _shield(model, period=0)
+    with pytest.raises(InvalidInputError, match=r"deviation = -0.1 is invalid"):
+        _shield(model, deviation=-0.1)
+    with pytest.raises(InvalidInputError, match=r"stop_time = 1e-05 is invalid"):
+        _shield(model, stop_time=1e-5)
+    with pytest.raises(InvalidInputError, match=r"failsafe = 3 is invalid"):
+        _shield(model, failsafe=3)
+    with pytest.raises(InvalidInputError, match=r"protect names no body the robot's geoms can"):
+        _shield(model, protect=["arm_link1"])
+    model.opt.integrator = int(mujoco.mjtIntegrator.mjINT_RK4)
+    with pytest.raises(InvalidInputError, match=r"integrator is RK4.*use Euler, implicit"):
+        _shield(model)
+    model.opt.integrator = int(mujoco.mjtIntegrator.mjINT_EULER)
+    shield = _shield(model)
+    shield.reset(data)
+    with pytest.raises(Exception, match=r"one control per actuator"):
+        shield(data, np.zeros(model.nu + 1))
