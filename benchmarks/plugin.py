@@ -4,6 +4,7 @@ native core (issue 20), A/B in one run.
     git worktree add --detach /tmp/before main         # and a venv of its own, /tmp/before/.venv
     python benchmarks/plugin.py --before /tmp/before   # markdown tables (about 20 min)
     python benchmarks/plugin.py --scenes two_arms gym/ant --steps 600
+    python benchmarks/plugin.py --accel 200 --before /tmp/before   # declared bounds
     python benchmarks/plugin.py --scenes bin_pour swarm:1000 --steps 600   # pruned pairs too
 
 Scenes: the bundled ones, gymnasium's and dm_control's, and every robot of
@@ -11,7 +12,8 @@ Scenes: the bundled ones, gymnasium's and dm_control's, and every robot of
 with ``--before``) runs every scene in a subprocess of its own, alternately, ``--rounds`` times;
 the numbers are medians over rounds of per-round medians.
 
-Per scene, on this side: bounds from the pilot (``accel="auto"``, pilot seed 99), then
+Per scene, on this side: bounds from the pilot (``accel="auto"``, pilot seed 99; ``--accel 200``
+declares 200 m/s^2 instead), then
 
 * ``mj_step`` of the model alone and of the model with the plugin attached (the same bounds;
   every pair, pruned pairs, and every pair with the exact level off), each timed per call, in
@@ -55,7 +57,7 @@ try:  # the scenes' module: dua_mujoco.models since issue 41, dua_mujoco.mj befo
 except ImportError:
     from dua_mujoco.mj.scenes import load_spec, make_controller
 
-side, steps, scenes = sys.argv[2], int(sys.argv[3]), sys.argv[4:]
+side, steps, accel, scenes = sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5:]
 
 def spec_of(scene):
     if scene.startswith("robot/"):
@@ -79,6 +81,8 @@ def model_of(scene):
 
 def predictor(m):
     # Height fields (dm_control's quadruped terrain) covered by their boxes.
+    if accel != "auto":
+        return Predictor(m, accel=float(accel), covering=CoveringOptions(hfield="box"))
     return Predictor(m, accel="auto", covering=CoveringOptions(hfield="box"), pilot=PilotOptions(
         steps=1000, seed=99, controller=make_controller(m, "random", seed=99)))
 
@@ -144,8 +148,10 @@ def _scenes(requested: list[str] | None) -> list[str]:
     return [*BUNDLED, *EXTERNAL, *(f"robot/{name}" for name in available())]
 
 
-def run_side(checkout: Path, side: str, steps: int, scenes: list[str]) -> list[dict]:
-    out = run(PROBE, checkout, str(HERE), side, str(steps), *scenes)
+def run_side(
+    checkout: Path, side: str, steps: int, scenes: list[str], accel: str = "auto"
+) -> list[dict]:
+    out = run(PROBE, checkout, str(HERE), side, str(steps), accel, *scenes)
     return [json.loads(line) for line in out.splitlines() if line.startswith("{")]
 
 
@@ -171,15 +177,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", nargs="*", default=None)
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--rounds", type=int, default=1)
+    ap.add_argument(
+        "--accel", default="auto", help="bounds: auto (a pilot of seed 99) or m/s^2 declared"
+    )
     args = ap.parse_args(argv)
     scenes = _scenes(args.scenes)
     after: list[dict] = []
     before: list[dict] = []
     for r in range(args.rounds):
         print(f"round {r + 1}/{args.rounds}: {len(scenes)} scenes", file=sys.stderr, flush=True)
-        after += run_side(ROOT, "after", args.steps, scenes)
+        after += run_side(ROOT, "after", args.steps, scenes, args.accel)
         if args.before is not None:
-            before += run_side(args.before, "before", args.steps, scenes)
+            before += run_side(args.before, "before", args.steps, scenes, args.accel)
     plugin_before = any("plugin_us" in r for r in before)
     print(
         "| scene | geoms | pairs | tau evals/step | mj_step us | with the plugin us | plugin adds "

@@ -8,8 +8,10 @@ built in its own environment), on every scene given: a predictor of the given op
 ``make_controller``'s random controls (seed 0) after a pilot (seed 99) when ``accel="auto"``,
 for ``--steps`` physics steps. Each side reports, per scene, a digest of every step's alarms
 (pair ids, the bits of tau, the new flags) and of its bounds, and the first step where the two
-sides differ is printed. Scenes: the bundled ones, and ``robot/<name>`` for the robot models of
-``benchmarks/robots.py`` whose packages are installed in both environments.
+sides differ is printed, with each side's standing fraction (the share of sphere pairs in alarm
+after a step, ``pair_state().alarm_state()``, its mean over the steps). Scenes: the bundled
+ones, and ``robot/<name>`` for the robot models of ``benchmarks/robots.py`` whose packages are
+installed in both environments.
 """
 
 from __future__ import annotations
@@ -56,6 +58,7 @@ digest = hashlib.sha256()
 bounds = hashlib.sha256(np.ascontiguousarray(p.bounds.accel).tobytes()).hexdigest()[:16]
 per_step = []
 nalarm = 0
+standing = []  # the share of sphere pairs in alarm after each step
 def feed(a):
     global nalarm
     pairs = np.ascontiguousarray(a.pairs, dtype=np.int64).tobytes()
@@ -70,8 +73,9 @@ for k in range(steps):
     mujoco.mj_step(m, d)
     if (k + 1) % p.period == 0:
         feed(p.step(d))
+        standing.append(float(np.mean(p.pair_state().alarm_state())))
 print(json.dumps({"digest": digest.hexdigest()[:16], "bounds": bounds, "alarms": nalarm,
-                  "steps": per_step}))
+                  "standing": float(np.mean(standing)), "steps": per_step}))
 """
 
 
@@ -96,8 +100,11 @@ def main(argv: list[str] | None = None) -> int:
         "--options", default="{}", help='Predictor options as JSON, e.g. \'{"pairs": "pruned"}\''
     )
     args = ap.parse_args(argv)
-    print("| scene | steps | alarms | bounds equal | alarms equal | first differing step | s |")
-    print("|---|---|---|---|---|---|---|")
+    print(
+        "| scene | steps | alarms | bounds equal | alarms equal | first differing step | "
+        "standing before | standing after / before | s |"
+    )
+    print("|---" * 9 + "|")
     same_everywhere = True
     for scene in args.scenes:
         t0 = time.perf_counter()
@@ -116,7 +123,9 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"| {scene} | {args.steps} | {after['alarms']} | "
             f"{before['bounds'] == after['bounds']} | {same} | "
-            f"{'' if first is None else first} | {time.perf_counter() - t0:.0f} |",
+            f"{'' if first is None else first} | {before['standing']:.5f} | "
+            f"{after['standing'] / max(before['standing'], 1e-300):.5f} | "
+            f"{time.perf_counter() - t0:.0f} |",
             flush=True,
         )
     return 0 if same_everywhere else 1

@@ -392,6 +392,9 @@ class Runtime:
     def plan_queries(self) -> int: ...
 
     @property
+    def exact_queries(self) -> int: ...
+
+    @property
     def plan_ok(self) -> NDArray[numpy.bool_]:
         """(nbody,) bodies still within their deviation (a copy)."""
 

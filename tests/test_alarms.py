@@ -51,6 +51,33 @@ def test_alarms_outlive_log_replacements(monkeypatch: pytest.MonkeyPatch, schedu
     assert sum(len(a) for a, _ in tight) > 300  # the comparison is not of empty steps
 
 
+def test_a_log_no_alarms_holds_is_written_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full log that no ``Alarms`` holds any more is written again from its start, not
+    replaced (the plugin's case: room for one step, no reader): one log serves the whole run,
+    and its alarms are those of a run whose log never fills (the deadline schedule's room is
+    every pair: each step that alarms starts the log over)."""
+    roomy = _rollout(300)
+    monkeypatch.setattr(predictor_module, "LOG_STEPS", 1)
+    monkeypatch.setattr(predictor_module, "LOG_MIN", 0)
+    m, d = load_scene("two_arms")
+    p = Predictor(m, accel=30.0, urgency=UrgencyOptions(exact=False))
+    ctrl = make_controller(m, "random", seed=0)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    logs = set()
+    for _, expected in roomy:
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        a = p.step(d)
+        if len(a):
+            logs.add(a.pairs.ctypes.data)
+        got = (a.pairs.copy(), a.tau.copy(), a.new.copy())
+        del a  # no one holds the log at the next step
+        for now, want in zip(got, expected, strict=True):
+            np.testing.assert_array_equal(now, want)
+    assert len(logs) == 1
+
+
 def test_alarm_arrays_are_read_only() -> None:
     (a, _), *_ = (s for s in _rollout(50) if len(s[0]))
     for array in (a.pairs, a.tau, a.new):

@@ -409,3 +409,150 @@ def test_a_pair_in_mujocos_contacts_keeps_its_sphere_tau_and_no_other_pair_does(
         model.geom_margin[:] = margin
     assert any(frozenset(map(int, con.geom)) == frozenset((a, b)) for con in wide.contact)
     assert np.array_equal(_exact_only(p, wide, coarse=coarse), apart)
+
+
+# --------------------------------------------------------------------------- queries not made
+
+
+def _near(rng: np.random.Generator, model: mujoco.MjModel, speed: float) -> dict:
+    """Draws of ``_draws`` with the two bodies' bounding spheres overlapping (every step looks at
+    the pair exactly), B approaching A or leaving it at up to ``speed``."""
+    out = _draws(rng, model, speed)
+    bodies = sorted(out)
+    if len(bodies) == 2:
+        a, b = bodies[1], bodies[0]  # "a" is the last body
+        radius = sum(
+            float(model.geom_rbound[np.flatnonzero(model.geom_bodyid == k)[0]]) for k in bodies
+        )
+        u = rng.normal(size=3)
+        out[b]["p"] = out[a]["p"] + u / np.linalg.norm(u) * radius * rng.uniform(0.5, 1.0)
+    return out
+
+
+@pytest.mark.parametrize(("a", "b"), PAIRS)
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), speed=st.floats(0.0, 3.0))
+def test_a_query_not_made_could_not_have_cleared_the_alarm(
+    a: str, b: str, seed: int, speed: float
+) -> None:
+    """The level asks MuJoCo for a new direction only where one could clear the pair's alarm
+    (docs/theory.md, section 5, "Queries that cannot clear"): at every step, a pair the step
+    leaves in alarm has no direction that clears it, MuJoCo's witness direction at that state
+    included (the reference), and MuJoCo's direction never clears a pair the step alarms."""
+    model = _model(a, b)
+    motion = Motion(model, _near(np.random.default_rng(seed), model, speed))
+    p = _predictor(model, motion)
+    assert p.exact is not None
+    data = motion.state(0.0)
+    p.reset(data)
+    horizon = p.exact.query_below
+    for k in range(1, 21):
+        data = motion.state(k * p.dt)
+        data.time = k * p.dt
+        p.step(data)
+        if not p.evaluations_per_step:
+            continue
+        tau = p.pair_state().last_tau_of(np.arange(p.nsphere_pairs))
+        for pair in np.flatnonzero(tau <= horizon):
+            want = reference_exact_tau(p, data, int(pair))
+            assert want <= horizon * (1 + 1e-6), (k, pair, float(tau[pair]), want, horizon)
+
+
+def _reset_then_step(
+    model: mujoco.MjModel, draw: dict
+) -> tuple[Predictor, mujoco.MjData, np.ndarray]:
+    """A predictor of ``draw``'s motion reset at t = 0 (one query: no direction yet) and stepped
+    once (the pair evaluated), the state of that step, and the direction the reset kept (3,)."""
+    motion = Motion(model, draw)
+    p = _predictor(model, motion)
+    assert p.exact is not None
+    p.reset(motion.state(0.0))
+    assert p._rt.exact_queries == 1
+    kept = p._rt.exact_records[0, X_N : X_N + 3].copy()
+    data = motion.state(p.dt)
+    data.time = p.dt
+    p.step(data)
+    assert p.evaluations_per_step == 1
+    return p, data, kept
+
+
+def test_a_pair_no_direction_can_clear_keeps_its_direction() -> None:
+    """Two parallel capsules 0.5 mm apart, spinning about their axes (which the level bounds by
+    |w| r, 1 m/s together) while one slides past the other at 0.3 m/s: within the alarm horizon
+    along every direction. The reset asks MuJoCo (no direction yet); at the next step the pair
+    is in alarm along the direction it has and no direction could clear it: MuJoCo is not asked,
+    and the pair stands in alarm, as MuJoCo's own direction at that state leaves it."""
+    model = _model("capsule", "capsule")
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    spin = np.array([0.0, 0.0, 2.0])
+    draw = {
+        2: {
+            "p": np.array([0.0, 0.0, 1.0]),
+            "v": np.zeros(3),
+            "a": np.zeros(3),
+            "q": quat,
+            "w": spin,
+        },
+        1: {
+            "p": np.array([0.0, 0.1005, 1.0]),
+            "v": np.array([0.3, 0.0, 0.0]),
+            "a": np.zeros(3),
+            "q": quat,
+            "w": spin,
+        },
+    }
+    p, data, _ = _reset_then_step(model, draw)
+    assert p._rt.exact_queries == 1  # not asked again
+    assert p.pair_state().alarm_state()[0]
+    assert reference_exact_tau(p, data, 0) <= p.exact.query_below
+
+
+def test_the_carried_witness_direction_clears_without_a_query() -> None:
+    """Two flat boxes 12 mm apart face to face, turning together as one rigid body about the
+    vertical at 8 rad/s: the pair's geometry does not change, its faces turn 16 mrad a step.
+    The reset asks MuJoCo; at the next step the kept direction (fixed in the world) sees the
+    faces tilted, 4 mm nearer each along it, and would leave the pair in alarm; the direction
+    between the witness points, carried with the boxes, is the faces' normal again and clears
+    it, without a query, and it is the direction kept."""
+    model = _model("box", "box")
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    w = np.array([0.0, 0.0, 8.0])
+    centre, offset = np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.212, 0.0])
+    still = {"v": np.zeros(3), "a": np.zeros(3), "q": quat, "w": w}
+    draw = {
+        2: {**still, "p": centre},
+        # B's origin on the circle about A's, to second order: velocity w x d, acceleration -w^2 d.
+        1: {**still, "p": centre + offset, "v": np.cross(w, offset), "a": -(w @ w) * offset},
+    }
+    p, _, kept = _reset_then_step(model, draw)
+    assert abs(kept[1]) > 0.999
+    assert p._rt.exact_queries == 1  # not asked again
+    assert not p.pair_state().alarm_state()[0]
+    turned = p._rt.exact_records[0, X_N : X_N + 3]
+    angle = float(np.arccos(min(1.0, abs(turned @ kept))))
+    assert abs(angle - 8.0 * p.dt) < 1e-3  # the faces' turn, not the world's fixed direction
+
+
+def test_a_pair_leaving_fast_is_asked_and_cleared() -> None:
+    """Two flat boxes face to face, each turning in place about the vertical at 8 rad/s (the
+    level bounds that by |w| r, 8.7 mm over the horizon of one step), B leaving at 2 m/s: 7 mm
+    apart after one step. The kept direction (fixed in the world) sees the tilted faces overlap,
+    and the witness points' distance now is within what the turning could close in the horizon;
+    only B's leaving over the horizon (the r H of the test, 4 mm) leaves a direction that clears.
+    MuJoCo is asked, and its direction (the faces' normal) clears the alarm, as the reference's
+    does: a test that dropped the pair's motion over the horizon would not ask, and leave the
+    pair in alarm."""
+    model = _model("box", "box")
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    w = np.array([0.0, 0.0, 8.0])
+    still = {"v": np.zeros(3), "a": np.zeros(3), "q": quat, "w": w}
+    leave = np.array([0.0, 2.0, 0.0])
+    draw = {
+        2: {**still, "p": np.array([0.0, 0.0, 1.0])},
+        # Faces at y = +-0.1 of each centre: 3 mm apart at the reset, 7 mm after one step.
+        1: {**still, "p": np.array([0.0, 0.203, 1.0]), "v": leave},
+    }
+    p, data, _ = _reset_then_step(model, draw)
+    assert p._rt.exact_queries == 2  # asked
+    assert not p.pair_state().alarm_state()[0]
+    assert reference_exact_tau(p, data, 0) > p.exact.query_below

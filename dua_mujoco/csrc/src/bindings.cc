@@ -1137,6 +1137,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def_prop_ro("has_plan", [](const PyRuntime& s) { return s.rt->has_plan(); })
       .def_prop_ro("plan_breaks", [](const PyRuntime& s) { return s.rt->plan_breaks(); })
       .def_prop_ro("plan_queries", [](const PyRuntime& s) { return s.rt->plan_queries(); })
+      .def_prop_ro("exact_queries", [](const PyRuntime& s) { return s.rt->exact_queries(); })
       .def_prop_ro(
           "plan_ok", [](const PyRuntime& s) { return OwnedBools(s.rt->plan_ok()); },
           nb::rv_policy::move, "(nbody,) bodies still within their deviation (a copy).")

@@ -16,6 +16,7 @@ namespace dua {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // Most rows of the gather scratch (12 doubles each: 384 KB). A row a held pair took 96 bytes a
 // pair, 48 MB for the half million pairs of 1,000 free spheres.
 constexpr int64_t kScratchRows = 4096;
@@ -98,6 +99,7 @@ Runtime::Runtime(const Runtime& o)
       point_state_(o.point_state_),
       exact_records_(o.exact_records_),
       events_prev_(o.events_prev_),
+      witness_(o.witness_),
       point_epoch_(o.point_epoch_),
       events_meta_(o.events_meta_),
       events_flagged_(o.events_flagged_),
@@ -142,8 +144,12 @@ Runtime::Runtime(const Runtime& o)
 void Runtime::NewLog() {
   const int64_t room = std::max(schedule_->width(), npair());
   const int64_t capacity = std::max({log_steps_ * room, log_min_, int64_t{1}});
-  log_ = std::make_shared<AlarmLog>(capacity);
   log_used_ = log_start_ = 0;
+  // No one else holds the log (no Alarms of an earlier step is alive): it is written again from
+  // its start, not replaced. The plugin's log has room for one step, so it filled at every step
+  // that alarmed: a fresh one each time was 4 % of the plugin's time on g1 at accel=200.
+  if (log_ && log_.use_count() == 1 && log_->capacity() >= capacity) return;
+  log_ = std::make_shared<AlarmLog>(capacity);
 }
 
 void Runtime::Hold(const std::vector<int64_t>& held) {
@@ -181,6 +187,8 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
   // A batch's gathered states: as many rows as pairs, up to kScratchRows (larger batches, a
   // classification of every pair or a step of many due ones, go through in chunks).
   scratch_.assign(12 * static_cast<size_t>(std::clamp<int64_t>(n, 1, kScratchRows)), 0.0);
+  // No query made yet for the held pairs (the directions are the universe's, too).
+  if (t.exact) witness_.assign(6 * static_cast<size_t>(std::max<int64_t>(n, 1)), kNaN);
   stands_.assign(n, 0);
   standing_.clear();
   standing_at_.assign(n, -1);
@@ -204,6 +212,7 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.on = t.exact ? 1 : 0;
   x.geoms = t.geoms.data();
   x.records = exact_records_.data();
+  x.witness = witness_.data();
   x.below = t.exact_below;
   x.query_below = t.query_below;
   // The model's own vertices (the tables hold its hull graph, checked): every mjData of a model
@@ -962,7 +971,10 @@ void Runtime::TrackStep() {
   const dua_schedule& s = *schedule_->state();
   const dua_events& e = args_.events;
   Track(s.work + s.width, args_.count + args_.deferred);
-  for (int64_t k = 0; e.nbody && k < events_meta_[kMCount]; ++k) {
+  // The pairs of the bodies the violation check flagged were made due now: the deadline and
+  // select-all schedules selected every one of them (evaluated, or deferred), so the line above
+  // tracked them; the rank schedule queues them, and those left in the queue stand in alarm.
+  for (int64_t k = 0; s.kind == kRank && e.nbody && k < events_meta_[kMCount]; ++k) {
     const int64_t i = events_flagged_[k];
     Track(held_members_.data() + held_start_[i], held_start_[i + 1] - held_start_[i]);
   }
@@ -1057,11 +1069,15 @@ int64_t Runtime::DeactivateContacts(const mjData* d) {
 std::vector<double> Runtime::ExactOnly(const mjModel* m, const mjData* d,
                                        const std::vector<int64_t>& ids,
                                        const std::vector<double>& coarse, double query_below) {
-  std::vector<double> records = exact_records_;
+  std::vector<double> records = exact_records_, witness = witness_;
   const std::vector<double>& built = tables_->universe.exact;
-  if (!tables_->pruned) records = built;  // the records as built, no direction learnt
+  if (!tables_->pruned) {  // the records as built: no direction learnt, no query made
+    records = built;
+    std::fill(witness.begin(), witness.end(), kNaN);
+  }
   dua_step_args a = Bind(m, d);
   a.exact.records = records.data();
+  a.exact.witness = witness.data();
   a.exact.query_below = query_below;
   std::vector<double> out = coarse;
   dua_exact_pass(&a, ids.data(), static_cast<int64_t>(ids.size()), out.data());

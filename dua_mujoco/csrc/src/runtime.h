@@ -152,6 +152,8 @@ class DUA_API Runtime {
   // Bodies found beyond their deviation (of the plan, or of a shadow over its span), so far.
   int64_t plan_breaks() const { return plan_breaks_; }
   int64_t plan_queries() const { return args_.plan.queries; }
+  // The exact level's mj_geomDistance calls so far (the plan's apart).
+  int64_t exact_queries() const { return args_.exact.queries; }
   // The bodies of d's state beyond their deviation at its knot, of the plan and of the shadows
   // within their spans (-1 in out[0]: none covers it), checking only; the monitor's
   // every-step check.
@@ -307,6 +309,7 @@ class DUA_API Runtime {
   std::vector<int64_t> ids_;  // model pair of each held pair
   dua_step_args args_{};
   std::vector<double> scratch_, point_state_, exact_records_, events_prev_;
+  std::vector<double> witness_;  // the exact level's witness points, (held pairs, 6)
   std::vector<int64_t> point_epoch_, events_meta_, events_flagged_, contact_keys_;
   std::vector<double> contact_dist_;
   dua_points points_{};  // free spheres' states for the current call

@@ -646,16 +646,6 @@ std::vector<int64_t> Schedule::InitialAlarms() const {
   return out;
 }
 
-double Schedule::HorizonOf(int64_t p) const {
-  if (spec_.kind == kRank) return horizon[BucketOf(ints[kIntWhere * m() + p])];
-  if (spec_.kind == kDeadline) {
-    const int64_t where = ints[kIntWhere * m() + p], last = ints[kIntLastStep * m() + p];
-    if (where < 0) return -std::numeric_limits<double>::infinity();
-    return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();
-  }
-  return horizon[0];
-}
-
 int64_t Schedule::NextDue(int64_t p) const {
   const int64_t n = step_count + 1, where = ints[kIntWhere * m() + p];
   if (spec_.kind == kDeadline) return where;
@@ -665,12 +655,6 @@ int64_t Schedule::NextDue(int64_t p) const {
   const int64_t offset = where - (size - 1), interval = Interval(k);
   const int64_t phase = size <= q ? 0 : (offset - offset % q) / q;
   return n + ((phase - n) % interval + interval) % interval;
-}
-
-bool Schedule::Stands(int64_t p) const { return active[p] && last_tau[p] <= HorizonOf(p); }
-
-double Schedule::Extra() const {
-  return spec_.alarm_horizon - spec_.dt;  // 0 exactly at one period
 }
 
 void Schedule::Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n) {

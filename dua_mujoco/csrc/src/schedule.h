@@ -7,10 +7,12 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "dua/dua.h"
+#include "internal.h"
 #include "layout.h"
 
 namespace dua {
@@ -62,9 +64,18 @@ class DUA_API Schedule {
   // The pairs the classification (or the latest step) put in alarm, in id order.
   std::vector<int64_t> InitialAlarms() const;
   // Whether pair p stands in alarm: the alarm rule on its latest tau (its horizon: HorizonOf).
-  bool Stands(int64_t p) const;
+  // Inline, with the two below: the runtime asks it of every pair a step evaluates.
+  bool Stands(int64_t p) const { return active[p] && last_tau[p] <= HorizonOf(p); }
   // The time pair p's latest verdict must cover (seconds; -inf: switched off, nothing).
-  double HorizonOf(int64_t p) const;
+  double HorizonOf(int64_t p) const {
+    if (spec_.kind == kRank) return horizon[BucketOf(ints[kIntWhere * m() + p])];
+    if (spec_.kind == kDeadline) {
+      const int64_t where = ints[kIntWhere * m() + p], last = ints[kIntLastStep * m() + p];
+      if (where < 0) return -std::numeric_limits<double>::infinity();
+      return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();
+    }
+    return horizon[0];
+  }
   // The step pair p is next evaluated at, if it stays switched on (a deadline pair switched off:
   // -1).
   int64_t NextDue(int64_t p) const;
@@ -73,7 +84,9 @@ class DUA_API Schedule {
     return std::max<int64_t>(1, (int64_t{1} << k) / spec_.slots_per_bucket);
   }
   // The alarm horizon beyond one period (seconds, 0 by default).
-  double Extra() const;
+  double Extra() const {
+    return spec_.alarm_horizon - spec_.dt;  // 0 exactly at one period
+  }
   // New pair k is old pair src[k] (its verdict carried) or new (src[k] < 0: it stands in alarm,
   // due at step n), as dua_deadline_carry does (deadline schedules only).
   void Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n);

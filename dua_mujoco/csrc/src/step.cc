@@ -427,10 +427,73 @@ bool InContact(dua_exact& x, int64_t g1, int64_t g2, double dist) {
   return false;
 }
 
+// Geom g's point at local coordinates l, at its pose in f.
+inline void GeomPoint(int64_t g, const dua_frame& f, const double* l, double out[3]) {
+  const double* m = f.mat + 9 * g;
+  const double* p = f.pos + 3 * g;
+  for (int j = 0; j < 3; ++j)
+    out[j] = p[j] + m[3 * j] * l[0] + m[3 * j + 1] * l[1] + m[3 * j + 2] * l[2];
+}
+
+// Whether no direction can raise the pair's tau to `below`, from the witness points of its
+// latest query carried with their geoms (w: a point of each, wherever the geoms are now): for
+// every unit u, d_u <= u.(b - a), so the right side of (5.3) at `below` is at most
+// |b - a + r below| - m - (spin + delta) below - A below^2 / 2 (r the origins' relative
+// velocity); when that is negative, every direction's bound, concave in t and positive at 0,
+// reaches m before `below` (docs/theory.md, section 5, "Queries that cannot clear").
+bool NoDirectionClears(const double* w, double r0, double r1, double r2, double spin,
+                       const double* pair, const double* xrec, const dua_frame& f, double below) {
+  if (!(below > 0.0) || !std::isfinite(below) || std::isnan(w[0])) return false;
+  double a[3], b[3];
+  GeomPoint(static_cast<int64_t>(xrec[kXG1]), f, w, a);
+  GeomPoint(static_cast<int64_t>(xrec[kXG2]), f, w + 3, b);
+  const double q0 = b[0] - a[0] + r0 * below, q1 = b[1] - a[1] + r1 * below,
+               q2 = b[2] - a[2] + r2 * below;
+  double scale = 0.0;
+  for (int j = 0; j < 3; ++j) scale += std::fabs(a[j]) + std::fabs(b[j]);
+  const double speed = std::sqrt(r0 * r0 + r1 * r1 + r2 * r2) + spin;
+  // AxisTau's own allowances (its gap lowered, its delta raised), and margins far above the
+  // rounding of either side: what they keep is a tightness, not a safety.
+  const double most = std::sqrt(q0 * q0 + q1 * q1 + q2 * q2) * (1.0 + 1e-12) + kGapSlack * scale;
+  const double delta = pair[kPairDelta] + kVelSlack * speed;
+  const double least =
+      xrec[kXDist] + (spin + delta) * below + 0.5 * pair[kPairAccel] * below * below;
+  return most < least * (1.0 - 1e-12);
+}
+
+// The unit direction from the first witness point to the second, each carried with its geom to
+// its pose in f (false: no query made yet, or the points too close for a direction).
+bool CarriedDirection(const double* w, int64_t g1, int64_t g2, const dua_exact& x,
+                      const dua_frame& f, double out[3]) {
+  if (std::isnan(w[0])) return false;
+  double a[3], b[3];
+  GeomPoint(g1, f, w, a);
+  GeomPoint(g2, f, w + 3, b);
+  for (int j = 0; j < 3; ++j) out[j] = b[j] - a[j];
+  const double length = std::sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
+  const double radii = x.geoms[g1 * kGxNcol + kGxRadius] + x.geoms[g2 * kGxNcol + kGxRadius];
+  if (!(length > 1e-9 * radii)) return false;
+  for (int j = 0; j < 3; ++j) out[j] /= length;
+  return true;
+}
+
+// Stores the witness points fromto (world) in w, each in its geom's frame at f.
+void KeepWitness(const double fromto[6], int64_t g1, int64_t g2, const dua_frame& f, double* w) {
+  for (int side = 0; side < 2; ++side) {
+    const int64_t g = side == 0 ? g1 : g2;
+    const double* m = f.mat + 9 * g;
+    const double* p = f.pos + 3 * g;
+    const double d0 = fromto[3 * side] - p[0], d1 = fromto[3 * side + 1] - p[1],
+                 d2 = fromto[3 * side + 2] - p[2];
+    for (int j = 0; j < 3; ++j) w[3 * side + j] = m[j] * d0 + m[3 + j] * d1 + m[6 + j] * d2;
+  }
+}
+
 // One pair's max(coarse, exact). Any unit direction gives a lower bound: the one that served
 // last time is tried first, and MuJoCo is asked for a new one only while the pair is still
 // urgent along it (below query_below). A pair MuJoCo has in contact is not looked at.
-double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x, const dua_frame& f) {
+double ExactTau(const double* pair, double* xrec, double* witness, double coarse, dua_exact& x,
+                const dua_frame& f, double settled_below) {
   const int mode = static_cast<int>(xrec[kXMode]);
   if (mode == kModeNone) return coarse;
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
@@ -458,6 +521,22 @@ double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x, c
   if (n0 != 0.0 || n1 != 0.0 || n2 != 0.0) {
     best = std::max(best, AxisTau(n0, n1, n2, mode, r0, r1, r2, spin, pair, xrec, x, f));
     if (best >= x.query_below) return best;
+    // The pair alarms whatever direction MuJoCo would give: not asked (most of a query's cost on
+    // meshes of thousands of hull vertices is GJK's climb from a cold start).
+    if (NoDirectionClears(witness, r0, r1, r2, spin, pair, xrec, f, settled_below)) {
+      return best;
+    }
+    // The latest query's witness points moved with their geoms: the direction between them now
+    // follows the geoms' turning, which the kept (world) direction does not. Any direction is a
+    // lower bound (5.1): where it clears the alarm it is kept, and MuJoCo is not asked.
+    double m[3];
+    if (CarriedDirection(witness, g1, g2, x, f, m)) {
+      best = std::max(best, AxisTau(m[0], m[1], m[2], mode, r0, r1, r2, spin, pair, xrec, x, f));
+      if (best >= x.query_below) {
+        xrec[kXN] = m[0], xrec[kXN + 1] = m[1], xrec[kXN + 2] = m[2];
+        return best;
+      }
+    }
   }
   const double* p1 = f.pos + 3 * g1;
   const double* p2 = f.pos + 3 * g2;
@@ -465,12 +544,14 @@ double ExactTau(const double* pair, double* xrec, double coarse, dua_exact& x, c
   // Both origins lie inside their geoms, so the distance is at most theirs: a witness.
   const double reach = std::sqrt(c0 * c0 + c1 * c1 + c2 * c2) + xrec[kXDist] + 1.0;
   mjtNum fromto[6];
+  ++x.queries;
   const double dist = mj_geomDistance(static_cast<const mjModel*>(x.model), const_cast<mjData*>(d),
                                       static_cast<int>(g1), static_cast<int>(g2), reach, fromto);
   double n[3];
   if (!(dist > xrec[kXDist]) || !WitnessDirection(fromto, x, g1, g2, xrec, n)) {
     return best;  // in contact, or no witness
   }
+  KeepWitness(fromto, g1, g2, f, witness);
   return std::max(best, AxisTau(n[0], n[1], n[2], mode, r0, r1, r2, spin, pair, xrec, x, f));
 }
 
@@ -480,6 +561,11 @@ void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
                const uint8_t* skip = nullptr) {
   if (!a.exact.on) return;
   a.exact.contact_count = -1;  // the contacts are indexed at the first look that needs them
+  // Below this a verdict alarms, and the deadline and select-all schedules treat every alarming
+  // verdict alike (its tau sets neither the wait nor the order): a query that cannot lift the
+  // pair above it is not made. The rank schedule orders by tau, so it asks as before.
+  const double settled_below =
+      a.schedule.kind == kRank ? -kInf : std::min(a.exact.query_below, a.schedule.horizon[0]);
   for (int64_t k = 0; k < count; ++k) {
     if (out[k] < a.exact.below && (skip == nullptr || !skip[k])) {
       const int64_t p = ids[k];
@@ -488,8 +574,8 @@ void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
         out[k] = std::max(out[k], TerrainExactTau(a, p));
         continue;
       }
-      out[k] =
-          ExactTau(a.pairs + p * kPairNcol, a.exact.records + p * kXNcol, out[k], a.exact, a.frame);
+      out[k] = ExactTau(a.pairs + p * kPairNcol, a.exact.records + p * kXNcol,
+                        a.exact.witness + 6 * p, out[k], a.exact, a.frame, settled_below);
     }
   }
 }

@@ -383,8 +383,14 @@ void TauSpeedBatch(int64_t n, const Load& load, double* out, int64_t out_stride)
 }  // namespace
 
 void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride) {
+  // Ten assignments: std::copy became a call to memmove a row (dmc_dog: 5 % of the plugin's
+  // instructions).
   TauSpeedBatch(
-      n, [&](int64_t i, double* r) { std::copy(rows + i * stride, rows + i * stride + 10, r); },
+      n,
+      [&](int64_t i, double* r) {
+        const double* row = rows + i * stride;
+        for (int j = 0; j < 10; ++j) r[j] = row[j];
+      },
       out, out_stride);
 }
 

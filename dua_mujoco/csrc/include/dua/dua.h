@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 7
+#define DUA_ABI_VERSION 8
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -122,9 +122,13 @@ typedef struct dua_frame {
 } dua_frame;
 
 typedef struct dua_exact {
-  int64_t on;            // 0: the level is off
-  const double* geoms;   // (ngeom, 24)
-  double* records;       // (npair, 10), directions written
+  int64_t on;           // 0: the level is off
+  const double* geoms;  // (ngeom, 24)
+  double* records;      // (npair, 10), directions written
+  // (npair, 6): the witness points of each pair's latest query, each in its geom's frame (first
+  // geom, then second; NaN: none yet), written by the level.
+  double* witness;
+  int64_t queries;       // mj_geomDistance calls so far
   double below;          // seconds
   double query_below;    // seconds
   const float* verts;    // (nmeshvert, 3): the model's mesh_vert
