@@ -55,6 +55,7 @@ if TYPE_CHECKING:
         plan_from_controls,
     )
     from dua_mujoco.runtime.predictor import Alarms, Predictor
+    from dua_mujoco.runtime.table_arrays import pilot_bounds
     from dua_mujoco.shield.shield import Shield
 
 # Everything but the errors loads on first use (PEP 562): ``import dua_mujoco`` and the pytest
@@ -81,6 +82,7 @@ _LAZY = {
     "SpherePredictor": "dua_mujoco.core.spheres",
     "estimate_bounds": "dua_mujoco.build.bounds",
     "load_scene": "dua_mujoco.models.scenes",
+    "pilot_bounds": "dua_mujoco.runtime.table_arrays",
     "PluginOutputs": "dua_mujoco.plugin",
     "attach": "dua_mujoco.plugin",
     "plugin_outputs": "dua_mujoco.plugin",
@@ -135,6 +137,7 @@ __all__ = [
     "deviation_profile",
     "estimate_bounds",
     "load_scene",
+    "pilot_bounds",
     "plan_deviation",
     "plan_from_controls",
     "plugin_outputs",

@@ -24,6 +24,8 @@ import numpy as np
 import pytest
 from random_states import random_joint_state
 
+import dua_mujoco
+from dua_mujoco.build.bounds import estimate_bounds
 from dua_mujoco.build.filter import active_geom_pairs
 from dua_mujoco.build.options import CoveringOptions, PilotOptions, UrgencyOptions
 from dua_mujoco.core.schedules.state import P_EXTRA
@@ -977,3 +979,44 @@ def test_broken_speed_bound_of_a_mocap_body_is_seen_when_broken(go: int) -> None
     assert first["speed"] < first["onset"]
     assert r.contact_onsets == 1
     assert r.missed_onsets_valid_bounds == 0
+
+
+def _alarm_log(m: mujoco.MjModel, p: Predictor, steps: int) -> list[bytes]:
+    """Every step's alarms (pair ids, the bits of tau, the new flags) over a random drive."""
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    ctrl = make_controller(m, "random", seed=0)
+    log = [p.reset(d)]
+    for _ in range(steps):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        log.append(p.step(d))
+    return [a.pairs.tobytes() + a.tau.tobytes() + a.new.tobytes() for a in log]
+
+
+@pytest.mark.filterwarnings("ignore::dua_mujoco.exceptions.PilotWarning")  # clutter's stirrer
+@pytest.mark.parametrize("scene", ["two_arms", "clutter"])
+def test_pilot_bounds_is_what_auto_measures(scene: str) -> None:
+    """``accel="auto"`` is ``pilot_bounds`` of the same options: the same bounds and the same
+    alarms bit for bit; the pilot measured at other points (the covering's centres, not the
+    boxes' corners ``bound_points``) gives other bounds and other alarms, which the comparison
+    sees."""
+    m, _ = load_scene(scene)
+    # The default pilot controller: its controls come from the pilot's seed alone.
+    options = {"pilot": PilotOptions(steps=300, seed=99), "covering": "multi"}
+    auto = Predictor(m, accel="auto", **options)
+    bounds = dua_mujoco.pilot_bounds(m, **options)
+    given = Predictor(m, accel=bounds, **options)
+    np.testing.assert_array_equal(bounds.accel, auto.bounds.accel)
+    assert _alarm_log(m, given, 300) == _alarm_log(m, auto, 300)
+    cov = auto.covering
+    centres = estimate_bounds(
+        m,
+        steps=300,
+        seed=99,
+        spheres=(cov.sphere_geom, cov.sphere_body, cov.sphere_offset),
+        with_speed=False,
+    )
+    assert not np.array_equal(centres.accel, bounds.accel)
+    other = Predictor(m, accel=centres, **options)
+    assert _alarm_log(m, other, 300) != _alarm_log(m, auto, 300)

@@ -47,6 +47,7 @@ __all__ = [
     "estimate_bounds",
     "moving_bodies",
     "resolve_bounds",
+    "with_speed",
 ]
 
 BoundSpec = float | Mapping[str, float]
@@ -511,18 +512,12 @@ def resolve_bounds(
     *,
     speed: float | Mapping[str, float] | None = None,
     velocity_accel: float | Mapping[str, float] | None = None,
-    spheres: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-    pilot_steps: int = 2000,
-    pilot_seed: int = 1_000_003,
-    pilot_controller: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None,
-    safety: float = 2.0,
-    pilot_motion: PilotMotion | str = PilotMotion.FREE,
 ) -> MotionBounds:
-    """The ``MotionBounds`` a ``Predictor``'s ``accel`` argument stands for.
+    """The ``MotionBounds`` a ``Predictor``'s declared ``accel`` argument stands for.
 
     A scalar or a dict by body name is declared (``MotionBounds.declare``, with ``speed`` and
-    ``velocity_accel``); ``"auto"`` runs a pilot rollout (``estimate_bounds``) over ``spheres``
-    and keeps a declared ``speed`` on top; ready ``MotionBounds`` must be this model's.
+    ``velocity_accel``); ready ``MotionBounds`` must be this model's (``"auto"`` is
+    ``pilot_bounds``'s).
     """
     if isinstance(accel, MotionBounds):
         if accel.accel.shape != (model.nbody,):
@@ -530,34 +525,20 @@ def resolve_bounds(
                 f"the MotionBounds have {accel.accel.shape[0]} bodies but the model has "
                 f"{model.nbody}: build them for this model (MotionBounds.declare(model, ...))."
             )
-        bounds = accel
-    elif isinstance(accel, str):
-        if accel != "auto":
-            raise InvalidInputError(
-                f"accel = {accel!r} is invalid: pass 'auto', a number, a dict by body name "
-                "or MotionBounds."
-            )
-        pilot = None
-        if pilot_controller is not None:
-            ctrl = pilot_controller
-
-            def pilot(m: mujoco.MjModel, d: mujoco.MjData, rng: np.random.Generator) -> None:
-                ctrl(m, d)
-
-        bounds = estimate_bounds(
-            model,
-            steps=pilot_steps,
-            seed=pilot_seed,
-            safety=safety,
-            controller=pilot,
-            spheres=spheres,
-            with_speed=False,
-            motion=pilot_motion,
+        return accel
+    if isinstance(accel, str):
+        raise InvalidInputError(
+            f"accel = {accel!r} is invalid: pass 'auto', a number, a dict by body name "
+            "or MotionBounds."
         )
-        if speed is not None:
-            # A declared speed bound still applies on top of estimated accelerations.
-            declared = MotionBounds.declare(model, 0.0, speed=speed, integrator_term=False)
-            bounds = replace(bounds, speed=declared.speed)
-    else:
-        bounds = MotionBounds.declare(model, accel, speed=speed, velocity_accel=velocity_accel)
-    return bounds
+    return MotionBounds.declare(model, accel, speed=speed, velocity_accel=velocity_accel)
+
+
+def with_speed(
+    model: mujoco.MjModel, bounds: MotionBounds, speed: float | Mapping[str, float] | None
+) -> MotionBounds:
+    """``bounds`` with a declared speed bound on top (estimated accelerations keep it)."""
+    if speed is None:
+        return bounds
+    declared = MotionBounds.declare(model, 0.0, speed=speed, integrator_term=False)
+    return replace(bounds, speed=declared.speed)

@@ -25,11 +25,11 @@ import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.build.bounds import MotionBounds, resolve_bounds
-from dua_mujoco.build.covering import Covering, CoveringMode, cover_model
-from dua_mujoco.build.events import EventTable, body_boxes, build_events
-from dua_mujoco.build.exact import EXACT_PERIODS, QUERY_PERIODS, ExactLevel
+from dua_mujoco.build.covering import Covering, CoveringMode
+from dua_mujoco.build.events import EventTable
+from dua_mujoco.build.exact import ExactLevel
 from dua_mujoco.build.filter import GeomPairs, SpherePairs, body_id
-from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres, sphere_states
+from dua_mujoco.build.kinematics import mjdata_frame, sphere_states
 from dua_mujoco.build.mocap import PredictorMocap
 from dua_mujoco.build.options import (
     CoveringOptions,
@@ -37,12 +37,9 @@ from dua_mujoco.build.options import (
     PilotOptions,
     ScheduleOptions,
     UrgencyOptions,
-    alarm_periods,
     removed_keywords_error,
-    resolve_options,
 )
-from dua_mujoco.build.pairbounds import body_vel_uncertainty
-from dua_mujoco.build.pruning import Reach, reach_for
+from dua_mujoco.build.pruning import Reach
 from dua_mujoco.build.tables import (
     PairTables,
     check_data,
@@ -50,13 +47,10 @@ from dua_mujoco.build.tables import (
     plane_halfspaces,
     static_shapes,
 )
-from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule
-from dua_mujoco.core.spheres import PairMode, pair_mode
-from dua_mujoco.core.validate import check_period
+from dua_mujoco.core.spheres import PairMode
 from dua_mujoco.exceptions import (
-    InvalidInputError,
     NoActivePairsWarning,
     NonFiniteStateError,
     SchedulerError,
@@ -65,7 +59,7 @@ from dua_mujoco.runtime.alarms import Alarms
 from dua_mujoco.runtime.diagnostics import clock_error, nonfinite_error
 from dua_mujoco.runtime.flightplan import PlanFollowing
 from dua_mujoco.runtime.pairstate import PairState
-from dua_mujoco.runtime.table_arrays import predictor_tables
+from dua_mujoco.runtime.table_arrays import build, layout, measure_pilot
 
 __all__ = ["BoundsLike", "Predictor"]
 
@@ -86,8 +80,9 @@ class Predictor(PlanFollowing):
     Args:
         model: The MuJoCo model.
         accel: Acceleration bounds (``BoundsLike``); ``"auto"`` runs a pilot rollout
-            (``pilot``) and multiplies the measured maxima by its ``safety``. They bound every
-            point of each body's geoms (the exact level reads them so).
+            (``pilot``; ``pilot_bounds(model, **options)`` is the same call) and multiplies the
+            measured maxima by its ``safety``. They bound every point of each body's geoms (the
+            exact level reads them so).
         speed: Optional speed bounds (scalar or dict by body name), ignored for ready
             ``MotionBounds``.
         velocity_accel: Bound ``C`` on the centripetal/Coriolis acceleration of sphere centres,
@@ -137,57 +132,29 @@ class Predictor(PlanFollowing):
     ) -> None:
         if removed:
             raise removed_keywords_error(removed)
-        if not isinstance(model, mujoco.MjModel):
-            raise InvalidInputError(
-                f"model must be a mujoco.MjModel, got {type(model).__name__}: load it with "
-                "mujoco.MjModel.from_xml_path(path) (or dua_mujoco.load_scene(name))."
-            )
-        if isinstance(period, bool) or not isinstance(period, int | np.integer) or period < 1:
-            raise InvalidInputError(f"period = {period!r} is invalid: it must be an int >= 1.")
+        lay = layout(
+            model,
+            period=period,
+            latency=latency,
+            alarm_horizon=alarm_horizon,
+            covering=covering,
+            schedule=schedule,
+            urgency=urgency,
+            pilot=pilot,
+            pairs=pairs,
+        )
         self.model = model
-        self.period = int(period)
-        # Validate the schedule's options now rather than at reset(): same checks, same messages.
-        self.dt, self.latency = check_period(self.period * float(model.opt.timestep), latency)
-        self.alarm_periods = alarm_periods(alarm_horizon, self.dt)
+        self.period, self.dt, self.latency = lay.period, lay.dt, lay.latency
+        self.alarm_periods = lay.alarm_periods
         """The alarm horizon in predictor periods (1 by default)."""
         self.alarm_horizon = self.alarm_periods * self.dt
         """The alarm horizon (seconds): every collision is flagged at least this long before its
         first state in contact while the bounds hold. The runtime's tables carry it as is."""
-        # The periods past the next step a verdict must see (the exact level's and the reach's).
-        self._ahead = self.latency + self.alarm_periods - 1
-        self.options = resolve_options(covering, schedule, urgency, pilot, pairs)
+        self.options = lay.options
         """The option groups in force (``PredictorOptions``)."""
-        sched = self.options.schedule
-        self.schedule = as_schedule(sched.kind)
-        self.slots_per_bucket = sched.slots_per_bucket
-        self.max_evals_per_step = sched.max_evals_per_step
-        self.alarm_backoff = sched.alarm_backoff
-        cover = self.options.covering
-        self.covering = (
-            covering
-            if isinstance(covering, Covering)
-            else cover_model(
-                model,
-                mode=cover.mode,
-                max_spheres_per_geom=cover.max_spheres_per_geom,
-                hfield=cover.hfield,
-                static=cover.static,
-            )
-        )
-        cov = self.covering
-        mode = pair_mode(
-            self.options.pairs.mode,
-            self.options.pairs.horizon,
-            nsphere=cov.nsphere,
-            deadline=self.schedule is Schedule.DEADLINE,
-        )
-        exact = None
-        if self.options.urgency.exact:
-            below = self.options.urgency.exact_below
-            # Looks can clear an alarm (or lengthen a wait) only below the alarm horizon.
-            below = (EXACT_PERIODS + self._ahead) * self.dt if below is None else below
-            exact = (below, (QUERY_PERIODS + self._ahead) * self.dt)
-        self.universe = PairUniverse(model, cov, lazy=mode is PairMode.PRUNED, exact=exact)
+        self.schedule = as_schedule(self.options.schedule.kind)
+        self.covering = lay.covering
+        self.universe = lay.universe
         """The sphere pairs this predictor knows and their tables (a pruned one learns the
         pairs its candidates bring in)."""
         if self.universe.empty():
@@ -198,59 +165,29 @@ class Predictor(PlanFollowing):
                 NoActivePairsWarning,
                 stacklevel=2,
             )
-        spheres = (cov.sphere_geom, cov.sphere_body, cov.sphere_offset)
-        if self.exact is not None:
-            spheres = self.exact.with_corners(model, spheres, self.universe.exact_geoms())
-        boxes = body_boxes(model, spheres)
-        self.bound_points: tuple[np.ndarray, np.ndarray, np.ndarray] = boxes.corners()
+        self.bound_points: tuple[np.ndarray, np.ndarray, np.ndarray] = lay.points
         """``(geom, body, offset)`` of the points whose motion the bounds limit: the corners of
         one box a body around its covering spheres' centres and the exact level's geoms (the
         bounds then hold for every point inside, docs/theory.md, section 6). What the pilot
-        measures, ``BoundMonitor`` checks, and the step checks before each selection."""
-        self.bounds = resolve_bounds(
-            model,
-            accel,
-            speed=speed,
-            velocity_accel=velocity_accel,
-            spheres=self.bound_points,
-            pilot_steps=self.options.pilot.steps,
-            pilot_seed=self.options.pilot.seed,
-            pilot_controller=self.options.pilot.controller,
-            safety=self.options.pilot.safety,
-            pilot_motion=self.options.pilot.motion,
+        (``pilot_bounds``) measures, ``BoundMonitor`` checks, and the step checks before each
+        selection."""
+        self.bounds = (
+            measure_pilot(lay, speed)
+            if isinstance(accel, str) and accel == "auto"
+            else resolve_bounds(model, accel, speed=speed, velocity_accel=velocity_accel)
         )
         self.mocap: PredictorMocap | None = (
             PredictorMocap(model, lambda: self._rt) if model.nmocap else None
         )
         """Velocities of mocap bodies (None without mocap bodies): ``set_velocity`` to give
         them instead of differencing."""
-        # Static shape records: their poses are model constants, checked against the data at
-        # each reset.
-        self._shapes = static_shapes(model, cov.shape_geom)
-        self.universe.bind(self.bounds, period=self.period, mocap=self.mocap, shapes=self._shapes)
-        self.events: EventTable | None = (
-            build_events(model, boxes, self.bounds, period=self.period)
-            if sched.violation_events
-            else None
-        )
+        built = build(lay, self.bounds, mocap=self.mocap)
+        self._shapes, self._spheres = built.shapes, built.spheres
+        self.events: EventTable | None = built.events
         """The violation check's tables (None when ``violation_events`` is off)."""
-        self._spheres = pack_spheres(
-            cov.sphere_geom, cov.sphere_body, cov.sphere_offset, model.body_rootid
-        )
-        self.reach: Reach | None = None
+        self.reach: Reach | None = built.reach
         """Pruned pairs: what their reach is made of (None when every pair is held)."""
-        if mode is PairMode.PRUNED:
-            self.reach = reach_for(
-                self.universe,
-                self.options.pairs.horizon,
-                bounds=self.bounds,
-                delta=body_vel_uncertainty(
-                    model, self.bounds, period=self.period, mocap=self.mocap
-                ),
-                dt=self.dt,
-                ahead=self._ahead,
-            )
-        self.table_arrays = predictor_tables(self)
+        self.table_arrays = built.arrays
         """The tables the native runtime reads, by name (``runtime/table_arrays.py``)."""
         tables = _core.Tables.build(model, self.table_arrays)
         self._rt = _core.Runtime(
