@@ -443,11 +443,11 @@ void Run(const Model& mo, const std::shared_ptr<const dua::Tables>& tables, cons
       (void)rt.GeomPairIds(g1, g2);
     } else if (k == 5 && m->nmocap) {
       const double v[3] = {0.1, 0.0, -0.2}, w[3] = {0.0, 1.0, 0.0};
-      rt.SetMocapVelocity(0, v, w);
+      rt.mocap().Set(0, v, w);
     } else if (k == 6) {
       dua::Runtime copy(rt);
       if (copy.Step(m, d) < 0) copy.Classify(m, d);
-      if (m->nmocap) rt.ClearMocapVelocity(0);
+      if (m->nmocap) rt.mocap().Clear(0);
     }
   }
 }

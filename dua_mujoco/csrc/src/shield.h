@@ -173,7 +173,7 @@ class DUA_API Shield {
   std::vector<double> held_, ctrl_;
   bool failsafe_mode_ = true, screened_ = false, guaranteed_ = false, fresh_ = true;
   int64_t prepared_ = -1;  // the step the scratch was last prepared at
-  int64_t horizon_steps_ = 0, max_stop_ = 0;
+  int64_t max_stop_ = 0;
   ShieldCounts counts_;
 };
 
