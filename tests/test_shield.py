@@ -107,6 +107,9 @@ def test_the_shield_is_exported_and_counts_what_it_did() -> None:
     assert shield.interventions == 10
     assert shield.counts["steps"] == 30
     np.testing.assert_array_equal(ctrl, intended)
+    # Any array-like of controls: a list and a float32 array are converted.
+    np.testing.assert_array_equal(shield(data, intended.tolist()), intended)
+    np.testing.assert_array_equal(shield(data, intended.astype(np.float32)), intended)
     shield.reset(data)
     assert shield.interventions == 0 and shield.counts["steps"] == 0
 

@@ -203,6 +203,9 @@ class Shield:
             policy,
         )
         self.period = int(period)
+        # Called with the controller's array as it is; a TypeError (not a C-contiguous float
+        # array) retries on a converted copy.
+        self._control = self.native.control
 
     @staticmethod
     def _pairs(model: mujoco.MjModel, is_robot: np.ndarray, prot: np.ndarray) -> np.ndarray:
@@ -246,7 +249,10 @@ class Shield:
         Call it right before each ``mj_step`` (after moving mocap bodies), with the controls
         the controller wants; they are read at each period's first step and held for it.
         """
-        return self.native.control(data, np.ascontiguousarray(intended, dtype=np.float64))
+        try:  # a (nu,) float64 array, as a controller's: no copy, no conversion
+            return self._control(data, intended)  # type: ignore[arg-type]
+        except TypeError:
+            return self._control(data, np.ascontiguousarray(intended, dtype=np.float64))
 
     @property
     def interventions(self) -> int:
