@@ -22,6 +22,7 @@ import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.build.filter import active_geom_pairs
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.runtime.flightplan import body_mask
 from dua_mujoco.runtime.predictor import BoundsLike, Predictor
@@ -121,8 +122,7 @@ class Shield:
         speed: float | Mapping[str, float] | None = None,
         screen: bool = True,
     ) -> None:
-        if isinstance(period, bool) or not isinstance(period, int | np.integer) or period < 1:
-            raise InvalidInputError(f"period = {period!r} is invalid: pass an int >= 1 (steps).")
+        period = check_int("period", period, 1, " (steps)")
         if not isinstance(screen, bool):
             raise InvalidInputError(f"screen = {screen!r} is invalid: pass True or False.")
         h = float(model.opt.timestep)
@@ -173,8 +173,8 @@ class Shield:
             model,
             accel=accel,
             speed=speed,
-            period=int(period),
-            alarm_horizon=int(period) * h + stop_time,
+            period=period,
+            alarm_horizon=period * h + stop_time,
             pairs="all",
         )
         tables = _core.Tables.build(model, self.predictor.table_arrays)
@@ -193,7 +193,7 @@ class Shield:
             self.robot_bodies,
             np.ascontiguousarray(self.pairs[:, 0]),
             np.ascontiguousarray(self.pairs[:, 1]),
-            int(period),
+            period,
             deviation,
             rest_speed,
             stop_time,
@@ -202,7 +202,7 @@ class Shield:
             tc,
             policy,
         )
-        self.period = int(period)
+        self.period = period
         # Called with the controller's array as it is; a TypeError (not a C-contiguous float
         # array) retries on a converted copy.
         self._control = self.native.control
