@@ -226,10 +226,8 @@ class Shield:
                 "rejects every pair): name the bodies to keep the robot out of, with geoms whose "
                 "contype/conaffinity meet the robot's."
             )
-        explicit = {
-            int(g) for p in range(model.npair) for g in (model.pair_geom1[p], model.pair_geom2[p])
-        }
-        if explicit & set(pairs[:, 1].tolist()):
+        explicit = np.concatenate([model.pair_geom1, model.pair_geom2])
+        if np.isin(pairs[:, 1], explicit).any():
             raise InvalidInputError(
                 "a protected geom is in an explicit <pair> element: the shield's rollouts cannot "
                 "take it out of the contacts; protect bodies outside <contact><pair>."
