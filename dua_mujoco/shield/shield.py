@@ -22,7 +22,7 @@ import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.build.filter import active_geom_pairs
-from dua_mujoco.core.validate import check_int
+from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.runtime.flightplan import body_mask
 from dua_mujoco.runtime.predictor import BoundsLike, Predictor
@@ -48,15 +48,6 @@ def robot_actuators(model: mujoco.MjModel, bodies: np.ndarray) -> np.ndarray:
     )
     dofs = bodies[np.asarray(model.dof_bodyid)].astype(bool)
     return np.flatnonzero(np.any(moment[:, dofs] != 0.0, axis=1))
-
-
-def _positive(name: str, value: object, *, zero: bool = False) -> float:
-    ok = isinstance(value, int | float | np.number) and not isinstance(value, bool)
-    x = float(value) if ok else float("nan")  # type: ignore[arg-type]
-    if not (np.isfinite(x) and (x >= 0.0 if zero else x > 0.0)):
-        rule = ">= 0" if zero else "> 0"
-        raise InvalidInputError(f"{name} = {value!r} is invalid: pass a finite number {rule}.")
-    return x
 
 
 class Shield:
@@ -126,12 +117,12 @@ class Shield:
         if not isinstance(screen, bool):
             raise InvalidInputError(f"screen = {screen!r} is invalid: pass True or False.")
         h = float(model.opt.timestep)
-        deviation = _positive("deviation", deviation, zero=True)
-        rest_speed = _positive("rest_speed", rest_speed)
-        stop_time = _positive("stop_time", stop_time)
-        reach = (
-            -1.0 if stop_distance is None else _positive("stop_distance", stop_distance, zero=True)
-        )
+        deviation = check_number("deviation", deviation, zero=True)
+        rest_speed = check_number("rest_speed", rest_speed)
+        stop_time = check_number("stop_time", stop_time)
+        reach = -1.0  # no stop envelope
+        if stop_distance is not None:
+            reach = check_number("stop_distance", stop_distance, zero=True)
         if stop_time < h:
             raise InvalidInputError(
                 f"stop_time = {stop_time} is invalid: pass at least one timestep ({h} s)."
