@@ -114,6 +114,23 @@ def test_the_shield_is_exported_and_counts_what_it_did() -> None:
     assert shield.interventions == 0 and shield.counts["steps"] == 0
 
 
+_PAIRED = """
+<mujoco>
+  <worldbody>
+    <body name="arm">
+      <joint name="hinge" axis="0 0 1"/>
+      <geom name="link" type="capsule" fromto="0 0 0 0.5 0 0" size="0.05"/>
+    </body>
+    <body name="person" mocap="true" pos="1 0 0">
+      <geom name="torso" type="capsule" size="0.1 0.5"/>
+    </body>
+  </worldbody>
+  <contact><pair geom1="link" geom2="torso"/></contact>
+  <actuator><motor joint="hinge"/></actuator>
+</mujoco>
+"""
+
+
 def test_bad_input_is_named_with_its_fix() -> None:
     model, data = _arm()
     with pytest.raises(InvalidInputError, match=r"protect: 'persn\*' names no body.*person_arm"):
@@ -130,6 +147,10 @@ def test_bad_input_is_named_with_its_fix() -> None:
         _shield(model, failsafe=3)
     with pytest.raises(InvalidInputError, match=r"protect names no body the robot's geoms can"):
         _shield(model, protect=["arm_link1"])
+    # A <pair> element with a protected geom: the rollouts could not take it out of the contacts.
+    paired = mujoco.MjModel.from_xml_string(_PAIRED)
+    with pytest.raises(InvalidInputError, match=r"a protected geom is in an explicit <pair>"):
+        Shield(paired, protect="person", accel=5.0)
     model.opt.integrator = int(mujoco.mjtIntegrator.mjINT_RK4)
     with pytest.raises(InvalidInputError, match=r"integrator is RK4.*use Euler, implicit"):
         _shield(model)

@@ -109,10 +109,6 @@ class PredictorMocap:
         copy of :attr:`twist`)."""
         return np.array(self.twist[:nbody])
 
-    def write_body_velocity(self, out: np.ndarray) -> None:
-        """Write the mocap rows of a ``(nbody, 6)`` spatial-velocity array in place."""
-        out[self.mocap_bodies] = self.twist[self.mocap_bodies]
-
 
 class MocapVelocityTracker(PredictorMocap):
     """Velocities of mocap bodies by backward differences, or as given by the user, for a

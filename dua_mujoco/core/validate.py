@@ -22,6 +22,7 @@ __all__ = [
     "as_ids",
     "as_vectors",
     "check_int",
+    "check_number",
     "check_period",
     "check_urgencies",
     "per_pair",
@@ -121,6 +122,17 @@ def check_int(name: str, value: object, low: int = 1, fix: str = "") -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
         raise InvalidInputError(f"{name} = {value!r} is invalid: pass an int >= {low}{fix}.")
     return int(value)
+
+
+def check_number(name: str, value: object, *, zero: bool = False) -> float:
+    """A finite number option ``> 0`` (``>= 0`` with ``zero``) as a float; a bool is refused
+    (``float(True)`` is 1)."""
+    ok = isinstance(value, int | float | np.number) and not isinstance(value, bool)
+    x = float(value) if ok else math.nan  # type: ignore[arg-type]
+    if not (math.isfinite(x) and (x >= 0.0 if zero else x > 0.0)):
+        rule = ">= 0" if zero else "> 0"
+        raise InvalidInputError(f"{name} = {value!r} is invalid: pass a finite number {rule}.")
+    return x
 
 
 def check_period(dt: object, latency: object) -> tuple[float, int]:

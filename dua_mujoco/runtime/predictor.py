@@ -216,9 +216,8 @@ class Predictor(PlanFollowing):
     def sphere_states(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """Centres and velocities of every covering sphere, ``(nsphere, 3)`` each: the step's
         kinematics kernel, with the mocap twists of the latest step."""
-        twist = np.zeros((self.model.nbody, 6))
-        if self.mocap is not None:
-            self.mocap.write_body_velocity(twist)
+        nbody = self.model.nbody
+        twist = np.zeros((nbody, 6)) if self.mocap is None else self.mocap.body_velocity(nbody)
         return sphere_states(self._spheres, mjdata_frame(data, twist))
 
     def halfspaces(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:

@@ -57,7 +57,7 @@ from dua_mujoco.build.tables import static_shapes
 from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.schedules import Schedule, as_schedule, schedule_config
 from dua_mujoco.core.spheres import PairMode, pair_mode
-from dua_mujoco.core.validate import check_period
+from dua_mujoco.core.validate import check_int, check_period
 from dua_mujoco.exceptions import InvalidInputError
 
 __all__ = ["CONFIG", "Built", "Layout", "build", "layout", "measure_pilot", "pilot_bounds"]
@@ -112,10 +112,9 @@ def layout(
             f"model must be a mujoco.MjModel, got {type(model).__name__}: load it with "
             "mujoco.MjModel.from_xml_path(path) (or dua_mujoco.load_scene(name))."
         )
-    if isinstance(period, bool) or not isinstance(period, int | np.integer) or period < 1:
-        raise InvalidInputError(f"period = {period!r} is invalid: it must be an int >= 1.")
+    period = check_int("period", period)
     # The schedule's options are checked now rather than at reset(): same checks, same messages.
-    dt, latency = check_period(int(period) * float(model.opt.timestep), latency)
+    dt, latency = check_period(period * float(model.opt.timestep), latency)
     periods = alarm_periods(alarm_horizon, dt)
     options = resolve_options(covering, schedule, urgency, pilot, pairs)
     kind = as_schedule(options.schedule.kind)
@@ -150,9 +149,7 @@ def layout(
         spheres = universe.exact.with_corners(model, spheres, universe.exact_geoms())
     boxes = body_boxes(model, spheres)
     pruned = mode is PairMode.PRUNED
-    return Layout(
-        model, int(period), dt, latency, periods, ahead, options, cov, pruned, universe, boxes
-    )
+    return Layout(model, period, dt, latency, periods, ahead, options, cov, pruned, universe, boxes)
 
 
 def pilot_bounds(

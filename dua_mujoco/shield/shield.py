@@ -22,6 +22,7 @@ import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.build.filter import active_geom_pairs
+from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.runtime.flightplan import body_mask
 from dua_mujoco.runtime.predictor import BoundsLike, Predictor
@@ -47,15 +48,6 @@ def robot_actuators(model: mujoco.MjModel, bodies: np.ndarray) -> np.ndarray:
     )
     dofs = bodies[np.asarray(model.dof_bodyid)].astype(bool)
     return np.flatnonzero(np.any(moment[:, dofs] != 0.0, axis=1))
-
-
-def _positive(name: str, value: object, *, zero: bool = False) -> float:
-    ok = isinstance(value, int | float | np.number) and not isinstance(value, bool)
-    x = float(value) if ok else float("nan")  # type: ignore[arg-type]
-    if not (np.isfinite(x) and (x >= 0.0 if zero else x > 0.0)):
-        rule = ">= 0" if zero else "> 0"
-        raise InvalidInputError(f"{name} = {value!r} is invalid: pass a finite number {rule}.")
-    return x
 
 
 class Shield:
@@ -121,17 +113,16 @@ class Shield:
         speed: float | Mapping[str, float] | None = None,
         screen: bool = True,
     ) -> None:
-        if isinstance(period, bool) or not isinstance(period, int | np.integer) or period < 1:
-            raise InvalidInputError(f"period = {period!r} is invalid: pass an int >= 1 (steps).")
+        period = check_int("period", period, 1, " (steps)")
         if not isinstance(screen, bool):
             raise InvalidInputError(f"screen = {screen!r} is invalid: pass True or False.")
         h = float(model.opt.timestep)
-        deviation = _positive("deviation", deviation, zero=True)
-        rest_speed = _positive("rest_speed", rest_speed)
-        stop_time = _positive("stop_time", stop_time)
-        reach = (
-            -1.0 if stop_distance is None else _positive("stop_distance", stop_distance, zero=True)
-        )
+        deviation = check_number("deviation", deviation, zero=True)
+        rest_speed = check_number("rest_speed", rest_speed)
+        stop_time = check_number("stop_time", stop_time)
+        reach = -1.0  # no stop envelope
+        if stop_distance is not None:
+            reach = check_number("stop_distance", stop_distance, zero=True)
         if stop_time < h:
             raise InvalidInputError(
                 f"stop_time = {stop_time} is invalid: pass at least one timestep ({h} s)."
@@ -173,8 +164,8 @@ class Shield:
             model,
             accel=accel,
             speed=speed,
-            period=int(period),
-            alarm_horizon=int(period) * h + stop_time,
+            period=period,
+            alarm_horizon=period * h + stop_time,
             pairs="all",
         )
         tables = _core.Tables.build(model, self.predictor.table_arrays)
@@ -193,7 +184,7 @@ class Shield:
             self.robot_bodies,
             np.ascontiguousarray(self.pairs[:, 0]),
             np.ascontiguousarray(self.pairs[:, 1]),
-            int(period),
+            period,
             deviation,
             rest_speed,
             stop_time,
@@ -202,7 +193,7 @@ class Shield:
             tc,
             policy,
         )
-        self.period = int(period)
+        self.period = period
         # Called with the controller's array as it is; a TypeError (not a C-contiguous float
         # array) retries on a converted copy.
         self._control = self.native.control
@@ -226,10 +217,8 @@ class Shield:
                 "rejects every pair): name the bodies to keep the robot out of, with geoms whose "
                 "contype/conaffinity meet the robot's."
             )
-        explicit = {
-            int(g) for p in range(model.npair) for g in (model.pair_geom1[p], model.pair_geom2[p])
-        }
-        if explicit & set(pairs[:, 1].tolist()):
+        explicit = np.concatenate([model.pair_geom1, model.pair_geom2])
+        if np.isin(pairs[:, 1], explicit).any():
             raise InvalidInputError(
                 "a protected geom is in an explicit <pair> element: the shield's rollouts cannot "
                 "take it out of the contacts; protect bodies outside <contact><pair>."
