@@ -22,6 +22,7 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.exact import corner_points
 from dua_mujoco.models.cells import SHIELD_SCENES
 from dua_mujoco.progress import Progress
 from dua_mujoco.shield.failsafe import Brake
@@ -46,11 +47,7 @@ def _measure(
     data = mujoco.MjData(model)
     h = float(model.opt.timestep)
     geoms = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bodies]
-    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
-    aabb = np.asarray(model.geom_aabb)[geoms]
-    local = (aabb[:, None, :3] + signs[None] * aabb[:, None, 3:]).reshape(-1, 3)
-    gid = np.repeat(np.array(geoms), 8)
-    body = np.asarray(model.geom_bodyid)[gid]
+    gid, body, local = corner_points(model, geoms)
     worst = np.zeros((len(bodies), 3))
     vel = np.empty(6)
     with Progress(len(seeds), f"{scene_name} bounds") as bar:
