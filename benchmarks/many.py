@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
+from timing import table  # benchmarks/timing.py: the script folder is on sys.path
 
 from dua_mujoco import _core
 from dua_mujoco.core.spheres import SpherePredictor
@@ -473,8 +474,6 @@ def report(paths: list[Path], png: Path) -> str:
                 f"{full['bytes_per_sphere']:,.0f}",
             ]
         )
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
     n = np.array([r["n"] for r in res], dtype=float)
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
     series = [
@@ -507,7 +506,7 @@ def report(paths: list[Path], png: Path) -> str:
     )
     fig.tight_layout()
     fig.savefig(png, dpi=110)
-    return "\n".join(lines)
+    return table(head, rows)
 
 
 if __name__ == "__main__":

@@ -83,7 +83,7 @@ from dua_mujoco.runtime.predictor import Predictor
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table
 from horizon import PILOT_SEED, ROLLOUT_SEED
-from plan_horizon import CLOCK, _amortised
+from plan_horizon import CLOCK, _amortised, _ratio
 from robots import ROBOTS, load_robot
 
 ROBOT_NAMES = ("baxter", "sawyer", "xarm7", "spot_arm", "g1", "gr1", "tiago")
@@ -586,10 +586,6 @@ def costs(world: Run, H: float, record: Record, *, peer: bool = True) -> dict[st
 
 
 # ----------------------------------------------------------------------------- tables
-
-
-def _ratio(side: dict[str, Any]) -> float:
-    return side["standing"] / side["oracle"] if side["oracle"] > 0 else float("inf")
 
 
 def _x(value: float) -> str:

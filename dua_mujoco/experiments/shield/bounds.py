@@ -22,6 +22,8 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from dua_mujoco.build.exact import corner_points
+from dua_mujoco.build.kinematics import PointMotion, pack_spheres
 from dua_mujoco.models.cells import SHIELD_SCENES
 from dua_mujoco.progress import Progress
 from dua_mujoco.shield.failsafe import Brake
@@ -46,13 +48,10 @@ def _measure(
     data = mujoco.MjData(model)
     h = float(model.opt.timestep)
     geoms = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bodies]
-    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
-    aabb = np.asarray(model.geom_aabb)[geoms]
-    local = (aabb[:, None, :3] + signs[None] * aabb[:, None, 3:]).reshape(-1, 3)
-    gid = np.repeat(np.array(geoms), 8)
-    body = np.asarray(model.geom_bodyid)[gid]
+    gid, body, local = corner_points(model, geoms)
     worst = np.zeros((len(bodies), 3))
-    vel = np.empty(6)
+    of_body = [body == b for b in bodies]
+    no_twist = np.zeros((model.nbody, 6))  # the scripted (mocap) bodies are not measured
     with Progress(len(seeds), f"{scene_name} bounds") as bar:
         for seed in seeds:
             episode = scene.episode(model, data, seed)
@@ -60,33 +59,20 @@ def _measure(
                 data.mocap_pos[:] = 20.0 + 3.0 * np.arange(model.nmocap)[:, None]
             ctrl = start(data, seed, episode.policy(model, data))
             mujoco.mj_forward(model, data)
-            last = chord = reported = None
+            # The runtime's own measure (the pilot's): speed, discrepancy and acceleration
+            # of each corner, from the second update (the acceleration from the third).
+            motion = PointMotion(pack_spheres(gid, body, local, model.body_rootid))
             for k in range(round(scene.duration / h)):
                 if k % scene.period == 0:
                     ctrl = episode.policy(model, data)
                 data.ctrl[:] = drive(data, k, ctrl)
                 mujoco.mj_step(model, data)
-                mats = np.asarray(data.geom_xmat)[gid].reshape(-1, 3, 3)
-                offset = np.einsum("nij,nj->ni", mats, local)
-                points = np.asarray(data.geom_xpos)[gid] + offset
-                twist = np.empty((len(geoms), 6))
-                for i, g in enumerate(geoms):
-                    mujoco.mj_objectVelocity(model, data, int(mujoco.mjtObj.mjOBJ_GEOM), g, vel, 0)
-                    twist[i] = vel
-                twist = np.repeat(twist, 8, axis=0)
-                now = twist[:, 3:] + np.cross(twist[:, :3], offset)
-                if last is not None:
-                    u = (points - last) / h
-                    stats = [np.linalg.norm(u, axis=1)]
-                    stats.append(
-                        np.linalg.norm(u - chord, axis=1) / h if chord is not None else 0 * stats[0]
-                    )
-                    stats.append(np.linalg.norm(u - reported, axis=1))
-                    for i, b in enumerate(bodies):
-                        mine = body == b
-                        worst[i] = np.maximum(worst[i], [float(s[mine].max()) for s in stats])
-                    chord = u
-                last, reported = points, now
+                motion.update(data, no_twist, h)
+                values = motion.values[
+                    :, [PointMotion.SPEED, PointMotion.ACCEL, PointMotion.DISCREPANCY]
+                ]
+                for i, mine in enumerate(of_body):
+                    worst[i] = np.maximum(worst[i], values[mine].max(axis=0))
             bar.update()
     return {model.body(b).name: tuple(worst[i]) for i, b in enumerate(bodies)}
 

@@ -32,6 +32,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.build.exact import corner_points
 from dua_mujoco.build.filter import active_geom_pairs
 from dua_mujoco.models.cells import SHIELD_SCENES, ShieldScene
 from dua_mujoco.models.people import Bound
@@ -193,11 +194,7 @@ class _BoundCheck:
 
     def __init__(self, model: mujoco.MjModel, bounds: dict[int, Bound]) -> None:
         geoms = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bounds]
-        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
-        aabb = np.asarray(model.geom_aabb)[geoms]
-        self.geoms = np.repeat(np.array(geoms, dtype=np.int64), 8)
-        self.local = (aabb[:, None, :3] + signs[None] * aabb[:, None, 3:]).reshape(-1, 3)
-        body = np.asarray(model.geom_bodyid)[self.geoms]
+        self.geoms, body, self.local = corner_points(model, geoms)
         self.speed = np.array([bounds[int(b)].speed for b in body])
         self.accel = np.array([bounds[int(b)].accel for b in body])
         self.body = body
