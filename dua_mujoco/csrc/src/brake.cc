@@ -160,7 +160,6 @@ std::unique_ptr<Brake> Brake::Make(const mjModel* m, const std::vector<int>& act
     v->resize(na);
   }
   b->tau_.resize(nd);
-  b->slope_.resize(m->nu);
   b->free_.resize(na);
   return b;
 }
