@@ -3,8 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
+
+#include "internal.h"
 
 namespace dua {
 namespace {
@@ -75,9 +76,7 @@ std::unique_ptr<Brake> Brake::Make(const mjModel* m, const std::vector<int>& act
     }
   }
   if (!(time_constant > 0.0) || !std::isfinite(time_constant)) {
-    char shown[32];
-    std::snprintf(shown, sizeof(shown), "%g", time_constant);
-    *error = std::string("time_constant must be a positive number of seconds, not ") + shown;
+    *error = "time_constant must be a positive number of seconds, not " + Shown(time_constant);
     return nullptr;
   }
   std::string bad;
