@@ -138,3 +138,32 @@ def test_bad_input_is_named_with_its_fix() -> None:
     shield.reset(data)
     with pytest.raises(Exception, match=r"one control per actuator"):
         shield(data, np.zeros(model.nu + 1))
+
+
+def test_a_robot_spinning_in_place_is_not_at_rest() -> None:
+    """A link turning about a hinge through its frame origin has that origin still, but its
+    geom, 0.3 m out, moves at 0.6 m/s: the rest test counts every point (the turn times the
+    body's reach), so the first period's rollout brakes it (1 N m: about 0.2 s) instead of
+    finding it at rest one step in (as a test on the origin's speed alone would)."""
+    model = mujoco.MjModel.from_xml_string(
+        """
+        <mujoco>
+          <option timestep="0.002"/>
+          <worldbody>
+            <body name="link">
+              <joint name="hinge" type="hinge" axis="0 0 1"/>
+              <geom type="box" size="0.05 0.05 0.05" pos="0.3 0 0" mass="1"/>
+            </body>
+            <body name="post" pos="2 0 0"><geom type="box" size="0.1 0.1 0.1"/></body>
+          </worldbody>
+          <actuator><motor joint="hinge" ctrlrange="-1 1"/></actuator>
+        </mujoco>
+        """
+    )
+    data = mujoco.MjData(model)
+    data.qvel[0] = 2.0
+    mujoco.mj_forward(model, data)
+    shield = Shield(model, protect=["post"], robot=["link"], period=1, accel=5.0)
+    shield.reset(data)
+    shield(data, data.ctrl.copy())
+    assert shield.counts["rollout_steps"] > 50, shield.counts
