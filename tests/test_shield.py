@@ -167,3 +167,43 @@ def test_a_robot_spinning_in_place_is_not_at_rest() -> None:
     shield.reset(data)
     shield(data, data.ctrl.copy())
     assert shield.counts["rollout_steps"] > 50, shield.counts
+
+
+@pytest.mark.parametrize(("deviation", "accepted"), [(0.0, True), (0.16, False)])
+def test_a_candidate_whose_deviation_reaches_the_protected_body_is_refused(
+    deviation: float, accepted: bool
+) -> None:
+    """A cart braking toward a post 0.15 m away comes to rest about 0.1 m from it: its rollout
+    passes as it is, and is refused when the robot may stray 0.16 m from it (the deviation
+    reaches the post before the rest knot)."""
+    model = mujoco.MjModel.from_xml_string(
+        """
+        <mujoco>
+          <option timestep="0.002"/>
+          <worldbody>
+            <body name="cart">
+              <joint name="slide" type="slide" axis="1 0 0"/>
+              <geom type="box" size="0.05 0.05 0.05" mass="1"/>
+            </body>
+            <body name="post" pos="0.3 0 0"><geom type="box" size="0.1 0.1 0.1"/></body>
+          </worldbody>
+          <actuator><motor joint="slide" ctrlrange="-1 1"/></actuator>
+        </mujoco>
+        """
+    )
+    data = mujoco.MjData(model)
+    data.qvel[0] = 0.3
+    mujoco.mj_forward(model, data)
+    shield = Shield(
+        model,
+        protect=["post"],
+        robot=["cart"],
+        period=1,
+        accel=5.0,
+        deviation=deviation,
+        screen=False,
+    )
+    shield.reset(data)
+    shield(data, data.ctrl.copy())
+    assert shield.counts["accepted"] == int(accepted), shield.counts
+    assert shield.counts["rejected"] == int(not accepted), shield.counts
