@@ -169,13 +169,8 @@ def test_a_robot_spinning_in_place_is_not_at_rest() -> None:
     assert shield.counts["rollout_steps"] > 50, shield.counts
 
 
-@pytest.mark.parametrize(("deviation", "accepted"), [(0.0, True), (0.16, False)])
-def test_a_candidate_whose_deviation_reaches_the_protected_body_is_refused(
-    deviation: float, accepted: bool
-) -> None:
-    """A cart braking toward a post 0.15 m away comes to rest about 0.1 m from it: its rollout
-    passes as it is, and is refused when the robot may stray 0.16 m from it (the deviation
-    reaches the post before the rest knot)."""
+def _cart() -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """A 1 kg cart at 0.3 m/s toward a post 0.15 m away; its 1 N motor stops it in 4.5 cm."""
     model = mujoco.MjModel.from_xml_string(
         """
         <mujoco>
@@ -194,6 +189,17 @@ def test_a_candidate_whose_deviation_reaches_the_protected_body_is_refused(
     data = mujoco.MjData(model)
     data.qvel[0] = 0.3
     mujoco.mj_forward(model, data)
+    return model, data
+
+
+@pytest.mark.parametrize(("deviation", "accepted"), [(0.0, True), (0.16, False)])
+def test_a_candidate_whose_deviation_reaches_the_protected_body_is_refused(
+    deviation: float, accepted: bool
+) -> None:
+    """A cart braking toward a post 0.15 m away comes to rest about 0.1 m from it: its rollout
+    passes as it is, and is refused when the robot may stray 0.16 m from it (the deviation
+    reaches the post before the rest knot)."""
+    model, data = _cart()
     shield = Shield(
         model,
         protect=["post"],
@@ -201,6 +207,33 @@ def test_a_candidate_whose_deviation_reaches_the_protected_body_is_refused(
         period=1,
         accel=5.0,
         deviation=deviation,
+        screen=False,
+    )
+    shield.reset(data)
+    shield(data, data.ctrl.copy())
+    assert shield.counts["accepted"] == int(accepted), shield.counts
+    assert shield.counts["rejected"] == int(not accepted), shield.counts
+
+
+@pytest.mark.parametrize(
+    ("deviation", "stop_distance", "accepted"), [(0.0, 0.05, True), (0.05, 0.06, False)]
+)
+def test_the_stop_envelope_counts_twice_the_deviation(
+    deviation: float, stop_distance: float, accepted: bool
+) -> None:
+    """With a stop envelope the candidate rolls the brake one period and trusts the envelope
+    after it: the robot within 2 deviation + stop_distance of that pose (within D of the plan
+    when the failsafe starts, within D of the failsafe after). 2 * 0.05 + 0.06 reaches the post
+    0.15 m away before rest; D + stop_distance (0.11) would not."""
+    model, data = _cart()
+    shield = Shield(
+        model,
+        protect=["post"],
+        robot=["cart"],
+        period=1,
+        accel=5.0,
+        deviation=deviation,
+        stop_distance=stop_distance,
         screen=False,
     )
     shield.reset(data)
