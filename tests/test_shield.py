@@ -169,8 +169,9 @@ def test_a_robot_spinning_in_place_is_not_at_rest() -> None:
     assert shield.counts["rollout_steps"] > 50, shield.counts
 
 
-def _cart() -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """A 1 kg cart at 0.3 m/s toward a post 0.15 m away; its 1 N motor stops it in 4.5 cm."""
+def _cart_period(deviation: float, stop_distance: float | None = None) -> dict[str, int]:
+    """The counts after the first period of a 1 kg cart at 0.3 m/s toward a post 0.15 m away
+    (its 1 N motor stops it in 4.5 cm), the screen off: that period's candidate rolled out."""
     model = mujoco.MjModel.from_xml_string(
         """
         <mujoco>
@@ -189,43 +190,6 @@ def _cart() -> tuple[mujoco.MjModel, mujoco.MjData]:
     data = mujoco.MjData(model)
     data.qvel[0] = 0.3
     mujoco.mj_forward(model, data)
-    return model, data
-
-
-@pytest.mark.parametrize(("deviation", "accepted"), [(0.0, True), (0.16, False)])
-def test_a_candidate_whose_deviation_reaches_the_protected_body_is_refused(
-    deviation: float, accepted: bool
-) -> None:
-    """A cart braking toward a post 0.15 m away comes to rest about 0.1 m from it: its rollout
-    passes as it is, and is refused when the robot may stray 0.16 m from it (the deviation
-    reaches the post before the rest knot)."""
-    model, data = _cart()
-    shield = Shield(
-        model,
-        protect=["post"],
-        robot=["cart"],
-        period=1,
-        accel=5.0,
-        deviation=deviation,
-        screen=False,
-    )
-    shield.reset(data)
-    shield(data, data.ctrl.copy())
-    assert shield.counts["accepted"] == int(accepted), shield.counts
-    assert shield.counts["rejected"] == int(not accepted), shield.counts
-
-
-@pytest.mark.parametrize(
-    ("deviation", "stop_distance", "accepted"), [(0.0, 0.05, True), (0.05, 0.06, False)]
-)
-def test_the_stop_envelope_counts_twice_the_deviation(
-    deviation: float, stop_distance: float, accepted: bool
-) -> None:
-    """With a stop envelope the candidate rolls the brake one period and trusts the envelope
-    after it: the robot within 2 deviation + stop_distance of that pose (within D of the plan
-    when the failsafe starts, within D of the failsafe after). 2 * 0.05 + 0.06 reaches the post
-    0.15 m away before rest; D + stop_distance (0.11) would not."""
-    model, data = _cart()
     shield = Shield(
         model,
         protect=["post"],
@@ -238,5 +202,29 @@ def test_the_stop_envelope_counts_twice_the_deviation(
     )
     shield.reset(data)
     shield(data, data.ctrl.copy())
-    assert shield.counts["accepted"] == int(accepted), shield.counts
-    assert shield.counts["rejected"] == int(not accepted), shield.counts
+    return shield.counts
+
+
+@pytest.mark.parametrize(("deviation", "accepted"), [(0.0, True), (0.16, False)])
+def test_a_candidate_whose_deviation_reaches_the_protected_body_is_refused(
+    deviation: float, accepted: bool
+) -> None:
+    """The cart comes to rest about 0.1 m from the post: its rollout passes as it is, and is
+    refused when the robot may stray 0.16 m from it (the deviation reaches the post before the
+    rest knot)."""
+    counts = _cart_period(deviation)
+    assert (counts["accepted"], counts["rejected"]) == (int(accepted), int(not accepted)), counts
+
+
+@pytest.mark.parametrize(
+    ("deviation", "stop_distance", "accepted"), [(0.0, 0.05, True), (0.05, 0.06, False)]
+)
+def test_the_stop_envelope_counts_twice_the_deviation(
+    deviation: float, stop_distance: float, accepted: bool
+) -> None:
+    """With a stop envelope the candidate rolls the brake one period and trusts the envelope
+    after it: the robot within 2 deviation + stop_distance of that pose (within D of the plan
+    when the failsafe starts, within D of the failsafe after). 2 * 0.05 + 0.06 reaches the post
+    0.15 m away before rest; D + stop_distance (0.11) would not."""
+    counts = _cart_period(deviation, stop_distance)
+    assert (counts["accepted"], counts["rejected"]) == (int(accepted), int(not accepted)), counts
