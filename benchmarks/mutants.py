@@ -407,7 +407,7 @@ MUTANTS: tuple[Mutant, ...] = (
         "shield-rest-without-the-turn",
         _SHIELD,
         "if (lin + w * radius_[b] > o_.rest_speed) return false;",
-        "if (lin > o_.rest_speed) return false;",
+        "if (lin + 0.0 * w * radius_[b] > o_.rest_speed) return false;",
         ("tests/test_shield.py::test_a_robot_spinning_in_place_is_not_at_rest",),
         "a robot body turning about its origin counts as at rest",
     ),
