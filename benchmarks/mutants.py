@@ -67,6 +67,8 @@ _STEP = "dua_mujoco/csrc/src/step.cc"
 _SCHEDULE = "dua_mujoco/csrc/src/schedule.cc"
 _PLAN = "dua_mujoco/csrc/src/plan.cc"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
+_SHIELD = "dua_mujoco/csrc/src/shield.cc"
+_SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
 _REF = (
     "tests/test_reference_step.py::"
     "test_tau_is_never_later_than_a_feasible_contact_and_those_within_the_horizon_stand"
@@ -391,6 +393,52 @@ MUTANTS: tuple[Mutant, ...] = (
         "        if broke >= 0:",
         ("tests/test_warning_time.py::test_short_leads_are_told_apart_by_the_bounds",),
         "a short lead counts as after a violation whenever its bodies broke their bounds once",
+    ),
+    # ---------------------------------------------------------------- the shield (section 10)
+    Mutant(
+        "shield-screen-without-the-stop",
+        _SHIELD,
+        "return rt_->watched().expiry >= now + dt + o_.stop_time;",
+        "return rt_->watched().expiry >= now + dt;",
+        (f"{_SHIELD_EPISODES}[mobile_cell]",),
+        "the screen passes a period whose failsafe's stop it does not cover",
+    ),
+    Mutant(
+        "shield-rest-without-the-turn",
+        _SHIELD,
+        "if (lin + w * radius_[b] > o_.rest_speed) return false;",
+        "if (lin + 0.0 * w * radius_[b] > o_.rest_speed) return false;",
+        ("tests/test_shield.py::test_a_robot_spinning_in_place_is_not_at_rest",),
+        "a robot body turning about its origin counts as at rest",
+    ),
+    Mutant(
+        "shield-accept-contact-before-rest",
+        _SHIELD,
+        "if (rest >= 0 && BuildPlan(n, tail) && FirstContact() >= rest) {",
+        "if (rest >= 0 && BuildPlan(n, tail) && FirstContact() >= std::min(rest, o_.period)) {",
+        (f"{_SHIELD_EPISODES}[person_cell]",),
+        "a candidate passes when contact is ruled out for the period only, not until rest",
+    ),
+    Mutant(
+        "shield-plan-without-the-deviation",
+        _SHIELD,
+        "dev_[j * nbody + b] = is_robot_[b] ? (j < tail ? o_.deviation : far) : 0.0;",
+        "dev_[j * nbody + b] = is_robot_[b] ? (j < tail ? 0.0 : far) : 0.0;",
+        (
+            "tests/test_shield.py::"
+            "test_a_candidate_whose_deviation_reaches_the_protected_body_is_refused[0.16-False]",
+        ),
+        "a candidate is queried with the robot exactly on its rollout",
+    ),
+    Mutant(
+        "shield-envelope-once-the-deviation",
+        _SHIELD,
+        "const double far = 2.0 * o_.deviation + o_.stop_distance;",
+        "const double far = o_.deviation + o_.stop_distance;",
+        (
+            "tests/test_shield.py::test_the_stop_envelope_counts_twice_the_deviation[0.05-0.06-False]",
+        ),
+        "the stop envelope reaches the deviation once, not twice",
     ),
 )
 

@@ -159,3 +159,93 @@ def test_bad_input_is_named_with_its_fix() -> None:
     shield.reset(data)
     with pytest.raises(Exception, match=r"one control per actuator"):
         shield(data, np.zeros(model.nu + 1))
+
+
+def test_a_robot_spinning_in_place_is_not_at_rest() -> None:
+    """A link turning about a hinge through its frame origin has that origin still, but its
+    geom, 0.3 m out, moves at 0.6 m/s: the rest test counts every point (the turn times the
+    body's reach), so the first period's rollout brakes it (1 N m: about 0.2 s) instead of
+    finding it at rest one step in (as a test on the origin's speed alone would)."""
+    model = mujoco.MjModel.from_xml_string(
+        """
+        <mujoco>
+          <option timestep="0.002"/>
+          <worldbody>
+            <body name="link">
+              <joint name="hinge" type="hinge" axis="0 0 1"/>
+              <geom type="box" size="0.05 0.05 0.05" pos="0.3 0 0" mass="1"/>
+            </body>
+            <body name="post" pos="2 0 0"><geom type="box" size="0.1 0.1 0.1"/></body>
+          </worldbody>
+          <actuator><motor joint="hinge" ctrlrange="-1 1"/></actuator>
+        </mujoco>
+        """
+    )
+    data = mujoco.MjData(model)
+    data.qvel[0] = 2.0
+    mujoco.mj_forward(model, data)
+    shield = Shield(model, protect=["post"], robot=["link"], period=1, accel=5.0)
+    shield.reset(data)
+    shield(data, data.ctrl.copy())
+    assert shield.counts["rollout_steps"] > 50, shield.counts
+
+
+def _cart_period(deviation: float, stop_distance: float | None = None) -> dict[str, int]:
+    """The counts after the first period of a 1 kg cart at 0.3 m/s toward a post 0.15 m away
+    (its 1 N motor stops it in 4.5 cm), the screen off: that period's candidate rolled out."""
+    model = mujoco.MjModel.from_xml_string(
+        """
+        <mujoco>
+          <option timestep="0.002"/>
+          <worldbody>
+            <body name="cart">
+              <joint name="slide" type="slide" axis="1 0 0"/>
+              <geom type="box" size="0.05 0.05 0.05" mass="1"/>
+            </body>
+            <body name="post" pos="0.3 0 0"><geom type="box" size="0.1 0.1 0.1"/></body>
+          </worldbody>
+          <actuator><motor joint="slide" ctrlrange="-1 1"/></actuator>
+        </mujoco>
+        """
+    )
+    data = mujoco.MjData(model)
+    data.qvel[0] = 0.3
+    mujoco.mj_forward(model, data)
+    shield = Shield(
+        model,
+        protect=["post"],
+        robot=["cart"],
+        period=1,
+        accel=5.0,
+        deviation=deviation,
+        stop_distance=stop_distance,
+        screen=False,
+    )
+    shield.reset(data)
+    shield(data, data.ctrl.copy())
+    return shield.counts
+
+
+@pytest.mark.parametrize(("deviation", "accepted"), [(0.0, True), (0.16, False)])
+def test_a_candidate_whose_deviation_reaches_the_protected_body_is_refused(
+    deviation: float, accepted: bool
+) -> None:
+    """The cart comes to rest about 0.1 m from the post: its rollout passes as it is, and is
+    refused when the robot may stray 0.16 m from it (the deviation reaches the post before the
+    rest knot)."""
+    counts = _cart_period(deviation)
+    assert (counts["accepted"], counts["rejected"]) == (int(accepted), int(not accepted)), counts
+
+
+@pytest.mark.parametrize(
+    ("deviation", "stop_distance", "accepted"), [(0.0, 0.05, True), (0.05, 0.06, False)]
+)
+def test_the_stop_envelope_counts_twice_the_deviation(
+    deviation: float, stop_distance: float, accepted: bool
+) -> None:
+    """With a stop envelope the candidate rolls the brake one period and trusts the envelope
+    after it: the robot within 2 deviation + stop_distance of that pose (within D of the plan
+    when the failsafe starts, within D of the failsafe after). 2 * 0.05 + 0.06 reaches the post
+    0.15 m away before rest; D + stop_distance (0.11) would not."""
+    counts = _cart_period(deviation, stop_distance)
+    assert (counts["accepted"], counts["rejected"]) == (int(accepted), int(not accepted)), counts

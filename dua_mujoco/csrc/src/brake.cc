@@ -3,8 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
+
+#include "internal.h"
 
 namespace dua {
 namespace {
@@ -75,9 +76,7 @@ std::unique_ptr<Brake> Brake::Make(const mjModel* m, const std::vector<int>& act
     }
   }
   if (!(time_constant > 0.0) || !std::isfinite(time_constant)) {
-    char shown[32];
-    std::snprintf(shown, sizeof(shown), "%g", time_constant);
-    *error = std::string("time_constant must be a positive number of seconds, not ") + shown;
+    *error = "time_constant must be a positive number of seconds, not " + Shown(time_constant);
     return nullptr;
   }
   std::string bad;
@@ -153,12 +152,13 @@ std::unique_ptr<Brake> Brake::Make(const mjModel* m, const std::vector<int>& act
   b->k_.resize(nd * nd);
   b->kinv_b_.resize(nd * na);
   b->h_.resize(na * na);
+  b->qp_h_.resize(na * na);
   b->r_.resize(na * (na + 7));
-  for (auto* v : {&b->g_, &b->force_, &b->lo_, &b->hi_, &b->gain_, &b->bias_, &b->clo_, &b->chi_}) {
+  for (auto* v : {&b->g_, &b->force_, &b->lo_, &b->hi_, &b->gain_, &b->bias_, &b->clo_, &b->chi_,
+                  &b->g_free_, &b->lo_free_, &b->hi_free_, &b->x_free_}) {
     v->resize(na);
   }
   b->tau_.resize(nd);
-  b->slope_.resize(m->nu);
   b->free_.resize(na);
   return b;
 }
@@ -259,7 +259,9 @@ void Brake::Compute(const mjModel* m, const mjData* d, const double* target, dou
     if (lo_[k] < hi_[k]) free_[nfree++] = k;
   }
   if (nfree > 0) {
-    std::vector<double> hf(nfree * nfree), gf(nfree), lf(nfree), uf(nfree), xf(nfree);
+    // The free forces' QP, in the workspace (nfree <= na): Compute runs every physics step.
+    double *hf = qp_h_.data(), *gf = g_free_.data(), *lf = lo_free_.data();
+    double *uf = hi_free_.data(), *xf = x_free_.data();
     for (int i = 0; i < nfree; ++i) {
       const int p = free_[i];
       gf[i] = g_[p];
@@ -271,15 +273,14 @@ void Brake::Compute(const mjModel* m, const mjData* d, const double* target, dou
     }
     // Actuators that act alike (two on one joint) make H singular: a ridge far below its scale
     // picks one of the equally good answers.
-    if (mju_boxQP(xf.data(), r_.data(), nullptr, hf.data(), gf.data(), nfree, lf.data(),
-                  uf.data()) < 0) {
+    if (mju_boxQP(xf, r_.data(), nullptr, hf, gf, nfree, lf, uf) < 0) {
       double top = 0.0;
       for (int i = 0; i < nfree; ++i) top = std::max(top, hf[i * nfree + i]);
       for (int i = 0; i < nfree; ++i) {
         hf[i * nfree + i] += 1e-12 * top + mjMINVAL;
         xf[i] = force_[free_[i]];
       }
-      mju_boxQP(xf.data(), r_.data(), nullptr, hf.data(), gf.data(), nfree, lf.data(), uf.data());
+      mju_boxQP(xf, r_.data(), nullptr, hf, gf, nfree, lf, uf);
     }
     for (int i = 0; i < nfree; ++i) force_[free_[i]] = xf[i];
   }

@@ -61,8 +61,9 @@ class DUA_API Brake {
   int implicit_ = 0;  // 0 none, 1 the DOFs' damping (Euler), 2 actuators' too (implicit*)
   std::vector<double> tau_lo_, tau_hi_;
   // Workspace.
-  std::vector<double> full_m_, moment_, all_moment_, k_, kinv_b_, h_, g_, force_, lo_, hi_, r_;
-  std::vector<double> gain_, bias_, clo_, chi_, tau_, slope_;
+  std::vector<double> full_m_, all_moment_, k_, kinv_b_, h_, g_, force_, lo_, hi_, r_;
+  std::vector<double> gain_, bias_, clo_, chi_, tau_;
+  std::vector<double> qp_h_, g_free_, lo_free_, hi_free_, x_free_;  // the free forces' box QP
   std::vector<int> free_;
 };
 

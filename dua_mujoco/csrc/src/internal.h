@@ -4,12 +4,21 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <string>
 
 #include "dua/dua.h"
 #include "lanes.h"
 #include "layout.h"
 
 namespace dua {
+
+// A bad value as a refusal names it (%g: "nan", "inf", "1e+308").
+inline std::string Shown(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%g", x);
+  return buf;
+}
 
 // Events (dua_mujoco/build/events.py): body record and state columns, meta entries.
 constexpr int kBFrame = 0, kBBody = 1, kBRoot = 2, kBCenter = 3, kBHalf = 6, kBAccel = 9,

@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 
 #include "internal.h"
@@ -355,13 +354,6 @@ Judged Judge(dua_step_args& a, const Plan& plan, const uint8_t* ok, mjData* d, i
 std::string NameOf(const mjModel* m, int64_t b) {
   const int adr = m->name_bodyadr[b];
   return adr >= 0 ? std::string(m->names + adr) : std::string();
-}
-
-// A bad value as a refusal names it (%g: "nan", "inf", "1e+308").
-std::string Shown(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", x);
-  return buf;
 }
 
 }  // namespace

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -498,11 +497,6 @@ int64_t BitLength(int64_t v) {
 }  // namespace
 
 std::string ScheduleSpec::Check() const {
-  auto num = [](double v) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%g", v);
-    return std::string(text);
-  };
   auto bad = [](const std::string& name, const std::string& value, const std::string& fix) {
     return name + " = " + value + " is invalid: " + fix;
   };
@@ -510,7 +504,7 @@ std::string ScheduleSpec::Check() const {
     return bad("the schedule's kind", std::to_string(kind), "0 (rank), 1 (deadline), 2 (all)");
   }
   if (!(dt > 0.0) || !std::isfinite(dt)) {
-    return bad("the period dt", num(dt), "a finite number of seconds > 0");
+    return bad("the period dt", Shown(dt), "a finite number of seconds > 0");
   }
   if (latency < 0 || latency > (int64_t{1} << 40)) {
     return bad("latency", std::to_string(latency), "an int >= 0 (periods a verdict takes to act)");
@@ -530,8 +524,8 @@ std::string ScheduleSpec::Check() const {
   }
   if (std::isnan(threshold)) return bad("the select-all threshold", "NaN", "a number");
   if (!(alarm_horizon >= dt && std::isfinite(alarm_horizon))) {
-    return bad("alarm_horizon", num(alarm_horizon),
-               "seconds of warning, at least one period (" + num(dt) + " s)");
+    return bad("alarm_horizon", Shown(alarm_horizon),
+               "seconds of warning, at least one period (" + Shown(dt) + " s)");
   }
   return "";
 }

@@ -3,21 +3,15 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <utility>
 
+#include "internal.h"
 #include "layout.h"
 
 namespace dua {
 namespace {
 
 constexpr int kState = mjSTATE_INTEGRATION;
-
-std::string Shown(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", x);
-  return buf;
-}
 
 }  // namespace
 
