@@ -290,9 +290,22 @@ def plot(rows: list[dict], path: Path, robots: tuple[str, ...]) -> None:
     plot_against_horizon(rows, path, robots, lines, title, figsize=(7.0, 4.5), legend={"ncol": 2})
 
 
+def robots_parser(
+    doc: str, plot: str, robots: tuple[str, ...] = ROBOT_NAMES
+) -> argparse.ArgumentParser:
+    """The options of the scripts over the robots (this one, ``plan_horizon.py``,
+    ``plan_users.py``): ``--robots`` (default ``robots``), ``--json`` (the rows) and ``--plot``
+    (default ``docs/img/<plot>``); the description is the first line of the script's ``doc``."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--robots", nargs="+", default=list(robots))
+    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
+    docs = Path(__file__).resolve().parent.parent / "docs"
+    ap.add_argument("--plot", type=Path, default=docs / "img" / plot, help="the figure")
+    return ap
+
+
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", nargs="+", default=list(ROBOT_NAMES))
+    ap = robots_parser(__doc__, "horizon-standing.png")
     ap.add_argument(
         "--horizons",
         nargs="+",
@@ -302,12 +315,6 @@ def main(argv: list[str] | None = None) -> None:
     )
     ap.add_argument("--steps", type=int, default=2000, help="physics steps a run")
     ap.add_argument("--no-random", action="store_true", help="skip the random-held protocol")
-    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
-    ap.add_argument(
-        "--plot",
-        type=Path,
-        default=Path(__file__).resolve().parent.parent / "docs" / "img" / "horizon-standing.png",
-    )
     args = ap.parse_args(argv)
     horizons: tuple[float | None, ...] = HORIZONS if args.horizons is None else tuple(args.horizons)
     protocols = PROTOCOLS[:1] if args.no_random else PROTOCOLS

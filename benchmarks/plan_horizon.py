@@ -49,7 +49,6 @@ bounds held. The random-held protocol is reported beside, not targeted.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import json
 import sys
@@ -79,11 +78,11 @@ from horizon import (
     EXTRA,
     HOLD,
     PILOT_SEED,
-    ROBOT_NAMES,
     ROLLOUT_SEED,
     Line,
     load,
     plot_against_horizon,
+    robots_parser,
 )
 from robots import ROBOTS
 
@@ -643,8 +642,7 @@ def plot(rows: list[dict[str, Any]], path: Path, robots: tuple[str, ...]) -> Non
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", nargs="+", default=list(ROBOT_NAMES))
+    ap = robots_parser(__doc__, "plans-standing.png")
     ap.add_argument("--horizons", nargs="+", type=float, default=None, help="seconds")
     ap.add_argument("--steps", type=int, default=2000, help="physics steps a run")
     ap.add_argument("--no-random", action="store_true", help="skip the random-held protocol")
@@ -657,7 +655,6 @@ def main(argv: list[str] | None = None) -> None:
         metavar=("WAYPOINT", "TRAJECTORY"),
         help="each planner's replanning period, a fraction of the horizon",
     )
-    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     ap.add_argument(
         "--reference", action="store_true", help="judge the plans with exact geometry too"
     )
@@ -669,11 +666,6 @@ def main(argv: list[str] | None = None) -> None:
     )
     ap.add_argument(
         "--tables", type=Path, nargs="+", default=None, help="print the tables of saved rows"
-    )
-    ap.add_argument(
-        "--plot",
-        type=Path,
-        default=Path(__file__).resolve().parent.parent / "docs" / "img" / "plans-standing.png",
     )
     args = ap.parse_args(argv)
     if args.tables is not None:

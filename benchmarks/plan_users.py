@@ -56,7 +56,6 @@ period; and the floor contacts.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import json
 import sys
@@ -82,7 +81,7 @@ from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table
-from horizon import PILOT_SEED, ROLLOUT_SEED
+from horizon import PILOT_SEED, ROLLOUT_SEED, robots_parser
 from plan_horizon import CLOCK, _amortised, _ratio
 from robots import ROBOTS, load_robot
 
@@ -787,18 +786,11 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", nargs="+", default=list(ROBOT_NAMES))
+    ap = robots_parser(__doc__, "plans-users.png", ROBOT_NAMES)
     ap.add_argument("--horizons", nargs="+", type=float, default=list(HORIZONS), help="seconds")
     ap.add_argument("--steps", type=int, default=STEPS, help="physics steps a run")
     ap.add_argument("--every", type=int, default=EVERY, help="physics steps between two plans")
-    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     ap.add_argument("--tables", type=Path, default=None, help="print the tables of saved rows")
-    ap.add_argument(
-        "--plot",
-        type=Path,
-        default=Path(__file__).resolve().parent.parent / "docs" / "img" / "plans-users.png",
-    )
     args = ap.parse_args(argv)
     if args.tables is not None:
         saved = json.loads(args.tables.read_text())["rows"]
