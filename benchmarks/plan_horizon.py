@@ -80,11 +80,13 @@ from horizon import (
     PILOT_SEED,
     ROLLOUT_SEED,
     Line,
+    alarm_figures,
     load,
     plot_against_horizon,
     robots_parser,
 )
 from robots import ROBOTS
+from timing import Column, by_label, columns_table
 
 HORIZONS = (None, 0.010, 0.020, 0.050, 0.100, 0.200, 0.500)
 """Alarm horizons (s); None is one predictor period."""
@@ -343,20 +345,7 @@ def run_ab(
         rep = build_report(mons[t], "", False, dur_mj, dur_p, interrupted=False)
         row[t] = {
             "knows": SIDES[t] if t in planned else None,
-            "standing": rep.standing_alarm_fraction,
-            "oracle": rep.oracle_fraction,
-            "onsets": rep.contact_onsets,
-            "missed": rep.missed_onsets,
-            "missed_valid": rep.missed_onsets_valid_bounds,
-            "short": rep.short_lead_onsets,
-            "short_held": rep.short_lead_bounds_held,
-            "short_violation": rep.short_lead_after_violation,
-            "short_start": rep.short_lead_at_start,
-            "lead_p10_s": rep.lead_p10_s,
-            "lead_median_s": rep.lead_median_s,
-            "lead_min_s": rep.lead_min_s,
-            "violations": rep.bound_violations,
-            "evals_per_step": rep.evals_per_step,
+            **alarm_figures(rep),
             "plan_every": every[t] if t in planned else None,
             "plan_knots": knots[t] if t in planned else None,
             "plans": plans[t],
@@ -492,101 +481,88 @@ def _three(r: dict[str, Any], f: Any) -> str:
     return " / ".join(f(r[t]) for t in SIDES)
 
 
+def _med(rs: list[dict[str, Any]], tag: str, key: str) -> float:
+    """The median over the rows ``rs`` of one side's (``tag``'s) ``key``, infinities left out
+    (``"ratio"``, ``"cost"`` and ``"planner"``: :func:`_ratio`, :func:`_cost`, :func:`_planner`)."""
+    of = {"ratio": _ratio, "cost": _cost, "planner": _planner}.get(key, lambda side: side[key])
+    vals = [v for v in (of(r[tag]) for r in rs) if v != float("inf")]
+    return float(np.median(vals)) if vals else float("nan")
+
+
+def _planned(rs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [r for r in rs if r["plannable"]]
+
+
+def _sums(rs: list[dict[str, Any]], f: Any, sides: tuple[str, ...] = SIDES) -> str:
+    return " / ".join(str(sum(f(r[t]) for r in rs)) for t in sides)
+
+
+_ROBOT_COLUMNS: list[Column] = [
+    ("robot", lambda r: r["robot"] + ("" if r["plannable"] else " (no plan: mocap)")),
+    ("horizon", _label),
+    ("oracle %", lambda r: f"{100 * r['A']['oracle']:.2f}"),
+    ("standing %", lambda r: _three(r, lambda s: f"{100 * s['standing']:.1f}")),
+    ("standing / oracle", lambda r: _three(r, lambda s: _x(_ratio(s)))),
+    ("onsets", lambda r: str(r["A"]["onsets"])),
+    ("lead < H, bounds held", lambda r: _three(r, lambda s: str(s["short_held"]))),
+    (
+        "lead < H, after violation + at start",
+        lambda r: _three(r, lambda s: f"{s['short_violation']}+{s['short_start']}"),
+    ),
+    ("plan breaks", lambda r: f"{r['A']['plan_breaks']} / {r['T']['plan_breaks']}"),
+    ("predictor / mj_step (incl. set_plan)", lambda r: _three(r, lambda s: f"{_cost(s):.2f}")),
+    ("predictor / mj_step (median step)", lambda r: _three(r, lambda s: f"{s['median']:.2f}")),
+    (
+        "planner / mj_step (planner's)",
+        lambda r: f"{_planner(r['A']):.1f} / {_planner(r['T']):.1f}" if r["plannable"] else "",
+    ),
+]
+"""The per-robot table: one row a run; a cell of three values reads: planner knows the next
+waypoint / knows the trajectory / no plan."""
+
+_MEDIAN_COLUMNS: list[Column] = [
+    ("horizon", lambda g: g[0]),
+    (
+        "standing / oracle, all robots",
+        lambda g: " / ".join(_x(_med(g[1], t, "ratio")) for t in SIDES),
+    ),
+    (
+        "standing / oracle, robots with a plan",
+        lambda g: " / ".join(_x(_med(_planned(g[1]), t, "ratio")) for t in SIDES),
+    ),
+    (
+        "predictor / mj_step (incl. set_plan)",
+        lambda g: " / ".join(f"{_med(g[1], t, 'cost'):.2f}" for t in SIDES),
+    ),
+    (
+        "predictor / mj_step (median step)",
+        lambda g: " / ".join(f"{_med(g[1], t, 'median'):.2f}" for t in SIDES),
+    ),
+    (
+        "planner / mj_step (planner's)",
+        lambda g: " / ".join(f"{_med(_planned(g[1]), t, 'planner'):.1f}" for t in ("A", "T")),
+    ),
+    ("lead < H while held (sum)", lambda g: _sums(g[1], lambda s: s["short_held"])),
+    (
+        "lead < H after violation + at start (sum)",
+        lambda g: _sums(g[1], lambda s: s["short_violation"] + s["short_start"]),
+    ),
+    ("plan breaks (sum)", lambda g: _sums(g[1], lambda s: s["plan_breaks"], ("A", "T"))),
+]
+"""The medians over robots: one row a horizon, ``(label, its runs)``."""
+
+
 def markdown(rows: list[dict[str, Any]], protocol: str) -> str:
     """One protocol: the per-robot table, then the medians over robots at each horizon.
 
     Each cell with three values reads: planner knows the next waypoint / knows the trajectory /
     no plan."""
     mine = [r for r in rows if r["protocol"] == protocol]
-    body = []
-    for r in mine:
-        body.append(
-            [
-                r["robot"] + ("" if r["plannable"] else " (no plan: mocap)"),
-                _label(r),
-                f"{100 * r['A']['oracle']:.2f}",
-                _three(r, lambda s: f"{100 * s['standing']:.1f}"),
-                _three(r, lambda s: _x(_ratio(s))),
-                str(r["A"]["onsets"]),
-                _three(r, lambda s: str(s["short_held"])),
-                _three(r, lambda s: f"{s['short_violation']}+{s['short_start']}"),
-                f"{r['A']['plan_breaks']} / {r['T']['plan_breaks']}",
-                _three(r, lambda s: f"{_cost(s):.2f}"),
-                _three(r, lambda s: f"{s['median']:.2f}"),
-                (f"{_planner(r['A']):.1f} / {_planner(r['T']):.1f}" if r["plannable"] else ""),
-            ]
-        )
-    out = table(
-        [
-            "robot",
-            "horizon",
-            "oracle %",
-            "standing %",
-            "standing / oracle",
-            "onsets",
-            "lead < H, bounds held",
-            "lead < H, after violation + at start",
-            "plan breaks",
-            "predictor / mj_step (incl. set_plan)",
-            "predictor / mj_step (median step)",
-            "planner / mj_step (planner's)",
-        ],
-        body,
+    return (
+        columns_table(_ROBOT_COLUMNS, mine)
+        + "\n\nMedian over robots (each cell: knows the next waypoint / knows the trajectory / no "
+        "plan):\n\n" + columns_table(_MEDIAN_COLUMNS, by_label(mine, _label))
     )
-    medians = []
-    for label in dict.fromkeys(_label(r) for r in mine):
-        at = [r for r in mine if _label(r) == label]
-        planned = [r for r in at if r["plannable"]]
-
-        def med(rs: list[dict[str, Any]], tag: str, key: str) -> float:
-            vals = [
-                _ratio(r[tag])
-                if key == "ratio"
-                else _cost(r[tag])
-                if key == "cost"
-                else _planner(r[tag])
-                if key == "planner"
-                else r[tag][key]
-                for r in rs
-            ]
-            vals = [v for v in vals if v != float("inf")]
-            return float(np.median(vals)) if vals else float("nan")
-
-        medians.append(
-            [
-                label,
-                " / ".join(_x(med(at, t, "ratio")) for t in SIDES),
-                " / ".join(_x(med(planned, t, "ratio")) for t in SIDES),
-                " / ".join(f"{med(at, t, 'cost'):.2f}" for t in SIDES),
-                " / ".join(f"{med(at, t, 'median'):.2f}" for t in SIDES),
-                " / ".join(f"{med(planned, t, 'planner'):.1f}" for t in ("A", "T")),
-                " / ".join(str(sum(r[t]["short_held"] for r in at)) for t in SIDES),
-                " / ".join(
-                    str(sum(r[t]["short_violation"] + r[t]["short_start"] for r in at))
-                    for t in SIDES
-                ),
-                " / ".join(str(sum(r[t]["plan_breaks"] for r in at)) for t in ("A", "T")),
-            ]
-        )
-    out += (
-        "\n\nMedian over robots (each cell: knows the next waypoint / knows the trajectory / no "
-        "plan):\n\n"
-        + table(
-            [
-                "horizon",
-                "standing / oracle, all robots",
-                "standing / oracle, robots with a plan",
-                "predictor / mj_step (incl. set_plan)",
-                "predictor / mj_step (median step)",
-                "planner / mj_step (planner's)",
-                "lead < H while held (sum)",
-                "lead < H after violation + at start (sum)",
-                "plan breaks (sum)",
-            ],
-            medians,
-        )
-    )
-    return out
 
 
 def horizon_table(rows: list[dict[str, Any]], protocol: str) -> str:
