@@ -294,6 +294,56 @@ def robots_parser(
     return ap
 
 
+def over_robots(
+    ap: argparse.ArgumentParser,
+    args: argparse.Namespace,
+    protocols: tuple[str, ...],
+    measure_one: Callable[[str, str], list[dict]],
+    keep: Callable[[list[dict]], None] | None = None,
+) -> list[dict]:
+    """The rows of ``measure_one(robot, protocol)`` for every robot of ``--robots`` (an unknown
+    one is a usage error; one whose package is not installed is skipped, said on stderr) and
+    every protocol, ``keep(rows)`` after each (a long run keeps what it measured); the minutes
+    they took go in ``args.minutes``."""
+    missing = [n for n in args.robots if n not in ROBOTS and n not in EXTRA]
+    if missing:
+        ap.error(f"unknown robots {missing}; known: {', '.join([*ROBOTS, *EXTRA])}")
+    start = time.perf_counter()
+    rows: list[dict] = []
+    for name in args.robots:
+        for protocol in protocols:
+            try:
+                rows += measure_one(name, protocol)
+            except ModuleNotFoundError as exc:
+                print(f"{name}: skipped, not installed ({exc})", file=sys.stderr)
+                break
+            if keep is not None:
+                keep(rows)
+    args.minutes = (time.perf_counter() - start) / 60
+    return rows
+
+
+def report(
+    args: argparse.Namespace,
+    rows: list[dict],
+    protocols: tuple[str, ...],
+    markdown: Callable[[list[dict], str], str],
+    plot: Callable[[list[dict], tuple[str, ...]], None],
+) -> None:
+    """Print each protocol's tables, write ``--json`` (the rows, steps and minutes) and plot
+    the robots of ``PLOTTED`` that ran (else all) to ``--plot``."""
+    for protocol in protocols:
+        print(f"\n### {protocol} ({args.steps} steps a run)\n")
+        print(markdown(rows, protocol))
+    print(f"\n{len(rows)} runs in {args.minutes:.1f} min", flush=True)
+    if args.json is not None:
+        saved = {"rows": rows, "steps": args.steps, "minutes": args.minutes}
+        args.json.write_text(json.dumps(saved, indent=1) + "\n")
+    if rows:
+        plot(rows, tuple(n for n in PLOTTED if n in args.robots) or tuple(args.robots))
+        print(f"plot written to {args.plot}")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = robots_parser(__doc__, "horizon-standing.png")
     ap.add_argument(
@@ -308,28 +358,10 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     horizons: tuple[float | None, ...] = HORIZONS if args.horizons is None else tuple(args.horizons)
     protocols = PROTOCOLS[:1] if args.no_random else PROTOCOLS
-    missing = [n for n in args.robots if n not in ROBOTS and n not in EXTRA]
-    if missing:
-        ap.error(f"unknown robots {missing}; known: {', '.join([*ROBOTS, *EXTRA])}")
-    start = time.perf_counter()
-    rows: list[dict] = []
-    for name in args.robots:
-        for protocol in protocols:
-            try:
-                rows += measure(name, protocol, horizons, args.steps)
-            except ModuleNotFoundError as exc:
-                print(f"{name}: skipped, not installed ({exc})", file=sys.stderr)
-                break
-    took = time.perf_counter() - start
-    for protocol in protocols:
-        print(f"\n### {protocol} ({args.steps} steps a run)\n")
-        print(markdown(rows, protocol))
-    print(f"\n{len(rows)} runs in {took / 60:.1f} min", flush=True)
-    if args.json is not None:
-        args.json.write_text(json.dumps({"rows": rows, "minutes": took / 60}, indent=1) + "\n")
-    if rows:
-        plot(rows, args.plot, tuple(n for n in PLOTTED if n in args.robots) or tuple(args.robots))
-        print(f"plot written to {args.plot}")
+    rows = over_robots(
+        ap, args, protocols, lambda name, protocol: measure(name, protocol, horizons, args.steps)
+    )
+    report(args, rows, protocols, markdown, lambda rows, robots: plot(rows, args.plot, robots))
 
 
 if __name__ == "__main__":

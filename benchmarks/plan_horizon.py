@@ -75,17 +75,17 @@ from dua_mujoco.runtime.predictor import Predictor
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table
 from horizon import (
-    EXTRA,
     HOLD,
     PILOT_SEED,
     ROLLOUT_SEED,
     Line,
     alarm_figures,
     load,
+    over_robots,
     plot_against_horizon,
+    report,
     robots_parser,
 )
-from robots import ROBOTS
 from timing import Column, by_label, columns_table
 
 HORIZONS = (None, 0.010, 0.020, 0.050, 0.100, 0.200, 0.500)
@@ -667,40 +667,22 @@ def main(argv: list[str] | None = None) -> None:
     protocols = (
         tuple(args.protocols) if args.protocols else PROTOCOLS[:1] if args.no_random else PROTOCOLS
     )
-    missing = [n for n in args.robots if n not in ROBOTS and n not in EXTRA]
-    if missing:
-        ap.error(f"unknown robots {missing}; known: {', '.join([*ROBOTS, *EXTRA])}")
-    start = time.perf_counter()
-    rows = []
-    for name in args.robots:
-        for protocol in protocols:
-            try:
-                rows += measure(
-                    name,
-                    protocol,
-                    horizons,
-                    args.steps,
-                    args.reference,
-                    dict(zip("AT", args.every, strict=True)),
-                    args.floor,
-                )
-            except ModuleNotFoundError as exc:
-                print(f"{name}: skipped, not installed ({exc})", file=sys.stderr)
-                break
-            if args.json is not None:  # a long run keeps what it measured
-                args.json.write_text(json.dumps({"rows": rows, "steps": args.steps}) + "\n")
-    took = time.perf_counter() - start
-    for protocol in protocols:
-        print(f"\n### {protocol} ({args.steps} steps a run)\n")
-        print(markdown(rows, protocol))
-    print(f"\n{len(rows)} runs in {took / 60:.1f} min", flush=True)
-    if args.json is not None:
-        args.json.write_text(
-            json.dumps({"rows": rows, "steps": args.steps, "minutes": took / 60}, indent=1) + "\n"
-        )
-    if rows:
-        plot(rows, args.plot, tuple(n for n in PLOTTED if n in args.robots) or tuple(args.robots))
-        print(f"plot written to {args.plot}")
+    every = dict(zip("AT", args.every, strict=True))
+
+    def keep(rows: list[dict]) -> None:
+        if args.json is not None:
+            args.json.write_text(json.dumps({"rows": rows, "steps": args.steps}) + "\n")
+
+    rows = over_robots(
+        ap,
+        args,
+        protocols,
+        lambda name, protocol: measure(
+            name, protocol, horizons, args.steps, args.reference, every, args.floor
+        ),
+        keep,
+    )
+    report(args, rows, protocols, markdown, lambda rows, robots: plot(rows, args.plot, robots))
 
 
 if __name__ == "__main__":
