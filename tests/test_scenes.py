@@ -190,7 +190,7 @@ def test_paper_world_has_no_initial_overlap() -> None:
 
 
 def test_paper_world_built_in_chunks_is_laid_out_sphere_by_sphere() -> None:
-    # 300 spheres are built as chunks of 150 attached to the world: ids, names, the joint and
+    # 300 spheres are built by decimal blocks attached to the world: ids, names, the joint and
     # motor of every axis and the keyframe must still run sphere by sphere, as one loop would.
     n, accel_max, mass = 300, 1.5, 0.1
     m = paper_world_spec(n, seed=4, box_size=(n / 40) ** (1 / 3), accel_max=accel_max).compile()
