@@ -84,20 +84,26 @@ def _place_spheres(
     misses = 0
     # Placed centres by grid cell of side min_dist: a candidate is checked against the 27 cells
     # around it only, O(n) in all (a swarm of 20,000 took 39 s checking against every centre).
-    # The same candidates are accepted as against all: the placement is unchanged.
-    cells: dict[tuple[int, int, int], list[int]] = {}
-    offsets = [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)]
+    # The same candidates are accepted as against all: the placement is unchanged. Cells are
+    # keyed by one integer and distances taken in Python floats (the same operations, in the
+    # same order, as numpy's norm of a row of three): a candidate costs a few microseconds.
+    cells: dict[int, list[tuple[float, float, float]]] = {}
+    # Cell (i, j, k) is key (i span + j) span + k. Cells beyond +-span / 2 would share keys:
+    # more centres measured, none missed.
+    span = 1 << 20
+    deltas = [(i * span + j) * span + k for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)]
     while placed < n:
         # Batches of candidates amortise the generator call.
         batch = rng.uniform(lo, hi, size=(64, 3))
-        cells_of = map(tuple, np.floor(batch / min_dist).astype(int).tolist())
-        for c, cell in zip(batch, cells_of, strict=True):
-            near = [
-                i
-                for o in offsets
-                for i in cells.get((cell[0] + o[0], cell[1] + o[1], cell[2] + o[2]), ())
-            ]
-            if near and np.min(np.linalg.norm(centres[near] - c, axis=1)) < min_dist:
+        keys = (np.floor(batch / min_dist).astype(np.int64) @ [span * span, span, 1]).tolist()
+        for c, key in zip(batch.tolist(), keys, strict=True):
+            x, y, z = c
+            if any(
+                math.sqrt((px - x) * (px - x) + (py - y) * (py - y) + (pz - z) * (pz - z))
+                < min_dist
+                for d in deltas
+                for px, py, pz in cells.get(key + d, ())
+            ):
                 misses += 1
                 if misses > max_misses:
                     raise InvalidInputError(
@@ -107,7 +113,7 @@ def _place_spheres(
                     )
                 continue
             centres[placed] = c
-            cells.setdefault(cell, []).append(placed)
+            cells.setdefault(key, []).append((x, y, z))
             placed += 1
             misses = 0
             if placed == n:
@@ -212,62 +218,109 @@ def paper_world_spec(
             rgba=[0.6, 0.6, 0.7, 1.0 if name == "floor" else 0.08],
         )
 
-    ctrl = mass * accel_max
     palette = rng.uniform(0.2, 0.9, size=(n, 3))
 
-    # MuJoCo's spec lists its whole tree again on every element it adds and scans it on every
-    # attach, so adding the spheres one by one is quadratic (37 s at 20,000). Leaves of 100
-    # spheres are built apart, attached in groups of about sqrt(n / 100) leaves to a spec of
-    # their own, the groups to the world: each attach meets a small spec or one of few.
-    # Names come from the prefixes: leaf b > 0 holds its spheres' last two digits and is
-    # attached with the prefix "b", the groups and leaf 0 (names 0-99) with "sphere".
-    def sphere_specs(b: int) -> mujoco.MjSpec:
-        ids = range(_LEAF * b, min(n, _LEAF * (b + 1)))
-        names = [f"{i % _LEAF:02d}" if b else str(i) for i in ids]
-        return _sphere_leaf(ids, names, centres, palette, radius=radius, mass=mass, ctrl=ctrl)
-
-    leaves = -(-n // _LEAF)
-    group = max(1, math.isqrt(leaves))
-    _attach(spec, sphere_specs(0), "sphere")
-    for first in range(1, leaves, group):
-        part = mujoco.MjSpec()
-        for b in range(first, min(leaves, first + group)):
-            _attach(part, sphere_specs(b), str(b))
-        _attach(spec, part, "sphere")
+    # MuJoCo's spec lists its whole tree again on every element it adds (XML parsing too: 5.5 s
+    # for 5,000 spheres), so adding the spheres one by one is quadratic (37 s at 20,000), and an
+    # attach costs about the parent's size times (a constant + the child's size). Names are
+    # decimal: the ids are cut into blocks whose names share a head and run over all k-digit
+    # tails (ids 1000-1999 are "sphere1" + "000" ... "999"), each attached with its head as
+    # prefix: the world meets a few dozen attaches (29 at 20,000) and each block's structure is
+    # built once (_SphereBlocks).
+    blocks = _SphereBlocks(centres, palette, radius=radius, mass=mass, ctrl=mass * accel_max)
+    for head, k, count in _decimal_blocks(n):
+        block = blocks.spec(int(head[len("sphere") :] or 0) * 10**k, k, count)
+        _attach(spec, block, head, copy=k <= blocks.TEMPLATE_DIGITS)
 
     spec.add_key(name="init", qpos=np.zeros(3 * n), qvel=velocity.reshape(-1))
     spec.add_numeric(name=ACCEL_BOUND_NUMERIC, size=1, data=[paper_world_accel_bound(accel_max)])
     return spec
 
 
-_LEAF = 100
-"""Spheres a leaf spec of :func:`paper_world_spec` holds (a power of ten: see its names)."""
+def _decimal_blocks(n: int) -> list[tuple[str, int, int]]:
+    """Sphere ids ``0 .. n-1`` cut into blocks ``(prefix, k, count)``, in order: the block's
+    spheres are named ``prefix`` followed by the ``k``-digit tails ``0 .. count-1`` (zero-padded),
+    ``count = 10**k`` but for the last block of fewer than ten (``k = 1``). Each block is the
+    largest that starts at the next id, is aligned to its size and keeps the ids' digit count."""
+    out = []
+    first = 0
+    while first < n:
+        digits = len(str(first))
+        k = 1 if first == 0 else 0  # ids 0-9: the empty head, one digit
+        while k + 1 < digits and first % 10 ** (k + 1) == 0 and first + 10 ** (k + 1) <= n:
+            k += 1
+        if k == 0 or first + 10**k > n:  # the last ids: fewer than ten after a multiple of ten
+            k = 1
+        count = min(10**k, n - first)
+        out.append(("sphere" + str(first)[: digits - k] if first else "sphere", k, count))
+        first += count
+    return out
 
 
-def _attach(parent: mujoco.MjSpec, child: mujoco.MjSpec, prefix: str) -> None:
+def _attach(parent: mujoco.MjSpec, child: mujoco.MjSpec, prefix: str, *, copy: bool = True) -> None:
     """Attach ``child`` to ``parent``'s world, its names prefixed. The child's main default
     comes along as ``prefix + "main"``: deleted again, since a second one with the same name
-    would make ``to_xml()`` unreadable."""
+    would make ``to_xml()`` unreadable. The child is copied (a block is attached many times)."""
+    parent.copy_during_attach = copy
     parent.attach(child, prefix=prefix, frame=parent.worldbody.add_frame())
+    parent.copy_during_attach = False  # MjSpec's default (the flag can only be set)
     parent.delete(parent.find_default(prefix + "main"))
 
 
-def _sphere_leaf(
-    ids: range,
-    names: list[str],
-    centres: np.ndarray,
-    palette: np.ndarray,
-    *,
-    radius: float,
-    mass: float,
-    ctrl: float,
-) -> mujoco.MjSpec:
-    """The spheres ``ids`` of :func:`paper_world_spec` in a spec of their own, named ``names``
-    (the prefixes attaching adds complete them): body and geom ``{name}``, joint and motor
-    ``{name}_x`` (``_y``, ``_z``)."""
-    spec = mujoco.MjSpec()
-    for i, name in zip(ids, names, strict=True):
-        body = spec.worldbody.add_body(name=name, pos=centres[i])
+class _SphereBlocks:
+    """Specs of the spheres of :func:`paper_world_spec` by decimal block, placed and coloured.
+
+    A block of ``k <= 3`` digits is a template built once (the one of ``k = 1`` sphere by sphere,
+    the others from ten copies of the one below, prefixed "0" ... "9"), its bodies listed once
+    (MuJoCo lists a spec's bodies in quadratic time: 1.4 s for 10,000) and set to the spheres'
+    positions and colours before each attach, which copies it. A larger block is built anew
+    from ten blocks of ``k - 1`` digits, set as they are attached, and is moved, not copied,
+    into its parent.
+    """
+
+    TEMPLATE_DIGITS = 3
+
+    def __init__(
+        self, centres: np.ndarray, palette: np.ndarray, *, radius: float, mass: float, ctrl: float
+    ) -> None:
+        self._centres, self._palette = centres.tolist(), palette.tolist()
+        self._radius, self._mass, self._ctrl = radius, mass, ctrl
+        self._templates: dict[tuple[int, int], tuple[mujoco.MjSpec, list[Any], list[Any]]] = {}
+
+    def spec(self, first: int, k: int, count: int) -> mujoco.MjSpec:
+        """The spheres ``first .. first + count - 1`` (``count = 10**k``, or fewer than ten for
+        ``k = 1``) named by their last ``k`` digits: body and geom ``{tail}``, joint and motor
+        ``{tail}_x`` (``_y``, ``_z``). A template's spec is shared: attach it before the next."""
+        if k > self.TEMPLATE_DIGITS:
+            spec = mujoco.MjSpec()
+            step = 10 ** (k - 1)
+            for digit in range(10):
+                block = self.spec(first + digit * step, k - 1, step)
+                _attach(spec, block, str(digit), copy=k - 1 <= self.TEMPLATE_DIGITS)
+            return spec
+        spec, bodies, geoms = self._template(k, count)
+        for body, centre in zip(bodies, self._centres[first : first + count], strict=True):
+            body.pos = centre
+        for geom, colour in zip(geoms, self._palette[first : first + count], strict=True):
+            geom.rgba = [*colour, 1.0]
+        return spec
+
+    def _template(self, k: int, count: int) -> tuple[mujoco.MjSpec, list[Any], list[Any]]:
+        """The template of ``count`` spheres of ``k`` digits, its bodies and geoms in id order."""
+        if (k, count) not in self._templates:
+            spec = mujoco.MjSpec()
+            if k > 1:
+                below = self._template(k - 1, 10 ** (k - 1))[0]
+                for digit in range(10):
+                    _attach(spec, below, str(digit))
+            for i in range(count if k == 1 else 0):
+                self._add_sphere(spec, str(i))
+            bodies = spec.worldbody.bodies
+            self._templates[k, count] = spec, bodies, [body.first_geom() for body in bodies]
+        return self._templates[k, count]
+
+    def _add_sphere(self, spec: mujoco.MjSpec, name: str) -> None:
+        body = spec.worldbody.add_body(name=name)
         for axis_name, axis in zip("xyz", np.eye(3), strict=True):
             joint = f"{name}_{axis_name}"
             body.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
@@ -275,17 +328,15 @@ def _sphere_leaf(
                 name=joint,
                 target=joint,
                 trntype=mujoco.mjtTrn.mjTRN_JOINT,
-                ctrlrange=[-ctrl, ctrl],
+                ctrlrange=[-self._ctrl, self._ctrl],
                 ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE,
             )
         body.add_geom(
             name=name,
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
-            size=[radius, 0.0, 0.0],
-            mass=mass,
-            rgba=[*palette[i], 1.0],
+            size=[self._radius, 0.0, 0.0],
+            mass=self._mass,
         )
-    return spec
 
 
 def paper_world_model(n: int, *, seed: int = 0, **kw: Any) -> mujoco.MjModel:

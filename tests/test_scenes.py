@@ -14,6 +14,7 @@ import pytest
 
 from dua_mujoco.build.geom_types import CONVEX_TYPES, GEOM_PLANE
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.models.paper_world import _place_spheres, _quat_z_to, _SphereBlocks
 from dua_mujoco.models.scenes import (
     DEFAULT_SCENE,
     SCENES,
@@ -189,7 +190,7 @@ def test_paper_world_has_no_initial_overlap() -> None:
 
 
 def test_paper_world_built_in_chunks_is_laid_out_sphere_by_sphere() -> None:
-    # 300 spheres are built as chunks of 150 attached to the world: ids, names, the joint and
+    # 300 spheres are built by decimal blocks attached to the world: ids, names, the joint and
     # motor of every axis and the keyframe must still run sphere by sphere, as one loop would.
     n, accel_max, mass = 300, 1.5, 0.1
     m = paper_world_spec(n, seed=4, box_size=(n / 40) ** (1 / 3), accel_max=accel_max).compile()
@@ -205,6 +206,87 @@ def test_paper_world_built_in_chunks_is_laid_out_sphere_by_sphere() -> None:
             assert motor.id == 3 * i + k and motor.trnid[0] == joint.id
             assert np.allclose(motor.ctrlrange, [-mass * accel_max, mass * accel_max])
     assert m.key_qvel.shape == (1, 3 * n)
+
+
+def _paper_world_as_mjcf(n: int, *, seed: int, box_size: float) -> mujoco.MjModel:
+    """Slow reference for :func:`paper_world_spec` (default options): the same world written
+    as MJCF text, sphere by sphere, from the same draws of the same seed (MuJoCo parses every
+    element in time linear in the model: quadratic in all, fine for a few thousand)."""
+    rng = np.random.default_rng(seed)
+    half, radius = box_size / 2, 0.03
+    centres = _place_spheres(n, rng, half=half, radius=radius, clearance=radius / 4)
+    direction = rng.normal(size=(n, 3))
+    velocity = direction / np.linalg.norm(direction, axis=1, keepdims=True)
+    velocity *= rng.uniform(0.0, 0.5, size=(n, 1))
+    # Colours are float32 in MuJoCo: written as their float32 values, read back exactly.
+    palette = rng.uniform(0.2, 0.9, size=(n, 3)).astype(np.float32).astype(float)
+
+    def row(values: np.ndarray) -> str:
+        return " ".join(map(repr, np.asarray(values, dtype=float).ravel().tolist()))
+
+    walls = [
+        f'<geom name="{name}" type="plane" pos="{row(-half * np.array(normal))}" '
+        f'quat="{row(_quat_z_to(np.array(normal, dtype=float)))}" '
+        f'size="{half!r} {half!r} {0.05 * box_size!r}" '
+        f'rgba="0.6 0.6 0.7 {1.0 if name == "floor" else 0.08}"/>'
+        for name, normal in (
+            ("floor", (0, 0, 1)),
+            ("ceiling", (0, 0, -1)),
+            ("wall_xneg", (1, 0, 0)),
+            ("wall_xpos", (-1, 0, 0)),
+            ("wall_yneg", (0, 1, 0)),
+            ("wall_ypos", (0, -1, 0)),
+        )
+    ]
+    spheres = [
+        f'<body name="sphere{i}" pos="{row(centres[i])}">'
+        + "".join(
+            f'<joint name="sphere{i}_{a}" type="slide" axis="{axis}"/>'
+            for a, axis in zip("xyz", ("1 0 0", "0 1 0", "0 0 1"), strict=True)
+        )
+        + f'<geom name="sphere{i}" size="{radius!r}" mass="0.1" rgba="{row(palette[i])} 1"/>'
+        + "</body>"
+        for i in range(n)
+    ]
+    motors = [
+        f'<general name="sphere{i}_{a}" joint="sphere{i}_{a}" ctrlrange="-0.1 0.1" '
+        'ctrllimited="true"/>'
+        for i in range(n)
+        for a in "xyz"
+    ]
+    return mujoco.MjModel.from_xml_string(
+        f"""<mujoco model="paper_world_{n}">
+  <compiler angle="radian"/>
+  <option timestep="0.002" gravity="0 0 0" integrator="Euler"/>
+  <statistic center="0 0 0" extent="{box_size!r}"/>
+  <visual><global offwidth="1280" offheight="960"/></visual>
+  <worldbody>{"".join(walls)}<light pos="0 0 {2 * box_size!r}"/>{"".join(spheres)}</worldbody>
+  <actuator>{"".join(motors)}</actuator>
+  <custom><numeric name="dua_accel_bound" data="{paper_world_accel_bound(1.0)!r}"/></custom>
+  <keyframe><key name="init" qvel="{row(velocity)}"/></keyframe>
+</mujoco>"""
+    )
+
+
+def _model_bytes(m: mujoco.MjModel) -> bytes:
+    buf = np.empty(mujoco.mj_sizeModel(m), dtype=np.uint8)
+    mujoco.mj_saveModel(m, None, buf)
+    return buf.tobytes()
+
+
+@pytest.mark.parametrize("template_digits", [3, 1])
+@pytest.mark.parametrize("n", [1, 9, 11, 40, 101, 345, 1234])
+def test_paper_world_is_the_world_written_sphere_by_sphere(
+    n: int, template_digits: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The generator builds the spheres by decimal blocks, attached and set afterwards; its
+    # model must be, byte for byte, the one written sphere by sphere: names, ids, joints,
+    # motors, positions, colours and velocities in order. template_digits=1 builds every block
+    # of 100 or more anew (as from 20,000 spheres on with the default of 3).
+    monkeypatch.setattr(_SphereBlocks, "TEMPLATE_DIGITS", template_digits)
+    box = max(1.0, (n / 40) ** (1 / 3))
+    generated = paper_world_spec(n, seed=7, box_size=box).compile()
+    assert _model_bytes(generated) == _model_bytes(_paper_world_as_mjcf(n, seed=7, box_size=box))
 
 
 @pytest.mark.parametrize("n", [1, 76, 301])
