@@ -21,7 +21,7 @@ from dua_mujoco.core.schedules import (
     Scheduler,
     SelectAllScheduler,
 )
-from dua_mujoco.core.worlds import AccelProfile, SphereWorld
+from dua_mujoco.experiments.paper.world import AccelProfile, SphereWorld
 
 
 @dataclasses.dataclass
