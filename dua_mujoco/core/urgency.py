@@ -44,7 +44,6 @@ __all__ = [
     "PARALLEL_MIN",
     "distance_urgency",
     "tau_accel",
-    "tau_between",
     "tau_halfspace",
     "tau_speed",
     "time_to_collision",
@@ -85,23 +84,6 @@ def tau_speed(
 
 tau_accel = tau_speed
 """The scalar kernel of the acceleration bound alone (:func:`tau_speed`, ``speed`` left inf)."""
-
-
-def tau_between(
-    ci: npt.ArrayLike,
-    vi: npt.ArrayLike,
-    cj: npt.ArrayLike,
-    vj: npt.ArrayLike,
-    eps: float,
-    accel: float,
-    delta: float,
-    speed: float,
-) -> float:
-    """:func:`tau_speed` of two spheres from their centres ``ci``, ``cj`` and velocities ``vi``,
-    ``vj`` (3-vectors each; the relative state is ``j`` minus ``i``)."""
-    x = np.subtract(cj, ci, dtype=np.float64)
-    v = np.subtract(vj, vi, dtype=np.float64)
-    return tau_speed(x[0], x[1], x[2], v[0], v[1], v[2], eps, accel, delta, speed)
 
 
 def tau_halfspace(gap: float, normal_velocity: float, accel: float, delta: float) -> float:

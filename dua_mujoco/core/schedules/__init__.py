@@ -33,7 +33,6 @@ __all__ = [
     "Urgency",
     "as_schedule",
     "bucket_layout",
-    "make_scheduler",
     "schedule_config",
 ]
 
@@ -47,30 +46,6 @@ class Schedule(enum.Enum):
     """Each pair at the latest step its tau allows: select-all's alarms, far less work."""
     SELECT_ALL = "select-all"
     """Every pair every step (SA(tau)): the baseline."""
-
-
-def make_scheduler(
-    schedule: Schedule,
-    tau0: np.ndarray,
-    *,
-    dt: float,
-    latency: int,
-    slots_per_bucket: int = 1,
-    max_evals_per_step: int | None = None,
-    alarm_backoff: int = DEFAULT_ALARM_BACKOFF,
-) -> Scheduler:
-    """The scheduler of ``schedule`` over the initial tau ``tau0``."""
-    if schedule is Schedule.DUA:
-        return DUAScheduler(tau0, dt=dt, latency=latency, slots_per_bucket=slots_per_bucket)
-    if schedule is Schedule.DEADLINE:
-        return DeadlineScheduler(
-            tau0,
-            dt=dt,
-            latency=latency,
-            max_evals_per_step=max_evals_per_step,
-            alarm_backoff=alarm_backoff,
-        )
-    return SelectAllScheduler(tau0, dt=dt, latency=latency)
 
 
 def schedule_config(
