@@ -45,6 +45,7 @@ __all__ = [
     "pair_mode",
     "pruned_horizon",
     "rebuild_stride",
+    "runtime_count",
 ]
 
 AUTO_PRUNED_MIN = 256
@@ -141,8 +142,8 @@ def _per_sphere(name: str, value: npt.ArrayLike, n: int, *, allow_inf: bool = Fa
     return np.broadcast_to(per_pair(name, value, n, allow_inf=allow_inf), (n,)).copy()
 
 
-def _counter(name: str, doc: str) -> property:
-    """A read-only int property: the runtime's count ``name``."""
+def runtime_count(name: str, doc: str) -> property:
+    """A read-only int property: the count ``name`` of the object's native runtime (``_rt``)."""
     return property(lambda self: int(getattr(self._rt, name)), doc=doc)
 
 
@@ -244,12 +245,12 @@ class SpherePredictor:
         """Pairs held now."""
         return int(self._rt.schedule.last_tau.shape[0])  # (a view: O(1))
 
-    evaluations = _counter("evaluated", "tau evaluations of the latest call.")
-    deferred = _counter(
+    evaluations = runtime_count("evaluated", "tau evaluations of the latest call.")
+    deferred = runtime_count(
         "deferred", "Pairs due at the latest step but left for a later one (a capped schedule)."
     )
-    rebuilds = _counter("rebuilds", "Rebuilds of the pruned set so far (not the reset's).")
-    renewals = _counter(
+    rebuilds = runtime_count("rebuilds", "Rebuilds of the pruned set so far (not the reset's).")
+    renewals = runtime_count(
         "renewals", "Renewals of the pruned set so far: steps whose escaped spheres were anchored."
     )
 
