@@ -26,6 +26,7 @@ import pytest
 import reference_terrain as ref
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scalar_tau import tau_halfspace
 
 from dua_mujoco import _core
 from dua_mujoco.core.shapes import (
@@ -49,7 +50,6 @@ from dua_mujoco.core.terrain import (
     shape_table,
     terrain_levels,
 )
-from dua_mujoco.core.urgency import tau_halfspace
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
 SETTINGS = settings(

@@ -4,7 +4,7 @@ A static geom ``S`` (a body welded to the world) is held as its own shape instea
 sphere. For every unit vector ``n`` the half-space ``H(n) = {p : n.p <= h_S(n)}``, with the support
 function ``h_S(n) = max_{q in S} n.q``, contains ``S``; a sphere of contact distance ``eps`` (radius
 plus margin) can touch ``S`` only after its centre comes within ``eps`` of ``H(n)``. So the
-half-space tau (``dua_mujoco.core.urgency.tau_halfspace``) with
+half-space tau (``dua_mujoco.core.urgency.time_to_halfspace``) with
 
     gap = n.c - h_S(n) - eps,    normal velocity = n.v
 
