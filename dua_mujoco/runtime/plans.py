@@ -36,6 +36,7 @@ import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.build.kinematics import pack_spheres
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 from dua_mujoco.runtime.flightplan import Bodies, finite_rows
 
@@ -103,14 +104,6 @@ def _check_model_data(model: object, data: object) -> None:
         )
 
 
-def _check_steps(steps: object) -> int:
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise InvalidInputError(
-            f"steps = {steps!r} is invalid: pass the number of physics steps to plan (an int >= 1)."
-        )
-    return int(steps)
-
-
 def plan_from_controls(
     model: mujoco.MjModel,
     data: mujoco.MjData,
@@ -146,14 +139,16 @@ def plan_from_controls(
         ShapeError: ``controls`` is not ``(steps, nu)``, or a policy returned another shape.
     """
     _check_model_data(model, data)
+    if steps is not None:
+        steps = check_int("steps", steps, 1, " (the physics steps to plan)")
     if callable(controls):
         if steps is None:
             raise InvalidInputError(
                 "steps is missing: a policy has no length, pass steps=<physics steps to plan>."
             )
-        return _plan_policy(model, data, controls, _check_steps(steps))
+        return _plan_policy(model, data, controls, steps)
     u = finite_rows("controls", controls, model.nu, "nu", "ctrl a physics step")
-    if steps is not None and _check_steps(steps) != u.shape[0]:
+    if steps is not None and steps != u.shape[0]:
         raise InvalidInputError(
             f"steps = {steps} disagrees with the {u.shape[0]} rows of controls: leave steps out "
             "for an array."
@@ -488,13 +483,12 @@ def plan_deviation(profile: npt.ArrayLike, knots: int, *, origin: int = 0) -> np
             f"profile has shape {prof.shape}; expected (L, nbody) with L >= 1, as "
             "deviation_profile returns."
         )
-    if isinstance(knots, bool) or not isinstance(knots, int | np.integer) or knots < 1:
-        raise InvalidInputError(f"knots = {knots!r} is invalid: pass the plan's rows (>= 1).")
-    o = _int("origin", origin, 0, int(knots))
-    need = max(int(knots) - 1 - o, 0)
+    knots = check_int("knots", knots, 1, " (the plan's rows)")
+    o = _int("origin", origin, 0, knots)
+    need = max(knots - 1 - o, 0)
     if need >= prof.shape[0]:
         raise InvalidInputError(
             f"the plan reaches {need} knots past its origin, the profile only "
             f"{prof.shape[0] - 1}: measure longer plans in the pilot (or shorten the plan)."
         )
-    return prof[np.maximum(np.arange(int(knots)) - o, 0)]
+    return prof[np.maximum(np.arange(knots) - o, 0)]
