@@ -61,6 +61,7 @@ except ModuleNotFoundError as exc:  # an optional dependency: say which extra br
         "dua_mujoco.gym needs gymnasium: pip install 'dua_mujoco[gym]'", name=exc.name
     ) from exc
 
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.runtime.predictor import Predictor
 from dua_mujoco.shield.shield import Shield
@@ -105,14 +106,8 @@ def find_mujoco(env: gymnasium.Env) -> tuple[mujoco.MjModel, mujoco.MjData, int]
             "gym.make('Ant-v5')), or give such an env those two attributes."
         )
     frame_skip = getattr(inner, "frame_skip", None)
-    if isinstance(frame_skip, bool) or not isinstance(frame_skip, int | np.integer):
-        raise InvalidInputError(
-            f"{type(inner).__name__} has no int frame_skip (got {frame_skip!r}): the predictor "
-            "must know how many physics steps one env.step takes; set env.unwrapped.frame_skip."
-        )
-    if frame_skip < 1:
-        raise InvalidInputError(f"env.unwrapped.frame_skip = {frame_skip} is invalid: it is >= 1.")
-    return model, data, int(frame_skip)
+    fix = " (the physics steps one env.step takes: set env.unwrapped.frame_skip)"
+    return model, data, check_int(f"{type(inner).__name__}.frame_skip", frame_skip, 1, fix)
 
 
 class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):

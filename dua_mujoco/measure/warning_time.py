@@ -57,7 +57,9 @@ def alarm_horizon_of(predictor: Predictor) -> float:
 
 def check_warning_horizon(value: object) -> float | None:
     """``warning_horizon``: None (the predictor's own) or a finite number ``>= 0`` (s)."""
-    return None if value is None else check_number("warning_horizon", value, zero=True)
+    if value is None:
+        return None
+    return check_number("warning_horizon", value, zero=True, unit=" of seconds")
 
 
 class WarningTime:
