@@ -376,12 +376,11 @@ def assert_no_missed_collisions(
     __tracebackhide__ = True
     import mujoco
 
-    from dua_mujoco.exceptions import InvalidInputError
+    from dua_mujoco.build.tables import check_model
     from dua_mujoco.measure.rollout import run
     from dua_mujoco.models.scenes import make_controller, reset_to_keyframe
 
-    if not isinstance(model, mujoco.MjModel):
-        raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")
+    check_model(model)
     if data is None:
         data = mujoco.MjData(model)
         reset_to_keyframe(model, data)

@@ -25,7 +25,6 @@ may touch, not an acceleration bound, so an alarm horizon of 100-500 ms stays ti
 from __future__ import annotations
 
 import copy
-import math
 import time
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -36,7 +35,8 @@ import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.build.kinematics import pack_spheres
-from dua_mujoco.core.validate import check_int
+from dua_mujoco.build.tables import check_model
+from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 from dua_mujoco.runtime.flightplan import Bodies, finite_rows
 
@@ -86,12 +86,8 @@ class PilotPlan(NamedTuple):
 # ----------------------------------------------------------------------------- plans
 
 
-def _check_model_data(model: object, data: object) -> None:
-    if not isinstance(model, mujoco.MjModel):
-        raise InvalidInputError(
-            f"model must be a mujoco.MjModel, got {type(model).__name__}: pass the model the "
-            "data was made for."
-        )
+def _check_model_data(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    check_model(model, ": pass the model the data was made for")
     if not isinstance(data, mujoco.MjData):
         raise InvalidInputError(
             f"data must be a mujoco.MjData, got {type(data).__name__}: pass the simulation's "
@@ -402,15 +398,9 @@ def deviation_profile(
             origin outside the plan, no plan measured, or a bad ``safety`` (the message names
             the value).
     """
-    if not isinstance(model, mujoco.MjModel):
-        raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")
+    check_model(model)
     actual = finite_rows("qpos", qpos, model.nq, "nq", "qpos a physics step")
-    if (
-        isinstance(safety, bool)
-        or not isinstance(safety, int | float | np.integer | np.floating)
-        or not math.isfinite(float(safety))
-        or float(safety) < 1.0
-    ):
+    if check_number("safety", safety) < 1.0:
         raise InvalidInputError(
             f"safety = {safety!r} is invalid: pass a finite factor >= 1 (a factor below 1 "
             "would shrink the deviations measured)."
