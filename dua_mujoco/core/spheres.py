@@ -28,9 +28,8 @@ from dua_mujoco.core.schedules.deadline import (
     check_alarm_backoff,
     check_max_evals,
 )
-from dua_mujoco.core.validate import check_period, per_pair, real_array
+from dua_mujoco.core.validate import as_choice, check_period, per_pair, real_array
 from dua_mujoco.exceptions import (
-    InvalidChoiceError,
     InvalidInputError,
     SchedulerError,
     ShapeError,
@@ -109,10 +108,7 @@ def pair_mode(
     """The pairs a predictor holds, ``ALL`` or ``PRUNED`` (``SpherePredictor``'s and
     ``Predictor``'s ``pairs`` and ``horizon``): ``"auto"`` prunes from ``AUTO_PRUNED_MIN`` spheres
     with the deadline schedule, the one a pruned set is rebuilt into."""
-    try:
-        mode = PairMode(pairs)
-    except ValueError:
-        raise InvalidChoiceError("pairs", pairs, [m.value for m in PairMode]) from None
+    mode = as_choice(PairMode, pairs, "pairs")
     if mode is PairMode.AUTO:
         mode = PairMode.PRUNED if nsphere >= AUTO_PRUNED_MIN and deadline else PairMode.ALL
     if mode is PairMode.PRUNED and not deadline:

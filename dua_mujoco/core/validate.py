@@ -6,19 +6,23 @@ only the indices it follows, so that no call reads out of bounds.
 
 from __future__ import annotations
 
+import enum
 import math
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.exceptions import (
     InvalidBoundError,
+    InvalidChoiceError,
     InvalidInputError,
     NonFiniteStateError,
     ShapeError,
 )
 
 __all__ = [
+    "as_choice",
     "as_ids",
     "as_vectors",
     "check_int",
@@ -28,6 +32,18 @@ __all__ = [
     "per_pair",
     "real_array",
 ]
+
+
+E = TypeVar("E", bound=enum.Enum)
+
+
+def as_choice(kind: type[E], value: object, what: str) -> E:
+    """``value`` as a member of the enum ``kind`` (a member or its value), or an error that names
+    ``what`` and lists the values."""
+    try:
+        return kind(value)
+    except ValueError:
+        raise InvalidChoiceError(what, value, [m.value for m in kind]) from None
 
 
 def real_array(name: str, value: npt.ArrayLike) -> np.ndarray:

@@ -21,7 +21,7 @@ from dua_mujoco.core.schedules.deadline import (
 from dua_mujoco.core.schedules.dua import DUAScheduler, bucket_layout
 from dua_mujoco.core.schedules.select_all import SelectAllScheduler, Urgency
 from dua_mujoco.core.schedules.state import ScheduleState
-from dua_mujoco.exceptions import InvalidChoiceError
+from dua_mujoco.core.validate import as_choice
 
 __all__ = [
     "DUAScheduler",
@@ -82,7 +82,4 @@ def schedule_config(
 
 def as_schedule(schedule: Schedule | str) -> Schedule:
     """``schedule`` as a ``Schedule``, or an error listing the choices."""
-    try:
-        return Schedule(schedule)
-    except ValueError:
-        raise InvalidChoiceError("schedule", schedule, [s.value for s in Schedule]) from None
+    return as_choice(Schedule, schedule, "schedule")
