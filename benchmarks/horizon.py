@@ -52,13 +52,14 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.build.options import PilotOptions
+from dua_mujoco.measure.report import RunReport
 from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import make_controller
 from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench import table
 from robots import ROBOTS, RobotSource, add_floor, load_robot, robosuite_composition
+from timing import Column, by_label, columns_table
 
 ROBOT_NAMES = ("panda", "ur5e", "iiwa", "aloha", "go1", "h1", "fetch")
 HORIZONS = (None, 0.010, 0.020, 0.050, 0.100, 0.200, 0.500)
@@ -103,6 +104,28 @@ def predictor_options(timestep: float, horizon: float) -> dict[str, Any]:
     return {"latency": max(round(horizon / timestep) - 1, 0)}
 
 
+def alarm_figures(rep: RunReport) -> dict[str, Any]:
+    """What a row keeps of a run's report (this script's, ``plan_horizon.py``'s and
+    ``plan_users.py``'s): standing and oracle fractions, onsets (missed; with leads short of the
+    horizon while the bounds held, after a violation, at the start), leads, violations, cost."""
+    return {
+        "standing": rep.standing_alarm_fraction,
+        "oracle": rep.oracle_fraction,
+        "onsets": rep.contact_onsets,
+        "missed": rep.missed_onsets,
+        "missed_valid": rep.missed_onsets_valid_bounds,
+        "short": rep.short_lead_onsets,
+        "short_held": rep.short_lead_bounds_held,
+        "short_violation": rep.short_lead_after_violation,
+        "short_start": rep.short_lead_at_start,
+        "lead_p10_s": rep.lead_p10_s,
+        "lead_median_s": rep.lead_median_s,
+        "lead_min_s": rep.lead_min_s,
+        "violations": rep.bound_violations,
+        "evals_per_step": rep.evals_per_step,
+    }
+
+
 def measure(name: str, protocol: str, horizons: tuple[float | None, ...], steps: int) -> list[dict]:
     """One run per horizon on one robot and protocol: the report's numbers as dicts."""
     m = load(name)
@@ -136,19 +159,8 @@ def measure(name: str, protocol: str, horizons: tuple[float | None, ...], steps:
             "one_period": h is None,
             "latency": p.latency,
             "geom_pairs": rep.geom_pairs,
-            "standing": rep.standing_alarm_fraction,
-            "oracle": rep.oracle_fraction,
-            "onsets": rep.contact_onsets,
-            "missed": rep.missed_onsets,
-            "short": rep.short_lead_onsets,
-            "short_held": rep.short_lead_bounds_held,
-            "short_violation": rep.short_lead_after_violation,
-            "short_start": rep.short_lead_at_start,
-            "lead_p10_s": rep.lead_p10_s,
-            "lead_median_s": rep.lead_median_s,
+            **alarm_figures(rep),
             "share": rep.predictor_share,
-            "evals_per_step": rep.evals_per_step,
-            "violations": rep.bound_violations,
             "accel_median": float(np.median(bounds.accel[bounds.accel > 0])),
             "pilot_s": pilot_s,
             "seconds": time.perf_counter() - t0,
@@ -178,65 +190,43 @@ def _horizon_label(row: dict) -> str:
     return f"1 step ({ms})" if row["one_period"] else ms
 
 
+def _ratios(at: list[dict]) -> str:
+    ratios = [_ratio(r) for r in at if r["oracle"] > 0]
+    return f"{np.median(ratios):.0f}x" if ratios else ""
+
+
+_ROBOT_COLUMNS: list[Column] = [
+    ("robot", lambda r: r["robot"]),
+    ("horizon", _horizon_label),
+    ("standing %", lambda r: f"{100 * r['standing']:.1f}"),
+    ("oracle %", lambda r: f"{100 * r['oracle']:.2f}"),
+    ("ratio", lambda r: "inf" if _ratio(r) == float("inf") else f"{_ratio(r):.0f}x"),
+    ("onsets", lambda r: str(r["onsets"])),
+    (
+        "lead < horizon (held / after violation / start)",
+        lambda r: f"{r['short']} ({r['short_held']} / {r['short_violation']} / {r['short_start']})",
+    ),
+    ("lead p10 / median ms", lambda r: f"{_ms(r['lead_p10_s'])} / {_ms(r['lead_median_s'])}"),
+    ("predictor / mj_step", lambda r: f"{r['share']:.2f}"),
+]
+"""The per-robot table: one row a run."""
+
+_MEDIAN_COLUMNS: list[Column] = [
+    ("horizon", lambda g: g[0]),
+    ("standing / oracle", lambda g: _ratios(g[1])),
+    ("standing %", lambda g: f"{np.median([100 * r['standing'] for r in g[1]]):.1f}"),
+    ("oracle %", lambda g: f"{np.median([100 * r['oracle'] for r in g[1]]):.2f}"),
+    ("predictor / mj_step", lambda g: f"{np.median([r['share'] for r in g[1]]):.2f}"),
+    ("onsets short while held (all robots)", lambda g: str(sum(r["short_held"] for r in g[1]))),
+]
+"""The medians over robots: one row a horizon, ``(label, its runs)``."""
+
+
 def markdown(rows: list[dict], protocol: str) -> str:
     """The table of one protocol, and the median ratio over robots per horizon."""
     mine = [r for r in rows if r["protocol"] == protocol]
-    body = []
-    for r in mine:
-        ratio = _ratio(r)
-        body.append(
-            [
-                r["robot"],
-                _horizon_label(r),
-                f"{100 * r['standing']:.1f}",
-                f"{100 * r['oracle']:.2f}",
-                "inf" if ratio == float("inf") else f"{ratio:.0f}x",
-                str(r["onsets"]),
-                f"{r['short']} ({r['short_held']} / {r['short_violation']} / {r['short_start']})",
-                f"{_ms(r['lead_p10_s'])} / {_ms(r['lead_median_s'])}",
-                f"{r['share']:.2f}",
-            ]
-        )
-    out = table(
-        [
-            "robot",
-            "horizon",
-            "standing %",
-            "oracle %",
-            "ratio",
-            "onsets",
-            "lead < horizon (held / after violation / start)",
-            "lead p10 / median ms",
-            "predictor / mj_step",
-        ],
-        body,
-    )
-    medians = []
-    for label in dict.fromkeys(_horizon_label(r) for r in mine):
-        at = [r for r in mine if _horizon_label(r) == label]
-        ratios = [_ratio(r) for r in at if r["oracle"] > 0]
-        medians.append(
-            [
-                label,
-                f"{np.median(ratios):.0f}x" if ratios else "",
-                f"{np.median([100 * r['standing'] for r in at]):.1f}",
-                f"{np.median([100 * r['oracle'] for r in at]):.2f}",
-                f"{np.median([r['share'] for r in at]):.2f}",
-                str(sum(r["short_held"] for r in at)),
-            ]
-        )
-    out += "\n\nMedian over robots:\n\n" + table(
-        [
-            "horizon",
-            "standing / oracle",
-            "standing %",
-            "oracle %",
-            "predictor / mj_step",
-            "onsets short while held (all robots)",
-        ],
-        medians,
-    )
-    return out
+    medians = columns_table(_MEDIAN_COLUMNS, by_label(mine, _horizon_label))
+    return columns_table(_ROBOT_COLUMNS, mine) + "\n\nMedian over robots:\n\n" + medians
 
 
 Line = tuple[Callable[[dict], float], str, Callable[[str], str], dict]
@@ -290,9 +280,72 @@ def plot(rows: list[dict], path: Path, robots: tuple[str, ...]) -> None:
     plot_against_horizon(rows, path, robots, lines, title, figsize=(7.0, 4.5), legend={"ncol": 2})
 
 
+def robots_parser(
+    doc: str, plot: str, robots: tuple[str, ...] = ROBOT_NAMES
+) -> argparse.ArgumentParser:
+    """The options of the scripts over the robots (this one, ``plan_horizon.py``,
+    ``plan_users.py``): ``--robots`` (default ``robots``), ``--json`` (the rows) and ``--plot``
+    (default ``docs/img/<plot>``); the description is the first line of the script's ``doc``."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--robots", nargs="+", default=list(robots))
+    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
+    docs = Path(__file__).resolve().parent.parent / "docs"
+    ap.add_argument("--plot", type=Path, default=docs / "img" / plot, help="the figure")
+    return ap
+
+
+def over_robots(
+    ap: argparse.ArgumentParser,
+    args: argparse.Namespace,
+    protocols: tuple[str, ...],
+    measure_one: Callable[[str, str], list[dict]],
+    keep: Callable[[list[dict]], None] | None = None,
+) -> list[dict]:
+    """The rows of ``measure_one(robot, protocol)`` for every robot of ``--robots`` (an unknown
+    one is a usage error; one whose package is not installed is skipped, said on stderr) and
+    every protocol, ``keep(rows)`` after each (a long run keeps what it measured); the minutes
+    they took go in ``args.minutes``."""
+    missing = [n for n in args.robots if n not in ROBOTS and n not in EXTRA]
+    if missing:
+        ap.error(f"unknown robots {missing}; known: {', '.join([*ROBOTS, *EXTRA])}")
+    start = time.perf_counter()
+    rows: list[dict] = []
+    for name in args.robots:
+        for protocol in protocols:
+            try:
+                rows += measure_one(name, protocol)
+            except ModuleNotFoundError as exc:
+                print(f"{name}: skipped, not installed ({exc})", file=sys.stderr)
+                break
+            if keep is not None:
+                keep(rows)
+    args.minutes = (time.perf_counter() - start) / 60
+    return rows
+
+
+def report(
+    args: argparse.Namespace,
+    rows: list[dict],
+    protocols: tuple[str, ...],
+    markdown: Callable[[list[dict], str], str],
+    plot: Callable[[list[dict], tuple[str, ...]], None],
+) -> None:
+    """Print each protocol's tables, write ``--json`` (the rows, steps and minutes) and plot
+    the robots of ``PLOTTED`` that ran (else all) to ``--plot``."""
+    for protocol in protocols:
+        print(f"\n### {protocol} ({args.steps} steps a run)\n")
+        print(markdown(rows, protocol))
+    print(f"\n{len(rows)} runs in {args.minutes:.1f} min", flush=True)
+    if args.json is not None:
+        saved = {"rows": rows, "steps": args.steps, "minutes": args.minutes}
+        args.json.write_text(json.dumps(saved, indent=1) + "\n")
+    if rows:
+        plot(rows, tuple(n for n in PLOTTED if n in args.robots) or tuple(args.robots))
+        print(f"plot written to {args.plot}")
+
+
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", nargs="+", default=list(ROBOT_NAMES))
+    ap = robots_parser(__doc__, "horizon-standing.png")
     ap.add_argument(
         "--horizons",
         nargs="+",
@@ -302,37 +355,13 @@ def main(argv: list[str] | None = None) -> None:
     )
     ap.add_argument("--steps", type=int, default=2000, help="physics steps a run")
     ap.add_argument("--no-random", action="store_true", help="skip the random-held protocol")
-    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
-    ap.add_argument(
-        "--plot",
-        type=Path,
-        default=Path(__file__).resolve().parent.parent / "docs" / "img" / "horizon-standing.png",
-    )
     args = ap.parse_args(argv)
     horizons: tuple[float | None, ...] = HORIZONS if args.horizons is None else tuple(args.horizons)
     protocols = PROTOCOLS[:1] if args.no_random else PROTOCOLS
-    missing = [n for n in args.robots if n not in ROBOTS and n not in EXTRA]
-    if missing:
-        ap.error(f"unknown robots {missing}; known: {', '.join([*ROBOTS, *EXTRA])}")
-    start = time.perf_counter()
-    rows: list[dict] = []
-    for name in args.robots:
-        for protocol in protocols:
-            try:
-                rows += measure(name, protocol, horizons, args.steps)
-            except ModuleNotFoundError as exc:
-                print(f"{name}: skipped, not installed ({exc})", file=sys.stderr)
-                break
-    took = time.perf_counter() - start
-    for protocol in protocols:
-        print(f"\n### {protocol} ({args.steps} steps a run)\n")
-        print(markdown(rows, protocol))
-    print(f"\n{len(rows)} runs in {took / 60:.1f} min", flush=True)
-    if args.json is not None:
-        args.json.write_text(json.dumps({"rows": rows, "minutes": took / 60}, indent=1) + "\n")
-    if rows:
-        plot(rows, args.plot, tuple(n for n in PLOTTED if n in args.robots) or tuple(args.robots))
-        print(f"plot written to {args.plot}")
+    rows = over_robots(
+        ap, args, protocols, lambda name, protocol: measure(name, protocol, horizons, args.steps)
+    )
+    report(args, rows, protocols, markdown, lambda rows, robots: plot(rows, args.plot, robots))
 
 
 if __name__ == "__main__":

@@ -48,6 +48,7 @@ from timing import table  # benchmarks/timing.py: the script folder is on sys.pa
 from dua_mujoco import _core
 from dua_mujoco.core.spheres import SpherePredictor
 from dua_mujoco.experiments.paper.world import SphereWorld, WorldParams
+from dua_mujoco.experiments.peers.memory import reset_peak, rss
 
 DT, LATENCY, SUB = 0.01, 1, 4
 WP = WorldParams()
@@ -137,32 +138,12 @@ def memory(n: int, pairs: str) -> int:
         w.step()
         states.append((w.positions.copy(), w.velocities.copy()))
     del pred
-    before = _reset_peak()
+    before, _ = reset_peak()
     pred = SpherePredictor(w.radius, WP.accel, dt=DT, latency=LATENCY, pairs=pairs)
     pred.reset(*states[0])
     for c, v in states[1:]:
         pred.step(c, v)
-    return max(0, _rss("VmHWM") - before)
-
-
-def _rss(field: str) -> int:
-    """``VmRSS`` or ``VmHWM`` (the peak) of this process, bytes."""
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith(field + ":"):
-                return int(line.split()[1]) * 1024
-    raise RuntimeError(f"no {field} in /proc/self/status")
-
-
-def _reset_peak() -> int:
-    """Reset the peak resident size where Linux allows it; the size to measure growth from (the
-    current one, or the earlier peak if the reset is refused)."""
-    try:
-        with open("/proc/self/clear_refs", "w") as f:
-            f.write("5")
-    except OSError:
-        return _rss("VmHWM")
-    return _rss("VmRSS")
+    return max(0, rss("VmHWM") - before)
 
 
 def run_predictor(

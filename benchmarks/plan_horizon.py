@@ -49,7 +49,6 @@ bounds held. The random-held protocol is reported beside, not targeted.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import json
 import sys
@@ -76,16 +75,18 @@ from dua_mujoco.runtime.predictor import Predictor
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table
 from horizon import (
-    EXTRA,
     HOLD,
     PILOT_SEED,
-    ROBOT_NAMES,
     ROLLOUT_SEED,
     Line,
+    alarm_figures,
     load,
+    over_robots,
     plot_against_horizon,
+    report,
+    robots_parser,
 )
-from robots import ROBOTS
+from timing import Column, by_label, columns_table
 
 HORIZONS = (None, 0.010, 0.020, 0.050, 0.100, 0.200, 0.500)
 """Alarm horizons (s); None is one predictor period."""
@@ -344,20 +345,7 @@ def run_ab(
         rep = build_report(mons[t], "", False, dur_mj, dur_p, interrupted=False)
         row[t] = {
             "knows": SIDES[t] if t in planned else None,
-            "standing": rep.standing_alarm_fraction,
-            "oracle": rep.oracle_fraction,
-            "onsets": rep.contact_onsets,
-            "missed": rep.missed_onsets,
-            "missed_valid": rep.missed_onsets_valid_bounds,
-            "short": rep.short_lead_onsets,
-            "short_held": rep.short_lead_bounds_held,
-            "short_violation": rep.short_lead_after_violation,
-            "short_start": rep.short_lead_at_start,
-            "lead_p10_s": rep.lead_p10_s,
-            "lead_median_s": rep.lead_median_s,
-            "lead_min_s": rep.lead_min_s,
-            "violations": rep.bound_violations,
-            "evals_per_step": rep.evals_per_step,
+            **alarm_figures(rep),
             "plan_every": every[t] if t in planned else None,
             "plan_knots": knots[t] if t in planned else None,
             "plans": plans[t],
@@ -493,101 +481,88 @@ def _three(r: dict[str, Any], f: Any) -> str:
     return " / ".join(f(r[t]) for t in SIDES)
 
 
+def _med(rs: list[dict[str, Any]], tag: str, key: str) -> float:
+    """The median over the rows ``rs`` of one side's (``tag``'s) ``key``, infinities left out
+    (``"ratio"``, ``"cost"`` and ``"planner"``: :func:`_ratio`, :func:`_cost`, :func:`_planner`)."""
+    of = {"ratio": _ratio, "cost": _cost, "planner": _planner}.get(key, lambda side: side[key])
+    vals = [v for v in (of(r[tag]) for r in rs) if v != float("inf")]
+    return float(np.median(vals)) if vals else float("nan")
+
+
+def _planned(rs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [r for r in rs if r["plannable"]]
+
+
+def _sums(rs: list[dict[str, Any]], f: Any, sides: tuple[str, ...] = SIDES) -> str:
+    return " / ".join(str(sum(f(r[t]) for r in rs)) for t in sides)
+
+
+_ROBOT_COLUMNS: list[Column] = [
+    ("robot", lambda r: r["robot"] + ("" if r["plannable"] else " (no plan: mocap)")),
+    ("horizon", _label),
+    ("oracle %", lambda r: f"{100 * r['A']['oracle']:.2f}"),
+    ("standing %", lambda r: _three(r, lambda s: f"{100 * s['standing']:.1f}")),
+    ("standing / oracle", lambda r: _three(r, lambda s: _x(_ratio(s)))),
+    ("onsets", lambda r: str(r["A"]["onsets"])),
+    ("lead < H, bounds held", lambda r: _three(r, lambda s: str(s["short_held"]))),
+    (
+        "lead < H, after violation + at start",
+        lambda r: _three(r, lambda s: f"{s['short_violation']}+{s['short_start']}"),
+    ),
+    ("plan breaks", lambda r: f"{r['A']['plan_breaks']} / {r['T']['plan_breaks']}"),
+    ("predictor / mj_step (incl. set_plan)", lambda r: _three(r, lambda s: f"{_cost(s):.2f}")),
+    ("predictor / mj_step (median step)", lambda r: _three(r, lambda s: f"{s['median']:.2f}")),
+    (
+        "planner / mj_step (planner's)",
+        lambda r: f"{_planner(r['A']):.1f} / {_planner(r['T']):.1f}" if r["plannable"] else "",
+    ),
+]
+"""The per-robot table: one row a run; a cell of three values reads: planner knows the next
+waypoint / knows the trajectory / no plan."""
+
+_MEDIAN_COLUMNS: list[Column] = [
+    ("horizon", lambda g: g[0]),
+    (
+        "standing / oracle, all robots",
+        lambda g: " / ".join(_x(_med(g[1], t, "ratio")) for t in SIDES),
+    ),
+    (
+        "standing / oracle, robots with a plan",
+        lambda g: " / ".join(_x(_med(_planned(g[1]), t, "ratio")) for t in SIDES),
+    ),
+    (
+        "predictor / mj_step (incl. set_plan)",
+        lambda g: " / ".join(f"{_med(g[1], t, 'cost'):.2f}" for t in SIDES),
+    ),
+    (
+        "predictor / mj_step (median step)",
+        lambda g: " / ".join(f"{_med(g[1], t, 'median'):.2f}" for t in SIDES),
+    ),
+    (
+        "planner / mj_step (planner's)",
+        lambda g: " / ".join(f"{_med(_planned(g[1]), t, 'planner'):.1f}" for t in ("A", "T")),
+    ),
+    ("lead < H while held (sum)", lambda g: _sums(g[1], lambda s: s["short_held"])),
+    (
+        "lead < H after violation + at start (sum)",
+        lambda g: _sums(g[1], lambda s: s["short_violation"] + s["short_start"]),
+    ),
+    ("plan breaks (sum)", lambda g: _sums(g[1], lambda s: s["plan_breaks"], ("A", "T"))),
+]
+"""The medians over robots: one row a horizon, ``(label, its runs)``."""
+
+
 def markdown(rows: list[dict[str, Any]], protocol: str) -> str:
     """One protocol: the per-robot table, then the medians over robots at each horizon.
 
     Each cell with three values reads: planner knows the next waypoint / knows the trajectory /
     no plan."""
     mine = [r for r in rows if r["protocol"] == protocol]
-    body = []
-    for r in mine:
-        body.append(
-            [
-                r["robot"] + ("" if r["plannable"] else " (no plan: mocap)"),
-                _label(r),
-                f"{100 * r['A']['oracle']:.2f}",
-                _three(r, lambda s: f"{100 * s['standing']:.1f}"),
-                _three(r, lambda s: _x(_ratio(s))),
-                str(r["A"]["onsets"]),
-                _three(r, lambda s: str(s["short_held"])),
-                _three(r, lambda s: f"{s['short_violation']}+{s['short_start']}"),
-                f"{r['A']['plan_breaks']} / {r['T']['plan_breaks']}",
-                _three(r, lambda s: f"{_cost(s):.2f}"),
-                _three(r, lambda s: f"{s['median']:.2f}"),
-                (f"{_planner(r['A']):.1f} / {_planner(r['T']):.1f}" if r["plannable"] else ""),
-            ]
-        )
-    out = table(
-        [
-            "robot",
-            "horizon",
-            "oracle %",
-            "standing %",
-            "standing / oracle",
-            "onsets",
-            "lead < H, bounds held",
-            "lead < H, after violation + at start",
-            "plan breaks",
-            "predictor / mj_step (incl. set_plan)",
-            "predictor / mj_step (median step)",
-            "planner / mj_step (planner's)",
-        ],
-        body,
+    return (
+        columns_table(_ROBOT_COLUMNS, mine)
+        + "\n\nMedian over robots (each cell: knows the next waypoint / knows the trajectory / no "
+        "plan):\n\n" + columns_table(_MEDIAN_COLUMNS, by_label(mine, _label))
     )
-    medians = []
-    for label in dict.fromkeys(_label(r) for r in mine):
-        at = [r for r in mine if _label(r) == label]
-        planned = [r for r in at if r["plannable"]]
-
-        def med(rs: list[dict[str, Any]], tag: str, key: str) -> float:
-            vals = [
-                _ratio(r[tag])
-                if key == "ratio"
-                else _cost(r[tag])
-                if key == "cost"
-                else _planner(r[tag])
-                if key == "planner"
-                else r[tag][key]
-                for r in rs
-            ]
-            vals = [v for v in vals if v != float("inf")]
-            return float(np.median(vals)) if vals else float("nan")
-
-        medians.append(
-            [
-                label,
-                " / ".join(_x(med(at, t, "ratio")) for t in SIDES),
-                " / ".join(_x(med(planned, t, "ratio")) for t in SIDES),
-                " / ".join(f"{med(at, t, 'cost'):.2f}" for t in SIDES),
-                " / ".join(f"{med(at, t, 'median'):.2f}" for t in SIDES),
-                " / ".join(f"{med(planned, t, 'planner'):.1f}" for t in ("A", "T")),
-                " / ".join(str(sum(r[t]["short_held"] for r in at)) for t in SIDES),
-                " / ".join(
-                    str(sum(r[t]["short_violation"] + r[t]["short_start"] for r in at))
-                    for t in SIDES
-                ),
-                " / ".join(str(sum(r[t]["plan_breaks"] for r in at)) for t in ("A", "T")),
-            ]
-        )
-    out += (
-        "\n\nMedian over robots (each cell: knows the next waypoint / knows the trajectory / no "
-        "plan):\n\n"
-        + table(
-            [
-                "horizon",
-                "standing / oracle, all robots",
-                "standing / oracle, robots with a plan",
-                "predictor / mj_step (incl. set_plan)",
-                "predictor / mj_step (median step)",
-                "planner / mj_step (planner's)",
-                "lead < H while held (sum)",
-                "lead < H after violation + at start (sum)",
-                "plan breaks (sum)",
-            ],
-            medians,
-        )
-    )
-    return out
 
 
 def horizon_table(rows: list[dict[str, Any]], protocol: str) -> str:
@@ -643,8 +618,7 @@ def plot(rows: list[dict[str, Any]], path: Path, robots: tuple[str, ...]) -> Non
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", nargs="+", default=list(ROBOT_NAMES))
+    ap = robots_parser(__doc__, "plans-standing.png")
     ap.add_argument("--horizons", nargs="+", type=float, default=None, help="seconds")
     ap.add_argument("--steps", type=int, default=2000, help="physics steps a run")
     ap.add_argument("--no-random", action="store_true", help="skip the random-held protocol")
@@ -657,7 +631,6 @@ def main(argv: list[str] | None = None) -> None:
         metavar=("WAYPOINT", "TRAJECTORY"),
         help="each planner's replanning period, a fraction of the horizon",
     )
-    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     ap.add_argument(
         "--reference", action="store_true", help="judge the plans with exact geometry too"
     )
@@ -669,11 +642,6 @@ def main(argv: list[str] | None = None) -> None:
     )
     ap.add_argument(
         "--tables", type=Path, nargs="+", default=None, help="print the tables of saved rows"
-    )
-    ap.add_argument(
-        "--plot",
-        type=Path,
-        default=Path(__file__).resolve().parent.parent / "docs" / "img" / "plans-standing.png",
     )
     args = ap.parse_args(argv)
     if args.tables is not None:
@@ -699,40 +667,22 @@ def main(argv: list[str] | None = None) -> None:
     protocols = (
         tuple(args.protocols) if args.protocols else PROTOCOLS[:1] if args.no_random else PROTOCOLS
     )
-    missing = [n for n in args.robots if n not in ROBOTS and n not in EXTRA]
-    if missing:
-        ap.error(f"unknown robots {missing}; known: {', '.join([*ROBOTS, *EXTRA])}")
-    start = time.perf_counter()
-    rows = []
-    for name in args.robots:
-        for protocol in protocols:
-            try:
-                rows += measure(
-                    name,
-                    protocol,
-                    horizons,
-                    args.steps,
-                    args.reference,
-                    dict(zip("AT", args.every, strict=True)),
-                    args.floor,
-                )
-            except ModuleNotFoundError as exc:
-                print(f"{name}: skipped, not installed ({exc})", file=sys.stderr)
-                break
-            if args.json is not None:  # a long run keeps what it measured
-                args.json.write_text(json.dumps({"rows": rows, "steps": args.steps}) + "\n")
-    took = time.perf_counter() - start
-    for protocol in protocols:
-        print(f"\n### {protocol} ({args.steps} steps a run)\n")
-        print(markdown(rows, protocol))
-    print(f"\n{len(rows)} runs in {took / 60:.1f} min", flush=True)
-    if args.json is not None:
-        args.json.write_text(
-            json.dumps({"rows": rows, "steps": args.steps, "minutes": took / 60}, indent=1) + "\n"
-        )
-    if rows:
-        plot(rows, args.plot, tuple(n for n in PLOTTED if n in args.robots) or tuple(args.robots))
-        print(f"plot written to {args.plot}")
+    every = dict(zip("AT", args.every, strict=True))
+
+    def keep(rows: list[dict]) -> None:
+        if args.json is not None:
+            args.json.write_text(json.dumps({"rows": rows, "steps": args.steps}) + "\n")
+
+    rows = over_robots(
+        ap,
+        args,
+        protocols,
+        lambda name, protocol: measure(
+            name, protocol, horizons, args.steps, args.reference, every, args.floor
+        ),
+        keep,
+    )
+    report(args, rows, protocols, markdown, lambda rows, robots: plot(rows, args.plot, robots))
 
 
 if __name__ == "__main__":

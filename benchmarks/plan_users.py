@@ -56,7 +56,6 @@ period; and the floor contacts.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import json
 import sys
@@ -82,7 +81,7 @@ from dua_mujoco.runtime.predictor import Predictor
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench import table
-from horizon import PILOT_SEED, ROLLOUT_SEED
+from horizon import PILOT_SEED, ROLLOUT_SEED, alarm_figures, robots_parser
 from plan_horizon import CLOCK, _amortised, _ratio
 from robots import ROBOTS, load_robot
 
@@ -226,18 +225,17 @@ class TimeToCollision:
 
 class Leads:
     """A peer's standing fraction and its onsets' leads over one horizon (the monitor's rules:
-    an onset's lead is the time its pair stood in alarm without a break up to the onset)."""
+    an onset's lead is the time its pair stood in alarm without a break up to the onset).
+
+    ``counts``: the onsets, those whose lead falls short of the horizon (``short``; at the
+    start, ``short_start``) and those with no alarm at all (``missed``)."""
 
     def __init__(self, npair: int, horizon: float, h: float) -> None:
         self.since = np.full(npair, -1, dtype=np.int64)
         self.in_contact = np.zeros(npair, dtype=bool)
         self.horizon, self.h, self.npair = horizon, h, npair
-        self.standing = 0.0
-        self.steps = 0
-        self.onsets = 0
-        self.short = 0
-        self.short_start = 0
-        self.missed = 0
+        self.standing, self.steps = 0.0, 0
+        self.counts = dict.fromkeys(("onsets", "short", "short_start", "missed"), 0)
 
     def observe(self, k: int, alarms: np.ndarray, contact: np.ndarray) -> None:
         """Physics step ``k``: the alarms and the pairs in contact (bool masks)."""
@@ -246,14 +244,12 @@ class Leads:
         self.standing += float(np.count_nonzero(alarms)) / max(self.npair, 1)
         self.steps += 1
         for p in np.flatnonzero(contact & ~self.in_contact):
-            self.onsets += 1
+            self.counts["onsets"] += 1
             lead = 0.0 if self.since[p] < 0 else (k - self.since[p]) * self.h
-            self.missed += int(self.since[p] < 0)
+            self.counts["missed"] += int(self.since[p] < 0)
             if lead < self.horizon * (1 - 1e-9):
-                if k * self.h < self.horizon * (1 - 1e-9):
-                    self.short_start += 1
-                else:
-                    self.short += 1
+                at_start = k * self.h < self.horizon * (1 - 1e-9)
+                self.counts["short_start" if at_start else "short"] += 1
         self.in_contact = contact
 
 
@@ -476,26 +472,9 @@ def monitored(world: Run, horizons: tuple[float, ...], steps: int) -> tuple[list
             key = (H, side)
             mons[key].finish()
             rep = build_report(mons[key], "", False, Durations(), Durations(), interrupted=False)
-            row[side] = {
-                "standing": rep.standing_alarm_fraction,
-                "oracle": rep.oracle_fraction,
-                "onsets": rep.contact_onsets,
-                "missed_valid": rep.missed_onsets_valid_bounds,
-                "short_held": rep.short_lead_bounds_held,
-                "short_violation": rep.short_lead_after_violation,
-                "short_start": rep.short_lead_at_start,
-                "violations": rep.bound_violations,
-                "plan_breaks": preds[key].plan_breaks,
-                "evals_per_step": rep.evals_per_step,
-            }
+            row[side] = alarm_figures(rep) | {"plan_breaks": preds[key].plan_breaks}
         lp = leads[H]
-        row["ttc"] = {
-            "standing": lp.standing / max(lp.steps, 1),
-            "onsets": lp.onsets,
-            "short": lp.short,
-            "short_start": lp.short_start,
-            "missed": lp.missed,
-        }
+        row["ttc"] = {"standing": lp.standing / max(lp.steps, 1), **lp.counts}
         if floating:
             # The plan made after step k starts at the state after it: row k + 1.
             made = [(k + 1, q) for k, (_, q) in sorted(plans.items())]
@@ -787,18 +766,11 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", nargs="+", default=list(ROBOT_NAMES))
+    ap = robots_parser(__doc__, "plans-users.png", ROBOT_NAMES)
     ap.add_argument("--horizons", nargs="+", type=float, default=list(HORIZONS), help="seconds")
     ap.add_argument("--steps", type=int, default=STEPS, help="physics steps a run")
     ap.add_argument("--every", type=int, default=EVERY, help="physics steps between two plans")
-    ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     ap.add_argument("--tables", type=Path, default=None, help="print the tables of saved rows")
-    ap.add_argument(
-        "--plot",
-        type=Path,
-        default=Path(__file__).resolve().parent.parent / "docs" / "img" / "plans-users.png",
-    )
     args = ap.parse_args(argv)
     if args.tables is not None:
         saved = json.loads(args.tables.read_text())["rows"]

@@ -82,8 +82,10 @@ import copy
 import json
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -488,11 +490,35 @@ class _Continue:
         return self.drive._to + self.delta
 
 
-def _next_waypoint(ctrl) -> int:
-    """The plan step (1-based) whose control is the first the next random point changes."""
+def _plan_drive(ctrl, kind: str) -> tuple[Any, int]:
+    """The drive of a plan of ``kind`` (None for ``"hold"``: the controls held) and the plan
+    step (1-based) whose control is the first the next random point changes (``"seg"``: the
+    drive's current segment continued past it; else never, ``_BIG``)."""
+    if kind == "hold":
+        return None, _BIG
+    drive = copy.deepcopy(ctrl)
+    if kind != "seg":
+        return drive, _BIG
+    drive.smooth.rng = _Continue(drive.smooth)
     s, hold = ctrl.smooth._step, ctrl.smooth.hold_steps
     first = s if s % hold == 0 else s + hold - s % hold
-    return first - s + 1
+    return drive, first - s + 1
+
+
+def _roll_plan(
+    r: Robot, drive, d: mujoco.MjData, plan_data: mujoco.MjData, cp: np.ndarray
+) -> Iterator[int]:
+    """Roll a plan from ``d``'s state on ``plan_data`` under ``drive`` (None: the controls
+    held), writing the bound points' positions at each age ``j >= 1`` into ``cp``
+    ``(length+1, npts, 3)``; yields ``j`` once ``plan_data`` is at it."""
+    m = r.m
+    mujoco.mj_copyData(plan_data, m, d)
+    for j in range(1, cp.shape[0]):
+        if drive is not None:
+            drive(m, plan_data)
+        mujoco.mj_step(m, plan_data)
+        cp[j] = positions(r, plan_data)
+        yield j
 
 
 def _plan(
@@ -511,26 +537,14 @@ def _plan(
     positions by age ``c`` ``(length+1, npts, 3)``, ``w`` the waypoint's age (seg), and with
     ``screen`` (the rollout's, copied) the pilot's levels along the plan ``lv``
     ``(length+1, 3, nb)`` (``lv``: the rollout's now)."""
-    m = r.m
-    mujoco.mj_copyData(plan_data, m, d)
-    drive = None
-    w = _BIG
-    if kind != "hold":
-        drive = copy.deepcopy(ctrl)
-        if kind == "seg":
-            drive.smooth.rng = _Continue(drive.smooth)
-            w = _next_waypoint(ctrl)
+    drive, w = _plan_drive(ctrl, kind)
     cp = np.empty((length + 1, r.pts_body.size, 3))
     cp[0] = c
     sc = None if screen is None else copy.deepcopy(screen)
     levels = np.ones((length + 1, 3, r.nbody), dtype=bool)
     if lv is not None:
         levels[0] = lv
-    for j in range(1, length + 1):
-        if drive is not None:
-            drive(m, plan_data)
-        mujoco.mj_step(m, plan_data)
-        cp[j] = positions(r, plan_data)
+    for j in _roll_plan(r, drive, d, plan_data, cp):
         if sc is not None:
             levels[j, 0], levels[j, 1] = sc.update(plan_data)
     zero = np.zeros_like(c)
@@ -862,30 +876,21 @@ def rollout(r: Robot, B: Bounds, steps: int, A_model: dict[str, np.ndarray] | No
                 continue
             t0 = time.perf_counter()
             ages = np.arange(length + 1)
-            drive = None
-            w = _BIG
+            drive, w = _plan_drive(ctrl, "hold" if roll == "hold" else "seg")
             if roll == "hold":
                 devs = {
                     "f_hold": Esum_pair[None, :] * h * h * (ages * (ages - 1))[:, None] / 2,
                     "f_prof": (B.dev_bound[r.b1] + B.dev_bound[r.b2]).T[: length + 1],
                 }
             else:
-                drive = copy.deepcopy(ctrl)
-                drive.smooth.rng = _Continue(drive.smooth)
-                w = _next_waypoint(ctrl)
                 q = np.maximum(ages - w, 0)
                 devs = {"f_seg": (B.seg_bound[r.b1][:, q] + B.seg_bound[r.b2][:, q]).T}
             dev = np.max(np.stack(list(devs.values())), axis=0)
-            mujoco.mj_copyData(plan_data, m, d)
             pd = np.empty((length + 1, P))
             cp = np.empty((length + 1, r.pts_body.size, 3))
             cp[0] = cpos
             pd[0] = dist
-            for j in range(1, length + 1):
-                if drive is not None:
-                    drive(m, plan_data)
-                mujoco.mj_step(m, plan_data)
-                cp[j] = positions(r, plan_data)
+            for j in _roll_plan(r, drive, d, plan_data, cp):
                 capj = (r.cd + dev[j]) * (1 + 1e-9) + 1e-9
                 pd[j], _, nq = _distances(r, plan_data, capj, None)
                 plan_queries[(roll, R)][j] += nq

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
 
-__all__ = ["median_time", "table"]
+__all__ = ["Column", "by_label", "columns_table", "median_time", "table"]
 
 
 def median_time(fn: Callable[[], object], repeat: int, warmup: int = 1) -> float:
@@ -27,3 +28,22 @@ def table(header: list[str], rows: list[list[str]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
     return "\n".join(lines)
+
+
+Column = tuple[str, Callable[[Any], str]]
+"""A table column: its header and its cell of one row."""
+
+
+def columns_table(columns: Sequence[Column], rows: Iterable[Any]) -> str:
+    """A markdown table of ``rows``, one column a ``(header, cell)`` pair."""
+    return table(
+        [header for header, _ in columns], [[cell(r) for _, cell in columns] for r in rows]
+    )
+
+
+def by_label(rows: Iterable[Any], label: Callable[[Any], str]) -> list[tuple[str, list[Any]]]:
+    """``rows`` grouped by ``label(row)``: ``(label, rows)`` in the order labels first come."""
+    groups: dict[str, list[Any]] = {}
+    for r in rows:
+        groups.setdefault(label(r), []).append(r)
+    return list(groups.items())

@@ -285,8 +285,7 @@ class ShieldScene:
     """A scene of the shield's benchmark.
 
     Attributes:
-        name: registry key.
-        xml: the MJCF file in ``models/``.
+        name: registry key, and the MJCF file's name in ``models/`` (``<name>.xml``).
         robot: fnmatch patterns of the robot's actuator names.
         protect: fnmatch patterns of the body names the robot must not move into.
         period: physics steps per control period.
@@ -297,21 +296,22 @@ class ShieldScene:
             that wants joint acceleration limits, as MoveIt's joint_limits.yaml has, reads them).
         stop_time: the longest stop of the shield's brake from the task's states (s): the
             measured 38 / 30 / 386 ms (docs/shield.md) with a margin.
+
+    The defaults are the arm cells' (``ArmTask``'s speeds and accelerations).
     """
 
     name: str
-    xml: str
     robot: tuple[str, ...]
     protect: tuple[str, ...]
-    period: int
     duration: float
-    task_speed: tuple[float, ...]
-    task_accel: tuple[float, ...]
-    stop_time: float
+    period: int = 10
+    task_speed: tuple[float, ...] = tuple(ARM_SPEED)
+    task_accel: tuple[float, ...] = tuple(ARM_ACCEL)
+    stop_time: float = 0.06
 
     def model(self) -> mujoco.MjModel:
         """Compile the scene."""
-        return mujoco.MjModel.from_xml_path(str(models_dir() / self.xml))
+        return mujoco.MjModel.from_xml_path(str(models_dir() / f"{self.name}.xml"))
 
     def robot_actuators(self, model: mujoco.MjModel) -> np.ndarray:
         """Ids of the robot's actuators."""
@@ -367,34 +367,12 @@ class ShieldScene:
 SHIELD_SCENES: dict[str, ShieldScene] = {
     s.name: s
     for s in (
+        ShieldScene("person_cell", robot=("j*",), protect=("person*",), duration=6.0),
+        ShieldScene("arm_pair", robot=("a_*",), protect=("b_*",), duration=5.0),
         ShieldScene(
-            name="person_cell",
-            xml="person_cell.xml",
-            robot=("j*",),
-            protect=("person*",),
-            period=10,
-            duration=6.0,
-            task_speed=tuple(ARM_SPEED),
-            task_accel=tuple(ARM_ACCEL),
-            stop_time=0.06,
-        ),
-        ShieldScene(
-            name="arm_pair",
-            xml="arm_pair.xml",
-            robot=("a_*",),
-            protect=("b_*",),
-            period=10,
-            duration=5.0,
-            task_speed=tuple(ARM_SPEED),
-            task_accel=tuple(ARM_ACCEL),
-            stop_time=0.06,
-        ),
-        ShieldScene(
-            name="mobile_cell",
-            xml="mobile_cell.xml",
+            "mobile_cell",
             robot=("base_*",),
             protect=("walker*", "cart*", "walls"),
-            period=10,
             duration=10.0,
             task_speed=(BaseTask.VMAX, BaseTask.VMAX, 0.5),
             task_accel=(BaseTask.AMAX, BaseTask.AMAX, 2.0),

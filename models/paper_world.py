@@ -162,17 +162,16 @@ def paper_world_spec(
     """
     if n < 1:
         raise InvalidInputError(f"n must be >= 1, got {n}.")
-    for label, value in (
-        ("box_size", box_size),
-        ("radius", radius),
-        ("mass", mass),
-        ("timestep", timestep),
+    for label, value, least in (
+        ("box_size", box_size, "> 0"),
+        ("radius", radius, "> 0"),
+        ("mass", mass, "> 0"),
+        ("timestep", timestep, "> 0"),
+        ("accel_max", accel_max, ">= 0"),
+        ("speed_max", speed_max, ">= 0"),
     ):
-        if not (math.isfinite(value) and value > 0):
-            raise InvalidInputError(f"{label} must be finite and > 0, got {value}.")
-    for label, value in (("accel_max", accel_max), ("speed_max", speed_max)):
-        if not (math.isfinite(value) and value >= 0):
-            raise InvalidInputError(f"{label} must be finite and >= 0, got {value}.")
+        if not (math.isfinite(value) and (value > 0 or (value == 0 and least == ">= 0"))):
+            raise InvalidInputError(f"{label} must be finite and {least}, got {value}.")
 
     rng = np.random.default_rng(seed)
     half = 0.5 * box_size

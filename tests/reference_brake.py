@@ -20,7 +20,7 @@ them, rather than trusting this model of it.
 affine, ``biastype`` none or affine, any transmission: MuJoCo's ``motor``, ``position`` and
 ``velocity`` (without ``timeconst``), ``intvelocity`` aside, and ``general`` with those types.
 Others (filters, integrators, muscles, DC motors, PIDs, user and plugin actuators) are refused
-with the list of what they are: their force does not follow from this step's control.
+by name: their force does not follow from this step's control.
 
 Quantities read at the state in ``data.qpos``, ``data.qvel`` (a private ``MjData`` recomputes
 the kinematics, the inertia, the transmission and the bias forces there: after ``mj_step`` the
@@ -29,6 +29,7 @@ user's ``MjData`` holds them for the state the step started from).
 
 from __future__ import annotations
 
+from dataclasses import KW_ONLY, dataclass
 from typing import Any
 
 import mujoco
@@ -42,10 +43,6 @@ __all__ = ["ReferenceBrake", "bounded_lstsq", "robot_trees"]
 _DYN_OK = {int(mujoco.mjtDyn.mjDYN_NONE)}
 _GAIN_OK = {int(mujoco.mjtGain.mjGAIN_FIXED), int(mujoco.mjtGain.mjGAIN_AFFINE)}
 _BIAS_OK = {int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE)}
-
-
-def _type_name(enum: Any, value: int) -> str:
-    return next((n for n, v in enum.__members__.items() if int(v) == value), str(value))
 
 
 def robot_trees(model: mujoco.MjModel, actuators: npt.ArrayLike) -> np.ndarray:
@@ -98,44 +95,27 @@ def bounded_lstsq(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) 
     return x
 
 
+@dataclass
 class ReferenceBrake:
-    """A brake to rest within the actuators' limits; also drives toward a joint velocity.
+    """The numpy reference of ``dua_mujoco.shield.failsafe.Brake``, made and called as that one
+    is: the same arguments and defaults (``actuators`` all, ``time_constant`` one timestep), the
+    same ``dofs`` and ``bodies``, ``brake(model, data)`` and ``brake.toward(data, target)``.
+    An actuator it cannot model, or a time constant that is not positive, is refused
+    (``InvalidInputError``; the wording of the native brake's messages is its own)."""
 
-    Args:
-        model: the model.
-        actuators: ids of the robot's actuators (default: all of them). Every other control is
-            left as ``data.ctrl`` holds it.
-        time_constant: seconds over which the joint velocities would close on their target if
-            the actuators were strong enough (default: one timestep, the fastest stop the
-            actuators allow: each step asks for the target at the next, and gets as close as
-            the limits let it).
+    model: mujoco.MjModel
+    _: KW_ONLY
+    actuators: Any = None
+    time_constant: float | None = None
 
-    Raises:
-        InvalidInputError: an actuator is not affine (the message lists each one with its
-            types), or the time constant is not positive.
-
-    Attributes:
-        dofs: ``(k,)`` the DOFs braked: every DOF of the trees the actuators move.
-        bodies: ``(k,)`` the bodies of those trees (the robot's bodies).
-    """
-
-    def __init__(
-        self,
-        model: mujoco.MjModel,
-        *,
-        actuators: npt.ArrayLike | None = None,
-        time_constant: float | None = None,
-    ) -> None:
-        acts = np.arange(model.nu) if actuators is None else np.asarray(actuators, np.int64)
-        if acts.ndim != 1 or acts.size == 0 or acts.min() < 0 or acts.max() >= model.nu:
-            raise InvalidInputError(
-                f"actuators must be a non-empty list of ids in [0, {model.nu}); got {acts}"
-            )
+    def __post_init__(self) -> None:
+        model = self.model
+        nu = model.nu
+        acts = np.arange(nu) if self.actuators is None else np.asarray(self.actuators, np.int64)
+        if acts.ndim != 1 or acts.size == 0 or not (acts.min() >= 0 and acts.max() < nu):
+            raise InvalidInputError(f"actuators: ids in [0, {nu}) expected, not {acts}")
         bad = [
-            f"{model.actuator(int(i)).name or i} (dyntype "
-            f"{_type_name(mujoco.mjtDyn, int(model.actuator_dyntype[i]))}, gaintype "
-            f"{_type_name(mujoco.mjtGain, int(model.actuator_gaintype[i]))}, biastype "
-            f"{_type_name(mujoco.mjtBias, int(model.actuator_biastype[i]))})"
+            model.actuator(int(i)).name or str(i)
             for i in acts
             if int(model.actuator_dyntype[i]) not in _DYN_OK
             or int(model.actuator_gaintype[i]) not in _GAIN_OK
@@ -143,18 +123,11 @@ class ReferenceBrake:
             or int(model.actuator_plugin[i]) >= 0
         ]
         if bad:
-            raise InvalidInputError(
-                "the brake needs actuators whose force is affine in this step's control "
-                "(dyntype none, gaintype fixed or affine, biastype none or affine: motor, "
-                "position and velocity without timeconst, general of those types); not: "
-                + "; ".join(bad)
-                + ". Give the shield a failsafe policy of your own for these."
-            )
+            raise InvalidInputError(f"the reference brake models affine actuators only, not {bad}")
         h = float(model.opt.timestep)
-        tc = 1.0 * h if time_constant is None else float(time_constant)
+        tc = h if self.time_constant is None else float(self.time_constant)
         if not (np.isfinite(tc) and tc > 0.0):
-            raise InvalidInputError(f"time_constant must be a positive number of seconds: {tc}")
-        self.model = model
+            raise InvalidInputError(f"time_constant: a positive number of seconds, not {tc}")
         self.actuators = acts
         self.time_constant = tc
         trees = robot_trees(model, acts)
@@ -210,15 +183,8 @@ class ReferenceBrake:
         return self.toward(data, np.zeros(self.dofs.size))
 
     def toward(self, data: mujoco.MjData, target: npt.ArrayLike) -> np.ndarray:
-        """Controls driving the robot's DOFs toward the joint velocities ``target``.
-
-        Args:
-            data: the data (its ``qpos``, ``qvel``, ``ctrl`` are read, nothing is written).
-            target: ``(len(dofs),)`` joint velocities, in the order of :attr:`dofs`.
-
-        Returns:
-            ``(nu,)`` controls: ``data.ctrl`` with the robot's actuators set.
-        """
+        """``(nu,)`` controls: ``data.ctrl`` (read, not written) with the robot's actuators
+        driving its DOFs toward the joint velocities ``target``, ``(len(dofs),)``."""
         m = self.model
         goal = np.asarray(target, dtype=np.float64)
         if goal.shape != self.dofs.shape:

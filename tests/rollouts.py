@@ -35,6 +35,32 @@ def predictor_rollout(
         yield k
 
 
+def periodic_rollout(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    p: Predictor,
+    ctrl: Callable[[mujoco.MjModel, mujoco.MjData], None],
+    physics_steps: int,
+) -> Iterator[int]:
+    """Step the physics ``physics_steps`` times under ``ctrl`` with ``p`` following as the
+    plugin does: ``p.reset`` after the first physics step, ``p.step`` after every
+    ``p.period``-th.
+
+    Yields:
+        The physics step's index ``k`` after each of ``p``'s calls.
+    """
+    for k in range(physics_steps):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        if k == 0:
+            p.reset(d)
+        elif k % p.period == 0:
+            p.step(d)
+        else:
+            continue
+        yield k
+
+
 def python_standing(p: Predictor) -> np.ndarray:
     """The Python predictor's geom pairs standing in alarm, as ``standing_pairs`` gives them."""
     assert p.scheduler is not None

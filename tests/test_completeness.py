@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ import pytest
 from dua_mujoco.core.schedules import (
     DeadlineScheduler,
     DUAScheduler,
+    Schedule,
     Scheduler,
     SelectAllScheduler,
 )
@@ -38,31 +40,24 @@ def run_world(
     steps: int,
     latency: int,
     substeps: int = 8,
-    slots_per_bucket: int = 1,
-    weaken=None,
-    select_all: bool = False,
     make: Callable[[np.ndarray], Scheduler] | None = None,
+    weaken=None,
     switch_every: int = 0,
 ) -> Outcome:
     """Drive a scheduler on ``world`` and check every onset against the theorem.
 
-    ``make(tau0)`` builds the scheduler (default DUA); with ``switch_every`` a random tenth of
-    the pairs is switched off and as many back on every that many steps, and onsets of pairs
-    switched off are not counted (contact is intended there).
+    ``make(tau0)`` builds the scheduler (default DUA at the world's step and ``latency``;
+    :func:`_scheduler` makes one), ``weaken(sched)`` replaces a DUA scheduler's horizons; with
+    ``switch_every`` a random tenth of the pairs is switched off and as many back on every that
+    many steps, and onsets of pairs switched off are not counted (contact is intended there).
     """
     pairs = world.pairs()
     ids = np.arange(len(pairs))
     tau0 = pairs.tau(ids, world.positions, world.velocities)
     rng = np.random.default_rng(12345)
-    sched: Scheduler
-    if make is not None:
-        sched = make(tau0)
-    elif select_all:
-        sched = SelectAllScheduler(tau0, dt=world.dt, latency=latency)
-    else:
-        sched = DUAScheduler(tau0, dt=world.dt, latency=latency, slots_per_bucket=slots_per_bucket)
-        if weaken is not None:
-            sched.horizon[:] = weaken(sched)
+    sched = DUAScheduler(tau0, dt=world.dt, latency=latency) if make is None else make(tau0)
+    if weaken is not None:
+        sched.horizon[:] = weaken(sched)
     # Latest evaluation of every pair: its time, whether it alarmed, and whether the one before did.
     eval_time = np.zeros(len(pairs))
     alarmed = np.zeros(len(pairs), dtype=bool)
@@ -121,6 +116,16 @@ def dense_world(seed: int, profile: AccelProfile = AccelProfile.UNIFORM) -> Sphe
     )
 
 
+def _scheduler(
+    schedule: Schedule, latency: int, **options: Any
+) -> Callable[[np.ndarray], Scheduler]:
+    """``run_world``'s ``make``: the library's scheduler of ``schedule`` at ``dense_world``'s
+    step (0.01 s), with its ``options``."""
+    kind = {Schedule.DUA: DUAScheduler, Schedule.DEADLINE: DeadlineScheduler}
+    make = kind.get(schedule, SelectAllScheduler)
+    return lambda tau0: make(tau0, dt=0.01, latency=latency, **options)
+
+
 @pytest.mark.parametrize("latency", [0, 1])
 @pytest.mark.parametrize("profile", list(AccelProfile))
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -133,13 +138,15 @@ def test_every_onset_is_flagged(latency: int, profile: AccelProfile, seed: int) 
 
 @pytest.mark.parametrize("q", [2, 4])
 def test_budget_knob_keeps_completeness(q: int) -> None:
-    out = run_world(dense_world(3), steps=200, latency=1, slots_per_bucket=q)
+    out = run_world(
+        dense_world(3), steps=200, latency=1, make=_scheduler(Schedule.DUA, 1, slots_per_bucket=q)
+    )
     assert out.onsets >= 5
     assert out.missed == []
 
 
 def test_select_all_is_complete() -> None:
-    out = run_world(dense_world(4), steps=200, latency=1, select_all=True)
+    out = run_world(dense_world(4), steps=200, latency=1, make=_scheduler(Schedule.SELECT_ALL, 1))
     assert out.onsets >= 5
     assert out.missed == []
 
@@ -166,13 +173,8 @@ def test_weakened_alarm_rule_misses_collisions() -> None:
     assert failures(no_latency) > 0
 
 
-def _deadline(latency: int, cap: int | None = None, *, world_dt: float = 0.01, backoff: int = 8):
-    def make(tau0: np.ndarray) -> Scheduler:
-        return DeadlineScheduler(
-            tau0, dt=world_dt, latency=latency, max_evals_per_step=cap, alarm_backoff=backoff
-        )
-
-    return make
+def _deadline(latency: int, cap: int | None = None, *, backoff: int = 8):
+    return _scheduler(Schedule.DEADLINE, latency, max_evals_per_step=cap, alarm_backoff=backoff)
 
 
 @pytest.mark.parametrize("backoff", [1, 8])

@@ -11,10 +11,12 @@ rotation term is what keeps it so.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
 import pytest
+from geom_types import BLOB_ASSET, GEOM_TYPES
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -34,33 +36,21 @@ from dua_mujoco.build.options import CoveringOptions
 from dua_mujoco.core.pairset import PAIR_ACCEL, PAIR_DELTA
 from dua_mujoco.runtime.predictor import Predictor
 
-TYPES = {
-    "sphere": 'type="sphere" size=".12"',
-    "capsule": 'type="capsule" size=".05 .2"',
-    "ellipsoid": 'type="ellipsoid" size=".2 .06 .1"',
-    "cylinder": 'type="cylinder" size=".1 .15"',
-    "box": 'type="box" size=".25 .1 .04"',
-    "mesh": 'type="mesh" mesh="blob"',
-}
-BLOB = " ".join(
-    f"{x:.4f}" for x in (np.random.default_rng(7).normal(size=(24, 3)) * [0.2, 0.1, 0.07]).ravel()
-)
-
 
 def _model(a: str, b: str) -> mujoco.MjModel:
     """Two free bodies with geoms of types ``a`` and ``b`` (``b == "plane"``: a plane, static)."""
     second = (
         '<geom name="B" type="plane" size="3 3 .1" euler="8 -5 0"/>'
         if b == "plane"
-        else f'<body name="b" pos=".8 0 1"><freejoint/><geom name="B" {TYPES[b]}/></body>'
+        else f'<body name="b" pos=".8 0 1"><freejoint/><geom name="B" {GEOM_TYPES[b]}/></body>'
     )
     return mujoco.MjModel.from_xml_string(
         f"""<mujoco>
           <option gravity="0 0 0"/>
-          <asset><mesh name="blob" vertex="{BLOB}"/></asset>
+          {BLOB_ASSET}
           <worldbody>
             {second}
-            <body name="a" pos="0 0 1"><freejoint/><geom name="A" {TYPES[a]}/></body>
+            <body name="a" pos="0 0 1"><freejoint/><geom name="A" {GEOM_TYPES[a]}/></body>
           </worldbody>
         </mujoco>"""
     )
@@ -226,7 +216,7 @@ def reference_exact_tau(p: Predictor, data: mujoco.MjData, pair: int) -> float:
 
 # --------------------------------------------------------------------------- strategies
 
-PAIRS = [(a, b) for a in TYPES for b in [*TYPES, "plane"]]
+PAIRS = [(a, b) for a in GEOM_TYPES for b in [*GEOM_TYPES, "plane"]]
 
 
 def _draws(rng: np.random.Generator, model: mujoco.MjModel, speed: float) -> dict:
@@ -244,6 +234,19 @@ def _draws(rng: np.random.Generator, model: mujoco.MjModel, speed: float) -> dic
         }
         out[b]["p"] = out[b]["p"] + rng.normal(size=3) * 0.15
     return out
+
+
+def _over_pairs(*, examples: int, top_speed: float) -> Callable[[Callable], Callable]:
+    """A test over every type pair ``(a, b)`` in ``PAIRS``, each with ``examples`` seeds and
+    speeds (m/s, up to ``top_speed``) drawn by hypothesis."""
+
+    def wrap(test: Callable) -> Callable:
+        test = given(seed=st.integers(0, 2**32 - 1), speed=st.floats(0.0, top_speed))(test)
+        slow = [HealthCheck.too_slow]
+        test = settings(max_examples=examples, deadline=None, suppress_health_check=slow)(test)
+        return pytest.mark.parametrize(("a", "b"), PAIRS)(test)
+
+    return wrap
 
 
 def _predictor(model: mujoco.MjModel, motion: Motion) -> Predictor:
@@ -267,9 +270,7 @@ def test_exact_tau_equals_the_reference(a: str, b: str) -> None:
         assert np.allclose(got, want, rtol=1e-9, atol=1e-12), (got, want)
 
 
-@pytest.mark.parametrize(("a", "b"), PAIRS)
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 2**32 - 1), speed=st.floats(0.0, 4.0))
+@_over_pairs(examples=25, top_speed=4.0)
 def test_no_trajectory_within_the_bounds_beats_the_exact_tau(
     a: str, b: str, seed: int, speed: float
 ) -> None:
@@ -429,9 +430,7 @@ def _near(rng: np.random.Generator, model: mujoco.MjModel, speed: float) -> dict
     return out
 
 
-@pytest.mark.parametrize(("a", "b"), PAIRS)
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 2**32 - 1), speed=st.floats(0.0, 3.0))
+@_over_pairs(examples=15, top_speed=3.0)
 def test_a_query_not_made_could_not_have_cleared_the_alarm(
     a: str, b: str, seed: int, speed: float
 ) -> None:

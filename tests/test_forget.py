@@ -11,7 +11,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from rollouts import predictor_rollout, python_standing
+from rollouts import periodic_rollout, predictor_rollout, python_standing
 
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.models.scenes import load_spec, make_controller
@@ -86,15 +86,7 @@ def test_forgetting_among_geoms_of_many_spheres_round_trips_what_python_holds() 
     ctrl = make_controller(m, "random", seed=0)
     busy = 0
     first: int | None = None
-    for k in range(600):
-        ctrl(m, d)
-        mujoco.mj_step(m, d)
-        if k == 0:
-            p.reset(d)
-        elif k % p.period == 0:
-            p.step(d)
-        else:
-            continue
+    for k in periodic_rollout(m, d, p, ctrl, 600):
         want = _rows(python_standing(p))
         assert _rows(standing_pairs(m, d)) == want, f"step {k}"
         assert plugin_outputs(m, d).evaluated == p.evaluations_per_step, f"step {k}"

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from reference_grid import brute_pairs, candidate_pairs, reach
 
 from dua_mujoco import _core
+from dua_mujoco.experiments.peers.memory import reset_peak, rss
 
 # ---------------------------------------------------------------------------------------------
 # References
@@ -349,32 +350,13 @@ def test_large_sparse_input_is_linear() -> None:
     c[n - 40 :] = c[hosts] + np.array([0.03, 0.0, 0.04])
     r = np.full(n, 0.03)
     candidate_pairs(c[:10], r[:10])  # loaded outside the measurement
-    got, peak = _peak_growth(lambda: candidate_pairs(c, r))
+    # The growth of the peak resident size over the call (above the earlier peak where Linux
+    # refuses the reset: weaker, but still far below an O(N^2) footprint).
+    before, _ = reset_peak()
+    got = candidate_pairs(c, r)
+    peak = max(0, rss("VmHWM") - before)
     want = np.stack([hosts, np.arange(n - 40, n)], axis=1)
     np.testing.assert_array_equal(got, want[np.argsort(want[:, 0])])
     # The work arrays are native allocations, seen in the resident size: ~70 bytes per sphere
     # today, the validation's temporaries ~30 more; O(N^2) anything would be ~1e11 bytes.
     assert peak < 150 * n, peak / n
-
-
-def _rss(field: str) -> int:
-    """``VmRSS`` or ``VmHWM`` (peak) of this process, bytes."""
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith(field + ":"):
-                return int(line.split()[1]) * 1024
-    raise AssertionError(f"no {field} in /proc/self/status")
-
-
-def _peak_growth(fn):  # type: ignore[no-untyped-def]
-    """``fn()`` and how far it raised the process's peak resident size above its size before
-    (the peak is reset first where Linux allows it; else above the earlier peak: weaker, but
-    still far below an O(N^2) footprint)."""
-    try:
-        with open("/proc/self/clear_refs", "w") as f:
-            f.write("5")
-        before = _rss("VmRSS")
-    except OSError:
-        before = _rss("VmHWM")
-    out = fn()
-    return out, max(0, _rss("VmHWM") - before)

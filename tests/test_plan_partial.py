@@ -198,15 +198,15 @@ def states(draw):
 
 
 @st.composite
-def programs(draw):
-    n = draw(st.integers(1, 3))
-    out = []
-    for _ in range(n):
-        d = np.array([draw(st.floats(-1, 1)) for _ in range(3)])
-        d = d / np.linalg.norm(d) if np.linalg.norm(d) > 1e-6 else np.array([-1.0, 0, 0])
-        aimed = draw(st.sampled_from([True, True, True, False]))
-        out.append((draw(st.floats(0.1, 1.0)), d * draw(st.floats(0, 1)), aimed))
-    return out
+def _piece(draw):
+    d = np.array([draw(st.floats(-1, 1)) for _ in range(3)])
+    d = d / np.linalg.norm(d) if np.linalg.norm(d) > 1e-6 else np.array([-1.0, 0, 0])
+    aimed = draw(st.sampled_from([True, True, True, False]))
+    return draw(st.floats(0.1, 1.0)), d * draw(st.floats(0, 1)), aimed
+
+
+def programs():
+    return st.lists(_piece(), min_size=1, max_size=3)
 
 
 @pytest.fixture(scope="module")

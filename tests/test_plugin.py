@@ -21,7 +21,7 @@ import mujoco
 import numpy as np
 import pytest
 from mujoco import rollout
-from rollouts import python_standing
+from rollouts import periodic_rollout, python_standing
 
 from dua_mujoco.build.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
@@ -64,15 +64,7 @@ def _run_side_by_side(
     d = mujoco.MjData(m)
     ctrl = make_controller(m, "random", seed=seed)
     busy = 0
-    for k in range(steps):
-        ctrl(m, d)
-        mujoco.mj_step(m, d)
-        if k == 0:
-            p.reset(d)
-        elif k % p.period == 0:
-            p.step(d)
-        else:
-            continue
+    for k in periodic_rollout(m, d, p, ctrl, steps):
         if switch and k in switch:
             a, b, on = switch[k]
             assert set_active_bodies(m, d, a, b, on=on) == p.set_active_bodies(a, b, on=on) > 0

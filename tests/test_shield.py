@@ -12,6 +12,8 @@ docs/shield.md. ``moving_free`` counts the others: the guarantee says there are 
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 import pytest
@@ -161,69 +163,55 @@ def test_bad_input_is_named_with_its_fix() -> None:
         shield(data, np.zeros(model.nu + 1))
 
 
+# A 1 kg box on one joint (a hinge about z with the box 0.3 m out, or a slide along x) and a
+# post on the x axis; a 1 N m / 1 N motor.
+_ONE_JOINT = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="robot">
+      <joint name="joint" type="{joint}" axis="{axis}"/>
+      <geom type="box" size="0.05 0.05 0.05" pos="{offset} 0 0" mass="1"/>
+    </body>
+    <body name="post" pos="{post} 0 0"><geom type="box" size="0.1 0.1 0.1"/></body>
+  </worldbody>
+  <actuator><motor joint="joint" ctrlrange="-1 1"/></actuator>
+</mujoco>
+"""
+
+
+def _first_period(
+    joint: str, offset: float, post: float, speed: float, **options: Any
+) -> dict[str, int]:
+    """The counts after the first period (one step) of the shield on ``_ONE_JOINT`` with the
+    joint at ``speed`` (the box ``offset`` m out along x, the post at x = ``post``)."""
+    axis = "0 0 1" if joint == "hinge" else "1 0 0"
+    xml = _ONE_JOINT.format(joint=joint, axis=axis, offset=offset, post=post)
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[0] = speed
+    mujoco.mj_forward(model, data)
+    shield = Shield(model, protect=["post"], robot=["robot"], period=1, accel=5.0, **options)
+    shield.reset(data)
+    shield(data, data.ctrl.copy())
+    return shield.counts
+
+
 def test_a_robot_spinning_in_place_is_not_at_rest() -> None:
     """A link turning about a hinge through its frame origin has that origin still, but its
     geom, 0.3 m out, moves at 0.6 m/s: the rest test counts every point (the turn times the
     body's reach), so the first period's rollout brakes it (1 N m: about 0.2 s) instead of
     finding it at rest one step in (as a test on the origin's speed alone would)."""
-    model = mujoco.MjModel.from_xml_string(
-        """
-        <mujoco>
-          <option timestep="0.002"/>
-          <worldbody>
-            <body name="link">
-              <joint name="hinge" type="hinge" axis="0 0 1"/>
-              <geom type="box" size="0.05 0.05 0.05" pos="0.3 0 0" mass="1"/>
-            </body>
-            <body name="post" pos="2 0 0"><geom type="box" size="0.1 0.1 0.1"/></body>
-          </worldbody>
-          <actuator><motor joint="hinge" ctrlrange="-1 1"/></actuator>
-        </mujoco>
-        """
-    )
-    data = mujoco.MjData(model)
-    data.qvel[0] = 2.0
-    mujoco.mj_forward(model, data)
-    shield = Shield(model, protect=["post"], robot=["link"], period=1, accel=5.0)
-    shield.reset(data)
-    shield(data, data.ctrl.copy())
-    assert shield.counts["rollout_steps"] > 50, shield.counts
+    counts = _first_period("hinge", 0.3, 2.0, 2.0)
+    assert counts["rollout_steps"] > 50, counts
 
 
 def _cart_period(deviation: float, stop_distance: float | None = None) -> dict[str, int]:
     """The counts after the first period of a 1 kg cart at 0.3 m/s toward a post 0.15 m away
     (its 1 N motor stops it in 4.5 cm), the screen off: that period's candidate rolled out."""
-    model = mujoco.MjModel.from_xml_string(
-        """
-        <mujoco>
-          <option timestep="0.002"/>
-          <worldbody>
-            <body name="cart">
-              <joint name="slide" type="slide" axis="1 0 0"/>
-              <geom type="box" size="0.05 0.05 0.05" mass="1"/>
-            </body>
-            <body name="post" pos="0.3 0 0"><geom type="box" size="0.1 0.1 0.1"/></body>
-          </worldbody>
-          <actuator><motor joint="slide" ctrlrange="-1 1"/></actuator>
-        </mujoco>
-        """
+    return _first_period(
+        "slide", 0.0, 0.3, 0.3, deviation=deviation, stop_distance=stop_distance, screen=False
     )
-    data = mujoco.MjData(model)
-    data.qvel[0] = 0.3
-    mujoco.mj_forward(model, data)
-    shield = Shield(
-        model,
-        protect=["post"],
-        robot=["cart"],
-        period=1,
-        accel=5.0,
-        deviation=deviation,
-        stop_distance=stop_distance,
-        screen=False,
-    )
-    shield.reset(data)
-    shield(data, data.ctrl.copy())
-    return shield.counts
 
 
 @pytest.mark.parametrize(("deviation", "accepted"), [(0.0, True), (0.16, False)])

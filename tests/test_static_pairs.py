@@ -10,6 +10,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from geom_types import BLOB_ASSET, GEOM_TYPES
 from rollouts import predictor_rollout
 
 from dua_mujoco.build.covering import cover_model, static_shape_geoms
@@ -23,24 +24,15 @@ from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 
-SHAPE_TYPES = {
-    "sphere": 'type="sphere" size=".2"',
-    "capsule": 'type="capsule" size=".1 .4"',
-    "ellipsoid": 'type="ellipsoid" size=".3 .1 .2"',
-    "cylinder": 'type="cylinder" size=".2 .3"',
-    "box": 'type="box" size=".9 .45 .02"',
-    "mesh": 'type="mesh" mesh="blob"',
-}
-BLOB = " ".join(
-    f"{x:.4f}" for x in (np.random.default_rng(3).normal(size=(20, 3)) * [0.4, 0.2, 0.1]).ravel()
-)
+# A table top: the capsule's covering sphere reaches into it from 0.6 m up.
+TABLE_TOP = 'type="box" size=".9 .45 .02"'
 
 
 def _scene(static_geom: str, margin: float = 0.0, gap: float = 0.0) -> mujoco.MjModel:
     """A static geom (world child body, rotated) and a moving capsule with a 3-sphere covering."""
     return mujoco.MjModel.from_xml_string(
         f"""<mujoco>
-          <asset><mesh name="blob" vertex="{BLOB}"/></asset>
+          {BLOB_ASSET}
           <worldbody>
             <body name="stand" pos=".1 -.2 .5" euler="10 20 30">
               <geom name="static" {static_geom} pos=".05 0 .02" euler="0 15 0"
@@ -55,9 +47,9 @@ def _scene(static_geom: str, margin: float = 0.0, gap: float = 0.0) -> mujoco.Mj
     )
 
 
-@pytest.mark.parametrize("gtype", list(SHAPE_TYPES))
+@pytest.mark.parametrize("gtype", list(GEOM_TYPES))
 def test_static_geoms_become_shapes(gtype: str) -> None:
-    m = _scene(SHAPE_TYPES[gtype])
+    m = _scene(GEOM_TYPES[gtype])
     cov = cover_model(m)  # static="shape" is the default
     static = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "static")
     link = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "link")
@@ -133,7 +125,7 @@ def test_which_geoms_are_static() -> None:
 
 @pytest.mark.parametrize("mode", ["bounding", "multi"])
 def test_shape_pairs_expand_and_name_the_static_geom(mode: str) -> None:
-    m = _scene(SHAPE_TYPES["box"], margin=0.01, gap=0.02)
+    m = _scene(TABLE_TOP, margin=0.01, gap=0.02)
     cov = cover_model(m, mode=mode, max_spheres_per_geom=3)
     gp = active_geom_pairs(m)
     sp = sphere_pairs(cov, gp)
@@ -227,13 +219,13 @@ def test_pairset_kinds_and_geometry() -> None:
 
 
 def test_reset_refuses_a_moved_static_geom() -> None:
-    m = _scene(SHAPE_TYPES["box"])
+    m = _scene(TABLE_TOP)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     p = Predictor(m, accel=5.0)
     p.reset(d)
     # Another model with the same geoms but the stand moved: same_geometry cannot tell.
-    m2 = _scene(SHAPE_TYPES["box"])
+    m2 = _scene(TABLE_TOP)
     m2.body_pos[1] += [0.0, 0.0, 0.3]
     d2 = mujoco.MjData(m2)
     mujoco.mj_forward(m2, d2)
@@ -248,7 +240,7 @@ def test_reset_refuses_a_moved_static_geom() -> None:
 
 
 def test_alarms_name_static_geom() -> None:
-    m = _scene(SHAPE_TYPES["box"])
+    m = _scene(TABLE_TOP)
     d = mujoco.MjData(m)
     d.qpos[2] = 0.6  # the capsule inside the table top
     mujoco.mj_forward(m, d)

@@ -576,16 +576,20 @@ def pair_state(draw, *, with_delta=False):
 
 
 @st.composite
+def _accel_piece(draw):
+    """(fraction of horizon, direction, fraction of A, mode)."""
+    frac = draw(st.floats(0.01, 1.0))
+    d = [draw(st.floats(-1, 1)) for _ in range(3)]
+    mag = draw(st.sampled_from([1.0, 1.0, 0.0])) or draw(st.floats(0, 1))
+    mode = draw(st.sampled_from(["free", "toward", "toward", "bang"]))
+    return frac, d, mag, mode
+
+
+@st.composite
 def accel_program(draw):
-    """Up to 4 pieces: (fraction of horizon, direction, fraction of A, mode)."""
-    n = draw(st.integers(1, 4))
-    out = []
-    for _ in range(n):
-        frac = draw(st.floats(0.01, 1.0))
-        d = [draw(st.floats(-1, 1)) for _ in range(3)]
-        mag = draw(st.sampled_from([1.0, 1.0, 0.0])) or draw(st.floats(0, 1))
-        mode = draw(st.sampled_from(["free", "toward", "toward", "bang"]))
-        out.append((frac, d, mag, mode))
+    """Up to 4 pieces (``_accel_piece``) and the initial velocity error's direction, size and
+    mode."""
+    out = draw(st.lists(_accel_piece(), min_size=1, max_size=4))
     w = [draw(st.floats(-1, 1)) for _ in range(3)]
     wmag = draw(st.sampled_from([1.0, 0.0])) or draw(st.floats(0, 1))
     wmode = draw(st.sampled_from(["free", "toward"]))

@@ -21,14 +21,13 @@ for the first arm-person contact, how long its pair had stood in alarm before it
 
 from __future__ import annotations
 
-import argparse
 import os
-from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco
 import numpy as np
+from video_args import video_parser
 
 from dua_mujoco import Predictor, load_scene
 from dua_mujoco.models.person_cell import ARM, CellDriver, declared_bounds
@@ -54,11 +53,7 @@ def camera() -> mujoco.MjvCamera:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    root = Path(__file__).resolve().parents[1]
-    ap.add_argument("--out", type=Path, default=root / "img" / "person-cell.gif")
-    ap.add_argument("--frames", type=Path, default=None, help="also save every 10th frame here")
-    ap.add_argument("--fps", type=float, default=20.0)
+    ap = video_parser(__doc__, "person-cell.gif", fps=20.0, frames=10)
     ap.add_argument("--size", type=int, nargs=2, default=(320, 240), metavar=("W", "H"))
     args = ap.parse_args(argv)
 

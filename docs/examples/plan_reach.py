@@ -1,7 +1,7 @@
 """An arm reaching past an obstacle, alarms at a 200 ms horizon with a flight plan and without.
 
     python docs/examples/plan_reach.py                     # docs/img/plan-reach.gif
-    python docs/examples/plan_reach.py --frames /tmp/f     # and a PNG of every 10th frame
+    python docs/examples/plan_reach.py --frames /tmp/f     # and a PNG of every 2nd frame
 
 Arm A of the bundled ``two_arms`` scene follows a scripted reach: its servos' targets move by
 minimum-jerk segments from the side, past the green post (its fingers brush it), to the other
@@ -18,14 +18,13 @@ The script prints, for the pair that touches, when it first stood in alarm and w
 
 from __future__ import annotations
 
-import argparse
 import os
-from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco
 import numpy as np
+from video_args import video_parser
 
 from dua_mujoco import Predictor, load_scene, plan_from_controls
 from dua_mujoco.render import OverlayRenderer, VideoWriter
@@ -83,11 +82,7 @@ def camera() -> mujoco.MjvCamera:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    root = Path(__file__).resolve().parents[1]
-    ap.add_argument("--out", type=Path, default=root / "img" / "plan-reach.gif")
-    ap.add_argument("--frames", type=Path, default=None, help="also save every 10th frame here")
-    ap.add_argument("--fps", type=float, default=25.0)
+    ap = video_parser(__doc__, "plan-reach.gif", fps=25.0, frames=2)
     args = ap.parse_args(argv)
 
     m, d = load_scene("two_arms")

@@ -12,14 +12,13 @@ stopped arm, is not marked). The script prints what each side counted.
 
 from __future__ import annotations
 
-import argparse
 import os
-from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco
 import numpy as np
+from video_args import video_parser
 
 from dua_mujoco.experiments.shield.bench import shield_layer
 from dua_mujoco.experiments.shield.episodes import (
@@ -85,12 +84,9 @@ def frames(setup: SceneSetup, shielded: bool, seed: int, every: int, size: tuple
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    root = Path(__file__).resolve().parents[1]
+    ap = video_parser(__doc__, "shield-person.gif", fps=20.0)
     ap.add_argument("--scene", default="person_cell")
     ap.add_argument("--seed", type=int, default=12)
-    ap.add_argument("--out", type=Path, default=root / "img" / "shield-person.gif")
-    ap.add_argument("--fps", type=float, default=20.0)
     args = ap.parse_args(argv)
     setup = SceneSetup.of(args.scene)
     every = round(1.0 / (args.fps * setup.model.opt.timestep))

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -144,10 +145,6 @@ def paper_row(
         kernel: ``kernel_costs``'s ``(dua_ns, sa_ns)``, or None.
     """
     m = n * (n - 1) // 2
-    dua_false = _mean_at(dua, "false_at")
-    sa_false = _mean_at(sa, "false_at")
-    dua_all = _mean_at(dua, "all_at")
-    sa_all = _mean_at(sa, "all_at")
     d_it, s_it = plan.iterations[n], plan.sa_iterations[n]
     agree = [r.agree_dua_sat for r in dua if r.agree_dua_sat is not None]
     agree_d = [r.agree_sad_sat for r in dua if r.agree_sad_sat is not None]
@@ -157,35 +154,36 @@ def paper_row(
         pairs=m,
         buckets=dua_buckets(m),
         seeds=len(dua),
-        dua_iterations=d_it,
-        sa_iterations=s_it,
-        dt_dua=dt_dua,
-        dt_sa=dt_sa,
-        dua_evals_per_iter=float(np.mean([r.evals for r in dua])),
-        sa_evals_per_iter=float(np.mean([r.evals for r in sa])),
-        dua_us_per_iter=float(np.median(np.concatenate([r.us for r in dua]))),
+        **_algorithm_fields("dua", dua, d_it, dt_dua),
+        **_algorithm_fields("sa", sa, s_it, dt_sa),
         dua_select_update_us_per_iter=float(
             np.median(np.concatenate([r.us_select_update for r in dua]))
         ),
-        sa_us_per_iter=float(np.median(np.concatenate([r.us for r in sa]))),
         dua_kernel_ns_per_iter=None if kernel is None else kernel[0],
         sa_kernel_ns_per_iter=None if kernel is None else kernel[1],
-        dua_false_alarms=dua_false[d_it],
-        sa_false_alarms=sa_false[s_it],
-        dua_alarms_all=dua_all[d_it],
-        sa_alarms_all=sa_all[s_it],
-        dua_false_alarms_per_iter=dua_false[d_it] / d_it,
-        sa_false_alarms_per_iter=sa_false[s_it] / s_it,
-        dua_false_alarms_at=dua_false,
-        sa_false_alarms_at=sa_false,
-        dua_alarms_all_at=dua_all,
-        sa_alarms_all_at=sa_all,
-        dua_collisions=float(np.mean([r.collisions for r in dua])),
-        sa_collisions=float(np.mean([r.collisions for r in sa])),
         missed_collisions=int(sum(r.missed for r in dua) + sum(r.missed for r in sa)),
         agree_dua_sat=float(np.mean(agree)) if agree else None,
         agree_sad_sat=float(np.mean(agree_d)) if agree_d else None,
     )
+
+
+def _algorithm_fields(name: str, runs: Sequence[Run], iterations: int, dt: float) -> dict[str, Any]:
+    """The ``PaperRow`` fields of one algorithm (``name``: ``"dua"`` or ``"sa"``) from its runs
+    of ``iterations`` iterations each at period ``dt``."""
+    false = _mean_at(runs, "false_at")
+    alarms = _mean_at(runs, "all_at")
+    fields = {
+        "iterations": iterations,
+        "evals_per_iter": float(np.mean([r.evals for r in runs])),
+        "us_per_iter": float(np.median(np.concatenate([r.us for r in runs]))),
+        "false_alarms": false[iterations],
+        "alarms_all": alarms[iterations],
+        "false_alarms_per_iter": false[iterations] / iterations,
+        "false_alarms_at": false,
+        "alarms_all_at": alarms,
+        "collisions": float(np.mean([r.collisions for r in runs])),
+    }
+    return {f"dt_{name}": dt} | {f"{name}_{key}": value for key, value in fields.items()}
 
 
 def agreement_rows(

@@ -14,7 +14,7 @@ the completeness theorem (the tests' ghost worlds).
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -170,16 +170,8 @@ class WorldParams:
 
     def world(self, n: int, seed: int) -> SphereWorld:
         """A fresh world of ``n`` spheres."""
-        return SphereWorld(
-            n,
-            seed=seed,
-            box=self.box,
-            radius=self.radius,
-            accel=self.accel,
-            speed=self.speed,
-            dt=self.physics_dt,
-            switch_steps=self.switch_steps,
-        )
+        kw = asdict(self)  # SphereWorld's keywords, its dt called physics_dt here
+        return SphereWorld(n, seed=seed, dt=kw.pop("physics_dt"), **kw)
 
 
 class Sampler:

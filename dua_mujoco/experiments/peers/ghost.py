@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from functools import partial
 from typing import Protocol
 
 import numpy as np
@@ -25,16 +27,15 @@ __all__ = [
 ]
 
 
-GHOST_PEERS: tuple[str, ...] = (
-    "DUA",
-    "SA(tau)",
-    "sweep",
-    "grid",
-    "MuJoCo gap",
-    "MuJoCo speculative",
-    "MuJoCo plain",
-    "FCL",
-)
+_MAKERS: dict[str, Callable[[GhostTrajectory], GhostPeer]] = {
+    "DUA": DuaGhost,
+    "SA(tau)": SaGhost,
+    **{kind: partial(BroadphaseGhost, kind=kind) for kind in BROADPHASES},
+    **{f"MuJoCo {m}": partial(MujocoGhost, mode=m) for m in ("gap", "speculative", "plain")},
+    "FCL": FclGhost,
+}
+
+GHOST_PEERS: tuple[str, ...] = tuple(_MAKERS)
 """Peers of the ghost-world benchmark (FCL only when python-fcl is installed)."""
 
 COMPLETE_PEERS: tuple[str, ...] = ("DUA", "SA(tau)", "sweep", "grid", "MuJoCo gap", "FCL")
@@ -76,17 +77,9 @@ class GhostPeer(Protocol):
 
 def make_ghost_peer(name: str, world: GhostTrajectory) -> GhostPeer:
     """The ghost-world peer called ``name`` (one of ``GHOST_PEERS``), built for ``world``."""
-    if name == "DUA":
-        return DuaGhost(world)
-    if name == "SA(tau)":
-        return SaGhost(world)
-    if name in BROADPHASES:
-        return BroadphaseGhost(world, name)
-    if name.startswith("MuJoCo "):
-        return MujocoGhost(world, name.split(" ", 1)[1])
-    if name == "FCL":
-        return FclGhost(world)
-    raise ValueError(f"unknown peer {name!r}; choose from {GHOST_PEERS}")
+    if name not in _MAKERS:
+        raise ValueError(f"unknown peer {name!r}; choose from {GHOST_PEERS}")
+    return _MAKERS[name](world)
 
 
 def run_ghost_peer(

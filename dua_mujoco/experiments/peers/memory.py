@@ -17,26 +17,32 @@ from dua_mujoco.experiments.peers.ghost import make_ghost_peer
 from dua_mujoco.experiments.peers.ghost_world import record_ghost
 from dua_mujoco.experiments.peers.rows import MemoryRow
 
-__all__ = ["memory_probe", "memory_row"]
+__all__ = ["memory_probe", "memory_row", "reset_peak", "rss"]
 
 
-def _rss_mb(field: str = "VmRSS") -> float:
-    """``VmRSS`` (current) or ``VmHWM`` (peak) of this process in MB, from /proc."""
+def rss(field: str = "VmRSS") -> int:
+    """This process's ``VmRSS`` (current) or ``VmHWM`` (peak) resident size from /proc, bytes."""
     with open("/proc/self/status") as f:
         for line in f:
             if line.startswith(field + ":"):
-                return int(line.split()[1]) / 1024.0
-    return float("nan")
+                return int(line.split()[1]) * 1024
+    raise RuntimeError(f"no {field} in /proc/self/status")
 
 
-def _reset_peak_rss() -> bool:
-    """Reset the kernel's peak-RSS counter (Linux ``clear_refs`` 5); False if not allowed."""
+def reset_peak() -> tuple[int, bool]:
+    """Reset the kernel's peak resident size (Linux ``clear_refs`` 5) where allowed.
+
+    Returns:
+        The size to measure the peak's growth from (the current size, or the earlier peak if
+        the reset is refused: weaker, but still far below an O(N^2) footprint), and whether the
+        reset was made.
+    """
     try:
         with open("/proc/self/clear_refs", "w") as f:
             f.write("5")
     except OSError:
-        return False
-    return True
+        return rss("VmHWM"), False
+    return rss("VmRSS"), True
 
 
 def memory_probe(peer: str, n: int) -> dict[str, Any]:
@@ -56,8 +62,7 @@ def memory_probe(peer: str, n: int) -> dict[str, Any]:
     warm.start(tiny.positions[0], tiny.velocities[0])
     warm.step(tiny.positions[1], tiny.velocities[1])
     del warm
-    reset = _reset_peak_rss()
-    base_rss = _rss_mb()
+    base_rss, reset = reset_peak()
     tracemalloc.start()
     t0 = time.perf_counter()
     p = make_ghost_peer(peer, world)
@@ -71,13 +76,12 @@ def memory_probe(peer: str, n: int) -> dict[str, Any]:
         t1 = time.perf_counter()
         p.step(c[k], v[k])
         times.append(time.perf_counter() - t1)
-    peak_rss = _rss_mb("VmHWM") if reset else _rss_mb()
     return {
         "peer": peer,
         "n": n,
         "pairs": n * (n - 1) // 2,
         "traced_mb": peak / 2**20,
-        "rss_mb": peak_rss - base_rss,
+        "rss_mb": (rss("VmHWM") - base_rss) / 2**20,
         "build_s": build,
         "step_us": float(np.median(times) * 1e6),
         "peak_reset": reset,
@@ -120,7 +124,7 @@ def memory_row(peer: str, n: int) -> MemoryRow:
     }.get(peer, "")
     traced = None if peer in ("MuJoCo gap", "FCL") else float(out["traced_mb"])
     if not out.get("peak_reset", False):
-        note += " (peak RSS could not be reset: RSS growth is the current RSS)"
+        note += " (peak RSS could not be reset: growth above the earlier peak)"
     return MemoryRow(
         peer,
         n,

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from functools import partial
 from typing import Protocol
 
 import mujoco
@@ -19,14 +21,14 @@ from dua_mujoco.experiments.peers.tracker import Tracker, truth_keys
 __all__ = ["SCENE_PEERS", "ScenePeer", "make_scene_peer", "run_scene"]
 
 
-SCENE_PEERS: tuple[str, ...] = (
-    "DUA",
-    "SA(tau)",
-    "sweep",
-    "grid",
-    "MuJoCo gap",
-    "MuJoCo speculative",
-)
+_MAKERS: dict[str, Callable[[SceneContext], ScenePeer]] = {
+    "DUA": DuaScene,
+    "SA(tau)": SaScene,
+    **{kind: partial(BroadphaseScene, kind=kind) for kind in BROADPHASES},
+    **{f"MuJoCo {m}": partial(MujocoScene, mode=m) for m in ("gap", "speculative")},
+}
+
+SCENE_PEERS: tuple[str, ...] = tuple(_MAKERS)
 """Peers of the bundled-scene benchmark."""
 
 
@@ -57,17 +59,9 @@ class ScenePeer(Protocol):
 
 def make_scene_peer(name: str, ctx: SceneContext) -> ScenePeer:
     """The scene peer called ``name`` (one of ``SCENE_PEERS``), sharing ``ctx``."""
-    if name == "DUA":
-        return DuaScene(ctx)
-    if name == "SA(tau)":
-        return SaScene(ctx)
-    if name in BROADPHASES:
-        return BroadphaseScene(ctx, name)
-    if name == "MuJoCo gap":
-        return MujocoScene(ctx, "gap")
-    if name == "MuJoCo speculative":
-        return MujocoScene(ctx, "speculative")
-    raise ValueError(f"unknown scene peer {name!r}; choose from {SCENE_PEERS}")
+    if name not in _MAKERS:
+        raise ValueError(f"unknown scene peer {name!r}; choose from {SCENE_PEERS}")
+    return _MAKERS[name](ctx)
 
 
 def run_scene(scene: str, steps: int, seed: int) -> list[SceneRow]:

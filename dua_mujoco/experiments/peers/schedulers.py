@@ -29,12 +29,22 @@ def serial_tau(pairs: PairSet, ids: np.ndarray, *state: Any) -> np.ndarray:
 class _ScheduledGhost:
     """A scheduler over all sphere pairs of the ghost world, made at the first state."""
 
+    scheduler: type[DUAScheduler] | type[SelectAllScheduler]
+    sched: DUAScheduler | SelectAllScheduler | None = None
+
     def __init__(self, world: GhostTrajectory) -> None:
         self.pairs = PairSet.all_pairs(world.radius, world.accel)
         self.dt = world.dt
 
-    def _all_tau(self, c: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return serial_tau(self.pairs, np.arange(len(self.pairs)), c, v)
+    def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
+        tau = serial_tau(self.pairs, np.arange(len(self.pairs)), c, v)
+        self.sched = self.scheduler(tau, dt=self.dt, latency=LATENCY)
+        ids = self.sched.initial_alarms
+        return ids, self._horizon(ids)
+
+    def _horizon(self, ids: np.ndarray) -> np.ndarray | int:
+        """The alarms' horizons in steps (the revisit interval plus the latency)."""
+        return 1 + LATENCY
 
 
 class DuaGhost(_ScheduledGhost):
@@ -42,16 +52,12 @@ class DuaGhost(_ScheduledGhost):
 
     name = "DUA"
     note = "fused step_points (select, tau, sort, reinsert in one native call)"
+    scheduler = DUAScheduler
     sched: DUAScheduler | None = None
-
-    def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
-        self.sched = DUAScheduler(self._all_tau(c, v), dt=self.dt, latency=LATENCY)
-        ids = self.sched.initial_alarms
-        return ids, self._horizon(ids)
 
     def _horizon(self, ids: np.ndarray) -> np.ndarray:
         assert self.sched is not None
-        return np.rint(self.sched.horizon_of(ids) / self.dt).astype(np.int64)  # I_k + latency
+        return np.rint(self.sched.horizon_of(ids) / self.dt).astype(np.int64)
 
     def step(
         self, c: np.ndarray, v: np.ndarray
@@ -62,15 +68,13 @@ class DuaGhost(_ScheduledGhost):
 
 
 class SaGhost(_ScheduledGhost):
-    """SA(tau) on the ghost world (``GhostPeer``): tau of every pair every step."""
+    """SA(tau) on the ghost world (``GhostPeer``): tau of every pair every step (the revisit
+    interval one step)."""
 
     name = "SA(tau)"
     note = "tau of every pair every step (native batches)"
+    scheduler = SelectAllScheduler
     sched: SelectAllScheduler | None = None
-
-    def start(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray | int]:
-        self.sched = SelectAllScheduler(self._all_tau(c, v), dt=self.dt, latency=LATENCY)
-        return self.sched.initial_alarms, 1 + LATENCY
 
     def step(
         self, c: np.ndarray, v: np.ndarray

@@ -30,6 +30,8 @@ the user's holds the poses the step started from).
 from __future__ import annotations
 
 import math
+from dataclasses import KW_ONLY, dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -86,21 +88,20 @@ class Hildreth:
         return x
 
 
+@dataclass(eq=False)
 class _Peer:
-    """What both peers share: the protected pairs, the brake, a private state, counts."""
+    """What both peers share: the protected pairs, the brake, a private state, counts. Made as
+    ``Peer(model, brake=..., pairs=..., period=..., <its own options>)``."""
 
-    def __init__(
-        self,
-        model: mujoco.MjModel,
-        *,
-        brake: Brake,
-        pairs: npt.ArrayLike,
-        period: int,
-    ) -> None:
-        self.model = model
-        self.brake = brake
-        self.pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-        self.period = period
+    model: mujoco.MjModel
+    _: KW_ONLY
+    brake: Brake
+    pairs: Any
+    period: int
+
+    def __post_init__(self) -> None:
+        model = self.model
+        self.pairs = np.asarray(self.pairs, dtype=np.int64).reshape(-1, 2)
         self._scratch = mujoco.MjData(model)
         self._roll = mujoco.MjData(model)
         self.interventions = 0
@@ -144,6 +145,7 @@ class _Peer:
         return dist, fromto
 
 
+@dataclass(eq=False)
 class TtcHalt(_Peer):
     """MoveIt Servo's collision check (module docstring).
 
@@ -160,31 +162,22 @@ class TtcHalt(_Peer):
         threshold: ``scene_collision_proximity_threshold`` (m).
     """
 
-    def __init__(
-        self,
-        model: mujoco.MjModel,
-        *,
-        brake: Brake,
-        pairs: npt.ArrayLike,
-        period: int,
-        accel_limits: npt.ArrayLike,
-        mode: str = "stop_distance",
-        rate: float = 10.0,
-        safety_factor: float = 1000.0,
-        min_distance: float = 0.01,
-        threshold: float = 0.02,
-    ) -> None:
-        super().__init__(model, brake=brake, pairs=pairs, period=period)
-        if mode not in ("stop_distance", "threshold_distance"):
-            raise ValueError(f"mode must be stop_distance or threshold_distance: {mode!r}")
-        self.mode = mode
-        self.every = max(1, round(1.0 / (rate * float(model.opt.timestep))))
-        self.check_period = self.every * float(model.opt.timestep)
-        self.accel_limits = np.asarray(accel_limits, dtype=np.float64)
-        self.safety_factor = safety_factor
-        self.min_distance = min_distance
-        self.threshold = threshold
-        self.reset(mujoco.MjData(model))
+    accel_limits: Any
+    mode: str = "stop_distance"
+    rate: float = 10.0
+    safety_factor: float = 1000.0
+    min_distance: float = 0.01
+    threshold: float = 0.02
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.mode not in ("stop_distance", "threshold_distance"):
+            raise ValueError(f"mode must be stop_distance or threshold_distance: {self.mode!r}")
+        h = float(self.model.opt.timestep)
+        self.every = max(1, round(1.0 / (self.rate * h)))
+        self.check_period = self.every * h
+        self.accel_limits = np.asarray(self.accel_limits, dtype=np.float64)
+        self.reset(mujoco.MjData(self.model))
 
     def reset(self, data: mujoco.MjData) -> None:
         """Start an episode."""
@@ -222,6 +215,7 @@ class TtcHalt(_Peer):
         return self._override(data, want, None if self.scale == 0.0 else self.target)
 
 
+@dataclass(eq=False)
 class VelocityDamper(_Peer):
     """mink's collision-avoidance limit on the intended motion (module docstring).
 
@@ -235,26 +229,18 @@ class VelocityDamper(_Peer):
         detection_distance: ``collision_detection_distance`` (m).
     """
 
-    def __init__(
-        self,
-        model: mujoco.MjModel,
-        *,
-        brake: Brake,
-        pairs: npt.ArrayLike,
-        period: int,
-        gain: float = 0.85,
-        min_distance: float = 0.005,
-        detection_distance: float = 0.01,
-    ) -> None:
-        super().__init__(model, brake=brake, pairs=pairs, period=period)
-        self.gain = gain
-        self.min_distance = min_distance
-        self.detection_distance = detection_distance
-        self.dt = period * float(model.opt.timestep)
+    gain: float = 0.85
+    min_distance: float = 0.005
+    detection_distance: float = 0.01
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        nv = self.model.nv
+        self.dt = self.period * float(self.model.opt.timestep)
         self.project = Hildreth()
         self.target: np.ndarray | None = None
-        self._jac1 = np.zeros((3, model.nv))
-        self._jac2 = np.zeros((3, model.nv))
+        self._jac1 = np.zeros((3, nv))
+        self._jac2 = np.zeros((3, nv))
 
     def reset(self, data: mujoco.MjData) -> None:
         """Start an episode."""
