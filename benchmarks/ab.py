@@ -35,7 +35,7 @@ if hasattr(dua_mujoco, "SphereWorld"):
     from dua_mujoco.predictor import Predictor
     from dua_mujoco.scenes import load_scene, make_controller
 else:
-    from dua_mujoco.core.worlds import SphereWorld
+    from dua_mujoco.experiments.paper.world import SphereWorld
     from dua_mujoco import Predictor, load_scene
     try:  # the scenes' module: dua_mujoco.models since issue 41, dua_mujoco.mj before
         from dua_mujoco.models.scenes import make_controller

@@ -29,7 +29,7 @@ def bench_compile() -> str:
     code = (
         "import time; t0 = time.perf_counter(); import numpy as np; "
         "from dua_mujoco import time_to_collision, DUAScheduler; "
-        "from dua_mujoco.core.worlds import SphereWorld; "
+        "from dua_mujoco.experiments.paper.world import SphereWorld; "
         "time_to_collision(np.ones((4, 3)), np.zeros((4, 3)), 0.1, 1.0); "
         "w = SphereWorld(10); p = w.pairs(); import numpy as np; "
         "s = DUAScheduler(p.tau(np.arange(len(p)), w.positions, w.velocities), dt=0.01); "
@@ -48,7 +48,7 @@ def bench_compile() -> str:
 def bench_core() -> str:
     from dua_mujoco import DUAScheduler, time_to_collision
     from dua_mujoco.core.schedules import DeadlineScheduler, SelectAllScheduler
-    from dua_mujoco.core.worlds import SphereWorld
+    from dua_mujoco.experiments.paper.world import SphereWorld
 
     rng = np.random.default_rng(0)
     out = []

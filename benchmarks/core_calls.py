@@ -49,8 +49,7 @@ def measure() -> dict[str, float]:
     from dua_mujoco.core.schedules import DeadlineScheduler, DUAScheduler
     from dua_mujoco.core.spheres import SpherePredictor
     from dua_mujoco.core.urgency import time_to_collision
-    from dua_mujoco.core.worlds import SphereWorld
-    from dua_mujoco.experiments.paper.world import WorldParams
+    from dua_mujoco.experiments.paper.world import SphereWorld, WorldParams
 
     out: dict[str, float] = {}
     wp = WorldParams()
@@ -106,7 +105,7 @@ FIRST = (
     "import time; t0 = time.perf_counter(); import numpy as np; "
     "from dua_mujoco.core.urgency import time_to_collision; "
     "from dua_mujoco.core.schedules import DUAScheduler; "
-    "from dua_mujoco.core.worlds import SphereWorld; "
+    "from dua_mujoco.experiments.paper.world import SphereWorld; "
     "time_to_collision(np.ones((4, 3)), np.zeros((4, 3)), 0.1, 1.0); "
     "w = SphereWorld(10); p = w.pairs(); "
     "s = DUAScheduler(p.tau(np.arange(len(p)), w.positions, w.velocities), dt=0.01); "

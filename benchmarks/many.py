@@ -47,8 +47,7 @@ from timing import table  # benchmarks/timing.py: the script folder is on sys.pa
 
 from dua_mujoco import _core
 from dua_mujoco.core.spheres import SpherePredictor
-from dua_mujoco.core.worlds import SphereWorld
-from dua_mujoco.experiments.paper.world import WorldParams
+from dua_mujoco.experiments.paper.world import SphereWorld, WorldParams
 from dua_mujoco.experiments.peers.memory import reset_peak, rss
 
 DT, LATENCY, SUB = 0.01, 1, 4

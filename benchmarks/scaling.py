@@ -31,9 +31,8 @@ import numpy as np
 from many import ROUNDING_SLACK, grid_pairs, grid_reach
 from timing import median_time, table  # benchmarks/timing.py: the script folder is on sys.path
 
-from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.experiments.paper.reference import PAPER_N
-from dua_mujoco.experiments.paper.world import WorldParams
+from dua_mujoco.experiments.paper.world import SphereWorld, WorldParams
 
 
 def kdtree_pairs(centers: np.ndarray, r: np.ndarray, margin: float) -> np.ndarray:

@@ -128,7 +128,7 @@ def _add_run_outputs(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
-def _check_output(path: Path, what: str) -> None:
+def check_output(path: Path, what: str) -> None:
     """Open an output before the run, so that a path that cannot be written fails in a second.
 
     ``os.access`` says yes to root for anything, so this tries: a temporary file beside a
@@ -168,7 +168,7 @@ def _check_output(path: Path, what: str) -> None:
     os.unlink(probe)
 
 
-def _write_output(path: Path, text: str, what: str) -> None:
+def write_output(path: Path, text: str, what: str) -> None:
     """Write ``text`` to ``path`` atomically (a temporary file beside it, then ``os.replace``).
 
     A device, FIFO or symlink is written in place instead (``--json /dev/stdout``). A failed
@@ -227,7 +227,7 @@ def _camera_arg(model: mujoco.MjModel, camera: str | None) -> int | None:
 
 def _check_outputs(args: argparse.Namespace, model: mujoco.MjModel, steps: int) -> None:
     if args.json is not None:
-        _check_output(args.json, "--json")
+        check_output(args.json, "--json")
     if args.video is not None:
         from dua_mujoco.render import check_frame_size, check_mp4_size, video_path
 
@@ -236,7 +236,7 @@ def _check_outputs(args: argparse.Namespace, model: mujoco.MjModel, steps: int) 
         if args.video.suffix.lower() == ".mp4":
             check_mp4_size(args.width, args.height)
         check_frame_size(model, args.width, args.height, grow_buffer=True)
-        _check_output(args.video, "--video")
+        check_output(args.video, "--video")
         every = math.lcm(args.every, args.period)  # frames need a predictor step (its alarms)
         if steps < every:
             raise InvalidInputError(
@@ -254,7 +254,7 @@ def _check_outputs(args: argparse.Namespace, model: mujoco.MjModel, steps: int) 
         args.every = every
 
 
-def _load(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoco.MjData]:
+def load_scene_arg(scene: str, keyframe: int | str | None) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """``load_scene``, with the file named in the error when MuJoCo cannot load it, and an
     unknown ``--keyframe`` told apart from a broken file."""
     from dua_mujoco.models.scenes import SCENES, load_scene, reset_to_keyframe
@@ -354,7 +354,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from dua_mujoco.run_options import controller_for, default_steps, predictor_for
     from dua_mujoco.runtime.alarms import Alarms
 
-    model, data = _load(args.scene, keyframe_arg(args))
+    model, data = load_scene_arg(args.scene, keyframe_arg(args))
     steps = default_steps(args.scene) if args.steps is None else args.steps
     _check_outputs(args, model, steps)
     predictor = predictor_for(model, args)
@@ -407,7 +407,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     bounds_broken = print_report(report)
     if args.json is not None:
         text = json.dumps(report.to_dict(series=args.series), indent=2) + "\n"
-        _write_output(args.json, text, "--json")
+        write_output(args.json, text, "--json")
         print(f"report written to {args.json}")
     if writer is not None:
         if writer.count:
@@ -447,12 +447,6 @@ def _add_run_command(sub: argparse._SubParsersAction, name: str) -> None:
     module.add_arguments(p)
     add_run_options(p)
     p.set_defaults(func=module.main)
-
-
-# What those modules share with `run` (public: no module imports another's private names).
-load_scene_arg = _load
-check_output = _check_output
-write_output = _write_output
 
 
 # Experiment subcommands: each module has add_arguments(parser) and main(args).

@@ -61,6 +61,7 @@ except ModuleNotFoundError as exc:  # an optional dependency: say which extra br
         "dua_mujoco.gym needs gymnasium: pip install 'dua_mujoco[gym]'", name=exc.name
     ) from exc
 
+from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.runtime.predictor import Predictor
 from dua_mujoco.shield.shield import Shield
@@ -105,14 +106,8 @@ def find_mujoco(env: gymnasium.Env) -> tuple[mujoco.MjModel, mujoco.MjData, int]
             "gym.make('Ant-v5')), or give such an env those two attributes."
         )
     frame_skip = getattr(inner, "frame_skip", None)
-    if isinstance(frame_skip, bool) or not isinstance(frame_skip, int | np.integer):
-        raise InvalidInputError(
-            f"{type(inner).__name__} has no int frame_skip (got {frame_skip!r}): the predictor "
-            "must know how many physics steps one env.step takes; set env.unwrapped.frame_skip."
-        )
-    if frame_skip < 1:
-        raise InvalidInputError(f"env.unwrapped.frame_skip = {frame_skip} is invalid: it is >= 1.")
-    return model, data, int(frame_skip)
+    fix = " (the physics steps one env.step takes: set env.unwrapped.frame_skip)"
+    return model, data, check_int(f"{type(inner).__name__}.frame_skip", frame_skip, 1, fix)
 
 
 class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
@@ -166,13 +161,8 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
                 f"cost_horizon = {cost_horizon!r} with cost = {cost!r}: pass cost_horizon "
                 "(seconds) with cost='horizon', and only then."
             )
-        if cost_horizon is not None and not (
-            isinstance(cost_horizon, int | float) and 0.0 < cost_horizon < np.inf
-        ):
-            raise InvalidInputError(
-                f"cost_horizon = {cost_horizon!r} is invalid: it must be a finite number of "
-                "seconds > 0."
-            )
+        if cost_horizon is not None:
+            cost_horizon = check_number("cost_horizon", cost_horizon, unit=" of seconds")
         model, self._data, frame_skip = find_mujoco(env)
         if "period" in predictor_options:
             raise InvalidInputError(
@@ -180,7 +170,7 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
                 f"env's frame_skip ({frame_skip} physics steps per env.step): drop period."
             )
         self.cost = cost
-        self.cost_horizon = None if cost_horizon is None else float(cost_horizon)
+        self.cost_horizon = cost_horizon
         self.terminate_on_alarm = bool(terminate_on_alarm)
         self.predictor = Predictor(model, period=frame_skip, **predictor_options)
         self._names = [str(n) for n in self.predictor.tables.geom_names]

@@ -20,7 +20,6 @@ for test sessions that never use it; the assertion helpers work without pytest i
 from __future__ import annotations
 
 import functools
-import inspect
 import json
 import math
 import os
@@ -305,17 +304,7 @@ def _make_predictor(
         return Predictor(
             model, pilot=PilotOptions(controller=make_controller(model, "random", seed=1))
         )
-    if isinstance(predictor, Mapping):
-        valid = [
-            name
-            for name, par in inspect.signature(Predictor).parameters.items()
-            if par.kind is inspect.Parameter.KEYWORD_ONLY
-        ]
-        unknown = sorted(set(predictor) - set(valid))
-        if unknown:
-            raise InvalidInputError(
-                f"predictor= has unknown Predictor option(s) {unknown}; valid: {', '.join(valid)}."
-            )
+    if isinstance(predictor, Mapping):  # Predictor names an unknown option and the valid ones
         return Predictor(model, **dict(predictor))
     if predictor.model is not model:
         raise InvalidInputError(
@@ -387,12 +376,11 @@ def assert_no_missed_collisions(
     __tracebackhide__ = True
     import mujoco
 
-    from dua_mujoco.exceptions import InvalidInputError
+    from dua_mujoco.build.tables import check_model
     from dua_mujoco.measure.rollout import run
     from dua_mujoco.models.scenes import make_controller, reset_to_keyframe
 
-    if not isinstance(model, mujoco.MjModel):
-        raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")
+    check_model(model)
     if data is None:
         data = mujoco.MjData(model)
         reset_to_keyframe(model, data)

@@ -28,9 +28,9 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+from scalar_tau import tau_halfspace
 
 from dua_mujoco import _core
-from dua_mujoco.core.urgency import tau_halfspace
 
 
 def heights(size, nrow: int, ncol: int, data) -> np.ndarray:

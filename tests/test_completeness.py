@@ -16,8 +16,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dua_mujoco.core.schedules import DUAScheduler, Schedule, Scheduler, make_scheduler
-from dua_mujoco.core.worlds import AccelProfile, SphereWorld
+from dua_mujoco.core.schedules import (
+    DeadlineScheduler,
+    DUAScheduler,
+    Schedule,
+    Scheduler,
+    SelectAllScheduler,
+)
+from dua_mujoco.experiments.paper.world import AccelProfile, SphereWorld
 
 
 @dataclasses.dataclass
@@ -115,7 +121,9 @@ def _scheduler(
 ) -> Callable[[np.ndarray], Scheduler]:
     """``run_world``'s ``make``: the library's scheduler of ``schedule`` at ``dense_world``'s
     step (0.01 s), with its ``options``."""
-    return lambda tau0: make_scheduler(schedule, tau0, dt=0.01, latency=latency, **options)
+    kind = {Schedule.DUA: DUAScheduler, Schedule.DEADLINE: DeadlineScheduler}
+    make = kind.get(schedule, SelectAllScheduler)
+    return lambda tau0: make(tau0, dt=0.01, latency=latency, **options)
 
 
 @pytest.mark.parametrize("latency", [0, 1])

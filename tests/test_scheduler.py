@@ -19,8 +19,8 @@ from dua_mujoco.core.schedules import (
     bucket_layout,
 )
 from dua_mujoco.core.urgency import PARALLEL_MIN
-from dua_mujoco.core.worlds import SphereWorld
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError, SchedulerError, ShapeError
+from dua_mujoco.experiments.paper.world import SphereWorld
 
 
 def bucket(s: DUAScheduler, pair: object) -> np.ndarray:

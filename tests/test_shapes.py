@@ -25,6 +25,7 @@ import pytest
 import reference_tau as ref
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scalar_tau import static_gap, support, tau_static
 
 from dua_mujoco.core.shapes import (
     SHAPE_KIND,
@@ -36,9 +37,6 @@ from dua_mujoco.core.shapes import (
     closest_point,
     mesh_box,
     pack_shapes,
-    static_gap,
-    support,
-    tau_static,
     time_to_static,
 )
 from dua_mujoco.core.urgency import time_to_collision

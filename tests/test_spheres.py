@@ -17,7 +17,6 @@ from dua_mujoco import _core
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import DeadlineScheduler
 from dua_mujoco.core.spheres import AUTO_PRUNED_MIN, PairMode, SpherePredictor, rebuild_stride
-from dua_mujoco.core.worlds import AccelProfile, SphereWorld
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
     InvalidBoundError,
@@ -27,6 +26,7 @@ from dua_mujoco.exceptions import (
     SchedulerError,
     ShapeError,
 )
+from dua_mujoco.experiments.paper.world import AccelProfile, SphereWorld
 
 
 @dataclasses.dataclass

@@ -26,15 +26,13 @@ import pytest
 import reference_terrain as ref
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scalar_tau import static_gap, support, tau_halfspace, tau_static
 
 from dua_mujoco import _core
 from dua_mujoco.core.shapes import (
     SHAPE_NCOL,
     ShapeKind,
     pack_shapes,
-    static_gap,
-    support,
-    tau_static,
     time_to_static,
 )
 from dua_mujoco.core.terrain import (
@@ -49,7 +47,6 @@ from dua_mujoco.core.terrain import (
     shape_table,
     terrain_levels,
 )
-from dua_mujoco.core.urgency import tau_halfspace
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
 SETTINGS = settings(

@@ -177,7 +177,9 @@ def test_scene_without_collidable_pairs_fails() -> None:
 
 def test_unknown_predictor_option_lists_the_valid_ones() -> None:
     m, d = _scene()
-    with pytest.raises(ValueError, match=r"unknown Predictor option\(s\) \['acel'\]; valid: accel"):
+    with pytest.raises(
+        ValueError, match=r"unknown keyword\(s\) \['acel'\]: the Predictor takes accel"
+    ):
         assert_no_missed_collisions(m, d, steps=10, predictor={"acel": 2.0})
 
 

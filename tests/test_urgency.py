@@ -29,8 +29,8 @@ try:
 except ImportError:  # the package __init__ may not re-export yet
     from dua_mujoco.core.urgency import distance_urgency, time_to_collision, time_to_halfspace
 import reference_tau as ref
+from scalar_tau import tau_speed
 
-from dua_mujoco.core.urgency import tau_speed
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
     InvalidBoundError,

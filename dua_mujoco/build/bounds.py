@@ -30,6 +30,7 @@ import numpy.typing as npt
 from dua_mujoco.build.kinematics import PointMotion, pack_spheres
 from dua_mujoco.build.mocap import MocapVelocityTracker
 from dua_mujoco.build.pilot_screen import MotionScreen, PilotMotion, level_maxima
+from dua_mujoco.core.validate import as_choice
 from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidChoiceError,
@@ -406,10 +407,7 @@ def estimate_bounds(
         raise InvalidInputError(f"steps must be >= 3 to difference twice; got {steps}.")
     if not np.isfinite(safety) or safety < 1.0:
         raise InvalidInputError(f"safety must be >= 1; got {safety}.")
-    try:
-        motion = PilotMotion(motion)
-    except ValueError:
-        raise InvalidChoiceError("pilot motion", motion, [x.value for x in PilotMotion]) from None
+    motion = as_choice(PilotMotion, motion, "pilot motion")
     rng = np.random.default_rng(seed)
     sgeom, sbody, soff = (
         default_spheres(model) if spheres is None else (np.asarray(a) for a in spheres)

@@ -12,7 +12,7 @@ where ``d_n = min_B n.b - max_A n.a`` is computed from this package's own suppor
 velocities of the geom origins, ``w`` the bodies' angular velocities, ``r`` the geoms' radii
 about their origins, and ``A``, ``delta`` the pair's bounds, which hold for every point of the two
 geoms (their boxes' corners are among the points the bounds are estimated and checked at). Its
-first root is :func:`~dua_mujoco.core.urgency.tau_halfspace`'s, and the pair's tau is the larger
+first root is :func:`~dua_mujoco.core.urgency.time_to_halfspace`'s, and the pair's tau is the larger
 of the two lower bounds. Proof, and what the distance means for each geom type, in
 docs/theory.md (section 5). A plane needs no query: its normal is the direction.
 

@@ -21,8 +21,8 @@ from dua_mujoco.build.bounds import PilotMotion
 from dua_mujoco.core.schedules import Schedule, as_schedule, deadline
 from dua_mujoco.core.schedules.state import RANK
 from dua_mujoco.core.spheres import PairMode
-from dua_mujoco.core.validate import check_int
-from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
+from dua_mujoco.core.validate import as_choice, check_int
+from dua_mujoco.exceptions import InvalidInputError
 
 __all__ = [
     "REMOVED_KEYWORDS",
@@ -160,12 +160,7 @@ class PilotOptions:
         check_int("pilot steps", self.steps)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise InvalidInputError(f"pilot seed = {self.seed!r} is invalid: pass an int.")
-        try:
-            _set(self, "motion", PilotMotion(self.motion))
-        except ValueError:
-            raise InvalidChoiceError(
-                "pilot motion", self.motion, [m.value for m in PilotMotion]
-            ) from None
+        _set(self, "motion", as_choice(PilotMotion, self.motion, "pilot motion"))
         if self.controller is not None and not callable(self.controller):
             raise InvalidInputError(
                 f"pilot controller = {self.controller!r} is not callable: pass "

@@ -248,6 +248,12 @@ def _check_static_poses(
         )
 
 
+def check_model(model: object, fix: str = "") -> None:
+    """Refuse anything but an ``MjModel``; ``fix`` ends the message (``: load it with ...``)."""
+    if not isinstance(model, mujoco.MjModel):
+        raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}{fix}.")
+
+
 def check_data(model: mujoco.MjModel, data: object) -> None:
     """Refuse anything but an ``MjData`` of ``model``, or of a model with the same geometry (one
     XML loaded twice): the native step reads ``MjData`` without bounds checks, and the covering

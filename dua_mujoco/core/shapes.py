@@ -4,7 +4,7 @@ A static geom ``S`` (a body welded to the world) is held as its own shape instea
 sphere. For every unit vector ``n`` the half-space ``H(n) = {p : n.p <= h_S(n)}``, with the support
 function ``h_S(n) = max_{q in S} n.q``, contains ``S``; a sphere of contact distance ``eps`` (radius
 plus margin) can touch ``S`` only after its centre comes within ``eps`` of ``H(n)``. So the
-half-space tau (``dua_mujoco.core.urgency.tau_halfspace``) with
+half-space tau (``dua_mujoco.core.urgency.time_to_halfspace``) with
 
     gap = n.c - h_S(n) - eps,    normal velocity = n.v
 
@@ -59,11 +59,9 @@ __all__ = [
     "ShapeKind",
     "closest_point",
     "mesh_box",
+    "one_point",
     "pack_shapes",
     "shape_table",
-    "static_gap",
-    "support",
-    "tau_static",
     "time_to_static",
 ]
 
@@ -89,7 +87,7 @@ SHAPE_MAT: int = _LAYOUT["SHAPE_MAT"]
 SHAPE_NCOL: int = _LAYOUT["SHAPE_NCOL"]
 
 
-def _one(
+def one_point(
     point: npt.ArrayLike, rec: npt.ArrayLike, row: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A point ``(1, 3)``, a table ``(k, 16)`` and the id ``(1,)`` of its row ``row`` for the
@@ -97,41 +95,6 @@ def _one(
     p = np.asarray(point, dtype=np.float64).reshape(1, 3)
     r = np.ascontiguousarray(np.asarray(rec, dtype=np.float64).reshape(-1, SHAPE_NCOL))
     return p, r, np.array([row], dtype=np.int64)
-
-
-def static_gap(
-    c: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0
-) -> tuple[float, float, float, float]:
-    """Clearance of a point from a static shape along the chosen direction.
-
-    Args:
-        c: Point (sphere centre), shape ``(3,)``.
-        rec: One shape record, shape ``(16,)``, or a table ``(k, 16)``.
-        row: The record's row in ``rec`` when it is a table.
-
-    Returns:
-        ``(gap, nx, ny, nz)``: ``n`` is the unit direction from the closest point of the shape to
-        ``c`` and ``gap = n.c - h_S(n)`` (without ``eps``). ``gap <= dist(c, S)`` for every ``c``
-        and ``gap <= 0`` inside. Outside, ``gap = dist(c, S)`` up to rounding (for ``MESH_BOX``
-        the distance to the box, for the ellipsoid up to the accuracy of the iterated root).
-    """
-    out = _core.static_gap(*_one(c, rec, row))[0]
-    return float(out[0]), float(out[1]), float(out[2]), float(out[3])
-
-
-def support(n: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0) -> float:
-    """Support function ``h_S(n) = n.p + h_local(R^T n)`` of one shape.
-
-    Args:
-        n: Direction, shape ``(3,)``, any length (the support function is positively
-            homogeneous).
-        rec: One shape record, shape ``(16,)``, or a table ``(k, 16)``.
-        row: The record's row in ``rec`` when it is a table.
-
-    Returns:
-        ``max_{q in S} n.q`` (for ``MESH_BOX``, that of the box around the hull: an upper bound).
-    """
-    return float(_core.support(*_one(n, rec, row))[0])
 
 
 def closest_point(c: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0) -> tuple[float, float, float]:
@@ -146,35 +109,8 @@ def closest_point(c: npt.ArrayLike, rec: npt.ArrayLike, row: int = 0) -> tuple[f
         ``(q0, q1, q2)`` in world coordinates; ``|c - q|`` is the distance to the shape (to the
         box for ``MESH_BOX``; for the ellipsoid to the iterated root, accurate to rounding).
     """
-    out = _core.closest_point(*_one(c, rec, row))[0]
+    out = _core.closest_point(*one_point(c, rec, row))[0]
     return float(out[0]), float(out[1]), float(out[2])
-
-
-def tau_static(
-    c0: float,
-    c1: float,
-    c2: float,
-    v0: float,
-    v1: float,
-    v2: float,
-    rec: npt.ArrayLike,
-    eps: float,
-    accel: float,
-    delta: float,
-    row: int = 0,
-) -> float:
-    """Scalar kernel: lower bound on the time before a sphere can touch a static shape.
-
-    ``rec`` is one record ``(16,)``, or a table ``(k, 16)`` and ``row`` the record's row.
-
-    The half-space tau of ``H(n)`` (module docstring) with the gap lowered by a rounding slack
-    and the velocity uncertainty raised by one, so that rounding cannot make it late. Returns 0
-    when the centre is inside the shape or within ``eps`` of it.
-    """
-    p, r, ids = _one((c0, c1, c2), rec, row)
-    v = np.array([[v0, v1, v2]], dtype=np.float64)
-    bounds = (np.array([x], dtype=np.float64) for x in (eps, accel, delta))
-    return float(_core.tau_static_batch(p, v, r, ids, *bounds)[0])
 
 
 # How far from orthonormal a rotation may be (MuJoCo's geom_xmat is orthonormal to ~1e-15).

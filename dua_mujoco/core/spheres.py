@@ -28,9 +28,8 @@ from dua_mujoco.core.schedules.deadline import (
     check_alarm_backoff,
     check_max_evals,
 )
-from dua_mujoco.core.validate import check_period, per_pair, real_array
+from dua_mujoco.core.validate import as_choice, check_period, per_pair, real_array
 from dua_mujoco.exceptions import (
-    InvalidChoiceError,
     InvalidInputError,
     SchedulerError,
     ShapeError,
@@ -45,6 +44,7 @@ __all__ = [
     "pair_mode",
     "pruned_horizon",
     "rebuild_stride",
+    "runtime_count",
 ]
 
 AUTO_PRUNED_MIN = 256
@@ -108,10 +108,7 @@ def pair_mode(
     """The pairs a predictor holds, ``ALL`` or ``PRUNED`` (``SpherePredictor``'s and
     ``Predictor``'s ``pairs`` and ``horizon``): ``"auto"`` prunes from ``AUTO_PRUNED_MIN`` spheres
     with the deadline schedule, the one a pruned set is rebuilt into."""
-    try:
-        mode = PairMode(pairs)
-    except ValueError:
-        raise InvalidChoiceError("pairs", pairs, [m.value for m in PairMode]) from None
+    mode = as_choice(PairMode, pairs, "pairs")
     if mode is PairMode.AUTO:
         mode = PairMode.PRUNED if nsphere >= AUTO_PRUNED_MIN and deadline else PairMode.ALL
     if mode is PairMode.PRUNED and not deadline:
@@ -141,8 +138,8 @@ def _per_sphere(name: str, value: npt.ArrayLike, n: int, *, allow_inf: bool = Fa
     return np.broadcast_to(per_pair(name, value, n, allow_inf=allow_inf), (n,)).copy()
 
 
-def _counter(name: str, doc: str) -> property:
-    """A read-only int property: the runtime's count ``name``."""
+def runtime_count(name: str, doc: str) -> property:
+    """A read-only int property: the count ``name`` of the object's native runtime (``_rt``)."""
     return property(lambda self: int(getattr(self._rt, name)), doc=doc)
 
 
@@ -244,12 +241,12 @@ class SpherePredictor:
         """Pairs held now."""
         return int(self._rt.schedule.last_tau.shape[0])  # (a view: O(1))
 
-    evaluations = _counter("evaluated", "tau evaluations of the latest call.")
-    deferred = _counter(
+    evaluations = runtime_count("evaluated", "tau evaluations of the latest call.")
+    deferred = runtime_count(
         "deferred", "Pairs due at the latest step but left for a later one (a capped schedule)."
     )
-    rebuilds = _counter("rebuilds", "Rebuilds of the pruned set so far (not the reset's).")
-    renewals = _counter(
+    rebuilds = runtime_count("rebuilds", "Rebuilds of the pruned set so far (not the reset's).")
+    renewals = runtime_count(
         "renewals", "Renewals of the pruned set so far: steps whose escaped spheres were anchored."
     )
 

@@ -11,8 +11,8 @@ is a lower bound on the time to collision (paper eq. 13, extended by ``delta``).
 
 The kernels never return more than the exact first root. They are implemented once, in the
 native core (``dua_mujoco/csrc/src/urgency.cc``, called through ``dua_mujoco._core``); the
-functions here validate and call them, the batch four pairs at a time in the same code (the same
-values, bit for bit, as the scalar functions). How (proof in docs/theory.md, section 1):
+functions here validate and call them, four pairs at a time in the same code as one (the same
+values, bit for bit, as one row: tests/scalar_tau.py). How (proof in docs/theory.md, section 1):
 
 * The problem is solved for slightly inflated parameters (``eps``, ``delta`` and ``A`` grown by
   ``kappa = 4e-15`` relative, plus ``kappa (|x| + |v| t)`` on the radius). The inflation is
@@ -43,10 +43,6 @@ from dua_mujoco.exceptions import BoundViolationWarning, InvalidBoundError, Shap
 __all__ = [
     "PARALLEL_MIN",
     "distance_urgency",
-    "tau_accel",
-    "tau_between",
-    "tau_halfspace",
-    "tau_speed",
     "time_to_collision",
     "time_to_halfspace",
 ]
@@ -56,58 +52,6 @@ PARALLEL_MIN = 1 << 16
 it, starting a thread costs more than the work (``_core``'s ``tau_speed_batch``, ``tau_pairs``)."""
 
 _INF = np.full(1, np.inf)
-
-
-def tau_speed(
-    x0: float,
-    x1: float,
-    x2: float,
-    v0: float,
-    v1: float,
-    v2: float,
-    eps: float,
-    accel: float,
-    delta: float,
-    speed: float = np.inf,
-) -> float:
-    """Scalar kernel: min {t >= 0 : |x + v t| <= eps + delta t + accel t^2 / 2} (a lower bound),
-    with a relative speed bound ``speed`` (``inf``: none).
-
-    The relative position also stays in ``B(x, V t)``, so no collision before
-    ``(|x| - eps) / V``; the larger of that and the acceleration bound's tau is still a lower
-    bound. A measured ``|v| > V`` means the declared bound is broken: the speed term is then
-    dropped.
-    """
-    row = np.array([[x0, x1, x2, v0, v1, v2]])
-    bounds = np.array([[eps], [accel], [delta], [speed]], dtype=np.float64)
-    return float(_core.tau_speed_batch(row[:, :3], row[:, 3:], *bounds)[0])
-
-
-tau_accel = tau_speed
-"""The scalar kernel of the acceleration bound alone (:func:`tau_speed`, ``speed`` left inf)."""
-
-
-def tau_between(
-    ci: npt.ArrayLike,
-    vi: npt.ArrayLike,
-    cj: npt.ArrayLike,
-    vj: npt.ArrayLike,
-    eps: float,
-    accel: float,
-    delta: float,
-    speed: float,
-) -> float:
-    """:func:`tau_speed` of two spheres from their centres ``ci``, ``cj`` and velocities ``vi``,
-    ``vj`` (3-vectors each; the relative state is ``j`` minus ``i``)."""
-    x = np.subtract(cj, ci, dtype=np.float64)
-    v = np.subtract(vj, vi, dtype=np.float64)
-    return tau_speed(x[0], x[1], x[2], v[0], v[1], v[2], eps, accel, delta, speed)
-
-
-def tau_halfspace(gap: float, normal_velocity: float, accel: float, delta: float) -> float:
-    """Scalar kernel: min {t >= 0 : gap + (n.v) t - delta t - accel t^2 / 2 <= 0} (lower bound)."""
-    args = (np.array([v], dtype=np.float64) for v in (gap, normal_velocity, accel, delta))
-    return float(_core.tau_halfspace_batch(*args)[0])
 
 
 def time_to_collision(

@@ -6,19 +6,23 @@ only the indices it follows, so that no call reads out of bounds.
 
 from __future__ import annotations
 
+import enum
 import math
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco.exceptions import (
     InvalidBoundError,
+    InvalidChoiceError,
     InvalidInputError,
     NonFiniteStateError,
     ShapeError,
 )
 
 __all__ = [
+    "as_choice",
     "as_ids",
     "as_vectors",
     "check_int",
@@ -28,6 +32,18 @@ __all__ = [
     "per_pair",
     "real_array",
 ]
+
+
+E = TypeVar("E", bound=enum.Enum)
+
+
+def as_choice(kind: type[E], value: object, what: str) -> E:
+    """``value`` as a member of the enum ``kind`` (a member or its value), or an error that names
+    ``what`` and lists the values."""
+    try:
+        return kind(value)
+    except ValueError:
+        raise InvalidChoiceError(what, value, [m.value for m in kind]) from None
 
 
 def real_array(name: str, value: npt.ArrayLike) -> np.ndarray:
@@ -124,28 +140,23 @@ def check_int(name: str, value: object, low: int = 1, fix: str = "") -> int:
     return int(value)
 
 
-def check_number(name: str, value: object, *, zero: bool = False) -> float:
+def check_number(name: str, value: object, *, zero: bool = False, unit: str = "") -> float:
     """A finite number option ``> 0`` (``>= 0`` with ``zero``) as a float; a bool is refused
-    (``float(True)`` is 1)."""
+    (``float(True)`` is 1); ``unit`` follows "number" in the message (`` of seconds``)."""
     ok = isinstance(value, int | float | np.number) and not isinstance(value, bool)
     x = float(value) if ok else math.nan  # type: ignore[arg-type]
     if not (math.isfinite(x) and (x >= 0.0 if zero else x > 0.0)):
         rule = ">= 0" if zero else "> 0"
-        raise InvalidInputError(f"{name} = {value!r} is invalid: pass a finite number {rule}.")
+        raise InvalidInputError(
+            f"{name} = {value!r} is invalid: pass a finite number{unit} {rule}."
+        )
     return x
 
 
 def check_period(dt: object, latency: object) -> tuple[float, int]:
     """The predictor period ``dt > 0`` (seconds) and the latency, an int ``>= 0`` (periods)."""
-    # bool is an int subclass: dt=True would silently be a one-second period.
-    if isinstance(dt, bool) or not (
-        isinstance(dt, int | float | np.integer | np.floating) and math.isfinite(dt) and dt > 0
-    ):
-        raise InvalidInputError(
-            f"dt = {dt!r} is invalid: the predictor period must be a finite number of seconds > 0."
-        )
     fix = " (1 when a verdict takes one period to compute, 0 when it runs after each step)"
-    return float(dt), check_int("latency", latency, 0, fix)
+    return check_number("dt", dt, unit=" of seconds"), check_int("latency", latency, 0, fix)
 
 
 def check_urgencies(name: str, tau: npt.ArrayLike, m: int | None = None) -> np.ndarray:

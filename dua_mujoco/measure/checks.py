@@ -18,6 +18,7 @@ import numpy.typing as npt
 from dua_mujoco.build.bounds import MotionBounds, default_spheres
 from dua_mujoco.build.kinematics import PointMotion, pack_spheres
 from dua_mujoco.build.mocap import PredictorMocap
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import InvalidInputError
 
 __all__ = ["BoundMonitor", "BoundViolation"]
@@ -115,8 +116,7 @@ class BoundMonitor:
         self._rtol = rtol
         self._nbody = model.nbody
         self._ngeom = model.ngeom
-        if not isinstance(mocap_period, int | np.integer) or mocap_period < 1:
-            raise InvalidInputError(f"mocap_period = {mocap_period!r} is invalid: an int >= 1.")
+        mocap_period = check_int("mocap_period", mocap_period)
         in_tree = np.zeros(model.nbody, dtype=bool)
         if mocap is not None:
             in_tree[mocap.mocap_bodies] = True

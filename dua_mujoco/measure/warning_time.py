@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.core.validate import check_number
 from dua_mujoco.measure.accumulators import Growing
 
 if TYPE_CHECKING:
@@ -59,17 +59,7 @@ def check_warning_horizon(value: object) -> float | None:
     """``warning_horizon``: None (the predictor's own) or a finite number ``>= 0`` (s)."""
     if value is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise InvalidInputError(
-            f"warning_horizon = {value!r} is invalid: pass seconds (a float >= 0), or None for "
-            "the predictor's own alarm horizon."
-        )
-    h = float(value)
-    if not (math.isfinite(h) and h >= 0.0):
-        raise InvalidInputError(
-            f"warning_horizon = {value!r} is invalid: pass a finite number of seconds >= 0."
-        )
-    return h
+    return check_number("warning_horizon", value, zero=True, unit=" of seconds")
 
 
 class WarningTime:

@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.closing import Closing
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
 from dua_mujoco.render.overlay import AlarmOverlay, OverlayOptions
 from dua_mujoco.runtime.alarms import Alarms
@@ -46,9 +47,7 @@ def check_frame_size(model: mujoco.MjModel, width: int, height: int, *, grow_buf
         InvalidInputError: If a side is not an int >= 1, exceeds the buffer (and not
             ``grow_buffer``), or exceeds :data:`MAX_FRAME_SIZE` beyond the model's own buffer.
     """
-    for name, value in (("width", width), ("height", height)):
-        if not isinstance(value, int | np.integer) or value < 1:
-            raise InvalidInputError(f"{name} = {value!r} is invalid: it must be an int >= 1.")
+    width, height = check_int("width", width), check_int("height", height)
     vis = model.vis.global_
     if width <= vis.offwidth and height <= vis.offheight:
         return

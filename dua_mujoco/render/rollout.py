@@ -8,6 +8,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.progress import Progress
 from dua_mujoco.render.frames import OverlayRenderer
@@ -67,9 +68,7 @@ def render_rollout(
         InvalidChoiceError: If the suffix of ``path`` or the camera is unknown.
     """
     out = video_path(path)
-    for name, value in (("steps", steps), ("every", every)):
-        if not isinstance(value, int | np.integer) or value < 1:
-            raise InvalidInputError(f"{name} = {value!r} is invalid: it must be an int >= 1.")
+    steps, every = check_int("steps", steps), check_int("every", every)
     if steps < every:
         raise InvalidInputError(
             f"steps = {steps} < every = {every}: no frame would be rendered; lower every."

@@ -25,7 +25,6 @@ may touch, not an acceleration bound, so an alarm horizon of 100-500 ms stays ti
 from __future__ import annotations
 
 import copy
-import math
 import time
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -36,6 +35,8 @@ import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.build.kinematics import pack_spheres
+from dua_mujoco.build.tables import check_model
+from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 from dua_mujoco.runtime.flightplan import Bodies, finite_rows
 
@@ -85,12 +86,8 @@ class PilotPlan(NamedTuple):
 # ----------------------------------------------------------------------------- plans
 
 
-def _check_model_data(model: object, data: object) -> None:
-    if not isinstance(model, mujoco.MjModel):
-        raise InvalidInputError(
-            f"model must be a mujoco.MjModel, got {type(model).__name__}: pass the model the "
-            "data was made for."
-        )
+def _check_model_data(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    check_model(model, ": pass the model the data was made for")
     if not isinstance(data, mujoco.MjData):
         raise InvalidInputError(
             f"data must be a mujoco.MjData, got {type(data).__name__}: pass the simulation's "
@@ -101,14 +98,6 @@ def _check_model_data(model: object, data: object) -> None:
             f"data was made for another model (nq {data.qpos.shape[0]}, nu {data.ctrl.shape[0]}; "
             f"the model has nq {model.nq}, nu {model.nu}): pass mujoco.MjData(model)."
         )
-
-
-def _check_steps(steps: object) -> int:
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise InvalidInputError(
-            f"steps = {steps!r} is invalid: pass the number of physics steps to plan (an int >= 1)."
-        )
-    return int(steps)
 
 
 def plan_from_controls(
@@ -146,14 +135,16 @@ def plan_from_controls(
         ShapeError: ``controls`` is not ``(steps, nu)``, or a policy returned another shape.
     """
     _check_model_data(model, data)
+    if steps is not None:
+        steps = check_int("steps", steps, 1, " (the physics steps to plan)")
     if callable(controls):
         if steps is None:
             raise InvalidInputError(
                 "steps is missing: a policy has no length, pass steps=<physics steps to plan>."
             )
-        return _plan_policy(model, data, controls, _check_steps(steps))
+        return _plan_policy(model, data, controls, steps)
     u = finite_rows("controls", controls, model.nu, "nu", "ctrl a physics step")
-    if steps is not None and _check_steps(steps) != u.shape[0]:
+    if steps is not None and steps != u.shape[0]:
         raise InvalidInputError(
             f"steps = {steps} disagrees with the {u.shape[0]} rows of controls: leave steps out "
             "for an array."
@@ -407,15 +398,9 @@ def deviation_profile(
             origin outside the plan, no plan measured, or a bad ``safety`` (the message names
             the value).
     """
-    if not isinstance(model, mujoco.MjModel):
-        raise InvalidInputError(f"model must be a mujoco.MjModel, got {type(model).__name__}.")
+    check_model(model)
     actual = finite_rows("qpos", qpos, model.nq, "nq", "qpos a physics step")
-    if (
-        isinstance(safety, bool)
-        or not isinstance(safety, int | float | np.integer | np.floating)
-        or not math.isfinite(float(safety))
-        or float(safety) < 1.0
-    ):
+    if check_number("safety", safety) < 1.0:
         raise InvalidInputError(
             f"safety = {safety!r} is invalid: pass a finite factor >= 1 (a factor below 1 "
             "would shrink the deviations measured)."
@@ -488,13 +473,12 @@ def plan_deviation(profile: npt.ArrayLike, knots: int, *, origin: int = 0) -> np
             f"profile has shape {prof.shape}; expected (L, nbody) with L >= 1, as "
             "deviation_profile returns."
         )
-    if isinstance(knots, bool) or not isinstance(knots, int | np.integer) or knots < 1:
-        raise InvalidInputError(f"knots = {knots!r} is invalid: pass the plan's rows (>= 1).")
-    o = _int("origin", origin, 0, int(knots))
-    need = max(int(knots) - 1 - o, 0)
+    knots = check_int("knots", knots, 1, " (the plan's rows)")
+    o = _int("origin", origin, 0, knots)
+    need = max(knots - 1 - o, 0)
     if need >= prof.shape[0]:
         raise InvalidInputError(
             f"the plan reaches {need} knots past its origin, the profile only "
             f"{prof.shape[0] - 1}: measure longer plans in the pilot (or shorten the plan)."
         )
-    return prof[np.maximum(np.arange(int(knots)) - o, 0)]
+    return prof[np.maximum(np.arange(knots) - o, 0)]

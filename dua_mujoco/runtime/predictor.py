@@ -49,7 +49,7 @@ from dua_mujoco.build.tables import (
 )
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule
-from dua_mujoco.core.spheres import PairMode
+from dua_mujoco.core.spheres import PairMode, runtime_count
 from dua_mujoco.exceptions import (
     NoActivePairsWarning,
     NonFiniteStateError,
@@ -413,25 +413,17 @@ class Predictor(PlanFollowing):
         """Predictor steps between rebuilds of the held pairs (0: every pair held)."""
         return 0 if self.reach is None else self.reach.stride
 
-    @property
-    def rebuilds(self) -> int:
-        """Rebuilds of the held pairs so far (pruned pairs only)."""
-        return int(self._rt.rebuilds)
-
-    @property
-    def renewals(self) -> int:
-        """Renewals of escaped spheres' pairs so far (pruned pairs only)."""
-        return int(self._rt.renewals)
+    rebuilds = runtime_count("rebuilds", "Rebuilds of the held pairs so far (pruned pairs only).")
+    renewals = runtime_count(
+        "renewals", "Renewals of escaped spheres' pairs so far (pruned pairs only)."
+    )
 
     @property
     def nsphere(self) -> int:
         """Number of covering spheres."""
         return int(self.covering.nsphere)
 
-    @property
-    def nsphere_pairs(self) -> int:
-        """Number of known sphere pairs."""
-        return int(self._rt.npair)
+    nsphere_pairs = runtime_count("npair", "Number of known sphere pairs.")
 
     @property
     def evaluations_per_step(self) -> int:

@@ -53,12 +53,11 @@ from dua_mujoco.build.options import (
 from dua_mujoco.build.pairbounds import body_vel_uncertainty
 from dua_mujoco.build.pairfilter import FilterTables
 from dua_mujoco.build.pruning import RENEW_MAX, Reach, reach_for
-from dua_mujoco.build.tables import static_shapes
+from dua_mujoco.build.tables import check_model, static_shapes
 from dua_mujoco.build.universe import PairUniverse
 from dua_mujoco.core.schedules import Schedule, as_schedule, schedule_config
 from dua_mujoco.core.spheres import PairMode, pair_mode
 from dua_mujoco.core.validate import check_int, check_period
-from dua_mujoco.exceptions import InvalidInputError
 
 __all__ = ["CONFIG", "Built", "Layout", "build", "layout", "measure_pilot", "pilot_bounds"]
 
@@ -107,11 +106,8 @@ def layout(
 ) -> Layout:
     """The options checked and the pieces they fix before the bounds (``Predictor``'s
     keywords, the same checks and messages)."""
-    if not isinstance(model, mujoco.MjModel):
-        raise InvalidInputError(
-            f"model must be a mujoco.MjModel, got {type(model).__name__}: load it with "
-            "mujoco.MjModel.from_xml_path(path) (or dua_mujoco.load_scene(name))."
-        )
+    fix = ": load it with mujoco.MjModel.from_xml_path(path) (or dua_mujoco.load_scene(name))"
+    check_model(model, fix)
     period = check_int("period", period)
     # The schedule's options are checked now rather than at reset(): same checks, same messages.
     dt, latency = check_period(period * float(model.opt.timestep), latency)

@@ -21,7 +21,7 @@ from dua_mujoco.core.schedules.deadline import (
 from dua_mujoco.core.schedules.dua import DUAScheduler, bucket_layout
 from dua_mujoco.core.schedules.select_all import SelectAllScheduler, Urgency
 from dua_mujoco.core.schedules.state import ScheduleState
-from dua_mujoco.exceptions import InvalidChoiceError
+from dua_mujoco.core.validate import as_choice
 
 __all__ = [
     "DUAScheduler",
@@ -33,7 +33,6 @@ __all__ = [
     "Urgency",
     "as_schedule",
     "bucket_layout",
-    "make_scheduler",
     "schedule_config",
 ]
 
@@ -47,30 +46,6 @@ class Schedule(enum.Enum):
     """Each pair at the latest step its tau allows: select-all's alarms, far less work."""
     SELECT_ALL = "select-all"
     """Every pair every step (SA(tau)): the baseline."""
-
-
-def make_scheduler(
-    schedule: Schedule,
-    tau0: np.ndarray,
-    *,
-    dt: float,
-    latency: int,
-    slots_per_bucket: int = 1,
-    max_evals_per_step: int | None = None,
-    alarm_backoff: int = DEFAULT_ALARM_BACKOFF,
-) -> Scheduler:
-    """The scheduler of ``schedule`` over the initial tau ``tau0``."""
-    if schedule is Schedule.DUA:
-        return DUAScheduler(tau0, dt=dt, latency=latency, slots_per_bucket=slots_per_bucket)
-    if schedule is Schedule.DEADLINE:
-        return DeadlineScheduler(
-            tau0,
-            dt=dt,
-            latency=latency,
-            max_evals_per_step=max_evals_per_step,
-            alarm_backoff=alarm_backoff,
-        )
-    return SelectAllScheduler(tau0, dt=dt, latency=latency)
 
 
 def schedule_config(
@@ -107,7 +82,4 @@ def schedule_config(
 
 def as_schedule(schedule: Schedule | str) -> Schedule:
     """``schedule`` as a ``Schedule``, or an error listing the choices."""
-    try:
-        return Schedule(schedule)
-    except ValueError:
-        raise InvalidChoiceError("schedule", schedule, [s.value for s in Schedule]) from None
+    return as_choice(Schedule, schedule, "schedule")

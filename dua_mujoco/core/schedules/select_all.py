@@ -10,8 +10,8 @@ import numpy.typing as npt
 import dua_mujoco._core as _core
 from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
 from dua_mujoco.core.schedules.state import ALL
-from dua_mujoco.core.validate import check_period, check_urgencies, real_array
-from dua_mujoco.exceptions import InvalidChoiceError, ShapeError
+from dua_mujoco.core.validate import as_choice, check_period, check_urgencies, real_array
+from dua_mujoco.exceptions import ShapeError
 
 __all__ = ["SelectAllScheduler", "Urgency"]
 
@@ -48,10 +48,7 @@ class SelectAllScheduler(Scheduler, kind=ALL):
         alarm_distance: float = 0.0,
         active: npt.ArrayLike | None = None,
     ) -> None:
-        try:
-            self.urgency = Urgency(urgency)
-        except ValueError:
-            raise InvalidChoiceError("urgency", urgency, [u.value for u in Urgency]) from None
+        self.urgency = as_choice(Urgency, urgency, "urgency")
         dt, latency = check_period(dt, latency)
         if self.urgency is Urgency.TAU:
             values = check_urgencies("urgency0", urgency0)

@@ -3,9 +3,9 @@
 #
 #   dua_mujoco/csrc/fuzz/run.sh [SECONDS] [libFuzzer options...]
 #
-# SECONDS (default 60) of fuzzing from the seeds (make_seeds.py) and the corpus kept under
-# $DUA_FUZZ_DIR (default build/fuzz); any finding is written there as crash-*, leak-*, oom-* or
-# timeout-* and fails the run. Needs clang++-14 (or $CXX) with libFuzzer, and the package
+# SECONDS (default 60) of fuzzing from the seeds (tests/fuzz/make_seeds.py) and the corpus kept
+# under $DUA_FUZZ_DIR (default build/fuzz); any finding is written there as crash-*, leak-*, oom-*
+# or timeout-* and fails the run. Needs clang++-14 (or $CXX) with libFuzzer, and the package
 # installed in the running Python (pip install -e .).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../../.." && pwd)"
@@ -16,7 +16,7 @@ mkdir -p "$out"
 out="$(cd "$out" && pwd)"
 cxx="${CXX:-clang++-14}"
 
-python "$root/dua_mujoco/csrc/fuzz/make_seeds.py" "$out"
+python "$root/tests/fuzz/make_seeds.py" "$out"
 cmake -S "$root/dua_mujoco/csrc" -B "$out/cmake" -DDUA_FUZZ=ON -DCMAKE_CXX_COMPILER="$cxx" \
   -DPython_EXECUTABLE="$(command -v python)" >"$out/cmake.log"
 cmake --build "$out/cmake" -j "$(nproc)" >>"$out/cmake.log"

@@ -14,8 +14,7 @@ import numpy as np
 
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import DUAScheduler, SelectAllScheduler
-from dua_mujoco.core.worlds import SphereWorld
-from dua_mujoco.experiments.paper.world import Sampler
+from dua_mujoco.experiments.paper.world import Sampler, SphereWorld
 
 __all__ = ["Contacts", "Run", "dua_run", "sa_run"]
 

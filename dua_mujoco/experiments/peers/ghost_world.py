@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dua_mujoco.core.worlds import SphereWorld
+from dua_mujoco.experiments.paper.world import SphereWorld
 from dua_mujoco.experiments.peers.candidates import grid_candidates
 
 __all__ = ["PAPER_DENSITY_N", "GhostTrajectory", "ghost_truth", "pair_id", "record_ghost"]

@@ -1,4 +1,4 @@
-"""Seeds of the tables fuzzer (tables_fuzzer.cc): the real tables of a few small models.
+"""Seeds of the tables fuzzer (dua_mujoco/csrc/fuzz/tables_fuzzer.cc): a few small models' tables.
 
 Writes, under OUT (default ``build/fuzz``):
 
@@ -18,7 +18,7 @@ An input (read by tables_fuzzer.cc, little-endian)::
     b"DUAF" u8 model  u8 flags  u8 steps  u8 seed  u16 ntable
     ntable times: u8 len, name, u8 form (0: float64 entries, 1: text), u32 n, n entries or bytes
 
-Run: ``python dua_mujoco/csrc/fuzz/make_seeds.py [OUT]`` (``run.sh`` does).
+Run: ``python tests/fuzz/make_seeds.py [OUT]`` (``dua_mujoco/csrc/fuzz/run.sh`` does).
 """
 
 from __future__ import annotations
