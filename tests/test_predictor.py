@@ -22,6 +22,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from mjcf import free, mjcf, motors
 from random_states import random_joint_state
 
 import dua_mujoco
@@ -321,15 +322,11 @@ def test_reset_restarts_mocap_differencing() -> None:
 # Predictor protocol and input errors.
 # --------------------------------------------------------------------------------------------------
 
-TWO_BODIES_XML = """
-<mujoco>
-  <worldbody>
-    <geom name="floor" type="plane" size="2 2 .1"/>
-    <body name="a" pos="0 0 1"><freejoint/><geom name="ga" type="capsule" size=".05 .1"/></body>
-    <body name="b" pos=".5 0 1"><freejoint/><geom name="gb" type="box" size=".1 .1 .1"/></body>
-  </worldbody>
-</mujoco>
-"""
+TWO_BODIES_XML = mjcf(
+    '<geom name="floor" type="plane" size="2 2 .1"/>',
+    free("a", "0 0 1", 'name="ga" type="capsule" size=".05 .1"'),
+    free("b", ".5 0 1", 'name="gb" type="box" size=".1 .1 .1"'),
+)
 
 
 @pytest.fixture
@@ -723,7 +720,7 @@ def test_external_scene_regression(name: str, path: str) -> None:
     _assert_complete(name, r)
 
 
-PUCK_XML = """
+PUCK_XML = f"""
 <mujoco>
   <worldbody>
     <geom name="floor" type="plane" size="5 5 .1"/>
@@ -734,10 +731,7 @@ PUCK_XML = """
       <geom name="gpuck" size=".1"/>
     </body>
   </worldbody>
-  <actuator>
-    <motor joint="x" ctrlrange="-1 1" ctrllimited="true"/>
-    <motor joint="y" ctrlrange="-1 1" ctrllimited="true"/>
-  </actuator>
+  {motors("x", "y", ctrlrange="-1 1", ctrllimited="true")}
 </mujoco>
 """
 
@@ -763,16 +757,12 @@ def test_auto_bounds_of_a_body_always_in_contact() -> None:
 # Intended contact (paper sec. 6.3).
 # --------------------------------------------------------------------------------------------------
 
-HEAD_ON_XML = """
-<mujoco>
-  <option gravity="0 0 0"/>
-  <worldbody>
-    <body name="a" pos="-.5 0 0"><freejoint/><geom name="ga" size=".1"/></body>
-    <body name="b" pos=".5 0 0"><freejoint/><geom name="gb" size=".1"/></body>
-    <body name="c" pos="0 2 0"><freejoint/><geom name="gc" size=".1"/></body>
-  </worldbody>
-</mujoco>
-"""
+HEAD_ON_XML = mjcf(
+    free("a", "-.5 0 0", 'name="ga" size=".1"'),
+    free("b", ".5 0 0", 'name="gb" size=".1"'),
+    free("c", "0 2 0", 'name="gc" size=".1"'),
+    option='gravity="0 0 0"',
+)
 
 
 def _head_on(
