@@ -57,13 +57,12 @@ REPO = Path(__file__).resolve().parent.parent
 # and a mocap body carrying a hinged child. Geoms are off their body
 # frames and rotated, inertials are off-centre, so that geom frame, body frame, COM and subtree
 # COM all differ and a wrong reference point shows up as a wrong velocity.
-KINEMATIC_XML = """
-<mujoco>
-  <worldbody>
-    <geom name="floor" type="plane" size="3 3 .1"/>
-    <geom name="post" type="box" size=".1 .1 .3" pos="1 1 .3" euler="0 0 20"/>
-    <geom name="wall" type="plane" size="3 3 .1" pos="3 .5 0" zaxis="-1 .2 .3"/>
-    <body name="free" pos="0 0 1" euler="10 20 30">
+KINEMATIC_XML = mjcf(
+    '<geom name="floor" type="plane" size="3 3 .1"/>',
+    '<geom name="post" type="box" size=".1 .1 .3" pos="1 1 .3" euler="0 0 20"/>',
+    '<geom name="wall" type="plane" size="3 3 .1" pos="3 .5 0" zaxis="-1 .2 .3"/>',
+    # free -> hinge -> ball -> slide
+    """<body name="free" pos="0 0 1" euler="10 20 30">
       <freejoint/>
       <inertial pos=".03 .01 -.02" mass="1" diaginertia=".01 .02 .03"/>
       <geom name="free_cap" type="capsule" fromto="-.1 0 0 .15 .05 .02" size=".04"/>
@@ -80,25 +79,25 @@ KINEMATIC_XML = """
           </body>
         </body>
       </body>
-    </body>
-    <body name="arm" pos="-1 0 .5" euler="0 10 0">
+    </body>""",
+    # hinge -> slide, rooted at the world
+    """<body name="arm" pos="-1 0 .5" euler="0 10 0">
       <joint name="j_arm" type="hinge" axis="0 .2 1" pos=".02 0 0"/>
       <geom name="arm_cap" type="capsule" fromto="0 0 0 .3 0 0" size=".03"/>
       <body name="arm_tip" pos=".3 0 0">
         <joint name="j_tip" type="slide" axis="1 0 .3"/>
         <geom name="tip_box" type="box" size=".05 .03 .04" pos=".02 0 0" euler="0 0 30"/>
       </body>
-    </body>
-    <body name="mocap" mocap="true" pos="1 -1 .5" euler="0 0 15">
+    </body>""",
+    # a mocap body carrying a hinged child
+    """<body name="mocap" mocap="true" pos="1 -1 .5" euler="0 0 15">
       <geom name="mocap_box" type="box" size=".1 .05 .05" pos=".05 0 .02" euler="10 0 0"/>
       <body name="mchild" pos=".2 0 0">
         <joint name="j_mchild" type="hinge" axis="0 1 .3"/>
         <geom name="mchild_cap" type="capsule" fromto="0 0 0 .15 0 .02" size=".02"/>
       </body>
-    </body>
-  </worldbody>
-</mujoco>
-"""
+    </body>""",
+)
 
 
 def _rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
