@@ -16,6 +16,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from mjcf import free, mjcf
 
 from dua_mujoco import _core
 from dua_mujoco.build.events import body_boxes
@@ -29,16 +30,12 @@ from dua_mujoco.runtime.predictor import Predictor
 # Three balls in a row, no gravity: the striker hits the middle ball, which rests 0.1 mm from
 # the last one. The impulse moves the middle ball into the last one within one physics step,
 # so that collision's onset is the step at which the middle ball's bounds break.
-THREE_BALLS = """
-<mujoco>
-  <option gravity="0 0 0" timestep="0.002"/>
-  <worldbody>
-    <body name="striker" pos="-0.2 0 0"><freejoint/><geom name="striker" size="0.05"/></body>
-    <body name="middle" pos="0 0 0"><freejoint/><geom name="middle" size="0.05"/></body>
-    <body name="last" pos="0.1001 0 0"><freejoint/><geom name="last" size="0.05"/></body>
-  </worldbody>
-</mujoco>
-"""
+THREE_BALLS = mjcf(
+    free("striker", "-0.2 0 0", 'name="striker" size="0.05"'),
+    free("middle", "0 0 0", 'name="middle" size="0.05"'),
+    free("last", "0.1001 0 0", 'name="last" size="0.05"'),
+    option='gravity="0 0 0" timestep="0.002"',
+)
 
 
 def _three_balls() -> tuple[mujoco.MjModel, mujoco.MjData]:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from mjcf import free, motors
 
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
 from dua_mujoco.measure.monitor import Monitor
@@ -20,16 +21,14 @@ from dua_mujoco.runtime.plans import PilotPlan, deviation_profile
 from dua_mujoco.runtime.predictor import Predictor
 
 # A ball rolled towards a wall, a box dropped on the floor, an arm swinging through both.
-SCENE = """
+SCENE = f"""
 <mujoco>
   <option timestep="0.002"/>
   <worldbody>
     <geom name="floor" type="plane" size="2 2 .1"/>
     <geom name="wall" type="box" size=".05 .5 .3" pos=".8 0 .3"/>
-    <body name="ball" pos="0 0 .3"><freejoint/><geom name="ball" size=".05"/></body>
-    <body name="box" pos=".3 .3 .4">
-      <freejoint/><geom name="box" type="box" size=".05 .04 .03"/>
-    </body>
+    {free("ball", "0 0 .3", 'name="ball" size=".05"')}
+    {free("box", ".3 .3 .4", 'name="box" type="box" size=".05 .04 .03"')}
     <body name="arm" pos=".4 -.3 .2">
       <joint name="swing" type="hinge" axis="0 0 1" damping=".1"/>
       <geom name="link" type="capsule" fromto="0 0 0 .35 0 0" size=".03"/>
@@ -39,10 +38,7 @@ SCENE = """
       </body>
     </body>
   </worldbody>
-  <actuator>
-    <motor joint="swing" gear="2" ctrlrange="-1 1"/>
-    <motor joint="bend" gear="1" ctrlrange="-1 1"/>
-  </actuator>
+  {motors("swing", "bend", gear=("2", "1"), ctrlrange="-1 1")}
 </mujoco>
 """
 

@@ -21,32 +21,25 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from mjcf import Capsule, arm, motors
 
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.runtime.predictor import Predictor
 
-SCENE = """<mujoco>
+# An arm of two capsules on hinges about z (the fore at the upper's tip), a person beside it.
+UPPER, FORE = Capsule("upper", "swing", ".4", ".04"), Capsule("fore", "elbow", ".3", ".03")
+SCENE = f"""<mujoco>
   <option timestep="0.002"/>
   <worldbody>
     <geom name="floor" type="plane" size="3 3 .1"/>
-    <body name="upper" pos="0 0 .8">
-      <joint name="swing" type="hinge" axis="0 0 1" damping=".5"/>
-      <geom name="upper" type="capsule" fromto="0 0 0 .4 0 0" size=".04"/>
-      <body name="fore" pos=".4 0 0">
-        <joint name="elbow" type="hinge" axis="0 0 1" damping=".2"/>
-        <geom name="fore" type="capsule" fromto="0 0 0 .3 0 0" size=".03"/>
-      </body>
-    </body>
+    {arm("0 0 .8", UPPER, FORE, axis="0 0 1", damping=(".5", ".2"))}
     <body name="person" mocap="true" pos="1.6 0 .9">
       <geom name="torso" type="capsule" fromto="0 0 -.5 0 0 .3" size=".15"/>
       <geom name="hand" type="capsule" fromto="0 0 .1 -.35 0 -.05" size=".05"/>
     </body>
   </worldbody>
-  <actuator>
-    <motor joint="swing" gear="4" ctrlrange="-1 1"/>
-    <motor joint="elbow" gear="2" ctrlrange="-1 1"/>
-  </actuator>
+  {motors("swing", "elbow", gear=("4", "2"), ctrlrange="-1 1")}
 </mujoco>"""
 
 # The person's declared bounds (ISO 13855's walking speed), the arm's.

@@ -22,6 +22,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from mjcf import free, mjcf, motors
 from random_states import random_joint_state
 
 import dua_mujoco
@@ -56,13 +57,12 @@ REPO = Path(__file__).resolve().parent.parent
 # and a mocap body carrying a hinged child. Geoms are off their body
 # frames and rotated, inertials are off-centre, so that geom frame, body frame, COM and subtree
 # COM all differ and a wrong reference point shows up as a wrong velocity.
-KINEMATIC_XML = """
-<mujoco>
-  <worldbody>
-    <geom name="floor" type="plane" size="3 3 .1"/>
-    <geom name="post" type="box" size=".1 .1 .3" pos="1 1 .3" euler="0 0 20"/>
-    <geom name="wall" type="plane" size="3 3 .1" pos="3 .5 0" zaxis="-1 .2 .3"/>
-    <body name="free" pos="0 0 1" euler="10 20 30">
+KINEMATIC_XML = mjcf(
+    '<geom name="floor" type="plane" size="3 3 .1"/>',
+    '<geom name="post" type="box" size=".1 .1 .3" pos="1 1 .3" euler="0 0 20"/>',
+    '<geom name="wall" type="plane" size="3 3 .1" pos="3 .5 0" zaxis="-1 .2 .3"/>',
+    # free -> hinge -> ball -> slide
+    """<body name="free" pos="0 0 1" euler="10 20 30">
       <freejoint/>
       <inertial pos=".03 .01 -.02" mass="1" diaginertia=".01 .02 .03"/>
       <geom name="free_cap" type="capsule" fromto="-.1 0 0 .15 .05 .02" size=".04"/>
@@ -79,25 +79,25 @@ KINEMATIC_XML = """
           </body>
         </body>
       </body>
-    </body>
-    <body name="arm" pos="-1 0 .5" euler="0 10 0">
+    </body>""",
+    # hinge -> slide, rooted at the world
+    """<body name="arm" pos="-1 0 .5" euler="0 10 0">
       <joint name="j_arm" type="hinge" axis="0 .2 1" pos=".02 0 0"/>
       <geom name="arm_cap" type="capsule" fromto="0 0 0 .3 0 0" size=".03"/>
       <body name="arm_tip" pos=".3 0 0">
         <joint name="j_tip" type="slide" axis="1 0 .3"/>
         <geom name="tip_box" type="box" size=".05 .03 .04" pos=".02 0 0" euler="0 0 30"/>
       </body>
-    </body>
-    <body name="mocap" mocap="true" pos="1 -1 .5" euler="0 0 15">
+    </body>""",
+    # a mocap body carrying a hinged child
+    """<body name="mocap" mocap="true" pos="1 -1 .5" euler="0 0 15">
       <geom name="mocap_box" type="box" size=".1 .05 .05" pos=".05 0 .02" euler="10 0 0"/>
       <body name="mchild" pos=".2 0 0">
         <joint name="j_mchild" type="hinge" axis="0 1 .3"/>
         <geom name="mchild_cap" type="capsule" fromto="0 0 0 .15 0 .02" size=".02"/>
       </body>
-    </body>
-  </worldbody>
-</mujoco>
-"""
+    </body>""",
+)
 
 
 def _rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
@@ -321,15 +321,11 @@ def test_reset_restarts_mocap_differencing() -> None:
 # Predictor protocol and input errors.
 # --------------------------------------------------------------------------------------------------
 
-TWO_BODIES_XML = """
-<mujoco>
-  <worldbody>
-    <geom name="floor" type="plane" size="2 2 .1"/>
-    <body name="a" pos="0 0 1"><freejoint/><geom name="ga" type="capsule" size=".05 .1"/></body>
-    <body name="b" pos=".5 0 1"><freejoint/><geom name="gb" type="box" size=".1 .1 .1"/></body>
-  </worldbody>
-</mujoco>
-"""
+TWO_BODIES_XML = mjcf(
+    '<geom name="floor" type="plane" size="2 2 .1"/>',
+    free("a", "0 0 1", 'name="ga" type="capsule" size=".05 .1"'),
+    free("b", ".5 0 1", 'name="gb" type="box" size=".1 .1 .1"'),
+)
 
 
 @pytest.fixture
@@ -723,7 +719,7 @@ def test_external_scene_regression(name: str, path: str) -> None:
     _assert_complete(name, r)
 
 
-PUCK_XML = """
+PUCK_XML = f"""
 <mujoco>
   <worldbody>
     <geom name="floor" type="plane" size="5 5 .1"/>
@@ -734,10 +730,7 @@ PUCK_XML = """
       <geom name="gpuck" size=".1"/>
     </body>
   </worldbody>
-  <actuator>
-    <motor joint="x" ctrlrange="-1 1" ctrllimited="true"/>
-    <motor joint="y" ctrlrange="-1 1" ctrllimited="true"/>
-  </actuator>
+  {motors("x", "y", ctrlrange="-1 1", ctrllimited="true")}
 </mujoco>
 """
 
@@ -763,16 +756,12 @@ def test_auto_bounds_of_a_body_always_in_contact() -> None:
 # Intended contact (paper sec. 6.3).
 # --------------------------------------------------------------------------------------------------
 
-HEAD_ON_XML = """
-<mujoco>
-  <option gravity="0 0 0"/>
-  <worldbody>
-    <body name="a" pos="-.5 0 0"><freejoint/><geom name="ga" size=".1"/></body>
-    <body name="b" pos=".5 0 0"><freejoint/><geom name="gb" size=".1"/></body>
-    <body name="c" pos="0 2 0"><freejoint/><geom name="gc" size=".1"/></body>
-  </worldbody>
-</mujoco>
-"""
+HEAD_ON_XML = mjcf(
+    free("a", "-.5 0 0", 'name="ga" size=".1"'),
+    free("b", ".5 0 0", 'name="gb" size=".1"'),
+    free("c", "0 2 0", 'name="gc" size=".1"'),
+    option='gravity="0 0 0"',
+)
 
 
 def _head_on(

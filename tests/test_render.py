@@ -15,6 +15,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from mjcf import free, mjcf
 
 from dua_mujoco.exceptions import DuaError, InvalidChoiceError, InvalidInputError
 from dua_mujoco.render import (
@@ -54,18 +55,11 @@ TWO_SPHERES = f"""
 """
 
 # A sphere above a floor: its only pair is a sphere/half-space pair.
-BALL_ON_PLANE = """
-<mujoco>
-  <option gravity="0 0 0"/>
-  <worldbody>
-    <geom name="floor" type="plane" size="1 1 0.1"/>
-    <body name="ball" pos="0.1 0.2 0.3">
-      <freejoint/>
-      <geom name="ball" type="sphere" size="0.05"/>
-    </body>
-  </worldbody>
-</mujoco>
-"""
+BALL_ON_PLANE = mjcf(
+    '<geom name="floor" type="plane" size="1 1 0.1"/>',
+    free("ball", "0.1 0.2 0.3", 'name="ball" type="sphere" size="0.05"'),
+    option='gravity="0 0 0"',
+)
 
 
 def _start(xml: str, accel: float, *, x: float | None = None, speed: float = 0.0):

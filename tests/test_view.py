@@ -20,6 +20,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco
 import numpy as np
 import pytest
+from mjcf import motors
 from screens import Display, reddish
 
 from dua_mujoco.cli import main
@@ -30,7 +31,7 @@ from dua_mujoco.runtime.predictor import Predictor
 # Two grey boxes 2 cm apart on springy slides, pushed about by random motors. With an
 # acceleration bound of 5e4 m/s^2 the gap closes within a period: both stand in alarm at every
 # step, tinted "imminent" (brick red), so any red-orange pixel on screen is the overlay's.
-BOXES = """
+BOXES = f"""
 <mujoco>
   <option timestep="0.002" gravity="0 0 0"/>
   <worldbody>
@@ -44,10 +45,7 @@ BOXES = """
       <geom name="b" type="box" size="0.05 0.05 0.05" rgba="0.6 0.6 0.6 1"/>
     </body>
   </worldbody>
-  <actuator>
-    <motor joint="a" gear="20" ctrlrange="-1 1"/>
-    <motor joint="b" gear="20" ctrlrange="-1 1"/>
-  </actuator>
+  {motors("a", "b", gear="20", ctrlrange="-1 1")}
 </mujoco>
 """
 

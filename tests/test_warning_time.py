@@ -8,6 +8,7 @@ import math
 import mujoco
 import numpy as np
 import pytest
+from mjcf import free, mjcf
 
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.measure.accumulators import Durations
@@ -20,16 +21,12 @@ from dua_mujoco.runtime.predictor import Predictor
 
 # Two balls dropped on a plane, 1 m apart: ball_a lands at the 40th physics step and ball_b at
 # the 114th (counted from the start state), and both then rest in contact.
-_DROP = """
-<mujoco>
-  <option timestep="0.002"/>
-  <worldbody>
-    <geom name="floor" type="plane" size="2 2 0.1"/>
-    <body name="a" pos="0 0 0.08"><freejoint/><geom name="ball_a" type="sphere" size="0.05"/></body>
-    <body name="b" pos="1 0 0.3"><freejoint/><geom name="ball_b" type="sphere" size="0.05"/></body>
-  </worldbody>
-</mujoco>
-"""
+_DROP = mjcf(
+    '<geom name="floor" type="plane" size="2 2 0.1"/>',
+    free("a", "0 0 0.08", 'name="ball_a" type="sphere" size="0.05"'),
+    free("b", "1 0 0.3", 'name="ball_b" type="sphere" size="0.05"'),
+    option='timestep="0.002"',
+)
 _TS = 0.002
 
 
