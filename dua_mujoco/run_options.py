@@ -224,6 +224,13 @@ def add_count(
     p.add_argument(flag, type=whole_number(flag, unit, **kw), default=default, help=help)
 
 
+def add_choice(
+    p: argparse.ArgumentParser, flag: str, choices: list[str], default: str | None, help: str
+) -> None:
+    """Add the option ``flag`` taking one of ``choices`` (argparse lists them on a bad value)."""
+    p.add_argument(flag, choices=choices, default=default, help=help)
+
+
 def add_run_options(p: argparse.ArgumentParser) -> None:
     """Add the options of a run's driver, predictor and exact stage (``run``, ``view`` and
     ``sweep`` read them)."""
@@ -235,11 +242,12 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         "physics steps (default: the scene's own, 1000 for an MJCF file)",
     )
     add_count(p, "--seed", "", 0, "seed of the controls (default 0)", minimum=0)
-    p.add_argument(
+    add_choice(
+        p,
         "--ctrl",
-        choices=["scene", "zero", "random", "smooth"],
-        default=None,
-        help="controls: the scene's own driver (person_cell's person and arm task; the default "
+        ["scene", "zero", "random", "smooth"],
+        None,
+        "controls: the scene's own driver (person_cell's person and arm task; the default "
         "for a scene that has one), zero, random held 50 steps (the default otherwise), or "
         "smooth (targets linear between random points 250 steps apart; motors as 1 Hz PD "
         "torques); the pilot of --accel auto is driven the same way",
@@ -254,11 +262,12 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         "arm's measured), else auto",
     )
     p.add_argument("--speed", type=positive(float), default=None, help="speed bound in m/s")
-    p.add_argument(
+    add_choice(
+        p,
         "--covering",
-        choices=["bounding", "multi"],
-        default="bounding",
-        help="one bounding sphere per geom, or several (budget --max-spheres)",
+        ["bounding", "multi"],
+        "bounding",
+        "one bounding sphere per geom, or several (budget --max-spheres)",
     )
     add_count(p, "--max-spheres", "spheres per geom", 8, "multi covering budget")
     add_count(p, "--period", "physics steps", 1, "physics steps per predictor step")
@@ -279,11 +288,12 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         "every collision is flagged at least this long ahead while the bounds hold (default: "
         "one predictor period)",
     )
-    p.add_argument(
+    add_choice(
+        p,
         "--schedule",
-        choices=["deadline", "dua", "select-all"],
-        default="deadline",
-        help="which pairs to evaluate each step: each when its own tau runs out (deadline), "
+        ["deadline", "dua", "select-all"],
+        "deadline",
+        "which pairs to evaluate each step: each when its own tau runs out (deadline), "
         "the paper's constant-work rank buckets (dua), or all of them (select-all)",
     )
     add_count(
@@ -313,11 +323,12 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         "dua: slots evaluated per bucket per step, a power of two (revisit intervals "
         "shrink that many times)",
     )
-    p.add_argument(
+    add_choice(
+        p,
         "--static",
-        choices=["shape", "sphere"],
-        default="shape",
-        help="geoms welded to the world: held as their own convex shapes, or covered by one "
+        ["shape", "sphere"],
+        "shape",
+        "geoms welded to the world: held as their own convex shapes, or covered by one "
         "bounding sphere (the previous urgency, for comparison)",
     )
     p.add_argument(
@@ -335,35 +346,39 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
         "made before an impact stand until their deadline (for comparison; docs/theory.md, "
         "section 6)",
     )
-    p.add_argument(
+    add_choice(
+        p,
         "--pairs",
-        choices=["all", "pruned", "auto"],
-        default="auto",
-        help="deadline: hold every active sphere pair, or only those whose reachable balls "
+        ["all", "pruned", "auto"],
+        "auto",
+        "deadline: hold every active sphere pair, or only those whose reachable balls "
         "meet within a horizon (rebuilt as they move; for thousands of spheres), or choose "
         "by size (default: pruned from 256 covering spheres)",
     )
     add_count(p, "--pilot-steps", "physics steps", 2000, "pilot rollout length for --accel auto")
-    p.add_argument(
+    add_choice(
+        p,
         "--pilot-motion",
-        choices=["free", "no-impacts", "all"],
-        default=None,
-        help="steps the pilot of --accel auto measures: out of every contact and joint limit "
+        ["free", "no-impacts", "all"],
+        None,
+        "steps the pilot of --accel auto measures: out of every contact and joint limit "
         "(free motion), all but those near a new contact, or all (default: the "
         "PilotOptions default)",
     )
-    p.add_argument(
+    add_choice(
+        p,
         "--hfield",
-        choices=["terrain", "box", "error"],
-        default="terrain",
-        help="height fields: hold a static one as the prisms of its grid (default), cover them "
+        ["terrain", "box", "error"],
+        "terrain",
+        "height fields: hold a static one as the prisms of its grid (default), cover them "
         "by their bounding box, or refuse them",
     )
-    p.add_argument(
+    add_choice(
+        p,
         "--plan",
-        choices=["none", "trajectory"],
-        default="none",
-        help="trajectory: every max(horizon, 50 ms) give the predictor a flight plan rolled "
+        ["none", "trajectory"],
+        "none",
+        "trajectory: every max(horizon, 50 ms) give the predictor a flight plan rolled "
         "from a copy of the controller (exact: deviation 0) for the bodies the scene's driver "
         "plans (person_cell: the arm; the person keeps its bounds), else every body outside "
         "mocap trees (docs/plans.md)",
