@@ -456,9 +456,11 @@ _EXPERIMENTS = {
 }
 
 
-def _add_experiment(sub: argparse._SubParsersAction, name: str) -> None:
-    module = importlib.import_module(f"dua_mujoco.experiments.{name}")
+def _add_experiment(sub: argparse._SubParsersAction, name: str, load: bool) -> None:
     p = sub.add_parser(name, help=_EXPERIMENTS[name])
+    if not load:  # listed only: importing the experiments takes 0.2 s of every command
+        return
+    module = importlib.import_module(f"dua_mujoco.experiments.{name}")
     module.add_arguments(p)
     p.set_defaults(func=module.main)
 
@@ -474,8 +476,9 @@ class _Parser(argparse.ArgumentParser):
         super().error(message)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``dua-mujoco`` argument parser with its subcommands."""
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The ``dua-mujoco`` argument parser with its subcommands (the experiments' options only
+    if ``argv``, the command line it is for, names them; None: all)."""
     parser = _Parser(
         prog="dua-mujoco",
         description="Collision prediction for MuJoCo with the Dynamic Urgency Algorithm.",
@@ -488,7 +491,7 @@ def build_parser() -> argparse.ArgumentParser:
     for name in _RUN_COMMANDS:
         _add_run_command(sub, name)
     for name in _EXPERIMENTS:
-        _add_experiment(sub, name)
+        _add_experiment(sub, name, argv is None or name in argv)
     return parser
 
 
@@ -510,8 +513,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     The codes are listed by ``dua-mujoco run --help``: 1 and 3 come only with ``--strict``,
     130 after a Ctrl-C.
     """
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(argv).parse_args(argv)
     with warnings.catch_warnings():
         # A command line shows warnings as one line each, not as Python source locations.
         warnings.showwarning = _one_line_warning

@@ -407,6 +407,36 @@ def test_the_filter_on_candidates_gives_mujocos_pairs(name: str) -> None:
     _lazy_parity(mujoco.MjModel.from_xml_string(FILTER_MODELS[name]))
 
 
+@pytest.mark.parametrize("classes", [2, 1 << 30])
+def test_the_count_by_classes_is_the_pair_loops(classes: int) -> None:
+    """``count_dynamic_pairs`` (by geom classes, less the listed related pairs; with many
+    classes the pair loop) equals the pairs ``all_dynamic_pairs`` lists and their weights, on
+    random tables with shared welds, parent joints and duplicate, same-body exclusions."""
+    from dua_mujoco.build.pairfilter import FilterTables, all_dynamic_pairs, count_dynamic_pairs
+
+    rng = np.random.default_rng(classes)
+    for _ in range(200):
+        n, nbody = int(rng.integers(0, 120)), int(rng.integers(1, 40))
+        body_weld = np.minimum(rng.integers(0, nbody, nbody), np.arange(nbody))
+        body = rng.integers(0, nbody, n)
+        weld = body_weld[body]
+        b1, b2 = rng.integers(0, nbody, (2, int(rng.integers(0, nbody))))
+        tables = FilterTables(
+            body=body,
+            weld=weld,
+            parent_weld=body_weld[rng.integers(0, nbody, nbody)][weld],
+            movable=rng.random(nbody)[weld] < 0.8,
+            contype=rng.integers(0, classes, n),
+            conaffinity=rng.integers(0, classes, n),
+            lone=rng.random(n) < 0.2,
+            exclude=np.sort((np.minimum(b1, b2) << 16) + np.maximum(b1, b2)),
+            filterparent=bool(rng.random() < 0.7),
+        )
+        weight = rng.integers(1, 5, n)
+        g1, g2 = all_dynamic_pairs(tables)
+        assert count_dynamic_pairs(tables, weight) == (g1.size, int(weight[g1] @ weight[g2]))
+
+
 @pytest.mark.parametrize("scene", ["two_arms", "traffic", "clutter", "bin_pour:40", "swarm:300"])
 def test_the_filter_on_candidates_gives_mujocos_pairs_on_scenes(scene: str) -> None:
     from dua_mujoco.models.scenes import load_scene

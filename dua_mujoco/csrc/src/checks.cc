@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "dua/dua.h"
+#include "internal.h"
 
 extern "C" {
 
@@ -22,7 +23,7 @@ int64_t dua_check_points(const double* points, int64_t n, const dua_frame* f, co
     const double* p = prev + 9 * i;
     double* val = values + 3 * i;
     uint8_t* br = broken + 3 * i;
-    dua_rigid_point(i, points, f, c);
+    dua::RigidPoint(i, points, dua::kSphereNcol, *f, c);  // inline: 160,000 points a step
     br[kSpeed] = br[kDisc] = br[kAcc] = 0;
     if (nprev == 0) {
       val[kSpeed] = val[kDisc] = val[kAcc] = 0.0;
