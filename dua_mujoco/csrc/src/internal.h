@@ -42,6 +42,8 @@ double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2
 // TauSpeed of n rows {x0, x1, x2, v0, v1, v2, eps, accel, delta, speed}, row i at rows + i *
 // stride, into out[i * out_stride]; four at a time (the same values).
 void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride);
+// TauSpeed of rows r[0:m] (m <= 4; the rest repeat a row, as padding) into out[k * out_stride].
+void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_stride);
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
 // tau of a sphere (centre c, velocity v) against a static shape record; speed: the bound on the
 // sphere's speed (inf: none).
@@ -161,6 +163,9 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
   xrec[kXN] = n[0], xrec[kXN + 1] = n[1], xrec[kXN + 2] = n[2];
   return true;
 }
+
+// dua_make_due of pairs ids[0:count] at step n (schedule.cc).
+void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n);
 
 // Bucket floor(log2(slot + 1)) of a rank slot.
 inline int64_t BucketOf(int64_t slot) {
