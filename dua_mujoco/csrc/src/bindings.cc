@@ -728,6 +728,29 @@ struct PyRuntime {
     return nb::cast(std::move(a));
   }
 
+  // One step on the bound MjData, one period after the last: the alarms logged (or fails).
+  int64_t Step() const {
+    const mjData* d = Data();
+    if (!rt->classified()) Fail("unclassified", nb::none());
+    if (rt->ClockOf(d->time) != Runtime::Clock::kOnePeriod) {
+      Fail("clock", nb::float_(d->time - rt->last_time()));
+    }
+    const int64_t r = rt->Step(m, d);
+    if (r == Runtime::kBadState) Fail("state", nb::none());
+    if (r < 0) Fail("pair", nb::int_(rt->ids()[-1 - r]));
+    return r;
+  }
+
+  // What a watcher reads after a step: (counted geom pairs whose alarm started at it, the least
+  // time any counted verdict still vouches for: its tau less the time since it, at least 0,
+  // version of the standing set).
+  nb::tuple Watched() const {
+    const Runtime::Watched& w = rt->watched();
+    const double left =
+        w.expiry - rt->tables().schedule.dt * static_cast<double>(rt->step());
+    return nb::make_tuple(w.started, std::max(left, 0.0), w.version);
+  }
+
   // The step's failure as (kind, value): Python turns it into the error it documents.
   [[noreturn]] void Fail(const char* kind, nb::object value) const {
     PyErr_SetObject(step_error.ptr(), nb::make_tuple(kind, value).ptr());
@@ -973,21 +996,16 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "The initial classification of the bound MjData's state.")
       .def(
           "step",
-          [](PyRuntime& self) {
-            const mjData* d = self.Data();
-            if (!self.rt->classified()) {
-              self.Fail("unclassified", nb::none());
-            }
-            if (self.rt->ClockOf(d->time) != Runtime::Clock::kOnePeriod) {
-              self.Fail("clock", nb::float_(d->time - self.rt->last_time()));
-            }
-            const int64_t r = self.rt->Step(self.m, d);
-            if (r == Runtime::kBadState) self.Fail("state", nb::none());
-            if (r < 0) self.Fail("pair", nb::int_(self.rt->ids()[-1 - r]));
-            return self.MakeAlarms(r);
-          },
+          [](PyRuntime& self) { return self.MakeAlarms(self.Step()); },
           nb::sig("def step(self) -> Alarms"),
           "One predictor step on the bound MjData, one period after the last.")
+      .def(
+          "step_watched",
+          [](PyRuntime& self) {
+            self.Step();
+            return self.Watched();
+          },
+          "step, then watched: one call a step for a watcher (the gym wrapper), no Alarms made.")
       .def(
           "classify_spheres",
           [](PyRuntime& self, const In<double>& centers, const In<double>& velocities) {
@@ -1185,12 +1203,10 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "Count, from now on, the geom pairs with no ignored geom and not ignored themselves.")
       .def_prop_ro(
           "watched",
-          [](const PyRuntime& s) {
-            const Runtime::Watched& w = s.rt->watched();
-            return nb::make_tuple(w.standing, w.started, w.expiry, w.version);
-          },
-          "(counted geom pairs standing, of them started at the latest step, least "
-          "expiry: tau + the time of its step since the reset, version).")
+          [](const PyRuntime& s) { return s.Watched(); },
+          "(counted geom pairs whose alarm started at the latest step, the least time a counted "
+          "pair's latest verdict still vouches for: its tau less the time since, at least 0; the "
+          "version of the set of counted geom pairs standing).")
       .def(
           "watched_standing",
           [](const PyRuntime& s) {
