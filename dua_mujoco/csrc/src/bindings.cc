@@ -746,8 +746,7 @@ struct PyRuntime {
   // version of the standing set).
   nb::tuple Watched() const {
     const Runtime::Watched& w = rt->watched();
-    const double left =
-        w.expiry - rt->tables().schedule.dt * static_cast<double>(rt->step());
+    const double left = w.expiry - rt->tables().schedule.dt * static_cast<double>(rt->step());
     return nb::make_tuple(w.started, std::max(left, 0.0), w.version);
   }
 
@@ -995,8 +994,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           nb::sig("def classify(self) -> Alarms"),
           "The initial classification of the bound MjData's state.")
       .def(
-          "step",
-          [](PyRuntime& self) { return self.MakeAlarms(self.Step()); },
+          "step", [](PyRuntime& self) { return self.MakeAlarms(self.Step()); },
           nb::sig("def step(self) -> Alarms"),
           "One predictor step on the bound MjData, one period after the last.")
       .def(
@@ -1202,8 +1200,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "ignored_geoms"_a, "ignored_pairs"_a,
           "Count, from now on, the geom pairs with no ignored geom and not ignored themselves.")
       .def_prop_ro(
-          "watched",
-          [](const PyRuntime& s) { return s.Watched(); },
+          "watched", [](const PyRuntime& s) { return s.Watched(); },
           "(counted geom pairs whose alarm started at the latest step, the least time a counted "
           "pair's latest verdict still vouches for: its tau less the time since, at least 0; the "
           "version of the set of counted geom pairs standing).")

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <string>
 
 #include "dua/dua.h"
@@ -117,8 +118,15 @@ inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_fr
   out[4] = tw[4] + tw[2] * dx - tw[0] * dz;
   out[5] = tw[5] + tw[0] * dy - tw[1] * dx;
   const double* rt = f.root_twist + 6 * r;
-  if (rt[0] != 0.0 || rt[1] != 0.0 || rt[2] != 0.0 || rt[3] != 0.0 || rt[4] != 0.0 ||
-      rt[5] != 0.0) {
+  // Whether some entry is not +-0 (NaN too), as rt[j] != 0.0 for some j, in one test of the
+  // bits with the signs shifted out (zero but under a mocap root: six compares a point).
+  uint64_t bits = 0;
+  for (int j = 0; j < 6; ++j) {
+    uint64_t b;
+    std::memcpy(&b, rt + j, sizeof(b));
+    bits |= b;
+  }
+  if (bits << 1 != 0) {
     const double* ro = f.root_origin + 3 * r;
     const double ex = out[0] - ro[0], ey = out[1] - ro[1], ez = out[2] - ro[2];
     out[3] += rt[3] + rt[1] * ez - rt[2] * ey;
