@@ -208,7 +208,10 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   const double* src[kLanes][kFields];
   for (int k = 0; k < kLanes; ++k) RowSources(ev, f, i + std::min(k, m - 1), src[k]);
   BodyRow<Lanes> row;
+  // Unrolled: the loops' own counting and the lengths' lookups were a fifth of the check.
+#pragma GCC unroll 6
   for (int field = 0; field < kFields; ++field) {
+#pragma GCC unroll 9
     for (int j = 0; j < kFieldLen[field]; ++j) {
       row.v[kFieldAt[field] + j] =
           Lanes{src[0][field][j], src[1][field][j], src[2][field][j], src[3][field][j]};
@@ -217,14 +220,11 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   // The state's columns are whole vectors, the padding's too: a ragged last group's spare lanes
   // hold its last body's state (its inputs, and its box and bounds from the reset), so they
   // take the same paths through the screens.
-  for (int j = 0; j < kSNcol; ++j) {
-    __builtin_memcpy(&row.v[kRowState + j], StateAt(ev, i, j), sizeof(Lanes));
-  }
+  // The four bodies' columns are one block (i is a multiple of four): copied whole.
+  __builtin_memcpy(&row.v[kRowState], StateAt(ev, i, 0), kSNcol * sizeof(Lanes));
   const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
   int bits = 0;
-  for (int j = 0; j < kSWritten; ++j) {
-    __builtin_memcpy(StateAt(ev, i, j), &row.v[kRowState + j], sizeof(Lanes));
-  }
+  __builtin_memcpy(StateAt(ev, i, 0), &row.v[kRowState], kSWritten * sizeof(Lanes));
   for (int k = 0; k < m; ++k) bits |= broken[k] ? 1 << k : 0;
   return bits;
 }
