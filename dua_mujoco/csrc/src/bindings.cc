@@ -1206,12 +1206,19 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "version of the set of counted geom pairs standing).")
       .def(
           "watched_standing",
-          [](const PyRuntime& s) {
-            std::vector<int64_t> v = s.rt->WatchedStanding();
-            const size_t n = v.size() / 2;
-            return Owned(std::move(v), {n, 2});
+          [](const PyRuntime& s, const nb::list& names) {
+            const std::vector<int64_t> v = s.rt->WatchedStanding();
+            const auto n = static_cast<int64_t>(names.size());
+            nb::list out;
+            for (size_t k = 0; k < v.size(); k += 2) {
+              Require(v[k] < n && v[k + 1] < n, "names has fewer entries than the model's geoms");
+              out.append(nb::make_tuple(names[v[k]], names[v[k + 1]]));
+            }
+            return nb::tuple(out);
           },
-          "(k, 2) the counted geom pairs standing in alarm, in increasing order.")
+          "names"_a,
+          "The counted geom pairs standing in alarm, in increasing (g1, g2), as (names[g1], "
+          "names[g2]) tuples (names: one per geom of the model).")
       .def(
           "exact_only",
           [](PyRuntime& self, const In<int64_t>& ids, const In<double>& coarse,

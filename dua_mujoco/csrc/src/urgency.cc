@@ -244,6 +244,32 @@ MaskOf<T> HasMinimum(const Inflated<T>& p, T* t2) {
   return And(may, ((p3 * *t2 + p2) * *t2 + p.q) * *t2 + p.p0 > 0.0);
 }
 
+// TauSpeed's speed term: the relative position also stays in B(x, V t), so no contact comes
+// before ts = (|x| - eps) / V (inflated as the kernel inflates). The term applies under a finite
+// bound that the measured speed |v| keeps (one above it means the bound is broken: the term is
+// dropped), to a positive tau. The scalar kernel and the lanes (TauSpeedFour) both use these.
+template <class T>
+MaskOf<T> SpeedApplies(T nv, T speed) {
+  return And(speed < kInf, nv <= speed);
+}
+template <class T>
+T SpeedTerm(T nx, T eps, T speed) {
+  return (nx - eps * (1.0 + kKappa) - kKappa * nx) / speed * (1.0 - kKappa);
+}
+double WithSpeedTerm(double tau, bool applies, double ts) {
+  if (applies && tau > 0.0) {
+    tau = std::max(tau, ts);
+  }
+  return tau;
+}
+
+double WithSpeed(double tau, double x0, double x1, double x2, double v0, double v1, double v2,
+                 double eps, double speed) {
+  const double nv = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
+  const double nx = std::sqrt(x0 * x0 + x1 * x1 + x2 * x2);
+  return WithSpeedTerm(tau, SpeedApplies(nv, speed), SpeedTerm(nx, eps, speed));
+}
+
 // TauAccel's common path, four pairs at once: h > 0, no interior minimum, the closed-form upper
 // end brackets the root, the guess is certified. The lanes it settles (the returned mask) hold
 // TauAccel's value bit for bit (the same operations in the same order); the rest are TauAccel's
@@ -258,9 +284,9 @@ int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLan
     eps[k] = r[k][6], accel[k] = r[k][7], delta[k] = r[k][8], speed[k] = r[k][9];
   }
   const Inflated<Lanes> p = Inflate(x, v, eps, accel, delta);
-  // WithSpeed's operations in its order (p.nx and p.nv are its norms, bit for bit).
-  const LaneMask on = And(speed < kInf, p.nv <= speed);
-  const Lanes term = (p.nx - eps * (1.0 + kKappa) - kKappa * p.nx) / speed * (1.0 - kKappa);
+  // WithSpeed's term (p.nx and p.nv are its norms, bit for bit).
+  const LaneMask on = SpeedApplies(p.nv, speed);
+  const Lanes term = SpeedTerm(p.nx, eps, speed);
   int bits = 0;
   for (int k = 0; k < kLanes; ++k) {
     ts[k] = term[k];
@@ -287,21 +313,6 @@ int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLan
     settled |= ok[k] ? 1 << k : 0;
   }
   return settled;
-}
-
-// TauSpeed's speed term: the relative position also stays in B(x, V t).
-double WithSpeed(double tau, double x0, double x1, double x2, double v0, double v1, double v2,
-                 double eps, double speed) {
-  if (speed < kInf && tau > 0.0) {
-    const double nv = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
-    // A measured speed above the bound means the bound is broken: the term is dropped.
-    if (nv <= speed) {
-      const double nx = std::sqrt(x0 * x0 + x1 * x1 + x2 * x2);
-      const double ts = (nx - eps * (1.0 + kKappa) - kKappa * nx) / speed * (1.0 - kKappa);
-      tau = std::max(tau, ts);
-    }
-  }
-  return tau;
 }
 
 }  // namespace
@@ -378,9 +389,7 @@ void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_st
     const double* q = r[k];
     double t =
         (done >> k) & 1 ? tau[k] : TauAccel(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8]);
-    // WithSpeed, its norms and term from the lanes.
-    if ((speed_on >> k) & 1 && t > 0.0) t = std::max(t, ts[k]);
-    out[k * out_stride] = t;
+    out[k * out_stride] = WithSpeedTerm(t, (speed_on >> k) & 1, ts[k]);
   }
 }
 
