@@ -115,8 +115,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "speed-term-doubled",
         _URGENCY,
-        "      tau = std::max(tau, ts);",
-        "      tau = std::max(tau, 2.0 * ts);",
+        "    tau = std::max(tau, ts);",
+        "    tau = std::max(tau, 2.0 * ts);",
         ("tests/test_urgency.py::test_speed_between_max_formula_and_lens", _REF_PAPER),
         "the speed bound's term claims twice the time",
     ),
@@ -228,8 +228,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "violation-not-made-due",
         _STEP,
-        "      dua_make_due(&a->schedule, ev.members[m], n);",
-        "      dua_make_due(&a->schedule, ev.members[m], n + 1);",
+        "ev.members + ev.start[i], ev.start[i + 1] - ev.start[i], n);",
+        "ev.members + ev.start[i], ev.start[i + 1] - ev.start[i], n + 1);",
         (
             "tests/test_events.py::test_a_collision_right_after_an_impulse_is_flagged_only_with_events",
         ),

@@ -336,6 +336,11 @@ class Runtime:
     def step(self) -> Alarms:
         """One predictor step on the bound MjData, one period after the last."""
 
+    def step_watched(self) -> tuple:
+        """
+        step, then watched: one call a step for a watcher (the gym wrapper), no Alarms made.
+        """
+
     def classify_spheres(self, centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:
         """
         Free spheres: the initial classification at centres and velocities (n, 3); the pairs (i, j) standing in alarm, (k, 2) in increasing order.
@@ -420,11 +425,13 @@ class Runtime:
     @property
     def watched(self) -> tuple:
         """
-        (counted geom pairs standing, of them started at the latest step, least expiry: tau + the time of its step since the reset, version).
+        (counted geom pairs whose alarm started at the latest step, the least time a counted pair's latest verdict still vouches for: its tau less the time since, at least 0; the version of the set of counted geom pairs standing).
         """
 
-    def watched_standing(self) -> NDArray[numpy.int64]:
-        """(k, 2) the counted geom pairs standing in alarm, in increasing order."""
+    def watched_standing(self, names: list) -> tuple:
+        """
+        The counted geom pairs standing in alarm, in increasing (g1, g2), as (names[g1], names[g2]) tuples (names: one per geom of the model).
+        """
 
     def exact_only(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], coarse: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], query_below: float) -> NDArray[numpy.float64]:
         """

@@ -728,6 +728,28 @@ struct PyRuntime {
     return nb::cast(std::move(a));
   }
 
+  // One step on the bound MjData, one period after the last: the alarms logged (or fails).
+  int64_t Step() const {
+    const mjData* d = Data();
+    if (!rt->classified()) Fail("unclassified", nb::none());
+    if (rt->ClockOf(d->time) != Runtime::Clock::kOnePeriod) {
+      Fail("clock", nb::float_(d->time - rt->last_time()));
+    }
+    const int64_t r = rt->Step(m, d);
+    if (r == Runtime::kBadState) Fail("state", nb::none());
+    if (r < 0) Fail("pair", nb::int_(rt->ids()[-1 - r]));
+    return r;
+  }
+
+  // What a watcher reads after a step: (counted geom pairs whose alarm started at it, the least
+  // time any counted verdict still vouches for: its tau less the time since it, at least 0,
+  // version of the standing set).
+  nb::tuple Watched() const {
+    const Runtime::Watched& w = rt->watched();
+    const double left = w.expiry - rt->tables().schedule.dt * static_cast<double>(rt->step());
+    return nb::make_tuple(w.started, std::max(left, 0.0), w.version);
+  }
+
   // The step's failure as (kind, value): Python turns it into the error it documents.
   [[noreturn]] void Fail(const char* kind, nb::object value) const {
     PyErr_SetObject(step_error.ptr(), nb::make_tuple(kind, value).ptr());
@@ -972,22 +994,16 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           nb::sig("def classify(self) -> Alarms"),
           "The initial classification of the bound MjData's state.")
       .def(
-          "step",
-          [](PyRuntime& self) {
-            const mjData* d = self.Data();
-            if (!self.rt->classified()) {
-              self.Fail("unclassified", nb::none());
-            }
-            if (self.rt->ClockOf(d->time) != Runtime::Clock::kOnePeriod) {
-              self.Fail("clock", nb::float_(d->time - self.rt->last_time()));
-            }
-            const int64_t r = self.rt->Step(self.m, d);
-            if (r == Runtime::kBadState) self.Fail("state", nb::none());
-            if (r < 0) self.Fail("pair", nb::int_(self.rt->ids()[-1 - r]));
-            return self.MakeAlarms(r);
-          },
+          "step", [](PyRuntime& self) { return self.MakeAlarms(self.Step()); },
           nb::sig("def step(self) -> Alarms"),
           "One predictor step on the bound MjData, one period after the last.")
+      .def(
+          "step_watched",
+          [](PyRuntime& self) {
+            self.Step();
+            return self.Watched();
+          },
+          "step, then watched: one call a step for a watcher (the gym wrapper), no Alarms made.")
       .def(
           "classify_spheres",
           [](PyRuntime& self, const In<double>& centers, const In<double>& velocities) {
@@ -1184,21 +1200,25 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "ignored_geoms"_a, "ignored_pairs"_a,
           "Count, from now on, the geom pairs with no ignored geom and not ignored themselves.")
       .def_prop_ro(
-          "watched",
-          [](const PyRuntime& s) {
-            const Runtime::Watched& w = s.rt->watched();
-            return nb::make_tuple(w.standing, w.started, w.expiry, w.version);
-          },
-          "(counted geom pairs standing, of them started at the latest step, least "
-          "expiry: tau + the time of its step since the reset, version).")
+          "watched", [](const PyRuntime& s) { return s.Watched(); },
+          "(counted geom pairs whose alarm started at the latest step, the least time a counted "
+          "pair's latest verdict still vouches for: its tau less the time since, at least 0; the "
+          "version of the set of counted geom pairs standing).")
       .def(
           "watched_standing",
-          [](const PyRuntime& s) {
-            std::vector<int64_t> v = s.rt->WatchedStanding();
-            const size_t n = v.size() / 2;
-            return Owned(std::move(v), {n, 2});
+          [](const PyRuntime& s, const nb::list& names) {
+            const std::vector<int64_t> v = s.rt->WatchedStanding();
+            const auto n = static_cast<int64_t>(names.size());
+            nb::list out;
+            for (size_t k = 0; k < v.size(); k += 2) {
+              Require(v[k] < n && v[k + 1] < n, "names has fewer entries than the model's geoms");
+              out.append(nb::make_tuple(names[v[k]], names[v[k + 1]]));
+            }
+            return nb::tuple(out);
           },
-          "(k, 2) the counted geom pairs standing in alarm, in increasing order.")
+          "names"_a,
+          "The counted geom pairs standing in alarm, in increasing (g1, g2), as (names[g1], "
+          "names[g2]) tuples (names: one per geom of the model).")
       .def(
           "exact_only",
           [](PyRuntime& self, const In<int64_t>& ids, const In<double>& coarse,

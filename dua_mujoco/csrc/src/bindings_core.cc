@@ -67,9 +67,8 @@ int64_t TauOfIds(const In<double>& pairs, const int64_t* ids, int64_t n, const I
                  const In<double>& velocities, const In<double>& planes, const In<double>& shapes,
                  double* out) {
   auto run = [&](int64_t k0, int64_t k1) {
-    std::vector<double> rows(12 * static_cast<size_t>(std::max<int64_t>(k1 - k0, 1)));
     const int64_t bad = dua_tau_free(pairs.data(), shapes.data(), centers.data(), velocities.data(),
-                                     planes.data(), ids + k0, k1 - k0, rows.data(), out + k0);
+                                     planes.data(), ids + k0, k1 - k0, out + k0);
     return bad < 0 ? bad : k0 + bad;
   };
   if (n < kThreadedRows) return run(0, n);

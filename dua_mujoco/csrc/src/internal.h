@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <string>
 
 #include "dua/dua.h"
@@ -42,6 +43,8 @@ double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2
 // TauSpeed of n rows {x0, x1, x2, v0, v1, v2, eps, accel, delta, speed}, row i at rows + i *
 // stride, into out[i * out_stride]; four at a time (the same values).
 void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride);
+// TauSpeed of rows r[0:m] (m <= 4; the rest repeat a row, as padding) into out[k * out_stride].
+void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_stride);
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
 // tau of a sphere (centre c, velocity v) against a static shape record; speed: the bound on the
 // sphere's speed (inf: none).
@@ -115,8 +118,15 @@ inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_fr
   out[4] = tw[4] + tw[2] * dx - tw[0] * dz;
   out[5] = tw[5] + tw[0] * dy - tw[1] * dx;
   const double* rt = f.root_twist + 6 * r;
-  if (rt[0] != 0.0 || rt[1] != 0.0 || rt[2] != 0.0 || rt[3] != 0.0 || rt[4] != 0.0 ||
-      rt[5] != 0.0) {
+  // Whether some entry is not +-0 (NaN too), as rt[j] != 0.0 for some j, in one test of the
+  // bits with the signs shifted out (zero but under a mocap root: six compares a point).
+  uint64_t bits = 0;
+  for (int j = 0; j < 6; ++j) {
+    uint64_t b;
+    std::memcpy(&b, rt + j, sizeof(b));
+    bits |= b;
+  }
+  if (bits << 1 != 0) {
     const double* ro = f.root_origin + 3 * r;
     const double ex = out[0] - ro[0], ey = out[1] - ro[1], ez = out[2] - ro[2];
     out[3] += rt[3] + rt[1] * ez - rt[2] * ey;
@@ -161,6 +171,9 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
   xrec[kXN] = n[0], xrec[kXN + 1] = n[1], xrec[kXN + 2] = n[2];
   return true;
 }
+
+// dua_make_due of pairs ids[0:count] at step n (schedule.cc).
+void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n);
 
 // Bucket floor(log2(slot + 1)) of a rank slot.
 inline int64_t BucketOf(int64_t slot) {

@@ -17,9 +17,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-// Most rows of the gather scratch (12 doubles each: 384 KB). A row a held pair took 96 bytes a
-// pair, 48 MB for the half million pairs of 1,000 free spheres.
-constexpr int64_t kScratchRows = 4096;
 
 std::vector<int64_t> Iota(int64_t n) {
   std::vector<int64_t> v(static_cast<size_t>(n));
@@ -95,7 +92,6 @@ Runtime::Runtime(const Runtime& o)
       schedule_(std::make_shared<Schedule>(*o.schedule_)),
       ids_(o.ids_),
       args_(o.args_),
-      scratch_(o.scratch_),
       point_state_(o.point_state_),
       exact_records_(o.exact_records_),
       events_prev_(o.events_prev_),
@@ -184,9 +180,6 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
                          held_start_.data(), held_members_.data()),
         1));
   }
-  // A batch's gathered states: as many rows as pairs, up to kScratchRows (larger batches, a
-  // classification of every pair or a step of many due ones, go through in chunks).
-  scratch_.assign(12 * static_cast<size_t>(std::clamp<int64_t>(n, 1, kScratchRows)), 0.0);
   // No query made yet for the held pairs (the directions are the universe's, too).
   if (t.exact) witness_.assign(6 * static_cast<size_t>(std::max<int64_t>(n, 1)), kNaN);
   stands_.assign(n, 0);
@@ -238,8 +231,6 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   e.start = held_start_.data();
   e.members = held_members_.data();
   e.params = t.events_params.data();
-  a.scratch = scratch_.data();
-  a.scratch_rows = static_cast<int64_t>(scratch_.size() / 12);
   a.point_state = point_state_.data();
   a.point_epoch = point_epoch_.data();
   a.log_pairs = log_->pair.data();
@@ -252,7 +243,9 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   if (plan_) {
     if (!plan_data_) plan_data_.reset(mj_makeData(m));
     const Universe& u = universe();
-    planned_.resize(std::max<size_t>(ids_.size(), 1));
+    // A batch is every pair (a classification) or a step's selection, which can outnumber the
+    // held pairs (the rank schedule takes a pair made due both from its slot and from the queue).
+    planned_.resize(std::max<size_t>({ids_.size(), static_cast<size_t>(schedule_->width()), 1}));
     pl.body_ok = plan_ok_.data();
     pl.geom1 = u.geom1.data();
     pl.geom2 = u.geom2.data();

@@ -315,14 +315,15 @@ int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t ma
                               double extra) {
   // The wait is computed as the alarm test computes it, (s + latency) * dt + extra, so that a
   // pair that waits s steps is exactly one whose verdict covers them.
+  // covered is monotone (the sum and product of numbers that grow with s), so the two loops
+  // below give the largest s it holds for, or 1, from any guess in [1, max_interval].
   auto covered = [=](int64_t s) { return static_cast<double>(s + latency) * dt + extra < tau; };
-  if (covered(max_interval)) return max_interval;  // inf too
-  if (std::isnan(tau)) return 1;                   // covers nothing
-  const double guess = std::floor((tau - extra) / dt) - static_cast<double>(latency);
-  int64_t s = guess < 1.0                                 ? 1
-              : guess > static_cast<double>(max_interval) ? max_interval
-                                                          : static_cast<int64_t>(guess);
-  // The division rounds either way: settle s on the test itself.
+  if (std::isnan(tau)) return 1;  // covers nothing
+  // A guess only: truncated (floor, above 1) and rounded either way, then settled.
+  const double guess = (tau - extra) / dt - static_cast<double>(latency);
+  int64_t s = guess >= static_cast<double>(max_interval) ? max_interval  // inf too
+              : guess < 2.0                              ? 1
+                                                         : static_cast<int64_t>(guess);
   while (s > 1 && !covered(s)) --s;
   while (s < max_interval && covered(s + 1)) ++s;
   return s;
@@ -403,22 +404,7 @@ int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t o
   return changed;
 }
 
-void dua_make_due(dua_schedule* st, int64_t p, int64_t n) {
-  const View v{st};
-  if (!st->active[p]) return;
-  if (st->kind == kRank) {
-    if (st->last_tau[p] == kNegInf) return;  // already waiting in the queue
-    st->last_tau[p] = kNegInf;
-    st->slots[v.Int(kWhere)[p]] = p;
-    Enqueue(st, p);
-  } else if (st->kind == kDeadline) {
-    st->last_tau[p] = kNegInf;
-    Unlink(v, p);
-    Link(v, p, n);
-  } else {
-    st->last_tau[p] = kNegInf;
-  }
-}
+void dua_make_due(dua_schedule* st, int64_t p, int64_t n) { dua::MakeDue(st, &p, 1, n); }
 
 void dua_rank_classify(dua_schedule* st) {
   const View v{st};
@@ -483,6 +469,33 @@ void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, 
 }  // extern "C"
 
 namespace dua {
+
+void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n) {
+  const View v{st};
+  // The kind once for the batch (a flagged body's pairs: the check makes many due at once).
+  if (st->kind == kRank) {
+    for (int64_t k = 0; k < count; ++k) {
+      const int64_t p = ids[k];
+      if (!st->active[p] || st->last_tau[p] == kNegInf) continue;  // off, or already queued
+      st->last_tau[p] = kNegInf;
+      st->slots[v.Int(kWhere)[p]] = p;
+      Enqueue(st, p);
+    }
+  } else if (st->kind == kDeadline) {
+    for (int64_t k = 0; k < count; ++k) {
+      const int64_t p = ids[k];
+      if (!st->active[p]) continue;
+      st->last_tau[p] = kNegInf;
+      Unlink(v, p);
+      Link(v, p, n);
+    }
+  } else {
+    for (int64_t k = 0; k < count; ++k) {
+      if (st->active[ids[k]]) st->last_tau[ids[k]] = kNegInf;
+    }
+  }
+}
+
 namespace {
 
 // Pairs switched back on evaluated per step beyond the rank schedule's regular slots.

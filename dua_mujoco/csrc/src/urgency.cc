@@ -244,18 +244,55 @@ MaskOf<T> HasMinimum(const Inflated<T>& p, T* t2) {
   return And(may, ((p3 * *t2 + p2) * *t2 + p.q) * *t2 + p.p0 > 0.0);
 }
 
+// TauSpeed's speed term: the relative position also stays in B(x, V t), so no contact comes
+// before ts = (|x| - eps) / V (inflated as the kernel inflates). The term applies under a finite
+// bound that the measured speed |v| keeps (one above it means the bound is broken: the term is
+// dropped), to a positive tau. The scalar kernel and the lanes (TauSpeedFour) both use these.
+template <class T>
+MaskOf<T> SpeedApplies(T nv, T speed) {
+  return And(speed < kInf, nv <= speed);
+}
+template <class T>
+T SpeedTerm(T nx, T eps, T speed) {
+  return (nx - eps * (1.0 + kKappa) - kKappa * nx) / speed * (1.0 - kKappa);
+}
+double WithSpeedTerm(double tau, bool applies, double ts) {
+  if (applies && tau > 0.0) {
+    tau = std::max(tau, ts);
+  }
+  return tau;
+}
+
+double WithSpeed(double tau, double x0, double x1, double x2, double v0, double v1, double v2,
+                 double eps, double speed) {
+  const double nv = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
+  const double nx = std::sqrt(x0 * x0 + x1 * x1 + x2 * x2);
+  return WithSpeedTerm(tau, SpeedApplies(nv, speed), SpeedTerm(nx, eps, speed));
+}
+
 // TauAccel's common path, four pairs at once: h > 0, no interior minimum, the closed-form upper
 // end brackets the root, the guess is certified. The lanes it settles (the returned mask) hold
 // TauAccel's value bit for bit (the same operations in the same order); the rest are TauAccel's
-// to compute.
+// to compute. Also WithSpeed's term of every lane, from the same norms: ts[k], and bit k of
+// *speed_on where it applies (a finite speed bound the measured speed keeps).
 DUA_LANES_CLONES
-int TauAccelLanes(const double r[kLanes][10], double tau[kLanes]) {
-  Lanes x[3], v[3], eps, accel, delta;
+int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLanes],
+                  int* speed_on) {
+  Lanes x[3], v[3], eps, accel, delta, speed;
   for (int k = 0; k < kLanes; ++k) {
     for (int j = 0; j < 3; ++j) x[j][k] = r[k][j], v[j][k] = r[k][3 + j];
-    eps[k] = r[k][6], accel[k] = r[k][7], delta[k] = r[k][8];
+    eps[k] = r[k][6], accel[k] = r[k][7], delta[k] = r[k][8], speed[k] = r[k][9];
   }
   const Inflated<Lanes> p = Inflate(x, v, eps, accel, delta);
+  // WithSpeed's term (p.nx and p.nv are its norms, bit for bit).
+  const LaneMask on = SpeedApplies(p.nv, speed);
+  const Lanes term = SpeedTerm(p.nx, eps, speed);
+  int bits = 0;
+  for (int k = 0; k < kLanes; ++k) {
+    ts[k] = term[k];
+    bits |= on[k] ? 1 << k : 0;
+  }
+  *speed_on = bits;
   const LaneMask inside = p.nx - p.e <= 0.0;  // tau = 0
   LaneMask ok = AndNot(p.h > 0.0, Underflows(MaxAbs(v)));
   Lanes t2;
@@ -276,21 +313,6 @@ int TauAccelLanes(const double r[kLanes][10], double tau[kLanes]) {
     settled |= ok[k] ? 1 << k : 0;
   }
   return settled;
-}
-
-// TauSpeed's speed term: the relative position also stays in B(x, V t).
-double WithSpeed(double tau, double x0, double x1, double x2, double v0, double v1, double v2,
-                 double eps, double speed) {
-  if (speed < kInf && tau > 0.0) {
-    const double nv = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
-    // A measured speed above the bound means the bound is broken: the term is dropped.
-    if (nv <= speed) {
-      const double nx = std::sqrt(x0 * x0 + x1 * x1 + x2 * x2);
-      const double ts = (nx - eps * (1.0 + kKappa) - kKappa * nx) / speed * (1.0 - kKappa);
-      tau = std::max(tau, ts);
-    }
-  }
-  return tau;
 }
 
 }  // namespace
@@ -359,6 +381,18 @@ double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2
                    speed);
 }
 
+void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_stride) {
+  double tau[kLanes], ts[kLanes];
+  int speed_on;
+  const int done = TauAccelLanes(r, tau, ts, &speed_on);
+  for (int k = 0; k < m; ++k) {
+    const double* q = r[k];
+    double t =
+        (done >> k) & 1 ? tau[k] : TauAccel(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8]);
+    out[k * out_stride] = WithSpeedTerm(t, (speed_on >> k) & 1, ts[k]);
+  }
+}
+
 namespace {
 
 // TauSpeed of n rows into out[i * out_stride]; load(i, r) writes row i's
@@ -369,14 +403,7 @@ void TauSpeedBatch(int64_t n, const Load& load, double* out, int64_t out_stride)
     const int64_t m = std::min<int64_t>(kLanes, n - i);
     double r[kLanes][10];
     for (int64_t k = 0; k < kLanes; ++k) load(i + std::min(k, m - 1), r[k]);  // pad: a repeat
-    double tau[kLanes];
-    const int done = TauAccelLanes(r, tau);
-    for (int64_t k = 0; k < m; ++k) {
-      const double* q = r[k];
-      const double t =
-          (done >> k) & 1 ? tau[k] : TauAccel(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8]);
-      out[(i + k) * out_stride] = WithSpeed(t, q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[9]);
-    }
+    TauSpeedFour(r, static_cast<int>(m), out + i * out_stride, out_stride);
   }
 }
 

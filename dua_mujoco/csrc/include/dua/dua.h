@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 8
+#define DUA_ABI_VERSION 9
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -169,7 +169,7 @@ typedef struct dua_plan {
   const int* geom_body;     // the model's geom_bodyid
   const int64_t* geom_row;  // (ngeom,) each geom's body's row of the violation check (-1: none)
   void* data;               // an mjData of the model for MuJoCo's distance queries at knots
-  uint8_t* planned;         // (scratch_rows,) which pairs of a batch the plan covered
+  uint8_t* planned;         // (batch,) which pairs of a batch the plan covered
   int64_t queries;          // MuJoCo's distance queries at knots so far
   // (K,) what each held pair's latest verdict rested on, and the one before it: bit 0 set when
   // its first geom's side rested on the plan (that body's deviation), bit 1 the same for its
@@ -209,11 +209,9 @@ typedef struct dua_step_args {
   dua_points points;  // free spheres' states (centers null: read on the frame)
   dua_exact exact;
   dua_events events;
-  double* scratch;  // (scratch_rows, 12): the gathered states of the pairs being evaluated
-  int64_t scratch_rows;
   // Each sphere's state (centre, velocity) read once per batch of pairs: point_state (nsphere,
   // 6) and point_epoch (nsphere,), the batch that wrote each row; epoch counts the batches
-  // (each dua_step or dua_evaluate chunk adds one). Start point_epoch below epoch (-1 and 0),
+  // (each dua_step or dua_evaluate adds one). Start point_epoch below epoch (-1 and 0),
   // and never share the two arrays between two structs (two MjData).
   double* point_state;
   int64_t* point_epoch;
@@ -264,11 +262,11 @@ DUA_API int64_t dua_exceeds12(double a0, double a1, double a2, double x0, double
                               double bound);
 // tau of pairs ids[0:count] (pair records (K, 8)) on free spheres: centres and velocities
 // (nsphere, 3), half-spaces planes (nplane, 4) (unit normal, offset; a pair's second member is
-// its row), static shape records (nshape, 16); rows (count, 12) is scratch. The same values as
+// its row), static shape records (nshape, 16). The same values as
 // the step computes from MjData. Returns -1, or the first k whose state is not finite.
 DUA_API int64_t dua_tau_free(const double* pairs, const double* shapes, const double* centers,
                              const double* velocities, const double* planes, const int64_t* ids,
-                             int64_t count, double* rows, double* out);
+                             int64_t count, double* out);
 // Centre and velocity of sphere i: out[0:6].
 DUA_API void dua_rigid_point(int64_t i, const double* spheres, const dua_frame* f, double* out);
 // The same as the step reads it: a->points' row i for free spheres, else dua_rigid_point on
