@@ -282,8 +282,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-tau-one-knot-late",
         _PLAN,
-        "    if (!(gap > allowed)) return j;",
-        "    if (!(gap > allowed)) return j + 1;",
+        "    if (!(gap > allow)) return j;",
+        "    if (!(gap > allow)) return j + 1;",
         (
             "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
         ),
@@ -292,12 +292,33 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-deviation-dropped",
         _PLAN,
-        "const double allowed = (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);",
-        "const double allowed = 0.0 * (plan.dev(j, b1) + plan.dev(j, b2));",
+        "return (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);",
+        "return 0.0 * (plan.dev(j, b1) + plan.dev(j, b2));",
         (
             "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
         ),
         "a plan's verdicts without the deviations",
+    ),
+    Mutant(
+        "plan-walk-end-carried-past-it",
+        _PLAN,
+        "  if (cleared != nullptr && *cleared >= k) return *cleared;",
+        "  if (cleared != nullptr && *cleared >= k) return *cleared + 1;",
+        (
+            "tests/test_flightplan.py::test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference",
+        ),
+        "a pair evaluated again under one plan takes one knot past where its last walk ended",
+    ),
+    Mutant(
+        "plan-walks-kept-over-a-new-plan",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "  std::fill(cleared_.begin(), cleared_.end(), -1);  // the walks so far were of the old "
+        "plan\n",
+        "",
+        (
+            "tests/test_flightplan.py::test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference",
+        ),
+        "a new plan's pairs take the knots the old plan's walks ended at",
     ),
     Mutant(
         "plan-grid-shave-dropped",

@@ -187,7 +187,7 @@ int64_t FirstKept(int64_t j, int64_t n, const Skip& skip) {
 // G - S1(i, j) - S2(i, j) at knot j), so that most knots cost a few flops. Where both
 // deviations rise with the knots, the knots the carried gap clears are a run that ends where
 // it first does not (the sweeps rise too: docs/theory.md, section 8), found by a search.
-int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
+int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
                  int64_t g2, int64_t b1, int64_t b2) {
   const double* rec = a.pairs + p * kPairNcol;
   double* xrec = a.exact.on ? a.exact.records + p * kXNcol : nullptr;
@@ -228,6 +228,21 @@ int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64
     if (!(gap > allow)) return j;
   }
   return n;
+}
+
+// BothWalk from the step's knot k, unless an earlier walk of this pair under the same plan
+// already ended at or past k (`cleared`: the knot it ended at, -1 for none; null: none kept):
+// a knot's bound reads only the plan (its poses, sweeps and deviations) and the static tables,
+// never the state, so the knots that walk cleared stay cleared while the plan stands, and its
+// end is this walk's end too (docs/theory.md, Lemma 8.2c). A pair re-evaluated under one plan
+// (every step while it stands in alarm) then walks no knot at all until the step passes that
+// end. The step's knot never goes back under one plan (a reset or a jump of the clock drops it).
+int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
+                 int64_t g2, int64_t b1, int64_t b2, int64_t* cleared) {
+  if (cleared != nullptr && *cleared >= k) return *cleared;
+  const int64_t j = BothWalk(a, plan, d, k, p, g1, g2, b1, b2);
+  if (cleared != nullptr) *cleared = j;
+  return j;
 }
 
 // A free body's reach: how far any of its points (speed s now) can move in t while its bounds
@@ -335,7 +350,10 @@ Judged Judge(dua_step_args& a, const Plan& plan, const uint8_t* ok, mjData* d, i
   const int64_t b1 = a.plan.geom_body[g1], b2 = a.plan.geom_body[g2];
   const Side s1 = SideOf(plan, ok, b1), s2 = SideOf(plan, ok, b2);
   const uint8_t basis = static_cast<uint8_t>((s1 != kFree ? 1 : 0) | (s2 != kFree ? 2 : 0));
-  if (s1 != kFree && s2 != kFree) return {BothKnot(a, plan, d, k, p, g1, g2, b1, b2), basis};
+  if (s1 != kFree && s2 != kFree) {
+    int64_t* cleared = a.plan.cleared != nullptr ? a.plan.cleared + p : nullptr;
+    return {BothKnot(a, plan, d, k, p, g1, g2, b1, b2, cleared), basis};
+  }
   // One moving planned body against one that follows its bounds: the mixed tau (sphere pairs:
   // both bodies move). A static body against a free one keeps the motion bounds' tau.
   const double* rec = a.pairs + p * kPairNcol;
