@@ -256,8 +256,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-never-breaks",
         _PLAN,
-        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))",
-        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, kInf)",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, this->pos(k, g), this->mat(k, g), dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, this->pos(k, g), this->mat(k, g), kInf)",
         (
             "tests/test_hardening.py::test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run",
         ),
@@ -266,8 +266,9 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-twice-the-deviation",
         _PLAN,
-        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))",
-        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, 2.0 * dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, this->pos(k, g), this->mat(k, g), dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, this->pos(k, g), this->mat(k, g), "
+        "2.0 * dev(k, b))",
         ("tests/test_flightplan.py::test_a_body_strayed_past_its_deviation_breaks_its_plan",),
         "a body strays up to twice its deviation before its plan breaks",
     ),
@@ -319,6 +320,14 @@ MUTANTS: tuple[Mutant, ...] = (
             "tests/test_flightplan.py::test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference",
         ),
         "a new plan's pairs take the knots the old plan's walks ended at",
+    ),
+    Mutant(
+        "plan-kinematics-slots-of-the-full-model",
+        _PLAN,
+        "        const int64_t g = reduced ? c : geoms[c];",
+        "        const int64_t g = geoms[c];",
+        ("tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break",),
+        "a plan's poses read from the full model's geom slots after kinematics on the reduced one",
     ),
     Mutant(
         "plan-grid-shave-dropped",
