@@ -256,8 +256,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-never-breaks",
         _PLAN,
-        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))",
-        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, kInf)",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, this->pos(k, g), this->mat(k, g), dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, this->pos(k, g), this->mat(k, g), kInf)",
         (
             "tests/test_hardening.py::test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run",
         ),
@@ -266,8 +266,9 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-twice-the-deviation",
         _PLAN,
-        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, dev(k, b))",
-        "BoxWithin(box, pos + 3 * g, mat + 9 * g, pp + 3 * g, pm + 9 * g, 2.0 * dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, this->pos(k, g), this->mat(k, g), dev(k, b))",
+        "BoxWithin(box, pos + 3 * g, mat + 9 * g, this->pos(k, g), this->mat(k, g), "
+        "2.0 * dev(k, b))",
         ("tests/test_flightplan.py::test_a_body_strayed_past_its_deviation_breaks_its_plan",),
         "a body strays up to twice its deviation before its plan breaks",
     ),
@@ -282,8 +283,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-tau-one-knot-late",
         _PLAN,
-        "    if (!(gap > allowed)) return j;",
-        "    if (!(gap > allowed)) return j + 1;",
+        "    if (!(gap > allow)) return j;",
+        "    if (!(gap > allow)) return j + 1;",
         (
             "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
         ),
@@ -292,12 +293,41 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-deviation-dropped",
         _PLAN,
-        "const double allowed = (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);",
-        "const double allowed = 0.0 * (plan.dev(j, b1) + plan.dev(j, b2));",
+        "return (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);",
+        "return 0.0 * (plan.dev(j, b1) + plan.dev(j, b2));",
         (
             "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
         ),
         "a plan's verdicts without the deviations",
+    ),
+    Mutant(
+        "plan-walk-end-carried-past-it",
+        _PLAN,
+        "  if (cleared != nullptr && *cleared >= k) return *cleared;",
+        "  if (cleared != nullptr && *cleared >= k) return *cleared + 1;",
+        (
+            "tests/test_flightplan.py::test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference",
+        ),
+        "a pair evaluated again under one plan takes one knot past where its last walk ended",
+    ),
+    Mutant(
+        "plan-walks-kept-over-a-new-plan",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "  std::fill(cleared_.begin(), cleared_.end(), -1);  // the walks so far were of the old "
+        "plan\n",
+        "",
+        (
+            "tests/test_flightplan.py::test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference",
+        ),
+        "a new plan's pairs take the knots the old plan's walks ended at",
+    ),
+    Mutant(
+        "plan-kinematics-slots-of-the-full-model",
+        _PLAN,
+        "        const int64_t g = reduced ? c : geoms[c];",
+        "        const int64_t g = geoms[c];",
+        ("tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break",),
+        "a plan's poses read from the full model's geom slots after kinematics on the reduced one",
     ),
     Mutant(
         "plan-grid-shave-dropped",

@@ -109,6 +109,8 @@ DECLARED: dict[str, tuple[str, ...]] = {
 """Floating bases: the roots of the subtrees a user plans (the arms), the rest (base, legs,
 torso) left to its motion bounds."""
 SIDES = ("plan", "declared", "bounds")
+ALWAYS = 0.95
+"""A geom pair in alarm at this share of the steps or more, never touching, stands always."""
 
 
 # ----------------------------------------------------------------------------- the world
@@ -408,6 +410,10 @@ def monitored(world: Run, horizons: tuple[float, ...], steps: int) -> tuple[list
     peer = TimeToCollision(nominal, preds[keys[0]], horizons)
     leads = {H: Leads(len(peer.pairs), H, h) for H in horizons}
     ids = preds[keys[0]]
+    # What stands under the plan, geom pair by geom pair: steps in alarm, and ever touching.
+    plan_gp = {H: ids.geom_pair_ids(*preds[(H, "plan")].sphere_pair_geoms) for H in horizons}
+    stood = {H: np.zeros(len(peer.pairs), dtype=np.int64) for H in horizons}
+    touched = np.zeros(len(peer.pairs), dtype=bool)
     longest = max(world.knots.values())
     states = np.empty((steps + 1, mujoco.mj_stateSize(run, _STATE)))
     plans: dict[int, tuple[float, np.ndarray]] = {}
@@ -450,6 +456,9 @@ def monitored(world: Run, horizons: tuple[float, ...], steps: int) -> tuple[list
             contact[gp[gp >= 0]] = True
         for i, H in enumerate(horizons):
             leads[H].observe(k, peer_alarms[i], contact)
+            standing = preds[(H, "plan")].pair_state().alarm_state()
+            stood[H][np.unique(plan_gp[H][standing])] += 1
+        touched |= contact
         if k % world.every == 0:
             replan(k)
         if k % 500 == 0:
@@ -473,6 +482,16 @@ def monitored(world: Run, horizons: tuple[float, ...], steps: int) -> tuple[list
             mons[key].finish()
             rep = build_report(mons[key], "", False, Durations(), Durations(), interrupted=False)
             row[side] = alarm_figures(rep) | {"plan_breaks": preds[key].plan_breaks}
+        # Pairs that stand at (nearly) every step and never touch: the deviation sum over the
+        # horizon exceeds their gap for the whole run (links a joint or two apart, feet over
+        # the floor).
+        always = (stood[H] >= ALWAYS * steps) & ~touched
+        total = int(stood[H].sum())
+        row["always"] = {
+            "pairs": int(always.sum()),
+            "of": len(peer.pairs),
+            "share": float(stood[H][always].sum() / total) if total else 0.0,
+        }
         lp = leads[H]
         row["ttc"] = {"standing": lp.standing / max(lp.steps, 1), **lp.counts}
         if floating:
@@ -578,6 +597,14 @@ def _peer_ratio(row: dict[str, Any]) -> float:
     return row["ttc"]["standing"] / o if o > 0 else float("inf")
 
 
+def _always(row: dict[str, Any]) -> str:
+    a = row.get("always")
+    if a is None:
+        return "-"
+    without = _ratio(row["plan"]) * (1.0 - a["share"])
+    return f"{a['pairs']} of {a['of']} ({100 * a['share']:.0f} %; {_x(without)})"
+
+
 def line(row: dict[str, Any]) -> str:
     """One robot and horizon, for the progress output."""
     p, b, t = row["plan"], row["bounds"], row["ttc"]
@@ -591,6 +618,7 @@ def line(row: dict[str, Any]) -> str:
         + f", ttc late {t['short']}/{t['onsets']}; breaks {p['plan_breaks']}"
         + (f"/{dec['plan_breaks']}" if dec else "")
         + f"; cost plan {p['amortised']:.2f} bounds {b['amortised']:.2f} ttc {t['median']:.2f}"
+        + f"; always standing {_always(row)}"
     )
 
 
@@ -629,6 +657,7 @@ def markdown(rows: list[dict[str, Any]]) -> str:
                 + (f" ({dec['amortised']:.2f})" if dec else "")
                 + f" / {b['amortised']:.2f} / {t['median']:.1f}",
                 f"{p['set_plan']:.2f}",
+                _always(r),
             ]
         )
     out = table(
@@ -644,6 +673,7 @@ def markdown(rows: list[dict[str, Any]]) -> str:
             "plan breaks / 1,000 steps (declared)",
             "cost / mj_step: plan incl. set_plan (declared) / bounds / TTC",
             "set_plan / mj_step",
+            "plan: pairs always standing, never touching (share of the alarms; standing without)",
         ],
         body,
     )

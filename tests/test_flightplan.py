@@ -300,6 +300,50 @@ def test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal(
     assert 0 < np.mean(want < horizon) < 1  # some pairs may touch within the horizon, some not
 
 
+def _first_touch(m: mujoco.MjModel, p: Predictor, qpos: np.ndarray, dev: np.ndarray) -> np.ndarray:
+    """``(n + 1, npair)``: from each knot, the time to the first knot at which the pair may
+    touch by :func:`_reference_tau`'s rule (row ``n``: none left)."""
+    h, n = m.opt.timestep, len(qpos)
+    out = np.zeros((n + 1, p.nsphere_pairs))
+    may = [_reference_tau(m, p, qpos[j : j + 1], dev[j : j + 1], knot=0) == 0 for j in range(n)]
+    for j in range(n - 1, -1, -1):
+        out[j] = np.where(may[j], 0.0, out[j + 1] + h)
+    return out
+
+
+def test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference() -> None:
+    """A pair evaluated again under the same plan takes the knot its last walk ended at
+    without walking (Lemma 8.2c) until the step passes it: at every step of a run that follows
+    its plans, the pairs evaluated have a tau never later than the reference's from that
+    step's knot, and a new plan forgets the old one's walks (a walk's end carried past its
+    knot, or past a new plan, fails it)."""
+    m, d = _scene()
+    horizon, n, every = 0.2, 160, 40
+    p = Predictor(m, accel=ACCEL, alarm_horizon=horizon)
+    p.reset(d)
+    h = m.opt.timestep
+    dev = np.broadcast_to(0.02 * np.arange(n)[:, None] / n, (n, m.nbody)).copy()
+    checked = standing = 0
+    for plan in range(3):
+        ctrl = _controls(m, n, seed=10 + plan)
+        qpos = _rollout(m, d, ctrl, n)
+        p.set_plan(qpos, deviation=dev)
+        want = _first_touch(m, p, qpos, dev)
+        for k in range(every):
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            p.step(d)
+            state = p.pair_state()
+            ids = np.flatnonzero(state.last_step_of(np.arange(p.nsphere_pairs)) == state.step_count)
+            got = state.last_tau_of(ids)
+            bound = np.minimum(want[k, ids], (n - k) * h)
+            assert (got <= bound + 1e-12).all(), (plan, k, ids[got > bound + 1e-12])
+            checked += ids.size
+            standing += int(np.count_nonzero(got < horizon) if k else 0)
+    assert p.plan_breaks == 0
+    assert standing >= 20 and checked >= 200  # pairs were evaluated again under each plan
+
+
 def test_a_body_beyond_its_deviation_falls_back_to_the_bounds() -> None:
     """A plan of held controls with no deviation allowed, a run that moves the arm: the arm's
     bodies break the plan (their pairs follow the motion bounds from then on), the ball's and

@@ -54,6 +54,38 @@ _XML = """
 """
 
 
+# The same robot dressed as robot models are: visual geoms (no contacts) between and beside the
+# collision ones, on every body, offset and turned or not, and sites. A plan reads the collision
+# geoms only, and computes their poses on the model without the rest.
+_VISUAL = (
+    _XML.replace(
+        '<geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.04" mass="1"/>',
+        '<geom type="mesh" mesh="m" contype="0" conaffinity="0" mass="0" pos=".1 .05 0"/>'
+        '<geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.04" mass="1"/>'
+        '<site name="a" pos=".2 0 .05"/>'
+        '<geom type="box" size=".1 .02 .02" contype="0" conaffinity="0" mass="0" euler="0 30 10"/>',
+    )
+    .replace(
+        '<geom type="box" pos="0.3 0 0" size="0.05 0.04 0.03" mass="0.2"/>',
+        '<geom type="sphere" size=".02" contype="0" conaffinity="0" mass="0"/>'
+        '<geom type="box" pos="0.3 0 0" size="0.05 0.04 0.03" mass="0.2" euler="10 0 5"/>'
+        '<site name="b"/><geom type="sphere" size=".01" pos=".1 .1 0" contype="0" conaffinity="0" '
+        'mass="0"/>',
+    )
+    .replace(
+        '<geom type="box" size="0.06 0.05 0.04" mass="0.3"/>',
+        '<geom type="box" size="0.06 0.05 0.04" mass="0.3"/><site name="c" pos=".01 0 0"/>'
+        '<geom type="box" size=".07 .01 .01" contype="0" conaffinity="0" mass="0" euler="0 0 45"/>',
+    )
+    .replace(
+        "<worldbody>",
+        '<asset><mesh name="m" vertex="0 0 0 .1 0 0 0 .1 0 0 0 .1"/></asset><worldbody>'
+        '<geom type="box" size=".1 .1 .1" pos="2 2 -1" contype="0" conaffinity="0"/>',
+        1,
+    )
+)
+
+
 @pytest.fixture(scope="module")
 def model() -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(_XML)
@@ -298,10 +330,16 @@ def test_plans_are_exported_lazily() -> None:
 # ----------------------------------------------------------------------------- with the predictor
 
 
-def test_a_rolled_plan_is_followed_without_a_break(model: mujoco.MjModel) -> None:
+@pytest.mark.parametrize("dressed", [False, True])
+def test_a_rolled_plan_is_followed_without_a_break(model: mujoco.MjModel, dressed: bool) -> None:
     # The runtime puts the plan's geoms where mj_kinematics puts them for each row of qpos: for a
     # plan rolled under the controls the run then applies, that is where mj_step puts them, so a
-    # deviation of 0 holds at every knot. A run that leaves the plan breaks it.
+    # deviation of 0 holds at every knot, also where the plan's kinematics leaves out the geoms
+    # and sites no verdict reads (dressed: a pose off by a bit breaks the plan). A run that
+    # leaves the plan breaks it.
+    if dressed:
+        model = mujoco.MjModel.from_xml_string(_VISUAL)
+        assert model.nsite == 3 and int(np.count_nonzero(model.geom_contype == 0)) == 6
     d = _settled(model, steps=3)
     drive = make_controller(model, "smooth", seed=4, hold_steps=40)
     p = Predictor(model, accel=20.0, alarm_horizon=0.05)

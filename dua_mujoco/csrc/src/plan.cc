@@ -187,7 +187,7 @@ int64_t FirstKept(int64_t j, int64_t n, const Skip& skip) {
 // G - S1(i, j) - S2(i, j) at knot j), so that most knots cost a few flops. Where both
 // deviations rise with the knots, the knots the carried gap clears are a run that ends where
 // it first does not (the sweeps rise too: docs/theory.md, section 8), found by a search.
-int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
+int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
                  int64_t g2, int64_t b1, int64_t b2) {
   const double* rec = a.pairs + p * kPairNcol;
   double* xrec = a.exact.on ? a.exact.records + p * kXNcol : nullptr;
@@ -228,6 +228,21 @@ int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64
     if (!(gap > allow)) return j;
   }
   return n;
+}
+
+// BothWalk from the step's knot k, unless an earlier walk of this pair under the same plan
+// already ended at or past k (`cleared`: the knot it ended at, -1 for none; null: none kept):
+// a knot's bound reads only the plan (its poses, sweeps and deviations) and the static tables,
+// never the state, so the knots that walk cleared stay cleared while the plan stands, and its
+// end is this walk's end too (docs/theory.md, Lemma 8.2c). A pair re-evaluated under one plan
+// (every step while it stands in alarm) then walks no knot at all until the step passes that
+// end. The step's knot never goes back under one plan (a reset or a jump of the clock drops it).
+int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
+                 int64_t g2, int64_t b1, int64_t b2, int64_t* cleared) {
+  if (cleared != nullptr && *cleared >= k) return *cleared;
+  const int64_t j = BothWalk(a, plan, d, k, p, g1, g2, b1, b2);
+  if (cleared != nullptr) *cleared = j;
+  return j;
 }
 
 // A free body's reach: how far any of its points (speed s now) can move in t while its bounds
@@ -335,7 +350,10 @@ Judged Judge(dua_step_args& a, const Plan& plan, const uint8_t* ok, mjData* d, i
   const int64_t b1 = a.plan.geom_body[g1], b2 = a.plan.geom_body[g2];
   const Side s1 = SideOf(plan, ok, b1), s2 = SideOf(plan, ok, b2);
   const uint8_t basis = static_cast<uint8_t>((s1 != kFree ? 1 : 0) | (s2 != kFree ? 2 : 0));
-  if (s1 != kFree && s2 != kFree) return {BothKnot(a, plan, d, k, p, g1, g2, b1, b2), basis};
+  if (s1 != kFree && s2 != kFree) {
+    int64_t* cleared = a.plan.cleared != nullptr ? a.plan.cleared + p : nullptr;
+    return {BothKnot(a, plan, d, k, p, g1, g2, b1, b2, cleared), basis};
+  }
   // One moving planned body against one that follows its bounds: the mixed tau (sphere pairs:
   // both bodies move). A static body against a free one keeps the motion bounds' tau.
   const double* rec = a.pairs + p * kPairNcol;
@@ -494,6 +512,33 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     mocap_quat_.assign(in.mocap_quat, in.mocap_quat + n * nmocap * 4);
   }
   Slots(n, ngeom, geoms, std::move(pool));
+  // mj_kinematics on m's bodies with the geoms kept as its only geoms (geoms[c] as geom c) and
+  // no sites: the same function on the same numbers, so the same body frames and, for those
+  // geoms, the same poses bit for bit, without the geoms and sites no verdict reads (50 of
+  // sawyer's 63 geoms are visual). A shallow copy of m whose geom arrays are these, the rest
+  // m's own, read only. Flexes and sleeping trees read more of the model: those run on m.
+  const bool reduced = m->nflex == 0 && !(m->opt.enableflags & mjENBL_SLEEP);
+  mjModel km = *m;
+  std::vector<mjtNum> kpos, kquat;
+  std::vector<int> kbody, kadr(nbody, -1), knum(nbody, 0);
+  std::vector<mjtByte> kframe;
+  if (reduced) {
+    // A body's geoms are consecutive ids (body_geomadr, body_geomnum), so its kept ones are
+    // consecutive slots.
+    for (int64_t c = 0; c < nslot_; ++c) {
+      const int64_t g = geoms[c];
+      const int b = m->geom_bodyid[g];
+      kpos.insert(kpos.end(), m->geom_pos + 3 * g, m->geom_pos + 3 * g + 3);
+      kquat.insert(kquat.end(), m->geom_quat + 4 * g, m->geom_quat + 4 * g + 4);
+      kbody.push_back(b);
+      kframe.push_back(m->geom_sameframe[g]);
+      if (knum[b]++ == 0) kadr[b] = static_cast<int>(c);
+    }
+    km.ngeom = nslot_, km.nsite = 0;
+    km.geom_pos = kpos.data(), km.geom_quat = kquat.data();
+    km.geom_bodyid = kbody.data(), km.geom_sameframe = kframe.data();
+    km.body_geomadr = kadr.data(), km.body_geomnum = knum.data();
+  }
   for (int64_t j = 0; j < n; ++j) {
     double* pj = pos_.data() + 3 * nslot_ * j;
     double* rj = mat_.data() + 9 * nslot_ * j;
@@ -508,10 +553,11 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
         std::copy_n(in.mocap_pos + 3 * nmocap * j, 3 * nmocap, s->mocap_pos);
         std::copy_n(in.mocap_quat + 4 * nmocap * j, 4 * nmocap, s->mocap_quat);
       }
-      mj_kinematics(m, s);
+      mj_kinematics(reduced ? &km : m, s);
       for (int64_t c = 0; c < nslot_; ++c) {
-        std::copy_n(s->geom_xpos + 3 * geoms[c], 3, pj + 3 * c);
-        std::copy_n(s->geom_xmat + 9 * geoms[c], 9, rj + 9 * c);
+        const int64_t g = reduced ? c : geoms[c];
+        std::copy_n(s->geom_xpos + 3 * g, 3, pj + 3 * c);
+        std::copy_n(s->geom_xmat + 9 * g, 9, rj + 9 * c);
       }
     }
   }

@@ -123,6 +123,7 @@ Runtime::Runtime(const Runtime& o)
       plan_ok_(o.plan_ok_),
       basis_(o.basis_),
       basis_prev_(o.basis_prev_),
+      cleared_(o.cleared_),
       shadows_(o.shadows_),
       pending_due_(o.pending_due_),
       body_row_(o.body_row_),
@@ -186,6 +187,7 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
   standing_.clear();
   standing_at_.assign(n, -1);
   basis_.assign(n, 0), basis_prev_.assign(n, 0);  // a pair new to the held set: the bounds
+  cleared_.assign(n, -1);
   ++held_version_;
 }
 
@@ -240,6 +242,7 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   pl.impl = plan_.get();
   pl.basis = basis_.data();
   pl.basis_prev = basis_prev_.data();
+  pl.cleared = cleared_.data();
   if (plan_) {
     if (!plan_data_) plan_data_.reset(mj_makeData(m));
     const Universe& u = universe();
@@ -329,6 +332,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
                  shadows_.end());
   plan_ = std::move(plan);
   for (int b = 0; b < m->nbody; ++b) plan_ok_[b] = plan_->holds(b) ? 1 : 0;
+  std::fill(cleared_.begin(), cleared_.end(), -1);  // the walks so far were of the old plan
   MakeAllDue(step_ + 1);
   return "";
 }
@@ -586,6 +590,7 @@ void Runtime::QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, in
   a.plan.geom_body = m->geom_bodyid;
   a.plan.geom_row = t.geom_row.data();
   a.plan.data = query_data_.get();
+  a.plan.cleared = nullptr;  // another plan, and the query's own pair records
   q->ok.resize(m->nbody);
   for (int b = 0; b < m->nbody; ++b) q->ok[b] = plan.holds(b) ? 1 : 0;
   q->by_slot.assign(q->nslot, plan.nknot());

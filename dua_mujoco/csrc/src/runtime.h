@@ -354,6 +354,9 @@ class DUA_API Runtime {
   std::unique_ptr<mjData, DataDeleter> plan_data_;
   mutable std::unique_ptr<mjData, DataDeleter> query_data_;  // PlanQuery's scratch
   std::vector<uint8_t> plan_ok_, planned_, basis_, basis_prev_;
+  // Per held pair, the knot its latest walk under the plan as it stands ended at (dua_plan's
+  // `cleared`, -1: none): forgotten at a new plan and a new held set.
+  std::vector<int64_t> cleared_;
   // A replaced plan, checked until `until` (state time) on the bodies ok when it was replaced
   // and not found beyond it since; the state time each was found beyond it (NaN: not), and
   // the first state at which the plan that followed leaves its tube (SetPlan; -inf: unknown).

@@ -176,6 +176,10 @@ typedef struct dua_plan {
   // second geom; a clear bit is the motion bounds of that body. Null: not recorded.
   uint8_t* basis;
   uint8_t* basis_prev;
+  // (K,) per held pair, the knot at which the latest walk of its knots with both bodies planned
+  // ended under the plan as it stands (-1: none): a step at or before it takes it without a
+  // walk (docs/theory.md, Lemma 8.2c). Null: not kept (a query of another plan).
+  int64_t* cleared;
 } dua_plan;
 
 // Free spheres (the paper's setting: points on no MuJoCo body): each sphere's centre and velocity
