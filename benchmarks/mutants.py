@@ -470,6 +470,15 @@ MUTANTS: tuple[Mutant, ...] = (
         ),
         "the stop envelope reaches the deviation once, not twice",
     ),
+    Mutant(
+        "shield-candidate-rolled-while-touching",
+        _SHIELD,
+        "    if (!failsafe_mode_ || !TouchesNow()) {",
+        "    if (true) {",
+        (
+            "tests/test_shield.py::"
+            "test_a_robot_touching_a_protected_body_is_refused_without_a_rollout[0.15-0.0-1.0]",
+        ),
         "a candidate is rolled out though a protected pair may touch at its knot 0",
     ),
 )

@@ -190,9 +190,17 @@ def test_a_robot_spinning_in_place_is_not_at_rest() -> None:
     assert shield.counts["rollout_steps"] > 50, shield.counts
 
 
-def _cart_period(deviation: float, stop_distance: float | None = None) -> dict[str, int]:
-    """The counts after the first period of a 1 kg cart at 0.3 m/s toward a post 0.15 m away
-    (its 1 N motor stops it in 4.5 cm), the screen off: that period's candidate rolled out."""
+def _cart_period(
+    deviation: float,
+    stop_distance: float | None = None,
+    *,
+    start: float = 0.0,
+    speed: float = 0.3,
+    push: float = 0.0,
+) -> dict[str, int]:
+    """The counts after the first period of a 1 kg cart (by default at 0.3 m/s toward a post
+    0.15 m away: its 1 N motor stops it in 4.5 cm; ``start`` moves it along, ``push`` is the
+    intended control), the screen off: that period's candidate rolled out."""
     model = mujoco.MjModel.from_xml_string(
         """
         <mujoco>
@@ -209,7 +217,7 @@ def _cart_period(deviation: float, stop_distance: float | None = None) -> dict[s
         """
     )
     data = mujoco.MjData(model)
-    data.qvel[0] = 0.3
+    data.qpos[0], data.qvel[0] = start, speed
     mujoco.mj_forward(model, data)
     shield = Shield(
         model,
@@ -222,8 +230,22 @@ def _cart_period(deviation: float, stop_distance: float | None = None) -> dict[s
         screen=False,
     )
     shield.reset(data)
-    shield(data, data.ctrl.copy())
+    shield(data, np.full(model.nu, push))
     return shield.counts
+
+
+@pytest.mark.parametrize(("start", "speed", "push"), [(0.15, 0.0, 1.0), (0.152, -0.2, -1.0)])
+def test_a_robot_touching_a_protected_body_is_refused_without_a_rollout(
+    start: float, speed: float, push: float
+) -> None:
+    """Every candidate's knot 0 is the state read: the cart touching the post (at rest, or
+    leaving it) is refused whatever it intends, before any candidate is rolled out; the one
+    rollout is the failsafe's from there. Apart from it, 0.1 m short of the post, the candidate
+    is rolled out and passes."""
+    counts = _cart_period(0.0, start=start, speed=speed, push=push)
+    assert (counts["rejected"], counts["rollouts"]) == (1, 1), counts
+    counts = _cart_period(0.0, start=start - 0.1, speed=speed, push=push)
+    assert (counts["accepted"], counts["rollouts"]) == (1, 1), counts
 
 
 @pytest.mark.parametrize(("deviation", "accepted"), [(0.0, True), (0.16, False)])
