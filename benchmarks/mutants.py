@@ -346,10 +346,10 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "mixed-without-the-carried-place",
         _PLAN,
-        "clear = cs > dev + Stray(t, accel, disc, 0.0, size_s);",
-        "clear = false;",
+        "return ((spin + disc) * t + 0.5 * accel * t * t) * (1.0 + 8.0 * kEpsilon) +",
+        "return kInf + ((spin + disc) * t + 0.5 * accel * t * t) * (1.0 + 8.0 * kEpsilon) +",
         ("tests/test_plan_partial.py::test_a_person_walking_past_is_judged_where_it_walks",),
-        "the mixed tau's sphere level judges a body walking past by where it stands alone",
+        "the mixed tau judges a body walking past by where it stands alone (no carried place)",
     ),
     # ---------------------------------------------------------------- terrain (section 9)
     Mutant(
@@ -477,7 +477,7 @@ MUTANTS: tuple[Mutant, ...] = (
         "    if (true) {",
         (
             "tests/test_shield.py::"
-            "test_a_robot_touching_a_protected_body_is_refused_without_a_rollout[0.15-0.0-1.0]",
+            "test_a_robot_touching_a_protected_body_is_refused_without_a_rollout[0.2-0.0-1.0]",
         ),
         "a candidate is rolled out though a protected pair may touch at its knot 0",
     ),

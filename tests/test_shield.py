@@ -190,17 +190,9 @@ def test_a_robot_spinning_in_place_is_not_at_rest() -> None:
     assert shield.counts["rollout_steps"] > 50, shield.counts
 
 
-def _cart_period(
-    deviation: float,
-    stop_distance: float | None = None,
-    *,
-    start: float = 0.0,
-    speed: float = 0.3,
-    push: float = 0.0,
-) -> dict[str, int]:
-    """The counts after the first period of a 1 kg cart (by default at 0.3 m/s toward a post
-    0.15 m away: its 1 N motor stops it in 4.5 cm; ``start`` moves it along, ``push`` is the
-    intended control), the screen off: that period's candidate rolled out."""
+def _cart_period(deviation: float, stop_distance: float | None = None) -> dict[str, int]:
+    """The counts after the first period of a 1 kg cart at 0.3 m/s toward a post 0.15 m away
+    (its 1 N motor stops it in 4.5 cm), the screen off: that period's candidate rolled out."""
     model = mujoco.MjModel.from_xml_string(
         """
         <mujoco>
@@ -217,7 +209,7 @@ def _cart_period(
         """
     )
     data = mujoco.MjData(model)
-    data.qpos[0], data.qvel[0] = start, speed
+    data.qvel[0] = 0.3
     mujoco.mj_forward(model, data)
     shield = Shield(
         model,
@@ -230,22 +222,8 @@ def _cart_period(
         screen=False,
     )
     shield.reset(data)
-    shield(data, np.full(model.nu, push))
+    shield(data, data.ctrl.copy())
     return shield.counts
-
-
-@pytest.mark.parametrize(("start", "speed", "push"), [(0.15, 0.0, 1.0), (0.152, -0.2, -1.0)])
-def test_a_robot_touching_a_protected_body_is_refused_without_a_rollout(
-    start: float, speed: float, push: float
-) -> None:
-    """Every candidate's knot 0 is the state read: the cart touching the post (at rest, or
-    leaving it) is refused whatever it intends, before any candidate is rolled out; the one
-    rollout is the failsafe's from there. Apart from it, 0.1 m short of the post, the candidate
-    is rolled out and passes."""
-    counts = _cart_period(0.0, start=start, speed=speed, push=push)
-    assert (counts["rejected"], counts["rollouts"]) == (1, 1), counts
-    counts = _cart_period(0.0, start=start - 0.1, speed=speed, push=push)
-    assert (counts["accepted"], counts["rollouts"]) == (1, 1), counts
 
 
 @pytest.mark.parametrize(("deviation", "accepted"), [(0.0, True), (0.16, False)])
@@ -271,3 +249,37 @@ def test_the_stop_envelope_counts_twice_the_deviation(
     0.15 m away before rest; D + stop_distance (0.11) would not."""
     counts = _cart_period(deviation, stop_distance)
     assert (counts["accepted"], counts["rejected"]) == (int(accepted), int(not accepted)), counts
+
+
+# A 1 kg ball on a slide along x and a wall at x = 0.3 (its face at 0.25); a 1 N motor.
+_BALL = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="ball"><joint name="x" type="slide" axis="1 0 0"/><geom size="0.05" mass="1"/></body>
+    <body name="wall" pos="0.3 0 0"><geom type="box" size="0.05 0.5 0.5"/></body>
+  </worldbody>
+  <actuator><motor joint="x" ctrlrange="-1 1"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize(("start", "speed", "push"), [(0.2, 0.0, 1.0), (0.202, -0.2, -1.0)])
+def test_a_robot_touching_a_protected_body_is_refused_without_a_rollout(
+    start: float, speed: float, push: float
+) -> None:
+    """Every candidate's knot 0 is the state read: the ball touching the wall (at rest and
+    pushing, or leaving it) is refused whatever it intends, before any candidate is rolled out;
+    the one rollout is the failsafe's from there. 0.1 m off, the candidate is rolled out and
+    passes."""
+    model = mujoco.MjModel.from_xml_string(_BALL)
+    for x, refused in ((start, True), (start - 0.1, False)):
+        data = mujoco.MjData(model)
+        data.qpos[0], data.qvel[0] = x, speed
+        mujoco.mj_forward(model, data)
+        shield = Shield(model, protect=["wall"], robot=["ball"], period=1, accel=5.0, screen=False)
+        shield.reset(data)
+        shield(data, [push])
+        counts = shield.counts
+        assert (counts["rejected"], counts["accepted"]) == (int(refused), int(not refused)), counts
+        assert counts["rollouts"] == 1, counts
