@@ -5,8 +5,9 @@
   acceleration, the speed capped, some aimed at the arm) never bring it within the contact
   distance of the arm's planned geom before tau.
 * It is as tight as the reach allows: never above a slow reference (MuJoCo's distance between the
-  arm at each knot and the person where it is, less the arm's deviation and the person's reach),
-  and equal to it for most states.
+  arm at each knot and the person where it is, less the arm's deviation and the person's reach,
+  or where its velocity carries it, less how far it may stray from there), and equal to it for
+  most states; a person walking past is judged later than by the reach about where it stands.
 * A run: the person walks in and reaches, within its bounds; no onset gets less lead than the
   horizon, far fewer pairs stand than under the motion bounds alone.
 * The shield's query (``plan_contact_knots``) gives the knot of the step's own verdict.
