@@ -351,6 +351,36 @@ MUTANTS: tuple[Mutant, ...] = (
         "with period > 1, a plan's tau rounded up to the predictor's grid covers a wait past the "
         "horizon's lead",
     ),
+    Mutant(
+        "mixed-carried-place-behind",
+        _PLAN,
+        "for (int e = 0; e < 3; ++e) cb[e] = sb_state[e] + t * sb_state[3 + e];",
+        "for (int e = 0; e < 3; ++e) cb[e] = sb_state[e] - t * sb_state[3 + e];",
+        (
+            "tests/test_plan_partial.py::"
+            "test_no_motion_within_the_persons_bounds_touches_the_planned_arm_before_tau",
+        ),
+        "the mixed tau's reach about where the free body heads, carried the wrong way",
+    ),
+    Mutant(
+        "mixed-stray-without-the-accel",
+        _PLAN,
+        "return ((spin + disc) * t + 0.5 * accel * t * t) * (1.0 + 8.0 * kEpsilon) +",
+        "return ((spin + disc) * t + 0.0 * accel * t * t) * (1.0 + 8.0 * kEpsilon) +",
+        (
+            "tests/test_plan_partial.py::"
+            "test_no_motion_within_the_persons_bounds_touches_the_planned_arm_before_tau",
+        ),
+        "the free body strays from where its velocity carries it by its velocity's error alone",
+    ),
+    Mutant(
+        "mixed-without-the-carried-place",
+        _PLAN,
+        "return ((spin + disc) * t + 0.5 * accel * t * t) * (1.0 + 8.0 * kEpsilon) +",
+        "return kInf + ((spin + disc) * t + 0.5 * accel * t * t) * (1.0 + 8.0 * kEpsilon) +",
+        ("tests/test_plan_partial.py::test_a_person_walking_past_is_judged_where_it_walks",),
+        "the mixed tau judges a body walking past by where it stands alone (no carried place)",
+    ),
     # ---------------------------------------------------------------- terrain (section 9)
     Mutant(
         "terrain-base-twice-as-deep",
@@ -469,6 +499,17 @@ MUTANTS: tuple[Mutant, ...] = (
             "tests/test_shield.py::test_the_stop_envelope_counts_twice_the_deviation[0.05-0.06-False]",
         ),
         "the stop envelope reaches the deviation once, not twice",
+    ),
+    Mutant(
+        "shield-candidate-rolled-while-touching",
+        _SHIELD,
+        "    if (!failsafe_mode_ || !TouchesNow()) {",
+        "    if (true) {",
+        (
+            "tests/test_shield.py::"
+            "test_a_robot_touching_a_protected_body_is_refused_without_a_rollout[0.2-0.0-1.0]",
+        ),
+        "a candidate is rolled out though a protected pair may touch at its knot 0",
     ),
 )
 

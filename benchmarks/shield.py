@@ -3,6 +3,7 @@
     python benchmarks/shield.py                                   # 20 episodes a scene, peers
     python benchmarks/shield.py --layers none reference ttc damper --episodes 5
     python benchmarks/shield.py --episodes 340 --json docs/img/shield.json
+    python benchmarks/shield.py --merge a.json b.json             # the table of runs' episodes
 
 Layers: ``none``; ``ttc`` (MoveIt Servo's stop-distance halt, its defaults); ``ttc-scale``
 (its threshold-distance velocity scaling); ``damper`` (mink's collision-avoidance limit on the
@@ -23,7 +24,7 @@ from pathlib import Path
 
 from dua_mujoco.experiments.report import jsonable
 from dua_mujoco.experiments.shield.bench import PEERS, SHIELDS, any_layer, run_many, summary
-from dua_mujoco.experiments.shield.episodes import Layer, SceneSetup
+from dua_mujoco.experiments.shield.episodes import EpisodeResult, Layer, SceneSetup
 from dua_mujoco.models.cells import SHIELD_SCENES
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -43,7 +44,16 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--json", type=Path, help="write every episode's counts here")
+    parser.add_argument(
+        "--merge", nargs="+", type=Path, help="print the table of these --json files' episodes"
+    )
     args = parser.parse_args()
+    if args.merge:
+        # Runs of other seeds (a long run in parts): one table, as run_many orders it.
+        runs = [EpisodeResult(**r) for path in args.merge for r in json.loads(path.read_text())]
+        print(summary(sorted(runs, key=lambda r: (r.scene, r.layer, r.seed))))
+        print(f"\n{len(runs)} episodes from {len(args.merge)} runs")
+        return
     seeds = range(args.first_seed, args.first_seed + args.episodes)
     start = time.perf_counter()
     results = run_many(args.scenes, args.layers, list(seeds), make=make_layer, jobs=args.jobs)

@@ -5,8 +5,9 @@
   acceleration, the speed capped, some aimed at the arm) never bring it within the contact
   distance of the arm's planned geom before tau.
 * It is as tight as the reach allows: never above a slow reference (MuJoCo's distance between the
-  arm at each knot and the person where it is, less the arm's deviation and the person's reach),
-  and equal to it for most states.
+  arm at each knot and the person where it is, less the arm's deviation and the person's reach,
+  or where its velocity carries it, less how far it may stray from there), and equal to it for
+  most states; a person walking past is judged later than by the reach about where it stands.
 * A run: the person walks in and reaches, within its bounds; no onset gets less lead than the
   horizon, far fewer pairs stand than under the motion bounds alone.
 * The shield's query (``plan_contact_knots``) gives the knot of the step's own verdict.
@@ -125,6 +126,8 @@ class MixedState:
         self.reach = lambda t: min(
             (np.linalg.norm(self.vel) + disc) * t + ACCEL * t * t / 2, SPEED * t
         )
+        # How far the person may stray from where its velocity carries it (it only translates).
+        self.stray = lambda t: disc * t + ACCEL * t * t / 2
 
     def distance(self, j: int, g: int, person_pos) -> float:
         """MuJoCo's distance of the forearm at knot j and geom g with the person at person_pos."""
@@ -133,14 +136,23 @@ class MixedState:
         mujoco.mj_kinematics(self.m, self.scratch)
         return float(mujoco.mj_geomDistance(self.m, self.scratch, self.fore, g, 10.0, None))
 
-    def reference_knot(self, g: int) -> int:
+    def reference_knot(self, g: int, *, carried: bool = True) -> int:
         """The first knot at which MuJoCo's distance of the planned forearm and the person where it
         is, less the contact distance, is not above the forearm's deviation and the person's
-        reach (its own bounds) from the state read: the slow reference of the mixed tau."""
+        reach (its own bounds) from the state read, nor (``carried``) its distance to the person
+        where its velocity carries it above the deviation and how far it may stray from there:
+        the slow reference of the mixed tau."""
         h = float(self.m.opt.timestep)
         for j in range(self.N):
-            if self.distance(j, g, self.pos) - self.contact[g] <= self.dev + self.reach(j * h):
-                return j
+            t = j * h
+            if self.distance(j, g, self.pos) - self.contact[g] > self.dev + self.reach(t):
+                continue
+            ahead = self.pos + t * self.vel
+            if carried and (
+                self.distance(j, g, ahead) - self.contact[g] > self.dev + self.stray(t)
+            ):
+                continue
+            return j
         return self.N
 
 
@@ -243,11 +255,12 @@ def test_the_mixed_tau_is_never_above_the_slow_reference(predictor: Predictor, s
 
 def test_the_mixed_tau_equals_the_reference_for_most_states(predictor: Predictor) -> None:
     """Tight as the person's reach allows: the knot the runtime finds is the reference's in most
-    states (the separating direction at a knot is MuJoCo's witness there), and the verdict
-    depends on the person's speed (a faster approach is judged earlier)."""
+    states (the separating direction at a knot is MuJoCo's witness there), standing or walking
+    in, and the verdict depends on the person's velocity (one walking in at 1.5 m/s is judged
+    earlier in most states: not in all, it may walk past the forearm's planned sweep)."""
     rng = np.random.default_rng(0)
     m = predictor.model
-    equal = total = faster_earlier = 0
+    equal = fast_equal = total = faster_earlier = 0
     for _ in range(30):
         arm_q = rng.uniform([-1, -1.5], [1, 1.5])
         pos = np.array([rng.uniform(0.7, 1.3), rng.uniform(-0.6, 0.6), 0.9])
@@ -259,8 +272,34 @@ def test_the_mixed_tau_equals_the_reference_for_most_states(predictor: Predictor
             knot = slow.reference_knot(g)
             total += 1
             equal += round(tau / h) == knot
+            fast_equal += round(fast.tau[g] / h) == fast.reference_knot(g)
             faster_earlier += fast.tau[g] <= tau
-    assert equal >= 0.8 * total and faster_earlier == total
+    assert equal >= 0.8 * total and fast_equal >= 0.8 * total, (equal, fast_equal, total)
+    assert faster_earlier >= 0.9 * total, (faster_earlier, total)
+
+
+def test_a_person_walking_past_is_judged_where_it_walks(predictor: Predictor) -> None:
+    """The reach about where the person heads: one walking past the arm at full speed is judged
+    later than by the reach about where it stands alone (a ball of V t) in most states, and as
+    the slow reference with both says."""
+    rng = np.random.default_rng(1)
+    m = predictor.model
+    h = float(m.opt.timestep)
+    later = equal = total = 0
+    for _ in range(16):
+        bearing = rng.uniform(-0.6, 0.6)
+        arm_q = np.array([bearing + rng.uniform(-0.3, 0.3), rng.uniform(-1.0, 1.0)])
+        r = rng.uniform(0.95, 1.3)
+        pos = np.array([r * math.cos(bearing), r * math.sin(bearing), 0.9])
+        across = bearing + math.pi / 2 * rng.choice([-1.0, 1.0]) + rng.uniform(-0.3, 0.3)
+        vel = SPEED * np.array([math.cos(across), math.sin(across), 0.0])
+        ctrl = _controls(m, MixedState.N + 10, int(rng.integers(1 << 16)))
+        past = MixedState(predictor, arm_q, ctrl, pos, vel, 0.0)
+        for g, tau in past.tau.items():
+            total += 1
+            later += round(tau / h) > past.reference_knot(g, carried=False)
+            equal += round(tau / h) == past.reference_knot(g)
+    assert later >= total // 2 and equal >= 0.8 * total, (later, equal, total)
 
 
 # ------------------------------------------------------------------------------------------------

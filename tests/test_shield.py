@@ -237,3 +237,37 @@ def test_the_stop_envelope_counts_twice_the_deviation(
     0.15 m away before rest; D + stop_distance (0.11) would not."""
     counts = _cart_period(deviation, stop_distance)
     assert (counts["accepted"], counts["rejected"]) == (int(accepted), int(not accepted)), counts
+
+
+# A 1 kg ball on a slide along x and a wall at x = 0.3 (its face at 0.25); a 1 N motor.
+_BALL = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="ball"><joint name="x" type="slide" axis="1 0 0"/><geom size="0.05" mass="1"/></body>
+    <body name="wall" pos="0.3 0 0"><geom type="box" size="0.05 0.5 0.5"/></body>
+  </worldbody>
+  <actuator><motor joint="x" ctrlrange="-1 1"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize(("start", "speed", "push"), [(0.2, 0.0, 1.0), (0.202, -0.2, -1.0)])
+def test_a_robot_touching_a_protected_body_is_refused_without_a_rollout(
+    start: float, speed: float, push: float
+) -> None:
+    """Every candidate's knot 0 is the state read: the ball touching the wall (at rest and
+    pushing, or leaving it) is refused whatever it intends, before any candidate is rolled out;
+    the one rollout is the failsafe's from there. 0.1 m off, the candidate is rolled out and
+    passes."""
+    model = mujoco.MjModel.from_xml_string(_BALL)
+    for x, refused in ((start, True), (start - 0.1, False)):
+        data = mujoco.MjData(model)
+        data.qpos[0], data.qvel[0] = x, speed
+        mujoco.mj_forward(model, data)
+        shield = Shield(model, protect=["wall"], robot=["ball"], period=1, accel=5.0, screen=False)
+        shield.reset(data)
+        shield(data, [push])
+        counts = shield.counts
+        assert (counts["rejected"], counts["accepted"]) == (int(refused), int(not refused)), counts
+        assert counts["rollouts"] == 1, counts

@@ -252,11 +252,21 @@ inline double Reach(double t, double s, double accel, double disc, double speed)
   return std::min(quad, speed * t * (1.0 + 2.0 * kEpsilon));
 }
 
+// How far a free point can stray in t from where its velocity read carries it (discrete-time.md,
+// section 2: |y(t) - y - t w| <= D t + A t^2 / 2), rounded up, with room for the rounding of the
+// carried place y + t w (|y|_1 + t |w|_1: each coordinate a product and a sum). `spin` bounds how
+// much faster than the carried point any other point of the geom moves (|w| r; 0 for a centre).
+inline double Stray(double t, double accel, double disc, double spin, const double size[2]) {
+  return ((spin + disc) * t + 0.5 * accel * t * t) * (1.0 + 8.0 * kEpsilon) +
+         4.0 * kEpsilon * (size[0] + t * size[1]);
+}
+
 // The mixed tau's knot (Lemma 8.3): planned geom ga (body ba, sphere sa) at each knot j >= k,
 // less its deviation, against free geom gb (body bb, sphere sb) where it is now, less its reach
-// over (j - k) h from its own bounds (its row of the violation check). The first knot at which
-// neither the sphere level nor the exact level can separate them, or nknot; -1 when gb's body
-// has no bounds to read (the pair falls back to the motion bounds).
+// over (j - k) h from its own bounds (its row of the violation check), or where its velocity
+// read carries it by then, less how far it may stray from there. The first knot at which no
+// level (the sphere's, the exact one's) can separate them either way, or nknot; -1 when gb's
+// body has no bounds to read (the pair falls back to the motion bounds).
 int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t ga,
                   int64_t ba, int64_t sa, int64_t gb, int64_t sb) {
   const int64_t row = a.plan.geom_row[gb];
@@ -265,25 +275,36 @@ int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int6
   const double accel = box[kBAccel], disc = box[kBDisc], speed = box[kBSpeed];
   const double* rec = a.pairs + p * kPairNcol;
   const double eps = rec[kPairEps];
-  // The free side now: its sphere's centre and speed, and (exact level) its geom's pose and the
-  // speed bound of its points, |v_origin| + |w| r (section 5).
+  // The free side now: its sphere's centre and velocity, and (exact level) its geom's pose, the
+  // velocity of its reference point and the spin part of its points' speeds, |w| r (section 5).
   double sb_state[6];
   PointOf(a, sb, sb_state);
   const double ss =
       std::sqrt(sb_state[3] * sb_state[3] + sb_state[4] * sb_state[4] + sb_state[5] * sb_state[5]);
+  double size_s[2] = {0.0, 0.0}, size_g[2] = {0.0, 0.0};  // |place|_1, |velocity|_1 (Stray)
+  for (int e = 0; e < 3; ++e) {
+    size_s[0] += std::fabs(sb_state[e]), size_s[1] += std::fabs(sb_state[3 + e]);
+  }
   double* xrec = nullptr;
-  double sg = 0.0;
+  double sg = 0.0, vg = 0.0, spin = 0.0;
+  double o[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
   if (a.exact.on && static_cast<int>(a.exact.records[p * kXNcol + kXMode]) == kModeGeoms) {
     xrec = a.exact.records + p * kXNcol;
-    double o[6];
     RigidPoint(gb, a.exact.geoms, kGxNcol, a.frame, o);
-    sg = std::sqrt(o[3] * o[3] + o[4] * o[4] + o[5] * o[5]) + Spin(gb, a.exact.geoms, a.frame);
+    vg = std::sqrt(o[3] * o[3] + o[4] * o[4] + o[5] * o[5]);
+    spin = Spin(gb, a.exact.geoms, a.frame);
+    sg = vg + spin;
+    for (int e = 0; e < 3; ++e) {
+      size_g[0] += std::fabs(a.frame.pos[3 * gb + e]), size_g[1] += std::fabs(o[3 + e]);
+    }
   }
   const Pose now{a.frame.pos + 3 * gb, a.frame.mat + 9 * gb};
   const double* sphere_a = a.spheres + sa * kSphereNcol;
   const int64_t n = plan.nknot();
   const double h = plan.h();
-  double gs = -kInf, gg = -kInf;  // lower bounds on the gaps at knot `base`, each level's
+  // Lower bounds on the gaps at knot `base`, each level's: against the free side where it is
+  // (gs, gg) and where its velocity carries it (cs, cg).
+  double gs = -kInf, gg = -kInf, cs = -kInf, cg = -kInf;
   int64_t base = -1;
   // The knot's time, deviation and the free side's reach at each level, each rounded up: all
   // rise with the knot when the deviation does (then a search finds the end of a carried run).
@@ -295,11 +316,18 @@ int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int6
     const double t = time(j), dev = deviation(j);
     const double rs = Reach(t, ss, accel, disc, speed);
     const double rg = xrec ? Reach(t, sg, accel, disc, speed) : kInf;
-    // The free geom does not move in the gap; the planned one by its sweep.
+    // The free geom does not move in the gap; the planned one by its sweep. The carried place
+    // moves by the speed read times the time since `base`.
     const double moved = (plan.sweep(j, ga) - plan.sweep(base, ga)) * (1.0 + 8.0 * kEpsilon);
+    const double since = (t - time(base)) * (1.0 + 4.0 * kEpsilon);
+    const double ds = moved + ss * since + Stray(t, accel, disc, 0.0, size_s);
+    const double dg = xrec ? moved + vg * since + Stray(t, accel, disc, spin, size_g) : kInf;
     const double ms = gs - moved - dev - rs, mg = gg - moved - dev - rg;
+    const double mcs = cs - ds - dev, mcg = cg - dg - dev;
     return ms > 4.0 * kEpsilon * (std::fabs(gs) + moved + dev + rs) ||
-           mg > 4.0 * kEpsilon * (std::fabs(gg) + moved + dev + rg);
+           mg > 4.0 * kEpsilon * (std::fabs(gg) + moved + dev + rg) ||
+           mcs > 4.0 * kEpsilon * (std::fabs(cs) + ds + dev) ||
+           mcg > 4.0 * kEpsilon * (std::fabs(cg) + dg + dev);
   };
   for (int64_t j = k; j < n; ++j) {
     if (base >= 0 && carried(j)) {
@@ -313,16 +341,32 @@ int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int6
     }
     const double t = time(j), dev = deviation(j);
     const double rs = Reach(t, ss, accel, disc, speed);
-    const double rg = xrec ? Reach(t, sg, accel, disc, speed) : kInf;
     double ca[3];
     AtPose(sphere_a, plan.pos(j, ga), plan.mat(j, ga), ca);
     gs = CentreGap(ca, sb_state, eps);
     bool clear = gs > dev + rs;
-    gg = -kInf;
+    // Where it heads, asked only when where it is does not clear the knot (most knots clear on
+    // the first: the cheaper order; the knot is clear when either clears it).
+    cs = gg = cg = -kInf;
+    if (!clear) {
+      double cb[3];
+      for (int e = 0; e < 3; ++e) cb[e] = sb_state[e] + t * sb_state[3 + e];
+      cs = CentreGap(ca, cb, eps);
+      clear = cs > dev + Stray(t, accel, disc, 0.0, size_s);
+    }
     if (!clear && xrec != nullptr) {
       const Pose planned{plan.pos(j, ga), plan.mat(j, ga)};
+      const double rg = Reach(t, sg, accel, disc, speed);
       gg = PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, ga, planned, gb, now, dev + rg);
       clear = gg > dev + rg;
+      if (!clear) {
+        const double rc = Stray(t, accel, disc, spin, size_g);
+        double at[3];
+        for (int e = 0; e < 3; ++e) at[e] = now.pos[e] + t * o[3 + e];
+        cg = PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, ga, planned, gb, {at, now.mat},
+                      dev + rc);
+        clear = cg > dev + rc;
+      }
     }
     base = j;
     if (!clear) return j;

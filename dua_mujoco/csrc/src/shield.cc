@@ -317,47 +317,54 @@ void Shield::Period(const mjModel* m, const mjData* d, const double* intended) {
       ++counts_.screened;
       return;
     }
-    const int64_t p = o_.period;
-    int64_t rest, n, tail;
-    if (o_.stop_distance >= 0.0) {
-      // The intended controls rolled for the period and the failsafe for one more; if the
-      // robot is not at rest by then, the stop envelope from there: within stop_distance of
-      // that pose, at rest stop_time later (checked when a failsafe is rolled out).
-      const int64_t e = 2 * p;
-      rest = Roll(intended, p, e);
-      if (rest < 0) {
-        const int64_t ngeom = model_->ngeom, nq = static_cast<int64_t>(robot_q_.size());
-        for (int64_t j = e + 1; j <= e + max_stop_; ++j) {
-          std::copy_n(kpos_.begin() + 3 * ngeom * e, 3 * ngeom, kpos_.begin() + 3 * ngeom * j);
-          std::copy_n(kmat_.begin() + 9 * ngeom * e, 9 * ngeom, kmat_.begin() + 9 * ngeom * j);
-          std::copy_n(kq_.begin() + nq * e, nq, kq_.begin() + nq * j);
+    // Every candidate's knot 0 is this very state, whatever the intended controls: a protected
+    // pair that may touch here refuses them all (their rest knot is p >= 1 or later), so none is
+    // rolled out (docs/theory.md, section 10). Asked only after a period that ran the failsafe
+    // (a refusal, an event): after one that passed, this state is on a verified plan or within
+    // the screen's window, and a touch here is rare; unasked, the candidate's own query answers.
+    if (!failsafe_mode_ || !TouchesNow()) {
+      const int64_t p = o_.period;
+      int64_t rest, n, tail;
+      if (o_.stop_distance >= 0.0) {
+        // The intended controls rolled for the period and the failsafe for one more; if the
+        // robot is not at rest by then, the stop envelope from there: within stop_distance of
+        // that pose, at rest stop_time later (checked when a failsafe is rolled out).
+        const int64_t e = 2 * p;
+        rest = Roll(intended, p, e);
+        if (rest < 0) {
+          const int64_t ngeom = model_->ngeom, nq = static_cast<int64_t>(robot_q_.size());
+          for (int64_t j = e + 1; j <= e + max_stop_; ++j) {
+            std::copy_n(kpos_.begin() + 3 * ngeom * e, 3 * ngeom, kpos_.begin() + 3 * ngeom * j);
+            std::copy_n(kmat_.begin() + 9 * ngeom * e, 9 * ngeom, kmat_.begin() + 9 * ngeom * j);
+            std::copy_n(kq_.begin() + nq * e, nq, kq_.begin() + nq * j);
+          }
+          rest = e + max_stop_;
+          tail = e + 1;
+        } else {
+          tail = rest + 1;
         }
-        rest = e + max_stop_;
-        tail = e + 1;
+        n = rest + 1;
       } else {
-        tail = rest + 1;
+        rest = Roll(intended, p, p + max_stop_);
+        n = rest + 1, tail = n;
       }
-      n = rest + 1;
-    } else {
-      rest = Roll(intended, p, p + max_stop_);
-      n = rest + 1, tail = n;
-    }
-    if (rest >= 0 && BuildPlan(n, tail) && FirstContact() >= rest) {
-      Install(n, rest);
-      envelope_ = tail < n;
-      if (envelope_) {
-        // The failsafe that may follow starts at knot p: its knots from tail - 1 - p on are
-        // the envelope's, which starts from knot tail - 1's pose.
-        const int64_t e = tail - 1, ngeom = model_->ngeom;
-        env_from_ = e - p;
-        env_pos_.assign(kpos_.begin() + 3 * ngeom * e, kpos_.begin() + 3 * ngeom * (e + 1));
-        env_mat_.assign(kmat_.begin() + 9 * ngeom * e, kmat_.begin() + 9 * ngeom * (e + 1));
+      if (rest >= 0 && BuildPlan(n, tail) && FirstContact() >= rest) {
+        Install(n, rest);
+        envelope_ = tail < n;
+        if (envelope_) {
+          // The failsafe that may follow starts at knot p: its knots from tail - 1 - p on are
+          // the envelope's, which starts from knot tail - 1's pose.
+          const int64_t e = tail - 1, ngeom = model_->ngeom;
+          env_from_ = e - p;
+          env_pos_.assign(kpos_.begin() + 3 * ngeom * e, kpos_.begin() + 3 * ngeom * (e + 1));
+          env_mat_.assign(kmat_.begin() + 9 * ngeom * e, kmat_.begin() + 9 * ngeom * (e + 1));
+        }
+        plan_by_screen_ = false;
+        failsafe_mode_ = fresh_ = false;
+        guaranteed_ = true;
+        ++counts_.accepted;
+        return;
       }
-      plan_by_screen_ = false;
-      failsafe_mode_ = fresh_ = false;
-      guaranteed_ = true;
-      ++counts_.accepted;
-      return;
     }
   }
   ++counts_.rejected;
@@ -390,6 +397,17 @@ void Shield::Period(const mjModel* m, const mjData* d, const double* intended) {
   envelope_ = false;
   plan_by_screen_ = !verified && covered && was_screened;
   fresh_ = false;
+}
+
+bool Shield::TouchesNow() {
+  // Knot 0 of a rollout: mj_step1's kinematics of this state, which Prepare computed alike.
+  const int64_t ngeom = model_->ngeom;
+  if (kpos_.size() < static_cast<size_t>(3 * ngeom)) {
+    kpos_.resize(3 * ngeom), kmat_.resize(9 * ngeom);
+  }
+  std::copy_n(scratch_->geom_xpos, 3 * ngeom, kpos_.begin());
+  std::copy_n(scratch_->geom_xmat, 9 * ngeom, kmat_.begin());
+  return !BuildPlan(1, 1) || FirstContact() == 0;
 }
 
 bool Shield::WithinEnvelope(int64_t n) const {

@@ -123,6 +123,9 @@ class DUA_API Shield {
   // The candidate plan of the rollout's knots 0..n-1, the robot at its deviation before knot
   // `tail`, at the stop envelope's from there (false: not finite).
   bool BuildPlan(int64_t n, int64_t tail);
+  // Whether a protected pair may touch at the state read (knot 0 of every candidate), from the
+  // scratch's kinematics.
+  bool TouchesNow();
   // Whether the failsafe rolled out (knots 0..n-1) stays within the stop envelope.
   bool WithinEnvelope(int64_t n) const;
   // The least of the protected pairs' first knots of possible contact under the candidate (its
