@@ -65,6 +65,7 @@ class Mutant:
 _URGENCY = "dua_mujoco/csrc/src/urgency.cc"
 _STEP = "dua_mujoco/csrc/src/step.cc"
 _SCHEDULE = "dua_mujoco/csrc/src/schedule.cc"
+_SCHEDULE_H = "dua_mujoco/csrc/src/schedule.h"
 _PLAN = "dua_mujoco/csrc/src/plan.cc"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
@@ -202,9 +203,9 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "stands-one-period-short",
-        _SCHEDULE,
-        "    return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();",
-        "    return static_cast<double>(where - last + spec_.latency - 1) * spec_.dt + Extra();",
+        _SCHEDULE_H,
+        "      return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();",
+        "      return static_cast<double>(where - last + spec_.latency - 1) * spec_.dt + Extra();",
         (_REF_CLUTTER,),
         "the standing state covers one period less than the wait",
     ),
