@@ -61,7 +61,6 @@ except ModuleNotFoundError as exc:  # an optional dependency: say which extra br
         "dua_mujoco.gym needs gymnasium: pip install 'dua_mujoco[gym]'", name=exc.name
     ) from exc
 
-from dua_mujoco import _core
 from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.runtime.predictor import Predictor
@@ -237,13 +236,9 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
         obs, reward, terminated, truncated, info = self.env.step(action)
         # The predictor's step and what info needs from it in one native call (no Alarms made:
         # the wrapper cost 1.10x Pusher's env.step, most of it Python around the native step).
-        predictor = self.predictor
-        if self._data is not predictor._data:
-            predictor._bind(self._data)
-        try:
-            started, min_tau, version = self._runtime.step_watched()
-        except _core.StepError as error:
-            raise predictor._step_error(self._data, error) from None
+        started, min_tau, version = self.predictor._native_step(
+            self._data, self._runtime.step_watched
+        )
         self._observe(info, min_tau, version)
         if self.cost == "alarm":
             cost = 1.0 if self._alarm_pairs else 0.0

@@ -325,3 +325,15 @@ def test_the_safety_shield_takes_its_period_from_the_env() -> None:
         SafetyShield(gym.make("Pusher-v5"), protect=["tabel"], accel=100.0)
     env = SafetyShield(gym.make("Pusher-v5"), protect=["world"], accel=100.0)
     assert env.shield.period == env.unwrapped.frame_skip  # type: ignore[attr-defined]
+
+
+def test_a_failed_wrapped_step_raises_the_predictors_error() -> None:
+    """The wrapper steps the runtime itself (one native call): a step that fails raises what
+    Predictor.step raises, naming the cause, not the native core's bare error."""
+    from dua_mujoco.exceptions import SchedulerError
+
+    env = _make("Pusher-v5")
+    env.reset(seed=0)
+    env.unwrapped.data.time += 1.0  # type: ignore[attr-defined]
+    with pytest.raises(SchedulerError, match=r"data\.time advanced"):
+        env.step(env.action_space.sample())

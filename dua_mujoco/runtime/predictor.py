@@ -16,8 +16,8 @@ predictor uses that one instant throughout (docs/discrete-time.md).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping
-from typing import Literal
+from collections.abc import Callable, Mapping
+from typing import Literal, TypeVar
 
 import mujoco
 import numpy as np
@@ -62,6 +62,8 @@ from dua_mujoco.runtime.pairstate import PairState
 from dua_mujoco.runtime.table_arrays import build, layout, measure_pilot
 
 __all__ = ["BoundsLike", "Predictor"]
+
+T = TypeVar("T")
 
 BoundsLike = float | Mapping[str, float] | MotionBounds | Literal["auto"]
 """Acceleration bounds: a scalar (m/s^2, every moving body), a dict by body name (``"*"`` for
@@ -291,13 +293,18 @@ class Predictor(PlanFollowing):
                 state after the simulation diverged.
             InvalidInputError: ``data`` is not an MjData of this predictor's model.
         """
+        alarms: Alarms = self._native_step(data, self._rt.step)
+        return alarms
+
+    def _native_step(self, data: mujoco.MjData, step: Callable[[], T]) -> T:
+        """``step()``, a native step of the runtime (``step``, ``step_watched``), on ``data``
+        (bound first if it is new), with its failure raised as the error it stands for."""
         if data is not self._data:
             self._bind(data)
         try:
-            alarms: Alarms = self._rt.step()
+            return step()
         except _core.StepError as error:
             raise self._step_error(data, error) from None
-        return alarms
 
     # ----------------------------------------------------------------------- intended contact
 
