@@ -67,9 +67,8 @@ bool CountByClass(const dua_filter& f, const int64_t* weight, int64_t* pairs, in
   auto cls = [&f](int64_t g) {
     return std::tuple(f.movable[g], f.contype[g], f.conaffinity[g], f.lone[g]);
   };
-  std::vector<int64_t> order(n);
-  for (int64_t g = 0; g < n; ++g) order[g] = g;
-  std::sort(order.begin(), order.end(), [&](int64_t a, int64_t b) { return cls(a) < cls(b); });
+  const Sorted by_class(n, cls);
+  const std::vector<int64_t>& order = by_class.ids;
   std::vector<int64_t> rep, size, wsum, wsq;  // per class: a geom, geoms, sum of w, of w^2
   for (int64_t k = 0; k < n; ++k) {
     const int64_t g = order[k], w = weight[g];
