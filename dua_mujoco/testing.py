@@ -275,7 +275,7 @@ def _broken_bounds_message(
             f"{report.scene or 'scene'}: the declared motion bounds were broken in free motion "
             f"({report.bound_violations_out_of_contact} body-steps out of contact, "
             f"{report.bound_violations} in all; {report.contact_onsets} onsets, "
-            f"{report.predicted_onsets} predicted, none missed):",
+            f"{report.predicted_onsets} predicted, none missed):"
         ]
     lines = [
         *head,

@@ -125,10 +125,7 @@ def _resolve(model: mujoco.MjModel, spec: BoundSpec, what: str) -> np.ndarray:
 
 
 # The keyword a scalar bound is given by (Predictor(accel=...), MotionBounds.declare(...)).
-_KEYWORD = {
-    "acceleration": "accel",
-    "velocity uncertainty": "vel_uncertainty",
-}
+_KEYWORD = {"acceleration": "accel", "velocity uncertainty": "vel_uncertainty"}
 
 
 def _check_value(value: object, what: str, body: str | None, *, moving: bool = True) -> float:
@@ -170,10 +167,7 @@ def _check_value(value: object, what: str, body: str | None, *, moving: bool = T
 
 
 def discrete_velocity_uncertainty(
-    model: mujoco.MjModel,
-    accel: npt.ArrayLike,
-    *,
-    velocity_accel: npt.ArrayLike | None = None,
+    model: mujoco.MjModel, accel: npt.ArrayLike, *, velocity_accel: npt.ArrayLike | None = None
 ) -> np.ndarray:
     """The velocity-uncertainty term delta that makes tau valid at MuJoCo's step times.
 

@@ -21,13 +21,7 @@ import numpy.typing as npt
 from dua_mujoco._core import LAYOUT
 from dua_mujoco.build.bounds import MotionBounds
 
-__all__ = [
-    "BodyBoxes",
-    "EventTable",
-    "body_boxes",
-    "build_events",
-    "no_events",
-]
+__all__ = ["BodyBoxes", "EventTable", "body_boxes", "build_events", "no_events"]
 
 # Columns of a body record (the check's state is the runtime's: csrc/src/step.cc).
 B_FRAME, B_BODY, B_ROOT = LAYOUT["B_FRAME"], LAYOUT["B_BODY"], LAYOUT["B_ROOT"]

@@ -453,10 +453,7 @@ def body_id(model: mujoco.MjModel, body: int | str) -> int:
 
 
 def pairs_between_bodies(
-    model: mujoco.MjModel,
-    geom_pairs: GeomPairs,
-    body_a: int | str,
-    body_b: int | str | None = None,
+    model: mujoco.MjModel, geom_pairs: GeomPairs, body_a: int | str, body_b: int | str | None = None
 ) -> np.ndarray:
     """Indices of active geom pairs with one geom on ``body_a`` and the other on ``body_b``.
 

@@ -25,10 +25,7 @@ import numpy.typing as npt
 import dua_mujoco._core as _core
 from dua_mujoco.core.terrain import first_bad_row, record_count
 from dua_mujoco.core.validate import as_vectors, per_pair
-from dua_mujoco.exceptions import (
-    InvalidInputError,
-    ShapeError,
-)
+from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
 __all__ = [
     "SHAPE_KIND",

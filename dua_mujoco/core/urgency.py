@@ -28,12 +28,7 @@ import dua_mujoco._core as _core
 from dua_mujoco.core.validate import as_vectors, per_pair
 from dua_mujoco.exceptions import BoundViolationWarning, InvalidBoundError, ShapeError
 
-__all__ = [
-    "PARALLEL_MIN",
-    "distance_urgency",
-    "time_to_collision",
-    "time_to_halfspace",
-]
+__all__ = ["PARALLEL_MIN", "distance_urgency", "time_to_collision", "time_to_halfspace"]
 
 PARALLEL_MIN = 1 << 16
 """Rows from which a batch (``time_to_collision``, ``PairSet.tau``) runs on two threads: below

@@ -50,11 +50,7 @@ from dua_mujoco.build.tables import (
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule
 from dua_mujoco.core.spheres import PairMode, runtime_count
-from dua_mujoco.exceptions import (
-    NoActivePairsWarning,
-    NonFiniteStateError,
-    SchedulerError,
-)
+from dua_mujoco.exceptions import NoActivePairsWarning, NonFiniteStateError, SchedulerError
 from dua_mujoco.runtime.alarms import Alarms
 from dua_mujoco.runtime.diagnostics import clock_error, nonfinite_error
 from dua_mujoco.runtime.flightplan import PlanFollowing

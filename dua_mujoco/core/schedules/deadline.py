@@ -29,12 +29,7 @@ from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
 from dua_mujoco.core.schedules.state import DEADLINE, P_BACKOFF, P_CAP, P_MAX_INTERVAL
 from dua_mujoco.core.validate import check_int, check_period, check_urgencies
 
-__all__ = [
-    "DEFAULT_ALARM_BACKOFF",
-    "DeadlineScheduler",
-    "check_alarm_backoff",
-    "check_max_evals",
-]
+__all__ = ["DEFAULT_ALARM_BACKOFF", "DeadlineScheduler", "check_alarm_backoff", "check_max_evals"]
 
 DEFAULT_MAX_INTERVAL = 1024
 """Longest revisit interval (steps) by default: 2 s at MuJoCo's 2 ms, a few % of the work."""
