@@ -67,7 +67,6 @@ HFIELD_CHOICES = ("terrain", "box", "error")
 grid), every height field covered by its bounding box, or refused."""
 STATIC_CHOICES = ("shape", "sphere")
 """``cover_model``'s ``static`` option: static geoms as their own shapes, or as spheres."""
-# Geom types tau_static holds exactly (meshes by the box around their hull).
 
 
 class CoveringMode(enum.Enum):

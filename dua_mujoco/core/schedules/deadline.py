@@ -47,8 +47,7 @@ class DeadlineScheduler(Scheduler, kind=DEADLINE):
     Args:
         tau0: ``(M,)`` tau of every pair at time 0 (the initial classification).
         dt: Predictor period ``> 0`` (seconds between steps).
-        latency: Periods a verdict takes to act (1: a verdict acts one period after its state;
-            0: the predictor runs synchronously after each physics step).
+        latency: As for ``DUAScheduler``.
         max_evals_per_step: Optional cap on tau evaluations a step (None: no cap). Pairs due
             beyond it wait, least time left served first; see :attr:`deferred`.
         max_interval: Longest revisit interval in steps (``>= 1``): a pair far from everything
