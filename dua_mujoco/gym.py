@@ -1,49 +1,6 @@
-"""Gymnasium wrappers for any MuJoCo-based env: ``PredictCollisions`` predicts collisions,
-``SafetyShield`` shields the env's actions (:class:`~dua_mujoco.Shield`; at the end).
-
-``PredictCollisions``
-
-After every ``env.step`` the wrapper steps a :class:`~dua_mujoco.Predictor` on the env's own
-``MjData`` and adds to ``info``:
-
-- ``"alarm_pairs"``: the geom pairs standing in alarm, as ``(name1, name2)`` tuples (``geom<id>``
-  for unnamed geoms), sorted; pairs the wrapper was told to ``ignore`` are left out;
-- ``"min_tau"``: the least time to collision (s) the predictor still vouches for over the
-  counted pairs: for each, its latest tau less the time since that verdict (0 for a pair in
-  alarm with tau 0, ``inf`` when no pair is counted);
-- ``"cost_predicted_collision"`` and ``"cost"``: the cost of this step (below).
-
-The cost follows safety-gymnasium's conventions where they fit: a float per step, 0 when safe;
-each constraint has its own ``info["cost_<name>"]``, and ``info["cost"]`` is their sum (what
-safety-gymnasium's ``SafetyGymnasium2Gymnasium`` puts there). When the wrapped env already
-reports ``info["cost"]``, this term is added to it. ``cost=`` chooses the term:
-
-- ``"alarm"`` (default): 1.0 when a counted geom pair stands in alarm after this step, else 0.0
-  (an indicator, as safety-gymnasium's ``constrain_indicator``);
-- ``"new"``: the number of counted geom pairs whose alarm started at this step;
-- ``"horizon"``: 1.0 when ``min_tau < cost_horizon`` seconds, else 0.0.
-
-An alarm comes before the contact, with the package's guarantee behind it (docs/theory.md): while
-the declared motion bounds hold, every contact of a counted pair is preceded by its alarm.
-Resting contact that the task wants (feet on the floor) stands in alarm for good: ``ignore`` it.
-
-Gymnasium's MuJoCo envs run ``frame_skip`` physics steps per ``env.step``: the predictor's period
-is that ``frame_skip``, read from the env, so each call sees ``data.time`` advance by one period.
-``reset`` re-classifies (``Predictor.reset``) after the env's reset.
-
-Example::
-
-    import gymnasium as gym
-    from dua_mujoco.gym import PredictCollisions
-
-    env = PredictCollisions(
-        gym.make("Humanoid-v5"),
-        ignore=[("floor", "left_foot"), ("floor", "right_foot")],
-        accel=50.0,  # any Predictor option passes through
-    )
-    obs, info = env.reset(seed=0)
-    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
-    info["cost"], info["min_tau"], info["alarm_pairs"]
+"""Gymnasium wrappers for any MuJoCo-based env: ``PredictCollisions`` predicts collisions and
+puts a cost into ``info``; ``SafetyShield`` shields the env's actions (:class:`~dua_mujoco.Shield`).
+docs/integrations.md has an example and the measured cost over an episode.
 """
 
 from __future__ import annotations
@@ -113,9 +70,23 @@ def find_mujoco(env: gymnasium.Env) -> tuple[mujoco.MjModel, mujoco.MjData, int]
 class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
     """Steps a collision predictor after every ``env.step``; alarms and a cost go into ``info``.
 
+    The predictor (:class:`~dua_mujoco.Predictor`) runs on the env's own ``MjData`` with the
+    env's ``frame_skip`` as its period; ``reset`` re-classifies after the env's reset. ``info``
+    gets ``"alarm_pairs"`` (the counted geom pairs standing in alarm, sorted ``(name1, name2)``,
+    ``geom<id>`` for unnamed geoms), ``"min_tau"`` (the least time to collision, s, the
+    predictor still vouches for over the counted pairs: each one's latest tau less the time
+    since; 0 for a pair in alarm with tau 0, ``inf`` for none), and the cost of the step as
+    ``"cost_predicted_collision"``, added to ``"cost"`` (the env's own, if any:
+    safety-gymnasium's conventions, a float a step, 0 when safe). While the declared bounds
+    hold, every contact of a counted pair is preceded by its alarm (docs/theory.md); resting
+    contact the task wants (feet on the floor) stands in alarm for good: ``ignore`` it.
+
     Args:
         env: A MuJoCo-based env (:func:`find_mujoco` finds its model, data and ``frame_skip``).
-        cost: ``"alarm"``, ``"new"`` or ``"horizon"`` (module docstring).
+        cost: ``"alarm"``: 1.0 when a counted geom pair stands in alarm after the step, else
+            0.0 (safety-gymnasium's ``constrain_indicator``); ``"new"``: the number of counted
+            geom pairs whose alarm started at the step; ``"horizon"``: 1.0 when
+            ``min_tau < cost_horizon``, else 0.0.
         cost_horizon: Seconds; required by, and only by, ``cost="horizon"``.
         terminate_on_alarm: End the episode (``terminated=True``) at a step whose cost is > 0.
         ignore: Geom names or ``(name, name)`` geom pairs whose alarms count for nothing (left

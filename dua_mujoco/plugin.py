@@ -1,21 +1,12 @@
 """The predictor inside ``mj_step``: the MuJoCo sensor plugin ``dua_mujoco.predictor``.
 
 :func:`attach` adds the plugin to a ``mujoco.MjSpec``: one plugin instance, one sensor of
-:data:`OUTPUTS`, and the tables the step reads (everything a :class:`~dua_mujoco.Predictor` of the
-same options computes at construction: the covering, the pairs and their bounds, the static
-shapes, the exact level's records, the violation check's boxes, the schedule's parameters) as
-custom text fields ``<prefix>:<table>``. ``spec.compile()`` then gives a model whose every
-``mj_step`` predicts, in Python or in any C or C++ program (``simulate`` included) that loads
-``libdua_mujoco.so`` (docs/plugin.md). The step is the native core's, the same code
-``Predictor.step`` runs.
-
-Each table is written as its entry count followed by the entries' float64 bytes in base64:
-MuJoCo writes custom numeric fields to XML with six significant digits, which would round the
-bounds, and text fields verbatim; base64 decodes exactly and fast (hexadecimal floats, tried
-first, took ``strtod`` 80 ms a ``MjData`` on a robot with meshes).
-
-The plugin's state lives in each ``MjData`` (``mj_copyData`` copies it, ``mj_resetData`` starts it
-over), so copies, resets and ``mujoco.rollout`` on several threads keep their runs apart.
+:data:`OUTPUTS`, and the tables a :class:`~dua_mujoco.Predictor` of the same options builds, as
+custom text fields ``<prefix>:<table>`` (base64 float64: exact, and fast to read). Every
+``mj_step`` of the compiled model then predicts, in Python or in any C or C++ program that loads
+``libdua_mujoco.so``, with the native core's step, the same code ``Predictor.step`` runs. The
+plugin's state lives in each ``MjData``, so copies, resets and ``mujoco.rollout`` on several
+threads keep their runs apart (docs/plugin.md).
 """
 
 from __future__ import annotations

@@ -1,20 +1,12 @@
-"""Regression helpers and a pytest plugin for users' own scenes.
+"""Regression helpers and a pytest plugin for users' own scenes (docs/testing.md).
 
 :func:`assert_no_missed_collisions` rolls a scene out with a :class:`~dua_mujoco.Predictor` and
-MuJoCo's contacts as the exact stage (:func:`dua_mujoco.measure.rollout.run`) and fails, with the
-geoms and times, if a contact onset was not preceded by an alarm while the declared bounds held:
-that is a broken completeness guarantee, a bug. Optionally it holds the alarm counts to a stored
-baseline so that a change that floods the exact stage with false alarms fails too.
-
-The pytest plugin adds the function-scoped fixture ``dua_predict`` (the same callable, with
-relative baseline paths resolved against the test file's folder) and the option
-``--dua-update-baselines`` (write baselines instead of comparing). Enable it with
-``pytest_plugins = ["dua_mujoco.testing"]`` in a top-level ``conftest.py`` or
-``pytest -p dua_mujoco.testing``; it is not loaded by itself (no ``pytest11`` entry point: see
-``docs/testing.md``).
-
-The module imports MuJoCo and the compiled core lazily, so that loading the plugin costs nothing
-for test sessions that never use it; the assertion helpers work without pytest installed.
+MuJoCo's contacts as the exact stage and fails, with the geoms and times, if a contact onset was
+not preceded by an alarm while the declared bounds held (a bug); optionally it holds the alarm
+counts to a stored baseline. The pytest plugin (``pytest_plugins = ["dua_mujoco.testing"]`` or
+``pytest -p dua_mujoco.testing``; not loaded by itself) adds the fixture ``dua_predict`` and the
+option ``--dua-update-baselines``. MuJoCo and the compiled core are imported lazily; the
+assertion helpers work without pytest.
 """
 
 from __future__ import annotations
@@ -66,9 +58,7 @@ Controller = Callable[["mujoco.MjModel", "mujoco.MjData"], None]
 BaselineLike = Mapping[str, Any] | str | os.PathLike[str]
 
 
-# --------------------------------------------------------------------------------------------------
-# Baselines.
-# --------------------------------------------------------------------------------------------------
+# ---------------------------------------------------------------------------------------- baselines
 
 
 def load_baseline(baseline: BaselineLike) -> dict[str, Any]:
@@ -206,9 +196,7 @@ def _caller_level() -> int:
     return level
 
 
-# --------------------------------------------------------------------------------------------------
-# The assertion.
-# --------------------------------------------------------------------------------------------------
+# ------------------------------------------------------------------------------------ the assertion
 
 
 def _listed_misses(misses: list[Any]) -> list[str]:
@@ -275,7 +263,7 @@ def _broken_bounds_message(
             f"{report.scene or 'scene'}: the declared motion bounds were broken in free motion "
             f"({report.bound_violations_out_of_contact} body-steps out of contact, "
             f"{report.bound_violations} in all; {report.contact_onsets} onsets, "
-            f"{report.predicted_onsets} predicted, none missed):",
+            f"{report.predicted_onsets} predicted, none missed):"
         ]
     lines = [
         *head,
@@ -429,9 +417,7 @@ def assert_no_missed_collisions(
     return report
 
 
-# --------------------------------------------------------------------------------------------------
-# pytest plugin.
-# --------------------------------------------------------------------------------------------------
+# ------------------------------------------------------------------------------------ pytest plugin
 
 
 class DuaPredict(Protocol):

@@ -1,19 +1,11 @@
 """Motion bounds: declared or estimated per body, the discrete-time term, and violation checks.
 
-The urgency of a sphere pair uses A = A_i + A_j (acceleration bounds of the two centres) and a
-velocity uncertainty delta = delta_i + delta_j; both add over the pair because the relative
-discrete acceleration and the relative velocity discrepancy are sums of per-sphere ones.
-
-The guarantee is stated on the positions MuJoCo produces at its steps (``docs/discrete-time.md``).
-With c_k the centre read after the k-th ``mj_step``, w_k the velocity read with it,
-u_k = (c_k - c_{k-1}) / h, the hypotheses are, for every sphere on body b and every k:
-
-* discrete acceleration: |u_{k+1} - u_k| <= A_b h,
-* one-step discrepancy: |u_{k+1} - w_k| <= D_b = delta_b + A_b h / 2,
-* optional speed: |u_k| <= V_b (the chord: the speed term needs only the displacement per step),
-
-and then |c_{k+n} - c_k - n h w_k| <= delta_b t + A_b t^2 / 2 at every t = n h.
-:class:`BoundMonitor` checks exactly these hypotheses, step by step.
+A sphere pair's urgency uses ``A = A_i + A_j`` and ``delta = delta_i + delta_j`` (relative
+accelerations and velocity discrepancies are sums of per-sphere ones). The guarantee is stated
+on the positions MuJoCo produces at its steps: with ``u_k = (c_k - c_{k-1}) / h`` the chord
+velocity of a sphere centre on body ``b`` and ``w_k`` the velocity read with ``c_k``, the
+hypotheses are ``|u_{k+1} - u_k| <= A_b h``, ``|u_{k+1} - w_k| <= delta_b + A_b h / 2`` and
+optionally ``|u_k| <= V_b`` (docs/discrete-time.md); :class:`BoundMonitor` checks exactly these.
 """
 
 from __future__ import annotations
@@ -125,10 +117,7 @@ def _resolve(model: mujoco.MjModel, spec: BoundSpec, what: str) -> np.ndarray:
 
 
 # The keyword a scalar bound is given by (Predictor(accel=...), MotionBounds.declare(...)).
-_KEYWORD = {
-    "acceleration": "accel",
-    "velocity uncertainty": "vel_uncertainty",
-}
+_KEYWORD = {"acceleration": "accel", "velocity uncertainty": "vel_uncertainty"}
 
 
 def _check_value(value: object, what: str, body: str | None, *, moving: bool = True) -> float:
@@ -170,30 +159,16 @@ def _check_value(value: object, what: str, body: str | None, *, moving: bool = T
 
 
 def discrete_velocity_uncertainty(
-    model: mujoco.MjModel,
-    accel: npt.ArrayLike,
-    *,
-    velocity_accel: npt.ArrayLike | None = None,
+    model: mujoco.MjModel, accel: npt.ArrayLike, *, velocity_accel: npt.ArrayLike | None = None
 ) -> np.ndarray:
     """The velocity-uncertainty term delta that makes tau valid at MuJoCo's step times.
 
-    Rule (derivation in ``docs/discrete-time.md``): delta = max(D - A h / 2, 0) where D bounds
-    the one-step discrepancy |u_{k+1} - w_k| between the next discrete velocity and the velocity
-    MjData reports.
-
-    * Euler, implicit, implicitfast (semi-implicit position update with the new velocity, and
-      kinematics in MjData from the start of the step): for a translating point w_k = u_k
-      exactly, so D = |u_{k+1} - u_k| <= A h and delta = A h / 2. On rotating bodies w_k is
-      the tangent and u_k the chord: u_k - w_k = -(h/2) a_v + O(h^2), with a_v the
-      velocity-product acceleration of the point (centripetal/Coriolis, the acceleration it
-      would have at zero joint acceleration), so D <= A h + (h/2) |a_v| and
-      delta = (A + C) h / 2 with C >= |a_v| (``velocity_accel``). C = 0 is exact for slide-only
-      chains, and correct to first order for one hinge (tangential and centripetal parts are
-      orthogonal, |a_t + a_c/2| <= |a|); for ball/free joints and chains give C, or use
-      :func:`estimate_bounds`, which measures D.
-    * RK4: MjData holds the kinematics of the last RK stage, which lies on the integrated
-      trajectory to high order, so D <= A h / 2 + O(h^2) and delta = O(h^2). The rule returns
-      the Euler value A h / 2, conservative by about A h / 2 (measured in the tests).
+    ``delta = (A + C) h / 2`` (derivation in docs/discrete-time.md): it bounds the one-step
+    discrepancy between the next chord velocity and the velocity ``MjData`` reports, tight for
+    the Euler, implicit and implicitfast integrators and conservative (by about ``A h / 2``) for
+    RK4. ``C >= |a_v|`` bounds the velocity-product (centripetal/Coriolis) acceleration of the
+    points: 0 is exact for slide-only chains and right to first order for one hinge; chains and
+    ball or free joints need it given, or :func:`estimate_bounds`, which measures the discrepancy.
 
     Args:
         model: the MuJoCo model (its integrator and timestep).

@@ -1,27 +1,13 @@
 """Geoms -> spheres and half-spaces.
 
-Every collidable geom of a MuJoCo model is replaced by a set of spheres whose union contains the
-geom's solid (for meshes: its convex hull, which is what MuJoCo collides with). Planes are kept as
-half-spaces (outward normal = the plane's local z axis, through ``geom_xpos``), static geoms
-(bodies welded to the world) are kept as their own convex shapes (``static="shape"``, the
-default; ``docs/static-shapes.md``), and static height fields as terrain, the prisms of their
-grid (``hfield="terrain"``, the default; ``docs/theory.md``, section 9). A collision between two
-geoms therefore implies an intersection between one sphere of each, or between a sphere and a
-half-space, a static shape or a terrain, which is what the urgency layer predicts.
-
-Two coverings exist:
-
-* ``BOUNDING``: one sphere per geom, centred at the geom origin with radius ``m.geom_rbound``
-  (MuJoCo's own bounding sphere; for meshes and height fields it bounds the corners of the geom's
-  local bounding box, so it contains every vertex).
-* ``MULTI``: a tighter set of at most ``max_spheres_per_geom`` spheres per geom: spheres are
-  exact, capsules get spheres along their segment, and boxes, cylinders, ellipsoids, meshes (and
-  height fields with ``hfield="box"``) get one sphere per cell of a grid over the geom's local
-  bounding box, keeping only cells that can intersect the solid. When the single bounding sphere
-  has a smaller volume than the union of the multi-sphere set (e.g. a near-spherical ellipsoid),
-  the bounding sphere is kept instead.
-
-See ``docs/covering-and-pairs.md`` for the containment argument per geom type.
+Every collidable geom is replaced by spheres whose union contains its solid (a mesh's: its
+convex hull, which MuJoCo collides): ``BOUNDING``, one sphere a geom (MuJoCo's ``geom_rbound``),
+or ``MULTI``, at most ``max_spheres_per_geom`` a geom (spheres exact, capsules along their
+segment, other solids one sphere a grid cell that can meet the solid; the bounding sphere where
+it is smaller). Planes stay half-spaces, static geoms their own convex shapes (``static="shape"``,
+docs/static-shapes.md), static height fields terrain (``hfield="terrain"``, docs/theory.md,
+section 9). A collision of two geoms then implies one of their spheres (shapes, half-spaces)
+meeting; docs/covering-and-pairs.md gives the containment argument per geom type.
 """
 
 from __future__ import annotations
@@ -81,7 +67,6 @@ HFIELD_CHOICES = ("terrain", "box", "error")
 grid), every height field covered by its bounding box, or refused."""
 STATIC_CHOICES = ("shape", "sphere")
 """``cover_model``'s ``static`` option: static geoms as their own shapes, or as spheres."""
-# Geom types tau_static holds exactly (meshes by the box around their hull).
 
 
 class CoveringMode(enum.Enum):

@@ -1,30 +1,13 @@
 """Violations as events: a body whose motion broke its bounds makes its pairs due at once.
 
-Every verdict assumes the bounds hold from its instant on. A contact's impulse breaks them, and
-a pair whose verdict came before the impulse would keep it until its deadline: the collisions
-that follow the impulse would be missed. So the step (natively: ``dua_mujoco/csrc/src/step.cc``)
-first checks, per moving body, the
-hypotheses of the discrete-time derivation over the last predictor period (docs/discrete-time.md;
-the same ones ``BoundMonitor`` checks), and every held pair of a body that broke them is made
-due now: its verdict is withdrawn (it stands in alarm, as a pair switched on does) and this very
-step evaluates it again from the new state. docs/theory.md, section 6, proves what this restores.
-
-**One box a body.** The acceleration, the one-step discrepancy and the chord speed of a point of
-a rigid body are norms of affine functions of its body coordinates, so over a box their maxima
-lie at the box's corners. Each body gets one box, in the frame of one of its geoms, around every
-point whose motion the bounds limit (covering centres, the exact level's geom corners): its
-eight corners are the predictor's ``bound_points``, which the pilot measures and
-``BoundMonitor`` checks point by point. The step checks the same corners in O(1) a body from
-the box's centre and axes: with ``c`` the centre and ``E = R diag(half)`` the axes, a corner is
-``c + E s`` for ``s`` in ``{-1, 1}^3``, and each hypothesis reads ``max_s |a + M s| <= bound``
-for an ``a`` and ``M`` built from two or three instants. ``|a| + sum_j |M_j|`` screens it; the
-eight corners are looked at only when the screen fails.
-
-**Over a period.** With ``period = p`` the step sees the state every ``H = p h`` seconds. From
-the physics-step hypotheses, the chords ``U`` over a period obey ``|U_k - U_{k-1}| <= A H``,
-``|U_k - w_{k-1}| <= D + A h (p - 1) / 2`` and ``|U_k| <= V``: that is what is checked. For
-``p = 1`` these are the hypotheses themselves; for ``p > 1`` a violation that leaves no trace at
-the ends of its period is not seen (docs/theory.md, section 6).
+Every verdict assumes the bounds hold from its instant on; a contact's impulse breaks them. So
+the step (natively: ``dua_mujoco/csrc/src/step.cc``) first checks, per moving body, the
+hypotheses of the discrete-time derivation over the last period (those ``BoundMonitor``
+checks), and every held pair of a body that broke them is made due now: its verdict withdrawn,
+it is evaluated again this very step. The check runs on one box a body around every point the
+bounds limit (its corners are the predictor's ``bound_points``), screened from the box's centre
+and axes, the corners looked at only when the screen fails. docs/theory.md, section 6, states
+the hypotheses over a period (E1-E3), the screen (Lemma 6.2) and what this restores.
 """
 
 from __future__ import annotations
@@ -38,13 +21,7 @@ import numpy.typing as npt
 from dua_mujoco._core import LAYOUT
 from dua_mujoco.build.bounds import MotionBounds
 
-__all__ = [
-    "BodyBoxes",
-    "EventTable",
-    "body_boxes",
-    "build_events",
-    "no_events",
-]
+__all__ = ["BodyBoxes", "EventTable", "body_boxes", "build_events", "no_events"]
 
 # Columns of a body record (the check's state is the runtime's: csrc/src/step.cc).
 B_FRAME, B_BODY, B_ROOT = LAYOUT["B_FRAME"], LAYOUT["B_BODY"], LAYOUT["B_ROOT"]

@@ -2,25 +2,14 @@
 
 A pair whose sphere tau is below ``exact_below`` is looked at again through its two geoms:
 MuJoCo's narrowphase (``mj_geomDistance``, which the native step calls) gives a witness
-direction ``n`` from the first geom to the second, and the separation of the two geoms along
-``n`` is bounded below, over time, by
-
-    d(t) >= d_n + (n . (v_B - v_A) - |w_A| r_A - |w_B| r_B) t - delta t - A t^2 / 2,
-
-where ``d_n = min_B n.b - max_A n.a`` is computed from this package's own support functions
-(never from MuJoCo's distance, whose numerical tolerance could make it too large), ``v`` the
-velocities of the geom origins, ``w`` the bodies' angular velocities, ``r`` the geoms' radii
-about their origins, and ``A``, ``delta`` the pair's bounds, which hold for every point of the two
-geoms (their boxes' corners are among the points the bounds are estimated and checked at). Its
-first root is :func:`~dua_mujoco.core.urgency.time_to_halfspace`'s, and the pair's tau is the larger
-of the two lower bounds. Proof, and what the distance means for each geom type, in
-docs/theory.md (section 5). A plane needs no query: its normal is the direction.
-
-A height field held as terrain is read through its grid (``ExactMode.TERRAIN``: the geom's
-support against the prisms, docs/theory.md, section 9), never through
-``mj_geomDistance``, which is no lower bound there. SDF geoms and height fields covered by
-spheres keep their sphere tau; so do pairs whose witness is degenerate (touching, or no witness
-within the query's reach).
+direction ``n``, this package's own support functions the separation ``d_n`` of the geoms along
+it (never MuJoCo's distance, whose tolerance could make it too large), and the pair's bounds,
+which hold for every point of both geoms, bound how fast it can close; the first root
+(:func:`~dua_mujoco.core.urgency.time_to_halfspace`'s) is a second lower bound, and the pair's
+tau the larger of the two (proof in docs/theory.md, section 5; a plane needs no query). A
+height field held as terrain is read through its grid (``ExactMode.TERRAIN``, section 9); SDF
+geoms, height fields covered by spheres and pairs with a degenerate witness keep their sphere
+tau.
 """
 
 from __future__ import annotations

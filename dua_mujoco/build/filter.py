@@ -1,37 +1,12 @@
 """MuJoCo's collision filter -> active geom pairs -> sphere pairs.
 
-``active_geom_pairs`` reproduces, for a compiled model, the set of geom pairs that MuJoCo 4.0's
-``mj_collision`` (``src/engine/engine_collision_driver.c``) can ever pass to a narrow-phase
-collision function, with the margin and gap MuJoCo uses for each. Geometry-dependent pruning
-(sweep-and-prune, BVH mid-phase, bounding spheres) is left out on purpose: it is exactly what
-collision prediction replaces. Runtime-only filters (sleeping islands, a user
-``mjcb_contactfilter`` callback) can only remove pairs, so the set computed here is a superset of
-what those produce.
-
-The rules, with their place in the C source (see ``docs/covering-and-pairs.md``):
-
-* nothing at all if ``mjDSBL_CONTACT`` or ``mjDSBL_CONSTRAINT`` is set (``mj_collision``);
-* explicit ``<pair>`` elements always (``mj_collision`` merges them in; only the bounding-sphere
-  test and the collision-function table apply), with the pair's own margin and gap;
-* dynamic pairs (body pairs from ``mj_broadphase``), for geoms g1, g2 on bodies b1 != b2 with weld
-  groups w1 = body_weldid[b1], w2 = body_weldid[b2] and weld parents p = body_weldid[parent(w)]:
-  - skipped if w1 == w2 (same body, or welded together; static-static when both are 0);
-  - skipped if neither weld group has degrees of freedom (MuJoCo 4.0: world, mocap groups);
-  - skipped if the parent filter is on (no ``mjDSBL_FILTERPARENT``), w1 != 0, w2 != 0 and
-    (w1 == p2 or w2 == p1) (``filterBodyPair``): never against the world weld group;
-  - skipped if the body pair is in ``<exclude>`` (``exclude_signature``);
-  - skipped unless (contype1 & conaffinity2) or (contype2 & conaffinity1) (``filterBitmask``);
-  - skipped if an explicit pair with the same body-pair signature covers the same geoms
-    (``filterCollisionPair``, ``merged``): the explicit pair replaces it;
-* either way, skipped if the collision-function table has no entry for the two types
-  (plane-plane, plane-hfield, hfield-hfield).
-
-Margin and gap (``getMargin``/``getGap``): dynamic pairs use ``geom_margin[g1] + geom_margin[g2]``
-and ``geom_gap[g1] + geom_gap[g2]`` (summed since 3.5); explicit pairs use ``pair_margin`` and
-``pair_gap``; ``mjENBL_OVERRIDE`` replaces the margin (not the gap) by ``opt.o_margin``
-(``mj_assignMargin``). Collision functions receive ``margin + gap`` and report every contact with
-``dist <= margin + gap`` in ``d.contact``; contacts with ``dist >= margin`` are marked
-``exclude = 1`` (no force). So the contact distance of a pair is ``margin + gap``.
+``active_geom_pairs`` reproduces, for a compiled model, the geom pairs MuJoCo 4.0's
+``mj_collision`` can ever pass to a narrow-phase function, with the margin and gap it uses for
+each (a pair's contact distance is ``margin + gap``): the geometry-independent filters exactly,
+rule by rule with their place in MuJoCo's C source in docs/covering-and-pairs.md. The geometric
+prunes (sweep-and-prune, BVH mid-phase, bounding spheres) are what collision prediction replaces;
+runtime-only filters (sleeping islands, ``mjcb_contactfilter``) only remove pairs, so the set is
+a superset of what they let through.
 """
 
 from __future__ import annotations
@@ -478,10 +453,7 @@ def body_id(model: mujoco.MjModel, body: int | str) -> int:
 
 
 def pairs_between_bodies(
-    model: mujoco.MjModel,
-    geom_pairs: GeomPairs,
-    body_a: int | str,
-    body_b: int | str | None = None,
+    model: mujoco.MjModel, geom_pairs: GeomPairs, body_a: int | str, body_b: int | str | None = None
 ) -> np.ndarray:
     """Indices of active geom pairs with one geom on ``body_a`` and the other on ``body_b``.
 

@@ -2,22 +2,13 @@
 centres and velocities (the native core's ``dua_rigid_point``), and sphere states.
 
 Every reader of sphere states (the predictor's step and its full reads, the bound checks, the
-pilot that estimates bounds, the overlays) runs one kernel, the native core's
-``dua_rigid_point``: the step directly, the others through :func:`rigid_point` (and
-:func:`sphere_states` when they want arrays).
-
-**Which instant.** After ``mj_step`` with the Euler, implicit and implicitfast integrators,
-``d.geom_xpos``, ``d.geom_xmat``, ``d.cvel`` and ``d.subtree_com`` were computed at the *start* of
-that step (from the ``qpos``/``qvel`` the step began with), while ``d.qpos``/``d.qvel`` hold the
-integrated state. Centres and velocities read here therefore describe one consistent instant. With
-RK4, ``mj_step`` leaves the kinematics of its last stage in ``MjData`` (``qpos0 + h * k3``), which
-agrees with the end-of-step state to O(h^5) but is not exactly it; it is still one consistent
-instant for positions and velocities (docs/discrete-time.md).
-
-**Velocity of a point.** ``d.cvel[b]`` is the spatial velocity ``[omega; v_ref]`` of body ``b`` in
-the world frame, whose linear part is the velocity of the point of ``b`` (rigidly extended) at
-``d.subtree_com[m.body_rootid[b]]``; hence ``v(p) = v_ref + omega x (p - p_ref)``. A tree rooted
-at a mocap body moves with that body, which ``cvel`` treats as static: its twist is added.
+pilot that estimates bounds, the overlays) runs that kernel: the step directly, the others
+through :func:`rigid_point` (and :func:`sphere_states` when they want arrays). After ``mj_step``
+the kinematics in ``MjData`` (``geom_xpos``, ``cvel``, ``subtree_com``) are one consistent
+instant, the start of the step (RK4: its last stage; docs/discrete-time.md). ``d.cvel[b]`` is
+``[omega; v_ref]`` with ``v_ref`` the velocity at ``subtree_com`` of ``b``'s root, so
+``v(p) = v_ref + omega x (p - p_ref)``; a tree rooted at a mocap body, which ``cvel`` treats
+as static, gets that body's twist added.
 """
 
 from __future__ import annotations

@@ -1,19 +1,13 @@
 """Velocities of mocap bodies, which MjData does not give: backward differences, or the user's.
 
-**Mocap bodies** have no velocity in ``MjData`` (their ``cvel`` is zero): a tree rooted at a mocap
-body moves rigidly with it, so the kinematics kernel adds the root's twist (:attr:`twist
-<MocapVelocityTracker.twist>`) to every point of the tree. The state and the differencing are
-native (``csrc/src/mocap.h``), one for the predictor's runtime and for the trackers here.
-
-**Instant.** The poses differenced are ``d.xpos``/``d.xquat`` of the mocap bodies, not
-``d.mocap_pos``/``d.mocap_quat``: the former are what ``geom_xpos`` was computed from at the last
-kinematics pass, so velocity and centres describe one instant even if the user already wrote the
-next ``mocap_pos``. The velocity at record k is (x_k - x_{k-1}) / (t_k - t_{k-1}), the mean
-velocity over the last interval, attached to the instant of x_k. For a scripted motion with
-|acceleration| <= A it is within A h / 2 of the true velocity at that instant, and it is exactly
-the discrete velocity u_k of ``docs/discrete-time.md``, so D = |u_{k+1} - u_k| <= A h and the
-integrator term delta = A h / 2 covers it. Before two records the velocity is zero (or the
-user's): declare a larger ``vel_uncertainty`` for the first step if the body is already moving.
+A tree rooted at a mocap body moves rigidly with it (its ``cvel`` is zero), so the kinematics
+kernel adds the root's twist (:attr:`twist <MocapVelocityTracker.twist>`) to every point of the
+tree. The state and the differencing are native (``csrc/src/mocap.h``), one for the predictor's
+runtime and for the trackers here. The poses differenced are ``d.xpos``/``d.xquat``, those
+``geom_xpos`` was computed from (one instant with the centres, even if the user already wrote
+the next ``mocap_pos``); the backward difference is the chord velocity of docs/discrete-time.md,
+so ``delta = A h / 2`` covers it. Before two records the velocity is zero (or the user's):
+declare a larger ``vel_uncertainty`` for the first step if the body is already moving.
 """
 
 from __future__ import annotations

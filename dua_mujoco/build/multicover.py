@@ -72,10 +72,7 @@ def candidate_grids(half: np.ndarray, max_cells: int) -> list[tuple[int, int, in
 
 
 def grid_cover(
-    centre: np.ndarray,
-    half: np.ndarray,
-    budget: int,
-    keep: CellTest | None = None,
+    centre: np.ndarray, half: np.ndarray, budget: int, keep: CellTest | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Cover the box ``centre ± half`` by one sphere per grid cell that ``keep`` accepts.
 

@@ -61,11 +61,5 @@ def bounded_pairs(
         np.asarray(covering.sphere_body, dtype=np.int64), b.accel, per_body, b.speed,
     )  # fmt: skip
     return PairSet(
-        sp.first,
-        sp.second,
-        sp.eps,
-        accel,
-        kind=sp.kind,
-        vel_uncertainty=delta,
-        speed=speed,
+        sp.first, sp.second, sp.eps, accel, kind=sp.kind, vel_uncertainty=delta, speed=speed
     )

@@ -111,12 +111,7 @@ class PairUniverse:
     # ------------------------------------------------------------------- the first set
 
     def bind(
-        self,
-        bounds: MotionBounds,
-        *,
-        period: int,
-        mocap: Any,
-        shapes: np.ndarray | None,
+        self, bounds: MotionBounds, *, period: int, mocap: Any, shapes: np.ndarray | None
     ) -> None:
         """Give the pairs their bounds (after the pilot): the pair set and packed records."""
         self._pair_set = bounded_pairs(

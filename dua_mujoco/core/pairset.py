@@ -252,14 +252,7 @@ class PairSet:
             if speed is None
             else per_sphere("speed", speed)[i] + per_sphere("speed", speed)[j]
         )
-        return cls(
-            i,
-            j,
-            r[i] + r[j] + margin,
-            a[i] + a[j],
-            vel_uncertainty=d[i] + d[j],
-            speed=s,
-        )
+        return cls(i, j, r[i] + r[j] + margin, a[i] + a[j], vel_uncertainty=d[i] + d[j], speed=s)
 
     def tau(
         self,

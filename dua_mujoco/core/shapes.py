@@ -1,38 +1,18 @@
 """Urgency of a moving sphere against a static convex shape (proof in docs/static-shapes.md).
 
 A static geom ``S`` (a body welded to the world) is held as its own shape instead of a bounding
-sphere. For every unit vector ``n`` the half-space ``H(n) = {p : n.p <= h_S(n)}``, with the support
-function ``h_S(n) = max_{q in S} n.q``, contains ``S``; a sphere of contact distance ``eps`` (radius
-plus margin) can touch ``S`` only after its centre comes within ``eps`` of ``H(n)``. So the
-half-space tau (``dua_mujoco.core.urgency.time_to_halfspace``) with
+sphere. Any half-space ``{p : n.p <= h_S(n)}`` (``h_S`` the support function) holds ``S``, so
+the half-space tau (``dua_mujoco.core.urgency.time_to_halfspace``) of ``gap = n.c - h_S(n) - eps``
+and normal velocity ``n.v`` is a lower bound on the time to contact for *any* unit ``n``; the
+kernels take ``n`` from the closest point of ``S`` and evaluate the support at that very ``n``, so
+an inaccurate closest point costs tightness, never safety.
 
-    gap = n.c - h_S(n) - eps,    normal velocity = n.v
-
-is a lower bound on the time to contact for *any* ``n``: the direction only decides how tight it
-is. The kernels take ``n`` along ``c - q*`` with ``q*`` the closest point of ``S`` to the centre
-``c``, which maximises the gap (it is then ``dist(c, S) - eps``), and evaluate the gap with the
-support function at that very ``n``, so an inaccurate closest point costs tightness, never safety.
-
-Shape records are ``(nshape, 16)`` float64 rows; the size columns follow MuJoCo's ``geom_size``:
-
-======  ===========  =========================================================================
-column  name         content
-======  ===========  =========================================================================
-0       SHAPE_KIND   ``ShapeKind`` code (float-coded integer)
-1..3    SHAPE_SIZE   sphere ``(r, -, -)``; capsule ``(r, L, -)``; ellipsoid ``(a, b, c)``;
-                     cylinder ``(r, L, -)``; box and mesh box ``(a, b, c)`` half-sizes
-4..6    SHAPE_POS    centre of the shape's frame, world coordinates
-7..15   SHAPE_MAT    rotation geom-to-world, 3x3 row-major (MuJoCo's ``geom_xmat``)
-======  ===========  =========================================================================
-
-``ShapeKind`` codes equal MuJoCo's ``mjtGeom`` (this module does not import MuJoCo):
-``mjGEOM_SPHERE = 2``, ``CAPSULE = 3``, ``ELLIPSOID = 4``, ``CYLINDER = 5``, ``BOX = 6``; a
-``mjGEOM_MESH = 7`` is held as ``MESH_BOX``, the box ``geom_aabb`` of its convex hull (build the
-record with ``mesh_box``). Planes (``0``) are half-spaces already (``time_to_halfspace``); a static
-height field (``1``, ``HFIELD``) is held as the prisms of its grid, its record pointing to a block
-of rows after the records (``dua_mujoco.core.terrain``); SDFs (``8``) are not convex and are
-refused. The one-shape kernels below take a record, or a table and the row of one of its
-records (a terrain record needs its table).
+Shape records are ``(nshape, 16)`` float64 rows: ``SHAPE_KIND`` (a ``ShapeKind``: MuJoCo's
+``mjtGeom`` code, ``MESH_BOX`` for a mesh held as the box of its hull, ``HFIELD`` for terrain,
+``dua_mujoco.core.terrain``), ``SHAPE_SIZE`` (MuJoCo's ``geom_size``), ``SHAPE_POS`` and
+``SHAPE_MAT`` (``geom_xmat``, row-major); docs/static-shapes.md, section 7, has the table. Planes
+are half-spaces already; SDFs are not convex and are refused. The one-shape kernels below take a
+record, or a table and the row of one of its records (a terrain record needs its table).
 """
 
 from __future__ import annotations
@@ -45,10 +25,7 @@ import numpy.typing as npt
 import dua_mujoco._core as _core
 from dua_mujoco.core.terrain import first_bad_row, record_count
 from dua_mujoco.core.validate import as_vectors, per_pair
-from dua_mujoco.exceptions import (
-    InvalidInputError,
-    ShapeError,
-)
+from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
 __all__ = [
     "SHAPE_KIND",

@@ -29,11 +29,7 @@ from dua_mujoco.core.schedules.deadline import (
     check_max_evals,
 )
 from dua_mujoco.core.validate import as_choice, check_period, per_pair, real_array
-from dua_mujoco.exceptions import (
-    InvalidInputError,
-    SchedulerError,
-    ShapeError,
-)
+from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
 
 __all__ = [
     "AUTO_PRUNED_MIN",

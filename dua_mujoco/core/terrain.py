@@ -1,21 +1,14 @@
 """Height fields held as terrain: the triangular prisms of their grid (proof in
 docs/theory.md, section 9).
 
-MuJoCo collides a height field as prisms: in its frame, over each cell of the ``nrow x ncol``
-grid (``x_c = dx c - size_x``, ``y_r = dy r - size_y``, ``dx = 2 size_x / (ncol - 1)``), two
+MuJoCo collides a height field as prisms: over each cell of its ``nrow x ncol`` grid, two
 triangles of the heights ``hfield_data * size_z`` extruded down to ``z = -base``
-(``engine_collision_convex.c``, ``mjc_ConvexHField``). A static height field is held here as a
-shape record of kind ``ShapeKind.HFIELD`` that points to a *block* of rows later in the same
-shape table: the grid, and a pyramid of its cell maxima for the native kernel's branch and bound
-(``dua_mujoco/csrc/src/terrain.cc``).
-
-Record (one row of 16, like every shape record): ``SHAPE_KIND`` = 1, ``TERRAIN_BLOCK`` the rows
-from the record to its block, ``TERRAIN_ROWS`` the block's rows, ``SHAPE_POS``/``SHAPE_MAT`` the
-height field's pose. Block (flat, 16 numbers a row, zero-padded): a header (``T_*``), then the
-cell maxima of level 0 (``(nrow - 1) x (ncol - 1)`` cells, each the highest of its four
-corners), level 1 (each the largest of 2 x 2 of level 0, the last row and column of an odd count
-alone), ... down to one cell, then the heights (``nrow x ncol``, row-major, row ``r`` at
-``y_r``). Blocks follow every record, so a table's records are the rows before its first block
+(``mjc_ConvexHField``). A static height field is held as a shape record of kind
+``ShapeKind.HFIELD`` (``TERRAIN_BLOCK``: the rows from it to its block, ``TERRAIN_ROWS``: the
+block's rows) that points to a *block* of rows after every record of the shape table: a header
+(``T_*``), the pyramid of cell maxima the native kernel's branch and bound reads
+(``dua_mujoco/csrc/src/terrain.cc``), then the heights, row-major. docs/static-shapes.md,
+section 13, has the layout; a table's records are the rows before its first block
 (:func:`record_count`).
 """
 

@@ -9,24 +9,12 @@ velocity uncertainty ``delta``, the relative position at time ``t`` lies in the 
 
 is a lower bound on the time to collision (paper eq. 13, extended by ``delta``).
 
-The kernels never return more than the exact first root. They are implemented once, in the
+The kernels never return more than the exact first root: they solve a slightly inflated
+problem, locate the one interior minimum where a root could hide, and return the lower end of
+a certified bracket (Theorem 1's proof in docs/theory.md). They are implemented once, in the
 native core (``dua_mujoco/csrc/src/urgency.cc``, called through ``dua_mujoco._core``); the
 functions here validate and call them, four pairs at a time in the same code as one (the same
-values, bit for bit, as one row: tests/scalar_tau.py). How (proof in docs/theory.md, section 1):
-
-* The problem is solved for slightly inflated parameters (``eps``, ``delta`` and ``A`` grown by
-  ``kappa = 4e-15`` relative, plus ``kappa (|x| + |v| t)`` on the radius). The inflation is
-  larger than any rounding error of the predicate, so at the exact first root of the original
-  problem the computed predicate of the inflated one is strictly negative, even at a tangency
-  (double root).
-* ``g(t) = |x + v t|^2 - R(t)^2`` has ``g''`` decreasing on ``[0, inf)``, so ``g'`` is increasing
-  then decreasing there and ``g`` has at most two critical points: at most one interior local
-  minimum, which is the only place a first root can hide without a sign change of ``g'``. It is
-  located by safeguarded Newton and the predicate is evaluated there in vector form (no expanded
-  polynomial, so no cancellation).
-* The root is refined inside a bracket ``[lo, hi]`` on which ``g`` is monotone, with the computed
-  predicate positive at ``lo`` and non-positive at ``hi``; ``lo`` is returned, so an early stop
-  still gives a lower bound.
+values, bit for bit, as one row: tests/scalar_tau.py).
 """
 
 from __future__ import annotations
@@ -40,12 +28,7 @@ import dua_mujoco._core as _core
 from dua_mujoco.core.validate import as_vectors, per_pair
 from dua_mujoco.exceptions import BoundViolationWarning, InvalidBoundError, ShapeError
 
-__all__ = [
-    "PARALLEL_MIN",
-    "distance_urgency",
-    "time_to_collision",
-    "time_to_halfspace",
-]
+__all__ = ["PARALLEL_MIN", "distance_urgency", "time_to_collision", "time_to_halfspace"]
 
 PARALLEL_MIN = 1 << 16
 """Rows from which a batch (``time_to_collision``, ``PairSet.tau``) runs on two threads: below

@@ -1,20 +1,12 @@
 """``AlarmOverlay``: alarms drawn into a MuJoCo scene (offscreen frames or the live viewer).
 
-Colours (docs/rendering.md):
-
-- pure red lines ``(1, 0, 0, 1)``: one per alarmed sphere pair, between the two sphere centres (to
-  the plane for a half-space pair). Pure red is reserved for them so that a pixel test finds them.
-- geom tint, only for geoms with a sphere pair standing in alarm, by that pair's tau in predictor
-  periods: brick red ``(0.9, 0.3, 0.2)`` below 2 periods, orange below 8, yellow beyond; every
-  other geom keeps the model's colour. Geoms welded to the world (floors, tables, walls) are
-  never tinted: they would flood the frame; their pairs tint the other geom.
-- translucent covering spheres (``show_spheres``): blue, or the tint of their geom.
-
-Live viewer (``mujoco.viewer.launch_passive``): the viewer draws ``viewer.user_scn`` on top of its
-own scene, where the connectors and spheres go (:meth:`AlarmOverlay.add_to_user_scn`); its scene
-of the model's geoms is not reachable, so the tint is written into the model's ``geom_rgba``
-(:meth:`AlarmOverlay.tint_rgba`), which the viewer copies at each ``sync``.
-``dua_mujoco.render.live.LiveViewer`` does both (``dua-mujoco view``).
+Pure red lines between the spheres of each pair standing in alarm (pure red is theirs alone, for
+pixel tests), a tint of the geoms of standing pairs by tau (brick red, orange, yellow; static
+geoms never), translucent covering spheres (``show_spheres``); docs/rendering.md has the
+colours. The live viewer's own scene of the model's geoms is not reachable, so there the lines
+and spheres go into ``viewer.user_scn`` (:meth:`AlarmOverlay.add_to_user_scn`) and the tint into
+the model's ``geom_rgba`` (:meth:`AlarmOverlay.tint_rgba`); ``dua_mujoco.render.live.LiveViewer``
+does both (``dua-mujoco view``).
 """
 
 from __future__ import annotations

@@ -13,10 +13,7 @@ __all__ = ["clock_error", "divergence_count", "divergence_message", "nonfinite_e
 
 
 def nonfinite_error(
-    model: mujoco.MjModel,
-    data: mujoco.MjData,
-    geom_names: np.ndarray,
-    geoms: set[int],
+    model: mujoco.MjModel, data: mujoco.MjData, geom_names: np.ndarray, geoms: set[int]
 ) -> NonFiniteStateError:
     """The error for a non-finite state: the geoms whose state is NaN or inf (``geoms``), or,
     when none is (kinematics computed before a NaN was written), the joints of ``qpos``/``qvel``

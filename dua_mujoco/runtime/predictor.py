@@ -1,12 +1,10 @@
 """``Predictor``: MuJoCo state in, collision alarms out.
 
-The model is read once: geoms are covered by spheres (``covering``), MuJoCo's collision filter
-gives the active geom pairs (``filter``), and those expand into sphere pairs with per-pair contact
-distance, acceleration bound and velocity uncertainty; with the bounds (declared, or measured by
-a pilot rollout), the static shapes, the exact level and the violation check they become the
-tables of ``runtime/table_arrays.py``. The native core runs the predictor on them
-(``dua_mujoco._core.Runtime``, the same runtime the MuJoCo plugin runs inside ``mj_step``):
-``reset(data)`` is the initial classification, each ``step(data)`` one call into it.
+The model and the options become tables once (``runtime/table_arrays.py``: the covering,
+MuJoCo's collision filter, the sphere pairs and their bounds, declared or measured by a pilot
+rollout); the native core runs the predictor on them (``dua_mujoco._core.Runtime``, the same
+runtime the MuJoCo plugin runs inside ``mj_step``): ``reset(data)`` is the initial
+classification, each ``step(data)`` one call into it.
 
 Timing. Call ``step`` every ``period`` physics steps, after ``mj_step``. ``MjData`` then holds the
 kinematics (``geom_xpos``, ``cvel``) and contacts of the state at the start of that step, and the
@@ -50,11 +48,7 @@ from dua_mujoco.build.tables import (
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule
 from dua_mujoco.core.spheres import PairMode, runtime_count
-from dua_mujoco.exceptions import (
-    NoActivePairsWarning,
-    NonFiniteStateError,
-    SchedulerError,
-)
+from dua_mujoco.exceptions import NoActivePairsWarning, NonFiniteStateError, SchedulerError
 from dua_mujoco.runtime.alarms import Alarms
 from dua_mujoco.runtime.diagnostics import clock_error, nonfinite_error
 from dua_mujoco.runtime.flightplan import PlanFollowing

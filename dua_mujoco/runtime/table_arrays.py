@@ -149,10 +149,7 @@ def layout(
 
 
 def pilot_bounds(
-    model: mujoco.MjModel,
-    *,
-    speed: float | Mapping[str, float] | None = None,
-    **options: Any,
+    model: mujoco.MjModel, *, speed: float | Mapping[str, float] | None = None, **options: Any
 ) -> MotionBounds:
     """The bounds ``Predictor(model, accel="auto", speed=speed, **options)`` measures: a pilot
     rollout (``options``' ``pilot``) over the points that predictor's bounds limit

@@ -2,24 +2,14 @@
 whose actuators are affine (the native ``Brake`` of ``csrc/src/brake.h``, which the shield's
 rollouts run too).
 
-Each physics step it chooses the robot's controls so that its joint accelerations come as
-close as the actuators allow to ``(target - qvel) / time_constant`` (``target`` 0: a brake; any
-joint velocity: a drive toward it), gravity and every other bias force held. With ``K`` the
-DOFs' inertia as the integrator sees it (``M`` plus ``h`` times the damping it treats
-implicitly), the joint force wanted is
-
-    tau = K a + qfrc_bias - qfrc_passive,        a = (target - qvel) / time_constant,
-
-clipped to the joints' ``actuatorfrcrange``; the actuator forces ``f`` are the box-bounded
-least-squares solution of ``moment^T f = tau`` in the metric ``K^-1`` (MuJoCo's ``mju_boxQP``),
-each within what its control range and force range allow, and each control follows from the
-actuator's affine law ``f = gain * ctrl + bias``. Contact forces are not foreseen: the shield
-rolls the brake out with MuJoCo, which has them.
-
-**Actuators it takes**: no activation dynamics, ``gaintype`` fixed or affine, ``biastype``
-none or affine, no plugin: MuJoCo's ``motor``, ``position`` and ``velocity`` (without
-``timeconst``) and ``general`` of those types. Others are refused, each named with its types.
-``tests/reference_brake.py`` is the numpy reference it is held to.
+Each physics step it asks for the joint accelerations ``(target - qvel) / time_constant``
+(``target`` 0: a brake), gravity and every bias force held: the joint force
+``tau = K a + qfrc_bias - qfrc_passive`` (``K`` the inertia as the integrator sees it), clipped to
+``actuatorfrcrange``, becomes actuator forces by box-bounded least squares (``mju_boxQP``) and
+controls by each actuator's affine law ``f = gain * ctrl + bias``; contact forces are not
+foreseen (the shield's rollouts have them). Actuators it takes: no activation dynamics,
+``gaintype`` fixed or affine, ``biastype`` none or affine, no plugin; others are refused, each
+named with its types (docs/shield.md; ``tests/reference_brake.py`` is the reference).
 """
 
 from __future__ import annotations

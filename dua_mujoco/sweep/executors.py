@@ -131,12 +131,7 @@ def run_local(
 
 
 def run_ray(
-    tasks: Sequence[Task],
-    runner: Runner,
-    *,
-    address: str | None,
-    num_cpus: int,
-    on_row: OnRow,
+    tasks: Sequence[Task], runner: Runner, *, address: str | None, num_cpus: int, on_row: OnRow
 ) -> dict[int, dict[str, Any]]:
     """Run ``tasks`` as Ray tasks of one CPU each, on a local Ray instance of ``num_cpus`` CPUs
     (``address`` None) or on the cluster at ``address`` (``dua_mujoco`` installed on its nodes).

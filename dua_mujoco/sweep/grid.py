@@ -1,20 +1,9 @@
-"""Option sets of a sweep: ``run``'s options varied by a small TOML file.
+"""Option sets of a sweep: ``run``'s options varied by a small TOML file (docs/integrations.md).
 
 A grid file holds a ``[grid]`` table, whose lists multiply into every combination, and/or named
-``[[set]]`` tables; keys are ``run``'s option names (``accel``, ``covering``, ``exact``,
-``violation_events``, ``max_spheres``, ..., dashes or underscores), values as on the command
-line or TOML booleans for switches::
-
-    [grid]
-    accel = ["auto", 50.0]
-    covering = ["bounding", "multi"]
-
-    [[set]]
-    name = "spheres only"
-    exact = false
-
-With both, every named set is combined with every grid point. Values are checked by the same
-parsers as the command line's, so a bad value fails before any run starts.
+``[[set]]`` tables (each combined with every grid point); keys are ``run``'s option names
+(dashes or underscores), values as on the command line or TOML booleans for switches. Values
+are checked by the command line's own parsers, so a bad value fails before any run starts.
 """
 
 from __future__ import annotations

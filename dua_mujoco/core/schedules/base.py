@@ -31,12 +31,7 @@ from dua_mujoco.core.schedules.state import (
     state_of,
 )
 from dua_mujoco.core.validate import as_ids, check_urgencies
-from dua_mujoco.exceptions import (
-    InvalidInputError,
-    NonFiniteStateError,
-    SchedulerError,
-    ShapeError,
-)
+from dua_mujoco.exceptions import InvalidInputError, NonFiniteStateError, SchedulerError, ShapeError
 
 __all__ = ["Scheduler", "active_mask", "standing"]
 

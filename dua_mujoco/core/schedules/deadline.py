@@ -1,23 +1,13 @@
 """``DeadlineScheduler``: each pair revisited at the latest step its own tau allows.
 
-DUA sizes its buckets by rank, so with ``M`` pairs the last bucket is revisited every ``M / 2``
-steps and must alarm whenever tau is below that horizon. In a simulator's fixed clock (2 ms),
-where tau under physical bounds is tens of steps, that alarms most pairs. The deadline schedule
-keys the revisit on tau instead: a pair evaluated at step ``n`` is next due at ``n + s``, ``s``
-the largest interval with ``(s + latency) dt <= tau``, so it alarms only when even ``s = 1`` is
-not covered: ``tau < (1 + latency) dt``, select-all's rule, at about ``sum(dt / tau)``
-evaluations a step instead of ``M``.
-
-A pair that keeps alarming (a resting contact) is evaluated after 1, 2, 4, then every
-``alarm_backoff`` steps, standing in alarm in between; ``alarm_backoff=1`` keeps select-all's
-alarms exactly.
-
-Due pairs wait in a timing wheel (one linked list per step, modulo the wheel size): O(1) per
-evaluation, O(M) memory. An optional cap bounds the work a step: when more pairs are due, those
-with the least time left are served and the rest wait, standing in alarm as soon as their last
-verdict no longer covers the wait. The step reports how many waited (``deferred``): the paper's
-"flag every collision or say that it cannot keep up". Completeness, with and without the cap, is
-proved in docs/theory.md.
+DUA sizes its buckets by rank, so in a simulator's fixed clock most pairs alarm. The deadline
+schedule keys the revisit on tau instead: a pair evaluated at step ``n`` is next due at
+``n + s``, ``s`` the largest interval with ``(s + latency) dt <= tau``, so it alarms only when even
+``s = 1`` is not covered (select-all's rule), at about ``sum(dt / tau)`` evaluations a step. A pair
+that keeps alarming is evaluated after 1, 2, 4, then every ``alarm_backoff`` steps. Due pairs
+wait in a timing wheel (O(1) an evaluation); an optional cap serves those with the least time
+left and reports the rest (``deferred``). Completeness, with and without the cap:
+docs/theory.md, section 3.
 """
 
 from __future__ import annotations
@@ -29,12 +19,7 @@ from dua_mujoco.core.schedules.base import Scheduler, active_mask, standing
 from dua_mujoco.core.schedules.state import DEADLINE, P_BACKOFF, P_CAP, P_MAX_INTERVAL
 from dua_mujoco.core.validate import check_int, check_period, check_urgencies
 
-__all__ = [
-    "DEFAULT_ALARM_BACKOFF",
-    "DeadlineScheduler",
-    "check_alarm_backoff",
-    "check_max_evals",
-]
+__all__ = ["DEFAULT_ALARM_BACKOFF", "DeadlineScheduler", "check_alarm_backoff", "check_max_evals"]
 
 DEFAULT_MAX_INTERVAL = 1024
 """Longest revisit interval (steps) by default: 2 s at MuJoCo's 2 ms, a few % of the work."""
@@ -62,8 +47,7 @@ class DeadlineScheduler(Scheduler, kind=DEADLINE):
     Args:
         tau0: ``(M,)`` tau of every pair at time 0 (the initial classification).
         dt: Predictor period ``> 0`` (seconds between steps).
-        latency: Periods a verdict takes to act (1: a verdict acts one period after its state;
-            0: the predictor runs synchronously after each physics step).
+        latency: As for ``DUAScheduler``.
         max_evals_per_step: Optional cap on tau evaluations a step (None: no cap). Pairs due
             beyond it wait, least time left served first; see :attr:`deferred`.
         max_interval: Longest revisit interval in steps (``>= 1``): a pair far from everything

@@ -1,16 +1,11 @@
 """``DUAScheduler``: the Dynamic Urgency Algorithm's rank buckets (Hayward et al. 1995, sec. 7).
 
-Layout. ``M`` pairs, ``L = ceil(log2(M + 1))`` buckets; bucket ``k`` has ``2**k`` slots and starts
-at slot ``2**k - 1`` of one flat array of ``2**L - 1`` slots (the last bucket partly empty, ``-1``).
-
-Protocol. ``DUAScheduler(tau0, dt=...)`` is the initial classification (evaluation number 0, at
-time 0). Step ``n = 1, 2, ...`` calls ``select()`` then ``update(ids, tau)`` with tau evaluated at
-time ``n * dt``. With ``q`` slots per bucket per step (the budget knob, a power of two), bucket
-``k`` hands out the ``min(q, 2**k)`` slots ``(n q + j) mod 2**k``, so every slot of bucket ``k`` is
-visited exactly every ``I_k = max(1, 2**k / q)`` steps. The ``i``-th most urgent of the evaluated
-pairs goes back into the ``i``-th of the withdrawn slots in bucket order, and it raises an alarm if
-``tau < (I_k + latency) * dt`` for the bucket ``k`` it lands in. Completeness is proved in
-docs/theory.md.
+``M`` pairs in ``L = ceil(log2(M + 1))`` buckets, bucket ``k`` of ``2**k`` slots starting at slot
+``2**k - 1`` of one flat array (the last bucket partly empty, ``-1``). ``DUAScheduler(tau0,
+dt=...)`` is the initial classification; each step hands out ``min(q, 2**k)`` slots of every
+bucket (``q`` slots per bucket, a power of two), so bucket ``k`` is revisited every
+``I_k = max(1, 2**k / q)`` steps, and a pair landing in bucket ``k`` alarms if
+``tau < (I_k + latency) dt``. The setting and the completeness proof: docs/theory.md, section 2.
 """
 
 from __future__ import annotations
