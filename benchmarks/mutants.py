@@ -502,6 +502,17 @@ MUTANTS: tuple[Mutant, ...] = (
         "the stop envelope reaches the deviation once, not twice",
     ),
     Mutant(
+        "shield-envelope-limit-doubled",
+        _SHIELD,
+        "const double limit = o_.stop_distance + o_.deviation;",
+        "const double limit = 2.0 * (o_.stop_distance + o_.deviation);",
+        (
+            "tests/test_shield.py::"
+            "test_a_failsafe_leaving_its_stop_envelope_is_a_stop_break[0.0-0.04-False]",
+        ),
+        "a failsafe that leaves its stop envelope before rest counts as covered by it",
+    ),
+    Mutant(
         "shield-candidate-rolled-while-touching",
         _SHIELD,
         "    if (!failsafe_mode_ || !TouchesNow()) {",
