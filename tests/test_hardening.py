@@ -333,3 +333,26 @@ def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None
             bounds_stand = {tuple(g) for g in standing_pairs(m, reference)}
             assert bounds_stand >= {(0, 1), (0, 2)}  # the slides on the floor: not vacuous
             assert bounds_stand <= {tuple(g) for g in standing_pairs(m, d)}
+
+
+def test_a_pruned_stride_past_the_horizon_is_refused() -> None:
+    """A hand-edited ``config`` whose rebuild stride the reach's horizon does not cover (a pair
+    left out at a rebuild could touch before the next rebuild flags it) is refused, naming the
+    field, the stride and the largest the horizon covers; the stride as attached loads."""
+    from dua_mujoco.runtime.table_arrays import CONFIG
+
+    options = {"accel": 30.0, "pairs": "pruned"}
+    tables: dict[str, np.ndarray] = {}
+    fine = _with_table("two_arms", options, "config", lambda config: None, tables)
+    stride = int(tables["config"][CONFIG["stride"]])
+    mujoco.MjData(mujoco.MjModel.from_xml_string(fine))
+
+    def past(config: np.ndarray) -> None:
+        config[CONFIG["stride"]] = stride + 1
+
+    with pytest.raises(ValueError, match="plugin") as refused:
+        mujoco.MjModel.from_xml_string(_with_table("two_arms", options, "config", past))
+    message = " ".join(str(refused.value).split())
+    assert "text field 'dua:config'" in message, message
+    assert f"stride of {stride + 1} steps past the reach's horizon" in message, message
+    assert f"lower the stride to {stride} or less" in message, message
