@@ -244,6 +244,14 @@ MUTANTS: tuple[Mutant, ...] = (
         ("tests/test_spheres.py::test_escape_test_keeps_passing_spheres_inside_their_reach",),
         "the escape test of the earlier release (Lemma 6.4's speed test loosened by 2 delta)",
     ),
+    Mutant(
+        "pruned-stride-without-the-lead",
+        "dua_mujoco/csrc/src/tables.cc",
+        "if (stride * s.dt + lead > horizon + 1e-9 * s.dt) {",
+        "if (stride * s.dt > horizon + 1e-9 * s.dt) {",
+        ("tests/test_spheres.py::test_a_horizon_shortened_by_one_step_is_refused[1]",),
+        "tables whose stride the reach's horizon covers without the latency and alarm horizon pass",
+    ),
     # ---------------------------------------------------------------- the filter
     Mutant(
         "filter-bitmask-both-ways",
@@ -500,6 +508,17 @@ MUTANTS: tuple[Mutant, ...] = (
             "tests/test_shield.py::test_the_stop_envelope_counts_twice_the_deviation[0.05-0.06-False]",
         ),
         "the stop envelope reaches the deviation once, not twice",
+    ),
+    Mutant(
+        "shield-envelope-limit-doubled",
+        _SHIELD,
+        "const double limit = o_.stop_distance + o_.deviation;",
+        "const double limit = 2.0 * (o_.stop_distance + o_.deviation);",
+        (
+            "tests/test_shield.py::"
+            "test_a_failsafe_leaving_its_stop_envelope_is_a_stop_break[0.0-0.04-False]",
+        ),
+        "a failsafe that leaves its stop envelope before rest counts as covered by it",
     ),
     Mutant(
         "shield-candidate-rolled-while-touching",

@@ -13,6 +13,7 @@ that holds it.
 from __future__ import annotations
 
 import importlib
+import sys
 from typing import TYPE_CHECKING, Any
 
 from dua_mujoco.exceptions import (
@@ -30,6 +31,9 @@ from dua_mujoco.exceptions import (
     ShapeError,
     UnsupportedGeomError,
 )
+from dua_mujoco.native import MUJOCO_FIRST
+
+sys.meta_path.insert(0, MUJOCO_FIRST)  # MuJoCo's bundled plugins register before this one's
 
 if TYPE_CHECKING:
     from dua_mujoco.build.bounds import MotionBounds, estimate_bounds
@@ -62,33 +66,25 @@ if TYPE_CHECKING:
 # plugin ``dua_mujoco.testing``, loaded in every test session of a project that enables it,
 # import neither the compiled core nor MuJoCo.
 _LAZY = {
-    "Alarms": "dua_mujoco.runtime.predictor",
-    "CoveringOptions": "dua_mujoco.build.options",
-    "PairOptions": "dua_mujoco.build.options",
-    "PilotPlan": "dua_mujoco.runtime.plans",
-    "Replanner": "dua_mujoco.runtime.plans",
-    "deviation_profile": "dua_mujoco.runtime.plans",
-    "plan_deviation": "dua_mujoco.runtime.plans",
-    "plan_from_controls": "dua_mujoco.runtime.plans",
-    "PilotOptions": "dua_mujoco.build.options",
-    "ScheduleOptions": "dua_mujoco.build.options",
-    "UrgencyOptions": "dua_mujoco.build.options",
-    "DUAScheduler": "dua_mujoco.core.schedules",
-    "MotionBounds": "dua_mujoco.build.bounds",
-    "Predictor": "dua_mujoco.runtime.predictor",
-    "RunReport": "dua_mujoco.measure.report",
-    "Schedule": "dua_mujoco.core.schedules",
-    "Shield": "dua_mujoco.shield.shield",
-    "SpherePredictor": "dua_mujoco.core.spheres",
-    "estimate_bounds": "dua_mujoco.build.bounds",
-    "load_scene": "dua_mujoco.models.scenes",
-    "pilot_bounds": "dua_mujoco.runtime.table_arrays",
-    "PluginOutputs": "dua_mujoco.plugin",
-    "attach": "dua_mujoco.plugin",
-    "plugin_outputs": "dua_mujoco.plugin",
-    "standing_pairs": "dua_mujoco.plugin",
-    "run": "dua_mujoco.measure.rollout",
-    "time_to_collision": "dua_mujoco.core.urgency",
+    name: module
+    for module, names in {
+        "dua_mujoco.build.bounds": "MotionBounds estimate_bounds",
+        "dua_mujoco.build.options": "CoveringOptions PairOptions PilotOptions ScheduleOptions "
+        "UrgencyOptions",
+        "dua_mujoco.core.schedules": "DUAScheduler Schedule",
+        "dua_mujoco.core.spheres": "SpherePredictor",
+        "dua_mujoco.core.urgency": "time_to_collision",
+        "dua_mujoco.measure.report": "RunReport",
+        "dua_mujoco.measure.rollout": "run",
+        "dua_mujoco.models.scenes": "load_scene",
+        "dua_mujoco.plugin": "PluginOutputs attach plugin_outputs standing_pairs",
+        "dua_mujoco.runtime.plans": "PilotPlan Replanner deviation_profile plan_deviation "
+        "plan_from_controls",
+        "dua_mujoco.runtime.predictor": "Alarms Predictor",
+        "dua_mujoco.runtime.table_arrays": "pilot_bounds",
+        "dua_mujoco.shield.shield": "Shield",
+    }.items()
+    for name in names.split()
 }
 
 

@@ -11,14 +11,14 @@ programs load the library themselves (:func:`library_path`, docs/plugin.md).
 from __future__ import annotations
 
 import importlib
-import importlib.metadata
 import os
 import sys
+import threading
 from pathlib import Path
 
 from dua_mujoco.exceptions import NativeLibraryError
 
-__all__ = ["LIBRARY", "library_path", "load_plugin"]
+__all__ = ["LIBRARY", "MUJOCO_FIRST", "MujocoFirst", "library_path", "load_plugin"]
 
 LIBRARY = "libdua_mujoco.so"
 
@@ -39,6 +39,8 @@ def library_path() -> Path:
     here = Path(__file__).resolve().parent / LIBRARY
     if here.is_file():
         return here
+    import importlib.metadata  # here only: ``import dua_mujoco`` imports this module
+
     try:
         files = importlib.metadata.files("dua_mujoco") or []
     except importlib.metadata.PackageNotFoundError:
@@ -57,6 +59,26 @@ def library_path() -> Path:
     )
 
 
+class MujocoFirst(threading.local):
+    """The import hook ``import dua_mujoco`` installs: the binding loads the native core, whose
+    constructor registers the plugin, after ``import mujoco``, so that MuJoCo's bundled plugins
+    take the first slots whichever a program imports first (an ``.mjb`` records the slot:
+    docs/plugin.md); the entry point meanwhile leaves the core to that import."""
+
+    importing = False
+
+    def find_spec(self, name: str, path: object = None, target: object = None) -> None:
+        if name == "dua_mujoco._core" and "mujoco" not in sys.modules:
+            self.importing = True
+            try:
+                importlib.import_module("mujoco")
+            finally:
+                self.importing = False
+
+
+MUJOCO_FIRST = MujocoFirst()
+
+
 def load_plugin() -> None:
     """The ``mujoco.plugins`` entry point: load the native core, whose load-time constructor
     registers the sensor plugin ``dua_mujoco.predictor`` with MuJoCo.
@@ -68,6 +90,8 @@ def load_plugin() -> None:
     Raises:
         NativeLibraryError: The native core is missing or does not load.
     """
+    if MUJOCO_FIRST.importing:
+        return  # the binding's import asked for MuJoCo, and loads the core next
     try:
         importlib.import_module("dua_mujoco._core")
     except ImportError as err:

@@ -111,6 +111,30 @@ def test_the_cpp_example_runs_both_exports(
     assert rows[:, 1].max() > 0
 
 
+@pytest.mark.parametrize("first", ["dua_mujoco.core.spheres", "dua_mujoco._core", "mujoco"])
+def test_an_mjb_reads_whichever_the_program_imports_first(
+    exports: dict[str, Path], first: str
+) -> None:
+    """A process that imports the native core before MuJoCo (a core module, or the binding
+    itself) gives the plugin the slot an ``import mujoco`` process gives it (MuJoCo's bundled
+    plugins first), so each reads the other's ``.mjb``. Without the import hook it took slot 0:
+    the ``.mjb`` of this session failed there (MuJoCo: "`nsensordata` is a null function
+    pointer for plugin at slot 7"), and its own ``.mjb`` in every other process (slot 0; the
+    flaky failure of the example above when a test worker had imported the core first)."""
+    code = (
+        f"import sys\nimport {first}\nimport mujoco\n"
+        "m = mujoco.MjModel.from_binary_path(sys.argv[1])\nd = mujoco.MjData(m)\n"
+        "mujoco.mj_step(m, d)\nprint(*m.plugin, d.sensordata.size)\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code, str(exports[".mjb"])], capture_output=True, text=True,
+        timeout=300,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    model = mujoco.MjModel.from_binary_path(str(exports[".mjb"]))
+    assert proc.stdout.split() == [*map(str, model.plugin), str(model.nsensordata)]
+
+
 @pytest.mark.parametrize("suffix", [".xml", ".mjb"])
 @pytest.mark.parametrize("library", ["missing", "another plugin"])
 def test_the_cpp_example_without_the_plugin_fails_in_one_line(
@@ -333,3 +357,26 @@ def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None
             bounds_stand = {tuple(g) for g in standing_pairs(m, reference)}
             assert bounds_stand >= {(0, 1), (0, 2)}  # the slides on the floor: not vacuous
             assert bounds_stand <= {tuple(g) for g in standing_pairs(m, d)}
+
+
+def test_a_pruned_stride_past_the_horizon_is_refused() -> None:
+    """A hand-edited ``config`` whose rebuild stride the reach's horizon does not cover (a pair
+    left out at a rebuild could touch before the next rebuild flags it) is refused, naming the
+    field, the stride and the largest the horizon covers; the stride as attached loads."""
+    from dua_mujoco.runtime.table_arrays import CONFIG
+
+    options = {"accel": 30.0, "pairs": "pruned"}
+    tables: dict[str, np.ndarray] = {}
+    fine = _with_table("two_arms", options, "config", lambda config: None, tables)
+    stride = int(tables["config"][CONFIG["stride"]])
+    mujoco.MjData(mujoco.MjModel.from_xml_string(fine))
+
+    def past(config: np.ndarray) -> None:
+        config[CONFIG["stride"]] = stride + 1
+
+    with pytest.raises(ValueError, match="plugin") as refused:
+        mujoco.MjModel.from_xml_string(_with_table("two_arms", options, "config", past))
+    message = " ".join(str(refused.value).split())
+    assert "text field 'dua:config'" in message, message
+    assert f"stride of {stride + 1} steps past the reach's horizon" in message, message
+    assert f"lower the stride to {stride} or less" in message, message

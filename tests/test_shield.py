@@ -239,6 +239,37 @@ def test_the_stop_envelope_counts_twice_the_deviation(
     assert (counts["accepted"], counts["rejected"]) == (int(accepted), int(not accepted)), counts
 
 
+@pytest.mark.parametrize(
+    ("deviation", "stop_distance", "holds"),
+    [(0.0, 0.04, False), (0.01, 0.03, False), (0.0, 0.05, True)],
+)
+def test_a_failsafe_leaving_its_stop_envelope_is_a_stop_break(
+    deviation: float, stop_distance: float, holds: bool
+) -> None:
+    """The cart coasts at 0.3 m/s toward the post and brakes in 4.5 cm. Declared a stop
+    envelope a little short of that (0.04 m, or 0.03 m + D = 0.01 m), the candidates pass until
+    the envelope reaches the post; the failsafe then rolled out leaves the envelope by about
+    5 mm before rest, and its own query finds the post: a stop break, the steps after it not
+    guaranteed (the cart does touch the post, moving, with 0.04 m). An envelope that holds
+    (0.05 m) has none, and the cart stops short of the post."""
+    xml = _ONE_JOINT.format(joint="slide", axis="1 0 0", offset=0.0, post=0.3)
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[0] = 0.3
+    mujoco.mj_forward(model, data)
+    shield = Shield(
+        model, protect=["post"], robot=["robot"], period=1, accel=5.0, deviation=deviation,
+        stop_distance=stop_distance, screen=False,
+    )  # fmt: skip
+    shield.reset(data)
+    for _ in range(400):
+        data.ctrl[:] = shield(data, [0.0])
+        mujoco.mj_step(model, data)
+    counts = shield.counts
+    assert counts["rejected"] > 0, counts
+    assert (counts["stop_breaks"], counts["unguaranteed"] == 0) == (int(not holds), holds), counts
+
+
 # A 1 kg ball on a slide along x and a wall at x = 0.3 (its face at 0.25); a 1 N motor.
 _BALL = """
 <mujoco>

@@ -91,14 +91,16 @@ double StaticGap(double c0, double c1, double c2, const double* rec, double n[3]
 double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0, double n1,
                    double n2, int64_t start, int64_t* top);
 
-// Where point rec (a sphere record, or the exact level's geom record: the same first columns)
-// sits with the geoms at poses (pos, mat): its geom's origin plus its rotated offset.
-inline void PointCentre(const double* rec, const double* pos, const double* mat, double* out) {
-  const int64_t g = static_cast<int64_t>(rec[kSphereFrame]);
-  const double o0 = rec[kSphereOffset], o1 = rec[kSphereOffset + 1], o2 = rec[kSphereOffset + 2];
-  const double* p = pos + 3 * g;
-  const double* r = mat + 9 * g;
+// Where the point at coordinates l of a frame at pose (p, r) sits: p + r l (a sphere's centre,
+// l its record's offset; a plan's knot; a witness point carried with its geom).
+inline void PosePoint(const double* p, const double* r, const double* l, double* out) {
+  const double o0 = l[0], o1 = l[1], o2 = l[2];
   for (int k = 0; k < 3; ++k) out[k] = p[k] + r[3 * k] * o0 + r[3 * k + 1] * o1 + r[3 * k + 2] * o2;
+}
+
+// Geom g's point at local coordinates l, at its pose in f.
+inline void GeomPoint(int64_t g, const dua_frame& f, const double* l, double* out) {
+  PosePoint(f.pos + 3 * g, f.mat + 9 * g, l, out);
 }
 
 // Centre and velocity of point i of a record table (sphere records, or the exact level's geom
@@ -109,7 +111,7 @@ inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_fr
                        double* out) {
   const double* rec = recs + i * ncol;
   const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
-  PointCentre(rec, f.pos, f.mat, out);
+  GeomPoint(static_cast<int64_t>(rec[kSphereFrame]), f, rec + kSphereOffset, out);
   const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
   const double* tw = f.twist + 6 * b;
   const double* ref = f.twist_ref + 3 * r;

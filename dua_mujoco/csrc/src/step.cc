@@ -427,14 +427,6 @@ bool InContact(dua_exact& x, int64_t g1, int64_t g2, double dist) {
   return false;
 }
 
-// Geom g's point at local coordinates l, at its pose in f.
-inline void GeomPoint(int64_t g, const dua_frame& f, const double* l, double out[3]) {
-  const double* m = f.mat + 9 * g;
-  const double* p = f.pos + 3 * g;
-  for (int j = 0; j < 3; ++j)
-    out[j] = p[j] + m[3 * j] * l[0] + m[3 * j + 1] * l[1] + m[3 * j + 2] * l[2];
-}
-
 // Whether no direction can raise the pair's tau to `below`, from the witness points of its
 // latest query carried with their geoms (w: a point of each, wherever the geoms are now): for
 // every unit u, d_u <= u.(b - a), so the right side of (5.3) at `below` is at most

@@ -496,6 +496,23 @@ bool ReadReach(Reader* r, const std::vector<double>& reach, const std::vector<do
       return r->Fail("config", "holds a renewal limit that is not an int in [0, 1e9)");
     }
     t->renew_max = static_cast<int64_t>(renew);
+    // A pair left out at a rebuild has no contact within the horizon; the next rebuild, a stride
+    // later, holds it, and its alarm acts after the latency and must lead the alarm horizon:
+    // (stride + latency) dt + (alarm_horizon - dt) <= horizon (docs/many-objects.md; a
+    // billionth of a step is the rounding of the writer's product, a stride is whole steps).
+    const ScheduleSpec& s = t->schedule;
+    const double lead = static_cast<double>(s.latency) * s.dt + (s.alarm_horizon - s.dt);
+    if (stride * s.dt + lead > horizon + 1e-9 * s.dt) {
+      const double most = std::floor((horizon - lead) / s.dt + 1e-9);
+      const std::string fix = most >= 1.0 ? "lower the stride to " + Shown(most) + " or less"
+                                          : std::string("lengthen the horizon");
+      return r->Fail("config", "holds a stride of " + Shown(stride) +
+                                   " steps past the reach's horizon (" + Shown(horizon) +
+                                   " s): a pair left out at a rebuild could touch before the " +
+                                   "next rebuild's alarm leads by the alarm horizon; " + fix +
+                                   ", so that (stride + latency) dt + alarm_horizon - dt <= " +
+                                   "horizon, or attach the predictor again");
+    }
     // Pruned pairs are carried into the deadline schedule only.
     if (t->schedule.kind != kDeadline) {
       return r->Fail("config", "holds pruned pairs with a schedule other than the deadline one");

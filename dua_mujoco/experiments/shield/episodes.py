@@ -34,6 +34,7 @@ import numpy.typing as npt
 
 from dua_mujoco.build.exact import corner_points
 from dua_mujoco.build.filter import active_geom_pairs
+from dua_mujoco.build.kinematics import PointMotion, pack_spheres
 from dua_mujoco.models.cells import SHIELD_SCENES, ShieldScene
 from dua_mujoco.models.people import Bound
 from dua_mujoco.shield.failsafe import Brake
@@ -190,32 +191,26 @@ class EpisodeResult:
 
 class _BoundCheck:
     """Chord speed and discrete acceleration of the corners of the protected bodies' geom boxes,
-    every physics step, against their declared bounds."""
+    every physics step, against their declared bounds: the native point check
+    (:class:`~dua_mujoco.build.kinematics.PointMotion`, the one the bound monitor runs)."""
 
     def __init__(self, model: mujoco.MjModel, bounds: dict[int, Bound]) -> None:
         geoms = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bounds]
-        self.geoms, body, self.local = corner_points(model, geoms)
-        self.speed = np.array([bounds[int(b)].speed for b in body])
-        self.accel = np.array([bounds[int(b)].accel for b in body])
-        self.body = body
+        geom, self.body, local = corner_points(model, geoms)
+        self.points = PointMotion(
+            pack_spheres(geom, self.body, local, model.body_rootid),
+            accel=np.array([bounds[int(b)].accel for b in self.body]),
+            speed=np.array([bounds[int(b)].speed for b in self.body]),
+            rtol=1e-6,
+        )
         self.h = float(model.opt.timestep)
-        self.last: np.ndarray | None = None
-        self.chord: np.ndarray | None = None
+        self.twist = np.zeros((model.nbody, 6))  # chords only: no point velocity is read
 
     def __call__(self, data: mujoco.MjData) -> int:
         """Body-steps out of bounds at this step (call once after each ``mj_step``)."""
-        mats = np.asarray(data.geom_xmat)[self.geoms].reshape(-1, 3, 3)
-        points = np.asarray(data.geom_xpos)[self.geoms] + np.einsum("nij,nj->ni", mats, self.local)
-        bad = np.zeros(self.geoms.size, dtype=bool)
-        if self.last is not None:
-            chord = (points - self.last) / self.h
-            bad |= np.linalg.norm(chord, axis=1) > self.speed * (1 + 1e-9) + 1e-9
-            if self.chord is not None:
-                change = np.linalg.norm(chord - self.chord, axis=1) / self.h
-                bad |= change > self.accel * (1 + 1e-6) + 1e-6
-            self.chord = chord
-        self.last = points
-        return int(np.unique(self.body[bad]).size)
+        if self.points.update(data, self.twist, self.h) == 0:
+            return 0
+        return int(np.unique(self.body[self.points.broken.any(axis=1)]).size)
 
 
 def run_episode(
