@@ -66,25 +66,33 @@ if TYPE_CHECKING:
 # plugin ``dua_mujoco.testing``, loaded in every test session of a project that enables it,
 # import neither the compiled core nor MuJoCo.
 _LAZY = {
-    name: module
-    for module, names in {
-        "dua_mujoco.build.bounds": "MotionBounds estimate_bounds",
-        "dua_mujoco.build.options": "CoveringOptions PairOptions PilotOptions ScheduleOptions "
-        "UrgencyOptions",
-        "dua_mujoco.core.schedules": "DUAScheduler Schedule",
-        "dua_mujoco.core.spheres": "SpherePredictor",
-        "dua_mujoco.core.urgency": "time_to_collision",
-        "dua_mujoco.measure.report": "RunReport",
-        "dua_mujoco.measure.rollout": "run",
-        "dua_mujoco.models.scenes": "load_scene",
-        "dua_mujoco.plugin": "PluginOutputs attach plugin_outputs standing_pairs",
-        "dua_mujoco.runtime.plans": "PilotPlan Replanner deviation_profile plan_deviation "
-        "plan_from_controls",
-        "dua_mujoco.runtime.predictor": "Alarms Predictor",
-        "dua_mujoco.runtime.table_arrays": "pilot_bounds",
-        "dua_mujoco.shield.shield": "Shield",
-    }.items()
-    for name in names.split()
+    "MotionBounds": "dua_mujoco.build.bounds",
+    "estimate_bounds": "dua_mujoco.build.bounds",
+    "CoveringOptions": "dua_mujoco.build.options",
+    "PairOptions": "dua_mujoco.build.options",
+    "PilotOptions": "dua_mujoco.build.options",
+    "ScheduleOptions": "dua_mujoco.build.options",
+    "UrgencyOptions": "dua_mujoco.build.options",
+    "DUAScheduler": "dua_mujoco.core.schedules",
+    "Schedule": "dua_mujoco.core.schedules",
+    "SpherePredictor": "dua_mujoco.core.spheres",
+    "time_to_collision": "dua_mujoco.core.urgency",
+    "RunReport": "dua_mujoco.measure.report",
+    "run": "dua_mujoco.measure.rollout",
+    "load_scene": "dua_mujoco.models.scenes",
+    "PluginOutputs": "dua_mujoco.plugin",
+    "attach": "dua_mujoco.plugin",
+    "plugin_outputs": "dua_mujoco.plugin",
+    "standing_pairs": "dua_mujoco.plugin",
+    "PilotPlan": "dua_mujoco.runtime.plans",
+    "Replanner": "dua_mujoco.runtime.plans",
+    "deviation_profile": "dua_mujoco.runtime.plans",
+    "plan_deviation": "dua_mujoco.runtime.plans",
+    "plan_from_controls": "dua_mujoco.runtime.plans",
+    "Alarms": "dua_mujoco.runtime.predictor",
+    "Predictor": "dua_mujoco.runtime.predictor",
+    "pilot_bounds": "dua_mujoco.runtime.table_arrays",
+    "Shield": "dua_mujoco.shield.shield",
 }
 
 
