@@ -35,18 +35,12 @@ double CentreGap(const double* a, const double* b, double eps) {
   return dist - eps - kGapSlack * (dist + eps);
 }
 
-// Where point rec (a sphere record) sits with its geom at pose (p, r) (PointCentre's sum).
-inline void AtPose(const double* rec, const double* p, const double* r, double* out) {
-  const double o0 = rec[kSphereOffset], o1 = rec[kSphereOffset + 1], o2 = rec[kSphereOffset + 2];
-  for (int k = 0; k < 3; ++k) out[k] = p[k] + r[3 * k] * o0 + r[3 * k + 1] * o1 + r[3 * k + 2] * o2;
-}
-
 // Sphere i's centre at knot j of the plan.
 inline void PlannedCentre(const Plan& plan, int64_t j, const double* spheres, int64_t i,
                           double* out) {
   const double* rec = spheres + i * kSphereNcol;
   const auto g = static_cast<int64_t>(rec[kSphereFrame]);
-  AtPose(rec, plan.pos(j, g), plan.mat(j, g), out);
+  CentreOn(rec, plan.pos(j, g), plan.mat(j, g), out);
 }
 
 // The pair's gap at the sphere level at the plan's knot j: a lower bound on the distance
@@ -342,7 +336,7 @@ int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int6
     const double t = time(j), dev = deviation(j);
     const double rs = Reach(t, ss, accel, disc, speed);
     double ca[3];
-    AtPose(sphere_a, plan.pos(j, ga), plan.mat(j, ga), ca);
+    CentreOn(sphere_a, plan.pos(j, ga), plan.mat(j, ga), ca);
     gs = CentreGap(ca, sb_state, eps);
     bool clear = gs > dev + rs;
     // Where it heads, asked only when where it is does not clear the knot (most knots clear on
