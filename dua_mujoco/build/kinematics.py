@@ -22,6 +22,8 @@ at a mocap body moves with that body, which ``cvel`` treats as static: its twist
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 import numpy.typing as npt
@@ -222,45 +224,21 @@ class PointMotion:
         """
         self.rows, self._prev = self._prev, self.rows
         check = self._no_check if check_discrepancy is None else check_discrepancy
-        if self._groups is not None:
+        names = ("pos", "mat", "twist", "twist_ref", "root_twist", "root_origin")
+        args: dict[str, Any] = dict(zip(names, mjdata_frame(data, root_twist), strict=True))
+        args.update(prev=self._prev, cur=self.rows, nprev=min(self.updates, 2), h=h)
+        args.update(accel=self._accel, disc=self._disc, speed=self._speed, rtol=self._rtol)
+        args.update(check_disc=check.view(np.uint8), values=self.values)
+        args.update(broken=self.broken.view(np.uint8))
+        if self._groups is None:
+            nbroken = check_points(self._points, **args)
+        else:
+            start, groups = self._groups
+            args.update(frames=self._frames, computed=self._computed, update=self.updates)
             nbroken = check_groups(
-                self._points,
-                *mjdata_frame(data, root_twist),
-                *self._groups,
-                self._frames,
-                self._computed,
-                self.updates,
-                self._prev,
-                self.rows,
-                min(self.updates, 2),
-                h,
-                self._h_prev,
-                self._accel,
-                self._disc,
-                self._speed,
-                check.view(np.uint8),
-                self._rtol,
-                self.values,
-                self.broken.view(np.uint8),
+                self._points, group_start=start, groups=groups, h_prev=self._h_prev, **args
             )
             self._h_prev = h
-            self.updates += 1
-            return int(nbroken)
-        nbroken = check_points(
-            self._points,
-            *mjdata_frame(data, root_twist),
-            self._prev,
-            self.rows,
-            min(self.updates, 2),
-            h,
-            self._accel,
-            self._disc,
-            self._speed,
-            check.view(np.uint8),
-            self._rtol,
-            self.values,
-            self.broken.view(np.uint8),
-        )
         self.updates += 1
         return int(nbroken)
 

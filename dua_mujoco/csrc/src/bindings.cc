@@ -148,16 +148,27 @@ Out<double> OverPoints(const In<double>& points, const In<double>& shapes, const
 
 // The instant the kinematics kernel reads, as arrays (MjData's geom_xpos (ngeom, 3), geom_xmat
 // (ngeom, 9), cvel (nbody, 6), subtree_com (nbody, 3), the mocap roots' twists (nbody, 6) and xpos
-// (nbody, 3)), and point records (n, 8) that index inside it.
+// (nbody, 3)), its shapes checked; *ngeom and *nbody receive its sizes.
+dua_frame FrameOfShapes(const In<double>& pos, const In<double>& mat, const In<double>& twist,
+                        const In<double>& twist_ref, const In<double>& root_twist,
+                        const In<double>& root_origin, int64_t* ngeom, int64_t* nbody) {
+  *ngeom = Size(pos) / 3, *nbody = Size(twist) / 6;
+  Require(Size(pos) == 3 * *ngeom && Size(mat) == 9 * *ngeom && Size(twist) == 6 * *nbody &&
+              Size(twist_ref) == 3 * *nbody && Size(root_twist) == 6 * *nbody &&
+              Size(root_origin) == 3 * *nbody,
+          "the frame's arrays must be (ngeom, 3), (ngeom, 9), (nbody, 6), (nbody, 3), (nbody, 6), "
+          "(nbody, 3)");
+  return {pos.data(),       mat.data(),        twist.data(),
+          twist_ref.data(), root_twist.data(), root_origin.data()};
+}
+
+// FrameOfShapes, and point records (n, 8) that index inside it.
 dua_frame FrameOfArrays(const In<double>& pos, const In<double>& mat, const In<double>& twist,
                         const In<double>& twist_ref, const In<double>& root_twist,
                         const In<double>& root_origin, const In<double>& points) {
-  const int64_t ngeom = Size(pos) / 3, nbody = Size(twist) / 6;
-  Require(Size(pos) == 3 * ngeom && Size(mat) == 9 * ngeom && Size(twist) == 6 * nbody &&
-              Size(twist_ref) == 3 * nbody && Size(root_twist) == 6 * nbody &&
-              Size(root_origin) == 3 * nbody,
-          "the frame's arrays must be (ngeom, 3), (ngeom, 9), (nbody, 6), (nbody, 3), (nbody, 6), "
-          "(nbody, 3)");
+  int64_t ngeom, nbody;
+  const dua_frame f =
+      FrameOfShapes(pos, mat, twist, twist_ref, root_twist, root_origin, &ngeom, &nbody);
   const int64_t n = Size(points) / kSphereNcol;
   Require(Size(points) == n * kSphereNcol, "point records must be (n, 8)");
   for (int64_t i = 0; i < n; ++i) {
@@ -172,8 +183,7 @@ dua_frame FrameOfArrays(const In<double>& pos, const In<double>& mat, const In<d
                          " bodies: pass the MjData of the model the spheres were built for");
     }
   }
-  return {pos.data(),       mat.data(),        twist.data(),
-          twist_ref.data(), root_twist.data(), root_origin.data()};
+  return f;
 }
 
 Out<double> RigidPoints(const In<double>& points, const In<double>& pos, const In<double>& mat,
@@ -235,12 +245,9 @@ int64_t CheckGroups(const In<double>& points, const In<double>& pos, const In<do
   const int64_t* start = group_start.data();
   Require(ngroup == 0 ? n == 0 : start[0] == 0 && start[ngroup] == n,
           "group_start must run from 0 to the points' count");
-  const int64_t ngeom = Size(pos) / 3, nbody = Size(twist) / 6;
-  Require(Size(pos) == 3 * ngeom && Size(mat) == 9 * ngeom && Size(twist) == 6 * nbody &&
-              Size(twist_ref) == 3 * nbody && Size(root_twist) == 6 * nbody &&
-              Size(root_origin) == 3 * nbody,
-          "the frame's arrays must be (ngeom, 3), (ngeom, 9), (nbody, 6), (nbody, 3), (nbody, 6), "
-          "(nbody, 3)");
+  int64_t ngeom, nbody;
+  const dua_frame f =
+      FrameOfShapes(pos, mat, twist, twist_ref, root_twist, root_origin, &ngeom, &nbody);
   for (int64_t g = 0; g < ngroup; ++g) {
     const double* rec = groups.data() + kGroupNcol * g;
     const bool ok = start[g] < start[g + 1] && rec[kGroupFrame] >= 0 && rec[kGroupFrame] < ngeom &&
@@ -268,8 +275,6 @@ int64_t CheckGroups(const In<double>& points, const In<double>& pos, const In<do
       }
     }
   }
-  const dua_frame f{pos.data(),       mat.data(),        twist.data(),
-                    twist_ref.data(), root_twist.data(), root_origin.data()};
   return dua_check_groups(points.data(), &f, start, groups.data(), ngroup, frames.data(),
                           computed.data(), update, prev.data(), cur.data(), nprev, h, h_prev,
                           accel.data(), disc.data(), Size(speed) ? speed.data() : nullptr,
