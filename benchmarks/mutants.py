@@ -77,6 +77,8 @@ _REF = (
 _REF_TRAFFIC, _REF_PAPER = f"{_REF}[traffic]", f"{_REF}[paper_world]"
 _REF_CLUTTER, _REF_ARMS = f"{_REF}[clutter]", f"{_REF}[two_arms]"
 _PYRAMID = "tests/test_terrain.py::test_search_equals_every_cell_through_the_pyramid_for_a_sphere"
+_CHECKS = "dua_mujoco/csrc/src/checks.cc"
+_SCREEN = "tests/test_monitor_screen.py"
 
 MUTANTS: tuple[Mutant, ...] = (
     # ---------------------------------------------------------------- tau kernels (section 1)
@@ -530,6 +532,31 @@ MUTANTS: tuple[Mutant, ...] = (
             "test_a_robot_touching_a_protected_body_is_refused_without_a_rollout[0.2-0.0-1.0]",
         ),
         "a candidate is rolled out though a protected pair may touch at its knot 0",
+    ),
+    Mutant(
+        "monitor-screen-acceleration-at-the-centre",
+        _CHECKS,
+        "(Norm3(u[0] - up[0], u[1] - up[1], u[2] - up[2]) + std::sqrt(a2) * rho) * inv_h",
+        "Norm3(u[0] - up[0], u[1] - up[1], u[2] - up[2]) * inv_h",
+        (_SCREEN,),
+        "the monitor's screen bounds a group's acceleration by its centre's: a spinning body's "
+        "corners break the bound unseen",
+    ),
+    Mutant(
+        "monitor-screen-speed-at-the-centre",
+        _CHECKS,
+        "const double speed = Norm3(u[0], u[1], u[2]) + std::sqrt(g2) * rho;",
+        "const double speed = Norm3(u[0], u[1], u[2]);",
+        (_SCREEN,),
+        "the monitor's screen bounds a group's chord speed by its centre's",
+    ),
+    Mutant(
+        "monitor-screen-stale-rows",
+        _CHECKS,
+        "if (computed[g] != update - 1) {",
+        "if (false) {",
+        (_SCREEN,),
+        "a group the screen skipped is measured against rows of an older update",
     ),
 )
 

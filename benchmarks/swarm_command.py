@@ -13,13 +13,17 @@ checkout with a ``.venv`` runs in its own Python):
 * the command, ``dua-mujoco run swarm:N --steps 100 --accel 2`` (its ``main`` in a fresh
   interpreter), wall time from start to exit (imports, the report and the exit included).
 
-The table gives each side's medians over the rounds and the command's time in compiles.
+The table gives each side's medians over the rounds and the command's time in compiles; a second
+table the same in CPU seconds (``time.process_time`` of the parts, the child's user + system
+time of the command), which a machine shared with other jobs inflates less than wall time.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -38,15 +42,21 @@ try:  # the scenes' module: dua_mujoco.models since issue 41, dua_mujoco.mj befo
 except ImportError:
     from dua_mujoco.mj.scenes import load_spec, make_controller
 n = int(sys.argv[1])
-t0 = time.perf_counter(); spec = load_spec(f"swarm:{n}")
-t1 = time.perf_counter(); model = spec.compile()
-t2 = time.perf_counter(); data = mujoco.MjData(model); mujoco.mj_forward(model, data)
-t3 = time.perf_counter(); p = Predictor(model, accel=2.0)
-t4 = time.perf_counter()
+def now():
+    return time.perf_counter(), time.process_time()
+t0 = now(); spec = load_spec(f"swarm:{n}")
+t1 = now(); model = spec.compile()
+t2 = now(); data = mujoco.MjData(model); mujoco.mj_forward(model, data)
+t3 = now(); p = Predictor(model, accel=2.0)
+t4 = now()
 run(model, data, p, steps=100, controller=make_controller(model, "random", seed=0),
     progress=False, series=False)
-t5 = time.perf_counter()
-print(json.dumps(dict(generate=t1 - t0, compile=t2 - t1, setup=t4 - t3, steps=t5 - t4)))
+t5 = now()
+out = {}
+for suffix, k in (("", 0), ("_cpu", 1)):
+    out.update({"generate" + suffix: t1[k] - t0[k], "compile" + suffix: t2[k] - t1[k],
+                "setup" + suffix: t4[k] - t3[k], "steps" + suffix: t5[k] - t4[k]})
+print(json.dumps(out))
 """
 
 COMMAND = "import sys\nfrom dua_mujoco.__main__ import main\nsys.exit(main(sys.argv[1:]))"
@@ -59,13 +69,17 @@ def parts(checkout: Path, n: int) -> dict[str, float]:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def command(checkout: Path, n: int) -> float:
-    """The command's wall seconds on ``checkout``, from the process's start to its exit."""
+def command(checkout: Path, n: int) -> tuple[float, float]:
+    """The command's wall seconds on ``checkout``, from the process's start to its exit, and its
+    CPU seconds (user + system)."""
     args = ("run", f"swarm:{n}", "--steps", "100", "--accel", "2")
     argv, env = probe(COMMAND, checkout, *args)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     subprocess.run(argv, env=env, cwd=checkout, capture_output=True, check=True)
-    return time.perf_counter() - t
+    wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def main() -> None:
@@ -79,16 +93,26 @@ def main() -> None:
     for r in range(args.rounds):
         for side, checkout in sides.items():
             row = parts(checkout, args.n)
-            row["command"] = command(checkout, args.n)
+            row["command"], row["command_cpu"] = command(checkout, args.n)
             rows[side].append(row)
-            print(f"round {r} {side}: {json.dumps(row)}", file=sys.stderr, flush=True)
-    keys = ("generate", "compile", "setup", "steps", "command")
-    print(f"| swarm:{args.n} | " + " | ".join(keys) + " | command / compile |")
-    print("|---" * (len(keys) + 2) + "|")
-    for side, runs in rows.items():
-        med = {k: statistics.median(run[k] for run in runs) for k in keys}
-        cells = " | ".join(f"{med[k]:.1f}" for k in keys)
-        print(f"| {side} | {cells} | {med['command'] / med['compile']:.2f} |")
+            ratio = row["command"] / row["compile"]
+            cpu = row["command_cpu"] / row["compile_cpu"]
+            print(
+                f"round {r} {side}: command / compile {ratio:.2f} (CPU {cpu:.2f}), load "
+                f"{os.getloadavg()[0]:.1f}: {json.dumps(row)}",
+                file=sys.stderr,
+                flush=True,
+            )
+    for suffix in ("", "_cpu"):
+        keys = ("generate", "compile", "setup", "steps", "command")
+        label = "CPU s" if suffix else "s"
+        print(f"| swarm:{args.n} ({label}) | " + " | ".join(keys) + " | command / compile |")
+        print("|---" * (len(keys) + 2) + "|")
+        for side, runs in rows.items():
+            med = {k: statistics.median(run[k + suffix] for run in runs) for k in keys}
+            cells = " | ".join(f"{med[k]:.1f}" for k in keys)
+            print(f"| {side} | {cells} | {med['command'] / med['compile']:.2f} |")
+        print()
 
 
 if __name__ == "__main__":

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import Any
 
 import mujoco
 import numpy as np
 
+from dua_mujoco._core import candidate_pairs
 from dua_mujoco.exceptions import InvalidInputError
 
 __all__ = [
@@ -77,48 +79,61 @@ def _place_spheres(
             "increase box_size or decrease radius."
         )
     min_dist = 2.0 * radius + clearance
-    centres = np.empty((n, 3))
-    placed = 0
     # Give up after this many rejections in a row: the free volume is then too fragmented.
     max_misses = 20_000
+    # The sampler draws candidates 64 at a time and accepts each one no closer than min_dist to
+    # every centre accepted before it. Whole chunks of those batches are judged at once (the grid
+    # of candidate pairs finds the close ones; distances in the same operations, in the same
+    # order, as the sampler took them one by one), then the chain of acceptances is followed
+    # in order; the generator is advanced by the batches the sampler would have drawn. The
+    # placement, and the generator's state after it, are the sequential sampler's.
+    centres = np.zeros((0, 3))
     misses = 0
-    # Placed centres by grid cell of side min_dist: a candidate is checked against the 27 cells
-    # around it only, O(n) in all (a swarm of 20,000 took 39 s checking against every centre).
-    # The same candidates are accepted as against all: the placement is unchanged. Cells are
-    # keyed by one integer and distances taken in Python floats (the same operations, in the
-    # same order, as numpy's norm of a row of three): a candidate costs a few microseconds.
-    cells: dict[int, list[tuple[float, float, float]]] = {}
-    # Cell (i, j, k) is key (i span + j) span + k. Cells beyond +-span / 2 would share keys:
-    # more centres measured, none missed.
-    span = 1 << 20
-    deltas = [(i * span + j) * span + k for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)]
-    while placed < n:
-        # Batches of candidates amortise the generator call.
-        batch = rng.uniform(lo, hi, size=(64, 3))
-        keys = (np.floor(batch / min_dist).astype(np.int64) @ [span * span, span, 1]).tolist()
-        for c, key in zip(batch.tolist(), keys, strict=True):
-            x, y, z = c
-            if any(
-                math.sqrt((px - x) * (px - x) + (py - y) * (py - y) + (pz - z) * (pz - z))
-                < min_dist
-                for d in deltas
-                for px, py, pz in cells.get(key + d, ())
-            ):
-                misses += 1
-                if misses > max_misses:
-                    raise InvalidInputError(
-                        f"Could not place {n} spheres of radius {radius} without overlap in a "
-                        f"cube of side {2 * half} (placed {placed}); use fewer spheres, a smaller "
-                        "radius or a larger box_size."
-                    )
-                continue
-            centres[placed] = c
-            cells.setdefault(key, []).append((x, y, z))
-            placed += 1
-            misses = 0
-            if placed == n:
-                break
+    while centres.shape[0] < n:
+        placed = centres.shape[0]
+        nbatch = min(-(-(n - placed) // 64) + 2, 1024)
+        ahead = copy.deepcopy(rng)
+        cand = ahead.uniform(lo, hi, size=(64 * nbatch, 3))
+        accepted = _accepted(centres, cand, min_dist)
+        take = np.flatnonzero(accepted)[: n - placed]
+        judged = int(take[-1]) + 1 if take.size == n - placed else cand.shape[0]
+        # Rejections in a row before each acceptance, and after the last one judged.
+        runs = np.diff(np.concatenate([[-1 - misses], take, [judged]])) - 1
+        if (runs > max_misses).any():
+            first = int(np.argmax(runs > max_misses))
+            raise InvalidInputError(
+                f"Could not place {n} spheres of radius {radius} without overlap in a "
+                f"cube of side {2 * half} (placed {placed + first}); use fewer spheres, a smaller "
+                "radius or a larger box_size."
+            )
+        misses = int(runs[-1])
+        rng.uniform(lo, hi, size=(64 * -(-judged // 64), 3))  # the batches the sampler drew
+        centres = np.concatenate([centres, cand[take]])
     return centres
+
+
+def _accepted(centres: np.ndarray, cand: np.ndarray, min_dist: float) -> np.ndarray:
+    """``(m,)`` which of the candidates ``cand`` (m, 3), taken in order, the sampler accepts after
+    ``centres`` (p, 3): those no closer than ``min_dist`` to any centre or accepted candidate."""
+    p, m = centres.shape[0], cand.shape[0]
+    pts = np.concatenate([centres, cand])
+    pairs = candidate_pairs(pts, np.full(p + m, min_dist / 2), 0.0)  # every pair that close
+    i, j = pairs[:, 0], pairs[:, 1]  # i < j: j a candidate, i a centre or an earlier candidate
+    i, j = i[j >= p], j[j >= p]
+    a, b = pts[i], pts[j]
+    dx, dy, dz = a[:, 0] - b[:, 0], a[:, 1] - b[:, 1], a[:, 2] - b[:, 2]
+    close = np.sqrt(dx * dx + dy * dy + dz * dz) < min_dist
+    i, j = i[close], j[close] - p
+    accepted = np.ones(m, dtype=bool)
+    accepted[j[i < p]] = False
+    among = i >= p
+    first, second = i[among] - p, j[among]
+    # In order of the later candidate: the earlier one's fate is settled when it is read.
+    order = np.lexsort((first, second))
+    for f, s in zip(first[order].tolist(), second[order].tolist(), strict=True):
+        if accepted[f]:
+            accepted[s] = False
+    return accepted
 
 
 def paper_world_spec(

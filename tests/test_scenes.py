@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import itertools
+import math
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -187,6 +188,60 @@ def test_paper_world_has_no_initial_overlap() -> None:
     assert np.all(speeds <= 0.5 + 1e-12) and np.any(speeds > 0.0)
     with pytest.raises(InvalidInputError, match="Could not place"):
         paper_world_spec(500, radius=0.1, box_size=0.5)
+
+
+def _reference_placement(
+    n: int, rng: np.random.Generator, half: float, radius: float, clearance: float
+) -> np.ndarray:
+    """Slow reference for ``_place_spheres``: candidates drawn 64 at a time, each measured
+    against every centre accepted before it, one at a time."""
+    lo, hi = -half + radius + clearance, half - radius - clearance
+    min_dist = 2.0 * radius + clearance
+    placed: list[tuple[float, float, float]] = []
+    misses = 0
+    while len(placed) < n:
+        for x, y, z in rng.uniform(lo, hi, size=(64, 3)).tolist():
+            if any(
+                math.sqrt((px - x) * (px - x) + (py - y) * (py - y) + (pz - z) * (pz - z))
+                < min_dist
+                for px, py, pz in placed
+            ):
+                misses += 1
+                if misses > 20_000:
+                    raise InvalidInputError(f"Could not place (placed {len(placed)})")
+                continue
+            placed.append((x, y, z))
+            misses = 0
+            if len(placed) == n:
+                break
+    return np.array(placed)
+
+
+@pytest.mark.parametrize(
+    ("n", "seed", "half", "radius"),
+    [
+        (1, 0, 0.5, 0.03),
+        (700, 2, 1.1, 0.03),
+        (400, 1, 0.5, 0.04),
+        (1500, 3, 0.5, 0.02),
+        (200, 1, 0.3, 0.05),
+        (60, 1, 0.25, 0.05),
+    ],
+)
+def test_placement_judged_by_chunks_is_the_sequential_samplers(
+    n: int, seed: int, half: float, radius: float
+) -> None:
+    """The same centres, the same generator state after them, and the same refusal (with the
+    count placed) when the cube is too crowded (the last two), as one candidate at a time."""
+    outcomes = []
+    for place in (_place_spheres, _reference_placement):
+        rng = np.random.default_rng(seed)
+        try:
+            centres = place(n, rng, half=half, radius=radius, clearance=radius / 4)
+            outcomes.append((centres.tobytes(), rng.random()))
+        except InvalidInputError as e:
+            outcomes.append(tuple(re.findall(r"placed \d+", str(e))))
+    assert outcomes[0] == outcomes[1]
 
 
 def test_paper_world_built_in_chunks_is_laid_out_sphere_by_sphere() -> None:

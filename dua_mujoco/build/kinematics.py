@@ -13,11 +13,13 @@ as static, gets that body's twist added.
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco._core import LAYOUT, check_points, rigid_points
+from dua_mujoco._core import LAYOUT, check_groups, check_points, rigid_points
 from dua_mujoco.exceptions import ShapeError
 
 __all__ = [
@@ -37,6 +39,9 @@ __all__ = [
 SPHERE_FRAME, SPHERE_BODY = LAYOUT["SPHERE_FRAME"], LAYOUT["SPHERE_BODY"]
 SPHERE_OFFSET, SPHERE_ROOT = LAYOUT["SPHERE_OFFSET"], LAYOUT["SPHERE_ROOT"]
 SPHERE_NCOL = LAYOUT["SPHERE_NCOL"]
+# Columns of the screened check's group records (the centre takes three).
+_GROUP = {k: LAYOUT[f"GROUP_{k}"] for k in ("CENTRE", "RADIUS", "FRAME", "BODY", "ROOT", "NCOL")}
+_GROUP_BOUNDS = [LAYOUT[f"GROUP_{k}"] for k in ("ACCEL", "DISC", "SPEED")]
 
 
 def pack_spheres(
@@ -131,6 +136,12 @@ class PointMotion:
         speed: ``(n,)`` bound on the chord speed; None for none.
         rtol: relative tolerance of every comparison (the round-off of the differences is
             tolerated besides).
+        screen: Measure only the points a screen in O(1) a group cannot clear (a group: a run of
+            consecutive points on one frame with the same bounds; ``dua_check_groups``), from
+            the third update on. :attr:`broken` and the count are the same as without it
+            (docs/theory.md, "The monitor's screen"); :attr:`rows` and :attr:`values` are then
+            current only for the groups measured (the run monitor reads the broken points'
+            values; the pilot, which reads all, does not screen).
     """
 
     SPEED, DISCREPANCY, ACCEL = 0, 1, 2
@@ -143,6 +154,8 @@ class PointMotion:
         discrepancy: np.ndarray | None = None,
         speed: np.ndarray | None = None,
         rtol: float = 0.0,
+        *,
+        screen: bool = False,
     ) -> None:
         n = points.shape[0]
         self._points = points
@@ -164,6 +177,22 @@ class PointMotion:
         self.broken = np.zeros((n, 3), dtype=np.bool_)
         """``(n, 3)`` which of :attr:`values` broke their bound at the latest update."""
         self._no_check = np.zeros(n, dtype=np.bool_)
+        self._groups = (
+            _point_groups(points, self._accel, self._disc, self._speed) if screen else None
+        )
+        if self._groups is not None:
+            ngroup = self._groups[0].size - 1
+            self._frames = np.zeros((ngroup, 2, 30))
+            self._computed = np.full(ngroup, -1, dtype=np.int64)
+        self._h_prev = 1.0
+
+    @property
+    def measured_groups(self) -> int:
+        """How many groups the latest update measured point by point (``screen``; every
+        group before the third update)."""
+        if self._groups is None:
+            return 0
+        return int(np.count_nonzero(self._computed == self.updates - 1))
 
     def update(
         self,
@@ -186,20 +215,48 @@ class PointMotion:
         """
         self.rows, self._prev = self._prev, self.rows
         check = self._no_check if check_discrepancy is None else check_discrepancy
-        nbroken = check_points(
-            self._points,
-            *mjdata_frame(data, root_twist),
-            self._prev,
-            self.rows,
-            min(self.updates, 2),
-            h,
-            self._accel,
-            self._disc,
-            self._speed,
-            check.view(np.uint8),
-            self._rtol,
-            self.values,
-            self.broken.view(np.uint8),
-        )
+        names = ("pos", "mat", "twist", "twist_ref", "root_twist", "root_origin")
+        args: dict[str, Any] = dict(zip(names, mjdata_frame(data, root_twist), strict=True))
+        args.update(prev=self._prev, cur=self.rows, nprev=min(self.updates, 2), h=h)
+        args.update(accel=self._accel, disc=self._disc, speed=self._speed, rtol=self._rtol)
+        args.update(check_disc=check.view(np.uint8), values=self.values)
+        args.update(broken=self.broken.view(np.uint8))
+        if self._groups is None:
+            nbroken = check_points(self._points, **args)
+        else:
+            start, groups = self._groups
+            args.update(frames=self._frames, computed=self._computed, update=self.updates)
+            nbroken = check_groups(
+                self._points, group_start=start, groups=groups, h_prev=self._h_prev, **args
+            )
+            self._h_prev = h
         self.updates += 1
         return int(nbroken)
+
+
+def _point_groups(
+    points: np.ndarray, accel: np.ndarray, disc: np.ndarray, speed: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The screened check's groups: runs of consecutive points on one frame (body, root) with the
+    same bounds, as ``(group_start (ngroup + 1,), groups (ngroup, GROUP_NCOL))``: each group's
+    record holds a ball around its offsets in the frame (centred on their box), the frame, body
+    and root, and the bounds (speed inf: none)."""
+    n = points.shape[0]
+    speed = speed if speed.size else np.full(n, np.inf)
+    ids = points[:, [SPHERE_FRAME, SPHERE_BODY, SPHERE_ROOT]]
+    key = np.column_stack([ids, accel, disc, speed])
+    differs = (key[1:] != key[:-1]).any(axis=1)
+    start = np.concatenate([[0], np.flatnonzero(differs) + 1, [n] if n else []]).astype(np.int64)
+    first = start[:-1]
+    offset = points[:, SPHERE_OFFSET : SPHERE_OFFSET + 3]
+    groups = np.zeros((first.size, _GROUP["NCOL"]))
+    if n:
+        centre = (np.minimum.reduceat(offset, first) + np.maximum.reduceat(offset, first)) / 2
+        member = np.repeat(np.arange(first.size), np.diff(start))
+        radius = np.zeros(first.size)
+        np.maximum.at(radius, member, np.linalg.norm(offset - centre[member], axis=1))
+        groups[:, _GROUP["CENTRE"] : _GROUP["CENTRE"] + 3] = centre
+        groups[:, _GROUP["RADIUS"]] = radius
+        groups[:, [_GROUP["FRAME"], _GROUP["BODY"], _GROUP["ROOT"]]] = ids[first]
+        groups[:, _GROUP_BOUNDS] = key[first, 3:]
+    return start, groups

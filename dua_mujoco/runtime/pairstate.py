@@ -32,15 +32,18 @@ class PairState:
     Args:
         runtime: The predictor's ``dua_mujoco._core.Runtime``.
         universe: Its pairs (to name the pairs not held).
+        held: ``(nheld,)`` the runtime's held ids (``runtime.ids``) if the caller has them.
     """
 
-    def __init__(self, runtime: Any, universe: PairUniverse) -> None:
+    def __init__(
+        self, runtime: Any, universe: PairUniverse, *, held: np.ndarray | None = None
+    ) -> None:
         self._rt = runtime
         self._universe = universe
         self.scheduler = runtime.schedule
         """The runtime's ``_core.Schedule`` (its ``deferred`` and ``params``)."""
         self.npairs = int(runtime.npair)
-        self._held = np.asarray(runtime.ids)
+        self._held = np.asarray(runtime.ids) if held is None else held
         self._all = self._held.size == self.npairs
 
     @property

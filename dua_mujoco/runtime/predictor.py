@@ -186,6 +186,7 @@ class Predictor(PlanFollowing):
         self.table_arrays = built.arrays
         """The tables the native runtime reads, by name (``runtime/table_arrays.py``)."""
         tables = _core.Tables.build(model, self.table_arrays)
+        self._held_ids: tuple[tuple[int, int], np.ndarray] | None = None
         self._rt = _core.Runtime(
             tables, model, list(self.universe.tables.geom_names), LOG_STEPS, LOG_MIN
         )
@@ -360,7 +361,12 @@ class Predictor(PlanFollowing):
     def pair_state(self) -> PairState:
         """The schedule's state of every sphere pair, by the model's pair ids (pruned or not)."""
         self._require_reset()
-        return PairState(self._rt, self.universe)
+        # The held ids are copied out of the runtime only when its held set changed (the monitor
+        # asks for the state several times a step; each copy was O(held pairs)).
+        version = (self._rt.held_version, self._rt.universe_version)
+        if self._held_ids is None or self._held_ids[0] != version:
+            self._held_ids = (version, np.asarray(self._rt.ids))
+        return PairState(self._rt, self.universe, held=self._held_ids[1])
 
     @property
     def geom_pairs(self) -> GeomPairs:

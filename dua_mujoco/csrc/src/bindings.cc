@@ -148,16 +148,27 @@ Out<double> OverPoints(const In<double>& points, const In<double>& shapes, const
 
 // The instant the kinematics kernel reads, as arrays (MjData's geom_xpos (ngeom, 3), geom_xmat
 // (ngeom, 9), cvel (nbody, 6), subtree_com (nbody, 3), the mocap roots' twists (nbody, 6) and xpos
-// (nbody, 3)), and point records (n, 8) that index inside it.
+// (nbody, 3)), its shapes checked; *ngeom and *nbody receive its sizes.
+dua_frame FrameOfShapes(const In<double>& pos, const In<double>& mat, const In<double>& twist,
+                        const In<double>& twist_ref, const In<double>& root_twist,
+                        const In<double>& root_origin, int64_t* ngeom, int64_t* nbody) {
+  *ngeom = Size(pos) / 3, *nbody = Size(twist) / 6;
+  Require(Size(pos) == 3 * *ngeom && Size(mat) == 9 * *ngeom && Size(twist) == 6 * *nbody &&
+              Size(twist_ref) == 3 * *nbody && Size(root_twist) == 6 * *nbody &&
+              Size(root_origin) == 3 * *nbody,
+          "the frame's arrays must be (ngeom, 3), (ngeom, 9), (nbody, 6), (nbody, 3), (nbody, 6), "
+          "(nbody, 3)");
+  return {pos.data(),       mat.data(),        twist.data(),
+          twist_ref.data(), root_twist.data(), root_origin.data()};
+}
+
+// FrameOfShapes, and point records (n, 8) that index inside it.
 dua_frame FrameOfArrays(const In<double>& pos, const In<double>& mat, const In<double>& twist,
                         const In<double>& twist_ref, const In<double>& root_twist,
                         const In<double>& root_origin, const In<double>& points) {
-  const int64_t ngeom = Size(pos) / 3, nbody = Size(twist) / 6;
-  Require(Size(pos) == 3 * ngeom && Size(mat) == 9 * ngeom && Size(twist) == 6 * nbody &&
-              Size(twist_ref) == 3 * nbody && Size(root_twist) == 6 * nbody &&
-              Size(root_origin) == 3 * nbody,
-          "the frame's arrays must be (ngeom, 3), (ngeom, 9), (nbody, 6), (nbody, 3), (nbody, 6), "
-          "(nbody, 3)");
+  int64_t ngeom, nbody;
+  const dua_frame f =
+      FrameOfShapes(pos, mat, twist, twist_ref, root_twist, root_origin, &ngeom, &nbody);
   const int64_t n = Size(points) / kSphereNcol;
   Require(Size(points) == n * kSphereNcol, "point records must be (n, 8)");
   for (int64_t i = 0; i < n; ++i) {
@@ -172,8 +183,7 @@ dua_frame FrameOfArrays(const In<double>& pos, const In<double>& mat, const In<d
                          " bodies: pass the MjData of the model the spheres were built for");
     }
   }
-  return {pos.data(),       mat.data(),        twist.data(),
-          twist_ref.data(), root_twist.data(), root_origin.data()};
+  return f;
 }
 
 Out<double> RigidPoints(const In<double>& points, const In<double>& pos, const In<double>& mat,
@@ -209,6 +219,66 @@ int64_t CheckPoints(const In<double>& points, const In<double>& pos, const In<do
   return dua_check_points(points.data(), n, &f, prev.data(), cur.data(), nprev, h, accel.data(),
                           disc.data(), Size(speed) ? speed.data() : nullptr, check_disc.data(),
                           rtol, values.data(), broken.data());
+}
+
+// dua_check_groups. Every call checks what its reads rest on (the group records, which alone
+// index the frame); the first (update 0) also that each group's points are on its record's frame,
+// body and root, with its bounds (they must not change after it).
+int64_t CheckGroups(const In<double>& points, const In<double>& pos, const In<double>& mat,
+                    const In<double>& twist, const In<double>& twist_ref,
+                    const In<double>& root_twist, const In<double>& root_origin,
+                    const In<int64_t>& group_start, const In<double>& groups, InOut<double> frames,
+                    InOut<int64_t> computed, int64_t update, InOut<double> prev, InOut<double> cur,
+                    int64_t nprev, double h, double h_prev, const In<double>& accel,
+                    const In<double>& disc, const In<double>& speed, const In<uint8_t>& check_disc,
+                    double rtol, InOut<double> values, InOut<uint8_t> broken) {
+  const int64_t n = Size(points) / kSphereNcol, ngroup = Size(group_start) - 1;
+  Require(Size(points) == n * kSphereNcol, "point records must be (n, 8)");
+  Require(Size(prev) == 9 * n && Size(cur) == 9 * n && Size(accel) == n && Size(disc) == n &&
+              (Size(speed) == 0 || Size(speed) == n) && Size(check_disc) == n &&
+              Size(values) == 3 * n && Size(broken) == 3 * n,
+          "the check's arrays do not fit its points");
+  Require(ngroup >= 0 && Size(groups) == kGroupNcol * ngroup &&
+              Size(frames) == 2 * kFrameRowLen * ngroup && Size(computed) == ngroup,
+          "groups, frames and computed must be (ngroup, 10), (ngroup, 2, 30), (ngroup,)");
+  Require(update >= 0 && h > 0.0 && h_prev > 0.0, "update must be >= 0 and h, h_prev > 0");
+  const int64_t* start = group_start.data();
+  Require(ngroup == 0 ? n == 0 : start[0] == 0 && start[ngroup] == n,
+          "group_start must run from 0 to the points' count");
+  int64_t ngeom, nbody;
+  const dua_frame f =
+      FrameOfShapes(pos, mat, twist, twist_ref, root_twist, root_origin, &ngeom, &nbody);
+  for (int64_t g = 0; g < ngroup; ++g) {
+    const double* rec = groups.data() + kGroupNcol * g;
+    const bool ok = start[g] < start[g + 1] && rec[kGroupFrame] >= 0 && rec[kGroupFrame] < ngeom &&
+                    rec[kGroupBody] >= 0 && rec[kGroupBody] < nbody && rec[kGroupRoot] >= 0 &&
+                    rec[kGroupRoot] < nbody;
+    if (!ok) {
+      Require(false, "group " + std::to_string(g) + " is empty or references frame " +
+                         std::to_string(rec[kGroupFrame]) + " and body " +
+                         std::to_string(rec[kGroupBody]) + " but the data has " +
+                         std::to_string(ngeom) + " frames and " + std::to_string(nbody) +
+                         " bodies: pass the MjData of the model the points were built for");
+    }
+  }
+  for (int64_t g = 0; update == 0 && g < ngroup; ++g) {
+    const double* rec = groups.data() + kGroupNcol * g;
+    for (int64_t i = start[g]; i < start[g + 1]; ++i) {
+      const double* p = points.data() + kSphereNcol * i;
+      const double v = Size(speed) ? speed.data()[i] : std::numeric_limits<double>::infinity();
+      const bool same = p[kSphereFrame] == rec[kGroupFrame] && p[kSphereBody] == rec[kGroupBody] &&
+                        p[kSphereRoot] == rec[kGroupRoot] && accel.data()[i] == rec[kGroupAccel] &&
+                        disc.data()[i] == rec[kGroupDisc] && v == rec[kGroupSpeed];
+      if (!same) {
+        Require(false, "point " + std::to_string(i) + " differs from its group " +
+                           std::to_string(g) + "'s record in frame, body, root or bounds");
+      }
+    }
+  }
+  return dua_check_groups(points.data(), &f, start, groups.data(), ngroup, frames.data(),
+                          computed.data(), update, prev.data(), cur.data(), nprev, h, h_prev,
+                          accel.data(), disc.data(), Size(speed) ? speed.data() : nullptr,
+                          check_disc.data(), rtol, values.data(), broken.data());
 }
 
 // ------------------------------------------------------------------------------- pair filter
@@ -1430,6 +1500,10 @@ NB_MODULE(_core, m) {
   m.def("check_points", &CheckPoints, "points"_a, "pos"_a, "mat"_a, "twist"_a, "twist_ref"_a,
         "root_twist"_a, "root_origin"_a, "prev"_a, "cur"_a, "nprev"_a, "h"_a, "accel"_a, "disc"_a,
         "speed"_a, "check_disc"_a, "rtol"_a, "values"_a, "broken"_a);
+  m.def("check_groups", &CheckGroups, "points"_a, "pos"_a, "mat"_a, "twist"_a, "twist_ref"_a,
+        "root_twist"_a, "root_origin"_a, "group_start"_a, "groups"_a, "frames"_a, "computed"_a,
+        "update"_a, "prev"_a, "cur"_a, "nprev"_a, "h"_a, "h_prev"_a, "accel"_a, "disc"_a, "speed"_a,
+        "check_disc"_a, "rtol"_a, "values"_a, "broken"_a);
   m.def(
       "index_by_row",
       [](const In<int64_t>& row_of_geom, const In<int64_t>& g1, const In<int64_t>& g2,

@@ -103,23 +103,23 @@ inline void GeomPoint(int64_t g, const dua_frame& f, const double* l, double* ou
   PosePoint(f.pos + 3 * g, f.mat + 9 * g, l, out);
 }
 
-// Centre and velocity of point i of a record table (sphere records, or the exact level's geom
-// records, whose first columns are the same): out[0:3] centre, out[3:6] velocity. The velocity
-// is the body twist [w; v_ref] about cvel's reference point (subtree_com of the root), plus the
-// twist of a mocap root (zero elsewhere).
-inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_frame& f,
-                       double* out) {
-  const double* rec = recs + i * ncol;
-  const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
-  GeomPoint(static_cast<int64_t>(rec[kSphereFrame]), f, rec + kSphereOffset, out);
-  const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
-  const double* tw = f.twist + 6 * b;
-  const double* ref = f.twist_ref + 3 * r;
+// The rows of a frame one point reads (its geom's pose, its body's twist, its root's twist_ref,
+// root_twist and root_origin), gathered in one row of kFrameRowLen (the monitor's screened check
+// keeps them to rebuild a point later: checks.cc).
+constexpr int kFrameR = 0, kFrameP = 9, kFrameTw = 12, kFrameRef = 18, kFrameRt = 21, kFrameRo = 27,
+              kFrameRowLen = 30;
+
+// Centre and velocity of point rec on the frame rows its RigidPoint reads (p, r: its geom's
+// pose; tw: its body's twist; ref, rt, ro: its root's twist_ref, root_twist, root_origin):
+// out[0:3] centre, out[3:6] velocity. The velocity is the body twist [w; v_ref] about cvel's
+// reference point (subtree_com of the root), plus the twist of a mocap root (zero elsewhere).
+inline void RigidPointOn(const double* rec, const double* p, const double* r, const double* tw,
+                         const double* ref, const double* rt, const double* ro, double* out) {
+  PosePoint(p, r, rec + kSphereOffset, out);
   const double dx = out[0] - ref[0], dy = out[1] - ref[1], dz = out[2] - ref[2];
   out[3] = tw[3] + tw[1] * dz - tw[2] * dy;
   out[4] = tw[4] + tw[2] * dx - tw[0] * dz;
   out[5] = tw[5] + tw[0] * dy - tw[1] * dx;
-  const double* rt = f.root_twist + 6 * r;
   // Whether some entry is not +-0 (NaN too), as rt[j] != 0.0 for some j, in one test of the
   // bits with the signs shifted out (zero but under a mocap root: six compares a point).
   uint64_t bits = 0;
@@ -129,12 +129,23 @@ inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_fr
     bits |= b;
   }
   if (bits << 1 != 0) {
-    const double* ro = f.root_origin + 3 * r;
     const double ex = out[0] - ro[0], ey = out[1] - ro[1], ez = out[2] - ro[2];
     out[3] += rt[3] + rt[1] * ez - rt[2] * ey;
     out[4] += rt[4] + rt[2] * ex - rt[0] * ez;
     out[5] += rt[5] + rt[0] * ey - rt[1] * ex;
   }
+}
+
+// RigidPointOn of point i of a record table (sphere records, or the exact level's geom records,
+// whose first columns are the same) on frame f.
+inline void RigidPoint(int64_t i, const double* recs, int64_t ncol, const dua_frame& f,
+                       double* out) {
+  const double* rec = recs + i * ncol;
+  const int64_t g = static_cast<int64_t>(rec[kSphereFrame]);
+  const int64_t b = static_cast<int64_t>(rec[kSphereBody]);
+  const int64_t r = static_cast<int64_t>(rec[kSphereRoot]);
+  RigidPointOn(rec, f.pos + 3 * g, f.mat + 9 * g, f.twist + 6 * b, f.twist_ref + 3 * r,
+               f.root_twist + 6 * r, f.root_origin + 3 * r, out);
 }
 
 // |w| r of geom g: how fast rotation can move its points away from translation.

@@ -21,6 +21,12 @@ constexpr int kKindSphere = 0, kKindHalfspace = 1, kKindShape = 2;
 constexpr int kSphereFrame = 0, kSphereBody = 1, kSphereOffset = 2, kSphereRoot = 5,
               kSphereNcol = 8;
 
+// The screened bound check's group records (build/kinematics.py's point groups): a ball holding
+// the group's points in their frame (centre, radius), the frame, body and root they share, and
+// their bounds (speed inf: none).
+constexpr int kGroupCentre = 0, kGroupRadius = 3, kGroupFrame = 4, kGroupBody = 5, kGroupRoot = 6,
+              kGroupAccel = 7, kGroupDisc = 8, kGroupSpeed = 9, kGroupNcol = 10;
+
 // Static shape records (pack_shapes), and their kinds (ShapeKind: MuJoCo's geom types).
 constexpr int kShapeKind = 0, kShapeSize = 1, kShapePos = 4, kShapeMat = 7, kShapeNcol = 16;
 // A mesh is held as its box (kind 7, MuJoCo's mesh code).

@@ -289,6 +289,23 @@ DUA_API int64_t dua_check_points(const double* points, int64_t n, const dua_fram
                                  const double* accel, const double* disc_bound,
                                  const double* speed_bound, const uint8_t* check_disc, double rtol,
                                  double* values, uint8_t* broken);
+// dua_check_points of the points in groups (group_start (ngroup + 1,): group g is points
+// group_start[g] .. group_start[g + 1] - 1; groups (ngroup, kGroupNcol): a ball in the frame
+// holding its points, and the frame, body, root and bounds they all share), screened: from the
+// third update on (nprev 2) a group whose motion over the last three updates keeps every point of
+// its ball within the bounds by more than the rounding is not measured (its broken rows are
+// cleared; its rows and values are left as they were), and the others are, with the same flags
+// and values as dua_check_points (docs/theory.md, "The monitor's screen"). frames (ngroup, 2,
+// 30): the frame rows each group read at the last two updates (slot update % 2 written), from
+// which a group's skipped rows are rebuilt; computed (ngroup,): the last update that measured
+// each group (start at -1). h_prev: the h of the previous update.
+DUA_API int64_t dua_check_groups(const double* points, const dua_frame* f,
+                                 const int64_t* group_start, const double* groups, int64_t ngroup,
+                                 double* frames, int64_t* computed, int64_t update, double* prev,
+                                 double* cur, int64_t nprev, double h, double h_prev,
+                                 const double* accel, const double* disc_bound,
+                                 const double* speed_bound, const uint8_t* check_disc, double rtol,
+                                 double* values, uint8_t* broken);
 
 // Backward-difference velocities of mocap bodies bodies[0:n] (poses xpos (nbody, 3), xquat
 // (nbody, 4)) against prev_pos (n, 3), prev_quat (n, 4), which are updated; linear and angular
