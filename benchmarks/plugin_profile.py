@@ -3,6 +3,7 @@
     python benchmarks/plugin_profile.py                          # every scene, both bounds
     python benchmarks/plugin_profile.py --scenes robot/g1 robot/yam --bounds 200
     python benchmarks/plugin_profile.py --json /tmp/profile.json # the rows, for later tables
+    python benchmarks/plugin_profile.py --tool callgrind --keep /tmp/cg  # callgrind_annotate them
 
 Per scene and bounds (``auto``: a pilot of random controls held 50 steps, seed 99, as
 ``benchmarks/plugin.py`` measures; or a declared ``accel`` in m/s^2, e.g. ``200``), the model
@@ -472,6 +473,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=2.0, help="perf: steps counted, in seconds")
     ap.add_argument("--rounds", type=int, default=3, help="perf: rounds (medians)")
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
+    ap.add_argument(
+        "--keep", type=Path, default=None, help="write the models and profiles here, kept"
+    )
     args = ap.parse_args(argv)
     sys.path.insert(0, str(HERE))
     from plugin import _scenes
@@ -480,7 +484,8 @@ def main(argv: list[str] | None = None) -> int:
     # The profiled processes load the profiling build (_run_child); this one, the installed one.
     CHILD_ENV["DUA_PROFILE_LIBRARY"] = str(profile_library())
     with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
+        folder = Path(tmp) if args.keep is None else args.keep
+        folder.mkdir(parents=True, exist_ok=True)
         jobs = []
         for scene in scenes:
             for bounds in args.bounds:
