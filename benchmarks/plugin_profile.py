@@ -3,6 +3,7 @@
     python benchmarks/plugin_profile.py                          # every scene, both bounds
     python benchmarks/plugin_profile.py --scenes robot/g1 robot/yam --bounds 200
     python benchmarks/plugin_profile.py --json /tmp/profile.json # the rows, for later tables
+    python benchmarks/plugin_profile.py --tool callgrind --keep /tmp/cg  # callgrind_annotate them
 
 Per scene and bounds (``auto``: a pilot of random controls held 50 steps, seed 99, as
 ``benchmarks/plugin.py`` measures; or a declared ``accel`` in m/s^2, e.g. ``200``), the model
@@ -14,14 +15,18 @@ only inside ``mj_step`` (``--toggle-collect``), so Python's own work between ste
 counted, and its counts do not depend on the machine's load.
 
 The table splits the plugin's instructions a step by where they go, from each function's
-inclusive count (the native functions are separate symbols in the release build, once installed
-with ``-C install.strip=false``: scikit-build-core strips the library it installs):
+inclusive count. The release build inlines most of the step into ``dua_step`` (the gather, the
+check, the exact pass), so the profile is of a build of its own: the native core compiled with
+``-DDUA_PROFILE=ON`` (each section's function out of line, ``DUA_SECTION`` in ``lanes.h``, and
+debug information) into ``build/profile`` (made, or brought up to date, by this script: about a
+minute the first time) and loaded by the profiled process before the installed one. The
+plugin's tables are built by the installed package, which reads them the same way.
 
 * ``check``: the violation check of every body (``CheckBodies``, and the pairs it makes due);
 * ``select``/``reinsert``: the schedule (the deadline wheel);
-* ``gather``: each due pair's state read from MjData (``TauOf`` less the kernels and the exact
-  level);
-* ``sphere tau``: the tau kernels (spheres four at a time, planes, static shapes);
+* ``gather``: each due pair's state read from MjData (``TauRows`` less the kernels it calls);
+* ``sphere tau``: the tau kernels ``TauRows`` calls (spheres four at a time, planes, static
+  shapes);
 * ``geomDistance``: MuJoCo's ``mj_geomDistance`` calls of the exact level;
 * ``axes``: the exact level's supports along a direction (``AxisTau``);
 * ``exact rest``: the rest of the exact level (the contact index, the geoms' velocities);
@@ -55,7 +60,18 @@ HERE = Path(__file__).resolve().parent
 # Runs under the profiler: steps each model; callgrind dumps before each call of the marker
 # (--dump-before), perf counts only between "enable" and "disable" on its control fifo.
 CHILD = r"""
-import json, os, sys
+import ctypes, glob, importlib.util, json, os, sys
+# The profiling build, loaded before anything asks for libdua_mujoco.so by its name (the binding
+# then links to it): libmujoco first (the build's run path holds only in an installed tree), and
+# MuJoCo's bundled plugins before it, as `import mujoco` loads them, so that every plugin gets
+# the slot it had when the models were saved.
+where = os.path.dirname(importlib.util.find_spec("mujoco").origin)
+ctypes.CDLL(glob.glob(os.path.join(where, "libmujoco.so.*"))[0], mode=ctypes.RTLD_GLOBAL)
+for folder, _, names in os.walk(os.path.join(where, "plugin")):
+    for name in names:
+        if os.path.splitext(name)[-1] == ".so":
+            ctypes.CDLL(os.path.join(folder, name))
+ctypes.CDLL(os.environ["DUA_PROFILE_LIBRARY"], mode=ctypes.RTLD_GLOBAL)
 import mujoco
 from dua_mujoco.models.scenes import make_controller
 
@@ -103,20 +119,52 @@ print(json.dumps(dict(phases=phases)), flush=True)
 SECTIONS = (
     ("geomDistance", ("mj_geomDistance",)),
     ("axes", ("AxisTau",)),
-    ("exact rest", ("ExactPass", "ExactTau")),
-    ("sphere tau", ("TauSpeedRows", "TauStatic", "TauHalfspace", "TauTerrainSphere")),
-    ("gather", ("::TauOf",)),
-    ("check", ("dua_violation_pass", "CheckBodies", "dua_make_due")),
+    ("exact rest", ("ExactPass",)),
+    (
+        "sphere tau",
+        ("TauSpeedFour", "TauStatic", "TauHalfspace", "WithGapSpeed", "TauTerrainSphere"),
+    ),
+    ("gather", ("TauRows",)),
+    ("check", ("dua_violation_pass",)),
     ("select", ("dua_select",)),
     ("reinsert", ("dua_reinsert",)),
     ("fixed", ("lambda(mjModel_ const*, mjData_*, int, int)",)),
 )
 COMPUTE = SECTIONS[-1][1][0]
-# scikit-build-core strips the installed library: its internal functions are addresses then.
 STRIPPED = (
-    "the plugin's functions have no names in the profile (libdua_mujoco.so installed stripped): "
-    "reinstall with `pip install -e . --no-build-isolation --no-deps -C install.strip=false`"
+    "the plugin's sections have no names in the profile: is {library} a DUA_PROFILE=ON build "
+    "(remove build/profile to make it again)?"
 )
+PROFILE_BUILD = HERE.parent / "build" / "profile"
+CHILD_ENV: dict[str, str] = {}
+
+
+def profile_library() -> Path:
+    """The native core built for the profile (DUA_PROFILE=ON) in build/profile: made, or brought
+    up to date with the sources, here."""
+    src = HERE.parent / "dua_mujoco" / "csrc"
+    if not (PROFILE_BUILD / "CMakeCache.txt").exists():
+        subprocess.run(
+            [
+                "cmake",
+                "-S",
+                str(src),
+                "-B",
+                str(PROFILE_BUILD),
+                "-DDUA_PROFILE=ON",
+                f"-DPython_EXECUTABLE={sys.executable}",
+            ],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
+    subprocess.run(
+        ["cmake", "--build", str(PROFILE_BUILD), "--target", "dua_mujoco", "-j", "2"],
+        check=True,
+        stdout=subprocess.DEVNULL,
+    )
+    return PROFILE_BUILD / "libdua_mujoco.so"
+
+
 HEADS = [name for name, _ in SECTIONS] + ["mujoco"]
 
 
@@ -185,16 +233,16 @@ def callgrind_sections(dump: Path, plain: Path, steps: int) -> dict[str, float]:
     mj_plain = parse_callgrind(plain)[0].get("mj_step", 0)
     out = {"geomDistance": _sum(incl, SECTIONS[0][1])}
     out["axes"] = _sum(incl, SECTIONS[1][1])
-    out["exact rest"] = _sum(incl, ("ExactPass",)) - out["geomDistance"] - out["axes"]
-    kernels = sum(v for (a, b), v in edges.items() if "::TauOf" in a and _match(b, SECTIONS[3][1]))
+    out["exact rest"] = _sum(incl, SECTIONS[2][1]) - out["geomDistance"] - out["axes"]
+    kernels = sum(v for (a, b), v in edges.items() if "TauRows" in a and _match(b, SECTIONS[3][1]))
     out["sphere tau"] = kernels
-    out["gather"] = _sum(incl, SECTIONS[4][1]) - kernels - _sum(incl, ("ExactPass",))
-    out["check"] = _sum(incl, ("dua_violation_pass",))
+    out["gather"] = _sum(incl, SECTIONS[4][1]) - kernels
+    out["check"] = _sum(incl, SECTIONS[5][1])
     out["select"] = _sum(incl, ("dua_select",))
     out["reinsert"] = _sum(incl, ("dua_reinsert",))
     compute = _sum(incl, (COMPUTE,))
-    if not compute:
-        raise RuntimeError(STRIPPED)
+    if not compute or not _sum(incl, SECTIONS[5][1] + SECTIONS[4][1]):
+        raise RuntimeError(STRIPPED.format(library=CHILD_ENV.get("DUA_PROFILE_LIBRARY")))
     out["fixed"] = compute - sum(out.values())
     out["mujoco"] = mj_step - mj_plain - compute
     out = {k: v / steps for k, v in out.items()}
@@ -240,7 +288,7 @@ def perf_sections(data: Path, plain: Path, steps: int) -> dict[str, float]:
                 break
     compute = sum(out.values())
     if not out["fixed"]:
-        raise RuntimeError(STRIPPED)
+        raise RuntimeError(STRIPPED.format(library=CHILD_ENV.get("DUA_PROFILE_LIBRARY")))
     out["mujoco"] = mj_step - mj_plain - compute
     out = {k: v * 1e-9 / steps for k, v in out.items()}
     out["mj_step_plain"] = mj_plain * 1e-9 / steps
@@ -306,7 +354,7 @@ def _run_child(prefix: list[str], warmup: int, steps: int, control: str, paths: 
     """The child under ``prefix`` (the profiler's command); its stats by model path, and the
     phases in order."""
     cmd = [*prefix, sys.executable, "-c", CHILD, str(warmup), str(steps), control, *paths]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **CHILD_ENV})
     if proc.returncode:
         raise RuntimeError(f"{' '.join(cmd[:4])} ... failed:\n{proc.stderr[-3000:]}")
     lines = [json.loads(x) for x in proc.stdout.splitlines() if x.startswith("{")]
@@ -425,13 +473,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=2.0, help="perf: steps counted, in seconds")
     ap.add_argument("--rounds", type=int, default=3, help="perf: rounds (medians)")
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
+    ap.add_argument(
+        "--keep", type=Path, default=None, help="write the models and profiles here, kept"
+    )
     args = ap.parse_args(argv)
     sys.path.insert(0, str(HERE))
     from plugin import _scenes
 
     scenes = _scenes(args.scenes)
+    # The profiled processes load the profiling build (_run_child); this one, the installed one.
+    CHILD_ENV["DUA_PROFILE_LIBRARY"] = str(profile_library())
     with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
+        folder = Path(tmp) if args.keep is None else args.keep
+        folder.mkdir(parents=True, exist_ok=True)
         jobs = []
         for scene in scenes:
             for bounds in args.bounds:

@@ -21,6 +21,14 @@
 #define DUA_LANES_CLONES
 #endif
 #define DUA_INLINE inline __attribute__((always_inline))
+// A section of the step the profiler splits the plugin's cost by (benchmarks/plugin_profile.py):
+// its own symbol in a profiling build (CMake's DUA_PROFILE=ON), so that its inclusive count is
+// read from the profile; inlined as the compiler sees fit in every other build.
+#ifdef DUA_PROFILE
+#define DUA_SECTION __attribute__((noinline))
+#else
+#define DUA_SECTION
+#endif
 
 namespace dua {
 

@@ -232,7 +232,7 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
 // Record every body's box state and check the motion hypotheses over the last period, four
 // bodies at a time unless !lanes (the same values as one at a time, lanes.h: the reference the
 // tests hold the lanes to); the flagged bodies' rows go to ev.flagged. Returns their number.
-int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool lanes = true) {
+DUA_SECTION int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool lanes = true) {
   const double h = ev.params[0], rtol = ev.params[1];
   const double inv_h = 1.0 / h;  // a product per chord, not a division
   const int64_t nprev = ev.meta[kMNprev];
@@ -348,9 +348,9 @@ namespace {
 // tau of the pair's separation along unit n (first geom to second):
 // d_n + (n.r - spin) t - delta t - A t^2 / 2, d_n from the supports, r the origins' relative
 // velocity.
-double AxisTau(double n0, double n1, double n2, int mode, double r0, double r1, double r2,
-               double spin, const double* pair, double* xrec, const dua_exact& x,
-               const dua_frame& f) {
+DUA_SECTION double AxisTau(double n0, double n1, double n2, int mode, double r0, double r1,
+                           double r2, double spin, const double* pair, double* xrec,
+                           const dua_exact& x, const dua_frame& f) {
   const int64_t g2 = static_cast<int64_t>(xrec[kXG2]);
   double low_b;
   int64_t top;
@@ -549,8 +549,8 @@ double ExactTau(const double* pair, double* xrec, double* witness, double coarse
 
 // Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below,
 // except where skip[k] (a plan's verdicts; skip null: none).
-void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
-               const uint8_t* skip = nullptr) {
+DUA_SECTION void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
+                           const uint8_t* skip = nullptr) {
   if (!a.exact.on) return;
   a.exact.contact_count = -1;  // the contacts are indexed at the first look that needs them
   // Below this a verdict alarms, and the deadline and select-all schedules treat every alarming
@@ -609,8 +609,8 @@ struct FreePoints {
 // shape), then its tau; sphere pairs four at a time, as each fourth one is gathered. Returns -1,
 // or the first pair (in ids's order) whose state is not finite (out is then partly written).
 template <class Points>
-int64_t TauRows(const double* pairs, const double* shapes, const Points& points, const int64_t* ids,
-                int64_t count, double* out) {
+DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
+                            const int64_t* ids, int64_t count, double* out) {
   // Up to four sphere pairs' rows as TauSpeedFour reads them (relative state, then bounds), and
   // where each goes in out: passed to the kernel straight from here, not through a buffer of
   // every row (each row written, read back and copied again was a third of the gather).
@@ -723,7 +723,7 @@ int64_t dua_tau_free(const double* pairs, const double* shapes, const double* ce
   return dua::TauRows(pairs, shapes, dua::FreePoints{centers, velocities, planes}, ids, count, out);
 }
 
-int64_t dua_violation_pass(dua_step_args* a, int64_t n) {
+DUA_SECTION int64_t dua_violation_pass(dua_step_args* a, int64_t n) {
   const dua_events& ev = a->events;
   if (ev.nbody == 0) return 0;
   const int64_t count = dua::CheckBodies(ev, a->frame);
