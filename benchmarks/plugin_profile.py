@@ -60,18 +60,7 @@ HERE = Path(__file__).resolve().parent
 # Runs under the profiler: steps each model; callgrind dumps before each call of the marker
 # (--dump-before), perf counts only between "enable" and "disable" on its control fifo.
 CHILD = r"""
-import ctypes, glob, importlib.util, json, os, sys
-# The profiling build, loaded before anything asks for libdua_mujoco.so by its name (the binding
-# then links to it): libmujoco first (the build's run path holds only in an installed tree), and
-# MuJoCo's bundled plugins before it, as `import mujoco` loads them, so that every plugin gets
-# the slot it had when the models were saved.
-where = os.path.dirname(importlib.util.find_spec("mujoco").origin)
-ctypes.CDLL(glob.glob(os.path.join(where, "libmujoco.so.*"))[0], mode=ctypes.RTLD_GLOBAL)
-for folder, _, names in os.walk(os.path.join(where, "plugin")):
-    for name in names:
-        if os.path.splitext(name)[-1] == ".so":
-            ctypes.CDLL(os.path.join(folder, name))
-ctypes.CDLL(os.environ["DUA_PROFILE_LIBRARY"], mode=ctypes.RTLD_GLOBAL)
+import json, sys
 import mujoco
 from dua_mujoco.models.scenes import make_controller
 
@@ -242,7 +231,7 @@ def callgrind_sections(dump: Path, plain: Path, steps: int) -> dict[str, float]:
     out["reinsert"] = _sum(incl, ("dua_reinsert",))
     compute = _sum(incl, (COMPUTE,))
     if not compute or not _sum(incl, SECTIONS[5][1] + SECTIONS[4][1]):
-        raise RuntimeError(STRIPPED.format(library=CHILD_ENV.get("DUA_PROFILE_LIBRARY")))
+        raise RuntimeError(STRIPPED.format(library=PROFILE_BUILD / "libdua_mujoco.so"))
     out["fixed"] = compute - sum(out.values())
     out["mujoco"] = mj_step - mj_plain - compute
     out = {k: v / steps for k, v in out.items()}
@@ -288,7 +277,7 @@ def perf_sections(data: Path, plain: Path, steps: int) -> dict[str, float]:
                 break
     compute = sum(out.values())
     if not out["fixed"]:
-        raise RuntimeError(STRIPPED.format(library=CHILD_ENV.get("DUA_PROFILE_LIBRARY")))
+        raise RuntimeError(STRIPPED.format(library=PROFILE_BUILD / "libdua_mujoco.so"))
     out["mujoco"] = mj_step - mj_plain - compute
     out = {k: v * 1e-9 / steps for k, v in out.items()}
     out["mj_step_plain"] = mj_plain * 1e-9 / steps
@@ -482,7 +471,11 @@ def main(argv: list[str] | None = None) -> int:
 
     scenes = _scenes(args.scenes)
     # The profiled processes load the profiling build (_run_child); this one, the installed one.
-    CHILD_ENV["DUA_PROFILE_LIBRARY"] = str(profile_library())
+    # The binding finds libdua_mujoco.so through its RUNPATH, which LD_LIBRARY_PATH precedes: the
+    # child's `import mujoco` loads MuJoCo's bundled plugins, then the entry point the profiling
+    # build, so every plugin gets the slot it had when the models were saved.
+    path = [str(profile_library().parent), os.environ.get("LD_LIBRARY_PATH", "")]
+    CHILD_ENV["LD_LIBRARY_PATH"] = os.pathsep.join(p for p in path if p)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) if args.keep is None else args.keep
         folder.mkdir(parents=True, exist_ok=True)
