@@ -53,6 +53,7 @@ if TYPE_CHECKING:
         deviation_profile,
         plan_deviation,
         plan_from_controls,
+        relative_profile,
     )
     from dua_mujoco.runtime.predictor import Alarms, Predictor
     from dua_mujoco.runtime.table_arrays import pilot_bounds
@@ -70,6 +71,7 @@ _LAZY = {
     "deviation_profile": "dua_mujoco.runtime.plans",
     "plan_deviation": "dua_mujoco.runtime.plans",
     "plan_from_controls": "dua_mujoco.runtime.plans",
+    "relative_profile": "dua_mujoco.runtime.plans",
     "PilotOptions": "dua_mujoco.build.options",
     "ScheduleOptions": "dua_mujoco.build.options",
     "UrgencyOptions": "dua_mujoco.build.options",
@@ -141,6 +143,7 @@ __all__ = [
     "plan_deviation",
     "plan_from_controls",
     "plugin_outputs",
+    "relative_profile",
     "run",
     "standing_pairs",
     "time_to_collision",

@@ -38,17 +38,19 @@ from dua_mujoco.build.kinematics import pack_spheres
 from dua_mujoco.build.tables import check_model
 from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
-from dua_mujoco.runtime.flightplan import Bodies, finite_rows
+from dua_mujoco.runtime.flightplan import Bodies, Relative, finite_rows
 
 if TYPE_CHECKING:
     from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
     "PilotPlan",
+    "RelativeProfile",
     "Replanner",
     "deviation_profile",
     "plan_deviation",
     "plan_from_controls",
+    "relative_profile",
 ]
 
 Policy = Callable[[mujoco.MjModel, mujoco.MjData], npt.ArrayLike | None]
@@ -239,6 +241,7 @@ class Replanner:
         planner: ``planner(model, data, steps)`` returning the plan (:data:`Planner`), e.g. a
             rollout of the robot's own controller on a model where people do not collide; None
             for :func:`plan_from_controls` of a copy of ``controller``.
+        relative: ``set_plan``'s relative deviations (:func:`relative_profile`; None: none).
 
     Attributes:
         knots: Knots a plan: ``every`` plus the horizon's physics steps (alarm horizon and
@@ -258,6 +261,7 @@ class Replanner:
         deviation: npt.ArrayLike = 0.0,
         bodies: Bodies = None,
         planner: Planner | None = None,
+        relative: Relative = None,
     ) -> None:
         h = float(predictor.model.opt.timestep)
         ahead = (predictor.alarm_periods + predictor.latency) * predictor.period
@@ -269,6 +273,7 @@ class Replanner:
         self.controller = controller
         self.deviation = deviation
         self.bodies = bodies
+        self.relative = relative
         self.planner: Planner = planner or (
             lambda m, d, steps: plan_from_controls(m, d, copy.deepcopy(controller), steps=steps)
         )
@@ -285,7 +290,13 @@ class Replanner:
             t0 = time.thread_time()
             qpos = self.planner(model, data, self.knots - 1)
             t1 = time.thread_time()
-            p.set_plan(qpos, deviation=self.deviation, bodies=self.bodies, start=float(data.time))
+            p.set_plan(
+                qpos,
+                deviation=self.deviation,
+                bodies=self.bodies,
+                start=float(data.time),
+                relative=self.relative,
+            )
             self.set_plan_seconds += time.thread_time() - t1
             self.planner_seconds += t1 - t0
             self.plans += 1
@@ -399,28 +410,62 @@ def deviation_profile(
             the value).
     """
     check_model(model)
+    geom, body, offset = _check_points(model, points)
+    # The runtime's own measure (PoseDeviation: the step's check of a plan takes it at the same
+    # points), on the points as sphere records.
+    records = pack_spheres(geom, body, offset, model.body_rootid)
+    nbody = int(model.nbody)
+    cols = _columns(body, nbody, geom.size)
+    profile = np.zeros((0, nbody))
+    for ages, (act_pos, act_mat), planned in _pilot(model, qpos, plans, safety):
+        dist = _core.plan_deviation(records, act_pos, act_mat, *planned)  # (n, npts)
+        profile = _file(profile, ages, _per_column(dist, cols))
+    return float(safety) * np.maximum.accumulate(profile, axis=0)
+
+
+def _columns(owner: np.ndarray, nowner: int, npts: int) -> np.ndarray:
+    """``(nowner, width)`` each owner's points as columns of an index (``npts``: a padded
+    column for owners without points)."""
+    counts = np.bincount(owner, minlength=nowner)
+    width = max(int(counts.max()) if counts.size else 0, 1)
+    order = np.argsort(owner, kind="stable")
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    cols = np.full((nowner, width), npts, dtype=np.int64)
+    rank = np.arange(npts) - first[owner[order]]
+    cols[owner[order], rank] = order
+    return cols
+
+
+def _per_column(dist: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``(n, nowner)`` the largest of each owner's points' ``(n, npts)`` distances (0: none)."""
+    pad = np.concatenate([dist, np.zeros((dist.shape[0], 1))], axis=1)
+    return np.asarray(pad[:, cols].max(axis=2))
+
+
+def _file(profile: np.ndarray, ages: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``profile`` (grown to the largest age) raised to ``rows`` at their ``ages``."""
+    length = int(ages[-1]) + 1
+    if profile.shape[0] < length:
+        more = np.zeros((length - profile.shape[0], profile.shape[1]))
+        profile = np.concatenate([profile, more])
+    np.maximum.at(profile, ages, rows)
+    return profile
+
+
+def _pilot(
+    model: mujoco.MjModel, qpos: npt.ArrayLike, plans: Iterable[Any], safety: float
+) -> Iterable[tuple[np.ndarray, tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]]:
+    """Per plan of a pilot (checked): its knots' ages past its origin, the pilot's geom poses
+    at those knots and the plan's (``(n, ngeom, 3)`` and ``(n, ngeom, 9)`` each)."""
     actual = finite_rows("qpos", qpos, model.nq, "nq", "qpos a physics step")
     if check_number("safety", safety) < 1.0:
         raise InvalidInputError(
             f"safety = {safety!r} is invalid: pass a finite factor >= 1 (a factor below 1 "
             "would shrink the deviations measured)."
         )
-    geom, body, offset = _check_points(model, points)
-    # The runtime's own measure (PoseDeviation: the step's check of a plan takes it at the same
-    # points), on the points as sphere records.
-    records = pack_spheres(geom, body, offset, model.body_rootid)
     poses = _Poses(model)
-    T, nbody = actual.shape[0], int(model.nbody)
+    T = actual.shape[0]
     where = poses(actual)
-    # Each body's points as columns of an index (npts: a padded zero for bodies without points).
-    counts = np.bincount(body, minlength=nbody)
-    width = max(int(counts.max()) if counts.size else 0, 1)
-    order = np.argsort(body, kind="stable")
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    cols = np.full((nbody, width), geom.size, dtype=np.int64)
-    rank = np.arange(geom.size) - first[body[order]]
-    cols[body[order], rank] = order
-    profile = np.zeros((0, nbody))
     measured = 0
     for i, raw in enumerate(plans):
         plan = raw if isinstance(raw, PilotPlan) else PilotPlan(*raw)
@@ -428,24 +473,142 @@ def deviation_profile(
         start = _int(f"plans[{i}].start", plan.start, 0, T - 1)
         origin = _int(f"plans[{i}].origin", plan.origin, 0, q.shape[0])
         n = min(q.shape[0], T - start)
-        planned = poses(q[:n])
-        dist = _core.plan_deviation(
-            records, where[0][start : start + n], where[1][start : start + n], *planned
-        )  # (n, npts)
-        pad = np.concatenate([dist, np.zeros((n, 1))], axis=1)
-        per_body = pad[:, cols].max(axis=2)  # (n, nbody)
         ages = np.maximum(np.arange(n) - origin, 0)
-        length = int(ages[-1]) + 1
-        if profile.shape[0] < length:
-            profile = np.concatenate([profile, np.zeros((length - profile.shape[0], nbody))])
-        np.maximum.at(profile, ages, per_body)
+        yield ages, (where[0][start : start + n], where[1][start : start + n]), poses(q[:n])
         measured += 1
     if measured == 0:
         raise InvalidInputError(
             "plans is empty: pass the plans made along the pilot run (PilotPlan(start, qpos, "
             "origin))."
         )
-    return float(safety) * np.maximum.accumulate(profile, axis=0)
+
+
+class RelativeProfile(NamedTuple):
+    """Relative deviations by knots past a plan's origin (:func:`relative_profile`).
+
+    Attributes:
+        pairs: ``(m, 2)`` body pairs ``(a, b)``, ``a < b``.
+        deviation: ``(L, m)`` metres, row ``a`` the bound ``a`` knots past the origin on how far
+            any point of ``b``'s box strays, in ``a``'s frame, from its planned place there.
+    """
+
+    pairs: np.ndarray
+    deviation: np.ndarray
+
+    def relative(self, knots: int, *, origin: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """``set_plan``'s ``relative`` for a plan of ``knots`` knots (as :func:`plan_deviation`
+        gives its ``deviation``)."""
+        return self.pairs, plan_deviation(self.deviation, knots, origin=origin)
+
+
+def relative_profile(
+    model: mujoco.MjModel,
+    qpos: npt.ArrayLike,
+    plans: Iterable[PilotPlan | tuple[int, npt.ArrayLike] | tuple[int, npt.ArrayLike, int]],
+    *,
+    points: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike],
+    geom_pairs: tuple[npt.ArrayLike, npt.ArrayLike],
+    profile: npt.ArrayLike,
+    safety: float = 2.0,
+) -> RelativeProfile:
+    """Relative deviations of the body pairs whose geoms may meet, from a pilot run.
+
+    Two links that move together carry the whole arm's drift in each of their own deviations
+    ``D_a + D_b``, though their distance hardly changes. Distance is invariant under a rigid
+    motion, so a pair's distance is also its distance in ``a``'s frame, where ``b`` stands at
+    its pose relative to ``a``; against the plan's relative pose, every point of ``b`` moves by
+    at most the relative deviation ``D_ab`` (docs/theory.md, Lemma 8.2d). For each body pair
+    ``(a, b)`` of two moving bodies with an active geom pair between them, this measures
+    ``D_ab`` as :func:`deviation_profile` measures ``D_b`` (the same corner measure at ``b``'s
+    bound points, in the frame of ``a``'s, by age, made monotone, times ``safety``), and keeps
+    the pairs where it is below ``D_a + D_b`` of ``profile`` at some age (elsewhere the plan
+    takes the sum anyway): the table stays as small as the pairs it tightens.
+
+    Args:
+        model: The model.
+        qpos: ``(T, nq)`` the pilot's joint positions.
+        plans: The plans made along it, as :func:`deviation_profile` takes them.
+        points: ``Predictor.bound_points``.
+        geom_pairs: ``(geom1, geom2)`` the predictor's active geom pairs
+            (``Predictor.geom_pairs``).
+        profile: ``(L, nbody)`` :func:`deviation_profile` of the same pilot and plans.
+        safety: The factor on the measured maxima (``>= 1``), as ``profile``'s.
+
+    Returns:
+        The pairs kept and their ``(L, m)`` deviations: ``set_plan(...,
+        relative=rel.relative(knots))``.
+
+    Raises:
+        ShapeError: A shape does not fit the model, or ``profile`` another pilot's ages.
+        InvalidInputError: As :func:`deviation_profile`.
+    """
+    check_model(model)
+    geom, body, offset = _check_points(model, points)
+    sums = np.asarray(profile, dtype=np.float64)
+    if sums.ndim != 2 or sums.shape[1] != model.nbody:
+        raise ShapeError(
+            f"profile has shape {sums.shape}; expected (L, nbody) = (L, {model.nbody}): "
+            "deviation_profile's of the same pilot."
+        )
+    candidates = _body_pairs(model, geom_pairs, np.unique(body))
+    # Each body's frame (the geom its points are on) and its points.
+    frame = np.full(model.nbody, -1, dtype=np.int64)
+    frame[body] = geom
+    rel = np.zeros((0, candidates.shape[0]))
+    a, b = candidates[:, 0], candidates[:, 1]
+    # b's points once per pair with b second, their frame column the pair's (the poses below
+    # are b's relative to a's frame, one column a pair).
+    mine = [np.flatnonzero(body == bb) for bb in b.tolist()]
+    point = np.concatenate([*mine, np.zeros(0, np.int64)])
+    owner = np.repeat(np.arange(b.size), [m.size for m in mine])
+    records = pack_spheres(owner, body[point], offset[point], model.body_rootid)
+    cols = _columns(owner, b.size, point.size)
+    for ages, act, planned in _pilot(model, qpos, plans, safety):
+        here = _relative_poses(*act, frame[a], frame[b])
+        there = _relative_poses(*planned, frame[a], frame[b])
+        dist = _core.plan_deviation(records, *here, *there)
+        rel = _file(rel, ages, _per_column(dist, cols))
+    if rel.shape[0] > sums.shape[0]:
+        raise ShapeError(
+            f"profile has {sums.shape[0]} ages, the pilot's plans {rel.shape[0]}: pass "
+            "deviation_profile of the same pilot and plans."
+        )
+    rel = float(safety) * np.maximum.accumulate(rel, axis=0)
+    below = (rel < sums[: rel.shape[0], a] + sums[: rel.shape[0], b]).any(axis=0)
+    return RelativeProfile(candidates[below], np.ascontiguousarray(rel[:, below]))
+
+
+def _body_pairs(
+    model: mujoco.MjModel, geom_pairs: tuple[npt.ArrayLike, npt.ArrayLike], boxed: np.ndarray
+) -> np.ndarray:
+    """``(m, 2)`` the distinct body pairs ``(a, b)``, ``a < b``, of the geom pairs whose two
+    bodies move outside mocap trees and have bound points (``boxed``)."""
+    g1, g2 = (np.asarray(g, dtype=np.int64).reshape(-1) for g in geom_pairs)
+    if g1.shape != g2.shape:
+        raise ShapeError(f"geom_pairs has {g1.shape} and {g2.shape} geoms; expected the same.")
+    gb = np.asarray(model.geom_bodyid, dtype=np.int64)
+    b1, b2 = gb[g1], gb[g2]
+    moving = (np.asarray(model.body_weldid) != 0) & (
+        np.asarray(model.body_mocapid)[np.asarray(model.body_rootid)] < 0
+    )
+    ok = np.zeros(model.nbody, dtype=bool)
+    ok[boxed] = True
+    ok &= moving
+    keep = ok[b1] & ok[b2] & (b1 != b2)
+    pairs = np.stack([np.minimum(b1, b2), np.maximum(b1, b2)], axis=1)[keep]
+    return np.unique(pairs, axis=0).reshape(-1, 2)
+
+
+def _relative_poses(
+    pos: np.ndarray, mat: np.ndarray, fa: np.ndarray, fb: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(n, m, 3)`` and ``(n, m, 9)``: geom ``fb[i]``'s pose in geom ``fa[i]``'s frame at each
+    row (``Ra^T (pb - pa)``, ``Ra^T Rb``: RelativePose, plan.h)."""
+    ra = mat[:, fa].reshape(-1, fa.size, 3, 3)
+    rb = mat[:, fb].reshape(-1, fb.size, 3, 3)
+    p = np.einsum("nmki,nmk->nmi", ra, pos[:, fb] - pos[:, fa])
+    r = np.einsum("nmki,nmkj->nmij", ra, rb).reshape(-1, fa.size, 9)
+    return np.ascontiguousarray(p), np.ascontiguousarray(r)
 
 
 def plan_deviation(profile: npt.ArrayLike, knots: int, *, origin: int = 0) -> np.ndarray:
