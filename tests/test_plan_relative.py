@@ -260,7 +260,7 @@ def test_the_pilot_measures_relative_deviations_below_the_sum() -> None:
     for k in range(300):
         if k % 20 == 0:
             plans.append(PilotPlan(len(rows) - 1, _roll(m, d, np.zeros((1, 3)), 40)))
-        d.ctrl[:] = [np.sin(k / 30.0), 0.0, 0.0]
+        d.ctrl[:] = [0.5 * np.sin(k / 100.0), 0.0, 0.0]
         mujoco.mj_step(m, d)
         rows.append(d.qpos.copy())
     q = np.array(rows)

@@ -111,14 +111,20 @@ def relative_arrays(
             f"relative = {relative!s:.80} is invalid: pass (pairs, deviation), (nrel, 2) body "
             "pairs and their relative deviations (relative_profile's)."
         ) from None
-    items = np.asarray(raw_pairs, dtype=object)
+    items = np.asarray(raw_pairs)
     if items.ndim != 2 or items.shape[1] != 2:
         raise ShapeError(
             f"relative pairs have shape {items.shape}; expected (nrel, 2): body pairs (a, b)."
         )
-    pairs = np.array(
-        [[body_id(model, item) for item in row] for row in items.tolist()], dtype=np.int64
-    ).reshape(-1, 2)
+    if np.issubdtype(items.dtype, np.integer):  # ids (relative_profile's): checked at once
+        pairs = items.astype(np.int64)
+        bad = pairs[(pairs < 0) | (pairs >= model.nbody)]
+        if bad.size:
+            body_id(model, int(bad[0]))  # raises, naming it
+    else:  # names (or ids mixed with them)
+        pairs = np.array(
+            [[body_id(model, item) for item in row] for row in items.tolist()], dtype=np.int64
+        ).reshape(-1, 2)
     nrel = pairs.shape[0]
     dev = np.asarray(raw_dev, dtype=np.float64)
     if dev.ndim == 0 or (dev.ndim == 1 and dev.shape[0] == nrel):

@@ -520,9 +520,12 @@ def relative_profile(
     at most the relative deviation ``D_ab`` (docs/theory.md, Lemma 8.2d). For each body pair
     ``(a, b)`` of two moving bodies with an active geom pair between them, this measures
     ``D_ab`` as :func:`deviation_profile` measures ``D_b`` (the same corner measure at ``b``'s
-    bound points, in the frame of ``a``'s, by age, made monotone, times ``safety``), and keeps
-    the pairs where it is below ``D_a + D_b`` of ``profile`` at some age (elsewhere the plan
-    takes the sum anyway): the table stays as small as the pairs it tightens.
+    bound points, in the frame of ``a``'s, by age, made monotone, times ``safety``). The table
+    stays as small as the pairs it frees (each costs its check at every step and at each
+    replan): a pair is kept when, at a tenth of the pilot's rows or more (every fifth row,
+    MuJoCo's distance of a geom pair between them), its distance lies between ``D_ab`` and
+    ``D_a + D_b`` at the largest age measured: nearer than the sum, the sum stands it; farther
+    than ``D_ab``, the relative bound does not.
 
     Args:
         model: The model.
@@ -550,7 +553,10 @@ def relative_profile(
             f"profile has shape {sums.shape}; expected (L, nbody) = (L, {model.nbody}): "
             "deviation_profile's of the same pilot."
         )
-    candidates = _body_pairs(model, geom_pairs, np.unique(body))
+    pilot = finite_rows("qpos", qpos, model.nq, "nq", "qpos a physics step")
+    candidates, near, owner_gp = _body_pairs(
+        model, geom_pairs, np.unique(body), pilot[::_NEAR_STRIDE], sums[-1]
+    )
     # Each body's frame (the geom its points are on) and its points.
     frame = np.full(model.nbody, -1, dtype=np.int64)
     frame[body] = geom
@@ -574,15 +580,37 @@ def relative_profile(
             "deviation_profile of the same pilot and plans."
         )
     rel = float(safety) * np.maximum.accumulate(rel, axis=0)
-    below = (rel < sums[: rel.shape[0], a] + sums[: rel.shape[0], b]).any(axis=0)
-    return RelativeProfile(candidates[below], np.ascontiguousarray(rel[:, below]))
+    # Kept: the pairs the relative bound frees at _FREED of the pilot's rows or more, at the
+    # largest age (a geom pair between them farther than D_ab, nearer than D_a + D_b).
+    last = rel.shape[0] - 1
+    total = sums[last, a] + sums[last, b]
+    frees = (near > rel[last, owner_gp]) & (near < total[owner_gp])  # (rows, geom pairs)
+    freed = np.zeros((near.shape[0], candidates.shape[0]), dtype=bool)
+    np.logical_or.at(freed.T, owner_gp, frees.T)
+    kept = freed.mean(axis=0) >= _FREED
+    return RelativeProfile(candidates[kept], np.ascontiguousarray(rel[:, kept]))
+
+
+_NEAR_STRIDE = 5
+"""Pilot rows between two of those at which relative_profile asks whether a pair comes near."""
+_FREED = 0.1
+"""The share of those rows at which the relative bound must free a pair for relative_profile to
+keep it (the pairs that stand most of the time: each pair kept costs its check at every step
+and its nesting at each replan, about 2 mj_step a plan each on an arm)."""
 
 
 def _body_pairs(
-    model: mujoco.MjModel, geom_pairs: tuple[npt.ArrayLike, npt.ArrayLike], boxed: np.ndarray
-) -> np.ndarray:
-    """``(m, 2)`` the distinct body pairs ``(a, b)``, ``a < b``, of the geom pairs whose two
-    bodies move outside mocap trees and have bound points (``boxed``)."""
+    model: mujoco.MjModel,
+    geom_pairs: tuple[npt.ArrayLike, npt.ArrayLike],
+    boxed: np.ndarray,
+    rows: np.ndarray,
+    largest: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distinct body pairs ``(a, b)``, ``a < b`` (``(m, 2)``), of the geom pairs whose two
+    bodies move outside mocap trees and have bound points (``boxed``) and whose distance at
+    some of the pilot's ``rows`` (MuJoCo's) is within ``largest[a] + largest[b]`` (elsewhere
+    the sum never stands the pair); those geom pairs' distances at the rows (``(rows, k)``) and
+    the body pair each is of (``(k,)``)."""
     g1, g2 = (np.asarray(g, dtype=np.int64).reshape(-1) for g in geom_pairs)
     if g1.shape != g2.shape:
         raise ShapeError(f"geom_pairs has {g1.shape} and {g2.shape} geoms; expected the same.")
@@ -594,9 +622,22 @@ def _body_pairs(
     ok = np.zeros(model.nbody, dtype=bool)
     ok[boxed] = True
     ok &= moving
-    keep = ok[b1] & ok[b2] & (b1 != b2)
-    pairs = np.stack([np.minimum(b1, b2), np.maximum(b1, b2)], axis=1)[keep]
-    return np.unique(pairs, axis=0).reshape(-1, 2)
+    keep = np.flatnonzero(ok[b1] & ok[b2] & (b1 != b2))
+    reach = largest[b1[keep]] + largest[b2[keep]]
+    dist = np.empty((rows.shape[0], keep.size))
+    d = mujoco.MjData(model)
+    for r, q in enumerate(rows):  # offline, on the pilot: a few hundred rows
+        d.qpos[:] = q
+        mujoco.mj_kinematics(model, d)
+        for c, i in enumerate(keep.tolist()):
+            dist[r, c] = mujoco.mj_geomDistance(
+                model, d, int(g1[i]), int(g2[i]), reach[c] + 1e-3, None
+            )
+    near = (dist < reach).any(axis=0)
+    keep, dist = keep[near], dist[:, near]
+    both = np.stack([np.minimum(b1, b2), np.maximum(b1, b2)], axis=1)[keep]
+    pairs, owner = np.unique(both, axis=0, return_inverse=True)
+    return pairs.reshape(-1, 2), dist, owner.reshape(-1)
 
 
 def _relative_poses(

@@ -490,9 +490,43 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
       scale += std::fabs(f) * qmax[j];
     }
   }
-  const double bound =
-      (std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9) + 16.0 * kEpsilon * scale;
+  const double slack = 16.0 * kEpsilon * scale;
+  const double bound = (std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9) + slack;
   if (bound <= limit) return true;
+  // The largest corner exactly, up to rounding, in dot products: with v the centre's deviation
+  // and u_j the half extents' columns, |v + sum_j s_j u_j|^2 expands into |v|^2 + sum |u_j|^2 +
+  // 2 sum s_j v.u_j + 2 sum s_i s_j u_i.u_j, whose rounding is a few ulps of (|v| + sum
+  // |u_j|)^2 (32 of them allowed); the corners' own roundings are within `slack`. A pass here
+  // is a pass of BoxDeviation; a failure goes to it (a corner-by-corner check costs 8 norms).
+  double v[3], u[3][3];
+  for (int i = 0; i < 3; ++i) {
+    v[i] = pa[i] - pb[i];
+    for (int j = 0; j < 3; ++j) {
+      const double f = ra[3 * i + j] - rb[3 * i + j];
+      v[i] += f * box[kBCenter + j];
+      u[j][i] = f * box[kBHalf + j];
+    }
+  }
+  const auto dot = [](const double* x, const double* y) {
+    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+  };
+  const double vu[3] = {dot(v, u[0]), dot(v, u[1]), dot(v, u[2])};
+  const double uu[3] = {dot(u[1], u[2]), dot(u[0], u[2]), dot(u[0], u[1])};  // (yz, xz, xy)
+  const double base = dot(v, v) + dot(u[0], u[0]) + dot(u[1], u[1]) + dot(u[2], u[2]);
+  double worst = 0.0;
+  for (const double sx : {-1.0, 1.0}) {
+    for (const double sy : {-1.0, 1.0}) {
+      for (const double sz : {-1.0, 1.0}) {
+        const double cross = sx * vu[0] + sy * vu[1] + sz * vu[2] + sy * sz * uu[0] +
+                             sx * sz * uu[1] + sx * sy * uu[2];
+        worst = std::max(worst, base + 2.0 * cross);
+      }
+    }
+  }
+  const double reach = std::sqrt(dot(v, v)) + std::sqrt(dot(u[0], u[0])) +
+                       std::sqrt(dot(u[1], u[1])) + std::sqrt(dot(u[2], u[2]));
+  const double corner = std::sqrt(worst + 32.0 * kEpsilon * reach * reach);
+  if (corner * (1.0 + 1e-9) + slack <= limit) return true;
   return BoxDeviation(box, pa, ra, pb, rb) <= limit;
 }
 
@@ -510,25 +544,27 @@ void RelativePose(const double* pa, const double* ra, const double* pb, const do
 bool RelativeWithin(const double* box, const double* pa, const double* ra, const double* pb,
                     const double* rb, const double* qa, const double* sa, const double* qb,
                     const double* sb, double limit) {
+  double actual[12], planned[12];
+  RelativePose(pa, ra, pb, rb, actual, actual + 3);
+  RelativePose(qa, sa, qb, sb, planned, planned + 3);
+  return RelativePoseWithin(box, actual, planned, limit);
+}
+
+bool RelativePoseWithin(const double* box, const double* actual, const double* planned,
+                        double limit) {
   // A plan that is the run: the same relative pose, bit for bit.
-  if (std::equal(pa, pa + 3, qa) && std::equal(ra, ra + 9, sa) && std::equal(pb, pb + 3, qb) &&
-      std::equal(rb, rb + 9, sb)) {
-    return 0.0 <= limit;
-  }
-  double ap[3], am[9], pp[3], pm[9];
-  RelativePose(pa, ra, pb, rb, ap, am);
-  RelativePose(qa, sa, qb, sb, pp, pm);
+  if (std::equal(actual, actual + 12, planned)) return 0.0 <= limit;
   // Each relative entry is a sum of three products, rounded within a few ulps of the lengths
-  // it combines (|pb - pa|, |qb - qa|, and 1 for a rotation's entries times the box's reach);
-  // MuJoCo's rotations are orthonormal to as many ulps. 1e-12 of them is far above both and far
-  // below any distance a plan's gap resolves.
+  // it combines (|pb - pa|, |qb - qa|: the relative positions' lengths; and 1 for a rotation's
+  // entries, times the box's reach); MuJoCo's rotations are orthonormal to as many ulps. 1e-12
+  // of them is far above both and far below any distance a plan's gap resolves.
   double scale = 1.0;
   for (int i = 0; i < 3; ++i) {
-    scale += std::fabs(pb[i] - pa[i]) + std::fabs(qb[i] - qa[i]) + std::fabs(box[kBCenter + i]) +
+    scale += std::fabs(actual[i]) + std::fabs(planned[i]) + std::fabs(box[kBCenter + i]) +
              box[kBHalf + i];
   }
   const double room = limit - 1e-12 * scale;
-  return room >= 0.0 && BoxWithin(box, ap, am, pp, pm, room);
+  return room >= 0.0 && BoxWithin(box, actual, actual + 3, planned, planned + 3, room);
 }
 
 std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, double h,
@@ -860,6 +896,7 @@ Plan::~Plan() {
   pool_->Give(std::move(pos_));
   pool_->Give(std::move(mat_));
   pool_->Give(std::move(sweep_));
+  pool_->Give(std::move(rel_pose_));
 }
 
 bool Plan::SameRow(int64_t j, const Plan& prev, int64_t i) const {
@@ -906,21 +943,35 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
   }
 }
 
-void Plan::CheckRelative(const double* pos, const double* mat, int64_t k, const double* boxes,
-                         const int64_t* row, const uint8_t* ok, const uint8_t* ok_body,
-                         std::vector<int64_t>* broken) const {
+void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
+  const int64_t nr = nrel();
+  rel_box_.assign(nr, nullptr);
+  rel_ga_.assign(nr, -1), rel_gb_.assign(nr, -1);
+  rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : std::vector<double>(12 * nknot_ * nr);
+  for (int64_t r = 0; r < nr; ++r) {
+    rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
+    rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
+    rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
+    for (int64_t k = 0; k < nknot_; ++k) {
+      double* out = rel_pose_.data() + 12 * (nr * k + r);
+      RelativePose(pos(k, rel_ga_[r]), mat(k, rel_ga_[r]), pos(k, rel_gb_[r]), mat(k, rel_gb_[r]),
+                   out, out + 3);
+    }
+  }
+}
+
+void Plan::CheckRelative(const double* pos, const double* mat, int64_t k, const uint8_t* ok,
+                         const uint8_t* ok_body, std::vector<int64_t>* broken) const {
   for (int64_t r = 0; r < nrel(); ++r) {
     const int64_t a = rel_a(r), b = rel_b(r);
     if ((ok != nullptr && !ok[r]) || (ok_body != nullptr && (!ok_body[a] || !ok_body[b]))) {
       continue;
     }
     // b's box in the frame of a's box's geom (any frame fixed to a gives the same distances).
-    const double* box = boxes + row[b] * kBNcol;
-    const auto ga = static_cast<int64_t>(boxes[row[a] * kBNcol + kBFrame]);
-    const auto gb = static_cast<int64_t>(box[kBFrame]);
-    if (!RelativeWithin(box, pos + 3 * ga, mat + 9 * ga, pos + 3 * gb, mat + 9 * gb,
-                        this->pos(k, ga), this->mat(k, ga), this->pos(k, gb), this->mat(k, gb),
-                        rel_dev(k, r))) {
+    const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
+    double actual[12];
+    RelativePose(pos + 3 * ga, mat + 9 * ga, pos + 3 * gb, mat + 9 * gb, actual, actual + 3);
+    if (!RelativePoseWithin(rel_box_[r], actual, rel_pose(k, r), rel_dev(k, r))) {
       broken->push_back(r);
     }
   }

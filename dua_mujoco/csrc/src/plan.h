@@ -51,6 +51,10 @@ DUA_API bool BoxWithin(const double* box, const double* pa, const double* ra, co
 DUA_API bool RelativeWithin(const double* box, const double* pa, const double* ra, const double* pb,
                             const double* rb, const double* qa, const double* sa, const double* qb,
                             const double* sb, double limit);
+// RelativeWithin on relative poses already taken (12 each: position, rotation), as a plan keeps
+// its own (Plan::rel_pose).
+bool RelativePoseWithin(const double* box, const double* actual, const double* planned,
+                        double limit);
 // b's pose in the frame of pose (pa, ra): (ra^T (pb - pa), ra^T rb), into (pos 3, mat 9).
 DUA_API void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
                           double* pos, double* mat);
@@ -103,12 +107,21 @@ class Plan {
   // (a plane reaches arbitrarily far).
   void Check(const double* pos, const double* mat, int64_t k, const double* boxes, int64_t nbox,
              const uint8_t* ok, std::vector<int64_t>* broken) const;
+  // The frames of the relative pairs (each body's box's geom in the violation check: boxes its
+  // rows, row[body] each body's, which must outlive the plan) and each pair's planned relative
+  // pose at each knot. Before any use of the pairs (Runtime::SetPlan, PlanQuery).
+  void SetRelativeFrames(const double* boxes, const int64_t* row);
   // Appends to broken the relative pairs r with ok[r] set (null: all) whose bodies are both
   // within ok_body (null: all) found beyond their relative deviation at knot k (RelativeWithin
-  // on b's box in a's frame; boxes the violation check's rows, row[body] each body's).
-  void CheckRelative(const double* pos, const double* mat, int64_t k, const double* boxes,
-                     const int64_t* row, const uint8_t* ok, const uint8_t* ok_body,
-                     std::vector<int64_t>* broken) const;
+  // on b's box in a's frame).
+  void CheckRelative(const double* pos, const double* mat, int64_t k, const uint8_t* ok,
+                     const uint8_t* ok_body, std::vector<int64_t>* broken) const;
+  // Relative pair r's planned pose at knot k (12: b's frame geom's position and rotation in
+  // a's), its box (b's row of the violation check), its frame geoms.
+  const double* rel_pose(int64_t k, int64_t r) const {
+    return rel_pose_.data() + 12 * (nrel() * k + r);
+  }
+  const double* rel_box(int64_t r) const { return rel_box_[r]; }
   // Relative pairs (Lemma 8.2d): nrel body pairs (rel_a(r), rel_b(r)), rel_a < rel_b, sorted;
   // rel_dev(k, r) the bound at knot k; RelOf the pair of two bodies (either order; -1: none).
   int64_t nrel() const { return static_cast<int64_t>(rel_key_.size()); }
@@ -176,7 +189,10 @@ class Plan {
   std::vector<uint8_t> holds_, fixed_, rises_, rel_rises_;
   std::vector<int64_t> rel_key_;  // (nrel,) a * nbody + b of each relative pair, sorted
   std::vector<double> rel_dev_;   // (nknot, nrel)
-  std::vector<int64_t> planes_;   // plane geoms on bodies the plan holds
+  std::vector<double> rel_pose_;  // (nknot, nrel, 12) SetRelativeFrames
+  std::vector<const double*> rel_box_;
+  std::vector<int64_t> rel_ga_, rel_gb_;
+  std::vector<int64_t> planes_;  // plane geoms on bodies the plan holds
   std::vector<int> geom_body_;
   std::shared_ptr<PlanPool> pool_;
 };

@@ -281,6 +281,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   }
   error = RelativeBoxed(m, *plan);
   if (!error.empty()) return error;
+  plan->SetRelativeFrames(tables_->events_rec.data(), body_row_.data());
   const double h = m->opt.timestep;
   const double next = last_time_ + tables_->schedule.dt - read_lag_ * h;
   if (plan->KnotOf(next) < 0) {
@@ -316,6 +317,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
         }
       }
     }
+    RelativeDepartures(*plan, next, h, &sh);
   }
   if (departures != nullptr) {
     std::fill(departures, departures + m->nbody, kInf);
@@ -332,10 +334,8 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
                                   for (size_t b = 0; b < sh.ok.size(); ++b) {
                                     if (sh.ok[b] && sh.from[b] < kInf) return false;
                                   }
-                                  // Its relative pairs are checked over the whole span (no
-                                  // departure is computed for them): kept while any holds.
-                                  for (const uint8_t ok : sh.rel_ok) {
-                                    if (ok) return false;
+                                  for (size_t r = 0; r < sh.rel_ok.size(); ++r) {
+                                    if (sh.rel_ok[r] && sh.rel_from[r] < kInf) return false;
                                   }
                                   return true;
                                 }),
@@ -359,7 +359,8 @@ void Runtime::Retire() {
   const size_t nbody = plan_ok_.size();
   shadows_.push_back({plan_, plan_ok_, next + horizon + static_cast<double>(spec.latency) * spec.dt,
                       std::vector<double>(nbody, std::nan("")), std::vector<double>(nbody, -kInf),
-                      rel_ok_, std::vector<double>(rel_ok_.size(), std::nan(""))});
+                      rel_ok_, std::vector<double>(rel_ok_.size(), std::nan("")),
+                      std::vector<double>(rel_ok_.size(), -kInf)});
 }
 
 void Runtime::ClearPlan() {
@@ -418,8 +419,7 @@ int64_t Runtime::CheckPlans(const mjModel* m, const mjData* d, std::vector<int64
     for (const int64_t b : *broken) plan_ok_[b] = 0;
     // The relative pairs whose bodies are both still planned (the others' pairs follow a
     // body's bounds now, and no verdict reads their relative bound).
-    plan_->CheckRelative(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), body_row_.data(),
-                         rel_ok_.data(), plan_ok_.data(), &rel);
+    plan_->CheckRelative(d->geom_xpos, d->geom_xmat, k, rel_ok_.data(), plan_ok_.data(), &rel);
     for (const int64_t r : rel) {
       rel_ok_[r] = 0;
       rel_broken->push_back(plan_->rel_a(r) * nbody + plan_->rel_b(r));
@@ -443,10 +443,10 @@ int64_t Runtime::CheckPlans(const mjModel* m, const mjData* d, std::vector<int64
       sh.ok[(*broken)[i]] = 0;
       sh.broken_at[(*broken)[i]] = now;
     }
-    // Its relative pairs over the whole span, on the bodies still within it.
+    // Its relative pairs, on the bodies still within it, as its bodies are checked.
     rel.clear();
-    sh.plan->CheckRelative(d->geom_xpos, d->geom_xmat, j, t.events_rec.data(), body_row_.data(),
-                           sh.rel_ok.data(), sh.ok.data(), &rel);
+    ShadowOpenRelative(sh, now, k, h, &open);
+    sh.plan->CheckRelative(d->geom_xpos, d->geom_xmat, j, open.data(), sh.ok.data(), &rel);
     for (const int64_t r : rel) {
       sh.rel_ok[r] = 0;
       sh.rel_broken_at[r] = now;
@@ -493,6 +493,43 @@ void Runtime::ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
     // Checked from the plan's departure on, or when the plan does not prove the body within.
     const bool due = now >= sh.from[b] - 1e-6 * h || k < 0 || !plan_ok_[b];
     (*open)[b] = sh.ok[b] && due;
+  }
+}
+
+void Runtime::ShadowOpenRelative(const Shadow& sh, double now, int64_t k, double h,
+                                 std::vector<uint8_t>* open) const {
+  const Plan& old = *sh.plan;
+  open->resize(sh.rel_ok.size());
+  for (size_t r = 0; r < sh.rel_ok.size(); ++r) {
+    const auto i = static_cast<int64_t>(r);
+    const int64_t a = old.rel_a(i), b = old.rel_b(i);
+    const int64_t rn = k >= 0 ? plan_->RelOf(a, b) : -1;
+    const bool proven = rn >= 0 && rel_ok_[rn] && plan_ok_[a] && plan_ok_[b];
+    (*open)[r] = sh.rel_ok[r] && (now >= sh.rel_from[r] - 1e-6 * h || !proven);
+  }
+}
+
+void Runtime::RelativeDepartures(const Plan& plan, double next, double h, Shadow* sh) const {
+  const Plan& old = *sh->plan;
+  sh->rel_from.assign(old.nrel(), kInf);
+  const int64_t jo0 = old.KnotOf(next), jn0 = plan.KnotOf(next);
+  for (int64_t r = 0; r < old.nrel(); ++r) {
+    const int64_t a = old.rel_a(r), b = old.rel_b(r);
+    if (!sh->rel_ok[r] || !sh->ok[a] || !sh->ok[b]) continue;  // the shadow checks it no more
+    const int64_t rn = plan.RelOf(a, b);
+    for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
+      const double time = next + static_cast<double>(s) * h;
+      const int64_t jo = jo0 + s, jn = jn0 + s < plan.nknot() ? jn0 + s : -1;
+      if (time > sh->until + 1e-6 * h) break;
+      // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
+      // same nesting as the bodies' (SetPlan), of the relative poses.
+      if (jn < 0 || rn < 0 ||
+          !RelativePoseWithin(old.rel_box(r), plan.rel_pose(jn, rn), old.rel_pose(jo, r),
+                              old.rel_dev(jo, r) - plan.rel_dev(jn, rn))) {
+        sh->rel_from[r] = time;
+        break;
+      }
+    }
   }
 }
 
@@ -577,7 +614,6 @@ std::vector<int64_t> Runtime::PlanBrokenRelative(const mjModel* m, const mjData*
   std::vector<int64_t> rel, out;
   const double now = StateTime(m, d);
   const double h = m->opt.timestep;
-  const Tables& t = *tables_;
   const auto add = [&](const Plan& plan) {
     for (const int64_t r : rel) {
       const int64_t a = plan.rel_a(r), b = plan.rel_b(r);
@@ -589,8 +625,7 @@ std::vector<int64_t> Runtime::PlanBrokenRelative(const mjModel* m, const mjData*
   };
   const int64_t k = plan_ ? plan_->KnotOf(now) : -1;
   if (k >= 0) {
-    plan_->CheckRelative(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), body_row_.data(),
-                         nullptr, plan_ok_.data(), &rel);
+    plan_->CheckRelative(d->geom_xpos, d->geom_xmat, k, nullptr, plan_ok_.data(), &rel);
     add(*plan_);
   }
   std::vector<uint8_t> open;
@@ -598,12 +633,11 @@ std::vector<int64_t> Runtime::PlanBrokenRelative(const mjModel* m, const mjData*
     const int64_t j = sh.plan->KnotOf(now);
     if (j < 0 || now > sh.until + 1e-6 * h) continue;
     // As the step checks them, and those found at this very state (PlanBroken's rule).
-    open.resize(sh.rel_ok.size());
+    ShadowOpenRelative(sh, now, k, h, &open);
     for (size_t r = 0; r < open.size(); ++r) {
-      open[r] = sh.rel_ok[r] || sh.rel_broken_at[r] == now;
+      open[r] = open[r] || sh.rel_broken_at[r] == now;
     }
-    sh.plan->CheckRelative(d->geom_xpos, d->geom_xmat, j, t.events_rec.data(), body_row_.data(),
-                           open.data(), nullptr, &rel);
+    sh.plan->CheckRelative(d->geom_xpos, d->geom_xmat, j, open.data(), nullptr, &rel);
     add(*sh.plan);
   }
   return out;
@@ -628,6 +662,7 @@ std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan
   }
   error = RelativeBoxed(m, plan);
   if (!error.empty()) return error;
+  plan.SetRelativeFrames(t.events_rec.data(), body_row_.data());
   const int64_t k = plan.KnotOf(StateTime(m, d));
   if (k < 0) {
     return "does not cover the state of the data (time " + std::to_string(StateTime(m, d)) +

@@ -307,6 +307,13 @@ class DUA_API Runtime {
   // from the plan's departure from it on, or once the plan no longer proves them within.
   void ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
                   std::vector<uint8_t>* open) const;
+  // The same for its relative pairs: from the plan's departure from their relative tube on, or
+  // once the plan no longer proves them within (it breaks them, or one of their bodies).
+  void ShadowOpenRelative(const Shadow& sh, double now, int64_t k, double h,
+                          std::vector<uint8_t>* open) const;
+  // The first state time in shadow sh's span, from `next`, at which `plan` leaves its relative
+  // tubes, into sh.rel_from (SetPlan).
+  void RelativeDepartures(const Plan& plan, double next, double h, Shadow* sh) const;
   // The plan (if any) becomes a shadow over the span its verdicts cover, the next step's.
   void Retire();
   void MakeBodyDue(const mjModel* m, int64_t body, int64_t n);
@@ -378,10 +385,11 @@ class DUA_API Runtime {
     std::vector<uint8_t> ok;
     double until;
     std::vector<double> broken_at, from;
-    // Its relative pairs still within their bound (checked over the whole span), and the state
-    // time each was found beyond it (NaN: not).
+    // Its relative pairs still within their bound, the state time each was found beyond it
+    // (NaN: not), and the first state at which the plan that followed leaves its relative tube
+    // (as `from`, for the relative pose of the pair's second body in its first's frame).
     std::vector<uint8_t> rel_ok;
-    std::vector<double> rel_broken_at;
+    std::vector<double> rel_broken_at, rel_from;
   };
   std::vector<Shadow> shadows_;
   std::vector<int64_t> pending_due_;  // bodies broken between steps: pairs due at the next
