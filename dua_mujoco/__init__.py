@@ -47,15 +47,14 @@ if TYPE_CHECKING:
     from dua_mujoco.measure.rollout import run
     from dua_mujoco.models.scenes import load_scene
     from dua_mujoco.plugin import PluginOutputs, attach, plugin_outputs, standing_pairs
-    from dua_mujoco.runtime.plans import (
+    from dua_mujoco.runtime.plans import Replanner, plan_from_controls
+    from dua_mujoco.runtime.predictor import Alarms, Predictor
+    from dua_mujoco.runtime.profiles import (
         PilotPlan,
-        Replanner,
         deviation_profile,
         plan_deviation,
-        plan_from_controls,
         relative_profile,
     )
-    from dua_mujoco.runtime.predictor import Alarms, Predictor
     from dua_mujoco.runtime.table_arrays import pilot_bounds
     from dua_mujoco.shield.shield import Shield
 
@@ -66,12 +65,12 @@ _LAZY = {
     "Alarms": "dua_mujoco.runtime.predictor",
     "CoveringOptions": "dua_mujoco.build.options",
     "PairOptions": "dua_mujoco.build.options",
-    "PilotPlan": "dua_mujoco.runtime.plans",
+    "PilotPlan": "dua_mujoco.runtime.profiles",
     "Replanner": "dua_mujoco.runtime.plans",
-    "deviation_profile": "dua_mujoco.runtime.plans",
-    "plan_deviation": "dua_mujoco.runtime.plans",
+    "deviation_profile": "dua_mujoco.runtime.profiles",
+    "plan_deviation": "dua_mujoco.runtime.profiles",
     "plan_from_controls": "dua_mujoco.runtime.plans",
-    "relative_profile": "dua_mujoco.runtime.plans",
+    "relative_profile": "dua_mujoco.runtime.profiles",
     "PilotOptions": "dua_mujoco.build.options",
     "ScheduleOptions": "dua_mujoco.build.options",
     "UrgencyOptions": "dua_mujoco.build.options",
