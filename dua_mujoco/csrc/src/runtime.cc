@@ -537,9 +537,9 @@ void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
   plan_due_.clear();
   for (const int64_t b : pending_due_) MakeBodyDue(m, b, n);
   pending_due_.clear();
-  if (!plan_ && shadows_.empty()) return;
   for (const int64_t key : pending_rel_) MakeRelativeDue(m, key, n);
   pending_rel_.clear();
+  if (!plan_ && shadows_.empty()) return;
   std::vector<int64_t> broken, rel;
   const int64_t k = CheckPlans(m, d, &broken, &rel);
   if (k >= 0) {
