@@ -612,6 +612,7 @@ std::vector<int64_t> Runtime::PlanBroken(const mjModel* m, const mjData* d) cons
 
 std::vector<int64_t> Runtime::PlanBrokenRelative(const mjModel* m, const mjData* d) const {
   std::vector<int64_t> rel, out;
+  if (!plan_ && shadows_.empty()) return out;  // the monitor asks at every step, plans or none
   const double now = StateTime(m, d);
   const double h = m->opt.timestep;
   const auto add = [&](const Plan& plan) {
