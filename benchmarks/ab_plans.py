@@ -69,7 +69,7 @@ def record(name: str, horizons: tuple[float, ...], steps: int, path: Path) -> No
     auto = Predictor(nominal, pilot=PilotOptions(controller=pilot, seed=PILOT_SEED))
     knots = {H: EVERY + max(round(H / h), 1) + 2 for H in horizons}
     longest = max(knots.values())
-    profile, _ = pilot_profile(nominal, auto.bound_points, longest, 2000)
+    profile, _, _ = pilot_profile(nominal, auto.bound_points, longest, 2000)
     run = perturbed(nominal, np.random.default_rng(ROLLOUT_SEED))
     drive = NoisyDriver(nominal, ROLLOUT_SEED)
     d = mujoco.MjData(run)

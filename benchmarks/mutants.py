@@ -76,6 +76,7 @@ _REF = (
 )
 _REF_TRAFFIC, _REF_PAPER = f"{_REF}[traffic]", f"{_REF}[paper_world]"
 _REF_CLUTTER, _REF_ARMS = f"{_REF}[clutter]", f"{_REF}[two_arms]"
+_RELATIVE = "tests/test_plan_relative.py"
 _PYRAMID = "tests/test_terrain.py::test_search_equals_every_cell_through_the_pyramid_for_a_sphere"
 _CHECKS = "dua_mujoco/csrc/src/checks.cc"
 _SCREEN = "tests/test_monitor_screen.py"
@@ -310,6 +311,46 @@ MUTANTS: tuple[Mutant, ...] = (
             "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
         ),
         "a plan's verdicts without the deviations",
+    ),
+    Mutant(
+        "plan-relative-not-checked",
+        _PLAN,
+        "    if (!RelativePoseWithin(rel_box_[r], actual, rel_pose(k, r), rel_dev(k, r))) {",
+        "    if (false &&\n"
+        "!RelativePoseWithin(rel_box_[r], actual, rel_pose(k, r), rel_dev(k, r))) {",
+        (
+            f"{_RELATIVE}::test_a_fold_beyond_the_relative_deviation_is_a_plan_break",
+            f"{_RELATIVE}::test_the_monitor_labels_an_onset_after_a_relative_break_as_not_held",
+        ),
+        "a pair beyond its relative deviation goes unseen: its verdicts keep the relative bound",
+    ),
+    Mutant(
+        "plan-relative-in-the-world-frame",
+        _PLAN,
+        "  const double d[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};",
+        "  std::copy_n(pb, 3, pos), std::copy_n(rb, 9, mat);\n  return;\n"
+        "  const double d[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};",
+        (
+            f"{_RELATIVE}::test_the_actual_distance_is_never_below_the_planned_one_less_the_relative_deviation",
+            f"{_RELATIVE}::test_a_plan_off_in_the_swing_keeps_the_relative_pose_and_frees_the_pair",
+        ),
+        "the relative deviation measured as b's own, in the world frame",
+    ),
+    Mutant(
+        "plan-relative-alone-not-the-min",
+        _PLAN,
+        "return r >= 0 ? std::min(sum, plan.rel_dev(j, r) * (1.0 + 4.0 * kEpsilon)) : sum;",
+        "return r >= 0 ? plan.rel_dev(j, r) * (1.0 + 4.0 * kEpsilon) : sum;",
+        (f"{_RELATIVE}::test_a_relative_deviation_above_the_sum_changes_no_verdict",),
+        "a pair's gap less its relative deviation alone, however far above the sum",
+    ),
+    Mutant(
+        "monitor-relative-basis-dropped",
+        "dua_mujoco/measure/warning_time.py",
+        "        relative = ((basis >> 2) & 1).astype(np.uint8)",
+        "        relative = ((basis >> 2) & 0).astype(np.uint8)",
+        (f"{_RELATIVE}::test_the_monitor_labels_an_onset_after_a_relative_break_as_not_held",),
+        "an onset after a relative break its verdicts rested on counts as held",
     ),
     Mutant(
         "plan-walk-end-carried-past-it",

@@ -72,7 +72,7 @@ def world(name: str, horizon: float, steps: int, path: Path) -> None:
     drive = make_controller(nominal, "smooth", seed=PILOT_SEED, hold_steps=pu.HOLD)
     auto = Predictor(nominal, pilot=PilotOptions(controller=drive, seed=PILOT_SEED))
     knots = pu.EVERY + max(round(horizon / float(nominal.opt.timestep)), 1) + 2
-    profile, _ = pu.pilot_profile(nominal, auto.bound_points, knots, 2000)
+    profile, _, _ = pu.pilot_profile(nominal, auto.bound_points, knots, 2000)
     run = pu.perturbed(nominal, np.random.default_rng(ROLLOUT_SEED))
     w = pu.Run(
         nominal, run, auto.bounds, auto.bound_points, profile, {horizon: knots}, pu.EVERY, None

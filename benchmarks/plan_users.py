@@ -17,7 +17,8 @@ knows only the **nominal** model:
   no noise) on the nominal model from the run's state (:func:`plan_from_controls`), ``R + n + 2``
   knots (``n`` the horizon's steps), its deviation from a pilot with its own draw of the
   perturbation, the noise and the drive (:func:`pilot_profile`: the same plans every
-  :data:`PILOT_EVERY` steps, :func:`deviation_profile` by the plan's age, safety 2);
+  :data:`PILOT_EVERY` steps, :func:`deviation_profile` by the plan's age, safety 2, and
+  :func:`relative_profile` of the same pilot for the pairs of links it frees);
 - **declared** (floating bases only, :data:`DECLARED`): the same plans holding the arms alone,
   the base and legs left to their motion bounds (docs/plans.md, "Floating bases");
 - **bounds**: the motion bounds alone (no plan);
@@ -73,9 +74,11 @@ from dua_mujoco.measure.rollout import build_report
 from dua_mujoco.models.scenes import SceneController, make_controller
 from dua_mujoco.runtime.plans import (
     PilotPlan,
+    RelativeProfile,
     deviation_profile,
     plan_deviation,
     plan_from_controls,
+    relative_profile,
 )
 from dua_mujoco.runtime.predictor import Predictor
 
@@ -162,10 +165,11 @@ def subtree_bodies(model: mujoco.MjModel, roots: tuple[str, ...]) -> np.ndarray:
 
 
 def pilot_profile(
-    nominal: mujoco.MjModel, points: Any, knots: int, steps: int
-) -> tuple[np.ndarray, np.ndarray]:
+    nominal: mujoco.MjModel, points: Any, knots: int, steps: int, geom_pairs: Any = None
+) -> tuple[np.ndarray, np.ndarray, RelativeProfile | None]:
     """The deviation profile ``(L, nbody)`` by the plan's age from a pilot with its own draw of
-    the perturbation, the noise and the drive, and the pilot's ``(T, nq)`` rows."""
+    the perturbation, the noise and the drive, the pilot's ``(T, nq)`` rows, and (with
+    ``geom_pairs``, the predictor's active ones) the relative profile of the same pilot."""
     run = perturbed(nominal, np.random.default_rng(PILOT_SEED))
     drive = NoisyDriver(nominal, PILOT_SEED)
     d = mujoco.MjData(run)
@@ -178,7 +182,19 @@ def pilot_profile(
         mujoco.mj_step(run, d)
         rows.append(d.qpos.copy())
     q = np.array(rows)
-    return deviation_profile(nominal, q, plans, points=points, safety=SAFETY), q
+    profile = deviation_profile(nominal, q, plans, points=points, safety=SAFETY)
+    if geom_pairs is None:
+        return profile, q, None
+    rel = relative_profile(
+        nominal,
+        q,
+        plans,
+        points=points,
+        geom_pairs=(geom_pairs.geom1, geom_pairs.geom2),
+        profile=profile,
+        safety=SAFETY,
+    )
+    return profile, q, rel
 
 
 # ----------------------------------------------------------------------------- the TTC peer
@@ -337,7 +353,9 @@ def measure(name: str, horizons: tuple[float, ...], steps: int, every: int) -> l
     )
     ns = {H: max(round(H / h), 1) for H in horizons}
     knots = {H: every + ns[H] + 2 for H in horizons}
-    profile, _ = pilot_profile(nominal, auto.bound_points, max(knots.values()), max(steps, 2000))
+    profile, _, rel = pilot_profile(
+        nominal, auto.bound_points, max(knots.values()), max(steps, 2000), auto.geom_pairs
+    )
     pilot_s = time.perf_counter() - t_start
     print(f"{name}: pilots {pilot_s:.0f} s", file=sys.stderr, flush=True)
     run = perturbed(nominal, np.random.default_rng(ROLLOUT_SEED))
@@ -348,6 +366,7 @@ def measure(name: str, horizons: tuple[float, ...], steps: int, every: int) -> l
         bounds=auto.bounds,
         points=auto.bound_points,
         profile=profile,
+        relative=rel,
         knots=knots,
         every=every,
         arms=subtree_bodies(nominal, roots) if roots else None,
@@ -373,18 +392,32 @@ class Run(NamedTuple):
     knots: dict[float, int]
     every: int
     arms: np.ndarray | None
+    relative: RelativeProfile | None = None
 
     def sides(self) -> list[str]:
         return [s for s in SIDES if s != "declared" or self.arms is not None]
 
     def set_plan(self, p: Predictor, side: str, H: float, q: np.ndarray, start: float) -> None:
         n = self.knots[H]
+        declared = side == "declared"
         p.set_plan(
             q[:n],
             deviation=plan_deviation(self.profile, n),
             start=start,
-            bodies=self.arms if side == "declared" else None,
+            bodies=self.arms if declared else None,
+            relative=self._relative(n, declared),
         )
+
+    def _relative(self, n: int, declared: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        """``set_plan``'s relative deviations: the pilot's, of the pairs both of whose bodies
+        the plan holds."""
+        if self.relative is None:
+            return None
+        pairs, dev = self.relative.relative(n)
+        if declared and self.arms is not None:
+            keep = np.isin(pairs, self.arms).all(axis=1)
+            pairs, dev = pairs[keep], dev[:, keep]
+        return pairs, dev
 
 
 class Record(NamedTuple):

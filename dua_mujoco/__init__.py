@@ -51,14 +51,14 @@ if TYPE_CHECKING:
     from dua_mujoco.measure.rollout import run
     from dua_mujoco.models.scenes import load_scene
     from dua_mujoco.plugin import PluginOutputs, attach, plugin_outputs, standing_pairs
-    from dua_mujoco.runtime.plans import (
+    from dua_mujoco.runtime.plans import Replanner, plan_from_controls
+    from dua_mujoco.runtime.predictor import Alarms, Predictor
+    from dua_mujoco.runtime.profiles import (
         PilotPlan,
-        Replanner,
         deviation_profile,
         plan_deviation,
-        plan_from_controls,
+        relative_profile,
     )
-    from dua_mujoco.runtime.predictor import Alarms, Predictor
     from dua_mujoco.runtime.table_arrays import pilot_bounds
     from dua_mujoco.shield.shield import Shield
 
@@ -84,13 +84,14 @@ _LAZY = {
     "attach": "dua_mujoco.plugin",
     "plugin_outputs": "dua_mujoco.plugin",
     "standing_pairs": "dua_mujoco.plugin",
-    "PilotPlan": "dua_mujoco.runtime.plans",
     "Replanner": "dua_mujoco.runtime.plans",
-    "deviation_profile": "dua_mujoco.runtime.plans",
-    "plan_deviation": "dua_mujoco.runtime.plans",
     "plan_from_controls": "dua_mujoco.runtime.plans",
     "Alarms": "dua_mujoco.runtime.predictor",
     "Predictor": "dua_mujoco.runtime.predictor",
+    "PilotPlan": "dua_mujoco.runtime.profiles",
+    "deviation_profile": "dua_mujoco.runtime.profiles",
+    "plan_deviation": "dua_mujoco.runtime.profiles",
+    "relative_profile": "dua_mujoco.runtime.profiles",
     "pilot_bounds": "dua_mujoco.runtime.table_arrays",
     "Shield": "dua_mujoco.shield.shield",
 }
@@ -145,6 +146,7 @@ __all__ = [
     "plan_deviation",
     "plan_from_controls",
     "plugin_outputs",
+    "relative_profile",
     "run",
     "standing_pairs",
     "time_to_collision",

@@ -101,9 +101,14 @@ def plugin_memory(model: object, data: object, instance: int) -> object:
 
 def plugin_set_active(model: object, data: object, instance: int, body_a: int, body_b: int, on: bool) -> int: ...
 
-def plugin_set_plan(model: object, data: object, instance: int, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+def plugin_set_plan(model: object, data: object, instance: int, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rel_bodies: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], rel_deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
     """
     dua_plugin_set_plan: (its result, each body's departure time from the plan replaced).
+    """
+
+def relative_within(box: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pa: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ra: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], qa: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], sa: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], qb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], sb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], limit: float) -> bool:
+    """
+    RelativeWithin (plan.h): b's box within limit, in a's frame, of its planned pose relative to a.
     """
 
 def plan_deviation(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos_a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat_a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos_b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat_b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
@@ -367,7 +372,7 @@ class Runtime:
 
     def deactivate_contacts(self) -> int: ...
 
-    def set_plan(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+    def set_plan(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rel_bodies: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], rel_deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
         """
         Follow a flight plan (Runtime::SetPlan); returns each body's departure time from the plan it replaces (inf: none).
         """
@@ -382,7 +387,7 @@ class Runtime:
         (n, 2): what the latest verdict of each sphere pair, and the one before, rested on (bit 0: its first geom's side on the plan, bit 1: its second's; 0 for a pair not held).
         """
 
-    def plan_query(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:
+    def plan_query(self, qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], start: float, bodies: Annotated[NDArray[numpy.uint8], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rel_bodies: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], rel_deviation: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:
         """
         Each geom pair's first knot of a candidate plan at which its contact cannot be excluded (Runtime::PlanQuery); the plan is not followed.
         """
@@ -412,6 +417,11 @@ class Runtime:
     def plan_broken(self) -> object:
         """
         The bodies of the bound MjData's state beyond their deviation at its knot (None: no plan covers it); checks only.
+        """
+
+    def plan_broken_relative(self) -> NDArray[numpy.int64]:
+        """
+        (n, 2) the relative pairs (body ids a < b) of the bound MjData's state beyond their relative deviation, of the plan and its shadows; checks only.
         """
 
     def sphere_states(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:

@@ -23,7 +23,7 @@ import numpy.typing as npt
 from dua_mujoco import _core
 from dua_mujoco.build.options import PairOptions
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.runtime.flightplan import Bodies, plan_arrays
+from dua_mujoco.runtime.flightplan import Bodies, Relative, plan_arrays
 from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
@@ -277,6 +277,7 @@ def set_plan(
     bodies: Bodies = None,
     mocap_pos: npt.ArrayLike | None = None,
     mocap_quat: npt.ArrayLike | None = None,
+    relative: Relative = None,
     prefix: str = "dua",
 ) -> np.ndarray:
     """Have the plugin follow a flight plan in ``data``, as :meth:`Predictor.set_plan
@@ -292,7 +293,13 @@ def set_plan(
         ShapeError: ``qpos``, ``deviation`` or the mocap poses do not fit the model.
     """
     arrays = plan_arrays(
-        model, qpos, deviation, bodies=bodies, mocap_pos=mocap_pos, mocap_quat=mocap_quat
+        model,
+        qpos,
+        deviation,
+        bodies=bodies,
+        mocap_pos=mocap_pos,
+        mocap_quat=mocap_quat,
+        relative=relative,
     )
     start = float(data.time) if start is None else float(start)
     instance = _instance(model, prefix)

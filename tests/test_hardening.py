@@ -322,9 +322,8 @@ def test_a_plan_from_c_is_refused_by_its_value_and_huge_deviations_run() -> None
     none = np.zeros(0)
 
     def set_plan(q: np.ndarray, dev: np.ndarray, start: float) -> int:
-        return int(
-            _core.plugin_set_plan(m, d, 0, q, dev, start, none.astype(np.uint8), none, none)[0]
-        )
+        held, pairs = none.astype(np.uint8), np.zeros((0, 2), np.int64)  # defaults; no relative
+        return int(_core.plugin_set_plan(m, d, 0, q, dev, start, held, none, none, pairs, none)[0])
 
     def refusal(q: np.ndarray, dev: np.ndarray, start: float) -> str:
         with pytest.raises(InvalidInputError) as err:

@@ -298,7 +298,8 @@ class Hypotheses:
     a pruned predictor does not hold rests on both bodies' bounds). Per geom pair, the
     hypotheses of the verdicts its current run of standing alarms replaced. Per body, the latest
     physics step it broke its bounds (``last_violation``) or was found beyond its deviation
-    (``last_plan_break``); -1: never.
+    (``last_plan_break``), and per body pair the latest step its relative deviation was found
+    broken (``last_relative_break``, keyed ``(a, b)``, ``a < b``); -1: never.
 
     Args:
         nbody: Bodies of the model.
@@ -307,6 +308,7 @@ class Hypotheses:
     def __init__(self, nbody: int) -> None:
         self.last_violation = np.full(nbody, -1, dtype=np.int64)
         self.last_plan_break = np.full(nbody, -1, dtype=np.int64)
+        self.last_relative_break: dict[tuple[int, int], int] = {}
         self._basis = np.zeros(0, dtype=np.uint8)
         self._prev = np.zeros(0, dtype=np.uint8)
         self._window = np.zeros(0, dtype=np.uint8)
@@ -333,6 +335,8 @@ class Hypotheses:
         beyond = predictor.beyond_plan()
         if beyond is not None:
             self.last_plan_break[beyond] = step
+        for a, b in predictor.beyond_plan_relative().tolist():
+            self.last_relative_break[(a, b)] = step
 
     def evaluated(self, pairs: np.ndarray, basis: np.ndarray) -> None:
         """Sphere ``pairs`` were evaluated: ``basis`` (n, 2) their latest verdict's and the one
@@ -363,13 +367,16 @@ class Hypotheses:
             self.last_plan_break[b2],
             self.last_violation[b1],
             self.last_violation[b2],
+            self.last_relative_break.get((min(b1, b2), max(b1, b2)), -1),
         )
         return max([-1] + [int(s) for bit, s in enumerate(steps) if mask >> bit & 1])
 
     def _sides(self, pairs: np.ndarray, basis: np.ndarray) -> np.ndarray:
         """Hypothesis masks in the geom pairs' orientation: bit 0 (1) the first (second) geom's
-        body's deviation, bit 2 (3) its motion bounds."""
+        body's deviation, bit 2 (3) its motion bounds, bit 4 the two bodies' relative deviation
+        (the basis' bit 2, the same either way round)."""
         flip = self._flip[pairs]
         first = np.where(flip, (basis >> 1) & 1, basis & 1).astype(np.uint8)
         second = np.where(flip, basis & 1, (basis >> 1) & 1).astype(np.uint8)
-        return first | (second << 1) | ((1 - first) << 2) | ((1 - second) << 3)
+        relative = ((basis >> 2) & 1).astype(np.uint8)
+        return first | (second << 1) | ((1 - first) << 2) | ((1 - second) << 3) | (relative << 4)

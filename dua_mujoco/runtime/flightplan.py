@@ -16,9 +16,18 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.build.filter import body_id
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
-__all__ = ["PlanArrays", "PlanFollowing", "body_mask", "finite_rows", "plan_arrays"]
+__all__ = [
+    "PlanArrays",
+    "PlanFollowing",
+    "Relative",
+    "body_mask",
+    "finite_rows",
+    "plan_arrays",
+    "relative_arrays",
+]
 
 
 def finite_rows(
@@ -69,6 +78,8 @@ class PlanArrays(NamedTuple):
         bodies: ``(nbody,)`` uint8, 1 for the bodies the plan holds; ``(0,)`` for the default.
         mocap_pos: ``(n, nmocap, 3)``, or ``(0,)`` when mocap bodies are not planned.
         mocap_quat: ``(n, nmocap, 4)``, or ``(0,)``.
+        rel_bodies: ``(nrel, 2)`` int64 body pairs with a relative deviation, ``(0, 2)`` for none.
+        rel_deviation: ``(n, nrel)`` metres.
     """
 
     qpos: np.ndarray
@@ -76,6 +87,54 @@ class PlanArrays(NamedTuple):
     bodies: np.ndarray
     mocap_pos: np.ndarray
     mocap_quat: np.ndarray
+    rel_bodies: np.ndarray
+    rel_deviation: np.ndarray
+
+
+Relative = tuple[npt.ArrayLike, npt.ArrayLike] | None
+"""Relative deviations: ``(pairs, deviation)``, ``(nrel, 2)`` body pairs (ids or names) and
+metres, one number, ``(nrel,)``, or ``(n, nrel)`` (None: none)."""
+
+
+def relative_arrays(
+    model: mujoco.MjModel, relative: Relative, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``relative`` (:data:`Relative`) as ``(nrel, 2)`` int64 body ids and ``(n, nrel)``
+    metres, their shapes and ids checked (the runtime checks the values: two distinct bodies
+    the plan holds, each pair once, finite deviations >= 0)."""
+    if relative is None:
+        return np.zeros((0, 2), np.int64), np.zeros((n, 0))
+    try:
+        raw_pairs, raw_dev = relative
+    except (TypeError, ValueError):
+        raise InvalidInputError(
+            f"relative = {relative!s:.80} is invalid: pass (pairs, deviation), (nrel, 2) body "
+            "pairs and their relative deviations (relative_profile's)."
+        ) from None
+    items = np.asarray(raw_pairs)
+    if items.ndim != 2 or items.shape[1] != 2:
+        raise ShapeError(
+            f"relative pairs have shape {items.shape}; expected (nrel, 2): body pairs (a, b)."
+        )
+    if np.issubdtype(items.dtype, np.integer):  # ids (relative_profile's): checked at once
+        pairs = items.astype(np.int64)
+        bad = pairs[(pairs < 0) | (pairs >= model.nbody)]
+        if bad.size:
+            body_id(model, int(bad[0]))  # raises, naming it
+    else:  # names (or ids mixed with them)
+        pairs = np.array(
+            [[body_id(model, item) for item in row] for row in items.tolist()], dtype=np.int64
+        ).reshape(-1, 2)
+    nrel = pairs.shape[0]
+    dev = np.asarray(raw_dev, dtype=np.float64)
+    if dev.ndim == 0 or (dev.ndim == 1 and dev.shape[0] == nrel):
+        dev = np.broadcast_to(dev, (n, nrel))
+    if dev.shape != (n, nrel):
+        raise ShapeError(
+            f"relative deviation has shape {np.shape(raw_dev)}; pass one number, ({nrel},) (one "
+            f"per pair) or ({n}, {nrel}) (one per knot and pair)."
+        )
+    return pairs, np.ascontiguousarray(dev)
 
 
 def body_mask(
@@ -140,6 +199,7 @@ def plan_arrays(
     bodies: Bodies = None,
     mocap_pos: npt.ArrayLike | None = None,
     mocap_quat: npt.ArrayLike | None = None,
+    relative: Relative = None,
 ) -> PlanArrays:
     """A plan's arrays as the runtime reads them, their shapes checked (their values are the
     runtime's to check: ``Plan::Build`` refuses a value that is not finite, or a negative
@@ -156,6 +216,7 @@ def plan_arrays(
             others follow their motion bounds.
         mocap_pos: ``(n, nmocap, 3)`` the mocap bodies' planned positions (None: unplanned).
         mocap_quat: ``(n, nmocap, 4)`` their orientations (with ``mocap_pos``).
+        relative: Relative deviations (:data:`Relative`; None: none).
 
     Raises:
         ShapeError: The arrays do not fit the model or each other.
@@ -181,7 +242,8 @@ def plan_arrays(
     mp = none if mocap_pos is None else _mocap(model, "mocap_pos", mocap_pos, n, 3)
     mq = none if mocap_quat is None else _mocap(model, "mocap_quat", mocap_quat, n, 4)
     held = np.zeros(0, np.uint8) if bodies is None else body_mask(model, bodies, mp.size > 0)
-    return PlanArrays(q, np.ascontiguousarray(dev), held, mp, mq)
+    rb, rd = relative_arrays(model, relative, n)
+    return PlanArrays(q, np.ascontiguousarray(dev), held, mp, mq, rb, rd)
 
 
 class PlanFollowing:
@@ -203,6 +265,7 @@ class PlanFollowing:
         bodies: Bodies = None,
         mocap_pos: npt.ArrayLike | None = None,
         mocap_quat: npt.ArrayLike | None = None,
+        relative: Relative = None,
     ) -> np.ndarray:
         """Follow a flight plan: the motion expected over the coming physics steps.
 
@@ -229,6 +292,14 @@ class PlanFollowing:
             mocap_pos: ``(n, nmocap, 3)`` planned mocap positions (None: mocap bodies follow
                 their bounds), with ``mocap_quat`` ``(n, nmocap, 4)``.
             mocap_quat: The planned mocap orientations.
+            relative: ``(pairs, deviation)``: for ``(nrel, 2)`` pairs ``(a, b)`` of bodies the
+                plan holds (ids or names), a bound in metres (one number, ``(nrel,)`` or ``(n,
+                nrel)``) on how far any point of ``b``'s box may stray, in ``a``'s frame, from
+                where the plan puts it relative to ``a``
+                (:func:`dua_mujoco.runtime.plans.relative_profile` measures it). A pair of geoms
+                on ``a`` and ``b`` then takes ``min(D_a + D_b, D_ab)`` off its planned gap; a
+                pair found beyond it is a plan break for those pairs, which take ``D_a + D_b``
+                until the next plan (docs/theory.md, Lemma 8.2d).
 
         Returns:
             ``(nbody,)`` for each body the replaced plan held, the first state time at which
@@ -241,7 +312,7 @@ class PlanFollowing:
             InvalidInputError: A value is not finite or negative, a body named is not the
                 model's, or the plan does not cover the next step.
         """
-        args = self._plan_args(qpos, deviation, start, bodies, mocap_pos, mocap_quat)
+        args = self._plan_args(qpos, deviation, start, bodies, mocap_pos, mocap_quat, relative)
         return np.asarray(self._rt.set_plan(*args))
 
     def _plan_args(
@@ -252,16 +323,23 @@ class PlanFollowing:
         bodies: Bodies,
         mocap_pos: npt.ArrayLike | None,
         mocap_quat: npt.ArrayLike | None,
+        relative: Relative = None,
     ) -> tuple[Any, ...]:
         """A plan's arguments to the runtime, checked."""
         self._require_reset()
         a = plan_arrays(
-            self.model, qpos, deviation, bodies=bodies, mocap_pos=mocap_pos, mocap_quat=mocap_quat
+            self.model,
+            qpos,
+            deviation,
+            bodies=bodies,
+            mocap_pos=mocap_pos,
+            mocap_quat=mocap_quat,
+            relative=relative,
         )
         if start is None:
             assert self._data is not None
             start = float(self._data.time)
-        return a.qpos, a.deviation, float(start), a.bodies, a.mocap_pos, a.mocap_quat
+        return (a.qpos, a.deviation, float(start), *a[2:])
 
     def check_plan(self, data: mujoco.MjData) -> np.ndarray:
         """Check the plan at ``data``'s state between two steps (``period > 1``: after each
@@ -289,7 +367,7 @@ class PlanFollowing:
         it plans neither body, -2 when MuJoCo's filter rejects the pair. A shield's question (is
         the intended motion, then a brake, clear of the reach of everything else?); changes
         nothing."""
-        keys = ("start", "bodies", "mocap_pos", "mocap_quat")
+        keys = ("start", "bodies", "mocap_pos", "mocap_quat", "relative")
         if set(plan) - set(keys):
             raise InvalidInputError(
                 f"plan_contact_knots got {sorted(set(plan) - set(keys))}: pass set_plan's "
@@ -315,10 +393,17 @@ class PlanFollowing:
         out = self._rt.plan_broken()
         return None if out is None else np.asarray(out)
 
+    def beyond_plan_relative(self) -> np.ndarray:
+        """``(n, 2)`` the relative pairs (body ids ``a < b``) of the bound data's state beyond
+        their relative deviation, of the plan and of the plans it replaced over their spans;
+        checks only (the monitor's, as :meth:`beyond_plan`)."""
+        return np.asarray(self._rt.plan_broken_relative()).reshape(-1, 2)
+
     def verdict_basis(self, pairs: npt.ArrayLike) -> np.ndarray:
         """``(n, 2)`` uint8, what each sphere pair's latest verdict and the one before rested on:
         bit 0 (1) set when its first (second) geom's body was judged by the plan, clear by its
-        bounds (0 for a pair not held: left out on both bodies' reach)."""
+        bounds (0 for a pair not held: left out on both bodies' reach); bit 2 (4) set when it
+        rested on the relative deviation of its two bodies too."""
         return np.asarray(self._rt.basis_of(np.asarray(pairs, dtype=np.int64).reshape(-1)))
 
     @property

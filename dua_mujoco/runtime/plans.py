@@ -11,12 +11,9 @@ may touch, not an acceleration bound, so an alarm horizon of 100-500 ms stays ti
   given (an MPC's or a planner's open-loop controls, or a feedback policy): the plan is then
   what MuJoCo will compute under those controls, bit for bit, and its deviation 0 for as long as
   the controls are known;
-- :func:`deviation_profile` measures, on a pilot run, how far each body strayed from the plans
-  made along it, by how many knots past the point where the plan stopped knowing the controls
-  (its *origin*: 0 for a plan that knows nothing, the next waypoint for one that knows the
-  command up to it), made monotone and multiplied by a safety factor;
-- :func:`plan_deviation` gives a plan of ``n`` knots its ``(n, nbody)`` deviation from such a
-  profile;
+- :func:`deviation_profile`, :func:`relative_profile` and :func:`plan_deviation`
+  (:mod:`dua_mujoco.runtime.profiles`, imported here too) measure the deviation on a pilot run
+  and give a plan its bounds;
 - :class:`Replanner` wraps a controller: every ``R`` physics steps it rolls a plan from a copy of
   it and gives it to a predictor, then runs the controller (what ``dua-mujoco run --plan
   trajectory`` does).
@@ -26,29 +23,36 @@ from __future__ import annotations
 
 import copy
 import time
-from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING, Any, NamedTuple
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco import _core
-from dua_mujoco.build.kinematics import pack_spheres
 from dua_mujoco.build.tables import check_model
-from dua_mujoco.core.validate import check_int, check_number
+from dua_mujoco.core.validate import check_int
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
-from dua_mujoco.runtime.flightplan import Bodies, finite_rows
+from dua_mujoco.runtime.flightplan import Bodies, Relative, finite_rows
+from dua_mujoco.runtime.profiles import (
+    PilotPlan,
+    RelativeProfile,
+    deviation_profile,
+    plan_deviation,
+    relative_profile,
+)
 
 if TYPE_CHECKING:
     from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = [
     "PilotPlan",
+    "RelativeProfile",
     "Replanner",
     "deviation_profile",
     "plan_deviation",
     "plan_from_controls",
+    "relative_profile",
 ]
 
 Policy = Callable[[mujoco.MjModel, mujoco.MjData], npt.ArrayLike | None]
@@ -66,21 +70,6 @@ _HELD = int(
     | _S.mjSTATE_MOCAP_QUAT
 )
 _FULL = int(_S.mjSTATE_FULLPHYSICS)
-
-
-class PilotPlan(NamedTuple):
-    """A plan made along a pilot run, for :func:`deviation_profile`.
-
-    Attributes:
-        start: The row of the pilot's ``qpos`` at the plan's knot 0.
-        qpos: ``(n, nq)`` the plan, row ``j`` at pilot row ``start + j``.
-        origin: The knot from which the plan no longer knows the controls: the deviation at knot
-            ``j`` is filed under ``max(j - origin, 0)`` knots past it (0: by the plan's age).
-    """
-
-    start: int
-    qpos: np.ndarray
-    origin: int = 0
 
 
 # ----------------------------------------------------------------------------- plans
@@ -239,6 +228,7 @@ class Replanner:
         planner: ``planner(model, data, steps)`` returning the plan (:data:`Planner`), e.g. a
             rollout of the robot's own controller on a model where people do not collide; None
             for :func:`plan_from_controls` of a copy of ``controller``.
+        relative: ``set_plan``'s relative deviations (:func:`relative_profile`; None: none).
 
     Attributes:
         knots: Knots a plan: ``every`` plus the horizon's physics steps (alarm horizon and
@@ -258,17 +248,19 @@ class Replanner:
         deviation: npt.ArrayLike = 0.0,
         bodies: Bodies = None,
         planner: Planner | None = None,
+        relative: Relative = None,
     ) -> None:
         h = float(predictor.model.opt.timestep)
         ahead = (predictor.alarm_periods + predictor.latency) * predictor.period
         if every is None:
             every = max(ahead, round(0.05 / h), 1)
-        self.every = _int("every", every, 1, 2**31 - 1)
+        self.every = check_int("every", every, 1, " (physics steps between two plans)")
         self.knots = self.every + ahead + predictor.period + 1
         self.predictor = predictor
         self.controller = controller
         self.deviation = deviation
         self.bodies = bodies
+        self.relative = relative
         self.planner: Planner = planner or (
             lambda m, d, steps: plan_from_controls(m, d, copy.deepcopy(controller), steps=steps)
         )
@@ -285,200 +277,16 @@ class Replanner:
             t0 = time.thread_time()
             qpos = self.planner(model, data, self.knots - 1)
             t1 = time.thread_time()
-            p.set_plan(qpos, deviation=self.deviation, bodies=self.bodies, start=float(data.time))
+            p.set_plan(
+                qpos,
+                deviation=self.deviation,
+                bodies=self.bodies,
+                start=float(data.time),
+                relative=self.relative,
+            )
             self.set_plan_seconds += time.thread_time() - t1
             self.planner_seconds += t1 - t0
             self.plans += 1
             self._since, self._resets = 0, p.resets
         self._since += 1
         self.controller(model, data)
-
-
-# ----------------------------------------------------------------------------- deviation
-
-
-def _check_points(model: mujoco.MjModel, points: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    try:
-        geom, body, offset = points
-    except (TypeError, ValueError):
-        raise InvalidInputError(
-            f"points = {points!s:.80} is invalid: pass the predictor's bound points "
-            "(Predictor.bound_points: a tuple (geom, body, offset))."
-        ) from None
-    g = np.asarray(geom).reshape(-1)
-    b = np.asarray(body).reshape(-1)
-    o = np.asarray(offset, dtype=np.float64)
-    if not (np.issubdtype(g.dtype, np.integer) or g.size == 0):
-        raise ShapeError(f"points' geom ids have dtype {g.dtype}; expected integers.")
-    g = g.astype(np.int64)
-    if b.shape != g.shape or o.shape != (g.size, 3):
-        raise ShapeError(
-            f"points has geom {g.shape}, body {b.shape}, offset {o.shape}; expected (n,), (n,), "
-            "(n, 3): pass Predictor.bound_points."
-        )
-    if g.size and (g.min() < 0 or g.max() >= model.ngeom):
-        raise InvalidInputError(
-            f"points name geom {int(g.max() if g.max() >= model.ngeom else g.min())}, not one "
-            f"of the model's {model.ngeom}: pass the bound points of a predictor of this model."
-        )
-    body_of = np.asarray(model.geom_bodyid, dtype=np.int64)[g]
-    if not np.array_equal(body_of, b.astype(np.int64)):
-        raise InvalidInputError(
-            "points' bodies are not their geoms' bodies in this model: pass the bound points of "
-            "a predictor of this model."
-        )
-    return g, body_of, o
-
-
-def _int(name: str, value: object, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise InvalidInputError(f"{name} = {value!r} is invalid: pass an int.")
-    if not low <= int(value) <= high:
-        raise InvalidInputError(f"{name} = {value} is out of range: it must lie in {low}..{high}.")
-    return int(value)
-
-
-class _Poses:
-    """Every geom's pose for rows of qpos (``mj_kinematics`` on a scratch data)."""
-
-    def __init__(self, model: mujoco.MjModel) -> None:
-        self.model = model
-        self.data = mujoco.MjData(model)
-
-    def __call__(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(rows, ngeom, 3)`` positions and ``(rows, ngeom, 9)`` rotations."""
-        m, d = self.model, self.data
-        pos = np.empty((qpos.shape[0], m.ngeom, 3))
-        mat = np.empty((qpos.shape[0], m.ngeom, 9))
-        for j, q in enumerate(qpos):
-            d.qpos[:] = q
-            mujoco.mj_kinematics(m, d)
-            pos[j], mat[j] = d.geom_xpos, d.geom_xmat
-        return pos, mat
-
-
-def deviation_profile(
-    model: mujoco.MjModel,
-    qpos: npt.ArrayLike,
-    plans: Iterable[PilotPlan | tuple[int, npt.ArrayLike] | tuple[int, npt.ArrayLike, int]],
-    *,
-    points: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike],
-    safety: float = 2.0,
-) -> np.ndarray:
-    """Each body's deviation bound by knots past a plan's origin, from a pilot run.
-
-    For every plan and every knot ``j`` of it that the pilot reached, the distance of each bound
-    point from its planned position (both from ``mj_kinematics``; measured by the runtime's own
-    measure, the one its check of a plan takes at the same points), its maximum over the body's
-    points, filed under ``a = max(j - origin, 0)`` knots past the plan's origin; the maximum
-    over plans at each ``a``, made non-decreasing in ``a`` (a deviation seen after ``a`` knots
-    may be seen later too), times ``safety``.
-
-    The bound points are the corners of one box a body around every point the predictor covers
-    (``Predictor.bound_points``): the distance of a point from its planned position is the norm
-    of an affine function of its body coordinates, so its maximum over the box is at a corner,
-    and the profile bounds every point of the body's geoms on the pilot's plans.
-
-    Args:
-        model: The model.
-        qpos: ``(T, nq)`` the pilot's joint positions, one row a physics step.
-        plans: The plans made along it: :class:`PilotPlan` or ``(start, qpos[, origin])``, with
-            row ``j`` of a plan's ``qpos`` at pilot row ``start + j``.
-        points: ``(geom, body, offset)`` the bound points, ``Predictor.bound_points``.
-        safety: The factor on the measured maxima (``>= 1``; 2 as ``accel="auto"``'s).
-
-    Returns:
-        ``(L, nbody)`` metres, row ``a`` the bound ``a`` knots past the origin, ``L`` one more
-        than the largest ``a`` measured (knots past the pilot's end are not). Static bodies and
-        bodies without bound points get 0.
-
-    Raises:
-        ShapeError: ``qpos``, a plan's ``qpos`` or ``points`` has the wrong shape.
-        InvalidInputError: A non-finite position, a plan that starts outside the pilot, an
-            origin outside the plan, no plan measured, or a bad ``safety`` (the message names
-            the value).
-    """
-    check_model(model)
-    actual = finite_rows("qpos", qpos, model.nq, "nq", "qpos a physics step")
-    if check_number("safety", safety) < 1.0:
-        raise InvalidInputError(
-            f"safety = {safety!r} is invalid: pass a finite factor >= 1 (a factor below 1 "
-            "would shrink the deviations measured)."
-        )
-    geom, body, offset = _check_points(model, points)
-    # The runtime's own measure (PoseDeviation: the step's check of a plan takes it at the same
-    # points), on the points as sphere records.
-    records = pack_spheres(geom, body, offset, model.body_rootid)
-    poses = _Poses(model)
-    T, nbody = actual.shape[0], int(model.nbody)
-    where = poses(actual)
-    # Each body's points as columns of an index (npts: a padded zero for bodies without points).
-    counts = np.bincount(body, minlength=nbody)
-    width = max(int(counts.max()) if counts.size else 0, 1)
-    order = np.argsort(body, kind="stable")
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    cols = np.full((nbody, width), geom.size, dtype=np.int64)
-    rank = np.arange(geom.size) - first[body[order]]
-    cols[body[order], rank] = order
-    profile = np.zeros((0, nbody))
-    measured = 0
-    for i, raw in enumerate(plans):
-        plan = raw if isinstance(raw, PilotPlan) else PilotPlan(*raw)
-        q = finite_rows(f"plans[{i}].qpos", plan.qpos, model.nq, "nq", "qpos a physics step")
-        start = _int(f"plans[{i}].start", plan.start, 0, T - 1)
-        origin = _int(f"plans[{i}].origin", plan.origin, 0, q.shape[0])
-        n = min(q.shape[0], T - start)
-        planned = poses(q[:n])
-        dist = _core.plan_deviation(
-            records, where[0][start : start + n], where[1][start : start + n], *planned
-        )  # (n, npts)
-        pad = np.concatenate([dist, np.zeros((n, 1))], axis=1)
-        per_body = pad[:, cols].max(axis=2)  # (n, nbody)
-        ages = np.maximum(np.arange(n) - origin, 0)
-        length = int(ages[-1]) + 1
-        if profile.shape[0] < length:
-            profile = np.concatenate([profile, np.zeros((length - profile.shape[0], nbody))])
-        np.maximum.at(profile, ages, per_body)
-        measured += 1
-    if measured == 0:
-        raise InvalidInputError(
-            "plans is empty: pass the plans made along the pilot run (PilotPlan(start, qpos, "
-            "origin))."
-        )
-    return float(safety) * np.maximum.accumulate(profile, axis=0)
-
-
-def plan_deviation(profile: npt.ArrayLike, knots: int, *, origin: int = 0) -> np.ndarray:
-    """The deviation of a plan of ``knots`` knots from a :func:`deviation_profile`.
-
-    Args:
-        profile: ``(L, nbody)`` the profile.
-        knots: The plan's knots (rows of its ``qpos``).
-        origin: The knot from which the plan no longer knows the controls (as the profile's
-            plans were filed: 0 by age, the next waypoint's knot for a plan that knows the
-            command up to it).
-
-    Returns:
-        ``(knots, nbody)`` metres, row ``j`` the profile's row ``max(j - origin, 0)``: the
-        ``deviation`` of ``Predictor.set_plan``.
-
-    Raises:
-        ShapeError: ``profile`` is not 2-D.
-        InvalidInputError: The plan needs more rows of the profile than it has (measure longer
-            plans in the pilot), or a bad ``knots`` or ``origin``.
-    """
-    prof = np.asarray(profile, dtype=np.float64)
-    if prof.ndim != 2 or prof.shape[0] < 1:
-        raise ShapeError(
-            f"profile has shape {prof.shape}; expected (L, nbody) with L >= 1, as "
-            "deviation_profile returns."
-        )
-    knots = check_int("knots", knots, 1, " (the plan's rows)")
-    o = _int("origin", origin, 0, knots)
-    need = max(knots - 1 - o, 0)
-    if need >= prof.shape[0]:
-        raise InvalidInputError(
-            f"the plan reaches {need} knots past its origin, the profile only "
-            f"{prof.shape[0] - 1}: measure longer plans in the pilot (or shorten the plan)."
-        )
-    return prof[np.maximum(np.arange(knots) - o, 0)]

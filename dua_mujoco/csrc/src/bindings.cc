@@ -972,10 +972,12 @@ std::pair<std::vector<int64_t>, std::vector<int64_t>> GeomIds(const mjModel* m,
 
 // A flight plan's arrays as the runtime reads them: qpos (n, nq), deviation (n, nbody), bodies
 // (nbody,) uint8 or empty for the default, mocap poses (n, nmocap, 3) and (n, nmocap, 4) or
-// empty (dua_mujoco/mj/flightplan.py checks the values; the runtime checks them again).
+// empty, relative pairs (nrel, 2) and their deviations (n, nrel) or both empty
+// (dua_mujoco/runtime/flightplan.py checks the shapes; the runtime checks the values).
 dua_plan_input PlanInput(const mjModel* m, const In<double>& qpos, const In<double>& deviation,
                          double start, const In<uint8_t>& bodies, const In<double>& mocap_pos,
-                         const In<double>& mocap_quat) {
+                         const In<double>& mocap_quat, const In<int64_t>& rel_bodies,
+                         const In<double>& rel_deviation) {
   Require(qpos.ndim() == 2 && static_cast<int64_t>(qpos.shape(1)) == m->nq, "qpos must be (n, nq)");
   const auto n = static_cast<int64_t>(qpos.shape(0));
   Require(deviation.ndim() == 2 && static_cast<int64_t>(deviation.shape(0)) == n &&
@@ -994,6 +996,12 @@ dua_plan_input PlanInput(const mjModel* m, const In<double>& qpos, const In<doub
   in.bodies = Size(bodies) ? bodies.data() : nullptr;
   in.mocap_pos = Size(mocap_pos) ? mocap_pos.data() : nullptr;
   in.mocap_quat = Size(mocap_quat) ? mocap_quat.data() : nullptr;
+  const int64_t nrel = Size(rel_bodies) / 2;
+  Require(Size(rel_bodies) == 2 * nrel && Size(rel_deviation) == n * nrel,
+          "relative bodies must be (nrel, 2) and their deviations (n, nrel)");
+  in.nrel = nrel;
+  in.relative_bodies = nrel ? rel_bodies.data() : nullptr;
+  in.relative_deviation = nrel ? rel_deviation.data() : nullptr;
   return in;
 }
 
@@ -1167,15 +1175,17 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def(
           "set_plan",
           [](PyRuntime& self, const In<double>& qpos, const In<double>& deviation, double start,
-             const In<uint8_t>& bodies, const In<double>& mocap_pos, const In<double>& mocap_quat) {
-            const dua_plan_input in =
-                PlanInput(self.m, qpos, deviation, start, bodies, mocap_pos, mocap_quat);
+             const In<uint8_t>& bodies, const In<double>& mocap_pos, const In<double>& mocap_quat,
+             const In<int64_t>& rel_bodies, const In<double>& rel_deviation) {
+            const dua_plan_input in = PlanInput(self.m, qpos, deviation, start, bodies, mocap_pos,
+                                                mocap_quat, rel_bodies, rel_deviation);
             std::vector<double> departures(self.m->nbody);
             const std::string error = self.rt->SetPlan(self.m, in, departures.data());
             if (!error.empty()) Raise("InvalidInputError", "the plan " + error + ".");
             return Owned(std::move(departures), {static_cast<size_t>(self.m->nbody)});
           },
           "qpos"_a, "deviation"_a, "start"_a, "bodies"_a, "mocap_pos"_a, "mocap_quat"_a,
+          "rel_bodies"_a, "rel_deviation"_a,
           "Follow a flight plan (Runtime::SetPlan); returns each body's departure time from the "
           "plan it replaces (inf: none).")
       .def(
@@ -1205,9 +1215,10 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "plan_query",
           [](PyRuntime& self, const In<double>& qpos, const In<double>& deviation, double start,
              const In<uint8_t>& bodies, const In<double>& mocap_pos, const In<double>& mocap_quat,
-             const In<int64_t>& g1, const In<int64_t>& g2) {
-            const dua_plan_input in =
-                PlanInput(self.m, qpos, deviation, start, bodies, mocap_pos, mocap_quat);
+             const In<int64_t>& rel_bodies, const In<double>& rel_deviation, const In<int64_t>& g1,
+             const In<int64_t>& g2) {
+            const dua_plan_input in = PlanInput(self.m, qpos, deviation, start, bodies, mocap_pos,
+                                                mocap_quat, rel_bodies, rel_deviation);
             const auto [a, b] = GeomIds(self.m, g1, g2);
             if (self.rt->tables().pruned) self.rt->GeomPairIds(a, b);  // learn the pairs unmet
             std::vector<int64_t> knots;
@@ -1215,8 +1226,8 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             if (!error.empty()) Raise("InvalidInputError", "the plan " + error + ".");
             return Ints(knots);
           },
-          "qpos"_a, "deviation"_a, "start"_a, "bodies"_a, "mocap_pos"_a, "mocap_quat"_a, "g1"_a,
-          "g2"_a,
+          "qpos"_a, "deviation"_a, "start"_a, "bodies"_a, "mocap_pos"_a, "mocap_quat"_a,
+          "rel_bodies"_a, "rel_deviation"_a, "g1"_a, "g2"_a,
           "Each geom pair's first knot of a candidate plan at which its contact cannot be "
           "excluded (Runtime::PlanQuery); the plan is not followed.")
       .def("clear_plan", [](PyRuntime& self) { self.rt->ClearPlan(); })
@@ -1243,6 +1254,16 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           },
           "The bodies of the bound MjData's state beyond their deviation at its knot (None: no "
           "plan covers it); checks only.")
+      .def(
+          "plan_broken_relative",
+          [](const PyRuntime& self) {
+            std::vector<int64_t> out = self.rt->PlanBrokenRelative(self.m, self.Data());
+            const size_t n = out.size() / 2;
+            return Owned(std::move(out), {n, 2});
+          },
+          "(n, 2) the relative pairs (body ids a < b) of the bound MjData's state beyond their "
+          "relative deviation, of the plan and its shadows; checks only.")
+
       .def(
           "sphere_states",
           [](const PyRuntime& self, const In<int64_t>& ids) {
@@ -1600,10 +1621,11 @@ NB_MODULE(_core, m) {
       "plugin_set_plan",
       [](nb::handle model, nb::handle data, int instance, const In<double>& qpos,
          const In<double>& deviation, double start, const In<uint8_t>& bodies,
-         const In<double>& mocap_pos, const In<double>& mocap_quat) {
+         const In<double>& mocap_pos, const In<double>& mocap_quat, const In<int64_t>& rel_bodies,
+         const In<double>& rel_deviation) {
         const mjModel* mm = ModelOf(model);
-        const dua_plan_input in =
-            PlanInput(mm, qpos, deviation, start, bodies, mocap_pos, mocap_quat);
+        const dua_plan_input in = PlanInput(mm, qpos, deviation, start, bodies, mocap_pos,
+                                            mocap_quat, rel_bodies, rel_deviation);
         char error[512] = {0};
         std::vector<double> departures(mm->nbody);
         const int64_t r = dua_plugin_set_plan(mm, const_cast<mjData*>(DataOf(data)), instance, &in,
@@ -1612,8 +1634,23 @@ NB_MODULE(_core, m) {
         return nb::make_tuple(r, Owned(std::move(departures), {static_cast<size_t>(mm->nbody)}));
       },
       "model"_a, "data"_a, "instance"_a, "qpos"_a, "deviation"_a, "start"_a, "bodies"_a,
-      "mocap_pos"_a, "mocap_quat"_a,
+      "mocap_pos"_a, "mocap_quat"_a, "rel_bodies"_a, "rel_deviation"_a,
       "dua_plugin_set_plan: (its result, each body's departure time from the plan replaced).");
+  m.def(
+      "relative_within",
+      [](const In<double>& box, const In<double>& pa, const In<double>& ra, const In<double>& pb,
+         const In<double>& rb, const In<double>& qa, const In<double>& sa, const In<double>& qb,
+         const In<double>& sb, double limit) {
+        Require(Size(box) == kBNcol && Size(pa) == 3 && Size(pb) == 3 && Size(qa) == 3 &&
+                    Size(qb) == 3 && Size(ra) == 9 && Size(rb) == 9 && Size(sa) == 9 &&
+                    Size(sb) == 9,
+                "relative_within takes a box record and poses (3,) and (9,)");
+        return RelativeWithin(box.data(), pa.data(), ra.data(), pb.data(), rb.data(), qa.data(),
+                              sa.data(), qb.data(), sb.data(), limit);
+      },
+      "box"_a, "pa"_a, "ra"_a, "pb"_a, "rb"_a, "qa"_a, "sa"_a, "qb"_a, "sb"_a, "limit"_a,
+      "RelativeWithin (plan.h): b's box within limit, in a's frame, of its planned pose "
+      "relative to a.");
   m.def(
       "plan_deviation",
       [](const In<double>& points, const In<double>& pos_a, const In<double>& mat_a,

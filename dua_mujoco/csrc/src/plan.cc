@@ -182,17 +182,20 @@ int64_t FirstKept(int64_t j, int64_t n, const Skip& skip) {
 // deviations rise with the knots, the knots the carried gap clears are a run that ends where
 // it first does not (the sweeps rise too: docs/theory.md, section 8), found by a search.
 int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
-                 int64_t g2, int64_t b1, int64_t b2) {
+                 int64_t g2, int64_t b1, int64_t b2, int64_t r) {
   const double* rec = a.pairs + p * kPairNcol;
   double* xrec = a.exact.on ? a.exact.records + p * kXNcol : nullptr;
   const int64_t n = plan.nknot();
-  const bool rising = plan.dev_rises(b1) && plan.dev_rises(b2);
+  const bool rising = r >= 0 ? plan.rel_rises(r) : plan.dev_rises(b1) && plan.dev_rises(b2);
   double gap = -kInf;  // a lower bound on the planned gap at knot `base`
   int64_t base = -1;
   // Each sum rounded up (a few ulps over its roundings), and the margin asked to exceed the
-  // roundings of its own difference: a skipped knot is one whose gap is surely above.
+  // roundings of its own difference: a skipped knot is one whose gap is surely above. With a
+  // relative pair r within its bound, the smaller of the sum and the relative deviation
+  // (Lemma 8.2d: either bounds how far the pair's distance may fall below the planned one).
   const auto allowed = [&](int64_t j) {
-    return (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);
+    const double sum = (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);
+    return r >= 0 ? std::min(sum, plan.rel_dev(j, r) * (1.0 + 4.0 * kEpsilon)) : sum;
   };
   const auto carried = [&](int64_t j) {
     const double moved =
@@ -232,9 +235,9 @@ int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64
 // (every step while it stands in alarm) then walks no knot at all until the step passes that
 // end. The step's knot never goes back under one plan (a reset or a jump of the clock drops it).
 int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
-                 int64_t g2, int64_t b1, int64_t b2, int64_t* cleared) {
+                 int64_t g2, int64_t b1, int64_t b2, int64_t r, int64_t* cleared) {
   if (cleared != nullptr && *cleared >= k) return *cleared;
-  const int64_t j = BothWalk(a, plan, d, k, p, g1, g2, b1, b2);
+  const int64_t j = BothWalk(a, plan, d, k, p, g1, g2, b1, b2, r);
   if (cleared != nullptr) *cleared = j;
   return j;
 }
@@ -390,7 +393,12 @@ Judged Judge(dua_step_args& a, const Plan& plan, const uint8_t* ok, mjData* d, i
   const uint8_t basis = static_cast<uint8_t>((s1 != kFree ? 1 : 0) | (s2 != kFree ? 2 : 0));
   if (s1 != kFree && s2 != kFree) {
     int64_t* cleared = a.plan.cleared != nullptr ? a.plan.cleared + p : nullptr;
-    return {BothKnot(a, plan, d, k, p, g1, g2, b1, b2, cleared), basis};
+    // The bodies' relative pair, unless found beyond its bound (rel_ok null: a candidate plan,
+    // every bound assumed, as its bodies are).
+    int64_t r = plan.RelOf(b1, b2);
+    if (r >= 0 && a.plan.rel_ok != nullptr && !a.plan.rel_ok[r]) r = -1;
+    const auto rb = static_cast<uint8_t>(basis | (r >= 0 ? 4 : 0));
+    return {BothKnot(a, plan, d, k, p, g1, g2, b1, b2, r, cleared), rb};
   }
   // One moving planned body against one that follows its bounds: the mixed tau (sphere pairs:
   // both bodies move). A static body against a free one keeps the motion bounds' tau.
@@ -476,10 +484,81 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
       scale += std::fabs(f) * qmax[j];
     }
   }
-  const double bound =
-      (std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9) + 16.0 * kEpsilon * scale;
+  const double slack = 16.0 * kEpsilon * scale;
+  const double bound = (std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9) + slack;
   if (bound <= limit) return true;
+  // The largest corner exactly, up to rounding, in dot products: with v the centre's deviation
+  // and u_j the half extents' columns, |v + sum_j s_j u_j|^2 expands into |v|^2 + sum |u_j|^2 +
+  // 2 sum s_j v.u_j + 2 sum s_i s_j u_i.u_j, whose rounding is a few ulps of (|v| + sum
+  // |u_j|)^2 (32 of them allowed); the corners' own roundings are within `slack`. A pass here
+  // is a pass of BoxDeviation; a failure goes to it (a corner-by-corner check costs 8 norms).
+  double v[3], u[3][3];
+  for (int i = 0; i < 3; ++i) {
+    v[i] = pa[i] - pb[i];
+    for (int j = 0; j < 3; ++j) {
+      const double f = ra[3 * i + j] - rb[3 * i + j];
+      v[i] += f * box[kBCenter + j];
+      u[j][i] = f * box[kBHalf + j];
+    }
+  }
+  const auto dot = [](const double* x, const double* y) {
+    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+  };
+  const double vu[3] = {dot(v, u[0]), dot(v, u[1]), dot(v, u[2])};
+  const double uu[3] = {dot(u[1], u[2]), dot(u[0], u[2]), dot(u[0], u[1])};  // (yz, xz, xy)
+  const double base = dot(v, v) + dot(u[0], u[0]) + dot(u[1], u[1]) + dot(u[2], u[2]);
+  double worst = 0.0;
+  for (const double sx : {-1.0, 1.0}) {
+    for (const double sy : {-1.0, 1.0}) {
+      for (const double sz : {-1.0, 1.0}) {
+        const double cross = sx * vu[0] + sy * vu[1] + sz * vu[2] + sy * sz * uu[0] +
+                             sx * sz * uu[1] + sx * sy * uu[2];
+        worst = std::max(worst, base + 2.0 * cross);
+      }
+    }
+  }
+  const double reach = std::sqrt(dot(v, v)) + std::sqrt(dot(u[0], u[0])) +
+                       std::sqrt(dot(u[1], u[1])) + std::sqrt(dot(u[2], u[2]));
+  const double corner = std::sqrt(worst + 32.0 * kEpsilon * reach * reach);
+  if (corner * (1.0 + 1e-9) + slack <= limit) return true;
   return BoxDeviation(box, pa, ra, pb, rb) <= limit;
+}
+
+void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
+                  double* pos, double* mat) {
+  const double d[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
+  for (int i = 0; i < 3; ++i) {
+    pos[i] = ra[i] * d[0] + ra[3 + i] * d[1] + ra[6 + i] * d[2];
+    for (int j = 0; j < 3; ++j) {
+      mat[3 * i + j] = ra[i] * rb[j] + ra[3 + i] * rb[3 + j] + ra[6 + i] * rb[6 + j];
+    }
+  }
+}
+
+bool RelativeWithin(const double* box, const double* pa, const double* ra, const double* pb,
+                    const double* rb, const double* qa, const double* sa, const double* qb,
+                    const double* sb, double limit) {
+  double actual[12], planned[12];
+  RelativePose(pa, ra, pb, rb, actual, actual + 3);
+  RelativePose(qa, sa, qb, sb, planned, planned + 3);
+  return RelativePoseWithin(box, actual, planned, limit);
+}
+
+bool RelativePoseWithin(const double* box, const double* actual, const double* planned,
+                        double limit) {
+  // A plan that is the run: the same relative pose, bit for bit.
+  if (std::equal(actual, actual + 12, planned)) return 0.0 <= limit;
+  // Each relative entry is a sum of three products, rounded within a few ulps of the lengths
+  // it combines (|pb - pa|, |qb - qa|: the relative positions' lengths; and 1 for a rotation's
+  // entries, times the box's reach); MuJoCo's rotations are orthonormal to as many ulps. 1e-12
+  // of them is far above both and far below any distance a plan's gap resolves.
+  double scale = 1.0;
+  for (int i = 0; i < 3; ++i) {
+    scale += std::fabs(actual[i]) + std::fabs(planned[i]) + std::fabs(box[kBCenter + i]) +
+             box[kBHalf + i];
+  }
+  const double room = limit - 1e-12 * scale;
+  return room >= 0.0 && BoxWithin(box, actual, actual + 3, planned, planned + 3, room);
 }
 
 std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, double h,
@@ -543,6 +622,8 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     }
   }
   nknot_ = n, ngeom_ = ngeom, nbody_ = nbody, nq_ = nq, nmocap_ = mocap ? nmocap : 0;
+  std::string why = Relative(m, in, holds);
+  if (!why.empty()) return why;
   qpos_.assign(in.qpos, in.qpos + n * nq);
   mocap_pos_.clear(), mocap_quat_.clear();
   if (mocap) {
@@ -599,8 +680,76 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
       }
     }
   }
-  return Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
-                std::move(fixed));
+  why = Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
+               std::move(fixed));
+  if (!why.empty()) return why;
+  // Where min(D_a + D_b, D_ab) rises over the knots, as the sum's own rises_ (a min of two
+  // non-decreasing sequences is one; the walk's search needs only the min).
+  const int64_t nr = nrel();
+  rel_rises_.assign(nr, 1);
+  double last = 0.0;
+  for (int64_t r = 0; r < nr; ++r) {
+    for (int64_t j = 0; j < n; ++j) {
+      const double now = std::min(dev(j, rel_a(r)) + dev(j, rel_b(r)), rel_dev(j, r));
+      if (j > 0 && now < last) rel_rises_[r] = 0;
+      last = now;
+    }
+  }
+  return "";
+}
+
+std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
+                           const std::vector<uint8_t>& holds) {
+  rel_key_.clear(), rel_dev_.clear();
+  if (in.nrel == 0) return "";
+  const int64_t nbody = m->nbody, n = in.n;
+  if (in.nrel < 0 || in.relative_bodies == nullptr || in.relative_deviation == nullptr) {
+    return "gives " + std::to_string(in.nrel) +
+           " relative pairs without their bodies or deviations: pass both, (nrel, 2) body ids "
+           "and (n, nrel) metres, or neither";
+  }
+  std::vector<std::pair<int64_t, int64_t>> order;  // (key, column given)
+  for (int64_t r = 0; r < in.nrel; ++r) {
+    const int64_t a = in.relative_bodies[2 * r], b = in.relative_bodies[2 * r + 1];
+    const std::string which = "relative pair " + std::to_string(r) + " (bodies " +
+                              std::to_string(a) + ", " + std::to_string(b) + ")";
+    if (a < 0 || b < 0 || a >= nbody || b >= nbody) {
+      return "holds " + which + ", not bodies of the model's " + std::to_string(nbody) +
+             ": pass body ids";
+    }
+    if (a == b || !holds[a] || !holds[b]) {
+      return "holds " + which + " ('" + NameOf(m, a) + "', '" + NameOf(m, b) +
+             "'), not two distinct moving bodies the plan holds: pass pairs of two bodies the "
+             "plan holds (a static body's deviation is 0 already)";
+    }
+    order.emplace_back(std::min(a, b) * nbody + std::max(a, b), r);
+  }
+  std::sort(order.begin(), order.end());
+  for (size_t i = 1; i < order.size(); ++i) {
+    if (order[i].first == order[i - 1].first) {
+      const int64_t a = order[i].first / nbody, b = order[i].first % nbody;
+      return "holds the relative pair of bodies '" + NameOf(m, a) + "' and '" + NameOf(m, b) +
+             "' twice (pairs " + std::to_string(order[i - 1].second) + " and " +
+             std::to_string(order[i].second) + "): give each body pair once";
+    }
+  }
+  const int64_t nr = in.nrel;
+  for (int64_t i = 0; i < n * nr; ++i) {
+    const double v = in.relative_deviation[i];
+    if (!(v >= 0.0) || !std::isfinite(v)) {
+      return "holds a relative deviation that is not a finite distance >= 0 (knot " +
+             std::to_string(i / nr) + ", pair " + std::to_string(i % nr) + ": " + Shown(v) +
+             "): pass a finite distance >= 0";
+    }
+  }
+  rel_key_.resize(nr);
+  rel_dev_.resize(n * nr);
+  for (int64_t c = 0; c < nr; ++c) {
+    rel_key_[c] = order[c].first;
+    for (int64_t j = 0; j < n; ++j)
+      rel_dev_[nr * j + c] = in.relative_deviation[nr * j + order[c].second];
+  }
+  return "";
 }
 
 void Plan::Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
@@ -626,6 +775,7 @@ std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, cons
     holds[b] = !fixed[b] && bodies[b] && !in_mocap;
   }
   // No rows: a plan made from poses is never the `prev` of a Build (SameRow compares rows).
+  rel_key_.clear(), rel_dev_.clear(), rel_rises_.clear();
   nknot_ = n, ngeom_ = ngeom, nbody_ = nbody, nq_ = 0, nmocap_ = 0;
   qpos_.clear(), mocap_pos_.clear(), mocap_quat_.clear();
   Slots(n, ngeom, geoms, nullptr);
@@ -740,6 +890,7 @@ Plan::~Plan() {
   pool_->Give(std::move(pos_));
   pool_->Give(std::move(mat_));
   pool_->Give(std::move(sweep_));
+  pool_->Give(std::move(rel_pose_));
 }
 
 bool Plan::SameRow(int64_t j, const Plan& prev, int64_t i) const {
@@ -783,6 +934,40 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
     const bool same = std::equal(pos + 3 * g, pos + 3 * g + 3, this->pos(k, g)) &&
                       std::equal(mat + 9 * g, mat + 9 * g + 9, this->mat(k, g));
     if (!same) broken->push_back(b);
+  }
+}
+
+void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
+  const int64_t nr = nrel();
+  rel_box_.assign(nr, nullptr);
+  rel_ga_.assign(nr, -1), rel_gb_.assign(nr, -1);
+  rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : std::vector<double>(12 * nknot_ * nr);
+  for (int64_t r = 0; r < nr; ++r) {
+    rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
+    rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
+    rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
+    for (int64_t k = 0; k < nknot_; ++k) {
+      double* out = rel_pose_.data() + 12 * (nr * k + r);
+      RelativePose(pos(k, rel_ga_[r]), mat(k, rel_ga_[r]), pos(k, rel_gb_[r]), mat(k, rel_gb_[r]),
+                   out, out + 3);
+    }
+  }
+}
+
+void Plan::CheckRelative(const double* pos, const double* mat, int64_t k, const uint8_t* ok,
+                         const uint8_t* ok_body, std::vector<int64_t>* broken) const {
+  for (int64_t r = 0; r < nrel(); ++r) {
+    const int64_t a = rel_a(r), b = rel_b(r);
+    if ((ok != nullptr && !ok[r]) || (ok_body != nullptr && (!ok_body[a] || !ok_body[b]))) {
+      continue;
+    }
+    // b's box in the frame of a's box's geom (any frame fixed to a gives the same distances).
+    const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
+    double actual[12];
+    RelativePose(pos + 3 * ga, mat + 9 * ga, pos + 3 * gb, mat + 9 * gb, actual, actual + 3);
+    if (!RelativePoseWithin(rel_box_[r], actual, rel_pose(k, r), rel_dev(k, r))) {
+      broken->push_back(r);
+    }
   }
 }
 

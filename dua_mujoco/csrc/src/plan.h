@@ -14,6 +14,7 @@
 
 #include <mujoco/mujoco.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -40,6 +41,23 @@ DUA_API double BoxDeviation(const double* box, const double* pa, const double* r
 // that costs no corner (equal poses pass at once): the same verdict as the comparison itself.
 DUA_API bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
                        const double* rb, double limit);
+
+// Whether every corner of box (a violation-check record of body b's frame geom) lies, in the frame
+// of geom A (a geom of body a), within limit of where the plan puts it relative to A: the
+// relative deviation of docs/theory.md, Lemma 8.2d. (pa, ra) and (pb, rb) are A's and b's frame
+// geom's actual poses, (qa, sa) and (qb, sb) their planned ones; b's pose in A's frame is
+// (ra^T (pb - pa), ra^T rb). Equal poses pass at once (a plan that is the run); otherwise the
+// relative poses' own rounding (a few ulps of the lengths involved) is taken off the limit.
+DUA_API bool RelativeWithin(const double* box, const double* pa, const double* ra, const double* pb,
+                            const double* rb, const double* qa, const double* sa, const double* qb,
+                            const double* sb, double limit);
+// RelativeWithin on relative poses already taken (12 each: position, rotation), as a plan keeps
+// its own (Plan::rel_pose).
+bool RelativePoseWithin(const double* box, const double* actual, const double* planned,
+                        double limit);
+// b's pose in the frame of pose (pa, ra): (ra^T (pb - pa), ra^T rb), into (pos 3, mat 9).
+DUA_API void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
+                          double* pos, double* mat);
 
 // Buffers of plans gone, for the plans that follow: a plan's poses are as large as hundreds
 // of kilobytes, and fresh memory for each (a replan every few steps) costs its page faults.
@@ -89,6 +107,36 @@ class Plan {
   // (a plane reaches arbitrarily far).
   void Check(const double* pos, const double* mat, int64_t k, const double* boxes, int64_t nbox,
              const uint8_t* ok, std::vector<int64_t>* broken) const;
+  // The frames of the relative pairs (each body's box's geom in the violation check: boxes its
+  // rows, row[body] each body's, which must outlive the plan) and each pair's planned relative
+  // pose at each knot. Before any use of the pairs (Runtime::SetPlan, PlanQuery).
+  void SetRelativeFrames(const double* boxes, const int64_t* row);
+  // Appends to broken the relative pairs r with ok[r] set (null: all) whose bodies are both
+  // within ok_body (null: all) found beyond their relative deviation at knot k (RelativeWithin
+  // on b's box in a's frame).
+  void CheckRelative(const double* pos, const double* mat, int64_t k, const uint8_t* ok,
+                     const uint8_t* ok_body, std::vector<int64_t>* broken) const;
+  // Relative pair r's planned pose at knot k (12: b's frame geom's position and rotation in
+  // a's), its box (b's row of the violation check), its frame geoms.
+  const double* rel_pose(int64_t k, int64_t r) const {
+    return rel_pose_.data() + 12 * (nrel() * k + r);
+  }
+  const double* rel_box(int64_t r) const { return rel_box_[r]; }
+  // Relative pairs (Lemma 8.2d): nrel body pairs (rel_a(r), rel_b(r)), rel_a < rel_b, sorted;
+  // rel_dev(k, r) the bound at knot k; RelOf the pair of two bodies (either order; -1: none).
+  int64_t nrel() const { return static_cast<int64_t>(rel_key_.size()); }
+  int64_t rel_a(int64_t r) const { return rel_key_[r] / nbody_; }
+  int64_t rel_b(int64_t r) const { return rel_key_[r] % nbody_; }
+  double rel_dev(int64_t k, int64_t r) const { return rel_dev_[nrel() * k + r]; }
+  int64_t RelOf(int64_t b1, int64_t b2) const {
+    if (rel_key_.empty()) return -1;
+    const int64_t key = b1 < b2 ? b1 * nbody_ + b2 : b2 * nbody_ + b1;
+    const auto it = std::lower_bound(rel_key_.begin(), rel_key_.end(), key);
+    return it != rel_key_.end() && *it == key ? it - rel_key_.begin() : -1;
+  }
+  // Whether min(D_a + D_b, D_ab) of relative pair r is non-decreasing over the knots (the knot
+  // walk's search then applies, as dev_rises for the sum).
+  bool rel_rises(int64_t r) const { return rel_rises_[r] != 0; }
 
   int64_t nknot() const { return nknot_; }
   double start() const { return start_; }
@@ -118,6 +166,10 @@ class Plan {
  private:
   // Whether this plan's knot j and prev's knot i have the same rows (qpos, mocap poses).
   bool SameRow(int64_t j, const Plan& prev, int64_t i) const;
+  // The relative pairs of `in` checked (bodies the plan holds, each pair once, deviations
+  // finite and >= 0) and kept, sorted by body pair. Returns an error message, or "".
+  std::string Relative(const mjModel* m, const dua_plan_input& in,
+                       const std::vector<uint8_t>& holds);
   // The columns (slots) of `geoms` and the buffers of n knots.
   void Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
              std::shared_ptr<PlanPool> pool);
@@ -134,7 +186,12 @@ class Plan {
   std::vector<int64_t> slot_;  // (ngeom,) each geom's column of the poses (-1: not kept)
   std::vector<double> pos_, mat_, sweep_, dev_;        // (nknot, nslot, 3 / 9 / 1), (nknot, nbody)
   std::vector<double> qpos_, mocap_pos_, mocap_quat_;  // the rows (mocap: empty if unplanned)
-  std::vector<uint8_t> holds_, fixed_, rises_;
+  std::vector<uint8_t> holds_, fixed_, rises_, rel_rises_;
+  std::vector<int64_t> rel_key_;  // (nrel,) a * nbody + b of each relative pair, sorted
+  std::vector<double> rel_dev_;   // (nknot, nrel)
+  std::vector<double> rel_pose_;  // (nknot, nrel, 12) SetRelativeFrames
+  std::vector<const double*> rel_box_;
+  std::vector<int64_t> rel_ga_, rel_gb_;
   std::vector<int64_t> planes_;  // plane geoms on bodies the plan holds
   std::vector<int> geom_body_;
   std::shared_ptr<PlanPool> pool_;

@@ -126,6 +126,8 @@ Runtime::Runtime(const Runtime& o)
       cleared_(o.cleared_),
       shadows_(o.shadows_),
       pending_due_(o.pending_due_),
+      pending_rel_(o.pending_rel_),
+      rel_ok_(o.rel_ok_),
       body_row_(o.body_row_),
       unboxed_(o.unboxed_),
       plan_geoms_(o.plan_geoms_),
@@ -250,6 +252,7 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
     // held pairs (the rank schedule takes a pair made due both from its slot and from the queue).
     planned_.resize(std::max<size_t>({ids_.size(), static_cast<size_t>(schedule_->width()), 1}));
     pl.body_ok = plan_ok_.data();
+    pl.rel_ok = rel_ok_.data();
     pl.geom1 = u.geom1.data();
     pl.geom2 = u.geom2.data();
     pl.geom_body = m->geom_bodyid;
@@ -276,6 +279,9 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
              "does not have: build it with violation_events on (the default)";
     }
   }
+  error = RelativeBoxed(m, *plan);
+  if (!error.empty()) return error;
+  plan->SetRelativeFrames(tables_->events_rec.data(), body_row_.data());
   const double h = m->opt.timestep;
   const double next = last_time_ + tables_->schedule.dt - read_lag_ * h;
   if (plan->KnotOf(next) < 0) {
@@ -311,6 +317,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
         }
       }
     }
+    RelativeDepartures(*plan, next, h, &sh);
   }
   if (departures != nullptr) {
     std::fill(departures, departures + m->nbody, kInf);
@@ -327,11 +334,16 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
                                   for (size_t b = 0; b < sh.ok.size(); ++b) {
                                     if (sh.ok[b] && sh.from[b] < kInf) return false;
                                   }
+                                  for (size_t r = 0; r < sh.rel_ok.size(); ++r) {
+                                    if (sh.rel_ok[r] && sh.rel_from[r] < kInf) return false;
+                                  }
                                   return true;
                                 }),
                  shadows_.end());
   plan_ = std::move(plan);
   for (int b = 0; b < m->nbody; ++b) plan_ok_[b] = plan_->holds(b) ? 1 : 0;
+  rel_ok_.assign(plan_->nrel(), 1);
+  args_.plan.rel_ok = rel_ok_.data();
   std::fill(cleared_.begin(), cleared_.end(), -1);  // the walks so far were of the old plan
   MakeAllDue(step_ + 1);
   return "";
@@ -346,7 +358,9 @@ void Runtime::Retire() {
   const double next = last_time_ + spec.dt - read_lag_ * tables_->timestep;
   const size_t nbody = plan_ok_.size();
   shadows_.push_back({plan_, plan_ok_, next + horizon + static_cast<double>(spec.latency) * spec.dt,
-                      std::vector<double>(nbody, std::nan("")), std::vector<double>(nbody, -kInf)});
+                      std::vector<double>(nbody, std::nan("")), std::vector<double>(nbody, -kInf),
+                      rel_ok_, std::vector<double>(rel_ok_.size(), std::nan("")),
+                      std::vector<double>(rel_ok_.size(), -kInf)});
 }
 
 void Runtime::ClearPlan() {
@@ -362,6 +376,7 @@ void Runtime::DropPlans() {
   args_.plan.impl = nullptr;
   shadows_.clear();
   pending_due_.clear();
+  pending_rel_.clear();
   std::fill(plan_ok_.begin(), plan_ok_.end(), 0);
 }
 
@@ -391,14 +406,24 @@ void Runtime::MakeBodyDue(const mjModel* m, int64_t b, int64_t n) {
   }
 }
 
-int64_t Runtime::CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken) {
+int64_t Runtime::CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken,
+                            std::vector<int64_t>* rel_broken) {
   const double now = StateTime(m, d), h = m->opt.timestep;
   const Tables& t = *tables_;
   const int64_t k = plan_ ? plan_->KnotOf(now) : -1;
+  const int64_t nbody = m->nbody;
+  std::vector<int64_t> rel;
   if (k >= 0) {
     plan_->Check(d->geom_xpos, d->geom_xmat, k, t.events_rec.data(), t.nbody_events,
                  plan_ok_.data(), broken);
     for (const int64_t b : *broken) plan_ok_[b] = 0;
+    // The relative pairs whose bodies are both still planned (the others' pairs follow a
+    // body's bounds now, and no verdict reads their relative bound).
+    plan_->CheckRelative(d->geom_xpos, d->geom_xmat, k, rel_ok_.data(), plan_ok_.data(), &rel);
+    for (const int64_t r : rel) {
+      rel_ok_[r] = 0;
+      rel_broken->push_back(plan_->rel_a(r) * nbody + plan_->rel_b(r));
+    }
   }
   shadows_.erase(std::remove_if(shadows_.begin(), shadows_.end(),
                                 [&](const Shadow& sh) {
@@ -418,8 +443,47 @@ int64_t Runtime::CheckPlans(const mjModel* m, const mjData* d, std::vector<int64
       sh.ok[(*broken)[i]] = 0;
       sh.broken_at[(*broken)[i]] = now;
     }
+    // Its relative pairs, on the bodies still within it, as its bodies are checked.
+    rel.clear();
+    ShadowOpenRelative(sh, now, k, h, &open);
+    sh.plan->CheckRelative(d->geom_xpos, d->geom_xmat, j, open.data(), sh.ok.data(), &rel);
+    for (const int64_t r : rel) {
+      sh.rel_ok[r] = 0;
+      sh.rel_broken_at[r] = now;
+      rel_broken->push_back(sh.plan->rel_a(r) * nbody + sh.plan->rel_b(r));
+    }
   }
   return k;
+}
+
+void Runtime::MakeRelativeDue(const mjModel* m, int64_t key, int64_t n) {
+  const int64_t a = key / m->nbody, b = key % m->nbody;
+  const int64_t row = body_row_[a];
+  if (row < 0) return;
+  dua_schedule* st = schedule_->state();
+  const Universe& u = universe();
+  for (int64_t i = held_start_[row]; i < held_start_[row + 1]; ++i) {
+    const int64_t p = held_members_[i], mp = ids_[p];
+    const int64_t b1 = m->geom_bodyid[u.geom1[mp]], b2 = m->geom_bodyid[u.geom2[mp]];
+    if (!((b1 == a && b2 == b) || (b1 == b && b2 == a))) continue;
+    dua_make_due(st, p, n);
+    plan_due_.push_back(p);
+    cleared_[p] = -1;
+  }
+}
+
+std::string Runtime::RelativeBoxed(const mjModel* m, const Plan& plan) const {
+  for (int64_t r = 0; r < plan.nrel(); ++r) {
+    for (const int64_t b : {plan.rel_a(r), plan.rel_b(r)}) {
+      if (body_row_[b] < 0) {
+        return "holds a relative deviation for body " + std::to_string(b) +
+               ", which has no box in the violation check to measure it at: leave its pairs "
+               "out of relative (or build the predictor with violation_events on)";
+      }
+    }
+  }
+  (void)m;
+  return "";
 }
 
 void Runtime::ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
@@ -432,13 +496,52 @@ void Runtime::ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
   }
 }
 
+void Runtime::ShadowOpenRelative(const Shadow& sh, double now, int64_t k, double h,
+                                 std::vector<uint8_t>* open) const {
+  const Plan& old = *sh.plan;
+  open->resize(sh.rel_ok.size());
+  for (size_t r = 0; r < sh.rel_ok.size(); ++r) {
+    const auto i = static_cast<int64_t>(r);
+    const int64_t a = old.rel_a(i), b = old.rel_b(i);
+    const int64_t rn = k >= 0 ? plan_->RelOf(a, b) : -1;
+    const bool proven = rn >= 0 && rel_ok_[rn] && plan_ok_[a] && plan_ok_[b];
+    (*open)[r] = sh.rel_ok[r] && (now >= sh.rel_from[r] - 1e-6 * h || !proven);
+  }
+}
+
+void Runtime::RelativeDepartures(const Plan& plan, double next, double h, Shadow* sh) const {
+  const Plan& old = *sh->plan;
+  sh->rel_from.assign(old.nrel(), kInf);
+  const int64_t jo0 = old.KnotOf(next), jn0 = plan.KnotOf(next);
+  for (int64_t r = 0; r < old.nrel(); ++r) {
+    const int64_t a = old.rel_a(r), b = old.rel_b(r);
+    if (!sh->rel_ok[r] || !sh->ok[a] || !sh->ok[b]) continue;  // the shadow checks it no more
+    const int64_t rn = plan.RelOf(a, b);
+    for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
+      const double time = next + static_cast<double>(s) * h;
+      const int64_t jo = jo0 + s, jn = jn0 + s < plan.nknot() ? jn0 + s : -1;
+      if (time > sh->until + 1e-6 * h) break;
+      // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
+      // same nesting as the bodies' (SetPlan), of the relative poses.
+      if (jn < 0 || rn < 0 ||
+          !RelativePoseWithin(old.rel_box(r), plan.rel_pose(jn, rn), old.rel_pose(jo, r),
+                              old.rel_dev(jo, r) - plan.rel_dev(jn, rn))) {
+        sh->rel_from[r] = time;
+        break;
+      }
+    }
+  }
+}
+
 void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
   plan_due_.clear();
   for (const int64_t b : pending_due_) MakeBodyDue(m, b, n);
   pending_due_.clear();
+  for (const int64_t key : pending_rel_) MakeRelativeDue(m, key, n);
+  pending_rel_.clear();
   if (!plan_ && shadows_.empty()) return;
-  std::vector<int64_t> broken;
-  const int64_t k = CheckPlans(m, d, &broken);
+  std::vector<int64_t> broken, rel;
+  const int64_t k = CheckPlans(m, d, &broken, &rel);
   if (k >= 0) {
     args_.plan.knot = k;
   } else if (plan_) {
@@ -448,16 +551,18 @@ void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
     args_.plan.impl = nullptr;
     MakeAllDue(n);
   }
-  plan_breaks_ += static_cast<int64_t>(broken.size());
+  plan_breaks_ += static_cast<int64_t>(broken.size() + rel.size());
   for (const int64_t b : broken) MakeBodyDue(m, b, n);
+  for (const int64_t key : rel) MakeRelativeDue(m, key, n);
 }
 
 std::vector<int64_t> Runtime::CheckPlan(const mjModel* m, const mjData* d) {
-  std::vector<int64_t> broken;
+  std::vector<int64_t> broken, rel;
   if (!classified_ || (!plan_ && shadows_.empty())) return broken;
-  CheckPlans(m, d, &broken);
-  plan_breaks_ += static_cast<int64_t>(broken.size());
+  CheckPlans(m, d, &broken, &rel);
+  plan_breaks_ += static_cast<int64_t>(broken.size() + rel.size());
   pending_due_.insert(pending_due_.end(), broken.begin(), broken.end());
+  pending_rel_.insert(pending_rel_.end(), rel.begin(), rel.end());
   return broken;
 }
 
@@ -505,6 +610,40 @@ std::vector<int64_t> Runtime::PlanBroken(const mjModel* m, const mjData* d) cons
   return out;
 }
 
+std::vector<int64_t> Runtime::PlanBrokenRelative(const mjModel* m, const mjData* d) const {
+  std::vector<int64_t> rel, out;
+  if (!plan_ && shadows_.empty()) return out;  // the monitor asks at every step, plans or none
+  const double now = StateTime(m, d);
+  const double h = m->opt.timestep;
+  const auto add = [&](const Plan& plan) {
+    for (const int64_t r : rel) {
+      const int64_t a = plan.rel_a(r), b = plan.rel_b(r);
+      bool seen = false;
+      for (size_t i = 0; i < out.size(); i += 2) seen = seen || (out[i] == a && out[i + 1] == b);
+      if (!seen) out.push_back(a), out.push_back(b);
+    }
+    rel.clear();
+  };
+  const int64_t k = plan_ ? plan_->KnotOf(now) : -1;
+  if (k >= 0) {
+    plan_->CheckRelative(d->geom_xpos, d->geom_xmat, k, nullptr, plan_ok_.data(), &rel);
+    add(*plan_);
+  }
+  std::vector<uint8_t> open;
+  for (const Shadow& sh : shadows_) {
+    const int64_t j = sh.plan->KnotOf(now);
+    if (j < 0 || now > sh.until + 1e-6 * h) continue;
+    // As the step checks them, and those found at this very state (PlanBroken's rule).
+    ShadowOpenRelative(sh, now, k, h, &open);
+    for (size_t r = 0; r < open.size(); ++r) {
+      open[r] = open[r] || sh.rel_broken_at[r] == now;
+    }
+    sh.plan->CheckRelative(d->geom_xpos, d->geom_xmat, j, open.data(), nullptr, &rel);
+    add(*sh.plan);
+  }
+  return out;
+}
+
 std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan_input& candidate,
                                const std::vector<int64_t>& g1, const std::vector<int64_t>& g2,
                                std::vector<int64_t>* knots) const {
@@ -522,6 +661,9 @@ std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan
              "violation_events on (the default)";
     }
   }
+  error = RelativeBoxed(m, plan);
+  if (!error.empty()) return error;
+  plan.SetRelativeFrames(t.events_rec.data(), body_row_.data());
   const int64_t k = plan.KnotOf(StateTime(m, d));
   if (k < 0) {
     return "does not cover the state of the data (time " + std::to_string(StateTime(m, d)) +
@@ -591,6 +733,7 @@ void Runtime::QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, in
   a.plan.geom_row = t.geom_row.data();
   a.plan.data = query_data_.get();
   a.plan.cleared = nullptr;  // another plan, and the query's own pair records
+  a.plan.rel_ok = nullptr;   // its relative bounds assumed, as its bodies' are
   q->ok.resize(m->nbody);
   for (int b = 0; b < m->nbody; ++b) q->ok[b] = plan.holds(b) ? 1 : 0;
   q->by_slot.assign(q->nslot, plan.nknot());

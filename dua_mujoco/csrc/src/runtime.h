@@ -158,6 +158,11 @@ class DUA_API Runtime {
   // within their spans (-1 in out[0]: none covers it), checking only; the monitor's
   // every-step check.
   std::vector<int64_t> PlanBroken(const mjModel* m, const mjData* d) const;
+  // The relative pairs (a, b) of d's state beyond their relative deviation (Lemma 8.2d), of the
+  // plan and of the shadows within their spans, as PlanBroken's bodies: (2 n,) body ids.
+  std::vector<int64_t> PlanBrokenRelative(const mjModel* m, const mjData* d) const;
+  // The plan's relative pairs still within their relative deviation (Plan::relative order).
+  const std::vector<uint8_t>& rel_ok() const { return rel_ok_; }
   // The check of a step's plan, between steps (period > 1: the plugin's compute at each physics
   // step, Predictor.check_plan): bodies found beyond their deviation are counted as breaks and
   // their pairs made due at the next step. Returns them.
@@ -288,12 +293,27 @@ class DUA_API Runtime {
   // The plan's and the shadows' checks of d's state: the bodies found beyond their deviation
   // appended to broken and marked (shadows past their span dropped); returns the plan's knot
   // (-1: no plan covers the state).
-  int64_t CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken);
+  // Relative pairs found beyond their relative deviation go to rel_broken as body-pair keys
+  // (a * nbody + b), marked off too.
+  int64_t CheckPlans(const mjModel* m, const mjData* d, std::vector<int64_t>* broken,
+                     std::vector<int64_t>* rel_broken);
+  // The held pairs of a relative pair broken (key a * nbody + b) made due at step n, their walks
+  // forgotten (they were walked with the relative bound).
+  void MakeRelativeDue(const mjModel* m, int64_t key, int64_t n);
+  // A relative pair of plan's bodies without a box in the violation check: an error, or "".
+  std::string RelativeBoxed(const mjModel* m, const Plan& plan) const;
   struct Shadow;
   // The bodies shadow sh checks at state time now (the plan at knot k): those still within it,
   // from the plan's departure from it on, or once the plan no longer proves them within.
   void ShadowOpen(const Shadow& sh, double now, int64_t k, double h,
                   std::vector<uint8_t>* open) const;
+  // The same for its relative pairs: from the plan's departure from their relative tube on, or
+  // once the plan no longer proves them within (it breaks them, or one of their bodies).
+  void ShadowOpenRelative(const Shadow& sh, double now, int64_t k, double h,
+                          std::vector<uint8_t>* open) const;
+  // The first state time in shadow sh's span, from `next`, at which `plan` leaves its relative
+  // tubes, into sh.rel_from (SetPlan).
+  void RelativeDepartures(const Plan& plan, double next, double h, Shadow* sh) const;
   // The plan (if any) becomes a shadow over the span its verdicts cover, the next step's.
   void Retire();
   void MakeBodyDue(const mjModel* m, int64_t body, int64_t n);
@@ -365,9 +385,16 @@ class DUA_API Runtime {
     std::vector<uint8_t> ok;
     double until;
     std::vector<double> broken_at, from;
+    // Its relative pairs still within their bound, the state time each was found beyond it
+    // (NaN: not), and the first state at which the plan that followed leaves its relative tube
+    // (as `from`, for the relative pose of the pair's second body in its first's frame).
+    std::vector<uint8_t> rel_ok;
+    std::vector<double> rel_broken_at, rel_from;
   };
   std::vector<Shadow> shadows_;
   std::vector<int64_t> pending_due_;  // bodies broken between steps: pairs due at the next
+  std::vector<int64_t> pending_rel_;  // relative pairs (keys) broken between steps
+  std::vector<uint8_t> rel_ok_;       // the plan's relative pairs within their bound so far
   std::vector<int64_t> plan_due_;     // held pairs the plan made due at this step (tracked)
   std::vector<int64_t> body_row_;     // each body's row of the violation check (-1: none)
   std::vector<uint8_t> unboxed_;      // bodies with covered geoms and no row (no plan holds them)

@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 9
+#define DUA_ABI_VERSION 10
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -164,6 +164,10 @@ typedef struct dua_plan {
   // (nbody,) 1 for a body the plan holds and found within its deviation so far (static bodies
   // too: planned, with deviation 0); 0 for one it does not know or found beyond its deviation.
   const uint8_t* body_ok;
+  // (plan's nrel,) 1 for a relative pair (Plan::relative) found within its relative deviation
+  // so far; 0 for one found beyond it (its pairs take D_a + D_b alone). Null: every one
+  // within (a candidate plan's, whose bounds are assumed as its bodies' are).
+  const uint8_t* rel_ok;
   const int64_t* geom1;  // (npair,) the geoms of each known pair (the plane or static geom second)
   const int64_t* geom2;
   const int* geom_body;     // the model's geom_bodyid
@@ -173,7 +177,8 @@ typedef struct dua_plan {
   int64_t queries;          // MuJoCo's distance queries at knots so far
   // (K,) what each held pair's latest verdict rested on, and the one before it: bit 0 set when
   // its first geom's side rested on the plan (that body's deviation), bit 1 the same for its
-  // second geom; a clear bit is the motion bounds of that body. Null: not recorded.
+  // second geom; a clear bit is the motion bounds of that body; bit 2 set when it rested on the
+  // relative deviation of its two bodies (Lemma 8.2d). Null: not recorded.
   uint8_t* basis;
   uint8_t* basis_prev;
   // (K,) per held pair, the knot at which the latest walk of its knots with both bodies planned
@@ -200,6 +205,14 @@ typedef struct dua_plan_input {
   const uint8_t* bodies;
   const double* mocap_pos;   // (n, nmocap, 3), or null: mocap bodies unplanned
   const double* mocap_quat;  // (n, nmocap, 4), or null (then mocap_pos must be null too)
+  // Relative deviations (docs/theory.md, Lemma 8.2d), for pairs of two bodies the plan holds:
+  // nrel body pairs (a, b), a < b (relative_bodies (nrel, 2)), and relative_deviation (n, nrel),
+  // a bound on how far any point of b's box may stray, in a's frame, from where the plan puts it
+  // relative to a. A pair of geoms on a and b then takes min(D_a + D_b, D_ab) off its planned
+  // gap. nrel 0 (both null): none.
+  int64_t nrel;
+  const int64_t* relative_bodies;
+  const double* relative_deviation;
 } dua_plan_input;
 
 typedef struct dua_step_args {

@@ -1,0 +1,300 @@
+"""Relative deviations of plans (``set_plan(..., relative=...)``; docs/theory.md, Lemma 8.2d).
+
+The relative gap is held to a slow reference on random poses (MuJoCo's distance at the actual
+poses is never below the planned distance less the relative deviation that reference measures,
+and the runtime's check agrees with it); on a three-link arm whose first and last links lie
+side by side, a plan off in the arm's swing leaves their relative pose exact (no break, and the
+pair stands no more), a fold of the last link beyond its relative deviation is a plan break the
+runtime counts and the monitor sees, and a relative deviation above the sum changes nothing.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+from reference_relative import relative_deviation
+
+from dua_mujoco import _core
+from dua_mujoco.build.events import B_CENTER, B_HALF, NB_REC
+from dua_mujoco.exceptions import InvalidInputError, ShapeError
+from dua_mujoco.measure.monitor import Monitor
+from dua_mujoco.runtime.plans import PilotPlan, deviation_profile, relative_profile
+from dua_mujoco.runtime.predictor import Predictor
+
+TWO = """
+<mujoco>
+  <worldbody>
+    <body name="a"><freejoint/><geom name="a" type="capsule" size=".05 .2"/></body>
+    <body name="b"><freejoint/><geom name="b" type="box" size=".1 .06 .04"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+# Three links in a plane; the last folds back beside the first, 4 cm apart (surfaces).
+ARM = """
+<mujoco>
+  <option timestep="0.002" gravity="0 0 0" integrator="implicitfast"/>
+  <worldbody>
+    <body name="l1" pos="0 0 .5">
+      <joint name="j1" type="hinge" axis="0 0 1" damping="1"/>
+      <geom name="l1" type="capsule" fromto=".05 0 0 .3 0 0" size=".03"/>
+      <body name="l2" pos=".3 0 0">
+        <joint name="j2" type="hinge" axis="0 0 1" damping="1"/>
+        <geom name="l2" type="capsule" fromto="0 0 0 0 .1 0" size=".03"/>
+        <body name="l3" pos="0 .1 0">
+          <joint name="j3" type="hinge" axis="0 0 1" damping="1"/>
+          <geom name="l3" type="capsule" fromto="-.02 0 0 -.25 0 0" size=".03"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <position joint="j1" kp="50" kv="2"/>
+    <position joint="j2" kp="50" kv="2"/>
+    <position joint="j3" kp="50" kv="2"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def _pose(rng_vec: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """A pose from 6 numbers: a position and a rotation vector."""
+    pos = np.array(rng_vec[:3])
+    rot = np.array(rng_vec[3:])
+    angle = float(np.linalg.norm(rot))
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    if angle > 0:
+        mujoco.mju_axisAngle2Quat(quat, rot / angle, angle)
+    mat = np.empty(9)
+    mujoco.mju_quat2Mat(mat, quat)
+    return pos, mat
+
+
+def _distance(m: mujoco.MjModel, d: mujoco.MjData, pa, pb) -> float:  # type: ignore[no-untyped-def]
+    d.geom_xpos[0], d.geom_xmat[0] = pa
+    d.geom_xpos[1], d.geom_xmat[1] = pb
+    return float(mujoco.mj_geomDistance(m, d, 0, 1, 10.0, None))
+
+
+vec = st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6)
+
+
+@settings(max_examples=150, deadline=None)
+@given(vec, vec, vec, st.lists(st.floats(-0.05, 0.05), min_size=6, max_size=6))
+def test_the_actual_distance_is_never_below_the_planned_one_less_the_relative_deviation(
+    plan_a: list[float], plan_b: list[float], rigid: list[float], twist: list[float]
+) -> None:
+    """Random planned poses of two geoms; the actual ones a rigid motion of both (any size) and
+    a small relative one: the actual distance is at least the planned one less the reference's
+    relative deviation of b's box in a's frame (Lemma 8.2d), and the runtime's check
+    (RelativeWithin) passes that deviation and refuses 1 % less. A world-frame measure fails
+    the second on large rigid motions."""
+    m = mujoco.MjModel.from_xml_string(TWO)
+    d = mujoco.MjData(m)
+    pa, pb = _pose(plan_a), _pose([2.0 * x for x in plan_b])
+    move, turn = _pose(rigid), _pose(twist)
+
+    def moved(pose, by):  # type: ignore[no-untyped-def]
+        r = by[1].reshape(3, 3)
+        return by[0] + r @ pose[0], (r @ pose[1].reshape(3, 3)).reshape(9)
+
+    aa = moved(pa, move)
+    ab = moved(moved(pb, turn), move)
+    center, half = np.zeros(3), np.array([0.1, 0.06, 0.04])
+    dev = relative_deviation(center, half, aa, ab, pa, pb)
+    planned, actual = _distance(m, d, pa, pb), _distance(m, d, aa, ab)
+    assume(planned > 0.0)  # a penetration's depth is not a distance
+    assert actual >= planned - dev - 1e-9, (actual, planned, dev)
+    box = np.zeros(NB_REC)
+    box[B_CENTER : B_CENTER + 3], box[B_HALF : B_HALF + 3] = center, half
+    within = lambda limit: _core.relative_within(box, *aa, *ab, *pa, *pb, limit)  # noqa: E731
+    assert within(dev * (1 + 1e-9) + 1e-9)
+    if dev > 1e-6:
+        assert not within(dev * 0.99)
+
+
+# ----------------------------------------------------------------------------- the arm
+
+
+def _arm() -> tuple[mujoco.MjModel, mujoco.MjData, Predictor]:
+    m = mujoco.MjModel.from_xml_string(ARM)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    p = Predictor(m, accel=50.0, alarm_horizon=0.2)
+    return m, d, p
+
+
+def _roll(m: mujoco.MjModel, d: mujoco.MjData, ctrl: np.ndarray, n: int) -> np.ndarray:
+    c = mujoco.MjData(m)
+    mujoco.mj_copyData(c, m, d)
+    out = [c.qpos.copy()]
+    for j in range(n - 1):
+        c.ctrl[:] = ctrl[min(j, len(ctrl) - 1)]
+        mujoco.mj_step(m, c)
+        out.append(c.qpos.copy())
+    return np.array(out)
+
+
+def _pair(m: mujoco.MjModel) -> tuple[int, int]:
+    return m.body("l1").id, m.body("l3").id
+
+
+def _stands(p: Predictor, m: mujoco.MjModel) -> bool:
+    """Whether a sphere pair of the first and last link stands in alarm."""
+    state = p.pair_state()
+    stand = np.flatnonzero(state.alarm_state() & state.active)
+    g = {m.geom("l1").id, m.geom("l3").id}
+    return any({int(p.tables.geom1[i]), int(p.tables.geom2[i])} == g for i in stand)
+
+
+def test_a_plan_off_in_the_swing_keeps_the_relative_pose_and_frees_the_pair() -> None:
+    """The run swings the arm, the plan holds it still: each link strays from its plan by up to
+    the swing (15 cm), their relative pose not at all. With the sum of the deviations the pair
+    of the first and last link (4 cm apart) stands at every step; with their relative
+    deviation (1 cm) it does not, and nothing breaks (a world-frame check would break it)."""
+    m, d, p = _arm()
+    n = 300  # past the 150 steps run by more than the horizon
+    swing = np.tile([0.5, 0.0, 0.0], (n, 1))
+    dev = np.full((n, m.nbody), 0.2)
+    out = []
+    for relative in (None, ([_pair(m)], 0.01)):
+        mujoco.mj_resetData(m, d)
+        mujoco.mj_forward(m, d)
+        p.reset(d)
+        p.set_plan(_roll(m, d, np.zeros((1, 3)), n), deviation=dev, relative=relative)
+        stood = 0
+        for k in range(150):
+            d.ctrl[:] = swing[k]
+            mujoco.mj_step(m, d)
+            p.step(d)
+            stood += _stands(p, m)
+        out.append((stood, p.plan_breaks))
+    assert out[0] == (150, 0), out
+    assert out[1] == (0, 0), out
+
+
+def _fold(monitor: bool = False) -> tuple[Predictor, Monitor | None, mujoco.MjModel]:
+    """The plan holds the arm still with deviations of 0.3 m a body (the fold stays within
+    them) and 5 mm between the first and last link; the run folds the last link into the first
+    within 0.1 s (less than the 0.2 s horizon)."""
+    m, d, p = _arm()
+    n = 400
+    mon = Monitor(p) if monitor else None
+    mujoco.mj_step(m, d)
+    if mon is not None:
+        mon.start(d)
+    else:
+        p.reset(d)
+    p.set_plan(
+        _roll(m, d, np.zeros((1, 3)), n),
+        deviation=np.full((n, m.nbody), 0.3),
+        relative=([_pair(m)], 0.005),
+        start=float(d.time) - m.opt.timestep,
+    )
+    for k in range(250):
+        d.ctrl[:] = [0.0, 0.0, 0.6 if k >= 150 else 0.0]  # past the horizon from the start
+        mujoco.mj_step(m, d)
+        step = p.step(d)
+        if mon is not None:
+            mon.observe(d, step)
+    if mon is not None:
+        mon.finish()
+    return p, mon, m
+
+
+def test_a_fold_beyond_the_relative_deviation_is_a_plan_break() -> None:
+    """The fold moves the last link 5 mm off its place relative to the first within a few
+    steps: the runtime counts a plan break (no body breaks its own deviation), reports the pair
+    as beyond its relative deviation, and the pair's verdicts fall back on the sum (it stands).
+    Without the relative check nothing breaks."""
+    p, _, m = _fold()
+    assert p.plan_breaks >= 1
+    assert p._rt.plan_ok[list(_pair(m))].all()  # the bodies are within their own deviation
+    assert p.beyond_plan_relative().tolist() == [list(_pair(m))]
+    assert _stands(p, m)
+
+
+def test_the_monitor_labels_an_onset_after_a_relative_break_as_not_held() -> None:
+    """The fold's contact comes with less lead than the horizon, after the relative bound its
+    verdicts rested on broke: the monitor labels it after a break, never as held (a monitor
+    that reads only the bodies' breaks labels it held)."""
+    _, mon, _ = _fold(monitor=True)
+    assert mon is not None and mon.onsets >= 1
+    assert mon.warning.short_held == 0, mon.warning.leads
+    assert mon.warning.short_after_violation >= 1
+
+
+def test_a_relative_deviation_above_the_sum_changes_no_verdict() -> None:
+    """``min(D_a + D_b, D_ab)``: as the last link folds into the first, a relative deviation of
+    1 m, above the 2 cm sum, gives the pair the knot it has without it (the relative term alone
+    would give knot 0), and one of 0 a knot no earlier."""
+    m, d, p = _arm()
+    p.reset(d)
+    n = 150
+    qpos = _roll(m, d, np.tile([0.0, 0.0, 0.8], (n, 1)), n)
+    dev = np.full((n, m.nbody), 0.01)
+    pairs = [(m.geom("l1").id, m.geom("l3").id)]
+    start = float(d.time) - m.opt.timestep  # the state the data holds
+    knots = {
+        r: p.plan_contact_knots(
+            qpos, pairs, deviation=dev, start=start, relative=None if r is None else ([_pair(m)], r)
+        )
+        for r in (None, 1.0, 0.0)
+    }
+    without, above, below = knots[None], knots[1.0], knots[0.0]
+    assert without[0] > 0 and (above == without).all(), (without, above)
+    assert below[0] >= without[0]
+
+
+def test_the_pilot_measures_relative_deviations_below_the_sum() -> None:
+    """On a pilot that swings the arm against plans that hold it still, the link pairs' own
+    deviations grow with the swing while their relative pose stays: relative_profile keeps the
+    pair of the first and last link (the only pair of the arm with a geom pair), with a
+    deviation far below the sum, and set_plan takes it."""
+    m, d, p = _arm()
+    p.reset(d)
+    rows, plans = [d.qpos.copy()], []
+    for k in range(300):
+        if k % 20 == 0:
+            plans.append(PilotPlan(len(rows) - 1, _roll(m, d, np.zeros((1, 3)), 40)))
+        d.ctrl[:] = [0.5 * np.sin(k / 100.0), 0.0, 0.0]
+        mujoco.mj_step(m, d)
+        rows.append(d.qpos.copy())
+    q = np.array(rows)
+    profile = deviation_profile(m, q, plans, points=p.bound_points)
+    gp = p.geom_pairs
+    rel = relative_profile(
+        m, q, plans, points=p.bound_points, geom_pairs=(gp.geom1, gp.geom2), profile=profile
+    )
+    a, b = _pair(m)
+    assert rel.pairs.tolist() == [[a, b]]
+    assert rel.deviation[-1, 0] < 0.25 * (profile[-1, a] + profile[-1, b])
+    mujoco.mj_forward(m, d)
+    p.reset(d)
+    qpos = _roll(m, d, np.zeros((1, 3)), 40)
+    p.set_plan(qpos, deviation=profile[:40], relative=rel.relative(40))
+
+
+def test_bad_relative_deviations_are_refused_by_name() -> None:
+    m, d, p = _arm()
+    p.reset(d)
+    qpos = _roll(m, d, np.zeros((1, 3)), 20)
+    a, b = _pair(m)
+    with pytest.raises(InvalidInputError, match="not a finite distance"):
+        p.set_plan(qpos, deviation=0.1, relative=([(a, b)], np.nan))
+    with pytest.raises(InvalidInputError, match="twice"):
+        p.set_plan(qpos, deviation=0.1, relative=([(a, b), (b, a)], 0.1))
+    with pytest.raises(InvalidInputError, match="bodies the plan holds"):
+        p.set_plan(qpos, deviation=0.1, relative=([(0, b)], 0.1))
+    with pytest.raises(InvalidInputError, match="bodies the plan holds"):
+        p.set_plan(qpos, deviation=0.1, relative=([(a, a)], 0.1))
+    with pytest.raises(InvalidInputError, match="out of range"):
+        p.set_plan(qpos, deviation=0.1, relative=([(a, 99)], 0.1))
+    with pytest.raises(ShapeError, match="relative deviation has shape"):
+        p.set_plan(qpos, deviation=0.1, relative=([(a, b)], np.zeros((3, 1))))
+    with pytest.raises(InvalidInputError, match="relative = "):
+        p.set_plan(qpos, deviation=0.1, relative=5)  # type: ignore[arg-type]
+    p.set_plan(qpos, deviation=0.1, relative=([("l3", "l1")], 0.1))  # names, either order
