@@ -2,7 +2,7 @@
 
 A test's model stays written where the test is, in MJCF; these write the parts models repeat
 (the document around the world body, a body on a free joint holding one geom, an arm of capsules
-on hinges, a motor on each joint), with the attributes as MJCF spells them.
+on hinges, a link of a chain, an actuator on each joint), with the attributes as MJCF spells them.
 """
 
 from __future__ import annotations
@@ -50,10 +50,20 @@ def arm(pos: str, *links: Capsule, **hinge: str | tuple[str, ...]) -> str:
     return xml
 
 
-def motors(*joints: str, **attributes: str | tuple[str, ...]) -> str:
-    """An ``<actuator>`` of a ``<motor>`` on each joint, with the attributes given (a tuple gives
-    each joint its own value: ``gear=("2", "1")``)."""
-    each = (f'<motor joint="{j}"{_spell(attributes, i)}/>' for i, j in enumerate(joints))
+def link(name: str, joint: str, pos: str, fromto: str, *children: str, **hinge: str) -> str:
+    """A body ``name`` at ``pos`` on the hinge ``joint`` (its other attributes ``hinge``), holding
+    a capsule ``name`` of ``fromto`` and radius .03, and the bodies ``children`` (``link(...)``)."""
+    return (
+        f'<body name="{name}" pos="{pos}"><joint name="{joint}" type="hinge"{_spell(hinge, 0)}/>'
+        f'<geom name="{name}" type="capsule" fromto="{fromto}" size=".03"/>{"".join(children)}'
+        "</body>"
+    )
+
+
+def motors(*joints: str, kind: str = "motor", **attributes: str | tuple[str, ...]) -> str:
+    """An ``<actuator>`` of an actuator ``kind`` (``<motor>``, ``<position>``, ...) on each joint,
+    with the attributes given (a tuple gives each joint its own value: ``gear=("2", "1")``)."""
+    each = (f'<{kind} joint="{j}"{_spell(attributes, i)}/>' for i, j in enumerate(joints))
     return f"<actuator>{''.join(each)}</actuator>"
 
 

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from mjcf import link, mjcf, motors
 from reference_relative import relative_deviation
 
 from dua_mujoco import _core
@@ -34,30 +35,14 @@ TWO = """
 """
 
 # Three links in a plane; the last folds back beside the first, 4 cm apart (surfaces).
-ARM = """
-<mujoco>
-  <option timestep="0.002" gravity="0 0 0" integrator="implicitfast"/>
-  <worldbody>
-    <body name="l1" pos="0 0 .5">
-      <joint name="j1" type="hinge" axis="0 0 1" damping="1"/>
-      <geom name="l1" type="capsule" fromto=".05 0 0 .3 0 0" size=".03"/>
-      <body name="l2" pos=".3 0 0">
-        <joint name="j2" type="hinge" axis="0 0 1" damping="1"/>
-        <geom name="l2" type="capsule" fromto="0 0 0 0 .1 0" size=".03"/>
-        <body name="l3" pos="0 .1 0">
-          <joint name="j3" type="hinge" axis="0 0 1" damping="1"/>
-          <geom name="l3" type="capsule" fromto="-.02 0 0 -.25 0 0" size=".03"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-  <actuator>
-    <position joint="j1" kp="50" kv="2"/>
-    <position joint="j2" kp="50" kv="2"/>
-    <position joint="j3" kp="50" kv="2"/>
-  </actuator>
-</mujoco>
-"""
+_HINGE = {"axis": "0 0 1", "damping": "1"}
+_L3 = link("l3", "j3", "0 .1 0", "-.02 0 0 -.25 0 0", **_HINGE)
+_L2 = link("l2", "j2", ".3 0 0", "0 0 0 0 .1 0", _L3, **_HINGE)
+ARM = mjcf(
+    link("l1", "j1", "0 0 .5", ".05 0 0 .3 0 0", _L2, **_HINGE),
+    option='timestep="0.002" gravity="0 0 0" integrator="implicitfast"',
+    actuator=motors("j1", "j2", "j3", kind="position", kp="50", kv="2"),
+)
 
 
 def _pose(rng_vec: list[float]) -> tuple[np.ndarray, np.ndarray]:
