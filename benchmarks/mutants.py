@@ -305,8 +305,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-deviation-dropped",
         _PLAN,
-        "return (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);",
-        "return 0.0 * (plan.dev(j, b1) + plan.dev(j, b2));",
+        "const double sum = (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);",
+        "const double sum = 0.0 * (plan.dev(j, b1) + plan.dev(j, b2));",
         (
             "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
         ),
