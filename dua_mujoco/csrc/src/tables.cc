@@ -506,12 +506,13 @@ bool ReadReach(Reader* r, const std::vector<double>& reach, const std::vector<do
       const double most = std::floor((horizon - lead) / s.dt + 1e-9);
       const std::string fix = most >= 1.0 ? "lower the stride to " + Shown(most) + " or less"
                                           : std::string("lengthen the horizon");
-      return r->Fail("config", "holds a stride of " + Shown(stride) +
-                                   " steps past the reach's horizon (" + Shown(horizon) +
-                                   " s): a pair left out at a rebuild could touch before the " +
-                                   "next rebuild's alarm leads by the alarm horizon; " + fix +
-                                   ", so that (stride + latency) dt + alarm_horizon - dt <= " +
-                                   "horizon, or attach the predictor again");
+      return r->Fail("config",
+                     "holds a stride of " + Shown(stride) + " steps past the reach's horizon (" +
+                         Shown(horizon) +
+                         " s): a pair left out at a rebuild could touch before the " +
+                         "next rebuild's alarm leads by the alarm horizon; " + fix +
+                         ", so that (stride + latency) dt + alarm_horizon - dt <= " +
+                         "horizon, or build the tables again (attach, or a new predictor)");
     }
     // Pruned pairs are carried into the deadline schedule only.
     if (t->schedule.kind != kDeadline) {
