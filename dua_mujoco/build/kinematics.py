@@ -42,6 +42,7 @@ SPHERE_NCOL = LAYOUT["SPHERE_NCOL"]
 # Columns of the screened check's group records (the centre takes three).
 _GROUP = {k: LAYOUT[f"GROUP_{k}"] for k in ("CENTRE", "RADIUS", "FRAME", "BODY", "ROOT", "NCOL")}
 _GROUP_BOUNDS = [LAYOUT[f"GROUP_{k}"] for k in ("ACCEL", "DISC", "SPEED")]
+_FRAME_ROW_LEN = LAYOUT["FRAME_ROW_LEN"]  # a group's kept frame rows, two updates of them
 
 
 def pack_spheres(
@@ -182,7 +183,7 @@ class PointMotion:
         )
         if self._groups is not None:
             ngroup = self._groups[0].size - 1
-            self._frames = np.zeros((ngroup, 2, 30))
+            self._frames = np.zeros((ngroup, 2, _FRAME_ROW_LEN))
             self._computed = np.full(ngroup, -1, dtype=np.int64)
         self._h_prev = 1.0
 

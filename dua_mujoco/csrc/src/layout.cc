@@ -40,6 +40,7 @@ constexpr Entry kEntries[] = {
     {"GROUP_DISC", dua::kGroupDisc},
     {"GROUP_SPEED", dua::kGroupSpeed},
     {"GROUP_NCOL", dua::kGroupNcol},
+    {"FRAME_ROW_LEN", dua::kFrameRowLen},
     {"SHAPE_KIND", dua::kShapeKind},
     {"SHAPE_SIZE", dua::kShapeSize},
     {"SHAPE_POS", dua::kShapePos},
