@@ -433,6 +433,14 @@ MUTANTS: tuple[Mutant, ...] = (
         ("tests/test_plan_partial.py::test_a_person_walking_past_is_judged_where_it_walks",),
         "the mixed tau judges a body walking past by where it stands alone (no carried place)",
     ),
+    Mutant(
+        "mixed-stray-without-its-rounding-room",
+        _PLAN,
+        "4.0 * kEpsilon * (size[0] + t * size[1]);",
+        "0.0 * kEpsilon * (size[0] + t * size[1]);",
+        ("tests/test_plan_partial.py::test_the_carried_place_keeps_room_for_its_own_rounding",),
+        "far from the origin, the carried place y + t w rounds past the planned geom's reach",
+    ),
     # ---------------------------------------------------------------- terrain (section 9)
     Mutant(
         "terrain-base-twice-as-deep",

@@ -111,9 +111,9 @@ def relative_within(box: Annotated[NDArray[numpy.float64], dict(order='C', devic
     RelativeWithin (plan.h): b's box within limit, in a's frame, of its planned pose relative to a.
     """
 
-def plan_deviation(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos_a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat_a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos_b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat_b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+def plan_deviation(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos_a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat_a: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos_b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat_b: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], frame_of: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
     """
-    (r, n): each point's deviation between two poses of its geom, row by row: the plans' one measure (PoseDeviation, plan.h).
+    (r, n): each point's deviation between two poses of its geom (in the frame of geom frame_of[i] when given), row by row: the plans' one measure (PoseDeviation, RelativePose, plan.h).
     """
 
 def plugin_clear_plan(model: object, data: object, instance: int) -> int: ...

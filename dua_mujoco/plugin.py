@@ -292,20 +292,9 @@ def set_plan(
             or the plan is refused (the message names the bad value).
         ShapeError: ``qpos``, ``deviation`` or the mocap poses do not fit the model.
     """
-    arrays = plan_arrays(
-        model,
-        qpos,
-        deviation,
-        bodies=bodies,
-        mocap_pos=mocap_pos,
-        mocap_quat=mocap_quat,
-        relative=relative,
-    )
-    start = float(data.time) if start is None else float(start)
-    instance = _instance(model, prefix)
-    result, departures = _core.plugin_set_plan(
-        model, data, instance, arrays.qpos, arrays.deviation, start, *arrays[2:]
-    )
+    start = data.time if start is None else start
+    plan = plan_arrays(model, qpos, deviation, start, bodies, mocap_pos, mocap_quat, relative)
+    result, departures = _core.plugin_set_plan(model, data, _instance(model, prefix), *plan)
     _checked(int(result))
     return np.asarray(departures)
 

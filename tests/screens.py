@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -20,7 +21,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-__all__ = ["APT_LINE", "REQUIRE_XVFB", "Display", "reddish", "require_xvfb", "virtual_display"]
+__all__ = [
+    "APT_LINE",
+    "REQUIRE_XVFB",
+    "Display",
+    "ctrl_c_able",
+    "reddish",
+    "require_xvfb",
+    "virtual_display",
+]
 
 APT_LINE = "apt-get install xvfb xdotool"
 """What installs the tools (Debian, Ubuntu)."""
@@ -29,6 +38,16 @@ REQUIRE_XVFB = "DUA_REQUIRE_XVFB"
 """Set to 1 (CI), a missing tool fails the tests that need it instead of skipping them."""
 
 _TOOLS = ("Xvfb", "xdotool")
+
+
+def ctrl_c_able(argv: list[str]) -> list[str]:
+    """``argv`` run with Ctrl-C (SIGINT) at its default, for the tests that send it one. A
+    background job of a shell without job control (``pytest ... &`` in a script) starts with
+    SIGINT ignored, and an ignored signal stays ignored across ``exec``: the command would leave
+    it ignored (it takes over only a default Ctrl-C) and run on. Set to the default here, it
+    stays the default across the ``exec`` into ``argv``."""
+    reset = "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+    return [sys.executable, "-c", reset + "os.execv(sys.argv[1], sys.argv[1:])", *argv]
 
 
 class Display:

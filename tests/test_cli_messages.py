@@ -18,6 +18,7 @@ from pathlib import Path
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import pytest
+from screens import ctrl_c_able
 
 from dua_mujoco.cli import build_parser, main
 
@@ -266,12 +267,17 @@ def test_ctrl_c_while_setting_up_is_one_line_and_exit_130(marker: str) -> None:
     argv += ["--pilot-steps", "1000000", "--no-progress"]
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST")}
     proc = subprocess.Popen(
-        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=REPO
+        ctrl_c_able(argv),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=REPO,
     )
     assert proc.stderr is not None
     # A marker that never comes would leave the loop waiting on the silent pilot: a watchdog
-    # interrupts it, and the test fails below instead of hanging.
-    watchdog = threading.Timer(180, proc.send_signal, (signal.SIGINT,))
+    # kills it, and the test fails below instead of hanging.
+    watchdog = threading.Timer(180, proc.kill)
     watchdog.start()
     seen = False
     for line in proc.stderr:
@@ -281,7 +287,11 @@ def test_ctrl_c_while_setting_up_is_one_line_and_exit_130(marker: str) -> None:
     watchdog.cancel()
     assert seen, f"the command never imported {marker}"
     proc.send_signal(signal.SIGINT)
-    out, rest = proc.communicate(timeout=120)
+    try:
+        out, rest = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:  # deaf to Ctrl-C: killed (no pilot left running), failed
+        proc.kill()
+        out, rest = proc.communicate()
     said = [x for x in rest.splitlines() if not x.startswith("import time:")]
     assert proc.returncode == 130, rest[-3000:]
     assert len(said) == 1 and said[0].startswith("dua-mujoco: interrupted"), said

@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import math
+from fractions import Fraction as Q
 
 import mujoco
 import numpy as np
@@ -24,6 +25,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mjcf import Capsule, arm, motors
 
+from dua_mujoco import UrgencyOptions
+from dua_mujoco._core import LAYOUT
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.runtime.predictor import Predictor
@@ -451,3 +454,48 @@ def test_a_plan_keeps_the_replaced_plans_poses_only_where_its_rows_are_the_same(
     # The copies could be wrong: the person's and the arm's motions change the verdicts.
     assert not np.array_equal(got["plan's arm"], got["plan"])
     assert not np.array_equal(got["plan's arm"], got["arm elsewhere"])
+
+
+# Two spheres on slides about x = 1024 m, where a double's spacing (2.3e-13 m) is far above the
+# gap's own rounding allowance (1e-14 of it): the planned one stands still, the free one (no
+# acceleration, no discrepancy: its motion is its velocity read) slides at it along x, a tiny
+# offset in y making the rounded gaps take every value rather than a grid.
+FAR = """<mujoco>
+  <option timestep="0.002" gravity="0 0 0"/>
+  <worldbody>
+    <body name="a" pos="1024 0 0"><joint type="slide" axis="1 0 0"/>
+      <geom type="sphere" size=".05"/></body>
+    <body name="b" pos="1024.5 .06 0"><joint type="slide" axis="1 0 0"/>
+      <joint type="slide" axis="0 1 0"/><geom type="sphere" size=".05"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_the_carried_place_keeps_room_for_its_own_rounding() -> None:
+    """The mixed tau's carried test (where the free sphere's velocity read takes it, y + t w)
+    is never later than the first knot at which, in exact arithmetic, that place touches the
+    planned sphere: far from the origin the sum y + t w rounds by up to half a spacing of y,
+    which Stray's room (4 eps (|y|_1 + t |w|_1)) covers; without it, some of these states
+    (gaps at knot 20 within a spacing of 0) are cleared a knot late."""
+    m = mujoco.MjModel.from_xml_string(FAR)
+    d, at = mujoco.MjData(m), mujoco.MjData(m)
+    p = Predictor(m, accel={"a": 1.0, "b": 0.0}, urgency=UrgencyOptions(exact=False))
+    eps = Q(float(p.table_arrays["pairs"].reshape(-1, LAYOUT["PAIR_NCOL"])[0, LAYOUT["PAIR_EPS"]]))
+    h, rng, late = m.opt.timestep, np.random.default_rng(5), []
+    for _ in range(300):
+        w = -0.5 - rng.uniform(0.0, 0.5)  # at knot 20 the gap is within 3e-13 m of 0
+        d.qpos[:] = [0.0, 0.08 - 20 * w * h - 0.5 + rng.uniform(-3e-13, 0), rng.uniform(0, 5e-13)]
+        d.qvel[:], d.time = [0.0, w, 0.0], 1.0
+        mujoco.mj_forward(m, d)
+        p.reset(d)
+        plan = np.tile(d.qpos, (40, 1))
+        knot = p.plan_contact_knots(plan, [[0, 1]], deviation=0.0, bodies=["a"], start=1.0 - h)
+        centre, velocity = p.sphere_states(d)
+        at.qpos[:] = plan[0]
+        mujoco.mj_kinematics(m, at)
+        dy, vx = Q(centre[1, 1] - at.geom_xpos[0, 1]), Q(velocity[1, 0])
+        dx = [Q(centre[1, 0]) - Q(at.geom_xpos[0, 0]) + vx * j * Q(h) for j in range(40)]
+        first = next(j for j in range(40) if dx[j] ** 2 + dy**2 <= eps**2)
+        if int(knot[0]) > first:
+            late.append((int(knot[0]), first))
+    assert not late, late

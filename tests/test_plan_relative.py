@@ -257,6 +257,11 @@ def test_the_pilot_measures_relative_deviations_below_the_sum() -> None:
     a, b = _pair(m)
     assert rel.pairs.tolist() == [[a, b]]
     assert rel.deviation[-1, 0] < 0.25 * (profile[-1, a] + profile[-1, b])
+    # No geom pair, no candidate: an empty table (the numpy twin of RelativePose raised).
+    none = relative_profile(
+        m, q, plans, points=p.bound_points, geom_pairs=([], []), profile=profile
+    )
+    assert none.pairs.shape == (0, 2) and none.deviation.shape == (40, 0)
     mujoco.mj_forward(m, d)
     p.reset(d)
     qpos = _roll(m, d, np.zeros((1, 3)), 40)

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+from screens import ctrl_c_able
 
 from dua_mujoco.cli import main
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
@@ -194,7 +195,9 @@ def test_ctrl_c_writes_the_rows_done_and_exits_130(tmp_path: Path) -> None:
     out = tmp_path / "rows.json"
     argv = [sys.executable, "-m", "dua_mujoco", "sweep", "two_arms", "--seeds", "8"]
     argv += ["--workers", "1", "--steps", "2000", "--pilot-steps", "200", "--json", str(out)]
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        ctrl_c_able(argv), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     assert proc.stderr is not None
     seen = []
     deadline = time.monotonic() + 300
@@ -203,7 +206,11 @@ def test_ctrl_c_writes_the_rows_done_and_exits_130(tmp_path: Path) -> None:
         if "sweep (local processes) 1/8" in line or time.monotonic() > deadline:
             break
     proc.send_signal(signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=120)
+    try:
+        stdout, stderr = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:  # deaf to Ctrl-C: killed, and the test fails below
+        proc.kill()
+        stdout, stderr = proc.communicate()
     assert proc.returncode == 130, "".join(seen) + stderr
     doc = json.loads(out.read_text())
     assert doc["interrupted"] is True

@@ -21,7 +21,7 @@ import mujoco
 import numpy as np
 import pytest
 from mjcf import motors
-from screens import Display, reddish
+from screens import Display, ctrl_c_able, reddish
 
 from dua_mujoco.cli import main
 from dua_mujoco.render import TINTS, AlarmOverlay, OverlayOptions
@@ -89,8 +89,22 @@ def _view(display: Display, scene: Path, *extra: str) -> subprocess.Popen:
     env = display.env()
     env.pop("MUJOCO_GL", None)  # the viewer opens a GLFW window, whatever the offscreen choice
     return subprocess.Popen(
-        argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        ctrl_c_able(argv), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
+
+
+def _settled(display: Display, timeout: float = 120.0) -> np.ndarray:
+    """A screen that a second later is still the same (the paused viewer's: the frames drawn
+    before the pause, and the paused note's, may land late on a loaded machine); fails after
+    ``timeout`` if it keeps changing (a viewer that runs on)."""
+    deadline, last = time.monotonic() + timeout, display.screenshot()
+    while time.monotonic() < deadline:
+        time.sleep(1.0)
+        shot = display.screenshot()
+        if np.array_equal(shot, last):
+            return shot
+        last = shot
+    raise AssertionError(f"the screen still changed every second after {timeout:.0f} s")
 
 
 @pytest.fixture
@@ -116,10 +130,7 @@ def test_viewer_shows_the_tint_live_and_its_keys_pause_step_and_toggle_spheres(
         # Space: paused; the frame no longer changes.
         display.key("space")
         err.wait_for("paused at t =")
-        time.sleep(0.5)  # let the viewer draw the paused state
-        frozen = display.screenshot()
-        time.sleep(1.0)
-        assert np.array_equal(display.screenshot(), frozen)
+        frozen = _settled(display)
         # Right: one predictor period, then paused again, the state moved.
         display.key("Right")
         err.wait_for("stepping one period")
@@ -128,8 +139,12 @@ def test_viewer_shows_the_tint_live_and_its_keys_pause_step_and_toggle_spheres(
         err.wait_for("resumed at t =")
     finally:
         proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=120)
+        except subprocess.TimeoutExpired:  # deaf to Ctrl-C: killed, and the test fails below
+            proc.kill()
+            proc.wait()
         out = proc.stdout.read()
-        proc.wait(timeout=120)
         rest = err.text()
     assert proc.returncode == 130, rest
     assert "interrupted: the table covers the steps shown" in rest

@@ -70,11 +70,12 @@ Bodies = Iterable[str | int] | str | int | None
 
 
 class PlanArrays(NamedTuple):
-    """A plan's arrays as the runtime reads them (``_core.Runtime.set_plan``'s arguments).
+    """A plan's arguments as the runtime reads them (``_core.Runtime.set_plan``'s, in order).
 
     Attributes:
         qpos: ``(n, nq)`` planned joint positions.
         deviation: ``(n, nbody)`` metres.
+        start: The time of ``qpos[0]``'s state (seconds).
         bodies: ``(nbody,)`` uint8, 1 for the bodies the plan holds; ``(0,)`` for the default.
         mocap_pos: ``(n, nmocap, 3)``, or ``(0,)`` when mocap bodies are not planned.
         mocap_quat: ``(n, nmocap, 4)``, or ``(0,)``.
@@ -84,6 +85,7 @@ class PlanArrays(NamedTuple):
 
     qpos: np.ndarray
     deviation: np.ndarray
+    start: float
     bodies: np.ndarray
     mocap_pos: np.ndarray
     mocap_quat: np.ndarray
@@ -195,15 +197,16 @@ def plan_arrays(
     model: mujoco.MjModel,
     qpos: npt.ArrayLike,
     deviation: npt.ArrayLike,
-    *,
+    start: float,
     bodies: Bodies = None,
     mocap_pos: npt.ArrayLike | None = None,
     mocap_quat: npt.ArrayLike | None = None,
     relative: Relative = None,
 ) -> PlanArrays:
-    """A plan's arrays as the runtime reads them, their shapes checked (their values are the
+    """A plan's arguments as the runtime reads them, their shapes checked (their values are the
     runtime's to check: ``Plan::Build`` refuses a value that is not finite, or a negative
-    deviation, naming the knot, the entry and the body).
+    deviation, naming the knot, the entry and the body). ``set_plan``'s one call of it (the
+    plugin's and the predictor's) passes its arguments in order.
 
     Args:
         model: The model the plan is for.
@@ -211,6 +214,7 @@ def plan_arrays(
             plan's start.
         deviation: A bound in metres on the distance of every point of a body's geoms from where
             the plan puts it: one number, ``(n,)`` (each knot, every body) or ``(n, nbody)``.
+        start: The time of ``qpos[0]``'s state (seconds).
         bodies: The bodies the plan holds: names, fnmatch patterns or ids (None: every moving
             body outside mocap trees, and the mocap trees too when their poses are given). The
             others follow their motion bounds.
@@ -243,7 +247,7 @@ def plan_arrays(
     mq = none if mocap_quat is None else _mocap(model, "mocap_quat", mocap_quat, n, 4)
     held = np.zeros(0, np.uint8) if bodies is None else body_mask(model, bodies, mp.size > 0)
     rb, rd = relative_arrays(model, relative, n)
-    return PlanArrays(q, np.ascontiguousarray(dev), held, mp, mq, rb, rd)
+    return PlanArrays(q, np.ascontiguousarray(dev), float(start), held, mp, mq, rb, rd)
 
 
 class PlanFollowing:
@@ -324,22 +328,14 @@ class PlanFollowing:
         mocap_pos: npt.ArrayLike | None,
         mocap_quat: npt.ArrayLike | None,
         relative: Relative = None,
-    ) -> tuple[Any, ...]:
+    ) -> PlanArrays:
         """A plan's arguments to the runtime, checked."""
         self._require_reset()
-        a = plan_arrays(
-            self.model,
-            qpos,
-            deviation,
-            bodies=bodies,
-            mocap_pos=mocap_pos,
-            mocap_quat=mocap_quat,
-            relative=relative,
+        assert self._data is not None
+        start = self._data.time if start is None else start
+        return plan_arrays(
+            self.model, qpos, deviation, start, bodies, mocap_pos, mocap_quat, relative
         )
-        if start is None:
-            assert self._data is not None
-            start = float(self._data.time)
-        return (a.qpos, a.deviation, float(start), *a[2:])
 
     def check_plan(self, data: mujoco.MjData) -> np.ndarray:
         """Check the plan at ``data``'s state between two steps (``period > 1``: after each

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Mapping
-from typing import Literal, TypeVar
+from typing import TYPE_CHECKING, Literal, TypeVar
 
 import mujoco
 import numpy as np
@@ -23,20 +23,11 @@ import numpy.typing as npt
 
 from dua_mujoco import _core
 from dua_mujoco.build.bounds import MotionBounds, resolve_bounds
-from dua_mujoco.build.covering import Covering, CoveringMode
 from dua_mujoco.build.events import EventTable
 from dua_mujoco.build.exact import ExactLevel
 from dua_mujoco.build.filter import GeomPairs, SpherePairs, body_id
 from dua_mujoco.build.kinematics import mjdata_frame, sphere_states
 from dua_mujoco.build.mocap import PredictorMocap
-from dua_mujoco.build.options import (
-    CoveringOptions,
-    PairOptions,
-    PilotOptions,
-    ScheduleOptions,
-    UrgencyOptions,
-    removed_keywords_error,
-)
 from dua_mujoco.build.pruning import Reach
 from dua_mujoco.build.tables import (
     PairTables,
@@ -46,14 +37,17 @@ from dua_mujoco.build.tables import (
     static_shapes,
 )
 from dua_mujoco.core.pairset import PairSet
-from dua_mujoco.core.schedules import Schedule, Scheduler, as_schedule
-from dua_mujoco.core.spheres import PairMode, runtime_count
+from dua_mujoco.core.schedules import Scheduler, as_schedule
+from dua_mujoco.core.spheres import runtime_count
 from dua_mujoco.exceptions import NoActivePairsWarning, NonFiniteStateError, SchedulerError
 from dua_mujoco.runtime.alarms import Alarms
 from dua_mujoco.runtime.diagnostics import clock_error, nonfinite_error
 from dua_mujoco.runtime.flightplan import PlanFollowing
 from dua_mujoco.runtime.pairstate import PairState
-from dua_mujoco.runtime.table_arrays import build, layout, measure_pilot
+from dua_mujoco.runtime.table_arrays import LayoutOptions, build, layout, measure_pilot
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 __all__ = ["BoundsLike", "Predictor"]
 
@@ -72,6 +66,10 @@ replaced, never overwritten, so an old ``Alarms`` keeps its values."""
 
 class Predictor(PlanFollowing):
     """DUA collision predictor for a MuJoCo model.
+
+    The keywords from ``period`` to ``pairs`` are ``LayoutOptions``
+    (``runtime/table_arrays.py``): :func:`~dua_mujoco.runtime.table_arrays.layout` checks them
+    and holds their defaults, for this constructor and ``pilot_bounds`` alike.
 
     Args:
         model: The MuJoCo model.
@@ -116,29 +114,9 @@ class Predictor(PlanFollowing):
         accel: BoundsLike = "auto",
         speed: float | Mapping[str, float] | None = None,
         velocity_accel: float | Mapping[str, float] | None = None,
-        period: int = 1,
-        latency: int = 0,
-        alarm_horizon: float | None = None,
-        covering: Covering | CoveringOptions | CoveringMode | str = "bounding",
-        schedule: ScheduleOptions | Schedule | str = Schedule.DEADLINE,
-        urgency: UrgencyOptions = UrgencyOptions(),
-        pilot: PilotOptions = PilotOptions(),
-        pairs: PairOptions | PairMode | str = "auto",
-        **removed: object,
+        **options: Unpack[LayoutOptions],
     ) -> None:
-        if removed:
-            raise removed_keywords_error(removed)
-        lay = layout(
-            model,
-            period=period,
-            latency=latency,
-            alarm_horizon=alarm_horizon,
-            covering=covering,
-            schedule=schedule,
-            urgency=urgency,
-            pilot=pilot,
-            pairs=pairs,
-        )
+        lay = layout(model, **options)
         self.model = model
         self.period, self.dt, self.latency = lay.period, lay.dt, lay.latency
         self.alarm_periods = lay.alarm_periods

@@ -164,7 +164,7 @@ def deviation_profile(
     cols = _columns(body, nbody, geom.size)
     profile = np.zeros((0, nbody))
     for ages, (act_pos, act_mat), planned in _pilot(model, qpos, plans, safety):
-        dist = _core.plan_deviation(records, act_pos, act_mat, *planned)  # (n, npts)
+        dist = _core.plan_deviation(records, act_pos, act_mat, *planned, _NONE)  # (n, npts)
         profile = _file(profile, ages, _per_column(dist, cols))
     return float(safety) * np.maximum.accumulate(profile, axis=0)
 
@@ -308,17 +308,15 @@ def relative_profile(
     frame[body] = geom
     rel = np.zeros((0, candidates.shape[0]))
     a, b = candidates[:, 0], candidates[:, 1]
-    # b's points once per pair with b second, their frame column the pair's (the poses below
-    # are b's relative to a's frame, one column a pair).
+    # b's points once per pair with b second, each measured in the frame of a's geom (its
+    # deviation in a's frame: RelativePose, plan.h), one column a pair.
     mine = [np.flatnonzero(body == bb) for bb in b.tolist()]
     point = np.concatenate([*mine, np.zeros(0, np.int64)])
     owner = np.repeat(np.arange(b.size), [m.size for m in mine])
-    records = pack_spheres(owner, body[point], offset[point], model.body_rootid)
+    records = pack_spheres(geom[point], body[point], offset[point], model.body_rootid)
     cols = _columns(owner, b.size, point.size)
     for ages, act, planned in _pilot(model, qpos, plans, safety):
-        here = _relative_poses(*act, frame[a], frame[b])
-        there = _relative_poses(*planned, frame[a], frame[b])
-        dist = _core.plan_deviation(records, *here, *there)
+        dist = _core.plan_deviation(records, *act, *planned, frame[a][owner])
         rel = _file(rel, ages, _per_column(dist, cols))
     if rel.shape[0] > sums.shape[0]:
         raise ShapeError(
@@ -337,6 +335,8 @@ def relative_profile(
     return RelativeProfile(candidates[kept], np.ascontiguousarray(rel[:, kept]))
 
 
+_NONE = np.zeros(0, np.int64)
+"""``plan_deviation``'s ``frame_of`` for deviations in the world frame."""
 _NEAR_STRIDE = 5
 """Pilot rows between two of those at which relative_profile asks whether a pair comes near."""
 _FREED = 0.1
@@ -384,18 +384,6 @@ def _body_pairs(
     both = np.stack([np.minimum(b1, b2), np.maximum(b1, b2)], axis=1)[keep]
     pairs, owner = np.unique(both, axis=0, return_inverse=True)
     return pairs.reshape(-1, 2), dist, owner.reshape(-1)
-
-
-def _relative_poses(
-    pos: np.ndarray, mat: np.ndarray, fa: np.ndarray, fb: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(n, m, 3)`` and ``(n, m, 9)``: geom ``fb[i]``'s pose in geom ``fa[i]``'s frame at each
-    row (``Ra^T (pb - pa)``, ``Ra^T Rb``: RelativePose, plan.h)."""
-    ra = mat[:, fa].reshape(-1, fa.size, 3, 3)
-    rb = mat[:, fb].reshape(-1, fb.size, 3, 3)
-    p = np.einsum("nmki,nmk->nmi", ra, pos[:, fb] - pos[:, fa])
-    r = np.einsum("nmki,nmkj->nmij", ra, rb).reshape(-1, fa.size, 9)
-    return np.ascontiguousarray(p), np.ascontiguousarray(r)
 
 
 def plan_deviation(profile: npt.ArrayLike, knots: int, *, origin: int = 0) -> np.ndarray:

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, TypedDict
 
 import mujoco
 import numpy as np
@@ -48,6 +48,7 @@ from dua_mujoco.build.options import (
     ScheduleOptions,
     UrgencyOptions,
     alarm_periods,
+    removed_keywords_error,
     resolve_options,
 )
 from dua_mujoco.build.pairbounds import body_vel_uncertainty
@@ -59,7 +60,19 @@ from dua_mujoco.core.schedules import Schedule, as_schedule, schedule_config
 from dua_mujoco.core.spheres import PairMode, pair_mode
 from dua_mujoco.core.validate import check_int, check_period
 
-__all__ = ["CONFIG", "Built", "Layout", "build", "layout", "measure_pilot", "pilot_bounds"]
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
+__all__ = [
+    "CONFIG",
+    "Built",
+    "Layout",
+    "LayoutOptions",
+    "build",
+    "layout",
+    "measure_pilot",
+    "pilot_bounds",
+]
 
 CONFIG = {name[4:].lower(): value for name, value in LAYOUT.items() if name.startswith("CFG_")}
 """The ``config`` table's entries by name (``CONFIG["dt"]`` is its index of ``dt``)."""
@@ -92,29 +105,43 @@ class Layout:
         return self.boxes.corners()
 
 
-def layout(
-    model: mujoco.MjModel,
-    *,
-    period: int = 1,
-    latency: int = 0,
-    alarm_horizon: float | None = None,
-    covering: Covering | CoveringOptions | CoveringMode | str = "bounding",
-    schedule: ScheduleOptions | Schedule | str = Schedule.DEADLINE,
-    urgency: UrgencyOptions = UrgencyOptions(),
-    pilot: PilotOptions = PilotOptions(),
-    pairs: PairOptions | PairMode | str = "auto",
-) -> Layout:
+class LayoutOptions(TypedDict, total=False):
+    """The keyword options that fix a predictor's layout: ``Predictor``'s (each documented
+    there) but the bounds, as :func:`layout`, :func:`pilot_bounds` and ``Predictor`` take them
+    (their defaults are :func:`layout`'s)."""
+
+    period: int
+    latency: int
+    alarm_horizon: float | None
+    covering: Covering | CoveringOptions | CoveringMode | str
+    schedule: ScheduleOptions | Schedule | str
+    urgency: UrgencyOptions
+    pilot: PilotOptions
+    pairs: PairOptions | PairMode | str
+
+
+def layout(model: mujoco.MjModel, **options: Unpack[LayoutOptions]) -> Layout:
     """The options checked and the pieces they fix before the bounds (``Predictor``'s
-    keywords, the same checks and messages)."""
+    keywords, the same checks and messages; a keyword it does not take names its new home or
+    the valid ones)."""
+    if set(options) - LayoutOptions.__optional_keys__:
+        raise removed_keywords_error(
+            {k: v for k, v in options.items() if k not in LayoutOptions.__optional_keys__}
+        )
+    period = options.get("period", 1)
+    latency = options.get("latency", 0)
+    covering = options.get("covering", "bounding")
+    schedule = options.get("schedule", Schedule.DEADLINE)
+    urgency, pilot = options.get("urgency", UrgencyOptions()), options.get("pilot", PilotOptions())
     fix = ": load it with mujoco.MjModel.from_xml_path(path) (or dua_mujoco.load_scene(name))"
     check_model(model, fix)
     period = check_int("period", period)
     # The schedule's options are checked now rather than at reset(): same checks, same messages.
     dt, latency = check_period(period * float(model.opt.timestep), latency)
-    periods = alarm_periods(alarm_horizon, dt)
-    options = resolve_options(covering, schedule, urgency, pilot, pairs)
-    kind = as_schedule(options.schedule.kind)
-    cover = options.covering
+    periods = alarm_periods(options.get("alarm_horizon"), dt)
+    groups = resolve_options(covering, schedule, urgency, pilot, options.get("pairs", "auto"))
+    kind = as_schedule(groups.schedule.kind)
+    cover = groups.covering
     cov = (
         covering
         if isinstance(covering, Covering)
@@ -127,15 +154,15 @@ def layout(
         )
     )
     mode = pair_mode(
-        options.pairs.mode,
-        options.pairs.horizon,
+        groups.pairs.mode,
+        groups.pairs.horizon,
         nsphere=cov.nsphere,
         deadline=kind is Schedule.DEADLINE,
     )
     ahead = latency + periods - 1
     exact = None
-    if options.urgency.exact:
-        below = options.urgency.exact_below
+    if groups.urgency.exact:
+        below = groups.urgency.exact_below
         # Looks can clear an alarm (or lengthen a wait) only below the alarm horizon.
         below = (EXACT_PERIODS + ahead) * dt if below is None else below
         exact = (below, (QUERY_PERIODS + ahead) * dt)
@@ -145,11 +172,14 @@ def layout(
         spheres = universe.exact.with_corners(model, spheres, universe.exact_geoms())
     boxes = body_boxes(model, spheres)
     pruned = mode is PairMode.PRUNED
-    return Layout(model, period, dt, latency, periods, ahead, options, cov, pruned, universe, boxes)
+    return Layout(model, period, dt, latency, periods, ahead, groups, cov, pruned, universe, boxes)
 
 
 def pilot_bounds(
-    model: mujoco.MjModel, *, speed: float | Mapping[str, float] | None = None, **options: Any
+    model: mujoco.MjModel,
+    *,
+    speed: float | Mapping[str, float] | None = None,
+    **options: Unpack[LayoutOptions],
 ) -> MotionBounds:
     """The bounds ``Predictor(model, accel="auto", speed=speed, **options)`` measures: a pilot
     rollout (``options``' ``pilot``) over the points that predictor's bounds limit

@@ -1654,9 +1654,10 @@ NB_MODULE(_core, m) {
   m.def(
       "plan_deviation",
       [](const In<double>& points, const In<double>& pos_a, const In<double>& mat_a,
-         const In<double>& pos_b, const In<double>& mat_b) {
+         const In<double>& pos_b, const In<double>& mat_b, const In<int64_t>& frame_of) {
         // Sphere records of points (n, 8), and rows of two poses of every geom: (r, ngeom, 3)
-        // and (r, ngeom, 9) each.
+        // and (r, ngeom, 9) each; frame_of (n,) a geom each point is measured in the frame of
+        // (its geom's pose relative to that geom's, RelativePose), or (0,): in the world.
         Require(pos_a.ndim() == 3 && pos_a.shape(2) == 3, "pos_a must be (r, ngeom, 3)");
         const auto r = static_cast<int64_t>(pos_a.shape(0));
         const auto ngeom = static_cast<int64_t>(pos_a.shape(1));
@@ -1665,23 +1666,34 @@ NB_MODULE(_core, m) {
         Require(Size(pos_b) == 3 * r * ngeom && Size(mat_a) == 9 * r * ngeom &&
                     Size(mat_b) == 9 * r * ngeom,
                 "poses must be (r, ngeom, 3) and (r, ngeom, 9), twice");
+        Require(Size(frame_of) == 0 || Size(frame_of) == n, "frame_of must be (n,) or (0,)");
         std::vector<double> out(static_cast<size_t>(r * n));
         for (int64_t i = 0; i < n; ++i) {
           const double* rec = points.data() + kSphereNcol * i;
           const auto g = static_cast<int64_t>(rec[kSphereFrame]);
-          Require(g >= 0 && g < ngeom, "a point's geom is out of range");
+          const int64_t f = Size(frame_of) ? frame_of.data()[i] : -1;
+          Require(g >= 0 && g < ngeom && f < ngeom && (f >= 0 || !Size(frame_of)),
+                  "a point's geom is out of range");
           for (int64_t k = 0; k < r; ++k) {
             const int64_t at = k * ngeom + g;
-            out[k * n + i] =
-                PoseDeviation(rec + kSphereOffset, pos_a.data() + 3 * at, mat_a.data() + 9 * at,
-                              pos_b.data() + 3 * at, mat_b.data() + 9 * at);
+            double a[12], b[12];
+            const double *pa = pos_a.data() + 3 * at, *ra = mat_a.data() + 9 * at;
+            const double *pb = pos_b.data() + 3 * at, *rb = mat_b.data() + 9 * at;
+            if (f >= 0) {
+              const int64_t in = k * ngeom + f;
+              RelativePose(pos_a.data() + 3 * in, mat_a.data() + 9 * in, pa, ra, a, a + 3);
+              RelativePose(pos_b.data() + 3 * in, mat_b.data() + 9 * in, pb, rb, b, b + 3);
+              pa = a, ra = a + 3, pb = b, rb = b + 3;
+            }
+            out[k * n + i] = PoseDeviation(rec + kSphereOffset, pa, ra, pb, rb);
           }
         }
         return Owned(std::move(out), {static_cast<size_t>(r), static_cast<size_t>(n)});
       },
-      "points"_a, "pos_a"_a, "mat_a"_a, "pos_b"_a, "mat_b"_a,
-      "(r, n): each point's deviation between two poses of its geom, row by row: the plans' one "
-      "measure (PoseDeviation, plan.h).");
+      "points"_a, "pos_a"_a, "mat_a"_a, "pos_b"_a, "mat_b"_a, "frame_of"_a,
+      "(r, n): each point's deviation between two poses of its geom (in the frame of geom "
+      "frame_of[i] when given), row by row: the plans' one measure (PoseDeviation, RelativePose, "
+      "plan.h).");
   m.def(
       "plugin_clear_plan",
       [](nb::handle model, nb::handle data, int instance) {
