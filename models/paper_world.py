@@ -272,7 +272,7 @@ def _decimal_blocks(n: int) -> list[tuple[str, int, int]]:
 def _attach(parent: mujoco.MjSpec, child: _Block, prefix: str, into: Any = None) -> None:
     """Attach a block to ``parent``'s world in a frame (``into`` if given), names prefixed: a
     template ``(spec, None)`` is copied; ``(spec, frame)`` moved as the frame holding it all (a
-    spec's attach scans its world's children once per child: 1.2 s of 2.8 at 20,000 spheres).
+    spec's attach scans its top elements once per element: docs/many-objects.md, quadratic).
     The child's main default, ``prefix + "main"``, is deleted: two make ``to_xml()`` unreadable."""
     spec, frame = child
     parent.copy_during_attach = frame is None
