@@ -56,6 +56,7 @@ def _quat_z_to(normal: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q)
 
 
+_Block = tuple[mujoco.MjSpec, Any]  # for _attach: a template (spec, None) or (spec, its frame)
 _DEFAULT_ARENA_MAX = 2000
 """Spheres up to which MuJoCo's default arena holds the world (swarms of thousands measured)."""
 
@@ -235,17 +236,13 @@ def paper_world_spec(
 
     palette = rng.uniform(0.2, 0.9, size=(n, 3))
 
-    # MuJoCo's spec lists its whole tree again on every element it adds (XML parsing too: 5.5 s
-    # for 5,000 spheres), so adding the spheres one by one is quadratic (37 s at 20,000), and an
-    # attach costs about the parent's size times (a constant + the child's size). Names are
-    # decimal: the ids are cut into blocks whose names share a head and run over all k-digit
-    # tails (ids 1000-1999 are "sphere1" + "000" ... "999"), each attached with its head as
-    # prefix: the world meets a few dozen attaches (29 at 20,000) and each block's structure is
-    # built once (_SphereBlocks).
+    # Adding spheres one by one to a spec (or parsing MJCF) is quadratic (37 s at 20,000); an
+    # attach costs about 12 us a body of the parent and 20 a sphere attached. So the ids are cut
+    # into decimal blocks whose names share a head and run over all k-digit tails (ids 1000-1999:
+    # "sphere1" + "000" ... "999"), each attached once with its head as prefix (29 at 20,000).
     blocks = _SphereBlocks(centres, palette, radius=radius, mass=mass, ctrl=mass * accel_max)
     for head, k, count in _decimal_blocks(n):
-        block = blocks.spec(int(head[len("sphere") :] or 0) * 10**k, k, count)
-        _attach(spec, block, head, copy=k <= blocks.TEMPLATE_DIGITS)
+        _attach(spec, blocks.spec(int(head[len("sphere") :] or 0) * 10**k, k, count), head)
 
     spec.add_key(name="init", qpos=np.zeros(3 * n), qvel=velocity.reshape(-1))
     spec.add_numeric(name=ACCEL_BOUND_NUMERIC, size=1, data=[paper_world_accel_bound(accel_max)])
@@ -272,12 +269,18 @@ def _decimal_blocks(n: int) -> list[tuple[str, int, int]]:
     return out
 
 
-def _attach(parent: mujoco.MjSpec, child: mujoco.MjSpec, prefix: str, *, copy: bool = True) -> None:
-    """Attach ``child`` to ``parent``'s world, its names prefixed. The child's main default
-    comes along as ``prefix + "main"``: deleted again, since a second one with the same name
-    would make ``to_xml()`` unreadable. The child is copied (a block is attached many times)."""
-    parent.copy_during_attach = copy
-    parent.attach(child, prefix=prefix, frame=parent.worldbody.add_frame())
+def _attach(parent: mujoco.MjSpec, child: _Block, prefix: str, into: Any = None) -> None:
+    """Attach a block to ``parent``'s world in a frame (``into`` if given), names prefixed: a
+    template ``(spec, None)`` is copied; ``(spec, frame)`` moved as the frame holding it all (a
+    spec's attach scans its top elements once per element: docs/many-objects.md, quadratic).
+    The child's main default, ``prefix + "main"``, is deleted: two make ``to_xml()`` unreadable."""
+    spec, frame = child
+    parent.copy_during_attach = frame is None
+    into = into or parent.worldbody.add_frame()
+    if frame is None:
+        parent.attach(spec, prefix=prefix, frame=into)
+    else:
+        parent.worldbody.attach_frame(frame, prefix=prefix).set_frame(into)
     parent.copy_during_attach = False  # MjSpec's default (the flag can only be set)
     parent.delete(parent.find_default(prefix + "main"))
 
@@ -289,8 +292,7 @@ class _SphereBlocks:
     the others from ten copies of the one below, prefixed "0" ... "9"), its bodies listed once
     (MuJoCo lists a spec's bodies in quadratic time: 1.4 s for 10,000) and set to the spheres'
     positions and colours before each attach, which copies it. A larger block is built anew
-    from ten blocks of ``k - 1`` digits, set as they are attached, and is moved, not copied,
-    into its parent.
+    in one frame from ten blocks of ``k - 1`` digits, set as they are attached, and is moved.
     """
 
     TEMPLATE_DIGITS = 3
@@ -302,23 +304,21 @@ class _SphereBlocks:
         self._radius, self._mass, self._ctrl = radius, mass, ctrl
         self._templates: dict[tuple[int, int], tuple[mujoco.MjSpec, list[Any], list[Any]]] = {}
 
-    def spec(self, first: int, k: int, count: int) -> mujoco.MjSpec:
+    def spec(self, first: int, k: int, count: int) -> _Block:
         """The spheres ``first .. first + count - 1`` (``count = 10**k``, or fewer than ten for
         ``k = 1``) named by their last ``k`` digits: body and geom ``{tail}``, joint and motor
         ``{tail}_x`` (``_y``, ``_z``). A template's spec is shared: attach it before the next."""
         if k > self.TEMPLATE_DIGITS:
             spec = mujoco.MjSpec()
+            frame = spec.worldbody.add_frame()
             step = 10 ** (k - 1)
             for digit in range(10):
-                block = self.spec(first + digit * step, k - 1, step)
-                _attach(spec, block, str(digit), copy=k - 1 <= self.TEMPLATE_DIGITS)
-            return spec
+                _attach(spec, self.spec(first + digit * step, k - 1, step), str(digit), into=frame)
+            return spec, frame
         spec, bodies, geoms = self._template(k, count)
-        for body, centre in zip(bodies, self._centres[first : first + count], strict=True):
-            body.pos = centre
-        for geom, colour in zip(geoms, self._palette[first : first + count], strict=True):
-            geom.rgba = [*colour, 1.0]
-        return spec
+        for body, geom, i in zip(bodies, geoms, range(first, first + count), strict=True):
+            body.pos, geom.rgba = self._centres[i], [*self._palette[i], 1.0]
+        return spec, None
 
     def _template(self, k: int, count: int) -> tuple[mujoco.MjSpec, list[Any], list[Any]]:
         """The template of ``count`` spheres of ``k`` digits, its bodies and geoms in id order."""
@@ -327,7 +327,7 @@ class _SphereBlocks:
             if k > 1:
                 below = self._template(k - 1, 10 ** (k - 1))[0]
                 for digit in range(10):
-                    _attach(spec, below, str(digit))
+                    _attach(spec, (below, None), str(digit))
             for i in range(count if k == 1 else 0):
                 self._add_sphere(spec, str(i))
             bodies = spec.worldbody.bodies
