@@ -599,6 +599,14 @@ MUTANTS: tuple[Mutant, ...] = (
         (_SCREEN,),
         "a group the screen skipped is measured against rows of an older update",
     ),
+    Mutant(
+        "standing-step-drops-the-last-alarm",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "      now = j < nalarm && alarms[j] == p ? 1 : 0;",
+        "      now = j + 1 < nalarm && alarms[j] == p ? 1 : 0;",
+        ("tests/test_reference_step.py", "tests/test_monitor.py"),
+        "the step's standing state, read from its alarm list, misses a pair in alarm",
+    ),
 )
 
 
