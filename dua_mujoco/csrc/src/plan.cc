@@ -181,8 +181,8 @@ int64_t FirstKept(int64_t j, int64_t n, const Skip& skip) {
 // G - S1(i, j) - S2(i, j) at knot j), so that most knots cost a few flops. Where both
 // deviations rise with the knots, the knots the carried gap clears are a run that ends where
 // it first does not (the sweeps rise too: docs/theory.md, section 8), found by a search.
-int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
-                 int64_t g2, int64_t b1, int64_t b2, int64_t r) {
+DUA_SECTION int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p,
+                             int64_t g1, int64_t g2, int64_t b1, int64_t b2, int64_t r) {
   const double* rec = a.pairs + p * kPairNcol;
   double* xrec = a.exact.on ? a.exact.records + p * kXNcol : nullptr;
   const int64_t n = plan.nknot();
@@ -264,8 +264,8 @@ inline double Stray(double t, double accel, double disc, double spin, const doub
 // read carries it by then, less how far it may stray from there. The first knot at which no
 // level (the sphere's, the exact one's) can separate them either way, or nknot; -1 when gb's
 // body has no bounds to read (the pair falls back to the motion bounds).
-int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t ga,
-                  int64_t ba, int64_t sa, int64_t gb, int64_t sb) {
+DUA_SECTION int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p,
+                              int64_t ga, int64_t ba, int64_t sa, int64_t gb, int64_t sb) {
   const int64_t row = a.plan.geom_row[gb];
   if (row < 0) return -1;
   const double* box = a.events.rec + row * kBNcol;
@@ -747,7 +747,7 @@ std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
   for (int64_t c = 0; c < nr; ++c) {
     rel_key_[c] = order[c].first;
     for (int64_t j = 0; j < n; ++j)
-      rel_dev_[nr * j + c] = in.relative_deviation[nr * j + order[c].second];
+      rel_dev_[n * c + j] = in.relative_deviation[nr * j + order[c].second];
   }
   return "";
 }
@@ -946,10 +946,10 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
     rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
     rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
     rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
-    for (int64_t k = 0; k < nknot_; ++k) {
-      double* out = rel_pose_.data() + 12 * (nr * k + r);
-      RelativePose(pos(k, rel_ga_[r]), mat(k, rel_ga_[r]), pos(k, rel_gb_[r]), mat(k, rel_gb_[r]),
-                   out, out + 3);
+    const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
+    double* out = rel_pose_.data() + 12 * nknot_ * r;
+    for (int64_t k = 0; k < nknot_; ++k, out += 12) {
+      RelativePose(pos(k, ga), mat(k, ga), pos(k, gb), mat(k, gb), out, out + 3);
     }
   }
 }

@@ -119,7 +119,7 @@ class Plan {
   // Relative pair r's planned pose at knot k (12: b's frame geom's position and rotation in
   // a's), its box (b's row of the violation check), its frame geoms.
   const double* rel_pose(int64_t k, int64_t r) const {
-    return rel_pose_.data() + 12 * (nrel() * k + r);
+    return rel_pose_.data() + 12 * (nknot_ * r + k);
   }
   const double* rel_box(int64_t r) const { return rel_box_[r]; }
   // Relative pairs (Lemma 8.2d): nrel body pairs (rel_a(r), rel_b(r)), rel_a < rel_b, sorted;
@@ -127,7 +127,7 @@ class Plan {
   int64_t nrel() const { return static_cast<int64_t>(rel_key_.size()); }
   int64_t rel_a(int64_t r) const { return rel_key_[r] / nbody_; }
   int64_t rel_b(int64_t r) const { return rel_key_[r] % nbody_; }
-  double rel_dev(int64_t k, int64_t r) const { return rel_dev_[nrel() * k + r]; }
+  double rel_dev(int64_t k, int64_t r) const { return rel_dev_[nknot_ * r + k]; }
   int64_t RelOf(int64_t b1, int64_t b2) const {
     if (rel_key_.empty()) return -1;
     const int64_t key = b1 < b2 ? b1 * nbody_ + b2 : b2 * nbody_ + b1;
@@ -188,8 +188,10 @@ class Plan {
   std::vector<double> qpos_, mocap_pos_, mocap_quat_;  // the rows (mocap: empty if unplanned)
   std::vector<uint8_t> holds_, fixed_, rises_, rel_rises_;
   std::vector<int64_t> rel_key_;  // (nrel,) a * nbody + b of each relative pair, sorted
-  std::vector<double> rel_dev_;   // (nknot, nrel)
-  std::vector<double> rel_pose_;  // (nknot, nrel, 12) SetRelativeFrames
+  // Pair by pair (a pair's knots together: a replan's nesting and a walk read one pair's
+  // knots in turn).
+  std::vector<double> rel_dev_;   // (nrel, nknot)
+  std::vector<double> rel_pose_;  // (nrel, nknot, 12) SetRelativeFrames
   std::vector<const double*> rel_box_;
   std::vector<int64_t> rel_ga_, rel_gb_;
   std::vector<int64_t> planes_;  // plane geoms on bodies the plan holds
