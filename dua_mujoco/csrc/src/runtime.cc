@@ -293,19 +293,27 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   // Each shadow's check of a body can wait for the first state in its span at which the new
   // plan leaves its tube: until then the new plan's own check proves the body within it.
   const Tables& t = *tables_;
+  std::vector<int64_t> open;  // rows of the violation check still nested, knot by knot
   for (Shadow& sh : shadows_) {
     const Plan& old = *sh.plan;
     std::fill(sh.from.begin(), sh.from.end(), kInf);
+    open.clear();
     for (int64_t i = 0; i < t.nbody_events; ++i) {
-      const double* box = t.events_rec.data() + kBNcol * i;
-      const auto b = static_cast<int64_t>(box[kBBody]);
-      const auto g = static_cast<int64_t>(box[kBFrame]);
-      if (!old.holds(b) || !sh.ok[b]) continue;
-      const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
-      for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
-        const double time = next + static_cast<double>(s) * h;
-        const int64_t jo = jo0 + s, jn = jn0 + s < plan->nknot() ? jn0 + s : -1;
-        if (time > sh.until + 1e-6 * h) break;
+      const auto b = static_cast<int64_t>(t.events_rec[kBNcol * i + kBBody]);
+      if (old.holds(b) && sh.ok[b]) open.push_back(i);
+    }
+    // Knot by knot, every body still nested at once (a knot's poses are read together), each
+    // body until its first departure.
+    const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
+    for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot() && !open.empty(); ++s) {
+      const double time = next + static_cast<double>(s) * h;
+      const int64_t jo = jo0 + s, jn = jn0 + s < plan->nknot() ? jn0 + s : -1;
+      if (time > sh.until + 1e-6 * h) break;
+      size_t kept = 0;
+      for (const int64_t i : open) {
+        const double* box = t.events_rec.data() + kBNcol * i;
+        const auto b = static_cast<int64_t>(box[kBBody]);
+        const auto g = static_cast<int64_t>(box[kBFrame]);
         // |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the difference's
         // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
         const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
@@ -313,9 +321,11 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
             !BoxWithin(box, plan->pos(jn, g), plan->mat(jn, g), old.pos(jo, g), old.mat(jo, g),
                        room)) {
           sh.from[b] = time;
-          break;
+        } else {
+          open[kept++] = i;
         }
       }
+      open.resize(kept);
     }
     RelativeDepartures(*plan, next, h, &sh);
   }
