@@ -2,6 +2,8 @@
 
     python benchmarks/plan_profile.py --robots sawyer g1 --horizon 0.2
     python benchmarks/plan_profile.py BEFORE --before-python BEFORE/.venv/bin/python  # an A/B
+    python benchmarks/plan_profile.py --robots gr1 --split        # where set_plan, steps go
+    python benchmarks/plan_profile.py BEFORE --before-python BEFORE/.venv/bin/python --alarms
 
 The protocol of ``benchmarks/plan_users.py`` (its perturbed run, control noise, nominal-model
 plans every 25 steps, deviation from a pilot), replayed for ``--steps`` physics steps by one
@@ -12,6 +14,11 @@ inclusive instructions over the run, and the predictor's (``SetPlan`` + ``Step``
 ``mj_step``'s, per call of the run's ``mj_step`` (the plans' own rollouts call ``mj_step`` too:
 their calls are counted out). Instructions are not time (``benchmarks/ab_plans.py`` times it);
 with another checkout, each side runs in its own interpreter on the same runs.
+
+``--split`` profiles this checkout's ``DUA_PROFILE=ON`` build (``benchmarks/plugin_profile.py``
+makes it) and splits ``set_plan`` and the steps by function (:data:`PARTS`). ``--alarms``
+profiles nothing: both checkouts replay the same run and each step's alarms (pairs, taus, new
+flags) and plan breaks are compared, bit for bit.
 """
 
 from __future__ import annotations
