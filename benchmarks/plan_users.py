@@ -342,6 +342,22 @@ def measure(name: str, horizons: tuple[float, ...], steps: int, every: int) -> l
     """One robot: the pilots, the monitored rollout (:func:`monitored`), then its costs
     (:func:`costs`)."""
     t_start = time.perf_counter()
+    world = world_of(name, horizons, steps, every)
+    pilot_s = time.perf_counter() - t_start
+    print(f"{name}: pilots {pilot_s:.0f} s", file=sys.stderr, flush=True)
+    rows, record = monitored(world, horizons, steps)
+    for row in rows:
+        row |= {"robot": name, "pilot_s": pilot_s}
+        for key, value in costs(world, row["horizon_s"], record).items():
+            row[key] = row[key] | value if isinstance(value, dict) else value
+        print(line(row), file=sys.stderr, flush=True)
+    return rows
+
+
+def world_of(name: str, horizons: tuple[float, ...], steps: int, every: int) -> Run:
+    """One robot's world: the nominal model and its pilots (bounds ``accel="auto"``, the
+    deviation and relative profiles), the perturbed run's model, the plans' knots by horizon
+    (also what ``benchmarks/plan_profile.py`` replays)."""
     nominal = load_robot(name)
     h = float(nominal.opt.timestep)
     auto = Predictor(
@@ -356,11 +372,9 @@ def measure(name: str, horizons: tuple[float, ...], steps: int, every: int) -> l
     profile, _, rel = pilot_profile(
         nominal, auto.bound_points, max(knots.values()), max(steps, 2000), auto.geom_pairs
     )
-    pilot_s = time.perf_counter() - t_start
-    print(f"{name}: pilots {pilot_s:.0f} s", file=sys.stderr, flush=True)
     run = perturbed(nominal, np.random.default_rng(ROLLOUT_SEED))
     roots = DECLARED.get(name)
-    world = Run(
+    return Run(
         nominal=nominal,
         run=run,
         bounds=auto.bounds,
@@ -371,13 +385,6 @@ def measure(name: str, horizons: tuple[float, ...], steps: int, every: int) -> l
         every=every,
         arms=subtree_bodies(nominal, roots) if roots else None,
     )
-    rows, record = monitored(world, horizons, steps)
-    for row in rows:
-        row |= {"robot": name, "pilot_s": pilot_s}
-        for key, value in costs(world, row["horizon_s"], record).items():
-            row[key] = row[key] | value if isinstance(value, dict) else value
-        print(line(row), file=sys.stderr, flush=True)
-    return rows
 
 
 class Run(NamedTuple):

@@ -288,3 +288,31 @@ def test_bad_relative_deviations_are_refused_by_name() -> None:
     with pytest.raises(InvalidInputError, match="relative = "):
         p.set_plan(qpos, deviation=0.1, relative=5)  # type: ignore[arg-type]
     p.set_plan(qpos, deviation=0.1, relative=([("l3", "l1")], 0.1))  # names, either order
+
+
+def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure() -> None:
+    """A replan that keeps the arm still for 20 steps and then folds the last link, with a
+    tighter relative deviation (5 mm) than the plan it replaces (2 cm): the replaced plan's
+    relative pair is nested in the new one until the fold leaves its relative tube, a knot the
+    nesting's screen (Lemma 8.2e) must not skip. The run follows the new plan: the replaced
+    plan's relative pair breaks once, after the fold starts, and the new plan holds."""
+    m, d, p = _arm()
+    n = 300
+    dev = np.full((n, m.nbody), 0.3)  # the fold stays within every body's own deviation
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    p.set_plan(_roll(m, d, np.zeros((1, 3)), n), deviation=dev, relative=([_pair(m)], 0.02))
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+        p.step(d)
+    fold = np.array([[0.0, 0.0, 0.0]] * 20 + [[0.0, 0.0, 0.6]])
+    p.set_plan(_roll(m, d, fold, n), deviation=dev, relative=([_pair(m)], 0.005))
+    breaks = []
+    for k in range(100):
+        d.ctrl[:] = fold[min(k, len(fold) - 1)]
+        mujoco.mj_step(m, d)
+        p.step(d)
+        breaks.append(p.plan_breaks)
+    assert breaks[20] == 0, breaks  # nested while the new plan keeps the old relative pose
+    assert breaks[-1] == 1, breaks  # the replaced plan's relative pair, past the fold
+    assert p._rt.plan_ok[list(_pair(m))].all()  # no body broke its own deviation

@@ -181,8 +181,8 @@ int64_t FirstKept(int64_t j, int64_t n, const Skip& skip) {
 // G - S1(i, j) - S2(i, j) at knot j), so that most knots cost a few flops. Where both
 // deviations rise with the knots, the knots the carried gap clears are a run that ends where
 // it first does not (the sweeps rise too: docs/theory.md, section 8), found by a search.
-int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
-                 int64_t g2, int64_t b1, int64_t b2, int64_t r) {
+DUA_SECTION int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p,
+                             int64_t g1, int64_t g2, int64_t b1, int64_t b2, int64_t r) {
   const double* rec = a.pairs + p * kPairNcol;
   double* xrec = a.exact.on ? a.exact.records + p * kXNcol : nullptr;
   const int64_t n = plan.nknot();
@@ -264,8 +264,8 @@ inline double Stray(double t, double accel, double disc, double spin, const doub
 // read carries it by then, less how far it may stray from there. The first knot at which no
 // level (the sphere's, the exact one's) can separate them either way, or nknot; -1 when gb's
 // body has no bounds to read (the pair falls back to the motion bounds).
-int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t ga,
-                  int64_t ba, int64_t sa, int64_t gb, int64_t sb) {
+DUA_SECTION int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p,
+                              int64_t ga, int64_t ba, int64_t sa, int64_t gb, int64_t sb) {
   const int64_t row = a.plan.geom_row[gb];
   if (row < 0) return -1;
   const double* box = a.events.rec + row * kBNcol;
@@ -524,6 +524,13 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
   return BoxDeviation(box, pa, ra, pb, rb) <= limit;
 }
 
+double PoseReach(const double* a, const double* b, double radius) {
+  double dp = 0.0, dr = 0.0;
+  for (int i = 0; i < 3; ++i) dp += (a[i] - b[i]) * (a[i] - b[i]);
+  for (int i = 3; i < 12; ++i) dr += (a[i] - b[i]) * (a[i] - b[i]);
+  return (std::sqrt(dp) + std::sqrt(dr) * radius) * (1.0 + 1e-9);
+}
+
 void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
                   double* pos, double* mat) {
   const double d[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
@@ -747,7 +754,7 @@ std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
   for (int64_t c = 0; c < nr; ++c) {
     rel_key_[c] = order[c].first;
     for (int64_t j = 0; j < n; ++j)
-      rel_dev_[nr * j + c] = in.relative_deviation[nr * j + order[c].second];
+      rel_dev_[n * c + j] = in.relative_deviation[nr * j + order[c].second];
   }
   return "";
 }
@@ -891,6 +898,7 @@ Plan::~Plan() {
   pool_->Give(std::move(mat_));
   pool_->Give(std::move(sweep_));
   pool_->Give(std::move(rel_pose_));
+  pool_->Give(std::move(rel_sweep_));
 }
 
 bool Plan::SameRow(int64_t j, const Plan& prev, int64_t i) const {
@@ -942,15 +950,32 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
   rel_box_.assign(nr, nullptr);
   rel_ga_.assign(nr, -1), rel_gb_.assign(nr, -1);
   rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : std::vector<double>(12 * nknot_ * nr);
+  rel_sweep_ = pool_ ? pool_->Take(nknot_ * nr) : std::vector<double>(nknot_ * nr);
+  rel_radius_.assign(nr, 0.0), rel_extent_.assign(nr, 0.0);
   for (int64_t r = 0; r < nr; ++r) {
     rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
     rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
     rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
-    for (int64_t k = 0; k < nknot_; ++k) {
-      double* out = rel_pose_.data() + 12 * (nr * k + r);
-      RelativePose(pos(k, rel_ga_[r]), mat(k, rel_ga_[r]), pos(k, rel_gb_[r]), mat(k, rel_gb_[r]),
-                   out, out + 3);
+    const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
+    double* out = rel_pose_.data() + 12 * nknot_ * r;
+    // The box's corners' reach about b's frame origin: |q_j| <= |centre_j| + half_j.
+    double qq = 0.0;
+    for (int j = 0; j < 3; ++j) {
+      const double q = std::fabs(rel_box_[r][kBCenter + j]) + rel_box_[r][kBHalf + j];
+      qq += q * q;
     }
+    const double radius = std::sqrt(qq) * (1.0 + 4.0 * kEpsilon);
+    rel_radius_[r] = radius;
+    double* sweep = rel_sweep_.data() + nknot_ * r;
+    double extent = 0.0;
+    for (int64_t k = 0; k < nknot_; ++k, out += 12) {
+      RelativePose(pos(k, ga), mat(k, ga), pos(k, gb), mat(k, gb), out, out + 3);
+      extent = std::max(extent, std::fabs(out[0]) + std::fabs(out[1]) + std::fabs(out[2]));
+      // A prefix sum rounded up at each term, as the geoms' sweeps (Finish).
+      sweep[k] =
+          k == 0 ? 0.0 : (sweep[k - 1] + PoseReach(out - 12, out, radius)) * (1.0 + 4.0 * kEpsilon);
+    }
+    rel_extent_[r] = extent * (1.0 + 4.0 * kEpsilon);
   }
 }
 

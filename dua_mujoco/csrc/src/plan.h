@@ -55,6 +55,11 @@ DUA_API bool RelativeWithin(const double* box, const double* pa, const double* r
 // its own (Plan::rel_pose).
 bool RelativePoseWithin(const double* box, const double* actual, const double* planned,
                         double limit);
+// An upper bound on how far any point q, |q| <= radius, lies between two relative poses (12
+// each): |pa - pb| + |ra - rb|_F radius, rounded up far past its own rounding (1e-9 of it). Also
+// a bound on the largest corner deviation RelativePoseWithin measures (docs/theory.md, Lemma
+// 8.2e).
+double PoseReach(const double* a, const double* b, double radius);
 // b's pose in the frame of pose (pa, ra): (ra^T (pb - pa), ra^T rb), into (pos 3, mat 9).
 DUA_API void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
                           double* pos, double* mat);
@@ -119,15 +124,22 @@ class Plan {
   // Relative pair r's planned pose at knot k (12: b's frame geom's position and rotation in
   // a's), its box (b's row of the violation check), its frame geoms.
   const double* rel_pose(int64_t k, int64_t r) const {
-    return rel_pose_.data() + 12 * (nrel() * k + r);
+    return rel_pose_.data() + 12 * (nknot_ * r + k);
   }
   const double* rel_box(int64_t r) const { return rel_box_[r]; }
+  // How far any corner of pair r's box may move in a's frame along the plan from knot 0 to
+  // knot k (a prefix sum of each step's PoseReach, rounded up: the relative poses' sweep);
+  // the reach rel_radius(r) of its corners about b's frame origin; and a bound on the 1-norm of
+  // its relative position at every knot (RelativePoseWithin's rounding allowance reads it).
+  double rel_sweep(int64_t k, int64_t r) const { return rel_sweep_[nknot_ * r + k]; }
+  double rel_radius(int64_t r) const { return rel_radius_[r]; }
+  double rel_extent(int64_t r) const { return rel_extent_[r]; }
   // Relative pairs (Lemma 8.2d): nrel body pairs (rel_a(r), rel_b(r)), rel_a < rel_b, sorted;
   // rel_dev(k, r) the bound at knot k; RelOf the pair of two bodies (either order; -1: none).
   int64_t nrel() const { return static_cast<int64_t>(rel_key_.size()); }
   int64_t rel_a(int64_t r) const { return rel_key_[r] / nbody_; }
   int64_t rel_b(int64_t r) const { return rel_key_[r] % nbody_; }
-  double rel_dev(int64_t k, int64_t r) const { return rel_dev_[nrel() * k + r]; }
+  double rel_dev(int64_t k, int64_t r) const { return rel_dev_[nknot_ * r + k]; }
   int64_t RelOf(int64_t b1, int64_t b2) const {
     if (rel_key_.empty()) return -1;
     const int64_t key = b1 < b2 ? b1 * nbody_ + b2 : b2 * nbody_ + b1;
@@ -188,8 +200,12 @@ class Plan {
   std::vector<double> qpos_, mocap_pos_, mocap_quat_;  // the rows (mocap: empty if unplanned)
   std::vector<uint8_t> holds_, fixed_, rises_, rel_rises_;
   std::vector<int64_t> rel_key_;  // (nrel,) a * nbody + b of each relative pair, sorted
-  std::vector<double> rel_dev_;   // (nknot, nrel)
-  std::vector<double> rel_pose_;  // (nknot, nrel, 12) SetRelativeFrames
+  // Pair by pair (a pair's knots together: a replan's nesting and a walk read one pair's
+  // knots in turn).
+  std::vector<double> rel_dev_;                  // (nrel, nknot)
+  std::vector<double> rel_pose_;                 // (nrel, nknot, 12) SetRelativeFrames
+  std::vector<double> rel_sweep_;                // (nrel, nknot) SetRelativeFrames
+  std::vector<double> rel_radius_, rel_extent_;  // (nrel,)
   std::vector<const double*> rel_box_;
   std::vector<int64_t> rel_ga_, rel_gb_;
   std::vector<int64_t> planes_;  // plane geoms on bodies the plan holds

@@ -17,6 +17,7 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
 
 std::vector<int64_t> Iota(int64_t n) {
   std::vector<int64_t> v(static_cast<size_t>(n));
@@ -301,19 +302,27 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   // Each shadow's check of a body can wait for the first state in its span at which the new
   // plan leaves its tube: until then the new plan's own check proves the body within it.
   const Tables& t = *tables_;
+  std::vector<int64_t> open;  // rows of the violation check still nested, knot by knot
   for (Shadow& sh : shadows_) {
     const Plan& old = *sh.plan;
     std::fill(sh.from.begin(), sh.from.end(), kInf);
+    open.clear();
     for (int64_t i = 0; i < t.nbody_events; ++i) {
-      const double* box = t.events_rec.data() + kBNcol * i;
-      const auto b = static_cast<int64_t>(box[kBBody]);
-      const auto g = static_cast<int64_t>(box[kBFrame]);
-      if (!old.holds(b) || !sh.ok[b]) continue;
-      const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
-      for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
-        const double time = next + static_cast<double>(s) * h;
-        const int64_t jo = jo0 + s, jn = jn0 + s < plan->nknot() ? jn0 + s : -1;
-        if (time > sh.until + 1e-6 * h) break;
+      const auto b = static_cast<int64_t>(t.events_rec[kBNcol * i + kBBody]);
+      if (old.holds(b) && sh.ok[b]) open.push_back(i);
+    }
+    // Knot by knot, every body still nested at once (a knot's poses are read together), each
+    // body until its first departure.
+    const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
+    for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot() && !open.empty(); ++s) {
+      const double time = next + static_cast<double>(s) * h;
+      const int64_t jo = jo0 + s, jn = jn0 + s < plan->nknot() ? jn0 + s : -1;
+      if (time > sh.until + 1e-6 * h) break;
+      size_t kept = 0;
+      for (const int64_t i : open) {
+        const double* box = t.events_rec.data() + kBNcol * i;
+        const auto b = static_cast<int64_t>(box[kBBody]);
+        const auto g = static_cast<int64_t>(box[kBFrame]);
         // |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the difference's
         // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
         const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
@@ -321,9 +330,11 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
             !BoxWithin(box, plan->pos(jn, g), plan->mat(jn, g), old.pos(jo, g), old.mat(jo, g),
                        room)) {
           sh.from[b] = time;
-          break;
+        } else {
+          open[kept++] = i;
         }
       }
+      open.resize(kept);
     }
     RelativeDepartures(*plan, next, h, &sh);
   }
@@ -525,18 +536,42 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, Shadow
     const int64_t a = old.rel_a(r), b = old.rel_b(r);
     if (!sh->rel_ok[r] || !sh->ok[a] || !sh->ok[b]) continue;  // the shadow checks it no more
     const int64_t rn = plan.RelOf(a, b);
+    // The knots past an exact check are screened by the reach found there carried by both
+    // plans' relative sweeps (Lemma 8.2e): a knot screened is one the exact check passes, so
+    // the first departure is the exact check's. The allowance covers RelativePoseWithin's own
+    // (1e-12 of its scale, at most 1 + both extents + the box's reach) and its roundings.
+    // (The new plan's sweep bounds its corners' moves only if its box reaches as far: the same
+    // row of the same tables, else no screen.)
+    const double radius = old.rel_radius(r);
+    const bool screen = rn >= 0 && plan.rel_radius(rn) >= radius;
+    const double allowance =
+        screen ? 4e-12 * (1.0 + plan.rel_extent(rn) + old.rel_extent(r) + 3.0 * radius) : kInf;
+    double reach = kInf;  // at knots (jn_base, jo_base), the last checked exactly
+    int64_t jn_base = -1, jo_base = -1;
     for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
       const double time = next + static_cast<double>(s) * h;
       const int64_t jo = jo0 + s, jn = jn0 + s < plan.nknot() ? jn0 + s : -1;
       if (time > sh->until + 1e-6 * h) break;
-      // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
-      // same nesting as the bodies' (SetPlan), of the relative poses.
-      if (jn < 0 || rn < 0 ||
-          !RelativePoseWithin(old.rel_box(r), plan.rel_pose(jn, rn), old.rel_pose(jo, r),
-                              old.rel_dev(jo, r) - plan.rel_dev(jn, rn))) {
+      if (jn < 0 || rn < 0) {
         sh->rel_from[r] = time;
         break;
       }
+      // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
+      // same nesting as the bodies' (SetPlan), of the relative poses.
+      const double limit = old.rel_dev(jo, r) - plan.rel_dev(jn, rn);
+      if (jn_base >= 0) {
+        const double moved = ((plan.rel_sweep(jn, rn) - plan.rel_sweep(jn_base, rn)) +
+                              (old.rel_sweep(jo, r) - old.rel_sweep(jo_base, r))) *
+                             (1.0 + 8.0 * kEpsilon);
+        if ((reach + moved) * (1.0 + 4e-9) + allowance < limit) continue;
+      }
+      const double* pn = plan.rel_pose(jn, rn);
+      const double* po = old.rel_pose(jo, r);
+      if (!RelativePoseWithin(old.rel_box(r), pn, po, limit)) {
+        sh->rel_from[r] = time;
+        break;
+      }
+      reach = PoseReach(pn, po, radius), jn_base = jn, jo_base = jo;
     }
   }
 }
