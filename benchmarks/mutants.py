@@ -345,16 +345,6 @@ MUTANTS: tuple[Mutant, ...] = (
         "a pair's gap less its relative deviation alone, however far above the sum",
     ),
     Mutant(
-        "plan-relative-nesting-screen-unmoved",
-        "dua_mujoco/csrc/src/runtime.cc",
-        "        if ((reach + moved) * (1.0 + 4e-9) + allowance < limit) continue;",
-        "        if ((reach + 0.0 * moved) * (1.0 + 4e-9) + allowance < limit) continue;",
-        (
-            f"{_RELATIVE}::test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure",
-        ),
-        "the relative nesting's screen without the plans' relative sweeps: a departure skipped",
-    ),
-    Mutant(
         "monitor-relative-basis-dropped",
         "dua_mujoco/measure/warning_time.py",
         "        relative = ((basis >> 2) & 1).astype(np.uint8)",

@@ -294,7 +294,7 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
     """A replan that keeps the arm still for 20 steps and then folds the last link, with a
     tighter relative deviation (5 mm) than the plan it replaces (2 cm): the replaced plan's
     relative pair is nested in the new one until the fold leaves its relative tube, a knot the
-    nesting's screen (Lemma 8.2e) must not skip. The run follows the new plan: the replaced
+    nesting must find. The run follows the new plan: the replaced
     plan's relative pair breaks once, after the fold starts, and the new plan holds."""
     m, d, p = _arm()
     n = 300

@@ -524,13 +524,6 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
   return BoxDeviation(box, pa, ra, pb, rb) <= limit;
 }
 
-double PoseReach(const double* a, const double* b, double radius) {
-  double dp = 0.0, dr = 0.0;
-  for (int i = 0; i < 3; ++i) dp += (a[i] - b[i]) * (a[i] - b[i]);
-  for (int i = 3; i < 12; ++i) dr += (a[i] - b[i]) * (a[i] - b[i]);
-  return (std::sqrt(dp) + std::sqrt(dr) * radius) * (1.0 + 1e-9);
-}
-
 void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
                   double* pos, double* mat) {
   const double d[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
@@ -898,7 +891,6 @@ Plan::~Plan() {
   pool_->Give(std::move(mat_));
   pool_->Give(std::move(sweep_));
   pool_->Give(std::move(rel_pose_));
-  pool_->Give(std::move(rel_sweep_));
 }
 
 bool Plan::SameRow(int64_t j, const Plan& prev, int64_t i) const {
@@ -950,32 +942,15 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
   rel_box_.assign(nr, nullptr);
   rel_ga_.assign(nr, -1), rel_gb_.assign(nr, -1);
   rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : std::vector<double>(12 * nknot_ * nr);
-  rel_sweep_ = pool_ ? pool_->Take(nknot_ * nr) : std::vector<double>(nknot_ * nr);
-  rel_radius_.assign(nr, 0.0), rel_extent_.assign(nr, 0.0);
   for (int64_t r = 0; r < nr; ++r) {
     rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
     rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
     rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
     const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
     double* out = rel_pose_.data() + 12 * nknot_ * r;
-    // The box's corners' reach about b's frame origin: |q_j| <= |centre_j| + half_j.
-    double qq = 0.0;
-    for (int j = 0; j < 3; ++j) {
-      const double q = std::fabs(rel_box_[r][kBCenter + j]) + rel_box_[r][kBHalf + j];
-      qq += q * q;
-    }
-    const double radius = std::sqrt(qq) * (1.0 + 4.0 * kEpsilon);
-    rel_radius_[r] = radius;
-    double* sweep = rel_sweep_.data() + nknot_ * r;
-    double extent = 0.0;
     for (int64_t k = 0; k < nknot_; ++k, out += 12) {
       RelativePose(pos(k, ga), mat(k, ga), pos(k, gb), mat(k, gb), out, out + 3);
-      extent = std::max(extent, std::fabs(out[0]) + std::fabs(out[1]) + std::fabs(out[2]));
-      // A prefix sum rounded up at each term, as the geoms' sweeps (Finish).
-      sweep[k] =
-          k == 0 ? 0.0 : (sweep[k - 1] + PoseReach(out - 12, out, radius)) * (1.0 + 4.0 * kEpsilon);
     }
-    rel_extent_[r] = extent * (1.0 + 4.0 * kEpsilon);
   }
 }
 

@@ -55,11 +55,6 @@ DUA_API bool RelativeWithin(const double* box, const double* pa, const double* r
 // its own (Plan::rel_pose).
 bool RelativePoseWithin(const double* box, const double* actual, const double* planned,
                         double limit);
-// An upper bound on how far any point q, |q| <= radius, lies between two relative poses (12
-// each): |pa - pb| + |ra - rb|_F radius, rounded up far past its own rounding (1e-9 of it). Also
-// a bound on the largest corner deviation RelativePoseWithin measures (docs/theory.md, Lemma
-// 8.2e).
-double PoseReach(const double* a, const double* b, double radius);
 // b's pose in the frame of pose (pa, ra): (ra^T (pb - pa), ra^T rb), into (pos 3, mat 9).
 DUA_API void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
                           double* pos, double* mat);
@@ -127,13 +122,6 @@ class Plan {
     return rel_pose_.data() + 12 * (nknot_ * r + k);
   }
   const double* rel_box(int64_t r) const { return rel_box_[r]; }
-  // How far any corner of pair r's box may move in a's frame along the plan from knot 0 to
-  // knot k (a prefix sum of each step's PoseReach, rounded up: the relative poses' sweep);
-  // the reach rel_radius(r) of its corners about b's frame origin; and a bound on the 1-norm of
-  // its relative position at every knot (RelativePoseWithin's rounding allowance reads it).
-  double rel_sweep(int64_t k, int64_t r) const { return rel_sweep_[nknot_ * r + k]; }
-  double rel_radius(int64_t r) const { return rel_radius_[r]; }
-  double rel_extent(int64_t r) const { return rel_extent_[r]; }
   // Relative pairs (Lemma 8.2d): nrel body pairs (rel_a(r), rel_b(r)), rel_a < rel_b, sorted;
   // rel_dev(k, r) the bound at knot k; RelOf the pair of two bodies (either order; -1: none).
   int64_t nrel() const { return static_cast<int64_t>(rel_key_.size()); }
@@ -202,10 +190,8 @@ class Plan {
   std::vector<int64_t> rel_key_;  // (nrel,) a * nbody + b of each relative pair, sorted
   // Pair by pair (a pair's knots together: a replan's nesting and a walk read one pair's
   // knots in turn).
-  std::vector<double> rel_dev_;                  // (nrel, nknot)
-  std::vector<double> rel_pose_;                 // (nrel, nknot, 12) SetRelativeFrames
-  std::vector<double> rel_sweep_;                // (nrel, nknot) SetRelativeFrames
-  std::vector<double> rel_radius_, rel_extent_;  // (nrel,)
+  std::vector<double> rel_dev_;   // (nrel, nknot)
+  std::vector<double> rel_pose_;  // (nrel, nknot, 12) SetRelativeFrames
   std::vector<const double*> rel_box_;
   std::vector<int64_t> rel_ga_, rel_gb_;
   std::vector<int64_t> planes_;  // plane geoms on bodies the plan holds

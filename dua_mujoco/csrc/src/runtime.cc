@@ -17,7 +17,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
 
 std::vector<int64_t> Iota(int64_t n) {
   std::vector<int64_t> v(static_cast<size_t>(n));
@@ -536,42 +535,18 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, Shadow
     const int64_t a = old.rel_a(r), b = old.rel_b(r);
     if (!sh->rel_ok[r] || !sh->ok[a] || !sh->ok[b]) continue;  // the shadow checks it no more
     const int64_t rn = plan.RelOf(a, b);
-    // The knots past an exact check are screened by the reach found there carried by both
-    // plans' relative sweeps (Lemma 8.2e): a knot screened is one the exact check passes, so
-    // the first departure is the exact check's. The allowance covers RelativePoseWithin's own
-    // (1e-12 of its scale, at most 1 + both extents + the box's reach) and its roundings.
-    // (The new plan's sweep bounds its corners' moves only if its box reaches as far: the same
-    // row of the same tables, else no screen.)
-    const double radius = old.rel_radius(r);
-    const bool screen = rn >= 0 && plan.rel_radius(rn) >= radius;
-    const double allowance =
-        screen ? 4e-12 * (1.0 + plan.rel_extent(rn) + old.rel_extent(r) + 3.0 * radius) : kInf;
-    double reach = kInf;  // at knots (jn_base, jo_base), the last checked exactly
-    int64_t jn_base = -1, jo_base = -1;
     for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
       const double time = next + static_cast<double>(s) * h;
       const int64_t jo = jo0 + s, jn = jn0 + s < plan.nknot() ? jn0 + s : -1;
       if (time > sh->until + 1e-6 * h) break;
-      if (jn < 0 || rn < 0) {
-        sh->rel_from[r] = time;
-        break;
-      }
       // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
       // same nesting as the bodies' (SetPlan), of the relative poses.
-      const double limit = old.rel_dev(jo, r) - plan.rel_dev(jn, rn);
-      if (jn_base >= 0) {
-        const double moved = ((plan.rel_sweep(jn, rn) - plan.rel_sweep(jn_base, rn)) +
-                              (old.rel_sweep(jo, r) - old.rel_sweep(jo_base, r))) *
-                             (1.0 + 8.0 * kEpsilon);
-        if ((reach + moved) * (1.0 + 4e-9) + allowance < limit) continue;
-      }
-      const double* pn = plan.rel_pose(jn, rn);
-      const double* po = old.rel_pose(jo, r);
-      if (!RelativePoseWithin(old.rel_box(r), pn, po, limit)) {
+      if (jn < 0 || rn < 0 ||
+          !RelativePoseWithin(old.rel_box(r), plan.rel_pose(jn, rn), old.rel_pose(jo, r),
+                              old.rel_dev(jo, r) - plan.rel_dev(jn, rn))) {
         sh->rel_from[r] = time;
         break;
       }
-      reach = PoseReach(pn, po, radius), jn_base = jn, jo_base = jo;
     }
   }
 }
