@@ -526,10 +526,18 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "shield-rest-without-the-turn",
         _SHIELD,
-        "if (lin + w * radius_[b] > o_.rest_speed) return false;",
-        "if (lin + 0.0 * w * radius_[b] > o_.rest_speed) return false;",
+        "const double speed = lin + w * radius_[b];",
+        "const double speed = lin + 0.0 * w * radius_[b];",
         ("tests/test_shield.py::test_a_robot_spinning_in_place_is_not_at_rest",),
         "a robot body turning about its origin counts as at rest",
+    ),
+    Mutant(
+        "shield-rest-knot-guessed-not-kept",
+        _SHIELD,
+        "        keep(j);\n        return j;",
+        "        return j;",
+        (f"{_SHIELD_EPISODES}[arm_pair]",),
+        "a rest knot found before mj_step1 ends the rollout without its poses",
     ),
     Mutant(
         "shield-accept-contact-before-rest",
@@ -574,7 +582,7 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "shield-candidate-rolled-while-touching",
         _SHIELD,
-        "    if (!failsafe_mode_ || !TouchesNow()) {",
+        "    if (!touches) {",
         "    if (true) {",
         (
             "tests/test_shield.py::"

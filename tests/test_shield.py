@@ -289,8 +289,8 @@ def test_a_robot_touching_a_protected_body_is_refused_without_a_rollout(
 ) -> None:
     """Every candidate's knot 0 is the state read: the ball touching the wall (at rest and
     pushing, or leaving it) is refused whatever it intends, before any candidate is rolled out;
-    the one rollout is the failsafe's from there. 0.1 m off, the candidate is rolled out and
-    passes."""
+    the one rollout is the failsafe's from there, none when the ball is at rest already (that
+    state is the failsafe's rest knot). 0.1 m off, the candidate is rolled out and passes."""
     model = mujoco.MjModel.from_xml_string(_BALL)
     for x, refused in ((start, True), (start - 0.1, False)):
         data = mujoco.MjData(model)
@@ -301,4 +301,4 @@ def test_a_robot_touching_a_protected_body_is_refused_without_a_rollout(
         shield(data, [push])
         counts = shield.counts
         assert (counts["rejected"], counts["accepted"]) == (int(refused), int(not refused)), counts
-        assert counts["rollouts"] == 1, counts
+        assert counts["rollouts"] == int(not refused or speed != 0.0), counts

@@ -172,9 +172,14 @@ class Shield:
         # The rollout's model: the protected bodies' geoms collide with nothing there (a
         # future of the robot that leans on where a body nobody plans stands is no future).
         rolled = copy.deepcopy(model)
-        others = np.isin(np.asarray(model.geom_bodyid), np.flatnonzero(prot & ~is_robot))
+        bodies = np.flatnonzero(prot & ~is_robot)
+        others = np.isin(np.asarray(model.geom_bodyid), bodies)
         rolled.geom_contype[others] = 0
         rolled.geom_conaffinity[others] = 0
+        # And their bodies' (the compiler's union of their geoms'): the broadphase drops them
+        # before the geoms' filter would, which finds the same contacts (fewer pairs tried).
+        rolled.body_contype[bodies] = 0
+        rolled.body_conaffinity[bodies] = 0
         self._keep = (rolled, mujoco.MjData(rolled), mujoco.MjData(model))
         self.native = _core.Shield(
             tables,

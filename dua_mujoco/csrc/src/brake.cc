@@ -160,6 +160,7 @@ std::unique_ptr<Brake> Brake::Make(const mjModel* m, const std::vector<int>& act
   }
   b->tau_.resize(nd);
   b->free_.resize(na);
+  b->moves_.resize(m->nu);
   return b;
 }
 
@@ -185,10 +186,13 @@ void Brake::Compute(const mjModel* m, const mjData* d, const double* target, dou
   }
   // Every actuator's moment arms on the robot's DOFs (the implicit damping sums them all).
   std::fill(all_moment_.begin(), all_moment_.end(), 0.0);
+  std::fill(moves_.begin(), moves_.end(), 0);
   for (int u = 0; u < nu; ++u) {
     for (int k = d->moment_rowadr[u]; k < d->moment_rowadr[u] + d->moment_rownnz[u]; ++k) {
       const int i = dof_index_[d->moment_colind[k]];
-      if (i >= 0) all_moment_[u * nd + i] = d->actuator_moment[k];
+      if (i < 0) continue;
+      all_moment_[u * nd + i] = d->actuator_moment[k];
+      if (d->actuator_moment[k] != 0.0) moves_[u] = 1;
     }
   }
   if (implicit_ >= 1) {
@@ -202,7 +206,8 @@ void Brake::Compute(const mjModel* m, const mjData* d, const double* target, dou
       if (m->actuator_gaintype[u] == mjGAIN_AFFINE) {
         s -= m->actuator_gainprm[u * mjNGAIN + 2] * d->ctrl[u];
       }
-      if (s == 0.0) continue;
+      // An actuator of another tree (the other arm's) adds only zeros: skipped.
+      if (s == 0.0 || !moves_[u]) continue;
       const double* row = all_moment_.data() + u * nd;
       for (int i = 0; i < nd; ++i) {
         for (int j = 0; j < nd; ++j) k_[i * nd + j] += h * s * row[i] * row[j];

@@ -65,6 +65,7 @@ class DUA_API Brake {
   std::vector<double> gain_, bias_, clo_, chi_, tau_;
   std::vector<double> qp_h_, g_free_, lo_free_, hi_free_, x_free_;  // the free forces' box QP
   std::vector<int> free_;
+  std::vector<uint8_t> moves_;  // actuators with a nonzero moment arm on a braked DOF, this step
 };
 
 }  // namespace dua

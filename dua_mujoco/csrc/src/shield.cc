@@ -119,6 +119,8 @@ std::unique_ptr<Shield> Shield::Make(const mjModel* m, std::shared_ptr<const Tab
     const int type = m->jnt_type[j];
     const int n = type == mjJNT_FREE ? 7 : type == mjJNT_BALL ? 4 : 1;
     for (int i = 0; i < n; ++i) s->robot_q_.push_back(m->jnt_qposadr[j] + i);
+    const int nv = type == mjJNT_FREE ? 6 : type == mjJNT_BALL ? 3 : 1;
+    for (int i = 0; i < nv; ++i) s->robot_v_.push_back(m->jnt_dofadr[j] + i);
   }
   for (int b = 0; b < m->nbody; ++b) {
     if (s->protected_body_[b] && m->body_mocapid[m->body_rootid[b]] >= 0) s->mocap_others_ = true;
@@ -158,18 +160,22 @@ void Shield::Reset(const mjModel* m, const mjData* d) {
   (void)m;
 }
 
-bool Shield::AtRest(const mjData* d) const {
+double Shield::Speed(const mjData* d) const {
   const mjModel* m = model_;
+  double top = 0.0;
   for (const int b : robot_bodies_) {
     double v[6];
     mju_transformSpatial(v, d->cvel + 6 * b, 0, d->xpos + 3 * b,
                          d->subtree_com + 3 * m->body_rootid[b], nullptr);
     const double w = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
     const double lin = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5]);
-    if (lin + w * radius_[b] > o_.rest_speed) return false;
+    const double speed = lin + w * radius_[b];
+    if (!(speed <= top)) top = std::isnan(speed) ? HUGE_VAL : speed;  // a NaN is no rest
   }
-  return true;
+  return top;
 }
+
+bool Shield::AtRest(const mjData* d) const { return Speed(d) <= o_.rest_speed; }
 
 int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
   const mjModel* m = rolled_;
@@ -179,15 +185,40 @@ int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
   if (kpos_.size() < rows * 3 * ngeom) {
     kpos_.resize(rows * 3 * ngeom), kmat_.resize(rows * 9 * ngeom), kq_.resize(rows * nq);
   }
-  mj_setState(m, d, state_.data(), kState);
-  ++counts_.rollouts;
-  for (int64_t j = 0;; ++j) {
-    // Knot j's state: its kinematics and velocities (mj_step1: what the step computes first).
-    mj_step1(m, d);
+  const auto keep = [&](int64_t j) {
     std::copy_n(d->geom_xpos, 3 * ngeom, kpos_.begin() + 3 * ngeom * j);
     std::copy_n(d->geom_xmat, 9 * ngeom, kmat_.begin() + 9 * ngeom * j);
     for (int64_t i = 0; i < nq; ++i) kq_[nq * j + i] = d->qpos[robot_q_[i]];
-    if (j >= nint && AtRest(d)) return j;
+  };
+  const auto joint_speed = [&] {
+    double s = 0.0;
+    for (const int i : robot_v_) s += std::fabs(d->qvel[i]);
+    return s;
+  };
+  mj_setState(m, d, state_.data(), kState);
+  ++counts_.rollouts;
+  double speed = HUGE_VAL, joints = 0.0;  // the last knot's speed and its joint speeds' sum
+  for (int64_t j = 0;; ++j) {
+    // The rest knot ends the rollout, and its collisions and constraints are never used: when
+    // the last knot's speed, scaled by how its joint speeds' sum changed since (this knot's
+    // qvel is known), puts this one at rest, its kinematics and velocities come first (the
+    // functions mj_step1 starts with, so the same values), and mj_step1 only if it is not at
+    // rest after all. The guess decides what is computed, never a value.
+    if (j > nint && speed * joint_speed() <= 2.0 * o_.rest_speed * joints) {
+      mj_kinematics(m, d);
+      mj_comPos(m, d);
+      mj_comVel(m, d);
+      if (AtRest(d)) {
+        keep(j);
+        return j;
+      }
+    }
+    // Knot j's state: its kinematics and velocities (mj_step1: what the step computes first).
+    mj_step1(m, d);
+    keep(j);
+    speed = Speed(d);
+    joints = joint_speed();
+    if (j >= nint && speed <= o_.rest_speed) return j;
     if (j == last) return -1;
     if (j < nint) {
       std::copy_n(intended, m->nu, d->ctrl);
@@ -308,6 +339,7 @@ void Shield::Period(const mjModel* m, const mjData* d, const double* intended) {
   // The first period after a reset knows no differenced mocap velocity yet (0 until the next
   // predictor step): nothing that rests on the mocap bodies' reach is checked then.
   const bool blind = first && mocap_others_;
+  bool touches = false;  // a protected pair may touch at the state read (asked below)
   if (!others_broke && !robot_event && !blind) {
     if (o_.screen && Screen()) {
       screened_ = true;
@@ -322,7 +354,8 @@ void Shield::Period(const mjModel* m, const mjData* d, const double* intended) {
     // rolled out (docs/theory.md, section 10). Asked only after a period that ran the failsafe
     // (a refusal, an event): after one that passed, this state is on a verified plan or within
     // the screen's window, and a touch here is rare; unasked, the candidate's own query answers.
-    if (!failsafe_mode_ || !TouchesNow()) {
+    touches = failsafe_mode_ && TouchesNow();
+    if (!touches) {
       const int64_t p = o_.period;
       int64_t rest, n, tail;
       if (o_.stop_distance >= 0.0) {
@@ -377,13 +410,22 @@ void Shield::Period(const mjModel* m, const mjData* d, const double* intended) {
   // out until stop_time from now; a stop envelope, within stop_distance of here.
   const bool by_envelope = has_plan_ && !fresh_ && envelope_;
   const int64_t last = max_stop_ + (by_envelope ? env_from_ : 0);
-  const int64_t rest = Roll(nullptr, 0, last);
+  // Its knot 0 is this very state, whose kinematics and velocities Prepare computed as the
+  // rollout's mj_step1 would: a robot at rest here is its own rest knot, with nothing to roll.
+  int64_t rest = 0;
+  if (AtRest(scratch_)) {
+    KnotZero();
+  } else {
+    rest = Roll(nullptr, 0, last);
+  }
   const int64_t n = rest >= 0 ? rest + 1 : last + 1;
   if (!BuildPlan(n, n)) {
     Break(&counts_.stop_breaks);
     return;
   }
-  const bool verified = rest == 0 || (rest > 0 && !blind && FirstContact() >= rest);
+  // A pair that may touch at the state read touches at this plan's knot 0 too, before its
+  // rest knot: no query needed to say so.
+  const bool verified = rest == 0 || (rest > 0 && !blind && !touches && FirstContact() >= rest);
   bool covered = rest >= 0 && !robot_broke && !others_broke && (was_screened || by_envelope);
   if (covered && by_envelope) covered = WithinEnvelope(n);
   if (rest < 0 || (by_envelope && !covered && !verified)) ++counts_.stop_breaks;
@@ -399,14 +441,19 @@ void Shield::Period(const mjModel* m, const mjData* d, const double* intended) {
   fresh_ = false;
 }
 
-bool Shield::TouchesNow() {
-  // Knot 0 of a rollout: mj_step1's kinematics of this state, which Prepare computed alike.
-  const int64_t ngeom = model_->ngeom;
+void Shield::KnotZero() {
+  // mj_step1's kinematics of this state, which Prepare computed alike.
+  const int64_t ngeom = model_->ngeom, nq = static_cast<int64_t>(robot_q_.size());
   if (kpos_.size() < static_cast<size_t>(3 * ngeom)) {
-    kpos_.resize(3 * ngeom), kmat_.resize(9 * ngeom);
+    kpos_.resize(3 * ngeom), kmat_.resize(9 * ngeom), kq_.resize(nq);
   }
   std::copy_n(scratch_->geom_xpos, 3 * ngeom, kpos_.begin());
   std::copy_n(scratch_->geom_xmat, 9 * ngeom, kmat_.begin());
+  for (int64_t i = 0; i < nq; ++i) kq_[i] = scratch_->qpos[robot_q_[i]];
+}
+
+bool Shield::TouchesNow() {
+  KnotZero();
   return !BuildPlan(1, 1) || FirstContact() == 0;
 }
 

@@ -114,7 +114,9 @@ class DUA_API Shield {
 
  private:
   Shield() = default;
-  // Whether every robot body is at rest at d's state (cvel computed).
+  // The largest speed bound of a robot body's points at d's state (cvel computed; a NaN is
+  // HUGE_VAL), and whether every robot body is at rest there.
+  double Speed(const mjData* d) const;
   bool AtRest(const mjData* d) const;
   // Rolls out from the scratch's state: `nint` steps of intended, then the failsafe until rest
   // (first knot >= nint with every robot body at rest) or `last` knots; the knots' poses and
@@ -123,6 +125,9 @@ class DUA_API Shield {
   // The candidate plan of the rollout's knots 0..n-1, the robot at its deviation before knot
   // `tail`, at the stop envelope's from there (false: not finite).
   bool BuildPlan(int64_t n, int64_t tail);
+  // Knot 0 (the state read: its poses and robot qpos) from the scratch's kinematics, as a
+  // rollout's first knot.
+  void KnotZero();
   // Whether a protected pair may touch at the state read (knot 0 of every candidate), from the
   // scratch's kinematics.
   bool TouchesNow();
@@ -152,7 +157,7 @@ class DUA_API Shield {
   std::shared_ptr<const Tables> tables_;
   Failsafe failsafe_;
   ShieldOptions o_;
-  std::vector<int> acts_, robot_bodies_, robot_q_;
+  std::vector<int> acts_, robot_bodies_, robot_q_, robot_v_;  // robot_v_: its DOFs
   std::vector<uint8_t> is_robot_, holds_, protected_body_;
   std::vector<double> radius_;  // each body's reach from its frame origin
   std::vector<int64_t> g1_, g2_, off_;
