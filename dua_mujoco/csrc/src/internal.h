@@ -40,15 +40,11 @@ double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2
                 double accel, double delta);
 double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
                 double accel, double delta, double speed);
-// Up to four pairs' arguments to TauSpeed, {x0, x1, x2, v0, v1, v2, eps, accel, delta, speed},
-// by column: r[j][k] is pair k's j-th (each column one vector of lanes, loaded as it is).
-struct FourRows {
-  alignas(8 * kLanes) double r[10][kLanes];
-};
-// TauSpeed of pairs 0 .. m - 1 of rows (m in [1, 4]) into out[k * out_stride]. The one place a
-// short group is padded: its spare lanes are set to its last pair (the same paths through the
-// screens; their results are dropped).
-void TauSpeedFour(FourRows* rows, int m, double* out, int64_t out_stride);
+// TauSpeed of n rows {x0, x1, x2, v0, v1, v2, eps, accel, delta, speed}, row i at rows + i *
+// stride, into out[i * out_stride]; four at a time (the same values).
+void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride);
+// TauSpeed of rows r[0:m] (m <= 4; the rest repeat a row, as padding) into out[k * out_stride].
+void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_stride);
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
 // tau of a sphere (centre c, velocity v) against a static shape record; speed: the bound on the
 // sphere's speed (inf: none).

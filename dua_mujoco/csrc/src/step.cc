@@ -611,16 +611,16 @@ struct FreePoints {
 template <class Points>
 DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
                             const int64_t* ids, int64_t count, double* out) {
-  // Up to four sphere pairs' arguments as TauSpeedFour reads them (relative state, then
-  // bounds; by column), and where each goes in out: passed to the kernel straight from here,
-  // not through a buffer of every row (each row written, read back and copied again was a
-  // third of the gather).
-  FourRows quad;
+  // Up to four sphere pairs' rows as TauSpeedFour reads them (relative state, then bounds), and
+  // where each goes in out: passed to the kernel straight from here, not through a buffer of
+  // every row (each row written, read back and copied again was a third of the gather).
+  double quad[kLanes][10];
   int64_t at[kLanes];
   int nq = 0;
   auto flush = [&] {
+    for (int k = nq; k < kLanes; ++k) std::copy(quad[nq - 1], quad[nq - 1] + 10, quad[k]);
     double tau[kLanes];
-    TauSpeedFour(&quad, nq, tau, 1);
+    TauSpeedFour(quad, nq, tau, 1);
     for (int k = 0; k < nq; ++k) out[at[k]] = tau[k];
     nq = 0;
   };
@@ -653,10 +653,10 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
                          shapes + static_cast<int64_t>(rec[kPairOther]) * kShapeNcol, rec[kPairEps],
                          rec[kPairAccel], rec[kPairDelta], rec[kPairSpeed]);
     } else {
-      double (&r)[10][kLanes] = quad.r;
-      for (int j = 0; j < 6; ++j) r[j][nq] = s[6 + j] - s[j];
-      r[6][nq] = rec[kPairEps], r[7][nq] = rec[kPairAccel], r[8][nq] = rec[kPairDelta];
-      r[9][nq] = rec[kPairSpeed];
+      double* row = quad[nq];
+      for (int j = 0; j < 6; ++j) row[j] = s[6 + j] - s[j];
+      row[6] = rec[kPairEps], row[7] = rec[kPairAccel], row[8] = rec[kPairDelta];
+      row[9] = rec[kPairSpeed];
       at[nq++] = k;
       if (nq == kLanes) flush();
     }
