@@ -615,6 +615,14 @@ MUTANTS: tuple[Mutant, ...] = (
         (_SCREEN,),
         "a group the screen skipped is measured against rows of an older update",
     ),
+    Mutant(
+        "standing-step-drops-the-last-alarm",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "      now = j < nalarm && alarms[j] == p ? 1 : 0;",
+        "      now = j + 1 < nalarm && alarms[j] == p ? 1 : 0;",
+        ("tests/test_alarms.py::test_the_steps_standing_state_is_the_alarm_rule",),
+        "the step's standing state, read from its alarm list, misses a pair in alarm",
+    ),
 )
 
 

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from dua_mujoco.build.options import UrgencyOptions
+from dua_mujoco.build.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.exceptions import SchedulerError
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime import predictor as predictor_module
@@ -118,3 +118,28 @@ def test_alarms_name_their_pairs() -> None:
         assert a.names == [
             (t.geom_names[g1], t.geom_names[g2]) for g1, g2 in zip(a.geom1, a.geom2, strict=True)
         ]
+
+
+@pytest.mark.parametrize("options", [{}, {"schedule": ScheduleOptions(max_evals_per_step=4)}])
+def test_the_steps_standing_state_is_the_alarm_rule(options: dict) -> None:
+    """After every step, the pairs the runtime records as standing (read from the step's alarm
+    list, docs/theory.md section 3, "Standing after a step") are those the alarm rule
+    (``Schedule::Stands``) puts in alarm: with bodies breaking a tight bound at most steps (their
+    pairs all due at once) and, capped, with deferrals."""
+    m, d = load_scene("two_arms")
+    p = Predictor(m, accel=5.0, **options)
+    ctrl = make_controller(m, "random", seed=0)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    flagged = deferred = standing = 0
+    for _ in range(300):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        a = p.step(d)
+        rule = np.flatnonzero(p.pair_state().alarm_state())
+        np.testing.assert_array_equal(np.asarray(p._rt.standing), rule)
+        flagged += p._rt.flagged
+        deferred += a.deferred
+        standing += rule.size
+    assert flagged > 100 and standing > 100  # the check flags, and pairs stand
+    assert deferred > 0 or "schedule" not in options

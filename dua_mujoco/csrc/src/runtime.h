@@ -281,9 +281,12 @@ class DUA_API Runtime {
   bool Prune(const mjModel* m, const mjData* d, int64_t n);
   void Carry(const mjModel* m, const mjData* d, const std::vector<int64_t>& held, int64_t n);
   void Learnt();
-  void Track(const int64_t* ids, int64_t n);
+  // Whether each pair of ids stands now recorded, and the watch's counts with it; alarms (the
+  // step's alarm list, when it lists exactly the pairs of ids that stand, in ids's order: see
+  // TrackStep) is read in place of the alarm rule, or null.
+  void Track(const int64_t* ids, int64_t n, const int64_t* alarms = nullptr, int64_t nalarm = 0);
   void TrackAll();
-  void TrackStep();
+  void TrackStep(int64_t nalarm);
   void Log(int64_t nalarm);
   bool Counted(int64_t gp) const;
   // The plan's part of step n at d: between-step breaks' pairs made due, the shadows checked,
@@ -374,6 +377,9 @@ class DUA_API Runtime {
   std::unique_ptr<mjData, DataDeleter> plan_data_;
   mutable std::unique_ptr<mjData, DataDeleter> query_data_;  // PlanQuery's scratch
   std::vector<uint8_t> plan_ok_, planned_, basis_, basis_prev_;
+  // Whether some pair's basis (or the one before) may be a plan's: false until a plan is set, and
+  // again once every one is the bounds' (0), when the step need not shift them (Bind).
+  bool basis_live_ = false;
   // Per held pair, the knot its latest walk under the plan as it stands ended at (dua_plan's
   // `cleared`, -1: none): forgotten at a new plan and a new held set.
   std::vector<int64_t> cleared_;

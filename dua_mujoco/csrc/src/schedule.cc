@@ -248,20 +248,21 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
   for (int64_t k = 0; k < count; ++k) {
     const int64_t p = w_ids[k];
     const double tau = st->w_tau[k];
-    const int64_t waited = n - last_step[p];
-    // Due now: its verdict had to cover until this step (a deferred one, longer: it stood).
-    const bool before =
-        Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt + st->extra);
-    st->last_tau[p] = tau;
-    last_step[p] = n;
     int64_t interval = dua_deadline_interval(tau, dt, latency, max_interval, st->extra);
     if (Alarms(tau, st->horizon[0])) {
+      // Whether the last verdict stood, read only here (most evaluations do not alarm): due
+      // now, it had to cover until this step (a deferred one, longer: it stood).
+      const int64_t waited = n - last_step[p];
+      const bool before =
+          Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt + st->extra);
       // Keeps alarming (resting contact, mostly): back off; it stands in alarm until then.
       if (before) interval = std::max<int64_t>(1, std::min(2 * waited, backoff));
       alarms[nalarm] = p;
       fresh[nalarm] = !before;
       ++nalarm;
     }
+    st->last_tau[p] = tau;
+    last_step[p] = n;
     Link(v, p, n + interval);
   }
   for (int64_t k = count; k < count + params[kDeferred]; ++k) {
