@@ -616,6 +616,14 @@ MUTANTS: tuple[Mutant, ...] = (
         "a group the screen skipped is measured against rows of an older update",
     ),
     Mutant(
+        "plan-basis-dropped-when-cleared",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "(basis_live_ && !(zero(basis_)",
+        "(false && !(zero(basis_)",
+        ("tests/test_flightplan.py::test_verdicts_after_a_plan_is_cleared_rest_on_the_bounds",),
+        "once the plan is cleared the step stops renewing the verdicts' bases (the plan's stay)",
+    ),
+    Mutant(
         "standing-step-drops-the-last-alarm",
         "dua_mujoco/csrc/src/runtime.cc",
         "      now = j < nalarm && alarms[j] == p ? 1 : 0;",

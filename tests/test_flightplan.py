@@ -568,3 +568,27 @@ def test_the_plugin_follows_a_plan_as_the_predictor_does() -> None:
         assert got == want, f"step {k}"
         busy += bool(want)
     assert busy > 20 and p.plan_breaks == 0
+
+
+def test_verdicts_after_a_plan_is_cleared_rest_on_the_bounds() -> None:
+    """Once the plan is cleared, each pair's next verdicts rest on the bounds on both sides: the
+    runtime stops shifting the bases only when none is the plan's any more (a basis left stale
+    would have the monitor label onsets by a plan that no longer stands)."""
+    m, d = _scene()
+    p = Predictor(m, accel=ACCEL, alarm_horizon=0.05)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    everything = np.arange(p.nsphere_pairs)
+    p.set_plan(_rollout(m, d, np.ones((1, m.nu)), 30), deviation=np.zeros((30, m.nbody)))
+    d.ctrl[:] = 1.0
+    for _ in range(3):
+        mujoco.mj_step(m, d)
+        p.step(d)
+    assert (p.verdict_basis(everything)[:, 0] == 3).all()
+    p.clear_plan()
+    # Long enough for every pair of this scene to be evaluated twice (else a pair would keep its
+    # plan-based verdict, rightly, and the assertion below fail).
+    for _ in range(200):
+        mujoco.mj_step(m, d)
+        p.step(d)
+    assert (p.verdict_basis(everything) == 0).all()
