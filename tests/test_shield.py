@@ -304,6 +304,68 @@ def test_a_robot_touching_a_protected_body_is_refused_without_a_rollout(
         assert counts["rollouts"] == int(not refused or speed != 0.0), counts
 
 
+def test_a_velocity_that_is_not_a_number_is_no_rest() -> None:
+    """The ball touching the wall at rest is refused and held at its own rest knot (knot 0);
+    every step past it checks that it still is at rest (the hold). A velocity that is not a
+    number there is a hold break, the guarantee dropped, not a speed under 1 cm/s (a NaN
+    compares false with the bound either way: Shield::Speed reads it as no rest)."""
+    model = mujoco.MjModel.from_xml_string(_BALL)
+    data = mujoco.MjData(model)
+    data.qpos[0] = 0.2
+    mujoco.mj_forward(model, data)
+    shield = Shield(model, protect=["wall"], robot=["ball"], period=5, accel=5.0, screen=False)
+    shield.reset(data)
+    guaranteed = []
+    for k in range(4):
+        if k == 2:
+            data.qvel[0] = np.nan
+        shield(data, [1.0])
+        guaranteed.append(shield.guaranteed)
+    counts = shield.counts
+    assert (counts["rejected"], counts["rollouts"]) == (1, 0), counts  # knot 0 at rest
+    assert guaranteed == [True, True, False, False], counts
+    assert counts["hold_breaks"] == 1, counts
+
+
+# Two balls on slides along x and z (resting on the floor under gravity), each with a motor.
+_RESTING = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 0.1"/>
+    <body name="b1" pos="0 0 0.05">
+      <joint name="x1" type="slide" axis="1 0 0"/><joint name="z1" type="slide" axis="0 0 1"/>
+      <geom type="sphere" size="0.05" mass="1"/>
+    </body>
+    <body name="b2" pos="0.5 0 0.05">
+      <joint name="x2" type="slide" axis="1 0 0"/><joint name="z2" type="slide" axis="0 0 1"/>
+      <geom type="sphere" size="0.05" mass="1"/>
+    </body>
+  </worldbody>
+  <actuator><motor joint="x1" ctrlrange="-1 1"/><motor joint="x2" ctrlrange="-1 1"/></actuator>
+</mujoco>
+"""
+
+
+def test_protected_robot_bodies_keep_their_contacts_in_the_rollout() -> None:
+    """Two robot bodies named in protect (their pair is protected) stay in the rollout's
+    contacts: only bodies nobody plans are taken out of it (their geoms and, for the
+    broadphase, their bodies). The floor holds both balls in every rollout, so each gentle push
+    passes at its first knot at rest; taken out, the balls would fall through the floor in
+    every rollout and every candidate be refused."""
+    model = mujoco.MjModel.from_xml_string(_RESTING)
+    data = mujoco.MjData(model)
+    for _ in range(200):  # settled on the floor
+        mujoco.mj_step(model, data)
+    shield = Shield(model, protect=["b1", "b2"], period=1, accel=5.0, screen=False)
+    shield.reset(data)
+    for _ in range(20):
+        data.ctrl[:] = shield(data, [0.5, 0.0])
+        mujoco.mj_step(model, data)
+    counts = shield.counts
+    assert (counts["accepted"], counts["rollout_steps"]) == (20, 20), counts
+
+
 # A 1 kg box 0.3 m out on a hinge about y, held horizontal by nothing: gravity's 2.9 N m is
 # beyond its 1 N m motor. A post below the box's arc, 0.1 m under it.
 _SAGGING = """
