@@ -17,6 +17,7 @@ from typing import Any
 import mujoco
 import numpy as np
 import pytest
+from mjcf import mjcf, motors
 
 import dua_mujoco
 from dua_mujoco import Shield
@@ -327,24 +328,22 @@ def test_a_velocity_that_is_not_a_number_is_no_rest() -> None:
     assert counts["hold_breaks"] == 1, counts
 
 
-# Two balls on slides along x and z (resting on the floor under gravity), each with a motor.
-_RESTING = """
-<mujoco>
-  <option timestep="0.002"/>
-  <worldbody>
-    <geom name="floor" type="plane" size="2 2 0.1"/>
-    <body name="b1" pos="0 0 0.05">
-      <joint name="x1" type="slide" axis="1 0 0"/><joint name="z1" type="slide" axis="0 0 1"/>
-      <geom type="sphere" size="0.05" mass="1"/>
-    </body>
-    <body name="b2" pos="0.5 0 0.05">
-      <joint name="x2" type="slide" axis="1 0 0"/><joint name="z2" type="slide" axis="0 0 1"/>
-      <geom type="sphere" size="0.05" mass="1"/>
-    </body>
-  </worldbody>
-  <actuator><motor joint="x1" ctrlrange="-1 1"/><motor joint="x2" ctrlrange="-1 1"/></actuator>
-</mujoco>
-"""
+def _sliding(name: str, x: float) -> str:
+    """A 1 kg ball ``name`` resting on the floor at ``x``, on slides along x and z."""
+    return (
+        f'<body name="{name}" pos="{x} 0 0.05"><joint name="x{name}" type="slide" axis="1 0 0"/>'
+        f'<joint name="z{name}" type="slide" axis="0 0 1"/><geom size="0.05" mass="1"/></body>'
+    )
+
+
+# Two balls resting on the floor under gravity, each pushed along x by a motor.
+_RESTING = mjcf(
+    '<geom name="floor" type="plane" size="2 2 0.1"/>',
+    _sliding("b1", 0.0),
+    _sliding("b2", 0.5),
+    option='timestep="0.002"',
+    actuator=motors("xb1", "xb2", ctrlrange="-1 1"),
+)
 
 
 def test_protected_robot_bodies_keep_their_contacts_in_the_rollout() -> None:
@@ -368,19 +367,13 @@ def test_protected_robot_bodies_keep_their_contacts_in_the_rollout() -> None:
 
 # A 1 kg box 0.3 m out on a hinge about y, held horizontal by nothing: gravity's 2.9 N m is
 # beyond its 1 N m motor. A post below the box's arc, 0.1 m under it.
-_SAGGING = """
-<mujoco>
-  <option timestep="0.002"/>
-  <worldbody>
-    <body name="robot" pos="0 0 1">
-      <joint name="joint" type="hinge" axis="0 1 0"/>
-      <geom type="box" size="0.05 0.05 0.05" pos="0.3 0 0" mass="1"/>
-    </body>
-    <body name="post" pos="0.25 0 0.65"><geom type="box" size="0.1 0.1 0.1"/></body>
-  </worldbody>
-  <actuator><motor joint="joint" ctrlrange="-1 1"/></actuator>
-</mujoco>
-"""
+_SAGGING = mjcf(
+    '<body name="robot" pos="0 0 1"><joint name="joint" type="hinge" axis="0 1 0"/>'
+    '<geom type="box" size="0.05 0.05 0.05" pos="0.3 0 0" mass="1"/></body>',
+    '<body name="post" pos="0.25 0 0.65"><geom type="box" size="0.1 0.1 0.1"/></body>',
+    option='timestep="0.002"',
+    actuator=motors("joint", ctrlrange="-1 1"),
+)
 
 
 @pytest.mark.xfail(
