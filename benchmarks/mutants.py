@@ -514,6 +514,14 @@ MUTANTS: tuple[Mutant, ...] = (
         ("tests/test_warning_time.py::test_short_leads_are_told_apart_by_the_bounds",),
         "a short lead counts as after a violation whenever its bodies broke their bounds once",
     ),
+    Mutant(
+        "monitor-deferral-opens-a-window",
+        "dua_mujoco/measure/monitor.py",
+        "        made = evaluated[: evaluated.size - deferred]",
+        "        made = evaluated",
+        ("tests/test_monitor.py::test_a_deferral_opens_no_window_for_the_onsets_labels",),
+        "a deferral moves a pair's window past violations its verdict in force rested on",
+    ),
     # ---------------------------------------------------------------- the shield (section 10)
     Mutant(
         "shield-screen-without-the-stop",
@@ -538,6 +546,23 @@ MUTANTS: tuple[Mutant, ...] = (
         "        return j;",
         (f"{_SHIELD_EPISODES}[arm_pair]",),
         "a rest knot found before mj_step1 ends the rollout without its poses",
+    ),
+    Mutant(
+        "shield-nan-speed-at-rest",
+        _SHIELD,
+        "    if (!(speed <= top)) top = std::isnan(speed) ? HUGE_VAL : speed;  // a NaN is no rest",
+        "    if (speed > top) top = speed;",
+        ("tests/test_shield.py::test_a_velocity_that_is_not_a_number_is_no_rest",),
+        "a robot body whose speed is not a number counts as at rest (its hold never breaks)",
+    ),
+    Mutant(
+        "shield-protected-robot-body-out-of-the-rollout",
+        "dua_mujoco/shield/shield.py",
+        "        rolled.body_contype[bodies] = 0\n        rolled.body_conaffinity[bodies] = 0",
+        "        rolled.body_contype[np.flatnonzero(prot)] = 0\n"
+        "        rolled.body_conaffinity[np.flatnonzero(prot)] = 0",
+        ("tests/test_shield.py::test_protected_robot_bodies_keep_their_contacts_in_the_rollout",),
+        "a protected robot body collides with nothing in the rollouts (it falls through floors)",
     ),
     Mutant(
         "shield-accept-contact-before-rest",

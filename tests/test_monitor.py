@@ -294,6 +294,34 @@ def test_capped_runs_count_evaluations_not_deferrals() -> None:
     assert report.missed_onsets_valid_bounds == 0
 
 
+def test_a_deferral_opens_no_window_for_the_onsets_labels() -> None:
+    """A short lead is "after a violation" when a hypothesis broke after the evaluation whose
+    verdict was in force (measure/warning_time.py); a pair a capped schedule
+    deferred keeps its latest evaluation's verdict, so its window stays at that evaluation.
+    Every step, each pair's window (the step the labels compare breaks with) is the physics
+    step of its schedule's last_step, as the miss rule's, deferred pairs included: counted from
+    the deferral, a violation between the verdict and its last deferral made an onset that
+    pair raised one "with the bounds held"."""
+    m, d = load_scene("two_arms")
+    p = Predictor(m, accel=5.0, schedule=ScheduleOptions(max_evals_per_step=4))
+    mon = Monitor(p)
+    ctrl = make_controller(m, "random", seed=0)
+    mujoco.mj_step(m, d)
+    mon.start(d)
+    pairs = np.arange(p.nsphere_pairs)
+    deferred = 0
+    for _ in range(60):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        alarms = p.step(d)
+        mon.observe(d, alarms)
+        deferred += alarms.deferred
+        steps = mon._pred_steps
+        made = [steps[int(j)] for j in p.pair_state().last_step_of(pairs)]
+        np.testing.assert_array_equal(mon.warning._last_eval, made)
+    assert deferred > 100  # the cap binds
+
+
 def test_monitored_run_with_pruned_pairs() -> None:
     """Pruned pairs (the default from 256 spheres) hold a fraction of the pairs, rebuilt as the
     spheres move, and the exact stage still finds every onset alarmed while the bounds held."""

@@ -15,7 +15,7 @@ from dua_mujoco.measure.accumulators import Durations
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.measure.report import RunReport
 from dua_mujoco.measure.rollout import build_report, run
-from dua_mujoco.measure.warning_time import alarm_horizon_of
+from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 
@@ -138,6 +138,45 @@ def test_a_miss_long_after_a_violation_is_one_with_the_bounds_held() -> None:
     held = {miss.geom2: miss.bounds_held for miss in mon.misses}
     assert held == {"ball_a": True, "ball_b": True}
     assert not any(miss.in_violation_period for miss in mon.misses)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="audit43: an onset raised by several sphere pairs is judged on the union of their "
+    "verdicts' hypotheses against the earliest of their evaluations (Hypotheses.started, "
+    "WarningTime.alarms), not each verdict against its own",
+)
+def test_a_break_before_a_verdict_excuses_no_other_verdicts_short_lead() -> None:
+    """Two sphere pairs of one geom pair raise its alarm together; the onset comes 2 steps
+    later, short of the 0.1 s horizon. Pair 0's verdict in force was made at step 10 on both
+    bodies' bounds, which never broke; pair 1's at step 50 on rod_a's plan, whose break at
+    step 30 came before it (the plan it rested on was the one set after). No hypothesis broke
+    after the verdict that rested on it: the short lead came while the bounds held, and the
+    label must say so. Judged on the union of the two verdicts' hypotheses since the earlier
+    evaluation, the plan's break at 30 excuses it (after a violation). Not seen in a run: every
+    break makes all the body's pairs due, so the two windows differ only for a pair a cap
+    defers across a break and a replan."""
+    m = mujoco.MjModel.from_xml_string(
+        mjcf(
+            free("a", "0 0 0.5", 'name="rod_a" type="capsule" size="0.02 0.3" euler="0 90 0"'),
+            free("b", "0 0 1.0", 'name="rod_b" type="capsule" size="0.02 0.3" euler="0 90 0"'),
+            option='timestep="0.002" gravity="0 0 0"',
+        )
+    )
+    p = Predictor(m, covering="multi")
+    assert (p.sphere_pairs.geom_pair[:2] == 0).all()
+    w = WarningTime(0.1, 0.002, p)
+    none = np.zeros(0, dtype=np.int64)
+    w.hypotheses.evaluated(np.array([0]), np.array([[0, 0]], dtype=np.uint8))
+    w.alarms(none, none, none, np.array([0]), 10, switch=False)
+    w.hypotheses.last_plan_break[m.body("a").id] = 30
+    w.hypotheses.evaluated(np.array([1]), np.array([[1, 0]], dtype=np.uint8))
+    w.alarms(none, none, none, np.array([1]), 50, switch=False)
+    both = np.array([0, 1])
+    w.hypotheses.evaluated(both, np.array([[0, 0], [1, 1]], dtype=np.uint8))
+    w.alarms(np.array([0]), both, np.array([0, 0]), both, 60, switch=False)
+    w.onset(0, 62, w.hypotheses.broke(0))
+    assert (w.short_at_start, w.short_held, w.short_after_violation) == (0, 1, 0)
 
 
 @pytest.mark.parametrize(("period", "hsteps"), [(1, 0), (1, 10), (3, 10), (2, 200)])

@@ -229,9 +229,12 @@ class Monitor:
         step: int,
         *,
         switch: bool = False,
+        deferred: int = 0,
     ) -> None:
         """Update the standing alarms from the pairs ``evaluated`` (``alarmed`` among them) at
-        physics step ``step`` (``switch``: a switch or reset, not an evaluation)."""
+        physics step ``step`` (``switch``: a switch or reset, not an evaluation; ``deferred``:
+        how many of ``evaluated``, its last, a capped schedule deferred: their verdicts were
+        renewed, not made, and their windows still open at their evaluation)."""
         sched = self.predictor.pair_state()
         gp = self.predictor.sphere_pairs.geom_pair
         ids = np.union1d(evaluated, alarmed)
@@ -247,7 +250,8 @@ class Monitor:
         ended = touched[(before > 0) & (after == 0)]
         self._nstanding += int(started.size) - int(ended.size)
         raised = ids[new & ~old]
-        self.warning.alarms(started, raised, gp[raised], evaluated, step, switch=switch)
+        made = evaluated[: evaluated.size - deferred]
+        self.warning.alarms(started, raised, gp[raised], made, step, switch=switch)
         if started.size:
             self.episodes += int(started.size)
             self._episode_start[started] = t
@@ -310,7 +314,9 @@ class Monitor:
         self.predictor_steps += 1
         # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated.
         self.evaluation_sum += int(evaluated.size) - sched.deferred
-        self._apply_alarms(alarms.pairs, evaluated, float(data.time), self.physics_step)
+        self._apply_alarms(
+            alarms.pairs, evaluated, float(data.time), self.physics_step, deferred=sched.deferred
+        )
         if self.geom_distance and len(alarms):
             self._distances.extend(
                 [
