@@ -187,7 +187,9 @@ inline void Unlink(const View& v, int64_t p) {
   where[p] = -1;
 }
 
-int64_t DeadlineSelect(const View& v, int64_t n) {
+// The deadline wheel's selection at step n: step n's list, after the first `count` pairs already
+// in w_ids (SelectMadeDue's).
+int64_t DeadlineSelect(const View& v, int64_t n, int64_t count = 0) {
   dua_schedule* st = v.st;
   int64_t* params = st->params;
   int64_t* last_step = v.Int(kLastStep);
@@ -198,7 +200,6 @@ int64_t DeadlineSelect(const View& v, int64_t n) {
   const int64_t slot = n & (params[kWheel] - 1);
   int64_t p = st->slots[slot];
   st->slots[slot] = -1;
-  int64_t count = 0;
   while (p >= 0) {
     const int64_t after = nxt[p];
     nxt[p] = -1;
@@ -470,6 +471,41 @@ void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, 
 }  // extern "C"
 
 namespace dua {
+
+int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
+                      const int64_t* start, const int64_t* members, int64_t n) {
+  if (st->kind != kDeadline) {
+    for (int64_t k = 0; k < ngroups; ++k) {
+      const int64_t g = groups[k];
+      MakeDue(st, members + start[g], start[g + 1] - start[g], n);
+    }
+    return dua_select(st, n);
+  }
+  // MakeDue links each pair at the head of step n's list, and the selection walks that list
+  // from its head: the pairs come out last made due first, then the ones due at n anyway. The
+  // same order straight into w_ids: the groups and their members walked backwards, each pair
+  // taken the first time it is met, out of whatever list holds it (step n's too).
+  const View v{st};
+  int64_t* where = v.Int(kWhere);
+  int64_t* w_ids = v.Work(kWIds);
+  constexpr int64_t kTaken = -2;  // taken this step (Unlink leaves -1; never a due step)
+  int64_t count = 0;
+  for (int64_t k = ngroups - 1; k >= 0; --k) {
+    const int64_t g = groups[k];
+    for (int64_t j = start[g + 1] - 1; j >= start[g]; --j) {
+      const int64_t p = members[j];
+      if (!st->active[p] || where[p] == kTaken) continue;
+      st->last_tau[p] = kNegInf;
+      Unlink(v, p);
+      where[p] = kTaken;
+      w_ids[count++] = p;
+    }
+  }
+  for (int64_t k = 0; k < count; ++k) where[w_ids[k]] = -1;  // selected, as DeadlineSelect leaves
+  count = DeadlineSelect(v, n, count);
+  st->params[kCount] = count;
+  return count;
+}
 
 void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n) {
   const View v{st};
