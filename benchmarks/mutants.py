@@ -71,8 +71,7 @@ _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
 _MADE_DUE = (
-    "tests/test_scheduler.py::"
-    "test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
+    "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
 )
 _REF = (
     "tests/test_reference_step.py::"

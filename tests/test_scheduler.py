@@ -408,9 +408,7 @@ def test_made_due_pairs_are_selected_as_make_due_then_select_selects_them(
     rng = np.random.default_rng(seed)
     dt = 0.01
     tau0 = rng.exponential(0.05, size=m)
-    a, b = (
-        _core.Schedule(kind, dt, 0, tau0, cap=cap, max_interval=max_interval) for _ in range(2)
-    )
+    a, b = (_core.Schedule(kind, dt, 0, tau0, cap=cap, max_interval=max_interval) for _ in range(2))
     for n in range(1, 25):
         off = rng.choice(m, size=min(m, rng.integers(0, 3)), replace=False).astype(np.int64)
         back = off[: rng.integers(0, off.size + 1)]

@@ -245,17 +245,23 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
   const double dt = st->dt;
   const int64_t latency = st->latency;
   const int64_t max_interval = params[kMaxInterval], backoff = params[kBackoff];
+  // Read once: the loop's stores of ints and taus could alias the schedule's own numbers (its m,
+  // the wheel's size, the horizon and extra), which the compiler would then read again each pair.
+  const double extra = st->extra, horizon = st->horizon[0];
+  int64_t* slots = st->slots;
+  int64_t* ints = st->ints;
+  const int64_t m = st->m, wheel = params[kWheel];
   int64_t nalarm = 0;
   for (int64_t k = 0; k < count; ++k) {
     const int64_t p = w_ids[k];
     const double tau = st->w_tau[k];
-    int64_t interval = dua_deadline_interval(tau, dt, latency, max_interval, st->extra);
-    if (Alarms(tau, st->horizon[0])) {
+    int64_t interval = dua_deadline_interval(tau, dt, latency, max_interval, extra);
+    if (Alarms(tau, horizon)) {
       // Whether the last verdict stood, read only here (most evaluations do not alarm): due
       // now, it had to cover until this step (a deferred one, longer: it stood).
       const int64_t waited = n - last_step[p];
       const bool before =
-          Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt + st->extra);
+          Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt + extra);
       // Keeps alarming (resting contact, mostly): back off; it stands in alarm until then.
       if (before) interval = std::max<int64_t>(1, std::min(2 * waited, backoff));
       alarms[nalarm] = p;
@@ -264,7 +270,7 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
     }
     st->last_tau[p] = tau;
     last_step[p] = n;
-    Link(v, p, n + interval);
+    LinkInto(slots, ints, m, wheel, p, n + interval);
   }
   for (int64_t k = count; k < count + params[kDeferred]; ++k) {
     const int64_t p = w_ids[k];
