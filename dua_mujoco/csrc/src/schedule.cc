@@ -170,21 +170,24 @@ inline void Link(const View& v, int64_t p, int64_t due) {
   LinkInto(v.st->slots, v.st->ints, v.st->m, v.st->params[kWheel], p, due);
 }
 
-inline void Unlink(const View& v, int64_t p) {
-  int64_t* nxt = v.Int(kNext);
-  int64_t* prv = v.Int(kPrev);
-  int64_t* where = v.Int(kWhere);
+// Take pair p out of its wheel slot's list (nothing if it is in none), on rows and slots the
+// caller read once.
+inline void UnlinkFrom(int64_t* slots, int64_t* nxt, int64_t* prv, int64_t* where, int64_t p) {
   if (where[p] < 0) return;
   const int64_t after = nxt[p], before = prv[p];
   if (before >= 0) {
     nxt[before] = after;
   } else {
-    v.st->slots[-1 - before] = after;
+    slots[-1 - before] = after;
   }
   if (after >= 0) prv[after] = before;
   nxt[p] = -1;
   prv[p] = -1;
   where[p] = -1;
+}
+
+inline void Unlink(const View& v, int64_t p) {
+  UnlinkFrom(v.st->slots, v.Int(kNext), v.Int(kPrev), v.Int(kWhere), p);
 }
 
 // The deadline wheel's selection at step n: step n's list, after the first `count` pairs already
@@ -492,17 +495,23 @@ int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
   // same order straight into w_ids: the groups and their members walked backwards, each pair
   // taken the first time it is met, out of whatever list holds it (step n's too).
   const View v{st};
+  // Read once (the loop's stores could alias the schedule's m).
   int64_t* where = v.Int(kWhere);
+  int64_t* nxt = v.Int(kNext);
+  int64_t* prv = v.Int(kPrev);
+  int64_t* slots = st->slots;
   int64_t* w_ids = v.Work(kWIds);
+  double* last_tau = st->last_tau;
+  const uint8_t* active = st->active;
   constexpr int64_t kTaken = -2;  // taken this step (Unlink leaves -1; never a due step)
   int64_t count = 0;
   for (int64_t k = ngroups - 1; k >= 0; --k) {
     const int64_t g = groups[k];
     for (int64_t j = start[g + 1] - 1; j >= start[g]; --j) {
       const int64_t p = members[j];
-      if (!st->active[p] || where[p] == kTaken) continue;
-      st->last_tau[p] = kNegInf;
-      Unlink(v, p);
+      if (!active[p] || where[p] == kTaken) continue;
+      last_tau[p] = kNegInf;
+      UnlinkFrom(slots, nxt, prv, where, p);
       where[p] = kTaken;
       w_ids[count++] = p;
     }
