@@ -245,8 +245,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "made-due-selected-twice",
         _SCHEDULE,
-        "if (!st->active[p] || where[p] == kTaken) continue;",
-        "if (!st->active[p]) continue;",
+        "if (!active[p] || where[p] == kTaken) continue;",
+        "if (!active[p]) continue;",
         (_MADE_DUE,),
         "a pair of two flagged bodies is evaluated twice and linked twice into the wheel",
     ),
