@@ -70,6 +70,9 @@ _PLAN = "dua_mujoco/csrc/src/plan.cc"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
+_MADE_DUE = (
+    "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
+)
 _REF = (
     "tests/test_reference_step.py::"
     "test_tau_is_never_later_than_a_feasible_contact_and_those_within_the_horizon_stand"
@@ -232,12 +235,29 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "violation-not-made-due",
         _STEP,
-        "ev.members + ev.start[i], ev.start[i + 1] - ev.start[i], n);",
-        "ev.members + ev.start[i], ev.start[i + 1] - ev.start[i], n + 1);",
+        "dua::SelectMadeDue(st, ev.flagged, flagged, ev.start, ev.members, n);",
+        "dua::SelectMadeDue(st, ev.flagged, 0 * flagged, ev.start, ev.members, n);",
         (
             "tests/test_events.py::test_a_collision_right_after_an_impulse_is_flagged_only_with_events",
         ),
-        "a flagged body's pairs keep the verdicts the impulse broke for one more step",
+        "a flagged body's pairs keep the verdicts the impulse broke until they fall due",
+    ),
+    Mutant(
+        "made-due-selected-twice",
+        _SCHEDULE,
+        "if (!active[p] || where[p] == kTaken) continue;",
+        "if (!active[p]) continue;",
+        (_MADE_DUE,),
+        "a pair of two flagged bodies is evaluated twice and linked twice into the wheel",
+    ),
+    Mutant(
+        "made-due-order-reversed",
+        _SCHEDULE,
+        "for (int64_t j = start[g + 1] - 1; j >= start[g]; --j) {",
+        "for (int64_t j = start[g]; j < start[g + 1]; ++j) {",
+        (_MADE_DUE,),
+        "the flagged pairs reach the kernel in another order than make_due's (the four-lane "
+        "groups, and so the alarms, are not main's bit for bit)",
     ),
     Mutant(
         "escape-speed-loose",

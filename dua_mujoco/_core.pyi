@@ -135,6 +135,11 @@ class Schedule:
 
     def make_due(self, p: int, n: int) -> None: ...
 
+    def select_made_due(self, groups: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], start: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], members: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], n: int) -> int:
+        """
+        make_due of the members of each of groups (group g: members[start[g]:start[g + 1]]), in order, then select(n), as the native step runs them (one pass).
+        """
+
     def horizon_of(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
 
     def next_due(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from dua_mujoco import _core
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import (
     DeadlineScheduler,
@@ -386,6 +387,51 @@ def test_deadline_matches_reference(
         covered = ref.last_tau >= (due - ref.last_step + latency) * dt
         np.testing.assert_array_equal(s.alarm_state(), ~covered)
         np.testing.assert_array_equal(s.next_due(np.arange(m)), due)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    m=st.integers(1, 40),
+    kind=st.sampled_from([0, 1, 2]),
+    cap=st.sampled_from([0, 3]),
+    max_interval=st.sampled_from([1, 4, 64]),
+)
+def test_made_due_pairs_are_selected_as_make_due_then_select_selects_them(
+    seed: int, m: int, kind: int, cap: int, max_interval: int
+) -> None:
+    """The native step hands a deadline schedule its flagged bodies' pairs in one pass
+    (select_made_due): the same pairs, in the same order (the four-lane kernel's groups follow
+    it), and the same state after, as make_due of each group's members in turn, then select.
+    The groups overlap (a pair of two flagged bodies), repeat, and hold pairs that are switched
+    off or due at this step anyway."""
+    rng = np.random.default_rng(seed)
+    dt = 0.01
+    tau0 = rng.exponential(0.05, size=m)
+    a, b = (_core.Schedule(kind, dt, 0, tau0, cap=cap, max_interval=max_interval) for _ in range(2))
+    for n in range(1, 25):
+        off = rng.choice(m, size=min(m, rng.integers(0, 3)), replace=False).astype(np.int64)
+        back = off[: rng.integers(0, off.size + 1)]
+        for s in (a, b):
+            s.switch(off, False, n)
+            s.switch(back, True, n)
+        sizes = rng.integers(0, 6, size=rng.integers(1, 6))
+        start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        members = rng.integers(0, m, size=start[-1]).astype(np.int64)
+        groups = rng.integers(0, sizes.size, size=rng.integers(0, 4)).astype(np.int64)
+        for g in groups:
+            for p in members[start[g] : start[g + 1]]:
+                a.make_due(int(p), n)
+        count = a.select(n)
+        assert b.select_made_due(groups, start, members, n) == count
+        np.testing.assert_array_equal(a.work[:, :count], b.work[:, :count])
+        for field in ("ints", "slots", "last_tau", "params", "queue"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+        tau = rng.exponential(0.05, size=count)
+        a.w_tau[:count] = b.w_tau[:count] = tau
+        assert a.reinsert(n, count) == b.reinsert(n, count)
+    with pytest.raises(ShapeError, match="groups must lie in"):
+        b.select_made_due(np.array([1]), np.array([0, 0]), np.zeros(0, np.int64), 30)
 
 
 def test_deadline_interval_is_the_latest_safe_step() -> None:

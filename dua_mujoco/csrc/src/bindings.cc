@@ -617,6 +617,27 @@ void BindSchedule(nb::module_& m) {
           },
           "p"_a, "n"_a)
       .def(
+          "select_made_due",
+          [](Schedule& s, const In<int64_t>& groups, const In<int64_t>& start,
+             const In<int64_t>& members, int64_t n) {
+            CheckIds(s, members);
+            const int64_t ngroup = Size(start) - 1;
+            Require(ngroup >= 0 && start.data()[0] == 0 && start.data()[ngroup] == Size(members),
+                    "start must run from 0 to len(members)");
+            for (int64_t g = 0; g < ngroup; ++g) {
+              Require(start.data()[g] <= start.data()[g + 1], "start must not decrease");
+            }
+            for (int64_t k = 0; k < Size(groups); ++k) {
+              Require(groups.data()[k] >= 0 && groups.data()[k] < ngroup,
+                      "groups must lie in [0, " + std::to_string(ngroup) + ")");
+            }
+            return dua::SelectMadeDue(s.state(), groups.data(), Size(groups), start.data(),
+                                      members.data(), n);
+          },
+          "groups"_a, "start"_a, "members"_a, "n"_a,
+          "make_due of the members of each of groups (group g: members[start[g]:start[g + 1]]), "
+          "in order, then select(n), as the native step runs them (one pass).")
+      .def(
           "horizon_of",
           [](const Schedule& s, const In<int64_t>& ids) {
             return PerPair(s, ids, [&s](int64_t p) { return s.HorizonOf(p); });

@@ -187,6 +187,10 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
 
 // dua_make_due of pairs ids[0:count] at step n (schedule.cc).
 void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n);
+// MakeDue of the pairs of groups[0:ngroups] (group g: members[start[g]:start[g + 1]]), in that
+// order, then dua_select at step n: the same selection, in the same order (schedule.cc).
+DUA_API int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
+                              const int64_t* start, const int64_t* members, int64_t n);
 
 // Bucket floor(log2(slot + 1)) of a rank slot.
 inline int64_t BucketOf(int64_t slot) {

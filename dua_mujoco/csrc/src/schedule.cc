@@ -170,16 +170,15 @@ inline void Link(const View& v, int64_t p, int64_t due) {
   LinkInto(v.st->slots, v.st->ints, v.st->m, v.st->params[kWheel], p, due);
 }
 
-inline void Unlink(const View& v, int64_t p) {
-  int64_t* nxt = v.Int(kNext);
-  int64_t* prv = v.Int(kPrev);
-  int64_t* where = v.Int(kWhere);
+// Take pair p out of its wheel slot's list (nothing if it is in none), on rows and slots the
+// caller read once.
+inline void UnlinkFrom(int64_t* slots, int64_t* nxt, int64_t* prv, int64_t* where, int64_t p) {
   if (where[p] < 0) return;
   const int64_t after = nxt[p], before = prv[p];
   if (before >= 0) {
     nxt[before] = after;
   } else {
-    v.st->slots[-1 - before] = after;
+    slots[-1 - before] = after;
   }
   if (after >= 0) prv[after] = before;
   nxt[p] = -1;
@@ -187,7 +186,13 @@ inline void Unlink(const View& v, int64_t p) {
   where[p] = -1;
 }
 
-int64_t DeadlineSelect(const View& v, int64_t n) {
+inline void Unlink(const View& v, int64_t p) {
+  UnlinkFrom(v.st->slots, v.Int(kNext), v.Int(kPrev), v.Int(kWhere), p);
+}
+
+// The deadline wheel's selection at step n: step n's list, after the first `count` pairs already
+// in w_ids (SelectMadeDue's).
+int64_t DeadlineSelect(const View& v, int64_t n, int64_t count = 0) {
   dua_schedule* st = v.st;
   int64_t* params = st->params;
   int64_t* last_step = v.Int(kLastStep);
@@ -198,7 +203,6 @@ int64_t DeadlineSelect(const View& v, int64_t n) {
   const int64_t slot = n & (params[kWheel] - 1);
   int64_t p = st->slots[slot];
   st->slots[slot] = -1;
-  int64_t count = 0;
   while (p >= 0) {
     const int64_t after = nxt[p];
     nxt[p] = -1;
@@ -244,17 +248,23 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
   const double dt = st->dt;
   const int64_t latency = st->latency;
   const int64_t max_interval = params[kMaxInterval], backoff = params[kBackoff];
+  // Read once: the loop's stores of ints and taus could alias the schedule's own numbers (its m,
+  // the wheel's size, the horizon and extra), which the compiler would then read again each pair.
+  const double extra = st->extra, horizon = st->horizon[0];
+  int64_t* slots = st->slots;
+  int64_t* ints = st->ints;
+  const int64_t m = st->m, wheel = params[kWheel];
   int64_t nalarm = 0;
   for (int64_t k = 0; k < count; ++k) {
     const int64_t p = w_ids[k];
     const double tau = st->w_tau[k];
-    int64_t interval = dua_deadline_interval(tau, dt, latency, max_interval, st->extra);
-    if (Alarms(tau, st->horizon[0])) {
+    int64_t interval = dua_deadline_interval(tau, dt, latency, max_interval, extra);
+    if (Alarms(tau, horizon)) {
       // Whether the last verdict stood, read only here (most evaluations do not alarm): due
       // now, it had to cover until this step (a deferred one, longer: it stood).
       const int64_t waited = n - last_step[p];
       const bool before =
-          Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt + st->extra);
+          Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt + extra);
       // Keeps alarming (resting contact, mostly): back off; it stands in alarm until then.
       if (before) interval = std::max<int64_t>(1, std::min(2 * waited, backoff));
       alarms[nalarm] = p;
@@ -263,7 +273,7 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
     }
     st->last_tau[p] = tau;
     last_step[p] = n;
-    Link(v, p, n + interval);
+    LinkInto(slots, ints, m, wheel, p, n + interval);
   }
   for (int64_t k = count; k < count + params[kDeferred]; ++k) {
     const int64_t p = w_ids[k];
@@ -470,6 +480,47 @@ void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, 
 }  // extern "C"
 
 namespace dua {
+
+int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
+                      const int64_t* start, const int64_t* members, int64_t n) {
+  if (st->kind != kDeadline) {
+    for (int64_t k = 0; k < ngroups; ++k) {
+      const int64_t g = groups[k];
+      MakeDue(st, members + start[g], start[g + 1] - start[g], n);
+    }
+    return dua_select(st, n);
+  }
+  // MakeDue links each pair at the head of step n's list, and the selection walks that list
+  // from its head: the pairs come out last made due first, then the ones due at n anyway. The
+  // same order straight into w_ids: the groups and their members walked backwards, each pair
+  // taken the first time it is met, out of whatever list holds it (step n's too).
+  const View v{st};
+  // Read once (the loop's stores could alias the schedule's m).
+  int64_t* where = v.Int(kWhere);
+  int64_t* nxt = v.Int(kNext);
+  int64_t* prv = v.Int(kPrev);
+  int64_t* slots = st->slots;
+  int64_t* w_ids = v.Work(kWIds);
+  double* last_tau = st->last_tau;
+  const uint8_t* active = st->active;
+  constexpr int64_t kTaken = -2;  // taken this step (Unlink leaves -1; never a due step)
+  int64_t count = 0;
+  for (int64_t k = ngroups - 1; k >= 0; --k) {
+    const int64_t g = groups[k];
+    for (int64_t j = start[g + 1] - 1; j >= start[g]; --j) {
+      const int64_t p = members[j];
+      if (!active[p] || where[p] == kTaken) continue;
+      last_tau[p] = kNegInf;
+      UnlinkFrom(slots, nxt, prv, where, p);
+      where[p] = kTaken;
+      w_ids[count++] = p;
+    }
+  }
+  for (int64_t k = 0; k < count; ++k) where[w_ids[k]] = -1;  // selected, as DeadlineSelect leaves
+  count = DeadlineSelect(v, n, count);
+  st->params[kCount] = count;
+  return count;
+}
 
 void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n) {
   const View v{st};

@@ -787,8 +787,11 @@ int64_t dua_evaluate(dua_step_args* a, const int64_t* ids, int64_t count, double
 
 int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
   dua_schedule* st = &a->schedule;
-  dua_violation_pass(a, n);
-  const int64_t count = dua_select(st, n);
+  // dua_violation_pass, then dua_select: the flagged bodies' pairs go straight to the selection
+  // (SelectMadeDue), not through step n's list.
+  const dua_events& ev = a->events;
+  const int64_t flagged = ev.nbody ? dua::CheckBodies(ev, a->frame) : 0;
+  const int64_t count = dua::SelectMadeDue(st, ev.flagged, flagged, ev.start, ev.members, n);
   const int64_t* w_ids = st->work + 1 * st->width;
   a->count = count;
   const int64_t bad = dua::TauOf(*a, w_ids, count, st->w_tau);
