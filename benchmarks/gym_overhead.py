@@ -11,9 +11,10 @@ round times every ``env.step`` call of ``--steps`` steps and keeps their median.
 table is the median over rounds of those per-round medians; the ratio is wrapped / plain from
 those medians, the overhead their difference. Inside the wrapped steps, ``predictor.step`` and
 the wrapper's bookkeeping (``_observe``: standing alarms, ``min_tau``, names) are timed apart
-(``predictor.step``: the runtime's ``step_watched`` where the wrapper calls that instead)
-(the medians of their calls); what the two leave of the overhead is the rest of the wrapper's
-``step`` and the caches the predictor's work takes from MuJoCo's.
+(``predictor.step``: the runtime's ``step_watched`` or ``step_info`` where the wrapper calls
+that instead; ``step_info`` writes ``info`` too, and the bookkeeping reads 0) (the medians of
+their calls); what the two leave of the overhead is the rest of the wrapper's ``step`` and the
+caches the predictor's work takes from MuJoCo's.
 
 With ``--before``, another checkout is measured too, in its own environment: each side runs
 this script in a subprocess (``--json``, ``--rounds`` rounds), the sides alternating
@@ -88,8 +89,11 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
     # steps the predictor through Predictor.step (before issue 42's last cut) or through its
     # runtime's step_watched (a native object takes no attributes: a proxy times it).
     predictor.step = timed(predictor.step, "predictor")  # type: ignore[method-assign]
-    wrapped._observe = timed(wrapped._observe, "observe")  # type: ignore[method-assign]
-    if hasattr(wrapped._runtime, "step_watched"):
+    if hasattr(wrapped, "_observe"):
+        wrapped._observe = timed(wrapped._observe, "observe")
+    if hasattr(wrapped, "_step_info"):  # the step and the info in one call (issue 42, pusher42)
+        wrapped._step_info = timed(wrapped._step_info, "predictor")
+    elif hasattr(wrapped._runtime, "step_watched"):
         wrapped._runtime = _TimedRuntime(wrapped._runtime, timed)
     _round(plain, 20, 0)  # warm-up: caches, the compiled step's first call
     _round(wrapped, 20, 0)
@@ -100,7 +104,7 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
         rows["plain"].append(_round(plain, steps, r))
         rows["wrapped"].append(_round(wrapped, steps, r))
         for name, times in parts.items():
-            rows[name].append(float(np.median(times)))
+            rows[name].append(float(np.median(times)) if times else 0.0)
     out = {f"{k}_us": float(np.median(v)) * 1e6 for k, v in rows.items()}
     return {**out, "pairs": predictor.nsphere_pairs, "frame_skip": predictor.period}
 
