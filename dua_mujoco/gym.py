@@ -204,19 +204,20 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Step the env and the predictor; ``info`` gets the alarms and the cost."""
-        obs, reward, terminated, truncated, info = self.env.step(action)
+        out = self.env.step(action)
         # The predictor's step and info's alarms, min_tau and cost in one native call
         # (Runtime.step_info; the standing pairs named again only when their set changes): the
-        # wrapper's own Python was more instructions a step than the predictor's step.
+        # wrapper's own Python was more instructions a step than the predictor's step. The
+        # env's tuple is passed on as it is unless the step terminates the episode.
         if self._data is not self.predictor._data:
             self.predictor._bind(self._data)
         try:
-            cost = self._step_info(info)
+            cost = self._step_info(out[4])
         except _core.StepError as error:
             raise self.predictor._step_error(self._data, error) from None
         if cost and self.terminate_on_alarm:
-            terminated = True
-        return obs, reward, terminated, truncated, info
+            return out[0], out[1], True, out[3], out[4]
+        return out
 
 
 class SafetyShield(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
