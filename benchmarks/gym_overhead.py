@@ -9,11 +9,14 @@ For each env a plain env and a wrapped one (default predictor options, ``cost="a
 same seeded random actions from the same seeded reset. Rounds alternate plain and wrapped; each
 round times every ``env.step`` call of ``--steps`` steps and keeps their median. A number in the
 table is the median over rounds of those per-round medians; the ratio is wrapped / plain from
-those medians, the overhead their difference. Inside the wrapped steps, ``predictor.step`` and
-the wrapper's bookkeeping (``_observe``: standing alarms, ``min_tau``, names) are timed apart
-(``predictor.step``: the runtime's ``step_watched`` where the wrapper calls that instead)
-(the medians of their calls); what the two leave of the overhead is the rest of the wrapper's
-``step`` and the caches the predictor's work takes from MuJoCo's.
+those medians, the overhead their difference. A third env, wrapped by a wrapper that makes one
+call into the native core a step and no predictor step (the runtime's ``watched``), gives the
+floor of any wrapper that steps a predictor natively, less the step itself. Inside the wrapped
+steps, ``predictor.step`` and the wrapper's bookkeeping (``_observe``: standing alarms,
+``min_tau``, names) are timed apart (``predictor.step``: the runtime's ``step_watched`` or
+``step_info`` where the wrapper calls that instead; ``step_info`` writes ``info`` too, and the
+bookkeeping reads 0) (the medians of their calls); what the two leave of the overhead is the
+rest of the wrapper's ``step`` and the caches the predictor's work takes from MuJoCo's.
 
 With ``--before``, another checkout is measured too, in its own environment: each side runs
 this script in a subprocess (``--json``, ``--rounds`` rounds), the sides alternating
@@ -69,9 +72,25 @@ class _TimedRuntime:
         return getattr(self._runtime, name)
 
 
+class _OneCall(gym.Wrapper):
+    """The floor of any wrapper that steps a predictor natively: the wrapper layer and one call
+    into the native core a step (the runtime's ``watched``, which reads three numbers), no
+    predictor step."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self._runtime = PredictCollisions(env).predictor._rt
+
+    def step(self, action: Any) -> Any:
+        out = self.env.step(action)
+        self.last = self._runtime.watched
+        return out
+
+
 def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
     plain = _make(env_id)
     wrapped = PredictCollisions(_make(env_id))
+    one_call = _OneCall(_make(env_id))
     predictor = wrapped.predictor
     parts: dict[str, list[float]] = {"predictor": [], "observe": []}
 
@@ -88,19 +107,25 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
     # steps the predictor through Predictor.step (before issue 42's last cut) or through its
     # runtime's step_watched (a native object takes no attributes: a proxy times it).
     predictor.step = timed(predictor.step, "predictor")  # type: ignore[method-assign]
-    wrapped._observe = timed(wrapped._observe, "observe")  # type: ignore[method-assign]
-    if hasattr(wrapped._runtime, "step_watched"):
+    if hasattr(wrapped, "_observe"):
+        wrapped._observe = timed(wrapped._observe, "observe")
+    if hasattr(wrapped, "_step_info"):  # the step and the info in one call (issue 42, pusher42)
+        wrapped._step_info = timed(wrapped._step_info, "predictor")
+    elif hasattr(wrapped._runtime, "step_watched"):
         wrapped._runtime = _TimedRuntime(wrapped._runtime, timed)
     _round(plain, 20, 0)  # warm-up: caches, the compiled step's first call
     _round(wrapped, 20, 0)
-    rows: dict[str, list[float]] = {k: [] for k in ("plain", "wrapped", "predictor", "observe")}
+    _round(one_call, 20, 0)
+    names = ("plain", "wrapped", "one_call", "predictor", "observe")
+    rows: dict[str, list[float]] = {k: [] for k in names}
     for r in range(rounds):
         for name in parts:
             parts[name].clear()
         rows["plain"].append(_round(plain, steps, r))
         rows["wrapped"].append(_round(wrapped, steps, r))
+        rows["one_call"].append(_round(one_call, steps, r))
         for name, times in parts.items():
-            rows[name].append(float(np.median(times)))
+            rows[name].append(float(np.median(times)) if times else 0.0)
     out = {f"{k}_us": float(np.median(v)) * 1e6 for k, v in rows.items()}
     return {**out, "pairs": predictor.nsphere_pairs, "frame_skip": predictor.period}
 
@@ -122,9 +147,9 @@ def ab(args: argparse.Namespace) -> None:
     print(
         "| env | env.step plain before (us) | wrapped before (us) | ratio before "
         "| plain after (us) | wrapped after (us) | ratio after | predictor.step after (us) "
-        "| bookkeeping after (us) |"
+        "| bookkeeping after (us) | one native call, after |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for env_id in args.envs:
         med = {
             s: {
@@ -137,7 +162,8 @@ def ab(args: argparse.Namespace) -> None:
             f"| {env_id} | {b['plain_us']:.1f} | {b['wrapped_us']:.1f} "
             f"| {b['wrapped_us'] / b['plain_us']:.3f} | {a['plain_us']:.1f} "
             f"| {a['wrapped_us']:.1f} | {a['wrapped_us'] / a['plain_us']:.3f} "
-            f"| {a['predictor_us']:.1f} | {a['observe_us']:.1f} |",
+            f"| {a['predictor_us']:.1f} | {a['observe_us']:.1f} "
+            f"| {a['one_call_us'] / a['plain_us']:.3f} |",
             flush=True,
         )
 
@@ -161,16 +187,17 @@ def main() -> None:
         return
     print(
         "| env | frame_skip | sphere pairs | env.step plain (us) | wrapped (us) | ratio "
-        "| overhead (us) | of it predictor.step (us) | of it bookkeeping (us) |"
+        "| overhead (us) | of it predictor.step (us) | of it bookkeeping (us) "
+        "| one native call / plain |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for env_id in args.envs:
         m = measure(env_id, rounds=args.rounds, steps=args.steps)
         print(
             f"| {env_id} | {m['frame_skip']} | {m['pairs']} | {m['plain_us']:.1f} "
             f"| {m['wrapped_us']:.1f} | {m['wrapped_us'] / m['plain_us']:.3f} "
             f"| {m['wrapped_us'] - m['plain_us']:.1f} | {m['predictor_us']:.1f} "
-            f"| {m['observe_us']:.1f} |",
+            f"| {m['observe_us']:.1f} | {m['one_call_us'] / m['plain_us']:.3f} |",
             flush=True,
         )
 

@@ -542,6 +542,31 @@ MUTANTS: tuple[Mutant, ...] = (
         ("tests/test_monitor.py::test_a_deferral_opens_no_window_for_the_onsets_labels",),
         "a deferral moves a pair's window past violations its verdict in force rested on",
     ),
+    # ---------------------------------------------------- the gym wrapper's info (issue 42)
+    Mutant(
+        "gym-info-standing-named-once",
+        "dua_mujoco/csrc/src/bindings.cc",
+        "if (watched.version != w.version) {",
+        "if (w.version < 0) {",
+        ("tests/test_gym.py::test_alarms_and_min_tau_follow_the_predictor_at_every_step",),
+        "info['alarm_pairs'] keeps the first set named, not the pairs standing now",
+    ),
+    Mutant(
+        "gym-info-cost-new-as-alarm",
+        "dua_mujoco/csrc/src/bindings.cc",
+        "cost = static_cast<double>(started);",
+        "cost = nb::len(w.pairs) ? 1.0 : 0.0;",
+        ("tests/test_gym.py::test_cost_new_counts_pairs_whose_alarm_started",),
+        "cost='new' counts the standing pairs, not those whose alarm started",
+    ),
+    Mutant(
+        "gym-info-mapping-cost-dropped",
+        "dua_mujoco/csrc/src/bindings.cc",
+        'before = out.attr("get")(w.total, before);',
+        "before = nb::float_(0.0);",
+        ("tests/test_gym.py::test_cost_adds_to_a_cost_the_env_reports",),
+        "an info that is a mapping but not a dict loses the env's own cost",
+    ),
     # ---------------------------------------------------------------- the shield (section 10)
     Mutant(
         "shield-screen-without-the-stop",

@@ -348,9 +348,19 @@ class Runtime:
     def step(self) -> Alarms:
         """One predictor step on the bound MjData, one period after the last."""
 
-    def step_watched(self) -> tuple:
+    def watch_info(self, names: list, cost: str, horizon: float, cost_key: str) -> None:
         """
-        step, then watched: one call a step for a watcher (the gym wrapper), no Alarms made.
+        Watch for the gym wrapper: step_info and observe_info write its info (names: one str a geom; cost: 'alarm', 'new' or 'horizon', below horizon seconds; cost_key: the key of the cost term).
+        """
+
+    def observe_info(self, info: object) -> None:
+        """
+        info['alarm_pairs'] (the counted geom pairs standing, named) and info['min_tau'] of the latest step or classification.
+        """
+
+    def step_info(self, info: object) -> float:
+        """
+        step, then the wrapper's info (observe_info, the cost term under cost_key, added to info['cost']): one call a step for the gym wrapper; returns the cost.
         """
 
     def classify_spheres(self, centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.int64]:

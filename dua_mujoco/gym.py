@@ -18,6 +18,7 @@ except ModuleNotFoundError as exc:  # an optional dependency: say which extra br
         "dua_mujoco.gym needs gymnasium: pip install 'dua_mujoco[gym]'", name=exc.name
     ) from exc
 
+from dua_mujoco import _core
 from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.runtime.predictor import Predictor
@@ -149,11 +150,11 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
         ignored = np.zeros(model.ngeom, dtype=np.uint8)
         ignored[geoms] = 1
         # The runtime keeps what info needs up to date as it steps (counted geom pairs standing,
-        # those started, the least expiry): O(1) a step here, whatever the pairs.
+        # those started, the least expiry) and writes info itself: one native call a step.
         self._runtime = self.predictor._rt
         self._runtime.watch(ignored, keys)
-        self._version = -1
-        self._alarm_pairs: tuple[tuple[str, str], ...] = ()
+        self._runtime.watch_info(self._names, cost, cost_horizon or 0.0, COST_KEY)
+        self._step_info = self._runtime.step_info
 
     def _ignored(self, ignore: tuple[IgnoreSpec, ...]) -> tuple[np.ndarray, np.ndarray]:
         """The geoms and the geom-pair keys ``(g1 << 32) | g2`` that ``ignore`` names."""
@@ -198,41 +199,25 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
         obs, info = self.env.reset(seed=seed, options=options)
         _, self._data, _ = find_mujoco(self.env)  # an env may build a new MjData on reset
         self.predictor.reset(self._data)
-        _, min_tau, version = self._runtime.watched
-        self._observe(info, min_tau, version)
+        self._runtime.observe_info(info)
         return obs, info
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Step the env and the predictor; ``info`` gets the alarms and the cost."""
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        # The predictor's step and what info needs from it in one native call (no Alarms made:
-        # the wrapper cost 1.10x Pusher's env.step, most of it Python around the native step).
-        started, min_tau, version = self.predictor._native_step(
-            self._data, self._runtime.step_watched
-        )
-        self._observe(info, min_tau, version)
-        if self.cost == "alarm":
-            cost = 1.0 if self._alarm_pairs else 0.0
-        elif self.cost == "new":
-            cost = float(started)
-        else:
-            assert self.cost_horizon is not None
-            cost = float(min_tau < self.cost_horizon)
-        info[COST_KEY] = cost
-        info["cost"] = float(info.get("cost", 0.0)) + cost
-        if self.terminate_on_alarm and cost > 0.0:
-            terminated = True
-        return obs, reward, terminated, truncated, info
-
-    def _observe(self, info: dict[str, Any], min_tau: float, version: int) -> None:
-        """Put the standing alarms and ``min_tau`` (the runtime's ``watched``) into ``info``."""
-        if version != self._version:
-            # The set of counted geom pairs in alarm changed: name them again (natively: on
-            # Humanoid it changes at most steps, and a Python loop over them was 6 us of 21).
-            self._version = version
-            self._alarm_pairs = self._runtime.watched_standing(self._names)
-        info["alarm_pairs"] = self._alarm_pairs
-        info["min_tau"] = min_tau
+        out = self.env.step(action)
+        # The predictor's step and info's alarms, min_tau and cost in one native call
+        # (Runtime.step_info; the standing pairs named again only when their set changes): the
+        # wrapper's own Python was more instructions a step than the predictor's step. The
+        # env's tuple is passed on as it is unless the step terminates the episode.
+        if self._data is not self.predictor._data:
+            self.predictor._bind(self._data)
+        try:
+            cost = self._step_info(out[4])
+        except _core.StepError as error:
+            raise self.predictor._step_error(self._data, error) from None
+        if cost and self.terminate_on_alarm:
+            return out[0], out[1], True, out[3], out[4]
+        return out
 
 
 class SafetyShield(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):

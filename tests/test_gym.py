@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from collections import UserDict
 
 import gymnasium as gym
 import numpy as np
@@ -203,19 +204,27 @@ def test_terminate_on_alarm_ends_the_episode_at_the_first_cost() -> None:
 
 
 class _CostlyEnv(gym.Wrapper):
-    """An env that reports a cost of its own, as safety-gymnasium's do."""
+    """An env that reports a cost of its own, as safety-gymnasium's do, in an info of type
+    ``mapping`` (the wrapper writes info natively: a dict, or any mapping)."""
+
+    def __init__(self, env: gym.Env, mapping: type) -> None:
+        super().__init__(env)
+        self.mapping = mapping
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
-        info["cost"] = 0.5
+        info = self.mapping(info)
+        info["cost"] = np.float32(0.5)
         return obs, reward, terminated, truncated, info
 
 
-def test_cost_adds_to_a_cost_the_env_reports() -> None:
-    env = PredictCollisions(_CostlyEnv(gym.make("Pusher-v5")), **FAST)  # object on the table
+@pytest.mark.parametrize("mapping", [dict, UserDict])
+def test_cost_adds_to_a_cost_the_env_reports(mapping: type) -> None:
+    env = PredictCollisions(_CostlyEnv(gym.make("Pusher-v5"), mapping), **FAST)  # object on table
     env.reset(seed=0)
     _, _, _, _, info = env.step(env.action_space.sample())
-    assert info[COST_KEY] == 1.0 and info["cost"] == 1.5
+    assert isinstance(info, mapping) and info["alarm_pairs"] and info["min_tau"] == 0.0
+    assert info[COST_KEY] == 1.0 and info["cost"] == 1.5 and type(info["cost"]) is float
 
 
 def test_vector_env_steps_a_predictor_per_env_and_resets_them() -> None:

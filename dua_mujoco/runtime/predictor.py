@@ -270,7 +270,7 @@ class Predictor(PlanFollowing):
         return alarms
 
     def _native_step(self, data: mujoco.MjData, step: Callable[[], T]) -> T:
-        """``step()``, a native step of the runtime (``step``, ``step_watched``), on ``data``
+        """``step()``, a native step of the runtime (``step``), on ``data``
         (bound first if it is new), with its failure raised as the error it stands for."""
         if data is not self._data:
             self._bind(data)
