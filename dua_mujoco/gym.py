@@ -141,8 +141,7 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
                 f"period = {predictor_options['period']!r}: here the predictor period is the "
                 f"env's frame_skip ({frame_skip} physics steps per env.step): drop period."
             )
-        self.cost = cost
-        self.cost_horizon = cost_horizon
+        self._cost, self._cost_horizon = cost, cost_horizon
         self.terminate_on_alarm = bool(terminate_on_alarm)
         self.predictor = Predictor(model, period=frame_skip, **predictor_options)
         self._names = [str(n) for n in self.predictor.tables.geom_names]
@@ -155,6 +154,16 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
         self._runtime.watch(ignored, keys)
         self._runtime.watch_info(self._names, cost, cost_horizon or 0.0, COST_KEY)
         self._step_info = self._runtime.step_info
+
+    @property
+    def cost(self) -> str:
+        """What ``info["cost"]`` counts, as constructed (the runtime writes it: read-only)."""
+        return self._cost
+
+    @property
+    def cost_horizon(self) -> float | None:
+        """Seconds, for ``cost="horizon"``, as constructed (read-only)."""
+        return self._cost_horizon
 
     def _ignored(self, ignore: tuple[IgnoreSpec, ...]) -> tuple[np.ndarray, np.ndarray]:
         """The geoms and the geom-pair keys ``(g1 << 32) | g2`` that ``ignore`` names."""

@@ -178,6 +178,10 @@ def test_cost_horizon_is_min_tau_below_the_horizon() -> None:
         assert info["cost"] == float(info["min_tau"] < horizon)
         seen.add(info["cost"])
     assert seen == {0.0, 1.0}
+    # The runtime writes the cost as constructed: changing it afterwards would be silently ignored.
+    assert (env.cost, env.cost_horizon) == ("horizon", horizon)
+    with pytest.raises(AttributeError):
+        env.cost = "alarm"  # type: ignore[misc]
 
 
 def test_terminate_on_alarm_ends_the_episode_at_the_first_cost() -> None:
