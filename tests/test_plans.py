@@ -55,10 +55,21 @@ _XML = """
 
 
 # The same robot dressed as robot models are: visual geoms (no contacts) between and beside the
-# collision ones, on every body, offset and turned or not, and sites. A plan reads the collision
-# geoms only, and computes their poses on the model without the rest.
+# collision ones, on every body, offset and turned or not, and sites; a body that carries only a
+# visual geom (a camera), and one without geoms between two links (a mount). A plan reads the
+# collision geoms only, and computes their poses on the model without the rest (and without the
+# bodies that carry none of them, the mount kept as the forearm's parent).
 _VISUAL = (
     _XML.replace(
+        '<body name="fore" pos="0.4 0 0">',
+        '<body name="camera" pos=".2 0 .05" euler="0 20 0"><geom type="box" size=".02 .02 .02" '
+        'contype="0" conaffinity="0" mass="0.01"/></body>'
+        '<body name="mount" pos="0.4 0 0" euler="0 0 15"><body name="fore" euler="0 0 -15">',
+    )
+    .replace(
+        '      </body>\n    </body>\n    <body name="box"', '</body></body></body><body name="box"'
+    )
+    .replace(
         '<geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.04" mass="1"/>',
         '<geom type="mesh" mesh="m" contype="0" conaffinity="0" mass="0" pos=".1 .05 0"/>'
         '<geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.04" mass="1"/>'
@@ -339,7 +350,7 @@ def test_a_rolled_plan_is_followed_without_a_break(model: mujoco.MjModel, dresse
     # leaves the plan breaks it.
     if dressed:
         model = mujoco.MjModel.from_xml_string(_VISUAL)
-        assert model.nsite == 3 and int(np.count_nonzero(model.geom_contype == 0)) == 6
+        assert model.nsite == 3 and int(np.count_nonzero(model.geom_contype == 0)) == 7
     d = _settled(model, steps=3)
     drive = make_controller(model, "smooth", seed=4, hold_steps=40)
     p = Predictor(model, accel=20.0, alarm_horizon=0.05)

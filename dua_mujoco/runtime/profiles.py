@@ -419,4 +419,4 @@ def plan_deviation(profile: npt.ArrayLike, knots: int, *, origin: int = 0) -> np
             f"the plan reaches {need} knots past its origin, the profile only "
             f"{prof.shape[0] - 1}: measure longer plans in the pilot (or shorten the plan)."
         )
-    return prof[np.maximum(np.arange(knots) - o, 0)]
+    return prof[:knots].copy() if o == 0 else prof[np.maximum(np.arange(knots) - o, 0)]

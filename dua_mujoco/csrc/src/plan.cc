@@ -561,6 +561,70 @@ bool RelativePoseWithin(const double* box, const double* actual, const double* p
   return room >= 0.0 && BoxWithin(box, actual, actual + 3, planned, planned + 3, room);
 }
 
+namespace {
+
+// m's kinematics cut to what a plan reads: the geoms kept (geoms[c] as geom c) and no sites; the
+// bodies that carry them and their ancestors, renumbered in order (a parent still comes first);
+// the inertial frames computed only where a kept geom sits at one (the others copied from the
+// body frame, mjSAMEFRAME_BODY: nothing reads them). mj_kinematics on it runs the same code on
+// the same numbers as on m for every body and geom kept, so their poses are m's bit for bit,
+// without the geoms, sites and bodies no verdict reads (50 of sawyer's 63 geoms are visual, 6
+// of its 20 bodies carry none). A shallow copy of m: its other arrays are m's, read only.
+struct Kinematic {
+  Kinematic(const mjModel* m, const std::vector<int64_t>& geoms);
+  Kinematic(const Kinematic&) = delete;
+  Kinematic& operator=(const Kinematic&) = delete;
+  mjModel model;
+  std::vector<mjtNum> gpos, gquat, bpos, bquat, ipos, iquat;
+  std::vector<int> gbody, parent, jadr, jnum, mocap, adr, num;
+  std::vector<mjtByte> gframe, iframe;
+};
+
+Kinematic::Kinematic(const mjModel* m, const std::vector<int64_t>& geoms) : model(*m) {
+  const int nbody = m->nbody;
+  std::vector<int> id(nbody, -1);  // a kept body's id in the cut model
+  std::vector<uint8_t> keep(nbody, 0);
+  keep[0] = 1;
+  for (const int64_t g : geoms) keep[m->geom_bodyid[g]] = 1;
+  for (int b = nbody - 1; b > 0; --b) keep[m->body_parentid[b]] |= keep[b];
+  for (int b = 0; b < nbody; ++b) {
+    if (!keep[b]) continue;
+    id[b] = static_cast<int>(parent.size());
+    parent.push_back(b ? id[m->body_parentid[b]] : 0);
+    jadr.push_back(m->body_jntadr[b]), jnum.push_back(m->body_jntnum[b]);
+    mocap.push_back(m->body_mocapid[b]);
+    bpos.insert(bpos.end(), m->body_pos + 3 * b, m->body_pos + 3 * b + 3);
+    bquat.insert(bquat.end(), m->body_quat + 4 * b, m->body_quat + 4 * b + 4);
+    ipos.insert(ipos.end(), m->body_ipos + 3 * b, m->body_ipos + 3 * b + 3);
+    iquat.insert(iquat.end(), m->body_iquat + 4 * b, m->body_iquat + 4 * b + 4);
+    iframe.push_back(mjSAMEFRAME_BODY);
+    adr.push_back(-1), num.push_back(0);
+  }
+  // A body's geoms are consecutive ids (body_geomadr, body_geomnum), so its kept ones are
+  // consecutive slots.
+  for (size_t c = 0; c < geoms.size(); ++c) {
+    const int64_t g = geoms[c];
+    const int b = m->geom_bodyid[g], k = id[b];
+    gpos.insert(gpos.end(), m->geom_pos + 3 * g, m->geom_pos + 3 * g + 3);
+    gquat.insert(gquat.end(), m->geom_quat + 4 * g, m->geom_quat + 4 * g + 4);
+    gbody.push_back(k), gframe.push_back(m->geom_sameframe[g]);
+    if (num[k]++ == 0) adr[k] = static_cast<int>(c);
+    if (gframe.back() == mjSAMEFRAME_INERTIA || gframe.back() == mjSAMEFRAME_INERTIAROT) {
+      iframe[k] = m->body_sameframe[b];
+    }
+  }
+  mjModel& k = model;
+  k.nbody = static_cast<int>(parent.size()), k.ngeom = static_cast<int>(geoms.size()), k.nsite = 0;
+  k.geom_pos = gpos.data(), k.geom_quat = gquat.data();
+  k.geom_bodyid = gbody.data(), k.geom_sameframe = gframe.data();
+  k.body_parentid = parent.data(), k.body_jntadr = jadr.data(), k.body_jntnum = jnum.data();
+  k.body_mocapid = mocap.data(), k.body_pos = bpos.data(), k.body_quat = bquat.data();
+  k.body_ipos = ipos.data(), k.body_iquat = iquat.data(), k.body_sameframe = iframe.data();
+  k.body_geomadr = adr.data(), k.body_geomnum = num.data();
+}
+
+}  // namespace
+
 std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, double h,
                         const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms,
                         const Plan* prev, std::shared_ptr<PlanPool> pool) {
@@ -631,33 +695,10 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     mocap_quat_.assign(in.mocap_quat, in.mocap_quat + n * nmocap * 4);
   }
   Slots(n, ngeom, geoms, std::move(pool));
-  // mj_kinematics on m's bodies with the geoms kept as its only geoms (geoms[c] as geom c) and
-  // no sites: the same function on the same numbers, so the same body frames and, for those
-  // geoms, the same poses bit for bit, without the geoms and sites no verdict reads (50 of
-  // sawyer's 63 geoms are visual). A shallow copy of m whose geom arrays are these, the rest
-  // m's own, read only. Flexes and sleeping trees read more of the model: those run on m.
+  // Flexes and sleeping trees read more of the model than Kinematic keeps: those run on m.
   const bool reduced = m->nflex == 0 && !(m->opt.enableflags & mjENBL_SLEEP);
-  mjModel km = *m;
-  std::vector<mjtNum> kpos, kquat;
-  std::vector<int> kbody, kadr(nbody, -1), knum(nbody, 0);
-  std::vector<mjtByte> kframe;
-  if (reduced) {
-    // A body's geoms are consecutive ids (body_geomadr, body_geomnum), so its kept ones are
-    // consecutive slots.
-    for (int64_t c = 0; c < nslot_; ++c) {
-      const int64_t g = geoms[c];
-      const int b = m->geom_bodyid[g];
-      kpos.insert(kpos.end(), m->geom_pos + 3 * g, m->geom_pos + 3 * g + 3);
-      kquat.insert(kquat.end(), m->geom_quat + 4 * g, m->geom_quat + 4 * g + 4);
-      kbody.push_back(b);
-      kframe.push_back(m->geom_sameframe[g]);
-      if (knum[b]++ == 0) kadr[b] = static_cast<int>(c);
-    }
-    km.ngeom = nslot_, km.nsite = 0;
-    km.geom_pos = kpos.data(), km.geom_quat = kquat.data();
-    km.geom_bodyid = kbody.data(), km.geom_sameframe = kframe.data();
-    km.body_geomadr = kadr.data(), km.body_geomnum = knum.data();
-  }
+  std::unique_ptr<Kinematic> km(reduced ? new Kinematic(m, geoms) : nullptr);
+  mjtNum *const xpos = s->geom_xpos, *const xmat = s->geom_xmat;
   for (int64_t j = 0; j < n; ++j) {
     double* pj = pos_.data() + 3 * nslot_ * j;
     double* rj = mat_.data() + 9 * nslot_ * j;
@@ -672,11 +713,17 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
         std::copy_n(in.mocap_pos + 3 * nmocap * j, 3 * nmocap, s->mocap_pos);
         std::copy_n(in.mocap_quat + 4 * nmocap * j, 4 * nmocap, s->mocap_quat);
       }
-      mj_kinematics(reduced ? &km : m, s);
+      if (km) {
+        // The reduced model's geom c is slot c: its poses are written in place.
+        s->geom_xpos = pj, s->geom_xmat = rj;
+        mj_kinematics(&km->model, s);
+        s->geom_xpos = xpos, s->geom_xmat = xmat;
+        continue;
+      }
+      mj_kinematics(m, s);
       for (int64_t c = 0; c < nslot_; ++c) {
-        const int64_t g = reduced ? c : geoms[c];
-        std::copy_n(s->geom_xpos + 3 * g, 3, pj + 3 * c);
-        std::copy_n(s->geom_xmat + 9 * g, 9, rj + 9 * c);
+        std::copy_n(s->geom_xpos + 3 * geoms[c], 3, pj + 3 * c);
+        std::copy_n(s->geom_xmat + 9 * geoms[c], 9, rj + 9 * c);
       }
     }
   }
@@ -711,14 +758,17 @@ std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
   std::vector<std::pair<int64_t, int64_t>> order;  // (key, column given)
   for (int64_t r = 0; r < in.nrel; ++r) {
     const int64_t a = in.relative_bodies[2 * r], b = in.relative_bodies[2 * r + 1];
-    const std::string which = "relative pair " + std::to_string(r) + " (bodies " +
-                              std::to_string(a) + ", " + std::to_string(b) + ")";
+    // Named only for an error (a string a pair was 3 % of sawyer's set_plan).
+    auto which = [&] {
+      return "relative pair " + std::to_string(r) + " (bodies " + std::to_string(a) + ", " +
+             std::to_string(b) + ")";
+    };
     if (a < 0 || b < 0 || a >= nbody || b >= nbody) {
-      return "holds " + which + ", not bodies of the model's " + std::to_string(nbody) +
+      return "holds " + which() + ", not bodies of the model's " + std::to_string(nbody) +
              ": pass body ids";
     }
     if (a == b || !holds[a] || !holds[b]) {
-      return "holds " + which + " ('" + NameOf(m, a) + "', '" + NameOf(m, b) +
+      return "holds " + which() + " ('" + NameOf(m, a) + "', '" + NameOf(m, b) +
              "'), not two distinct moving bodies the plan holds: pass pairs of two bodies the "
              "plan holds (a static body's deviation is 0 already)";
     }
@@ -759,7 +809,7 @@ void Plan::Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
   nslot_ = static_cast<int64_t>(geoms.size());
   for (int64_t i = 0; i < nslot_; ++i) slot_[geoms[i]] = i;
   pool_ = std::move(pool);
-  auto take = [&](size_t size) { return pool_ ? pool_->Take(size) : std::vector<double>(size); };
+  auto take = [&](size_t size) { return pool_ ? pool_->Take(size) : Buffer(size); };
   pos_ = take(3 * nslot_ * n), mat_ = take(9 * nslot_ * n), sweep_ = take(nslot_ * n);
 }
 
@@ -855,8 +905,8 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
 const double Plan::kNoPose[9] = {kNaN, kNaN, kNaN, kNaN, kNaN, kNaN, kNaN, kNaN, kNaN};
 const double Plan::kNoSweep = kInf;
 
-std::vector<double> PlanPool::Take(size_t n) {
-  std::vector<double> v;
+Buffer PlanPool::Take(size_t n) {
+  Buffer v;
   {
     // The smallest buffer that holds n (no new pages), else the largest (the fewest).
     std::lock_guard<std::mutex> lock(mutex);
@@ -875,11 +925,12 @@ std::vector<double> PlanPool::Take(size_t n) {
       free.erase(free.begin() + static_cast<std::ptrdiff_t>(best));
     }
   }
+  v.clear();  // no old entry is read: a buffer that grows copies none
   v.resize(n);
   return v;
 }
 
-void PlanPool::Give(std::vector<double>&& v) {
+void PlanPool::Give(Buffer&& v) {
   std::lock_guard<std::mutex> lock(mutex);
   // A few plans' worth: as many as are alive at once (the plan and its shadows).
   if (free.size() < 32) free.push_back(std::move(v));
@@ -941,7 +992,7 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
   const int64_t nr = nrel();
   rel_box_.assign(nr, nullptr);
   rel_ga_.assign(nr, -1), rel_gb_.assign(nr, -1);
-  rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : std::vector<double>(12 * nknot_ * nr);
+  rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : Buffer(12 * nknot_ * nr);
   for (int64_t r = 0; r < nr; ++r) {
     rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
     rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
