@@ -714,10 +714,16 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
         std::copy_n(in.mocap_quat + 4 * nmocap * j, 4 * nmocap, s->mocap_quat);
       }
       if (km) {
-        // The reduced model's geom c is slot c: its poses are written in place.
+        // The reduced model's geom c is slot c: its poses are written in place. The guard puts
+        // s's own arrays back even if MuJoCo's error handler throws out of mj_kinematics: a
+        // scratch left pointing into this plan would write into it (or freed memory) later.
+        struct Restore {
+          mjData* d;
+          mjtNum *xpos, *xmat;
+          ~Restore() { d->geom_xpos = xpos, d->geom_xmat = xmat; }
+        } restore{s, xpos, xmat};
         s->geom_xpos = pj, s->geom_xmat = rj;
         mj_kinematics(&km->model, s);
-        s->geom_xpos = xpos, s->geom_xmat = xmat;
         continue;
       }
       mj_kinematics(m, s);
