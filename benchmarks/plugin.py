@@ -173,7 +173,9 @@ def _print_summary(label: str, added: list[tuple[str, float]]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--before", type=Path, default=None, help="the other checkout (numba step)")
+    ap.add_argument(
+        "--before", type=Path, default=None, help="the other checkout (its venv runs its side)"
+    )
     ap.add_argument("--scenes", nargs="*", default=None)
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--rounds", type=int, default=1)
