@@ -361,16 +361,9 @@ class Hypotheses:
         else:
             live_since = np.asarray(since, dtype=np.int64)
             after = self._rested(live, self._basis[live], live_since).min(axis=0, initial=_NEVER)
-        b1, b2 = (int(b) for b in self._gp_body[g])
-        steps = np.array(
-            [
-                self.last_plan_break[b1],
-                self.last_plan_break[b2],
-                self.last_violation[b1],
-                self.last_violation[b2],
-                self.last_relative_break.get((min(b1, b2), max(b1, b2)), -1),
-            ]
-        )
+        body = self._gp_body[g]
+        relative = self.last_relative_break.get((int(body.min()), int(body.max())), -1)
+        steps = np.r_[self.last_plan_break[body], self.last_violation[body], relative]
         return int(steps[steps > after].max(initial=-1))
 
     def _rested(self, pairs: np.ndarray, basis: np.ndarray, since: np.ndarray) -> np.ndarray:
