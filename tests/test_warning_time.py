@@ -11,7 +11,7 @@ import pytest
 from mjcf import free, mjcf
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.measure.accumulators import Durations
+from dua_mujoco.measure.accumulators import Durations, StepMap
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.measure.report import RunReport
 from dua_mujoco.measure.rollout import build_report, run
@@ -183,6 +183,17 @@ def test_a_break_before_a_verdict_excuses_no_other_verdicts_short_lead() -> None
     assert hyp.broke(0) == hyp.broke(0, both, [20, 50]) == 55
     w.onset(0, 63, hyp.broke(0))
     assert (w.short_held, w.short_after_violation) == (1, 1)
+
+
+def test_a_step_map_reads_arrays_as_it_reads_steps() -> None:
+    """``StepMap.at`` (each live pair's window on the miss path) gives every predictor step's
+    physics step as indexing does, across the runs irregular steps start."""
+    steps = StepMap(5, 3)
+    for k in (8, 11, 13, 16, 30, 33):
+        steps.append(k)
+    assert steps.tolist() == [5, 8, 11, 13, 16, 30, 33]
+    j = np.array([6, 0, 3, 4, 2, 5, 1])
+    assert steps.at(j).tolist() == [steps[i] for i in j.tolist()]
 
 
 @pytest.mark.parametrize(("period", "hsteps"), [(1, 0), (1, 10), (3, 10), (2, 200)])
