@@ -516,8 +516,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "monitor-miss-excused-by-any-violation",
         "dua_mujoco/measure/monitor.py",
-        "            held = broke <= window_start if self.bound_checks else False",
-        "            held = broke < 0 if self.bound_checks else False",
+        "            broke = self.warning.hypotheses.broke(g, live, self._pred_steps.at(last))",
+        "            broke = self.warning.hypotheses.broke(g, live, 0 * last)",
         (
             "tests/test_warning_time.py::test_a_miss_long_after_a_violation_is_one_with_the_bounds_held",
         ),
@@ -537,10 +537,21 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "lead-short-blamed-on-any-violation",
         "dua_mujoco/measure/warning_time.py",
-        "        if broke > window:",
-        "        if broke >= 0:",
+        "self.hypotheses.started(started, raised, raised_gp, self._last_eval[raised])",
+        "self.hypotheses.started(started, raised, raised_gp, 0 * self._last_eval[raised])",
         ("tests/test_warning_time.py::test_short_leads_are_told_apart_by_the_bounds",),
         "a short lead counts as after a violation whenever its bodies broke their bounds once",
+    ),
+    Mutant(
+        "lead-short-raisers-joined",
+        "dua_mujoco/measure/warning_time.py",
+        "        return int(steps[steps > after].max(initial=-1))",
+        "        return int(steps[(steps > after.min()) & (after < _NEVER)].max(initial=-1))",
+        (
+            "tests/test_warning_time.py::test_a_break_before_a_verdict_excuses_no_other_verdicts_short_lead",
+        ),
+        "an onset's verdicts are judged on the union of their hypotheses since the earliest of "
+        "their evaluations: a break before one verdict excuses another's short lead or miss",
     ),
     Mutant(
         "monitor-deferral-opens-a-window",

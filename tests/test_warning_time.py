@@ -11,7 +11,7 @@ import pytest
 from mjcf import free, mjcf
 
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.measure.accumulators import Durations
+from dua_mujoco.measure.accumulators import Durations, StepMap
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.measure.report import RunReport
 from dua_mujoco.measure.rollout import build_report, run
@@ -140,12 +140,6 @@ def test_a_miss_long_after_a_violation_is_one_with_the_bounds_held() -> None:
     assert not any(miss.in_violation_period for miss in mon.misses)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="audit43: an onset raised by several sphere pairs is judged on the union of their "
-    "verdicts' hypotheses against the earliest of their evaluations (Hypotheses.started, "
-    "WarningTime.alarms), not each verdict against its own",
-)
 def test_a_break_before_a_verdict_excuses_no_other_verdicts_short_lead() -> None:
     """Two sphere pairs of one geom pair raise its alarm together; the onset comes 2 steps
     later, short of the 0.1 s horizon. Pair 0's verdict in force was made at step 10 on both
@@ -153,9 +147,10 @@ def test_a_break_before_a_verdict_excuses_no_other_verdicts_short_lead() -> None
     step 30 came before it (the plan it rested on was the one set after). No hypothesis broke
     after the verdict that rested on it: the short lead came while the bounds held, and the
     label must say so. Judged on the union of the two verdicts' hypotheses since the earlier
-    evaluation, the plan's break at 30 excuses it (after a violation). Not seen in a run: every
-    break makes all the body's pairs due, so the two windows differ only for a pair a cap
-    defers across a break and a replan."""
+    evaluation, the plan's break at 30 would excuse it (after a violation). A miss of the same
+    two verdicts, current, is judged alike. Not seen in a run: every break makes all the body's
+    pairs due, so the two windows differ only for a pair a cap defers across a break and a
+    replan."""
     m = mujoco.MjModel.from_xml_string(
         mjcf(
             free("a", "0 0 0.5", 'name="rod_a" type="capsule" size="0.02 0.3" euler="0 90 0"'),
@@ -166,17 +161,39 @@ def test_a_break_before_a_verdict_excuses_no_other_verdicts_short_lead() -> None
     p = Predictor(m, covering="multi")
     assert (p.sphere_pairs.geom_pair[:2] == 0).all()
     w = WarningTime(0.1, 0.002, p)
+    hyp, a, b = w.hypotheses, m.body("a").id, m.body("b").id
     none = np.zeros(0, dtype=np.int64)
-    w.hypotheses.evaluated(np.array([0]), np.array([[0, 0]], dtype=np.uint8))
+    hyp.evaluated(np.array([0]), np.array([[0, 0]], dtype=np.uint8))
     w.alarms(none, none, none, np.array([0]), 10, switch=False)
-    w.hypotheses.last_plan_break[m.body("a").id] = 30
-    w.hypotheses.evaluated(np.array([1]), np.array([[1, 0]], dtype=np.uint8))
+    hyp.last_plan_break[a] = 30
+    hyp.evaluated(np.array([1]), np.array([[1, 0]], dtype=np.uint8))
     w.alarms(none, none, none, np.array([1]), 50, switch=False)
     both = np.array([0, 1])
-    w.hypotheses.evaluated(both, np.array([[0, 0], [1, 1]], dtype=np.uint8))
+    hyp.evaluated(both, np.array([[0, 0], [1, 1]], dtype=np.uint8))
     w.alarms(np.array([0]), both, np.array([0, 0]), both, 60, switch=False)
-    w.onset(0, 62, w.hypotheses.broke(0))
+    assert hyp.broke(0) == hyp.broke(0, both, [10, 50]) == -1
+    w.onset(0, 62, hyp.broke(0))
     assert (w.short_at_start, w.short_held, w.short_after_violation) == (0, 1, 0)
+    # Each verdict's own breaks do excuse: rod_b's bounds after pair 0's verdict (at 20, not
+    # after pair 1's), then rod_a's plan after pair 1's (at 55).
+    hyp.last_violation[b] = 20
+    assert hyp.broke(0) == hyp.broke(0, both, [10, 50]) == 20
+    assert hyp.broke(0, both, [20, 50]) == -1
+    hyp.last_plan_break[a] = 55
+    assert hyp.broke(0) == hyp.broke(0, both, [20, 50]) == 55
+    w.onset(0, 63, hyp.broke(0))
+    assert (w.short_held, w.short_after_violation) == (1, 1)
+
+
+def test_a_step_map_reads_arrays_as_it_reads_steps() -> None:
+    """``StepMap.at`` (each live pair's window on the miss path) gives every predictor step's
+    physics step as indexing does, across the runs irregular steps start."""
+    steps = StepMap(5, 3)
+    for k in (8, 11, 13, 16, 30, 33):
+        steps.append(k)
+    assert steps.tolist() == [5, 8, 11, 13, 16, 30, 33]
+    j = np.array([6, 0, 3, 4, 2, 5, 1])
+    assert steps.at(j).tolist() == [steps[i] for i in j.tolist()]
 
 
 @pytest.mark.parametrize(("period", "hsteps"), [(1, 0), (1, 10), (3, 10), (2, 200)])

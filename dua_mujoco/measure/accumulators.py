@@ -100,6 +100,11 @@ class StepMap:
         i = bisect.bisect_right(self._first, j) - 1
         return self._physics[i] + (j - self._first[i]) * self.period
 
+    def at(self, j: np.ndarray) -> np.ndarray:
+        """``self[j]`` for each predictor step of ``j`` (n,): physics steps (n,)."""
+        i = np.searchsorted(self._first, j, side="right") - 1
+        return np.asarray(self._physics)[i] + (j - np.asarray(self._first)[i]) * self.period
+
     def __len__(self) -> int:
         return self.count
 

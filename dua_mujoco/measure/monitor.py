@@ -5,11 +5,12 @@ bound check, the alarms, then the contacts in ``d.contact``). A *contact onset* 
 the active set that is in ``d.contact`` now and was not at the previous physics step. It is
 *predicted* when, at that instant, some sphere pair of that geom pair stands alarmed, i.e. its
 latest evaluation (at or before the onset) raised an alarm: exactly the completeness theorem's
-claim (docs/theory.md). A miss is *valid-bounds* when no hypothesis its verdicts rested on (a
+claim (docs/theory.md). A miss is *valid-bounds* when no hypothesis a verdict rested on (a
 body's bounds, or under a plan its deviation: :class:`~dua_mujoco.measure.warning_time.Hypotheses`)
-broke between that latest evaluation and the onset: a bug. It is *in a violation's period* when
-one broke after the latest predictor step at or before the onset (two steps with pruned pairs):
-the one exception of the guarantee with violations as events (docs/theory.md, section 6). Each
+broke between that verdict's evaluation (its pair's latest) and the onset: a bug. It is *in a
+violation's period* when such a break came after the latest predictor step at or before the
+onset (two steps with pruned pairs): the one exception of the guarantee with violations as
+events (docs/theory.md, sections 3 "The monitor's labels" and 6). Each
 onset's lead and the oracle are counted by :class:`WarningTime`.
 
 :func:`~dua_mujoco.measure.rollout.run` drives a rollout (controller, ``mj_step``, predictor every
@@ -446,17 +447,17 @@ class Monitor:
                 self.inactive_contacts += 1
                 continue
             self.onsets += 1
-            live = members[sched.active[members]]
-            broke = self.warning.hypotheses.broke(g, None if self._standing[g] > 0 else live)
             if self._standing[g] > 0:
                 self.predicted += 1
                 self._episode_touch[g] = True
-                self.warning.onset(g, self.physics_step, broke)
+                self.warning.onset(g, self.physics_step, self.warning.hypotheses.broke(g))
                 continue
-            last = int(sched.last_step_of(live).min())
-            window_start = self._pred_steps[last]
-            held = broke <= window_start if self.bound_checks else False
-            self.warning.onset(g, self.physics_step, broke, miss_window=window_start)
+            # Each live pair's verdict against the breaks after its own latest evaluation.
+            live = members[sched.active[members]]
+            last = sched.last_step_of(live)
+            broke = self.warning.hypotheses.broke(g, live, self._pred_steps.at(last))
+            held = broke < 0 if self.bound_checks else False
+            self.warning.onset(g, self.physics_step, broke, missed=True)
             # The step sees a violation at the first predictor instant at or after it, and
             # renews the pairs of its bodies there (a pruned predictor the pairs it did not
             # hold, one step later): an onset before that is the one exception left.
@@ -473,7 +474,7 @@ class Monitor:
                     geom2=str(self._names[g2]),
                     bounds_held=held,
                     in_violation_period=in_period,
-                    last_evaluation_step=last,
+                    last_evaluation_step=int(last.min()),
                     last_tau=float(sched.last_tau_of(live).min()),
                 )
             )

@@ -16,8 +16,9 @@ __all__ = ["Miss", "RunInterrupted", "RunReport"]
 class Miss:
     """A contact onset that no standing alarm covered.
 
-    ``bounds_held``: neither body broke its bounds since the pair's latest evaluation.
-    ``in_violation_period``: one of them broke them after the latest predictor step at or
+    ``bounds_held``: no hypothesis a verdict in force rested on (a body's bounds, or its plan's
+    deviation) broke since that verdict's evaluation (each sphere pair's latest).
+    ``in_violation_period``: one of those broke after the latest predictor step at or
     before the onset (two steps with pruned pairs), so no step had seen it yet: the guarantee's
     one exception (docs/theory.md, section 6). A miss that is not in a violation's period is a
     bug.

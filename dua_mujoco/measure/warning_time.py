@@ -9,10 +9,11 @@ least ``H`` while the motion bounds hold. An onset with less lead is one of thre
 
 - *at the start*: within ``H`` after the run's start, the latest reset or the pair's switch-on,
   when no alarm could have stood ``H`` yet;
-- *after a violation*: a hypothesis the verdict that should have raised it earlier rested on
-  broke after that verdict (the evaluation that preceded the one raising the alarm; for a missed
-  onset: the pair's latest evaluation, the miss's own rule,
-  :class:`~dua_mujoco.measure.report.Miss`).
+- *after a violation*: a hypothesis one of the verdicts that should have raised it earlier
+  rested on broke after that verdict's own evaluation (for each sphere pair that raised the
+  alarm, its evaluation before the raising one; for a missed onset: each active sphere pair's
+  latest, the miss's own rule, :class:`~dua_mujoco.measure.report.Miss`; docs/theory.md,
+  section 3, "The monitor's labels").
   A verdict rests, for each of its two bodies, on that body's motion bounds or, under a flight
   plan, on its deviation (:class:`Hypotheses`): a planned body's bound violations do not count
   for the sides judged by its plan, and do for the sides judged by its bounds;
@@ -34,6 +35,7 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from dua_mujoco.core.validate import check_number
 from dua_mujoco.measure.accumulators import Growing
@@ -45,6 +47,11 @@ __all__ = ["Hypotheses", "WarningTime", "alarm_horizon_of", "check_warning_horiz
 
 # Leads and horizons are sums of timesteps: compare them with this relative slack.
 _REL = 1e-9
+
+# Hypotheses.broke: the bits of a hypothesis mask (Hypotheses._sides), and "no verdict rested
+# on it" (no break comes after).
+_BITS = np.arange(5, dtype=np.uint8)
+_NEVER = np.iinfo(np.int64).max
 
 
 def alarm_horizon_of(predictor: Predictor) -> float:
@@ -84,12 +91,10 @@ class WarningTime:
         self.horizon_steps = math.floor(self.horizon / self.timestep * (1 + _REL) + _REL)
         self._tol = _REL * max(self.horizon, self.timestep)
         self.reset_step = 0
-        # Per geom pair: the step its current run of standing alarms began, the step of the
-        # evaluation before the one that began it (violations after it cut the lead honestly
-        # short), its latest switch-on, and the step its current contact began (-1: none, -2:
-        # in a contact that began while the pair was switched off).
+        # Per geom pair: the step its current run of standing alarms began, its latest
+        # switch-on, and the step its current contact began (-1: none, -2: in a contact that
+        # began while the pair was switched off).
         self._since = np.zeros(ngp, dtype=np.int64)
-        self._prior_eval = np.zeros(ngp, dtype=np.int64)
         self._switched_on = np.full(ngp, -1, dtype=np.int64)
         self._open_from = np.full(ngp, -1, dtype=np.int64)
         # Per sphere pair: the step of its latest evaluation.
@@ -116,7 +121,6 @@ class WarningTime:
         more = ngp - self._since.size
         if more > 0:
             self._since = np.concatenate([self._since, np.zeros(more, dtype=np.int64)])
-            self._prior_eval = np.concatenate([self._prior_eval, np.zeros(more, dtype=np.int64)])
             self._switched_on = np.concatenate([self._switched_on, np.full(more, -1, np.int64)])
             self._open_from = np.concatenate([self._open_from, np.full(more, -1, np.int64)])
         more = npairs - self._last_eval.size
@@ -147,15 +151,9 @@ class WarningTime:
         pairs ``evaluated`` were evaluated there. ``switch``: the change came from switches or
         a reset, not an evaluation (pairs switched on stand in alarm until evaluated)."""
         if started.size:
-            self.hypotheses.started(started, raised, raised_gp)
+            # Each raiser's verdict replaced is the one of its evaluation before this one.
+            self.hypotheses.started(started, raised, raised_gp, self._last_eval[raised])
             self._since[started] = step
-            prior = np.full(started.size, step, dtype=np.int64)
-            if raised.size:
-                pos = np.searchsorted(started, raised_gp)
-                pos = np.minimum(pos, started.size - 1)
-                hit = started[pos] == raised_gp
-                np.minimum.at(prior, pos[hit], self._last_eval[raised[hit]])
-            self._prior_eval[started] = prior
         if switch:
             if raised.size:
                 self._switched_on[raised_gp] = step
@@ -164,18 +162,17 @@ class WarningTime:
 
     # ------------------------------------------------------------------- onsets
 
-    def onset(self, g: int, step: int, broke: int, *, miss_window: int | None = None) -> None:
+    def onset(self, g: int, step: int, broke: int, *, missed: bool = False) -> None:
         """Record the onset of geom pair ``g`` at ``step``.
 
         Args:
             g: The geom pair.
             step: The onset's physics step.
-            broke: The latest step either body broke its bounds (-1: never, or not checked).
-            miss_window: None if an alarm stood for the onset; for a miss, the step of the
-                pair's latest evaluation (the miss's rule).
+            broke: :meth:`Hypotheses.broke` for the onset (-1: no hypothesis broke after the
+                verdict that rested on it, or none was checked).
+            missed: No alarm stood for the onset.
         """
-        predicted = miss_window is None
-        since = max(int(self._since[g]), self.reset_step) if predicted else step
+        since = step if missed else max(int(self._since[g]), self.reset_step)
         lead = (step - since) * self.timestep
         self._leads.extend([lead])
         if lead >= self.horizon - self._tol:
@@ -184,8 +181,7 @@ class WarningTime:
         if (step - watched) * self.timestep < self.horizon - self._tol:
             self.short_at_start += 1
             return
-        window = int(self._prior_eval[g]) if miss_window is None else miss_window
-        if broke > window:
+        if broke >= 0:
             self.short_after_violation += 1
         else:
             self.short_held += 1
@@ -295,8 +291,9 @@ class Hypotheses:
     Per sphere pair, the basis of its latest verdict and of the one before it, as the runtime
     records them (``Predictor.verdict_basis``: bit 0 set when its first geom's body was judged by
     the plan, bit 1 the same for its second; a clear bit is that body's motion bounds, and a pair
-    a pruned predictor does not hold rests on both bodies' bounds). Per geom pair, the
-    hypotheses of the verdicts its current run of standing alarms replaced. Per body, the latest
+    a pruned predictor does not hold rests on both bodies' bounds). Per geom pair and hypothesis,
+    the earliest evaluation step among the verdicts its current run of standing alarms replaced
+    that rested on it (a break after that step excuses a short lead). Per body, the latest
     physics step it broke its bounds (``last_violation``) or was found beyond its deviation
     (``last_plan_break``), and per body pair the latest step its relative deviation was found
     broken (``last_relative_break``, keyed ``(a, b)``, ``a < b``); -1: never.
@@ -311,7 +308,7 @@ class Hypotheses:
         self.last_relative_break: dict[tuple[int, int], int] = {}
         self._basis = np.zeros(0, dtype=np.uint8)
         self._prev = np.zeros(0, dtype=np.uint8)
-        self._window = np.zeros(0, dtype=np.uint8)
+        self._after = np.zeros((0, _BITS.size), dtype=np.int64)
         self._flip = np.zeros(0, dtype=bool)
         self._gp_body = np.zeros((0, 2), dtype=np.int64)
 
@@ -325,8 +322,8 @@ class Hypotheses:
         grow = self._flip.size - self._basis.size
         self._basis = np.concatenate([self._basis, np.zeros(grow, dtype=np.uint8)])
         self._prev = np.concatenate([self._prev, np.zeros(grow, dtype=np.uint8)])
-        more = self._gp_body.shape[0] - self._window.size
-        self._window = np.concatenate([self._window, np.zeros(more, dtype=np.uint8)])
+        more = self._gp_body.shape[0] - self._after.shape[0]
+        self._after = np.concatenate([self._after, np.full((more, _BITS.size), _NEVER)])
 
     def check_plan(self, predictor: Predictor, step: int) -> None:
         """At physics step ``step``: the bodies of the predictor's data found beyond their
@@ -343,33 +340,38 @@ class Hypotheses:
         before's."""
         self._basis[pairs], self._prev[pairs] = basis[:, 0], basis[:, 1]
 
-    def started(self, started: np.ndarray, raised: np.ndarray, raised_gp: np.ndarray) -> None:
-        """Geom pairs ``started`` to stand in alarm, raised by sphere pairs ``raised``: what the
-        verdicts those replaced rested on is what the lead rests on."""
-        self._window[started] = 0
+    def started(
+        self, started: np.ndarray, raised: np.ndarray, raised_gp: np.ndarray, since: np.ndarray
+    ) -> None:
+        """Geom pairs ``started`` to stand in alarm, raised by sphere pairs ``raised`` (of geom
+        pairs ``raised_gp``) whose verdicts replaced were made at physics steps ``since`` (all
+        (n,)): what each of those rested on is what the lead rests on, from its own step."""
+        self._after[started] = _NEVER
         hit = np.isin(raised_gp, started)
-        np.bitwise_or.at(
-            self._window, raised_gp[hit], self._sides(raised[hit], self._prev[raised[hit]])
-        )
+        r = raised[hit]
+        np.minimum.at(self._after, raised_gp[hit], self._rested(r, self._prev[r], since[hit]))
 
-    def broke(self, g: int, live: np.ndarray | None = None) -> int:
-        """The latest physics step at which a hypothesis of geom pair ``g``'s verdicts broke: the
-        ones its standing alarm replaced, or (a miss) the current ones of sphere pairs ``live``;
-        -1: none."""
-        mask = (
-            int(self._window[g])
-            if live is None
-            else int(np.bitwise_or.reduce(self._sides(live, self._basis[live])))
-        )
-        b1, b2 = (int(b) for b in self._gp_body[g])
-        steps = (
-            self.last_plan_break[b1],
-            self.last_plan_break[b2],
-            self.last_violation[b1],
-            self.last_violation[b2],
-            self.last_relative_break.get((min(b1, b2), max(b1, b2)), -1),
-        )
-        return max([-1] + [int(s) for bit, s in enumerate(steps) if mask >> bit & 1])
+    def broke(self, g: int, live: np.ndarray | None = None, since: npt.ArrayLike = ()) -> int:
+        """The latest physics step at which a hypothesis of one of geom pair ``g``'s verdicts
+        broke after that verdict's own step: the verdicts its standing alarm replaced, or (a
+        miss) the current ones of sphere pairs ``live`` (n,), made at physics steps ``since``
+        (n,); -1: none (the bounds held for the onset)."""
+        if live is None:
+            after = self._after[g]
+        else:
+            live_since = np.asarray(since, dtype=np.int64)
+            after = self._rested(live, self._basis[live], live_since).min(axis=0, initial=_NEVER)
+        body = self._gp_body[g]
+        relative = self.last_relative_break.get((int(body.min()), int(body.max())), -1)
+        steps = np.r_[self.last_plan_break[body], self.last_violation[body], relative]
+        return int(steps[steps > after].max(initial=-1))
+
+    def _rested(self, pairs: np.ndarray, basis: np.ndarray, since: np.ndarray) -> np.ndarray:
+        """Per verdict of sphere ``pairs`` (bases ``basis``, made at steps ``since``) and
+        hypothesis bit: the step after which a break of it excuses, ``_NEVER`` where the
+        verdict did not rest on it; (n, 5)."""
+        rests = (self._sides(pairs, basis)[:, None] >> _BITS) & 1
+        return np.where(rests.astype(bool), since[:, None], _NEVER)
 
     def _sides(self, pairs: np.ndarray, basis: np.ndarray) -> np.ndarray:
         """Hypothesis masks in the geom pairs' orientation: bit 0 (1) the first (second) geom's
