@@ -69,6 +69,7 @@ struct ShieldCounts {
   int64_t robot_events = 0;   // the robot's own bounds broke after a screened period
   int64_t plan_breaks = 0;    // the robot found beyond its plan's deviation
   int64_t hold_breaks = 0;    // the robot found moving after its plan's rest knot
+  int64_t unheld = 0;         // knots at rest the failsafe cannot hold (no rest knot)
   int64_t stop_breaks = 0;    // a failsafe did not stop within stop_time
   int64_t unverified = 0;     // failsafes followed that no check covered
 };
@@ -118,6 +119,12 @@ class DUA_API Shield {
   // HUGE_VAL), and whether every robot body is at rest there.
   double Speed(const mjData* d) const;
   bool AtRest(const mjData* d) const;
+  // Whether the failsafe holds the robot at rest at d's pose (a rollout's knot at rest, on m,
+  // the rollout model): false restores d's state and mj_step1's values, for the rollout to go
+  // on; true leaves d's values the check's.
+  bool Holds(const mjModel* m, mjData* d);
+  // Holds at the state read (Prepare's), on the rollout's data.
+  bool HoldsNow();
   // Rolls out from the scratch's state: `nint` steps of intended, then the failsafe until rest
   // (first knot >= nint with every robot body at rest) or `last` knots; the knots' poses and
   // robot qpos into knots_. Returns the rest knot, or -1.
@@ -164,8 +171,8 @@ class DUA_API Shield {
   Runtime::QueryPairs query_;
   std::vector<int64_t> found_, broken_;
   std::unique_ptr<Plan> cand_ = std::make_unique<Plan>();
-  bool mocap_others_ = false;  // a protected body in a mocap tree
-  std::vector<double> state_;  // mj_getState buffer
+  bool mocap_others_ = false;         // a protected body in a mocap tree
+  std::vector<double> state_, hold_;  // mj_getState buffers: the state read, a knot's (Holds)
   // The rollout's knots: geom poses, the robot's qpos.
   std::vector<double> kpos_, kmat_, kq_, dev_;
   // The plan followed: from step plan_step_, its robot qpos per knot, its rest knot.
