@@ -561,7 +561,7 @@ MUTANTS: tuple[Mutant, ...] = (
         "  const bool holds = Speed(d) * o_.stop_time <= o_.rest_speed;",
         "  const bool holds = true;",
         ("tests/test_shield.py::test_a_robot_its_failsafe_cannot_hold_is_never_guaranteed",),
-        "a knot at rest is the failsafe's rest knot though the failsafe cannot hold the robot there",
+        "a knot at rest is a rest knot though the failsafe cannot hold the robot there",
     ),
     Mutant(
         "shield-protected-robot-body-out-of-the-rollout",

@@ -178,7 +178,7 @@ double Shield::Speed(const mjData* d) const {
 
 bool Shield::AtRest(const mjData* d) const { return Speed(d) <= o_.rest_speed; }
 
-bool Shield::Holds(const mjModel* m, mjData* d) {
+bool Shield::Holds(const mjModel* m, mjData* d, bool positions) {
   // A knot at rest is the failsafe's rest only where the failsafe keeps the robot there
   // (docs/theory.md, section 10, (S5)): at its pose with the robot's velocities 0, the
   // failsafe's controls (the brake's: the box-bounded least squares of holding, a = 0, within
@@ -188,10 +188,14 @@ bool Shield::Holds(const mjModel* m, mjData* d) {
   // once; a robot the failsafe holds has an acceleration of rounding size.
   mj_getState(m, d, hold_.data(), kState);
   for (const int i : robot_v_) d->qvel[i] = 0.0;
-  Brake::Prepare(m, d);
+  // mj_forward's stages, the failsafe's controls between the velocities and the actuation; the
+  // positions' (collisions and constraint rows included) are a knot's own when mj_step1 left
+  // them, as qvel does not enter them.
+  if (!positions) mj_fwdPosition(m, d);
+  mj_fwdVelocity(m, d);
   failsafe_(m, d, ctrl_.data());
   std::copy_n(ctrl_.data(), m->nu, d->ctrl);
-  mj_forward(m, d);
+  mj_forwardSkip(m, d, mjSTAGE_VEL, 1);
   for (const int i : robot_v_) d->qvel[i] = d->qacc[i];
   mj_comVel(m, d);  // a body's velocity is linear in qvel: Speed reads the points' acceleration
   const bool holds = Speed(d) * o_.stop_time <= o_.rest_speed;
@@ -238,7 +242,7 @@ int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
       mj_comVel(m, d);
       if (AtRest(d)) {
         keep(j);
-        if (Holds(m, d)) return j;
+        if (Holds(m, d, false)) return j;
         unheld = true;
       }
     }
@@ -247,7 +251,7 @@ int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
     keep(j);
     speed = Speed(d);
     joints = joint_speed();
-    if (j >= nint && speed <= o_.rest_speed && !unheld && Holds(m, d)) return j;
+    if (j >= nint && speed <= o_.rest_speed && !unheld && Holds(m, d, true)) return j;
     if (j == last) return -1;
     if (j < nint) {
       std::copy_n(intended, m->nu, d->ctrl);
@@ -483,7 +487,7 @@ void Shield::KnotZero() {
 
 bool Shield::HoldsNow() {
   mj_setState(rolled_, roll_, state_.data(), kState);
-  return Holds(rolled_, roll_);
+  return Holds(rolled_, roll_, false);
 }
 
 bool Shield::TouchesNow() {

@@ -120,9 +120,9 @@ class DUA_API Shield {
   double Speed(const mjData* d) const;
   bool AtRest(const mjData* d) const;
   // Whether the failsafe holds the robot at rest at d's pose (a rollout's knot at rest, on m,
-  // the rollout model): false restores d's state and mj_step1's values, for the rollout to go
-  // on; true leaves d's values the check's.
-  bool Holds(const mjModel* m, mjData* d);
+  // the rollout model; positions: mj_step1 computed its position stage): false restores d's
+  // state and mj_step1's values, for the rollout to go on; true leaves d's values the check's.
+  bool Holds(const mjModel* m, mjData* d, bool positions);
   // Holds at the state read (Prepare's), on the rollout's data.
   bool HoldsNow();
   // Rolls out from the scratch's state: `nint` steps of intended, then the failsafe until rest
