@@ -7,11 +7,11 @@
 //   longest stop after it, the intended controls pass without a rollout;
 // - else a rollout on the rollout model (the protected geoms collide with nothing there): the
 //   intended controls held for the period, then the failsafe until every robot body is at rest
-//   (at most rest_speed), at most stop_time after the period; the candidate passes when the
-//   predictor's plan query (Runtime::QueryKnots: the robot planned with its deviation, every
-//   other body on its bounds from now) puts every protected pair's first possible contact at or
-//   after the rest knot. A passing candidate becomes the plan the run is checked against at
-//   every step;
+//   (at most rest_speed) at a pose where the failsafe holds it (Holds), at most stop_time after
+//   the period; the candidate passes when the predictor's plan query (Runtime::QueryKnots: the
+//   robot planned with its deviation, every other body on its bounds from now) puts every
+//   protected pair's first possible contact at or after the rest knot. A passing candidate
+//   becomes the plan the run is checked against at every step;
 // - else the failsafe: the last verified plan's, as state feedback; without one (after the
 //   screen, a reset, a broken hypothesis), a failsafe rolled out from now and checked the same
 //   way, or covered by the screen of the period before when it stops within stop_time.
