@@ -97,7 +97,7 @@ class DUA_API Shield {
   ~Shield();
 
   // Starts over at d's state: the predictor classifies, the plan is dropped, and the first
-  // period runs the failsafe (guaranteed when it is verified, or the robot is at rest).
+  // period runs the failsafe (guaranteed when it is verified, or the robot is held at rest).
   void Reset(const mjModel* m, const mjData* d);
   // The controls for the physics step about to start from d's state (ctrl, nu): intended (nu)
   // where verified, the robot's actuators on the failsafe otherwise. Call it right before each
