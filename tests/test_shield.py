@@ -365,14 +365,15 @@ def test_protected_robot_bodies_keep_their_contacts_in_the_rollout() -> None:
     assert (counts["accepted"], counts["rollout_steps"]) == (20, 20), counts
 
 
-def _sagging(torque: float) -> mujoco.MjModel:
+def _sagging(torque: float, post: float = 0.25) -> mujoco.MjModel:
     """A 1 kg box 0.3 m out on a hinge about y, horizontal, its motor at most ``torque`` N m
-    (gravity's is 2.9 N m); a post below the box's arc, 0.1 m under it."""
+    (gravity's is 2.9 N m); a post ``post`` m along x, 0.35 m down (0.25: below the box's arc,
+    0.1 m under it)."""
     return mujoco.MjModel.from_xml_string(
         mjcf(
             '<body name="robot" pos="0 0 1"><joint name="joint" type="hinge" axis="0 1 0"/>'
             '<geom type="box" size="0.05 0.05 0.05" pos="0.3 0 0" mass="1"/></body>',
-            '<body name="post" pos="0.25 0 0.65"><geom type="box" size="0.1 0.1 0.1"/></body>',
+            f'<body name="post" pos="{post} 0 0.65"><geom type="box" size="0.1 0.1 0.1"/></body>',
             option='timestep="0.002"',
             actuator=motors("joint", ctrlrange=f"{-torque} {torque}"),
         )
@@ -408,6 +409,28 @@ def test_a_robot_its_failsafe_cannot_hold_is_never_guaranteed() -> None:
     assert data.ncon > 0, counts  # the box reaches the post, moving
     assert not any(guaranteed), counts
     assert counts["unheld"] > 0 and counts["hold_breaks"] == 0, counts
+
+
+def test_a_rollout_goes_on_past_a_knot_its_failsafe_cannot_hold() -> None:
+    """The box far from the post: the failsafe rolled out from its start at rest passes knots at
+    rest it cannot hold (the start, each apex of its swing) and goes on from each as the run
+    does (Shield::Holds puts the knot's state and mj_step1's values back), so the run that
+    follows that failsafe keeps to it knot for knot (no plan break) until the brake has it at
+    rest hanging down, held: from there the steps are guaranteed."""
+    model = _sagging(1.0, post=2.0)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    shield = Shield(model, protect=["post"], robot=["robot"], period=1, accel=5.0, screen=False)
+    shield.reset(data)
+    guaranteed = []
+    for _ in range(150):
+        data.ctrl[:] = shield(data, [0.0])
+        guaranteed.append(shield.guaranteed)
+        mujoco.mj_step(model, data)
+    counts = shield.counts
+    assert counts["unheld"] > 0, counts
+    assert (counts["plan_breaks"], counts["hold_breaks"]) == (0, 0), counts
+    assert not guaranteed[0] and guaranteed[-1], counts
 
 
 def test_a_robot_its_failsafe_holds_at_rest_is_guaranteed_there() -> None:
