@@ -380,7 +380,18 @@ def _sagging(torque: float, post: float = 0.25) -> mujoco.MjModel:
     )
 
 
-def test_a_robot_its_failsafe_cannot_hold_is_never_guaranteed() -> None:
+def _pull_up(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """A failsafe policy for the box: its motor's whole torque against gravity."""
+    return np.array([-1.0])
+
+
+def _compensate(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """A failsafe policy for the box: gravity compensated (the motor's torque is its control)."""
+    return np.array(data.qfrc_bias[:1])
+
+
+@pytest.mark.parametrize("failsafe", [None, _pull_up])
+def test_a_robot_its_failsafe_cannot_hold_is_never_guaranteed(failsafe: Any) -> None:
     """The box starts at rest, but the motor cannot hold it there: at rest is no rest knot
     unless the failsafe holds the robot (Shield::Holds: at the pose with the velocities 0, the
     brake's controls and the constraint forces leave it an acceleration of rounding size), so
@@ -389,12 +400,20 @@ def test_a_robot_its_failsafe_cannot_hold_is_never_guaranteed() -> None:
     the contact at about 1.7 m/s is an unguaranteed one. Without the check, the state read is
     the failsafe's rest knot 0 and the first step is guaranteed: the box falls, a hold break
     drops the guarantee a step later, and no hypothesis (S1)-(S4) breaks (theory.md section
-    10's (S5) is the one)."""
+    10's (S5) is the one). A failsafe policy is asked the same (its controls at the pose with
+    the velocities 0)."""
     model = _sagging(1.0)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     shield = Shield(
-        model, protect=["post"], robot=["robot"], period=1, accel=5.0, screen=False, stop_time=0.3
+        model,
+        protect=["post"],
+        robot=["robot"],
+        period=1,
+        failsafe=failsafe,
+        accel=5.0,
+        screen=False,
+        stop_time=0.3,
     )
     shield.reset(data)
     post = model.body("post").id
@@ -433,13 +452,24 @@ def test_a_rollout_goes_on_past_a_knot_its_failsafe_cannot_hold() -> None:
     assert not guaranteed[0] and guaranteed[-1], counts
 
 
-def test_a_robot_its_failsafe_holds_at_rest_is_guaranteed_there() -> None:
-    """The box on a 5 N m motor: held at rest (gravity's 2.9 N m within its limits), the
-    state read is the failsafe's rest knot 0, with no rollout, and every step is guaranteed."""
+@pytest.mark.parametrize("failsafe", [None, _compensate])
+def test_a_robot_its_failsafe_holds_at_rest_is_guaranteed_there(failsafe: Any) -> None:
+    """The box on a 5 N m motor: held at rest (gravity's 2.9 N m within its limits, by the brake
+    or by a policy compensating gravity), its knots at rest are rest knots and every step is
+    guaranteed (the brake's candidates pass; the policy, which does not damp, refuses them and
+    holds the box at the state read, its rest knot 0)."""
     model = _sagging(5.0)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    shield = Shield(model, protect=["post"], robot=["robot"], period=1, accel=5.0, screen=False)
+    shield = Shield(
+        model,
+        protect=["post"],
+        robot=["robot"],
+        period=1,
+        failsafe=failsafe,
+        accel=5.0,
+        screen=False,
+    )
     shield.reset(data)
     for _ in range(20):
         data.ctrl[:] = shield(data, [0.0])
