@@ -620,6 +620,22 @@ MUTANTS: tuple[Mutant, ...] = (
         "a robot body whose speed is not a number counts as at rest (its hold never breaks)",
     ),
     Mutant(
+        "shield-rest-knot-not-held",
+        _SHIELD,
+        "  const bool holds = Speed(d) * o_.stop_time <= o_.rest_speed;",
+        "  const bool holds = true;",
+        ("tests/test_shield.py::test_a_robot_its_failsafe_cannot_hold_is_never_guaranteed",),
+        "a knot at rest is a rest knot though the failsafe cannot hold the robot there",
+    ),
+    Mutant(
+        "shield-unheld-knot-not-restored",
+        _SHIELD,
+        "    mj_setState(m, d, hold_.data(), kState);\n    mj_step1(m, d);\n",
+        "",
+        ("tests/test_shield.py::test_a_rollout_goes_on_past_a_knot_its_failsafe_cannot_hold",),
+        "a rollout goes on from a knot it could not hold with the check's velocities, not its own",
+    ),
+    Mutant(
         "shield-protected-robot-body-out-of-the-rollout",
         "dua_mujoco/shield/shield.py",
         "        rolled.body_contype[bodies] = 0\n        rolled.body_conaffinity[bodies] = 0",

@@ -262,7 +262,8 @@ class Shield:
     @property
     def counts(self) -> dict[str, int]:
         """What the shield did since the reset: steps, interventions, unguaranteed steps,
-        periods, screened, accepted and rejected periods, rollouts and their steps, and the
-        hypotheses found broken (``bound_events``, ``robot_events``, ``plan_breaks``,
-        ``hold_breaks``, ``stop_breaks``, ``unverified``)."""
+        periods, screened, accepted and rejected periods, rollouts and their steps, knots at
+        rest the failsafe cannot hold (``unheld``: no rest knot there), and the hypotheses
+        found broken (``bound_events``, ``robot_events``, ``plan_breaks``, ``hold_breaks``,
+        ``stop_breaks``, ``unverified``)."""
         return dict(self.native.counts)

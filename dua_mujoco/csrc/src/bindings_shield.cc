@@ -62,7 +62,7 @@ nb::dict Counts(const ShieldCounts& c) {
   d["rejected"] = c.rejected, d["rollouts"] = c.rollouts, d["rollout_steps"] = c.rollout_steps;
   d["bound_events"] = c.bound_events, d["robot_events"] = c.robot_events;
   d["plan_breaks"] = c.plan_breaks, d["hold_breaks"] = c.hold_breaks;
-  d["stop_breaks"] = c.stop_breaks, d["unverified"] = c.unverified;
+  d["stop_breaks"] = c.stop_breaks, d["unverified"] = c.unverified, d["unheld"] = c.unheld;
   return d;
 }
 

@@ -126,6 +126,7 @@ std::unique_ptr<Shield> Shield::Make(const mjModel* m, std::shared_ptr<const Tab
     if (s->protected_body_[b] && m->body_mocapid[m->body_rootid[b]] >= 0) s->mocap_others_ = true;
   }
   s->state_.resize(mj_stateSize(m, kState));
+  s->hold_.resize(s->state_.size());
   s->held_.assign(m->nu, 0.0);
   s->ctrl_.assign(m->nu, 0.0);
   s->max_stop_ = static_cast<int64_t>(std::ceil(o.stop_time / h - 1e-9));
@@ -177,6 +178,36 @@ double Shield::Speed(const mjData* d) const {
 
 bool Shield::AtRest(const mjData* d) const { return Speed(d) <= o_.rest_speed; }
 
+bool Shield::Holds(const mjModel* m, mjData* d, bool positions) {
+  // A knot at rest is the failsafe's rest only where the failsafe keeps the robot there
+  // (docs/theory.md, section 10, (S5)): at its pose with the robot's velocities 0, the
+  // failsafe's controls (the brake's: the box-bounded least squares of holding, a = 0, within
+  // the actuators' limits) and every constraint force (MuJoCo's, the rollout model's: floors,
+  // joint limits) leave an acceleration under which a point of the robot would take at least
+  // stop_time to reach rest_speed from standing still. A motor too weak for gravity sags at
+  // once; a robot the failsafe holds has an acceleration of rounding size.
+  mj_getState(m, d, hold_.data(), kState);
+  for (const int i : robot_v_) d->qvel[i] = 0.0;
+  // mj_forward's stages, the failsafe's controls between the velocities and the actuation; the
+  // positions' (collisions and constraint rows included) are a knot's own when mj_step1 left
+  // them, as qvel does not enter them.
+  if (!positions) mj_fwdPosition(m, d);
+  mj_fwdVelocity(m, d);
+  failsafe_(m, d, ctrl_.data());
+  std::copy_n(ctrl_.data(), m->nu, d->ctrl);
+  mj_forwardSkip(m, d, mjSTAGE_VEL, 1);
+  for (const int i : robot_v_) d->qvel[i] = d->qacc[i];
+  mj_comVel(m, d);  // a body's velocity is linear in qvel: Speed reads the points' acceleration
+  const bool holds = Speed(d) * o_.stop_time <= o_.rest_speed;
+  if (!holds) {
+    // The rollout goes on from this knot: its state and mj_step1's values back.
+    mj_setState(m, d, hold_.data(), kState);
+    mj_step1(m, d);
+    ++counts_.unheld;
+  }
+  return holds;
+}
+
 int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
   const mjModel* m = rolled_;
   mjData* d = roll_;
@@ -199,6 +230,7 @@ int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
   ++counts_.rollouts;
   double speed = HUGE_VAL, joints = 0.0;  // the last knot's speed and its joint speeds' sum
   for (int64_t j = 0;; ++j) {
+    bool unheld = false;  // this knot at rest, and the failsafe cannot hold it (asked once)
     // The rest knot ends the rollout, and its collisions and constraints are never used: when
     // the last knot's speed, scaled by how its joint speeds' sum changed since (this knot's
     // qvel is known), puts this one at rest, its kinematics and velocities come first (the
@@ -210,7 +242,8 @@ int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
       mj_comVel(m, d);
       if (AtRest(d)) {
         keep(j);
-        return j;
+        if (Holds(m, d, false)) return j;
+        unheld = true;
       }
     }
     // Knot j's state: its kinematics and velocities (mj_step1: what the step computes first).
@@ -218,7 +251,7 @@ int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
     keep(j);
     speed = Speed(d);
     joints = joint_speed();
-    if (j >= nint && speed <= o_.rest_speed) return j;
+    if (j >= nint && speed <= o_.rest_speed && !unheld && Holds(m, d, true)) return j;
     if (j == last) return -1;
     if (j < nint) {
       std::copy_n(intended, m->nu, d->ctrl);
@@ -413,7 +446,7 @@ void Shield::Period(const mjModel* m, const mjData* d, const double* intended) {
   // Its knot 0 is this very state, whose kinematics and velocities Prepare computed as the
   // rollout's mj_step1 would: a robot at rest here is its own rest knot, with nothing to roll.
   int64_t rest = 0;
-  if (AtRest(scratch_)) {
+  if (AtRest(scratch_) && HoldsNow()) {
     KnotZero();
   } else {
     rest = Roll(nullptr, 0, last);
@@ -450,6 +483,11 @@ void Shield::KnotZero() {
   std::copy_n(scratch_->geom_xpos, 3 * ngeom, kpos_.begin());
   std::copy_n(scratch_->geom_xmat, 9 * ngeom, kmat_.begin());
   for (int64_t i = 0; i < nq; ++i) kq_[i] = scratch_->qpos[robot_q_[i]];
+}
+
+bool Shield::HoldsNow() {
+  mj_setState(rolled_, roll_, state_.data(), kState);
+  return Holds(rolled_, roll_, false);
 }
 
 bool Shield::TouchesNow() {

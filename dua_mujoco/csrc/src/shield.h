@@ -7,11 +7,11 @@
 //   longest stop after it, the intended controls pass without a rollout;
 // - else a rollout on the rollout model (the protected geoms collide with nothing there): the
 //   intended controls held for the period, then the failsafe until every robot body is at rest
-//   (at most rest_speed), at most stop_time after the period; the candidate passes when the
-//   predictor's plan query (Runtime::QueryKnots: the robot planned with its deviation, every
-//   other body on its bounds from now) puts every protected pair's first possible contact at or
-//   after the rest knot. A passing candidate becomes the plan the run is checked against at
-//   every step;
+//   (at most rest_speed) at a pose where the failsafe holds it (Holds), at most stop_time after
+//   the period; the candidate passes when the predictor's plan query (Runtime::QueryKnots: the
+//   robot planned with its deviation, every other body on its bounds from now) puts every
+//   protected pair's first possible contact at or after the rest knot. A passing candidate
+//   becomes the plan the run is checked against at every step;
 // - else the failsafe: the last verified plan's, as state feedback; without one (after the
 //   screen, a reset, a broken hypothesis), a failsafe rolled out from now and checked the same
 //   way, or covered by the screen of the period before when it stops within stop_time.
@@ -69,6 +69,7 @@ struct ShieldCounts {
   int64_t robot_events = 0;   // the robot's own bounds broke after a screened period
   int64_t plan_breaks = 0;    // the robot found beyond its plan's deviation
   int64_t hold_breaks = 0;    // the robot found moving after its plan's rest knot
+  int64_t unheld = 0;         // knots at rest the failsafe cannot hold (no rest knot)
   int64_t stop_breaks = 0;    // a failsafe did not stop within stop_time
   int64_t unverified = 0;     // failsafes followed that no check covered
 };
@@ -96,7 +97,7 @@ class DUA_API Shield {
   ~Shield();
 
   // Starts over at d's state: the predictor classifies, the plan is dropped, and the first
-  // period runs the failsafe (guaranteed when it is verified, or the robot is at rest).
+  // period runs the failsafe (guaranteed when it is verified, or the robot is held at rest).
   void Reset(const mjModel* m, const mjData* d);
   // The controls for the physics step about to start from d's state (ctrl, nu): intended (nu)
   // where verified, the robot's actuators on the failsafe otherwise. Call it right before each
@@ -118,6 +119,12 @@ class DUA_API Shield {
   // HUGE_VAL), and whether every robot body is at rest there.
   double Speed(const mjData* d) const;
   bool AtRest(const mjData* d) const;
+  // Whether the failsafe holds the robot at rest at d's pose (a rollout's knot at rest, on m,
+  // the rollout model; positions: mj_step1 computed its position stage): false restores d's
+  // state and mj_step1's values, for the rollout to go on; true leaves d's values the check's.
+  bool Holds(const mjModel* m, mjData* d, bool positions);
+  // Holds at the state read (Prepare's), on the rollout's data.
+  bool HoldsNow();
   // Rolls out from the scratch's state: `nint` steps of intended, then the failsafe until rest
   // (first knot >= nint with every robot body at rest) or `last` knots; the knots' poses and
   // robot qpos into knots_. Returns the rest knot, or -1.
@@ -164,8 +171,8 @@ class DUA_API Shield {
   Runtime::QueryPairs query_;
   std::vector<int64_t> found_, broken_;
   std::unique_ptr<Plan> cand_ = std::make_unique<Plan>();
-  bool mocap_others_ = false;  // a protected body in a mocap tree
-  std::vector<double> state_;  // mj_getState buffer
+  bool mocap_others_ = false;         // a protected body in a mocap tree
+  std::vector<double> state_, hold_;  // mj_getState buffers: the state read, a knot's (Holds)
   // The rollout's knots: geom poses, the robot's qpos.
   std::vector<double> kpos_, kmat_, kq_, dev_;
   // The plan followed: from step plan_step_, its robot qpos per knot, its rest knot.
