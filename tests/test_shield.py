@@ -365,11 +365,14 @@ def test_protected_robot_bodies_keep_their_contacts_in_the_rollout() -> None:
     assert (counts["accepted"], counts["rollout_steps"]) == (20, 20), counts
 
 
-def _sagging(torque: float, post: float = 0.25) -> mujoco.MjModel:
+def _sagging(
+    torque: float, post: float = 0.25, **options: Any
+) -> tuple[mujoco.MjModel, mujoco.MjData, Shield]:
     """A 1 kg box 0.3 m out on a hinge about y, horizontal, its motor at most ``torque`` N m
     (gravity's is 2.9 N m); a post ``post`` m along x, 0.35 m down (0.25: below the box's arc,
-    0.1 m under it)."""
-    return mujoco.MjModel.from_xml_string(
+    0.1 m under it). Its shield (the box the robot, the post protected; ``options`` more), reset
+    on the box at rest."""
+    model = mujoco.MjModel.from_xml_string(
         mjcf(
             '<body name="robot" pos="0 0 1"><joint name="joint" type="hinge" axis="0 1 0"/>'
             '<geom type="box" size="0.05 0.05 0.05" pos="0.3 0 0" mass="1"/></body>',
@@ -378,6 +381,13 @@ def _sagging(torque: float, post: float = 0.25) -> mujoco.MjModel:
             actuator=motors("joint", ctrlrange=f"{-torque} {torque}"),
         )
     )
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    shield = Shield(
+        model, protect=["post"], robot=["robot"], period=1, accel=5.0, screen=False, **options
+    )
+    shield.reset(data)
+    return model, data, shield
 
 
 def _pull_up(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
@@ -402,20 +412,7 @@ def test_a_robot_its_failsafe_cannot_hold_is_never_guaranteed(failsafe: Any) -> 
     drops the guarantee a step later, and no hypothesis (S1)-(S4) breaks (theory.md section
     10's (S5) is the one). A failsafe policy is asked the same (its controls at the pose with
     the velocities 0)."""
-    model = _sagging(1.0)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    shield = Shield(
-        model,
-        protect=["post"],
-        robot=["robot"],
-        period=1,
-        failsafe=failsafe,
-        accel=5.0,
-        screen=False,
-        stop_time=0.3,
-    )
-    shield.reset(data)
+    model, data, shield = _sagging(1.0, failsafe=failsafe, stop_time=0.3)
     post = model.body("post").id
     guaranteed = []
     for _ in range(200):
@@ -436,11 +433,7 @@ def test_a_rollout_goes_on_past_a_knot_its_failsafe_cannot_hold() -> None:
     does (Shield::Holds puts the knot's state and mj_step1's values back), so the run that
     follows that failsafe keeps to it knot for knot (no plan break) until the brake has it at
     rest hanging down, held: from there the steps are guaranteed."""
-    model = _sagging(1.0, post=2.0)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    shield = Shield(model, protect=["post"], robot=["robot"], period=1, accel=5.0, screen=False)
-    shield.reset(data)
+    model, data, shield = _sagging(1.0, post=2.0)
     guaranteed = []
     for _ in range(150):
         data.ctrl[:] = shield(data, [0.0])
@@ -458,19 +451,7 @@ def test_a_robot_its_failsafe_holds_at_rest_is_guaranteed_there(failsafe: Any) -
     or by a policy compensating gravity), its knots at rest are rest knots and every step is
     guaranteed (the brake's candidates pass; the policy, which does not damp, refuses them and
     holds the box at the state read, its rest knot 0)."""
-    model = _sagging(5.0)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    shield = Shield(
-        model,
-        protect=["post"],
-        robot=["robot"],
-        period=1,
-        failsafe=failsafe,
-        accel=5.0,
-        screen=False,
-    )
-    shield.reset(data)
+    model, data, shield = _sagging(5.0, failsafe=failsafe)
     for _ in range(20):
         data.ctrl[:] = shield(data, [0.0])
         assert shield.guaranteed, shield.counts
