@@ -606,8 +606,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "shield-rest-knot-guessed-not-kept",
         _SHIELD,
-        "        keep(j);\n        return j;",
-        "        return j;",
+        "        keep(j);\n        if (Holds(m, d, false)) return j;",
+        "        if (Holds(m, d, false)) return j;",
         (f"{_SHIELD_EPISODES}[arm_pair]",),
         "a rest knot found before mj_step1 ends the rollout without its poses",
     ),
