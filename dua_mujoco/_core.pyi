@@ -455,11 +455,6 @@ class Runtime:
         (counted geom pairs whose alarm started at the latest step, the least time a counted pair's latest verdict still vouches for: its tau less the time since, at least 0; the version of the set of counted geom pairs standing).
         """
 
-    def watched_standing(self, names: list) -> tuple:
-        """
-        The counted geom pairs standing in alarm, in increasing (g1, g2), as (names[g1], names[g2]) tuples (names: one per geom of the model).
-        """
-
     def exact_only(self, ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], coarse: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], query_below: float) -> NDArray[numpy.float64]:
         """
         For tests: the exact level alone on held pairs ids (records as built), nothing kept.

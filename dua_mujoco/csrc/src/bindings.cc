@@ -837,8 +837,14 @@ struct PyRuntime {
   // version of the standing set).
   nb::tuple Watched() const {
     const Runtime::Watched& w = rt->watched();
-    const double left = w.expiry - rt->tables().schedule.dt * static_cast<double>(rt->step());
-    return nb::make_tuple(w.started, std::max(left, 0.0), w.version);
+    return nb::make_tuple(w.started, MinTau(), w.version);
+  }
+
+  // The least time a counted pair's latest verdict still vouches for (watched's second entry).
+  double MinTau() const {
+    const double left =
+        rt->watched().expiry - rt->tables().schedule.dt * static_cast<double>(rt->step());
+    return std::max(left, 0.0);
   }
 
   // The gym wrapper's info (dua_mujoco/gym.py), written here so that its step is one native
@@ -860,8 +866,7 @@ struct PyRuntime {
   std::pair<int64_t, double> WriteWatched(nb::handle out) {
     InfoWatch& w = Info();
     const Runtime::Watched& watched = rt->watched();
-    const double left = watched.expiry - rt->tables().schedule.dt * static_cast<double>(rt->step());
-    const double min_tau = std::max(left, 0.0);
+    const double min_tau = MinTau();
     if (watched.version != w.version) {  // the set standing changed: name it again
       w.pairs = StandingNames(w.names);
       w.version = watched.version;
@@ -1429,12 +1434,6 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           "(counted geom pairs whose alarm started at the latest step, the least time a counted "
           "pair's latest verdict still vouches for: its tau less the time since, at least 0; the "
           "version of the set of counted geom pairs standing).")
-      .def(
-          "watched_standing",
-          [](const PyRuntime& s, const nb::list& names) { return s.StandingNames(names); },
-          "names"_a,
-          "The counted geom pairs standing in alarm, in increasing (g1, g2), as (names[g1], "
-          "names[g2]) tuples (names: one per geom of the model).")
       .def(
           "exact_only",
           [](PyRuntime& self, const In<int64_t>& ids, const In<double>& coarse,
