@@ -723,17 +723,6 @@ int64_t dua_tau_free(const double* pairs, const double* shapes, const double* ce
   return dua::TauRows(pairs, shapes, dua::FreePoints{centers, velocities, planes}, ids, count, out);
 }
 
-DUA_SECTION int64_t dua_violation_pass(dua_step_args* a, int64_t n) {
-  const dua_events& ev = a->events;
-  if (ev.nbody == 0) return 0;
-  const int64_t count = dua::CheckBodies(ev, a->frame);
-  for (int64_t k = 0; k < count; ++k) {
-    const int64_t i = ev.flagged[k];
-    dua::MakeDue(&a->schedule, ev.members + ev.start[i], ev.start[i + 1] - ev.start[i], n);
-  }
-  return count;
-}
-
 int64_t dua_index_by_row(const int64_t* row_of_geom, const int64_t* geom1, const int64_t* geom2,
                          int64_t n, int64_t nrow, int64_t* start, int64_t* members) {
   std::fill(start, start + nrow + 1, int64_t{0});
@@ -787,7 +776,7 @@ int64_t dua_evaluate(dua_step_args* a, const int64_t* ids, int64_t count, double
 
 int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
   dua_schedule* st = &a->schedule;
-  // dua_violation_pass, then dua_select: the flagged bodies' pairs go straight to the selection
+  // The violation check, then the selection: the flagged bodies' pairs go straight to it
   // (SelectMadeDue), not through step n's list.
   const dua_events& ev = a->events;
   const int64_t flagged = ev.nbody ? dua::CheckBodies(ev, a->frame) : 0;

@@ -266,9 +266,6 @@ DUA_API int64_t dua_index_by_row(const int64_t* row_of_geom, const int64_t* geom
 // as its last body): run it before the first check, and again whenever events.rec or
 // events.prev are bound anew; a check without it reads boxes and bounds of zero.
 DUA_API void dua_reset_events(dua_step_args* a);
-// Check every body (the violation events) and make the held pairs of each flagged one due at
-// step n. Returns the number of flagged bodies.
-DUA_API int64_t dua_violation_pass(dua_step_args* a, int64_t n);
 // The violation check alone, four bodies at a time (lanes != 0, as the step runs it) or one at a
 // time: the reference the lanes are held to (tests). Returns the number of bodies flagged.
 DUA_API int64_t dua_check_bodies(dua_step_args* a, int64_t lanes);
