@@ -18,7 +18,6 @@ except ModuleNotFoundError as exc:  # an optional dependency: say which extra br
         "dua_mujoco.gym needs gymnasium: pip install 'dua_mujoco[gym]'", name=exc.name
     ) from exc
 
-from dua_mujoco import _core
 from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.runtime.predictor import Predictor
@@ -218,12 +217,7 @@ class PredictCollisions(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs
         # (Runtime.step_info; the standing pairs named again only when their set changes): the
         # wrapper's own Python was more instructions a step than the predictor's step. The
         # env's tuple is passed on as it is unless the step terminates the episode.
-        if self._data is not self.predictor._data:
-            self.predictor._bind(self._data)
-        try:
-            cost = self._step_info(out[4])
-        except _core.StepError as error:
-            raise self.predictor._step_error(self._data, error) from None
+        cost = self.predictor._native_step(self._data, self._step_info, out[4])
         if cost and self.terminate_on_alarm:
             return out[0], out[1], True, out[3], out[4]
         return out

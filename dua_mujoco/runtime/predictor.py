@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Literal, TypeVar
+from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
 import mujoco
 import numpy as np
@@ -269,13 +269,14 @@ class Predictor(PlanFollowing):
         alarms: Alarms = self._native_step(data, self._rt.step)
         return alarms
 
-    def _native_step(self, data: mujoco.MjData, step: Callable[[], T]) -> T:
-        """``step()``, a native step of the runtime (``step``), on ``data``
-        (bound first if it is new), with its failure raised as the error it stands for."""
+    def _native_step(self, data: mujoco.MjData, step: Callable[..., T], *args: Any) -> T:
+        """``step(*args)``, a native step of the runtime (``step``; the gym wrapper's
+        ``step_info``), on ``data`` (bound first if it is new), with its failure raised as the
+        error it stands for."""
         if data is not self._data:
             self._bind(data)
         try:
-            return step()
+            return step(*args)
         except _core.StepError as error:
             raise self._step_error(data, error) from None
 
