@@ -119,7 +119,12 @@ Out<double> TauStaticBatch(const In<double>& c, const In<double>& v, const In<do
   std::vector<double> out(n);
   for (int64_t k = 0; k < n; ++k) {
     const int64_t s = ids.data()[k];
-    Require(s >= 0 && s < nshape, "a shape id is out of range");
+    // The message is made only for a bad id (time_to_static's shape_ids: it names them so).
+    if (s < 0 || s >= nshape) {
+      Require(false, "shape_ids[" + std::to_string(k) + "] = " + std::to_string(s) +
+                         " is out of range: shapes has " + std::to_string(nshape) +
+                         " records (valid ids 0.." + std::to_string(nshape - 1) + ")");
+    }
     const double* p = c.data() + 3 * k;
     const double* q = v.data() + 3 * k;
     out[k] = dua_tau_static(p[0], p[1], p[2], q[0], q[1], q[2], shapes.data() + kShapeNcol * s,
@@ -196,7 +201,9 @@ Out<double> RigidPoints(const In<double>& points, const In<double>& pos, const I
   for (int64_t k = 0; k < n; ++k) {
     const int64_t i = ids.data()[k];
     if (i < 0 || i >= npoint) {
-      Require(false, "sphere ids must lie in [0, " + std::to_string(npoint) + ")");
+      Require(false, "sphere id " + std::to_string(i) + " (ids[" + std::to_string(k) +
+                         "]) is out of range: the records hold " + std::to_string(npoint) +
+                         " spheres (valid ids 0.." + std::to_string(npoint - 1) + ")");
     }
     dua_rigid_point(i, points.data(), &f, out.data() + 6 * k);
   }
