@@ -555,8 +555,12 @@ using SchedulePtr = std::shared_ptr<Schedule>;
 
 void CheckIds(const Schedule& s, const In<int64_t>& ids) {
   for (int64_t k = 0; k < Size(ids); ++k) {
-    Require(ids.data()[k] >= 0 && ids.data()[k] < s.m(),
-            "pair ids must lie in [0, " + std::to_string(s.m()) + ")");
+    const int64_t p = ids.data()[k];
+    if (p < 0 || p >= s.m()) {  // the message made only for a bad id
+      Require(false, "pair id " + std::to_string(p) + " (ids[" + std::to_string(k) +
+                         "]) is out of range: the schedule has " + std::to_string(s.m()) +
+                         " pairs (valid ids 0.." + std::to_string(s.m() - 1) + ")");
+    }
   }
 }
 
