@@ -1300,8 +1300,14 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           [](PyRuntime& self, const In<int64_t>& pairs, bool on) {
             const int64_t n = self.rt->universe().npair();
             std::vector<int64_t> ids(pairs.data(), pairs.data() + pairs.size());
-            for (const int64_t p : ids)
-              Require(p >= 0 && p < n, "a sphere pair id is out of range");
+            for (size_t k = 0; k < ids.size(); ++k) {
+              if (ids[k] < 0 || ids[k] >= n) {  // the message made only for a bad id
+                Require(false, "pair id " + std::to_string(ids[k]) + " (pairs[" +
+                                   std::to_string(k) + "]) is out of range: the predictor knows " +
+                                   std::to_string(n) + " sphere pairs (valid ids 0.." +
+                                   std::to_string(n - 1) + ")");
+              }
+            }
             self.rt->Switch(ids, on);
           },
           "pairs"_a, "on"_a)
