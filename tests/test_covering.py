@@ -276,6 +276,15 @@ def test_argument_validation() -> None:
     cov = cover_model(m)
     with pytest.raises(InvalidInputError, match="out of range"):
         cov.spheres_of(5)
+    # A sphere id out of range is named by the kinematics kernel (no Python check repeats it).
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    with pytest.raises(
+        InvalidInputError,
+        match=r"sphere id 1 \(ids\[0\]\) is out of range: "
+        r"the records hold 1 spheres \(valid ids 0\.\.0\)",
+    ):
+        sphere_world_centers(cover_model(m, static="sphere"), d.geom_xpos, d.geom_xmat, [1])
 
 
 @pytest.mark.parametrize(

@@ -173,7 +173,11 @@ def test_shape_and_id_errors() -> None:
     rest = (np.zeros((2, 3)), np.zeros((2, 9)), np.zeros((1, 6)), np.zeros((1, 3)))
     frame = (*rest, np.zeros((1, 6)), np.zeros((1, 3)))
     spheres = pack_spheres([0, 1], [0, 0], np.zeros((2, 3)), [0])
-    with pytest.raises(ShapeError, match=r"\[0, 2\)"):
+    with pytest.raises(
+        ShapeError,
+        match=r"sphere id 2 \(ids\[0\]\) is out of range: the records "
+        r"hold 2 spheres \(valid ids 0\.\.1\)",
+    ):
         sphere_states(spheres, frame, [2])
     with pytest.raises(ShapeError, match="frame 2"):
         sphere_states(pack_spheres([0, 2], [0, 0], np.zeros((2, 3)), [0]), frame)

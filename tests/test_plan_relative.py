@@ -281,7 +281,9 @@ def test_bad_relative_deviations_are_refused_by_name() -> None:
         p.set_plan(qpos, deviation=0.1, relative=([(0, b)], 0.1))
     with pytest.raises(InvalidInputError, match="bodies the plan holds"):
         p.set_plan(qpos, deviation=0.1, relative=([(a, a)], 0.1))
-    with pytest.raises(InvalidInputError, match="out of range"):
+    # A body id out of range is the runtime's to name (Python does not check it again).
+    msg = rf"relative pair 0 \(bodies {a}, 99\), not bodies of the model's {m.nbody}: pass body ids"
+    with pytest.raises(InvalidInputError, match=msg):
         p.set_plan(qpos, deviation=0.1, relative=([(a, 99)], 0.1))
     with pytest.raises(ShapeError, match="relative deviation has shape"):
         p.set_plan(qpos, deviation=0.1, relative=([(a, b)], np.zeros((3, 1))))

@@ -899,6 +899,18 @@ def test_deactivate_contacts_without_contacts(two_bodies) -> None:
     assert p.deactivate_contacts(d) == 0
 
 
+def test_switch_names_a_pair_id_out_of_range(two_bodies) -> None:
+    """The runtime names a pair id out of range (Python does not check it again); none switch."""
+    m, d = two_bodies
+    p = Predictor(m, accel=10.0)
+    p.reset(d)
+    n = p.nsphere_pairs
+    msg = rf"pair id {n} \(pairs\[1\]\) is out of range: the predictor knows {n} sphere pairs"
+    with pytest.raises(InvalidInputError, match=msg):
+        p.pair_state().set_active([0, n], False)
+    assert p.pair_state().active.all()
+
+
 def _env() -> dict[str, str]:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))

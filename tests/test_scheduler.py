@@ -494,6 +494,12 @@ def test_deadline_switching_and_errors() -> None:
         s.set_active([1], False)
     assert s.update(ids, [np.inf]).size == 0
     assert not s.alarm_state([2])[0]
+    # The schedule names a pair id out of range (Python does not check it again).
+    msg = r"pair id {} \(ids\[1\]\) is out of range: the schedule has 4 pairs \(valid ids 0\.\.3\)"
+    for bad in (4, -1):
+        with pytest.raises(InvalidInputError, match=msg.format(bad)):
+            s.set_active([0, bad], False)
+    assert s.active.all()  # nothing switched
     for bad in (0, -1, True, 1.5):
         with pytest.raises(InvalidInputError, match="max_evals_per_step"):
             DeadlineScheduler(np.ones(2), dt=0.01, max_evals_per_step=bad)

@@ -204,6 +204,10 @@ def test_pairset_kinds_and_geometry() -> None:
     assert tau[2] == pytest.approx(1.4)
     with pytest.raises(InvalidInputError, match="shapes="):
         ps.tau([2], c, v, planes)
+    # A pair id out of range is named by the native evaluation (Python does not check it again).
+    for bad in (3, -1):
+        with pytest.raises(InvalidInputError, match=rf"pair id {bad} is out of range \[0, 3\)"):
+            ps.tau([0, bad], c, v, planes, shapes=shapes)
     # Records held by the pair set serve when none are passed (static shapes do not move).
     held = PairSet([0, 0, 0], [1, 0, 0], [0.2, 0.1, 0.1], 0.0, kind=[0, 1, 2], shapes=shapes)
     np.testing.assert_array_equal(held.tau([0, 1, 2], c, v, planes), tau)

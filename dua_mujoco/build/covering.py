@@ -467,7 +467,7 @@ def sphere_world_centers(
 
     Raises:
         ShapeError: if the arrays do not have the documented shapes.
-        InvalidInputError: if a sphere id is out of range.
+        InvalidInputError: if a sphere id is out of range (the kinematics kernel names it).
     """
     xpos = np.asarray(geom_xpos, dtype=np.float64)
     xmat = np.asarray(geom_xmat, dtype=np.float64)
@@ -486,11 +486,6 @@ def sphere_world_centers(
         sel = np.asarray(ids)
         if sel.ndim != 1 or not np.issubdtype(sel.dtype, np.integer):
             raise ShapeError(f"ids must be a 1-D integer array, got {sel.dtype} {sel.shape}.")
-        if sel.size and (sel.min() < 0 or sel.max() >= covering.nsphere):
-            raise InvalidInputError(
-                f"sphere ids must lie in 0..{covering.nsphere - 1}; got min {sel.min()}, "
-                f"max {sel.max()}."
-            )
     # Positions only: the kinematics kernel with a frame at rest.
     nbody = int(covering.sphere_body.max(initial=-1)) + 1
     records = pack_spheres(

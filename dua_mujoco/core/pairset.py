@@ -96,25 +96,19 @@ def pack_pairs(pairs: PairSet, plane_frame: npt.ArrayLike | None = None) -> np.n
     return rec
 
 
-def _placeholder(shape: tuple[int, ...]) -> np.ndarray:
-    out = np.zeros(shape)
-    out.flags.writeable = False
-    return out
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
 
 
 # Placeholders for pair sets without half-spaces or shapes (never read: no pair indexes them).
-_NO_PLANES = _placeholder((1, 4))
-_NO_SHAPES = _placeholder((1, SHAPE_NCOL))
+_NO_PLANES = _read_only(np.zeros((1, 4)))
+_NO_SHAPES = _read_only(np.zeros((1, SHAPE_NCOL)))
 
 # Bounds: views of the records' columns, changed in place (pairs.eps[:] = ...).
 _BOUNDS = frozenset(("eps", "accel", "vel_uncertainty", "speed"))
 # Indices and what follows from them: read-only (the records and the index checks hold them).
 _INDICES = frozenset(("first", "second", "kind", "halfspace", "shape", "records"))
-
-
-def _read_only(a: np.ndarray) -> np.ndarray:
-    a.flags.writeable = False
-    return a
 
 
 class PairSet:
@@ -278,9 +272,7 @@ class PairSet:
         Returns:
             ``(n,)`` tau of each pair.
         """
-        idx = as_ids("ids", ids)
-        if idx.size and (idx.min() < 0 or idx.max() >= len(self)):
-            raise InvalidInputError(f"pair ids must be in [0, {len(self)}); got {idx.tolist()}.")
+        idx = as_ids("ids", ids)  # each in range: the native call names one that is not
         c, v, planes, recs = self.inputs(centers, velocities, halfspaces, shapes=shapes)
         tau, bad = _core.tau_pairs(self.records, idx, c, v, planes, recs)
         if bad >= 0:  # pragma: no cover - inputs() checked the state finite

@@ -102,8 +102,8 @@ def relative_arrays(
     model: mujoco.MjModel, relative: Relative, n: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """``relative`` (:data:`Relative`) as ``(nrel, 2)`` int64 body ids and ``(n, nrel)``
-    metres, their shapes and ids checked (the runtime checks the values: two distinct bodies
-    the plan holds, each pair once, finite deviations >= 0)."""
+    metres, their shapes checked, names made ids (the runtime checks the values: ids of two
+    distinct bodies the plan holds, each pair once, finite deviations >= 0)."""
     if relative is None:
         return np.zeros((0, 2), np.int64), np.zeros((n, 0))
     try:
@@ -118,11 +118,8 @@ def relative_arrays(
         raise ShapeError(
             f"relative pairs have shape {items.shape}; expected (nrel, 2): body pairs (a, b)."
         )
-    if np.issubdtype(items.dtype, np.integer):  # ids (relative_profile's): checked at once
+    if np.issubdtype(items.dtype, np.integer):  # ids (relative_profile's): the runtime's to check
         pairs = items.astype(np.int64)
-        bad = pairs[(pairs < 0) | (pairs >= model.nbody)]
-        if bad.size:
-            body_id(model, int(bad[0]))  # raises, naming it
     else:  # names (or ids mixed with them)
         pairs = np.array(
             [[body_id(model, item) for item in row] for row in items.tolist()], dtype=np.int64

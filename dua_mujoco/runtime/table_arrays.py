@@ -26,7 +26,7 @@ The tables, by name (rows x columns; the columns are ``dua_mujoco._core.LAYOUT``
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, TypedDict
 
 import mujoco
@@ -141,17 +141,11 @@ def layout(model: mujoco.MjModel, **options: Unpack[LayoutOptions]) -> Layout:
     periods = alarm_periods(options.get("alarm_horizon"), dt)
     groups = resolve_options(covering, schedule, urgency, pilot, options.get("pairs", "auto"))
     kind = as_schedule(groups.schedule.kind)
-    cover = groups.covering
+    # CoveringOptions' fields are cover_model's keywords.
     cov = (
         covering
         if isinstance(covering, Covering)
-        else cover_model(
-            model,
-            mode=cover.mode,
-            max_spheres_per_geom=cover.max_spheres_per_geom,
-            hfield=cover.hfield,
-            static=cover.static,
-        )
+        else cover_model(model, **asdict(groups.covering))
     )
     mode = pair_mode(
         groups.pairs.mode,

@@ -119,7 +119,12 @@ Out<double> TauStaticBatch(const In<double>& c, const In<double>& v, const In<do
   std::vector<double> out(n);
   for (int64_t k = 0; k < n; ++k) {
     const int64_t s = ids.data()[k];
-    Require(s >= 0 && s < nshape, "a shape id is out of range");
+    // The message is made only for a bad id (time_to_static's shape_ids: it names them so).
+    if (s < 0 || s >= nshape) {
+      Require(false, "shape_ids[" + std::to_string(k) + "] = " + std::to_string(s) +
+                         " is out of range: shapes has " + std::to_string(nshape) +
+                         " records (valid ids 0.." + std::to_string(nshape - 1) + ")");
+    }
     const double* p = c.data() + 3 * k;
     const double* q = v.data() + 3 * k;
     out[k] = dua_tau_static(p[0], p[1], p[2], q[0], q[1], q[2], shapes.data() + kShapeNcol * s,
@@ -196,7 +201,9 @@ Out<double> RigidPoints(const In<double>& points, const In<double>& pos, const I
   for (int64_t k = 0; k < n; ++k) {
     const int64_t i = ids.data()[k];
     if (i < 0 || i >= npoint) {
-      Require(false, "sphere ids must lie in [0, " + std::to_string(npoint) + ")");
+      Require(false, "sphere id " + std::to_string(i) + " (ids[" + std::to_string(k) +
+                         "]) is out of range: the records hold " + std::to_string(npoint) +
+                         " spheres (valid ids 0.." + std::to_string(npoint - 1) + ")");
     }
     dua_rigid_point(i, points.data(), &f, out.data() + 6 * k);
   }
@@ -548,8 +555,12 @@ using SchedulePtr = std::shared_ptr<Schedule>;
 
 void CheckIds(const Schedule& s, const In<int64_t>& ids) {
   for (int64_t k = 0; k < Size(ids); ++k) {
-    Require(ids.data()[k] >= 0 && ids.data()[k] < s.m(),
-            "pair ids must lie in [0, " + std::to_string(s.m()) + ")");
+    const int64_t p = ids.data()[k];
+    if (p < 0 || p >= s.m()) {  // the message made only for a bad id
+      Require(false, "pair id " + std::to_string(p) + " (ids[" + std::to_string(k) +
+                         "]) is out of range: the schedule has " + std::to_string(s.m()) +
+                         " pairs (valid ids 0.." + std::to_string(s.m() - 1) + ")");
+    }
   }
 }
 
@@ -1289,8 +1300,14 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           [](PyRuntime& self, const In<int64_t>& pairs, bool on) {
             const int64_t n = self.rt->universe().npair();
             std::vector<int64_t> ids(pairs.data(), pairs.data() + pairs.size());
-            for (const int64_t p : ids)
-              Require(p >= 0 && p < n, "a sphere pair id is out of range");
+            for (size_t k = 0; k < ids.size(); ++k) {
+              if (ids[k] < 0 || ids[k] >= n) {  // the message made only for a bad id
+                Require(false, "pair id " + std::to_string(ids[k]) + " (pairs[" +
+                                   std::to_string(k) + "]) is out of range: the predictor knows " +
+                                   std::to_string(n) + " sphere pairs (valid ids 0.." +
+                                   std::to_string(n - 1) + ")");
+              }
+            }
             self.rt->Switch(ids, on);
           },
           "pairs"_a, "on"_a)
