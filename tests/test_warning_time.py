@@ -17,6 +17,7 @@ from dua_mujoco.measure.report import RunReport
 from dua_mujoco.measure.rollout import build_report, run
 from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of
 from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.plugin import attach, standing_pairs
 from dua_mujoco.runtime.predictor import Predictor
 
 # Two balls dropped on a plane, 1 m apart: ball_a lands at the 40th physics step and ball_b at
@@ -382,3 +383,29 @@ def test_a_landing_between_predictor_steps_is_flagged_the_horizon_ahead(
         assert lead >= mon.warning.horizon - 1e-12, (v0, landing, lead)
         phases.add(landing % period)
     assert phases == set(range(period)), phases  # the sweep met every phase
+
+
+@pytest.mark.parametrize("period", [2, 3, 4, 5])
+def test_the_plugin_flags_a_landing_between_its_steps_the_horizon_ahead(period: int) -> None:
+    """The same at the plugin, whose compute runs at every physics step and predicts every
+    ``period``-th (its own period attribute; the same native step): the ball-floor pair stands
+    in alarm at every physics step of at least the horizon (``period`` steps) before the step
+    that finds the ball on the floor, at every phase of the landing. Without the rounding the
+    alarm stood only 1 step ahead at some phases, for each period."""
+    phases = set()
+    for v0 in np.linspace(0.0, 1.0, 2 * period + 3):
+        spec = mujoco.MjSpec.from_string(_FALL)
+        attach(spec, accel=10.0, period=period)
+        m = spec.compile()
+        d = mujoco.MjData(m)
+        d.qvel[2] = -v0
+        stood = []
+        while not d.ncon:
+            stood.append(standing_pairs(m, d).shape[0] > 0)
+            mujoco.mj_step(m, d)
+        landing = len(stood)  # the outputs of the steps before it: stood[1:]
+        assert landing > 30
+        ahead = next((i for i, s in enumerate(reversed(stood)) if not s), len(stood))
+        assert ahead >= period, (v0, landing, ahead)
+        phases.add(landing % period)
+    assert phases == set(range(period)), phases
