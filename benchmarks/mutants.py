@@ -445,6 +445,26 @@ MUTANTS: tuple[Mutant, ...] = (
         "between two predictor steps be flagged up to (period - 1) steps short of the horizon",
     ),
     Mutant(
+        "reach-without-the-grids-step",
+        "dua_mujoco/build/pruning.py",
+        "grid=dt - timestep)",
+        "grid=0.0)",
+        (
+            "tests/test_predictor_pruned.py::"
+            "test_a_pair_left_out_touching_between_predictor_steps_is_flagged_the_horizon_ahead",
+        ),
+        "with period > 1, a pruned reach that ends at the stride's predictor step lets a pair "
+        "left out touch between two predictor steps, flagged short of the horizon",
+    ),
+    Mutant(
+        "reach-check-without-the-grids-step",
+        "dua_mujoco/csrc/src/tables.cc",
+        "(s.alarm_horizon - s.dt) + (s.dt - t->timestep);",
+        "(s.alarm_horizon - s.dt);",
+        ("tests/test_hardening.py::test_a_pruned_horizon_without_the_grids_step_is_refused",),
+        "the runtime loads pruned tables whose reach lacks the grid's step at period > 1",
+    ),
+    Mutant(
         "mixed-carried-place-behind",
         _PLAN,
         "for (int e = 0; e < 3; ++e) cb[e] = sb_state[e] + t * sb_state[3 + e];",

@@ -249,7 +249,13 @@ def build(lay: Layout, bounds: MotionBounds, *, mocap: PredictorMocap | None) ->
     if lay.pruned:
         horizon = lay.options.pairs.horizon
         reach = reach_for(
-            lay.universe, horizon, bounds=bounds, delta=delta, dt=lay.dt, ahead=lay.ahead
+            lay.universe,
+            horizon,
+            bounds=bounds,
+            delta=delta,
+            dt=lay.dt,
+            ahead=lay.ahead,
+            timestep=float(m.opt.timestep),
         )
     c = schedule_config(
         as_schedule(sched.kind),
