@@ -48,7 +48,8 @@ AUTO_PRUNED_MIN = 256
 (docs/many-objects.md): all pairs win below it (no rebuilds, no grid), pruned pairs above."""
 
 DEFAULT_STRIDE = 32
-"""Default steps between rebuilds: ``horizon = (DEFAULT_STRIDE + latency) dt``. Longer strides
+"""Default steps between rebuilds: ``horizon = (DEFAULT_STRIDE + latency) dt`` (plus ``dt - h``
+for a MuJoCo predictor stepping every ``p > 1`` physics steps of ``h``). Longer strides
 rebuild less often but hold more pairs (the reach grows as ``T^2``); docs/many-objects.md."""
 
 RENEW_MAX = 512
