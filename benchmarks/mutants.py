@@ -447,7 +447,7 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "reach-without-the-grids-step",
         "dua_mujoco/build/pruning.py",
-        "grid=dt - timestep)",
+        "grid=dt - universe.model.opt.timestep)",
         "grid=0.0)",
         (
             "tests/test_predictor_pruned.py::"

@@ -53,12 +53,11 @@ def reach_for(
     delta: np.ndarray,
     dt: float,
     ahead: int,
-    timestep: float,
 ) -> Reach:
     """A pruned predictor's :class:`Reach`. ``delta``: ``(nbody,)`` velocity uncertainties;
     ``ahead``: the periods a verdict must see past the next step, ``latency + alarm_periods - 1``;
-    ``timestep``: the physics step ``h`` (``dt`` is whole steps of it); ``horizon`` None:
-    ``(DEFAULT_STRIDE + ahead) dt + (dt - h)``.
+    ``horizon`` None: ``(DEFAULT_STRIDE + ahead) dt + (dt - h)``, ``h`` the model's timestep
+    (``dt`` is whole steps of it).
 
     A pair left out at the rebuild of step ``r`` is held out strictly (its reaches are farther
     apart than the contact distance), so it has no state in contact at or before ``r dt + T``,
@@ -70,7 +69,7 @@ def reach_for(
     ``period`` 1, for a contact between two predictor steps: docs/theory.md, section 8).
     """
     covering = universe.covering
-    T, stride = pruned_horizon(horizon, dt, ahead, grid=dt - timestep)
+    T, stride = pruned_horizon(horizon, dt, ahead, grid=dt - universe.model.opt.timestep)
     body = np.asarray(covering.sphere_body, dtype=np.int64)
     speed = np.full(body.shape, np.inf) if bounds.speed is None else bounds.speed[body]
     table = np.stack(

@@ -249,13 +249,7 @@ def build(lay: Layout, bounds: MotionBounds, *, mocap: PredictorMocap | None) ->
     if lay.pruned:
         horizon = lay.options.pairs.horizon
         reach = reach_for(
-            lay.universe,
-            horizon,
-            bounds=bounds,
-            delta=delta,
-            dt=lay.dt,
-            ahead=lay.ahead,
-            timestep=float(m.opt.timestep),
+            lay.universe, horizon, bounds=bounds, delta=delta, dt=lay.dt, ahead=lay.ahead
         )
     c = schedule_config(
         as_schedule(sched.kind),
