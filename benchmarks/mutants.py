@@ -67,6 +67,7 @@ _STEP = "dua_mujoco/csrc/src/step.cc"
 _SCHEDULE = "dua_mujoco/csrc/src/schedule.cc"
 _SCHEDULE_H = "dua_mujoco/csrc/src/schedule.h"
 _PLAN = "dua_mujoco/csrc/src/plan.cc"
+_INTERNAL = "dua_mujoco/csrc/src/internal.h"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
@@ -411,7 +412,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "plan-grid-shave-dropped",
-        _PLAN,
+        _INTERNAL,
         "return static_cast<double>(grid) * h * (1.0 - kGridShave);",
         "return static_cast<double>(grid) * h;",
         (
@@ -422,7 +423,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "plan-tau-rounded-up-to-the-period-grid",
-        _PLAN,
+        _INTERNAL,
         "const int64_t grid = p > 1 ? s / p * p : s;",
         "const int64_t grid = p > 1 ? (s + p - 1) / p * p : s;",
         (
@@ -430,6 +431,38 @@ MUTANTS: tuple[Mutant, ...] = (
         ),
         "with period > 1, a plan's tau rounded up to the predictor's grid covers a wait past the "
         "horizon's lead",
+    ),
+    Mutant(
+        "bounds-tau-off-the-period-grid",
+        _STEP,
+        "const bool grid = a.period > 1;",
+        "const bool grid = false;",
+        (
+            "tests/test_warning_time.py::"
+            "test_a_landing_between_predictor_steps_is_flagged_the_horizon_ahead",
+        ),
+        "with period > 1, a tau of the motion bounds off the predictor's grid lets a landing "
+        "between two predictor steps be flagged up to (period - 1) steps short of the horizon",
+    ),
+    Mutant(
+        "reach-without-the-grids-step",
+        "dua_mujoco/build/pruning.py",
+        "grid=dt - universe.model.opt.timestep)",
+        "grid=0.0)",
+        (
+            "tests/test_predictor_pruned.py::"
+            "test_a_pair_left_out_touching_between_predictor_steps_is_flagged_the_horizon_ahead",
+        ),
+        "with period > 1, a pruned reach that ends at the stride's predictor step lets a pair "
+        "left out touch between two predictor steps, flagged short of the horizon",
+    ),
+    Mutant(
+        "reach-check-without-the-grids-step",
+        "dua_mujoco/csrc/src/tables.cc",
+        "(s.alarm_horizon - s.dt) + (s.dt - t->timestep);",
+        "(s.alarm_horizon - s.dt);",
+        ("tests/test_hardening.py::test_a_pruned_horizon_without_the_grids_step_is_refused",),
+        "the runtime loads pruned tables whose reach lacks the grid's step at period > 1",
     ),
     Mutant(
         "mixed-carried-place-behind",

@@ -379,3 +379,27 @@ def test_a_pruned_stride_past_the_horizon_is_refused() -> None:
     assert "text field 'dua:config'" in message, message
     assert f"stride of {stride + 1} steps past the reach's horizon" in message, message
     assert f"lower the stride to {stride} or less" in message, message
+
+
+def test_a_pruned_horizon_without_the_grids_step_is_refused() -> None:
+    """With ``period`` 3 the reach must cover ``dt - h`` past ``(stride + latency) dt`` (a
+    contact between two predictor steps: docs/many-objects.md, "Between predictor steps"): a
+    hand-edited ``config`` whose horizon lacks it is refused, naming the stride and the one the
+    horizon covers; the horizon as attached loads."""
+    from dua_mujoco.runtime.table_arrays import CONFIG
+
+    options = {"accel": 30.0, "pairs": "pruned", "period": 3}
+    tables: dict[str, np.ndarray] = {}
+    fine = _with_table("two_arms", options, "config", lambda config: None, tables)
+    stride = int(tables["config"][CONFIG["stride"]])
+    h = mujoco.MjModel.from_xml_string(fine).opt.timestep
+    mujoco.MjData(mujoco.MjModel.from_xml_string(fine))
+
+    def short(config: np.ndarray) -> None:
+        config[CONFIG["horizon"]] = stride * 3 * h  # (stride + latency) dt, latency 0
+
+    with pytest.raises(ValueError, match="plugin") as refused:
+        mujoco.MjModel.from_xml_string(_with_table("two_arms", options, "config", short))
+    message = " ".join(str(refused.value).split())
+    assert f"stride of {stride} steps past the reach's horizon" in message, message
+    assert f"lower the stride to {stride - 1} or less" in message, message

@@ -362,3 +362,49 @@ def test_the_tables_a_pruned_predictor_learns_are_the_all_pairs_ones() -> None:
             getattr(mine, g)[pruned.sphere_pairs.geom_pair],
             getattr(theirs, g)[full.sphere_pairs.geom_pair[at]],
         )
+
+
+# Two balls on slides closing head-on at 1 m/s in zero gravity: the bounds hold (no force), and
+# a pair left out at the reset's rebuild touches when the gap says.
+_CLOSING = """<mujoco><option timestep="0.002" gravity="0 0 0"/><worldbody>
+<body pos="{a} 0 0.5"><joint type="slide" axis="1 0 0"/><geom type="sphere" size="0.05"/></body>
+<body pos="{b} 0 0.5"><joint type="slide" axis="1 0 0"/><geom type="sphere" size="0.05"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("period", [2, 3, 4])
+def test_a_pair_left_out_touching_between_predictor_steps_is_flagged_the_horizon_ahead(
+    period: int,
+) -> None:
+    """A pair left out at a rebuild and held from the next one, a stride later, touches at
+    physics steps just past that rebuild, at every phase between two predictor steps: with
+    the reach covering ``dt - h`` more than the stride (docs/many-objects.md, "Between predictor
+    steps") every lead is at least the alarm horizon while the bounds hold. With the reach
+    ``(stride + latency) dt`` alone the pair was left out and flagged only 1 to ``period - 1``
+    steps ahead."""
+    from dua_mujoco.measure.monitor import Monitor
+
+    h = 0.002
+    dt = period * h
+    steps = set()
+    for extra in np.arange(0.25, 2 * period, 0.5) * h:  # past the stride's time, in steps of h/2
+        gap = 32 * dt + extra  # the default stride at latency 0: 32 periods
+        m = mujoco.MjModel.from_xml_string(_CLOSING.format(a=-(gap + 0.1) / 2, b=(gap + 0.1) / 2))
+        d = mujoco.MjData(m)
+        d.qvel[:] = [0.5, -0.5]
+        p = Predictor(m, accel=1e-3, period=period, pairs="pruned")
+        assert p.stride == 32
+        mon = Monitor(p)
+        mujoco.mj_step(m, d)
+        mon.start(d)
+        k = 0
+        while not d.ncon:
+            k += 1
+            mujoco.mj_step(m, d)
+            mon.observe(d, p.step(d) if k % period == 0 else None)
+        mon.finish()
+        assert mon.onsets == mon.predicted == 1 and mon.violations == 0
+        assert mon.warning.short_held == 0, (extra, k, mon.warning.leads)
+        assert mon.warning.leads[0] >= p.alarm_horizon - 1e-12
+        steps.add(k - 32 * period)
+    assert set(range(1, period)) <= steps, steps  # every phase between the two steps

@@ -286,6 +286,12 @@ def test_rebuild_stride_is_the_largest_covered() -> None:
                 R = rebuild_stride(T, dt, latency)
                 assert (R + latency) * dt <= T
                 assert (R + 1 + latency) * dt > T
+                # Period 3: the reach covers dt - h more (docs/many-objects.md), one stride less.
+                grid = dt - dt / 3
+                if (1 + latency) * dt + grid <= T:
+                    Rg = rebuild_stride(T, dt, latency, grid=grid)
+                    assert (Rg + latency) * dt + grid <= T < (Rg + 1 + latency) * dt + grid
+                    assert Rg == R - 1
     with pytest.raises(InvalidInputError, match="horizon"):
         rebuild_stride(0.015, 0.01, 1)
 

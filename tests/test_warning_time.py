@@ -17,6 +17,7 @@ from dua_mujoco.measure.report import RunReport
 from dua_mujoco.measure.rollout import build_report, run
 from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of
 from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.plugin import attach, standing_pairs
 from dua_mujoco.runtime.predictor import Predictor
 
 # Two balls dropped on a plane, 1 m apart: ball_a lands at the 40th physics step and ball_b at
@@ -326,3 +327,85 @@ def test_leads_and_oracle_match_a_per_step_reference(period: int, hsteps: int) -
     short = sum(lead < hsteps for lead in leads)
     assert mon.warning.short_leads == short > 0
     assert short < len(leads)
+
+
+# One ball above a plane: it falls under gravity (9.81 < the bound, 10 m/s^2), so the bounds
+# hold until it lands, and the half-space's tau is within a small fraction of a step of the
+# landing: a landing between two predictor steps is what section 8 of docs/theory.md rounds for.
+_FALL = mjcf(
+    '<geom name="floor" type="plane" size="2 2 0.1"/>',
+    free("a", "0 0 0.2", 'name="ball" type="sphere" size="0.05"'),
+    option='timestep="0.002"',
+)
+
+
+def _fall(period: int, latency: int, v0: float) -> tuple[Monitor, int]:
+    """Drop the ball at ``v0`` m/s downward under a Monitor, the predictor stepping every
+    ``period`` physics steps; return the Monitor and the landing's physics step."""
+    m = mujoco.MjModel.from_xml_string(_FALL)
+    d = mujoco.MjData(m)
+    d.qvel[2] = -v0
+    p = Predictor(m, accel=10.0, period=period, latency=latency)
+    mon = Monitor(p)
+    mujoco.mj_step(m, d)
+    mon.start(d)
+    landing = -1
+    for k in range(1, 400):
+        mujoco.mj_step(m, d)
+        mon.observe(d, p.step(d) if k % period == 0 else None)
+        if landing < 0 and d.ncon:
+            landing = k
+            break
+    mon.finish()
+    return mon, landing
+
+
+@pytest.mark.parametrize("latency", [0, 1])
+@pytest.mark.parametrize("period", [2, 3, 4, 5])
+def test_a_landing_between_predictor_steps_is_flagged_the_horizon_ahead(
+    period: int, latency: int
+) -> None:
+    """Theorem 3 at ``period > 1`` on the motion bounds (docs/theory.md, section 8): every tau
+    the schedule acts on is rounded down to the predictor's grid, so a contact between two of
+    its steps is flagged at least the alarm horizon (one period) before it, while the bounds
+    hold. The drops' speeds put the landing at every phase between two predictor steps.
+
+    Without the rounding, a landing r steps after a predictor step (0 < r < period) is covered
+    by the verdict a period before and stands in alarm only r steps ahead: short while the bounds
+    held (met on traffic at period 4: 15 ms against 20)."""
+    phases = set()
+    for v0 in np.linspace(0.0, 1.0, 2 * period + 3):
+        mon, landing = _fall(period, latency, float(v0))
+        assert landing > 30 and mon.onsets == mon.predicted == 1 and mon.misses == []
+        assert mon.violations == 0 or mon.warning.short_after_violation == 0
+        lead = mon.warning.leads[0]
+        assert mon.warning.short_held == 0, (v0, landing, lead)
+        assert lead >= mon.warning.horizon - 1e-12, (v0, landing, lead)
+        phases.add(landing % period)
+    assert phases == set(range(period)), phases  # the sweep met every phase
+
+
+@pytest.mark.parametrize("period", [2, 3, 4, 5])
+def test_the_plugin_flags_a_landing_between_its_steps_the_horizon_ahead(period: int) -> None:
+    """The same at the plugin, whose compute runs at every physics step and predicts every
+    ``period``-th (its own period attribute; the same native step): the ball-floor pair stands
+    in alarm at every physics step of at least the horizon (``period`` steps) before the step
+    that finds the ball on the floor, at every phase of the landing. Without the rounding the
+    alarm stood only 1 step ahead at some phases, for each period."""
+    phases = set()
+    for v0 in np.linspace(0.0, 1.0, 2 * period + 3):
+        spec = mujoco.MjSpec.from_string(_FALL)
+        attach(spec, accel=10.0, period=period)
+        m = spec.compile()
+        d = mujoco.MjData(m)
+        d.qvel[2] = -v0
+        stood = []
+        while not d.ncon:
+            stood.append(standing_pairs(m, d).shape[0] > 0)
+            mujoco.mj_step(m, d)
+        landing = len(stood)  # the outputs of the steps before it: stood[1:]
+        assert landing > 30
+        ahead = next((i for i, s in enumerate(reversed(stood)) if not s), len(stood))
+        assert ahead >= period, (v0, landing, ahead)
+        phases.add(landing % period)
+    assert phases == set(range(period)), phases

@@ -48,7 +48,8 @@ AUTO_PRUNED_MIN = 256
 (docs/many-objects.md): all pairs win below it (no rebuilds, no grid), pruned pairs above."""
 
 DEFAULT_STRIDE = 32
-"""Default steps between rebuilds: ``horizon = (DEFAULT_STRIDE + latency) dt``. Longer strides
+"""Default steps between rebuilds: ``horizon = (DEFAULT_STRIDE + latency) dt`` (plus ``dt - h``
+for a MuJoCo predictor stepping every ``p > 1`` physics steps of ``h``). Longer strides
 rebuild less often but hold more pairs (the reach grows as ``T^2``); docs/many-objects.md."""
 
 RENEW_MAX = 512
@@ -70,30 +71,34 @@ class PairMode(enum.Enum):
     """``PRUNED`` from ``AUTO_PRUNED_MIN`` spheres on, ``ALL`` below (deadline schedule only)."""
 
 
-def rebuild_stride(horizon: float, dt: float, latency: int) -> int:
-    """Steps ``R`` between rebuilds at horizon ``T``: the largest with ``(R + latency) dt <= T``.
+def rebuild_stride(horizon: float, dt: float, latency: int, *, grid: float = 0.0) -> int:
+    """Steps ``R`` between rebuilds at horizon ``T``: the largest with
+    ``(R + latency) dt + grid <= T``.
 
     A pair left out at the rebuild of step ``r`` cannot touch before ``r dt + T``; if it is
     added at the next rebuild, step ``r + R``, it is evaluated there and its verdict acts from
-    ``(r + R + latency) dt <= r dt + T`` (docs/many-objects.md). The product is computed as
-    the deadline schedule computes it (``(s + latency) * dt``).
+    ``(r + R + latency) dt <= r dt + T`` (docs/many-objects.md). ``grid``: ``dt - h`` when the
+    predictor steps every ``p > 1`` physics steps of ``h`` (0 otherwise): a contact just after
+    ``r dt + T`` may fall between two predictor steps, and the alarm must lead it by the
+    horizon from the one before (docs/theory.md, section 8). The product is computed as the
+    deadline schedule computes it (``(s + latency) * dt``).
 
     Raises:
-        InvalidInputError: ``T < (1 + latency) dt``: not even one step would be covered.
+        InvalidInputError: ``T < (1 + latency) dt + grid``: not even one step would be covered.
     """
     dt, latency = check_period(dt, latency)
     T = float(horizon)
-    if not (math.isfinite(T) and (1 + latency) * dt <= T):
+    if not (math.isfinite(T) and (1 + latency) * dt + grid <= T):
         raise InvalidInputError(
             f"horizon = {horizon!r} is invalid: a pruned pair set must cover at least one step "
-            f"and the latency, horizon >= (1 + latency) dt = {(1 + latency) * dt!r} s; pass a "
-            "longer horizon (or None for the default)."
+            f"and the latency, horizon >= (1 + latency) dt + (dt - timestep) = "
+            f"{(1 + latency) * dt + grid!r} s; pass a longer horizon (or None for the default)."
         )
     R = max(1, math.floor(T / dt) - latency)
     # The division rounds either way: settle R on the product itself.
-    while (R + latency) * dt > T:
+    while R > 1 and (R + latency) * dt + grid > T:
         R -= 1
-    while (R + 1 + latency) * dt <= T:
+    while (R + 1 + latency) * dt + grid <= T:
         R += 1
     return R
 
@@ -120,13 +125,15 @@ def pair_mode(
     return mode
 
 
-def pruned_horizon(horizon: float | None, dt: float, ahead: int) -> tuple[float, int]:
+def pruned_horizon(
+    horizon: float | None, dt: float, ahead: int, *, grid: float = 0.0
+) -> tuple[float, int]:
     """A pruned set's horizon ``T`` and rebuild stride: ``T`` None is ``(DEFAULT_STRIDE +
-    ahead) dt``; ``ahead``, the periods a verdict must see past the next step (the latency,
-    plus the alarm horizon's periods beyond one), stands for the latency of
-    :func:`rebuild_stride`, which checks ``T``."""
-    T = (DEFAULT_STRIDE + ahead) * dt if horizon is None else horizon
-    return float(T), rebuild_stride(T, dt, ahead)
+    ahead) dt + grid``; ``ahead``, the periods a verdict must see past the next step (the
+    latency, plus the alarm horizon's periods beyond one), stands for the latency of
+    :func:`rebuild_stride`, which checks ``T``, as ``grid``."""
+    T = (DEFAULT_STRIDE + ahead) * dt + grid if horizon is None else horizon
+    return float(T), rebuild_stride(T, dt, ahead, grid=grid)
 
 
 def _per_sphere(name: str, value: npt.ArrayLike, n: int, *, allow_inf: bool = False) -> np.ndarray:

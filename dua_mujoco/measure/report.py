@@ -50,10 +50,9 @@ class RunReport:
     some onset had: the lower one), median and minimum of the onsets' leads, how long an alarm
     had stood for each without a break (0 for a miss; None without onsets);
     ``short_lead_onsets`` counts the onsets with less lead than ``warning_horizon_s``, split into
-    ``short_lead_bounds_held`` (the promise does not allow them at ``period`` 1; with ``period``
-    p > 1 a contact between two states the predictor reads, judged on the motion bounds, may
-    have up to ``(p - 1)`` timesteps less: docs/theory.md, section 8),
-    ``short_lead_after_violation`` and ``short_lead_at_start``
+    ``short_lead_bounds_held`` (the promise allows none while ``warning_horizon_s`` is the
+    predictor's alarm horizon, the default, at any ``period``: docs/theory.md, sections 3 and
+    8), ``short_lead_after_violation`` and ``short_lead_at_start``
     (:mod:`~dua_mujoco.measure.warning_time`).
     ``missed_onsets_outside_violations`` counts the misses not in a violation's period
     (:class:`Miss`): the guarantee covers them, so any is a bug. ``broken_bound_bodies`` names

@@ -145,21 +145,6 @@ double PosedGap(const double* pair, double* xrec, dua_exact& x, dua_plan& plan, 
   return std::max(best, AxisGap(xrec, x, f, n[0], n[1], n[2], mode));
 }
 
-// A plan's tau from s steps of h, on the predictor's grid (period p steps) and shaved. The
-// deadline rule (3) keeps a verdict while (w + latency) dt + extra < tau, which gives the alarm
-// horizon's lead only for a tau on the grid of dt: a contact s = q p + r steps ahead (0 < r < p)
-// could otherwise be covered until (q - N - latency + 1) periods and flagged only H + latency dt
-// - r h before it. Rounding down to q p steps keeps the lead (docs/theory.md, section 8); with
-// p = 1 it changes nothing. On that grid the test compares two roundings of the same number:
-// (alarm steps + w) dt can round below the tau and let a pair wait one step past the one at
-// which it must stand in alarm; 1e-9 relative is far above those roundings (a few ulps) and far
-// below a step. Either way a smaller tau is still a lower bound.
-constexpr double kGridShave = 1e-9;
-inline double GridTau(int64_t s, double h, int64_t p) {
-  const int64_t grid = p > 1 ? s / p * p : s;
-  return static_cast<double>(grid) * h * (1.0 - kGridShave);
-}
-
 // The first index in (j, n) at which skip is false, or n; skip(j) is true and skip falls
 // (once false, false at every later index): galloping from j, then bisection.
 template <class Skip>
@@ -1038,7 +1023,7 @@ void PlanPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
     const Judged v = Judge(a, plan, pl.body_ok, d, pl.knot, p, pl.geom1[mp], pl.geom2[mp]);
     pl.planned[k] = v.knot >= 0;
     if (v.knot < 0) continue;
-    out[k] = GridTau(v.knot - pl.knot, plan.h(), pl.period);
+    out[k] = GridTau(v.knot - pl.knot, plan.h(), a.period);
     if (pl.basis != nullptr) pl.basis[p] = v.basis;
   }
 }

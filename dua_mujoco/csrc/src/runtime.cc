@@ -267,8 +267,9 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
     pl.geom_row = t.geom_row.data();
     pl.data = plan_data_.get();
     pl.planned = planned_.data();
-    pl.period = static_cast<int64_t>(std::nearbyint(t.schedule.dt / t.timestep));
   }
+  a.timestep = t.timestep;
+  a.period = static_cast<int64_t>(std::nearbyint(t.schedule.dt / t.timestep));
   return a;
 }
 

@@ -693,9 +693,16 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
     ExactPass(a, ids, count, out);
   }
   // A tau that is not a number (from finite tables so large that the arithmetic overflows, a
-  // shape's rotation entry of 1e308) alarms now, never passes (docs/hardening.md).
+  // shape's rotation entry of 1e308) alarms now, never passes (docs/hardening.md). With
+  // period > 1 the other levels' taus go on the predictor's grid as the plan's did (GridFloor).
+  const bool grid = a.period > 1;
+  const uint8_t* planned = a.plan.impl != nullptr ? a.plan.planned : nullptr;
   for (int64_t k = 0; k < count; ++k) {
-    if (std::isnan(out[k])) out[k] = 0.0;
+    if (std::isnan(out[k])) {
+      out[k] = 0.0;
+    } else if (grid && (planned == nullptr || !planned[k])) {
+      out[k] = GridFloor(out[k], a.timestep, a.period);
+    }
   }
   return -1;
 }

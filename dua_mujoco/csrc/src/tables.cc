@@ -498,10 +498,13 @@ bool ReadReach(Reader* r, const std::vector<double>& reach, const std::vector<do
     t->renew_max = static_cast<int64_t>(renew);
     // A pair left out at a rebuild has no contact within the horizon; the next rebuild, a stride
     // later, holds it, and its alarm acts after the latency and must lead the alarm horizon:
-    // (stride + latency) dt + (alarm_horizon - dt) <= horizon (docs/many-objects.md; a
-    // billionth of a step is the rounding of the writer's product, a stride is whole steps).
+    // (stride + latency) dt + (alarm_horizon - dt) + (dt - timestep) <= horizon, the last term
+    // (0 at period 1) for a contact between two predictor steps (docs/many-objects.md and
+    // docs/theory.md, section 8; a billionth of a step is the rounding of the writer's product,
+    // a stride is whole steps).
     const ScheduleSpec& s = t->schedule;
-    const double lead = static_cast<double>(s.latency) * s.dt + (s.alarm_horizon - s.dt);
+    const double lead =
+        static_cast<double>(s.latency) * s.dt + (s.alarm_horizon - s.dt) + (s.dt - t->timestep);
     if (stride * s.dt + lead > horizon + 1e-9 * s.dt) {
       const double most = std::floor((horizon - lead) / s.dt + 1e-9);
       const std::string fix = most >= 1.0 ? "lower the stride to " + Shown(most) + " or less"
@@ -511,7 +514,7 @@ bool ReadReach(Reader* r, const std::vector<double>& reach, const std::vector<do
                          Shown(horizon) +
                          " s): a pair left out at a rebuild could touch before the " +
                          "next rebuild's alarm leads by the alarm horizon; " + fix +
-                         ", so that (stride + latency) dt + alarm_horizon - dt <= " +
+                         ", so that (stride + latency) dt + alarm_horizon - timestep <= " +
                          "horizon, or build the tables again (attach, or a new predictor)");
     }
     // Pruned pairs are carried into the deadline schedule only.

@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 10
+#define DUA_ABI_VERSION 11
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -160,7 +160,6 @@ typedef struct dua_events {
 typedef struct dua_plan {
   const void* impl;  // the dua::Plan
   int64_t knot;      // the plan's knot at this step
-  int64_t period;    // physics steps a predictor period (the plan's taus fall on its grid)
   // (nbody,) 1 for a body the plan holds and found within its deviation so far (static bodies
   // too: planned, with deviation 0); 0 for one it does not know or found beyond its deviation.
   const uint8_t* body_ok;
@@ -242,6 +241,11 @@ typedef struct dua_step_args {
   int64_t deferred;  // pairs left over the cap
   int64_t count;     // pairs evaluated
   dua_plan plan;
+  // The predictor's grid: a step every `period` physics steps of `timestep` seconds (free
+  // spheres: one step of the period). Every tau the schedule acts on is rounded down to it
+  // (docs/theory.md, section 8).
+  double timestep;
+  int64_t period;
 } dua_step_args;
 
 // One step n: the violation check, the selection, the gather, tau at every level, the
