@@ -266,48 +266,40 @@ DUA_SECTION int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool l
 // ------------------------------------------------------------------------------- exact level
 
 // max m.v over the hull vertices of mesh geom g (local direction m): a hill climb on MuJoCo's
-// hull graph (a linear function's local maximum over a polytope is global), from the stored
-// extreme vertex of the axis nearest m, or last time's highest if it is higher. Writes the
-// highest vertex's local id to top.
+// hull graph (a linear function's local maximum over a polytope is global), from last time's
+// highest vertex, or before the first climb the stored extreme vertex of the axis nearest m.
+// Writes the highest vertex's local id to top.
 double HullSupport(int64_t g, const dua_exact& x, double m0, double m1, double m2, int64_t start,
                    int64_t* top) {
   const double* rec = x.geoms + g * kGxNcol;
-  const int64_t v0 = static_cast<int64_t>(rec[kGxVert]);
   const int64_t adr = static_cast<int64_t>(rec[kGxGraph]);
   const int32_t* graph = x.graph;
-  const int64_t numvert = graph[adr];
-  const int64_t edgeadr = adr + 2, globalid = adr + 2 + numvert, localid = adr + 2 + 2 * numvert;
-  const double a0 = std::fabs(m0), a1 = std::fabs(m1), a2 = std::fabs(m2);
-  int seed;
-  if (a0 >= a1 && a0 >= a2) {
-    seed = kGxSeed + (m0 > 0.0 ? 1 : 0);
-  } else if (a1 >= a2) {
-    seed = kGxSeed + (m1 > 0.0 ? 3 : 2);
-  } else {
-    seed = kGxSeed + (m2 > 0.0 ? 5 : 4);
-  }
-  auto height = [&](int64_t local) {
-    const float* v = x.verts + 3 * (v0 + graph[globalid + local]);
-    return m0 * v[0] + m1 * v[1] + m2 * v[2];
-  };
-  int64_t imax = static_cast<int64_t>(rec[seed]);
-  double best = height(imax);
-  if (start >= 0) {
-    const double val = height(start);
-    if (val > best) {
-      best = val;
-      imax = start;
+  const int32_t* edges = graph + adr + 2;
+  const int32_t* local = edges + 2 * static_cast<int64_t>(graph[adr]);
+  const double* v = x.hull + 3 * x.hull_at[g];
+  auto height = [&](int64_t k) { return m0 * v[3 * k] + m1 * v[3 * k + 1] + m2 * v[3 * k + 2]; };
+  int64_t imax = start;
+  if (imax < 0) {
+    const double a0 = std::fabs(m0), a1 = std::fabs(m1), a2 = std::fabs(m2);
+    int seed;
+    if (a0 >= a1 && a0 >= a2) {
+      seed = kGxSeed + (m0 > 0.0 ? 1 : 0);
+    } else if (a1 >= a2) {
+      seed = kGxSeed + (m1 > 0.0 ? 3 : 2);
+    } else {
+      seed = kGxSeed + (m2 > 0.0 ? 5 : 4);
     }
+    imax = static_cast<int64_t>(rec[seed]);
   }
+  double best = height(imax);
   int64_t prev = -1;
   while (imax != prev) {
     prev = imax;
-    for (int64_t i = graph[edgeadr + imax]; graph[localid + i] >= 0; ++i) {
-      const int64_t sub = graph[localid + i];
-      const double val = height(sub);
+    for (const int32_t* e = local + edges[imax]; *e >= 0; ++e) {
+      const double val = height(*e);
       if (val > best) {
         best = val;
-        imax = sub;
+        imax = *e;
       }
     }
   }
