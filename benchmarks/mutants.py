@@ -70,6 +70,9 @@ _PLAN = "dua_mujoco/csrc/src/plan.cc"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
+_TWO_HULLS = (
+    "tests/test_exact.py::test_between_two_hulls_a_query_not_made_could_not_have_cleared_the_alarm"
+)
 _MADE_DUE = (
     "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
 )
@@ -154,6 +157,23 @@ MUTANTS: tuple[Mutant, ...] = (
         ),
         "a pair MuJoCo lists beyond its contact distance is not looked at (a looser skip is "
         "safe, but the test pins the rule)",
+    ),
+    Mutant(
+        "two-point-bound-weight-unclamped",
+        _STEP,
+        "const double lambda = dd > 0.0 ? std::min(1.0, std::max(0.0, along / dd)) : 1.0;",
+        "const double lambda = dd > 0.0 ? along / dd : 1.0;",
+        (_TWO_HULLS,),
+        "the test that no direction clears reads a point of the line beyond the segment of the "
+        "two point pairs: not a bound on any direction's separation",
+    ),
+    Mutant(
+        "two-point-bound-second-pair-still",
+        _STEP,
+        "w2[j] = b[j] - a[j] + r[j];",
+        "w2[j] = b[j] - a[j];",
+        (_TWO_HULLS,),
+        "the hull vertices' pair is read without the pair's motion over the horizon",
     ),
     Mutant(
         "pair-accel-one-body",
