@@ -159,15 +159,6 @@ MUTANTS: tuple[Mutant, ...] = (
         "safe, but the test pins the rule)",
     ),
     Mutant(
-        "two-point-bound-weight-unclamped",
-        _STEP,
-        "const double lambda = dd > 0.0 ? std::min(1.0, std::max(0.0, along / dd)) : 1.0;",
-        "const double lambda = dd > 0.0 ? along / dd : 1.0;",
-        (_TWO_HULLS,),
-        "the test that no direction clears reads a point of the line beyond the segment of the "
-        "two point pairs: not a bound on any direction's separation",
-    ),
-    Mutant(
         "two-point-bound-second-pair-still",
         _STEP,
         "w2[j] = b[j] - a[j] + r[j];",

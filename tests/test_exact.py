@@ -249,9 +249,10 @@ def _over_pairs(*, examples: int, top_speed: float) -> Callable[[Callable], Call
     return wrap
 
 
-def _predictor(model: mujoco.MjModel, motion: Motion) -> Predictor:
+def _predictor(model: mujoco.MjModel, motion: Motion, *, horizon: int = 1) -> Predictor:
     bounds = MotionBounds.declare(model, motion.accel_bound(), integrator_term=False)
-    return Predictor(model, accel=bounds, pairs="all")
+    dt = float(model.opt.timestep)
+    return Predictor(model, accel=bounds, pairs="all", alarm_horizon=horizon * dt)
 
 
 # --------------------------------------------------------------------------- tests
@@ -449,15 +450,18 @@ def test_between_two_hulls_a_query_not_made_could_not_have_cleared_the_alarm(
     """The same between two meshes, more often: there the test that no direction clears also
     reads the hull vertices the supports reached, and the direction between them is tried before
     asking (docs/theory.md, section 5, "Two pairs of points")."""
-    _alarms_no_direction_clears("mesh", "mesh", seed, speed)
+    _alarms_no_direction_clears("mesh", "mesh", seed, speed, horizon=8)
 
 
-def _alarms_no_direction_clears(a: str, b: str, seed: int, speed: float) -> None:
-    """Steps a predictor of geoms of types ``a`` and ``b`` near each other 20 times; at each
-    step, no pair left in alarm is cleared by the reference (MuJoCo's witness direction)."""
+def _alarms_no_direction_clears(
+    a: str, b: str, seed: int, speed: float, *, horizon: int = 1
+) -> None:
+    """Steps a predictor of geoms of types ``a`` and ``b`` near each other 20 times (an alarm
+    horizon of ``horizon`` periods); at each step, no pair left in alarm is cleared by the
+    reference (MuJoCo's witness direction)."""
     model = _model(a, b)
     motion = Motion(model, _near(np.random.default_rng(seed), model, speed))
-    p = _predictor(model, motion)
+    p = _predictor(model, motion, horizon=horizon)
     assert p.exact is not None
     data = motion.state(0.0)
     p.reset(data)
