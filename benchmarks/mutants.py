@@ -71,6 +71,9 @@ _INTERNAL = "dua_mujoco/csrc/src/internal.h"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
+_TWO_HULLS = (
+    "tests/test_exact.py::test_between_two_hulls_a_query_not_made_could_not_have_cleared_the_alarm"
+)
 _MADE_DUE = (
     "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
 )
@@ -155,6 +158,14 @@ MUTANTS: tuple[Mutant, ...] = (
         ),
         "a pair MuJoCo lists beyond its contact distance is not looked at (a looser skip is "
         "safe, but the test pins the rule)",
+    ),
+    Mutant(
+        "two-point-bound-second-pair-still",
+        _STEP,
+        "w2[j] = b[j] - a[j] + r[j];",
+        "w2[j] = b[j] - a[j];",
+        (_TWO_HULLS,),
+        "the hull vertices' pair is read without the pair's motion over the horizon",
     ),
     Mutant(
         "pair-accel-one-body",

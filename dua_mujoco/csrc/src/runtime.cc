@@ -213,9 +213,8 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.witness = witness_.data();
   x.below = t.exact_below;
   x.query_below = t.query_below;
-  // The model's own vertices (the tables hold its hull graph, checked): every mjData of a model
-  // reads one copy, and making an mjData copies none.
-  x.verts = m ? m->mesh_vert : nullptr;
+  x.hull = t.hull.data();
+  x.hull_at = t.hull_at.data();
   x.graph = t.graph.data();
   x.model = m;
   x.data = d;
@@ -738,7 +737,8 @@ void Runtime::QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, in
   a.frame = FrameOf(d, mocap_.twist.data());
   a.exact.on = t.exact ? 1 : 0;
   a.exact.geoms = t.geoms.data();
-  a.exact.verts = m->mesh_vert;
+  a.exact.hull = t.hull.data();
+  a.exact.hull_at = t.hull_at.data();
   a.exact.graph = t.graph.data();
   a.exact.records = q->exact.data();
   a.exact.model = m;

@@ -266,48 +266,40 @@ DUA_SECTION int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool l
 // ------------------------------------------------------------------------------- exact level
 
 // max m.v over the hull vertices of mesh geom g (local direction m): a hill climb on MuJoCo's
-// hull graph (a linear function's local maximum over a polytope is global), from the stored
-// extreme vertex of the axis nearest m, or last time's highest if it is higher. Writes the
-// highest vertex's local id to top.
+// hull graph (a linear function's local maximum over a polytope is global), from last time's
+// highest vertex, or before the first climb the stored extreme vertex of the axis nearest m.
+// Writes the highest vertex's local id to top.
 double HullSupport(int64_t g, const dua_exact& x, double m0, double m1, double m2, int64_t start,
                    int64_t* top) {
   const double* rec = x.geoms + g * kGxNcol;
-  const int64_t v0 = static_cast<int64_t>(rec[kGxVert]);
   const int64_t adr = static_cast<int64_t>(rec[kGxGraph]);
   const int32_t* graph = x.graph;
-  const int64_t numvert = graph[adr];
-  const int64_t edgeadr = adr + 2, globalid = adr + 2 + numvert, localid = adr + 2 + 2 * numvert;
-  const double a0 = std::fabs(m0), a1 = std::fabs(m1), a2 = std::fabs(m2);
-  int seed;
-  if (a0 >= a1 && a0 >= a2) {
-    seed = kGxSeed + (m0 > 0.0 ? 1 : 0);
-  } else if (a1 >= a2) {
-    seed = kGxSeed + (m1 > 0.0 ? 3 : 2);
-  } else {
-    seed = kGxSeed + (m2 > 0.0 ? 5 : 4);
-  }
-  auto height = [&](int64_t local) {
-    const float* v = x.verts + 3 * (v0 + graph[globalid + local]);
-    return m0 * v[0] + m1 * v[1] + m2 * v[2];
-  };
-  int64_t imax = static_cast<int64_t>(rec[seed]);
-  double best = height(imax);
-  if (start >= 0) {
-    const double val = height(start);
-    if (val > best) {
-      best = val;
-      imax = start;
+  const int32_t* edges = graph + adr + 2;
+  const int32_t* local = edges + 2 * static_cast<int64_t>(graph[adr]);
+  const double* v = x.hull + 3 * x.hull_at[g];
+  auto height = [&](int64_t k) { return m0 * v[3 * k] + m1 * v[3 * k + 1] + m2 * v[3 * k + 2]; };
+  int64_t imax = start;
+  if (imax < 0) {
+    const double a0 = std::fabs(m0), a1 = std::fabs(m1), a2 = std::fabs(m2);
+    int seed;
+    if (a0 >= a1 && a0 >= a2) {
+      seed = kGxSeed + (m0 > 0.0 ? 1 : 0);
+    } else if (a1 >= a2) {
+      seed = kGxSeed + (m1 > 0.0 ? 3 : 2);
+    } else {
+      seed = kGxSeed + (m2 > 0.0 ? 5 : 4);
     }
+    imax = static_cast<int64_t>(rec[seed]);
   }
+  double best = height(imax);
   int64_t prev = -1;
   while (imax != prev) {
     prev = imax;
-    for (int64_t i = graph[edgeadr + imax]; graph[localid + i] >= 0; ++i) {
-      const int64_t sub = graph[localid + i];
-      const double val = height(sub);
+    for (const int32_t* e = local + edges[imax]; *e >= 0; ++e) {
+      const double val = height(*e);
       if (val > best) {
         best = val;
-        imax = sub;
+        imax = *e;
       }
     }
   }
@@ -427,30 +419,75 @@ bool InContact(dua_exact& x, int64_t g1, int64_t g2, double dist) {
   return false;
 }
 
-// Whether no direction can raise the pair's tau to `below`, from the witness points of its
-// latest query carried with their geoms (w: a point of each, wherever the geoms are now): for
-// every unit u, d_u <= u.(b - a), so the right side of (5.3) at `below` is at most
-// |b - a + r below| - m - (spin + delta) below - A below^2 / 2 (r the origins' relative
-// velocity); when that is negative, every direction's bound, concave in t and positive at 0,
-// reaches m before `below` (docs/theory.md, section 5, "Queries that cannot clear").
-bool NoDirectionClears(const double* w, double r0, double r1, double r2, double spin,
-                       const double* pair, const double* xrec, const dua_frame& f, double below) {
-  if (!(below > 0.0) || !std::isfinite(below) || std::isnan(w[0])) return false;
+// The hull vertex side's last climb reached (0: the first geom, 1: the second), at its geom's
+// pose in f (false: the geom has no hull graph, or no climb yet). A point of the geom's hull.
+bool TopPoint(const double* xrec, int side, const dua_exact& x, const dua_frame& f, double out[3]) {
+  const double top = xrec[side == 0 ? kXHull1 : kXHull2];
+  if (!(top >= 0.0)) return false;
+  const int64_t g = static_cast<int64_t>(xrec[side == 0 ? kXG1 : kXG2]);
+  GeomPoint(g, f, x.hull + 3 * (x.hull_at[g] + static_cast<int64_t>(top)), out);
+  return true;
+}
+
+// Bounds every direction's separation at `below`: for every unit u, d_u + u.r below is at most
+// u.(b - a + r below) for any points a of the first geom and b of the second (5.4), so at most
+// min(u.w1, u.w2) for two such differences, and at most the length of any point of the segment
+// from w1 to w2 (docs/theory.md, section 5, "Queries that cannot clear"). w1: the witness points
+// of the latest query carried with their geoms (w); w2: the hull vertices the last climbs
+// reached, when both geoms are hulls (the kept direction's supports). Writes the segment's point
+// nearest the origin to q (w1 alone without w2) and the points' coordinates' magnitude to scale;
+// returns 0 without a query yet, 1 with w1 alone, 2 with the segment.
+int Nearest(const double* w, double r0, double r1, double r2, const double* xrec,
+            const dua_exact& x, const dua_frame& f, double below, double q[3], double* scale) {
+  if (!(below > 0.0) || !std::isfinite(below) || std::isnan(w[0])) return 0;
+  const double r[3] = {r0 * below, r1 * below, r2 * below};
   double a[3], b[3];
   GeomPoint(static_cast<int64_t>(xrec[kXG1]), f, w, a);
   GeomPoint(static_cast<int64_t>(xrec[kXG2]), f, w + 3, b);
-  const double q0 = b[0] - a[0] + r0 * below, q1 = b[1] - a[1] + r1 * below,
-               q2 = b[2] - a[2] + r2 * below;
-  double scale = 0.0;
-  for (int j = 0; j < 3; ++j) scale += std::fabs(a[j]) + std::fabs(b[j]);
+  *scale = 0.0;
+  for (int j = 0; j < 3; ++j) {
+    q[j] = b[j] - a[j] + r[j];
+    *scale += std::fabs(a[j]) + std::fabs(b[j]);
+  }
+  if (!TopPoint(xrec, 0, x, f, a) || !TopPoint(xrec, 1, x, f, b)) return 1;
+  double w2[3], dw[3], dd = 0.0, along = 0.0;
+  for (int j = 0; j < 3; ++j) {
+    w2[j] = b[j] - a[j] + r[j];
+    dw[j] = q[j] - w2[j];
+    dd += dw[j] * dw[j];
+    along -= w2[j] * dw[j];
+    *scale += std::fabs(a[j]) + std::fabs(b[j]);
+  }
+  // Any weight in [0, 1] gives a bound; the clamped least-squares one the tightest.
+  const double lambda = dd > 0.0 ? std::min(1.0, std::max(0.0, along / dd)) : 1.0;
+  for (int j = 0; j < 3; ++j) q[j] = w2[j] + lambda * dw[j];
+  return 2;
+}
+
+// Whether no direction can raise the pair's tau to `below`, from Nearest's point q: the right
+// side of (5.3) at `below` is at most |q| - m - (spin + delta) below - A below^2 / 2 (r the
+// origins' relative velocity); when that is negative, every direction's bound, concave in t and
+// positive at 0, reaches m before `below` (docs/theory.md, section 5, "Queries that cannot
+// clear").
+bool NoDirectionClears(const double q[3], double scale, double r0, double r1, double r2,
+                       double spin, const double* pair, const double* xrec, double below) {
   const double speed = std::sqrt(r0 * r0 + r1 * r1 + r2 * r2) + spin;
   // AxisTau's own allowances (its gap lowered, its delta raised), and margins far above the
   // rounding of either side: what they keep is a tightness, not a safety.
-  const double most = std::sqrt(q0 * q0 + q1 * q1 + q2 * q2) * (1.0 + 1e-12) + kGapSlack * scale;
+  const double most =
+      std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) * (1.0 + 1e-12) + kGapSlack * scale;
   const double delta = pair[kPairDelta] + kVelSlack * speed;
   const double least =
       xrec[kXDist] + (spin + delta) * below + 0.5 * pair[kPairAccel] * below * below;
   return most < least * (1.0 - 1e-12);
+}
+
+// v scaled to unit length (false: v too short next to the geoms' radii for a direction).
+bool Unit(double v[3], double radii) {
+  const double length = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  if (!(length > 1e-9 * radii)) return false;
+  for (int j = 0; j < 3; ++j) v[j] /= length;
+  return true;
 }
 
 // The unit direction from the first witness point to the second, each carried with its geom to
@@ -462,11 +499,7 @@ bool CarriedDirection(const double* w, int64_t g1, int64_t g2, const dua_exact& 
   GeomPoint(g1, f, w, a);
   GeomPoint(g2, f, w + 3, b);
   for (int j = 0; j < 3; ++j) out[j] = b[j] - a[j];
-  const double length = std::sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
-  const double radii = x.geoms[g1 * kGxNcol + kGxRadius] + x.geoms[g2 * kGxNcol + kGxRadius];
-  if (!(length > 1e-9 * radii)) return false;
-  for (int j = 0; j < 3; ++j) out[j] /= length;
-  return true;
+  return Unit(out, x.geoms[g1 * kGxNcol + kGxRadius] + x.geoms[g2 * kGxNcol + kGxRadius]);
 }
 
 // Stores the witness points fromto (world) in w, each in its geom's frame at f.
@@ -515,7 +548,9 @@ double ExactTau(const double* pair, double* xrec, double* witness, double coarse
     if (best >= x.query_below) return best;
     // The pair alarms whatever direction MuJoCo would give: not asked (most of a query's cost on
     // meshes of thousands of hull vertices is GJK's climb from a cold start).
-    if (NoDirectionClears(witness, r0, r1, r2, spin, pair, xrec, f, settled_below)) {
+    double q[3], scale;
+    const int near = Nearest(witness, r0, r1, r2, xrec, x, f, settled_below, q, &scale);
+    if (near > 0 && NoDirectionClears(q, scale, r0, r1, r2, spin, pair, xrec, settled_below)) {
       return best;
     }
     // The latest query's witness points moved with their geoms: the direction between them now
@@ -526,6 +561,16 @@ double ExactTau(const double* pair, double* xrec, double* witness, double coarse
       best = std::max(best, AxisTau(m[0], m[1], m[2], mode, r0, r1, r2, spin, pair, xrec, x, f));
       if (best >= x.query_below) {
         xrec[kXN] = m[0], xrec[kXN + 1] = m[1], xrec[kXN + 2] = m[2];
+        return best;
+      }
+    }
+    // Between two hulls, the direction of the segment's nearest point: the one its bound allows
+    // the most separation along (a step of GJK from the two point pairs), tried likewise.
+    if (near == 2 &&
+        Unit(q, x.geoms[g1 * kGxNcol + kGxRadius] + x.geoms[g2 * kGxNcol + kGxRadius])) {
+      best = std::max(best, AxisTau(q[0], q[1], q[2], mode, r0, r1, r2, spin, pair, xrec, x, f));
+      if (best >= x.query_below) {
+        xrec[kXN] = q[0], xrec[kXN + 1] = q[1], xrec[kXN + 2] = q[2];
         return best;
       }
     }

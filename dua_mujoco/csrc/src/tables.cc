@@ -347,6 +347,27 @@ bool ReadExact(const mjModel* m, Reader* r, Tables* t) {
             })) {
     return false;
   }
+  // Each hull's vertices once (geoms of one mesh share them), in its graph's local order.
+  t->hull.clear();
+  t->hull_at.assign(m->ngeom, -1);
+  std::vector<int64_t> at_graph(t->graph.size(), -1);
+  for (int64_t id = 0; id < m->ngeom; ++id) {
+    const double adr = t->geoms[kGxNcol * id + kGxGraph];
+    if (adr < 0.0) continue;
+    int64_t& at = at_graph[static_cast<int64_t>(adr)];
+    if (at < 0) {
+      at = static_cast<int64_t>(t->hull.size()) / 3;
+      const int64_t nv = t->graph[static_cast<int64_t>(adr)];
+      const int32_t* global = t->graph.data() + static_cast<int64_t>(adr) + 2 + nv;
+      const float* verts =
+          m->mesh_vert + 3 * static_cast<int64_t>(t->geoms[kGxNcol * id + kGxVert]);
+      for (int64_t k = 0; k < nv; ++k) {
+        for (int c = 0; c < 3; ++c) t->hull.push_back(verts[3 * global[k] + c]);
+      }
+    }
+    t->hull_at[id] = at;
+  }
+  if (t->hull.empty()) t->hull.assign(3, 0.0);
   for (int64_t p = 0; p < u.npair(); ++p) {
     const double* rec = u.exact.data() + kXNcol * p;
     const double mode = rec[kXMode];

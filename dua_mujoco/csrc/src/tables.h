@@ -65,12 +65,15 @@ struct Tables {
   double timestep = 0.0;
   std::vector<double> spheres, shapes, events_rec, events_params;
   int64_t nbody_events = 0;
-  // The exact level: its per-geom records, thresholds, and the model's hull graphs it climbs
-  // (the vertices are read from the model at each step).
+  // The exact level: its per-geom records, thresholds, the model's hull graphs it climbs, and
+  // their vertices (dua_exact's hull and hull_at: the climb reads a vertex in one row, not
+  // through the graph's global ids into the model's float mesh_vert).
   bool exact = false;
   double exact_below = 0.0, query_below = 0.0;
   std::vector<double> geoms;
   std::vector<int32_t> graph;
+  std::vector<double> hull;
+  std::vector<int64_t> hull_at;
   // The pairs known from the start: every active pair, or (pruned) those held always, which
   // each run's own universe then grows from.
   Universe universe;

@@ -128,13 +128,16 @@ typedef struct dua_exact {
   // (npair, 6): the witness points of each pair's latest query, each in its geom's frame (first
   // geom, then second; NaN: none yet), written by the level.
   double* witness;
-  int64_t queries;       // mj_geomDistance calls so far
-  double below;          // seconds
-  double query_below;    // seconds
-  const float* verts;    // (nmeshvert, 3): the model's mesh_vert
-  const int32_t* graph;  // mesh_graph
-  const void* model;     // mjModel*
-  const void* data;      // mjData*
+  int64_t queries;     // mj_geomDistance calls so far
+  double below;        // seconds
+  double query_below;  // seconds
+  // The hulls' vertices in double, each hull's rows in its graph's local order: mesh geom g's
+  // vertex k at row hull_at[g] + k (-1: g has no hull graph).
+  const double* hull;
+  const int64_t* hull_at;  // (ngeom,)
+  const int32_t* graph;    // mesh_graph
+  const void* model;       // mjModel*
+  const void* data;        // mjData*
   // MuJoCo's contacts of data, indexed for the pairs the level skips (sorted geom-pair keys
   // min << 32 | max, and each key's least distance): built at the first look of a batch when
   // data has more than a few contacts; room for contact_room entries (0: always scan).
