@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 11
+#define DUA_ABI_VERSION 12
 
 // ------------------------------------------------------------------------------- urgency
 
