@@ -461,19 +461,30 @@ double BoxDeviation(const double* box, const double* pa, const double* ra, const
   return worst;
 }
 
-bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
-               const double* rb, double limit) {
-  // Equal poses (a replan that keeps to the plan it replaces, a plan that is the run): 0.
-  if (std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb)) return 0.0 <= limit;
-  // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
-  // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum
-  // (PoseDeviation's allowance is at most 8 ulps of `scale` below).
-  double dp = 0.0, dr = 0.0, qq = 0.0, scale = 0.0;
-  double qmax[3];
+BoxReach::BoxReach(const double* box) {
+  double qq = 0.0;
   for (int j = 0; j < 3; ++j) {
     qmax[j] = std::fabs(box[kBCenter + j]) + box[kBHalf + j];
     qq += qmax[j] * qmax[j];
   }
+  norm = std::sqrt(qq);
+}
+
+bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
+               const double* rb, double limit) {
+  // Equal poses (a replan that keeps to the plan it replaces, a plan that is the run): 0.
+  if (std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb)) return 0.0 <= limit;
+  return BoxWithin(box, BoxReach(box), pa, ra, pb, rb, limit);
+}
+
+bool BoxWithin(const double* box, const BoxReach& reach, const double* pa, const double* ra,
+               const double* pb, const double* rb, double limit) {
+  if (std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb)) return 0.0 <= limit;
+  // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
+  // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum
+  // (PoseDeviation's allowance is at most 8 ulps of `scale` below).
+  double dp = 0.0, dr = 0.0, scale = 0.0;
+  const double* qmax = reach.qmax;
   for (int i = 0; i < 3; ++i) {
     const double e = pa[i] - pb[i];
     dp += e * e;
@@ -485,7 +496,7 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
     }
   }
   const double slack = 16.0 * kEpsilon * scale;
-  const double bound = (std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9) + slack;
+  const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 1e-9) + slack;
   if (bound <= limit) return true;
   // The largest corner exactly, up to rounding, in dot products: with v the centre's deviation
   // and u_j the half extents' columns, |v + sum_j s_j u_j|^2 expands into |v|^2 + sum |u_j|^2 +
@@ -517,9 +528,9 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
       }
     }
   }
-  const double reach = std::sqrt(dot(v, v)) + std::sqrt(dot(u[0], u[0])) +
-                       std::sqrt(dot(u[1], u[1])) + std::sqrt(dot(u[2], u[2]));
-  const double corner = std::sqrt(worst + 32.0 * kEpsilon * reach * reach);
+  const double length = std::sqrt(dot(v, v)) + std::sqrt(dot(u[0], u[0])) +
+                        std::sqrt(dot(u[1], u[1])) + std::sqrt(dot(u[2], u[2]));
+  const double corner = std::sqrt(worst + 32.0 * kEpsilon * length * length);
   if (corner * (1.0 + 1e-9) + slack <= limit) return true;
   return BoxDeviation(box, pa, ra, pb, rb) <= limit;
 }
@@ -548,6 +559,12 @@ bool RelativePoseWithin(const double* box, const double* actual, const double* p
                         double limit) {
   // A plan that is the run: the same relative pose, bit for bit.
   if (std::equal(actual, actual + 12, planned)) return 0.0 <= limit;
+  return RelativePoseWithin(box, BoxReach(box), actual, planned, limit);
+}
+
+bool RelativePoseWithin(const double* box, const BoxReach& reach, const double* actual,
+                        const double* planned, double limit) {
+  if (std::equal(actual, actual + 12, planned)) return 0.0 <= limit;
   // Each relative entry is a sum of three products, rounded within a few ulps of the lengths
   // it combines (|pb - pa|, |qb - qa|: the relative positions' lengths; and 1 for a rotation's
   // entries, times the box's reach); MuJoCo's rotations are orthonormal to as many ulps. 1e-12
@@ -558,7 +575,7 @@ bool RelativePoseWithin(const double* box, const double* actual, const double* p
              box[kBHalf + i];
   }
   const double room = limit - 1e-12 * scale;
-  return room >= 0.0 && BoxWithin(box, actual, actual + 3, planned, planned + 3, room);
+  return room >= 0.0 && BoxWithin(box, reach, actual, actual + 3, planned, planned + 3, room);
 }
 
 namespace {

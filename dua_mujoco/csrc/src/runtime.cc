@@ -304,7 +304,12 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   // it, holds the new plan nested too (Lemma 8.5), and its knots are not checked.
   const Tables& t = *tables_;
   const Shadow* newest = shadows_.empty() ? nullptr : &shadows_.back();
-  std::vector<int64_t> open;  // rows of the violation check still nested, knot by knot
+  std::vector<int64_t> open;    // rows of the violation check still nested, knot by knot
+  std::vector<BoxReach> reach;  // each row's box's, for its checks at every knot
+  if (!shadows_.empty()) {
+    reach.reserve(static_cast<size_t>(t.nbody_events));
+    for (int64_t i = 0; i < t.nbody_events; ++i) reach.emplace_back(&t.events_rec[kBNcol * i]);
+  }
   for (auto it = shadows_.rbegin(); it != shadows_.rend(); ++it) {
     Shadow& sh = *it;
     const Plan& old = *sh.plan;
@@ -335,8 +340,8 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
         // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
         const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
         if (jn < 0 || !plan->holds(b) ||
-            !BoxWithin(box, plan->pos(jn, g), plan->mat(jn, g), old.pos(jo, g), old.mat(jo, g),
-                       room)) {
+            !BoxWithin(box, reach[i], plan->pos(jn, g), plan->mat(jn, g), old.pos(jo, g),
+                       old.mat(jo, g), room)) {
           sh.from[b] = time;
           sh.nested[b] = 0;
         } else {
@@ -559,6 +564,8 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const 
     }
     sh->rel_nested[r] = 1;  // until it departs
     const int64_t rn = plan.RelOf(a, b);
+    const double* box = old.rel_box(r);
+    const BoxReach reach(box);
     for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
       const double time = next + static_cast<double>(s) * h;
       const int64_t jo = jo0 + s, jn = jn0 + s < plan.nknot() ? jn0 + s : -1;
@@ -566,7 +573,7 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const 
       // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
       // same nesting as the bodies' (SetPlan), of the relative poses.
       if (jn < 0 || rn < 0 ||
-          !RelativePoseWithin(old.rel_box(r), plan.rel_pose(jn, rn), old.rel_pose(jo, r),
+          !RelativePoseWithin(box, reach, plan.rel_pose(jn, rn), old.rel_pose(jo, r),
                               old.rel_dev(jo, r) - plan.rel_dev(jn, rn))) {
         sh->rel_from[r] = time;
         sh->rel_nested[r] = 0;
