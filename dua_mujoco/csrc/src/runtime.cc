@@ -133,6 +133,7 @@ Runtime::Runtime(const Runtime& o)
       unboxed_(o.unboxed_),
       plan_geoms_(o.plan_geoms_),
       plan_breaks_(o.plan_breaks_),
+      plan_serial_(o.plan_serial_),
       read_lag_(o.read_lag_),
       forget_after_(o.forget_after_),
       gp_seen_(o.gp_seen_),
