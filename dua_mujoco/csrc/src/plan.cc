@@ -470,16 +470,39 @@ BoxReach::BoxReach(const double* box) {
   norm = std::sqrt(qq);
 }
 
+namespace {
+
+// Equal poses (a replan that keeps to the plan it replaces, a plan that is the run): 0.
+bool SamePose(const double* pa, const double* ra, const double* pb, const double* rb) {
+  return std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb);
+}
+
+// BoxWithin past its test of equal poses.
+bool BoxBound(const double* box, const BoxReach& reach, const double* pa, const double* ra,
+              const double* pb, const double* rb, double limit);
+
+// RelativePoseWithin past its test of equal poses.
+bool RelativeBound(const double* box, const BoxReach& reach, const double* actual,
+                   const double* planned, double limit);
+
+}  // namespace
+
 bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
                const double* rb, double limit) {
-  // Equal poses (a replan that keeps to the plan it replaces, a plan that is the run): 0.
-  if (std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb)) return 0.0 <= limit;
-  return BoxWithin(box, BoxReach(box), pa, ra, pb, rb, limit);
+  if (SamePose(pa, ra, pb, rb)) return 0.0 <= limit;
+  return BoxBound(box, BoxReach(box), pa, ra, pb, rb, limit);
 }
 
 bool BoxWithin(const double* box, const BoxReach& reach, const double* pa, const double* ra,
                const double* pb, const double* rb, double limit) {
-  if (std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb)) return 0.0 <= limit;
+  if (SamePose(pa, ra, pb, rb)) return 0.0 <= limit;
+  return BoxBound(box, reach, pa, ra, pb, rb, limit);
+}
+
+namespace {
+
+bool BoxBound(const double* box, const BoxReach& reach, const double* pa, const double* ra,
+              const double* pb, const double* rb, double limit) {
   // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
   // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum
   // (PoseDeviation's allowance is at most 8 ulps of `scale` below).
@@ -535,6 +558,24 @@ bool BoxWithin(const double* box, const BoxReach& reach, const double* pa, const
   return BoxDeviation(box, pa, ra, pb, rb) <= limit;
 }
 
+bool RelativeBound(const double* box, const BoxReach& reach, const double* actual,
+                   const double* planned, double limit) {
+  // Each relative entry is a sum of three products, rounded within a few ulps of the lengths
+  // it combines (|pb - pa|, |qb - qa|: the relative positions' lengths; and 1 for a rotation's
+  // entries, times the box's reach); MuJoCo's rotations are orthonormal to as many ulps. 1e-12
+  // of them is far above both and far below any distance a plan's gap resolves.
+  double scale = 1.0;
+  for (int i = 0; i < 3; ++i) {
+    scale += std::fabs(actual[i]) + std::fabs(planned[i]) + std::fabs(box[kBCenter + i]) +
+             box[kBHalf + i];
+  }
+  const double room = limit - 1e-12 * scale;
+  // The relative poses differ (RelativePoseWithin's test), so their rotation or position does.
+  return room >= 0.0 && BoxBound(box, reach, actual, actual + 3, planned, planned + 3, room);
+}
+
+}  // namespace
+
 void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
                   double* pos, double* mat) {
   const double d[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
@@ -559,23 +600,13 @@ bool RelativePoseWithin(const double* box, const double* actual, const double* p
                         double limit) {
   // A plan that is the run: the same relative pose, bit for bit.
   if (std::equal(actual, actual + 12, planned)) return 0.0 <= limit;
-  return RelativePoseWithin(box, BoxReach(box), actual, planned, limit);
+  return RelativeBound(box, BoxReach(box), actual, planned, limit);
 }
 
 bool RelativePoseWithin(const double* box, const BoxReach& reach, const double* actual,
                         const double* planned, double limit) {
   if (std::equal(actual, actual + 12, planned)) return 0.0 <= limit;
-  // Each relative entry is a sum of three products, rounded within a few ulps of the lengths
-  // it combines (|pb - pa|, |qb - qa|: the relative positions' lengths; and 1 for a rotation's
-  // entries, times the box's reach); MuJoCo's rotations are orthonormal to as many ulps. 1e-12
-  // of them is far above both and far below any distance a plan's gap resolves.
-  double scale = 1.0;
-  for (int i = 0; i < 3; ++i) {
-    scale += std::fabs(actual[i]) + std::fabs(planned[i]) + std::fabs(box[kBCenter + i]) +
-             box[kBHalf + i];
-  }
-  const double room = limit - 1e-12 * scale;
-  return room >= 0.0 && BoxWithin(box, reach, actual, actual + 3, planned, planned + 3, room);
+  return RelativeBound(box, reach, actual, planned, limit);
 }
 
 namespace {
