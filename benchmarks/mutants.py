@@ -417,7 +417,7 @@ MUTANTS: tuple[Mutant, ...] = (
         "plan-relative-nesting-passed-on-without-the-older-nesting",
         "dua_mujoco/csrc/src/runtime.cc",
         "    if (chain != nullptr && was) {\n",
-        "    if (chain != nullptr) {\n",
+        "    if (chain != nullptr && (was || true)) {\n",
         (
             "tests/test_plan_relative.py::test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_departures",
         ),
