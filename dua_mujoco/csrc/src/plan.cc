@@ -1045,10 +1045,13 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
 void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
   const int64_t nr = nrel();
   rel_box_.assign(nr, nullptr);
+  rel_reach_.clear();
+  rel_reach_.reserve(static_cast<size_t>(nr));
   rel_ga_.assign(nr, -1), rel_gb_.assign(nr, -1);
   rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : Buffer(12 * nknot_ * nr);
   for (int64_t r = 0; r < nr; ++r) {
     rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
+    rel_reach_.emplace_back(rel_box_[r]);
     rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
     rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
     const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
@@ -1070,7 +1073,7 @@ void Plan::CheckRelative(const double* pos, const double* mat, int64_t k, const 
     const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
     double actual[12];
     RelativePose(pos + 3 * ga, mat + 9 * ga, pos + 3 * gb, mat + 9 * gb, actual, actual + 3);
-    if (!RelativePoseWithin(rel_box_[r], actual, rel_pose(k, r), rel_dev(k, r))) {
+    if (!RelativePoseWithin(rel_box_[r], rel_reach_[r], actual, rel_pose(k, r), rel_dev(k, r))) {
       broken->push_back(r);
     }
   }

@@ -158,6 +158,7 @@ class Plan {
     return rel_pose_.data() + 12 * (nknot_ * r + k);
   }
   const double* rel_box(int64_t r) const { return rel_box_[r]; }
+  const BoxReach& rel_reach(int64_t r) const { return rel_reach_[r]; }
   // Relative pairs (Lemma 8.2d): nrel body pairs (rel_a(r), rel_b(r)), rel_a < rel_b, sorted;
   // rel_dev(k, r) the bound at knot k; RelOf the pair of two bodies (either order; -1: none).
   int64_t nrel() const { return static_cast<int64_t>(rel_key_.size()); }
@@ -230,6 +231,7 @@ class Plan {
   std::vector<double> rel_dev_;  // (nrel, nknot)
   Buffer rel_pose_;              // (nrel, nknot, 12) SetRelativeFrames
   std::vector<const double*> rel_box_;
+  std::vector<BoxReach> rel_reach_;  // (nrel,) each box's reach, for its checks
   std::vector<int64_t> rel_ga_, rel_gb_;
   std::vector<int64_t> planes_;  // plane geoms on bodies the plan holds
   std::vector<int> geom_body_;

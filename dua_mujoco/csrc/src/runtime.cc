@@ -566,7 +566,7 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const 
     sh->rel_nested[r] = 1;  // until it departs
     const int64_t rn = plan.RelOf(a, b);
     const double* box = old.rel_box(r);
-    const BoxReach reach(box);
+    const BoxReach& reach = old.rel_reach(r);
     for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
       const double time = next + static_cast<double>(s) * h;
       const int64_t jo = jo0 + s, jn = jn0 + s < plan.nknot() ? jn0 + s : -1;
