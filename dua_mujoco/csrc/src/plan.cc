@@ -1056,8 +1056,15 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
     rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
     const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
     double* out = rel_pose_.data() + 12 * nknot_ * r;
+    if (slot_[ga] < 0 || slot_[gb] < 0) {  // a frame not kept: not a number, as pos() reads it
+      std::fill(out, out + 12 * nknot_, std::nan(""));
+      continue;
+    }
+    // Knot by knot, the two frames' columns a knot's stride apart (pos(k, g), mat(k, g)).
+    const double *pa = pos(0, ga), *ra = mat(0, ga), *pb = pos(0, gb), *rb = mat(0, gb);
     for (int64_t k = 0; k < nknot_; ++k, out += 12) {
-      RelativePose(pos(k, ga), mat(k, ga), pos(k, gb), mat(k, gb), out, out + 3);
+      RelativePose(pa, ra, pb, rb, out, out + 3);
+      pa += 3 * nslot_, pb += 3 * nslot_, ra += 9 * nslot_, rb += 9 * nslot_;
     }
   }
 }
