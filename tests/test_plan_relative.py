@@ -290,6 +290,16 @@ def test_bad_relative_deviations_are_refused_by_name() -> None:
     p.set_plan(qpos, deviation=0.1, relative=([("l3", "l1")], 0.1))  # names, either order
 
 
+def _still_plan(m: mujoco.MjModel, d: mujoco.MjData, p: Predictor, dev: np.ndarray) -> None:
+    """A plan that holds the arm still (deviation ``dev``, 2 cm for the pair), 5 steps of it."""
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    p.set_plan(_roll(m, d, np.zeros((1, 3)), len(dev)), deviation=dev, relative=([_pair(m)], 0.02))
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+        p.step(d)
+
+
 def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure() -> None:
     """A replan that keeps the arm still for 20 steps and then folds the last link, with a
     tighter relative deviation (5 mm) than the plan it replaces (2 cm): the replaced plan's
@@ -299,12 +309,7 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
     m, d, p = _arm()
     n = 300
     dev = np.full((n, m.nbody), 0.3)  # the fold stays within every body's own deviation
-    mujoco.mj_step(m, d)
-    p.reset(d)
-    p.set_plan(_roll(m, d, np.zeros((1, 3)), n), deviation=dev, relative=([_pair(m)], 0.02))
-    for _ in range(5):
-        mujoco.mj_step(m, d)
-        p.step(d)
+    _still_plan(m, d, p, dev)
     fold = np.array([[0.0, 0.0, 0.0]] * 20 + [[0.0, 0.0, 0.6]])
     p.set_plan(_roll(m, d, fold, n), deviation=dev, relative=([_pair(m)], 0.005))
     breaks = []
@@ -331,12 +336,7 @@ def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_d
         dev = np.full((n, m.nbody), 0.3)
         wide = dev.copy()
         wide[:, m.body("l2").id] = 0.4
-        mujoco.mj_step(m, d)
-        p.reset(d)
-        p.set_plan(_roll(m, d, np.zeros((1, 3)), n), deviation=dev, relative=([_pair(m)], 0.02))
-        for _ in range(5):
-            mujoco.mj_step(m, d)
-            p.step(d)
+        _still_plan(m, d, p, dev)
         ctrl = np.concatenate([np.zeros((5, 3)), fold]) if late else np.zeros((1, 3))
         second = _roll(m, d, ctrl, n)
         p.set_plan(second, deviation=dev if late else wide, relative=([_pair(m)], 0.005))
