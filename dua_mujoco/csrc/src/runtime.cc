@@ -314,7 +314,10 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   for (auto it = shadows_.rbegin(); it != shadows_.rend(); ++it) {
     Shadow& sh = *it;
     const Plan& old = *sh.plan;
-    const Shadow* chain = &sh != newest && sh.nested_in == newest->serial ? newest : nullptr;
+    // (Its span within the newest's, as the lemma has it: spans end H + latency dt past their
+    // retirement, later for a later one, unless the schedule changed between.)
+    const bool link = &sh != newest && sh.nested_in == newest->serial && newest->until >= sh.until;
+    const Shadow* chain = link ? newest : nullptr;
     std::fill(sh.from.begin(), sh.from.end(), kInf);
     open.clear();
     for (int64_t i = 0; i < t.nbody_events; ++i) {
