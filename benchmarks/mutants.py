@@ -406,6 +406,46 @@ MUTANTS: tuple[Mutant, ...] = (
         "a new plan's pairs take the knots the old plan's walks ended at",
     ),
     Mutant(
+        "plan-nesting-passed-on-without-the-older-nesting",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "chain != nullptr && sh.nested[b] && chain->nested[b];",
+        "chain != nullptr && chain->nested[b];",
+        (
+            "tests/test_plan_holes.py::test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_departures",
+        ),
+        "a replan nested in the newest shadow is taken as nested in an older one it departs",
+    ),
+    Mutant(
+        "plan-nesting-passed-on-without-the-newest-nesting",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "chain != nullptr && sh.nested[b] && chain->nested[b];",
+        "chain != nullptr && sh.nested[b];",
+        (
+            "tests/test_plan_holes.py::test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_departures",
+        ),
+        "a replan that leaves the newest shadow is taken as nested in the older ones",
+    ),
+    Mutant(
+        "plan-relative-nesting-passed-on-without-the-older-nesting",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "    if (chain != nullptr && was) {\n",
+        "    if (chain != nullptr && (was || true)) {\n",
+        (
+            "tests/test_plan_relative.py::test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_departures",
+        ),
+        "a relative pair is taken as nested in an older shadow whose relative tube it departs",
+    ),
+    Mutant(
+        "plan-relative-nesting-passed-on-without-the-newest-nesting",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "if (rc >= 0 && chain->rel_nested[rc]) {",
+        "if (rc >= 0) {",
+        (
+            "tests/test_plan_relative.py::test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_departures",
+        ),
+        "a relative pair that leaves the newest shadow's tube is taken as nested in the older ones",
+    ),
+    Mutant(
         "plan-kinematics-ancestors-dropped",
         _PLAN,
         "  for (int b = nbody - 1; b > 0; --b) keep[m->body_parentid[b]] |= keep[b];\n",

@@ -232,6 +232,50 @@ def test_a_replaced_plan_is_checked_from_the_departure_set_plan_reports() -> Non
     assert p.plan_breaks == 3 + 1
 
 
+def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_departures() -> None:
+    """Three plans in turn (docs/theory.md, Lemma 8.5: nesting passes on). The second keeps the
+    arm where the first has it and lifts the ball 20 steps on: the first stays, a shadow the
+    ball departs. A third that keeps to the second is nested in it: the arm is nested in the
+    first without a check, and the ball's departure from the first is still found. A third that
+    frees the arm (a wide deviation) leaves both: an arm pushed within it breaks both."""
+    m = mujoco.MjModel.from_xml_string(ARM)
+    settled = mujoco.MjData(m)
+    for _ in range(50):
+        mujoco.mj_step(m, settled)
+    h, arm, ball = float(m.opt.timestep), m.body("arm").id, m.body("ball").id
+    z = m.jnt_qposadr[m.body("ball").jntadr[0]] + 2
+    for free in (False, True):
+        d = mujoco.MjData(m)
+        mujoco.mj_copyData(d, m, settled)
+        p = Predictor(m, accel=1.0, alarm_horizon=0.2)
+        p.reset(d)
+        p.set_plan(np.tile(d.qpos, (300, 1)), deviation=0.006)
+        for _ in range(5):
+            mujoco.mj_step(m, d)
+            p.step(d)
+        second = np.tile(d.qpos, (300, 1))
+        second[20:, z] += 0.1
+        departures = p.set_plan(second, deviation=0.005)
+        assert np.isinf(departures[arm])
+        assert float(d.time) + 15 * h < departures[ball] < float(d.time) + 25 * h
+        for _ in range(5):
+            mujoco.mj_step(m, d)
+            p.step(d)
+        deviation = np.full((295, m.nbody), 0.004)  # nested while the plans agree
+        deviation[:, arm] = 1.0 if free else 0.004
+        departures = p.set_plan(second[5:], deviation=deviation)
+        assert float(d.time) + 10 * h < departures[ball] < float(d.time) + 20 * h
+        if not free:
+            assert np.isinf(departures[arm])
+            continue
+        assert departures[arm] <= float(d.time) + 2 * h + 1e-9
+        d.qpos[0] += 0.3  # within the third plan, beyond the first two
+        mujoco.mj_forward(m, d)
+        mujoco.mj_step(m, d)
+        p.step(d)
+        assert p.plan_breaks == 2  # the second plan and the first
+
+
 # ------------------------------------------------------------------------------------------------
 # 3. reset drops the plan
 # ------------------------------------------------------------------------------------------------

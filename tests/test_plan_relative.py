@@ -292,6 +292,16 @@ def test_bad_relative_deviations_are_refused_by_name() -> None:
     p.set_plan(qpos, deviation=0.1, relative=([("l3", "l1")], 0.1))  # names, either order
 
 
+def _still_plan(m: mujoco.MjModel, d: mujoco.MjData, p: Predictor, dev: np.ndarray) -> None:
+    """A plan that holds the arm still (deviation ``dev``, 2 cm for the pair), 5 steps of it."""
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    p.set_plan(_roll(m, d, np.zeros((1, 3)), len(dev)), deviation=dev, relative=([_pair(m)], 0.02))
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+        p.step(d)
+
+
 def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure() -> None:
     """A replan that keeps the arm still for 20 steps and then folds the last link, with a
     tighter relative deviation (5 mm) than the plan it replaces (2 cm): the replaced plan's
@@ -301,12 +311,7 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
     m, d, p = _arm()
     n = 300
     dev = np.full((n, m.nbody), 0.3)  # the fold stays within every body's own deviation
-    mujoco.mj_step(m, d)
-    p.reset(d)
-    p.set_plan(_roll(m, d, np.zeros((1, 3)), n), deviation=dev, relative=([_pair(m)], 0.02))
-    for _ in range(5):
-        mujoco.mj_step(m, d)
-        p.step(d)
+    _still_plan(m, d, p, dev)
     fold = np.array([[0.0, 0.0, 0.0]] * 20 + [[0.0, 0.0, 0.6]])
     p.set_plan(_roll(m, d, fold, n), deviation=dev, relative=([_pair(m)], 0.005))
     breaks = []
@@ -318,3 +323,35 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
     assert breaks[20] == 0, breaks  # nested while the new plan keeps the old relative pose
     assert breaks[-1] == 1, breaks  # the replaced plan's relative pair, past the fold
     assert p._rt.plan_ok[list(_pair(m))].all()  # no body broke its own deviation
+
+
+def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_departures() -> None:
+    """Three plans in turn (docs/theory.md, Lemma 8.5), with a relative pair. A second that folds
+    the last link 20 steps on, then a third that keeps to it (nested in it: its shadow is
+    dropped): the first plan's relative pair still departs, and breaks once the run folds. Or a
+    second that keeps the arm (only a wider deviation of the middle link: the first stays) and
+    a third that folds: it leaves both relative tubes, and the run breaks both."""
+    n = 300
+    fold = np.array([[0.0, 0.0, 0.0]] * 15 + [[0.0, 0.0, 0.6]])
+    for late in (True, False):
+        m, d, p = _arm()
+        dev = np.full((n, m.nbody), 0.3)
+        wide = dev.copy()
+        wide[:, m.body("l2").id] = 0.4
+        _still_plan(m, d, p, dev)
+        ctrl = np.concatenate([np.zeros((5, 3)), fold]) if late else np.zeros((1, 3))
+        second = _roll(m, d, ctrl, n)
+        p.set_plan(second, deviation=dev if late else wide, relative=([_pair(m)], 0.005))
+        for k in range(5):
+            d.ctrl[:] = ctrl[min(k, len(ctrl) - 1)]
+            mujoco.mj_step(m, d)
+            p.step(d)
+        if late:
+            assert np.array_equal(_roll(m, d, fold, n - 5), second[5:])  # the same plan
+        p.set_plan(_roll(m, d, fold, n - 5), deviation=dev[5:], relative=([_pair(m)], 0.005))
+        for k in range(100):
+            d.ctrl[:] = fold[min(k, len(fold) - 1)]
+            mujoco.mj_step(m, d)
+            p.step(d)
+        assert p.plan_breaks == (1 if late else 2)
+        assert p._rt.plan_ok[list(_pair(m))].all()

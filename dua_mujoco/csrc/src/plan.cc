@@ -446,19 +446,53 @@ double BoxDeviation(const double* box, const double* pa, const double* ra, const
   return worst;
 }
 
-bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
-               const double* rb, double limit) {
-  // Equal poses (a replan that keeps to the plan it replaces, a plan that is the run): 0.
-  if (std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb)) return 0.0 <= limit;
-  // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
-  // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum
-  // (PoseDeviation's allowance is at most 8 ulps of `scale` below).
-  double dp = 0.0, dr = 0.0, qq = 0.0, scale = 0.0;
-  double qmax[3];
+BoxReach::BoxReach(const double* box) {
+  double qq = 0.0;
   for (int j = 0; j < 3; ++j) {
     qmax[j] = std::fabs(box[kBCenter + j]) + box[kBHalf + j];
     qq += qmax[j] * qmax[j];
   }
+  norm = std::sqrt(qq);
+}
+
+namespace {
+
+// Equal poses (a replan that keeps to the plan it replaces, a plan that is the run): 0.
+bool SamePose(const double* pa, const double* ra, const double* pb, const double* rb) {
+  return std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb);
+}
+
+// BoxWithin past its test of equal poses.
+bool BoxBound(const double* box, const BoxReach& reach, const double* pa, const double* ra,
+              const double* pb, const double* rb, double limit);
+
+// RelativePoseWithin past its test of equal poses.
+bool RelativeBound(const double* box, const BoxReach& reach, const double* actual,
+                   const double* planned, double limit);
+
+}  // namespace
+
+bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
+               const double* rb, double limit) {
+  if (SamePose(pa, ra, pb, rb)) return 0.0 <= limit;
+  return BoxBound(box, BoxReach(box), pa, ra, pb, rb, limit);
+}
+
+bool BoxWithin(const double* box, const BoxReach& reach, const double* pa, const double* ra,
+               const double* pb, const double* rb, double limit) {
+  if (SamePose(pa, ra, pb, rb)) return 0.0 <= limit;
+  return BoxBound(box, reach, pa, ra, pb, rb, limit);
+}
+
+namespace {
+
+bool BoxBound(const double* box, const BoxReach& reach, const double* pa, const double* ra,
+              const double* pb, const double* rb, double limit) {
+  // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
+  // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum
+  // (PoseDeviation's allowance is at most 8 ulps of `scale` below).
+  double dp = 0.0, dr = 0.0, scale = 0.0;
+  const double* qmax = reach.qmax;
   for (int i = 0; i < 3; ++i) {
     const double e = pa[i] - pb[i];
     dp += e * e;
@@ -470,7 +504,7 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
     }
   }
   const double slack = 16.0 * kEpsilon * scale;
-  const double bound = (std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9) + slack;
+  const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 1e-9) + slack;
   if (bound <= limit) return true;
   // The largest corner exactly, up to rounding, in dot products: with v the centre's deviation
   // and u_j the half extents' columns, |v + sum_j s_j u_j|^2 expands into |v|^2 + sum |u_j|^2 +
@@ -502,12 +536,30 @@ bool BoxWithin(const double* box, const double* pa, const double* ra, const doub
       }
     }
   }
-  const double reach = std::sqrt(dot(v, v)) + std::sqrt(dot(u[0], u[0])) +
-                       std::sqrt(dot(u[1], u[1])) + std::sqrt(dot(u[2], u[2]));
-  const double corner = std::sqrt(worst + 32.0 * kEpsilon * reach * reach);
+  const double length = std::sqrt(dot(v, v)) + std::sqrt(dot(u[0], u[0])) +
+                        std::sqrt(dot(u[1], u[1])) + std::sqrt(dot(u[2], u[2]));
+  const double corner = std::sqrt(worst + 32.0 * kEpsilon * length * length);
   if (corner * (1.0 + 1e-9) + slack <= limit) return true;
   return BoxDeviation(box, pa, ra, pb, rb) <= limit;
 }
+
+bool RelativeBound(const double* box, const BoxReach& reach, const double* actual,
+                   const double* planned, double limit) {
+  // Each relative entry is a sum of three products, rounded within a few ulps of the lengths
+  // it combines (|pb - pa|, |qb - qa|: the relative positions' lengths; and 1 for a rotation's
+  // entries, times the box's reach); MuJoCo's rotations are orthonormal to as many ulps. 1e-12
+  // of them is far above both and far below any distance a plan's gap resolves.
+  double scale = 1.0;
+  for (int i = 0; i < 3; ++i) {
+    scale += std::fabs(actual[i]) + std::fabs(planned[i]) + std::fabs(box[kBCenter + i]) +
+             box[kBHalf + i];
+  }
+  const double room = limit - 1e-12 * scale;
+  // The relative poses differ (RelativePoseWithin's test), so their rotation or position does.
+  return room >= 0.0 && BoxBound(box, reach, actual, actual + 3, planned, planned + 3, room);
+}
+
+}  // namespace
 
 void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
                   double* pos, double* mat) {
@@ -533,17 +585,13 @@ bool RelativePoseWithin(const double* box, const double* actual, const double* p
                         double limit) {
   // A plan that is the run: the same relative pose, bit for bit.
   if (std::equal(actual, actual + 12, planned)) return 0.0 <= limit;
-  // Each relative entry is a sum of three products, rounded within a few ulps of the lengths
-  // it combines (|pb - pa|, |qb - qa|: the relative positions' lengths; and 1 for a rotation's
-  // entries, times the box's reach); MuJoCo's rotations are orthonormal to as many ulps. 1e-12
-  // of them is far above both and far below any distance a plan's gap resolves.
-  double scale = 1.0;
-  for (int i = 0; i < 3; ++i) {
-    scale += std::fabs(actual[i]) + std::fabs(planned[i]) + std::fabs(box[kBCenter + i]) +
-             box[kBHalf + i];
-  }
-  const double room = limit - 1e-12 * scale;
-  return room >= 0.0 && BoxWithin(box, actual, actual + 3, planned, planned + 3, room);
+  return RelativeBound(box, BoxReach(box), actual, planned, limit);
+}
+
+bool RelativePoseWithin(const double* box, const BoxReach& reach, const double* actual,
+                        const double* planned, double limit) {
+  if (std::equal(actual, actual + 12, planned)) return 0.0 <= limit;
+  return RelativeBound(box, reach, actual, planned, limit);
 }
 
 namespace {
@@ -982,16 +1030,26 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
 void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
   const int64_t nr = nrel();
   rel_box_.assign(nr, nullptr);
+  rel_reach_.clear();
+  rel_reach_.reserve(static_cast<size_t>(nr));
   rel_ga_.assign(nr, -1), rel_gb_.assign(nr, -1);
   rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : Buffer(12 * nknot_ * nr);
   for (int64_t r = 0; r < nr; ++r) {
     rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
+    rel_reach_.emplace_back(rel_box_[r]);
     rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
     rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
     const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
     double* out = rel_pose_.data() + 12 * nknot_ * r;
+    if (slot_[ga] < 0 || slot_[gb] < 0) {  // a frame not kept: not a number, as pos() reads it
+      std::fill(out, out + 12 * nknot_, std::nan(""));
+      continue;
+    }
+    // Knot by knot, the two frames' columns a knot's stride apart (pos(k, g), mat(k, g)).
+    const double *pa = pos(0, ga), *ra = mat(0, ga), *pb = pos(0, gb), *rb = mat(0, gb);
     for (int64_t k = 0; k < nknot_; ++k, out += 12) {
-      RelativePose(pos(k, ga), mat(k, ga), pos(k, gb), mat(k, gb), out, out + 3);
+      RelativePose(pa, ra, pb, rb, out, out + 3);
+      pa += 3 * nslot_, pb += 3 * nslot_, ra += 9 * nslot_, rb += 9 * nslot_;
     }
   }
 }
@@ -1007,7 +1065,7 @@ void Plan::CheckRelative(const double* pos, const double* mat, int64_t k, const 
     const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
     double actual[12];
     RelativePose(pos + 3 * ga, mat + 9 * ga, pos + 3 * gb, mat + 9 * gb, actual, actual + 3);
-    if (!RelativePoseWithin(rel_box_[r], actual, rel_pose(k, r), rel_dev(k, r))) {
+    if (!RelativePoseWithin(rel_box_[r], rel_reach_[r], actual, rel_pose(k, r), rel_dev(k, r))) {
       broken->push_back(r);
     }
   }

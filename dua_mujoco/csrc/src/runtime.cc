@@ -133,6 +133,7 @@ Runtime::Runtime(const Runtime& o)
       unboxed_(o.unboxed_),
       plan_geoms_(o.plan_geoms_),
       plan_breaks_(o.plan_breaks_),
+      plan_serial_(o.plan_serial_),
       read_lag_(o.read_lag_),
       forget_after_(o.forget_after_),
       gp_seen_(o.gp_seen_),
@@ -299,16 +300,33 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   }
   Retire();
   // Each shadow's check of a body can wait for the first state in its span at which the new
-  // plan leaves its tube: until then the new plan's own check proves the body within it.
+  // plan leaves its tube: until then the new plan's own check proves the body within it. The
+  // newest shadow first: an older one that held its plan nested, where the new plan nests in
+  // it, holds the new plan nested too (Lemma 8.5), and its knots are not checked.
   const Tables& t = *tables_;
-  std::vector<int64_t> open;  // rows of the violation check still nested, knot by knot
-  for (Shadow& sh : shadows_) {
+  const Shadow* newest = shadows_.empty() ? nullptr : &shadows_.back();
+  std::vector<int64_t> open;    // rows of the violation check still nested, knot by knot
+  std::vector<BoxReach> reach;  // each row's box's, for its checks at every knot
+  if (!shadows_.empty()) {
+    reach.reserve(static_cast<size_t>(t.nbody_events));
+    for (int64_t i = 0; i < t.nbody_events; ++i) reach.emplace_back(&t.events_rec[kBNcol * i]);
+  }
+  for (auto it = shadows_.rbegin(); it != shadows_.rend(); ++it) {
+    Shadow& sh = *it;
     const Plan& old = *sh.plan;
+    // (Its span within the newest's, as the lemma has it: spans end H + latency dt past their
+    // retirement, later for a later one, unless the schedule changed between.)
+    const bool link = &sh != newest && sh.nested_in == newest->serial && newest->until >= sh.until;
+    const Shadow* chain = link ? newest : nullptr;
     std::fill(sh.from.begin(), sh.from.end(), kInf);
     open.clear();
     for (int64_t i = 0; i < t.nbody_events; ++i) {
       const auto b = static_cast<int64_t>(t.events_rec[kBNcol * i + kBBody]);
-      if (old.holds(b) && sh.ok[b]) open.push_back(i);
+      const bool held = old.holds(b) && sh.ok[b];
+      const bool chained = chain != nullptr && sh.nested[b] && chain->nested[b];
+      // Nested without a check, or checked: nested until it departs (marked below).
+      sh.nested[b] = held;
+      if (held && !chained) open.push_back(i);
     }
     // Knot by knot, every body still nested at once (a knot's poses are read together), each
     // body until its first departure.
@@ -326,17 +344,19 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
         // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
         const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
         if (jn < 0 || !plan->holds(b) ||
-            !BoxWithin(box, plan->pos(jn, g), plan->mat(jn, g), old.pos(jo, g), old.mat(jo, g),
-                       room)) {
+            !BoxWithin(box, reach[i], plan->pos(jn, g), plan->mat(jn, g), old.pos(jo, g),
+                       old.mat(jo, g), room)) {
           sh.from[b] = time;
+          sh.nested[b] = 0;
         } else {
           open[kept++] = i;
         }
       }
       open.resize(kept);
     }
-    RelativeDepartures(*plan, next, h, &sh);
+    RelativeDepartures(*plan, next, h, chain, &sh);
   }
+  for (Shadow& sh : shadows_) sh.nested_in = plan_serial_ + 1;
   if (departures != nullptr) {
     std::fill(departures, departures + m->nbody, kInf);
     for (const Shadow& sh : shadows_) {
@@ -359,6 +379,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
                                 }),
                  shadows_.end());
   plan_ = std::move(plan);
+  ++plan_serial_;
   for (int b = 0; b < m->nbody; ++b) plan_ok_[b] = plan_->holds(b) ? 1 : 0;
   rel_ok_.assign(plan_->nrel(), 1);
   args_.plan.rel_ok = rel_ok_.data();
@@ -378,7 +399,8 @@ void Runtime::Retire() {
   shadows_.push_back({plan_, plan_ok_, next + horizon + static_cast<double>(spec.latency) * spec.dt,
                       std::vector<double>(nbody, std::nan("")), std::vector<double>(nbody, -kInf),
                       rel_ok_, std::vector<double>(rel_ok_.size(), std::nan("")),
-                      std::vector<double>(rel_ok_.size(), -kInf)});
+                      std::vector<double>(rel_ok_.size(), -kInf), plan_serial_, -1,
+                      std::vector<uint8_t>(nbody, 0), std::vector<uint8_t>(rel_ok_.size(), 0)});
 }
 
 void Runtime::ClearPlan() {
@@ -527,14 +549,27 @@ void Runtime::ShadowOpenRelative(const Shadow& sh, double now, int64_t k, double
   }
 }
 
-void Runtime::RelativeDepartures(const Plan& plan, double next, double h, Shadow* sh) const {
+void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const Shadow* chain,
+                                 Shadow* sh) const {
   const Plan& old = *sh->plan;
   sh->rel_from.assign(old.nrel(), kInf);
   const int64_t jo0 = old.KnotOf(next), jn0 = plan.KnotOf(next);
   for (int64_t r = 0; r < old.nrel(); ++r) {
     const int64_t a = old.rel_a(r), b = old.rel_b(r);
+    const bool was = sh->rel_nested[r] != 0;
+    sh->rel_nested[r] = 0;
     if (!sh->rel_ok[r] || !sh->ok[a] || !sh->ok[b]) continue;  // the shadow checks it no more
+    if (chain != nullptr && was) {
+      const int64_t rc = chain->plan->RelOf(a, b);
+      if (rc >= 0 && chain->rel_nested[rc]) {  // nested in a plan nested in this one
+        sh->rel_nested[r] = 1;
+        continue;
+      }
+    }
+    sh->rel_nested[r] = 1;  // until it departs
     const int64_t rn = plan.RelOf(a, b);
+    const double* box = old.rel_box(r);
+    const BoxReach& reach = old.rel_reach(r);
     for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
       const double time = next + static_cast<double>(s) * h;
       const int64_t jo = jo0 + s, jn = jn0 + s < plan.nknot() ? jn0 + s : -1;
@@ -542,9 +577,10 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, Shadow
       // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
       // same nesting as the bodies' (SetPlan), of the relative poses.
       if (jn < 0 || rn < 0 ||
-          !RelativePoseWithin(old.rel_box(r), plan.rel_pose(jn, rn), old.rel_pose(jo, r),
+          !RelativePoseWithin(box, reach, plan.rel_pose(jn, rn), old.rel_pose(jo, r),
                               old.rel_dev(jo, r) - plan.rel_dev(jn, rn))) {
         sh->rel_from[r] = time;
+        sh->rel_nested[r] = 0;
         break;
       }
     }

@@ -316,7 +316,10 @@ class DUA_API Runtime {
                           std::vector<uint8_t>* open) const;
   // The first state time in shadow sh's span, from `next`, at which `plan` leaves its relative
   // tubes, into sh.rel_from (SetPlan).
-  void RelativeDepartures(const Plan& plan, double next, double h, Shadow* sh) const;
+  // Pairs nested in both `chain` (the newest shadow, checked first; null: none) and sh's record
+  // of chain's plan are nested without a check (Lemma 8.5).
+  void RelativeDepartures(const Plan& plan, double next, double h, const Shadow* chain,
+                          Shadow* sh) const;
   // The plan (if any) becomes a shadow over the span its verdicts cover, the next step's.
   void Retire();
   void MakeBodyDue(const mjModel* m, int64_t body, int64_t n);
@@ -396,6 +399,13 @@ class DUA_API Runtime {
     // (as `from`, for the relative pose of the pair's second body in its first's frame).
     std::vector<uint8_t> rel_ok;
     std::vector<double> rel_broken_at, rel_from;
+    // Its plan's number (plan_serial_ when it was set), and the number of the plan it was last
+    // found to hold nested (-1: none): per body and relative pair, whether that plan never
+    // leaves this one's tube over the rest of its span (found by a check, or by two nestings in
+    // turn, docs/theory.md, Lemma 8.5). A replan nested in the newest shadow is then nested in
+    // the older ones where they nested that shadow's plan, without checking their knots.
+    int64_t serial = -1, nested_in = -1;
+    std::vector<uint8_t> nested, rel_nested;
   };
   std::vector<Shadow> shadows_;
   std::vector<int64_t> pending_due_;  // bodies broken between steps: pairs due at the next
@@ -407,6 +417,7 @@ class DUA_API Runtime {
   std::vector<int64_t> plan_geoms_;   // the geoms a plan's poses are read for (Plan::Build)
   std::shared_ptr<PlanPool> plan_pool_ = std::make_shared<PlanPool>();  // (a copy: its own)
   int64_t plan_breaks_ = 0;
+  int64_t plan_serial_ = 0;  // plans set so far (Shadow::serial)
   int read_lag_ = 1;
   // Forgetting (issue 35): each learnt geom pair's latest rebuild held, and the counts.
   int64_t forget_after_ = -1;
