@@ -233,7 +233,7 @@ def test_a_replaced_plan_is_checked_from_the_departure_set_plan_reports() -> Non
 
 
 def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_departures() -> None:
-    """Three plans in turn (docs/theory.md, Lemma 8.5: nesting passes on). The second keeps the
+    """Three plans in turn (docs/theory.md, Lemma 8.6: nesting passes on). The second keeps the
     arm where the first has it and lifts the ball 20 steps on: the first stays, a shadow the
     ball departs. A third that keeps to the second is nested in it: the arm is nested in the
     first without a check, and the ball's departure from the first is still found. A third that

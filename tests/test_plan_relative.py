@@ -326,7 +326,7 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
 
 
 def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_departures() -> None:
-    """Three plans in turn (docs/theory.md, Lemma 8.5), with a relative pair. A second that folds
+    """Three plans in turn (docs/theory.md, Lemma 8.6), with a relative pair. A second that folds
     the last link 20 steps on, then a third that keeps to it (nested in it: its shadow is
     dropped): the first plan's relative pair still departs, and breaks once the run folds. Or a
     second that keeps the arm (only a wider deviation of the middle link: the first stays) and

@@ -302,7 +302,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   // Each shadow's check of a body can wait for the first state in its span at which the new
   // plan leaves its tube: until then the new plan's own check proves the body within it. The
   // newest shadow first: an older one that held its plan nested, where the new plan nests in
-  // it, holds the new plan nested too (Lemma 8.5), and its knots are not checked.
+  // it, holds the new plan nested too (Lemma 8.6), and its knots are not checked.
   const Tables& t = *tables_;
   const Shadow* newest = shadows_.empty() ? nullptr : &shadows_.back();
   std::vector<int64_t> open;    // rows of the violation check still nested, knot by knot

@@ -317,7 +317,7 @@ class DUA_API Runtime {
   // The first state time in shadow sh's span, from `next`, at which `plan` leaves its relative
   // tubes, into sh.rel_from (SetPlan).
   // Pairs nested in both `chain` (the newest shadow, checked first; null: none) and sh's record
-  // of chain's plan are nested without a check (Lemma 8.5).
+  // of chain's plan are nested without a check (Lemma 8.6).
   void RelativeDepartures(const Plan& plan, double next, double h, const Shadow* chain,
                           Shadow* sh) const;
   // The plan (if any) becomes a shadow over the span its verdicts cover, the next step's.
@@ -402,7 +402,7 @@ class DUA_API Runtime {
     // Its plan's number (plan_serial_ when it was set), and the number of the plan it was last
     // found to hold nested (-1: none): per body and relative pair, whether that plan never
     // leaves this one's tube over the rest of its span (found by a check, or by two nestings in
-    // turn, docs/theory.md, Lemma 8.5). A replan nested in the newest shadow is then nested in
+    // turn, docs/theory.md, Lemma 8.6). A replan nested in the newest shadow is then nested in
     // the older ones where they nested that shadow's plan, without checking their knots.
     int64_t serial = -1, nested_in = -1;
     std::vector<uint8_t> nested, rel_nested;
