@@ -2,33 +2,39 @@
 it back (docs/shield.md, "mobile_cell: where the progress goes").
 
     python benchmarks/shield_evade.py --episodes 30                     # seeds 0-29
-    python benchmarks/shield_evade.py --layers none shield evade p5 stop0.6 --episodes 30
+    python benchmarks/shield_evade.py --layers none shield evade0.9 p5 stop0.6 --episodes 30
+    python benchmarks/shield_evade.py --layers none evade0.9 --first-seed 30 --episodes 304 \
+        --jsonl b.jsonl                                             # each episode as it ends
+    python benchmarks/shield_evade.py --merge a.jsonl b.jsonl       # the tables of runs' parts
 
 Layers, every one on the same seeds, all in one run (A/B): ``none``; ``shield`` (the brake, the
 benchmark's shield); ``evade`` (the same shield with the evasive failsafe policy of
-``dua_mujoco/experiments/shield/evade.py``, ``--gain``); ``p5`` (the brake, a control period of
-5 physics steps instead of 10: the task still updates every 10); ``stop0.6`` (the brake,
-``stop_time`` 0.6 s instead of 0.45). Besides ``benchmarks/shield.py``'s table, each layer's
-physics steps split by what the base did: the intended controls applied (*passing*, and the
-base's mean planar speed then), the failsafe with the base moving (*braking*), the failsafe with
-the base at rest (*waiting*: touched by a protected body at the step, or not); *stops*: passing
--> failsafe changes, and the base's mean speed at them; the shield's broken-hypothesis counts
-(``plan_breaks`` etc., all must be 0 for the guarantee to hold) and the evasive policy's run
-calls on a state it never rolled out (``misses``).
+``dua_mujoco/experiments/shield/evade.py``; ``evade0.9``: its gain 0.9, ``evade``: ``--gain``);
+``p5`` (the brake, a control period of 5 physics steps instead of 10: the task still updates
+every 10); ``stop0.6`` (the brake, ``stop_time`` 0.6 s instead of 0.45). Besides
+``benchmarks/shield.py``'s table, each layer's physics steps split by what the base did: the
+intended controls applied (*passing*, and the base's mean planar speed then), or the failsafe's
+with the base moving or at rest (over 1 cm/s or not), touching a protected body or not; *stops*:
+passing -> failsafe changes, the base's mean speed at them, and how many reached rest; the
+shield's broken-hypothesis counts (a push breaks the plan: they count where the guarantee was
+lost, and why) and the evasive policy's run calls on a moving state it never rolled out
+(``misses``; in brackets those at steps the shield guaranteed, which must be 0).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import multiprocessing
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.experiments.report import table
+from dua_mujoco.experiments.report import jsonable, table
 from dua_mujoco.experiments.shield.bench import peer_layer, shield_layer, summary
 from dua_mujoco.experiments.shield.episodes import EpisodeResult, Layer, SceneSetup, run_episode
 from dua_mujoco.experiments.shield.evade import Evade
@@ -182,22 +188,37 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--gain", type=float, default=0.5, help="the evasive policy's gain")
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--jsonl", type=Path, help="append each episode's counts here")
+    parser.add_argument("--merge", nargs="+", type=Path, help="the tables of these --jsonl")
     args = parser.parse_args()
-    _ARGS.update(layers=args.layers, gain=args.gain)
-    seeds = list(range(args.first_seed, args.first_seed + args.episodes))
     start = time.perf_counter()
-    run: Callable[[int], list] = work
-    if args.jobs <= 1:
-        rows = [x for seed in seeds for x in run(seed)]
+    if args.merge:
+        rows = [
+            (EpisodeResult(**r["result"]), r["extra"])
+            for path in args.merge
+            for r in map(json.loads, path.read_text().splitlines())
+        ]
+        args.layers = list(dict.fromkeys(r.layer for r, _ in rows))
+        seeds = sorted({r.seed for r, _ in rows})
     else:
+        _ARGS.update(layers=args.layers, gain=args.gain)
+        seeds = list(range(args.first_seed, args.first_seed + args.episodes))
+        run: Callable[[int], list] = work
+        rows = []
         with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
-            rows = [x for chunk in pool.imap_unordered(run, seeds) for x in chunk]
+            for chunk in pool.imap_unordered(run, seeds):
+                rows += chunk
+                if args.jsonl:  # as they come: a long run's part is a table too
+                    with args.jsonl.open("a") as out:
+                        for r, e in chunk:
+                            out.write(json.dumps(jsonable({"result": r.as_dict(), "extra": e})))
+                            out.write("\n")
     rows.sort(key=lambda x: (x[0].layer, x[0].seed))
     print(summary([r for r, _ in rows]))
     print()
     print(extras(rows, args.layers))
     print(
-        f"\n{len(rows)} episodes ({args.episodes} a layer, seeds {seeds[0]}-{seeds[-1]}), "
+        f"\n{len(rows)} episodes ({len(seeds)} a layer, seeds {seeds[0]}-{seeds[-1]}), "
         f"{time.perf_counter() - start:.0f} s on {args.jobs} processes"
     )
 

@@ -23,6 +23,8 @@ the base ((S5)).
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 import numpy.typing as npt
@@ -65,12 +67,12 @@ class Evade:
         self.model = model
         self.brake = brake
         self.mocap = np.asarray(model.body_mocapid)[np.asarray(obstacles, dtype=np.int64)]
-        self.radius = np.asarray(radius, dtype=np.float64)
-        self.room = np.asarray(room, dtype=np.float64)
+        self.radius = [float(r) for r in np.asarray(radius, dtype=np.float64).reshape(-1)]
+        self.room = tuple(float(r) for r in np.asarray(room, dtype=np.float64).reshape(2))
         self.gain, self.still = gain, still
         self.q = np.asarray([model.jnt_qposadr[model.dof_jntid[i]] for i in brake.dofs])
         self.v = np.asarray(brake.dofs)
-        self.seen: dict[bytes, tuple[float, np.ndarray]] = {}
+        self.seen: dict[bytes, tuple[float, list[list[float]]]] = {}
         self.misses = 0
 
     @classmethod
@@ -89,10 +91,12 @@ class Evade:
     def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         """The failsafe's controls at ``data``: ``(nu,)``."""
         vel = data.qvel[self.v]
-        s = float(np.max(np.abs(vel[:2])))
+        vx, vy = float(vel[0]), float(vel[1])
+        s = max(abs(vx), abs(vy))
         if s <= self.still:
             return self.brake(model, data)
-        key = data.qpos[self.q].tobytes() + vel.tobytes()
+        pos = data.qpos[self.q]
+        key = pos.tobytes() + vel.tobytes()
         if model is self.model:  # the run: the obstacles as the rollout saw them
             hit = self.seen.get(key)
             if hit is None:
@@ -100,26 +104,31 @@ class Evade:
                 return self.brake(model, data)
             where = hit[1]
         else:  # a rollout: its mocap bodies stand where the state read put them
-            where = data.mocap_pos[self.mocap, :2].copy()
+            where = data.mocap_pos[self.mocap, :2].tolist()
             self.seen[key] = (float(data.time), where)
             if len(self.seen) > 200_000:  # plans last at most a period and a stop
                 old = float(data.time) - 2.0
                 self.seen = {k: v for k, v in self.seen.items() if v[0] >= old}
-        away = self.away(data.qpos[self.q[:2]], where)
+        ux, uy = self.away(float(pos[0]), float(pos[1]), where)
         target = np.zeros(self.v.size)
-        target[:2] = self.gain * s * away
-        return self.brake.toward(data, target)
+        target[0], target[1] = self.gain * s * ux, self.gain * s * uy
+        return self.brake.native.compute(data, target)
 
-    def away(self, pos: np.ndarray, where: np.ndarray) -> np.ndarray:
-        """``(2,)`` the direction away from the obstacles at ``where`` (``(k, 2)``) and the
-        walls, each pushing by the inverse square of its clearance, its larger component 1."""
-        gap = pos - where
-        dist = np.linalg.norm(gap, axis=1)
-        clear = np.maximum(dist - self.radius, 0.05)
-        push = np.sum(gap / dist[:, None] / clear[:, None] ** 2, axis=0)
-        for axis in range(2):
-            lo = max(pos[axis] + self.room[axis], 0.05)
-            hi = max(self.room[axis] - pos[axis], 0.05)
-            push[axis] += 1.0 / lo**2 - 1.0 / hi**2
-        top = float(np.max(np.abs(push)))
-        return push / top if top > 0.0 else push
+    def away(self, x: float, y: float, where: list[list[float]]) -> tuple[float, float]:
+        """The direction away from the obstacles at ``where`` (``k`` points ``[x, y]``) and the
+        walls from ``(x, y)``, each pushing by the inverse square of its clearance, its larger
+        component 1 (plain floats: a handful of obstacles, called at every rolled step)."""
+        px = py = 0.0
+        for (ox, oy), r in zip(where, self.radius, strict=True):
+            gx, gy = x - ox, y - oy
+            dist = math.sqrt(gx * gx + gy * gy)
+            if dist == 0.0:
+                continue
+            clear = max(dist - r, 0.05)
+            w = 1.0 / (dist * clear * clear)
+            px, py = px + gx * w, py + gy * w
+        (wx, wy) = self.room
+        px += 1.0 / max(x + wx, 0.05) ** 2 - 1.0 / max(wx - x, 0.05) ** 2
+        py += 1.0 / max(y + wy, 0.05) ** 2 - 1.0 / max(wy - y, 0.05) ** 2
+        top = max(abs(px), abs(py))
+        return (px / top, py / top) if top > 0.0 else (0.0, 0.0)
