@@ -186,7 +186,7 @@ def main() -> None:
     parser.add_argument("--layers", nargs="+", default=["none", "shield", "evade"])
     parser.add_argument("--episodes", type=int, default=30)
     parser.add_argument("--first-seed", type=int, default=0)
-    parser.add_argument("--gain", type=float, default=0.5, help="the evasive policy's gain")
+    parser.add_argument("--gain", type=float, default=0.9, help="the evasive policy's gain")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--jsonl", type=Path, help="append each episode's counts here")
     parser.add_argument("--merge", nargs="+", type=Path, help="the tables of these --jsonl")

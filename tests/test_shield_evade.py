@@ -6,6 +6,8 @@ shield's check at every step)."""
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 import pytest
@@ -70,3 +72,31 @@ def test_a_failsafe_steering_by_the_obstacles_now_leaves_its_plans() -> None:
         if untouched:
             breaks += counts["plan_breaks"]
     assert breaks > 0
+
+
+def test_the_evasive_failsafe_steers_away_while_it_brakes_and_is_the_brake_at_rest() -> None:
+    """Driving along +x with a walker ahead on +y, the policy brakes x as the brake does and
+    pushes y away from the walker (the brake leaves y alone); at rest it is the brake."""
+    setup = SceneSetup.of("mobile_cell")
+    model = setup.model
+    data = mujoco.MjData(model)
+    setup.scene.episode(model, data, 0)
+    policy = Evade.of(setup)
+    walker = model.body("walker0").mocapid[0]
+    data.mocap_pos[:, :2] = [[2.5, 2.0], [-2.5, 2.0], [-2.5, -2.0], [2.5, -2.0]]
+    data.mocap_pos[walker, :2] = [0.4, 0.6]
+    data.qpos[:3] = 0.0
+    data.qvel[:3] = [0.8, 0.0, 0.0]
+    mujoco.mj_forward(model, data)
+    rolled = copy.deepcopy(model)  # as the shield's rollouts call it
+    ux, uy = policy.away(0.0, 0.0, data.mocap_pos[policy.mocap, :2].tolist())
+    assert uy == -1.0 and ux < 0.0
+    ctrl, brake = policy(rolled, data), policy.brake(rolled, data)
+    x, y = policy.brake.native.actuators[:2]
+    assert ctrl[x] == pytest.approx(brake[x])  # x at the brake's force limit either way
+    assert brake[y] == pytest.approx(0.0, abs=1e-9) and ctrl[y] < -0.1
+    # The run at the same state steers by what the rollout saw, wherever the walker is now.
+    data.mocap_pos[walker, :2] = [-0.4, -0.6]
+    np.testing.assert_array_equal(policy(model, data), ctrl)
+    data.qvel[:3] = [0.005, -0.005, 0.0]
+    np.testing.assert_array_equal(policy(rolled, data), policy.brake(rolled, data))

@@ -59,7 +59,7 @@ class Evade:
         radius: npt.ArrayLike,
         room: npt.ArrayLike,
         *,
-        gain: float = 0.5,
+        gain: float = 0.9,
         still: float = 0.01,
     ) -> None:
         if not 0.0 <= gain < 1.0:
@@ -76,7 +76,7 @@ class Evade:
         self.misses = 0
 
     @classmethod
-    def of(cls, setup: SceneSetup, *, gain: float = 0.5) -> Evade:
+    def of(cls, setup: SceneSetup, *, gain: float = 0.9) -> Evade:
         """The policy for ``mobile_cell``'s setup: its mocap walkers and carts (cylinders), and
         the inner faces of its walls ``wall_e`` and ``wall_n`` (the room is symmetric)."""
         model = setup.model
