@@ -62,10 +62,11 @@ def peer_layer(setup: SceneSetup, name: str) -> Layer:
     raise ValueError(f"unknown layer {name!r}; known: {', '.join(PEERS)}")
 
 
-def shield_layer(setup: SceneSetup, name: str) -> Shield:
+def shield_layer(setup: SceneSetup, name: str, **options: object) -> Shield:
     """The shield ``name`` (one of :data:`SHIELDS`) for a scene: its protected bodies, every
     moving body's declared bounds (the others' and the robot's, ``ROBOT_BOUNDS``), its control
-    period, and its brake's stop time."""
+    period, and its brake's stop time; ``options`` override :class:`Shield`'s arguments (a
+    failsafe policy, another period or stop time)."""
     if name not in SHIELDS:
         raise ValueError(f"unknown shield {name!r}; known: {', '.join(SHIELDS)}")
     model = setup.model
@@ -75,15 +76,15 @@ def shield_layer(setup: SceneSetup, name: str) -> Shield:
     speed = {names[b]: v.speed for b, v in setup.bounds.items()} | {"*": robot.speed}
     delta = {names[b]: v.delta or 0.0 for b, v in setup.bounds.items()} | {"*": 0.0}
     bounds = MotionBounds.declare(model, accel, speed=speed, vel_uncertainty=delta)
-    return Shield(
-        model,
-        protect=list(setup.scene.protect),
-        robot=[model.body(int(b)).name for b in setup.brake.bodies],
-        period=setup.scene.period,
-        accel=bounds,
-        stop_time=setup.scene.stop_time,
-        screen=name == "shield",
-    )
+    args: dict = {
+        "protect": list(setup.scene.protect),
+        "robot": [model.body(int(b)).name for b in setup.brake.bodies],
+        "period": setup.scene.period,
+        "accel": bounds,
+        "stop_time": setup.scene.stop_time,
+        "screen": name == "shield",
+    }
+    return Shield(model, **(args | options))
 
 
 def any_layer(setup: SceneSetup, name: str) -> Layer:
