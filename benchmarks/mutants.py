@@ -71,9 +71,6 @@ _INTERNAL = "dua_mujoco/csrc/src/internal.h"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
-_TWO_HULLS = (
-    "tests/test_exact.py::test_between_two_hulls_a_query_not_made_could_not_have_cleared_the_alarm"
-)
 _MADE_DUE = (
     "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
 )
@@ -158,14 +155,6 @@ MUTANTS: tuple[Mutant, ...] = (
         ),
         "a pair MuJoCo lists beyond its contact distance is not looked at (a looser skip is "
         "safe, but the test pins the rule)",
-    ),
-    Mutant(
-        "two-point-bound-second-pair-still",
-        _STEP,
-        "w2[j] = b[j] - a[j] + r[j];",
-        "w2[j] = b[j] - a[j];",
-        (_TWO_HULLS,),
-        "the hull vertices' pair is read without the pair's motion over the horizon",
     ),
     Mutant(
         "pair-accel-one-body",
@@ -319,8 +308,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-rotation-dropped",
         _PLAN,
-        "(std::sqrt(dp) + std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9)",
-        "(std::sqrt(dp) + 0.0 * std::sqrt(dr) * std::sqrt(qq)) * (1.0 + 1e-9)",
+        "(std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 1e-9)",
+        "(std::sqrt(dp) + 0.0 * std::sqrt(dr) * reach.norm) * (1.0 + 1e-9)",
         ("tests/test_flightplan.py::test_a_turn_alone_past_the_deviation_breaks_its_plan",),
         "a body that turns away from its planned pose without moving its origin keeps the plan",
     ),
@@ -347,9 +336,10 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-relative-not-checked",
         _PLAN,
-        "    if (!RelativePoseWithin(rel_box_[r], actual, rel_pose(k, r), rel_dev(k, r))) {",
-        "    if (false &&\n"
-        "!RelativePoseWithin(rel_box_[r], actual, rel_pose(k, r), rel_dev(k, r))) {",
+        "    if (!RelativePoseWithin(rel_box_[r], rel_reach_[r], actual, rel_pose(k, r), "
+        "rel_dev(k, r))) {",
+        "    if (false && !RelativePoseWithin(rel_box_[r], rel_reach_[r], actual, rel_pose(k, r),\n"
+        "                                     rel_dev(k, r))) {",
         (
             f"{_RELATIVE}::test_a_fold_beyond_the_relative_deviation_is_a_plan_break",
             f"{_RELATIVE}::test_the_monitor_labels_an_onset_after_a_relative_break_as_not_held",
