@@ -43,7 +43,13 @@ def tau_terrain(table: Annotated[NDArray[numpy.float64], dict(order='C', device=
     """
 
 def deadline_interval(tau: float, dt: float, latency: int, max_interval: int, extra: float = 0.0) -> int: ...
-def grid_tau(tau: float, h: float, period: int) -> float: ...
+
+def grid_tau(tau: float, h: float, period: int) -> float:
+    """
+    A lower bound tau on the time to the first state in contact, counted in whole physics
+    steps of h (rounded up) and put on the grid of `period` steps, as the step does at
+    period > 1 (so that tests can hold it to the exact ceiling).
+    """
 
 def exceeds12(q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], bound: float) -> bool: ...
 

@@ -368,13 +368,15 @@ def test_a_landing_between_predictor_steps_is_flagged_the_horizon_ahead(
     period: int, latency: int
 ) -> None:
     """Theorem 3 at ``period > 1`` on the motion bounds (docs/theory.md, section 8): every tau
-    the schedule acts on is rounded down to the predictor's grid, so a contact between two of
-    its steps is flagged at least the alarm horizon (one period) before it, while the bounds
-    hold. The drops' speeds put the landing at every phase between two predictor steps.
+    the schedule acts on is counted in whole physics steps (rounded up: the landing's state is a
+    step's) and rounded down to the predictor's grid, so a contact between two of its steps is
+    flagged at least the alarm horizon (one period) before it, while the bounds hold. The drops'
+    speeds put the landing at every phase between two predictor steps.
 
     Without the rounding, a landing r steps after a predictor step (0 < r < period) is covered
     by the verdict a period before and stands in alarm only r steps ahead: short while the bounds
-    held (met on traffic at period 4: 15 ms against 20)."""
+    held (met on traffic at period 4: 15 ms against 20). With a step counted past the ceiling, a
+    landing at the end of a period is covered a period too long."""
     phases = set()
     for v0 in np.linspace(0.0, 1.0, 2 * period + 3):
         mon, landing = _fall(period, latency, float(v0))
