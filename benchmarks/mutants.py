@@ -71,6 +71,9 @@ _INTERNAL = "dua_mujoco/csrc/src/internal.h"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
+_GRID_STEPS = (
+    "tests/test_warning_time.py::test_the_grid_counts_no_step_past_the_first_state_it_can_touch_at"
+)
 _MADE_DUE = (
     "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
 )
@@ -484,6 +487,39 @@ MUTANTS: tuple[Mutant, ...] = (
         ),
         "with period > 1, a tau of the motion bounds off the predictor's grid lets a landing "
         "between two predictor steps be flagged up to (period - 1) steps short of the horizon",
+    ),
+    Mutant(
+        "bounds-tau-a-step-past-the-first-state-in-contact",
+        _INTERNAL,
+        "const double s = std::min(std::ceil(tau / h), kFar);",
+        "const double s = std::min(std::ceil(tau / h) + 1.0, kFar);",
+        (
+            "tests/test_warning_time.py::"
+            "test_a_landing_between_predictor_steps_is_flagged_the_horizon_ahead",
+            "tests/test_warning_time.py::"
+            "test_the_plugin_flags_a_landing_between_its_steps_the_horizon_ahead",
+            _GRID_STEPS,
+        ),
+        "with period > 1, a tau counted one physics step past the first state it can be in "
+        "contact at covers a landing at the end of a period one period too long",
+    ),
+    Mutant(
+        "grid-steps-by-a-reciprocal",
+        _INTERNAL,
+        "const double s = std::min(std::ceil(tau / h), kFar);",
+        "const double s = std::min(std::ceil(tau * (1.0 / h)), kFar);",
+        (_GRID_STEPS,),
+        "a quotient rounded twice can cross a whole step upwards: the ceiling a step past the "
+        "first state in contact",
+    ),
+    Mutant(
+        "grid-steps-floored",
+        _INTERNAL,
+        "const double s = std::min(std::ceil(tau / h), kFar);",
+        "const double s = std::min(std::floor(tau / h), kFar);",
+        (_GRID_STEPS,),
+        "not a break of the promise but of Lemma 8.5's ceiling: grid43's floor, alarming up to a "
+        "physics step sooner than needed (the test asserts the ceiling where the quotient allows)",
     ),
     Mutant(
         "reach-without-the-grids-step",

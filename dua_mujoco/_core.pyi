@@ -44,6 +44,13 @@ def tau_terrain(table: Annotated[NDArray[numpy.float64], dict(order='C', device=
 
 def deadline_interval(tau: float, dt: float, latency: int, max_interval: int, extra: float = 0.0) -> int: ...
 
+def grid_tau(tau: float, h: float, period: int) -> float:
+    """
+    A lower bound tau on the time to the first state in contact, counted in whole physics
+    steps of h (rounded up) and put on the grid of `period` steps, as the step does at
+    period > 1 (so that tests can hold it to the exact ceiling).
+    """
+
 def exceeds12(q: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], bound: float) -> bool: ...
 
 def rigid_points(points: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], twist_ref: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], root_twist: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], root_origin: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:

@@ -4,12 +4,14 @@ reference on a scene with resets."""
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import mujoco
 import numpy as np
 import pytest
 from mjcf import free, mjcf
 
+from dua_mujoco import _core
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.measure.accumulators import Durations, StepMap
 from dua_mujoco.measure.monitor import Monitor
@@ -366,13 +368,15 @@ def test_a_landing_between_predictor_steps_is_flagged_the_horizon_ahead(
     period: int, latency: int
 ) -> None:
     """Theorem 3 at ``period > 1`` on the motion bounds (docs/theory.md, section 8): every tau
-    the schedule acts on is rounded down to the predictor's grid, so a contact between two of
-    its steps is flagged at least the alarm horizon (one period) before it, while the bounds
-    hold. The drops' speeds put the landing at every phase between two predictor steps.
+    the schedule acts on is counted in whole physics steps (rounded up: the landing's state is a
+    step's) and rounded down to the predictor's grid, so a contact between two of its steps is
+    flagged at least the alarm horizon (one period) before it, while the bounds hold. The drops'
+    speeds put the landing at every phase between two predictor steps.
 
     Without the rounding, a landing r steps after a predictor step (0 < r < period) is covered
     by the verdict a period before and stands in alarm only r steps ahead: short while the bounds
-    held (met on traffic at period 4: 15 ms against 20)."""
+    held (met on traffic at period 4: 15 ms against 20). With a step counted past the ceiling, a
+    landing at the end of a period is covered a period too long."""
     phases = set()
     for v0 in np.linspace(0.0, 1.0, 2 * period + 3):
         mon, landing = _fall(period, latency, float(v0))
@@ -383,6 +387,45 @@ def test_a_landing_between_predictor_steps_is_flagged_the_horizon_ahead(
         assert lead >= mon.warning.horizon - 1e-12, (v0, landing, lead)
         phases.add(landing % period)
     assert phases == set(range(period)), phases  # the sweep met every phase
+
+
+def test_the_grid_counts_no_step_past_the_first_state_it_can_touch_at() -> None:
+    """Lemma 8.5 in floating point (docs/theory.md, section 8): a tau becomes whole physics steps
+    ``s`` of ``h``, the ceiling of ``tau / h``, which the first state in contact cannot be
+    nearer than. The step's rounding, held to the exact ceiling (rationals) at taus on, just
+    below and just above whole steps, and between them: never a step more (the promise), and
+    the ceiling itself unless the correctly rounded quotient fell to the step below (never a
+    step less otherwise). The sample holds quotients that a reciprocal, ``tau * (1 / h)``,
+    rounds up past a whole step, and taus between steps where the ceiling is a step above the
+    floor grid43 took."""
+    rng = np.random.default_rng(5)
+    shave = 1.0 - 1e-9
+    crossed = raised = 0
+    for h in [0.002, 0.001, *rng.uniform(1e-4, 1e-2, 300)]:
+        for k in rng.integers(1, 100_000, 20):
+            t = float(k) * h
+            fracs = rng.uniform(0.0, 1.0, 2) * h
+            for tau in (
+                t,
+                math.nextafter(t, 0.0),
+                math.nextafter(t, 1.0),
+                t + fracs[0],
+                t - fracs[1],
+            ):
+                if not tau > 0.0:
+                    continue
+                exact = Fraction(tau) / Fraction(h)
+                ceil = math.ceil(exact)
+                crossed += math.ceil(tau * (1.0 / h)) > ceil
+                got = _core.grid_tau(tau, h, 1)
+                assert got <= float(ceil) * h * shave, (tau, h, ceil)  # never a step more
+                if tau / h > ceil - 1:  # the quotient did not fall to the step below
+                    assert got == float(ceil) * h * shave, (tau, h, ceil)
+                    raised += not (tau / h).is_integer()  # a step above grid43's floor
+                for p in (2, 3):
+                    assert _core.grid_tau(tau, h, p) <= float(ceil // p * p) * h * shave
+    assert crossed > 0 and raised > 0, (crossed, raised)
+    assert [_core.grid_tau(x, 0.002, 2) for x in (0.0, -1.0, math.inf)] == [0.0, -1.0, math.inf]
 
 
 @pytest.mark.parametrize("period", [2, 3, 4, 5])

@@ -1648,6 +1648,12 @@ NB_MODULE(_core, m) {
   m.def("deadline_interval", &dua_deadline_interval, "tau"_a, "dt"_a, "latency"_a, "max_interval"_a,
         "extra"_a = 0.0);
   m.def(
+      "grid_tau", [](double tau, double h, int64_t period) { return GridFloor(tau, h, period); },
+      "tau"_a, "h"_a, "period"_a,
+      "A lower bound tau on the time to the first state in contact, counted in whole physics\n"
+      "steps of h (rounded up) and put on the grid of `period` steps, as the step does at\n"
+      "period > 1 (so that tests can hold it to the exact ceiling).");
+  m.def(
       "exceeds12",
       [](const In<double>& q, double bound) {
         Require(Size(q) == 12, "q holds twelve entries");

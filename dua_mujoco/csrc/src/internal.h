@@ -231,10 +231,10 @@ inline double SupportLocal(int kind, double s0, double s1, double s2, double m0,
 // (w + latency) dt + extra < tau, which gives the alarm horizon's lead only for a tau on the
 // grid of dt: a contact s = q p + r steps ahead (0 < r < p) could otherwise be covered until
 // (q - N - latency + 1) periods and flagged only H + latency dt - r h before it. Rounding down
-// to q p steps keeps the lead; a smaller tau is still a lower bound. On the grid the test
-// compares two roundings of the same number: (alarm steps + w) dt can round below the tau and
-// let a pair wait one step past the one at which it must stand in alarm; 1e-9 relative is far
-// above those roundings (a few ulps) and far below a step.
+// to q p steps keeps the lead, and q p steps are still no more than the contact's. On the grid
+// the test compares two roundings of the same number: (alarm steps + w) dt can round below the
+// tau and let a pair wait one step past the one at which it must stand in alarm; 1e-9 relative
+// is far above those roundings (a few ulps) and far below a step.
 constexpr double kGridShave = 1e-9;
 
 // A tau s whole steps of h ahead (a plan's) on the grid of period p: floor(s / p) p h, shaved.
@@ -244,17 +244,18 @@ inline double GridTau(int64_t s, double h, int64_t p) {
   return static_cast<double>(grid) * h * (1.0 - kGridShave);
 }
 
-// Any lower bound tau (seconds; the motion bounds', the exact level's) on the grid of period
-// p > 1: GridTau of the most whole steps s with the computed s h <= tau, so never above tau
-// (the shave and a rounding of q h only lower it). Steps are counted up to 2^52 (each a whole,
-// exact double; the grid of a farther tau is that of 2^52 steps). 0 and below (an alarm
-// whatever its value) and +inf (no contact ever) are left as they are, and so is NaN (the step
-// makes it 0).
+// Any lower bound tau (seconds; the motion bounds', the exact level's) on the time from the read
+// to the pair's first state in contact, on the grid of period p > 1. That state is at a physics
+// step, so at least ceil(tau / h) steps ahead: GridTau of s = ceil of the computed tau / h, never
+// above the true ceiling (the division is correctly rounded and every whole number up to 2^53 is
+// a double, so a quotient at or below k never rounds above k; the build has no fast-math).
+// Steps are counted up to 2^52 (the grid of a farther tau is that of 2^52 steps). 0 and below
+// (an alarm whatever its value) and +inf (no contact ever) are left as they are, and so is NaN
+// (the step makes it 0).
 inline double GridFloor(double tau, double h, int64_t p) {
   constexpr double kFar = 4503599627370496.0;  // 2^52
   if (!(tau > 0.0) || std::isinf(tau)) return tau;
-  double s = std::min(std::floor(tau / h), kFar);
-  if (s * h > tau) s -= 1.0;  // the division rounded up
+  const double s = std::min(std::ceil(tau / h), kFar);
   return GridTau(static_cast<int64_t>(s), h, p);
 }
 
