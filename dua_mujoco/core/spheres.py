@@ -89,10 +89,12 @@ def rebuild_stride(horizon: float, dt: float, latency: int, *, grid: float = 0.0
     dt, latency = check_period(dt, latency)
     T = float(horizon)
     if not (math.isfinite(T) and (1 + latency) * dt + grid <= T):
+        # The grid's term named only where it is in the sum (free spheres have no timestep).
+        rule = "(1 + latency) dt + (dt - timestep)" if grid else "(1 + latency) dt"
         raise InvalidInputError(
             f"horizon = {horizon!r} is invalid: a pruned pair set must cover at least one step "
-            f"and the latency, horizon >= (1 + latency) dt + (dt - timestep) = "
-            f"{(1 + latency) * dt + grid!r} s; pass a longer horizon (or None for the default)."
+            f"and the latency, horizon >= {rule} = {(1 + latency) * dt + grid!r} s; pass a "
+            "longer horizon (or None for the default)."
         )
     R = max(1, math.floor(T / dt) - latency)
     # The division rounds either way: settle R on the product itself.
