@@ -74,6 +74,10 @@ _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the
 _GRID_STEPS = (
     "tests/test_warning_time.py::test_the_grid_counts_no_step_past_the_first_state_it_can_touch_at"
 )
+_TWO_HULLS = (
+    "tests/test_exact.py::"
+    "test_between_two_hulls_a_look_settles_only_where_the_two_pairs_of_points_allow"
+)
 _MADE_DUE = (
     "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
 )
@@ -158,6 +162,24 @@ MUTANTS: tuple[Mutant, ...] = (
         ),
         "a pair MuJoCo lists beyond its contact distance is not looked at (a looser skip is "
         "safe, but the test pins the rule)",
+    ),
+    Mutant(
+        "two-point-bound-second-pair-still",
+        _STEP,
+        "w2[j] = b[j] - a[j] + r[j];",
+        "w2[j] = b[j] - a[j];",
+        (_TWO_HULLS,),
+        "the hull vertices' pair is read without the pair's motion over the horizon (more "
+        "alarms stand, none is missed)",
+    ),
+    Mutant(
+        "two-point-bound-weight-unclamped",
+        _STEP,
+        "const double lambda = dd > 0.0 ? std::min(1.0, std::max(0.0, along / dd)) : 1.0;",
+        "const double lambda = dd > 0.0 ? along / dd : 1.0;",
+        (_TWO_HULLS,),
+        "the nearest point of the line through the two pairs' differences, beyond the segment "
+        "(more alarms stand, none is missed)",
     ),
     Mutant(
         "pair-accel-one-body",

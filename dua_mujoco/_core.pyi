@@ -545,6 +545,12 @@ class Runtime:
     def exact_records(self) -> NDArray[numpy.float64]:
         """The exact level's records with the directions learnt: a copy."""
 
+    @property
+    def exact_witness(self) -> NDArray[numpy.float64]:
+        """
+        The exact level's witness points of each held pair's latest query, first geom's then second's, each in its geom's frame (NaN before the first): a copy.
+        """
+
     def reaches(self) -> dict:
         """
         Pruned pairs: each sphere's anchor (n, 3), reach (n,), anchor step (n,), and the largest contact distance beyond the radii (copies).

@@ -1546,6 +1546,15 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
             return Owned(std::vector<double>(r), {r.size() / ncol, ncol});
           },
           nb::rv_policy::move, "The exact level's records with the directions learnt: a copy.")
+      .def_prop_ro(
+          "exact_witness",
+          [](const PyRuntime& s) {
+            const std::vector<double>& w = s.rt->exact_witness();
+            return Owned(std::vector<double>(w), {w.size() / 6, 6});
+          },
+          nb::rv_policy::move,
+          "The exact level's witness points of each held pair's latest query, first geom's then "
+          "second's, each in its geom's frame (NaN before the first): a copy.")
       .def(
           "reaches",
           [](const PyRuntime& s) {

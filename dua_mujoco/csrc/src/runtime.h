@@ -235,6 +235,9 @@ class DUA_API Runtime {
   const std::vector<int64_t>& ids() const { return ids_; }
   // The exact level's records with the directions learnt so far (empty when the level is off).
   const std::vector<double>& exact_records() const { return exact_records_; }
+  // The exact level's witness points of each held pair's latest query, each in its geom's frame
+  // ((held pairs, 6); NaN before the first).
+  const std::vector<double>& exact_witness() const { return witness_; }
   int64_t held_version() const { return held_version_; }
   // Replaced (never resized) by a classification or a carry: a holder keeps the one it has.
   const std::shared_ptr<Schedule>& schedule() const { return schedule_; }
