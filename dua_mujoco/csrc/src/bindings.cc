@@ -1793,6 +1793,16 @@ NB_MODULE(_core, m) {
       "mocap_pos"_a, "mocap_quat"_a, "rel_bodies"_a, "rel_deviation"_a,
       "dua_plugin_set_plan: (its result, each body's departure time from the plan replaced).");
   m.def(
+      "mixed_stray",
+      [](double t, double accel, double disc, double spin, double place, double velocity) {
+        const double size[2] = {place, velocity};
+        return MixedStray(t, accel, disc, spin, size);
+      },
+      "t"_a, "accel"_a, "disc"_a, "spin"_a, "place"_a, "velocity"_a,
+      "MixedStray (plan.h): how far a free point strays in t from where its velocity read "
+      "carries it ((spin + disc) t + accel t^2 / 2), rounded up, plus room for the rounding of "
+      "the carried place (|place|_1 and |velocity|_1).");
+  m.def(
       "relative_within",
       [](const In<double>& box, const In<double>& pa, const In<double>& ra, const In<double>& pb,
          const In<double>& rb, const In<double>& qa, const In<double>& sa, const In<double>& qb,

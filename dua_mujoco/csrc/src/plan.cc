@@ -407,6 +407,10 @@ std::string NameOf(const mjModel* m, int64_t b) {
 
 }  // namespace
 
+double MixedStray(double t, double accel, double disc, double spin, const double size[2]) {
+  return Stray(t, accel, disc, spin, size);
+}
+
 double PoseDeviation(const double* q, const double* pa, const double* ra, const double* pb,
                      const double* rb) {
   // Each difference of two numbers is rounded relative to itself, so the sum below is within a

@@ -68,6 +68,10 @@ bool RelativePoseWithin(const double* box, const double* actual, const double* p
                         double limit);
 bool RelativePoseWithin(const double* box, const BoxReach& reach, const double* actual,
                         const double* planned, double limit);
+// How far a free point can stray in t from where its velocity read carries it, rounded up, with
+// room for the rounding of the carried place (the mixed tau's Stray, plan.cc; size: |place|_1,
+// |velocity|_1).
+DUA_API double MixedStray(double t, double accel, double disc, double spin, const double size[2]);
 // b's pose in the frame of pose (pa, ra): (ra^T (pb - pa), ra^T rb), into (pos 3, mat 9).
 DUA_API void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
                           double* pos, double* mat);
