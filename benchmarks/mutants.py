@@ -769,6 +769,18 @@ MUTANTS: tuple[Mutant, ...] = (
         "a knot at rest is a rest knot though the failsafe cannot hold the robot there",
     ),
     Mutant(
+        "shield-hold-tolerance-doubled",
+        _SHIELD,
+        "  const bool holds = Speed(d) * o_.stop_time <= o_.rest_speed;",
+        "  const bool holds = Speed(d) * o_.stop_time <= 2.0 * o_.rest_speed;",
+        (
+            "tests/test_shield.py::"
+            "test_a_failsafe_holds_a_knot_only_while_its_pull_stays_under_rest_speed_over_stop_time",
+        ),
+        "a knot is held though the failsafe's pull takes the robot past rest_speed within "
+        "stop_time (up to twice as fast)",
+    ),
+    Mutant(
         "shield-unheld-knot-not-restored",
         _SHIELD,
         "    mj_setState(m, d, hold_.data(), kState);\n    mj_step1(m, d);\n",

@@ -458,3 +458,35 @@ def test_a_robot_its_failsafe_holds_at_rest_is_guaranteed_there(failsafe: Any) -
         mujoco.mj_step(model, data)
     counts = shield.counts
     assert (counts["unheld"], counts["hold_breaks"]) == (0, 0), counts
+
+
+@pytest.mark.parametrize("ratio", [0.999, 1.001])
+def test_a_failsafe_holds_a_knot_only_while_its_pull_stays_under_rest_speed_over_stop_time(
+    ratio: float,
+) -> None:
+    """Shield::Holds's tolerance: a knot at rest is held when the failsafe leaves every point of
+    the robot an acceleration a with a * stop_time <= rest_speed (it would take at least
+    stop_time to leave rest). The ball at rest far from the wall, a failsafe policy pushing it
+    with a constant force (1 kg, no gravity along the slide: a = the force): just under that
+    acceleration, the candidate's first knot at rest is its rest knot and the step is
+    guaranteed; just over, no knot at rest is held (the check counts them unheld) and no step
+    is guaranteed. A tolerance twice as wide would hold the second."""
+    model = mujoco.MjModel.from_xml_string(_BALL)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    rest_speed, stop_time = 0.01, 0.5
+    force = ratio * rest_speed / stop_time
+
+    def push(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
+        return np.array([force])
+
+    shield = Shield(
+        model, protect=["wall"], robot=["ball"], period=1, accel=5.0, screen=False,
+        rest_speed=rest_speed, stop_time=stop_time, failsafe=push,
+    )  # fmt: skip
+    shield.reset(data)
+    shield(data, [0.0])
+    counts = shield.counts
+    held = ratio < 1.0
+    assert (counts["unheld"] == 0, shield.guaranteed) == (held, held), counts
+    assert (counts["accepted"], counts["rejected"]) == (int(held), int(not held)), counts
