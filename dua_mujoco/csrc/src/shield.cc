@@ -247,8 +247,12 @@ int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
       }
     }
     // Knot j's state: its kinematics and velocities (mj_step1: what the step computes first).
-    mj_step1(m, d);
-    keep(j);
+    // A guess its failsafe could not hold has them already: Holds put the knot's state back and
+    // ran mj_step1 on it, and its poses are kept.
+    if (!unheld) {
+      mj_step1(m, d);
+      keep(j);
+    }
     speed = Speed(d);
     joints = joint_speed();
     if (j >= nint && speed <= o_.rest_speed && !unheld && Holds(m, d, true)) return j;
