@@ -927,7 +927,10 @@ class Scratch:
             if src.is_symlink():  # dua_mujoco/models -> ../models
                 dst.symlink_to(os.readlink(src))
             elif src.is_file():
-                shutil.copy2(src, dst)
+                # A fresh mtime: a reused --scratch build dir may hold objects newer than the
+                # working tree's sources (built from the last run's mutant), which make would
+                # otherwise take as up to date.
+                shutil.copy(src, dst)
         self.hook.mkdir(parents=True, exist_ok=True)
         (self.hook / "sitecustomize.py").write_text(_HOOK)
 
