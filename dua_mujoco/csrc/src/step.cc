@@ -223,10 +223,8 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   // The four bodies' columns are one block (i is a multiple of four): copied whole.
   __builtin_memcpy(&row.v[kRowState], StateAt(ev, i, 0), kSNcol * sizeof(Lanes));
   const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
-  int bits = 0;
   __builtin_memcpy(StateAt(ev, i, 0), &row.v[kRowState], kSWritten * sizeof(Lanes));
-  for (int k = 0; k < m; ++k) bits |= broken[k] ? 1 << k : 0;
-  return bits;
+  return Bits(broken) & ((1 << m) - 1);
 }
 
 // Record every body's box state and check the motion hypotheses over the last period, four
