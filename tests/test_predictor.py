@@ -1021,3 +1021,39 @@ def test_pilot_bounds_is_what_auto_measures(scene: str) -> None:
     assert not np.array_equal(centres.accel, bounds.accel)
     other = Predictor(m, accel=centres, **options)
     assert _alarm_log(m, other, 300) != _alarm_log(m, auto, 300)
+
+
+# Two free balls: sphere pairs only (no floor), placed by the test.
+_FAR_BALLS = """
+<mujoco>
+  <option gravity="0 0 0"/>
+  <worldbody>
+    <body name="a"><freejoint/><geom name="ga" size=".05"/></body>
+    <body name="b" pos="1 0 0"><freejoint/><geom name="gb" size=".05"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize(
+    ("xa", "xb", "finite"),
+    [(1e308, 1e308, False), (1e308, 0.0, True), (1e300, 1e300, True), (-1e308, -1e308, False)],
+)
+def test_huge_finite_sphere_states_are_judged_by_their_sum(
+    xa: float, xb: float, finite: bool
+) -> None:
+    """A sphere pair's state (both spheres' centres and velocities, twelve finite numbers) is
+    refused when their sum is not finite, as before the gather read tame spheres (every number
+    at most 1e300) without summing them: two balls at x = 1e308 are refused, one at 1e308 and
+    one at 0, or both at 1e300, are judged."""
+    m = mujoco.MjModel.from_xml_string(_FAR_BALLS)
+    d = mujoco.MjData(m)
+    d.qpos[0], d.qpos[7] = xa, xb
+    mujoco.mj_forward(m, d)
+    p = Predictor(m, accel=10.0)
+    if finite:
+        p.reset(d)
+        assert p.evaluations_per_step == 1
+    else:
+        with pytest.raises(NonFiniteStateError, match=r"'g[ab]'"):
+            p.reset(d)

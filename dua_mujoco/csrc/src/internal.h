@@ -160,13 +160,32 @@ inline double Spin(int64_t g, const double* geoms, const dua_frame& f) {
   return std::sqrt(w0 * w0 + w1 * w1 + w2 * w2) * rec[kGxRadius];
 }
 
-// RigidPoint of sphere i into out, read from MjData at its first use in this epoch.
-inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
+// Below this magnitude a sphere's six numbers are tame: twelve of them (a pair's state) sum to
+// a finite number (12e300 < DBL_MAX), so the gather's test of that sum can be skipped.
+constexpr double kTame = 1e300;
+
+// Sphere i's row of point_state (RigidPoint, read from MjData at its first use in this epoch),
+// and in *tame whether its six numbers are all finite and at most kTame in magnitude.
+// point_epoch holds 2 epoch + tame (an arithmetic shift gives the epoch back: -1, the start,
+// reads as -1).
+inline const double* PointRow(const dua_step_args& a, int64_t i, bool* tame) {
   double* state = a.point_state + 6 * i;
-  if (a.point_epoch[i] != a.epoch) {
+  int64_t e = a.point_epoch[i];
+  if ((e >> 1) != a.epoch) {
     RigidPoint(i, a.spheres, kSphereNcol, a.frame, state);
-    a.point_epoch[i] = a.epoch;
+    bool ok = true;
+    for (int j = 0; j < 6; ++j) ok &= std::fabs(state[j]) <= kTame;  // NaN: false
+    e = 2 * a.epoch + (ok ? 1 : 0);
+    a.point_epoch[i] = e;
   }
+  *tame = (e & 1) != 0;
+  return state;
+}
+
+// PointRow's numbers copied into out.
+inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
+  bool tame;
+  const double* state = PointRow(a, i, &tame);
   // Six stores (std::copy became a call to memmove).
   out[0] = state[0], out[1] = state[1], out[2] = state[2];
   out[3] = state[3], out[4] = state[4], out[5] = state[5];

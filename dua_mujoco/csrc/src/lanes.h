@@ -79,6 +79,14 @@ inline bool LaneOf(bool m, int) { return m; }
 DUA_INLINE bool LaneOf(LaneMask m, int k) { return m[k] != 0; }
 inline void SetLane(bool* m, int, bool v) { *m = v; }
 DUA_INLINE void SetLane(LaneMask* m, int k, bool v) { (*m)[k] = v ? -1 : 0; }
+// Bit k set where lane k is (a mask's lanes are all ones or all zeros): one vector and, one
+// fold and an or, not a test and a shift per lane.
+inline int Bits(bool m) { return m ? 1 : 0; }
+DUA_INLINE int Bits(LaneMask m) {
+  const LaneMask w = m & LaneMask{1, 2, 4, 8};
+  const LaneMask h = w | __builtin_shufflevector(w, w, 2, 3, 0, 1);
+  return static_cast<int>(h[0] | h[1]);
+}
 inline bool Any(bool m) { return m; }
 DUA_INLINE bool Any(LaneMask m) {
   // Folded in halves (two vector ors), not four extracts (the kernels' screens test it often).

@@ -223,10 +223,8 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   // The four bodies' columns are one block (i is a multiple of four): copied whole.
   __builtin_memcpy(&row.v[kRowState], StateAt(ev, i, 0), kSNcol * sizeof(Lanes));
   const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
-  int bits = 0;
   __builtin_memcpy(StateAt(ev, i, 0), &row.v[kRowState], kSWritten * sizeof(Lanes));
-  for (int k = 0; k < m; ++k) bits |= broken[k] ? 1 << k : 0;
-  return bits;
+  return Bits(broken) & ((1 << m) - 1);
 }
 
 // Record every body's box state and check the motion hypotheses over the last period, four
@@ -623,8 +621,10 @@ DUA_SECTION void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, 
 // half-space pair's plane (its unit normal and offset), read from MjData (FramePoints) or given
 // as arrays (FreePoints: spheres not on MuJoCo bodies, the paper's setting).
 struct FramePoints {
+  static constexpr bool kRows = true;  // Row: each sphere's state in place, and whether tame
   dua_step_args& a;
   void Point(int64_t i, double* out) const { PointOf(a, i, out); }
+  const double* Row(int64_t i, bool* tame) const { return PointRow(a, i, tame); }
   // The plane geom of the pair (its z axis is the outward normal, through its origin).
   void Plane(const double* rec, double* out) const {
     const int64_t g = static_cast<int64_t>(rec[kPairOther]);
@@ -636,6 +636,7 @@ struct FramePoints {
 };
 
 struct FreePoints {
+  static constexpr bool kRows = false;
   const double* centers;     // (nsphere, 3)
   const double* velocities;  // (nsphere, 3)
   const double* planes;      // (nplane, 4): normal, offset
@@ -671,9 +672,31 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
   };
   for (int64_t k = 0; k < count; ++k) {
     const double* rec = pairs + ids[k] * kPairNcol;
+    const int kind = static_cast<int>(rec[kPairKind]);
+    if constexpr (Points::kRows) {
+      if (kind == kKindSphere) {
+        // The two spheres' rows read in place, not copied into a state of 12 first; the sum
+        // below tested only where a sphere is not tame (both tame: it is finite).
+        bool tame_i, tame_j;
+        const double* si = points.Row(static_cast<int64_t>(rec[kPairFirst]), &tame_i);
+        const double* sj = points.Row(static_cast<int64_t>(rec[kPairSecond]), &tame_j);
+        if (!(tame_i && tame_j)) {
+          double total = 0.0;
+          for (int j = 0; j < 6; ++j) total += si[j];
+          for (int j = 0; j < 6; ++j) total += sj[j];
+          if (!std::isfinite(total)) return k;
+        }
+        double* row = quad[nq];
+        for (int j = 0; j < 6; ++j) row[j] = sj[j] - si[j];
+        row[6] = rec[kPairEps], row[7] = rec[kPairAccel], row[8] = rec[kPairDelta];
+        row[9] = rec[kPairSpeed];
+        at[nq++] = k;
+        if (nq == kLanes) flush();
+        continue;
+      }
+    }
     double s[12];
     points.Point(static_cast<int64_t>(rec[kPairFirst]), s);
-    const int kind = static_cast<int>(rec[kPairKind]);
     if (kind == kKindHalfspace) {
       points.Plane(rec, s + 6);
       s[10] = 0.0, s[11] = 0.0;

@@ -272,9 +272,10 @@ double WithSpeed(double tau, double x0, double x1, double x2, double v0, double 
 
 // TauAccel's common path, four pairs at once: h > 0, no interior minimum, the closed-form upper
 // end brackets the root, the guess is certified. The lanes it settles (the returned mask) hold
-// TauAccel's value bit for bit (the same operations in the same order); the rest are TauAccel's
-// to compute. Also WithSpeed's term of every lane, from the same norms: ts[k], and bit k of
-// *speed_on where it applies (a finite speed bound the measured speed keeps).
+// TauSpeed's value bit for bit in tau (TauAccel's, the same operations in the same order, then
+// WithSpeedTerm's, in lanes); the rest are TauAccel's to compute. Also WithSpeed's term of every
+// lane, from the same norms: ts[k], and bit k of *speed_on where it applies (a finite speed
+// bound the measured speed keeps).
 DUA_LANES_CLONES
 int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLanes],
                   int* speed_on) {
@@ -287,12 +288,8 @@ int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLan
   // WithSpeed's term (p.nx and p.nv are its norms, bit for bit).
   const LaneMask on = SpeedApplies(p.nv, speed);
   const Lanes term = SpeedTerm(p.nx, eps, speed);
-  int bits = 0;
-  for (int k = 0; k < kLanes; ++k) {
-    ts[k] = term[k];
-    bits |= on[k] ? 1 << k : 0;
-  }
-  *speed_on = bits;
+  for (int k = 0; k < kLanes; ++k) ts[k] = term[k];
+  *speed_on = Bits(on);
   const LaneMask inside = p.nx - p.e <= 0.0;  // tau = 0
   LaneMask ok = AndNot(p.h > 0.0, Underflows(MaxAbs(v)));
   Lanes t2;
@@ -307,12 +304,10 @@ int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLan
     out = Select(ok, tl, out);
   }
   ok = ok | inside;
-  int settled = 0;
-  for (int k = 0; k < kLanes; ++k) {
-    tau[k] = out[k];
-    settled |= ok[k] ? 1 << k : 0;
-  }
-  return settled;
+  // WithSpeedTerm in lanes (std::max(a, b) is Max(a, b): a unless a < b).
+  out = Select(And(on, out > 0.0), Max(out, term), out);
+  for (int k = 0; k < kLanes; ++k) tau[k] = out[k];
+  return Bits(ok);
 }
 
 }  // namespace
@@ -386,10 +381,13 @@ void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_st
   int speed_on;
   const int done = TauAccelLanes(r, tau, ts, &speed_on);
   for (int k = 0; k < m; ++k) {
-    const double* q = r[k];
-    double t =
-        (done >> k) & 1 ? tau[k] : TauAccel(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8]);
-    out[k * out_stride] = WithSpeedTerm(t, (speed_on >> k) & 1, ts[k]);
+    if ((done >> k) & 1) {
+      out[k * out_stride] = tau[k];  // the speed term in already
+    } else {
+      const double* q = r[k];
+      const double t = TauAccel(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8]);
+      out[k * out_stride] = WithSpeedTerm(t, (speed_on >> k) & 1, ts[k]);
+    }
   }
 }
 

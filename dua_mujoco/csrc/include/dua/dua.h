@@ -229,9 +229,10 @@ typedef struct dua_step_args {
   dua_exact exact;
   dua_events events;
   // Each sphere's state (centre, velocity) read once per batch of pairs: point_state (nsphere,
-  // 6) and point_epoch (nsphere,), the batch that wrote each row; epoch counts the batches
-  // (each dua_step or dua_evaluate adds one). Start point_epoch below epoch (-1 and 0),
-  // and never share the two arrays between two structs (two MjData).
+  // 6) and point_epoch (nsphere,), 2 x the batch that wrote each row, plus 1 where its six
+  // numbers are tame (finite, at most 1e300 in magnitude); epoch counts the batches (each
+  // dua_step or dua_evaluate adds one). Start point_epoch below 2 x epoch (-1 and 0), and
+  // never share the two arrays between two structs (two MjData).
   double* point_state;
   int64_t* point_epoch;
   int64_t epoch;
