@@ -11,12 +11,14 @@ round times every ``env.step`` call of ``--steps`` steps and keeps their median.
 table is the median over rounds of those per-round medians; the ratio is wrapped / plain from
 those medians, the overhead their difference. A third env, wrapped by a wrapper that makes one
 call into the native core a step and no predictor step (the runtime's ``watched``), gives the
-floor of any wrapper that steps a predictor natively, less the step itself. Inside the wrapped
-steps, ``predictor.step`` and the wrapper's bookkeeping (``_observe``: standing alarms,
-``min_tau``, names) are timed apart (``predictor.step``: the runtime's ``step_watched`` or
-``step_info`` where the wrapper calls that instead; ``step_info`` writes ``info`` too, and the
-bookkeeping reads 0) (the medians of their calls); what the two leave of the overhead is the
-rest of the wrapper's ``step`` and the caches the predictor's work takes from MuJoCo's.
+floor of any wrapper that steps a predictor natively, less the step itself. In a fourth env,
+wrapped the same and stepped in the same rounds but left out of the ratio (the timers' own calls
+are about 0.2 us a step), ``predictor.step`` and the wrapper's bookkeeping (``_observe``:
+standing alarms, ``min_tau``, names) are timed apart (``predictor.step``: the runtime's
+``step_watched`` or ``step_info`` where the wrapper calls that instead; ``step_info`` writes
+``info`` too, and the bookkeeping reads 0) (the medians of their calls); what the two leave of
+the overhead is the rest of the wrapper's ``step`` and the caches the predictor's work takes
+from MuJoCo's.
 
 With ``--before``, another checkout is measured too, in its own environment: each side runs
 this script in a subprocess (``--json``, ``--rounds`` rounds), the sides alternating
@@ -91,7 +93,8 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
     plain = _make(env_id)
     wrapped = PredictCollisions(_make(env_id))
     one_call = _OneCall(_make(env_id))
-    predictor = wrapped.predictor
+    probe = PredictCollisions(_make(env_id))  # timed inside; its own time is not reported
+    predictor = probe.predictor
     parts: dict[str, list[float]] = {"predictor": [], "observe": []}
 
     def timed(fn: Callable[..., Any], name: str) -> Callable[..., Any]:
@@ -103,19 +106,18 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
 
         return call
 
-    # Instance attributes shadow the methods: the timers wrap only this env's calls. The wrapper
+    # Instance attributes shadow the methods: the timers wrap only the probe's calls. The wrapper
     # steps the predictor through Predictor.step (before issue 42's last cut) or through its
     # runtime's step_watched (a native object takes no attributes: a proxy times it).
     predictor.step = timed(predictor.step, "predictor")  # type: ignore[method-assign]
-    if hasattr(wrapped, "_observe"):
-        wrapped._observe = timed(wrapped._observe, "observe")
-    if hasattr(wrapped, "_step_info"):  # the step and the info in one call (issue 42, pusher42)
-        wrapped._step_info = timed(wrapped._step_info, "predictor")
-    elif hasattr(wrapped._runtime, "step_watched"):
-        wrapped._runtime = _TimedRuntime(wrapped._runtime, timed)
-    _round(plain, 20, 0)  # warm-up: caches, the compiled step's first call
-    _round(wrapped, 20, 0)
-    _round(one_call, 20, 0)
+    if hasattr(probe, "_observe"):
+        probe._observe = timed(probe._observe, "observe")
+    if hasattr(probe, "_step_info"):  # the step and the info in one call (issue 42, pusher42)
+        probe._step_info = timed(probe._step_info, "predictor")
+    elif hasattr(probe._runtime, "step_watched"):
+        probe._runtime = _TimedRuntime(probe._runtime, timed)
+    for env in (plain, wrapped, one_call, probe):  # warm-up: caches, the step's first call
+        _round(env, 20, 0)
     names = ("plain", "wrapped", "one_call", "predictor", "observe")
     rows: dict[str, list[float]] = {k: [] for k in names}
     for r in range(rounds):
@@ -124,6 +126,7 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
         rows["plain"].append(_round(plain, steps, r))
         rows["wrapped"].append(_round(wrapped, steps, r))
         rows["one_call"].append(_round(one_call, steps, r))
+        _round(probe, steps, r)
         for name, times in parts.items():
             rows[name].append(float(np.median(times)) if times else 0.0)
     out = {f"{k}_us": float(np.median(v)) * 1e6 for k, v in rows.items()}
