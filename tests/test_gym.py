@@ -354,3 +354,22 @@ def test_a_failed_wrapped_step_raises_the_predictors_error() -> None:
     env.unwrapped.data.time += 1.0  # type: ignore[attr-defined]
     with pytest.raises(SchedulerError, match=r"data\.time advanced"):
         env.step(env.action_space.sample())
+
+
+def test_a_wrapped_step_goes_back_to_the_envs_mjdata() -> None:
+    """The wrapper's step binds the env's MjData again when its predictor was reset on another
+    one in between (the predictor is public): the step reads the env's state and clock, not the
+    other MjData's (whose time stands still: a clock error)."""
+    import mujoco
+
+    env = _make("Pusher-v5")
+    env.reset(seed=0)
+    model = env.unwrapped.model  # type: ignore[attr-defined]
+    other = mujoco.MjData(model)
+    mujoco.mj_forward(model, other)
+    env.predictor.reset(other)
+    env.action_space.seed(0)
+    for _ in range(3):
+        _, _, _, _, info = env.step(env.action_space.sample())
+    assert info["alarm_pairs"] == _read_alarms(env)
+    assert env.predictor._data is env.unwrapped.data  # type: ignore[attr-defined]
