@@ -461,6 +461,17 @@ MUTANTS: tuple[Mutant, ...] = (
         "a relative pair that leaves the newest shadow's tube is taken as nested in the older ones",
     ),
     Mutant(
+        "plan-box-screen-below-its-bound",
+        _PLAN,
+        "const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 2e-9);",
+        "const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * 0.5;",
+        (
+            "tests/test_plan_relative.py::"
+            "test_the_actual_distance_is_never_below_the_planned_one_less_the_relative_deviation",
+        ),
+        "the deviation check's first screen passes a box whose corners stray beyond the limit",
+    ),
+    Mutant(
         "plan-kinematics-ancestors-dropped",
         _PLAN,
         "  for (int b = nbody - 1; b > 0; --b) keep[m->body_parentid[b]] |= keep[b];\n",

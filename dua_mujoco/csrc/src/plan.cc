@@ -75,8 +75,12 @@ double SphereGap(const double* rec, const double* spheres, const double* shapes,
 }
 
 // The geoms' gap along unit n (first to second) on frame f, less the contact distance: a lower
-// bound on their distance less it (a separating direction's gap).
-double AxisGap(const double* xrec, const dua_exact& x, const dua_frame& f, double n0, double n1,
+// bound on their distance less it (a separating direction's gap). The hull vertices the climbs
+// reach are kept in the record, as the step's exact level keeps them: the next climb (the next
+// knot's, a pose or two away) starts there. A climb's start changes no support (a hull's local
+// maximum is its maximum), and any vertex of a geom's hull is a point of the geom, which is all
+// the step's screen of queries that cannot clear reads from them (docs/theory.md, section 5).
+double AxisGap(double* xrec, const dua_exact& x, const dua_frame& f, double n0, double n1,
                double n2, int mode) {
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
   const int64_t g2 = static_cast<int64_t>(xrec[kXG2]);
@@ -86,8 +90,10 @@ double AxisGap(const double* xrec, const dua_exact& x, const dua_frame& f, doubl
     low_b = n0 * f.pos[3 * g2] + n1 * f.pos[3 * g2 + 1] + n2 * f.pos[3 * g2 + 2];
   } else {
     low_b = -GeomSupport(g2, x, f, -n0, -n1, -n2, static_cast<int64_t>(xrec[kXHull2]), &top);
+    xrec[kXHull2] = static_cast<double>(top);
   }
   const double h_a = GeomSupport(g1, x, f, n0, n1, n2, static_cast<int64_t>(xrec[kXHull1]), &top);
+  xrec[kXHull1] = static_cast<double>(top);
   const double scale = std::fabs(h_a) + std::fabs(low_b) + xrec[kXDist];
   return low_b - h_a - xrec[kXDist] - kGapSlack * scale;
 }
@@ -493,23 +499,30 @@ namespace {
 bool BoxBound(const double* box, const BoxReach& reach, const double* pa, const double* ra,
               const double* pb, const double* rb, double limit) {
   // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
-  // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum
-  // (PoseDeviation's allowance is at most 8 ulps of `scale` below).
-  double dp = 0.0, dr = 0.0, scale = 0.0;
-  const double* qmax = reach.qmax;
+  // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum:
+  // PoseDeviation's allowance is at most 8 ulps of `scale` below (sum_i |e_i| + sum_ij |f_ij|
+  // qmax_j), and by Cauchy-Schwarz scale <= sqrt(3) (|e| + |F|_F |qmax|), so 16 ulps of it are
+  // within 28 ulps of the bound's own terms: a factor 1 + 2e-9 covers them and the 1e-9 the
+  // first screen always allowed (docs/theory.md, Lemma 8.1), with no pass over the differences'
+  // magnitudes.
+  double dp = 0.0, dr = 0.0;
   for (int i = 0; i < 3; ++i) {
     const double e = pa[i] - pb[i];
     dp += e * e;
-    scale += std::fabs(e);
     for (int j = 0; j < 3; ++j) {
       const double f = ra[3 * i + j] - rb[3 * i + j];
       dr += f * f;
-      scale += std::fabs(f) * qmax[j];
     }
   }
-  const double slack = 16.0 * kEpsilon * scale;
-  const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 1e-9) + slack;
+  const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 2e-9);
   if (bound <= limit) return true;
+  double scale = 0.0;
+  const double* qmax = reach.qmax;
+  for (int i = 0; i < 3; ++i) {
+    scale += std::fabs(pa[i] - pb[i]);
+    for (int j = 0; j < 3; ++j) scale += std::fabs(ra[3 * i + j] - rb[3 * i + j]) * qmax[j];
+  }
+  const double slack = 16.0 * kEpsilon * scale;
   // The largest corner exactly, up to rounding, in dot products: with v the centre's deviation
   // and u_j the half extents' columns, |v + sum_j s_j u_j|^2 expands into |v|^2 + sum |u_j|^2 +
   // 2 sum s_j v.u_j + 2 sum s_i s_j u_i.u_j, whose rounding is a few ulps of (|v| + sum

@@ -380,6 +380,13 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
                  shadows_.end());
   plan_ = std::move(plan);
   ++plan_serial_;
+  for (Shadow& sh : shadows_) {
+    const Plan& old = *sh.plan;
+    sh.rel_in_plan.resize(static_cast<size_t>(old.nrel()));
+    for (int64_t r = 0; r < old.nrel(); ++r)
+      sh.rel_in_plan[r] = plan_->RelOf(old.rel_a(r), old.rel_b(r));
+    sh.mapped_for = plan_serial_;
+  }
   for (int b = 0; b < m->nbody; ++b) plan_ok_[b] = plan_->holds(b) ? 1 : 0;
   rel_ok_.assign(plan_->nrel(), 1);
   args_.plan.rel_ok = rel_ok_.data();
@@ -400,7 +407,8 @@ void Runtime::Retire() {
                       std::vector<double>(nbody, std::nan("")), std::vector<double>(nbody, -kInf),
                       rel_ok_, std::vector<double>(rel_ok_.size(), std::nan("")),
                       std::vector<double>(rel_ok_.size(), -kInf), plan_serial_, -1,
-                      std::vector<uint8_t>(nbody, 0), std::vector<uint8_t>(rel_ok_.size(), 0)});
+                      std::vector<uint8_t>(nbody, 0), std::vector<uint8_t>(rel_ok_.size(), 0),
+                      std::vector<int64_t>(), -1});
 }
 
 void Runtime::ClearPlan() {
@@ -543,7 +551,8 @@ void Runtime::ShadowOpenRelative(const Shadow& sh, double now, int64_t k, double
   for (size_t r = 0; r < sh.rel_ok.size(); ++r) {
     const auto i = static_cast<int64_t>(r);
     const int64_t a = old.rel_a(i), b = old.rel_b(i);
-    const int64_t rn = k >= 0 ? plan_->RelOf(a, b) : -1;
+    const bool mapped = sh.mapped_for == plan_serial_;
+    const int64_t rn = k < 0 ? -1 : mapped ? sh.rel_in_plan[r] : plan_->RelOf(a, b);
     const bool proven = rn >= 0 && rel_ok_[rn] && plan_ok_[a] && plan_ok_[b];
     (*open)[r] = sh.rel_ok[r] && (now >= sh.rel_from[r] - 1e-6 * h || !proven);
   }

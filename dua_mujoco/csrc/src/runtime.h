@@ -409,6 +409,11 @@ class DUA_API Runtime {
     // the older ones where they nested that shadow's plan, without checking their knots.
     int64_t serial = -1, nested_in = -1;
     std::vector<uint8_t> nested, rel_nested;
+    // Each of its relative pairs' index among the plan in force's (-1: none), for that plan
+    // (number mapped_for) only: the step asks it of every pair of every shadow, and a search of
+    // the plan's pairs each time was most of a step's checks of its shadows on g1.
+    std::vector<int64_t> rel_in_plan;
+    int64_t mapped_for = -1;
   };
   std::vector<Shadow> shadows_;
   std::vector<int64_t> pending_due_;  // bodies broken between steps: pairs due at the next
