@@ -11,7 +11,8 @@ Layers, every one on the same seeds, all in one run (A/B): ``none``; ``shield`` 
 benchmark's shield); ``evade`` (the same shield with the library's native evasive failsafe,
 ``dua_mujoco.shield.failsafe.Evade``, as ``dua_mujoco/experiments/shield/evade.py`` builds it;
 ``evade0.9``: its gain 0.9, ``evade``: ``--gain``); ``pyevade`` (the same law as a Python
-policy, called at every rolled step: what the native one saves);
+policy, called at every rolled step: what the native one saves); ``side`` (the native one
+steering across the base's velocity, ``sideways=True``; ``side0.9``: gain 0.9);
 ``p5`` (the brake, a control period of 5 physics steps instead of 10: the task still updates
 every 10); ``stop0.6`` (the brake, ``stop_time`` 0.6 s instead of 0.45). Besides
 ``benchmarks/shield.py``'s table, each layer's physics steps split by what the base did: the
@@ -121,6 +122,9 @@ def make_layer(setup: SceneSetup, name: str, gain: float) -> Layer:
         return shield_layer(setup, "shield", stop_time=float(name[4:]))
     if name.startswith("evade"):
         return shield_layer(setup, "shield", failsafe=native(setup, gain=float(name[5:] or gain)))
+    if name.startswith("side"):
+        failsafe = native(setup, gain=float(name[4:] or gain), sideways=True)
+        return shield_layer(setup, "shield", failsafe=failsafe)
     if name.startswith("pyevade"):
         policy = EvadePolicy.of(setup, gain=float(name[7:] or gain))
         return shield_layer(setup, "shield", failsafe=policy)

@@ -612,7 +612,7 @@ class Brake:
 class Evade:
     """The evasive failsafe (brake.h) on a scratch MjData."""
 
-    def __init__(self, model: object, actuators: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], time_constant: float, x: int, y: int, obstacles: Sequence[int], radius: Sequence[float], room: Sequence[float], gain: float, still: float) -> None: ...
+    def __init__(self, model: object, actuators: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], time_constant: float, x: int, y: int, obstacles: Sequence[int], radius: Sequence[float], room: Sequence[float], gain: float, still: float, sideways: bool) -> None: ...
 
     def compute(self, data: object) -> NDArray[numpy.float64]:
         """(nu,) controls at data's state (its bodies' positions read from it)."""

@@ -149,14 +149,17 @@ def test_a_failsafe_reading_the_live_state_leaves_its_plans_and_the_shield_sees_
     assert counts["unguaranteed"] > 0 and guaranteed < 1500, counts
 
 
-def test_the_native_evasive_failsafe_is_the_python_policy() -> None:
+@pytest.mark.parametrize("sideways", [False, True])
+def test_the_native_evasive_failsafe_is_the_python_policy(sideways: bool) -> None:
     """On 2,000 random states of mobile_cell (the base anywhere, at any speed, the walkers and
     carts of 50 episodes), the native Evade and the Python policy of experiments/shield/evade.py
-    give the same controls, bit for bit; driving +x with a walker ahead on +y they brake x as the
-    brake does and push y away (the brake leaves y alone); at rest they are the brake."""
+    give the same controls, bit for bit (steering away or across the velocity); driving +x with
+    a walker ahead on +y they brake x as the brake does and push y away (the brake leaves y
+    alone); at rest they are the brake."""
     setup = SceneSetup.of("mobile_cell")
     model = setup.model
-    fast, slow = native(setup), EvadePolicy.of(setup)
+    fast = native(setup, sideways=sideways)
+    slow = EvadePolicy.of(setup, sideways=sideways)
     data = mujoco.MjData(model)
     rng = np.random.default_rng(0)
     for i in range(2000):
@@ -198,7 +201,7 @@ def test_evade_refuses_what_it_cannot_steer() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("form", ["native", "policy"])
+@pytest.mark.parametrize("form", ["native", "policy", "sideways"])
 def test_an_evasive_failsafe_keeps_the_guarantee_and_its_rollouts(form: str) -> None:
     """Over sampled mobile_cell episodes, the shield with the evasive failsafe has no free moving
     contact where the unshielded base has several; in the episodes nothing touched, the run kept
@@ -207,7 +210,10 @@ def test_an_evasive_failsafe_keeps_the_guarantee_and_its_rollouts(form: str) -> 
     free = shielded = clean = 0
     for seed in SEEDS:
         free += run_episode(setup, NoLayer(), "none", seed, duration=DURATION).moving_free
-        failsafe = native(setup) if form == "native" else EvadePolicy.of(setup)
+        if form == "policy":
+            failsafe: Evade | EvadePolicy = EvadePolicy.of(setup)
+        else:
+            failsafe = native(setup, sideways=form == "sideways")
         shield = shield_layer(setup, "shield", failsafe=failsafe)
         result = run_episode(setup, shield, "evade", seed, duration=DURATION)
         shielded += result.moving_free

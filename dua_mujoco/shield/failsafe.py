@@ -132,6 +132,9 @@ class Evade:
             in its joints' coordinates (m), or None.
         gain: the share of the base's speed to drive away with, in [0, 1) (0: the brake).
         still: at most this speed on both axes it is the brake (m/s; the shield's rest speed).
+        sideways: steer across the planar velocity (``u`` perpendicular to it, to the side away
+            from the bodies and walls) instead of straight away from them: on mobile_cell it
+            keeps more of the task's progress (docs/shield.md).
         time_constant: the brake's (default: one timestep).
 
     Raises:
@@ -149,8 +152,11 @@ class Evade:
         room: npt.ArrayLike | None = None,
         gain: float = 0.9,
         still: float = 0.01,
+        sideways: bool = False,
         time_constant: float | None = None,
     ) -> None:
+        if not isinstance(sideways, bool):
+            raise InvalidInputError(f"sideways = {sideways!r} is invalid: pass True or False.")
         acts = np.arange(model.nu) if actuators is None else np.asarray(actuators, np.int64)
         tc = float(model.opt.timestep) if time_constant is None else float(time_constant)
         dofs = []
@@ -168,7 +174,7 @@ class Evade:
         self.model = model
         self.args = (
             dofs[0], dofs[1], [int(b) for b in bodies], [float(r) for r in radii], walls,
-            float(gain), float(still),
+            float(gain), float(still), sideways,
         )  # fmt: skip
         self.native = _core.Evade(model, acts.reshape(-1), tc, *self.args)
         self.brake = Brake(model, actuators=acts, time_constant=tc)

@@ -131,7 +131,7 @@ void BindShield(nb::module_& m) {
           "__init__",
           [](PyEvade* self, nb::object model, const In<int64_t>& actuators, double time_constant,
              int x, int y, std::vector<int> obstacles, std::vector<double> radius,
-             std::vector<double> room, double gain, double still) {
+             std::vector<double> room, double gain, double still, bool sideways) {
             new (self) PyEvade();
             self->m = ModelOf(model);
             self->model = model;
@@ -139,14 +139,14 @@ void BindShield(nb::module_& m) {
             auto b = Brake::Make(self->m, IntsOf(actuators), time_constant, &error);
             if (!b) Raise("InvalidInputError", error + ".");
             self->evade = Evade::Make(self->m, std::move(b), x, y, obstacles, radius, room, gain,
-                                      still, &error);
+                                      still, sideways, &error);
             if (!self->evade) Raise("InvalidInputError", error + ".");
             self->scratch = mj_makeData(self->m);
             if (!self->scratch) Raise("NativeLibraryError", "MuJoCo could not allocate an mjData");
             self->state.resize(mj_stateSize(self->m, mjSTATE_INTEGRATION));
           },
           "model"_a, "actuators"_a, "time_constant"_a, "x"_a, "y"_a, "obstacles"_a, "radius"_a,
-          "room"_a, "gain"_a, "still"_a)
+          "room"_a, "gain"_a, "still"_a, "sideways"_a)
       .def(
           "compute",
           [](PyEvade& self, nb::handle data) {
@@ -177,14 +177,15 @@ void BindShield(nb::module_& m) {
             std::string error;
             Failsafe failsafe;
             if (!evade.is_none()) {
-              // The native evasive failsafe: (x, y, obstacles, radius, room, gain, still).
+              // The native evasive failsafe: (x, y, obstacles, radius, room, gain, still,
+              // sideways).
               auto e = nb::cast<std::tuple<int, int, std::vector<int>, std::vector<double>,
-                                           std::vector<double>, double, double>>(evade);
+                                           std::vector<double>, double, double, bool>>(evade);
               auto b = Brake::Make(self->m, IntsOf(actuators), time_constant, &error);
               if (!b) Raise("InvalidInputError", error + ".");
               self->evade = Evade::Make(self->m, std::move(b), std::get<0>(e), std::get<1>(e),
                                         std::get<2>(e), std::get<3>(e), std::get<4>(e),
-                                        std::get<5>(e), std::get<6>(e), &error);
+                                        std::get<5>(e), std::get<6>(e), std::get<7>(e), &error);
               if (!self->evade) Raise("InvalidInputError", error + ".");
               Evade* ev = self->evade.get();
               failsafe = [ev](const mjModel* mm, mjData* dd, double* ctrl) {

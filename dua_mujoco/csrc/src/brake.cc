@@ -301,7 +301,7 @@ std::unique_ptr<Evade> Evade::Make(const mjModel* m, std::unique_ptr<Brake> brak
                                    const std::vector<int>& obstacles,
                                    const std::vector<double>& radius,
                                    const std::vector<double>& room, double gain, double still,
-                                   std::string* error) {
+                                   bool sideways, std::string* error) {
   const std::vector<int>& dofs = brake->dofs();
   const auto slot = [&](int i) {
     const auto it = std::find(dofs.begin(), dofs.end(), i);
@@ -341,7 +341,7 @@ std::unique_ptr<Evade> Evade::Make(const mjModel* m, std::unique_ptr<Brake> brak
   e->xq_ = m->jnt_qposadr[m->dof_jntid[x]], e->yq_ = m->jnt_qposadr[m->dof_jntid[y]];
   e->xi_ = slot(x), e->yi_ = slot(y);
   e->obstacles_ = obstacles, e->radius_ = radius, e->room_ = room;
-  e->gain_ = gain, e->still_ = still;
+  e->gain_ = gain, e->still_ = still, e->sideways_ = sideways;
   e->target_.assign(dofs.size(), 0.0);
   e->brake_ = std::move(brake);
   return e;
@@ -379,6 +379,14 @@ void Evade::Compute(const mjModel* m, const mjData* d, double* ctrl) {
   }
   double ux, uy;
   Away(d, d->qpos[xq_], d->qpos[yq_], &ux, &uy);
+  if (sideways_) {
+    // Across the velocity (s > still > 0: it has a direction), to the side u points to.
+    const double norm = std::sqrt(vx * vx + vy * vy);
+    double qx = -vy / norm, qy = vx / norm;
+    if (qx * ux + qy * uy < 0.0) qx = -qx, qy = -qy;
+    const double top = std::max(std::fabs(qx), std::fabs(qy));
+    ux = qx / top, uy = qy / top;
+  }
   target_[xi_] = gain_ * s * ux;
   target_[yi_] = gain_ * s * uy;
   brake_->Compute(m, d, target_.data(), ctrl);

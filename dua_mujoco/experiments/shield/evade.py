@@ -53,7 +53,7 @@ def _obstacles(setup: SceneSetup) -> list[int]:
     return [int(b) for b in setup.protected if int(model.body_mocapid[b]) >= 0]
 
 
-def native(setup: SceneSetup, *, gain: float = 0.9) -> Evade:
+def native(setup: SceneSetup, *, gain: float = 0.9, sideways: bool = False) -> Evade:
     """The library's evasive failsafe for ``mobile_cell``: its mocap walkers and carts, its
     walls, the base's slide joints."""
     model = setup.model
@@ -65,6 +65,7 @@ def native(setup: SceneSetup, *, gain: float = 0.9) -> Evade:
         actuators=setup.brake.actuators,
         room=room_of(model),
         gain=gain,
+        sideways=sideways,
     )
 
 
@@ -80,6 +81,7 @@ class EvadePolicy:
         room: ``(xlo, xhi, ylo, yhi)``, the walls' inner faces (m).
         gain: the share of the base's speed to drive away with (0: the brake).
         still: at most this planar speed on both axes (m/s) the policy is the brake.
+        sideways: steer across the velocity, to the side away from the obstacles.
     """
 
     def __init__(
@@ -92,6 +94,7 @@ class EvadePolicy:
         *,
         gain: float = 0.9,
         still: float = 0.01,
+        sideways: bool = False,
     ) -> None:
         if not 0.0 <= gain < 1.0:
             raise ValueError(f"gain = {gain} is invalid: pass 0 <= gain < 1 (1 never stops)")
@@ -100,18 +103,20 @@ class EvadePolicy:
         self.mocap = np.asarray(model.body_mocapid)[np.asarray(obstacles, dtype=np.int64)]
         self.radius = [float(r) for r in np.asarray(radius, dtype=np.float64).reshape(-1)]
         self.room = tuple(float(r) for r in np.asarray(room, dtype=np.float64).reshape(4))
-        self.gain, self.still = gain, still
+        self.gain, self.still, self.sideways = gain, still, sideways
         self.q = np.asarray([model.jnt_qposadr[model.dof_jntid[i]] for i in brake.dofs])
         self.v = np.asarray(brake.dofs)
 
     @classmethod
-    def of(cls, setup: SceneSetup, *, gain: float = 0.9) -> EvadePolicy:
+    def of(cls, setup: SceneSetup, *, gain: float = 0.9, sideways: bool = False) -> EvadePolicy:
         """The policy for ``mobile_cell``'s setup: its mocap walkers and carts (cylinders), and
         its walls."""
         model = setup.model
         obstacles = _obstacles(setup)
         radius = [float(model.geom_size[model.body_geomadr[b], 0]) for b in obstacles]
-        return cls(model, setup.brake, obstacles, radius, room_of(model), gain=gain)
+        return cls(
+            model, setup.brake, obstacles, radius, room_of(model), gain=gain, sideways=sideways
+        )
 
     def where(self, data: mujoco.MjData) -> list[list[float]]:
         """The obstacles' planar positions the policy steers by: ``data``'s."""
@@ -126,6 +131,13 @@ class EvadePolicy:
             return self.brake(model, data)
         pos = data.qpos[self.q]
         ux, uy = self.away(float(pos[0]), float(pos[1]), self.where(data))
+        if self.sideways:  # across the velocity, to the side (ux, uy) points to
+            norm = math.sqrt(vx * vx + vy * vy)
+            qx, qy = -vy / norm, vx / norm
+            if qx * ux + qy * uy < 0.0:
+                qx, qy = -qx, -qy
+            top = max(abs(qx), abs(qy))
+            ux, uy = qx / top, qy / top
         target = np.zeros(self.v.size)
         target[0], target[1] = self.gain * s * ux, self.gain * s * uy
         return self.brake.native.compute(data, target)
