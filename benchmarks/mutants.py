@@ -860,6 +860,18 @@ MUTANTS: tuple[Mutant, ...] = (
         "a candidate is rolled out though a protected pair may touch at its knot 0",
     ),
     Mutant(
+        "shield-view-is-the-run",
+        _SHIELD,
+        "  if (has_plan_) {\n    // The plan's knot for this step",
+        "  if (false) {\n    // The plan's knot for this step",
+        (
+            "tests/test_shield_evade.py::"
+            "test_a_failsafe_reading_the_obstacles_in_its_data_repeats_its_rollouts",
+        ),
+        "the run calls a failsafe that reads the obstacles on the live state, not the rollout's "
+        "view: it leaves the plans it was verified on",
+    ),
+    Mutant(
         "monitor-screen-acceleration-at-the-centre",
         _CHECKS,
         "(Norm3(u[0] - up[0], u[1] - up[1], u[2] - up[2]) + std::sqrt(a2) * rho) * inv_h",

@@ -8,8 +8,11 @@ it back (docs/shield.md, "mobile_cell: where the progress goes").
     python benchmarks/shield_evade.py --merge a.jsonl b.jsonl       # the tables of runs' parts
 
 Layers, every one on the same seeds, all in one run (A/B): ``none``; ``shield`` (the brake, the
-benchmark's shield); ``evade`` (the same shield with the evasive failsafe policy of
-``dua_mujoco/experiments/shield/evade.py``; ``evade0.9``: its gain 0.9, ``evade``: ``--gain``);
+benchmark's shield); ``evade`` (the same shield with the library's native evasive failsafe,
+``dua_mujoco.shield.failsafe.Evade``, as ``dua_mujoco/experiments/shield/evade.py`` builds it;
+``evade0.9``: its gain 0.9, ``evade``: ``--gain``); ``pyevade`` (the same law as a Python
+policy, called at every rolled step: what the native one saves); ``side`` (the native one
+steering across the base's velocity, ``sideways=True``; ``side0.9``: gain 0.9);
 ``p5`` (the brake, a control period of 5 physics steps instead of 10: the task still updates
 every 10); ``stop0.6`` (the brake, ``stop_time`` 0.6 s instead of 0.45). Besides
 ``benchmarks/shield.py``'s table, each layer's physics steps split by what the base did: the
@@ -17,8 +20,7 @@ intended controls applied (*passing*, and the base's mean planar speed then), or
 with the base moving or at rest (over 1 cm/s or not), touching a protected body or not; *stops*:
 passing -> failsafe changes, the base's mean speed at them, and how many reached rest; the
 shield's broken-hypothesis counts (a push breaks the plan: they count where the guarantee was
-lost, and why) and the evasive policy's run calls on a moving state it never rolled out
-(``misses``; in brackets those at steps the shield guaranteed, which must be 0).
+lost, and why).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ import numpy.typing as npt
 from dua_mujoco.experiments.report import jsonable, table
 from dua_mujoco.experiments.shield.bench import peer_layer, shield_layer, summary
 from dua_mujoco.experiments.shield.episodes import EpisodeResult, Layer, SceneSetup, run_episode
-from dua_mujoco.experiments.shield.evade import Evade
+from dua_mujoco.experiments.shield.evade import EvadePolicy, native
 
 SCENE = "mobile_cell"
 KINDS = (
@@ -68,8 +70,6 @@ class Watch:
         self.to_rest = 0  # failsafe streaks in which the base came to rest
         self.rested = False
         self.was = False
-        self.policy = getattr(inner, "evade", None)
-        self.misses = 0  # the policy's misses at steps the shield guaranteed
 
     @property
     def interventions(self) -> int:
@@ -88,10 +88,7 @@ class Watch:
     def __call__(self, data: mujoco.MjData, intended: npt.ArrayLike) -> np.ndarray:
         """The inner layer's controls; the step counted by kind."""
         before = self.inner.interventions
-        missed = self.policy.misses if self.policy is not None else 0
         ctrl = self.inner(data, intended)
-        if self.policy is not None and self.policy.misses > missed and self.guaranteed:
-            self.misses += 1
         now = self.inner.interventions > before
         speed = float(np.linalg.norm(data.qvel[self.v]))
         if not now:
@@ -124,10 +121,13 @@ def make_layer(setup: SceneSetup, name: str, gain: float) -> Layer:
     if name.startswith("stop"):
         return shield_layer(setup, "shield", stop_time=float(name[4:]))
     if name.startswith("evade"):
-        policy = Evade.of(setup, gain=float(name[5:] or gain))
-        shield = shield_layer(setup, "shield", failsafe=policy)
-        shield.evade = policy  # type: ignore[attr-defined]
-        return shield
+        return shield_layer(setup, "shield", failsafe=native(setup, gain=float(name[5:] or gain)))
+    if name.startswith("side"):
+        failsafe = native(setup, gain=float(name[4:] or gain), sideways=True)
+        return shield_layer(setup, "shield", failsafe=failsafe)
+    if name.startswith("pyevade"):
+        policy = EvadePolicy.of(setup, gain=float(name[7:] or gain))
+        return shield_layer(setup, "shield", failsafe=policy)
     raise ValueError(f"unknown layer {name!r}")
 
 
@@ -145,7 +145,6 @@ def work(seed: int) -> list[tuple[EpisodeResult, dict]]:
         watch = Watch(inner, setup)
         result = run_episode(setup, watch, name, seed)
         counts = dict(getattr(inner, "counts", {}))
-        policy = getattr(inner, "evade", None)
         extra = {
             "kind": watch.kind.tolist(),
             "pass_speed": watch.pass_speed,
@@ -153,8 +152,6 @@ def work(seed: int) -> list[tuple[EpisodeResult, dict]]:
             "stop_speed": watch.stop_speed,
             "to_rest": watch.to_rest,
             "counts": counts,
-            "misses": int(getattr(policy, "misses", 0)),
-            "guaranteed_misses": watch.misses,
         }
         out.append((result, extra))
     return out
@@ -163,7 +160,7 @@ def work(seed: int) -> list[tuple[EpisodeResult, dict]]:
 def extras(rows: list[tuple[EpisodeResult, dict]], layers: list[str]) -> str:
     """The table of what the base did, by layer."""
     header = ["layer", *KINDS, "speed passing (m/s)", "stops", "speed at a stop (m/s)"]
-    header += ["stops to rest", *BREAKS, "misses (guaranteed)"]
+    header += ["stops to rest", *BREAKS]
     out = []
     for name in layers:
         group = [e for r, e in rows if r.layer == name]
@@ -175,8 +172,6 @@ def extras(rows: list[tuple[EpisodeResult, dict]], layers: list[str]) -> str:
         row += [str(stops), f"{sum(e['stop_speed'] for e in group) / max(stops, 1):.2f}"]
         row += [str(sum(e["to_rest"] for e in group))]
         row += [str(sum(e["counts"].get(b, 0) for e in group)) for b in BREAKS]
-        misses = sum(e["misses"] for e in group)
-        row += [f"{misses} ({sum(e['guaranteed_misses'] for e in group)})"]
         out.append(row)
     return table(header, out)
 

@@ -1,5 +1,6 @@
 """dua_mujoco's native core (libdua_mujoco) as Python calls it."""
 
+from collections.abc import Sequence
 from typing import Annotated
 
 import numpy
@@ -619,10 +620,18 @@ class Brake:
     @property
     def time_constant(self) -> float: ...
 
+class Evade:
+    """The evasive failsafe (brake.h) on a scratch MjData."""
+
+    def __init__(self, model: object, actuators: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], time_constant: float, x: int, y: int, obstacles: Sequence[int], radius: Sequence[float], room: Sequence[float], gain: float, still: float, sideways: bool) -> None: ...
+
+    def compute(self, data: object) -> NDArray[numpy.float64]:
+        """(nu,) controls at data's state (its bodies' positions read from it)."""
+
 class Shield:
     """The safety shield (shield.h)."""
 
-    def __init__(self, tables: object, model: object, rolled: object, roll: object, scratch: object, actuators: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], bodies: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], period: int, deviation: float, rest_speed: float, stop_time: float, stop_distance: float, screen: bool, time_constant: float, policy: object | None) -> None: ...
+    def __init__(self, tables: object, model: object, rolled: object, roll: object, scratch: object, actuators: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], bodies: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g1: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], g2: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], period: int, deviation: float, rest_speed: float, stop_time: float, stop_distance: float, screen: bool, time_constant: float, policy: object | None, view: object | None = None, evade: object | None = None) -> None: ...
 
     def reset(self, data: object) -> None:
         """Start over at data's state."""

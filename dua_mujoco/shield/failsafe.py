@@ -19,9 +19,10 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco import _core
-from dua_mujoco.exceptions import ShapeError
+from dua_mujoco.exceptions import InvalidInputError, ShapeError
+from dua_mujoco.runtime.flightplan import body_mask
 
-__all__ = ["Brake"]
+__all__ = ["Brake", "Evade"]
 
 
 class Brake:
@@ -78,3 +79,110 @@ class Brake:
         if goal.shape != self.dofs.shape:
             raise ShapeError(f"target must have shape {self.dofs.shape}; got {goal.shape}")
         return self.native.compute(data, goal)
+
+
+def planar_radius(model: mujoco.MjModel, body: int) -> float:
+    """The largest horizontal distance from ``body``'s frame origin to a point of its geoms
+    (spheres, cylinders and capsules by their radius, boxes by their half diagonal, others by
+    their bounding sphere): the clearance an evasive failsafe counts from."""
+    out = 0.0
+    for g in range(
+        int(model.body_geomadr[body]), int(model.body_geomadr[body] + model.body_geomnum[body])
+    ):
+        size = model.geom_size[g]
+        kind = int(model.geom_type[g])
+        if kind in (
+            mujoco.mjtGeom.mjGEOM_SPHERE,
+            mujoco.mjtGeom.mjGEOM_CYLINDER,
+            mujoco.mjtGeom.mjGEOM_CAPSULE,
+        ):
+            r = float(size[0])
+        elif kind == mujoco.mjtGeom.mjGEOM_BOX:
+            r = float(np.hypot(size[0], size[1]))
+        else:
+            r = float(model.geom_rbound[g])
+        out = max(out, float(np.hypot(*model.geom_pos[g][:2])) + r)
+    return out
+
+
+class Evade:
+    """An evasive failsafe for a robot on two planar slide joints (a mobile base): it brakes
+    while steering away from named bodies and a room's walls (docs/shield.md, "An evasive
+    failsafe"; native, in the shield's rollouts: its cost is about the brake's).
+
+    Each physics step, with ``s = max(|vx|, |vy|)`` the base's larger planar axis speed, it
+    drives the planar velocity toward ``gain * s * u`` and every other DOF of the robot toward 0
+    as fast as the actuators allow (:meth:`Brake.toward`): ``u`` points away from the bodies of
+    ``away_from`` (each pushing by the inverse square of its clearance from its ``radius``) and the
+    walls of ``room``, its larger component 1. The axis with the larger speed still brakes at its
+    limit (``gain < 1``), so the base comes to rest about when the brake would have; the other
+    moves it away meanwhile. At most ``still`` on both axes it is the brake (which holds the base,
+    theory.md (S5)). It reads the bodies where its data has them: the shield calls it on the
+    rollout's data, and in the run on the rollout's view, so it steers by the obstacles as the
+    verified rollout saw them.
+
+    Args:
+        model: the model.
+        planar: the names of the two slide joints (x, y) of the base.
+        away_from: the bodies to steer away from (names or fnmatch patterns).
+        actuators: the robot's actuators (default: all).
+        radius: each body's radius (m): a number for all, or one per body (default: each one's
+            largest horizontal reach, :func:`planar_radius`).
+        room: ``(xlo, xhi, ylo, yhi)``, the inner faces of axis-aligned walls around the base
+            in its joints' coordinates (m), or None.
+        gain: the share of the base's speed to drive away with, in [0, 1) (0: the brake).
+        still: at most this speed on both axes it is the brake (m/s; the shield's rest speed).
+        sideways: steer across the planar velocity (``u`` perpendicular to it, to the side away
+            from the bodies and walls) instead of straight away from them: on mobile_cell it
+            keeps more of the task's progress (docs/shield.md).
+        time_constant: the brake's (default: one timestep).
+
+    Raises:
+        InvalidInputError: a joint that is not a slide joint of the robot, a bad value.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        *,
+        planar: tuple[str, str],
+        away_from: str | list[str],
+        actuators: npt.ArrayLike | None = None,
+        radius: float | npt.ArrayLike | None = None,
+        room: npt.ArrayLike | None = None,
+        gain: float = 0.9,
+        still: float = 0.01,
+        sideways: bool = False,
+        time_constant: float | None = None,
+    ) -> None:
+        if not isinstance(sideways, bool):
+            raise InvalidInputError(f"sideways = {sideways!r} is invalid: pass True or False.")
+        acts = np.arange(model.nu) if actuators is None else np.asarray(actuators, np.int64)
+        tc = float(model.opt.timestep) if time_constant is None else float(time_constant)
+        dofs = []
+        for name in planar:
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if j < 0:
+                raise InvalidInputError(f"planar joint {name!r} is not a joint of the model.")
+            dofs.append(int(model.jnt_dofadr[j]))
+        bodies = np.flatnonzero(body_mask(model, away_from, what="away_from"))
+        if radius is None:
+            radii = np.array([planar_radius(model, int(b)) for b in bodies])
+        else:
+            radii = np.broadcast_to(np.asarray(radius, dtype=np.float64), bodies.shape).copy()
+        walls = [] if room is None else [float(w) for w in np.asarray(room, np.float64).reshape(4)]
+        self.model = model
+        self.args = (
+            dofs[0], dofs[1], [int(b) for b in bodies], [float(r) for r in radii], walls,
+            float(gain), float(still), sideways,
+        )  # fmt: skip
+        self.native = _core.Evade(model, acts.reshape(-1), tc, *self.args)
+        self.brake = Brake(model, actuators=acts, time_constant=tc)
+        self.actuators = self.brake.actuators
+        self.bodies = bodies
+        self.radius = radii
+        self.time_constant = tc
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+        """The failsafe's controls at ``data`` (the bodies where ``data`` has them): ``(nu,)``."""
+        return self.native.compute(data)

@@ -26,13 +26,18 @@ from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.runtime.flightplan import body_mask
 from dua_mujoco.runtime.predictor import BoundsLike, Predictor
-from dua_mujoco.shield.failsafe import Brake
+from dua_mujoco.shield.failsafe import Brake, Evade
 
 __all__ = ["Policy", "Shield"]
 
 Policy = Callable[[mujoco.MjModel, mujoco.MjData], np.ndarray]
 """A failsafe of the user's: ``policy(model, data) -> (nu,)`` controls at ``data``'s state
-(its kinematics and velocities computed, ``data.ctrl`` the controls applied last)."""
+(as ``mj_step1`` leaves it: kinematics, collisions, velocities; ``data.ctrl`` the controls
+applied last). The shield calls it with the rollout's model (its protected bodies collide with
+nothing) and the rollout's data: in its rollouts, and in the run on the *rollout's view*
+(``Shield.view``), the plan's knot for the step with the robot's coordinates the run's, so
+every other body (a mocap obstacle, another arm) is where the verified rollout had it, not where
+it is now. Read the obstacles from ``data``: a run on its plan then repeats the rollout."""
 
 Names = str | Iterable[str | int]
 
@@ -65,8 +70,10 @@ class Shield:
         period: physics steps per control period: the intended controls are read at each
             period's first step and held for the period (a gymnasium env's ``frame_skip``).
         failsafe: None (a :class:`~dua_mujoco.shield.failsafe.Brake` of the robot's
-            actuators), a ``Brake`` of them with another time constant, or a ``policy(model,
-            data) -> (nu,)`` of your own (called from the rollouts too: slower).
+            actuators), a ``Brake`` of them with another time constant, an
+            :class:`~dua_mujoco.shield.failsafe.Evade` of them (native, a mobile base braking
+            while it steers away from obstacles), or a ``policy(model, data) -> (nu,)`` of your
+            own (:data:`Policy`: called from the rollouts too, slower).
         deviation: how far every point of the robot may stray from a rollout of its controls
             (m): 0 in simulation, the tracking error on a real robot.
         rest_speed: a robot body at most this fast at every point is at rest (m/s; ISO/TS
@@ -95,6 +102,8 @@ class Shield:
         pairs: ``(k, 2)`` the protected geom pairs, robot geom first.
         robot_bodies, robot_actuators: the robot.
         predictor: the :class:`~dua_mujoco.Predictor` whose tables the shield runs.
+        view: the rollout's view the run calls a policy or ``Evade`` failsafe on (an ``MjData``
+            of the rollout model; None for the brake, which reads the robot's state only).
     """
 
     def __init__(
@@ -137,7 +146,15 @@ class Shield:
                     f"robot = {robot!r}: no actuator moves these bodies; name the bodies the "
                     "robot's actuators move."
                 )
-        if failsafe is None or isinstance(failsafe, Brake):
+        evade = None
+        if isinstance(failsafe, Evade):
+            if not np.array_equal(failsafe.actuators, acts):
+                raise InvalidInputError(
+                    f"failsafe: an Evade of actuators {failsafe.actuators.tolist()}; the robot's "
+                    f"are {acts.tolist()}: make it Evade(model, actuators=...) of those."
+                )
+            brake, tc, policy, evade = failsafe.brake, failsafe.time_constant, None, failsafe.args
+        elif failsafe is None or isinstance(failsafe, Brake):
             tc = h if failsafe is None else failsafe.time_constant
             brake = Brake(model, actuators=acts, time_constant=tc)
             if isinstance(failsafe, Brake) and not np.array_equal(failsafe.actuators, acts):
@@ -181,6 +198,9 @@ class Shield:
         rolled.body_contype[bodies] = 0
         rolled.body_conaffinity[bodies] = 0
         self._keep = (rolled, mujoco.MjData(rolled), mujoco.MjData(model))
+        # The rollout's view, for a failsafe that reads more than the robot (a policy, the
+        # evasive one): the run calls it there, on the plan's knot (shield.h, Failsafe).
+        self.view = mujoco.MjData(rolled) if policy is not None or evade is not None else None
         self.native = _core.Shield(
             tables,
             model,
@@ -197,6 +217,8 @@ class Shield:
             screen,
             tc,
             policy,
+            self.view,
+            evade,
         )
         self.period = period
         # Called with the controller's array as it is; a TypeError (not a C-contiguous float

@@ -4,6 +4,7 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
 #include <algorithm>
@@ -38,13 +39,26 @@ struct PyBrake {
   }
 };
 
+// An evasive failsafe and the scratch MjData it reads a state on.
+struct PyEvade {
+  std::unique_ptr<Evade> evade;
+  const mjModel* m = nullptr;
+  nb::object model;
+  mjData* scratch = nullptr;
+  std::vector<double> state;
+  ~PyEvade() {
+    if (scratch) mj_deleteData(scratch);
+  }
+};
+
 // A shield, the Python objects whose MuJoCo structs it points into, and a Python failsafe if
 // one was given (called with the rollout's or the scratch's model and data).
 struct PyShield {
   std::unique_ptr<Shield> shield;
   std::unique_ptr<Brake> brake;
+  std::unique_ptr<Evade> evade;
   const mjModel* m = nullptr;
-  nb::object model, rolled, roll, scratch, policy;
+  nb::object model, rolled, roll, scratch, view, policy;
   // control() runs every physics step, where the call itself is a good part of the shield's
   // time on a step that decides nothing: the last data object, held (so no other object can
   // take its identity), with its mjData; and a numpy array the controls are written into, whose
@@ -112,6 +126,40 @@ void BindShield(nb::module_& m) {
       .def_prop_ro("actuators", [](const PyBrake& s) { return s.brake->actuators(); })
       .def_prop_ro("time_constant", [](const PyBrake& s) { return s.brake->time_constant(); });
 
+  nb::class_<PyEvade>(m, "Evade", "The evasive failsafe (brake.h) on a scratch MjData.")
+      .def(
+          "__init__",
+          [](PyEvade* self, nb::object model, const In<int64_t>& actuators, double time_constant,
+             int x, int y, std::vector<int> obstacles, std::vector<double> radius,
+             std::vector<double> room, double gain, double still, bool sideways) {
+            new (self) PyEvade();
+            self->m = ModelOf(model);
+            self->model = model;
+            std::string error;
+            auto b = Brake::Make(self->m, IntsOf(actuators), time_constant, &error);
+            if (!b) Raise("InvalidInputError", error + ".");
+            self->evade = Evade::Make(self->m, std::move(b), x, y, obstacles, radius, room, gain,
+                                      still, sideways, &error);
+            if (!self->evade) Raise("InvalidInputError", error + ".");
+            self->scratch = mj_makeData(self->m);
+            if (!self->scratch) Raise("NativeLibraryError", "MuJoCo could not allocate an mjData");
+            self->state.resize(mj_stateSize(self->m, mjSTATE_INTEGRATION));
+          },
+          "model"_a, "actuators"_a, "time_constant"_a, "x"_a, "y"_a, "obstacles"_a, "radius"_a,
+          "room"_a, "gain"_a, "still"_a, "sideways"_a)
+      .def(
+          "compute",
+          [](PyEvade& self, nb::handle data) {
+            const mjData* d = DataOf(data);
+            mj_getState(self.m, d, self.state.data(), mjSTATE_INTEGRATION);
+            mj_setState(self.m, self.scratch, self.state.data(), mjSTATE_INTEGRATION);
+            Brake::Prepare(self.m, self.scratch);
+            std::vector<double> ctrl(self.m->nu);
+            self.evade->Compute(self.m, self.scratch, ctrl.data());
+            return Owned(std::move(ctrl), {static_cast<size_t>(self.m->nu)});
+          },
+          "data"_a, "(nu,) controls at data's state (its bodies' positions read from it).");
+
   nb::class_<PyShield>(m, "Shield", "The safety shield (shield.h).")
       .def(
           "__init__",
@@ -119,15 +167,31 @@ void BindShield(nb::module_& m) {
              nb::object roll, nb::object scratch, const In<int64_t>& actuators,
              const In<int64_t>& bodies, const In<int64_t>& g1, const In<int64_t>& g2,
              int64_t period, double deviation, double rest_speed, double stop_time,
-             double stop_distance, bool screen, double time_constant, nb::object policy) {
+             double stop_distance, bool screen, double time_constant, nb::object policy,
+             nb::object view, nb::object evade) {
             new (self) PyShield();
             auto tables = nb::cast<std::shared_ptr<Tables>>(table_object);
             self->m = ModelOf(model);
             self->model = model, self->rolled = rolled, self->roll = roll;
-            self->scratch = scratch, self->policy = policy;
+            self->scratch = scratch, self->policy = policy, self->view = view;
             std::string error;
             Failsafe failsafe;
-            if (policy.is_none()) {
+            if (!evade.is_none()) {
+              // The native evasive failsafe: (x, y, obstacles, radius, room, gain, still,
+              // sideways).
+              auto e = nb::cast<std::tuple<int, int, std::vector<int>, std::vector<double>,
+                                           std::vector<double>, double, double, bool>>(evade);
+              auto b = Brake::Make(self->m, IntsOf(actuators), time_constant, &error);
+              if (!b) Raise("InvalidInputError", error + ".");
+              self->evade = Evade::Make(self->m, std::move(b), std::get<0>(e), std::get<1>(e),
+                                        std::get<2>(e), std::get<3>(e), std::get<4>(e),
+                                        std::get<5>(e), std::get<6>(e), std::get<7>(e), &error);
+              if (!self->evade) Raise("InvalidInputError", error + ".");
+              Evade* ev = self->evade.get();
+              failsafe = [ev](const mjModel* mm, mjData* dd, double* ctrl) {
+                ev->Compute(mm, dd, ctrl);
+              };
+            } else if (policy.is_none()) {
               self->brake = Brake::Make(self->m, IntsOf(actuators), time_constant, &error);
               if (!self->brake) Raise("InvalidInputError", error + ".");
               Brake* b = self->brake.get();
@@ -135,13 +199,15 @@ void BindShield(nb::module_& m) {
                 b->Compute(mm, dd, nullptr, ctrl);
               };
             } else {
-              // A Python policy(model, data) -> (nu,): given the rollout's objects or the
-              // scratch's, whichever the shield is stepping.
+              // A Python policy(model, data) -> (nu,): given the rollout's objects, the view's
+              // (the run, with a view) or the scratch's, whichever the shield is stepping.
               PyShield* s = self;
-              failsafe = [s](const mjModel*, mjData* dd, double* ctrl) {
-                const bool rolling = dd == const_cast<mjData*>(DataOf(s->roll));
-                nb::object out =
-                    rolling ? s->policy(s->rolled, s->roll) : s->policy(s->model, s->scratch);
+              const mjData* rolling = DataOf(roll);
+              const mjData* viewing = view.is_none() ? nullptr : DataOf(view);
+              failsafe = [s, rolling, viewing](const mjModel*, mjData* dd, double* ctrl) {
+                nb::object out = dd == rolling   ? s->policy(s->rolled, s->roll)
+                                 : dd == viewing ? s->policy(s->rolled, s->view)
+                                                 : s->policy(s->model, s->scratch);
                 const auto a = nb::cast<In<double>>(out);
                 Require(Size(a) == s->m->nu, "the failsafe policy must return (nu,) controls");
                 std::copy_n(a.data(), s->m->nu, ctrl);
@@ -155,7 +221,7 @@ void BindShield(nb::module_& m) {
                 const_cast<mjData*>(DataOf(scratch)), IntsOf(actuators), IntsOf(bodies),
                 std::vector<int64_t>(g1.data(), g1.data() + g1.size()),
                 std::vector<int64_t>(g2.data(), g2.data() + g2.size()), std::move(failsafe), o,
-                &error);
+                &error, view.is_none() ? nullptr : const_cast<mjData*>(DataOf(view)));
             if (!self->shield) Raise("InvalidInputError", error + ".");
             self->out = nb::module_::import_("numpy").attr("zeros")(self->m->nu);
             self->out_data = nb::cast<InOut<double>>(self->out).data();
@@ -163,7 +229,8 @@ void BindShield(nb::module_& m) {
           },
           "tables"_a, "model"_a, "rolled"_a, "roll"_a, "scratch"_a, "actuators"_a, "bodies"_a,
           "g1"_a, "g2"_a, "period"_a, "deviation"_a, "rest_speed"_a, "stop_time"_a,
-          "stop_distance"_a, "screen"_a, "time_constant"_a, "policy"_a.none())
+          "stop_distance"_a, "screen"_a, "time_constant"_a, "policy"_a.none(),
+          "view"_a.none() = nb::none(), "evade"_a.none() = nb::none())
       .def(
           "reset",
           [](PyShield& self, nb::handle data) { self.shield->Reset(self.m, DataOf(data)); },

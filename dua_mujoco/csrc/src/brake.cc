@@ -297,4 +297,99 @@ void Brake::Compute(const mjModel* m, const mjData* d, const double* target, dou
   }
 }
 
+std::unique_ptr<Evade> Evade::Make(const mjModel* m, std::unique_ptr<Brake> brake, int x, int y,
+                                   const std::vector<int>& obstacles,
+                                   const std::vector<double>& radius,
+                                   const std::vector<double>& room, double gain, double still,
+                                   bool sideways, std::string* error) {
+  const std::vector<int>& dofs = brake->dofs();
+  const auto slot = [&](int i) {
+    const auto it = std::find(dofs.begin(), dofs.end(), i);
+    return it == dofs.end() ? -1 : static_cast<int>(it - dofs.begin());
+  };
+  const auto slide = [&](int i) {
+    return i >= 0 && i < m->nv && m->jnt_type[m->dof_jntid[i]] == mjJNT_SLIDE && slot(i) >= 0;
+  };
+  if (!slide(x) || !slide(y) || x == y) {
+    *error = "the evasive failsafe needs two distinct slide DOFs of the robot (x, y), not " +
+             std::to_string(x) + ", " + std::to_string(y);
+  } else if (obstacles.size() != radius.size()) {
+    *error = "obstacles and radius must have the same length";
+  } else if (!(room.empty() || room.size() == 4)) {
+    *error = "room must be none or (xlo, xhi, ylo, yhi)";
+  } else if (!(gain >= 0.0 && gain < 1.0)) {
+    *error = "gain must be in [0, 1) (1 never stops), not " + Shown(gain);
+  } else if (!(still > 0.0) || !std::isfinite(still)) {
+    *error = "still must be a positive finite speed (m/s), not " + Shown(still);
+  }
+  for (const int b : obstacles) {
+    if (error->empty() && (b < 1 || b >= m->nbody)) {
+      *error = "obstacle body id " + std::to_string(b) + " is out of range";
+    }
+  }
+  for (const double r : radius) {
+    if (error->empty() && (!(r >= 0.0) || !std::isfinite(r))) {
+      *error = "an obstacle's radius must be a finite distance >= 0, not " + Shown(r);
+    }
+  }
+  for (const double w : room) {
+    if (error->empty() && !std::isfinite(w)) *error = "room must be finite, not " + Shown(w);
+  }
+  if (!error->empty()) return nullptr;
+  std::unique_ptr<Evade> e(new Evade());
+  e->x_ = x, e->y_ = y;
+  e->xq_ = m->jnt_qposadr[m->dof_jntid[x]], e->yq_ = m->jnt_qposadr[m->dof_jntid[y]];
+  e->xi_ = slot(x), e->yi_ = slot(y);
+  e->obstacles_ = obstacles, e->radius_ = radius, e->room_ = room;
+  e->gain_ = gain, e->still_ = still, e->sideways_ = sideways;
+  e->target_.assign(dofs.size(), 0.0);
+  e->brake_ = std::move(brake);
+  return e;
+}
+
+void Evade::Away(const mjData* d, double x, double y, double* ux, double* uy) const {
+  // experiments/shield/evade.py's law, in its order of operations (the same doubles).
+  double px = 0.0, py = 0.0;
+  for (size_t k = 0; k < obstacles_.size(); ++k) {
+    const double* o = d->xpos + 3 * obstacles_[k];
+    const double gx = x - o[0], gy = y - o[1];
+    const double dist = std::sqrt(gx * gx + gy * gy);
+    if (dist == 0.0) continue;
+    const double clear = std::max(dist - radius_[k], 0.05);
+    const double w = 1.0 / (dist * clear * clear);
+    px = px + gx * w, py = py + gy * w;
+  }
+  if (!room_.empty()) {
+    const double w = std::max(x - room_[0], 0.05), e = std::max(room_[1] - x, 0.05);
+    const double s = std::max(y - room_[2], 0.05), n = std::max(room_[3] - y, 0.05);
+    px += 1.0 / (w * w) - 1.0 / (e * e);
+    py += 1.0 / (s * s) - 1.0 / (n * n);
+  }
+  const double top = std::max(std::fabs(px), std::fabs(py));
+  *ux = top > 0.0 ? px / top : 0.0;
+  *uy = top > 0.0 ? py / top : 0.0;
+}
+
+void Evade::Compute(const mjModel* m, const mjData* d, double* ctrl) {
+  const double vx = d->qvel[x_], vy = d->qvel[y_];
+  const double s = std::max(std::fabs(vx), std::fabs(vy));
+  if (s <= still_) {
+    brake_->Compute(m, d, nullptr, ctrl);
+    return;
+  }
+  double ux, uy;
+  Away(d, d->qpos[xq_], d->qpos[yq_], &ux, &uy);
+  if (sideways_) {
+    // Across the velocity (s > still > 0: it has a direction), to the side u points to.
+    const double norm = std::sqrt(vx * vx + vy * vy);
+    double qx = -vy / norm, qy = vx / norm;
+    if (qx * ux + qy * uy < 0.0) qx = -qx, qy = -qy;
+    const double top = std::max(std::fabs(qx), std::fabs(qy));
+    ux = qx / top, uy = qy / top;
+  }
+  target_[xi_] = gain_ * s * ux;
+  target_[yi_] = gain_ * s * uy;
+  brake_->Compute(m, d, target_.data(), ctrl);
+}
+
 }  // namespace dua

@@ -68,6 +68,45 @@ class DUA_API Brake {
   std::vector<uint8_t> moves_;  // actuators with a nonzero moment arm on a braked DOF, this step
 };
 
+// An evasive failsafe for a robot with two planar slide DOFs (a mobile base; docs/shield.md, "An
+// evasive failsafe"): each step, with s = max(|vx|, |vy|) its planar velocity's larger axis
+// speed, the brake driving the planar velocity toward gain * s * u (u away from the obstacles and
+// the room's walls, each pushing by the inverse square of its clearance, its larger component
+// 1) and every other braked DOF toward 0, as fast as the actuators allow; `sideways`: u across the
+// planar velocity instead, to the side away from them. The axis with the larger speed still
+// brakes at its limit (gain < 1), the other moves the base away meanwhile; at most `still` on
+// both axes it is the brake. It reads the obstacles' positions (d->xpos) at its data's
+// state: the shield calls it on the rollout's data and, in the run, on the rollout's view
+// (shield.h), so the run repeats the rollout.
+class DUA_API Evade {
+ public:
+  // brake: the robot's brake (moved in); x, y: the planar slide DOFs (among the brake's DOFs);
+  // obstacles: body ids, radius: their radii (m, the clearance counts from them); room: xlo,
+  // xhi, ylo, yhi the walls' inner faces (an empty room: none); gain in [0, 1); still > 0;
+  // sideways: steer across the velocity. Null with *error naming a bad value.
+  static std::unique_ptr<Evade> Make(const mjModel* m, std::unique_ptr<Brake> brake, int x, int y,
+                                     const std::vector<int>& obstacles,
+                                     const std::vector<double>& radius,
+                                     const std::vector<double>& room, double gain, double still,
+                                     bool sideways, std::string* error);
+
+  // ctrl (nu) at d's state (Brake::Prepare or mj_step1 computed it, the obstacles' xpos too).
+  void Compute(const mjModel* m, const mjData* d, double* ctrl);
+  // The direction away from the obstacles and walls from (x, y), d's obstacle positions.
+  void Away(const mjData* d, double x, double y, double* ux, double* uy) const;
+
+  Brake& brake() { return *brake_; }
+
+ private:
+  Evade() = default;
+  std::unique_ptr<Brake> brake_;
+  int x_ = 0, y_ = 0, xq_ = 0, yq_ = 0, xi_ = 0, yi_ = 0;  // DOFs, qpos addresses, brake slots
+  std::vector<int> obstacles_;
+  std::vector<double> radius_, room_, target_;
+  double gain_ = 0.0, still_ = 0.0;
+  bool sideways_ = false;
+};
+
 }  // namespace dua
 
 #endif  // DUA_MUJOCO_BRAKE_H_

@@ -20,8 +20,8 @@ std::unique_ptr<Shield> Shield::Make(const mjModel* m, std::shared_ptr<const Tab
                                      const std::vector<int>& robot_actuators,
                                      const std::vector<int>& robot_bodies,
                                      const std::vector<int64_t>& g1, const std::vector<int64_t>& g2,
-                                     Failsafe failsafe, const ShieldOptions& o,
-                                     std::string* error) {
+                                     Failsafe failsafe, const ShieldOptions& o, std::string* error,
+                                     mjData* view) {
   const double h = m->opt.timestep;
   if (o.period < 1) {
     *error = "period must be a whole number of physics steps >= 1, not " + std::to_string(o.period);
@@ -81,6 +81,13 @@ std::unique_ptr<Shield> Shield::Make(const mjModel* m, std::shared_ptr<const Tab
     if (!s->is_robot_[b2]) s->protected_body_[b2] = 1;
   }
   s->model_ = m, s->rolled_ = rolled, s->roll_ = roll, s->scratch_ = scratch;
+  s->view_ = view;
+  for (const int a : robot_actuators) {
+    s->robot_ctrl_.push_back(a);
+    if (m->actuator_actadr[a] < 0) continue;
+    for (int i = 0; i < m->actuator_actnum[a]; ++i)
+      s->robot_act_.push_back(m->actuator_actadr[a] + i);
+  }
   s->tables_ = tables;
   s->failsafe_ = std::move(failsafe);
   s->o_ = o;
@@ -216,10 +223,12 @@ int64_t Shield::Roll(const double* intended, int64_t nint, int64_t last) {
   if (kpos_.size() < rows * 3 * ngeom) {
     kpos_.resize(rows * 3 * ngeom), kmat_.resize(rows * 9 * ngeom), kq_.resize(rows * nq);
   }
+  if (view_ && kstate_.size() < rows * state_.size()) kstate_.resize(rows * state_.size());
   const auto keep = [&](int64_t j) {
     std::copy_n(d->geom_xpos, 3 * ngeom, kpos_.begin() + 3 * ngeom * j);
     std::copy_n(d->geom_xmat, 9 * ngeom, kmat_.begin() + 9 * ngeom * j);
     for (int64_t i = 0; i < nq; ++i) kq_[nq * j + i] = d->qpos[robot_q_[i]];
+    if (view_) mj_getState(m, d, kstate_.data() + state_.size() * j, kState);
   };
   const auto joint_speed = [&] {
     double s = 0.0;
@@ -302,6 +311,10 @@ void Shield::Install(int64_t n, int64_t rest) {
   std::swap(plan_, cand_);
   const auto nq = robot_q_.size();
   plan_q_.assign(kq_.begin(), kq_.begin() + static_cast<std::ptrdiff_t>(n * nq));
+  if (view_) {
+    const auto ns = static_cast<std::ptrdiff_t>(state_.size());
+    plan_state_.assign(kstate_.begin(), kstate_.begin() + n * ns);
+  }
   plan_step_ = counts_.steps;
   plan_rest_ = rest;
   has_plan_ = true;
@@ -407,6 +420,10 @@ void Shield::Period(const mjModel* m, const mjData* d, const double* intended) {
             std::copy_n(kpos_.begin() + 3 * ngeom * e, 3 * ngeom, kpos_.begin() + 3 * ngeom * j);
             std::copy_n(kmat_.begin() + 9 * ngeom * e, 9 * ngeom, kmat_.begin() + 9 * ngeom * j);
             std::copy_n(kq_.begin() + nq * e, nq, kq_.begin() + nq * j);
+            if (view_) {
+              const auto ns = static_cast<int64_t>(state_.size());
+              std::copy_n(kstate_.begin() + ns * e, ns, kstate_.begin() + ns * j);
+            }
           }
           rest = e + max_stop_;
           tail = e + 1;
@@ -487,6 +504,10 @@ void Shield::KnotZero() {
   std::copy_n(scratch_->geom_xpos, 3 * ngeom, kpos_.begin());
   std::copy_n(scratch_->geom_xmat, 9 * ngeom, kmat_.begin());
   for (int64_t i = 0; i < nq; ++i) kq_[i] = scratch_->qpos[robot_q_[i]];
+  if (view_) {
+    if (kstate_.size() < state_.size()) kstate_.resize(state_.size());
+    std::copy(state_.begin(), state_.end(), kstate_.begin());
+  }
 }
 
 bool Shield::HoldsNow() {
@@ -522,13 +543,38 @@ bool Shield::WithinEnvelope(int64_t n) const {
   return true;
 }
 
+void Shield::View(const mjData* d) {
+  const mjModel* m = rolled_;
+  if (has_plan_) {
+    // The plan's knot for this step (its last past the rest knot: the robot held there), as the
+    // rollout had it; the robot's own coordinates the run's (the same, on the plan).
+    const auto ns = static_cast<int64_t>(state_.size());
+    const int64_t k = std::min(counts_.steps - plan_step_, plan_->nknot() - 1);
+    mj_setState(m, view_, plan_state_.data() + ns * k, kState);
+    for (const int i : robot_q_) view_->qpos[i] = d->qpos[i];
+    for (const int i : robot_v_) view_->qvel[i] = d->qvel[i];
+    for (const int i : robot_act_) view_->act[i] = d->act[i];
+    for (const int a : robot_ctrl_) view_->ctrl[a] = d->ctrl[a];
+  } else {
+    mj_getState(model_, d, hold_.data(), kState);
+    mj_setState(m, view_, hold_.data(), kState);
+  }
+  // What the rollout computed at its knots before calling the failsafe.
+  mj_step1(m, view_);
+}
+
 void Shield::Control(const mjModel* m, const mjData* d, const double* intended, double* ctrl) {
   if (counts_.steps > 0) Check(d);
   if (counts_.steps % o_.period == 0) Period(m, d, intended);
   std::copy_n(intended, m->nu, ctrl);
   if (failsafe_mode_) {
-    Prepare(d);
-    failsafe_(m, scratch_, ctrl_.data());
+    if (view_) {
+      View(d);
+      failsafe_(rolled_, view_, ctrl_.data());
+    } else {
+      Prepare(d);
+      failsafe_(m, scratch_, ctrl_.data());
+    }
     for (const int a : acts_) ctrl[a] = ctrl_[a];
     ++counts_.interventions;
   } else {

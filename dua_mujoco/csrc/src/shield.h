@@ -78,6 +78,17 @@ struct ShieldCounts {
 // d->ctrl holds the controls applied last.
 using Failsafe = std::function<void(const mjModel* m, mjData* d, double* ctrl)>;
 
+// The rollout's view (a failsafe that reads more than the robot's state: where the obstacles
+// are): the failsafe is called in the rollouts on the rollout's data, whose other bodies are as
+// the rollout holds them (mocap bodies where the state read put them, every other body rolled
+// under its held controls); the run calls it on `view`, an mjData of the rollout model holding
+// the plan's knot for this step (its state as mj_step1 left it in the rollout) with the robot's
+// own coordinates (qpos, qvel, act, its actuators' ctrl) the run's. A run on its plan then gives
+// the failsafe the very data it had in the rollout, so it repeats the rollout whatever else the
+// failsafe reads (docs/theory.md, section 10). Without a plan (after an event, until the next
+// period) the view holds the run's state. Null: the failsafe reads the robot's state only (the
+// brake), and the run calls it on the run's state.
+
 class DUA_API Shield {
  public:
   // m: the model; tables: the predictor's, built for m with period options.period; rolled: a
@@ -91,7 +102,8 @@ class DUA_API Shield {
                                       const std::vector<int>& robot_bodies,
                                       const std::vector<int64_t>& g1,
                                       const std::vector<int64_t>& g2, Failsafe failsafe,
-                                      const ShieldOptions& options, std::string* error);
+                                      const ShieldOptions& options, std::string* error,
+                                      mjData* view = nullptr);
 
   // Defined in shield.cc, where Plan's destructor (not exported) is seen.
   ~Shield();
@@ -123,6 +135,8 @@ class DUA_API Shield {
   // the rollout model; positions: mj_step1 computed its position stage): false restores d's
   // state and mj_step1's values, for the rollout to go on; true leaves d's values the check's.
   bool Holds(const mjModel* m, mjData* d, bool positions);
+  // The view for the run's step from d (see Failsafe): the plan's knot, the robot the run's.
+  void View(const mjData* d);
   // Holds at the state read (Prepare's), on the rollout's data.
   bool HoldsNow();
   // Rolls out from the scratch's state: `nint` steps of intended, then the failsafe until rest
@@ -160,6 +174,8 @@ class DUA_API Shield {
   const mjModel* rolled_ = nullptr;
   mjData* roll_ = nullptr;
   mjData* scratch_ = nullptr;
+  mjData* view_ = nullptr;                   // the rollout's view (null: none)
+  std::vector<int> robot_act_, robot_ctrl_;  // the robot's act and ctrl addresses (the view's)
   std::unique_ptr<Runtime> rt_;
   std::shared_ptr<const Tables> tables_;
   Failsafe failsafe_;
@@ -175,10 +191,11 @@ class DUA_API Shield {
   std::vector<double> state_, hold_;  // mj_getState buffers: the state read, a knot's (Holds)
   // The rollout's knots: geom poses, the robot's qpos.
   std::vector<double> kpos_, kmat_, kq_, dev_;
+  std::vector<double> kstate_;  // with a view: each knot's whole state (mj_getState)
   // The plan followed: from step plan_step_, its robot qpos per knot, its rest knot.
   std::unique_ptr<Plan> plan_ = std::make_unique<Plan>();
   bool has_plan_ = false;
-  std::vector<double> plan_q_;
+  std::vector<double> plan_q_, plan_state_;  // plan_state_: its knots' states (a view)
   int64_t plan_step_ = 0, plan_rest_ = -1;
   bool plan_by_screen_ = false;  // verified by the screen before it, not by its own query
   bool envelope_ = false;        // the plan ends in a stop envelope (from env_pos_, env_mat_)
