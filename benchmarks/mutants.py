@@ -744,7 +744,7 @@ MUTANTS: tuple[Mutant, ...] = (
         _SHIELD,
         "return rt_->watched().expiry >= now + dt + o_.stop_time;",
         "return rt_->watched().expiry >= now + dt;",
-        (f"{_SHIELD_EPISODES}[mobile_cell]",),
+        (f"{_SHIELD_EPISODES}[mobile_cell-brake]",),
         "the screen passes a period whose failsafe's stop it does not cover",
     ),
     Mutant(

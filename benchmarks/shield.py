@@ -5,13 +5,17 @@
     python benchmarks/shield.py --episodes 340 --json docs/img/shield.json
     python benchmarks/shield.py --merge a.json b.json             # the table of runs' episodes
 
-Layers: ``none``; ``ttc`` (MoveIt Servo's stop-distance halt, its defaults); ``ttc-scale``
-(its threshold-distance velocity scaling); ``damper`` (mink's collision-avoidance limit on the
-intended motion, its defaults); ``reference``: the slow reference shield of
-``tests/reference_shield.py`` (the intended controls for one control period then the brake,
-rolled out and checked against the protected bodies' declared bounds every period; a prototype
-of ``dua_mujoco.Shield``). Every layer runs the same seeds; see
-``dua_mujoco/experiments/shield/episodes.py`` for what is counted.
+Layers: ``none``; ``shield`` (``dua_mujoco.Shield`` as a user would configure it on the scene:
+its declared bounds and its failsafe, the brake on person_cell and arm_pair, the evasive
+``Evade(sideways=True)`` at gain 0.9 on mobile_cell; ``FAILSAFES`` of
+``dua_mujoco/experiments/shield/bench.py``); ``shield-brake`` (the same with the brake on every
+scene); ``shield-noscreen`` (``shield`` without its screen); ``ttc`` (MoveIt Servo's
+stop-distance halt, its defaults); ``ttc-scale`` (its threshold-distance velocity scaling);
+``damper`` (mink's collision-avoidance limit on the intended motion, its defaults);
+``reference``: the slow reference shield of ``tests/reference_shield.py`` (the intended controls
+for one control period then the brake, rolled out and checked against the protected bodies'
+declared bounds every period; a prototype of ``dua_mujoco.Shield``). Every layer runs the same
+seeds; see ``dua_mujoco/experiments/shield/episodes.py`` for what is counted.
 """
 
 from __future__ import annotations

@@ -5,13 +5,17 @@
     python benchmarks/shield_ab.py --before-python /tmp/before/.venv/bin/python --episodes 20 \\
         --hash
 
-Each side runs the ``shield`` layer of ``benchmarks/shield.py`` on the same seeds, in its own
-subprocess (its own Python: the other checkout's native library), the two sides interleaved by
-chunks of ``--chunk`` episodes (which goes first alternates). Per scene: how many episodes'
-counts (interventions, contacts, progress) are the same on both sides, the cost (the layer's
-time over ``mj_step``'s) median over episodes on each, and the median of after / before per
-episode. ``--hash`` also digests every control the shield returned (the hashing is inside the
-timed call: read the costs of a run without it).
+Each side runs the ``shield`` layer of ``benchmarks/shield.py`` (``--layer``: another of its
+shields) on the same seeds, in its own subprocess (its own Python: the other checkout's native
+library), the two sides interleaved by chunks of ``--chunk`` episodes (which goes first
+alternates). Per scene: how many episodes' counts (interventions, contacts, progress) are the
+same on both sides, the cost (the layer's time over ``mj_step``'s) median over episodes on each,
+and the median of after / before per episode. ``--hash`` also digests every control the shield
+returned (the hashing is inside the timed call: read the costs of a run without it). ``--brake``
+gives both sides the brake as the failsafe (``failsafe=None``, which every checkout reads as the
+brake): mobile_cell's ``shield`` has the evasive failsafe since shield40b, the brake before
+(1b67fc7 and older, which do not know ``shield-brake``), so against those its A/B needs
+``--brake``.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import numpy as np
 from dua_mujoco.experiments.shield.bench import run_many, shield_layer
 
 scene, seeds, digest = sys.argv[1], [int(s) for s in sys.argv[2].split(",")], sys.argv[3] == "1"
+which, brake = sys.argv[4], sys.argv[5] == "1"
 
 
 class Hashed:
@@ -49,7 +54,7 @@ made = []
 
 
 def make(setup, name):
-    layer = shield_layer(setup, name)
+    layer = shield_layer(setup, name, failsafe=None) if brake else shield_layer(setup, name)
     if digest:
         layer = Hashed(layer)
         made.append(layer)
@@ -57,7 +62,7 @@ def make(setup, name):
 
 
 out = []
-for i, r in enumerate(run_many([scene], ["shield"], seeds, make=make, jobs=1, progress=False)):
+for i, r in enumerate(run_many([scene], [which], seeds, make=make, jobs=1, progress=False)):
     d = r.as_dict()
     if digest:
         d["ctrl_sha"], d["counts"] = made[i].h.hexdigest(), made[i].inner.counts
@@ -75,6 +80,8 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=20, help="episodes a scene (seeds 0..)")
     parser.add_argument("--chunk", type=int, default=5)
     parser.add_argument("--hash", action="store_true", help="digest every control returned")
+    parser.add_argument("--layer", default="shield", help="the shield layer both sides run")
+    parser.add_argument("--brake", action="store_true", help="the brake as every side's failsafe")
     args = parser.parse_args()
     sides = {"before": args.before_python, "after": sys.executable}
     for scene in args.scenes:
@@ -84,7 +91,8 @@ def main() -> None:
             order = ["before", "after"] if (c0 // args.chunk) % 2 == 0 else ["after", "before"]
             for side in order:
                 run = subprocess.run(
-                    [sides[side], "-c", PROBE, scene, seeds, "1" if args.hash else "0"],
+                    [sides[side], "-c", PROBE, scene, seeds, "1" if args.hash else "0", args.layer,
+                     "1" if args.brake else "0"],
                     capture_output=True, text=True, check=True, cwd=Path("/tmp"),
                 )  # fmt: skip
                 res[side] += json.loads(run.stdout)

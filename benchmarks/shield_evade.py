@@ -7,10 +7,11 @@ it back (docs/shield.md, "mobile_cell: where the progress goes").
         --jsonl b.jsonl                                             # each episode as it ends
     python benchmarks/shield_evade.py --merge a.jsonl b.jsonl       # the tables of runs' parts
 
-Layers, every one on the same seeds, all in one run (A/B): ``none``; ``shield`` (the brake, the
-benchmark's shield); ``evade`` (the same shield with the library's native evasive failsafe,
-``dua_mujoco.shield.failsafe.Evade``, as ``dua_mujoco/experiments/shield/evade.py`` builds it;
-``evade0.9``: its gain 0.9, ``evade``: ``--gain``); ``pyevade`` (the same law as a Python
+Layers, every one on the same seeds, all in one run (A/B): ``none``; ``shield`` (the brake,
+passed explicitly: ``benchmarks/shield.py``'s ``shield-brake``; its ``shield`` on mobile_cell
+is this script's ``side0.9``); ``evade`` (the same shield with the library's native evasive
+failsafe, ``dua_mujoco.shield.failsafe.Evade``, as ``dua_mujoco/experiments/shield/evade.py``
+builds it; ``evade0.9``: its gain 0.9, ``evade``: ``--gain``); ``pyevade`` (the same law as a Python
 policy, called at every rolled step: what the native one saves); ``side`` (the native one
 steering across the base's velocity, ``sideways=True``; ``side0.9``: gain 0.9);
 ``p5`` (the brake, a control period of 5 physics steps instead of 10: the task still updates
@@ -114,12 +115,12 @@ def make_layer(setup: SceneSetup, name: str, gain: float) -> Layer:
     """A layer by name (the module docstring)."""
     if name == "none":
         return peer_layer(setup, name)
-    if name == "shield":
-        return shield_layer(setup, "shield")
+    if name == "shield":  # the brake, not the scene's failsafe
+        return shield_layer(setup, "shield-brake")
     if name == "p5":
-        return shield_layer(setup, "shield", period=5)
+        return shield_layer(setup, "shield-brake", period=5)
     if name.startswith("stop"):
-        return shield_layer(setup, "shield", stop_time=float(name[4:]))
+        return shield_layer(setup, "shield-brake", stop_time=float(name[4:]))
     if name.startswith("evade"):
         return shield_layer(setup, "shield", failsafe=native(setup, gain=float(name[5:] or gain)))
     if name.startswith("side"):

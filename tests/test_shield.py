@@ -36,19 +36,24 @@ EPISODES = {
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("scene", list(SHIELD_SCENES))
-def test_every_protected_contact_finds_the_robot_at_rest(scene: str) -> None:
+@pytest.mark.parametrize(
+    ("scene", "layer"),
+    [pytest.param(scene, "shield", id=scene) for scene in SHIELD_SCENES]
+    + [pytest.param("mobile_cell", "shield-brake", id="mobile_cell-brake")],
+)
+def test_every_protected_contact_finds_the_robot_at_rest(scene: str, layer: str) -> None:
     """Over sampled episodes (the others' motion drawn within their declared bounds), the
     shielded robot is never moving at a protected contact the guarantee covers, while the same
     episodes unshielded have such contacts; the shield's run is its verified plans (no plan,
-    hold or stop break) and it intervened."""
+    hold or stop break) and it intervened. The scene's shield (mobile_cell's with its evasive
+    failsafe), and mobile_cell's with the brake."""
     setup = SceneSetup.of(scene)
     seeds, duration = EPISODES[scene]
     free = shielded = interventions = 0
     for seed in seeds:
         free += run_episode(setup, NoLayer(), "none", seed, duration=duration).moving_free
-        shield = shield_layer(setup, "shield")
-        result = run_episode(setup, shield, "shield", seed, duration=duration)
+        shield = shield_layer(setup, layer)
+        result = run_episode(setup, shield, layer, seed, duration=duration)
         shielded += result.moving_free
         interventions += result.interventions
         counts = shield.counts

@@ -21,9 +21,10 @@ from mjcf import mjcf, motors
 
 from dua_mujoco import Shield
 from dua_mujoco.exceptions import InvalidInputError
-from dua_mujoco.experiments.shield.bench import shield_layer
+from dua_mujoco.experiments.shield.bench import scene_failsafe, shield_layer
 from dua_mujoco.experiments.shield.episodes import NoLayer, SceneSetup, run_episode
 from dua_mujoco.experiments.shield.evade import EvadePolicy, native
+from dua_mujoco.models.cells import SHIELD_SCENES
 from dua_mujoco.shield.failsafe import Brake, Evade
 
 SEEDS, DURATION = range(8), 4.0
@@ -198,6 +199,47 @@ def test_evade_refuses_what_it_cannot_steer() -> None:
     evade = Evade(model, planar=("base_x", "base_y"), away_from=["walker*"], actuators=[0, 1])
     with pytest.raises(InvalidInputError, match="an Evade of actuators"):
         shield_layer(setup, "shield", failsafe=evade)
+
+
+def _controls(setup: SceneSetup, shield: Shield, seed: int, duration: float) -> np.ndarray:
+    """The controls applied at every physics step of an episode under ``shield``."""
+    out: list[np.ndarray] = []
+
+    def on_step(data: mujoco.MjData, step: int) -> None:
+        out.append(data.ctrl.copy())
+
+    run_episode(setup, shield, "shield", seed, duration=duration, on_step=on_step)
+    return np.array(out)
+
+
+def test_each_scene_shield_has_the_failsafe_a_user_would_give_it() -> None:
+    """The benchmark's ``shield`` is the scene's shield as configured (bench.FAILSAFES): on
+    mobile_cell the native evasive failsafe steering sideways at gain 0.9, on the arm cells the
+    brake; ``shield-brake`` is the brake on every scene, and ``failsafe=`` overrides either."""
+    for scene in SHIELD_SCENES:
+        setup = SceneSetup.of(scene)
+        failsafe = scene_failsafe(setup)
+        if scene == "mobile_cell":
+            assert isinstance(failsafe, Evade)
+            assert failsafe.args[5:] == (0.9, 0.01, True)  # gain, still, sideways
+            assert shield_layer(setup, "shield").view is not None  # the run calls it on the view
+            assert shield_layer(setup, "shield-noscreen").view is not None
+        else:
+            assert failsafe is None
+            assert shield_layer(setup, "shield").view is None
+        assert shield_layer(setup, "shield-brake").view is None
+        assert shield_layer(setup, "shield", failsafe=None).view is None
+    # In the run: mobile_cell's shield decides as the one given that Evade explicitly, not as
+    # the brake nor as the straight-away Evade (seed 1: they part within 2 s).
+    setup = SceneSetup.of("mobile_cell")
+    ctrl = _controls(setup, shield_layer(setup, "shield"), 1, 2.0)
+    sideways = native(setup, gain=0.9, sideways=True)
+    given = _controls(setup, shield_layer(setup, "shield-brake", failsafe=sideways), 1, 2.0)
+    np.testing.assert_array_equal(ctrl, given)
+    brake = _controls(setup, shield_layer(setup, "shield-brake"), 1, 2.0)
+    straight = _controls(setup, shield_layer(setup, "shield", failsafe=native(setup)), 1, 2.0)
+    assert not np.array_equal(ctrl, brake)
+    assert not np.array_equal(ctrl, straight)
 
 
 @pytest.mark.slow

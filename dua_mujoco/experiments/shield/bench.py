@@ -5,8 +5,10 @@ over processes by (scene, seed), each running every layer on its episode in turn
 layers see the same machine load. The layers are made by a factory ``make(setup, name)``:
 :func:`peer_layer` makes ``none``, ``ttc`` (MoveIt Servo's stop-distance halt), ``ttc-scale``
 (its threshold-distance velocity scaling) and ``damper`` (mink's limit); :func:`shield_layer`
-makes ``shield`` (:class:`dua_mujoco.Shield` with the scene's declared bounds, its robot's and
-its brake's stop time) and ``shield-noscreen`` (the same without the screen: a rollout every
+makes ``shield`` (:class:`dua_mujoco.Shield` as a user would configure it on the scene: its
+declared bounds, its robot's, its brake's stop time and the scene's failsafe,
+:data:`FAILSAFES`), ``shield-brake`` (the same with the brake as its failsafe on every scene,
+``Shield``'s default) and ``shield-noscreen`` (``shield`` without the screen: a rollout every
 period); a caller adds its own (``benchmarks/shield.py`` adds the reference shield of
 ``tests/``).
 """
@@ -27,17 +29,37 @@ from dua_mujoco.experiments.shield.episodes import (
     SceneSetup,
     run_episode,
 )
+from dua_mujoco.experiments.shield.evade import native
 from dua_mujoco.experiments.shield.peers import TtcHalt, VelocityDamper
 from dua_mujoco.models.cells import ROBOT_BOUNDS
 from dua_mujoco.progress import Progress
+from dua_mujoco.shield.failsafe import Evade
 from dua_mujoco.shield.shield import Shield
 
-__all__ = ["PEERS", "SHIELDS", "peer_layer", "run_many", "shield_layer", "summary"]
+__all__ = [
+    "FAILSAFES",
+    "PEERS",
+    "SHIELDS",
+    "peer_layer",
+    "run_many",
+    "scene_failsafe",
+    "shield_layer",
+    "summary",
+]
 
 PEERS = ("none", "ttc", "ttc-scale", "damper")
 """The layers :func:`peer_layer` makes."""
-SHIELDS = ("shield", "shield-noscreen")
+SHIELDS = ("shield", "shield-brake", "shield-noscreen")
 """The layers :func:`shield_layer` makes."""
+
+FAILSAFES: dict[str, Callable[[SceneSetup], Evade]] = {
+    # The base brakes while steering across its velocity, away from the walkers, carts and
+    # walls: 85.0 % of the unshielded progress over 334 seeds where the brake keeps 76 %
+    # (docs/shield.md, "An evasive failsafe").
+    "mobile_cell": lambda setup: native(setup, gain=0.9, sideways=True),
+}
+"""The shield's failsafe on each scene where it is not the brake (``Shield``'s default, kept
+on person_cell and arm_pair): a factory of the scene's setup."""
 
 Factory = Callable[[SceneSetup, str], Layer]
 
@@ -62,11 +84,18 @@ def peer_layer(setup: SceneSetup, name: str) -> Layer:
     raise ValueError(f"unknown layer {name!r}; known: {', '.join(PEERS)}")
 
 
+def scene_failsafe(setup: SceneSetup) -> Evade | None:
+    """The scene's failsafe (:data:`FAILSAFES`; None: the brake)."""
+    make = FAILSAFES.get(setup.scene.name)
+    return None if make is None else make(setup)
+
+
 def shield_layer(setup: SceneSetup, name: str, **options: object) -> Shield:
     """The shield ``name`` (one of :data:`SHIELDS`) for a scene: its protected bodies, every
     moving body's declared bounds (the others' and the robot's, ``ROBOT_BOUNDS``), its control
-    period, and its brake's stop time; ``options`` override :class:`Shield`'s arguments (a
-    failsafe policy, another period or stop time)."""
+    period, its brake's stop time, and its failsafe (the scene's, :func:`scene_failsafe`; the
+    brake for ``shield-brake``); ``options`` override :class:`Shield`'s arguments (another
+    failsafe, ``failsafe=None`` the brake, another period or stop time)."""
     if name not in SHIELDS:
         raise ValueError(f"unknown shield {name!r}; known: {', '.join(SHIELDS)}")
     model = setup.model
@@ -82,8 +111,10 @@ def shield_layer(setup: SceneSetup, name: str, **options: object) -> Shield:
         "period": setup.scene.period,
         "accel": bounds,
         "stop_time": setup.scene.stop_time,
-        "screen": name == "shield",
+        "screen": name != "shield-noscreen",
     }
+    if name != "shield-brake" and "failsafe" not in options:
+        args["failsafe"] = scene_failsafe(setup)
     return Shield(model, **(args | options))
 
 
