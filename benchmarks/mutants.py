@@ -333,8 +333,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-rotation-dropped",
         _PLAN,
-        "(std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 1e-9)",
-        "(std::sqrt(dp) + 0.0 * std::sqrt(dr) * reach.norm) * (1.0 + 1e-9)",
+        "(std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 2e-9)",
+        "(std::sqrt(dp) + 0.0 * std::sqrt(dr) * reach.norm) * (1.0 + 2e-9)",
         ("tests/test_flightplan.py::test_a_turn_alone_past_the_deviation_breaks_its_plan",),
         "a body that turns away from its planned pose without moving its origin keeps the plan",
     ),
