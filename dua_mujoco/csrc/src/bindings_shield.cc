@@ -27,29 +27,21 @@ std::vector<int> IntsOf(const In<int64_t>& a) {
   return std::vector<int>(a.data(), a.data() + a.size());
 }
 
-// A brake and the scratch MjData it reads a state on (the caller's data is never written).
-struct PyBrake {
-  std::unique_ptr<Brake> brake;
+// A failsafe (a Brake or an Evade) and the scratch MjData it reads a state on (the caller's
+// data is never written).
+template <class F>
+struct PyFailsafe {
+  std::unique_ptr<F> failsafe;
   const mjModel* m = nullptr;
   nb::object model;
   mjData* scratch = nullptr;
   std::vector<double> state;
-  ~PyBrake() {
+  ~PyFailsafe() {
     if (scratch) mj_deleteData(scratch);
   }
 };
-
-// An evasive failsafe and the scratch MjData it reads a state on.
-struct PyEvade {
-  std::unique_ptr<Evade> evade;
-  const mjModel* m = nullptr;
-  nb::object model;
-  mjData* scratch = nullptr;
-  std::vector<double> state;
-  ~PyEvade() {
-    if (scratch) mj_deleteData(scratch);
-  }
-};
+using PyBrake = PyFailsafe<Brake>;
+using PyEvade = PyFailsafe<Evade>;
 
 // A shield, the Python objects whose MuJoCo structs it points into, and a Python failsafe if
 // one was given (called with the rollout's or the scratch's model and data).
@@ -91,8 +83,8 @@ void BindShield(nb::module_& m) {
             self->m = ModelOf(model);
             self->model = model;
             std::string error;
-            self->brake = Brake::Make(self->m, IntsOf(actuators), time_constant, &error);
-            if (!self->brake) Raise("InvalidInputError", error + ".");
+            self->failsafe = Brake::Make(self->m, IntsOf(actuators), time_constant, &error);
+            if (!self->failsafe) Raise("InvalidInputError", error + ".");
             self->scratch = mj_makeData(self->m);
             if (!self->scratch) Raise("NativeLibraryError", "MuJoCo could not allocate an mjData");
             self->state.resize(mj_stateSize(self->m, mjSTATE_INTEGRATION));
@@ -102,7 +94,7 @@ void BindShield(nb::module_& m) {
           "compute",
           [](PyBrake& self, nb::handle data, nb::object target) {
             const mjData* d = DataOf(data);
-            const Brake& b = *self.brake;
+            const Brake& b = *self.failsafe;
             std::vector<double> goal;
             if (!target.is_none()) {
               const auto t = nb::cast<In<double>>(target);
@@ -114,17 +106,17 @@ void BindShield(nb::module_& m) {
             mj_setState(self.m, self.scratch, self.state.data(), mjSTATE_INTEGRATION);
             Brake::Prepare(self.m, self.scratch);
             std::vector<double> ctrl(self.m->nu);
-            self.brake->Compute(self.m, self.scratch, goal.empty() ? nullptr : goal.data(),
-                                ctrl.data());
+            self.failsafe->Compute(self.m, self.scratch, goal.empty() ? nullptr : goal.data(),
+                                   ctrl.data());
             return Owned(std::move(ctrl), {static_cast<size_t>(self.m->nu)});
           },
           "data"_a, "target"_a = nb::none(),
           "(nu,) controls at data's state: data.ctrl with the robot's actuators braking (or "
           "driving toward target, joint velocities of the braked DOFs).")
-      .def_prop_ro("dofs", [](const PyBrake& s) { return s.brake->dofs(); })
-      .def_prop_ro("bodies", [](const PyBrake& s) { return s.brake->bodies(); })
-      .def_prop_ro("actuators", [](const PyBrake& s) { return s.brake->actuators(); })
-      .def_prop_ro("time_constant", [](const PyBrake& s) { return s.brake->time_constant(); });
+      .def_prop_ro("dofs", [](const PyBrake& s) { return s.failsafe->dofs(); })
+      .def_prop_ro("bodies", [](const PyBrake& s) { return s.failsafe->bodies(); })
+      .def_prop_ro("actuators", [](const PyBrake& s) { return s.failsafe->actuators(); })
+      .def_prop_ro("time_constant", [](const PyBrake& s) { return s.failsafe->time_constant(); });
 
   nb::class_<PyEvade>(m, "Evade", "The evasive failsafe (brake.h) on a scratch MjData.")
       .def(
@@ -138,9 +130,9 @@ void BindShield(nb::module_& m) {
             std::string error;
             auto b = Brake::Make(self->m, IntsOf(actuators), time_constant, &error);
             if (!b) Raise("InvalidInputError", error + ".");
-            self->evade = Evade::Make(self->m, std::move(b), x, y, obstacles, radius, room, gain,
-                                      still, sideways, &error);
-            if (!self->evade) Raise("InvalidInputError", error + ".");
+            self->failsafe = Evade::Make(self->m, std::move(b), x, y, obstacles, radius, room, gain,
+                                         still, sideways, &error);
+            if (!self->failsafe) Raise("InvalidInputError", error + ".");
             self->scratch = mj_makeData(self->m);
             if (!self->scratch) Raise("NativeLibraryError", "MuJoCo could not allocate an mjData");
             self->state.resize(mj_stateSize(self->m, mjSTATE_INTEGRATION));
@@ -155,7 +147,7 @@ void BindShield(nb::module_& m) {
             mj_setState(self.m, self.scratch, self.state.data(), mjSTATE_INTEGRATION);
             Brake::Prepare(self.m, self.scratch);
             std::vector<double> ctrl(self.m->nu);
-            self.evade->Compute(self.m, self.scratch, ctrl.data());
+            self.failsafe->Compute(self.m, self.scratch, ctrl.data());
             return Owned(std::move(ctrl), {static_cast<size_t>(self.m->nu)});
           },
           "data"_a, "(nu,) controls at data's state (its bodies' positions read from it).");
