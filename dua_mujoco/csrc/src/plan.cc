@@ -77,8 +77,9 @@ double SphereGap(const double* rec, const double* spheres, const double* shapes,
 // The geoms' gap along unit n (first to second) on frame f, less the contact distance: a lower
 // bound on their distance less it (a separating direction's gap). The hull vertices the climbs
 // reach are kept in the record, as the step's exact level keeps them: the next climb (the next
-// knot's, a pose or two away) starts there. A climb's start changes no support (a hull's local
-// maximum is its maximum), and any vertex of a geom's hull is a point of the geom, which is all
+// knot's, a pose or two away) starts there. In exact arithmetic a climb's start changes no
+// support (a hull's local maximum is its maximum; in floating point see docs/theory.md, section
+// 5, on nearly flat faces), and any vertex of a geom's hull is a point of the geom, which is all
 // the step's screen of queries that cannot clear reads from them (docs/theory.md, section 5).
 double AxisGap(double* xrec, const dua_exact& x, const dua_frame& f, double n0, double n1,
                double n2, int mode) {
