@@ -472,6 +472,17 @@ MUTANTS: tuple[Mutant, ...] = (
         "the deviation check's first screen passes a box whose corners stray beyond the limit",
     ),
     Mutant(
+        "plan-shadow-map-stale",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "sh.rel_in_plan[r] = plan_->RelOf(old.rel_a(r), old.rel_b(r));",
+        "sh.rel_in_plan[r] = sh.rel_in_plan[r];",
+        (
+            "tests/test_plan_relative.py::"
+            "test_a_replaced_plans_relative_pair_is_read_at_its_own_place_in_the_new_plan",
+        ),
+        "a shadow reads its relative pairs' flags where the plan before the one in force had them",
+    ),
+    Mutant(
         "plan-kinematics-ancestors-dropped",
         _PLAN,
         "  for (int b = nbody - 1; b > 0; --b) keep[m->body_parentid[b]] |= keep[b];\n",

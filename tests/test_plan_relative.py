@@ -355,3 +355,28 @@ def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_d
             p.step(d)
         assert p.plan_breaks == (1 if late else 2)
         assert p._rt.plan_ok[list(_pair(m))].all()
+
+
+def test_a_replaced_plans_relative_pair_is_read_at_its_own_place_in_the_new_plan() -> None:
+    """The replaced plan has one relative pair, (l1, l3); the new one two, (l1, l2) first, so
+    the shadow must read (l1, l3)'s flag at its own place in the new plan. The new plan holds
+    the arm still for 40 steps and then folds; the run folds at once. It breaks the new plan's
+    (l1, l3) (5 mm) within a few steps and the replaced plan's (2 cm) a few steps later, well
+    before the new plan departs from the old: no longer proven by the new plan's pair, the
+    shadow is checked and breaks then, not at the departure. (l1, l2) holds throughout: only the
+    last joint moves, so a shadow reading its flag would wait for the departure.)"""
+    m, d, p = _arm()
+    n = 300
+    dev = np.full((n, m.nbody), 0.3)
+    _still_plan(m, d, p, dev)
+    later = np.array([[0.0, 0.0, 0.0]] * 40 + [[0.0, 0.0, 0.6]])
+    pairs = [(m.body("l1").id, m.body("l2").id), _pair(m)]
+    p.set_plan(_roll(m, d, later, n), deviation=dev, relative=(pairs, 0.005))
+    breaks = []
+    for _ in range(30):
+        d.ctrl[:] = [0.0, 0.0, 0.6]
+        mujoco.mj_step(m, d)
+        p.step(d)
+        breaks.append(p.plan_breaks)
+    assert breaks[2] == 0 and breaks[-1] == 2, breaks  # the new plan's (l1, l3), the shadow's
+    assert p._rt.plan_ok[list(_pair(m))].all()  # no body broke its own deviation
