@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from mjcf import mjcf, motors
 
-from dua_mujoco import Shield
+from dua_mujoco import Shield, _core
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.experiments.shield.bench import scene_failsafe, shield_layer
 from dua_mujoco.experiments.shield.episodes import NoLayer, SceneSetup, run_episode
@@ -66,13 +66,9 @@ class Steer:
         return self.brake.toward(data, [0.9 * s * gx / n, 0.9 * s * gy / n])
 
 
-def _follow(
-    failsafe: Callable[[mujoco.MjModel, mujoco.MjData], object],
-) -> tuple[Shield, int, object]:
-    """A 10 kg ball on planar slides driving +x at 1 m/s behind the leading walker (protected),
-    3 s under the shield with the failsafe ``failsafe(model, data)`` makes (the run's data);
-    the shield, its guaranteed steps and the failsafe."""
-    model = mujoco.MjModel.from_xml_string(
+def _ball() -> mujoco.MjModel:
+    """A 10 kg ball on planar slides ("x", "y", velocity actuators) and a walker (mocap)."""
+    return mujoco.MjModel.from_xml_string(
         mjcf(
             '<body name="robot"><joint name="x" type="slide" axis="1 0 0" damping="1"/>'
             '<joint name="y" type="slide" axis="0 1 0" damping="1"/>'
@@ -85,6 +81,15 @@ def _follow(
             ),
         ),
     )
+
+
+def _follow(
+    failsafe: Callable[[mujoco.MjModel, mujoco.MjData], object],
+) -> tuple[Shield, int, object]:
+    """A 10 kg ball on planar slides driving +x at 1 m/s behind the leading walker (protected),
+    3 s under the shield with the failsafe ``failsafe(model, data)`` makes (the run's data);
+    the shield, its guaranteed steps and the failsafe."""
+    model = _ball()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     policy = failsafe(model, data)
@@ -269,3 +274,25 @@ def test_an_evasive_failsafe_keeps_the_guarantee_and_its_rollouts(form: str) -> 
     assert free >= 3
     assert shielded == 0
     assert clean >= 2
+
+
+def test_evade_refuses_bad_shapes_naming_them() -> None:
+    """planar of three names, room of three values or inverted, radius of the wrong length:
+    each refused with the value given (not numpy's reshape or broadcast error, not ignored)."""
+    model = _ball()
+    with pytest.raises(InvalidInputError, match=r"planar = \('x', 'y', 'x'\) is invalid"):
+        Evade(model, planar=("x", "y", "x"), away_from=["walker"])  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match=r"room of shape \(3,\) is invalid"):
+        Evade(model, planar=("x", "y"), away_from=["walker"], room=[0, 1, 2])
+    for room in ([1, 0, 0, 1], [0, 1, 1, 1]):
+        with pytest.raises(InvalidInputError, match=r"xlo < xhi and ylo < yhi"):
+            Evade(model, planar=("x", "y"), away_from=["walker"], room=room)
+    with pytest.raises(InvalidInputError, match=r"radius of shape \(2,\).*names 1 bodies"):
+        Evade(model, planar=("x", "y"), away_from=["walker"], radius=[0.2, 0.3])
+    evade = Evade(model, planar=("x", "y"), away_from=["walker"], room=[-5, 5, -5, 5])
+    x, y, bodies, radius, room, gain, still, sideways = evade.args
+    acts = evade.actuators
+    with pytest.raises(InvalidInputError, match="same length, not 1 and 2"):
+        _core.Evade(model, acts, H, x, y, bodies, [0.2, 0.3], room, gain, still, sideways)
+    with pytest.raises(InvalidInputError, match=r"\(xlo, xhi, ylo, yhi\), not 3 values"):
+        _core.Evade(model, acts, H, x, y, bodies, radius, [0.0, 1.0, 2.0], gain, still, sideways)
