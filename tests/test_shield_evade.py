@@ -296,3 +296,39 @@ def test_evade_refuses_bad_shapes_naming_them() -> None:
         _core.Evade(model, acts, H, x, y, bodies, [0.2, 0.3], room, gain, still, sideways)
     with pytest.raises(InvalidInputError, match=r"\(xlo, xhi, ylo, yhi\), not 3 values"):
         _core.Evade(model, acts, H, x, y, bodies, radius, [0.0, 1.0, 2.0], gain, still, sideways)
+
+
+def _shield(model: mujoco.MjModel, failsafe: Evade, rest_speed: float = 0.01) -> Shield:
+    return Shield(
+        model,
+        protect=["walker"],
+        period=5,
+        accel={"walker": 1.0, "*": 10.0},
+        speed={"walker": 0.5, "*": 2.0},
+        stop_time=0.5,
+        rest_speed=rest_speed,
+        screen=False,
+        failsafe=failsafe,
+    )
+
+
+def test_the_shield_refuses_an_evade_it_cannot_verify() -> None:
+    """An Evade that still steers below the shield's rest speed (past the rest knot it must be
+    the brake), or one of another model, is refused, naming both values."""
+    model = _ball()
+    slow = Evade(model, planar=("x", "y"), away_from=["walker"], still=0.01)
+    with pytest.raises(InvalidInputError, match=r"still = 0.01 below .* rest_speed = 0.02"):
+        _shield(model, slow, rest_speed=0.02)
+    _shield(model, slow, rest_speed=0.01)  # still == rest_speed: the brake at the rest knot
+    other = mujoco.MjModel.from_xml_string(
+        mjcf(
+            '<body name="robot"><joint name="x" type="slide" axis="1 0 0"/>'
+            '<joint name="y" type="slide" axis="0 1 0"/><geom type="sphere" size="0.2"/></body>'
+            '<body name="walker" mocap="true" pos="1 0.1 0.3"><geom type="sphere" size="0.2"/>'
+            '</body><body name="post" pos="0 2 0"><geom type="box" size="0.1 0.1 0.1"/></body>',
+            actuator=motors("x", "y", kind="velocity", kv="300", ctrlrange="-2 2"),
+        ),
+    )
+    foreign = Evade(other, planar=("x", "y"), away_from=["walker"])
+    with pytest.raises(InvalidInputError, match=r"another model \(nbody, nv, nu = \(4, 2, 2\)"):
+        _shield(model, foreign)
