@@ -332,3 +332,24 @@ def test_the_shield_refuses_an_evade_it_cannot_verify() -> None:
     foreign = Evade(other, planar=("x", "y"), away_from=["walker"])
     with pytest.raises(InvalidInputError, match=r"another model \(nbody, nv, nu = \(4, 2, 2\)"):
         _shield(model, foreign)
+
+
+def test_the_native_shield_refuses_evade_without_a_view() -> None:
+    """Evade reads the obstacles from the data it is given; without the rollout's view the
+    native shield would run it on the live state in the run, off the rollouts it verified."""
+    model = _ball()
+    evade = Evade(model, planar=("x", "y"), away_from=["walker"])
+    shield = _shield(model, evade)
+    native_args = [
+        _core.Tables.build(model, shield.predictor.table_arrays),
+        model,
+        *shield._keep,
+        shield.robot_actuators,
+        shield.robot_bodies,
+        np.ascontiguousarray(shield.pairs[:, 0]),
+        np.ascontiguousarray(shield.pairs[:, 1]),
+        5, 0.0, 0.01, 0.5, -1.0, False, evade.time_constant, None,
+    ]  # fmt: skip
+    _core.Shield(*native_args, shield.view, evade.args)  # with the view: accepted
+    with pytest.raises(InvalidInputError, match="evade needs the rollout's view"):
+        _core.Shield(*native_args, None, evade.args)
