@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from mjcf import mjcf, motors
 
-from dua_mujoco import Shield
+from dua_mujoco import Shield, _core
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.experiments.shield.bench import scene_failsafe, shield_layer
 from dua_mujoco.experiments.shield.episodes import NoLayer, SceneSetup, run_episode
@@ -66,13 +66,9 @@ class Steer:
         return self.brake.toward(data, [0.9 * s * gx / n, 0.9 * s * gy / n])
 
 
-def _follow(
-    failsafe: Callable[[mujoco.MjModel, mujoco.MjData], object],
-) -> tuple[Shield, int, object]:
-    """A 10 kg ball on planar slides driving +x at 1 m/s behind the leading walker (protected),
-    3 s under the shield with the failsafe ``failsafe(model, data)`` makes (the run's data);
-    the shield, its guaranteed steps and the failsafe."""
-    model = mujoco.MjModel.from_xml_string(
+def _ball() -> mujoco.MjModel:
+    """A 10 kg ball on planar slides ("x", "y", velocity actuators) and a walker (mocap)."""
+    return mujoco.MjModel.from_xml_string(
         mjcf(
             '<body name="robot"><joint name="x" type="slide" axis="1 0 0" damping="1"/>'
             '<joint name="y" type="slide" axis="0 1 0" damping="1"/>'
@@ -85,6 +81,15 @@ def _follow(
             ),
         ),
     )
+
+
+def _follow(
+    failsafe: Callable[[mujoco.MjModel, mujoco.MjData], object],
+) -> tuple[Shield, int, object]:
+    """A 10 kg ball on planar slides driving +x at 1 m/s behind the leading walker (protected),
+    3 s under the shield with the failsafe ``failsafe(model, data)`` makes (the run's data);
+    the shield, its guaranteed steps and the failsafe."""
+    model = _ball()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     policy = failsafe(model, data)
@@ -269,3 +274,82 @@ def test_an_evasive_failsafe_keeps_the_guarantee_and_its_rollouts(form: str) -> 
     assert free >= 3
     assert shielded == 0
     assert clean >= 2
+
+
+def test_evade_refuses_bad_shapes_naming_them() -> None:
+    """planar of three names, room of three values or inverted, radius of the wrong length:
+    each refused with the value given (not numpy's reshape or broadcast error, not ignored)."""
+    model = _ball()
+    with pytest.raises(InvalidInputError, match=r"planar = \('x', 'y', 'x'\) is invalid"):
+        Evade(model, planar=("x", "y", "x"), away_from=["walker"])  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match=r"room of shape \(3,\) is invalid"):
+        Evade(model, planar=("x", "y"), away_from=["walker"], room=[0, 1, 2])
+    for room in ([1, 0, 0, 1], [0, 1, 1, 1]):
+        with pytest.raises(InvalidInputError, match=r"xlo < xhi and ylo < yhi"):
+            Evade(model, planar=("x", "y"), away_from=["walker"], room=room)
+    with pytest.raises(InvalidInputError, match=r"radius of shape \(2,\).*names 1 bodies"):
+        Evade(model, planar=("x", "y"), away_from=["walker"], radius=[0.2, 0.3])
+    evade = Evade(model, planar=("x", "y"), away_from=["walker"], room=[-5, 5, -5, 5])
+    x, y, bodies, radius, room, gain, still, sideways = evade.args
+    acts = evade.actuators
+    with pytest.raises(InvalidInputError, match="same length, not 1 and 2"):
+        _core.Evade(model, acts, H, x, y, bodies, [0.2, 0.3], room, gain, still, sideways)
+    with pytest.raises(InvalidInputError, match=r"\(xlo, xhi, ylo, yhi\), not 3 values"):
+        _core.Evade(model, acts, H, x, y, bodies, radius, [0.0, 1.0, 2.0], gain, still, sideways)
+
+
+def _shield(model: mujoco.MjModel, failsafe: Evade, rest_speed: float = 0.01) -> Shield:
+    return Shield(
+        model,
+        protect=["walker"],
+        period=5,
+        accel={"walker": 1.0, "*": 10.0},
+        speed={"walker": 0.5, "*": 2.0},
+        stop_time=0.5,
+        rest_speed=rest_speed,
+        screen=False,
+        failsafe=failsafe,
+    )
+
+
+def test_the_shield_refuses_an_evade_it_cannot_verify() -> None:
+    """An Evade that still steers below the shield's rest speed (past the rest knot it must be
+    the brake), or one of another model, is refused, naming both values."""
+    model = _ball()
+    slow = Evade(model, planar=("x", "y"), away_from=["walker"], still=0.01)
+    with pytest.raises(InvalidInputError, match=r"still = 0.01 below .* rest_speed = 0.02"):
+        _shield(model, slow, rest_speed=0.02)
+    _shield(model, slow, rest_speed=0.01)  # still == rest_speed: the brake at the rest knot
+    other = mujoco.MjModel.from_xml_string(
+        mjcf(
+            '<body name="robot"><joint name="x" type="slide" axis="1 0 0"/>'
+            '<joint name="y" type="slide" axis="0 1 0"/><geom type="sphere" size="0.2"/></body>'
+            '<body name="walker" mocap="true" pos="1 0.1 0.3"><geom type="sphere" size="0.2"/>'
+            '</body><body name="post" pos="0 2 0"><geom type="box" size="0.1 0.1 0.1"/></body>',
+            actuator=motors("x", "y", kind="velocity", kv="300", ctrlrange="-2 2"),
+        ),
+    )
+    foreign = Evade(other, planar=("x", "y"), away_from=["walker"])
+    with pytest.raises(InvalidInputError, match=r"another model \(nbody, nv, nu = \(4, 2, 2\)"):
+        _shield(model, foreign)
+
+
+def test_the_native_shield_refuses_evade_without_a_view() -> None:
+    """Evade reads the obstacles from the data it is given; without the rollout's view the
+    native shield would run it on the live state in the run, off the rollouts it verified."""
+    model = _ball()
+    evade = Evade(model, planar=("x", "y"), away_from=["walker"])
+    shield = _shield(model, evade)
+    native_args = [
+        _core.Tables.build(model, shield.predictor.table_arrays),
+        model,
+        *shield._keep,
+        shield.robot_actuators,
+        shield.robot_bodies,
+        np.ascontiguousarray(shield.pairs[:, 0]),
+        np.ascontiguousarray(shield.pairs[:, 1]),
+        5, 0.0, 0.01, 0.5, -1.0, False, evade.time_constant, None,
+    ]  # fmt: skip
+    _core.Shield(*native_args, shield.view, evade.args)  # with the view: accepted
+    with pytest.raises(InvalidInputError, match="evade needs the rollout's view"):
+        _core.Shield(*native_args, None, evade.args)

@@ -157,6 +157,11 @@ class Evade:
     ) -> None:
         if not isinstance(sideways, bool):
             raise InvalidInputError(f"sideways = {sideways!r} is invalid: pass True or False.")
+        if isinstance(planar, str) or len(planar) != 2:
+            raise InvalidInputError(
+                f"planar = {planar!r} is invalid: pass the names of the base's two slide "
+                "joints, (x, y)."
+            )
         acts = np.arange(model.nu) if actuators is None else np.asarray(actuators, np.int64)
         tc = float(model.opt.timestep) if time_constant is None else float(time_constant)
         dofs = []
@@ -169,8 +174,14 @@ class Evade:
         if radius is None:
             radii = np.array([planar_radius(model, int(b)) for b in bodies])
         else:
-            radii = np.broadcast_to(np.asarray(radius, dtype=np.float64), bodies.shape).copy()
-        walls = [] if room is None else [float(w) for w in np.asarray(room, np.float64).reshape(4)]
+            radii = np.asarray(radius, dtype=np.float64)
+            if radii.ndim != 0 and radii.shape != bodies.shape:
+                raise InvalidInputError(
+                    f"radius of shape {radii.shape} is invalid: away_from = {away_from!r} names "
+                    f"{bodies.size} bodies; pass one number for all or one radius per body."
+                )
+            radii = np.broadcast_to(radii, bodies.shape).copy()
+        walls = [] if room is None else _room(room)
         self.model = model
         self.args = (
             dofs[0], dofs[1], [int(b) for b in bodies], [float(r) for r in radii], walls,
@@ -186,3 +197,19 @@ class Evade:
     def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         """The failsafe's controls at ``data`` (the bodies where ``data`` has them): ``(nu,)``."""
         return self.native.compute(data)
+
+
+def _room(room: npt.ArrayLike) -> list[float]:
+    """``room`` as four walls ``[xlo, xhi, ylo, yhi]``, each pair in order (else refused)."""
+    walls = np.asarray(room, dtype=np.float64)
+    if walls.shape != (4,):
+        raise InvalidInputError(
+            f"room of shape {walls.shape} is invalid: pass (xlo, xhi, ylo, yhi) or None."
+        )
+    xlo, xhi, ylo, yhi = (float(w) for w in walls)
+    if not (xlo < xhi and ylo < yhi):
+        raise InvalidInputError(
+            f"room = {(xlo, xhi, ylo, yhi)} is invalid: pass (xlo, xhi, ylo, yhi) with "
+            "xlo < xhi and ylo < yhi (the inner faces of the walls)."
+        )
+    return [xlo, xhi, ylo, yhi]

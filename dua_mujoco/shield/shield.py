@@ -148,6 +148,19 @@ class Shield:
                 )
         evade = None
         if isinstance(failsafe, Evade):
+            given = (failsafe.model.nbody, failsafe.model.nv, failsafe.model.nu)
+            if failsafe.model is not model and given != (model.nbody, model.nv, model.nu):
+                raise InvalidInputError(
+                    f"failsafe: an Evade of another model (nbody, nv, nu = {given}; the "
+                    f"shield's are {(model.nbody, model.nv, model.nu)}): make it "
+                    "Evade(model, ...) of the shield's model."
+                )
+            if failsafe.args[6] < rest_speed:
+                raise InvalidInputError(
+                    f"failsafe: an Evade with still = {failsafe.args[6]} below the shield's "
+                    f"rest_speed = {rest_speed}: pass Evade(..., still={rest_speed}) or more "
+                    "(past the rest knot it must be the brake, docs/theory.md)."
+                )
             if not np.array_equal(failsafe.actuators, acts):
                 raise InvalidInputError(
                     f"failsafe: an Evade of actuators {failsafe.actuators.tolist()}; the robot's "

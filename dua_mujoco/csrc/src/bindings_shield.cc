@@ -169,6 +169,13 @@ void BindShield(nb::module_& m) {
             std::string error;
             Failsafe failsafe;
             if (!evade.is_none()) {
+              // Evade reads the obstacles from the data it is given: in the run that must be
+              // the rollout's view (the live state would leave the plans it verified).
+              if (view.is_none()) {
+                Raise("InvalidInputError",
+                      "evade needs the rollout's view: pass view=MjData(rolled) (the shield's "
+                      "view), not None.");
+              }
               // The native evasive failsafe: (x, y, obstacles, radius, room, gain, still,
               // sideways).
               auto e = nb::cast<std::tuple<int, int, std::vector<int>, std::vector<double>,

@@ -314,9 +314,11 @@ std::unique_ptr<Evade> Evade::Make(const mjModel* m, std::unique_ptr<Brake> brak
     *error = "the evasive failsafe needs two distinct slide DOFs of the robot (x, y), not " +
              std::to_string(x) + ", " + std::to_string(y);
   } else if (obstacles.size() != radius.size()) {
-    *error = "obstacles and radius must have the same length";
+    *error = "obstacles and radius must have the same length, not " +
+             std::to_string(obstacles.size()) + " and " + std::to_string(radius.size());
   } else if (!(room.empty() || room.size() == 4)) {
-    *error = "room must be none or (xlo, xhi, ylo, yhi)";
+    *error =
+        "room must be none or (xlo, xhi, ylo, yhi), not " + std::to_string(room.size()) + " values";
   } else if (!(gain >= 0.0 && gain < 1.0)) {
     *error = "gain must be in [0, 1) (1 never stops), not " + Shown(gain);
   } else if (!(still > 0.0) || !std::isfinite(still)) {
