@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -83,6 +84,23 @@ def _ball() -> mujoco.MjModel:
     )
 
 
+def _shield(
+    model: mujoco.MjModel, failsafe: Evade | Callable[..., Any], rest_speed: float = 0.01
+) -> Shield:
+    """The walker scene's shield (protect the walker, a period of 5 steps) with ``failsafe``."""
+    return Shield(
+        model,
+        protect=["walker"],
+        period=5,
+        accel={"walker": 1.0, "*": 10.0},
+        speed={"walker": 0.5, "*": 2.0},
+        stop_time=0.5,
+        rest_speed=rest_speed,
+        screen=False,
+        failsafe=failsafe,
+    )
+
+
 def _follow(
     failsafe: Callable[[mujoco.MjModel, mujoco.MjData], object],
 ) -> tuple[Shield, int, object]:
@@ -93,16 +111,7 @@ def _follow(
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     policy = failsafe(model, data)
-    shield = Shield(
-        model,
-        protect=["walker"],
-        period=5,
-        accel={"walker": 1.0, "*": 10.0},
-        speed={"walker": 0.5, "*": 2.0},
-        stop_time=0.5,
-        screen=False,
-        failsafe=policy,  # type: ignore[arg-type]
-    )
+    shield = _shield(model, policy)  # type: ignore[arg-type]
     if isinstance(policy, Steer):
         policy.view, policy.run = shield.view, data
     shield.reset(data)
@@ -296,20 +305,6 @@ def test_evade_refuses_bad_shapes_naming_them() -> None:
         _core.Evade(model, acts, H, x, y, bodies, [0.2, 0.3], room, gain, still, sideways)
     with pytest.raises(InvalidInputError, match=r"\(xlo, xhi, ylo, yhi\), not 3 values"):
         _core.Evade(model, acts, H, x, y, bodies, radius, [0.0, 1.0, 2.0], gain, still, sideways)
-
-
-def _shield(model: mujoco.MjModel, failsafe: Evade, rest_speed: float = 0.01) -> Shield:
-    return Shield(
-        model,
-        protect=["walker"],
-        period=5,
-        accel={"walker": 1.0, "*": 10.0},
-        speed={"walker": 0.5, "*": 2.0},
-        stop_time=0.5,
-        rest_speed=rest_speed,
-        screen=False,
-        failsafe=failsafe,
-    )
 
 
 def test_the_shield_refuses_an_evade_it_cannot_verify() -> None:
