@@ -187,6 +187,7 @@ class Evade:
             dofs[0], dofs[1], [int(b) for b in bodies], [float(r) for r in radii], walls,
             float(gain), float(still), sideways,
         )  # fmt: skip
+        self.still = float(still)
         self.native = _core.Evade(model, acts.reshape(-1), tc, *self.args)
         self.brake = Brake(model, actuators=acts, time_constant=tc)
         self.actuators = self.brake.actuators
@@ -200,16 +201,10 @@ class Evade:
 
 
 def _room(room: npt.ArrayLike) -> list[float]:
-    """``room`` as four walls ``[xlo, xhi, ylo, yhi]``, each pair in order (else refused)."""
+    """``room`` as four walls ``[xlo, xhi, ylo, yhi]`` (their order is the native check's)."""
     walls = np.asarray(room, dtype=np.float64)
     if walls.shape != (4,):
         raise InvalidInputError(
             f"room of shape {walls.shape} is invalid: pass (xlo, xhi, ylo, yhi) or None."
         )
-    xlo, xhi, ylo, yhi = (float(w) for w in walls)
-    if not (xlo < xhi and ylo < yhi):
-        raise InvalidInputError(
-            f"room = {(xlo, xhi, ylo, yhi)} is invalid: pass (xlo, xhi, ylo, yhi) with "
-            "xlo < xhi and ylo < yhi (the inner faces of the walls)."
-        )
-    return [xlo, xhi, ylo, yhi]
+    return [float(w) for w in walls]

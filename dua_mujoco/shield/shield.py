@@ -155,9 +155,9 @@ class Shield:
                     f"shield's are {(model.nbody, model.nv, model.nu)}): make it "
                     "Evade(model, ...) of the shield's model."
                 )
-            if failsafe.args[6] < rest_speed:
+            if failsafe.still < rest_speed:
                 raise InvalidInputError(
-                    f"failsafe: an Evade with still = {failsafe.args[6]} below the shield's "
+                    f"failsafe: an Evade with still = {failsafe.still} below the shield's "
                     f"rest_speed = {rest_speed}: pass Evade(..., still={rest_speed}) or more "
                     "(past the rest knot it must be the brake, docs/theory.md)."
                 )

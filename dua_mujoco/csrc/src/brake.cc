@@ -319,6 +319,11 @@ std::unique_ptr<Evade> Evade::Make(const mjModel* m, std::unique_ptr<Brake> brak
   } else if (!(room.empty() || room.size() == 4)) {
     *error =
         "room must be none or (xlo, xhi, ylo, yhi), not " + std::to_string(room.size()) + " values";
+  } else if (!room.empty() && !(room[0] < room[1] && room[2] < room[3])) {
+    *error = "room = (" + Shown(room[0]) + ", " + Shown(room[1]) + ", " + Shown(room[2]) + ", " +
+             Shown(room[3]) +
+             ") is invalid: pass (xlo, xhi, ylo, yhi) with xlo < xhi and ylo < yhi (the inner "
+             "faces of the walls)";
   } else if (!(gain >= 0.0 && gain < 1.0)) {
     *error = "gain must be in [0, 1) (1 never stops), not " + Shown(gain);
   } else if (!(still > 0.0) || !std::isfinite(still)) {
