@@ -380,11 +380,6 @@ class Predictor(PlanFollowing):
         return self.universe.records
 
     @property
-    def sphere_records(self) -> np.ndarray:
-        """``(nsphere, 8)`` packed records of the covering spheres (``pack_spheres``)."""
-        return self._spheres
-
-    @property
     def shape_records(self) -> np.ndarray:
         """``(nshape, 16)`` records of the static shapes (``core.shapes``)."""
         return self._shapes
