@@ -1,6 +1,6 @@
 """Warning time: the standing fraction against the oracle over an alarm horizon, on robot models.
 
-    python benchmarks/horizon.py                          # the section of docs/benchmarks.md
+    python benchmarks/horizon.py --plot docs/img/horizon-standing.png   # docs/benchmarks.md's
     python benchmarks/horizon.py --robots panda go1 --horizons 0.05 0.2 --steps 1000
     python benchmarks/horizon.py --no-random --json out.json
 
@@ -285,12 +285,19 @@ def robots_parser(
 ) -> argparse.ArgumentParser:
     """The options of the scripts over the robots (this one, ``plan_horizon.py``,
     ``plan_users.py``): ``--robots`` (default ``robots``), ``--json`` (the rows) and ``--plot``
-    (default ``docs/img/<plot>``); the description is the first line of the script's ``doc``."""
+    (the figure, written only when asked: the committed one is ``docs/img/<plot>``, and a run
+    from a checkout, an A/B or a few robots, must not rewrite it); the description is the first
+    line of the script's ``doc``."""
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--robots", nargs="+", default=list(robots))
     ap.add_argument("--json", type=Path, default=None, help="write the rows here")
-    docs = Path(__file__).resolve().parent.parent / "docs"
-    ap.add_argument("--plot", type=Path, default=docs / "img" / plot, help="the figure")
+    ap.add_argument(
+        "--plot",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help=f"write the figure here (none by default; the docs' is docs/img/{plot})",
+    )
     return ap
 
 
@@ -331,7 +338,7 @@ def report(
     plot: Callable[[list[dict], tuple[str, ...]], None],
 ) -> None:
     """Print each protocol's tables, write ``--json`` (the rows, steps and minutes) and plot
-    the robots of ``PLOTTED`` that ran (else all) to ``--plot``."""
+    the robots of ``PLOTTED`` that ran (else all) to ``--plot``, if given."""
     for protocol in protocols:
         print(f"\n### {protocol} ({args.steps} steps a run)\n")
         print(markdown(rows, protocol))
@@ -339,7 +346,7 @@ def report(
     if args.json is not None:
         saved = {"rows": rows, "steps": args.steps, "minutes": args.minutes}
         args.json.write_text(json.dumps(saved, indent=1) + "\n")
-    if rows:
+    if rows and args.plot is not None:
         plot(rows, tuple(n for n in PLOTTED if n in args.robots) or tuple(args.robots))
         print(f"plot written to {args.plot}")
 

@@ -1,6 +1,6 @@
 """Warning time with flight plans: a planner feeding ``Predictor.set_plan``, against no plan.
 
-    python benchmarks/plan_horizon.py --json plans.json     # docs/plans.md's tables and plot
+    python benchmarks/plan_horizon.py --json plans.json --plot plans.png  # tables and figure
     python benchmarks/plan_horizon.py --robots panda go1 --horizons 0.05 0.2 --steps 1000
     python benchmarks/plan_horizon.py --tables plans.json   # the tables again, from saved rows
 
@@ -661,7 +661,9 @@ def main(argv: list[str] | None = None) -> None:
                     )
             if not saved["rows"][0].get("floor_m", 0.0):
                 rows += saved["rows"]
-        plot(rows, args.plot, tuple(n for n in PLOTTED if any(r["robot"] == n for r in rows)))
+        if args.plot is not None:
+            robots = tuple(n for n in PLOTTED if any(r["robot"] == n for r in rows))
+            plot(rows, args.plot, robots)
         return
     horizons = HORIZONS if args.horizons is None else tuple(args.horizons)
     protocols = (

@@ -1,6 +1,7 @@
 """Plans as users make them: a nominal model's rollout, a run whose model differs, a TTC peer.
 
-    python benchmarks/plan_users.py --json docs/img/plans-users.json     # docs/plans.md's table
+    python benchmarks/plan_users.py --json docs/img/plans-users.json \\
+        --plot docs/img/plans-users.png                                  # docs/plans.md's
     python benchmarks/plan_users.py --robots baxter g1 --horizons 0.05 0.2 --steps 1000
     python benchmarks/plan_users.py --tables docs/img/plans-users.json   # the tables again
 
@@ -845,7 +846,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.tables is not None:
         saved = json.loads(args.tables.read_text())["rows"]
         print(markdown(saved))
-        plot(saved, args.plot)
+        if args.plot is not None:
+            plot(saved, args.plot)
         return
     missing = [n for n in args.robots if n not in ROBOTS]
     if missing:
@@ -862,7 +864,7 @@ def main(argv: list[str] | None = None) -> None:
             args.json.write_text(json.dumps({"rows": rows}, indent=1) + "\n")
     print(markdown(rows))
     print(f"\n{len(rows)} rows in {(time.perf_counter() - start) / 60:.1f} min", flush=True)
-    if rows:
+    if rows and args.plot is not None:
         plot(rows, args.plot)
         print(f"plot written to {args.plot}")
 
