@@ -12,8 +12,9 @@ passed explicitly: ``benchmarks/shield.py``'s ``shield-brake``; its ``shield`` o
 is this script's ``side0.9``); ``evade`` (the same shield with the library's native evasive
 failsafe, ``dua_mujoco.shield.failsafe.Evade``, as ``dua_mujoco/experiments/shield/evade.py``
 builds it; ``evade0.9``: its gain 0.9, ``evade``: ``--gain``); ``pyevade`` (the same law as a Python
-policy, called at every rolled step: what the native one saves); ``side`` (the native one
-steering across the base's velocity, ``sideways=True``; ``side0.9``: gain 0.9);
+policy, ``tests/reference_evade.py``, called at every rolled step: what the native one saves);
+``side`` (the native one steering across the base's velocity, ``sideways=True``; ``side0.9``:
+gain 0.9);
 ``p5`` (the brake, a control period of 5 physics steps instead of 10: the task still updates
 every 10); ``stop0.6`` (the brake, ``stop_time`` 0.6 s instead of 0.45). Besides
 ``benchmarks/shield.py``'s table, each layer's physics steps split by what the base did: the
@@ -29,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -40,7 +42,10 @@ import numpy.typing as npt
 from dua_mujoco.experiments.report import jsonable, table
 from dua_mujoco.experiments.shield.bench import peer_layer, shield_layer, summary
 from dua_mujoco.experiments.shield.episodes import EpisodeResult, Layer, SceneSetup, run_episode
-from dua_mujoco.experiments.shield.evade import EvadePolicy, native
+from dua_mujoco.experiments.shield.evade import native
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from reference_evade import EvadePolicy
 
 SCENE = "mobile_cell"
 KINDS = (

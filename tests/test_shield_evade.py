@@ -6,7 +6,8 @@ plan's knot, the robot's coordinates the run's), so the run repeats the rollout 
 failsafe reading the live state instead leaves its plans, and the shield's check at every step
 catches it (docs/theory.md, section 10, (S2)). The library's evasive failsafe
 (:class:`~dua_mujoco.shield.failsafe.Evade`, native) and the same law as a Python policy
-(``experiments/shield/evade.py``) decide alike and keep the guarantee on ``mobile_cell``.
+(the reference ``tests/reference_evade.py``) decide alike and keep the guarantee on
+``mobile_cell``.
 """
 
 from __future__ import annotations
@@ -19,12 +20,13 @@ import mujoco
 import numpy as np
 import pytest
 from mjcf import mjcf, motors
+from reference_evade import EvadePolicy
 
 from dua_mujoco import Shield, _core
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.experiments.shield.bench import scene_failsafe, shield_layer
 from dua_mujoco.experiments.shield.episodes import NoLayer, SceneSetup, run_episode
-from dua_mujoco.experiments.shield.evade import EvadePolicy, native
+from dua_mujoco.experiments.shield.evade import native
 from dua_mujoco.models.cells import SHIELD_SCENES
 from dua_mujoco.shield.failsafe import Brake, Evade
 
@@ -167,7 +169,7 @@ def test_a_failsafe_reading_the_live_state_leaves_its_plans_and_the_shield_sees_
 @pytest.mark.parametrize("sideways", [False, True])
 def test_the_native_evasive_failsafe_is_the_python_policy(sideways: bool) -> None:
     """On 2,000 random states of mobile_cell (the base anywhere, at any speed, the walkers and
-    carts of 50 episodes), the native Evade and the Python policy of experiments/shield/evade.py
+    carts of 50 episodes), the native Evade and the Python policy of tests/reference_evade.py
     give the same controls, bit for bit (steering away or across the velocity); driving +x with
     a walker ahead on +y they brake x as the brake does and push y away (the brake leaves y
     alone); at rest they are the brake."""

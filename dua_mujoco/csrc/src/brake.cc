@@ -355,7 +355,7 @@ std::unique_ptr<Evade> Evade::Make(const mjModel* m, std::unique_ptr<Brake> brak
 }
 
 void Evade::Away(const mjData* d, double x, double y, double* ux, double* uy) const {
-  // experiments/shield/evade.py's law, in its order of operations (the same doubles).
+  // tests/reference_evade.py's law, in its order of operations (the same doubles).
   double px = 0.0, py = 0.0;
   for (size_t k = 0; k < obstacles_.size(); ++k) {
     const double* o = d->xpos + 3 * obstacles_[k];

@@ -1,10 +1,11 @@
 """An evasive failsafe for ``mobile_cell``'s base: brake to rest, steering away from the
 obstacles as the verified rollout saw them (docs/shield.md, "An evasive failsafe").
 
-Two forms of one law: :func:`native`, the library's :class:`~dua_mujoco.shield.failsafe.Evade`
-(C++, in the shield's rollouts), and :class:`EvadePolicy`, the same law as a Python user policy
-(``Shield(failsafe=policy)``: called at every rolled step, the cost the native one removes; the
-benchmark runs both to show they decide alike).
+:func:`native` builds the library's :class:`~dua_mujoco.shield.failsafe.Evade` (C++, in the
+shield's rollouts) for the scene. The same law as a Python user policy
+(``Shield(failsafe=policy)``: called at every rolled step, the cost the native one removes) is
+the reference ``tests/reference_evade.py``: the tests hold the native one to it bit for bit, and
+``benchmarks/shield_evade.py`` runs both (its ``pyevade`` layer).
 
 The shield verifies a user's failsafe as it verifies the brake (theory.md, section 10): it rolls
 the failsafe out to rest on the rollout's data, whose mocap bodies stand where the state read put
@@ -26,16 +27,12 @@ the base ((S5)).
 
 from __future__ import annotations
 
-import math
-
 import mujoco
-import numpy as np
-import numpy.typing as npt
 
 from dua_mujoco.experiments.shield.episodes import SceneSetup
-from dua_mujoco.shield.failsafe import Brake, Evade
+from dua_mujoco.shield.failsafe import Evade
 
-__all__ = ["EvadePolicy", "native", "room_of"]
+__all__ = ["native", "room_of"]
 
 
 def room_of(model: mujoco.MjModel) -> tuple[float, float, float, float]:
@@ -67,98 +64,3 @@ def native(setup: SceneSetup, *, gain: float = 0.9, sideways: bool = False) -> E
         gain=gain,
         sideways=sideways,
     )
-
-
-class EvadePolicy:
-    """The same law as a Python policy, ``policy(model, data) -> (nu,)``: it reads the
-    obstacles from the data it is given (the rollout's, or the view in the run).
-
-    Args:
-        model: the run's model.
-        brake: the robot's brake (its ``dofs``: the base's x, y and yaw DOFs in that order).
-        obstacles: ``(k,)`` ids of the mocap bodies to steer away from.
-        radius: ``(k,)`` their radii (m; the clearance counts from their surface).
-        room: ``(xlo, xhi, ylo, yhi)``, the walls' inner faces (m).
-        gain: the share of the base's speed to drive away with (0: the brake).
-        still: at most this planar speed on both axes (m/s) the policy is the brake.
-        sideways: steer across the velocity, to the side away from the obstacles.
-    """
-
-    def __init__(
-        self,
-        model: mujoco.MjModel,
-        brake: Brake,
-        obstacles: npt.ArrayLike,
-        radius: npt.ArrayLike,
-        room: npt.ArrayLike,
-        *,
-        gain: float = 0.9,
-        still: float = 0.01,
-        sideways: bool = False,
-    ) -> None:
-        if not 0.0 <= gain < 1.0:
-            raise ValueError(f"gain = {gain} is invalid: pass 0 <= gain < 1 (1 never stops)")
-        self.model = model
-        self.brake = brake
-        self.mocap = np.asarray(model.body_mocapid)[np.asarray(obstacles, dtype=np.int64)]
-        self.radius = [float(r) for r in np.asarray(radius, dtype=np.float64).reshape(-1)]
-        self.room = tuple(float(r) for r in np.asarray(room, dtype=np.float64).reshape(4))
-        self.gain, self.still, self.sideways = gain, still, sideways
-        self.q = np.asarray([model.jnt_qposadr[model.dof_jntid[i]] for i in brake.dofs])
-        self.v = np.asarray(brake.dofs)
-
-    @classmethod
-    def of(cls, setup: SceneSetup, *, gain: float = 0.9, sideways: bool = False) -> EvadePolicy:
-        """The policy for ``mobile_cell``'s setup: its mocap walkers and carts (cylinders), and
-        its walls."""
-        model = setup.model
-        obstacles = _obstacles(setup)
-        radius = [float(model.geom_size[model.body_geomadr[b], 0]) for b in obstacles]
-        return cls(
-            model, setup.brake, obstacles, radius, room_of(model), gain=gain, sideways=sideways
-        )
-
-    def where(self, data: mujoco.MjData) -> list[list[float]]:
-        """The obstacles' planar positions the policy steers by: ``data``'s."""
-        return data.mocap_pos[self.mocap, :2].tolist()
-
-    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-        """The failsafe's controls at ``data``: ``(nu,)``."""
-        vel = data.qvel[self.v]
-        vx, vy = float(vel[0]), float(vel[1])
-        s = max(abs(vx), abs(vy))
-        if s <= self.still:
-            return self.brake(model, data)
-        pos = data.qpos[self.q]
-        ux, uy = self.away(float(pos[0]), float(pos[1]), self.where(data))
-        if self.sideways:  # across the velocity, to the side (ux, uy) points to
-            norm = math.sqrt(vx * vx + vy * vy)
-            qx, qy = -vy / norm, vx / norm
-            if qx * ux + qy * uy < 0.0:
-                qx, qy = -qx, -qy
-            top = max(abs(qx), abs(qy))
-            ux, uy = qx / top, qy / top
-        target = np.zeros(self.v.size)
-        target[0], target[1] = self.gain * s * ux, self.gain * s * uy
-        return self.brake.native.compute(data, target)
-
-    def away(self, x: float, y: float, where: list[list[float]]) -> tuple[float, float]:
-        """The direction away from the obstacles at ``where`` (``k`` points ``[x, y]``) and the
-        walls from ``(x, y)``, each pushing by the inverse square of its clearance, its larger
-        component 1 (plain floats: a handful of obstacles, called at every rolled step)."""
-        px = py = 0.0
-        for (ox, oy), r in zip(where, self.radius, strict=True):
-            gx, gy = x - ox, y - oy
-            dist = math.sqrt(gx * gx + gy * gy)
-            if dist == 0.0:
-                continue
-            clear = max(dist - r, 0.05)
-            w = 1.0 / (dist * clear * clear)
-            px, py = px + gx * w, py + gy * w
-        xlo, xhi, ylo, yhi = self.room
-        w, e = max(x - xlo, 0.05), max(xhi - x, 0.05)
-        s, n = max(y - ylo, 0.05), max(yhi - y, 0.05)
-        px += 1.0 / (w * w) - 1.0 / (e * e)
-        py += 1.0 / (s * s) - 1.0 / (n * n)
-        top = max(abs(px), abs(py))
-        return (px / top, py / top) if top > 0.0 else (0.0, 0.0)
