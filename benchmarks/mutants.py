@@ -88,6 +88,7 @@ _REF = (
 _REF_TRAFFIC, _REF_PAPER = f"{_REF}[traffic]", f"{_REF}[paper_world]"
 _REF_CLUTTER, _REF_ARMS = f"{_REF}[clutter]", f"{_REF}[two_arms]"
 _RELATIVE = "tests/test_plan_relative.py"
+_ROUNDING = "tests/test_plan_rounding.py"
 _PYRAMID = "tests/test_terrain.py::test_search_equals_every_cell_through_the_pyramid_for_a_sphere"
 _CHECKS = "dua_mujoco/csrc/src/checks.cc"
 _SCREEN = "tests/test_monitor_screen.py"
@@ -470,6 +471,15 @@ MUTANTS: tuple[Mutant, ...] = (
             "test_the_actual_distance_is_never_below_the_planned_one_less_the_relative_deviation",
         ),
         "the deviation check's first screen passes a box whose corners stray beyond the limit",
+    ),
+    Mutant(
+        "plan-box-screen-rounded-to-nearest",
+        _PLAN,
+        "const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 2e-9);",
+        "const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm);",
+        (f"{_ROUNDING}::test_the_deviation_checks_first_screen_passes_no_box_beyond_its_limit",),
+        "the deviation check's first screen without its rounding room: a body that moves without "
+        "turning passes a few ulps beyond its limit about half the time",
     ),
     Mutant(
         "plan-shadow-map-stale",

@@ -119,6 +119,11 @@ def mixed_stray(t: float, accel: float, disc: float, spin: float, place: float, 
     MixedStray (plan.h): how far a free point strays in t from where its velocity read carries it ((spin + disc) t + accel t^2 / 2), rounded up, plus room for the rounding of the carried place (|place|_1 and |velocity|_1).
     """
 
+def box_within(box: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pa: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ra: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], limit: float) -> bool:
+    """
+    BoxWithin (plan.h): every corner of box within limit between the poses (pa, ra) and (pb, rb), screened first by a bound that needs no corner.
+    """
+
 def relative_within(box: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pa: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ra: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], qa: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], sa: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], qb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], sb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], limit: float) -> bool:
     """
     RelativeWithin (plan.h): b's box within limit, in a's frame, of its planned pose relative to a.

@@ -1803,6 +1803,18 @@ NB_MODULE(_core, m) {
       "carries it ((spin + disc) t + accel t^2 / 2), rounded up, plus room for the rounding of "
       "the carried place (|place|_1 and |velocity|_1).");
   m.def(
+      "box_within",
+      [](const In<double>& box, const In<double>& pa, const In<double>& ra, const In<double>& pb,
+         const In<double>& rb, double limit) {
+        Require(
+            Size(box) == kBNcol && Size(pa) == 3 && Size(pb) == 3 && Size(ra) == 9 && Size(rb) == 9,
+            "box_within takes a box record and poses (3,) and (9,)");
+        return BoxWithin(box.data(), pa.data(), ra.data(), pb.data(), rb.data(), limit);
+      },
+      "box"_a, "pa"_a, "ra"_a, "pb"_a, "rb"_a, "limit"_a,
+      "BoxWithin (plan.h): every corner of box within limit between the poses (pa, ra) and (pb, "
+      "rb), screened first by a bound that needs no corner.");
+  m.def(
       "relative_within",
       [](const In<double>& box, const In<double>& pa, const In<double>& ra, const In<double>& pb,
          const In<double>& rb, const In<double>& qa, const In<double>& sa, const In<double>& qb,

@@ -1,0 +1,116 @@
+"""The plans' roundings held to exact rational arithmetic (docs/theory.md, section 8).
+
+Each term the plans' verdicts rest on is an upper bound computed in floating point: its factor
+past the rounding is what makes it one. A rounding-sized shortfall hides from every verdict of a
+rollout (the gaps' own allowances are larger), so these tests call the terms themselves through
+test-only bindings and compare them with their exact values, on the inputs where the rounding
+decides: the deviation check's first screen (``BoxWithin``, Lemma 8.1) on a body that moves
+without turning. Without its factor, about half of the draws where the rounding decides fail.
+(The stray of Lemma 8.3 is held the same way in
+``test_plan_partial.py::test_the_stray_is_rounded_up``.)
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction as Q
+
+import mujoco
+import numpy as np
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from dua_mujoco import _core
+from dua_mujoco._core import LAYOUT
+
+CENTER, HALF, NCOL = LAYOUT["B_CENTER"], LAYOUT["B_HALF"], LAYOUT["B_SPEED"] + 1
+SIGNS = (-1.0, 1.0)
+
+
+def _offset() -> st.SearchStrategy[float]:
+    """A coordinate's difference between two poses: 0, or 1e-9 to 1 m either way (the squared
+    differences far from underflow: below about 1e-162 m, Lemma 8.1 says, the first screen's
+    bound rounds to 0, a deviation below any declared one but 0)."""
+    size = st.floats(1e-9, 1.0)
+    return st.one_of(st.just(0.0), size, size.map(lambda x: -x))
+
+
+def _rotation(quat: list[float]) -> np.ndarray:
+    """The rotation matrix of a quaternion (normalised), as MuJoCo makes it: (9,)."""
+    q = np.asarray(quat, dtype=np.float64)
+    out = np.zeros(9)
+    mujoco.mju_quat2Mat(out, q / np.linalg.norm(q))
+    return out
+
+
+_QUAT = st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4).filter(
+    lambda q: sum(x * x for x in q) > 1e-3
+)
+
+
+def _corner_deviation(box: np.ndarray, pa, ra, pb, rb) -> Q:
+    """The largest squared displacement ``|(pa - pb) + (ra - rb) q|^2`` over the box's eight
+    corners ``q`` (centre + sign * half, as BodyBoxes.corners computes them), exactly."""
+    worst = Q(0)
+    for sx in SIGNS:
+        for sy in SIGNS:
+            for sz in SIGNS:
+                q = [box[CENTER + j] + s * box[HALF + j] for j, s in enumerate((sx, sy, sz))]
+                v = [
+                    Q(pa[i])
+                    - Q(pb[i])
+                    + sum((Q(ra[3 * i + j]) - Q(rb[3 * i + j])) * Q(q[j]) for j in range(3))
+                    for i in range(3)
+                ]
+                worst = max(worst, sum(x * x for x in v))
+    return worst
+
+
+def _below(square: Q) -> float:
+    """The largest double whose square is below ``square`` (> 0)."""
+    x = math.sqrt(float(square))
+    while Q(x) ** 2 >= square:
+        x = math.nextafter(x, 0.0)
+    while Q(math.nextafter(x, math.inf)) ** 2 < square:
+        x = math.nextafter(x, math.inf)
+    return x
+
+
+@given(
+    pa=st.lists(st.floats(-10.0, 10.0), min_size=3, max_size=3),
+    offset=st.lists(_offset(), min_size=3, max_size=3),
+    centre=st.lists(st.floats(-0.5, 0.5), min_size=3, max_size=3),
+    half=st.lists(st.floats(0.0, 0.5), min_size=3, max_size=3),
+    qa=_QUAT,
+    qb=st.one_of(st.none(), _QUAT),
+)
+@settings(max_examples=300, deadline=None)
+def test_the_deviation_checks_first_screen_passes_no_box_beyond_its_limit(
+    pa: list[float],
+    offset: list[float],
+    centre: list[float],
+    half: list[float],
+    qa: list[float],
+    qb: list[float] | None,
+) -> None:
+    """``BoxWithin`` (Lemma 8.1) passes a box only where every corner, in exact arithmetic, is
+    within the limit: at the largest double below the corners' exact deviation it fails. Its
+    first screen, ``|pa - pb| + |ra - rb|_F |q_max|``, has the triangle inequality's room when
+    the body turns, none when it only moves (``qb`` None: the same rotation), where its
+    roundings (the differences, squares, sum and root) put it a few ulps below the exact
+    ``|pa - pb|`` about half the time: the factor ``1 + 2e-9`` covers them (and the corners'
+    own allowance, which the screen must not undercut). It passes again a rounding above the
+    exact deviation (at most 2^-40 of it and of the terms' magnitudes)."""
+    box = np.zeros(NCOL)
+    box[CENTER : CENTER + 3], box[HALF : HALF + 3] = centre, half
+    pa_ = np.asarray(pa)
+    pb_ = pa_ + np.asarray(offset)
+    ra = _rotation(qa)
+    rb = ra.copy() if qb is None else _rotation(qb)
+    square = _corner_deviation(box, pa_, ra, pb_, rb)
+    assume(square > 0)
+    assert not _core.box_within(box, pa_, ra, pb_, rb, _below(square))
+    qmax = np.abs(box[CENTER : CENTER + 3]) + box[HALF : HALF + 3]
+    scale = float(np.sum(np.abs(pa_ - pb_)) + np.sum(np.abs(ra - rb).reshape(3, 3) * qmax))
+    above = math.sqrt(float(square)) * (1 + 2.0**-40) + 2.0**-40 * scale
+    assert _core.box_within(box, pa_, ra, pb_, rb, above)
