@@ -642,6 +642,22 @@ MUTANTS: tuple[Mutant, ...] = (
         ("tests/test_plan_partial.py::test_the_carried_place_keeps_room_for_its_own_rounding",),
         "far from the origin, the carried place y + t w rounds past the planned geom's reach",
     ),
+    Mutant(
+        "mixed-reach-rounded-to-nearest",
+        _PLAN,
+        "const double quad = ((s + disc) * t + 0.5 * accel * t * t) * (1.0 + 8.0 * kEpsilon);",
+        "const double quad = ((s + disc) * t + 0.5 * accel * t * t);",
+        (f"{_ROUNDING}::test_the_free_bodys_reach_is_rounded_up",),
+        "the free body's reach rounded to nearest, a few ulps below its exact value half the time",
+    ),
+    Mutant(
+        "mixed-reach-speed-rounded-to-nearest",
+        _PLAN,
+        "return std::min(quad, speed * t * (1.0 + 2.0 * kEpsilon));",
+        "return std::min(quad, speed * t);",
+        (f"{_ROUNDING}::test_the_free_bodys_reach_is_rounded_up",),
+        "the free body's reach by its speed bound, V t, rounded to nearest: below it half the time",
+    ),
     # ---------------------------------------------------------------- terrain (section 9)
     Mutant(
         "terrain-base-twice-as-deep",

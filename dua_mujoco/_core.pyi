@@ -119,6 +119,11 @@ def mixed_stray(t: float, accel: float, disc: float, spin: float, place: float, 
     MixedStray (plan.h): how far a free point strays in t from where its velocity read carries it ((spin + disc) t + accel t^2 / 2), rounded up, plus room for the rounding of the carried place (|place|_1 and |velocity|_1).
     """
 
+def mixed_reach(t: float, s: float, accel: float, disc: float, speed: float) -> float:
+    """
+    MixedReach (plan.h): how far any point of a free body (speed s now) can move in t: (s + disc) t + accel t^2 / 2 or speed t, whichever is less, each rounded up.
+    """
+
 def box_within(box: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pa: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ra: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], pb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], rb: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], limit: float) -> bool:
     """
     BoxWithin (plan.h): every corner of box within limit between the poses (pa, ra) and (pb, rb), screened first by a bound that needs no corner.

@@ -5,9 +5,9 @@ past the rounding is what makes it one. A rounding-sized shortfall hides from ev
 rollout (the gaps' own allowances are larger), so these tests call the terms themselves through
 test-only bindings and compare them with their exact values, on the inputs where the rounding
 decides: the deviation check's first screen (``BoxWithin``, Lemma 8.1) on a body that moves
-without turning. Without its factor, about half of the draws where the rounding decides fail.
-(The stray of Lemma 8.3 is held the same way in
-``test_plan_partial.py::test_the_stray_is_rounded_up``.)
+without turning, and a free body's reach (the mixed tau's ``Reach``, Lemma 8.3). Without its
+factor, about half of the draws where the rounding decides fail. (The stray of Lemma 8.3 is held
+the same way in ``test_plan_partial.py::test_the_stray_is_rounded_up``.)
 """
 
 from __future__ import annotations
@@ -25,6 +25,12 @@ from dua_mujoco._core import LAYOUT
 
 CENTER, HALF, NCOL = LAYOUT["B_CENTER"], LAYOUT["B_HALF"], LAYOUT["B_SPEED"] + 1
 SIGNS = (-1.0, 1.0)
+
+
+def _zero_or(top: float) -> st.SearchStrategy[float]:
+    """0, or a value from 1e-6 to ``top`` (far from the products' underflow, which no relative
+    allowance covers)."""
+    return st.one_of(st.just(0.0), st.floats(1e-6, top))
 
 
 def _offset() -> st.SearchStrategy[float]:
@@ -114,3 +120,26 @@ def test_the_deviation_checks_first_screen_passes_no_box_beyond_its_limit(
     scale = float(np.sum(np.abs(pa_ - pb_)) + np.sum(np.abs(ra - rb).reshape(3, 3) * qmax))
     above = math.sqrt(float(square)) * (1 + 2.0**-40) + 2.0**-40 * scale
     assert _core.box_within(box, pa_, ra, pb_, rb, above)
+
+
+@given(
+    t=_zero_or(2.0),
+    s=_zero_or(10.0),
+    accel=_zero_or(100.0),
+    disc=_zero_or(10.0),
+    speed=st.one_of(st.just(math.inf), _zero_or(20.0)),
+)
+@settings(max_examples=300, deadline=None)
+def test_the_free_bodys_reach_is_rounded_up(
+    t: float, s: float, accel: float, disc: float, speed: float
+) -> None:
+    """The mixed tau's reach of a free body (Lemma 8.3: ``(s + D) t + A t^2 / 2``, or ``V t``
+    when that is less) is never below its exact value, held here in rational arithmetic: each
+    term's factor (``1 + 8 eps`` on the quadratic's two products and three sums, ``1 + 2 eps``
+    on the speed's one product) covers its roundings, which without it come out a little short
+    about half the time. It is at most a few ulps above. ``speed`` inf: no speed bound."""
+    got = Q(_core.mixed_reach(t, s, accel, disc, speed))
+    quad = (Q(s) + Q(disc)) * Q(t) + Q(accel) * Q(t) * Q(t) / 2
+    exact = quad if math.isinf(speed) else min(quad, Q(speed) * Q(t))
+    assert got >= exact, (float(got - exact), float(exact))
+    assert got <= exact * (1 + Q(2) ** -48) + Q(2) ** -1074, (float(got - exact), float(exact))

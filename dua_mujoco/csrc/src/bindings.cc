@@ -1802,6 +1802,9 @@ NB_MODULE(_core, m) {
       "MixedStray (plan.h): how far a free point strays in t from where its velocity read "
       "carries it ((spin + disc) t + accel t^2 / 2), rounded up, plus room for the rounding of "
       "the carried place (|place|_1 and |velocity|_1).");
+  m.def("mixed_reach", &MixedReach, "t"_a, "s"_a, "accel"_a, "disc"_a, "speed"_a,
+        "MixedReach (plan.h): how far any point of a free body (speed s now) can move in t: (s + "
+        "disc) t + accel t^2 / 2 or speed t, whichever is less, each rounded up.");
   m.def(
       "box_within",
       [](const In<double>& box, const In<double>& pa, const In<double>& ra, const In<double>& pb,

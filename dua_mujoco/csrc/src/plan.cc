@@ -418,6 +418,10 @@ double MixedStray(double t, double accel, double disc, double spin, const double
   return Stray(t, accel, disc, spin, size);
 }
 
+double MixedReach(double t, double s, double accel, double disc, double speed) {
+  return Reach(t, s, accel, disc, speed);
+}
+
 double PoseDeviation(const double* q, const double* pa, const double* ra, const double* pb,
                      const double* rb) {
   // Each difference of two numbers is rounded relative to itself, so the sum below is within a

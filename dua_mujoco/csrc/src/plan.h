@@ -72,6 +72,10 @@ bool RelativePoseWithin(const double* box, const BoxReach& reach, const double* 
 // room for the rounding of the carried place (the mixed tau's Stray, plan.cc; size: |place|_1,
 // |velocity|_1).
 DUA_API double MixedStray(double t, double accel, double disc, double spin, const double size[2]);
+// How far any point of a free body (speed s now) can move in t while its bounds hold: (s + disc)
+// t + accel t^2 / 2 or speed t, whichever is less, each rounded up (the mixed tau's Reach,
+// plan.cc).
+DUA_API double MixedReach(double t, double s, double accel, double disc, double speed);
 // b's pose in the frame of pose (pa, ra): (ra^T (pb - pa), ra^T rb), into (pos 3, mat 9).
 DUA_API void RelativePose(const double* pa, const double* ra, const double* pb, const double* rb,
                           double* pos, double* mat);
