@@ -71,6 +71,7 @@ _INTERNAL = "dua_mujoco/csrc/src/internal.h"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
+_HOLD_EDGE = "tests/test_shield.py::test_a_held_robot_breaks_its_hold_one_ulp_past_rest_speed"
 _GRID_STEPS = (
     "tests/test_warning_time.py::test_the_grid_counts_no_step_past_the_first_state_it_can_touch_at"
 )
@@ -807,6 +808,32 @@ MUTANTS: tuple[Mutant, ...] = (
         "    if (speed > top) top = speed;",
         ("tests/test_shield.py::test_a_velocity_that_is_not_a_number_is_no_rest",),
         "a robot body whose speed is not a number counts as at rest (its hold never breaks)",
+    ),
+    Mutant(
+        "shield-rest-speed-excluded",
+        _SHIELD,
+        "bool Shield::AtRest(const mjData* d) const { return Speed(d) <= o_.rest_speed; }",
+        "bool Shield::AtRest(const mjData* d) const { return Speed(d) < o_.rest_speed; }",
+        (f"{_HOLD_EDGE}[slide-at]",),
+        "a robot exactly at rest_speed is not at rest (the bound excluded: a held robot breaks "
+        "its hold at the speed it declared rest)",
+    ),
+    Mutant(
+        "shield-hold-break-past-rest-speed",
+        _SHIELD,
+        "    if (!AtRest(scratch_)) Break(&counts_.hold_breaks);",
+        "    if (!(Speed(scratch_) <= o_.rest_speed * (1.0 + 1e-12))) Break(&counts_.hold_breaks);",
+        (f"{_HOLD_EDGE}[slide-past]",),
+        "the hold check lets a held robot a rounding faster than rest_speed count as at rest",
+    ),
+    Mutant(
+        "shield-hold-without-the-turn",
+        _SHIELD,
+        "const double speed = lin + w * radius_[b];",
+        "const double speed = lin + 0.0 * w * radius_[b];",
+        (f"{_HOLD_EDGE}[spin-past]",),
+        "a held robot spinning in place past rest_speed keeps its hold (the hold check reads "
+        "the origin's speed alone)",
     ),
     Mutant(
         "shield-rest-knot-not-held",

@@ -12,6 +12,7 @@ docs/shield.md. ``moving_free`` counts the others: the guarantee says there are 
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import mujoco
@@ -331,6 +332,73 @@ def test_a_velocity_that_is_not_a_number_is_no_rest() -> None:
     assert (counts["rejected"], counts["rollouts"]) == (1, 0), counts  # knot 0 at rest
     assert guaranteed == [True, True, False, False], counts
     assert counts["hold_breaks"] == 1, counts
+
+
+# _BALL's ball, free to spin about z as well (a hinge through its centre, radius 0.05 m).
+_SPINNING_BALL = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="ball">
+      <joint name="x" type="slide" axis="1 0 0"/><joint name="spin" type="hinge" axis="0 0 1"/>
+      <geom size="0.05" mass="1"/>
+    </body>
+    <body name="wall" pos="0.3 0 0"><geom type="box" size="0.05 0.5 0.5"/></body>
+  </worldbody>
+  <actuator>
+    <motor joint="x" ctrlrange="-1 1"/><motor joint="spin" ctrlrange="-1 1"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def _at_most(rest: float, radius: float) -> float:
+    """The largest spin w whose speed at ``radius``, w * radius in floating point, is at most
+    ``rest``."""
+    w = rest / radius
+    while w * radius > rest:
+        w = math.nextafter(w, 0.0)
+    while math.nextafter(w, math.inf) * radius <= rest:
+        w = math.nextafter(w, math.inf)
+    return w
+
+
+@pytest.mark.parametrize("past", [False, True], ids=["at", "past"])
+@pytest.mark.parametrize("dof", ["slide", "spin"])
+def test_a_held_robot_breaks_its_hold_one_ulp_past_rest_speed(dof: str, past: bool) -> None:
+    """The ball touching the wall at rest is refused and held at its own rest knot; every step
+    past it checks that the robot is still at rest: every point at most ``rest_speed`` (here
+    2 cm/s), ``|v| + |w| r`` with ``r`` the body's reach (0.05 m). Exactly at ``rest_speed``
+    (sliding at 0.02 m/s, or spinning at the largest ``w`` with ``w * 0.05 <= 0.02``) it is at
+    rest and the guarantee stands; one ulp past it (the next double's speed) is a hold break, the
+    guarantee dropped. A strict comparison fails the first; a looser bound, or a rest test
+    without the turn's term, the second."""
+    rest = 0.02
+    model = mujoco.MjModel.from_xml_string(_SPINNING_BALL)
+    data = mujoco.MjData(model)
+    data.qpos[0] = 0.2
+    mujoco.mj_forward(model, data)
+    shield = Shield(
+        model,
+        protect=["wall"],
+        robot=["ball"],
+        period=5,
+        accel=5.0,
+        screen=False,
+        rest_speed=rest,
+    )
+    shield.reset(data)
+    speed = rest if dof == "slide" else _at_most(rest, 0.05)
+    guaranteed = []
+    for k in range(3):
+        if k == 2:
+            data.qvel[0 if dof == "slide" else 1] = math.nextafter(speed, 1.0) if past else speed
+        shield(data, [1.0, 0.0])
+        guaranteed.append(shield.guaranteed)
+    counts = shield.counts
+    assert (counts["rejected"], counts["rollouts"]) == (1, 0), counts  # knot 0 at rest
+    assert guaranteed == [True, True, not past], counts
+    assert counts["hold_breaks"] == int(past), counts
 
 
 def _sliding(name: str, x: float) -> str:
