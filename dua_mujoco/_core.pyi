@@ -638,6 +638,15 @@ class Evade:
     def compute(self, data: object) -> NDArray[numpy.float64]:
         """(nu,) controls at data's state (its bodies' positions read from it)."""
 
+    @property
+    def dofs(self) -> list[int]: ...
+
+    @property
+    def bodies(self) -> list[int]: ...
+
+    @property
+    def actuators(self) -> list[int]: ...
+
 class Shield:
     """The safety shield (shield.h)."""
 

@@ -287,6 +287,21 @@ def test_an_evasive_failsafe_keeps_the_guarantee_and_its_rollouts(form: str) -> 
     assert clean >= 2
 
 
+def test_an_evade_reads_the_robot_from_the_one_brake_it_owns() -> None:
+    """An Evade's robot (its actuators, the bodies of the trees they move) is its native brake's,
+    the same as a Brake of those actuators gives; it keeps no second brake beside it, and a
+    shield given it takes its robot from it."""
+    setup = SceneSetup.of("mobile_cell")
+    evade = native(setup)
+    np.testing.assert_array_equal(evade.actuators, setup.brake.actuators)
+    np.testing.assert_array_equal(evade.robot_bodies, setup.brake.bodies)
+    assert evade.native.dofs == setup.brake.dofs.tolist()
+    assert not hasattr(evade, "brake")
+    shield = shield_layer(setup, "shield", failsafe=evade)
+    np.testing.assert_array_equal(shield.robot_bodies, setup.brake.bodies)
+    np.testing.assert_array_equal(shield.robot_actuators, setup.brake.actuators)
+
+
 def test_evade_refuses_bad_shapes_naming_them() -> None:
     """planar of three names, room of three values or inverted, radius of the wrong length:
     each refused with the value given (not numpy's reshape or broadcast error, not ignored)."""

@@ -139,6 +139,11 @@ class Evade:
 
     Raises:
         InvalidInputError: a joint that is not a slide joint of the robot, a bad value.
+
+    Attributes:
+        actuators: ``(k,)`` the robot's actuators, as its brake takes them.
+        robot_bodies: ``(k,)`` the bodies of the kinematic trees they move (the brake's).
+        bodies: ``(k,)`` the bodies it steers away from, ``radius`` their radii.
     """
 
     def __init__(
@@ -188,9 +193,10 @@ class Evade:
             float(gain), float(still), sideways,
         )  # fmt: skip
         self.still = float(still)
+        # One native brake, the Evade's own: the robot's actuators and bodies read from it.
         self.native = _core.Evade(model, acts.reshape(-1), tc, *self.args)
-        self.brake = Brake(model, actuators=acts, time_constant=tc)
-        self.actuators = self.brake.actuators
+        self.actuators = np.asarray(self.native.actuators, dtype=np.int64)
+        self.robot_bodies = np.asarray(self.native.bodies, dtype=np.int64)
         self.bodies = bodies
         self.radius = radii
         self.time_constant = tc

@@ -166,7 +166,8 @@ class Shield:
                     f"failsafe: an Evade of actuators {failsafe.actuators.tolist()}; the robot's "
                     f"are {acts.tolist()}: make it Evade(model, actuators=...) of those."
                 )
-            brake, tc, policy, evade = failsafe.brake, failsafe.time_constant, None, failsafe.args
+            robot_ids = (failsafe.actuators, failsafe.robot_bodies)
+            tc, policy, evade = failsafe.time_constant, None, failsafe.args
         elif failsafe is None or isinstance(failsafe, Brake):
             tc = h if failsafe is None else failsafe.time_constant
             brake = Brake(model, actuators=acts, time_constant=tc)
@@ -175,17 +176,17 @@ class Shield:
                     f"failsafe: a Brake of actuators {failsafe.actuators.tolist()}; the robot's "
                     f"are {acts.tolist()}: make it Brake(model, actuators=...) of those."
                 )
-            policy = None
+            robot_ids, policy = (brake.actuators, brake.bodies), None
         elif callable(failsafe):
             brake, tc, policy = Brake(model, actuators=acts), h, failsafe
+            robot_ids = (brake.actuators, brake.bodies)
         else:
             raise InvalidInputError(
                 f"failsafe = {failsafe!r} is invalid: pass None, a Brake, or a callable "
                 "policy(model, data) -> (nu,) controls."
             )
         self.model = model
-        self.robot_actuators = brake.actuators
-        self.robot_bodies = brake.bodies
+        self.robot_actuators, self.robot_bodies = robot_ids
         is_robot = np.zeros(model.nbody, dtype=bool)
         is_robot[self.robot_bodies] = True
         prot = body_mask(model, protect, what="protect").astype(bool)

@@ -150,7 +150,11 @@ void BindShield(nb::module_& m) {
             self.failsafe->Compute(self.m, self.scratch, ctrl.data());
             return Owned(std::move(ctrl), {static_cast<size_t>(self.m->nu)});
           },
-          "data"_a, "(nu,) controls at data's state (its bodies' positions read from it).");
+          "data"_a, "(nu,) controls at data's state (its bodies' positions read from it).")
+      // Its brake's (the robot's): the one brake an Evade owns.
+      .def_prop_ro("dofs", [](const PyEvade& s) { return s.failsafe->brake().dofs(); })
+      .def_prop_ro("bodies", [](const PyEvade& s) { return s.failsafe->brake().bodies(); })
+      .def_prop_ro("actuators", [](const PyEvade& s) { return s.failsafe->brake().actuators(); });
 
   nb::class_<PyShield>(m, "Shield", "The safety shield (shield.h).")
       .def(
