@@ -96,7 +96,6 @@ def predictor_for(model: mujoco.MjModel, options: Any) -> Predictor:
     """The predictor the options describe, with its pilot rollout for ``--accel auto``.
 
     Args:
-        model: The model.
         options: Parsed ``run`` options (see :func:`predictor_options`).
     """
     from dua_mujoco.runtime import predictor

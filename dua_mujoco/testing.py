@@ -335,7 +335,6 @@ def assert_no_missed_collisions(
       (:func:`check_baseline`).
 
     Args:
-        model: The model.
         data: Its data at the start state; None for a fresh ``MjData`` at the first keyframe (or
             the model defaults), after ``mj_forward``. It is advanced in place.
         steps: Physics steps to roll out.

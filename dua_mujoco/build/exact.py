@@ -224,7 +224,6 @@ def build_exact(
     """The exact level's tables for sphere pairs with geoms ``geom1``, ``geom2``.
 
     Args:
-        model: The model.
         geom1: ``(n,)`` geom of each pair's first sphere.
         geom2: ``(n,)`` geom of the second member (a plane geom for half-space pairs, the static
             geom for shape pairs).
@@ -275,7 +274,6 @@ def corner_points(
     geom (docs/theory.md, section 5).
 
     Args:
-        model: The model.
         geoms: ``(k,)`` geom ids.
 
     Returns:

@@ -198,7 +198,6 @@ def view(
     report. Frames are drawn at predictor steps, at most ``fps`` a second of wall time.
 
     Args:
-        model: The model.
         data: Its data, at the start state.
         predictor: A predictor of ``model``.
         steps: Physics steps; None runs until the window is closed.
