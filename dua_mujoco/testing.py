@@ -143,7 +143,6 @@ def check_baseline(report: RunReport, baseline: BaselineLike, *, tolerance: floa
     better; update the baseline to lock the improvement in).
 
     Args:
-        report: The run.
         baseline: A dict or a JSON file with :data:`BASELINE_KEYS`.
         tolerance: Relative slack (``>= 0``).
 

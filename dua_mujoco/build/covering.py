@@ -199,10 +199,6 @@ def static_shape_geoms(model: mujoco.MjModel) -> np.ndarray:
     sphere, capsule, ellipsoid, cylinder, box or mesh, and it is in no ``<pair>`` with another
     static geom. Dynamic pairs of two static geoms are never active (same weld group), but an
     explicit pair is; a shape pairs with spheres only, so such a geom keeps its spheres.
-
-    Args:
-        model: the compiled MuJoCo model.
-
     Returns:
         ``(ngeom,)`` bool.
     """
@@ -232,10 +228,6 @@ def terrain_geoms(model: mujoco.MjModel) -> np.ndarray:
     A height field qualifies when its body is welded to the world (its pose, and so every prism,
     is a constant of the model) and it is in no ``<pair>`` with another static geom (a terrain
     pairs with spheres only; such a height field keeps its box covering).
-
-    Args:
-        model: the compiled MuJoCo model.
-
     Returns:
         ``(ngeom,)`` bool.
     """
@@ -360,7 +352,6 @@ def cover_model(
     """Cover every geom of a model by spheres (planes become half-spaces, static geoms shapes).
 
     Args:
-        model: the compiled MuJoCo model.
         mode: ``"bounding"`` (one sphere per geom, radius ``geom_rbound``) or ``"multi"`` (up to
             ``max_spheres_per_geom`` tighter spheres per geom), or a :class:`CoveringMode`.
         max_spheres_per_geom: sphere budget per geom in ``"multi"`` mode (int >= 1).
@@ -457,7 +448,6 @@ def sphere_world_centers(
     """World centres of spheres: ``geom_xpos[g] + geom_xmat[g] @ offset``.
 
     Args:
-        covering: the covering.
         geom_xpos: ``(ngeom, 3)`` geom positions (``d.geom_xpos``).
         geom_xmat: ``(ngeom, 9)`` or ``(ngeom, 3, 3)`` geom orientations (``d.geom_xmat``).
         ids: ``(n,)`` sphere ids, or None for all spheres.

@@ -169,10 +169,6 @@ def active_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
     Every geom pair is put to the dynamic filter in one compiled pass (``pairfilter``), then the
     explicit ``<pair>`` elements are merged in. O(ngeom^2) time: a pruned predictor filters only
     the candidates it meets (:func:`candidate_geom_pairs`).
-
-    Args:
-        model: the compiled MuJoCo model.
-
     Returns:
         The :class:`GeomPairs`, sorted by ``(geom1, geom2)``.
     """
@@ -458,7 +454,6 @@ def pairs_between_bodies(
     """Indices of active geom pairs with one geom on ``body_a`` and the other on ``body_b``.
 
     Args:
-        model: the compiled model.
         geom_pairs: its active geom pairs.
         body_a: body name or id.
         body_b: body name or id, or None for every pair involving ``body_a``.

@@ -72,7 +72,6 @@ class BoundMonitor:
         """Create a monitor.
 
         Args:
-            model: the MuJoCo model.
             bounds: the bounds to hold the run to.
             spheres: ``(sphere_geom, sphere_body, sphere_offset)``; None for
                 :func:`default_spheres`.
@@ -188,7 +187,6 @@ class BoundMonitor:
         """Check the step that produced ``data``.
 
         Args:
-            model: the MuJoCo model.
             data: the data right after ``mj_step``.
 
         Returns:
