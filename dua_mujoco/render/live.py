@@ -195,7 +195,8 @@ def view(
     """Run a monitored rollout (:func:`~dua_mujoco.measure.rollout.run`) shown live in the viewer.
 
     The rollout is ``run``'s (``data``, ``predictor``, ``controller``, ``scene``, ``realtime``
-    and ``geom_distance`` as there): the same exact stage and the same report. Frames are drawn at predictor steps, at most ``fps`` a second of wall time.
+    and ``geom_distance`` as there): the same exact stage and the same report. Frames are drawn
+    at predictor steps, at most ``fps`` a second of wall time.
 
     Args:
         steps: Physics steps; None runs until the window is closed.
