@@ -48,12 +48,10 @@ BoundSpec = float | Mapping[str, float]
 
 
 def moving_bodies(model: mujoco.MjModel) -> np.ndarray:
-    """Which bodies can move.
+    """``(nbody,)`` bool, True for the bodies that can move.
 
     A body is static when it is welded to the world (``body_weldid == 0``) and its tree is not
     rooted at a mocap body. The world body is static.
-    Returns:
-        ``(nbody,)`` bool mask, True for bodies that can move.
     """
     weld = np.asarray(model.body_weldid)
     root = np.asarray(model.body_rootid)

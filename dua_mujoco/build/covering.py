@@ -192,15 +192,13 @@ def _collidable_geoms(model: mujoco.MjModel) -> np.ndarray:
 
 
 def static_shape_geoms(model: mujoco.MjModel) -> np.ndarray:
-    """Which geoms ``cover_model(static="shape")`` holds as their own convex shape.
+    """``(ngeom,)`` bool: the geoms ``cover_model(static="shape")`` holds as their own shape.
 
     A geom qualifies when its body is welded to the world (``body_weldid == 0``: no joint and no
     mocap body between it and the world, so its pose is a constant of the model), its type is a
     sphere, capsule, ellipsoid, cylinder, box or mesh, and it is in no ``<pair>`` with another
     static geom. Dynamic pairs of two static geoms are never active (same weld group), but an
     explicit pair is; a shape pairs with spheres only, so such a geom keeps its spheres.
-    Returns:
-        ``(ngeom,)`` bool.
     """
     return _static_geoms(model) & np.isin(np.asarray(model.geom_type, dtype=np.int64), CONVEX_TYPES)
 
@@ -223,13 +221,12 @@ def _static_geoms(model: mujoco.MjModel) -> np.ndarray:
 
 
 def terrain_geoms(model: mujoco.MjModel) -> np.ndarray:
-    """Which geoms ``cover_model(hfield="terrain")`` holds as terrain, the prisms of their grid.
+    """``(ngeom,)`` bool: the geoms ``cover_model(hfield="terrain")`` holds as terrain.
 
     A height field qualifies when its body is welded to the world (its pose, and so every prism,
     is a constant of the model) and it is in no ``<pair>`` with another static geom (a terrain
-    pairs with spheres only; such a height field keeps its box covering).
-    Returns:
-        ``(ngeom,)`` bool.
+    pairs with spheres only; such a height field keeps its box covering), held as the prisms
+    of its grid.
     """
     return _static_geoms(model) & (np.asarray(model.geom_type, dtype=np.int64) == GEOM_HFIELD)
 

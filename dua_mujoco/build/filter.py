@@ -168,9 +168,7 @@ def active_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
 
     Every geom pair is put to the dynamic filter in one compiled pass (``pairfilter``), then the
     explicit ``<pair>`` elements are merged in. O(ngeom^2) time: a pruned predictor filters only
-    the candidates it meets (:func:`candidate_geom_pairs`).
-    Returns:
-        The :class:`GeomPairs`, sorted by ``(geom1, geom2)``.
+    the candidates it meets (:func:`candidate_geom_pairs`). Sorted by ``(geom1, geom2)``.
     """
     if not contacts_enabled(model):
         return _empty()
