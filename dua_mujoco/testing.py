@@ -103,17 +103,11 @@ def load_baseline(baseline: BaselineLike) -> dict[str, Any]:
 
 
 def write_baseline(report: RunReport, path: str | os.PathLike[str]) -> Path:
-    """Store a run's alarm counts as a baseline (JSON), creating parent folders.
+    """Store a run's alarm counts as a baseline (JSON) at ``path``, creating parent folders;
+    return the path written.
 
     Besides :data:`BASELINE_KEYS` the file records the context of the run (scene, steps, pairs,
     contact onsets) so that a reviewer can tell what changed when the file changes.
-
-    Args:
-        report: The run to record.
-        path: Where to write.
-
-    Returns:
-        The path written.
     """
     from dua_mujoco import __version__
 
