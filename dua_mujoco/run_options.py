@@ -92,11 +92,8 @@ def controller_for(
 
 
 def predictor_for(model: mujoco.MjModel, options: Any) -> Predictor:
-    """The predictor the options describe, with its pilot rollout for ``--accel auto``.
-
-    Args:
-        options: Parsed ``run`` options (see :func:`predictor_options`).
-    """
+    """The predictor parsed ``run`` options describe (:func:`predictor_options`), with its
+    pilot rollout for ``--accel auto``."""
     from dua_mujoco.runtime import predictor
 
     return predictor.Predictor(model, **predictor_options(model, options))

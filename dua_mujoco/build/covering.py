@@ -150,13 +150,8 @@ class Covering:
         return int(self.geom_plane.shape[0])
 
     def spheres_of(self, geom_id: int) -> np.ndarray:
-        """Sphere ids covering one geom.
-
-        Args:
-            geom_id: a geom id of the model.
-
-        Returns:
-            ``(k,)`` int64 sphere ids (empty for planes and uncovered geoms).
+        """``(k,)`` int64 ids of the spheres covering geom ``geom_id`` (none for planes and
+        uncovered geoms).
 
         Raises:
             InvalidInputError: if ``geom_id`` is not a geom id of the model.

@@ -182,22 +182,15 @@ def shape_table(records: np.ndarray, blocks: dict[int, np.ndarray]) -> np.ndarra
 
 
 def record_count(table: np.ndarray) -> int:
-    """How many leading rows of a shape table are records (the rest are terrain blocks).
-
-    Args:
-        table: ``(n, 16)`` float64.
-    """
+    """How many leading rows of a ``(n, 16)`` shape table are records (the rest are terrain
+    blocks)."""
     t = np.ascontiguousarray(table, dtype=np.float64)
     return int(_core.shape_record_count(t))
 
 
 def first_bad_row(table: np.ndarray) -> int:
-    """The first terrain record of a shape table whose block does not fit the table, its header
-    or its grid (the native core's ``dua_check_shapes``, which the runtime runs on the tables it
-    reads: what could read out of bounds); -1 when there is none.
-
-    Args:
-        table: ``(n, 16)`` float64.
-    """
+    """The first terrain record of a ``(n, 16)`` shape table whose block does not fit the table,
+    its header or its grid (the native core's ``dua_check_shapes``, which the runtime runs on the
+    tables it reads: what could read out of bounds); -1 when there is none."""
     t = np.ascontiguousarray(table, dtype=np.float64)
     return int(_core.check_shapes(t))
