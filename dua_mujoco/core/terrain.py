@@ -54,11 +54,9 @@ T_HEIGHTS, T_HABS, T_HEADER = _LAYOUT["T_HEIGHTS"], _LAYOUT["T_HABS"], _LAYOUT["
 
 
 def terrain_levels(heights: np.ndarray) -> list[np.ndarray]:
-    """The max pyramid of a grid of heights: level 0 the cell maxima (the highest of each cell's
-    four corners), each next level the maxima of 2 x 2 of the last, down to one cell.
-
-    Args:
-        heights: ``(nrow, ncol)`` heights, ``nrow, ncol >= 2``.
+    """The max pyramid of ``(nrow, ncol)`` heights (``nrow, ncol >= 2``): level 0 the cell maxima
+    (the highest of each cell's four corners), each next level the maxima of 2 x 2 of the last,
+    down to one cell.
 
     Returns:
         The levels, ``(ceil((nrow - 1) / 2^l), ceil((ncol - 1) / 2^l))`` each.

@@ -259,12 +259,8 @@ def write_video(
     """Write RGB frames to an ``.mp4`` (H.264 via imageio-ffmpeg's ffmpeg) or a ``.gif``.
 
     Frames are consumed and encoded one at a time (:class:`VideoWriter`), so a generator keeps
-    memory flat for both formats.
-
-    Args:
-        frames: ``(H, W, 3)`` uint8 frames, all the same size.
-        path: As :class:`VideoWriter`'s.
-        fps: As :class:`VideoWriter`'s.
+    memory flat for both formats. ``frames``: ``(H, W, 3)`` uint8, all the same size; ``path``
+    and ``fps`` as :class:`VideoWriter`'s.
 
     Returns:
         The number of frames written.
