@@ -22,15 +22,9 @@ EXIT_INTERRUPTED = 130
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``dua-mujoco`` command; return its exit code.
-
-    Args:
-        argv: The arguments (default ``sys.argv[1:]``).
-
-    Returns:
-        The command's exit code; 130 with the line ``dua-mujoco: interrupted.`` on stderr when
-        Ctrl-C escapes the command (it handles the interrupts of its run loops itself).
-    """
+    """Run the ``dua-mujoco`` command on ``argv`` (default ``sys.argv[1:]``); return its exit
+    code, 130 with the line ``dua-mujoco: interrupted.`` on stderr when Ctrl-C escapes the
+    command (it handles the interrupts of its run loops itself)."""
     fired = False
 
     def interrupt(signum: int, frame: FrameType | None) -> None:

@@ -250,9 +250,7 @@ class SafetyShield(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
             baseline of an A/B).
         **shield_options: Passed to :class:`~dua_mujoco.Shield` (``accel`` is required; ``robot``,
             ``failsafe``, ``stop_time``, ...), except ``period``: it is the env's ``frame_skip``.
-
-    Attributes:
-        shield: The shield.
+            The shield made is the attribute ``shield``.
 
     Raises:
         InvalidInputError: Not a MuJoCo-based env, ``period`` passed, or a bad shield option.

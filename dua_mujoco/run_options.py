@@ -29,8 +29,7 @@ __all__ = [
     "add_run_options",
     "controller_for",
     "default_steps",
-    "parse_accel",
-    "positive",
+    "number",
     "predictor_for",
     "predictor_options",
     "run_option_actions",
@@ -93,12 +92,8 @@ def controller_for(
 
 
 def predictor_for(model: mujoco.MjModel, options: Any) -> Predictor:
-    """The predictor the options describe, with its pilot rollout for ``--accel auto``.
-
-    Args:
-        model: The model.
-        options: Parsed ``run`` options (see :func:`predictor_options`).
-    """
+    """The predictor parsed ``run`` options describe (:func:`predictor_options`), with its
+    pilot rollout for ``--accel auto``."""
     from dua_mujoco.runtime import predictor
 
     return predictor.Predictor(model, **predictor_options(model, options))
@@ -160,30 +155,24 @@ def predictor_options(model: mujoco.MjModel, options: Any) -> dict[str, Any]:
     }
 
 
-def parse_accel(value: str) -> str | float:
-    if value == "auto":
-        return value
-    try:
-        a = float(value)
-    except ValueError:
-        a = math.nan
-    if not (math.isfinite(a) and a >= 0):
-        raise argparse.ArgumentTypeError(
-            f"--accel {value!r} is invalid: pass 'auto' or a finite number >= 0 (m/s^2)"
-        )
-    return a
+def number(
+    option: str, *, positive: bool = False, auto: bool = False, unit: str = ""
+) -> Callable[[str], float | str]:
+    """argparse type of a number option: finite and ``>= 0`` (``> 0`` if ``positive``), or
+    ``'auto'`` if ``auto``; a value refused is named with the option (``--rate '-1' is invalid:
+    pass a finite number >= 0``) and ``unit`` follows the rule (`` (m/s^2)``)."""
+    rule = "> 0" if positive else ">= 0"
+    what = ("'auto' or " if auto else "") + f"a finite number {rule}{unit}"
 
-
-def positive(kind: type) -> Callable[[str], object]:
-    """argparse type: a finite number > 0 of ``kind`` (``float``)."""
-
-    def parse(value: str) -> object:
+    def parse(value: str) -> float | str:
+        if auto and value == "auto":
+            return value
         try:
-            v = kind(value)
+            v = float(value)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{value!r} is not a number") from None
-        if not (v > 0 and math.isfinite(v)):
-            raise argparse.ArgumentTypeError(f"{value!r} must be a finite number > 0")
+            v = math.nan
+        if not (math.isfinite(v) and (v > 0 if positive else v >= 0)):
+            raise argparse.ArgumentTypeError(f"{option} {value!r} is invalid: pass {what}")
         return v
 
     return parse
@@ -255,13 +244,15 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--keyframe", default=None, help="start keyframe (id or name; default first)")
     p.add_argument(
         "--accel",
-        type=parse_accel,
+        type=number("--accel", auto=True, unit=" (m/s^2)"),
         default=None,
         help="acceleration bound in m/s^2 for every moving body, or 'auto' (pilot rollout); "
         "default: the bounds the scene declares (person_cell: the person's after ISO 13855, the "
         "arm's measured), else auto",
     )
-    p.add_argument("--speed", type=positive(float), default=None, help="speed bound in m/s")
+    p.add_argument(
+        "--speed", type=number("--speed", positive=True), default=None, help="speed bound in m/s"
+    )
     add_choice(
         p,
         "--covering",
@@ -281,7 +272,7 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--alarm-horizon",
-        type=positive(float),
+        type=number("--alarm-horizon", positive=True),
         default=None,
         metavar="SECONDS",
         help="seconds of warning: a pair stands in alarm when it may collide within them, and "

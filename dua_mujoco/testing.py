@@ -103,17 +103,11 @@ def load_baseline(baseline: BaselineLike) -> dict[str, Any]:
 
 
 def write_baseline(report: RunReport, path: str | os.PathLike[str]) -> Path:
-    """Store a run's alarm counts as a baseline (JSON), creating parent folders.
+    """Store a run's alarm counts as a baseline (JSON) at ``path``, creating parent folders;
+    return the path written.
 
     Besides :data:`BASELINE_KEYS` the file records the context of the run (scene, steps, pairs,
     contact onsets) so that a reviewer can tell what changed when the file changes.
-
-    Args:
-        report: The run to record.
-        path: Where to write.
-
-    Returns:
-        The path written.
     """
     from dua_mujoco import __version__
 
@@ -143,7 +137,6 @@ def check_baseline(report: RunReport, baseline: BaselineLike, *, tolerance: floa
     better; update the baseline to lock the improvement in).
 
     Args:
-        report: The run.
         baseline: A dict or a JSON file with :data:`BASELINE_KEYS`.
         tolerance: Relative slack (``>= 0``).
 
@@ -335,7 +328,6 @@ def assert_no_missed_collisions(
       (:func:`check_baseline`).
 
     Args:
-        model: The model.
         data: Its data at the start state; None for a fresh ``MjData`` at the first keyframe (or
             the model defaults), after ``mj_forward``. It is advanced in place.
         steps: Physics steps to roll out.

@@ -11,6 +11,7 @@ import os
 import sys
 
 from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.run_options import number
 
 __all__ = ["DESCRIPTION", "EPILOG", "add_arguments", "main"]
 
@@ -37,23 +38,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--rate",
-        type=_rate,
+        type=number("--rate"),
         default=1.0,
         help="simulated seconds per second of wall time (default 1: real time; 0: as fast as it "
         "goes)",
     )
     p.add_argument("--show-spheres", action="store_true", help="start with the spheres shown")
     p.add_argument("--hide-ui", action="store_true", help="hide the viewer's side panels")
-
-
-def _rate(value: str) -> float:
-    try:
-        rate = float(value)
-    except ValueError:
-        rate = -1.0
-    if not 0 <= rate < float("inf"):
-        raise argparse.ArgumentTypeError(f"--rate {value!r} is invalid: pass a number >= 0")
-    return rate
 
 
 def main(args: argparse.Namespace) -> int:

@@ -48,16 +48,10 @@ BoundSpec = float | Mapping[str, float]
 
 
 def moving_bodies(model: mujoco.MjModel) -> np.ndarray:
-    """Which bodies can move.
+    """``(nbody,)`` bool, True for the bodies that can move.
 
     A body is static when it is welded to the world (``body_weldid == 0``) and its tree is not
     rooted at a mocap body. The world body is static.
-
-    Args:
-        model: the MuJoCo model.
-
-    Returns:
-        ``(nbody,)`` bool mask, True for bodies that can move.
     """
     weld = np.asarray(model.body_weldid)
     root = np.asarray(model.body_rootid)
@@ -261,7 +255,6 @@ class MotionBounds:
         """Bounds declared by the user.
 
         Args:
-            model: the MuJoCo model.
             accel: A, a scalar for every moving body or a dict by body name (``"*"`` default).
             speed: V in the same forms, or None.
             vel_uncertainty: extra velocity uncertainty (e.g. sensor noise), added to the
@@ -364,7 +357,6 @@ def estimate_bounds(
     run staying within them: use a :class:`BoundMonitor`.
 
     Args:
-        model: the MuJoCo model.
         steps: number of pilot steps (>= 3).
         seed: seed of the pilot's random generator (controls, initial state).
         safety: factor (>= 1) applied to every measured maximum.

@@ -150,13 +150,8 @@ class Covering:
         return int(self.geom_plane.shape[0])
 
     def spheres_of(self, geom_id: int) -> np.ndarray:
-        """Sphere ids covering one geom.
-
-        Args:
-            geom_id: a geom id of the model.
-
-        Returns:
-            ``(k,)`` int64 sphere ids (empty for planes and uncovered geoms).
+        """``(k,)`` int64 ids of the spheres covering geom ``geom_id`` (none for planes and
+        uncovered geoms).
 
         Raises:
             InvalidInputError: if ``geom_id`` is not a geom id of the model.
@@ -192,19 +187,13 @@ def _collidable_geoms(model: mujoco.MjModel) -> np.ndarray:
 
 
 def static_shape_geoms(model: mujoco.MjModel) -> np.ndarray:
-    """Which geoms ``cover_model(static="shape")`` holds as their own convex shape.
+    """``(ngeom,)`` bool: the geoms ``cover_model(static="shape")`` holds as their own shape.
 
     A geom qualifies when its body is welded to the world (``body_weldid == 0``: no joint and no
     mocap body between it and the world, so its pose is a constant of the model), its type is a
     sphere, capsule, ellipsoid, cylinder, box or mesh, and it is in no ``<pair>`` with another
     static geom. Dynamic pairs of two static geoms are never active (same weld group), but an
     explicit pair is; a shape pairs with spheres only, so such a geom keeps its spheres.
-
-    Args:
-        model: the compiled MuJoCo model.
-
-    Returns:
-        ``(ngeom,)`` bool.
     """
     return _static_geoms(model) & np.isin(np.asarray(model.geom_type, dtype=np.int64), CONVEX_TYPES)
 
@@ -227,17 +216,12 @@ def _static_geoms(model: mujoco.MjModel) -> np.ndarray:
 
 
 def terrain_geoms(model: mujoco.MjModel) -> np.ndarray:
-    """Which geoms ``cover_model(hfield="terrain")`` holds as terrain, the prisms of their grid.
+    """``(ngeom,)`` bool: the geoms ``cover_model(hfield="terrain")`` holds as terrain.
 
     A height field qualifies when its body is welded to the world (its pose, and so every prism,
     is a constant of the model) and it is in no ``<pair>`` with another static geom (a terrain
-    pairs with spheres only; such a height field keeps its box covering).
-
-    Args:
-        model: the compiled MuJoCo model.
-
-    Returns:
-        ``(ngeom,)`` bool.
+    pairs with spheres only; such a height field keeps its box covering), held as the prisms
+    of its grid.
     """
     return _static_geoms(model) & (np.asarray(model.geom_type, dtype=np.int64) == GEOM_HFIELD)
 
@@ -360,7 +344,6 @@ def cover_model(
     """Cover every geom of a model by spheres (planes become half-spaces, static geoms shapes).
 
     Args:
-        model: the compiled MuJoCo model.
         mode: ``"bounding"`` (one sphere per geom, radius ``geom_rbound``) or ``"multi"`` (up to
             ``max_spheres_per_geom`` tighter spheres per geom), or a :class:`CoveringMode`.
         max_spheres_per_geom: sphere budget per geom in ``"multi"`` mode (int >= 1).
@@ -457,7 +440,6 @@ def sphere_world_centers(
     """World centres of spheres: ``geom_xpos[g] + geom_xmat[g] @ offset``.
 
     Args:
-        covering: the covering.
         geom_xpos: ``(ngeom, 3)`` geom positions (``d.geom_xpos``).
         geom_xmat: ``(ngeom, 9)`` or ``(ngeom, 3, 3)`` geom orientations (``d.geom_xmat``).
         ids: ``(n,)`` sphere ids, or None for all spheres.

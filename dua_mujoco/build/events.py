@@ -100,7 +100,6 @@ class EventTable:
     parameters (its state, and which held pairs each body has, are the native runtime's).
 
     Args:
-        model: The model.
         boxes: The bodies to check (:func:`body_boxes`).
         bounds: Their bounds.
         period: The predictor's period in physics steps.

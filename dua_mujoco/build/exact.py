@@ -224,7 +224,6 @@ def build_exact(
     """The exact level's tables for sphere pairs with geoms ``geom1``, ``geom2``.
 
     Args:
-        model: The model.
         geom1: ``(n,)`` geom of each pair's first sphere.
         geom2: ``(n,)`` geom of the second member (a plane geom for half-space pairs, the static
             geom for shape pairs).
@@ -267,16 +266,13 @@ def exact_records(
 def corner_points(
     model: mujoco.MjModel, geoms: npt.ArrayLike
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The eight corners of each geom's box (``geom_aabb``), as bound-check points.
+    """The eight corners of the box (``geom_aabb``) of each of the ``(k,)`` geoms ``geoms``, as
+    bound-check points.
 
     The acceleration, the one-step discrepancy and the chord speed of a point of a rigid body
     are norms of affine functions of the point's body coordinates, so their maxima over a geom
     lie at the corners of any box around it: bounds checked there hold for every point of the
     geom (docs/theory.md, section 5).
-
-    Args:
-        model: The model.
-        geoms: ``(k,)`` geom ids.
 
     Returns:
         ``(point_geom (8k,), point_body (8k,), point_offset (8k, 3))``, the layout of the

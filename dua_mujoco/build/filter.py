@@ -168,13 +168,7 @@ def active_geom_pairs(model: mujoco.MjModel) -> GeomPairs:
 
     Every geom pair is put to the dynamic filter in one compiled pass (``pairfilter``), then the
     explicit ``<pair>`` elements are merged in. O(ngeom^2) time: a pruned predictor filters only
-    the candidates it meets (:func:`candidate_geom_pairs`).
-
-    Args:
-        model: the compiled MuJoCo model.
-
-    Returns:
-        The :class:`GeomPairs`, sorted by ``(geom1, geom2)``.
+    the candidates it meets (:func:`candidate_geom_pairs`). Sorted by ``(geom1, geom2)``.
     """
     if not contacts_enabled(model):
         return _empty()
@@ -348,11 +342,7 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
     A geom held as a half-space (plane) or a static shape pairs as that one object with every
     sphere of the other geom. Pairs of two planes are dropped (MuJoCo has no plane-plane
     collider). A plane geom must be static (welded to the world): only then is it a fixed
-    half-space.
-
-    Args:
-        covering: the covering of the model.
-        geom_pairs: the active geom pairs of the same model.
+    half-space. ``covering`` and ``geom_pairs`` are of the same model.
 
     Returns:
         The :class:`SpherePairs`, grouped by geom pair in ``geom_pairs`` order.
@@ -455,13 +445,8 @@ def body_id(model: mujoco.MjModel, body: int | str) -> int:
 def pairs_between_bodies(
     model: mujoco.MjModel, geom_pairs: GeomPairs, body_a: int | str, body_b: int | str | None = None
 ) -> np.ndarray:
-    """Indices of active geom pairs with one geom on ``body_a`` and the other on ``body_b``.
-
-    Args:
-        model: the compiled model.
-        geom_pairs: its active geom pairs.
-        body_a: body name or id.
-        body_b: body name or id, or None for every pair involving ``body_a``.
+    """Indices of the active geom pairs ``geom_pairs`` with one geom on ``body_a`` and the other on
+    ``body_b`` (names or ids; ``body_b`` None: every pair involving ``body_a``).
 
     Returns:
         ``(k,)`` int64 indices into ``geom_pairs``, increasing.
@@ -485,15 +470,8 @@ def pairs_between_bodies(
 def sphere_pair_mask(
     sphere_pairs: SpherePairs, geom_pair_indices: npt.ArrayLike | Iterable[int]
 ) -> np.ndarray:
-    """Which sphere pairs belong to the given geom pairs.
-
-    Args:
-        sphere_pairs: the sphere pairs.
-        geom_pair_indices: ``(k,)`` indices into the :class:`GeomPairs` they were built from.
-
-    Returns:
-        ``(n,)`` bool mask over ``sphere_pairs``.
-    """
+    """``(n,)`` bool over ``sphere_pairs``: those of the geom pairs ``geom_pair_indices``,
+    ``(k,)`` indices into the :class:`GeomPairs` they were built from."""
     if isinstance(geom_pair_indices, Iterable) and not isinstance(geom_pair_indices, np.ndarray):
         idx = np.asarray(list(geom_pair_indices), dtype=np.int64).reshape(-1)
     else:

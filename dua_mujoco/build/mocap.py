@@ -122,14 +122,10 @@ class MocapVelocityTracker(PredictorMocap):
         return self._state
 
     def update(self, data: mujoco.MjData) -> None:
-        """Difference the mocap poses against the previous call (the first call records them).
-
-        A call at the same ``data.time`` as the previous one keeps the previous velocities (no
-        time elapsed, nothing to difference).
-
-        Args:
-            data: the MuJoCo data, after ``mj_step`` (or ``mj_forward``/``mj_kinematics``).
-        """
+        """Difference the mocap poses of ``data`` (after ``mj_step``, ``mj_forward`` or
+        ``mj_kinematics``) against the previous call's (the first call records them). A call at
+        the same ``data.time`` as the previous one keeps the previous velocities (no time
+        elapsed, nothing to difference)."""
         self._native().update(data)
 
     def reset(self) -> None:

@@ -176,7 +176,6 @@ def static_shapes(
     and the prediction would be wrong.
 
     Args:
-        model: the compiled model.
         shape_geom: ``(nshape,)`` static geoms (``Covering.shape_geom``).
         data: its data, kinematics computed, or None for no check.
 

@@ -61,8 +61,6 @@ class PairUniverse:
     """The known pairs and their tables (see the module docstring).
 
     Args:
-        model: The model.
-        covering: Its covering.
         lazy: Learn pairs from candidates (pruned predictors) instead of knowing all at once.
         exact: ``(exact_below, query_below)`` of the exact level, or None without it.
     """

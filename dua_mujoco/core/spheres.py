@@ -307,16 +307,9 @@ class SpherePredictor:
     def step(self, centers: npt.ArrayLike, velocities: npt.ArrayLike) -> np.ndarray:
         """One period later: evaluate the pairs due, rebuild or renew the pruned set, alarm.
 
-        A sphere whose state proves its bounds broken since its anchor warns
+        The state and the result as :meth:`reset`'s, at this step and after its verdicts. A
+        sphere whose state proves its bounds broken since its anchor warns
         (``BoundViolationWarning``): the guarantee does not hold for its pairs then.
-
-        Args:
-            centers: ``(N, 3)`` sphere centres (m) at this step, finite.
-            velocities: ``(N, 3)`` centre velocities (m/s) at this step, finite.
-
-        Returns:
-            ``(k, 2)`` int64 sphere pairs ``(i, j)``, ``i < j``, sorted, standing in alarm
-            after this step's verdicts.
 
         Raises:
             SchedulerError: ``step`` before ``reset``.

@@ -54,11 +54,9 @@ T_HEIGHTS, T_HABS, T_HEADER = _LAYOUT["T_HEIGHTS"], _LAYOUT["T_HABS"], _LAYOUT["
 
 
 def terrain_levels(heights: np.ndarray) -> list[np.ndarray]:
-    """The max pyramid of a grid of heights: level 0 the cell maxima (the highest of each cell's
-    four corners), each next level the maxima of 2 x 2 of the last, down to one cell.
-
-    Args:
-        heights: ``(nrow, ncol)`` heights, ``nrow, ncol >= 2``.
+    """The max pyramid of ``(nrow, ncol)`` heights (``nrow, ncol >= 2``): level 0 the cell maxima
+    (the highest of each cell's four corners), each next level the maxima of 2 x 2 of the last,
+    down to one cell.
 
     Returns:
         The levels, ``(ceil((nrow - 1) / 2^l), ceil((ncol - 1) / 2^l))`` each.
@@ -182,22 +180,15 @@ def shape_table(records: np.ndarray, blocks: dict[int, np.ndarray]) -> np.ndarra
 
 
 def record_count(table: np.ndarray) -> int:
-    """How many leading rows of a shape table are records (the rest are terrain blocks).
-
-    Args:
-        table: ``(n, 16)`` float64.
-    """
+    """How many leading rows of a ``(n, 16)`` shape table are records (the rest are terrain
+    blocks)."""
     t = np.ascontiguousarray(table, dtype=np.float64)
     return int(_core.shape_record_count(t))
 
 
 def first_bad_row(table: np.ndarray) -> int:
-    """The first terrain record of a shape table whose block does not fit the table, its header
-    or its grid (the native core's ``dua_check_shapes``, which the runtime runs on the tables it
-    reads: what could read out of bounds); -1 when there is none.
-
-    Args:
-        table: ``(n, 16)`` float64.
-    """
+    """The first terrain record of a ``(n, 16)`` shape table whose block does not fit the table,
+    its header or its grid (the native core's ``dua_check_shapes``, which the runtime runs on the
+    tables it reads: what could read out of bounds); -1 when there is none."""
     t = np.ascontiguousarray(table, dtype=np.float64)
     return int(_core.check_shapes(t))

@@ -72,7 +72,6 @@ class BoundMonitor:
         """Create a monitor.
 
         Args:
-            model: the MuJoCo model.
             bounds: the bounds to hold the run to.
             spheres: ``(sphere_geom, sphere_body, sphere_offset)``; None for
                 :func:`default_spheres`.
@@ -185,15 +184,8 @@ class BoundMonitor:
         return self._bounds.speed
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-        """Check the step that produced ``data``.
-
-        Args:
-            model: the MuJoCo model.
-            data: the data right after ``mj_step``.
-
-        Returns:
-            ``(k,)`` sorted ids of bodies that broke a bound at this step (empty if none).
-        """
+        """Check the step that produced ``data`` (right after ``mj_step``); return the ``(k,)``
+        sorted ids of the bodies that broke a bound at it (empty if none)."""
         if data.geom_xpos.shape[0] != self._ngeom or data.cvel.shape[0] != self._nbody:
             raise InvalidInputError(
                 f"data has {data.geom_xpos.shape[0]} geoms and {data.cvel.shape[0]} bodies but "

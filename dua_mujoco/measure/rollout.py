@@ -49,7 +49,6 @@ def run(
     predictor step) and the misses.
 
     Args:
-        model: The model.
         data: The data, at the start state (e.g. after ``load_scene``).
         predictor: The predictor (built for ``model``).
         steps: Physics steps after the reset.

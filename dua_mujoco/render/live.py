@@ -194,23 +194,17 @@ def view(
 ) -> RunReport:
     """Run a monitored rollout (:func:`~dua_mujoco.measure.rollout.run`) shown live in the viewer.
 
-    The rollout is ``run``'s: the same controller, predictor and exact stage, and the same
-    report. Frames are drawn at predictor steps, at most ``fps`` a second of wall time.
+    The rollout is ``run``'s (``data``, ``predictor``, ``controller``, ``scene``, ``realtime``
+    and ``geom_distance`` as there): the same exact stage and the same report. Frames are drawn
+    at predictor steps, at most ``fps`` a second of wall time.
 
     Args:
-        model: The model.
-        data: Its data, at the start state.
-        predictor: A predictor of ``model``.
         steps: Physics steps; None runs until the window is closed.
-        controller: ``controller(model, data)`` before every ``mj_step``.
         rate: Simulated seconds per second of wall time (1: real time); 0 runs as fast as the
             machine allows.
         fps: Most frames drawn per second of wall time.
         options: What the overlay draws.
         show_ui: Show the viewer's side panels.
-        scene: Name recorded in the report.
-        realtime: Count deadline overruns (``run``).
-        geom_distance: Measure alarmed pairs with ``mj_geomDistance`` (``run``).
         log: Where to say that the run paused, resumed or stepped (None: nowhere).
 
     Returns:

@@ -45,7 +45,6 @@ def render_rollout(
     buffer is enlarged if the frame does not fit (only ``model.vis`` changes).
 
     Args:
-        model: The model.
         data: Its data, at the start state (advanced in place).
         predictor: A predictor of ``model`` (reset here).
         steps: Physics steps to run (>= 1).

@@ -27,13 +27,8 @@ VIDEO_SUFFIXES = (".mp4", ".gif")
 
 
 def video_path(path: str | os.PathLike[str]) -> Path:
-    """Check that a video path names a format :class:`VideoWriter` writes.
-
-    Args:
-        path: The output file; its suffix (``.mp4`` or ``.gif``, any case) picks the format.
-
-    Returns:
-        ``path`` as a ``Path``.
+    """``path`` as a ``Path``, checked to name a format :class:`VideoWriter` writes: its suffix
+    (``.mp4`` or ``.gif``, any case) picks the format.
 
     Raises:
         InvalidChoiceError: If the suffix is not ``.mp4`` or ``.gif``.
@@ -47,11 +42,7 @@ def video_path(path: str | os.PathLike[str]) -> Path:
 
 
 def check_mp4_size(width: int, height: int) -> None:
-    """Refuse a frame size an ``.mp4`` cannot hold (H.264 in yuv420p needs even sides).
-
-    Args:
-        width: Frame width in pixels.
-        height: Frame height in pixels.
+    """Refuse a frame size (pixels) an ``.mp4`` cannot hold (H.264 in yuv420p needs even sides).
 
     Raises:
         InvalidInputError: If ``width`` or ``height`` is odd (the message gives the nearest even
@@ -268,13 +259,8 @@ def write_video(
     """Write RGB frames to an ``.mp4`` (H.264 via imageio-ffmpeg's ffmpeg) or a ``.gif``.
 
     Frames are consumed and encoded one at a time (:class:`VideoWriter`), so a generator keeps
-    memory flat for both formats.
-
-    Args:
-        frames: ``(H, W, 3)`` uint8 frames, all the same size.
-        path: Output file; the suffix picks the format. Parent folders are created.
-        fps: Frames per second (GIF delays are whole centiseconds: at most 100, browsers slow
-            anything above 50).
+    memory flat for both formats. ``frames``: ``(H, W, 3)`` uint8, all the same size; ``path``
+    and ``fps`` as :class:`VideoWriter`'s.
 
     Returns:
         The number of frames written.

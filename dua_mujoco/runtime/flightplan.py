@@ -33,16 +33,10 @@ __all__ = [
 def finite_rows(
     name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str, *, finite: bool = True
 ) -> np.ndarray:
-    """``value`` as a checked ``(n, ncol)`` float64 array, ``n >= 1``, every entry finite.
-
-    Args:
-        name: What the caller called it, for the errors (``qpos``, ``plans[2].qpos``).
-        value: The array.
-        ncol: Its columns (``model.nq``, ``model.nu``).
-        cols: What counts the columns (``nq``), for the errors.
-        rows: What a row is (``joint positions per physics step``), for the errors.
-        finite: Check that every entry is finite (False: the caller's callee does, as the
-            runtime checks a plan's values, naming them).
+    """``value`` as a checked ``(n, ncol)`` float64 array, ``n >= 1``, every entry finite
+    (``finite`` False: the caller's callee checks the values, as the runtime checks a plan's).
+    ``name`` (``plans[2].qpos``), ``cols`` (``nq``) and ``rows`` (``joint positions per physics
+    step``) say in the errors what the array, its columns and a row are.
 
     Raises:
         ShapeError: Not ``(n, ncol)`` with ``n >= 1``.
@@ -202,22 +196,9 @@ def plan_arrays(
 ) -> PlanArrays:
     """A plan's arguments as the runtime reads them, their shapes checked (their values are the
     runtime's to check: ``Plan::Build`` refuses a value that is not finite, or a negative
-    deviation, naming the knot, the entry and the body). ``set_plan``'s one call of it (the
-    plugin's and the predictor's) passes its arguments in order.
-
-    Args:
-        model: The model the plan is for.
-        qpos: ``(n, nq)`` planned joint positions, row ``j`` the state ``j`` timesteps after the
-            plan's start.
-        deviation: A bound in metres on the distance of every point of a body's geoms from where
-            the plan puts it: one number, ``(n,)`` (each knot, every body) or ``(n, nbody)``.
-        start: The time of ``qpos[0]``'s state (seconds).
-        bodies: The bodies the plan holds: names, fnmatch patterns or ids (None: every moving
-            body outside mocap trees, and the mocap trees too when their poses are given). The
-            others follow their motion bounds.
-        mocap_pos: ``(n, nmocap, 3)`` the mocap bodies' planned positions (None: unplanned).
-        mocap_quat: ``(n, nmocap, 4)`` their orientations (with ``mocap_pos``).
-        relative: Relative deviations (:data:`Relative`; None: none).
+    deviation, naming the knot, the entry and the body). The arguments are
+    :meth:`PlanFollowing.set_plan`'s, ``start`` given; ``set_plan``'s one call of it (the
+    plugin's and the predictor's) passes them in order.
 
     Raises:
         ShapeError: The arrays do not fit the model or each other.

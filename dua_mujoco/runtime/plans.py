@@ -106,7 +106,6 @@ def plan_from_controls(
     value in ``data``.
 
     Args:
-        model: The model.
         data: The state to plan from (its ``time`` is the time of knot 0).
         controls: ``(steps, nu)`` the ``ctrl`` of each coming step, or a policy
             ``policy(model, data)`` called before each step on the copy, returning the step's

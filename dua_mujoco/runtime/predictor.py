@@ -72,7 +72,6 @@ class Predictor(PlanFollowing):
     and holds their defaults, for this constructor and ``pilot_bounds`` alike.
 
     Args:
-        model: The MuJoCo model.
         accel: Acceleration bounds (``BoundsLike``); ``"auto"`` runs a pilot rollout
             (``pilot``; ``pilot_bounds(model, **options)`` is the same call) and multiplies the
             measured maxima by its ``safety``. They bound every point of each body's geoms (the

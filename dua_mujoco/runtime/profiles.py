@@ -137,7 +137,6 @@ def deviation_profile(
     and the profile bounds every point of the body's geoms on the pilot's plans.
 
     Args:
-        model: The model.
         qpos: ``(T, nq)`` the pilot's joint positions, one row a physics step.
         plans: The plans made along it: :class:`PilotPlan` or ``(start, qpos[, origin])``, with
             row ``j`` of a plan's ``qpos`` at pilot row ``start + j``.
@@ -274,7 +273,6 @@ def relative_profile(
     than ``D_ab``, the relative bound does not.
 
     Args:
-        model: The model.
         qpos: ``(T, nq)`` the pilot's joint positions.
         plans: The plans made along it, as :func:`deviation_profile` takes them.
         points: ``Predictor.bound_points``.

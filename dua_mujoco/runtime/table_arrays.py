@@ -181,7 +181,6 @@ def pilot_bounds(
     **options)`` raises the same alarms as ``accel="auto"``.
 
     Args:
-        model: The MuJoCo model.
         speed: A declared speed bound kept on top (scalar or dict by body name).
         **options: ``Predictor``'s keyword options but the bounds (``period``, ``covering``,
             ``urgency``, ``pairs``, ``pilot``, ...).

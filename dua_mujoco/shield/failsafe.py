@@ -29,7 +29,6 @@ class Brake:
     """A brake to rest within the actuators' limits; also drives toward a joint velocity.
 
     Args:
-        model: the model.
         actuators: ids of the robot's actuators (default: all of them). Every other control is
             left as ``data.ctrl`` holds it.
         time_constant: seconds over which the joint velocities would close on their target if
@@ -122,7 +121,6 @@ class Evade:
     verified rollout saw them.
 
     Args:
-        model: the model.
         planar: the names of the two slide joints (x, y) of the base.
         away_from: the bodies to steer away from (names or fnmatch patterns).
         actuators: the robot's actuators (default: all).

@@ -59,7 +59,6 @@ class Shield:
     """A safety shield for the robot of a MuJoCo model.
 
     Args:
-        model: the model.
         protect: the bodies the robot must not move into: names or fnmatch patterns (``"person*"``,
             a mocap person, another arm, walls). Their pairs with the robot's geoms that MuJoCo can
             collide are protected; a robot body named here is protected against the robot's
