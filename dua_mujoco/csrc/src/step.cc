@@ -81,14 +81,18 @@ MaskOf<T> Exceeds12(T a0, T a1, T a2, T x0, T x1, T x2, T y0, T y1, T y2, T z0, 
 }
 
 // One body's inputs to the check, in one row: what it reads from MjData (its geom's pose R, P and
-// the twists RigidPoint reads: tw, ref, rt, ro), then its state (StateAt: the box's centre o and
-// half sizes in that frame, its bounds, and what the last steps left), which the check updates.
+// the twists RigidPoint reads: tw, ref, rt, ro). Its state (StateAt: the box's centre o and half
+// sizes in that frame, its bounds, and what the last steps left), which the check updates, is
+// read and written where it lives.
 constexpr int kRowR = 0, kRowP = 9, kRowTw = 12, kRowRef = 18, kRowRt = 21, kRowRo = 27,
-              kRowState = 30, kRowLen = kRowState + kSNcol;
+              kRowLen = 30;
 template <class T>
 struct BodyRow {
   T v[kRowLen];
 };
+// Four bodies' state column as it lies in ev.prev: one vector, aligned only as a double is (and
+// read as the doubles it holds).
+using LanesAt = double __attribute__((vector_size(8 * kLanes), aligned(8), may_alias));
 
 // The row's MjData fields in order (their first column and length), and where body i's come
 // from.
@@ -112,13 +116,14 @@ inline double* StateAt(const dua_events& ev, int64_t i, int j) {
   return ev.prev + ((i / kLanes) * kSNcol + j) * kLanes + i % kLanes;
 }
 
-// Record a body's box state in its row and check the motion hypotheses over the last period
-// (nprev earlier states in the row): whether the body broke them.
-template <class T>
-MaskOf<T> CheckBody(BodyRow<T>* row, int64_t nprev, double h, double inv_h, double rtol) {
+// Record a body's box state in prev (its kSNcol columns: S is T, or LanesAt in place) and check
+// the motion hypotheses over the last period (nprev earlier states there): whether the body broke
+// them. Every column is read before any is written.
+template <class T, class S>
+MaskOf<T> CheckBody(const BodyRow<T>* row, S* prev, int64_t nprev, double h, double inv_h,
+                    double rtol) {
   const T* R = row->v + kRowR;
   const T* P = row->v + kRowP;
-  T* prev = row->v + kRowState;
   const T o0 = prev[kSCenter], o1 = prev[kSCenter + 1], o2 = prev[kSCenter + 2];
   const T h0 = prev[kSHalf], h1 = prev[kSHalf + 1], h2 = prev[kSHalf + 2];
   // The box's centre and its axes (columns of R diag(half)).
@@ -209,21 +214,44 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   for (int k = 0; k < kLanes; ++k) RowSources(ev, f, i + std::min(k, m - 1), src[k]);
   BodyRow<Lanes> row;
   // Unrolled: the loops' own counting and the lengths' lookups were a fifth of the check.
+  // Each field's runs of four (the pose's first eight, the twists' first four) read a vector a
+  // body and transposed; the rest a double at a time.
+  auto transpose = [&](int field, int j, int at) {
+    Lanes r0, r1, r2, r3;
+    __builtin_memcpy(&r0, src[0][field] + j, sizeof(Lanes));
+    __builtin_memcpy(&r1, src[1][field] + j, sizeof(Lanes));
+    __builtin_memcpy(&r2, src[2][field] + j, sizeof(Lanes));
+    __builtin_memcpy(&r3, src[3][field] + j, sizeof(Lanes));
+    const Lanes t0 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);
+    const Lanes t1 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
+    const Lanes t2 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
+    const Lanes t3 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
+    row.v[at] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+    row.v[at + 1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+    row.v[at + 2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+    row.v[at + 3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
+  };
+  transpose(0, 0, kRowR);
+  transpose(0, 4, kRowR + 4);
+  transpose(2, 0, kRowTw);
+  transpose(4, 0, kRowRt);
+  auto across = [&](int field, int j, int at) {
+    row.v[at] = Lanes{src[0][field][j], src[1][field][j], src[2][field][j], src[3][field][j]};
+  };
+  across(0, 8, kRowR + 8);
 #pragma GCC unroll 6
   for (int field = 0; field < kFields; ++field) {
+    const int from = field == 2 || field == 4 ? 4 : field == 0 ? kFieldLen[0] : 0;
 #pragma GCC unroll 9
-    for (int j = 0; j < kFieldLen[field]; ++j) {
-      row.v[kFieldAt[field] + j] =
-          Lanes{src[0][field][j], src[1][field][j], src[2][field][j], src[3][field][j]};
-    }
+    for (int j = from; j < kFieldLen[field]; ++j) across(field, j, kFieldAt[field] + j);
   }
   // The state's columns are whole vectors, the padding's too: a ragged last group's spare lanes
   // hold its last body's state (its inputs, and its box and bounds from the reset), so they
   // take the same paths through the screens.
-  // The four bodies' columns are one block (i is a multiple of four): copied whole.
-  __builtin_memcpy(&row.v[kRowState], StateAt(ev, i, 0), kSNcol * sizeof(Lanes));
-  const LaneMask broken = CheckBody(&row, nprev, h, inv_h, rtol);
-  __builtin_memcpy(StateAt(ev, i, 0), &row.v[kRowState], kSWritten * sizeof(Lanes));
+  // The four bodies' columns are one block (i is a multiple of four), read and written in place
+  // (copied in and out whole, they were a quarter of the check's instructions).
+  LanesAt* state = reinterpret_cast<LanesAt*>(StateAt(ev, i, 0));
+  const LaneMask broken = CheckBody(&row, state, nprev, h, inv_h, rtol);
   return Bits(broken) & ((1 << m) - 1);
 }
 
@@ -238,9 +266,9 @@ DUA_SECTION int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool l
   int64_t i = 0;
   for (; lanes && i < ev.nbody; i += kLanes) {
     const int m = static_cast<int>(std::min<int64_t>(kLanes, ev.nbody - i));
-    const int bits = CheckFour(ev, f, i, m, nprev, h, inv_h, rtol);
-    for (int k = 0; k < m; ++k) {
-      if ((bits >> k) & 1) ev.flagged[count++] = i + k;
+    // The flagged lanes by their bits, lowest first (most groups have none).
+    for (int bits = CheckFour(ev, f, i, m, nprev, h, inv_h, rtol); bits != 0; bits &= bits - 1) {
+      ev.flagged[count++] = i + __builtin_ctz(static_cast<unsigned>(bits));
     }
   }
   for (; i < ev.nbody; ++i) {
@@ -250,9 +278,10 @@ DUA_SECTION int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool l
     for (int field = 0; field < kFields; ++field) {
       std::copy(src[field], src[field] + kFieldLen[field], row.v + kFieldAt[field]);
     }
-    for (int j = 0; j < kSNcol; ++j) row.v[kRowState + j] = *StateAt(ev, i, j);
-    const bool broken = CheckBody(&row, nprev, h, inv_h, rtol);
-    for (int j = 0; j < kSWritten; ++j) *StateAt(ev, i, j) = row.v[kRowState + j];
+    double state[kSNcol];
+    for (int j = 0; j < kSNcol; ++j) state[j] = *StateAt(ev, i, j);
+    const bool broken = CheckBody(&row, state, nprev, h, inv_h, rtol);
+    for (int j = 0; j < kSWritten; ++j) *StateAt(ev, i, j) = state[j];
     if (broken) ev.flagged[count++] = i;
   }
   ev.meta[kMNprev] = std::min<int64_t>(nprev + 1, 2);
