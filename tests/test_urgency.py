@@ -272,6 +272,21 @@ def test_settle_bound_is_never_after_the_first_root():
         problems += check_against_ref(t, x[i], v[i], eps[i], A[i], delta[i], tight=False)
     assert_all_ok(problems)
     assert bounded > 1000
+    # Against a wait to cover (the pair's due step): just above it where the bound covers it,
+    # found without the root. Covers near the root (the bound's and the root's) test its edge.
+    problems, covered = [], 0
+    for i in range(len(eps)):
+        root = _core.settle_tau(*x[i], *v[i], eps[i], A[i], delta[i])
+        if root == -math.inf:
+            continue
+        for cover in (root * (1 - 1e-9), root * (1 - 1e-13), root * 0.5, root * 1.5):
+            t = _core.settle_tau(*x[i], *v[i], eps[i], A[i], delta[i], cover)
+            if t == -math.inf or cover <= 0:
+                continue
+            covered += t > cover
+            problems += check_against_ref(t, x[i], v[i], eps[i], A[i], delta[i], tight=False)
+    assert_all_ok(problems)
+    assert covered > 1000
     # Numbers out of the range its rounding is accounted for: no bound.
     assert _core.settle_tau(1e-300, 0, 0, 0, 0, 0, 0, 1e-300, 0) == -math.inf
     assert _core.settle_tau(1e300, 0, 0, 1e300, 0, 0, 0, 1.0, 0) == -math.inf

@@ -47,10 +47,12 @@ void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, in
 // TauSpeed of rows r[0:m] (m <= 4; the rest repeat a row, as padding) into out[k * out_stride].
 void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_stride);
 // A lower bound on TauAccel's first root from the two norms |x| and |v| alone (docs/theory.md,
-// section 6, "Settling a made-due pair"): -inf where it does not apply (in contact, or numbers
-// out of the range where its rounding is accounted for). Never above TauAccel's exact root.
+// section 6, "Settling a made-due pair", Lemma 6.8): cover (1 + 1e-12) where the bound covers
+// `cover` seconds (cover > 0; found without the root), else the bound itself, or -inf where it
+// does not apply (in contact, or numbers out of the range where its rounding is accounted for).
+// Never above TauAccel's exact root.
 DUA_API double SettleTau(const double x[3], const double v[3], double eps, double accel,
-                         double delta);
+                         double delta, double cover = 0.0);
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
 // tau of a sphere (centre c, velocity v) against a static shape record; speed: the bound on the
 // sphere's speed (inf: none).
@@ -214,8 +216,9 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
 void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n);
 // A lower bound on a made-due pair's tau from the state of step n, cheaper than its evaluation
 // (at most the horizon, -inf included, where it settles nothing): the step's SettleBound.
+// Given the time its present wait must cover, it may return just above it when it covers.
 struct MadeDueBound {
-  double (*tau)(void* ctx, int64_t p);
+  double (*tau)(void* ctx, int64_t p, double cover);  // SettleTau's cover: the pair's wait
   void* ctx;
 };
 // MakeDue of the pairs of groups[0:ngroups] (group g: members[start[g]:start[g + 1]]), in that

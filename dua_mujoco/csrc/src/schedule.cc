@@ -527,7 +527,17 @@ int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
                   static_cast<double>(where[p] - last_step[p] + latency) * dt + extra)) {
         // A verdict of step n already (a pair of two flagged bodies, met again): it stays.
         if (last_step[p] == n) continue;
-        const double tau = bound->tau(bound->ctx, p);
+        // The wait until its due step, as Stands computes it once the verdict is of step n (0:
+        // due now, nothing to keep).
+        const double cover =
+            where[p] > n ? static_cast<double>(where[p] - n + latency) * dt + extra : 0.0;
+        const double tau = bound->tau(bound->ctx, p, cover);
+        if (cover > 0.0 && tau > cover) {  // covers its due step: stays linked there
+          last_tau[p] = tau;
+          last_step[p] = n;
+          w_settled[settled++] = p;
+          continue;
+        }
         if (tau > horizon) {  // NaN: not settled
           last_tau[p] = tau;
           last_step[p] = n;

@@ -733,10 +733,11 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
   return -1;
 }
 
-// SettleTau of held pair p on the frame (a MadeDueBound): a sphere pair's two rows read as the
+// SettleTau of held pair p on the frame (a MadeDueBound), against the time its present wait
+// covers (cover): a sphere pair's two rows read as the
 // gather reads them (each sphere once a step: the epoch the step's TauOf uses next), on the
 // predictor's grid with period > 1; -inf (not settled) for other kinds and untamed states.
-double SettleBound(void* ctx, int64_t p) {
+double SettleBound(void* ctx, int64_t p, double cover) {
   const dua_step_args& a = *static_cast<const dua_step_args*>(ctx);
   const double* rec = a.pairs + p * kPairNcol;
   if (static_cast<int>(rec[kPairKind]) != kKindSphere) return -kInf;
@@ -746,8 +747,12 @@ double SettleBound(void* ctx, int64_t p) {
   if (!(tame_i && tame_j)) return -kInf;
   const double x[3] = {sj[0] - si[0], sj[1] - si[1], sj[2] - si[2]};
   const double v[3] = {sj[3] - si[3], sj[4] - si[4], sj[5] - si[5]};
-  const double tau = SettleTau(x, v, rec[kPairEps], rec[kPairAccel], rec[kPairDelta]);
-  return a.period > 1 ? GridFloor(tau, a.timestep, a.period) : tau;
+  // With period > 1 every tau goes on the grid, which the cover's (just above a step) is not.
+  if (a.period > 1) {
+    return GridFloor(SettleTau(x, v, rec[kPairEps], rec[kPairAccel], rec[kPairDelta]), a.timestep,
+                     a.period);
+  }
+  return SettleTau(x, v, rec[kPairEps], rec[kPairAccel], rec[kPairDelta], cover);
 }
 
 // TauRows of held pairs on a's points (free spheres) or frame, then the exact level.
