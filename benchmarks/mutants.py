@@ -308,6 +308,15 @@ MUTANTS: tuple[Mutant, ...] = (
         "(Lemma 6.8 without A t^2 / 2)",
     ),
     Mutant(
+        "settle-cover-without-accel",
+        _URGENCY,
+        "if (gap - t2 * (b + h * t2) > 0.0) return cover * (1.0 + kSettleKappa);",
+        "if (gap - t2 * b > 0.0) return cover * (1.0 + kSettleKappa);",
+        (_SETTLE_BOUND, _SETTLED),
+        "a flagged body's pair keeps its due step on a cover test that ignores the acceleration "
+        "bound (Lemma 6.8' without A t^2 / 2)",
+    ),
+    Mutant(
         "escape-speed-loose",
         "dua_mujoco/csrc/src/reach.cc",
         "const double top = std::min(s0 + a * t, vmax - d);",
