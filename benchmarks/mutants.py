@@ -82,6 +82,10 @@ _TWO_HULLS = (
 _MADE_DUE = (
     "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
 )
+_SETTLE_BOUND = "tests/test_urgency.py::test_settle_bound_is_never_after_the_first_root"
+_SETTLED = (
+    "tests/test_events.py::test_settled_pairs_get_a_verdict_of_that_step_below_the_sphere_kernels"
+)
 _REF = (
     "tests/test_reference_step.py::"
     "test_tau_is_never_later_than_a_feasible_contact_and_those_within_the_horizon_stand"
@@ -286,6 +290,33 @@ MUTANTS: tuple[Mutant, ...] = (
         (_MADE_DUE,),
         "the flagged pairs reach the kernel in another order than make_due's (the four-lane "
         "groups, and so the alarms, are not main's bit for bit)",
+    ),
+    Mutant(
+        "settle-without-speed",
+        _URGENCY,
+        "const double gap = nx - e, b = nv + d;",
+        "const double gap = nx - e, b = d;",
+        (_SETTLE_BOUND, _SETTLED),
+        "a flagged body's pair is settled by a bound that ignores how fast it approaches "
+        "(Lemma 6.8 without |v| t)",
+    ),
+    Mutant(
+        "settle-without-accel",
+        _URGENCY,
+        "const double q = b * b + 4.0 * h * gap;",
+        "const double q = b * b + 0.0 * h * gap;",
+        (_SETTLE_BOUND, _SETTLED),
+        "a flagged body's pair is settled by a bound that ignores the acceleration bound "
+        "(Lemma 6.8 without A t^2 / 2)",
+    ),
+    Mutant(
+        "settle-cover-without-accel",
+        _URGENCY,
+        "if (gap - t2 * (b + h * t2) > 0.0) return cover * (1.0 + kSettleKappa);",
+        "if (gap - t2 * b > 0.0) return cover * (1.0 + kSettleKappa);",
+        (_SETTLE_BOUND, _SETTLED),
+        "a flagged body's pair keeps its due step on a cover test that ignores the acceleration "
+        "bound (Lemma 6.8' without A t^2 / 2)",
     ),
     Mutant(
         "escape-speed-loose",

@@ -20,6 +20,11 @@ def tau_speed_batch(x: Annotated[NDArray[numpy.float64], dict(order='C', device=
 
 def tau_halfspace_batch(gap: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], vn: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
 
+def settle_tau(x0: float, x1: float, x2: float, v0: float, v1: float, v2: float, eps: float, accel: float, delta: float, cover: float = 0.0) -> float:
+    """
+    The bound that settles a flagged body's pair (the step's SettleBound on a sphere pair's relative state; cover > 0: just above it where it covers that long): at most TauAccel's exact first root; -inf where it does not apply.
+    """
+
 def tau_static_batch(centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], eps: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...
 
 def support(directions: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...

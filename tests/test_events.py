@@ -180,6 +180,42 @@ def test_pairs_of_a_violated_body_are_renewed_at_that_step(cap: int | None) -> N
     assert renewed > 100
 
 
+def test_settled_pairs_get_a_verdict_of_that_step_below_the_sphere_kernels() -> None:
+    """A flagged body's pair the step settles instead of evaluating (docs/theory.md, section 6,
+    "Settling a made-due pair") gets a verdict of that step, which does not alarm and is at most
+    the sphere kernel's tau on the same state (so it bounds the first root as the evaluation
+    would). Fails with the bound's speed or acceleration term dropped (benchmarks/mutants.py)."""
+    m, d = load_scene("traffic")
+    p = Predictor(m, accel=5.0)
+    ctrl = make_controller(m, "random", seed=2)
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    rec = p.pair_records
+    settled = 0
+    for _ in range(600):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        p.step(d)
+        state = p.pair_state()
+        k = state.settled
+        if k == 0:
+            continue
+        count = p.evaluations_per_step
+        ids = state.last_selected[count : count + k]
+        assert np.all(state.last_step_of(ids) == state.step_count)
+        assert not state.alarm_state(ids).any()
+        c, v = p.sphere_states(d)
+        i, j = rec[ids, 0].astype(np.int64), rec[ids, 1].astype(np.int64)
+        tau = _core.tau_speed_batch(
+            c[j] - c[i], v[j] - v[i], rec[ids, 3], rec[ids, 4], rec[ids, 5], rec[ids, 6]
+        )
+        lower = state.last_tau_of(ids)
+        assert np.all(lower <= tau), (lower[lower > tau], tau[lower > tau])
+        settled += k
+    assert settled > 1000
+
+
 def test_a_collision_right_after_an_impulse_is_flagged_only_with_events() -> None:
     """The middle ball's bounds break at the step it touches the last ball. Evaluated again at
     that step, the pair alarms; one step late, or never, it is missed."""

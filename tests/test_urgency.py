@@ -31,6 +31,7 @@ except ImportError:  # the package __init__ may not re-export yet
 import reference_tau as ref
 from scalar_tau import tau_speed
 
+from dua_mujoco import _core
 from dua_mujoco.exceptions import (
     BoundViolationWarning,
     InvalidBoundError,
@@ -248,6 +249,48 @@ def test_random_against_reference():
     for i in range(len(eps)):
         problems += check_against_ref(tau[i], x[i], v[i], eps[i], A[i], delta[i])
     assert_all_ok(problems)
+
+
+def test_settle_bound_is_never_after_the_first_root():
+    """The bound that settles a flagged body's pair instead of evaluating it (docs/theory.md,
+    section 6, "Settling a made-due pair") never exceeds the exact first root: random cases, and
+    head-on approaches, where |x + v t| = |x| - |v| t and the bound is the root but for its
+    inflation. Where it does not apply it says so (-inf), never a number."""
+    rng = np.random.default_rng(20261202)
+    x, v, eps, A, delta = random_cases(rng, 2000)
+    # Head-on: v along -x, at speeds that make it, not the acceleration, decide the root.
+    on = rng.random(len(eps)) < 0.3
+    speed = np.linalg.norm(x, axis=1) * 10.0 ** rng.uniform(-1, 3, len(eps))
+    v[on] = -x[on] / np.linalg.norm(x[on], axis=1)[:, None] * speed[on, None]
+    problems, bounded = [], 0
+    for i in range(len(eps)):
+        t = _core.settle_tau(*x[i], *v[i], eps[i], A[i], delta[i])
+        assert not math.isnan(t)
+        if t == -math.inf:
+            continue
+        bounded += 1
+        problems += check_against_ref(t, x[i], v[i], eps[i], A[i], delta[i], tight=False)
+    assert_all_ok(problems)
+    assert bounded > 1000
+    # Against a wait to cover (the pair's due step): just above it where the bound covers it,
+    # found without the root. Covers near the root (the bound's and the root's) test its edge.
+    problems, covered = [], 0
+    for i in range(len(eps)):
+        root = _core.settle_tau(*x[i], *v[i], eps[i], A[i], delta[i])
+        if root == -math.inf:
+            continue
+        for cover in (root * (1 - 1e-9), root * (1 - 1e-13), root * 0.5, root * 1.5):
+            t = _core.settle_tau(*x[i], *v[i], eps[i], A[i], delta[i], cover)
+            if t == -math.inf or cover <= 0:
+                continue
+            covered += t > cover
+            problems += check_against_ref(t, x[i], v[i], eps[i], A[i], delta[i], tight=False)
+    assert_all_ok(problems)
+    assert covered > 1000
+    # Numbers out of the range its rounding is accounted for: no bound.
+    assert _core.settle_tau(1e-300, 0, 0, 0, 0, 0, 0, 1e-300, 0) == -math.inf
+    assert _core.settle_tau(1e300, 0, 0, 1e300, 0, 0, 0, 1.0, 0) == -math.inf
+    assert _core.settle_tau(1.0, 0, 0, 0, 0, 0, 2.0, 1.0, 0) == -math.inf  # in contact
 
 
 def _scalar_kernel(x, v, eps, A, delta, speed):

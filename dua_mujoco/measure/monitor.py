@@ -313,8 +313,9 @@ class Monitor:
         evaluated = sched.last_selected
         self.warning.hypotheses.evaluated(evaluated, self.predictor.verdict_basis(evaluated))
         self.predictor_steps += 1
-        # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated.
-        self.evaluation_sum += int(evaluated.size) - sched.deferred
+        # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated;
+        # settled ones a verdict from a bound (their alarm state is in the step's, none).
+        self.evaluation_sum += int(evaluated.size) - sched.deferred - sched.settled
         self._apply_alarms(
             alarms.pairs, evaluated, float(data.time), self.physics_step, deferred=sched.deferred
         )

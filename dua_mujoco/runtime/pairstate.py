@@ -22,6 +22,7 @@ from dua_mujoco.core.pairset import PairKind
 __all__ = ["PairState"]
 
 _P_COUNT, _P_DEFERRED = LAYOUT["P_COUNT"], LAYOUT["P_DEFERRED"]
+_P_SETTLED, _W_SLOTS = LAYOUT["P_SETTLED"], LAYOUT["W_SLOTS"]
 _W_IDS, _LAST_STEP = LAYOUT["W_IDS"], LAYOUT["LAST_STEP"]
 
 
@@ -62,6 +63,12 @@ class PairState:
         return int(self.scheduler.params[_P_DEFERRED]) if self.step_count else 0
 
     @property
+    def settled(self) -> int:
+        """Pairs of flagged bodies the latest step settled by a bound from their state instead
+        of evaluating them (docs/theory.md, section 6, "Settling a made-due pair")."""
+        return int(self.scheduler.params[_P_SETTLED]) if self.step_count else 0
+
+    @property
     def active(self) -> np.ndarray:
         """``(npairs,)`` bool, pairs switched on."""
         return np.asarray(self._rt.on)
@@ -78,13 +85,19 @@ class PairState:
 
     @property
     def last_selected(self) -> np.ndarray:
-        """Pair ids whose verdict the latest step renewed (evaluated, and deferred ones)."""
+        """Pair ids whose verdict the latest step renewed: the evaluated ones, the ones it
+        settled (:attr:`settled`; a verdict from a bound), then the deferred ones (last)."""
         s = self.scheduler
         if self.step_count == 0:
             return np.zeros(0, dtype=np.int64)
         params = s.params
         renewed = int(params[_P_COUNT] + params[_P_DEFERRED])
-        return np.asarray(self._held[s.work[_W_IDS, :renewed]])
+        ids = s.work[_W_IDS, :renewed]
+        settled = int(params[_P_SETTLED])
+        if settled:
+            count = int(params[_P_COUNT])
+            ids = np.concatenate([ids[:count], s.work[_W_SLOTS, :settled], ids[count:]])
+        return np.asarray(self._held[ids])
 
     def _positions(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Schedule positions of model pairs ``ids`` and whether each is held."""

@@ -214,7 +214,8 @@ class Scheduler:
     @property
     def last_selected(self) -> np.ndarray:
         """Pairs whose verdict the latest step renewed: those evaluated (and, for the deadline
-        schedule, those due but left for a later step)."""
+        schedule, those due but left for a later step). Not the pairs of flagged bodies a
+        predictor's step settled by a bound (``PairState.last_selected`` lists those too)."""
         if self._pending is not None or self.step_count == 0:
             return self._state.work[W_IDS, :0].copy()
         renewed = int(self._params[P_COUNT] + self._params[P_DEFERRED])

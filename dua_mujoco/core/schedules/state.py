@@ -29,6 +29,7 @@ __all__ = [
     "P_EXTRA",
     "P_MAX_INTERVAL",
     "P_NBUCKETS",
+    "P_SETTLED",
     "P_SLOTS_PER_BUCKET",
     "P_WHEEL",
     "RANK",
@@ -93,6 +94,9 @@ P_EXTRA: int = _LAYOUT["P_EXTRA"]
 P_BACKOFF: int = _LAYOUT["P_BACKOFF"]
 """Deadline: longest interval (steps) between evaluations of a pair that keeps alarming (1:
 every step); it stands in alarm in between."""
+P_SETTLED: int = _LAYOUT["P_SETTLED"]
+"""Deadline: pairs of flagged bodies the latest step settled by a bound instead of evaluating
+(their ids in ``work[W_SLOTS, :settled]``; docs/theory.md, section 6)."""
 NPARAMS: int = _LAYOUT["NPARAMS"]
 
 

@@ -1591,6 +1591,18 @@ NB_MODULE(_core, m) {
 
   m.def("tau_speed_batch", &TauSpeedBatch, "x"_a, "v"_a, "eps"_a, "accel"_a, "delta"_a, "speed"_a);
   m.def("tau_halfspace_batch", &TauHalfspaceBatch, "gap"_a, "vn"_a, "accel"_a, "delta"_a);
+  m.def(
+      "settle_tau",
+      [](double x0, double x1, double x2, double v0, double v1, double v2, double eps, double accel,
+         double delta, double cover) {
+        const double x[3] = {x0, x1, x2}, v[3] = {v0, v1, v2};
+        return SettleTau(x, v, eps, accel, delta, cover);
+      },
+      "x0"_a, "x1"_a, "x2"_a, "v0"_a, "v1"_a, "v2"_a, "eps"_a, "accel"_a, "delta"_a,
+      "cover"_a = 0.0,
+      "The bound that settles a flagged body's pair (the step's SettleBound on a sphere pair's "
+      "relative state; cover > 0: just above it where it covers that long): at most TauAccel's "
+      "exact first root; -inf where it does not apply.");
   m.def("tau_static_batch", &TauStaticBatch, "centers"_a, "velocities"_a, "shapes"_a, "ids"_a,
         "eps"_a, "accel"_a, "delta"_a);
   m.def(

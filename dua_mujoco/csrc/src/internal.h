@@ -46,6 +46,13 @@ double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2
 void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride);
 // TauSpeed of rows r[0:m] (m <= 4; the rest repeat a row, as padding) into out[k * out_stride].
 void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_stride);
+// A lower bound on TauAccel's first root from the two norms |x| and |v| alone (docs/theory.md,
+// section 6, "Settling a made-due pair", Lemma 6.8): cover (1 + 1e-12) where the bound covers
+// `cover` seconds (cover > 0; found without the root), else the bound itself, or -inf where it
+// does not apply (in contact, or numbers out of the range where its rounding is accounted for).
+// Never above TauAccel's exact root.
+DUA_API double SettleTau(const double x[3], const double v[3], double eps, double accel,
+                         double delta, double cover = 0.0);
 double TauHalfspace(double gap, double normal_velocity, double accel, double delta);
 // tau of a sphere (centre c, velocity v) against a static shape record; speed: the bound on the
 // sphere's speed (inf: none).
@@ -207,10 +214,21 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
 
 // dua_make_due of pairs ids[0:count] at step n (schedule.cc).
 void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n);
+// A lower bound on a made-due pair's tau from the state of step n, cheaper than its evaluation
+// (at most the horizon, -inf included, where it settles nothing): the step's SettleBound.
+// Given the time its present wait must cover, it may return just above it when it covers.
+struct MadeDueBound {
+  double (*tau)(void* ctx, int64_t p, double cover);  // SettleTau's cover: the pair's wait
+  void* ctx;
+};
 // MakeDue of the pairs of groups[0:ngroups] (group g: members[start[g]:start[g + 1]]), in that
-// order, then dua_select at step n: the same selection, in the same order (schedule.cc).
+// order, then dua_select at step n: the same selection, in the same order (schedule.cc). With a
+// bound (deadline schedules), a made-due pair that does not stand in alarm and whose bound does
+// not alarm is settled instead: the bound is its verdict of step n, linked where (3) puts it,
+// and it is not selected (docs/theory.md, section 6, "Settling a made-due pair").
 DUA_API int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
-                              const int64_t* start, const int64_t* members, int64_t n);
+                              const int64_t* start, const int64_t* members, int64_t n,
+                              const MadeDueBound* bound = nullptr);
 
 // Bucket floor(log2(slot + 1)) of a rank slot.
 inline int64_t BucketOf(int64_t slot) {

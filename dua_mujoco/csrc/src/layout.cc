@@ -118,6 +118,7 @@ constexpr Entry kEntries[] = {
     {"P_DEFERRED", dua::kParamDeferred},
     {"P_EXTRA", dua::kParamExtra},
     {"P_BACKOFF", dua::kParamBackoff},
+    {"P_SETTLED", dua::kParamSettled},
     {"NPARAMS", dua::kNParams},
     {"CFG_VERSION", dua::kCfgVersion},
     {"CFG_KIND", dua::kCfgKind},

@@ -60,7 +60,7 @@ constexpr int64_t kIntWhere = 0, kIntLastStep = 1, kIntNext = 2, kIntPrev = 3;
 constexpr int64_t kWorkSlots = 0, kWorkIds = 1, kWorkAlarms = 2, kWorkNew = 3;
 constexpr int64_t kParamNBuckets = 0, kParamSlotsPerBucket = 1, kParamWheel = 2,
                   kParamMaxInterval = 3, kParamCap = 4, kParamCount = 5, kParamDeferred = 6,
-                  kParamExtra = 7, kParamBackoff = 8, kNParams = 9;
+                  kParamExtra = 7, kParamBackoff = 8, kParamSettled = 9, kNParams = 10;
 
 }  // namespace dua
 

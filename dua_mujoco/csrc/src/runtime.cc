@@ -1197,6 +1197,9 @@ void Runtime::TrackStep(int64_t nalarm) {
     const int64_t i = events_flagged_[k];
     Track(held_members_.data() + held_start_[i], held_start_[i + 1] - held_start_[i]);
   }
+  // The flagged bodies' pairs the deadline step settled (docs/theory.md, section 6): none
+  // stands, none stood (Stands says so; their expiry moved).
+  if (s.kind == kDeadline) Track(s.work + kWorkSlots * s.width, s.params[kParamSettled]);
   // Pairs a plan break withdrew (the rank schedule may leave them waiting, standing in alarm).
   Track(plan_due_.data(), static_cast<int64_t>(plan_due_.size()));
   min_tau_ = kInf;

@@ -25,7 +25,8 @@ constexpr int64_t kWSlots = dua::kWorkSlots, kWIds = dua::kWorkIds, kWAlarms = d
 constexpr int64_t kNBuckets = dua::kParamNBuckets, kSlotsPerBucket = dua::kParamSlotsPerBucket,
                   kWheel = dua::kParamWheel, kMaxInterval = dua::kParamMaxInterval,
                   kCap = dua::kParamCap, kCount = dua::kParamCount, kDeferred = dua::kParamDeferred,
-                  kExtra = dua::kParamExtra, kBackoff = dua::kParamBackoff;
+                  kExtra = dua::kParamExtra, kBackoff = dua::kParamBackoff,
+                  kSettled = dua::kParamSettled;
 constexpr double kNegInf = -std::numeric_limits<double>::infinity();
 
 struct View {
@@ -343,6 +344,7 @@ int64_t dua_deadline_interval(double tau, double dt, int64_t latency, int64_t ma
 int64_t dua_select(dua_schedule* st, int64_t n) {
   const View v{st};
   int64_t count;
+  st->params[kSettled] = 0;
   if (st->kind == kRank) {
     count = RankSelect(v, n);
   } else if (st->kind == kDeadline) {
@@ -380,6 +382,7 @@ void dua_restore(dua_schedule* st, int64_t n, int64_t count) {
   st->params[kCount] = 0;
   st->params[kDeferred] = 0;
   st->params[kExtra] = 0;
+  st->params[kSettled] = 0;  // their verdicts (of this state) stay
 }
 
 int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t on, int64_t n_next) {
@@ -482,7 +485,8 @@ void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, 
 namespace dua {
 
 int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
-                      const int64_t* start, const int64_t* members, int64_t n) {
+                      const int64_t* start, const int64_t* members, int64_t n,
+                      const MadeDueBound* bound) {
   if (st->kind != kDeadline) {
     for (int64_t k = 0; k < ngroups; ++k) {
       const int64_t g = groups[k];
@@ -504,12 +508,46 @@ int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
   double* last_tau = st->last_tau;
   const uint8_t* active = st->active;
   constexpr int64_t kTaken = -2;  // taken this step (Unlink leaves -1; never a due step)
-  int64_t count = 0;
+  int64_t* last_step = v.Int(kLastStep);
+  const double dt = st->dt, extra = st->extra, horizon = st->horizon[0];
+  const int64_t latency = st->latency, max_interval = st->params[kMaxInterval];
+  const int64_t m = st->m, wheel = st->params[kWheel];
+  int64_t* w_settled = v.Work(kWSlots);  // the settled pairs (the wheel leaves the row unused)
+  int64_t count = 0, settled = 0;
   for (int64_t k = ngroups - 1; k >= 0; --k) {
     const int64_t g = groups[k];
     for (int64_t j = start[g + 1] - 1; j >= start[g]; --j) {
       const int64_t p = members[j];
       if (!active[p] || where[p] == kTaken) continue;
+      // Settled (docs/theory.md, section 6): only a pair linked in the wheel that does not stand
+      // in alarm (the step's tracking reads the selection, and a pair left out of it must keep
+      // its standing: none), with a bound from this state above the horizon (no alarm now).
+      if (bound != nullptr && where[p] >= 0 &&
+          !Alarms(last_tau[p],
+                  static_cast<double>(where[p] - last_step[p] + latency) * dt + extra)) {
+        // A verdict of step n already (a pair of two flagged bodies, met again): it stays.
+        if (last_step[p] == n) continue;
+        // The wait until its due step, as Stands computes it once the verdict is of step n (0:
+        // due now, nothing to keep).
+        const double cover =
+            where[p] > n ? static_cast<double>(where[p] - n + latency) * dt + extra : 0.0;
+        const double tau = bound->tau(bound->ctx, p, cover);
+        if (cover > 0.0 && tau > cover) {  // covers its due step: stays linked there
+          last_tau[p] = tau;
+          last_step[p] = n;
+          w_settled[settled++] = p;
+          continue;
+        }
+        if (tau > horizon) {  // NaN: not settled
+          last_tau[p] = tau;
+          last_step[p] = n;
+          UnlinkFrom(slots, nxt, prv, where, p);
+          LinkInto(slots, st->ints, m, wheel, p,
+                   n + dua_deadline_interval(tau, dt, latency, max_interval, extra));
+          w_settled[settled++] = p;
+          continue;
+        }
+      }
       last_tau[p] = kNegInf;
       UnlinkFrom(slots, nxt, prv, where, p);
       where[p] = kTaken;
@@ -519,6 +557,7 @@ int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
   for (int64_t k = 0; k < count; ++k) where[w_ids[k]] = -1;  // selected, as DeadlineSelect leaves
   count = DeadlineSelect(v, n, count);
   st->params[kCount] = count;
+  st->params[kSettled] = settled;
   return count;
 }
 
