@@ -17,12 +17,15 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // A bound on how far any point of a geom moves between poses (p0, r0) and (p1, r1): the
 // origin's displacement plus |R1 - R0|_F (>= the spectral norm) times the geom's bounding radius
-// about its origin. A plane reaches arbitrarily far: any change is unbounded.
+// about its origin. A plane reaches arbitrarily far: any change is unbounded. *finite is cleared
+// when a difference is not a finite number's square (a pose not finite, or so large that the
+// squares overflow).
 double Displacement(const double* p0, const double* r0, const double* p1, const double* r1,
-                    double radius, bool plane) {
+                    double radius, bool plane, bool* finite) {
   double dp = 0.0, dr = 0.0;
   for (int i = 0; i < 3; ++i) dp += (p1[i] - p0[i]) * (p1[i] - p0[i]);
   for (int i = 0; i < 9; ++i) dr += (r1[i] - r0[i]) * (r1[i] - r0[i]);
+  if (!(dp + dr < kInf)) *finite = false;
   if (plane) return dp == 0.0 && dr == 0.0 ? 0.0 : kInf;
   // Rounded up by a few ulps: the bound must not fall below the true displacement.
   return (std::sqrt(dp) + std::sqrt(dr) * radius) * (1.0 + 8.0 * kEpsilon);
@@ -909,12 +912,16 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
     const double* o = rec + kSphereOffset;
     radius[g] = std::max(radius[g], std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]));
   }
-  for (int64_t j = 0; j < n; ++j) {
+  // Finite joint positions so large that MuJoCo's kinematics overflows (a slide of 1e308): the
+  // first pose of a knot that is not finite, named. Knot 0 is scanned; a later knot only when
+  // one of its sweep's squared differences is not finite, which a pose that is not finite makes
+  // when the knot before is finite (so the same first pose is named, with no scan of the knots
+  // that are).
+  const auto unfinite = [&](int64_t j) -> std::string {
     const double* pj = pos_.data() + 3 * nslot_ * j;
     const double* rj = mat_.data() + 9 * nslot_ * j;
     for (int64_t c = 0; c < nslot_; ++c) {
       const int64_t g = geoms[c];
-      // Finite joint positions so large that MuJoCo's kinematics overflows (a slide of 1e308).
       double bad = 0.0;  // x - x is 0 for every finite x, not a number otherwise
       for (int e = 0; e < 3; ++e) bad += pj[3 * c + e] - pj[3 * c + e];
       if (bad != 0.0) {
@@ -926,14 +933,33 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
         return "puts geom " + std::to_string(g) + " where its rotation is not finite (knot " +
                std::to_string(j) + "): a qpos too large";
       }
-      double* sw = sweep_.data() + nslot_ * j + c;
-      if (j == 0) {
-        *sw = 0.0;
-        continue;
-      }
+    }
+    return "";
+  };
+  if (n > 0) {
+    std::string why = unfinite(0);
+    if (!why.empty()) return why;
+    std::fill_n(sweep_.data(), nslot_, 0.0);
+  }
+  std::vector<double> reach(static_cast<size_t>(nslot_));
+  std::vector<uint8_t> plane(static_cast<size_t>(nslot_));
+  for (int64_t c = 0; c < nslot_; ++c) {
+    reach[c] = radius[geoms[c]];
+    plane[c] = m->geom_type[geoms[c]] == mjGEOM_PLANE;
+  }
+  for (int64_t j = 1; j < n; ++j) {
+    const double* pj = pos_.data() + 3 * nslot_ * j;
+    const double* rj = mat_.data() + 9 * nslot_ * j;
+    double* sw = sweep_.data() + nslot_ * j;
+    bool finite = true;
+    for (int64_t c = 0; c < nslot_; ++c) {
       const double step = Displacement(pj - 3 * nslot_ + 3 * c, rj - 9 * nslot_ + 9 * c, pj + 3 * c,
-                                       rj + 9 * c, radius[g], m->geom_type[g] == mjGEOM_PLANE);
-      *sw = (*(sw - nslot_) + step) * (1.0 + 4.0 * kEpsilon);
+                                       rj + 9 * c, reach[c], plane[c] != 0, &finite);
+      sw[c] = (sw[c - nslot_] + step) * (1.0 + 4.0 * kEpsilon);
+    }
+    if (!finite) {
+      std::string why = unfinite(j);
+      if (!why.empty()) return why;
     }
   }
   start_ = start, h_ = h;
