@@ -494,6 +494,14 @@ MUTANTS: tuple[Mutant, ...] = (
         "a relative pair that leaves the newest shadow's tube is taken as nested in the older ones",
     ),
     Mutant(
+        "plan-screen-squared-length",
+        _PLAN,
+        "std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) * (1.0 + 1e-12) + kGapSlack * scale;",
+        "(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) * (1.0 + 1e-12) + kGapSlack * scale;",
+        ("tests/test_flightplan.py::test_no_walk_stops_at_a_knot_mujocos_distance_clears",),
+        "the knots' exact level skips a query whose direction would clear the knot",
+    ),
+    Mutant(
         "plan-box-screen-below-its-bound",
         _PLAN,
         "const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 2e-9);",

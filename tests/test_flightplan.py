@@ -344,6 +344,65 @@ def test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference() -
     assert standing >= 20 and checked >= 200  # pairs were evaluated again under each plan
 
 
+def _clearable(
+    m: mujoco.MjModel, p: Predictor, qpos: np.ndarray, dev: np.ndarray, slack: float
+) -> np.ndarray:
+    """``(n, npair)``: whether MuJoCo's distance of the pair's two geoms at each knot, less the
+    pair's contact distance, is above both bodies' deviations there by more than ``slack``: a
+    knot some direction clears (:func:`_reference_tau`'s test, the other way round)."""
+    d = mujoco.MjData(m)
+    contact = p.geom_pairs.contact_distance[p.sphere_pairs.geom_pair]
+    g1, g2 = p.tables.geom1, p.tables.geom2
+    b1, b2 = m.geom_bodyid[g1], m.geom_bodyid[g2]
+    dev = np.where(m.body_weldid == 0, 0.0, dev)
+    out = np.zeros((len(qpos), len(g1)), dtype=bool)
+    for j, q in enumerate(qpos):
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        for i in range(len(g1)):
+            dist = mujoco.mj_geomDistance(m, d, int(g1[i]), int(g2[i]), 10.0, None)
+            out[j, i] = dist - contact[i] > dev[j, b1[i]] + dev[j, b2[i]] + slack
+    return out
+
+
+@pytest.mark.parametrize("deviation", ["rising", 0.15])
+def test_no_walk_stops_at_a_knot_mujocos_distance_clears(deviation: float | str) -> None:
+    """The exact level at a knot asks MuJoCo for a direction only where one could clear the knot
+    (docs/theory.md, section 8, "Queries that cannot clear, at the knots"): over three plans
+    followed step by step, every knot a pair's walk stops at (its tau short of the plan's end)
+    has MuJoCo's distance, less the contact distance, within both deviations (0.1 mm of room
+    for GJK's own tolerance). A screen that skipped a query whose direction clears would stop a
+    walk at such a knot; a large deviation makes the kept direction fail where others clear."""
+    m, d = _scene()
+    horizon, n, every = 0.2, 160, 40
+    p = Predictor(m, accel=ACCEL, alarm_horizon=horizon)
+    p.reset(d)
+    h = m.opt.timestep
+    if deviation == "rising":
+        dev = np.broadcast_to(0.02 * np.arange(n)[:, None] / n, (n, m.nbody)).copy()
+    else:
+        dev = np.full((n, m.nbody), float(deviation))
+    stops = 0
+    for plan in range(3):
+        ctrl = _controls(m, n, seed=10 + plan)
+        qpos = _rollout(m, d, ctrl, n)
+        p.set_plan(qpos, deviation=dev)
+        clears = _clearable(m, p, qpos, dev, slack=1e-4)
+        for k in range(every):
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            p.step(d)
+            state = p.pair_state()
+            ids = np.flatnonzero(state.last_step_of(np.arange(p.nsphere_pairs)) == state.step_count)
+            steps = np.rint(state.last_tau_of(ids) / h).astype(int)
+            stop = steps < n - k
+            knot, ids = k + steps[stop], ids[stop]
+            assert not clears[knot, ids].any(), (plan, k, ids[clears[knot, ids]])
+            stops += ids.size
+    assert p.plan_breaks == 0
+    assert stops >= 100
+
+
 def test_a_body_beyond_its_deviation_falls_back_to_the_bounds() -> None:
     """A plan of held controls with no deviation allowed, a run that moves the arm: the arm's
     bodies break the plan (their pairs follow the motion bounds from then on), the ball's and

@@ -99,6 +99,24 @@ double StaticGap(double c0, double c1, double c2, const double* rec, double n[3]
 double GeomSupport(int64_t g, const dua_exact& x, const dua_frame& f, double n0, double n1,
                    double n2, int64_t start, int64_t* top);
 
+// The point nearest the origin of the segment from w1 = b - a + r below to w2 = b' - a' + r below
+// (step.cc; docs/theory.md, section 5, "Queries that cannot clear"): a, b the witness points w
+// of the pair's latest query carried with their geoms to f, a', b' the hull vertices its last
+// climbs reached (w2 only when both geoms are hulls), r = (r0, r1, r2). Writes it to q and the
+// points' coordinates' magnitude to scale; returns 0 without a query yet (or below not > 0), 1
+// with w1 alone, 2 with the segment. Every unit u has d_u + u.r below <= |q| (d_u the geoms'
+// separation along u).
+int Nearest(const double* w, double r0, double r1, double r2, const double* xrec,
+            const dua_exact& x, const dua_frame& f, double below, double q[3], double* scale);
+// v scaled to unit length (false: v too short next to the geoms' radii for a direction; step.cc).
+bool Unit(double v[3], double radii);
+// The unit direction from the first witness point w to the second, each carried with its geom to
+// its pose in f (false: no query made yet, or the points too close for a direction; step.cc).
+bool CarriedDirection(const double* w, int64_t g1, int64_t g2, const dua_exact& x,
+                      const dua_frame& f, double out[3]);
+// Stores the witness points fromto (world) in w, each in its geom's frame at f (step.cc).
+void KeepWitness(const double fromto[6], int64_t g1, int64_t g2, const dua_frame& f, double* w);
+
 // Where the point at coordinates l of a frame at pose (p, r) sits: p + r l (a sphere's centre,
 // l its record's offset; a plan's knot; a witness point carried with its geom).
 inline void PosePoint(const double* p, const double* r, const double* l, double* out) {

@@ -17,12 +17,15 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // A bound on how far any point of a geom moves between poses (p0, r0) and (p1, r1): the
 // origin's displacement plus |R1 - R0|_F (>= the spectral norm) times the geom's bounding radius
-// about its origin. A plane reaches arbitrarily far: any change is unbounded.
+// about its origin. A plane reaches arbitrarily far: any change is unbounded. *finite is cleared
+// when a difference is not a finite number's square (a pose not finite, or so large that the
+// squares overflow).
 double Displacement(const double* p0, const double* r0, const double* p1, const double* r1,
-                    double radius, bool plane) {
+                    double radius, bool plane, bool* finite) {
   double dp = 0.0, dr = 0.0;
   for (int i = 0; i < 3; ++i) dp += (p1[i] - p0[i]) * (p1[i] - p0[i]);
   for (int i = 0; i < 9; ++i) dr += (r1[i] - r0[i]) * (r1[i] - r0[i]);
+  if (!(dp + dr < kInf)) *finite = false;
   if (plane) return dp == 0.0 && dr == 0.0 ? 0.0 : kInf;
   // Rounded up by a few ulps: the bound must not fall below the true displacement.
   return (std::sqrt(dp) + std::sqrt(dr) * radius) * (1.0 + 8.0 * kEpsilon);
@@ -108,9 +111,13 @@ struct Pose {
 // The exact level's gap of pair record `pair` with geom ga at pose pa and geom gb at pose pb (the
 // record's two geoms, in either order): against a terrain its prisms' bound; else the direction
 // that served last, then MuJoCo's witness direction at these poses (asked only while the gap is
-// not above `need`), written into the record (any unit direction is valid for any pose).
-double PosedGap(const double* pair, double* xrec, dua_exact& x, dua_plan& plan, mjData* d,
-                const double* shapes, int64_t ga, Pose pa, int64_t gb, Pose pb, double need) {
+// not above `need`, and only when some direction could lift it above: docs/theory.md, section
+// 8, "Queries that cannot clear, at the knots"), written into the record (any unit direction is
+// valid for any pose), its witness points into `witness` (the pair's row of the exact level's;
+// null: none read or kept, as in a shield's query, whose records are its own).
+double PosedGap(const double* pair, double* xrec, double* witness, dua_exact& x, dua_plan& plan,
+                mjData* d, const double* shapes, int64_t ga, Pose pa, int64_t gb, Pose pb,
+                double need) {
   const int mode = static_cast<int>(xrec[kXMode]);
   if (mode == kModeNone) return -kInf;
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
@@ -137,6 +144,40 @@ double PosedGap(const double* pair, double* xrec, dua_exact& x, dua_plan& plan, 
     best = AxisGap(xrec, x, f, n0, n1, n2, mode);
     if (best > need) return best;
   }
+  // Every direction's gap is at most |q| less the contact distance (q: the point nearest the
+  // origin of the segment between two differences of the geoms' points, the latest query's
+  // witness points and the last climbs' hull vertices at these poses): when that is not above
+  // `need`, no direction MuJoCo could give clears the knot, and it is not asked. The margins
+  // are the step's (NoDirectionClears), far above either side's rounding.
+  double q[3], scale;
+  const int near =
+      witness != nullptr ? Nearest(witness, 0.0, 0.0, 0.0, xrec, x, f, 1.0, q, &scale) : 0;
+  if (near > 0) {
+    const double most =
+        std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) * (1.0 + 1e-12) + kGapSlack * scale;
+    if (most < (xrec[kXDist] + need) * (1.0 - 1e-12)) return best;
+    // The latest query's witness points moved with their geoms: the direction between them at
+    // these poses follows the geoms' turning since, which the kept (world) direction does not;
+    // then, between two hulls, the direction of the segment's nearest point (a step of GJK
+    // from the two pairs of points). Any unit direction is a lower bound: where one clears the
+    // knot it becomes the pair's direction, and MuJoCo is not asked (as at the step, section 5).
+    double u[3];
+    if (CarriedDirection(witness, g1, g2, x, f, u)) {
+      best = std::max(best, AxisGap(xrec, x, f, u[0], u[1], u[2], mode));
+      if (best > need) {
+        xrec[kXN] = u[0], xrec[kXN + 1] = u[1], xrec[kXN + 2] = u[2];
+        return best;
+      }
+    }
+    if (near == 2 &&
+        Unit(q, x.geoms[g1 * kGxNcol + kGxRadius] + x.geoms[g2 * kGxNcol + kGxRadius])) {
+      best = std::max(best, AxisGap(xrec, x, f, q[0], q[1], q[2], mode));
+      if (best > need) {
+        xrec[kXN] = q[0], xrec[kXN + 1] = q[1], xrec[kXN + 2] = q[2];
+        return best;
+      }
+    }
+  }
   const double* q1 = f.pos + 3 * g1;
   const double* q2 = f.pos + 3 * g2;
   const double c0 = q2[0] - q1[0], c1 = q2[1] - q1[1], c2 = q2[2] - q1[2];
@@ -149,6 +190,7 @@ double PosedGap(const double* pair, double* xrec, dua_exact& x, dua_plan& plan, 
   if (!(dist > xrec[kXDist]) || !WitnessDirection(fromto, x, g1, g2, xrec, n)) {
     return best;  // touching, or no witness
   }
+  if (witness != nullptr) KeepWitness(fromto, g1, g2, f, witness);
   return std::max(best, AxisGap(xrec, x, f, n[0], n[1], n[2], mode));
 }
 
@@ -177,6 +219,7 @@ DUA_SECTION int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int6
                              int64_t g1, int64_t g2, int64_t b1, int64_t b2, int64_t r) {
   const double* rec = a.pairs + p * kPairNcol;
   double* xrec = a.exact.on ? a.exact.records + p * kXNcol : nullptr;
+  double* witness = a.exact.on && a.exact.witness != nullptr ? a.exact.witness + 6 * p : nullptr;
   const int64_t n = plan.nknot();
   const bool rising = r >= 0 ? plan.rel_rises(r) : plan.dev_rises(b1) && plan.dev_rises(b2);
   double gap = -kInf;  // a lower bound on the planned gap at knot `base`
@@ -211,7 +254,8 @@ DUA_SECTION int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int6
     if (gap <= allow && xrec != nullptr) {
       const Pose p1{plan.pos(j, g1), plan.mat(j, g1)};
       const Pose p2{plan.pos(j, g2), plan.mat(j, g2)};
-      gap = std::max(gap, PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, g1, p1, g2, p2, allow));
+      gap = std::max(
+          gap, PosedGap(rec, xrec, witness, a.exact, a.plan, d, a.shapes, g1, p1, g2, p2, allow));
     }
     base = j;
     if (!(gap > allow)) return j;
@@ -275,10 +319,12 @@ DUA_SECTION int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int
     size_s[0] += std::fabs(sb_state[e]), size_s[1] += std::fabs(sb_state[3 + e]);
   }
   double* xrec = nullptr;
+  double* witness = nullptr;
   double sg = 0.0, vg = 0.0, spin = 0.0;
   double o[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
   if (a.exact.on && static_cast<int>(a.exact.records[p * kXNcol + kXMode]) == kModeGeoms) {
     xrec = a.exact.records + p * kXNcol;
+    if (a.exact.witness != nullptr) witness = a.exact.witness + 6 * p;
     RigidPoint(gb, a.exact.geoms, kGxNcol, a.frame, o);
     vg = std::sqrt(o[3] * o[3] + o[4] * o[4] + o[5] * o[5]);
     spin = Spin(gb, a.exact.geoms, a.frame);
@@ -346,14 +392,15 @@ DUA_SECTION int64_t MixedKnot(dua_step_args& a, const Plan& plan, mjData* d, int
     if (!clear && xrec != nullptr) {
       const Pose planned{plan.pos(j, ga), plan.mat(j, ga)};
       const double rg = Reach(t, sg, accel, disc, speed);
-      gg = PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, ga, planned, gb, now, dev + rg);
+      gg = PosedGap(rec, xrec, witness, a.exact, a.plan, d, a.shapes, ga, planned, gb, now,
+                    dev + rg);
       clear = gg > dev + rg;
       if (!clear) {
         const double rc = Stray(t, accel, disc, spin, size_g);
         double at[3];
         for (int e = 0; e < 3; ++e) at[e] = now.pos[e] + t * o[3 + e];
-        cg = PosedGap(rec, xrec, a.exact, a.plan, d, a.shapes, ga, planned, gb, {at, now.mat},
-                      dev + rc);
+        cg = PosedGap(rec, xrec, witness, a.exact, a.plan, d, a.shapes, ga, planned, gb,
+                      {at, now.mat}, dev + rc);
         clear = cg > dev + rc;
       }
     }
@@ -913,12 +960,16 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
     const double* o = rec + kSphereOffset;
     radius[g] = std::max(radius[g], std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]));
   }
-  for (int64_t j = 0; j < n; ++j) {
+  // Finite joint positions so large that MuJoCo's kinematics overflows (a slide of 1e308): the
+  // first pose of a knot that is not finite, named. Knot 0 is scanned; a later knot only when
+  // one of its sweep's squared differences is not finite, which a pose that is not finite makes
+  // when the knot before is finite (so the same first pose is named, with no scan of the knots
+  // that are).
+  const auto unfinite = [&](int64_t j) -> std::string {
     const double* pj = pos_.data() + 3 * nslot_ * j;
     const double* rj = mat_.data() + 9 * nslot_ * j;
     for (int64_t c = 0; c < nslot_; ++c) {
       const int64_t g = geoms[c];
-      // Finite joint positions so large that MuJoCo's kinematics overflows (a slide of 1e308).
       double bad = 0.0;  // x - x is 0 for every finite x, not a number otherwise
       for (int e = 0; e < 3; ++e) bad += pj[3 * c + e] - pj[3 * c + e];
       if (bad != 0.0) {
@@ -930,14 +981,33 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
         return "puts geom " + std::to_string(g) + " where its rotation is not finite (knot " +
                std::to_string(j) + "): a qpos too large";
       }
-      double* sw = sweep_.data() + nslot_ * j + c;
-      if (j == 0) {
-        *sw = 0.0;
-        continue;
-      }
+    }
+    return "";
+  };
+  if (n > 0) {
+    std::string why = unfinite(0);
+    if (!why.empty()) return why;
+    std::fill_n(sweep_.data(), nslot_, 0.0);
+  }
+  std::vector<double> reach(static_cast<size_t>(nslot_));
+  std::vector<uint8_t> plane(static_cast<size_t>(nslot_));
+  for (int64_t c = 0; c < nslot_; ++c) {
+    reach[c] = radius[geoms[c]];
+    plane[c] = m->geom_type[geoms[c]] == mjGEOM_PLANE;
+  }
+  for (int64_t j = 1; j < n; ++j) {
+    const double* pj = pos_.data() + 3 * nslot_ * j;
+    const double* rj = mat_.data() + 9 * nslot_ * j;
+    double* sw = sweep_.data() + nslot_ * j;
+    bool finite = true;
+    for (int64_t c = 0; c < nslot_; ++c) {
       const double step = Displacement(pj - 3 * nslot_ + 3 * c, rj - 9 * nslot_ + 9 * c, pj + 3 * c,
-                                       rj + 9 * c, radius[g], m->geom_type[g] == mjGEOM_PLANE);
-      *sw = (*(sw - nslot_) + step) * (1.0 + 4.0 * kEpsilon);
+                                       rj + 9 * c, reach[c], plane[c] != 0, &finite);
+      sw[c] = (sw[c - nslot_] + step) * (1.0 + 4.0 * kEpsilon);
+    }
+    if (!finite) {
+      std::string why = unfinite(j);
+      if (!why.empty()) return why;
     }
   }
   start_ = start, h_ = h;

@@ -786,6 +786,7 @@ void Runtime::QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, in
   a.exact.hull_at = t.hull_at.data();
   a.exact.graph = t.graph.data();
   a.exact.records = q->exact.data();
+  a.exact.witness = nullptr;  // the step's rows are of its own pairs: none read or kept
   a.exact.model = m;
   a.exact.data = d;
   a.events.rec = t.events_rec.data();

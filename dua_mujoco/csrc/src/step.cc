@@ -446,9 +446,12 @@ bool InContact(dua_exact& x, int64_t g1, int64_t g2, double dist) {
   return false;
 }
 
+}  // namespace
+
 // The hull vertex side's last climb reached (0: the first geom, 1: the second), at its geom's
 // pose in f (false: the geom has no hull graph, or no climb yet). A point of the geom's hull.
-bool TopPoint(const double* xrec, int side, const dua_exact& x, const dua_frame& f, double out[3]) {
+static bool TopPoint(const double* xrec, int side, const dua_exact& x, const dua_frame& f,
+                     double out[3]) {
   const double top = xrec[side == 0 ? kXHull1 : kXHull2];
   if (!(top >= 0.0)) return false;
   const int64_t g = static_cast<int64_t>(xrec[side == 0 ? kXG1 : kXG2]);
@@ -491,6 +494,8 @@ int Nearest(const double* w, double r0, double r1, double r2, const double* xrec
   return 2;
 }
 
+namespace {
+
 // Whether no direction can raise the pair's tau to `below`, from Nearest's point q: the right
 // side of (5.3) at `below` is at most |q| - m - (spin + delta) below - A below^2 / 2 (r the
 // origins' relative velocity); when that is negative, every direction's bound, concave in t and
@@ -508,6 +513,8 @@ bool NoDirectionClears(const double q[3], double scale, double r0, double r1, do
       xrec[kXDist] + (spin + delta) * below + 0.5 * pair[kPairAccel] * below * below;
   return most < least * (1.0 - 1e-12);
 }
+
+}  // namespace
 
 // v scaled to unit length (false: v too short next to the geoms' radii for a direction).
 bool Unit(double v[3], double radii) {
@@ -540,6 +547,8 @@ void KeepWitness(const double fromto[6], int64_t g1, int64_t g2, const dua_frame
     for (int j = 0; j < 3; ++j) w[3 * side + j] = m[j] * d0 + m[3 + j] * d1 + m[6 + j] * d2;
   }
 }
+
+namespace {
 
 // One pair's max(coarse, exact). Any unit direction gives a lower bound: the one that served
 // last time is tried first, and MuJoCo is asked for a new one only while the pair is still
