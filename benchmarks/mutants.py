@@ -67,6 +67,8 @@ _STEP = "dua_mujoco/csrc/src/step.cc"
 _SCHEDULE = "dua_mujoco/csrc/src/schedule.cc"
 _SCHEDULE_H = "dua_mujoco/csrc/src/schedule.h"
 _PLAN = "dua_mujoco/csrc/src/plan.cc"
+_KINEMATICS = "dua_mujoco/csrc/src/kinematics.cc"
+_KNOTS = "tests/test_knot_kinematics.py"
 _INTERNAL = "dua_mujoco/csrc/src/internal.h"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
@@ -534,19 +536,37 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "plan-kinematics-ancestors-dropped",
-        _PLAN,
+        _KINEMATICS,
         "  for (int b = nbody - 1; b > 0; --b) keep[m->body_parentid[b]] |= keep[b];\n",
         "",
-        ("tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break",),
+        ("tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break", _KNOTS),
         "a plan's kinematics without the bodies between the geoms it reads (a mount): poses off",
     ),
     Mutant(
         "plan-kinematics-inertial-frames-dropped",
-        _PLAN,
-        "      iframe[k] = m->body_sameframe[b];",
-        "      iframe[k] = mjSAMEFRAME_BODY;",
-        ("tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break",),
+        _KINEMATICS,
+        "sf == mjSAMEFRAME_INERTIAROT)) inertia_[id[b]] = 1;",
+        "sf == mjSAMEFRAME_INERTIAROT)) inertia_[id[b]] = 0;",
+        ("tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break", _KNOTS),
         "a geom at its body's inertial frame put at the body frame by the plan's kinematics",
+    ),
+    Mutant(
+        "plan-kinematics-every-anchor-at-the-origin",
+        _KINEMATICS,
+        "        if (still_anchor_[jid]) {",
+        "        if (true) {",
+        (_KNOTS,),
+        "a plan's hinge or ball joint turned about its body's origin, not its anchor: poses off "
+        "mj_kinematics' wherever a joint sits off its body's origin",
+    ),
+    Mutant(
+        "plan-kinematics-a-zeros-sign-kept",
+        _KINEMATICS,
+        "          for (int k = 0; k < 3; ++k) xpos[k] = 0.0 + xpos[k];",
+        "",
+        (_KNOTS,),
+        "a plan's body position where mj_kinematics adds an anchor at the origin: the sign of a "
+        "zero differs from MuJoCo's (no longer its poses bit for bit)",
     ),
     Mutant(
         "plan-grid-shave-dropped",

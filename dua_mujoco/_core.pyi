@@ -581,6 +581,11 @@ class Runtime:
     def mocap(self) -> Mocap:
         """The mocap bodies' velocities, differenced at each step (or given)."""
 
+def knot_kinematics(model: object, geoms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+    """
+    KnotKinematics (kinematics.h) on one row: (bodies, xpos, xquat, xmat, geom_xpos, geom_xmat), the bodies computed and the geoms given, as mj_kinematics computes them.
+    """
+
 def tau_pairs(pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple[NDArray[numpy.float64], int]:
     """
     tau of pairs ids (n,) of free spheres, checking the records of ids only: (tau (n,), the first k whose state is not finite or -1).

@@ -14,6 +14,7 @@
 
 #include "bindings.h"
 #include "dua/dua.h"
+#include "kinematics.h"
 #include "layout.h"
 #include "schedule.h"
 
@@ -202,9 +203,35 @@ nb::dict GridPlan(const In<double>& reach, double margin, const In<double>& lo,
   return out;
 }
 
+// KnotKinematics (kinematics.h) on one row: the bodies computed (ids, parents first), their
+// frames (xpos, xquat, xmat) and the geoms' (geom_xpos, geom_xmat), for tests to hold to
+// mj_kinematics bit for bit.
+nb::tuple KnotKinematicsOf(nb::handle model, const In<int64_t>& geoms, const In<double>& qpos,
+                           const In<double>& mocap_pos, const In<double>& mocap_quat) {
+  const mjModel* m = ModelOf(model);
+  Require(
+      Size(qpos) == m->nq && Size(mocap_pos) == 3 * m->nmocap && Size(mocap_quat) == 4 * m->nmocap,
+      "knot_kinematics takes qpos (nq,), mocap_pos (nmocap, 3) and mocap_quat (nmocap, 4)");
+  std::vector<int64_t> ids(geoms.data(), geoms.data() + Size(geoms));
+  for (const int64_t g : ids) Require(g >= 0 && g < m->ngeom, "a geom id is out of range");
+  KnotKinematics k(m, ids);
+  const size_t n = ids.size();
+  std::vector<double> pos(3 * n), mat(9 * n);
+  k.Run(qpos.data(), mocap_pos.data(), mocap_quat.data(), pos.data(), mat.data());
+  const size_t nb = k.bodies().size();
+  return nb::make_tuple(Owned(std::vector<int64_t>(k.bodies().begin(), k.bodies().end()), {nb}),
+                        Owned(k.xpos(), {nb, 3}), Owned(k.xquat(), {nb, 4}),
+                        Owned(k.xmat(), {nb, 9}), Owned(std::move(pos), {n, 3}),
+                        Owned(std::move(mat), {n, 9}));
+}
+
 }  // namespace
 
 void BindCore(nb::module_& m) {
+  m.def("knot_kinematics", &KnotKinematicsOf, "model"_a, "geoms"_a, "qpos"_a, "mocap_pos"_a,
+        "mocap_quat"_a,
+        "KnotKinematics (kinematics.h) on one row: (bodies, xpos, xquat, xmat, geom_xpos, "
+        "geom_xmat), the bodies computed and the geoms given, as mj_kinematics computes them.");
   // The select-all kind, beside RANK and DEADLINE (the schedule's own constant, schedule.h).
   nb::dict layout = nb::borrow<nb::dict>(m.attr("LAYOUT"));
   layout["ALL"] = kAll;

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "internal.h"
+#include "kinematics.h"
 #include "layout.h"
 
 namespace dua {
@@ -663,70 +664,6 @@ bool RelativePoseWithin(const double* box, const BoxReach& reach, const double* 
   return RelativeBound(box, reach, actual, planned, limit);
 }
 
-namespace {
-
-// m's kinematics cut to what a plan reads: the geoms kept (geoms[c] as geom c) and no sites; the
-// bodies that carry them and their ancestors, renumbered in order (a parent still comes first);
-// the inertial frames computed only where a kept geom sits at one (the others copied from the
-// body frame, mjSAMEFRAME_BODY: nothing reads them). mj_kinematics on it runs the same code on
-// the same numbers as on m for every body and geom kept, so their poses are m's bit for bit,
-// without the geoms, sites and bodies no verdict reads (50 of sawyer's 63 geoms are visual, 6
-// of its 20 bodies carry none). A shallow copy of m: its other arrays are m's, read only.
-struct Kinematic {
-  Kinematic(const mjModel* m, const std::vector<int64_t>& geoms);
-  Kinematic(const Kinematic&) = delete;
-  Kinematic& operator=(const Kinematic&) = delete;
-  mjModel model;
-  std::vector<mjtNum> gpos, gquat, bpos, bquat, ipos, iquat;
-  std::vector<int> gbody, parent, jadr, jnum, mocap, adr, num;
-  std::vector<mjtByte> gframe, iframe;
-};
-
-Kinematic::Kinematic(const mjModel* m, const std::vector<int64_t>& geoms) : model(*m) {
-  const int nbody = m->nbody;
-  std::vector<int> id(nbody, -1);  // a kept body's id in the cut model
-  std::vector<uint8_t> keep(nbody, 0);
-  keep[0] = 1;
-  for (const int64_t g : geoms) keep[m->geom_bodyid[g]] = 1;
-  for (int b = nbody - 1; b > 0; --b) keep[m->body_parentid[b]] |= keep[b];
-  for (int b = 0; b < nbody; ++b) {
-    if (!keep[b]) continue;
-    id[b] = static_cast<int>(parent.size());
-    parent.push_back(b ? id[m->body_parentid[b]] : 0);
-    jadr.push_back(m->body_jntadr[b]), jnum.push_back(m->body_jntnum[b]);
-    mocap.push_back(m->body_mocapid[b]);
-    bpos.insert(bpos.end(), m->body_pos + 3 * b, m->body_pos + 3 * b + 3);
-    bquat.insert(bquat.end(), m->body_quat + 4 * b, m->body_quat + 4 * b + 4);
-    ipos.insert(ipos.end(), m->body_ipos + 3 * b, m->body_ipos + 3 * b + 3);
-    iquat.insert(iquat.end(), m->body_iquat + 4 * b, m->body_iquat + 4 * b + 4);
-    iframe.push_back(mjSAMEFRAME_BODY);
-    adr.push_back(-1), num.push_back(0);
-  }
-  // A body's geoms are consecutive ids (body_geomadr, body_geomnum), so its kept ones are
-  // consecutive slots.
-  for (size_t c = 0; c < geoms.size(); ++c) {
-    const int64_t g = geoms[c];
-    const int b = m->geom_bodyid[g], k = id[b];
-    gpos.insert(gpos.end(), m->geom_pos + 3 * g, m->geom_pos + 3 * g + 3);
-    gquat.insert(gquat.end(), m->geom_quat + 4 * g, m->geom_quat + 4 * g + 4);
-    gbody.push_back(k), gframe.push_back(m->geom_sameframe[g]);
-    if (num[k]++ == 0) adr[k] = static_cast<int>(c);
-    if (gframe.back() == mjSAMEFRAME_INERTIA || gframe.back() == mjSAMEFRAME_INERTIAROT) {
-      iframe[k] = m->body_sameframe[b];
-    }
-  }
-  mjModel& k = model;
-  k.nbody = static_cast<int>(parent.size()), k.ngeom = static_cast<int>(geoms.size()), k.nsite = 0;
-  k.geom_pos = gpos.data(), k.geom_quat = gquat.data();
-  k.geom_bodyid = gbody.data(), k.geom_sameframe = gframe.data();
-  k.body_parentid = parent.data(), k.body_jntadr = jadr.data(), k.body_jntnum = jnum.data();
-  k.body_mocapid = mocap.data(), k.body_pos = bpos.data(), k.body_quat = bquat.data();
-  k.body_ipos = ipos.data(), k.body_iquat = iquat.data(), k.body_sameframe = iframe.data();
-  k.body_geomadr = adr.data(), k.body_geomnum = num.data();
-}
-
-}  // namespace
-
 std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, double h,
                         const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms,
                         const Plan* prev, std::shared_ptr<PlanPool> pool) {
@@ -797,10 +734,11 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     mocap_quat_.assign(in.mocap_quat, in.mocap_quat + n * nmocap * 4);
   }
   Slots(n, ngeom, geoms, std::move(pool));
-  // Flexes and sleeping trees read more of the model than Kinematic keeps: those run on m.
-  const bool reduced = m->nflex == 0 && !(m->opt.enableflags & mjENBL_SLEEP);
-  std::unique_ptr<Kinematic> km(reduced ? new Kinematic(m, geoms) : nullptr);
-  mjtNum *const xpos = s->geom_xpos, *const xmat = s->geom_xmat;
+  // Flexes and sleeping trees read more of the model than KnotKinematics does: those run
+  // mj_kinematics on m.
+  const bool own = m->nflex == 0 && !(m->opt.enableflags & mjENBL_SLEEP);
+  std::unique_ptr<KnotKinematics> km(own ? new KnotKinematics(m, geoms) : nullptr);
+  int64_t computed = -1;  // the last knot computed
   for (int64_t j = 0; j < n; ++j) {
     double* pj = pos_.data() + 3 * nslot_ * j;
     double* rj = mat_.data() + 9 * nslot_ * j;
@@ -809,24 +747,16 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     if (i >= 0 && prev->slot_ == slot_ && SameRow(j, *prev, i)) {
       std::copy_n(prev->pos_.data() + 3 * nslot_ * i, 3 * nslot_, pj);
       std::copy_n(prev->mat_.data() + 9 * nslot_ * i, 9 * nslot_, rj);
+    } else if (km) {
+      // MuJoCo's arithmetic on the bodies and geoms read, written in place (kinematics.h).
+      km->Run(qpos_.data() + nq * j, mocap ? in.mocap_pos + 3 * nmocap * j : s->mocap_pos,
+              mocap ? in.mocap_quat + 4 * nmocap * j : s->mocap_quat, pj, rj);
+      computed = j;
     } else {
       std::copy_n(qpos_.data() + nq * j, nq, s->qpos);
       if (mocap) {
         std::copy_n(in.mocap_pos + 3 * nmocap * j, 3 * nmocap, s->mocap_pos);
         std::copy_n(in.mocap_quat + 4 * nmocap * j, 4 * nmocap, s->mocap_quat);
-      }
-      if (km) {
-        // The reduced model's geom c is slot c: its poses are written in place. The guard puts
-        // s's own arrays back even if MuJoCo's error handler throws out of mj_kinematics: a
-        // scratch left pointing into this plan would write into it (or freed memory) later.
-        struct Restore {
-          mjData* d;
-          mjtNum *xpos, *xmat;
-          ~Restore() { d->geom_xpos = xpos, d->geom_xmat = xmat; }
-        } restore{s, xpos, xmat};
-        s->geom_xpos = pj, s->geom_xmat = rj;
-        mj_kinematics(&km->model, s);
-        continue;
       }
       mj_kinematics(m, s);
       for (int64_t c = 0; c < nslot_; ++c) {
@@ -834,6 +764,13 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
         std::copy_n(s->geom_xmat + 9 * geoms[c], 9, rj + 9 * c);
       }
     }
+  }
+  if (mocap && computed >= 0) {
+    // The scratch's mocap poses as mj_kinematics on it would have left them (the last knot
+    // computed): a later plan without mocap poses reads them for the mocap bodies it does not
+    // hold.
+    std::copy_n(in.mocap_pos + 3 * nmocap * computed, 3 * nmocap, s->mocap_pos);
+    std::copy_n(in.mocap_quat + 4 * nmocap * computed, 4 * nmocap, s->mocap_quat);
   }
   why = Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
                std::move(fixed));

@@ -1,0 +1,54 @@
+// The poses a plan's knots read (docs/theory.md, section 8): the frames of the geoms its verdicts
+// read, computed from a row of joint positions and mocap poses by the arithmetic of MuJoCo's own
+// mj_kinematics, call for call (mju_normalize4, mju_mulMatVec3, mju_mulQuat, mju_rotVecQuat,
+// mju_axisAngle2Quat, mju_quat2Mat, in mj_kinematics1's and mj_local2Global's order), on the
+// bodies that carry those geoms and their ancestors only, and without what no pose reads: the
+// joints' Cartesian anchors and axes (a hinge's or ball's axis; a slide's anchor; the anchor of
+// a joint at its body's origin, where mj_kinematics adds and takes off an exact zero), the
+// inertial frames no kept geom sits at, the world body's frames, and every other geom, site,
+// camera and light. So each pose is mj_kinematics' bit for bit (tests/test_knot_kinematics.py
+// holds them to it on every bundled scene and every joint type) at a third to a half of its
+// instructions on a robot's knots.
+#ifndef DUA_MUJOCO_KINEMATICS_H_
+#define DUA_MUJOCO_KINEMATICS_H_
+
+#include <mujoco/mujoco.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "dua/dua.h"
+
+namespace dua {
+
+class DUA_API KnotKinematics {
+ public:
+  // The geoms read (geoms[c] the model's geom of slot c), of model m, which must outlive this.
+  // Not for a model with flexes or sleeping enabled (mj_kinematics reads more there): callers
+  // run mj_kinematics on those.
+  KnotKinematics(const mjModel* m, const std::vector<int64_t>& geoms);
+  // One knot: qpos (nq), mocap_pos (nmocap x 3) and mocap_quat (nmocap x 4) as mj_kinematics
+  // reads them from mjData; slot c's position to pos + 3 c, its rotation matrix to mat + 9 c.
+  void Run(const double* qpos, const double* mocap_pos, const double* mocap_quat, double* pos,
+           double* mat);
+  // The bodies computed (model ids, parents first) and their frames at the last Run, in that
+  // order: (n, 3), (n, 4), (n, 9); for tests.
+  const std::vector<int>& bodies() const { return body_; }
+  const std::vector<double>& xpos() const { return xpos_; }
+  const std::vector<double>& xquat() const { return xquat_; }
+  const std::vector<double>& xmat() const { return xmat_; }
+
+ private:
+  const mjModel* m_;
+  std::vector<int> body_;    // model id of each kept body
+  std::vector<int> parent_;  // index of its parent among the kept bodies, -1 for the world
+  std::vector<uint8_t> still_anchor_;  // per joint of m: jnt_pos is +0 exactly
+  std::vector<uint8_t> inertia_;       // per kept body: a kept geom reads its inertial frame
+  std::vector<int> gbody_;             // per slot: its body's index among the kept
+  std::vector<int64_t> geom_;          // per slot: the model's geom
+  std::vector<double> xpos_, xquat_, xmat_, xipos_, ximat_;
+};
+
+}  // namespace dua
+
+#endif  // DUA_MUJOCO_KINEMATICS_H_

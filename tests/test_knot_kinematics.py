@@ -1,0 +1,202 @@
+"""A plan's knots' kinematics (csrc/src/kinematics.h) against MuJoCo's own mj_kinematics.
+
+``Plan::Build`` computes the poses of the geoms a plan reads, at every knot, with its own loop
+over the bodies that carry them (MuJoCo's arithmetic, call for call), not ``mj_kinematics``.
+Every verdict under a plan rests on those poses being MuJoCo's, and the plan's check of a run
+that follows it exactly (deviation 0) breaks on a single bit off: these hold them to
+``mj_kinematics`` bit for bit (the bytes of ``xpos``, ``xquat``, ``xmat``, ``geom_xpos`` and
+``geom_xmat``, so also the sign of every zero) on every bundled scene and on models with every
+joint type.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from dua_mujoco import _core
+from dua_mujoco.models.scenes import SCENES, load_scene
+
+# Every joint type, and the bodies mj_kinematics treats apart: a free body, a ball, a slide, a
+# hinge at the body's origin and one off it (the anchor), several joints on one body (each
+# kind, in both orders), a mocap body with a jointed child, bodies welded to the world and to a
+# moving body, a body turned and offset from its parent without a joint, geoms at the body's
+# inertial frame (a lone geom: its frame is the inertia's) and off it, geoms on the world body,
+# and a hinge at the origin of a body placed at x = -0 (where mj_kinematics' anchor, added and
+# taken off, leaves +0).
+JOINTS = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="3 3 .1"/>
+    <geom name="post" type="box" size=".05 .05 .3" pos="1 1 .3" euler="0 0 20"/>
+    <body name="ball_free" pos="0 0 1">
+      <freejoint/>
+      <geom type="sphere" size=".05" pos=".01 .02 0"/>
+      <geom type="box" size=".04 .03 .02" euler="10 20 30" pos="0 .05 0"/>
+    </body>
+    <body name="lone" pos=".5 0 1" euler="0 30 0">
+      <freejoint/>
+      <geom type="capsule" fromto="0 0 0 .2 .1 0" size=".03"/>
+    </body>
+    <body name="base" pos="0 .5 .2" euler="5 0 10">
+      <joint name="slide" type="slide" axis="1 0 0"/>
+      <geom type="box" size=".1 .1 .05"/>
+      <body name="upper" pos="0 0 .1">
+        <joint name="shoulder" type="hinge" axis="0 1 0"/>
+        <joint name="twist" type="hinge" axis="0 0 1" pos=".02 0 .01"/>
+        <geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/>
+        <body name="welded" pos=".3 0 0" euler="0 0 45">
+          <geom type="box" size=".02 .02 .02" pos=".01 0 0"/>
+          <body name="fore" pos=".05 0 0">
+            <joint name="elbow" type="ball" pos=".01 .02 0"/>
+            <geom type="capsule" fromto="0 0 0 .25 0 0" size=".025" euler="0 10 0"/>
+            <body name="hand" pos=".25 0 0">
+              <joint name="wrist_slide" type="slide" axis="0 1 1" pos=".1 0 0"/>
+              <joint name="wrist_hinge" type="hinge" axis="1 0 0" pos="0 .03 0"/>
+              <geom type="ellipsoid" size=".03 .02 .01"/>
+            </body>
+          </body>
+        </body>
+      </body>
+    </body>
+    <body name="turret" pos="-.5 -.5 .1">
+      <joint type="hinge" axis="0 0 1" pos=".1 0 0"/>
+      <joint type="slide" axis="0 0 1"/>
+      <joint type="ball"/>
+      <geom type="cylinder" size=".05 .05" pos="0 0 .05"/>
+    </body>
+    <body name="static" pos="-1 0 .2" euler="0 0 33">
+      <geom type="box" size=".1 .2 .2"/>
+      <body name="static_child" pos=".1 0 .3">
+        <geom type="sphere" size=".05" pos="0 0 .01"/>
+      </body>
+    </body>
+    <body name="person" mocap="true" pos="1 -1 1">
+      <geom type="capsule" fromto="0 0 -.5 0 0 .3" size=".15"/>
+      <body name="person_arm" pos=".2 0 .2">
+        <joint type="hinge" axis="0 1 0" pos="0 0 .05"/>
+        <geom type="capsule" fromto="0 0 0 .3 0 0" size=".04"/>
+      </body>
+    </body>
+    <body name="signed" pos="-0 -1 .5">
+      <joint type="hinge" axis="0 0 1"/>
+      <geom type="box" size=".05 .02 .02" pos=".05 0 0"/>
+    </body>
+    <body name="mount" pos="0 -1 .5" euler="0 0 15">
+      <body name="mounted" euler="0 0 -15">
+        <joint type="hinge" axis="0 0 1"/>
+        <geom type="box" size=".1 .02 .02" pos=".1 0 0"/>
+        <geom type="sphere" size=".01" pos=".3 .1 0" contype="0" conaffinity="0"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _draws(model: mujoco.MjModel, rng: np.random.Generator, n: int):
+    """``n`` rows of qpos (joint positions far from qpos0, quaternions unnormalised) and mocap
+    poses (unnormalised quaternions too), the first row qpos0 and the model's mocap poses."""
+    d = mujoco.MjData(model)
+    yield d.qpos.copy(), d.mocap_pos.copy(), d.mocap_quat.copy()
+    for _ in range(n - 1):
+        q = model.qpos0 + rng.normal(0.0, 2.0, model.nq)
+        yield q, rng.normal(0.0, 1.0, (model.nmocap, 3)), rng.normal(0.0, 1.0, (model.nmocap, 4))
+
+
+def _bits(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)
+
+
+def _same_as_mujoco(model: mujoco.MjModel, geoms: np.ndarray, rows: int = 12) -> None:
+    """KnotKinematics on ``geoms`` gives mj_kinematics' frames, bit for bit, for every body it
+    computes and every geom, on ``rows`` draws; the bodies it computes are the geoms' bodies
+    and their ancestors (no other)."""
+    geoms = np.asarray(geoms, dtype=np.int64)
+    need = set()
+    for g in geoms:
+        b = int(model.geom_bodyid[g])
+        while b:
+            need.add(b)
+            b = int(model.body_parentid[b])
+    d = mujoco.MjData(model)
+    rng = np.random.default_rng(model.nbody * 1000 + model.ngeom)
+    for qpos, mocap_pos, mocap_quat in _draws(model, rng, rows):
+        d.qpos[:] = qpos
+        d.mocap_pos[:] = mocap_pos
+        d.mocap_quat[:] = mocap_quat
+        mujoco.mj_kinematics(model, d)
+        bodies, xpos, xquat, xmat, gpos, gmat = _core.knot_kinematics(
+            model, geoms, d.qpos, d.mocap_pos.ravel(), d.mocap_quat.ravel()
+        )
+        assert sorted(bodies.tolist()) == sorted(need)
+        assert all(
+            model.body_parentid[b] == 0 or model.body_parentid[b] in bodies[:i]
+            for i, b in enumerate(bodies)
+        )  # parents first
+        for ours, theirs, what in (
+            (xpos, d.xpos[bodies], "xpos"),
+            (xquat, d.xquat[bodies], "xquat"),
+            (xmat, d.xmat[bodies], "xmat"),
+            (gpos, d.geom_xpos[geoms], "geom_xpos"),
+            (gmat, d.geom_xmat[geoms], "geom_xmat"),
+        ):
+            assert np.array_equal(_bits(ours), _bits(theirs)), (what, np.abs(ours - theirs).max())
+
+
+def _collision_geoms(model: mujoco.MjModel) -> np.ndarray:
+    return np.flatnonzero((model.geom_contype | model.geom_conaffinity) != 0)
+
+
+def test_every_joint_type_gives_mujocos_poses_bit_for_bit() -> None:
+    model = mujoco.MjModel.from_xml_string(JOINTS)
+    # The model holds what the docstring says: each joint type, a mocap body, static bodies,
+    # geoms at their body's inertial frame and off it, anchors off the origin.
+    assert set(model.jnt_type.tolist()) == {0, 1, 2, 3}
+    assert model.nmocap == 1
+    assert np.any(np.abs(model.jnt_pos).sum(1) > 0) and np.any(np.abs(model.jnt_pos).sum(1) == 0)
+    assert mujoco.mjtSameFrame.mjSAMEFRAME_INERTIA in model.geom_sameframe
+    assert mujoco.mjtSameFrame.mjSAMEFRAME_NONE in model.geom_sameframe
+    assert np.any(model.body_jntnum > 1)
+    assert np.signbit(model.body("signed").pos[0])
+    _same_as_mujoco(model, np.arange(model.ngeom), rows=40)
+    # A plan's selection: the bodies between them (a mount without geoms) kept, others not.
+    _same_as_mujoco(model, _collision_geoms(model), rows=10)
+    hand = model.body("hand").id
+    _same_as_mujoco(model, np.flatnonzero(model.geom_bodyid == hand), rows=10)
+
+
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_every_bundled_scene_gives_mujocos_poses_bit_for_bit(scene: str) -> None:
+    model, _ = load_scene(scene)
+    _same_as_mujoco(model, np.arange(model.ngeom))
+    _same_as_mujoco(model, _collision_geoms(model))
+
+
+def test_a_plans_knots_are_mujocos_poses() -> None:
+    # Through the runtime: a plan's geoms at each knot (set_plan's KnotKinematics) against a
+    # rollout's own geom poses (mj_step's mj_kinematics), bit for bit: a run that is the plan
+    # never breaks it at deviation 0, and every knot's poses stand at the planned tau's reference
+    # (the plan's check reads them at the step's knot).
+    from dua_mujoco import Predictor
+
+    model = mujoco.MjModel.from_xml_string(JOINTS)
+    model.opt.gravity[:] = 0.0
+    d = mujoco.MjData(model)
+    rng = np.random.default_rng(3)
+    d.qvel[:] = rng.normal(0.0, 1.0, model.nv)
+    mujoco.mj_forward(model, d)
+    p = Predictor(model, accel=50.0, alarm_horizon=0.05)
+    p.reset(d)
+    sim = mujoco.MjData(model)
+    mujoco.mj_copyData(sim, model, d)
+    rows = [sim.qpos.copy()]
+    for _ in range(60):
+        mujoco.mj_step(model, sim)
+        rows.append(sim.qpos.copy())
+    p.set_plan(np.array(rows), deviation=0.0, start=d.time)
+    for _ in range(60):
+        mujoco.mj_step(model, d)
+        p.step(d)
+    assert p.has_plan and p.plan_breaks == 0
