@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator
 
 import mujoco
 import numpy as np
@@ -25,6 +26,7 @@ from dua_mujoco.build.options import ScheduleOptions
 from dua_mujoco.measure.checks import BoundMonitor
 from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
+from dua_mujoco.runtime.pairstate import PairState
 from dua_mujoco.runtime.predictor import Predictor
 
 # Three balls in a row, no gravity: the striker hits the middle ball, which rests 0.1 mm from
@@ -152,24 +154,32 @@ def test_the_checks_lanes_equal_one_body_at_a_time(scene: str, accel: float) -> 
     assert flagged > 0  # the bounds broke: the check's every branch ran
 
 
+def _random_run(
+    m: mujoco.MjModel, d: mujoco.MjData, p: Predictor, steps: int
+) -> Iterator[PairState]:
+    """``p`` reset one step into random controls (seed 2), then followed ``steps`` steps: the
+    schedule's state after each."""
+    ctrl = make_controller(m, "random", seed=2)
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    for _ in range(steps):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        p.step(d)
+        yield p.pair_state()
+
+
 @pytest.mark.parametrize("cap", [None, 3])
 def test_pairs_of_a_violated_body_are_renewed_at_that_step(cap: int | None) -> None:
     """Every held pair of a body that broke its bounds is evaluated at that step, or (over a
     cap) stands in alarm until it is."""
     m, d = load_scene("traffic")
     p = Predictor(m, accel=5.0, schedule=ScheduleOptions(max_evals_per_step=cap))
-    ctrl = make_controller(m, "random", seed=2)
-    ctrl(m, d)
-    mujoco.mj_step(m, d)
-    p.reset(d)
     body1 = m.geom_bodyid[p.tables.geom1]
     body2 = np.where(p.tables.geom2 >= 0, m.geom_bodyid[np.maximum(p.tables.geom2, 0)], 0)
     renewed = 0
-    for _ in range(1500):
-        ctrl(m, d)
-        mujoco.mj_step(m, d)
-        p.step(d)
-        sched = p.pair_state()
+    for sched in _random_run(m, d, p, 1500):
         broke = p.violated_bodies
         if broke.size == 0:
             continue
@@ -187,17 +197,9 @@ def test_settled_pairs_get_a_verdict_of_that_step_below_the_sphere_kernels() -> 
     would). Fails with the bound's speed or acceleration term dropped (benchmarks/mutants.py)."""
     m, d = load_scene("traffic")
     p = Predictor(m, accel=5.0)
-    ctrl = make_controller(m, "random", seed=2)
-    ctrl(m, d)
-    mujoco.mj_step(m, d)
-    p.reset(d)
     rec = p.pair_records
     settled = 0
-    for _ in range(600):
-        ctrl(m, d)
-        mujoco.mj_step(m, d)
-        p.step(d)
-        state = p.pair_state()
+    for state in _random_run(m, d, p, 600):
         k = state.settled
         if k == 0:
             continue

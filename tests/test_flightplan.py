@@ -9,6 +9,8 @@ the motion bounds.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import mujoco
 import numpy as np
 import pytest
@@ -17,6 +19,7 @@ from mjcf import free, motors
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.models.scenes import load_scene
+from dua_mujoco.runtime.pairstate import PairState
 from dua_mujoco.runtime.plans import PilotPlan, deviation_profile
 from dua_mujoco.runtime.predictor import Predictor
 
@@ -311,6 +314,24 @@ def _first_touch(m: mujoco.MjModel, p: Predictor, qpos: np.ndarray, dev: np.ndar
     return out
 
 
+def _followed_plans(
+    m: mujoco.MjModel, d: mujoco.MjData, p: Predictor, dev: np.ndarray, n: int, every: int
+) -> Iterator[tuple[int, int, np.ndarray, PairState, np.ndarray]]:
+    """Three plans of ``n`` knots rolled from random controls, each followed for ``every``
+    steps: after each step, ``(plan, k, qpos, state, ids)``, ``ids`` the pairs evaluated."""
+    for plan in range(3):
+        ctrl = _controls(m, n, seed=10 + plan)
+        qpos = _rollout(m, d, ctrl, n)
+        p.set_plan(qpos, deviation=dev)
+        for k in range(every):
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            p.step(d)
+            state = p.pair_state()
+            ids = np.flatnonzero(state.last_step_of(np.arange(p.nsphere_pairs)) == state.step_count)
+            yield plan, k, qpos, state, ids
+
+
 def test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference() -> None:
     """A pair evaluated again under the same plan takes the knot its last walk ended at
     without walking (Lemma 8.2c) until the step passes it: at every step of a run that follows
@@ -324,22 +345,14 @@ def test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference() -
     h = m.opt.timestep
     dev = np.broadcast_to(0.02 * np.arange(n)[:, None] / n, (n, m.nbody)).copy()
     checked = standing = 0
-    for plan in range(3):
-        ctrl = _controls(m, n, seed=10 + plan)
-        qpos = _rollout(m, d, ctrl, n)
-        p.set_plan(qpos, deviation=dev)
-        want = _first_touch(m, p, qpos, dev)
-        for k in range(every):
-            d.ctrl[:] = ctrl[k]
-            mujoco.mj_step(m, d)
-            p.step(d)
-            state = p.pair_state()
-            ids = np.flatnonzero(state.last_step_of(np.arange(p.nsphere_pairs)) == state.step_count)
-            got = state.last_tau_of(ids)
-            bound = np.minimum(want[k, ids], (n - k) * h)
-            assert (got <= bound + 1e-12).all(), (plan, k, ids[got > bound + 1e-12])
-            checked += ids.size
-            standing += int(np.count_nonzero(got < horizon) if k else 0)
+    for plan, k, qpos, state, ids in _followed_plans(m, d, p, dev, n, every):
+        if k == 0:
+            want = _first_touch(m, p, qpos, dev)
+        got = state.last_tau_of(ids)
+        bound = np.minimum(want[k, ids], (n - k) * h)
+        assert (got <= bound + 1e-12).all(), (plan, k, ids[got > bound + 1e-12])
+        checked += ids.size
+        standing += int(np.count_nonzero(got < horizon) if k else 0)
     assert p.plan_breaks == 0
     assert standing >= 20 and checked >= 200  # pairs were evaluated again under each plan
 
@@ -383,22 +396,14 @@ def test_no_walk_stops_at_a_knot_mujocos_distance_clears(deviation: float | str)
     else:
         dev = np.full((n, m.nbody), float(deviation))
     stops = 0
-    for plan in range(3):
-        ctrl = _controls(m, n, seed=10 + plan)
-        qpos = _rollout(m, d, ctrl, n)
-        p.set_plan(qpos, deviation=dev)
-        clears = _clearable(m, p, qpos, dev, slack=1e-4)
-        for k in range(every):
-            d.ctrl[:] = ctrl[k]
-            mujoco.mj_step(m, d)
-            p.step(d)
-            state = p.pair_state()
-            ids = np.flatnonzero(state.last_step_of(np.arange(p.nsphere_pairs)) == state.step_count)
-            steps = np.rint(state.last_tau_of(ids) / h).astype(int)
-            stop = steps < n - k
-            knot, ids = k + steps[stop], ids[stop]
-            assert not clears[knot, ids].any(), (plan, k, ids[clears[knot, ids]])
-            stops += ids.size
+    for plan, k, qpos, state, ids in _followed_plans(m, d, p, dev, n, every):
+        if k == 0:
+            clears = _clearable(m, p, qpos, dev, slack=1e-4)
+        steps = np.rint(state.last_tau_of(ids) / h).astype(int)
+        stop = steps < n - k
+        knot, ids = k + steps[stop], ids[stop]
+        assert not clears[knot, ids].any(), (plan, k, ids[clears[knot, ids]])
+        stops += ids.size
     assert p.plan_breaks == 0
     assert stops >= 100
 
