@@ -356,6 +356,32 @@ def test_a_failed_wrapped_step_raises_the_predictors_error() -> None:
         env.step(env.action_space.sample())
 
 
+def test_terminate_on_alarm_set_after_construction_takes_effect() -> None:
+    """The step reads the option as it stands, not as it was built."""
+    env = _make("Pusher-v5")  # the object rests on the table: cost 1 from the first step
+    env.reset(seed=0)
+    assert not env.step(env.action_space.sample())[2]
+    env.terminate_on_alarm = True
+    _, _, terminated, _, info = env.step(env.action_space.sample())
+    assert info["cost"] > 0 and terminated and env.terminate_on_alarm is True
+
+
+def test_an_info_kept_from_an_earlier_step_does_not_change() -> None:
+    """Each step's info is the env's own new dict with new values in it: a user who keeps one
+    (a replay buffer) sees the values of its step after later steps."""
+    env = _make("Pusher-v5", cost="new", ignore=[PUSHER_OBJECT, PUSHER_LINK])
+    env.reset(seed=1)
+    env.action_space.seed(1)
+    kept = []
+    for _ in range(40):
+        info = env.step(env.action_space.sample())[4]
+        kept.append((info, dict(info)))
+    assert len({id(info) for info, _ in kept}) == len(kept)
+    for info, snapshot in kept:
+        assert info == snapshot
+    assert len({info["min_tau"] for info, _ in kept}) > 1  # the values did move
+
+
 def test_a_wrapped_step_goes_back_to_the_envs_mjdata() -> None:
     """The wrapper's step binds the env's MjData again when its predictor was reset on another
     one in between (the predictor is public): the step reads the env's state and clock, not the
