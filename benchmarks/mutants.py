@@ -321,6 +321,26 @@ MUTANTS: tuple[Mutant, ...] = (
         "bound (Lemma 6.8' without A t^2 / 2)",
     ),
     Mutant(
+        "settle-underflowed-norms",
+        _URGENCY,
+        "if (!(nx >= 1e-100) || (nv < 1e-100 && (v[0] != 0.0 || v[1] != 0.0 || v[2] != 0.0))) {",
+        "if (!(nx >= 0.0)) {",
+        (_SETTLE_BOUND,),
+        "the settling bound computed from norms whose squares underflow (|x| 41 % long, a |v| "
+        "of 1e-170 read as 0)",
+    ),
+    Mutant(
+        "settle-kept-after-a-failed-step",
+        _SCHEDULE,
+        "for (int64_t k = 0; k < st->params[kSettled]; ++k) {",
+        "for (int64_t k = 0; k < 0; ++k) {",
+        (
+            "tests/test_events.py::"
+            "test_a_step_retried_after_it_failed_judges_the_pairs_it_had_settled_again",
+        ),
+        "a failed step's settled verdicts kept: its retry leaves those pairs alone",
+    ),
+    Mutant(
         "escape-speed-loose",
         "dua_mujoco/csrc/src/reach.cc",
         "const double top = std::min(s0 + a * t, vmax - d);",

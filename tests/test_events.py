@@ -23,6 +23,7 @@ from dua_mujoco import _core
 from dua_mujoco.build.events import body_boxes
 from dua_mujoco.build.kinematics import mjdata_frame, pack_spheres, sphere_states
 from dua_mujoco.build.options import ScheduleOptions
+from dua_mujoco.exceptions import NonFiniteStateError
 from dua_mujoco.measure.checks import BoundMonitor
 from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
@@ -216,6 +217,39 @@ def test_settled_pairs_get_a_verdict_of_that_step_below_the_sphere_kernels() -> 
         assert np.all(lower <= tau), (lower[lower > tau], tau[lower > tau])
         settled += k
     assert settled > 1000
+
+
+def test_a_step_retried_after_it_failed_judges_the_pairs_it_had_settled_again() -> None:
+    """A step that fails (a non-finite state) leaves the pairs it settled made due, as the ones
+    it evaluated: retried on a repaired state at the same time, a pair whose body was flung 50 m
+    away (and so settled) and is now put onto the other body alarms. Kept as the failed step's
+    verdict, it would not be looked at again until its due step."""
+    m, d = load_scene("traffic")
+    p = Predictor(m, accel=5.0)
+    for _ in _random_run(m, d, p, 100):
+        pass
+    mujoco.mj_step(m, d)
+    rec, body = p.pair_records, m.geom_bodyid
+    g1, g2 = (np.asarray(a) for a in p.sphere_pair_geoms)
+    c, v = p.sphere_states(d)
+    i, j = rec[:, 0].astype(np.int64), rec[:, 1].astype(np.int64)
+    tau = _core.tau_speed_batch(
+        c[j] - c[i], v[j] - v[i], rec[:, 3], rec[:, 4], rec[:, 5], rec[:, 6]
+    )
+    between = np.flatnonzero((body[g1] != body[g2]) & (body[g1] > 0) & (body[g2] > 0))
+    k = between[np.argmin(tau[between])]
+    b, other = body[g1[k]], body[g2[k]]
+    third = next(x for x in range(1, m.nbody) if x not in (b, other) and np.any(body == x))
+    repaired = d.geom_xpos.copy()
+    d.geom_xpos[body == b] += [50.0, 0.0, 0.0]
+    d.geom_xpos[np.flatnonzero(body == third)[0]] = np.nan
+    with pytest.raises(NonFiniteStateError):
+        p.step(d)
+    assert p.pair_state().last_tau_of(np.array([k]))[0] == -math.inf
+    d.geom_xpos[:] = repaired
+    d.geom_xpos[body == b] += d.geom_xpos[g2[k]] - d.geom_xpos[g1[k]]
+    alarms = p.step(d)
+    assert p.pair_state().alarm_state(np.array([k]))[0] and len(alarms) > 0
 
 
 def test_a_collision_right_after_an_impulse_is_flagged_only_with_events() -> None:

@@ -291,6 +291,11 @@ def test_settle_bound_is_never_after_the_first_root():
     assert _core.settle_tau(1e-300, 0, 0, 0, 0, 0, 0, 1e-300, 0) == -math.inf
     assert _core.settle_tau(1e300, 0, 0, 1e300, 0, 0, 0, 1.0, 0) == -math.inf
     assert _core.settle_tau(1.0, 0, 0, 0, 0, 0, 2.0, 1.0, 0) == -math.inf  # in contact
+    # Squares that underflow: |x| of 1.6e-162 came out 41 % above the root (2.2e-32 against
+    # 1.6e-32), and a |v| of 1e-170 as 0 let a cover of 1e95 pass a root of 1e90.
+    assert _core.settle_tau(1.5718274673686167e-162, 0, 0, -1e-130, 0, 0, 0, 0, 0) == -math.inf
+    assert _core.settle_tau(1e-80, 0, 0, -1e-170, 0, 0, 0, 0, 0, 1e95) == -math.inf
+    assert _core.settle_tau(1e-80, 0, 0, 0, 0, 0, 0, 0, 0, 1e95) > 1e95  # at rest: it covers
 
 
 def _scalar_kernel(x, v, eps, A, delta, speed):

@@ -378,11 +378,20 @@ void dua_restore(dua_schedule* st, int64_t n, int64_t count) {
       Unlink(v, w_ids[k]);
       Link(v, w_ids[k], n);
     }
+    // The settled pairs go back to made due, as the evaluated ones: a retry of step n would
+    // otherwise take their verdict for one of its own state (SelectMadeDue leaves a verdict of
+    // step n alone) and neither evaluate nor settle them again.
+    const int64_t* w_settled = v.Work(kWSlots);
+    for (int64_t k = 0; k < st->params[kSettled]; ++k) {
+      st->last_tau[w_settled[k]] = kNegInf;
+      Unlink(v, w_settled[k]);
+      Link(v, w_settled[k], n);
+    }
   }
   st->params[kCount] = 0;
   st->params[kDeferred] = 0;
   st->params[kExtra] = 0;
-  st->params[kSettled] = 0;  // their verdicts (of this state) stay
+  st->params[kSettled] = 0;
 }
 
 int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t on, int64_t n_next) {
