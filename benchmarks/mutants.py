@@ -269,8 +269,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "violation-not-made-due",
         _STEP,
-        "dua::SelectMadeDue(st, ev.flagged, flagged, ev.start, ev.members, n);",
-        "dua::SelectMadeDue(st, ev.flagged, 0 * flagged, ev.start, ev.members, n);",
+        "dua::SelectMadeDue(st, ev.flagged, flagged, ev.start, ev.members, n,",
+        "dua::SelectMadeDue(st, ev.flagged, 0 * flagged, ev.start, ev.members, n,",
         (
             "tests/test_events.py::test_a_collision_right_after_an_impulse_is_flagged_only_with_events",
         ),
