@@ -22,9 +22,10 @@ from dua_mujoco.models.scenes import SCENES, load_scene
 # hinge at the body's origin and one off it (the anchor), several joints on one body (each
 # kind, in both orders), a mocap body with a jointed child, bodies welded to the world and to a
 # moving body, a body turned and offset from its parent without a joint, geoms at the body's
-# inertial frame (a lone geom: its frame is the inertia's) and off it, geoms on the world body,
-# and a hinge at the origin of a body placed at x = -0 (where mj_kinematics' anchor, added and
-# taken off, leaves +0).
+# inertial frame (a lone geom: its frame is the inertia's), turned as a rotated inertial frame
+# but placed off it (INERTIAROT), and off it, geoms on the world body, a hinge at the origin of
+# a body placed at x = -0 (where mj_kinematics' anchor, added and taken off, leaves +0), and a
+# hinge anchored at x = -0 (the anchor's full path).
 JOINTS = """
 <mujoco>
   <worldbody>
@@ -81,6 +82,16 @@ JOINTS = """
     </body>
     <body name="signed" pos="-0 -1 .5">
       <joint type="hinge" axis="0 0 1"/>
+      <geom type="box" size=".05 .02 .02" pos=".05 0 0"/>
+    </body>
+    <body name="turned_inertia" pos="-.5 .5 .5" quat="1 .2 .3 .4">
+      <joint type="ball"/>
+      <inertial pos=".1 .2 .3" quat="1 2 3 4" mass="1" diaginertia="1 2 3"/>
+      <geom type="box" size=".1 .2 .3" pos=".3 .2 .1" quat="1 2 3 4"/>
+      <geom type="sphere" size=".1" pos=".1 .2 .3" quat="1 2 3 4"/>
+    </body>
+    <body name="signed_anchor" pos=".7 .7 .3">
+      <joint name="signed_anchor" type="hinge" axis="0 1 0" pos="-0 0 0"/>
       <geom type="box" size=".05 .02 .02" pos=".05 0 0"/>
     </body>
     <body name="mount" pos="0 -1 .5" euler="0 0 15">
@@ -160,6 +171,8 @@ def test_every_joint_type_gives_mujocos_poses_bit_for_bit() -> None:
     assert mujoco.mjtSameFrame.mjSAMEFRAME_NONE in model.geom_sameframe
     assert np.any(model.body_jntnum > 1)
     assert np.signbit(model.body("signed").pos[0])
+    assert mujoco.mjtSameFrame.mjSAMEFRAME_INERTIAROT in model.geom_sameframe
+    assert np.signbit(model.joint("signed_anchor").pos[0])
     _same_as_mujoco(model, np.arange(model.ngeom), rows=40)
     # A plan's selection: the bodies between them (a mount without geoms) kept, others not.
     _same_as_mujoco(model, _collision_geoms(model), rows=10)
