@@ -341,6 +341,18 @@ MUTANTS: tuple[Mutant, ...] = (
         "a failed step's settled verdicts kept: its retry leaves those pairs alone",
     ),
     Mutant(
+        "exact-hull-address-unread",
+        "dua_mujoco/csrc/src/tables.cc",
+        "if (kind == -1.0) return no_hull;",
+        "if (kind == -1.0) return true;",
+        (
+            "tests/test_tables.py::"
+            "test_a_hull_address_on_a_geom_without_a_hull_is_refused[clutter--1.0]",
+        ),
+        "a geom the exact level does not read passes with a hull address, which the hulls' "
+        "pass then uses as an index (the tables fuzzer's finding)",
+    ),
+    Mutant(
         "escape-speed-loose",
         "dua_mujoco/csrc/src/reach.cc",
         "const double top = std::min(s0 + a * t, vmax - d);",

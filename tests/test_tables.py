@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from dua_mujoco import _core
+from dua_mujoco.build.exact import GX_GRAPH, GX_KIND, GX_VERT
 from dua_mujoco.build.options import PairOptions
 from dua_mujoco.exceptions import InvalidInputError
 from dua_mujoco.models.scenes import load_scene
@@ -87,3 +88,21 @@ def test_tables_of_another_model_are_refused() -> None:
     other, _ = load_scene("two_arms")
     with pytest.raises(InvalidInputError, match="another model"):
         _core.Tables.build(other, arrays)
+
+
+@pytest.mark.parametrize(("scene", "kind"), [("clutter", -1.0), ("rough_terrain", 1.0)])
+def test_a_hull_address_on_a_geom_without_a_hull_is_refused(scene: str, kind: float) -> None:
+    """A geom the exact level does not read (kind -1) and a height field (kind 1) have no hull:
+    an address in their record's graph column is refused, not used to index the hull graph
+    (the tables fuzzer found 1e308 there read as an index)."""
+    m, _ = load_scene(scene)
+    arrays = {
+        k: np.array(v, dtype=np.float64) for k, v in Predictor(m, accel=30.0).table_arrays.items()
+    }
+    geoms = arrays["exact_geoms"]
+    row = int(np.flatnonzero(geoms[:, GX_KIND] == kind)[0])
+    for column, value in ((GX_GRAPH, 1e308), (GX_GRAPH, 0.0), (GX_VERT, 0.0)):
+        corrupt = geoms.copy()
+        corrupt[row, column] = value
+        with pytest.raises(InvalidInputError, match="'exact_geoms'"):
+            _core.Tables.build(m, {**arrays, "exact_geoms": corrupt})

@@ -324,9 +324,12 @@ bool ReadExact(const mjModel* m, Reader* r, Tables* t) {
               const int64_t id = g++;
               if (!SphereRecordOk(m, rec) || rec[kSphereFrame] != id) return false;
               const double kind = rec[kGxKind];
-              if (kind == -1.0) return true;  // a geom the level does not read
-              // A height field is read through its terrain's grid, never its own record.
-              if (kind == kGeomHField) return m->geom_type[id] == mjGEOM_HFIELD;
+              // A geom the level does not read, and a height field (read through its terrain's
+              // grid, never its own record): no hull (the hulls' pass below indexes the graph
+              // by any address that is not negative).
+              const bool no_hull = rec[kGxGraph] == -1.0 && rec[kGxVert] == -1.0;
+              if (kind == -1.0) return no_hull;
+              if (kind == kGeomHField) return no_hull && m->geom_type[id] == mjGEOM_HFIELD;
               bool ok = kind >= kGeomSphere && kind <= kGeomMeshBox && kind == std::floor(kind);
               for (int c = 0; c < 3; ++c) {
                 ok = ok && Bound(rec[kGxSize + c]) && Finite(rec[kGxCentre + c]);
