@@ -267,6 +267,23 @@ MUTANTS: tuple[Mutant, ...] = (
         "the step's check lets accelerations up to twice the bound pass",
     ),
     Mutant(
+        "check-lanes-transposed-wrong",
+        _STEP,
+        "row.v[at + 1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);",
+        "row.v[at + 1] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);",
+        ("tests/test_events.py::test_the_checks_lanes_equal_one_body_at_a_time",),
+        "the four-body check reads a pose's second column in place of its first one's neighbour "
+        "(a transpose off by a lane pair)",
+    ),
+    Mutant(
+        "settle-under-a-plan",
+        _STEP,
+        "a->plan.impl == nullptr &&\n                       a->plan.basis == nullptr;",
+        "true;",
+        ("tests/test_flightplan.py::test_no_pair_is_settled_while_a_plan_is_set",),
+        "a flagged body's pairs settled by the motion bounds' norms while a plan is set",
+    ),
+    Mutant(
         "violation-not-made-due",
         _STEP,
         "dua::SelectMadeDue(st, ev.flagged, flagged, ev.start, ev.members, n,",

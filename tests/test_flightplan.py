@@ -428,6 +428,31 @@ def test_a_body_beyond_its_deviation_falls_back_to_the_bounds() -> None:
     assert [o for o in onsets if o[2] < 0] == []  # every onset alarmed before it
 
 
+@pytest.mark.parametrize("planned", [True, False])
+def test_no_pair_is_settled_while_a_plan_is_set(planned: bool) -> None:
+    """Settling (docs/theory.md, section 6) judges a flagged body's pair by the motion bounds'
+    norms, so it stays off while a plan is set, whose verdicts rest on the plan: under a plan of
+    held controls the run breaks (its bodies flagged), nothing is settled; the same run with no
+    plan settles pairs, so the setup reaches the rule."""
+    m, d = _scene()
+    steps = 200
+    ctrl = _controls(m, steps, seed=5)
+    p = Predictor(m, accel=1.0, alarm_horizon=0.05)
+    p.reset(d)
+    if planned:
+        p.set_plan(_rollout(m, d, np.zeros_like(ctrl), steps + 10), deviation=0.0)
+    flagged = settled = 0
+    for k in range(steps):
+        d.ctrl[:] = ctrl[k]
+        mujoco.mj_step(m, d)
+        p.step(d)
+        assert p.has_plan == planned
+        flagged += p.violated_bodies.size
+        settled += p.pair_state().settled
+    assert flagged > 0
+    assert (settled == 0) if planned else (settled > 0)
+
+
 def test_past_its_last_knot_the_plan_is_dropped() -> None:
     """Knot j is the state j steps on, which the step after it reads (MuJoCo's step reads the
     state it started from): 30 knots cover 30 steps, and the 31st drops the plan."""
