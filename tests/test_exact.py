@@ -678,3 +678,34 @@ def test_a_pair_leaving_fast_is_asked_and_cleared() -> None:
     assert p._rt.exact_queries == 2  # asked
     assert not p.pair_state().alarm_state()[0]
     assert reference_exact_tau(p, data, 0) > p.exact.query_below
+
+
+@pytest.mark.parametrize(("a", "b"), [(a, b) for a in GEOM_TYPES for b in GEOM_TYPES if a <= b])
+def test_mujocos_witness_points_lie_in_their_geoms(a: str, b: str) -> None:
+    """The knots' screen (docs/theory.md section 8) takes MuJoCo's witness points as points of
+    the geoms: each one, probed by a 1e-9 m sphere, is within 1e-9 m of its geom."""
+    model = mujoco.MjModel.from_xml_string(
+        f"""<mujoco>{BLOB_ASSET}<worldbody>
+          <body mocap="true"><geom {GEOM_TYPES[a]}/></body>
+          <body mocap="true"><geom {GEOM_TYPES[b]}/></body>
+          <body mocap="true" pos="9 9 9"><geom type="sphere" size="1e-9"/></body>
+        </worldbody></mujoco>"""
+    )
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(3)
+    probed = 0
+    for _ in range(60):
+        data.mocap_pos[:2] = [np.zeros(3), rng.normal(size=3) * 0.4]
+        quats = rng.normal(size=(2, 4))
+        data.mocap_quat[:2] = quats / np.linalg.norm(quats, axis=1, keepdims=True)
+        data.mocap_pos[2] = 9.0
+        mujoco.mj_kinematics(model, data)
+        fromto = np.zeros(6)
+        if not 0.0 < mujoco.mj_geomDistance(model, data, 0, 1, 1.0, fromto) < 1.0:
+            continue
+        for geom, point in ((0, fromto[:3].copy()), (1, fromto[3:].copy())):
+            data.mocap_pos[2] = point
+            mujoco.mj_kinematics(model, data)
+            assert mujoco.mj_geomDistance(model, data, 2, geom, 1.0, None) <= 1e-12, (geom, point)
+            probed += 1
+    assert probed >= 40
