@@ -4,6 +4,7 @@ modes as plain strings, the flat keywords of earlier releases refused with their
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -43,6 +44,8 @@ def test_groups_are_frozen_and_exported() -> None:
         (lambda: UrgencyOptions(exact="yes"), "exact = 'yes'"),  # type: ignore[arg-type]
         (lambda: PilotOptions(steps=0), "pilot steps = 0"),
         (lambda: PilotOptions(controller=3), "not callable"),  # type: ignore[arg-type]
+        (lambda: PilotOptions(safety=0.5), "pilot safety = 0.5"),
+        (lambda: PilotOptions(safety=math.nan), "pilot safety = nan"),
         (lambda: CoveringOptions(max_spheres_per_geom=0), "max_spheres_per_geom = 0"),
     ],
 )

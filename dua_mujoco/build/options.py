@@ -21,7 +21,7 @@ from dua_mujoco.build.bounds import PilotMotion
 from dua_mujoco.core.schedules import Schedule, as_schedule, deadline
 from dua_mujoco.core.schedules.state import RANK
 from dua_mujoco.core.spheres import PairMode
-from dua_mujoco.core.validate import as_choice, check_int
+from dua_mujoco.core.validate import as_choice, check_int, check_number
 from dua_mujoco.exceptions import InvalidInputError
 
 __all__ = [
@@ -161,6 +161,11 @@ class PilotOptions:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise InvalidInputError(f"pilot seed = {self.seed!r} is invalid: pass an int.")
         _set(self, "motion", as_choice(PilotMotion, self.motion, "pilot motion"))
+        if check_number("pilot safety", self.safety) < 1.0:
+            raise InvalidInputError(
+                f"pilot safety = {self.safety!r} is invalid: pass a factor >= 1 on the measured "
+                "maxima (2 is the default)."
+            )
         if self.controller is not None and not callable(self.controller):
             raise InvalidInputError(
                 f"pilot controller = {self.controller!r} is not callable: pass "
