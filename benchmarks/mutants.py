@@ -1084,6 +1084,14 @@ MUTANTS: tuple[Mutant, ...] = (
         ("tests/test_alarms.py::test_the_steps_standing_state_is_the_alarm_rule",),
         "the step's standing state, read from its alarm list, misses a pair in alarm",
     ),
+    Mutant(
+        "basis-kept-after-the-plan",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "basis_live_ = plan_ != nullptr || (basis_live_ && !(zero(basis_) && zero(basis_prev_)));",
+        "basis_live_ = plan_ != nullptr || (basis_live_ && !(zero(basis_) && zero(basis_prev_) && false));",
+        ("tests/test_flightplan.py::test_settling_resumes_once_a_plan_runs_out",),
+        "settling off for good after any plan (cost, not the promise)",
+    ),
 )
 
 

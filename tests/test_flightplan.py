@@ -453,6 +453,24 @@ def test_no_pair_is_settled_while_a_plan_is_set(planned: bool) -> None:
     assert (settled == 0) if planned else (settled > 0)
 
 
+def test_settling_resumes_once_a_plan_runs_out() -> None:
+    """What a verdict rested on is remembered for two evaluations (the monitor's "held" label),
+    so settling waits for them after a plan; it must not stay off for good."""
+    m, d = _scene()
+    ctrl = _controls(m, 200, seed=5)
+    p = Predictor(m, accel=1.0, alarm_horizon=0.05)
+    p.reset(d)
+    p.set_plan(_rollout(m, d, np.zeros((1, m.nu)), 20), deviation=0.0)
+    settled = []
+    for k in range(200):
+        d.ctrl[:] = ctrl[k]
+        mujoco.mj_step(m, d)
+        p.step(d)
+        settled.append(p.pair_state().settled)
+    assert not any(settled[:20])
+    assert any(settled[20:40])
+
+
 def test_past_its_last_knot_the_plan_is_dropped() -> None:
     """Knot j is the state j steps on, which the step after it reads (MuJoCo's step reads the
     state it started from): 30 knots cover 30 steps, and the 31st drops the plan."""
