@@ -1087,8 +1087,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "basis-kept-after-the-plan",
         "dua_mujoco/csrc/src/runtime.cc",
-        "basis_live_ = plan_ != nullptr || (basis_live_ && !(zero(basis_) && zero(basis_prev_)));",
-        "basis_live_ = plan_ != nullptr || (basis_live_ && !(zero(basis_) && zero(basis_prev_) && false));",
+        "(basis_live_ && !(zero(basis_) && zero(basis_prev_)));",
+        "(basis_live_ && !(zero(basis_) && zero(basis_prev_) && false));",
         ("tests/test_flightplan.py::test_settling_resumes_once_a_plan_runs_out",),
         "settling off for good after any plan (cost, not the promise)",
     ),
