@@ -82,11 +82,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         f"(default {DEFAULT_SCENE})",
     )
     add_run_options(p)
-    _add_run_outputs(p)
     p.set_defaults(func=_cmd_run)
-
-
-def _add_run_outputs(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--strict",
         action="store_true",
@@ -440,29 +436,11 @@ _RUN_COMMANDS = {
 }
 
 
-def _add_run_command(sub: argparse._SubParsersAction, name: str) -> None:
-    path, help_text = _RUN_COMMANDS[name]
-    module = importlib.import_module(path)
-    p = sub.add_parser(name, help=help_text, description=module.DESCRIPTION, epilog=module.EPILOG)
-    module.add_arguments(p)
-    add_run_options(p)
-    p.set_defaults(func=module.main)
-
-
 # Experiment subcommands: each module has add_arguments(parser) and main(args).
 _EXPERIMENTS = {
     "paper": "reproduce the paper's experiments (sec. 8) and write tables, plots and JSON",
     "peers": "measure DUA against SA(tau), swept-sphere broadphases, MuJoCo and FCL",
 }
-
-
-def _add_experiment(sub: argparse._SubParsersAction, name: str, load: bool) -> None:
-    p = sub.add_parser(name, help=_EXPERIMENTS[name])
-    if not load:  # listed only: importing the experiments takes 0.2 s of every command
-        return
-    module = importlib.import_module(f"dua_mujoco.experiments.{name}")
-    module.add_arguments(p)
-    p.set_defaults(func=module.main)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -488,10 +466,20 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     _add_run(sub)
-    for name in _RUN_COMMANDS:
-        _add_run_command(sub, name)
-    for name in _EXPERIMENTS:
-        _add_experiment(sub, name, argv is None or name in argv)
+    for name, (path, help_text) in _RUN_COMMANDS.items():
+        module = importlib.import_module(path)
+        p = sub.add_parser(
+            name, help=help_text, description=module.DESCRIPTION, epilog=module.EPILOG
+        )
+        module.add_arguments(p)
+        add_run_options(p)
+        p.set_defaults(func=module.main)
+    for name, help_text in _EXPERIMENTS.items():
+        p = sub.add_parser(name, help=help_text)
+        if argv is None or name in argv:  # else listed only: importing one takes 0.2 s
+            module = importlib.import_module(f"dua_mujoco.experiments.{name}")
+            module.add_arguments(p)
+            p.set_defaults(func=module.main)
     return parser
 
 
