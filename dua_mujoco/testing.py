@@ -148,7 +148,6 @@ def check_baseline(report: RunReport, baseline: BaselineLike, *, tolerance: floa
     if not (math.isfinite(tolerance) and tolerance >= 0):
         raise ValueError(f"tolerance = {tolerance!r} is invalid: it must be finite and >= 0.")
     base = load_baseline(baseline)
-    where = "the baseline dict" if isinstance(baseline, Mapping) else repr(str(baseline))
     worse, better = [], []
     for key in BASELINE_KEYS:
         got, ref = getattr(report, key), float(base[key])
@@ -161,7 +160,7 @@ def check_baseline(report: RunReport, baseline: BaselineLike, *, tolerance: floa
         how = f"If the change is intended, update the baseline dict to {measured}."
     else:
         how = (
-            f"If the change is intended, update {where} with `pytest <this test> "
+            f"If the change is intended, update {str(baseline)!r} with `pytest <this test> "
             f"{UPDATE_OPTION}` (dua_predict fixture) or write_baseline(report, path)."
         )
     if worse:
@@ -467,10 +466,7 @@ def dua_predict(request: pytest.FixtureRequest) -> DuaPredict:
         __tracebackhide__ = True
         target: Path | None = None
         if baseline is not None and not isinstance(baseline, Mapping):
-            target = Path(baseline)
-            if not target.is_absolute():
-                target = folder / target
-            baseline = target
+            baseline = target = folder / baseline  # an absolute path stays as it is
         compare = None if (update and target is not None) else baseline
         report = assert_no_missed_collisions(model, data, baseline=compare, **options)
         if update and target is not None:
