@@ -113,18 +113,9 @@ def write_baseline(report: RunReport, path: str | os.PathLike[str]) -> Path:
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    content = {
-        "alarm_episodes": report.alarm_episodes,
-        "false_alarm_episodes": report.false_alarm_episodes,
-        "scene": report.scene,
-        "physics_steps": report.physics_steps,
-        "period": report.period,
-        "spheres": report.spheres,
-        "pairs": report.pairs,
-        "contact_onsets": report.contact_onsets,
-        "predicted_onsets": report.predicted_onsets,
-        "dua_mujoco_version": __version__,
-    }
+    context = ("scene", "physics_steps", "period", "spheres", "pairs", "contact_onsets")
+    content = {key: getattr(report, key) for key in (*BASELINE_KEYS, *context, "predicted_onsets")}
+    content["dua_mujoco_version"] = __version__
     out.write_text(json.dumps(content, indent=2) + "\n")
     return out
 
