@@ -296,23 +296,6 @@ def _check_keyframe(model: mujoco.MjModel, keyframe: int | str) -> None:
     )
 
 
-def _bounds_warning(report: RunReport) -> str:
-    """The line that says the guarantee did not apply to (part of) the run."""
-    bodies = ", ".join(repr(b) for b in report.broken_bound_bodies[:8])
-    more = len(report.broken_bound_bodies) - 8
-    if more > 0:
-        bodies += f" and {more} more"
-    missed = report.missed_onsets - report.missed_onsets_outside_violations
-    return (
-        f"WARNING: the declared motion bounds were broken {report.bound_violations} times "
-        f"(body-steps, {report.bound_violations_out_of_contact} out of contact; bodies "
-        f"{bodies}): an onset in the period of a violation is not covered by the guarantee "
-        f"({missed} such miss(es) in this run), and each violation makes its bodies' pairs "
-        "due at once. Declare bounds that hold in free motion (--accel auto measures them) or "
-        "raise --accel/--speed."
-    )
-
-
 def print_report(report: RunReport) -> bool:
     """Print the table and the warnings; return whether the guarantee did not apply."""
     print(report.table())
@@ -321,8 +304,21 @@ def print_report(report: RunReport) -> bool:
         report.bound_violations_out_of_contact
         or report.missed_onsets > report.missed_onsets_outside_violations
     )
-    if bounds_broken:
-        print(_bounds_warning(report), file=sys.stderr)
+    if bounds_broken:  # the guarantee did not apply to (part of) the run
+        bodies = ", ".join(repr(b) for b in report.broken_bound_bodies[:8])
+        more = len(report.broken_bound_bodies) - 8
+        if more > 0:
+            bodies += f" and {more} more"
+        missed = report.missed_onsets - report.missed_onsets_outside_violations
+        print(
+            f"WARNING: the declared motion bounds were broken {report.bound_violations} times "
+            f"(body-steps, {report.bound_violations_out_of_contact} out of contact; bodies "
+            f"{bodies}): an onset in the period of a violation is not covered by the guarantee "
+            f"({missed} such miss(es) in this run), and each violation makes its bodies' pairs "
+            "due at once. Declare bounds that hold in free motion (--accel auto measures them) "
+            "or raise --accel/--speed.",
+            file=sys.stderr,
+        )
     if report.missed_onsets_outside_violations:
         print(
             f"WARNING: {report.missed_onsets_outside_violations} contact onset(s) were missed "
