@@ -82,11 +82,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         f"(default {DEFAULT_SCENE})",
     )
     add_run_options(p)
-    _add_run_outputs(p)
     p.set_defaults(func=_cmd_run)
-
-
-def _add_run_outputs(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--strict",
         action="store_true",
@@ -300,23 +296,6 @@ def _check_keyframe(model: mujoco.MjModel, keyframe: int | str) -> None:
     )
 
 
-def _bounds_warning(report: RunReport) -> str:
-    """The line that says the guarantee did not apply to (part of) the run."""
-    bodies = ", ".join(repr(b) for b in report.broken_bound_bodies[:8])
-    more = len(report.broken_bound_bodies) - 8
-    if more > 0:
-        bodies += f" and {more} more"
-    missed = report.missed_onsets - report.missed_onsets_outside_violations
-    return (
-        f"WARNING: the declared motion bounds were broken {report.bound_violations} times "
-        f"(body-steps, {report.bound_violations_out_of_contact} out of contact; bodies "
-        f"{bodies}): an onset in the period of a violation is not covered by the guarantee "
-        f"({missed} such miss(es) in this run), and each violation makes its bodies' pairs "
-        "due at once. Declare bounds that hold in free motion (--accel auto measures them) or "
-        "raise --accel/--speed."
-    )
-
-
 def print_report(report: RunReport) -> bool:
     """Print the table and the warnings; return whether the guarantee did not apply."""
     print(report.table())
@@ -325,8 +304,21 @@ def print_report(report: RunReport) -> bool:
         report.bound_violations_out_of_contact
         or report.missed_onsets > report.missed_onsets_outside_violations
     )
-    if bounds_broken:
-        print(_bounds_warning(report), file=sys.stderr)
+    if bounds_broken:  # the guarantee did not apply to (part of) the run
+        bodies = ", ".join(repr(b) for b in report.broken_bound_bodies[:8])
+        more = len(report.broken_bound_bodies) - 8
+        if more > 0:
+            bodies += f" and {more} more"
+        missed = report.missed_onsets - report.missed_onsets_outside_violations
+        print(
+            f"WARNING: the declared motion bounds were broken {report.bound_violations} times "
+            f"(body-steps, {report.bound_violations_out_of_contact} out of contact; bodies "
+            f"{bodies}): an onset in the period of a violation is not covered by the guarantee "
+            f"({missed} such miss(es) in this run), and each violation makes its bodies' pairs "
+            "due at once. Declare bounds that hold in free motion (--accel auto measures them) "
+            "or raise --accel/--speed.",
+            file=sys.stderr,
+        )
     if report.missed_onsets_outside_violations:
         print(
             f"WARNING: {report.missed_onsets_outside_violations} contact onset(s) were missed "
@@ -440,29 +432,11 @@ _RUN_COMMANDS = {
 }
 
 
-def _add_run_command(sub: argparse._SubParsersAction, name: str) -> None:
-    path, help_text = _RUN_COMMANDS[name]
-    module = importlib.import_module(path)
-    p = sub.add_parser(name, help=help_text, description=module.DESCRIPTION, epilog=module.EPILOG)
-    module.add_arguments(p)
-    add_run_options(p)
-    p.set_defaults(func=module.main)
-
-
 # Experiment subcommands: each module has add_arguments(parser) and main(args).
 _EXPERIMENTS = {
     "paper": "reproduce the paper's experiments (sec. 8) and write tables, plots and JSON",
     "peers": "measure DUA against SA(tau), swept-sphere broadphases, MuJoCo and FCL",
 }
-
-
-def _add_experiment(sub: argparse._SubParsersAction, name: str, load: bool) -> None:
-    p = sub.add_parser(name, help=_EXPERIMENTS[name])
-    if not load:  # listed only: importing the experiments takes 0.2 s of every command
-        return
-    module = importlib.import_module(f"dua_mujoco.experiments.{name}")
-    module.add_arguments(p)
-    p.set_defaults(func=module.main)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -488,10 +462,20 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     _add_run(sub)
-    for name in _RUN_COMMANDS:
-        _add_run_command(sub, name)
-    for name in _EXPERIMENTS:
-        _add_experiment(sub, name, argv is None or name in argv)
+    for name, (path, help_text) in _RUN_COMMANDS.items():
+        module = importlib.import_module(path)
+        p = sub.add_parser(
+            name, help=help_text, description=module.DESCRIPTION, epilog=module.EPILOG
+        )
+        module.add_arguments(p)
+        add_run_options(p)
+        p.set_defaults(func=module.main)
+    for name, help_text in _EXPERIMENTS.items():
+        p = sub.add_parser(name, help=help_text)
+        if argv is None or name in argv:  # else listed only: importing one takes 0.2 s
+            module = importlib.import_module(f"dua_mujoco.experiments.{name}")
+            module.add_arguments(p)
+            p.set_defaults(func=module.main)
     return parser
 
 

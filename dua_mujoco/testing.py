@@ -113,18 +113,9 @@ def write_baseline(report: RunReport, path: str | os.PathLike[str]) -> Path:
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    content = {
-        "alarm_episodes": report.alarm_episodes,
-        "false_alarm_episodes": report.false_alarm_episodes,
-        "scene": report.scene,
-        "physics_steps": report.physics_steps,
-        "period": report.period,
-        "spheres": report.spheres,
-        "pairs": report.pairs,
-        "contact_onsets": report.contact_onsets,
-        "predicted_onsets": report.predicted_onsets,
-        "dua_mujoco_version": __version__,
-    }
+    context = ("scene", "physics_steps", "period", "spheres", "pairs", "contact_onsets")
+    content = {key: getattr(report, key) for key in (*BASELINE_KEYS, *context, "predicted_onsets")}
+    content["dua_mujoco_version"] = __version__
     out.write_text(json.dumps(content, indent=2) + "\n")
     return out
 
@@ -148,7 +139,6 @@ def check_baseline(report: RunReport, baseline: BaselineLike, *, tolerance: floa
     if not (math.isfinite(tolerance) and tolerance >= 0):
         raise ValueError(f"tolerance = {tolerance!r} is invalid: it must be finite and >= 0.")
     base = load_baseline(baseline)
-    where = "the baseline dict" if isinstance(baseline, Mapping) else repr(str(baseline))
     worse, better = [], []
     for key in BASELINE_KEYS:
         got, ref = getattr(report, key), float(base[key])
@@ -161,7 +151,7 @@ def check_baseline(report: RunReport, baseline: BaselineLike, *, tolerance: floa
         how = f"If the change is intended, update the baseline dict to {measured}."
     else:
         how = (
-            f"If the change is intended, update {where} with `pytest <this test> "
+            f"If the change is intended, update {str(baseline)!r} with `pytest <this test> "
             f"{UPDATE_OPTION}` (dua_predict fixture) or write_baseline(report, path)."
         )
     if worse:
@@ -467,10 +457,7 @@ def dua_predict(request: pytest.FixtureRequest) -> DuaPredict:
         __tracebackhide__ = True
         target: Path | None = None
         if baseline is not None and not isinstance(baseline, Mapping):
-            target = Path(baseline)
-            if not target.is_absolute():
-                target = folder / target
-            baseline = target
+            baseline = target = folder / baseline  # an absolute path stays as it is
         compare = None if (update and target is not None) else baseline
         report = assert_no_missed_collisions(model, data, baseline=compare, **options)
         if update and target is not None:

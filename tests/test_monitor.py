@@ -156,7 +156,8 @@ def test_standing_alarms_follow_switches_and_resets(period: int) -> None:
             kinds["switch_mid"] += 1
         mon.observe(d, alarms)
         np.testing.assert_array_equal(mon._standing > 0, _standing_reference(p), f"step {k}")
-        assert mon._pred_steps.tolist() == steps_of, f"step {k}"  # what a miss's window starts from
+        steps = mon._pred_steps
+        assert [steps[j] for j in range(steps.count)] == steps_of, f"step {k}"  # a miss's window
         sched = p.pair_state()
         assert sched is not None
         ids = rng.choice(len(p.pair_set), size=3, replace=False)

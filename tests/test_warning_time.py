@@ -194,7 +194,7 @@ def test_a_step_map_reads_arrays_as_it_reads_steps() -> None:
     steps = StepMap(5, 3)
     for k in (8, 11, 13, 16, 30, 33):
         steps.append(k)
-    assert steps.tolist() == [5, 8, 11, 13, 16, 30, 33]
+    assert [steps[j] for j in range(steps.count)] == [5, 8, 11, 13, 16, 30, 33]
     j = np.array([6, 0, 3, 4, 2, 5, 1])
     assert steps.at(j).tolist() == [steps[i] for i in j.tolist()]
 

@@ -60,21 +60,15 @@ class Series:
     """Per-predictor-step alarm counts and minimum tau in arrays that double as they fill."""
 
     def __init__(self) -> None:
-        self.size = 0
-        self._alarms = np.zeros(1024, dtype=np.int32)
-        self._tau = np.zeros(1024, dtype=np.float64)
+        self._alarms, self._tau = Growing(np.int32), Growing(np.float64)
 
     def append(self, nalarms: int, min_tau: float) -> None:
-        if self.size == self._alarms.size:
-            self._alarms = np.concatenate([self._alarms, np.zeros_like(self._alarms)])
-            self._tau = np.concatenate([self._tau, np.zeros_like(self._tau)])
-        self._alarms[self.size] = nalarms
-        self._tau[self.size] = min_tau
-        self.size += 1
+        self._alarms.extend([nalarms])
+        self._tau.extend([min_tau])
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Copies trimmed to the steps recorded: ``(alarms int32, min_tau float64)``."""
-        return self._alarms[: self.size].copy(), self._tau[: self.size].copy()
+        return self._alarms.view().copy(), self._tau.view().copy()
 
 
 class StepMap:
@@ -104,10 +98,3 @@ class StepMap:
         """``self[j]`` for each predictor step of ``j`` (n,): physics steps (n,)."""
         i = np.searchsorted(self._first, j, side="right") - 1
         return np.asarray(self._physics)[i] + (j - np.asarray(self._first)[i]) * self.period
-
-    def __len__(self) -> int:
-        return self.count
-
-    def tolist(self) -> list[int]:
-        """Every predictor step's physics step (for tests: O(steps))."""
-        return [self[j] for j in range(self.count)]

@@ -164,7 +164,7 @@ class BoundMonitor:
         worst = np.full(self._nbody, -np.inf)
         np.maximum.at(worst, bodies, values[mask])
         ub = np.unique(bodies)
-        bound = self._bounds_for(kind)
+        bound = getattr(self._bounds, kind)
         for b in ub.tolist():
             v = BoundViolation(self.nupdates, t, b, kind, float(worst[b]), float(bound[b]))
             if len(self.violations) < self._max_violations:
@@ -174,14 +174,6 @@ class BoundMonitor:
                 self.worst[(b, kind)] = v
         self.nviolations += int(ub.size)
         return ub
-
-    def _bounds_for(self, kind: str) -> np.ndarray:
-        if kind == "accel":
-            return self._bounds.accel
-        if kind == "discrepancy":
-            return self._bounds.discrepancy
-        assert self._bounds.speed is not None
-        return self._bounds.speed
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         """Check the step that produced ``data`` (right after ``mj_step``); return the ``(k,)``

@@ -22,10 +22,11 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from dua_mujoco.core.validate import check_number
 from dua_mujoco.measure.accumulators import Growing, Series, StepMap
 from dua_mujoco.measure.checks import BoundMonitor
 from dua_mujoco.measure.report import Miss
-from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of, check_warning_horizon
+from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of
 from dua_mujoco.runtime.alarms import Alarms
 from dua_mujoco.runtime.predictor import Predictor
 
@@ -83,7 +84,11 @@ class Monitor:
         warning_horizon: float | None = None,
     ) -> None:
         self.predictor = predictor
-        self.warning_horizon = check_warning_horizon(warning_horizon)
+        self.warning_horizon = warning_horizon
+        if warning_horizon is not None:  # None: the predictor's own
+            self.warning_horizon = check_number(
+                "warning_horizon", warning_horizon, zero=True, unit=" of seconds"
+            )
         self.record_series = series
         self.model = predictor.model
         self.realtime = realtime
@@ -159,7 +164,7 @@ class Monitor:
         self._nstanding = 0  # geom pairs with a standing alarm
         self._gp_active = np.zeros(self._ngp, dtype=bool)
         self._nactive = 0
-        self._gp_active_seen: tuple[object, int] | None = None
+        self._gp_active_seen: tuple[int, int] | None = None
         self._distances = Growing()
         self.series = Series() if self.record_series else None
         if self.series is not None:
@@ -357,18 +362,10 @@ class Monitor:
         """Mask of geom pairs with an active sphere pair; O(pairs) only after a switch."""
         sched = self.predictor.pair_state()
         seen = (self.predictor.resets, sched.activation_changes)
-        if (
-            self._gp_active_seen is None
-            or seen[0] != self._gp_active_seen[0]
-            or (seen[1] != self._gp_active_seen[1])
-        ):
+        if seen != self._gp_active_seen:
             self._gp_active_seen = seen
-            self._gp_active = (
-                np.bincount(
-                    self.predictor.sphere_pairs.geom_pair[sched.active], minlength=self._ngp
-                )
-                > 0
-            )
+            on = self.predictor.sphere_pairs.geom_pair[sched.active]
+            self._gp_active = np.bincount(on, minlength=self._ngp) > 0
             # A pruned predictor has not met every active pair: the rest are on.
             unmet = self.predictor.universe.counts()[0] - self._ngp
             self._nactive = int(np.count_nonzero(self._gp_active)) + unmet

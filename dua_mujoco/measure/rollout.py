@@ -88,7 +88,6 @@ def run(
     period = predictor.period
     t_mj = Durations()
     t_pred = Durations()
-    warned = False
     try:
         with Progress(steps, scene or "run", enabled=progress) as bar:
             for k in range(1, steps + 1):
@@ -106,16 +105,14 @@ def run(
                     t_pred.add(dt)
                     if realtime and dt > predictor.dt:
                         monitor.overruns += 1
-                        if not warned:
+                        if monitor.overruns == 1:  # warned once
                             warnings.warn(
                                 f"predictor step took {dt * 1e6:.0f} us > period "
-                                f"{predictor.dt * 1e6:.0f} "
-                                "us: the predictor cannot keep up, completeness is not "
-                                "guaranteed.",
+                                f"{predictor.dt * 1e6:.0f} us: the predictor cannot keep up, "
+                                "completeness is not guaranteed.",
                                 DeadlineOverrunWarning,
                                 stacklevel=2,
                             )
-                            warned = True
                 monitor.observe(data, alarms)
                 if on_step is not None:
                     on_step(k, data, alarms, monitor)

@@ -37,13 +37,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from dua_mujoco.core.validate import check_number
 from dua_mujoco.measure.accumulators import Growing
 
 if TYPE_CHECKING:
     from dua_mujoco.runtime.predictor import Predictor
 
-__all__ = ["Hypotheses", "WarningTime", "alarm_horizon_of", "check_warning_horizon"]
+__all__ = ["Hypotheses", "WarningTime", "alarm_horizon_of"]
 
 # Leads and horizons are sums of timesteps: compare them with this relative slack.
 _REL = 1e-9
@@ -60,13 +59,6 @@ def alarm_horizon_of(predictor: Predictor) -> float:
     3: the verdict in force the alarm horizon before the first state in contact was raised that
     much earlier). ``(1 + latency) * dt`` by default."""
     return (predictor.alarm_periods + predictor.latency) * predictor.dt
-
-
-def check_warning_horizon(value: object) -> float | None:
-    """``warning_horizon``: None (the predictor's own) or a finite number ``>= 0`` (s)."""
-    if value is None:
-        return None
-    return check_number("warning_horizon", value, zero=True, unit=" of seconds")
 
 
 class WarningTime:

@@ -51,25 +51,22 @@ def check_frame_size(model: mujoco.MjModel, width: int, height: int, *, grow_buf
     vis = model.vis.global_
     if width <= vis.offwidth and height <= vis.offheight:
         return
+    w, h = max(width, vis.offwidth), max(height, vis.offheight)
+    xml = f'<visual><global offwidth="{w}" offheight="{h}"/></visual>'
     if grow_buffer:
         if max(width, height) > MAX_FRAME_SIZE:
             raise InvalidInputError(
                 f"a {width}x{height} frame is larger than this package renders "
                 f"({MAX_FRAME_SIZE} pixels a side, the model's offscreen buffer is "
                 f"{vis.offwidth}x{vis.offheight}): pass a width and height of at most "
-                f"{MAX_FRAME_SIZE}, or raise the model's buffer with <visual><global "
-                f'offwidth="{max(width, vis.offwidth)}" offheight="{max(height, vis.offheight)}"'
-                "/></visual> if your GL allows it."
+                f"{MAX_FRAME_SIZE}, or raise the model's buffer with {xml} if your GL allows it."
             )
-        vis.offwidth = max(int(vis.offwidth), int(width))
-        vis.offheight = max(int(vis.offheight), int(height))
+        vis.offwidth, vis.offheight = int(w), int(h)
         return
     raise InvalidInputError(
         f"a {width}x{height} frame does not fit the model's offscreen buffer "
-        f"({vis.offwidth}x{vis.offheight}): render at most that size, add "
-        f'<visual><global offwidth="{max(width, vis.offwidth)}" '
-        f'offheight="{max(height, vis.offheight)}"/></visual> to the model, or pass '
-        "grow_buffer=True."
+        f"({vis.offwidth}x{vis.offheight}): render at most that size, add {xml} to the model, "
+        "or pass grow_buffer=True."
     )
 
 

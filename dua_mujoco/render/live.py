@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from dua_mujoco.closing import Closing
+from dua_mujoco.core.validate import check_number
 from dua_mujoco.exceptions import DuaError, InvalidInputError
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.measure.report import RunInterrupted, RunReport
@@ -214,13 +215,10 @@ def view(
         RunInterrupted: On a Ctrl-C, with the report of the steps done.
         InvalidInputError: A bad ``rate``, ``fps`` or ``steps``, or no display.
     """
-    if not (isinstance(rate, int | float) and 0 <= rate < np.inf):
-        raise InvalidInputError(f"rate = {rate!r} is invalid: pass a number >= 0 (0: no pacing).")
-    if not (isinstance(fps, int | float) and 0 < fps < np.inf):
-        raise InvalidInputError(f"fps = {fps!r} is invalid: pass a number > 0.")
+    rate, fps = check_number("rate", rate, zero=True), check_number("fps", fps)
     total = 2**62 if steps is None else steps  # run checks it
     with LiveViewer(predictor, data, options=options, show_ui=show_ui) as viewer:
-        pace = _Pacer(viewer, data, rate=float(rate), fps=float(fps), log=log)
+        pace = _Pacer(viewer, data, rate=rate, fps=fps, log=log)
         try:
             return run(
                 model,

@@ -9,7 +9,7 @@ import numpy as np
 from dua_mujoco.build.bounds import DIVERGENCE_WARNINGS
 from dua_mujoco.exceptions import NonFiniteStateError, SchedulerError
 
-__all__ = ["clock_error", "divergence_count", "divergence_message", "nonfinite_error"]
+__all__ = ["clock_error", "divergence_message", "nonfinite_error"]
 
 
 def nonfinite_error(
@@ -50,11 +50,6 @@ def clock_error(
     )
 
 
-def divergence_count(data: mujoco.MjData) -> int:
-    """How many divergence warnings MuJoCo has raised on ``data``."""
-    return sum(int(data.warning[int(w)].number) for w in DIVERGENCE_WARNINGS)
-
-
 def divergence_message(data: mujoco.MjData, expected_steps: int) -> str:
     """Why the state jumped, if MuJoCo reset it after diverging (or "").
 
@@ -64,11 +59,9 @@ def divergence_message(data: mujoco.MjData, expected_steps: int) -> str:
     the predictor's calls imply) mean MuJoCo reset the state (a user's own ``mj_resetData``
     clears the warnings; a rewound ``data.time`` leaves the step count as it was).
     """
-    if divergence_count(data) == 0:
-        return ""
-    if int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number) == expected_steps:
-        return ""
     names = [w.name for w in DIVERGENCE_WARNINGS if data.warning[int(w)].number]
+    if not names or int(data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].number) == expected_steps:
+        return ""
     return (
         f"MuJoCo reported a NaN, inf or huge value ({', '.join(names)}) and reset the "
         f"simulation state itself (data.time is now {data.time:g} s): the simulation "

@@ -95,23 +95,18 @@ def _int(name: str, value: object, low: int, high: int) -> int:
     return int(value)
 
 
-class _Poses:
-    """Every geom's pose for rows of qpos (``mj_kinematics`` on a scratch data)."""
-
-    def __init__(self, model: mujoco.MjModel) -> None:
-        self.model = model
-        self.data = mujoco.MjData(model)
-
-    def __call__(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(rows, ngeom, 3)`` positions and ``(rows, ngeom, 9)`` rotations."""
-        m, d = self.model, self.data
-        pos = np.empty((qpos.shape[0], m.ngeom, 3))
-        mat = np.empty((qpos.shape[0], m.ngeom, 9))
-        for j, q in enumerate(qpos):
-            d.qpos[:] = q
-            mujoco.mj_kinematics(m, d)
-            pos[j], mat[j] = d.geom_xpos, d.geom_xmat
-        return pos, mat
+def _poses(
+    model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every geom's ``(rows, ngeom, 3)`` positions and ``(rows, ngeom, 9)`` rotations for rows
+    of ``qpos`` (``mj_kinematics`` on the scratch ``data``)."""
+    pos = np.empty((qpos.shape[0], model.ngeom, 3))
+    mat = np.empty((qpos.shape[0], model.ngeom, 9))
+    for j, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        pos[j], mat[j] = data.geom_xpos, data.geom_xmat
+    return pos, mat
 
 
 def deviation_profile(
@@ -161,11 +156,7 @@ def deviation_profile(
     records = pack_spheres(geom, body, offset, model.body_rootid)
     nbody = int(model.nbody)
     cols = _columns(body, nbody, geom.size)
-    profile = np.zeros((0, nbody))
-    for ages, (act_pos, act_mat), planned in _pilot(model, qpos, plans, safety):
-        dist = _core.plan_deviation(records, act_pos, act_mat, *planned, _NONE)  # (n, npts)
-        profile = _file(profile, ages, _per_column(dist, cols))
-    return float(safety) * np.maximum.accumulate(profile, axis=0)
+    return _profile(model, qpos, plans, safety, records, cols, _NONE)
 
 
 def _columns(owner: np.ndarray, nowner: int, npts: int) -> np.ndarray:
@@ -181,20 +172,26 @@ def _columns(owner: np.ndarray, nowner: int, npts: int) -> np.ndarray:
     return cols
 
 
-def _per_column(dist: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """``(n, nowner)`` the largest of each owner's points' ``(n, npts)`` distances (0: none)."""
-    pad = np.concatenate([dist, np.zeros((dist.shape[0], 1))], axis=1)
-    return np.asarray(pad[:, cols].max(axis=2))
-
-
-def _file(profile: np.ndarray, ages: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """``profile`` (grown to the largest age) raised to ``rows`` at their ``ages``."""
-    length = int(ages[-1]) + 1
-    if profile.shape[0] < length:
-        more = np.zeros((length - profile.shape[0], profile.shape[1]))
-        profile = np.concatenate([profile, more])
-    np.maximum.at(profile, ages, rows)
-    return profile
+def _profile(
+    model: mujoco.MjModel,
+    qpos: npt.ArrayLike,
+    plans: Iterable[Any],
+    safety: float,
+    records: np.ndarray,
+    cols: np.ndarray,
+    frame_of: np.ndarray,
+) -> np.ndarray:
+    """``(L, nowner)`` the largest deviation of each owner's points (``records``, in the frames
+    of geoms ``frame_of``, none: the world; ``cols``: :func:`_columns`, 0 for none) at each age
+    past the plans' origins, made non-decreasing in the age and times ``safety``."""
+    out = np.zeros((0, cols.shape[0]))
+    for ages, act, planned in _pilot(model, qpos, plans, safety):
+        dist = _core.plan_deviation(records, *act, *planned, frame_of)  # (n, npts)
+        pad = np.concatenate([dist, np.zeros((dist.shape[0], 1))], axis=1)
+        if out.shape[0] <= ages[-1]:  # grown to the largest age
+            out = np.concatenate([out, np.zeros((int(ages[-1]) + 1 - out.shape[0], cols.shape[0]))])
+        np.maximum.at(out, ages, pad[:, cols].max(axis=2))
+    return float(safety) * np.maximum.accumulate(out, axis=0)
 
 
 def _pilot(
@@ -208,9 +205,9 @@ def _pilot(
             f"safety = {safety!r} is invalid: pass a finite factor >= 1 (a factor below 1 "
             "would shrink the deviations measured)."
         )
-    poses = _Poses(model)
+    scratch = mujoco.MjData(model)
     T = actual.shape[0]
-    where = poses(actual)
+    where = _poses(model, scratch, actual)
     measured = 0
     for i, raw in enumerate(plans):
         plan = raw if isinstance(raw, PilotPlan) else PilotPlan(*raw)
@@ -219,7 +216,8 @@ def _pilot(
         origin = _int(f"plans[{i}].origin", plan.origin, 0, q.shape[0])
         n = min(q.shape[0], T - start)
         ages = np.maximum(np.arange(n) - origin, 0)
-        yield ages, (where[0][start : start + n], where[1][start : start + n]), poses(q[:n])
+        planned = _poses(model, scratch, q[:n])
+        yield ages, (where[0][start : start + n], where[1][start : start + n]), planned
         measured += 1
     if measured == 0:
         raise InvalidInputError(
@@ -304,7 +302,6 @@ def relative_profile(
     # Each body's frame (the geom its points are on) and its points.
     frame = np.full(model.nbody, -1, dtype=np.int64)
     frame[body] = geom
-    rel = np.zeros((0, candidates.shape[0]))
     a, b = candidates[:, 0], candidates[:, 1]
     # b's points once per pair with b second, each measured in the frame of a's geom (its
     # deviation in a's frame: RelativePose, plan.h), one column a pair.
@@ -313,15 +310,12 @@ def relative_profile(
     owner = np.repeat(np.arange(b.size), [m.size for m in mine])
     records = pack_spheres(geom[point], body[point], offset[point], model.body_rootid)
     cols = _columns(owner, b.size, point.size)
-    for ages, act, planned in _pilot(model, qpos, plans, safety):
-        dist = _core.plan_deviation(records, *act, *planned, frame[a][owner])
-        rel = _file(rel, ages, _per_column(dist, cols))
+    rel = _profile(model, qpos, plans, safety, records, cols, frame[a][owner])
     if rel.shape[0] > sums.shape[0]:
         raise ShapeError(
             f"profile has {sums.shape[0]} ages, the pilot's plans {rel.shape[0]}: pass "
             "deviation_profile of the same pilot and plans."
         )
-    rel = float(safety) * np.maximum.accumulate(rel, axis=0)
     # Kept: the pairs the relative bound frees at _FREED of the pilot's rows or more, at the
     # largest age (a geom pair between them farther than D_ab, nearer than D_a + D_b).
     last = rel.shape[0] - 1

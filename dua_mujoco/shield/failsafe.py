@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco import _core
+from dua_mujoco.build.geom_types import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_SPHERE
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 from dua_mujoco.runtime.flightplan import body_mask
 
@@ -85,18 +86,12 @@ def planar_radius(model: mujoco.MjModel, body: int) -> float:
     (spheres, cylinders and capsules by their radius, boxes by their half diagonal, others by
     their bounding sphere): the clearance an evasive failsafe counts from."""
     out = 0.0
-    for g in range(
-        int(model.body_geomadr[body]), int(model.body_geomadr[body] + model.body_geomnum[body])
-    ):
-        size = model.geom_size[g]
-        kind = int(model.geom_type[g])
-        if kind in (
-            mujoco.mjtGeom.mjGEOM_SPHERE,
-            mujoco.mjtGeom.mjGEOM_CYLINDER,
-            mujoco.mjtGeom.mjGEOM_CAPSULE,
-        ):
+    first = int(model.body_geomadr[body])
+    for g in range(first, first + int(model.body_geomnum[body])):
+        size, kind = model.geom_size[g], int(model.geom_type[g])
+        if kind in (GEOM_SPHERE, GEOM_CYLINDER, GEOM_CAPSULE):
             r = float(size[0])
-        elif kind == mujoco.mjtGeom.mjGEOM_BOX:
+        elif kind == GEOM_BOX:
             r = float(np.hypot(size[0], size[1]))
         else:
             r = float(model.geom_rbound[g])

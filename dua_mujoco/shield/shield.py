@@ -160,21 +160,11 @@ class Shield:
                     f"rest_speed = {rest_speed}: pass Evade(..., still={rest_speed}) or more "
                     "(past the rest knot it must be the brake, docs/theory.md)."
                 )
-            if not np.array_equal(failsafe.actuators, acts):
-                raise InvalidInputError(
-                    f"failsafe: an Evade of actuators {failsafe.actuators.tolist()}; the robot's "
-                    f"are {acts.tolist()}: make it Evade(model, actuators=...) of those."
-                )
             robot_ids = (failsafe.actuators, failsafe.robot_bodies)
             tc, policy, evade = failsafe.time_constant, None, failsafe.args
         elif failsafe is None or isinstance(failsafe, Brake):
             tc = h if failsafe is None else failsafe.time_constant
             brake = Brake(model, actuators=acts, time_constant=tc)
-            if isinstance(failsafe, Brake) and not np.array_equal(failsafe.actuators, acts):
-                raise InvalidInputError(
-                    f"failsafe: a Brake of actuators {failsafe.actuators.tolist()}; the robot's "
-                    f"are {acts.tolist()}: make it Brake(model, actuators=...) of those."
-                )
             robot_ids, policy = (brake.actuators, brake.bodies), None
         elif callable(failsafe):
             brake, tc, policy = Brake(model, actuators=acts), h, failsafe
@@ -183,6 +173,13 @@ class Shield:
             raise InvalidInputError(
                 f"failsafe = {failsafe!r} is invalid: pass None, a Brake, or a callable "
                 "policy(model, data) -> (nu,) controls."
+            )
+        if isinstance(failsafe, Brake | Evade) and not np.array_equal(failsafe.actuators, acts):
+            kind = type(failsafe).__name__
+            raise InvalidInputError(
+                f"failsafe: {'an' if kind == 'Evade' else 'a'} {kind} of actuators "
+                f"{failsafe.actuators.tolist()}; the robot's are {acts.tolist()}: make it "
+                f"{kind}(model, actuators=...) of those."
             )
         self.model = model
         self.robot_actuators, self.robot_bodies = robot_ids

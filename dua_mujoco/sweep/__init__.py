@@ -68,16 +68,10 @@ def sweep(
         workers = min(os.cpu_count() or 1, max(len(tasks), 1))
     if not (isinstance(workers, int) and workers >= 1):
         raise InvalidInputError(f"workers = {workers!r} is invalid: pass an int >= 1.")
-    rows: dict[int, dict[str, Any]] = {}
-
-    def collect(index: int, row: dict[str, Any]) -> None:
-        rows[index] = row
-        if on_row is not None:
-            on_row(index, row)
-
+    report = on_row or (lambda index, row: None)
     if ray is False:
-        run_local(tasks, runner, workers=workers, on_row=collect)
+        rows = run_local(tasks, runner, workers=workers, on_row=report)
     else:
         address = None if ray is True else str(ray)
-        run_ray(tasks, runner, address=address, num_cpus=workers, on_row=collect)
+        rows = run_ray(tasks, runner, address=address, num_cpus=workers, on_row=report)
     return [rows[i] for i in range(len(tasks))]
