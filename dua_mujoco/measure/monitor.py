@@ -50,8 +50,8 @@ class Monitor:
         predictor: A predictor (``reset`` is called by ``start``).
         check_bounds: Run a ``BoundMonitor`` each physics step (needed to tell valid-bound
             misses from misses after a broken bound).
-        realtime: Treat the predictor period as a deadline: a predictor step slower than
-            ``predictor.dt`` counts as an overrun and warns once (the "cannot keep up" signal).
+        realtime: Kept for the caller that times the steps: :func:`~dua_mujoco.measure.rollout.run`
+            counts a predictor step slower than ``predictor.dt`` in ``overruns`` and warns once.
         geom_distance: Also measure the exact distance (``mj_geomDistance``) of every alarmed
             geom pair at each predictor step: how far the exact stage finds alarmed pairs (one
             float64 per alarmed pair and step is kept for the median).
