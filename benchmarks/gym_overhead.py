@@ -20,6 +20,13 @@ standing alarms, ``min_tau``, names) are timed apart (``predictor.step``: the ru
 the overhead is the rest of the wrapper's ``step`` and the caches the predictor's work takes
 from MuJoCo's.
 
+The paired ratio steps the plain and the wrapped env in turn, one step each with the same
+action, the order alternating step by step (the second finds MuJoCo's code warm from the first),
+and gives the median over rounds of each round's median wrapped / median plain: both sides of
+the ratio see the same load, which the rounds above (400 steps of one env, then of the other)
+do not on a shared machine. Two plain envs paired the same way give the method's own spread
+(plain / plain, 1.000 when exact).
+
 With ``--before``, another checkout is measured too, in its own environment: each side runs
 this script in a subprocess (``--json``, ``--rounds`` rounds), the sides alternating
 ``--repeats`` times; a figure is the median over repeats, and the table gives each side's ratio.
@@ -48,6 +55,27 @@ ENVS = ("Ant-v5", "Humanoid-v5", "Pusher-v5")
 def _make(env_id: str) -> gym.Env:
     make = {"terminate_when_unhealthy": False} if env_id in ("Ant-v5", "Humanoid-v5") else {}
     return gym.make(env_id, max_episode_steps=10**9, **make)
+
+
+def _paired(plain: gym.Env, wrapped: gym.Env, steps: int, seed: int) -> tuple[float, float]:
+    """Median seconds of one ``env.step`` of each env over ``steps`` steps from the same seeded
+    reset, the two envs stepping in turn (the same action to both): both see the same load."""
+    for env in (plain, wrapped):
+        env.reset(seed=seed)
+    plain.action_space.seed(seed)
+    envs = (plain, wrapped)
+    times = np.empty((steps, 2))
+    for k in range(steps):
+        action = plain.action_space.sample()
+        # The second of the two steps finds MuJoCo's code warm from the first: the order
+        # alternates, so each env takes each place in half of the steps.
+        first = k % 2
+        t0 = time.perf_counter()
+        envs[first].step(action)
+        t1 = time.perf_counter()
+        envs[1 - first].step(action)
+        times[k, first], times[k, 1 - first] = t1 - t0, time.perf_counter() - t1
+    return float(np.median(times[:, 0])), float(np.median(times[:, 1]))
 
 
 def _round(env: gym.Env, steps: int, seed: int) -> float:
@@ -91,6 +119,7 @@ class _OneCall(gym.Wrapper):
 
 def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
     plain = _make(env_id)
+    twin = _make(env_id)  # a second plain env, paired with the first: the null ratio
     wrapped = PredictCollisions(_make(env_id))
     one_call = _OneCall(_make(env_id))
     probe = PredictCollisions(_make(env_id))  # timed inside; its own time is not reported
@@ -116,10 +145,19 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
         probe._step_info = timed(probe._step_info, "predictor")
     elif hasattr(probe._runtime, "step_watched"):
         probe._runtime = _TimedRuntime(probe._runtime, timed)
-    for env in (plain, wrapped, one_call, probe):  # warm-up: caches, the step's first call
+    for env in (plain, twin, wrapped, one_call, probe):  # warm-up: caches, the step's first call
         _round(env, 20, 0)
-    names = ("plain", "wrapped", "one_call", "predictor", "observe")
+    names = (
+        "plain",
+        "wrapped",
+        "one_call",
+        "predictor",
+        "observe",
+        "paired_plain",
+        "paired_wrapped",
+    )
     rows: dict[str, list[float]] = {k: [] for k in names}
+    ratios: dict[str, list[float]] = {"paired": [], "null": []}  # paired rounds' ratios
     for r in range(rounds):
         for name in parts:
             parts[name].clear()
@@ -127,9 +165,17 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
         rows["wrapped"].append(_round(wrapped, steps, r))
         rows["one_call"].append(_round(one_call, steps, r))
         _round(probe, steps, r)
+        pair = _paired(plain, wrapped, steps, r)
+        rows["paired_plain"].append(pair[0])
+        rows["paired_wrapped"].append(pair[1])
+        ratios["paired"].append(pair[1] / pair[0])
+        null = _paired(plain, twin, steps, r)  # two plain envs: the method's own spread
+        ratios["null"].append(null[1] / null[0])
         for name, times in parts.items():
             rows[name].append(float(np.median(times)) if times else 0.0)
     out = {f"{k}_us": float(np.median(v)) * 1e6 for k, v in rows.items()}
+    out["paired_ratio"] = float(np.median(ratios["paired"]))
+    out["null_ratio"] = float(np.median(ratios["null"]))
     return {**out, "pairs": predictor.nsphere_pairs, "frame_skip": predictor.period}
 
 
@@ -150,9 +196,10 @@ def ab(args: argparse.Namespace) -> None:
     print(
         "| env | env.step plain before (us) | wrapped before (us) | ratio before "
         "| plain after (us) | wrapped after (us) | ratio after | predictor.step after (us) "
-        "| bookkeeping after (us) | one native call, after |"
+        "| bookkeeping after (us) | one native call, after | paired ratio before "
+        "| paired ratio after | plain / plain, paired (before; after) |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for env_id in args.envs:
         med = {
             s: {
@@ -161,12 +208,15 @@ def ab(args: argparse.Namespace) -> None:
             for s in sides
         }
         b, a = med["before"], med["after"]
+        nan = float("nan")
         print(
             f"| {env_id} | {b['plain_us']:.1f} | {b['wrapped_us']:.1f} "
             f"| {b['wrapped_us'] / b['plain_us']:.3f} | {a['plain_us']:.1f} "
             f"| {a['wrapped_us']:.1f} | {a['wrapped_us'] / a['plain_us']:.3f} "
             f"| {a['predictor_us']:.1f} | {a['observe_us']:.1f} "
-            f"| {a['one_call_us'] / a['plain_us']:.3f} |",
+            f"| {a['one_call_us'] / a['plain_us']:.3f} | {b.get('paired_ratio', nan):.3f} "
+            f"| {a['paired_ratio']:.3f} | {b.get('null_ratio', nan):.3f}; "
+            f"{a['null_ratio']:.3f} |",
             flush=True,
         )
 
@@ -191,16 +241,17 @@ def main() -> None:
     print(
         "| env | frame_skip | sphere pairs | env.step plain (us) | wrapped (us) | ratio "
         "| overhead (us) | of it predictor.step (us) | of it bookkeeping (us) "
-        "| one native call / plain |"
+        "| one native call / plain | paired ratio | plain / plain, paired |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for env_id in args.envs:
         m = measure(env_id, rounds=args.rounds, steps=args.steps)
         print(
             f"| {env_id} | {m['frame_skip']} | {m['pairs']} | {m['plain_us']:.1f} "
             f"| {m['wrapped_us']:.1f} | {m['wrapped_us'] / m['plain_us']:.3f} "
             f"| {m['wrapped_us'] - m['plain_us']:.1f} | {m['predictor_us']:.1f} "
-            f"| {m['observe_us']:.1f} | {m['one_call_us'] / m['plain_us']:.3f} |",
+            f"| {m['observe_us']:.1f} | {m['one_call_us'] / m['plain_us']:.3f} "
+            f"| {m['paired_ratio']:.3f} | {m['null_ratio']:.3f} |",
             flush=True,
         )
 
