@@ -133,15 +133,6 @@ def _disabled(model: mujoco.MjModel, flag: mujoco.mjtDisableBit) -> bool:
     return bool(int(model.opt.disableflags) & int(flag))
 
 
-def _enabled(model: mujoco.MjModel, flag: mujoco.mjtEnableBit) -> bool:
-    return bool(int(model.opt.enableflags) & int(flag))
-
-
-def _has_collision_function(t1: np.ndarray, t2: np.ndarray) -> np.ndarray:
-    """Where ``mjCOLLISIONFUNC`` has an entry: not plane-plane, plane-hfield, hfield-hfield."""
-    return ~(np.isin(t1, (GEOM_PLANE, GEOM_HFIELD)) & np.isin(t2, (GEOM_PLANE, GEOM_HFIELD)))
-
-
 def _empty() -> GeomPairs:
     return GeomPairs(
         geom1=np.zeros(0, np.int32),
@@ -236,7 +227,9 @@ def _with_explicit(
         g1, g2 = g1[~merged], g2[~merged]
         pmargin = np.asarray(model.pair_margin, dtype=np.float64)
         pgap = np.asarray(model.pair_gap, dtype=np.float64)
-        valid = _has_collision_function(types[lo], types[hi])
+        # Where mjCOLLISIONFUNC has an entry: not plane-plane, plane-hfield, hfield-hfield.
+        lone = np.isin(types, (GEOM_PLANE, GEOM_HFIELD))
+        valid = ~(lone[lo] & lone[hi])
         lo, hi, pmargin, pgap = lo[valid], hi[valid], pmargin[valid], pgap[valid]
     else:
         lo = hi = np.zeros(0, np.int64)
@@ -276,7 +269,7 @@ def _with_explicit(
 
 def margin_override(model: mujoco.MjModel) -> float | None:
     """The margin every pair takes under ``mjENBL_OVERRIDE`` (``opt.o_margin``), or None."""
-    if _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE):
+    if int(model.opt.enableflags) & int(mujoco.mjtEnableBit.mjENBL_OVERRIDE):
         return float(model.opt.o_margin)
     return None
 
@@ -425,12 +418,10 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
 
 
 def body_id(model: mujoco.MjModel, body: int | str) -> int:
-    names = [
-        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)
-    ]
     if isinstance(body, str):
         bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
         if bid < 0:
+            names = (model.body(b).name for b in range(model.nbody))
             raise InvalidChoiceError("body", body, [n for n in names if n])
         return int(bid)
     if isinstance(body, bool) or not isinstance(body, int | np.integer):
@@ -472,8 +463,7 @@ def sphere_pair_mask(
 ) -> np.ndarray:
     """``(n,)`` bool over ``sphere_pairs``: those of the geom pairs ``geom_pair_indices``,
     ``(k,)`` indices into the :class:`GeomPairs` they were built from."""
-    if isinstance(geom_pair_indices, Iterable) and not isinstance(geom_pair_indices, np.ndarray):
-        idx = np.asarray(list(geom_pair_indices), dtype=np.int64).reshape(-1)
-    else:
-        idx = np.asarray(geom_pair_indices, dtype=np.int64).reshape(-1)
-    return np.isin(sphere_pairs.geom_pair, idx)
+    idx = geom_pair_indices
+    if isinstance(idx, Iterable) and not isinstance(idx, np.ndarray):
+        idx = np.asarray(list(idx), dtype=np.int64)
+    return np.isin(sphere_pairs.geom_pair, np.asarray(idx, dtype=np.int64).reshape(-1))
