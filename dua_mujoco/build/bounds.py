@@ -376,9 +376,7 @@ def estimate_bounds(
         raise InvalidInputError(f"safety must be >= 1; got {safety}.")
     motion = as_choice(PilotMotion, motion, "pilot motion")
     rng = np.random.default_rng(seed)
-    sgeom, sbody, soff = (
-        default_spheres(model) if spheres is None else (np.asarray(a) for a in spheres)
-    )
+    sgeom, sbody, soff = default_spheres(model) if spheres is None else spheres
     sgeom = np.asarray(sgeom, dtype=np.int64)
     sbody = np.asarray(sbody, dtype=np.int64)
     soff = np.asarray(soff, dtype=np.float64).reshape(-1, 3)

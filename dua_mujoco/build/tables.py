@@ -58,30 +58,21 @@ class PairTables:
         model: mujoco.MjModel,
         covering: Covering,
         sphere_pairs: SpherePairs,
-        names: np.ndarray | None = None,
     ) -> PairTables:
         """The tables of ``sphere_pairs`` over ``covering`` (``geom2`` of a half-space pair is
-        its plane geom, of a shape pair its static geom); ``names``: ``geom_names(model)``,
-        if at hand."""
+        its plane geom, of a shape pair its static geom)."""
         sp = sphere_pairs
         kind = sp.kind
         second = np.asarray(sp.second, dtype=np.int64)
         geom2 = np.full(second.shape, -1, dtype=np.int64)
         h = np.asarray(sp.is_halfspace, dtype=bool)
         s = kind == KIND_SHAPE
-        two = ~(h | s)
         geom2[h] = np.asarray(covering.plane_geom, dtype=np.int64)[second[h]]
         geom2[s] = np.asarray(covering.shape_geom, dtype=np.int64)[second[s]]
-        geom2[two] = covering.sphere_geom[second[two]]
-        return cls(
-            first=np.asarray(sp.first, dtype=np.int64),
-            second=np.asarray(sp.second, dtype=np.int64),
-            halfspace=h,
-            geom1=np.asarray(covering.sphere_geom[sp.first], dtype=np.int64),
-            geom2=geom2,
-            geom_names=geom_names(model) if names is None else names,
-            kind=kind,
-        )
+        geom2[~(h | s)] = covering.sphere_geom[second[~(h | s)]]
+        first = np.asarray(sp.first, dtype=np.int64)
+        geom1 = np.asarray(covering.sphere_geom[sp.first], dtype=np.int64)
+        return cls(first, second, h, geom1, geom2, geom_names(model), kind)
 
 
 def geom_names(model: mujoco.MjModel) -> np.ndarray:
