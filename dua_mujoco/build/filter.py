@@ -387,13 +387,8 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
     na = start[ga + 1] - start[ga]
     single = halfspace | shape
     nb = np.where(single, 1, start[gb + 1] - start[gb])
-    missing = np.flatnonzero(na == 0)
-    if missing.size == 0:
-        missing = np.flatnonzero(~single & (nb == 0))
-        bad_geom = gb[missing]
-    else:
-        bad_geom = ga[missing]
-    if missing.size:
+    bad_geom = np.concatenate([ga[na == 0], gb[~single & (nb == 0)]])
+    if bad_geom.size:
         g = int(bad_geom[0])
         raise UnsupportedGeomError(
             f"geom {g} is in an active pair but has no covering spheres; build the covering with "
