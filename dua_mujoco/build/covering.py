@@ -399,20 +399,18 @@ def cover_model(
     np.cumsum(counts, out=start[1:])
     sphere_geom = np.repeat(np.arange(ngeom, dtype=np.int32), counts)
     body = np.asarray(model.geom_bodyid, dtype=np.int32)
-    shape_geom = np.flatnonzero(as_shape).astype(np.int32)
+    planes = np.asarray(plane_geom, dtype=np.int32)
     return Covering(
         sphere_geom=sphere_geom,
-        sphere_body=body[sphere_geom] if ngeom else np.zeros(0, dtype=np.int32),
+        sphere_body=body[sphere_geom],
         sphere_offset=np.concatenate(centres) if centres else np.zeros((0, 3)),
         sphere_radius=np.concatenate(radii) if radii else np.zeros(0),
         geom_sphere_start=start,
-        plane_geom=np.asarray(plane_geom, dtype=np.int32),
+        plane_geom=planes,
         geom_plane=geom_plane,
         mode=cmode,
-        plane_static=np.asarray(model.body_weldid)[body[plane_geom]] == 0
-        if plane_geom
-        else np.zeros(0, dtype=bool),
-        shape_geom=shape_geom,
+        plane_static=np.asarray(model.body_weldid)[body[planes]] == 0,
+        shape_geom=np.flatnonzero(as_shape).astype(np.int32),
         static=static,
     )
 

@@ -216,14 +216,13 @@ def _with_explicit(
         lo, hi = np.minimum(p1, p2), np.maximum(p1, p2)
         # A dynamic pair is replaced only when the explicit pair has the same geoms and the same
         # body-pair signature (filterCollisionPair's `merged` scan over pair_signature).
-        dyn_keys = _pair_keys(g1, g2)
-        candidates = np.flatnonzero(np.isin(dyn_keys, _pair_keys(lo, hi)))
+        dyn_keys, keys = _pair_keys(g1, g2), _pair_keys(lo, hi)
+        explicit_sigs = set(zip(keys.tolist(), psig.tolist(), strict=True))
+        candidates = np.flatnonzero(np.isin(dyn_keys, keys))
         merged = np.zeros(g1.shape[0], dtype=bool)
-        explicit_sigs: dict[int, set[int]] = {}
-        for k in range(npair):
-            explicit_sigs.setdefault((int(lo[k]) << 32) | int(hi[k]), set()).add(int(psig[k]))
-        for i in candidates:
-            merged[i] = int(signature[i]) in explicit_sigs[int(dyn_keys[i])]
+        merged[candidates] = [
+            (int(dyn_keys[i]), int(signature[i])) in explicit_sigs for i in candidates
+        ]
         g1, g2 = g1[~merged], g2[~merged]
         pmargin = np.asarray(model.pair_margin, dtype=np.float64)
         pgap = np.asarray(model.pair_gap, dtype=np.float64)
