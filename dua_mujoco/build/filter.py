@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
-from typing import TypeVar
 
 import mujoco
 import numpy as np
@@ -30,7 +29,6 @@ __all__ = [
     "GeomPairs",
     "SpherePairs",
     "active_geom_pairs",
-    "appended",
     "body_id",
     "candidate_geom_pairs",
     "contact_distance_bound",
@@ -90,7 +88,8 @@ class GeomPairs:
 
     def concat(self, other: GeomPairs) -> GeomPairs:
         """These pairs, then ``other``'s (none of them among these)."""
-        return appended(self, other)
+        init = [f.name for f in fields(self) if f.init]
+        return GeomPairs(*(np.concatenate([getattr(self, n), getattr(other, n)]) for n in init))
 
     def index_of(self, g1: int, g2: int) -> int:
         """Index of the geom pair ``{g1, g2}`` (either order), or -1 if it is not active."""
@@ -106,23 +105,6 @@ class GeomPairs:
             return np.full(keys.shape, -1, dtype=np.int64)
         i = np.minimum(np.searchsorted(self._keys, keys), self._keys.shape[0] - 1)
         return np.where(self._keys[i] == keys, self._order[i], -1).astype(np.int64)
-
-
-PairsT = TypeVar("PairsT")
-
-
-def appended(first: PairsT, then: PairsT, *, shared: tuple[str, ...] = ()) -> PairsT:
-    """A pair dataclass (``GeomPairs``, ``SpherePairs``, ``PairTables``) with ``then``'s pairs
-    after ``first``'s: every per-pair field concatenated, the ``shared`` ones (per geom, not per
-    pair) ``first``'s."""
-    values = {
-        f.name: getattr(first, f.name)
-        if f.name in shared
-        else np.concatenate([getattr(first, f.name), getattr(then, f.name)])
-        for f in fields(first)  # type: ignore[arg-type]
-        if f.init
-    }
-    return type(first)(**values)
 
 
 def _pair_keys(g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
