@@ -3,7 +3,8 @@ centres and velocities (the native core's ``dua_rigid_point``), and sphere state
 
 Every reader of sphere states (the predictor's step and its full reads, the bound checks, the
 pilot that estimates bounds, the overlays) runs that kernel: the step directly, the others
-through :func:`rigid_point` (and :func:`sphere_states` when they want arrays). After ``mj_step``
+through :func:`sphere_states` or :class:`PointMotion`. A point's centre is ``geom_xpos[g] +
+geom_xmat[g] @ offset`` (:func:`mjdata_frame` has the instant it reads). After ``mj_step``
 the kinematics in ``MjData`` (``geom_xpos``, ``cvel``, ``subtree_com``) are one consistent
 instant, the start of the step (RK4: its last stage; docs/discrete-time.md). ``d.cvel[b]`` is
 ``[omega; v_ref]`` with ``v_ref`` the velocity at ``subtree_com`` of ``b``'s root, so
@@ -82,10 +83,6 @@ def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> Frame:
     """The instant the kinematics kernel reads, as views of ``data``'s buffers: ``(geom_xpos
     (ngeom, 3), geom_xmat (ngeom, 9), cvel (nbody, 6), subtree_com (nbody, 3), root_twist
     (nbody, 6), xpos (nbody, 3))``.
-
-    A point's centre is ``geom_xpos[g] + geom_xmat[g] @ offset``; its velocity the body twist
-    ``[omega; v_ref]`` about ``subtree_com`` of its root (MuJoCo's ``cvel``), plus the twist of a
-    mocap root about its origin ``xpos`` (zero rows elsewhere).
 
     Args:
         data: The MuJoCo data (kinematics computed).
