@@ -411,9 +411,8 @@ def estimate_bounds(
         ctrl(model, d, rng)
         mujoco.mj_step(model, d)
         tracker.update(d)
-        if model.nmocap:
-            mocap_moved |= (d.mocap_pos != mocap_start[0]).any(axis=1)
-            mocap_moved |= (d.mocap_quat != mocap_start[1]).any(axis=1)
+        mocap_moved |= (d.mocap_pos != mocap_start[0]).any(axis=1)
+        mocap_moved |= (d.mocap_quat != mocap_start[1]).any(axis=1)
         free, calm = screen.update(d)
         levels = (free[sbody], calm[sbody], np.ones(len(sbody), dtype=bool))
         points.update(d, tracker.twist, h)
@@ -446,11 +445,7 @@ def estimate_bounds(
             "timestep, or check the model and the pilot's controls."
         )
     if not mocap_moved.all():
-        still = [
-            model.body(int(b)).name or str(int(b))
-            for b in np.flatnonzero(np.asarray(model.body_mocapid) >= 0)
-            if not mocap_moved[int(model.body_mocapid[b])]
-        ]
+        still = [model.body(int(b)).name or str(int(b)) for b in tracker.mocap_bodies[~mocap_moved]]
         warnings.warn(
             f"the pilot never moved mocap bod{'y' if len(still) == 1 else 'ies'} {still}, so "
             "their bounds are 0: if the run moves them, every step breaks those bounds and "
