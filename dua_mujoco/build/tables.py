@@ -188,12 +188,11 @@ def static_shapes(
     if data is not None:
         _check_static_poses(model, g, pos, mat, data)
     types = np.asarray(model.geom_type, dtype=np.int64)[g]
-    size = np.asarray(model.geom_size, dtype=np.float64)[g].copy()
+    size = np.asarray(model.geom_size, dtype=np.float64)[g]  # (indexing copies)
     mesh = types == int(ShapeKind.MESH_BOX)
     if mesh.any():
         half, centre = mesh_box(np.asarray(model.geom_aabb)[g[mesh]], pos[mesh], mat[mesh])
         size[mesh] = half
-        pos = pos.copy()
         pos[mesh] = centre
     terrain = types == int(ShapeKind.HFIELD)
     records = np.zeros((g.size, SHAPE_NCOL))
