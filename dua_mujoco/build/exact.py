@@ -258,7 +258,6 @@ def exact_records(
 ) -> np.ndarray:
     """``(n, X_NCOL)`` records of sphere pairs (``build_exact``'s arguments) over the level's
     per-geom records ``geoms``: a pruned predictor adds the pairs it meets with these."""
-    # The native core's rows (a pruned predictor makes those of the pairs it meets with them).
     g1 = np.asarray(geom1, dtype=np.int64)
     dist = np.broadcast_to(np.asarray(contact_distance, dtype=np.float64), g1.shape)
     return exact_rows(geoms, g1, np.asarray(geom2, dtype=np.int64), np.asarray(kind, np.int8), dist)

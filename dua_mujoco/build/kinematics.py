@@ -110,11 +110,7 @@ def sphere_states(
         InvalidInputError: A sphere id is out of range, or a record indexes outside ``frame``
             (the MjData of another model).
     """
-    sel = (
-        np.arange(spheres.shape[0], dtype=np.int64)
-        if ids is None
-        else np.asarray(ids, dtype=np.int64).reshape(-1)
-    )
+    sel = np.asarray(np.arange(spheres.shape[0]) if ids is None else ids, np.int64).reshape(-1)
     pos, mat, twist, twist_ref, root_twist, root_origin = frame
     out = rigid_points(spheres, pos, mat, twist, twist_ref, root_twist, root_origin, sel)
     return out[:, :3], out[:, 3:]
