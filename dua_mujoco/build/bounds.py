@@ -376,9 +376,7 @@ def estimate_bounds(
         raise InvalidInputError(f"safety must be >= 1; got {safety}.")
     motion = as_choice(PilotMotion, motion, "pilot motion")
     rng = np.random.default_rng(seed)
-    sgeom, sbody, soff = (
-        default_spheres(model) if spheres is None else (np.asarray(a) for a in spheres)
-    )
+    sgeom, sbody, soff = default_spheres(model) if spheres is None else spheres
     sgeom = np.asarray(sgeom, dtype=np.int64)
     sbody = np.asarray(sbody, dtype=np.int64)
     soff = np.asarray(soff, dtype=np.float64).reshape(-1, 3)
@@ -413,9 +411,8 @@ def estimate_bounds(
         ctrl(model, d, rng)
         mujoco.mj_step(model, d)
         tracker.update(d)
-        if model.nmocap:
-            mocap_moved |= (d.mocap_pos != mocap_start[0]).any(axis=1)
-            mocap_moved |= (d.mocap_quat != mocap_start[1]).any(axis=1)
+        mocap_moved |= (d.mocap_pos != mocap_start[0]).any(axis=1)
+        mocap_moved |= (d.mocap_quat != mocap_start[1]).any(axis=1)
         free, calm = screen.update(d)
         levels = (free[sbody], calm[sbody], np.ones(len(sbody), dtype=bool))
         points.update(d, tracker.twist, h)
@@ -448,11 +445,7 @@ def estimate_bounds(
             "timestep, or check the model and the pilot's controls."
         )
     if not mocap_moved.all():
-        still = [
-            model.body(int(b)).name or str(int(b))
-            for b in np.flatnonzero(np.asarray(model.body_mocapid) >= 0)
-            if not mocap_moved[int(model.body_mocapid[b])]
-        ]
+        still = [model.body(int(b)).name or str(int(b)) for b in tracker.mocap_bodies[~mocap_moved]]
         warnings.warn(
             f"the pilot never moved mocap bod{'y' if len(still) == 1 else 'ies'} {still}, so "
             "their bounds are 0: if the run moves them, every step breaks those bounds and "

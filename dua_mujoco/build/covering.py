@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from dua_mujoco.build.bounds import moving_bodies
 from dua_mujoco.build.geom_types import (
     CONVEX_TYPES,
     GEOM_BOX,
@@ -26,7 +27,6 @@ from dua_mujoco.build.geom_types import (
     GEOM_CYLINDER,
     GEOM_ELLIPSOID,
     GEOM_HFIELD,
-    GEOM_MESH,
     GEOM_PLANE,
     GEOM_SDF,
     GEOM_SPHERE,
@@ -200,10 +200,7 @@ def static_shape_geoms(model: mujoco.MjModel) -> np.ndarray:
 
 def _static_geoms(model: mujoco.MjModel) -> np.ndarray:
     """Geoms welded to the world and in no ``<pair>`` with another such geom: ``(ngeom,)``."""
-    gbody = np.asarray(model.geom_bodyid, dtype=np.int64)
-    static = np.asarray(model.body_weldid, dtype=np.int64)[gbody] == 0
-    # Since MuJoCo 4.0 mocap bodies are weld roots (body_weldid = own id); say it anyway.
-    static &= np.asarray(model.body_mocapid, dtype=np.int64)[gbody] < 0
+    static = ~moving_bodies(model)[np.asarray(model.geom_bodyid, dtype=np.int64)]
     if model.npair:
         p1 = np.asarray(model.pair_geom1, dtype=np.int64)
         p2 = np.asarray(model.pair_geom2, dtype=np.int64)
@@ -241,15 +238,7 @@ def _cover_geom(
             "Set its contype and conaffinity to 0 (and remove it from <pair> elements) to leave "
             "it out of collision prediction."
         )
-    if gtype not in (
-        GEOM_HFIELD,
-        GEOM_SPHERE,
-        GEOM_CAPSULE,
-        GEOM_ELLIPSOID,
-        GEOM_CYLINDER,
-        GEOM_BOX,
-        GEOM_MESH,
-    ):
+    if gtype != GEOM_HFIELD and gtype not in CONVEX_TYPES:
         raise UnsupportedGeomError(
             f"{_geom_name(model, g)} has geom type {_type_name(gtype)}, which dua_mujoco cannot "
             "cover by spheres."
@@ -307,10 +296,7 @@ def _terrain_of(model: mujoco.MjModel, collidable: np.ndarray) -> np.ndarray:
     """The collidable height fields held as terrain; a moving one is refused."""
     hfields = collidable & (np.asarray(model.geom_type, dtype=np.int64) == GEOM_HFIELD)
     gbody = np.asarray(model.geom_bodyid, dtype=np.int64)
-    moving = hfields & (
-        (np.asarray(model.body_weldid, dtype=np.int64)[gbody] != 0)
-        | (np.asarray(model.body_mocapid, dtype=np.int64)[gbody] >= 0)
-    )
+    moving = hfields & moving_bodies(model)[gbody]
     if moving.any():
         g = int(np.flatnonzero(moving)[0])
         body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(gbody[g])) or "unnamed"
@@ -413,20 +399,18 @@ def cover_model(
     np.cumsum(counts, out=start[1:])
     sphere_geom = np.repeat(np.arange(ngeom, dtype=np.int32), counts)
     body = np.asarray(model.geom_bodyid, dtype=np.int32)
-    shape_geom = np.flatnonzero(as_shape).astype(np.int32)
+    planes = np.asarray(plane_geom, dtype=np.int32)
     return Covering(
         sphere_geom=sphere_geom,
-        sphere_body=body[sphere_geom] if ngeom else np.zeros(0, dtype=np.int32),
+        sphere_body=body[sphere_geom],
         sphere_offset=np.concatenate(centres) if centres else np.zeros((0, 3)),
         sphere_radius=np.concatenate(radii) if radii else np.zeros(0),
         geom_sphere_start=start,
-        plane_geom=np.asarray(plane_geom, dtype=np.int32),
+        plane_geom=planes,
         geom_plane=geom_plane,
         mode=cmode,
-        plane_static=np.asarray(model.body_weldid)[body[plane_geom]] == 0
-        if plane_geom
-        else np.zeros(0, dtype=bool),
-        shape_geom=shape_geom,
+        plane_static=np.asarray(model.body_weldid)[body[planes]] == 0,
+        shape_geom=np.flatnonzero(as_shape).astype(np.int32),
         static=static,
     )
 

@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco._core import LAYOUT
-from dua_mujoco.build.bounds import MotionBounds
+from dua_mujoco.build.bounds import MotionBounds, moving_bodies
 
 __all__ = ["BodyBoxes", "EventTable", "body_boxes", "build_events", "no_events"]
 
@@ -29,6 +29,8 @@ B_CENTER = LAYOUT["B_CENTER"]  # 3 columns: the box's centre in the frame
 B_HALF = LAYOUT["B_HALF"]  # 3 columns: its half extents
 B_ACCEL, B_DISC, B_SPEED = LAYOUT["B_ACCEL"], LAYOUT["B_DISC"], LAYOUT["B_SPEED"]
 NB_REC = LAYOUT["NB_REC"]
+# The signs of a box's eight corners, one row a corner.
+_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
 
 
 class BodyBoxes(NamedTuple):
@@ -49,10 +51,7 @@ class BodyBoxes(NamedTuple):
     def corners(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(geom (8 nb,), body (8 nb,), offset (8 nb, 3))``: the eight corners of every box,
         the layout of a covering's ``(sphere_geom, sphere_body, sphere_offset)``."""
-        signs = np.array(
-            [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float
-        )
-        offset = self.center[:, None, :] + signs[None] * self.half[:, None, :]
+        offset = self.center[:, None, :] + _SIGNS[None] * self.half[:, None, :]
         return np.repeat(self.frame, 8), np.repeat(self.body, 8), offset.reshape(-1, 3)
 
 
@@ -155,9 +154,6 @@ def build_events(
     model: mujoco.MjModel, boxes: BodyBoxes, bounds: MotionBounds, *, period: int
 ) -> EventTable:
     """The :class:`EventTable` of the moving bodies among ``boxes``."""
-    moving = bounds.accel[boxes.body] > 0
-    moving |= (np.asarray(model.body_weldid)[boxes.body] != 0) | (
-        np.asarray(model.body_mocapid)[np.asarray(model.body_rootid)[boxes.body]] >= 0
-    )
+    moving = (bounds.accel[boxes.body] > 0) | moving_bodies(model)[boxes.body]
     kept = BodyBoxes(*(a[moving] for a in boxes))
     return EventTable(model, kept, bounds, period=period)

@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dua_mujoco._core import LAYOUT, exact_rows
+from dua_mujoco.build.events import BodyBoxes
 from dua_mujoco.build.geom_types import CONVEX_TYPES, GEOM_HFIELD, GEOM_MESH
 from dua_mujoco.build.kinematics import pack_spheres
 from dua_mujoco.core.shapes import ShapeKind
@@ -257,7 +258,6 @@ def exact_records(
 ) -> np.ndarray:
     """``(n, X_NCOL)`` records of sphere pairs (``build_exact``'s arguments) over the level's
     per-geom records ``geoms``: a pruned predictor adds the pairs it meets with these."""
-    # The native core's rows (a pruned predictor makes those of the pairs it meets with them).
     g1 = np.asarray(geom1, dtype=np.int64)
     dist = np.broadcast_to(np.asarray(contact_distance, dtype=np.float64), g1.shape)
     return exact_rows(geoms, g1, np.asarray(geom2, dtype=np.int64), np.asarray(kind, np.int8), dist)
@@ -280,7 +280,5 @@ def corner_points(
     """
     g = np.asarray(geoms, dtype=np.int64).reshape(-1)
     aabb = np.asarray(model.geom_aabb, dtype=np.float64)[g]
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
-    offset = aabb[:, None, :3] + signs[None, :, :] * aabb[:, None, 3:]
     body = np.asarray(model.geom_bodyid, dtype=np.int64)[g]
-    return np.repeat(g, 8), np.repeat(body, 8), offset.reshape(-1, 3)
+    return BodyBoxes(g, body, aabb[:, :3], aabb[:, 3:]).corners()

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
-from typing import TypeVar
 
 import mujoco
 import numpy as np
@@ -30,7 +29,6 @@ __all__ = [
     "GeomPairs",
     "SpherePairs",
     "active_geom_pairs",
-    "appended",
     "body_id",
     "candidate_geom_pairs",
     "contact_distance_bound",
@@ -90,7 +88,8 @@ class GeomPairs:
 
     def concat(self, other: GeomPairs) -> GeomPairs:
         """These pairs, then ``other``'s (none of them among these)."""
-        return appended(self, other)
+        init = [f.name for f in fields(self) if f.init]
+        return GeomPairs(*(np.concatenate([getattr(self, n), getattr(other, n)]) for n in init))
 
     def index_of(self, g1: int, g2: int) -> int:
         """Index of the geom pair ``{g1, g2}`` (either order), or -1 if it is not active."""
@@ -108,38 +107,12 @@ class GeomPairs:
         return np.where(self._keys[i] == keys, self._order[i], -1).astype(np.int64)
 
 
-PairsT = TypeVar("PairsT")
-
-
-def appended(first: PairsT, then: PairsT, *, shared: tuple[str, ...] = ()) -> PairsT:
-    """A pair dataclass (``GeomPairs``, ``SpherePairs``, ``PairTables``) with ``then``'s pairs
-    after ``first``'s: every per-pair field concatenated, the ``shared`` ones (per geom, not per
-    pair) ``first``'s."""
-    values = {
-        f.name: getattr(first, f.name)
-        if f.name in shared
-        else np.concatenate([getattr(first, f.name), getattr(then, f.name)])
-        for f in fields(first)  # type: ignore[arg-type]
-        if f.init
-    }
-    return type(first)(**values)
-
-
 def _pair_keys(g1: npt.ArrayLike, g2: npt.ArrayLike) -> np.ndarray:
     return (np.asarray(g1, dtype=np.int64) << 32) | np.asarray(g2, dtype=np.int64)
 
 
 def _disabled(model: mujoco.MjModel, flag: mujoco.mjtDisableBit) -> bool:
     return bool(int(model.opt.disableflags) & int(flag))
-
-
-def _enabled(model: mujoco.MjModel, flag: mujoco.mjtEnableBit) -> bool:
-    return bool(int(model.opt.enableflags) & int(flag))
-
-
-def _has_collision_function(t1: np.ndarray, t2: np.ndarray) -> np.ndarray:
-    """Where ``mjCOLLISIONFUNC`` has an entry: not plane-plane, plane-hfield, hfield-hfield."""
-    return ~(np.isin(t1, (GEOM_PLANE, GEOM_HFIELD)) & np.isin(t2, (GEOM_PLANE, GEOM_HFIELD)))
 
 
 def _empty() -> GeomPairs:
@@ -225,18 +198,19 @@ def _with_explicit(
         lo, hi = np.minimum(p1, p2), np.maximum(p1, p2)
         # A dynamic pair is replaced only when the explicit pair has the same geoms and the same
         # body-pair signature (filterCollisionPair's `merged` scan over pair_signature).
-        dyn_keys = _pair_keys(g1, g2)
-        candidates = np.flatnonzero(np.isin(dyn_keys, _pair_keys(lo, hi)))
+        dyn_keys, keys = _pair_keys(g1, g2), _pair_keys(lo, hi)
+        explicit_sigs = set(zip(keys.tolist(), psig.tolist(), strict=True))
+        candidates = np.flatnonzero(np.isin(dyn_keys, keys))
         merged = np.zeros(g1.shape[0], dtype=bool)
-        explicit_sigs: dict[int, set[int]] = {}
-        for k in range(npair):
-            explicit_sigs.setdefault((int(lo[k]) << 32) | int(hi[k]), set()).add(int(psig[k]))
-        for i in candidates:
-            merged[i] = int(signature[i]) in explicit_sigs[int(dyn_keys[i])]
+        merged[candidates] = [
+            (int(dyn_keys[i]), int(signature[i])) in explicit_sigs for i in candidates
+        ]
         g1, g2 = g1[~merged], g2[~merged]
         pmargin = np.asarray(model.pair_margin, dtype=np.float64)
         pgap = np.asarray(model.pair_gap, dtype=np.float64)
-        valid = _has_collision_function(types[lo], types[hi])
+        # Where mjCOLLISIONFUNC has an entry: not plane-plane, plane-hfield, hfield-hfield.
+        lone = np.isin(types, (GEOM_PLANE, GEOM_HFIELD))
+        valid = ~(lone[lo] & lone[hi])
         lo, hi, pmargin, pgap = lo[valid], hi[valid], pmargin[valid], pgap[valid]
     else:
         lo = hi = np.zeros(0, np.int64)
@@ -276,7 +250,7 @@ def _with_explicit(
 
 def margin_override(model: mujoco.MjModel) -> float | None:
     """The margin every pair takes under ``mjENBL_OVERRIDE`` (``opt.o_margin``), or None."""
-    if _enabled(model, mujoco.mjtEnableBit.mjENBL_OVERRIDE):
+    if int(model.opt.enableflags) & int(mujoco.mjtEnableBit.mjENBL_OVERRIDE):
         return float(model.opt.o_margin)
     return None
 
@@ -394,13 +368,8 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
     na = start[ga + 1] - start[ga]
     single = halfspace | shape
     nb = np.where(single, 1, start[gb + 1] - start[gb])
-    missing = np.flatnonzero(na == 0)
-    if missing.size == 0:
-        missing = np.flatnonzero(~single & (nb == 0))
-        bad_geom = gb[missing]
-    else:
-        bad_geom = ga[missing]
-    if missing.size:
+    bad_geom = np.concatenate([ga[na == 0], gb[~single & (nb == 0)]])
+    if bad_geom.size:
         g = int(bad_geom[0])
         raise UnsupportedGeomError(
             f"geom {g} is in an active pair but has no covering spheres; build the covering with "
@@ -425,12 +394,10 @@ def sphere_pairs(covering: Covering, geom_pairs: GeomPairs) -> SpherePairs:
 
 
 def body_id(model: mujoco.MjModel, body: int | str) -> int:
-    names = [
-        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)
-    ]
     if isinstance(body, str):
         bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
         if bid < 0:
+            names = (model.body(b).name for b in range(model.nbody))
             raise InvalidChoiceError("body", body, [n for n in names if n])
         return int(bid)
     if isinstance(body, bool) or not isinstance(body, int | np.integer):
@@ -472,8 +439,7 @@ def sphere_pair_mask(
 ) -> np.ndarray:
     """``(n,)`` bool over ``sphere_pairs``: those of the geom pairs ``geom_pair_indices``,
     ``(k,)`` indices into the :class:`GeomPairs` they were built from."""
-    if isinstance(geom_pair_indices, Iterable) and not isinstance(geom_pair_indices, np.ndarray):
-        idx = np.asarray(list(geom_pair_indices), dtype=np.int64).reshape(-1)
-    else:
-        idx = np.asarray(geom_pair_indices, dtype=np.int64).reshape(-1)
-    return np.isin(sphere_pairs.geom_pair, idx)
+    idx = geom_pair_indices
+    if isinstance(idx, Iterable) and not isinstance(idx, np.ndarray):
+        idx = np.asarray(list(idx), dtype=np.int64)
+    return np.isin(sphere_pairs.geom_pair, np.asarray(idx, dtype=np.int64).reshape(-1))

@@ -3,7 +3,8 @@ centres and velocities (the native core's ``dua_rigid_point``), and sphere state
 
 Every reader of sphere states (the predictor's step and its full reads, the bound checks, the
 pilot that estimates bounds, the overlays) runs that kernel: the step directly, the others
-through :func:`rigid_point` (and :func:`sphere_states` when they want arrays). After ``mj_step``
+through :func:`sphere_states` or :class:`PointMotion`. A point's centre is ``geom_xpos[g] +
+geom_xmat[g] @ offset`` (:func:`mjdata_frame` has the instant it reads). After ``mj_step``
 the kinematics in ``MjData`` (``geom_xpos``, ``cvel``, ``subtree_com``) are one consistent
 instant, the start of the step (RK4: its last stage; docs/discrete-time.md). ``d.cvel[b]`` is
 ``[omega; v_ref]`` with ``v_ref`` the velocity at ``subtree_com`` of ``b``'s root, so
@@ -83,10 +84,6 @@ def mjdata_frame(data: mujoco.MjData, root_twist: np.ndarray) -> Frame:
     (ngeom, 3), geom_xmat (ngeom, 9), cvel (nbody, 6), subtree_com (nbody, 3), root_twist
     (nbody, 6), xpos (nbody, 3))``.
 
-    A point's centre is ``geom_xpos[g] + geom_xmat[g] @ offset``; its velocity the body twist
-    ``[omega; v_ref]`` about ``subtree_com`` of its root (MuJoCo's ``cvel``), plus the twist of a
-    mocap root about its origin ``xpos`` (zero rows elsewhere).
-
     Args:
         data: The MuJoCo data (kinematics computed).
         root_twist: ``(nbody, 6)`` twist ``[omega; v_origin]`` of each mocap root (zero rows
@@ -113,11 +110,7 @@ def sphere_states(
         InvalidInputError: A sphere id is out of range, or a record indexes outside ``frame``
             (the MjData of another model).
     """
-    sel = (
-        np.arange(spheres.shape[0], dtype=np.int64)
-        if ids is None
-        else np.asarray(ids, dtype=np.int64).reshape(-1)
-    )
+    sel = np.asarray(np.arange(spheres.shape[0]) if ids is None else ids, np.int64).reshape(-1)
     pos, mat, twist, twist_ref, root_twist, root_origin = frame
     out = rigid_points(spheres, pos, mat, twist, twist_ref, root_twist, root_origin, sel)
     return out[:, :3], out[:, 3:]

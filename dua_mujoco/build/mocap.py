@@ -114,7 +114,6 @@ class MocapVelocityTracker(PredictorMocap):
     """
 
     def __init__(self, model: mujoco.MjModel) -> None:
-        """Create a tracker for every mocap body of ``model``."""
         super().__init__(model, lambda: None)
         self._state = _core.Mocap(model)
 

@@ -42,14 +42,9 @@ def grid_cells(half: np.ndarray, shape: tuple[int, int, int]) -> tuple[np.ndarra
     Returns:
         ``(lo (k, 3), hi (k, 3))`` corners of the cells, relative to the box centre.
     """
-    axes_lo = []
-    axes_hi = []
-    for a in range(3):
-        edges = np.linspace(-half[a], half[a], shape[a] + 1)
-        axes_lo.append(edges[:-1])
-        axes_hi.append(edges[1:])
-    lo = np.stack(np.meshgrid(*axes_lo, indexing="ij"), axis=-1).reshape(-1, 3)
-    hi = np.stack(np.meshgrid(*axes_hi, indexing="ij"), axis=-1).reshape(-1, 3)
+    edges = [np.linspace(-half[a], half[a], shape[a] + 1) for a in range(3)]
+    lo = np.stack(np.meshgrid(*(e[:-1] for e in edges), indexing="ij"), axis=-1).reshape(-1, 3)
+    hi = np.stack(np.meshgrid(*(e[1:] for e in edges), indexing="ij"), axis=-1).reshape(-1, 3)
     return lo, hi
 
 
@@ -63,8 +58,7 @@ def candidate_grids(half: np.ndarray, max_cells: int) -> list[tuple[int, int, in
     grids: list[tuple[float, int, tuple[int, int, int]]] = []
     for nx in range(1, max_cells + 1):
         for ny in range(1, max_cells // nx + 1):
-            nz_max = max_cells // (nx * ny)
-            for nz in range(1, nz_max + 1):
+            for nz in range(1, max_cells // (nx * ny) + 1):
                 cell = full / np.array([nx, ny, nz])
                 grids.append((float(np.dot(cell, cell)), nx * ny * nz, (nx, ny, nz)))
     grids.sort()
@@ -93,15 +87,11 @@ def grid_cover(
     half = np.maximum(np.asarray(half, dtype=np.float64), 0.0)
     max_cells = budget if keep is None else budget * GRID_OVERSHOOT
     for shape in candidate_grids(half, max_cells):
-        lo, hi = grid_cells(half, shape)
-        lo = lo + centre
-        hi = hi + centre
+        lo, hi = (corner + centre for corner in grid_cells(half, shape))
         mask = np.ones(lo.shape[0], dtype=bool) if keep is None else keep(lo, hi)
         if 0 < int(mask.sum()) <= budget:
             lo, hi = lo[mask], hi[mask]
-            centres = 0.5 * (lo + hi)
-            radii = 0.5 * np.linalg.norm(hi - lo, axis=1)
-            return centres, radii
+            return 0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo, axis=1)
     # One cell always fits (budget >= 1) and intersects the shape; reached only if `keep`
     # rejected every cell, which means the shape is empty: fall back to the whole box.
     return centre[None, :].copy(), np.array([float(np.linalg.norm(half))])

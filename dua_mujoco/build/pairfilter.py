@@ -12,6 +12,7 @@ elements are ``filter.py``'s.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -57,19 +58,15 @@ class FilterTables:
     _native: _core.Filter = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        def ints(name: str) -> np.ndarray[tuple[int, ...], np.dtype[np.int64]]:
-            value = np.ascontiguousarray(getattr(self, name), dtype=np.int64)
+        def held(name: str, dtype: type = np.int64) -> Any:
+            value: np.ndarray = np.ascontiguousarray(getattr(self, name), dtype=dtype)
             object.__setattr__(self, name, value)
             return value
 
-        def flags(name: str) -> np.ndarray[tuple[int, ...], np.dtype[np.uint8]]:
-            value = np.ascontiguousarray(getattr(self, name), dtype=np.uint8)
-            object.__setattr__(self, name, value)
-            return value
-
+        u8 = np.uint8
         native = _core.Filter(
-            ints("body"), ints("weld"), ints("parent_weld"), flags("movable"), ints("contype"),
-            ints("conaffinity"), flags("lone"), ints("exclude"), bool(self.filterparent),
+            held("body"), held("weld"), held("parent_weld"), held("movable", u8), held("contype"),
+            held("conaffinity"), held("lone", u8), held("exclude"), bool(self.filterparent),
         )  # fmt: skip
         object.__setattr__(self, "_native", native)
 

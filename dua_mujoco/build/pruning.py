@@ -57,16 +57,10 @@ def reach_for(
     """A pruned predictor's :class:`Reach`. ``delta``: ``(nbody,)`` velocity uncertainties;
     ``ahead``: the periods a verdict must see past the next step, ``latency + alarm_periods - 1``;
     ``horizon`` None: ``(DEFAULT_STRIDE + ahead) dt + (dt - h)``, ``h`` the model's timestep
-    (``dt`` is whole steps of it).
-
-    A pair left out at the rebuild of step ``r`` is held out strictly (its reaches are farther
-    apart than the contact distance), so it has no state in contact at or before ``r dt + T``,
-    a physics step's state: none before physics step ``floor((r dt + T) / h) + 1``. The next
-    rebuild holds it (standing in alarm until evaluated there), and that alarm acts after the
-    latency. Rebuilds every ``R`` steps with ``(R + ahead) dt + (dt - h) <= T`` therefore put
-    its first state in contact at or after predictor step ``r + R + ahead + 1``, and flag it at
-    least the alarm horizon before it touches (docs/many-objects.md; the ``dt - h``, 0 at
-    ``period`` 1, for a contact between two predictor steps: docs/theory.md, section 8).
+    (``dt`` is whole steps of it). The stride is :func:`rebuild_stride`'s with ``ahead`` for the
+    latency and ``dt - h`` for the grid: a pair left out at a rebuild is then flagged at least
+    the alarm horizon before it touches (the proof: docs/many-objects.md, "Between predictor
+    steps"; the ``dt - h``, 0 at ``period`` 1: docs/theory.md, section 8).
     """
     covering = universe.covering
     T, stride = pruned_horizon(horizon, dt, ahead, grid=dt - universe.model.opt.timestep)

@@ -58,30 +58,21 @@ class PairTables:
         model: mujoco.MjModel,
         covering: Covering,
         sphere_pairs: SpherePairs,
-        names: np.ndarray | None = None,
     ) -> PairTables:
         """The tables of ``sphere_pairs`` over ``covering`` (``geom2`` of a half-space pair is
-        its plane geom, of a shape pair its static geom); ``names``: ``geom_names(model)``,
-        if at hand."""
+        its plane geom, of a shape pair its static geom)."""
         sp = sphere_pairs
         kind = sp.kind
         second = np.asarray(sp.second, dtype=np.int64)
         geom2 = np.full(second.shape, -1, dtype=np.int64)
         h = np.asarray(sp.is_halfspace, dtype=bool)
         s = kind == KIND_SHAPE
-        two = ~(h | s)
         geom2[h] = np.asarray(covering.plane_geom, dtype=np.int64)[second[h]]
         geom2[s] = np.asarray(covering.shape_geom, dtype=np.int64)[second[s]]
-        geom2[two] = covering.sphere_geom[second[two]]
-        return cls(
-            first=np.asarray(sp.first, dtype=np.int64),
-            second=np.asarray(sp.second, dtype=np.int64),
-            halfspace=h,
-            geom1=np.asarray(covering.sphere_geom[sp.first], dtype=np.int64),
-            geom2=geom2,
-            geom_names=geom_names(model) if names is None else names,
-            kind=kind,
-        )
+        geom2[~(h | s)] = covering.sphere_geom[second[~(h | s)]]
+        first = np.asarray(sp.first, dtype=np.int64)
+        geom1 = np.asarray(covering.sphere_geom[sp.first], dtype=np.int64)
+        return cls(first, second, h, geom1, geom2, geom_names(model), kind)
 
 
 def geom_names(model: mujoco.MjModel) -> np.ndarray:
@@ -197,12 +188,11 @@ def static_shapes(
     if data is not None:
         _check_static_poses(model, g, pos, mat, data)
     types = np.asarray(model.geom_type, dtype=np.int64)[g]
-    size = np.asarray(model.geom_size, dtype=np.float64)[g].copy()
+    size = np.asarray(model.geom_size, dtype=np.float64)[g]  # (indexing copies)
     mesh = types == int(ShapeKind.MESH_BOX)
     if mesh.any():
         half, centre = mesh_box(np.asarray(model.geom_aabb)[g[mesh]], pos[mesh], mat[mesh])
         size[mesh] = half
-        pos = pos.copy()
         pos[mesh] = centre
     terrain = types == int(ShapeKind.HFIELD)
     records = np.zeros((g.size, SHAPE_NCOL))

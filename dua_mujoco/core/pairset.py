@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 import dua_mujoco._core as _core
 from dua_mujoco.core.shapes import SHAPE_NCOL, shape_table
-from dua_mujoco.core.validate import as_ids, as_vectors, per_pair
+from dua_mujoco.core.validate import as_ids, as_vectors, per_pair, per_sphere
 from dua_mujoco.exceptions import (
     InvalidBoundError,
     InvalidInputError,
@@ -235,17 +235,10 @@ class PairSet:
             raise ShapeError(f"radius has shape {r.shape}; expected (N,).")
         n = r.shape[0]
         i, j = np.triu_indices(n, k=1)
-
-        def per_sphere(name: str, value: npt.ArrayLike) -> np.ndarray:
-            return np.broadcast_to(per_pair(name, value, n, allow_inf=True), (n,))
-
-        a = per_sphere("accel", accel)
-        d = per_sphere("vel_uncertainty", vel_uncertainty)
-        s = (
-            np.inf
-            if speed is None
-            else per_sphere("speed", speed)[i] + per_sphere("speed", speed)[j]
-        )
+        a = per_sphere("accel", accel, n, allow_inf=True)
+        d = per_sphere("vel_uncertainty", vel_uncertainty, n, allow_inf=True)
+        v = np.full(n, np.inf) if speed is None else per_sphere("speed", speed, n, allow_inf=True)
+        s = np.inf if speed is None else v[i] + v[j]
         return cls(i, j, r[i] + r[j] + margin, a[i] + a[j], vel_uncertainty=d[i] + d[j], speed=s)
 
     def tau(

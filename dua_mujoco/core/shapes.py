@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 import dua_mujoco._core as _core
 from dua_mujoco.core.terrain import first_bad_row, record_count
-from dua_mujoco.core.validate import as_vectors, per_pair
+from dua_mujoco.core.validate import as_ids, as_vectors, per_pair
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
 
 __all__ = [
@@ -322,15 +322,8 @@ def time_to_static(
     n = c.shape[0]
     v = as_vectors("velocities", velocities, n)
     recs = shape_table(shapes)
-    ids = np.asarray(shape_ids)
-    if ids.shape != (n,):
-        raise ShapeError(f"shape_ids has shape {ids.shape}; expected ({n},).")
-    if not np.issubdtype(ids.dtype, np.integer):
-        raise InvalidInputError(
-            f"shape_ids has dtype {ids.dtype}; pass integer row indices into shapes."
-        )
+    ids64 = as_ids("shape_ids", shape_ids, n)  # each in range: the native call says
     e = per_pair("eps", eps, n)
     a = per_pair("accel", accel, n)
     dl = per_pair("vel_uncertainty", vel_uncertainty, n)
-    ids64 = np.ascontiguousarray(ids, dtype=np.int64)  # each in range: the native call says
     return np.asarray(_core.tau_static_batch(c, v, np.ascontiguousarray(recs), ids64, e, a, dl))

@@ -28,7 +28,7 @@ from dua_mujoco.core.schedules.deadline import (
     check_alarm_backoff,
     check_max_evals,
 )
-from dua_mujoco.core.validate import as_choice, check_period, per_pair, real_array
+from dua_mujoco.core.validate import as_choice, check_period, per_pair, per_sphere, real_array
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
 
 __all__ = [
@@ -138,11 +138,6 @@ def pruned_horizon(
     return float(T), rebuild_stride(T, dt, ahead, grid=grid)
 
 
-def _per_sphere(name: str, value: npt.ArrayLike, n: int, *, allow_inf: bool = False) -> np.ndarray:
-    """A bound, scalar or ``(n,)``, as an ``(n,)`` array (non-negative; finite unless allowed)."""
-    return np.broadcast_to(per_pair(name, value, n, allow_inf=allow_inf), (n,)).copy()
-
-
 def runtime_count(name: str, doc: str) -> property:
     """A read-only int property: the count ``name`` of the object's native runtime (``_rt``)."""
     return property(lambda self: int(getattr(self._rt, name)), doc=doc)
@@ -193,10 +188,10 @@ class SpherePredictor:
         if r.ndim != 1 or r.shape[0] < 1:
             raise ShapeError(f"radii has shape {r.shape}; expected (N,), one radius per sphere.")
         n = r.shape[0]
-        self.radii = _per_sphere("radii", r, n)
-        self.accel = _per_sphere("accel", accel, n)
-        self.vel_uncertainty = _per_sphere("vel_uncertainty", vel_uncertainty, n)
-        self.speed = _per_sphere("speed", np.inf if speed is None else speed, n, allow_inf=True)
+        self.radii = per_sphere("radii", r, n)
+        self.accel = per_sphere("accel", accel, n)
+        self.vel_uncertainty = per_sphere("vel_uncertainty", vel_uncertainty, n)
+        self.speed = per_sphere("speed", np.inf if speed is None else speed, n, allow_inf=True)
         if (self.speed == 0.0).any():
             i = int(np.flatnonzero(self.speed == 0.0)[0])
             raise InvalidInputError(

@@ -30,6 +30,7 @@ __all__ = [
     "check_period",
     "check_urgencies",
     "per_pair",
+    "per_sphere",
     "real_array",
 ]
 
@@ -130,6 +131,11 @@ def per_pair(
             f"{name}[{i}] = {arr[i]} is invalid: it must be a {finite}non-negative number."
         )
     return np.ascontiguousarray(arr)
+
+
+def per_sphere(name: str, value: npt.ArrayLike, n: int, *, allow_inf: bool = False) -> np.ndarray:
+    """A per-sphere bound, scalar or ``(n,)``, as an ``(n,)`` array (:func:`per_pair`'s checks)."""
+    return np.broadcast_to(per_pair(name, value, n, allow_inf=allow_inf), (n,)).copy()
 
 
 def check_int(name: str, value: object, low: int = 1, fix: str = "") -> int:

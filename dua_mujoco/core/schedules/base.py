@@ -73,7 +73,13 @@ class Scheduler:
             Scheduler._KINDS[kind] = cls
 
     def _wrap(self, schedule: _core.Schedule, initial_alarms: npt.ArrayLike) -> None:
-        self._adopt(schedule)
+        # The schedule's views, built once: a step is microseconds.
+        self.core = schedule
+        self._state = state_of(schedule)
+        self._params = self._state.params
+        self._alarm_rows = self._state.work[W_ALARMS : W_NEW + 1]
+        # step_points' native step bound to the latest pairs and checked inputs (see there).
+        self._points: tuple = (None,) * 7
         self.initial_alarms = np.asarray(initial_alarms, dtype=np.int64)
         self._pending: np.ndarray | None = None
         self._read_only = False
@@ -81,15 +87,6 @@ class Scheduler:
         # (valid until the next step, which resets both), or ones for the classification.
         self._last_rows = np.ones((2, self.initial_alarms.shape[0]), dtype=np.int64)
         self._nalarm = int(self.initial_alarms.shape[0])
-
-    def _adopt(self, schedule: _core.Schedule) -> None:
-        """Drive ``schedule`` from now on (its views are built once: a step is microseconds)."""
-        self.core = schedule
-        self._state = state_of(schedule)
-        self._params = self._state.params
-        self._alarm_rows = self._state.work[W_ALARMS : W_NEW + 1]
-        # step_points' native step bound to the latest pairs and checked inputs (see there).
-        self._points: tuple = (None,) * 7
 
     @classmethod
     def of(cls, schedule: _core.Schedule, *, read_only: bool = False) -> Scheduler:
@@ -140,20 +137,11 @@ class Scheduler:
         """Completed steps (0 after the initial classification): the schedule's own count."""
         return int(self.core.step_count)
 
-    @step_count.setter
-    def step_count(self, value: int) -> None:
-        self._check_writable("step_count")
-        self.core.step_count = int(value)
-
     @property
     def activation_changes(self) -> int:
         """Calls of :meth:`set_active` that switched some pair (and carries of the pair set),
         so that an observer of :meth:`alarm_state` knows when to read it again."""
         return int(self.core.activation_changes)
-
-    @activation_changes.setter
-    def activation_changes(self, value: int) -> None:
-        self.core.activation_changes = int(value)
 
     @property
     def npairs(self) -> int:

@@ -42,8 +42,6 @@ class DUAScheduler(Scheduler, kind=RANK):
         active: Optional ``(M,)`` bool mask of pairs initially switched on (default all).
 
     Attributes:
-        initial_alarms: ``(k,)`` ids of the pairs the initial classification alarms.
-        step_count: Number of completed steps (0 after the initial classification).
         interval: ``(L,)`` revisit interval ``I_k`` of each bucket, in steps.
         horizon: ``(L,)`` alarm horizon ``(I_k + latency) dt`` of each bucket.
     """

@@ -138,17 +138,5 @@ class ScheduleState(NamedTuple):
 
 def state_of(schedule: _core.Schedule) -> ScheduleState:
     """The views of ``schedule``'s buffers (owned by it, never reallocated) as a state."""
-    return ScheduleState(
-        kind=int(schedule.kind),
-        dt=float(schedule.dt),
-        latency=int(schedule.latency),
-        last_tau=schedule.last_tau,
-        active=schedule.active,
-        ints=schedule.ints,
-        slots=schedule.slots,
-        horizon=schedule.horizon,
-        queue=schedule.queue,
-        params=schedule.params,
-        work=schedule.work,
-        w_tau=schedule.w_tau,
-    )
+    views = {name: getattr(schedule, name) for name in ScheduleState._fields[3:]}
+    return ScheduleState(int(schedule.kind), float(schedule.dt), int(schedule.latency), **views)
