@@ -4,6 +4,7 @@
     python benchmarks/plugin_profile.py --scenes robot/g1 robot/yam --bounds 200
     python benchmarks/plugin_profile.py --json /tmp/profile.json # the rows, for later tables
     python benchmarks/plugin_profile.py --tool callgrind --keep /tmp/cg  # callgrind_annotate them
+    python benchmarks/plugin_profile.py --tool cache --scenes robot/ur5e --bounds 200  # L1 misses
 
 Per scene and bounds (``auto``: a pilot of random controls held 50 steps, seed 99, as
 ``benchmarks/plugin.py`` measures; or a declared ``accel`` in m/s^2, e.g. ``200``), the model
@@ -38,6 +39,12 @@ plugin's tables are built by the installed package, which reads them the same wa
 
 Ratios are of instructions, not time: confirm a large item with a wall-clock A/B
 (``benchmarks/plugin.py``).
+
+``--tool cache``: callgrind with its cache simulation at this machine's first-level caches
+(48 KiB 12-way data, 64 KiB 16-way instructions, 64-byte lines), on the installed (release)
+build, not split by section: per step, the plugin library's own instructions and first-level
+misses (instruction reads, data reads, data writes), and what MuJoCo's own code does more with
+the plugin than without (its step's work and misses after the plugin's).
 """
 
 from __future__ import annotations
@@ -158,6 +165,16 @@ def profile_library() -> Path:
 HEADS = [name for name, _ in SECTIONS] + ["mujoco"]
 
 
+def _name(names: dict[str, str], field: str) -> str:
+    """A name of a callgrind dump, "(id) name" the first time and "(id)" after."""
+    m = re.match(r"\((\d+)\)(?: (.*))?", field)
+    if not m:
+        return field
+    if m.group(2) is not None:
+        names[m.group(1)] = m.group(2)
+    return names.get(m.group(1), field)
+
+
 def parse_callgrind(
     path: Path,
 ) -> tuple[dict[str, int], dict[str, int], dict[tuple[str, str], int]]:
@@ -173,21 +190,12 @@ def parse_callgrind(
     edges: dict[tuple[str, str], int] = defaultdict(int)
     fn = cfn = ""
     pending = 0  # the next cost line is a call's (its count), or 0: the function's own
-
-    def name(field: str) -> str:
-        m = re.match(r"\((\d+)\)(?: (.*))?", field)
-        if not m:
-            return field
-        if m.group(2) is not None:
-            names[m.group(1)] = m.group(2)
-        return names.get(m.group(1), field)
-
     with open(path) as f:
         for line in f:
             if line.startswith("fn="):
-                fn = name(line[3:].rstrip("\n"))
+                fn = _name(names, line[3:].rstrip("\n"))
             elif line.startswith("cfn="):
-                cfn = name(line[4:].rstrip("\n"))
+                cfn = _name(names, line[4:].rstrip("\n"))
             elif line.startswith("calls="):
                 pending = int(line[6:].split()[0])
             elif line[:1].isdigit() or line[:1] in "+-*":
@@ -425,6 +433,81 @@ def profile_perf(jobs: list, warmup: int, seconds: float, folder: Path, rounds: 
     return rows
 
 
+# The first-level caches simulated (lscpu: 48 KiB data, 64 KiB instructions, a core).
+CACHE_SIM = ["--cache-sim=yes", "--D1=49152,12,64", "--I1=65536,16,64"]
+CACHE_EVENTS = ("Ir", "I1mr", "D1mr", "D1mw")
+
+
+def cost_by_object(path: Path) -> dict[str, dict[str, int]]:
+    """Each shared object's own cost (its functions' self cost) by event, from one callgrind
+    dump (a call's line, its inclusive cost, is skipped)."""
+    names: dict[str, str] = {}
+    out: dict[str, dict[str, int]] = defaultdict(lambda: defaultdict(int))
+    events: list[str] = []
+    ob, call = "", False
+    with open(path) as f:
+        for line in f:
+            if line.startswith("events:"):
+                events = line.split()[1:]
+            elif line.startswith(("ob=", "cob=")):
+                named = _name(names, line.split("=", 1)[1].rstrip("\n"))
+                ob = named if line.startswith("ob=") else ob
+            elif line.startswith("calls="):
+                call = True
+            elif line[:1].isdigit() or line[:1] in "+-*":
+                if not call:
+                    for event, value in zip(events, line.split()[1:], strict=False):
+                        out[ob][event] += int(value)
+                call = False
+    return out
+
+
+def profile_cache(jobs: list, warmup: int, steps: int, folder: Path) -> list[dict]:
+    """callgrind with the cache simulated, one process over every model: a step's instructions
+    and first-level misses of the plugin library, and of MuJoCo's with the plugin less without."""
+    paths = [str(p) for job in jobs for p in job[:2]]
+    prefix = [
+        "valgrind",
+        "--tool=callgrind",
+        *CACHE_SIM,
+        "--collect-atstart=no",
+        "--toggle-collect=mj_step",
+        "--dump-before=mj_version",
+        f"--callgrind-out-file={folder / 'cache.out'}",
+    ]
+    out = _run_child(prefix, warmup, steps, "-", paths)
+    dumps = sorted(folder.glob("cache.out.*"), key=lambda p: int(p.suffix[1:]))
+    counted = {
+        path: cost_by_object(dump)
+        for (path, phase), dump in zip(out["phases"], dumps[: len(out["phases"])], strict=True)
+        if phase == "counted"
+    }
+
+    def of(path: Path, word: str) -> dict[str, float]:
+        obs = [v for k, v in counted[str(path)].items() if word in k.rsplit("/", 1)[-1]]
+        return {e: sum(v.get(e, 0) for v in obs) / steps for e in CACHE_EVENTS}
+
+    rows = []
+    for plain, plugin, info in jobs:
+        row = dict(info, evaluated=out[str(plugin)]["evaluated"])
+        row["plain"] = of(plain, "libmujoco")
+        row["plugin"] = of(plugin, "libdua_mujoco")
+        row["mujoco"] = {k: v - row["plain"][k] for k, v in of(plugin, "libmujoco").items()}
+        rows.append(row)
+    return rows
+
+
+def cache_table(rows: list[dict]) -> str:
+    """A step's instructions and first-level misses: MuJoCo's alone, the plugin's own, and what
+    MuJoCo's code does more with the plugin."""
+    heads = [f"{who} {e}" for who in ("mj_step", "plugin", "mujoco +") for e in CACHE_EVENTS]
+    out = ["| scene | bounds | " + " | ".join(heads) + " |", "|---" * (len(heads) + 2) + "|"]
+    for row in rows:
+        cells = [f"{row[k][e]:,.0f}" for k in ("plain", "plugin", "mujoco") for e in CACHE_EVENTS]
+        out.append(f"| {row['scene']} | {row['bounds']} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
 # The table's columns: the sections, select and reinsert together.
 COLUMNS = {
     **{h: (h,) for h in HEADS if h not in ("select", "reinsert")},
@@ -460,7 +543,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenes", nargs="*", default=None)
     ap.add_argument("--bounds", nargs="*", default=["200", "auto"])
-    ap.add_argument("--tool", choices=("perf", "callgrind"), default="perf")
+    ap.add_argument("--tool", choices=("perf", "callgrind", "cache"), default="perf")
     ap.add_argument("--warmup", type=int, default=200)
     ap.add_argument("--steps", type=int, default=300, help="callgrind: steps counted")
     ap.add_argument("--seconds", type=float, default=2.0, help="perf: steps counted, in seconds")
@@ -478,8 +561,9 @@ def main(argv: list[str] | None = None) -> int:
     # The binding finds libdua_mujoco.so through its RUNPATH, which LD_LIBRARY_PATH precedes: the
     # child's `import mujoco` loads MuJoCo's bundled plugins, then the entry point the profiling
     # build, so every plugin gets the slot it had when the models were saved.
-    path = [str(profile_library().parent), os.environ.get("LD_LIBRARY_PATH", "")]
-    CHILD_ENV["LD_LIBRARY_PATH"] = os.pathsep.join(p for p in path if p)
+    if args.tool != "cache":  # the cache's profile is of the installed build
+        path = [str(profile_library().parent), os.environ.get("LD_LIBRARY_PATH", "")]
+        CHILD_ENV["LD_LIBRARY_PATH"] = os.pathsep.join(p for p in path if p)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) if args.keep is None else args.keep
         folder.mkdir(parents=True, exist_ok=True)
@@ -488,12 +572,17 @@ def main(argv: list[str] | None = None) -> int:
             for bounds in args.bounds:
                 jobs.append(prepare(scene, bounds, folder))
                 print(f"prepared {scene} {bounds}", file=sys.stderr, flush=True)
-        if args.tool == "callgrind":
+        if args.tool == "cache":
+            rows = profile_cache(jobs, args.warmup, args.steps, folder)
+        elif args.tool == "callgrind":
             rows = profile_callgrind(jobs, args.warmup, args.steps, folder)
         else:
             rows = profile_perf(jobs, args.warmup, args.seconds, folder, args.rounds)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
+    if args.tool == "cache":
+        print(cache_table(rows))
+        return 0
     print(table(rows, "kIr" if args.tool == "callgrind" else "us"))
     for bounds in args.bounds:
         adds = [
