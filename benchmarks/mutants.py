@@ -312,7 +312,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "settle-without-speed",
-        _URGENCY,
+        _INTERNAL,
         "const double gap = nx - e, b = nv + d;",
         "const double gap = nx - e, b = d;",
         (_SETTLE_BOUND, _SETTLED),
@@ -321,7 +321,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "settle-without-accel",
-        _URGENCY,
+        _INTERNAL,
         "const double q = b * b + 4.0 * h * gap;",
         "const double q = b * b + 0.0 * h * gap;",
         (_SETTLE_BOUND, _SETTLED),
@@ -330,7 +330,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "settle-cover-without-accel",
-        _URGENCY,
+        _INTERNAL,
         "if (gap - t2 * (b + h * t2) > 0.0) return cover * (1.0 + kSettleKappa);",
         "if (gap - t2 * b > 0.0) return cover * (1.0 + kSettleKappa);",
         (_SETTLE_BOUND, _SETTLED),
@@ -339,8 +339,8 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "settle-underflowed-norms",
-        _URGENCY,
-        "if (!(nx >= 1e-100) || (nv < 1e-100 && (v[0] != 0.0 || v[1] != 0.0 || v[2] != 0.0))) {",
+        _INTERNAL,
+        "if (!(nx >= 1e-100) || (nv < 1e-100 && (v0 != 0.0 || v1 != 0.0 || v2 != 0.0))) {",
         "if (!(nx >= 0.0)) {",
         (_SETTLE_BOUND,),
         "the settling bound computed from norms whose squares underflow (|x| 41 % long, a |v| "

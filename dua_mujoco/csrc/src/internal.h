@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <string>
 
 #include "dua/dua.h"
@@ -214,6 +215,46 @@ inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
   // Six stores (std::copy became a call to memmove).
   out[0] = state[0], out[1] = state[1], out[2] = state[2];
   out[3] = state[3], out[4] = state[4], out[5] = state[5];
+}
+
+// SettleTau's inflation (Lemma 6.8).
+constexpr double kSettleKappa = 1e-12;
+
+// SettleTau (urgency.cc: the bindings' entry) on the relative state's six numbers, inline here so
+// that the step's SettleBound pays no call a settled pair (the same operations in the same
+// order, so the same bits; the build contracts nothing into fused multiply-adds).
+// |x + v t| >= |x| - |v| t, so the predicate stays positive until |x| - |v| t = e + d t + h t^2:
+// the positive root of h t^2 + (|v| + d) t - (|x| - e), in its cancellation-free form. The
+// problem is inflated by kSettleKappa (as Inflate does, 250 times more) and the root lowered by
+// it: the dozen roundings here are each 2^-53 relative, far inside it. The range test keeps the
+// sum under the square root normal and finite (an underflowed b^2 would raise the root).
+inline double SettleTauOf(double x0, double x1, double x2, double v0, double v1, double v2,
+                          double eps, double accel, double delta, double cover) {
+  const double nx = std::sqrt(x0 * x0 + x1 * x1 + x2 * x2);
+  const double nv = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
+  // The norms within 2 units of 2^-53 (the proof's rounding) need the largest square normal:
+  // |x| from 1e-100, |v| from 1e-100 or exactly zero. Below, the squares underflow (|x| of
+  // 1.6e-162 came out 41 % long) and the pair is evaluated instead.
+  if (!(nx >= 1e-100) || (nv < 1e-100 && (v0 != 0.0 || v1 != 0.0 || v2 != 0.0))) {
+    return -std::numeric_limits<double>::infinity();
+  }
+  const double e = eps * (1.0 + kSettleKappa) + kSettleKappa * nx;
+  const double d = delta * (1.0 + kSettleKappa) + kSettleKappa * nv;
+  const double h = 0.5 * accel * (1.0 + kSettleKappa);
+  const double gap = nx - e, b = nv + d;
+  // The cover first (no square root, no division): phi at t2 = cover (1 + 2k) positive means
+  // the root is above t2, so cover (1 + k), below it and above the cover, is a lower bound.
+  // Its rounding, a few units of 2^-53 of |x| (the largest term while phi > 0), is inside the
+  // k |x| of e; the range test keeps every term finite and normal.
+  if (cover > 1e-100 && cover < 1e100 && nx < 1e100 && b < 1e100 && h < 1e100) {
+    const double t2 = cover * (1.0 + 2.0 * kSettleKappa);
+    if (gap - t2 * (b + h * t2) > 0.0) return cover * (1.0 + kSettleKappa);
+  }
+  const double q = b * b + 4.0 * h * gap;
+  if (!(gap > 0.0 && h >= 0.0 && b >= 0.0 && q >= 1e-280 && q <= 1e300)) {
+    return -std::numeric_limits<double>::infinity();
+  }
+  return 2.0 * gap / (b + std::sqrt(q)) * (1.0 - kSettleKappa);
 }
 
 // The unit direction of MuJoCo's witness segment fromto (first geom to second) between the geoms

@@ -783,14 +783,12 @@ double SettleBound(void* ctx, int64_t p, double cover) {
   const double* si = PointRow(a, static_cast<int64_t>(rec[kPairFirst]), &tame_i);
   const double* sj = PointRow(a, static_cast<int64_t>(rec[kPairSecond]), &tame_j);
   if (!(tame_i && tame_j)) return -kInf;
-  const double x[3] = {sj[0] - si[0], sj[1] - si[1], sj[2] - si[2]};
-  const double v[3] = {sj[3] - si[3], sj[4] - si[4], sj[5] - si[5]};
   // With period > 1 every tau goes on the grid, which the cover's (just above a step) is not.
-  if (a.period > 1) {
-    return GridFloor(SettleTau(x, v, rec[kPairEps], rec[kPairAccel], rec[kPairDelta]), a.timestep,
-                     a.period);
-  }
-  return SettleTau(x, v, rec[kPairEps], rec[kPairAccel], rec[kPairDelta], cover);
+  const bool grid = a.period > 1;
+  const double t = SettleTauOf(sj[0] - si[0], sj[1] - si[1], sj[2] - si[2], sj[3] - si[3],
+                               sj[4] - si[4], sj[5] - si[5], rec[kPairEps], rec[kPairAccel],
+                               rec[kPairDelta], grid ? 0.0 : cover);
+  return grid ? GridFloor(t, a.timestep, a.period) : t;
 }
 
 // TauRows of held pairs on a's points (free spheres) or frame, then the exact level.

@@ -370,38 +370,9 @@ double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2
   return Refine(x, v, e, d, h, start, hi);
 }
 
-constexpr double kSettleKappa = 1e-12;
-
-// |x + v t| >= |x| - |v| t, so the predicate stays positive until |x| - |v| t = e + d t + h t^2:
-// the positive root of h t^2 + (|v| + d) t - (|x| - e), in its cancellation-free form. The
-// problem is inflated by kSettleKappa (as Inflate does, 250 times more) and the root lowered by
-// it: the dozen roundings here are each 2^-53 relative, far inside it. The range test keeps the
-// sum under the square root normal and finite (an underflowed b^2 would raise the root).
 double SettleTau(const double x[3], const double v[3], double eps, double accel, double delta,
                  double cover) {
-  const double nx = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
-  const double nv = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-  // The norms within 2 units of 2^-53 (the proof's rounding) need the largest square normal:
-  // |x| from 1e-100, |v| from 1e-100 or exactly zero. Below, the squares underflow (|x| of
-  // 1.6e-162 came out 41 % long) and the pair is evaluated instead.
-  if (!(nx >= 1e-100) || (nv < 1e-100 && (v[0] != 0.0 || v[1] != 0.0 || v[2] != 0.0))) {
-    return -kInf;
-  }
-  const double e = eps * (1.0 + kSettleKappa) + kSettleKappa * nx;
-  const double d = delta * (1.0 + kSettleKappa) + kSettleKappa * nv;
-  const double h = 0.5 * accel * (1.0 + kSettleKappa);
-  const double gap = nx - e, b = nv + d;
-  // The cover first (no square root, no division): phi at t2 = cover (1 + 2k) positive means
-  // the root is above t2, so cover (1 + k), below it and above the cover, is a lower bound.
-  // Its rounding, a few units of 2^-53 of |x| (the largest term while phi > 0), is inside the
-  // k |x| of e; the range test keeps every term finite and normal.
-  if (cover > 1e-100 && cover < 1e100 && nx < 1e100 && b < 1e100 && h < 1e100) {
-    const double t2 = cover * (1.0 + 2.0 * kSettleKappa);
-    if (gap - t2 * (b + h * t2) > 0.0) return cover * (1.0 + kSettleKappa);
-  }
-  const double q = b * b + 4.0 * h * gap;
-  if (!(gap > 0.0 && h >= 0.0 && b >= 0.0 && q >= 1e-280 && q <= 1e300)) return -kInf;
-  return 2.0 * gap / (b + std::sqrt(q)) * (1.0 - kSettleKappa);
+  return SettleTauOf(x[0], x[1], x[2], v[0], v[1], v[2], eps, accel, delta, cover);
 }
 
 double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2, double eps,
