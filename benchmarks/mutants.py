@@ -592,6 +592,14 @@ MUTANTS: tuple[Mutant, ...] = (
         "a plan's kinematics without the bodies between the geoms it reads (a mount): poses off",
     ),
     Mutant(
+        "plan-covered-state-unchecked",
+        "dua_mujoco/csrc/src/step.cc",
+        "        if (!(tame_i && tame_j)) {",
+        "        if (!(tame_i && tame_j) && !(skip != nullptr && skip[k])) {",
+        ("tests/test_plans.py::test_a_planned_pairs_state_is_checked_though_the_plan_judges_it",),
+        "a planned pair's state no longer checked: a diverged simulation judged by its plan",
+    ),
+    Mutant(
         "plan-kinematics-inertial-frames-dropped",
         _KINEMATICS,
         "sf == mjSAMEFRAME_INERTIAROT)) inertia_[id[b]] = 1;",

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import dua_mujoco
-from dua_mujoco.exceptions import InvalidInputError, ShapeError
+from dua_mujoco.exceptions import InvalidInputError, NonFiniteStateError, ShapeError
 from dua_mujoco.models.scenes import make_controller
 from dua_mujoco.runtime.plans import (
     PilotPlan,
@@ -416,3 +416,21 @@ def test_an_exact_plans_alarm_stands_the_whole_horizon_wherever_the_touch_falls(
         assert p.plan_breaks == 0
     assert len(leads) >= last - first  # every touch step of the range, with teeth
     assert min(leads) >= horizon - 1e-9
+
+
+def test_a_planned_pairs_state_is_checked_though_the_plan_judges_it(model: mujoco.MjModel) -> None:
+    # The plan's verdict replaces the bounds' tau of a pair both of whose bodies it plans, so
+    # that tau is not computed (PlanCovered); the pair's state is still read and checked: a
+    # state that is not finite is named as without a plan (every pair of the forearm is
+    # planned here, and all are due at the step after set_plan).
+    d = _settled(model, steps=3)
+    p = Predictor(model, accel=20.0, alarm_horizon=0.05)
+    p.reset(d)
+    for _ in range(5):
+        mujoco.mj_step(model, d)
+        p.step(d)
+    p.set_plan(plan_from_controls(model, d, lambda *_: None, steps=40), deviation=0.0)
+    mujoco.mj_step(model, d)
+    d.cvel[model.body("fore").id] = np.nan
+    with pytest.raises(NonFiniteStateError, match=r"geom\(s\) 'geom3', 'geom5' is not finite"):
+        p.step(d)

@@ -1115,6 +1115,18 @@ void PlanPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
   }
 }
 
+void PlanCovered(const dua_step_args& a, const int64_t* ids, int64_t count, uint8_t* covered) {
+  const dua_plan& pl = a.plan;
+  const Plan& plan = *static_cast<const Plan*>(pl.impl);
+  for (int64_t k = 0; k < count; ++k) {
+    const int64_t mp = a.ids[ids[k]];
+    // Judge's first case: BothKnot returns a knot (its walk's, >= the present one) for any pair
+    // neither of whose bodies is free.
+    covered[k] = SideOf(plan, pl.body_ok, pl.geom_body[pl.geom1[mp]]) != kFree &&
+                 SideOf(plan, pl.body_ok, pl.geom_body[pl.geom2[mp]]) != kFree;
+  }
+}
+
 int64_t PlanKnot(dua_step_args& a, const Plan& plan, const uint8_t* ok, int64_t k, int64_t p,
                  int64_t g1, int64_t g2) {
   return Judge(a, plan, ok, static_cast<mjData*>(a.plan.data), k, p, g1, g2).knot;

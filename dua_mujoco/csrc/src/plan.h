@@ -252,6 +252,12 @@ class Plan {
 // (dua_plan.basis) is written. MuJoCo's distance queries at knots are counted in a.plan.queries.
 void PlanPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out);
 
+// Into covered[k]: whether PlanPass replaces out[k] of held pair ids[k] whatever its walks
+// find (both bodies planned and within the plan, or static: the plan's tau, a knot >= a.plan.knot
+// always), so that the bounds' tau of such a pair is never read. Reads no state and writes
+// nothing else.
+void PlanCovered(const dua_step_args& a, const int64_t* ids, int64_t count, uint8_t* covered);
+
 // The knot (of `plan`, from knot k) at which the contact of pair record p (a.pairs, with its
 // exact record in a.exact.records if the level is on) can first not be excluded under the plan,
 // whose bodies in ok[] are planned (plan.nknot() if none); -1 when neither geom is on a moving

@@ -692,9 +692,12 @@ struct FreePoints {
 // i's centre and velocity, then sphere j's, or the plane's normal and offset, zeros for a static
 // shape), then its tau; sphere pairs four at a time, as each fourth one is gathered. Returns -1,
 // or the first pair (in ids's order) whose state is not finite (out is then partly written).
+// Where skip[k] (skip null: nowhere) the state is read and checked as for any pair but no tau is
+// computed and out[k] is not written: a plan's verdict replaces it (PlanCovered).
 template <class Points>
 DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
-                            const int64_t* ids, int64_t count, double* out) {
+                            const int64_t* ids, int64_t count, double* out,
+                            const uint8_t* skip = nullptr) {
   // Up to four sphere pairs' rows as TauSpeedFour reads them (relative state, then bounds), and
   // where each goes in out: passed to the kernel straight from here, not through a buffer of
   // every row (each row written, read back and copied again was a third of the gather).
@@ -724,6 +727,7 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
           for (int j = 0; j < 6; ++j) total += sj[j];
           if (!std::isfinite(total)) return k;
         }
+        if (skip != nullptr && skip[k]) continue;
         double* row = quad[nq];
         for (int j = 0; j < 6; ++j) row[j] = sj[j] - si[j];
         row[6] = rec[kPairEps], row[7] = rec[kPairAccel], row[8] = rec[kPairDelta];
@@ -746,6 +750,7 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
     double total = 0.0;
     for (int j = 0; j < 12; ++j) total += s[j];
     if (!std::isfinite(total)) return k;
+    if (skip != nullptr && skip[k]) continue;
     if (kind == kKindHalfspace) {
       const double along = s[6] * s[0] + s[7] * s[1] + s[8] * s[2];
       const double gap = along - s[9] - rec[kPairEps];
@@ -796,12 +801,19 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
   // A sphere is in several of the batch's pairs: its state is read from MjData once. A new
   // epoch each batch, since MjData may have moved on between two (PointOf).
   ++a.epoch;
+  // The pairs a plan's verdict covers whatever its walks find: their states are checked, their
+  // bounds' taus not computed (PlanPass writes theirs; until then out[k] is not read).
+  const uint8_t* covered = nullptr;
+  if (a.plan.impl != nullptr) {
+    PlanCovered(a, ids, count, a.plan.planned);
+    covered = a.plan.planned;
+  }
   // Free spheres have no planes (nothing points at them) and no frame to read.
   const int64_t bad =
       a.points.centers
           ? TauRows(a.pairs, a.shapes, FreePoints{a.points.centers, a.points.velocities, nullptr},
-                    ids, count, out)
-          : TauRows(a.pairs, a.shapes, FramePoints{a}, ids, count, out);
+                    ids, count, out, covered)
+          : TauRows(a.pairs, a.shapes, FramePoints{a}, ids, count, out, covered);
   if (bad >= 0) return bad;
   // A new verdict for each: the bounds on both sides unless the plan covers it (PlanPass).
   if (a.plan.basis != nullptr) {
