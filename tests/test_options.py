@@ -19,6 +19,7 @@ from dua_mujoco.build.options import (
     UrgencyOptions,
 )
 from dua_mujoco.core.schedules import Schedule
+from dua_mujoco.core.validate import check_number
 from dua_mujoco.exceptions import InvalidChoiceError, InvalidInputError
 from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
@@ -95,3 +96,10 @@ def test_a_mode_string_is_its_group_with_defaults() -> None:
         assert p.options.schedule == ScheduleOptions(kind="dua")
     assert len(runs[0]) == len(runs[1]) > 0
     assert all(np.array_equal(a, b) for a, b in zip(*runs, strict=True))
+
+
+@pytest.mark.parametrize("value", [True, np.complex128(2 + 3j), "2", math.inf, -1.0])
+def test_a_number_option_refuses_what_is_not_a_finite_real(value: object) -> None:
+    with pytest.raises(InvalidInputError, match=r"rate = .* is invalid"):
+        check_number("rate", value, zero=True)
+    assert check_number("rate", np.float32(1.5)) == 1.5

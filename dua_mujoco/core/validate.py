@@ -149,7 +149,7 @@ def check_int(name: str, value: object, low: int = 1, fix: str = "") -> int:
 def check_number(name: str, value: object, *, zero: bool = False, unit: str = "") -> float:
     """A finite number option ``> 0`` (``>= 0`` with ``zero``) as a float; a bool is refused
     (``float(True)`` is 1); ``unit`` follows "number" in the message (`` of seconds``)."""
-    ok = isinstance(value, int | float | np.number) and not isinstance(value, bool)
+    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
     x = float(value) if ok else math.nan  # type: ignore[arg-type]
     if not (math.isfinite(x) and (x >= 0.0 if zero else x > 0.0)):
         rule = ">= 0" if zero else "> 0"

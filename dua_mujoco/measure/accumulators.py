@@ -51,6 +51,12 @@ class Growing:
         self._a[self.size : n] = values
         self.size = n
 
+    def append(self, value: float) -> None:
+        if self.size == self._a.size:
+            self._a = np.concatenate([self._a, np.zeros_like(self._a)])
+        self._a[self.size] = value
+        self.size += 1
+
     def view(self) -> np.ndarray:
         """The values so far (a view: copy it to keep it past the next append)."""
         return self._a[: self.size]
@@ -63,8 +69,13 @@ class Series:
         self._alarms, self._tau = Growing(np.int32), Growing(np.float64)
 
     def append(self, nalarms: int, min_tau: float) -> None:
-        self._alarms.extend([nalarms])
-        self._tau.extend([min_tau])
+        self._alarms.append(nalarms)
+        self._tau.append(min_tau)
+
+    @property
+    def size(self) -> int:
+        """Steps recorded."""
+        return self._alarms.size
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Copies trimmed to the steps recorded: ``(alarms int32, min_tau float64)``."""

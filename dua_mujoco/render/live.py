@@ -215,7 +215,8 @@ def view(
         RunInterrupted: On a Ctrl-C, with the report of the steps done.
         InvalidInputError: A bad ``rate``, ``fps`` or ``steps``, or no display.
     """
-    rate, fps = check_number("rate", rate, zero=True), check_number("fps", fps)
+    rate = check_number("rate", rate, zero=True, unit=" of simulated seconds a wall second")
+    fps = check_number("fps", fps, unit=" of frames a second")
     total = 2**62 if steps is None else steps  # run checks it
     with LiveViewer(predictor, data, options=options, show_ui=show_ui) as viewer:
         pace = _Pacer(viewer, data, rate=rate, fps=fps, log=log)

@@ -137,11 +137,20 @@ class Scheduler:
         """Completed steps (0 after the initial classification): the schedule's own count."""
         return int(self.core.step_count)
 
+    @step_count.setter
+    def step_count(self, value: int) -> None:
+        self._check_writable("step_count")
+        self.core.step_count = int(value)
+
     @property
     def activation_changes(self) -> int:
         """Calls of :meth:`set_active` that switched some pair (and carries of the pair set),
         so that an observer of :meth:`alarm_state` knows when to read it again."""
         return int(self.core.activation_changes)
+
+    @activation_changes.setter
+    def activation_changes(self, value: int) -> None:
+        self.core.activation_changes = int(value)
 
     @property
     def npairs(self) -> int:
