@@ -362,18 +362,23 @@ def _run_child(prefix: list[str], warmup: int, steps: int, control: str, paths: 
     return {"phases": lines[-1]["phases"], **{row["path"]: row for row in lines[:-1]}}
 
 
-def profile_callgrind(jobs: list, warmup: int, steps: int, folder: Path) -> list[dict]:
-    """One callgrind process over every model, collecting inside mj_step only."""
-    paths = [str(p) for job in jobs for p in job[:2]]
-    prefix = [
+def _inside_mj_step(out_file: Path, *options: str) -> list[str]:
+    """callgrind collecting inside mj_step only, one dump per model (before ``mj_version``)."""
+    return [
         "valgrind",
         "--tool=callgrind",
+        *options,
         "--collect-atstart=no",
         "--toggle-collect=mj_step",
         "--dump-before=mj_version",
-        f"--callgrind-out-file={folder / 'cg.out'}",
+        f"--callgrind-out-file={out_file}",
     ]
-    out = _run_child(prefix, warmup, steps, "-", paths)
+
+
+def profile_callgrind(jobs: list, warmup: int, steps: int, folder: Path) -> list[dict]:
+    """One callgrind process over every model, collecting inside mj_step only."""
+    paths = [str(p) for job in jobs for p in job[:2]]
+    out = _run_child(_inside_mj_step(folder / "cg.out"), warmup, steps, "-", paths)
     # One dump before each marker call, in the phases' order (and the last at exit).
     dumps = sorted(folder.glob("cg.out.*"), key=lambda p: int(p.suffix[1:]))[: len(out["phases"])]
     counted = {
@@ -466,16 +471,7 @@ def profile_cache(jobs: list, warmup: int, steps: int, folder: Path) -> list[dic
     """callgrind with the cache simulated, one process over every model: a step's instructions
     and first-level misses of the plugin library, and of MuJoCo's with the plugin less without."""
     paths = [str(p) for job in jobs for p in job[:2]]
-    prefix = [
-        "valgrind",
-        "--tool=callgrind",
-        *CACHE_SIM,
-        "--collect-atstart=no",
-        "--toggle-collect=mj_step",
-        "--dump-before=mj_version",
-        f"--callgrind-out-file={folder / 'cache.out'}",
-    ]
-    out = _run_child(prefix, warmup, steps, "-", paths)
+    out = _run_child(_inside_mj_step(folder / "cache.out", *CACHE_SIM), warmup, steps, "-", paths)
     dumps = sorted(folder.glob("cache.out.*"), key=lambda p: int(p.suffix[1:]))
     counted = {
         path: cost_by_object(dump)
