@@ -650,8 +650,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "bounds-tau-off-the-period-grid",
         _STEP,
-        "const bool grid = a.period > 1;",
-        "const bool grid = false;",
+        "const bool grid = a.period > 1;\n  const uint8_t* planned",
+        "const bool grid = false;\n  const uint8_t* planned",
         (
             "tests/test_warning_time.py::"
             "test_a_landing_between_predictor_steps_is_flagged_the_horizon_ahead",
@@ -1091,6 +1091,14 @@ MUTANTS: tuple[Mutant, ...] = (
         "      now = j + 1 < nalarm && alarms[j] == p ? 1 : 0;",
         ("tests/test_alarms.py::test_the_steps_standing_state_is_the_alarm_rule",),
         "the step's standing state, read from its alarm list, misses a pair in alarm",
+    ),
+    Mutant(
+        "settle-off-the-period-grid",
+        _STEP,
+        "return grid ? GridFloor(t, a.timestep, a.period) : t;",
+        "return t;",
+        ("tests/test_warning_time.py", "tests/test_events.py", "tests/test_scheduler.py"),
+        "with period > 1, a settled pair's wait off the predictor's grid",
     ),
     Mutant(
         "basis-kept-after-the-plan",
