@@ -1097,7 +1097,9 @@ MUTANTS: tuple[Mutant, ...] = (
         _STEP,
         "return grid ? GridFloor(t, a.timestep, a.period) : t;",
         "return t;",
-        ("tests/test_warning_time.py", "tests/test_events.py", "tests/test_scheduler.py"),
+        (
+            "tests/test_events.py::test_settled_pairs_wait_on_the_predictor_grid_at_period_above_one",
+        ),
         "with period > 1, a settled pair's wait off the predictor's grid",
     ),
     Mutant(

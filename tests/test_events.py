@@ -219,6 +219,37 @@ def test_settled_pairs_get_a_verdict_of_that_step_below_the_sphere_kernels() -> 
     assert settled > 1000
 
 
+def test_settled_pairs_wait_on_the_predictor_grid_at_period_above_one() -> None:
+    """With ``period > 1`` every tau the schedule acts on is floored onto the predictor's grid
+    (docs/theory.md, section 8; a verdict off it lets a contact between two predictor steps
+    stand in alarm less than the horizon ahead): a settled pair's verdict too, a whole number of
+    periods (shaved by 1e-9). Fails with SettleBound's grid dropped (benchmarks/mutants.py)."""
+    m, d = load_scene("traffic")
+    period = 3
+    p = Predictor(m, accel=5.0, period=period)
+    grid = period * m.opt.timestep * (1.0 - 1e-9)
+    ctrl = make_controller(m, "random", seed=2)
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    settled = 0
+    for k in range(1, 1800):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        if k % period:
+            continue
+        p.step(d)
+        state = p.pair_state()
+        if state.settled == 0:
+            continue
+        count = p.evaluations_per_step
+        tau = state.last_tau_of(state.last_selected[count : count + state.settled])
+        finite = tau[np.isfinite(tau) & (tau > 0.0)]
+        np.testing.assert_allclose(finite / grid, np.round(finite / grid), rtol=0, atol=1e-6)
+        settled += finite.size
+    assert settled > 100
+
+
 def test_a_step_retried_after_it_failed_judges_the_pairs_it_had_settled_again() -> None:
     """A step that fails (a non-finite state) leaves the pairs it settled made due, as the ones
     it evaluated: retried on a repaired state at the same time, a pair whose body was flung 50 m
