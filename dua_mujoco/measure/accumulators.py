@@ -43,17 +43,20 @@ class Growing:
         self._a: np.ndarray = np.zeros(64, dtype=dtype)
         self.size = 0
 
+    def _reserve(self, n: int) -> None:
+        if n > self._a.size:
+            self._a = np.concatenate([self._a, np.zeros(max(n, self._a.size), self._a.dtype)])
+
     def extend(self, values: np.ndarray | list[float]) -> None:
         values = np.asarray(values)
         n = self.size + values.size
-        if n > self._a.size:
-            self._a = np.concatenate([self._a, np.zeros(max(n, self._a.size), self._a.dtype)])
+        self._reserve(n)
         self._a[self.size : n] = values
         self.size = n
 
     def append(self, value: float) -> None:
-        if self.size == self._a.size:
-            self._a = np.concatenate([self._a, np.zeros_like(self._a)])
+        """One value, without making an array of it (a step's series: a scalar a call)."""
+        self._reserve(self.size + 1)
         self._a[self.size] = value
         self.size += 1
 
