@@ -211,14 +211,14 @@ MaskOf<T> CheckBody(const BodyRow<T>* row, S* prev, int64_t nprev, double h, dou
   if (nprev >= 2) open = Or(open, Not(passes(n_accel, b_accel)));
   if (__builtin_expect(!Any(open), 1)) return broken;
   const S* u = prev + 12;
-  broken = Or(broken, And(speed < kInf, Exceeds12<T>(u[0], u[1], u[2], u[3], u[4], u[5], u[6],
-                                                     u[7], u[8], u[9], u[10], u[11], b_speed)));
+  broken = Or(broken, And(speed < kInf, Exceeds12<T>(u[0], u[1], u[2], u[3], u[4], u[5], u[6], u[7],
+                                                     u[8], u[9], u[10], u[11], b_speed)));
   broken = Or(broken, Exceeds12(disc[0], disc[1], disc[2], disc[3], disc[4], disc[5], disc[6],
                                 disc[7], disc[8], disc[9], disc[10], disc[11], b_disc));
   if (nprev >= 2) {
-    broken = Or(broken, Exceeds12(accel[0], accel[1], accel[2], accel[3], accel[4], accel[5],
-                                  accel[6], accel[7], accel[8], accel[9], accel[10], accel[11],
-                                  b_accel));
+    broken =
+        Or(broken, Exceeds12(accel[0], accel[1], accel[2], accel[3], accel[4], accel[5], accel[6],
+                             accel[7], accel[8], accel[9], accel[10], accel[11], b_accel));
   }
   return broken;
 }
@@ -232,8 +232,18 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   // Each field read across the four bodies' sources straight into lanes (not through a copy
   // of the rows, and not written lane by lane into the vectors: narrow stores under a wide load
   // stall the store forwarding).
+  // The rows' places from the state (the reset wrote them, the padding's as its last body's:
+  // RowSources of body i + min(k, m - 1)).
+  int32_t at[kSIndexInts];
+  __builtin_memcpy(at, StateAt(ev, i, kSIndex), sizeof(at));
   const double* src[kLanes][kFields];
-  for (int k = 0; k < kLanes; ++k) RowSources(ev, f, i + std::min(k, m - 1), src[k]);
+  for (int k = 0; k < kLanes; ++k) {
+    const int64_t g3 = at[2 * k], b6 = at[2 * k + 1], r3 = at[8 + 2 * k];
+    const double* from[kFields] = {f.mat + 3 * g3,        f.pos + g3,
+                                   f.twist + b6,          f.twist_ref + r3,
+                                   f.root_twist + 2 * r3, f.root_origin + r3};
+    std::copy(from, from + kFields, src[k]);
+  }
   BodyRow<Lanes> row;
   // Unrolled: the loops' own counting and the lengths' lookups were a fifth of the check.
   // Each field's runs of four (the pose's first eight, the twists' first four) read a vector a
@@ -922,9 +932,15 @@ void dua_reset_events(dua_step_args* a) {
   const int64_t padded = dua::EventStateLen(ev.nbody) / dua::kSNcol;
   for (int64_t i = 0; i < padded; ++i) {
     const double* rec = ev.rec + std::min(i, ev.nbody - 1) * dua::kBNcol;
-    for (int j = 0; j < dua::kSNcol - dua::kSWritten; ++j) {
+    for (int j = 0; j < dua::kSIndex - dua::kSWritten; ++j) {
       *dua::StateAt(ev, i, dua::kSWritten + j) = rec[dua::kBCenter + j];
     }
+    // RowSources' indices, as int32 (MjData's arrays index with int), in the body's own lane.
+    const int32_t index[4] = {3 * static_cast<int32_t>(rec[dua::kBFrame]),
+                              6 * static_cast<int32_t>(rec[dua::kBBody]),
+                              3 * static_cast<int32_t>(rec[dua::kBRoot]), 0};
+    __builtin_memcpy(dua::StateAt(ev, i, dua::kSIndex), index, 2 * sizeof(int32_t));
+    __builtin_memcpy(dua::StateAt(ev, i, dua::kSIndex + 1), index + 2, 2 * sizeof(int32_t));
   }
   ev.meta[dua::kMNprev] = 0;
   ev.meta[dua::kMTotal] = 0;
