@@ -267,16 +267,32 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   transpose(0, 4, kRowR + 4);
   transpose(2, 0, kRowTw);
   transpose(4, 0, kRowRt);
+  // Runs of two (the positions' first two, the twists' last two) read two doubles a body, put
+  // together two bodies a half and unpacked; the rest a double at a time.
+  auto pair = [&](int field, int j, int at) {
+    using Half = double __attribute__((vector_size(16)));
+    Half r0, r1, r2, r3;
+    __builtin_memcpy(&r0, src[0][field] + j, sizeof(Half));
+    __builtin_memcpy(&r1, src[1][field] + j, sizeof(Half));
+    __builtin_memcpy(&r2, src[2][field] + j, sizeof(Half));
+    __builtin_memcpy(&r3, src[3][field] + j, sizeof(Half));
+    const Lanes t02 = __builtin_shufflevector(r0, r2, 0, 1, 2, 3);
+    const Lanes t13 = __builtin_shufflevector(r1, r3, 0, 1, 2, 3);
+    row.v[at] = __builtin_shufflevector(t02, t13, 0, 4, 2, 6);
+    row.v[at + 1] = __builtin_shufflevector(t02, t13, 1, 5, 3, 7);
+  };
   auto across = [&](int field, int j, int at) {
     row.v[at] = Lanes{src[0][field][j], src[1][field][j], src[2][field][j], src[3][field][j]};
   };
   across(0, 8, kRowR + 8);
-#pragma GCC unroll 6
-  for (int field = 0; field < kFields; ++field) {
-    const int from = field == 2 || field == 4 ? 4 : field == 0 ? kFieldLen[0] : 0;
-#pragma GCC unroll 9
-    for (int j = from; j < kFieldLen[field]; ++j) across(field, j, kFieldAt[field] + j);
-  }
+  pair(1, 0, kRowP);
+  across(1, 2, kRowP + 2);
+  pair(2, 4, kRowTw + 4);
+  pair(3, 0, kRowRef);
+  across(3, 2, kRowRef + 2);
+  pair(4, 4, kRowRt + 4);
+  pair(5, 0, kRowRo);
+  across(5, 2, kRowRo + 2);
   // The state's columns are whole vectors, the padding's too: a ragged last group's spare lanes
   // hold its last body's state (its inputs, and its box and bounds from the reset), so they
   // take the same paths through the screens.
