@@ -271,7 +271,7 @@ MUTANTS: tuple[Mutant, ...] = (
         _STEP,
         "if (nprev >= 2) open = Or(open, Not(passes(n_accel, b_accel)));",
         "(void)b_accel;",
-        ("tests/test_events.py::test_step_flags_the_bodies_the_bound_monitor_flags",),
+        ("tests/test_events.py::test_a_body_that_breaks_its_acceleration_bound_alone_is_flagged",),
         "the check's common path (every screen's first test passes) forgets the acceleration's: "
         "a body that breaks only its acceleration bound is flagged only when another screen opens",
     ),
