@@ -121,7 +121,7 @@ inline double* StateAt(const dua_events& ev, int64_t i, int j) {
 // them. The box's four vectors (centre, then its three axes) are taken one at a time: each reads
 // its own columns of the last state (its corner, its chord, and for the discrepancy the last
 // axis itself: (W x E)'s column j is W x E_j), then writes its new ones, so that few values stay
-// live (held through the three screens, they were spilled and read back: a third of the check's
+// live (held through the three screens, they were spilled and read back: a fifth of the check's
 // instructions). What the screens need past their first test (its twelve numbers) is kept aside;
 // the chord's are its state columns. Every operation and its operands are the ones of the check
 // that read every column before writing any, so the flags and the state are the same bits.
