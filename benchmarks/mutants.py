@@ -261,10 +261,28 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "violation-accel-doubled",
         _STEP,
-        "prev[kSAccel] * (1.0 + rtol) + tol_a));",
-        "2.0 * prev[kSAccel] * (1.0 + rtol) + tol_a));",
+        "const T b_accel = prev[kSAccel] * (1.0 + rtol) + tol_a;",
+        "const T b_accel = 2.0 * prev[kSAccel] * (1.0 + rtol) + tol_a;",
         ("tests/test_events.py::test_step_flags_the_bodies_the_bound_monitor_flags",),
         "the step's check lets accelerations up to twice the bound pass",
+    ),
+    Mutant(
+        "check-first-test-without-accel",
+        _STEP,
+        "if (nprev >= 2) open = Or(open, Not(passes(n_accel, b_accel)));",
+        "(void)b_accel;",
+        ("tests/test_events.py::test_a_body_that_breaks_its_acceleration_bound_alone_is_flagged",),
+        "the check's common path (every screen's first test passes) forgets the acceleration's: "
+        "a body that breaks only its acceleration bound is flagged only when another screen opens",
+    ),
+    Mutant(
+        "check-first-test-unscaled",
+        _STEP,
+        "return And(4.0 * n <= bound * bound, Not(bound < 1e-139));",
+        "return And(n <= bound * bound, Not(bound < 1e-139));",
+        ("tests/test_events.py::test_step_flags_the_bodies_the_bound_monitor_flags",),
+        "the check's common path passes a body on its vectors' squared norms without the factor "
+        "4 that bounds the largest corner (|a| + |x| + |y| + |z|)^2 <= 4 (na + nx + ny + nz)",
     ),
     Mutant(
         "check-lanes-transposed-wrong",

@@ -490,7 +490,7 @@ class Runtime:
 
     def check_bodies_copy(self, lanes: bool) -> tuple:
         """
-        For tests: the violation check of the bound MjData on a copy of its state: (flagged rows, the state after, (ceil(nbody / 4), 40, 4) flat).
+        For tests: the violation check of the bound MjData on a copy of its state: (flagged rows, the state after, (ceil(nbody / 4), 42, 4) flat).
         """
 
     def set_escape_check(self, on: bool) -> None:

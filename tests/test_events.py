@@ -7,6 +7,7 @@ collision follows an impulse at once shows that the check, and its timing, are w
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Iterator
@@ -113,6 +114,33 @@ def test_step_flags_the_bodies_the_bound_monitor_flags(scene: str, accel: float)
         flagged += expected.size
     assert flagged > 20  # the bounds broke often enough to mean something
     assert p.violation_events == flagged
+
+
+def test_a_body_that_breaks_its_acceleration_bound_alone_is_flagged() -> None:
+    """The check's common path passes a group of four when every screen's first test passes on
+    every lane: the acceleration's too. Here the discrepancy bound is loose (1000 m/s) and there
+    is no speed bound, so only the acceleration can flag a body, as ``BoundMonitor`` says."""
+    m, d = load_scene("two_arms")
+    bounds = Predictor(m, accel=20.0).bounds
+    loose = dataclasses.replace(
+        bounds, speed=None, vel_uncertainty=np.where(bounds.accel > 0, 1e3, bounds.vel_uncertainty)
+    )
+    p = Predictor(m, accel=loose)
+    bm = BoundMonitor(m, p.bounds, p.bound_points, mocap=p.mocap)
+    ctrl = make_controller(m, "random", seed=1)
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    bm.update(m, d)
+    flagged = 0
+    for _ in range(300):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        p.step(d)
+        expected = bm.update(m, d)
+        assert p.violated_bodies.tolist() == sorted(expected.tolist())
+        flagged += expected.size
+    assert flagged > 20  # the acceleration bound broke often enough to mean something
 
 
 @pytest.mark.parametrize(

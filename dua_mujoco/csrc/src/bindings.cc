@@ -1479,7 +1479,7 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           },
           "lanes"_a,
           "For tests: the violation check of the bound MjData on a copy of its state: (flagged "
-          "rows, the state after, (ceil(nbody / 4), 40, 4) flat).")
+          "rows, the state after, (ceil(nbody / 4), 42, 4) flat).")
       .def(
           "set_escape_check", [](PyRuntime& self, bool on) { self.rt->SetEscapeCheck(on); }, "on"_a,
           "For tests: pruned pairs without the escape check (what it guards).")

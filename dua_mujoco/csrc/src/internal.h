@@ -28,9 +28,14 @@ constexpr int kBFrame = 0, kBBody = 1, kBRoot = 2, kBCenter = 3, kBHalf = 6, kBA
               kBDisc = 10, kBSpeed = 11, kBNcol = 12;
 // State columns 0..30 are what the check writes each step; 31..39 the body's box and bounds
 // (kBCenter .. kBSpeed), copied from its record at the reset so that the lanes read them as
-// vectors too.
+// vectors too; 40..41 (kSIndex) the four bodies' rows in MjData's arrays, 16 int32 set at the
+// reset (StateIndex), so that the check reads its inputs' places from the state's lines, not
+// from four records' (and converts no doubles to integers).
 constexpr int kSV = 24, kSW = 27, kSScale = 30, kSWritten = 31, kSCenter = 31, kSHalf = 34,
-              kSAccel = 37, kSDisc = 38, kSSpeed = 39, kSNcol = 40;
+              kSAccel = 37, kSDisc = 38, kSSpeed = 39, kSIndex = 40, kSNcol = 42;
+// The int32 of kSIndex (a group's 16), each body's in its own lane (a double's 8 bytes): lane
+// k's frame geom times 3 at 2k, its body times 6 at 2k + 1, its root times 3 at 8 + 2k (and 0).
+constexpr int kSIndexInts = 16;
 // Length of the state of nbody bodies: (ceil(nbody / 4), kSNcol, 4), so that a column of four
 // bodies is one vector of the check's lanes.
 inline int64_t EventStateLen(int64_t nbody) {

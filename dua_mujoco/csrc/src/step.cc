@@ -118,7 +118,13 @@ inline double* StateAt(const dua_events& ev, int64_t i, int j) {
 
 // Record a body's box state in prev (its kSNcol columns: S is T, or LanesAt in place) and check
 // the motion hypotheses over the last period (nprev earlier states there): whether the body broke
-// them. Every column is read before any is written.
+// them. The box's four vectors (centre, then its three axes) are taken one at a time: each reads
+// its own columns of the last state (its corner, its chord, and for the discrepancy the last
+// axis itself: (W x E)'s column j is W x E_j), then writes its new ones, so that few values stay
+// live (held through the three screens, they were spilled and read back: a fifth of the check's
+// instructions). What the screens need past their first test (its twelve numbers) is kept aside;
+// the chord's are its state columns. Every operation and its operands are the ones of the check
+// that read every column before writing any, so the flags and the state are the same bits.
 template <class T, class S>
 MaskOf<T> CheckBody(const BodyRow<T>* row, S* prev, int64_t nprev, double h, double inv_h,
                     double rtol) {
@@ -126,17 +132,55 @@ MaskOf<T> CheckBody(const BodyRow<T>* row, S* prev, int64_t nprev, double h, dou
   const T* P = row->v + kRowP;
   const T o0 = prev[kSCenter], o1 = prev[kSCenter + 1], o2 = prev[kSCenter + 2];
   const T h0 = prev[kSHalf], h1 = prev[kSHalf + 1], h2 = prev[kSHalf + 2];
-  // The box's centre and its axes (columns of R diag(half)).
+  // What the last step left that this one reads after writing its vectors: w_{k-1} and the
+  // centre's velocity (the discrepancy), the scale (the round-off).
+  const T px = prev[kSW], py = prev[kSW + 1], pz = prev[kSW + 2];
+  const T qvx = prev[kSV], qvy = prev[kSV + 1], qvz = prev[kSV + 2];
+  const T scale_prev = prev[kSScale];
+  // The box's centre (its velocity as RigidPoint reads a point's, below).
   const T cx = P[0] + R[0] * o0 + R[1] * o1 + R[2] * o2;
   const T cy = P[1] + R[3] * o0 + R[4] * o1 + R[5] * o2;
   const T cz = P[2] + R[6] * o0 + R[7] * o1 + R[8] * o2;
-  const T xx = R[0] * h0, xy = R[3] * h0, xz = R[6] * h0;
-  const T yx = R[1] * h1, yy = R[4] * h1, yz = R[7] * h1;
-  const T zx = R[2] * h2, zy = R[5] * h2, zz = R[8] * h2;
-  // Bounds every corner's coordinates: the scale of the differences' round-off.
-  const T scale =
-      Max(Max(Abs(cx) + Abs(xx) + Abs(yx) + Abs(zx), Abs(cy) + Abs(xy) + Abs(yy) + Abs(zy)),
-          Abs(cz) + Abs(xz) + Abs(yz) + Abs(zz));
+  // Bounds every corner's coordinates: the scale of the differences' round-off (a sum over the
+  // four vectors, in their order).
+  T s0 = Abs(cx), s1 = Abs(cy), s2 = Abs(cz);
+  // The three screens' sums of squares (first test) and their twelve numbers: the speed's are
+  // the chord (written to the state), the others kept here.
+  T n_speed = T{}, n_disc = T{}, n_accel = T{};
+  T disc[12], accel[12];
+  // Vector k of the box (0 the centre, 1-3 its axes) is e: its chord, the screens' numbers,
+  // and the new state columns.
+  auto vector = [&](int k, T e0, T e1, T e2) {
+    const int at = 3 * k;
+    const T l0 = prev[at], l1 = prev[at + 1], l2 = prev[at + 2];
+    prev[at] = e0, prev[at + 1] = e1, prev[at + 2] = e2;
+    if (k > 0) s0 = s0 + Abs(e0), s1 = s1 + Abs(e1), s2 = s2 + Abs(e2);
+    if (nprev < 1) return;
+    const T u0 = (e0 - l0) * inv_h, u1 = (e1 - l1) * inv_h, u2 = (e2 - l2) * inv_h;
+    const T nu = u0 * u0 + u1 * u1 + u2 * u2;
+    n_speed = k == 0 ? nu : n_speed + nu;
+    // The discrepancy U_k - w_{k-1}: at the centre its velocity, on an axis W x (that axis).
+    const T d0 = k == 0 ? u0 - qvx : u0 - (py * l2 - pz * l1);
+    const T d1 = k == 0 ? u1 - qvy : u1 - (pz * l0 - px * l2);
+    const T d2 = k == 0 ? u2 - qvz : u2 - (px * l1 - py * l0);
+    disc[at] = d0, disc[at + 1] = d1, disc[at + 2] = d2;
+    const T nd = d0 * d0 + d1 * d1 + d2 * d2;
+    n_disc = k == 0 ? nd : n_disc + nd;
+    if (nprev >= 2) {
+      const T a0 = (u0 - prev[12 + at]) * inv_h, a1 = (u1 - prev[12 + at + 1]) * inv_h,
+              a2 = (u2 - prev[12 + at + 2]) * inv_h;
+      accel[at] = a0, accel[at + 1] = a1, accel[at + 2] = a2;
+      const T na = a0 * a0 + a1 * a1 + a2 * a2;
+      n_accel = k == 0 ? na : n_accel + na;
+    }
+    prev[12 + at] = u0, prev[12 + at + 1] = u1, prev[12 + at + 2] = u2;
+  };
+  vector(0, cx, cy, cz);
+  // The axes: columns of R diag(half).
+  vector(1, R[0] * h0, R[3] * h0, R[6] * h0);
+  vector(2, R[1] * h1, R[4] * h1, R[7] * h1);
+  vector(3, R[2] * h2, R[5] * h2, R[8] * h2);
+  const T scale = Max(Max(s0, s1), s2);
   // The centre's velocity as RigidPoint reads a point's.
   const T* tw = row->v + kRowTw;
   const T* ref = row->v + kRowRef;
@@ -146,58 +190,36 @@ MaskOf<T> CheckBody(const BodyRow<T>* row, S* prev, int64_t nprev, double h, dou
   const T dx = cx - ref[0], dy = cy - ref[1], dz = cz - ref[2];
   const T m0 = rt[0], m1 = rt[1], m2 = rt[2];
   const T ex = cx - ro[0], ey = cy - ro[1], ez = cz - ro[2];
-  const T vx = tw[3] + w1 * dz - w2 * dy + rt[3] + m1 * ez - m2 * ey;
-  const T vy = tw[4] + w2 * dx - w0 * dz + rt[4] + m2 * ex - m0 * ez;
-  const T vz = tw[5] + w0 * dy - w1 * dx + rt[5] + m0 * ey - m1 * ex;
-  MaskOf<T> broken = T{} != T{};
-  if (nprev >= 1) {
-    const T ucx = (cx - prev[0]) * inv_h, ucy = (cy - prev[1]) * inv_h,
-            ucz = (cz - prev[2]) * inv_h;
-    const T uxx = (xx - prev[3]) * inv_h, uxy = (xy - prev[4]) * inv_h,
-            uxz = (xz - prev[5]) * inv_h;
-    const T uyx = (yx - prev[6]) * inv_h, uyy = (yy - prev[7]) * inv_h,
-            uyz = (yz - prev[8]) * inv_h;
-    const T uzx = (zx - prev[9]) * inv_h, uzy = (zy - prev[10]) * inv_h,
-            uzz = (zz - prev[11]) * inv_h;
-    const T tol_a = 8.0 * kEps * (scale + prev[kSScale]) / (h * h);
-    const T speed = prev[kSSpeed];
-    // An infinite speed bound screens out (bound inf), as if skipped.
-    broken =
-        Or(broken, And(speed < kInf, Exceeds12(ucx, ucy, ucz, uxx, uxy, uxz, uyx, uyy, uyz, uzx,
-                                               uzy, uzz, speed * (1.0 + rtol) + 0.5 * tol_a * h)));
-    // The discrepancy U_k - w_{k-1} at the corners, w_{k-1} from the last state.
-    const T px = prev[kSW], py = prev[kSW + 1], pz = prev[kSW + 2];
-    const T qvx = prev[kSV], qvy = prev[kSV + 1], qvz = prev[kSV + 2];
-    const T tol_d = tol_a * h + 8.0 * kEps * (Abs(qvx) + Abs(qvy) + Abs(qvz));
-    broken =
-        Or(broken,
-           Exceeds12(ucx - qvx, ucy - qvy, ucz - qvz, uxx - (py * prev[5] - pz * prev[4]),
-                     uxy - (pz * prev[3] - px * prev[5]), uxz - (px * prev[4] - py * prev[3]),
-                     uyx - (py * prev[8] - pz * prev[7]), uyy - (pz * prev[6] - px * prev[8]),
-                     uyz - (px * prev[7] - py * prev[6]), uzx - (py * prev[11] - pz * prev[10]),
-                     uzy - (pz * prev[9] - px * prev[11]), uzz - (px * prev[10] - py * prev[9]),
-                     prev[kSDisc] * (1.0 + rtol) + tol_d));
-    if (nprev >= 2) {
-      broken =
-          Or(broken,
-             Exceeds12((ucx - prev[12]) * inv_h, (ucy - prev[13]) * inv_h, (ucz - prev[14]) * inv_h,
-                       (uxx - prev[15]) * inv_h, (uxy - prev[16]) * inv_h, (uxz - prev[17]) * inv_h,
-                       (uyx - prev[18]) * inv_h, (uyy - prev[19]) * inv_h, (uyz - prev[20]) * inv_h,
-                       (uzx - prev[21]) * inv_h, (uzy - prev[22]) * inv_h, (uzz - prev[23]) * inv_h,
-                       prev[kSAccel] * (1.0 + rtol) + tol_a));
-    }
-    prev[12] = ucx, prev[13] = ucy, prev[14] = ucz;
-    prev[15] = uxx, prev[16] = uxy, prev[17] = uxz;
-    prev[18] = uyx, prev[19] = uyy, prev[20] = uyz;
-    prev[21] = uzx, prev[22] = uzy, prev[23] = uzz;
-  }
-  prev[0] = cx, prev[1] = cy, prev[2] = cz;
-  prev[3] = xx, prev[4] = xy, prev[5] = xz;
-  prev[6] = yx, prev[7] = yy, prev[8] = yz;
-  prev[9] = zx, prev[10] = zy, prev[11] = zz;
-  prev[kSV] = vx, prev[kSV + 1] = vy, prev[kSV + 2] = vz;
+  prev[kSV] = tw[3] + w1 * dz - w2 * dy + rt[3] + m1 * ez - m2 * ey;
+  prev[kSV + 1] = tw[4] + w2 * dx - w0 * dz + rt[4] + m2 * ex - m0 * ez;
+  prev[kSV + 2] = tw[5] + w0 * dy - w1 * dx + rt[5] + m0 * ey - m1 * ex;
   prev[kSW] = w0 + m0, prev[kSW + 1] = w1 + m1, prev[kSW + 2] = w2 + m2;
   prev[kSScale] = scale;
+  MaskOf<T> broken = T{} != T{};
+  if (nprev < 1) return broken;
+  const T tol_a = 8.0 * kEps * (scale + scale_prev) / (h * h);
+  const T speed = prev[kSSpeed];
+  // An infinite speed bound screens out (bound inf), as if skipped.
+  const T b_speed = speed * (1.0 + rtol) + 0.5 * tol_a * h;
+  const T tol_d = tol_a * h + 8.0 * kEps * (Abs(qvx) + Abs(qvy) + Abs(qvz));
+  const T b_disc = prev[kSDisc] * (1.0 + rtol) + tol_d;
+  // Exceeds12's first test (and its rescaled one) alone, which most steps pass: a screen whose
+  // test passes on every lane flags none, as Exceeds12 would; any other is Exceeds12 itself.
+  auto passes = [](T n, T bound) { return And(4.0 * n <= bound * bound, Not(bound < 1e-139)); };
+  MaskOf<T> open = Not(And(passes(n_speed, b_speed), passes(n_disc, b_disc)));
+  const T b_accel = prev[kSAccel] * (1.0 + rtol) + tol_a;
+  if (nprev >= 2) open = Or(open, Not(passes(n_accel, b_accel)));
+  if (__builtin_expect(!Any(open), 1)) return broken;
+  const S* u = prev + 12;
+  broken = Or(broken, And(speed < kInf, Exceeds12<T>(u[0], u[1], u[2], u[3], u[4], u[5], u[6], u[7],
+                                                     u[8], u[9], u[10], u[11], b_speed)));
+  broken = Or(broken, Exceeds12(disc[0], disc[1], disc[2], disc[3], disc[4], disc[5], disc[6],
+                                disc[7], disc[8], disc[9], disc[10], disc[11], b_disc));
+  if (nprev >= 2) {
+    broken =
+        Or(broken, Exceeds12(accel[0], accel[1], accel[2], accel[3], accel[4], accel[5], accel[6],
+                             accel[7], accel[8], accel[9], accel[10], accel[11], b_accel));
+  }
   return broken;
 }
 
@@ -210,8 +232,18 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   // Each field read across the four bodies' sources straight into lanes (not through a copy
   // of the rows, and not written lane by lane into the vectors: narrow stores under a wide load
   // stall the store forwarding).
+  // The rows' places from the state (the reset wrote them, the padding's as its last body's:
+  // RowSources of body i + min(k, m - 1)).
+  int32_t at[kSIndexInts];
+  __builtin_memcpy(at, StateAt(ev, i, kSIndex), sizeof(at));
   const double* src[kLanes][kFields];
-  for (int k = 0; k < kLanes; ++k) RowSources(ev, f, i + std::min(k, m - 1), src[k]);
+  for (int k = 0; k < kLanes; ++k) {
+    const int64_t g3 = at[2 * k], b6 = at[2 * k + 1], r3 = at[8 + 2 * k];
+    const double* from[kFields] = {f.mat + 3 * g3,        f.pos + g3,
+                                   f.twist + b6,          f.twist_ref + r3,
+                                   f.root_twist + 2 * r3, f.root_origin + r3};
+    std::copy(from, from + kFields, src[k]);
+  }
   BodyRow<Lanes> row;
   // Unrolled: the loops' own counting and the lengths' lookups were a fifth of the check.
   // Each field's runs of four (the pose's first eight, the twists' first four) read a vector a
@@ -235,16 +267,32 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   transpose(0, 4, kRowR + 4);
   transpose(2, 0, kRowTw);
   transpose(4, 0, kRowRt);
+  // Runs of two (the positions' first two, the twists' last two) read two doubles a body, put
+  // together two bodies a half and unpacked; the rest a double at a time.
+  auto pair = [&](int field, int j, int at) {
+    using Half = double __attribute__((vector_size(16)));
+    Half r0, r1, r2, r3;
+    __builtin_memcpy(&r0, src[0][field] + j, sizeof(Half));
+    __builtin_memcpy(&r1, src[1][field] + j, sizeof(Half));
+    __builtin_memcpy(&r2, src[2][field] + j, sizeof(Half));
+    __builtin_memcpy(&r3, src[3][field] + j, sizeof(Half));
+    const Lanes t02 = __builtin_shufflevector(r0, r2, 0, 1, 2, 3);
+    const Lanes t13 = __builtin_shufflevector(r1, r3, 0, 1, 2, 3);
+    row.v[at] = __builtin_shufflevector(t02, t13, 0, 4, 2, 6);
+    row.v[at + 1] = __builtin_shufflevector(t02, t13, 1, 5, 3, 7);
+  };
   auto across = [&](int field, int j, int at) {
     row.v[at] = Lanes{src[0][field][j], src[1][field][j], src[2][field][j], src[3][field][j]};
   };
   across(0, 8, kRowR + 8);
-#pragma GCC unroll 6
-  for (int field = 0; field < kFields; ++field) {
-    const int from = field == 2 || field == 4 ? 4 : field == 0 ? kFieldLen[0] : 0;
-#pragma GCC unroll 9
-    for (int j = from; j < kFieldLen[field]; ++j) across(field, j, kFieldAt[field] + j);
-  }
+  pair(1, 0, kRowP);
+  across(1, 2, kRowP + 2);
+  pair(2, 4, kRowTw + 4);
+  pair(3, 0, kRowRef);
+  across(3, 2, kRowRef + 2);
+  pair(4, 4, kRowRt + 4);
+  pair(5, 0, kRowRo);
+  across(5, 2, kRowRo + 2);
   // The state's columns are whole vectors, the padding's too: a ragged last group's spare lanes
   // hold its last body's state (its inputs, and its box and bounds from the reset), so they
   // take the same paths through the screens.
@@ -900,9 +948,15 @@ void dua_reset_events(dua_step_args* a) {
   const int64_t padded = dua::EventStateLen(ev.nbody) / dua::kSNcol;
   for (int64_t i = 0; i < padded; ++i) {
     const double* rec = ev.rec + std::min(i, ev.nbody - 1) * dua::kBNcol;
-    for (int j = 0; j < dua::kSNcol - dua::kSWritten; ++j) {
+    for (int j = 0; j < dua::kSIndex - dua::kSWritten; ++j) {
       *dua::StateAt(ev, i, dua::kSWritten + j) = rec[dua::kBCenter + j];
     }
+    // RowSources' indices, as int32 (MjData's arrays index with int), in the body's own lane.
+    const int32_t index[4] = {3 * static_cast<int32_t>(rec[dua::kBFrame]),
+                              6 * static_cast<int32_t>(rec[dua::kBBody]),
+                              3 * static_cast<int32_t>(rec[dua::kBRoot]), 0};
+    __builtin_memcpy(dua::StateAt(ev, i, dua::kSIndex), index, 2 * sizeof(int32_t));
+    __builtin_memcpy(dua::StateAt(ev, i, dua::kSIndex + 1), index + 2, 2 * sizeof(int32_t));
   }
   ev.meta[dua::kMNprev] = 0;
   ev.meta[dua::kMTotal] = 0;

@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 12
+#define DUA_ABI_VERSION 13
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -150,7 +150,7 @@ typedef struct dua_exact {
 typedef struct dua_events {
   int64_t nbody;
   const double* rec;       // (nbody, 12)
-  double* prev;            // (ceil(nbody / 4), 40, 4): four bodies' column together (the
+  double* prev;            // (ceil(nbody / 4), 42, 4): four bodies' column together (the
                            // padding included; dua_reset_events fills it)
   int64_t* meta;           // (3,)
   int64_t* flagged;        // (nbody,)
