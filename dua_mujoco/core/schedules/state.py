@@ -111,7 +111,7 @@ class ScheduleState(NamedTuple):
             standing in alarm until evaluated).
         active: ``(M,)`` bool, pairs switched on.
         ints: ``(rows, M)`` int64, rows ``WHERE``, ``LAST_STEP`` (and ``NEXT``, ``PREV`` for the
-            deadline wheel): a strided view, each pair's ints one record of four in the buffer.
+            deadline wheel).
         slots: Rank: ``(2**L - 1,)`` pair of each slot (-1 empty). Deadline: ``(wheel,)`` first
             pair of each wheel slot (-1 empty). Select-all: empty.
         horizon: Rank: ``(L,)`` alarm horizon of each bucket, ``(I_k + latency) dt``. Others:

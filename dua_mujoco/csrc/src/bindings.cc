@@ -690,11 +690,8 @@ void BindSchedule(nb::module_& m) {
       .def_prop_ro("ints",
                    [](nb::handle h) {
                      auto& s = nb::cast<Schedule&>(h);
-                     // (rows, m) over each pair's record of kIntStride (layout.h).
-                     const size_t shape[2] = {static_cast<size_t>(s.IntRows()),
-                                              static_cast<size_t>(s.m())};
-                     const int64_t strides[2] = {1, kIntStride};
-                     return nb::ndarray<nb::numpy, int64_t>(s.ints.data(), 2, shape, h, strides);
+                     const size_t m = static_cast<size_t>(s.m());
+                     return View<int64_t>(s.ints.data(), {m ? s.ints.size() / m : 0, m}, h);
                    })
       .def_prop_ro("slots",
                    [](nb::handle h) {

@@ -57,11 +57,6 @@ constexpr int kModeNone = 0, kModeGeoms = 1, kModePlane = 2, kModeShape = 3, kMo
 constexpr int64_t kRank = 0, kDeadline = 1;
 // Prefixed, being common words: schedule.cc names them shorter.
 constexpr int64_t kIntWhere = 0, kIntLastStep = 1, kIntNext = 2, kIntPrev = 3;
-// A pair's ints sit together in one record of kIntStride (32 bytes, half a cache line; the rank
-// and select-all kinds use its first two): the wheel's select and reinsert touch a pair's where,
-// last step, next and prev at once. Row r of pair p is ints[p * kIntStride + r]; Python sees the
-// rows as (rows, m) views with that stride.
-constexpr int64_t kIntStride = 4;
 constexpr int64_t kWorkSlots = 0, kWorkIds = 1, kWorkAlarms = 2, kWorkNew = 3;
 constexpr int64_t kParamNBuckets = 0, kParamSlotsPerBucket = 1, kParamWheel = 2,
                   kParamMaxInterval = 3, kParamCap = 4, kParamCount = 5, kParamDeferred = 6,

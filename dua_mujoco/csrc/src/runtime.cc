@@ -881,9 +881,8 @@ void Runtime::SetExpiry(int64_t p) {
   const Schedule& s = *schedule_;
   const bool counted = s.active[p] && gp_counted_[universe().pair_geom[ids_[p]]];
   const double expiry =
-      counted
-          ? s.last_tau[p] + static_cast<double>(s.ints[p * kIntStride + kIntLastStep]) * s.spec().dt
-          : kInf;
+      counted ? s.last_tau[p] + static_cast<double>(s.ints[kIntLastStep * s.m() + p]) * s.spec().dt
+              : kInf;
   int64_t i = expiry_size_ + p;
   expiry_tree_[i] = expiry;
   for (i /= 2; i >= 1; i /= 2) {

@@ -29,17 +29,9 @@ constexpr int64_t kNBuckets = dua::kParamNBuckets, kSlotsPerBucket = dua::kParam
                   kSettled = dua::kParamSettled;
 constexpr double kNegInf = -std::numeric_limits<double>::infinity();
 
-using dua::kIntStride;
-
-// One row of the pairs' int records (layout.h): pair p's entry at p * kIntStride.
-struct IntRow {
-  int64_t* base;
-  int64_t& operator[](int64_t p) const { return base[p * kIntStride]; }
-};
-
 struct View {
   dua_schedule* st;
-  IntRow Int(int64_t row) const { return {st->ints + row}; }
+  int64_t* Int(int64_t row) const { return st->ints + row * st->m; }
   int64_t* Work(int64_t row) const { return st->work + row * st->width; }
 };
 
@@ -116,8 +108,8 @@ int64_t RankSelect(const View& v, int64_t n) {
 
 int64_t RankReinsert(const View& v, int64_t n, int64_t count) {
   dua_schedule* st = v.st;
-  const IntRow where = v.Int(kWhere);
-  const IntRow last_step = v.Int(kLastStep);
+  int64_t* where = v.Int(kWhere);
+  int64_t* last_step = v.Int(kLastStep);
   int64_t* w_slots = v.Work(kWSlots);
   int64_t* w_ids = v.Work(kWIds);
   int64_t* alarms = v.Work(kWAlarms);
@@ -164,24 +156,24 @@ int64_t RankReinsert(const View& v, int64_t n, int64_t count) {
 }
 
 // Link pair p at the head of its due step's wheel slot.
-inline void LinkInto(int64_t* slots, int64_t* ints, int64_t wheel, int64_t p, int64_t due) {
+inline void LinkInto(int64_t* slots, int64_t* ints, int64_t m, int64_t wheel, int64_t p,
+                     int64_t due) {
   const int64_t slot = due & (wheel - 1);
   const int64_t head = slots[slot];
-  int64_t* rec = ints + p * kIntStride;
-  rec[kNext] = head;
-  rec[kPrev] = -1 - slot;
-  if (head >= 0) ints[head * kIntStride + kPrev] = p;
+  ints[kNext * m + p] = head;
+  ints[kPrev * m + p] = -1 - slot;
+  if (head >= 0) ints[kPrev * m + head] = p;
   slots[slot] = p;
-  rec[kWhere] = due;
+  ints[kWhere * m + p] = due;
 }
 
 inline void Link(const View& v, int64_t p, int64_t due) {
-  LinkInto(v.st->slots, v.st->ints, v.st->params[kWheel], p, due);
+  LinkInto(v.st->slots, v.st->ints, v.st->m, v.st->params[kWheel], p, due);
 }
 
 // Take pair p out of its wheel slot's list (nothing if it is in none), on rows and slots the
 // caller read once.
-inline void UnlinkFrom(int64_t* slots, IntRow nxt, IntRow prv, IntRow where, int64_t p) {
+inline void UnlinkFrom(int64_t* slots, int64_t* nxt, int64_t* prv, int64_t* where, int64_t p) {
   if (where[p] < 0) return;
   const int64_t after = nxt[p], before = prv[p];
   if (before >= 0) {
@@ -204,10 +196,10 @@ inline void Unlink(const View& v, int64_t p) {
 int64_t DeadlineSelect(const View& v, int64_t n, int64_t count = 0) {
   dua_schedule* st = v.st;
   int64_t* params = st->params;
-  const IntRow last_step = v.Int(kLastStep);
-  const IntRow nxt = v.Int(kNext);
-  const IntRow prv = v.Int(kPrev);
-  const IntRow where = v.Int(kWhere);
+  int64_t* last_step = v.Int(kLastStep);
+  int64_t* nxt = v.Int(kNext);
+  int64_t* prv = v.Int(kPrev);
+  int64_t* where = v.Int(kWhere);
   int64_t* w_ids = v.Work(kWIds);
   const int64_t slot = n & (params[kWheel] - 1);
   int64_t p = st->slots[slot];
@@ -249,20 +241,20 @@ int64_t DeadlineSelect(const View& v, int64_t n, int64_t count = 0) {
 int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
   dua_schedule* st = v.st;
   const int64_t* params = st->params;
-  const IntRow last_step = v.Int(kLastStep);
-  const IntRow where = v.Int(kWhere);
+  int64_t* last_step = v.Int(kLastStep);
+  int64_t* where = v.Int(kWhere);
   int64_t* w_ids = v.Work(kWIds);
   int64_t* alarms = v.Work(kWAlarms);
   int64_t* fresh = v.Work(kWNew);
   const double dt = st->dt;
   const int64_t latency = st->latency;
   const int64_t max_interval = params[kMaxInterval], backoff = params[kBackoff];
-  // Read once: the loop's stores of ints and taus could alias the schedule's own numbers (the
-  // wheel's size, the horizon and extra), which the compiler would then read again each pair.
+  // Read once: the loop's stores of ints and taus could alias the schedule's own numbers (its m,
+  // the wheel's size, the horizon and extra), which the compiler would then read again each pair.
   const double extra = st->extra, horizon = st->horizon[0];
   int64_t* slots = st->slots;
   int64_t* ints = st->ints;
-  const int64_t wheel = params[kWheel];
+  const int64_t m = st->m, wheel = params[kWheel];
   int64_t nalarm = 0;
   for (int64_t k = 0; k < count; ++k) {
     const int64_t p = w_ids[k];
@@ -282,7 +274,7 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
     }
     st->last_tau[p] = tau;
     last_step[p] = n;
-    LinkInto(slots, ints, wheel, p, n + interval);
+    LinkInto(slots, ints, m, wheel, p, n + interval);
   }
   for (int64_t k = count; k < count + params[kDeferred]; ++k) {
     const int64_t p = w_ids[k];
@@ -311,7 +303,7 @@ int64_t AllReinsert(const View& v, int64_t n, int64_t count) {
   int64_t* w_ids = v.Work(kWIds);
   int64_t* alarms = v.Work(kWAlarms);
   int64_t* fresh = v.Work(kWNew);
-  const IntRow last_step = v.Int(kLastStep);
+  int64_t* last_step = v.Int(kLastStep);
   int64_t nalarm = 0;
   for (int64_t k = 0; k < count; ++k) {
     const int64_t p = w_ids[k];
@@ -440,7 +432,7 @@ void dua_make_due(dua_schedule* st, int64_t p, int64_t n) { dua::MakeDue(st, &p,
 void dua_rank_classify(dua_schedule* st) {
   const View v{st};
   const int64_t m = st->m;
-  const IntRow where = v.Int(kWhere);
+  int64_t* where = v.Int(kWhere);
   // The paper's initial classification (eq. 23): bucket k holds the pairs of rank
   // [2^k - 1, 2^(k+1) - 1) by tau, ties by id: a partition at each bucket boundary.
   std::vector<int64_t> order(static_cast<size_t>(m));
@@ -477,6 +469,7 @@ void dua_deadline_classify(dua_schedule* st) {
 
 void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, const int64_t* src,
                         int64_t nsrc, int64_t n) {
+  const int64_t mo = old_state->m, mn = new_state->m;
   const int64_t wheel = new_state->params[kWheel];
   int64_t* ints = new_state->ints;
   for (int64_t p = 0; p < nsrc; ++p) {
@@ -484,14 +477,14 @@ void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, 
     if (q >= 0) {
       new_state->last_tau[p] = old_state->last_tau[q];
       new_state->active[p] = old_state->active[q];
-      ints[p * kIntStride + kLastStep] = old_state->ints[q * kIntStride + kLastStep];
-      const int64_t due = old_state->ints[q * kIntStride + kWhere];
-      if (due >= 0) LinkInto(new_state->slots, ints, wheel, p, due);
+      ints[kLastStep * mn + p] = old_state->ints[kLastStep * mo + q];
+      const int64_t due = old_state->ints[kWhere * mo + q];
+      if (due >= 0) LinkInto(new_state->slots, ints, mn, wheel, p, due);
     } else {
       new_state->last_tau[p] = kNegInf;
       new_state->active[p] = 1;
-      ints[p * kIntStride + kLastStep] = n;
-      LinkInto(new_state->slots, ints, wheel, p, n);
+      ints[kLastStep * mn + p] = n;
+      LinkInto(new_state->slots, ints, mn, wheel, p, n);
     }
   }
 }
@@ -515,19 +508,19 @@ int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
   // same order straight into w_ids: the groups and their members walked backwards, each pair
   // taken the first time it is met, out of whatever list holds it (step n's too).
   const View v{st};
-  // Read once (the loop's stores could alias the schedule's numbers).
-  const IntRow where = v.Int(kWhere);
-  const IntRow nxt = v.Int(kNext);
-  const IntRow prv = v.Int(kPrev);
+  // Read once (the loop's stores could alias the schedule's m).
+  int64_t* where = v.Int(kWhere);
+  int64_t* nxt = v.Int(kNext);
+  int64_t* prv = v.Int(kPrev);
   int64_t* slots = st->slots;
   int64_t* w_ids = v.Work(kWIds);
   double* last_tau = st->last_tau;
   const uint8_t* active = st->active;
   constexpr int64_t kTaken = -2;  // taken this step (Unlink leaves -1; never a due step)
-  const IntRow last_step = v.Int(kLastStep);
+  int64_t* last_step = v.Int(kLastStep);
   const double dt = st->dt, extra = st->extra, horizon = st->horizon[0];
   const int64_t latency = st->latency, max_interval = st->params[kMaxInterval];
-  const int64_t wheel = st->params[kWheel];
+  const int64_t m = st->m, wheel = st->params[kWheel];
   int64_t* w_settled = v.Work(kWSlots);  // the settled pairs (the wheel leaves the row unused)
   int64_t count = 0, settled = 0;
   for (int64_t k = ngroups - 1; k >= 0; --k) {
@@ -558,7 +551,7 @@ int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
           last_tau[p] = tau;
           last_step[p] = n;
           UnlinkFrom(slots, nxt, prv, where, p);
-          LinkInto(slots, st->ints, wheel, p,
+          LinkInto(slots, st->ints, m, wheel, p,
                    n + dua_deadline_interval(tau, dt, latency, max_interval, extra));
           w_settled[settled++] = p;
           continue;
@@ -652,7 +645,7 @@ std::string ScheduleSpec::Check() const {
 
 void Schedule::Size(int64_t m) {
   const ScheduleSpec& s = spec_;
-  int64_t nslots = 0, nqueue = 0, width = m;
+  int64_t rows = 2, nslots = 0, nqueue = 0, width = m;
   params.assign(kNParams, 0);
   if (s.kind == kRank) {
     // L = ceil(log2(m + 1)) buckets (at least one) of 2^k slots; bucket k's slots are visited
@@ -671,6 +664,7 @@ void Schedule::Size(int64_t m) {
     params[kParamNBuckets] = nbuckets;
     params[kParamSlotsPerBucket] = s.slots_per_bucket;
   } else if (s.kind == kDeadline) {
+    rows = 4;
     nslots = int64_t{1} << BitLength(s.max_interval);  // a power of two > max_interval
     horizon.assign(1, static_cast<double>(1 + s.latency) * s.dt + Extra());
     params[kParamWheel] = nslots;
@@ -683,7 +677,7 @@ void Schedule::Size(int64_t m) {
   width = std::max<int64_t>(width, 1);
   last_tau.assign(m, 0.0);
   active.assign(m, 1);
-  ints.assign(static_cast<size_t>(kIntStride * m), s.kind == kDeadline ? -1 : 0);
+  ints.assign(static_cast<size_t>(rows * m), s.kind == kDeadline ? -1 : 0);
   slots.assign(nslots, -1);
   queue.assign(nqueue + 1, 0);
   work.assign(static_cast<size_t>(4 * width), 0);
@@ -723,7 +717,7 @@ Schedule::Schedule(const ScheduleSpec& spec, const std::vector<double>& tau0,
   if (!on.empty()) active = on;
   Point();
   if (spec_.kind == kDeadline) {
-    for (int64_t p = 0; p < m; ++p) ints[p * kIntStride + kIntLastStep] = 0;  // the classification
+    std::fill(ints.begin() + m, ints.begin() + 2 * m, 0);  // LAST_STEP: the classification
     dua_deadline_classify(&view_);
   } else if (spec_.kind == kRank) {
     dua_rank_classify(&view_);
@@ -760,7 +754,7 @@ std::vector<int64_t> Schedule::InitialAlarms() const {
 }
 
 int64_t Schedule::NextDue(int64_t p) const {
-  const int64_t n = step_count + 1, where = ints[p * kIntStride + kIntWhere];
+  const int64_t n = step_count + 1, where = ints[kIntWhere * m() + p];
   if (spec_.kind == kDeadline) return where;
   if (spec_.kind != kRank) return n;
   // RankSelect hands out slot o of bucket k at the steps n with (n q) mod 2^k == o - o mod q.

@@ -68,10 +68,9 @@ class DUA_API Schedule {
   bool Stands(int64_t p) const { return active[p] && last_tau[p] <= HorizonOf(p); }
   // The time pair p's latest verdict must cover (seconds; -inf: switched off, nothing).
   double HorizonOf(int64_t p) const {
-    const int64_t* rec = ints.data() + p * kIntStride;
-    if (spec_.kind == kRank) return horizon[BucketOf(rec[kIntWhere])];
+    if (spec_.kind == kRank) return horizon[BucketOf(ints[kIntWhere * m() + p])];
     if (spec_.kind == kDeadline) {
-      const int64_t where = rec[kIntWhere], last = rec[kIntLastStep];
+      const int64_t where = ints[kIntWhere * m() + p], last = ints[kIntLastStep * m() + p];
       if (where < 0) return -std::numeric_limits<double>::infinity();
       return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();
     }
@@ -91,10 +90,6 @@ class DUA_API Schedule {
   // New pair k is old pair src[k] (its verdict carried) or new (src[k] < 0: it stands in alarm,
   // due at step n), as dua_deadline_carry does (deadline schedules only).
   void Carry(const Schedule& old, const std::vector<int64_t>& src, int64_t n);
-
-  // The rows of ints the kind uses (WHERE and LAST_STEP; the wheel's NEXT and PREV too): each
-  // pair's record holds kIntStride, these first.
-  int64_t IntRows() const { return spec_.kind == kDeadline ? 4 : 2; }
 
   // The buffers (sized once; the C struct points at them).
   std::vector<double> last_tau, w_tau, horizon;

@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 13
+#define DUA_ABI_VERSION 12
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -76,7 +76,7 @@ typedef struct dua_schedule {
   int64_t m;         // pairs
   double* last_tau;  // (m,)
   uint8_t* active;   // (m,) 0/1
-  int64_t* ints;     // (m, 4): pair p's row r at ints[4 p + r] (kIntStride, layout.h)
+  int64_t* ints;     // (rows, m)
   int64_t* slots;    // (nslots,)
   int64_t nslots;
   double* horizon;  // (nhorizon,)
