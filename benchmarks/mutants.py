@@ -74,6 +74,9 @@ _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
 _HOLD_EDGE = "tests/test_shield.py::test_a_held_robot_breaks_its_hold_one_ulp_past_rest_speed"
+_SMALL_BOUNDS = (
+    "tests/test_events.py::test_the_checks_lanes_judge_bounds_below_their_squares_underflow"
+)
 _GRID_STEPS = (
     "tests/test_warning_time.py::test_the_grid_counts_no_step_past_the_first_state_it_can_touch_at"
 )
@@ -292,6 +295,24 @@ MUTANTS: tuple[Mutant, ...] = (
         ("tests/test_events.py::test_the_checks_lanes_equal_one_body_at_a_time",),
         "the four-body check reads a pose's second column in place of its first one's neighbour "
         "(a transpose off by a lane pair)",
+    ),
+    Mutant(
+        "check-small-bounds-first-lane-only",
+        _STEP,
+        "for (int k = 0; k < LaneCount<T>(); ++k) {",
+        "for (int k = 0; k < 1; ++k) {",
+        (_SMALL_BOUNDS,),
+        "the four-body check rescans only its first lane for a bound below 1e-139: another "
+        "body's chord whose squares underflow passes a bound it breaks",
+    ),
+    Mutant(
+        "check-small-bounds-threshold-lowered",
+        _STEP,
+        "const MaskOf<T> small = bound < 1e-139;",
+        "const MaskOf<T> small = bound < 1e-300;",
+        (_SMALL_BOUNDS,),
+        "the check rescans only bounds below 1e-300: a chord of 1e-162 (its squares 0) passes a "
+        "bound of 1e-173",
     ),
     Mutant(
         "settle-under-a-plan",

@@ -183,6 +183,75 @@ def test_the_checks_lanes_equal_one_body_at_a_time(scene: str, accel: float) -> 
     assert flagged > 0  # the bounds broke: the check's every branch ran
 
 
+def test_the_checks_lanes_judge_bounds_below_their_squares_underflow() -> None:
+    """A bound below 1e-139 sends its lane of the four-body check to ``Exceeds12``'s rescan
+    (step.cc): numbers whose squares underflow would read as 0 and pass it. Seven bodies shrunk
+    2^-560 times (their frames' matrices scaled: the check's arithmetic takes any matrix), every
+    other one with a bound of 1e-170, move by chords of up to 1.1e-162 (their squares 0 in
+    doubles): each step's flags must be the declared hypotheses' at the corners, with
+    ``math.hypot`` (which scales, so nothing underflows in the reference), and the lanes' flags and
+    states those of one body at a time, bit for bit. Groups of four mix small and large bounds,
+    and the last group is ragged. Fails with the rescan written to a wrong lane or skipped
+    (benchmarks/mutants.py)."""
+    n, h = 7, 2.0**-9  # 1 / h exact: the chords are the position steps times 512, exactly
+    m = mujoco.MjModel.from_xml_string(
+        mjcf(
+            *(free(f"b{i}", f"{i} 0 0", 'size="0.0625"') for i in range(n)),
+            option=f'gravity="0 0 0" timestep="{h!r}"',
+        )
+    )
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    accel = {f"b{i}": 1e-170 if i % 2 == 0 else 1.0 for i in range(n)}
+    p = Predictor(m, accel=accel)
+    assert p.events is not None and p.bounds.speed is None
+    body = np.asarray(m.geom_bodyid)
+    A, D = p.bounds.accel[body], p.bounds.discrepancy[body]  # by geom (one a body)
+    assert np.all((D < 1e-139) == (A < 1e-139)) and (D < 1e-139).sum() == 4
+    rng = np.random.default_rng(5)
+    pos = np.zeros((m.ngeom, 3))
+    width = _core.LAYOUT["NB_STATE"]
+
+    def put(pos: np.ndarray) -> None:
+        """The frames: the geoms at ``pos``, turned by 2^-560 I, no velocity."""
+        d.geom_xpos[:] = pos
+        d.geom_xmat[:] = np.ldexp(np.eye(3), -560).ravel()
+        d.xpos[:] = d.subtree_com[:] = d.cvel[:] = 0.0
+
+    put(pos)
+    p.reset(d)
+    chord = np.zeros((m.ngeom, 3))
+    flagged = small_flagged = 0
+    for k in range(1, 13):
+        still = rng.random(m.ngeom) < 0.3
+        steps = np.ldexp(rng.integers(-4, 5, (m.ngeom, 3)).astype(float), -549)
+        pos = pos + np.where(still[:, None], 0.0, steps)
+        last, chord = chord, np.where(still[:, None], 0.0, steps) / h
+        put(pos)
+        # The declared hypotheses at the box's corners: its axes keep still, so every corner's
+        # chord is the centre's; no velocity, so the discrepancy is the chord.
+        expected = []
+        for g in range(m.ngeom):
+            speed, change = math.hypot(*chord[g]), math.hypot(*(chord[g] - last[g])) / h
+            # Far from the bounds either way: the round-off allowances play no part.
+            assert speed == 0 or not 1e-3 < speed / D[g] < 1e3
+            if speed > D[g] or (k >= 2 and change > A[g]):
+                expected.append(g)
+        results = []
+        for lanes in (False, True):
+            rows, flat = p._rt.check_bodies_copy(lanes)
+            by_body = flat.reshape(-1, width, 4).transpose(0, 2, 1).reshape(-1, width)[:n]
+            results.append((rows.tolist(), by_body))
+        assert results[0][0] == results[1][0], f"step {k}"
+        np.testing.assert_array_equal(results[1][1], results[0][1], err_msg=f"step {k}")
+        d.time += h
+        p.step(d)
+        assert p.violated_bodies.tolist() == body[expected].tolist(), f"step {k}"
+        flagged += len(expected)
+        small_flagged += int((A[expected] < 1e-139).sum())
+    assert small_flagged == flagged > 10  # the small bounds' lanes flagged, the others never
+
+
 def _random_run(
     m: mujoco.MjModel, d: mujoco.MjData, p: Predictor, steps: int
 ) -> Iterator[PairState]:
