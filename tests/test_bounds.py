@@ -855,6 +855,34 @@ def test_motion_screen_matches_the_last_three_steps_contacts_and_limits() -> Non
         assert case in seen, case
 
 
+def test_motion_screen_marks_only_the_geoms_tree_of_a_flex_contact() -> None:
+    """A flex's contact names geom -1 on the flex's side: the screen marks the geom's tree (the
+    floor's, static) and no other. Read as an index, -1 was the last geom, whose ball falls free
+    far above and was screened out at every step the cloth touched the floor."""
+    from dua_mujoco.build.pilot_screen import MotionScreen
+
+    m = mujoco.MjModel.from_xml_string("""
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 .1"/>
+    <flexcomp name="cloth" type="grid" count="3 3 1" spacing=".04 .04 .04" pos="0 0 .05" dim="2"
+              radius=".01" mass=".05"><edge equality="true"/></flexcomp>
+    <body name="ball" pos="1 1 5"><freejoint/><geom type="sphere" size=".05"/></body>
+  </worldbody>
+</mujoco>
+""")
+    d = mujoco.MjData(m)
+    screen = MotionScreen(m)
+    ball = m.body("ball").id
+    flex_contacts = 0
+    for _ in range(150):
+        mujoco.mj_step(m, d)
+        free, calm = screen.update(d)
+        flex_contacts += int(np.count_nonzero(np.asarray(d.contact.geom)[: d.ncon] < 0))
+        assert free[ball] and calm[ball]
+    assert flex_contacts > 0 and m.geom_bodyid[-1] == ball
+
+
 def test_free_motion_bounds_of_a_landing_ball_are_its_free_fall() -> None:
     """Free motion leaves the landing and the rest out: a ball that falls, lands and rests gets
     its fall's bound (safety x g), though its landing's second differences are several times

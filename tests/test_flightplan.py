@@ -48,8 +48,22 @@ SCENE = f"""
 ACCEL = 60.0
 
 
-def _scene() -> tuple[mujoco.MjModel, mujoco.MjData]:
-    m = mujoco.MjModel.from_xml_string(SCENE)
+# The scene with a cloth (a flex: its contacts have no geom, out of the predictor's scope) that
+# falls onto the box and the floor.
+FLEX = SCENE.replace(
+    "  </worldbody>",
+    '    <flexcomp name="cloth" type="grid" count="4 4 1" spacing=".04 .04 .04" pos=".3 .3 .6" '
+    'dim="2" radius=".01" mass=".05"><edge equality="true"/></flexcomp>\n  </worldbody>',
+)
+# The scene with MuJoCo 4's sleep: the box starts asleep on the floor in the ball's path, is woken
+# when the ball strikes it, and falls asleep again where it comes to rest.
+SLEEP = SCENE.replace(
+    '<option timestep="0.002"/>', '<option timestep="0.002"><flag sleep="enable"/></option>'
+).replace('<body name="box" pos=".3 .3 .4">', '<body name="box" pos=".5 0 .03" sleep="init">')
+
+
+def _scene(xml: str = SCENE) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
     d.qvel[0] = 1.5  # the ball, towards the wall
     mujoco.mj_forward(m, d)
@@ -151,11 +165,12 @@ def _monitored(
     steps: int = 600,
     every: int = 25,
     d0: mujoco.MjData | None = None,
+    xml: str = SCENE,
 ) -> tuple[Predictor, Monitor]:
-    """A run of the scene under the run monitor, accel=1 (below gravity: every falling body
-    breaks its bounds at every step, so the bounds alone give onsets less lead than the
+    """A run of the scene (``xml``) under the run monitor, accel=1 (below gravity: every falling
+    body breaks its bounds at every step, so the bounds alone give onsets less lead than the
     horizon), a plan every ``every`` steps."""
-    m, d = _scene()
+    m, d = _scene(xml)
     if d0 is not None:
         mujoco.mj_copyData(d, m, d0)
     p = Predictor(m, accel=1.0, alarm_horizon=horizon, period=period, latency=latency, pairs=pairs)
@@ -205,6 +220,40 @@ def test_a_plan_that_is_the_simulation_flags_every_onset_the_horizon_ahead(
     assert planned.standing_alarm_fraction <= 1.02 * planned.oracle_fraction + 1e-12
     _, bounds = _monitored(horizon, lambda k, data: None, **config)
     assert _late(bounds) >= 1  # the same run without plans: the test can fail
+
+
+@pytest.mark.parametrize("xml", [FLEX, SLEEP], ids=["flex", "sleep"])
+def test_a_plan_on_a_model_with_a_flex_or_sleeping_trees_flags_every_onset(xml: str) -> None:
+    """Plans on models whose knots' poses come from ``mj_kinematics`` on the whole model (a flex,
+    or sleep enabled: plan.cc): a plan that is the simulation is followed without a break and
+    every onset stands in alarm the horizon ahead. With a flex, the cloth's contacts (geom -1)
+    are counted apart (out of scope), not looked up as a geom pair (the monitor stopped there).
+    With sleep, the box is asleep when the first plans are made (so in the plans' own data from
+    the start), awake at later ones and asleep again where it came to rest: a stale pose in any
+    knot breaks a plan of deviation 0. Without the plans the same run has onsets with less lead."""
+    m, _ = _scene(xml)
+    every, horizon = 25, 0.05
+    ctrl = _controls(m, 1000, seed=1)
+    n = round(horizon / m.opt.timestep) + 2 * every + 2
+    box = int(m.body_treeid[m.body("box").id])
+    asleep: list[bool] = []  # the box's tree at each plan
+
+    def plan_of(k: int, data: mujoco.MjData) -> tuple[np.ndarray, float]:
+        asleep.append(bool(data.tree_asleep[box] >= 0))
+        return _rollout(m, data, ctrl[k:], n), 0.0
+
+    p, planned = _monitored(horizon, plan_of, ctrl=ctrl, every=every, xml=xml)
+    assert planned.onsets >= 3 and planned.misses == []
+    assert _late(planned) == 0, planned.warning.leads
+    assert p.plan_breaks == 0 and p.has_plan
+    if xml is FLEX:
+        assert m.nflex == 1 and planned.flex_contacts > 0 and planned.unfiltered_contacts == 0
+    else:
+        # Asleep, woken, asleep again (the plans at steps 0, 150 and 275 see each).
+        woken = asleep.index(False)
+        assert asleep[0] and True in asleep[woken:], asleep
+    _, bounds = _monitored(horizon, lambda k, data: None, ctrl=ctrl, every=every, xml=xml)
+    assert _late(bounds) >= 1
 
 
 def test_motion_within_its_deviation_is_flagged_the_horizon_ahead() -> None:

@@ -69,10 +69,11 @@ class MotionScreen:
         held[k] = False
         nc = int(d.ncon)
         now = set(zip(d.contact.geom1[:nc].tolist(), d.contact.geom2[:nc].tolist(), strict=True))
+        # A flex's contact has geom -1 on the flex's side: only the geom's tree is marked.
         for g1, g2 in now:
-            held[k, self._geom_root[g1]] = held[k, self._geom_root[g2]] = True
+            held[k, self._geom_root[[g for g in (g1, g2) if g >= 0]]] = True
         for g1, g2 in now - self._in_contact:
-            new[k, self._geom_root[g1]] = new[k, self._geom_root[g2]] = True
+            new[k, self._geom_root[[g for g in (g1, g2) if g >= 0]]] = True
         if d.nefc:
             limit = np.asarray(d.efc_type[: d.nefc]) == int(
                 mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT

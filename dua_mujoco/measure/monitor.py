@@ -152,6 +152,9 @@ class Monitor:
         self.misses: list[Miss] = []
         self.inactive_contacts = 0
         self.unfiltered_contacts = 0
+        self.flex_contacts = 0
+        """Contacts of a flex seen (a physics step each): no geom pair, so no alarm covers them
+        (docs/covering-and-pairs.md: out of scope)."""
         self.episodes = 0
         self.false_episodes = 0
         self.violations = 0
@@ -208,22 +211,29 @@ class Monitor:
         self.warning.grow(self.predictor)
 
     def _mark_contacts(self, data: mujoco.MjData) -> None:
-        """Stamp the kinematic trees of every contact (any geom pair, static ones too)."""
+        """Stamp the kinematic trees of every contact (any geom pair, static ones too; of a
+        flex's contact, the geom's side: the flex's side is no geom, -1)."""
         nc = int(data.ncon)
         if nc:
-            self._root_contact[self._geom_root[data.contact.geom1[:nc]]] = self.physics_step
-            self._root_contact[self._geom_root[data.contact.geom2[:nc]]] = self.physics_step
+            g = np.concatenate([data.contact.geom1[:nc], data.contact.geom2[:nc]])
+            self._root_contact[self._geom_root[g[g >= 0]]] = self.physics_step
 
-    def _contacts(self, data: mujoco.MjData) -> tuple[np.ndarray, int]:
-        """Active geom pairs in contact (sorted ids) and the count of contacts outside them.
+    def _contacts(self, data: mujoco.MjData) -> tuple[np.ndarray, int, int]:
+        """Active geom pairs in contact (sorted ids), the count of geom contacts outside them
+        and the count of a flex's contacts (geom -1: out of scope, docs/covering-and-pairs.md).
 
         O(ncon), not O(geom pairs): the monitor runs every physics step.
         """
         nc = int(data.ncon)
         if nc == 0:
-            return _NONE, 0
-        gp = self.predictor.geom_pair_ids(data.contact.geom1[:nc], data.contact.geom2[:nc])
-        return np.unique(gp[gp >= 0]), int((gp < 0).sum())
+            return _NONE, 0, 0
+        g1, g2 = data.contact.geom1[:nc], data.contact.geom2[:nc]
+        geoms = (g1 >= 0) & (g2 >= 0)
+        flex = nc - int(np.count_nonzero(geoms))
+        if flex:
+            g1, g2 = g1[geoms], g2[geoms]
+        gp = self.predictor.geom_pair_ids(g1, g2)
+        return np.unique(gp[gp >= 0]), int((gp < 0).sum()), flex
 
     # ------------------------------------------------------------------- alarms
 
@@ -408,9 +418,10 @@ class Monitor:
             # evaluated now get their current state from this step's evaluation.
             self._sync_switches(exclude=sched.last_selected)
             self._observe_alarms(data, alarms)
-        now, unfiltered = self._contacts(data)
+        now, unfiltered, flex = self._contacts(data)
         self._fit()  # a contact of an active pair the predictor had not met: now it has
         self.unfiltered_contacts += unfiltered
+        self.flex_contacts += flex
         active = self._active_geom_pairs()
         if alarms is not None and self._nactive:
             self.standing_sum += self._nstanding / self._nactive
