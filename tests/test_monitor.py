@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import tracemalloc
+import warnings
 
 import mujoco
 import numpy as np
 import pytest
 
+import dua_mujoco.measure.rollout as rollout
 from dua_mujoco.build.options import ScheduleOptions, UrgencyOptions
-from dua_mujoco.exceptions import InvalidInputError
+from dua_mujoco.exceptions import DeadlineOverrunWarning, InvalidInputError
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.measure.report import RunReport
 from dua_mujoco.measure.rollout import run
@@ -361,3 +363,35 @@ def test_pruned_pairs_keep_the_static_shapes(options: dict) -> None:
     assert report.missed_onsets_valid_bounds == 0
     kinds = p.sphere_pairs.kind
     assert set(np.flatnonzero(kinds != 0).tolist()) <= set(p.held_pairs.tolist())
+
+
+@pytest.mark.parametrize("realtime", [False, True])
+def test_run_counts_the_predictor_steps_slower_than_its_period_when_realtime(
+    realtime: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``run(realtime=True)`` times each predictor step and counts those slower than
+    ``predictor.dt`` (``monitor.overruns``, the report's ``deadline_overruns``), warning once;
+    without it nothing is counted. A clock that advances 1 s a reading makes every step slow
+    (no timing)."""
+    ticks = iter(range(10**6))
+    monkeypatch.setattr(rollout.time, "perf_counter", lambda: float(next(ticks)))
+    m, d = load_scene("two_arms")
+    p = Predictor(m, accel=5.0, period=2)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        report = run(m, d, p, steps=20, realtime=realtime, progress=False)
+    overrun = [w for w in caught if issubclass(w.category, DeadlineOverrunWarning)]
+    assert report.deadline_overruns == (10 if realtime else 0)
+    assert len(overrun) == (1 if realtime else 0)
+
+
+def test_monitor_realtime_is_deprecated_and_does_nothing() -> None:
+    """``Monitor(realtime=...)`` never had an effect (the monitor does not time the predictor):
+    given, it warns that it is deprecated; left out, nothing is said."""
+    m, _ = load_scene("two_arms")
+    p = Predictor(m, accel=5.0)
+    with pytest.warns(DeprecationWarning, match=r"Monitor\(realtime=\.\.\.\) has no effect"):
+        Monitor(p, realtime=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Monitor(p)

@@ -19,6 +19,8 @@ onset's lead and the oracle are counted by :class:`WarningTime`.
 
 from __future__ import annotations
 
+import warnings
+
 import mujoco
 import numpy as np
 
@@ -50,8 +52,10 @@ class Monitor:
         predictor: A predictor (``reset`` is called by ``start``).
         check_bounds: Run a ``BoundMonitor`` each physics step (needed to tell valid-bound
             misses from misses after a broken bound).
-        realtime: Kept for the caller that times the steps: :func:`~dua_mujoco.measure.rollout.run`
-            counts a predictor step slower than ``predictor.dt`` in ``overruns`` and warns once.
+        realtime: Deprecated, and never had an effect (a ``DeprecationWarning`` when given): the
+            monitor does not time the predictor's steps; the caller that does counts the steps
+            slower than ``predictor.dt`` in ``overruns``, as
+            :func:`~dua_mujoco.measure.rollout.run` does with ``realtime=True``.
         geom_distance: Also measure the exact distance (``mj_geomDistance``) of every alarmed
             geom pair at each predictor step: how far the exact stage finds alarmed pairs (one
             float64 per alarmed pair and step is kept for the median).
@@ -78,7 +82,7 @@ class Monitor:
         predictor: Predictor,
         *,
         check_bounds: bool = True,
-        realtime: bool = False,
+        realtime: bool | None = None,
         geom_distance: bool = False,
         series: bool = False,
         warning_horizon: float | None = None,
@@ -91,7 +95,14 @@ class Monitor:
             )
         self.record_series = series
         self.model = predictor.model
-        self.realtime = realtime
+        if realtime is not None:
+            warnings.warn(
+                "Monitor(realtime=...) has no effect and will be removed: the monitor does not "
+                "time the predictor's steps; count overruns where they are timed (run(..., "
+                "realtime=True) does, into monitor.overruns).",
+                DeprecationWarning,
+                stacklevel=2,
+            )
         self.geom_distance = geom_distance
         self.bound_checks = (
             BoundMonitor(
@@ -159,6 +170,8 @@ class Monitor:
         self.false_episodes = 0
         self.violations = 0
         self.overruns = 0
+        """Predictor steps slower than ``predictor.dt``, counted by the caller that times them
+        (:func:`~dua_mujoco.measure.rollout.run` with ``realtime=True``)."""
         # Running sums over predictor steps, not per-step lists: memory stays flat.
         self.predictor_steps = 0
         self.evaluation_sum = 0

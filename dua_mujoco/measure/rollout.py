@@ -54,7 +54,8 @@ def run(
         steps: Physics steps after the reset.
         controller: ``controller(model, data)`` called before each ``mj_step``.
         scene: Name recorded in the report.
-        realtime: Count deadline overruns (see ``Monitor``).
+        realtime: Time each predictor step and count those slower than ``predictor.dt``
+            (``monitor.overruns``, the report's ``deadline_overruns``), warning at the first.
         geom_distance: Measure alarmed pairs with ``mj_geomDistance`` (see ``Monitor``).
         progress: Draw a progress bar on stderr.
         on_step: Called after each physics step with ``(k, data, alarms or None, monitor)``.
@@ -76,7 +77,6 @@ def run(
     predictor.check_data(data)  # before the controller writes into it
     monitor = Monitor(
         predictor,
-        realtime=realtime,
         geom_distance=geom_distance,
         series=series,
         warning_horizon=warning_horizon,
