@@ -618,7 +618,21 @@ class FreeStep:
         One fused step: its number of alarms, or -1 - p for a pair p whose state is not finite (the step undone).
         """
 
-class Brake:
+class Failsafe:
+    """
+    A failsafe's robot: its brake's actuators, DOFs and bodies (Brake, Evade).
+    """
+
+    @property
+    def dofs(self) -> list[int]: ...
+
+    @property
+    def bodies(self) -> list[int]: ...
+
+    @property
+    def actuators(self) -> list[int]: ...
+
+class Brake(Failsafe):
     """The shield's brake (brake.h) on a scratch MjData."""
 
     def __init__(self, model: object, actuators: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], time_constant: float) -> None: ...
@@ -629,33 +643,15 @@ class Brake:
         """
 
     @property
-    def dofs(self) -> list[int]: ...
-
-    @property
-    def bodies(self) -> list[int]: ...
-
-    @property
-    def actuators(self) -> list[int]: ...
-
-    @property
     def time_constant(self) -> float: ...
 
-class Evade:
+class Evade(Failsafe):
     """The evasive failsafe (brake.h) on a scratch MjData."""
 
     def __init__(self, model: object, actuators: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], time_constant: float, x: int, y: int, obstacles: Sequence[int], radius: Sequence[float], room: Sequence[float], gain: float, still: float, sideways: bool) -> None: ...
 
     def compute(self, data: object) -> NDArray[numpy.float64]:
         """(nu,) controls at data's state (its bodies' positions read from it)."""
-
-    @property
-    def dofs(self) -> list[int]: ...
-
-    @property
-    def bodies(self) -> list[int]: ...
-
-    @property
-    def actuators(self) -> list[int]: ...
 
 class Shield:
     """The safety shield (shield.h)."""

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -27,10 +28,24 @@ std::vector<int> IntsOf(const In<int64_t>& a) {
   return std::vector<int>(a.data(), a.data() + a.size());
 }
 
+// What every failsafe binding shows of the robot it moves: its brake's actuators, DOFs and
+// bodies (an Evade owns one brake), bound once for both (Python's Failsafe).
+struct PyRobot {
+  virtual ~PyRobot() = default;
+  virtual const Brake& robot() const = 0;
+};
+
 // A failsafe (a Brake or an Evade) and the scratch MjData it reads a state on (the caller's
 // data is never written).
 template <class F>
-struct PyFailsafe {
+struct PyFailsafe : PyRobot {
+  const Brake& robot() const override {
+    if constexpr (std::is_same_v<F, Brake>) {
+      return *failsafe;
+    } else {
+      return failsafe->brake();
+    }
+  }
   std::unique_ptr<F> failsafe;
   const mjModel* m = nullptr;
   nb::object model;
@@ -75,7 +90,13 @@ nb::dict Counts(const ShieldCounts& c) {
 }  // namespace
 
 void BindShield(nb::module_& m) {
-  nb::class_<PyBrake>(m, "Brake", "The shield's brake (brake.h) on a scratch MjData.")
+  nb::class_<PyRobot>(m, "Failsafe",
+                      "A failsafe's robot: its brake's actuators, DOFs and bodies (Brake, Evade).")
+      .def_prop_ro("dofs", [](const PyRobot& s) { return s.robot().dofs(); })
+      .def_prop_ro("bodies", [](const PyRobot& s) { return s.robot().bodies(); })
+      .def_prop_ro("actuators", [](const PyRobot& s) { return s.robot().actuators(); });
+
+  nb::class_<PyBrake, PyRobot>(m, "Brake", "The shield's brake (brake.h) on a scratch MjData.")
       .def(
           "__init__",
           [](PyBrake* self, nb::object model, const In<int64_t>& actuators, double time_constant) {
@@ -113,12 +134,9 @@ void BindShield(nb::module_& m) {
           "data"_a, "target"_a = nb::none(),
           "(nu,) controls at data's state: data.ctrl with the robot's actuators braking (or "
           "driving toward target, joint velocities of the braked DOFs).")
-      .def_prop_ro("dofs", [](const PyBrake& s) { return s.failsafe->dofs(); })
-      .def_prop_ro("bodies", [](const PyBrake& s) { return s.failsafe->bodies(); })
-      .def_prop_ro("actuators", [](const PyBrake& s) { return s.failsafe->actuators(); })
       .def_prop_ro("time_constant", [](const PyBrake& s) { return s.failsafe->time_constant(); });
 
-  nb::class_<PyEvade>(m, "Evade", "The evasive failsafe (brake.h) on a scratch MjData.")
+  nb::class_<PyEvade, PyRobot>(m, "Evade", "The evasive failsafe (brake.h) on a scratch MjData.")
       .def(
           "__init__",
           [](PyEvade* self, nb::object model, const In<int64_t>& actuators, double time_constant,
@@ -150,11 +168,7 @@ void BindShield(nb::module_& m) {
             self.failsafe->Compute(self.m, self.scratch, ctrl.data());
             return Owned(std::move(ctrl), {static_cast<size_t>(self.m->nu)});
           },
-          "data"_a, "(nu,) controls at data's state (its bodies' positions read from it).")
-      // Its brake's (the robot's): the one brake an Evade owns.
-      .def_prop_ro("dofs", [](const PyEvade& s) { return s.failsafe->brake().dofs(); })
-      .def_prop_ro("bodies", [](const PyEvade& s) { return s.failsafe->brake().bodies(); })
-      .def_prop_ro("actuators", [](const PyEvade& s) { return s.failsafe->brake().actuators(); });
+          "data"_a, "(nu,) controls at data's state (its bodies' positions read from it).");
 
   nb::class_<PyShield>(m, "Shield", "The safety shield (shield.h).")
       .def(

@@ -96,6 +96,7 @@ class DUA_API Evade {
   void Away(const mjData* d, double x, double y, double* ux, double* uy) const;
 
   Brake& brake() { return *brake_; }
+  const Brake& brake() const { return *brake_; }
 
  private:
   Evade() = default;
