@@ -639,7 +639,9 @@ MUTANTS: tuple[Mutant, ...] = (
         _PLAN,
         "for (int64_t c = 0; c < nslot_; ++c) still[c] = fixed[m->geom_bodyid[geoms[c]]];",
         "for (int64_t c = 0; c < nslot_; ++c) still[c] = 1;",
-        ("tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",),
+        (
+            "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
+        ),
         "a moving geom's sweep takes its first step's displacement at every knot, as a still "
         "geom's does: the carried gaps skip knots the geoms come closer at",
     ),
