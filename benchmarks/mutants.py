@@ -649,8 +649,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-kinematics-every-anchor-at-the-origin",
         _KINEMATICS,
-        "        if (still_anchor_[jid]) {",
-        "        if (true) {",
+        "      if (still_anchor_[jid]) {",
+        "      if (true) {",
         (_KNOTS,),
         "a plan's hinge or ball joint turned about its body's origin, not its anchor: poses off "
         "mj_kinematics' wherever a joint sits off its body's origin",
@@ -658,11 +658,31 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-kinematics-a-zeros-sign-kept",
         _KINEMATICS,
-        "          for (int k = 0; k < 3; ++k) xpos[k] = 0.0 + xpos[k];",
+        "        for (int k = 0; k < 3; ++k) xpos[k] = 0.0 + xpos[k];",
         "",
         (_KNOTS,),
         "a plan's body position where mj_kinematics adds an anchor at the origin: the sign of a "
         "zero differs from MuJoCo's (no longer its poses bit for bit)",
+    ),
+    Mutant(
+        "plan-kinematics-still-on-a-moving-body",
+        _KINEMATICS,
+        "still_[c] = m->body_weldid[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;",
+        "still_[c] = m->body_jntnum[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;",
+        (_KNOTS,),
+        "a plan's kinematics take a body without joints welded to a moving one for a still one "
+        "(its frame computed once): poses off wherever its parent moves",
+    ),
+    Mutant(
+        "plan-sweep-step-taken-once-for-moving-geoms",
+        _PLAN,
+        "for (int64_t c = 0; c < nslot_; ++c) still[c] = fixed[m->geom_bodyid[geoms[c]]];",
+        "for (int64_t c = 0; c < nslot_; ++c) still[c] = 1;",
+        (
+            "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
+        ),
+        "a moving geom's sweep takes its first step's displacement at every knot, as a still "
+        "geom's does: the carried gaps skip knots the geoms come closer at",
     ),
     Mutant(
         "plan-grid-shave-dropped",

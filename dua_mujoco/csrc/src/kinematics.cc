@@ -23,10 +23,10 @@ void Local2Global(const double* bpos, const double* bquat, const double* bmat, c
       for (int k = 0; k < 3; ++k) xpos[k] += bpos[k];
       break;
     case mjSAMEFRAME_BODY:
-      std::copy_n(bpos, 3, xpos);
+      for (int k = 0; k < 3; ++k) xpos[k] = bpos[k];
       break;
     default:  // mjSAMEFRAME_INERTIA
-      std::copy_n(ipos, 3, xpos);
+      for (int k = 0; k < 3; ++k) xpos[k] = ipos[k];
       break;
   }
   switch (sf) {
@@ -38,10 +38,10 @@ void Local2Global(const double* bpos, const double* bquat, const double* bmat, c
     }
     case mjSAMEFRAME_BODY:
     case mjSAMEFRAME_BODYROT:
-      std::copy_n(bmat, 9, xmat);
+      for (int k = 0; k < 9; ++k) xmat[k] = bmat[k];  // (copy_n called memcpy here)
       break;
     default:  // mjSAMEFRAME_INERTIA, mjSAMEFRAME_INERTIAROT
-      std::copy_n(imat, 9, xmat);
+      for (int k = 0; k < 9; ++k) xmat[k] = imat[k];
       break;
   }
 }
@@ -78,102 +78,144 @@ KnotKinematics::KnotKinematics(const mjModel* m, const std::vector<int64_t>& geo
   }
   xpos_.assign(3 * n, 0.0), xquat_.assign(4 * n, 0.0), xmat_.assign(9 * n, 0.0);
   xipos_.assign(3 * n, 0.0), ximat_.assign(9 * n, 0.0);
+  // Bodies welded to the world (outside mocap trees: no joint and no mocap pose on their path to
+  // it) read nor qpos nor a mocap pose: their frames, their inertial frames and their geoms'
+  // poses are the same at every knot, computed here once by the same calls (per plan they were
+  // a third of tiago's knots).
+  still_.assign(n, 0);
+  for (size_t c = 0; c < n; ++c) {
+    const int b = body_[c];
+    still_[c] = m->body_weldid[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;
+    if (still_[c]) Frame(c, nullptr, nullptr, nullptr);
+  }
+  still_pos_.assign(3 * geom_.size(), 0.0), still_mat_.assign(9 * geom_.size(), 0.0);
+  for (size_t s = 0; s < geom_.size(); ++s) {
+    const int c = gbody_[s];
+    if (c >= 0 && !still_[c]) continue;
+    gstill_.push_back(static_cast<int>(s));
+    GeomFrame(s, still_pos_.data() + 3 * s, still_mat_.data() + 9 * s);
+  }
+  for (size_t s = 0; s < geom_.size(); ++s) {
+    const int c = gbody_[s];
+    if (c >= 0 && !still_[c]) gmove_.push_back(static_cast<int>(s));
+  }
+  for (size_t c = 0; c < n; ++c) {
+    if (!still_[c]) move_.push_back(static_cast<int>(c));
+  }
+}
+
+void KnotKinematics::Frame(size_t c, const double* qpos, const double* mocap_pos,
+                           const double* mocap_quat) {
+  const mjModel* m = m_;
+  // mj_kinematics1's body loop, on its arithmetic, for kept body c (its parent done already).
+  const int i = body_[c], pid = parent_[c];
+  double* xpos = xpos_.data() + 3 * c;
+  double* xquat = xquat_.data() + 4 * c;
+  const int jntadr = m->body_jntadr[i], jntnum = m->body_jntnum[i];
+  if (jntnum == 1 && m->jnt_type[jntadr] == mjJNT_FREE) {
+    const int qadr = m->jnt_qposadr[jntadr];
+    std::copy_n(qpos + qadr, 3, xpos);
+    std::copy_n(qpos + qadr + 3, 4, xquat);
+    mju_normalize4(xquat);
+  } else {
+    const double *bodypos, *bodyquat;
+    double quat[4];
+    const int mocap = m->body_mocapid[i];
+    if (mocap >= 0) {
+      bodypos = mocap_pos + 3 * mocap;
+      std::copy_n(mocap_quat + 4 * mocap, 4, quat);
+      mju_normalize4(quat);
+      bodyquat = quat;
+    } else {
+      bodypos = m->body_pos + 3 * i;
+      bodyquat = m->body_quat + 4 * i;
+    }
+    if (pid >= 0) {
+      mju_mulMatVec3(xpos, xmat_.data() + 9 * pid, bodypos);
+      for (int k = 0; k < 3; ++k) xpos[k] += xpos_[3 * pid + k];
+      mju_mulQuat(xquat, xquat_.data() + 4 * pid, bodyquat);
+    } else {
+      std::copy_n(bodypos, 3, xpos);
+      std::copy_n(bodyquat, 4, xquat);
+    }
+    for (int j = 0; j < jntnum; ++j) {
+      const int jid = jntadr + j;
+      const int qadr = m->jnt_qposadr[jid];
+      const int jtype = m->jnt_type[jid];
+      if (jtype == mjJNT_SLIDE) {
+        // The axis moves the body; the anchor is read by nothing here.
+        double xaxis[3];
+        mju_rotVecQuat(xaxis, m->jnt_axis + 3 * jid, xquat);
+        const double q = qpos[qadr] - m->qpos0[qadr];
+        for (int k = 0; k < 3; ++k) xpos[k] += xaxis[k] * q;
+        continue;
+      }
+      // Ball or hinge (the compiler makes no other jointed body but a free one, above).
+      double qloc[4];
+      if (jtype == mjJNT_BALL) {
+        std::copy_n(qpos + qadr, 4, qloc);
+        mju_normalize4(qloc);
+      } else {
+        mju_axisAngle2Quat(qloc, m->jnt_axis + 3 * jid, qpos[qadr] - m->qpos0[qadr]);
+      }
+      if (still_anchor_[jid]) {
+        // The anchor is xpos + 0 and the rotation's offset +0: xpos becomes 0 + xpos (which
+        // differs from xpos only in the sign of a zero).
+        mju_mulQuat(xquat, xquat, qloc);
+        for (int k = 0; k < 3; ++k) xpos[k] = 0.0 + xpos[k];
+        continue;
+      }
+      double xanchor[3], vec[3];
+      mju_rotVecQuat(xanchor, m->jnt_pos + 3 * jid, xquat);
+      for (int k = 0; k < 3; ++k) xanchor[k] += xpos[k];
+      mju_mulQuat(xquat, xquat, qloc);
+      mju_rotVecQuat(vec, m->jnt_pos + 3 * jid, xquat);
+      for (int k = 0; k < 3; ++k) xpos[k] = xanchor[k] - vec[k];
+    }
+  }
+  mju_normalize4(xquat);
+  mju_quat2Mat(xmat_.data() + 9 * c, xquat);
+  // mj_kinematics2's inertial frame, where a kept geom sits at it.
+  if (inertia_[c]) {
+    Local2Global(xpos, xquat, xmat_.data() + 9 * c, nullptr, nullptr, m->body_ipos + 3 * i,
+                 m->body_iquat + 4 * i, m->body_sameframe[i], xipos_.data() + 3 * c,
+                 ximat_.data() + 9 * c);
+  }
+}
+
+void KnotKinematics::GeomFrame(size_t s, double* pos, double* mat) const {
+  static const double kZero[3] = {0.0, 0.0, 0.0}, kUnit[4] = {1.0, 0.0, 0.0, 0.0},
+                      kEye[9] = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
+  const int64_t g = geom_[s];
+  const int c = gbody_[s];
+  // The world body's frames, as mj_kinematics1 sets them: the origin, unrotated.
+  const double* bpos = c >= 0 ? xpos_.data() + 3 * c : kZero;
+  const double* bquat = c >= 0 ? xquat_.data() + 4 * c : kUnit;
+  const double* bmat = c >= 0 ? xmat_.data() + 9 * c : kEye;
+  const double* ipos = c >= 0 ? xipos_.data() + 3 * c : kZero;
+  const double* imat = c >= 0 ? ximat_.data() + 9 * c : kEye;
+  Local2Global(bpos, bquat, bmat, ipos, imat, m_->geom_pos + 3 * g, m_->geom_quat + 4 * g,
+               m_->geom_sameframe[g], pos, mat);
 }
 
 void KnotKinematics::Run(const double* qpos, const double* mocap_pos, const double* mocap_quat,
                          double* pos, double* mat) {
-  const mjModel* m = m_;
-  // mj_kinematics1's loop over the bodies kept (parents first), on its arithmetic.
-  for (size_t c = 0; c < body_.size(); ++c) {
-    const int i = body_[c], pid = parent_[c];
-    double* xpos = xpos_.data() + 3 * c;
-    double* xquat = xquat_.data() + 4 * c;
-    const int jntadr = m->body_jntadr[i], jntnum = m->body_jntnum[i];
-    if (jntnum == 1 && m->jnt_type[jntadr] == mjJNT_FREE) {
-      const int qadr = m->jnt_qposadr[jntadr];
-      std::copy_n(qpos + qadr, 3, xpos);
-      std::copy_n(qpos + qadr + 3, 4, xquat);
-      mju_normalize4(xquat);
-    } else {
-      const double *bodypos, *bodyquat;
-      double quat[4];
-      const int mocap = m->body_mocapid[i];
-      if (mocap >= 0) {
-        bodypos = mocap_pos + 3 * mocap;
-        std::copy_n(mocap_quat + 4 * mocap, 4, quat);
-        mju_normalize4(quat);
-        bodyquat = quat;
-      } else {
-        bodypos = m->body_pos + 3 * i;
-        bodyquat = m->body_quat + 4 * i;
-      }
-      if (pid >= 0) {
-        mju_mulMatVec3(xpos, xmat_.data() + 9 * pid, bodypos);
-        for (int k = 0; k < 3; ++k) xpos[k] += xpos_[3 * pid + k];
-        mju_mulQuat(xquat, xquat_.data() + 4 * pid, bodyquat);
-      } else {
-        std::copy_n(bodypos, 3, xpos);
-        std::copy_n(bodyquat, 4, xquat);
-      }
-      for (int j = 0; j < jntnum; ++j) {
-        const int jid = jntadr + j;
-        const int qadr = m->jnt_qposadr[jid];
-        const int jtype = m->jnt_type[jid];
-        if (jtype == mjJNT_SLIDE) {
-          // The axis moves the body; the anchor is read by nothing here.
-          double xaxis[3];
-          mju_rotVecQuat(xaxis, m->jnt_axis + 3 * jid, xquat);
-          const double q = qpos[qadr] - m->qpos0[qadr];
-          for (int k = 0; k < 3; ++k) xpos[k] += xaxis[k] * q;
-          continue;
-        }
-        // Ball or hinge (the compiler makes no other jointed body but a free one, above).
-        double qloc[4];
-        if (jtype == mjJNT_BALL) {
-          std::copy_n(qpos + qadr, 4, qloc);
-          mju_normalize4(qloc);
-        } else {
-          mju_axisAngle2Quat(qloc, m->jnt_axis + 3 * jid, qpos[qadr] - m->qpos0[qadr]);
-        }
-        if (still_anchor_[jid]) {
-          // The anchor is xpos + 0 and the rotation's offset +0: xpos becomes 0 + xpos (which
-          // differs from xpos only in the sign of a zero).
-          mju_mulQuat(xquat, xquat, qloc);
-          for (int k = 0; k < 3; ++k) xpos[k] = 0.0 + xpos[k];
-          continue;
-        }
-        double xanchor[3], vec[3];
-        mju_rotVecQuat(xanchor, m->jnt_pos + 3 * jid, xquat);
-        for (int k = 0; k < 3; ++k) xanchor[k] += xpos[k];
-        mju_mulQuat(xquat, xquat, qloc);
-        mju_rotVecQuat(vec, m->jnt_pos + 3 * jid, xquat);
-        for (int k = 0; k < 3; ++k) xpos[k] = xanchor[k] - vec[k];
-      }
-    }
-    mju_normalize4(xquat);
-    mju_quat2Mat(xmat_.data() + 9 * c, xquat);
-  }
-  // mj_kinematics2: the inertial frames a kept geom sits at, then the kept geoms.
-  for (size_t c = 0; c < body_.size(); ++c) {
-    if (!inertia_[c]) continue;
-    const int i = body_[c];
-    Local2Global(xpos_.data() + 3 * c, xquat_.data() + 4 * c, xmat_.data() + 9 * c, nullptr,
-                 nullptr, m->body_ipos + 3 * i, m->body_iquat + 4 * i, m->body_sameframe[i],
-                 xipos_.data() + 3 * c, ximat_.data() + 9 * c);
-  }
-  static const double kZero[3] = {0.0, 0.0, 0.0}, kUnit[4] = {1.0, 0.0, 0.0, 0.0},
-                      kEye[9] = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
-  for (size_t s = 0; s < geom_.size(); ++s) {
+  // The moving bodies kept, parents first (a body's inertial frame with it: mj_kinematics2
+  // computes it from the same body frame), then the moving geoms; the still ones' poses copied.
+  for (const int c : move_) Frame(static_cast<size_t>(c), qpos, mocap_pos, mocap_quat);
+  const mjtByte* sameframe = m_->geom_sameframe;
+  for (const int s : gmove_) {
     const int64_t g = geom_[s];
-    const int c = gbody_[s];
-    // The world body's frames, as mj_kinematics1 sets them: the origin, unrotated.
-    const double* bpos = c >= 0 ? xpos_.data() + 3 * c : kZero;
-    const double* bquat = c >= 0 ? xquat_.data() + 4 * c : kUnit;
-    const double* bmat = c >= 0 ? xmat_.data() + 9 * c : kEye;
-    const double* ipos = c >= 0 ? xipos_.data() + 3 * c : kZero;
-    const double* imat = c >= 0 ? ximat_.data() + 9 * c : kEye;
-    Local2Global(bpos, bquat, bmat, ipos, imat, m->geom_pos + 3 * g, m->geom_quat + 4 * g,
-                 m->geom_sameframe[g], pos + 3 * s, mat + 9 * s);
+    const size_t c = static_cast<size_t>(gbody_[s]);
+    Local2Global(xpos_.data() + 3 * c, xquat_.data() + 4 * c, xmat_.data() + 9 * c,
+                 xipos_.data() + 3 * c, ximat_.data() + 9 * c, m_->geom_pos + 3 * g,
+                 m_->geom_quat + 4 * g, sameframe[g], pos + 3 * s, mat + 9 * s);
+  }
+  for (const int s : gstill_) {
+    const double* p = still_pos_.data() + 3 * s;
+    const double* r = still_mat_.data() + 9 * s;
+    for (int e = 0; e < 3; ++e) pos[3 * s + e] = p[e];
+    for (int e = 0; e < 9; ++e) mat[9 * s + e] = r[e];
   }
 }
 

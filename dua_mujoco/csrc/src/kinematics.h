@@ -39,6 +39,11 @@ class DUA_API KnotKinematics {
   const std::vector<double>& xmat() const { return xmat_; }
 
  private:
+  // Kept body c's frame (its parent's computed) and, if a kept geom sits at it, its inertial
+  // frame; slot s's geom pose from its body's frames into (pos, mat).
+  void Frame(size_t c, const double* qpos, const double* mocap_pos, const double* mocap_quat);
+  void GeomFrame(size_t s, double* pos, double* mat) const;
+
   const mjModel* m_;
   std::vector<int> body_;    // model id of each kept body
   std::vector<int> parent_;  // index of its parent among the kept bodies, -1 for the world
@@ -47,6 +52,9 @@ class DUA_API KnotKinematics {
   std::vector<int> gbody_;             // per slot: its body's index among the kept
   std::vector<int64_t> geom_;          // per slot: the model's geom
   std::vector<double> xpos_, xquat_, xmat_, xipos_, ximat_;
+  std::vector<uint8_t> still_;                 // per kept body: welded to the world (no qpos read)
+  std::vector<int> move_, gmove_, gstill_;     // the other kept bodies; the slots moving, still
+  std::vector<double> still_pos_, still_mat_;  // per slot: a still geom's pose, computed once
 };
 
 }  // namespace dua

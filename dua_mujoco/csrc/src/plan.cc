@@ -32,6 +32,24 @@ double Displacement(const double* p0, const double* r0, const double* p1, const 
   return (std::sqrt(dp) + std::sqrt(dr) * radius) * (1.0 + 8.0 * kEpsilon);
 }
 
+// The sweeps of knot j (poses pj, rj; the knot before 3 nslot and 9 nslot back, its sweeps
+// nslot back) for the slots `moving` (their Displacement) and `still` (a step taken once):
+// Plan::Finish's loop, in an AVX2 clone where the CPU has one (the same operations in the same
+// order: the same bits). Returns false when a squared difference is not finite.
+DUA_LANES_CLONES bool SweepKnot(const double* pj, const double* rj, int64_t nslot,
+                                const std::vector<int64_t>& moving,
+                                const std::vector<std::pair<int64_t, double>>& still,
+                                const double* reach, const uint8_t* plane, double* sw) {
+  bool finite = true;
+  for (const int64_t c : moving) {
+    const double step = Displacement(pj - 3 * nslot + 3 * c, rj - 9 * nslot + 9 * c, pj + 3 * c,
+                                     rj + 9 * c, reach[c], plane[c] != 0, &finite);
+    sw[c] = (sw[c - nslot] + step) * (1.0 + 4.0 * kEpsilon);
+  }
+  for (const auto& [c, step] : still) sw[c] = (sw[c - nslot] + step) * (1.0 + 4.0 * kEpsilon);
+  return finite;
+}
+
 // |a - b| - eps of two centres, lowered by the rounding allowance of the sphere gaps.
 double CentreGap(const double* a, const double* b, double eps) {
   const double d0 = b[0] - a[0], d1 = b[1] - a[1], d2 = b[2] - a[2];
@@ -420,6 +438,12 @@ inline Side SideOf(const Plan& plan, const uint8_t* ok, int64_t b) {
   return ok[b] ? kPlanned : kFree;
 }
 
+// Whether neither side of a pair follows its bounds (each planned, or static): the pair then
+// takes the plan's tau (8), a knot at or past the step's whatever its walk finds. The one
+// place this is decided: Judge takes that case by it, and PlanCovered spares those pairs the
+// bounds' tau by it.
+inline bool NeitherFree(Side s1, Side s2) { return s1 != kFree && s2 != kFree; }
+
 // A pair's knot under the plan (-1: the plan does not cover it) and its basis bits.
 struct Judged {
   int64_t knot;
@@ -431,7 +455,7 @@ Judged Judge(dua_step_args& a, const Plan& plan, const uint8_t* ok, mjData* d, i
   const int64_t b1 = a.plan.geom_body[g1], b2 = a.plan.geom_body[g2];
   const Side s1 = SideOf(plan, ok, b1), s2 = SideOf(plan, ok, b2);
   const uint8_t basis = static_cast<uint8_t>((s1 != kFree ? 1 : 0) | (s2 != kFree ? 2 : 0));
-  if (s1 != kFree && s2 != kFree) {
+  if (NeitherFree(s1, s2)) {
     int64_t* cleared = a.plan.cleared != nullptr ? a.plan.cleared + p : nullptr;
     // The bodies' relative pair, unless found beyond its bound (rel_ok null: a candidate plan,
     // every bound assumed, as its bodies are).
@@ -666,7 +690,8 @@ bool RelativePoseWithin(const double* box, const BoxReach& reach, const double* 
 
 std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, double h,
                         const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms,
-                        const Plan* prev, std::shared_ptr<PlanPool> pool) {
+                        const Plan* prev, std::shared_ptr<PlanPool> pool,
+                        KnotKinematics* kinematics) {
   const int64_t n = in.n;
   if (n < 1) return "holds no knot: pass at least one row of qpos";
   if (!std::isfinite(in.start)) {
@@ -737,7 +762,9 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
   // Flexes and sleeping trees read more of the model than KnotKinematics does: those run
   // mj_kinematics on m.
   const bool own = m->nflex == 0 && !(m->opt.enableflags & mjENBL_SLEEP);
-  std::unique_ptr<KnotKinematics> km(own ? new KnotKinematics(m, geoms) : nullptr);
+  std::unique_ptr<KnotKinematics> mine(own && kinematics == nullptr ? new KnotKinematics(m, geoms)
+                                                                    : nullptr);
+  KnotKinematics* km = !own ? nullptr : kinematics != nullptr ? kinematics : mine.get();
   int64_t computed = -1;  // the last knot computed
   for (int64_t j = 0; j < n; ++j) {
     double* pj = pos_.data() + 3 * nslot_ * j;
@@ -772,8 +799,12 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     std::copy_n(in.mocap_pos + 3 * nmocap * computed, 3 * nmocap, s->mocap_pos);
     std::copy_n(in.mocap_quat + 4 * nmocap * computed, 4 * nmocap, s->mocap_quat);
   }
+  // A geom on a static body has the same pose at every knot (mj_kinematics reads no qpos or
+  // mocap pose for it, and a copied knot is one it computed): its sweep's step too.
+  std::vector<uint8_t> still(static_cast<size_t>(nslot_));
+  for (int64_t c = 0; c < nslot_; ++c) still[c] = fixed[m->geom_bodyid[geoms[c]]];
   why = Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
-               std::move(fixed));
+               std::move(fixed), &still);
   if (!why.empty()) return why;
   // Where min(D_a + D_b, D_ab) rises over the knots, as the sum's own rises_ (a min of two
   // non-decreasing sequences is one; the walk's search needs only the min).
@@ -886,7 +917,8 @@ std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, cons
 
 std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
                          const double* deviation, double start, double h, const double* spheres,
-                         int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed) {
+                         int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed,
+                         const std::vector<uint8_t>* still) {
   const int64_t ngeom = m->ngeom, nbody = m->nbody;
   // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
   // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
@@ -932,17 +964,26 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
     reach[c] = radius[geoms[c]];
     plane[c] = m->geom_type[geoms[c]] == mjGEOM_PLANE;
   }
+  // The slots whose poses move from knot to knot; a still one's step (the same poses at every
+  // knot: the same Displacement, a pure function of them) is taken once, at knot 1.
+  std::vector<int64_t> moving;
+  std::vector<std::pair<int64_t, double>> fixed_step;
+  for (int64_t c = 0; c < nslot_; ++c) {
+    if (still != nullptr && (*still)[c] && n > 1) {
+      bool finite = true;
+      const double* p = pos_.data() + 3 * c;
+      const double* r = mat_.data() + 9 * c;
+      fixed_step.emplace_back(
+          c, Displacement(p, r, p + 3 * nslot_, r + 9 * nslot_, reach[c], plane[c] != 0, &finite));
+    } else {
+      moving.push_back(c);
+    }
+  }
   for (int64_t j = 1; j < n; ++j) {
     const double* pj = pos_.data() + 3 * nslot_ * j;
     const double* rj = mat_.data() + 9 * nslot_ * j;
     double* sw = sweep_.data() + nslot_ * j;
-    bool finite = true;
-    for (int64_t c = 0; c < nslot_; ++c) {
-      const double step = Displacement(pj - 3 * nslot_ + 3 * c, rj - 9 * nslot_ + 9 * c, pj + 3 * c,
-                                       rj + 9 * c, reach[c], plane[c] != 0, &finite);
-      sw[c] = (sw[c - nslot_] + step) * (1.0 + 4.0 * kEpsilon);
-    }
-    if (!finite) {
+    if (!SweepKnot(pj, rj, nslot_, moving, fixed_step, reach.data(), plane.data(), sw)) {
       std::string why = unfinite(j);
       if (!why.empty()) return why;
     }
@@ -1056,6 +1097,21 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
   }
 }
 
+namespace {
+
+// RelativePose at n knots, the two frames' poses a knot's stride apart (3 sp, 9 sp), into out
+// (12 a knot): the same function at each, in an AVX2 clone where the CPU has one (no
+// contraction, no reordering: the same bits).
+DUA_LANES_CLONES void RelativePoses(const double* pa, const double* ra, const double* pb,
+                                    const double* rb, int64_t sp, int64_t n, double* out) {
+  for (int64_t k = 0; k < n; ++k, out += 12) {
+    RelativePose(pa, ra, pb, rb, out, out + 3);
+    pa += 3 * sp, pb += 3 * sp, ra += 9 * sp, rb += 9 * sp;
+  }
+}
+
+}  // namespace
+
 void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
   const int64_t nr = nrel();
   rel_box_.assign(nr, nullptr);
@@ -1075,16 +1131,29 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
       continue;
     }
     // Knot by knot, the two frames' columns a knot's stride apart (pos(k, g), mat(k, g)).
-    const double *pa = pos(0, ga), *ra = mat(0, ga), *pb = pos(0, gb), *rb = mat(0, gb);
-    for (int64_t k = 0; k < nknot_; ++k, out += 12) {
-      RelativePose(pa, ra, pb, rb, out, out + 3);
-      pa += 3 * nslot_, pb += 3 * nslot_, ra += 9 * nslot_, rb += 9 * nslot_;
-    }
+    RelativePoses(pos(0, ga), mat(0, ga), pos(0, gb), mat(0, gb), nslot_, nknot_, out);
   }
 }
 
-void Plan::CheckRelative(const double* pos, const double* mat, int64_t k, const uint8_t* ok,
-                         const uint8_t* ok_body, std::vector<int64_t>* broken) const {
+DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t jn,
+                                           const Plan& old, int64_t r, int64_t jo, int64_t count) {
+  const double* box = old.rel_box(r);
+  const BoxReach& reach = old.rel_reach(r);
+  for (int64_t s = 0; s < count; ++s) {
+    // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
+    // same nesting as the bodies' (Runtime::SetPlan), of the relative poses.
+    if (!RelativePoseWithin(box, reach, plan.rel_pose(jn + s, rn), old.rel_pose(jo + s, r),
+                            old.rel_dev(jo + s, r) - plan.rel_dev(jn + s, rn))) {
+      return s;
+    }
+  }
+  return count;
+}
+
+// In an AVX2 clone where the CPU has one (the same operations in the same order: the same bits).
+DUA_LANES_CLONES void Plan::CheckRelative(const double* pos, const double* mat, int64_t k,
+                                          const uint8_t* ok, const uint8_t* ok_body,
+                                          std::vector<int64_t>* broken) const {
   for (int64_t r = 0; r < nrel(); ++r) {
     const int64_t a = rel_a(r), b = rel_b(r);
     if ((ok != nullptr && !ok[r]) || (ok_body != nullptr && (!ok_body[a] || !ok_body[b]))) {
@@ -1120,10 +1189,9 @@ void PlanCovered(const dua_step_args& a, const int64_t* ids, int64_t count, uint
   const Plan& plan = *static_cast<const Plan*>(pl.impl);
   for (int64_t k = 0; k < count; ++k) {
     const int64_t mp = a.ids[ids[k]];
-    // Judge's first case: BothKnot returns a knot (its walk's, >= the present one) for any pair
-    // neither of whose bodies is free.
-    covered[k] = SideOf(plan, pl.body_ok, pl.geom_body[pl.geom1[mp]]) != kFree &&
-                 SideOf(plan, pl.body_ok, pl.geom_body[pl.geom2[mp]]) != kFree;
+    // Judge's first case: BothKnot returns a knot (its walk's, >= the present one).
+    covered[k] = NeitherFree(SideOf(plan, pl.body_ok, pl.geom_body[pl.geom1[mp]]),
+                             SideOf(plan, pl.body_ok, pl.geom_body[pl.geom2[mp]]));
   }
 }
 

@@ -26,6 +26,8 @@
 
 namespace dua {
 
+class KnotKinematics;
+
 // How far the point of frame coordinates q of a geom lies between two poses of it, (pa, ra)
 // and (pb, rb): |(pa - pb) + (ra - rb) q|, rounded up past its own rounding (0 exactly for equal
 // poses). The one measure of a deviation: the step's check, a replan's departures and
@@ -68,6 +70,12 @@ bool RelativePoseWithin(const double* box, const double* actual, const double* p
                         double limit);
 bool RelativePoseWithin(const double* box, const BoxReach& reach, const double* actual,
                         const double* planned, double limit);
+class Plan;
+// The first of `count` knots in turn (plan's from jn, old's from jo) at which relative pair rn of
+// plan leaves the tube of old's pair r (RelativePoseWithin of old's box, within D_old - D_new),
+// or count: a replan's relative nesting (Runtime::RelativeDepartures).
+int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t jn, const Plan& old, int64_t r,
+                          int64_t jo, int64_t count);
 // How far a free point can stray in t from where its velocity read carries it, rounded up, with
 // room for the rounding of the carried place (the mixed tau's Stray, plan.cc; size: |place|_1,
 // |velocity|_1).
@@ -129,7 +137,8 @@ class Plan {
   // (or null) recycles the buffers. Returns an error message naming the bad input, or "".
   std::string Build(const mjModel* m, mjData* scratch, const dua_plan_input& in, double h,
                     const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms,
-                    const Plan* prev, std::shared_ptr<PlanPool> pool);
+                    const Plan* prev, std::shared_ptr<PlanPool> pool,
+                    KnotKinematics* kinematics = nullptr);
   // A plan whose knots' geom poses are known already (pos (n, ngeom, 3) and mat (n, ngeom, 9):
   // a rollout's geom_xpos and geom_xmat at each knot), holding the moving bodies of bodies
   // (nbody flags; mocap trees are never held), deviation (n, nbody); geoms as Build's. Values
@@ -222,7 +231,8 @@ class Plan {
   // deviations and bodies.
   std::string Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
                      const double* deviation, double start, double h, const double* spheres,
-                     int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed);
+                     int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed,
+                     const std::vector<uint8_t>* still = nullptr);
 
   static const double kNoPose[9];
   static const double kNoSweep;

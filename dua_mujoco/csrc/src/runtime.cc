@@ -278,8 +278,13 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   if (!plan_data_) plan_data_.reset(mj_makeData(m));
   if (!plan_data_) return "needs an mjData that MuJoCo could not allocate";
   auto plan = std::make_shared<Plan>();
-  std::string error = plan->Build(m, plan_data_.get(), in, m->opt.timestep, tables_->spheres.data(),
-                                  tables_->nsphere(), plan_geoms_, plan_.get(), plan_pool_);
+  if (!knots_ || knots_model_ != m) {
+    knots_ = std::make_unique<KnotKinematics>(m, plan_geoms_);
+    knots_model_ = m;
+  }
+  std::string error =
+      plan->Build(m, plan_data_.get(), in, m->opt.timestep, tables_->spheres.data(),
+                  tables_->nsphere(), plan_geoms_, plan_.get(), plan_pool_, knots_.get());
   if (!error.empty()) return error;
   for (int b = 0; b < m->nbody; ++b) {
     if (plan->holds(b) && unboxed_[b]) {
@@ -563,6 +568,13 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const 
   const Plan& old = *sh->plan;
   sh->rel_from.assign(old.nrel(), kInf);
   const int64_t jo0 = old.KnotOf(next), jn0 = plan.KnotOf(next);
+  // The span's knots of the old plan from the next state's: to its last knot, and while their
+  // time is within the shadow's span.
+  int64_t span = 0;
+  while (jo0 >= 0 && jo0 + span < old.nknot() &&
+         !(next + static_cast<double>(span) * h > sh->until + 1e-6 * h)) {
+    ++span;
+  }
   for (int64_t r = 0; r < old.nrel(); ++r) {
     const int64_t a = old.rel_a(r), b = old.rel_b(r);
     const bool was = sh->rel_nested[r] != 0;
@@ -577,21 +589,14 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const 
     }
     sh->rel_nested[r] = 1;  // until it departs
     const int64_t rn = plan.RelOf(a, b);
-    const double* box = old.rel_box(r);
-    const BoxReach& reach = old.rel_reach(r);
-    for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot(); ++s) {
-      const double time = next + static_cast<double>(s) * h;
-      const int64_t jo = jo0 + s, jn = jn0 + s < plan.nknot() ? jn0 + s : -1;
-      if (time > sh->until + 1e-6 * h) break;
-      // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
-      // same nesting as the bodies' (SetPlan), of the relative poses.
-      if (jn < 0 || rn < 0 ||
-          !RelativePoseWithin(box, reach, plan.rel_pose(jn, rn), old.rel_pose(jo, r),
-                              old.rel_dev(jo, r) - plan.rel_dev(jn, rn))) {
-        sh->rel_from[r] = time;
-        sh->rel_nested[r] = 0;
-        break;
-      }
+    // The knots in the span, old's and the new plan's: the new plan leaves the tube at its
+    // first knot beyond it (RelativeDeparture), where it has no such pair, or past its knots.
+    const int64_t past = rn < 0 ? 0 : std::max<int64_t>(0, plan.nknot() - jn0);
+    const int64_t s =
+        past > 0 ? RelativeDeparture(plan, rn, jn0, old, r, jo0, std::min(span, past)) : 0;
+    if (s < span) {
+      sh->rel_from[r] = next + static_cast<double>(s) * h;
+      sh->rel_nested[r] = 0;
     }
   }
 }

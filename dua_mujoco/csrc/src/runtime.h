@@ -22,6 +22,7 @@
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "kinematics.h"
 #include "mocap.h"
 #include "plan.h"
 #include "pruned.h"
@@ -424,6 +425,11 @@ class DUA_API Runtime {
   std::vector<uint8_t> unboxed_;      // bodies with covered geoms and no row (no plan holds them)
   std::vector<int64_t> plan_geoms_;   // the geoms a plan's poses are read for (Plan::Build)
   std::shared_ptr<PlanPool> plan_pool_ = std::make_shared<PlanPool>();  // (a copy: its own)
+  // The knots' kinematics of plan_geoms_ on the model they were made for (a plan's are the same
+  // for every plan of it, with the still bodies' frames computed once): each runtime its own
+  // (Run writes its scratch frames), made at the first plan, not copied.
+  std::unique_ptr<KnotKinematics> knots_;
+  const mjModel* knots_model_ = nullptr;
   int64_t plan_breaks_ = 0;
   int64_t plan_serial_ = 0;  // plans set so far (Shadow::serial)
   int read_lag_ = 1;
