@@ -98,6 +98,16 @@ def test_step_flags_the_bodies_the_bound_monitor_flags(scene: str, accel: float)
     same corners flag the same bodies at every step."""
     m, d = load_scene(scene)
     p = Predictor(m, accel=accel)
+    flagged = _flags_as_the_bound_monitor(p, m, d, steps=600)
+    assert flagged > 20  # the bounds broke often enough to mean something
+    assert p.violation_events == flagged
+
+
+def _flags_as_the_bound_monitor(
+    p: Predictor, m: mujoco.MjModel, d: mujoco.MjData, steps: int
+) -> int:
+    """Steps ``p`` under random controls, asserting at each step that it flags the bodies
+    ``BoundMonitor`` flags; returns how many it flagged."""
     bm = BoundMonitor(m, p.bounds, p.bound_points, mocap=p.mocap)
     ctrl = make_controller(m, "random", seed=1)
     ctrl(m, d)
@@ -105,15 +115,14 @@ def test_step_flags_the_bodies_the_bound_monitor_flags(scene: str, accel: float)
     p.reset(d)
     bm.update(m, d)
     flagged = 0
-    for _ in range(600):
+    for _ in range(steps):
         ctrl(m, d)
         mujoco.mj_step(m, d)
         p.step(d)
         expected = bm.update(m, d)
         assert p.violated_bodies.tolist() == sorted(expected.tolist())
         flagged += expected.size
-    assert flagged > 20  # the bounds broke often enough to mean something
-    assert p.violation_events == flagged
+    return flagged
 
 
 def test_a_body_that_breaks_its_acceleration_bound_alone_is_flagged() -> None:
@@ -126,20 +135,7 @@ def test_a_body_that_breaks_its_acceleration_bound_alone_is_flagged() -> None:
         bounds, speed=None, vel_uncertainty=np.where(bounds.accel > 0, 1e3, bounds.vel_uncertainty)
     )
     p = Predictor(m, accel=loose)
-    bm = BoundMonitor(m, p.bounds, p.bound_points, mocap=p.mocap)
-    ctrl = make_controller(m, "random", seed=1)
-    ctrl(m, d)
-    mujoco.mj_step(m, d)
-    p.reset(d)
-    bm.update(m, d)
-    flagged = 0
-    for _ in range(300):
-        ctrl(m, d)
-        mujoco.mj_step(m, d)
-        p.step(d)
-        expected = bm.update(m, d)
-        assert p.violated_bodies.tolist() == sorted(expected.tolist())
-        flagged += expected.size
+    flagged = _flags_as_the_bound_monitor(p, m, d, steps=300)
     assert flagged > 20  # the acceleration bound broke often enough to mean something
 
 
