@@ -248,12 +248,16 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   // Unrolled: the loops' own counting and the lengths' lookups were a fifth of the check.
   // Each field's runs of four (the pose's first eight, the twists' first four) read a vector a
   // body and transposed; the rest a double at a time.
+  // The four bodies' runs of a field from double j on, one vector a body.
+  auto load = [&](auto& r0, auto& r1, auto& r2, auto& r3, int field, int j) {
+    __builtin_memcpy(&r0, src[0][field] + j, sizeof(r0));
+    __builtin_memcpy(&r1, src[1][field] + j, sizeof(r1));
+    __builtin_memcpy(&r2, src[2][field] + j, sizeof(r2));
+    __builtin_memcpy(&r3, src[3][field] + j, sizeof(r3));
+  };
   auto transpose = [&](int field, int j, int at) {
     Lanes r0, r1, r2, r3;
-    __builtin_memcpy(&r0, src[0][field] + j, sizeof(Lanes));
-    __builtin_memcpy(&r1, src[1][field] + j, sizeof(Lanes));
-    __builtin_memcpy(&r2, src[2][field] + j, sizeof(Lanes));
-    __builtin_memcpy(&r3, src[3][field] + j, sizeof(Lanes));
+    load(r0, r1, r2, r3, field, j);
     const Lanes t0 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);
     const Lanes t1 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
     const Lanes t2 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
@@ -272,10 +276,7 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   auto pair = [&](int field, int j, int at) {
     using Half = double __attribute__((vector_size(16)));
     Half r0, r1, r2, r3;
-    __builtin_memcpy(&r0, src[0][field] + j, sizeof(Half));
-    __builtin_memcpy(&r1, src[1][field] + j, sizeof(Half));
-    __builtin_memcpy(&r2, src[2][field] + j, sizeof(Half));
-    __builtin_memcpy(&r3, src[3][field] + j, sizeof(Half));
+    load(r0, r1, r2, r3, field, j);
     const Lanes t02 = __builtin_shufflevector(r0, r2, 0, 1, 2, 3);
     const Lanes t13 = __builtin_shufflevector(r1, r3, 0, 1, 2, 3);
     row.v[at] = __builtin_shufflevector(t02, t13, 0, 4, 2, 6);
