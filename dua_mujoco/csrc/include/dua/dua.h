@@ -270,9 +270,11 @@ DUA_API int64_t dua_index_by_row(const int64_t* row_of_geom, const int64_t* geom
                                  const int64_t* geom2, int64_t n, int64_t nrow, int64_t* start,
                                  int64_t* members);
 // Record the events check's state at the frame's instant, checking nothing. Also copies each
-// body's box and bounds from events.rec into its state (columns 31..39, the last group's padding
-// as its last body): run it before the first check, and again whenever events.rec or
-// events.prev are bound anew; a check without it reads boxes and bounds of zero.
+// body's box and bounds from events.rec into its state (columns 31..39) and the places of its
+// inputs in the frame (columns 40..41), the last group's padding as its last body: run it before
+// the first check, and again whenever events.rec or events.prev are bound anew. A check without
+// it reads boxes and bounds of zero at the places of geom, body and root 0, and flags nothing
+// where those do not move.
 DUA_API void dua_reset_events(dua_step_args* a);
 // The violation check alone, four bodies at a time (lanes != 0, as the step runs it) or one at a
 // time: the reference the lanes are held to (tests). Returns the number of bodies flagged.
