@@ -239,8 +239,12 @@ def test_reset_refuses_a_moved_static_geom() -> None:
     m.body_pos[1] += [0.0, 0.0, 0.3]
     with pytest.raises(InvalidInputError, match="mj_forward"):
         p.reset(d)
+    # After mj_forward data agrees with the edited model, but the tables were built before the
+    # edit: refused (they would leave the stand where it was, and miss its contacts).
     mujoco.mj_forward(m, d)
-    p.reset(d)  # after mj_forward the records follow the edited model
+    with pytest.raises(InvalidInputError, match=r"'static'.*edited.*new Predictor"):
+        p.reset(d)
+    Predictor(m, accel=5.0).reset(d)  # a predictor built for the edited model
 
 
 def test_alarms_name_static_geom() -> None:

@@ -161,8 +161,11 @@ def test_the_tables_hold_the_heights_and_reset_guards_the_pose() -> None:
     m.body_pos[1] += [0.0, 0.0, 0.1]
     with pytest.raises(InvalidInputError, match="'t'"):
         p.reset(d)
+    # Forwarded, data agrees with the edited model, but the tables hold the terrain where it was.
     mujoco.mj_forward(m, d)
-    p.reset(d)
+    with pytest.raises(InvalidInputError, match=r"'t'.*new Predictor"):
+        p.reset(d)
+    Predictor(m, accel=5.0).reset(d)
 
 
 def _standing(scene: str, seed: int, steps: int) -> tuple[float, int, int]:

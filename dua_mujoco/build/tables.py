@@ -181,10 +181,7 @@ def static_shapes(
     g = np.asarray(shape_geom, dtype=np.int64)
     if g.size == 0:
         return np.zeros((1, SHAPE_NCOL))
-    scratch = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, scratch)
-    pos = np.asarray(scratch.geom_xpos)[g]
-    mat = np.asarray(scratch.geom_xmat)[g]
+    pos, mat = static_poses(model, g)
     if data is not None:
         _check_static_poses(model, g, pos, mat, data)
     types = np.asarray(model.geom_type, dtype=np.int64)[g]
@@ -218,6 +215,42 @@ def static_shapes(
     return shape_table(records, blocks)
 
 
+def static_poses(model: mujoco.MjModel, shape_geom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The static geoms' ``(n, 3)`` positions and ``(n, 9)`` frames as the model places them
+    (``mj_kinematics`` on a scratch ``MjData``)."""
+    scratch = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, scratch)
+    g = np.asarray(shape_geom, dtype=np.int64)
+    return np.asarray(scratch.geom_xpos)[g], np.asarray(scratch.geom_xmat)[g]
+
+
+def check_static_unmoved(
+    model: mujoco.MjModel, shape_geom: np.ndarray, built: tuple[np.ndarray, np.ndarray]
+) -> None:
+    """Refuse a model whose static geoms moved since the tables were built from it (``built``:
+    ``static_poses`` then): the shape records, the covering and the pair filter are built once,
+    so an edit of ``body_pos`` or ``geom_pos`` would leave them where the geoms were.
+
+    Raises:
+        InvalidInputError: naming the first static geom that moved.
+    """
+    g = np.asarray(shape_geom, dtype=np.int64)
+    if g.size == 0:
+        return
+    pos, mat = static_poses(model, g)
+    err = np.maximum(np.abs(pos - built[0]).max(axis=1), np.abs(mat - built[1]).max(axis=1))
+    bad = np.flatnonzero(~(err <= _STATIC_POSE_TOL))
+    if bad.size:
+        k = int(bad[0])
+        raise InvalidInputError(
+            f"static geom {int(g[k])} ({geom_names(model)[g[k]]!r}) is at {pos[k].tolist()} in "
+            f"the model but at {built[0][k].tolist()} in this predictor's tables (|difference| "
+            f"{float(err[k]):.3g}; {bad.size} static geom(s) moved): the model was edited "
+            "(body_pos, geom_pos, ...) after the predictor was built, and its tables are built "
+            "once. Build a new Predictor for the edited model."
+        )
+
+
 def _check_static_poses(
     model: mujoco.MjModel, g: np.ndarray, pos: np.ndarray, mat: np.ndarray, data: mujoco.MjData
 ) -> None:
@@ -231,9 +264,9 @@ def _check_static_poses(
         raise InvalidInputError(
             f"static geom {int(g[k])} ({name!r}) is at {dpos[k].tolist()} in data but the model "
             f"places it at {pos[k].tolist()} (|difference| {float(err[k]):.3g}; {bad.size} "
-            "static geom(s) differ): a geom welded to the world must not move. Call "
-            "mujoco.mj_forward(model, data) after editing the model (body_pos, geom_pos, ...), "
-            "then predictor.reset(data); or build a Predictor for the model data belongs to."
+            "static geom(s) differ): a geom welded to the world must not move. Pass the data of "
+            "this model after mujoco.mj_forward(model, data), or build a Predictor for the model "
+            "data belongs to (after editing body_pos, geom_pos, ...: a new Predictor)."
         )
 
 

@@ -33,7 +33,9 @@ from dua_mujoco.build.tables import (
     PairTables,
     check_data,
     check_forwarded,
+    check_static_unmoved,
     plane_halfspaces,
+    static_poses,
     static_shapes,
 )
 from dua_mujoco.core.pairset import PairSet
@@ -127,6 +129,8 @@ class Predictor(PlanFollowing):
         """The option groups in force (``PredictorOptions``)."""
         self.schedule = as_schedule(self.options.schedule.kind)
         self.covering = lay.covering
+        # Where the tables put the static geoms: reset refuses a model edited since.
+        self._static_built = static_poses(model, self.covering.shape_geom)
         self.universe = lay.universe
         """The sphere pairs this predictor knows and their tables (a pruned one learns the
         pairs its candidates bring in)."""
@@ -232,7 +236,7 @@ class Predictor(PlanFollowing):
         Raises:
             InvalidInputError: ``data`` is not an MjData of this predictor's model, or its
                 kinematics were never computed, or a static geom is not where the model puts
-                it.
+                it, or the model's static geoms moved since the predictor was built.
             NonFiniteStateError: a position or velocity is NaN or inf.
         """
         self._bind(data)
@@ -242,7 +246,8 @@ class Predictor(PlanFollowing):
         finite = np.isfinite(c).all() and np.isfinite(v).all()
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
-        static_shapes(self.model, self.covering.shape_geom, data)  # where the tables put them
+        static_shapes(self.model, self.covering.shape_geom, data)  # data where the model puts them
+        check_static_unmoved(self.model, self.covering.shape_geom, self._static_built)
         try:
             alarms: Alarms = self._rt.classify()
         except _core.StepError as error:
