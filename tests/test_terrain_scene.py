@@ -9,6 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 from rollouts import predictor_rollout
+from static_guard import assert_reset_refuses_a_moved_static_body
 
 from dua_mujoco import _core
 from dua_mujoco.build.covering import cover_model, terrain_geoms
@@ -18,7 +19,7 @@ from dua_mujoco.build.tables import static_shapes
 from dua_mujoco.core.pairset import PairKind
 from dua_mujoco.core.shapes import ShapeKind, pack_shapes, time_to_static
 from dua_mujoco.core.terrain import T_HEIGHTS, TERRAIN_BLOCK
-from dua_mujoco.exceptions import InvalidInputError, UnsupportedGeomError
+from dua_mujoco.exceptions import UnsupportedGeomError
 from dua_mujoco.measure.rollout import run
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
@@ -152,20 +153,9 @@ def test_the_tables_hold_the_heights_and_reset_guards_the_pose() -> None:
     block = p.shape_records[1:].reshape(-1)
     heights = block[int(block[T_HEIGHTS]) :][: m.hfield_data.size]
     np.testing.assert_array_equal(heights, m.hfield_data * m.hfield_size[0][2])
-    # A terrain on a body welded to the world, moved after data's last mj_forward: refused.
+    # A terrain on a body welded to the world, moved: refused before and after mj_forward.
     m = _model('<body name="stand"><geom name="t" type="hfield" hfield="h"/></body>')
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    p = Predictor(m, accel=5.0)
-    p.reset(d)
-    m.body_pos[1] += [0.0, 0.0, 0.1]
-    with pytest.raises(InvalidInputError, match="'t'"):
-        p.reset(d)
-    # Forwarded, data agrees with the edited model, but the tables hold the terrain where it was.
-    mujoco.mj_forward(m, d)
-    with pytest.raises(InvalidInputError, match=r"'t'.*new Predictor"):
-        p.reset(d)
-    Predictor(m, accel=5.0).reset(d)
+    assert_reset_refuses_a_moved_static_body(m, 1, "t")
 
 
 def _standing(scene: str, seed: int, steps: int) -> tuple[float, int, int]:
