@@ -224,22 +224,26 @@ def static_poses(model: mujoco.MjModel, shape_geom: np.ndarray) -> tuple[np.ndar
     return np.asarray(scratch.geom_xpos)[g], np.asarray(scratch.geom_xmat)[g]
 
 
-def check_static_unmoved(
-    model: mujoco.MjModel, shape_geom: np.ndarray, built: tuple[np.ndarray, np.ndarray]
+def check_static_geoms(
+    model: mujoco.MjModel,
+    shape_geom: np.ndarray,
+    data: mujoco.MjData,
+    built: tuple[np.ndarray, np.ndarray],
 ) -> None:
-    """Refuse a model whose static geoms moved since the tables were built from it (``built``:
-    ``static_poses`` then): the shape records, the covering and the pair filter are built once,
+    """At a reset: refuse ``data`` whose static geoms are not where the model places them, then
+    a model whose static geoms moved since the tables were built from it (``built``:
+    ``static_poses`` then). The shape records, the covering and the pair filter are built once,
     so an edit of ``body_pos`` or ``geom_pos`` would leave them where the geoms were.
 
     Raises:
-        InvalidInputError: naming the first static geom that moved.
+        InvalidInputError: naming the first static geom that differs, and the fix.
     """
     g = np.asarray(shape_geom, dtype=np.int64)
     if g.size == 0:
         return
     pos, mat = static_poses(model, g)
-    err = np.maximum(np.abs(pos - built[0]).max(axis=1), np.abs(mat - built[1]).max(axis=1))
-    bad = np.flatnonzero(~(err <= _STATIC_POSE_TOL))
+    _check_static_poses(model, g, pos, mat, data)
+    err, bad = _pose_differences(pos, mat, built[0], built[1])
     if bad.size:
         k = int(bad[0])
         raise InvalidInputError(
@@ -251,13 +255,20 @@ def check_static_unmoved(
         )
 
 
+def _pose_differences(
+    pos: np.ndarray, mat: np.ndarray, pos2: np.ndarray, mat2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each geom's largest coordinate difference between two placements, and the geoms beyond
+    the tolerance (a NaN among them)."""
+    err = np.maximum(np.abs(pos - pos2).max(axis=1), np.abs(mat - mat2).max(axis=1))
+    return err, np.flatnonzero(~(err <= _STATIC_POSE_TOL))
+
+
 def _check_static_poses(
     model: mujoco.MjModel, g: np.ndarray, pos: np.ndarray, mat: np.ndarray, data: mujoco.MjData
 ) -> None:
     dpos = np.asarray(data.geom_xpos)[g]
-    dmat = np.asarray(data.geom_xmat)[g]
-    err = np.maximum(np.abs(dpos - pos).max(axis=1), np.abs(dmat - mat).max(axis=1))
-    bad = np.flatnonzero(~(err <= _STATIC_POSE_TOL))
+    err, bad = _pose_differences(dpos, np.asarray(data.geom_xmat)[g], pos, mat)
     if bad.size:
         k = int(bad[0])
         name = geom_names(model)[g[k]]

@@ -33,10 +33,9 @@ from dua_mujoco.build.tables import (
     PairTables,
     check_data,
     check_forwarded,
-    check_static_unmoved,
+    check_static_geoms,
     plane_halfspaces,
     static_poses,
-    static_shapes,
 )
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import Scheduler, as_schedule
@@ -246,8 +245,7 @@ class Predictor(PlanFollowing):
         finite = np.isfinite(c).all() and np.isfinite(v).all()
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
-        static_shapes(self.model, self.covering.shape_geom, data)  # data where the model puts them
-        check_static_unmoved(self.model, self.covering.shape_geom, self._static_built)
+        check_static_geoms(self.model, self.covering.shape_geom, data, self._static_built)
         try:
             alarms: Alarms = self._rt.classify()
         except _core.StepError as error:
