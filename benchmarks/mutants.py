@@ -68,6 +68,7 @@ _SCHEDULE = "dua_mujoco/csrc/src/schedule.cc"
 _SCHEDULE_H = "dua_mujoco/csrc/src/schedule.h"
 _PLAN = "dua_mujoco/csrc/src/plan.cc"
 _KINEMATICS = "dua_mujoco/csrc/src/kinematics.cc"
+_KINEMATICS_H = "dua_mujoco/csrc/src/kinematics.h"
 _KNOTS = "tests/test_knot_kinematics.py"
 _INTERNAL = "dua_mujoco/csrc/src/internal.h"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
@@ -666,9 +667,9 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "plan-kinematics-still-on-a-moving-body",
-        _KINEMATICS,
-        "still_[c] = m->body_weldid[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;",
-        "still_[c] = m->body_jntnum[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;",
+        _KINEMATICS_H,
+        "return m->body_weldid[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;",
+        "return m->body_jntnum[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;",
         (_KNOTS,),
         "a plan's kinematics take a body without joints welded to a moving one for a still one "
         "(its frame computed once): poses off wherever its parent moves",

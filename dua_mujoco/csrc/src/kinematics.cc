@@ -82,25 +82,22 @@ KnotKinematics::KnotKinematics(const mjModel* m, const std::vector<int64_t>& geo
   // it) read nor qpos nor a mocap pose: their frames, their inertial frames and their geoms'
   // poses are the same at every knot, computed here once by the same calls (per plan they were
   // a third of tiago's knots).
-  still_.assign(n, 0);
   for (size_t c = 0; c < n; ++c) {
-    const int b = body_[c];
-    still_[c] = m->body_weldid[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;
-    if (still_[c]) Frame(c, nullptr, nullptr, nullptr);
+    if (StillBody(m, body_[c])) {
+      Frame(c, nullptr, nullptr, nullptr);
+    } else {
+      move_.push_back(static_cast<int>(c));
+    }
   }
   still_pos_.assign(3 * geom_.size(), 0.0), still_mat_.assign(9 * geom_.size(), 0.0);
   for (size_t s = 0; s < geom_.size(); ++s) {
     const int c = gbody_[s];
-    if (c >= 0 && !still_[c]) continue;
-    gstill_.push_back(static_cast<int>(s));
-    GeomFrame(s, still_pos_.data() + 3 * s, still_mat_.data() + 9 * s);
-  }
-  for (size_t s = 0; s < geom_.size(); ++s) {
-    const int c = gbody_[s];
-    if (c >= 0 && !still_[c]) gmove_.push_back(static_cast<int>(s));
-  }
-  for (size_t c = 0; c < n; ++c) {
-    if (!still_[c]) move_.push_back(static_cast<int>(c));
+    if (c >= 0 && !StillBody(m, body_[c])) {
+      gmove_.push_back(static_cast<int>(s));
+    } else {
+      gstill_.push_back(static_cast<int>(s));
+      GeomFrame(s, still_pos_.data() + 3 * s, still_mat_.data() + 9 * s);
+    }
   }
 }
 
@@ -203,14 +200,7 @@ void KnotKinematics::Run(const double* qpos, const double* mocap_pos, const doub
   // The moving bodies kept, parents first (a body's inertial frame with it: mj_kinematics2
   // computes it from the same body frame), then the moving geoms; the still ones' poses copied.
   for (const int c : move_) Frame(static_cast<size_t>(c), qpos, mocap_pos, mocap_quat);
-  const mjtByte* sameframe = m_->geom_sameframe;
-  for (const int s : gmove_) {
-    const int64_t g = geom_[s];
-    const size_t c = static_cast<size_t>(gbody_[s]);
-    Local2Global(xpos_.data() + 3 * c, xquat_.data() + 4 * c, xmat_.data() + 9 * c,
-                 xipos_.data() + 3 * c, ximat_.data() + 9 * c, m_->geom_pos + 3 * g,
-                 m_->geom_quat + 4 * g, sameframe[g], pos + 3 * s, mat + 9 * s);
-  }
+  for (const int s : gmove_) GeomFrame(static_cast<size_t>(s), pos + 3 * s, mat + 9 * s);
   for (const int s : gstill_) {
     const double* p = still_pos_.data() + 3 * s;
     const double* r = still_mat_.data() + 9 * s;

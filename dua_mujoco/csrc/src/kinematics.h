@@ -21,6 +21,13 @@
 
 namespace dua {
 
+// Whether body b is welded to the world outside mocap trees: no joint and no mocap pose on its
+// path to the world, so that mj_kinematics places it from model constants alone (the same pose
+// at every knot of a plan, and no plan holds it).
+inline bool StillBody(const mjModel* m, int64_t b) {
+  return m->body_weldid[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;
+}
+
 class DUA_API KnotKinematics {
  public:
   // The geoms read (geoms[c] the model's geom of slot c), of model m, which must outlive this.
@@ -52,8 +59,7 @@ class DUA_API KnotKinematics {
   std::vector<int> gbody_;             // per slot: its body's index among the kept
   std::vector<int64_t> geom_;          // per slot: the model's geom
   std::vector<double> xpos_, xquat_, xmat_, xipos_, ximat_;
-  std::vector<uint8_t> still_;                 // per kept body: welded to the world (no qpos read)
-  std::vector<int> move_, gmove_, gstill_;     // the other kept bodies; the slots moving, still
+  std::vector<int> move_, gmove_, gstill_;     // the kept bodies not still; the slots moving, still
   std::vector<double> still_pos_, still_mat_;  // per slot: a still geom's pose, computed once
 };
 

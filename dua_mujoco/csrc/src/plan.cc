@@ -707,7 +707,7 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
   std::vector<uint8_t> holds(nbody, 0), fixed(nbody, 0);
   for (int64_t b = 0; b < nbody; ++b) {
     const bool in_mocap = m->body_mocapid[m->body_rootid[b]] >= 0;
-    fixed[b] = m->body_weldid[b] == 0 && !in_mocap;
+    fixed[b] = StillBody(m, b);
     if (fixed[b]) continue;
     if (in.bodies == nullptr) {
       holds[b] = !in_mocap || mocap;
@@ -897,7 +897,7 @@ std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, cons
   std::vector<uint8_t> holds(nbody, 0), fixed(nbody, 0);
   for (int64_t b = 0; b < nbody; ++b) {
     const bool in_mocap = m->body_mocapid[m->body_rootid[b]] >= 0;
-    fixed[b] = m->body_weldid[b] == 0 && !in_mocap;
+    fixed[b] = StillBody(m, b);
     holds[b] = !fixed[b] && bodies[b] && !in_mocap;
   }
   // No rows: a plan made from poses is never the `prev` of a Build (SameRow compares rows).
