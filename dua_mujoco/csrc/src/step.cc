@@ -100,14 +100,20 @@ constexpr int kFields = 6;
 constexpr int kFieldAt[kFields] = {kRowR, kRowP, kRowTw, kRowRef, kRowRt, kRowRo};
 constexpr int kFieldLen[kFields] = {9, 3, 6, 3, 6, 3};
 
+// A body's row's places in the frame, from its frame geom times 3, its body times 6 and its root
+// times 3 (the indices dua_reset_events writes into the state as kSIndex).
+inline void Sources(const dua_frame& f, int64_t g3, int64_t b6, int64_t r3,
+                    const double* src[kFields]) {
+  const double* from[kFields] = {f.mat + 3 * g3,        f.pos + g3,
+                                 f.twist + b6,          f.twist_ref + r3,
+                                 f.root_twist + 2 * r3, f.root_origin + r3};
+  std::copy(from, from + kFields, src);
+}
+
 void RowSources(const dua_events& ev, const dua_frame& f, int64_t i, const double* src[kFields]) {
   const double* rec = ev.rec + i * kBNcol;
-  const int64_t g = static_cast<int64_t>(rec[kBFrame]);
-  const int64_t b = static_cast<int64_t>(rec[kBBody]);
-  const int64_t r = static_cast<int64_t>(rec[kBRoot]);
-  const double* from[kFields] = {f.mat + 9 * g,       f.pos + 3 * g,        f.twist + 6 * b,
-                                 f.twist_ref + 3 * r, f.root_twist + 6 * r, f.root_origin + 3 * r};
-  std::copy(from, from + kFields, src);
+  Sources(f, 3 * static_cast<int64_t>(rec[kBFrame]), 6 * static_cast<int64_t>(rec[kBBody]),
+          3 * static_cast<int64_t>(rec[kBRoot]), src);
 }
 
 // Column j of body i's state: the state is (ceil(nbody / 4), kSNcol, 4), so that four bodies'
@@ -237,13 +243,7 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
   int32_t at[kSIndexInts];
   __builtin_memcpy(at, StateAt(ev, i, kSIndex), sizeof(at));
   const double* src[kLanes][kFields];
-  for (int k = 0; k < kLanes; ++k) {
-    const int64_t g3 = at[2 * k], b6 = at[2 * k + 1], r3 = at[8 + 2 * k];
-    const double* from[kFields] = {f.mat + 3 * g3,        f.pos + g3,
-                                   f.twist + b6,          f.twist_ref + r3,
-                                   f.root_twist + 2 * r3, f.root_origin + r3};
-    std::copy(from, from + kFields, src[k]);
-  }
+  for (int k = 0; k < kLanes; ++k) Sources(f, at[2 * k], at[2 * k + 1], at[8 + 2 * k], src[k]);
   BodyRow<Lanes> row;
   // Unrolled: the loops' own counting and the lengths' lookups were a fifth of the check.
   // Each field's runs of four (the pose's first eight, the twists' first four) read a vector a
