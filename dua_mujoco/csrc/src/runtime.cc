@@ -591,7 +591,7 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const 
     const int64_t rn = plan.RelOf(a, b);
     // The knots in the span, old's and the new plan's: the new plan leaves the tube at its
     // first knot beyond it (RelativeDeparture), where it has no such pair, or past its knots.
-    const int64_t past = rn < 0 ? 0 : std::max<int64_t>(0, plan.nknot() - jn0);
+    const int64_t past = rn < 0 || jn0 < 0 ? 0 : std::max<int64_t>(0, plan.nknot() - jn0);
     const int64_t s =
         past > 0 ? RelativeDeparture(plan, rn, jn0, old, r, jo0, std::min(span, past)) : 0;
     if (s < span) {
