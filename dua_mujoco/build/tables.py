@@ -9,6 +9,7 @@ import dataclasses
 import mujoco
 import numpy as np
 
+from dua_mujoco import _core
 from dua_mujoco.build.covering import Covering
 from dua_mujoco.build.filter import SpherePairs
 from dua_mujoco.core.pairset import KIND_SHAPE
@@ -229,11 +230,14 @@ def check_static_geoms(
     shape_geom: np.ndarray,
     data: mujoco.MjData,
     built: tuple[np.ndarray, np.ndarray],
+    records: np.ndarray,
 ) -> None:
     """At a reset: refuse ``data`` whose static geoms are not where the model places them, then
     a model whose static geoms moved since the tables were built from it (``built``:
-    ``static_poses`` then). The shape records, the covering and the pair filter are built once,
-    so an edit of ``body_pos`` or ``geom_pos`` would leave them where the geoms were.
+    ``static_poses`` then), or were resized or reshaped (``records``: the ``static`` table, the
+    native guard the plugin runs too: ``geom_size``, a height field's data, a mesh). The shape
+    records, the covering and the pair filter are built once, so an edit of ``body_pos``,
+    ``geom_pos``, ``geom_size`` or ``hfield_data`` would leave them as the geoms were.
 
     Raises:
         InvalidInputError: naming the first static geom that differs, and the fix.
@@ -252,6 +256,13 @@ def check_static_geoms(
             f"{float(err[k]):.3g}; {bad.size} static geom(s) moved): the model was edited "
             "(body_pos, geom_pos, ...) after the predictor was built, and its tables are built "
             "once. Build a new Predictor for the edited model."
+        )
+    edited = _core.static_mismatch(model, records)
+    if edited:
+        raise InvalidInputError(
+            f"{edited}: the model was edited (geom_size, hfield_data, a mesh, ...) after the "
+            "predictor was built, and its tables are built once. Build a new Predictor for the "
+            "edited model."
         )
 
 

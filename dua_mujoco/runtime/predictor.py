@@ -245,7 +245,13 @@ class Predictor(PlanFollowing):
         finite = np.isfinite(c).all() and np.isfinite(v).all()
         if not (finite and np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             raise self._nonfinite(data)
-        check_static_geoms(self.model, self.covering.shape_geom, data, self._static_built)
+        check_static_geoms(
+            self.model,
+            self.covering.shape_geom,
+            data,
+            self._static_built,
+            self.table_arrays["static"],
+        )
         try:
             alarms: Alarms = self._rt.classify()
         except _core.StepError as error:

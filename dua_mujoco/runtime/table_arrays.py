@@ -16,6 +16,9 @@ The tables, by name (rows x columns; the columns are ``dua_mujoco._core.LAYOUT``
   pruned pairs' options).
 - ``spheres`` (nsphere, 8), ``shapes`` (nshape, 16), ``pairs`` (npair, 8), ``pair_geom``
   (npair,), ``geom_pairs`` (ngp, 2), ``geom_pair_contact`` (ngp, 2: MuJoCo's margin and gap).
+- ``static`` (nshape, 18): the static guard (``_core.static_records``): each static shape's geom,
+  its pose, ``geom_size`` and a digest of its height field or mesh, as the shapes were built
+  from them; the plugin and ``Predictor.reset`` refuse a model whose static geoms differ.
 - ``events_rec`` (nchecked, 12), ``events_params`` (2,): the violation check.
 - with the exact level: ``exact_geoms`` (ngeom, 24), ``exact_records`` (npair, 10).
 - pruned pairs: ``reach`` (nsphere, 4), and what learning a pair reads: ``filter`` (ngeom, 7),
@@ -32,7 +35,7 @@ from typing import TYPE_CHECKING, TypedDict
 import mujoco
 import numpy as np
 
-from dua_mujoco._core import LAYOUT, structure_hash
+from dua_mujoco._core import LAYOUT, static_records, structure_hash
 from dua_mujoco.build.bounds import MotionBounds, estimate_bounds, with_speed
 from dua_mujoco.build.covering import Covering, CoveringMode, cover_model
 from dua_mujoco.build.events import BodyBoxes, EventTable, body_boxes, build_events, no_events
@@ -269,6 +272,7 @@ def build(lay: Layout, bounds: MotionBounds, *, mocap: PredictorMocap | None) ->
         "spheres": spheres,
         # (static_shapes' placeholder row, for a model without static shapes, is not a shape)
         "shapes": shapes if cov.nshape else np.zeros((0, shapes.shape[1])),
+        "static": static_records(m, np.asarray(cov.shape_geom, dtype=np.int64)),
         "pairs": u.records,
         "pair_geom": np.asarray(u.sphere_pairs.geom_pair),
         "geom_pairs": np.stack([gp.geom1, gp.geom2], axis=1),

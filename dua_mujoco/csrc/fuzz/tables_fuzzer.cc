@@ -158,25 +158,11 @@ const std::string& TextOf(Table& t) {
 }
 
 // Every table the plugin reads (dua_mujoco/runtime/table_arrays.py).
-const char* const kNames[] = {"config",
-                              "spheres",
-                              "shapes",
-                              "pairs",
-                              "pair_geom",
-                              "geom_pairs",
-                              "geom_pair_contact",
-                              "events_rec",
-                              "events_params",
-                              "exact_geoms",
-                              "exact_records",
-                              "reach",
-                              "filter",
-                              "exclude",
-                              "contact",
-                              "geom_start",
-                              "geom_lone",
-                              "plane_geom",
-                              "shape_geom",
+const char* const kNames[] = {"config",     "spheres",       "shapes",      "static",
+                              "pairs",      "pair_geom",     "geom_pairs",  "geom_pair_contact",
+                              "events_rec", "events_params", "exact_geoms", "exact_records",
+                              "reach",      "filter",        "exclude",     "contact",
+                              "geom_start", "geom_lone",     "plane_geom",  "shape_geom",
                               "body_bounds"};
 
 struct Model {

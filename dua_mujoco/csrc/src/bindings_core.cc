@@ -4,6 +4,7 @@
 // contract of csrc/src/grid.cc).
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/string.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -17,6 +18,7 @@
 #include "kinematics.h"
 #include "layout.h"
 #include "schedule.h"
+#include "tables.h"
 
 using nb::literals::operator""_a;
 
@@ -225,9 +227,42 @@ nb::tuple KnotKinematicsOf(nb::handle model, const In<int64_t>& geoms, const In<
                         Owned(std::move(mat), {n, 9}));
 }
 
+// StaticRecords (tables.h) of static geoms `geoms`, (n, kStaticNcol): the "static" table.
+Out<double> StaticRecordsOf(nb::handle model, const In<int64_t>& geoms) {
+  const mjModel* m = ModelOf(model);
+  std::vector<int64_t> ids(geoms.data(), geoms.data() + Size(geoms));
+  for (const int64_t g : ids) {
+    Require(g >= 0 && g < m->ngeom, "a geom id is out of range");
+    const int b = m->geom_bodyid[g];
+    Require(b == 0 || StillBody(m, b), "a geom moves (its body is not welded to the world)");
+  }
+  return Owned(StaticRecords(m, ids), {ids.size(), static_cast<size_t>(kStaticNcol)});
+}
+
+// StaticMismatch (tables.h): the first static geom the model no longer has as `records` do.
+std::string StaticMismatchOf(nb::handle model, const In<double>& records) {
+  const mjModel* m = ModelOf(model);
+  Require(Size(records) % kStaticNcol == 0, "static records must be (n, 18)");
+  std::vector<double> r(records.data(), records.data() + Size(records));
+  for (size_t s = 0; s < r.size(); s += kStaticNcol) {
+    const double g = r[s + kStaticGeom];
+    Require(g >= 0 && g < m->ngeom && g == static_cast<double>(static_cast<int64_t>(g)),
+            "a static record's geom is out of range");
+    const int b = m->geom_bodyid[static_cast<int64_t>(g)];
+    Require(b == 0 || StillBody(m, b), "a static record's geom moves");
+  }
+  return StaticMismatch(m, r);
+}
+
 }  // namespace
 
 void BindCore(nb::module_& m) {
+  m.def("static_records", &StaticRecordsOf, "model"_a, "geoms"_a,
+        "The static guard's records (n, STATIC_NCOL) of static geoms: geom, pose as "
+        "mj_kinematics places it, geom_size, digest of its height field or mesh.");
+  m.def("static_mismatch", &StaticMismatchOf, "model"_a, "records"_a,
+        "The first static geom the model no longer places, sizes or shapes as static_records "
+        "recorded it, and how (empty: none).");
   m.def("knot_kinematics", &KnotKinematicsOf, "model"_a, "geoms"_a, "qpos"_a, "mocap_pos"_a,
         "mocap_quat"_a,
         "KnotKinematics (kinematics.h) on one row: (bodies, xpos, xquat, xmat, geom_xpos, "

@@ -38,6 +38,10 @@ class DUA_API KnotKinematics {
   // reads them from mjData; slot c's position to pos + 3 c, its rotation matrix to mat + 9 c.
   void Run(const double* qpos, const double* mocap_pos, const double* mocap_quat, double* pos,
            double* mat);
+  // Slot s's pose when its body is still (StillBody, or the world): computed once, here, so
+  // readable without a Run (the static guard, tables.h, reads it so).
+  const double* still_pos(size_t s) const { return still_pos_.data() + 3 * s; }
+  const double* still_mat(size_t s) const { return still_mat_.data() + 9 * s; }
   // The bodies computed (model ids, parents first) and their frames at the last Run, in that
   // order: (n, 3), (n, 4), (n, 9); for tests.
   const std::vector<int>& bodies() const { return body_; }

@@ -43,6 +43,13 @@ constexpr int kTerrainBlock = kShapeSize, kTerrainRows = kShapeSize + 1;
 constexpr int kTerRx = 0, kTerRy = 1, kTerBase = 2, kTerNrow = 3, kTerNcol = 4, kTerLevels = 5,
               kTerHeights = 6, kTerHabs = 7, kTerHeader = 16;
 
+// The static guard's records (StaticRecords, tables.h): each static shape's geom, its pose as
+// mj_kinematics places it (position, rotation matrix), its geom_size, and a 64-bit digest (two
+// 32-bit halves) of what else its record was built from: a height field's size, grid and
+// heights, a mesh's geom_aabb and vertices (0 for the other kinds).
+constexpr int kStaticGeom = 0, kStaticPos = 1, kStaticMat = 4, kStaticSize = 13, kStaticDigest = 16,
+              kStaticNcol = 18;
+
 // The exact level: per-geom records (the first eight are a sphere record of the geom origin),
 // per-pair records (the direction that served last, from kXN; the hull vertices highest last
 // time, per side), and what the level does for a pair (ExactMode).

@@ -34,6 +34,12 @@ namespace {
 constexpr char kPluginName[] = "dua_mujoco.predictor";
 constexpr const char* kAttributes[] = {"prefix", "overlay", "forget"};
 constexpr int kNAttribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
+// What to do about a static geom edited under the plugin's tables (StaticMismatch).
+constexpr char kStaticFix[] =
+    "The plugin's tables cover the static geoms as they were when it was attached, and would "
+    "miss their contacts: attach the plugin again after editing static geoms (edit the spec, "
+    "then dua_mujoco.attach(spec) and spec.compile(), or re-export the model), and make the "
+    "MjData from that model";
 
 // Sensor outputs.
 enum Output {
@@ -121,6 +127,14 @@ Instance* Create(const mjModel* m, int instance) {
   std::shared_ptr<const Tables> tables = LoadTables(m, prefix, &error);
   if (!tables) {
     mju_warning("dua_mujoco.predictor: %s.", error.c_str());
+    return nullptr;
+  }
+  // The static shapes' records were built once, from the static geoms as attach found them: a
+  // model edited since (geom_pos, body_pos, geom_size, hfield_data, a mesh) would have its
+  // contacts with them missed.
+  const std::string edited = StaticMismatch(m, tables->statics);
+  if (!edited.empty()) {
+    mju_warning("dua_mujoco.predictor: %s. %s.", edited.c_str(), kStaticFix);
     return nullptr;
   }
   auto* in = new Instance(std::move(tables), m);
@@ -259,9 +273,14 @@ void Register() {
     dest->plugin_data[instance] = reinterpret_cast<uintptr_t>(to);
     to->rt.Bind(m, dest);
   };
-  plugin.reset = +[](const mjModel*, mjtNum*, void* plugin_data, int) {
+  plugin.reset = +[](const mjModel* m, mjtNum*, void* plugin_data, int) {
     auto* in = reinterpret_cast<Instance*>(plugin_data);
-    if (in) in->rt.Invalidate();
+    if (!in) return;
+    // A static geom edited in the model since init: the next classification would read stale
+    // shape records (O(static geoms) and their height fields' and meshes' data; no step pays it).
+    const std::string edited = StaticMismatch(m, in->rt.tables().statics);
+    if (!edited.empty()) mju_error("dua_mujoco.predictor: %s. %s.", edited.c_str(), kStaticFix);
+    in->rt.Invalidate();
   };
   plugin.compute = +[](const mjModel* m, mjData* d, int instance, int capability) {
     const Instance* in = InstanceOf(d, instance);

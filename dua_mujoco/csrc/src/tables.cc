@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
@@ -16,6 +17,7 @@
 
 #include "dua/dua.h"
 #include "internal.h"
+#include "kinematics.h"
 
 namespace dua {
 namespace {
@@ -106,10 +108,11 @@ bool ReadSchedule(Reader* r, std::vector<double>* c, Tables* t) {
   if (!r->Get("config", -1, 1, c)) return false;
   if (c->empty() || (*c)[kCfgVersion] != static_cast<double>(kTablesVersion)) {
     return r->Fail("config",
-                   "was written by another version of dua_mujoco (format " +
-                       (c->empty() ? std::string("none") : std::to_string((*c)[kCfgVersion])) +
+                   "was written by another version of dua_mujoco (tables format " +
+                       (c->empty() ? std::string("none") : Shown((*c)[kCfgVersion])) +
                        ", this one reads " + std::to_string(kTablesVersion) +
-                       "): attach the predictor again with this one");
+                       "): attach the predictor again with this version (dua_mujoco.attach on "
+                       "the spec, or re-export the model: dua-mujoco export)");
   }
   if (static_cast<int64_t>(c->size()) != kCfgSize) {
     return r->Fail("config", "holds " + std::to_string(c->size()) + " entries, not " +
@@ -265,6 +268,22 @@ bool ReadPairs(const mjModel* m, Reader* r, Tables* t) {
     }
   }
   return true;
+}
+
+// The static guard's records: one per shape record, in their order, each of a geom that does
+// not move (its body the world or still), so that StaticMismatch's KnotKinematics reads no
+// state.
+bool ReadStatic(const mjModel* m, Reader* r, Tables* t) {
+  const int64_t rows = static_cast<int64_t>(t->shapes.size()) / kShapeNcol;
+  if (!r->Get("static", ShapeRecordCount(t->shapes.data(), rows), kStaticNcol, &t->statics)) {
+    return false;
+  }
+  return Rows(r, "static", t->statics, kStaticNcol, "its geom is not a static geom of the model",
+              [m](const double* rec) {
+                if (!IsIndex(rec[kStaticGeom], m->ngeom)) return false;
+                const int b = m->geom_bodyid[static_cast<int>(rec[kStaticGeom])];
+                return b == 0 || StillBody(m, b);
+              });
 }
 
 bool ReadEvents(const mjModel* m, Reader* r, Tables* t) {
@@ -678,7 +697,112 @@ uint64_t TablesDigest(const mjModel* m, const std::string& prefix) {
   return d.value();
 }
 
+// The digest of what static geom g's record was built from beyond its pose and size: a height
+// field's size, grid and heights; a mesh's geom_aabb (its box) and vertices; 0 for the others.
+uint64_t StaticDigest(const mjModel* m, int64_t g) {
+  const int type = m->geom_type[g], id = m->geom_dataid[g];
+  if (id < 0 || (type != mjGEOM_HFIELD && type != mjGEOM_MESH)) return 0;
+  Digest d;
+  if (type == mjGEOM_HFIELD) {
+    const int64_t grid[2] = {m->hfield_nrow[id], m->hfield_ncol[id]};
+    d.Array(m->hfield_size + 4 * id, 4);
+    d.Array(grid, 2);
+    d.Array(m->hfield_data + m->hfield_adr[id], grid[0] * grid[1]);
+  } else {
+    d.Array(m->geom_aabb + 6 * g, 6);
+    d.Array(m->mesh_vert + 3 * int64_t{m->mesh_vertadr[id]}, 3 * int64_t{m->mesh_vertnum[id]});
+  }
+  return d.value();
+}
+
+// n values as "[a, b, c]", each in the fewest digits that read back to it (as Python's repr:
+// an edit in the last bits shows, 0.3 stays 0.3).
+std::string Values(const double* v, int n) {
+  std::string out = "[";
+  for (int k = 0; k < n; ++k) {
+    char text[32];
+    for (int digits = 6; digits <= 17; ++digits) {
+      std::snprintf(text, sizeof text, "%.*g", digits, v[k]);
+      if (std::strtod(text, nullptr) == v[k]) break;
+    }
+    out += (k ? ", " : "") + std::string(text);
+  }
+  return out + "]";
+}
+
+std::string Hex(const double* halves) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%08llx%08llx", static_cast<unsigned long long>(halves[1]),
+                static_cast<unsigned long long>(halves[0]));
+  return text;
+}
+
 }  // namespace
+
+std::vector<double> StaticRecords(const mjModel* m, const std::vector<int64_t>& geoms) {
+  const KnotKinematics k(m, geoms);
+  std::vector<double> out(kStaticNcol * geoms.size(), 0.0);
+  for (size_t s = 0; s < geoms.size(); ++s) {
+    const int64_t g = geoms[s];
+    double* rec = out.data() + kStaticNcol * s;
+    rec[kStaticGeom] = static_cast<double>(g);
+    std::copy_n(k.still_pos(s), 3, rec + kStaticPos);
+    std::copy_n(k.still_mat(s), 9, rec + kStaticMat);
+    std::copy_n(m->geom_size + 3 * g, 3, rec + kStaticSize);
+    const uint64_t digest = StaticDigest(m, g);
+    rec[kStaticDigest] = static_cast<double>(digest & 0xffffffffu);
+    rec[kStaticDigest + 1] = static_cast<double>(digest >> 32);
+  }
+  return out;
+}
+
+std::string StaticMismatch(const mjModel* m, const std::vector<double>& statics) {
+  const size_t n = statics.size() / kStaticNcol;
+  if (n == 0) return std::string();
+  std::vector<int64_t> geoms(n);
+  for (size_t s = 0; s < n; ++s) {
+    geoms[s] = static_cast<int64_t>(statics[kStaticNcol * s + kStaticGeom]);
+  }
+  const std::vector<double> now = StaticRecords(m, geoms);
+  // Each static geom's first column that differs (NaN differs from itself: a geom put at NaN is
+  // refused too).
+  size_t first = n, edited = 0;
+  int column = 0;
+  for (size_t s = 0; s < n; ++s) {
+    for (int c = kStaticPos; c < kStaticNcol; ++c) {
+      const size_t i = kStaticNcol * s + static_cast<size_t>(c);
+      if (now[i] == statics[i]) continue;
+      if (first == n) first = s, column = c;
+      ++edited;
+      break;
+    }
+  }
+  if (first == n) return std::string();
+  const int64_t g = geoms[first];
+  const char* name = mj_id2name(m, mjOBJ_GEOM, static_cast<int>(g));
+  const double* was = statics.data() + kStaticNcol * first;
+  const double* is = now.data() + kStaticNcol * first;
+  std::string what;
+  if (column < kStaticMat) {
+    what = "moved: its position (geom_xpos) was " + Values(was + kStaticPos, 3) + ", is " +
+           Values(is + kStaticPos, 3);
+  } else if (column < kStaticSize) {
+    what = "turned: its rotation (geom_xmat) was " + Values(was + kStaticMat, 9) + ", is " +
+           Values(is + kStaticMat, 9);
+  } else if (column < kStaticDigest) {
+    what = "changed size: its geom_size was " + Values(was + kStaticSize, 3) + ", is " +
+           Values(is + kStaticSize, 3);
+  } else {
+    what = std::string("changed shape: its ") +
+           (m->geom_type[g] == mjGEOM_HFIELD ? "height field (hfield_data, hfield_size)"
+                                             : "mesh (mesh_vert, geom_aabb)") +
+           " had digest " + Hex(was + kStaticDigest) + ", has " + Hex(is + kStaticDigest);
+  }
+  const std::string shown = name && *name ? name : "geom" + std::to_string(g);
+  return "static geom " + std::to_string(g) + " ('" + shown + "') " + what + " (" +
+         std::to_string(edited) + " of " + std::to_string(n) +
+         " static geoms edited since the tables were built)";
+}
 
 uint64_t StructureHash(const mjModel* m) {
   uint64_t h = 0xcbf29ce484222325ULL;
@@ -704,7 +828,8 @@ std::shared_ptr<const Tables> BuildTables(const mjModel* m, const TableSource& s
   Reader r(source, before, after, error);
   std::vector<double> config;
   if (!ReadConfig(m, &r, &config, t.get()) || !ReadPairs(m, &r, t.get()) ||
-      !ReadEvents(m, &r, t.get()) || (t->exact && !ReadExact(m, &r, t.get())) ||
+      !ReadStatic(m, &r, t.get()) || !ReadEvents(m, &r, t.get()) ||
+      (t->exact && !ReadExact(m, &r, t.get())) ||
       (t->pruned && !ReadPruned(m, &r, config, t.get()))) {
     return nullptr;
   }

@@ -26,7 +26,8 @@
 namespace dua {
 
 // Version of the tables' format: a model's tables written by another version are refused.
-constexpr int64_t kTablesVersion = 5;
+// 6: the "static" table (the static guard, StaticRecords).
+constexpr int64_t kTablesVersion = 6;
 
 // Entries of the "config" table.
 enum Config {
@@ -64,6 +65,9 @@ struct Tables {
   ScheduleSpec schedule;
   double timestep = 0.0;
   std::vector<double> spheres, shapes, events_rec, events_params;
+  // The static guard: one StaticRecords row per static shape (in the shapes' order), what the
+  // shape records were built from; StaticMismatch holds a model to it.
+  std::vector<double> statics;
   int64_t nbody_events = 0;
   // The exact level: its per-geom records, thresholds, the model's hull graphs it climbs, and
   // their vertices (dua_exact's hull and hull_at: the climb reads a vertex in one row, not
@@ -124,6 +128,20 @@ DUA_API bool Decode(const char* text, std::vector<double>* out, std::string* why
 // FNV-1a (64 bits) of m's structure: geom_type, geom_bodyid and body_parentid as little-endian
 // int32s (dua_mujoco/runtime/table_arrays.py computes the same).
 DUA_API uint64_t StructureHash(const mjModel* m);
+
+// The static guard's records (layout.h, kStatic*) of static geoms `geoms` (their bodies still:
+// StillBody, or the world) of m: each geom's pose by mj_kinematics' arithmetic (KnotKinematics,
+// read only), its geom_size and the digest of its height field or mesh. The shape records and
+// their covering are built once, from these; tables that hold them are refused by
+// StaticMismatch once a static geom was edited in the model (docs/static-shapes.md).
+DUA_API std::vector<double> StaticRecords(const mjModel* m, const std::vector<int64_t>& geoms);
+
+// The first static geom of `statics` (StaticRecords rows, of the model the tables were built
+// from) that m no longer places, sizes or shapes as recorded, named with the field and its
+// recorded and present values, and how many differ ("static geom 3 ('wall') moved: position was
+// [...], is [...] (1 of 4 static geoms edited)"); empty when none differs. O(static geoms, plus
+// their height fields' and meshes' data).
+DUA_API std::string StaticMismatch(const mjModel* m, const std::vector<double>& statics);
 
 }  // namespace dua
 
