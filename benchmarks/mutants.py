@@ -70,6 +70,9 @@ _PLAN = "dua_mujoco/csrc/src/plan.cc"
 _KINEMATICS = "dua_mujoco/csrc/src/kinematics.cc"
 _KINEMATICS_H = "dua_mujoco/csrc/src/kinematics.h"
 _KNOTS = "tests/test_knot_kinematics.py"
+_PLUGIN = "dua_mujoco/csrc/src/plugin.cc"
+_TABLES = "dua_mujoco/csrc/src/tables.cc"
+_STATIC_EDITS = "tests/test_static_edits.py"
 _INTERNAL = "dua_mujoco/csrc/src/internal.h"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
@@ -1169,6 +1172,71 @@ MUTANTS: tuple[Mutant, ...] = (
         "(basis_live_ && !(zero(basis_) && zero(basis_prev_) && false));",
         ("tests/test_flightplan.py::test_settling_resumes_once_a_plan_runs_out",),
         "settling off for good after any plan (cost, not the promise)",
+    ),
+    # ------------------------------------------------------- the static guard (static-shapes.md)
+    Mutant(
+        "static-guard-skipped-at-reset",
+        _PLUGIN,
+        "    const std::string edited = StaticMismatch(m, in->rt.tables().statics);",
+        "    const std::string edited;",
+        (f"{_STATIC_EDITS}::test_plugin_reset_refuses_an_edited_static_geom",),
+        "mj_resetData after a static geom was edited classifies against the stale cover",
+    ),
+    Mutant(
+        "static-guard-skipped-at-init",
+        _PLUGIN,
+        "  const std::string edited = StaticMismatch(m, tables->statics);",
+        "  const std::string edited;",
+        (f"{_STATIC_EDITS}::test_plugin_init_refuses_an_edited_static_geom",),
+        "an MjData made after a static geom was edited runs on the stale cover",
+    ),
+    Mutant(
+        "static-pose-unrecorded",
+        _TABLES,
+        "    std::copy_n(k.still_pos(s), 3, rec + kStaticPos);\n",
+        "",
+        (_STATIC_EDITS,),
+        "a static geom moved under the tables is not seen (both records hold zeros)",
+    ),
+    Mutant(
+        "static-size-unchecked",
+        _TABLES,
+        "    std::copy_n(m->geom_size + 3 * g, 3, rec + kStaticSize);\n",
+        "",
+        (_STATIC_EDITS,),
+        "a static geom resized under the tables is not seen",
+    ),
+    Mutant(
+        "static-hfield-data-unread",
+        _TABLES,
+        "    d.Array(m->hfield_data + m->hfield_adr[id], grid[0] * grid[1]);\n",
+        "",
+        (_STATIC_EDITS,),
+        "a height field's heights edited under its terrain records are not seen",
+    ),
+    Mutant(
+        "static-mesh-vertices-unread",
+        _TABLES,
+        "3 * int64_t{m->mesh_vertnum[id]});",
+        "0);",
+        (_STATIC_EDITS,),
+        "a static mesh's vertices moved out of its box are not seen",
+    ),
+    Mutant(
+        "static-digest-uncompared",
+        _TABLES,
+        "for (int c = kStaticPos; c < kStaticNcol; ++c) {",
+        "for (int c = kStaticPos; c < kStaticDigest; ++c) {",
+        (_STATIC_EDITS,),
+        "a height field's or a mesh's digest is recorded but never compared",
+    ),
+    Mutant(
+        "static-guard-skipped-at-predictor-reset",
+        "dua_mujoco/build/tables.py",
+        "    edited = _core.static_mismatch(model, records)",
+        '    edited = ""',
+        (f"{_STATIC_EDITS}::test_predictor_reset_refuses_a_resized_or_reshaped_static_geom",),
+        "Predictor.reset takes a model whose static geoms were resized or reshaped",
     ),
 )
 
