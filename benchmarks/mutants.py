@@ -1177,8 +1177,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "static-guard-skipped-at-reset",
         _PLUGIN,
-        "    const std::string edited = StaticMismatch(m, in->rt.tables().statics);",
-        "    const std::string edited;",
+        "    if (!edited.empty()) mju_error(",
+        "    if (edited.empty() && !edited.empty()) mju_error(",
         (f"{_STATIC_EDITS}::test_plugin_reset_refuses_an_edited_static_geom",),
         "mj_resetData after a static geom was edited classifies against the stale cover",
     ),

@@ -655,12 +655,17 @@ class Digest {
   void Bytes(const void* p, size_t n) {
     const auto* c = static_cast<const unsigned char*>(p);
     size_t k = 0;
-    for (; k + 8 <= n; k += 8) {  // eight bytes at a time: it tells contents apart, not FNV
-      uint64_t w;
-      std::memcpy(&w, c + k, 8);
-      h_ = (h_ ^ w) * 0x100000001b3ULL;
-      h_ ^= h_ >> 29;
+    if (n >= 64) {
+      // Four words at a time in four lanes, folded in after: a height field's megabyte at each
+      // reset (the static guard) runs at four times the throughput. Each step is one-to-one in
+      // its word, so one word changed changes its lane and the digest.
+      uint64_t lane[4] = {h_, h_ ^ 1, h_ ^ 2, h_ ^ 3};
+      for (; k + 32 <= n; k += 32) {
+        for (int j = 0; j < 4; ++j) lane[j] = Mix(lane[j], Word(c + k + 8 * j));
+      }
+      for (const uint64_t l : lane) h_ = Mix(h_, l);
     }
+    for (; k + 8 <= n; k += 8) h_ = Mix(h_, Word(c + k));  // it tells contents apart, not FNV
     for (; k < n; ++k) h_ = (h_ ^ c[k]) * 0x100000001b3ULL;
   }
   template <typename T>
@@ -671,6 +676,16 @@ class Digest {
   uint64_t value() const { return h_; }
 
  private:
+  static uint64_t Word(const unsigned char* c) {
+    uint64_t w;
+    std::memcpy(&w, c, 8);
+    return w;
+  }
+  static uint64_t Mix(uint64_t h, uint64_t w) {
+    h = (h ^ w) * 0x100000001b3ULL;
+    return h ^ (h >> 29);
+  }
+
   uint64_t h_ = 0xcbf29ce484222325ULL;
 };
 
