@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 LAYOUT: dict = ...
 
-TABLES_VERSION: int = 5
+TABLES_VERSION: int = 6
 
 def structure_hash(model: object) -> int:
     """
@@ -580,6 +580,16 @@ class Runtime:
     @property
     def mocap(self) -> Mocap:
         """The mocap bodies' velocities, differenced at each step (or given)."""
+
+def static_records(model: object, geoms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]:
+    """
+    The static guard's records (n, STATIC_NCOL) of static geoms: geom, pose as mj_kinematics places it, geom_size, digest of its height field or mesh.
+    """
+
+def static_mismatch(model: object, records: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> str:
+    """
+    The first static geom the model no longer places, sizes or shapes as static_records recorded it, and how (empty: none).
+    """
 
 def knot_kinematics(model: object, geoms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
     """
