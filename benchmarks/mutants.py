@@ -92,6 +92,7 @@ _SETTLE_BOUND = "tests/test_urgency.py::test_settle_bound_is_never_after_the_fir
 _SETTLED = (
     "tests/test_events.py::test_settled_pairs_get_a_verdict_of_that_step_below_the_sphere_kernels"
 )
+_SETTLED_STANDING = "tests/test_alarms.py::test_settled_pairs_neither_stood_nor_stand"
 _REF = (
     "tests/test_reference_step.py::"
     "test_tau_is_never_later_than_a_feasible_contact_and_those_within_the_horizon_stand"
@@ -1151,6 +1152,26 @@ MUTANTS: tuple[Mutant, ...] = (
         "      now = j + 1 < nalarm && alarms[j] == p ? 1 : 0;",
         ("tests/test_alarms.py::test_the_steps_standing_state_is_the_alarm_rule",),
         "the step's standing state, read from its alarm list, misses a pair in alarm",
+    ),
+    Mutant(
+        "settle-a-standing-pair",
+        _SCHEDULE,
+        "if (bound != nullptr && where[p] >= 0 &&\n"
+        "          !Alarms(last_tau[p],\n"
+        "                  static_cast<double>(where[p] - last_step[p] + latency) * dt + extra)) {",
+        "if (bound != nullptr && where[p] >= 0) {",
+        (_SETTLED_STANDING,),
+        "a flagged body's pair standing in alarm is settled: the step, which tracks no settled "
+        "pair, keeps it standing after its alarm ended (docs/theory.md, section 3)",
+    ),
+    Mutant(
+        "settle-below-the-cover",
+        _SCHEDULE,
+        "if (cover > 0.0 && tau > cover) {",
+        "if (cover > 0.0 && tau > horizon) {",
+        (_SETTLED_STANDING,),
+        "a settled pair keeps its due step on a verdict that does not cover the wait: it stands "
+        "in alarm unreported (the step tracks no settled pair)",
     ),
     Mutant(
         "settle-off-the-period-grid",
