@@ -169,8 +169,9 @@ def test_settled_pairs_neither_stood_nor_stand() -> None:
     """The step tracks no settled pair (docs/theory.md, section 3, "Settled pairs do not
     stand"): on a scene where the check settles thousands of a flagged body's pairs, every
     settled pair stood before its step and stands after it in neither the runtime's standing
-    state nor a slow reference of the rule, and the two agree after every step. Fails with a
-    standing pair settled, or a settled verdict that does not cover its kept due step
+    state nor a slow reference of the rule, and the two agree after every step; last, a body
+    with a sphere pair standing in alarm is flung 50 m away (flagged, all its pairs far). Fails
+    with a standing pair settled, or a settled verdict that does not cover its kept due step
     (benchmarks/mutants.py)."""
     m, d = load_scene("traffic")
     p = Predictor(m, accel=5.0)
@@ -194,3 +195,16 @@ def test_settled_pairs_neither_stood_nor_stand() -> None:
         busy += k > 20
         before = now
     assert settled > 1000 and busy > 10
+    body, (g1, g2) = m.geom_bodyid, p.sphere_pair_geoms
+    sphere = p.pair_records[:, LAYOUT["PAIR_KIND"]] == 0
+    b1, b2 = body[g1[before]], body[g2[before]]
+    flung = before[sphere[before] & (b1 != b2) & (b1 > 0) & (b2 > 0)]
+    assert flung.size
+    b = body[g1[flung[0]]]
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    d.geom_xpos[body == b] += [50.0, 0.0, 0.0]
+    p.step(d)
+    assert b in p.violated_bodies
+    np.testing.assert_array_equal(np.asarray(p._rt.standing), _standing_reference(p))
+    assert flung[0] not in p._rt.standing
