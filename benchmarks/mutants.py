@@ -337,8 +337,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "made-due-selected-twice",
         _SCHEDULE,
-        "if (!active[p] || where[p] == kTaken) continue;",
-        "if (!active[p]) continue;",
+        "if (at == kTaken || (at < 0 && !active[p])) continue;",
+        "if (at < 0 && !active[p]) continue;",
         (_MADE_DUE,),
         "a pair of two flagged bodies is evaluated twice and linked twice into the wheel",
     ),
@@ -1154,12 +1154,23 @@ MUTANTS: tuple[Mutant, ...] = (
         "the step's standing state, read from its alarm list, misses a pair in alarm",
     ),
     Mutant(
+        "switched-off-left-in-the-wheel",
+        _SCHEDULE,
+        "    } else if (st->kind == kDeadline) {\n      Unlink(v, p);\n    }\n  }\n"
+        "  return changed;",
+        "    }\n  }\n  return changed;",
+        ("tests/test_scheduler.py::test_deadline_matches_reference",),
+        "a deadline pair switched off stays linked: the wheel selects it when due, and made due "
+        'it is taken without its switch read (docs/theory.md, section 3, "Linked pairs are '
+        'switched on")',
+    ),
+    Mutant(
         "settle-a-standing-pair",
         _SCHEDULE,
-        "if (bound != nullptr && where[p] >= 0 &&\n"
-        "          !Alarms(last_tau[p],\n"
-        "                  static_cast<double>(where[p] - last_step[p] + latency) * dt + extra)) {",
-        "if (bound != nullptr && where[p] >= 0) {",
+        "if (settle != nullptr && at >= 0 &&\n"
+        "          !Alarms(last_tau[p], static_cast<double>(at - last_step[p] + latency) * dt + "
+        "extra)) {",
+        "if (settle != nullptr && at >= 0) {",
         (_SETTLED_STANDING,),
         "a flagged body's pair standing in alarm is settled: the step, which tracks no settled "
         "pair, keeps it standing after its alarm ended (docs/theory.md, section 3)",
@@ -1175,7 +1186,7 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "settle-off-the-period-grid",
-        _STEP,
+        _INTERNAL,
         "return grid ? GridFloor(t, a.timestep, a.period) : t;",
         "return t;",
         (
