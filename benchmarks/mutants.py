@@ -1159,7 +1159,7 @@ MUTANTS: tuple[Mutant, ...] = (
         "    } else if (st->kind == kDeadline) {\n      Unlink(v, p);\n    }\n  }\n"
         "  return changed;",
         "    }\n  }\n  return changed;",
-        ("tests/test_scheduler.py::test_deadline_matches_reference",),
+        (_MADE_DUE,),
         "a deadline pair switched off stays linked: the wheel selects it when due, and made due "
         'it is taken without its switch read (docs/theory.md, section 3, "Linked pairs are '
         'switched on")',
