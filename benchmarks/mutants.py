@@ -95,6 +95,7 @@ _SETTLE_BOUND = "tests/test_urgency.py::test_settle_bound_is_never_after_the_fir
 _SETTLED = (
     "tests/test_events.py::test_settled_pairs_get_a_verdict_of_that_step_below_the_sphere_kernels"
 )
+_SETTLED_STANDING = "tests/test_alarms.py::test_settled_pairs_neither_stood_nor_stand"
 _REF = (
     "tests/test_reference_step.py::"
     "test_tau_is_never_later_than_a_feasible_contact_and_those_within_the_horizon_stand"
@@ -339,8 +340,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "made-due-selected-twice",
         _SCHEDULE,
-        "if (!active[p] || where[p] == kTaken) continue;",
-        "if (!active[p]) continue;",
+        "if (at == kTaken || (at < 0 && !active[p])) continue;",
+        "if (at < 0 && !active[p]) continue;",
         (_MADE_DUE,),
         "a pair of two flagged bodies is evaluated twice and linked twice into the wheel",
     ),
@@ -1156,8 +1157,39 @@ MUTANTS: tuple[Mutant, ...] = (
         "the step's standing state, read from its alarm list, misses a pair in alarm",
     ),
     Mutant(
+        "switched-off-left-in-the-wheel",
+        _SCHEDULE,
+        "    } else if (st->kind == kDeadline) {\n      Unlink(v, p);\n    }\n  }\n"
+        "  return changed;",
+        "    }\n  }\n  return changed;",
+        (_MADE_DUE,),
+        "a deadline pair switched off stays linked: the wheel selects it when due, and made due "
+        'it is taken without its switch read (docs/theory.md, section 3, "Linked pairs are '
+        'switched on")',
+    ),
+    Mutant(
+        "settle-a-standing-pair",
+        _SCHEDULE,
+        "if (settle != nullptr && at >= 0 &&\n"
+        "          !Alarms(last_tau[p], static_cast<double>(at - last_step[p] + latency) * dt + "
+        "extra)) {",
+        "if (settle != nullptr && at >= 0) {",
+        (_SETTLED_STANDING,),
+        "a flagged body's pair standing in alarm is settled: the step, which tracks no settled "
+        "pair, keeps it standing after its alarm ended (docs/theory.md, section 3)",
+    ),
+    Mutant(
+        "settle-below-the-cover",
+        _SCHEDULE,
+        "if (cover > 0.0 && tau > cover) {",
+        "if (cover > 0.0 && tau > horizon) {",
+        (_SETTLED_STANDING,),
+        "a settled pair keeps its due step on a verdict that does not cover the wait: it stands "
+        "in alarm unreported (the step tracks no settled pair)",
+    ),
+    Mutant(
         "settle-off-the-period-grid",
-        _STEP,
+        _INTERNAL,
         "return grid ? GridFloor(t, a.timestep, a.period) : t;",
         "return t;",
         (

@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from dua_mujoco._core import LAYOUT
 from dua_mujoco.build.options import ScheduleOptions, UrgencyOptions
 from dua_mujoco.exceptions import SchedulerError
 from dua_mujoco.models.scenes import load_scene, make_controller
@@ -143,3 +144,67 @@ def test_the_steps_standing_state_is_the_alarm_rule(options: dict) -> None:
         standing += rule.size
     assert flagged > 100 and standing > 100  # the check flags, and pairs stand
     assert deferred > 0 or "schedule" not in options
+
+
+def _standing_reference(p: Predictor) -> np.ndarray:
+    """The deadline rule written out slowly (docs/theory.md, section 3): a held pair stands iff
+    it is switched on, linked at a due step, and its latest verdict does not cover the wait
+    until it plus the latency and the horizon beyond one period, computed as the schedule does.
+    Model pair ids, sorted."""
+    s = p.pair_state().scheduler
+    assert s.kind == LAYOUT["DEADLINE"]
+    where, last = s.ints[LAYOUT["WHERE"]], s.ints[LAYOUT["LAST_STEP"]]
+    extra = s.alarm_horizon - s.dt
+    out = []
+    for k in range(where.size):
+        if not s.active[k] or where[k] < 0:
+            continue
+        cover = float(int(where[k]) - int(last[k]) + s.latency) * s.dt + extra
+        if s.last_tau[k] <= cover:
+            out.append(int(np.asarray(p._rt.ids)[k]))
+    return np.asarray(sorted(out), dtype=np.int64)
+
+
+def test_settled_pairs_neither_stood_nor_stand() -> None:
+    """The step tracks no settled pair (docs/theory.md, section 3, "Settled pairs do not
+    stand"): on a scene where the check settles thousands of a flagged body's pairs, every
+    settled pair stood before its step and stands after it in neither the runtime's standing
+    state nor a slow reference of the rule, and the two agree after every step; last, a body
+    with a sphere pair standing in alarm is flung 50 m away (flagged, all its pairs far). Fails
+    with a standing pair settled, or a settled verdict that does not cover its kept due step
+    (benchmarks/mutants.py)."""
+    m, d = load_scene("traffic")
+    p = Predictor(m, accel=5.0)
+    ctrl = make_controller(m, "random", seed=0)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    before = _standing_reference(p)
+    settled = busy = 0
+    for _ in range(600):
+        ctrl(m, d)
+        mujoco.mj_step(m, d)
+        p.step(d)
+        state = p.pair_state()
+        now = _standing_reference(p)
+        np.testing.assert_array_equal(np.asarray(p._rt.standing), now)
+        k = state.settled
+        count = p.evaluations_per_step
+        ids = state.last_selected[count : count + k]
+        assert not np.isin(ids, before).any() and not np.isin(ids, now).any()
+        settled += k
+        busy += k > 20
+        before = now
+    assert settled > 1000 and busy > 10
+    body, (g1, g2) = m.geom_bodyid, p.sphere_pair_geoms
+    sphere = p.pair_records[:, LAYOUT["PAIR_KIND"]] == 0
+    b1, b2 = body[g1[before]], body[g2[before]]
+    flung = before[sphere[before] & (b1 != b2) & (b1 > 0) & (b2 > 0)]
+    assert flung.size
+    b = body[g1[flung[0]]]
+    ctrl(m, d)
+    mujoco.mj_step(m, d)
+    d.geom_xpos[body == b] += [50.0, 0.0, 0.0]
+    p.step(d)
+    assert b in p.violated_bodies
+    np.testing.assert_array_equal(np.asarray(p._rt.standing), _standing_reference(p))
+    assert flung[0] not in p._rt.standing

@@ -278,21 +278,15 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
 
 // dua_make_due of pairs ids[0:count] at step n (schedule.cc).
 void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n);
-// A lower bound on a made-due pair's tau from the state of step n, cheaper than its evaluation
-// (at most the horizon, -inf included, where it settles nothing): the step's SettleBound.
-// Given the time its present wait must cover, it may return just above it when it covers.
-struct MadeDueBound {
-  double (*tau)(void* ctx, int64_t p, double cover);  // SettleTau's cover: the pair's wait
-  void* ctx;
-};
 // MakeDue of the pairs of groups[0:ngroups] (group g: members[start[g]:start[g + 1]]), in that
-// order, then dua_select at step n: the same selection, in the same order (schedule.cc). With a
-// bound (deadline schedules), a made-due pair that does not stand in alarm and whose bound does
-// not alarm is settled instead: the bound is its verdict of step n, linked where (3) puts it,
-// and it is not selected (docs/theory.md, section 6, "Settling a made-due pair").
+// order, then dua_select at step n: the same selection, in the same order (schedule.cc). With
+// the step's arguments `settle` (deadline schedules), a made-due pair that does not stand in
+// alarm and whose SettleBound on them does not alarm is settled instead: the bound is its
+// verdict of step n, linked where (3) puts it, and it is not selected (docs/theory.md, section
+// 6, "Settling a made-due pair").
 DUA_API int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
                               const int64_t* start, const int64_t* members, int64_t n,
-                              const MadeDueBound* bound = nullptr);
+                              const dua_step_args* settle = nullptr);
 
 // Bucket floor(log2(slot + 1)) of a rank slot.
 inline int64_t BucketOf(int64_t slot) {
@@ -358,6 +352,29 @@ inline double GridFloor(double tau, double h, int64_t p) {
   if (!(tau > 0.0) || std::isinf(tau)) return tau;
   const double s = std::min(std::ceil(tau / h), kFar);
   return GridTau(static_cast<int64_t>(s), h, p);
+}
+
+// A lower bound on made-due held pair p's tau from the state of step n, cheaper than its
+// evaluation (at most the horizon, -inf included, where it settles nothing): SettleTau on the
+// frame against the time its present wait covers (cover; it may return just above it when it
+// covers), a sphere pair's two rows read as the gather reads them (each sphere once a step: the
+// epoch the step's TauOf uses next), on the predictor's grid with period > 1; -inf (not
+// settled) for other kinds and untamed states. Inline: SelectMadeDue calls it for most of a
+// flagged body's pairs (through a function pointer, the call was 4 % of yam's plugin).
+inline double SettleBound(const dua_step_args& a, int64_t p, double cover) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double* rec = a.pairs + p * kPairNcol;
+  if (static_cast<int>(rec[kPairKind]) != kKindSphere) return -kInf;
+  bool tame_i, tame_j;
+  const double* si = PointRow(a, static_cast<int64_t>(rec[kPairFirst]), &tame_i);
+  const double* sj = PointRow(a, static_cast<int64_t>(rec[kPairSecond]), &tame_j);
+  if (!(tame_i && tame_j)) return -kInf;
+  // With period > 1 every tau goes on the grid, which the cover's (just above a step) is not.
+  const bool grid = a.period > 1;
+  const double t = SettleTauOf(sj[0] - si[0], sj[1] - si[1], sj[2] - si[2], sj[3] - si[3],
+                               sj[4] - si[4], sj[5] - si[5], rec[kPairEps], rec[kPairAccel],
+                               rec[kPairDelta], grid ? 0.0 : cover);
+  return grid ? GridFloor(t, a.timestep, a.period) : t;
 }
 
 }  // namespace dua

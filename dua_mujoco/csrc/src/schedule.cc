@@ -495,7 +495,7 @@ namespace dua {
 
 int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
                       const int64_t* start, const int64_t* members, int64_t n,
-                      const MadeDueBound* bound) {
+                      const dua_step_args* settle) {
   if (st->kind != kDeadline) {
     for (int64_t k = 0; k < ngroups; ++k) {
       const int64_t g = groups[k];
@@ -527,20 +527,21 @@ int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
     const int64_t g = groups[k];
     for (int64_t j = start[g + 1] - 1; j >= start[g]; --j) {
       const int64_t p = members[j];
-      if (!active[p] || where[p] == kTaken) continue;
+      // A pair linked in the wheel is switched on (docs/theory.md, section 3, "Linked pairs are
+      // switched on"): active is read only of the others (where -1: off, or on and unlinked).
+      const int64_t at = where[p];
+      if (at == kTaken || (at < 0 && !active[p])) continue;
       // Settled (docs/theory.md, section 6): only a pair linked in the wheel that does not stand
       // in alarm (the step's tracking reads the selection, and a pair left out of it must keep
       // its standing: none), with a bound from this state above the horizon (no alarm now).
-      if (bound != nullptr && where[p] >= 0 &&
-          !Alarms(last_tau[p],
-                  static_cast<double>(where[p] - last_step[p] + latency) * dt + extra)) {
+      if (settle != nullptr && at >= 0 &&
+          !Alarms(last_tau[p], static_cast<double>(at - last_step[p] + latency) * dt + extra)) {
         // A verdict of step n already (a pair of two flagged bodies, met again): it stays.
         if (last_step[p] == n) continue;
         // The wait until its due step, as Stands computes it once the verdict is of step n (0:
         // due now, nothing to keep).
-        const double cover =
-            where[p] > n ? static_cast<double>(where[p] - n + latency) * dt + extra : 0.0;
-        const double tau = bound->tau(bound->ctx, p, cover);
+        const double cover = at > n ? static_cast<double>(at - n + latency) * dt + extra : 0.0;
+        const double tau = SettleBound(*settle, p, cover);
         if (cover > 0.0 && tau > cover) {  // covers its due step: stays linked there
           last_tau[p] = tau;
           last_step[p] = n;

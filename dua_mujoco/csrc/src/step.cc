@@ -825,26 +825,6 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
   return -1;
 }
 
-// SettleTau of held pair p on the frame (a MadeDueBound), against the time its present wait
-// covers (cover): a sphere pair's two rows read as the
-// gather reads them (each sphere once a step: the epoch the step's TauOf uses next), on the
-// predictor's grid with period > 1; -inf (not settled) for other kinds and untamed states.
-double SettleBound(void* ctx, int64_t p, double cover) {
-  const dua_step_args& a = *static_cast<const dua_step_args*>(ctx);
-  const double* rec = a.pairs + p * kPairNcol;
-  if (static_cast<int>(rec[kPairKind]) != kKindSphere) return -kInf;
-  bool tame_i, tame_j;
-  const double* si = PointRow(a, static_cast<int64_t>(rec[kPairFirst]), &tame_i);
-  const double* sj = PointRow(a, static_cast<int64_t>(rec[kPairSecond]), &tame_j);
-  if (!(tame_i && tame_j)) return -kInf;
-  // With period > 1 every tau goes on the grid, which the cover's (just above a step) is not.
-  const bool grid = a.period > 1;
-  const double t = SettleTauOf(sj[0] - si[0], sj[1] - si[1], sj[2] - si[2], sj[3] - si[3],
-                               sj[4] - si[4], sj[5] - si[5], rec[kPairEps], rec[kPairAccel],
-                               rec[kPairDelta], grid ? 0.0 : cover);
-  return grid ? GridFloor(t, a.timestep, a.period) : t;
-}
-
 // TauRows of held pairs on a's points (free spheres) or frame, then the exact level.
 int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* out) {
   // A sphere is in several of the batch's pairs: its state is read from MjData once. A new
@@ -985,11 +965,10 @@ int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
   // from MjData, judged by their motion bounds (a plan's verdicts rest on other hypotheses).
   // The bound reads the spheres in this step's epoch, which TauOf then starts.
   ++a->epoch;
-  const dua::MadeDueBound bound{dua::SettleBound, a};
   const bool settles = flagged > 0 && a->points.centers == nullptr && a->plan.impl == nullptr &&
                        a->plan.basis == nullptr;
-  const int64_t count = dua::SelectMadeDue(st, ev.flagged, flagged, ev.start, ev.members, n,
-                                           settles ? &bound : nullptr);
+  const int64_t count =
+      dua::SelectMadeDue(st, ev.flagged, flagged, ev.start, ev.members, n, settles ? a : nullptr);
   const int64_t* w_ids = st->work + 1 * st->width;
   a->count = count;
   --a->epoch;  // TauOf's ++ returns to it: the rows read above are this batch's
