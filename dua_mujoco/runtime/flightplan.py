@@ -52,13 +52,6 @@ def float64_array(value: npt.ArrayLike) -> np.ndarray:
     return np.asarray(value, dtype=np.float64)
 
 
-def _c_f64(value: npt.ArrayLike) -> np.ndarray:
-    """``value`` as a C-contiguous float64 array: itself when it is one, else a copy."""
-    if type(value) is np.ndarray and value.dtype is _F64 and value.flags.c_contiguous:
-        return value
-    return np.ascontiguousarray(value, dtype=np.float64)
-
-
 def finite_rows(
     name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str, *, finite: bool = True
 ) -> np.ndarray:
@@ -71,7 +64,10 @@ def finite_rows(
         ShapeError: Not ``(n, ncol)`` with ``n >= 1``.
         InvalidInputError: An entry is not finite (the first is named).
     """
-    a = _c_f64(value)
+    if type(value) is np.ndarray and value.dtype is _F64 and value.flags.c_contiguous:
+        a = value  # as it is: no numpy call
+    else:
+        a = np.ascontiguousarray(value, dtype=np.float64)
     if a.ndim != 2 or a.shape[1] != ncol or a.shape[0] < 1:
         raise ShapeError(
             f"{name} has shape {a.shape}; expected (n, {cols}) = (n, {ncol}) with n >= 1: one "
