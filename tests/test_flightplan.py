@@ -594,18 +594,21 @@ def test_set_plan_reads_the_callers_arrays_without_copies_or_writes() -> None:
     assert type(first) is np.ndarray and first.shape == (m.nbody,) and first.dtype == np.float64
     assert np.all(first == np.inf) and np.all(again == np.inf)  # a plan replaced by itself
     assert first is not again and not np.shares_memory(first, again)
-    # Other layouts and dtypes are converted, as before: the same plan.
+    # Other layouts and dtypes are converted, as before: the same plan; a deviation of one
+    # number a knot is a row, a relative deviation of one number a pair a column.
+    ball, box = (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in ("ball", "box"))
+    two = np.array([[arm, hand], [ball, box]], dtype=np.int32)
+    knot = np.arange(10.0) / 100
     conv = plan_arrays(
-        m,
-        np.asfortranarray(q),
-        dev.astype(np.float32),
-        d.time,
-        relative=(pairs.astype(np.int32).tolist(), rel[0]),
+        m, np.asfortranarray(q), knot.astype(np.float32), d.time, relative=(two.tolist(), [1, 2])
     )
     assert conv.qpos.flags.c_contiguous and np.array_equal(conv.qpos, q)
-    assert conv.deviation.dtype == np.float64 and np.allclose(conv.deviation, dev)
-    assert conv.rel_bodies.dtype == np.int64 and np.array_equal(conv.rel_bodies, pairs)
-    assert np.array_equal(conv.rel_deviation, np.full((10, 1), 0.005))
+    assert conv.deviation.dtype == np.float64 and conv.deviation.flags.c_contiguous
+    assert np.allclose(conv.deviation, np.repeat(knot[:, None], m.nbody, axis=1))
+    assert conv.rel_bodies.dtype == np.int64 and np.array_equal(conv.rel_bodies, two)
+    assert np.array_equal(conv.rel_deviation, np.tile([1.0, 2.0], (10, 1)))
+    rows = plan_arrays(m, q, knot, 0.0).deviation  # float64 already: broadcast, not converted
+    assert np.array_equal(rows, np.repeat(knot[:, None], m.nbody, axis=1))
 
 
 def test_a_model_with_mocap_bodies_takes_a_plan_of_its_other_bodies() -> None:
