@@ -33,16 +33,12 @@ __all__ = [
 _F64 = np.dtype(np.float64)
 
 
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a.flags.writeable = False
-    return a
-
-
 # The empty arrays of a plan without mocap poses, held bodies or relative pairs: one of each,
-# shared by every call (read-only: the runtime only reads them).
-_NO_MOCAP = _frozen(np.zeros(0))
-_NO_BODIES = _frozen(np.zeros(0, np.uint8))
-_NO_PAIRS = _frozen(np.zeros((0, 2), np.int64))
+# shared by every call (no entry to write; writeable, as numpy's DLPack export, which nanobind
+# tries first, refuses read-only arrays and the fallback costs an exception each).
+_NO_MOCAP = np.zeros(0)
+_NO_BODIES = np.zeros(0, np.uint8)
+_NO_PAIRS = np.zeros((0, 2), np.int64)
 
 
 def float64_array(value: npt.ArrayLike) -> np.ndarray:
