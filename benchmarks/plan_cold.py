@@ -3,6 +3,8 @@
     python benchmarks/plan_cold.py --robots xarm7 baxter sawyer --horizon 0.2
     python benchmarks/plan_cold.py BEFORE --before-python BEFORE/.venv/bin/python   # an A/B
     python benchmarks/plan_cold.py --flush 32      # a 32 MB buffer read before each plan
+    python benchmarks/plan_cold.py BEFORE --before-python BEFORE/.venv/bin/python \\
+        --instructions 100                         # callgrind: Python and native instructions
 
 Issue 39: the plan's cost with ``set_plan`` by the clock (``benchmarks/plan_users.py``) is
 above what the instructions of the native calls say (``benchmarks/plan_profile.py`` counts
@@ -22,12 +24,20 @@ cold, as the replay has them (after the steps), and the Python part again at onc
 changes nothing). ``--flush MB`` reads a buffer of that size before each plan too (colder than
 the benchmark). Medians over the plans of ``--rounds`` replays, each side in its own interpreter
 and the sides taking turns round by round, in the replay's median ``mj_step``.
+
+``--instructions CALLS`` times nothing: the replay's first plan is given again ``CALLS`` times
+(the same plan replacing itself) under ``valgrind --tool=callgrind`` collecting only inside
+that loop (a ``functools.reduce``), and each call's instructions are split into
+``Runtime::SetPlan``'s and the rest (Python, nanobind's conversions, the benchmark's
+``plan_deviation`` rows): deterministic, where the clock on a shared machine is not.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -72,6 +82,21 @@ def run(on_plan):
 
 plans = {}
 run(lambda k, p, d, drive: plans.__setitem__(k, (drive.plan(world.nominal, d, n), float(d.time))))
+if len(sys.argv) > 4:  # --instructions: the first plan given again and again, under callgrind
+    import functools
+
+    def again(k, p, d, drive):
+        if k == 0:
+            q, start = plans[0]
+            world.set_plan(p, "plan", H, q, start)
+            # Callgrind collects inside functools.reduce alone: these calls, nothing else.
+            functools.reduce(
+                lambda a, _: world.set_plan(p, "plan", H, q, start), range(int(sys.argv[4])), None
+            )
+
+    steps = 0
+    run(again)
+    sys.exit(0)
 py, native, warm = [], [], []
 
 
@@ -116,6 +141,42 @@ def replay(python: str, run: Path, flush: int) -> dict[str, list[int]]:
     return json.loads(out)  # type: ignore[no-any-return]
 
 
+def instructions(python: str, run: Path, calls: int, side: str) -> tuple[float, float]:
+    """``set_plan``'s instructions a call and ``Runtime::SetPlan``'s in them, over ``calls``
+    calls of the replay's first plan on a predictor that has it already (callgrind, collecting
+    only inside the loop: ``functools.reduce``)."""
+    script = run.with_suffix(".cold.py")
+    script.write_text(REPLAY)
+    out = run.with_suffix(f".{side}.callgrind")
+    subprocess.run(
+        [
+            "valgrind",
+            "--tool=callgrind",
+            "--collect-atstart=no",
+            "--toggle-collect=functools_reduce",
+            f"--callgrind-out-file={out}",
+            python,
+            str(script),
+            str(HERE),
+            str(run),
+            "0",
+            str(calls),
+        ],
+        check=True,
+        capture_output=True,
+        env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
+    )
+    text = subprocess.run(
+        ["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(out)],
+        capture_output=True,
+        text=True,
+    ).stdout
+    total = re.search(r"^\s*([\d,]+) .*PROGRAM TOTALS", text, re.M)
+    native = re.search(r"^\s*([\d,]+) .*:dua::Runtime::SetPlan", text, re.M)
+    count = [int(m.group(1).replace(",", "")) if m else 0 for m in (total, native)]
+    return count[0] / calls, count[1] / calls
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("before", type=Path, nargs="?", help="another checkout, for an A/B")
@@ -125,6 +186,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steps", type=int, default=500, help="physics steps a replay")
     ap.add_argument("--rounds", type=int, default=5, help="replays a side")
     ap.add_argument("--flush", type=int, default=0, help="MB read before each plan (0: none)")
+    ap.add_argument(
+        "--instructions",
+        type=int,
+        metavar="CALLS",
+        help="no clock: set_plan's instructions a call over CALLS calls, Python and native apart",
+    )
     args = ap.parse_args(argv)
     if args.before is not None and not args.before_python:
         ap.error("an A/B needs --before-python")
@@ -135,6 +202,23 @@ def main(argv: list[str] | None = None) -> int:
     sides = [("after", sys.executable)]
     if args.before is not None:
         sides.insert(0, ("before", args.before_python))
+    if args.instructions:
+        print(
+            "| robot | side | `set_plan`, k instructions | of which `Runtime::SetPlan` | the rest |"
+        )
+        print("|---|---|---|---|---|")
+        with tempfile.TemporaryDirectory() as tmp:
+            for name in args.robots:
+                run = Path(tmp) / f"{name}.pkl"
+                world(name, args.horizon, args.steps, run)
+                for side, python in sides:
+                    total, native = instructions(python, run, args.instructions, side)
+                    print(
+                        f"| {name} | {side} | {total / 1e3:.1f} | {native / 1e3:.1f} |"
+                        f" {(total - native) / 1e3:.1f} |",
+                        flush=True,
+                    )
+        return 0
     print(
         "| robot | side | plans | `mj_step` us | Python, cold | native, cold | Python, warm |"
         " `set_plan`, cold |"
