@@ -207,10 +207,17 @@ def main(argv: list[str] | None = None) -> int:
             "| robot | side | `set_plan`, k instructions | of which `Runtime::SetPlan` | the rest |"
         )
         print("|---|---|---|---|---|")
-        with tempfile.TemporaryDirectory() as tmp:
-            for name in args.robots:
-                run = Path(tmp) / f"{name}.pkl"
-                world(name, args.horizon, args.steps, run)
+    else:
+        print(
+            "| robot | side | plans | `mj_step` us | Python, cold | native, cold | Python, warm |"
+            " `set_plan`, cold |"
+        )
+        print("|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.robots:
+            run = Path(tmp) / f"{name}.pkl"
+            world(name, args.horizon, args.steps, run)
+            if args.instructions:
                 for side, python in sides:
                     total, native = instructions(python, run, args.instructions, side)
                     print(
@@ -218,16 +225,7 @@ def main(argv: list[str] | None = None) -> int:
                         f" {(total - native) / 1e3:.1f} |",
                         flush=True,
                     )
-        return 0
-    print(
-        "| robot | side | plans | `mj_step` us | Python, cold | native, cold | Python, warm |"
-        " `set_plan`, cold |"
-    )
-    print("|---|---|---|---|---|---|---|---|")
-    with tempfile.TemporaryDirectory() as tmp:
-        for name in args.robots:
-            run = Path(tmp) / f"{name}.pkl"
-            world(name, args.horizon, args.steps, run)
+                continue
             times: dict[str, dict[str, list[int]]] = {s: {} for s, _ in sides}
             for r in range(args.rounds):
                 for side, python in sides if r % 2 == 0 else sides[::-1]:
