@@ -67,6 +67,7 @@ _STEP = "dua_mujoco/csrc/src/step.cc"
 _SCHEDULE = "dua_mujoco/csrc/src/schedule.cc"
 _SCHEDULE_H = "dua_mujoco/csrc/src/schedule.h"
 _PLAN = "dua_mujoco/csrc/src/plan.cc"
+_FLIGHTPLAN = "dua_mujoco/runtime/flightplan.py"
 _KINEMATICS = "dua_mujoco/csrc/src/kinematics.cc"
 _KINEMATICS_H = "dua_mujoco/csrc/src/kinematics.h"
 _KNOTS = "tests/test_knot_kinematics.py"
@@ -1196,6 +1197,54 @@ MUTANTS: tuple[Mutant, ...] = (
             "tests/test_events.py::test_settled_pairs_wait_on_the_predictor_grid_at_period_above_one",
         ),
         "with period > 1, a settled pair's wait off the predictor's grid",
+    ),
+    Mutant(
+        "plan-arrays-kept-in-any-layout",
+        _FLIGHTPLAN,
+        "if type(value) is np.ndarray and value.dtype is _F64 and value.flags.c_contiguous:",
+        "if type(value) is np.ndarray and value.dtype is _F64:",
+        (
+            "tests/test_flightplan.py::test_set_plan_reads_the_callers_arrays_without_copies_or_writes",
+        ),
+        "a plan's qpos passed on in the caller's layout, not the C order the runtime reads",
+    ),
+    Mutant(
+        "plan-arrays-kept-in-any-dtype",
+        _FLIGHTPLAN,
+        "    if type(value) is np.ndarray and value.dtype is _F64:\n        return value",
+        "    if type(value) is np.ndarray:\n        return value",
+        (
+            "tests/test_flightplan.py::test_set_plan_reads_the_callers_arrays_without_copies_or_writes",
+        ),
+        "a deviation passed on in the caller's dtype, not float64",
+    ),
+    Mutant(
+        "plan-relative-deviation-a-row-per-knot",
+        _FLIGHTPLAN,
+        "column = per_row and dev.ndim == 1",
+        "column = dev.ndim == 1",
+        (
+            "tests/test_flightplan.py::test_set_plan_reads_the_callers_arrays_without_copies_or_writes",
+        ),
+        "one relative deviation a pair read as one a knot",
+    ),
+    Mutant(
+        "plan-deviation-a-column-per-body",
+        _FLIGHTPLAN,
+        "column = per_row and dev.ndim == 1",
+        "column = False",
+        (
+            "tests/test_flightplan.py::test_set_plan_reads_the_callers_arrays_without_copies_or_writes",
+        ),
+        "one deviation a knot read as one a body",
+    ),
+    Mutant(
+        "plan-deviation-rows-knots-unchecked",
+        "dua_mujoco/runtime/profiles.py",
+        "if type(knots) is not int or knots < 1:",
+        "if type(knots) is not int:",
+        ("tests/test_plans.py::test_plan_deviation_reads_the_profile_past_the_origin",),
+        "plan_deviation takes a plain int below 1 for a plan's knots",
     ),
     Mutant(
         "basis-kept-after-the-plan",

@@ -19,6 +19,7 @@ from mjcf import free, motors
 from dua_mujoco.exceptions import InvalidInputError, SchedulerError, ShapeError
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.models.scenes import load_scene
+from dua_mujoco.runtime.flightplan import plan_arrays
 from dua_mujoco.runtime.pairstate import PairState
 from dua_mujoco.runtime.plans import PilotPlan, deviation_profile
 from dua_mujoco.runtime.predictor import Predictor
@@ -562,6 +563,51 @@ def test_bad_plans_are_refused_by_name() -> None:
         p.set_plan(q, deviation=0.0, start=float(d.time) + 0.1)
     with pytest.raises(InvalidInputError, match="does not cover"):
         p.set_plan(q, deviation=0.0, start=float(d.time) + 0.0005)  # not on a step
+
+
+def test_set_plan_reads_the_callers_arrays_without_copies_or_writes() -> None:
+    """The arrays a plan's arguments already are (float64, C-contiguous; int64 relative ids) go
+    to the runtime as they are: no copy of them and no write to them; the empty arrays of what
+    is not planned are one of each, shared by every call; ``set_plan`` returns the
+    runtime's departures, a new ``(nbody,)`` array each call."""
+    m, d = _scene()
+    p = Predictor(m, accel=ACCEL)
+    p.reset(d)
+    q = _rollout(m, d, np.zeros((1, m.nu)), 10)
+    dev = np.full((10, m.nbody), 0.01)
+    arm, hand = (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in ("arm", "hand"))
+    pairs, rel = np.array([[arm, hand]], dtype=np.int64), np.full((10, 1), 0.005)
+    kept = [a.copy() for a in (q, dev, pairs, rel)]
+    args = plan_arrays(m, q, dev, d.time, relative=(pairs, rel))
+    assert args.qpos is q and args.deviation is dev
+    assert args.rel_bodies is pairs and args.rel_deviation is rel
+    other = plan_arrays(m, q, 0.01, d.time)
+    assert other.mocap_pos is args.mocap_pos and other.mocap_quat is args.mocap_pos
+    assert other.bodies is args.bodies and other.rel_bodies is plan_arrays(m, q, 0.0, 0).rel_bodies
+    assert other.mocap_pos.size == other.bodies.size == other.rel_bodies.size == 0
+    assert np.array_equal(other.deviation, dev)  # one number broadcast, a new array
+    first = p.set_plan(q, deviation=dev, relative=(pairs, rel))
+    again = p.set_plan(q, deviation=dev, relative=(pairs, rel))
+    for a, b in zip((q, dev, pairs, rel), kept, strict=True):
+        assert np.array_equal(a, b) and a.flags.writeable
+    assert type(first) is np.ndarray and first.shape == (m.nbody,) and first.dtype == np.float64
+    assert np.all(first == np.inf) and np.all(again == np.inf)  # a plan replaced by itself
+    assert first is not again and not np.shares_memory(first, again)
+    # Other layouts and dtypes are converted, as before: the same plan; a deviation of one
+    # number a knot is a row, a relative deviation of one number a pair a column.
+    ball, box = (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in ("ball", "box"))
+    two = np.array([[arm, hand], [ball, box]], dtype=np.int32)
+    knot = np.arange(10.0) / 100
+    conv = plan_arrays(
+        m, np.asfortranarray(q), knot.astype(np.float32), d.time, relative=(two.tolist(), [1, 2])
+    )
+    assert conv.qpos.flags.c_contiguous and np.array_equal(conv.qpos, q)
+    assert conv.deviation.dtype == np.float64 and conv.deviation.flags.c_contiguous
+    assert np.allclose(conv.deviation, np.repeat(knot[:, None], m.nbody, axis=1))
+    assert conv.rel_bodies.dtype == np.int64 and np.array_equal(conv.rel_bodies, two)
+    assert np.array_equal(conv.rel_deviation, np.tile([1.0, 2.0], (10, 1)))
+    rows = plan_arrays(m, q, knot, 0.0).deviation  # float64 already: broadcast, not converted
+    assert np.array_equal(rows, np.repeat(knot[:, None], m.nbody, axis=1))
 
 
 def test_a_model_with_mocap_bodies_takes_a_plan_of_its_other_bodies() -> None:

@@ -301,6 +301,17 @@ def test_plan_deviation_reads_the_profile_past_the_origin() -> None:
         plan_deviation(prof, 0)
     with pytest.raises(ShapeError, match=r"profile has shape \(6,\)"):
         plan_deviation(np.zeros(6), 3)
+    # A plain int's fast path and the general checks agree; the rows are a copy, never the
+    # profile's own memory.
+    rows = plan_deviation(prof, 4)
+    assert np.array_equal(rows, prof[:4]) and not np.shares_memory(rows, prof)
+    assert np.array_equal(plan_deviation(prof, np.int64(4), origin=np.int64(0)), rows)
+    assert np.array_equal(plan_deviation(prof.tolist(), 4), rows)
+    for bad in (True, 4.0, -1):
+        with pytest.raises(InvalidInputError, match=f"knots = {bad}"):
+            plan_deviation(prof, bad)  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match="origin = False"):
+        plan_deviation(prof, 4, origin=False)
 
 
 def test_deviation_profile_names_bad_input(model: mujoco.MjModel) -> None:

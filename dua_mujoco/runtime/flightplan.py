@@ -30,6 +30,24 @@ __all__ = [
 ]
 
 
+_F64 = np.dtype(np.float64)
+
+
+# The empty arrays of a plan without mocap poses, held bodies or relative pairs: one of each,
+# shared by every call (no entry to write; writeable, as numpy's DLPack export, which nanobind
+# tries first, refuses read-only arrays and the fallback costs an exception each).
+_NO_MOCAP = np.zeros(0)
+_NO_BODIES = np.zeros(0, np.uint8)
+_NO_PAIRS = np.zeros((0, 2), np.int64)
+
+
+def float64_array(value: npt.ArrayLike) -> np.ndarray:
+    """``value`` as a float64 array: itself when it is one (no numpy call), else converted."""
+    if type(value) is np.ndarray and value.dtype is _F64:
+        return value
+    return np.asarray(value, dtype=np.float64)
+
+
 def finite_rows(
     name: str, value: npt.ArrayLike, ncol: int, cols: str, rows: str, *, finite: bool = True
 ) -> np.ndarray:
@@ -42,7 +60,10 @@ def finite_rows(
         ShapeError: Not ``(n, ncol)`` with ``n >= 1``.
         InvalidInputError: An entry is not finite (the first is named).
     """
-    a = np.ascontiguousarray(value, dtype=np.float64)
+    if type(value) is np.ndarray and value.dtype is _F64 and value.flags.c_contiguous:
+        a = value  # as it is: no numpy call
+    else:
+        a = np.ascontiguousarray(value, dtype=np.float64)
     if a.ndim != 2 or a.shape[1] != ncol or a.shape[0] < 1:
         raise ShapeError(
             f"{name} has shape {a.shape}; expected (n, {cols}) = (n, {ncol}) with n >= 1: one "
@@ -57,6 +78,20 @@ def finite_rows(
             f"{name}[{j}, {i}] = {float(a[j, i])} is not finite: pass finite values."
         )
     return a
+
+
+def _rows(dev: np.ndarray, n: int, ncol: int, *, per_row: bool) -> np.ndarray | None:
+    """A deviation ``dev`` (one number, one a row (``per_row``: ``(n,)``) or a column
+    (``(ncol,)``), or ``(n, ncol)``) as a C-contiguous ``(n, ncol)`` array, ``dev`` itself when
+    it is one; None when its shape fits none of these."""
+    if dev.shape == (n, ncol):
+        return dev if dev.flags.c_contiguous else np.ascontiguousarray(dev)
+    if dev.ndim == 0 or (dev.ndim == 1 and dev.shape[0] == (n if per_row else ncol)):
+        column = per_row and dev.ndim == 1
+        return np.ascontiguousarray(
+            np.broadcast_to(dev.reshape(-1, 1) if column else dev, (n, ncol))
+        )
+    return None
 
 
 Bodies = Iterable[str | int] | str | int | None
@@ -99,7 +134,7 @@ def relative_arrays(
     metres, their shapes checked, names made ids (the runtime checks the values: ids of two
     distinct bodies the plan holds, each pair once, finite deviations >= 0)."""
     if relative is None:
-        return np.zeros((0, 2), np.int64), np.zeros((n, 0))
+        return _NO_PAIRS, np.zeros((n, 0))
     try:
         raw_pairs, raw_dev = relative
     except (TypeError, ValueError):
@@ -107,27 +142,25 @@ def relative_arrays(
             f"relative = {relative!s:.80} is invalid: pass (pairs, deviation), (nrel, 2) body "
             "pairs and their relative deviations (relative_profile's)."
         ) from None
-    items = np.asarray(raw_pairs)
+    items = raw_pairs if type(raw_pairs) is np.ndarray else np.asarray(raw_pairs)
     if items.ndim != 2 or items.shape[1] != 2:
         raise ShapeError(
             f"relative pairs have shape {items.shape}; expected (nrel, 2): body pairs (a, b)."
         )
-    if np.issubdtype(items.dtype, np.integer):  # ids (relative_profile's): the runtime's to check
-        pairs = items.astype(np.int64)
+    if items.dtype.kind in "iu":  # ids (relative_profile's): the runtime's to check
+        pairs = np.ascontiguousarray(items, dtype=np.int64)  # no copy when they are already
     else:  # names (or ids mixed with them)
         pairs = np.array(
             [[body_id(model, item) for item in row] for row in items.tolist()], dtype=np.int64
         ).reshape(-1, 2)
     nrel = pairs.shape[0]
-    dev = np.asarray(raw_dev, dtype=np.float64)
-    if dev.ndim == 0 or (dev.ndim == 1 and dev.shape[0] == nrel):
-        dev = np.broadcast_to(dev, (n, nrel))
-    if dev.shape != (n, nrel):
+    dev = _rows(float64_array(raw_dev), n, nrel, per_row=False)
+    if dev is None:
         raise ShapeError(
             f"relative deviation has shape {np.shape(raw_dev)}; pass one number, ({nrel},) (one "
             f"per pair) or ({n}, {nrel}) (one per knot and pair)."
         )
-    return pairs, np.ascontiguousarray(dev)
+    return pairs, dev
 
 
 def body_mask(
@@ -207,25 +240,25 @@ def plan_arrays(
     """
     q = finite_rows("qpos", qpos, model.nq, "nq", "joint positions per physics step", finite=False)
     n, nbody = q.shape[0], model.nbody
-    dev = np.asarray(deviation, dtype=np.float64)
-    if dev.ndim == 0 or (dev.ndim == 1 and dev.shape[0] == n):
-        dev = np.broadcast_to(dev.reshape(-1, 1) if dev.ndim else dev, (n, nbody))
-    if dev.shape != (n, nbody):
+    dev = _rows(float64_array(deviation), n, nbody, per_row=True)
+    if dev is None:
         raise ShapeError(
             f"deviation has shape {np.shape(deviation)}; pass one number, ({n},) (one per "
             f"knot) or ({n}, {nbody}) (one per knot and body)."
         )
-    if (mocap_pos is None) != (mocap_quat is None):
+    if mocap_pos is None and mocap_quat is None:
+        mp = mq = _NO_MOCAP
+    elif mocap_pos is None or mocap_quat is None:
         raise InvalidInputError(
             "mocap_pos and mocap_quat go together: pass both, (n, nmocap, 3) and (n, nmocap, 4), "
             "or neither (mocap bodies then follow their motion bounds)."
         )
-    none = np.zeros(0)
-    mp = none if mocap_pos is None else _mocap(model, "mocap_pos", mocap_pos, n, 3)
-    mq = none if mocap_quat is None else _mocap(model, "mocap_quat", mocap_quat, n, 4)
-    held = np.zeros(0, np.uint8) if bodies is None else body_mask(model, bodies, mp.size > 0)
+    else:
+        mp = _mocap(model, "mocap_pos", mocap_pos, n, 3)
+        mq = _mocap(model, "mocap_quat", mocap_quat, n, 4)
+    held = _NO_BODIES if bodies is None else body_mask(model, bodies, mp.size > 0)
     rb, rd = relative_arrays(model, relative, n)
-    return PlanArrays(q, np.ascontiguousarray(dev), float(start), held, mp, mq, rb, rd)
+    return PlanArrays(q, dev, float(start), held, mp, mq, rb, rd)
 
 
 class PlanFollowing:
@@ -295,7 +328,7 @@ class PlanFollowing:
                 model's, or the plan does not cover the next step.
         """
         args = self._plan_args(qpos, deviation, start, bodies, mocap_pos, mocap_quat, relative)
-        return np.asarray(self._rt.set_plan(*args))
+        return self._rt.set_plan(*args)  # a new numpy array, the departures
 
     def _plan_args(
         self,

@@ -25,7 +25,7 @@ from dua_mujoco.build.kinematics import pack_spheres
 from dua_mujoco.build.tables import check_model
 from dua_mujoco.core.validate import check_int, check_number
 from dua_mujoco.exceptions import InvalidInputError, ShapeError
-from dua_mujoco.runtime.flightplan import finite_rows
+from dua_mujoco.runtime.flightplan import finite_rows, float64_array
 
 __all__ = [
     "PilotPlan",
@@ -397,14 +397,15 @@ def plan_deviation(profile: npt.ArrayLike, knots: int, *, origin: int = 0) -> np
         InvalidInputError: The plan needs more rows of the profile than it has (measure longer
             plans in the pilot), or a bad ``knots`` or ``origin``.
     """
-    prof = np.asarray(profile, dtype=np.float64)
+    prof = float64_array(profile)
     if prof.ndim != 2 or prof.shape[0] < 1:
         raise ShapeError(
             f"profile has shape {prof.shape}; expected (L, nbody) with L >= 1, as "
             "deviation_profile returns."
         )
-    knots = check_int("knots", knots, 1, " (the plan's rows)")
-    o = _int("origin", origin, 0, knots)
+    if type(knots) is not int or knots < 1:  # a plain int >= 1 needs no more (a replan's)
+        knots = check_int("knots", knots, 1, " (the plan's rows)")
+    o = 0 if type(origin) is int and origin == 0 else _int("origin", origin, 0, knots)
     need = max(knots - 1 - o, 0)
     if need >= prof.shape[0]:
         raise InvalidInputError(

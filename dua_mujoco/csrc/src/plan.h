@@ -246,8 +246,8 @@ class Plan {
   std::vector<int64_t> rel_key_;  // (nrel,) a * nbody + b of each relative pair, sorted
   // Pair by pair (a pair's knots together: a replan's nesting and a walk read one pair's
   // knots in turn).
-  std::vector<double> rel_dev_;  // (nrel, nknot)
-  Buffer rel_pose_;              // (nrel, nknot, 12) SetRelativeFrames
+  Buffer rel_dev_;   // (nrel, nknot), every entry written by Relative
+  Buffer rel_pose_;  // (nrel, nknot, 12) SetRelativeFrames
   std::vector<const double*> rel_box_;
   std::vector<BoxReach> rel_reach_;  // (nrel,) each box's reach, for its checks
   std::vector<int64_t> rel_ga_, rel_gb_;
