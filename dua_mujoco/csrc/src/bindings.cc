@@ -735,7 +735,7 @@ struct Alarms {
 };
 
 template <class T>
-nb::ndarray<nb::numpy, const T> SpanOf(nb::handle self, std::vector<T> AlarmLog::*field) {
+nb::ndarray<nb::numpy, const T> SpanOf(nb::handle self, std::vector<T> AlarmLog::* field) {
   auto& a = nb::cast<Alarms&>(self);
   const size_t n = static_cast<size_t>(a.stop - a.start);
   return nb::ndarray<nb::numpy, const T>(((*a.log).*field).data() + a.start, {n}, self);

@@ -393,8 +393,9 @@ void KnotKinematics::FrameLanes(size_t c, int nact, const double* const* qpos,
         for (int e = 0; e < 4; ++e) qloc[e] = Lanes{one[0][e], one[1][e], one[2][e], one[3][e]};
       }
       if (still_anchor_[jid]) {
+        // Frame's anchor at the origin: 0 + xpos (the sign of a zero).
         MulQuatL(xquat, xquat, qloc);
-        for (int k = 0; k < 3; ++k) xpos[k] = 0.0 + xpos[k];
+        for (int k = 0; k < 3; ++k) xpos[k] = Splat(0.0) + xpos[k];
         continue;
       }
       Lanes xanchor[3], vec[3];

@@ -108,7 +108,7 @@ T HalleyGuess(const T x[3], const T v[3], T e, T d, T h, T lo, T hi, MaskOf<T> r
     bhi = Select(above, bhi, Min(bhi, t));
     const T den = 2.0 * g1 * g1 - g * g2;
     const T step = t - 2.0 * g * g1 / den;
-    const MaskOf<T> halley = And(And(g1<0.0, den> 0.0), And(blo <= step, step <= bhi));
+    const MaskOf<T> halley = And(And(g1 < 0.0, den > 0.0), And(blo <= step, step <= bhi));
     const T tn = Select(halley, step, 0.5 * (blo + bhi));
     // Halley converges cubically: after a step of 1e-5 t the error is of order 1e-15 t, inside
     // the certified bracket (2e-13 t), so the step that would only confirm it is skipped (3.4
