@@ -24,8 +24,8 @@ from dua_mujoco.models.scenes import SCENES, load_scene
 # moving body, a body turned and offset from its parent without a joint, geoms at the body's
 # inertial frame (a lone geom: its frame is the inertia's), turned as a rotated inertial frame
 # but placed off it (INERTIAROT), and off it, geoms on the world body, a hinge at the origin of
-# a body placed at x = -0 (where mj_kinematics' anchor, added and taken off, leaves +0), and a
-# hinge anchored at x = -0 (the anchor's full path).
+# a body placed at x = -0 (where mj_kinematics' anchor, added and taken off, leaves +0; a geom at
+# that body's frame reads it), and a hinge anchored at x = -0 (the anchor's full path).
 JOINTS = """
 <mujoco>
   <worldbody>
@@ -83,6 +83,7 @@ JOINTS = """
     <body name="signed" pos="-0 -1 .5">
       <joint type="hinge" axis="0 0 1"/>
       <geom type="box" size=".05 .02 .02" pos=".05 0 0"/>
+      <geom type="sphere" size=".01" contype="0" conaffinity="0"/>
     </body>
     <body name="turned_inertia" pos="-.5 .5 .5" quat="1 .2 .3 .4">
       <joint type="ball"/>
