@@ -233,11 +233,14 @@ def _rows(model: mujoco.MjModel, n: int, seed: int) -> tuple[np.ndarray, ...]:
     mp = rng.normal(0.0, 1.0, (n, model.nmocap, 3))
     mq = rng.normal(0.0, 1.0, (n, model.nmocap, 4))
     q[0] = model.qpos0
+    free, ball = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
+    types = model.jnt_type.astype(int)
     quats = [
-        model.jnt_qposadr[j] + (3 if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE else 0)
+        int(model.jnt_qposadr[j]) + (3 if types[j] == free else 0)
         for j in range(model.njnt)
-        if model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_FREE, mujoco.mjtJoint.mjJNT_BALL)
+        if types[j] in (free, ball)
     ]
+    assert len(quats) == np.sum((types == free) | (types == ball))
     for j, a in enumerate(quats):
         if n > 1:
             q[1, a : a + 4] = 0.0 if j % 2 == 0 else (1.0, 0.0, 0.0, 0.0)
