@@ -5,48 +5,11 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <type_traits>
 
 namespace dua {
 
 namespace {
-
-// A frame (pos, quat) given in body b's frame, to the world, as mj_local2Global computes it for
-// sameframe sf: the position through the body's rotation matrix, the orientation through its
-// quaternion (the product's matrix), or copied where sf says the frames coincide. For a geom at
-// its body's inertial frame (mjSAMEFRAME_INERTIA*), (ipos, imat) is that frame.
-void Local2Global(const double* bpos, const double* bquat, const double* bmat, const double* ipos,
-                  const double* imat, const double* pos, const double* quat, int sf, double* xpos,
-                  double* xmat) {
-  switch (sf) {
-    case mjSAMEFRAME_NONE:
-    case mjSAMEFRAME_BODYROT:
-    case mjSAMEFRAME_INERTIAROT:
-      mju_mulMatVec3(xpos, bmat, pos);
-      for (int k = 0; k < 3; ++k) xpos[k] += bpos[k];
-      break;
-    case mjSAMEFRAME_BODY:
-      for (int k = 0; k < 3; ++k) xpos[k] = bpos[k];
-      break;
-    default:  // mjSAMEFRAME_INERTIA
-      for (int k = 0; k < 3; ++k) xpos[k] = ipos[k];
-      break;
-  }
-  switch (sf) {
-    case mjSAMEFRAME_NONE: {
-      double tmp[4];
-      mju_mulQuat(tmp, bquat, quat);
-      mju_quat2Mat(xmat, tmp);
-      break;
-    }
-    case mjSAMEFRAME_BODY:
-    case mjSAMEFRAME_BODYROT:
-      for (int k = 0; k < 9; ++k) xmat[k] = bmat[k];  // (copy_n called memcpy here)
-      break;
-    default:  // mjSAMEFRAME_INERTIA, mjSAMEFRAME_INERTIAROT
-      for (int k = 0; k < 9; ++k) xmat[k] = imat[k];
-      break;
-  }
-}
 
 // libmujoco's helpers on four knots in lanes. Each lane takes the IEEE operations the wheel's
 // compiled helper takes, in its order (read from its machine code: mju_mulQuat adds its four
@@ -120,16 +83,36 @@ DUA_INLINE void Normalize4L(Lanes* q) {
   }
 }
 
-// Local2Global in lanes, (pos, quat) model constants.
-DUA_INLINE void Local2GlobalL(const Lanes* bpos, const Lanes* bquat, const Lanes* bmat,
-                              const Lanes* ipos, const Lanes* imat, const double* pos,
-                              const double* quat, int sf, Lanes* xpos, Lanes* xmat) {
+// A frame (pos, quat) given in body b's frame, to the world, as mj_local2Global computes it for
+// sameframe sf: the position through the body's rotation matrix, the orientation through its
+// quaternion (the product's matrix), or copied where sf says the frames coincide. For a geom at
+// its body's inertial frame (mjSAMEFRAME_INERTIA*), (ipos, imat) is that frame. One knot (T a
+// double: MuJoCo's exported helpers) or four in lanes; (pos, quat) model constants.
+inline void MulMatVec3(double* r, const double* a, const double* v) { mju_mulMatVec3(r, a, v); }
+DUA_INLINE void MulMatVec3(Lanes* r, const Lanes* a, const Lanes* v) { MulMatVec3L(r, a, v); }
+inline void MulQuat(double* r, const double* a, const double* b) { mju_mulQuat(r, a, b); }
+DUA_INLINE void MulQuat(Lanes* r, const Lanes* a, const Lanes* b) { MulQuatL(r, a, b); }
+inline void Quat2Mat(double* r, const double* q) { mju_quat2Mat(r, q); }
+DUA_INLINE void Quat2Mat(Lanes* r, const Lanes* q) { Quat2MatL(r, q); }
+template <class T>
+DUA_INLINE T Broadcast(double v) {
+  if constexpr (std::is_same_v<T, double>) {
+    return v;
+  } else {
+    return Splat(v);
+  }
+}
+
+template <class T>
+DUA_INLINE void Local2Global(const T* bpos, const T* bquat, const T* bmat, const T* ipos,
+                             const T* imat, const double* pos, const double* quat, int sf, T* xpos,
+                             T* xmat) {
   switch (sf) {
     case mjSAMEFRAME_NONE:
     case mjSAMEFRAME_BODYROT:
     case mjSAMEFRAME_INERTIAROT: {
-      const Lanes p[3] = {Splat(pos[0]), Splat(pos[1]), Splat(pos[2])};
-      MulMatVec3L(xpos, bmat, p);
+      const T p[3] = {Broadcast<T>(pos[0]), Broadcast<T>(pos[1]), Broadcast<T>(pos[2])};
+      MulMatVec3(xpos, bmat, p);
       for (int k = 0; k < 3; ++k) xpos[k] += bpos[k];
       break;
     }
@@ -142,15 +125,16 @@ DUA_INLINE void Local2GlobalL(const Lanes* bpos, const Lanes* bquat, const Lanes
   }
   switch (sf) {
     case mjSAMEFRAME_NONE: {
-      const Lanes q[4] = {Splat(quat[0]), Splat(quat[1]), Splat(quat[2]), Splat(quat[3])};
-      Lanes tmp[4];
-      MulQuatL(tmp, bquat, q);
-      Quat2MatL(xmat, tmp);
+      const T q[4] = {Broadcast<T>(quat[0]), Broadcast<T>(quat[1]), Broadcast<T>(quat[2]),
+                      Broadcast<T>(quat[3])};
+      T tmp[4];
+      MulQuat(tmp, bquat, q);
+      Quat2Mat(xmat, tmp);
       break;
     }
     case mjSAMEFRAME_BODY:
     case mjSAMEFRAME_BODYROT:
-      for (int k = 0; k < 9; ++k) xmat[k] = bmat[k];
+      for (int k = 0; k < 9; ++k) xmat[k] = bmat[k];  // (copy_n called memcpy here)
       break;
     default:  // mjSAMEFRAME_INERTIA, mjSAMEFRAME_INERTIAROT
       for (int k = 0; k < 9; ++k) xmat[k] = imat[k];
@@ -298,9 +282,10 @@ void KnotKinematics::Frame(size_t c, const double* qpos, const double* mocap_pos
   mju_quat2Mat(xmat_.data() + 9 * c, xquat);
   // mj_kinematics2's inertial frame, where a kept geom sits at it.
   if (inertia_[c]) {
-    Local2Global(xpos, xquat, xmat_.data() + 9 * c, nullptr, nullptr, m->body_ipos + 3 * i,
-                 m->body_iquat + 4 * i, m->body_sameframe[i], xipos_.data() + 3 * c,
-                 ximat_.data() + 9 * c);
+    // (A body's own frame is no inertial frame: the body frame stands for it, never read.)
+    Local2Global(xpos, xquat, xmat_.data() + 9 * c, xpos, xmat_.data() + 9 * c,
+                 m->body_ipos + 3 * i, m->body_iquat + 4 * i, m->body_sameframe[i],
+                 xipos_.data() + 3 * c, ximat_.data() + 9 * c);
   }
 }
 
@@ -410,8 +395,8 @@ void KnotKinematics::FrameLanes(size_t c, int nact, const double* const* qpos,
   Quat2MatL(lxmat_ + 9 * c, xquat);
   if (inertia_[c]) {
     // (A body's own frame is no inertial frame: the body frame stands for it, never read.)
-    Local2GlobalL(xpos, xquat, lxmat_ + 9 * c, xpos, lxmat_ + 9 * c, m->body_ipos + 3 * i,
-                  m->body_iquat + 4 * i, m->body_sameframe[i], lxipos_ + 3 * c, lximat_ + 9 * c);
+    Local2Global(xpos, xquat, lxmat_ + 9 * c, xpos, lxmat_ + 9 * c, m->body_ipos + 3 * i,
+                 m->body_iquat + 4 * i, m->body_sameframe[i], lxipos_ + 3 * c, lximat_ + 9 * c);
   }
 }
 
@@ -426,8 +411,8 @@ DUA_LANES_CLONES void KnotKinematics::Lanes4(int nact, const double* const* qpos
     const int c = gbody_[s];
     const int64_t g = geom_[s];
     Lanes p[3], r[9];
-    Local2GlobalL(lxpos_ + 3 * c, lxquat_ + 4 * c, lxmat_ + 9 * c, lxipos_ + 3 * c, lximat_ + 9 * c,
-                  m_->geom_pos + 3 * g, m_->geom_quat + 4 * g, m_->geom_sameframe[g], p, r);
+    Local2Global(lxpos_ + 3 * c, lxquat_ + 4 * c, lxmat_ + 9 * c, lxipos_ + 3 * c, lximat_ + 9 * c,
+                 m_->geom_pos + 3 * g, m_->geom_quat + 4 * g, m_->geom_sameframe[g], p, r);
     for (int k = 0; k < nact; ++k) {
       for (int e = 0; e < 3; ++e) pos[k][3 * s + e] = p[e][k];
       for (int e = 0; e < 9; ++e) mat[k][9 * s + e] = r[e][k];
