@@ -655,11 +655,84 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-kinematics-every-anchor-at-the-origin",
         _KINEMATICS,
-        "      if (still_anchor_[jid]) {",
-        "      if (true) {",
+        "      if (still_anchor_[jid]) {\n        // The anchor is xpos + 0",
+        "      if (true) {\n        // The anchor is xpos + 0",
         (_KNOTS,),
         "a plan's hinge or ball joint turned about its body's origin, not its anchor: poses off "
         "mj_kinematics' wherever a joint sits off its body's origin",
+    ),
+    Mutant(
+        "knot-lanes-every-anchor-at-the-origin",
+        _KINEMATICS,
+        "      if (still_anchor_[jid]) {\n        // Frame's anchor at the origin",
+        "      if (true) {\n        // Frame's anchor at the origin",
+        (_KNOTS,),
+        "the knots' lanes turn a hinge or ball joint about its body's origin: the self-check "
+        "turns lanes off on every model with an anchor off the origin",
+    ),
+    Mutant(
+        "knot-lanes-a-zeros-sign-kept",
+        _KINEMATICS,
+        "        for (int k = 0; k < 3; ++k) xpos[k] = Splat(0.0) + xpos[k];\n",
+        "",
+        (_KNOTS,),
+        "the knots' lanes keep -0 where mj_kinematics adds an anchor at the origin: the lanes' "
+        "bytes differ from MuJoCo's (the self-check turns them off)",
+    ),
+    Mutant(
+        "knot-lanes-quaternion-product-summed-in-order",
+        _KINEMATICS,
+        "(a[0] * b[0] - a[1] * b[1]) + (na2 * b[2] + na3 * b[3])",
+        "a[0] * b[0] - a[1] * b[1] + na2 * b[2] + na3 * b[3]",
+        (_KNOTS,),
+        "the lanes' mju_mulQuat adds left to right as its source reads, not in the pairs the "
+        "wheel's compiled helper adds: the last bit differs, the self-check turns lanes off",
+    ),
+    Mutant(
+        "knot-lanes-rotation-diagonal-summed-in-order",
+        _KINEMATICS,
+        "(q00 - q22) + (q11 - q33), o1 + o1",
+        "q00 + q11 - q22 - q33, o1 + o1",
+        (_KNOTS,),
+        "the lanes' mju_quat2Mat sums its diagonal as its source reads, not pairwise as the "
+        "wheel's helper does: the last bit differs, the self-check turns lanes off",
+    ),
+    Mutant(
+        "knot-lanes-zero-quaternion-unnormalised",
+        _KINEMATICS,
+        "const LaneMask small = norm < mjMINVAL;",
+        "const LaneMask small = norm < 0.0;",
+        (_KNOTS,),
+        "the lanes' mju_normalize4 scales a zero quaternion (NaN) instead of making it the unit",
+    ),
+    Mutant(
+        "knot-lanes-lone-last-knot-dropped",
+        _KINEMATICS,
+        "  for (; j < n; ++j) Run(qpos[j], mocap_pos[j], mocap_quat[j], pos[j], mat[j]);\n",
+        "",
+        (_KNOTS,),
+        "the knots left after the last batch of lanes (a lone one, or all after the self-check "
+        "failed) are never computed: their poses are stale",
+    ),
+    Mutant(
+        "knot-lanes-self-check-skipped",
+        _KINEMATICS,
+        "    if (!checked_) {",
+        "    if (false) {",
+        (_KNOTS,),
+        "lanes are trusted without their first batch compared with the one-knot path: a lane "
+        "off by a bit would change a plan's poses (and a verdict)",
+    ),
+    Mutant(
+        "plan-knots-never-computed",
+        _PLAN,
+        "  if (!kq.empty()) {",
+        "  if (false) {",
+        (
+            "tests/test_knot_kinematics.py::test_a_plans_knots_are_mujocos_poses",
+            "tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break",
+        ),
+        "set_plan gathers the knots to compute but never computes them (RunKnots not called)",
     ),
     Mutant(
         "plan-kinematics-a-zeros-sign-kept",

@@ -596,6 +596,11 @@ def knot_kinematics(model: object, geoms: Annotated[NDArray[numpy.int64], dict(o
     KnotKinematics (kinematics.h) on one row: (bodies, xpos, xquat, xmat, geom_xpos, geom_xmat), the bodies computed and the geoms given, as mj_kinematics computes them.
     """
 
+def knot_kinematics_rows(model: object, geoms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lanes: bool = True, fault: bool = False) -> tuple:
+    """
+    KnotKinematics::RunKnots (kinematics.h) on n rows, as set_plan calls it: (geom_xpos (n, ngeom, 3), geom_xmat (n, ngeom, 9), whether lanes computed them); lanes=False computes one knot at a time, fault=True flips a bit of the lanes' first pose (the self-check then turns lanes off).
+    """
+
 def tau_pairs(pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple[NDArray[numpy.float64], int]:
     """
     tau of pairs ids (n,) of free spheres, checking the records of ids only: (tau (n,), the first k whose state is not finite or -1).

@@ -24,8 +24,8 @@ from dua_mujoco.models.scenes import SCENES, load_scene
 # moving body, a body turned and offset from its parent without a joint, geoms at the body's
 # inertial frame (a lone geom: its frame is the inertia's), turned as a rotated inertial frame
 # but placed off it (INERTIAROT), and off it, geoms on the world body, a hinge at the origin of
-# a body placed at x = -0 (where mj_kinematics' anchor, added and taken off, leaves +0), and a
-# hinge anchored at x = -0 (the anchor's full path).
+# a body placed at x = -0 (where mj_kinematics' anchor, added and taken off, leaves +0; a geom at
+# that body's frame reads it), and a hinge anchored at x = -0 (the anchor's full path).
 JOINTS = """
 <mujoco>
   <worldbody>
@@ -83,6 +83,7 @@ JOINTS = """
     <body name="signed" pos="-0 -1 .5">
       <joint type="hinge" axis="0 0 1"/>
       <geom type="box" size=".05 .02 .02" pos=".05 0 0"/>
+      <geom type="sphere" size=".01" contype="0" conaffinity="0"/>
     </body>
     <body name="turned_inertia" pos="-.5 .5 .5" quat="1 .2 .3 .4">
       <joint type="ball"/>
@@ -213,3 +214,113 @@ def test_a_plans_knots_are_mujocos_poses() -> None:
         mujoco.mj_step(model, d)
         p.step(d)
     assert p.has_plan and p.plan_breaks == 0
+
+
+# set_plan's path: KnotKinematics::RunKnots computes four knots at once in AVX2 lanes (the last
+# two or three together, a lone last one alone) and holds its first batch to the one-knot path
+# byte for byte, falling back to it for good on a difference. The rows below hold the lanes to
+# that path and to mj_kinematics, and hold the lanes *on*: a lane off by a bit would otherwise
+# pass unseen (the self-check turns lanes off and the one-knot path gives the right poses).
+
+
+def _rows(model: mujoco.MjModel, n: int, seed: int) -> tuple[np.ndarray, ...]:
+    """``n`` rows of qpos and mocap poses far from qpos0, quaternions unnormalised, with the
+    values mj_kinematics branches on among them: qpos0 (hinge angles 0), a ball's and a free
+    joint's quaternion at zero (normalised to the unit), at the unit and at norm 1 exactly, a
+    mocap orientation at the unit (its rotation matrix the identity)."""
+    rng = np.random.default_rng(seed)
+    q = model.qpos0 + rng.normal(0.0, 2.0, (n, model.nq))
+    mp = rng.normal(0.0, 1.0, (n, model.nmocap, 3))
+    mq = rng.normal(0.0, 1.0, (n, model.nmocap, 4))
+    q[0] = model.qpos0
+    free, ball = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
+    types = model.jnt_type.astype(int)
+    quats = [
+        int(model.jnt_qposadr[j]) + (3 if types[j] == free else 0)
+        for j in range(model.njnt)
+        if types[j] in (free, ball)
+    ]
+    assert len(quats) == np.sum((types == free) | (types == ball))
+    for j, a in enumerate(quats):
+        if n > 1:
+            q[1, a : a + 4] = 0.0 if j % 2 == 0 else (1.0, 0.0, 0.0, 0.0)
+        if n > 2:
+            q[2, a : a + 4] = (0.0, 0.6, 0.0, 0.8)  # norm 1 exactly: not scaled
+    if n > 1 and model.nmocap:
+        mq[1] = (1.0, 0.0, 0.0, 0.0)
+    return q, mp, mq
+
+
+def _lanes_same_as_mujoco(model: mujoco.MjModel, geoms: np.ndarray, n: int, seed: int = 0) -> None:
+    """knot_kinematics_rows with lanes on: lanes stay on (the self-check passed), and every
+    knot's poses are those with lanes off and mj_kinematics', bit for bit."""
+    geoms = np.asarray(geoms, dtype=np.int64)
+    q, mp, mq = _rows(model, n, seed)
+    pos, mat, lanes = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=True)
+    pos1, mat1, lanes1 = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=False)
+    assert lanes and not lanes1
+    assert pos.shape == (n, len(geoms), 3) and mat.shape == (n, len(geoms), 9)
+    assert np.array_equal(_bits(pos), _bits(pos1)) and np.array_equal(_bits(mat), _bits(mat1))
+    d = mujoco.MjData(model)
+    for j in range(n):
+        d.qpos[:] = q[j]
+        d.mocap_pos[:] = mp[j]
+        d.mocap_quat[:] = mq[j]
+        mujoco.mj_kinematics(model, d)
+        assert np.array_equal(_bits(pos[j]), _bits(d.geom_xpos[geoms])), ("geom_xpos", j)
+        assert np.array_equal(_bits(mat[j]), _bits(d.geom_xmat[geoms])), ("geom_xmat", j)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 6, 7, 9])
+def test_lanes_give_mujocos_poses_bit_for_bit_on_every_joint_type(n: int) -> None:
+    # 1 knot: the one-knot path alone; 2, 3: one batch of lanes with lanes past the knots idle;
+    # 5: a batch and a lone knot after it; 6, 7: a batch and a partial one.
+    model = mujoco.MjModel.from_xml_string(JOINTS)
+    for seed in range(3):
+        _lanes_same_as_mujoco(model, np.arange(model.ngeom), n, seed)
+        _lanes_same_as_mujoco(model, _collision_geoms(model), n, seed)
+
+
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_lanes_give_mujocos_poses_bit_for_bit_on_every_bundled_scene(scene: str) -> None:
+    model, _ = load_scene(scene)
+    _lanes_same_as_mujoco(model, np.arange(model.ngeom), 7)
+    _lanes_same_as_mujoco(model, _collision_geoms(model), 5)
+
+
+ROBOTS = ["xarm7", "baxter", "tiago", "sawyer", "spot_arm", "gr1", "g1"]
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_lanes_give_mujocos_poses_bit_for_bit_on_the_plan_robots(robot: str) -> None:
+    # benchmarks/plan_profile.py's robots (benchmarks/robots.py; skipped without their wheels).
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    name = "benchmarks_robots"
+    if name not in sys.modules:
+        path = Path(__file__).resolve().parents[1] / "benchmarks" / "robots.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        assert spec is not None and spec.loader is not None
+        sys.modules[name] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(sys.modules[name])
+    try:
+        model = sys.modules[name].load_robot(robot)
+    except (ImportError, FileNotFoundError) as e:
+        pytest.skip(f"{robot}: {e}")
+    _lanes_same_as_mujoco(model, np.arange(model.ngeom), 9)
+    _lanes_same_as_mujoco(model, _collision_geoms(model), 6)
+
+
+@pytest.mark.parametrize("n", [2, 5, 8])
+def test_a_lane_off_by_a_bit_turns_lanes_off_and_the_poses_stay_mujocos(n: int) -> None:
+    # The self-check: a flipped bit in the lanes' first pose (the test hook) is caught on the
+    # first batch, lanes go off, and every knot (that batch's too) is the one-knot path's.
+    model = mujoco.MjModel.from_xml_string(JOINTS)
+    geoms = np.arange(model.ngeom, dtype=np.int64)
+    q, mp, mq = _rows(model, n, 1)
+    pos, mat, lanes = _core.knot_kinematics_rows(model, geoms, q, mp, mq, fault=True)
+    pos1, mat1, _ = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=False)
+    assert not lanes
+    assert np.array_equal(_bits(pos), _bits(pos1)) and np.array_equal(_bits(mat), _bits(mat1))

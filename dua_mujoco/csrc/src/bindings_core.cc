@@ -254,6 +254,39 @@ std::string StaticMismatchOf(nb::handle model, const In<double>& records) {
   return StaticMismatch(m, r);
 }
 
+// KnotKinematics::RunKnots (kinematics.h) on n rows, as Plan::Build calls it: the geoms' poses
+// (n, ngeom, 3) and (n, ngeom, 9) with lanes on or off (and, with fault, a flipped bit in the
+// lanes' first pose for the self-check to catch), and whether lanes computed them.
+nb::tuple KnotKinematicsRows(nb::handle model, const In<int64_t>& geoms, const In<double>& qpos,
+                             const In<double>& mocap_pos, const In<double>& mocap_quat, bool lanes,
+                             bool fault) {
+  const mjModel* m = ModelOf(model);
+  const int64_t n = m->nq ? Size(qpos) / m->nq : 0;
+  Require(n >= 1 && Size(qpos) == n * m->nq && Size(mocap_pos) == n * 3 * m->nmocap &&
+              Size(mocap_quat) == n * 4 * m->nmocap,
+          "knot_kinematics_rows takes qpos (n, nq), mocap_pos (n, nmocap, 3) and mocap_quat (n, "
+          "nmocap, 4)");
+  std::vector<int64_t> ids(geoms.data(), geoms.data() + Size(geoms));
+  for (const int64_t g : ids) Require(g >= 0 && g < m->ngeom, "a geom id is out of range");
+  KnotKinematics k(m, ids);
+  k.SetLanes(lanes);
+  k.SetLaneFault(fault);
+  const size_t ng = ids.size();
+  std::vector<double> pos(3 * ng * n), mat(9 * ng * n);
+  std::vector<const double*> q, mp, mq;
+  std::vector<double*> p, r;
+  for (int64_t j = 0; j < n; ++j) {
+    q.push_back(qpos.data() + m->nq * j);
+    mp.push_back(mocap_pos.data() + 3 * m->nmocap * j);
+    mq.push_back(mocap_quat.data() + 4 * m->nmocap * j);
+    p.push_back(pos.data() + 3 * ng * j), r.push_back(mat.data() + 9 * ng * j);
+  }
+  k.RunKnots(n, q.data(), mp.data(), mq.data(), p.data(), r.data());
+  const size_t rows = static_cast<size_t>(n);
+  return nb::make_tuple(Owned(std::move(pos), {rows, ng, 3}), Owned(std::move(mat), {rows, ng, 9}),
+                        k.lanes());
+}
+
 }  // namespace
 
 void BindCore(nb::module_& m) {
@@ -267,6 +300,12 @@ void BindCore(nb::module_& m) {
         "mocap_quat"_a,
         "KnotKinematics (kinematics.h) on one row: (bodies, xpos, xquat, xmat, geom_xpos, "
         "geom_xmat), the bodies computed and the geoms given, as mj_kinematics computes them.");
+  m.def("knot_kinematics_rows", &KnotKinematicsRows, "model"_a, "geoms"_a, "qpos"_a, "mocap_pos"_a,
+        "mocap_quat"_a, "lanes"_a = true, "fault"_a = false,
+        "KnotKinematics::RunKnots (kinematics.h) on n rows, as set_plan calls it: (geom_xpos "
+        "(n, ngeom, 3), geom_xmat (n, ngeom, 9), whether lanes computed them); lanes=False "
+        "computes one knot at a time, fault=True flips a bit of the lanes' first pose (the "
+        "self-check then turns lanes off).");
   // The select-all kind, beside RANK and DEADLINE (the schedule's own constant, schedule.h).
   nb::dict layout = nb::borrow<nb::dict>(m.attr("LAYOUT"));
   layout["ALL"] = kAll;

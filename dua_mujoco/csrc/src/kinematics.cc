@@ -3,25 +3,119 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <memory>
+#include <type_traits>
 
 namespace dua {
 
 namespace {
 
+// libmujoco's helpers on four knots in lanes. Each lane takes the IEEE operations the wheel's
+// compiled helper takes, in its order (read from its machine code: mju_mulQuat adds its four
+// products in pairs, (a0 b0 - a1 b1) + (a2 b2 + a3 b3) for the first, its signs as negated
+// factors; mju_quat2Mat's diagonal and mju_normalize4's sum of squares are pairwise too;
+// mju_mulMatVec3 and mju_rotVecQuat add left to right as written), so each lane's bits are the
+// helper's. Their branches on the data become selects; the ones on model constants stay.
+DUA_INLINE Lanes Splat(double v) { return Lanes{v, v, v, v}; }
+
+// (lane k of) p[k][off]: lanes past a batch's knots read knot 0's row (the caller's pointers).
+DUA_INLINE Lanes Gather(const double* const* p, int64_t off) {
+  return Lanes{p[0][off], p[1][off], p[2][off], p[3][off]};
+}
+
+DUA_INLINE void MulMatVec3L(Lanes* res, const Lanes* mat, const Lanes* vec) {
+  for (int i = 0; i < 3; ++i) {
+    res[i] = mat[3 * i] * vec[0] + mat[3 * i + 1] * vec[1] + mat[3 * i + 2] * vec[2];
+  }
+}
+
+DUA_INLINE void MulQuatL(Lanes* res, const Lanes* a, const Lanes* b) {
+  const Lanes na2 = -a[2], na3 = -a[3];
+  const Lanes r0 = (a[0] * b[0] - a[1] * b[1]) + (na2 * b[2] + na3 * b[3]);
+  const Lanes r1 = (a[0] * b[1] + a[1] * b[0]) + (a[2] * b[3] + na3 * b[2]);
+  const Lanes r2 = (a[0] * b[2] - a[1] * b[3]) + (a[2] * b[0] + a[3] * b[1]);
+  const Lanes r3 = (a[0] * b[3] + a[1] * b[2]) + (na2 * b[1] + a[3] * b[0]);
+  res[0] = r0, res[1] = r1, res[2] = r2, res[3] = r3;
+}
+
+DUA_INLINE LaneMask UnitQuat(const Lanes* q) {
+  return (q[0] == 1.0) & (q[1] == 0.0) & (q[2] == 0.0) & (q[3] == 0.0);
+}
+
+// vec a model constant (the zero test a branch, as in mju_rotVecQuat).
+DUA_INLINE void RotVecQuatL(Lanes* res, const double* vec, const Lanes* q) {
+  if (vec[0] == 0 && vec[1] == 0 && vec[2] == 0) {
+    res[0] = res[1] = res[2] = Splat(0.0);
+    return;
+  }
+  const Lanes v0 = Splat(vec[0]), v1 = Splat(vec[1]), v2 = Splat(vec[2]);
+  const Lanes t0 = q[0] * v0 + q[2] * v2 - q[3] * v1;
+  const Lanes t1 = q[0] * v1 + q[3] * v0 - q[1] * v2;
+  const Lanes t2 = q[0] * v2 + q[1] * v1 - q[2] * v0;
+  const Lanes u0 = q[2] * t2 - q[3] * t1, u1 = q[3] * t0 - q[1] * t2, u2 = q[1] * t1 - q[2] * t0;
+  const LaneMask unit = UnitQuat(q);
+  res[0] = Select(unit, v0, v0 + (u0 + u0));
+  res[1] = Select(unit, v1, v1 + (u1 + u1));
+  res[2] = Select(unit, v2, v2 + (u2 + u2));
+}
+
+DUA_INLINE void Quat2MatL(Lanes* res, const Lanes* q) {
+  const Lanes q00 = q[0] * q[0], q11 = q[1] * q[1], q22 = q[2] * q[2], q33 = q[3] * q[3];
+  const Lanes nq0 = -q[0];
+  const Lanes o1 = q[1] * q[2] + nq0 * q[3], o2 = q[1] * q[3] + q[0] * q[2];
+  const Lanes o3 = q[1] * q[2] + q[0] * q[3], o5 = q[3] * q[2] + nq0 * q[1];
+  const Lanes o6 = q[3] * q[1] + nq0 * q[2], o7 = q[3] * q[2] + q[0] * q[1];
+  const Lanes d[9] = {(q00 - q22) + (q11 - q33), o1 + o1, o2 + o2, o3 + o3,
+                      (q00 + q22) - (q11 + q33), o5 + o5, o6 + o6, o7 + o7,
+                      (q00 - q22) - (q11 - q33)};
+  const LaneMask unit = UnitQuat(q);
+  for (int k = 0; k < 9; ++k) res[k] = Select(unit, Splat(k % 4 == 0 ? 1.0 : 0.0), d[k]);
+}
+
+DUA_INLINE void Normalize4L(Lanes* q) {
+  const Lanes norm = Sqrt((q[0] * q[0] + q[1] * q[1]) + (q[2] * q[2] + q[3] * q[3]));
+  const LaneMask small = norm < mjMINVAL;
+  const LaneMask scale = Abs(norm + -1.0) > mjMINVAL;
+  const Lanes inv = 1.0 / norm;
+  for (int k = 0; k < 4; ++k) {
+    q[k] = Select(small, Splat(k == 0 ? 1.0 : 0.0), Select(scale, q[k] * inv, q[k]));
+  }
+}
+
 // A frame (pos, quat) given in body b's frame, to the world, as mj_local2Global computes it for
 // sameframe sf: the position through the body's rotation matrix, the orientation through its
 // quaternion (the product's matrix), or copied where sf says the frames coincide. For a geom at
-// its body's inertial frame (mjSAMEFRAME_INERTIA*), (ipos, imat) is that frame.
-void Local2Global(const double* bpos, const double* bquat, const double* bmat, const double* ipos,
-                  const double* imat, const double* pos, const double* quat, int sf, double* xpos,
-                  double* xmat) {
+// its body's inertial frame (mjSAMEFRAME_INERTIA*), (ipos, imat) is that frame. One knot (T a
+// double: MuJoCo's exported helpers) or four in lanes; (pos, quat) model constants.
+inline void MulMatVec3(double* r, const double* a, const double* v) { mju_mulMatVec3(r, a, v); }
+DUA_INLINE void MulMatVec3(Lanes* r, const Lanes* a, const Lanes* v) { MulMatVec3L(r, a, v); }
+inline void MulQuat(double* r, const double* a, const double* b) { mju_mulQuat(r, a, b); }
+DUA_INLINE void MulQuat(Lanes* r, const Lanes* a, const Lanes* b) { MulQuatL(r, a, b); }
+inline void Quat2Mat(double* r, const double* q) { mju_quat2Mat(r, q); }
+DUA_INLINE void Quat2Mat(Lanes* r, const Lanes* q) { Quat2MatL(r, q); }
+template <class T>
+DUA_INLINE T Broadcast(double v) {
+  if constexpr (std::is_same_v<T, double>) {
+    return v;
+  } else {
+    return Splat(v);
+  }
+}
+
+template <class T>
+DUA_INLINE void Local2Global(const T* bpos, const T* bquat, const T* bmat, const T* ipos,
+                             const T* imat, const double* pos, const double* quat, int sf, T* xpos,
+                             T* xmat) {
   switch (sf) {
     case mjSAMEFRAME_NONE:
     case mjSAMEFRAME_BODYROT:
-    case mjSAMEFRAME_INERTIAROT:
-      mju_mulMatVec3(xpos, bmat, pos);
+    case mjSAMEFRAME_INERTIAROT: {
+      const T p[3] = {Broadcast<T>(pos[0]), Broadcast<T>(pos[1]), Broadcast<T>(pos[2])};
+      MulMatVec3(xpos, bmat, p);
       for (int k = 0; k < 3; ++k) xpos[k] += bpos[k];
       break;
+    }
     case mjSAMEFRAME_BODY:
       for (int k = 0; k < 3; ++k) xpos[k] = bpos[k];
       break;
@@ -31,9 +125,11 @@ void Local2Global(const double* bpos, const double* bquat, const double* bmat, c
   }
   switch (sf) {
     case mjSAMEFRAME_NONE: {
-      double tmp[4];
-      mju_mulQuat(tmp, bquat, quat);
-      mju_quat2Mat(xmat, tmp);
+      const T q[4] = {Broadcast<T>(quat[0]), Broadcast<T>(quat[1]), Broadcast<T>(quat[2]),
+                      Broadcast<T>(quat[3])};
+      T tmp[4];
+      MulQuat(tmp, bquat, q);
+      Quat2Mat(xmat, tmp);
       break;
     }
     case mjSAMEFRAME_BODY:
@@ -99,6 +195,18 @@ KnotKinematics::KnotKinematics(const mjModel* m, const std::vector<int64_t>& geo
       GeomFrame(s, still_pos_.data() + 3 * s, still_mat_.data() + 9 * s);
     }
   }
+  // The lanes' frames: a still body's in every lane, once (the moving ones' at each batch).
+  lane_buf_.assign(kLanes * (28 * n + 1), 0.0);
+  void* at = lane_buf_.data();
+  size_t room = lane_buf_.size() * sizeof(double);
+  // 32 bytes, not alignof(Lanes): the baseline build aligns the type to 16 only, the AVX2 clone
+  // loads and stores it aligned to 32.
+  lxpos_ = static_cast<Lanes*>(std::align(32, 28 * n * sizeof(Lanes), at, room));
+  lxquat_ = lxpos_ + 3 * n, lxmat_ = lxquat_ + 4 * n, lxipos_ = lxmat_ + 9 * n;
+  lximat_ = lxipos_ + 3 * n;
+  for (size_t e = 0; e < 3 * n; ++e) lxpos_[e] = Splat(xpos_[e]), lxipos_[e] = Splat(xipos_[e]);
+  for (size_t e = 0; e < 4 * n; ++e) lxquat_[e] = Splat(xquat_[e]);
+  for (size_t e = 0; e < 9 * n; ++e) lxmat_[e] = Splat(xmat_[e]), lximat_[e] = Splat(ximat_[e]);
 }
 
 void KnotKinematics::Frame(size_t c, const double* qpos, const double* mocap_pos,
@@ -174,9 +282,10 @@ void KnotKinematics::Frame(size_t c, const double* qpos, const double* mocap_pos
   mju_quat2Mat(xmat_.data() + 9 * c, xquat);
   // mj_kinematics2's inertial frame, where a kept geom sits at it.
   if (inertia_[c]) {
-    Local2Global(xpos, xquat, xmat_.data() + 9 * c, nullptr, nullptr, m->body_ipos + 3 * i,
-                 m->body_iquat + 4 * i, m->body_sameframe[i], xipos_.data() + 3 * c,
-                 ximat_.data() + 9 * c);
+    // (A body's own frame is no inertial frame: the body frame stands for it, never read.)
+    Local2Global(xpos, xquat, xmat_.data() + 9 * c, xpos, xmat_.data() + 9 * c,
+                 m->body_ipos + 3 * i, m->body_iquat + 4 * i, m->body_sameframe[i],
+                 xipos_.data() + 3 * c, ximat_.data() + 9 * c);
   }
 }
 
@@ -207,6 +316,145 @@ void KnotKinematics::Run(const double* qpos, const double* mocap_pos, const doub
     for (int e = 0; e < 3; ++e) pos[3 * s + e] = p[e];
     for (int e = 0; e < 9; ++e) mat[9 * s + e] = r[e];
   }
+}
+
+void KnotKinematics::FrameLanes(size_t c, int nact, const double* const* qpos,
+                                const double* const* mocap_pos, const double* const* mocap_quat) {
+  const mjModel* m = m_;
+  // Frame's arithmetic in lanes, branch for branch (those on the model; the data's are selects).
+  const int i = body_[c], pid = parent_[c];
+  Lanes* xpos = lxpos_ + 3 * c;
+  Lanes* xquat = lxquat_ + 4 * c;
+  const int jntadr = m->body_jntadr[i], jntnum = m->body_jntnum[i];
+  if (jntnum == 1 && m->jnt_type[jntadr] == mjJNT_FREE) {
+    const int qadr = m->jnt_qposadr[jntadr];
+    for (int k = 0; k < 3; ++k) xpos[k] = Gather(qpos, qadr + k);
+    for (int k = 0; k < 4; ++k) xquat[k] = Gather(qpos, qadr + 3 + k);
+    Normalize4L(xquat);
+  } else {
+    Lanes bodypos[3], bodyquat[4];
+    const int mocap = m->body_mocapid[i];
+    if (mocap >= 0) {
+      for (int k = 0; k < 3; ++k) bodypos[k] = Gather(mocap_pos, 3 * mocap + k);
+      for (int k = 0; k < 4; ++k) bodyquat[k] = Gather(mocap_quat, 4 * mocap + k);
+      Normalize4L(bodyquat);
+    } else {
+      for (int k = 0; k < 3; ++k) bodypos[k] = Splat(m->body_pos[3 * i + k]);
+      for (int k = 0; k < 4; ++k) bodyquat[k] = Splat(m->body_quat[4 * i + k]);
+    }
+    if (pid >= 0) {
+      MulMatVec3L(xpos, lxmat_ + 9 * pid, bodypos);
+      for (int k = 0; k < 3; ++k) xpos[k] += lxpos_[3 * pid + k];
+      MulQuatL(xquat, lxquat_ + 4 * pid, bodyquat);
+    } else {
+      for (int k = 0; k < 3; ++k) xpos[k] = bodypos[k];
+      for (int k = 0; k < 4; ++k) xquat[k] = bodyquat[k];
+    }
+    for (int j = 0; j < jntnum; ++j) {
+      const int jid = jntadr + j;
+      const int qadr = m->jnt_qposadr[jid];
+      const int jtype = m->jnt_type[jid];
+      if (jtype == mjJNT_SLIDE) {
+        Lanes xaxis[3];
+        RotVecQuatL(xaxis, m->jnt_axis + 3 * jid, xquat);
+        const Lanes q = Gather(qpos, qadr) - m->qpos0[qadr];
+        for (int k = 0; k < 3; ++k) xpos[k] += xaxis[k] * q;
+        continue;
+      }
+      Lanes qloc[4] = {};
+      if (jtype == mjJNT_BALL) {
+        for (int k = 0; k < 4; ++k) qloc[k] = Gather(qpos, qadr + k);
+        Normalize4L(qloc);
+      } else {
+        // The sine and cosine by libmujoco's own call, a lane at a time (past nact: knot 0's).
+        double one[kLanes][4];
+        for (int k = 0; k < kLanes; ++k) {
+          if (k == 0 || k < nact) {
+            mju_axisAngle2Quat(one[k], m->jnt_axis + 3 * jid, qpos[k][qadr] - m->qpos0[qadr]);
+          } else {
+            std::copy_n(one[0], 4, one[k]);
+          }
+        }
+        for (int e = 0; e < 4; ++e) qloc[e] = Lanes{one[0][e], one[1][e], one[2][e], one[3][e]};
+      }
+      if (still_anchor_[jid]) {
+        // Frame's anchor at the origin: 0 + xpos (the sign of a zero).
+        MulQuatL(xquat, xquat, qloc);
+        for (int k = 0; k < 3; ++k) xpos[k] = Splat(0.0) + xpos[k];
+        continue;
+      }
+      Lanes xanchor[3], vec[3];
+      RotVecQuatL(xanchor, m->jnt_pos + 3 * jid, xquat);
+      for (int k = 0; k < 3; ++k) xanchor[k] += xpos[k];
+      MulQuatL(xquat, xquat, qloc);
+      RotVecQuatL(vec, m->jnt_pos + 3 * jid, xquat);
+      for (int k = 0; k < 3; ++k) xpos[k] = xanchor[k] - vec[k];
+    }
+  }
+  Normalize4L(xquat);
+  Quat2MatL(lxmat_ + 9 * c, xquat);
+  if (inertia_[c]) {
+    // (A body's own frame is no inertial frame: the body frame stands for it, never read.)
+    Local2Global(xpos, xquat, lxmat_ + 9 * c, xpos, lxmat_ + 9 * c, m->body_ipos + 3 * i,
+                 m->body_iquat + 4 * i, m->body_sameframe[i], lxipos_ + 3 * c, lximat_ + 9 * c);
+  }
+}
+
+DUA_LANES_CLONES void KnotKinematics::Lanes4(int nact, const double* const* qpos,
+                                             const double* const* mocap_pos,
+                                             const double* const* mocap_quat, double* const* pos,
+                                             double* const* mat) {
+  // Run's order: the moving bodies kept, parents first, then the moving geoms (a moving geom's
+  // body is kept), the still ones' poses copied.
+  for (const int c : move_) FrameLanes(static_cast<size_t>(c), nact, qpos, mocap_pos, mocap_quat);
+  for (const int s : gmove_) {
+    const int c = gbody_[s];
+    const int64_t g = geom_[s];
+    Lanes p[3], r[9];
+    Local2Global(lxpos_ + 3 * c, lxquat_ + 4 * c, lxmat_ + 9 * c, lxipos_ + 3 * c, lximat_ + 9 * c,
+                 m_->geom_pos + 3 * g, m_->geom_quat + 4 * g, m_->geom_sameframe[g], p, r);
+    for (int k = 0; k < nact; ++k) {
+      for (int e = 0; e < 3; ++e) pos[k][3 * s + e] = p[e][k];
+      for (int e = 0; e < 9; ++e) mat[k][9 * s + e] = r[e][k];
+    }
+  }
+  for (const int s : gstill_) {
+    for (int k = 0; k < nact; ++k) {
+      std::copy_n(still_pos_.data() + 3 * s, 3, pos[k] + 3 * s);
+      std::copy_n(still_mat_.data() + 9 * s, 9, mat[k] + 9 * s);
+    }
+  }
+}
+
+void KnotKinematics::RunKnots(int64_t n, const double* const* qpos, const double* const* mocap_pos,
+                              const double* const* mocap_quat, double* const* pos,
+                              double* const* mat) {
+  const size_t nslot = geom_.size();
+  int64_t j = 0;
+  while (lanes() && n - j >= 2) {
+    const int nact = static_cast<int>(std::min<int64_t>(kLanes, n - j));
+    const double *q[kLanes], *mp[kLanes], *mq[kLanes];
+    for (int k = 0; k < kLanes; ++k) {
+      const int64_t at = j + (k < nact ? k : 0);
+      q[k] = qpos[at], mp[k] = mocap_pos[at], mq[k] = mocap_quat[at];
+    }
+    Lanes4(nact, q, mp, mq, pos + j, mat + j);
+    if (fault_ && !checked_ && nslot > 0) pos[j][0] = std::nextafter(pos[j][0], HUGE_VAL);
+    if (!checked_) {
+      // The self-check: the first batch again one knot at a time, byte for byte; on a
+      // difference, lanes go off and this batch is computed again below.
+      checked_ = true;
+      std::vector<double> p1(3 * nslot), r1(9 * nslot);
+      for (int k = 0; k < nact && !failed_; ++k) {
+        Run(q[k], mp[k], mq[k], p1.data(), r1.data());
+        failed_ = std::memcmp(p1.data(), pos[j + k], 3 * nslot * sizeof(double)) != 0 ||
+                  std::memcmp(r1.data(), mat[j + k], 9 * nslot * sizeof(double)) != 0;
+      }
+      if (failed_) break;
+    }
+    j += nact;
+  }
+  for (; j < n; ++j) Run(qpos[j], mocap_pos[j], mocap_quat[j], pos[j], mat[j]);
 }
 
 }  // namespace dua

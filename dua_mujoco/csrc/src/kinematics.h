@@ -8,7 +8,10 @@
 // inertial frames no kept geom sits at, the world body's frames, and every other geom, site,
 // camera and light. So each pose is mj_kinematics' bit for bit (tests/test_knot_kinematics.py
 // holds them to it on every bundled scene and every joint type) at a third to a half of its
-// instructions on a robot's knots.
+// instructions on a robot's knots. RunKnots computes four knots at once in AVX2 lanes (the same
+// IEEE operations, in the order libmujoco's compiled helpers take them: no contraction, no
+// reordering), and checks the lanes' bytes against this one-knot path on its first batch: where
+// they differ it computes every knot one at a time (docs/theory.md, section 8).
 #ifndef DUA_MUJOCO_KINEMATICS_H_
 #define DUA_MUJOCO_KINEMATICS_H_
 
@@ -18,6 +21,7 @@
 #include <vector>
 
 #include "dua/dua.h"
+#include "lanes.h"
 
 namespace dua {
 
@@ -34,6 +38,8 @@ class DUA_API KnotKinematics {
   // Not for a model with flexes or sleeping enabled (mj_kinematics reads more there): callers
   // run mj_kinematics on those.
   KnotKinematics(const mjModel* m, const std::vector<int64_t>& geoms);
+  KnotKinematics(const KnotKinematics&) = delete;  // (its lanes point into its own buffer)
+  KnotKinematics& operator=(const KnotKinematics&) = delete;
   // One knot: qpos (nq), mocap_pos (nmocap x 3) and mocap_quat (nmocap x 4) as mj_kinematics
   // reads them from mjData; slot c's position to pos + 3 c, its rotation matrix to mat + 9 c.
   void Run(const double* qpos, const double* mocap_pos, const double* mocap_quat, double* pos,
@@ -42,6 +48,17 @@ class DUA_API KnotKinematics {
   // readable without a Run (the static guard, tables.h, reads it so).
   const double* still_pos(size_t s) const { return still_pos_.data() + 3 * s; }
   const double* still_mat(size_t s) const { return still_mat_.data() + 9 * s; }
+  // n knots: knot k reads qpos[k], mocap_pos[k] and mocap_quat[k] and writes pos[k] and mat[k]
+  // as Run does, bit for bit; four at a time in lanes (the last two or three together, a last
+  // lone one by Run) while lanes are on and the self-check passed. The first batch in lanes is
+  // also computed by Run: where a byte differs, lanes go off for good and Run's poses stand.
+  void RunKnots(int64_t n, const double* const* qpos, const double* const* mocap_pos,
+                const double* const* mocap_quat, double* const* pos, double* const* mat);
+  // Test hooks: lanes off (every knot by Run) or on; a flipped bit in the lanes' first pose
+  // (the fault the self-check must catch). lanes(): whether RunKnots computes in lanes.
+  void SetLanes(bool on) { lanes_ = on; }
+  void SetLaneFault(bool on) { fault_ = on; }
+  bool lanes() const { return lanes_ && !failed_; }
   // The bodies computed (model ids, parents first) and their frames at the last Run, in that
   // order: (n, 3), (n, 4), (n, 9); for tests.
   const std::vector<int>& bodies() const { return body_; }
@@ -54,6 +71,11 @@ class DUA_API KnotKinematics {
   // frame; slot s's geom pose from its body's frames into (pos, mat).
   void Frame(size_t c, const double* qpos, const double* mocap_pos, const double* mocap_quat);
   void GeomFrame(size_t s, double* pos, double* mat) const;
+  // nact (2 to 4) knots in lanes; lanes past nact read knot 0's row and write nothing.
+  void Lanes4(int nact, const double* const* qpos, const double* const* mocap_pos,
+              const double* const* mocap_quat, double* const* pos, double* const* mat);
+  void FrameLanes(size_t c, int nact, const double* const* qpos, const double* const* mocap_pos,
+                  const double* const* mocap_quat);
 
   const mjModel* m_;
   std::vector<int> body_;    // model id of each kept body
@@ -65,6 +87,13 @@ class DUA_API KnotKinematics {
   std::vector<double> xpos_, xquat_, xmat_, xipos_, ximat_;
   std::vector<int> move_, gmove_, gstill_;     // the kept bodies not still; the slots moving, still
   std::vector<double> still_pos_, still_mat_;  // per slot: a still geom's pose, computed once
+  // The kept bodies' frames in lanes (lane k: knot k of a batch), as xpos_ ... ximat_, a still
+  // body's in every lane: in lane_buf_, from its first 32-byte boundary (what AVX2's aligned
+  // loads and stores need; a baseline build aligns Lanes to 16 only).
+  std::vector<double> lane_buf_;
+  Lanes *lxpos_ = nullptr, *lxquat_ = nullptr, *lxmat_ = nullptr, *lxipos_ = nullptr,
+        *lximat_ = nullptr;
+  bool lanes_ = true, checked_ = false, failed_ = false, fault_ = false;
 };
 
 }  // namespace dua

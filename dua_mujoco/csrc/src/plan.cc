@@ -766,6 +766,9 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
                                                                     : nullptr);
   KnotKinematics* km = !own ? nullptr : kinematics != nullptr ? kinematics : mine.get();
   int64_t computed = -1;  // the last knot computed
+  // The knots KnotKinematics computes, gathered for RunKnots (four at a time in lanes).
+  std::vector<const double*> kq, kmp, kmq;
+  std::vector<double*> kpos, kmat;
   for (int64_t j = 0; j < n; ++j) {
     double* pj = pos_.data() + 3 * nslot_ * j;
     double* rj = mat_.data() + 9 * nslot_ * j;
@@ -775,9 +778,11 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
       std::copy_n(prev->pos_.data() + 3 * nslot_ * i, 3 * nslot_, pj);
       std::copy_n(prev->mat_.data() + 9 * nslot_ * i, 9 * nslot_, rj);
     } else if (km) {
-      // MuJoCo's arithmetic on the bodies and geoms read, written in place (kinematics.h).
-      km->Run(qpos_.data() + nq * j, mocap ? in.mocap_pos + 3 * nmocap * j : s->mocap_pos,
-              mocap ? in.mocap_quat + 4 * nmocap * j : s->mocap_quat, pj, rj);
+      // MuJoCo's arithmetic on the bodies and geoms read, written in place below (kinematics.h).
+      kq.push_back(qpos_.data() + nq * j);
+      kmp.push_back(mocap ? in.mocap_pos + 3 * nmocap * j : s->mocap_pos);
+      kmq.push_back(mocap ? in.mocap_quat + 4 * nmocap * j : s->mocap_quat);
+      kpos.push_back(pj), kmat.push_back(rj);
       computed = j;
     } else {
       std::copy_n(qpos_.data() + nq * j, nq, s->qpos);
@@ -791,6 +796,10 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
         std::copy_n(s->geom_xmat + 9 * geoms[c], 9, rj + 9 * c);
       }
     }
+  }
+  if (!kq.empty()) {
+    km->RunKnots(static_cast<int64_t>(kq.size()), kq.data(), kmp.data(), kmq.data(), kpos.data(),
+                 kmat.data());
   }
   if (mocap && computed >= 0) {
     // The scratch's mocap poses as mj_kinematics on it would have left them (the last knot
