@@ -60,15 +60,8 @@ import numpy as np
 sys.path.insert(0, sys.argv[1])
 import mujoco
 import plan_users as pu
-from horizon import ROLLOUT_SEED
-from dua_mujoco.runtime.predictor import Predictor
 world, H, steps = pickle.load(open(sys.argv[2], "rb"))
-drive = pu.NoisyDriver(world.nominal, ROLLOUT_SEED)
-d = mujoco.MjData(world.run)
-mujoco.mj_forward(world.run, d)
-p = Predictor(world.nominal, accel=world.bounds, alarm_horizon=H)
-mujoco.mj_step(world.run, d)
-p.reset(d)
+drive, d, p = pu.start_replay(world, H)
 digests = []
 for k in range(steps + 1):
     if k:

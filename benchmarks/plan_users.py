@@ -152,6 +152,18 @@ class NoisyDriver:
         return plan_from_controls(nominal, data, copy.deepcopy(self.driver), steps=knots - 1)
 
 
+def start_replay(world: Run, horizon: float) -> tuple[NoisyDriver, mujoco.MjData, Predictor]:
+    """A replay of ``world``'s run at its first step: the noisy driver, the run's data one step
+    in, and a predictor reset on it (benchmarks/plan_profile.py and plan_cold.py replay it)."""
+    drive = NoisyDriver(world.nominal, ROLLOUT_SEED)
+    d = mujoco.MjData(world.run)
+    mujoco.mj_forward(world.run, d)
+    p = Predictor(world.nominal, accel=world.bounds, alarm_horizon=horizon)
+    mujoco.mj_step(world.run, d)
+    p.reset(d)
+    return drive, d, p
+
+
 def subtree_bodies(model: mujoco.MjModel, roots: tuple[str, ...]) -> np.ndarray:
     """The ids of the bodies in the subtrees of ``roots`` (names)."""
     ids = {model.body(r).id for r in roots}
