@@ -1,8 +1,8 @@
 """What ``mj_resetData`` and ``mj_step`` cost with the plugin, before and after a change, in one
 run: the static guard's price (docs/benchmarks.md, "Reset cost").
 
-    python benchmarks/reset_cost.py /work/main --before-python /work/main/.venv/bin/python
-    python benchmarks/reset_cost.py /work/main --before-python ... --tool time   # wall clock
+    python benchmarks/reset_cost.py BEFORE --before-python BEFORE/.venv/bin/python
+    python benchmarks/reset_cost.py BEFORE --before-python ... --tool time   # wall clock
 
 Each side (its own Python, the checkout's own install, as benchmarks/same_alarms.py runs them)
 attaches the predictor (``accel=20``, no pilot) to each scene and saves the model with and
