@@ -1389,8 +1389,11 @@ MUTANTS: tuple[Mutant, ...] = (
         "dua_mujoco/build/tables.py",
         "    edited = _core.static_mismatch(model, records)",
         '    edited = ""',
-        (f"{_STATIC_EDITS}::test_predictor_reset_refuses_a_resized_or_reshaped_static_geom",),
-        "Predictor.reset takes a model whose static geoms were resized or reshaped",
+        (
+            f"{_STATIC_EDITS}::test_predictor_reset_refuses_a_resized_or_reshaped_static_geom",
+            "tests/test_static_pairs.py",
+        ),
+        "Predictor.reset takes a model whose static geoms were moved, resized or reshaped",
     ),
 )
 

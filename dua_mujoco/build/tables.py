@@ -229,15 +229,14 @@ def check_static_geoms(
     model: mujoco.MjModel,
     shape_geom: np.ndarray,
     data: mujoco.MjData,
-    built: tuple[np.ndarray, np.ndarray],
     records: np.ndarray,
 ) -> None:
     """At a reset: refuse ``data`` whose static geoms are not where the model places them, then
-    a model whose static geoms moved since the tables were built from it (``built``:
-    ``static_poses`` then), or were resized or reshaped (``records``: the ``static`` table, the
-    native guard the plugin runs too: ``geom_size``, a height field's data, a mesh). The shape
-    records, the covering and the pair filter are built once, so an edit of ``body_pos``,
-    ``geom_pos``, ``geom_size`` or ``hfield_data`` would leave them as the geoms were.
+    a model whose static geoms were moved, resized or reshaped since the tables were built from
+    it (``records``: the ``static`` table, held to the model by the native guard the plugin runs
+    too: poses, ``geom_size``, a height field's data, a mesh). The shape records, the covering
+    and the pair filter are built once, so an edit of ``body_pos``, ``geom_pos``, ``geom_size``
+    or ``hfield_data`` would leave them as the geoms were.
 
     Raises:
         InvalidInputError: naming the first static geom that differs, and the fix.
@@ -247,39 +246,22 @@ def check_static_geoms(
         return
     pos, mat = static_poses(model, g)
     _check_static_poses(model, g, pos, mat, data)
-    err, bad = _pose_differences(pos, mat, built[0], built[1])
-    if bad.size:
-        k = int(bad[0])
-        raise InvalidInputError(
-            f"static geom {int(g[k])} ({geom_names(model)[g[k]]!r}) is at {pos[k].tolist()} in "
-            f"the model but at {built[0][k].tolist()} in this predictor's tables (|difference| "
-            f"{float(err[k]):.3g}; {bad.size} static geom(s) moved): the model was edited "
-            "(body_pos, geom_pos, ...) after the predictor was built, and its tables are built "
-            "once. Build a new Predictor for the edited model."
-        )
     edited = _core.static_mismatch(model, records)
     if edited:
         raise InvalidInputError(
-            f"{edited}: the model was edited (geom_size, hfield_data, a mesh, ...) after the "
-            "predictor was built, and its tables are built once. Build a new Predictor for the "
-            "edited model."
+            f"{edited}: the model was edited (body_pos, geom_pos, geom_size, hfield_data, a "
+            "mesh, ...) after the predictor was built, and its tables are built once. Build a "
+            "new Predictor for the edited model."
         )
-
-
-def _pose_differences(
-    pos: np.ndarray, mat: np.ndarray, pos2: np.ndarray, mat2: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Each geom's largest coordinate difference between two placements, and the geoms beyond
-    the tolerance (a NaN among them)."""
-    err = np.maximum(np.abs(pos - pos2).max(axis=1), np.abs(mat - mat2).max(axis=1))
-    return err, np.flatnonzero(~(err <= _STATIC_POSE_TOL))
 
 
 def _check_static_poses(
     model: mujoco.MjModel, g: np.ndarray, pos: np.ndarray, mat: np.ndarray, data: mujoco.MjData
 ) -> None:
     dpos = np.asarray(data.geom_xpos)[g]
-    err, bad = _pose_differences(dpos, np.asarray(data.geom_xmat)[g], pos, mat)
+    dmat = np.asarray(data.geom_xmat)[g]
+    err = np.maximum(np.abs(dpos - pos).max(axis=1), np.abs(dmat - mat).max(axis=1))
+    bad = np.flatnonzero(~(err <= _STATIC_POSE_TOL))  # a NaN among them
     if bad.size:
         k = int(bad[0])
         name = geom_names(model)[g[k]]

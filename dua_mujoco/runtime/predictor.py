@@ -35,7 +35,6 @@ from dua_mujoco.build.tables import (
     check_forwarded,
     check_static_geoms,
     plane_halfspaces,
-    static_poses,
 )
 from dua_mujoco.core.pairset import PairSet
 from dua_mujoco.core.schedules import Scheduler, as_schedule
@@ -128,8 +127,6 @@ class Predictor(PlanFollowing):
         """The option groups in force (``PredictorOptions``)."""
         self.schedule = as_schedule(self.options.schedule.kind)
         self.covering = lay.covering
-        # Where the tables put the static geoms: reset refuses a model edited since.
-        self._static_built = static_poses(model, self.covering.shape_geom)
         self.universe = lay.universe
         """The sphere pairs this predictor knows and their tables (a pruned one learns the
         pairs its candidates bring in)."""
@@ -249,7 +246,6 @@ class Predictor(PlanFollowing):
             self.model,
             self.covering.shape_geom,
             data,
-            self._static_built,
             self.table_arrays["static"],
         )
         try:
