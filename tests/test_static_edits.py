@@ -133,6 +133,8 @@ def test_plugin_init_refuses_an_edited_static_geom(
         mujoco.MjData(m)
     err = capfd.readouterr().err
     assert f"static geom {m.geom(geom).id} ('{geom}')" in err and field in err, err
+    # Named as every refused table is (the tables fuzzer holds refusals to that).
+    assert "text field 'dua:static' does not match the model" in err, err
     assert "attach the plugin again after editing static geoms" in err
     for f, v in saved.items():
         getattr(m, f)[:] = v
@@ -152,8 +154,29 @@ def test_plugin_reset_refuses_an_edited_static_geom(edit: str) -> None:
     mujoco.mj_resetData(m, d)  # unedited: taken
     change, field = EDITS[edit]
     geom = change(m)
-    with pytest.raises(mujoco.FatalError, match=rf"'{geom}'\) .*{field}.*attach the plugin again"):
+    with pytest.raises(
+        mujoco.FatalError,
+        match=rf"^dua_mujoco.predictor: text field 'dua:static' does not match the model: "
+        rf".*'{geom}'\) .*{field}.*attach the plugin again",
+    ):
         mujoco.mj_resetData(m, d)
+
+
+@pytest.mark.parametrize("column", ["STATIC_POS", "STATIC_MAT", "STATIC_SIZE", "STATIC_DIGEST"])
+def test_a_static_table_that_does_not_match_the_model_is_refused_as_a_table(column: str) -> None:
+    """Tables built from arrays whose ``static`` records differ from the model in one bit (a
+    corrupted table, or one built before an edit) are refused naming the table, as the plugin
+    refuses them; the records as built are taken."""
+    m, p = _attached()
+    arrays = dict(p.table_arrays)
+    _core.Tables.build(m, arrays)
+    rec = np.array(arrays["static"], copy=True)
+    at = rec[-1:, _core.LAYOUT[column]].view(np.uint64)
+    at ^= np.uint64(1)  # the lowest bit of one entry
+    rec[-1, _core.LAYOUT[column]] = at.view(np.float64)[0]
+    arrays["static"] = rec
+    with pytest.raises(ValueError, match=r"^table 'static' does not match the model: static geom"):
+        _core.Tables.build(m, arrays)
 
 
 @pytest.mark.parametrize("edit", ["geom_size", "hfield_data", "mesh"])

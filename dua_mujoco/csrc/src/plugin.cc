@@ -34,12 +34,12 @@ namespace {
 constexpr char kPluginName[] = "dua_mujoco.predictor";
 constexpr const char* kAttributes[] = {"prefix", "overlay", "forget"};
 constexpr int kNAttribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
-// What to do about a static geom edited under the plugin's tables (StaticMismatch).
-constexpr char kStaticFix[] =
-    "The plugin's tables cover the static geoms as they were when it was attached, and would "
-    "miss their contacts: attach the plugin again after editing static geoms (edit the spec, "
-    "then dua_mujoco.attach(spec) and spec.compile(), or re-export the model), and make the "
-    "MjData from that model";
+// The plugin's refusal of tables whose static table no longer matches the model (StaticMismatch,
+// non-empty): it names the text field, as every refusal of a table does.
+std::string StaticRefused(const std::string& prefix, const std::string& mismatch) {
+  return "dua_mujoco.predictor: text field '" + prefix + ":static' " + StaticRefusal(mismatch) +
+         ".";
+}
 
 // Sensor outputs.
 enum Output {
@@ -56,6 +56,7 @@ struct Instance {
     rt.SetReadLag(0);  // the compute reads the state of d->time (mj_step has not advanced it)
   }
   Runtime rt;
+  std::string prefix;  // of the tables' text fields (the plugin attribute)
   int sensor_adr = -1;
   bool overlay = true;
   bool skip_subtree_vel = false;  // see SubtreeVelUnused
@@ -131,13 +132,15 @@ Instance* Create(const mjModel* m, int instance) {
   }
   // The static shapes' records were built once, from the static geoms as attach found them: a
   // model edited since (geom_pos, body_pos, geom_size, hfield_data, a mesh) would have its
-  // contacts with them missed.
+  // contacts with them missed. BuildTables checked a fresh parse; tables LoadTables kept for
+  // this model (the digest reads no static pose) are checked here.
   const std::string edited = StaticMismatch(m, tables->statics);
   if (!edited.empty()) {
-    mju_warning("dua_mujoco.predictor: %s. %s.", edited.c_str(), kStaticFix);
+    mju_warning("%s", StaticRefused(prefix, edited).c_str());
     return nullptr;
   }
   auto* in = new Instance(std::move(tables), m);
+  in->prefix = prefix;
   in->overlay = overlay;
   in->rt.SetForget(forget);
   in->skip_subtree_vel = SubtreeVelUnused(m);
@@ -279,7 +282,7 @@ void Register() {
     // A static geom edited in the model since init: the next classification would read stale
     // shape records (O(static geoms) and their height fields' and meshes' data; no step pays it).
     const std::string edited = StaticMismatch(m, in->rt.tables().statics);
-    if (!edited.empty()) mju_error("dua_mujoco.predictor: %s. %s.", edited.c_str(), kStaticFix);
+    if (!edited.empty()) mju_error("%s", StaticRefused(in->prefix, edited).c_str());
     in->rt.Invalidate();
   };
   plugin.compute = +[](const mjModel* m, mjData* d, int instance, int capability) {

@@ -278,12 +278,18 @@ bool ReadStatic(const mjModel* m, Reader* r, Tables* t) {
   if (!r->Get("static", ShapeRecordCount(t->shapes.data(), rows), kStaticNcol, &t->statics)) {
     return false;
   }
-  return Rows(r, "static", t->statics, kStaticNcol, "its geom is not a static geom of the model",
-              [m](const double* rec) {
-                if (!IsIndex(rec[kStaticGeom], m->ngeom)) return false;
-                const int b = m->geom_bodyid[static_cast<int>(rec[kStaticGeom])];
-                return b == 0 || StillBody(m, b);
-              });
+  if (!Rows(r, "static", t->statics, kStaticNcol, "its geom is not a static geom of the model",
+            [m](const double* rec) {
+              if (!IsIndex(rec[kStaticGeom], m->ngeom)) return false;
+              const int b = m->geom_bodyid[static_cast<int>(rec[kStaticGeom])];
+              return b == 0 || StillBody(m, b);
+            })) {
+    return false;
+  }
+  // Records that no longer describe the model's static geoms (an edit since the build, or a
+  // corrupted table) would leave the shape records stale: the table is refused, as a table.
+  const std::string edited = StaticMismatch(m, t->statics);
+  return edited.empty() || r->Fail("static", StaticRefusal(edited));
 }
 
 bool ReadEvents(const mjModel* m, Reader* r, Tables* t) {
@@ -745,7 +751,14 @@ std::string Values(const double* v, int n) {
   return out + "]";
 }
 
+// A digest's two 32-bit halves as 16 hex digits; halves that are not such integers (a corrupted
+// table's) as their values.
 std::string Hex(const double* halves) {
+  for (int k = 0; k < 2; ++k) {
+    if (!(halves[k] >= 0.0 && halves[k] < 4294967296.0 && halves[k] == std::floor(halves[k]))) {
+      return Values(halves, 2);
+    }
+  }
   char text[32];
   std::snprintf(text, sizeof text, "%08llx%08llx", static_cast<unsigned long long>(halves[1]),
                 static_cast<unsigned long long>(halves[0]));
@@ -769,6 +782,14 @@ std::vector<double> StaticRecords(const mjModel* m, const std::vector<int64_t>& 
     rec[kStaticDigest + 1] = static_cast<double>(digest >> 32);
   }
   return out;
+}
+
+std::string StaticRefusal(const std::string& mismatch) {
+  return "does not match the model: " + mismatch +
+         ". The tables cover the static geoms as they were when they were built, and would miss "
+         "their contacts: attach the plugin again after editing static geoms (edit the spec, "
+         "then dua_mujoco.attach(spec) and spec.compile(), or re-export the model), and make the "
+         "MjData from that model";
 }
 
 std::string StaticMismatch(const mjModel* m, const std::vector<double>& statics) {

@@ -143,6 +143,10 @@ DUA_API std::vector<double> StaticRecords(const mjModel* m, const std::vector<in
 // their height fields' and meshes' data).
 DUA_API std::string StaticMismatch(const mjModel* m, const std::vector<double>& statics);
 
+// Why the static table is refused once StaticMismatch found `mismatch` (non-empty), with the fix;
+// the refusal names the table before it ("text field 'dua:static' " + StaticRefusal(...)).
+DUA_API std::string StaticRefusal(const std::string& mismatch);
+
 }  // namespace dua
 
 #endif  // DUA_MUJOCO_TABLES_H_
