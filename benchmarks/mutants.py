@@ -1345,6 +1345,17 @@ MUTANTS: tuple[Mutant, ...] = (
         "an MjData made after a static geom was edited runs on the stale cover",
     ),
     Mutant(
+        "static-table-unchecked-at-build",
+        _TABLES,
+        '  return edited.empty() || r->Fail("static", StaticRefusal(edited));',
+        "  return true;",
+        (
+            f"{_STATIC_EDITS}::test_a_static_table_that_does_not_match_the_model_is_refused_as_a_table",
+        ),
+        "tables whose static records do not match the model (corrupted, or built before an "
+        "edit) are taken as sound",
+    ),
+    Mutant(
         "static-pose-unrecorded",
         _TABLES,
         "    std::copy_n(k.still_pos(s), 3, rec + kStaticPos);\n",
