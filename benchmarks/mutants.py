@@ -93,6 +93,9 @@ _MADE_DUE = (
     "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
 )
 _SETTLE_BOUND = "tests/test_urgency.py::test_settle_bound_is_never_after_the_first_root"
+_LANE_PAIRS = (
+    "tests/test_predictor.py::test_fused_steps_sphere_lanes_are_the_row_kernels_bit_for_bit"
+)
 _SETTLED = (
     "tests/test_events.py::test_settled_pairs_get_a_verdict_of_that_step_below_the_sphere_kernels"
 )
@@ -151,6 +154,24 @@ MUTANTS: tuple[Mutant, ...] = (
         "    tau = std::max(tau, 2.0 * ts);",
         ("tests/test_urgency.py::test_speed_between_max_formula_and_lens", _REF_PAPER),
         "the speed bound's term claims twice the time",
+    ),
+    Mutant(
+        "lane-pairs-fallback-dropped",
+        _URGENCY,
+        "    if ((done >> k) & 1) continue;\n",
+        "    if (true) continue;\n",
+        (_LANE_PAIRS,),
+        "the step's sphere pairs off the lanes' common path (A = 0, an interior minimum, an "
+        "uncertified guess) keep whatever tau the wheel's work row held: no scalar fallback",
+    ),
+    Mutant(
+        "lane-pairs-written-in-lane-order",
+        _URGENCY,
+        "if ((done >> k) & 1) out[at[k]] = tau[k];",
+        "if ((done >> k) & 1) out[k] = tau[k];",
+        (_LANE_PAIRS,),
+        "the step's four sphere pairs' taus written to the batch's first four places, not "
+        "the pairs' own (the pairs there take another's tau, the group's keep a stale one)",
     ),
     # ---------------------------------------------------------------- the step: state, exact level
     Mutant(

@@ -205,6 +205,43 @@ def test_fused_step_round_trips_the_pair_sets_tau(site_model) -> None:
     assert halfspace_pairs_seen > 0
 
 
+@pytest.mark.parametrize("accel", [1.0, 0.0])
+def test_fused_steps_sphere_lanes_are_the_row_kernels_bit_for_bit(site_model, accel) -> None:
+    """The fused step hands the kernel each sphere pair's two rows in place, its lanes taking the
+    relative state's differences (TauSpeedFourPairs); ``pair_set.tau`` gathers rows of ten from
+    ``sphere_states`` (TauSpeedFour). The same operations in the same order: the same bits, on
+    the lanes' common path (accel 1) and on every lane's scalar fallback (accel 0: h = 0), in
+    groups of four and a ragged last one."""
+    m = site_model
+    p = Predictor(
+        m, accel=accel, covering="multi", schedule="select-all", urgency=UrgencyOptions(exact=False)
+    )
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(11)
+    random_joint_state(m, d, rng, velocity_scale=2.0)
+    mujoco.mj_forward(m, d)
+    p.reset(d)
+    sched = p.scheduler
+    assert sched is not None
+    spheres = p.pair_set.kind == 0
+    # One sphere pair off: the step's sphere pairs end in a ragged group (1,855 of them).
+    p.pair_state().set_active([int(np.flatnonzero(spheres)[0])], False)
+    compared = 0
+    for _ in range(20):
+        random_joint_state(m, d, rng, velocity_scale=2.0)
+        d.time += p.dt
+        mujoco.mj_forward(m, d)
+        p.step(d)
+        ids = sched.last_selected
+        ids = ids[spheres[ids]]
+        c, v = p.sphere_states(d)
+        expected = p.pair_set.tau(ids, c, v, p.halfspaces(d))
+        np.testing.assert_array_equal(sched.last_tau[ids], expected)
+        assert ids.size % 4 != 0
+        compared += ids.size
+    assert compared > 20
+
+
 def _quat_exp(omega_t: np.ndarray) -> np.ndarray:
     q = np.zeros(4)
     mujoco.mju_axisAngle2Quat(
