@@ -158,7 +158,7 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "lane-pairs-fallback-dropped",
         _URGENCY,
-        "    if ((done >> k) & 1) continue;\n",
+        "    if (((left >> k) & 1) == 0) continue;\n",
         "    if (true) continue;\n",
         (_LANE_PAIRS,),
         "the step's sphere pairs off the lanes' common path (A = 0, an interior minimum, an "
@@ -167,11 +167,20 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "lane-pairs-written-in-lane-order",
         _URGENCY,
-        "if ((done >> k) & 1) out[at[k]] = tau[k];",
-        "if ((done >> k) & 1) out[k] = tau[k];",
+        "for (int k = 0; k < kLanes; ++k) out[at[k]] = tau[k];",
+        "for (int k = 0; k < kLanes; ++k) out[at[0] + k] = tau[k];",
         (_LANE_PAIRS,),
-        "the step's four sphere pairs' taus written to the batch's first four places, not "
+        "the step's four sphere pairs' taus written to the four places from the first one's, not "
         "the pairs' own (the pairs there take another's tau, the group's keep a stale one)",
+    ),
+    Mutant(
+        "lane-pairs-bounds-transposed-wrong",
+        _URGENCY,
+        "const Lanes accel = __builtin_shufflevector(hi01, hi23, 0, 1, 4, 5);",
+        "const Lanes accel = __builtin_shufflevector(lo01, lo23, 2, 3, 6, 7);",
+        (_LANE_PAIRS,),
+        "the four pair records' bounds transposed wrong: the step's sphere lanes read the "
+        "velocity uncertainty as the acceleration bound",
     ),
     # ---------------------------------------------------------------- the step: state, exact level
     Mutant(

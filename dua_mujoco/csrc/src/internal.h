@@ -52,12 +52,18 @@ double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2
 void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride);
 // TauSpeed of rows r[0:m] (m <= 4; the rest repeat a row, as padding) into out[k * out_stride].
 void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_stride);
-// TauSpeed of sphere pairs k < m (m <= 4; the rest repeat one, as padding) into out[at[k]]:
-// pair k's state sj[k] - si[k] (each sphere's centre and velocity, 6 numbers), its eps, accel,
-// delta and speed from its pair record rec[k] (the same values as TauSpeedFour of those rows).
-void TauSpeedFourPairs(const double* const si[kLanes], const double* const sj[kLanes],
-                       const double* const rec[kLanes], int m, double* out,
-                       const int64_t at[kLanes]);
+// TauSpeed of four sphere pairs, in lanes (the AVX2 clone where the CPU has it): pair k's state
+// sj[k] - si[k] (each sphere's centre and velocity, 6 numbers, the subtraction taken in the
+// lanes), its eps, accel, delta and speed from its pair record rec[k] (the same values as
+// TauSpeedFour of those rows). Lane k's tau goes to out[at[k]], each of the four (a padding lane
+// repeats a pair, so it writes that pair's value); returns the lanes below m the lanes did not
+// settle (bit k), whose out[at[k]] TauSpeedFourPairsLeft then writes, from *ts and *speed_on.
+int TauSpeedFourPairs(const double* const si[kLanes], const double* const sj[kLanes],
+                      const double* const rec[kLanes], int m, double* out, const int64_t at[kLanes],
+                      double ts[kLanes], int* speed_on);
+void TauSpeedFourPairsLeft(const double* const si[kLanes], const double* const sj[kLanes],
+                           const double* const rec[kLanes], int left, double* out,
+                           const int64_t at[kLanes], const double ts[kLanes], int speed_on);
 // A lower bound on TauAccel's first root from the two norms |x| and |v| alone (docs/theory.md,
 // section 6, "Settling a made-due pair", Lemma 6.8): cover (1 + 1e-12) where the bound covers
 // `cover` seconds (cover > 0; found without the root), else the bound itself, or -inf where it
@@ -204,25 +210,19 @@ constexpr double kTame = 1e300;
 // Sphere i's row of point_state (RigidPoint, read from MjData at its first use in this epoch),
 // and in *tame whether its six numbers are all finite and at most kTame in magnitude.
 // point_epoch holds 2 epoch + tame (an arithmetic shift gives the epoch back: -1, the start,
-// reads as -1). PointRowIn takes a's point_state, point_epoch and epoch as read once by a
-// caller that reads many rows (TauRows: a's fields are not read again each row).
-inline const double* PointRowIn(const dua_step_args& a, double* states, int64_t* epochs,
-                                int64_t epoch, int64_t i, bool* tame) {
-  double* state = states + 6 * i;
-  int64_t e = epochs[i];
-  if ((e >> 1) != epoch) {
+// reads as -1).
+inline const double* PointRow(const dua_step_args& a, int64_t i, bool* tame) {
+  double* state = a.point_state + 6 * i;
+  int64_t e = a.point_epoch[i];
+  if ((e >> 1) != a.epoch) {
     RigidPoint(i, a.spheres, kSphereNcol, a.frame, state);
     bool ok = true;
     for (int j = 0; j < 6; ++j) ok &= std::fabs(state[j]) <= kTame;  // NaN: false
-    e = 2 * epoch + (ok ? 1 : 0);
-    epochs[i] = e;
+    e = 2 * a.epoch + (ok ? 1 : 0);
+    a.point_epoch[i] = e;
   }
   *tame = (e & 1) != 0;
   return state;
-}
-
-inline const double* PointRow(const dua_step_args& a, int64_t i, bool* tame) {
-  return PointRowIn(a, a.point_state, a.point_epoch, a.epoch, i, tame);
 }
 
 // PointRow's numbers copied into out.

@@ -709,17 +709,9 @@ DUA_SECTION void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, 
 // as arrays (FreePoints: spheres not on MuJoCo bodies, the paper's setting).
 struct FramePoints {
   static constexpr bool kRows = true;  // Row: each sphere's state in place, and whether tame
-  explicit FramePoints(dua_step_args& args)
-      : a(args), states(args.point_state), epochs(args.point_epoch), epoch(args.epoch) {}
   dua_step_args& a;
-  // PointRow's fields of a, read once (the epoch does not change within a batch).
-  double* states;
-  int64_t* epochs;
-  int64_t epoch;
   void Point(int64_t i, double* out) const { PointOf(a, i, out); }
-  const double* Row(int64_t i, bool* tame) const {
-    return PointRowIn(a, states, epochs, epoch, i, tame);
-  }
+  const double* Row(int64_t i, bool* tame) const { return PointRow(a, i, tame); }
   // The plane geom of the pair (its z axis is the outward normal, through its origin).
   void Plane(const double* rec, double* out) const {
     const int64_t g = static_cast<int64_t>(rec[kPairOther]);
@@ -752,11 +744,9 @@ struct FreePoints {
 // Where skip[k] (skip null: nowhere) the state is read and checked as for any pair but no tau is
 // computed and out[k] is not written: a plan's verdict replaces it (PlanCovered).
 template <class Points>
-DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Points& given,
+DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Points& points,
                             const int64_t* ids, int64_t count, double* out,
                             const uint8_t* skip = nullptr) {
-  // A copy of its own: the kernel's calls cannot change it, so its fields stay in registers.
-  const Points points = given;
   // Up to four sphere pairs' rows as TauSpeedFour reads them (relative state, then bounds), and
   // where each goes in out: passed to the kernel straight from here, not through a buffer of
   // every row (each row written, read back and copied again was a third of the gather).
@@ -779,8 +769,13 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
   int64_t pat[kLanes];
   int np = 0;
   auto flush_pairs = [&] {
-    for (int k = np; k < kLanes; ++k) pi[k] = pi[np - 1], pj[k] = pj[np - 1], pr[k] = pr[np - 1];
-    TauSpeedFourPairs(pi, pj, pr, np, out, pat);
+    for (int k = np; k < kLanes; ++k) {
+      pi[k] = pi[np - 1], pj[k] = pj[np - 1], pr[k] = pr[np - 1], pat[k] = pat[np - 1];
+    }
+    double ts[kLanes];
+    int speed_on;
+    const int left = TauSpeedFourPairs(pi, pj, pr, np, out, pat, ts, &speed_on);
+    if (left != 0) TauSpeedFourPairsLeft(pi, pj, pr, left, out, pat, ts, speed_on);
     np = 0;
   };
   for (int64_t k = 0; k < count; ++k) {

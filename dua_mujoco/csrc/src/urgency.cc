@@ -3,6 +3,7 @@
 // say which step of it a line carries out.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "dua/dua.h"
@@ -320,13 +321,19 @@ int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLan
   return done;
 }
 
-// AccelLanes of four sphere pairs read in place: lane k's relative state sj[k] - si[k] (each a
-// sphere's centre and velocity, the subtraction TauRows made), its bounds from its pair record
-// rec[k]. The settled lanes below m written to out[at[k]] here.
+}  // namespace
+
+// AccelLanes of four sphere pairs read in place (internal.h). The bounds, four consecutive
+// numbers of each record, come as four vectors transposed; the spheres' rows element by element
+// (a row may have been written just before, as six numbers: a vector read of them would wait
+// for the stores).
 DUA_LANES_CLONES
-int TauAccelPairs(const double* const si[kLanes], const double* const sj[kLanes],
-                  const double* const rec[kLanes], int m, double* out, const int64_t at[kLanes],
-                  double ts[kLanes], int* speed_on) {
+int TauSpeedFourPairs(const double* const si[kLanes], const double* const sj[kLanes],
+                      const double* const rec[kLanes], int m, double* out, const int64_t at[kLanes],
+                      double ts[kLanes], int* speed_on) {
+  static_assert(
+      kPairAccel == kPairEps + 1 && kPairDelta == kPairEps + 2 && kPairSpeed == kPairEps + 3,
+      "the bounds are four consecutive columns of a pair record");
   Lanes x[3], v[3];
   for (int j = 0; j < 3; ++j) {
     x[j] = Lanes{sj[0][j], sj[1][j], sj[2][j], sj[3][j]} -
@@ -334,23 +341,34 @@ int TauAccelPairs(const double* const si[kLanes], const double* const sj[kLanes]
     v[j] = Lanes{sj[0][3 + j], sj[1][3 + j], sj[2][3 + j], sj[3][3 + j]} -
            Lanes{si[0][3 + j], si[1][3 + j], si[2][3 + j], si[3][3 + j]};
   }
-  const Lanes eps = {rec[0][kPairEps], rec[1][kPairEps], rec[2][kPairEps], rec[3][kPairEps]};
-  const Lanes accel = {rec[0][kPairAccel], rec[1][kPairAccel], rec[2][kPairAccel],
-                       rec[3][kPairAccel]};
-  const Lanes delta = {rec[0][kPairDelta], rec[1][kPairDelta], rec[2][kPairDelta],
-                       rec[3][kPairDelta]};
-  const Lanes speed = {rec[0][kPairSpeed], rec[1][kPairSpeed], rec[2][kPairSpeed],
-                       rec[3][kPairSpeed]};
+  Lanes r[kLanes];
+  for (int k = 0; k < kLanes; ++k) std::memcpy(&r[k], rec[k] + kPairEps, sizeof(Lanes));
+  const Lanes lo01 = __builtin_shufflevector(r[0], r[1], 0, 4, 2, 6);
+  const Lanes hi01 = __builtin_shufflevector(r[0], r[1], 1, 5, 3, 7);
+  const Lanes lo23 = __builtin_shufflevector(r[2], r[3], 0, 4, 2, 6);
+  const Lanes hi23 = __builtin_shufflevector(r[2], r[3], 1, 5, 3, 7);
+  const Lanes eps = __builtin_shufflevector(lo01, lo23, 0, 1, 4, 5);
+  const Lanes accel = __builtin_shufflevector(hi01, hi23, 0, 1, 4, 5);
+  const Lanes delta = __builtin_shufflevector(lo01, lo23, 2, 3, 6, 7);
+  const Lanes speed = __builtin_shufflevector(hi01, hi23, 2, 3, 6, 7);
   Lanes tau, term;
   const int done = AccelLanes(x, v, eps, accel, delta, speed, &tau, &term, speed_on);
-  for (int k = 0; k < kLanes; ++k) ts[k] = term[k];
-  for (int k = 0; k < m; ++k) {
-    if ((done >> k) & 1) out[at[k]] = tau[k];
-  }
-  return done;
+  std::memcpy(ts, &term, sizeof(Lanes));
+  for (int k = 0; k < kLanes; ++k) out[at[k]] = tau[k];
+  return ~done & ((1 << m) - 1);
 }
 
-}  // namespace
+void TauSpeedFourPairsLeft(const double* const si[kLanes], const double* const sj[kLanes],
+                           const double* const rec[kLanes], int left, double* out,
+                           const int64_t at[kLanes], const double ts[kLanes], int speed_on) {
+  for (int k = 0; k < kLanes; ++k) {
+    if (((left >> k) & 1) == 0) continue;
+    const double *a = si[k], *b = sj[k], *q = rec[k];
+    const double t = TauAccel(b[0] - a[0], b[1] - a[1], b[2] - a[2], b[3] - a[3], b[4] - a[4],
+                              b[5] - a[5], q[kPairEps], q[kPairAccel], q[kPairDelta]);
+    out[at[k]] = WithSpeedTerm(t, (speed_on >> k) & 1, ts[k]);
+  }
+}
 
 double WithGapSpeed(double tau, double gap, double now, double bound) {
   if (bound < kInf && gap > 0.0 && now <= bound && tau > 0.0) {
@@ -433,23 +451,6 @@ void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_st
       const double t = TauAccel(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8]);
       out[k * out_stride] = WithSpeedTerm(t, (speed_on >> k) & 1, ts[k]);
     }
-  }
-}
-
-void TauSpeedFourPairs(const double* const si[kLanes], const double* const sj[kLanes],
-                       const double* const rec[kLanes], int m, double* out,
-                       const int64_t at[kLanes]) {
-  double ts[kLanes];
-  int speed_on;
-  const int done = TauAccelPairs(si, sj, rec, m, out, at, ts, &speed_on);
-  const int all = (1 << m) - 1;
-  if ((done & all) == all) return;
-  for (int k = 0; k < m; ++k) {
-    if ((done >> k) & 1) continue;
-    const double *a = si[k], *b = sj[k], *q = rec[k];
-    const double t = TauAccel(b[0] - a[0], b[1] - a[1], b[2] - a[2], b[3] - a[3], b[4] - a[4],
-                              b[5] - a[5], q[kPairEps], q[kPairAccel], q[kPairDelta]);
-    out[at[k]] = WithSpeedTerm(t, (speed_on >> k) & 1, ts[k]);
   }
 }
 
