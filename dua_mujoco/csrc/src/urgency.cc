@@ -341,12 +341,16 @@ int TauSpeedFourPairs(const double* const si[kLanes], const double* const sj[kLa
     v[j] = Lanes{sj[0][3 + j], sj[1][3 + j], sj[2][3 + j], sj[3][3 + j]} -
            Lanes{si[0][3 + j], si[1][3 + j], si[2][3 + j], si[3][3 + j]};
   }
-  Lanes r[kLanes];
-  for (int k = 0; k < kLanes; ++k) std::memcpy(&r[k], rec[k] + kPairEps, sizeof(Lanes));
-  const Lanes lo01 = __builtin_shufflevector(r[0], r[1], 0, 4, 2, 6);
-  const Lanes hi01 = __builtin_shufflevector(r[0], r[1], 1, 5, 3, 7);
-  const Lanes lo23 = __builtin_shufflevector(r[2], r[3], 0, 4, 2, 6);
-  const Lanes hi23 = __builtin_shufflevector(r[2], r[3], 1, 5, 3, 7);
+  // Each record's four bounds as one vector read (not through a copy on the stack).
+  using At = double __attribute__((vector_size(8 * kLanes), aligned(8), may_alias));
+  const Lanes r0 = *reinterpret_cast<const At*>(rec[0] + kPairEps);
+  const Lanes r1 = *reinterpret_cast<const At*>(rec[1] + kPairEps);
+  const Lanes r2 = *reinterpret_cast<const At*>(rec[2] + kPairEps);
+  const Lanes r3 = *reinterpret_cast<const At*>(rec[3] + kPairEps);
+  const Lanes lo01 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);
+  const Lanes hi01 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
+  const Lanes lo23 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
+  const Lanes hi23 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
   const Lanes eps = __builtin_shufflevector(lo01, lo23, 0, 1, 4, 5);
   const Lanes accel = __builtin_shufflevector(hi01, hi23, 0, 1, 4, 5);
   const Lanes delta = __builtin_shufflevector(lo01, lo23, 2, 3, 6, 7);
