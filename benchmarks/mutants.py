@@ -157,9 +157,9 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "lane-pairs-fallback-dropped",
-        _URGENCY,
-        "    if (((left >> k) & 1) == 0) continue;\n",
-        "    if (true) continue;\n",
+        _STEP,
+        "if (left != 0) TauSpeedFourPairsLeft(",
+        "if (left < 0) TauSpeedFourPairsLeft(",
         (_LANE_PAIRS,),
         "the step's sphere pairs off the lanes' common path (A = 0, an interior minimum, an "
         "uncertified guess) keep whatever tau the wheel's work row held: no scalar fallback",
