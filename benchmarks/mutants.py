@@ -165,13 +165,13 @@ MUTANTS: tuple[Mutant, ...] = (
         "uncertified guess) keep whatever tau the wheel's work row held: no scalar fallback",
     ),
     Mutant(
-        "lane-pairs-written-in-lane-order",
-        _URGENCY,
-        "for (int k = 0; k < kLanes; ++k) out[at[k]] = tau[k];",
-        "for (int k = 0; k < kLanes; ++k) out[at[0] + k] = tau[k];",
+        "lane-pairs-padding-written-over-the-first",
+        _STEP,
+        "pr[k] = pr[np - 1], pat[k] = pat[np - 1];",
+        "pr[k] = pr[np - 1], pat[k] = pat[0];",
         (_LANE_PAIRS,),
-        "the step's four sphere pairs' taus written to the four places from the first one's, not "
-        "the pairs' own (the pairs there take another's tau, the group's keep a stale one)",
+        "a ragged group's padding lanes (the last pair repeated) write their tau to the group's "
+        "first pair's place, not the last one's: the first pair takes the last one's tau",
     ),
     Mutant(
         "lane-pairs-bounds-transposed-wrong",
