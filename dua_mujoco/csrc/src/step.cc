@@ -748,8 +748,8 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
                             const int64_t* ids, int64_t count, double* out,
                             const uint8_t* skip = nullptr) {
   // Up to four sphere pairs' rows as TauSpeedFour reads them (relative state, then bounds), and
-  // where each goes in out: passed to the kernel straight from here, not through a buffer of
-  // every row (each row written, read back and copied again was a third of the gather).
+  // where each goes in out (FreePoints: their states are copies): passed to the kernel straight
+  // from here, not through a buffer of every row.
   double quad[kLanes][10];
   int64_t at[kLanes];
   int nq = 0;
