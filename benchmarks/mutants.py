@@ -93,6 +93,9 @@ _MADE_DUE = (
     "tests/test_scheduler.py::test_made_due_pairs_are_selected_as_make_due_then_select_selects_them"
 )
 _SETTLE_BOUND = "tests/test_urgency.py::test_settle_bound_is_never_after_the_first_root"
+_LANE_PAIRS = (
+    "tests/test_predictor.py::test_fused_steps_sphere_lanes_are_the_row_kernels_bit_for_bit"
+)
 _SETTLED = (
     "tests/test_events.py::test_settled_pairs_get_a_verdict_of_that_step_below_the_sphere_kernels"
 )
@@ -151,6 +154,33 @@ MUTANTS: tuple[Mutant, ...] = (
         "    tau = std::max(tau, 2.0 * ts);",
         ("tests/test_urgency.py::test_speed_between_max_formula_and_lens", _REF_PAPER),
         "the speed bound's term claims twice the time",
+    ),
+    Mutant(
+        "lane-pairs-fallback-dropped",
+        _STEP,
+        "if (left != 0) TauSpeedFourPairsLeft(",
+        "if (left < 0) TauSpeedFourPairsLeft(",
+        (_LANE_PAIRS,),
+        "the step's sphere pairs off the lanes' common path (A = 0, an interior minimum, an "
+        "uncertified guess) keep whatever tau the wheel's work row held: no scalar fallback",
+    ),
+    Mutant(
+        "lane-pairs-padding-written-over-the-first",
+        _STEP,
+        "pr[k] = pr[np - 1], pat[k] = pat[np - 1];",
+        "pr[k] = pr[np - 1], pat[k] = pat[0];",
+        (_LANE_PAIRS,),
+        "a ragged group's padding lanes (the last pair repeated) write their tau to the group's "
+        "first pair's place, not the last one's: the first pair takes the last one's tau",
+    ),
+    Mutant(
+        "lane-pairs-bounds-transposed-wrong",
+        _URGENCY,
+        "const Lanes accel = __builtin_shufflevector(hi01, hi23, 0, 1, 4, 5);",
+        "const Lanes accel = __builtin_shufflevector(lo01, lo23, 2, 3, 6, 7);",
+        (_LANE_PAIRS,),
+        "the four pair records' bounds transposed wrong: the step's sphere lanes read the "
+        "velocity uncertainty as the acceleration bound",
     ),
     # ---------------------------------------------------------------- the step: state, exact level
     Mutant(

@@ -16,7 +16,7 @@ import subprocess
 import sys
 import textwrap
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import mujoco
@@ -173,36 +173,63 @@ def test_kernel_matches_mj_object_velocity_at_random_states(site_predictor) -> N
         assert np.linalg.norm(v_ref, axis=1).max() > 0.5
 
 
-def test_fused_step_round_trips_the_pair_sets_tau(site_model) -> None:
-    """The fused ``step`` computes the same tau as ``pair_set.tau`` on ``sphere_states``: a round
-    trip of the pair records and the gathered states through the runtime's two entries (both run
-    the same kernels, so it cannot catch a wrong tau: tests/test_reference_step.py can)."""
-    m = site_model
+def _fused_and_row_taus(
+    m: mujoco.MjModel, accel: float, seed: int, ragged: bool = False
+) -> Iterator[tuple[Predictor, np.ndarray, np.ndarray, np.ndarray]]:
+    """Twenty steps at random states of a select-all predictor of the spheres alone: each step's
+    predictor, selected pairs, their taus from the fused ``step`` and from ``pair_set.tau`` on
+    ``sphere_states``. ``ragged``: the first sphere pair switched off (the model's 1,856 sphere
+    pairs, a multiple of four, end in a ragged group)."""
     # Select-all: every pair is evaluated every step, whatever the random states do to tau.
     p = Predictor(
-        m, accel=1.0, covering="multi", schedule="select-all", urgency=UrgencyOptions(exact=False)
+        m, accel=accel, covering="multi", schedule="select-all", urgency=UrgencyOptions(exact=False)
     )
     d = mujoco.MjData(m)
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seed)
     random_joint_state(m, d, rng, velocity_scale=2.0)
     mujoco.mj_forward(m, d)
     p.reset(d)
+    if ragged:
+        p.pair_state().set_active([int(np.flatnonzero(p.pair_set.kind == 0)[0])], False)
     sched = p.scheduler
     assert sched is not None
-    halfspace_pairs_seen = evaluated = 0
     for _ in range(20):
         random_joint_state(m, d, rng, velocity_scale=2.0)
         d.time += p.dt
         mujoco.mj_forward(m, d)
         p.step(d)
         ids = sched.last_selected
-        evaluated += ids.size
         c, v = p.sphere_states(d)
-        expected = p.pair_set.tau(ids, c, v, p.halfspaces(d))
-        np.testing.assert_allclose(sched.last_tau[ids], expected, rtol=1e-12, atol=1e-15)
+        yield p, ids, sched.last_tau[ids], p.pair_set.tau(ids, c, v, p.halfspaces(d))
+
+
+def test_fused_step_round_trips_the_pair_sets_tau(site_model) -> None:
+    """The fused ``step`` computes the same tau as ``pair_set.tau`` on ``sphere_states``: a round
+    trip of the pair records and the gathered states through the runtime's two entries (both run
+    the same kernels, so it cannot catch a wrong tau: tests/test_reference_step.py can)."""
+    halfspace_pairs_seen = evaluated = 0
+    for p, ids, got, expected in _fused_and_row_taus(site_model, 1.0, 3):
+        evaluated += ids.size
+        np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15)
         halfspace_pairs_seen += int(p.pair_set.halfspace[ids].sum())
     assert evaluated > 20
     assert halfspace_pairs_seen > 0
+
+
+@pytest.mark.parametrize("accel", [1.0, 0.0])
+def test_fused_steps_sphere_lanes_are_the_row_kernels_bit_for_bit(site_model, accel) -> None:
+    """The fused step hands the kernel each sphere pair's two rows in place, its lanes taking the
+    relative state's differences (TauSpeedFourPairs); ``pair_set.tau`` gathers rows of ten from
+    ``sphere_states`` (TauSpeedFour). The same operations in the same order: the same bits, on
+    the lanes' common path (accel 1) and on every lane's scalar fallback (accel 0: h = 0), in
+    groups of four and a ragged last one."""
+    compared = 0
+    for p, ids, got, expected in _fused_and_row_taus(site_model, accel, 11, ragged=True):
+        spheres = p.pair_set.kind[ids] == 0
+        assert int(spheres.sum()) % 4 != 0
+        np.testing.assert_array_equal(got[spheres], expected[spheres])
+        compared += int(spheres.sum())
+    assert compared > 20
 
 
 def _quat_exp(omega_t: np.ndarray) -> np.ndarray:

@@ -52,6 +52,18 @@ double TauSpeed(double x0, double x1, double x2, double v0, double v1, double v2
 void TauSpeedRows(int64_t n, const double* rows, int64_t stride, double* out, int64_t out_stride);
 // TauSpeed of rows r[0:m] (m <= 4; the rest repeat a row, as padding) into out[k * out_stride].
 void TauSpeedFour(const double r[kLanes][10], int m, double* out, int64_t out_stride);
+// TauSpeed of four sphere pairs, in lanes (the AVX2 clone where the CPU has it): pair k's state
+// sj[k] - si[k] (each sphere's centre and velocity, 6 numbers, the subtraction taken in the
+// lanes), its eps, accel, delta and speed from its pair record rec[k] (the same values as
+// TauSpeedFour of those rows). Lane k's tau goes to out[at[k]], each of the four (a padding lane
+// repeats a pair, so it writes that pair's value); returns the lanes below m the lanes did not
+// settle (bit k), whose out[at[k]] TauSpeedFourPairsLeft then writes, from *ts and *speed_on.
+int TauSpeedFourPairs(const double* const si[kLanes], const double* const sj[kLanes],
+                      const double* const rec[kLanes], int m, double* out, const int64_t at[kLanes],
+                      double ts[kLanes], int* speed_on);
+void TauSpeedFourPairsLeft(const double* const si[kLanes], const double* const sj[kLanes],
+                           const double* const rec[kLanes], int left, double* out,
+                           const int64_t at[kLanes], const double ts[kLanes], int speed_on);
 // A lower bound on TauAccel's first root from the two norms |x| and |v| alone (docs/theory.md,
 // section 6, "Settling a made-due pair", Lemma 6.8): cover (1 + 1e-12) where the bound covers
 // `cover` seconds (cover > 0; found without the root), else the bound itself, or -inf where it

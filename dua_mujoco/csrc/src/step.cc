@@ -748,8 +748,8 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
                             const int64_t* ids, int64_t count, double* out,
                             const uint8_t* skip = nullptr) {
   // Up to four sphere pairs' rows as TauSpeedFour reads them (relative state, then bounds), and
-  // where each goes in out: passed to the kernel straight from here, not through a buffer of
-  // every row (each row written, read back and copied again was a third of the gather).
+  // where each goes in out (FreePoints: their states are copies): passed to the kernel straight
+  // from here, not through a buffer of every row.
   double quad[kLanes][10];
   int64_t at[kLanes];
   int nq = 0;
@@ -759,6 +759,24 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
     TauSpeedFour(quad, nq, tau, 1);
     for (int k = 0; k < nq; ++k) out[at[k]] = tau[k];
     nq = 0;
+  };
+  // Read in place (FramePoints): up to four sphere pairs' two rows and records, and where each
+  // goes in out; the kernel takes the relative state's differences itself, in its lanes (the
+  // same subtractions), so no row of ten is written here and read back there.
+  const double* pi[kLanes];
+  const double* pj[kLanes];
+  const double* pr[kLanes];
+  int64_t pat[kLanes];
+  int np = 0;
+  auto flush_pairs = [&] {
+    for (int k = np; k < kLanes; ++k) {
+      pi[k] = pi[np - 1], pj[k] = pj[np - 1], pr[k] = pr[np - 1], pat[k] = pat[np - 1];
+    }
+    double ts[kLanes];
+    int speed_on;
+    const int left = TauSpeedFourPairs(pi, pj, pr, np, out, pat, ts, &speed_on);
+    if (left != 0) TauSpeedFourPairsLeft(pi, pj, pr, left, out, pat, ts, speed_on);
+    np = 0;
   };
   for (int64_t k = 0; k < count; ++k) {
     const double* rec = pairs + ids[k] * kPairNcol;
@@ -777,12 +795,9 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
           if (!std::isfinite(total)) return k;
         }
         if (skip != nullptr && skip[k]) continue;
-        double* row = quad[nq];
-        for (int j = 0; j < 6; ++j) row[j] = sj[j] - si[j];
-        row[6] = rec[kPairEps], row[7] = rec[kPairAccel], row[8] = rec[kPairDelta];
-        row[9] = rec[kPairSpeed];
-        at[nq++] = k;
-        if (nq == kLanes) flush();
+        pi[np] = si, pj[np] = sj, pr[np] = rec;
+        pat[np++] = k;
+        if (np == kLanes) flush_pairs();
         continue;
       }
     }
@@ -822,6 +837,7 @@ DUA_SECTION int64_t TauRows(const double* pairs, const double* shapes, const Poi
     }
   }
   if (nq > 0) flush();
+  if (np > 0) flush_pairs();
   return -1;
 }
 

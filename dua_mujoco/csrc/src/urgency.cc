@@ -3,6 +3,7 @@
 // say which step of it a line carries out.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "dua/dua.h"
@@ -86,9 +87,11 @@ double RefineSafe(const double x[3], const double v[3], double e, double d, doub
 }
 
 // Halley on the expanded quartic, from hi: a guess at the root in [lo, hi], cheap (no square
-// roots) and only a guess (Certify decides). Lanes that stop keep their t.
+// roots) and only a guess (Certify decides). Lanes that stop keep their t. Always inlined: with
+// two lane callers GCC would otherwise keep one copy out of line, compiled without AVX, and the
+// AVX2 clones would pass it their vectors as it does not read them.
 template <class T>
-T HalleyGuess(const T x[3], const T v[3], T e, T d, T h, T lo, T hi, MaskOf<T> run) {
+DUA_INLINE T HalleyGuess(const T x[3], const T v[3], T e, T d, T h, T lo, T hi, MaskOf<T> run) {
   const T a = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
   const T b = x[0] * v[0] + x[1] * v[1] + x[2] * v[2];
   const T c = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
@@ -272,23 +275,17 @@ double WithSpeed(double tau, double x0, double x1, double x2, double v0, double 
 
 // TauAccel's common path, four pairs at once: h > 0, no interior minimum, the closed-form upper
 // end brackets the root, the guess is certified. The lanes it settles (the returned mask) hold
-// TauSpeed's value bit for bit in tau (TauAccel's, the same operations in the same order, then
+// TauSpeed's value bit for bit in *tau (TauAccel's, the same operations in the same order, then
 // WithSpeedTerm's, in lanes); the rest are TauAccel's to compute. Also WithSpeed's term of every
-// lane, from the same norms: ts[k], and bit k of *speed_on where it applies (a finite speed
-// bound the measured speed keeps).
-DUA_LANES_CLONES
-int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLanes],
-                  int* speed_on) {
-  Lanes x[3], v[3], eps, accel, delta, speed;
-  for (int k = 0; k < kLanes; ++k) {
-    for (int j = 0; j < 3; ++j) x[j][k] = r[k][j], v[j][k] = r[k][3 + j];
-    eps[k] = r[k][6], accel[k] = r[k][7], delta[k] = r[k][8], speed[k] = r[k][9];
-  }
+// lane, from the same norms: *ts, and bit k of *speed_on where it applies (a finite speed bound
+// the measured speed keeps). Inlined into its two loaders below (their AVX2 clones).
+DUA_INLINE int AccelLanes(const Lanes x[3], const Lanes v[3], Lanes eps, Lanes accel, Lanes delta,
+                          Lanes speed, Lanes* tau, Lanes* ts, int* speed_on) {
   const Inflated<Lanes> p = Inflate(x, v, eps, accel, delta);
   // WithSpeed's term (p.nx and p.nv are its norms, bit for bit).
   const LaneMask on = SpeedApplies(p.nv, speed);
   const Lanes term = SpeedTerm(p.nx, eps, speed);
-  for (int k = 0; k < kLanes; ++k) ts[k] = term[k];
+  *ts = term;
   *speed_on = Bits(on);
   const LaneMask inside = p.nx - p.e <= 0.0;  // tau = 0
   LaneMask ok = AndNot(p.h > 0.0, Underflows(MaxAbs(v)));
@@ -305,12 +302,77 @@ int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLan
   }
   ok = ok | inside;
   // WithSpeedTerm in lanes (std::max(a, b) is Max(a, b): a unless a < b).
-  out = Select(And(on, out > 0.0), Max(out, term), out);
-  for (int k = 0; k < kLanes; ++k) tau[k] = out[k];
+  *tau = Select(And(on, out > 0.0), Max(out, term), out);
   return Bits(ok);
 }
 
+// AccelLanes of four rows {x0, x1, x2, v0, v1, v2, eps, accel, delta, speed}.
+DUA_LANES_CLONES
+int TauAccelLanes(const double r[kLanes][10], double tau[kLanes], double ts[kLanes],
+                  int* speed_on) {
+  Lanes x[3], v[3], eps, accel, delta, speed;
+  for (int k = 0; k < kLanes; ++k) {
+    for (int j = 0; j < 3; ++j) x[j][k] = r[k][j], v[j][k] = r[k][3 + j];
+    eps[k] = r[k][6], accel[k] = r[k][7], delta[k] = r[k][8], speed[k] = r[k][9];
+  }
+  Lanes out, term;
+  const int done = AccelLanes(x, v, eps, accel, delta, speed, &out, &term, speed_on);
+  for (int k = 0; k < kLanes; ++k) tau[k] = out[k], ts[k] = term[k];
+  return done;
+}
+
 }  // namespace
+
+// AccelLanes of four sphere pairs read in place (internal.h). The bounds, four consecutive
+// numbers of each record, come as four vectors transposed; the spheres' rows element by element
+// (a row may have been written just before, as six numbers: a vector read of them would wait
+// for the stores).
+DUA_LANES_CLONES
+int TauSpeedFourPairs(const double* const si[kLanes], const double* const sj[kLanes],
+                      const double* const rec[kLanes], int m, double* out, const int64_t at[kLanes],
+                      double ts[kLanes], int* speed_on) {
+  static_assert(
+      kPairAccel == kPairEps + 1 && kPairDelta == kPairEps + 2 && kPairSpeed == kPairEps + 3,
+      "the bounds are four consecutive columns of a pair record");
+  Lanes x[3], v[3];
+  for (int j = 0; j < 3; ++j) {
+    x[j] = Lanes{sj[0][j], sj[1][j], sj[2][j], sj[3][j]} -
+           Lanes{si[0][j], si[1][j], si[2][j], si[3][j]};
+    v[j] = Lanes{sj[0][3 + j], sj[1][3 + j], sj[2][3 + j], sj[3][3 + j]} -
+           Lanes{si[0][3 + j], si[1][3 + j], si[2][3 + j], si[3][3 + j]};
+  }
+  // Each record's four bounds as one vector read (not through a copy on the stack).
+  using At = double __attribute__((vector_size(8 * kLanes), aligned(8), may_alias));
+  const Lanes r0 = *reinterpret_cast<const At*>(rec[0] + kPairEps);
+  const Lanes r1 = *reinterpret_cast<const At*>(rec[1] + kPairEps);
+  const Lanes r2 = *reinterpret_cast<const At*>(rec[2] + kPairEps);
+  const Lanes r3 = *reinterpret_cast<const At*>(rec[3] + kPairEps);
+  const Lanes lo01 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);
+  const Lanes hi01 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
+  const Lanes lo23 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
+  const Lanes hi23 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
+  const Lanes eps = __builtin_shufflevector(lo01, lo23, 0, 1, 4, 5);
+  const Lanes accel = __builtin_shufflevector(hi01, hi23, 0, 1, 4, 5);
+  const Lanes delta = __builtin_shufflevector(lo01, lo23, 2, 3, 6, 7);
+  const Lanes speed = __builtin_shufflevector(hi01, hi23, 2, 3, 6, 7);
+  Lanes tau, term;
+  const int done = AccelLanes(x, v, eps, accel, delta, speed, &tau, &term, speed_on);
+  std::memcpy(ts, &term, sizeof(Lanes));
+  for (int k = 0; k < kLanes; ++k) out[at[k]] = tau[k];
+  return ~done & ((1 << m) - 1);
+}
+
+void TauSpeedFourPairsLeft(const double* const si[kLanes], const double* const sj[kLanes],
+                           const double* const rec[kLanes], int left, double* out,
+                           const int64_t at[kLanes], const double ts[kLanes], int speed_on) {
+  for (int k = 0; k < kLanes; ++k) {
+    if (((left >> k) & 1) == 0) continue;
+    const double *a = si[k], *b = sj[k], *q = rec[k];
+    const double t = TauAccel(b[0] - a[0], b[1] - a[1], b[2] - a[2], b[3] - a[3], b[4] - a[4],
+                              b[5] - a[5], q[kPairEps], q[kPairAccel], q[kPairDelta]);
+    out[at[k]] = WithSpeedTerm(t, (speed_on >> k) & 1, ts[k]);
+  }
+}
 
 double WithGapSpeed(double tau, double gap, double now, double bound) {
   if (bound < kInf && gap > 0.0 && now <= bound && tau > 0.0) {
