@@ -165,6 +165,16 @@ MUTANTS: tuple[Mutant, ...] = (
         "uncertified guess) keep whatever tau the wheel's work row held: no scalar fallback",
     ),
     Mutant(
+        "lane-pairs-written-in-lane-order",
+        _URGENCY,
+        "for (int k = 0; k < kLanes; ++k) out[at[k]] = tau[k];",
+        "for (int k = 0; k < kLanes; ++k) out[at[0] + k] = tau[k];",
+        ("tests/test_predictor.py::test_fused_steps_sphere_lanes_write_each_pairs_own_place",),
+        "the step's four sphere pairs' taus written to the four places from the first one's, not "
+        "the pairs' own: where a half-space pair sits inside the group, it and the pairs after "
+        "take another's tau",
+    ),
+    Mutant(
         "lane-pairs-padding-written-over-the-first",
         _STEP,
         "pr[k] = pr[np - 1], pat[k] = pat[np - 1];",

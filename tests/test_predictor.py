@@ -232,6 +232,38 @@ def test_fused_steps_sphere_lanes_are_the_row_kernels_bit_for_bit(site_model, ac
     assert compared > 20
 
 
+# A plane on a body declared between two free bodies: its geom id falls between theirs, so the
+# half-space pairs of the later body sit among the sphere pairs in pair order.
+_INTERLEAVED_PLANE = """
+<mujoco><worldbody>
+  <body name="a"><freejoint/><geom type="capsule" size=".05 .2"/>
+    <geom type="sphere" size=".1" pos=".3 0 0"/></body>
+  <body name="floor"><geom type="plane" size="5 5 .1" pos="0 0 -1"/></body>
+  <body name="b" pos="1 0 0"><freejoint/><geom type="box" size=".1 .1 .1"/>
+    <geom type="capsule" size=".05 .2" pos="0 .3 0"/></body>
+</worldbody></mujoco>
+"""
+
+
+@pytest.mark.parametrize("accel", [1.0, 0.0])
+def test_fused_steps_sphere_lanes_write_each_pairs_own_place(accel) -> None:
+    """Where a half-space pair sits inside a group of four sphere pairs in the step's selection,
+    the group's places are not contiguous: each lane's tau goes to its own pair's place (held bit
+    for bit to the row kernel, as above), not to the places after the group's first."""
+    m = mujoco.MjModel.from_xml_string(_INTERLEAVED_PLANE)
+    straddled = compared = 0
+    # The first sphere pair switched off: the sphere pairs before the plane's no longer fill
+    # whole groups, so one group takes pairs from both sides of it.
+    for p, ids, got, expected in _fused_and_row_taus(m, accel, 5, ragged=True):
+        spheres = p.pair_set.kind[ids] == 0
+        at = np.flatnonzero(spheres)
+        groups = at[: at.size // 4 * 4].reshape(-1, 4)
+        straddled += int((groups[:, 3] - groups[:, 0] > 3).sum())
+        np.testing.assert_array_equal(got[spheres], expected[spheres])
+        compared += int(spheres.sum())
+    assert straddled > 0 and compared > 20
+
+
 def _quat_exp(omega_t: np.ndarray) -> np.ndarray:
     q = np.zeros(4)
     mujoco.mju_axisAngle2Quat(
