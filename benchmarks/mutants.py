@@ -726,8 +726,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-knots-never-computed",
         _PLAN,
-        "  if (!kq.empty()) {",
-        "  if (false) {",
+        "    while (done < kat.size() && kat[done] <= j) {",
+        "    while (false && done < kat.size() && kat[done] <= j) {",
         (
             "tests/test_knot_kinematics.py::test_a_plans_knots_are_mujocos_poses",
             "tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break",
@@ -751,6 +751,29 @@ MUTANTS: tuple[Mutant, ...] = (
         (_KNOTS,),
         "a plan's kinematics take a body without joints welded to a moving one for a still one "
         "(its frame computed once): poses off wherever its parent moves",
+    ),
+    Mutant(
+        "plan-knots-computed-after-their-sweep",
+        _PLAN,
+        "    while (done < kat.size() && kat[done] <= j) {",
+        "    while (done < kat.size() && kat[done] < j) {",
+        (
+            "tests/test_knot_kinematics.py::test_a_plans_knots_are_mujocos_poses",
+            "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
+        ),
+        "set_plan's sweeps read a knot's poses before the kinematics computes them (the knots "
+        "computed a batch at a time as the sweeps reach them, one knot late)",
+    ),
+    Mutant(
+        "plan-relative-poses-block-end-skipped",
+        _PLAN,
+        "      for (int64_t k = k0; k < k1; ++k, o += 12) {",
+        "      for (int64_t k = k0; k < k1 - 1; ++k, o += 12) {",
+        (
+            f"{_RELATIVE}::test_relative_poses_at_every_knot_of_plans_of_changing_sizes_are_the_runs",
+        ),
+        "the relative poses, computed a block of knots at a time, skip each block's last knot "
+        "(its poses left as the recycled buffer had them)",
     ),
     Mutant(
         "plan-sweep-step-taken-once-for-moving-geoms",

@@ -766,9 +766,11 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
                                                                     : nullptr);
   KnotKinematics* km = !own ? nullptr : kinematics != nullptr ? kinematics : mine.get();
   int64_t computed = -1;  // the last knot computed
-  // The knots KnotKinematics computes, gathered for RunKnots (four at a time in lanes).
+  // The knots KnotKinematics computes, gathered for RunKnots (four at a time in lanes), and
+  // their indices.
   std::vector<const double*> kq, kmp, kmq;
   std::vector<double*> kpos, kmat;
+  std::vector<int64_t> kat;
   for (int64_t j = 0; j < n; ++j) {
     double* pj = pos_.data() + 3 * nslot_ * j;
     double* rj = mat_.data() + 9 * nslot_ * j;
@@ -783,6 +785,7 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
       kmp.push_back(mocap ? in.mocap_pos + 3 * nmocap * j : s->mocap_pos);
       kmq.push_back(mocap ? in.mocap_quat + 4 * nmocap * j : s->mocap_quat);
       kpos.push_back(pj), kmat.push_back(rj);
+      kat.push_back(j);
       computed = j;
     } else {
       std::copy_n(qpos_.data() + nq * j, nq, s->qpos);
@@ -797,10 +800,6 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
       }
     }
   }
-  if (!kq.empty()) {
-    km->RunKnots(static_cast<int64_t>(kq.size()), kq.data(), kmp.data(), kmq.data(), kpos.data(),
-                 kmat.data());
-  }
   if (mocap && computed >= 0) {
     // The scratch's mocap poses as mj_kinematics on it would have left them (the last knot
     // computed): a later plan without mocap poses reads them for the mocap bodies it does not
@@ -808,12 +807,25 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     std::copy_n(in.mocap_pos + 3 * nmocap * computed, 3 * nmocap, s->mocap_pos);
     std::copy_n(in.mocap_quat + 4 * nmocap * computed, 4 * nmocap, s->mocap_quat);
   }
+  // The knots gathered are computed as Finish's sweeps reach them, a lanes' batch at a time
+  // (each knot's poses then read by its sweep while they are in the cache: computed all first,
+  // they were read again from farther out). The same poses: RunKnots' are Run's, bit for bit,
+  // however the knots are batched.
+  size_t done = 0;  // the knots gathered computed so far
+  const auto ready = [&](int64_t j) {
+    while (done < kat.size() && kat[done] <= j) {
+      const size_t count = std::min<size_t>(kLanes, kat.size() - done);
+      km->RunKnots(static_cast<int64_t>(count), kq.data() + done, kmp.data() + done,
+                   kmq.data() + done, kpos.data() + done, kmat.data() + done);
+      done += count;
+    }
+  };
   // A geom on a static body has the same pose at every knot (mj_kinematics reads no qpos or
   // mocap pose for it, and a copied knot is one it computed): its sweep's step too.
   std::vector<uint8_t> still(static_cast<size_t>(nslot_));
   for (int64_t c = 0; c < nslot_; ++c) still[c] = fixed[m->geom_bodyid[geoms[c]]];
   why = Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
-               std::move(fixed), &still);
+               std::move(fixed), &still, ready);
   if (!why.empty()) return why;
   // Where min(D_a + D_b, D_ab) rises over the knots, as the sum's own rises_ (a min of two
   // non-decreasing sequences is one; the walk's search needs only the min).
@@ -927,7 +939,12 @@ std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, cons
 std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
                          const double* deviation, double start, double h, const double* spheres,
                          int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed,
-                         const std::vector<uint8_t>* still) {
+                         const std::vector<uint8_t>* still,
+                         const std::function<void(int64_t)>& ready) {
+  // Knot j's poses (and every earlier knot's) in place before they are read.
+  const auto need = [&](int64_t j) {
+    if (ready) ready(j);
+  };
   const int64_t ngeom = m->ngeom, nbody = m->nbody;
   // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
   // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
@@ -963,6 +980,7 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
     return "";
   };
   if (n > 0) {
+    need(n > 1 ? 1 : 0);
     std::string why = unfinite(0);
     if (!why.empty()) return why;
     std::fill_n(sweep_.data(), nslot_, 0.0);
@@ -989,6 +1007,7 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
     }
   }
   for (int64_t j = 1; j < n; ++j) {
+    need(j);
     const double* pj = pos_.data() + 3 * nslot_ * j;
     const double* rj = mat_.data() + 9 * nslot_ * j;
     double* sw = sweep_.data() + nslot_ * j;
@@ -1108,14 +1127,30 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
 
 namespace {
 
-// RelativePose at n knots, the two frames' poses a knot's stride apart (3 sp, 9 sp), into out
-// (12 a knot): the same function at each, in an AVX2 clone where the CPU has one (no
+// The relative poses of `count` pairs at n knots, a block of knots at a time (the block's poses,
+// about 16 kB, read while they are in the cache, once for every pair, and each pair's poses
+// written a few lines at a time; pair by pair over every knot they were read again for each
+// pair, most of SetRelativeFrames' cache misses): pair i's frames are slots sa[i] and sb[i] of
+// each knot's poses (pos 3 nslot and mat 9 nslot a knot), its poses to out + 12 (n r[i] + k).
+// The same function at each (pair, knot), in an AVX2 clone where the CPU has one (no
 // contraction, no reordering: the same bits).
-DUA_LANES_CLONES void RelativePoses(const double* pa, const double* ra, const double* pb,
-                                    const double* rb, int64_t sp, int64_t n, double* out) {
-  for (int64_t k = 0; k < n; ++k, out += 12) {
-    RelativePose(pa, ra, pb, rb, out, out + 3);
-    pa += 3 * sp, pb += 3 * sp, ra += 9 * sp, rb += 9 * sp;
+DUA_LANES_CLONES void RelativePoses(const double* pos, const double* mat, int64_t nslot, int64_t n,
+                                    const int64_t* sa, const int64_t* sb, const int64_t* r,
+                                    int64_t count, double* out) {
+  const int64_t block = std::clamp<int64_t>(16384 / (96 * std::max<int64_t>(nslot, 1)), 1, 16);
+  for (int64_t k0 = 0; k0 < n; k0 += block) {
+    const int64_t k1 = std::min(n, k0 + block);
+    for (int64_t i = 0; i < count; ++i) {
+      const double* pa = pos + 3 * (nslot * k0 + sa[i]);
+      const double* ra = mat + 9 * (nslot * k0 + sa[i]);
+      const double* pb = pos + 3 * (nslot * k0 + sb[i]);
+      const double* rb = mat + 9 * (nslot * k0 + sb[i]);
+      double* o = out + 12 * (n * r[i] + k0);
+      for (int64_t k = k0; k < k1; ++k, o += 12) {
+        RelativePose(pa, ra, pb, rb, o, o + 3);
+        pa += 3 * nslot, pb += 3 * nslot, ra += 9 * nslot, rb += 9 * nslot;
+      }
+    }
   }
 }
 
@@ -1128,20 +1163,22 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
   rel_reach_.reserve(static_cast<size_t>(nr));
   rel_ga_.assign(nr, -1), rel_gb_.assign(nr, -1);
   rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : Buffer(12 * nknot_ * nr);
+  std::vector<int64_t> sa, sb, kept;  // the pairs whose two frames are kept, their slots
   for (int64_t r = 0; r < nr; ++r) {
     rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
     rel_reach_.emplace_back(rel_box_[r]);
     rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
     rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
     const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
-    double* out = rel_pose_.data() + 12 * nknot_ * r;
     if (slot_[ga] < 0 || slot_[gb] < 0) {  // a frame not kept: not a number, as pos() reads it
+      double* out = rel_pose_.data() + 12 * nknot_ * r;
       std::fill(out, out + 12 * nknot_, std::nan(""));
       continue;
     }
-    // Knot by knot, the two frames' columns a knot's stride apart (pos(k, g), mat(k, g)).
-    RelativePoses(pos(0, ga), mat(0, ga), pos(0, gb), mat(0, gb), nslot_, nknot_, out);
+    sa.push_back(slot_[ga]), sb.push_back(slot_[gb]), kept.push_back(r);
   }
+  RelativePoses(pos_.data(), mat_.data(), nslot_, nknot_, sa.data(), sb.data(), kept.data(),
+                static_cast<int64_t>(kept.size()), rel_pose_.data());
 }
 
 DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t jn,
