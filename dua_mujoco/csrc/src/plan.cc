@@ -826,25 +826,12 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
   for (int64_t c = 0; c < nslot_; ++c) still[c] = fixed[m->geom_bodyid[geoms[c]]];
   why = Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
                std::move(fixed), &still, ready);
-  if (!why.empty()) return why;
-  // Where min(D_a + D_b, D_ab) rises over the knots, as the sum's own rises_ (a min of two
-  // non-decreasing sequences is one; the walk's search needs only the min).
-  const int64_t nr = nrel();
-  rel_rises_.assign(nr, 1);
-  double last = 0.0;
-  for (int64_t r = 0; r < nr; ++r) {
-    for (int64_t j = 0; j < n; ++j) {
-      const double now = std::min(dev(j, rel_a(r)) + dev(j, rel_b(r)), rel_dev(j, r));
-      if (j > 0 && now < last) rel_rises_[r] = 0;
-      last = now;
-    }
-  }
-  return "";
+  return why;
 }
 
 std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
                            const std::vector<uint8_t>& holds) {
-  rel_key_.clear(), rel_dev_.clear();
+  rel_key_.clear(), rel_dev_.clear(), rel_rises_.clear();
   if (in.nrel == 0) return "";
   const int64_t nbody = m->nbody, n = in.n;
   if (in.nrel < 0 || in.relative_bodies == nullptr || in.relative_deviation == nullptr) {
@@ -891,10 +878,27 @@ std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
   }
   rel_key_.resize(nr);
   rel_dev_.resize(n * nr);
-  for (int64_t c = 0; c < nr; ++c) {
-    rel_key_[c] = order[c].first;
-    for (int64_t j = 0; j < n; ++j)
-      rel_dev_[n * c + j] = in.relative_deviation[nr * j + order[c].second];
+  for (int64_t c = 0; c < nr; ++c) rel_key_[c] = order[c].first;
+  // Pair by pair (the caller gives them knot by knot), a block of 8 knots at a time (each
+  // pair's column then written a cache line at a time, the block's rows read while they are in
+  // the cache; a column over every knot read a row's line a knot); and where min(D_a + D_b,
+  // D_ab) rises over the knots, as the sum's own rises_ (a min of two non-decreasing sequences
+  // is one; the walk's search needs only the min). D_a and D_b as given: the plan's own
+  // deviations (Finish) are those of the bodies it holds, which a pair's two are.
+  rel_rises_.assign(nr, 1);
+  std::vector<double> last(static_cast<size_t>(nr), 0.0);
+  for (int64_t j0 = 0; j0 < n; j0 += 8) {
+    const int64_t j1 = std::min<int64_t>(n, j0 + 8);
+    for (int64_t c = 0; c < nr; ++c) {
+      const int64_t col = order[c].second, a = rel_a(c), b = rel_b(c);
+      for (int64_t j = j0; j < j1; ++j) {
+        const double v = in.relative_deviation[nr * j + col];
+        rel_dev_[n * c + j] = v;
+        const double now = std::min(in.deviation[nbody * j + a] + in.deviation[nbody * j + b], v);
+        if (j > 0 && now < last[c]) rel_rises_[c] = 0;
+        last[c] = now;
+      }
+    }
   }
   return "";
 }
@@ -1127,17 +1131,16 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
 
 namespace {
 
-// The relative poses of `count` pairs at n knots, a block of knots at a time (the block's poses,
-// about 16 kB, read while they are in the cache, once for every pair, and each pair's poses
-// written a few lines at a time; pair by pair over every knot they were read again for each
-// pair, most of SetRelativeFrames' cache misses): pair i's frames are slots sa[i] and sb[i] of
-// each knot's poses (pos 3 nslot and mat 9 nslot a knot), its poses to out + 12 (n r[i] + k).
-// The same function at each (pair, knot), in an AVX2 clone where the CPU has one (no
-// contraction, no reordering: the same bits).
+// The relative poses of `count` pairs at n knots, `block` knots at a time (the block's frames
+// read while they are in the cache, once for every pair, and each pair's poses written a few
+// lines at a time; pair by pair over every knot they were read again for each pair, most of
+// SetRelativeFrames' cache misses): pair i's frames are slots sa[i] and sb[i] of each knot's
+// poses (pos 3 nslot and mat 9 nslot a knot), its poses to out + 12 (n r[i] + k). The same
+// function at each (pair, knot), in an AVX2 clone where the CPU has one (no contraction, no
+// reordering: the same bits).
 DUA_LANES_CLONES void RelativePoses(const double* pos, const double* mat, int64_t nslot, int64_t n,
                                     const int64_t* sa, const int64_t* sb, const int64_t* r,
-                                    int64_t count, double* out) {
-  const int64_t block = std::clamp<int64_t>(16384 / (96 * std::max<int64_t>(nslot, 1)), 1, 16);
+                                    int64_t count, int64_t block, double* out) {
   for (int64_t k0 = 0; k0 < n; k0 += block) {
     const int64_t k1 = std::min(n, k0 + block);
     for (int64_t i = 0; i < count; ++i) {
@@ -1177,8 +1180,15 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
     }
     sa.push_back(slot_[ga]), sb.push_back(slot_[gb]), kept.push_back(r);
   }
+  // A block's frames about 16 kB (a frame's pose touches two or three cache lines a knot), and
+  // at least 4 knots (each pair's start of a block costs its pointers).
+  std::vector<int64_t> used(sa);
+  used.insert(used.end(), sb.begin(), sb.end());
+  std::sort(used.begin(), used.end());
+  const auto frames = std::unique(used.begin(), used.end()) - used.begin();
+  const int64_t block = std::clamp<int64_t>(16384 / (160 * std::max<int64_t>(frames, 1)), 4, 32);
   RelativePoses(pos_.data(), mat_.data(), nslot_, nknot_, sa.data(), sb.data(), kept.data(),
-                static_cast<int64_t>(kept.size()), rel_pose_.data());
+                static_cast<int64_t>(kept.size()), block, rel_pose_.data());
 }
 
 DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t jn,
