@@ -776,6 +776,15 @@ MUTANTS: tuple[Mutant, ...] = (
         "(its poses left as the recycled buffer had them)",
     ),
     Mutant(
+        "plan-relative-rises-never-cleared",
+        _PLAN,
+        "        if (j > 0 && now < last[c]) rel_rises_[c] = 0;",
+        "        if (false && j > 0 && now < last[c]) rel_rises_[c] = 0;",
+        (f"{_RELATIVE}::test_a_relative_deviation_that_falls_is_not_searched_past",),
+        "a relative pair's min(D_a + D_b, D_ab) taken for rising over the knots where it falls: "
+        "the walk's search skips knots the carried gap does not clear",
+    ),
+    Mutant(
         "plan-sweep-step-taken-once-for-moving-geoms",
         _PLAN,
         "for (int64_t c = 0; c < nslot_; ++c) still[c] = fixed[m->geom_bodyid[geoms[c]]];",
