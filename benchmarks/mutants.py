@@ -765,17 +765,6 @@ MUTANTS: tuple[Mutant, ...] = (
         "computed a batch at a time as the sweeps reach them, one knot late)",
     ),
     Mutant(
-        "plan-relative-poses-block-end-skipped",
-        _PLAN,
-        "      for (int64_t k = k0; k < k1; ++k, o += 12) {",
-        "      for (int64_t k = k0; k < k1 - 1; ++k, o += 12) {",
-        (
-            f"{_RELATIVE}::test_relative_poses_at_every_knot_of_plans_of_changing_sizes_are_the_runs",
-        ),
-        "the relative poses, computed a block of knots at a time, skip each block's last knot "
-        "(its poses left as the recycled buffer had them)",
-    ),
-    Mutant(
         "plan-relative-rises-never-cleared",
         _PLAN,
         "        if (j > 0 && now < last[c]) rel_rises_[c] = 0;",

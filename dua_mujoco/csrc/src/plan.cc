@@ -1131,29 +1131,16 @@ void Plan::Check(const double* pos, const double* mat, int64_t k, const double* 
 
 namespace {
 
-// The relative poses of `count` pairs at n knots, `block` knots at a time (the block's frames
-// read while they are in the cache, once for every pair, and each pair's poses written a few
-// lines at a time; pair by pair over every knot they were read again for each pair, most of
-// SetRelativeFrames' cache misses): pair i's frames are slots sa[i] and sb[i] of each knot's
-// poses (pos 3 nslot and mat 9 nslot a knot), its poses to out + 12 (n r[i] + k). The same
-// function at each (pair, knot), in an AVX2 clone where the CPU has one (no contraction, no
-// reordering: the same bits).
-DUA_LANES_CLONES void RelativePoses(const double* pos, const double* mat, int64_t nslot, int64_t n,
-                                    const int64_t* sa, const int64_t* sb, const int64_t* r,
-                                    int64_t count, int64_t block, double* out) {
-  for (int64_t k0 = 0; k0 < n; k0 += block) {
-    const int64_t k1 = std::min(n, k0 + block);
-    for (int64_t i = 0; i < count; ++i) {
-      const double* pa = pos + 3 * (nslot * k0 + sa[i]);
-      const double* ra = mat + 9 * (nslot * k0 + sa[i]);
-      const double* pb = pos + 3 * (nslot * k0 + sb[i]);
-      const double* rb = mat + 9 * (nslot * k0 + sb[i]);
-      double* o = out + 12 * (n * r[i] + k0);
-      for (int64_t k = k0; k < k1; ++k, o += 12) {
-        RelativePose(pa, ra, pb, rb, o, o + 3);
-        pa += 3 * nslot, pb += 3 * nslot, ra += 9 * nslot, rb += 9 * nslot;
-      }
-    }
+// RelativePose at n knots, the two frames' poses a knot's stride apart (3 sp, 9 sp), into out
+// (12 a knot): the same function at each, in an AVX2 clone where the CPU has one (no
+// contraction, no reordering: the same bits). (A pair's poses a block of knots at a time for
+// every pair, the block's frames read while in the cache, cut SetRelativeFrames' first-level
+// read misses 94 % on g1 but took 55 % more instructions: not kept, docs/benchmarks.md.)
+DUA_LANES_CLONES void RelativePoses(const double* pa, const double* ra, const double* pb,
+                                    const double* rb, int64_t sp, int64_t n, double* out) {
+  for (int64_t k = 0; k < n; ++k, out += 12) {
+    RelativePose(pa, ra, pb, rb, out, out + 3);
+    pa += 3 * sp, pb += 3 * sp, ra += 9 * sp, rb += 9 * sp;
   }
 }
 
@@ -1166,29 +1153,20 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
   rel_reach_.reserve(static_cast<size_t>(nr));
   rel_ga_.assign(nr, -1), rel_gb_.assign(nr, -1);
   rel_pose_ = pool_ ? pool_->Take(12 * nknot_ * nr) : Buffer(12 * nknot_ * nr);
-  std::vector<int64_t> sa, sb, kept;  // the pairs whose two frames are kept, their slots
   for (int64_t r = 0; r < nr; ++r) {
     rel_box_[r] = boxes + row[rel_b(r)] * kBNcol;
     rel_reach_.emplace_back(rel_box_[r]);
     rel_ga_[r] = static_cast<int64_t>(boxes[row[rel_a(r)] * kBNcol + kBFrame]);
     rel_gb_[r] = static_cast<int64_t>(rel_box_[r][kBFrame]);
     const int64_t ga = rel_ga_[r], gb = rel_gb_[r];
+    double* out = rel_pose_.data() + 12 * nknot_ * r;
     if (slot_[ga] < 0 || slot_[gb] < 0) {  // a frame not kept: not a number, as pos() reads it
-      double* out = rel_pose_.data() + 12 * nknot_ * r;
       std::fill(out, out + 12 * nknot_, std::nan(""));
       continue;
     }
-    sa.push_back(slot_[ga]), sb.push_back(slot_[gb]), kept.push_back(r);
+    // Knot by knot, the two frames' columns a knot's stride apart (pos(k, g), mat(k, g)).
+    RelativePoses(pos(0, ga), mat(0, ga), pos(0, gb), mat(0, gb), nslot_, nknot_, out);
   }
-  // A block's frames about 16 kB (a frame's pose touches two or three cache lines a knot), and
-  // at least 4 knots (each pair's start of a block costs its pointers).
-  std::vector<int64_t> used(sa);
-  used.insert(used.end(), sb.begin(), sb.end());
-  std::sort(used.begin(), used.end());
-  const auto frames = std::unique(used.begin(), used.end()) - used.begin();
-  const int64_t block = std::clamp<int64_t>(16384 / (160 * std::max<int64_t>(frames, 1)), 4, 32);
-  RelativePoses(pos_.data(), mat_.data(), nslot_, nknot_, sa.data(), sb.data(), kept.data(),
-                static_cast<int64_t>(kept.size()), block, rel_pose_.data());
 }
 
 DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t jn,
