@@ -766,8 +766,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-knots-never-computed",
         _PLAN,
-        "  if (!kq.empty()) {",
-        "  if (false) {",
+        "    while (done < kat.size() && kat[done] <= j) {",
+        "    while (false && done < kat.size() && kat[done] <= j) {",
         (
             "tests/test_knot_kinematics.py::test_a_plans_knots_are_mujocos_poses",
             "tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break",
@@ -791,6 +791,27 @@ MUTANTS: tuple[Mutant, ...] = (
         (_KNOTS,),
         "a plan's kinematics take a body without joints welded to a moving one for a still one "
         "(its frame computed once): poses off wherever its parent moves",
+    ),
+    Mutant(
+        "plan-knots-computed-after-their-sweep",
+        _PLAN,
+        "    while (done < kat.size() && kat[done] <= j) {",
+        "    while (done < kat.size() && kat[done] < j) {",
+        (
+            "tests/test_knot_kinematics.py::test_a_plans_knots_are_mujocos_poses",
+            "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
+        ),
+        "set_plan's sweeps read a knot's poses before the kinematics computes them (the knots "
+        "computed a batch at a time as the sweeps reach them, one knot late)",
+    ),
+    Mutant(
+        "plan-relative-rises-never-cleared",
+        _PLAN,
+        "        if (j > 0 && now < last[c]) rel_rises_[c] = 0;",
+        "        if (false && j > 0 && now < last[c]) rel_rises_[c] = 0;",
+        (f"{_RELATIVE}::test_a_relative_deviation_that_falls_is_not_searched_past",),
+        "a relative pair's min(D_a + D_b, D_ab) taken for rising over the knots where it falls: "
+        "the walk's search skips knots the carried gap does not clear",
     ),
     Mutant(
         "plan-sweep-step-taken-once-for-moving-geoms",

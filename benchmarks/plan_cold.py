@@ -5,6 +5,8 @@
     python benchmarks/plan_cold.py --flush 32      # a 32 MB buffer read before each plan
     python benchmarks/plan_cold.py BEFORE --before-python BEFORE/.venv/bin/python \\
         --instructions 100                         # callgrind: Python and native instructions
+    python benchmarks/plan_cold.py BEFORE --before-python BEFORE/.venv/bin/python \\
+        --misses                                   # callgrind's cache model: the native call's
 
 Issue 39: the plan's cost with ``set_plan`` by the clock (``benchmarks/plan_users.py``) is
 above what the instructions of the native calls say (``benchmarks/plan_profile.py`` counts
@@ -30,6 +32,12 @@ and the sides taking turns round by round, in the replay's median ``mj_step``.
 that loop (a ``functools.reduce``), and each call's instructions are split into
 ``Runtime::SetPlan``'s and the rest (Python, nanobind's conversions, the benchmark's
 ``plan_deviation`` rows): deterministic, where the clock on a shared machine is not.
+
+``--misses`` times nothing either: the replay above (each plan a new one, as the benchmark's)
+under ``valgrind --tool=callgrind --cache-sim=yes`` collecting only inside
+``Runtime::SetPlan``, its instructions and first-level data cache misses (reads, writes) a
+plan, in valgrind's model of the caches (32 kB, 8 ways for the first level; its last level
+is this machine's L3, where nothing here misses).
 """
 
 from __future__ import annotations
@@ -170,6 +178,39 @@ def instructions(python: str, run: Path, calls: int, side: str) -> tuple[float, 
     return count[0] / calls, count[1] / calls
 
 
+def misses(python: str, run: Path, side: str) -> tuple[float, float, float, int]:
+    """``Runtime::SetPlan``'s instructions, D1 read and write misses a plan in a replay of
+    ``run`` (callgrind's cache model, collecting only inside it), and the plans."""
+    script = run.with_suffix(".cold.py")
+    script.write_text(REPLAY)
+    out = run.with_suffix(f".{side}.cache")
+    done = subprocess.run(
+        [
+            "valgrind",
+            "--tool=callgrind",
+            "--cache-sim=yes",
+            "--collect-atstart=no",
+            "--toggle-collect=dua::Runtime::SetPlan*",
+            f"--callgrind-out-file={out}",
+            python,
+            str(script),
+            str(HERE),
+            str(run),
+            "0",
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
+    )
+    plans = len(json.loads(done.stdout)["native"]) + 1  # and the first, untimed
+    events = re.search(r"^events: (.*)$", out.read_text(), re.M)
+    totals = re.search(r"^totals: (.*)$", out.read_text(), re.M)
+    assert events and totals, "callgrind wrote no totals"
+    count = dict(zip(events.group(1).split(), map(int, totals.group(1).split()), strict=False))
+    return count["Ir"] / plans, count["D1mr"] / plans, count["D1mw"] / plans, plans
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("before", type=Path, nargs="?", help="another checkout, for an A/B")
@@ -185,6 +226,11 @@ def main(argv: list[str] | None = None) -> int:
         metavar="CALLS",
         help="no clock: set_plan's instructions a call over CALLS calls, Python and native apart",
     )
+    ap.add_argument(
+        "--misses",
+        action="store_true",
+        help="no clock: the native call's instructions and D1 misses a plan (callgrind's caches)",
+    )
     args = ap.parse_args(argv)
     if args.before is not None and not args.before_python:
         ap.error("an A/B needs --before-python")
@@ -195,7 +241,13 @@ def main(argv: list[str] | None = None) -> int:
     sides = [("after", sys.executable)]
     if args.before is not None:
         sides.insert(0, ("before", args.before_python))
-    if args.instructions:
+    if args.misses:
+        print(
+            "| robot | side | plans | `Runtime::SetPlan`, k instructions | D1 read misses, k |"
+            " D1 write misses, k |"
+        )
+        print("|---|---|---|---|---|---|")
+    elif args.instructions:
         print(
             "| robot | side | `set_plan`, k instructions | of which `Runtime::SetPlan` | the rest |"
         )
@@ -210,6 +262,15 @@ def main(argv: list[str] | None = None) -> int:
         for name in args.robots:
             run = Path(tmp) / f"{name}.pkl"
             world(name, args.horizon, args.steps, run)
+            if args.misses:
+                for side, python in sides:
+                    ir, mr, mw, plans = misses(python, run, side)
+                    print(
+                        f"| {name} | {side} | {plans} | {ir / 1e3:.1f} | {mr / 1e3:.2f} |"
+                        f" {mw / 1e3:.2f} |",
+                        flush=True,
+                    )
+                continue
             if args.instructions:
                 for side, python in sides:
                     total, native = instructions(python, run, args.instructions, side)

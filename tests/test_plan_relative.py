@@ -380,3 +380,72 @@ def test_a_replaced_plans_relative_pair_is_read_at_its_own_place_in_the_new_plan
         breaks.append(p.plan_breaks)
     assert breaks[2] == 0 and breaks[-1] == 2, breaks  # the new plan's (l1, l3), the shadow's
     assert p._rt.plan_ok[list(_pair(m))].all()  # no body broke its own deviation
+
+
+def _chain(links: int) -> str:
+    """``links`` hinge links in a chain, each a capsule and two boxes (many geoms a knot: the
+    relative poses are computed a few knots at a time, over many blocks)."""
+    body = ""
+    for i in reversed(range(links)):
+        axis = "0 0 1" if i % 2 == 0 else "0 1 0"
+        body = (
+            f'<body name="c{i}" pos="{0.0 if i == 0 else 0.25} 0 {0.5 if i == 0 else 0.0}">'
+            f'<joint name="h{i}" axis="{axis}" damping=".2"/>'
+            f'<geom type="capsule" fromto="0 0 0 .2 0 0" size=".03"/>'
+            f'<geom type="box" pos=".1 .06 0" size=".02 .02 .02"/>'
+            f'<geom type="box" pos=".1 -.06 0" size=".02 .02 .02"/>{body}</body>'
+        )
+    return f'<mujoco><option gravity="0 0 0"/><worldbody>{body}</worldbody></mujoco>'
+
+
+def test_relative_poses_at_every_knot_of_plans_of_changing_sizes_are_the_runs() -> None:
+    """Plans that are the run itself, every body at deviation 0 and every pair of links at
+    relative deviation 0 (any bit off at any knot is a break), replaced by longer and shorter
+    ones (the relative poses computed a block of knots at a time, in buffers recycled from the
+    plans replaced): nothing breaks at any step, so each knot's planned relative poses are the
+    run's, bit for bit."""
+    m = mujoco.MjModel.from_xml_string(_chain(6))
+    d = mujoco.MjData(m)
+    d.qvel[:] = np.random.default_rng(5).normal(0.0, 2.0, m.nv)
+    mujoco.mj_forward(m, d)
+    p = Predictor(m, accel=50.0, alarm_horizon=0.05)
+    p.reset(d)
+    links = [m.body(f"c{i}").id for i in range(6)]
+    pairs = [(a, b) for i, a in enumerate(links) for b in links[i + 1 :]]
+    for n, steps in ((61, 20), (97, 30), (23, 10), (75, 40)):
+        p.set_plan(
+            _roll(m, d, np.zeros((1, 0)), n),
+            deviation=0.0,
+            start=float(d.time),
+            relative=(pairs, 0.0),
+        )
+        for _ in range(steps):
+            mujoco.mj_step(m, d)
+            p.step(d)
+        assert p.plan_breaks == 0, (n, p.plan_breaks)
+
+
+def test_a_relative_deviation_that_falls_is_not_searched_past() -> None:
+    """Two bodies held still 25 cm apart (surfaces), their deviations 0.5 m each and their
+    relative deviation 0 but at knot 3, where it is 0.3 m: the pair's contact cannot be excluded
+    at knot 3 alone. min(D_a + D_b, D_ab) falls after it, so the walk may not search for the end
+    of the knots its carried gap clears (a search from knot 1 goes to 2, 4, 8: past knot 3)."""
+    m = mujoco.MjModel.from_xml_string(TWO)
+    d = mujoco.MjData(m)
+    d.qpos[:3] = [0.0, 0.0, 0.0]
+    d.qpos[7:10] = [0.4, 0.0, 0.0]
+    mujoco.mj_forward(m, d)
+    p = Predictor(m, accel=50.0, alarm_horizon=0.2)
+    p.reset(d)
+    n = 20
+    rel = np.zeros((n, 1))
+    rel[3] = 0.3
+    pair = (m.body("a").id, m.body("b").id)
+    knots = p.plan_contact_knots(
+        np.tile(d.qpos, (n, 1)),
+        [[m.geom("a").id, m.geom("b").id]],
+        deviation=np.full((n, m.nbody), 0.5),
+        relative=([pair], rel),
+        start=float(d.time) - m.opt.timestep,  # the state the step reads: the last one
+    )
+    assert knots.tolist() == [3], knots

@@ -766,9 +766,11 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
                                                                     : nullptr);
   KnotKinematics* km = !own ? nullptr : kinematics != nullptr ? kinematics : mine.get();
   int64_t computed = -1;  // the last knot computed
-  // The knots KnotKinematics computes, gathered for RunKnots (four at a time in lanes).
+  // The knots KnotKinematics computes, gathered for RunKnots (four at a time in lanes), and
+  // their indices.
   std::vector<const double*> kq, kmp, kmq;
   std::vector<double*> kpos, kmat;
+  std::vector<int64_t> kat;
   for (int64_t j = 0; j < n; ++j) {
     double* pj = pos_.data() + 3 * nslot_ * j;
     double* rj = mat_.data() + 9 * nslot_ * j;
@@ -783,6 +785,7 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
       kmp.push_back(mocap ? in.mocap_pos + 3 * nmocap * j : s->mocap_pos);
       kmq.push_back(mocap ? in.mocap_quat + 4 * nmocap * j : s->mocap_quat);
       kpos.push_back(pj), kmat.push_back(rj);
+      kat.push_back(j);
       computed = j;
     } else {
       std::copy_n(qpos_.data() + nq * j, nq, s->qpos);
@@ -797,10 +800,6 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
       }
     }
   }
-  if (!kq.empty()) {
-    km->RunKnots(static_cast<int64_t>(kq.size()), kq.data(), kmp.data(), kmq.data(), kpos.data(),
-                 kmat.data());
-  }
   if (mocap && computed >= 0) {
     // The scratch's mocap poses as mj_kinematics on it would have left them (the last knot
     // computed): a later plan without mocap poses reads them for the mocap bodies it does not
@@ -808,31 +807,31 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     std::copy_n(in.mocap_pos + 3 * nmocap * computed, 3 * nmocap, s->mocap_pos);
     std::copy_n(in.mocap_quat + 4 * nmocap * computed, 4 * nmocap, s->mocap_quat);
   }
+  // The knots gathered are computed as Finish's sweeps reach them, a lanes' batch at a time
+  // (each knot's poses then read by its sweep while they are in the cache: computed all first,
+  // they were read again from farther out). The same poses: RunKnots' are Run's, bit for bit,
+  // however the knots are batched.
+  size_t done = 0;  // the knots gathered computed so far
+  const auto ready = [&](int64_t j) {
+    while (done < kat.size() && kat[done] <= j) {
+      const size_t count = std::min<size_t>(kLanes, kat.size() - done);
+      km->RunKnots(static_cast<int64_t>(count), kq.data() + done, kmp.data() + done,
+                   kmq.data() + done, kpos.data() + done, kmat.data() + done);
+      done += count;
+    }
+  };
   // A geom on a static body has the same pose at every knot (mj_kinematics reads no qpos or
   // mocap pose for it, and a copied knot is one it computed): its sweep's step too.
   std::vector<uint8_t> still(static_cast<size_t>(nslot_));
   for (int64_t c = 0; c < nslot_; ++c) still[c] = fixed[m->geom_bodyid[geoms[c]]];
   why = Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
-               std::move(fixed), &still);
-  if (!why.empty()) return why;
-  // Where min(D_a + D_b, D_ab) rises over the knots, as the sum's own rises_ (a min of two
-  // non-decreasing sequences is one; the walk's search needs only the min).
-  const int64_t nr = nrel();
-  rel_rises_.assign(nr, 1);
-  double last = 0.0;
-  for (int64_t r = 0; r < nr; ++r) {
-    for (int64_t j = 0; j < n; ++j) {
-      const double now = std::min(dev(j, rel_a(r)) + dev(j, rel_b(r)), rel_dev(j, r));
-      if (j > 0 && now < last) rel_rises_[r] = 0;
-      last = now;
-    }
-  }
-  return "";
+               std::move(fixed), &still, ready);
+  return why;
 }
 
 std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
                            const std::vector<uint8_t>& holds) {
-  rel_key_.clear(), rel_dev_.clear();
+  rel_key_.clear(), rel_dev_.clear(), rel_rises_.clear();
   if (in.nrel == 0) return "";
   const int64_t nbody = m->nbody, n = in.n;
   if (in.nrel < 0 || in.relative_bodies == nullptr || in.relative_deviation == nullptr) {
@@ -879,10 +878,27 @@ std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
   }
   rel_key_.resize(nr);
   rel_dev_.resize(n * nr);
-  for (int64_t c = 0; c < nr; ++c) {
-    rel_key_[c] = order[c].first;
-    for (int64_t j = 0; j < n; ++j)
-      rel_dev_[n * c + j] = in.relative_deviation[nr * j + order[c].second];
+  for (int64_t c = 0; c < nr; ++c) rel_key_[c] = order[c].first;
+  // Pair by pair (the caller gives them knot by knot), a block of 8 knots at a time (each
+  // pair's column then written a cache line at a time, the block's rows read while they are in
+  // the cache; a column over every knot read a row's line a knot); and where min(D_a + D_b,
+  // D_ab) rises over the knots, as the sum's own rises_ (a min of two non-decreasing sequences
+  // is one; the walk's search needs only the min). D_a and D_b as given: the plan's own
+  // deviations (Finish) are those of the bodies it holds, which a pair's two are.
+  rel_rises_.assign(nr, 1);
+  std::vector<double> last(static_cast<size_t>(nr), 0.0);
+  for (int64_t j0 = 0; j0 < n; j0 += 8) {
+    const int64_t j1 = std::min<int64_t>(n, j0 + 8);
+    for (int64_t c = 0; c < nr; ++c) {
+      const int64_t col = order[c].second, a = rel_a(c), b = rel_b(c);
+      for (int64_t j = j0; j < j1; ++j) {
+        const double v = in.relative_deviation[nr * j + col];
+        rel_dev_[n * c + j] = v;
+        const double now = std::min(in.deviation[nbody * j + a] + in.deviation[nbody * j + b], v);
+        if (j > 0 && now < last[c]) rel_rises_[c] = 0;
+        last[c] = now;
+      }
+    }
   }
   return "";
 }
@@ -927,7 +943,12 @@ std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, cons
 std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
                          const double* deviation, double start, double h, const double* spheres,
                          int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed,
-                         const std::vector<uint8_t>* still) {
+                         const std::vector<uint8_t>* still,
+                         const std::function<void(int64_t)>& ready) {
+  // Knot j's poses (and every earlier knot's) in place before they are read.
+  const auto need = [&](int64_t j) {
+    if (ready) ready(j);
+  };
   const int64_t ngeom = m->ngeom, nbody = m->nbody;
   // Each geom's reach about its origin: its bounding radius, or farther for a covering sphere
   // whose centre lies outside it (a grid cell of a mesh's or a cylinder's box).
@@ -963,6 +984,7 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
     return "";
   };
   if (n > 0) {
+    need(n > 1 ? 1 : 0);
     std::string why = unfinite(0);
     if (!why.empty()) return why;
     std::fill_n(sweep_.data(), nslot_, 0.0);
@@ -989,6 +1011,7 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
     }
   }
   for (int64_t j = 1; j < n; ++j) {
+    need(j);
     const double* pj = pos_.data() + 3 * nslot_ * j;
     const double* rj = mat_.data() + 9 * nslot_ * j;
     double* sw = sweep_.data() + nslot_ * j;
@@ -1110,7 +1133,9 @@ namespace {
 
 // RelativePose at n knots, the two frames' poses a knot's stride apart (3 sp, 9 sp), into out
 // (12 a knot): the same function at each, in an AVX2 clone where the CPU has one (no
-// contraction, no reordering: the same bits).
+// contraction, no reordering: the same bits). (A pair's poses a block of knots at a time for
+// every pair, the block's frames read while in the cache, cut SetRelativeFrames' first-level
+// read misses 94 % on g1 but took 55 % more instructions: not kept, docs/benchmarks.md.)
 DUA_LANES_CLONES void RelativePoses(const double* pa, const double* ra, const double* pb,
                                     const double* rb, int64_t sp, int64_t n, double* out) {
   for (int64_t k = 0; k < n; ++k, out += 12) {

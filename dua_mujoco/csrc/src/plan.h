@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -228,11 +229,13 @@ class Plan {
   void Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
              std::shared_ptr<PlanPool> pool);
   // The rest of a build once the knots' poses are in place: their check, the sweeps, the
-  // deviations and bodies.
+  // deviations and bodies. ready(j) (if given) puts knot j's poses, and every earlier knot's,
+  // in place, before they are first read.
   std::string Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
                      const double* deviation, double start, double h, const double* spheres,
                      int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed,
-                     const std::vector<uint8_t>* still = nullptr);
+                     const std::vector<uint8_t>* still = nullptr,
+                     const std::function<void(int64_t)>& ready = {});
 
   static const double kNoPose[9];
   static const double kNoSweep;
