@@ -341,12 +341,14 @@ int TauSpeedFourPairs(const double* const si[kLanes], const double* const sj[kLa
     v[j] = Lanes{sj[0][3 + j], sj[1][3 + j], sj[2][3 + j], sj[3][3 + j]} -
            Lanes{si[0][3 + j], si[1][3 + j], si[2][3 + j], si[3][3 + j]};
   }
-  // Each record's four bounds as one vector read (not through a copy on the stack).
-  using At = double __attribute__((vector_size(8 * kLanes), aligned(8), may_alias));
-  const Lanes r0 = *reinterpret_cast<const At*>(rec[0] + kPairEps);
-  const Lanes r1 = *reinterpret_cast<const At*>(rec[1] + kPairEps);
-  const Lanes r2 = *reinterpret_cast<const At*>(rec[2] + kPairEps);
-  const Lanes r3 = *reinterpret_cast<const At*>(rec[3] + kPairEps);
+  // Each record's four bounds as one vector read (not through a copy on the stack): memcpy, as
+  // a record is aligned only as a double (clang drops an alias's `aligned(8)` and would load it
+  // as aligned: UBSan's "requires 32 byte alignment").
+  Lanes r0, r1, r2, r3;
+  std::memcpy(&r0, rec[0] + kPairEps, sizeof(Lanes));
+  std::memcpy(&r1, rec[1] + kPairEps, sizeof(Lanes));
+  std::memcpy(&r2, rec[2] + kPairEps, sizeof(Lanes));
+  std::memcpy(&r3, rec[3] + kPairEps, sizeof(Lanes));
   const Lanes lo01 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);
   const Lanes hi01 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
   const Lanes lo23 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
