@@ -142,31 +142,38 @@ def replay(python: str, run: Path, flush: int) -> dict[str, list[int]]:
     return json.loads(out)  # type: ignore[no-any-return]
 
 
-def instructions(python: str, run: Path, calls: int, side: str) -> tuple[float, float]:
-    """``set_plan``'s instructions a call and ``Runtime::SetPlan``'s in them, over ``calls``
-    calls of the replay's first plan on a predictor that has it already (callgrind, collecting
-    only inside the loop: ``functools.reduce``)."""
+def _callgrind(python: str, run: Path, out: Path, options: list[str], *args: str) -> str:
+    """The replay of ``run`` (no flush, then ``args``) under callgrind with ``options``, its
+    profile written to ``out``; the replay's stdout."""
     script = run.with_suffix(".cold.py")
     script.write_text(REPLAY)
-    out = run.with_suffix(f".{side}.callgrind")
-    subprocess.run(
+    return subprocess.run(
         [
             "valgrind",
             "--tool=callgrind",
             "--collect-atstart=no",
-            "--toggle-collect=functools_reduce",
+            *options,
             f"--callgrind-out-file={out}",
             python,
             str(script),
             str(HERE),
             str(run),
             "0",
-            str(calls),
+            *args,
         ],
         check=True,
         capture_output=True,
+        text=True,
         env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
-    )
+    ).stdout
+
+
+def instructions(python: str, run: Path, calls: int, side: str) -> tuple[float, float]:
+    """``set_plan``'s instructions a call and ``Runtime::SetPlan``'s in them, over ``calls``
+    calls of the replay's first plan on a predictor that has it already (callgrind, collecting
+    only inside the loop: ``functools.reduce``)."""
+    out = run.with_suffix(f".{side}.callgrind")
+    _callgrind(python, run, out, ["--toggle-collect=functools_reduce"], str(calls))
     text = subprocess.run(
         ["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(out)],
         capture_output=True,
@@ -181,29 +188,11 @@ def instructions(python: str, run: Path, calls: int, side: str) -> tuple[float, 
 def misses(python: str, run: Path, side: str) -> tuple[float, float, float, int]:
     """``Runtime::SetPlan``'s instructions, D1 read and write misses a plan in a replay of
     ``run`` (callgrind's cache model, collecting only inside it), and the plans."""
-    script = run.with_suffix(".cold.py")
-    script.write_text(REPLAY)
     out = run.with_suffix(f".{side}.cache")
-    done = subprocess.run(
-        [
-            "valgrind",
-            "--tool=callgrind",
-            "--cache-sim=yes",
-            "--collect-atstart=no",
-            "--toggle-collect=dua::Runtime::SetPlan*",
-            f"--callgrind-out-file={out}",
-            python,
-            str(script),
-            str(HERE),
-            str(run),
-            "0",
-        ],
-        check=True,
-        capture_output=True,
-        text=True,
-        env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
+    stdout = _callgrind(
+        python, run, out, ["--cache-sim=yes", "--toggle-collect=dua::Runtime::SetPlan*"]
     )
-    plans = len(json.loads(done.stdout)["native"]) + 1  # and the first, untimed
+    plans = len(json.loads(stdout)["native"]) + 1  # and the first, untimed
     events = re.search(r"^events: (.*)$", out.read_text(), re.M)
     totals = re.search(r"^totals: (.*)$", out.read_text(), re.M)
     assert events and totals, "callgrind wrote no totals"
