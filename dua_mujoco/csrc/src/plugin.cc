@@ -34,12 +34,6 @@ namespace {
 constexpr char kPluginName[] = "dua_mujoco.predictor";
 constexpr const char* kAttributes[] = {"prefix", "overlay", "forget"};
 constexpr int kNAttribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
-// The plugin's refusal of tables whose static table no longer matches the model (StaticMismatch,
-// non-empty): it names the text field, as every refusal of a table does.
-std::string StaticRefused(const std::string& prefix, const std::string& mismatch) {
-  return "dua_mujoco.predictor: text field '" + prefix + ":static' " + StaticRefusal(mismatch) +
-         ".";
-}
 
 // Sensor outputs.
 enum Output {
@@ -128,15 +122,6 @@ Instance* Create(const mjModel* m, int instance) {
   std::shared_ptr<const Tables> tables = LoadTables(m, prefix, &error);
   if (!tables) {
     mju_warning("dua_mujoco.predictor: %s.", error.c_str());
-    return nullptr;
-  }
-  // The static shapes' records were built once, from the static geoms as attach found them: a
-  // model edited since (geom_pos, body_pos, geom_size, hfield_data, a mesh) would have its
-  // contacts with them missed. BuildTables checked a fresh parse; tables LoadTables kept for
-  // this model (the digest reads no static pose) are checked here.
-  const std::string edited = StaticMismatch(m, tables->statics);
-  if (!edited.empty()) {
-    mju_warning("%s", StaticRefused(prefix, edited).c_str());
     return nullptr;
   }
   auto* in = new Instance(std::move(tables), m);
@@ -282,7 +267,10 @@ void Register() {
     // A static geom edited in the model since init: the next classification would read stale
     // shape records (O(static geoms) and their height fields' and meshes' data; no step pays it).
     const std::string edited = StaticMismatch(m, in->rt.tables().statics);
-    if (!edited.empty()) mju_error("%s", StaticRefused(in->prefix, edited).c_str());
+    if (!edited.empty()) {
+      mju_error("dua_mujoco.predictor: text field '%s:static' %s.", in->prefix.c_str(),
+                StaticRefusal(edited).c_str());
+    }
     in->rt.Invalidate();
   };
   plugin.compute = +[](const mjModel* m, mjData* d, int instance, int capability) {

@@ -918,14 +918,24 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
   static std::mutex mutex;
   static std::vector<Entry> recent;  // most recent last
   const uint64_t digest = TablesDigest(m, prefix);
+  std::shared_ptr<const Tables> kept;
   {
     std::lock_guard<std::mutex> lock(mutex);
     for (auto it = recent.begin(); it != recent.end(); ++it) {
       if (it->model == m && it->prefix == prefix && it->digest == digest) {
         std::rotate(it, it + 1, recent.end());
-        return recent.back().tables;
+        kept = recent.back().tables;
+        break;
       }
     }
+  }
+  if (kept) {
+    // The digest reads no static pose or shape: the static geoms edited in place since the parse
+    // are refused as ReadStatic refuses them in a fresh one.
+    const std::string edited = StaticMismatch(m, kept->statics);
+    if (edited.empty()) return kept;
+    *error = "text field '" + prefix + ":static' " + StaticRefusal(edited);
+    return nullptr;
   }
   const TableSource source = [m, &prefix](const std::string& name, std::vector<double>* out,
                                           std::string* why) {

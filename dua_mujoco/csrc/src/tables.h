@@ -117,7 +117,8 @@ DUA_API std::shared_ptr<const Tables> FreeTables(const TableSource& source,
 
 // The tables under `prefix` in m's text fields, each its entry count, a space, then its
 // little-endian float64 bytes in base64; parsed once per model content (every mjData made from
-// the same model shares them).
+// the same model shares them), their static table held to the model at every call (an edit of
+// a static geom in place refuses them, named as the text field).
 DUA_API std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& prefix,
                                                  std::string* error);
 
