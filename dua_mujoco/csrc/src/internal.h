@@ -4,10 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <new>
 #include <string>
 
 #include "dua/dua.h"
@@ -40,6 +42,33 @@ constexpr int kSIndexInts = 16;
 // bodies is one vector of the check's lanes.
 inline int64_t EventStateLen(int64_t nbody) {
   return (nbody + kLanes - 1) / kLanes * kSNcol * kLanes;
+}
+// The check's lanes read a column of the state as one vector where it lies; a std::vector's
+// storage is aligned only as malloc's (16 bytes), and a compiler may load a vector type as
+// aligned to its size (clang drops an alias's `aligned(8)`): the runtime keeps the state on a
+// vector's alignment, and the check goes one body at a time on storage that is not.
+constexpr std::size_t kLanesAlign = sizeof(Lanes);
+template <class T>
+struct LanesAligned {
+  using value_type = T;
+  LanesAligned() = default;
+  template <class U>
+  LanesAligned(const LanesAligned<U>&) {}  // NOLINT: the allocator concept's rebind
+  T* allocate(std::size_t n) {
+    return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t{kLanesAlign}));
+  }
+  void deallocate(T* p, std::size_t) { ::operator delete(p, std::align_val_t{kLanesAlign}); }
+  template <class U>
+  bool operator==(const LanesAligned<U>&) const {
+    return true;
+  }
+  template <class U>
+  bool operator!=(const LanesAligned<U>&) const {
+    return false;
+  }
+};
+inline bool LanesAlignedAt(const double* p) {
+  return reinterpret_cast<std::uintptr_t>(p) % kLanesAlign == 0;
 }
 constexpr int kMNprev = 0, kMCount = 1, kMTotal = 2;
 

@@ -1320,13 +1320,13 @@ std::vector<double> Runtime::ExactOnly(const mjModel* m, const mjData* d,
 std::pair<std::vector<int64_t>, std::vector<double>> Runtime::CheckBodiesCopy(const mjModel* m,
                                                                               const mjData* d,
                                                                               bool lanes) {
-  std::vector<double> prev = events_prev_;
+  std::vector<double, LanesAligned<double>> prev = events_prev_;
   std::vector<int64_t> meta = events_meta_, flagged = events_flagged_;
   dua_step_args a = Bind(m, d);
   a.events.prev = prev.data(), a.events.meta = meta.data(), a.events.flagged = flagged.data();
   const int64_t count = dua_check_bodies(&a, lanes ? 1 : 0);
   flagged.resize(count);
-  return {flagged, prev};
+  return {flagged, std::vector<double>(prev.begin(), prev.end())};
 }
 
 std::vector<int64_t> Runtime::FlaggedBodies() const {

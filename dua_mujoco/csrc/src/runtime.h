@@ -338,7 +338,8 @@ class DUA_API Runtime {
   std::shared_ptr<Schedule> schedule_;
   std::vector<int64_t> ids_;  // model pair of each held pair
   dua_step_args args_{};
-  std::vector<double> point_state_, exact_records_, events_prev_;
+  std::vector<double> point_state_, exact_records_;
+  std::vector<double, LanesAligned<double>> events_prev_;  // the check's lanes read it in place
   std::vector<double> witness_;  // the exact level's witness points, (held pairs, 6)
   std::vector<int64_t> point_epoch_, events_meta_, events_flagged_, contact_keys_;
   std::vector<double> contact_dist_;

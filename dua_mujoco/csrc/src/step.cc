@@ -90,8 +90,9 @@ template <class T>
 struct BodyRow {
   T v[kRowLen];
 };
-// Four bodies' state column as it lies in ev.prev: one vector, aligned only as a double is (and
-// read as the doubles it holds).
+// Four bodies' state column as it lies in ev.prev: one vector (read as the doubles it holds).
+// CheckBodies takes the lanes only where ev.prev is aligned as a vector (LanesAlignedAt): clang
+// drops the alias's `aligned(8)` and a template argument loses it in either compiler.
 using LanesAt = double __attribute__((vector_size(8 * kLanes), aligned(8), may_alias));
 
 // The row's MjData fields in order (their first column and length), and where body i's come
@@ -313,6 +314,8 @@ DUA_SECTION int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool l
   const int64_t nprev = ev.meta[kMNprev];
   int64_t count = 0;
   int64_t i = 0;
+  // On storage not aligned as a vector (a C caller's), one body at a time: the same values.
+  lanes = lanes && LanesAlignedAt(ev.prev);
   for (; lanes && i < ev.nbody; i += kLanes) {
     const int m = static_cast<int>(std::min<int64_t>(kLanes, ev.nbody - i));
     // The flagged lanes by their bits, lowest first (most groups have none).

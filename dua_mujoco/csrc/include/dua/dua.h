@@ -151,7 +151,8 @@ typedef struct dua_events {
   int64_t nbody;
   const double* rec;       // (nbody, 12)
   double* prev;            // (ceil(nbody / 4), 42, 4): four bodies' column together (the
-                           // padding included; dua_reset_events fills it)
+                           // padding included; dua_reset_events fills it); the check's lanes
+                           // run where it is 32-byte aligned, one body at a time elsewhere
   int64_t* meta;           // (3,)
   int64_t* flagged;        // (nbody,)
   const int64_t* start;    // (nbody + 1,)
