@@ -24,6 +24,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from checkouts import same_mujoco
 
 HERE = Path(__file__).resolve().parents[1]
 
@@ -106,6 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--before-python", default=sys.executable)
     ap.add_argument("--rounds", type=int, default=5)
     args = ap.parse_args(argv)
+    same_mujoco(args.before_python)
     sides = {"before": (args.before_python, args.before), "after": (sys.executable, HERE)}
     results: dict[str, dict[str, list[float]]] = {s: {} for s in sides}
     bench = str(HERE / "benchmarks")

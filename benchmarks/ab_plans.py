@@ -24,6 +24,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from checkouts import same_mujoco
 
 HERE = Path(__file__).resolve().parent
 ROBOTS = ("baxter", "sawyer", "spot_arm", "g1", "tiago")
@@ -122,6 +123,7 @@ def main(argv: list[str] | None = None) -> int:
         record(name, tuple(args.horizons), args.steps, path)
         paths.append(path)
         print(f"recorded {name}", file=sys.stderr, flush=True)
+    same_mujoco(args.before_python)
     sides = {"after": sys.executable, "before": args.before_python}
     got: dict[str, dict[str, list[dict]]] = {s: {"cpu": [], "wall": []} for s in sides}
     for r in range(args.rounds):

@@ -12,12 +12,13 @@ checkout: :data:`PREAMBLE` removes that finder first (before issue 41 it mapped
 
 from __future__ import annotations
 
+import functools
 import os
 import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["HERE", "PREAMBLE", "probe", "run", "scene_path"]
+__all__ = ["HERE", "PREAMBLE", "probe", "run", "same_mujoco", "scene_path"]
 
 HERE = Path(__file__).resolve().parents[1]
 """This checkout: the one the editable install's finder resolves to."""
@@ -27,6 +28,30 @@ PREAMBLE = (
     "sys.meta_path[:] = [f for f in sys.meta_path\n"
     "                    if type(f).__name__ != 'ScikitBuildRedirectingFinder']\n"
 )
+
+
+@functools.cache
+def same_mujoco(python: str) -> None:
+    """Refuse an A/B whose other side, run by ``python``, imports another MuJoCo than this one:
+    two releases step a scene to different states (4.0.1 fixed 4.0.0's sparse factorization),
+    so its bounds, alarms and costs would differ whatever the change.
+
+    Raises:
+        SystemExit: The versions differ (both named, and the fix).
+    """
+    import mujoco
+
+    code = "import mujoco; print(mujoco.__version__)"
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    proc = subprocess.run([python, "-c", code], env=env, capture_output=True, text=True)
+    other = proc.stdout.strip() if proc.returncode == 0 else f"none ({proc.stderr.strip()[-200:]})"
+    if other != mujoco.__version__:
+        raise SystemExit(
+            f"the other side's Python ({python}) has mujoco {other}, this one "
+            f"{mujoco.__version__}: install the same in both (pip install "
+            f"mujoco=={mujoco.__version__}, then "
+            "pip install -e . --no-build-isolation --no-deps to rebuild the native core)"
+        )
 
 
 def scene_path(scene: str, root: Path) -> str:
@@ -44,6 +69,7 @@ def probe(code: str, checkout: Path, *args: str, **env: str) -> tuple[list[str],
     other = checkout.resolve() != HERE
     own = checkout / ".venv" / "bin" / "python"
     if other and own.exists():
+        same_mujoco(str(own))
         environ = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
         return [str(own), "-c", code, *args], {**environ, **env}
     argv = [sys.executable, "-c", (PREAMBLE if other else "") + code, *args]

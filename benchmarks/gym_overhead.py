@@ -181,6 +181,9 @@ def measure(env_id: str, *, rounds: int, steps: int) -> dict[str, float]:
 
 def ab(args: argparse.Namespace) -> None:
     """Both sides, alternating, each in its own environment; their ratios side by side."""
+    from checkouts import same_mujoco  # a sibling script: the tests load this file by its path
+
+    same_mujoco(args.before_python)
     sides = {"before": (args.before_python, args.before), "after": (sys.executable, Path.cwd())}
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     runs: dict[str, list[dict[str, dict[str, float]]]] = {s: [] for s in sides}

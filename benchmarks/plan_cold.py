@@ -51,6 +51,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from checkouts import same_mujoco
+
 HERE = Path(__file__).resolve().parent
 
 REPLAY = r"""
@@ -229,6 +231,7 @@ def main(argv: list[str] | None = None) -> int:
 
     sides = [("after", sys.executable)]
     if args.before is not None:
+        same_mujoco(args.before_python)
         sides.insert(0, ("before", args.before_python))
     if args.misses:
         print(

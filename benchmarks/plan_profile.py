@@ -32,6 +32,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from checkouts import same_mujoco
+
 HERE = Path(__file__).resolve().parent
 FUNCTIONS = {
     "mj_step": "mj_step",
@@ -207,6 +209,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--split profiles this checkout's own profiling build: no A/B")
     sides = [("after", sys.executable)]
     if args.before is not None:
+        same_mujoco(args.before_python)
         sides.insert(0, ("before", args.before_python))
     if args.alarms:
         return same_alarms(args.robots, args.horizon, args.steps, sides)

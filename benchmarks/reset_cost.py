@@ -29,6 +29,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from checkouts import same_mujoco
+
 HERE = Path(__file__).resolve().parents[1]
 SCENES = ("boxes+hfield", "clutter", "rough_terrain", "two_arms")
 
@@ -162,6 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "before").mkdir()
         (Path(tmp) / "after").mkdir()
+        same_mujoco(args.before_python)
         before = side(args.before, args.before_python, Path(tmp) / "before", args)
         after = side(HERE, sys.executable, Path(tmp) / "after", args)
     unit = "instructions" if args.tool == "callgrind" else "us"

@@ -24,7 +24,7 @@ import sys
 import time
 from pathlib import Path
 
-from checkouts import HERE
+from checkouts import HERE, same_mujoco
 
 SCENES = ("two_arms", "traffic", "clutter", "bin_pour", "paper_world")
 
@@ -100,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         "--options", default="{}", help='Predictor options as JSON, e.g. \'{"pairs": "pruned"}\''
     )
     args = ap.parse_args(argv)
+    same_mujoco(args.before_python)
     print(
         "| scene | steps | alarms | bounds equal | alarms equal | first differing step | "
         "standing before | standing after / before | s |"

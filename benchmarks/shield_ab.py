@@ -27,6 +27,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from checkouts import same_mujoco
+
 # Runs inside each side's subprocess.
 PROBE = r"""
 import hashlib, json, sys
@@ -83,6 +85,7 @@ def main() -> None:
     parser.add_argument("--layer", default="shield", help="the shield layer both sides run")
     parser.add_argument("--brake", action="store_true", help="the brake as every side's failsafe")
     args = parser.parse_args()
+    same_mujoco(args.before_python)
     sides = {"before": args.before_python, "after": sys.executable}
     for scene in args.scenes:
         res: dict[str, list[dict]] = {"before": [], "after": []}
