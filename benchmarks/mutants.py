@@ -1310,8 +1310,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "standing-step-drops-the-last-alarm",
         "dua_mujoco/csrc/src/runtime.cc",
-        "      now = j < nalarm && alarms[j] == p ? 1 : 0;",
-        "      now = j + 1 < nalarm && alarms[j] == p ? 1 : 0;",
+        "      if (now) next = ++j < nalarm ? alarms[j] : -1;",
+        "      if (now) next = ++j + 1 < nalarm ? alarms[j] : -1;",
         ("tests/test_alarms.py::test_the_steps_standing_state_is_the_alarm_rule",),
         "the step's standing state, read from its alarm list, misses a pair in alarm",
     ),
