@@ -307,15 +307,6 @@ MUTANTS: tuple[Mutant, ...] = (
         "the reinsertion's lanes link a pair one step past the wait they tested (3)",
     ),
     Mutant(
-        "tau-nan-group-skipped",
-        _STEP,
-        "if (!grid && (k & 3) == 0 && count - k >= kLanes && !AnyNaN(out + k)) {",
-        "if (!grid && (k & 3) == 0 && count - k >= kLanes) {",
-        ("tests/test_hardening.py::test_a_tau_that_is_not_a_number_alarms",),
-        "a whole group of four taus is passed on unread: one that is not a number neither alarms "
-        "nor gets a wait (docs/hardening.md)",
-    ),
-    Mutant(
         "alarm-test-strict",
         _SCHEDULE,
         "inline bool Alarms(double tau, double horizon) { return tau <= horizon; }",

@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -678,19 +677,6 @@ double ExactTau(const double* pair, double* xrec, double* witness, double coarse
   return std::max(best, AxisTau(n[0], n[1], n[2], mode, r0, r1, r2, spin, pair, xrec, x, f));
 }
 
-// Whether any of t[0:4] is below `below` (a NaN is not), and whether any is a NaN: one vector
-// test a group of four where most are neither (ExactPass's and TauOf's loops).
-inline bool AnyBelow(const double* t, double below) {
-  Lanes v;
-  std::memcpy(&v, t, sizeof(Lanes));
-  return Any(v < below);
-}
-inline bool AnyNaN(const double* t) {
-  Lanes v;
-  std::memcpy(&v, t, sizeof(Lanes));
-  return Any(v != v);
-}
-
 // Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below,
 // except where skip[k] (a plan's verdicts; skip null: none).
 DUA_SECTION void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, double* out,
@@ -702,14 +688,8 @@ DUA_SECTION void ExactPass(dua_step_args& a, const int64_t* ids, int64_t count, 
   // pair above it is not made. The rank schedule orders by tau, so it asks as before.
   const double settled_below =
       a.schedule.kind == kRank ? -kInf : std::min(a.exact.query_below, a.schedule.horizon[0]);
-  const double below = a.exact.below;  // read once (ExactTau's dua_exact& could reach it)
   for (int64_t k = 0; k < count; ++k) {
-    // Most verdicts are above it: a whole group of four none of which is below, on one test.
-    if ((k & 3) == 0 && count - k >= kLanes && !AnyBelow(out + k, below)) {
-      k += kLanes - 1;
-      continue;
-    }
-    if (out[k] < below && (skip == nullptr || !skip[k])) {
+    if (out[k] < a.exact.below && (skip == nullptr || !skip[k])) {
       const int64_t p = ids[k];
       // A height field's terrain: its own kernel (terrain.cc), never mj_geomDistance.
       if (static_cast<int>(a.exact.records[p * kXNcol + kXMode]) == kModeTerrain) {
@@ -901,11 +881,6 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
   const bool grid = a.period > 1;
   const uint8_t* planned = a.plan.impl != nullptr ? a.plan.planned : nullptr;
   for (int64_t k = 0; k < count; ++k) {
-    // Off the grid, a whole group of four that holds no NaN has nothing to change.
-    if (!grid && (k & 3) == 0 && count - k >= kLanes && !AnyNaN(out + k)) {
-      k += kLanes - 1;
-      continue;
-    }
     if (std::isnan(out[k])) {
       out[k] = 0.0;
     } else if (grid && (planned == nullptr || !planned[k])) {
