@@ -307,6 +307,15 @@ MUTANTS: tuple[Mutant, ...] = (
         "the reinsertion's lanes link a pair one step past the wait they tested (3)",
     ),
     Mutant(
+        "tau-nan-passed-off-the-grid",
+        _STEP,
+        "      out[k] = std::isnan(t) ? 0.0 : t;",
+        "      out[k] = t;",
+        ("tests/test_hardening.py::test_a_tau_that_is_not_a_number_alarms",),
+        "off the predictor's grid a tau that is not a number is passed on: it neither alarms nor "
+        "gets a wait of its own (docs/hardening.md)",
+    ),
+    Mutant(
         "alarm-test-strict",
         _SCHEDULE,
         "inline bool Alarms(double tau, double horizon) { return tau <= horizon; }",
