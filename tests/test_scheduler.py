@@ -450,6 +450,52 @@ def test_deadline_interval_is_the_latest_safe_step() -> None:
     assert (due == [reference_interval(float(x), dt, 1, 1024) for x in taus]).all()
 
 
+@pytest.mark.parametrize(
+    ("dt", "latency", "horizon", "max_interval"),
+    [(0.002, 1, None, 1024), (0.01, 0, None, 7), (1 / 3, 3, 1.0, 1024), (0.005, 0, 0.012, 1)],
+)
+def test_reinsert_waits_are_the_deadline_interval(
+    dt: float, latency: int, horizon: float | None, max_interval: int
+) -> None:
+    """The reinsertion computes its waits four at a time in lanes (DeadlineIntervals): each
+    evaluated pair is linked exactly deadline_interval(tau) steps on (the largest s whose wait
+    its tau covers strictly), on the verdicts where the guess from the division is one off
+    either way: tau on the grid of waits ((s + latency) dt + extra) and one ulp either side;
+    also 0, negative, infinite and NaN taus, and random ones. 203 pairs: whole groups of four,
+    a ragged last group and more than one chunk of 64."""
+    # Every pair due at step 1, none standing in alarm (-inf: never reported), so an alarming
+    # verdict's wait is its interval too, not the backoff.
+    sched = _core.Schedule(
+        1, dt, latency, np.full(203, -np.inf), max_interval=max_interval, alarm_horizon=horizon
+    )
+    extra = sched.alarm_horizon - dt
+    grid = (np.arange(1, 41) + latency) * dt + extra
+    rng = np.random.default_rng(7)
+    taus = np.concatenate(
+        [
+            grid,
+            np.nextafter(grid, np.inf),
+            np.nextafter(grid, -np.inf),
+            [0.0, -1.0, np.inf, -np.inf, np.nan, 1e300, max_interval * dt * 4],
+            rng.uniform(0.0, 60 * dt, 76),
+        ]
+    )
+    assert taus.size == 203
+    assert sched.select(1) == 203
+    ids = sched.work[1, :203].copy()
+    sched.w_tau[:203] = taus
+    sched.reinsert(1, 203)
+    waits = sched.ints[0, ids] - 1
+    want = [_core.deadline_interval(float(t), dt, latency, max_interval, extra) for t in taus]
+    np.testing.assert_array_equal(waits, want)
+    # And by counting up: the largest s in [1, max_interval] whose wait tau covers strictly.
+    for t, got in zip(taus, waits, strict=True):
+        s = 1
+        while s < max_interval and (s + 1 + latency) * dt + extra < t:
+            s += 1
+        assert got == s
+
+
 def test_deadline_backs_off_a_pair_that_keeps_alarming() -> None:
     """A pair in contact (tau 0 at every evaluation) is looked at after 1, 2, 4, 8, 8... steps
     and stands in alarm at every step; once clear it is revisited as its tau allows, and its

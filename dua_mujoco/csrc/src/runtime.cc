@@ -1124,45 +1124,56 @@ void Runtime::Carry(const mjModel* m, const mjData* d, const std::vector<int64_t
 }
 
 void Runtime::Track(const int64_t* ids, int64_t n, const int64_t* alarms, int64_t nalarm) {
-  const Universe& u = universe();
-  int64_t j = 0;  // the next of alarms
-  for (int64_t k = 0; k < n; ++k) {
-    const int64_t p = ids[k];
-    uint8_t now;
-    if (alarms) {
-      now = j < nalarm && alarms[j] == p ? 1 : 0;
-      j += now;
-    } else {
-      now = schedule_->Stands(p) ? 1 : 0;
+  if (alarms) {
+    // The alarms are a subsequence of ids, in its order: each pair is compared with the next of
+    // them only (-1: none left, never a pair). Few pairs change (Flip); the loop reads the flags
+    // through a pointer of its own, which Flip's stores into the members cannot move.
+    const uint8_t* stands = stands_.data();
+    int64_t j = 0;
+    int64_t next = nalarm > 0 ? alarms[0] : -1;
+    for (int64_t k = 0; k < n; ++k) {
+      const int64_t p = ids[k];
+      const uint8_t now = p == next ? 1 : 0;
+      if (now) next = ++j < nalarm ? alarms[j] : -1;
+      if (now != stands[p]) Flip(p, now);
     }
-    if (now == stands_[p]) continue;  // (its expiry is set below all the same)
-    stands_[p] = now;
-    if (now) {
-      standing_at_[p] = static_cast<int64_t>(standing_.size());
-      standing_.push_back(p);
-    } else {  // swap-removed
-      const int64_t last = standing_.back();
-      standing_[standing_at_[p]] = last;
-      standing_at_[last] = standing_at_[p];
-      standing_at_[p] = -1;
-      standing_.pop_back();
-    }
-    const int64_t gp = u.pair_geom[ids_[p]];
-    int32_t& count = gp_count_[gp];
-    const bool counted = watching_ && gp_counted_[gp];
-    if (now) {
-      if (count++ == 0) {
-        ++nstanding_;
-        if (counted) ++watched_.standing, touched_.push_back(gp);
-      }
-    } else if (--count == 0) {
-      --nstanding_;
-      if (counted) --watched_.standing, touched_.push_back(gp);
+  } else {
+    for (int64_t k = 0; k < n; ++k) {
+      const int64_t p = ids[k];
+      const uint8_t now = schedule_->Stands(p) ? 1 : 0;
+      if (now != stands_[p]) Flip(p, now);
     }
   }
   if (watching_) {
     for (int64_t k = 0; k < n; ++k) SetExpiry(ids[k]);
     watched_.expiry = expiry_tree_[1];
+  }
+}
+
+void Runtime::Flip(int64_t p, uint8_t now) {
+  const Universe& u = universe();
+  stands_[p] = now;
+  if (now) {
+    standing_at_[p] = static_cast<int64_t>(standing_.size());
+    standing_.push_back(p);
+  } else {  // swap-removed
+    const int64_t last = standing_.back();
+    standing_[standing_at_[p]] = last;
+    standing_at_[last] = standing_at_[p];
+    standing_at_[p] = -1;
+    standing_.pop_back();
+  }
+  const int64_t gp = u.pair_geom[ids_[p]];
+  int32_t& count = gp_count_[gp];
+  const bool counted = watching_ && gp_counted_[gp];
+  if (now) {
+    if (count++ == 0) {
+      ++nstanding_;
+      if (counted) ++watched_.standing, touched_.push_back(gp);
+    }
+  } else if (--count == 0) {
+    --nstanding_;
+    if (counted) --watched_.standing, touched_.push_back(gp);
   }
 }
 
@@ -1212,8 +1223,10 @@ void Runtime::TrackStep(int64_t nalarm) {
   }
   // Pairs a plan break withdrew (the rank schedule may leave them waiting, standing in alarm).
   Track(plan_due_.data(), static_cast<int64_t>(plan_due_.size()));
-  min_tau_ = kInf;
-  for (int64_t k = 0; k < args_.count; ++k) min_tau_ = std::min(min_tau_, s.w_tau[k]);
+  // In a local (a store into the member each pair could alias the taus, so it was one).
+  double least = kInf;
+  for (int64_t k = 0; k < args_.count; ++k) least = std::min(least, s.w_tau[k]);
+  min_tau_ = least;
 }
 
 void Runtime::Switch(const std::vector<int64_t>& pairs, bool on) {

@@ -289,6 +289,8 @@ class DUA_API Runtime {
   // step's alarm list, when it lists exactly the pairs of ids that stand, in ids's order: see
   // TrackStep) is read in place of the alarm rule, or null.
   void Track(const int64_t* ids, int64_t n, const int64_t* alarms = nullptr, int64_t nalarm = 0);
+  // Pair p's standing becomes now (Track's, where it changed).
+  void Flip(int64_t p, uint8_t now);
   void TrackAll();
   void TrackStep(int64_t nalarm);
   void Log(int64_t nalarm);

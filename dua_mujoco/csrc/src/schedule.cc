@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -16,7 +17,10 @@
 namespace {
 
 using dua::kDeadline;
+using dua::kLanes;
 using dua::kRank;
+using dua::LaneMask;
+using dua::Lanes;
 // Rows of ints, rows of work, entries of params (layout.h).
 constexpr int64_t kWhere = dua::kIntWhere, kLastStep = dua::kIntLastStep, kNext = dua::kIntNext,
                   kPrev = dua::kIntPrev;
@@ -238,6 +242,57 @@ int64_t DeadlineSelect(const View& v, int64_t n, int64_t count = 0) {
   return count;
 }
 
+// dua_deadline_interval of taus[0:count] into out (room for count rounded up to four), four at a
+// time in lanes: its guess, and the two tests its loops begin with, in the same IEEE operations
+// (s and s + latency are integers below 2^42 as doubles, so exact: ScheduleSpec::Check bounds
+// latency and max_interval). A lane where either loop would take a step, or whose tau is not a
+// number, gets the scalar function's answer; on every other lane the loops leave the guess as it
+// is, so it is theirs (docs/theory.md, section 3, "The reinsertion's waits in lanes").
+DUA_LANES_CLONES
+void DeadlineIntervals(const double* taus, int64_t count, double dt, int64_t latency,
+                       int64_t max_interval, double extra, int64_t* out) {
+  const double lat = static_cast<double>(latency), lat1 = static_cast<double>(latency + 1);
+  const double most = static_cast<double>(max_interval);
+  // 2^52: c + 2^52 rounds c in [0, 2^52) to an integer r (to nearest), and r + 2^52's bits less
+  // 2^52's are r.
+  const Lanes magic = Lanes{} + 0x1p52;
+  LaneMask magic_bits;
+  std::memcpy(&magic_bits, &magic, sizeof(Lanes));
+  for (int64_t k = 0; k < count; k += kLanes) {
+    const int m = static_cast<int>(std::min<int64_t>(kLanes, count - k));
+    Lanes tau;
+    if (m == kLanes) {
+      std::memcpy(&tau, taus + k, sizeof(Lanes));
+    } else {
+      for (int j = 0; j < kLanes; ++j) tau[j] = taus[k + std::min(j, m - 1)];
+    }
+    const Lanes guess = (tau - extra) / dt - lat;
+    // The guess's s: max_interval at or above it, 1 below 2, else truncated; as the guess
+    // clamped to [1, max_interval] and floored (the same integer on each of the three).
+    const Lanes clamped = dua::Min(dua::Max(guess, Lanes{} + 1.0), Lanes{} + most);
+    const Lanes big = clamped + magic;
+    const Lanes near = big - magic;
+    const LaneMask up = near > clamped;  // rounded up: one less
+    const Lanes s = near - dua::Select(up, Lanes{} + 1.0, Lanes{});
+    const LaneMask covered = (s + lat) * dt + extra < tau;
+    const LaneMask next = (s + lat1) * dt + extra < tau;
+    // Neither loop steps: s is 1 or covered, and s is the longest or s + 1 is not covered.
+    const LaneMask settled = (tau == tau) & ((s <= 1.0) | covered) & ((s >= most) | ~next);
+    LaneMask ints;
+    std::memcpy(&ints, &big, sizeof(Lanes));
+    ints = ints - magic_bits + up;  // up is -1 where rounded up
+    std::memcpy(out + k, &ints, sizeof(Lanes));
+    const int left = ~dua::Bits(settled) & ((1 << m) - 1);
+    if (left != 0) {
+      for (int j = 0; j < m; ++j) {
+        if ((left >> j) & 1) {
+          out[k + j] = dua_deadline_interval(taus[k + j], dt, latency, max_interval, extra);
+        }
+      }
+    }
+  }
+}
+
 int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
   dua_schedule* st = v.st;
   const int64_t* params = st->params;
@@ -256,25 +311,32 @@ int64_t DeadlineReinsert(const View& v, int64_t n, int64_t count) {
   int64_t* ints = st->ints;
   const int64_t m = st->m, wheel = params[kWheel];
   int64_t nalarm = 0;
-  for (int64_t k = 0; k < count; ++k) {
-    const int64_t p = w_ids[k];
-    const double tau = st->w_tau[k];
-    int64_t interval = dua_deadline_interval(tau, dt, latency, max_interval, extra);
-    if (Alarms(tau, horizon)) {
-      // Whether the last verdict stood, read only here (most evaluations do not alarm): due
-      // now, it had to cover until this step (a deferred one, longer: it stood).
-      const int64_t waited = n - last_step[p];
-      const bool before =
-          Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt + extra);
-      // Keeps alarming (resting contact, mostly): back off; it stands in alarm until then.
-      if (before) interval = std::max<int64_t>(1, std::min(2 * waited, backoff));
-      alarms[nalarm] = p;
-      fresh[nalarm] = !before;
-      ++nalarm;
+  // The waits a chunk at a time, in lanes (DeadlineIntervals), then the chunk's pairs linked.
+  constexpr int64_t kChunk = 64;
+  int64_t intervals[kChunk];
+  for (int64_t k0 = 0; k0 < count; k0 += kChunk) {
+    const int64_t end = std::min(count, k0 + kChunk);
+    DeadlineIntervals(st->w_tau + k0, end - k0, dt, latency, max_interval, extra, intervals);
+    for (int64_t k = k0; k < end; ++k) {
+      const int64_t p = w_ids[k];
+      const double tau = st->w_tau[k];
+      int64_t interval = intervals[k - k0];
+      if (Alarms(tau, horizon)) {
+        // Whether the last verdict stood, read only here (most evaluations do not alarm): due
+        // now, it had to cover until this step (a deferred one, longer: it stood).
+        const int64_t waited = n - last_step[p];
+        const bool before =
+            Stood(st->last_tau[p], static_cast<double>(waited + latency) * dt + extra);
+        // Keeps alarming (resting contact, mostly): back off; it stands in alarm until then.
+        if (before) interval = std::max<int64_t>(1, std::min(2 * waited, backoff));
+        alarms[nalarm] = p;
+        fresh[nalarm] = !before;
+        ++nalarm;
+      }
+      st->last_tau[p] = tau;
+      last_step[p] = n;
+      LinkInto(slots, ints, m, wheel, p, n + interval);
     }
-    st->last_tau[p] = tau;
-    last_step[p] = n;
-    LinkInto(slots, ints, m, wheel, p, n + interval);
   }
   for (int64_t k = count; k < count + params[kDeferred]; ++k) {
     const int64_t p = w_ids[k];

@@ -883,10 +883,19 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
   // period > 1 the other levels' taus go on the predictor's grid as the plan's did (GridFloor).
   const bool grid = a.period > 1;
   const uint8_t* planned = a.plan.impl != nullptr ? a.plan.planned : nullptr;
+  if (!grid) {
+    // Every tau written back, a NaN as 0 (a loop without branches, which the compiler
+    // vectorises: most taus are numbers, and each is written as it was).
+    for (int64_t k = 0; k < count; ++k) {
+      const double t = out[k];
+      out[k] = std::isnan(t) ? 0.0 : t;
+    }
+    return -1;
+  }
   for (int64_t k = 0; k < count; ++k) {
     if (std::isnan(out[k])) {
       out[k] = 0.0;
-    } else if (grid && (planned == nullptr || !planned[k])) {
+    } else if (planned == nullptr || !planned[k]) {
       out[k] = GridFloor(out[k], a.timestep, a.period);
     }
   }
