@@ -652,7 +652,7 @@ MUTANTS: tuple[Mutant, ...] = (
         "plan-relative-nesting-lanes-block-passed",
         _PLAN,
         "    if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;\n",
-        "    continue;\n",
+        "    if (!Any(Not(And(room >= Splat(0.0), bound <= room))) || s >= 0) continue;\n",
         (
             "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
             "tests/test_plan_relative.py::"
