@@ -535,8 +535,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-rotation-dropped",
         _PLAN,
-        "(std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 2e-9)",
-        "(std::sqrt(dp) + 0.0 * std::sqrt(dr) * reach.norm) * (1.0 + 2e-9)",
+        "return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);",
+        "return (Sqrt(dp) + 0.0 * Sqrt(dr) * norm) * (1.0 + 2e-9);",
         ("tests/test_flightplan.py::test_a_turn_alone_past_the_deviation_breaks_its_plan",),
         "a body that turns away from its planned pose without moving its origin keeps the plan",
     ),
@@ -673,8 +673,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-box-screen-below-its-bound",
         _PLAN,
-        "const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 2e-9);",
-        "const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * 0.5;",
+        "return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);",
+        "return (Sqrt(dp) + Sqrt(dr) * norm) * 0.5;",
         (
             "tests/test_plan_relative.py::"
             "test_the_actual_distance_is_never_below_the_planned_one_less_the_relative_deviation",
@@ -682,10 +682,44 @@ MUTANTS: tuple[Mutant, ...] = (
         "the deviation check's first screen passes a box whose corners stray beyond the limit",
     ),
     Mutant(
+        "plan-relative-nesting-lanes-block-passed",
+        _PLAN,
+        "    if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;\n",
+        "    if (!Any(Not(And(room >= Splat(0.0), bound <= room))) || s >= 0) continue;\n",
+        (
+            "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
+            "tests/test_plan_relative.py::"
+            "test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure",
+        ),
+        "the relative nesting's four-knot blocks pass unchecked: a replan that leaves the replaced "
+        "plan's relative tube is taken as nested, and its shadow checks the pair no more",
+    ),
+    Mutant(
+        "plan-relative-nesting-lanes-first-lane-only",
+        _PLAN,
+        "    if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;\n",
+        "    if (And(room >= Splat(0.0), bound <= room)[0]) continue;\n",
+        (
+            "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
+        ),
+        "a block of the relative nesting whose first knot passes passes whole: a departure at its "
+        "other knots is found a block later, and the shadow checks the pair knots late",
+    ),
+    Mutant(
+        "plan-relative-nesting-lanes-departure-at-the-blocks-end",
+        _PLAN,
+        "      if (!within(s + k)) return s + k;\n",
+        "      if (!within(s + k)) return s + kLanes - 1;\n",
+        (
+            "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
+        ),
+        "a departure in a block of the relative nesting is reported at the block's last knot",
+    ),
+    Mutant(
         "plan-box-screen-rounded-to-nearest",
         _PLAN,
-        "const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 2e-9);",
-        "const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm);",
+        "return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);",
+        "return (Sqrt(dp) + Sqrt(dr) * norm);",
         (f"{_ROUNDING}::test_the_deviation_checks_first_screen_passes_no_box_beyond_its_limit",),
         "the deviation check's first screen without its rounding room: a body that moves without "
         "turning passes a few ulps beyond its limit about half the time",

@@ -325,6 +325,40 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
     assert p._rt.plan_ok[list(_pair(m))].all()  # no body broke its own deviation
 
 
+def _first_break(fold: np.ndarray, relative: bool) -> int | None:
+    """The step of the first plan break when a replan that folds the last link (no relative
+    deviation, if ``relative``; else without the pair) replaces a still plan (2 cm) and the run
+    is that replan: None if none within 60 steps."""
+    m, d, p = _arm()
+    n = 300
+    dev = np.full((n, m.nbody), 0.3)
+    _still_plan(m, d, p, dev)
+    p.set_plan(
+        _roll(m, d, fold, n), deviation=dev, relative=([_pair(m)], 0.0) if relative else None
+    )
+    for k in range(60):
+        d.ctrl[:] = fold[min(k, len(fold) - 1)]
+        mujoco.mj_step(m, d)
+        p.step(d)
+        if p.plan_breaks:
+            return k
+    return None
+
+
+@pytest.mark.parametrize("start", [20, 21, 22, 23])
+def test_a_relative_departure_is_found_at_its_knot_in_every_lane(start: int) -> None:
+    """The relative nesting checks four knots at a time (RelativeDeparture's lanes). A replan
+    that folds the last link from step ``start`` (four starts: the departure in each lane of a
+    block), with no relative deviation of its own, is followed exactly: the replaced plan's
+    pair breaks at the very knot the replan leaves its tube, which its shadow checks from the
+    departure on. So the break comes at the same step as when the replan lacks the pair (then
+    the shadow checks it at every step): a departure found a knot late would come later."""
+    fold = np.array([[0.0, 0.0, 0.0]] * start + [[0.0, 0.0, 0.6]])
+    step = _first_break(fold, relative=True)
+    assert step is not None and step > start
+    assert step == _first_break(fold, relative=False)
+
+
 def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_departures() -> None:
     """Three plans in turn (docs/theory.md, Lemma 8.6), with a relative pair. A second that folds
     the last link 20 steps on, then a third that keeps to it (nested in it: its shadow is

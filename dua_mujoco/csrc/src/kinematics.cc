@@ -17,13 +17,6 @@ namespace {
 // factors; mju_quat2Mat's diagonal and mju_normalize4's sum of squares are pairwise too;
 // mju_mulMatVec3 and mju_rotVecQuat add left to right as written), so each lane's bits are the
 // helper's. Their branches on the data become selects; the ones on model constants stay.
-DUA_INLINE Lanes Splat(double v) { return Lanes{v, v, v, v}; }
-
-// (lane k of) p[k][off]: lanes past a batch's knots read knot 0's row (the caller's pointers).
-DUA_INLINE Lanes Gather(const double* const* p, int64_t off) {
-  return Lanes{p[0][off], p[1][off], p[2][off], p[3][off]};
-}
-
 DUA_INLINE void MulMatVec3L(Lanes* res, const Lanes* mat, const Lanes* vec) {
   for (int i = 0; i < 3; ++i) {
     res[i] = mat[3 * i] * vec[0] + mat[3 * i + 1] * vec[1] + mat[3 * i + 2] * vec[2];

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 
 // target_clones needs the loader's ifunc support: glibc's (not musl's or MinGW's).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__OPTIMIZE__) && \
@@ -41,6 +42,13 @@ using LaneMask = decltype(Lanes{} < Lanes{});
 template <class T>
 using MaskOf = decltype(T{} < T{});
 
+DUA_INLINE Lanes Splat(double v) { return Lanes{v, v, v, v}; }
+// (lane k of) p[k][off]: four rows read at once (lanes past a batch's rows read the caller's
+// pointers, a row already in it).
+DUA_INLINE Lanes Gather(const double* const* p, int64_t off) {
+  return Lanes{p[0][off], p[1][off], p[2][off], p[3][off]};
+}
+
 inline double Select(bool m, double a, double b) { return m ? a : b; }
 DUA_INLINE Lanes Select(LaneMask m, Lanes a, Lanes b) { return m ? a : b; }
 // As std::max and std::min order their operands (which one a NaN gives back).
@@ -56,9 +64,8 @@ DUA_INLINE Lanes Sqrt(Lanes a) {
 }
 inline double Abs(double a) { return std::fabs(a); }
 DUA_INLINE Lanes Abs(Lanes a) {
-  Lanes r;
-  for (int k = 0; k < kLanes; ++k) r[k] = std::fabs(a[k]);
-  return r;
+  // The sign bit cleared, as fabs does (one vector and, not a call per lane).
+  return (Lanes)((LaneMask)a & ~(LaneMask)Splat(-0.0));
 }
 inline bool And(bool a, bool b) { return a && b; }
 DUA_INLINE LaneMask And(LaneMask a, LaneMask b) { return a & b; }
@@ -86,6 +93,23 @@ DUA_INLINE int Bits(LaneMask m) {
   const LaneMask w = m & LaneMask{1, 2, 4, 8};
   const LaneMask h = w | __builtin_shufflevector(w, w, 2, 3, 0, 1);
   return static_cast<int>(h[0] | h[1]);
+}
+// Four rows of four lanes (r[k], k < 4) as four columns (c[j]: lane k of it is lane j of r[k]).
+DUA_INLINE void Transpose4(const Lanes* r, Lanes* c) {
+  const Lanes lo01 = __builtin_shufflevector(r[0], r[1], 0, 4, 2, 6);
+  const Lanes hi01 = __builtin_shufflevector(r[0], r[1], 1, 5, 3, 7);
+  const Lanes lo23 = __builtin_shufflevector(r[2], r[3], 0, 4, 2, 6);
+  const Lanes hi23 = __builtin_shufflevector(r[2], r[3], 1, 5, 3, 7);
+  c[0] = __builtin_shufflevector(lo01, lo23, 0, 1, 4, 5);
+  c[1] = __builtin_shufflevector(hi01, hi23, 0, 1, 4, 5);
+  c[2] = __builtin_shufflevector(lo01, lo23, 2, 3, 6, 7);
+  c[3] = __builtin_shufflevector(hi01, hi23, 2, 3, 6, 7);
+}
+// Four consecutive doubles as lanes (memcpy: p is aligned only as a double).
+DUA_INLINE Lanes Load(const double* p) {
+  Lanes v;
+  std::memcpy(&v, p, sizeof(Lanes));
+  return v;
 }
 inline bool Any(bool m) { return m; }
 DUA_INLINE bool Any(LaneMask m) {

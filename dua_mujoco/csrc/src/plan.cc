@@ -7,6 +7,7 @@
 
 #include "internal.h"
 #include "kinematics.h"
+#include "lanes.h"
 #include "layout.h"
 
 namespace dua {
@@ -544,6 +545,29 @@ BoxReach::BoxReach(const double* box) {
 
 namespace {
 
+// BoxBound's first screen, (|pa - pb| + |ra - rb|_F |qmax|) (1 + 2e-9), from the differences
+// e(i) = pa[i] - pb[i] (i < 3) and f(m) = ra[m] - rb[m] (m < 9): of one check (T double) or of
+// four in lanes (Lanes), each lane taking the same operations in the same order (the same bits).
+template <class T, class E, class F>
+DUA_INLINE T NormBound(const E& e, const F& f, T norm) {
+  T dp{}, dr{};
+  for (int i = 0; i < 3; ++i) dp += e(i) * e(i);
+  for (int m = 0; m < 9; ++m) dr += f(m) * f(m);
+  return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);
+}
+
+// RelativeBound's limit less the relative poses' own rounding (1e-12 of the lengths they
+// combine), of one check or of four in lanes (as NormBound).
+template <class T, class Pose>
+DUA_INLINE T RelativeRoom(const double* box, const Pose& actual, const Pose& planned, T limit) {
+  T scale{};
+  scale += 1.0;
+  for (int i = 0; i < 3; ++i) {
+    scale += Abs(actual[i]) + Abs(planned[i]) + std::fabs(box[kBCenter + i]) + box[kBHalf + i];
+  }
+  return limit - 1e-12 * scale;
+}
+
 // Equal poses (a replan that keeps to the plan it replaces, a plan that is the run): 0.
 bool SamePose(const double* pa, const double* ra, const double* pb, const double* rb) {
   return std::equal(pa, pa + 3, pb) && std::equal(ra, ra + 9, rb);
@@ -582,17 +606,9 @@ bool BoxBound(const double* box, const BoxReach& reach, const double* pa, const 
   // within 28 ulps of the bound's own terms: a factor 1 + 2e-9 covers them and the 1e-9 the
   // first screen always allowed (docs/theory.md, Lemma 8.1), with no pass over the differences'
   // magnitudes.
-  double dp = 0.0, dr = 0.0;
-  for (int i = 0; i < 3; ++i) {
-    const double e = pa[i] - pb[i];
-    dp += e * e;
-    for (int j = 0; j < 3; ++j) {
-      const double f = ra[3 * i + j] - rb[3 * i + j];
-      dr += f * f;
-    }
-  }
-  const double bound = (std::sqrt(dp) + std::sqrt(dr) * reach.norm) * (1.0 + 2e-9);
-  if (bound <= limit) return true;
+  const auto e = [&](int i) { return pa[i] - pb[i]; };
+  const auto f = [&](int m) { return ra[m] - rb[m]; };
+  if (NormBound(e, f, reach.norm) <= limit) return true;
   double scale = 0.0;
   const double* qmax = reach.qmax;
   for (int i = 0; i < 3; ++i) {
@@ -643,12 +659,7 @@ bool RelativeBound(const double* box, const BoxReach& reach, const double* actua
   // it combines (|pb - pa|, |qb - qa|: the relative positions' lengths; and 1 for a rotation's
   // entries, times the box's reach); MuJoCo's rotations are orthonormal to as many ulps. 1e-12
   // of them is far above both and far below any distance a plan's gap resolves.
-  double scale = 1.0;
-  for (int i = 0; i < 3; ++i) {
-    scale += std::fabs(actual[i]) + std::fabs(planned[i]) + std::fabs(box[kBCenter + i]) +
-             box[kBHalf + i];
-  }
-  const double room = limit - 1e-12 * scale;
+  const double room = RelativeRoom(box, actual, planned, limit);
   // The relative poses differ (RelativePoseWithin's test), so their rotation or position does.
   return room >= 0.0 && BoxBound(box, reach, actual, actual + 3, planned, planned + 3, room);
 }
@@ -1173,13 +1184,48 @@ DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t
                                            const Plan& old, int64_t r, int64_t jo, int64_t count) {
   const double* box = old.rel_box(r);
   const BoxReach& reach = old.rel_reach(r);
-  for (int64_t s = 0; s < count; ++s) {
-    // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
-    // same nesting as the bodies' (Runtime::SetPlan), of the relative poses.
-    if (!RelativePoseWithin(box, reach, plan.rel_pose(jn + s, rn), old.rel_pose(jo + s, r),
-                            old.rel_dev(jo + s, r) - plan.rel_dev(jn + s, rn))) {
-      return s;
+  // In a's frame, |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the
+  // same nesting as the bodies' (Runtime::SetPlan), of the relative poses.
+  const auto within = [&](int64_t s) {
+    return RelativePoseWithin(box, reach, plan.rel_pose(jn + s, rn), old.rel_pose(jo + s, r),
+                              old.rel_dev(jo + s, r) - plan.rel_dev(jn + s, rn));
+  };
+  int64_t s = 0;
+  // Four knots at a time (a pair's relative poses follow each other, 12 a knot): RelativeBound's
+  // room and BoxBound's first screen in lanes, each lane the same operations in the same order
+  // (the same bits). Where a lane passes both, RelativePoseWithin passes (its test of equal
+  // poses needs 0 <= limit, which room >= 0 implies); a block with a lane that does not is
+  // checked knot by knot, as before.
+  for (; s + kLanes <= count; s += kLanes) {
+    const double* a = plan.rel_pose(jn + s, rn);
+    const double* p = old.rel_pose(jo + s, r);
+    // The 12 entries' differences (d[c], lane k of knot s + k: the poses' 4 x 12 read as three
+    // 4 x 4 blocks, transposed), and the positions for the room (the first block's columns).
+    Lanes d[12], actual[4], planned[4];
+    for (int c = 0; c < 12; c += 4) {
+      Lanes ra[kLanes], rp[kLanes], rd[kLanes];
+      for (int k = 0; k < kLanes; ++k) {
+        ra[k] = Load(a + 12 * k + c), rp[k] = Load(p + 12 * k + c);
+        rd[k] = ra[k] - rp[k];
+      }
+      Transpose4(rd, d + c);
+      if (c == 0) Transpose4(ra, actual), Transpose4(rp, planned);
     }
+    Lanes limit;
+    for (int k = 0; k < kLanes; ++k) {
+      limit[k] = old.rel_dev(jo + s + k, r) - plan.rel_dev(jn + s + k, rn);
+    }
+    const Lanes room = RelativeRoom(box, actual, planned, limit);
+    const auto e = [&](int i) { return d[i]; };
+    const auto f = [&](int m) { return d[3 + m]; };
+    const Lanes bound = NormBound(e, f, Splat(reach.norm));
+    if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;
+    for (int k = 0; k < kLanes; ++k) {
+      if (!within(s + k)) return s + k;
+    }
+  }
+  for (; s < count; ++s) {
+    if (!within(s)) return s;
   }
   return count;
 }
