@@ -257,16 +257,9 @@ int CheckFour(const dua_events& ev, const dua_frame& f, int64_t i, int m, int64_
     __builtin_memcpy(&r3, src[3][field] + j, sizeof(r3));
   };
   auto transpose = [&](int field, int j, int at) {
-    Lanes r0, r1, r2, r3;
-    load(r0, r1, r2, r3, field, j);
-    const Lanes t0 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);
-    const Lanes t1 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
-    const Lanes t2 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
-    const Lanes t3 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
-    row.v[at] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
-    row.v[at + 1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
-    row.v[at + 2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
-    row.v[at + 3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
+    Lanes r[kLanes];
+    load(r[0], r[1], r[2], r[3], field, j);
+    Transpose4(r, row.v + at);
   };
   transpose(0, 0, kRowR);
   transpose(0, 4, kRowR + 4);

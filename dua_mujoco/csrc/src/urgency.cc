@@ -341,22 +341,13 @@ int TauSpeedFourPairs(const double* const si[kLanes], const double* const sj[kLa
     v[j] = Lanes{sj[0][3 + j], sj[1][3 + j], sj[2][3 + j], sj[3][3 + j]} -
            Lanes{si[0][3 + j], si[1][3 + j], si[2][3 + j], si[3][3 + j]};
   }
-  // Each record's four bounds as one vector read (not through a copy on the stack): memcpy, as
-  // a record is aligned only as a double (clang drops an alias's `aligned(8)` and would load it
-  // as aligned: UBSan's "requires 32 byte alignment").
-  Lanes r0, r1, r2, r3;
-  std::memcpy(&r0, rec[0] + kPairEps, sizeof(Lanes));
-  std::memcpy(&r1, rec[1] + kPairEps, sizeof(Lanes));
-  std::memcpy(&r2, rec[2] + kPairEps, sizeof(Lanes));
-  std::memcpy(&r3, rec[3] + kPairEps, sizeof(Lanes));
-  const Lanes lo01 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);
-  const Lanes hi01 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
-  const Lanes lo23 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
-  const Lanes hi23 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
-  const Lanes eps = __builtin_shufflevector(lo01, lo23, 0, 1, 4, 5);
-  const Lanes accel = __builtin_shufflevector(hi01, hi23, 0, 1, 4, 5);
-  const Lanes delta = __builtin_shufflevector(lo01, lo23, 2, 3, 6, 7);
-  const Lanes speed = __builtin_shufflevector(hi01, hi23, 2, 3, 6, 7);
+  // Each record's four bounds as one vector read (not through a copy on the stack), then
+  // transposed: Load, as a record is aligned only as a double.
+  const Lanes r[kLanes] = {Load(rec[0] + kPairEps), Load(rec[1] + kPairEps),
+                           Load(rec[2] + kPairEps), Load(rec[3] + kPairEps)};
+  Lanes c[kLanes];
+  Transpose4(r, c);
+  const Lanes eps = c[0], accel = c[1], delta = c[2], speed = c[3];
   Lanes tau, term;
   const int done = AccelLanes(x, v, eps, accel, delta, speed, &tau, &term, speed_on);
   std::memcpy(ts, &term, sizeof(Lanes));
