@@ -268,8 +268,7 @@ void Register() {
     // shape records (O(static geoms) and their height fields' and meshes' data; no step pays it).
     const std::string edited = StaticMismatch(m, in->rt.tables().statics);
     if (!edited.empty()) {
-      mju_error("dua_mujoco.predictor: text field '%s:static' %s.", in->prefix.c_str(),
-                StaticRefusal(edited).c_str());
+      mju_error("dua_mujoco.predictor: %s.", StaticFieldRefusal(in->prefix, edited).c_str());
     }
     in->rt.Invalidate();
   };

@@ -792,6 +792,10 @@ std::string StaticRefusal(const std::string& mismatch) {
          "MjData from that model";
 }
 
+std::string StaticFieldRefusal(const std::string& prefix, const std::string& mismatch) {
+  return "text field '" + prefix + ":static' " + StaticRefusal(mismatch);
+}
+
 std::string StaticMismatch(const mjModel* m, const std::vector<double>& statics) {
   const size_t n = statics.size() / kStaticNcol;
   if (n == 0) return std::string();
@@ -934,7 +938,7 @@ std::shared_ptr<const Tables> LoadTables(const mjModel* m, const std::string& pr
     // are refused as ReadStatic refuses them in a fresh one.
     const std::string edited = StaticMismatch(m, kept->statics);
     if (edited.empty()) return kept;
-    *error = "text field '" + prefix + ":static' " + StaticRefusal(edited);
+    *error = StaticFieldRefusal(prefix, edited);
     return nullptr;
   }
   const TableSource source = [m, &prefix](const std::string& name, std::vector<double>* out,

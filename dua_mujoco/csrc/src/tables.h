@@ -145,8 +145,12 @@ DUA_API std::vector<double> StaticRecords(const mjModel* m, const std::vector<in
 DUA_API std::string StaticMismatch(const mjModel* m, const std::vector<double>& statics);
 
 // Why the static table is refused once StaticMismatch found `mismatch` (non-empty), with the fix;
-// the refusal names the table before it ("text field 'dua:static' " + StaticRefusal(...)).
+// the refusal names the table before it, as BuildTables names tables ("table 'static' ", or
+// "text field 'dua:static' ").
 DUA_API std::string StaticRefusal(const std::string& mismatch);
+// The same, of the static table in the model's text fields under prefix (LoadTables' tables,
+// held to the model again at the plugin's reset): "text field '<prefix>:static' ...".
+DUA_API std::string StaticFieldRefusal(const std::string& prefix, const std::string& mismatch);
 
 }  // namespace dua
 
