@@ -916,8 +916,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "bounds-tau-off-the-period-grid",
         _STEP,
-        "const bool grid = a.period > 1;\n  const uint8_t* planned",
-        "const bool grid = false;\n  const uint8_t* planned",
+        "  if (a.period <= 1) {\n    // Every tau written back",
+        "  if (true) {\n    // Every tau written back",
         (
             "tests/test_warning_time.py::"
             "test_a_landing_between_predictor_steps_is_flagged_the_horizon_ahead",

@@ -874,9 +874,7 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
   // A tau that is not a number (from finite tables so large that the arithmetic overflows, a
   // shape's rotation entry of 1e308) alarms now, never passes (docs/hardening.md). With
   // period > 1 the other levels' taus go on the predictor's grid as the plan's did (GridFloor).
-  const bool grid = a.period > 1;
-  const uint8_t* planned = a.plan.impl != nullptr ? a.plan.planned : nullptr;
-  if (!grid) {
+  if (a.period <= 1) {
     // Every tau written back, a NaN as 0 (a loop without branches, which the compiler
     // vectorises: most taus are numbers, and each is written as it was).
     for (int64_t k = 0; k < count; ++k) {
@@ -885,6 +883,7 @@ int64_t TauOf(dua_step_args& a, const int64_t* ids, int64_t count, double* out) 
     }
     return -1;
   }
+  const uint8_t* planned = a.plan.impl != nullptr ? a.plan.planned : nullptr;
   for (int64_t k = 0; k < count; ++k) {
     if (std::isnan(out[k])) {
       out[k] = 0.0;
