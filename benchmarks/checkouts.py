@@ -30,6 +30,11 @@ PREAMBLE = (
 )
 
 
+def _own_env() -> dict[str, str]:
+    """This environment for another venv's Python: without this checkout's path or venv."""
+    return {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+
+
 @functools.cache
 def same_mujoco(python: str) -> None:
     """Refuse an A/B whose other side, run by ``python``, imports another MuJoCo than this one:
@@ -42,8 +47,7 @@ def same_mujoco(python: str) -> None:
     import mujoco
 
     code = "import mujoco; print(mujoco.__version__)"
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
-    proc = subprocess.run([python, "-c", code], env=env, capture_output=True, text=True)
+    proc = subprocess.run([python, "-c", code], env=_own_env(), capture_output=True, text=True)
     other = proc.stdout.strip() if proc.returncode == 0 else f"none ({proc.stderr.strip()[-200:]})"
     if other != mujoco.__version__:
         raise SystemExit(
@@ -70,8 +74,7 @@ def probe(code: str, checkout: Path, *args: str, **env: str) -> tuple[list[str],
     own = checkout / ".venv" / "bin" / "python"
     if other and own.exists():
         same_mujoco(str(own))
-        environ = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
-        return [str(own), "-c", code, *args], {**environ, **env}
+        return [str(own), "-c", code, *args], {**_own_env(), **env}
     argv = [sys.executable, "-c", (PREAMBLE if other else "") + code, *args]
     return argv, {**os.environ, "PYTHONPATH": str(checkout), **env}
 
