@@ -75,6 +75,7 @@ _PLUGIN = "dua_mujoco/csrc/src/plugin.cc"
 _TABLES = "dua_mujoco/csrc/src/tables.cc"
 _STATIC_EDITS = "tests/test_static_edits.py"
 _INTERNAL = "dua_mujoco/csrc/src/internal.h"
+_LANES = "dua_mujoco/csrc/src/lanes.h"
 _TERRAIN = "dua_mujoco/csrc/src/terrain.cc"
 _SHIELD = "dua_mujoco/csrc/src/shield.cc"
 _SHIELD_EPISODES = "tests/test_shield.py::test_every_protected_contact_finds_the_robot_at_rest"
@@ -186,8 +187,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "lane-pairs-bounds-transposed-wrong",
         _URGENCY,
-        "const Lanes accel = __builtin_shufflevector(hi01, hi23, 0, 1, 4, 5);",
-        "const Lanes accel = __builtin_shufflevector(lo01, lo23, 2, 3, 6, 7);",
+        "const Lanes eps = c[0], accel = c[1], delta = c[2], speed = c[3];",
+        "const Lanes eps = c[0], accel = c[2], delta = c[2], speed = c[3];",
         (_LANE_PAIRS,),
         "the four pair records' bounds transposed wrong: the step's sphere lanes read the "
         "velocity uncertainty as the acceleration bound",
@@ -368,12 +369,12 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "check-lanes-transposed-wrong",
-        _STEP,
-        "row.v[at + 1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);",
-        "row.v[at + 1] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);",
+        _LANES,
+        "c[1] = __builtin_shufflevector(hi01, hi23, 0, 1, 4, 5);",
+        "c[1] = __builtin_shufflevector(lo01, lo23, 2, 3, 6, 7);",
         ("tests/test_events.py::test_the_checks_lanes_equal_one_body_at_a_time",),
-        "the four-body check reads a pose's second column in place of its first one's neighbour "
-        "(a transpose off by a lane pair)",
+        "the lanes' 4 x 4 transpose (lanes.h: the four-body check's runs of four, the sphere "
+        "lanes' bounds, the relative nesting's blocks) puts a block's third column in its second",
     ),
     Mutant(
         "check-small-bounds-first-lane-only",
