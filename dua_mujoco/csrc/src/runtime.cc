@@ -220,9 +220,7 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.model = m;
   x.data = d;
   // Room to index d's contacts (the exact level's skip of pairs in contact).
-  if (t.exact && static_cast<int64_t>(contact_keys_.size()) < d->ncon) {
-    contact_keys_.resize(d->ncon), contact_dist_.resize(d->ncon);
-  }
+  if (t.exact && static_cast<int64_t>(contact_keys_.size()) < d->ncon) GrowContacts(d->ncon);
   x.contact_keys = contact_keys_.data();
   x.contact_dist = contact_dist_.data();
   x.contact_room = static_cast<int64_t>(contact_keys_.size());
@@ -246,31 +244,41 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   // Without a plan every basis is the bounds' (0) once each pair was evaluated again since the
   // last one: then the step's shift of them (every evaluated pair's, 2 % of the plugin's
   // instructions on dmc_dog) would write zeros over zeros, and is skipped (null).
-  auto zero = [](const std::vector<uint8_t>& v) {
-    return std::all_of(v.begin(), v.end(), [](uint8_t b) { return b == 0; });
-  };
-  basis_live_ = plan_ != nullptr || (basis_live_ && !(zero(basis_) && zero(basis_prev_)));
+  basis_live_ = plan_ != nullptr || (basis_live_ && BasisNonzero());
   pl.basis = basis_live_ ? basis_.data() : nullptr;
   pl.basis_prev = basis_live_ ? basis_prev_.data() : nullptr;
   pl.cleared = cleared_.data();
-  if (plan_) {
-    if (!plan_data_) plan_data_.reset(mj_makeData(m));
-    const Universe& u = universe();
-    // A batch is every pair (a classification) or a step's selection, which can outnumber the
-    // held pairs (the rank schedule takes a pair made due both from its slot and from the queue).
-    planned_.resize(std::max<size_t>({ids_.size(), static_cast<size_t>(schedule_->width()), 1}));
-    pl.body_ok = plan_ok_.data();
-    pl.rel_ok = rel_ok_.data();
-    pl.geom1 = u.geom1.data();
-    pl.geom2 = u.geom2.data();
-    pl.geom_body = m->geom_bodyid;
-    pl.geom_row = t.geom_row.data();
-    pl.data = plan_data_.get();
-    pl.planned = planned_.data();
-  }
+  if (plan_) BindPlan(m);
   a.timestep = t.timestep;
   a.period = static_cast<int64_t>(std::nearbyint(t.schedule.dt / t.timestep));
   return a;
+}
+
+void Runtime::GrowContacts(int ncon) { contact_keys_.resize(ncon), contact_dist_.resize(ncon); }
+
+bool Runtime::BasisNonzero() const {
+  auto zero = [](const std::vector<uint8_t>& v) {
+    return std::all_of(v.begin(), v.end(), [](uint8_t b) { return b == 0; });
+  };
+  return !(zero(basis_) && zero(basis_prev_));
+}
+
+void Runtime::BindPlan(const mjModel* m) {
+  const Tables& t = *tables_;
+  dua_plan& pl = args_.plan;
+  if (!plan_data_) plan_data_.reset(mj_makeData(m));
+  const Universe& u = universe();
+  // A batch is every pair (a classification) or a step's selection, which can outnumber the
+  // held pairs (the rank schedule takes a pair made due both from its slot and from the queue).
+  planned_.resize(std::max<size_t>({ids_.size(), static_cast<size_t>(schedule_->width()), 1}));
+  pl.body_ok = plan_ok_.data();
+  pl.rel_ok = rel_ok_.data();
+  pl.geom1 = u.geom1.data();
+  pl.geom2 = u.geom2.data();
+  pl.geom_body = m->geom_bodyid;
+  pl.geom_row = t.geom_row.data();
+  pl.data = plan_data_.get();
+  pl.planned = planned_.data();
 }
 
 std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double* departures) {
@@ -603,6 +611,12 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const 
 
 void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
   plan_due_.clear();
+  // Without a plan, a shadow or a break between steps (every step of most runs) nothing to do.
+  if (!plan_ && shadows_.empty() && pending_due_.empty() && pending_rel_.empty()) return;
+  FollowPlans(m, d, n);
+}
+
+void Runtime::FollowPlans(const mjModel* m, const mjData* d, int64_t n) {
   for (const int64_t b : pending_due_) MakeBodyDue(m, b, n);
   pending_due_.clear();
   for (const int64_t key : pending_rel_) MakeRelativeDue(m, key, n);

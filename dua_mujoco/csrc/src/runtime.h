@@ -278,6 +278,11 @@ class DUA_API Runtime {
   dua_step_args& Bind(const mjModel* m, const mjData* d);
 
  private:
+  // Bind's rarely taken branches, out of its lines (DUA_COLD, lanes.h): room for ncon contacts,
+  // whether some basis is still a plan's, and a plan's arguments.
+  DUA_COLD void GrowContacts(int ncon);
+  DUA_APART bool BasisNonzero() const;
+  DUA_APART void BindPlan(const mjModel* m);
   const LearnTables& learn() const { return tables_->learn; }
   int64_t npair() const { return static_cast<int64_t>(ids_.size()); }
   void Hold(const std::vector<int64_t>& held);
@@ -299,6 +304,7 @@ class DUA_API Runtime {
   // the plan's knot, the bodies beyond their deviation flagged and their pairs made due; past
   // its end, the plan dropped (every pair due).
   void FollowPlan(const mjModel* m, const mjData* d, int64_t n);
+  DUA_APART void FollowPlans(const mjModel* m, const mjData* d, int64_t n);  // its work, if any
   // The plan's and the shadows' checks of d's state: the bodies found beyond their deviation
   // appended to broken and marked (shadows past their span dropped); returns the plan's knot
   // (-1: no plan covers the state).
