@@ -38,6 +38,9 @@
 // step of some runs (a plan's), which stays in the hot text.
 #define DUA_COLD __attribute__((cold, noinline))
 #define DUA_APART __attribute__((noinline))
+// The step's glue (what every step runs once: Bind, Step, the log, the watch, the schedule's
+// entry points), placed together (.text.hot) so that its functions share lines and pages.
+#define DUA_HOT __attribute__((hot))
 
 namespace dua {
 

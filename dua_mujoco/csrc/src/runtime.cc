@@ -195,7 +195,7 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
   ++held_version_;
 }
 
-dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
+DUA_HOT dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
   dua_step_args& a = args_;
   a.abi = DUA_ABI_VERSION;
@@ -880,7 +880,7 @@ std::vector<int64_t> Runtime::WatchedStanding() const {
   return out;
 }
 
-void Runtime::FinishWatch() {
+DUA_HOT void Runtime::FinishWatch() {
   if (!watching_) return;
   watched_.started = 0;
   was_.resize(gp_count_.size(), 0);
@@ -964,7 +964,7 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
   return bad;
 }
 
-Runtime::Clock Runtime::ClockOf(double time) const {
+DUA_HOT Runtime::Clock Runtime::ClockOf(double time) const {
   const double dt = tables_->schedule.dt, h = tables_->timestep;
   const double elapsed = time - last_time_;
   if (std::fabs(elapsed) <= 1e-6 * h) return Clock::kSame;
@@ -976,7 +976,7 @@ Runtime::Clock Runtime::ClockOf(double time) const {
   return Clock::kOther;
 }
 
-int64_t Runtime::Step(const mjModel* m, const mjData* d) {
+DUA_HOT int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
   if (d) mocap_.Difference(d, d->time - last_time_);
   Bind(m, d);
@@ -1010,7 +1010,7 @@ int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   return result;
 }
 
-void Runtime::Log(int64_t nalarm) {
+DUA_HOT void Runtime::Log(int64_t nalarm) {
   const Universe& u = universe();
   const Tables& t = *tables_;
   for (int64_t k = log_start_; k < log_start_ + nalarm; ++k) {
@@ -1137,7 +1137,7 @@ void Runtime::Carry(const mjModel* m, const mjData* d, const std::vector<int64_t
   min_tau_ = min_tau;
 }
 
-void Runtime::Track(const int64_t* ids, int64_t n, const int64_t* alarms, int64_t nalarm) {
+DUA_HOT void Runtime::Track(const int64_t* ids, int64_t n, const int64_t* alarms, int64_t nalarm) {
   if (alarms) {
     // The alarms are a subsequence of ids, in its order: each pair is compared with the next of
     // them only (-1: none left, never a pair). Few pairs change (Flip); the loop reads the flags
@@ -1210,7 +1210,7 @@ void Runtime::TrackAll() {
   min_tau_ = tau.empty() ? kInf : *std::min_element(tau.begin(), tau.end());
 }
 
-void Runtime::TrackStep(int64_t nalarm) {
+DUA_HOT void Runtime::TrackStep(int64_t nalarm) {
   const dua_schedule& s = *schedule_->state();
   const dua_events& e = args_.events;
   // The deadline wheel and select-all list each selected pair once, and their reinsert lists
