@@ -556,8 +556,8 @@ void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, 
 namespace dua {
 
 DUA_HOT int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
-                      const int64_t* start, const int64_t* members, int64_t n,
-                      const dua_step_args* settle) {
+                              const int64_t* start, const int64_t* members, int64_t n,
+                              const dua_step_args* settle) {
   if (st->kind != kDeadline) {
     for (int64_t k = 0; k < ngroups; ++k) {
       const int64_t g = groups[k];
