@@ -193,30 +193,19 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
   basis_.assign(n, 0), basis_prev_.assign(n, 0);  // a pair new to the held set: the bounds
   cleared_.assign(n, -1);
   ++held_version_;
+  held_bound_ = false;  // the buffers above may have moved: Bind points args_ at them again
 }
 
 DUA_HOT dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
   dua_step_args& a = args_;
-  a.abi = DUA_ABI_VERSION;
+  // What only the tables and the held set's buffers give stays between two calls (BindHeld).
+  if (!held_bound_) BindHeld();
   a.schedule = *schedule_->state();
-  a.pairs = t.pruned ? held_pairs_.data() : t.universe.pairs.data();
-  a.spheres = t.spheres.data();
-  a.shapes = t.shapes.data();
-  a.ids = ids_.data();
   // Free spheres: the caller's states (SetPoints), no frame.
   a.frame = d ? FrameOf(d, mocap_.twist.data()) : dua_frame{};
   a.points = t.free ? points_ : dua_points{};
   dua_exact& x = a.exact;
-  x.on = t.exact ? 1 : 0;
-  x.geoms = t.geoms.data();
-  x.records = exact_records_.data();
-  x.witness = witness_.data();
-  x.below = t.exact_below;
-  x.query_below = t.query_below;
-  x.hull = t.hull.data();
-  x.hull_at = t.hull_at.data();
-  x.graph = t.graph.data();
   x.model = m;
   x.data = d;
   // Room to index d's contacts (the exact level's skip of pairs in contact).
@@ -225,17 +214,6 @@ DUA_HOT dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.contact_dist = contact_dist_.data();
   x.contact_room = static_cast<int64_t>(contact_keys_.size());
   x.contact_count = -1;
-  dua_events& e = a.events;
-  e.nbody = t.nbody_events;
-  e.rec = t.events_rec.data();
-  e.prev = events_prev_.data();
-  e.meta = events_meta_.data();
-  e.flagged = events_flagged_.data();
-  e.start = held_start_.data();
-  e.members = held_members_.data();
-  e.params = t.events_params.data();
-  a.point_state = point_state_.data();
-  a.point_epoch = point_epoch_.data();
   a.log_pairs = log_->pair.data();
   a.log_tau = log_->tau.data();
   a.log_new = log_->fresh.data();
@@ -249,9 +227,41 @@ DUA_HOT dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   pl.basis_prev = basis_live_ ? basis_prev_.data() : nullptr;
   pl.cleared = cleared_.data();
   if (plan_) BindPlan(m);
+  return a;
+}
+
+void Runtime::BindHeld() {
+  const Tables& t = *tables_;
+  dua_step_args& a = args_;
+  a.abi = DUA_ABI_VERSION;
+  a.pairs = t.pruned ? held_pairs_.data() : t.universe.pairs.data();
+  a.spheres = t.spheres.data();
+  a.shapes = t.shapes.data();
+  a.ids = ids_.data();
+  dua_exact& x = a.exact;
+  x.on = t.exact ? 1 : 0;
+  x.geoms = t.geoms.data();
+  x.records = exact_records_.data();
+  x.witness = witness_.data();
+  x.below = t.exact_below;
+  x.query_below = t.query_below;
+  x.hull = t.hull.data();
+  x.hull_at = t.hull_at.data();
+  x.graph = t.graph.data();
+  dua_events& e = a.events;
+  e.nbody = t.nbody_events;
+  e.rec = t.events_rec.data();
+  e.prev = events_prev_.data();
+  e.meta = events_meta_.data();
+  e.flagged = events_flagged_.data();
+  e.start = held_start_.data();
+  e.members = held_members_.data();
+  e.params = t.events_params.data();
+  a.point_state = point_state_.data();
+  a.point_epoch = point_epoch_.data();
   a.timestep = t.timestep;
   a.period = static_cast<int64_t>(std::nearbyint(t.schedule.dt / t.timestep));
-  return a;
+  held_bound_ = true;
 }
 
 void Runtime::GrowContacts(int ncon) { contact_keys_.resize(ncon), contact_dist_.resize(ncon); }

@@ -281,6 +281,9 @@ class DUA_API Runtime {
   // Bind's rarely taken branches, out of its lines (DUA_COLD, lanes.h): room for ncon contacts,
   // whether some basis is still a plan's, and a plan's arguments.
   DUA_COLD void GrowContacts(int ncon);
+  // args_'s fields that only the tables and the held set's buffers set, written once per held
+  // set rather than at every step (held_bound_).
+  DUA_APART void BindHeld();
   DUA_APART bool BasisNonzero() const;
   DUA_APART void BindPlan(const mjModel* m);
   const LearnTables& learn() const { return tables_->learn; }
@@ -346,6 +349,10 @@ class DUA_API Runtime {
   std::shared_ptr<Schedule> schedule_;
   std::vector<int64_t> ids_;  // model pair of each held pair
   dua_step_args args_{};
+  // Whether args_ points at this runtime's held-set buffers and tables (BindHeld): false until
+  // Bind, again at each Hold (which reallocates them), and in a copy (whose args_ points at the
+  // original's: the copy constructor leaves it false).
+  bool held_bound_ = false;
   std::vector<double> point_state_, exact_records_;
   std::vector<double, LanesAligned<double>> events_prev_;  // the check's lanes read it in place
   std::vector<double> witness_;  // the exact level's witness points, (held pairs, 6)
