@@ -11,6 +11,7 @@ independent references elsewhere (tests/test_reference_step.py and the tests of 
 from __future__ import annotations
 
 import base64
+import gc
 import subprocess
 import sys
 import time
@@ -260,6 +261,27 @@ def test_copies_and_resets_keep_their_own_state() -> None:
     mujoco.mj_resetData(m, d)
     assert standing_pairs(m, d).shape == (0, 2)  # nothing until the first compute
     assert _standing_sequence(m, d, ctrl) == reference
+
+
+@pytest.mark.parametrize("pairs", ["all", "pruned"])
+def test_a_copy_steps_on_its_own_buffers_once_the_original_is_gone(pairs: str) -> None:
+    """The step's arguments point at the runtime's buffers and are kept between steps (Bind
+    rewrites only what can change): a copy must point at its own. The original is destroyed
+    and another run allocates over its buffers while the copy goes on; the copy's standing
+    pairs are those of one run that never copied."""
+    m, _ = _attached("two_arms", pairs=pairs)
+    rng = np.random.default_rng(2)
+    ctrl = rng.uniform(-1, 1, (300, m.nu))
+    other = rng.uniform(-1, 1, (100, m.nu))
+    reference = _standing_sequence(m, mujoco.MjData(m), ctrl)
+    d = mujoco.MjData(m)
+    _standing_sequence(m, d, ctrl[:150])
+    copy = mujoco.MjData(m)
+    mujoco.mj_copyData(copy, m, d)
+    del d
+    gc.collect()
+    _standing_sequence(m, mujoco.MjData(m), other)  # new buffers, maybe where d's were
+    assert _standing_sequence(m, copy, ctrl[150:]) == reference[150:]
 
 
 def test_a_jump_of_the_clock_classifies_from_the_state_alone() -> None:
