@@ -624,8 +624,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "held-bound-copied",
         "dua_mujoco/csrc/src/runtime.cc",
-        "      args_(o.args_),\n",
-        "      args_(o.args_),\n      held_bound_(o.held_bound_),\n",
+        "      basis_live_(o.basis_live_),\n",
+        "      held_bound_(o.held_bound_),\n      basis_live_(o.basis_live_),\n",
         (
             "tests/test_plugin.py::test_copies_and_resets_keep_their_own_state",
             "tests/test_plugin.py::test_a_copy_steps_on_its_own_buffers_once_the_original_is_gone",
