@@ -613,6 +613,26 @@ MUTANTS: tuple[Mutant, ...] = (
         "a pair evaluated again under one plan takes one knot past where its last walk ended",
     ),
     Mutant(
+        "held-bound-kept-over-a-new-held-set",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "  held_bound_ = false;  // the buffers above may have moved: Bind points args_ at "
+        "them again\n",
+        "",
+        ("tests/test_predictor_pruned.py",),
+        "after a new held set the step reads the old set's freed buffers (Bind's cached pointers)",
+    ),
+    Mutant(
+        "held-bound-copied",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "      basis_live_(o.basis_live_),\n",
+        "      held_bound_(o.held_bound_),\n      basis_live_(o.basis_live_),\n",
+        (
+            "tests/test_plugin.py::test_copies_and_resets_keep_their_own_state",
+            "tests/test_plugin.py::test_a_copy_steps_on_its_own_buffers_once_the_original_is_gone",
+        ),
+        "a copied runtime's step reads and writes the original's buffers (Bind's cached pointers)",
+    ),
+    Mutant(
         "plan-walks-kept-over-a-new-plan",
         "dua_mujoco/csrc/src/runtime.cc",
         "  std::fill(cleared_.begin(), cleared_.end(), -1);  // the walks so far were of the old "

@@ -11,6 +11,7 @@ independent references elsewhere (tests/test_reference_step.py and the tests of 
 from __future__ import annotations
 
 import base64
+import gc
 import subprocess
 import sys
 import time
@@ -241,18 +242,28 @@ def test_the_plugin_leaves_the_physics_and_the_subtree_velocities_as_they_were(
         assert not d1.subtree_linvel.any()  # never computed, as without the plugin
 
 
+def _copied_halfway(
+    m: mujoco.MjModel, seed: int, steps: int
+) -> tuple[list[tuple], mujoco.MjData, mujoco.MjData, np.ndarray, np.ndarray]:
+    """One run of `steps` random controls (the reference), and another stopped halfway and
+    copied: (the reference's standing pairs, the original, its copy, the controls, half as many
+    other controls)."""
+    rng = np.random.default_rng(seed)
+    ctrl = rng.uniform(-1, 1, (steps, m.nu))
+    other = rng.uniform(-1, 1, (steps // 2, m.nu))
+    reference = _standing_sequence(m, mujoco.MjData(m), ctrl)
+    d = mujoco.MjData(m)
+    _standing_sequence(m, d, ctrl[: steps // 2])
+    copy = mujoco.MjData(m)
+    mujoco.mj_copyData(copy, m, d)
+    return reference, d, copy, ctrl, other
+
+
 def test_copies_and_resets_keep_their_own_state() -> None:
     """``mj_copyData`` carries the plugin's state into the copy, and the two then run apart;
     ``mj_resetData`` starts the predictor over, as a fresh ``MjData`` does."""
     m, _ = _attached("two_arms")
-    rng = np.random.default_rng(0)
-    ctrl = rng.uniform(-1, 1, (400, m.nu))
-    other = rng.uniform(-1, 1, (200, m.nu))
-    reference = _standing_sequence(m, mujoco.MjData(m), ctrl)
-    d = mujoco.MjData(m)
-    _standing_sequence(m, d, ctrl[:200])
-    copy = mujoco.MjData(m)
-    mujoco.mj_copyData(copy, m, d)
+    reference, d, copy, ctrl, other = _copied_halfway(m, 0, 400)
     np.testing.assert_array_equal(standing_pairs(m, copy), standing_pairs(m, d))
     # The copy goes its own way; the original must not notice.
     _standing_sequence(m, copy, other)
@@ -260,6 +271,20 @@ def test_copies_and_resets_keep_their_own_state() -> None:
     mujoco.mj_resetData(m, d)
     assert standing_pairs(m, d).shape == (0, 2)  # nothing until the first compute
     assert _standing_sequence(m, d, ctrl) == reference
+
+
+@pytest.mark.parametrize("pairs", ["all", "pruned"])
+def test_a_copy_steps_on_its_own_buffers_once_the_original_is_gone(pairs: str) -> None:
+    """The step's arguments point at the runtime's buffers and are kept between steps (Bind
+    rewrites only what can change): a copy must point at its own. The original is destroyed
+    and another run allocates over its buffers while the copy goes on; the copy's standing
+    pairs are those of one run that never copied."""
+    m, _ = _attached("two_arms", pairs=pairs)
+    reference, d, copy, ctrl, other = _copied_halfway(m, 2, 300)
+    del d
+    gc.collect()
+    _standing_sequence(m, mujoco.MjData(m), other)  # new buffers, maybe where d's were
+    assert _standing_sequence(m, copy, ctrl[150:]) == reference[150:]
 
 
 def test_a_jump_of_the_clock_classifies_from_the_state_alone() -> None:

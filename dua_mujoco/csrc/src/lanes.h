@@ -30,6 +30,17 @@
 #else
 #define DUA_SECTION
 #endif
+// A branch of the step's glue that most steps do not take (a plan's, a buffer's growth, a
+// failed step), kept out of line so that the taken path reads fewer instruction lines: the
+// step runs cold (MuJoCo's step evicts its code between two calls), and a line fetched for
+// one instruction costs as much as one fetched for sixteen (docs/benchmarks.md, issue 42).
+// DUA_COLD for the rarest (a cold section of its own), DUA_APART for a path taken at every
+// step of some runs (a plan's), which stays in the hot text.
+#define DUA_COLD __attribute__((cold, noinline))
+#define DUA_APART __attribute__((noinline))
+// The step's glue (what every step runs once: Bind, Step, the log, the watch, the schedule's
+// entry points), placed together (.text.hot) so that its functions share lines and pages.
+#define DUA_HOT __attribute__((hot))
 
 namespace dua {
 

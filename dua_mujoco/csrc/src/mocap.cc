@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "dua/dua.h"
+#include "lanes.h"
 
 extern "C" {
 
@@ -81,7 +82,7 @@ void Mocap::Start(const mjData* d) {
   time = d->time;
 }
 
-void Mocap::Difference(const mjData* d, double elapsed) {
+DUA_HOT void Mocap::Difference(const mjData* d, double elapsed) {
   time = d->time;
   if (bodies.empty()) return;
   dua_difference_poses(d->xpos, d->xquat, bodies.data(), static_cast<int64_t>(bodies.size()),

@@ -139,7 +139,7 @@ Instance* Create(const mjModel* m, int instance) {
 }
 
 // The sensor outputs (O(1)).
-void Publish(mjData* d, const Instance* in) {
+DUA_HOT void Publish(mjData* d, const Instance* in) {
   if (in->sensor_adr < 0) return;
   const Runtime& rt = in->rt;
   mjtNum* out = d->sensordata + in->sensor_adr;
@@ -150,7 +150,7 @@ void Publish(mjData* d, const Instance* in) {
   out[kFlagged] = static_cast<mjtNum>(rt.flagged());
 }
 
-void Compute(const mjModel* m, mjData* d, int instance) {
+DUA_HOT void Compute(const mjModel* m, mjData* d, int instance) {
   Instance* in = InstanceOf(d, instance);
   if (!in) return;
   Runtime& rt = in->rt;

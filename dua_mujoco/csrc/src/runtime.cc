@@ -90,14 +90,26 @@ Runtime::Runtime(const Runtime& o)
       log_steps_(o.log_steps_),
       log_min_(o.log_min_),
       schedule_(std::make_shared<Schedule>(*o.schedule_)),
+      plan_(o.plan_),  // immutable: shared; the mjData it is queried on is made when needed
+      last_time_(o.last_time_),
+      step_(o.step_),
+      nstanding_(o.nstanding_),
+      min_tau_(o.min_tau_),
+      classified_(o.classified_),
+      basis_live_(o.basis_live_),
       ids_(o.ids_),
+      events_meta_(o.events_meta_),
+      stands_(o.stands_),
+      standing_(o.standing_),
+      standing_at_(o.standing_at_),
+      gp_count_(o.gp_count_),
+      cleared_(o.cleared_),
       args_(o.args_),
       point_state_(o.point_state_),
       exact_records_(o.exact_records_),
       events_prev_(o.events_prev_),
       witness_(o.witness_),
       point_epoch_(o.point_epoch_),
-      events_meta_(o.events_meta_),
       events_flagged_(o.events_flagged_),
       pruned_(o.pruned_),
       own_(o.own_),
@@ -105,26 +117,14 @@ Runtime::Runtime(const Runtime& o)
       held_start_(o.held_start_),
       held_members_(o.held_members_),
       on_(o.on_),
-      stands_(o.stands_),
-      standing_(o.standing_),
-      standing_at_(o.standing_at_),
-      gp_count_(o.gp_count_),
-      nstanding_(o.nstanding_),
-      min_tau_(o.min_tau_),
       mocap_(o.mocap_),
-      classified_(o.classified_),
-      last_time_(o.last_time_),
-      step_(o.step_),
       rebuilds_(o.rebuilds_),
       renewals_(o.renewals_),
       universe_version_(o.universe_version_),
       held_version_(o.held_version_),
-      plan_(o.plan_),  // immutable: shared; the mjData it is queried on is made when needed
       plan_ok_(o.plan_ok_),
       basis_(o.basis_),
       basis_prev_(o.basis_prev_),
-      basis_live_(o.basis_live_),
-      cleared_(o.cleared_),
       shadows_(o.shadows_),
       pending_due_(o.pending_due_),
       pending_rel_(o.pending_rel_),
@@ -193,20 +193,51 @@ void Runtime::Hold(const std::vector<int64_t>& held) {
   basis_.assign(n, 0), basis_prev_.assign(n, 0);  // a pair new to the held set: the bounds
   cleared_.assign(n, -1);
   ++held_version_;
+  held_bound_ = false;  // the buffers above may have moved: Bind points args_ at them again
 }
 
-dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
+DUA_HOT dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
+  const Tables& t = *tables_;
+  dua_step_args& a = args_;
+  // What only the tables and the held set's buffers give stays between two calls (BindHeld).
+  if (!held_bound_) BindHeld();
+  a.schedule = *schedule_->state();
+  // Free spheres: the caller's states (SetPoints), no frame.
+  a.frame = d ? FrameOf(d, mocap_.twist.data()) : dua_frame{};
+  a.points = t.free ? points_ : dua_points{};
+  dua_exact& x = a.exact;
+  x.model = m;
+  x.data = d;
+  // Room to index d's contacts (the exact level's skip of pairs in contact).
+  if (t.exact && static_cast<int64_t>(contact_keys_.size()) < d->ncon) GrowContacts(d->ncon);
+  x.contact_keys = contact_keys_.data();
+  x.contact_dist = contact_dist_.data();
+  x.contact_room = static_cast<int64_t>(contact_keys_.size());
+  x.contact_count = -1;
+  a.log_pairs = log_->pair.data();
+  a.log_tau = log_->tau.data();
+  a.log_new = log_->fresh.data();
+  dua_plan& pl = a.plan;
+  pl.impl = plan_.get();
+  // Without a plan every basis is the bounds' (0) once each pair was evaluated again since the
+  // last one: then the step's shift of them (every evaluated pair's, 2 % of the plugin's
+  // instructions on dmc_dog) would write zeros over zeros, and is skipped (null).
+  basis_live_ = plan_ != nullptr || (basis_live_ && BasisNonzero());
+  pl.basis = basis_live_ ? basis_.data() : nullptr;
+  pl.basis_prev = basis_live_ ? basis_prev_.data() : nullptr;
+  pl.cleared = cleared_.data();
+  if (plan_) BindPlan(m);
+  return a;
+}
+
+void Runtime::BindHeld() {
   const Tables& t = *tables_;
   dua_step_args& a = args_;
   a.abi = DUA_ABI_VERSION;
-  a.schedule = *schedule_->state();
   a.pairs = t.pruned ? held_pairs_.data() : t.universe.pairs.data();
   a.spheres = t.spheres.data();
   a.shapes = t.shapes.data();
   a.ids = ids_.data();
-  // Free spheres: the caller's states (SetPoints), no frame.
-  a.frame = d ? FrameOf(d, mocap_.twist.data()) : dua_frame{};
-  a.points = t.free ? points_ : dua_points{};
   dua_exact& x = a.exact;
   x.on = t.exact ? 1 : 0;
   x.geoms = t.geoms.data();
@@ -217,16 +248,6 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   x.hull = t.hull.data();
   x.hull_at = t.hull_at.data();
   x.graph = t.graph.data();
-  x.model = m;
-  x.data = d;
-  // Room to index d's contacts (the exact level's skip of pairs in contact).
-  if (t.exact && static_cast<int64_t>(contact_keys_.size()) < d->ncon) {
-    contact_keys_.resize(d->ncon), contact_dist_.resize(d->ncon);
-  }
-  x.contact_keys = contact_keys_.data();
-  x.contact_dist = contact_dist_.data();
-  x.contact_room = static_cast<int64_t>(contact_keys_.size());
-  x.contact_count = -1;
   dua_events& e = a.events;
   e.nbody = t.nbody_events;
   e.rec = t.events_rec.data();
@@ -238,39 +259,36 @@ dua_step_args& Runtime::Bind(const mjModel* m, const mjData* d) {
   e.params = t.events_params.data();
   a.point_state = point_state_.data();
   a.point_epoch = point_epoch_.data();
-  a.log_pairs = log_->pair.data();
-  a.log_tau = log_->tau.data();
-  a.log_new = log_->fresh.data();
-  dua_plan& pl = a.plan;
-  pl.impl = plan_.get();
-  // Without a plan every basis is the bounds' (0) once each pair was evaluated again since the
-  // last one: then the step's shift of them (every evaluated pair's, 2 % of the plugin's
-  // instructions on dmc_dog) would write zeros over zeros, and is skipped (null).
+  a.timestep = t.timestep;
+  a.period = static_cast<int64_t>(std::nearbyint(t.schedule.dt / t.timestep));
+  held_bound_ = true;
+}
+
+void Runtime::GrowContacts(int ncon) { contact_keys_.resize(ncon), contact_dist_.resize(ncon); }
+
+bool Runtime::BasisNonzero() const {
   auto zero = [](const std::vector<uint8_t>& v) {
     return std::all_of(v.begin(), v.end(), [](uint8_t b) { return b == 0; });
   };
-  basis_live_ = plan_ != nullptr || (basis_live_ && !(zero(basis_) && zero(basis_prev_)));
-  pl.basis = basis_live_ ? basis_.data() : nullptr;
-  pl.basis_prev = basis_live_ ? basis_prev_.data() : nullptr;
-  pl.cleared = cleared_.data();
-  if (plan_) {
-    if (!plan_data_) plan_data_.reset(mj_makeData(m));
-    const Universe& u = universe();
-    // A batch is every pair (a classification) or a step's selection, which can outnumber the
-    // held pairs (the rank schedule takes a pair made due both from its slot and from the queue).
-    planned_.resize(std::max<size_t>({ids_.size(), static_cast<size_t>(schedule_->width()), 1}));
-    pl.body_ok = plan_ok_.data();
-    pl.rel_ok = rel_ok_.data();
-    pl.geom1 = u.geom1.data();
-    pl.geom2 = u.geom2.data();
-    pl.geom_body = m->geom_bodyid;
-    pl.geom_row = t.geom_row.data();
-    pl.data = plan_data_.get();
-    pl.planned = planned_.data();
-  }
-  a.timestep = t.timestep;
-  a.period = static_cast<int64_t>(std::nearbyint(t.schedule.dt / t.timestep));
-  return a;
+  return !(zero(basis_) && zero(basis_prev_));
+}
+
+void Runtime::BindPlan(const mjModel* m) {
+  const Tables& t = *tables_;
+  dua_plan& pl = args_.plan;
+  if (!plan_data_) plan_data_.reset(mj_makeData(m));
+  const Universe& u = universe();
+  // A batch is every pair (a classification) or a step's selection, which can outnumber the
+  // held pairs (the rank schedule takes a pair made due both from its slot and from the queue).
+  planned_.resize(std::max<size_t>({ids_.size(), static_cast<size_t>(schedule_->width()), 1}));
+  pl.body_ok = plan_ok_.data();
+  pl.rel_ok = rel_ok_.data();
+  pl.geom1 = u.geom1.data();
+  pl.geom2 = u.geom2.data();
+  pl.geom_body = m->geom_bodyid;
+  pl.geom_row = t.geom_row.data();
+  pl.data = plan_data_.get();
+  pl.planned = planned_.data();
 }
 
 std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double* departures) {
@@ -603,6 +621,12 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const 
 
 void Runtime::FollowPlan(const mjModel* m, const mjData* d, int64_t n) {
   plan_due_.clear();
+  // Without a plan, a shadow or a break between steps (every step of most runs) nothing to do.
+  if (!plan_ && shadows_.empty() && pending_due_.empty() && pending_rel_.empty()) return;
+  FollowPlans(m, d, n);
+}
+
+void Runtime::FollowPlans(const mjModel* m, const mjData* d, int64_t n) {
   for (const int64_t b : pending_due_) MakeBodyDue(m, b, n);
   pending_due_.clear();
   for (const int64_t key : pending_rel_) MakeRelativeDue(m, key, n);
@@ -866,7 +890,7 @@ std::vector<int64_t> Runtime::WatchedStanding() const {
   return out;
 }
 
-void Runtime::FinishWatch() {
+DUA_HOT void Runtime::FinishWatch() {
   if (!watching_) return;
   watched_.started = 0;
   was_.resize(gp_count_.size(), 0);
@@ -950,7 +974,7 @@ int64_t Runtime::Classify(const mjModel* m, const mjData* d) {
   return bad;
 }
 
-Runtime::Clock Runtime::ClockOf(double time) const {
+DUA_HOT Runtime::Clock Runtime::ClockOf(double time) const {
   const double dt = tables_->schedule.dt, h = tables_->timestep;
   const double elapsed = time - last_time_;
   if (std::fabs(elapsed) <= 1e-6 * h) return Clock::kSame;
@@ -962,7 +986,7 @@ Runtime::Clock Runtime::ClockOf(double time) const {
   return Clock::kOther;
 }
 
-int64_t Runtime::Step(const mjModel* m, const mjData* d) {
+DUA_HOT int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   const Tables& t = *tables_;
   if (d) mocap_.Difference(d, d->time - last_time_);
   Bind(m, d);
@@ -996,7 +1020,7 @@ int64_t Runtime::Step(const mjModel* m, const mjData* d) {
   return result;
 }
 
-void Runtime::Log(int64_t nalarm) {
+DUA_HOT void Runtime::Log(int64_t nalarm) {
   const Universe& u = universe();
   const Tables& t = *tables_;
   for (int64_t k = log_start_; k < log_start_ + nalarm; ++k) {
@@ -1123,7 +1147,7 @@ void Runtime::Carry(const mjModel* m, const mjData* d, const std::vector<int64_t
   min_tau_ = min_tau;
 }
 
-void Runtime::Track(const int64_t* ids, int64_t n, const int64_t* alarms, int64_t nalarm) {
+DUA_HOT void Runtime::Track(const int64_t* ids, int64_t n, const int64_t* alarms, int64_t nalarm) {
   if (alarms) {
     // The alarms are a subsequence of ids, in its order: each pair is compared with the next of
     // them only (-1: none left, never a pair). Few pairs change (Flip); the loop reads the flags
@@ -1196,7 +1220,7 @@ void Runtime::TrackAll() {
   min_tau_ = tau.empty() ? kInf : *std::min_element(tau.begin(), tau.end());
 }
 
-void Runtime::TrackStep(int64_t nalarm) {
+DUA_HOT void Runtime::TrackStep(int64_t nalarm) {
   const dua_schedule& s = *schedule_->state();
   const dua_events& e = args_.events;
   // The deadline wheel and select-all list each selected pair once, and their reinsert lists

@@ -278,6 +278,14 @@ class DUA_API Runtime {
   dua_step_args& Bind(const mjModel* m, const mjData* d);
 
  private:
+  // Bind's rarely taken branches, out of its lines (DUA_COLD, lanes.h): room for ncon contacts,
+  // whether some basis is still a plan's, and a plan's arguments.
+  DUA_COLD void GrowContacts(int ncon);
+  // args_'s fields that only the tables and the held set's buffers set, written once per held
+  // set rather than at every step (held_bound_).
+  DUA_APART void BindHeld();
+  DUA_APART bool BasisNonzero() const;
+  DUA_APART void BindPlan(const mjModel* m);
   const LearnTables& learn() const { return tables_->learn; }
   int64_t npair() const { return static_cast<int64_t>(ids_.size()); }
   void Hold(const std::vector<int64_t>& held);
@@ -299,6 +307,7 @@ class DUA_API Runtime {
   // the plan's knot, the bodies beyond their deviation flagged and their pairs made due; past
   // its end, the plan dropped (every pair due).
   void FollowPlan(const mjModel* m, const mjData* d, int64_t n);
+  DUA_APART void FollowPlans(const mjModel* m, const mjData* d, int64_t n);  // its work, if any
   // The plan's and the shadows' checks of d's state: the bodies found beyond their deviation
   // appended to broken and marked (shadows past their span dropped); returns the plan's knot
   // (-1: no plan covers the state).
@@ -338,13 +347,44 @@ class DUA_API Runtime {
   std::shared_ptr<const Tables> tables_;
   int64_t log_steps_, log_min_;
   std::shared_ptr<Schedule> schedule_;
+  // The members every step's glue reads (Compute, Step, Bind, Log, TrackStep, FollowPlan) come
+  // first, on as few lines as they fit: the step runs cold (MuJoCo's step evicts them between
+  // two calls), so each line they spread over is a data miss a step (docs/benchmarks.md,
+  // issue 42, "The step's lines").
+  // The alarm log and where the latest step's alarms start in it.
+  std::shared_ptr<AlarmLog> log_;
+  std::shared_ptr<const Plan> plan_;  // the flight plan (none: null); see below
+  int64_t log_used_ = 0, log_start_ = 0;
+  double last_time_ = 0.0;
+  int64_t step_ = 0;
+  int64_t nstanding_ = 0;
+  double min_tau_ = std::numeric_limits<double>::infinity();
+  bool classified_ = false;
+  bool escape_check_ = true;
+  // Whether args_ points at this runtime's held-set buffers and tables (BindHeld): false until
+  // Bind, again at each Hold (which reallocates them), and in a copy (whose args_ points at the
+  // original's: the copy constructor leaves it false).
+  bool held_bound_ = false;
+  // Whether some pair's basis (or the one before) may be a plan's: false until a plan is set, and
+  // again once every one is the bounds' (0), when the step need not shift them (Bind).
+  bool basis_live_ = false;
+  bool watching_ = false;     // the watcher's (Watch, below)
   std::vector<int64_t> ids_;  // model pair of each held pair
+  std::vector<int64_t> events_meta_, contact_keys_;
+  std::vector<double> contact_dist_;
+  // Standing state (see stands()), and the list of the held pairs standing with each one's place
+  // in it (-1: not standing).
+  std::vector<uint8_t> stands_;
+  std::vector<int64_t> standing_, standing_at_;
+  std::vector<int32_t> gp_count_;
+  // Per held pair, the knot its latest walk under the plan as it stands ended at (dua_plan's
+  // `cleared`, -1: none): forgotten at a new plan and a new held set.
+  std::vector<int64_t> cleared_;
   dua_step_args args_{};
   std::vector<double> point_state_, exact_records_;
   std::vector<double, LanesAligned<double>> events_prev_;  // the check's lanes read it in place
   std::vector<double> witness_;  // the exact level's witness points, (held pairs, 6)
-  std::vector<int64_t> point_epoch_, events_meta_, events_flagged_, contact_keys_;
-  std::vector<double> contact_dist_;
+  std::vector<int64_t> point_epoch_, events_flagged_;
   dua_points points_{};  // free spheres' states for the current call
   // Pruned pairs: the anchors, this run's universe, the held pairs' records and their index by
   // the violation check's bodies (all pairs held: the model's tables themselves).
@@ -353,46 +393,24 @@ class DUA_API Runtime {
   std::vector<double> held_pairs_;
   std::vector<int64_t> held_start_, held_members_;
   std::vector<uint8_t> on_;
-  // Standing state (see stands()), and the list of the held pairs standing with each one's place
-  // in it (-1: not standing).
-  std::vector<uint8_t> stands_;
-  std::vector<int64_t> standing_, standing_at_;
-  std::vector<int32_t> gp_count_;
-  int64_t nstanding_ = 0;
-  double min_tau_ = std::numeric_limits<double>::infinity();
   Mocap mocap_;  // the poses at the last step
-  // The alarm log and where the latest step's alarms start in it.
-  std::shared_ptr<AlarmLog> log_;
-  int64_t log_used_ = 0, log_start_ = 0;
-  bool classified_ = false;
-  bool escape_check_ = true;
-  double last_time_ = 0.0;
-  int64_t step_ = 0;
   int64_t rebuilds_ = 0, renewals_ = 0;
   int64_t universe_version_ = 0, held_version_ = 0;
   // The watcher's state (Watch): the ignore lists, each geom pair's count flag, and a min-tree
   // of the held pairs' expiries (leaves at [size, 2 size)).
-  bool watching_ = false;
   std::vector<uint8_t> ignored_geoms_, gp_counted_, was_;
   std::vector<int64_t> ignored_pairs_, touched_;
   std::vector<double> expiry_tree_;
   int64_t expiry_size_ = 0;
   Watched watched_;
-  // The flight plan (none: null), the bodies still within their deviation, and the mjData the
-  // plan's kinematics and MuJoCo's distance queries at knots use.
+  // The flight plan's (plan_, above): the bodies still within their deviation, and the mjData
+  // the plan's kinematics and MuJoCo's distance queries at knots use.
   struct DataDeleter {
     void operator()(mjData* d) const { mj_deleteData(d); }
   };
-  std::shared_ptr<const Plan> plan_;
   std::unique_ptr<mjData, DataDeleter> plan_data_;
   mutable std::unique_ptr<mjData, DataDeleter> query_data_;  // PlanQuery's scratch
   std::vector<uint8_t> plan_ok_, planned_, basis_, basis_prev_;
-  // Whether some pair's basis (or the one before) may be a plan's: false until a plan is set, and
-  // again once every one is the bounds' (0), when the step need not shift them (Bind).
-  bool basis_live_ = false;
-  // Per held pair, the knot its latest walk under the plan as it stands ended at (dua_plan's
-  // `cleared`, -1: none): forgotten at a new plan and a new held set.
-  std::vector<int64_t> cleared_;
   // A replaced plan, checked until `until` (state time) on the bodies ok when it was replaced
   // and not found beyond it since; the state time each was found beyond it (NaN: not), and
   // the first state at which the plan that followed leaves its tube (SetPlan; -inf: unknown).

@@ -418,7 +418,7 @@ int64_t dua_select(dua_schedule* st, int64_t n) {
   return count;
 }
 
-int64_t dua_reinsert(dua_schedule* st, int64_t n, int64_t count) {
+DUA_HOT int64_t dua_reinsert(dua_schedule* st, int64_t n, int64_t count) {
   const View v{st};
   if (st->kind == kRank) return RankReinsert(v, n, count);
   if (st->kind == kDeadline) return DeadlineReinsert(v, n, count);
@@ -555,9 +555,9 @@ void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, 
 
 namespace dua {
 
-int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
-                      const int64_t* start, const int64_t* members, int64_t n,
-                      const dua_step_args* settle) {
+DUA_HOT int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
+                              const int64_t* start, const int64_t* members, int64_t n,
+                              const dua_step_args* settle) {
   if (st->kind != kDeadline) {
     for (int64_t k = 0; k < ngroups; ++k) {
       const int64_t g = groups[k];

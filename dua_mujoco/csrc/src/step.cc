@@ -974,7 +974,7 @@ int64_t dua_evaluate(dua_step_args* a, const int64_t* ids, int64_t count, double
   return bad >= 0 ? ids[bad] : -1;
 }
 
-int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
+DUA_HOT int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
   dua_schedule* st = &a->schedule;
   // The violation check, then the selection: the flagged bodies' pairs go straight to it
   // (SelectMadeDue), not through step n's list.
