@@ -535,25 +535,26 @@ double BoxDeviation(const double* box, const double* pa, const double* ra, const
 }
 
 BoxReach::BoxReach(const double* box) {
-  double qq = 0.0;
-  for (int j = 0; j < 3; ++j) {
-    qmax[j] = std::fabs(box[kBCenter + j]) + box[kBHalf + j];
-    qq += qmax[j] * qmax[j];
-  }
-  norm = std::sqrt(qq);
+  for (int j = 0; j < 3; ++j) qmax[j] = std::fabs(box[kBCenter + j]) + box[kBHalf + j];
 }
 
 namespace {
 
-// BoxBound's first screen, (|pa - pb| + |ra - rb|_F |qmax|) (1 + 2e-9), from the differences
-// e(i) = pa[i] - pb[i] (i < 3) and f(m) = ra[m] - rb[m] (m < 9): of one check (T double) or of
-// four in lanes (Lanes), each lane taking the same operations in the same order (the same bits).
+// BoxBound's first screen, (|e| + sum_j |F e_j| qmax_j) (1 + 2e-9) (the column norms of F),
+// from the differences e(i) = pa[i] - pb[i] (i < 3) and f(m) = ra[m] - rb[m] (m < 9, row-major:
+// column j is f(j), f(3 + j), f(6 + j)): of one check (T double) or of four in lanes (Lanes),
+// each lane taking the same operations in the same order (the same bits).
 template <class T, class E, class F>
-DUA_INLINE T NormBound(const E& e, const F& f, T norm) {
-  T dp{}, dr{};
+DUA_INLINE T NormBound(const E& e, const F& f, const T* qmax) {
+  T dp{};
   for (int i = 0; i < 3; ++i) dp += e(i) * e(i);
-  for (int m = 0; m < 9; ++m) dr += f(m) * f(m);
-  return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);
+  T bound = Sqrt(dp);
+  for (int j = 0; j < 3; ++j) {
+    T column{};
+    for (int i = 0; i < 3; ++i) column += f(3 * i + j) * f(3 * i + j);
+    bound += Sqrt(column) * qmax[j];
+  }
+  return bound * (1.0 + 2e-9);
 }
 
 // RelativeBound's limit less the relative poses' own rounding (1e-12 of the lengths they
@@ -599,16 +600,18 @@ namespace {
 
 bool BoxBound(const double* box, const BoxReach& reach, const double* pa, const double* ra,
               const double* pb, const double* rb, double limit) {
-  // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
-  // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum:
-  // PoseDeviation's allowance is at most 8 ulps of `scale` below (sum_i |e_i| + sum_ij |f_ij|
-  // qmax_j), and by Cauchy-Schwarz scale <= sqrt(3) (|e| + |F|_F |qmax|), so 16 ulps of it are
-  // within 28 ulps of the bound's own terms: a factor 1 + 2e-9 covers them and the 1e-9 the
-  // first screen always allowed (docs/theory.md, Lemma 8.1), with no pass over the differences'
-  // magnitudes.
+  // |(pa - pb) + (ra - rb) q| <= |pa - pb| + sum_j |(ra - rb) e_j| |q_j| <= |e| + sum_j c_j
+  // qmax_j for every corner q (qmax_j = |centre_j| + half_j, c_j the norm of F's column j), with
+  // room past every rounding of the corners' own sum: PoseDeviation's allowance is at most 8
+  // ulps of `scale` below (sum_i |e_i| + sum_ij |f_ij| qmax_j), and by Cauchy-Schwarz, a column
+  // at a time (sum_i |f_ij| <= sqrt(3) c_j), scale <= sqrt(3) (|e| + sum_j c_j qmax_j), so 16
+  // ulps of it are within 28 ulps of the bound's own terms: a factor 1 + 2e-9 covers them and
+  // the 1e-9 the first screen always allowed (docs/theory.md, Lemma 8.1), with no pass over the
+  // differences' magnitudes. (The columns' norms, not |F|_F |qmax|, which is at least their sum
+  // by Cauchy-Schwarz: fewer checks go on to the corners.)
   const auto e = [&](int i) { return pa[i] - pb[i]; };
   const auto f = [&](int m) { return ra[m] - rb[m]; };
-  if (NormBound(e, f, reach.norm) <= limit) return true;
+  if (NormBound(e, f, reach.qmax) <= limit) return true;
   double scale = 0.0;
   const double* qmax = reach.qmax;
   for (int i = 0; i < 3; ++i) {
@@ -1218,7 +1221,8 @@ DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t
     const Lanes room = RelativeRoom(box, actual, planned, limit);
     const auto e = [&](int i) { return d[i]; };
     const auto f = [&](int m) { return d[3 + m]; };
-    const Lanes bound = NormBound(e, f, Splat(reach.norm));
+    const Lanes qmax[3] = {Splat(reach.qmax[0]), Splat(reach.qmax[1]), Splat(reach.qmax[2])};
+    const Lanes bound = NormBound(e, f, qmax);
     if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;
     for (int k = 0; k < kLanes; ++k) {
       if (!within(s + k)) return s + k;

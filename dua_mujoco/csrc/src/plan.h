@@ -45,12 +45,12 @@ DUA_API double BoxDeviation(const double* box, const double* pa, const double* r
 // that costs no corner (equal poses pass at once): the same verdict as the comparison itself.
 DUA_API bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
                        const double* rb, double limit);
-// How far a box's corners reach from its frame's origin, per axis (|centre_j| + half_j) and in
-// norm: BoxWithin's constants, taken once by a caller that checks one box at many knots (a
-// replan's nesting: each check is a few dozen operations, these a fifth of them).
+// How far a box's corners reach from its frame's origin, per axis (|centre_j| + half_j):
+// BoxWithin's constants, taken once by a caller that checks one box at many knots (a replan's
+// nesting: each check is a few dozen operations).
 struct BoxReach {
   explicit BoxReach(const double* box);
-  double qmax[3], norm;
+  double qmax[3];
 };
 // BoxWithin with the box's reach taken already: the same numbers, the same verdict.
 bool BoxWithin(const double* box, const BoxReach& reach, const double* pa, const double* ra,
