@@ -674,8 +674,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-box-screen-below-its-bound",
         _PLAN,
-        "return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);",
-        "return (Sqrt(dp) + Sqrt(dr) * norm) * 0.5;",
+        "return bound * (1.0 + 2e-9);",
+        "return bound * 0.5;",
         (
             "tests/test_plan_relative.py::"
             "test_the_actual_distance_is_never_below_the_planned_one_less_the_relative_deviation",
@@ -719,11 +719,51 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-box-screen-rounded-to-nearest",
         _PLAN,
-        "return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);",
-        "return (Sqrt(dp) + Sqrt(dr) * norm);",
+        "return bound * (1.0 + 2e-9);",
+        "return bound;",
         (f"{_ROUNDING}::test_the_deviation_checks_first_screen_passes_no_box_beyond_its_limit",),
         "the deviation check's first screen without its rounding room: a body that moves without "
         "turning passes a few ulps beyond its limit about half the time",
+    ),
+    Mutant(
+        "plan-box-screen-rows-for-columns",
+        _PLAN,
+        "for (int i = 0; i < 3; ++i) column += f(3 * i + j) * f(3 * i + j);",
+        "for (int i = 0; i < 3; ++i) column += f(3 * j + i) * f(3 * j + i);",
+        (f"{_ROUNDING}::test_the_deviation_checks_verdict_is_the_largest_corners",),
+        "the deviation check's first screen by the rows' norms of R - R', not the columns': a "
+        "box along one axis turned about another passes with its corners beyond the limit",
+    ),
+    Mutant(
+        "plan-box-screen-one-columns-reach",
+        _PLAN,
+        "bound += Sqrt(column) * qmax[j];",
+        "bound += Sqrt(column) * qmax[0];",
+        (f"{_ROUNDING}::test_the_deviation_checks_verdict_is_the_largest_corners",),
+        "the deviation check's first screen weighs every column by the box's reach along x: a box "
+        "longer along y or z passes with its corners beyond the limit",
+    ),
+    Mutant(
+        "plan-box-screen-centre-for-reach",
+        _PLAN,
+        "for (int j = 0; j < 3; ++j) qmax[j] = std::fabs(box[kBCenter + j]) + box[kBHalf + j];",
+        "for (int j = 0; j < 3; ++j) qmax[j] = std::fabs(box[kBCenter + j]);",
+        (f"{_ROUNDING}::test_the_deviation_checks_verdict_is_the_largest_corners",),
+        "the deviation check's first screen reaches only the box's centre, not its corners: a "
+        "turned box passes with its corners beyond the limit",
+    ),
+    Mutant(
+        "plan-relative-nesting-lanes-reach-of-x",
+        _PLAN,
+        "const Lanes qmax[3] = {Splat(reach.qmax[0]), Splat(reach.qmax[1]), Splat(reach.qmax[2])};",
+        "const Lanes qmax[3] = {Splat(reach.qmax[0]), Splat(reach.qmax[0]), Splat(reach.qmax[0])};",
+        (
+            "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
+            "tests/test_plan_relative.py::"
+            "test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure",
+        ),
+        "the relative nesting's lanes screen every column by the box's reach along x, not the "
+        "scalar's: a replan that leaves the replaced plan's relative tube along y or z is nested",
     ),
     Mutant(
         "plan-shadow-map-stale",
