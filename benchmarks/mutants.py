@@ -709,8 +709,11 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-relative-nesting-lanes-departure-at-the-blocks-end",
         _PLAN,
-        "      if (!within(s + k)) return s + k;\n",
-        "      if (!within(s + k)) return s + kLanes - 1;\n",
+        "      if (!within(s + k)) return s + k;\n    }\n  }\n  for (; s < count; ++s) {\n"
+        "    if (!within(s)) return s;\n  }\n  return count;\n}\n\nDUA_LANES_CLONES int64_t Body",
+        "      if (!within(s + k)) return s + kLanes - 1;\n    }\n  }\n"
+        "  for (; s < count; ++s) {\n    if (!within(s)) return s;\n  }\n  return count;\n}"
+        "\n\nDUA_LANES_CLONES int64_t Body",
         (
             "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
         ),
@@ -764,6 +767,26 @@ MUTANTS: tuple[Mutant, ...] = (
         ),
         "the relative nesting's lanes screen every column by the box's reach along x, not the "
         "scalar's: a replan that leaves the replaced plan's relative tube along y or z is nested",
+    ),
+    Mutant(
+        "plan-body-nesting-lanes-first-lane-only",
+        _PLAN,
+        "    if (!Any(Not(NormBound(e, f, qmax) <= limit))) continue;\n",
+        "    if ((NormBound(e, f, qmax) <= limit)[0]) continue;\n",
+        ("tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",),
+        "a block of the bodies' nesting whose first knot passes passes whole: a departure at its "
+        "other knots is found a block later, and the shadow checks the body knots late",
+    ),
+    Mutant(
+        "plan-body-nesting-lanes-departure-at-the-blocks-end",
+        _PLAN,
+        "      if (!within(s + k)) return s + k;\n    }\n  }\n  for (; s < count; ++s) {\n"
+        "    if (!within(s)) return s;\n  }\n  return count;\n}\n\n// In an AVX2",
+        "      if (!within(s + k)) return s + kLanes - 1;\n    }\n  }\n"
+        "  for (; s < count; ++s) {\n    if (!within(s)) return s;\n  }\n  return count;\n}"
+        "\n\n// In an AVX2",
+        ("tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",),
+        "a departure in a block of the bodies' nesting is reported at the block's last knot",
     ),
     Mutant(
         "plan-shadow-map-stale",

@@ -359,6 +359,26 @@ def test_a_relative_departure_is_found_at_its_knot_in_every_lane(start: int) -> 
     assert step == _first_break(fold, relative=False)
 
 
+def test_a_bodys_departure_is_found_at_its_knot_in_every_lane() -> None:
+    """The bodies' nesting checks four knots at a time (BodyDeparture's lanes). A replan that
+    keeps the arm still and folds the last link from step ``start`` (20 to 27: the departure in
+    each lane of a block, twice), with a deviation tighter than the still plan's, leaves the
+    still plan's tube the same number of knots after the fold starts whatever ``start`` (the
+    same motion, shifted; the still plan the same at every knot): the last link's departure
+    comes one step later for each step later the fold starts. A departure found a block late,
+    or at a block's end, would come in jumps of four."""
+    late = []
+    for start in range(20, 28):
+        m, d, p = _arm()
+        n = 300
+        _still_plan(m, d, p, np.full((n, m.nbody), 0.02))
+        fold = np.array([[0.0, 0.0, 0.0]] * start + [[0.0, 0.0, 0.6]])
+        departures = p.set_plan(_roll(m, d, fold, n), deviation=np.full((n, m.nbody), 0.005))
+        late.append((departures[m.body("l3").id] - float(d.time)) / m.opt.timestep)
+    assert np.isfinite(late).all() and late[0] > 20, late
+    np.testing.assert_allclose(np.diff(late), 1.0, rtol=0.0, atol=1e-6)
+
+
 def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_departures() -> None:
     """Three plans in turn (docs/theory.md, Lemma 8.6), with a relative pair. A second that folds
     the last link 20 steps on, then a third that keeps to it (nested in it: its shadow is

@@ -925,7 +925,9 @@ void Plan::Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
   for (int64_t i = 0; i < nslot_; ++i) slot_[geoms[i]] = i;
   pool_ = std::move(pool);
   auto take = [&](size_t size) { return pool_ ? pool_->Take(size) : Buffer(size); };
-  pos_ = take(3 * nslot_ * n), mat_ = take(9 * nslot_ * n), sweep_ = take(nslot_ * n);
+  // (One number past the positions: a frame's position is read as four, BodyDeparture.)
+  pos_ = take(3 * nslot_ * n + 1), mat_ = take(9 * nslot_ * n), sweep_ = take(nslot_ * n);
+  pos_[3 * nslot_ * n] = 0.0;
 }
 
 std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, const double* mat,
@@ -1224,6 +1226,52 @@ DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t
     const Lanes qmax[3] = {Splat(reach.qmax[0]), Splat(reach.qmax[1]), Splat(reach.qmax[2])};
     const Lanes bound = NormBound(e, f, qmax);
     if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;
+    for (int k = 0; k < kLanes; ++k) {
+      if (!within(s + k)) return s + k;
+    }
+  }
+  for (; s < count; ++s) {
+    if (!within(s)) return s;
+  }
+  return count;
+}
+
+DUA_LANES_CLONES int64_t BodyDeparture(const Plan& plan, int64_t jn, const Plan& old, int64_t jo,
+                                       const double* box, const BoxReach& reach, int64_t count) {
+  const auto b = static_cast<int64_t>(box[kBBody]);
+  const auto g = static_cast<int64_t>(box[kBFrame]);
+  // |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the difference's rounding
+  // (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
+  const auto within = [&](int64_t s) {
+    return BoxWithin(box, reach, plan.pos(jn + s, g), plan.mat(jn + s, g), old.pos(jo + s, g),
+                     old.mat(jo + s, g), old.dev(jo + s, b) - plan.dev(jn + s, b));
+  };
+  int64_t s = 0;
+  // Four knots at a time: BoxBound's first screen in lanes, each lane the same operations in the
+  // same order (the same bits). A lane that passes it passes BoxWithin (equal poses give a bound
+  // of 0, which passes as their test does, 0 <= limit); a block with a lane that does not is
+  // checked knot by knot. Each knot's frame read as rows of four (its position and the next
+  // three numbers, its rotation's first eight) and transposed, the rotation's last entry lane by
+  // lane: the position's fourth number, the next slot's (or the padding past the last), is read
+  // and left.
+  for (; s + kLanes <= count; s += kLanes) {
+    Lanes rp[kLanes], r0[kLanes], r4[kLanes], f8;
+    for (int k = 0; k < kLanes; ++k) {
+      const double *pa = plan.pos(jn + s + k, g), *ra = plan.mat(jn + s + k, g);
+      const double *pb = old.pos(jo + s + k, g), *rb = old.mat(jo + s + k, g);
+      rp[k] = Load(pa) - Load(pb);
+      r0[k] = Load(ra) - Load(rb);
+      r4[k] = Load(ra + 4) - Load(rb + 4);
+      f8[k] = ra[8] - rb[8];
+    }
+    Lanes ep[kLanes], fm[2 * kLanes];
+    Transpose4(rp, ep), Transpose4(r0, fm), Transpose4(r4, fm + kLanes);
+    Lanes limit;
+    for (int k = 0; k < kLanes; ++k) limit[k] = old.dev(jo + s + k, b) - plan.dev(jn + s + k, b);
+    const Lanes qmax[3] = {Splat(reach.qmax[0]), Splat(reach.qmax[1]), Splat(reach.qmax[2])};
+    const auto e = [&](int i) { return ep[i]; };
+    const auto f = [&](int m) { return m < 8 ? fm[m] : f8; };
+    if (!Any(Not(NormBound(e, f, qmax) <= limit))) continue;
     for (int k = 0; k < kLanes; ++k) {
       if (!within(s + k)) return s + k;
     }
