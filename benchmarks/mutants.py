@@ -536,8 +536,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-rotation-dropped",
         _PLAN,
-        "return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);",
-        "return (Sqrt(dp) + 0.0 * Sqrt(dr) * norm) * (1.0 + 2e-9);",
+        "bound += Sqrt(column) * qmax[j];",
+        "bound += 0.0 * Sqrt(column) * qmax[j];",
         ("tests/test_flightplan.py::test_a_turn_alone_past_the_deviation_breaks_its_plan",),
         "a body that turns away from its planned pose without moving its origin keeps the plan",
     ),
@@ -756,17 +756,28 @@ MUTANTS: tuple[Mutant, ...] = (
         "turned box passes with its corners beyond the limit",
     ),
     Mutant(
-        "plan-relative-nesting-lanes-reach-of-x",
+        "plan-nesting-lanes-reach-of-x",
         _PLAN,
-        "const Lanes qmax[3] = {Splat(reach.qmax[0]), Splat(reach.qmax[1]), Splat(reach.qmax[2])};",
-        "const Lanes qmax[3] = {Splat(reach.qmax[0]), Splat(reach.qmax[0]), Splat(reach.qmax[0])};",
+        "for (int j = 0; j < 3; ++j) qmax[j] = Splat(reach.qmax[j]);",
+        "for (int j = 0; j < 3; ++j) qmax[j] = Splat(reach.qmax[0]);",
         (
             "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
             "tests/test_plan_relative.py::"
             "test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure",
+            "tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",
         ),
-        "the relative nesting's lanes screen every column by the box's reach along x, not the "
-        "scalar's: a replan that leaves the replaced plan's relative tube along y or z is nested",
+        "the nesting's lanes (the bodies' and the relative pairs') screen every column by the "
+        "box's reach along x, not the scalar's: a replan that leaves the replaced plan's tube "
+        "along y or z is nested",
+    ),
+    Mutant(
+        "plan-body-nesting-lanes-position-dropped",
+        _PLAN,
+        "rp[k] = Load(pa) - Load(pb);",
+        "rp[k] = Load(pb) - Load(pb);",
+        ("tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",),
+        "the bodies' nesting's lanes screen without the frames' positions: a replan that moves a "
+        "body's frame out of the replaced plan's tube is nested",
     ),
     Mutant(
         "plan-body-nesting-lanes-first-lane-only",

@@ -557,6 +557,11 @@ DUA_INLINE T NormBound(const E& e, const F& f, const T* qmax) {
   return bound * (1.0 + 2e-9);
 }
 
+// A box's reach in every lane: NormBound's qmax for four checks of one box.
+DUA_INLINE void SplatReach(const BoxReach& reach, Lanes* qmax) {
+  for (int j = 0; j < 3; ++j) qmax[j] = Splat(reach.qmax[j]);
+}
+
 // RelativeBound's limit less the relative poses' own rounding (1e-12 of the lengths they
 // combine), of one check or of four in lanes (as NormBound).
 template <class T, class Pose>
@@ -1223,7 +1228,8 @@ DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t
     const Lanes room = RelativeRoom(box, actual, planned, limit);
     const auto e = [&](int i) { return d[i]; };
     const auto f = [&](int m) { return d[3 + m]; };
-    const Lanes qmax[3] = {Splat(reach.qmax[0]), Splat(reach.qmax[1]), Splat(reach.qmax[2])};
+    Lanes qmax[3];
+    SplatReach(reach, qmax);
     const Lanes bound = NormBound(e, f, qmax);
     if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;
     for (int k = 0; k < kLanes; ++k) {
@@ -1268,7 +1274,8 @@ DUA_LANES_CLONES int64_t BodyDeparture(const Plan& plan, int64_t jn, const Plan&
     Transpose4(rp, ep), Transpose4(r0, fm), Transpose4(r4, fm + kLanes);
     Lanes limit;
     for (int k = 0; k < kLanes; ++k) limit[k] = old.dev(jo + s + k, b) - plan.dev(jn + s + k, b);
-    const Lanes qmax[3] = {Splat(reach.qmax[0]), Splat(reach.qmax[1]), Splat(reach.qmax[2])};
+    Lanes qmax[3];
+    SplatReach(reach, qmax);
     const auto e = [&](int i) { return ep[i]; };
     const auto f = [&](int m) { return m < 8 ? fm[m] : f8; };
     if (!Any(Not(NormBound(e, f, qmax) <= limit))) continue;
