@@ -325,6 +325,20 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
     assert p._rt.plan_ok[list(_pair(m))].all()  # no body broke its own deviation
 
 
+def _steps_to_break(
+    m: mujoco.MjModel, d: mujoco.MjData, p: Predictor, fold: np.ndarray
+) -> int | None:
+    """The run of ``fold``'s controls: the step of its first plan break, None if none within 60
+    steps."""
+    for k in range(60):
+        d.ctrl[:] = fold[min(k, len(fold) - 1)]
+        mujoco.mj_step(m, d)
+        p.step(d)
+        if p.plan_breaks:
+            return k
+    return None
+
+
 def _first_break(fold: np.ndarray, relative: bool) -> int | None:
     """The step of the first plan break when a replan that folds the last link (no relative
     deviation, if ``relative``; else without the pair) replaces a still plan (2 cm) and the run
@@ -336,13 +350,7 @@ def _first_break(fold: np.ndarray, relative: bool) -> int | None:
     p.set_plan(
         _roll(m, d, fold, n), deviation=dev, relative=([_pair(m)], 0.0) if relative else None
     )
-    for k in range(60):
-        d.ctrl[:] = fold[min(k, len(fold) - 1)]
-        mujoco.mj_step(m, d)
-        p.step(d)
-        if p.plan_breaks:
-            return k
-    return None
+    return _steps_to_break(m, d, p, fold)
 
 
 @pytest.mark.parametrize("start", [20, 21, 22, 23])
@@ -373,13 +381,7 @@ def _first_body_break(fold: np.ndarray, held: bool) -> int | None:
         p.step(d)
     bodies = ["l1", "l2", "l3"] if held else ["l1", "l2"]
     p.set_plan(_roll(m, d, fold, n), deviation=0.0, bodies=bodies)
-    for k in range(60):
-        d.ctrl[:] = fold[min(k, len(fold) - 1)]
-        mujoco.mj_step(m, d)
-        p.step(d)
-        if p.plan_breaks:
-            return k
-    return None
+    return _steps_to_break(m, d, p, fold)
 
 
 @pytest.mark.parametrize("start", [20, 21, 22, 23])
