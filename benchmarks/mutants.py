@@ -536,8 +536,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-check-rotation-dropped",
         _PLAN,
-        "return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);",
-        "return (Sqrt(dp) + 0.0 * Sqrt(dr) * norm) * (1.0 + 2e-9);",
+        "bound += Sqrt(column) * qmax[j];",
+        "bound += 0.0 * Sqrt(column) * qmax[j];",
         ("tests/test_flightplan.py::test_a_turn_alone_past_the_deviation_breaks_its_plan",),
         "a body that turns away from its planned pose without moving its origin keeps the plan",
     ),
@@ -694,8 +694,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-box-screen-below-its-bound",
         _PLAN,
-        "return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);",
-        "return (Sqrt(dp) + Sqrt(dr) * norm) * 0.5;",
+        "return bound * (1.0 + 2e-9);",
+        "return bound * 0.5;",
         (
             "tests/test_plan_relative.py::"
             "test_the_actual_distance_is_never_below_the_planned_one_less_the_relative_deviation",
@@ -729,8 +729,11 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-relative-nesting-lanes-departure-at-the-blocks-end",
         _PLAN,
-        "      if (!within(s + k)) return s + k;\n",
-        "      if (!within(s + k)) return s + kLanes - 1;\n",
+        "      if (!within(s + k)) return s + k;\n    }\n  }\n  for (; s < count; ++s) {\n"
+        "    if (!within(s)) return s;\n  }\n  return count;\n}\n\nDUA_LANES_CLONES int64_t Body",
+        "      if (!within(s + k)) return s + kLanes - 1;\n    }\n  }\n"
+        "  for (; s < count; ++s) {\n    if (!within(s)) return s;\n  }\n  return count;\n}"
+        "\n\nDUA_LANES_CLONES int64_t Body",
         (
             "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
         ),
@@ -739,11 +742,82 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-box-screen-rounded-to-nearest",
         _PLAN,
-        "return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);",
-        "return (Sqrt(dp) + Sqrt(dr) * norm);",
+        "return bound * (1.0 + 2e-9);",
+        "return bound;",
         (f"{_ROUNDING}::test_the_deviation_checks_first_screen_passes_no_box_beyond_its_limit",),
         "the deviation check's first screen without its rounding room: a body that moves without "
         "turning passes a few ulps beyond its limit about half the time",
+    ),
+    Mutant(
+        "plan-box-screen-rows-for-columns",
+        _PLAN,
+        "for (int i = 0; i < 3; ++i) column += f(3 * i + j) * f(3 * i + j);",
+        "for (int i = 0; i < 3; ++i) column += f(3 * j + i) * f(3 * j + i);",
+        (f"{_ROUNDING}::test_the_deviation_checks_verdict_is_the_largest_corners",),
+        "the deviation check's first screen by the rows' norms of R - R', not the columns': a "
+        "box along one axis turned about another passes with its corners beyond the limit",
+    ),
+    Mutant(
+        "plan-box-screen-one-columns-reach",
+        _PLAN,
+        "bound += Sqrt(column) * qmax[j];",
+        "bound += Sqrt(column) * qmax[0];",
+        (f"{_ROUNDING}::test_the_deviation_checks_verdict_is_the_largest_corners",),
+        "the deviation check's first screen weighs every column by the box's reach along x: a box "
+        "longer along y or z passes with its corners beyond the limit",
+    ),
+    Mutant(
+        "plan-box-screen-centre-for-reach",
+        _PLAN,
+        "for (int j = 0; j < 3; ++j) qmax[j] = std::fabs(box[kBCenter + j]) + box[kBHalf + j];",
+        "for (int j = 0; j < 3; ++j) qmax[j] = std::fabs(box[kBCenter + j]);",
+        (f"{_ROUNDING}::test_the_deviation_checks_verdict_is_the_largest_corners",),
+        "the deviation check's first screen reaches only the box's centre, not its corners: a "
+        "turned box passes with its corners beyond the limit",
+    ),
+    Mutant(
+        "plan-nesting-lanes-reach-of-x",
+        _PLAN,
+        "for (int j = 0; j < 3; ++j) qmax[j] = Splat(reach.qmax[j]);",
+        "for (int j = 0; j < 3; ++j) qmax[j] = Splat(reach.qmax[0]);",
+        (
+            "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
+            "tests/test_plan_relative.py::"
+            "test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure",
+            "tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",
+        ),
+        "the nesting's lanes (the bodies' and the relative pairs') screen every column by the "
+        "box's reach along x, not the scalar's: a replan that leaves the replaced plan's tube "
+        "along y or z is nested",
+    ),
+    Mutant(
+        "plan-body-nesting-lanes-position-dropped",
+        _PLAN,
+        "rp[k] = Load(pa) - Load(pb);",
+        "rp[k] = (Load(pa) - Load(pb)) * 0.0;",
+        ("tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",),
+        "the bodies' nesting's lanes screen without the frames' positions: a replan that moves a "
+        "body's frame out of the replaced plan's tube is nested",
+    ),
+    Mutant(
+        "plan-body-nesting-lanes-first-lane-only",
+        _PLAN,
+        "    if (!Any(Not(NormBound(e, f, qmax) <= limit))) continue;\n",
+        "    if ((NormBound(e, f, qmax) <= limit)[0]) continue;\n",
+        ("tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",),
+        "a block of the bodies' nesting whose first knot passes passes whole: a departure at its "
+        "other knots is found a block later, and the shadow checks the body knots late",
+    ),
+    Mutant(
+        "plan-body-nesting-lanes-departure-at-the-blocks-end",
+        _PLAN,
+        "      if (!within(s + k)) return s + k;\n    }\n  }\n  for (; s < count; ++s) {\n"
+        "    if (!within(s)) return s;\n  }\n  return count;\n}\n\n// In an AVX2",
+        "      if (!within(s + k)) return s + kLanes - 1;\n    }\n  }\n"
+        "  for (; s < count; ++s) {\n    if (!within(s)) return s;\n  }\n  return count;\n}"
+        "\n\n// In an AVX2",
+        ("tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",),
+        "a departure in a block of the bodies' nesting is reported at the block's last knot",
     ),
     Mutant(
         "plan-shadow-map-stale",

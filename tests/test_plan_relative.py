@@ -325,6 +325,20 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
     assert p._rt.plan_ok[list(_pair(m))].all()  # no body broke its own deviation
 
 
+def _steps_to_break(
+    m: mujoco.MjModel, d: mujoco.MjData, p: Predictor, fold: np.ndarray
+) -> int | None:
+    """The run of ``fold``'s controls: the step of its first plan break, None if none within 60
+    steps."""
+    for k in range(60):
+        d.ctrl[:] = fold[min(k, len(fold) - 1)]
+        mujoco.mj_step(m, d)
+        p.step(d)
+        if p.plan_breaks:
+            return k
+    return None
+
+
 def _first_break(fold: np.ndarray, relative: bool) -> int | None:
     """The step of the first plan break when a replan that folds the last link (no relative
     deviation, if ``relative``; else without the pair) replaces a still plan (2 cm) and the run
@@ -336,13 +350,7 @@ def _first_break(fold: np.ndarray, relative: bool) -> int | None:
     p.set_plan(
         _roll(m, d, fold, n), deviation=dev, relative=([_pair(m)], 0.0) if relative else None
     )
-    for k in range(60):
-        d.ctrl[:] = fold[min(k, len(fold) - 1)]
-        mujoco.mj_step(m, d)
-        p.step(d)
-        if p.plan_breaks:
-            return k
-    return None
+    return _steps_to_break(m, d, p, fold)
 
 
 @pytest.mark.parametrize("start", [20, 21, 22, 23])
@@ -357,6 +365,39 @@ def test_a_relative_departure_is_found_at_its_knot_in_every_lane(start: int) -> 
     step = _first_break(fold, relative=True)
     assert step is not None and step > start
     assert step == _first_break(fold, relative=False)
+
+
+def _first_body_break(fold: np.ndarray, held: bool) -> int | None:
+    """The step of the first plan break when a replan that folds the last link (no deviation;
+    without the last link unless ``held``) replaces a still plan (2 cm, no relative pair) and
+    the run is that replan: None if none within 60 steps."""
+    m, d, p = _arm()
+    n = 300
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    p.set_plan(_roll(m, d, np.zeros((1, 3)), n), deviation=0.02)
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+        p.step(d)
+    bodies = ["l1", "l2", "l3"] if held else ["l1", "l2"]
+    p.set_plan(_roll(m, d, fold, n), deviation=0.0, bodies=bodies)
+    return _steps_to_break(m, d, p, fold)
+
+
+@pytest.mark.parametrize("start", [20, 21, 22, 23])
+def test_a_bodys_departure_is_found_at_its_knot_in_every_lane(start: int) -> None:
+    """The bodies' nesting checks four knots at a time (BodyDeparture's lanes). A replan that
+    folds the last link from step ``start`` (four starts: the departure in each lane of a
+    block), with no deviation of its own, is followed exactly: the replaced plan breaks at the
+    very knot the replan leaves its tube (``|new - old| > D_old``, the replaced plan's own
+    check), which its shadow checks from the departure on. So the break comes at the same step
+    as when the replan does not hold the last link (then the shadow checks it at every step): a
+    departure found late (a block late, at a block's end, or past a screen that passed a knot
+    beyond the tube) would come later."""
+    fold = np.array([[0.0, 0.0, 0.0]] * start + [[0.0, 0.0, 0.6]])
+    step = _first_body_break(fold, held=True)
+    assert step is not None and step > start
+    assert step == _first_body_break(fold, held=False)
 
 
 def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_departures() -> None:

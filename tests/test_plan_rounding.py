@@ -12,6 +12,7 @@ the same way in ``test_plan_partial.py::test_the_stray_is_rounded_up``.)
 
 from __future__ import annotations
 
+import itertools
 import math
 from fractions import Fraction as Q
 
@@ -24,6 +25,7 @@ from dua_mujoco import _core
 from dua_mujoco._core import LAYOUT
 
 CENTER, HALF, NCOL = LAYOUT["B_CENTER"], LAYOUT["B_HALF"], LAYOUT["B_SPEED"] + 1
+SPHERE_OFFSET, SPHERE_NCOL = LAYOUT["SPHERE_OFFSET"], LAYOUT["SPHERE_NCOL"]
 SIGNS = (-1.0, 1.0)
 
 
@@ -120,6 +122,88 @@ def test_the_deviation_checks_first_screen_passes_no_box_beyond_its_limit(
     scale = float(np.sum(np.abs(pa_ - pb_)) + np.sum(np.abs(ra - rb).reshape(3, 3) * qmax))
     above = math.sqrt(float(square)) * (1 + 2.0**-40) + 2.0**-40 * scale
     assert _core.box_within(box, pa_, ra, pb_, rb, above)
+
+
+def _box_deviation(box: np.ndarray, pa, ra, pb, rb) -> float:
+    """``BoxDeviation`` (plan.h): the largest of the eight corners' ``PoseDeviation`` (each
+    rounded up past its own rounding), through ``plan_deviation`` on the corners as points,
+    computed as BodyBoxes.corners and ``BoxDeviation`` compute them (centre + sign * half)."""
+    points = np.zeros((8, SPHERE_NCOL))
+    for k, signs in enumerate(itertools.product(SIGNS, repeat=3)):
+        points[k, SPHERE_OFFSET : SPHERE_OFFSET + 3] = [
+            box[CENTER + j] + s * box[HALF + j] for j, s in enumerate(signs)
+        ]
+    pose = [np.asarray(x, dtype=np.float64).reshape(1, 1, -1) for x in (pa, ra, pb, rb)]
+    return float(_core.plan_deviation(points, *pose, np.zeros(0, np.int64)).max())
+
+
+def _turned(ra: np.ndarray, axis: list[float], angle: float) -> np.ndarray:
+    """``ra`` turned by ``angle`` (rad) about ``axis`` in its own frame: (9,)."""
+    quat, turn, out = np.zeros(4), np.zeros(4), np.zeros(9)
+    mujoco.mju_mat2Quat(quat, ra)
+    mujoco.mju_axisAngle2Quat(turn, np.asarray(axis) / np.linalg.norm(axis), angle)
+    mujoco.mju_mulQuat(quat, quat, turn)
+    mujoco.mju_quat2Mat(out, quat)
+    return out
+
+
+def _screens(box: np.ndarray, pa, ra, pb, rb) -> list[float]:
+    """The first screen's bounds with and without ``1 + 2e-9`` (by the columns of ``ra - rb``,
+    and by its Frobenius norm, the screen before it), computed in floating point."""
+    e = np.asarray(pa) - np.asarray(pb)
+    f = (np.asarray(ra) - np.asarray(rb)).reshape(3, 3)
+    qmax = np.abs(box[CENTER : CENTER + 3]) + box[HALF : HALF + 3]
+    norm = math.sqrt(float(e @ e))
+    columns = norm + sum(math.sqrt(float(f[:, j] @ f[:, j])) * qmax[j] for j in range(3))
+    frobenius = norm + math.sqrt(float(np.sum(f * f))) * math.sqrt(float(qmax @ qmax))
+    return [b * k for b in (columns, frobenius) for k in (1.0, 1.0 + 2e-9)]
+
+
+_HALF = st.one_of(st.just(0.0), st.floats(1e-3, 0.5))
+
+
+@given(
+    pa=st.lists(st.floats(-10.0, 10.0), min_size=3, max_size=3),
+    offset=st.lists(_offset(), min_size=3, max_size=3),
+    centre=st.lists(st.one_of(st.just(0.0), st.floats(-0.5, 0.5)), min_size=3, max_size=3),
+    half=st.lists(_HALF, min_size=3, max_size=3),
+    qa=_QUAT,
+    axis=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3).filter(
+        lambda a: sum(x * x for x in a) > 1e-3
+    ),
+    angle=st.one_of(st.just(0.0), st.floats(1e-9, 0.1), st.floats(0.1, math.pi)),
+)
+@settings(max_examples=400, deadline=None)
+def test_the_deviation_checks_verdict_is_the_largest_corners(
+    pa: list[float],
+    offset: list[float],
+    centre: list[float],
+    half: list[float],
+    qa: list[float],
+    axis: list[float],
+    angle: float,
+) -> None:
+    """``BoxWithin`` (Lemma 8.1) decides as ``BoxDeviation <= limit`` does (plan.h), whichever
+    of its screens decides: at ``BoxDeviation`` itself, a double below it, and at each screen's
+    bound (a column's norm of ``ra - rb`` at a time, the Frobenius norm, each with and without
+    its factor) and a double below each. A screen that passed below the largest corner (its
+    factor dropped, a row's norm for a column's, a column's reach for another's) passes a
+    double below ``BoxDeviation`` on some draw: a box along one axis turned about another, or
+    moved without turning. The replan's nesting checks (``Runtime::SetPlan``) rest on this: their
+    verdicts, and so the departures and the alarms, are the corners' whichever screen is used."""
+    box = np.zeros(NCOL)
+    box[CENTER : CENTER + 3], box[HALF : HALF + 3] = centre, half
+    pa_ = np.asarray(pa)
+    pb_ = pa_ + np.asarray(offset)
+    ra = _rotation(qa)
+    rb = _turned(ra, axis, angle)
+    deviation = _box_deviation(box, pa_, ra, pb_, rb)
+    limits = [deviation, *_screens(box, pa_, ra, pb_, rb)]
+    for limit in [*limits, *(math.nextafter(x, -math.inf) for x in limits)]:
+        assert _core.box_within(box, pa_, ra, pb_, rb, limit) == (deviation <= limit), (
+            limit,
+            deviation,
+        )
 
 
 @given(

@@ -535,25 +535,31 @@ double BoxDeviation(const double* box, const double* pa, const double* ra, const
 }
 
 BoxReach::BoxReach(const double* box) {
-  double qq = 0.0;
-  for (int j = 0; j < 3; ++j) {
-    qmax[j] = std::fabs(box[kBCenter + j]) + box[kBHalf + j];
-    qq += qmax[j] * qmax[j];
-  }
-  norm = std::sqrt(qq);
+  for (int j = 0; j < 3; ++j) qmax[j] = std::fabs(box[kBCenter + j]) + box[kBHalf + j];
 }
 
 namespace {
 
-// BoxBound's first screen, (|pa - pb| + |ra - rb|_F |qmax|) (1 + 2e-9), from the differences
-// e(i) = pa[i] - pb[i] (i < 3) and f(m) = ra[m] - rb[m] (m < 9): of one check (T double) or of
-// four in lanes (Lanes), each lane taking the same operations in the same order (the same bits).
+// BoxBound's first screen, (|e| + sum_j |F e_j| qmax_j) (1 + 2e-9) (the column norms of F),
+// from the differences e(i) = pa[i] - pb[i] (i < 3) and f(m) = ra[m] - rb[m] (m < 9, row-major:
+// column j is f(j), f(3 + j), f(6 + j)): of one check (T double) or of four in lanes (Lanes),
+// each lane taking the same operations in the same order (the same bits).
 template <class T, class E, class F>
-DUA_INLINE T NormBound(const E& e, const F& f, T norm) {
-  T dp{}, dr{};
+DUA_INLINE T NormBound(const E& e, const F& f, const T* qmax) {
+  T dp{};
   for (int i = 0; i < 3; ++i) dp += e(i) * e(i);
-  for (int m = 0; m < 9; ++m) dr += f(m) * f(m);
-  return (Sqrt(dp) + Sqrt(dr) * norm) * (1.0 + 2e-9);
+  T bound = Sqrt(dp);
+  for (int j = 0; j < 3; ++j) {
+    T column{};
+    for (int i = 0; i < 3; ++i) column += f(3 * i + j) * f(3 * i + j);
+    bound += Sqrt(column) * qmax[j];
+  }
+  return bound * (1.0 + 2e-9);
+}
+
+// A box's reach in every lane: NormBound's qmax for four checks of one box.
+DUA_INLINE void SplatReach(const BoxReach& reach, Lanes* qmax) {
+  for (int j = 0; j < 3; ++j) qmax[j] = Splat(reach.qmax[j]);
 }
 
 // RelativeBound's limit less the relative poses' own rounding (1e-12 of the lengths they
@@ -599,16 +605,18 @@ namespace {
 
 bool BoxBound(const double* box, const BoxReach& reach, const double* pa, const double* ra,
               const double* pb, const double* rb, double limit) {
-  // |(pa - pb) + (ra - rb) q| <= |pa - pb| + |ra - rb|_F |q| for every corner q, |q| <= |qmax|
-  // (qmax_j = |centre_j| + half_j), with room past every rounding of the corners' own sum:
-  // PoseDeviation's allowance is at most 8 ulps of `scale` below (sum_i |e_i| + sum_ij |f_ij|
-  // qmax_j), and by Cauchy-Schwarz scale <= sqrt(3) (|e| + |F|_F |qmax|), so 16 ulps of it are
-  // within 28 ulps of the bound's own terms: a factor 1 + 2e-9 covers them and the 1e-9 the
-  // first screen always allowed (docs/theory.md, Lemma 8.1), with no pass over the differences'
-  // magnitudes.
+  // |(pa - pb) + (ra - rb) q| <= |pa - pb| + sum_j |(ra - rb) e_j| |q_j| <= |e| + sum_j c_j
+  // qmax_j for every corner q (qmax_j = |centre_j| + half_j, c_j the norm of F's column j), with
+  // room past every rounding of the corners' own sum: PoseDeviation's allowance is at most 8
+  // ulps of `scale` below (sum_i |e_i| + sum_ij |f_ij| qmax_j), and by Cauchy-Schwarz, a column
+  // at a time (sum_i |f_ij| <= sqrt(3) c_j), scale <= sqrt(3) (|e| + sum_j c_j qmax_j), so 16
+  // ulps of it are within 28 ulps of the bound's own terms: a factor 1 + 2e-9 covers them and
+  // the 1e-9 the first screen always allowed (docs/theory.md, Lemma 8.1), with no pass over the
+  // differences' magnitudes. (The columns' norms, not |F|_F |qmax|, which is at least their sum
+  // by Cauchy-Schwarz: fewer checks go on to the corners.)
   const auto e = [&](int i) { return pa[i] - pb[i]; };
   const auto f = [&](int m) { return ra[m] - rb[m]; };
-  if (NormBound(e, f, reach.norm) <= limit) return true;
+  if (NormBound(e, f, reach.qmax) <= limit) return true;
   double scale = 0.0;
   const double* qmax = reach.qmax;
   for (int i = 0; i < 3; ++i) {
@@ -922,7 +930,9 @@ void Plan::Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
   for (int64_t i = 0; i < nslot_; ++i) slot_[geoms[i]] = i;
   pool_ = std::move(pool);
   auto take = [&](size_t size) { return pool_ ? pool_->Take(size) : Buffer(size); };
-  pos_ = take(3 * nslot_ * n), mat_ = take(9 * nslot_ * n), sweep_ = take(nslot_ * n);
+  // (One number past the positions: a frame's position is read as four, BodyDeparture.)
+  pos_ = take(3 * nslot_ * n + 1), mat_ = take(9 * nslot_ * n), sweep_ = take(nslot_ * n);
+  pos_[3 * nslot_ * n] = 0.0;
 }
 
 std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, const double* mat,
@@ -1218,8 +1228,57 @@ DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t
     const Lanes room = RelativeRoom(box, actual, planned, limit);
     const auto e = [&](int i) { return d[i]; };
     const auto f = [&](int m) { return d[3 + m]; };
-    const Lanes bound = NormBound(e, f, Splat(reach.norm));
+    Lanes qmax[3];
+    SplatReach(reach, qmax);
+    const Lanes bound = NormBound(e, f, qmax);
     if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;
+    for (int k = 0; k < kLanes; ++k) {
+      if (!within(s + k)) return s + k;
+    }
+  }
+  for (; s < count; ++s) {
+    if (!within(s)) return s;
+  }
+  return count;
+}
+
+DUA_LANES_CLONES int64_t BodyDeparture(const Plan& plan, int64_t jn, const Plan& old, int64_t jo,
+                                       const double* box, const BoxReach& reach, int64_t count) {
+  const auto b = static_cast<int64_t>(box[kBBody]);
+  const auto g = static_cast<int64_t>(box[kBFrame]);
+  // |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the difference's rounding
+  // (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
+  const auto within = [&](int64_t s) {
+    return BoxWithin(box, reach, plan.pos(jn + s, g), plan.mat(jn + s, g), old.pos(jo + s, g),
+                     old.mat(jo + s, g), old.dev(jo + s, b) - plan.dev(jn + s, b));
+  };
+  int64_t s = 0;
+  // Four knots at a time: BoxBound's first screen in lanes, each lane the same operations in the
+  // same order (the same bits). A lane that passes it passes BoxWithin (equal poses give a bound
+  // of 0, which passes as their test does, 0 <= limit); a block with a lane that does not is
+  // checked knot by knot. Each knot's frame read as rows of four (its position and the next
+  // three numbers, its rotation's first eight) and transposed, the rotation's last entry lane by
+  // lane: the position's fourth number, the next slot's (or the padding past the last), is read
+  // and left.
+  for (; s + kLanes <= count; s += kLanes) {
+    Lanes rp[kLanes], r0[kLanes], r4[kLanes], f8;
+    for (int k = 0; k < kLanes; ++k) {
+      const double *pa = plan.pos(jn + s + k, g), *ra = plan.mat(jn + s + k, g);
+      const double *pb = old.pos(jo + s + k, g), *rb = old.mat(jo + s + k, g);
+      rp[k] = Load(pa) - Load(pb);
+      r0[k] = Load(ra) - Load(rb);
+      r4[k] = Load(ra + 4) - Load(rb + 4);
+      f8[k] = ra[8] - rb[8];
+    }
+    Lanes ep[kLanes], fm[2 * kLanes];
+    Transpose4(rp, ep), Transpose4(r0, fm), Transpose4(r4, fm + kLanes);
+    Lanes limit;
+    for (int k = 0; k < kLanes; ++k) limit[k] = old.dev(jo + s + k, b) - plan.dev(jn + s + k, b);
+    Lanes qmax[3];
+    SplatReach(reach, qmax);
+    const auto e = [&](int i) { return ep[i]; };
+    const auto f = [&](int m) { return m < 8 ? fm[m] : f8; };
+    if (!Any(Not(NormBound(e, f, qmax) <= limit))) continue;
     for (int k = 0; k < kLanes; ++k) {
       if (!within(s + k)) return s + k;
     }

@@ -45,12 +45,12 @@ DUA_API double BoxDeviation(const double* box, const double* pa, const double* r
 // that costs no corner (equal poses pass at once): the same verdict as the comparison itself.
 DUA_API bool BoxWithin(const double* box, const double* pa, const double* ra, const double* pb,
                        const double* rb, double limit);
-// How far a box's corners reach from its frame's origin, per axis (|centre_j| + half_j) and in
-// norm: BoxWithin's constants, taken once by a caller that checks one box at many knots (a
-// replan's nesting: each check is a few dozen operations, these a fifth of them).
+// How far a box's corners reach from its frame's origin, per axis (|centre_j| + half_j):
+// BoxWithin's constants, taken once by a caller that checks one box at many knots (a replan's
+// nesting: each check is a few dozen operations).
 struct BoxReach {
   explicit BoxReach(const double* box);
-  double qmax[3], norm;
+  double qmax[3];
 };
 // BoxWithin with the box's reach taken already: the same numbers, the same verdict.
 bool BoxWithin(const double* box, const BoxReach& reach, const double* pa, const double* ra,
@@ -77,6 +77,11 @@ class Plan;
 // or count: a replan's relative nesting (Runtime::RelativeDepartures).
 int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t jn, const Plan& old, int64_t r,
                           int64_t jo, int64_t count);
+// The first of `count` knots in turn (plan's from jn, old's from jo) at which the body of box (a
+// violation-check record, reach its BoxReach) leaves old's tube (BoxWithin between the poses of
+// its frame, within D_old - D_new), or count: a replan's nesting of the bodies (Runtime::SetPlan).
+int64_t BodyDeparture(const Plan& plan, int64_t jn, const Plan& old, int64_t jo, const double* box,
+                      const BoxReach& reach, int64_t count);
 // How far a free point can stray in t from where its velocity read carries it, rounded up, with
 // room for the rounding of the carried place (the mixed tau's Stray, plan.cc; size: |place|_1,
 // |velocity|_1).

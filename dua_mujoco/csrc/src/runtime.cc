@@ -351,25 +351,28 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
       sh.nested[b] = held;
       if (held && !chained) open.push_back(i);
     }
-    // Knot by knot, every body still nested at once (a knot's poses are read together), each
-    // body until its first departure.
+    // Four knots at a time, every body still nested at once (a block's poses are read together),
+    // each body until its first departure (BodyDeparture: the block's screen in lanes). The knots
+    // checked: the shadow's from the next state's, within its span; past the new plan's last
+    // knot, or where the new plan does not hold the body, the body departs.
     const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
-    for (int64_t s = 0; jo0 >= 0 && jo0 + s < old.nknot() && !open.empty(); ++s) {
-      const double time = next + static_cast<double>(s) * h;
-      const int64_t jo = jo0 + s, jn = jn0 + s < plan->nknot() ? jn0 + s : -1;
-      if (time > sh.until + 1e-6 * h) break;
+    int64_t span = 0;
+    while (jo0 >= 0 && jo0 + span < old.nknot() &&
+           !(next + static_cast<double>(span) * h > sh.until + 1e-6 * h)) {
+      ++span;
+    }
+    for (int64_t s = 0; s < span && !open.empty(); s += kLanes) {
+      const int64_t count = std::min<int64_t>(kLanes, span - s);
+      const int64_t planned = std::clamp<int64_t>(plan->nknot() - jn0 - s, 0, count);
       size_t kept = 0;
       for (const int64_t i : open) {
         const double* box = t.events_rec.data() + kBNcol * i;
         const auto b = static_cast<int64_t>(box[kBBody]);
-        const auto g = static_cast<int64_t>(box[kBFrame]);
-        // |x - old| <= |x - new| + |new - old| <= D_new + (D_old - D_new): the difference's
-        // rounding (an ulp of D_old) is within the 4 ulps the plan's taus allow above D_old.
-        const double room = old.dev(jo, b) - plan->dev(jn < 0 ? 0 : jn, b);
-        if (jn < 0 || !plan->holds(b) ||
-            !BoxWithin(box, reach[i], plan->pos(jn, g), plan->mat(jn, g), old.pos(jo, g),
-                       old.mat(jo, g), room)) {
-          sh.from[b] = time;
+        const int64_t d = plan->holds(b)
+                              ? BodyDeparture(*plan, jn0 + s, old, jo0 + s, box, reach[i], planned)
+                              : 0;
+        if (d < count) {
+          sh.from[b] = next + static_cast<double>(s + d) * h;
           sh.nested[b] = 0;
         } else {
           open[kept++] = i;
