@@ -9,8 +9,8 @@ native core (issue 20), A/B in one run.
 
 Scenes: the bundled ones, gymnasium's and dm_control's, and every robot of
 ``benchmarks/robots.py`` whose package is installed. Each side (this checkout, and the one given
-with ``--before``) runs every scene in a subprocess of its own, alternately, ``--rounds`` times;
-the numbers are medians over rounds of per-round medians.
+with ``--before``) runs every scene in a subprocess of its own, alternately, ``--rounds`` times,
+each side first in every other round; the numbers are medians over rounds of per-round medians.
 
 Per scene, on this side: bounds from the pilot (``accel="auto"``, pilot seed 99; ``--accel 200``
 declares 200 m/s^2 instead), then
@@ -188,9 +188,14 @@ def main(argv: list[str] | None = None) -> int:
     before: list[dict] = []
     for r in range(args.rounds):
         print(f"round {r + 1}/{args.rounds}: {len(scenes)} scenes", file=sys.stderr, flush=True)
-        after += run_side(ROOT, "after", args.steps, scenes, args.accel)
-        if args.before is not None:
-            before += run_side(args.before, "before", args.steps, scenes, args.accel)
+        # Each side first in every other round, so that neither always runs on the machine as
+        # the other left it (an A/A of byte-identical libraries still reads 0.01-0.03x apart on
+        # the median, up to 0.08x on one robot: docs/benchmarks.md).
+        for side in ("after", "before") if r % 2 == 0 else ("before", "after"):
+            if side == "after":
+                after += run_side(ROOT, "after", args.steps, scenes, args.accel)
+            elif args.before is not None:
+                before += run_side(args.before, "before", args.steps, scenes, args.accel)
     plugin_before = any("plugin_us" in r for r in before)
     print(
         "| scene | geoms | pairs | tau evals/step | mj_step us | with the plugin us | plugin adds "
