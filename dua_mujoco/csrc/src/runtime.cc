@@ -24,6 +24,18 @@ std::vector<int64_t> Iota(int64_t n) {
   return v;
 }
 
+// How many of a replaced plan's knots a replan checks its shadow at (the bodies' nesting and the
+// relative pairs'): old's from the next state's (jo0, -1 if it has none) to its last knot, while
+// their time is within the shadow's span (until).
+int64_t SpanKnots(const Plan& old, int64_t jo0, double next, double h, double until) {
+  int64_t span = 0;
+  while (jo0 >= 0 && jo0 + span < old.nknot() &&
+         !(next + static_cast<double>(span) * h > until + 1e-6 * h)) {
+    ++span;
+  }
+  return span;
+}
+
 }  // namespace
 
 Runtime::Runtime(std::shared_ptr<const Tables> tables, const mjModel* m, int64_t log_steps,
@@ -356,11 +368,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
     // checked: the shadow's from the next state's, within its span; past the new plan's last
     // knot, or where the new plan does not hold the body, the body departs.
     const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
-    int64_t span = 0;
-    while (jo0 >= 0 && jo0 + span < old.nknot() &&
-           !(next + static_cast<double>(span) * h > sh.until + 1e-6 * h)) {
-      ++span;
-    }
+    const int64_t span = SpanKnots(old, jo0, next, h, sh.until);
     for (int64_t s = 0; s < span && !open.empty(); s += kLanes) {
       const int64_t count = std::min<int64_t>(kLanes, span - s);
       const int64_t planned = std::clamp<int64_t>(plan->nknot() - jn0 - s, 0, count);
@@ -589,13 +597,7 @@ void Runtime::RelativeDepartures(const Plan& plan, double next, double h, const 
   const Plan& old = *sh->plan;
   sh->rel_from.assign(old.nrel(), kInf);
   const int64_t jo0 = old.KnotOf(next), jn0 = plan.KnotOf(next);
-  // The span's knots of the old plan from the next state's: to its last knot, and while their
-  // time is within the shadow's span.
-  int64_t span = 0;
-  while (jo0 >= 0 && jo0 + span < old.nknot() &&
-         !(next + static_cast<double>(span) * h > sh->until + 1e-6 * h)) {
-    ++span;
-  }
+  const int64_t span = SpanKnots(old, jo0, next, h, sh->until);
   for (int64_t r = 0; r < old.nrel(); ++r) {
     const int64_t a = old.rel_a(r), b = old.rel_b(r);
     const bool was = sh->rel_nested[r] != 0;
