@@ -644,6 +644,18 @@ MUTANTS: tuple[Mutant, ...] = (
         "a new plan's pairs take the knots the old plan's walks ended at",
     ),
     Mutant(
+        "plan-shadow-span-one-knot-short",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "!(next + static_cast<double>(span) * h > until + 1e-6 * h)",
+        "!(next + static_cast<double>(span + 1) * h > until + 1e-6 * h)",
+        (
+            "tests/test_plan_holes.py::test_a_replan_is_checked_to_the_last_knot_of_the_replaced_plans_span",
+        ),
+        "a replan is checked against the plan it replaces one knot short of the span its "
+        "verdicts cover (the bodies' nesting and the relative pairs'): a departure at the last "
+        "knot goes unseen",
+    ),
+    Mutant(
         "plan-nesting-passed-on-without-the-older-nesting",
         "dua_mujoco/csrc/src/runtime.cc",
         "chain != nullptr && sh.nested[b] && chain->nested[b];",

@@ -232,6 +232,37 @@ def test_a_replaced_plan_is_checked_from_the_departure_set_plan_reports() -> Non
     assert p.plan_breaks == 3 + 1
 
 
+def test_a_replan_is_checked_to_the_last_knot_of_the_replaced_plans_span() -> None:
+    """The replaced plan's verdicts cover the next state plus the alarm horizon (latency 0), so
+    a replan that leaves its tube at any knot up to that one departs there, and one that leaves
+    it a knot later departs never (docs/theory.md, Lemma 8.4). A span one knot short would let
+    a replan leave the old tube at its last covered knot unseen."""
+    m = mujoco.MjModel.from_xml_string(ARM)
+    d = mujoco.MjData(m)
+    horizon = 0.02
+    p = Predictor(m, accel=1.0, alarm_horizon=horizon)
+    for _ in range(50):
+        mujoco.mj_step(m, d)
+    h, arm = float(m.opt.timestep), m.body("arm").id
+    swing = m.jnt_qposadr[m.joint("swing").id]
+    still = _arm_plan(m, d, 100, None)
+
+    def departure(leave_at: int) -> float:
+        p.reset(d)
+        p.set_plan(still, deviation=0.005)
+        moved = still.copy()
+        moved[leave_at:, swing] += 0.5
+        return float(p.set_plan(moved, deviation=0.005)[arm])
+
+    start = departure(0)  # the first knot checked: the state the next step reads
+    assert float(d.time) <= start <= float(d.time) + h + 1e-12
+    first = round((start - float(d.time)) / h)
+    last = first + round(horizon / h)
+    for j in (first + 1, last - 1, last):
+        assert departure(j) == pytest.approx(float(d.time) + j * h, abs=1e-12)
+    assert np.isinf(departure(last + 1))
+
+
 def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_departures() -> None:
     """Three plans in turn (docs/theory.md, Lemma 8.6: nesting passes on). The second keeps the
     arm where the first has it and lifts the ball 20 steps on: the first stays, a shadow the
