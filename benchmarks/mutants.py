@@ -717,8 +717,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-relative-nesting-lanes-block-passed",
         _PLAN,
-        "    if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;\n",
-        "    if (!Any(Not(And(room >= Splat(0.0), bound <= room))) || s >= 0) continue;\n",
+        "    return !Any(Not(And(room >= Splat(0.0), bound <= room)));\n",
+        "    return !Any(Not(And(room >= Splat(0.0), bound <= room))) || s >= 0;\n",
         (
             "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
             "tests/test_plan_relative.py::"
@@ -730,8 +730,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-relative-nesting-lanes-first-lane-only",
         _PLAN,
-        "    if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;\n",
-        "    if (And(room >= Splat(0.0), bound <= room)[0]) continue;\n",
+        "    return !Any(Not(And(room >= Splat(0.0), bound <= room)));\n",
+        "    return And(room >= Splat(0.0), bound <= room)[0] != 0;\n",
         (
             "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
         ),
@@ -739,17 +739,19 @@ MUTANTS: tuple[Mutant, ...] = (
         "other knots is found a block later, and the shadow checks the pair knots late",
     ),
     Mutant(
-        "plan-relative-nesting-lanes-departure-at-the-blocks-end",
+        "plan-nesting-lanes-departure-at-the-blocks-end",
         _PLAN,
         "      if (!within(s + k)) return s + k;\n    }\n  }\n  for (; s < count; ++s) {\n"
-        "    if (!within(s)) return s;\n  }\n  return count;\n}\n\nDUA_LANES_CLONES int64_t Body",
+        "    if (!within(s)) return s;\n  }\n  return count;\n}\n\n}  // namespace",
         "      if (!within(s + k)) return s + kLanes - 1;\n    }\n  }\n"
         "  for (; s < count; ++s) {\n    if (!within(s)) return s;\n  }\n  return count;\n}"
-        "\n\nDUA_LANES_CLONES int64_t Body",
+        "\n\n}  // namespace",
         (
             "tests/test_plan_relative.py::test_a_relative_departure_is_found_at_its_knot_in_every_lane",
+            "tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",
         ),
-        "a departure in a block of the relative nesting is reported at the block's last knot",
+        "a departure in a block of the nesting's lanes (the relative pairs' and the bodies') is "
+        "reported at the block's last knot",
     ),
     Mutant(
         "plan-box-screen-rounded-to-nearest",
@@ -814,22 +816,11 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-body-nesting-lanes-first-lane-only",
         _PLAN,
-        "    if (!Any(Not(NormBound(e, f, qmax) <= limit))) continue;\n",
-        "    if ((NormBound(e, f, qmax) <= limit)[0]) continue;\n",
+        "    return !Any(Not(NormBound(e, f, qmax) <= limit));\n",
+        "    return (NormBound(e, f, qmax) <= limit)[0] != 0;\n",
         ("tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",),
         "a block of the bodies' nesting whose first knot passes passes whole: a departure at its "
         "other knots is found a block later, and the shadow checks the body knots late",
-    ),
-    Mutant(
-        "plan-body-nesting-lanes-departure-at-the-blocks-end",
-        _PLAN,
-        "      if (!within(s + k)) return s + k;\n    }\n  }\n  for (; s < count; ++s) {\n"
-        "    if (!within(s)) return s;\n  }\n  return count;\n}\n\n// In an AVX2",
-        "      if (!within(s + k)) return s + kLanes - 1;\n    }\n  }\n"
-        "  for (; s < count; ++s) {\n    if (!within(s)) return s;\n  }\n  return count;\n}"
-        "\n\n// In an AVX2",
-        ("tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",),
-        "a departure in a block of the bodies' nesting is reported at the block's last knot",
     ),
     Mutant(
         "plan-shadow-map-stale",
@@ -1452,8 +1443,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-basis-dropped-when-cleared",
         "dua_mujoco/csrc/src/runtime.cc",
-        "(basis_live_ && !(zero(basis_)",
-        "(false && !(zero(basis_)",
+        "plan_ != nullptr || (basis_live_ && BasisNonzero());",
+        "plan_ != nullptr || (false && BasisNonzero());",
         ("tests/test_flightplan.py::test_verdicts_after_a_plan_is_cleared_rest_on_the_bounds",),
         "once the plan is cleared the step stops renewing the verdicts' bases (the plan's stay)",
     ),
@@ -1557,8 +1548,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "basis-kept-after-the-plan",
         "dua_mujoco/csrc/src/runtime.cc",
-        "(basis_live_ && !(zero(basis_) && zero(basis_prev_)));",
-        "(basis_live_ && !(zero(basis_) && zero(basis_prev_) && false));",
+        "  return !(zero(basis_) && zero(basis_prev_));",
+        "  return !(zero(basis_) && zero(basis_prev_) && false);",
         ("tests/test_flightplan.py::test_settling_resumes_once_a_plan_runs_out",),
         "settling off for good after any plan (cost, not the promise)",
     ),

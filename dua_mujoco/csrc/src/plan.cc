@@ -1190,6 +1190,29 @@ void Plan::SetRelativeFrames(const double* boxes, const int64_t* row) {
   }
 }
 
+// The first of count knots s at which within(s) fails, or count when none does: a block of four
+// knots whose screen passes(s) passes (in lanes; no knot it passes can fail within) is skipped
+// whole, a block it does not pass is checked knot by knot, and the last knots one at a time. The
+// nesting's two checks (RelativeDeparture, BodyDeparture), each with its own screen and test.
+namespace {
+
+template <class Passes, class Within>
+DUA_INLINE int64_t FirstDeparture(int64_t count, const Passes& passes, const Within& within) {
+  int64_t s = 0;
+  for (; s + kLanes <= count; s += kLanes) {
+    if (passes(s)) continue;
+    for (int k = 0; k < kLanes; ++k) {
+      if (!within(s + k)) return s + k;
+    }
+  }
+  for (; s < count; ++s) {
+    if (!within(s)) return s;
+  }
+  return count;
+}
+
+}  // namespace
+
 DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t jn,
                                            const Plan& old, int64_t r, int64_t jo, int64_t count) {
   const double* box = old.rel_box(r);
@@ -1200,13 +1223,11 @@ DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t
     return RelativePoseWithin(box, reach, plan.rel_pose(jn + s, rn), old.rel_pose(jo + s, r),
                               old.rel_dev(jo + s, r) - plan.rel_dev(jn + s, rn));
   };
-  int64_t s = 0;
   // Four knots at a time (a pair's relative poses follow each other, 12 a knot): RelativeBound's
   // room and BoxBound's first screen in lanes, each lane the same operations in the same order
   // (the same bits). Where a lane passes both, RelativePoseWithin passes (its test of equal
-  // poses needs 0 <= limit, which room >= 0 implies); a block with a lane that does not is
-  // checked knot by knot, as before.
-  for (; s + kLanes <= count; s += kLanes) {
+  // poses needs 0 <= limit, which room >= 0 implies).
+  const auto passes = [&](int64_t s) {
     const double* a = plan.rel_pose(jn + s, rn);
     const double* p = old.rel_pose(jo + s, r);
     // The 12 entries' differences (d[c], lane k of knot s + k: the poses' 4 x 12 read as three
@@ -1231,15 +1252,9 @@ DUA_LANES_CLONES int64_t RelativeDeparture(const Plan& plan, int64_t rn, int64_t
     Lanes qmax[3];
     SplatReach(reach, qmax);
     const Lanes bound = NormBound(e, f, qmax);
-    if (!Any(Not(And(room >= Splat(0.0), bound <= room)))) continue;
-    for (int k = 0; k < kLanes; ++k) {
-      if (!within(s + k)) return s + k;
-    }
-  }
-  for (; s < count; ++s) {
-    if (!within(s)) return s;
-  }
-  return count;
+    return !Any(Not(And(room >= Splat(0.0), bound <= room)));
+  };
+  return FirstDeparture(count, passes, within);
 }
 
 DUA_LANES_CLONES int64_t BodyDeparture(const Plan& plan, int64_t jn, const Plan& old, int64_t jo,
@@ -1252,15 +1267,13 @@ DUA_LANES_CLONES int64_t BodyDeparture(const Plan& plan, int64_t jn, const Plan&
     return BoxWithin(box, reach, plan.pos(jn + s, g), plan.mat(jn + s, g), old.pos(jo + s, g),
                      old.mat(jo + s, g), old.dev(jo + s, b) - plan.dev(jn + s, b));
   };
-  int64_t s = 0;
   // Four knots at a time: BoxBound's first screen in lanes, each lane the same operations in the
   // same order (the same bits). A lane that passes it passes BoxWithin (equal poses give a bound
-  // of 0, which passes as their test does, 0 <= limit); a block with a lane that does not is
-  // checked knot by knot. Each knot's frame read as rows of four (its position and the next
-  // three numbers, its rotation's first eight) and transposed, the rotation's last entry lane by
-  // lane: the position's fourth number, the next slot's (or the padding past the last), is read
-  // and left.
-  for (; s + kLanes <= count; s += kLanes) {
+  // of 0, which passes as their test does, 0 <= limit). Each knot's frame read as rows of four
+  // (its position and the next three numbers, its rotation's first eight) and transposed, the
+  // rotation's last entry lane by lane: the position's fourth number, the next slot's (or the
+  // padding past the last), is read and left.
+  const auto passes = [&](int64_t s) {
     Lanes rp[kLanes], r0[kLanes], r4[kLanes], f8;
     for (int k = 0; k < kLanes; ++k) {
       const double *pa = plan.pos(jn + s + k, g), *ra = plan.mat(jn + s + k, g);
@@ -1278,15 +1291,9 @@ DUA_LANES_CLONES int64_t BodyDeparture(const Plan& plan, int64_t jn, const Plan&
     SplatReach(reach, qmax);
     const auto e = [&](int i) { return ep[i]; };
     const auto f = [&](int m) { return m < 8 ? fm[m] : f8; };
-    if (!Any(Not(NormBound(e, f, qmax) <= limit))) continue;
-    for (int k = 0; k < kLanes; ++k) {
-      if (!within(s + k)) return s + k;
-    }
-  }
-  for (; s < count; ++s) {
-    if (!within(s)) return s;
-  }
-  return count;
+    return !Any(Not(NormBound(e, f, qmax) <= limit));
+  };
+  return FirstDeparture(count, passes, within);
 }
 
 // In an AVX2 clone where the CPU has one (the same operations in the same order: the same bits).
