@@ -728,6 +728,29 @@ MUTANTS: tuple[Mutant, ...] = (
         "plan's relative tube is taken as nested, and its shadow checks the pair no more",
     ),
     Mutant(
+        "plan-relative-nesting-lanes-last-entry-dropped",
+        _PLAN,
+        "Transpose4(rd, d + c);",
+        "Transpose4(rd, d + c);\n      if (c == 8) d[11] = Splat(0.0);",
+        (
+            f"{_RELATIVE}::test_a_relative_departure_turning_about_x_is_found_at_its_knot_in_every_lane",
+        ),
+        "the relative nesting's lanes screen without the relative rotations' last entry: a body "
+        "turned about x or y in the other's frame by a large angle is taken as within the "
+        "replaced plan's relative tube beyond it, and the pair's departure is found late or never",
+    ),
+    Mutant(
+        "plan-relative-nesting-lanes-last-entry-for-the-eighth",
+        _PLAN,
+        "Transpose4(rd, d + c);",
+        "Transpose4(rd, d + c);\n      if (c == 8) d[11] = d[10];",
+        (
+            f"{_RELATIVE}::test_a_relative_departure_turning_about_x_is_found_at_its_knot_in_every_lane",
+        ),
+        "the relative nesting's lanes read the relative rotations' eighth entry for their last: "
+        "a body turned about x in the other's frame is taken as within the relative tube beyond it",
+    ),
+    Mutant(
         "plan-relative-nesting-lanes-first-lane-only",
         _PLAN,
         "    return !Any(Not(And(room >= Splat(0.0), bound <= room)));\n",
@@ -812,6 +835,29 @@ MUTANTS: tuple[Mutant, ...] = (
         ("tests/test_plan_relative.py::test_a_bodys_departure_is_found_at_its_knot_in_every_lane",),
         "the bodies' nesting's lanes screen without the frames' positions: a replan that moves a "
         "body's frame out of the replaced plan's tube is nested",
+    ),
+    Mutant(
+        "plan-body-nesting-lanes-last-entry-dropped",
+        _PLAN,
+        "f8[k] = ra[8] - rb[8];",
+        "f8[k] = 0.0;",
+        (
+            f"{_RELATIVE}::test_a_bodys_departure_turning_about_x_is_found_at_its_knot_in_every_lane",
+        ),
+        "the bodies' nesting's lanes screen without the rotations' last entry (loaded knot by "
+        "knot): a body turned about x or y by a large angle is taken as within the replaced "
+        "plan's tube beyond it, and its departure is found late or never",
+    ),
+    Mutant(
+        "plan-body-nesting-lanes-last-entry-for-the-eighth",
+        _PLAN,
+        "f8[k] = ra[8] - rb[8];",
+        "f8[k] = ra[7] - rb[7];",
+        (
+            f"{_RELATIVE}::test_a_bodys_departure_turning_about_x_is_found_at_its_knot_in_every_lane",
+        ),
+        "the bodies' nesting's lanes read the rotations' eighth entry for their last: a body "
+        "turned about x by a large angle is taken as within the replaced plan's tube beyond it",
     ),
     Mutant(
         "plan-body-nesting-lanes-first-lane-only",

@@ -400,6 +400,80 @@ def test_a_bodys_departure_is_found_at_its_knot_in_every_lane(start: int) -> Non
     assert step == _first_body_break(fold, held=False)
 
 
+# A rod 40 cm long (a box along its z axis, 1 cm across) on a hinge about x through its centre,
+# beside a block on a hinge about z that stays still: the rod's turn changes its rotation's
+# last entry (cos(theta) - 1 of it), which the arm's links, all on hinges about z, never do.
+ROD = mjcf(
+    '<body name="block" pos="0 0 .5"><joint name="spin" type="hinge" axis="0 0 1"/>'
+    '<geom name="block" type="box" size=".05 .05 .05"/></body>',
+    '<body name="rod" pos=".6 0 .5"><joint name="tilt" type="hinge" axis="1 0 0"/>'
+    '<geom name="rod" type="box" size=".01 .01 .2"/></body>',
+    option='timestep="0.002" gravity="0 0 0"',
+    actuator=motors("spin", "tilt"),
+)
+
+
+def _first_tilt_break(start: int, held: bool, relative: bool) -> int | None:
+    """The step of the first plan break when a replan that turns the rod about x from step
+    ``start`` (a torque, so past 90 degrees within 60 steps) replaces a plan that holds both
+    bodies still, and the run is that replan: None if none within 60 steps. The replaced plan's
+    tube is the rod's (35 cm), or, if ``relative``, the pair's (35 cm; the bodies' own 50 cm,
+    which the turn stays within). The replan holds the rod with no deviation, or the pair with
+    no relative deviation (the bodies' own as before); or, unless ``held``, not at all."""
+    m = mujoco.MjModel.from_xml_string(ROD)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    p = Predictor(m, accel=50.0, alarm_horizon=0.2)
+    n = 300
+    pair = ([(m.body("block").id, m.body("rod").id)], 0.35)
+    mujoco.mj_step(m, d)
+    p.reset(d)
+    still = _roll(m, d, np.zeros((1, 2)), n)
+    if relative:
+        p.set_plan(still, deviation=0.5, relative=pair)
+    else:
+        p.set_plan(still, deviation=0.35)
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+        p.step(d)
+    turn = np.array([[0.0, 0.0]] * start + [[0.0, 2.0]])
+    plan = _roll(m, d, turn, n)
+    if relative:
+        p.set_plan(plan, deviation=0.5, relative=(pair[0], 0.0) if held else None)
+    else:
+        p.set_plan(plan, deviation=0.0, bodies=["block", "rod"] if held else ["block"])
+    step = _steps_to_break(m, d, p, turn)
+    assert step is None or plan[step + 1, m.joint("tilt").qposadr[0]] > np.pi / 2  # the turn
+    return step
+
+
+@pytest.mark.parametrize("start", [20, 21, 22, 23])
+def test_a_bodys_departure_turning_about_x_is_found_at_its_knot_in_every_lane(start: int) -> None:
+    """As the arm's fold above, of a body whose turn changes its rotation's last entry (the lanes
+    load it knot by knot, apart from the other eight): the rod turns about x past 90 degrees, and
+    leaves the replaced plan's 35 cm tube at its knot in every lane of a block, the same step as
+    when the replan does not hold the rod. Without the last entry the lanes' screen would take
+    the rod's long column of R - R' as |sin(theta)| (0.2 m of reach at most; sqrt(2) |sin(theta)|
+    reading the eighth entry for it, 0.28 m), not 2 |sin(theta / 2)|: it would pass every knot of
+    the turn, and no break would come."""
+    step = _first_tilt_break(start, held=True, relative=False)
+    assert step is not None and step > start
+    assert step == _first_tilt_break(start, held=False, relative=False)
+
+
+@pytest.mark.parametrize("start", [20, 21, 22, 23])
+def test_a_relative_departure_turning_about_x_is_found_at_its_knot_in_every_lane(
+    start: int,
+) -> None:
+    """As above, of the pair of the block and the rod: the rod's turn about x, in the block's
+    frame, changes the relative rotation's last entry (the lanes' last block of four entries),
+    and the replan leaves the replaced plan's 35 cm relative tube at its knot in every lane, the
+    same step as when the replan does not hold the pair."""
+    step = _first_tilt_break(start, held=True, relative=True)
+    assert step is not None and step > start
+    assert step == _first_tilt_break(start, held=False, relative=True)
+
+
 def test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_relative_departures() -> None:
     """Three plans in turn (docs/theory.md, Lemma 8.6), with a relative pair. A second that folds
     the last link 20 steps on, then a third that keeps to it (nested in it: its shadow is
