@@ -489,6 +489,24 @@ MUTANTS: tuple[Mutant, ...] = (
         "pass then uses as an index (the tables fuzzer's finding)",
     ),
     Mutant(
+        "climb-row-last-neighbour-dropped",
+        "dua_mujoco/csrc/src/tables.cc",
+        "t->climb.push_back(entry(k, e - first));",
+        "t->climb.push_back(entry(k, e - first - 1));",
+        ("tests/test_exact.py::test_the_climb_over_a_dense_hull_reaches_the_reference_support",),
+        "each hull vertex's climb row counts one neighbour fewer: a climb can stop below the top "
+        "(a support too low, a gap too large)",
+    ),
+    Mutant(
+        "climb-row-neighbours-at-the-vertex",
+        "dua_mujoco/csrc/src/tables.cc",
+        "for (e = first; *e >= 0; ++e) t->climb.push_back(entry(*e, *e));",
+        "for (e = first; *e >= 0; ++e) t->climb.push_back(entry(k, *e));",
+        ("tests/test_exact.py::test_the_climb_over_a_dense_hull_reaches_the_reference_support",),
+        "a climb row's neighbours carry the vertex's own coordinates: no neighbour is ever "
+        "higher, and the climb stays at its start",
+    ),
+    Mutant(
         "escape-speed-loose",
         "dua_mujoco/csrc/src/reach.cc",
         "const double top = std::min(s0 + a * t, vmax - d);",

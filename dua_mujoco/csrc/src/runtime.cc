@@ -257,9 +257,9 @@ void Runtime::BindHeld() {
   x.witness = witness_.data();
   x.below = t.exact_below;
   x.query_below = t.query_below;
-  x.hull = t.hull.data();
   x.hull_at = t.hull_at.data();
-  x.graph = t.graph.data();
+  x.climb = t.climb.data();
+  x.climb_at = t.climb_at.data();
   dua_events& e = a.events;
   e.nbody = t.nbody_events;
   e.rec = t.events_rec.data();
@@ -816,9 +816,9 @@ void Runtime::QueryKnots(const mjModel* m, const mjData* d, const Plan& plan, in
   a.frame = FrameOf(d, mocap_.twist.data());
   a.exact.on = t.exact ? 1 : 0;
   a.exact.geoms = t.geoms.data();
-  a.exact.hull = t.hull.data();
   a.exact.hull_at = t.hull_at.data();
-  a.exact.graph = t.graph.data();
+  a.exact.climb = t.climb.data();
+  a.exact.climb_at = t.climb_at.data();
   a.exact.records = q->exact.data();
   a.exact.witness = nullptr;  // the step's rows are of its own pairs: none read or kept
   a.exact.model = m;

@@ -339,17 +339,18 @@ DUA_SECTION int64_t CheckBodies(const dua_events& ev, const dua_frame& f, bool l
 
 // max m.v over the hull vertices of mesh geom g (local direction m): a hill climb on MuJoCo's
 // hull graph (a linear function's local maximum over a polytope is global), from last time's
-// highest vertex, or before the first climb the stored extreme vertex of the axis nearest m.
-// Writes the highest vertex's local id to top.
+// highest vertex, or before the first climb the stored extreme vertex of the axis nearest m. Each
+// step reads the vertex's climb row (its neighbours' coordinates beside their ids) and moves to
+// its highest neighbour, the first of equals, while that is higher. Writes the highest vertex's
+// local id to top.
 double HullSupport(int64_t g, const dua_exact& x, double m0, double m1, double m2, int64_t start,
                    int64_t* top) {
   const double* rec = x.geoms + g * kGxNcol;
-  const int64_t adr = static_cast<int64_t>(rec[kGxGraph]);
-  const int32_t* graph = x.graph;
-  const int32_t* edges = graph + adr + 2;
-  const int32_t* local = edges + 2 * static_cast<int64_t>(graph[adr]);
-  const double* v = x.hull + 3 * x.hull_at[g];
-  auto height = [&](int64_t k) { return m0 * v[3 * k] + m1 * v[3 * k + 1] + m2 * v[3 * k + 2]; };
+  const int64_t* row = x.climb_at + x.hull_at[g];
+  auto height = [&](const dua_hull_entry& v) {
+    return m0 * static_cast<double>(v.x) + m1 * static_cast<double>(v.y) +
+           m2 * static_cast<double>(v.z);
+  };
   int64_t imax = start;
   if (imax < 0) {
     const double a0 = std::fabs(m0), a1 = std::fabs(m1), a2 = std::fabs(m2);
@@ -363,17 +364,20 @@ double HullSupport(int64_t g, const dua_exact& x, double m0, double m1, double m
     }
     imax = static_cast<int64_t>(rec[seed]);
   }
-  double best = height(imax);
+  const dua_hull_entry* v = x.climb + row[imax];
+  double best = height(*v);
   int64_t prev = -1;
   while (imax != prev) {
     prev = imax;
-    for (const int32_t* e = local + edges[imax]; *e >= 0; ++e) {
-      const double val = height(*e);
+    const int32_t n = v->id;
+    for (int32_t k = 1; k <= n; ++k) {
+      const double val = height(v[k]);
       if (val > best) {
         best = val;
-        imax = *e;
+        imax = v[k].id;
       }
     }
+    v = x.climb + row[imax];
   }
   *top = imax;
   return best;
@@ -500,7 +504,9 @@ static bool TopPoint(const double* xrec, int side, const dua_exact& x, const dua
   const double top = xrec[side == 0 ? kXHull1 : kXHull2];
   if (!(top >= 0.0)) return false;
   const int64_t g = static_cast<int64_t>(xrec[side == 0 ? kXG1 : kXG2]);
-  GeomPoint(g, f, x.hull + 3 * (x.hull_at[g] + static_cast<int64_t>(top)), out);
+  const dua_hull_entry& v = x.climb[x.climb_at[x.hull_at[g] + static_cast<int64_t>(top)]];
+  const double local[3] = {v.x, v.y, v.z};
+  GeomPoint(g, f, local, out);
   return true;
 }
 
@@ -595,38 +601,17 @@ void KeepWitness(const double fromto[6], int64_t g1, int64_t g2, const dua_frame
 
 namespace {
 
-// One pair's max(coarse, exact). Any unit direction gives a lower bound: the one that served
-// last time is tried first, and MuJoCo is asked for a new one only while the pair is still
-// urgent along it (below query_below). A pair MuJoCo has in contact is not looked at.
-double ExactTau(const double* pair, double* xrec, double* witness, double coarse, dua_exact& x,
-                const dua_frame& f, double settled_below) {
-  const int mode = static_cast<int>(xrec[kXMode]);
-  if (mode == kModeNone) return coarse;
+// ExactTau past the kept direction (best: what it and the coarse tau gave, below query_below,
+// or no direction kept yet): the carried and the segment's directions, then MuJoCo's query.
+// Out of line: most looks end at the kept direction (docs/benchmarks.md, "The exact level"),
+// and the step runs cold, so the lines of this path are fetched only by the looks that take it.
+DUA_APART double ExactTauFurther(const double* pair, double* xrec, double* witness, double best,
+                                 dua_exact& x, const dua_frame& f, double settled_below, int mode,
+                                 double r0, double r1, double r2, double spin) {
   const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
   const int64_t g2 = static_cast<int64_t>(xrec[kXG2]);
-  const mjData* d = static_cast<const mjData*>(x.data);
-  if (InContact(x, g1, g2, xrec[kXDist])) return coarse;
-  double sa[6], sb[6];
-  RigidPoint(g1, x.geoms, kGxNcol, f, sa);
-  double spin = Spin(g1, x.geoms, f);
-  // Relative velocity of the origins, second minus first.
-  double r0 = -sa[3], r1 = -sa[4], r2 = -sa[5];
-  if (mode == kModeGeoms) {
-    RigidPoint(g2, x.geoms, kGxNcol, f, sb);
-    spin += Spin(g2, x.geoms, f);
-    r0 += sb[3], r1 += sb[4], r2 += sb[5];
-  }
-  if (mode == kModePlane) {
-    // From the geom towards the plane: against the plane's outward normal (its z axis).
-    const double* m = f.mat + 9 * g2;
-    const double t = AxisTau(-m[2], -m[5], -m[8], mode, r0, r1, r2, spin, pair, xrec, x, f);
-    return std::max(coarse, t);
-  }
-  double best = coarse;
-  double n0 = xrec[kXN], n1 = xrec[kXN + 1], n2 = xrec[kXN + 2];
+  const double n0 = xrec[kXN], n1 = xrec[kXN + 1], n2 = xrec[kXN + 2];
   if (n0 != 0.0 || n1 != 0.0 || n2 != 0.0) {
-    best = std::max(best, AxisTau(n0, n1, n2, mode, r0, r1, r2, spin, pair, xrec, x, f));
-    if (best >= x.query_below) return best;
     // The pair alarms whatever direction MuJoCo would give: not asked (most of a query's cost on
     // meshes of thousands of hull vertices is GJK's climb from a cold start).
     double q[3], scale;
@@ -663,6 +648,7 @@ double ExactTau(const double* pair, double* xrec, double* witness, double coarse
   const double reach = std::sqrt(c0 * c0 + c1 * c1 + c2 * c2) + xrec[kXDist] + 1.0;
   mjtNum fromto[6];
   ++x.queries;
+  const mjData* d = static_cast<const mjData*>(x.data);
   const double dist = mj_geomDistance(static_cast<const mjModel*>(x.model), const_cast<mjData*>(d),
                                       static_cast<int>(g1), static_cast<int>(g2), reach, fromto);
   double n[3];
@@ -671,6 +657,41 @@ double ExactTau(const double* pair, double* xrec, double* witness, double coarse
   }
   KeepWitness(fromto, g1, g2, f, witness);
   return std::max(best, AxisTau(n[0], n[1], n[2], mode, r0, r1, r2, spin, pair, xrec, x, f));
+}
+
+// One pair's max(coarse, exact). Any unit direction gives a lower bound: the one that served
+// last time is tried first, and MuJoCo is asked for a new one only while the pair is still
+// urgent along it (below query_below). A pair MuJoCo has in contact is not looked at.
+double ExactTau(const double* pair, double* xrec, double* witness, double coarse, dua_exact& x,
+                const dua_frame& f, double settled_below) {
+  const int mode = static_cast<int>(xrec[kXMode]);
+  if (mode == kModeNone) return coarse;
+  const int64_t g1 = static_cast<int64_t>(xrec[kXG1]);
+  const int64_t g2 = static_cast<int64_t>(xrec[kXG2]);
+  if (InContact(x, g1, g2, xrec[kXDist])) return coarse;
+  double sa[6], sb[6];
+  RigidPoint(g1, x.geoms, kGxNcol, f, sa);
+  double spin = Spin(g1, x.geoms, f);
+  // Relative velocity of the origins, second minus first.
+  double r0 = -sa[3], r1 = -sa[4], r2 = -sa[5];
+  if (mode == kModeGeoms) {
+    RigidPoint(g2, x.geoms, kGxNcol, f, sb);
+    spin += Spin(g2, x.geoms, f);
+    r0 += sb[3], r1 += sb[4], r2 += sb[5];
+  }
+  if (mode == kModePlane) {
+    // From the geom towards the plane: against the plane's outward normal (its z axis).
+    const double* m = f.mat + 9 * g2;
+    const double t = AxisTau(-m[2], -m[5], -m[8], mode, r0, r1, r2, spin, pair, xrec, x, f);
+    return std::max(coarse, t);
+  }
+  double best = coarse;
+  const double n0 = xrec[kXN], n1 = xrec[kXN + 1], n2 = xrec[kXN + 2];
+  if (n0 != 0.0 || n1 != 0.0 || n2 != 0.0) {
+    best = std::max(best, AxisTau(n0, n1, n2, mode, r0, r1, r2, spin, pair, xrec, x, f));
+    if (best >= x.query_below) return best;
+  }
+  return ExactTauFurther(pair, xrec, witness, best, x, f, settled_below, mode, r0, r1, r2, spin);
 }
 
 // Raise out[k] of held pairs ids[k] to max(out[k], exact) where it is below exact.below,

@@ -334,12 +334,13 @@ bool ReadExact(const mjModel* m, Reader* r, Tables* t) {
       !r->Get("exact_records", u.npair(), kXNcol, &u.exact)) {
     return false;
   }
-  t->graph.assign(m->mesh_graph, m->mesh_graph + m->nmeshgraph);
-  if (t->graph.empty()) t->graph.assign(1, -1);
+  // The model's hull graphs, read here only (an address not negative is one of its meshes'
+  // mesh_graphadr, checked below): the climb reads its own rows (climb).
+  const int32_t* graph = m->mesh_graph;
   // Hull vertices of geom g's mesh when the level climbs its hull graph, else 0.
   auto numvert = [&](int64_t g) -> int64_t {
     const double adr = t->geoms[kGxNcol * g + kGxGraph];
-    return adr >= 0.0 ? t->graph[static_cast<int64_t>(adr)] : 0;
+    return adr >= 0.0 ? graph[static_cast<int64_t>(adr)] : 0;
   };
   int64_t g = 0;
   if (!Rows(r, "exact_geoms", t->geoms, kGxNcol,
@@ -369,33 +370,46 @@ bool ReadExact(const mjModel* m, Reader* r, Tables* t) {
                   rec[kGxVert] != m->mesh_vertadr[mesh]) {
                 return false;
               }
-              const int64_t nv = t->graph[m->mesh_graphadr[mesh]];
+              const int64_t nv = graph[m->mesh_graphadr[mesh]];
               for (int c = 0; c < 6; ++c) ok = ok && IsIndex(rec[kGxSeed + c], nv);
               return ok;
             })) {
     return false;
   }
-  // Each hull's vertices once (geoms of one mesh share them), in its graph's local order.
-  t->hull.clear();
+  // Each hull's climb rows once (geoms of one mesh share them), in its graph's local order.
   t->hull_at.assign(m->ngeom, -1);
-  std::vector<int64_t> at_graph(t->graph.size(), -1);
+  t->climb.clear();
+  t->climb_at.clear();
+  std::vector<int64_t> at_graph(static_cast<size_t>(m->nmeshgraph), -1);
   for (int64_t id = 0; id < m->ngeom; ++id) {
     const double adr = t->geoms[kGxNcol * id + kGxGraph];
     if (adr < 0.0) continue;
     int64_t& at = at_graph[static_cast<int64_t>(adr)];
     if (at < 0) {
-      at = static_cast<int64_t>(t->hull.size()) / 3;
-      const int64_t nv = t->graph[static_cast<int64_t>(adr)];
-      const int32_t* global = t->graph.data() + static_cast<int64_t>(adr) + 2 + nv;
+      at = static_cast<int64_t>(t->climb_at.size());
+      const int64_t nv = graph[static_cast<int64_t>(adr)];
+      const int32_t* global = graph + static_cast<int64_t>(adr) + 2 + nv;
       const float* verts =
           m->mesh_vert + 3 * static_cast<int64_t>(t->geoms[kGxNcol * id + kGxVert]);
+      const int32_t* edges = global - nv;
+      const int32_t* local = global + nv;
+      auto entry = [&](int64_t k, int64_t value) {
+        const float* v = verts + 3 * global[k];
+        return dua_hull_entry{v[0], v[1], v[2], static_cast<int32_t>(value)};
+      };
       for (int64_t k = 0; k < nv; ++k) {
-        for (int c = 0; c < 3; ++c) t->hull.push_back(verts[3 * global[k] + c]);
+        t->climb_at.push_back(static_cast<int64_t>(t->climb.size()));
+        const int32_t* first = local + edges[k];
+        const int32_t* e = first;
+        while (*e >= 0) ++e;
+        t->climb.push_back(entry(k, e - first));
+        for (e = first; *e >= 0; ++e) t->climb.push_back(entry(*e, *e));
       }
     }
     t->hull_at[id] = at;
   }
-  if (t->hull.empty()) t->hull.assign(3, 0.0);
+  if (t->climb.empty()) t->climb.assign(1, dua_hull_entry{0.0f, 0.0f, 0.0f, 0});
+  if (t->climb_at.empty()) t->climb_at.assign(1, 0);
   for (int64_t p = 0; p < u.npair(); ++p) {
     const double* rec = u.exact.data() + kXNcol * p;
     const double mode = rec[kXMode];

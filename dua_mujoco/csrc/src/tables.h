@@ -69,15 +69,14 @@ struct Tables {
   // shape records were built from; StaticMismatch holds a model to it.
   std::vector<double> statics;
   int64_t nbody_events = 0;
-  // The exact level: its per-geom records, thresholds, the model's hull graphs it climbs, and
-  // their vertices (dua_exact's hull and hull_at: the climb reads a vertex in one row, not
-  // through the graph's global ids into the model's float mesh_vert).
+  // The exact level: its per-geom records, thresholds, and each hull vertex's climb row
+  // (dua_exact's hull_at, climb and climb_at: dua.h).
   bool exact = false;
   double exact_below = 0.0, query_below = 0.0;
   std::vector<double> geoms;
-  std::vector<int32_t> graph;
-  std::vector<double> hull;
   std::vector<int64_t> hull_at;
+  std::vector<dua_hull_entry> climb;  // dua_exact's climb and climb_at
+  std::vector<int64_t> climb_at;
   // The pairs known from the start: every active pair, or (pruned) those held always, which
   // each run's own universe then grows from.
   Universe universe;

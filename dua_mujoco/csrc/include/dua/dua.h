@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 13
+#define DUA_ABI_VERSION 14
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -121,6 +121,14 @@ typedef struct dua_frame {
   const double* root_origin;  // (nbody, 3)
 } dua_frame;
 
+// A hull vertex's coordinates in its mesh's frame (MuJoCo's float mesh_vert, which every double
+// computed from them reads exactly) and an integer: the first entry of a climb row (dua_exact)
+// holds the vertex and its neighbour count, each later one a neighbour and its local id.
+typedef struct dua_hull_entry {
+  float x, y, z;
+  int32_t id;
+} dua_hull_entry;
+
 typedef struct dua_exact {
   int64_t on;           // 0: the level is off
   const double* geoms;  // (ngeom, 24)
@@ -131,13 +139,16 @@ typedef struct dua_exact {
   int64_t queries;     // mj_geomDistance calls so far
   double below;        // seconds
   double query_below;  // seconds
-  // The hulls' vertices in double, each hull's rows in its graph's local order: mesh geom g's
-  // vertex k at row hull_at[g] + k (-1: g has no hull graph).
-  const double* hull;
+  // Each hull vertex's climb row (mesh geom g's vertex k, in its hull graph's local order: row
+  // hull_at[g] + k, hull_at[g] -1 when g has no hull graph): its entries from climb[climb_at[row]],
+  // first the vertex and its neighbour count, then each neighbour and its local id, in the order
+  // of MuJoCo's graph. A step of the climb reads one row, a few cache lines, where the graph's
+  // lists and each neighbour's coordinates would be a line each.
   const int64_t* hull_at;  // (ngeom,)
-  const int32_t* graph;    // mesh_graph
-  const void* model;       // mjModel*
-  const void* data;        // mjData*
+  const dua_hull_entry* climb;
+  const int64_t* climb_at;  // (hull vertices,)
+  const void* model;        // mjModel*
+  const void* data;         // mjData*
   // MuJoCo's contacts of data, indexed for the pairs the level skips (sorted geom-pair keys
   // min << 32 | max, and each key's least distance): built at the first look of a batch when
   // data has more than a few contacts; room for contact_room entries (0: always scan).
