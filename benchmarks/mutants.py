@@ -507,6 +507,24 @@ MUTANTS: tuple[Mutant, ...] = (
         "higher, and the climb stays at its start",
     ),
     Mutant(
+        "climb-row-not-followed",
+        _STEP,
+        "    v = x.climb + row[imax];",
+        "    (void)row;",
+        ("tests/test_exact.py::test_the_climb_over_a_dense_hull_reaches_the_reference_support",),
+        "after a move the climb scans the row it left, not the vertex it reached: it stops one "
+        "move from its start (a support too low, a gap too large)",
+    ),
+    Mutant(
+        "hull-top-point-mirrored",
+        _STEP,
+        "const double local[3] = {v.x, v.y, v.z};",
+        "const double local[3] = {v.x, v.y, -v.z};",
+        (_TWO_HULLS,),
+        "the hull vertex a climb reached is read mirrored, a point outside the geom: the "
+        "two-point bound can clear an alarm that a query would not",
+    ),
+    Mutant(
         "escape-speed-loose",
         "dua_mujoco/csrc/src/reach.cc",
         "const double top = std::min(s0 + a * t, vmax - d);",
