@@ -75,7 +75,7 @@ struct Tables {
   double exact_below = 0.0, query_below = 0.0;
   std::vector<double> geoms;
   std::vector<int64_t> hull_at;
-  std::vector<dua_hull_entry> climb;  // dua_exact's climb and climb_at
+  std::vector<dua_hull_entry> climb;
   std::vector<int64_t> climb_at;
   // The pairs known from the start: every active pair, or (pruned) those held always, which
   // each run's own universe then grows from.
