@@ -40,11 +40,12 @@ plugin's tables are built by the installed package, which reads them the same wa
 Ratios are of instructions, not time: confirm a large item with a wall-clock A/B
 (``benchmarks/plugin.py``).
 
-``--tool cache``: callgrind with its cache simulation at this machine's first-level caches
-(48 KiB 12-way data, 64 KiB 16-way instructions, 64-byte lines), on the installed (release)
-build, not split by section: per step, the plugin library's own instructions and first-level
-misses (instruction reads, data reads, data writes), and what MuJoCo's own code does more with
-the plugin than without (its step's work and misses after the plugin's).
+``--tool cache``: callgrind with its cache simulation at this machine's caches, read from
+``/sys/devices/system/cpu/cpu0/cache`` (the first level's data and instruction caches, and the
+second level as callgrind's last), on the installed (release) build, not split by section: per
+step, the plugin library's own instructions, first-level misses (instruction reads, data reads,
+data writes) and second-level misses (reads of either kind, writes), and what MuJoCo's own code
+does more with the plugin than without (its step's work and misses after the plugin's).
 """
 
 from __future__ import annotations
@@ -438,9 +439,31 @@ def profile_perf(jobs: list, warmup: int, seconds: float, folder: Path, rounds: 
     return rows
 
 
-# The first-level caches simulated (lscpu: 48 KiB data, 64 KiB instructions, a core).
-CACHE_SIM = ["--cache-sim=yes", "--D1=49152,12,64", "--I1=65536,16,64"]
-CACHE_EVENTS = ("Ir", "I1mr", "D1mr", "D1mw")
+CACHE_EVENTS = ("Ir", "I1mr", "D1mr", "D1mw", "ILmr", "DLmr", "DLmw")
+CACHE_DIR = Path("/sys/devices/system/cpu/cpu0/cache")
+
+
+def cache_sim(folder: Path = CACHE_DIR) -> list[str]:
+    """callgrind's options simulating this machine's caches: the first level's data and
+    instruction caches as D1 and I1, the second level as its last level (LL), each as
+    ``size,ways,line`` read from ``folder`` (sysfs)."""
+    found: dict[tuple[int, str], str] = {}
+    for index in sorted(folder.glob("index*")):
+        level, kind = int((index / "level").read_text()), (index / "type").read_text().strip()
+        size = (index / "size").read_text().strip()
+        unit = {"K": 1 << 10, "M": 1 << 20}.get(size[-1:], 1)
+        size_b = int(size.rstrip("KM")) * unit
+        ways = (index / "ways_of_associativity").read_text().strip()
+        line = (index / "coherency_line_size").read_text().strip()
+        found[(level, kind)] = f"{size_b},{ways},{line}"
+    wanted = {"D1": (1, "Data"), "I1": (1, "Instruction"), "LL": (2, "Unified")}
+    missing = [f"level {lv} {kind}" for lv, kind in wanted.values() if (lv, kind) not in found]
+    if missing:
+        raise RuntimeError(
+            f"{folder} describes no {', '.join(missing)} cache: --tool cache needs the caches' "
+            "sizes from sysfs (use --tool callgrind or perf on this machine)"
+        )
+    return ["--cache-sim=yes", *(f"--{k}={found[v]}" for k, v in wanted.items())]
 
 
 def cost_by_object(path: Path) -> dict[str, dict[str, int]]:
@@ -471,7 +494,9 @@ def profile_cache(jobs: list, warmup: int, steps: int, folder: Path) -> list[dic
     """callgrind with the cache simulated, one process over every model: a step's instructions
     and first-level misses of the plugin library, and of MuJoCo's with the plugin less without."""
     paths = [str(p) for job in jobs for p in job[:2]]
-    out = _run_child(_inside_mj_step(folder / "cache.out", *CACHE_SIM), warmup, steps, "-", paths)
+    sim = cache_sim()
+    print("cache model: " + " ".join(sim[1:]), flush=True)
+    out = _run_child(_inside_mj_step(folder / "cache.out", *sim), warmup, steps, "-", paths)
     dumps = sorted(folder.glob("cache.out.*"), key=lambda p: int(p.suffix[1:]))
     counted = {
         path: cost_by_object(dump)
