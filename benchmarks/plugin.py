@@ -6,6 +6,7 @@ native core (issue 20), A/B in one run.
     python benchmarks/plugin.py --scenes two_arms gym/ant --steps 600
     python benchmarks/plugin.py --accel 200 --before /tmp/before   # declared bounds
     python benchmarks/plugin.py --scenes bin_pour swarm:1000 --steps 600   # pruned pairs too
+    python benchmarks/plugin.py --accel 200 --period 2    # a predictor step every 2 mj_steps
 
 Scenes: the bundled ones, gymnasium's and dm_control's, and every robot of
 ``benchmarks/robots.py`` whose package is installed. Each side (this checkout, and the one given
@@ -25,6 +26,10 @@ declares 200 m/s^2 instead), then
 
 on the ``--before`` side, the same ``Predictor.step`` (its own pilot: the same code and seeds),
 and the plugin too if that checkout has one.
+
+``--period P`` gives the plugin and ``Predictor`` a predictor period of ``P`` physics steps (both
+sides): ``Predictor.step`` is called every ``P``-th ``mj_step``, and every time is per physics
+step, the median over runs of ``P`` consecutive steps of their mean (one predictor step each).
 """
 
 from __future__ import annotations
@@ -57,7 +62,18 @@ try:  # the scenes' module: dua_mujoco.models since issue 41, dua_mujoco.mj befo
 except ImportError:
     from dua_mujoco.mj.scenes import load_spec, make_controller
 
-side, steps, accel, scenes = sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5:]
+side, steps, accel, period = sys.argv[2], int(sys.argv[3]), sys.argv[4], int(sys.argv[5])
+scenes = sys.argv[6:]
+# The options of a predictor period (none at 1: a checkout from before it takes none).
+periodic = dict(period=period) if period > 1 else {}
+steps -= steps % period
+
+
+def per_step(times):
+    # The median over runs of `period` consecutive steps of their mean (one predictor step each).
+    t = np.asarray(times, dtype=float)
+    return float(np.median(t.reshape(-1, period).mean(axis=1)))
+
 
 def spec_of(scene):
     if scene.startswith("robot/"):
@@ -82,9 +98,9 @@ def model_of(scene):
 def predictor(m):
     # Height fields (dm_control's quadruped terrain) covered by their boxes.
     if accel != "auto":
-        return Predictor(m, accel=float(accel), covering=CoveringOptions(hfield="box"))
+        return Predictor(m, accel=float(accel), covering=CoveringOptions(hfield="box"), **periodic)
     return Predictor(m, accel="auto", covering=CoveringOptions(hfield="box"), pilot=PilotOptions(
-        steps=1000, seed=99, controller=make_controller(m, "random", seed=99)))
+        steps=1000, seed=99, controller=make_controller(m, "random", seed=99)), **periodic)
 
 for scene in scenes:
     spec, m = model_of(scene)
@@ -96,10 +112,12 @@ for scene in scenes:
     for k in range(1, steps + 1):
         drive(m, d)
         t0 = time.perf_counter_ns(); mujoco.mj_step(m, d); t1 = time.perf_counter_ns()
-        p.step(d); t2 = time.perf_counter_ns()
-        t_mj.append(t1 - t0); t_pred.append(t2 - t1); evals.append(p.evaluations_per_step)
+        if k % period == 0:
+            p.step(d); evals.append(p.evaluations_per_step)
+        t2 = time.perf_counter_ns()
+        t_mj.append(t1 - t0); t_pred.append(t2 - t1)
     row = dict(scene=scene, side=side, geoms=int(m.ngeom), pairs=int(p.nsphere_pairs),
-               predictor_us=float(np.median(t_pred)) / 1e3, mj_us=float(np.median(t_mj)) / 1e3,
+               predictor_us=per_step(t_pred) / 1e3, mj_us=float(np.median(t_mj)) / 1e3,
                evals=float(np.mean(evals)))
     try:
         from dua_mujoco.plugin import attach, plugin_outputs
@@ -113,10 +131,11 @@ for scene in scenes:
         variants = (("all", spec, {}), ("pruned", spec_of(scene), {}),
                     ("all", spec_of(scene), exact_off))
         for pairs, s, more in variants:
-            attach(s, accel=p.bounds, covering=CoveringOptions(hfield="box"), pairs=pairs, **more)
+            attach(s, accel=p.bounds, covering=CoveringOptions(hfield="box"), pairs=pairs,
+                   **periodic, **more)
             mp = s.compile()
             runs.append((mp, mujoco.MjData(mp), [], [], make_controller(mp, "random", seed=0)))
-        block = max(steps // 10, 1)
+        block = max(steps // 10 // period, 1) * period
         for start in range(0, steps, block):
             for model, data, out, ev, drive in runs:
                 for k in range(start, min(start + block, steps)):
@@ -125,10 +144,10 @@ for scene in scenes:
                     out.append(time.perf_counter_ns() - t0)
                     if ev is not runs[0][3]:
                         ev.append(plugin_outputs(model, data).evaluated)
-        row.update(plain_us=float(np.median(runs[0][2])) / 1e3,
-                   plugin_us=float(np.median(runs[1][2])) / 1e3,
-                   pruned_us=float(np.median(runs[2][2])) / 1e3,
-                   inexact_us=float(np.median(runs[3][2])) / 1e3,
+        row.update(plain_us=per_step(runs[0][2]) / 1e3,
+                   plugin_us=per_step(runs[1][2]) / 1e3,
+                   pruned_us=per_step(runs[2][2]) / 1e3,
+                   inexact_us=per_step(runs[3][2]) / 1e3,
                    pruned_mean_us=float(np.mean(runs[2][2])) / 1e3,
                    plugin_mean_us=float(np.mean(runs[1][2])) / 1e3,
                    plain_mean_us=float(np.mean(runs[0][2])) / 1e3,
@@ -149,9 +168,9 @@ def _scenes(requested: list[str] | None) -> list[str]:
 
 
 def run_side(
-    checkout: Path, side: str, steps: int, scenes: list[str], accel: str = "auto"
+    checkout: Path, side: str, steps: int, scenes: list[str], accel: str = "auto", period: int = 1
 ) -> list[dict]:
-    out = run(PROBE, checkout, str(HERE), side, str(steps), accel, *scenes)
+    out = run(PROBE, checkout, str(HERE), side, str(steps), accel, str(period), *scenes)
     return [json.loads(line) for line in out.splitlines() if line.startswith("{")]
 
 
@@ -182,7 +201,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--accel", default="auto", help="bounds: auto (a pilot of seed 99) or m/s^2 declared"
     )
+    ap.add_argument(
+        "--period", type=int, default=1, help="physics steps a predictor step (both sides)"
+    )
     args = ap.parse_args(argv)
+    if args.period < 1:
+        ap.error(f"--period {args.period}: give a whole number of physics steps >= 1")
     scenes = _scenes(args.scenes)
     after: list[dict] = []
     before: list[dict] = []
@@ -193,9 +217,11 @@ def main(argv: list[str] | None = None) -> int:
         # the median, up to 0.08x on one robot: docs/benchmarks.md).
         for side in ("after", "before") if r % 2 == 0 else ("before", "after"):
             if side == "after":
-                after += run_side(ROOT, "after", args.steps, scenes, args.accel)
+                after += run_side(ROOT, "after", args.steps, scenes, args.accel, args.period)
             elif args.before is not None:
-                before += run_side(args.before, "before", args.steps, scenes, args.accel)
+                before += run_side(
+                    args.before, "before", args.steps, scenes, args.accel, args.period
+                )
     plugin_before = any("plugin_us" in r for r in before)
     print(
         "| scene | geoms | pairs | tau evals/step | mj_step us | with the plugin us | plugin adds "
