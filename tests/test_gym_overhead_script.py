@@ -3,26 +3,11 @@ the two steps alternates (a fake clock, no timing)."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-from types import ModuleType, SimpleNamespace
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _script() -> ModuleType:
-    """benchmarks/gym_overhead.py, loaded by its path (the benchmarks folder stays off sys.path)."""
-    name = "benchmarks_gym_overhead"
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / "gym_overhead.py")
-        assert spec is not None and spec.loader is not None
-        sys.modules[name] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[name])
-    return sys.modules[name]
+from benchmark_scripts import script
 
 
 class _Clock:
@@ -57,9 +42,9 @@ class _Env:
 
 def test_paired_keeps_each_envs_times_its_own(monkeypatch: pytest.MonkeyPatch) -> None:
     """Fails if a step's time goes to the other env when the order flips (both would read 2)."""
-    script = _script()
+    overhead = script("gym_overhead")
     clock = _Clock()
-    monkeypatch.setattr(script, "time", SimpleNamespace(perf_counter=clock))
+    monkeypatch.setattr(overhead, "time", SimpleNamespace(perf_counter=clock))
     plain, wrapped = _Env(clock, 1.0), _Env(clock, 3.0)
-    assert script._paired(plain, wrapped, 10, 0) == (1.0, 3.0)
+    assert overhead._paired(plain, wrapped, 10, 0) == (1.0, 3.0)
     assert plain.steps == wrapped.steps == 10

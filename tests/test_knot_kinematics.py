@@ -14,6 +14,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from benchmark_scripts import script
 
 from dua_mujoco import _core
 from dua_mujoco.models.scenes import SCENES, load_scene
@@ -294,19 +295,8 @@ ROBOTS = ["xarm7", "baxter", "tiago", "sawyer", "spot_arm", "gr1", "g1"]
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_lanes_give_mujocos_poses_bit_for_bit_on_the_plan_robots(robot: str) -> None:
     # benchmarks/plan_profile.py's robots (benchmarks/robots.py; skipped without their wheels).
-    import importlib.util
-    import sys
-    from pathlib import Path
-
-    name = "benchmarks_robots"
-    if name not in sys.modules:
-        path = Path(__file__).resolve().parents[1] / "benchmarks" / "robots.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        assert spec is not None and spec.loader is not None
-        sys.modules[name] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[name])
     try:
-        model = sys.modules[name].load_robot(robot)
+        model = script("robots").load_robot(robot)
     except (ImportError, FileNotFoundError) as e:
         pytest.skip(f"{robot}: {e}")
     _lanes_same_as_mujoco(model, np.arange(model.ngeom), 9)

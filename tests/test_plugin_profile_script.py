@@ -4,27 +4,10 @@ what is missing."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _script() -> ModuleType:
-    """benchmarks/plugin_profile.py, loaded by its path (the benchmarks folder stays off
-    sys.path)."""
-    name = "benchmarks_plugin_profile"
-    if name not in sys.modules:
-        path = ROOT / "benchmarks" / "plugin_profile.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        assert spec is not None and spec.loader is not None
-        sys.modules[name] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[name])
-    return sys.modules[name]
+from benchmark_scripts import script
 
 
 def _cache(folder: Path, index: int, level: int, kind: str, size: str, ways: int) -> None:
@@ -45,7 +28,7 @@ def test_the_simulated_caches_are_the_ones_sysfs_describes(tmp_path: Path) -> No
     _cache(tmp_path, 1, 1, "Instruction", "32K", 8)
     _cache(tmp_path, 2, 2, "Unified", "2M", 16)
     _cache(tmp_path, 3, 3, "Unified", "32768K", 16)
-    assert _script().cache_sim(tmp_path) == [
+    assert script("plugin_profile").cache_sim(tmp_path) == [
         "--cache-sim=yes",
         "--D1=49152,12,64",
         "--I1=32768,8,64",
@@ -57,4 +40,4 @@ def test_a_machine_without_a_second_level_is_told_what_is_missing(tmp_path: Path
     _cache(tmp_path, 0, 1, "Data", "32K", 8)
     _cache(tmp_path, 1, 1, "Instruction", "32K", 8)
     with pytest.raises(RuntimeError, match="level 2 Unified"):
-        _script().cache_sim(tmp_path)
+        script("plugin_profile").cache_sim(tmp_path)

@@ -8,24 +8,21 @@ dangerous direction fails here (the mutants of benchmarks/mutants.py show it).""
 
 from __future__ import annotations
 
-import importlib.util
 import os
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import ModuleType
 
 import gymnasium
 import mujoco
 import numpy as np
 import pytest
 import reference_step as ref
+from benchmark_scripts import script
 
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 
-ROOT = Path(__file__).resolve().parents[1]
 ANT = str(Path(gymnasium.__file__).parent / "envs/mujoco/assets/ant.xml")
 HUMANOID = str(Path(gymnasium.__file__).parent / "envs/mujoco/assets/humanoid.xml")
 
@@ -43,21 +40,9 @@ class Tally:
     unflagged: list[str] = field(default_factory=list)
 
 
-def _robots() -> ModuleType:
-    """benchmarks/robots.py, loaded once by its path (the benchmarks folder stays off sys.path)."""
-    name = "benchmarks_robots"
-    if name not in sys.modules:
-        path = ROOT / "benchmarks" / "robots.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        assert spec is not None and spec.loader is not None
-        sys.modules[name] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[name])
-    return sys.modules[name]
-
-
 def _model(name: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
     if name.startswith("robot/"):
-        m = _robots().load_robot(name.split("/", 1)[1])
+        m = script("robots").load_robot(name.split("/", 1)[1])
         d = mujoco.MjData(m)
         mujoco.mj_forward(m, d)
         return m, d
@@ -140,7 +125,7 @@ ROBOTS: list[str] = []
 if os.environ.get("DUA_REFERENCE_ROBOTS"):
     # Bounds that random controls of a robot come nearer (docs/theory.md, section 9's 10^2 -
     # 10^4 m/s^2): fewer bodies spin beyond them (pairs left out).
-    ROBOTS = [f"robot/{r}" for r in _robots().available() if not r.startswith("dmc_")]
+    ROBOTS = [f"robot/{r}" for r in script("robots").available() if not r.startswith("dmc_")]
     CASES += [(r, 300.0, None, {}) for r in ROBOTS]
 
 
