@@ -43,9 +43,9 @@ FUNCTIONS = {
 # Where each goes (``--split``: inclusive counts, read from the DUA_PROFILE=ON build of
 # benchmarks/plugin_profile.py, in which the walks are their own symbols).
 PARTS = {
-    "build": "dua::Plan::Build",  # the knots' kinematics, their check and sweeps
     "finish": "dua::Plan::Finish",  # the sweeps and checks, with the knots computed as they go
-    "knots": "dua::KnotKinematics::RunKnots",  # the knots' kinematics (Finish calls it)
+    # The knots' kinematics (Finish calls it; with flexes or sleep, mj_kinematics in Build: rest).
+    "knots": "dua::KnotKinematics::RunKnots",
     "rel_frames": "dua::Plan::SetRelativeFrames",  # the relative poses at every knot
     "rel_nesting": "dua::Runtime::RelativeDepartures",  # the relative pairs' nesting
     "follow": "dua::Runtime::FollowPlan",  # the step's checks of the plan and its shadows

@@ -29,7 +29,8 @@ and the plugin too if that checkout has one.
 
 ``--period P`` gives the plugin and ``Predictor`` a predictor period of ``P`` physics steps (both
 sides): ``Predictor.step`` is called every ``P``-th ``mj_step``, and every time is per physics
-step, the median over runs of ``P`` consecutive steps of their mean (one predictor step each).
+step, the median over runs of ``P`` consecutive steps of their mean (one predictor step each);
+the tau evaluations are a predictor step's.
 """
 
 from __future__ import annotations

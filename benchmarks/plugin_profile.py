@@ -491,8 +491,9 @@ def cost_by_object(path: Path) -> dict[str, dict[str, int]]:
 
 
 def profile_cache(jobs: list, warmup: int, steps: int, folder: Path) -> list[dict]:
-    """callgrind with the cache simulated, one process over every model: a step's instructions
-    and first-level misses of the plugin library, and of MuJoCo's with the plugin less without."""
+    """callgrind with the caches simulated (:func:`cache_sim`), one process over every model: a
+    step's instructions and misses (first level, and second as the last) of the plugin library,
+    and of MuJoCo's with the plugin less without."""
     paths = [str(p) for job in jobs for p in job[:2]]
     sim = cache_sim()
     print("cache model: " + " ".join(sim[1:]), flush=True)
@@ -519,8 +520,8 @@ def profile_cache(jobs: list, warmup: int, steps: int, folder: Path) -> list[dic
 
 
 def cache_table(rows: list[dict]) -> str:
-    """A step's instructions and first-level misses: MuJoCo's alone, the plugin's own, and what
-    MuJoCo's code does more with the plugin."""
+    """A step's instructions and misses (:data:`CACHE_EVENTS`): MuJoCo's alone, the plugin's own,
+    and what MuJoCo's code does more with the plugin."""
     heads = [f"{who} {e}" for who in ("mj_step", "plugin", "mujoco +") for e in CACHE_EVENTS]
     out = ["| scene | bounds | " + " | ".join(heads) + " |", "|---" * (len(heads) + 2) + "|"]
     for row in rows:
