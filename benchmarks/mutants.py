@@ -671,9 +671,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-walks-kept-over-a-new-plan",
         "dua_mujoco/csrc/src/runtime.cc",
-        "  std::fill(cleared_.begin(), cleared_.end(), -1);  // the walks so far were of the old "
-        "plan\n",
-        "",
+        "    cleared_[p] = -1;\n    if (jo0 < 0 || c == -1) continue;",
+        "    if (jo0 < 0 || c == -1) continue;",
         (
             "tests/test_flightplan.py::test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference",
         ),
@@ -700,6 +699,56 @@ MUTANTS: tuple[Mutant, ...] = (
             "tests/test_plan_holes.py::test_a_replan_nested_in_the_newest_shadow_keeps_the_older_shadows_departures",
         ),
         "a replan nested in the newest shadow is taken as nested in an older one it departs",
+    ),
+    Mutant(
+        "plan-carry-past-the-departure",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "if (carry) nest_end[b] = jn0 + s + d;",
+        "if (carry) nest_end[b] = jn0 + span;",
+        (
+            "tests/test_plan_holes.py::test_a_replan_keeps_the_old_walks_cleared_knots_only_where_it_nests",
+        ),
+        "a replan's first walks start past the knot it leaves the old plan's tube at",
+    ),
+    Mutant(
+        "plan-carry-a-knot-past-the-departure",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "if (carry) nest_end[b] = jn0 + s + d;",
+        "if (carry) nest_end[b] = jn0 + s + d + 1;",
+        (
+            "tests/test_plan_holes.py::test_a_replan_keeps_the_old_walks_cleared_knots_only_where_it_nests",
+        ),
+        "a replan's first walks start one knot past its departure from the old plan's tube",
+    ),
+    Mutant(
+        "plan-carry-past-the-span",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "nest_end[static_cast<int64_t>(t.events_rec[kBNcol * i + kBBody])] = jn0 + span;",
+        "nest_end[static_cast<int64_t>(t.events_rec[kBNcol * i + kBBody])] = jn0 + old.nknot();",
+        (
+            "tests/test_plan_holes.py::test_a_replan_keeps_the_old_walks_cleared_knots_only_where_it_nests",
+        ),
+        "the old walks' cleared knots carried past the span the nesting checked",
+    ),
+    Mutant(
+        "plan-carry-past-the-relative-departure",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "if (r >= 0) end = std::min(end, rel_end[r]);",
+        "if (r < -1) end = std::min(end, rel_end[r]);",
+        (
+            "tests/test_plan_relative.py::test_a_replan_keeps_the_old_walks_cleared_knots_only_within_the_relative_tube",
+        ),
+        "a walk cleared on a relative deviation carried over a replan that leaves its tube",
+    ),
+    Mutant(
+        "plan-carry-start-taken-as-the-end",
+        _PLAN,
+        "const int64_t j = BothWalk(a, plan, d, from, p, g1, g2, b1, b2, r);",
+        "const int64_t j = from > k ? from : BothWalk(a, plan, d, from, p, g1, g2, b1, b2, r);",
+        (
+            "tests/test_plan_holes.py::test_a_replan_keeps_the_old_walks_cleared_knots_only_where_it_nests",
+        ),
+        "the knot a carried walk starts at taken as the first that may touch",
     ),
     Mutant(
         "plan-nesting-passed-on-without-the-newest-nesting",

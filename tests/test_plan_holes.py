@@ -10,6 +10,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from reference_plan import first_knot_within, last_taus
 
 from dua_mujoco.measure.monitor import Monitor
 from dua_mujoco.plugin import attach, set_plan, standing_pairs
@@ -230,6 +231,47 @@ def test_a_replaced_plan_is_checked_from_the_departure_set_plan_reports() -> Non
     mujoco.mj_step(m, d)
     p.step(d)
     assert p.plan_breaks == 3 + 1
+
+
+def test_a_replan_keeps_the_old_walks_cleared_knots_only_where_it_nests() -> None:
+    """A replan's first walk of a pair starts where the replaced plan's walk of it ended, as
+    far as the new plan stays in the old one's tubes (docs/theory.md, Lemma 8.2e): the still
+    arm's plan cleared the arm and the ball to its last knot; a replan that keeps the arm still
+    to knot 20 and then swings it into the ball leaves the old tube there, and the pair's tau
+    right after it is at most the time to the first knot at which MuJoCo's distance under the
+    new plan may touch (a walk started at the old walk's end, past the departure, passes it).
+    A replan that keeps to the old plan walks on from the carried knots to its own last one."""
+    m = mujoco.MjModel.from_xml_string(ARM)
+    d = mujoco.MjData(m)
+    for _ in range(50):
+        mujoco.mj_step(m, d)
+    h, dev = float(m.opt.timestep), 0.005
+    # Swinging within the old plan's span (the next state plus the horizon: 101 knots), past it
+    # (the old walk's cleared knots reach further, but no nesting was checked there), never, and
+    # a plan that puts the arm through the ball at knot 30 (it departs and touches at that knot).
+    for leave, jump in ((20, False), (120, False), (None, False), (30, True)):
+        p = Predictor(m, accel=1.0, alarm_horizon=0.2)
+        c = mujoco.MjData(m)
+        mujoco.mj_copyData(c, m, d)
+        p.reset(c)
+        p.set_plan(_arm_plan(m, c, 200, None), deviation=dev)
+        for _ in range(5):
+            mujoco.mj_step(m, c)
+            p.step(c)
+        assert (last_taus(m, p, "link", "ball") >= 190 * h).all()  # cleared to the last knot
+        new = _arm_plan(m, c, 200, None if jump else leave)
+        if jump:
+            new[leave:, m.jnt_qposadr[m.joint("swing").id]] = 1.13  # the link through the ball
+        p.set_plan(new, deviation=dev)
+        mujoco.mj_step(m, c)
+        p.step(c)
+        got = last_taus(m, p, "link", "ball")
+        if leave is None:  # cleared past the carried knots, to the new plan's last
+            assert np.allclose(got, 200 * h)
+            continue
+        touch = first_knot_within(m, new, "link", "ball", 2 * dev)
+        assert touch is not None and leave <= touch < 190
+        assert (got <= touch * h + 1e-12).all(), (got, touch)
 
 
 def test_a_replan_is_checked_to_the_last_knot_of_the_replaced_plans_span() -> None:

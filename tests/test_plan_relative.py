@@ -16,6 +16,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from mjcf import link, mjcf, motors
+from reference_plan import first_knot_within, last_taus
 from reference_relative import relative_deviation
 
 from dua_mujoco import _core
@@ -323,6 +324,32 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
     assert breaks[20] == 0, breaks  # nested while the new plan keeps the old relative pose
     assert breaks[-1] == 1, breaks  # the replaced plan's relative pair, past the fold
     assert p._rt.plan_ok[list(_pair(m))].all()  # no body broke its own deviation
+
+
+def test_a_replan_keeps_the_old_walks_cleared_knots_only_within_the_relative_tube() -> None:
+    """The still plan's walk cleared the first and last link to its last knot on their relative
+    deviation (2 cm, below the 60 cm sum). A replan with tighter deviations (10 cm a body, 5 mm
+    between them) folds the last link into the first from knot 20: each body stays in its old
+    tube over the span, the pair's relative pose leaves its old one at the fold. The pair's first
+    walk under the new plan starts no later than that knot (docs/theory.md, Lemma 8.2e): its
+    tau is at most the time to the first knot at which MuJoCo's distance may touch, which a walk
+    started at the bodies' nesting end passes."""
+    m, d, p = _arm()
+    n = 300
+    _still_plan(m, d, p, np.full((n, m.nbody), 0.3))
+    fold = np.array([[0.0, 0.0, 0.0]] * 20 + [[0.0, 0.0, 0.6]])
+    qpos = _roll(m, d, fold, n)
+    departures = p.set_plan(
+        qpos, deviation=np.full((n, m.nbody), 0.1), relative=([_pair(m)], 0.005)
+    )
+    assert np.isinf(departures[list(_pair(m))]).all()  # both bodies nested in their old tubes
+    mujoco.mj_step(m, d)
+    p.step(d)
+    got = last_taus(m, p, "l1", "l3")
+    touch = first_knot_within(m, qpos, "l1", "l3", 0.005)
+    h = float(m.opt.timestep)
+    assert touch is not None and 20 < touch < 90, touch
+    assert (got <= touch * h + 1e-12).all(), (got, touch)
 
 
 def _steps_to_break(

@@ -293,7 +293,9 @@ DUA_SECTION int64_t BothWalk(dua_step_args& a, const Plan& plan, mjData* d, int6
 int64_t BothKnot(dua_step_args& a, const Plan& plan, mjData* d, int64_t k, int64_t p, int64_t g1,
                  int64_t g2, int64_t b1, int64_t b2, int64_t r, int64_t* cleared) {
   if (cleared != nullptr && *cleared >= k) return *cleared;
-  const int64_t j = BothWalk(a, plan, d, k, p, g1, g2, b1, b2, r);
+  // (-2 - knot: the replaced plan's walk cleared the knots before it, Runtime::CarryCleared.)
+  const int64_t from = cleared != nullptr && *cleared <= -2 ? std::max(k, -2 - *cleared) : k;
+  const int64_t j = BothWalk(a, plan, d, from, p, g1, g2, b1, b2, r);
   if (cleared != nullptr) *cleared = j;
   return j;
 }

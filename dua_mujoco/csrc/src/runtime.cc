@@ -333,6 +333,9 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
            "): start it at or before that time, on a whole number of timesteps from it, with " +
            "knots past it";
   }
+  // The plan the held pairs' walks were under (cleared_): it becomes the newest shadow, which
+  // is dropped below where the new plan nests in it, so it is held here until the carry.
+  const std::shared_ptr<const Plan> walked = plan_;
   Retire();
   // Each shadow's check of a body can wait for the first state in its span at which the new
   // plan leaves its tube: until then the new plan's own check proves the body within it. The
@@ -346,9 +349,15 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
     reach.reserve(static_cast<size_t>(t.nbody_events));
     for (int64_t i = 0; i < t.nbody_events; ++i) reach.emplace_back(&t.events_rec[kBNcol * i]);
   }
+  // Per body (and relative pair of the walked plan), the new plan's first knot from which it
+  // is not known to stay in the walked plan's tube (its departure, the span's end, or the
+  // first knot where nothing was checked): the walks' cleared knots before it carry over.
+  const int64_t jn_next = plan->KnotOf(next);
+  std::vector<int64_t> nest_end, rel_end;
   for (auto it = shadows_.rbegin(); it != shadows_.rend(); ++it) {
     Shadow& sh = *it;
     const Plan& old = *sh.plan;
+    const bool carry = &sh == newest && walked != nullptr && sh.plan == walked;
     // (Its span within the newest's, as the lemma has it: spans end H + latency dt past their
     // retirement, later for a later one, unless the schedule changed between.)
     const bool link = &sh != newest && sh.nested_in == newest->serial && newest->until >= sh.until;
@@ -369,6 +378,12 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
     // knot, or where the new plan does not hold the body, the body departs.
     const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
     const int64_t span = SpanKnots(old, jo0, next, h, sh.until);
+    if (carry) {
+      nest_end.assign(m->nbody, jn0);
+      for (const int64_t i : open) {
+        nest_end[static_cast<int64_t>(t.events_rec[kBNcol * i + kBBody])] = jn0 + span;
+      }
+    }
     for (int64_t s = 0; s < span && !open.empty(); s += kLanes) {
       const int64_t count = std::min<int64_t>(kLanes, span - s);
       const int64_t planned = std::clamp<int64_t>(plan->nknot() - jn0 - s, 0, count);
@@ -382,6 +397,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
         if (d < count) {
           sh.from[b] = next + static_cast<double>(s + d) * h;
           sh.nested[b] = 0;
+          if (carry) nest_end[b] = jn0 + s + d;
         } else {
           open[kept++] = i;
         }
@@ -389,6 +405,16 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
       open.resize(kept);
     }
     RelativeDepartures(*plan, next, h, chain, &sh);
+    if (carry) {
+      rel_end.assign(old.nrel(), jn0);
+      for (int64_t r = 0; r < old.nrel(); ++r) {
+        if (sh.rel_nested[r]) {
+          rel_end[r] = jn0 + span;
+        } else if (sh.rel_from[r] < kInf) {
+          rel_end[r] = jn0 + std::llround((sh.rel_from[r] - next) / h);
+        }
+      }
+    }
   }
   for (Shadow& sh : shadows_) sh.nested_in = plan_serial_ + 1;
   if (departures != nullptr) {
@@ -424,9 +450,41 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   for (int b = 0; b < m->nbody; ++b) plan_ok_[b] = plan_->holds(b) ? 1 : 0;
   rel_ok_.assign(plan_->nrel(), 1);
   args_.plan.rel_ok = rel_ok_.data();
-  std::fill(cleared_.begin(), cleared_.end(), -1);  // the walks so far were of the old plan
+  CarryCleared(m, walked.get(), nest_end, rel_end, jn_next, next);
   MakeAllDue(step_ + 1);
   return "";
+}
+
+void Runtime::CarryCleared(const mjModel* m, const Plan* walked,
+                           const std::vector<int64_t>& nest_end,
+                           const std::vector<int64_t>& rel_end, int64_t jn0, double next) {
+  // A walk's cleared knots are a fact of its plan's geometry: no contact there while both
+  // bodies keep to that plan (or the pair to its relative tube). Where the new plan keeps
+  // within the old one's tubes, so do they (Lemma 8.4's triangle inequality): the new plan's
+  // first walk of the pair starts where the old walk's cleared knots or the nesting end
+  // (docs/theory.md, Lemma 8.2e). Encoded -2 - knot: not walked yet, clear before that knot.
+  if (walked == nullptr || nest_end.empty() || jn0 < 0) {
+    std::fill(cleared_.begin(), cleared_.end(), -1);
+    return;
+  }
+  const int64_t jo0 = walked->KnotOf(next);
+  const Universe& u = universe();
+  for (size_t p = 0; p < cleared_.size(); ++p) {
+    const int64_t c = cleared_[p];
+    cleared_[p] = -1;
+    if (jo0 < 0 || c == -1) continue;
+    const int64_t end_old = c >= 0 ? c : -2 - c;  // the walked plan's first knot not cleared
+    int64_t end = end_old - jo0 + jn0;
+    const int64_t mp = ids_[p];
+    const int64_t b1 = m->geom_bodyid[u.geom1[mp]], b2 = m->geom_bodyid[u.geom2[mp]];
+    for (const int64_t b : {b1, b2}) {
+      if (!walked->fixed(b)) end = std::min(end, nest_end[b]);
+    }
+    if (end <= jn0) continue;
+    const int64_t r = walked->RelOf(b1, b2);
+    if (r >= 0) end = std::min(end, rel_end[r]);
+    if (end > jn0) cleared_[p] = -2 - end;
+  }
 }
 
 void Runtime::Retire() {

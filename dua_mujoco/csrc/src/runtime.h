@@ -337,6 +337,11 @@ class DUA_API Runtime {
                           Shadow* sh) const;
   // The plan (if any) becomes a shadow over the span its verdicts cover, the next step's.
   void Retire();
+  // At a new plan (first knot jn0, the state time next): each held pair's cleared knots of
+  // `walked`, the plan replaced, kept where both bodies (and their relative pair) stay in its
+  // tubes, per nest_end and rel_end (the new plan's first knot not known to).
+  void CarryCleared(const mjModel* m, const Plan* walked, const std::vector<int64_t>& nest_end,
+                    const std::vector<int64_t>& rel_end, int64_t jn0, double next);
   void MakeBodyDue(const mjModel* m, int64_t body, int64_t n);
   void DropPlans();
   void MakeAllDue(int64_t n);
@@ -378,7 +383,8 @@ class DUA_API Runtime {
   std::vector<int64_t> standing_, standing_at_;
   std::vector<int32_t> gp_count_;
   // Per held pair, the knot its latest walk under the plan as it stands ended at (dua_plan's
-  // `cleared`, -1: none): forgotten at a new plan and a new held set.
+  // `cleared`, -1: none; -2 - knot: not walked under it yet, the knots before that one cleared
+  // by the replaced plan's walk, CarryCleared): forgotten at a new held set.
   std::vector<int64_t> cleared_;
   dua_step_args args_{};
   std::vector<double> point_state_, exact_records_;

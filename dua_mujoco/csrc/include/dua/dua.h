@@ -197,7 +197,9 @@ typedef struct dua_plan {
   uint8_t* basis_prev;
   // (K,) per held pair, the knot at which the latest walk of its knots with both bodies planned
   // ended under the plan as it stands (-1: none): a step at or before it takes it without a
-  // walk (docs/theory.md, Lemma 8.2c). Null: not kept (a query of another plan).
+  // walk (docs/theory.md, Lemma 8.2c); -2 - j: no walk under it yet, and its knots before j
+  // cleared by the walk under the plan it replaced, so the first walk starts at j (Lemma
+  // 8.2e). Null: not kept (a query of another plan).
   int64_t* cleared;
 } dua_plan;
 
