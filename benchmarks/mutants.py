@@ -671,8 +671,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-walks-kept-over-a-new-plan",
         "dua_mujoco/csrc/src/runtime.cc",
-        "    cleared_[p] = -1;\n    if (jo0 < 0 || c == -1) continue;",
-        "    if (jo0 < 0 || c == -1) continue;",
+        "    cleared_[p] = -1;\n    if (c == -1) continue;",
+        "    if (c == -1) continue;",
         (
             "tests/test_flightplan.py::test_a_pairs_later_verdicts_under_one_plan_are_never_above_the_reference",
         ),
@@ -709,6 +709,14 @@ MUTANTS: tuple[Mutant, ...] = (
             "tests/test_plan_holes.py::test_a_replan_keeps_the_old_walks_cleared_knots_only_where_it_nests",
         ),
         "a replan's first walks start past the knot it leaves the old plan's tube at",
+    ),
+    Mutant(
+        "plan-carry-for-bodies-never-checked",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "      nest_end.assign(m->nbody, jn0);",
+        "      nest_end.assign(m->nbody, jn0 + span);",
+        ("tests/test_plan_holes.py::test_a_body_that_broke_the_replaced_plan_carries_no_walk",),
+        "a body the nesting did not check (broken, or not held) taken as nested over the span",
     ),
     Mutant(
         "plan-carry-a-knot-past-the-departure",

@@ -274,6 +274,44 @@ def test_a_replan_keeps_the_old_walks_cleared_knots_only_where_it_nests() -> Non
         assert (got <= touch * h + 1e-12).all(), (got, touch)
 
 
+def test_a_body_that_broke_the_replaced_plan_carries_no_walk() -> None:
+    """A walk's cleared knots carry over only for bodies the nesting checked: the still arm's
+    plan cleared the arm and the ball to its last knot, then the arm, pushed off, broke it (its
+    pairs follow the bounds, its walk's end still recorded). A replan from there that swings the
+    arm into the ball walks the pair from the step's knot: its tau is at most the time to the
+    first knot at which MuJoCo's distance may touch (a broken body taken as nested over the
+    span starts the walk past it)."""
+    m = mujoco.MjModel.from_xml_string(ARM)
+    d = mujoco.MjData(m)
+    for _ in range(50):
+        mujoco.mj_step(m, d)
+    h, dev, arm = float(m.opt.timestep), 0.005, m.body("arm").id
+    p = Predictor(m, accel=1.0, alarm_horizon=0.2)
+    p.reset(d)
+    p.set_plan(_arm_plan(m, d, 200, None), deviation=dev)
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+        p.step(d)
+    assert (last_taus(m, p, "link", "ball") >= 190 * h).all()
+    d.qpos[m.jnt_qposadr[m.joint("swing").id]] -= 0.05  # away from the ball, past the deviation
+    mujoco.mj_forward(m, d)
+    mujoco.mj_step(m, d)
+    p.step(d)
+    assert p.plan_breaks == 1 and not p._rt.plan_ok[arm]
+    new = _arm_plan(m, d, 200, 10)
+    # A tighter deviation, so that the ball stays in its old tube until the arm reaches it: the
+    # arm is the only body whose nesting could cut the carry before the touch.
+    start = float(d.time)
+    departures = p.set_plan(new, deviation=0.8 * dev)
+    mujoco.mj_step(m, d)
+    p.step(d)
+    touch = first_knot_within(m, new, "link", "ball", 1.6 * dev)
+    assert touch is not None and 10 <= touch < 100, touch
+    assert departures[m.body("ball").id] > start + touch * h
+    got = last_taus(m, p, "link", "ball")
+    assert (got <= touch * h + 1e-12).all(), (got, touch)
+
+
 def test_a_replan_is_checked_to_the_last_knot_of_the_replaced_plans_span() -> None:
     """The replaced plan's verdicts cover the next state plus the alarm horizon (latency 0), so
     a replan that leaves its tube at any knot up to that one departs there, and one that leaves

@@ -463,16 +463,16 @@ void Runtime::CarryCleared(const mjModel* m, const Plan* walked,
   // within the old one's tubes, so do they (Lemma 8.4's triangle inequality): the new plan's
   // first walk of the pair starts where the old walk's cleared knots or the nesting end
   // (docs/theory.md, Lemma 8.2e). Encoded -2 - knot: not walked yet, clear before that knot.
-  if (walked == nullptr || nest_end.empty() || jn0 < 0) {
+  const int64_t jo0 = walked != nullptr ? walked->KnotOf(next) : -1;
+  if (jo0 < 0 || nest_end.empty() || jn0 < 0) {
     std::fill(cleared_.begin(), cleared_.end(), -1);
     return;
   }
-  const int64_t jo0 = walked->KnotOf(next);
   const Universe& u = universe();
   for (size_t p = 0; p < cleared_.size(); ++p) {
     const int64_t c = cleared_[p];
     cleared_[p] = -1;
-    if (jo0 < 0 || c == -1) continue;
+    if (c == -1) continue;
     const int64_t end_old = c >= 0 ? c : -2 - c;  // the walked plan's first knot not cleared
     int64_t end = end_old - jo0 + jn0;
     const int64_t mp = ids_[p];
