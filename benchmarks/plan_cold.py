@@ -105,7 +105,7 @@ py, native, warm = [], [], []
 
 def python_side(p, q, start):
     dev = plan_deviation(world.profile, n)
-    rel = world._relative(n, False)
+    rel = world._relative(H, False)
     return p._plan_args(q[:n], dev, start, None, None, None, rel)
 
 

@@ -178,11 +178,25 @@ def subtree_bodies(model: mujoco.MjModel, roots: tuple[str, ...]) -> np.ndarray:
 
 
 def pilot_profile(
-    nominal: mujoco.MjModel, points: Any, knots: int, steps: int, geom_pairs: Any = None
-) -> tuple[np.ndarray, np.ndarray, RelativeProfile | None]:
-    """The deviation profile ``(L, nbody)`` by the plan's age from a pilot with its own draw of
-    the perturbation, the noise and the drive, the pilot's ``(T, nq)`` rows, and (with
-    ``geom_pairs``, the predictor's active ones) the relative profile of the same pilot."""
+    nominal: mujoco.MjModel,
+    points: Any,
+    knots: int,
+    steps: int,
+    geom_pairs: Any = None,
+    *,
+    lengths: tuple[int, ...] = (),
+) -> tuple[np.ndarray, np.ndarray, dict[int, RelativeProfile]]:
+    """The deviation profile ``(knots, nbody)`` by the plan's age from a pilot with its own draw
+    of the perturbation, the noise and the drive, the pilot's ``(T, nq)`` rows, and (with
+    ``geom_pairs``, the predictor's active ones) the relative profile of the same pilot for
+    plans of each of ``lengths`` knots (each ``<= knots``; default ``knots``).
+
+    One pilot serves every length: a plan of ``n`` knots is the first ``n`` of the longer plan
+    rolled from the same state (the driver is copied, no noise), so each length's profiles are
+    those of a pilot made for it. ``relative_profile`` keeps the pairs its bound frees at the
+    plan's last age, so the pairs a horizon's plans get are chosen at that horizon's length,
+    not at the longest one run beside it.
+    """
     run = perturbed(nominal, np.random.default_rng(PILOT_SEED))
     drive = NoisyDriver(nominal, PILOT_SEED)
     d = mujoco.MjData(run)
@@ -197,16 +211,20 @@ def pilot_profile(
     q = np.array(rows)
     profile = deviation_profile(nominal, q, plans, points=points, safety=SAFETY)
     if geom_pairs is None:
-        return profile, q, None
-    rel = relative_profile(
-        nominal,
-        q,
-        plans,
-        points=points,
-        geom_pairs=(geom_pairs.geom1, geom_pairs.geom2),
-        profile=profile,
-        safety=SAFETY,
-    )
+        return profile, q, {}
+    rel = {}
+    for n in lengths or (knots,):
+        if not 1 <= n <= knots:
+            raise ValueError(f"lengths holds {n}; expected 1 to knots = {knots}.")
+        rel[n] = relative_profile(
+            nominal,
+            q,
+            [PilotPlan(p.start, p.qpos[:n]) for p in plans],
+            points=points,
+            geom_pairs=(geom_pairs.geom1, geom_pairs.geom2),
+            profile=profile[:n],
+            safety=SAFETY,
+        )
     return profile, q, rel
 
 
@@ -383,7 +401,12 @@ def world_of(name: str, horizons: tuple[float, ...], steps: int, every: int) -> 
     ns = {H: max(round(H / h), 1) for H in horizons}
     knots = {H: every + ns[H] + 2 for H in horizons}
     profile, _, rel = pilot_profile(
-        nominal, auto.bound_points, max(knots.values()), max(steps, 2000), auto.geom_pairs
+        nominal,
+        auto.bound_points,
+        max(knots.values()),
+        max(steps, 2000),
+        auto.geom_pairs,
+        lengths=tuple(sorted(set(knots.values()))),
     )
     run = perturbed(nominal, np.random.default_rng(ROLLOUT_SEED))
     roots = DECLARED.get(name)
@@ -393,7 +416,7 @@ def world_of(name: str, horizons: tuple[float, ...], steps: int, every: int) -> 
         bounds=auto.bounds,
         points=auto.bound_points,
         profile=profile,
-        relative=rel,
+        relative={H: rel[n] for H, n in knots.items()},
         knots=knots,
         every=every,
         arms=subtree_bodies(nominal, roots) if roots else None,
@@ -412,7 +435,7 @@ class Run(NamedTuple):
     knots: dict[float, int]
     every: int
     arms: np.ndarray | None
-    relative: RelativeProfile | None = None
+    relative: dict[float, RelativeProfile] | None = None
 
     def sides(self) -> list[str]:
         return [s for s in SIDES if s != "declared" or self.arms is not None]
@@ -425,15 +448,15 @@ class Run(NamedTuple):
             deviation=plan_deviation(self.profile, n),
             start=start,
             bodies=self.arms if declared else None,
-            relative=self._relative(n, declared),
+            relative=self._relative(H, declared),
         )
 
-    def _relative(self, n: int, declared: bool) -> tuple[np.ndarray, np.ndarray] | None:
-        """``set_plan``'s relative deviations: the pilot's, of the pairs both of whose bodies
-        the plan holds."""
+    def _relative(self, H: float, declared: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        """``set_plan``'s relative deviations at horizon ``H``: the pilot's for plans of its
+        length, of the pairs both of whose bodies the plan holds."""
         if self.relative is None:
             return None
-        pairs, dev = self.relative.relative(n)
+        pairs, dev = self.relative[H].relative(self.knots[H])
         if declared and self.arms is not None:
             keep = np.isin(pairs, self.arms).all(axis=1)
             pairs, dev = pairs[keep], dev[:, keep]
