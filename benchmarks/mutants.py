@@ -749,6 +749,16 @@ MUTANTS: tuple[Mutant, ...] = (
         "a walk cleared on a relative deviation carried over a replan that leaves its tube",
     ),
     Mutant(
+        "plan-carry-a-knot-past-the-relative-departure",
+        "dua_mujoco/csrc/src/runtime.cc",
+        "rel_end[r] = jn0 + std::llround((sh.rel_from[r] - next) / h);",
+        "rel_end[r] = jn0 + std::llround((sh.rel_from[r] - next) / h) + 1;",
+        (
+            "tests/test_plan_relative.py::test_a_replan_keeps_the_old_walks_cleared_knots_only_within_the_relative_tube",
+        ),
+        "a walk cleared on a relative deviation carried one knot past the relative departure",
+    ),
+    Mutant(
         "plan-carry-start-taken-as-the-end",
         _PLAN,
         "const int64_t j = BothWalk(a, plan, d, from, p, g1, g2, b1, b2, r);",

@@ -326,19 +326,27 @@ def test_a_replaced_plans_relative_pair_is_checked_from_the_new_plans_departure(
     assert p._rt.plan_ok[list(_pair(m))].all()  # no body broke its own deviation
 
 
-def test_a_replan_keeps_the_old_walks_cleared_knots_only_within_the_relative_tube() -> None:
+@pytest.mark.parametrize("jump", [False, True], ids=["fold", "jump"])
+def test_a_replan_keeps_the_old_walks_cleared_knots_only_within_the_relative_tube(
+    jump: bool,
+) -> None:
     """The still plan's walk cleared the first and last link to its last knot on their relative
     deviation (2 cm, below the 60 cm sum). A replan with tighter deviations (10 cm a body, 5 mm
-    between them) folds the last link into the first from knot 20: each body stays in its old
-    tube over the span, the pair's relative pose leaves its old one at the fold. The pair's first
-    walk under the new plan starts no later than that knot (docs/theory.md, Lemma 8.2e): its
-    tau is at most the time to the first knot at which MuJoCo's distance may touch, which a walk
-    started at the bodies' nesting end passes."""
+    between them) folds the last link into the first from knot 20, or (``jump``) puts it through
+    the first from knot 30 on, so that the pair leaves its old relative tube and may touch at
+    that very knot: each body stays in its old tube over the span, the pair's relative pose
+    leaves its old one. The pair's first walk under the new plan starts no later than that knot
+    (docs/theory.md, Lemma 8.2e): its tau is at most the time to the first knot at which
+    MuJoCo's distance may touch, which a walk started at the bodies' nesting end, or a knot past
+    the relative departure, passes."""
     m, d, p = _arm()
     n = 300
     _still_plan(m, d, p, np.full((n, m.nbody), 0.3))
-    fold = np.array([[0.0, 0.0, 0.0]] * 20 + [[0.0, 0.0, 0.6]])
-    qpos = _roll(m, d, fold, n)
+    if jump:
+        qpos = _roll(m, d, np.zeros((1, 3)), n)
+        qpos[30:, m.jnt_qposadr[m.joint("j3").id]] = 0.2  # the last link through the first
+    else:
+        qpos = _roll(m, d, np.array([[0.0, 0.0, 0.0]] * 20 + [[0.0, 0.0, 0.6]]), n)
     departures = p.set_plan(
         qpos, deviation=np.full((n, m.nbody), 0.1), relative=([_pair(m)], 0.005)
     )
@@ -348,7 +356,7 @@ def test_a_replan_keeps_the_old_walks_cleared_knots_only_within_the_relative_tub
     got = last_taus(m, p, "l1", "l3")
     touch = first_knot_within(m, qpos, "l1", "l3", 0.005)
     h = float(m.opt.timestep)
-    assert touch is not None and 20 < touch < 90, touch
+    assert touch is not None and (touch == 30 if jump else 20 < touch < 90), touch
     assert (got <= touch * h + 1e-12).all(), (got, touch)
 
 
