@@ -759,6 +759,26 @@ MUTANTS: tuple[Mutant, ...] = (
         "a walk cleared on a relative deviation carried one knot past the relative departure",
     ),
     Mutant(
+        "plan-check-negative-deviations-passed",
+        _PLAN,
+        "    below += x - abs;",
+        "    below += x - x;",
+        (
+            "tests/test_flightplan.py::test_set_plan_refuses_a_value_out_of_range_wherever_it_stands",
+        ),
+        "the scan of a plan's deviations lets a negative one through (the pairs' lanes)",
+    ),
+    Mutant(
+        "plan-check-skips-the-odd-entry",
+        _PLAN,
+        "  for (; i < count; ++i) all = all && (!nonneg || v[i] >= 0.0) && std::isfinite(v[i]);",
+        "",
+        (
+            "tests/test_flightplan.py::test_set_plan_refuses_a_value_out_of_range_wherever_it_stands",
+        ),
+        "the scan of a plan's numbers two at a time never reads the last of an odd count",
+    ),
+    Mutant(
         "plan-carry-start-taken-as-the-end",
         _PLAN,
         "const int64_t j = BothWalk(a, plan, d, from, p, g1, g2, b1, b2, r);",
@@ -1117,6 +1137,31 @@ MUTANTS: tuple[Mutant, ...] = (
         ),
         "set_plan's sweeps read a knot's poses before the kinematics computes them (the knots "
         "computed a batch at a time as the sweeps reach them, one knot late)",
+    ),
+    Mutant(
+        "plan-deviation-rises-never-cleared",
+        _PLAN,
+        "  for (int64_t b = 0; b < nbody; ++b) rises_[b] = falls[b] == 0.0;",
+        "  for (int64_t b = 0; b < nbody; ++b) rises_[b] = 1;",
+        (f"{_RELATIVE}::test_a_bodys_deviation_that_falls_is_not_searched_past",),
+        "a body's deviation taken for rising over the knots where it falls: the walk's search "
+        "skips knots the carried gap does not clear",
+    ),
+    Mutant(
+        "knot-lanes-stores-the-next-knots-rotation",
+        "dua_mujoco/csrc/src/kinematics.cc",
+        "      for (int k = 0; k < kLanes; ++k) Store(mat[k] + 9 * s, col[k]);",
+        "      for (int k = 0; k < kLanes; ++k) Store(mat[k] + 9 * s, col[(k + 1) % kLanes]);",
+        (_KNOTS,),
+        "a moving geom's rotation stored at another knot's (the lanes turned into knots)",
+    ),
+    Mutant(
+        "knot-still-geom-rotation-halves-swapped",
+        "dua_mujoco/csrc/src/kinematics.cc",
+        "      Store(to, r0), Store(to + 4, r1), to[8] = r8;",
+        "      Store(to, r1), Store(to + 4, r0), to[8] = r8;",
+        (_KNOTS,),
+        "a still geom's rotation copied to each knot with its halves swapped",
     ),
     Mutant(
         "plan-relative-rises-never-cleared",

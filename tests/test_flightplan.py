@@ -565,6 +565,39 @@ def test_bad_plans_are_refused_by_name() -> None:
         p.set_plan(q, deviation=0.0, start=float(d.time) + 0.0005)  # not on a step
 
 
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf, -1.0, -5e-324])
+def test_set_plan_refuses_a_value_out_of_range_wherever_it_stands(value: float) -> None:
+    """The runtime scans a plan's numbers two at a time before it searches for the one its
+    message names (``Plan::Build``): a bad deviation or joint position at any entry, in either
+    lane or in the odd one out at the end, is refused, and the message names the first bad
+    one; a deviation of -0.0 is a distance >= 0, and a joint position of any sign is fine."""
+    m, d = _scene()
+    p = Predictor(m, accel=ACCEL)
+    p.reset(d)
+    q = _rollout(m, d, np.zeros((1, m.nu)), 7)  # 7 knots of 5 bodies: 35 deviations, one odd
+    n, nbody, nq = q.shape[0], m.nbody, m.nq
+    for i in range(n * nbody):
+        dev = np.zeros(n * nbody)
+        dev[i] = value
+        if i + 2 < n * nbody - 1:
+            dev[i + 2] = -1.0  # a second bad one after it, in the lanes (not the odd one out)
+        knot, body = divmod(i, nbody)
+        with pytest.raises(InvalidInputError, match=rf"\(knot {knot}, body {body}: "):
+            p.set_plan(q, deviation=dev.reshape(n, nbody))
+    for i in range(n * nq):
+        bad = q.copy().reshape(-1)
+        bad[i] = value
+        knot, entry = divmod(i, nq)
+        if np.isfinite(value):
+            p.set_plan(bad.reshape(n, nq), deviation=0.0)  # any finite joint position
+            continue
+        if i + 2 < n * nq:
+            bad[i + 2] = np.nan
+        with pytest.raises(InvalidInputError, match=rf"knot {knot}, qpos\[{entry}\]: "):
+            p.set_plan(bad.reshape(n, nq), deviation=0.0)
+    p.set_plan(q, deviation=np.full((n, nbody), -0.0))
+
+
 def test_set_plan_reads_the_callers_arrays_without_copies_or_writes() -> None:
     """The arrays a plan's arguments already are (float64, C-contiguous; int64 relative ids) go
     to the runtime as they are: no copy of them and no write to them; the empty arrays of what

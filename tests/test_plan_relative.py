@@ -609,6 +609,30 @@ def test_relative_poses_at_every_knot_of_plans_of_changing_sizes_are_the_runs() 
         assert p.plan_breaks == 0, (n, p.plan_breaks)
 
 
+def test_a_bodys_deviation_that_falls_is_not_searched_past() -> None:
+    """The bodies' twin of the test below: two bodies held still 25 cm apart (surfaces), their
+    deviations 0.1 m but a's at knot 3, where it is 0.3 m: the pair's contact cannot be
+    excluded at knot 3 alone. Its deviation falls after it, so the walk may not search for the
+    end of the knots its carried gap clears (``Plan::Finish``'s rises)."""
+    m = mujoco.MjModel.from_xml_string(TWO)
+    d = mujoco.MjData(m)
+    d.qpos[:3] = [0.0, 0.0, 0.0]
+    d.qpos[7:10] = [0.4, 0.0, 0.0]
+    mujoco.mj_forward(m, d)
+    p = Predictor(m, accel=50.0, alarm_horizon=0.2)
+    p.reset(d)
+    n = 20
+    dev = np.full((n, m.nbody), 0.1)
+    dev[3, m.body("a").id] = 0.3
+    knots = p.plan_contact_knots(
+        np.tile(d.qpos, (n, 1)),
+        [[m.geom("a").id, m.geom("b").id]],
+        deviation=dev,
+        start=float(d.time) - m.opt.timestep,  # the state the step reads: the last one
+    )
+    assert knots.tolist() == [3], knots
+
+
 def test_a_relative_deviation_that_falls_is_not_searched_past() -> None:
     """Two bodies held still 25 cm apart (surfaces), their deviations 0.5 m each and their
     relative deviation 0 but at knot 3, where it is 0.3 m: the pair's contact cannot be excluded

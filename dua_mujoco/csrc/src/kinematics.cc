@@ -406,18 +406,40 @@ DUA_LANES_CLONES void KnotKinematics::Lanes4(int nact, const double* const* qpos
     Lanes p[3], r[9];
     Local2Global(lxpos_ + 3 * c, lxquat_ + 4 * c, lxmat_ + 9 * c, lxipos_ + 3 * c, lximat_ + 9 * c,
                  m_->geom_pos + 3 * g, m_->geom_quat + 4 * g, m_->geom_sameframe[g], p, r);
+    if (nact == kLanes) {
+      // Knot k's pose is lane k of each entry: four entries at a time turned into four knots'
+      // runs of them (Transpose4), stored whole, rather than a lane read per double.
+      Lanes col[kLanes];
+      Transpose4(r, col);
+      for (int k = 0; k < kLanes; ++k) Store(mat[k] + 9 * s, col[k]);
+      Transpose4(r + 4, col);
+      for (int k = 0; k < kLanes; ++k) Store(mat[k] + 9 * s + 4, col[k]);
+      for (int k = 0; k < kLanes; ++k) mat[k][9 * s + 8] = r[8][k];
+      const Lanes rows[kLanes] = {p[0], p[1], p[2], p[2]};
+      Transpose4(rows, col);
+      for (int k = 0; k < kLanes; ++k) {
+        double* at = pos[k] + 3 * s;
+        at[0] = col[k][0], at[1] = col[k][1], at[2] = col[k][2];
+      }
+      continue;
+    }
     for (int k = 0; k < nact; ++k) {
       for (int e = 0; e < 3; ++e) pos[k][3 * s + e] = p[e][k];
       for (int e = 0; e < 9; ++e) mat[k][9 * s + e] = r[e][k];
     }
   }
-  // (Loops: std::copy_n of 3 and 9 doubles called memcpy here, 0.3 M on baxter's replay.)
+  // (std::copy_n of 3 and 9 doubles called memcpy here, 0.3 M on baxter's replay; element by
+  // element each double was reloaded, the stores possibly aliasing the source: read once.)
   for (const int s : gstill_) {
     const double* p = still_pos_.data() + 3 * s;
     const double* r = still_mat_.data() + 9 * s;
+    const Lanes r0 = Load(r), r1 = Load(r + 4);
+    const double r8 = r[8], p0 = p[0], p1 = p[1], p2 = p[2];
     for (int k = 0; k < nact; ++k) {
-      for (int e = 0; e < 3; ++e) pos[k][3 * s + e] = p[e];
-      for (int e = 0; e < 9; ++e) mat[k][9 * s + e] = r[e];
+      double* to = mat[k] + 9 * s;
+      Store(to, r0), Store(to + 4, r1), to[8] = r8;
+      double* at = pos[k] + 3 * s;
+      at[0] = p0, at[1] = p1, at[2] = p2;
     }
   }
 }

@@ -122,6 +122,8 @@ DUA_INLINE Lanes Load(const double* p) {
   std::memcpy(&v, p, sizeof(Lanes));
   return v;
 }
+// Lanes to four consecutive doubles.
+DUA_INLINE void Store(double* p, Lanes v) { std::memcpy(p, &v, sizeof(Lanes)); }
 inline bool Any(bool m) { return m; }
 DUA_INLINE bool Any(LaneMask m) {
   // Folded in halves (two vector ors), not four extracts (the kernels' screens test it often).
