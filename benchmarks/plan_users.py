@@ -19,7 +19,8 @@ knows only the **nominal** model:
   knots (``n`` the horizon's steps), its deviation from a pilot with its own draw of the
   perturbation, the noise and the drive (:func:`pilot_profile`: the same plans every
   :data:`PILOT_EVERY` steps, :func:`deviation_profile` by the plan's age, safety 2, and
-  :func:`relative_profile` of the same pilot for the pairs of links it frees);
+  :func:`relative_profile` of the same pilot for the pairs of links it frees, its plans cut to
+  each horizon's knots);
 - **declared** (floating bases only, :data:`DECLARED`): the same plans holding the arms alone,
   the base and legs left to their motion bounds (docs/plans.md, "Floating bases");
 - **bounds**: the motion bounds alone (no plan);
