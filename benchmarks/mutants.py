@@ -1143,7 +1143,7 @@ MUTANTS: tuple[Mutant, ...] = (
         _PLAN,
         "  for (int64_t b = 0; b < nbody; ++b) rises_[b] = falls[b] == 0.0;",
         "  for (int64_t b = 0; b < nbody; ++b) rises_[b] = 1;",
-        (f"{_RELATIVE}::test_a_bodys_deviation_that_falls_is_not_searched_past",),
+        (f"{_RELATIVE}::test_a_deviation_that_falls_is_not_searched_past",),
         "a body's deviation taken for rising over the knots where it falls: the walk's search "
         "skips knots the carried gap does not clear",
     ),
@@ -1168,7 +1168,7 @@ MUTANTS: tuple[Mutant, ...] = (
         _PLAN,
         "        if (j > 0 && now < last[c]) rel_rises_[c] = 0;",
         "        if (false && j > 0 && now < last[c]) rel_rises_[c] = 0;",
-        (f"{_RELATIVE}::test_a_relative_deviation_that_falls_is_not_searched_past",),
+        (f"{_RELATIVE}::test_a_deviation_that_falls_is_not_searched_past",),
         "a relative pair's min(D_a + D_b, D_ab) taken for rising over the knots where it falls: "
         "the walk's search skips knots the carried gap does not clear",
     ),

@@ -609,11 +609,14 @@ def test_relative_poses_at_every_knot_of_plans_of_changing_sizes_are_the_runs() 
         assert p.plan_breaks == 0, (n, p.plan_breaks)
 
 
-def test_a_bodys_deviation_that_falls_is_not_searched_past() -> None:
-    """The bodies' twin of the test below: two bodies held still 25 cm apart (surfaces), their
-    deviations 0.1 m but a's at knot 3, where it is 0.3 m: the pair's contact cannot be
-    excluded at knot 3 alone. Its deviation falls after it, so the walk may not search for the
-    end of the knots its carried gap clears (``Plan::Finish``'s rises)."""
+@pytest.mark.parametrize("relative", [False, True], ids=["body", "relative"])
+def test_a_deviation_that_falls_is_not_searched_past(relative: bool) -> None:
+    """Two bodies held still 25 cm apart (surfaces): the pair's contact cannot be excluded at
+    knot 3 alone, where a's deviation is 0.3 m (0.1 m elsewhere; ``Plan::Finish``'s rises), or
+    where their relative deviation is (0 elsewhere, the bodies' 0.5 m each: min(D_a + D_b,
+    D_ab); ``Plan::Relative``'s rises). The deviation falls after it, so the walk may not
+    search for the end of the knots its carried gap clears (a search from knot 1 goes to 2, 4,
+    8: past knot 3)."""
     m = mujoco.MjModel.from_xml_string(TWO)
     d = mujoco.MjData(m)
     d.qpos[:3] = [0.0, 0.0, 0.0]
@@ -622,38 +625,18 @@ def test_a_bodys_deviation_that_falls_is_not_searched_past() -> None:
     p = Predictor(m, accel=50.0, alarm_horizon=0.2)
     p.reset(d)
     n = 20
-    dev = np.full((n, m.nbody), 0.1)
-    dev[3, m.body("a").id] = 0.3
-    knots = p.plan_contact_knots(
-        np.tile(d.qpos, (n, 1)),
-        [[m.geom("a").id, m.geom("b").id]],
-        deviation=dev,
-        start=float(d.time) - m.opt.timestep,  # the state the step reads: the last one
-    )
-    assert knots.tolist() == [3], knots
-
-
-def test_a_relative_deviation_that_falls_is_not_searched_past() -> None:
-    """Two bodies held still 25 cm apart (surfaces), their deviations 0.5 m each and their
-    relative deviation 0 but at knot 3, where it is 0.3 m: the pair's contact cannot be excluded
-    at knot 3 alone. min(D_a + D_b, D_ab) falls after it, so the walk may not search for the end
-    of the knots its carried gap clears (a search from knot 1 goes to 2, 4, 8: past knot 3)."""
-    m = mujoco.MjModel.from_xml_string(TWO)
-    d = mujoco.MjData(m)
-    d.qpos[:3] = [0.0, 0.0, 0.0]
-    d.qpos[7:10] = [0.4, 0.0, 0.0]
-    mujoco.mj_forward(m, d)
-    p = Predictor(m, accel=50.0, alarm_horizon=0.2)
-    p.reset(d)
-    n = 20
+    dev = np.full((n, m.nbody), 0.5 if relative else 0.1)
     rel = np.zeros((n, 1))
-    rel[3] = 0.3
+    if relative:
+        rel[3] = 0.3
+    else:
+        dev[3, m.body("a").id] = 0.3
     pair = (m.body("a").id, m.body("b").id)
     knots = p.plan_contact_knots(
         np.tile(d.qpos, (n, 1)),
         [[m.geom("a").id, m.geom("b").id]],
-        deviation=np.full((n, m.nbody), 0.5),
-        relative=([pair], rel),
+        deviation=dev,
+        relative=([pair], rel) if relative else None,
         start=float(d.time) - m.opt.timestep,  # the state the step reads: the last one
     )
     assert knots.tolist() == [3], knots
