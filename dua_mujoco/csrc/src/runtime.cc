@@ -328,7 +328,8 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   plan->SetRelativeFrames(tables_->events_rec.data(), body_row_.data());
   const double h = m->opt.timestep;
   const double next = last_time_ + tables_->schedule.dt - read_lag_ * h;
-  if (plan->KnotOf(next) < 0) {
+  const int64_t jn_next = plan->KnotOf(next);  // the new plan's knot of the next state
+  if (jn_next < 0) {
     return "does not cover the state the next step reads (time " + std::to_string(next) +
            "): start it at or before that time, on a whole number of timesteps from it, with " +
            "knots past it";
@@ -352,7 +353,6 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
   // Per body (and relative pair of the walked plan), the new plan's first knot from which it
   // is not known to stay in the walked plan's tube (its departure, the span's end, or the
   // first knot where nothing was checked): the walks' cleared knots before it carry over.
-  const int64_t jn_next = plan->KnotOf(next);
   std::vector<int64_t> nest_end, rel_end;
   for (auto it = shadows_.rbegin(); it != shadows_.rend(); ++it) {
     Shadow& sh = *it;
@@ -376,7 +376,7 @@ std::string Runtime::SetPlan(const mjModel* m, const dua_plan_input& in, double*
     // each body until its first departure (BodyDeparture: the block's screen in lanes). The knots
     // checked: the shadow's from the next state's, within its span; past the new plan's last
     // knot, or where the new plan does not hold the body, the body departs.
-    const int64_t jo0 = old.KnotOf(next), jn0 = plan->KnotOf(next);
+    const int64_t jo0 = old.KnotOf(next), jn0 = jn_next;
     const int64_t span = SpanKnots(old, jo0, next, h, sh.until);
     if (carry) {
       nest_end.assign(m->nbody, jn0);
@@ -464,7 +464,7 @@ void Runtime::CarryCleared(const mjModel* m, const Plan* walked,
   // first walk of the pair starts where the old walk's cleared knots or the nesting end
   // (docs/theory.md, Lemma 8.2e). Encoded -2 - knot: not walked yet, clear before that knot.
   const int64_t jo0 = walked != nullptr ? walked->KnotOf(next) : -1;
-  if (jo0 < 0 || nest_end.empty() || jn0 < 0) {
+  if (jo0 < 0 || nest_end.empty()) {
     std::fill(cleared_.begin(), cleared_.end(), -1);
     return;
   }
