@@ -588,6 +588,17 @@ MUTANTS: tuple[Mutant, ...] = (
         "a plan's tau one knot after the first knot that may touch",
     ),
     Mutant(
+        "plan-walk-search-trusts-the-last-knot",
+        _PLAN,
+        "  if (n - 1 > j && skip(n - 1)) return n;",
+        "  if (n - 1 > j) return n;",
+        (
+            "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
+        ),
+        "a walk's search takes every knot left for cleared once the first after its base is, "
+        "without asking the last",
+    ),
+    Mutant(
         "plan-deviation-dropped",
         _PLAN,
         "const double sum = (plan.dev(j, b1) + plan.dev(j, b2)) * (1.0 + 4.0 * kEpsilon);",
