@@ -17,8 +17,9 @@ from the pilots): the plans are rolled first, then the run is replayed with one 
 after each plan's step (``mj_step``, ``Predictor.step``) ``set_plan``'s work is timed in this
 thread's CPU time in two parts, as the benchmark's ``Run.set_plan`` does it:
 
-- **Python**: ``plan_deviation`` and the relative rows of the plan (the benchmark's), then
-  ``Predictor._plan_args`` (``plan_arrays``: the checks and conversions ``set_plan`` makes);
+- **Python**: ``Predictor._plan_args`` (``plan_arrays``: the checks and conversions
+  ``set_plan`` makes) on the horizon's deviation and relative rows (``Run.rows``: made once,
+  the same for every plan);
 - **native**: ``Runtime.set_plan`` on those arrays (``Runtime::SetPlan`` and nanobind's
   conversions);
 
@@ -30,8 +31,8 @@ and the sides taking turns round by round, in the replay's median ``mj_step``.
 ``--instructions CALLS`` times nothing: the replay's first plan is given again ``CALLS`` times
 (the same plan replacing itself) under ``valgrind --tool=callgrind`` collecting only inside
 that loop (a ``functools.reduce``), and each call's instructions are split into
-``Runtime::SetPlan``'s and the rest (Python, nanobind's conversions, the benchmark's
-``plan_deviation`` rows): deterministic, where the clock on a shared machine is not.
+``Runtime::SetPlan``'s and the rest (Python, nanobind's conversions): deterministic, where
+the clock on a shared machine is not.
 
 ``--misses`` times nothing either: the replay above (each plan a new one, as the benchmark's)
 under ``valgrind --tool=callgrind --cache-sim=yes`` collecting only inside
@@ -61,7 +62,6 @@ import numpy as np
 sys.path.insert(0, sys.argv[1])
 import mujoco
 import plan_users as pu
-from dua_mujoco.runtime.plans import plan_deviation
 world, H, steps = pickle.load(open(sys.argv[2], "rb"))
 flush = np.ones(int(sys.argv[3]) << 17) if int(sys.argv[3]) else None  # MB of doubles
 clock = time.thread_time_ns
@@ -104,8 +104,7 @@ py, native, warm = [], [], []
 
 
 def python_side(p, q, start):
-    dev = plan_deviation(world.profile, n)
-    rel = world._relative(H, False)
+    dev, rel = world.rows[H, False]
     return p._plan_args(q[:n], dev, start, None, None, None, rel)
 
 

@@ -411,7 +411,7 @@ def world_of(name: str, horizons: tuple[float, ...], steps: int, every: int) -> 
     )
     run = perturbed(nominal, np.random.default_rng(ROLLOUT_SEED))
     roots = DECLARED.get(name)
-    return Run(
+    world = Run(
         nominal=nominal,
         run=run,
         bounds=auto.bounds,
@@ -422,6 +422,14 @@ def world_of(name: str, horizons: tuple[float, ...], steps: int, every: int) -> 
         every=every,
         arms=subtree_bodies(nominal, roots) if roots else None,
     )
+    # Every plan of a horizon takes the same deviation and relative rows (its origin is knot 0):
+    # made once, as a user makes them, not at each plan in the predictor's timed cost.
+    rows = {
+        (H, d): (plan_deviation(profile, n), world.relative_rows(H, d))
+        for H, n in knots.items()
+        for d in (False, True)
+    }
+    return world._replace(rows=rows)
 
 
 class Run(NamedTuple):
@@ -437,22 +445,25 @@ class Run(NamedTuple):
     every: int
     arms: np.ndarray | None
     relative: dict[float, RelativeProfile] | None = None
+    # (horizon, declared): the plans' deviation and relative rows (world_of makes them)
+    rows: dict[tuple[float, bool], tuple[np.ndarray, Any]] | None = None
 
     def sides(self) -> list[str]:
         return [s for s in SIDES if s != "declared" or self.arms is not None]
 
     def set_plan(self, p: Predictor, side: str, H: float, q: np.ndarray, start: float) -> None:
-        n = self.knots[H]
         declared = side == "declared"
+        assert self.rows is not None
+        deviation, relative = self.rows[H, declared]
         p.set_plan(
-            q[:n],
-            deviation=plan_deviation(self.profile, n),
+            q[: self.knots[H]],
+            deviation=deviation,
             start=start,
             bodies=self.arms if declared else None,
-            relative=self._relative(H, declared),
+            relative=relative,
         )
 
-    def _relative(self, H: float, declared: bool) -> tuple[np.ndarray, np.ndarray] | None:
+    def relative_rows(self, H: float, declared: bool) -> tuple[np.ndarray, np.ndarray] | None:
         """``set_plan``'s relative deviations at horizon ``H``: the pilot's for plans of its
         length, of the pairs both of whose bodies the plan holds."""
         if self.relative is None:
