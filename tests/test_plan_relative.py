@@ -640,3 +640,29 @@ def test_a_deviation_that_falls_is_not_searched_past(relative: bool) -> None:
         start=float(d.time) - m.opt.timestep,  # the state the step reads: the last one
     )
     assert knots.tolist() == [3], knots
+
+
+def test_a_walks_search_stops_at_the_first_knot_a_rising_deviation_reaches() -> None:
+    """The same two bodies held still, a's deviation 0.1 m up to knot ``at`` and 0.3 m from
+    it on (rising, so the walk searches: the plan's last knot first, then a gallop and a
+    bisection): the pair's first knot that cannot be excluded is ``at`` wherever it stands,
+    the plan's last knot and the one before it included (a search that asked any other knot
+    than the last before giving up the rest would pass over them)."""
+    m = mujoco.MjModel.from_xml_string(TWO)
+    d = mujoco.MjData(m)
+    d.qpos[:3] = [0.0, 0.0, 0.0]
+    d.qpos[7:10] = [0.4, 0.0, 0.0]
+    mujoco.mj_forward(m, d)
+    p = Predictor(m, accel=50.0, alarm_horizon=0.2)
+    p.reset(d)
+    n = 20
+    for at in range(n):
+        dev = np.full((n, m.nbody), 0.1)
+        dev[at:, m.body("a").id] = 0.3
+        knots = p.plan_contact_knots(
+            np.tile(d.qpos, (n, 1)),
+            [[m.geom("a").id, m.geom("b").id]],
+            deviation=dev,
+            start=float(d.time) - m.opt.timestep,
+        )
+        assert knots.tolist() == [at], (at, knots)
