@@ -303,6 +303,57 @@ def test_lanes_give_mujocos_poses_bit_for_bit_on_the_plan_robots(robot: str) -> 
     _lanes_same_as_mujoco(model, _collision_geoms(model), 6)
 
 
+CHAIN = """
+<mujoco>
+  <worldbody>
+    <body name="b0">
+      <joint type="hinge" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02"/>
+      <body name="b1" pos=".2 0 0">
+        <joint type="hinge" axis="0 1 0" pos=".01 0 0"/>
+        <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02"/>
+        <body name="b2" pos=".2 0 0">
+          <joint type="hinge" axis="1 1 0"/>
+          <joint type="hinge" axis=".3 -.2 .9"/>
+          <geom type="box" size=".05 .02 .01" pos=".05 0 0"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_lanes_give_mujocos_poses_bit_for_bit_at_hinge_angles_of_every_scale() -> None:
+    # A hinge's rotation in lanes, held to mj_kinematics over 2,000 knots of angles from 1e-300
+    # to 1e6 radians, either sign, -0 and +0 (mju_axisAngle2Quat's test of 0), and half-angles at
+    # and beside the edges of glibc's own branches for sin and cos (2^-26, 0.85546875), where a
+    # sine and cosine taken any other way than libmujoco's two calls may differ in a bit.
+    model = mujoco.MjModel.from_xml_string(CHAIN)
+    rng = np.random.default_rng(7)
+    n = 2000
+    scales = 10.0 ** rng.integers(-300, 7, (n, model.nq))
+    q = model.qpos0 + scales * rng.uniform(-1.0, 1.0, (n, model.nq))
+    q[: model.nq, :] = np.where(np.eye(model.nq, dtype=bool), -0.0, q[: model.nq, :])
+    q[model.nq, :] = 0.0
+    edges = np.array([2.0**-26, 0.85546875])
+    angles = 2.0 * np.concatenate(
+        [edges, np.nextafter(edges, 0.0), np.nextafter(edges, 1.0), [np.pi / 2, np.pi]]
+    )
+    angles = np.concatenate([angles, -angles])
+    q[model.nq + 1 : model.nq + 1 + angles.size, :] = angles[:, None]
+    mp, mq = np.zeros((n, 0, 3)), np.zeros((n, 0, 4))
+    geoms = np.arange(model.ngeom, dtype=np.int64)
+    pos, mat, lanes = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=True)
+    assert lanes
+    d = mujoco.MjData(model)
+    for j in range(n):
+        d.qpos[:] = q[j]
+        mujoco.mj_kinematics(model, d)
+        assert np.array_equal(_bits(pos[j]), _bits(d.geom_xpos)), ("geom_xpos", j, q[j])
+        assert np.array_equal(_bits(mat[j]), _bits(d.geom_xmat)), ("geom_xmat", j, q[j])
+
+
 @pytest.mark.parametrize("n", [2, 5, 8])
 def test_a_lane_off_by_a_bit_turns_lanes_off_and_the_poses_stay_mujocos(n: int) -> None:
     # The self-check: a flipped bit in the lanes' first pose (the test hook) is caught on the
