@@ -246,10 +246,13 @@ double PosedGap(const double* pair, double* xrec, double* witness, dua_exact& x,
 
 // The first index in (j, n) at which skip is false, or n; skip(j) is true and skip falls
 // (once false, false at every later index): the last index first (most walks clear every knot
-// left: one evaluation), then galloping from j and bisection.
+// left: one evaluation), then galloping from j and bisection below it.
 template <class Skip>
 int64_t FirstKept(int64_t j, int64_t n, const Skip& skip) {
-  if (n - 1 > j && skip(n - 1)) return n;
+  if (n - 1 > j) {
+    if (skip(n - 1)) return n;
+    --n;  // n - 1 is kept, so the first kept is at most it: never asked again
+  }
   int64_t lo = j, step = 1, hi = j + 1;
   while (hi < n && skip(hi)) lo = hi, step *= 2, hi = lo + step;
   hi = std::min(hi, n);
