@@ -609,6 +609,19 @@ def test_relative_poses_at_every_knot_of_plans_of_changing_sizes_are_the_runs() 
         assert p.plan_breaks == 0, (n, p.plan_breaks)
 
 
+def _still_pair() -> tuple[mujoco.MjModel, mujoco.MjData, Predictor]:
+    """TWO's bodies a and b held still, their surfaces 25 cm apart, and a predictor reset there
+    (for ``plan_contact_knots``' walks over plans that hold them still)."""
+    m = mujoco.MjModel.from_xml_string(TWO)
+    d = mujoco.MjData(m)
+    d.qpos[:3] = [0.0, 0.0, 0.0]
+    d.qpos[7:10] = [0.4, 0.0, 0.0]
+    mujoco.mj_forward(m, d)
+    p = Predictor(m, accel=50.0, alarm_horizon=0.2)
+    p.reset(d)
+    return m, d, p
+
+
 @pytest.mark.parametrize("relative", [False, True], ids=["body", "relative"])
 def test_a_deviation_that_falls_is_not_searched_past(relative: bool) -> None:
     """Two bodies held still 25 cm apart (surfaces): the pair's contact cannot be excluded at
@@ -617,13 +630,7 @@ def test_a_deviation_that_falls_is_not_searched_past(relative: bool) -> None:
     D_ab); ``Plan::Relative``'s rises). The deviation falls after it, so the walk may not
     search for the end of the knots its carried gap clears (a search from knot 1 goes to 2, 4,
     8: past knot 3)."""
-    m = mujoco.MjModel.from_xml_string(TWO)
-    d = mujoco.MjData(m)
-    d.qpos[:3] = [0.0, 0.0, 0.0]
-    d.qpos[7:10] = [0.4, 0.0, 0.0]
-    mujoco.mj_forward(m, d)
-    p = Predictor(m, accel=50.0, alarm_horizon=0.2)
-    p.reset(d)
+    m, d, p = _still_pair()
     n = 20
     dev = np.full((n, m.nbody), 0.5 if relative else 0.1)
     rel = np.zeros((n, 1))
@@ -648,13 +655,7 @@ def test_a_walks_search_stops_at_the_first_knot_a_rising_deviation_reaches() -> 
     bisection): the pair's first knot that cannot be excluded is ``at`` wherever it stands,
     the plan's last knot and the one before it included (a search that asked any other knot
     than the last before giving up the rest would pass over them)."""
-    m = mujoco.MjModel.from_xml_string(TWO)
-    d = mujoco.MjData(m)
-    d.qpos[:3] = [0.0, 0.0, 0.0]
-    d.qpos[7:10] = [0.4, 0.0, 0.0]
-    mujoco.mj_forward(m, d)
-    p = Predictor(m, accel=50.0, alarm_horizon=0.2)
-    p.reset(d)
+    m, d, p = _still_pair()
     n = 20
     for at in range(n):
         dev = np.full((n, m.nbody), 0.1)
