@@ -426,11 +426,12 @@ def world_of(name: str, horizons: tuple[float, ...], steps: int, every: int) -> 
         arms=subtree_bodies(nominal, roots) if roots else None,
     )
     # Every plan of a horizon takes the same deviation and relative rows (its origin is knot 0):
-    # made once, as a user makes them, not at each plan in the predictor's timed cost.
+    # made once, as a user makes them, not at each plan in the predictor's timed cost. The
+    # declared side's only for a floating base with arms (Run.sides).
     rows = {
         (H, d): (plan_deviation(profile, n), world.relative_rows(H, d))
         for H, n in knots.items()
-        for d in (False, True)
+        for d in ((False, True) if world.arms is not None else (False,))
     }
     return world._replace(rows=rows)
 
