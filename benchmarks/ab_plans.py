@@ -41,9 +41,8 @@ out = {}
 for path in sys.argv[3:]:
     rec = pickle.loads(open(path, "rb").read())
     nominal = load_robot(rec["robot"])
-    world = Run(nominal=nominal, run=perturbed(nominal, np.random.default_rng(0)),
-                bounds=rec["bounds"], points=None, profile=rec["profile"], knots=rec["knots"],
-                every=rec["every"], arms=None)
+    world = Run(nominal=nominal, run=perturbed(nominal, np.random.default_rng(rec["seed"])),
+                **rec["world"])
     record = Record(rec["states"], rec["plans"])
     plan_users.CLOCK = time.thread_time if sys.argv[2] == "cpu" else time.perf_counter
     out[rec["robot"]] = {str(H): costs(world, H, record, peer=False) for H in rec["horizons"]}
@@ -55,23 +54,15 @@ def record(name: str, horizons: tuple[float, ...], steps: int, path: Path) -> No
     """The run of ``plan_users.py`` (its pilots, its perturbed model, its plans), saved."""
     import mujoco
 
-    from dua_mujoco.build.options import PilotOptions
-    from dua_mujoco.models.scenes import make_controller
-    from dua_mujoco.runtime.predictor import Predictor
-
     sys.path.insert(0, str(HERE))
-    from horizon import PILOT_SEED, ROLLOUT_SEED
-    from plan_users import _STATE, EVERY, HOLD, NoisyDriver, perturbed, pilot_profile
-    from robots import load_robot
+    from horizon import ROLLOUT_SEED
+    from plan_users import _STATE, EVERY, NoisyDriver, world_of
 
-    nominal = load_robot(name)
-    h = float(nominal.opt.timestep)
-    pilot = make_controller(nominal, "smooth", seed=PILOT_SEED, hold_steps=HOLD)
-    auto = Predictor(nominal, pilot=PilotOptions(controller=pilot, seed=PILOT_SEED))
-    knots = {H: EVERY + max(round(H / h), 1) + 2 for H in horizons}
+    # The benchmark's own world (its pilots, deviation and relative rows, declared arms): each
+    # side rebuilds only the models.
+    world = world_of(name, horizons, steps, EVERY)
+    nominal, run, knots = world.nominal, world.run, world.knots
     longest = max(knots.values())
-    profile, _, _ = pilot_profile(nominal, auto.bound_points, longest, 2000)
-    run = perturbed(nominal, np.random.default_rng(ROLLOUT_SEED))
     drive = NoisyDriver(nominal, ROLLOUT_SEED)
     d = mujoco.MjData(run)
     mujoco.mj_forward(run, d)
@@ -85,10 +76,8 @@ def record(name: str, horizons: tuple[float, ...], steps: int, path: Path) -> No
             plans[k] = (float(d.time), drive.plan(nominal, d, longest))
     rec = {
         "robot": name,
-        "bounds": auto.bounds,
-        "profile": profile,
-        "knots": knots,
-        "every": EVERY,
+        "seed": ROLLOUT_SEED,
+        "world": {k: v for k, v in world._asdict().items() if k not in ("nominal", "run")},
         "horizons": horizons,
         "states": states,
         "plans": plans,
@@ -101,8 +90,9 @@ def probe(python: str, clock: str, paths: list[Path]) -> dict:
         [python, "-c", PROBE, str(HERE), clock, *map(str, paths)],
         capture_output=True,
         text=True,
-        check=True,
     )
+    if out.returncode != 0:
+        raise SystemExit(f"{python}'s replay failed:\n{out.stderr}")
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
