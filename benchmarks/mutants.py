@@ -1124,7 +1124,7 @@ MUTANTS: tuple[Mutant, ...] = (
         "    while (done < kat.size() && kat[done] <= j) {",
         "    while (false && done < kat.size() && kat[done] <= j) {",
         (
-            "tests/test_knot_kinematics.py::test_a_plans_knots_are_mujocos_poses",
+            "tests/test_knot_kinematics.py::test_a_run_that_is_the_plan_never_breaks_it_at_deviation_0",
             "tests/test_plans.py::test_a_rolled_plan_is_followed_without_a_break",
         ),
         "set_plan gathers the knots to compute but never computes them (RunKnots not called)",
@@ -1137,6 +1137,44 @@ MUTANTS: tuple[Mutant, ...] = (
         (_KNOTS,),
         "a plan's body position where mj_kinematics adds an anchor at the origin: the sign of a "
         "zero differs from MuJoCo's (no longer its poses bit for bit)",
+    ),
+    Mutant(
+        "plan-tolerance-not-added",
+        _PLAN,
+        "    for (double& d : dev_) d += tolerance;",
+        "    for (double& d : dev_) d += 0.0 * tolerance;",
+        (
+            "tests/test_knot_kinematics.py::test_a_run_that_is_the_plan_never_breaks_it_at_deviation_0",
+        ),
+        "a plan's deviations not widened by its knots' tolerance: a run that is the plan, at "
+        "deviation 0, is found beyond it (its poses are MuJoCo's, the knots' within T of them)",
+    ),
+    Mutant(
+        "plan-relative-tolerance-not-added",
+        _PLAN,
+        "        rel_dev_[n * c + j] = v + 3.0 * tolerance;",
+        "        rel_dev_[n * c + j] = v + 0.0 * tolerance;",
+        (f"{_RELATIVE}::test_a_run_that_is_the_plan_keeps_a_relative_deviation_of_0",),
+        "a plan's relative deviations not widened by three times its knots' tolerance: a run "
+        "that is the plan breaks a relative deviation of 0",
+    ),
+    Mutant(
+        "knot-hinge-sine-reduced-by-pi-over-2s-first-bits-alone",
+        _KINEMATICS,
+        "  const T r = (x - k * kPio2Hi) - k * kPio2Lo;",
+        "  const T r = x - k * kPio2Hi;",
+        (f"{_KNOTS}::test_the_hinges_sine_and_cosine_stay_within_their_bound",),
+        "the hinges' argument reduced by pi/2's first 33 bits only: sines and cosines off by up "
+        "to 41 x 6e-11 past the first quadrant",
+    ),
+    Mutant(
+        "knot-hinge-cosine-quadrant-sign-dropped",
+        _KINEMATICS,
+        "  *cs = Select(cneg, -cx, cx);",
+        "  *cs = cx;",
+        (_KNOTS,),
+        "the hinges' cosine without its quadrant's sign: hinges past a quarter turn turned the "
+        "wrong way",
     ),
     Mutant(
         "plan-kinematics-still-on-a-moving-body",
@@ -1153,7 +1191,7 @@ MUTANTS: tuple[Mutant, ...] = (
         "    while (done < kat.size() && kat[done] <= j) {",
         "    while (done < kat.size() && kat[done] < j) {",
         (
-            "tests/test_knot_kinematics.py::test_a_plans_knots_are_mujocos_poses",
+            "tests/test_knot_kinematics.py::test_a_run_that_is_the_plan_never_breaks_it_at_deviation_0",
             "tests/test_flightplan.py::test_the_plans_tau_is_never_above_the_reference_and_is_mostly_equal",
         ),
         "set_plan's sweeps read a knot's poses before the kinematics computes them (the knots "

@@ -444,6 +444,9 @@ class Runtime:
     def plan_breaks(self) -> int: ...
 
     @property
+    def plan_tolerance(self) -> float: ...
+
+    @property
     def plan_queries(self) -> int: ...
 
     @property
@@ -591,15 +594,28 @@ def static_mismatch(model: object, records: Annotated[NDArray[numpy.float64], di
     The first static geom the model no longer places, sizes or shapes as static_records recorded it, and how (empty: none).
     """
 
-def knot_kinematics(model: object, geoms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple:
+def knot_kinematics(model: object, geoms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], exact: bool = False) -> tuple:
     """
-    KnotKinematics (kinematics.h) on one row: (bodies, xpos, xquat, xmat, geom_xpos, geom_xmat), the bodies computed and the geoms given, as mj_kinematics computes them.
+    KnotKinematics (kinematics.h) on one row: (bodies, xpos, xquat, xmat, geom_xpos, geom_xmat), the bodies computed and the geoms given, as mj_kinematics computes them (exact=True: bit for bit; else a hinge by the knots' polynomials).
     """
 
-def knot_kinematics_rows(model: object, geoms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lanes: bool = True, fault: bool = False) -> tuple:
+def knot_kinematics_rows(model: object, geoms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lanes: bool = True, fault: bool = False, exact: bool = False) -> tuple:
     """
-    KnotKinematics::RunKnots (kinematics.h) on n rows, as set_plan calls it: (geom_xpos (n, ngeom, 3), geom_xmat (n, ngeom, 9), whether lanes computed them); lanes=False computes one knot at a time, fault=True flips a bit of the lanes' first pose (the self-check then turns lanes off).
+    KnotKinematics::RunKnots (kinematics.h) on n rows, as set_plan calls it: (geom_xpos (n, ngeom, 3), geom_xmat (n, ngeom, 9), whether lanes computed them, the tolerance the plan adds to its deviations); lanes=False computes one knot at a time, fault=True flips a bit of the lanes' first pose (the self-check then turns lanes off), exact=True computes every hinge by libmujoco's call (tolerance 0).
     """
+
+def half_angle_sincos(x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lanes: bool = True) -> tuple:
+    """
+    The knots' hinges' (sin x, cos x), |x| <= HALF_ANGLE_MAX, four at a time in lanes or one at a time.
+    """
+
+HALF_ANGLE_MAX: float = 64.0
+
+SIN_COS_ERROR: float = 8.881784197001252e-16
+
+TOLERANCE_UNIT: float = 2.2737367544323206e-13
+
+WORLD_REACH: float = 1000.0
 
 def tau_pairs(pairs: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], planes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> tuple[NDArray[numpy.float64], int]:
     """

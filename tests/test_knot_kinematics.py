@@ -1,12 +1,20 @@
 """A plan's knots' kinematics (csrc/src/kinematics.h) against MuJoCo's own mj_kinematics.
 
 ``Plan::Build`` computes the poses of the geoms a plan reads, at every knot, with its own loop
-over the bodies that carry them (MuJoCo's arithmetic, call for call), not ``mj_kinematics``.
-Every verdict under a plan rests on those poses being MuJoCo's, and the plan's check of a run
-that follows it exactly (deviation 0) breaks on a single bit off: these hold them to
-``mj_kinematics`` bit for bit (the bytes of ``xpos``, ``xquat``, ``xmat``, ``geom_xpos`` and
-``geom_xmat``, so also the sign of every zero) on every bundled scene and on models with every
-joint type.
+over the bodies that carry them (MuJoCo's arithmetic, call for call), not ``mj_kinematics``. A
+hinge's sine and cosine are the one exception: polynomials in lanes (``HalfAngleSinCos``) where
+libmujoco calls ``sin`` and ``cos``, each within ``SIN_COS_ERROR`` of the exact value. So every
+pose lies within the plan's tolerance (``KnotKinematics::HingeTolerance``, added to every
+deviation the plan declares) of ``mj_kinematics``', and the plan's check of a run that follows it
+exactly (deviation 0) never breaks it. These hold:
+
+- the sine and cosine to their bound, four at a time and one at a time alike;
+- with every hinge exact (libmujoco's calls: a plan in a world past ``WORLD_REACH``), the
+  knots to ``mj_kinematics`` bit for bit (the bytes of ``xpos``, ``xquat``, ``xmat``,
+  ``geom_xpos`` and ``geom_xmat``, so also the sign of every zero);
+- with the polynomials, every corner of every geom's box within the tolerance of where
+  ``mj_kinematics`` puts it, and within three times it in every other geom's frame (a relative
+  pair's measure), on every bundled scene, the plan robots and models with every joint type.
 """
 
 from __future__ import annotations
@@ -123,9 +131,9 @@ def _bits(a: np.ndarray) -> np.ndarray:
 
 
 def _same_as_mujoco(model: mujoco.MjModel, geoms: np.ndarray, rows: int = 12) -> None:
-    """KnotKinematics on ``geoms`` gives mj_kinematics' frames, bit for bit, for every body it
-    computes and every geom, on ``rows`` draws; the bodies it computes are the geoms' bodies
-    and their ancestors (no other)."""
+    """KnotKinematics on ``geoms`` with every hinge exact gives mj_kinematics' frames, bit for
+    bit, for every body it computes and every geom, on ``rows`` draws; the bodies it computes
+    are the geoms' bodies and their ancestors (no other)."""
     geoms = np.asarray(geoms, dtype=np.int64)
     need = set()
     for g in geoms:
@@ -141,7 +149,7 @@ def _same_as_mujoco(model: mujoco.MjModel, geoms: np.ndarray, rows: int = 12) ->
         d.mocap_quat[:] = mocap_quat
         mujoco.mj_kinematics(model, d)
         bodies, xpos, xquat, xmat, gpos, gmat = _core.knot_kinematics(
-            model, geoms, d.qpos, d.mocap_pos.ravel(), d.mocap_quat.ravel()
+            model, geoms, d.qpos, d.mocap_pos.ravel(), d.mocap_quat.ravel(), exact=True
         )
         assert sorted(bodies.tolist()) == sorted(need)
         assert all(
@@ -162,7 +170,7 @@ def _collision_geoms(model: mujoco.MjModel) -> np.ndarray:
     return np.flatnonzero((model.geom_contype | model.geom_conaffinity) != 0)
 
 
-def test_every_joint_type_gives_mujocos_poses_bit_for_bit() -> None:
+def test_exact_hinges_give_mujocos_poses_bit_for_bit_on_every_joint_type() -> None:
     model = mujoco.MjModel.from_xml_string(JOINTS)
     # The model holds what the docstring says: each joint type, a mocap body, static bodies,
     # geoms at their body's inertial frame and off it, anchors off the origin.
@@ -183,17 +191,17 @@ def test_every_joint_type_gives_mujocos_poses_bit_for_bit() -> None:
 
 
 @pytest.mark.parametrize("scene", sorted(SCENES))
-def test_every_bundled_scene_gives_mujocos_poses_bit_for_bit(scene: str) -> None:
+def test_exact_hinges_give_mujocos_poses_bit_for_bit_on_every_bundled_scene(scene: str) -> None:
     model, _ = load_scene(scene)
     _same_as_mujoco(model, np.arange(model.ngeom))
     _same_as_mujoco(model, _collision_geoms(model))
 
 
-def test_a_plans_knots_are_mujocos_poses() -> None:
-    # Through the runtime: a plan's geoms at each knot (set_plan's KnotKinematics) against a
-    # rollout's own geom poses (mj_step's mj_kinematics), bit for bit: a run that is the plan
-    # never breaks it at deviation 0, and every knot's poses stand at the planned tau's reference
-    # (the plan's check reads them at the step's knot).
+def test_a_run_that_is_the_plan_never_breaks_it_at_deviation_0() -> None:
+    # Through the runtime: a plan's geoms at each knot (set_plan's KnotKinematics, its hinges by
+    # the polynomials) against a rollout's own geom poses (mj_step's mj_kinematics): within the
+    # tolerance the plan adds to its deviations, so a run that is the plan never breaks it at
+    # deviation 0 (the plan's check reads them at the step's knot).
     from dua_mujoco import Predictor
 
     model = mujoco.MjModel.from_xml_string(JOINTS)
@@ -215,6 +223,7 @@ def test_a_plans_knots_are_mujocos_poses() -> None:
         mujoco.mj_step(model, d)
         p.step(d)
     assert p.has_plan and p.plan_breaks == 0
+    assert p.plan_tolerance > 0.0  # (its hinges by the polynomials: the case in question)
 
 
 # set_plan's path: KnotKinematics::RunKnots computes four knots at once in AVX2 lanes (the last
@@ -252,28 +261,89 @@ def _rows(model: mujoco.MjModel, n: int, seed: int) -> tuple[np.ndarray, ...]:
     return q, mp, mq
 
 
+def _corners(model: mujoco.MjModel, geoms: np.ndarray) -> np.ndarray:
+    """(ngeom, 9, 3): each geom's origin and the eight corners of its box (``geom_aabb``), in
+    its own frame: the points Lemma 8.1's measure reads."""
+    aabb = model.geom_aabb[geoms]
+    corners = [[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    signs = np.array([[0.0, 0.0, 0.0], *corners])
+    out = aabb[:, None, :3] + signs[None] * aabb[:, None, 3:]
+    out[:, 0] = 0.0
+    return out
+
+
+def _from_mujoco(
+    model: mujoco.MjModel, geoms: np.ndarray, pos: np.ndarray, mat: np.ndarray, d: mujoco.MjData
+) -> tuple[float, float]:
+    """How far the knot's geom boxes lie from mj_kinematics' on ``d``: the largest displacement
+    of a corner in the world, and in another moving geom's frame (a relative pair's measure: of
+    the moving geoms' boxes, a plane's or a height field's being unbounded)."""
+    q = _corners(model, geoms)
+    r, r0 = mat.reshape(-1, 3, 3), d.geom_xmat[geoms].reshape(-1, 3, 3)
+    p, p0 = pos, d.geom_xpos[geoms]
+    world = p[:, None] + np.einsum("gij,gkj->gki", r, q)
+    world0 = p0[:, None] + np.einsum("gij,gkj->gki", r0, q)
+    absolute = float(np.linalg.norm(world - world0, axis=-1).max())
+    # Geom a's corners in geom b's frame, every (a, b) of moving bounded geoms.
+    unbounded = (int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_HFIELD))
+    moving = model.body_weldid[model.geom_bodyid[geoms]] != 0
+    keep = moving & ~np.isin(model.geom_type[geoms], unbounded)
+    if not keep.any():
+        return absolute, 0.0
+    r, r0, p, p0 = r[keep], r0[keep], p[keep], p0[keep]
+    world, world0 = world[keep], world0[keep]
+    rel = np.einsum("bji,abkj->abki", r, world[:, None] - p[None, :, None])
+    rel0 = np.einsum("bji,abkj->abki", r0, world0[:, None] - p0[None, :, None])
+    relative = float(np.linalg.norm(rel - rel0, axis=-1).max())
+    return absolute, relative
+
+
 def _lanes_same_as_mujoco(model: mujoco.MjModel, geoms: np.ndarray, n: int, seed: int = 0) -> None:
-    """knot_kinematics_rows with lanes on: lanes stay on (the self-check passed), and every
-    knot's poses are those with lanes off and mj_kinematics', bit for bit."""
+    """knot_kinematics_rows with lanes on: lanes stay on (the self-check passed), every knot's
+    poses are those with lanes off, bit for bit; with every hinge exact they are
+    mj_kinematics', bit for bit, and with the polynomials within the tolerance of them (three
+    times it in another geom's frame), the tolerance 0 exactly when no kept body has a hinge."""
     geoms = np.asarray(geoms, dtype=np.int64)
     q, mp, mq = _rows(model, n, seed)
-    pos, mat, lanes = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=True)
-    pos1, mat1, lanes1 = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=False)
-    assert lanes and not lanes1
+    pos, mat, lanes, tol = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=True)
+    pos1, mat1, lanes1, tol1 = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=False)
+    exact = _core.knot_kinematics_rows(model, geoms, q, mp, mq, exact=True)
+    assert lanes and not lanes1 and exact[2] and exact[3] == 0.0 and tol == tol1
     assert pos.shape == (n, len(geoms), 3) and mat.shape == (n, len(geoms), 9)
     assert np.array_equal(_bits(pos), _bits(pos1)) and np.array_equal(_bits(mat), _bits(mat1))
+    hinged = _kept_hinge(model, geoms)
+    assert (tol > 0.0) == hinged
     d = mujoco.MjData(model)
     for j in range(n):
         d.qpos[:] = q[j]
         d.mocap_pos[:] = mp[j]
         d.mocap_quat[:] = mq[j]
         mujoco.mj_kinematics(model, d)
-        assert np.array_equal(_bits(pos[j]), _bits(d.geom_xpos[geoms])), ("geom_xpos", j)
-        assert np.array_equal(_bits(mat[j]), _bits(d.geom_xmat[geoms])), ("geom_xmat", j)
+        assert np.array_equal(_bits(exact[0][j]), _bits(d.geom_xpos[geoms])), ("geom_xpos", j)
+        assert np.array_equal(_bits(exact[1][j]), _bits(d.geom_xmat[geoms])), ("geom_xmat", j)
+        if not hinged:
+            assert np.array_equal(_bits(pos[j]), _bits(d.geom_xpos[geoms])), ("geom_xpos", j)
+            assert np.array_equal(_bits(mat[j]), _bits(d.geom_xmat[geoms])), ("geom_xmat", j)
+            continue
+        absolute, relative = _from_mujoco(model, geoms, pos[j], mat[j], d)
+        assert absolute <= tol and relative <= 3.0 * tol, (j, absolute, relative, tol)
+
+
+def _kept_hinge(model: mujoco.MjModel, geoms: np.ndarray) -> bool:
+    """Whether a hinge moves a body that carries one of ``geoms`` or is an ancestor of one."""
+    hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
+    for g in geoms:
+        b = int(model.geom_bodyid[g])
+        while b:
+            adr, num = int(model.body_jntadr[b]), int(model.body_jntnum[b])
+            if any(int(model.jnt_type[j]) == hinge for j in range(adr, adr + num)):
+                return True
+            b = int(model.body_parentid[b])
+    return False
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 6, 7, 9])
-def test_lanes_give_mujocos_poses_bit_for_bit_on_every_joint_type(n: int) -> None:
+def test_lanes_give_mujocos_poses_within_the_tolerance_on_every_joint_type(n: int) -> None:
     # 1 knot: the one-knot path alone; 2, 3: one batch of lanes with lanes past the knots idle;
     # 5: a batch and a lone knot after it; 6, 7: a batch and a partial one.
     model = mujoco.MjModel.from_xml_string(JOINTS)
@@ -283,7 +353,7 @@ def test_lanes_give_mujocos_poses_bit_for_bit_on_every_joint_type(n: int) -> Non
 
 
 @pytest.mark.parametrize("scene", sorted(SCENES))
-def test_lanes_give_mujocos_poses_bit_for_bit_on_every_bundled_scene(scene: str) -> None:
+def test_lanes_give_mujocos_poses_within_the_tolerance_on_every_bundled_scene(scene: str) -> None:
     model, _ = load_scene(scene)
     _lanes_same_as_mujoco(model, np.arange(model.ngeom), 7)
     _lanes_same_as_mujoco(model, _collision_geoms(model), 5)
@@ -293,7 +363,7 @@ ROBOTS = ["xarm7", "baxter", "tiago", "sawyer", "spot_arm", "gr1", "g1"]
 
 
 @pytest.mark.parametrize("robot", ROBOTS)
-def test_lanes_give_mujocos_poses_bit_for_bit_on_the_plan_robots(robot: str) -> None:
+def test_lanes_give_mujocos_poses_within_the_tolerance_on_the_plan_robots(robot: str) -> None:
     # benchmarks/plan_profile.py's robots (benchmarks/robots.py; skipped without their wheels).
     try:
         model = script("robots").load_robot(robot)
@@ -324,11 +394,12 @@ CHAIN = """
 """
 
 
-def test_lanes_give_mujocos_poses_bit_for_bit_at_hinge_angles_of_every_scale() -> None:
-    # A hinge's rotation in lanes, held to mj_kinematics over 2,000 knots of angles from 1e-300
-    # to 1e6 radians, either sign, -0 and +0 (mju_axisAngle2Quat's test of 0), and half-angles at
-    # and beside the edges of glibc's own branches for sin and cos (2^-26, 0.85546875), where a
-    # sine and cosine taken any other way than libmujoco's two calls may differ in a bit.
+def test_knots_stand_to_mujocos_poses_at_hinge_angles_of_every_scale() -> None:
+    # A hinge's rotation in lanes over 2,000 knots of angles from 1e-300 to 1e6 radians, either
+    # sign, -0 and +0 (mju_axisAngle2Quat's test of 0), half-angles at the polynomials' edge
+    # (HALF_ANGLE_MAX, past which libmujoco's calls take over) and beside glibc's own branches
+    # (2^-26, 0.85546875): with every hinge exact, mj_kinematics' bit for bit; with the
+    # polynomials, within the tolerance.
     model = mujoco.MjModel.from_xml_string(CHAIN)
     rng = np.random.default_rng(7)
     n = 2000
@@ -336,22 +407,86 @@ def test_lanes_give_mujocos_poses_bit_for_bit_at_hinge_angles_of_every_scale() -
     q = model.qpos0 + scales * rng.uniform(-1.0, 1.0, (n, model.nq))
     q[: model.nq, :] = np.where(np.eye(model.nq, dtype=bool), -0.0, q[: model.nq, :])
     q[model.nq, :] = 0.0
-    edges = np.array([2.0**-26, 0.85546875])
+    edges = np.array([2.0**-26, 0.85546875, _core.HALF_ANGLE_MAX])
     angles = 2.0 * np.concatenate(
-        [edges, np.nextafter(edges, 0.0), np.nextafter(edges, 1.0), [np.pi / 2, np.pi]]
+        [edges, np.nextafter(edges, 0.0), np.nextafter(edges, 100.0), [np.pi / 2, np.pi]]
     )
     angles = np.concatenate([angles, -angles])
     q[model.nq + 1 : model.nq + 1 + angles.size, :] = angles[:, None]
     mp, mq = np.zeros((n, 0, 3)), np.zeros((n, 0, 4))
     geoms = np.arange(model.ngeom, dtype=np.int64)
-    pos, mat, lanes = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=True)
-    assert lanes
+    exact = _core.knot_kinematics_rows(model, geoms, q, mp, mq, exact=True)
+    pos, mat, lanes, tol = _core.knot_kinematics_rows(model, geoms, q, mp, mq)
+    assert lanes and exact[2] and tol > 0.0
     d = mujoco.MjData(model)
     for j in range(n):
         d.qpos[:] = q[j]
         mujoco.mj_kinematics(model, d)
-        assert np.array_equal(_bits(pos[j]), _bits(d.geom_xpos)), ("geom_xpos", j, q[j])
-        assert np.array_equal(_bits(mat[j]), _bits(d.geom_xmat)), ("geom_xmat", j, q[j])
+        assert np.array_equal(_bits(exact[0][j]), _bits(d.geom_xpos)), ("geom_xpos", j, q[j])
+        assert np.array_equal(_bits(exact[1][j]), _bits(d.geom_xmat)), ("geom_xmat", j, q[j])
+        absolute, relative = _from_mujoco(model, geoms, pos[j], mat[j], d)
+        assert absolute <= tol and relative <= 3.0 * tol, (j, q[j], absolute, relative, tol)
+        if np.all(q[j] == 0.0) or np.all(np.abs(q[j]) > 2.0 * _core.HALF_ANGLE_MAX):
+            # No hinge by the polynomials: mj_kinematics' bits (its zero angle's +0 included).
+            assert np.array_equal(_bits(pos[j]), _bits(d.geom_xpos)), ("geom_xpos", j, q[j])
+            assert np.array_equal(_bits(mat[j]), _bits(d.geom_xmat)), ("geom_xmat", j, q[j])
+
+
+def test_the_hinges_sine_and_cosine_stay_within_their_bound() -> None:
+    # HalfAngleSinCos against glibc's sin and cos (within half an ulp of 1 of the exact values,
+    # 2^-53): each within SIN_COS_ERROR + 2^-53 of them on |x| <= HALF_ANGLE_MAX, at random, at
+    # and beside every multiple of pi/4 (the reduction's quadrant edges and their middles), at
+    # the range's ends and at tiny and zero arguments; the lanes and the one-at-a-time path the
+    # same bits.
+    rng = np.random.default_rng(11)
+    edges = np.arange(-81, 82) * (np.pi / 4)
+    edges = edges[np.abs(edges) <= _core.HALF_ANGLE_MAX]
+    x = np.concatenate(
+        [
+            rng.uniform(-_core.HALF_ANGLE_MAX, _core.HALF_ANGLE_MAX, 200_000),
+            rng.uniform(-1.0, 1.0, 50_000) * 10.0 ** rng.integers(-300, 0, 50_000),
+            edges,
+            np.nextafter(edges, -np.inf),
+            np.nextafter(edges, np.inf),
+            [0.0, -0.0, 5e-324, -5e-324, _core.HALF_ANGLE_MAX, -_core.HALF_ANGLE_MAX],
+        ]
+    )
+    x = np.concatenate([x, x[: (-x.size) % 4 + 3]])  # a tail the lanes leave to the scalar path
+    sn, cs = _core.half_angle_sincos(x)
+    sn1, cs1 = _core.half_angle_sincos(x, lanes=False)
+    assert np.array_equal(_bits(sn), _bits(sn1)) and np.array_equal(_bits(cs), _bits(cs1))
+    bound = _core.SIN_COS_ERROR + 2.0**-53
+    assert np.abs(sn - np.sin(x)).max() <= bound
+    assert np.abs(cs - np.cos(x)).max() <= bound
+    assert np.array_equal(sn[x == 0.0], x[x == 0.0])  # sin(+-0) = +-0 exactly
+    with pytest.raises(ValueError, match="HALF_ANGLE_MAX"):
+        _core.half_angle_sincos(np.array([np.nextafter(_core.HALF_ANGLE_MAX, 100.0)]))
+
+
+def test_a_plan_past_the_worlds_reach_takes_every_hinge_exactly() -> None:
+    # A slide carrying a hinged arm, driven past WORLD_REACH at one knot: the bound's allowance
+    # for the world's lengths is spent, so every hinge of that plan is libmujoco's (tolerance 0,
+    # mj_kinematics' poses bit for bit); within reach the polynomials (a tolerance > 0).
+    xml = """
+    <mujoco><worldbody><body name="cart"><joint name="rail" type="slide" axis="1 0 0"/>
+      <geom type="box" size=".1 .1 .1"/>
+      <body name="arm" pos="0 0 .2"><joint type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"/></body>
+    </body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    geoms = np.arange(model.ngeom, dtype=np.int64)
+    q = np.tile([10.0, 0.7], (6, 1))
+    none3, none4 = np.zeros((6, 0, 3)), np.zeros((6, 0, 4))
+    assert _core.knot_kinematics_rows(model, geoms, q, none3, none4)[3] > 0.0
+    q[4, 0] = _core.WORLD_REACH + 1.0
+    pos, mat, lanes, tol = _core.knot_kinematics_rows(model, geoms, q, none3, none4)
+    assert lanes and tol == 0.0
+    d = mujoco.MjData(model)
+    for j in range(len(q)):
+        d.qpos[:] = q[j]
+        mujoco.mj_kinematics(model, d)
+        assert np.array_equal(_bits(pos[j]), _bits(d.geom_xpos)), j
+        assert np.array_equal(_bits(mat[j]), _bits(d.geom_xmat)), j
 
 
 @pytest.mark.parametrize("n", [2, 5, 8])
@@ -361,7 +496,7 @@ def test_a_lane_off_by_a_bit_turns_lanes_off_and_the_poses_stay_mujocos(n: int) 
     model = mujoco.MjModel.from_xml_string(JOINTS)
     geoms = np.arange(model.ngeom, dtype=np.int64)
     q, mp, mq = _rows(model, n, 1)
-    pos, mat, lanes = _core.knot_kinematics_rows(model, geoms, q, mp, mq, fault=True)
-    pos1, mat1, _ = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=False)
+    pos, mat, lanes, _ = _core.knot_kinematics_rows(model, geoms, q, mp, mq, fault=True)
+    pos1, mat1, _, _ = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=False)
     assert not lanes
     assert np.array_equal(_bits(pos), _bits(pos1)) and np.array_equal(_bits(mat), _bits(mat1))

@@ -162,6 +162,26 @@ def test_a_plan_off_in_the_swing_keeps_the_relative_pose_and_frees_the_pair() ->
     assert out[1] == (0, 0), out
 
 
+def test_a_run_that_is_the_plan_keeps_a_relative_deviation_of_0() -> None:
+    """The plan is the run itself (the arm swinging under the same controls), with a relative
+    deviation of 0 between the first and last link: the knots' poses lie within the plan's
+    tolerance of MuJoCo's (their hinges by polynomials), and the relative deviation is widened
+    by three times it (docs/theory.md, "The knots' hinges"), so nothing breaks."""
+    m, d, p = _arm()
+    n = 200
+    swing = np.tile([0.5, 0.0, 0.4], (n, 1))
+    p.reset(d)
+    p.set_plan(
+        _roll(m, d, swing, n), deviation=np.full((n, m.nbody), 0.2), relative=([_pair(m)], 0.0)
+    )
+    assert p.plan_tolerance > 0.0
+    for k in range(150):
+        d.ctrl[:] = swing[k]
+        mujoco.mj_step(m, d)
+        p.step(d)
+    assert p.plan_breaks == 0 and p.beyond_plan_relative().size == 0
+
+
 def _fold(monitor: bool = False) -> tuple[Predictor, Monitor | None, mujoco.MjModel]:
     """The plan holds the arm still with deviations of 0.3 m a body (the fold stays within
     them) and 5 mm between the first and last link; the run folds the last link into the first

@@ -414,6 +414,14 @@ class PlanFollowing:
         return np.asarray(self._rt.basis_of(np.asarray(pairs, dtype=np.int64).reshape(-1)))
 
     @property
+    def plan_tolerance(self) -> float:
+        """Metres the current plan added to every deviation it was given (0 without a plan, or
+        where its poses are ``mj_kinematics``' bit for bit): how far the knots' poses may lie from
+        MuJoCo's, their hinges' sines and cosines taken by polynomials (docs/plans.md). A run that
+        is the plan stays within it, so an exact plan (deviation 0) never breaks."""
+        return float(self._rt.plan_tolerance)
+
+    @property
     def plan_breaks(self) -> int:
         """Bodies found farther from the plan than their deviation, over the plans so far: their
         pairs followed the motion bounds from then until the next plan."""

@@ -1389,6 +1389,11 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def("clear_plan", [](PyRuntime& self) { self.rt->ClearPlan(); })
       .def_prop_ro("has_plan", [](const PyRuntime& s) { return s.rt->has_plan(); })
       .def_prop_ro("plan_breaks", [](const PyRuntime& s) { return s.rt->plan_breaks(); })
+      .def_prop_ro("plan_tolerance",
+                   [](const PyRuntime& s) {
+                     const Plan* p = s.rt->plan();
+                     return p != nullptr ? p->tolerance() : 0.0;
+                   })
       .def_prop_ro("plan_queries", [](const PyRuntime& s) { return s.rt->plan_queries(); })
       .def_prop_ro("exact_queries", [](const PyRuntime& s) { return s.rt->exact_queries(); })
       .def_prop_ro(

@@ -209,7 +209,7 @@ nb::dict GridPlan(const In<double>& reach, double margin, const In<double>& lo,
 // frames (xpos, xquat, xmat) and the geoms' (geom_xpos, geom_xmat), for tests to hold to
 // mj_kinematics bit for bit.
 nb::tuple KnotKinematicsOf(nb::handle model, const In<int64_t>& geoms, const In<double>& qpos,
-                           const In<double>& mocap_pos, const In<double>& mocap_quat) {
+                           const In<double>& mocap_pos, const In<double>& mocap_quat, bool exact) {
   const mjModel* m = ModelOf(model);
   Require(
       Size(qpos) == m->nq && Size(mocap_pos) == 3 * m->nmocap && Size(mocap_quat) == 4 * m->nmocap,
@@ -217,6 +217,7 @@ nb::tuple KnotKinematicsOf(nb::handle model, const In<int64_t>& geoms, const In<
   std::vector<int64_t> ids(geoms.data(), geoms.data() + Size(geoms));
   for (const int64_t g : ids) Require(g >= 0 && g < m->ngeom, "a geom id is out of range");
   KnotKinematics k(m, ids);
+  k.SetExactHinges(exact);
   const size_t n = ids.size();
   std::vector<double> pos(3 * n), mat(9 * n);
   k.Run(qpos.data(), mocap_pos.data(), mocap_quat.data(), pos.data(), mat.data());
@@ -254,12 +255,13 @@ std::string StaticMismatchOf(nb::handle model, const In<double>& records) {
   return StaticMismatch(m, r);
 }
 
-// KnotKinematics::RunKnots (kinematics.h) on n rows, as Plan::Build calls it: the geoms' poses
-// (n, ngeom, 3) and (n, ngeom, 9) with lanes on or off (and, with fault, a flipped bit in the
-// lanes' first pose for the self-check to catch), and whether lanes computed them.
+// KnotKinematics::RunKnots (kinematics.h) on n rows, as Plan::Build calls it (HingeTolerance
+// first, or every hinge exact): the geoms' poses (n, ngeom, 3) and (n, ngeom, 9) with lanes on
+// or off (and, with fault, a flipped bit in the lanes' first pose for the self-check to catch),
+// whether lanes computed them, and the tolerance HingeTolerance gave (0 when exact).
 nb::tuple KnotKinematicsRows(nb::handle model, const In<int64_t>& geoms, const In<double>& qpos,
                              const In<double>& mocap_pos, const In<double>& mocap_quat, bool lanes,
-                             bool fault) {
+                             bool fault, bool exact) {
   const mjModel* m = ModelOf(model);
   const int64_t n = m->nq ? Size(qpos) / m->nq : 0;
   Require(n >= 1 && Size(qpos) == n * m->nq && Size(mocap_pos) == n * 3 * m->nmocap &&
@@ -271,6 +273,12 @@ nb::tuple KnotKinematicsRows(nb::handle model, const In<int64_t>& geoms, const I
   KnotKinematics k(m, ids);
   k.SetLanes(lanes);
   k.SetLaneFault(fault);
+  double tolerance = 0.0;
+  if (exact) {
+    k.SetExactHinges(true);
+  } else {
+    tolerance = k.HingeTolerance(n, qpos.data(), n, mocap_pos.data());
+  }
   const size_t ng = ids.size();
   std::vector<double> pos(3 * ng * n), mat(9 * ng * n);
   std::vector<const double*> q, mp, mq;
@@ -284,7 +292,20 @@ nb::tuple KnotKinematicsRows(nb::handle model, const In<int64_t>& geoms, const I
   k.RunKnots(n, q.data(), mp.data(), mq.data(), p.data(), r.data());
   const size_t rows = static_cast<size_t>(n);
   return nb::make_tuple(Owned(std::move(pos), {rows, ng, 3}), Owned(std::move(mat), {rows, ng, 9}),
-                        k.lanes());
+                        k.lanes(), tolerance);
+}
+
+// HalfAngleSinCosOf (kinematics.h): the knots' hinges' sine and cosine of x.
+nb::tuple HalfAngleSinCosArrays(const In<double>& x, bool lanes) {
+  const size_t n = static_cast<size_t>(Size(x));
+  for (size_t i = 0; i < n; ++i) {
+    Require(std::fabs(x.data()[i]) <= kHalfAngleMax,
+            "half_angle_sincos takes |x| <= HALF_ANGLE_MAX (64): past it the knots call sin and "
+            "cos");
+  }
+  std::vector<double> sn(n), cs(n);
+  HalfAngleSinCosOf(static_cast<int64_t>(n), x.data(), sn.data(), cs.data(), lanes);
+  return nb::make_tuple(Owned(std::move(sn), {n}), Owned(std::move(cs), {n}));
 }
 
 }  // namespace
@@ -297,15 +318,24 @@ void BindCore(nb::module_& m) {
         "The first static geom the model no longer places, sizes or shapes as static_records "
         "recorded it, and how (empty: none).");
   m.def("knot_kinematics", &KnotKinematicsOf, "model"_a, "geoms"_a, "qpos"_a, "mocap_pos"_a,
-        "mocap_quat"_a,
+        "mocap_quat"_a, "exact"_a = false,
         "KnotKinematics (kinematics.h) on one row: (bodies, xpos, xquat, xmat, geom_xpos, "
-        "geom_xmat), the bodies computed and the geoms given, as mj_kinematics computes them.");
+        "geom_xmat), the bodies computed and the geoms given, as mj_kinematics computes them "
+        "(exact=True: bit for bit; else a hinge by the knots' polynomials).");
   m.def("knot_kinematics_rows", &KnotKinematicsRows, "model"_a, "geoms"_a, "qpos"_a, "mocap_pos"_a,
-        "mocap_quat"_a, "lanes"_a = true, "fault"_a = false,
+        "mocap_quat"_a, "lanes"_a = true, "fault"_a = false, "exact"_a = false,
         "KnotKinematics::RunKnots (kinematics.h) on n rows, as set_plan calls it: (geom_xpos "
-        "(n, ngeom, 3), geom_xmat (n, ngeom, 9), whether lanes computed them); lanes=False "
-        "computes one knot at a time, fault=True flips a bit of the lanes' first pose (the "
-        "self-check then turns lanes off).");
+        "(n, ngeom, 3), geom_xmat (n, ngeom, 9), whether lanes computed them, the tolerance "
+        "the plan adds to its deviations); lanes=False computes one knot at a time, fault=True "
+        "flips a bit of the lanes' first pose (the self-check then turns lanes off), exact=True "
+        "computes every hinge by libmujoco's call (tolerance 0).");
+  m.def("half_angle_sincos", &HalfAngleSinCosArrays, "x"_a, "lanes"_a = true,
+        "The knots' hinges' (sin x, cos x), |x| <= HALF_ANGLE_MAX, four at a time in lanes or "
+        "one at a time.");
+  m.attr("HALF_ANGLE_MAX") = kHalfAngleMax;
+  m.attr("SIN_COS_ERROR") = kSinCosError;
+  m.attr("TOLERANCE_UNIT") = KnotKinematics::kToleranceUnit;
+  m.attr("WORLD_REACH") = KnotKinematics::kWorldReach;
   // The select-all kind, beside RANK and DEADLINE (the schedule's own constant, schedule.h).
   nb::dict layout = nb::borrow<nb::dict>(m.attr("LAYOUT"));
   layout["ALL"] = kAll;

@@ -135,6 +135,67 @@ DUA_INLINE void Local2Global(const T* bpos, const T* bquat, const T* bmat, const
   }
 }
 
+// A hinge's quaternion (cos(a/2), axis sin(a/2)) at angle a, as mju_axisAngle2Quat gives it up
+// to the sine's and cosine's error: both from one reduction and two polynomials (no call; four
+// lanes at a time), each within kSinCosError of the exact value where |a/2| <= kHalfAngleMax
+// (docs/theory.md, section 8, "The knots' hinges"), and libmujoco's own call past it. At a = 0
+// (a hinge at qpos0) it is mju_axisAngle2Quat's (1, 0, 0, 0), bit for bit. What a knot's pose
+// can then lie from mj_kinematics' is bounded by KnotKinematics::HingeTolerance and added to every
+// deviation a plan built on these knots declares.
+constexpr double kPio2Hi = 0x1.921fb544p0;           // pi/2's first 33 bits (k kPio2Hi exact)
+constexpr double kPio2Lo = 0x1.0b4611a626331p-34;    // pi/2 - kPio2Hi, rounded
+constexpr double kTwoOverPi = 0x1.45f306dc9c883p-1;  // 2/pi, rounded
+constexpr double kRoundMagic = 0x1.8p52;             // x + it - it: x rounded to an integer
+// 1/n!, Taylor's coefficients from the sine's r^3 and the cosine's r^4 on (rounded once).
+constexpr double kSinTaylor[7] = {
+    -1.0 / 6,        1.0 / 120,        -1.0 / 5040,           1.0 / 362880,
+    -1.0 / 39916800, 1.0 / 6227020800, -1.0 / 1307674368000.0};
+constexpr double kCosTaylor[7] = {
+    1.0 / 24,        -1.0 / 720,           1.0 / 40320,           -1.0 / 3628800,
+    1.0 / 479001600, -1.0 / 87178291200.0, 1.0 / 20922789888000.0};
+
+template <class T>
+DUA_INLINE void HalfAngleSinCos(T x, T* sn, T* cs) {
+  // x = k pi/2 + r, |r| <= pi/4 (and a rounding): k exactly from the sum's low bits.
+  const T t = x * kTwoOverPi + kRoundMagic;
+  const T k = t - kRoundMagic;
+  const T r = (x - k * kPio2Hi) - k * kPio2Lo;
+  const T z = r * r;
+  // Taylor's terms to r^15 and r^16 (Horner's, the leading terms added last): the first left
+  // out is below 5e-17 on |r| <= pi/4 + 3e-14.
+  T ps = Broadcast<T>(kSinTaylor[6]), pc = Broadcast<T>(kCosTaylor[6]);
+  for (int i = 5; i >= 0; --i) ps = kSinTaylor[i] + z * ps, pc = kCosTaylor[i] + z * pc;
+  ps = z * ps;
+  pc = z * z * pc;
+  const T s = r + r * ps;
+  const T c = (1.0 - 0.5 * z) + pc;
+  // The quadrant k mod 4 (t's last two bits, the magic's being 0): sin x is s, c, -s, -c.
+  MaskOf<T> odd, sneg, cneg;
+  if constexpr (std::is_same_v<T, double>) {
+    int64_t q;
+    std::memcpy(&q, &t, sizeof q);
+    odd = (q & 1) != 0, sneg = (q & 2) != 0, cneg = ((q + 1) & 2) != 0;
+  } else {
+    const LaneMask q = (LaneMask)t, zero{};
+    odd = (q & 1) != zero, sneg = (q & 2) != zero, cneg = ((q + 1) & 2) != zero;
+  }
+  const T sx = Select(odd, c, s), cx = Select(odd, s, c);
+  *sn = Select(sneg, -sx, sx);
+  *cs = Select(cneg, -cx, cx);
+}
+
+// qloc = the hinge quaternion of axis (a model constant) at angle a (one knot, or four in lanes).
+template <class T>
+DUA_INLINE void HingeQuat(T* qloc, const double* axis, T a) {
+  const T x = a * 0.5;
+  T sn, cs;
+  HalfAngleSinCos(x, &sn, &cs);
+  // mju_axisAngle2Quat's zero angle: (1, 0, 0, 0) with +0, whatever the axis' signs.
+  const MaskOf<T> zero = a == 0.0;
+  qloc[0] = Select(zero, Broadcast<T>(1.0), cs);
+  for (int k = 0; k < 3; ++k) qloc[k + 1] = Select(zero, Broadcast<T>(0.0), sn * axis[k]);
+}
+
 }  // namespace
 
 KnotKinematics::KnotKinematics(const mjModel* m, const std::vector<int64_t>& geoms) : m_(m) {
@@ -188,6 +249,27 @@ KnotKinematics::KnotKinematics(const mjModel* m, const std::vector<int64_t>& geo
       GeomFrame(s, still_pos_.data() + 3 * s, still_mat_.data() + 9 * s);
     }
   }
+  // HingeTolerance's model constants: the kept bodies' joints by type, their mocap bodies, and
+  // every length a kept frame adds on its way from the world to a moving geom's farthest point.
+  for (const int b : body_) {
+    reach_ += mju_norm3(m->body_pos + 3 * b) + mju_norm3(m->body_ipos + 3 * b);
+    for (int j = m->body_jntadr[b]; j < m->body_jntadr[b] + m->body_jntnum[b]; ++j) {
+      reach_ += mju_norm3(m->jnt_pos + 3 * j);
+      const int type = m->jnt_type[j];
+      if (type == mjJNT_HINGE) hinge_.push_back(j);
+      if (type == mjJNT_SLIDE) slide_.push_back(j);
+      if (type == mjJNT_FREE) free_.push_back(j);
+    }
+    if (m->body_mocapid[b] >= 0) mocap_.push_back(m->body_mocapid[b]);
+  }
+  double far = 0.0;
+  for (const int s : gmove_) {
+    const int64_t g = geom_[s];
+    far = std::max(far, mju_norm3(m->geom_pos + 3 * g) + m->geom_rbound[g] +
+                            mju_norm3(m->geom_aabb + 6 * g) + mju_norm3(m->geom_aabb + 6 * g + 3));
+  }
+  reach_ += far;
+  tolerance_ = kToleranceUnit * static_cast<double>(1 + n) * (1.0 + reach_ + kWorldReach);
   // The lanes' frames: a still body's in every lane, once (the moving ones' at each batch).
   lane_buf_.assign(kLanes * (28 * n + 1), 0.0);
   void* at = lane_buf_.data();
@@ -254,7 +336,12 @@ void KnotKinematics::Frame(size_t c, const double* qpos, const double* mocap_pos
         std::copy_n(qpos + qadr, 4, qloc);
         mju_normalize4(qloc);
       } else {
-        mju_axisAngle2Quat(qloc, m->jnt_axis + 3 * jid, qpos[qadr] - m->qpos0[qadr]);
+        const double a = qpos[qadr] - m->qpos0[qadr];
+        if (!exact_ && std::fabs(a * 0.5) <= kHalfAngleMax) {
+          HingeQuat(qloc, m->jnt_axis + 3 * jid, a);
+        } else {
+          mju_axisAngle2Quat(qloc, m->jnt_axis + 3 * jid, a);
+        }
       }
       if (still_anchor_[jid]) {
         // The anchor is xpos + 0 and the rotation's offset +0: xpos becomes 0 + xpos (which
@@ -311,8 +398,8 @@ void KnotKinematics::Run(const double* qpos, const double* mocap_pos, const doub
   }
 }
 
-void KnotKinematics::FrameLanes(size_t c, int nact, const double* const* qpos,
-                                const double* const* mocap_pos, const double* const* mocap_quat) {
+void KnotKinematics::FrameLanes(size_t c, const double* const* qpos, const double* const* mocap_pos,
+                                const double* const* mocap_quat) {
   const mjModel* m = m_;
   // Frame's arithmetic in lanes, branch for branch (those on the model; the data's are selects).
   const int i = body_[c], pid = parent_[c];
@@ -359,16 +446,18 @@ void KnotKinematics::FrameLanes(size_t c, int nact, const double* const* qpos,
         for (int k = 0; k < 4; ++k) qloc[k] = Gather(qpos, qadr + k);
         Normalize4L(qloc);
       } else {
-        // The sine and cosine by libmujoco's own call, a lane at a time (past nact: knot 0's).
-        double one[kLanes][4];
-        for (int k = 0; k < kLanes; ++k) {
-          if (k == 0 || k < nact) {
-            mju_axisAngle2Quat(one[k], m->jnt_axis + 3 * jid, qpos[k][qadr] - m->qpos0[qadr]);
-          } else {
-            std::copy_n(one[0], 4, one[k]);
+        const Lanes a = Gather(qpos, qadr) - m->qpos0[qadr];
+        HingeQuat(qloc, m->jnt_axis + 3 * jid, a);
+        if (exact_ || Any(Abs(a * 0.5) > kHalfAngleMax)) {
+          // Past the polynomials' range, or where the plan's hinges are exact: libmujoco's call
+          // in those lanes, as Run takes it.
+          for (int k = 0; k < kLanes; ++k) {
+            if (!exact_ && std::fabs(a[k] * 0.5) <= kHalfAngleMax) continue;
+            double one[4];
+            mju_axisAngle2Quat(one, m->jnt_axis + 3 * jid, a[k]);
+            for (int e = 0; e < 4; ++e) qloc[e][k] = one[e];
           }
         }
-        for (int e = 0; e < 4; ++e) qloc[e] = Lanes{one[0][e], one[1][e], one[2][e], one[3][e]};
       }
       if (still_anchor_[jid]) {
         // Frame's anchor at the origin: 0 + xpos (the sign of a zero).
@@ -399,7 +488,7 @@ DUA_LANES_CLONES void KnotKinematics::Lanes4(int nact, const double* const* qpos
                                              double* const* mat) {
   // Run's order: the moving bodies kept, parents first, then the moving geoms (a moving geom's
   // body is kept), the still ones' poses copied.
-  for (const int c : move_) FrameLanes(static_cast<size_t>(c), nact, qpos, mocap_pos, mocap_quat);
+  for (const int c : move_) FrameLanes(static_cast<size_t>(c), qpos, mocap_pos, mocap_quat);
   for (const int s : gmove_) {
     const int c = gbody_[s];
     const int64_t g = geom_[s];
@@ -442,6 +531,50 @@ DUA_LANES_CLONES void KnotKinematics::Lanes4(int nact, const double* const* qpos
       at[0] = p0, at[1] = p1, at[2] = p2;
     }
   }
+}
+
+void HalfAngleSinCosOf(int64_t n, const double* x, double* sn, double* cs, bool lanes) {
+  int64_t i = 0;
+  for (; lanes && i + kLanes <= n; i += kLanes) {
+    Lanes s, c;
+    HalfAngleSinCos(Load(x + i), &s, &c);
+    Store(sn + i, s), Store(cs + i, c);
+  }
+  for (; i < n; ++i) HalfAngleSinCos(x[i], sn + i, cs + i);
+}
+
+double KnotKinematics::HingeTolerance(int64_t n, const double* qpos, int64_t nmocap_rows,
+                                      const double* mocap_pos) {
+  const mjModel* m = m_;
+  const int64_t nq = m->nq, stride = 3 * m->nmocap;
+  exact_ = false;
+  // No hinge among the kept bodies: every pose is mj_kinematics' bit for bit.
+  if (hinge_.empty()) return 0.0;
+  // The lengths the knots' data add (slides' travel, free and mocap bodies' places), within the
+  // world the bound allows for, or every hinge by libmujoco's call. (The bound itself is the
+  // model's: the same for every plan, so a replan on the same rows nests in the plan it
+  // replaces.)
+  double reach = 0.0;
+  const auto largest = [&](int64_t rows, const double* at, int64_t step, double off) {
+    double most = 0.0;
+    for (int64_t k = 0; k < rows; ++k) most = std::max(most, std::fabs(at[step * k] - off));
+    return most;
+  };
+  for (const int j : slide_) {
+    const int adr = m->jnt_qposadr[j];
+    reach += largest(n, qpos + adr, nq, m->qpos0[adr]);
+  }
+  for (const int j : free_) {
+    for (int e = 0; e < 3; ++e) reach += largest(n, qpos + m->jnt_qposadr[j] + e, nq, 0.0);
+  }
+  for (const int id : mocap_) {
+    for (int e = 0; e < 3; ++e) reach += largest(nmocap_rows, mocap_pos + 3 * id + e, stride, 0.0);
+  }
+  if (!(reach <= kWorldReach)) {
+    exact_ = true;
+    return 0.0;
+  }
+  return tolerance_;
 }
 
 void KnotKinematics::RunKnots(int64_t n, const double* const* qpos, const double* const* mocap_pos,

@@ -1,17 +1,20 @@
 // The poses a plan's knots read (docs/theory.md, section 8): the frames of the geoms its verdicts
 // read, computed from a row of joint positions and mocap poses by the arithmetic of MuJoCo's own
 // mj_kinematics, call for call (mju_normalize4, mju_mulMatVec3, mju_mulQuat, mju_rotVecQuat,
-// mju_axisAngle2Quat, mju_quat2Mat, in mj_kinematics1's and mj_local2Global's order), on the
-// bodies that carry those geoms and their ancestors only, and without what no pose reads: the
-// joints' Cartesian anchors and axes (a hinge's or ball's axis; a slide's anchor; the anchor of
-// a joint at its body's origin, where mj_kinematics adds and takes off an exact zero), the
-// inertial frames no kept geom sits at, the world body's frames, and every other geom, site,
-// camera and light. So each pose is mj_kinematics' bit for bit (tests/test_knot_kinematics.py
-// holds them to it on every bundled scene and every joint type) at a third to a half of its
-// instructions on a robot's knots. RunKnots computes four knots at once in AVX2 lanes (the same
-// IEEE operations, in the order libmujoco's compiled helpers take them: no contraction, no
-// reordering), and checks the lanes' bytes against this one-knot path on its first batch: where
-// they differ it computes every knot one at a time (docs/theory.md, section 8).
+// mju_axisAngle2Quat's quaternion, mju_quat2Mat, in mj_kinematics1's and mj_local2Global's
+// order), on the bodies that carry those geoms and their ancestors only, and without what no
+// pose reads: the joints' Cartesian anchors and axes (a hinge's or ball's axis; a slide's anchor;
+// the anchor of a joint at its body's origin, where mj_kinematics adds and takes off an exact
+// zero), the inertial frames no kept geom sits at, the world body's frames, and every other geom,
+// site, camera and light. A hinge's sine and cosine are the one departure: polynomials (within
+// kSinCosError, where libmujoco calls sin and cos: half of a robot's knots' kinematics), so each
+// pose lies within HingeTolerance of mj_kinematics' (a plan adds it to every deviation), and is
+// mj_kinematics' bit for bit with the hinges exact (SetExactHinges; tests/test_knot_kinematics.py
+// holds both on every bundled scene and every joint type). RunKnots computes four knots at once
+// in AVX2 lanes (the same IEEE operations, in the order libmujoco's compiled helpers take them:
+// no contraction, no reordering), and checks the lanes' bytes against this one-knot path on its
+// first batch: where they differ it computes every knot one at a time (docs/theory.md, section
+// 8).
 #ifndef DUA_MUJOCO_KINEMATICS_H_
 #define DUA_MUJOCO_KINEMATICS_H_
 
@@ -31,6 +34,13 @@ namespace dua {
 inline bool StillBody(const mjModel* m, int64_t b) {
   return m->body_weldid[b] == 0 && m->body_mocapid[m->body_rootid[b]] < 0;
 }
+
+// sin(x[i]) and cos(x[i]) to sn and cs by the knots' hinges' polynomials (|x| at most
+// kHalfAngleMax: within kSinCosError of the exact values, docs/theory.md, section 8), four at a
+// time in lanes or one at a time (the same bits); for tests.
+constexpr double kHalfAngleMax = 64.0;
+constexpr double kSinCosError = 0x1p-50;
+DUA_API void HalfAngleSinCosOf(int64_t n, const double* x, double* sn, double* cs, bool lanes);
 
 class DUA_API KnotKinematics {
  public:
@@ -54,6 +64,22 @@ class DUA_API KnotKinematics {
   // also computed by Run: where a byte differs, lanes go off for good and Run's poses stand.
   void RunKnots(int64_t n, const double* const* qpos, const double* const* mocap_pos,
                 const double* const* mocap_quat, double* const* pos, double* const* mat);
+  // Readies the next knots' hinges for n knots of rows qpos (n, nq) and mocap_pos (nmocap_rows,
+  // nmocap, 3), and returns how far (metres) any point of a kept geom's box may then lie from
+  // where mj_kinematics puts it, at any of those knots, and how far any kept frame's rotation
+  // may turn a vector of that box: 0 where no kept body has a hinge (the poses are
+  // mj_kinematics' bit for bit); else the model's bound of docs/theory.md, section 8 ("The
+  // knots' hinges"), the same for every plan, or, where the rows' slides, free bodies and mocap
+  // bodies reach past kWorldReach metres, 0 with every hinge by libmujoco's call.
+  double HingeTolerance(int64_t n, const double* qpos, int64_t nmocap_rows,
+                        const double* mocap_pos);
+  // The bound's unit (relative rounding per kept body and metre), and the reach of the world
+  // (metres) it allows for beyond the model's own lengths.
+  static constexpr double kToleranceUnit = 0x1p-42;
+  static constexpr double kWorldReach = 1000.0;
+  // Every hinge by libmujoco's call (true) or by the polynomials (false); HingeTolerance sets it.
+  void SetExactHinges(bool on) { exact_ = on; }
+  bool exact_hinges() const { return exact_; }
   // Test hooks: lanes off (every knot by Run) or on; a flipped bit in the lanes' first pose
   // (the fault the self-check must catch). lanes(): whether RunKnots computes in lanes.
   void SetLanes(bool on) { lanes_ = on; }
@@ -74,7 +100,7 @@ class DUA_API KnotKinematics {
   // nact (2 to 4) knots in lanes; lanes past nact read knot 0's row and write nothing.
   void Lanes4(int nact, const double* const* qpos, const double* const* mocap_pos,
               const double* const* mocap_quat, double* const* pos, double* const* mat);
-  void FrameLanes(size_t c, int nact, const double* const* qpos, const double* const* mocap_pos,
+  void FrameLanes(size_t c, const double* const* qpos, const double* const* mocap_pos,
                   const double* const* mocap_quat);
 
   const mjModel* m_;
@@ -93,7 +119,11 @@ class DUA_API KnotKinematics {
   std::vector<double> lane_buf_;
   Lanes *lxpos_ = nullptr, *lxquat_ = nullptr, *lxmat_ = nullptr, *lxipos_ = nullptr,
         *lximat_ = nullptr;
-  bool lanes_ = true, checked_ = false, failed_ = false, fault_ = false;
+  bool lanes_ = true, checked_ = false, failed_ = false, fault_ = false, exact_ = false;
+  // HingeTolerance's: the kept bodies' joints by type and mocap ids, and the lengths (model
+  // constants) on the kept bodies' paths to a moving geom's farthest point.
+  std::vector<int> hinge_, slide_, free_, mocap_;
+  double reach_ = 0.0, tolerance_ = 0.0;
 };
 
 }  // namespace dua

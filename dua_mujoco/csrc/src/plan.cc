@@ -808,7 +808,21 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     }
   }
   nknot_ = n, ngeom_ = ngeom, nbody_ = nbody, nq_ = nq, nmocap_ = mocap ? nmocap : 0;
-  std::string why = Relative(m, in, holds);
+  // Flexes and sleeping trees read more of the model than KnotKinematics does: those run
+  // mj_kinematics on m.
+  const bool own = m->nflex == 0 && !(m->opt.enableflags & mjENBL_SLEEP);
+  std::unique_ptr<KnotKinematics> mine(own && kinematics == nullptr ? new KnotKinematics(m, geoms)
+                                                                    : nullptr);
+  KnotKinematics* km = !own ? nullptr : kinematics != nullptr ? kinematics : mine.get();
+  // How far the knots' poses may lie from mj_kinematics' (their hinges by polynomials,
+  // kinematics.h), added to every deviation the plan declares (docs/theory.md, section 8, "The
+  // knots' hinges"); 0 where they are mj_kinematics' bit for bit.
+  const double tolerance = km == nullptr ? 0.0
+                                         : km->HingeTolerance(n, in.qpos, mocap ? n : 1,
+                                                              mocap ? in.mocap_pos : s->mocap_pos);
+  exact_hinges_ = km == nullptr || km->exact_hinges();
+  tolerance_ = tolerance;
+  std::string why = Relative(m, in, holds, tolerance);
   if (!why.empty()) return why;
   qpos_.assign(in.qpos, in.qpos + n * nq);
   mocap_pos_.clear(), mocap_quat_.clear();
@@ -817,12 +831,6 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     mocap_quat_.assign(in.mocap_quat, in.mocap_quat + n * nmocap * 4);
   }
   Slots(n, ngeom, geoms, std::move(pool));
-  // Flexes and sleeping trees read more of the model than KnotKinematics does: those run
-  // mj_kinematics on m.
-  const bool own = m->nflex == 0 && !(m->opt.enableflags & mjENBL_SLEEP);
-  std::unique_ptr<KnotKinematics> mine(own && kinematics == nullptr ? new KnotKinematics(m, geoms)
-                                                                    : nullptr);
-  KnotKinematics* km = !own ? nullptr : kinematics != nullptr ? kinematics : mine.get();
   int64_t computed = -1;  // the last knot computed
   // The knots KnotKinematics computes, gathered for RunKnots (four at a time in lanes), and
   // their indices.
@@ -834,7 +842,9 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     double* rj = mat_.data() + 9 * nslot_ * j;
     // The same rows at the same time in the plan replaced: its poses, bit for bit.
     const int64_t i = prev != nullptr ? prev->KnotOf(in.start + static_cast<double>(j) * h) : -1;
-    if (i >= 0 && prev->slot_ == slot_ && SameRow(j, *prev, i)) {
+    // (Not a knot of polynomial hinges into a plan of exact ones: it declares no tolerance.)
+    if (i >= 0 && prev->slot_ == slot_ && SameRow(j, *prev, i) &&
+        (prev->exact_hinges_ || !exact_hinges_)) {
       std::copy_n(prev->pos_.data() + 3 * nslot_ * i, 3 * nslot_, pj);
       std::copy_n(prev->mat_.data() + 9 * nslot_ * i, 9 * nslot_, rj);
     } else if (km) {
@@ -882,13 +892,13 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
   // mocap pose for it, and a copied knot is one it computed): its sweep's step too.
   std::vector<uint8_t> still(static_cast<size_t>(nslot_));
   for (int64_t c = 0; c < nslot_; ++c) still[c] = fixed[m->geom_bodyid[geoms[c]]];
-  why = Finish(m, n, geoms, in.deviation, in.start, h, spheres, nsphere, std::move(holds),
-               std::move(fixed), &still, ready);
+  why = Finish(m, n, geoms, in.deviation, tolerance, in.start, h, spheres, nsphere,
+               std::move(holds), std::move(fixed), &still, ready);
   return why;
 }
 
 std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
-                           const std::vector<uint8_t>& holds) {
+                           const std::vector<uint8_t>& holds, double tolerance) {
   rel_key_.clear(), rel_dev_.clear(), rel_rises_.clear();
   if (in.nrel == 0) return "";
   const int64_t nbody = m->nbody, n = in.n;
@@ -951,7 +961,7 @@ std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
       const int64_t col = order[c].second, a = rel_a(c), b = rel_b(c);
       for (int64_t j = j0; j < j1; ++j) {
         const double v = in.relative_deviation[nr * j + col];
-        rel_dev_[n * c + j] = v;
+        rel_dev_[n * c + j] = v + 3.0 * tolerance;  // (docs/theory.md, section 8)
         const double now = std::min(in.deviation[nbody * j + a] + in.deviation[nbody * j + b], v);
         if (j > 0 && now < last[c]) rel_rises_[c] = 0;
         last[c] = now;
@@ -996,14 +1006,14 @@ std::string Plan::FromPoses(const mjModel* m, int64_t n, const double* pos, cons
       std::copy_n(mat + 9 * (ngeom * j + geoms[c]), 9, mat_.data() + 9 * (nslot_ * j + c));
     }
   }
-  return Finish(m, n, geoms, deviation, start, h, spheres, nsphere, std::move(holds),
+  return Finish(m, n, geoms, deviation, 0.0, start, h, spheres, nsphere, std::move(holds),
                 std::move(fixed));
 }
 
 std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
-                         const double* deviation, double start, double h, const double* spheres,
-                         int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed,
-                         const std::vector<uint8_t>* still,
+                         const double* deviation, double tolerance, double start, double h,
+                         const double* spheres, int64_t nsphere, std::vector<uint8_t> holds,
+                         std::vector<uint8_t> fixed, const std::vector<uint8_t>* still,
                          const std::function<void(int64_t)>& ready) {
   // Knot j's poses (and every earlier knot's) in place before they are read.
   const auto need = [&](int64_t j) {
@@ -1082,7 +1092,11 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
   }
   start_ = start, h_ = h;
   dev_.assign(deviation, deviation + n * nbody);
-  // A static body never moves: its deviation is 0 whatever was given.
+  // The knots' tolerance on every moving body (its poses within it of mj_kinematics'); a static
+  // body never moves: its deviation is 0 whatever was given.
+  if (tolerance > 0.0) {
+    for (double& d : dev_) d += tolerance;
+  }
   std::vector<int64_t> static_bodies;
   for (int64_t b = 0; b < nbody; ++b) {
     if (fixed[b]) static_bodies.push_back(b);

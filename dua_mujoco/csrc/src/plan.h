@@ -219,6 +219,8 @@ class Plan {
     return s < 0 ? kNoSweep : sweep_[nslot_ * k + s];
   }
   double dev(int64_t k, int64_t b) const { return dev_[nbody_ * k + b]; }
+  // The knots' tolerance (metres) every deviation was widened by (KnotKinematics::HingeTolerance).
+  double tolerance() const { return tolerance_; }
   // Whether body b's deviation is non-decreasing over the knots (a knot walk may then search
   // for the first knot its carried gap does not clear, docs/theory.md, section 8).
   bool dev_rises(int64_t b) const { return rises_[b] != 0; }
@@ -228,24 +230,31 @@ class Plan {
   bool SameRow(int64_t j, const Plan& prev, int64_t i) const;
   // The relative pairs of `in` checked (bodies the plan holds, each pair once, deviations
   // finite and >= 0) and kept, sorted by body pair. Returns an error message, or "".
+  // Each relative deviation is widened by three times tolerance (the knots' poses' from
+  // mj_kinematics', docs/theory.md, section 8).
   std::string Relative(const mjModel* m, const dua_plan_input& in,
-                       const std::vector<uint8_t>& holds);
+                       const std::vector<uint8_t>& holds, double tolerance);
   // The columns (slots) of `geoms` and the buffers of n knots.
   void Slots(int64_t n, int64_t ngeom, const std::vector<int64_t>& geoms,
              std::shared_ptr<PlanPool> pool);
   // The rest of a build once the knots' poses are in place: their check, the sweeps, the
   // deviations and bodies. ready(j) (if given) puts knot j's poses, and every earlier knot's,
   // in place, before they are first read.
+  // deviation is widened by tolerance (the knots' poses' from mj_kinematics') on moving bodies.
   std::string Finish(const mjModel* m, int64_t n, const std::vector<int64_t>& geoms,
-                     const double* deviation, double start, double h, const double* spheres,
-                     int64_t nsphere, std::vector<uint8_t> holds, std::vector<uint8_t> fixed,
-                     const std::vector<uint8_t>* still = nullptr,
+                     const double* deviation, double tolerance, double start, double h,
+                     const double* spheres, int64_t nsphere, std::vector<uint8_t> holds,
+                     std::vector<uint8_t> fixed, const std::vector<uint8_t>* still = nullptr,
                      const std::function<void(int64_t)>& ready = {});
 
   static const double kNoPose[9];
   static const double kNoSweep;
   int64_t nknot_ = 0, ngeom_ = 0, nbody_ = 0, nq_ = 0, nmocap_ = 0, nslot_ = 0;
   double start_ = 0.0, h_ = 0.0;
+  // How far the knots' poses may lie from mj_kinematics' (added to every deviation); whether
+  // every hinge was computed by libmujoco's call.
+  double tolerance_ = 0.0;
+  bool exact_hinges_ = true;
   std::vector<int64_t> slot_;  // (ngeom,) each geom's column of the poses (-1: not kept)
   Buffer pos_, mat_, sweep_;   // (nknot, nslot, 3 / 9 / 1)
   std::vector<double> dev_;    // (nknot, nbody)
