@@ -1112,7 +1112,7 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "knot-lanes-self-check-skipped",
         _KINEMATICS,
-        "    if (!checked_) {",
+        "    if (!checked) {",
         "    if (false) {",
         (_KNOTS,),
         "lanes are trusted without their first batch compared with the one-knot path: a lane "
@@ -1152,11 +1152,20 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "plan-relative-tolerance-not-added",
         _PLAN,
-        "        rel_dev_[n * c + j] = v + 3.0 * tolerance;",
-        "        rel_dev_[n * c + j] = v + 0.0 * tolerance;",
+        "        const double wide = in.relative_deviation[nr * j + col] + 3.0 * tolerance;",
+        "        const double wide = in.relative_deviation[nr * j + col] + 0.0 * tolerance;",
         (f"{_RELATIVE}::test_a_run_that_is_the_plan_keeps_a_relative_deviation_of_0",),
         "a plan's relative deviations not widened by three times its knots' tolerance: a run "
         "that is the plan breaks a relative deviation of 0",
+    ),
+    Mutant(
+        "plan-relative-rises-unwidened",
+        _PLAN,
+        "        const double now = std::min(da + db, wide);",
+        "        const double now = std::min(da + db - 2.0 * tolerance, wide - 3.0 * tolerance);",
+        (f"{_RELATIVE}::test_a_relative_pairs_rises_are_those_of_its_widened_deviations",),
+        "a relative pair's rises taken from its deviations as given, not as the walk reads them "
+        "(each body's D + T, the pair's D_ab + 3T): a widened sequence that falls is searched",
     ),
     Mutant(
         "knot-hinge-sine-reduced-by-pi-over-2s-first-bits-alone",

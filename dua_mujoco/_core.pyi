@@ -444,6 +444,12 @@ class Runtime:
     def plan_breaks(self) -> int: ...
 
     @property
+    def plan_relative_rises(self) -> NDArray[numpy.bool_]:
+        """
+        (nrel,) per relative pair of the plan (sorted by body pair) whether min(D_a + D_b, D_ab), as the walk reads them, never falls (Plan::Relative); for tests.
+        """
+
+    @property
     def plan_tolerance(self) -> float: ...
 
     @property
@@ -601,7 +607,7 @@ def knot_kinematics(model: object, geoms: Annotated[NDArray[numpy.int64], dict(o
 
 def knot_kinematics_rows(model: object, geoms: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], qpos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_pos: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], mocap_quat: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lanes: bool = True, fault: bool = False, exact: bool = False) -> tuple:
     """
-    KnotKinematics::RunKnots (kinematics.h) on n rows, as set_plan calls it: (geom_xpos (n, ngeom, 3), geom_xmat (n, ngeom, 9), whether lanes computed them, the tolerance the plan adds to its deviations); lanes=False computes one knot at a time, fault=True flips a bit of the lanes' first pose (the self-check then turns lanes off), exact=True computes every hinge by libmujoco's call (tolerance 0).
+    KnotKinematics::RunKnots (kinematics.h) on n rows, as set_plan calls it: (geom_xpos (n, ngeom, 3), geom_xmat (n, ngeom, 9), whether lanes computed them, the tolerance the plan adds to its deviations); lanes=False computes one knot at a time, fault=True flips a bit of the lanes' first pose (the self-check then turns lanes off), exact=True computes every hinge by libmujoco's call.
     """
 
 def half_angle_sincos(x: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], lanes: bool = True) -> tuple:

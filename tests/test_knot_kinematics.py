@@ -308,7 +308,7 @@ def _lanes_same_as_mujoco(model: mujoco.MjModel, geoms: np.ndarray, n: int, seed
     pos, mat, lanes, tol = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=True)
     pos1, mat1, lanes1, tol1 = _core.knot_kinematics_rows(model, geoms, q, mp, mq, lanes=False)
     exact = _core.knot_kinematics_rows(model, geoms, q, mp, mq, exact=True)
-    assert lanes and not lanes1 and exact[2] and exact[3] == 0.0 and tol == tol1
+    assert lanes and not lanes1 and exact[2] and exact[3] == tol == tol1
     assert pos.shape == (n, len(geoms), 3) and mat.shape == (n, len(geoms), 9)
     assert np.array_equal(_bits(pos), _bits(pos1)) and np.array_equal(_bits(mat), _bits(mat1))
     hinged = _kept_hinge(model, geoms)
@@ -458,35 +458,72 @@ def test_the_hinges_sine_and_cosine_stay_within_their_bound() -> None:
     bound = _core.SIN_COS_ERROR + 2.0**-53
     assert np.abs(sn - np.sin(x)).max() <= bound
     assert np.abs(cs - np.cos(x)).max() <= bound
-    assert np.array_equal(sn[x == 0.0], x[x == 0.0])  # sin(+-0) = +-0 exactly
+    assert np.all(sn[x == 0.0] == 0.0) and np.all(cs[x == 0.0] == 1.0)  # (-0's sine is +0)
     with pytest.raises(ValueError, match="HALF_ANGLE_MAX"):
         _core.half_angle_sincos(np.array([np.nextafter(_core.HALF_ANGLE_MAX, 100.0)]))
 
 
+_RAIL = """
+<mujoco><worldbody><geom name="post" type="box" size=".1 .1 .1" pos="0 2 0"/>
+<body name="cart"><joint name="rail" type="slide" axis="1 0 0"/>
+  <geom type="box" size=".1 .1 .1"/>
+  <body name="arm" pos="0 0 .2"><joint type="hinge" axis="0 1 0"/>
+    <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"/></body>
+</body></worldbody></mujoco>"""
+
+
 def test_a_plan_past_the_worlds_reach_takes_every_hinge_exactly() -> None:
     # A slide carrying a hinged arm, driven past WORLD_REACH at one knot: the bound's allowance
-    # for the world's lengths is spent, so every hinge of that plan is libmujoco's (tolerance 0,
-    # mj_kinematics' poses bit for bit); within reach the polynomials (a tolerance > 0).
-    xml = """
-    <mujoco><worldbody><body name="cart"><joint name="rail" type="slide" axis="1 0 0"/>
-      <geom type="box" size=".1 .1 .1"/>
-      <body name="arm" pos="0 0 .2"><joint type="hinge" axis="0 1 0"/>
-        <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"/></body>
-    </body></worldbody></mujoco>"""
-    model = mujoco.MjModel.from_xml_string(xml)
+    # for the world's lengths is spent, so every hinge of those knots is libmujoco's
+    # (mj_kinematics' poses bit for bit); within reach the polynomials. The tolerance is the
+    # model's either way (a plan's deviations are widened alike, so replans nest).
+    model = mujoco.MjModel.from_xml_string(_RAIL)
     geoms = np.arange(model.ngeom, dtype=np.int64)
     q = np.tile([10.0, 0.7], (6, 1))
     none3, none4 = np.zeros((6, 0, 3)), np.zeros((6, 0, 4))
-    assert _core.knot_kinematics_rows(model, geoms, q, none3, none4)[3] > 0.0
+    near = _core.knot_kinematics_rows(model, geoms, q, none3, none4)
     q[4, 0] = _core.WORLD_REACH + 1.0
     pos, mat, lanes, tol = _core.knot_kinematics_rows(model, geoms, q, none3, none4)
-    assert lanes and tol == 0.0
+    assert lanes and tol == near[3] > 0.0
     d = mujoco.MjData(model)
     for j in range(len(q)):
         d.qpos[:] = q[j]
         mujoco.mj_kinematics(model, d)
         assert np.array_equal(_bits(pos[j]), _bits(d.geom_xpos)), j
         assert np.array_equal(_bits(mat[j]), _bits(d.geom_xmat)), j
+
+
+def test_plans_near_and_past_the_worlds_reach_follow_a_run_that_is_them() -> None:
+    # Through the runtime: the cart sliding past WORLD_REACH while the arm swings, planned
+    # exactly (deviation 0) every 20 steps, the plans before it within reach (polynomial hinges)
+    # and after it past (exact ones), each replan copying the knots it shares with the plan it
+    # replaces: no break, and every plan declares the model's tolerance.
+    from dua_mujoco import Predictor
+
+    model = mujoco.MjModel.from_xml_string(_RAIL)
+    model.opt.gravity[:] = 0.0
+    d = mujoco.MjData(model)
+    d.qpos[0] = _core.WORLD_REACH - 0.5
+    d.qvel[:] = [10.0, 3.0]
+    mujoco.mj_forward(model, d)
+    p = Predictor(model, accel=50.0, alarm_horizon=0.05)
+    p.reset(d)
+    tolerances = []
+    for k in range(200):
+        if k % 20 == 0:
+            sim = mujoco.MjData(model)
+            mujoco.mj_copyData(sim, model, d)
+            rows = [sim.qpos.copy()]
+            for _ in range(60):
+                mujoco.mj_step(model, sim)
+                rows.append(sim.qpos.copy())
+            p.set_plan(np.array(rows), deviation=0.0, start=d.time)
+            tolerances.append(p.plan_tolerance)
+        mujoco.mj_step(model, d)
+        p.step(d)
+    assert d.qpos[0] > _core.WORLD_REACH + 1.0  # (the later plans past the reach)
+    assert p.plan_breaks == 0
+    assert len(set(tolerances)) == 1 and tolerances[0] > 0.0
 
 
 @pytest.mark.parametrize("n", [2, 5, 8])

@@ -182,6 +182,24 @@ def test_a_run_that_is_the_plan_keeps_a_relative_deviation_of_0() -> None:
     assert p.plan_breaks == 0 and p.beyond_plan_relative().size == 0
 
 
+def test_a_relative_pairs_rises_are_those_of_its_widened_deviations() -> None:
+    """The walk searches a relative pair's knots only where min(D_a + D_b, D_ab) never falls,
+    read as widened (each body's D + T, the pair's D_ab + 3T; docs/theory.md, "The knots'
+    hinges"). Given 0.5 m a body at knot 0 and 0 after, and D_ab 0 at knot 0 and 0.5 m after, the
+    minimum as given is 0 throughout, but as widened it is 3T, then 2T: it falls, and the pair
+    is walked knot by knot. With 0.5 m a body at every knot it rises (3T, then 0.5 m + 3T)."""
+    m, d, p = _arm()
+    p.reset(d)
+    n = 10
+    rel = np.r_[0.0, np.full(n - 1, 0.5)][:, None]
+    falling = np.zeros((n, m.nbody))
+    falling[0] = 0.5
+    for dev, rises in ((falling, False), (np.full((n, m.nbody), 0.5), True)):
+        p.set_plan(np.tile(d.qpos, (n, 1)), deviation=dev, relative=([_pair(m)], rel))
+        assert p.plan_tolerance > 0.0
+        assert p._rt.plan_relative_rises.tolist() == [rises], dev[:2]
+
+
 def _fold(monitor: bool = False) -> tuple[Predictor, Monitor | None, mujoco.MjModel]:
     """The plan holds the arm still with deviations of 0.3 m a body (the fold stays within
     them) and 5 mm between the first and last link; the run folds the last link into the first

@@ -1389,6 +1389,17 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
       .def("clear_plan", [](PyRuntime& self) { self.rt->ClearPlan(); })
       .def_prop_ro("has_plan", [](const PyRuntime& s) { return s.rt->has_plan(); })
       .def_prop_ro("plan_breaks", [](const PyRuntime& s) { return s.rt->plan_breaks(); })
+      .def_prop_ro(
+          "plan_relative_rises",
+          [](const PyRuntime& s) {
+            const Plan* p = s.rt->plan();
+            std::vector<uint8_t> out;
+            for (int64_t r = 0; p != nullptr && r < p->nrel(); ++r) out.push_back(p->rel_rises(r));
+            return OwnedBools(std::move(out));
+          },
+          nb::rv_policy::move,
+          "(nrel,) per relative pair of the plan (sorted by body pair) whether min(D_a + D_b, "
+          "D_ab), as the walk reads them, never falls (Plan::Relative); for tests.")
       .def_prop_ro("plan_tolerance",
                    [](const PyRuntime& s) {
                      const Plan* p = s.rt->plan();

@@ -258,7 +258,7 @@ std::string StaticMismatchOf(nb::handle model, const In<double>& records) {
 // KnotKinematics::RunKnots (kinematics.h) on n rows, as Plan::Build calls it (HingeTolerance
 // first, or every hinge exact): the geoms' poses (n, ngeom, 3) and (n, ngeom, 9) with lanes on
 // or off (and, with fault, a flipped bit in the lanes' first pose for the self-check to catch),
-// whether lanes computed them, and the tolerance HingeTolerance gave (0 when exact).
+// whether lanes computed them, and the model's tolerance (a plan adds it to its deviations).
 nb::tuple KnotKinematicsRows(nb::handle model, const In<int64_t>& geoms, const In<double>& qpos,
                              const In<double>& mocap_pos, const In<double>& mocap_quat, bool lanes,
                              bool fault, bool exact) {
@@ -273,12 +273,12 @@ nb::tuple KnotKinematicsRows(nb::handle model, const In<int64_t>& geoms, const I
   KnotKinematics k(m, ids);
   k.SetLanes(lanes);
   k.SetLaneFault(fault);
-  double tolerance = 0.0;
   if (exact) {
     k.SetExactHinges(true);
   } else {
-    tolerance = k.HingeTolerance(n, qpos.data(), n, mocap_pos.data());
+    k.HingeTolerance(n, qpos.data(), n, mocap_pos.data());
   }
+  const double tolerance = k.tolerance();
   const size_t ng = ids.size();
   std::vector<double> pos(3 * ng * n), mat(9 * ng * n);
   std::vector<const double*> q, mp, mq;
@@ -328,7 +328,7 @@ void BindCore(nb::module_& m) {
         "(n, ngeom, 3), geom_xmat (n, ngeom, 9), whether lanes computed them, the tolerance "
         "the plan adds to its deviations); lanes=False computes one knot at a time, fault=True "
         "flips a bit of the lanes' first pose (the self-check then turns lanes off), exact=True "
-        "computes every hinge by libmujoco's call (tolerance 0).");
+        "computes every hinge by libmujoco's call.");
   m.def("half_angle_sincos", &HalfAngleSinCosArrays, "x"_a, "lanes"_a = true,
         "The knots' hinges' (sin x, cos x), |x| <= HALF_ANGLE_MAX, four at a time in lanes or "
         "one at a time.");

@@ -269,7 +269,10 @@ KnotKinematics::KnotKinematics(const mjModel* m, const std::vector<int64_t>& geo
                             mju_norm3(m->geom_aabb + 6 * g) + mju_norm3(m->geom_aabb + 6 * g + 3));
   }
   reach_ += far;
-  tolerance_ = kToleranceUnit * static_cast<double>(1 + n) * (1.0 + reach_ + kWorldReach);
+  if (!hinge_.empty()) {
+    tolerance_ =
+        kToleranceUnit * static_cast<double>(1 + n + hinge_.size()) * (1.0 + reach_ + kWorldReach);
+  }
   // The lanes' frames: a still body's in every lane, once (the moving ones' at each batch).
   lane_buf_.assign(kLanes * (28 * n + 1), 0.0);
   void* at = lane_buf_.data();
@@ -533,7 +536,8 @@ DUA_LANES_CLONES void KnotKinematics::Lanes4(int nact, const double* const* qpos
   }
 }
 
-void HalfAngleSinCosOf(int64_t n, const double* x, double* sn, double* cs, bool lanes) {
+DUA_LANES_CLONES void HalfAngleSinCosOf(int64_t n, const double* x, double* sn, double* cs,
+                                        bool lanes) {
   int64_t i = 0;
   for (; lanes && i + kLanes <= n; i += kLanes) {
     Lanes s, c;
@@ -548,7 +552,7 @@ double KnotKinematics::HingeTolerance(int64_t n, const double* qpos, int64_t nmo
   const mjModel* m = m_;
   const int64_t nq = m->nq, stride = 3 * m->nmocap;
   exact_ = false;
-  // No hinge among the kept bodies: every pose is mj_kinematics' bit for bit.
+  // No hinge among the kept bodies: every pose is mj_kinematics' bit for bit (tolerance 0).
   if (hinge_.empty()) return 0.0;
   // The lengths the knots' data add (slides' travel, free and mocap bodies' places), within the
   // world the bound allows for, or every hinge by libmujoco's call. (The bound itself is the
@@ -570,10 +574,8 @@ double KnotKinematics::HingeTolerance(int64_t n, const double* qpos, int64_t nmo
   for (const int id : mocap_) {
     for (int e = 0; e < 3; ++e) reach += largest(nmocap_rows, mocap_pos + 3 * id + e, stride, 0.0);
   }
-  if (!(reach <= kWorldReach)) {
-    exact_ = true;
-    return 0.0;
-  }
+  // (Exact poses are within the tolerance too: it is the model's either way.)
+  exact_ = !(reach <= kWorldReach);
   return tolerance_;
 }
 
@@ -590,11 +592,12 @@ void KnotKinematics::RunKnots(int64_t n, const double* const* qpos, const double
       q[k] = qpos[at], mp[k] = mocap_pos[at], mq[k] = mocap_quat[at];
     }
     Lanes4(nact, q, mp, mq, pos + j, mat + j);
-    if (fault_ && !checked_ && nslot > 0) pos[j][0] = std::nextafter(pos[j][0], HUGE_VAL);
-    if (!checked_) {
+    bool& checked = checked_[exact_ ? 1 : 0];  // (each way of taking the hinges checked)
+    if (fault_ && !checked && nslot > 0) pos[j][0] = std::nextafter(pos[j][0], HUGE_VAL);
+    if (!checked) {
       // The self-check: the first batch again one knot at a time, byte for byte; on a
       // difference, lanes go off and this batch is computed again below.
-      checked_ = true;
+      checked = true;
       std::vector<double> p1(3 * nslot), r1(9 * nslot);
       for (int k = 0; k < nact && !failed_; ++k) {
         Run(q[k], mp[k], mq[k], p1.data(), r1.data());

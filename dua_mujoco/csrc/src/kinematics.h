@@ -65,21 +65,22 @@ class DUA_API KnotKinematics {
   void RunKnots(int64_t n, const double* const* qpos, const double* const* mocap_pos,
                 const double* const* mocap_quat, double* const* pos, double* const* mat);
   // Readies the next knots' hinges for n knots of rows qpos (n, nq) and mocap_pos (nmocap_rows,
-  // nmocap, 3), and returns how far (metres) any point of a kept geom's box may then lie from
-  // where mj_kinematics puts it, at any of those knots, and how far any kept frame's rotation
-  // may turn a vector of that box: 0 where no kept body has a hinge (the poses are
-  // mj_kinematics' bit for bit); else the model's bound of docs/theory.md, section 8 ("The
-  // knots' hinges"), the same for every plan, or, where the rows' slides, free bodies and mocap
-  // bodies reach past kWorldReach metres, 0 with every hinge by libmujoco's call.
+  // nmocap, 3): by the polynomials, or, where the rows' slides, free bodies and mocap bodies
+  // reach past kWorldReach metres, by libmujoco's call. Returns tolerance().
   double HingeTolerance(int64_t n, const double* qpos, int64_t nmocap_rows,
                         const double* mocap_pos);
-  // The bound's unit (relative rounding per kept body and metre), and the reach of the world
-  // (metres) it allows for beyond the model's own lengths.
+  // How far (metres) any point of a kept geom's box may lie from where mj_kinematics puts it,
+  // and how far a kept frame's rotation may move a vector of the world: 0 where no kept body
+  // has a hinge (the poses are mj_kinematics' bit for bit); else the model's bound of
+  // docs/theory.md, section 8 ("The knots' hinges"), the same for every plan, the hinges taken
+  // either way.
+  double tolerance() const { return tolerance_; }
+  // The bound's unit (relative rounding per kept body or hinge and metre), and the reach of the
+  // world (metres) it allows for beyond the model's own lengths.
   static constexpr double kToleranceUnit = 0x1p-42;
   static constexpr double kWorldReach = 1000.0;
   // Every hinge by libmujoco's call (true) or by the polynomials (false); HingeTolerance sets it.
   void SetExactHinges(bool on) { exact_ = on; }
-  bool exact_hinges() const { return exact_; }
   // Test hooks: lanes off (every knot by Run) or on; a flipped bit in the lanes' first pose
   // (the fault the self-check must catch). lanes(): whether RunKnots computes in lanes.
   void SetLanes(bool on) { lanes_ = on; }
@@ -119,7 +120,7 @@ class DUA_API KnotKinematics {
   std::vector<double> lane_buf_;
   Lanes *lxpos_ = nullptr, *lxquat_ = nullptr, *lxmat_ = nullptr, *lxipos_ = nullptr,
         *lximat_ = nullptr;
-  bool lanes_ = true, checked_ = false, failed_ = false, fault_ = false, exact_ = false;
+  bool lanes_ = true, checked_[2] = {false, false}, failed_ = false, fault_ = false, exact_ = false;
   // HingeTolerance's: the kept bodies' joints by type and mocap ids, and the lengths (model
   // constants) on the kept bodies' paths to a moving geom's farthest point.
   std::vector<int> hinge_, slide_, free_, mocap_;

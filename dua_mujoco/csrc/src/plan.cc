@@ -816,11 +816,14 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
   KnotKinematics* km = !own ? nullptr : kinematics != nullptr ? kinematics : mine.get();
   // How far the knots' poses may lie from mj_kinematics' (their hinges by polynomials,
   // kinematics.h), added to every deviation the plan declares (docs/theory.md, section 8, "The
-  // knots' hinges"); 0 where they are mj_kinematics' bit for bit.
-  const double tolerance = km == nullptr ? 0.0
-                                         : km->HingeTolerance(n, in.qpos, mocap ? n : 1,
-                                                              mocap ? in.mocap_pos : s->mocap_pos);
-  exact_hinges_ = km == nullptr || km->exact_hinges();
+  // knots' hinges"): the model's, whichever way these knots are computed, so that every plan of
+  // a runtime declares the same.
+  double tolerance = 0.0;
+  if (km != nullptr) {
+    tolerance = km->HingeTolerance(n, in.qpos, mocap ? n : 1, mocap ? in.mocap_pos : s->mocap_pos);
+  } else if (kinematics != nullptr) {
+    tolerance = kinematics->tolerance();
+  }
   tolerance_ = tolerance;
   std::string why = Relative(m, in, holds, tolerance);
   if (!why.empty()) return why;
@@ -842,9 +845,7 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
     double* rj = mat_.data() + 9 * nslot_ * j;
     // The same rows at the same time in the plan replaced: its poses, bit for bit.
     const int64_t i = prev != nullptr ? prev->KnotOf(in.start + static_cast<double>(j) * h) : -1;
-    // (Not a knot of polynomial hinges into a plan of exact ones: it declares no tolerance.)
-    if (i >= 0 && prev->slot_ == slot_ && SameRow(j, *prev, i) &&
-        (prev->exact_hinges_ || !exact_hinges_)) {
+    if (i >= 0 && prev->slot_ == slot_ && SameRow(j, *prev, i)) {
       std::copy_n(prev->pos_.data() + 3 * nslot_ * i, 3 * nslot_, pj);
       std::copy_n(prev->mat_.data() + 9 * nslot_ * i, 9 * nslot_, rj);
     } else if (km) {
@@ -960,9 +961,13 @@ std::string Plan::Relative(const mjModel* m, const dua_plan_input& in,
     for (int64_t c = 0; c < nr; ++c) {
       const int64_t col = order[c].second, a = rel_a(c), b = rel_b(c);
       for (int64_t j = j0; j < j1; ++j) {
-        const double v = in.relative_deviation[nr * j + col];
-        rel_dev_[n * c + j] = v + 3.0 * tolerance;  // (docs/theory.md, section 8)
-        const double now = std::min(in.deviation[nbody * j + a] + in.deviation[nbody * j + b], v);
+        // Widened as the walk reads them (docs/theory.md, section 8, "The knots' hinges"):
+        // each body's fl(D + T) (Finish), the pair's fl(D_ab + 3T); the rises are of those.
+        const double wide = in.relative_deviation[nr * j + col] + 3.0 * tolerance;
+        rel_dev_[n * c + j] = wide;
+        const double da = in.deviation[nbody * j + a] + tolerance;
+        const double db = in.deviation[nbody * j + b] + tolerance;
+        const double now = std::min(da + db, wide);
         if (j > 0 && now < last[c]) rel_rises_[c] = 0;
         last[c] = now;
       }

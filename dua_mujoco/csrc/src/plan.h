@@ -137,10 +137,12 @@ class Plan {
   // The plan `in` (dua_plan_input), h the model's timestep; spheres (nsphere, 8) the covering's
   // records, whose centres the sweeps bound too. The poses and sweeps kept are those of
   // `geoms` (sorted ids: every geom a pair, a check or a plane may read; any other reads as not
-  // a number, its sweep +inf), each knot's computed by mj_kinematics on scratch (an mjData of
-  // m), or copied from `prev` (the plan replaced, or null) where it has a knot at the same time
-  // with the same rows (joint positions and mocap poses, bit for bit: the same poses). pool
-  // (or null) recycles the buffers. Returns an error message naming the bad input, or "".
+  // a number, its sweep +inf), each knot's computed by `kinematics` (or a KnotKinematics of its
+  // own; mj_kinematics on scratch, an mjData of m, with flexes or sleep), or copied from `prev`
+  // (the plan replaced, or null) where it has a knot at the same time with the same rows (joint
+  // positions and mocap poses, bit for bit: the same poses). Every deviation is widened by the
+  // model's knot tolerance (KnotKinematics::HingeTolerance; relative ones by three times it).
+  // pool (or null) recycles the buffers. Returns an error message naming the bad input, or "".
   std::string Build(const mjModel* m, mjData* scratch, const dua_plan_input& in, double h,
                     const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms,
                     const Plan* prev, std::shared_ptr<PlanPool> pool,
@@ -251,10 +253,7 @@ class Plan {
   static const double kNoSweep;
   int64_t nknot_ = 0, ngeom_ = 0, nbody_ = 0, nq_ = 0, nmocap_ = 0, nslot_ = 0;
   double start_ = 0.0, h_ = 0.0;
-  // How far the knots' poses may lie from mj_kinematics' (added to every deviation); whether
-  // every hinge was computed by libmujoco's call.
-  double tolerance_ = 0.0;
-  bool exact_hinges_ = true;
+  double tolerance_ = 0.0;     // how far the knots' poses may lie from mj_kinematics'
   std::vector<int64_t> slot_;  // (ngeom,) each geom's column of the poses (-1: not kept)
   Buffer pos_, mat_, sweep_;   // (nknot, nslot, 3 / 9 / 1)
   std::vector<double> dev_;    // (nknot, nbody)
