@@ -498,7 +498,7 @@ def test_plans_near_and_past_the_worlds_reach_follow_a_run_that_is_them() -> Non
     # exactly (deviation 0) every 20 steps, the plans before it within reach (polynomial hinges)
     # and after it past (exact ones), each replan copying the knots it shares with the plan it
     # replaces: no break, and every plan declares the model's tolerance.
-    from dua_mujoco import Predictor
+    from dua_mujoco import Predictor, plan_from_controls
 
     model = mujoco.MjModel.from_xml_string(_RAIL)
     model.opt.gravity[:] = 0.0
@@ -511,13 +511,8 @@ def test_plans_near_and_past_the_worlds_reach_follow_a_run_that_is_them() -> Non
     tolerances = []
     for k in range(200):
         if k % 20 == 0:
-            sim = mujoco.MjData(model)
-            mujoco.mj_copyData(sim, model, d)
-            rows = [sim.qpos.copy()]
-            for _ in range(60):
-                mujoco.mj_step(model, sim)
-                rows.append(sim.qpos.copy())
-            p.set_plan(np.array(rows), deviation=0.0, start=d.time)
+            rows = plan_from_controls(model, d, np.zeros((60, model.nu)))
+            p.set_plan(rows, deviation=0.0, start=d.time)
             tolerances.append(p.plan_tolerance)
         mujoco.mj_step(model, d)
         p.step(d)
