@@ -4,7 +4,7 @@
 over the bodies that carry them (MuJoCo's arithmetic, call for call), not ``mj_kinematics``. A
 hinge's sine and cosine are the one exception: polynomials in lanes (``HalfAngleSinCos``) where
 libmujoco calls ``sin`` and ``cos``, each within ``SIN_COS_ERROR`` of the exact value. So every
-pose lies within the plan's tolerance (``KnotKinematics::HingeTolerance``, added to every
+pose lies within the plan's tolerance (``KnotKinematics::tolerance``, added to every
 deviation the plan declares) of ``mj_kinematics``', and the plan's check of a run that follows it
 exactly (deviation 0) never breaks it. These hold:
 
@@ -130,17 +130,23 @@ def _bits(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)
 
 
-def _same_as_mujoco(model: mujoco.MjModel, geoms: np.ndarray, rows: int = 12) -> None:
-    """KnotKinematics on ``geoms`` with every hinge exact gives mj_kinematics' frames, bit for
-    bit, for every body it computes and every geom, on ``rows`` draws; the bodies it computes
-    are the geoms' bodies and their ancestors (no other)."""
-    geoms = np.asarray(geoms, dtype=np.int64)
+def _kept_bodies(model: mujoco.MjModel, geoms: np.ndarray) -> set[int]:
+    """The bodies KnotKinematics computes for ``geoms``: theirs and their ancestors (no world)."""
     need = set()
     for g in geoms:
         b = int(model.geom_bodyid[g])
         while b:
             need.add(b)
             b = int(model.body_parentid[b])
+    return need
+
+
+def _same_as_mujoco(model: mujoco.MjModel, geoms: np.ndarray, rows: int = 12) -> None:
+    """KnotKinematics on ``geoms`` with every hinge exact gives mj_kinematics' frames, bit for
+    bit, for every body it computes and every geom, on ``rows`` draws; the bodies it computes
+    are the geoms' bodies and their ancestors (no other)."""
+    geoms = np.asarray(geoms, dtype=np.int64)
+    need = _kept_bodies(model, geoms)
     d = mujoco.MjData(model)
     rng = np.random.default_rng(model.nbody * 1000 + model.ngeom)
     for qpos, mocap_pos, mocap_quat in _draws(model, rng, rows):
@@ -331,15 +337,11 @@ def _lanes_same_as_mujoco(model: mujoco.MjModel, geoms: np.ndarray, n: int, seed
 
 def _kept_hinge(model: mujoco.MjModel, geoms: np.ndarray) -> bool:
     """Whether a hinge moves a body that carries one of ``geoms`` or is an ancestor of one."""
-    hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
-    for g in geoms:
-        b = int(model.geom_bodyid[g])
-        while b:
-            adr, num = int(model.body_jntadr[b]), int(model.body_jntnum[b])
-            if any(int(model.jnt_type[j]) == hinge for j in range(adr, adr + num)):
-                return True
-            b = int(model.body_parentid[b])
-    return False
+    hinge, kept = int(mujoco.mjtJoint.mjJNT_HINGE), _kept_bodies(model, geoms)
+    return any(
+        int(model.jnt_type[j]) == hinge and int(model.jnt_bodyid[j]) in kept
+        for j in range(model.njnt)
+    )
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 6, 7, 9])

@@ -255,7 +255,7 @@ std::string StaticMismatchOf(nb::handle model, const In<double>& records) {
   return StaticMismatch(m, r);
 }
 
-// KnotKinematics::RunKnots (kinematics.h) on n rows, as Plan::Build calls it (HingeTolerance
+// KnotKinematics::RunKnots (kinematics.h) on n rows, as Plan::Build calls it (ReadyHinges
 // first, or every hinge exact): the geoms' poses (n, ngeom, 3) and (n, ngeom, 9) with lanes on
 // or off (and, with fault, a flipped bit in the lanes' first pose for the self-check to catch),
 // whether lanes computed them, and the model's tolerance (a plan adds it to its deviations).
@@ -276,7 +276,7 @@ nb::tuple KnotKinematicsRows(nb::handle model, const In<int64_t>& geoms, const I
   if (exact) {
     k.SetExactHinges(true);
   } else {
-    k.HingeTolerance(n, qpos.data(), n, mocap_pos.data());
+    k.ReadyHinges(n, qpos.data(), n, mocap_pos.data());
   }
   const double tolerance = k.tolerance();
   const size_t ng = ids.size();

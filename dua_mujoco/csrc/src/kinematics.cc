@@ -140,7 +140,7 @@ DUA_INLINE void Local2Global(const T* bpos, const T* bquat, const T* bmat, const
 // lanes at a time), each within kSinCosError of the exact value where |a/2| <= kHalfAngleMax
 // (docs/theory.md, section 8, "The knots' hinges"), and libmujoco's own call past it. At a = 0
 // (a hinge at qpos0) it is mju_axisAngle2Quat's (1, 0, 0, 0), bit for bit. What a knot's pose
-// can then lie from mj_kinematics' is bounded by KnotKinematics::HingeTolerance and added to every
+// can then lie from mj_kinematics' is bounded by KnotKinematics::tolerance and added to every
 // deviation a plan built on these knots declares.
 constexpr double kPio2Hi = 0x1.921fb544p0;           // pi/2's first 33 bits (k kPio2Hi exact)
 constexpr double kPio2Lo = 0x1.0b4611a626331p-34;    // pi/2 - kPio2Hi, rounded
@@ -249,12 +249,14 @@ KnotKinematics::KnotKinematics(const mjModel* m, const std::vector<int64_t>& geo
       GeomFrame(s, still_pos_.data() + 3 * s, still_mat_.data() + 9 * s);
     }
   }
-  // HingeTolerance's model constants: the kept bodies' joints by type, their mocap bodies, and
-  // every length a kept frame adds on its way from the world to a moving geom's farthest point.
+  // The tolerance's model constants and ReadyHinges' inputs: the kept bodies' joints by type,
+  // their mocap bodies, and every length a kept frame adds on its way from the world to a moving
+  // geom's farthest point.
+  double reach = 0.0;
   for (const int b : body_) {
-    reach_ += mju_norm3(m->body_pos + 3 * b) + mju_norm3(m->body_ipos + 3 * b);
+    reach += mju_norm3(m->body_pos + 3 * b) + mju_norm3(m->body_ipos + 3 * b);
     for (int j = m->body_jntadr[b]; j < m->body_jntadr[b] + m->body_jntnum[b]; ++j) {
-      reach_ += mju_norm3(m->jnt_pos + 3 * j);
+      reach += mju_norm3(m->jnt_pos + 3 * j);
       const int type = m->jnt_type[j];
       if (type == mjJNT_HINGE) hinge_.push_back(j);
       if (type == mjJNT_SLIDE) slide_.push_back(j);
@@ -268,10 +270,9 @@ KnotKinematics::KnotKinematics(const mjModel* m, const std::vector<int64_t>& geo
     far = std::max(far, mju_norm3(m->geom_pos + 3 * g) + m->geom_rbound[g] +
                             mju_norm3(m->geom_aabb + 6 * g) + mju_norm3(m->geom_aabb + 6 * g + 3));
   }
-  reach_ += far;
   if (!hinge_.empty()) {
-    tolerance_ =
-        kToleranceUnit * static_cast<double>(1 + n + hinge_.size()) * (1.0 + reach_ + kWorldReach);
+    tolerance_ = kToleranceUnit * static_cast<double>(1 + n + hinge_.size()) *
+                 (1.0 + (reach + far) + kWorldReach);
   }
   // The lanes' frames: a still body's in every lane, once (the moving ones' at each batch).
   lane_buf_.assign(kLanes * (28 * n + 1), 0.0);
@@ -547,13 +548,12 @@ DUA_LANES_CLONES void HalfAngleSinCosOf(int64_t n, const double* x, double* sn, 
   for (; i < n; ++i) HalfAngleSinCos(x[i], sn + i, cs + i);
 }
 
-double KnotKinematics::HingeTolerance(int64_t n, const double* qpos, int64_t nmocap_rows,
-                                      const double* mocap_pos) {
+void KnotKinematics::ReadyHinges(int64_t n, const double* qpos, int64_t nmocap_rows,
+                                 const double* mocap_pos) {
   const mjModel* m = m_;
   const int64_t nq = m->nq, stride = 3 * m->nmocap;
   exact_ = false;
-  // No hinge among the kept bodies: every pose is mj_kinematics' bit for bit (tolerance 0).
-  if (hinge_.empty()) return 0.0;
+  if (hinge_.empty()) return;  // (nothing to take either way: tolerance 0)
   // The lengths the knots' data add (slides' travel, free and mocap bodies' places), within the
   // world the bound allows for, or every hinge by libmujoco's call. (The bound itself is the
   // model's: the same for every plan, so a replan on the same rows nests in the plan it
@@ -576,7 +576,6 @@ double KnotKinematics::HingeTolerance(int64_t n, const double* qpos, int64_t nmo
   }
   // (Exact poses are within the tolerance too: it is the model's either way.)
   exact_ = !(reach <= kWorldReach);
-  return tolerance_;
 }
 
 void KnotKinematics::RunKnots(int64_t n, const double* const* qpos, const double* const* mocap_pos,

@@ -8,7 +8,7 @@
 // zero), the inertial frames no kept geom sits at, the world body's frames, and every other geom,
 // site, camera and light. A hinge's sine and cosine are the one departure: polynomials (within
 // kSinCosError, where libmujoco calls sin and cos: half of a robot's knots' kinematics), so each
-// pose lies within HingeTolerance of mj_kinematics' (a plan adds it to every deviation), and is
+// pose lies within tolerance() of mj_kinematics' (a plan adds it to every deviation), and is
 // mj_kinematics' bit for bit with the hinges exact (SetExactHinges; tests/test_knot_kinematics.py
 // holds both on every bundled scene and every joint type). RunKnots computes four knots at once
 // in AVX2 lanes (the same IEEE operations, in the order libmujoco's compiled helpers take them:
@@ -66,9 +66,8 @@ class DUA_API KnotKinematics {
                 const double* const* mocap_quat, double* const* pos, double* const* mat);
   // Readies the next knots' hinges for n knots of rows qpos (n, nq) and mocap_pos (nmocap_rows,
   // nmocap, 3): by the polynomials, or, where the rows' slides, free bodies and mocap bodies
-  // reach past kWorldReach metres, by libmujoco's call. Returns tolerance().
-  double HingeTolerance(int64_t n, const double* qpos, int64_t nmocap_rows,
-                        const double* mocap_pos);
+  // reach past kWorldReach metres, by libmujoco's call. The tolerance is the same either way.
+  void ReadyHinges(int64_t n, const double* qpos, int64_t nmocap_rows, const double* mocap_pos);
   // How far (metres) any point of a kept geom's box may lie from where mj_kinematics puts it,
   // and how far a kept frame's rotation may move a vector of the world: 0 where no kept body
   // has a hinge (the poses are mj_kinematics' bit for bit); else the model's bound of
@@ -79,7 +78,7 @@ class DUA_API KnotKinematics {
   // world (metres) it allows for beyond the model's own lengths.
   static constexpr double kToleranceUnit = 0x1p-42;
   static constexpr double kWorldReach = 1000.0;
-  // Every hinge by libmujoco's call (true) or by the polynomials (false); HingeTolerance sets it.
+  // Every hinge by libmujoco's call (true) or by the polynomials (false); ReadyHinges sets it.
   void SetExactHinges(bool on) { exact_ = on; }
   // Test hooks: lanes off (every knot by Run) or on; a flipped bit in the lanes' first pose
   // (the fault the self-check must catch). lanes(): whether RunKnots computes in lanes.
@@ -121,10 +120,9 @@ class DUA_API KnotKinematics {
   Lanes *lxpos_ = nullptr, *lxquat_ = nullptr, *lxmat_ = nullptr, *lxipos_ = nullptr,
         *lximat_ = nullptr;
   bool lanes_ = true, checked_[2] = {false, false}, failed_ = false, fault_ = false, exact_ = false;
-  // HingeTolerance's: the kept bodies' joints by type and mocap ids, and the lengths (model
-  // constants) on the kept bodies' paths to a moving geom's farthest point.
+  // ReadyHinges': the kept bodies' joints by type and mocap ids; the tolerance (a constant).
   std::vector<int> hinge_, slide_, free_, mocap_;
-  double reach_ = 0.0, tolerance_ = 0.0;
+  double tolerance_ = 0.0;
 };
 
 }  // namespace dua

@@ -818,13 +818,10 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
   // kinematics.h), added to every deviation the plan declares (docs/theory.md, section 8, "The
   // knots' hinges"): the model's, whichever way these knots are computed, so that every plan of
   // a runtime declares the same.
-  double tolerance = 0.0;
-  if (km != nullptr) {
-    tolerance = km->HingeTolerance(n, in.qpos, mocap ? n : 1, mocap ? in.mocap_pos : s->mocap_pos);
-  } else if (kinematics != nullptr) {
-    tolerance = kinematics->tolerance();
-  }
-  tolerance_ = tolerance;
+  if (km != nullptr)
+    km->ReadyHinges(n, in.qpos, mocap ? n : 1, mocap ? in.mocap_pos : s->mocap_pos);
+  const KnotKinematics* tk = km != nullptr ? km : kinematics;
+  const double tolerance = tk != nullptr ? tk->tolerance() : 0.0;
   std::string why = Relative(m, in, holds, tolerance);
   if (!why.empty()) return why;
   qpos_.assign(in.qpos, in.qpos + n * nq);
@@ -1095,7 +1092,7 @@ std::string Plan::Finish(const mjModel* m, int64_t n, const std::vector<int64_t>
       if (!why.empty()) return why;
     }
   }
-  start_ = start, h_ = h;
+  start_ = start, h_ = h, tolerance_ = tolerance;
   dev_.assign(deviation, deviation + n * nbody);
   // The knots' tolerance on every moving body (its poses within it of mj_kinematics'); a static
   // body never moves: its deviation is 0 whatever was given.

@@ -141,7 +141,7 @@ class Plan {
   // own; mj_kinematics on scratch, an mjData of m, with flexes or sleep), or copied from `prev`
   // (the plan replaced, or null) where it has a knot at the same time with the same rows (joint
   // positions and mocap poses, bit for bit: the same poses). Every deviation is widened by the
-  // model's knot tolerance (KnotKinematics::HingeTolerance; relative ones by three times it).
+  // model's knot tolerance (KnotKinematics::tolerance; relative ones by three times it).
   // pool (or null) recycles the buffers. Returns an error message naming the bad input, or "".
   std::string Build(const mjModel* m, mjData* scratch, const dua_plan_input& in, double h,
                     const double* spheres, int64_t nsphere, const std::vector<int64_t>& geoms,
@@ -221,7 +221,7 @@ class Plan {
     return s < 0 ? kNoSweep : sweep_[nslot_ * k + s];
   }
   double dev(int64_t k, int64_t b) const { return dev_[nbody_ * k + b]; }
-  // The knots' tolerance (metres) every deviation was widened by (KnotKinematics::HingeTolerance).
+  // The knots' tolerance (metres) every deviation was widened by (KnotKinematics::tolerance).
   double tolerance() const { return tolerance_; }
   // Whether body b's deviation is non-decreasing over the knots (a knot walk may then search
   // for the first knot its carried gap does not clear, docs/theory.md, section 8).
