@@ -1150,6 +1150,18 @@ MUTANTS: tuple[Mutant, ...] = (
         "deviation 0, is found beyond it (its poses are MuJoCo's, the knots' within T of them)",
     ),
     Mutant(
+        "plan-query-tolerance-its-own",
+        _PLAN,
+        ", prev != nullptr ? prev->tolerance() : 0.0);",
+        ", 0.0);",
+        (
+            "tests/test_knot_kinematics.py::"
+            "test_a_query_that_copies_the_plans_knots_declares_the_plans_tolerance",
+        ),
+        "a candidate plan with knots of its own by mj_kinematics (sleep on) declares its own "
+        "tolerance, 0, while it copies the followed plan's knots that the polynomials computed",
+    ),
+    Mutant(
         "plan-relative-tolerance-not-added",
         _PLAN,
         "        const double wide = in.relative_deviation[nr * j + col] + 3.0 * tolerance;",

@@ -453,6 +453,12 @@ class Runtime:
     def plan_tolerance(self) -> float: ...
 
     @property
+    def plan_query_tolerance(self) -> float:
+        """
+        The tolerance the latest plan_query's candidate declared (Plan::tolerance); for tests.
+        """
+
+    @property
     def plan_queries(self) -> int: ...
 
     @property

@@ -232,6 +232,35 @@ def test_a_run_that_is_the_plan_never_breaks_it_at_deviation_0() -> None:
     assert p.plan_tolerance > 0.0  # (its hinges by the polynomials: the case in question)
 
 
+def test_a_query_that_copies_the_plans_knots_declares_the_plans_tolerance() -> None:
+    # A candidate (plan_contact_knots) copies the knots it shares with the plan followed, poses
+    # and all. With sleep on, the candidate's own knots are mj_kinematics' (no KnotKinematics,
+    # tolerance 0 of its own), while the copied ones came from the polynomials: it must declare
+    # the followed plan's tolerance, or its verdicts would read poses up to that far off against
+    # deviations not widened for them.
+    from dua_mujoco import Predictor, plan_from_controls
+
+    model = mujoco.MjModel.from_xml_string(JOINTS)
+    model.opt.gravity[:] = 0.0
+    d = mujoco.MjData(model)
+    d.qvel[:] = np.random.default_rng(5).normal(0.0, 1.0, model.nv)
+    mujoco.mj_forward(model, d)
+    p = Predictor(model, accel=50.0, alarm_horizon=0.05)
+    p.reset(d)
+    start = d.time
+    rows = plan_from_controls(model, d, np.zeros((30, model.nu)))
+    p.set_plan(rows, deviation=0.0, start=start)
+    mujoco.mj_step(model, d)  # the state the query starts from: the plan's first knot
+    p.step(d)
+    pairs = np.array([[0, g] for g in range(1, model.ngeom)])
+    without_sleep = p.plan_contact_knots(rows, pairs, deviation=0.0, start=start)
+    assert p._rt.plan_query_tolerance == p.plan_tolerance > 0.0
+    model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    with_sleep = p.plan_contact_knots(rows, pairs, deviation=0.0, start=start)
+    assert p._rt.plan_query_tolerance == p.plan_tolerance
+    np.testing.assert_array_equal(with_sleep, without_sleep)
+
+
 # set_plan's path: KnotKinematics::RunKnots computes four knots at once in AVX2 lanes (the last
 # two or three together, a lone last one alone) and holds its first batch to the one-knot path
 # byte for byte, falling back to it for good on a difference. The rows below hold the lanes to

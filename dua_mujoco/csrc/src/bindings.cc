@@ -1405,6 +1405,9 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
                      const Plan* p = s.rt->plan();
                      return p != nullptr ? p->tolerance() : 0.0;
                    })
+      .def_prop_ro(
+          "plan_query_tolerance", [](const PyRuntime& s) { return s.rt->query_tolerance(); },
+          "The tolerance the latest plan_query's candidate declared (Plan::tolerance); for tests.")
       .def_prop_ro("plan_queries", [](const PyRuntime& s) { return s.rt->plan_queries(); })
       .def_prop_ro("exact_queries", [](const PyRuntime& s) { return s.rt->exact_queries(); })
       .def_prop_ro(

@@ -821,7 +821,11 @@ std::string Plan::Build(const mjModel* m, mjData* s, const dua_plan_input& in, d
   if (km != nullptr)
     km->ReadyHinges(n, in.qpos, mocap ? n : 1, mocap ? in.mocap_pos : s->mocap_pos);
   const KnotKinematics* tk = km != nullptr ? km : kinematics;
-  const double tolerance = tk != nullptr ? tk->tolerance() : 0.0;
+  // A knot copied from the plan replaced (below) keeps its poses, so this plan declares at least
+  // that plan's tolerance: a query on a model whose flexes or sleep call for mj_kinematics (no
+  // kinematics of its own) may copy knots that the polynomials computed.
+  const double tolerance =
+      std::max(tk != nullptr ? tk->tolerance() : 0.0, prev != nullptr ? prev->tolerance() : 0.0);
   std::string why = Relative(m, in, holds, tolerance);
   if (!why.empty()) return why;
   qpos_.assign(in.qpos, in.qpos + n * nq);

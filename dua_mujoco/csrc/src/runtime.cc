@@ -809,6 +809,7 @@ std::string Runtime::PlanQuery(const mjModel* m, const mjData* d, const dua_plan
   std::string error = plan.Build(m, query_data_.get(), candidate, m->opt.timestep, t.spheres.data(),
                                  t.nsphere(), plan_geoms_, plan_.get(), nullptr);
   if (!error.empty()) return error;
+  query_tolerance_ = plan.tolerance();
   for (int b = 0; b < m->nbody; ++b) {
     if (plan.holds(b) && unboxed_[b]) {
       return "holds body " + std::to_string(b) +

@@ -153,6 +153,8 @@ class DUA_API Runtime {
   // Bodies found beyond their deviation (of the plan, or of a shadow over its span), so far.
   int64_t plan_breaks() const { return plan_breaks_; }
   int64_t plan_queries() const { return args_.plan.queries; }
+  // The tolerance the latest PlanQuery's candidate plan declared (Plan::tolerance; tests).
+  double query_tolerance() const { return query_tolerance_; }
   // The exact level's mj_geomDistance calls so far (the plan's apart).
   int64_t exact_queries() const { return args_.exact.queries; }
   // The bodies of d's state beyond their deviation at its knot, of the plan and of the shadows
@@ -416,6 +418,7 @@ class DUA_API Runtime {
   };
   std::unique_ptr<mjData, DataDeleter> plan_data_;
   mutable std::unique_ptr<mjData, DataDeleter> query_data_;  // PlanQuery's scratch
+  mutable double query_tolerance_ = 0.0;  // the latest PlanQuery plan's tolerance (for tests)
   std::vector<uint8_t> plan_ok_, planned_, basis_, basis_prev_;
   // A replaced plan, checked until `until` (state time) on the bodies ok when it was replaced
   // and not found beyond it since; the state time each was found beyond it (NaN: not), and
