@@ -450,7 +450,10 @@ class Runtime:
         """
 
     @property
-    def plan_tolerance(self) -> float: ...
+    def plan_tolerance(self) -> float:
+        """
+        The tolerance the plan followed declared (Plan::tolerance; 0 without a plan).
+        """
 
     @property
     def plan_query_tolerance(self) -> float:

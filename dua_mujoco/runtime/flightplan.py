@@ -415,10 +415,11 @@ class PlanFollowing:
 
     @property
     def plan_tolerance(self) -> float:
-        """Metres the current plan added to every deviation it was given (0 without a plan, or
-        where its poses are ``mj_kinematics``' bit for bit): how far the knots' poses may lie from
-        MuJoCo's, their hinges' sines and cosines taken by polynomials (docs/plans.md). A run that
-        is the plan stays within it, so an exact plan (deviation 0) never breaks."""
+        """Metres the current plan added to every deviation it was given (three times it to a
+        relative one): how far the knots' poses may lie from MuJoCo's, their hinges' sines and
+        cosines taken by polynomials (docs/plans.md). The model's, the same for every plan; 0
+        without a plan, or where no planned geom's body turns on a hinge. A run that is the plan
+        stays within it, so an exact plan (deviation 0) never breaks."""
         return float(self._rt.plan_tolerance)
 
     @property

@@ -1400,11 +1400,13 @@ void BindRuntime(nb::module_& m, nb::handle step_error) {
           nb::rv_policy::move,
           "(nrel,) per relative pair of the plan (sorted by body pair) whether min(D_a + D_b, "
           "D_ab), as the walk reads them, never falls (Plan::Relative); for tests.")
-      .def_prop_ro("plan_tolerance",
-                   [](const PyRuntime& s) {
-                     const Plan* p = s.rt->plan();
-                     return p != nullptr ? p->tolerance() : 0.0;
-                   })
+      .def_prop_ro(
+          "plan_tolerance",
+          [](const PyRuntime& s) {
+            const Plan* p = s.rt->plan();
+            return p != nullptr ? p->tolerance() : 0.0;
+          },
+          "The tolerance the plan followed declared (Plan::tolerance; 0 without a plan).")
       .def_prop_ro(
           "plan_query_tolerance", [](const PyRuntime& s) { return s.rt->query_tolerance(); },
           "The tolerance the latest plan_query's candidate declared (Plan::tolerance); for tests.")
