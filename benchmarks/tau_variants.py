@@ -21,6 +21,17 @@ the kernel's ``tau*`` with the smaller of the two bounds. It also counts the pai
 breaks that bound somewhere in the run (a pair bound the violation check would have to catch),
 and those whose offset breaks the sum (then a body broke its own, and the check caught it).
 
+*The geom pair's own gap (about the most a geom-pair tau could give).* A pair's tau is that of
+two bounding spheres; a kernel on the geoms themselves (a capsule pair's segments, say) could
+start from their distance instead. The script prices the best such a kernel could do: the same
+root with the spheres' gap ``|x| - eps`` replaced by MuJoCo's distance between the two geoms
+less the pair's margin (``mj_geomDistance``, exact on primitives), the centres' relative
+velocity and the bounds kept. A sound tau on the geoms under the same bounds starts from that
+gap at best, and its closing speed is that of the nearest points rather than the centres': the
+evaluations this leaves are about the floor for any kernel that prices a pair from its geoms.
+The same with the relative velocity taken as zero (``delta`` kept) shows whether the gap or the
+motion sets the intervals.
+
 Bounds come from plugin.py's pilot (``accel="auto"``, ``make_controller``'s random controls,
 seed 99) and the run from the same kind of controller (seed 0). Every ``--every`` steps it takes
 every sphere-sphere pair's taus, and the evaluations a step each would give the deadline
@@ -29,6 +40,7 @@ schedule: the sum over pairs of ``1 / interval(tau)``, the interval as the sched
 
     python benchmarks/tau_variants.py                     # dmc_dog yam go1 franka_kitchen
     python benchmarks/tau_variants.py --robots dmc_dog --steps 600
+    python benchmarks/tau_variants.py --accel 200          # a declared bound instead of auto
 """
 
 from __future__ import annotations
@@ -96,13 +108,36 @@ def _pair_accel(p: Predictor, m: mujoco.MjModel, i: np.ndarray, j: np.ndarray, p
     return level_maxima(largest, measured, PilotMotion(pilot.motion))
 
 
-def measure(name: str, steps: int, every: int) -> dict[str, float]:
-    """Evaluations a step under ``tau*``, ``tau_c`` and ``tau*`` with bounds per pair; quartiles
-    of ``tau_c / tau*``; the share of pairs that break their pair bound in the run."""
+def geom_gap_eps(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    g1: np.ndarray,
+    g2: np.ndarray,
+    x: np.ndarray,
+    margin: np.ndarray,
+) -> np.ndarray:
+    """``(M,)`` the contact distance that gives sphere pairs of centre offsets ``x`` ``(M, 3)``
+    the gap of the geoms they cover, ``g1[k]`` and ``g2[k]``: ``|x| - eps`` is MuJoCo's distance
+    between the two geoms less the pair's ``margin`` (at least 0: where that gap exceeds the
+    centres' distance, eps is 0 and the gap ``|x|``, a lower tau). Each geom pair is asked once."""
+    pairs, back = np.unique(np.stack([g1, g2], axis=1), axis=0, return_inverse=True)
+    dist = np.array([mujoco.mj_geomDistance(m, d, int(a), int(b), 1e3, None) for a, b in pairs])
+    gap = np.maximum(dist[back.ravel()] - margin, 0.0)
+    return np.maximum(np.linalg.norm(x, axis=1) - gap, 0.0)
+
+
+def measure(name: str, steps: int, every: int, accel_option: str) -> dict[str, float]:
+    """Evaluations a step under ``tau*``, ``tau_c``, ``tau*`` with bounds per pair, and ``tau*``
+    from the geoms' gap (with and without the velocity); quartiles of ``tau_c / tau*``; the
+    share of pairs that break their pair bound in the run."""
     m = robot_spec(name).compile()
     controller = make_controller(m, "random", seed=PILOT_SEED)
     pilot = PilotOptions(steps=1000, seed=PILOT_SEED, controller=controller)
-    p = Predictor(m, accel="auto", covering=CoveringOptions(hfield="box"), pilot=pilot)
+    cover = CoveringOptions(hfield="box")
+    if accel_option == "auto":
+        p = Predictor(m, accel="auto", covering=cover, pilot=pilot)
+    else:
+        p = Predictor(m, accel=float(accel_option), covering=cover)
     pairs, dt = p.pair_set, float(m.opt.timestep)
     ids = np.flatnonzero(pairs.kind == 0)
     i, j = pairs.first[ids], pairs.second[ids]
@@ -111,6 +146,8 @@ def measure(name: str, steps: int, every: int) -> dict[str, float]:
     accel = np.broadcast_to(pairs.accel, (n,))[ids]
     delta = np.broadcast_to(pairs.vel_uncertainty, (n,))[ids]
     speed = np.broadcast_to(pairs.speed, (n,))[ids]
+    geom = np.asarray(p.covering.sphere_geom)
+    margin = eps - np.asarray(p.covering.sphere_radius)[i] - np.asarray(p.covering.sphere_radius)[j]
     own = pilot.safety * _pair_accel(p, m, i, j, pilot)
     pair_accel = np.minimum(accel, own)
 
@@ -122,10 +159,10 @@ def measure(name: str, steps: int, every: int) -> dict[str, float]:
     def evaluations(tau: np.ndarray) -> float:
         return float(np.sum(1.0 / np.clip(np.floor(tau / dt), 1, cap)))
 
-    kernel, closed, per_pair, ratios = [], [], [], []
+    kernel, closed, per_pair, ratios, on_geoms, at_rest = [], [], [], [], [], []
     broken = np.zeros(len(ids), dtype=bool)
     broken_sum = np.zeros(len(ids), dtype=bool)
-    for k, (_, x, v, a) in enumerate(_steps(p, m, i, j, RUN_SEED, steps)):
+    for k, (d, x, v, a) in enumerate(_steps(p, m, i, j, RUN_SEED, steps)):
         broken |= a > pair_accel
         broken_sum |= a > accel
         if k % every:
@@ -136,19 +173,36 @@ def measure(name: str, steps: int, every: int) -> dict[str, float]:
             warnings.simplefilter("ignore", BoundViolationWarning)
             tau = time_to_collision(x, v, eps, accel, speed=speed, vel_uncertainty=delta)
             tau_p = time_to_collision(x, v, eps, pair_accel, speed=speed, vel_uncertainty=delta)
+            eps_g = geom_gap_eps(m, d, geom[i], geom[j], x, margin)
+            tau_g = time_to_collision(x, v, eps_g, accel, speed=speed, vel_uncertainty=delta)
+            tau_r = time_to_collision(x, 0 * v, eps_g, accel, vel_uncertainty=delta)
         s = np.linalg.norm(x, axis=1) - eps
         w = np.linalg.norm(v, axis=1) + delta
         tau_c = np.where(s > 0, 2 * s / (w + np.sqrt(w * w + 2 * accel * np.maximum(s, 0))), 0)
         kernel.append(evaluations(tau))
         closed.append(evaluations(tau_c))
         per_pair.append(evaluations(tau_p))
+        on_geoms.append(evaluations(tau_g))
+        at_rest.append(evaluations(tau_r))
         ratios.append(tau_c[tau > 0] / tau[tau > 0])
     q = np.percentile(np.concatenate(ratios), [10, 50, 90])
     return dict(
         kernel=np.mean(kernel), closed=np.mean(closed), per_pair=np.mean(per_pair),
         q10=q[0], q50=q[1], q90=q[2], broken=100.0 * np.mean(broken),
         own=float(np.median(own / accel)), broken_sum=100.0 * np.mean(broken_sum),
+        on_geoms=np.mean(on_geoms), at_rest=np.mean(at_rest), accel=float(np.median(accel)),
     )  # fmt: skip
+
+
+def _accel(text: str) -> str:
+    """``--accel``: ``auto`` or a positive number of m/s^2 (kept as text for ``measure``)."""
+    try:
+        ok = text == "auto" or float(text) > 0
+    except ValueError:
+        ok = False
+    if not ok:
+        raise argparse.ArgumentTypeError(f"{text!r}: pass 'auto' or a positive number of m/s^2")
+    return text
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -156,23 +210,29 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robots", nargs="*", default=list(ROBOTS))
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--every", type=int, default=10, help="steps between samples")
+    ap.add_argument(
+        "--accel", type=_accel, default="auto", help="'auto' (the pilot's) or a declared m/s^2"
+    )
     args = ap.parse_args(argv)
     print(
         "| robot | sphere-sphere evaluations a step, tau* | with tau_c | ratio "
         "| tau_c / tau*: 10th percentile | median | 90th "
         "| pair's own bound / the sum, median | tau* with bounds per pair | ratio "
-        "| pairs breaking theirs in the run | pairs breaking the sum |"
+        "| pairs breaking theirs in the run | pairs breaking the sum "
+        "| pair's A, median | tau* from the geoms' gap | ratio | the same at rest | ratio |"
     )
-    print("|---" * 12 + "|")
+    print("|---" * 17 + "|")
     for k, name in enumerate(args.robots):
         print(f"{name} ({k + 1}/{len(args.robots)})", file=sys.stderr, flush=True)
-        r = measure(name, args.steps, args.every)
+        r = measure(name, args.steps, args.every, args.accel)
         print(
             f"| {name} | {r['kernel']:.0f} | {r['closed']:.0f} | {r['closed'] / r['kernel']:.3f} "
             f"| {r['q10']:.3f} | {r['q50']:.3f} | {r['q90']:.3f} | {r['own']:.2f} "
             f"| {r['per_pair']:.0f} "
             f"| {r['per_pair'] / r['kernel']:.3f} | {r['broken']:.1f} % "
-            f"| {r['broken_sum']:.1f} % |",
+            f"| {r['broken_sum']:.1f} % | {r['accel']:.0f} "
+            f"| {r['on_geoms']:.0f} | {r['on_geoms'] / r['kernel']:.3f} "
+            f"| {r['at_rest']:.0f} | {r['at_rest'] / r['kernel']:.3f} |",
             flush=True,
         )
     return 0
