@@ -88,6 +88,20 @@ def _steps(p: Predictor, m: mujoco.MjModel, i: np.ndarray, j: np.ndarray, seed: 
         yield d, x, u[j] - u[i], a
 
 
+def _pilot(m: mujoco.MjModel) -> PilotOptions:
+    """plugin.py's pilot: 1,000 steps of ``make_controller``'s random controls, seed 99."""
+    controller = make_controller(m, "random", seed=PILOT_SEED)
+    return PilotOptions(steps=1000, seed=PILOT_SEED, controller=controller)
+
+
+def predictor_for(m: mujoco.MjModel, accel: str) -> Predictor:
+    """The predictor of plugin.py's bounds: ``accel`` ``"auto"`` (its pilot) or m/s^2 declared."""
+    cover = CoveringOptions(hfield="box")
+    if accel == "auto":
+        return Predictor(m, accel="auto", covering=cover, pilot=_pilot(m))
+    return Predictor(m, accel=float(accel), covering=cover)
+
+
 def _pair_accel(p: Predictor, m: mujoco.MjModel, i: np.ndarray, j: np.ndarray, pilot: PilotOptions):
     """``(M,)`` each pair's largest relative acceleration on the pilot's motion (its controller
     and seed), measured as the pilot measures a body's: at the steps where both trees pass the
@@ -131,13 +145,8 @@ def measure(name: str, steps: int, every: int, accel_option: str) -> dict[str, f
     from the geoms' gap (with and without the velocity); quartiles of ``tau_c / tau*``; the
     share of pairs that break their pair bound in the run."""
     m = robot_spec(name).compile()
-    controller = make_controller(m, "random", seed=PILOT_SEED)
-    pilot = PilotOptions(steps=1000, seed=PILOT_SEED, controller=controller)
-    cover = CoveringOptions(hfield="box")
-    if accel_option == "auto":
-        p = Predictor(m, accel="auto", covering=cover, pilot=pilot)
-    else:
-        p = Predictor(m, accel=float(accel_option), covering=cover)
+    pilot = _pilot(m)
+    p = predictor_for(m, accel_option)
     pairs, dt = p.pair_set, float(m.opt.timestep)
     ids = np.flatnonzero(pairs.kind == 0)
     i, j = pairs.first[ids], pairs.second[ids]
@@ -194,7 +203,7 @@ def measure(name: str, steps: int, every: int, accel_option: str) -> dict[str, f
     )  # fmt: skip
 
 
-def _accel(text: str) -> str:
+def accel_option(text: str) -> str:
     """``--accel``: ``auto`` or a positive number of m/s^2 (kept as text for ``measure``)."""
     try:
         ok = text == "auto" or float(text) > 0
@@ -211,7 +220,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--every", type=int, default=10, help="steps between samples")
     ap.add_argument(
-        "--accel", type=_accel, default="auto", help="'auto' (the pilot's) or a declared m/s^2"
+        "--accel",
+        type=accel_option,
+        default="auto",
+        help="'auto' (the pilot's) or a declared m/s^2",
     )
     args = ap.parse_args(argv)
     print(

@@ -1,0 +1,79 @@
+"""benchmarks/screen_model.py's pieces: the screen never clears a pair the kernel would put in
+alarm within the horizon, and its waits are the deadline schedule's rule (3) and (3b)."""
+
+from __future__ import annotations
+
+import numpy as np
+from benchmark_scripts import script
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+
+from dua_mujoco import _core
+from dua_mujoco.core.urgency import time_to_collision
+
+coord = st.floats(-2.0, 2.0, allow_subnormal=False)
+velocity = st.floats(-8.0, 8.0, allow_subnormal=False)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    x=st.tuples(coord, coord, coord),
+    v=st.tuples(velocity, velocity, velocity),
+    eps=st.floats(0.0, 0.5),
+    # Bounds of bodies: 0 or from a micrometre a second squared up (at 6e-165 m/s^2 the kernel
+    # gives 0 for a pair a metre apart: a conservative answer on no body's bound).
+    accel=st.one_of(st.just(0.0), st.floats(1e-6, 3000.0)),
+    delta=st.floats(0.0, 10.0),
+    h=st.floats(1e-4, 0.05),
+)
+@example(x=(0.1, 0.0, 0.0), v=(-1.0, 0.0, 0.0), eps=0.02, accel=400.0, delta=1.0, h=0.002)
+def test_a_pair_the_screen_clears_has_a_tau_beyond_the_horizon(
+    x: tuple[float, ...], v: tuple[float, ...], eps: float, accel: float, delta: float, h: float
+) -> None:
+    xs, vs = np.array([x]), np.array([v])
+    one = np.array([eps]), np.array([accel]), np.array([delta])
+    if script("screen_model").screen_passes(xs, vs, *one, h)[0]:
+        tau = time_to_collision(xs, vs, eps, accel, vel_uncertainty=delta)[0]
+        assert tau > h
+
+
+def test_the_screen_clears_a_far_pair_and_not_a_near_one() -> None:
+    x = np.array([[0.1, 0.0, 0.0], [0.023, 0.0, 0.0]])
+    v = np.array([[-1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    eps, accel, delta = np.full(2, 0.02), np.full(2, 400.0), np.full(2, 1.0)
+    # In 2 ms the pair can close (1 + 1) m/s x 2 ms + 400 x (2 ms)^2 / 2 = 4.8 mm: the first
+    # has 8 cm of gap, the second 3 mm, and the kernel puts the second in alarm.
+    passes = script("screen_model").screen_passes(x, v, eps, accel, delta, 0.002)
+    assert passes.tolist() == [True, False]
+    tau = time_to_collision(x, v, 0.02, 400.0, vel_uncertainty=1.0)
+    assert tau[0] > 0.002 > tau[1]
+
+
+def test_the_waits_are_the_native_rule() -> None:
+    dt, cap = 0.002, 1024
+    rng = np.random.default_rng(0)
+    tau = np.concatenate(
+        [
+            rng.uniform(0.0, 0.05, 500),
+            np.arange(0, 40) * dt,  # on the grid: s dt < tau is strict
+            np.nextafter(np.arange(1, 40) * dt, np.inf),
+            [1e-300, (cap + 3) * dt, 10.0, np.inf],
+        ]
+    )
+    got = script("screen_model").intervals(tau, dt, cap)
+    want = [_core.deadline_interval(float(t), dt, 0, cap) for t in tau]
+    np.testing.assert_array_equal(got, want)
+
+
+def test_a_pair_that_alarms_again_backs_off_to_eight() -> None:
+    model = script("screen_model")
+    wheel, dt, h = model.Wheel(1), 0.002, 0.002
+    waits = []
+    step = 1
+    for _ in range(6):
+        wheel.renew(np.array([0]), np.array([0.0]), step, h, dt)
+        waits.append(int(wheel.due[0]) - step)
+        step = int(wheel.due[0])
+    assert waits == [1, 2, 4, 8, 8, 8]
+    wheel.renew(np.array([0]), np.array([0.0101]), step, h, dt)  # clear: rule (3), 5 steps
+    assert int(wheel.due[0]) - step == 5 and not wheel.alarmed[0]
