@@ -132,6 +132,15 @@ MUTANTS: tuple[Mutant, ...] = (
         "a first root before g's interior minimum is skipped for a later one",
     ),
     Mutant(
+        "g1root-capped-at-200",
+        _URGENCY,
+        "constexpr int kG1MaxIter = 2200;",
+        "constexpr int kG1MaxIter = 200;",
+        ("tests/test_urgency.py::test_tiny_accelerations_never_late",),
+        "g's interior minimum is located by a search that stops before its bracket closes, past "
+        "the minimum under tiny bounds: the first root is skipped",
+    ),
+    Mutant(
         "tau-certified-bracket-top",
         _URGENCY,
         "HalleyGuess(x, v, e, d, h, lo, hi, true), &tl)) return tl;",

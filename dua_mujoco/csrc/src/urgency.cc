@@ -144,11 +144,20 @@ double Refine(const double x[3], const double v[3], double e, double d, double h
   return RefineSafe(x, v, e, d, h, lo, hi);
 }
 
+// Steps G1Root may take: enough for bisection alone to close a bracket from the largest double
+// down to the smallest (1,100 halvings from DBL_MAX to the subnormals, then 50 to 1e-15 of the
+// root). Newton cannot help while its step cancels: t - G1(t) / G1'(t) for G1 ~ q t + p0 at t
+// far above the root rounds to 0, so a bracket t_2 over 2^253 times the root takes that many
+// bisections first (a pair a metre away closing at 1 m/s under A below 6e-77 m/s^2). A cap of
+// 200 stopped there and returned a point past the minimum, and TauAccel then started its
+// bracket beyond the first root (docs/theory.md, section 1).
+constexpr int kG1MaxIter = 2200;
+
 // Root of the cubic G1 monotone on [lo, hi] (a sign change there).
 double G1Root(double p3, double p2, double p1, double p0, double lo, double hi, bool increasing) {
   double t = 0.5 * (lo + hi);
   bool probe = false;  // the previous iterate was a probe across a converged point
-  for (int it = 0; it < kMaxIter; ++it) {
+  for (int it = 0; it < kG1MaxIter; ++it) {
     const double val = ((p3 * t + p2) * t + p1) * t + p0;
     if ((val > 0.0) == increasing) {
       hi = t;
