@@ -118,8 +118,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "tau-accel-halved",
         _URGENCY,
-        "p.h = 0.5 * accel * (1.0 + kKappa);",
-        "p.h = 0.25 * accel * (1.0 + kKappa);",
+        "p.h = 0.5 * bound * (1.0 + kKappa);",
+        "p.h = 0.25 * bound * (1.0 + kKappa);",
         ("tests/test_urgency.py::test_random_against_reference", _REF_PAPER),
         "the sphere kernel's reachable ball grows half as fast: tau too late",
     ),
@@ -139,6 +139,26 @@ MUTANTS: tuple[Mutant, ...] = (
         ("tests/test_urgency.py::test_tiny_accelerations_never_late",),
         "g's interior minimum is located by a search that stops before its bracket closes, past "
         "the minimum under tiny bounds: the first root is skipped",
+    ),
+    Mutant(
+        "accel-floor-dropped",
+        _URGENCY,
+        "Select(And(0.0 < accel, accel < kAccelFloor), T{} + kAccelFloor, accel);",
+        "Select(And(0.0 < accel, accel < 0.0), T{} + kAccelFloor, accel);",
+        (
+            "tests/test_urgency.py::test_one_problem_at_tiny_scales_never_late",
+            "tests/test_urgency.py::test_a_slow_pair_under_a_tiny_bound_never_late",
+        ),
+        "a bound whose h^2 v^2 underflows is solved as it is: g's interior minimum is missed "
+        "and the bracket holds three roots",
+    ),
+    Mutant(
+        "unread-predicate-says-never",
+        _URGENCY,
+        "      // 1.3e154): no time past start is certified.\n      return start;",
+        "      // 1.3e154): no time past start is certified.\n      return kInf;",
+        ("tests/test_urgency.py::test_norms_past_the_squares_range_give_zero",),
+        "a first root the predicate could not read (x + v t past 1.3e154 m) is reported never",
     ),
     Mutant(
         "tau-certified-bracket-top",

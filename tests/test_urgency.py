@@ -539,9 +539,10 @@ def test_extreme_accelerations():
 
 
 def test_tiny_accelerations_never_late():
-    """Bounds far below any body's (1e-300 to 1e-12 m/s^2), pairs closing head-on among them:
-    G1Root's bracket then spans t_2 / t_a up to 1e200, which 200 steps did not close (a pair 1 m
-    away closing at 1 m/s got tau = 3.6e76 s under A = 5.6e-77; found by a review in this pass)."""
+    """Bounds far below any body's (1e-300 to 1e-12 m/s^2), pairs closing head-on among them,
+    and head-on speeds far above any body's: G1Root's bracket then spans t_2 / t_a past 2^253,
+    which 200 steps did not close (a pair 1 m away closing at 1 m/s got tau = 3.6e76 s under
+    A = 5.6e-77, and at 1e24 m/s under 1e-30, 2e54 s; found in this pass)."""
     rng = np.random.default_rng(11)
     n = 120
     x = rng.normal(size=(n, 3))
@@ -559,6 +560,50 @@ def test_tiny_accelerations_never_late():
     # reference above holds every value; this says the case is in the sample.
     apart = head_on & (np.linalg.norm(x, axis=1) > eps)
     assert apart.sum() >= 30 and np.all(np.isfinite(tau[apart]))
+    # At the least bound the kernel solves with (1e-30 m/s^2, below), the ratio comes from the
+    # speed: 1e24 m/s head-on puts t_2 / t_a near 2^260.
+    for speed in (1e24, 1e26):
+        x1, v1 = [0.0, 0.0, 1.0], [0.0, 0.0, -speed]
+        t = tau_one(x1, v1, 0.0, 1e-30)
+        assert_all_ok(check_against_ref(t, x1, v1, 0.0, 1e-30, tight=False))
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-80, 1e-100, 1e-110, 1e-150])
+def test_one_problem_at_tiny_scales_never_late(scale):
+    """The same pair in units ``scale`` times smaller (the bound too): where ``h^2 |v|^2``
+    underflowed, t_2 came out too large, g's interior minimum was missed and the bracket held
+    three roots (33.7 s for a first contact before 7.84 s at 1e-100; found by a review in this
+    pass). Bounds below 1e-30 m/s^2 are raised to it: earlier, never later."""
+    x, v = [10.0 * scale, 0.5 * scale, 0.0], [-scale, 0.0, 0.0]
+    eps, accel = scale, 0.04 * scale
+    tau = tau_one(x, v, eps, accel)
+    assert_all_ok(check_against_ref(tau, x, v, eps, accel, tight=False))
+    assert tau <= 7.84
+
+
+@pytest.mark.parametrize("accel", [1.6e-160, 3e-160, 6e-160])
+def test_a_slow_pair_under_a_tiny_bound_never_late(accel):
+    """A pair 1 m away closing at 1 mm/s under bounds whose h |v| is below 1e-154 (the kernel
+    gave 1e157 s for a contact within 914 s; found by review)."""
+    x, v = [1.0, 0.05, 0.0], [-0.001, 0.0, 0.0]
+    tau = tau_one(x, v, 0.1, accel)
+    assert_all_ok(check_against_ref(tau, x, v, 0.1, accel, tight=False))
+    assert tau < 914.0
+
+
+def test_norms_past_the_squares_range_give_zero():
+    """|x| or |x + v t| past 1.3e154 m before the first root: the square overflows and the
+    predicate cannot be read, so no time past the bracket's start is certified. The kernel
+    said never (inf) here, even for a pair already within eps (found by review)."""
+    assert tau_one([1e160, 0.0, 0.0], [0.0, 0.0, 0.0], 2e160, 0.0) == 0.0
+    assert tau_one([1e160, 0.0, 0.0], [0.0, 0.0, 0.0], 0.5e160, 1.0) == 0.0
+    # A = 0 and delta an ulp below |v|: a first root near 7e153 s, where |x + v t|^2 overflows
+    # before the predicate reads it (the kernel said never; found by review).
+    x, v = [2.0826947432393332e149, 6.5633509534326387e147, 0.0], [1.0, 0.0, 0.0]
+    eps, delta = 2.0826947742739203e149, 0.99999999999999201
+    tau = tau_one(x, v, eps, 0.0, vel_uncertainty=delta)
+    assert math.isfinite(tau)
+    assert_all_ok(check_against_ref(tau, x, v, eps, 0.0, delta, tight=False))
 
 
 # --------------------------------------------------------------------------------------------

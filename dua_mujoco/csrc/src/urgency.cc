@@ -228,6 +228,12 @@ struct Inflated {
   T nx, nv, e, d, h, q, p0;
 };
 
+// The least positive acceleration bound the kernel solves with: a smaller one is raised to it
+// (a larger bound only brings tau earlier). Below it, with |v| >= 1e-120 (smaller velocities
+// are rescaled first), h^2 |v|^2 can underflow in HasMinimum's t_2, which then misses g's
+// interior minimum, and the bracket [0, hi] holds three roots (docs/theory.md, section 1).
+constexpr double kAccelFloor = 1e-30;
+
 template <class T>
 Inflated<T> Inflate(const T x[3], const T v[3], T eps, T accel, T delta) {
   Inflated<T> p;
@@ -235,7 +241,8 @@ Inflated<T> Inflate(const T x[3], const T v[3], T eps, T accel, T delta) {
   p.nv = Sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
   p.e = eps * (1.0 + kKappa) + kKappa * p.nx;
   p.d = delta * (1.0 + kKappa) + kKappa * p.nv;
-  p.h = 0.5 * accel * (1.0 + kKappa);
+  const T bound = Select(And(0.0 < accel, accel < kAccelFloor), T{} + kAccelFloor, accel);
+  p.h = 0.5 * bound * (1.0 + kKappa);
   const T a = p.nv * p.nv;
   const T b = x[0] * v[0] + x[1] * v[1] + x[2] * v[2];
   p.q = a - p.d * p.d - 2.0 * p.e * p.h;
@@ -418,7 +425,9 @@ double TauAccel(double x0, double x1, double x2, double v0, double v1, double v2
         if (Predicate(x, v, e, d, h, t) <= 0.0) return Refine(x, v, e, d, h, start, t);
         t *= 2.0;
       }
-      return kInf;
+      // g has a root, but |x + v t|^2 overflowed before the predicate read it (|x + v t| past
+      // 1.3e154): no time past start is certified.
+      return start;
     }
     const double hi = Upper(x, v, e, d, h, start, nx, nv);
     return Refine(x, v, e, d, h, start, hi);
