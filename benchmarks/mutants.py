@@ -153,6 +153,15 @@ MUTANTS: tuple[Mutant, ...] = (
         "and the bracket holds three roots",
     ),
     Mutant(
+        "settle-accel-floor-dropped",
+        _INTERNAL,
+        "const double bound = 0.0 < accel && accel < kAccelFloor ? kAccelFloor : accel;",
+        "const double bound = 0.0 < accel && accel < 0.0 ? kAccelFloor : accel;",
+        ("tests/test_urgency.py::test_settle_bound_stays_below_the_kernel_under_tiny_bounds",),
+        "the settling bound keeps a bound the kernel raises: a pair settled for longer than an "
+        "evaluation would give it",
+    ),
+    Mutant(
         "unread-predicate-says-never",
         _URGENCY,
         "      // 1.3e154): no time past start is certified.\n      return start;",

@@ -568,6 +568,29 @@ def test_tiny_accelerations_never_late():
         assert_all_ok(check_against_ref(t, x1, v1, 0.0, 1e-30, tight=False))
 
 
+def test_settle_bound_stays_below_the_kernel_under_tiny_bounds():
+    """The kernel raises a positive bound below 1e-30 m/s^2 to it; the settling bound must
+    too, or it settles a pair for longer than an evaluation would (a pair at rest 1 m away under
+    1e-40: 1e20 s against the kernel's 1e15 s)."""
+    rng = np.random.default_rng(12)
+    n = 400
+    x = rng.normal(size=(n, 3))
+    v = (
+        rng.normal(size=(n, 3))
+        * np.where(np.arange(n) % 4 == 0, 0.0, 10.0 ** rng.uniform(-9, 1, n))[:, None]
+    )
+    eps = np.linalg.norm(x, axis=1) * rng.uniform(0.0, 0.9, n)
+    accel = 10.0 ** rng.uniform(-300.0, -28.0, n)
+    delta = np.where(np.arange(n) % 2 == 0, 0.0, 10.0 ** rng.uniform(-12, -6, n))
+    tau = np.atleast_1d(time_to_collision(x, v, eps, accel, vel_uncertainty=delta))
+    settled = np.array(
+        [_core.settle_tau(*x[i], *v[i], eps[i], accel[i], delta[i]) for i in range(n)]
+    )
+    finite = np.isfinite(settled)
+    assert finite.sum() > n // 2
+    assert np.all(settled[finite] <= tau[finite])
+
+
 @pytest.mark.parametrize("scale", [1.0, 1e-80, 1e-100, 1e-110, 1e-150])
 def test_one_problem_at_tiny_scales_never_late(scale):
     """The same pair in units ``scale`` times smaller (the bound too): where ``h^2 |v|^2``

@@ -265,6 +265,11 @@ inline void PointOf(const dua_step_args& a, int64_t i, double* out) {
 
 // SettleTau's inflation (Lemma 6.8).
 constexpr double kSettleKappa = 1e-12;
+// The least positive acceleration bound the sphere kernels solve with: a smaller one is raised
+// to it (a larger bound only brings tau earlier; below it h^2 |v|^2 can underflow in the sphere
+// kernel's test for g's interior minimum, docs/theory.md, section 1). The settling bound
+// raises it alike, so that it stays below the kernel's tau (section 6).
+constexpr double kAccelFloor = 1e-30;
 
 // SettleTau (urgency.cc: the bindings' entry) on the relative state's six numbers, inline here so
 // that the step's SettleBound pays no call a settled pair (the same operations in the same
@@ -286,7 +291,8 @@ inline double SettleTauOf(double x0, double x1, double x2, double v0, double v1,
   }
   const double e = eps * (1.0 + kSettleKappa) + kSettleKappa * nx;
   const double d = delta * (1.0 + kSettleKappa) + kSettleKappa * nv;
-  const double h = 0.5 * accel * (1.0 + kSettleKappa);
+  const double bound = 0.0 < accel && accel < kAccelFloor ? kAccelFloor : accel;
+  const double h = 0.5 * bound * (1.0 + kSettleKappa);
   const double gap = nx - e, b = nv + d;
   // The cover first (no square root, no division): phi at t2 = cover (1 + 2k) positive means
   // the root is above t2, so cover (1 + k), below it and above the cover, is a lower bound.

@@ -228,12 +228,6 @@ struct Inflated {
   T nx, nv, e, d, h, q, p0;
 };
 
-// The least positive acceleration bound the kernel solves with: a smaller one is raised to it
-// (a larger bound only brings tau earlier). Below it, with |v| >= 1e-120 (smaller velocities
-// are rescaled first), h^2 |v|^2 can underflow in HasMinimum's t_2, which then misses g's
-// interior minimum, and the bracket [0, hi] holds three roots (docs/theory.md, section 1).
-constexpr double kAccelFloor = 1e-30;
-
 template <class T>
 Inflated<T> Inflate(const T x[3], const T v[3], T eps, T accel, T delta) {
   Inflated<T> p;
@@ -241,6 +235,9 @@ Inflated<T> Inflate(const T x[3], const T v[3], T eps, T accel, T delta) {
   p.nv = Sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
   p.e = eps * (1.0 + kKappa) + kKappa * p.nx;
   p.d = delta * (1.0 + kKappa) + kKappa * p.nv;
+  // kAccelFloor (internal.h): with |v| >= 1e-120 (smaller velocities are rescaled first), a
+  // bound below it lets h^2 |v|^2 underflow in HasMinimum's t_2, which then misses g's interior
+  // minimum, and the bracket [0, hi] holds three roots.
   const T bound = Select(And(0.0 < accel, accel < kAccelFloor), T{} + kAccelFloor, accel);
   p.h = 0.5 * bound * (1.0 + kKappa);
   const T a = p.nv * p.nv;
