@@ -42,7 +42,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 
 from robots import robot_spec
-from tau_variants import accel_option, predictor_for
+from tau_variants import accel_option, predictor_for, sphere_pairs
 
 from dua_mujoco.core.urgency import time_to_collision
 from dua_mujoco.exceptions import BoundViolationWarning
@@ -136,14 +136,8 @@ def measure(name: str, accel: str, steps: int) -> dict[str, float]:
     """Means a step, after ``WARMUP``, of the wheel's and the screen's counts on ``name``."""
     m = robot_spec(name).compile()
     p = predictor_for(m, accel)
-    pairs, n = p.pair_set, len(p.pair_set)
-    ids = np.flatnonzero(pairs.kind == 0)
-    i, j = pairs.first[ids], pairs.second[ids]
-    eps = np.broadcast_to(pairs.eps, (n,))[ids]
-    bound = np.broadcast_to(pairs.accel, (n,))[ids]
-    delta = np.broadcast_to(pairs.vel_uncertainty, (n,))[ids]
-    speed = np.broadcast_to(pairs.speed, (n,))[ids]
-    dt, h, count = float(m.opt.timestep), float(p.alarm_horizon), len(ids)
+    i, j, eps, bound, delta, speed = sphere_pairs(p)
+    dt, h, count = float(m.opt.timestep), float(p.alarm_horizon), len(i)
 
     def tau(x: np.ndarray, v: np.ndarray, k: np.ndarray) -> np.ndarray:
         with warnings.catch_warnings():

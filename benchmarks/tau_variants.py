@@ -102,6 +102,15 @@ def predictor_for(m: mujoco.MjModel, accel: str) -> Predictor:
     return Predictor(m, accel=float(accel), covering=cover)
 
 
+def sphere_pairs(p: Predictor) -> tuple[np.ndarray, ...]:
+    """The sphere-sphere pairs of ``p``'s pair set: their spheres ``i``, ``j`` and their
+    ``eps``, ``accel``, ``delta`` and ``speed``, ``(M,)`` each (the set's scalars broadcast)."""
+    pairs, n = p.pair_set, len(p.pair_set)
+    ids = np.flatnonzero(pairs.kind == 0)
+    columns = (pairs.eps, pairs.accel, pairs.vel_uncertainty, pairs.speed)
+    return (pairs.first[ids], pairs.second[ids], *(np.broadcast_to(c, (n,))[ids] for c in columns))
+
+
 def _pair_accel(p: Predictor, m: mujoco.MjModel, i: np.ndarray, j: np.ndarray, pilot: PilotOptions):
     """``(M,)`` each pair's largest relative acceleration on the pilot's motion (its controller
     and seed), measured as the pilot measures a body's: at the steps where both trees pass the
@@ -147,14 +156,8 @@ def measure(name: str, steps: int, every: int, accel_option: str) -> dict[str, f
     m = robot_spec(name).compile()
     pilot = _pilot(m)
     p = predictor_for(m, accel_option)
-    pairs, dt = p.pair_set, float(m.opt.timestep)
-    ids = np.flatnonzero(pairs.kind == 0)
-    i, j = pairs.first[ids], pairs.second[ids]
-    n = len(pairs)
-    eps = np.broadcast_to(pairs.eps, (n,))[ids]
-    accel = np.broadcast_to(pairs.accel, (n,))[ids]
-    delta = np.broadcast_to(pairs.vel_uncertainty, (n,))[ids]
-    speed = np.broadcast_to(pairs.speed, (n,))[ids]
+    dt = float(m.opt.timestep)
+    i, j, eps, accel, delta, speed = sphere_pairs(p)
     geom = np.asarray(p.covering.sphere_geom)
     margin = eps - np.asarray(p.covering.sphere_radius)[i] - np.asarray(p.covering.sphere_radius)[j]
     own = pilot.safety * _pair_accel(p, m, i, j, pilot)
@@ -169,8 +172,8 @@ def measure(name: str, steps: int, every: int, accel_option: str) -> dict[str, f
         return float(np.sum(1.0 / np.clip(np.floor(tau / dt), 1, cap)))
 
     kernel, closed, per_pair, ratios, on_geoms, at_rest = [], [], [], [], [], []
-    broken = np.zeros(len(ids), dtype=bool)
-    broken_sum = np.zeros(len(ids), dtype=bool)
+    broken = np.zeros(len(i), dtype=bool)
+    broken_sum = np.zeros(len(i), dtype=bool)
     for k, (d, x, v, a) in enumerate(_steps(p, m, i, j, RUN_SEED, steps)):
         broken |= a > pair_accel
         broken_sum |= a > accel
