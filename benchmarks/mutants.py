@@ -64,6 +64,7 @@ class Mutant:
 
 _URGENCY = "dua_mujoco/csrc/src/urgency.cc"
 _STEP = "dua_mujoco/csrc/src/step.cc"
+_RUNTIME = "dua_mujoco/csrc/src/runtime.cc"
 _SCHEDULE = "dua_mujoco/csrc/src/schedule.cc"
 _SCHEDULE_H = "dua_mujoco/csrc/src/schedule.h"
 _PLAN = "dua_mujoco/csrc/src/plan.cc"
@@ -108,6 +109,17 @@ _REF = (
 _REF_TRAFFIC, _REF_PAPER = f"{_REF}[traffic]", f"{_REF}[paper_world]"
 _REF_CLUTTER, _REF_ARMS = f"{_REF}[clutter]", f"{_REF}[two_arms]"
 _RELATIVE = "tests/test_plan_relative.py"
+_SCREEN = "tests/test_wheel_screen.py::"
+_SCREEN_BOUNDARY = (
+    _SCREEN + "test_the_screen_at_its_boundary_clears_only_what_the_model_keeps_apart"
+)
+_SCREEN_RANDOM = _SCREEN + "test_the_screen_never_clears_a_pair_that_can_touch_within_h"
+_SCREEN_REFERENCE = (
+    "tests/test_reference_step.py::test_screened_verdicts_are_never_later_than_a_feasible_contact"
+)
+_SCREEN_INVARIANT = _SCREEN + "test_every_active_pair_is_on_the_wheel_or_the_screen"
+_SCREEN_WATCH = _SCREEN + "test_no_pair_is_screened_while_the_runtime_watches_or_off_the_grid"
+_SCREEN_PLAN = _SCREEN + "test_no_pair_is_screened_while_a_plan_is_set"
 _ROUNDING = "tests/test_plan_rounding.py"
 _PYRAMID = "tests/test_terrain.py::test_search_equals_every_cell_through_the_pyramid_for_a_sphere"
 _CHECKS = "dua_mujoco/csrc/src/checks.cc"
@@ -435,8 +447,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "settle-under-a-plan",
         _STEP,
-        "a->plan.impl == nullptr &&\n                       a->plan.basis == nullptr;",
-        "true;",
+        "const bool settles = flagged > 0 && bounds_only;",
+        "const bool settles = flagged > 0;",
         ("tests/test_flightplan.py::test_no_pair_is_settled_while_a_plan_is_set",),
         "a flagged body's pairs settled by the motion bounds' norms while a plan is set",
     ),
@@ -453,8 +465,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "made-due-selected-twice",
         _SCHEDULE,
-        "if (at == kTaken || (at < 0 && !active[p])) continue;",
-        "if (at < 0 && !active[p]) continue;",
+        "if (at == kTaken || at == dua::kScreened || (at < 0 && !active[p])) continue;",
+        "if (at == dua::kScreened || (at < 0 && !active[p])) continue;",
         (_MADE_DUE,),
         "a pair of two flagged bodies is evaluated twice and linked twice into the wheel",
     ),
@@ -1771,8 +1783,7 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "switched-off-left-in-the-wheel",
         _SCHEDULE,
-        "    } else if (st->kind == kDeadline) {\n      Unlink(v, p);\n    }\n  }\n"
-        "  return changed;",
+        "      Unlink(v, p);\n    }\n  }\n  return changed;",
         "    }\n  }\n  return changed;",
         (_MADE_DUE,),
         "a deadline pair switched off stays linked: the wheel selects it when due, and made due "
@@ -1943,6 +1954,80 @@ MUTANTS: tuple[Mutant, ...] = (
             "tests/test_static_pairs.py",
         ),
         "Predictor.reset takes a model whose static geoms were moved, resized or reshaped",
+    ),
+    Mutant(
+        "screen-margin-reversed",
+        _INTERNAL,
+        "constexpr double kScreenMargin = 1.0 + 1e-9;",
+        "constexpr double kScreenMargin = 1.0 - 1e-9;",
+        (_SCREEN_BOUNDARY,),
+        "the screen clears a pair up to 1e-9 inside its reach: one that can touch within the "
+        "horizon stands in no alarm",
+    ),
+    Mutant(
+        "screen-one-sphere-speed",
+        _INTERNAL,
+        "sj[2] - si[2], si[3] + sj[3], base, h);",
+        "sj[2] - si[2], sj[3], base, h);",
+        (_SCREEN_BOUNDARY, _SCREEN_RANDOM, _SCREEN_REFERENCE),
+        "the screen's reach leaves out the first sphere's speed: a pair closing on it is cleared",
+    ),
+    Mutant(
+        "screen-failures-dropped",
+        _SCHEDULE,
+        "of step n - 1\n      w_ids[count++] = p;",
+        "of step n - 1\n      w_ids[count] = p;",
+        (_SCREEN_INVARIANT,),
+        "a pair the screen does not clear is neither evaluated nor linked: never looked at again",
+    ),
+    Mutant(
+        "screened-pair-carried-nowhere",
+        _SCHEDULE,
+        "if (due >= 0 || due == dua::kScreened) {",
+        "if (due >= 0) {",
+        (_SCREEN_INVARIANT,),
+        "a rebuild of the held pairs drops the screened ones from both the wheel and the screen",
+    ),
+    Mutant(
+        "screened-pair-switched-off-kept",
+        _SCHEDULE,
+        "if (where[p] == dua::kScreened) where[p] = -1;",
+        "if (where[p] == -4) where[p] = -1;",
+        (_SCREEN_INVARIANT,),
+        "a pair switched off stays on the screen and is evaluated when the test fails",
+    ),
+    Mutant(
+        "screen-while-watching",
+        _RUNTIME,
+        "args_.screen = watching_ ? 0 : 1;",
+        "args_.screen = 1;",
+        (_SCREEN_WATCH,),
+        "a watching runtime screens: the shield reads a screened pair's verdict as reaching the "
+        "horizon only, and acts on a pair that cannot touch",
+    ),
+    Mutant(
+        "screen-under-a-plan",
+        _STEP,
+        "a->screen != 0 && bounds_only && a->period <= 1;",
+        "a->screen != 0 && a->period <= 1;",
+        (_SCREEN_PLAN,),
+        "the screen clears pairs by the bounds while a plan is set, whose verdicts rest on it",
+    ),
+    Mutant(
+        "screen-off-the-grid",
+        _STEP,
+        "a->screen != 0 && bounds_only && a->period <= 1;",
+        "a->screen != 0 && bounds_only;",
+        (_SCREEN_WATCH,),
+        "the screen's verdict, not on the predictor's grid, is kept with period > 1",
+    ),
+    Mutant(
+        "screen-verdict-at-the-horizon",
+        _SCHEDULE,
+        "const double cleared = std::nextafter(h, std::numeric_limits<double>::infinity());",
+        "const double cleared = h;",
+        (_SCREEN_INVARIANT,),
+        "a cleared pair's verdict is the horizon itself, which the alarm rule reads as standing",
     ),
 )
 

@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 LAYOUT: dict = ...
 
-TABLES_VERSION: int = 6
+TABLES_VERSION: int = 7
 
 def structure_hash(model: object) -> int:
     """
@@ -23,6 +23,11 @@ def tau_halfspace_batch(gap: Annotated[NDArray[numpy.float64], dict(order='C', d
 def settle_tau(x0: float, x1: float, x2: float, v0: float, v1: float, v2: float, eps: float, accel: float, delta: float, cover: float = 0.0) -> float:
     """
     The bound that settles a flagged body's pair (the step's SettleBound on a sphere pair's relative state; cover > 0: just above it where it covers that long): at most TauAccel's exact first root; -inf where it does not apply.
+    """
+
+def screen_clears(first: Sequence[float], second: Sequence[float], eps: float, accel: float, delta: float, h: float) -> bool:
+    """
+    The deadline schedule's screen on one sphere pair, as a step runs it (docs/theory.md, section 3, 'The screen'): whether two spheres whose rows (centre, velocity) are first and second cannot come within eps of each other in h seconds under the pair's bounds (accel, delta).
     """
 
 def tau_static_batch(centers: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], velocities: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], shapes: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], ids: Annotated[NDArray[numpy.int64], dict(order='C', device='cpu', writable=False)], eps: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], accel: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)], delta: Annotated[NDArray[numpy.float64], dict(order='C', device='cpu', writable=False)]) -> NDArray[numpy.float64]: ...

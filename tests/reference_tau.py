@@ -180,8 +180,11 @@ def cauchy_bound(p: Poly) -> Fraction:
     return 1 + max((abs(c) / lead for c in p[:-1]), default=Fraction(0))
 
 
-def to_frac(value: float) -> Fraction:
-    """Exact rational value of a float (float64 inputs are dyadic rationals)."""
+def to_frac(value: float | Fraction) -> Fraction:
+    """Exact rational value of a float (float64 inputs are dyadic rationals), or the fraction
+    itself (a difference of two floats, kept exact)."""
+    if isinstance(value, Fraction):
+        return value
     f = float(value)
     if not math.isfinite(f):
         raise ValueError(f"reference needs finite inputs, got {value!r}")

@@ -378,21 +378,24 @@ def test_a_step_retried_after_it_failed_judges_the_pairs_it_had_settled_again() 
 
 def test_a_collision_right_after_an_impulse_is_flagged_only_with_events() -> None:
     """The middle ball's bounds break at the step it touches the last ball. Evaluated again at
-    that step, the pair alarms; one step late, or never, it is missed."""
+    that step, the pair alarms; one step late, or never, it is missed. Off the screen (which
+    tests a screened pair on every step's state, so that it would catch this pair without the
+    events), as on the wheel alone."""
     m, d = _three_balls()
     on_time = run(m, d, Predictor(m, accel=1.0), steps=200, progress=False)
     assert on_time.contact_onsets >= 2 and on_time.bound_violations > 0
     assert on_time.missed_onsets == 0
 
     m, d = _three_balls()
-    never = Predictor(m, accel=1.0, schedule=ScheduleOptions(violation_events=False))
+    wheel = ScheduleOptions(violation_events=False, screen=False)
+    never = Predictor(m, accel=1.0, schedule=wheel)
     report = run(m, d, never, steps=200, progress=False)
     assert report.missed_onsets_outside_violations >= 1
 
     # One step late: the pairs of the bodies that broke their bounds are made due at the next
     # step (switched off and on again, which withdraws their verdict) instead of this one.
     m, d = _three_balls()
-    late = Predictor(m, accel=1.0, schedule=ScheduleOptions(violation_events=False))
+    late = Predictor(m, accel=1.0, schedule=wheel)
     checks = BoundMonitor(m, late.bounds, late.bound_points)
 
     def renew_next_step(k: int, data: mujoco.MjData, alarms: object, monitor: object) -> None:

@@ -20,6 +20,7 @@ import pytest
 import reference_step as ref
 from benchmark_scripts import script
 
+from dua_mujoco._core import LAYOUT
 from dua_mujoco.models.scenes import load_scene, make_controller
 from dua_mujoco.runtime.predictor import Predictor
 
@@ -36,6 +37,7 @@ class Tally:
     at_horizon: int = 0  # a motion touches within the alarm horizon (each stood in alarm)
     tight: int = 0  # a motion touches by 1.5 tau (a tau half again as late fails)
     uncovered: int = 0
+    screened: int = 0  # stepped: geom pairs whose verdict is the screen's (docs/theory.md, 3)
     late: list[str] = field(default_factory=list)
     unflagged: list[str] = field(default_factory=list)
 
@@ -51,12 +53,15 @@ def _model(name: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
 
 def hold_to_reference(
     name: str, accel: float, *, speed: float | None = None, states: int = 6, every: int = 40,
-    max_pairs: int = 600, seed: int = 0, **options: object,
+    max_pairs: int = 600, seed: int = 0, stepped: bool = False, **options: object,
 ) -> Tally:  # fmt: skip
     """Roll ``name`` out under random controls and, every ``every`` steps, classify and hold
     each geom pair (``max_pairs`` of them at most a state, the most urgent first; a geom pair's
     tau is the least of its sphere pairs') to the reference. ``options``: more of the
-    ``Predictor``'s (the exact level is on, every pair held)."""
+    ``Predictor``'s (the exact level is on, every pair held). ``stepped``: the predictor steps
+    along instead, and each state holds the verdicts made at it (the evaluated pairs' and the
+    screen's, section 3) to the reference; whether the pairs within the horizon stand rests on
+    older verdicts too, so only the lateness is checked."""
     m, d = _model(name)
     p = Predictor(m, accel=accel, speed=speed, pairs="all", **options)  # type: ignore[arg-type]
     bounds = ref.declared(m, accel, speed)
@@ -68,20 +73,39 @@ def hold_to_reference(
     in_mocap_tree = np.asarray(m.body_mocapid)[np.asarray(m.body_rootid)] >= 0
     mocap_geom = in_mocap_tree[np.asarray(m.geom_bodyid)]
     tally = Tally()
+    ids = np.arange(geom1.size)
+    screened = np.zeros(len(keys), dtype=bool)
+    judged = np.ones(len(keys), dtype=bool)  # stepped: geom pairs with a verdict of this state
+    if stepped:
+        p.reset(d)
     for k in range(1, states * every + 1):
         ctrl(m, d)
         mujoco.mj_step(m, d)
+        if stepped:
+            p.step(d)
         if k % every:
             continue
-        p.reset(d)  # every pair evaluated from this state alone
+        if not stepped:
+            p.reset(d)  # every pair evaluated from this state alone
         state = p.pair_state()
+        last_tau = state.last_tau_of(ids)
+        if stepped:
+            fresh = state.last_step_of(ids) == state.step_count
+            last_tau = np.where(fresh, last_tau, np.inf)
+            at = np.full(ids.size, -1)
+            at[np.asarray(p.held_pairs)] = state.scheduler.ints[LAYOUT["WHERE"]]
+            screened[:] = judged[:] = False
+            np.logical_or.at(screened, inverse, fresh & (at == LAYOUT["SCREENED"]))
+            np.logical_or.at(judged, inverse, fresh)
         tau = np.full(len(keys), np.inf)
-        np.minimum.at(tau, inverse, state.last_tau_of(np.arange(geom1.size)))
+        np.minimum.at(tau, inverse, last_tau)
         stands = np.zeros(len(keys), dtype=bool)
         np.logical_or.at(stands, inverse, state.alarm_state())
         mujoco.mj_copyData(scratch, m, d)
         reference = ref.PairReference(ref.PairProbe(m, scratch), horizon=p.alarm_horizon)
         for i in np.argsort(tau, kind="stable")[:max_pairs].tolist():
+            if not judged[i]:
+                continue
             a, b = (int(g) for g in keys[i])
             if unsupported[[a, b]].any() or mocap_geom[[a, b]].any():
                 tally.left_out += 1
@@ -92,6 +116,7 @@ def hold_to_reference(
                 continue
             verdict = reference.check(sa, sb, ref.contact_distance(m, a, b), float(tau[i]))
             tally.pairs += 1
+            tally.screened += bool(screened[i])
             tally.tight += verdict.tight
             tally.uncovered += not verdict.covered
             where = f"step {k}, {m.geom(a).name or a} / {m.geom(b).name or b}"
@@ -99,7 +124,7 @@ def hold_to_reference(
                 tally.late.append(f"{where}: tau {tau[i]:.9g} s, contact at {verdict.before:.9g} s")
             if verdict.at_horizon:
                 tally.at_horizon += 1
-                if not stands[i]:
+                if not stands[i] and not stepped:
                     tally.unflagged.append(f"{where}: tau {tau[i]:.9g} s, not in alarm")
     assert not tally.late, f"{len(tally.late)} taus later than a feasible contact: {tally.late[:5]}"
     assert not tally.unflagged, f"{len(tally.unflagged)} pairs not flagged: {tally.unflagged[:5]}"
@@ -129,6 +154,14 @@ if os.environ.get("DUA_REFERENCE_ROBOTS"):
     CASES += [(r, 300.0, None, {}) for r in ROBOTS]
 
 
+# The screen's verdicts (docs/theory.md, section 3, "The screen"), made at the states held.
+STEPPED: list[tuple[str, float, float | None, dict]] = [
+    ("two_arms", 30.0, None, {}),
+    ("clutter", 30.0, None, {}),
+    ("robot/dmc_dog", 30.0, None, {}),
+]
+
+
 def _case_id(case: tuple) -> str:
     scene, _, _, options = case
     name = Path(scene).stem.split(":")[0].removeprefix("robot/")
@@ -148,6 +181,16 @@ def test_tau_is_never_later_than_a_feasible_contact_and_those_within_the_horizon
     assert tally.pairs >= 50 and tally.left_out <= tally.pairs
     assert tally.at_horizon > 0 and tally.tight > 0
     assert tally.uncovered <= tally.pairs // 100
+
+
+@pytest.mark.parametrize(
+    ("scene", "accel", "speed", "options"), STEPPED, ids=map(_case_id, STEPPED)
+)
+def test_screened_verdicts_are_never_later_than_a_feasible_contact(
+    scene: str, accel: float, speed: float | None, options: dict
+) -> None:
+    tally = hold_to_reference(scene, accel, speed=speed, stepped=True, **options)
+    assert tally.pairs >= 50 and tally.screened >= 10
 
 
 def main() -> None:

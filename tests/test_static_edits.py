@@ -251,7 +251,7 @@ def test_old_tables_are_refused_naming_their_format_and_the_fix() -> None:
     or re-export."""
     spec = mujoco.MjSpec.from_string(XML)
     attach(spec, accel=5.0)
-    assert _core.TABLES_VERSION == 6
+    assert _core.TABLES_VERSION == 7
     _with_config_entry(spec, _core.LAYOUT["CFG_VERSION"], 5.0)
-    with pytest.raises(ValueError, match=r"tables format 5, this one reads 6\).*re-export"):
+    with pytest.raises(ValueError, match=r"tables format 5, this one reads 7\).*re-export"):
         spec.compile()

@@ -76,11 +76,17 @@ class ScheduleOptions:
         slots_per_bucket: ``dua`` only: the budget knob (a power of two).
         max_evals_per_step: ``deadline`` only: optional cap on tau evaluations a step.
         alarm_backoff: ``deadline`` only: a pair that keeps alarming is evaluated after twice its
-            last wait, up to this many steps; 1 gives select-all's alarms exactly.
+            last wait, up to this many steps; 1 (and ``screen=False``) gives select-all's alarms
+            exactly.
         violation_events: Each step first checks every moving body's motion against its
             bounds, and the pairs of a body that broke them are evaluated again at once (their
             verdicts assumed the bounds): a contact's impulse then costs no later collision
             (docs/theory.md, section 6). False keeps verdicts until their deadline, for A/B runs.
+        screen: ``deadline`` only: a pair out of alarm that a reach test clears for the next
+            step leaves the wheel, and the test (a few operations, no tau) clears it each step
+            until it fails; then it is evaluated (docs/theory.md, section 3, "The screen").
+            Off while a flight plan is set, while a shield or the gymnasium wrapper watches the
+            pairs, and with ``period > 1``. False keeps every pair on the wheel, for A/B runs.
     """
 
     kind: Schedule | str = Schedule.DEADLINE
@@ -88,6 +94,7 @@ class ScheduleOptions:
     max_evals_per_step: int | None = None
     alarm_backoff: int = deadline.DEFAULT_ALARM_BACKOFF
     violation_events: bool = True
+    screen: bool = True
 
     def __post_init__(self) -> None:
         _set(self, "kind", as_schedule(self.kind))
@@ -98,10 +105,11 @@ class ScheduleOptions:
         # a schedule of these options over no pairs.
         q, backoff = self.slots_per_bucket, self.alarm_backoff
         _core.Schedule(RANK, 1.0, 0, np.zeros(0), slots_per_bucket=q, backoff=backoff)
-        if not isinstance(self.violation_events, bool):
-            raise InvalidInputError(
-                f"violation_events = {self.violation_events!r} is invalid: pass True or False."
-            )
+        for name in ("violation_events", "screen"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidInputError(
+                    f"{name} = {getattr(self, name)!r} is invalid: pass True or False."
+                )
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

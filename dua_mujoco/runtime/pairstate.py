@@ -24,6 +24,7 @@ __all__ = ["PairState"]
 _P_COUNT, _P_DEFERRED = LAYOUT["P_COUNT"], LAYOUT["P_DEFERRED"]
 _P_SETTLED, _W_SLOTS = LAYOUT["P_SETTLED"], LAYOUT["W_SLOTS"]
 _W_IDS, _LAST_STEP = LAYOUT["W_IDS"], LAYOUT["LAST_STEP"]
+_WHERE, _SCREENED = LAYOUT["WHERE"], LAYOUT["SCREENED"]
 
 
 class PairState:
@@ -67,6 +68,12 @@ class PairState:
         """Pairs of flagged bodies the latest step settled by a bound from their state instead
         of evaluating them (docs/theory.md, section 6, "Settling a made-due pair")."""
         return int(self.scheduler.params[_P_SETTLED]) if self.step_count else 0
+
+    @property
+    def screened(self) -> int:
+        """Held pairs on the deadline schedule's screen after the latest step: its reach test
+        cleared each at that step, no tau evaluated (docs/theory.md, section 3, "The screen")."""
+        return int(np.count_nonzero(self.scheduler.ints[_WHERE] == _SCREENED))
 
     @property
     def active(self) -> np.ndarray:
@@ -133,9 +140,9 @@ class PairState:
         return out
 
     def last_step_of(self, pair: npt.ArrayLike) -> np.ndarray:
-        """Step of each pair's latest evaluation (a pair not held: the step since which it was
-        shown unable to touch, the later anchor of its two spheres at the latest rebuild or
-        renewal)."""
+        """Step of each pair's latest verdict: its evaluation, or the screen's test (a pair not
+        held: the step since which it was shown unable to touch, the later anchor of its two
+        spheres at the latest rebuild or renewal)."""
         ids = np.asarray(pair, dtype=np.int64)
         pos, found = self._positions(ids)
         out = np.zeros(ids.shape, dtype=np.int64)

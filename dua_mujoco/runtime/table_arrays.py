@@ -255,6 +255,7 @@ def build(lay: Layout, bounds: MotionBounds, *, mocap: PredictorMocap | None) ->
         slots_per_bucket=sched.slots_per_bucket,
         max_evals_per_step=sched.max_evals_per_step,
         alarm_backoff=sched.alarm_backoff,
+        screen=sched.screen,
     )
     c[CONFIG["timestep"]] = float(m.opt.timestep)
     u = lay.universe

@@ -57,6 +57,7 @@ def schedule_config(
     slots_per_bucket: int = 1,
     max_evals_per_step: int | None = None,
     alarm_backoff: int = DEFAULT_ALARM_BACKOFF,
+    screen: bool = False,
 ) -> np.ndarray:
     """A runtime's ``config`` table, ``(CFG_SIZE,)`` float64, with the schedule's entries
     written and the rest 0 for the caller (``Predictor``'s and ``SpherePredictor``'s tables
@@ -64,7 +65,8 @@ def schedule_config(
 
     The alarm horizon goes in seconds, ``alarm_periods * dt`` (the ``Predictor``'s own
     ``alarm_horizon``), and select-all's threshold on tau is the horizon past the latency,
-    ``(alarm_periods + latency) dt``.
+    ``(alarm_periods + latency) dt``. ``screen`` keeps the deadline schedule's screen (other
+    kinds have none).
     """
     kind = {Schedule.DUA: "RANK", Schedule.DEADLINE: "DEADLINE", Schedule.SELECT_ALL: "ALL"}
     c = np.zeros(LAYOUT["CFG_SIZE"])
@@ -77,6 +79,7 @@ def schedule_config(
     c[LAYOUT["CFG_BACKOFF"]] = alarm_backoff
     c[LAYOUT["CFG_THRESHOLD"]] = (alarm_periods + latency) * dt
     c[LAYOUT["CFG_ALARM_HORIZON"]] = alarm_periods * dt
+    c[LAYOUT["CFG_SCREEN"]] = 1.0 if screen and schedule is Schedule.DEADLINE else 0.0
     return c
 
 

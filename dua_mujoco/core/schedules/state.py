@@ -33,6 +33,7 @@ __all__ = [
     "P_SLOTS_PER_BUCKET",
     "P_WHEEL",
     "RANK",
+    "SCREENED",
     "WHERE",
     "W_ALARMS",
     "W_IDS",
@@ -54,7 +55,11 @@ ALL: int = _LAYOUT["ALL"]
 
 # Rows of ``ScheduleState.ints``: one int64 row per pair each.
 WHERE: int = _LAYOUT["WHERE"]
-"""Rank: the slot holding the pair. Deadline: the step the pair is due at (-1: not queued)."""
+"""Rank: the slot holding the pair. Deadline: the step the pair is due at (-1: not queued,
+``SCREENED``: on the screen)."""
+SCREENED: int = _LAYOUT["SCREENED"]
+"""Deadline: ``WHERE`` of a pair on the screen, tested at every step instead of linked in the
+wheel (docs/theory.md, section 3, "The screen")."""
 LAST_STEP: int = _LAYOUT["LAST_STEP"]
 """Step of the pair's latest evaluation."""
 NEXT: int = _LAYOUT["NEXT"]

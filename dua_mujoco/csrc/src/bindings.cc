@@ -1624,6 +1624,31 @@ NB_MODULE(_core, m) {
       "The bound that settles a flagged body's pair (the step's SettleBound on a sphere pair's "
       "relative state; cover > 0: just above it where it covers that long): at most TauAccel's "
       "exact first root; -inf where it does not apply.");
+  m.def(
+      "screen_clears",
+      [](const std::vector<double>& first, const std::vector<double>& second, double eps,
+         double accel, double delta, double h) {
+        if (first.size() != 6 || second.size() != 6) {
+          throw nb::value_error(("screen_clears takes two sphere rows of 6 numbers (centre, "
+                                 "velocity), not " +
+                                 std::to_string(first.size()) + " and " +
+                                 std::to_string(second.size()))
+                                    .c_str());
+        }
+        // Tame as PointRow judges a row: six numbers, each finite and at most kTame.
+        auto tame = [](const std::vector<double>& r) {
+          return std::all_of(r.begin(), r.end(), [](double v) { return std::fabs(v) <= kTame; });
+        };
+        double a[4], b[4];
+        ScreenRow(first.data(), tame(first), a);
+        ScreenRow(second.data(), tame(second), b);
+        return ScreenClearsRows(a, b, ScreenBase(eps, accel, delta, h), h);
+      },
+      "first"_a, "second"_a, "eps"_a, "accel"_a, "delta"_a, "h"_a,
+      "The deadline schedule's screen on one sphere pair, as a step runs it (docs/theory.md, "
+      "section 3, 'The screen'): whether two spheres whose rows (centre, velocity) are first "
+      "and second cannot come within eps of each other in h seconds under the pair's bounds "
+      "(accel, delta).");
   m.def("tau_static_batch", &TauStaticBatch, "centers"_a, "velocities"_a, "shapes"_a, "ids"_a,
         "eps"_a, "accel"_a, "delta"_a);
   m.def(

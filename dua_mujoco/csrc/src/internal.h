@@ -323,6 +323,49 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
   return true;
 }
 
+// The screen's reach test (docs/theory.md, section 3, "The screen", Lemma 3.9): two spheres at
+// offset x whose speeds sum to at most `speeds`, under a pair's bounds that make `base` = eps +
+// delta h + A h^2 / 2, cannot come within eps of each other in the next h seconds when |x| is
+// past base + speeds h. Squared (no root a pair), with a relative margin far above the dozen
+// roundings, |x|^2 kept normal and finite and h below 1e50 s (an underflowed speed's loss, 5e-162
+// h, stays inside the margin); NaN and inf fail: the kernel takes those.
+constexpr double kScreenMargin = 1.0 + 1e-9;
+inline bool ScreenClears(double x0, double x1, double x2, double speeds, double base, double h) {
+  const double d2 = x0 * x0 + x1 * x1 + x2 * x2;
+  const double reach = base + speeds * h;
+  return d2 > 1e-200 && d2 < 1e300 && h < 1e50 && d2 > reach * reach * kScreenMargin;
+}
+
+// The bounds' part of a pair's reach over h: eps + delta h + A h^2 / 2.
+inline double ScreenBase(double eps, double accel, double delta, double h) {
+  return eps + delta * h + 0.5 * accel * h * h;
+}
+
+// A sphere's row as the screen reads it (4 numbers): its centre, and its speed, the norm of its
+// velocity, or +inf where its row is not tame (no pair of it is cleared).
+inline void ScreenRow(const double* row, bool tame, double* out) {
+  out[0] = row[0], out[1] = row[1], out[2] = row[2];
+  out[3] = tame ? std::sqrt(row[3] * row[3] + row[4] * row[4] + row[5] * row[5])
+                : std::numeric_limits<double>::infinity();
+}
+
+// ScreenClears of the pair of spheres whose screen rows are si and sj (offset sj - si).
+inline bool ScreenClearsRows(const double* si, const double* sj, double base, double h) {
+  return ScreenClears(sj[0] - si[0], sj[1] - si[1], sj[2] - si[2], si[3] + sj[3], base, h);
+}
+
+// The deadline schedule's screen at step n (schedule.cc; docs/theory.md, section 3, "The
+// screen"): each screened pair that a's state clears keeps a verdict of step n (LAST_STEP n, tau
+// just above the horizon); each one it does not (every one when a is null: no state to test, or
+// the step may not screen) leaves the screen and is appended to the selection w_ids[count:].
+// Entries of pairs that left the screen between steps are dropped. Returns the new count.
+int64_t ScreenPass(dua_schedule* st, int64_t n, int64_t count, const dua_step_args* a);
+// Every screened pair back on the wheel, due at step n (its verdict kept).
+void Unscreen(dua_schedule* st, int64_t n);
+// After the reinsertion of step n's count evaluated pairs: each sphere pair out of alarm that
+// the reach test clears on this step's state moves from the wheel to the screen.
+void ScreenEnter(dua_schedule* st, int64_t n, int64_t count, const dua_step_args& a);
+
 // dua_make_due of pairs ids[0:count] at step n (schedule.cc).
 void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n);
 // MakeDue of the pairs of groups[0:ngroups] (group g: members[start[g]:start[g + 1]]), in that
@@ -333,7 +376,8 @@ void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n);
 // 6, "Settling a made-due pair").
 DUA_API int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
                               const int64_t* start, const int64_t* members, int64_t n,
-                              const dua_step_args* settle = nullptr);
+                              const dua_step_args* settle = nullptr,
+                              const dua_step_args* screen = nullptr);
 
 // Bucket floor(log2(slot + 1)) of a rank slot.
 inline int64_t BucketOf(int64_t slot) {

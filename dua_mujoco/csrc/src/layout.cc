@@ -111,6 +111,7 @@ constexpr Entry kEntries[] = {
     {"LAST_STEP", dua::kIntLastStep},
     {"NEXT", dua::kIntNext},
     {"PREV", dua::kIntPrev},
+    {"SCREENED", dua::kScreened},
     {"W_SLOTS", dua::kWorkSlots},
     {"W_IDS", dua::kWorkIds},
     {"W_ALARMS", dua::kWorkAlarms},
@@ -153,6 +154,7 @@ constexpr Entry kEntries[] = {
     {"CFG_O_MARGIN", dua::kCfgOMargin},
     {"CFG_HAS_SPEED", dua::kCfgHasSpeed},
     {"CFG_ALARM_HORIZON", dua::kCfgAlarmHorizon},
+    {"CFG_SCREEN", dua::kCfgScreen},
     {"CFG_SIZE", dua::kCfgSize},
 };
 constexpr int64_t kNEntries = sizeof(kEntries) / sizeof(kEntries[0]);

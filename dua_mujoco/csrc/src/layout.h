@@ -64,6 +64,9 @@ constexpr int kModeNone = 0, kModeGeoms = 1, kModePlane = 2, kModeShape = 3, kMo
 constexpr int64_t kRank = 0, kDeadline = 1;
 // Prefixed, being common words: schedule.cc names them shorter.
 constexpr int64_t kIntWhere = 0, kIntLastStep = 1, kIntNext = 2, kIntPrev = 3;
+// The deadline wheel's WHERE of a pair on its screen (in no slot; docs/theory.md, section 3,
+// "The screen").
+constexpr int64_t kScreened = -3;
 constexpr int64_t kWorkSlots = 0, kWorkIds = 1, kWorkAlarms = 2, kWorkNew = 3;
 constexpr int64_t kParamNBuckets = 0, kParamSlotsPerBucket = 1, kParamWheel = 2,
                   kParamMaxInterval = 3, kParamCap = 4, kParamCount = 5, kParamDeferred = 6,

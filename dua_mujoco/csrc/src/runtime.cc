@@ -933,6 +933,8 @@ bool Runtime::Counted(int64_t gp) const {
 void Runtime::Watch(const std::vector<uint8_t>& ignored_geoms,
                     const std::vector<int64_t>& ignored_pairs) {
   watching_ = true;
+  // Pairs on the screen go back to the wheel, due at the next step (their verdicts kept).
+  Unscreen(schedule_->state(), step_ + 1);
   ignored_geoms_ = ignored_geoms;
   ignored_pairs_ = ignored_pairs;
   std::sort(ignored_pairs_.begin(), ignored_pairs_.end());
@@ -1070,6 +1072,9 @@ DUA_HOT int64_t Runtime::Step(const mjModel* m, const mjData* d) {
     }
   }
   log_start_ = log_used_;
+  // The shield reads each watched pair's verdict as far as it reaches (its expiry); a screened
+  // pair's reaches only the alarm horizon, so a watching runtime does not screen.
+  args_.screen = watching_ ? 0 : 1;
   const int64_t result = dua_step(&args_, n, log_start_);
   if (result < 0) return result;
   step_ = n;

@@ -410,7 +410,9 @@ int64_t dua_select(dua_schedule* st, int64_t n) {
   if (st->kind == kRank) {
     count = RankSelect(v, n);
   } else if (st->kind == kDeadline) {
-    count = DeadlineSelect(v, n);
+    // No state to test here: the screen's pairs are all selected.
+    count = st->screen != nullptr ? dua::ScreenPass(st, n, 0, nullptr) : 0;
+    count = DeadlineSelect(v, n, count);
   } else {
     count = AllSelect(v);
   }
@@ -483,6 +485,8 @@ int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t o
       }
       queue[0] = kept;
     } else if (st->kind == kDeadline) {
+      int64_t* where = v.Int(kWhere);
+      if (where[p] == dua::kScreened) where[p] = -1;  // off the screen (its entry is dropped)
       Unlink(v, p);
     }
   }
@@ -541,7 +545,10 @@ void dua_deadline_carry(const dua_schedule* old_state, dua_schedule* new_state, 
       new_state->active[p] = old_state->active[q];
       ints[kLastStep * mn + p] = old_state->ints[kLastStep * mo + q];
       const int64_t due = old_state->ints[kWhere * mo + q];
-      if (due >= 0) LinkInto(new_state->slots, ints, mn, wheel, p, due);
+      // A screened pair's verdict covers step n at most (its next test): due then.
+      if (due >= 0 || due == dua::kScreened) {
+        LinkInto(new_state->slots, ints, mn, wheel, p, due >= 0 ? due : n);
+      }
     } else {
       new_state->last_tau[p] = kNegInf;
       new_state->active[p] = 1;
@@ -557,7 +564,7 @@ namespace dua {
 
 DUA_HOT int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t ngroups,
                               const int64_t* start, const int64_t* members, int64_t n,
-                              const dua_step_args* settle) {
+                              const dua_step_args* settle, const dua_step_args* screen) {
   if (st->kind != kDeadline) {
     for (int64_t k = 0; k < ngroups; ++k) {
       const int64_t g = groups[k];
@@ -592,7 +599,8 @@ DUA_HOT int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t n
       // A pair linked in the wheel is switched on (docs/theory.md, section 3, "Linked pairs are
       // switched on"): active is read only of the others (where -1: off, or on and unlinked).
       const int64_t at = where[p];
-      if (at == kTaken || (at < 0 && !active[p])) continue;
+      // A screened pair is the screen's to clear or select, below.
+      if (at == kTaken || at == dua::kScreened || (at < 0 && !active[p])) continue;
       // Settled (docs/theory.md, section 6): only a pair linked in the wheel that does not stand
       // in alarm (the step's tracking reads the selection, and a pair left out of it must keep
       // its standing: none), with a bound from this state above the horizon (no alarm now).
@@ -626,11 +634,110 @@ DUA_HOT int64_t SelectMadeDue(dua_schedule* st, const int64_t* groups, int64_t n
       w_ids[count++] = p;
     }
   }
+  if (st->screen != nullptr) count = ScreenPass(st, n, count, screen);
   for (int64_t k = 0; k < count; ++k) where[w_ids[k]] = -1;  // selected, as DeadlineSelect leaves
   count = DeadlineSelect(v, n, count);
   st->params[kCount] = count;
   st->params[kSettled] = settled;
   return count;
+}
+
+int64_t ScreenPass(dua_schedule* st, int64_t n, int64_t count, const dua_step_args* a) {
+  dua_screen& s = *st->screen;
+  const auto len = static_cast<int64_t>(s.ids.size());
+  if (len == 0) return count;
+  const double h = st->horizon[0];
+  uint8_t* pass = s.pass.data();
+  if (a != nullptr) {
+    // Each sphere's centre and speed once (its row is read in this step's epoch, which the
+    // evaluations then share), then the test down the columns.
+    double* sp = s.spheres.data();
+    for (int64_t i = 0; i < s.nsphere; ++i) {
+      bool tame;
+      const double* row = PointRow(*a, i, &tame);
+      ScreenRow(row, tame, sp + 4 * i);
+    }
+    const int32_t* first = s.first.data();
+    const int32_t* second = s.second.data();
+    const double* base = s.base.data();
+    for (int64_t k = 0; k < len; ++k) {
+      const double* si = sp + 4 * static_cast<int64_t>(first[k]);
+      const double* sj = sp + 4 * static_cast<int64_t>(second[k]);
+      pass[k] = ScreenClearsRows(si, sj, base[k], h) ? 1 : 0;
+    }
+  } else {
+    std::fill_n(pass, len, 0);
+  }
+  // A cleared pair's verdict: its first contact is later than h (Lemma 3.9), so than the next
+  // double above it, which the alarm test (tau <= h) does not alarm.
+  const double cleared = std::nextafter(h, std::numeric_limits<double>::infinity());
+  int64_t* where = st->ints + kWhere * st->m;
+  int64_t* last_step = st->ints + kLastStep * st->m;
+  int64_t* w_ids = st->work + kWIds * st->width;
+  int64_t kept = 0;
+  for (int64_t k = 0; k < len; ++k) {
+    const int64_t p = s.ids[k];
+    if (where[p] != kScreened) continue;  // left the screen since the last test
+    if (pass[k]) {
+      st->last_tau[p] = cleared;
+      last_step[p] = n;
+      s.ids[kept] = p, s.first[kept] = s.first[k], s.second[kept] = s.second[k];
+      s.base[kept] = s.base[k];
+      ++kept;
+    } else {
+      where[p] = -1;  // selected; its verdict stays the last test's, of step n - 1
+      w_ids[count++] = p;
+    }
+  }
+  s.ids.resize(kept), s.first.resize(kept), s.second.resize(kept), s.base.resize(kept);
+  return count;
+}
+
+void Unscreen(dua_schedule* st, int64_t n) {
+  if (st->screen == nullptr) return;
+  dua_screen& s = *st->screen;
+  const View v{st};
+  for (const int64_t p : s.ids) {
+    if (v.Int(kWhere)[p] == kScreened) Link(v, p, n);
+  }
+  s.ids.clear(), s.first.clear(), s.second.clear(), s.base.clear();
+}
+
+void ScreenEnter(dua_schedule* st, int64_t n, int64_t count, const dua_step_args& a) {
+  dua_screen& s = *st->screen;
+  const double h = st->horizon[0];
+  int64_t* where = st->ints + kWhere * st->m;
+  int64_t* nxt = st->ints + kNext * st->m;
+  int64_t* prv = st->ints + kPrev * st->m;
+  const int64_t* w_ids = st->work + kWIds * st->width;
+  for (int64_t k = 0; k < count; ++k) {
+    // A pair in alarm stands until its due step; the others were linked by the reinsertion.
+    const int64_t p = w_ids[k];
+    if (Alarms(st->w_tau[k], h) || where[p] <= n) continue;
+    const double* rec = a.pairs + p * kPairNcol;
+    if (static_cast<int>(rec[kPairKind]) != kKindSphere) continue;
+    const int64_t i = static_cast<int64_t>(rec[kPairFirst]);
+    const int64_t j = static_cast<int64_t>(rec[kPairSecond]);
+    bool tame_i, tame_j;
+    const double* ri = PointRow(a, i, &tame_i);
+    const double* rj = PointRow(a, j, &tame_j);
+    double si[4], sj[4];
+    ScreenRow(ri, tame_i, si);
+    ScreenRow(rj, tame_j, sj);
+    // The pair records do not change while the schedule lives (a new held set comes with a new
+    // schedule, Runtime::Carry): the bounds' part of the reach is kept.
+    const double base = ScreenBase(rec[kPairEps], rec[kPairAccel], rec[kPairDelta], h);
+    if (!ScreenClearsRows(si, sj, base, h)) continue;
+    UnlinkFrom(st->slots, nxt, prv, where, p);
+    where[p] = kScreened;
+    s.ids.push_back(p);
+    s.first.push_back(static_cast<int32_t>(i));
+    s.second.push_back(static_cast<int32_t>(j));
+    s.base.push_back(base);
+    s.nsphere = std::max(s.nsphere, std::max(i, j) + 1);
+  }
+  s.spheres.resize(static_cast<size_t>(4 * s.nsphere));
+  s.pass.resize(s.ids.size());
 }
 
 void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n) {
@@ -697,6 +804,12 @@ std::string ScheduleSpec::Check() const {
   if (backoff < 1) {
     return bad("alarm_backoff", std::to_string(backoff),
                "an int >= 1 (steps; 1 re-evaluates alarmed pairs every step)");
+  }
+  if (screen != 0 && screen != 1) {
+    return bad("screen", std::to_string(screen), "0 or 1 (1: the deadline schedule's screen)");
+  }
+  if (screen != 0 && kind != kDeadline) {
+    return bad("screen", std::to_string(screen), "0 for the rank and select-all schedules");
   }
   if (std::isnan(threshold)) return bad("the select-all threshold", "NaN", "a number");
   if (!(alarm_horizon >= dt && std::isfinite(alarm_horizon))) {
@@ -767,6 +880,7 @@ void Schedule::Point() {
   v.width = width();
   v.w_tau = w_tau.data();
   v.extra = Extra();
+  v.screen = spec_.kind == kDeadline && spec_.screen ? screen.get() : nullptr;
 }
 
 Schedule::Schedule(const ScheduleSpec& spec, int64_t m) : spec_(spec) { Size(m); }
@@ -799,6 +913,7 @@ Schedule::Schedule(const Schedule& other)
       work(other.work),
       step_count(other.step_count),
       activation_changes(other.activation_changes),
+      screen(std::make_unique<dua_screen>(*other.screen)),
       spec_(other.spec_) {
   Point();
 }
@@ -818,7 +933,7 @@ std::vector<int64_t> Schedule::InitialAlarms() const {
 
 int64_t Schedule::NextDue(int64_t p) const {
   const int64_t n = step_count + 1, where = ints[kIntWhere * m() + p];
-  if (spec_.kind == kDeadline) return where;
+  if (spec_.kind == kDeadline) return where == kScreened ? n : where;
   if (spec_.kind != kRank) return n;
   // RankSelect hands out slot o of bucket k at the steps n with (n q) mod 2^k == o - o mod q.
   const int64_t k = BucketOf(where), size = int64_t{1} << k, q = spec_.slots_per_bucket;

@@ -8,12 +8,27 @@
 #include <algorithm>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "dua/dua.h"
 #include "internal.h"
 #include "layout.h"
+
+// The deadline schedule's screen: the pairs it holds off the wheel, with what the reach test
+// reads of each (docs/theory.md, section 3, "The screen"), one column a vector so that the
+// test runs down them. Between steps it may also list pairs that left the screen (made due,
+// switched off: their WHERE is no longer kScreened); the next test drops them.
+struct dua_screen {
+  std::vector<int64_t> ids;            // the screened pairs
+  std::vector<int32_t> first, second;  // their spheres
+  std::vector<double> base;            // eps + delta H + A H^2 / 2 (H: the alarm horizon)
+  int64_t nsphere = 0;                 // one past the largest sphere of any of them
+  // Scratch of a step: each sphere's centre and speed (nsphere, 4), and each pair's verdict.
+  std::vector<double> spheres;
+  std::vector<uint8_t> pass;
+};
 
 namespace dua {
 
@@ -35,6 +50,10 @@ struct DUA_API ScheduleSpec {
   // that cannot cover the wait until the next one plus this less one period. Set by every
   // builder (Python converts the user's seconds to whole periods once); 0 fails Check.
   double alarm_horizon = 0.0;
+  // Deadline: 1 keeps a screen (dua_screen): a pair out of alarm that a reach test clears for
+  // the next step leaves the wheel, and the test, a few operations a pair, clears it each step
+  // until it fails (docs/theory.md, section 3, "The screen").
+  int64_t screen = 0;
 
   // An empty string, or what is wrong: the option, its value and the values it takes (the one
   // check of a schedule's options: the plugin's tables and the binding's schedules).
@@ -71,6 +90,8 @@ class DUA_API Schedule {
     if (spec_.kind == kRank) return horizon[BucketOf(ints[kIntWhere * m() + p])];
     if (spec_.kind == kDeadline) {
       const int64_t where = ints[kIntWhere * m() + p], last = ints[kIntLastStep * m() + p];
+      // On the screen: tested again at the next step, as a pair due then.
+      if (where == kScreened) return horizon[0];
       if (where < 0) return -std::numeric_limits<double>::infinity();
       return static_cast<double>(where - last + spec_.latency) * spec_.dt + Extra();
     }
@@ -97,6 +118,9 @@ class DUA_API Schedule {
   std::vector<int64_t> ints, slots, queue, params, work;
   int64_t step_count = 0;          // completed steps
   int64_t activation_changes = 0;  // switches that changed some pair, and carries
+  // Deadline with spec().screen: its screen (else empty). Behind a pointer so that a move keeps
+  // its address, as it keeps the buffers'.
+  std::unique_ptr<dua_screen> screen = std::make_unique<dua_screen>();
 
  private:
   void Size(int64_t m);

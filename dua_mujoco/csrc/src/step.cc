@@ -1006,10 +1006,15 @@ DUA_HOT int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
   // from MjData, judged by their motion bounds (a plan's verdicts rest on other hypotheses).
   // The bound reads the spheres in this step's epoch, which TauOf then starts.
   ++a->epoch;
-  const bool settles = flagged > 0 && a->points.centers == nullptr && a->plan.impl == nullptr &&
-                       a->plan.basis == nullptr;
-  const int64_t count =
-      dua::SelectMadeDue(st, ev.flagged, flagged, ev.start, ev.members, n, settles ? a : nullptr);
+  const bool bounds_only =
+      a->points.centers == nullptr && a->plan.impl == nullptr && a->plan.basis == nullptr;
+  const bool settles = flagged > 0 && bounds_only;
+  // The screen clears pairs by the bounds too, on the frame, a step at a time (period 1: a
+  // cleared verdict is not on the predictor's grid); without it this step, its pairs are all
+  // selected (docs/theory.md, section 3, "The screen").
+  const bool screens = st->screen != nullptr && a->screen != 0 && bounds_only && a->period <= 1;
+  const int64_t count = dua::SelectMadeDue(st, ev.flagged, flagged, ev.start, ev.members, n,
+                                           settles ? a : nullptr, screens ? a : nullptr);
   const int64_t* w_ids = st->work + 1 * st->width;
   a->count = count;
   --a->epoch;  // TauOf's ++ returns to it: the rows read above are this batch's
@@ -1021,6 +1026,7 @@ DUA_HOT int64_t dua_step(dua_step_args* a, int64_t n, int64_t start) {
     return -1 - a->bad;
   }
   const int64_t nalarm = dua_reinsert(st, n, count);
+  if (screens) dua::ScreenEnter(st, n, count, *a);
   const int64_t* alarms = st->work + 2 * st->width;
   const int64_t* fresh = st->work + 3 * st->width;
   for (int64_t k = 0; k < nalarm; ++k) {

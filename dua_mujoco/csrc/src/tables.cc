@@ -132,7 +132,7 @@ bool ReadSchedule(Reader* r, std::vector<double>* c, Tables* t) {
       !integer(kCfgSlotsPerBucket, 1, 1 << 30, &s.slots_per_bucket) ||
       !integer(kCfgCap, 0, kMaxInt, &s.cap) ||
       !integer(kCfgMaxInterval, 1, 1 << 30, &s.max_interval) ||
-      !integer(kCfgBackoff, 1, kMaxInt, &s.backoff)) {
+      !integer(kCfgBackoff, 1, kMaxInt, &s.backoff) || !integer(kCfgScreen, 0, 1, &s.screen)) {
     return r->Fail("config", "holds a schedule option that is not a valid integer");
   }
   const std::string bad = s.Check();

@@ -26,8 +26,9 @@
 namespace dua {
 
 // Version of the tables' format: a model's tables written by another version are refused.
-// 6: the "static" table (the static guard, StaticRecords).
-constexpr int64_t kTablesVersion = 6;
+// 6: the "static" table (the static guard, StaticRecords). 7: the deadline schedule's screen
+// (kCfgScreen).
+constexpr int64_t kTablesVersion = 7;
 
 // Entries of the "config" table.
 enum Config {
@@ -58,7 +59,8 @@ enum Config {
   kCfgOMargin = 25,       // pruned: o_margin
   kCfgHasSpeed = 26,      // pruned: speed bounds are declared
   kCfgAlarmHorizon = 27,  // the alarm horizon, seconds (at least dt, one period)
-  kCfgSize = 28,
+  kCfgScreen = 28,        // 1: the deadline schedule screens its far pairs (ScheduleSpec::screen)
+  kCfgSize = 29,
 };
 
 struct Tables {

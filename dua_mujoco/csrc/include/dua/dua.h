@@ -20,7 +20,7 @@ extern "C" {
 #define DUA_API __attribute__((visibility("default")))
 
 // ABI version of the structs below: the Python side refuses a library of another one.
-#define DUA_ABI_VERSION 14
+#define DUA_ABI_VERSION 15
 
 // ------------------------------------------------------------------------------- urgency
 
@@ -69,6 +69,9 @@ DUA_API int64_t dua_check_shapes(const double* shapes, int64_t nrows);
 
 // ------------------------------------------------------------------------------- schedules
 
+// The deadline schedule's screen (its pairs off the wheel, csrc/src/schedule.h).
+struct dua_screen;
+
 typedef struct dua_schedule {
   int64_t kind;      // 0 rank (DUA), 1 deadline, 2 select-all
   double dt;         // predictor period, seconds
@@ -89,6 +92,9 @@ typedef struct dua_schedule {
   // The alarm horizon beyond one period (seconds, >= 0): a verdict alarms when it cannot cover
   // the wait until the next one plus this (docs/theory.md, section 3).
   double extra;
+  // Deadline: the screen (null: none). Its pairs are in no slot (WHERE -3): each step clears
+  // them by a reach test on the state, or selects them (docs/theory.md, section 3, "The screen").
+  struct dua_screen* screen;
 } dua_schedule;
 
 DUA_API int64_t dua_select(dua_schedule* st, int64_t n);
@@ -264,6 +270,10 @@ typedef struct dua_step_args {
   // (docs/theory.md, section 8).
   double timestep;
   int64_t period;
+  // 1: the step may screen (a deadline schedule with a screen, on the frame, no plan, period 1:
+  // dua_step checks those); 0 sends every screened pair to the wheel at its next step (the
+  // runtime clears it while it watches pairs for the shield, whose expiry needs their taus).
+  int64_t screen;
 } dua_step_args;
 
 // One step n: the violation check, the selection, the gather, tau at every level, the
