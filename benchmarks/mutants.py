@@ -119,7 +119,7 @@ _SCREEN_REFERENCE = (
 )
 _SCREEN_INVARIANT = _SCREEN + "test_every_active_pair_is_on_the_wheel_or_the_screen"
 _SCREEN_WATCH = _SCREEN + "test_no_pair_is_screened_while_the_runtime_watches_or_off_the_grid"
-_SCREEN_PLAN = _SCREEN + "test_no_pair_is_screened_while_a_plan_is_set"
+_SCREEN_PLAN = _SCREEN + "test_no_pair_the_plan_revisits_soon_is_screened"
 _ROUNDING = "tests/test_plan_rounding.py"
 _PYRAMID = "tests/test_terrain.py::test_search_equals_every_cell_through_the_pyramid_for_a_sphere"
 _CHECKS = "dua_mujoco/csrc/src/checks.cc"

@@ -91,11 +91,15 @@ def hold_to_reference(
         last_tau = state.last_tau_of(ids)
         if stepped:
             fresh = state.last_step_of(ids) == state.step_count
-            last_tau = np.where(fresh, last_tau, np.inf)
             at = np.full(ids.size, -1)
             at[np.asarray(p.held_pairs)] = state.scheduler.ints[LAYOUT["WHERE"]]
+            # The screen's own verdicts (the double above the horizon), not the evaluations of
+            # the pairs that joined it at this state.
+            cleared = np.nextafter(state.scheduler.horizon[0], np.inf)
+            by_test = fresh & (at == LAYOUT["SCREENED"]) & (last_tau == cleared)
+            last_tau = np.where(fresh, last_tau, np.inf)
             screened[:] = judged[:] = False
-            np.logical_or.at(screened, inverse, fresh & (at == LAYOUT["SCREENED"]))
+            np.logical_or.at(screened, inverse, by_test)
             np.logical_or.at(judged, inverse, fresh)
         tau = np.full(len(keys), np.inf)
         np.minimum.at(tau, inverse, last_tau)
@@ -156,9 +160,9 @@ if os.environ.get("DUA_REFERENCE_ROBOTS"):
 
 # The screen's verdicts (docs/theory.md, section 3, "The screen"), made at the states held.
 STEPPED: list[tuple[str, float, float | None, dict]] = [
-    ("two_arms", 30.0, None, {}),
-    ("clutter", 30.0, None, {}),
-    ("robot/dmc_dog", 30.0, None, {}),
+    ("two_arms", 200.0, None, {}),
+    ("clutter", 200.0, None, {}),
+    ("robot/dmc_dog", 200.0, None, {}),
 ]
 
 

@@ -343,7 +343,7 @@ class Monitor:
         self.predictor_steps += 1
         # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated;
         # settled ones a verdict from a bound (their alarm state is in the step's, none).
-        self.evaluation_sum += int(evaluated.size) - sched.deferred - sched.settled
+        self.evaluation_sum += int(evaluated.size) - sched.deferred - sched.settled - sched.cleared
         self._apply_alarms(
             alarms.pairs, evaluated, float(data.time), self.physics_step, deferred=sched.deferred
         )

@@ -72,8 +72,10 @@ class PairState:
     @property
     def screened(self) -> int:
         """Held pairs on the deadline schedule's screen after the latest step: its reach test
-        cleared each at that step, no tau evaluated (docs/theory.md, section 3, "The screen")."""
-        return int(np.count_nonzero(self.scheduler.ints[_WHERE] == _SCREENED))
+        cleared them (:attr:`cleared`), or they joined it after their evaluation there
+        (docs/theory.md, section 3, "The screen")."""
+        s = self.scheduler
+        return int(np.count_nonzero(s.ints[_WHERE] == _SCREENED)) if s.last_tau.size else 0
 
     @property
     def active(self) -> np.ndarray:
@@ -93,18 +95,37 @@ class PairState:
     @property
     def last_selected(self) -> np.ndarray:
         """Pair ids whose verdict the latest step renewed: the evaluated ones, the ones it
-        settled (:attr:`settled`; a verdict from a bound), then the deferred ones (last)."""
+        settled (:attr:`settled`; a verdict from a bound), the ones its screen cleared
+        (:attr:`screened`, less those that joined it after their evaluation at this step), then
+        the deferred ones (last)."""
         s = self.scheduler
         if self.step_count == 0:
             return np.zeros(0, dtype=np.int64)
         params = s.params
         renewed = int(params[_P_COUNT] + params[_P_DEFERRED])
         ids = s.work[_W_IDS, :renewed]
-        settled = int(params[_P_SETTLED])
-        if settled:
-            count = int(params[_P_COUNT])
-            ids = np.concatenate([ids[:count], s.work[_W_SLOTS, :settled], ids[count:]])
+        count = int(params[_P_COUNT])
+        settled = s.work[_W_SLOTS, : int(params[_P_SETTLED])]
+        cleared = self._cleared()
+        if settled.size or cleared.size:
+            ids = np.concatenate([ids[:count], settled, cleared, ids[count:]])
         return np.asarray(self._held[ids])
+
+    @property
+    def cleared(self) -> int:
+        """Pairs the screen's test cleared at the latest step (a verdict renewed without an
+        evaluation; :attr:`screened` less the pairs that joined the screen at that step)."""
+        return int(self._cleared().size) if self.step_count else 0
+
+    def _cleared(self) -> np.ndarray:
+        """Schedule positions of the pairs the screen's test cleared at the latest step."""
+        s = self.scheduler
+        if s.last_tau.size == 0:  # no pairs held (the rows are then empty)
+            return np.zeros(0, dtype=np.int64)
+        on = np.flatnonzero(s.ints[_WHERE] == _SCREENED)
+        if on.size == 0:
+            return on
+        return on[~np.isin(on, s.work[_W_IDS, : int(s.params[_P_COUNT])])]
 
     def _positions(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Schedule positions of model pairs ``ids`` and whether each is held."""

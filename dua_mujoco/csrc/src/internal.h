@@ -327,13 +327,15 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
 // offset x whose speeds sum to at most `speeds`, under a pair's bounds that make `base` = eps +
 // delta h + A h^2 / 2, cannot come within eps of each other in the next h seconds when |x| is
 // past base + speeds h. Squared (no root a pair), with a relative margin far above the dozen
-// roundings, |x|^2 kept normal and finite and h below 1e50 s (an underflowed speed's loss, 5e-162
-// h, stays inside the margin); NaN and inf fail: the kernel takes those.
+// roundings, |x|^2 kept normal and finite and h normal and below 1e50 s (h+ within 2^-52 of h,
+// and an underflowed speed's loss, 5.6e-162 h, inside the margin); NaN and inf fail: the kernel
+// takes those.
 constexpr double kScreenMargin = 1.0 + 1e-9;
 inline bool ScreenClears(double x0, double x1, double x2, double speeds, double base, double h) {
   const double d2 = x0 * x0 + x1 * x1 + x2 * x2;
   const double reach = base + speeds * h;
-  return d2 > 1e-200 && d2 < 1e300 && h < 1e50 && d2 > reach * reach * kScreenMargin;
+  return d2 > 1e-200 && d2 < 1e300 && h >= 0x1p-1022 && h < 1e50 &&
+         d2 > reach * reach * kScreenMargin;
 }
 
 // The bounds' part of a pair's reach over h: eps + delta h + A h^2 / 2.
