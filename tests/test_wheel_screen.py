@@ -24,9 +24,9 @@ import mujoco
 import numpy as np
 import pytest
 import reference_tau as ref
-from benchmark_scripts import script
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from test_reference_step import _model  # a bundled scene or a robot of benchmarks/robots.py
 
 from dua_mujoco import Predictor, ScheduleOptions, load_scene
 from dua_mujoco._core import LAYOUT, screen_clears
@@ -153,15 +153,6 @@ def test_the_screen_names_rows_of_the_wrong_length() -> None:
 def test_the_screen_option_takes_a_bool() -> None:
     with pytest.raises(InvalidInputError, match="screen = 1 is invalid: pass True or False"):
         ScheduleOptions(screen=1)  # type: ignore[arg-type]
-
-
-def _model(name: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    if name.startswith("robot/"):
-        m = script("robots").load_robot(name.split("/", 1)[1])
-        d = mujoco.MjData(m)
-        mujoco.mj_forward(m, d)
-        return m, d
-    return load_scene(name)
 
 
 def _check_invariant(p: Predictor) -> tuple[int, int]:
