@@ -1991,10 +1991,19 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "screened-pair-switched-off-kept",
         _SCHEDULE,
-        "if (where[p] == dua::kScreened) where[p] = -1;",
-        "if (where[p] == -4) where[p] = -1;",
+        "    if (where[p] == dua::kScreened) where[p] = -1;\n",
+        "",
         (_SCREEN_INVARIANT,),
         "a pair switched off stays on the screen and is evaluated when the test fails",
+    ),
+    Mutant(
+        "screen-stale-entries-tested",
+        _SCHEDULE,
+        "    if (where[p] != kScreened) continue;  // left the screen since the last test\n",
+        "",
+        (_SCREEN_INVARIANT,),
+        "a pair that left the screen between steps (made due, switched off) is still tested: "
+        "selected a second time, or a switched-off pair evaluated and linked",
     ),
     Mutant(
         "screen-while-watching",

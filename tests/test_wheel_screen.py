@@ -141,8 +141,9 @@ def test_the_screen_leaves_what_it_cannot_judge_to_the_kernel(
     evaluates the pair, and the kernel handles each of these)."""
     assert not screen_clears(first, second, 0.0, 0.0, 0.0, 0.01)
     assert screen_clears([0.0] * 6, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0.01)
-    # A horizon past Lemma 3.9's 1e50 s.
-    assert not screen_clears([0.0] * 6, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 1e50)
+    # A horizon past Lemma 3.9's 1e50 s, or subnormal (the double above it can be twice it).
+    for h in (1e50, 5e-324, 1e-310):
+        assert not screen_clears([0.0] * 6, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, h)
 
 
 def test_the_screen_names_rows_of_the_wrong_length() -> None:

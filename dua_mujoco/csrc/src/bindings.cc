@@ -1635,13 +1635,9 @@ NB_MODULE(_core, m) {
                                  std::to_string(second.size()))
                                     .c_str());
         }
-        // Tame as PointRow judges a row: six numbers, each finite and at most kTame.
-        auto tame = [](const std::vector<double>& r) {
-          return std::all_of(r.begin(), r.end(), [](double v) { return std::fabs(v) <= kTame; });
-        };
         double a[4], b[4];
-        ScreenRow(first.data(), tame(first), a);
-        ScreenRow(second.data(), tame(second), b);
+        ScreenRow(first.data(), Tame(first.data()), a);
+        ScreenRow(second.data(), Tame(second.data()), b);
         return ScreenClearsRows(a, b, ScreenBase(eps, accel, delta, h), h);
       },
       "first"_a, "second"_a, "eps"_a, "accel"_a, "delta"_a, "h"_a,

@@ -236,6 +236,13 @@ inline double Spin(int64_t g, const double* geoms, const dua_frame& f) {
 // a finite number (12e300 < DBL_MAX), so the gather's test of that sum can be skipped.
 constexpr double kTame = 1e300;
 
+// Whether a sphere's six numbers are tame (NaN is not).
+inline bool Tame(const double* row) {
+  bool ok = true;
+  for (int j = 0; j < 6; ++j) ok &= std::fabs(row[j]) <= kTame;
+  return ok;
+}
+
 // Sphere i's row of point_state (RigidPoint, read from MjData at its first use in this epoch),
 // and in *tame whether its six numbers are all finite and at most kTame in magnitude.
 // point_epoch holds 2 epoch + tame (an arithmetic shift gives the epoch back: -1, the start,
@@ -245,9 +252,7 @@ inline const double* PointRow(const dua_step_args& a, int64_t i, bool* tame) {
   int64_t e = a.point_epoch[i];
   if ((e >> 1) != a.epoch) {
     RigidPoint(i, a.spheres, kSphereNcol, a.frame, state);
-    bool ok = true;
-    for (int j = 0; j < 6; ++j) ok &= std::fabs(state[j]) <= kTame;  // NaN: false
-    e = 2 * a.epoch + (ok ? 1 : 0);
+    e = 2 * a.epoch + (Tame(state) ? 1 : 0);
     a.point_epoch[i] = e;
   }
   *tame = (e & 1) != 0;

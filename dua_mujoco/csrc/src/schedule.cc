@@ -175,10 +175,13 @@ inline void Link(const View& v, int64_t p, int64_t due) {
   LinkInto(v.st->slots, v.st->ints, v.st->m, v.st->params[kWheel], p, due);
 }
 
-// Take pair p out of its wheel slot's list (nothing if it is in none), on rows and slots the
-// caller read once.
+// Take pair p out of its wheel slot's list, or off the screen (its entry is dropped at the next
+// test), on rows and slots the caller read once; nothing if it is in neither.
 inline void UnlinkFrom(int64_t* slots, int64_t* nxt, int64_t* prv, int64_t* where, int64_t p) {
-  if (where[p] < 0) return;
+  if (where[p] < 0) {
+    if (where[p] == dua::kScreened) where[p] = -1;
+    return;
+  }
   const int64_t after = nxt[p], before = prv[p];
   if (before >= 0) {
     nxt[before] = after;
@@ -485,8 +488,6 @@ int64_t dua_switch(dua_schedule* st, const int64_t* ids, int64_t nids, int64_t o
       }
       queue[0] = kept;
     } else if (st->kind == kDeadline) {
-      int64_t* where = v.Int(kWhere);
-      if (where[p] == dua::kScreened) where[p] = -1;  // off the screen (its entry is dropped)
       Unlink(v, p);
     }
   }
