@@ -120,6 +120,7 @@ _SCREEN_REFERENCE = (
 _SCREEN_INVARIANT = _SCREEN + "test_every_active_pair_is_on_the_wheel_or_the_screen"
 _SCREEN_WATCH = _SCREEN + "test_no_pair_is_screened_while_the_runtime_watches_or_off_the_grid"
 _SCREEN_PLAN = _SCREEN + "test_no_pair_the_plan_revisits_soon_is_screened"
+_SCREEN_REFUSALS = _SCREEN + "test_the_screen_leaves_what_it_cannot_judge_to_the_kernel"
 _ROUNDING = "tests/test_plan_rounding.py"
 _PYRAMID = "tests/test_terrain.py::test_search_equals_every_cell_through_the_pyramid_for_a_sphere"
 _CHECKS = "dua_mujoco/csrc/src/checks.cc"
@@ -1967,10 +1968,28 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant(
         "screen-one-sphere-speed",
         _INTERNAL,
-        "sj[2] - si[2], si[3] + sj[3], base, h);",
-        "sj[2] - si[2], sj[3], base, h);",
+        "  const double speeds = si[3] + sj[3];\n",
+        "  const double speeds = sj[3];\n",
         (_SCREEN_BOUNDARY, _SCREEN_RANDOM, _SCREEN_REFERENCE),
         "the screen's reach leaves out the first sphere's speed: a pair closing on it is cleared",
+    ),
+    Mutant(
+        "screen-pass-past-1e300",
+        _INTERNAL,
+        "return d2 < 1e300 && d2 > reach * reach * kScreenMargin;",
+        "return d2 > reach * reach * kScreenMargin;",
+        (_SCREEN_REFUSALS,),
+        "the screen clears a pair whose squared offset overflowed to inf (two tame rows 2e151 "
+        "apart), whatever its spheres' speeds",
+    ),
+    Mutant(
+        "screen-base-unchecked",
+        _INTERNAL,
+        "return ScreenHorizon(h) && base >= kScreenLeastBase && ScreenedPairClears",
+        "return ScreenHorizon(h) && ScreenedPairClears",
+        (_SCREEN_REFUSALS,),
+        "the screen takes a pair whose reach's bounds part is below 1e-100, where a cleared "
+        "squared offset need not be normal (Lemma 3.9's rounding)",
     ),
     Mutant(
         "screen-failures-dropped",

@@ -332,16 +332,13 @@ inline bool WitnessDirection(const double fromto[6], const dua_exact& x, int64_t
 // offset x whose speeds sum to at most `speeds`, under a pair's bounds that make `base` = eps +
 // delta h + A h^2 / 2, cannot come within eps of each other in the next h seconds when |x| is
 // past base + speeds h. Squared (no root a pair), with a relative margin far above the dozen
-// roundings, |x|^2 kept normal and finite and h normal and below 1e50 s (h+ within 2^-52 of h,
-// and an underflowed speed's loss, 5.6e-162 h, inside the margin); NaN and inf fail: the kernel
-// takes those.
+// roundings; h normal and below 1e50 s (h+ within 2^-52 of h, and an underflowed speed's loss,
+// 5.6e-162 h, inside the margin), base at least kScreenLeastBase (so a cleared |x|^2 is above
+// 1e-200, normal) and |x|^2 below 1e300; NaN and inf fail: the kernel takes those.
 constexpr double kScreenMargin = 1.0 + 1e-9;
-inline bool ScreenClears(double x0, double x1, double x2, double speeds, double base, double h) {
-  const double d2 = x0 * x0 + x1 * x1 + x2 * x2;
-  const double reach = base + speeds * h;
-  return d2 > 1e-200 && d2 < 1e300 && h >= 0x1p-1022 && h < 1e50 &&
-         d2 > reach * reach * kScreenMargin;
-}
+constexpr double kScreenLeastBase = 1e-100;
+// The test's conditions on h: the same for every pair of a step (the pass tests them once).
+inline bool ScreenHorizon(double h) { return h >= 0x1p-1022 && h < 1e50; }
 
 // The bounds' part of a pair's reach over h: eps + delta h + A h^2 / 2.
 inline double ScreenBase(double eps, double accel, double delta, double h) {
@@ -356,9 +353,22 @@ inline void ScreenRow(const double* row, bool tame, double* out) {
                 : std::numeric_limits<double>::infinity();
 }
 
-// ScreenClears of the pair of spheres whose screen rows are si and sj (offset sj - si).
+// The test on the screen rows si and sj of a pair's spheres (offset sj - si), for h that
+// ScreenHorizon passes and base at least kScreenLeastBase (a screened pair's: its base was checked
+// as it entered): then reach >= base, so a cleared |x|^2 > reach^2 (1 + 1e-9) is above 1e-200
+// without a test of its own.
+inline bool ScreenedPairClears(const double* si, const double* sj, double base, double h) {
+  const double x0 = sj[0] - si[0], x1 = sj[1] - si[1], x2 = sj[2] - si[2];
+  const double speeds = si[3] + sj[3];
+  const double d2 = x0 * x0 + x1 * x1 + x2 * x2;
+  const double reach = base + speeds * h;
+  return d2 < 1e300 && d2 > reach * reach * kScreenMargin;
+}
+
+// The whole test, its conditions on h and base included: where a pair enters the screen, and
+// the bindings' entry (screen_clears).
 inline bool ScreenClearsRows(const double* si, const double* sj, double base, double h) {
-  return ScreenClears(sj[0] - si[0], sj[1] - si[1], sj[2] - si[2], si[3] + sj[3], base, h);
+  return ScreenHorizon(h) && base >= kScreenLeastBase && ScreenedPairClears(si, sj, base, h);
 }
 
 // The deadline schedule's screen at step n (schedule.cc; docs/theory.md, section 3, "The

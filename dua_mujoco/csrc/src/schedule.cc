@@ -648,26 +648,18 @@ int64_t ScreenPass(dua_schedule* st, int64_t n, int64_t count, const dua_step_ar
   const auto len = static_cast<int64_t>(s.ids.size());
   if (len == 0) return count;
   const double h = st->horizon[0];
-  uint8_t* pass = s.pass.data();
-  if (a != nullptr) {
+  // ScreenClearsRows' conditions on h, once: where they fail, or there is no state to test, nothing
+  // is cleared and every screened pair is selected.
+  const bool test = a != nullptr && ScreenHorizon(h);
+  const double* sp = s.spheres.data();
+  if (test) {
     // Each sphere's centre and speed once (its row is read in this step's epoch, which the
     // evaluations then share), then the test down the columns.
-    double* sp = s.spheres.data();
     for (int64_t i = 0; i < s.nsphere; ++i) {
       bool tame;
       const double* row = PointRow(*a, i, &tame);
-      ScreenRow(row, tame, sp + 4 * i);
+      ScreenRow(row, tame, s.spheres.data() + 4 * i);
     }
-    const int32_t* first = s.first.data();
-    const int32_t* second = s.second.data();
-    const double* base = s.base.data();
-    for (int64_t k = 0; k < len; ++k) {
-      const double* si = sp + 4 * static_cast<int64_t>(first[k]);
-      const double* sj = sp + 4 * static_cast<int64_t>(second[k]);
-      pass[k] = ScreenClearsRows(si, sj, base[k], h) ? 1 : 0;
-    }
-  } else {
-    std::fill_n(pass, len, 0);
   }
   // A cleared pair's verdict: its first contact is later than h (Lemma 3.9), so than the next
   // double above it, which the alarm test (tau <= h) does not alarm.
@@ -675,17 +667,22 @@ int64_t ScreenPass(dua_schedule* st, int64_t n, int64_t count, const dua_step_ar
   int64_t* where = st->ints + kWhere * st->m;
   int64_t* last_step = st->ints + kLastStep * st->m;
   int64_t* w_ids = st->work + kWIds * st->width;
+  int64_t* ids = s.ids.data();
+  int32_t* first = s.first.data();
+  int32_t* second = s.second.data();
+  double* base = s.base.data();
   int64_t kept = 0;
   for (int64_t k = 0; k < len; ++k) {
-    const int64_t p = s.ids[k];
+    const int64_t p = ids[k];
     if (where[p] != kScreened) continue;  // left the screen since the last test
-    if (pass[k]) {
+    const int32_t i = first[k], j = second[k];
+    const double b = base[k];
+    // Its base is at least kScreenLeastBase (ScreenEnter takes no other): the rest of the test.
+    if (test && ScreenedPairClears(sp + 4 * static_cast<int64_t>(i),
+                                   sp + 4 * static_cast<int64_t>(j), b, h)) {
       st->last_tau[p] = cleared;
       last_step[p] = n;
-      if (kept != k) {
-        s.ids[kept] = p, s.first[kept] = s.first[k], s.second[kept] = s.second[k];
-        s.base[kept] = s.base[k];
-      }
+      ids[kept] = p, first[kept] = i, second[kept] = j, base[kept] = b;
       ++kept;
     } else {
       where[p] = -1;  // selected; its verdict stays the last test's, of step n - 1
@@ -746,7 +743,6 @@ void ScreenEnter(dua_schedule* st, int64_t n, int64_t count, const dua_step_args
     s.nsphere = std::max(s.nsphere, std::max(i, j) + 1);
   }
   s.spheres.resize(static_cast<size_t>(4 * s.nsphere));
-  s.pass.resize(s.ids.size());
 }
 
 void MakeDue(dua_schedule* st, const int64_t* ids, int64_t count, int64_t n) {

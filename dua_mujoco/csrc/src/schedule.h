@@ -25,9 +25,8 @@ struct dua_screen {
   std::vector<int32_t> first, second;  // their spheres
   std::vector<double> base;            // eps + delta h + A h^2 / 2 (h: horizon[0], H + latency)
   int64_t nsphere = 0;                 // one past the largest sphere of any of them
-  // Scratch of a step: each sphere's centre and speed (nsphere, 4), and each pair's verdict.
+  // Scratch of a step: each sphere's centre and speed (nsphere, 4).
   std::vector<double> spheres;
-  std::vector<uint8_t> pass;
 };
 
 namespace dua {
