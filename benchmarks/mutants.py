@@ -1979,8 +1979,8 @@ MUTANTS: tuple[Mutant, ...] = (
         "return d2 < 1e300 && d2 > reach * reach * kScreenMargin;",
         "return d2 > reach * reach * kScreenMargin;",
         (_SCREEN_REFUSALS,),
-        "the screen clears a pair whose squared offset overflowed to inf (two tame rows 2e151 "
-        "apart), whatever its spheres' speeds",
+        "the screen clears a pair whose squared offset is past 1e300 (two tame rows 2e151 apart), "
+        "where it could have overflowed, whatever its spheres' speeds",
     ),
     Mutant(
         "screen-base-unchecked",

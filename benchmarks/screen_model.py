@@ -15,6 +15,11 @@ the backoff (3b)); a wheel pair whose evaluation leaves it out of alarm and pass
 goes back to it. Every pair at every step is covered by that step's screen or by a wheel
 verdict.
 
+This is the model that led to the schedule's screen, not the screen as built
+(``ScheduleOptions(screen=True)``, docs/theory.md, section 3, "The screen"): that one bounds the
+relative speed by the sum of the two spheres' speeds (a root a sphere, not a pair), takes only
+pairs whose wait on the wheel is at most 16 steps, and runs the exact level as every step does.
+
 The model runs both on the same motion at the sphere level: the exact level is not simulated
 (a pair below the horizon is counted as a look and its verdict is the sphere tau), nor are the
 bound violations' made-due pairs, and latency is 0 with a one-period horizon. Per robot it

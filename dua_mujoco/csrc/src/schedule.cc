@@ -651,14 +651,14 @@ int64_t ScreenPass(dua_schedule* st, int64_t n, int64_t count, const dua_step_ar
   // ScreenClearsRows' conditions on h, once: where they fail, or there is no state to test, nothing
   // is cleared and every screened pair is selected.
   const bool test = a != nullptr && ScreenHorizon(h);
-  const double* sp = s.spheres.data();
+  double* sp = s.spheres.data();
   if (test) {
     // Each sphere's centre and speed once (its row is read in this step's epoch, which the
-    // evaluations then share), then the test down the columns.
+    // evaluations then share); each pair's test reads two of them, below.
     for (int64_t i = 0; i < s.nsphere; ++i) {
       bool tame;
       const double* row = PointRow(*a, i, &tame);
-      ScreenRow(row, tame, s.spheres.data() + 4 * i);
+      ScreenRow(row, tame, sp + 4 * i);
     }
   }
   // A cleared pair's verdict: its first contact is later than h (Lemma 3.9), so than the next
