@@ -68,3 +68,15 @@ def python_standing(p: Predictor) -> np.ndarray:
     g1, g2 = p.sphere_pair_geoms
     rows = np.sort(np.stack([g1[ids], g2[ids]], axis=1), axis=1)
     return np.unique(rows, axis=0).reshape(-1, 2)
+
+
+def held_control_states(m: mujoco.MjModel, d: mujoco.MjData, steps: int) -> np.ndarray:
+    """``(steps + 1, nq)``: d's qpos and the ``steps`` states after it under the controls ``d``
+    holds (a copy is stepped; ``d`` is left as it is): a plan of the motion as it goes on."""
+    c = mujoco.MjData(m)
+    mujoco.mj_copyData(c, m, d)
+    states = [c.qpos.copy()]
+    for _ in range(steps):
+        mujoco.mj_step(m, c)
+        states.append(c.qpos.copy())
+    return np.array(states)

@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 import pytest
 from benchmark_scripts import script
+from rollouts import held_control_states
 
 from dua_mujoco import _core
 from dua_mujoco.models.scenes import SCENES, load_scene
@@ -218,13 +219,7 @@ def test_a_run_that_is_the_plan_never_breaks_it_at_deviation_0() -> None:
     mujoco.mj_forward(model, d)
     p = Predictor(model, accel=50.0, alarm_horizon=0.05)
     p.reset(d)
-    sim = mujoco.MjData(model)
-    mujoco.mj_copyData(sim, model, d)
-    rows = [sim.qpos.copy()]
-    for _ in range(60):
-        mujoco.mj_step(model, sim)
-        rows.append(sim.qpos.copy())
-    p.set_plan(np.array(rows), deviation=0.0, start=d.time)
+    p.set_plan(held_control_states(model, d, 60), deviation=0.0, start=d.time)
     for _ in range(60):
         mujoco.mj_step(model, d)
         p.step(d)

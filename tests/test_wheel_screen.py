@@ -26,6 +26,7 @@ import pytest
 import reference_tau as ref
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from rollouts import held_control_states
 from test_reference_step import _model  # a bundled scene or a robot of benchmarks/robots.py
 
 from dua_mujoco import Predictor, ScheduleOptions, load_scene
@@ -293,13 +294,7 @@ def test_no_pair_is_screened_while_a_plan_is_set() -> None:
         p.step(d)
     assert p.pair_state().screened > 0
     # The plan: the next 200 states under the controls held as they are.
-    c = mujoco.MjData(m)
-    mujoco.mj_copyData(c, m, d)
-    states = [c.qpos.copy()]
-    for _ in range(200):
-        mujoco.mj_step(m, c)
-        states.append(c.qpos.copy())
-    p.set_plan(np.array(states), deviation=0.0)
+    p.set_plan(held_control_states(m, d, 200), deviation=0.0)
     planned = 0
     for _ in range(150):
         mujoco.mj_step(m, d)
