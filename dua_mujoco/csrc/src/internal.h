@@ -353,6 +353,13 @@ inline void ScreenRow(const double* row, bool tame, double* out) {
                 : std::numeric_limits<double>::infinity();
 }
 
+// ScreenRow of sphere i as the step reads it (PointRow: in a's epoch, shared with the kernel).
+inline void ScreenRowOf(const dua_step_args& a, int64_t i, double* out) {
+  bool tame;
+  const double* row = PointRow(a, i, &tame);
+  ScreenRow(row, tame, out);
+}
+
 // The test on the screen rows si and sj of a pair's spheres (offset sj - si), for h that
 // ScreenHorizon passes and base at least kScreenLeastBase (a screened pair's: its base was checked
 // as it entered): then reach >= base, so a cleared |x|^2 > reach^2 (1 + 1e-9) is above 1e-200

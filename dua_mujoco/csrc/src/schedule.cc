@@ -655,11 +655,7 @@ int64_t ScreenPass(dua_schedule* st, int64_t n, int64_t count, const dua_step_ar
   if (test) {
     // Each sphere's centre and speed once (its row is read in this step's epoch, which the
     // evaluations then share); each pair's test reads two of them, below.
-    for (int64_t i = 0; i < s.nsphere; ++i) {
-      bool tame;
-      const double* row = PointRow(*a, i, &tame);
-      ScreenRow(row, tame, sp + 4 * i);
-    }
+    for (int64_t i = 0; i < s.nsphere; ++i) ScreenRowOf(*a, i, sp + 4 * i);
   }
   // A cleared pair's verdict: its first contact is later than h (Lemma 3.9), so than the next
   // double above it, which the alarm test (tau <= h) does not alarm.
@@ -724,12 +720,9 @@ void ScreenEnter(dua_schedule* st, int64_t n, int64_t count, const dua_step_args
     if (static_cast<int>(rec[kPairKind]) != kKindSphere) continue;
     const int64_t i = static_cast<int64_t>(rec[kPairFirst]);
     const int64_t j = static_cast<int64_t>(rec[kPairSecond]);
-    bool tame_i, tame_j;
-    const double* ri = PointRow(a, i, &tame_i);
-    const double* rj = PointRow(a, j, &tame_j);
     double si[4], sj[4];
-    ScreenRow(ri, tame_i, si);
-    ScreenRow(rj, tame_j, sj);
+    ScreenRowOf(a, i, si);
+    ScreenRowOf(a, j, sj);
     // The pair records do not change while the schedule lives (a new held set comes with a new
     // schedule, Runtime::Carry): the bounds' part of the reach is kept.
     const double base = ScreenBase(rec[kPairEps], rec[kPairAccel], rec[kPairDelta], h);
