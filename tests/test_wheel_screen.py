@@ -180,7 +180,11 @@ def _check_invariant(p: Predictor) -> tuple[int, int]:
     assert (sched.last_tau[screened] > sched.horizon_of(ids)).all()
     assert (sched.next_due(ids) == n + 1).all()
     # Renewed at this step: the monitor dates the verdicts an alarm replaces by these.
-    assert np.isin(np.asarray(p.held_pairs)[ids], s.last_selected).all()
+    selected = s.last_selected
+    assert np.isin(np.asarray(p.held_pairs)[ids], selected).all()
+    # The monitor counts the evaluations as the renewed verdicts less those of no evaluation.
+    assert selected.size == s.evaluated + s.settled + s.cleared + s.deferred
+    assert s.evaluated == p.evaluations_per_step
     return int(screened.sum()), int((where > n).sum())
 
 

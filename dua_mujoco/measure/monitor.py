@@ -30,6 +30,7 @@ from dua_mujoco.measure.checks import BoundMonitor
 from dua_mujoco.measure.report import Miss
 from dua_mujoco.measure.warning_time import WarningTime, alarm_horizon_of
 from dua_mujoco.runtime.alarms import Alarms
+from dua_mujoco.runtime.pairstate import PairState
 from dua_mujoco.runtime.predictor import Predictor
 
 __all__ = ["Monitor"]
@@ -335,15 +336,17 @@ class Monitor:
                 changed[now[changed]], changed, self._time, self.physics_step - 1, switch=True
             )
 
-    def _observe_alarms(self, data: mujoco.MjData, alarms: Alarms) -> None:
-        sched = self.predictor.pair_state()
+    def _observe_alarms(
+        self, data: mujoco.MjData, alarms: Alarms, sched: PairState, evaluated: np.ndarray
+    ) -> None:
+        """The step's alarms, ``evaluated`` the pairs whose verdict it renewed (``sched``'s
+        ``last_selected``)."""
         self._pred_steps.append(self.physics_step)
-        evaluated = sched.last_selected
         self.warning.hypotheses.evaluated(evaluated, self.predictor.verdict_basis(evaluated))
         self.predictor_steps += 1
         # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated;
-        # settled ones a verdict from a bound (their alarm state is in the step's, none).
-        self.evaluation_sum += int(evaluated.size) - sched.deferred - sched.settled - sched.cleared
+        # settled ones a verdict from a bound, cleared ones the screen's test.
+        self.evaluation_sum += sched.evaluated
         self._apply_alarms(
             alarms.pairs, evaluated, float(data.time), self.physics_step, deferred=sched.deferred
         )
@@ -429,8 +432,9 @@ class Monitor:
         else:
             # Switches between steps first, stamped with the previous step's time; the pairs
             # evaluated now get their current state from this step's evaluation.
-            self._sync_switches(exclude=sched.last_selected)
-            self._observe_alarms(data, alarms)
+            selected = sched.last_selected
+            self._sync_switches(exclude=selected)
+            self._observe_alarms(data, alarms, sched, selected)
         now, unfiltered, flex = self._contacts(data)
         self._fit()  # a contact of an active pair the predictor had not met: now it has
         self.unfiltered_contacts += unfiltered
