@@ -345,8 +345,8 @@ class Monitor:
         self.warning.hypotheses.evaluated(evaluated, self.predictor.verdict_basis(evaluated))
         self.predictor_steps += 1
         # Deferred pairs (a capped deadline schedule) had their verdict renewed, not evaluated;
-        # settled ones a verdict from a bound, cleared ones the screen's test.
-        self.evaluation_sum += sched.evaluated
+        # settled ones a verdict from a bound, cleared ones the screen's test: none is counted.
+        self.evaluation_sum += self.predictor.evaluations_per_step
         self._apply_alarms(
             alarms.pairs, evaluated, float(data.time), self.physics_step, deferred=sched.deferred
         )

@@ -64,12 +64,6 @@ class PairState:
         return int(self.scheduler.params[_P_DEFERRED]) if self.step_count else 0
 
     @property
-    def evaluated(self) -> int:
-        """Pairs the latest step evaluated (its tau kernels ran; :attr:`last_selected` less the
-        settled, cleared and deferred ones)."""
-        return int(self.scheduler.params[_P_COUNT]) if self.step_count else 0
-
-    @property
     def settled(self) -> int:
         """Pairs of flagged bodies the latest step settled by a bound from their state instead
         of evaluating them (docs/theory.md, section 6, "Settling a made-due pair")."""
