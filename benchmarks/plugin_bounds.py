@@ -1,17 +1,18 @@
 """The plugin at the pilot's bounds and at a declared bound, timed in one process per robot.
 
-    python benchmarks/plugin_bounds.py                      # every installed robot (about 5 min)
+    python benchmarks/plugin_bounds.py                      # every installed robot (about 1.5 min)
     python benchmarks/plugin_bounds.py --robots ur5e h1 --accel 200 --steps 3000
 
-``plugin.py`` times each bound in processes of its own, minutes apart, and a robot's ``mj_step``
-alone reads differently from one process to the next (docs/benchmarks.md, "pass44"): its two
-bounds' figures then differ by more than the bounds make them. Here one process per robot steps
-the model alone and the model with the plugin at each bound: ``accel="auto"`` (the pilot as
-``plugin.py`` builds it, 1,000 steps of random controls, seed 99) and ``--accel`` m/s^2
-declared. Each model has its own ``MjData`` driven by the same random controls (seed 0, held 50
-steps), in blocks of ``--block`` steps, the order reversed every other block. A time is the
-median over a model's steps after ``--skip``; the plugin adds (with / alone - 1), with its tau
-evaluations a step. The last lines give the median over the robots of what each bound adds.
+``plugin.py`` times each bound in runs of its own, minutes apart, and a whole run's median moves
+by 0.015x or more from one run to the next (docs/benchmarks.md, "A whole A/A at auto bounds"):
+more than the two bounds differ by. Here one process per robot steps the model alone and the
+model with the plugin at each bound: ``accel="auto"`` (the pilot as ``plugin.py`` builds it,
+1,000 steps of random controls, seed 99) and ``--accel`` m/s^2 declared. Each model has its own
+``MjData`` driven by the same random controls (seed 0, held 50 steps), in blocks of ``--block``
+steps, the order rotated by one model each block (so no model always follows the same one). A
+time is the median over a model's steps after ``--skip``; the plugin adds (with / alone - 1),
+with its tau evaluations a step. The last lines give the median and the largest over the robots
+of what each bound adds.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from dua_mujoco.models.scenes import make_controller
 from dua_mujoco.plugin import attach, plugin_outputs
 
 sys.path.insert(0, str(Path(__file__).parent))
-from robots import available, robot_spec
+from robots import INSTALL, ROBOTS, available, robot_spec
 
 PILOT_SEED = 99
 RUN_SEED = 0
@@ -59,9 +60,9 @@ def _robot(name: str, accel: float, steps: int, block: int, skip: int) -> dict[s
     drives = [make_controller(m, "random", seed=RUN_SEED) for _, m in runs]
     times = [np.empty(steps) for _ in runs]
     evals: list[list[int]] = [[] for _ in runs]
-    order = list(range(len(runs)))
     for start in range(0, steps, block):
-        for i in order if (start // block) % 2 == 0 else order[::-1]:
+        turn = (start // block) % len(runs)
+        for i in [*range(turn, len(runs)), *range(turn)]:
             m, d, drive, out = runs[i][1], datas[i], drives[i], times[i]
             for k in range(start, min(start + block, steps)):
                 drive(m, d)
@@ -86,15 +87,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--block", type=int, default=150)
     ap.add_argument("--skip", type=int, default=300, help="steps left out of the medians")
     args = ap.parse_args(argv)
-    if not 0 <= args.skip < args.steps or args.block < 1:
+    if not 0 <= args.skip < args.steps:
         ap.error(
-            f"--skip {args.skip}, --steps {args.steps}, --block {args.block}: "
-            "need 0 <= skip < steps and block >= 1"
+            f"--skip {args.skip} with --steps {args.steps}: pass a skip from 0 to steps - 1 "
+            "(the steps left out of the medians)"
         )
-    robots = args.robots or available()
-    unknown = sorted(set(robots) - set(available()))
+    if args.block < 1:
+        ap.error(f"--block {args.block}: pass at least 1 (steps a model runs in turn)")
+    if not (np.isfinite(args.accel) and args.accel >= 0.0):
+        ap.error(f"--accel {args.accel}: pass a finite bound >= 0 in m/s^2")
+    unknown = sorted(set(args.robots or ()) - set(ROBOTS))
     if unknown:
-        ap.error(f"robots {unknown} are not installed; choose from {available()}")
+        ap.error(f"unknown robots {', '.join(unknown)}; known: {', '.join(ROBOTS)}")
+    missing = sorted(set(args.robots or ()) - set(available()))
+    if missing:
+        ap.error(f"robots {', '.join(missing)} are not installed: {INSTALL}")
+    robots = args.robots or available()
+    if not robots:
+        ap.error(f"no robot model is installed: {INSTALL}")
     declared = f"{args.accel:g}"
     print(
         f"| robot | `mj_step` alone (us) | auto: plugin adds | evals/step | {declared}: plugin "
@@ -115,6 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"\nplugin adds, median over {len(rows)} robots: auto {np.median(auto):+.3f}x, "
         f"{declared} m/s^2 {np.median(other):+.3f}x; auto higher on {int((auto > other).sum())}"
+        f"\nlargest: auto {auto.max():+.3f}x ({robots[int(auto.argmax())]}), {declared} m/s^2 "
+        f"{other.max():+.3f}x ({robots[int(other.argmax())]})"
     )
     return 0
 
