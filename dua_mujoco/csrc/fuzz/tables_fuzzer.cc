@@ -613,9 +613,12 @@ void MutateText(Table* t, std::mt19937_64* rng) {
   switch ((*rng)() % 6) {
     case 0: {  // another count
       const long long counts[] = {-1, 0, 1, (1LL << 40) + 1, 999999999999LL};
-      const long long n = space == std::string::npos ? 0 : std::atoll(s.c_str());
-      const long long c =
-          (*rng)() % 2 ? n + static_cast<long long>((*rng)() % 5) - 2 : counts[(*rng)() % 5];
+      // strtoll saturates a count past the range (atoll's result is undefined there), and the
+      // step beside it must not overflow at the ends of that range either.
+      const long long n = space == std::string::npos ? 0 : std::strtoll(s.c_str(), nullptr, 10);
+      long long c = counts[(*rng)() % 5];
+      if ((*rng)() % 2 && __builtin_add_overflow(n, static_cast<long long>((*rng)() % 5) - 2, &c))
+        c = n;
       s = std::to_string(c) + (space == std::string::npos ? " " : s.substr(space));
       break;
     }
