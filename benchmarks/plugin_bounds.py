@@ -34,16 +34,18 @@ from robots import INSTALL, ROBOTS, available, robot_spec
 
 PILOT_SEED = 99
 RUN_SEED = 0
+# Height fields (dm_control's quadruped terrain) covered by their boxes, as plugin.py does: one
+# covering for the bounds' pilot and the attached plugin alike.
+COVERING = CoveringOptions(hfield="box")
 
 
 def _bounds(model: mujoco.MjModel, accel: float) -> dict[str, object]:
     """The two bounds' ``MotionBounds``, as ``plugin.py`` builds them."""
-    covering = CoveringOptions(hfield="box")
     pilot = PilotOptions(
         steps=1000, seed=PILOT_SEED, controller=make_controller(model, "random", seed=PILOT_SEED)
     )
-    auto = Predictor(model, accel="auto", covering=covering, pilot=pilot)
-    declared = Predictor(model, accel=accel, covering=covering)
+    auto = Predictor(model, accel="auto", covering=COVERING, pilot=pilot)
+    declared = Predictor(model, accel=accel, covering=COVERING)
     return {"auto": auto.bounds, f"{accel:g}": declared.bounds}
 
 
@@ -54,7 +56,7 @@ def _robot(name: str, accel: float, steps: int, block: int, skip: int) -> dict[s
     runs = [(None, model)]
     for label, bounds in _bounds(model, accel).items():
         spec = robot_spec(name)
-        attach(spec, accel=bounds, covering=CoveringOptions(hfield="box"))
+        attach(spec, accel=bounds, covering=COVERING)
         runs.append((label, spec.compile()))
     datas = [mujoco.MjData(m) for _, m in runs]
     drives = [make_controller(m, "random", seed=RUN_SEED) for _, m in runs]
